@@ -1,0 +1,47 @@
+"""symgroupoid: discrete constrained Lagrangian mechanics on Lie groupoids.
+
+Describe a Lie groupoid by its structure maps, write a discrete Lagrangian and constraints
+with SymPy, and derive the discrete Euler–Lagrange equations (seed 000 Thm 2.13, §3.3),
+their Lie–Poisson form, exact Jacobians, LaTeX and C kernels.
+"""
+
+from ._errors import (
+    AxiomError,
+    CallableError,
+    NewtonDivergenceError,
+    NotComposableError,
+    ShapeError,
+    SingularJacobianError,
+    SymgroupoidError,
+    UndeclaredSymbolError,
+)
+from .equations import DiscreteSystem, StepEquations, latex
+from .groupoids import (
+    SE2,
+    SE3,
+    SO2,
+    SO3,
+    ActionGroupoid,
+    Arrow,
+    DefinedGroupoid,
+    EuclideanSpace,
+    Groupoid,
+    MatrixLieGroup,
+    PairGroupoid,
+    ProductGroupoid,
+    TimeGroupoid,
+    check_axioms,
+    hat3,
+    left_derivative,
+    right_derivative,
+)
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "SE2", "SE3", "SO2", "SO3", "ActionGroupoid", "Arrow", "AxiomError", "CallableError",
+    "DefinedGroupoid", "DiscreteSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NewtonDivergenceError",
+    "NotComposableError", "PairGroupoid", "ProductGroupoid", "ShapeError",
+    "SingularJacobianError", "SymgroupoidError", "TimeGroupoid", "UndeclaredSymbolError",
+    "check_axioms", "hat3", "left_derivative", "right_derivative",
+]

@@ -1,0 +1,49 @@
+"""Exceptions raised by symgroupoid.  Every message names the offending object."""
+
+from __future__ import annotations
+
+
+class SymgroupoidError(Exception):
+    """Base class of all symgroupoid errors."""
+
+
+class UndeclaredSymbolError(SymgroupoidError, ValueError):
+    """A Lagrangian or constraint uses symbols that are neither coordinates nor parameters."""
+
+
+class ShapeError(SymgroupoidError, ValueError):
+    """An input has the wrong shape (constraint list, state vector, guess, ...)."""
+
+
+class NotComposableError(SymgroupoidError, ValueError):
+    """Two arrows g, h with β(g) ≠ α(h) were asked to compose."""
+
+
+class AxiomError(SymgroupoidError, AssertionError):
+    """A groupoid's structure maps violate a groupoid axiom (reported with the arrows)."""
+
+
+class CallableError(SymgroupoidError, RuntimeError):
+    """A user callable (Lagrangian, constraint, structure map) raised an exception."""
+
+
+class SingularJacobianError(SymgroupoidError, ArithmeticError):
+    """The step Jacobian is singular: the discrete Lagrangian is not regular there."""
+
+    def __init__(self, message: str, *, step: int | None = None,
+                 residual_norm: float | None = None, iterate=None):
+        super().__init__(message)
+        self.step = step
+        self.residual_norm = residual_norm
+        self.iterate = iterate
+
+
+class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
+    """Newton's method did not converge (or produced non-finite values) at a step."""
+
+    def __init__(self, message: str, *, step: int | None = None,
+                 residual_norm: float | None = None, iterate=None):
+        super().__init__(message)
+        self.step = step
+        self.residual_norm = residual_norm
+        self.iterate = iterate

@@ -1,0 +1,69 @@
+"""Symbols for coordinates at discrete steps, named in the papers' notation.
+
+A :class:`StepSymbol` carries its LaTeX as its name: ``x_{k+1}``, ``(g_{k})_{12}``,
+``(\\lambda_{k+1})_{1}``.  The LaTeX printer prints it verbatim.
+"""
+
+from __future__ import annotations
+
+import re
+
+import sympy as sp
+
+_LABEL = re.compile(r"^k(?:([+-])(\d+))?$")
+
+
+class StepSymbol(sp.Symbol):
+    """A real coordinate of a configuration, arrow or multiplier at a step ``k + offset``."""
+
+    def __new__(cls, name: str, **assumptions):
+        assumptions.setdefault("real", True)
+        return super().__new__(cls, name, **assumptions)
+
+
+def step_label(offset: int) -> str:
+    """The paper's subscript for step ``k + offset``: ``k``, ``k+1``, ``k-1``."""
+    if offset == 0:
+        return "k"
+    return f"k{offset:+d}"
+
+
+def parse_step(step: str | int) -> int:
+    """Inverse of :func:`step_label`; accepts ``"k+1"``, ``"k-2"``, ``"k"`` or an int offset."""
+    if isinstance(step, int):
+        return step
+    m = _LABEL.match(step.replace(" ", ""))
+    if m is None:
+        raise ValueError(f"step must look like 'k', 'k+1' or 'k-1', got {step!r}")
+    if m.group(1) is None:
+        return 0
+    value = int(m.group(2))
+    return value if m.group(1) == "+" else -value
+
+
+def latex_name(name: str) -> str:
+    """LaTeX of a user-supplied coordinate name (``Gamma`` → ``\\Gamma``)."""
+    return sp.latex(sp.Symbol(name))
+
+
+def subscripted(base_latex: str, offset: int) -> str:
+    """``base`` with the step subscript, parenthesised when ``base`` already has one."""
+    label = step_label(offset)
+    if "_" in base_latex or "^" in base_latex:
+        return f"({base_latex})_{{{label}}}"
+    return f"{base_latex}_{{{label}}}"
+
+
+def scalar_symbol(base_latex: str, offset: int) -> StepSymbol:
+    """The coordinate ``base`` at step ``k + offset``."""
+    return StepSymbol(subscripted(base_latex, offset))
+
+
+def indexed_symbol(base_latex: str, offset: int, index: str) -> StepSymbol:
+    """Component ``index`` of a vector/matrix quantity: ``(g_{k})_{12}``."""
+    return StepSymbol(f"({base_latex}_{{{step_label(offset)}}})_{{{index}}}")
+
+
+def multiplier_symbols(count: int, offset: int) -> list[StepSymbol]:
+    """Lagrange multipliers ``(\\lambda_{k+offset})_a``, a = 1..count."""
+    return [indexed_symbol(r"\lambda", offset, str(a + 1)) for a in range(count)]

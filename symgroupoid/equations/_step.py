@@ -1,0 +1,149 @@
+"""StepEquations: the residuals of one step, with unknowns, knowns, Jacobian and LaTeX."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+
+import numpy as np
+import sympy as sp
+
+from .._symbols import multiplier_symbols, parse_step
+from ..derivation._first_order import DerivedStep
+
+
+class StepEquations:
+    """The equations of one step of a discrete system, F(unknowns; knowns, parameters) = 0.
+
+    Attributes
+    ----------
+    residuals : list of SymPy expressions, one per equation: the DEL for each basis section
+        (X⃖[L + λ_k·φ](g_k) − X⃗[L + λ_{k+1}·φ](g_{k+1})) then the constraints φ(g_{k+1}).
+        They are written in the named fibre variables of the unknown arrow (e.g. the matrix
+        entries of g_{k+1}), which :attr:`reconstruction` expresses in the unknowns.
+    unknowns : chart coordinates of the unknown arrow, then the multipliers λ_{k+1}.
+    knowns : coordinates of the known arrows (g_k; second order g_{k-1}, g_k, g_{k+1}),
+        then the known multipliers.
+    parameters : the declared parameters (step size, masses, …).
+    """
+
+    def __init__(self, derived: DerivedStep):
+        self._d = derived
+        self.name: str = derived.name
+        self.groupoid = derived.groupoid
+        self.order: int = derived.order
+        self.residuals: list[sp.Expr] = list(derived.residuals)
+        self.unknowns: list[sp.Symbol] = list(derived.chart_unknowns) + list(
+            derived.multipliers_next)
+        self.knowns: list[sp.Symbol] = list(derived.knowns)
+        self.parameters: list[sp.Symbol] = list(derived.parameters)
+        self.reconstruction: dict = dict(derived.chart_map)
+        self.next_knowns: list[sp.Expr] = list(derived.next_knowns)
+        self.n_constraints: int = derived.n_constraints
+        self.structured: list | None = None  # matrix-preserving forms for LaTeX
+
+    # --- sizes ------------------------------------------------------------------------------
+    def __len__(self) -> int:
+        return len(self.residuals)
+
+    @property
+    def fibre_unknowns(self) -> tuple:
+        """Named fibre variables of the unknown arrow (the symbols the residuals use)."""
+        return self._d.fibre_unknowns
+
+    @property
+    def arrows(self) -> dict:
+        """Named coordinates of the arrows in the step, by offset from k."""
+        return dict(self._d.arrows)
+
+    # --- symbols ----------------------------------------------------------------------------
+    def symbol(self, name: str, step: str | int):
+        """The SymPy symbol (or matrix, or multiplier list) named ``name`` at ``step``.
+
+        ``step.symbol("x", "k+1")``, ``step.symbol("g", "k")`` (a Matrix for a group part
+        named "g"), ``step.symbol("lambda", "k+1")`` (list of (λ_{k+1})_a).
+        """
+        offset = parse_step(step)
+        if name in ("lambda", "λ", "multipliers"):
+            return multiplier_symbols(self.n_constraints, offset)
+        table = self.groupoid.symbols_by_name(offset)
+        if name not in table:
+            raise KeyError(f"{self.name}: no coordinate named {name!r}; known names: "
+                           f"{sorted(table) + ['lambda']}")
+        return table[name]
+
+    # --- residuals in the unknowns ----------------------------------------------------------
+    def residuals_in_unknowns(self) -> list[sp.Expr]:
+        """Residuals with the reconstruction substituted: functions of the unknowns only."""
+        return [r.xreplace(self.reconstruction) for r in self.residuals]
+
+    @functools.cached_property
+    def _jacobian(self) -> sp.Matrix:
+        fibre = list(self.fibre_unknowns)
+        chart = list(self._d.chart_unknowns)
+        lam = list(self._d.multipliers_next)
+        R = sp.Matrix(self.residuals)
+        C = sp.Matrix([self.reconstruction.get(f, f) for f in fibre])
+        Jx = R.jacobian(fibre) * C.jacobian(chart) if chart else sp.zeros(len(R), 0)
+        Jl = R.jacobian(lam) if lam else sp.zeros(len(R), 0)
+        return sp.Matrix.hstack(Jx, Jl)
+
+    def jacobian(self, substitute: bool = False) -> sp.Matrix:
+        """Exact ∂F/∂(unknowns), through the α-fibre chart.
+
+        The entries use the fibre variables of the unknown arrow (as the residuals do);
+        ``substitute=True`` replaces them by the chart (functions of the unknowns only).
+        """
+        J = self._jacobian
+        return J.xreplace(self.reconstruction) if substitute else J
+
+    # --- numerics -----------------------------------------------------------------------------
+    @functools.cached_property
+    def _lambdified(self):
+        args = [list(self.unknowns), list(self.knowns), list(self.parameters)]
+        F = sp.Matrix(self.residuals_in_unknowns())
+        J = self.jacobian(substitute=True)
+        nxt = sp.Matrix(self.next_knowns)
+        return (sp.lambdify(args, F, "numpy", cse=True), sp.lambdify(args, J, "numpy", cse=True),
+                sp.lambdify(args, nxt, "numpy", cse=True))
+
+    def evaluate(self, unknowns: Sequence, knowns: Sequence, params: Sequence | dict = ()):
+        """Numeric residual and Jacobian at a point (NumPy evaluation of the SymPy forms)."""
+        p = self._param_vector(params)
+        F, J, _ = self._lambdified
+        u, k = np.asarray(unknowns, float), np.asarray(knowns, float)
+        return (np.asarray(F(u, k, p), float).ravel(),
+                np.asarray(J(u, k, p), float).reshape(len(self), len(self.unknowns)))
+
+    def advance(self, unknowns: Sequence, knowns: Sequence, params: Sequence | dict = ()):
+        """The next known state from a solved step (g_{k+1}, λ_{k+1} become the knowns)."""
+        p = self._param_vector(params)
+        nxt = self._lambdified[2]
+        return np.asarray(nxt(np.asarray(unknowns, float), np.asarray(knowns, float), p),
+                          float).ravel()
+
+    def _param_vector(self, params) -> np.ndarray:
+        if isinstance(params, dict):
+            missing = [s for s in self.parameters if s not in params and str(s) not in params]
+            if missing:
+                raise KeyError(f"{self.name}: missing parameter(s) "
+                               f"{', '.join(map(str, missing))}")
+            return np.array([float(params[s] if s in params else params[str(s)])
+                             for s in self.parameters])
+        return np.asarray(params, float)
+
+    # --- LaTeX --------------------------------------------------------------------------------
+    def latex(self, document: bool = False) -> str:
+        """The equations as a LaTeX ``align`` environment (or a standalone document)."""
+        from ._latex import step_latex
+
+        return step_latex(self, document=document)
+
+    def _repr_latex_(self) -> str:
+        from ._latex import equation_lines
+
+        return "$$\\begin{aligned}" + " \\\\ ".join(equation_lines(self)) + "\\end{aligned}$$"
+
+    def __repr__(self) -> str:
+        return (f"<StepEquations {self.name!r}: {len(self)} equations in "
+                f"{len(self.unknowns)} unknowns on {self.groupoid.name}>")

@@ -1,0 +1,287 @@
+"""Lie groupoids given by their structure maps, and the invariant derivations they induce.
+
+A groupoid ``G ⇉ Q`` is described by its source α, target β, multiplication m on composable
+pairs, identity ε and inversion i, all acting on *flat coordinate tuples* of SymPy expressions,
+plus a basis of sections of its Lie algebroid, each section given as a curve
+``h_X(t)`` in the α-fibre through the identity (EQUATIONS.md §1):
+
+    X⃖[f](g) =  d/dt f(g · h_X(t))|_{t=0},       h_X(t) ∈ α⁻¹(β(g)),
+    X⃗[f](g) = -d/dt f(h_X(t)⁻¹ · g)|_{t=0},     h_X(t) ∈ α⁻¹(α(g))
+
+(seed 000, eqs. (1)–(2)).  The tangent vectors ``d/dt m(g, h_X(t))`` are derived here once,
+generically, from the structure maps; no groupoid hand-codes its derivations.
+
+Besides the structure maps a groupoid knows how to *name* its arrows at a step in the papers'
+notation and the *chart* of an α-fibre a step is solved in:
+
+- ``arrow_from(q, f)`` builds the arrow with source ``q`` and fibre variables ``f``
+  (pair groupoid: the target point; a Lie group: its matrix entries),
+- ``fibre_chart(f_x)`` maps chart coordinates to fibre variables (pair groupoid: identity;
+  Lie groups: a retraction τ, Cayley by default).
+"""
+
+from __future__ import annotations
+
+import functools
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import sympy as sp
+
+from .._errors import CallableError, ShapeError
+
+Coords = tuple  # flat tuple of SymPy expressions (or numbers)
+
+
+class Arrow:
+    """User-facing view of a (symbolic) arrow.
+
+    Subclasses add the attributes that the papers use: ``.source``/``.target`` for pair
+    groupoids, ``.matrix`` for matrix Lie groups, indexing ``g[i]`` for products.
+    """
+
+    def __init__(self, groupoid: Groupoid, coords: Sequence):
+        self.groupoid = groupoid
+        self.coords = tuple(coords)
+
+    @property
+    def alpha(self) -> tuple:
+        """Source α(g) as a coordinate tuple of the base."""
+        return self.groupoid.source(self.coords)
+
+    @property
+    def beta(self) -> tuple:
+        """Target β(g) as a coordinate tuple of the base."""
+        return self.groupoid.target(self.coords)
+
+    def __repr__(self) -> str:
+        return f"<{type(self).__name__} of {self.groupoid.name}: {self.coords}>"
+
+
+class Groupoid(ABC):
+    """Abstract Lie groupoid ``G ⇉ Q`` given by structure maps on flat coordinates.
+
+    A user-defined groupoid subclasses this and implements the structure maps, the section
+    curves, ``arrow_from``/``fibre_of`` and the naming hooks.  Everything else (invariant
+    derivations, charts, axiom checks) is derived.
+    """
+
+    #: human-readable name used in messages and generated code
+    name: str = "G"
+
+    # --- dimensions -----------------------------------------------------------------------
+    @property
+    @abstractmethod
+    def arrow_dim(self) -> int:
+        """Length of the flat coordinate tuple of an arrow."""
+
+    @property
+    @abstractmethod
+    def base_dim(self) -> int:
+        """Length of the coordinate tuple of a base point."""
+
+    @property
+    @abstractmethod
+    def rank(self) -> int:
+        """Dimension of the α-fibres = rank of AG = number of basis sections."""
+
+    @property
+    def fibre_dim(self) -> int:
+        """Number of fibre variables (``arrow_from`` takes this many); ≥ rank."""
+        return self.arrow_dim - self.base_dim
+
+    # --- structure maps -------------------------------------------------------------------
+    @abstractmethod
+    def source(self, a: Sequence) -> tuple:
+        """α(a)."""
+
+    @abstractmethod
+    def target(self, a: Sequence) -> tuple:
+        """β(a)."""
+
+    @abstractmethod
+    def multiply(self, a: Sequence, b: Sequence) -> tuple:
+        """m(a, b) = a·b for β(a) = α(b)."""
+
+    @abstractmethod
+    def identity(self, q: Sequence) -> tuple:
+        """ε(q)."""
+
+    @abstractmethod
+    def inverse(self, a: Sequence) -> tuple:
+        """i(a) = a⁻¹."""
+
+    @abstractmethod
+    def section_curves(self, q: Sequence, t: sp.Symbol) -> list[tuple]:
+        """Basis of sections of AG at q: curves h_X(t) ⊂ α⁻¹(q) with h_X(0) = ε(q)."""
+
+    # --- fibres and charts ----------------------------------------------------------------
+    @abstractmethod
+    def arrow_from(self, q: Sequence, f: Sequence) -> tuple:
+        """The arrow with source ``q`` and fibre variables ``f``."""
+
+    @abstractmethod
+    def fibre_of(self, a: Sequence) -> tuple:
+        """Fibre variables of ``a`` (inverse of :meth:`arrow_from` at fixed source)."""
+
+    def fibre_chart(self, x: Sequence) -> tuple:
+        """Fibre variables from chart coordinates (``rank`` of them).  Default: identity."""
+        return tuple(x)
+
+    def fibre_chart_inverse(self, f: Sequence) -> tuple:
+        """Chart coordinates of fibre variables (numeric).  Default: identity."""
+        return tuple(f)
+
+    def predict_chart(self, a: Sequence) -> tuple:
+        """Chart coordinates of a first guess for the next arrow after ``a`` (numeric).
+
+        Default: the next arrow repeats ``a``'s chart coordinates.
+        """
+        return tuple(self.fibre_chart_inverse(self.fibre_of(a)))
+
+    # --- naming in the papers' notation ---------------------------------------------------
+    @abstractmethod
+    def named_fibre(self, offset: int) -> tuple:
+        """Fibre variables of the arrow g_{k+offset}, as named StepSymbols."""
+
+    @abstractmethod
+    def named_source(self, offset: int) -> tuple:
+        """Source point of the arrow g_{k+offset}, as named StepSymbols."""
+
+    def named_chart(self, offset: int) -> tuple:
+        """Chart coordinates (the unknowns) of g_{k+offset}.  Default: the fibre variables."""
+        return self.named_fibre(offset)
+
+    def named_arrow(self, offset: int) -> tuple:
+        """The arrow g_{k+offset} with every coordinate a named StepSymbol."""
+        return self.arrow_from(self.named_source(offset), self.named_fibre(offset))
+
+    def symbols_by_name(self, offset: int) -> dict[str, Any]:
+        """Named coordinates of g_{k+offset}: ``{"x": x_{k+offset}, "g": Matrix, ...}``."""
+        return {}
+
+    def view(self, coords: Sequence) -> Arrow:
+        """The user-facing :class:`Arrow` for these coordinates."""
+        return Arrow(self, coords)
+
+    # --- numerics -------------------------------------------------------------------------
+    def random_base_point(self, rng: np.random.Generator) -> tuple:
+        """A random base point (used by :func:`check_axioms` and property tests)."""
+        return tuple(rng.uniform(-1.0, 1.0, self.base_dim))
+
+    def random_chart(self, rng: np.random.Generator, scale: float = 0.5) -> tuple:
+        """Random chart coordinates near the identity."""
+        return tuple(rng.uniform(-scale, scale, self.rank))
+
+    def random_arrow(self, rng: np.random.Generator, source: Sequence | None = None) -> tuple:
+        """A random arrow (optionally with prescribed source), as numeric coordinates."""
+        q = self.random_base_point(rng) if source is None else tuple(source)
+        f = self.fibre_chart([sp.Float(v) for v in self.random_chart(rng)])
+        return tuple(float(v) for v in self.arrow_from(q, [sp.N(v) for v in f]))
+
+    # --- products -------------------------------------------------------------------------
+    def __mul__(self, other: Groupoid) -> Groupoid:
+        from ._product import ProductGroupoid
+
+        if not isinstance(other, Groupoid):
+            return NotImplemented
+        return ProductGroupoid(self, other)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.name})"
+
+    # --- derived: invariant vector fields -------------------------------------------------
+    @functools.cached_property
+    def _generic_arrow(self) -> tuple:
+        return tuple(sp.Dummy(f"a{i}", real=True) for i in range(self.arrow_dim))
+
+    @functools.cached_property
+    def _left_fields(self) -> list[tuple]:
+        """Components of X⃖_i at the generic arrow: d/dt m(a, h_i(t))|_0 with h_i ⊂ α⁻¹(β(a))."""
+        a, t = self._generic_arrow, sp.Dummy("t", real=True)
+        curves = self._curves(self.target(a), t)
+        return [_tangent(self.multiply(a, h), t) for h in curves]
+
+    @functools.cached_property
+    def _right_fields(self) -> list[tuple]:
+        """Components of X⃗_i at the generic arrow: -d/dt m(h_i(t)⁻¹, a)|_0, h_i ⊂ α⁻¹(α(a))."""
+        a, t = self._generic_arrow, sp.Dummy("t", real=True)
+        curves = self._curves(self.source(a), t)
+        fields = []
+        for h in curves:
+            v = _tangent(self.multiply(self.inverse(h), a), t)
+            fields.append(tuple(-c for c in v))
+        return fields
+
+    def _curves(self, q: Sequence, t: sp.Symbol) -> list[tuple]:
+        try:
+            curves = self.section_curves(q, t)
+        except Exception as exc:  # noqa: BLE001 - re-raised with context
+            raise CallableError(f"{self.name}: section_curves raised {exc!r}") from exc
+        if len(curves) != self.rank:
+            raise ShapeError(
+                f"{self.name}: {len(curves)} section curves given but the α-fibres have "
+                f"dimension {self.rank}; a basis of sections needs exactly {self.rank}")
+        for i, h in enumerate(curves):
+            if len(h) != self.arrow_dim:
+                raise ShapeError(f"{self.name}: section curve {i} has {len(h)} coordinates, "
+                                 f"arrows have {self.arrow_dim}")
+        return [tuple(sp.sympify(c) for c in h) for h in curves]
+
+    def left_field(self, a: Sequence) -> list[tuple]:
+        """Tangent vectors X⃖_i(a) ∈ T_aG, one per basis section (arrow coordinates)."""
+        return self._instantiate(self._left_fields, a)
+
+    def right_field(self, a: Sequence) -> list[tuple]:
+        """Tangent vectors X⃗_i(a) ∈ T_aG, one per basis section (arrow coordinates)."""
+        return self._instantiate(self._right_fields, a)
+
+    def _instantiate(self, fields: list[tuple], a: Sequence) -> list[tuple]:
+        sub = dict(zip(self._generic_arrow, a))
+        return [tuple(c.xreplace(sub) for c in v) for v in fields]
+
+
+def _tangent(curve: Sequence, t: sp.Symbol) -> tuple:
+    """d/dt curve(t) at t = 0, componentwise."""
+    return tuple(sp.sympify(c).diff(t).subs(t, 0) for c in curve)
+
+
+def derivation(fields: list[tuple], a: Sequence, f: sp.Expr) -> list[sp.Expr]:
+    """Apply tangent vectors (in coordinates of ``a``) to a function f of ``a``'s coordinates.
+
+    ``X[f](a) = Σ_j ∂f/∂a_j · X_j(a)``: the derivative of f along any curve with velocity X.
+    """
+    grads = {}
+    out = []
+    for v in fields:
+        total = sp.S.Zero
+        for aj, vj in zip(a, v):
+            if vj == 0:
+                continue
+            if aj not in grads:
+                grads[aj] = sp.diff(f, aj)
+            total += grads[aj] * vj
+        out.append(total)
+    return out
+
+
+def left_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
+                    a: Sequence | None = None) -> list[sp.Expr]:
+    """X⃖_i[f](a) for every basis section (EQUATIONS.md §1, seed 000 eq. (1)).
+
+    ``f`` is a callable on arrows or an expression in the coordinates of ``a``.
+    With ``a=None`` a named arrow g_k is used.
+    """
+    a = groupoid.named_arrow(0) if a is None else tuple(a)
+    expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
+    return derivation(groupoid.left_field(a), a, expr)
+
+
+def right_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
+                     a: Sequence | None = None) -> list[sp.Expr]:
+    """X⃗_i[f](a) for every basis section (EQUATIONS.md §1, seed 000 eq. (2))."""
+    a = groupoid.named_arrow(0) if a is None else tuple(a)
+    expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
+    return derivation(groupoid.right_field(a), a, expr)

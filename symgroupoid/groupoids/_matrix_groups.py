@@ -1,0 +1,538 @@
+"""Matrix Lie groups as groupoids over a point: SO(2), SO(3), SE(2), SE(3).
+
+A Lie group G ⇉ {e} has α = β = const, m = matrix product, ε = I, i = matrix inverse
+(seed 001 §2.1.1).  The basis sections are the Lie algebra basis E_a, as curves τ(t E_a).
+Arrows are stored as the free entries of the matrix (row-major; SE(n)'s last row is fixed).
+
+Retractions τ: g → G (seed 000 §6.1, seed 001 App. D):
+
+- Cayley ``cay(ξ) = (I − ξ/2)⁻¹(I + ξ/2)`` (default), derived symbolically;
+- exponential, in closed form (Rodrigues and its SE(n) analogues).
+
+Their left- and right-trivialised tangents dτ_x, dτ⁻¹_x (EQUATIONS.md §5) are derived
+symbolically from τ, never typed in: ``T_xτ(y) = τ(x)·dτ_x(y)`` (left) and
+``T_xτ(y) = dτ_x(y)·τ(x)`` (right).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+
+import numpy as np
+import sympy as sp
+
+from .._symbols import StepSymbol, indexed_symbol, latex_name, step_label
+from ._base import Arrow, Groupoid
+
+RETRACTIONS = ("cayley", "exp")
+
+
+def hat3(w: Sequence) -> sp.Matrix:
+    """ω ↦ ω̂ with ω̂ v = ω × v (the so(3) hat map, E₁, E₂, E₃ basis)."""
+    return sp.Matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+
+
+class MatrixArrow(Arrow):
+    """An element of a matrix Lie group: ``.matrix`` (SymPy Matrix) and ``.coordinates``.
+
+    ``.coordinates`` are the retraction coordinates τ⁻¹(g) (Cayley by default); for SE(n)
+    also ``.rotation`` and ``.translation``.
+    """
+
+    @property
+    def matrix(self) -> sp.Matrix:
+        return self.groupoid.matrix(self.coords)
+
+    @property
+    def coordinates(self) -> sp.Matrix:
+        """τ⁻¹(g) as a column of Lie-algebra coordinates (symbolic, valid on the group)."""
+        return self.groupoid.retraction_inverse(self.matrix)
+
+    @property
+    def rotation(self) -> sp.Matrix:
+        n = self.groupoid.n - (1 if self.groupoid.affine else 0)
+        return self.matrix[:n, :n]
+
+    @property
+    def translation(self) -> sp.Matrix:
+        if not self.groupoid.affine:
+            raise AttributeError(f"{self.groupoid.name} has no translation part")
+        n = self.groupoid.n - 1
+        return self.matrix[:n, n]
+
+
+class MatrixLieGroup(Groupoid):
+    """A matrix Lie group given by its Lie algebra basis and inversion.
+
+    Subclasses set ``n`` (matrix size), ``basis`` (list of n×n matrices), ``affine``
+    (SE(n): last row fixed to (0, …, 0, 1)) and the closed-form exponential and logarithm.
+    """
+
+    n: int = 0
+    affine: bool = False
+    group_name: str = "G"
+
+    def __init__(self, name: str = "g", retraction: str = "cayley"):
+        if retraction not in RETRACTIONS:
+            raise ValueError(f"retraction must be one of {RETRACTIONS}, got {retraction!r}")
+        self.symbol_name = name
+        self.latex = latex_name(name)
+        self.retraction = retraction
+        self.name = f"{self.group_name}({name})"
+
+    # --- algebra ------------------------------------------------------------------------
+    @classmethod
+    def basis_matrices(cls) -> list[sp.ImmutableMatrix]:
+        """The Lie algebra basis E_1, …, E_r used for sections and coordinates."""
+        return [sp.ImmutableMatrix(E) for E in cls._basis()]
+
+    @classmethod
+    def _basis(cls) -> list[sp.Matrix]:
+        raise NotImplementedError
+
+    @classmethod
+    def hat(cls, x: Sequence) -> sp.Matrix:
+        """Σ x_a E_a."""
+        out = sp.zeros(cls.n, cls.n)
+        for xa, E in zip(x, cls._basis()):
+            out += xa * E
+        return out
+
+    @classmethod
+    @functools.cache
+    def _gram_inverse(cls) -> sp.Matrix:
+        B = cls._basis()
+        gram = sp.Matrix(len(B), len(B), lambda i, j: (B[i].T * B[j]).trace())
+        return gram.inv()
+
+    @classmethod
+    def vee(cls, M: sp.Matrix) -> sp.Matrix:
+        """Coordinates of a Lie-algebra matrix in the basis (Frobenius projection)."""
+        B = cls._basis()
+        rhs = sp.Matrix([(E.T * M).trace() for E in B])
+        return cls._gram_inverse() * rhs
+
+    @property
+    def rank(self) -> int:
+        return len(self._basis())
+
+    @property
+    def _free(self) -> list[tuple[int, int]]:
+        rows = self.n - 1 if self.affine else self.n
+        return [(i, j) for i in range(rows) for j in range(self.n)]
+
+    @property
+    def arrow_dim(self) -> int:
+        return len(self._free)
+
+    @property
+    def base_dim(self) -> int:
+        return 0
+
+    def matrix(self, coords: Sequence) -> sp.Matrix:
+        """The full n×n matrix of an arrow's coordinates."""
+        M = sp.eye(self.n)
+        for (i, j), c in zip(self._free, coords):
+            M[i, j] = c
+        return M
+
+    def entries(self, M: sp.Matrix) -> tuple:
+        """Free entries of a matrix (the arrow coordinates)."""
+        return tuple(M[i, j] for i, j in self._free)
+
+    # --- structure maps -------------------------------------------------------------------
+    def source(self, a):
+        return ()
+
+    def target(self, a):
+        return ()
+
+    def multiply(self, a, b):
+        return self.entries(self.matrix(a) * self.matrix(b))
+
+    def identity(self, q):
+        return self.entries(sp.eye(self.n))
+
+    def inverse(self, a):
+        return self.entries(self._inverse_matrix(self.matrix(a)))
+
+    def _inverse_matrix(self, M: sp.Matrix) -> sp.Matrix:
+        return M.inv()
+
+    def section_curves(self, q, t):
+        return [self.entries(self.cayley([t if b == a else 0 for b in range(self.rank)]))
+                for a in range(self.rank)]
+
+    # --- retractions ----------------------------------------------------------------------
+    def cayley(self, x: Sequence) -> sp.Matrix:
+        """cay(ξ) = (I − ξ/2)⁻¹(I + ξ/2), ξ = Σ x_a E_a (seed 000 §6.1)."""
+        return _cayley_template(type(self)).xreplace(dict(zip(_dtau_dummies(type(self)), x)))
+
+    def exp(self, x: Sequence) -> sp.Matrix:
+        """exp(ξ), ξ = Σ x_a E_a, in closed form."""
+        raise NotImplementedError
+
+    def tau(self, x: Sequence) -> sp.Matrix:
+        """The retraction in use (``self.retraction``)."""
+        return self.cayley(x) if self.retraction == "cayley" else self.exp(x)
+
+    def retraction_inverse(self, M: sp.Matrix) -> sp.Matrix:
+        """τ⁻¹(M) symbolically, valid for M in the group."""
+        if self.retraction == "cayley":
+            return self.cayley_inverse(M)
+        return self.log(M)
+
+    def cayley_inverse(self, M: sp.Matrix) -> sp.Matrix:
+        """cay⁻¹(g) = 2(g − I)(g + I)⁻¹, as Lie-algebra coordinates."""
+        eye = sp.eye(self.n)
+        return self.vee(2 * (M - eye) * (M + eye).inv())
+
+    def log(self, M: sp.Matrix) -> sp.Matrix:
+        raise NotImplementedError
+
+    def dtau(self, x: Sequence, side: str = "left") -> sp.Matrix:
+        """Trivialised tangent of τ at x as a matrix in the basis.
+
+        ``side="left"``:  T_xτ(y) = τ(x)·dτ_x(y);  ``side="right"``:  T_xτ(y) = dτ_x(y)·τ(x).
+        """
+        return _dtau_template(type(self), self.retraction, side).xreplace(
+            dict(zip(_dtau_dummies(type(self)), x)))
+
+    def dtau_inverse(self, x: Sequence, side: str = "left") -> sp.Matrix:
+        """(dτ_x)⁻¹, simplified."""
+        return _dtau_inverse_template(type(self), self.retraction, side).xreplace(
+            dict(zip(_dtau_dummies(type(self)), x)))
+
+    def Ad(self, M: sp.Matrix) -> sp.Matrix:
+        """Ad_g as a matrix on Lie-algebra coordinates: columns vee(g E_a g⁻¹)."""
+        Minv = self._inverse_matrix(M)
+        cols = [self.vee(M * E * Minv) for E in self._basis()]
+        return sp.Matrix.hstack(*cols)
+
+    def Ad_star(self, M: sp.Matrix) -> sp.Matrix:
+        """Ad*_g on g* in the dual basis: ⟨Ad*_g μ, ξ⟩ = ⟨μ, Ad_g ξ⟩, i.e. (Ad_g)ᵀ."""
+        return self.Ad(M).T
+
+    # --- fibre chart ----------------------------------------------------------------------
+    def arrow_from(self, q, f):
+        return tuple(f)
+
+    def fibre_of(self, a):
+        return tuple(a)
+
+    def fibre_chart(self, x):
+        return self.entries(self.tau(x))
+
+    def fibre_chart_inverse(self, f):
+        M = np.array(self.matrix([float(v) for v in f]).tolist(), dtype=float)
+        return tuple(self.numeric_retraction_inverse(M))
+
+    def numeric_retraction_inverse(self, M: np.ndarray) -> np.ndarray:
+        """τ⁻¹ of a numeric group element."""
+        eye = np.eye(self.n)
+        if self.retraction == "cayley":
+            xi = 2.0 * (M - eye) @ np.linalg.inv(M + eye)
+            return self._numeric_vee(xi)
+        return self._numeric_log(M)
+
+    def _numeric_vee(self, xi: np.ndarray) -> np.ndarray:
+        B = [np.array(E.tolist(), dtype=float) for E in self._basis()]
+        rhs = np.array([np.trace(E.T @ xi) for E in B])
+        gram_inv = np.array(self._gram_inverse().tolist(), dtype=float)
+        return gram_inv @ rhs
+
+    def _numeric_log(self, M: np.ndarray) -> np.ndarray:
+        # Gauss-Newton on exp(x) = M from the Cayley guess (generic and small).
+        f = _numeric_tau(type(self), "exp")
+        jac = _numeric_tau_jacobian(type(self), "exp")
+        eye = np.eye(self.n)
+        x = self._numeric_vee(2.0 * (M - eye) @ np.linalg.inv(M + eye))
+        target = M.ravel()
+        for _ in range(50):
+            r = np.asarray(f(*x), float).ravel() - target
+            if np.linalg.norm(r) < 1e-14:
+                break
+            J = np.asarray(jac(*x), float).reshape(len(target), len(x))
+            x = x - np.linalg.lstsq(J, r, rcond=None)[0]
+        return x
+
+    def random_base_point(self, rng):
+        return ()
+
+    # --- naming -----------------------------------------------------------------------------
+    def named_matrix(self, offset: int) -> sp.Matrix:
+        """g_{k+offset} as a matrix of named entries (g_{k})_{ij}."""
+        M = sp.eye(self.n)
+        for i, j in self._free:
+            M[i, j] = indexed_symbol(self.latex, offset, f"{i + 1}{j + 1}")
+        return M
+
+    def named_fibre(self, offset):
+        return self.entries(self.named_matrix(offset))
+
+    def named_source(self, offset):
+        return ()
+
+    def named_chart(self, offset):
+        label = step_label(offset)
+        return tuple(StepSymbol(f"(\\tau^{{-1}} {self.latex}_{{{label}}})_{{{a + 1}}}")
+                     for a in range(self.rank))
+
+    def symbols_by_name(self, offset):
+        return {self.symbol_name: self.named_matrix(offset)}
+
+    def view(self, coords):
+        return MatrixArrow(self, coords)
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}({self.symbol_name!r}, retraction={self.retraction!r})"
+
+
+# --- cached symbolic templates (per group class) --------------------------------------------
+
+def _simplify_matrix(M: sp.Matrix) -> sp.Matrix:
+    return M.applyfunc(lambda e: sp.factor(sp.cancel(e)))
+
+
+@functools.cache
+def _dtau_dummies(cls) -> tuple:
+    return tuple(sp.Dummy(f"y{a}", real=True) for a in range(len(cls._basis())))
+
+
+@functools.cache
+def _cayley_template(cls) -> sp.Matrix:
+    x = _dtau_dummies(cls)
+    X = cls.hat(x)
+    eye = sp.eye(cls.n)
+    M = (eye - X / 2).LUsolve(eye + X / 2)
+    return _simplify_matrix(M)
+
+
+def _tau_template(cls, retraction: str) -> sp.Matrix:
+    x = _dtau_dummies(cls)
+    if retraction == "cayley":
+        return _cayley_template(cls)
+    return cls._exp_closed_form(x)
+
+
+@functools.cache
+def _dtau_template(cls, retraction: str, side: str) -> sp.Matrix:
+    x = _dtau_dummies(cls)
+    T = _tau_template(cls, retraction)
+    Tinv = cls._inverse_closed_form(T)
+    cols = []
+    for xa in x:
+        dT = T.diff(xa)
+        prod = Tinv * dT if side == "left" else dT * Tinv
+        cols.append(cls.vee(prod.applyfunc(sp.cancel if retraction == "cayley" else
+                                           sp.trigsimp)))
+    D = sp.Matrix.hstack(*cols)
+    return D.applyfunc(_tidy(retraction))
+
+
+@functools.cache
+def _dtau_inverse_template(cls, retraction: str, side: str) -> sp.Matrix:
+    D = _dtau_template(cls, retraction, side)
+    return D.inv().applyfunc(_tidy(retraction))
+
+
+def _tidy(retraction: str):
+    if retraction == "cayley":
+        return lambda e: sp.factor(sp.cancel(e))
+    return lambda e: sp.simplify(e)
+
+
+@functools.cache
+def _numeric_tau(cls, retraction: str):
+    x = _dtau_dummies(cls)
+    return sp.lambdify(x, _tau_template(cls, retraction), "numpy")
+
+
+@functools.cache
+def _numeric_tau_jacobian(cls, retraction: str):
+    x = _dtau_dummies(cls)
+    T = _tau_template(cls, retraction)
+    J = sp.Matrix(list(T)).jacobian(sp.Matrix(x))
+    return sp.lambdify(x, J, "numpy")
+
+
+# --- the built-in groups --------------------------------------------------------------------
+
+class SO2(MatrixLieGroup):
+    """Rotations of the plane; so(2) basis E = [[0, −1], [1, 0]]."""
+
+    n = 2
+    group_name = "SO2"
+
+    @classmethod
+    def _basis(cls):
+        return [sp.Matrix([[0, -1], [1, 0]])]
+
+    def _inverse_matrix(self, M):
+        return M.T
+
+    @staticmethod
+    def _inverse_closed_form(M):
+        return M.T
+
+    @classmethod
+    def _exp_closed_form(cls, x):
+        th = x[0]
+        return sp.Matrix([[sp.cos(th), -sp.sin(th)], [sp.sin(th), sp.cos(th)]])
+
+    def exp(self, x):
+        return self._exp_closed_form(x)
+
+    def cayley_inverse(self, M):
+        # on SO(2): cay⁻¹(R) = 2(R − Rᵀ)/(2 + tr R)
+        return self.vee(2 * (M - M.T) / (2 + M.trace()))
+
+    def log(self, M):
+        return sp.Matrix([sp.atan2(M[1, 0], M[0, 0])])
+
+
+class SO3(MatrixLieGroup):
+    """Rotations of space; so(3) basis E₁, E₂, E₃ of seed 000 §6.2 (ω̂ = Σ ω_a E_a)."""
+
+    n = 3
+    group_name = "SO3"
+
+    @classmethod
+    def _basis(cls):
+        return [hat3((1, 0, 0)), hat3((0, 1, 0)), hat3((0, 0, 1))]
+
+    def _inverse_matrix(self, M):
+        return M.T
+
+    @staticmethod
+    def _inverse_closed_form(M):
+        return M.T
+
+    @classmethod
+    def _exp_closed_form(cls, x):
+        th2 = x[0] ** 2 + x[1] ** 2 + x[2] ** 2
+        th = sp.sqrt(th2)
+        W = hat3(x)
+        return sp.eye(3) + sp.sin(th) / th * W + (1 - sp.cos(th)) / th2 * W * W
+
+    def exp(self, x):
+        return self._exp_closed_form(x)
+
+    def cayley_inverse(self, M):
+        # on SO(3): cay⁻¹(R) = 2(R − Rᵀ)/(1 + tr R)   (from seed 001 eq. (63))
+        return self.vee(2 * (M - M.T) / (1 + M.trace()))
+
+    def log(self, M):
+        th = sp.acos((M.trace() - 1) / 2)
+        return self.vee(th / (2 * sp.sin(th)) * (M - M.T))
+
+
+class _SpecialEuclidean(MatrixLieGroup):
+    affine = True
+    rot: type[MatrixLieGroup]
+
+    @classmethod
+    def _split(cls, x):
+        r = len(cls.rot._basis())
+        return x[:r], x[r:]
+
+    @classmethod
+    def hat(cls, x):
+        w, v = cls._split(list(x))
+        m = cls.n - 1
+        out = sp.zeros(cls.n, cls.n)
+        out[:m, :m] = cls.rot.hat(w)
+        out[:m, m] = sp.Matrix(v)
+        return out
+
+    def _inverse_matrix(self, M):
+        return self._inverse_closed_form(M)
+
+    @classmethod
+    def _inverse_closed_form(cls, M):
+        m = cls.n - 1
+        R, p = M[:m, :m], M[:m, m]
+        out = sp.eye(cls.n)
+        out[:m, :m] = R.T
+        out[:m, m] = -R.T * p
+        return out
+
+    def cayley_inverse(self, M):
+        # ω = cay⁻¹(R), v = (I − ω̂/2) p   (block form of 2(g − I)(g + I)⁻¹)
+        m = self.n - 1
+        R, p = M[:m, :m], M[:m, m]
+        w = self.rot("tmp").cayley_inverse(R)
+        v = (sp.eye(m) - self.rot.hat(list(w)) / 2) * p
+        return sp.Matrix(list(w) + list(v))
+
+    def log(self, M):
+        m = self.n - 1
+        R, p = M[:m, :m], M[:m, m]
+        w = list(self.rot("tmp", retraction="exp").log(R))
+        V = self._V(w)
+        return sp.Matrix(w + list(V.inv() * p))
+
+    @classmethod
+    def _exp_closed_form(cls, x):
+        w, v = cls._split(list(x))
+        m = cls.n - 1
+        out = sp.eye(cls.n)
+        out[:m, :m] = cls.rot._exp_closed_form(w)
+        out[:m, m] = cls._V(w) * sp.Matrix(v)
+        return out
+
+    def exp(self, x):
+        return self._exp_closed_form(x)
+
+
+class SE2(_SpecialEuclidean):
+    """Rigid motions of the plane; se(2) coordinates (ω, v₁, v₂)."""
+
+    n = 3
+    group_name = "SE2"
+    rot = SO2
+
+    @classmethod
+    def _basis(cls):
+        return [cls.hat([1, 0, 0]), cls.hat([0, 1, 0]), cls.hat([0, 0, 1])]
+
+    @classmethod
+    def hat(cls, x):
+        out = sp.zeros(3, 3)
+        out[:2, :2] = SO2.hat([x[0]])
+        out[0, 2], out[1, 2] = x[1], x[2]
+        return out
+
+    @staticmethod
+    def _V(w):
+        th = w[0]
+        return sp.Matrix([[sp.sin(th) / th, -(1 - sp.cos(th)) / th],
+                          [(1 - sp.cos(th)) / th, sp.sin(th) / th]])
+
+
+class SE3(_SpecialEuclidean):
+    """Rigid motions of space; se(3) coordinates (ω₁, ω₂, ω₃, v₁, v₂, v₃)."""
+
+    n = 4
+    group_name = "SE3"
+    rot = SO3
+
+    @classmethod
+    def _basis(cls):
+        return [cls.hat([1 if i == a else 0 for i in range(6)]) for a in range(6)]
+
+    @classmethod
+    def hat(cls, x):
+        out = sp.zeros(4, 4)
+        out[:3, :3] = hat3(x[:3])
+        out[0, 3], out[1, 3], out[2, 3] = x[3], x[4], x[5]
+        return out
+
+    @staticmethod
+    def _V(w):
+        th2 = w[0] ** 2 + w[1] ** 2 + w[2] ** 2
+        th = sp.sqrt(th2)
+        W = hat3(w)
+        return (sp.eye(3) + (1 - sp.cos(th)) / th2 * W
+                + (th - sp.sin(th)) / (th2 * th) * W * W)

@@ -1,0 +1,139 @@
+"""Products G₁ × G₂ ⇉ Q₁ × Q₂ (componentwise structure maps; e.g. the plate-ball's
+R² × R² × SO(3) ⇉ R², seed 000 §6.2).  ``G1 * G2`` builds one; arrows are indexed by factor."""
+
+from __future__ import annotations
+
+from itertools import accumulate
+
+from ._base import Arrow, Groupoid
+
+
+class ProductArrow(Arrow):
+    """An arrow of a product groupoid; ``g[i]`` is the arrow of factor i."""
+
+    def __getitem__(self, i: int) -> Arrow:
+        G = self.groupoid
+        lo, hi = G._arrow_slices[i]
+        return G.factors[i].view(self.coords[lo:hi])
+
+    def __len__(self) -> int:
+        return len(self.groupoid.factors)
+
+    def __iter__(self):
+        return (self[i] for i in range(len(self)))
+
+
+def _slices(sizes):
+    ends = list(accumulate(sizes))
+    return [(e - s, e) for s, e in zip(sizes, ends)]
+
+
+class ProductGroupoid(Groupoid):
+    """G₁ × ⋯ × G_n with componentwise α, β, m, ε, i and the union of the factors' sections."""
+
+    def __init__(self, *factors: Groupoid):
+        flat: list[Groupoid] = []
+        for f in factors:
+            flat.extend(f.factors if isinstance(f, ProductGroupoid) else [f])
+        self.factors = tuple(flat)
+        self.name = " × ".join(f.name for f in self.factors)
+        self._arrow_slices = _slices([f.arrow_dim for f in self.factors])
+        self._base_slices = _slices([f.base_dim for f in self.factors])
+        self._fibre_slices = _slices([f.fibre_dim for f in self.factors])
+        self._chart_slices = _slices([f.rank for f in self.factors])
+
+    @property
+    def arrow_dim(self):
+        return sum(f.arrow_dim for f in self.factors)
+
+    @property
+    def base_dim(self):
+        return sum(f.base_dim for f in self.factors)
+
+    @property
+    def rank(self):
+        return sum(f.rank for f in self.factors)
+
+    @property
+    def fibre_dim(self):
+        return sum(f.fibre_dim for f in self.factors)
+
+    def _parts(self, v, slices):
+        return [tuple(v[lo:hi]) for lo, hi in slices]
+
+    def _map(self, name, *args_slices):
+        parts = [self._parts(v, s) for v, s in args_slices]
+        out: tuple = ()
+        for i, f in enumerate(self.factors):
+            out += tuple(getattr(f, name)(*(p[i] for p in parts)))
+        return out
+
+    def source(self, a):
+        return self._map("source", (a, self._arrow_slices))
+
+    def target(self, a):
+        return self._map("target", (a, self._arrow_slices))
+
+    def multiply(self, a, b):
+        return self._map("multiply", (a, self._arrow_slices), (b, self._arrow_slices))
+
+    def identity(self, q):
+        return self._map("identity", (q, self._base_slices))
+
+    def inverse(self, a):
+        return self._map("inverse", (a, self._arrow_slices))
+
+    def arrow_from(self, q, f):
+        return self._map("arrow_from", (q, self._base_slices), (f, self._fibre_slices))
+
+    def fibre_of(self, a):
+        return self._map("fibre_of", (a, self._arrow_slices))
+
+    def fibre_chart(self, x):
+        return self._map("fibre_chart", (x, self._chart_slices))
+
+    def fibre_chart_inverse(self, f):
+        return self._map("fibre_chart_inverse", (f, self._fibre_slices))
+
+    def predict_chart(self, a):
+        return self._map("predict_chart", (a, self._arrow_slices))
+
+    def section_curves(self, q, t):
+        qs = self._parts(q, self._base_slices)
+        units = [f.identity(qi) for f, qi in zip(self.factors, qs)]
+        curves = []
+        for i, f in enumerate(self.factors):
+            for h in f.section_curves(qs[i], t):
+                curves.append(sum((h if j == i else units[j]
+                                   for j in range(len(self.factors))), ()))
+        return curves
+
+    def _named(self, name, offset):
+        return sum((tuple(getattr(f, name)(offset)) for f in self.factors), ())
+
+    def named_fibre(self, offset):
+        return self._named("named_fibre", offset)
+
+    def named_source(self, offset):
+        return self._named("named_source", offset)
+
+    def named_chart(self, offset):
+        return self._named("named_chart", offset)
+
+    def named_arrow(self, offset):
+        return self._named("named_arrow", offset)
+
+    def symbols_by_name(self, offset):
+        out: dict = {}
+        for f in self.factors:
+            out.update(f.symbols_by_name(offset))
+        return out
+
+    def random_base_point(self, rng):
+        return sum((tuple(f.random_base_point(rng)) for f in self.factors), ())
+
+    def view(self, coords):
+        return ProductArrow(self, coords)
+
+    def __repr__(self):
+        return " * ".join(repr(f) for f in self.factors)

@@ -1,0 +1,139 @@
+"""Time-extended groupoids G_R = R × R × G ⇉ R × Q (seed 000 §6.3).
+
+α(t₀, t₁, g) = (t₀, α(g)), β = (t₁, β(g)), m((t₀,t₁,g),(t₁,t₂,h)) = (t₀, t₂, gh),
+ε(t, q) = (t, t, ε(q)), i(t₀, t₁, g) = (t₁, t₀, g⁻¹).  Sections: ∂/∂t (curve (s, s+t, ε(q)))
+and (0, X) for the sections X of G.  The arrow g_k is (t_{k-1}, t_k, g_k); a step solves for
+t_{k+1} and the fibre chart of G.
+"""
+
+from __future__ import annotations
+
+
+
+from .._symbols import StepSymbol, subscripted
+from ._base import Arrow, Groupoid
+
+
+class TimeArrow(Arrow):
+    """(t₀, t₁, g): ``.t0``, ``.t1``, ``.step`` = t₁ − t₀ and ``.arrow`` (the G part)."""
+
+    @property
+    def t0(self):
+        return self.coords[0]
+
+    @property
+    def t1(self):
+        return self.coords[1]
+
+    @property
+    def step(self):
+        return self.coords[1] - self.coords[0]
+
+    @property
+    def arrow(self) -> Arrow:
+        return self.groupoid.inner.view(self.coords[2:])
+
+    def __getattr__(self, name):
+        # delegate .source/.target/.matrix/... and indexing to the G part
+        if name.startswith("_") or name in ("groupoid", "coords"):
+            raise AttributeError(name)
+        return getattr(self.arrow, name)
+
+    def __getitem__(self, i):
+        return self.arrow[i]
+
+
+class TimeGroupoid(Groupoid):
+    """R × R × G ⇉ R × Q for a groupoid G."""
+
+    def __init__(self, inner: Groupoid, time_name: str = "t"):
+        self.inner = inner
+        self.time_latex = time_name
+        self.name = f"R×R×({inner.name})"
+
+    @property
+    def arrow_dim(self):
+        return 2 + self.inner.arrow_dim
+
+    @property
+    def base_dim(self):
+        return 1 + self.inner.base_dim
+
+    @property
+    def rank(self):
+        return 1 + self.inner.rank
+
+    @property
+    def fibre_dim(self):
+        return 1 + self.inner.fibre_dim
+
+    def source(self, a):
+        return (a[0],) + tuple(self.inner.source(a[2:]))
+
+    def target(self, a):
+        return (a[1],) + tuple(self.inner.target(a[2:]))
+
+    def multiply(self, a, b):
+        return (a[0], b[1]) + tuple(self.inner.multiply(a[2:], b[2:]))
+
+    def identity(self, q):
+        return (q[0], q[0]) + tuple(self.inner.identity(q[1:]))
+
+    def inverse(self, a):
+        return (a[1], a[0]) + tuple(self.inner.inverse(a[2:]))
+
+    def section_curves(self, q, t):
+        unit = tuple(self.inner.identity(q[1:]))
+        curves = [(q[0], q[0] + t) + unit]
+        curves += [(q[0], q[0]) + tuple(h) for h in self.inner.section_curves(q[1:], t)]
+        return curves
+
+    def arrow_from(self, q, f):
+        return (q[0], f[0]) + tuple(self.inner.arrow_from(q[1:], f[1:]))
+
+    def fibre_of(self, a):
+        return (a[1],) + tuple(self.inner.fibre_of(a[2:]))
+
+    def fibre_chart(self, x):
+        return (x[0],) + tuple(self.inner.fibre_chart(x[1:]))
+
+    def fibre_chart_inverse(self, f):
+        return (f[0],) + tuple(self.inner.fibre_chart_inverse(f[1:]))
+
+    def predict_chart(self, a):
+        return (2 * float(a[1]) - float(a[0]),) + tuple(self.inner.predict_chart(a[2:]))
+
+    def _time(self, offset):
+        return (StepSymbol(subscripted(self.time_latex, offset)),)
+
+    def named_fibre(self, offset):
+        return self._time(offset) + tuple(self.inner.named_fibre(offset))
+
+    def named_source(self, offset):
+        return self._time(offset - 1) + tuple(self.inner.named_source(offset))
+
+    def named_chart(self, offset):
+        return self._time(offset) + tuple(self.inner.named_chart(offset))
+
+    def named_arrow(self, offset):
+        return self._time(offset - 1) + self._time(offset) + tuple(
+            self.inner.named_arrow(offset))
+
+    def symbols_by_name(self, offset):
+        return {"t": self._time(offset)[0], **self.inner.symbols_by_name(offset)}
+
+    def random_base_point(self, rng):
+        return (float(rng.uniform(0, 1)),) + tuple(self.inner.random_base_point(rng))
+
+    def random_chart(self, rng, scale=0.5):
+        return (float(rng.uniform(0.1, 1.0)),) + tuple(self.inner.random_chart(rng, scale))
+
+    def random_arrow(self, rng, source=None):
+        q = self.random_base_point(rng) if source is None else tuple(source)
+        inner = self.inner.random_arrow(rng, q[1:])
+        return (q[0], q[0] + float(rng.uniform(0.1, 1.0))) + tuple(inner)
+
+    def view(self, coords):
+        return TimeArrow(self, coords)
+
+
