@@ -41,6 +41,7 @@ class DerivedStep:
     n_constraints: int
     offsets: tuple  # (first known arrow offset, unknown arrow offset)
     arrows: dict = field(default_factory=dict)  # offset -> named arrow coordinates
+    prediction: list = field(default_factory=list)  # guess for the unknowns from the knowns
 
 
 @dataclass
@@ -114,4 +115,5 @@ def first_order_step(name: str, groupoid: Groupoid, fs: SystemFunctions,
         name=name, groupoid=G, order=1, residuals=residuals, knowns=knowns,
         fibre_unknowns=fibre1, chart_unknowns=chart1, chart_map=cmap,
         multipliers_next=lam1, next_knowns=next_knowns, parameters=list(parameters),
-        n_constraints=m, offsets=(0, 1), arrows={0: g0, 1: g1})
+        n_constraints=m, offsets=(0, 1), arrows={0: g0, 1: g1},
+        prediction=list(G.predict_chart(g0)) + lam0)

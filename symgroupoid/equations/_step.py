@@ -40,7 +40,9 @@ class StepEquations:
         self.reconstruction: dict = dict(derived.chart_map)
         self.next_knowns: list[sp.Expr] = list(derived.next_knowns)
         self.n_constraints: int = derived.n_constraints
+        self.prediction: list[sp.Expr] = list(derived.prediction)
         self.structured: list | None = None  # matrix-preserving forms for LaTeX
+        self.system = None  # the DiscreteSystem that derived these equations, if any
 
     # --- sizes ------------------------------------------------------------------------------
     def __len__(self) -> int:
@@ -131,6 +133,19 @@ class StepEquations:
             return np.array([float(params[s] if s in params else params[str(s)])
                              for s in self.parameters])
         return np.asarray(params, float)
+
+    # --- code generation and runtime (layers 4 and 5) ----------------------------------------
+    def emit_c(self, path, **options):
+        """Write ``path.c`` and ``path.h``: residual, Jacobian, chart and Newton stepper in C99."""
+        from ..codegen import emit_c
+
+        return emit_c(self, path, **options)
+
+    def compile(self, **options):
+        """Compile the C kernels with cffi (cached) and return a :class:`Simulator`."""
+        from ..runtime import compile_step
+
+        return compile_step(self, **options)
 
     # --- LaTeX --------------------------------------------------------------------------------
     def latex(self, document: bool = False) -> str:

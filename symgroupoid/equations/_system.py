@@ -40,8 +40,10 @@ class DiscreteSystem:
 
     def euler_lagrange(self) -> StepEquations:
         """The step (g_k, λ_k) → (g_{k+1}, λ_{k+1}) (seed 000 §3.3; EQUATIONS.md §4)."""
-        return StepEquations(first_order_step(self.name, self.groupoid, self._fs,
+        step = StepEquations(first_order_step(self.name, self.groupoid, self._fs,
                                               self.parameters))
+        step.system = self
+        return step
 
     def __repr__(self) -> str:
         return (f"DiscreteSystem({self.name!r} on {self.groupoid.name}, "

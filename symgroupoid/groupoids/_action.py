@@ -111,6 +111,9 @@ class ActionGroupoid(Groupoid):
     def fibre_chart_inverse(self, f):
         return self.group.fibre_chart_inverse(f)
 
+    def chart_of_fibre(self, f):
+        return self.group.chart_of_fibre(f)
+
     def named_fibre(self, offset):
         return self.group.named_fibre(offset)
 

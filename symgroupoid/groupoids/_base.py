@@ -135,11 +135,15 @@ class Groupoid(ABC):
         return tuple(f)
 
     def predict_chart(self, a: Sequence) -> tuple:
-        """Chart coordinates of a first guess for the next arrow after ``a`` (numeric).
+        """Chart coordinates of a first guess for the arrow after ``a`` (symbolic or numeric).
 
-        Default: the next arrow repeats ``a``'s chart coordinates.
+        Default: the next arrow repeats ``a``'s chart coordinates (``chart_of_fibre``).
         """
-        return tuple(self.fibre_chart_inverse(self.fibre_of(a)))
+        return tuple(self.chart_of_fibre(self.fibre_of(a)))
+
+    def chart_of_fibre(self, f: Sequence) -> tuple:
+        """Chart coordinates of fibre variables, symbolically.  Default: identity."""
+        return tuple(f)
 
     # --- naming in the papers' notation ---------------------------------------------------
     @abstractmethod

@@ -224,6 +224,9 @@ class MatrixLieGroup(Groupoid):
     def fibre_chart(self, x):
         return self.entries(self.tau(x))
 
+    def chart_of_fibre(self, f):
+        return tuple(self.retraction_inverse(self.matrix(f)))
+
     def fibre_chart_inverse(self, f):
         M = np.array(self.matrix([float(v) for v in f]).tolist(), dtype=float)
         return tuple(self.numeric_retraction_inverse(M))
@@ -386,7 +389,7 @@ class SO2(MatrixLieGroup):
 
     def cayley_inverse(self, M):
         # on SO(2): cay⁻¹(R) = 2(R − Rᵀ)/(2 + tr R)
-        return self.vee(2 * (M - M.T) / (2 + M.trace()))
+        return self.vee(2 * (M - M.T) / (2 + M.trace())).applyfunc(sp.cancel)
 
     def log(self, M):
         return sp.Matrix([sp.atan2(M[1, 0], M[0, 0])])
@@ -421,7 +424,7 @@ class SO3(MatrixLieGroup):
 
     def cayley_inverse(self, M):
         # on SO(3): cay⁻¹(R) = 2(R − Rᵀ)/(1 + tr R)   (from seed 001 eq. (63))
-        return self.vee(2 * (M - M.T) / (1 + M.trace()))
+        return self.vee(2 * (M - M.T) / (1 + M.trace())).applyfunc(sp.cancel)
 
     def log(self, M):
         th = sp.acos((M.trace() - 1) / 2)

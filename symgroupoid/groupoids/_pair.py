@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numpy as np
 import sympy as sp
 
 from .._symbols import latex_name, scalar_symbol
@@ -119,8 +118,8 @@ class PairGroupoid(Groupoid):
         return tuple(a[self.base_dim:])
 
     def predict_chart(self, a):
-        q0, q1 = np.asarray(self.source(a), float), np.asarray(self.target(a), float)
-        return tuple(2 * q1 - q0)
+        """Linear extrapolation q_{k+1} ≈ 2 q_k − q_{k−1}."""
+        return tuple(2 * b - a0 for a0, b in zip(self.source(a), self.target(a)))
 
     def named_fibre(self, offset):
         return self.space.point(offset)

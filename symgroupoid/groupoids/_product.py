@@ -95,6 +95,9 @@ class ProductGroupoid(Groupoid):
     def fibre_chart_inverse(self, f):
         return self._map("fibre_chart_inverse", (f, self._fibre_slices))
 
+    def chart_of_fibre(self, f):
+        return self._map("chart_of_fibre", (f, self._fibre_slices))
+
     def predict_chart(self, a):
         return self._map("predict_chart", (a, self._arrow_slices))
 

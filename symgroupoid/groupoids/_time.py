@@ -100,8 +100,11 @@ class TimeGroupoid(Groupoid):
     def fibre_chart_inverse(self, f):
         return (f[0],) + tuple(self.inner.fibre_chart_inverse(f[1:]))
 
+    def chart_of_fibre(self, f):
+        return (f[0],) + tuple(self.inner.chart_of_fibre(f[1:]))
+
     def predict_chart(self, a):
-        return (2 * float(a[1]) - float(a[0]),) + tuple(self.inner.predict_chart(a[2:]))
+        return (2 * a[1] - a[0],) + tuple(self.inner.predict_chart(a[2:]))
 
     def _time(self, offset):
         return (StepSymbol(subscripted(self.time_latex, offset)),)
