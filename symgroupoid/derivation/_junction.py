@@ -16,12 +16,13 @@ second-order (S = Σ L(g_j, g_{j+1}), §8) equations all come from this one func
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 
 import sympy as sp
+from sympy.matrices.expressions.matexpr import MatrixElement
 
 from ..groupoids import Groupoid
-from ..groupoids._base import derivation
 
 
 def junction_variation(groupoid: Groupoid, action: sp.Expr, left: Sequence,
@@ -31,12 +32,28 @@ def junction_variation(groupoid: Groupoid, action: sp.Expr, left: Sequence,
     ``action`` is an expression in independent slot coordinates; ``left``/``right`` are the
     coordinate tuples (of Dummy symbols) of the slots g_j and g_{j+1}.
     """
-    left, right = tuple(left), tuple(right)
-    lhs = derivation(groupoid.left_field(left), left, action)
-    rhs = derivation(groupoid.right_field(right), right, action)
+    lhs = groupoid.apply_left(action, tuple(left))
+    rhs = groupoid.apply_right(action, tuple(right))
     return [a - b for a, b in zip(lhs, rhs)]
 
 
-def slot(groupoid: Groupoid, name: str) -> tuple:
-    """A fresh arrow slot: independent real Dummy coordinates."""
-    return tuple(sp.Dummy(f"{name}{i}", real=True) for i in range(groupoid.arrow_dim))
+_counter = itertools.count()
+
+
+def slot(groupoid: Groupoid, name: str, matrix_form: bool = False) -> tuple:
+    """A fresh arrow slot: independent real Dummy coordinates (matrix parts as fresh
+    MatrixSymbols when ``matrix_form``)."""
+    coords = tuple(sp.Dummy(f"{name}{i}", real=True) for i in range(groupoid.arrow_dim))
+    if not matrix_form:
+        return coords
+    return groupoid.in_matrix_form(coords, lambda g: f"_{name}{next(_counter)}")
+
+
+def slot_substitution(old: Sequence, new: Sequence) -> dict:
+    """xreplace map taking slot ``old`` to ``new`` (matrix parts map symbol to symbol)."""
+    sub = {}
+    for a, b in zip(old, new):
+        if isinstance(a, MatrixElement) and isinstance(b, MatrixElement):
+            sub[a.parent] = b.parent
+        sub[a] = b
+    return sub

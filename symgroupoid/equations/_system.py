@@ -6,7 +6,12 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
-from ..derivation._first_order import evaluate_system, first_order_step
+from .._errors import CallableError
+from ..derivation._first_order import (
+    evaluate_system,
+    first_order_matrix_form,
+    first_order_step,
+)
 from ..groupoids import Groupoid
 from ._step import StepEquations
 
@@ -43,6 +48,12 @@ class DiscreteSystem:
         step = StepEquations(first_order_step(self.name, self.groupoid, self._fs,
                                               self.parameters))
         step.system = self
+        try:
+            step.structured = first_order_matrix_form(
+                self.name, self.groupoid, self.lagrangian, self.constraints, self.parameters,
+                step.residuals)
+        except CallableError:
+            step.structured = None  # user code needs explicit matrices: print entries
         return step
 
     def __repr__(self) -> str:

@@ -114,6 +114,9 @@ class ActionGroupoid(Groupoid):
     def chart_of_fibre(self, f):
         return self.group.chart_of_fibre(f)
 
+    def matrix_parts(self):
+        return [(self.base_dim + o, g) for o, g in self.group.matrix_parts()]
+
     def named_fibre(self, offset):
         return self.group.named_fibre(offset)
 

@@ -234,6 +234,98 @@ class Groupoid(ABC):
                                  f"arrows have {self.arrow_dim}")
         return [tuple(sp.sympify(c) for c in h) for h in curves]
 
+    # --- matrix form (matrix-valued parts kept as matrices) ---------------------------------
+    def matrix_parts(self) -> list[tuple[int, Any]]:
+        """(offset in the arrow coordinates, MatrixLieGroup) of each matrix-valued part."""
+        return []
+
+    def in_matrix_form(self, coords: Sequence, name_of: Callable[[Any], str]) -> tuple:
+        """``coords`` with each matrix part replaced by the entries of a MatrixSymbol.
+
+        ``name_of(group)`` gives the symbol's name (its LaTeX).  Affine groups (SE(n)) keep
+        explicit entries.
+        """
+        from ._matrix_form import matrix_entries
+
+        out = list(coords)
+        for start, group in self.matrix_parts():
+            if group.affine:
+                continue
+            M = sp.MatrixSymbol(name_of(group), group.n, group.n)
+            out[start:start + group.arrow_dim] = matrix_entries(M, group._free)
+        return tuple(out)
+
+    def apply_left(self, f: sp.Expr, a: Sequence) -> list[sp.Expr]:
+        """X⃖_i[f](a) for every basis section; ``a`` explicit or in matrix form."""
+        return self._apply(f, tuple(a), "left")
+
+    def apply_right(self, f: sp.Expr, a: Sequence) -> list[sp.Expr]:
+        """X⃗_i[f](a) for every basis section; ``a`` explicit or in matrix form."""
+        return self._apply(f, tuple(a), "right")
+
+    def _apply(self, f, a, side):
+        from ._matrix_form import block_of, directional_derivative
+
+        fields = self.left_field(a) if side == "left" else self.right_field(a)
+        blocks = []
+        for start, group in self.matrix_parts():
+            M = block_of(a[start:start + group.arrow_dim], group._free)
+            if M is not None:
+                blocks.append((start, group, M))
+        if not blocks:
+            return derivation(fields, a, f)
+        skip = {i for start, g, _ in blocks for i in range(start, start + g.arrow_dim)}
+        scalar = [i for i in range(len(a)) if i not in skip]
+        directions = self._matrix_directions(side)
+        out = []
+        for s, v in enumerate(fields):
+            total = derivation([tuple(v[i] for i in scalar)], [a[i] for i in scalar], f)[0]
+            for start, group, M in blocks:
+                C = directions[s][start]
+                if C is None:
+                    continue
+                C = group.named_basis().get(C, C)
+                V = sp.MatMul(M, C) if side == "left" else sp.MatMul(C, M)
+                total += directional_derivative(f, M, V)
+            out.append(total)
+        return out
+
+    def _matrix_directions(self, side: str) -> list[dict]:
+        """For each section, the Lie-algebra element C with X(g) = g·C (left) or C·g (right)
+        on each matrix part — read off at the identity and verified at a generic arrow."""
+        cache = self.__dict__.setdefault("_matrix_direction_cache", {})
+        if side not in cache:
+            cache[side] = self._read_matrix_directions(side)
+        return cache[side]
+
+    def _read_matrix_directions(self, side: str) -> list[dict]:
+        a = self._generic_arrow
+        fields = self._left_fields if side == "left" else self._right_fields
+        q = tuple(sp.Dummy(f"q{i}") for i in range(self.base_dim))
+        unit = self.identity(q)
+        out = []
+        for v in fields:
+            at_unit = [sp.sympify(c).xreplace(dict(zip(a, unit))) for c in v]
+            per_part = {}
+            for start, group in self.matrix_parts():
+                sl = slice(start, start + group.arrow_dim)
+                C = sp.Matrix(group.matrix(at_unit[sl]))
+                for i in range(group.n):  # the fixed row of SE(n) carries no velocity
+                    if group.affine and i == group.n - 1:
+                        C[i, :] = sp.zeros(1, group.n)
+                C = sp.ImmutableMatrix(C) if any(c != 0 for c in C) else None
+                if C is not None:
+                    if any(e.free_symbols for e in C):
+                        raise NotImplementedError("section not constant on a matrix part")
+                    Mg = group.matrix(a[sl])
+                    expect = Mg * C if side == "left" else C * Mg
+                    got = group.matrix(v[sl])
+                    if any(sp.expand(got[i, j] - expect[i, j]) != 0 for i, j in group._free):
+                        raise NotImplementedError("section is not g·C / C·g on a matrix part")
+                per_part[start] = C
+            out.append(per_part)
+        return out
+
     def left_field(self, a: Sequence) -> list[tuple]:
         """Tangent vectors X⃖_i(a) ∈ T_aG, one per basis section (arrow coordinates)."""
         return self._instantiate(self._left_fields, a)
@@ -280,7 +372,7 @@ def left_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
     """
     a = groupoid.named_arrow(0) if a is None else tuple(a)
     expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
-    return derivation(groupoid.left_field(a), a, expr)
+    return groupoid.apply_left(expr, a)
 
 
 def right_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
@@ -288,4 +380,4 @@ def right_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr
     """X⃗_i[f](a) for every basis section (EQUATIONS.md §1, seed 000 eq. (2))."""
     a = groupoid.named_arrow(0) if a is None else tuple(a)
     expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
-    return derivation(groupoid.right_field(a), a, expr)
+    return groupoid.apply_right(expr, a)

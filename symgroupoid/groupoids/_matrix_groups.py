@@ -24,6 +24,9 @@ import sympy as sp
 
 from .._symbols import StepSymbol, indexed_symbol, latex_name, step_label
 from ._base import Arrow, Groupoid
+from ._matrix_form import StructuredMatrix, block_of, named_basis
+
+_named_basis = functools.cache(named_basis)
 
 RETRACTIONS = ("cayley", "exp")
 
@@ -92,6 +95,14 @@ class MatrixLieGroup(Groupoid):
         raise NotImplementedError
 
     @classmethod
+    def named_basis(cls) -> dict:
+        """Basis values → MatrixSymbols E_a (for the matrix form)."""
+        return _named_basis(cls)
+
+    def matrix_parts(self):
+        return [(0, self)]
+
+    @classmethod
     def hat(cls, x: Sequence) -> sp.Matrix:
         """Σ x_a E_a."""
         out = sp.zeros(cls.n, cls.n)
@@ -131,7 +142,14 @@ class MatrixLieGroup(Groupoid):
         return 0
 
     def matrix(self, coords: Sequence) -> sp.Matrix:
-        """The full n×n matrix of an arrow's coordinates."""
+        """The full n×n matrix of an arrow's coordinates.
+
+        In matrix form (coordinates = the entries of one MatrixSymbol) this is a
+        :class:`StructuredMatrix` on that symbol.
+        """
+        M = block_of(tuple(coords), self._free)
+        if M is not None and not self.affine:
+            return StructuredMatrix(M, self.named_basis())
         M = sp.eye(self.n)
         for (i, j), c in zip(self._free, coords):
             M[i, j] = c

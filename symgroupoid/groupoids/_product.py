@@ -111,6 +111,10 @@ class ProductGroupoid(Groupoid):
                                    for j in range(len(self.factors))), ()))
         return curves
 
+    def matrix_parts(self):
+        return [(lo + o, g) for f, (lo, _) in zip(self.factors, self._arrow_slices)
+                for o, g in f.matrix_parts()]
+
     def _named(self, name, offset):
         return sum((tuple(getattr(f, name)(offset)) for f in self.factors), ())
 

@@ -106,6 +106,9 @@ class TimeGroupoid(Groupoid):
     def predict_chart(self, a):
         return (2 * a[1] - a[0],) + tuple(self.inner.predict_chart(a[2:]))
 
+    def matrix_parts(self):
+        return [(2 + o, g) for o, g in self.inner.matrix_parts()]
+
     def _time(self, offset):
         return (StepSymbol(subscripted(self.time_latex, offset)),)
 
