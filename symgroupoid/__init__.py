@@ -15,7 +15,15 @@ from ._errors import (
     SymgroupoidError,
     UndeclaredSymbolError,
 )
-from .equations import DiscreteSystem, StepEquations, latex
+from .equations import (
+    DiscreteSystem,
+    LegendreTransforms,
+    LiePoissonEquations,
+    NoetherQuantity,
+    SecondOrderSystem,
+    StepEquations,
+    latex,
+)
 from .groupoids import (
     SE2,
     SE3,
@@ -40,7 +48,8 @@ __version__ = "0.1.0"
 
 __all__ = [
     "SE2", "SE3", "SO2", "SO3", "ActionGroupoid", "Arrow", "AxiomError", "CallableError",
-    "DefinedGroupoid", "DiscreteSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NewtonDivergenceError",
+    "DefinedGroupoid", "DiscreteSystem", "LegendreTransforms", "LiePoissonEquations",
+    "NoetherQuantity", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NewtonDivergenceError",
     "NotComposableError", "PairGroupoid", "ProductGroupoid", "ShapeError",
     "SingularJacobianError", "SymgroupoidError", "TimeGroupoid", "UndeclaredSymbolError",
     "check_axioms", "hat3", "left_derivative", "right_derivative",

@@ -1,7 +1,8 @@
 """Layer 3: step equations (residuals, unknowns, knowns, Jacobian, LaTeX) and systems."""
 
 from ._latex import GroupoidLatexPrinter, latex
+from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._step import StepEquations
-from ._system import DiscreteSystem
+from ._system import DiscreteSystem, SecondOrderSystem
 
-__all__ = ["DiscreteSystem", "GroupoidLatexPrinter", "StepEquations", "latex"]
+__all__ = ["DiscreteSystem", "LegendreTransforms", "LiePoissonEquations", "NoetherQuantity", "SecondOrderSystem", "GroupoidLatexPrinter", "StepEquations", "latex"]

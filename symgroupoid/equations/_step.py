@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 
 from .._symbols import multiplier_symbols, parse_step
-from ..derivation._first_order import DerivedStep
+from ..derivation._step import DerivedStep
 
 
 class StepEquations:

@@ -7,16 +7,24 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 from .._errors import CallableError
-from ..derivation._first_order import (
+from ..derivation._step import (
     evaluate_system,
-    first_order_matrix_form,
-    first_order_step,
+    junction_step,
+    matrix_form_residuals,
 )
 from ..groupoids import Groupoid
+from ..derivation._momenta import (
+    is_identically_zero,
+    legendre_forms,
+    lie_poisson_forms,
+    noether_forms,
+)
+from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._step import StepEquations
 
 
 class DiscreteSystem:
+    _arity = 1  # L: G -> R
     """A discrete constrained Lagrangian system (G, N, L) (seed 000 Def. 3.2).
 
     Parameters
@@ -37,7 +45,8 @@ class DiscreteSystem:
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.parameters = list(parameters)
-        self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters)
+        self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters,
+                                   arity=self._arity)
 
     @property
     def n_constraints(self) -> int:
@@ -45,17 +54,54 @@ class DiscreteSystem:
 
     def euler_lagrange(self) -> StepEquations:
         """The step (g_k, λ_k) → (g_{k+1}, λ_{k+1}) (seed 000 §3.3; EQUATIONS.md §4)."""
-        step = StepEquations(first_order_step(self.name, self.groupoid, self._fs,
-                                              self.parameters))
+        step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
+                                           self.parameters))
         step.system = self
         try:
-            step.structured = first_order_matrix_form(
+            step.structured = matrix_form_residuals(
                 self.name, self.groupoid, self.lagrangian, self.constraints, self.parameters,
-                step.residuals)
+                step.residuals, arity=self._arity)
         except CallableError:
             step.structured = None  # user code needs explicit matrices: print entries
         return step
 
+    def legendre(self) -> LegendreTransforms:
+        """F⁻L and F⁺L at (g_k, λ_k) in the section basis, multiplier terms included."""
+        return LegendreTransforms(legendre_forms(self.groupoid, self._fs), self.parameters)
+
+    def noether(self, section, f=None) -> NoetherQuantity:
+        """The Noether quantity of a section (seed 000 Def. 4.8, Thm 4.9).
+
+        ``section``: a basis index, a list of coefficients, or a callable of the base point
+        returning coefficients; ``f``: the quasi-invariance function on the base (callable
+        or expression), default 0.  The result records whether X is verified symbolically
+        to be a Noether symmetry.
+        """
+        forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self._fs),
+                              section, f)
+        ok = is_identically_zero(forms.defect, self.groupoid, forms.arrow)
+        return NoetherQuantity(forms, ok, self.parameters)
+
+    def lie_poisson(self) -> LiePoissonEquations:
+        """The discrete constrained Lie–Poisson equations (seed 000 §6.1), Lie groups only."""
+        return LiePoissonEquations(lie_poisson_forms(self.name, self.groupoid, self._fs,
+                                                     self.parameters))
+
     def __repr__(self) -> str:
         return (f"DiscreteSystem({self.name!r} on {self.groupoid.name}, "
                 f"{self.n_constraints} constraints)")
+
+
+class SecondOrderSystem(DiscreteSystem):
+    """A second-order discrete system: L, Φ: G₂ → R on composable pairs (seed 001 §3).
+
+    ``lagrangian(g1, g2)`` and ``constraints(g1, g2)`` take two composable symbolic arrows.
+    :meth:`euler_lagrange` gives the step (g_{k-1}, g_k, g_{k+1}, λ_{k-1}, λ_k) →
+    (g_{k+2}, λ_{k+1}) of seed 001 eqs. (13)/(15) and (18), from the same junction variation
+    as the first-order equations.
+    """
+
+    _arity = 2
+
+    def lie_poisson(self):
+        raise NotImplementedError(f"{self.name}: the Lie–Poisson form is first order only")

@@ -1,4 +1,4 @@
-"""First-order discrete (constrained) Euler–Lagrange equations on a Lie groupoid.
+"""Discrete (constrained) Euler–Lagrange steps on a Lie groupoid, first and second order.
 
 For L: G → R and constraints φᵃ: G → R (seed 000 §3.3, Thm 2.13; EQUATIONS.md §2, §4):
 
@@ -7,6 +7,10 @@ For L: G → R and constraints φᵃ: G → R (seed 000 §3.3, Thm 2.13; EQUATIO
 
 with g_{k+1} in the α-fibre of β(g_k).  Obtained by :func:`junction_variation` of
 S = L(g_k) + λ_k·φ(g_k) + L(g_{k+1}) + λ_{k+1}·φ(g_{k+1}).
+
+Second order (seed 001 eqs. (13)/(15), constrained eq. (18); EQUATIONS.md §8): L, Φ on G₂,
+S = Σ_{s=-1}^{1} [L + λ_{k+s}·Φ](g_{k+s}, g_{k+s+1}) varied at the same junction, with
+unknown g_{k+2} and the constraints Φ(g_{k+1}, g_{k+2}) = 0.
 """
 
 from __future__ import annotations
@@ -81,15 +85,17 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
 
 
 def shifted(fs: SystemFunctions, slots: Sequence[tuple], multipliers: Sequence,
-            lagrangian: bool = True) -> sp.Expr:
-    """L + λ·φ with the slot arrows replaced by ``slots`` (independent copies)."""
+            lagrangian: bool = True, separate: bool = False):
+    """L + λ·φ with the slot arrows replaced by ``slots`` (independent copies);
+    ``separate=True`` returns the list of λ_a·φᵃ terms instead."""
     sub: dict = {}
     for s_old, s_new in zip(fs.slots, slots):
         sub.update(slot_substitution(s_old, s_new))
+    terms = [lam * phi.xreplace(sub) for lam, phi in zip(multipliers, fs.constraints)]
+    if separate:
+        return terms
     total = fs.lagrangian.xreplace(sub) if lagrangian else sp.S.Zero
-    for lam, phi in zip(multipliers, fs.constraints):
-        total += lam * phi.xreplace(sub)
-    return total
+    return total + sum(terms, sp.S.Zero)
 
 
 def named(groupoid: Groupoid, offset: int, matrix_form: bool) -> tuple:
@@ -106,22 +112,6 @@ def next_arrow(groupoid: Groupoid, previous: tuple, offset: int, matrix_form: bo
     return tuple(groupoid.arrow_from(groupoid.target(previous), fibre))
 
 
-def first_order_residuals(G: Groupoid, fs: SystemFunctions) -> tuple[list, tuple, tuple]:
-    """DEL residuals and constraints at k+1, with g_k and g_{k+1} = (β(g_k), fibre_{k+1})."""
-    m, mf = len(fs.constraints), fs.matrix_form
-    lam0, lam1 = multiplier_symbols(m, 0), multiplier_symbols(m, 1)
-    A0, A1 = slot(G, "a", mf), slot(G, "b", mf)
-    S = shifted(fs, [A0], lam0) + shifted(fs, [A1], lam1)
-    dels = junction_variation(G, S, A0, A1)
-    g0 = named(G, 0, mf)
-    g1 = next_arrow(G, g0, 1, mf)
-    sub = slot_substitution(A0, g0) | slot_substitution(A1, g1)
-    residuals = [sp.expand(d.xreplace(sub)) for d in dels]
-    residuals += [sp.expand(phi.xreplace(slot_substitution(fs.slots[0], g1)))
-                  for phi in fs.constraints]
-    return residuals, g0, g1
-
-
 def chart_of(groupoid: Groupoid, offset: int) -> tuple[tuple, tuple, dict]:
     """Named fibre variables, chart coordinates and the map fibre ← chart of g_{k+offset}."""
     fibre = tuple(groupoid.named_fibre(offset))
@@ -131,21 +121,70 @@ def chart_of(groupoid: Groupoid, offset: int) -> tuple[tuple, tuple, dict]:
     return fibre, chart, cmap
 
 
-def first_order_step(name: str, groupoid: Groupoid, fs: SystemFunctions,
-                     parameters: Sequence) -> DerivedStep:
-    """Derive the step (g_k, λ_k) → (g_{k+1}, λ_{k+1})."""
-    G, m = groupoid, len(fs.constraints)
-    lam0, lam1 = multiplier_symbols(m, 0), multiplier_symbols(m, 1)
-    residuals, g0, g1 = first_order_residuals(G, fs)
-    fibre1, chart1, cmap = chart_of(G, 1)
-    knowns = list(g0) + lam0
-    next_knowns = [sp.sympify(c).xreplace(cmap) for c in g1] + lam1
+def tidy(expr: sp.Expr) -> sp.Expr:
+    """Expand polynomial-like residuals; keep rational ones (sum denominators) unexpanded."""
+    expr = sp.sympify(expr)
+    if any(p.exp.is_negative and isinstance(p.base, sp.Add) for p in expr.atoms(sp.Pow)):
+        return expr
+    return sp.expand(expr)
+
+
+def window(arity: int) -> tuple[list[int], list[int]]:
+    """Arrow offsets of the varied window and start offsets of its action terms.
+
+    First order (arity 1): arrows g_k, g_{k+1}; terms L(g_k), L(g_{k+1}).
+    Second order (arity 2): arrows g_{k-1} … g_{k+2}; terms L(g_{k-1}, g_k), L(g_k, g_{k+1}),
+    L(g_{k+1}, g_{k+2}) (seed 001 eq. (12)).  The junction is always between g_k and g_{k+1};
+    the term starting at offset s carries the multipliers λ_{k+s}.
+    """
+    return list(range(1 - arity, arity + 1)), list(range(1 - arity, 2))
+
+
+def window_residuals(G: Groupoid, fs: SystemFunctions) -> tuple[list, dict]:
+    """Residuals of the junction variation between g_k and g_{k+1}, then the constraints on
+    the newest term; returns them with the named arrows by offset."""
+    arity, m, mf = len(fs.slots), len(fs.constraints), fs.matrix_form
+    offsets, starts = window(arity)
+    A = {o: slot(G, f"w{o + 2}_", mf) for o in offsets}
+    S = sum((shifted(fs, [A[s + i] for i in range(arity)], multiplier_symbols(m, s))
+             for s in starts), sp.S.Zero)
+    variations = junction_variation(G, S, A[0], A[1])
+    arrows = {offsets[0]: named(G, offsets[0], mf)}
+    for o in offsets[1:]:
+        arrows[o] = next_arrow(G, arrows[o - 1], o, mf)
+    sub: dict = {}
+    for o in offsets:
+        sub.update(slot_substitution(A[o], arrows[o]))
+    residuals = [tidy(d.xreplace(sub)) for d in variations]
+    newest = [arrows[starts[-1] + i] for i in range(arity)]
+    residuals += [tidy(c) for c in shifted(fs, newest, [1] * m, lagrangian=False,
+                                                  separate=True)]
+    return residuals, arrows
+
+
+def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
+                  parameters: Sequence) -> DerivedStep:
+    """The step of order ``len(fs.slots)``: known arrows and multipliers → the newest arrow
+    (through its fibre chart) and multipliers.  One mechanism for every order."""
+    arity, m = len(fs.slots), len(fs.constraints)
+    offsets, starts = window(arity)
+    residuals, arrows = window_residuals(G, fs)
+    newest, first = offsets[-1], offsets[0]
+    fibre, chart, cmap = chart_of(G, newest)
+    lam = {s: multiplier_symbols(m, s) for s in starts}
+    known_fibres = [f for o in offsets[1:-1] for f in G.named_fibre(o)]
+    knowns = list(arrows[first]) + known_fibres + [x for s in starts[:-1] for x in lam[s]]
+    shifted_fibres = [f for o in offsets[2:] for f in G.named_fibre(o)]
+    next_knowns = (list(arrows[first + 1]) + shifted_fibres
+                   + [x for s in starts[1:] for x in lam[s]])
+    next_knowns = [sp.sympify(e).xreplace(cmap) for e in next_knowns]
+    prediction = list(G.predict_chart(arrows[newest - 1])) + lam[starts[-2]]
     return DerivedStep(
-        name=name, groupoid=G, order=1, residuals=residuals, knowns=knowns,
-        fibre_unknowns=fibre1, chart_unknowns=chart1, chart_map=cmap,
-        multipliers_next=lam1, next_knowns=next_knowns, parameters=list(parameters),
-        n_constraints=m, offsets=(0, 1), arrows={0: g0, 1: g1},
-        prediction=list(G.predict_chart(g0)) + lam0)
+        name=name, groupoid=G, order=arity, residuals=residuals, knowns=knowns,
+        fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap,
+        multipliers_next=lam[starts[-1]], next_knowns=next_knowns,
+        parameters=list(parameters), n_constraints=m, offsets=(first, newest),
+        arrows=arrows, prediction=prediction)
 
 
 def matrix_form_values(groupoid: Groupoid, offsets: Sequence[int]) -> dict:
@@ -171,17 +210,17 @@ def verified_matrix_form(explicit: Sequence[sp.Expr], structured: Sequence[sp.Ex
     return list(structured)
 
 
-def first_order_matrix_form(name: str, groupoid: Groupoid, lagrangian: Callable,
-                            constraints: Callable | None, parameters: Sequence,
-                            explicit: Sequence[sp.Expr]) -> list | None:
+def matrix_form_residuals(name: str, groupoid: Groupoid, lagrangian: Callable,
+                          constraints: Callable | None, parameters: Sequence,
+                          explicit: Sequence[sp.Expr], arity: int = 1) -> list | None:
     """The residuals with matrix parts kept as matrices (for LaTeX), verified against the
     explicit residuals; None when the groupoid has no matrix part or the form is unavailable."""
     if not any(not g.affine for _, g in groupoid.matrix_parts()):
         return None
     try:
         fs = evaluate_system(name, groupoid, lagrangian, constraints, parameters,
-                             matrix_form=True)
-        structured, _, _ = first_order_residuals(groupoid, fs)
+                             arity=arity, matrix_form=True)
+        structured, _ = window_residuals(groupoid, fs)
     except (NotImplementedError, TypeError, AttributeError, ValueError):
         return None
-    return verified_matrix_form(explicit, structured, groupoid, (0, 1))
+    return verified_matrix_form(explicit, structured, groupoid, window(arity)[0])

@@ -1,0 +1,155 @@
+"""Legendre transforms, Noether quantities and the discrete Lie–Poisson form.
+
+All are built from the same invariant derivations as the Euler–Lagrange equations:
+
+- F⁻L and F⁺L in the section basis (seed 000 §3.3; EQUATIONS.md §3), multiplier terms
+  included:  ⟨F⁻L(g, λ), X⟩ = X⃗[L + λ·φ](g),  ⟨F⁺L(g, λ), X⟩ = X⃖[L + λ·φ](g);
+- Noether (seed 000 Def. 4.8, Thm 4.9): X is a symmetry when
+  ⟨F⁻L, X(α(g))⟩ + f(α(g)) = ⟨F⁺L, X(β(g))⟩ + f(β(g)), and then
+  F_X = ⟨F⁺L, X(β(g))⟩ + f(β(g)) is conserved;
+- Lie groups (seed 000 §6.1): μ = r*_g dL = X⃗[L], Φᵃ = X⃗[φᵃ] and
+  μ_{k+1} + λ_{k+1}·Φ_{k+1} = Ad*_{g_k}(μ_k + λ_k·Φ_k).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .._symbols import indexed_symbol, multiplier_symbols
+from ..groupoids import Groupoid, MatrixLieGroup
+from ._step import (
+    DerivedStep,
+    SystemFunctions,
+    chart_of,
+    named,
+    next_arrow,
+    shifted,
+)
+from ._junction import slot, slot_substitution
+
+
+@dataclass
+class LegendreForms:
+    """F⁻L and F⁺L at the named arrow g_{k+offset} with multipliers λ_{k+offset}."""
+
+    minus: list
+    plus: list
+    arrow: tuple
+    multipliers: list
+
+
+def legendre_forms(G: Groupoid, fs: SystemFunctions, offset: int = 0) -> LegendreForms:
+    """Both discrete Legendre transforms in the section basis (seed 000 §3.3)."""
+    lam = multiplier_symbols(len(fs.constraints), offset)
+    A = slot(G, "l")
+    F = shifted(fs, [A], lam)
+    g = named(G, offset, False)
+    sub = slot_substitution(A, g)
+    minus = [sp.expand(e.xreplace(sub)) for e in G.apply_right(F, A)]
+    plus = [sp.expand(e.xreplace(sub)) for e in G.apply_left(F, A)]
+    return LegendreForms(minus, plus, g, lam)
+
+
+def section_coefficients(G: Groupoid, section, q: Sequence) -> list[sp.Expr]:
+    """Coefficients X^a(q) of a section in the basis: an index, a list or a callable of q."""
+    if isinstance(section, int):
+        if not 0 <= section < G.rank:
+            raise IndexError(f"{G.name}: section index {section} out of range 0..{G.rank - 1}")
+        return [sp.S.One if a == section else sp.S.Zero for a in range(G.rank)]
+    coeffs = section(tuple(q)) if callable(section) else section
+    coeffs = [sp.sympify(c) for c in coeffs]
+    if len(coeffs) != G.rank:
+        raise ValueError(f"{G.name}: a section needs {G.rank} coefficients, got {len(coeffs)}")
+    return coeffs
+
+
+def _base_function(f, q: Sequence) -> sp.Expr:
+    if f is None or f == 0:
+        return sp.S.Zero
+    return sp.sympify(f(tuple(q)) if callable(f) else f)
+
+
+@dataclass
+class NoetherForms:
+    """F_X = ⟨F⁺L, X(β(g))⟩ + f(β(g)) and the symmetry defect (zero for a symmetry)."""
+
+    quantity: sp.Expr
+    defect: sp.Expr
+    arrow: tuple
+    multipliers: list
+
+
+def noether_forms(G: Groupoid, forms: LegendreForms, section, f=None) -> NoetherForms:
+    """The Noether quantity of ``section`` (seed 000 Thm 4.9) and its symmetry defect."""
+    g = forms.arrow
+    qa, qb = G.source(g), G.target(g)
+    Xa, Xb = section_coefficients(G, section, qa), section_coefficients(G, section, qb)
+    lhs = sum((c * m for c, m in zip(Xa, forms.minus)), sp.S.Zero) + _base_function(f, qa)
+    rhs = sum((c * p for c, p in zip(Xb, forms.plus)), sp.S.Zero) + _base_function(f, qb)
+    return NoetherForms(rhs, lhs - rhs, g, forms.multipliers)
+
+
+def is_identically_zero(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool:
+    """Whether ``expr`` (a function on G written in ``arrow``'s coordinates) vanishes on G.
+
+    Matrix-group parts are parametrised by the fibre chart (so orthogonality holds) before
+    simplifying; the check is symbolic.
+    """
+    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
+    x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
+    on_group = G.arrow_from(q, G.fibre_chart(x))
+    e = expr.xreplace(dict(zip(arrow, on_group)))
+    return sp.simplify(sp.cancel(sp.together(e))) == 0
+
+
+def momentum_symbols(rank: int, offset: int) -> list:
+    """(μ_{k+offset})_a: discrete momenta in g*."""
+    return [indexed_symbol(r"\mu", offset, str(a + 1)) for a in range(rank)]
+
+
+@dataclass
+class LiePoissonForms:
+    """The discrete constrained Lie–Poisson equations and their reconstruction step."""
+
+    momentum: list          # μ(g_k) + λ_k·Φ(g_k)
+    update: list            # Ad*_{g_k} m_k (next momentum from m_k)
+    residuals: list         # μ_{k+1} + λ_{k+1}Φ_{k+1} − Ad*_{g_k}(μ_k + λ_kΦ_k), φ(g_{k+1})
+    reconstruction: DerivedStep
+    momentum_symbols: list
+
+
+def lie_poisson_forms(name: str, G: Groupoid, fs: SystemFunctions,
+                      parameters: Sequence) -> LiePoissonForms:
+    """Seed 000 §6.1 for a matrix Lie group G."""
+    if not isinstance(G, MatrixLieGroup):
+        raise TypeError(f"{name}: the Lie–Poisson form needs a Lie group, not {G.name}")
+    m, r = len(fs.constraints), G.rank
+    now, nxt = legendre_forms(G, fs, 0), legendre_forms(G, fs, 1)
+    g0 = now.arrow
+    fibre1, chart1, cmap = chart_of(G, 1)
+    g1 = next_arrow(G, g0, 1, False)
+    to_g1 = dict(zip(nxt.arrow, g1))
+    mu1 = [e.xreplace(to_g1) for e in nxt.minus]
+    ad_star = G.Ad_star(G.matrix(g0))
+    pulled = list(ad_star * sp.Matrix(now.minus))
+    phi1 = [phi.xreplace(slot_substitution(fs.slots[0], g1)) for phi in fs.constraints]
+    residuals = [sp.expand(a - b) for a, b in zip(mu1, pulled)] + phi1
+
+    m1 = momentum_symbols(r, 1)
+    recon_res = [sp.expand(a - b) for a, b in zip(mu1, m1)] + phi1
+    ad_star1 = G.Ad_star(G.matrix(g1).xreplace(cmap))
+    next_momentum = list(ad_star1 * sp.Matrix(m1))
+    lam1 = multiplier_symbols(m, 1)
+    recon = DerivedStep(
+        name=f"{name}_reconstruction", groupoid=G, order=1, residuals=recon_res,
+        knowns=list(m1), fibre_unknowns=fibre1, chart_unknowns=chart1, chart_map=cmap,
+        multipliers_next=lam1, next_knowns=[sp.expand(e) for e in next_momentum],
+        parameters=list(parameters), n_constraints=m, offsets=(1, 1), arrows={1: g1},
+        prediction=[sp.S.Zero] * r + [sp.S.Zero] * m)
+    m0 = momentum_symbols(r, 0)
+    update = list(ad_star * sp.Matrix(m0))
+    return LiePoissonForms(now.minus, update, residuals, recon, m0)
+

@@ -1,0 +1,100 @@
+"""Legendre transforms, Noether quantities and Lie–Poisson equations as objects."""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+
+import numpy as np
+import sympy as sp
+
+from ..derivation._momenta import LegendreForms, LiePoissonForms, NoetherForms
+from ._latex import latex
+from ._step import StepEquations
+
+
+class LegendreTransforms:
+    """F⁻L(g_k, λ_k) and F⁺L(g_k, λ_k) in the basis of sections (seed 000 §3.3).
+
+    ``minus[a] = X⃗_a[L + λ·φ](g)``, ``plus[a] = X⃖_a[L + λ·φ](g)``; the discrete
+    Euler–Lagrange equations say F⁺L(g_k, λ_k) = F⁻L(g_{k+1}, λ_{k+1}).
+    """
+
+    def __init__(self, forms: LegendreForms, parameters: Sequence):
+        self.minus: list[sp.Expr] = forms.minus
+        self.plus: list[sp.Expr] = forms.plus
+        self.arrow: tuple = forms.arrow
+        self.multipliers: list = forms.multipliers
+        self.parameters = list(parameters)
+
+    @functools.cached_property
+    def _numeric(self):
+        args = [list(self.arrow), list(self.multipliers), list(self.parameters)]
+        return (sp.lambdify(args, sp.Matrix(self.minus), "numpy"),
+                sp.lambdify(args, sp.Matrix(self.plus), "numpy"))
+
+    def evaluate(self, arrow: Sequence, multipliers: Sequence = (), params: Sequence = ()):
+        """Numeric (F⁻L, F⁺L) at an arrow (flat coordinates) and multipliers."""
+        fm, fp = self._numeric
+        args = (np.asarray(arrow, float), np.asarray(multipliers, float),
+                np.asarray(params, float))
+        return np.asarray(fm(*args), float).ravel(), np.asarray(fp(*args), float).ravel()
+
+    def latex(self) -> str:
+        rows = [f"\\mathbb{{F}}^-L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.minus)]
+        rows += [f"\\mathbb{{F}}^+L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.plus)]
+        return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+
+
+class NoetherQuantity:
+    """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
+
+    ``is_symmetry`` records the symbolic check that ⟨F⁻L, X(α)⟩ + f(α) = ⟨F⁺L, X(β)⟩ + f(β)
+    holds identically on G (with the multipliers free); ``defect`` is their difference.
+    """
+
+    def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):
+        self.expr: sp.Expr = forms.quantity
+        self.defect: sp.Expr = forms.defect
+        self.arrow: tuple = forms.arrow
+        self.multipliers: list = forms.multipliers
+        self.is_symmetry: bool = is_symmetry
+        self.parameters = list(parameters)
+
+    @functools.cached_property
+    def _numeric(self):
+        args = [list(self.arrow), list(self.multipliers), list(self.parameters)]
+        return sp.lambdify(args, self.expr, "numpy")
+
+    def evaluate(self, arrow: Sequence, multipliers: Sequence = (), params: Sequence = ()):
+        return float(self._numeric(np.asarray(arrow, float), np.asarray(multipliers, float),
+                                   np.asarray(params, float)))
+
+    def latex(self) -> str:
+        return latex(self.expr)
+
+
+class LiePoissonEquations:
+    """μ_{k+1} + λ_{k+1}·Φ_{k+1} = Ad*_{g_k}(μ_k + λ_k·Φ_k) (seed 000 §6.1).
+
+    ``residuals``: that equation (in g_k, g_{k+1}) plus φ(g_{k+1}) = 0 — the Euler–Lagrange
+    step rewritten in momentum form.  ``update``: m_{k+1} = Ad*_{g_k} m_k.  ``reconstruction``:
+    the :class:`StepEquations` solving μ(g_{k+1}) + λ_{k+1}·Φ(g_{k+1}) = m_{k+1},
+    φ(g_{k+1}) = 0 for (g_{k+1}, λ_{k+1}); its ``next_knowns`` are m_{k+2} = Ad*_{g_{k+1}}
+    m_{k+1}, so stepping it is the Lie–Poisson integrator.
+    """
+
+    def __init__(self, forms: LiePoissonForms):
+        self.momentum: list = forms.momentum
+        self.update: list = forms.update
+        self.residuals: list = forms.residuals
+        self.momentum_symbols: list = forms.momentum_symbols
+        self.reconstruction = StepEquations(forms.reconstruction)
+
+    def latex(self) -> str:
+        mu = sp.Matrix(self.momentum_symbols)
+        rows = [f"\\mu_{{k+1}} + \\lambda_{{k+1}} \\cdot \\Phi_{{k+1}} &= "
+                f"\\mathrm{{Ad}}^*_{{g_k}}(\\mu_k + \\lambda_k \\cdot \\Phi_k)",
+                f"{latex(mu.T)}^T &= {latex(sp.Matrix(self.update).T)}^T"]
+        rows += [f"0 &= {latex(r)}" for r in self.residuals]
+        return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
