@@ -35,6 +35,7 @@ from .groupoids import (
     EuclideanSpace,
     Groupoid,
     MatrixLieGroup,
+    NamedMatrix,
     PairGroupoid,
     ProductGroupoid,
     TimeGroupoid,
@@ -49,7 +50,7 @@ __version__ = "0.1.0"
 __all__ = [
     "SE2", "SE3", "SO2", "SO3", "ActionGroupoid", "Arrow", "AxiomError", "CallableError",
     "DefinedGroupoid", "DiscreteSystem", "LegendreTransforms", "LiePoissonEquations",
-    "NoetherQuantity", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NewtonDivergenceError",
+    "NoetherQuantity", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NamedMatrix", "NewtonDivergenceError",
     "NotComposableError", "PairGroupoid", "ProductGroupoid", "ShapeError",
     "SingularJacobianError", "SymgroupoidError", "TimeGroupoid", "UndeclaredSymbolError",
     "check_axioms", "hat3", "left_derivative", "right_derivative",

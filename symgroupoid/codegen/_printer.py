@@ -29,7 +29,7 @@ class KernelCPrinter(C99CodePrinter):
     """
 
     def __init__(self, names: Mapping[sp.Symbol, str]):
-        super().__init__({"precision": 17, "standard": "C99"})
+        super().__init__({"precision": 17})
         self._names = dict(names)
 
     # --- symbols --------------------------------------------------------------------------

@@ -189,7 +189,9 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
 
 def matrix_form_values(groupoid: Groupoid, offsets: Sequence[int]) -> dict:
     """MatrixSymbol g_{k+o} → explicit named matrix, and E_a → its value (for checking)."""
-    values: dict = {}
+    from ..groupoids._matrix_form import named_constants
+
+    values: dict = named_constants()
     for _, group in groupoid.matrix_parts():
         for o in offsets:
             M = sp.MatrixSymbol(subscripted(group.latex, o), group.n, group.n)

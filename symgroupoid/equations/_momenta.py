@@ -8,7 +8,12 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from ..derivation._momenta import LegendreForms, LiePoissonForms, NoetherForms
+from ..derivation._momenta import (
+    LegendreForms,
+    LiePoissonForms,
+    NoetherForms,
+    momentum_symbols,
+)
 from ._latex import latex
 from ._step import StepEquations
 
@@ -92,9 +97,8 @@ class LiePoissonEquations:
         self.reconstruction = StepEquations(forms.reconstruction)
 
     def latex(self) -> str:
-        mu = sp.Matrix(self.momentum_symbols)
-        rows = [f"\\mu_{{k+1}} + \\lambda_{{k+1}} \\cdot \\Phi_{{k+1}} &= "
-                f"\\mathrm{{Ad}}^*_{{g_k}}(\\mu_k + \\lambda_k \\cdot \\Phi_k)",
-                f"{latex(mu.T)}^T &= {latex(sp.Matrix(self.update).T)}^T"]
+        """The update m_{k+1} = Ad*_{g_k} m_k componentwise, then the residuals."""
+        nxt = momentum_symbols(len(self.momentum_symbols), 1)
+        rows = [f"{latex(m)} &= {latex(u)}" for m, u in zip(nxt, self.update)]
         rows += [f"0 &= {latex(r)}" for r in self.residuals]
         return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"

@@ -3,6 +3,7 @@
 from ._action import ActionArrow, ActionGroupoid
 from ._axioms import check_axioms
 from ._base import Arrow, Groupoid, derivation, left_derivative, right_derivative
+from ._matrix_form import NamedMatrix, StructuredMatrix
 from ._matrix_groups import SE2, SE3, SO2, SO3, MatrixArrow, MatrixLieGroup, hat3
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
 from ._product import ProductArrow, ProductGroupoid
@@ -11,7 +12,7 @@ from ._user import DefinedGroupoid
 
 __all__ = [
     "ActionArrow", "ActionGroupoid", "Arrow", "DefinedGroupoid", "EuclideanSpace", "Groupoid",
-    "MatrixArrow", "MatrixLieGroup", "PairArrow", "PairGroupoid", "ProductArrow",
+    "MatrixArrow", "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow", "PairGroupoid", "ProductArrow",
     "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid", "check_axioms",
     "derivation", "hat3", "left_derivative", "right_derivative",
 ]

@@ -19,6 +19,30 @@ import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
 
+_NAMED_CONSTANTS: dict = {}  # MatrixSymbol -> value, for every NamedMatrix used in matrix form
+
+
+class NamedMatrix(sp.ImmutableDenseMatrix):
+    """A constant matrix with a LaTeX name, e.g. ``NamedMatrix(J, name="J_d")``.
+
+    It behaves as the SymPy matrix it holds; in printed (matrix-form) equations it appears
+    by name: ``tr(W_k E_1 J_d)`` rather than with its entries.
+    """
+
+    latex_name: str | None = None
+
+    def __new__(cls, *args, name: str | None = None):
+        obj = super().__new__(cls, *args)
+        if name is not None:
+            obj.latex_name = name
+        return obj
+
+
+def named_constants() -> dict:
+    """MatrixSymbol → value of the named constant matrices seen so far."""
+    return dict(_NAMED_CONSTANTS)
+
+
 class StructuredMatrix:
     """A matrix expression (SymPy ``MatrixExpr``) with the ``Matrix`` methods user code uses."""
 
@@ -36,7 +60,12 @@ class StructuredMatrix:
         if isinstance(other, StructuredMatrix):
             return other.expr
         if isinstance(other, sp.MatrixBase):
+            name = getattr(other, "latex_name", None)
             value = sp.ImmutableMatrix(other)
+            if name is not None:
+                symbol = sp.MatrixSymbol(name, *value.shape)
+                _NAMED_CONSTANTS[symbol] = value
+                return symbol
             return self.names.get(value, value)
         if isinstance(other, sp.MatrixExpr):
             return other

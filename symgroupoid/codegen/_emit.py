@@ -1,0 +1,155 @@
+"""Render the C kernel of a step from the jinja2 templates and write ``path.c``/``path.h``.
+
+The templates (``kernel.c.j2``, ``kernel.h.j2``, ``declarations.j2``, ``cdef.j2``) live in
+the top-level ``templates/`` directory of the source tree, installed as the package
+``symgroupoid.templates``.  Output is deterministic: no timestamps, fixed ordering,
+canonical ``cse`` with positional temporary names.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import os
+import tempfile
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import jinja2
+
+from ._kernel import c_identifier, kernel_blocks
+
+TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2")
+
+#: default Newton options compiled into ``<prefix>_default_options``
+DEFAULT_OPTIONS = {"tol_residual": 1e-12, "tol_step": 1e-10, "max_iterations": 50}
+
+
+def template_dir() -> Path:
+    """Directory of the kernel templates (installed package data, else the source tree)."""
+    try:
+        path = Path(str(resources.files("symgroupoid.templates")))
+        if (path / TEMPLATE_NAMES[0]).is_file():
+            return path
+    except (ModuleNotFoundError, TypeError):
+        pass
+    path = Path(__file__).resolve().parents[2] / "templates"
+    if (path / TEMPLATE_NAMES[0]).is_file():
+        return path
+    raise FileNotFoundError("symgroupoid kernel templates not found (expected the package "
+                            "symgroupoid.templates or a templates/ directory in the source tree)")
+
+
+@functools.cache
+def _environment(directory: str) -> jinja2.Environment:
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(directory), undefined=jinja2.StrictUndefined,
+        trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True, autoescape=False)
+
+
+def templates_digest() -> str:
+    """SHA-256 over the template files (part of every cache key)."""
+    directory = template_dir()
+    digest = hashlib.sha256()
+    for name in TEMPLATE_NAMES:
+        digest.update(name.encode())
+        digest.update((directory / name).read_bytes())
+    return digest.hexdigest()
+
+
+@dataclass(frozen=True)
+class KernelSource:
+    """The generated kernel: header, C source, the cffi declarations, and the C prefix."""
+
+    prefix: str
+    header_name: str
+    header: str
+    source: str
+    cdef: str
+
+
+def _ascii(text: str) -> str:
+    """Text safe inside a C comment: ASCII only, no comment terminator."""
+    out = text.replace("×", "x").replace("⋊", "|x").replace("*/", "* /")
+    return out.encode("ascii", "backslashreplace").decode("ascii")
+
+
+def _c_double(value: float) -> str:
+    text = repr(float(value))
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+def _context(step, prefix: str, header_name: str) -> dict:
+    from .. import __version__
+    from ..equations import latex
+
+    blocks = kernel_blocks(step)
+    fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
+    return {
+        "p": prefix, "P": prefix.upper(), "header_name": header_name, "name": _ascii(step.name), "version": __version__,
+        "groupoid": _ascii(step.groupoid.name),
+        "n_equations": len(step.residuals), "n_unknowns": len(step.unknowns),
+        "n_knowns": len(step.knowns), "n_parameters": len(step.parameters),
+        "n_fibre": blocks.n_fibre, "n_constraints": step.n_constraints,
+        "unknown_names": [_ascii(s.name) for s in step.unknowns],
+        "known_names": [_ascii(s.name) for s in step.knowns],
+        "parameter_names": [_ascii(s.name) for s in step.parameters],
+        "fibre_names": [_ascii(s.name) for s in fibre],
+        "residual_latex": [_ascii(latex(r)) for r in step.residuals],
+        "reconstruct": blocks.reconstruct, "residual": blocks.residual,
+        "residual_jacobian": blocks.residual_jacobian, "predict": blocks.predict,
+        "next_knowns": blocks.next_knowns,
+        "tol_residual": _c_double(DEFAULT_OPTIONS["tol_residual"]),
+        "tol_step": _c_double(DEFAULT_OPTIONS["tol_step"]),
+        "max_iterations": DEFAULT_OPTIONS["max_iterations"],
+    }
+
+
+def generate_c(step, prefix: str | None = None, header_name: str | None = None
+               ) -> KernelSource:
+    """Generate (without writing) the C kernel of ``step``.
+
+    ``prefix`` (default: sanitised ``step.name``) prefixes every C identifier;
+    ``header_name`` (default ``<prefix>.h``) is the header the source includes.
+    """
+    prefix = c_identifier(step.name if prefix is None else prefix)
+    if len(step.residuals) != len(step.unknowns):
+        raise ValueError(f"{step.name}: {len(step.residuals)} equations in "
+                         f"{len(step.unknowns)} unknowns; a Newton kernel needs a square system")
+    env = _environment(str(template_dir()))
+    header_name = header_name or f"{prefix}.h"
+    ctx = _context(step, prefix, header_name)
+    return KernelSource(prefix=prefix, header_name=header_name, header=env.get_template("kernel.h.j2").render(ctx),
+                        source=env.get_template("kernel.c.j2").render(ctx),
+                        cdef=env.get_template("cdef.j2").render(ctx))
+
+
+def write_atomic(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and an atomic rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="ascii", newline="\n") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def emit_c(step, path: str | os.PathLike, prefix: str | None = None) -> tuple[Path, Path]:
+    """Write ``path.c`` and ``path.h`` for ``step``; return their paths.
+
+    C identifiers are prefixed by the sanitised ``prefix`` (default: ``step.name``), e.g.
+    ``plate_ball_simulate``; the source includes the header by its file name.  Both files are
+    written atomically.
+    """
+    base = Path(path)
+    if base.suffix in (".c", ".h"):
+        base = base.with_suffix("")
+    c_path, h_path = base.with_name(base.name + ".c"), base.with_name(base.name + ".h")
+    kernel = generate_c(step, prefix, header_name=h_path.name)
+    write_atomic(h_path, kernel.header)
+    write_atomic(c_path, kernel.source)
+    return c_path, h_path

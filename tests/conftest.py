@@ -1,0 +1,87 @@
+"""Shared systems for the tests: the seed examples, built once per session."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import symgroupoid as sg
+
+
+def plate_ball_system() -> tuple[sg.DiscreteSystem, tuple]:
+    """Seed 000 §6.2: R²×R²×SO(3) ⇉ R² with the rolling constraints."""
+    h, r, Omega, c = sp.symbols("h r Omega c", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("g")
+    E1, E2, E3 = sg.SO3.basis_matrices()
+
+    def L(g):
+        (x0, y0), (x1, y1) = g[0].source, g[0].target
+        return h / 2 * (((x1 - x0) / h) ** 2 + ((y1 - y0) / h) ** 2)
+
+    def phi(g):
+        (x0, y0), (x1, y1) = g[0].source, g[0].target
+        W = g[1].matrix
+        return [h * ((y1 - y0) / h - r / (2 * h) * (W * E1).trace() - Omega * (x1 + x0) / 2),
+                h * ((x1 - x0) / h + r / (2 * h) * (W * E2).trace() + Omega * (y1 + y0) / 2),
+                h * (c + (W * E3).trace() / (2 * h))]
+
+    system = sg.DiscreteSystem(G, L, constraints=phi, parameters=[h, r, Omega, c],
+                               name="plate_ball")
+    return system, (h, r, Omega, c)
+
+
+def heavy_top_system() -> tuple[sg.DiscreteSystem, tuple]:
+    """Seed 002 / EQUATIONS.md §9: S²×SO(3) with Γ·W = WᵀΓ, L = −tr(J_d W)/h − h m g l Γ·e."""
+    h, m, g0, l = sp.symbols("h m g_0 l", positive=True)
+    I1, I2, I3 = sp.symbols("I_1 I_2 I_3", positive=True)
+    inertia = sp.diag(I1, I2, I3)
+    Jd = sg.NamedMatrix(inertia.trace() / 2 * sp.eye(3) - inertia, name="J_d")
+    G = sg.ActionGroupoid(sg.EuclideanSpace.vector("Gamma", 3), sg.SO3("W"),
+                          lambda p, W: tuple(W.T * sp.Matrix(p)))
+
+    def L(a):
+        return -(Jd * a.matrix).trace() / h - h * m * g0 * l * a.point[2]
+
+    system = sg.DiscreteSystem(G, L, parameters=[h, m, g0, l, I1, I2, I3], name="heavy_top")
+    return system, (h, m, g0, l, I1, I2, I3)
+
+
+def newton(step: sg.StepEquations, u0, known, params, tol=1e-13, maxit=30) -> np.ndarray:
+    """A plain Newton solve of one step through ``StepEquations.evaluate`` (test helper)."""
+    u = np.asarray(u0, float).copy()
+    for _ in range(maxit):
+        F, J = step.evaluate(u, known, params)
+        du = np.linalg.solve(J, -F)
+        u += du
+        if np.linalg.norm(du) < tol * (1 + np.linalg.norm(u)):
+            break
+    F, _ = step.evaluate(u, known, params)
+    assert np.linalg.norm(F) < 1e-10, f"Newton did not converge: |F| = {np.linalg.norm(F)}"
+    return u
+
+
+def predicted(step: sg.StepEquations, known, params) -> np.ndarray:
+    """The step's own first guess for the unknowns."""
+    f = sp.lambdify([step.knowns, step.parameters], step.prediction, "numpy")
+    return np.asarray(f(np.asarray(known, float), np.asarray(params, float)), float)
+
+
+@pytest.fixture(scope="session")
+def plate_ball():
+    return plate_ball_system()
+
+
+@pytest.fixture(scope="session")
+def plate_ball_step(plate_ball):
+    return plate_ball[0].euler_lagrange()
+
+
+@pytest.fixture(scope="session")
+def heavy_top():
+    return heavy_top_system()
+
+
+@pytest.fixture(scope="session")
+def heavy_top_step(heavy_top):
+    return heavy_top[0].euler_lagrange()

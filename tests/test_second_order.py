@@ -1,0 +1,106 @@
+"""Second-order discrete Euler–Lagrange equations (seed 001 §3.1, §3.2, Remark 9), from the
+same junction variation as first order."""
+
+from __future__ import annotations
+
+import sympy as sp
+
+import symgroupoid as sg
+
+
+def _pair_points(step, name, offsets):
+    return [step.symbol(name, o) for o in offsets]
+
+
+def test_pair_groupoid_eq16_arbitrary_lagrangian():
+    """Seed 001 eq. (16): D₃L(q_{k-2},q_{k-1},q_k) + D₂L(q_{k-1},q_k,q_{k+1})
+    + D₁L(q_k,q_{k+1},q_{k+2}) = 0, for an arbitrary L on R²."""
+    Q = sg.EuclideanSpace("x y")
+    F = sp.Function("L")
+    system = sg.SecondOrderSystem(
+        sg.PairGroupoid(Q), lambda a, b: F(*a.source, *a.target, *b.target), name="eq16")
+    step = system.euler_lagrange()
+    assert [str(u) for u in step.unknowns] == ["x_{k+2}", "y_{k+2}"]
+    x = _pair_points(step, "x", range(-2, 3))
+    y = _pair_points(step, "y", range(-2, 3))
+    pts = list(zip(x, y))
+
+    def Lat(i):
+        return F(*pts[i], *pts[i + 1], *pts[i + 2])
+
+    for j, v in enumerate((x[2], y[2])):
+        expected = Lat(0).diff(v) + Lat(1).diff(v) + Lat(2).diff(v)
+        assert sp.simplify(step.residuals[j] - expected) == 0
+
+
+def test_constrained_pair_groupoid_remark9():
+    """Seed 001 Remark 9 (pair groupoid): D₁[L+λΦ] + D₂[L+λΦ] + D₃[L+λΦ] at the three
+    windows through q_k, each window with its own multiplier, and Φ = 0 on the newest."""
+    Q = sg.EuclideanSpace("q")
+    F, P = sp.Function("L"), sp.Function("Phi")
+    system = sg.SecondOrderSystem(
+        sg.PairGroupoid(Q), lambda a, b: F(a.source[0], a.target[0], b.target[0]),
+        constraints=lambda a, b: [P(a.source[0], a.target[0], b.target[0])], name="remark9")
+    step = system.euler_lagrange()
+    q = _pair_points(step, "q", range(-2, 3))
+    lam = {o: step.symbol("lambda", o)[0] for o in (-1, 0, 1)}
+
+    def term(s):  # window starting at q_{k+s-1}, multiplier λ_{k+s}
+        args = q[s + 1:s + 4]
+        return F(*args) + lam[s] * P(*args)
+
+    expected = sum(term(s).diff(q[2]) for s in (-1, 0, 1))
+    assert sp.simplify(step.residuals[0] - expected) == 0
+    assert sp.simplify(step.residuals[1] - P(q[2], q[3], q[4])) == 0
+    assert step.unknowns == [q[4], lam[1]]
+    assert lam[-1] in step.knowns and lam[0] in step.knowns
+
+
+def _explicit_group_derivative(L, slots, which, side, E):
+    """d/dt L(…, g e^{tE} or e^{tE} g, …) at 0 via ∂L/∂g_ij (gE)_ij — written out here."""
+    g = slots[which]
+    V = g * E if side == "left" else E * g
+    return sum(sp.diff(L, g[i, j]) * V[i, j] for i in range(3) for j in range(3))
+
+
+def test_second_order_euler_poincare_so3():
+    """Seed 001 §3.1.2: 0 = ℓ*_{g_k}D₁L(g_k,g_{k+1}) + ℓ*_{g_k}D₂L(g_{k-1},g_k)
+    − r*_{g_{k+1}}D₂L(g_k,g_{k+1}) − r*_{g_{k+1}}D₁L(g_{k+1},g_{k+2})."""
+    J1, J2 = sp.diag(1, 2, 3), sp.diag(2, 1, 1)
+    W = sg.SO3("W")
+
+    def L(a, b):
+        return (a.matrix * J1).trace() * (b.matrix * J2).trace() + (a.matrix * b.matrix).trace()
+
+    step = sg.SecondOrderSystem(W, L, name="ep2").euler_lagrange()
+    g = {o: W.named_matrix(o) for o in (-1, 0, 1, 2)}
+
+    def Lg(a, b):
+        return (a * J1).trace() * (b * J2).trace() + (a * b).trace()
+
+    for s, E in enumerate(sg.SO3.basis_matrices()):
+        expected = (_explicit_group_derivative(Lg(g[0], g[1]), g, 0, "left", E)
+                    + _explicit_group_derivative(Lg(g[-1], g[0]), g, 0, "left", E)
+                    - _explicit_group_derivative(Lg(g[0], g[1]), g, 1, "right", E)
+                    - _explicit_group_derivative(Lg(g[1], g[2]), g, 1, "right", E))
+        assert sp.expand(step.residuals[s] - expected) == 0
+
+
+def test_second_order_action_groupoid_composability():
+    """Seed 001 §3.1.3: on P×H the window is (q, h_{k-1}), (q h_{k-1}, h_k), … — the sources
+    of later arrows are the action of earlier ones, and the unknown is h_{k+2} only."""
+    G = sg.ActionGroupoid(sg.EuclideanSpace.vector("p", 3), sg.SO3("W"),
+                          lambda p, W: tuple(W.T * sp.Matrix(p)))
+
+    def L(a, b):
+        return a.point[2] * (b.matrix * sp.diag(1, 2, 3)).trace() + sum(b.point)
+
+    step = sg.SecondOrderSystem(G, L, name="action2").euler_lagrange()
+    assert len(step.unknowns) == 3 and len(step.residuals) == 3
+    arrows = step.arrows
+    W = {o: G.group.named_matrix(o) for o in (-1, 0, 1, 2)}
+    p = sp.Matrix(step.symbol("p", "k-1"))
+    expected_source = W[0].T * (W[-1].T * p)
+    assert sp.expand(sp.Matrix(arrows[1][:3]) - expected_source) == sp.zeros(3, 1)
+    free = set().union(*(r.free_symbols for r in step.residuals))
+    assert free <= set(step.knowns) | set(G.group.named_fibre(2))
