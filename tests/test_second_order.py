@@ -104,3 +104,23 @@ def test_second_order_action_groupoid_composability():
     assert sp.expand(sp.Matrix(arrows[1][:3]) - expected_source) == sp.zeros(3, 1)
     free = set().union(*(r.free_symbols for r in step.residuals))
     assert free <= set(step.knowns) | set(G.group.named_fibre(2))
+
+
+def test_second_order_legendre_on_pair_groupoid():
+    """Higher-order discrete Legendre transforms on Q×Q, window q_{k-1}, …, q_{k+2} with
+    L_a = L(q_{k-1}, q_k, q_{k+1}), L_b = L(q_k, q_{k+1}, q_{k+2}):
+    F⁺L = (∂L_a/∂q_{k+1} + ∂L_b/∂q_{k+1}, ∂L_b/∂q_{k+2}) (momenta at q_{k+1}, q_{k+2}),
+    F⁻L = (−∂L_a/∂q_{k-1}, −∂L_a/∂q_k − ∂L_b/∂q_k) (momenta at q_{k-1}, q_k); equating
+    F⁺ of one window with F⁻ of the window two arrows later is eq. (16) twice."""
+    Q = sg.EuclideanSpace("q")
+    F = sp.Function("L")
+    system = sg.SecondOrderSystem(sg.PairGroupoid(Q),
+                                  lambda a, b: F(a.source[0], a.target[0], b.target[0]))
+    leg = system.legendre()
+    qm1, q0, q1, q2 = (Q.point(o)[0] for o in (-1, 0, 1, 2))
+    assert set(leg.arrow) == {qm1, q0, q1, q2}
+    La, Lb = F(qm1, q0, q1), F(q0, q1, q2)
+    expect_plus = [La.diff(q1) + Lb.diff(q1), Lb.diff(q2)]
+    expect_minus = [-La.diff(qm1), -La.diff(q0) - Lb.diff(q0)]
+    assert all(sp.simplify(a - b) == 0 for a, b in zip(leg.plus, expect_plus))
+    assert all(sp.simplify(a - b) == 0 for a, b in zip(leg.minus, expect_minus))

@@ -42,7 +42,10 @@ class LegendreForms:
 
 
 def legendre_forms(G: Groupoid, fs: SystemFunctions, offset: int = 0) -> LegendreForms:
-    """Both discrete Legendre transforms in the section basis (seed 000 §3.3)."""
+    """Both discrete Legendre transforms in the section basis (seed 000 §3.3); for a
+    second-order system see :func:`second_order_legendre_forms`."""
+    if len(fs.slots) == 2:
+        return second_order_legendre_forms(G, fs, offset)
     lam = multiplier_symbols(len(fs.constraints), offset)
     A = slot(G, "l")
     F = shifted(fs, [A], lam)
@@ -51,6 +54,42 @@ def legendre_forms(G: Groupoid, fs: SystemFunctions, offset: int = 0) -> Legendr
     minus = [sp.expand(e.xreplace(sub)) for e in G.apply_right(F, A)]
     plus = [sp.expand(e.xreplace(sub)) for e in G.apply_left(F, A)]
     return LegendreForms(minus, plus, g, lam)
+
+
+def second_order_legendre_forms(G: Groupoid, fs: SystemFunctions,
+                                offset: int = 0) -> LegendreForms:
+    """Second-order momenta on a window of three composable arrows (A₀, A₁, A₂), terms
+    T₀ = [L + λ_{k}·Φ](A₀, A₁), T₁ = [L + λ_{k+1}·Φ](A₁, A₂) (seed 001 §4; for Q×Q the
+    transforms of higher-order discrete mechanics).  Each momentum is the part of a junction
+    variation that comes from one side of a cut in the sequence of terms:
+
+    - F⁺ (cut after T₁, momentum at A₂ from the past):
+      ( var_{(A₁,A₂)}[T₀ + T₁],  X⃖_{A₂}[T₁] );
+    - F⁻ (cut before T₀, momentum at A₀ from the future):
+      ( X⃗_{A₀}[T₀],  −var_{(A₀,A₁)}[T₀ + T₁] ),
+
+    so that F⁺L(g_{k-1}, g_k, g_{k+1}) = F⁻L(g_{k+1}, g_{k+2}, g_{k+3}) is the pair of
+    second-order DEL at the junctions (g_k, g_{k+1}) and (g_{k+1}, g_{k+2}).  Initial data
+    (g₀, p₀) determine g₁, g₂ through F⁻L(g₀, g₁, g₂) = p₀.
+    """
+    m = len(fs.constraints)
+    A = [slot(G, f"m{i}_") for i in range(3)]
+    T0 = shifted(fs, [A[0], A[1]], multiplier_symbols(m, offset))
+    T1 = shifted(fs, [A[1], A[2]], multiplier_symbols(m, offset + 1))
+    plus = ([a - b for a, b in zip(G.apply_left(T0 + T1, A[1]), G.apply_right(T1, A[2]))]
+            + G.apply_left(T1, A[2]))
+    minus = (G.apply_right(T0, A[0])
+             + [b - a for a, b in zip(G.apply_left(T0, A[0]), G.apply_right(T0 + T1, A[1]))])
+    arrows = [named(G, offset, False)]
+    for o in (1, 2):
+        arrows.append(next_arrow(G, arrows[-1], offset + o, False))
+    sub: dict = {}
+    for a, g in zip(A, arrows):
+        sub.update(slot_substitution(a, g))
+    flat = tuple(c for g in arrows for c in g)
+    lam = multiplier_symbols(m, offset) + multiplier_symbols(m, offset + 1)
+    return LegendreForms([sp.expand(e.xreplace(sub)) for e in minus],
+                         [sp.expand(e.xreplace(sub)) for e in plus], flat, lam)
 
 
 def section_coefficients(G: Groupoid, section, q: Sequence) -> list[sp.Expr]:
