@@ -20,6 +20,7 @@ from .equations import (
     LegendreTransforms,
     LiePoissonEquations,
     NoetherQuantity,
+    NonholonomicSystem,
     SecondOrderSystem,
     StepEquations,
     latex,
@@ -50,7 +51,7 @@ __version__ = "0.1.0"
 __all__ = [
     "SE2", "SE3", "SO2", "SO3", "ActionGroupoid", "Arrow", "AxiomError", "CallableError",
     "DefinedGroupoid", "DiscreteSystem", "LegendreTransforms", "LiePoissonEquations",
-    "NoetherQuantity", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NamedMatrix", "NewtonDivergenceError",
+    "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NamedMatrix", "NewtonDivergenceError",
     "NotComposableError", "PairGroupoid", "ProductGroupoid", "ShapeError",
     "SingularJacobianError", "SymgroupoidError", "TimeGroupoid", "UndeclaredSymbolError",
     "check_axioms", "hat3", "left_derivative", "right_derivative",

@@ -140,13 +140,16 @@ def window(arity: int) -> tuple[list[int], list[int]]:
     return list(range(1 - arity, arity + 1)), list(range(1 - arity, 2))
 
 
-def window_residuals(G: Groupoid, fs: SystemFunctions) -> tuple[list, dict]:
+def window_residuals(G: Groupoid, fs: SystemFunctions,
+                     multipliers: bool = True) -> tuple[list, dict]:
     """Residuals of the junction variation between g_k and g_{k+1}, then the constraints on
-    the newest term; returns them with the named arrows by offset."""
+    the newest term; returns them with the named arrows by offset.  With
+    ``multipliers=False`` the constraints are not added to the action (nonholonomic)."""
     arity, m, mf = len(fs.slots), len(fs.constraints), fs.matrix_form
     offsets, starts = window(arity)
     A = {o: slot(G, f"w{o + 2}_", mf) for o in offsets}
-    S = sum((shifted(fs, [A[s + i] for i in range(arity)], multiplier_symbols(m, s))
+    S = sum((shifted(fs, [A[s + i] for i in range(arity)],
+                     multiplier_symbols(m, s) if multipliers else [])
              for s in starts), sp.S.Zero)
     variations = junction_variation(G, S, A[0], A[1])
     arrows = {offsets[0]: named(G, offsets[0], mf)}
@@ -185,6 +188,42 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
         multipliers_next=lam[starts[-1]], next_knowns=next_knowns,
         parameters=list(parameters), n_constraints=m, offsets=(first, newest),
         arrows=arrows, prediction=prediction)
+
+
+def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution: Sequence,
+                      parameters: Sequence) -> DerivedStep:
+    """Discrete nonholonomic step (seed 002, discrete Hölder principle; EQUATIONS.md §10):
+
+        X⃖_a[L](g_k) = X⃗_a[L](g_{k+1})  for a basis X_a = Σ_b c_a^b E_b of D_c,
+        g_{k+1} ∈ M_c = {ψ = 0},
+
+    with the coefficients c_a^b evaluated at β(g_k) = α(g_{k+1}).  ``fs.constraints`` are
+    the functions ψ defining M_c; ``distribution`` is a list of callables (or coefficient
+    lists) giving c_a(q).  No multipliers: dim D_c + #ψ = rank.
+    """
+    r, m = len(distribution), len(fs.constraints)
+    if r + m != G.rank:
+        raise ShapeError(f"{name}: dim D_c ({r}) + number of discrete constraints ({m}) must "
+                         f"equal the fibre dimension {G.rank}")
+    residuals, arrows = window_residuals(G, fs, multipliers=False)
+    dels, psis = residuals[:G.rank], residuals[G.rank:]
+    q = G.target(arrows[0])
+    rows = []
+    for a, basis in enumerate(distribution):
+        coeffs = basis(tuple(q)) if callable(basis) else basis
+        coeffs = [sp.sympify(c) for c in coeffs]
+        if len(coeffs) != G.rank:
+            raise ShapeError(f"{name}: distribution element {a} has {len(coeffs)} "
+                             f"coefficients; the algebroid has rank {G.rank}")
+        rows.append(tidy(sum((c * d for c, d in zip(coeffs, dels)), sp.S.Zero)))
+    fibre, chart, cmap = chart_of(G, 1)
+    g0, g1 = arrows[0], arrows[1]
+    return DerivedStep(
+        name=name, groupoid=G, order=1, residuals=rows + psis, knowns=list(g0),
+        fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap, multipliers_next=[],
+        next_knowns=[sp.sympify(c).xreplace(cmap) for c in g1], parameters=list(parameters),
+        n_constraints=0, offsets=(0, 1), arrows=arrows,
+        prediction=list(G.predict_chart(g0)))
 
 
 def matrix_form_values(groupoid: Groupoid, offsets: Sequence[int]) -> dict:

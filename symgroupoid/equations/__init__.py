@@ -3,6 +3,6 @@
 from ._latex import GroupoidLatexPrinter, latex
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._step import StepEquations
-from ._system import DiscreteSystem, SecondOrderSystem
+from ._system import DiscreteSystem, NonholonomicSystem, SecondOrderSystem
 
-__all__ = ["DiscreteSystem", "LegendreTransforms", "LiePoissonEquations", "NoetherQuantity", "SecondOrderSystem", "GroupoidLatexPrinter", "StepEquations", "latex"]
+__all__ = ["DiscreteSystem", "LegendreTransforms", "LiePoissonEquations", "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "GroupoidLatexPrinter", "StepEquations", "latex"]

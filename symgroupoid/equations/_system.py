@@ -11,6 +11,7 @@ from ..derivation._step import (
     evaluate_system,
     junction_step,
     matrix_form_residuals,
+    nonholonomic_step,
 )
 from ..groupoids import Groupoid
 from ..derivation._momenta import (
@@ -105,3 +106,33 @@ class SecondOrderSystem(DiscreteSystem):
 
     def lie_poisson(self):
         raise NotImplementedError(f"{self.name}: the Lie–Poisson form is first order only")
+
+
+class NonholonomicSystem:
+    """A discrete nonholonomic system (L_d, M_c, D_c) (seed 002; EQUATIONS.md §10).
+
+    ``constraints(g) -> [ψ…]`` define the discrete constraint submanifold M_c ⊂ G;
+    ``distribution`` lists the basis of D_c ⊂ AG, each element a list of coefficients in the
+    groupoid's section basis or a callable of the base point returning one.  The equations
+    are not variational in the sense of :class:`DiscreteSystem`: no multipliers, and the
+    flow is not Poisson in general.
+    """
+
+    def __init__(self, groupoid: Groupoid, lagrangian: Callable, constraints: Callable,
+                 distribution: Sequence, parameters: Sequence[sp.Symbol] = (),
+                 name: str = "nonholonomic"):
+        self.groupoid, self.name = groupoid, name
+        self.lagrangian, self.constraints = lagrangian, constraints
+        self.distribution = list(distribution)
+        self.parameters = list(parameters)
+        self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters)
+
+    def euler_lagrange(self) -> StepEquations:
+        """The step g_k → g_{k+1}: the DEL along D_c and g_{k+1} ∈ M_c."""
+        step = StepEquations(nonholonomic_step(self.name, self.groupoid, self._fs,
+                                               self.distribution, self.parameters))
+        step.system = self
+        return step
+
+    def __repr__(self) -> str:
+        return f"NonholonomicSystem({self.name!r} on {self.groupoid.name})"
