@@ -190,6 +190,13 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
         arrows=arrows, prediction=prediction)
 
 
+def check_nonholonomic_dimensions(name: str, G: Groupoid, r: int, m: int) -> None:
+    """dim D_c + #constraints must equal the rank (seed 002: dim M_c = dim D_c)."""
+    if r + m != G.rank:
+        raise ShapeError(f"{name}: dim D_c ({r}) + number of discrete constraints ({m}) must "
+                         f"equal the fibre dimension {G.rank}")
+
+
 def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution: Sequence,
                       parameters: Sequence) -> DerivedStep:
     """Discrete nonholonomic step (seed 002, discrete Hölder principle; EQUATIONS.md §10):
@@ -201,10 +208,7 @@ def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution:
     the functions ψ defining M_c; ``distribution`` is a list of callables (or coefficient
     lists) giving c_a(q).  No multipliers: dim D_c + #ψ = rank.
     """
-    r, m = len(distribution), len(fs.constraints)
-    if r + m != G.rank:
-        raise ShapeError(f"{name}: dim D_c ({r}) + number of discrete constraints ({m}) must "
-                         f"equal the fibre dimension {G.rank}")
+    check_nonholonomic_dimensions(name, G, len(distribution), len(fs.constraints))
     residuals, arrows = window_residuals(G, fs, multipliers=False)
     dels, psis = residuals[:G.rank], residuals[G.rank:]
     q = G.target(arrows[0])

@@ -11,6 +11,7 @@ from ..derivation._step import (
     evaluate_system,
     junction_step,
     matrix_form_residuals,
+    check_nonholonomic_dimensions,
     nonholonomic_step,
 )
 from ..groupoids import Groupoid
@@ -126,6 +127,8 @@ class NonholonomicSystem:
         self.distribution = list(distribution)
         self.parameters = list(parameters)
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters)
+        check_nonholonomic_dimensions(name, groupoid, len(self.distribution),
+                                      len(self._fs.constraints))
 
     def euler_lagrange(self) -> StepEquations:
         """The step g_k → g_{k+1}: the DEL along D_c and g_{k+1} ∈ M_c."""
