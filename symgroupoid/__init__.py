@@ -46,7 +46,18 @@ from .groupoids import (
     right_derivative,
 )
 
+from .verification import StationarityReport, verify_stationary
+
 __version__ = "0.1.0"
+
+from .codegen import emit_c  # noqa: E402  (layer 4; needs __version__)
+from .runtime import (  # noqa: E402  (layer 5)
+    CompilationError,
+    NewtonOptions,
+    Simulator,
+    Trajectory,
+    compile_step,
+)
 
 __all__ = [
     "SE2", "SE3", "SO2", "SO3", "ActionGroupoid", "Arrow", "AxiomError", "CallableError",
@@ -54,5 +65,6 @@ __all__ = [
     "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NamedMatrix", "NewtonDivergenceError",
     "NotComposableError", "PairGroupoid", "ProductGroupoid", "ShapeError",
     "SingularJacobianError", "SymgroupoidError", "TimeGroupoid", "UndeclaredSymbolError",
-    "check_axioms", "hat3", "left_derivative", "right_derivative",
+    "StationarityReport", "check_axioms", "hat3", "verify_stationary", "left_derivative", "right_derivative",
+    "CompilationError", "NewtonOptions", "Simulator", "Trajectory", "compile_step", "emit_c",
 ]

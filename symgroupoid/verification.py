@@ -1,0 +1,172 @@
+"""Independent checks of computed trajectories against the variational principle.
+
+:func:`verify_stationary` evaluates the discrete action Σ [L + λ·φ] with NumPy from the
+system's own Lagrangian and constraints — not from the derived equations — and differentiates
+it numerically along random admissible variations (seed 000 §5.1, seed 001 eq. (11)):
+
+    g_j ↦ h_{j-1}(t)⁻¹ · g_j · h_j(t),   h_j(t) ⊂ α⁻¹(β(g_j)),  h_j(0) = ε,   λ ↦ λ + t μ,
+
+which keep the sequence composable and its product (so its end points) fixed; second-order
+problems also keep the first and last arrows fixed (seed 001 §3.1).  On a solution
+the derivative vanishes, so the central difference (S(ε) − S(−ε))/2ε is O(ε²).
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from .groupoids import Groupoid
+
+
+@dataclass
+class StationarityReport:
+    """Central differences of the action along one random admissible variation."""
+
+    derivatives: dict = field(default_factory=dict)  # ε -> (S(ε) − S(−ε)) / 2ε
+    scale: float = 0.0  # Σ |first-order changes of the terms| (normalisation)
+    stationary: bool = False
+
+    def __bool__(self) -> bool:
+        return self.stationary
+
+    def __repr__(self) -> str:
+        ds = ", ".join(f"ε={e:.1e}: {d:.3e}" for e, d in self.derivatives.items())
+        return f"<StationarityReport stationary={self.stationary} scale={self.scale:.3e} {ds}>"
+
+
+class _NumericGroupoid:
+    """Structure maps of a groupoid lambdified once (generic symbolic arrows)."""
+
+    def __init__(self, G: Groupoid):
+        self.G = G
+        a = G._generic_arrow
+        b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
+        q = tuple(sp.Dummy(f"q{i}") for i in range(G.base_dim))
+        t = sp.Dummy("t")
+        self.multiply = sp.lambdify([a, b], list(G.multiply(a, b)), "numpy")
+        self.inverse = sp.lambdify([a], list(G.inverse(a)), "numpy")
+        self.target = sp.lambdify([a], list(G.target(a)), "numpy")
+        self.curves = [sp.lambdify([q, t], list(h), "numpy") for h in G._curves(q, t)]
+
+    def flow(self, q: np.ndarray, coeffs: np.ndarray, t: float) -> np.ndarray:
+        """h(t) ⊂ α⁻¹(q): the product of section curves h_a(c_a t), each at the target of the
+        previous one, so h'(0) = Σ c_a X_a(q)."""
+        h = None
+        point = np.asarray(q, float)
+        for curve, c in zip(self.curves, coeffs):
+            piece = np.asarray(curve(point, c * t), float)
+            h = piece if h is None else np.asarray(self.multiply(h, piece), float)
+            point = np.asarray(self.target(h), float)
+        return h
+
+
+def _action_terms(system) -> tuple:
+    """Lambdified L and φ on the system's own slot coordinates (independent of the DEL)."""
+    fs = system._fs
+    coords = [c for s in fs.slots for c in s]
+    args = [coords, list(system.parameters)]
+    L = sp.lambdify(args, fs.lagrangian, "numpy")
+    phi = sp.lambdify(args, fs.constraints, "numpy") if fs.constraints else None
+    return L, phi, len(fs.slots), len(fs.constraints)
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_terms(system):
+    return _action_terms(system)
+
+
+def action_terms(system, arrows: np.ndarray, multipliers: np.ndarray | None,
+                 params: Sequence) -> np.ndarray:
+    """[L + λ_j·φ](g_j, …, g_{j+arity−1}) for every window of the arrow sequence."""
+    L, phi, arity, m = _cached_terms(system)
+    p = np.asarray(params, float)
+    terms = []
+    for j in range(len(arrows) - arity + 1):
+        window = np.concatenate(arrows[j:j + arity])
+        value = float(L(window, p))
+        if m:
+            value += float(np.dot(multipliers[j], np.asarray(phi(window, p), float)))
+        terms.append(value)
+    return np.array(terms)
+
+
+def action(system, arrows: np.ndarray, multipliers: np.ndarray | None, params: Sequence) -> float:
+    """The discrete action Σ_j [L + λ_j·φ](window j)."""
+    return float(action_terms(system, arrows, multipliers, params).sum())
+
+
+def verify_stationary(trajectory, system, params: Sequence | dict | None = None, *,
+                      multipliers: np.ndarray | None = None, eps: float = 1e-3,
+                      seed: int = 0) -> StationarityReport:
+    """Check that a trajectory is a critical point of the discrete action.
+
+    ``trajectory`` is a :class:`~symgroupoid.runtime.Trajectory` (or any object with
+    ``arrows()`` and ``multipliers``) or an array of arrows (N, arrow_dim); ``multipliers``
+    (one row per action term) are then passed separately.  Returns a
+    :class:`StationarityReport`; it is truthy when the central differences shrink like ε²
+    (or sit at rounding level) — a non-solution gives an O(1) derivative.
+    """
+    G = system.groupoid
+    arrows, lam, params = _unpack(trajectory, system, multipliers, params)
+    L, phi, arity, m = _cached_terms(system)
+    ng = _NumericGroupoid(G)
+    rng = np.random.default_rng(seed)
+    n = len(arrows)
+    coeffs = rng.normal(size=(n - 1, G.rank))
+    # order-a problems fix the first and last a arrows (seed 001: g₀, g₁, g_{N−1}, g_N):
+    # only junctions with a − 1 arrows before and after them stay free
+    coeffs[:arity - 1] = 0.0
+    coeffs[n - arity:] = 0.0
+    mus = rng.normal(size=lam.shape) if m else None
+
+    def varied(t: float) -> tuple[np.ndarray, np.ndarray | None]:
+        hs = [ng.flow(ng.target(arrows[j]), coeffs[j], t) for j in range(n - 1)]
+        out = []
+        for j, g in enumerate(arrows):
+            g = np.asarray(g, float)
+            if j > 0:
+                g = np.asarray(ng.multiply(ng.inverse(hs[j - 1]), g), float)
+            if j < n - 1:
+                g = np.asarray(ng.multiply(g, hs[j]), float)
+            out.append(g)
+        return np.array(out), (lam + t * mus if m else None)
+
+    T0 = action_terms(system, arrows, lam, params)
+    report = StationarityReport()
+    for e in (eps, eps / 2, eps / 4):
+        Tp = action_terms(system, *varied(e), params)
+        Tm = action_terms(system, *varied(-e), params)
+        report.derivatives[e] = float(Tp.sum() - Tm.sum()) / (2 * e)
+        if e == eps:  # how large the first-order changes of the single terms are
+            report.scale = float(np.abs(Tp - Tm).sum()) / (2 * e) + 1e-300
+    d = list(report.derivatives.values())
+    noise = 1e-13 * float(np.abs(T0).sum()) / (eps / 4)
+    shrinking = abs(d[2]) <= 0.35 * abs(d[1]) + noise and abs(d[1]) <= 0.35 * abs(d[0]) + noise
+    report.stationary = bool(shrinking and abs(d[2]) <= 1e-4 * report.scale + noise)
+    return report
+
+
+def _unpack(trajectory, system, multipliers, params):
+    if hasattr(trajectory, "arrows"):
+        arrows = np.asarray(trajectory.arrows(), float)
+        lam = np.asarray(trajectory.term_multipliers(), float) if multipliers is None \
+            else np.asarray(multipliers, float)
+        if params is None:
+            params = trajectory.parameters
+    else:
+        arrows = np.asarray(trajectory, float)
+        lam = np.asarray(multipliers if multipliers is not None else np.zeros((len(arrows), 0)),
+                         float)
+    if isinstance(params, dict):
+        params = [float(params[s] if s in params else params[str(s)])
+                  for s in system.parameters]
+    params = [] if params is None else list(params)
+    if arrows.ndim != 2 or arrows.shape[1] != system.groupoid.arrow_dim:
+        raise ValueError(f"{system.name}: arrows must have shape (N, "
+                         f"{system.groupoid.arrow_dim}), got {arrows.shape}")
+    return arrows, lam, params

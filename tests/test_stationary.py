@@ -1,0 +1,66 @@
+"""verify_stationary: computed trajectories are critical points of the discrete action
+(seed 000 §5; seed 001 §3.2), checked independently of the derived equations."""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+from conftest import newton, predicted
+
+import symgroupoid as sg
+from symgroupoid.verification import action
+
+
+def _march(step, known, params, n):
+    states = [np.asarray(known, float)]
+    for _ in range(n):
+        k = states[-1]
+        u = newton(step, predicted(step, k, params), k, params)
+        states.append(step.advance(u, k, params))
+    return np.array(states)
+
+
+def test_plate_ball_trajectory_is_stationary_and_a_perturbed_one_is_not(plate_ball,
+                                                                         plate_ball_step):
+    """Constrained: vary arrows at every interior junction and the multipliers."""
+    system, _ = plate_ball
+    params = [0.1, 1.0, 0.5, 0.3]
+    W = np.array(sg.SO3("g").cayley([0.0, 0.0, -0.06]).tolist(), float)  # tr(W E3)/2h = −c
+    known = np.concatenate([[0.0, 0.0, 0.05, 0.02], W.ravel(), [0.1, -0.2, 0.05]])
+    states = _march(plate_ball_step, known, params, 12)[1:]  # states satisfying φ = 0
+    arrows, lam = states[:, :13], states[:, 13:]
+    report = sg.verify_stationary(arrows, system, params, multipliers=lam)
+    assert report.stationary, report
+    bent = arrows.copy()
+    bent[5, 2] += 1e-3  # move one interior point off the solution
+    bent[6, 0] += 1e-3
+    assert not sg.verify_stationary(bent, system, params, multipliers=lam).stationary
+
+
+def test_heavy_top_trajectory_is_stationary(heavy_top, heavy_top_step):
+    system, _ = heavy_top
+    params = [0.05, 1.0, 9.81, 0.3, 1.0, 1.3, 0.7]
+    G0 = np.array([0.3, -0.2, 0.9]) / np.linalg.norm([0.3, -0.2, 0.9])
+    W = np.array(sg.SO3("W").cayley([0.02, -0.05, 0.08]).tolist(), float)
+    arrows = _march(heavy_top_step, np.concatenate([G0, W.ravel()]), params, 10)
+    assert sg.verify_stationary(arrows, system, params).stationary
+    assert action(system, arrows, None, params) != 0
+
+
+def test_second_order_pair_trajectory_is_stationary():
+    """Seed 001 eq. (16) on a cubic-spline-like second-order Lagrangian."""
+    h = sp.Symbol("h", positive=True)
+    Q = sg.EuclideanSpace("q")
+    system = sg.SecondOrderSystem(
+        sg.PairGroupoid(Q),
+        lambda a, b: ((b.target[0] - 2 * a.target[0] + a.source[0]) / h ** 2) ** 2 * h / 2
+        + sp.cos(a.target[0]) * h, parameters=[h], name="spline")
+    step = system.euler_lagrange()
+    known = np.array([0.0, 0.1, 0.25, 0.45])  # q_{k-2} … q_{k+1}
+    states = _march(step, known, [0.1], 8)
+    points = list(states[0]) + [s[-1] for s in states[1:]]
+    arrows = np.array([[points[i], points[i + 1]] for i in range(len(points) - 1)])
+    assert sg.verify_stationary(arrows, system, [0.1]).stationary
+    arrows[4, 1] += 1e-3
+    arrows[5, 0] += 1e-3
+    assert not sg.verify_stationary(arrows, system, [0.1]).stationary
