@@ -46,6 +46,7 @@ from .groupoids import (
     right_derivative,
 )
 
+from .runtime._bvp import BoundaryValueSolution, solve_boundary_value
 from .verification import StationarityReport, verify_stationary
 
 __version__ = "0.1.0"
@@ -65,6 +66,6 @@ __all__ = [
     "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NamedMatrix", "NewtonDivergenceError",
     "NotComposableError", "PairGroupoid", "ProductGroupoid", "ShapeError",
     "SingularJacobianError", "SymgroupoidError", "TimeGroupoid", "UndeclaredSymbolError",
-    "StationarityReport", "check_axioms", "hat3", "verify_stationary", "left_derivative", "right_derivative",
+    "BoundaryValueSolution", "StationarityReport", "check_axioms", "solve_boundary_value", "hat3", "verify_stationary", "left_derivative", "right_derivative",
     "CompilationError", "NewtonOptions", "Simulator", "Trajectory", "compile_step", "emit_c",
 ]

@@ -153,9 +153,10 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
 
 def _unpack(trajectory, system, multipliers, params):
     if hasattr(trajectory, "arrows"):
-        arrows = np.asarray(trajectory.arrows(), float)
-        lam = np.asarray(trajectory.term_multipliers(), float) if multipliers is None \
-            else np.asarray(multipliers, float)
+        arrows = trajectory.arrows() if callable(trajectory.arrows) else trajectory.arrows
+        arrows = np.asarray(arrows, float)
+        lam = trajectory.multipliers if multipliers is None else multipliers
+        lam = np.asarray(lam, float)
         if params is None:
             params = trajectory.parameters
     else:

@@ -165,6 +165,35 @@ def window_residuals(G: Groupoid, fs: SystemFunctions,
     return residuals, arrows
 
 
+@dataclass
+class WindowFunctions:
+    """The junction residuals and constraints in independent slot arrows (not yet named).
+
+    ``slots[o]``: coordinates of the arrow at offset o from the junction's left arrow;
+    ``multipliers[s]``: λ of the term starting at offset s; ``variation``: one expression per
+    basis section; ``constraints``: Φ on the term starting at offset 0, in ``slots``.
+    """
+
+    slots: dict
+    multipliers: dict
+    variation: list
+    constraints: list
+
+
+def window_functions(G: Groupoid, fs: SystemFunctions) -> WindowFunctions:
+    """The junction variation of the window action with every arrow an independent slot —
+    the form a boundary-value solver differentiates slot by slot."""
+    arity, m = len(fs.slots), len(fs.constraints)
+    offsets, starts = window(arity)
+    A = {o: slot(G, f"v{o + 2}_") for o in offsets}
+    lam = {s: multiplier_symbols(m, s) for s in starts}
+    S = sum((shifted(fs, [A[s + i] for i in range(arity)], lam[s]) for s in starts), sp.S.Zero)
+    variation = junction_variation(G, S, A[0], A[1])
+    term0 = [A[i] for i in range(arity)]
+    constraints = shifted(fs, term0, [1] * m, lagrangian=False, separate=True)
+    return WindowFunctions(A, lam, variation, constraints)
+
+
 def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
                   parameters: Sequence) -> DerivedStep:
     """The step of order ``len(fs.slots)``: known arrows and multipliers → the newest arrow

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import numpy as np
 import sympy as sp
 
 from .._errors import CallableError, ShapeError
@@ -116,6 +117,24 @@ class ActionGroupoid(Groupoid):
 
     def matrix_parts(self):
         return [(self.base_dim + o, g) for o, g in self.group.matrix_parts()]
+
+    def arrow_between(self, c0, c1):
+        """Configurations (p, R): the arrow (p₀, R₀⁻¹R₁); p₁ must equal p₀·(R₀⁻¹R₁)."""
+        from .._errors import NotComposableError
+
+        (p0, R0), (p1, R1) = c0, c1
+        w = self.group.arrow_between(R0, R1)
+        reached = [float(v) for v in self._act(tuple(float(x) for x in p0), w)]
+        if not np.allclose(reached, np.asarray(p1, float), atol=1e-9):
+            raise NotComposableError(
+                f"{self.name}: boundary configurations not connected by an arrow: "
+                f"p₀·(R₀⁻¹R₁) = {np.round(reached, 9).tolist()} ≠ p₁ = {list(p1)}")
+        return tuple(float(x) for x in p0) + tuple(w)
+
+    def configuration_after(self, c0, a):
+        p0, R0 = c0
+        return (tuple(float(v) for v in self.target(a)),
+                self.group.configuration_after(R0, a[self.base_dim:]))
 
     def named_fibre(self, offset):
         return self.group.named_fibre(offset)

@@ -130,6 +130,16 @@ class Groupoid(ABC):
         """Fibre variables from chart coordinates (``rank`` of them).  Default: identity."""
         return tuple(x)
 
+    @functools.cached_property
+    def _numeric_fibre_chart(self):
+        x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(self.rank))
+        return sp.lambdify([x], list(self.fibre_chart(x)), "numpy")
+
+    def numeric_fibre_chart(self, x: Sequence) -> np.ndarray:
+        """:meth:`fibre_chart` evaluated numerically (lambdified once)."""
+        values = self._numeric_fibre_chart(np.asarray(x, float))
+        return np.array([float(v) for v in values])
+
     def fibre_chart_inverse(self, f: Sequence) -> tuple:
         """Chart coordinates of fibre variables (numeric).  Default: identity."""
         return tuple(f)
@@ -184,6 +194,28 @@ class Groupoid(ABC):
         q = self.random_base_point(rng) if source is None else tuple(source)
         f = self.fibre_chart([sp.Float(v) for v in self.random_chart(rng)])
         return tuple(float(v) for v in self.arrow_from(q, [sp.N(v) for v in f]))
+
+    def section_flow(self, q: Sequence, delta: Sequence) -> tuple:
+        """h(δ) ⊂ α⁻¹(q): the section curves h_a(δ_a) composed one after another, so that
+        h(0) = ε(q) and dh/dδ_a(0) = X_a(q) exactly (used for Newton updates on arrows)."""
+        h = None
+        point = tuple(q)
+        t = sp.Dummy("t", real=True)
+        for a, d in enumerate(delta):
+            piece = tuple(c.subs(t, d) for c in self._curves(point, t)[a])
+            h = piece if h is None else tuple(self.multiply(h, piece))
+            point = tuple(self.target(h))
+        return h
+
+    # --- configurations (boundary data of boundary-value problems) ----------------------
+    def arrow_between(self, c0, c1) -> tuple:
+        """The arrow from configuration ``c0`` to ``c1`` (numeric).  Pair groupoids: points;
+        Lie groups: matrices (R₀⁻¹R₁); products: tuples; see each groupoid."""
+        raise NotImplementedError(f"{self.name}: no configuration space; give boundary arrows")
+
+    def configuration_after(self, c0, a: Sequence):
+        """The configuration reached from ``c0`` along the arrow ``a`` (numeric)."""
+        raise NotImplementedError(f"{self.name}: no configuration space")
 
     # --- products -------------------------------------------------------------------------
     def __mul__(self, other: Groupoid) -> Groupoid:

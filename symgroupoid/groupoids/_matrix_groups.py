@@ -246,8 +246,7 @@ class MatrixLieGroup(Groupoid):
         return tuple(self.retraction_inverse(self.matrix(f)))
 
     def fibre_chart_inverse(self, f):
-        M = np.array(self.matrix([float(v) for v in f]).tolist(), dtype=float)
-        return tuple(self.numeric_retraction_inverse(M))
+        return tuple(self.numeric_retraction_inverse(self.numeric_matrix([float(v) for v in f])))
 
     def numeric_retraction_inverse(self, M: np.ndarray) -> np.ndarray:
         """τ⁻¹ of a numeric group element."""
@@ -280,6 +279,31 @@ class MatrixLieGroup(Groupoid):
 
     def random_base_point(self, rng):
         return ()
+
+    def _numeric_matrix(self, c) -> np.ndarray:
+        from .._errors import ShapeError
+
+        M = np.asarray(c, dtype=float)
+        if M.shape != (self.n, self.n):
+            raise ShapeError(f"{self.name}: a configuration is a {self.n}×{self.n} matrix, "
+                             f"got shape {M.shape}")
+        return M
+
+    def arrow_between(self, c0, c1):
+        """R₀⁻¹R₁ for group elements R₀, R₁ (matrices)."""
+        M0, M1 = self._numeric_matrix(c0), self._numeric_matrix(c1)
+        M = np.linalg.solve(M0, M1)
+        return tuple(float(M[i, j]) for i, j in self._free)
+
+    def numeric_matrix(self, coords: Sequence) -> np.ndarray:
+        """The full matrix of numeric arrow coordinates (NumPy)."""
+        M = np.eye(self.n)
+        for (i, j), c in zip(self._free, coords):
+            M[i, j] = c
+        return M
+
+    def configuration_after(self, c0, a):
+        return self._numeric_matrix(c0) @ self.numeric_matrix(a)
 
     # --- naming -----------------------------------------------------------------------------
     def named_matrix(self, offset: int) -> sp.Matrix:

@@ -54,6 +54,15 @@ class EuclideanSpace:
         return f"EuclideanSpace({' '.join(self.names)!r})"
 
 
+def _point(c, dim: int) -> tuple:
+    from .._errors import ShapeError
+
+    values = tuple(float(v) for v in (c if hasattr(c, "__len__") else [c]))
+    if len(values) != dim:
+        raise ShapeError(f"a configuration of this space has {dim} coordinates, got {len(values)}")
+    return values
+
+
 class PairArrow(Arrow):
     """An arrow (q₀, q₁) of a pair groupoid: ``.source`` = q₀, ``.target`` = q₁."""
 
@@ -120,6 +129,14 @@ class PairGroupoid(Groupoid):
     def predict_chart(self, a):
         """Linear extrapolation q_{k+1} ≈ 2 q_k − q_{k−1}."""
         return tuple(2 * b - a0 for a0, b in zip(self.source(a), self.target(a)))
+
+    def arrow_between(self, c0, c1):
+        """(q₀, q₁) for points q₀, q₁."""
+        c0, c1 = _point(c0, self.base_dim), _point(c1, self.base_dim)
+        return tuple(c0) + tuple(c1)
+
+    def configuration_after(self, c0, a):
+        return tuple(float(v) for v in self.target(a))
 
     def named_fibre(self, offset):
         return self.space.point(offset)

@@ -101,6 +101,14 @@ class ProductGroupoid(Groupoid):
     def predict_chart(self, a):
         return self._map("predict_chart", (a, self._arrow_slices))
 
+    def arrow_between(self, c0, c1):
+        """Configurations are tuples with one configuration per factor."""
+        return sum((tuple(f.arrow_between(a, b)) for f, a, b in zip(self.factors, c0, c1)), ())
+
+    def configuration_after(self, c0, a):
+        parts = self._parts(a, self._arrow_slices)
+        return tuple(f.configuration_after(c, p) for f, c, p in zip(self.factors, c0, parts))
+
     def section_curves(self, q, t):
         qs = self._parts(q, self._base_slices)
         units = [f.identity(qi) for f, qi in zip(self.factors, qs)]

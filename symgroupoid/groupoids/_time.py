@@ -82,6 +82,14 @@ class TimeGroupoid(Groupoid):
     def inverse(self, a):
         return (a[1], a[0]) + tuple(self.inner.inverse(a[2:]))
 
+    def arrow_between(self, c0, c1):
+        """Configurations (t, c) with c a configuration of the inner groupoid."""
+        (t0, i0), (t1, i1) = c0, c1
+        return (float(t0), float(t1)) + tuple(self.inner.arrow_between(i0, i1))
+
+    def configuration_after(self, c0, a):
+        return (float(a[1]), self.inner.configuration_after(c0[1], a[2:]))
+
     def section_curves(self, q, t):
         unit = tuple(self.inner.identity(q[1:]))
         curves = [(q[0], q[0] + t) + unit]

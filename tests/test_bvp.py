@@ -1,0 +1,143 @@
+"""Two-point boundary-value problems (seed 000 §6.1–§6.2, seed 001 §3.3)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import symgroupoid as sg
+from symgroupoid.runtime import _bvp
+
+h = sp.Symbol("h", positive=True)
+
+
+def _cay(x):
+    return np.array(sg.SO3("t").cayley([sp.Float(v) for v in x]).tolist(), float)
+
+
+@pytest.fixture(scope="module")
+def so3_control():
+    """Seed 000 §6.1: L(g) = h·l(cay⁻¹(g)/h), l(ξ) = ½ξᵀIξ."""
+    inertia = sp.diag(1, 2, 3)
+
+    def L(g):
+        xi = g.coordinates / h
+        return h * (xi.T * inertia * xi)[0, 0] / 2
+
+    return sg.DiscreteSystem(sg.SO3("g"), L, parameters=[h], name="so3_control")
+
+
+def test_so3_attitude_problem_converges_and_is_stationary(so3_control):
+    R0, RN = np.eye(3), _cay([0.5, -0.3, 0.8])
+    sol = sg.solve_boundary_value(so3_control.euler_lagrange(), R0, RN, 40, params={h: 0.025})
+    assert sol.residual_norm < 1e-10 and sol.iterations <= 6
+    assert np.allclose(sol.configurations[-1], RN, atol=1e-12)
+    # quadratic convergence: each residual about the square of the previous (relative)
+    hist = sol.history
+    assert hist[-2] < 1e-5 and hist[-1] < 1e-10
+    assert sg.verify_stationary(sol, so3_control).stationary
+    assert sol.controls.shape == (40, 3) and sol["g"].shape == (40, 3, 3)
+    # the DEL hold along the solution when stepped with the step equations
+    step = so3_control.euler_lagrange()
+    for k in (3, 17, 30):
+        F, _ = step.evaluate(sol.controls[k + 1], sol.arrows[k], [0.025])
+        assert np.max(np.abs(F)) < 1e-10
+
+
+def test_pair_groupoid_free_particle_is_a_straight_line():
+    """L = ½|Δq|²/h: the discrete geodesic between two points is uniformly spaced."""
+    Q = sg.EuclideanSpace("x y")
+    system = sg.DiscreteSystem(
+        sg.PairGroupoid(Q),
+        lambda g: sum((b - a) ** 2 for a, b in zip(g.source, g.target)) / (2 * h),
+        parameters=[h], name="free")
+    rng = np.random.default_rng(0)
+    pts = np.column_stack([np.linspace(0, 2, 9), np.linspace(1, -1, 9)])
+    pts[1:-1] += rng.normal(scale=0.3, size=(7, 2))  # a bent guess with the right ends
+    guess = np.hstack([pts[:-1], pts[1:]])
+    sol = sg.solve_boundary_value(system.euler_lagrange(), (0.0, 1.0), (2.0, -1.0), 8,
+                                  params=[0.1], guess=guess)
+    assert np.allclose(sol["x"], np.linspace(0, 2, 9)[1:], atol=1e-12)
+    assert np.allclose(sol["y"], np.linspace(1, -1, 9)[1:], atol=1e-12)
+    assert sol.iterations == 1  # a linear problem: one Newton step
+
+
+def test_banded_fallback_matches_lapack(so3_control):
+    """The NumPy block-tridiagonal elimination (used without SciPy) gives the same step."""
+    sol = sg.solve_boundary_value(so3_control, np.eye(3), _cay([0.2, 0.1, -0.4]), 12,
+                                  params=[1 / 12], max_iterations=0, tol=1e9)
+    kernel = _bvp.window_kernel(so3_control)
+    lay = _bvp._layout(12, 1, 3, 0)
+    F, rows, cols, vals, _ = _bvp._assemble(kernel, lay, sol.arrows * 1.0, sol.multipliers,
+                                           np.array([1 / 12]))
+    A = np.zeros((lay.size, lay.size))
+    np.add.at(A, (rows, cols), vals)
+    F = F + 0.01 * np.arange(lay.size)  # a generic right-hand side
+    x1 = _bvp._solve_banded(rows, cols, vals, lay.size, F)
+    x2 = _bvp._block_tridiagonal(rows, cols, vals, lay.size, F,
+                                 int(max(np.max(rows - cols), np.max(cols - rows))))
+    assert np.allclose(A @ x1, F) and np.allclose(x1, x2, atol=1e-10)
+
+
+def test_second_order_rigid_body_attitude_bvp():
+    """Seed 001 §3.3.4 shape: a second-order cost on SO(3) (Cayley), g₀, g₁, g_{N−1}, g_N
+    fixed; the solution is a critical point of the action."""
+    W = sg.SO3("W")
+
+    def L(a, b):
+        xa, xb = a.coordinates / h, b.coordinates / h
+        acc = (xb - xa) / h
+        return h * (acc.T * acc)[0, 0] / 2
+
+    system = sg.SecondOrderSystem(W, L, parameters=[h], name="attitude2")
+    N, dt = 20, 0.05
+    R1 = _cay([0.0, 0.0, 0.05])
+    RN1 = _cay([0.4, -0.2, 0.6])
+    RN = RN1 @ _cay([0.0, 0.05, 0.0])
+    sol = sg.solve_boundary_value(system.euler_lagrange(), (np.eye(3), R1), (RN1, RN), N,
+                                  params=[dt])
+    assert sol.residual_norm < 1e-10
+    assert np.allclose(sol.arrows[0], _cay([0.0, 0.0, 0.05]).ravel())
+    assert np.allclose(sol.configurations[-1], RN, atol=1e-10)
+    assert sg.verify_stationary(sol, system).stationary
+
+
+def test_boundary_data_errors(so3_control):
+    step = so3_control.euler_lagrange()
+    with pytest.raises(sg.ShapeError, match="at least 2 steps"):
+        sg.solve_boundary_value(step, np.eye(3), np.eye(3), 1, params=[0.1])
+    with pytest.raises(sg.ShapeError, match=r"3×3 matrix"):
+        sg.solve_boundary_value(step, np.eye(2), np.eye(3), 5, params=[0.1])
+    with pytest.raises(sg.ShapeError, match=r"guess must have shape \(5, 9\)"):
+        sg.solve_boundary_value(step, np.eye(3), np.eye(3), 5, params=[0.1],
+                                guess=np.zeros((4, 9)))
+    with pytest.raises(KeyError, match="missing parameter h"):
+        sg.solve_boundary_value(step, np.eye(3), np.eye(3), 5, params={})
+    G = sg.ActionGroupoid(sg.EuclideanSpace.vector("p", 3), sg.SO3("W"),
+                          lambda p, W: tuple(W.T * sp.Matrix(p)))
+    with pytest.raises(sg.NotComposableError, match="not connected"):
+        G.arrow_between(((0, 0, 1), np.eye(3)), ((1, 0, 0), np.eye(3)))
+
+
+def test_second_order_needs_enough_steps_and_both_end_pairs():
+    W = sg.SO3("W")
+    system = sg.SecondOrderSystem(
+        W, lambda a, b: ((b.coordinates - a.coordinates).T * (b.coordinates - a.coordinates))[
+            0, 0], name="so2")
+    with pytest.raises(sg.ShapeError, match="order 2 needs at least 4"):
+        sg.solve_boundary_value(system, (np.eye(3), np.eye(3)), (np.eye(3), np.eye(3)), 3)
+    with pytest.raises(sg.ShapeError, match="two configurations at each end"):
+        sg.solve_boundary_value(system, np.eye(3), np.eye(3), 6)
+
+
+def test_unsatisfiable_constraints_report_the_worst_step():
+    """A fixed time step with end times that do not fit N steps cannot be solved: the
+    error names the step and residual instead of returning garbage."""
+    GR = sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q")))
+    system = sg.DiscreteSystem(
+        GR, lambda g: (g.target[0] - g.source[0]) ** 2 / (2 * (g.t1 - g.t0)),
+        constraints=lambda g: [g.t1 - g.t0 - h], parameters=[h], name="timed")
+    with pytest.raises(sg.SymgroupoidError, match="step"):
+        sg.solve_boundary_value(system, (0.0, (0.0,)), (1.0, (1.0,)), 5, params=[0.1],
+                                max_iterations=8)
