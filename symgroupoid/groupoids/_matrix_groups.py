@@ -263,19 +263,15 @@ class MatrixLieGroup(Groupoid):
         return gram_inv @ rhs
 
     def _numeric_log(self, M: np.ndarray) -> np.ndarray:
-        # Gauss-Newton on exp(x) = M from the Cayley guess (generic and small).
-        f = _numeric_tau(type(self), "exp")
-        jac = _numeric_tau_jacobian(type(self), "exp")
-        eye = np.eye(self.n)
-        x = self._numeric_vee(2.0 * (M - eye) @ np.linalg.inv(M + eye))
-        target = M.ravel()
-        for _ in range(50):
-            r = np.asarray(f(*x), float).ravel() - target
-            if np.linalg.norm(r) < 1e-14:
-                break
-            J = np.asarray(jac(*x), float).reshape(len(target), len(x))
-            x = x - np.linalg.lstsq(J, r, rcond=None)[0]
-        return x
+        """log of a numeric group element, with the small-angle limits taken."""
+        return np.asarray(_NUMERIC_LOG[type(self).__name__](M), float)
+
+    def numeric_fibre_chart(self, x):
+        """τ(x) numerically (the exponential with its small-angle limits)."""
+        if self.retraction == "exp":
+            M = _NUMERIC_EXP[type(self).__name__](np.asarray(x, float))
+            return np.array([M[i, j] for i, j in self._free])
+        return super().numeric_fibre_chart(x)
 
     def random_base_point(self, rng):
         return ()
@@ -400,6 +396,83 @@ def _numeric_tau_jacobian(cls, retraction: str):
     T = _tau_template(cls, retraction)
     J = sp.Matrix(list(T)).jacobian(sp.Matrix(x))
     return sp.lambdify(x, J, "numpy")
+
+
+# --- numerically safe exponential and logarithm ---------------------------------------------
+
+def _so3_coefficients(th: float) -> tuple[float, float, float]:
+    """sin θ/θ, (1 − cos θ)/θ², (1 − A/(2B))/θ² with their series near 0."""
+    if th < 1e-4:
+        t2 = th * th
+        return 1 - t2 / 6, 0.5 - t2 / 24, 1 / 12 + t2 / 720
+    A, B = np.sin(th) / th, (1 - np.cos(th)) / th ** 2
+    return A, B, (1 - A / (2 * B)) / th ** 2
+
+
+def _hat(w) -> np.ndarray:
+    return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]], float)
+
+
+def _exp_so3(w):
+    A, B, _ = _so3_coefficients(float(np.linalg.norm(w)))
+    W = _hat(w)
+    return np.eye(3) + A * W + B * W @ W
+
+
+def _log_so3(R):
+    th = float(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)))
+    A = 1 - th * th / 6 if th < 1e-4 else np.sin(th) / th
+    S = (R - R.T) / (2 * A)
+    return np.array([S[2, 1], S[0, 2], S[1, 0]])
+
+
+def _exp_so2(x):
+    c, s = np.cos(x[0]), np.sin(x[0])
+    return np.array([[c, -s], [s, c]])
+
+
+def _log_so2(R):
+    return np.array([np.arctan2(R[1, 0], R[0, 0])])
+
+
+def _exp_se2(x):
+    th = x[0]
+    A = 1 - th * th / 6 if abs(th) < 1e-4 else np.sin(th) / th
+    B = th / 2 - th ** 3 / 24 if abs(th) < 1e-4 else (1 - np.cos(th)) / th
+    out = np.eye(3)
+    out[:2, :2] = _exp_so2(x[:1])
+    out[:2, 2] = np.array([[A, -B], [B, A]]) @ np.asarray(x[1:3], float)
+    return out
+
+
+def _log_se2(M):
+    th = float(np.arctan2(M[1, 0], M[0, 0]))
+    A = 1 - th * th / 6 if abs(th) < 1e-4 else np.sin(th) / th
+    B = th / 2 - th ** 3 / 24 if abs(th) < 1e-4 else (1 - np.cos(th)) / th
+    return np.concatenate([[th], np.linalg.solve(np.array([[A, -B], [B, A]]), M[:2, 2])])
+
+
+def _exp_se3(x):
+    w, v = np.asarray(x[:3], float), np.asarray(x[3:], float)
+    th = float(np.linalg.norm(w))
+    _, B, _ = _so3_coefficients(th)
+    C = 1 / 6 - th * th / 120 if th < 1e-4 else (th - np.sin(th)) / th ** 3
+    W = _hat(w)
+    out = np.eye(4)
+    out[:3, :3] = _exp_so3(w)
+    out[:3, 3] = (np.eye(3) + B * W + C * W @ W) @ v
+    return out
+
+
+def _log_se3(M):
+    w = _log_so3(M[:3, :3])
+    _, _, D = _so3_coefficients(float(np.linalg.norm(w)))
+    W = _hat(w)
+    return np.concatenate([w, (np.eye(3) - W / 2 + D * W @ W) @ M[:3, 3]])
+
+
+_NUMERIC_EXP = {"SO2": _exp_so2, "SO3": _exp_so3, "SE2": _exp_se2, "SE3": _exp_se3}
+_NUMERIC_LOG = {"SO2": _log_so2, "SO3": _log_so3, "SE2": _log_se2, "SE3": _log_se3}
 
 
 # --- the built-in groups --------------------------------------------------------------------

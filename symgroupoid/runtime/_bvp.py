@@ -41,7 +41,8 @@ def _vectorised(args, exprs):
     f = sp.lambdify(args, exprs, "numpy", cse=True)
 
     def call(*values, size: int):
-        out = f(*values)
+        with np.errstate(all="ignore"):  # non-finite values are detected by the caller
+            out = f(*values)
         return [np.broadcast_to(np.asarray(o, float), (size,)) for o in out]
 
     return call
@@ -336,8 +337,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     lay = _layout(steps, a, r, m)
     maps = _maps(G)
     t0, history = time.perf_counter(), []
+    F, rows, cols, vals, worst = _assemble(kernel, lay, arrows, lam, p)
     for it in range(max_iterations + 1):
-        F, rows, cols, vals, worst = _assemble(kernel, lay, arrows, lam, p)
         norm = float(np.max(np.abs(F))) if F.size else 0.0
         history.append(norm)
         if not np.all(np.isfinite(F)) or not np.all(np.isfinite(vals)):
@@ -359,7 +360,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
                 f"(|F|∞ = {norm:.3e}, worst at step {worst}); the boundary data may violate "
                 "the constraints or the Lagrangian is not regular there",
                 step=worst, residual_norm=norm, iterate=arrows) from exc
-        arrows, lam = _update(maps, lay, arrows, lam, dz, r, m)
+        arrows, lam, (F, rows, cols, vals, worst) = _line_search(
+            kernel, lay, maps, arrows, lam, dz, F, p)
     configurations = [start if a == 1 else start[0]]
     for g in arrows:
         configurations.append(G.configuration_after(configurations[-1], g))
@@ -420,6 +422,22 @@ def _check_guess(system, arrows, total, first, last):
                                   np.allclose(arrows[-1], last)):
         raise ShapeError(f"{system.name}: a second-order guess must keep the fixed first and "
                          "last arrows")
+
+
+def _line_search(kernel, lay, maps, arrows, lam, dz, F, p):
+    """Backtracking on |F|₂: the full Newton step when it reduces the residual (always near
+    a solution, so convergence stays quadratic), else halve it (at most 12 times)."""
+    r, m = kernel.rank, kernel.m
+    f0 = float(F @ F)
+    step = 1.0
+    for _ in range(12):
+        new_arrows, new_lam = _update(maps, lay, arrows, lam, step * dz, r, m)
+        assembled = _assemble(kernel, lay, new_arrows, new_lam, p)
+        Fn = assembled[0]
+        if np.all(np.isfinite(Fn)) and float(Fn @ Fn) <= (1 - 1e-4 * step) * f0:
+            return new_arrows, new_lam, assembled
+        step /= 2
+    return new_arrows, new_lam, assembled
 
 
 def _assemble(kernel, lay, arrows, lam, p):
