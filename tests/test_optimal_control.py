@@ -48,11 +48,12 @@ def test_so3_without_third_axis_control(lie, retraction):
     assert sg.verify_stationary(sol, system).stationary
 
 
-def test_se2_unicycle_cayley(lie):
+@pytest.mark.parametrize("retraction", ["cayley", "exp"])
+def test_se2_unicycle(lie, retraction):
     """No sideways velocity; the optimum is cheaper than the feasible three-arc path."""
-    sol = lie.solve_se2("cayley", steps=45)
-    system = lie.se2_problem("cayley")
-    guess, end = lie.unicycle_path("cayley", 45)
+    sol = lie.solve_se2(retraction, steps=45)
+    system = lie.se2_problem(retraction)
+    guess, end = lie.unicycle_path(retraction, 45)
     assert sol.residual_norm < 1e-10
     assert np.abs(sol.controls[:, 2]).max() < 1e-12
     assert np.allclose(sol.configurations[-1], end, atol=1e-10)
