@@ -45,7 +45,6 @@ from .groupoids import (
     left_derivative,
     right_derivative,
 )
-
 from .runtime._bvp import BoundaryValueSolution, solve_boundary_value
 from .verification import StationarityReport, verify_stationary
 
@@ -61,11 +60,13 @@ from .runtime import (  # noqa: E402  (layer 5)
 )
 
 __all__ = [
-    "SE2", "SE3", "SO2", "SO3", "ActionGroupoid", "Arrow", "AxiomError", "CallableError",
-    "DefinedGroupoid", "DiscreteSystem", "LegendreTransforms", "LiePoissonEquations",
-    "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "StepEquations", "latex", "EuclideanSpace", "Groupoid", "MatrixLieGroup", "NamedMatrix", "NewtonDivergenceError",
-    "NotComposableError", "PairGroupoid", "ProductGroupoid", "ShapeError",
-    "SingularJacobianError", "SymgroupoidError", "TimeGroupoid", "UndeclaredSymbolError",
-    "BoundaryValueSolution", "StationarityReport", "check_axioms", "solve_boundary_value", "hat3", "verify_stationary", "left_derivative", "right_derivative",
-    "CompilationError", "NewtonOptions", "Simulator", "Trajectory", "compile_step", "emit_c",
+    "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CallableError",
+    "CompilationError", "DefinedGroupoid", "DiscreteSystem", "EuclideanSpace", "Groupoid",
+    "LegendreTransforms", "LiePoissonEquations", "MatrixLieGroup", "NamedMatrix",
+    "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity", "NonholonomicSystem",
+    "NotComposableError", "PairGroupoid", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3",
+    "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError", "StationarityReport",
+    "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory", "UndeclaredSymbolError",
+    "check_axioms", "compile_step", "emit_c", "hat3", "latex", "left_derivative",
+    "right_derivative", "solve_boundary_value", "verify_stationary",
 ]

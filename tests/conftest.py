@@ -33,7 +33,7 @@ def plate_ball_system() -> tuple[sg.DiscreteSystem, tuple]:
 
 def heavy_top_system() -> tuple[sg.DiscreteSystem, tuple]:
     """Seed 002 / EQUATIONS.md §9: S²×SO(3) with Γ·W = WᵀΓ, L = −tr(J_d W)/h − h m g l Γ·e."""
-    h, m, g0, l = sp.symbols("h m g_0 l", positive=True)
+    h, m, g0, ell = sp.symbols("h m g_0 l", positive=True)
     I1, I2, I3 = sp.symbols("I_1 I_2 I_3", positive=True)
     inertia = sp.diag(I1, I2, I3)
     Jd = sg.NamedMatrix(inertia.trace() / 2 * sp.eye(3) - inertia, name="J_d")
@@ -41,10 +41,10 @@ def heavy_top_system() -> tuple[sg.DiscreteSystem, tuple]:
                           lambda p, W: tuple(W.T * sp.Matrix(p)))
 
     def L(a):
-        return -(Jd * a.matrix).trace() / h - h * m * g0 * l * a.point[2]
+        return -(Jd * a.matrix).trace() / h - h * m * g0 * ell * a.point[2]
 
-    system = sg.DiscreteSystem(G, L, parameters=[h, m, g0, l, I1, I2, I3], name="heavy_top")
-    return system, (h, m, g0, l, I1, I2, I3)
+    system = sg.DiscreteSystem(G, L, parameters=[h, m, g0, ell, I1, I2, I3], name="heavy_top")
+    return system, (h, m, g0, ell, I1, I2, I3)
 
 
 def newton(step: sg.StepEquations, u0, known, params, tol=1e-13, maxit=30) -> np.ndarray:

@@ -10,7 +10,7 @@ import symgroupoid as sg
 
 
 def _ball_on_table():
-    h, m, I, r, Om = sp.symbols("h m I r Omega", positive=True)
+    h, m, inertia, r, Om = sp.symbols("h m I r Omega", positive=True)
     G = sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("W")
     E1, E2, _ = sg.SO3.basis_matrices()
 
@@ -18,7 +18,7 @@ def _ball_on_table():
         (x0, y0), (x1, y1) = g[0].source, g[0].target
         W = g[1].matrix
         return (m / 2 * (((x1 - x0) / h) ** 2 + ((y1 - y0) / h) ** 2)
-                - I / (2 * h ** 2) * W.trace())
+                - inertia / (2 * h ** 2) * W.trace())
 
     def Mc(g):
         (x0, y0), (x1, y1) = g[0].source, g[0].target
@@ -28,15 +28,15 @@ def _ball_on_table():
 
     # sections s1 = ∂x, s2 = ∂y, s3..s5 = E1..E3;  D_c = ⟨s5, r s1 + s4, r s2 − s3⟩
     Dc = [[0, 0, 0, 0, 1], [r, 0, 0, 1, 0], [0, r, -1, 0, 0]]
-    system = sg.NonholonomicSystem(G, L, Mc, Dc, parameters=[h, m, I, r, Om], name="ball")
-    return system, (h, m, I, r, Om)
+    system = sg.NonholonomicSystem(G, L, Mc, Dc, parameters=[h, m, inertia, r, Om], name="ball")
+    return system, (h, m, inertia, r, Om)
 
 
 def test_ball_on_rotating_table_matches_printed_equations():
     """The solution of a step satisfies the slide's reduced equations:
     (x₂−2x₁+x₀)/h² + IΩ/(I+mr²)(y₂−y₀)/(2h) = 0, (y₂−2y₁+y₀)/h² − IΩ/(I+mr²)(x₂−x₀)/(2h) = 0,
     tr((W₁−W₂)E₃) = 0, and M_c at step 2."""
-    system, (h, m, I, r, Om) = _ball_on_table()
+    system, _ = _ball_on_table()
     step = system.euler_lagrange()
     assert len(step) == 5 and len(step.unknowns) == 5
     vals = dict(h=0.05, m=1.0, I=0.4, r=0.5, Omega=0.7)

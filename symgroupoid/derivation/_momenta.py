@@ -20,6 +20,7 @@ import sympy as sp
 
 from .._symbols import indexed_symbol, multiplier_symbols
 from ..groupoids import Groupoid, MatrixLieGroup
+from ._junction import slot, slot_substitution
 from ._step import (
     DerivedStep,
     SystemFunctions,
@@ -28,7 +29,6 @@ from ._step import (
     next_arrow,
     shifted,
 )
-from ._junction import slot, slot_substitution
 
 
 @dataclass

@@ -5,4 +5,7 @@ from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._step import StepEquations
 from ._system import DiscreteSystem, NonholonomicSystem, SecondOrderSystem
 
-__all__ = ["DiscreteSystem", "LegendreTransforms", "LiePoissonEquations", "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "GroupoidLatexPrinter", "StepEquations", "latex"]
+__all__ = [
+    "DiscreteSystem", "GroupoidLatexPrinter", "LegendreTransforms", "LiePoissonEquations",
+    "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "StepEquations", "latex",
+]

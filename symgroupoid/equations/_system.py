@@ -7,20 +7,20 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 from .._errors import CallableError
-from ..derivation._step import (
-    evaluate_system,
-    junction_step,
-    matrix_form_residuals,
-    check_nonholonomic_dimensions,
-    nonholonomic_step,
-)
-from ..groupoids import Groupoid
 from ..derivation._momenta import (
     is_identically_zero,
     legendre_forms,
     lie_poisson_forms,
     noether_forms,
 )
+from ..derivation._step import (
+    check_nonholonomic_dimensions,
+    evaluate_system,
+    junction_step,
+    matrix_form_residuals,
+    nonholonomic_step,
+)
+from ..groupoids import Groupoid
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._step import StepEquations
 

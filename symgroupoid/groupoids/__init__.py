@@ -12,7 +12,8 @@ from ._user import DefinedGroupoid
 
 __all__ = [
     "ActionArrow", "ActionGroupoid", "Arrow", "DefinedGroupoid", "EuclideanSpace", "Groupoid",
-    "MatrixArrow", "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow", "PairGroupoid", "ProductArrow",
+    "MatrixArrow", "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow",
+    "PairGroupoid", "ProductArrow",
     "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid", "check_axioms",
     "derivation", "hat3", "left_derivative", "right_derivative",
 ]

@@ -18,7 +18,6 @@ from collections.abc import Sequence
 import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
-
 _NAMED_CONSTANTS: dict = {}  # MatrixSymbol -> value, for every NamedMatrix used in matrix form
 
 

@@ -8,8 +8,6 @@ t_{k+1} and the fibre chart of G.
 
 from __future__ import annotations
 
-
-
 from .._symbols import StepSymbol, subscripted
 from ._base import Arrow, Groupoid
 

@@ -34,7 +34,6 @@ from .._errors import (
 )
 from ..derivation._step import window, window_functions
 
-
 # --- symbolic window kernel --------------------------------------------------------------
 
 def _vectorised(args, exprs):
@@ -83,7 +82,7 @@ class WindowKernel:
         self._term = _vectorised(ccoords + self.parameters, cblocks) if self.m else None
 
     def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
-        """All junction blocks for W windows: windows (W, n_slots, arrow_dim), lams (W, n_starts, m)."""
+        """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
         W = len(windows)
         vals = list(windows.reshape(W, -1).T) + list(lams.reshape(W, -1).T) + list(params)
         out = np.array(self._junction(*vals, size=W)).T  # (W, total)
