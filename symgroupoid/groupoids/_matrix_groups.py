@@ -435,21 +435,23 @@ def _log_so2(R):
     return np.array([np.arctan2(R[1, 0], R[0, 0])])
 
 
-def _exp_se2(x):
-    th = x[0]
+def _se2_v(th: float) -> np.ndarray:
+    """V(θ) = [[sin θ/θ, −(1 − cos θ)/θ], [(1 − cos θ)/θ, sin θ/θ]], series near 0."""
     A = 1 - th * th / 6 if abs(th) < 1e-4 else np.sin(th) / th
     B = th / 2 - th ** 3 / 24 if abs(th) < 1e-4 else (1 - np.cos(th)) / th
+    return np.array([[A, -B], [B, A]])
+
+
+def _exp_se2(x):
     out = np.eye(3)
     out[:2, :2] = _exp_so2(x[:1])
-    out[:2, 2] = np.array([[A, -B], [B, A]]) @ np.asarray(x[1:3], float)
+    out[:2, 2] = _se2_v(float(x[0])) @ np.asarray(x[1:3], float)
     return out
 
 
 def _log_se2(M):
     th = float(np.arctan2(M[1, 0], M[0, 0]))
-    A = 1 - th * th / 6 if abs(th) < 1e-4 else np.sin(th) / th
-    B = th / 2 - th ** 3 / 24 if abs(th) < 1e-4 else (1 - np.cos(th)) / th
-    return np.concatenate([[th], np.linalg.solve(np.array([[A, -B], [B, A]]), M[:2, 2])])
+    return np.concatenate([[th], np.linalg.solve(_se2_v(th), M[:2, 2])])
 
 
 def _exp_se3(x):
