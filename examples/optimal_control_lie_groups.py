@@ -76,12 +76,11 @@ def solve_so3(retraction: str = "cayley", steps: int = 60) -> sg.BoundaryValueSo
 
 def unicycle_path(retraction: str, steps: int) -> tuple[np.ndarray, np.ndarray]:
     """Arrows of a feasible (v₂ = 0) but not optimal path — three arcs of constant turning
-    rate and speed — and the pose it reaches.  All arcs turn the same way, so the optimal
-    turning rate stays away from zero: the closed-form SE(2) logarithm behind the exp
-    retraction is 0/0 at pure translations and loses precision close to them (Cayley, the
-    default, has no such point)."""
+    rate and speed — and the pose it reaches.  The turning rate changes sign, so the optimum
+    passes through (nearly) pure translations, where the exp retraction's logarithm relies on
+    its smooth small-angle forms."""
     G = se2_problem(retraction).groupoid
-    legs = [(3.0, 1.5), (1.0, 1.0), (2.0, -0.5)]
+    legs = [(3.0, 1.5), (-3.0, 1.5), (1.0, -1.0)]
     sizes = [steps // 3, steps // 3, steps - 2 * (steps // 3)]
     dt = 1.0 / steps
     arrows, M = [], np.eye(3)

@@ -25,6 +25,14 @@ import sympy as sp
 from .._symbols import StepSymbol, indexed_symbol, latex_name, step_label
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
+from ._smooth import (
+    HalfThetaCotHalfTheta,
+    OneMinusCosOverTheta2,
+    SE3LogCoefficient,
+    SinOverTheta,
+    ThetaMinusSinOverTheta3,
+    ThetaOverTwoSin,
+)
 
 _named_basis = functools.cache(named_basis)
 
@@ -263,15 +271,8 @@ class MatrixLieGroup(Groupoid):
         return gram_inv @ rhs
 
     def _numeric_log(self, M: np.ndarray) -> np.ndarray:
-        """log of a numeric group element, with the small-angle limits taken."""
-        return np.asarray(_NUMERIC_LOG[type(self).__name__](M), float)
-
-    def numeric_fibre_chart(self, x):
-        """τ(x) numerically (the exponential with its small-angle limits)."""
-        if self.retraction == "exp":
-            M = _NUMERIC_EXP[type(self).__name__](np.asarray(x, float))
-            return np.array([M[i, j] for i, j in self._free])
-        return super().numeric_fibre_chart(x)
+        """log of a numeric group element (the symbolic closed form, lambdified once)."""
+        return np.asarray(_numeric_log(type(self))(M), float).ravel()
 
     def random_base_point(self, rng):
         return ()
@@ -385,96 +386,9 @@ def _tidy(retraction: str):
 
 
 @functools.cache
-def _numeric_tau(cls, retraction: str):
-    x = _dtau_dummies(cls)
-    return sp.lambdify(x, _tau_template(cls, retraction), "numpy")
-
-
-@functools.cache
-def _numeric_tau_jacobian(cls, retraction: str):
-    x = _dtau_dummies(cls)
-    T = _tau_template(cls, retraction)
-    J = sp.Matrix(list(T)).jacobian(sp.Matrix(x))
-    return sp.lambdify(x, J, "numpy")
-
-
-# --- numerically safe exponential and logarithm ---------------------------------------------
-
-def _so3_coefficients(th: float) -> tuple[float, float, float]:
-    """sin θ/θ, (1 − cos θ)/θ², (1 − A/(2B))/θ² with their series near 0."""
-    if th < 1e-4:
-        t2 = th * th
-        return 1 - t2 / 6, 0.5 - t2 / 24, 1 / 12 + t2 / 720
-    A, B = np.sin(th) / th, (1 - np.cos(th)) / th ** 2
-    return A, B, (1 - A / (2 * B)) / th ** 2
-
-
-def _hat(w) -> np.ndarray:
-    return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]], float)
-
-
-def _exp_so3(w):
-    A, B, _ = _so3_coefficients(float(np.linalg.norm(w)))
-    W = _hat(w)
-    return np.eye(3) + A * W + B * W @ W
-
-
-def _log_so3(R):
-    th = float(np.arccos(np.clip((np.trace(R) - 1) / 2, -1.0, 1.0)))
-    A = 1 - th * th / 6 if th < 1e-4 else np.sin(th) / th
-    S = (R - R.T) / (2 * A)
-    return np.array([S[2, 1], S[0, 2], S[1, 0]])
-
-
-def _exp_so2(x):
-    c, s = np.cos(x[0]), np.sin(x[0])
-    return np.array([[c, -s], [s, c]])
-
-
-def _log_so2(R):
-    return np.array([np.arctan2(R[1, 0], R[0, 0])])
-
-
-def _se2_v(th: float) -> np.ndarray:
-    """V(θ) = [[sin θ/θ, −(1 − cos θ)/θ], [(1 − cos θ)/θ, sin θ/θ]], series near 0."""
-    A = 1 - th * th / 6 if abs(th) < 1e-4 else np.sin(th) / th
-    B = th / 2 - th ** 3 / 24 if abs(th) < 1e-4 else (1 - np.cos(th)) / th
-    return np.array([[A, -B], [B, A]])
-
-
-def _exp_se2(x):
-    out = np.eye(3)
-    out[:2, :2] = _exp_so2(x[:1])
-    out[:2, 2] = _se2_v(float(x[0])) @ np.asarray(x[1:3], float)
-    return out
-
-
-def _log_se2(M):
-    th = float(np.arctan2(M[1, 0], M[0, 0]))
-    return np.concatenate([[th], np.linalg.solve(_se2_v(th), M[:2, 2])])
-
-
-def _exp_se3(x):
-    w, v = np.asarray(x[:3], float), np.asarray(x[3:], float)
-    th = float(np.linalg.norm(w))
-    _, B, _ = _so3_coefficients(th)
-    C = 1 / 6 - th * th / 120 if th < 1e-4 else (th - np.sin(th)) / th ** 3
-    W = _hat(w)
-    out = np.eye(4)
-    out[:3, :3] = _exp_so3(w)
-    out[:3, 3] = (np.eye(3) + B * W + C * W @ W) @ v
-    return out
-
-
-def _log_se3(M):
-    w = _log_so3(M[:3, :3])
-    _, _, D = _so3_coefficients(float(np.linalg.norm(w)))
-    W = _hat(w)
-    return np.concatenate([w, (np.eye(3) - W / 2 + D * W @ W) @ M[:3, 3]])
-
-
-_NUMERIC_EXP = {"SO2": _exp_so2, "SO3": _exp_so3, "SE2": _exp_se2, "SE3": _exp_se3}
-_NUMERIC_LOG = {"SO2": _log_so2, "SO3": _log_so3, "SE2": _log_se2, "SE3": _log_se3}
+def _numeric_log(cls):
+    M = sp.MatrixSymbol("M", cls.n, cls.n)
+    return sp.lambdify([M], list(cls("log", retraction="exp").log(sp.Matrix(M))), "numpy")
 
 
 # --- the built-in groups --------------------------------------------------------------------
@@ -531,10 +445,10 @@ class SO3(MatrixLieGroup):
 
     @classmethod
     def _exp_closed_form(cls, x):
+        """Rodrigues: I + A(θ²) x̂ + B(θ²) x̂², A = sin θ/θ, B = (1 − cos θ)/θ² (smooth at 0)."""
         th2 = x[0] ** 2 + x[1] ** 2 + x[2] ** 2
-        th = sp.sqrt(th2)
         W = hat3(x)
-        return sp.eye(3) + sp.sin(th) / th * W + (1 - sp.cos(th)) / th2 * W * W
+        return sp.eye(3) + SinOverTheta(th2) * W + OneMinusCosOverTheta2(th2) * W * W
 
     def exp(self, x):
         return self._exp_closed_form(x)
@@ -544,8 +458,8 @@ class SO3(MatrixLieGroup):
         return self.vee(2 * (M - M.T) / (1 + M.trace())).applyfunc(sp.cancel)
 
     def log(self, M):
-        th = sp.acos((M.trace() - 1) / 2)
-        return self.vee(th / (2 * sp.sin(th)) * (M - M.T))
+        """θ/(2 sin θ)·vee(R − Rᵀ), the coefficient a smooth function of cos θ = (tr R − 1)/2."""
+        return self.vee(ThetaOverTwoSin((M.trace() - 1) / 2) * (M - M.T))
 
 
 class _SpecialEuclidean(MatrixLieGroup):
@@ -590,8 +504,7 @@ class _SpecialEuclidean(MatrixLieGroup):
         m = self.n - 1
         R, p = M[:m, :m], M[:m, m]
         w = list(self.rot("tmp", retraction="exp").log(R))
-        V = self._V(w)
-        return sp.Matrix(w + list(V.inv() * p))
+        return sp.Matrix(w + list(self._V_inverse(w) * p))
 
     @classmethod
     def _exp_closed_form(cls, x):
@@ -626,9 +539,17 @@ class SE2(_SpecialEuclidean):
 
     @staticmethod
     def _V(w):
+        """[[sin θ/θ, −(1 − cos θ)/θ], [(1 − cos θ)/θ, sin θ/θ]] with smooth coefficients."""
         th = w[0]
-        return sp.Matrix([[sp.sin(th) / th, -(1 - sp.cos(th)) / th],
-                          [(1 - sp.cos(th)) / th, sp.sin(th) / th]])
+        A, B = SinOverTheta(th ** 2), th * OneMinusCosOverTheta2(th ** 2)
+        return sp.Matrix([[A, -B], [B, A]])
+
+    @staticmethod
+    def _V_inverse(w):
+        """V⁻¹ = [[a, θ/2], [−θ/2, a]], a = (θ/2) cot(θ/2)."""
+        th = w[0]
+        a = HalfThetaCotHalfTheta(th ** 2)
+        return sp.Matrix([[a, th / 2], [-th / 2, a]])
 
 
 class SE3(_SpecialEuclidean):
@@ -651,8 +572,15 @@ class SE3(_SpecialEuclidean):
 
     @staticmethod
     def _V(w):
+        """I + B(θ²) ω̂ + C(θ²) ω̂², C = (θ − sin θ)/θ³."""
         th2 = w[0] ** 2 + w[1] ** 2 + w[2] ** 2
-        th = sp.sqrt(th2)
         W = hat3(w)
-        return (sp.eye(3) + (1 - sp.cos(th)) / th2 * W
-                + (th - sp.sin(th)) / (th2 * th) * W * W)
+        return (sp.eye(3) + OneMinusCosOverTheta2(th2) * W
+                + ThetaMinusSinOverTheta3(th2) * W * W)
+
+    @staticmethod
+    def _V_inverse(w):
+        """I − ω̂/2 + D(θ²) ω̂², D = (1 − (θ/2) cot(θ/2))/θ²."""
+        th2 = w[0] ** 2 + w[1] ** 2 + w[2] ** 2
+        W = hat3(w)
+        return sp.eye(3) - W / 2 + SE3LogCoefficient(th2) * W * W
