@@ -326,13 +326,14 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     """
     system = getattr(step_equations, "system", step_equations)
     G = system.groupoid
-    kernel = window_kernel(system)
-    a, r, m = kernel.arity, kernel.rank, kernel.m
+    a = len(system._fs.slots)
     if steps < 2 * a:
         raise ShapeError(f"{system.name}: a problem of order {a} needs at least {2 * a} "
                          f"steps, got {steps}")
     p, named = _parameter_vector(system, params)
-    arrows, lam, first, last = _initial(system, kernel, start, end, steps, guess)
+    r, m = G.rank, len(system._fs.constraints)
+    arrows, lam, first, last = _initial(system, a, m, start, end, steps, guess)
+    kernel = window_kernel(system)
     lay = _layout(steps, a, r, m)
     maps = _maps(G)
     t0, history = time.perf_counter(), []
@@ -368,8 +369,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
                                  time.perf_counter() - t0)
 
 
-def _initial(system, kernel, start, end, steps, guess):
-    G, a, m = system.groupoid, kernel.arity, kernel.m
+def _initial(system, a, m, start, end, steps, guess):
+    G = system.groupoid
     if a == 1:
         total = G.arrow_between(start, end)
         first = last = None
