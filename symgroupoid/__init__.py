@@ -50,7 +50,7 @@ from .verification import StationarityReport, verify_stationary
 
 __version__ = "0.1.0"
 
-from .codegen import emit_c  # noqa: E402  (layer 4; needs __version__)
+from .codegen import emit_c  # noqa: E402  (layer 4)
 from .runtime import (  # noqa: E402  (layer 5)
     CompilationError,
     NewtonOptions,

@@ -87,7 +87,8 @@ def _context(step, prefix: str, header_name: str) -> dict:
     blocks = kernel_blocks(step)
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
     return {
-        "p": prefix, "P": prefix.upper(), "header_name": header_name, "name": _ascii(step.name), "version": __version__,
+        "p": prefix, "P": prefix.upper(), "header_name": header_name,
+        "name": _ascii(step.name), "version": __version__,
         "groupoid": _ascii(step.groupoid.name),
         "n_equations": len(step.residuals), "n_unknowns": len(step.unknowns),
         "n_knowns": len(step.knowns), "n_parameters": len(step.parameters),
@@ -120,7 +121,8 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None
     env = _environment(str(template_dir()))
     header_name = header_name or f"{prefix}.h"
     ctx = _context(step, prefix, header_name)
-    return KernelSource(prefix=prefix, header_name=header_name, header=env.get_template("kernel.h.j2").render(ctx),
+    return KernelSource(prefix=prefix, header_name=header_name,
+                        header=env.get_template("kernel.h.j2").render(ctx),
                         source=env.get_template("kernel.c.j2").render(ctx),
                         cdef=env.get_template("cdef.j2").render(ctx))
 

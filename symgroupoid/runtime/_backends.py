@@ -28,11 +28,18 @@ STATUS_MESSAGES = {
 
 @dataclass(frozen=True)
 class NewtonOptions:
-    """Newton stopping rules: |F|_∞ ≤ tol_residual, or last step ≤ tol_step·(1 + |u|_∞)."""
+    """Newton options of a step.
+
+    Converged when |F|_∞ ≤ ``tol_residual`` or the last Newton step was at most
+    ``tol_step``·(1 + |u|_∞); at most ``max_iterations`` updates.  With ``extrapolate`` the
+    guess of step k ≥ 2 is 2u_{k-1} − u_{k-2} (falling back to ``step.prediction`` if Newton
+    fails from it); otherwise every step starts from ``step.prediction``.
+    """
 
     tol_residual: float = DEFAULT_OPTIONS["tol_residual"]
     tol_step: float = DEFAULT_OPTIONS["tol_step"]
     max_iterations: int = DEFAULT_OPTIONS["max_iterations"]
+    extrapolate: bool = True
 
     def __post_init__(self):
         for name in ("tol_residual", "tol_step"):
@@ -73,6 +80,7 @@ class CKernel:
         opts.tol_residual = options.tol_residual
         opts.tol_step = options.tol_step
         opts.max_iterations = int(options.max_iterations)
+        opts.extrapolate = int(bool(options.extrapolate))
         return opts
 
     def _ptr(self, array: np.ndarray, ctype: str = "double[]"):
@@ -131,10 +139,12 @@ def norm_inf(v: np.ndarray) -> float:
 
 
 def lu_solve(A: np.ndarray, b: np.ndarray, scale: float) -> np.ndarray | None:
-    """LU with partial pivoting, as the C kernel; None when a pivot ≤ n·ε·scale."""
+    """LU with partial pivoting exactly as the C kernel (reciprocal pivots, zero multipliers
+    skipped); None when a pivot is not above n·ε·scale."""
     A, b = np.array(A, dtype=float), np.array(b, dtype=float)
     n = len(b)
     tiny = n * np.finfo(float).eps * scale
+    inv = np.empty(n)
     for k in range(n):
         piv = k + int(np.argmax(np.abs(A[k:, k])))
         if not abs(A[piv, k]) > tiny:
@@ -142,13 +152,17 @@ def lu_solve(A: np.ndarray, b: np.ndarray, scale: float) -> np.ndarray | None:
         if piv != k:
             A[[k, piv]] = A[[piv, k]]
             b[[k, piv]] = b[[piv, k]]
+        inv[k] = 1.0 / A[k, k]
         for i in range(k + 1, n):
-            lik = A[i, k] / A[k, k]
+            lik = A[i, k] * inv[k]
             if lik != 0.0:
                 A[i, k + 1:] -= lik * A[k, k + 1:]
                 b[i] -= lik * b[k]
     for i in range(n - 1, -1, -1):
-        b[i] = (b[i] - A[i, i + 1:] @ b[i + 1:]) / A[i, i]
+        s = b[i]
+        for j in range(i + 1, n):
+            s -= A[i, j] * b[j]
+        b[i] = s * inv[i]
     return b
 
 
@@ -187,7 +201,10 @@ class NumpyKernel:
         it = 0
         with np.errstate(all="ignore"):
             while True:
-                F = self.residual(u, known, p)
+                if it == 0:
+                    F, J = self.residual_jacobian(u, known, p)
+                else:
+                    F = self.residual(u, known, p)
                 rnorm = norm_inf(F)
                 if not np.isfinite(rnorm):
                     return NON_FINITE, u, it, rnorm
@@ -196,7 +213,8 @@ class NumpyKernel:
                     return OK, u, it, rnorm
                 if it >= options.max_iterations:
                     return NOT_CONVERGED, u, it, rnorm
-                F, J = self.residual_jacobian(u, known, p)
+                if it > 0:
+                    F, J = self.residual_jacobian(u, known, p)
                 jscale = norm_inf(J)
                 if not np.isfinite(jscale):
                     return NON_FINITE, u, it, rnorm
@@ -210,15 +228,24 @@ class NumpyKernel:
                 it += 1
 
     def simulate(self, known0, p, n_steps: int, options: NewtonOptions) -> RawRun:
+        """As ``<prefix>_simulate``: predict twice, then (with ``options.extrapolate``)
+        extrapolate, retrying from the prediction when Newton fails from there."""
         states = np.empty((n_steps + 1, self.n_k))
         states[0] = known0
         iterations = np.zeros(n_steps, dtype=np.int64)
         norms = np.zeros(n_steps)
+        u1 = u2 = None
         for k in range(n_steps):
             current = states[k]
             with np.errstate(all="ignore"):
-                u0 = self.predict(current, p)
+                extrapolated = k >= 2 and options.extrapolate
+                u0 = 2.0 * u1 - u2 if extrapolated else self.predict(current, p)
             status, u, iterations[k], norms[k] = self.solve_step(current, p, u0, options)
+            if status != OK and extrapolated:  # retry from the prediction
+                with np.errstate(all="ignore"):
+                    u0 = self.predict(current, p)
+                status, u, more, norms[k] = self.solve_step(current, p, u0, options)
+                iterations[k] += more
             if status == OK:
                 with np.errstate(all="ignore"):
                     states[k + 1] = self.next_knowns(u, current, p)
@@ -226,4 +253,5 @@ class NumpyKernel:
                     status = NON_FINITE
             if status != OK:
                 return RawRun(states, iterations, norms, status, k, u)
+            u1, u2 = u, u1
         return RawRun(states, iterations, norms, OK, -1, np.zeros(self.n_u))

@@ -1,0 +1,181 @@
+"""compile_step: a step's C kernel, built with cffi and cached on disk, or the NumPy backend."""
+
+from __future__ import annotations
+
+import functools
+import os
+import shutil
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import sympy as sp
+
+from ..codegen import generate_c, templates_digest
+from ._backends import CKernel, NewtonOptions, NumpyKernel
+from ._build import (
+    DEFAULT_FLAGS,
+    CompilerNotFoundError,
+    build_extension,
+    find_compiler,
+    load_extension,
+    module_name,
+)
+from ._cache import (
+    MANIFEST,
+    KernelCache,
+    abi_tag,
+    file_sha256,
+    remove_tree,
+    sha256_of,
+    write_json_atomic,
+)
+from ._simulator import Simulator
+
+BACKENDS = ("auto", "c", "numpy")
+_LOADED: dict[str, object] = {}
+#: what this process did: C generations, compiler runs, extension loads (cache diagnostics)
+STATS = {"codegen": 0, "builds": 0, "loads": 0}
+
+
+@functools.cache
+def codegen_digest() -> str:
+    """Hash of everything that turns a step into C: templates and code generator sources."""
+    from .. import __version__
+
+    files = sorted((Path(__file__).resolve().parents[1] / "codegen").glob("*.py"))
+    return sha256_of([__version__, templates_digest(), *(f.read_bytes() for f in files)])
+
+
+def _atom_token(node, symbols: dict) -> str:
+    if isinstance(node, sp.Symbol):
+        if node not in symbols:
+            assumptions = sorted((k, v) for k, v in node.assumptions0.items())
+            extra = f":{node.dummy_index}" if isinstance(node, sp.Dummy) else ""
+            symbols[node] = f"{type(node).__name__}:{node.name}{extra}:{assumptions}"
+        return symbols[node]
+    if isinstance(node, sp.Float):
+        return f"Float:{node._mpf_}:{node._prec}"
+    if isinstance(node, sp.Rational):
+        return f"Rational:{node.p}/{node.q}"
+    return sp.srepr(node)
+
+
+def fingerprint(exprs, symbols: dict | None = None) -> str:
+    """An exact, injective text of expressions: their trees in preorder (type and arity of
+    every node, exact atoms).  SymPy keeps ``Add``/``Mul`` arguments in canonical order, so
+    equal expressions give equal text in every process; it is much cheaper than ``srepr``.
+    """
+    symbols = {} if symbols is None else symbols
+    out: list[str] = []
+    stack = list(reversed([sp.sympify(e) for e in exprs]))
+    while stack:
+        node = stack.pop()
+        if node.args:
+            out.append(f"({type(node).__name__}/{len(node.args)}")
+            stack.extend(reversed(node.args))
+        else:
+            out.append(_atom_token(node, symbols))
+    return " ".join(out)
+
+
+def input_key(step, flags: Sequence[str]) -> str:
+    """Cache key of the symbolic inputs (cheap: an expression fingerprint, no codegen)."""
+    symbols: dict = {}
+    parts = [step.name, str(step.n_constraints)]
+    for seq in (step.residuals, step.unknowns, step.fibre_unknowns, step.knowns,
+                step.parameters, step.next_knowns, step.prediction,
+                [e for item in step.reconstruction.items() for e in item]):
+        parts.append(fingerprint(list(seq), symbols))
+    return sha256_of([*parts, codegen_digest(), abi_tag(), *flags])[:32]
+
+
+def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str) -> tuple[str, dict]:
+    kernel = generate_c(step)
+    STATS["codegen"] += 1
+    source_key = sha256_of([kernel.header, kernel.source, kernel.cdef, abi_tag(), *flags])[:32]
+    manifest = cache.verified_manifest(source_key)
+    if manifest is None:
+        remove_tree(cache.entry(source_key))  # absent, or damaged: rebuild from scratch
+        find_compiler()
+        build_dir = cache.new_build_dir()
+        try:
+            name = module_name(source_key)
+            STATS["builds"] += 1
+            library = build_extension(kernel, build_dir, name, flags)
+            write_json_atomic(build_dir / MANIFEST, {
+                "source_key": source_key, "module": name, "library": library.name,
+                "sha256": file_sha256(library), "prefix": kernel.prefix,
+                "flags": list(flags), "abi": abi_tag(), "system": step.name})
+        except BaseException:
+            shutil.rmtree(build_dir, ignore_errors=True)
+            raise
+        cache.install(build_dir, source_key)
+        manifest = cache.verified_manifest(source_key)
+        if manifest is None:
+            raise RuntimeError(f"{step.name}: the kernel cache entry {cache.entry(source_key)} "
+                               f"is damaged right after installation")
+    cache.record(key, source_key, manifest["prefix"])
+    return source_key, manifest
+
+
+def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
+                  cache_dir: str | os.PathLike | None = None) -> tuple[CKernel, Path]:
+    """The compiled kernel of ``step`` from the cache, building it on a miss.
+
+    Raises :class:`CompilerNotFoundError` when a build is needed and no compiler exists,
+    :class:`CompilationError` when the compiler fails (the cache is left unchanged).
+    """
+    flags = tuple(flags)
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    key = input_key(step, flags)
+    source_key = cache.lookup(key)
+    manifest = cache.verified_manifest(source_key) if source_key else None
+    if manifest is None:
+        source_key, manifest = _build(step, flags, cache, key)
+    entry = cache.entry(source_key)
+    module = _LOADED.get(source_key)
+    if module is None:
+        module = load_extension(entry / manifest["library"], manifest["module"])
+        STATS["loads"] += 1
+        _LOADED[source_key] = module
+    return CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns)), entry
+
+
+def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
+                 cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
+                 tol_step: float | None = None, max_iterations: int | None = None
+                 ) -> Simulator:
+    """A :class:`Simulator` for ``step``: its C kernel (cffi, cached) or the NumPy backend.
+
+    Parameters
+    ----------
+    backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
+        or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
+        ``"auto"``.
+    flags : extra compiler flags (default ``DEFAULT_FLAGS``); part of the cache key.
+    cache_dir : cache root (default ``$SYMGROUPOID_CACHE``, ``$XDG_CACHE_HOME/symgroupoid``
+        or ``~/.cache/symgroupoid``).
+    tol_residual, tol_step, max_iterations : Newton options (see :class:`NewtonOptions`).
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    if backend == "auto":
+        backend = os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto"
+        if backend not in BACKENDS:
+            raise ValueError(f"SYMGROUPOID_BACKEND must be one of {BACKENDS}, got {backend!r}")
+    given = {"tol_residual": tol_residual, "tol_step": tol_step,
+             "max_iterations": max_iterations}
+    options = NewtonOptions(**{k: v for k, v in given.items() if v is not None})
+    if backend == "numpy":
+        return Simulator(step, NumpyKernel(step), options)
+    try:
+        kernel, entry = load_c_kernel(step, DEFAULT_FLAGS if flags is None else flags,
+                                      cache_dir)
+    except CompilerNotFoundError as exc:
+        if backend == "c":
+            raise
+        warnings.warn(f"{step.name}: {exc}; using the NumPy backend (same results, slower)",
+                      RuntimeWarning, stacklevel=2)
+        return Simulator(step, NumpyKernel(step), options)
+    return Simulator(step, kernel, options, cache_entry=entry)

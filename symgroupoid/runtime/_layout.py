@@ -1,0 +1,239 @@
+"""Named views of the flat known state of a step.
+
+The known state of a first-order step is the arrow g_k followed by the multipliers λ_k
+(a second-order step: g_{k-1}, g_k, g_{k+1}, λ_{k-1}, λ_k).  Users name its parts as the
+groupoid names them (``groupoid.symbols_by_name``).  A part that occurs at several steps of
+the state is given as the sequence of its consecutive values, oldest first:
+
+- a coordinate of a pair-groupoid factor, g_k = (q_{k-1}, q_k): two consecutive
+  configurations ``"x": (x_0, x_1)``;
+- a matrix part (a Lie-group factor, ``"g"``, ``"W"``): its matrix (checked to be in the
+  group);
+- another coordinate (the point Γ of an action groupoid): its value; a vector part
+  (``"Gamma"``) as the whole vector or by components (``"Gamma_1"``, …);
+- the multipliers: ``"lambda"``, m values (required when there are constraints).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from .._errors import ShapeError
+from .._symbols import multiplier_symbols
+from ..groupoids import ActionGroupoid, MatrixLieGroup, ProductGroupoid
+
+MULTIPLIER_KEYS = ("lambda", "λ", "multipliers")
+#: tolerance of the group-membership check of matrix parts (RᵀR = I, det R = 1)
+GROUP_TOLERANCE = 1e-9
+_OFFSETS = range(-3, 4)
+
+
+@dataclass
+class Part:
+    """One named part: ``index[o]`` are the positions of its entries at ``offsets[o]``.
+
+    An index of -1 marks a fixed entry with value ``fixed`` (e.g. the last row of an SE(n)
+    matrix).  ``shape`` is the shape of one value ((), (n,) or (n, n)).
+    """
+
+    name: str
+    offsets: tuple
+    index: np.ndarray
+    fixed: np.ndarray
+    group: MatrixLieGroup | None = None
+
+    @property
+    def shape(self) -> tuple:
+        return self.index.shape[1:]
+
+    @property
+    def is_sequence(self) -> bool:
+        return len(self.offsets) > 1
+
+
+def _group_parts(groupoid) -> dict[str, MatrixLieGroup]:
+    if isinstance(groupoid, MatrixLieGroup):
+        return {groupoid.symbol_name: groupoid}
+    if isinstance(groupoid, ActionGroupoid):
+        return _group_parts(groupoid.group)
+    if isinstance(groupoid, ProductGroupoid):
+        out: dict = {}
+        for f in groupoid.factors:
+            out |= _group_parts(f)
+        return out
+    return {}
+
+
+def _indices(value, position: dict) -> tuple[np.ndarray, np.ndarray] | None:
+    """Index and fixed-value arrays of a symbol, list or matrix; None unless it is known."""
+    if isinstance(value, sp.MatrixBase):
+        entries = value
+    elif isinstance(value, (list, tuple)):
+        entries = sp.Matrix(list(value))
+    else:
+        entries = sp.Matrix([value])
+    idx = np.full(entries.shape, -1, dtype=np.int64)
+    fixed = np.zeros(entries.shape)
+    for i, j in np.ndindex(*entries.shape):
+        e = sp.sympify(entries[i, j])
+        if e in position:
+            idx[i, j] = position[e]
+        elif e.is_number:
+            fixed[i, j] = float(e)
+        else:
+            return None
+    if (idx < 0).all():
+        return None
+    if isinstance(value, sp.MatrixBase) and value.shape[1] != 1:
+        return idx, fixed
+    if isinstance(value, (sp.MatrixBase, list, tuple)):
+        return idx[:, 0], fixed[:, 0]
+    return idx.reshape(()), fixed.reshape(())
+
+
+def _part(name: str, values: dict, position: dict, group) -> Part | None:
+    found = {o: _indices(v, position) for o, v in values.items()}
+    found = {o: f for o, f in found.items() if f is not None}
+    if not found:
+        return None
+    offsets = tuple(sorted(found))
+    index = np.stack([found[o][0] for o in offsets])
+    return Part(name, offsets, index, found[offsets[0]][1], group)
+
+
+class StateLayout:
+    """The named parts of a step's known state and conversions to and from it."""
+
+    def __init__(self, step):
+        self.step_name = step.name
+        self.n_known = len(step.knowns)
+        self.n_multipliers = step.n_constraints
+        position = {s: i for i, s in enumerate(step.knowns)}
+        groups = _group_parts(step.groupoid)
+        tables = {o: step.groupoid.symbols_by_name(o) for o in _OFFSETS}
+        names = list(dict.fromkeys(n for o in _OFFSETS for n in tables[o]))
+        self.parts: dict[str, Part] = {}
+        for name in names:
+            values = {o: tables[o][name] for o in _OFFSETS if name in tables[o]}
+            part = _part(name, values, position, groups.get(name))
+            if part is not None:
+                self.parts[name] = part
+        self.names = list(self.parts)
+        self.multiplier_part = None
+        if self.n_multipliers:
+            values = {o: multiplier_symbols(self.n_multipliers, o) for o in _OFFSETS}
+            self.multiplier_part = _part("lambda", values, position, None)
+
+    # --- user input → flat state --------------------------------------------------------------
+    def pack(self, initial: Mapping) -> np.ndarray:
+        """The flat known vector from named parts (see the module docstring)."""
+        state = np.full(self.n_known, np.nan)
+        given = np.zeros(self.n_known, dtype=bool)
+        multipliers = None
+        for key, value in initial.items():
+            key = str(key)
+            if key in MULTIPLIER_KEYS:
+                multipliers = value
+                continue
+            if key not in self.parts:
+                raise KeyError(f"{self.step_name}: unknown state part {key!r}; the parts are "
+                               f"{', '.join(self.names)}"
+                               + (" and 'lambda'" if self.n_multipliers else ""))
+            self._assign(state, given, self.parts[key], value)
+        self._pack_multipliers(state, given, multipliers)
+        missing = [p.name for p in self.parts.values()
+                   if not given[p.index[p.index >= 0]].all()]
+        if missing:
+            raise KeyError(f"{self.step_name}: the initial state misses {', '.join(missing)}")
+        bad = [self.describe(i) for i in np.flatnonzero(~np.isfinite(state))]
+        if bad:
+            raise ValueError(f"{self.step_name}: non-finite initial data in {', '.join(bad)}")
+        return state
+
+    def _assign(self, state, given, part: Part, value) -> None:
+        arr = self._as_array(part, value)
+        for a in arr:
+            self._check_group(part, a)
+        mask = part.index >= 0
+        idx = part.index[mask]
+        if given[idx].any():
+            raise ValueError(f"{self.step_name}: state part {part.name!r} given twice (it "
+                             f"overlaps another part given)")
+        state[idx], given[idx] = arr[mask], True
+
+    def _as_array(self, part: Part, value) -> np.ndarray:
+        """Values of ``part`` as an array of shape (len(offsets),) + part.shape."""
+        try:
+            arr = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"{self.step_name}: state part {part.name!r} must be numeric, "
+                             f"got {value!r}") from None
+        expected = part.index.shape if part.is_sequence else part.shape
+        if arr.shape != expected:
+            what = (f"{len(part.offsets)} consecutive values (oldest first) of shape "
+                    f"{part.shape}" if part.is_sequence else f"shape {part.shape}")
+            raise ShapeError(f"{self.step_name}: state part {part.name!r} needs {what}; got "
+                             f"shape {arr.shape}")
+        return arr if part.is_sequence else arr[None]
+
+    def _check_group(self, part: Part, arr: np.ndarray) -> None:
+        mask = part.index[0] < 0
+        if mask.any() and not np.allclose(arr[mask], part.fixed[mask], rtol=0,
+                                          atol=GROUP_TOLERANCE):
+            raise ValueError(f"{self.step_name}: {part.name!r} must have the fixed entries "
+                             f"{part.fixed[mask].tolist()}")
+        group = part.group
+        if group is None or not np.isfinite(arr).all():
+            return
+        n = group.n - 1 if group.affine else group.n
+        R = arr[:n, :n]
+        err = max(np.abs(R.T @ R - np.eye(n)).max(), abs(np.linalg.det(R) - 1.0))
+        if err > GROUP_TOLERANCE:
+            raise ValueError(f"{self.step_name}: {part.name!r} is not in {group.name}: its "
+                             f"rotation block is off orthonormal-with-det-1 by {err:.2e} "
+                             f"(tolerance {GROUP_TOLERANCE:g})")
+
+    def _pack_multipliers(self, state, given, multipliers) -> None:
+        part = self.multiplier_part
+        if part is None:
+            if multipliers is not None and np.size(multipliers) != 0:
+                raise ShapeError(f"{self.step_name}: the system has no constraints, hence no "
+                                 f"multipliers; got lambda={multipliers!r}")
+            return
+        if multipliers is None:
+            raise KeyError(f"{self.step_name}: the initial state misses lambda "
+                           f"({self.n_multipliers} multipliers per step); give them, or start "
+                           f"from a momentum (Simulator.from_momentum) to have them solved for")
+        self._assign(state, given, part, multipliers)
+
+    # --- flat states → named arrays -------------------------------------------------------------
+    def view(self, states: np.ndarray, name: str) -> np.ndarray:
+        """A part over consecutive states: its values at all the steps they cover.
+
+        A part held at several offsets (q_{k-1}, q_k) gives the oldest values of the first
+        state followed by the newest value of every state: q_0, q_1, …, q_{N+1}.
+        """
+        part = self.multiplier_part if name in MULTIPLIER_KEYS else self.parts[name]
+        if part is None:
+            return np.zeros((len(states), 0))
+        idx = np.where(part.index >= 0, part.index, 0)
+        values = np.where(part.index >= 0, states[:, idx], part.fixed)  # (N+1, n_off, …)
+        return np.concatenate([values[0, :-1], values[:, -1]], axis=0)
+
+    def describe(self, index: int) -> str:
+        """Human name of a flat state entry, e.g. ``g[0, 2]`` or ``x (step k-1)``."""
+        parts = list(self.parts.values())
+        if self.multiplier_part is not None:
+            parts.append(self.multiplier_part)
+        for part in parts:
+            hits = np.argwhere(part.index == index)
+            if len(hits):
+                o, *pos = (int(v) for v in hits[0])
+                where = f"[{', '.join(map(str, pos))}]" if pos else ""
+                label = f" (step k{part.offsets[o]:+d})" if part.offsets[o] else ""
+                return f"{part.name}{where}{label}"
+        return f"known[{index}]"

@@ -1,0 +1,88 @@
+"""Helpers shared by the code-generation and runtime tests (seed systems, compiled kernels).
+
+Kernels of the seed systems are compiled once per test process into a private temporary
+cache (``SESSION_CACHE``, removed at exit); every test also gets its own empty
+``SYMGROUPOID_CACHE`` (the autouse fixture ``isolated_cache``), so no test touches the
+user's cache.
+"""
+
+from __future__ import annotations
+
+import atexit
+import functools
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from symgroupoid.codegen._seed_systems import SEED_SYSTEMS
+
+REPO = Path(__file__).resolve().parents[1]
+SESSION_CACHE = Path(tempfile.mkdtemp(prefix="symgroupoid-test-kernels-"))
+atexit.register(shutil.rmtree, SESSION_CACHE, True)
+HAVE_CC = shutil.which("cc") is not None
+needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler (cc) on PATH")
+
+#: parameters and momentum initial data (base point, p₀) of the seed systems
+SEED_DATA = {
+    "plate_ball": ({"h": 0.01, "r": 1.0, "Omega": 0.1, "c": 0.02}, {"x": 0.0, "y": 0.0},
+                   (0.1, 0.05, 0.01, 0.02, 0.01)),
+    "heavy_top": ({"h": 0.01, "mgl": 1.0, "I1": 1.0, "I2": 1.0, "I3": 0.5},
+                  {"Gamma": (0.0, np.sin(0.5), np.cos(0.5))}, (0.2, 0.1, 3.0)),
+    "rigid_body": ({"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}, None, (0.3, 0.2, 0.1)),
+}
+
+
+@functools.cache
+def seed_system(name: str):
+    return SEED_SYSTEMS[name]()
+
+
+@functools.cache
+def seed_step(name: str):
+    return seed_system(name).euler_lagrange()
+
+
+@pytest.fixture(autouse=True)
+def isolated_cache(tmp_path, monkeypatch):
+    """A fresh kernel cache for every test."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(tmp_path / "sg-cache"))
+    monkeypatch.delenv("SYMGROUPOID_BACKEND", raising=False)
+    return tmp_path / "sg-cache"
+
+
+@functools.cache
+def compiled(name: str, backend: str = "c"):
+    """The simulator of a seed system (built once per test process)."""
+    return seed_step(name).compile(backend=backend, cache_dir=SESSION_CACHE)
+
+
+def initial_state(sim, name: str) -> np.ndarray:
+    """The seed system's consistent initial state (from its momentum initial data)."""
+    params, config, momentum = SEED_DATA[name]
+    return sim.from_momentum(config, momentum, params)
+
+
+def constraint_function(name: str):
+    """φ(g_k) as a NumPy function of (known state, parameters)."""
+    system, step = seed_system(name), seed_step(name)
+    phis = system.constraints(step.groupoid.view(step.arrows[0]))
+    return sp.lambdify([step.knowns, step.parameters], sp.Matrix(phis), "numpy")
+
+
+def axial(A: np.ndarray) -> np.ndarray:
+    """(A₃₂, A₁₃, A₂₁) of (a stack of) skew matrices: the inverse of the hat map."""
+    return np.stack([A[..., 2, 1], A[..., 0, 2], A[..., 1, 0]], axis=-1)
+
+
+def discrete_inertia(I1: float, I2: float, I3: float) -> np.ndarray:
+    inertia = np.diag([I1, I2, I3])
+    return np.trace(inertia) / 2 * np.eye(3) - inertia
+
+
+def body_momentum(W: np.ndarray, Jd: np.ndarray) -> np.ndarray:
+    """Π = axial(W J_d − J_d Wᵀ) (EQUATIONS.md §9), for one or a stack of matrices."""
+    return axial(W @ Jd - Jd @ np.swapaxes(W, -1, -2))
