@@ -50,7 +50,7 @@ class ActionGroupoid(Groupoid):
     def __init__(self, space: EuclideanSpace, group: MatrixLieGroup,
                  action: Callable[[tuple, sp.Matrix], Sequence]):
         self.space, self.group, self.action = space, group, action
-        self.name = f"{'x'.join(space.names)} ⋊ {group.name}"
+        self.name = f"({', '.join(space.names)}) ⋊ {group.name}"
 
     @property
     def arrow_dim(self):

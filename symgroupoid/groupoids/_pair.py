@@ -86,7 +86,7 @@ class PairGroupoid(Groupoid):
         if not isinstance(space, EuclideanSpace):
             raise TypeError(f"PairGroupoid needs an EuclideanSpace, got {space!r}")
         self.space = space
-        self.name = f"{'x'.join(space.names)} pair groupoid"
+        self.name = f"pair groupoid of R^{space.dim} ({', '.join(space.names)})"
 
     @property
     def arrow_dim(self) -> int:
