@@ -266,5 +266,10 @@ def test_second_order_state_is_a_window_of_configurations():
     assert np.abs(traj.states - other.states).max() <= 1e-12
     with pytest.raises(sg.ShapeError, match="'q' needs 4 consecutive values"):
         sim.simulate({"q": (0.0, 0.01)}, 1, {"h": 0.1})
-    with pytest.raises(NotImplementedError, match="first-order"):
-        sim.from_momentum({"q": 0.0}, (0.1,), {"h": 0.1})
+    with pytest.raises(TypeError, match="first arrow"):
+        sim.from_momentum({"q": 0.0}, (0.1, 0.2), {"h": 0.1})
+    # (first arrow, momentum) initial data give back the state of a computed trajectory
+    leg = step.system.legendre()
+    s3 = traj.states[3]  # (q_{k-2}, q_{k-1}, q_k, q_{k+1})
+    momentum = leg.evaluate(s3, [], [0.1])[0]
+    assert np.allclose(sim.from_momentum(s3[:2], momentum, {"h": 0.1}), s3, atol=1e-12)

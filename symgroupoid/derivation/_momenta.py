@@ -28,6 +28,7 @@ from ._step import (
     named,
     next_arrow,
     shifted,
+    tidy,
 )
 
 
@@ -51,8 +52,8 @@ def legendre_forms(G: Groupoid, fs: SystemFunctions, offset: int = 0) -> Legendr
     F = shifted(fs, [A], lam)
     g = named(G, offset, False)
     sub = slot_substitution(A, g)
-    minus = [sp.expand(e.xreplace(sub)) for e in G.apply_right(F, A)]
-    plus = [sp.expand(e.xreplace(sub)) for e in G.apply_left(F, A)]
+    minus = [tidy(e.xreplace(sub)) for e in G.apply_right(F, A)]
+    plus = [tidy(e.xreplace(sub)) for e in G.apply_left(F, A)]
     return LegendreForms(minus, plus, g, lam)
 
 
@@ -86,10 +87,12 @@ def second_order_legendre_forms(G: Groupoid, fs: SystemFunctions,
     sub: dict = {}
     for a, g in zip(A, arrows):
         sub.update(slot_substitution(a, g))
-    flat = tuple(c for g in arrows for c in g)
+    # the window's coordinates without repetition, laid out as a second-order step's state
+    flat = tuple(arrows[0]) + tuple(G.named_fibre(offset + 1)) + tuple(
+        G.named_fibre(offset + 2))
     lam = multiplier_symbols(m, offset) + multiplier_symbols(m, offset + 1)
-    return LegendreForms([sp.expand(e.xreplace(sub)) for e in minus],
-                         [sp.expand(e.xreplace(sub)) for e in plus], flat, lam)
+    return LegendreForms([tidy(e.xreplace(sub)) for e in minus],
+                         [tidy(e.xreplace(sub)) for e in plus], flat, lam)
 
 
 def section_coefficients(G: Groupoid, section, q: Sequence) -> list[sp.Expr]:

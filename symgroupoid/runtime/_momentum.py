@@ -138,3 +138,91 @@ class MomentumInitializer:
         state[self.arrow_pos] = np.asarray(self._arrow(z[:self.rank], q), float).ravel()
         state[self.lam_pos] = z[self.rank:]
         return state
+
+
+class SecondOrderMomentumInitializer:
+    """Initial state of a second-order step from a velocity-like arrow g₀ and a momentum.
+
+    With the second-order transforms on the window (g₀, g₁, g₂) (multipliers λ₀, λ₁ of the
+    terms (g₀, g₁), (g₁, g₂); ``second_order_legendre_forms``), solve
+
+        F⁻[L + λ·Φ](g₀, g₁, g₂) = p₀ (2·rank components),   Φ(g₀, g₁) = Φ(g₁, g₂) = 0,
+
+    for the fibre chart coordinates of g₁, g₂ and λ₀, λ₁.  The result is the step's known
+    state (g_{k-1}, g_k, g_{k+1}, λ_{k-1}, λ_k) = (g₀, g₁, g₂, λ₀, λ₁).
+    """
+
+    def __init__(self, step, layout: StateLayout):
+        from ..derivation._momenta import second_order_legendre_forms
+        from ..derivation._step import chart_of, named, next_arrow, shifted
+
+        system = step.system
+        G, fs = step.groupoid, system._fs
+        self.name, self.layout, self.rank = step.name, layout, G.rank
+        self.m = len(fs.constraints)
+        forms = second_order_legendre_forms(G, fs, offset=-1)
+        g0 = named(G, -1, False)
+        fib1, chart1, cmap1 = chart_of(G, 0)
+        fib2, chart2, cmap2 = chart_of(G, 1)
+        g1 = next_arrow(G, g0, 0, False)
+        g2 = next_arrow(G, g1, 1, False)
+        lam = list(forms.multipliers)
+        p = [sp.Dummy(f"p{a}") for a in range(2 * self.rank)]
+        eqs = [e - pi for e, pi in zip(forms.minus, p)]
+        for a, b in ((g0, g1), (g1, g2)):
+            eqs += shifted(fs, [a, b], [1] * self.m, lagrangian=False, separate=True)
+        # differentiate through the charts, keeping the fibre variables as intermediates
+        fibres, charts = list(fib1) + list(fib2), list(chart1) + list(chart2)
+        sub = {**cmap1, **cmap2}
+        E = sp.Matrix(eqs)
+        args = [fibres + lam, list(g0), p, list(step.parameters)]
+        self._F = sp.lambdify(args, E, "numpy", cse=True)
+        self._J = sp.lambdify(args, E.jacobian(fibres + lam), "numpy", cse=True)
+        values = sp.Matrix([sub.get(f, f) for f in fibres])
+        self._fibres = sp.lambdify([charts], values, "numpy")
+        self._dfibres = sp.lambdify([charts], values.jacobian(charts), "numpy")
+        self.n_fibre, self.n_chart = len(fibres), len(charts)
+        if [str(s) for s in step.knowns] != [str(s) for s in (*g0, *fib1, *fib2, *lam)]:
+            raise RuntimeError(f"{step.name}: second-order state layout mismatch")
+        self._guess = sp.lambdify([list(g0)], list(G.predict_chart(g0)), "numpy")
+
+    def _residual(self, z, g0, p, params):
+        x, lam = z[:self.n_chart], z[self.n_chart:]
+        f = np.asarray(self._fibres(x), float).ravel()
+        w = np.concatenate([f, lam])
+        F = np.asarray(self._F(w, g0, p, params), float).ravel()
+        Jw = np.asarray(self._J(w, g0, p, params), float).reshape(len(F), len(w))
+        C = np.asarray(self._dfibres(x), float).reshape(self.n_fibre, self.n_chart)
+        J = np.hstack([Jw[:, :self.n_fibre] @ C, Jw[:, self.n_fibre:]])
+        return F, J, np.concatenate([g0, f, lam])
+
+    def solve(self, arrow, momentum: Sequence, params: np.ndarray, tol: float = 1e-14,
+              max_iterations: int = 50) -> np.ndarray:
+        if isinstance(arrow, Mapping):
+            raise TypeError(f"{self.name}: a second-order system starts from its first arrow "
+                            "g₀ (flat coordinates, as in step.arrows) and a momentum, not "
+                            "from a configuration")
+        g0 = np.asarray(arrow, dtype=float).ravel()
+        p = np.asarray(momentum, dtype=float).ravel()
+        if p.size != 2 * self.rank:
+            raise ShapeError(f"{self.name}: a second-order momentum has {2 * self.rank} "
+                             f"components (two per basis section), got {p.size}")
+        guess = np.asarray(self._guess(g0), float).ravel()
+        z = np.concatenate([guess, guess, np.zeros(2 * self.m)])
+        for _ in range(max_iterations):
+            F, J, state = self._residual(z, g0, p, params)
+            if not (np.isfinite(F).all() and np.isfinite(J).all()):
+                raise NewtonDivergenceError(f"{self.name}: non-finite values solving for the "
+                                            "initial state from the momentum", step=0,
+                                            residual_norm=float(np.abs(F).max()), iterate=z)
+            try:
+                dz = np.linalg.solve(J, F)
+            except np.linalg.LinAlgError:
+                raise SingularJacobianError(f"{self.name}: F⁻L is not invertible here",
+                                            step=0, residual_norm=float(np.abs(F).max()),
+                                            iterate=z) from None
+            z = z - dz
+            if np.abs(dz).max() <= tol * (1.0 + np.abs(z).max()):
+                return self._residual(z, g0, p, params)[2]
+        raise NewtonDivergenceError(f"{self.name}: no initial state found for this momentum",
+                                    step=0, residual_norm=float(np.abs(F).max()), iterate=z)

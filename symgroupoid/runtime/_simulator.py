@@ -146,11 +146,17 @@ class Simulator:
         has one component per basis section (``system.legendre().minus`` order);
         ``configuration`` names the base point's coordinates, e.g. ``{"x": 0, "y": 0}``
         (plate-ball), ``{"Gamma": (0, 0, 1)}`` (heavy top), or None when the base is a point.
+
+        Second-order systems: ``configuration`` is the velocity-like first arrow g₀ (flat
+        coordinates) and ``momentum`` has two components per section (F⁻L of the window
+        g₀, g₁, g₂); the result is the state (g₀, g₁, g₂, λ₀, λ₁).
         """
         if self._momentum is None:
-            from ._momentum import MomentumInitializer
+            from ._momentum import MomentumInitializer, SecondOrderMomentumInitializer
 
-            self._momentum = MomentumInitializer(self.equations, self.layout)
+            kind = (SecondOrderMomentumInitializer if self.equations.order == 2
+                    else MomentumInitializer)
+            self._momentum = kind(self.equations, self.layout)
         state = self._momentum.solve(configuration, momentum, self.parameters(params))
         return self.state(state)
 
