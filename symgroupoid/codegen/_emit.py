@@ -97,7 +97,8 @@ def _context(step, prefix: str, header_name: str) -> dict:
         "known_names": [_ascii(s.name) for s in step.knowns],
         "parameter_names": [_ascii(s.name) for s in step.parameters],
         "fibre_names": [_ascii(s.name) for s in fibre],
-        "residual_latex": [_ascii(latex(r)) for r in step.residuals],
+        "residual_latex": [_ascii(latex(r)) for r in
+                           (step.structured if step.structured is not None else step.residuals)],
         "reconstruct": blocks.reconstruct, "residual": blocks.residual,
         "residual_jacobian": blocks.residual_jacobian, "predict": blocks.predict,
         "next_knowns": blocks.next_knowns,

@@ -20,7 +20,7 @@ from pathlib import Path
 import sympy as sp
 
 from ..equations import DiscreteSystem
-from ..groupoids import SO3, ActionGroupoid, EuclideanSpace, PairGroupoid
+from ..groupoids import SO3, ActionGroupoid, EuclideanSpace, NamedMatrix, PairGroupoid
 
 
 def plate_ball() -> DiscreteSystem:
@@ -53,9 +53,9 @@ def inertia_symbols() -> tuple:
 
 
 def discrete_inertia(I1, I2, I3) -> sp.Matrix:
-    """J_d = ½ tr(I) I₃ − I for I = diag(I1, I2, I3)."""
+    """J_d = ½ tr(I) I₃ − I for I = diag(I1, I2, I3), printed as J_d."""
     inertia = sp.diag(I1, I2, I3)
-    return inertia.trace() / 2 * sp.eye(3) - inertia
+    return NamedMatrix(inertia.trace() / 2 * sp.eye(3) - inertia, name="J_d")
 
 
 def heavy_top() -> DiscreteSystem:
