@@ -11,6 +11,10 @@ from .._errors import CallableError, ShapeError, UndeclaredSymbolError
 
 def call_user(system_name: str, what: str, func: Callable, *arrows):
     """Call ``func(*arrows)``; wrap any exception with the system name and ``what``."""
+    if not callable(func):
+        raise CallableError(
+            f"{system_name}: the {what} must be a function of the arrow (e.g. "
+            f"lambda g: ...), got a {type(func).__name__}")
     try:
         return func(*arrows)
     except Exception as exc:  # noqa: BLE001 - re-raised with context

@@ -41,8 +41,16 @@ def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9
 
 
 def _fail(G: Groupoid, axiom: str, **arrows) -> AxiomError:
-    shown = ", ".join(f"{k}={tuple(np.round(_num(v), 6))}" for k, v in arrows.items())
-    return AxiomError(f"{G.name}: {axiom} fails for {shown}")
+    """An :class:`AxiomError` naming the axiom and showing the failing arrows (or base point).
+
+    The exception also carries ``.axiom`` and ``.arrows`` (name → tuple of floats) so that a
+    caller can reproduce the failure.
+    """
+    values = {k: tuple(float(c) for c in _num(v)) for k, v in arrows.items()}
+    shown = ", ".join(f"{k}=({', '.join(f'{c:.6g}' for c in v)})" for k, v in values.items())
+    err = AxiomError(f"{G.name}: {axiom} fails for {shown}")
+    err.axiom, err.arrows = axiom, values
+    return err
 
 
 def _pair_checks(G, a, b, c, tol):

@@ -6,6 +6,7 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
+from .._errors import CallableError, ShapeError, SymgroupoidError
 from .._symbols import latex_name, scalar_symbol
 from ._base import Groupoid
 
@@ -52,22 +53,43 @@ class DefinedGroupoid(Groupoid):
     def rank(self):
         return len(self.fibre_names)
 
+    def _call(self, map_name: str, size: int, *args) -> tuple:
+        """Call the user's ``map_name`` map; wrap exceptions and check the result's length."""
+        try:
+            out = self._maps[map_name](*args)
+        except SymgroupoidError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - re-raised with context
+            raise CallableError(f"{self.name}: the {map_name} map raised "
+                                f"{type(exc).__name__}: {exc}") from exc
+        try:
+            out = tuple(out)
+        except TypeError as exc:
+            raise ShapeError(f"{self.name}: the {map_name} map returned "
+                             f"{type(out).__name__}, not a tuple of coordinates") from exc
+        if len(out) != size:
+            what = "base point" if size == self.base_dim else "arrow"
+            raise ShapeError(f"{self.name}: the {map_name} map returned {len(out)} "
+                             f"coordinates; a {what} has {size}")
+        return out
+
     def source(self, a):
-        return tuple(self._maps["source"](tuple(a)))
+        return self._call("source", self.base_dim, tuple(a))
 
     def target(self, a):
-        return tuple(self._maps["target"](tuple(a)))
+        return self._call("target", self.base_dim, tuple(a))
 
     def multiply(self, a, b):
-        return tuple(self._maps["multiply"](tuple(a), tuple(b)))
+        return self._call("multiply", self.arrow_dim, tuple(a), tuple(b))
 
     def identity(self, q):
-        return tuple(self._maps["identity"](tuple(q)))
+        return self._call("identity", self.arrow_dim, tuple(q))
 
     def inverse(self, a):
-        return tuple(self._maps["inverse"](tuple(a)))
+        return self._call("inverse", self.arrow_dim, tuple(a))
 
     def section_curves(self, q, t):
+        # exceptions are wrapped (with the groupoid's name) by Groupoid._curves
         return [tuple(h) for h in self._maps["sections"](tuple(q), t)]
 
     def arrow_from(self, q, f):
