@@ -367,8 +367,7 @@ def _dtau_template(cls, retraction: str, side: str) -> sp.Matrix:
     for xa in x:
         dT = T.diff(xa)
         prod = Tinv * dT if side == "left" else dT * Tinv
-        cols.append(cls.vee(prod.applyfunc(sp.cancel if retraction == "cayley" else
-                                           sp.trigsimp)))
+        cols.append(cls.vee(prod))
     D = sp.Matrix.hstack(*cols)
     return D.applyfunc(_tidy(retraction))
 
@@ -376,13 +375,19 @@ def _dtau_template(cls, retraction: str, side: str) -> sp.Matrix:
 @functools.cache
 def _dtau_inverse_template(cls, retraction: str, side: str) -> sp.Matrix:
     D = _dtau_template(cls, retraction, side)
-    return D.inv().applyfunc(_tidy(retraction))
+    if retraction == "cayley":
+        return D.inv().applyfunc(_tidy(retraction))
+    # exp: the entries hold the smooth special functions; an LU inverse without zero-testing
+    # simplification stays fast (the result is exact, not simplified)
+    return D.inv(method="LU", iszerofunc=lambda e: e.is_zero is True)
 
 
 def _tidy(retraction: str):
+    """Cayley: rational entries, put in lowest terms.  exp: left as derived (simplifying
+    expressions in the smooth special functions gains little and costs much)."""
     if retraction == "cayley":
         return lambda e: sp.factor(sp.cancel(e))
-    return lambda e: sp.simplify(e)
+    return lambda e: e
 
 
 @functools.cache
