@@ -14,6 +14,13 @@ unknowns, so the Jacobian is block-banded.  Its blocks are X⃖ and X⃗ derivat
 window residual, derived symbolically once and evaluated for all windows at once (NumPy,
 vectorised); the banded system is solved in time linear in N (LAPACK's banded solver through
 SciPy when installed, a block-tridiagonal elimination in NumPy otherwise).
+
+The derivatives are exact but never expanded into expression trees: the window action is
+written as a straight-line program of elementary operations (one assignment per distinct
+subexpression), and the residual and its slot derivatives are obtained by forward-mode
+differentiation of that program along the section fields — the chain rule applied assignment
+by assignment.  The program grows linearly with the number of derivatives instead of the
+expression swell of differentiating the expanded residual twice.
 """
 
 from __future__ import annotations
@@ -32,12 +39,118 @@ from .._errors import (
     ShapeError,
     SingularJacobianError,
 )
-from ..derivation._step import window, window_functions
+from .._symbols import multiplier_symbols
+from ..derivation._junction import slot
+from ..derivation._step import shifted, window
 
 # --- symbolic window kernel --------------------------------------------------------------
 
-def _vectorised(args, exprs):
-    f = sp.lambdify(args, exprs, "numpy", cse=True)
+class _Program:
+    """A straight-line program: assignments ``t_j = e_j`` of elementary operations (a sum, a
+    product, a power or a function of earlier symbols and the inputs), one per distinct
+    subexpression, extended by forward-mode directional derivatives.
+
+    Subexpressions that are not plain arithmetic or functions of expressions (``Piecewise``,
+    …) stay whole; their derivatives are taken by SymPy and written as programs in turn.
+    """
+
+    def __init__(self):
+        self.assignments: list[tuple[sp.Symbol, sp.Expr, tuple]] = []
+        self._memo: dict = {}
+        self._names = sp.numbered_symbols("t", real=True)
+
+    def node(self, expr) -> sp.Expr:
+        """An atom standing for ``expr``, adding the assignments it needs."""
+        expr = sp.sympify(expr)
+        if expr.is_Atom:
+            return expr
+        hit = self._memo.get(expr)
+        if hit is not None:
+            return hit
+        if _elementary(expr):
+            e = expr.func(*[self.node(a) for a in expr.args])
+            if e.is_Atom:
+                return e
+            deps = tuple(a for a in e.args if a.is_Symbol)
+        else:
+            e, deps = expr, tuple(expr.free_symbols)
+        hit = self._memo.get(e)
+        if hit is None:
+            hit = next(self._names)
+            self.assignments.append((hit, e, deps))
+            self._memo[e] = hit
+        self._memo[expr] = hit
+        return hit
+
+    def tangent(self, targets: Sequence, seed: dict, upto: int | None = None) -> list:
+        """d/dt of the atoms ``targets`` along the input tangent ``seed`` (symbol → value),
+        through the first ``upto`` assignments; new assignments are appended."""
+        tan = {x: self.node(v) for x, v in seed.items() if v != 0}
+        for s, e, deps in self.assignments[:upto]:
+            if not any(x in tan for x in deps):
+                continue
+            d = _chain_rule(e, deps, tan)
+            if d != 0:
+                tan[s] = self.node(d)
+        return [tan.get(t, sp.S.Zero) for t in targets]
+
+    def needed(self, outputs: Sequence) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list]:
+        """The assignments the outputs depend on, in order, with their targets renamed so
+        that a name is reused once its value is dead (evaluated on arrays of windows, this
+        keeps the live temporaries few instead of one per assignment); and the outputs in
+        the new names."""
+        outputs = [sp.sympify(o) for o in outputs]
+        need: set = set()
+        for o in outputs:
+            need |= o.free_symbols
+        keep = []
+        for s, e, _ in reversed(self.assignments):
+            if s in need:
+                keep.append((s, e))
+                need |= e.free_symbols
+        keep.reverse()
+        last: dict = {}
+        for i, (_, e) in enumerate(keep):
+            for x in e.free_symbols:
+                last[x] = i
+        for o in outputs:
+            for x in o.free_symbols:
+                last[x] = len(keep)
+        names = sp.numbered_symbols("r", real=True)
+        free: list = []
+        rename: dict = {}
+        out = []
+        for i, (s, e) in enumerate(keep):
+            renamed = e.xreplace(rename)
+            free += [rename[x] for x in e.free_symbols if x in rename and last[x] == i]
+            rename[s] = free.pop() if free else next(names)
+            out.append((rename[s], renamed))
+        return out, [o.xreplace(rename) for o in outputs]
+
+
+def _elementary(expr) -> bool:
+    return ((expr.is_Add or expr.is_Mul or expr.is_Pow or isinstance(expr, sp.Function))
+            and all(isinstance(a, sp.Expr) for a in expr.args)
+            and not isinstance(expr, sp.Piecewise))
+
+
+def _chain_rule(e, deps, tan) -> sp.Expr:
+    """Directional derivative of one assignment from the tangents of its dependencies."""
+    if e.is_Add:
+        return sp.Add(*[tan[a] for a in e.args if a in tan])
+    if e.is_Mul:
+        args = e.args
+        return sp.Add(*[sp.Mul(tan[a], *args[:i], *args[i + 1:])
+                        for i, a in enumerate(args) if a in tan])
+    if e.is_Pow:
+        b, n = e.args
+        out = n * b ** (n - 1) * tan[b] if b in tan else sp.S.Zero
+        return out + (sp.log(b) * e * tan[n] if n in tan else 0)
+    return sp.Add(*[sp.diff(e, x) * tan[x] for x in deps if x in tan])
+
+
+def _vectorised(args, outputs, program: _Program):
+    f = sp.lambdify(args, outputs, "numpy", cse=program.needed)
 
     def call(*values, size: int):
         with np.errstate(all="ignore"):  # non-finite values are detected by the caller
@@ -47,12 +160,22 @@ def _vectorised(args, exprs):
     return call
 
 
+def _seed(coords: Sequence, field: Sequence, sign: int = 1) -> dict:
+    return {c: sign * v for c, v in zip(coords, field) if v != 0}
+
+
 class WindowKernel:
     """Residuals of one junction and of one term, with their slot derivatives.
 
     For the junction residual r (rank rows) and each slot o of the window:
     ``left[o]`` = X⃖_b[r_i] on slot o and ``right[o]`` = X⃗_b[r_i] on slot o (rank × rank),
     and ``dlam[s]`` = ∂r/∂λ_s; likewise for the constraints of the term starting at 0.
+
+    The window action S = Σ_s [L + λ_s·Φ](terms starting at s) (seed 001 eq. (17)) becomes a
+    :class:`_Program`; the junction residual r_b = X⃖_b[S](g_j) − X⃗_b[S](g_{j+1}) is its
+    derivative along the left field of section b on slot 0 and minus the right field on slot
+    1 (the junction variation, EQUATIONS.md §2), and each block a derivative of r along one
+    section field on one slot.
     """
 
     def __init__(self, system):
@@ -60,26 +183,54 @@ class WindowKernel:
         self.groupoid, self.rank, self.m = G, G.rank, len(fs.constraints)
         self.arity = len(fs.slots)
         self.offsets, self.starts = window(self.arity)
-        wf = window_functions(G, fs)
         self.parameters = list(system.parameters)
-        coords = [c for o in self.offsets for c in wf.slots[o]]
-        lams = [x for s in self.starts for x in wf.multipliers[s]]
-        args = coords + lams + self.parameters
-        r = wf.variation
-        blocks = list(r)
+        r, m, arity = self.rank, self.m, self.arity
+        A = {o: slot(G, f"v{o + 2}_") for o in self.offsets}
+        lam = {s: multiplier_symbols(m, s) for s in self.starts}
+        S = sum((shifted(fs, [A[s + i] for i in range(arity)], lam[s]) for s in self.starts),
+                sp.S.Zero)
+        constraints = shifted(fs, [A[i] for i in range(arity)], [1] * m, lagrangian=False,
+                              separate=True)
+        # plain identifiers for every input, so the generated code needs no renaming
+        inputs = ([c for o in self.offsets for c in A[o]]
+                  + [x for s in self.starts for x in lam[s]] + self.parameters)
+        plain = {x: sp.Symbol(f"a{i}", real=True) for i, x in enumerate(inputs)}
+        A = {o: tuple(plain[c] for c in A[o]) for o in self.offsets}
+        lam = {s: [plain[x] for x in lam[s]] for s in self.starts}
+        params = [plain[x] for x in self.parameters]
+        fields = {o: (G.left_field(A[o]), G.right_field(A[o])) for o in self.offsets}
+
+        P = _Program()
+        action = P.node(S.xreplace(plain))
+        res = [P.tangent([action], {**_seed(A[0], fields[0][0][b]),
+                                    **_seed(A[1], fields[1][1][b], -1)})[0] for b in range(r)]
+        base = len(P.assignments)
+        blocks = list(res)
         for o in self.offsets:
-            for e in r:
-                blocks += G.apply_left(e, wf.slots[o]) + G.apply_right(e, wf.slots[o])
+            d = {(side, c): P.tangent(res, _seed(A[o], fields[o][side][c]), base)
+                 for side in (0, 1) for c in range(r)}
+            for b in range(r):
+                blocks += [d[side, c][b] for side in (0, 1) for c in range(r)]
         for s in self.starts:
-            blocks += [sp.diff(e, x) for e in r for x in wf.multipliers[s]]
-        self._junction = _vectorised(args, blocks)
-        c = wf.constraints
-        cblocks = list(c)
-        for o in range(self.arity):
-            for e in c:
-                cblocks += G.apply_left(e, wf.slots[o]) + G.apply_right(e, wf.slots[o])
-        ccoords = [x for o in range(self.arity) for x in wf.slots[o]]
-        self._term = _vectorised(ccoords + self.parameters, cblocks) if self.m else None
+            d = [P.tangent(res, {x: 1}, base) for x in lam[s]]
+            blocks += [d[a][b] for b in range(r) for a in range(m)]
+        coords = [c for o in self.offsets for c in A[o]]
+        lams = [x for s in self.starts for x in lam[s]]
+        self._junction = _vectorised(coords + lams + params, blocks, P)
+
+        self._term = None
+        if m:
+            Q = _Program()
+            values = [Q.node(c.xreplace(plain)) for c in constraints]
+            base = len(Q.assignments)
+            cblocks = list(values)
+            for o in range(arity):
+                d = {(side, c): Q.tangent(values, _seed(A[o], fields[o][side][c]), base)
+                     for side in (0, 1) for c in range(r)}
+                for e in range(m):
+                    cblocks += [d[side, c][e] for side in (0, 1) for c in range(r)]
+            ccoords = [x for o in range(arity) for x in A[o]]
+            self._term = _vectorised(ccoords + params, cblocks, Q)
 
     def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
         """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
