@@ -465,15 +465,22 @@ def interpolate_arrows(G, total: Sequence, steps: int) -> np.ndarray:
 
 
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
-                         tol: float = 1e-10, max_iterations: int = 30) -> BoundaryValueSolution:
+                         tol: float = 1e-10, tol_step: float = 1e-9,
+                         max_iterations: int = 30) -> BoundaryValueSolution:
     """Solve a discrete two-point problem for the system behind ``step_equations``.
 
     First order: ``start`` and ``end`` are the end configurations (pair groupoid: points;
     Lie group: matrices; products: tuples).  Second order: ``start = (c₀, c₁)`` and
     ``end = (c_{N−1}, c_N)``, fixing the first and last arrows too.  ``guess``: N arrows
     (N, arrow_dim), optionally with multipliers as ``(arrows, multipliers)``; default: the
-    interpolation of :func:`interpolate_arrows` and zero multipliers.  Raises
-    :class:`NewtonDivergenceError` naming the worst step when Newton does not converge.
+    interpolation of :func:`interpolate_arrows` and zero multipliers.
+
+    Converged when |F|∞ < ``tol``, or after a Newton update below ``tol_step``·(1 + |λ|∞):
+    Newton's quadratic convergence (the Jacobian is exact) leaves an error of the order of
+    its square, so the iterate is then at the residual's rounding floor — which grows with
+    N (for a residual scaled like 1/h², about N² ε), so a fixed absolute ``tol`` alone
+    would fail for large N.  Raises :class:`NewtonDivergenceError` naming the worst step
+    when Newton does not converge.
     """
     system = getattr(step_equations, "system", step_equations)
     G = system.groupoid
@@ -513,6 +520,12 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
                 step=worst, residual_norm=norm, iterate=arrows) from exc
         arrows, lam, (F, rows, cols, vals, worst) = _line_search(
             kernel, lay, maps, arrows, lam, dz, F, p)
+        scale = 1.0 + (float(np.max(np.abs(lam))) if lam.size else 0.0)
+        if float(np.max(np.abs(dz))) <= tol_step * scale:
+            norm = float(np.max(np.abs(F))) if F.size else 0.0
+            history.append(norm)
+            it += 1
+            break
     configurations = [start if a == 1 else start[0]]
     for g in arrows:
         configurations.append(G.configuration_after(configurations[-1], g))
