@@ -37,7 +37,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import symgroupoid as sg  # noqa: E402
-from symgroupoid.codegen._seed_systems import plate_ball  # noqa: E402
+from symgroupoid.systems import plate_ball  # noqa: E402
 
 PARAMS = {"h": 0.01, "r": 1.0, "Omega": 0.1, "c": 0.02}
 POSITION = {"x": 0.0, "y": 0.0}
@@ -47,7 +47,7 @@ WARM_SCRIPT = """
 import json, sys, time
 sys.path.insert(0, {repo!r})
 import symgroupoid as sg
-from symgroupoid.codegen._seed_systems import plate_ball
+from symgroupoid.systems import plate_ball
 from symgroupoid.runtime import _compile
 step = plate_ball().euler_lagrange()
 t0 = time.perf_counter()

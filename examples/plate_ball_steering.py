@@ -23,27 +23,7 @@ import numpy as np
 import sympy as sp
 
 import symgroupoid as sg
-
-h, r, Omega, c = sp.symbols("h r Omega c", positive=True)
-E1, E2, E3 = sg.SO3.basis_matrices()
-
-
-def plate_ball() -> sg.DiscreteSystem:
-    G = sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("g")
-
-    def L(g):
-        (x0, y0), (x1, y1) = g[0].source, g[0].target
-        return h / 2 * (((x1 - x0) / h) ** 2 + ((y1 - y0) / h) ** 2)
-
-    def phi(g):
-        (x0, y0), (x1, y1) = g[0].source, g[0].target
-        W = g[1].matrix
-        return [h * ((y1 - y0) / h - r / (2 * h) * (W * E1).trace() - Omega * (x1 + x0) / 2),
-                h * ((x1 - x0) / h + r / (2 * h) * (W * E2).trace() + Omega * (y1 + y0) / 2),
-                h * (c + (W * E3).trace() / (2 * h))]
-
-    return sg.DiscreteSystem(G, L, constraints=phi, parameters=[h, r, Omega, c],
-                             name="plate_ball")
+from symgroupoid.systems import plate_ball  # the system of seed 000 §6.2, as above
 
 
 def rolling_arrow(x0, y0, x1, y1, params) -> np.ndarray:

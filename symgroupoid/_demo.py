@@ -7,9 +7,9 @@ import time
 import numpy as np
 import sympy as sp
 
-from .codegen._seed_systems import heavy_top, plate_ball
 from .groupoids import SO3
 from .runtime._bvp import solve_boundary_value
+from .systems import heavy_top, plate_ball
 from .verification import verify_stationary
 
 

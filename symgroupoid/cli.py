@@ -12,11 +12,22 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from pathlib import Path
+
+
+def generate_seed_kernels(outdir: str | Path) -> list[Path]:
+    """Emit ``<name>.c``/``<name>.h`` of every seed system into ``outdir``; return the paths."""
+    from .codegen import emit_c
+    from .systems import SEED_SYSTEMS
+
+    outdir = Path(outdir)
+    written: list[Path] = []
+    for name, make in SEED_SYSTEMS.items():
+        written.extend(emit_c(make().euler_lagrange(), outdir / name))
+    return written
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from .codegen._seed_systems import generate_seed_kernels
-
     for path in generate_seed_kernels(args.outdir):
         print(path)
     return 0

@@ -12,6 +12,7 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 import symgroupoid as sg
+import symgroupoid.systems as sg_systems
 
 # --- plate-ball (seed 000 §6.2) --------------------------------------------------------------
 
@@ -21,23 +22,9 @@ E1, E2, E3 = (sp.Matrix(E) for E in sg.SO3.basis_matrices())
 
 
 def plate_ball_system() -> sg.DiscreteSystem:
-    """L and φ¹, φ², φ³ exactly as in seed 000 eq. (8) and the line after it."""
-    h, r, Omega, c = PB_PARAMETERS
-    G = sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("g")
-
-    def L(g):
-        (x0, y0), (x1, y1) = g[0].source, g[0].target
-        return h / 2 * (((x1 - x0) / h) ** 2 + ((y1 - y0) / h) ** 2)
-
-    def phi(g):
-        (x0, y0), (x1, y1) = g[0].source, g[0].target
-        W = g[1].matrix
-        return [h * ((y1 - y0) / h - r / (2 * h) * (W * E1).trace() - Omega * (x1 + x0) / 2),
-                h * ((x1 - x0) / h + r / (2 * h) * (W * E2).trace() + Omega * (y1 + y0) / 2),
-                h * (c + (W * E3).trace() / (2 * h))]
-
-    return sg.DiscreteSystem(G, L, constraints=phi, parameters=list(PB_PARAMETERS),
-                             name="plate_ball")
+    """L and φ¹, φ², φ³ exactly as in seed 000 eq. (8) and the line after it (the library's
+    ``symgroupoid.systems.plate_ball``)."""
+    return sg_systems.plate_ball()
 
 
 # --- heavy top (seed 002) --------------------------------------------------------------------

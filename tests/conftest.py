@@ -7,28 +7,13 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
+from symgroupoid import systems
 
 
 def plate_ball_system() -> tuple[sg.DiscreteSystem, tuple]:
-    """Seed 000 §6.2: R²×R²×SO(3) ⇉ R² with the rolling constraints."""
-    h, r, Omega, c = sp.symbols("h r Omega c", positive=True)
-    G = sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("g")
-    E1, E2, E3 = sg.SO3.basis_matrices()
-
-    def L(g):
-        (x0, y0), (x1, y1) = g[0].source, g[0].target
-        return h / 2 * (((x1 - x0) / h) ** 2 + ((y1 - y0) / h) ** 2)
-
-    def phi(g):
-        (x0, y0), (x1, y1) = g[0].source, g[0].target
-        W = g[1].matrix
-        return [h * ((y1 - y0) / h - r / (2 * h) * (W * E1).trace() - Omega * (x1 + x0) / 2),
-                h * ((x1 - x0) / h + r / (2 * h) * (W * E2).trace() + Omega * (y1 + y0) / 2),
-                h * (c + (W * E3).trace() / (2 * h))]
-
-    system = sg.DiscreteSystem(G, L, constraints=phi, parameters=[h, r, Omega, c],
-                               name="plate_ball")
-    return system, (h, r, Omega, c)
+    """Seed 000 §6.2: R²×R²×SO(3) ⇉ R² with the rolling constraints (``sg.systems``)."""
+    system = systems.plate_ball()
+    return system, tuple(system.parameters)
 
 
 def heavy_top_system() -> tuple[sg.DiscreteSystem, tuple]:

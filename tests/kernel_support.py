@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from symgroupoid.codegen._seed_systems import SEED_SYSTEMS
+from symgroupoid.systems import SEED_SYSTEMS
 
 REPO = Path(__file__).resolve().parents[1]
 SESSION_CACHE = Path(tempfile.mkdtemp(prefix="symgroupoid-test-kernels-"))

@@ -218,7 +218,7 @@ def test_c_reconstruction_is_the_cayley_map():
 @needs_cc
 def test_exponential_retraction_kernel_compiles_strictly_and_matches_numpy(tmp_path):
     """SO(3) with the exp chart: its special functions print through their C methods."""
-    from symgroupoid.codegen._seed_systems import discrete_inertia
+    from symgroupoid.systems import discrete_inertia
 
     h = sp.Symbol("h", positive=True)
     inertia = sp.symbols("I1 I2 I3", positive=True)

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 
-from symgroupoid.codegen._seed_systems import plate_ball
+from symgroupoid.systems import plate_ball
 
 PARAMS = {"h": 0.01, "r": 1.0, "Omega": 0.1, "c": 0.02}
 MOMENTUM = (0.1, 0.05, 0.01, 0.02, 0.01)

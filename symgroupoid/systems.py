@@ -1,4 +1,4 @@
-"""The seed example systems whose kernels are shipped in ``generated/``.
+"""The seed example systems, ready-made (their kernels are shipped in ``generated/``).
 
 - ``plate_ball``: a ball rolling on a rotating plate, R²×R²×SO(3) ⇉ R² with three
   constraints (seed 000 §6.2, EQUATIONS.md §6);
@@ -15,12 +15,11 @@ equations (and the same regularity near the identity); only the sign of the mome
 from __future__ import annotations
 
 from collections.abc import Callable
-from pathlib import Path
 
 import sympy as sp
 
-from ..equations import DiscreteSystem
-from ..groupoids import SO3, ActionGroupoid, EuclideanSpace, NamedMatrix, PairGroupoid
+from .equations import DiscreteSystem
+from .groupoids import SO3, ActionGroupoid, EuclideanSpace, NamedMatrix, PairGroupoid
 
 
 def plate_ball() -> DiscreteSystem:
@@ -87,14 +86,3 @@ def rigid_body() -> DiscreteSystem:
 
 SEED_SYSTEMS: dict[str, Callable[[], DiscreteSystem]] = {
     "plate_ball": plate_ball, "heavy_top": heavy_top, "rigid_body": rigid_body}
-
-
-def generate_seed_kernels(outdir: str | Path) -> list[Path]:
-    """Emit ``<name>.c``/``<name>.h`` of every seed system into ``outdir``; return the paths."""
-    from ._emit import emit_c
-
-    outdir = Path(outdir)
-    written: list[Path] = []
-    for name, make in SEED_SYSTEMS.items():
-        written.extend(emit_c(make().euler_lagrange(), outdir / name))
-    return written
