@@ -155,3 +155,31 @@ def test_second_order_compiles_and_starts_from_a_momentum(tmp_path, monkeypatch)
     momentum = leg.evaluate(s5, [], [0.05])[0]
     rebuilt = sim.from_momentum(s5[:9], momentum, [0.05])
     assert np.allclose(rebuilt, s5, atol=1e-11)
+
+
+def test_second_order_action_groupoid_equations():
+    """Seed 001 §3.1.3 on P×H with p·W = Wᵀp: the residual is
+    X⃖-part: d/dt [L(g_{k-1}, g_k h) + L(g_k h, h⁻¹g_{k+1})] on the g_k slots and the
+    X⃗-part on the g_{k+1} slots, with the action groupoid's fields written out here from
+    EQUATIONS.md §1: X⃖ moves (p, W) ↦ (p, W(I + tE)), X⃗ moves (p, W) ↦ (p·(I + tE),
+    (I − tE)W) with a minus sign — independently of the library's derived fields."""
+    G = sg.ActionGroupoid(sg.EuclideanSpace.vector("p", 3), sg.SO3("W"),
+                          lambda p, W: tuple(W.T * sp.Matrix(p)))
+    J = sp.diag(1, 2, 3)
+
+    def Lf(pa, Wa, pb, Wb):
+        return pa[2] * (Wb * J).trace() + (Wa * Wb).trace() * pb[0]
+
+    step = sg.SecondOrderSystem(
+        G, lambda a, b: Lf(a.point, a.matrix, b.point, b.matrix), name="act2").euler_lagrange()
+    arrows = step.arrows
+    parts = {o: (sp.Matrix(arrows[o][:3]), G.group.matrix(arrows[o][3:])) for o in (-1, 0, 1, 2)}
+    t = sp.Symbol("t")
+    for s, E in enumerate(sg.SO3.basis_matrices()):
+        H = sp.eye(3) + t * E
+        (pm, Wm), (p0, W0), (p1, W1), (p2, W2) = (parts[o] for o in (-1, 0, 1, 2))
+        left = Lf(pm, Wm, p0, W0 * H) + Lf(p0, W0 * H, p1, W1)
+        right = Lf(p0, W0, H.T * p1, (sp.eye(3) - t * E) * W1)  # p·(I+tE) = (I+tE)ᵀp
+        right += Lf(H.T * p1, (sp.eye(3) - t * E) * W1, p2, W2)
+        expected = sp.diff(left, t).subs(t, 0) + sp.diff(right, t).subs(t, 0)
+        assert sp.expand(step.residuals[s] - expected) == 0
