@@ -2,33 +2,22 @@
 
 from __future__ import annotations
 
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
 import sympy as sp
+from conftest import load_example
 
 import symgroupoid as sg
-
-EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
 def lie():
-    return _load("optimal_control_lie_groups")
+    return load_example("optimal_control_lie_groups")
 
 
 @pytest.fixture(scope="module")
 def plate():
-    return _load("plate_ball_steering")
+    return load_example("plate_ball_steering")
 
 
 def _constraint_values(system, arrows, params):

@@ -4,36 +4,25 @@ problems; plus the forward-mode window kernel of the boundary-value solver."""
 
 from __future__ import annotations
 
-import importlib.util
-import pathlib
-
 import numpy as np
 import pytest
 import sympy as sp
+from conftest import load_example
 
 import symgroupoid as sg
 from symgroupoid.derivation._step import window_functions
 from symgroupoid.runtime import _bvp
 from symgroupoid.verification import action
 
-EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
-
-
-def _load(name: str):
-    spec = importlib.util.spec_from_file_location(name, EXAMPLES / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
 
 @pytest.fixture(scope="module")
 def rb():
-    return _load("rigid_body_attitude")
+    return load_example("rigid_body_attitude")
 
 
 @pytest.fixture(scope="module")
 def ht():
-    return _load("heavy_top_rotors")
+    return load_example("heavy_top_rotors")
 
 
 @pytest.fixture(scope="module")
