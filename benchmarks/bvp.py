@@ -169,8 +169,8 @@ def main(argv: list[str] | None = None) -> None:
     b, a = np.polyfit(sizes, times, 1)
     print(f"  fitted exponent p (s/iteration ∝ N^p): {slope:.2f} over N = 250 … 4000, "
           f"{upper:.2f} over N = 1000 … 4000")
-    print(f"  affine fit s/iteration = a + bN: a = {a * 1e3:.1f} ms (per-call overhead of the "
-          f"vectorised kernel), b = {b * 1e6:.1f} µs per step")
+    print(f"  affine fit s/iteration = a + bN: a = {a * 1e3:.1f} ms (fixed cost per "
+          f"iteration), b = {b * 1e6:.1f} µs per step")
 
     if not args.no_scipy:
         print("\n  scipy.optimize.root (hybr, finite-difference dense Jacobian), same equations:")

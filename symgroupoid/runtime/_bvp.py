@@ -11,9 +11,11 @@ moves the arrows as
 end points fixed, plus the multipliers of every term.  The equations are the junction
 residuals and the constraints of every term; each depends only on a window of neighbouring
 unknowns, so the Jacobian is block-banded.  Its blocks are X⃖ and X⃗ derivatives of the
-window residual, derived symbolically once and evaluated for all windows at once (NumPy,
-vectorised); the banded system is solved in time linear in N (LAPACK's banded solver through
-SciPy when installed, a block-tridiagonal elimination in NumPy otherwise).
+window residual, derived symbolically once and compiled to C through the same cffi build
+cache as the step kernels (evaluated for all windows in one call; NumPy, vectorised over the
+windows, without a compiler); the banded system is solved in time linear in N (LAPACK's
+banded solver through SciPy when installed, a block-tridiagonal elimination in NumPy
+otherwise).
 
 The derivatives are exact but never expanded into expression trees: the window action is
 written as a straight-line program of elementary operations (one assignment per distinct
@@ -42,6 +44,7 @@ from .._errors import (
 from .._symbols import multiplier_symbols
 from ..derivation._junction import slot
 from ..derivation._step import shifted, window
+from ._programs import compile_program
 
 # --- symbolic window kernel --------------------------------------------------------------
 
@@ -149,13 +152,26 @@ def _chain_rule(e, deps, tan) -> sp.Expr:
     return sp.Add(*[sp.diff(e, x) * tan[x] for x in deps if x in tan])
 
 
-def _vectorised(args, outputs, program: _Program):
+def _vectorised(args, outputs, program: _Program, label: str):
+    """Evaluate the program's outputs for W windows: (W, n_args) → (W, n_outputs).
+
+    Compiled to C through the kernel cache when a compiler is available (the same build path
+    as the step kernels); NumPy (lambdify, vectorised over windows) otherwise."""
+    assignments, outs = program.needed(outputs)
+    compiled = compile_program(label, args, assignments, outs)
+    if compiled is not None:
+        def call_c(values: np.ndarray) -> np.ndarray:
+            with np.errstate(all="ignore"):
+                return compiled(values)
+
+        return call_c
     f = sp.lambdify(args, outputs, "numpy", cse=program.needed)
 
-    def call(*values, size: int):
+    def call(values: np.ndarray) -> np.ndarray:
         with np.errstate(all="ignore"):  # non-finite values are detected by the caller
-            out = f(*values)
-        return [np.broadcast_to(np.asarray(o, float), (size,)) for o in out]
+            out = f(*values.T)
+        return np.array([np.broadcast_to(np.asarray(o, float), (len(values),))
+                         for o in out]).T
 
     return call
 
@@ -216,7 +232,8 @@ class WindowKernel:
             blocks += [d[a][b] for b in range(r) for a in range(m)]
         coords = [c for o in self.offsets for c in A[o]]
         lams = [x for s in self.starts for x in lam[s]]
-        self._junction = _vectorised(coords + lams + params, blocks, P)
+        self._junction = _vectorised(coords + lams + params, blocks, P,
+                                     f"{system.name}_junction")
 
         self._term = None
         if m:
@@ -230,13 +247,14 @@ class WindowKernel:
                 for e in range(m):
                     cblocks += [d[side, c][e] for side in (0, 1) for c in range(r)]
             ccoords = [x for o in range(arity) for x in A[o]]
-            self._term = _vectorised(ccoords + params, cblocks, Q)
+            self._term = _vectorised(ccoords + params, cblocks, Q, f"{system.name}_term")
 
     def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
         """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
         W = len(windows)
-        vals = list(windows.reshape(W, -1).T) + list(lams.reshape(W, -1).T) + list(params)
-        out = np.array(self._junction(*vals, size=W)).T  # (W, total)
+        vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1),
+                          np.broadcast_to(params, (W, len(params)))])
+        out = self._junction(vals)  # (W, total)
         r, k = self.rank, 0
         res = out[:, k:k + r]
         k += r
@@ -254,8 +272,8 @@ class WindowKernel:
     def term(self, windows: np.ndarray, params: np.ndarray):
         """Constraint values and slot derivatives for T terms: windows (T, arity, arrow_dim)."""
         T, m, r = len(windows), self.m, self.rank
-        vals = list(windows.reshape(T, -1).T) + list(params)
-        out = np.array(self._term(*vals, size=T)).T
+        vals = np.hstack([windows.reshape(T, -1), np.broadcast_to(params, (T, len(params)))])
+        out = self._term(vals)
         res = out[:, :m]
         left, right, k = {}, {}, m
         for o in range(self.arity):

@@ -12,6 +12,7 @@ from pathlib import Path
 import sympy as sp
 
 from ..codegen import generate_c, templates_digest
+from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
     DEFAULT_FLAGS,
@@ -90,9 +91,13 @@ def input_key(step, flags: Sequence[str]) -> str:
     return sha256_of([*parts, codegen_digest(), abi_tag(), *flags])[:32]
 
 
-def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str) -> tuple[str, dict]:
-    kernel = generate_c(step)
-    STATS["codegen"] += 1
+def build_cached(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCache,
+                 label: str) -> tuple[str, dict]:
+    """Build ``kernel`` into the cache unless a verified entry exists; (source key, manifest).
+
+    The entry is keyed by a hash of the generated source and flags; it is built in a
+    temporary directory and renamed into place, and a damaged entry is rebuilt.
+    """
     source_key = sha256_of([kernel.header, kernel.source, kernel.cdef, abi_tag(), *flags])[:32]
     manifest = cache.verified_manifest(source_key)
     if manifest is None:
@@ -106,15 +111,33 @@ def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str) -> tuple[
             write_json_atomic(build_dir / MANIFEST, {
                 "source_key": source_key, "module": name, "library": library.name,
                 "sha256": file_sha256(library), "prefix": kernel.prefix,
-                "flags": list(flags), "abi": abi_tag(), "system": step.name})
+                "flags": list(flags), "abi": abi_tag(), "system": label})
         except BaseException:
             shutil.rmtree(build_dir, ignore_errors=True)
             raise
         cache.install(build_dir, source_key)
         manifest = cache.verified_manifest(source_key)
         if manifest is None:
-            raise RuntimeError(f"{step.name}: the kernel cache entry {cache.entry(source_key)} "
+            raise RuntimeError(f"{label}: the kernel cache entry {cache.entry(source_key)} "
                                f"is damaged right after installation")
+    return source_key, manifest
+
+
+def load_cached(source_key: str, manifest: dict, cache: KernelCache):
+    """The extension module of a verified cache entry (loaded once per process)."""
+    module = _LOADED.get(source_key)
+    if module is None:
+        module = load_extension(cache.entry(source_key) / manifest["library"],
+                                manifest["module"])
+        STATS["loads"] += 1
+        _LOADED[source_key] = module
+    return module
+
+
+def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str) -> tuple[str, dict]:
+    kernel = generate_c(step)
+    STATS["codegen"] += 1
+    source_key, manifest = build_cached(kernel, flags, cache, step.name)
     cache.record(key, source_key, manifest["prefix"])
     return source_key, manifest
 
@@ -134,11 +157,7 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
     if manifest is None:
         source_key, manifest = _build(step, flags, cache, key)
     entry = cache.entry(source_key)
-    module = _LOADED.get(source_key)
-    if module is None:
-        module = load_extension(entry / manifest["library"], manifest["module"])
-        STATS["loads"] += 1
-        _LOADED[source_key] = module
+    module = load_cached(source_key, manifest, cache)
     return CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns)), entry
 
 
