@@ -60,7 +60,6 @@ def test_heavy_top_vertical_rotation_is_a_noether_symmetry(heavy_top, heavy_top_
     system, _ = heavy_top
     vertical = system.noether(lambda q: list(q))
     assert vertical.is_symmetry
-    assert sp.simplify(vertical.defect.subs({s: 1 for s in vertical.defect.free_symbols})) != 1
     assert not system.noether(0).is_symmetry
     params = [0.05, 1.0, 9.81, 0.3, 1.0, 1.3, 0.7]
     Gamma = np.array([0.3, -0.2, 0.9])
