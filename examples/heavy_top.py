@@ -1,4 +1,4 @@
-"""The discrete heavy top on the action groupoid S² × SO(3) ⇉ S² (seed 002; EQUATIONS.md §9).
+"""The discrete heavy top on the action groupoid S² × SO(3) ⇉ S² (seed 002; docs/conventions.md §9).
 
 Arrows (Γ, W) with α = Γ, β = WᵀΓ, (Γ, W)(WᵀΓ, W') = (Γ, WW'), and the discrete Lagrangian
 

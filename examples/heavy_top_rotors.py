@@ -22,7 +22,7 @@ and without −J₂θ̇₂Ω₃, and Φ² with −J₁θ̇₁Ω₃ for +J₁θ̇
 are those of l, and the tests derive them from l again.)
 
 Groupoid.  (S² × SO(3)) × (R² × R²) ⇉ S² × R²: the action groupoid of the heavy top (arrow
-(Γ_k, W_k), α = Γ_k, β = W_kᵀΓ_k, seed 002; EQUATIONS.md §9) times the pair groupoid of the
+(Γ_k, W_k), α = Γ_k, β = W_kᵀΓ_k, seed 002; docs/conventions.md §9) times the pair groupoid of the
 unwrapped rotor angles (arrow (θ_k, θ_{k+1})); rank 3 + 2 = 5.  An arrow g_k = ((Γ_k, W_k),
 (θ_k, θ_{k+1})) takes the state at t_k to the state at t_{k+1}; on samples of a motion,
 W_k = R(t_k)ᵀR(t_{k+1}) and Γ_k = R(t_k)ᵀe₃.

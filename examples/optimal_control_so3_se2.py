@@ -1,5 +1,5 @@
 """Constrained optimal control on SO(3) and SE(2) with the Cayley retraction, checked against
-the seeds' formulas (seed 000 §6.1; seed 001 Appendix D; EQUATIONS.md §5).
+the seeds' formulas (seed 000 §6.1; seed 001 Appendix D; docs/conventions.md §5).
 
 With step h, cost l(ξ) = ½ ξᵀ I ξ and control constraints ψᵃ(ξ) = 0,
 

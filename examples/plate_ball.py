@@ -12,8 +12,8 @@ The script derives the eight equations (five DEL, three constraints), prints the
 each with the equation printed in the seed, transcribed below with the traces tr(g_k E_i E_j),
 tr(E_i g_{k+1} E_j) written as explicit matrix products.  Each derived equation must be a
 nonzero constant times the printed one.  The printed rotational rows carry (λ)₃ with the
-opposite sign (they belong to −φ³, EQUATIONS.md §6); since a multiplier is fixed only up to the
-sign of its constraint, (λ)₃ is replaced by −(λ)₃ in those rows before comparing.
+opposite sign (they belong to −φ³, docs/conventions.md §6); since a multiplier is fixed only
+up to the sign of its constraint, (λ)₃ is replaced by −(λ)₃ in those rows before comparing.
 
 Run:  python examples/plate_ball.py
 """

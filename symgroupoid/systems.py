@@ -1,9 +1,9 @@
 """The seed example systems, ready-made (their kernels are shipped in ``generated/``).
 
 - ``plate_ball``: a ball rolling on a rotating plate, R²×R²×SO(3) ⇉ R² with three
-  constraints (seed 000 §6.2, EQUATIONS.md §6);
+  constraints (seed 000 §6.2, docs/conventions.md §6);
 - ``heavy_top``: the heavy top on the action groupoid S²×SO(3) ⇉ S², Γ·W = WᵀΓ,
-  L(Γ, W) = −(1/h) tr(J_d W) − h m g l Γ·e, J_d = ½ tr(I) I₃ − I (EQUATIONS.md §9);
+  L(Γ, W) = −(1/h) tr(J_d W) − h m g l Γ·e, J_d = ½ tr(I) I₃ − I (docs/conventions.md §9);
 - ``rigid_body``: the Moser–Veselov rigid body on SO(3), L(W) = −(1/h) tr(J_d W).
 
 The sign of the rigid-body Lagrangian is the one that makes its kinetic part positive:

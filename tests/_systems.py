@@ -1,8 +1,9 @@
 """The seeds' example systems, built once for several test modules.
 
 - plate-ball: seed 000 §6.2, eq. (8);
-- heavy top: seed 002 "Example: The heavy top" (EQUATIONS.md §9);
-- optimal control with the Cayley retraction on SO(3) and SE(2): seed 000 §6.1 (EQUATIONS.md §5).
+- heavy top: seed 002 "Example: The heavy top" (docs/conventions.md §9);
+- optimal control with the Cayley retraction on SO(3) and SE(2): seed 000 §6.1
+  (docs/conventions.md §5).
 """
 
 from __future__ import annotations

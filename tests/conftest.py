@@ -30,7 +30,8 @@ def plate_ball_system() -> tuple[sg.DiscreteSystem, tuple]:
 
 
 def heavy_top_system() -> tuple[sg.DiscreteSystem, tuple]:
-    """Seed 002 / EQUATIONS.md §9: S²×SO(3) with Γ·W = WᵀΓ, L = −tr(J_d W)/h − h m g l Γ·e."""
+    """Seed 002 / docs/conventions.md §9: S²×SO(3) with Γ·W = WᵀΓ,
+    L = −tr(J_d W)/h − h m g l Γ·e."""
     h, m, g0, ell = sp.symbols("h m g_0 l", positive=True)
     I1, I2, I3 = sp.symbols("I_1 I_2 I_3", positive=True)
     inertia = sp.diag(I1, I2, I3)

@@ -84,5 +84,5 @@ def discrete_inertia(I1: float, I2: float, I3: float) -> np.ndarray:
 
 
 def body_momentum(W: np.ndarray, Jd: np.ndarray) -> np.ndarray:
-    """Π = axial(W J_d − J_d Wᵀ) (EQUATIONS.md §9), for one or a stack of matrices."""
+    """Π = axial(W J_d − J_d Wᵀ) (docs/conventions.md §9), for one or a stack of matrices."""
     return axial(W @ Jd - Jd @ np.swapaxes(W, -1, -2))

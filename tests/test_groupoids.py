@@ -57,7 +57,7 @@ BUILT_IN: dict[str, Callable[[], sg.Groupoid]] = {
 @pytest.mark.parametrize("name", sorted(BUILT_IN))
 def test_check_axioms_built_in(name: str) -> None:
     """Seed 000 Definition 2.1 (α, β of products, associativity, identities, inverses) and
-    the section curves of EQUATIONS.md §1, on random composable arrows."""
+    the section curves of docs/conventions.md §1, on random composable arrows."""
     G = BUILT_IN[name]()
     sg.check_axioms(G, samples=3)
 
@@ -134,7 +134,8 @@ def test_broken_groupoid_reports_axiom_and_arrows(axiom: str) -> None:
 
 
 def test_dependent_sections_are_reported() -> None:
-    """Two section curves with parallel velocities are not a basis of AG (EQUATIONS.md §1)."""
+    """Two section curves with parallel velocities are not a basis of AG
+    (docs/conventions.md §1)."""
     G = sg.DefinedGroupoid(
         "plane", base_names=["x", "y"], fibre_names=["x", "y"],
         source=lambda a: (a[0], a[1]), target=lambda a: (a[2], a[3]),
@@ -161,7 +162,7 @@ def test_defined_line_equals_pair_groupoid() -> None:
 
 
 def test_translation_groupoid_del() -> None:
-    """EQUATIONS.md §2 on the translation groupoid (p, s): X⃖ = ∂/∂s and
+    """docs/conventions.md §2 on the translation groupoid (p, s): X⃖ = ∂/∂s and
     X⃗[f](p, s) = −d/dt f(p + t, s − t), so the DEL read
     ∂L/∂s(g_k) + ∂L/∂p(g_{k+1}) − ∂L/∂s(g_{k+1}) = 0, with g_{k+1} = (p_k + s_k, s_{k+1})."""
     a, b = sp.symbols("a b", positive=True)
@@ -180,7 +181,7 @@ def test_translation_groupoid_del() -> None:
     assert sp.expand(step.residuals[0] - expected) == 0
 
 
-# --- the invariant derivations of EQUATIONS.md §1 ---------------------------------------------
+# --- the invariant derivations of docs/conventions.md §1 -------------------------------------
 
 def _curve_derivative(f: Callable, curve: Callable) -> sp.Expr:
     """d/dt f(curve(t)) at t = 0 for an undefined function f of the arrow coordinates."""
@@ -194,7 +195,7 @@ def _matrix_cases() -> dict[str, sg.MatrixLieGroup]:
 
 @pytest.mark.parametrize("name", sorted(_matrix_cases()))
 def test_lie_group_derivations_match_table(name: str) -> None:
-    """EQUATIONS.md §1 / seed 000 eqs. (1)–(2) on a Lie group: X⃖_E[f](g) = d/dt f(g(I + tE)),
+    """docs/conventions.md §1 / seed 000 eqs. (1)–(2) on a Lie group: X⃖_E[f](g) = d/dt f(g(I + tE)),
     X⃗_E[f](g) = d/dt f((I + tE)g) (any curve with velocity E gives the same derivative), for f
     an undefined function of the matrix entries; via ``left_derivative``/``right_derivative``."""
     G = _matrix_cases()[name]
@@ -212,7 +213,7 @@ def test_lie_group_derivations_match_table(name: str) -> None:
 
 
 def test_pair_and_time_derivations_match_table() -> None:
-    """EQUATIONS.md §1: on Q × Q, X⃖[f] = ∂f/∂q₁·v and X⃗[f] = −∂f/∂q₀·v; on R × R × G the
+    """docs/conventions.md §1: on Q × Q, X⃖[f] = ∂f/∂q₁·v and X⃗[f] = −∂f/∂q₀·v; on R × R × G the
     time section adds ∂/∂t₁ (left) and −∂/∂t₀ (right)."""
     F = sp.Function("f")
     P = sg.PairGroupoid(sg.EuclideanSpace("x y"))
@@ -234,7 +235,7 @@ def test_pair_and_time_derivations_match_table() -> None:
 
 
 def test_action_groupoid_derivations_match_table() -> None:
-    """EQUATIONS.md §1, action groupoid with p·W = Wᵀp (heavy top, seed 002):
+    """docs/conventions.md §1, action groupoid with p·W = Wᵀp (heavy top, seed 002):
     X⃖[f](p, W) = d/dt f(p, W(I + tE)), X⃗[f](p, W) = −d/dt f((I + tE)ᵀp, (I − tE)W)."""
     G = heavy_top_groupoid()
     F = sp.Function("f")

@@ -1,5 +1,5 @@
 """Legendre transforms, Noether quantities and the discrete Lie–Poisson form (seed 000 §3.3,
-§4.2, §6.1; EQUATIONS.md §3, §5)."""
+§4.2, §6.1; docs/conventions.md §3, §5)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ def _cay(x) -> np.ndarray:
 
 
 def test_pair_groupoid_legendre_is_minus_d1_and_d2():
-    """EQUATIONS.md §3: on Q×Q, F⁻L = −D₁L and F⁺L = D₂L, for an arbitrary L."""
+    """docs/conventions.md §3: on Q×Q, F⁻L = −D₁L and F⁺L = D₂L, for an arbitrary L."""
     Q = sg.EuclideanSpace("x y")
     F = sp.Function("L")
     system = sg.DiscreteSystem(sg.PairGroupoid(Q),

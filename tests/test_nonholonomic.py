@@ -1,4 +1,5 @@
-"""Discrete nonholonomic systems: the ball on a rotating table (seed 002; EQUATIONS.md §10)."""
+"""Discrete nonholonomic systems: the ball on a rotating table (seed 002;
+docs/conventions.md §10)."""
 
 from __future__ import annotations
 

@@ -144,7 +144,7 @@ FD_TOL = 1e-7
 @SETTINGS
 @given(seed=seeds)
 def test_jacobian_matches_finite_differences(name: str, seed: int) -> None:
-    """The exact Jacobian ∂F/∂(unknowns) through the α-fibre chart (EQUATIONS.md §2) equals
+    """The exact Jacobian ∂F/∂(unknowns) through the α-fibre chart (docs/conventions.md §2) equals
     central differences of F at random points (seed 000 §6.2, seed 002, seed 000 §6.1)."""
     step = _step(name)
     rng = np.random.default_rng(seed)

@@ -1,5 +1,5 @@
 """Retractions and their trivialised tangents, checked by finite differences of the group
-maps themselves (EQUATIONS.md §5: derive dτ from τ, do not trust one printed form)."""
+maps themselves (docs/conventions.md §5: derive dτ from τ, do not trust one printed form)."""
 
 from __future__ import annotations
 

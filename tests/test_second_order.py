@@ -161,7 +161,7 @@ def test_second_order_action_groupoid_equations():
     """Seed 001 §3.1.3 on P×H with p·W = Wᵀp: the residual is
     X⃖-part: d/dt [L(g_{k-1}, g_k h) + L(g_k h, h⁻¹g_{k+1})] on the g_k slots and the
     X⃗-part on the g_{k+1} slots, with the action groupoid's fields written out here from
-    EQUATIONS.md §1: X⃖ moves (p, W) ↦ (p, W(I + tE)), X⃗ moves (p, W) ↦ (p·(I + tE),
+    docs/conventions.md §1: X⃖ moves (p, W) ↦ (p, W(I + tE)), X⃗ moves (p, W) ↦ (p·(I + tE),
     (I − tE)W) with a minus sign — independently of the library's derived fields."""
     G = sg.ActionGroupoid(sg.EuclideanSpace.vector("p", 3), sg.SO3("W"),
                           lambda p, W: tuple(W.T * sp.Matrix(p)))

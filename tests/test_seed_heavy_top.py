@@ -1,5 +1,5 @@
 """The discrete heavy top on the action groupoid S² × SO(3) ⇉ S² (seed 002, "Example: The heavy
-top"; EQUATIONS.md §9): with L_d(Γ, W) = −(1/h) tr(J_d W) − h m g l Γ·e the derived equations
+top"; docs/conventions.md §9): with L_d(Γ, W) = −(1/h) tr(J_d W) − h m g l Γ·e the derived equations
 equal −1/h times
 
     Π_{k+1} − W_kᵀ Π_k − m g l h² Γ_{k+1} × e,     Π = axial(W J_d − J_d Wᵀ),  Γ_{k+1} = W_kᵀ Γ_k,

@@ -1,6 +1,6 @@
 """Lie groups G ⇉ {e}: discrete Euler–Poincaré equations (seed 000 Thm 2.13 and §6.1, seed 001
 §2.2.5), constrained optimal control with the Cayley retraction on SO(3) and SE(2) (seed 000
-§6.1; EQUATIONS.md §5), and the library's symbolic dτ, dτ⁻¹ against seed 001 Appendix D.
+§6.1; docs/conventions.md §5), and the library's symbolic dτ, dτ⁻¹ against seed 001 Appendix D.
 
 Which trivialisation seed 000 §6.1 needs.  Its final formula
 
@@ -128,7 +128,7 @@ CASES = {
 
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_optimal_control_cayley(case: str) -> None:
-    """Seed 000 §6.1 (final display), EQUATIONS.md §5, with quadratic cost l(ξ) = ½ξᵀIξ and a
+    """Seed 000 §6.1 (final display), docs/conventions.md §5, with quadratic cost l(ξ) = ½ξᵀIξ and a
     linear plus a nonlinear control constraint ψ: after g_k = cay(hξ_k), g_{k+1} = cay(hξ_{k+1})
     the derived DEL equal the seed's formula with dcay⁻¹ from seed 001 App. D (left-trivialised
     = right-trivialised at −x), and the constraint rows equal h·ψ(ξ_{k+1}).
@@ -168,7 +168,8 @@ def _zero_matrix(M: sp.Matrix) -> bool:
 
 def test_so3_dcay_matches_appendix_d_eq64() -> None:
     """Seed 001 eq. (64): right-trivialised dcay_ω = 2/(4+|ω|²)(2I₃ + ω̂) and
-    dcay⁻¹_ω = I₃ − ω̂/2 + ωωᵀ/4; left-trivialised = right-trivialised at −ω (EQUATIONS.md §5)."""
+    dcay⁻¹_ω = I₃ − ω̂/2 + ωωᵀ/4; left-trivialised = right-trivialised at −ω
+    (docs/conventions.md §5)."""
     G = sg.SO3("g")
     minus = [-v for v in W]
     assert _zero_matrix(G.dtau(W, "right") - dcay_so3_right(W))

@@ -1,7 +1,7 @@
 """Pair groupoid Q × Q ⇉ Q: the derived equations are the Marsden–West discrete Euler–Lagrange
 equations D₂L(q_{k−1}, q_k) + D₁L(q_k, q_{k+1}) = 0 for an *arbitrary* discrete Lagrangian
-(seed 000 §2.2, the equation after Remark 2.14; EQUATIONS.md §2), and their constrained form
-(seed 000 §3.3; EQUATIONS.md §4)."""
+(seed 000 §2.2, the equation after Remark 2.14; docs/conventions.md §2), and their constrained form
+(seed 000 §3.3; docs/conventions.md §4)."""
 
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ def test_arbitrary_lagrangian_gives_marsden_west(names: str) -> None:
     assert len(step.residuals) == n
     for res, exp in zip(step.residuals, expected):
         # "up to sign": with the convention X⃖[L](g_k) − X⃗[L](g_{k+1}) and the pair-groupoid
-        # fields X⃖ = ∂/∂q₁, X⃗ = −∂/∂q₀ (EQUATIONS.md §1 table) the sign is +.
+        # fields X⃖ = ∂/∂q₁, X⃗ = −∂/∂q₀ (docs/conventions.md §1) the sign is +.
         assert sp.expand(res - exp) == 0
     # the unknowns are q_{k+1}; the knowns are (q_{k−1}, q_k)
     assert step.unknowns == list(qp)
@@ -61,7 +61,7 @@ def test_wrong_slot_is_detected() -> None:
 
 
 def test_constrained_pair_groupoid_arbitrary_functions() -> None:
-    """Seed 000 §3.3 / EQUATIONS.md §4 on Q × Q with L and φ arbitrary functions on R² × R²:
+    """Seed 000 §3.3 / docs/conventions.md §4 on Q × Q with L and φ arbitrary functions on R² × R²:
     D₂(L + λ_k·φ)(q_{k−1}, q_k) + D₁(L + λ_{k+1}·φ)(q_k, q_{k+1}) = 0 and φ(q_k, q_{k+1}) = 0."""
     space = sg.EuclideanSpace("x y")
     F, Phi = sp.Function("L_d"), sp.Function("phi")

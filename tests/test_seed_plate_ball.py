@@ -35,8 +35,8 @@ def printed_equations(step: sg.StepEquations, lambda3_sign: int = 1) -> list[sp.
     """Right-hand sides of the eight printed equations 0 = … of seed 000 §6.2.
 
     ``lambda3_sign = -1`` replaces (λ)₃ by −(λ)₃ (at k and k+1) in the rotational rows: the
-    printed rows belong to the constraint −φ³ (EQUATIONS.md §6).  A multiplier is defined only
-    up to the sign of its constraint, so this is the same set of equations.
+    printed rows belong to the constraint −φ³ (docs/conventions.md §6).  A multiplier is defined
+    only up to the sign of its constraint, so this is the same set of equations.
     """
     xm, x, xp = (step.symbol("x", s) for s in ("k-1", "k", "k+1"))
     ym, y, yp = (step.symbol("y", s) for s in ("k-1", "k", "k+1"))
@@ -77,7 +77,8 @@ def test_eight_equations_match_seed_up_to_constants(step: sg.StepEquations) -> N
 
 
 def test_printed_lambda3_sign_is_opposite(step: sg.StepEquations) -> None:
-    """EQUATIONS.md §6: taken literally, the printed rotational rows (seed 000 §6.2) are *not*
+    """docs/conventions.md §6: taken literally, the printed rotational rows (seed 000 §6.2) are
+    *not*
     proportional to the DEL of φ³ as printed in eq. (8) — the (λ)₃ terms have the wrong sign.
     This also shows the comparison above can fail."""
     literal = printed_equations(step, lambda3_sign=1)

@@ -8,7 +8,7 @@
 
 The body momentum is Π = axial(W J_d − J_d Wᵀ).  It is not assumed: the tests first check
 that the step residual *is* −(1/h)(Π(W_{k+1}) − W_kᵀ Π(W_k) − m g l h² Γ_{k+1} × e) at
-arbitrary (non-solution) points (EQUATIONS.md §9), so that on solutions
+arbitrary (non-solution) points (docs/conventions.md §9), so that on solutions
 Π_{k+1} = W_kᵀ Π_k + m g l h² Γ_{k+1} × e.  With Γ_{k+1} = W_kᵀ Γ_k this gives
 Π_{k+1}·Γ_{k+1} = Π_k·Γ_k, and for the free rigid body |Π_{k+1}| = |Π_k|.
 """

@@ -1,4 +1,4 @@
-"""Time-dependent systems on R×R×G (seed 000 §6.3; EQUATIONS.md §7)."""
+"""Time-dependent systems on R×R×G (seed 000 §6.3; docs/conventions.md §7)."""
 
 from __future__ import annotations
 
@@ -48,7 +48,7 @@ def _adaptive():
 
 
 def test_adaptive_step_time_equation_is_energy_balance():
-    """Example 6.1 / EQUATIONS.md §7: the time row is E(g_{k+1}) − E(g_k) with the discrete
+    """Example 6.1 / docs/conventions.md §7: the time row is E(g_{k+1}) − E(g_k) with the discrete
     energy E = ⟨dl(ξ), ξ⟩ − l(ξ) = ½v² + V, written symbolically."""
     st = _adaptive().euler_lagrange()
     t = {o: st.symbol("t", o) for o in (-1, 0, 1)}
@@ -76,7 +76,7 @@ def _adaptive_rigid_body():
 
 
 def _rb_energy(known) -> float:
-    """⟨dl(ξ), ξ⟩ − l(ξ) = ½ξᵀIξ with ξ = cay⁻¹(W)/(t₁ − t₀) (EQUATIONS.md §7)."""
+    """⟨dl(ξ), ξ⟩ − l(ξ) = ½ξᵀIξ with ξ = cay⁻¹(W)/(t₁ − t₀) (docs/conventions.md §7)."""
     dt, W = known[1] - known[0], np.asarray(known[2:11]).reshape(3, 3)
     X = 2 * (W - W.T) / (1 + np.trace(W))
     xi = np.array([X[2, 1], X[0, 2], X[1, 0]]) / dt

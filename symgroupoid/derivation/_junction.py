@@ -10,7 +10,7 @@ For the basis section X its derivative at t = 0 is
 
     d/dt S = X⃖[S|_{g_j}](g_j) − X⃗[S|_{g_{j+1}}](g_{j+1})
 
-(EQUATIONS.md §2).  First-order, constrained (λ·φ added to S, §4), time-dependent (§7) and
+(docs/conventions.md §2).  First-order, constrained (λ·φ added to S, §4), time-dependent (§7) and
 second-order (S = Σ L(g_j, g_{j+1}), §8) equations all come from this one function.
 """
 

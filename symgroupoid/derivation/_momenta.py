@@ -2,7 +2,7 @@
 
 All are built from the same invariant derivations as the Euler–Lagrange equations:
 
-- F⁻L and F⁺L in the section basis (seed 000 §3.3; EQUATIONS.md §3), multiplier terms
+- F⁻L and F⁺L in the section basis (seed 000 §3.3; docs/conventions.md §3), multiplier terms
   included:  ⟨F⁻L(g, λ), X⟩ = X⃗[L + λ·φ](g),  ⟨F⁺L(g, λ), X⟩ = X⃖[L + λ·φ](g);
 - Noether (seed 000 Def. 4.8, Thm 4.9): X is a symmetry when
   ⟨F⁻L, X(α(g))⟩ + f(α(g)) = ⟨F⁺L, X(β(g))⟩ + f(β(g)), and then

@@ -1,6 +1,6 @@
 """Discrete (constrained) Euler–Lagrange steps on a Lie groupoid, first and second order.
 
-For L: G → R and constraints φᵃ: G → R (seed 000 §3.3, Thm 2.13; EQUATIONS.md §2, §4):
+For L: G → R and constraints φᵃ: G → R (seed 000 §3.3, Thm 2.13; docs/conventions.md §2, §4):
 
     X⃖[L + λ_k·φ](g_k) = X⃗[L + λ_{k+1}·φ](g_{k+1})   for every basis section X,
     φ(g_{k+1}) = 0,
@@ -8,7 +8,7 @@ For L: G → R and constraints φᵃ: G → R (seed 000 §3.3, Thm 2.13; EQUATIO
 with g_{k+1} in the α-fibre of β(g_k).  Obtained by :func:`junction_variation` of
 S = L(g_k) + λ_k·φ(g_k) + L(g_{k+1}) + λ_{k+1}·φ(g_{k+1}).
 
-Second order (seed 001 eqs. (13)/(15), constrained eq. (18); EQUATIONS.md §8): L, Φ on G₂,
+Second order (seed 001 eqs. (13)/(15), constrained eq. (18); docs/conventions.md §8): L, Φ on G₂,
 S = Σ_{s=-1}^{1} [L + λ_{k+s}·Φ](g_{k+s}, g_{k+s+1}) varied at the same junction, with
 unknown g_{k+2} and the constraints Φ(g_{k+1}, g_{k+2}) = 0.
 """
@@ -228,7 +228,7 @@ def check_nonholonomic_dimensions(name: str, G: Groupoid, r: int, m: int) -> Non
 
 def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution: Sequence,
                       parameters: Sequence) -> DerivedStep:
-    """Discrete nonholonomic step (seed 002, discrete Hölder principle; EQUATIONS.md §10):
+    """Discrete nonholonomic step (seed 002, discrete Hölder principle; docs/conventions.md §10):
 
         X⃖_a[L](g_k) = X⃗_a[L](g_{k+1})  for a basis X_a = Σ_b c_a^b E_b of D_c,
         g_{k+1} ∈ M_c = {ψ = 0},

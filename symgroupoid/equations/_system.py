@@ -55,7 +55,7 @@ class DiscreteSystem:
         return len(self._fs.constraints)
 
     def euler_lagrange(self) -> StepEquations:
-        """The step (g_k, λ_k) → (g_{k+1}, λ_{k+1}) (seed 000 §3.3; EQUATIONS.md §4)."""
+        """The step (g_k, λ_k) → (g_{k+1}, λ_{k+1}) (seed 000 §3.3; docs/conventions.md §4)."""
         step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
                                            self.parameters))
         step.system = self
@@ -110,7 +110,7 @@ class SecondOrderSystem(DiscreteSystem):
 
 
 class NonholonomicSystem:
-    """A discrete nonholonomic system (L_d, M_c, D_c) (seed 002; EQUATIONS.md §10).
+    """A discrete nonholonomic system (L_d, M_c, D_c) (seed 002; docs/conventions.md §10).
 
     ``constraints(g) -> [ψ…]`` define the discrete constraint submanifold M_c ⊂ G;
     ``distribution`` lists the basis of D_c ⊂ AG, each element a list of coefficients in the

@@ -2,7 +2,7 @@
 
 Structure maps (seed 001 §2.1.1): α(p, W) = p, β(p, W) = p·W, (p, W)(p·W, W') = (p, WW'),
 ε(p) = (p, I), (p, W)⁻¹ = (p·W, W⁻¹).  Sections: (p, τ(t E_a)).  The heavy top lives on
-S² × SO(3) with Γ·W = WᵀΓ (seed 002, EQUATIONS.md §9); the arrow g_k is (Γ_k, W_k).
+S² × SO(3) with Γ·W = WᵀΓ (seed 002, docs/conventions.md §9); the arrow g_k is (Γ_k, W_k).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 A groupoid ``G ⇉ Q`` is described by its source α, target β, multiplication m on composable
 pairs, identity ε and inversion i, all acting on *flat coordinate tuples* of SymPy expressions,
 plus a basis of sections of its Lie algebroid, each section given as a curve
-``h_X(t)`` in the α-fibre through the identity (EQUATIONS.md §1):
+``h_X(t)`` in the α-fibre through the identity (docs/conventions.md §1):
 
     X⃖[f](g) =  d/dt f(g · h_X(t))|_{t=0},       h_X(t) ∈ α⁻¹(β(g)),
     X⃗[f](g) = -d/dt f(h_X(t)⁻¹ · g)|_{t=0},     h_X(t) ∈ α⁻¹(α(g))
@@ -397,7 +397,7 @@ def derivation(fields: list[tuple], a: Sequence, f: sp.Expr) -> list[sp.Expr]:
 
 def left_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
                     a: Sequence | None = None) -> list[sp.Expr]:
-    """X⃖_i[f](a) for every basis section (EQUATIONS.md §1, seed 000 eq. (1)).
+    """X⃖_i[f](a) for every basis section (docs/conventions.md §1, seed 000 eq. (1)).
 
     ``f`` is a callable on arrows or an expression in the coordinates of ``a``.
     With ``a=None`` a named arrow g_k is used.
@@ -409,7 +409,7 @@ def left_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
 
 def right_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
                      a: Sequence | None = None) -> list[sp.Expr]:
-    """X⃗_i[f](a) for every basis section (EQUATIONS.md §1, seed 000 eq. (2))."""
+    """X⃗_i[f](a) for every basis section (docs/conventions.md §1, seed 000 eq. (2))."""
     a = groupoid.named_arrow(0) if a is None else tuple(a)
     expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
     return groupoid.apply_right(expr, a)

@@ -9,7 +9,7 @@ Retractions τ: g → G (seed 000 §6.1, seed 001 App. D):
 - Cayley ``cay(ξ) = (I − ξ/2)⁻¹(I + ξ/2)`` (default), derived symbolically;
 - exponential, in closed form (Rodrigues and its SE(n) analogues).
 
-Their left- and right-trivialised tangents dτ_x, dτ⁻¹_x (EQUATIONS.md §5) are derived
+Their left- and right-trivialised tangents dτ_x, dτ⁻¹_x (docs/conventions.md §5) are derived
 symbolically from τ, never typed in: ``T_xτ(y) = τ(x)·dτ_x(y)`` (left) and
 ``T_xτ(y) = dτ_x(y)·τ(x)`` (right).
 """

@@ -190,7 +190,7 @@ class WindowKernel:
     The window action S = Σ_s [L + λ_s·Φ](terms starting at s) (seed 001 eq. (17)) becomes a
     :class:`_Program`; the junction residual r_b = X⃖_b[S](g_j) − X⃗_b[S](g_{j+1}) is its
     derivative along the left field of section b on slot 0 and minus the right field on slot
-    1 (the junction variation, EQUATIONS.md §2), and each block a derivative of r along one
+    1 (the junction variation, docs/conventions.md §2), and each block a derivative of r along one
     section field on one slot.
     """
 

@@ -1,7 +1,7 @@
 """Initial states from a configuration and a discrete momentum.
 
 Given the base point q₀ and a momentum p₀ in the dual of the section basis, find the first
-arrow g₁ ∈ α⁻¹(q₀) and its multipliers λ₁ from (EQUATIONS.md §3, §4)
+arrow g₁ ∈ α⁻¹(q₀) and its multipliers λ₁ from (docs/conventions.md §3, §4)
 
     F⁻[L + λ₁·φ](g₁) = p₀,      φ(g₁) = 0,
 
