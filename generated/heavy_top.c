@@ -25,188 +25,178 @@
  *   fibre[7] = (W_{k+1})_{32}
  *   fibre[8] = (W_{k+1})_{33}
  */
+
 void heavy_top_reconstruct(const double *u, double *fibre)
 {
     (void)u;
     (void)fibre;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = 1.0/(t0 + t1 + t3);
-    const double t5 = -t0;
-    const double t6 = -t1;
-    const double t7 = 2.0*u[2];
-    const double t8 = u[0]*u[1];
-    const double t9 = 2.0*t4;
-    const double t10 = 2.0*u[1];
-    const double t11 = u[0]*u[2];
-    const double t12 = t2 - 4.0;
+    const double t0 = u[2]*u[2];
+    const double t1 = -t0;
+    const double t2 = u[1]*u[1];
+    const double t3 = -t2;
+    const double t4 = u[0]*u[0];
+    const double t5 = 1.0/(t0 + t2 + t4 + 4.0);
+    const double t6 = (t1 + t3 + t4 + 4.0)*t5;
+    const double t7 = u[0]*u[1];
+    const double t8 = 2.0*t5*(t7 - 2.0*u[2]);
+    const double t9 = u[0]*u[2];
+    const double t10 = 2.0*t5*(t9 + 2.0*u[1]);
+    const double t11 = 2.0*t5*(t7 + 2.0*u[2]);
+    const double t12 = -t5*(t0 + t3 + t4 - 4.0);
     const double t13 = 2.0*u[0];
-    const double t14 = u[1]*u[2];
-    fibre[0] = t4*(t3 + t5 + t6);
-    fibre[1] = t9*(-t7 + t8);
-    fibre[2] = t9*(t10 + t11);
-    fibre[3] = t9*(t7 + t8);
-    fibre[4] = -t4*(t1 + t12 + t5);
-    fibre[5] = -t9*(t13 - t14);
-    fibre[6] = t9*(-t10 + t11);
-    fibre[7] = t9*(t13 + t14);
-    fibre[8] = -t4*(t0 + t12 + t6);
+    const double t14 = -2.0*t5*(-u[1]*u[2] + t13);
+    const double t15 = 2.0*t5*(t9 - 2.0*u[1]);
+    const double t16 = 2.0*t5*(t13 + u[1]*u[2]);
+    const double t17 = -t5*(t1 + t2 + t4 - 4.0);
+    fibre[0] = t6;
+    fibre[1] = t8;
+    fibre[2] = t10;
+    fibre[3] = t11;
+    fibre[4] = t12;
+    fibre[5] = t14;
+    fibre[6] = t15;
+    fibre[7] = t16;
+    fibre[8] = t17;
 }
 
 /* F(u; known, p): the residuals listed at the top of this file */
+
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F)
 {
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = 1.0/(t0 + t1 + t3);
-    const double t7 = 2.0*u[2];
-    const double t8 = u[0]*u[1];
-    const double t9 = 2.0*t4;
-    const double t10 = 2.0*u[1];
-    const double t11 = u[0]*u[2];
-    const double t13 = 2.0*u[0];
-    const double t14 = u[1]*u[2];
-    const double t15 = p[0]*p[1];
-    const double t16 = known[0]*t15;
-    const double t17 = known[1]*t15;
-    const double t18 = known[2]*t15;
-    const double t19 = 1.0/p[0];
-    const double t20 = (0.5)*t19;
-    const double t21 = p[2]*t20;
-    const double t22 = p[3]*t20;
-    const double t23 = p[4]*t20;
-    const double f1 = t9*(-t7 + t8);
-    const double f2 = t9*(t10 + t11);
-    const double f3 = t9*(t7 + t8);
-    const double f5 = -t9*(t13 - t14);
-    const double f6 = t9*(-t10 + t11);
-    const double f7 = t9*(t13 + t14);
-    F[0] = f5*t21 + f5*t22 - f5*t23 - f7*t21 + f7*t22 - f7*t23 + known[4]*t16 + known[7]*t17 - known[8]*t21 + known[8]*t22 - known[8]*t23 + known[10]*t18 + known[10]*t21 + known[10]*t22 - known[10]*t23;
-    F[1] = (0.5)*f2*p[4]*t19 - f2*t21 - f2*t22 + (0.5)*f6*p[3]*t19 + (0.5)*f6*p[4]*t19 - f6*t21 - known[3]*t16 + (0.5)*known[5]*p[3]*t19 + (0.5)*known[5]*p[4]*t19 - known[5]*t21 - known[6]*t17 + (0.5)*known[9]*p[4]*t19 - known[9]*t18 - known[9]*t21 - known[9]*t22;
-    F[2] = f1*t21 - f1*t22 + f1*t23 + f3*t21 - f3*t22 - f3*t23 + known[4]*t21 - known[4]*t22 - known[4]*t23 + known[6]*t21 - known[6]*t22 + known[6]*t23;
+    const double t0 = 0.5*p[4];
+    const double t1 = 0.5*p[3];
+    const double t2 = -0.5*p[2] + t0 + t1;
+    const double t3 = 0.5*p[2];
+    const double t4 = t0 - 0.5*p[3] + t3;
+    const double t5 = t1 + t3 - 0.5*p[4];
+    const double t6 = 1.0/p[0];
+    const double t7 = p[0]*p[1];
+    const double t8 = 1.0/(u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0);
+    const double t9 = u[0]*u[1];
+    const double t10 = u[0]*u[2];
+    const double t11 = 2.0*u[0];
+    const double t12 = -t4*t6*known[8] + t5*t6*known[10] + t7*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) - 2.0*t4*t6*t8*(t11 + u[1]*u[2]) - 2.0*t5*t6*t8*(-u[1]*u[2] + t11);
+    const double t13 = t2*t6*known[5] - t5*t6*known[9] - t7*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) + 2.0*t2*t6*t8*(t10 - 2.0*u[1]) - 2.0*t5*t6*t8*(t10 + 2.0*u[1]);
+    const double t14 = -t2*t6*known[4] + t4*t6*known[6] - 2.0*t2*t6*t8*(t9 + 2.0*u[2]) + 2.0*t4*t6*t8*(t9 - 2.0*u[2]);
+    F[0] = t12;
+    F[1] = t13;
+    F[2] = t14;
 }
 
 /* F and the exact Jacobian J[i * HEAVY_TOP_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
+
 void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
 {
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = t0 + t1 + t3;
-    const double t5 = 1.0/t4;
-    const double t8 = 2.0*u[2];
-    const double t9 = u[0]*u[1];
-    const double t10 = -t8 + t9;
-    const double t11 = 2.0*t5;
-    const double t12 = 2.0*u[1];
-    const double t13 = u[0]*u[2];
-    const double t14 = t12 + t13;
-    const double t15 = t8 + t9;
-    const double t17 = 2.0*u[0];
-    const double t18 = u[1]*u[2];
-    const double t19 = t17 - t18;
-    const double t20 = -t12 + t13;
-    const double t21 = t17 + t18;
-    const double t22 = p[0]*p[1];
-    const double t23 = known[0]*t22;
-    const double t24 = known[1]*t22;
-    const double t25 = known[2]*t22;
-    const double t26 = 1.0/p[0];
-    const double t27 = (0.5)*t26;
-    const double t28 = p[2]*t27;
-    const double t29 = p[3]*t27;
-    const double t30 = p[4]*t27;
-    const double t31 = t28 - t29 + t30;
-    const double t32 = -t31;
-    const double t33 = 4.0*t5;
-    const double t34 = -t33;
-    const double t35 = 4.0/(t4*t4);
-    const double t36 = u[0]*t35;
-    const double t37 = t28 + t29 - t30;
-    const double t38 = -2.0*u[2]*t5;
-    const double t39 = u[1]*t35;
-    const double t40 = t12*t5;
-    const double t41 = u[2]*t35;
-    const double t42 = -t28 + t29 + t30;
-    const double t43 = -t37;
-    const double t44 = t17*t5;
-    const double t45 = -2.0*u[1]*t5;
-    const double t46 = -t42;
-    const double f1 = t10*t11;
-    const double f2 = t11*t14;
-    const double f3 = t11*t15;
-    const double f5 = -t11*t19;
-    const double f6 = t11*t20;
-    const double f7 = t11*t21;
-    F[0] = f5*t28 + f5*t29 - f5*t30 - f7*t28 + f7*t29 - f7*t30 + known[4]*t23 + known[7]*t24 - known[8]*t28 + known[8]*t29 - known[8]*t30 + known[10]*t25 + known[10]*t28 + known[10]*t29 - known[10]*t30;
-    F[1] = (0.5)*f2*p[4]*t26 - f2*t28 - f2*t29 + (0.5)*f6*p[3]*t26 + (0.5)*f6*p[4]*t26 - f6*t28 - known[3]*t23 + (0.5)*known[5]*p[3]*t26 + (0.5)*known[5]*p[4]*t26 - known[5]*t28 - known[6]*t24 + (0.5)*known[9]*p[4]*t26 - known[9]*t25 - known[9]*t28 - known[9]*t29;
-    F[2] = f1*t28 - f1*t29 + f1*t30 + f3*t28 - f3*t29 - f3*t30 + known[4]*t28 - known[4]*t29 - known[4]*t30 + known[6]*t28 - known[6]*t29 + known[6]*t30;
-    J[0] = t32*(-t21*t36 - t34) + t37*(t19*t36 + t34);
-    J[1] = t32*(-t21*t39 - t38) + t37*(t19*t39 + t5*t8);
-    J[2] = t32*(-t21*t41 + t40) + t37*(t19*t41 + t40);
-    J[3] = t42*(-t20*t36 - t38) + t43*(-t14*t36 - t38);
-    J[4] = t42*(-t20*t39 - t33) + t43*(-t14*t39 - t34);
-    J[5] = t42*(-t20*t41 + t44) + t43*(-t14*t41 + t44);
-    J[6] = t31*(-t10*t36 - t45) + t46*(-t15*t36 - t45);
-    J[7] = t31*(-t10*t39 + t44) + t46*(-t15*t39 + t44);
-    J[8] = t31*(-t10*t41 - t33) + t46*(-t15*t41 - t34);
+    const double t0 = 0.5*p[4];
+    const double t1 = 0.5*p[3];
+    const double t2 = -0.5*p[2] + t0 + t1;
+    const double t3 = 0.5*p[2];
+    const double t4 = t0 - 0.5*p[3] + t3;
+    const double t5 = t1 + t3 - 0.5*p[4];
+    const double t6 = 1.0/p[0];
+    const double t7 = p[0]*p[1];
+    const double t8 = u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0;
+    const double t9 = 1.0/t8;
+    const double t10 = u[0]*u[1];
+    const double t11 = t10 - 2.0*u[2];
+    const double t12 = u[0]*u[2];
+    const double t13 = t12 + 2.0*u[1];
+    const double t14 = t10 + 2.0*u[2];
+    const double t15 = 2.0*u[0];
+    const double t16 = -u[1]*u[2] + t15;
+    const double t17 = t12 - 2.0*u[1];
+    const double t18 = t15 + u[1]*u[2];
+    const double t19 = -t4*t6*known[8] + t5*t6*known[10] + t7*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) - 2.0*t4*t6*t9*t18 - 2.0*t5*t6*t9*t16;
+    const double t20 = t2*t6*known[5] - t5*t6*known[9] - t7*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) + 2.0*t2*t6*t9*t17 - 2.0*t5*t6*t9*t13;
+    const double t21 = -t2*t6*known[4] + t4*t6*known[6] - 2.0*t2*t6*t9*t14 + 2.0*t4*t6*t9*t11;
+    const double t22 = 1.0/(t8*t8);
+    const double t23 = -4.0*t4*t6*t9;
+    const double t24 = -4.0*t5*t6*t9;
+    const double t25 = 4.0*t4*t6*u[0]*t18*t22 + t23 + (4.0*t5*t6*u[0]*t16*t22 + t24);
+    const double t26 = -4.0*t2*t6*u[0]*t17*t22 + 2.0*t2*t6*u[2]*t9 + (4.0*t5*t6*u[0]*t13*t22 - 2.0*t5*t6*u[2]*t9);
+    const double t27 = 4.0*t2*t6*u[0]*t14*t22 - 2.0*t2*t6*u[1]*t9 + (-4.0*t4*t6*u[0]*t11*t22 + 2.0*t4*t6*u[1]*t9);
+    const double t28 = -4.0*t2*t6*t9;
+    const double t29 = 4.0*t4*t6*u[1]*t18*t22 - 2.0*t4*t6*u[2]*t9 + (4.0*t5*t6*u[1]*t16*t22 + 2.0*t5*t6*u[2]*t9);
+    const double t30 = -4.0*t2*t6*u[1]*t17*t22 + t28 + (t24 + 4.0*t5*t6*u[1]*t13*t22);
+    const double t31 = 4.0*t2*t6*u[1]*t14*t22 - 2.0*t2*t6*u[0]*t9 + (-4.0*t4*t6*u[1]*t11*t22 + 2.0*t4*t6*u[0]*t9);
+    const double t32 = 4.0*t4*t6*u[2]*t18*t22 - 2.0*t4*t6*u[1]*t9 + (4.0*t5*t6*u[2]*t16*t22 + 2.0*t5*t6*u[1]*t9);
+    const double t33 = -4.0*t2*t6*u[2]*t17*t22 + 2.0*t2*t6*u[0]*t9 + (4.0*t5*t6*u[2]*t13*t22 - 2.0*t5*t6*u[0]*t9);
+    const double t34 = t28 + 4.0*t2*t6*u[2]*t14*t22 + (t23 - 4.0*t4*t6*u[2]*t11*t22);
+    F[0] = t19;
+    F[1] = t20;
+    F[2] = t21;
+    J[0] = t25;
+    J[1] = t29;
+    J[2] = t32;
+    J[3] = t26;
+    J[4] = t30;
+    J[5] = t33;
+    J[6] = t27;
+    J[7] = t31;
+    J[8] = t34;
 }
 
 /* first Newton guess for u from the known state */
+
 void heavy_top_predict(const double *known, const double *p, double *u)
 {
     (void)known;
     (void)p;
-    const double t0 = 1.0/(known[3] + known[7] + known[11] + 1.0);
-    u[0] = t0*(-2.0*known[8] + 2.0*known[10]);
-    u[1] = t0*(2.0*known[5] - 2.0*known[9]);
-    u[2] = t0*(-2.0*known[4] + 2.0*known[6]);
+    const double t0 = 1.0/(1.0 + known[3] + known[7] + known[11]);
+    const double t1 = (2.0*known[10] - 2.0*known[8])*t0;
+    const double t2 = t0*(2.0*known[5] - 2.0*known[9]);
+    const double t3 = t0*(2.0*known[6] - 2.0*known[4]);
+    u[0] = t1;
+    u[1] = t2;
+    u[2] = t3;
 }
 
 /* the next known state from a solved step (the window of arrows moves by one) */
+
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next)
 {
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = 1.0/(t0 + t1 + t3);
-    const double t5 = -t0;
-    const double t6 = -t1;
-    const double t7 = 2.0*u[2];
-    const double t8 = u[0]*u[1];
-    const double t9 = 2.0*t4;
-    const double t10 = 2.0*u[1];
-    const double t11 = u[0]*u[2];
-    const double t12 = t2 - 4.0;
+    const double t0 = u[2]*u[2];
+    const double t1 = -t0;
+    const double t2 = u[1]*u[1];
+    const double t3 = -t2;
+    const double t4 = u[0]*u[0];
+    const double t5 = 1.0/(t0 + t2 + t4 + 4.0);
+    const double t6 = (t1 + t3 + t4 + 4.0)*t5;
+    const double t7 = u[0]*u[1];
+    const double t8 = 2.0*t5*(t7 - 2.0*u[2]);
+    const double t9 = u[0]*u[2];
+    const double t10 = 2.0*t5*(t9 + 2.0*u[1]);
+    const double t11 = 2.0*t5*(t7 + 2.0*u[2]);
+    const double t12 = -t5*(t0 + t3 + t4 - 4.0);
     const double t13 = 2.0*u[0];
-    const double t14 = u[1]*u[2];
-    known_next[0] = known[3]*known[0] + known[6]*known[1] + known[9]*known[2];
-    known_next[1] = known[4]*known[0] + known[7]*known[1] + known[10]*known[2];
-    known_next[2] = known[5]*known[0] + known[8]*known[1] + known[11]*known[2];
-    known_next[3] = t4*(t3 + t5 + t6);
-    known_next[4] = t9*(-t7 + t8);
-    known_next[5] = t9*(t10 + t11);
-    known_next[6] = t9*(t7 + t8);
-    known_next[7] = -t4*(t1 + t12 + t5);
-    known_next[8] = -t9*(t13 - t14);
-    known_next[9] = t9*(-t10 + t11);
-    known_next[10] = t9*(t13 + t14);
-    known_next[11] = -t4*(t0 + t12 + t6);
+    const double t14 = -2.0*t5*(-u[1]*u[2] + t13);
+    const double t15 = 2.0*t5*(t9 - 2.0*u[1]);
+    const double t16 = 2.0*t5*(t13 + u[1]*u[2]);
+    const double t17 = -t5*(t1 + t2 + t4 - 4.0);
+    const double t18 = known[2]*known[9] + known[1]*known[6] + known[0]*known[3];
+    const double t19 = known[2]*known[10] + known[1]*known[7] + known[0]*known[4];
+    const double t20 = known[2]*known[11] + known[1]*known[8] + known[0]*known[5];
+    known_next[0] = t18;
+    known_next[1] = t19;
+    known_next[2] = t20;
+    known_next[3] = t6;
+    known_next[4] = t8;
+    known_next[5] = t10;
+    known_next[6] = t11;
+    known_next[7] = t12;
+    known_next[8] = t14;
+    known_next[9] = t15;
+    known_next[10] = t16;
+    known_next[11] = t17;
 }
 
 void heavy_top_default_options(heavy_top_options *options)

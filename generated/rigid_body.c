@@ -25,177 +25,170 @@
  *   fibre[7] = (W_{k+1})_{32}
  *   fibre[8] = (W_{k+1})_{33}
  */
+
 void rigid_body_reconstruct(const double *u, double *fibre)
 {
     (void)u;
     (void)fibre;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = 1.0/(t0 + t1 + t3);
-    const double t5 = -t0;
-    const double t6 = -t1;
-    const double t7 = 2.0*u[2];
-    const double t8 = u[0]*u[1];
-    const double t9 = 2.0*t4;
-    const double t10 = 2.0*u[1];
-    const double t11 = u[0]*u[2];
-    const double t12 = t2 - 4.0;
+    const double t0 = u[2]*u[2];
+    const double t1 = -t0;
+    const double t2 = u[1]*u[1];
+    const double t3 = -t2;
+    const double t4 = u[0]*u[0];
+    const double t5 = 1.0/(t0 + t2 + t4 + 4.0);
+    const double t6 = (t1 + t3 + t4 + 4.0)*t5;
+    const double t7 = u[0]*u[1];
+    const double t8 = 2.0*t5*(t7 - 2.0*u[2]);
+    const double t9 = u[0]*u[2];
+    const double t10 = 2.0*t5*(t9 + 2.0*u[1]);
+    const double t11 = 2.0*t5*(t7 + 2.0*u[2]);
+    const double t12 = -t5*(t0 + t3 + t4 - 4.0);
     const double t13 = 2.0*u[0];
-    const double t14 = u[1]*u[2];
-    fibre[0] = t4*(t3 + t5 + t6);
-    fibre[1] = t9*(-t7 + t8);
-    fibre[2] = t9*(t10 + t11);
-    fibre[3] = t9*(t7 + t8);
-    fibre[4] = -t4*(t1 + t12 + t5);
-    fibre[5] = -t9*(t13 - t14);
-    fibre[6] = t9*(-t10 + t11);
-    fibre[7] = t9*(t13 + t14);
-    fibre[8] = -t4*(t0 + t12 + t6);
+    const double t14 = -2.0*t5*(-u[1]*u[2] + t13);
+    const double t15 = 2.0*t5*(t9 - 2.0*u[1]);
+    const double t16 = 2.0*t5*(t13 + u[1]*u[2]);
+    const double t17 = -t5*(t1 + t2 + t4 - 4.0);
+    fibre[0] = t6;
+    fibre[1] = t8;
+    fibre[2] = t10;
+    fibre[3] = t11;
+    fibre[4] = t12;
+    fibre[5] = t14;
+    fibre[6] = t15;
+    fibre[7] = t16;
+    fibre[8] = t17;
 }
 
 /* F(u; known, p): the residuals listed at the top of this file */
+
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F)
 {
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = 1.0/(t0 + t1 + t3);
-    const double t7 = 2.0*u[2];
+    const double t0 = 0.5*p[3];
+    const double t1 = 0.5*p[2];
+    const double t2 = -0.5*p[1] + t0 + t1;
+    const double t3 = 0.5*p[1];
+    const double t4 = t0 - 0.5*p[2] + t3;
+    const double t5 = t1 + t3 - 0.5*p[3];
+    const double t6 = 1.0/p[0];
+    const double t7 = 1.0/(u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0);
     const double t8 = u[0]*u[1];
-    const double t9 = 2.0*t4;
-    const double t10 = 2.0*u[1];
-    const double t11 = u[0]*u[2];
-    const double t13 = 2.0*u[0];
-    const double t14 = u[1]*u[2];
-    const double t15 = 1.0/p[0];
-    const double t16 = (0.5)*t15;
-    const double t17 = p[1]*t16;
-    const double t18 = p[2]*t16;
-    const double t19 = p[3]*t16;
-    const double f1 = t9*(-t7 + t8);
-    const double f2 = t9*(t10 + t11);
-    const double f3 = t9*(t7 + t8);
-    const double f5 = -t9*(t13 - t14);
-    const double f6 = t9*(-t10 + t11);
-    const double f7 = t9*(t13 + t14);
-    F[0] = f5*t17 + f5*t18 - f5*t19 - f7*t17 + f7*t18 - f7*t19 - known[5]*t17 + known[5]*t18 - known[5]*t19 + known[7]*t17 + known[7]*t18 - known[7]*t19;
-    F[1] = (0.5)*f2*p[3]*t15 - f2*t17 - f2*t18 + (0.5)*f6*p[2]*t15 + (0.5)*f6*p[3]*t15 - f6*t17 + (0.5)*known[2]*p[2]*t15 + (0.5)*known[2]*p[3]*t15 - known[2]*t17 + (0.5)*known[6]*p[3]*t15 - known[6]*t17 - known[6]*t18;
-    F[2] = f1*t17 - f1*t18 + f1*t19 + f3*t17 - f3*t18 - f3*t19 + known[1]*t17 - known[1]*t18 - known[1]*t19 + known[3]*t17 - known[3]*t18 + known[3]*t19;
+    const double t9 = u[0]*u[2];
+    const double t10 = 2.0*u[0];
+    const double t11 = -t4*t6*known[5] + t5*t6*known[7] - 2.0*t4*t6*t7*(t10 + u[1]*u[2]) - 2.0*t5*t6*t7*(-u[1]*u[2] + t10);
+    const double t12 = t2*t6*known[2] - t5*t6*known[6] + 2.0*t2*t6*t7*(t9 - 2.0*u[1]) - 2.0*t5*t6*t7*(t9 + 2.0*u[1]);
+    const double t13 = -t2*t6*known[1] + t4*t6*known[3] - 2.0*t2*t6*t7*(t8 + 2.0*u[2]) + 2.0*t4*t6*t7*(t8 - 2.0*u[2]);
+    F[0] = t11;
+    F[1] = t12;
+    F[2] = t13;
 }
 
 /* F and the exact Jacobian J[i * RIGID_BODY_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
+
 void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
 {
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = t0 + t1 + t3;
-    const double t5 = 1.0/t4;
-    const double t8 = 2.0*u[2];
+    const double t0 = 0.5*p[3];
+    const double t1 = 0.5*p[2];
+    const double t2 = -0.5*p[1] + t0 + t1;
+    const double t3 = 0.5*p[1];
+    const double t4 = t0 - 0.5*p[2] + t3;
+    const double t5 = t1 + t3 - 0.5*p[3];
+    const double t6 = 1.0/p[0];
+    const double t7 = u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0;
+    const double t8 = 1.0/t7;
     const double t9 = u[0]*u[1];
-    const double t10 = -t8 + t9;
-    const double t11 = 2.0*t5;
-    const double t12 = 2.0*u[1];
-    const double t13 = u[0]*u[2];
-    const double t14 = t12 + t13;
-    const double t15 = t8 + t9;
-    const double t17 = 2.0*u[0];
-    const double t18 = u[1]*u[2];
-    const double t19 = t17 - t18;
-    const double t20 = -t12 + t13;
-    const double t21 = t17 + t18;
-    const double t22 = 1.0/p[0];
-    const double t23 = (0.5)*t22;
-    const double t24 = p[1]*t23;
-    const double t25 = p[2]*t23;
-    const double t26 = p[3]*t23;
-    const double t27 = t24 - t25 + t26;
-    const double t28 = -t27;
-    const double t29 = 4.0*t5;
-    const double t30 = -t29;
-    const double t31 = 4.0/(t4*t4);
-    const double t32 = u[0]*t31;
-    const double t33 = t24 + t25 - t26;
-    const double t34 = -2.0*u[2]*t5;
-    const double t35 = u[1]*t31;
-    const double t36 = t12*t5;
-    const double t37 = u[2]*t31;
-    const double t38 = -t24 + t25 + t26;
-    const double t39 = -t33;
-    const double t40 = t17*t5;
-    const double t41 = -2.0*u[1]*t5;
-    const double t42 = -t38;
-    const double f1 = t10*t11;
-    const double f2 = t11*t14;
-    const double f3 = t11*t15;
-    const double f5 = -t11*t19;
-    const double f6 = t11*t20;
-    const double f7 = t11*t21;
-    F[0] = f5*t24 + f5*t25 - f5*t26 - f7*t24 + f7*t25 - f7*t26 - known[5]*t24 + known[5]*t25 - known[5]*t26 + known[7]*t24 + known[7]*t25 - known[7]*t26;
-    F[1] = (0.5)*f2*p[3]*t22 - f2*t24 - f2*t25 + (0.5)*f6*p[2]*t22 + (0.5)*f6*p[3]*t22 - f6*t24 + (0.5)*known[2]*p[2]*t22 + (0.5)*known[2]*p[3]*t22 - known[2]*t24 + (0.5)*known[6]*p[3]*t22 - known[6]*t24 - known[6]*t25;
-    F[2] = f1*t24 - f1*t25 + f1*t26 + f3*t24 - f3*t25 - f3*t26 + known[1]*t24 - known[1]*t25 - known[1]*t26 + known[3]*t24 - known[3]*t25 + known[3]*t26;
-    J[0] = t28*(-t21*t32 - t30) + t33*(t19*t32 + t30);
-    J[1] = t28*(-t21*t35 - t34) + t33*(t19*t35 + t5*t8);
-    J[2] = t28*(-t21*t37 + t36) + t33*(t19*t37 + t36);
-    J[3] = t38*(-t20*t32 - t34) + t39*(-t14*t32 - t34);
-    J[4] = t38*(-t20*t35 - t29) + t39*(-t14*t35 - t30);
-    J[5] = t38*(-t20*t37 + t40) + t39*(-t14*t37 + t40);
-    J[6] = t27*(-t10*t32 - t41) + t42*(-t15*t32 - t41);
-    J[7] = t27*(-t10*t35 + t40) + t42*(-t15*t35 + t40);
-    J[8] = t27*(-t10*t37 - t29) + t42*(-t15*t37 - t30);
+    const double t10 = t9 - 2.0*u[2];
+    const double t11 = u[0]*u[2];
+    const double t12 = t11 + 2.0*u[1];
+    const double t13 = t9 + 2.0*u[2];
+    const double t14 = 2.0*u[0];
+    const double t15 = -u[1]*u[2] + t14;
+    const double t16 = t11 - 2.0*u[1];
+    const double t17 = t14 + u[1]*u[2];
+    const double t18 = -t4*t6*known[5] + t5*t6*known[7] - 2.0*t4*t6*t8*t17 - 2.0*t5*t6*t8*t15;
+    const double t19 = t2*t6*known[2] - t5*t6*known[6] + 2.0*t2*t6*t8*t16 - 2.0*t5*t6*t8*t12;
+    const double t20 = -t2*t6*known[1] + t4*t6*known[3] - 2.0*t2*t6*t8*t13 + 2.0*t4*t6*t8*t10;
+    const double t21 = 1.0/(t7*t7);
+    const double t22 = -4.0*t4*t6*t8;
+    const double t23 = -4.0*t5*t6*t8;
+    const double t24 = 4.0*t4*t6*u[0]*t17*t21 + t22 + (4.0*t5*t6*u[0]*t15*t21 + t23);
+    const double t25 = -4.0*t2*t6*u[0]*t16*t21 + 2.0*t2*t6*u[2]*t8 + (4.0*t5*t6*u[0]*t12*t21 - 2.0*t5*t6*u[2]*t8);
+    const double t26 = 4.0*t2*t6*u[0]*t13*t21 - 2.0*t2*t6*u[1]*t8 + (-4.0*t4*t6*u[0]*t10*t21 + 2.0*t4*t6*u[1]*t8);
+    const double t27 = -4.0*t2*t6*t8;
+    const double t28 = 4.0*t4*t6*u[1]*t17*t21 - 2.0*t4*t6*u[2]*t8 + (4.0*t5*t6*u[1]*t15*t21 + 2.0*t5*t6*u[2]*t8);
+    const double t29 = -4.0*t2*t6*u[1]*t16*t21 + t27 + (t23 + 4.0*t5*t6*u[1]*t12*t21);
+    const double t30 = 4.0*t2*t6*u[1]*t13*t21 - 2.0*t2*t6*u[0]*t8 + (-4.0*t4*t6*u[1]*t10*t21 + 2.0*t4*t6*u[0]*t8);
+    const double t31 = 4.0*t4*t6*u[2]*t17*t21 - 2.0*t4*t6*u[1]*t8 + (4.0*t5*t6*u[2]*t15*t21 + 2.0*t5*t6*u[1]*t8);
+    const double t32 = -4.0*t2*t6*u[2]*t16*t21 + 2.0*t2*t6*u[0]*t8 + (4.0*t5*t6*u[2]*t12*t21 - 2.0*t5*t6*u[0]*t8);
+    const double t33 = t27 + 4.0*t2*t6*u[2]*t13*t21 + (t22 - 4.0*t4*t6*u[2]*t10*t21);
+    F[0] = t18;
+    F[1] = t19;
+    F[2] = t20;
+    J[0] = t24;
+    J[1] = t28;
+    J[2] = t31;
+    J[3] = t25;
+    J[4] = t29;
+    J[5] = t32;
+    J[6] = t26;
+    J[7] = t30;
+    J[8] = t33;
 }
 
 /* first Newton guess for u from the known state */
+
 void rigid_body_predict(const double *known, const double *p, double *u)
 {
     (void)known;
     (void)p;
-    const double t0 = 1.0/(known[0] + known[4] + known[8] + 1.0);
-    u[0] = t0*(-2.0*known[5] + 2.0*known[7]);
-    u[1] = t0*(2.0*known[2] - 2.0*known[6]);
-    u[2] = t0*(-2.0*known[1] + 2.0*known[3]);
+    const double t0 = 1.0/(1.0 + known[0] + known[4] + known[8]);
+    const double t1 = (2.0*known[7] - 2.0*known[5])*t0;
+    const double t2 = t0*(2.0*known[2] - 2.0*known[6]);
+    const double t3 = t0*(2.0*known[3] - 2.0*known[1]);
+    u[0] = t1;
+    u[1] = t2;
+    u[2] = t3;
 }
 
 /* the next known state from a solved step (the window of arrows moves by one) */
+
 void rigid_body_next_knowns(const double *u, const double *known, const double *p, double *known_next)
 {
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = (u[1]*u[1]);
-    const double t1 = (u[2]*u[2]);
-    const double t2 = (u[0]*u[0]);
-    const double t3 = t2 + 4.0;
-    const double t4 = 1.0/(t0 + t1 + t3);
-    const double t5 = -t0;
-    const double t6 = -t1;
-    const double t7 = 2.0*u[2];
-    const double t8 = u[0]*u[1];
-    const double t9 = 2.0*t4;
-    const double t10 = 2.0*u[1];
-    const double t11 = u[0]*u[2];
-    const double t12 = t2 - 4.0;
+    const double t0 = u[2]*u[2];
+    const double t1 = -t0;
+    const double t2 = u[1]*u[1];
+    const double t3 = -t2;
+    const double t4 = u[0]*u[0];
+    const double t5 = 1.0/(t0 + t2 + t4 + 4.0);
+    const double t6 = (t1 + t3 + t4 + 4.0)*t5;
+    const double t7 = u[0]*u[1];
+    const double t8 = 2.0*t5*(t7 - 2.0*u[2]);
+    const double t9 = u[0]*u[2];
+    const double t10 = 2.0*t5*(t9 + 2.0*u[1]);
+    const double t11 = 2.0*t5*(t7 + 2.0*u[2]);
+    const double t12 = -t5*(t0 + t3 + t4 - 4.0);
     const double t13 = 2.0*u[0];
-    const double t14 = u[1]*u[2];
-    known_next[0] = t4*(t3 + t5 + t6);
-    known_next[1] = t9*(-t7 + t8);
-    known_next[2] = t9*(t10 + t11);
-    known_next[3] = t9*(t7 + t8);
-    known_next[4] = -t4*(t1 + t12 + t5);
-    known_next[5] = -t9*(t13 - t14);
-    known_next[6] = t9*(-t10 + t11);
-    known_next[7] = t9*(t13 + t14);
-    known_next[8] = -t4*(t0 + t12 + t6);
+    const double t14 = -2.0*t5*(-u[1]*u[2] + t13);
+    const double t15 = 2.0*t5*(t9 - 2.0*u[1]);
+    const double t16 = 2.0*t5*(t13 + u[1]*u[2]);
+    const double t17 = -t5*(t1 + t2 + t4 - 4.0);
+    known_next[0] = t6;
+    known_next[1] = t8;
+    known_next[2] = t10;
+    known_next[3] = t11;
+    known_next[4] = t12;
+    known_next[5] = t14;
+    known_next[6] = t15;
+    known_next[7] = t16;
+    known_next[8] = t17;
 }
 
 void rigid_body_default_options(rigid_body_options *options)

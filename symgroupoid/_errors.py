@@ -47,3 +47,8 @@ class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
         self.step = step
         self.residual_norm = residual_norm
         self.iterate = iterate
+
+
+class UnsupportedExpressionError(SymgroupoidError, ValueError):
+    """An expression contains something compiled code cannot evaluate (a complex or infinite
+    value, an undefined function, an unevaluated derivative, …); the message names it."""

@@ -80,9 +80,35 @@ def _c_double(value: float) -> str:
     return text if any(c in text for c in ".en") else text + ".0"
 
 
+#: residual programs up to this many operations get their LaTeX in the kernel's comment
+LATEX_COMMENT_OPS = 300
+#: longer LaTeX of one equation is replaced by a short note
+LATEX_COMMENT_CHARS = 2000
+
+
+def residual_comments(step) -> list[str]:
+    """One comment line per residual: its LaTeX when the system is small enough for printing
+    to be cheap and the line short; else a short note (the equations stay available from
+    ``StepEquations.latex()``)."""
+    from ..equations import latex
+
+    ops = step.program.size(["F"])
+    if ops > LATEX_COMMENT_OPS:
+        return [f"equation {i} of the step ({ops} operations in all; print the equations "
+                f"with StepEquations.latex())" for i in range(len(step))]
+    forms = step.structured if step.structured is not None else step.residuals
+    out = []
+    for i, r in enumerate(forms):
+        text = _ascii(latex(r))
+        if len(text) > LATEX_COMMENT_CHARS:
+            text = (f"equation {i} of the step ({len(text)} characters of LaTeX; print it "
+                    f"with StepEquations.latex())")
+        out.append(text)
+    return out
+
+
 def _context(step, prefix: str, header_name: str) -> dict:
     from .. import __version__
-    from ..equations import latex
 
     blocks = kernel_blocks(step)
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
@@ -90,15 +116,14 @@ def _context(step, prefix: str, header_name: str) -> dict:
         "p": prefix, "P": prefix.upper(), "header_name": header_name,
         "name": _ascii(step.name), "version": __version__,
         "groupoid": _ascii(step.groupoid.name),
-        "n_equations": len(step.residuals), "n_unknowns": len(step.unknowns),
+        "n_equations": len(step), "n_unknowns": len(step.unknowns),
         "n_knowns": len(step.knowns), "n_parameters": len(step.parameters),
         "n_fibre": blocks.n_fibre, "n_constraints": step.n_constraints,
         "unknown_names": [_ascii(s.name) for s in step.unknowns],
         "known_names": [_ascii(s.name) for s in step.knowns],
         "parameter_names": [_ascii(s.name) for s in step.parameters],
         "fibre_names": [_ascii(s.name) for s in fibre],
-        "residual_latex": [_ascii(latex(r)) for r in
-                           (step.structured if step.structured is not None else step.residuals)],
+        "residual_latex": residual_comments(step), "helpers": blocks.helpers,
         "reconstruct": blocks.reconstruct, "residual": blocks.residual,
         "residual_jacobian": blocks.residual_jacobian, "predict": blocks.predict,
         "next_knowns": blocks.next_knowns,
@@ -116,8 +141,8 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None
     ``header_name`` (default ``<prefix>.h``) is the header the source includes.
     """
     prefix = c_identifier(step.name if prefix is None else prefix)
-    if len(step.residuals) != len(step.unknowns):
-        raise ValueError(f"{step.name}: {len(step.residuals)} equations in "
+    if len(step) != len(step.unknowns):
+        raise ValueError(f"{step.name}: {len(step)} equations in "
                          f"{len(step.unknowns)} unknowns; a Newton kernel needs a square system")
     env = _environment(str(template_dir()))
     header_name = header_name or f"{prefix}.h"

@@ -1,15 +1,14 @@
-"""From a :class:`StepEquations` to straight-line C: the bodies of the kernel functions.
+"""From a step's :class:`~symgroupoid.ir.Program` to straight-line C: the kernel bodies.
 
-Each kernel function is a *block*: common subexpressions (SymPy ``cse``, canonical order,
-temporaries named by position) followed by output assignments.  Residual and Jacobian
-share one ``cse`` over
+Each kernel function (residual, residual + Jacobian, chart, prediction, state update) is a
+*block*: the named nodes of the program that its outputs need, in node order, as
+``const double`` locals, then the stores to the output arrays.  The residual and its exact
+Jacobian come from one graph, so they share every common subexpression by construction
+(no ``cse`` pass is needed), and the fibre chart τ(x) is computed once.
 
-    [fibre reconstruction f = τ(x), residuals F(f, x, λ; known, p), Jacobian ∂F/∂(x, λ)],
-
-where the Jacobian is the chain rule through the α-fibre chart,
-∂F/∂x = (∂F/∂f)(∂f/∂x), exactly as :meth:`StepEquations.jacobian` builds it.  The fibre
-variables are computed once as named intermediates; statements are then ordered so that
-every local is defined before use, and only statements the outputs need are kept.
+A block with more than :data:`PART_SIZE` statements is split into parts — static functions
+run in order, each of bounded size — so that the C compiler's time stays near-linear in the
+size of the kernel; values one part computes and a later part reads live in a work array.
 """
 
 from __future__ import annotations
@@ -18,14 +17,16 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
-import sympy as sp
-
-from ._printer import KernelCPrinter
+from ..ir import INPUT
+from ..ir._format import C, functions_used, plan, write
 
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto "
     "if inline int long register restrict return short signed sizeof static struct switch "
     "typedef union unsigned void volatile while _Bool _Complex _Imaginary".split())
+
+#: statements per function (part) of a split kernel
+PART_SIZE = 2000
 
 
 def c_identifier(name: str) -> str:
@@ -41,79 +42,79 @@ def c_identifier(name: str) -> str:
 
 
 @dataclass
-class Block:
-    """Straight-line C for one kernel function: local definitions then output stores."""
+class Part:
+    """Straight-line C for one function: local definitions then output stores."""
 
-    locals: list[str] = field(default_factory=list)  # "const double t3 = …;"
+    locals: list[str] = field(default_factory=list)  # "const double t3 = …;" / "w[2] = …;"
     stores: list[str] = field(default_factory=list)  # "F[0] = …;"
 
 
 @dataclass
-class _Statement:
-    symbol: sp.Symbol
-    expr: sp.Expr
-    order: int
+class Block:
+    """A kernel function body: one part, or several run in order with a work array."""
+
+    parts: list[Part] = field(default_factory=list)
+    work: int = 0  # doubles in the work array shared by the parts (0: not split)
+
+    @property
+    def locals(self) -> list[str]:
+        return self.parts[0].locals if len(self.parts) == 1 else []
+
+    @property
+    def stores(self) -> list[str]:
+        return self.parts[0].stores if len(self.parts) == 1 else []
+
+    @property
+    def split(self) -> bool:
+        return len(self.parts) > 1
+
+    @property
+    def statements(self) -> int:
+        return sum(len(p.locals) + len(p.stores) for p in self.parts)
 
 
-def _ordered(statements: list[_Statement], outputs: Sequence[sp.Expr]) -> list[_Statement]:
-    """Statements the outputs need, each after the locals it reads (stable order)."""
-    by_symbol = {s.symbol: s for s in statements}
-    needed: set = set()
-    stack = [sym for e in outputs for sym in e.free_symbols if sym in by_symbol]
-    while stack:
-        sym = stack.pop()
-        if sym in needed:
-            continue
-        needed.add(sym)
-        stack.extend(d for d in by_symbol[sym].expr.free_symbols if d in by_symbol)
-    pending = sorted((s for s in statements if s.symbol in needed), key=lambda s: s.order)
-    done: set = set()
-    out: list[_Statement] = []
-    while pending:
-        for i, s in enumerate(pending):
-            if all(d in done for d in s.expr.free_symbols if d in by_symbol):
-                out.append(pending.pop(i))
-                done.add(s.symbol)
-                break
-        else:  # pragma: no cover - cse output is acyclic
-            raise RuntimeError("cyclic intermediate definitions")
-    return out
+def build_block(program, outputs: Sequence[tuple[str, str]], part_size: int = PART_SIZE
+                ) -> Block:
+    """The C of ``program``'s named outputs stored into C arrays.
 
-
-def build_block(outputs: Sequence[tuple[str, sp.Expr]], names: dict,
-                intermediates: Sequence[tuple[sp.Symbol, sp.Expr]] = (),
-                local_prefix: str = "f") -> Block:
-    """C for ``target = expr`` stores, with shared subexpressions eliminated.
-
-    ``intermediates`` are named quantities (e.g. the fibre variables f = τ(x)) that the
-    outputs are written in; they take part in the same ``cse`` and become locals
-    ``{local_prefix}0, {local_prefix}1, …`` when (and only when) an output needs them.
+    ``outputs``: (C array name, program output name) pairs, e.g. ``("F", "F")``.
     """
-    inter = list(intermediates)
-    exprs = [sp.sympify(e) for _, e in inter] + [sp.sympify(e) for _, e in outputs]
-    temps = sp.numbered_symbols("_cse", cls=sp.Symbol, real=True)
-    replacements, reduced = sp.cse(exprs, symbols=temps, order="canonical")
-    table = dict(names)
-    statements: list[_Statement] = []
-    for i, (sym, e) in enumerate(replacements):
-        table[sym] = f"t{i}"
-        statements.append(_Statement(sym, e, i))
-    for j, ((sym, _), e) in enumerate(zip(inter, reduced)):
-        table[sym] = f"{local_prefix}{j}"
-        statements.append(_Statement(sym, e, len(replacements) + j))
-    out_exprs = reduced[len(inter):]
-    printer = KernelCPrinter(table)
-    block = Block()
-    for s in _ordered(statements, out_exprs):
-        block.locals.append(f"const double {table[s.symbol]} = {printer.doprint(s.expr)};")
-    for (target, _), e in zip(outputs, out_exprs):
-        block.stores.append(f"{target} = {printer.doprint(e)};")
+    g = program.graph
+    nodes = [n for _, name in outputs for n in program.outputs[name]]
+    targets = [f"{array}[{i}]" for array, name in outputs
+               for i in range(len(program.outputs[name]))]
+    names = {n: f"{array}[{i}]" for n, (array, i) in program.input_positions().items()}
+    p = plan(g, nodes)
+    chunks = [p.named[i:i + part_size] for i in range(0, len(p.named), part_size)] or [[]]
+    part_of = {n: k for k, chunk in enumerate(chunks) for n in chunk}
+    shared: dict = {}
+    for k, chunk in enumerate(chunks):
+        for n in chunk:
+            for r in sorted(p.refs[n]):
+                if part_of[r] != k and r not in shared:
+                    shared[r] = len(shared)
+    local = iter(range(len(p.named)))
+    for n in p.named:
+        names[n] = f"w[{shared[n]}]" if n in shared else f"t{next(local)}"
+    block = Block(work=len(shared) if len(chunks) > 1 else 0)
+    stores_at: dict = {}
+    for target, n in zip(targets, nodes):
+        stores_at.setdefault(part_of.get(n, len(chunks) - 1), []).append((target, n))
+    writer = None
+    for k, chunk in enumerate(chunks):
+        statements, writer = write(g, p, chunk, names, C, writer)
+        part = Part()
+        for (name, text), n in zip(statements, chunk):
+            decl = "" if n in shared else "const double "
+            part.locals.append(f"{decl}{name} = {text};")
+        part.stores = [f"{t} = {writer.atom(n)[0]};" for t, n in stores_at.get(k, [])]
+        block.parts.append(part)
     return block
 
 
 @dataclass
 class KernelBlocks:
-    """The bodies of the generated kernel functions, plus sizes and names."""
+    """The bodies of the generated kernel functions, plus sizes and helper functions."""
 
     reconstruct: Block
     residual: Block
@@ -121,30 +122,26 @@ class KernelBlocks:
     predict: Block
     next_knowns: Block
     n_fibre: int
-
-
-def _array_names(step) -> dict:
-    names = {s: f"u[{i}]" for i, s in enumerate(step.unknowns)}
-    names |= {s: f"known[{i}]" for i, s in enumerate(step.knowns)}
-    names |= {s: f"p[{i}]" for i, s in enumerate(step.parameters)}
-    return names
+    helpers: list[str] = field(default_factory=list)  # C helper functions (smooth maps)
 
 
 def kernel_blocks(step) -> KernelBlocks:
     """All function bodies of the kernel of ``step`` (deterministic for equal input)."""
-    names = _array_names(step)
-    recon = [(f, step.reconstruction[f]) for f in step.fibre_unknowns
-             if f in step.reconstruction]
-    n_u = len(step.unknowns)
-    F = [(f"F[{i}]", r) for i, r in enumerate(step.residuals)]
-    J = step.jacobian()
-    JF = [(f"J[{i * n_u + j}]", J[i, j]) for i in range(J.rows) for j in range(J.cols)]
+    program = step.program
+    helpers: dict = {}
+    everything = [n for name in program.outputs for n in program.outputs[name]]
+    for spec in functions_used(program.graph, everything):
+        helpers.update(spec.c_helpers())
     return KernelBlocks(
-        reconstruct=build_block([(f"fibre[{j}]", e) for j, (_, e) in enumerate(recon)], names),
-        residual=build_block(F, names, recon),
-        residual_jacobian=build_block(F + JF, names, recon),
-        predict=build_block([(f"u[{i}]", e) for i, e in enumerate(step.prediction)], names),
-        next_knowns=build_block(
-            [(f"known_next[{i}]", e) for i, e in enumerate(step.next_knowns)], names),
-        n_fibre=len(recon),
+        reconstruct=build_block(program, [("fibre", "fibre")]),
+        residual=build_block(program, [("F", "F")]),
+        residual_jacobian=build_block(program, [("F", "F"), ("J", "J")]),
+        predict=build_block(program, [("u", "predict")]),
+        next_knowns=build_block(program, [("known_next", "next_knowns")]),
+        n_fibre=len(program.outputs["fibre"]),
+        helpers=list(helpers.values()),
     )
+
+
+__all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "build_block", "c_identifier",
+           "kernel_blocks", "INPUT"]

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import sympy as sp
 
@@ -29,12 +30,16 @@ from ._junction import junction_variation, slot, slot_substitution
 
 @dataclass
 class DerivedStep:
-    """Plain result of a derivation: what a :class:`StepEquations` is built from."""
+    """Plain result of a derivation: what a :class:`StepEquations` is built from.
+
+    The residuals exist in two exact forms: ``window`` — graph nodes (the fast route, what
+    code generation and numerics use) — and SymPy expressions, given directly
+    (``residuals``) or computed on first request by ``symbolic()`` (printing, checking).
+    """
 
     name: str
     groupoid: Groupoid
     order: int
-    residuals: list
     knowns: list
     fibre_unknowns: tuple
     chart_unknowns: tuple
@@ -46,6 +51,38 @@ class DerivedStep:
     offsets: tuple  # (first known arrow offset, unknown arrow offset)
     arrows: dict = field(default_factory=dict)  # offset -> named arrow coordinates
     prediction: list = field(default_factory=list)  # guess for the unknowns from the knowns
+    residuals: list | None = None  # SymPy residuals, when derived symbolically
+    symbolic: Callable[[], list] | None = None  # SymPy residuals on demand
+    graph: Callable[[], Any] | None = None  # the residuals as graph nodes, on demand
+    n_equations: int = 0
+    _window: Any = None
+
+    @property
+    def window(self):
+        """The :class:`~symgroupoid.derivation._window.WindowGraph` of the residuals (built
+        on first request; None for steps known only symbolically)."""
+        if self._window is None and self.graph is not None:
+            self._window = self.graph()
+        return self._window
+
+    def build_graph(self) -> None:
+        """Build the graph now, so that errors in the user's maps surface at derivation; an
+        expression compiled code cannot evaluate (e.g. an undefined function, fine for
+        symbolic work) is reported when a program is asked for instead."""
+        from .._errors import UnsupportedExpressionError
+
+        try:
+            self.window  # noqa: B018 - builds and caches
+        except UnsupportedExpressionError:
+            pass
+
+    def sympy_residuals(self) -> list:
+        """The residuals as SymPy expressions (computed once, on first request)."""
+        if self.residuals is None:
+            if self.symbolic is None:
+                raise ValueError(f"{self.name}: no symbolic form of the residuals")
+            self.residuals = list(self.symbolic())
+        return self.residuals
 
 
 @dataclass
@@ -140,6 +177,14 @@ def window(arity: int) -> tuple[list[int], list[int]]:
     return list(range(1 - arity, arity + 1)), list(range(1 - arity, 2))
 
 
+def window_arrows(G: Groupoid, offsets: Sequence[int]) -> dict:
+    """The named arrows g_{k+o} of a window, each composable after the previous one."""
+    arrows = {offsets[0]: named(G, offsets[0], False)}
+    for o in offsets[1:]:
+        arrows[o] = next_arrow(G, arrows[o - 1], o, False)
+    return arrows
+
+
 def window_residuals(G: Groupoid, fs: SystemFunctions,
                      multipliers: bool = True) -> tuple[list, dict]:
     """Residuals of the junction variation between g_k and g_{k+1}, then the constraints on
@@ -197,10 +242,14 @@ def window_functions(G: Groupoid, fs: SystemFunctions) -> WindowFunctions:
 def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
                   parameters: Sequence) -> DerivedStep:
     """The step of order ``len(fs.slots)``: known arrows and multipliers → the newest arrow
-    (through its fibre chart) and multipliers.  One mechanism for every order."""
+    (through its fibre chart) and multipliers.  One mechanism for every order: the residuals
+    are the junction variation of the window action, as graph nodes (``_window``), and the
+    same derivation in SymPy on request."""
+    from ._window import window_graph
+
     arity, m = len(fs.slots), len(fs.constraints)
     offsets, starts = window(arity)
-    residuals, arrows = window_residuals(G, fs)
+    arrows = window_arrows(G, offsets)
     newest, first = offsets[-1], offsets[0]
     fibre, chart, cmap = chart_of(G, newest)
     lam = {s: multiplier_symbols(m, s) for s in starts}
@@ -212,11 +261,13 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
     next_knowns = [sp.sympify(e).xreplace(cmap) for e in next_knowns]
     prediction = list(G.predict_chart(arrows[newest - 1])) + lam[starts[-2]]
     return DerivedStep(
-        name=name, groupoid=G, order=arity, residuals=residuals, knowns=knowns,
+        name=name, groupoid=G, order=arity, knowns=knowns,
         fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap,
         multipliers_next=lam[starts[-1]], next_knowns=next_knowns,
         parameters=list(parameters), n_constraints=m, offsets=(first, newest),
-        arrows=arrows, prediction=prediction)
+        arrows=arrows, prediction=prediction,
+        symbolic=lambda: window_residuals(G, fs)[0],
+        graph=lambda: window_graph(name, G, fs, parameters), n_equations=G.rank + m)
 
 
 def check_nonholonomic_dimensions(name: str, G: Groupoid, r: int, m: int) -> None:
@@ -226,9 +277,24 @@ def check_nonholonomic_dimensions(name: str, G: Groupoid, r: int, m: int) -> Non
                          f"equal the fibre dimension {G.rank}")
 
 
+def _distribution_coefficients(name: str, G: Groupoid, distribution: Sequence,
+                               q: Sequence) -> list[list]:
+    """c_a^b(q) for each element X_a = Σ_b c_a^b E_b of D_c, at the base point q."""
+    rows = []
+    for a, basis in enumerate(distribution):
+        coeffs = basis(tuple(q)) if callable(basis) else basis
+        coeffs = [sp.sympify(c) for c in coeffs]
+        if len(coeffs) != G.rank:
+            raise ShapeError(f"{name}: distribution element {a} has {len(coeffs)} "
+                             f"coefficients; the algebroid has rank {G.rank}")
+        rows.append(coeffs)
+    return rows
+
+
 def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution: Sequence,
                       parameters: Sequence) -> DerivedStep:
-    """Discrete nonholonomic step (seed 002, discrete Hölder principle; docs/conventions.md §10):
+    """Discrete nonholonomic step (seed 002, discrete Hölder principle;
+    docs/conventions.md §10):
 
         X⃖_a[L](g_k) = X⃗_a[L](g_{k+1})  for a basis X_a = Σ_b c_a^b E_b of D_c,
         g_{k+1} ∈ M_c = {ψ = 0},
@@ -237,26 +303,46 @@ def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution:
     the functions ψ defining M_c; ``distribution`` is a list of callables (or coefficient
     lists) giving c_a(q).  No multipliers: dim D_c + #ψ = rank.
     """
+    from ._window import window_graph
+
     check_nonholonomic_dimensions(name, G, len(distribution), len(fs.constraints))
-    residuals, arrows = window_residuals(G, fs, multipliers=False)
-    dels, psis = residuals[:G.rank], residuals[G.rank:]
+    arrows = window_arrows(G, window(1)[0])
     q = G.target(arrows[0])
-    rows = []
-    for a, basis in enumerate(distribution):
-        coeffs = basis(tuple(q)) if callable(basis) else basis
-        coeffs = [sp.sympify(c) for c in coeffs]
-        if len(coeffs) != G.rank:
-            raise ShapeError(f"{name}: distribution element {a} has {len(coeffs)} "
-                             f"coefficients; the algebroid has rank {G.rank}")
-        rows.append(tidy(sum((c * d for c, d in zip(coeffs, dels)), sp.S.Zero)))
+    coefficients = _distribution_coefficients(name, G, distribution, q)
+
+    def graph():
+        wg = window_graph(name, G, fs, parameters, multipliers=False)
+        g = wg.graph
+        rows = [g.add(*[g.mul(_node(wg, c, name), d) for c, d in zip(coeffs, wg.del_rows)])
+                for coeffs in coefficients]
+        wg.residuals = rows + list(wg.constraint_rows)
+        return wg
+
+    def symbolic() -> list:
+        residuals, _ = window_residuals(G, fs, multipliers=False)
+        dels, psis = residuals[:G.rank], residuals[G.rank:]
+        return [tidy(sum((c * d for c, d in zip(coeffs, dels)), sp.S.Zero))
+                for coeffs in coefficients] + psis
+
     fibre, chart, cmap = chart_of(G, 1)
     g0, g1 = arrows[0], arrows[1]
     return DerivedStep(
-        name=name, groupoid=G, order=1, residuals=rows + psis, knowns=list(g0),
+        name=name, groupoid=G, order=1, knowns=list(g0),
         fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap, multipliers_next=[],
         next_knowns=[sp.sympify(c).xreplace(cmap) for c in g1], parameters=list(parameters),
         n_constraints=0, offsets=(0, 1), arrows=arrows,
-        prediction=list(G.predict_chart(g0)))
+        prediction=list(G.predict_chart(g0)), symbolic=symbolic, graph=graph,
+        n_equations=len(distribution) + len(fs.constraints))
+
+
+def _node(wg, expr, name: str) -> int:
+    """The graph node of a SymPy expression in the step's named symbols."""
+    from ..ir import from_sympy
+
+    for s in sorted(sp.sympify(expr).free_symbols, key=str):
+        if s not in wg.symbols:
+            wg.symbols[s] = wg.graph.input(s)
+    return from_sympy(wg.graph, expr, wg.symbols, f"{name}: the distribution D_c", wg.memo)
 
 
 def matrix_form_values(groupoid: Groupoid, offsets: Sequence[int]) -> dict:

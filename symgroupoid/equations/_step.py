@@ -28,11 +28,11 @@ class StepEquations:
     """
 
     def __init__(self, derived: DerivedStep):
+        derived.build_graph()
         self._d = derived
         self.name: str = derived.name
         self.groupoid = derived.groupoid
         self.order: int = derived.order
-        self.residuals: list[sp.Expr] = list(derived.residuals)
         self.unknowns: list[sp.Symbol] = list(derived.chart_unknowns) + list(
             derived.multipliers_next)
         self.knowns: list[sp.Symbol] = list(derived.knowns)
@@ -41,12 +41,46 @@ class StepEquations:
         self.next_knowns: list[sp.Expr] = list(derived.next_knowns)
         self.n_constraints: int = derived.n_constraints
         self.prediction: list[sp.Expr] = list(derived.prediction)
-        self.structured: list | None = None  # matrix-preserving forms for LaTeX
+        self._n = derived.n_equations or len(derived.sympy_residuals())
+        self._structured: list | None = None
+        self._structured_source = None  # computes the matrix-preserving forms on request
         self.system = None  # the DiscreteSystem that derived these equations, if any
 
     # --- sizes ------------------------------------------------------------------------------
     def __len__(self) -> int:
-        return len(self.residuals)
+        return self._n
+
+    @property
+    def residuals(self) -> list[sp.Expr]:
+        """The residuals as exact SymPy expressions (built on first request; code generation
+        and numerics use :attr:`program` and never need them)."""
+        return self._d.sympy_residuals()
+
+    @property
+    def structured(self) -> list | None:
+        """The residuals with matrix parts kept as matrices (for LaTeX), verified to equal
+        :attr:`residuals`; None when there is no such form.  Built on first request."""
+        if self._structured_source is not None:
+            source, self._structured_source = self._structured_source, None
+            self._structured = source(self.residuals)
+        return self._structured
+
+    @structured.setter
+    def structured(self, value: list | None) -> None:
+        self._structured, self._structured_source = value, None
+
+    def set_structured_source(self, source) -> None:
+        """Defer the matrix form: ``source(explicit residuals) -> list | None``."""
+        self._structured, self._structured_source = None, source
+
+    @functools.cached_property
+    def program(self):
+        """The step as a program over the expression graph: inputs ``u`` (unknowns),
+        ``known``, ``p``; outputs ``F`` (residuals), ``J`` (exact Jacobian, row-major),
+        ``fibre`` (the chart), ``predict`` and ``next_knowns``."""
+        from ._program import step_program
+
+        return step_program(self)
 
     @property
     def fibre_unknowns(self) -> tuple:
@@ -100,29 +134,22 @@ class StepEquations:
         return J.xreplace(self.reconstruction) if substitute else J
 
     # --- numerics -----------------------------------------------------------------------------
-    @functools.cached_property
-    def _lambdified(self):
-        args = [list(self.unknowns), list(self.knowns), list(self.parameters)]
-        F = sp.Matrix(self.residuals_in_unknowns())
-        J = self.jacobian(substitute=True)
-        nxt = sp.Matrix(self.next_knowns)
-        return (sp.lambdify(args, F, "numpy", cse=True), sp.lambdify(args, J, "numpy", cse=True),
-                sp.lambdify(args, nxt, "numpy", cse=True))
-
     def evaluate(self, unknowns: Sequence, knowns: Sequence, params: Sequence | dict = ()):
-        """Numeric residual and Jacobian at a point (NumPy evaluation of the SymPy forms)."""
+        """Numeric residual and Jacobian at a point (NumPy evaluation of :attr:`program`).
+
+        Arrays may carry a trailing batch axis: unknowns (n_u, B), knowns (n_k, B), …
+        give F (n, B) and J (n, n_u, B).
+        """
         p = self._param_vector(params)
-        F, J, _ = self._lambdified
-        u, k = np.asarray(unknowns, float), np.asarray(knowns, float)
-        return (np.asarray(F(u, k, p), float).ravel(),
-                np.asarray(J(u, k, p), float).reshape(len(self), len(self.unknowns)))
+        f = self.program.numpy_function(["F", "J"], ["u", "known", "p"])
+        F, J = f(unknowns, knowns, p)
+        return F, J.reshape((len(self), len(self.unknowns)) + J.shape[1:])
 
     def advance(self, unknowns: Sequence, knowns: Sequence, params: Sequence | dict = ()):
         """The next known state from a solved step (g_{k+1}, λ_{k+1} become the knowns)."""
         p = self._param_vector(params)
-        nxt = self._lambdified[2]
-        return np.asarray(nxt(np.asarray(unknowns, float), np.asarray(knowns, float), p),
-                          float).ravel()
+        f = self.program.numpy_function(["next_knowns"], ["u", "known", "p"])
+        return f(unknowns, knowns, p)[0]
 
     def _param_vector(self, params) -> np.ndarray:
         if isinstance(params, dict):

@@ -59,13 +59,17 @@ class DiscreteSystem:
         step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
                                            self.parameters))
         step.system = self
-        try:
-            step.structured = matrix_form_residuals(
-                self.name, self.groupoid, self.lagrangian, self.constraints, self.parameters,
-                step.residuals, arity=self._arity)
-        except CallableError:
-            step.structured = None  # user code needs explicit matrices: print entries
+        step.set_structured_source(self._matrix_form)
         return step
+
+    def _matrix_form(self, explicit) -> list | None:
+        """The residuals with matrix parts kept as matrices, for LaTeX (built on request)."""
+        try:
+            return matrix_form_residuals(
+                self.name, self.groupoid, self.lagrangian, self.constraints, self.parameters,
+                explicit, arity=self._arity)
+        except CallableError:
+            return None  # user code needs explicit matrices: print entries
 
     def legendre(self) -> LegendreTransforms:
         """F⁻L and F⁺L at (g_k, λ_k) in the section basis, multiplier terms included."""

@@ -41,10 +41,12 @@ STATS = {"codegen": 0, "builds": 0, "loads": 0}
 
 @functools.cache
 def codegen_digest() -> str:
-    """Hash of everything that turns a step into C: templates and code generator sources."""
+    """Hash of everything that turns a step into C: templates, the expression graph and the
+    code generator sources."""
     from .. import __version__
 
-    files = sorted((Path(__file__).resolve().parents[1] / "codegen").glob("*.py"))
+    package = Path(__file__).resolve().parents[1]
+    files = sorted([*(package / "codegen").glob("*.py"), *(package / "ir").glob("*.py")])
     return sha256_of([__version__, templates_digest(), *(f.read_bytes() for f in files)])
 
 
@@ -81,12 +83,10 @@ def fingerprint(exprs, symbols: dict | None = None) -> str:
 
 
 def input_key(step, flags: Sequence[str]) -> str:
-    """Cache key of the symbolic inputs (cheap: an expression fingerprint, no codegen)."""
+    """Cache key of the step (cheap: the exact text of its program, no C generation)."""
     symbols: dict = {}
-    parts = [step.name, str(step.n_constraints)]
-    for seq in (step.residuals, step.unknowns, step.fibre_unknowns, step.knowns,
-                step.parameters, step.next_knowns, step.prediction,
-                [e for item in step.reconstruction.items() for e in item]):
+    parts = [step.name, str(step.n_constraints), step.program.fingerprint()]
+    for seq in (step.unknowns, step.knowns, step.parameters):
         parts.append(fingerprint(list(seq), symbols))
     return sha256_of([*parts, codegen_digest(), abi_tag(), *flags])[:32]
 

@@ -1,0 +1,146 @@
+"""The junction variation on the expression graph: the step equations as a program.
+
+The same mechanism as :func:`~symgroupoid.derivation.junction_variation` (docs/conventions.md
+§2, §4, §8), executed on a hash-consed graph instead of SymPy trees:
+
+1. one *term* of the action, T(A₁, …, A_arity; λ) = L(A) + λ·φ(A), is captured as a graph in
+   independent slot coordinates, and its gradient with respect to every slot coordinate is
+   taken once by reverse-mode differentiation;
+2. the window's arrows g_{k+o} (named knowns, and the unknown arrow through its fibre chart
+   τ(x)) are graph nodes; each term's gradient is instantiated at its arrows by substitution;
+3. residual b = Σ ⟨∇_{g_k} T_s, X⃖_b(g_k)⟩ − Σ ⟨∇_{g_{k+1}} T_s, X⃗_b(g_{k+1})⟩ over the terms
+   containing g_k and g_{k+1} — the derivative of the action sum along the junction
+   variation of section b — then the constraints on the newest term;
+4. the step Jacobian ∂F/∂(x, λ) is forward-mode differentiation of those nodes along the
+   unknowns (through the chart), one sweep per unknown.
+
+Nothing is expanded; shared subexpressions stay shared, so the residual costs a small
+multiple of L and the Jacobian a small multiple of the residual per unknown.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .._symbols import multiplier_symbols
+from ..groupoids import Groupoid
+from ..ir import Graph, forward, from_sympy, gradient
+from ._step import SystemFunctions, chart_of, window, window_arrows
+
+
+@dataclass
+class WindowGraph:
+    """The graph of one step's residuals and what its program needs."""
+
+    graph: Graph
+    residuals: list  # node ids: one per basis section, then the constraints
+    del_rows: list  # node ids of the junction residuals alone (before constraints)
+    constraint_rows: list  # node ids of φ on the newest term
+    symbols: dict  # named symbol -> node (knowns, unknowns, parameters)
+    arrows: dict  # offset -> named arrow (SymPy coordinates, fibre variables of the unknown)
+    memo: dict  # SymPy subexpression -> node (reuse when converting more expressions)
+
+
+def _term(g: Graph, fs: SystemFunctions, parameters: Sequence, m: int,
+          with_multipliers: bool):
+    """T = L + λ·φ on the generic slots, its gradient in the slot coordinates, and φ."""
+    smap = {c: g.input(c) for s in fs.slots for c in s}
+    smap.update({p: g.input(p) for p in parameters})
+    memo: dict = {}
+    L = from_sympy(g, fs.lagrangian, smap, "the Lagrangian", memo)
+    phis = [from_sympy(g, phi, smap, f"constraint {a + 1}", memo)
+            for a, phi in enumerate(fs.constraints)]
+    generic_lam = [g.input(sp.Dummy(f"lam{a}", real=True)) for a in range(m)]
+    T = L
+    if with_multipliers and m:
+        T = g.add(L, *[g.mul(lam, phi) for lam, phi in zip(generic_lam, phis)])
+    slot_nodes = [[smap[c] for c in s] for s in fs.slots]
+    grad = gradient(g, T, [n for s in slot_nodes for n in s])
+    return slot_nodes, generic_lam, grad, phis
+
+
+def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int]) -> list[list[int]]:
+    """X_b(a) (left or right invariant vector fields) at an arrow given by nodes."""
+    generic = G._generic_arrow
+    templates = G._left_fields if side == "left" else G._right_fields
+    gmap = {a: g.input(a) for a in generic}
+    memo: dict = {}
+    nodes = [[from_sympy(g, c, gmap, f"the {side} fields of {G.name}", memo) for c in v]
+             for v in templates]
+    mapping = {gmap[a]: c for a, c in zip(generic, coords)}
+    return [g.substitute(v, mapping) for v in nodes]
+
+
+def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequence,
+                 multipliers: bool = True) -> WindowGraph:
+    """The residual nodes of the step of order ``len(fs.slots)`` (see the module docstring).
+
+    With ``multipliers=False`` the constraints are not added to the action (nonholonomic
+    steps); they still give the last rows.
+    """
+    arity, m = len(fs.slots), len(fs.constraints)
+    offsets, starts = window(arity)
+    g = Graph()
+    slot_nodes, generic_lam, grad, phis = _term(g, fs, parameters, m, multipliers)
+
+    arrows = window_arrows(G, offsets)
+    newest = offsets[-1]
+    _, chart, cmap = chart_of(G, newest)
+    symbols: dict = {p: g.input(p) for p in parameters}
+    symbols.update({x: g.input(x) for x in chart})
+    memo: dict = {}
+    for f, value in cmap.items():
+        symbols[f] = from_sympy(g, value, symbols, f"the fibre chart of {G.name}", memo)
+    lam = {s: multiplier_symbols(m, s) for s in starts}
+    for s in starts:
+        symbols.update({x: g.input(x) for x in lam[s]})
+
+    def node_of(expr) -> int:
+        for s in sorted(sp.sympify(expr).free_symbols, key=str):
+            if s not in symbols:
+                symbols[s] = g.input(s)
+        return from_sympy(g, expr, symbols, f"{name}: the arrows of the step", memo)
+
+    arrow_nodes = {o: [node_of(c) for c in arrows[o]] for o in offsets}
+    flat_slots = [n for s in slot_nodes for n in s]
+    dim = G.arrow_dim
+
+    def instantiate(nodes: Sequence[int], s: int) -> list[int]:
+        mapping = dict(zip(flat_slots, [c for i in range(arity)
+                                        for c in arrow_nodes[s + i]]))
+        if multipliers:
+            mapping.update({lg: symbols[x] for lg, x in zip(generic_lam, lam[s])})
+        return g.substitute(nodes, mapping)
+
+    left = _fields(g, G, "left", arrow_nodes[0])
+    right = _fields(g, G, "right", arrow_nodes[1])
+    terms: list[list[int]] = [[] for _ in range(G.rank)]
+    for s in starts:
+        grads = instantiate(grad, s)
+        for i in range(arity):
+            o = s + i
+            if o not in (0, 1):
+                continue
+            part = grads[i * dim:(i + 1) * dim]
+            fields = left if o == 0 else right
+            sign = g.one if o == 0 else g.minus_one
+            for b in range(G.rank):
+                terms[b].extend(g.mul(sign, d, v) for d, v in zip(part, fields[b])
+                                if d != g.zero and v != g.zero)
+    dels = [g.add(*t) for t in terms]
+    last = starts[-1]
+    constraint_rows = instantiate(phis, last) if m else []
+    return WindowGraph(g, dels + constraint_rows, dels, constraint_rows, symbols, arrows,
+                       memo)
+
+
+def step_jacobian(g: Graph, residuals: Sequence[int], unknowns: Sequence[int]
+                  ) -> list[list[int]]:
+    """∂residuals/∂unknowns (rows × columns of nodes), one forward sweep per unknown; the
+    unknowns are input nodes, and the fibre chart is part of the graph."""
+    order = g.reachable(residuals)
+    columns = [forward(g, residuals, {u: g.one}, order) for u in unknowns]
+    return [[col[i] for col in columns] for i in range(len(residuals))]

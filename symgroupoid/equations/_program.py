@@ -1,0 +1,55 @@
+"""The program of a step: residual, exact Jacobian, chart, prediction and state update as
+outputs of one expression graph (:class:`symgroupoid.ir.Program`).
+
+Steps derived on the graph (``DerivedStep.window``) reuse its residual nodes; steps known only
+as SymPy expressions (e.g. the Lie–Poisson reconstruction) are captured into a graph here.
+Either way the Jacobian ∂F/∂(x, λ) is forward-mode differentiation through the fibre chart
+f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded trees.
+"""
+
+from __future__ import annotations
+
+from ..derivation._window import step_jacobian
+from ..ir import Graph, Program, from_sympy
+
+
+def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:
+    """Inputs for the knowns, unknowns and parameters; the unknown arrow's fibre variables
+    as chart nodes."""
+    for s in (*step.knowns, *step.unknowns, *step.parameters):
+        if s not in symbols:
+            symbols[s] = g.input(s)
+    for f, value in step.reconstruction.items():
+        if f not in symbols:
+            symbols[f] = from_sympy(g, value, symbols, f"{step.name}: the fibre chart", memo)
+    return symbols
+
+
+def step_program(step) -> Program:
+    """The :class:`Program` of a :class:`StepEquations` (see the module docstring)."""
+    d = step._d
+    if d.window is not None:
+        g, symbols, memo = d.window.graph, d.window.symbols, d.window.memo
+        _symbol_table(g, step, symbols, memo)
+        F = list(d.window.residuals)
+    else:
+        g, symbols, memo = Graph(), {}, {}
+        _symbol_table(g, step, symbols, memo)
+        F = [from_sympy(g, r, symbols, f"{step.name}: residual {i}", memo)
+             for i, r in enumerate(d.sympy_residuals())]
+    unknowns = [symbols[u] for u in step.unknowns]
+    J = step_jacobian(g, F, unknowns)
+
+    def nodes(exprs, what):
+        return [from_sympy(g, e, symbols, f"{step.name}: the {what}", memo) for e in exprs]
+
+    fibre = [symbols[f] for f in step.fibre_unknowns if f in step.reconstruction]
+    program = Program(
+        graph=g,
+        inputs={"u": list(step.unknowns), "known": list(step.knowns),
+                "p": list(step.parameters)},
+        outputs={"F": F, "J": [c for row in J for c in row], "fibre": fibre,
+                 "predict": nodes(step.prediction, "prediction"),
+                 "next_knowns": nodes(step.next_knowns, "state update")})
+    program.check_inputs()
+    return program

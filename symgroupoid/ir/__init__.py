@@ -1,0 +1,22 @@
+"""The expression graph every kernel goes through.
+
+SymPy expressions from the user (Lagrangians, constraints, structure maps) are captured as a
+hash-consed DAG (:class:`Graph`) right away; the junction variation and the step Jacobian are
+computed on it by algorithmic differentiation (:func:`gradient`, :func:`forward`,
+:func:`jacobian`), and kernels are :class:`Program` objects — named inputs and outputs over
+the graph — evaluated with NumPy or printed to C.  Exact SymPy expressions are rebuilt from
+the graph only on demand (:func:`to_sympy`).
+"""
+
+from ._ad import forward, gradient, jacobian, partial
+from ._c import KernelCPrinter, c_of_sympy
+from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
+from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
+from ._program import Program
+from ._sympy import from_sympy, to_sympy
+
+__all__ = [
+    "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
+    "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "forward",
+    "from_sympy", "gradient", "jacobian", "partial", "smooth_spec", "to_sympy",
+]

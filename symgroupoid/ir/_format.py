@@ -1,0 +1,240 @@
+"""Straight-line code from a program's nodes, in C or NumPy.
+
+One formatter serves both languages so that the compiled kernels and the NumPy backend
+perform the same floating-point operations in the same order: sums and products left to
+right in node order, integer powers as repeated products, reciprocals as divisions
+(``a*b/c`` for a product with a factor c⁻¹).  A small node used once, and not an output, is
+written inline into its single user (evaluation order and rounding are unchanged: kernels are
+compiled with ``-ffp-contract=off``); every other node is *named* (a temporary).
+
+The plan — which nodes are named, in which order — is structural (:func:`plan`), so that a
+caller can assign names (locals, or slots of a work array shared between the parts of a
+split kernel) before any text is produced (:func:`write`).
+"""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from ._graph import ADD, CONST, INPUT, MUL, POW, Graph
+
+#: precedence levels of printed expressions
+ATOM, PRODUCT, SUM = 3, 2, 1
+#: integer powers up to this size are written as products
+MAX_UNROLLED_POWER = 4
+#: a node is inlined into its single user only while its inlined subtree has at most this
+#: many operations
+MAX_INLINE_OPS = 6
+
+
+@dataclass
+class Dialect:
+    """What differs between the languages: constants and function calls."""
+
+    name: str
+    constant: Callable[[sp.Expr], str]
+    function: Callable[[object, Sequence[str]], str]
+    sqrt: str
+    pow: str
+
+
+def c_constant(value: sp.Expr) -> str:
+    """A double literal (exact integers and rationals as such, others correctly rounded)."""
+    if value.is_Integer:
+        return f"{int(value)}.0"
+    if value.is_Rational:
+        q = int(value.q)
+        if q & (q - 1) == 0 and abs(int(value.p)) < 2**53:  # dyadic: exact as a double
+            return repr(float(value))
+        return f"({int(value.p)}.0/{int(value.q)}.0)"
+    return repr(float(value))
+
+
+C = Dialect("c", c_constant, lambda spec, args: spec.c_expression(args), "sqrt", "pow")
+NUMPY = Dialect("numpy", c_constant, lambda spec, args: spec.numpy_expression(args),
+                "np.sqrt", "np.power")
+
+
+@dataclass
+class Plan:
+    """Which operation nodes are named (in evaluation order) and which are inlined."""
+
+    named: list = field(default_factory=list)
+    inlined: set = field(default_factory=set)
+    refs: dict = field(default_factory=dict)  # named node -> named nodes its text reads
+
+
+def plan(g: Graph, outputs: Sequence[int], inline: bool = True) -> Plan:
+    """Decide named and inlined nodes for computing ``outputs``."""
+    order = [n for n in g.reachable(outputs) if g.args[n]]
+    uses = g.uses(order)
+    outs = set(outputs)
+    size: dict = {}
+    reads: dict = {}  # node -> frozenset of named nodes its (possibly inlined) text reads
+    p = Plan()
+    for n in order:
+        s = 1
+        r: set = set()
+        for a in g.args[n]:
+            if a in p.inlined:
+                s += size[a]
+                r |= reads[a]
+            elif g.args[a]:
+                r.add(a)
+        if inline and uses.get(n, 0) == 1 and n not in outs and s <= MAX_INLINE_OPS:
+            p.inlined.add(n)
+            size[n], reads[n] = s, frozenset(r)
+        else:
+            p.named.append(n)
+            p.refs[n] = r
+            size[n], reads[n] = 1, frozenset()
+    return p
+
+
+@dataclass
+class Listing:
+    """Statements ``(name, expression)`` in order, then the output expressions."""
+
+    statements: list = field(default_factory=list)
+    outputs: list = field(default_factory=list)
+
+
+def _wrap(text: str, level: int, needed: int) -> str:
+    return f"({text})" if level < needed else text
+
+
+class _Writer:
+    def __init__(self, g: Graph, names: Mapping[int, str], dialect: Dialect, inlined: set):
+        self.g, self.names, self.d, self.inlined = g, names, dialect, inlined
+        self.text: dict = {}
+        self.level: dict = {}
+
+    def atom(self, n: int) -> tuple[str, int]:
+        g = self.g
+        if n in self.text:
+            return self.text[n], self.level[n]
+        if n in self.names:
+            return self.names[n], ATOM
+        if g.op[n] == CONST:
+            text = self.d.constant(g.data[n])
+            return text, (ATOM if not text.startswith("-") else PRODUCT)
+        raise KeyError(f"node {n} ({g.op[n]}) has no name")
+
+    def expression(self, n: int) -> tuple[str, int]:
+        g = self.g
+        o, a = g.op[n], g.args[n]
+        if o == ADD:
+            parts = []
+            for k, x in enumerate(a):
+                t, lvl = self.atom(x)
+                if k and t.startswith("-") and lvl >= PRODUCT:
+                    parts.append(f" - {t[1:]}")
+                elif k:  # a sum as a later term keeps its parentheses (evaluation order)
+                    parts.append(" + " + _wrap(t, lvl, PRODUCT))
+                else:
+                    parts.append(t)
+            return "".join(parts), SUM
+        if o == MUL:
+            return self._product(a)
+        if o == POW:
+            return self._power(a[0], g.data[n])
+        args = [self.atom(x)[0] for x in a]
+        return self.d.function(g.data[n], args), ATOM
+
+    def _product(self, a) -> tuple[str, int]:
+        g = self.g
+        num, den, negative = [], [], False
+        for x in a:
+            if g.op[x] == CONST and g.data[x].is_negative and g.data[x].is_Rational:
+                negative = True
+                if g.data[x] != -1:
+                    num.append((self.d.constant(-g.data[x]), ATOM))
+            elif g.op[x] == POW and g.data[x] == -1 and x in self.inlined:
+                den.append(self.atom(g.args[x][0]))
+            else:
+                num.append(self.atom(x))
+        text = "*".join(_wrap(t, lvl, PRODUCT + (1 if t.startswith("-") else 0))
+                        for t, lvl in num) or "1.0"
+        if den:
+            text += "/" + "/".join(_wrap(t, lvl, ATOM) for t, lvl in den)
+        return ("-" + text if negative else text), PRODUCT
+
+    def _power(self, base: int, e: sp.Expr) -> tuple[str, int]:
+        b, lvl = self.atom(base)
+        b = _wrap(b, lvl, ATOM)
+        if e.is_Integer and 1 <= abs(int(e)) <= MAX_UNROLLED_POWER:
+            prod = "*".join([b] * abs(int(e)))
+            if e > 0:
+                return prod, PRODUCT if int(e) > 1 else ATOM
+            return f"1.0/{_wrap(prod, PRODUCT if abs(int(e)) > 1 else ATOM, ATOM)}", PRODUCT
+        if e == sp.Rational(1, 2):
+            return f"{self.d.sqrt}({b})", ATOM
+        if e == sp.Rational(-1, 2):
+            return f"1.0/{self.d.sqrt}({b})", PRODUCT
+        return f"{self.d.pow}({b}, {self.d.constant(e)})", ATOM
+
+
+def write(g: Graph, p: Plan, nodes: Sequence[int], names: Mapping[int, str],
+          dialect: Dialect, writer: _Writer | None = None) -> tuple[list, _Writer]:
+    """``(name, expression)`` for the named ``nodes`` (a contiguous run of ``p.named``), with
+    every input and named node given a name in ``names``; inlined nodes they read are
+    written into them.  Returns the statements and the writer (pass it on to continue)."""
+    w = writer or _Writer(g, names, dialect, p.inlined)
+    out = []
+    pending = [n for n in nodes]
+    for n in pending:
+        _write_inlined(g, w, n)
+        text, _ = w.expression(n)
+        out.append((names[n], text))
+    return out, w
+
+
+def _write_inlined(g: Graph, w: _Writer, n: int) -> None:
+    """Texts of the inlined nodes under n (each written once, before its user)."""
+    stack = [a for a in g.args[n] if a in w.inlined and a not in w.text]
+    todo = []
+    while stack:
+        a = stack.pop()
+        todo.append(a)
+        stack.extend(b for b in g.args[a] if b in w.inlined and b not in w.text)
+    for a in sorted(set(todo)):
+        if a not in w.text:
+            w.text[a], w.level[a] = w.expression(a)
+
+
+def listing(g: Graph, outputs: Sequence[int], inputs: Mapping[int, str], dialect: Dialect,
+            temporaries: Callable[[], str] | None = None, inline: bool = True) -> Listing:
+    """Straight-line code for ``outputs`` in one piece (see the module docstring)."""
+    p = plan(g, outputs, inline)
+    if temporaries is None:
+        counter = itertools.count()
+        temporaries = lambda: f"t{next(counter)}"  # noqa: E731
+    names = dict(inputs)
+    for n in p.named:
+        names[n] = temporaries()
+    statements, w = write(g, p, p.named, names, dialect)
+    out = Listing(statements)
+    for o in outputs:
+        if o in p.inlined:  # pragma: no cover - outputs are never inlined
+            raise AssertionError
+        out.outputs.append(w.atom(o)[0])
+    return out
+
+
+def functions_used(g: Graph, outputs: Sequence[int]) -> list:
+    """The function specs the outputs need, in first-use order (deterministic)."""
+    from ._graph import FUNC
+
+    seen: dict = {}
+    for n in g.reachable(outputs):
+        if g.op[n] == FUNC and g.data[n].key not in seen:
+            seen[g.data[n].key] = g.data[n]
+    return list(seen.values())
+
+
+__all__ = ["C", "NUMPY", "Dialect", "Listing", "Plan", "functions_used", "listing", "plan",
+           "write", "INPUT"]
