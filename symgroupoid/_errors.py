@@ -47,3 +47,11 @@ class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
         self.step = step
         self.residual_norm = residual_norm
         self.iterate = iterate
+
+
+class CacheError(SymgroupoidError, RuntimeError):
+    """The kernel cache cannot be used: a lock timed out, or a kernel stays unloadable.
+
+    The message names the cache path and what to do (remove it, or point
+    ``SYMGROUPOID_CACHE`` to another directory).
+    """
