@@ -12,6 +12,7 @@ import signal
 import stat
 import subprocess
 import sys
+import threading
 import time
 import warnings
 from pathlib import Path
@@ -170,6 +171,32 @@ def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, ca
     assert (again["builds"], again["loads"]) == (1, 1)
     assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
     assert list((cache_dir / "tmp").iterdir()) == []
+
+
+def test_threads_building_kernels_at_once(cache_dir):
+    """Threads of one process: one compiler run per kernel, and builds of different
+    kernels do not mix (each build changes the working directory and captures fds 1, 2)."""
+    names = ["oscillator_t1", "oscillator_t2", "oscillator_t1", "oscillator_t3"]
+    results: dict[int, np.ndarray] = {}
+    errors: list[BaseException] = []
+
+    def run(i: int) -> None:
+        try:
+            sim = sg.compile_step(oscillator(names[i]), backend="c")
+            results[i] = sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1]
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    builds = _compile.STATS["builds"]
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(len(names))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=300)
+    assert errors == [] and len(results) == len(names)
+    assert _compile.STATS["builds"] == builds + 3
+    assert all(np.abs(r - reference_final()).max() <= 1e-12 for r in results.values())
+    assert len(list((cache_dir / "kernels").iterdir())) == 3
 
 
 def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):

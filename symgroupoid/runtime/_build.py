@@ -11,6 +11,7 @@ import subprocess
 import sys
 import sysconfig
 import tempfile
+import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import ModuleType
@@ -25,6 +26,11 @@ DEFAULT_FLAGS: tuple[str, ...] = ("-O3", "-ffp-contract=off")
 #: how to do without a compiler (appended to every compiler error)
 NUMPY_HINT = ('To use the NumPy backend instead (same results, slower), pass backend="numpy" '
               '(compile_step, DiscreteSystem.compile) or set SYMGROUPOID_BACKEND=numpy.')
+
+
+#: one build at a time per process: cffi changes the working directory and the build
+#: captures file descriptors 1 and 2, both process-wide
+_BUILD_LOCK = threading.Lock()
 
 
 class CompilationError(SymgroupoidError, RuntimeError):
@@ -151,7 +157,7 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     ffi.cdef(kernel.cdef)
     ffi.set_source(name, f'#include "{kernel.prefix}.c"\n', include_dirs=[str(build_dir)],
                    extra_compile_args=compile_args(flags))
-    with captured_output() as out:
+    with _BUILD_LOCK, captured_output() as out:
         try:
             library = Path(ffi.compile(tmpdir=str(build_dir), verbose=False))
         except Exception as exc:  # noqa: BLE001 - cffi/setuptools raise various types
