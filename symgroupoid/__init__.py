@@ -7,6 +7,7 @@ their Lie–Poisson form, exact Jacobians, LaTeX and C kernels.
 
 from ._errors import (
     AxiomError,
+    CacheError,
     CallableError,
     NewtonDivergenceError,
     NotComposableError,
@@ -60,7 +61,8 @@ from .runtime import (  # noqa: E402  (layer 5)
 )
 
 __all__ = [
-    "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CallableError",
+    "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CacheError",
+    "CallableError",
     "CompilationError", "DefinedGroupoid", "DiscreteSystem", "EuclideanSpace", "Groupoid",
     "LegendreTransforms", "LiePoissonEquations", "MatrixLieGroup", "NamedMatrix",
     "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity", "NonholonomicSystem",

@@ -68,7 +68,7 @@ def oscillator():
 
 def cache_contents(cache: Path) -> dict:
     return {d: sorted(p.name for p in (cache / d).iterdir()) if (cache / d).exists() else []
-            for d in ("index", "kernels", "tmp")}
+            for d in ("index", "kernels", "locks", "tmp")}
 
 
 def test_cache_root_resolution(monkeypatch, tmp_path):
@@ -93,7 +93,9 @@ def test_second_process_hits_the_cache_and_loads_fast():
     assert contents["tmp"] == []
 
 
-def test_concurrent_builds_of_one_kernel_are_safe(tmp_path):
+def test_concurrent_builds_of_one_kernel_compile_once(tmp_path):
+    """Four processes missing one new kernel at the same moment: one runs the compiler
+    (holding the kernel's lock), the others wait and load its result."""
     barrier = tmp_path / "barrier"
     barrier.mkdir()
     env = {**os.environ, "SYMGROUPOID_CACHE": str(cache_root()), "PYTHONPATH": str(REPO),
@@ -109,10 +111,13 @@ def test_concurrent_builds_of_one_kernel_are_safe(tmp_path):
         out, err = proc.communicate(timeout=180)
         assert proc.returncode == 0, err
         results.append(json.loads(out.strip().splitlines()[-1]))
+    assert sum(r["builds"] for r in results) == 1, [r["builds"] for r in results]
+    assert [r["loads"] for r in results] == [1, 1, 1, 1]
     assert len({r["entry"] for r in results}) == 1
     assert all(r["final"] == results[0]["final"] for r in results)
     contents = cache_contents(cache_root())
     assert len(contents["kernels"]) == 1 and contents["tmp"] == []
+    assert contents["locks"] == [f"{Path(results[0]['entry']).name}.lock"]
     entry = Path(results[0]["entry"])
     assert sorted(p.name for p in entry.iterdir() if p.suffix != ".so") == [
         "manifest.json", "oscillator.c", "oscillator.h"]

@@ -12,6 +12,7 @@ import functools
 import hashlib
 import os
 import tempfile
+import threading
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -153,13 +154,46 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None
                         cdef=env.get_template("cdef.j2").render(ctx))
 
 
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process umask, read without changing it (``/proc/self/status`` on Linux).
+
+    Where that file is unavailable the umask is set and immediately restored (under a
+    lock, so concurrent calls here agree; ``os.umask`` has no read-only form).
+    """
+    try:
+        with open("/proc/self/status", encoding="ascii", errors="replace") as fh:
+            for line in fh:
+                if line.startswith("Umask:"):
+                    return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    with _UMASK_LOCK:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
+
+
+def file_mode() -> int:
+    """Mode of a newly created regular file under the current umask (0644 under 022)."""
+    return 0o666 & ~current_umask()
+
+
 def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and an atomic rename."""
+    """Write ASCII ``text`` to ``path`` through a temporary file and an atomic rename.
+
+    The file gets the mode an ordinary ``open`` would give it (``0o666`` less the umask),
+    not the private ``0o600`` of the temporary file; readers never see a partial file.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
+    data = text.encode("ascii")
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     try:
-        with os.fdopen(fd, "w", encoding="ascii", newline="\n") as fh:
-            fh.write(text)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, file_mode())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

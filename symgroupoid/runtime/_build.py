@@ -7,9 +7,11 @@ import importlib.util
 import os
 import shlex
 import shutil
+import subprocess
 import sys
 import sysconfig
 import tempfile
+import threading
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from types import ModuleType
@@ -17,9 +19,18 @@ from types import ModuleType
 from .._errors import SymgroupoidError
 from ..codegen import KernelSource
 
-#: flags appended to the compiler command line (after Python's own CFLAGS).
-#: -ffp-contract=off keeps a*b+c as two roundings, as in the NumPy backend.
+#: flags appended to the compiler command line (after Python's own CFLAGS, so they decide the
+#: optimisation level).  -ffp-contract=off keeps a*b+c as two roundings, as in the NumPy backend.
 DEFAULT_FLAGS: tuple[str, ...] = ("-O3", "-ffp-contract=off")
+
+#: how to do without a compiler (appended to every compiler error)
+NUMPY_HINT = ('To use the NumPy backend instead (same results, slower), pass backend="numpy" '
+              '(compile_step, DiscreteSystem.compile) or set SYMGROUPOID_BACKEND=numpy.')
+
+
+#: one build at a time per process: cffi changes the working directory and the build
+#: captures file descriptors 1 and 2, both process-wide
+_BUILD_LOCK = threading.Lock()
 
 
 class CompilationError(SymgroupoidError, RuntimeError):
@@ -34,13 +45,22 @@ class CompilerNotFoundError(SymgroupoidError, RuntimeError):
     """No C compiler could be found (``$CC`` or Python's configured compiler)."""
 
 
-def find_compiler() -> str:
-    """Path of the C compiler cffi will use: ``$CC``, else Python's configured ``CC``."""
+def compiler_command() -> list[str]:
+    """The C compiler command cffi will use: ``$CC``, else Python's configured ``CC``."""
     command = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
     try:
-        exe = shlex.split(command)[0]
-    except (ValueError, IndexError):
-        raise CompilerNotFoundError(f"cannot parse the compiler command {command!r}") from None
+        words = shlex.split(command)
+    except ValueError:
+        words = []
+    if not words:
+        raise CompilerNotFoundError(f"cannot parse the compiler command {command!r}")
+    return words
+
+
+def find_compiler() -> str:
+    """Path of the C compiler cffi will use: ``$CC``, else Python's configured ``CC``."""
+    words = compiler_command()
+    command, exe = " ".join(words), words[0]
     path = shutil.which(exe)
     if path is None:
         raise CompilerNotFoundError(f"C compiler {exe!r} not found (from CC={command!r})")
@@ -77,6 +97,50 @@ def module_name(source_key: str) -> str:
     return f"_sgk_{source_key[:24]}"
 
 
+def compile_args(flags: Sequence[str]) -> list[str]:
+    """The extra compiler arguments of a build: ``flags``, after ``-g0`` unless they ask
+    for debug information themselves (``-g``, ``-ggdb``, ...).
+
+    Python's own CFLAGS (which cffi passes first) usually contain ``-g``; debug information
+    more than doubles the module size and slows the build; it changes no generated code.
+    """
+    flags = list(flags)
+    return flags if any(f.startswith("-g") for f in flags) else ["-g0", *flags]
+
+
+def probe_compiler(command: Sequence[str]) -> str | None:
+    """None if ``command`` compiles a trivial C file; otherwise what went wrong."""
+    with tempfile.TemporaryDirectory(prefix="symgroupoid-probe-") as tmp:
+        source, obj = Path(tmp) / "probe.c", Path(tmp) / "probe.o"
+        source.write_text("int symgroupoid_probe(void) { return 0; }\n", encoding="ascii")
+        try:
+            result = subprocess.run([*command, "-c", str(source), "-o", str(obj)],
+                                    stdin=subprocess.DEVNULL, capture_output=True,
+                                    text=True, errors="replace", timeout=120)
+        except (OSError, subprocess.SubprocessError) as exc:
+            return str(exc)
+        if result.returncode == 0 and obj.is_file():
+            return None
+        output = (result.stdout + result.stderr).strip()
+        return output or f"exit status {result.returncode}, no output"
+
+
+def _failure(kernel: KernelSource, failure: Exception, output: str) -> CompilationError:
+    """The error for a failed build, telling a broken compiler from a rejected kernel."""
+    try:
+        command = compiler_command()
+        broken = probe_compiler(command)
+    except CompilerNotFoundError:
+        command, broken = [], None
+    if broken is not None:
+        head = (f"{kernel.prefix}: the C compiler {' '.join(command)!r} fails even on a "
+                f"trivial C file ({broken}), so it cannot build kernels; set CC to a working "
+                f"C compiler.")
+    else:
+        head = f"{kernel.prefix}: the C compiler failed ({failure})."
+    return CompilationError(f"{head}\nCompiler output:\n{output}\n{NUMPY_HINT}", output=output)
+
+
 def build_extension(kernel: KernelSource, build_dir: Path, name: str,
                     flags: Sequence[str]) -> Path:
     """Compile ``kernel`` into ``build_dir`` as extension module ``name``; return its path.
@@ -92,8 +156,8 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     ffi = cffi.FFI()
     ffi.cdef(kernel.cdef)
     ffi.set_source(name, f'#include "{kernel.prefix}.c"\n', include_dirs=[str(build_dir)],
-                   extra_compile_args=list(flags))
-    with captured_output() as out:
+                   extra_compile_args=compile_args(flags))
+    with _BUILD_LOCK, captured_output() as out:
         try:
             library = Path(ffi.compile(tmpdir=str(build_dir), verbose=False))
         except Exception as exc:  # noqa: BLE001 - cffi/setuptools raise various types
@@ -101,10 +165,7 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
         else:
             failure = None
     if failure is not None:
-        text = out[0].strip() if out else ""
-        raise CompilationError(
-            f"{kernel.prefix}: the C compiler failed ({failure}).\nCompiler output:\n{text}",
-            output=text) from failure
+        raise _failure(kernel, failure, out[0].strip() if out else "") from failure
     for path in build_dir.iterdir():
         if path.is_dir():
             shutil.rmtree(path)

@@ -6,32 +6,73 @@ else ``~/.cache/symgroupoid``)::
     index/<input key>.json     symbolic inputs → source key (lets a warm load skip codegen)
     kernels/<source key>/      one built kernel: the extension module, its C source and
                                manifest.json with the SHA-256 of the module file
-    tmp/                       private build directories, renamed into kernels/ when complete
+    locks/<source key>.lock    held (``flock``) by the one process building that kernel
+    tmp/                       build directories ``build-<source key>-*``, renamed into
+                               kernels/ when complete
 
 The *source key* hashes the generated C, the compiler flags and the Python/cffi ABI; the
 *input key* hashes the symbolic step (SymPy ``srepr``), the code generator and the same ABI
 and flags.  A kernel directory appears atomically (``rename`` of a finished directory) and is
 verified against its manifest before loading; a damaged one is removed and rebuilt.
+
+Concurrency and failures:
+
+* Processes that miss the same kernel serialise on its lock: one compiles, the others wait
+  (up to ``SYMGROUPOID_LOCK_TIMEOUT`` seconds, default 600), re-check the manifest and load.
+  The kernel releases an ``flock`` when its holder dies, so a killed builder blocks nobody.
+* A build directory is only ever written while its key's lock is held, so one whose lock
+  is free belongs to a dead process: it is removed on the next use of the cache.
+* ``index``, ``kernels``, ``locks`` or ``tmp`` found as a file is removed and recreated.
+  A cache root that cannot be written (read-only, not a directory, ``$HOME`` unwritable)
+  is still read, and kernels built by this process go to a private temporary directory
+  (one :class:`RuntimeWarning` naming the path and the reason; removed at exit).
 """
 
 from __future__ import annotations
 
+import atexit
+import contextlib
+import errno
 import hashlib
 import json
 import os
+import re
 import shutil
+import socket
 import sys
 import sysconfig
 import tempfile
-from collections.abc import Iterable
+import threading
+import time
+import warnings
+from collections.abc import Iterable, Iterator
 from pathlib import Path
+
+from .._errors import CacheError
+from ..codegen._emit import current_umask, write_atomic
+
+try:
+    import fcntl
+except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
+    fcntl = None
 
 MANIFEST = "manifest.json"
 FORMAT_VERSION = 1
+SUBDIRS = ("index", "kernels", "locks", "tmp")
+#: seconds a process waits for another one building the same kernel
+LOCK_TIMEOUT = 600.0
+#: age (seconds) after which leftovers that name no kernel (``build-*`` of older versions,
+#: ``probe-*``, temporary index files) count as abandoned
+GRACE = 3600.0
+_KEYED = re.compile(r"(?:build|trash)-([0-9a-f]{32})-")
+_STATE_LOCK = threading.Lock()
+#: configured cache root → private temporary root used instead (this process only)
+_FALLBACKS: dict[Path, Path] = {}
+_SWEPT: set[Path] = set()
 
 
 def cache_root() -> Path:
-    """The cache directory (not created)."""
+    """The configured cache directory (not created; see :class:`KernelCache` for fallback)."""
     override = os.environ.get("SYMGROUPOID_CACHE")
     if override:
         return Path(override).expanduser()
@@ -63,16 +104,9 @@ def file_sha256(path: Path) -> str:
 
 
 def write_json_atomic(path: Path, data: dict) -> None:
-    """Write JSON through a temporary file in the same directory and an atomic rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(data, fh, sort_keys=True, indent=1)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write JSON (ASCII) through a temporary file in the same directory and an atomic
+    rename; the file's mode follows the umask."""
+    write_atomic(path, json.dumps(data, sort_keys=True, indent=1))
 
 
 def read_json(path: Path) -> dict | None:
@@ -84,75 +118,324 @@ def read_json(path: Path) -> dict | None:
     return data if isinstance(data, dict) else None
 
 
+def _remove(path: Path) -> None:
+    """Remove a file, symlink or directory tree (best effort; missing is fine)."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(OSError):
+            path.unlink()
+
+
 def remove_tree(path: Path) -> None:
-    """Remove a directory without ever exposing a half-deleted kernel under its name."""
-    if not path.exists():
+    """Remove a kernel directory (or whatever occupies its name) without ever exposing a
+    half-deleted kernel under its name: it is first renamed into ``tmp/``."""
+    if not (path.exists() or path.is_symlink()):
         return
-    trash = path.parent.parent / "tmp" / f"trash-{path.name}-{os.getpid()}"
+    trash = None
     try:
-        trash.parent.mkdir(parents=True, exist_ok=True)
-        os.replace(path, trash)
+        tmp = path.parent.parent / "tmp"
+        tmp.mkdir(parents=True, exist_ok=True)
+        trash = Path(tempfile.mkdtemp(prefix=f"trash-{path.name}-", dir=tmp))
+        os.replace(path, trash / "entry")
     except OSError:
-        trash = path
-    shutil.rmtree(trash, ignore_errors=True)
+        _remove(path)
+    if trash is not None:
+        _remove(trash)
+
+
+def dir_mode() -> int:
+    """Mode of a new directory under the current umask (0755 under 022)."""
+    return 0o777 & ~current_umask()
+
+
+# -- locks ------------------------------------------------------------------------------------
+
+def lock_timeout() -> float:
+    """Seconds to wait for another process's build (``SYMGROUPOID_LOCK_TIMEOUT``)."""
+    text = os.environ.get("SYMGROUPOID_LOCK_TIMEOUT")
+    if not text:
+        return LOCK_TIMEOUT
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:
+        raise CacheError(f"SYMGROUPOID_LOCK_TIMEOUT must be a positive number of seconds, "
+                         f"got {text!r}")
+    return value
+
+
+def _open_lock(path: Path) -> int:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        return os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except PermissionError:  # another user's lock file in a shared cache: locking only
+        return os.open(path, os.O_RDONLY)
+
+
+def _try_flock(fd: int) -> bool:
+    """Take the exclusive lock without waiting.  Where the file system has no ``flock``
+    (some network file systems) the build proceeds unserialised: still safe, since a
+    kernel is installed by one atomic rename."""
+    if fcntl is None:
+        return True
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    except OSError as exc:
+        if exc.errno in (errno.EAGAIN, errno.EACCES):
+            return False
+        return True
+    return True
+
+
+def _note_owner(fd: int) -> None:
+    """Record who holds the lock (read only for the timeout message)."""
+    with contextlib.suppress(OSError, AttributeError):
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"pid {os.getpid()} on {socket.gethostname()}\n".encode(), 0)
+
+
+@contextlib.contextmanager
+def exclusive(path: Path, what: str) -> Iterator[None]:
+    """Hold the exclusive lock ``path`` (waiting for its holder up to :func:`lock_timeout`)."""
+    timeout = lock_timeout()
+    try:
+        fd = _open_lock(path)
+    except OSError as exc:
+        raise CacheError(f"{what}: cannot open the lock file {path} ({exc}); remove it or set "
+                         f"SYMGROUPOID_CACHE to a writable directory") from exc
+    try:
+        deadline, delay = time.monotonic() + timeout, 0.002
+        while not _try_flock(fd):
+            if time.monotonic() >= deadline:
+                owner = path.read_text(errors="replace").strip() if path.is_file() else ""
+                raise CacheError(
+                    f"{what}: waited {timeout:g} s for the lock {path}, held by another process "
+                    f"building the same kernel ({owner or 'owner unknown'}); if that process "
+                    f"hangs, stop it, or raise SYMGROUPOID_LOCK_TIMEOUT")
+            time.sleep(delay)
+            delay = min(2 * delay, 0.05)
+        _note_owner(fd)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+@contextlib.contextmanager
+def _held_if_free(path: Path) -> Iterator[bool]:
+    """Whether the lock ``path`` was free (then it is held for the block)."""
+    try:
+        fd = _open_lock(path)
+    except OSError:
+        yield False
+        return
+    try:
+        yield fcntl is not None and _try_flock(fd)
+    finally:
+        os.close(fd)
+
+
+# -- writable root, fallback and sweeping ------------------------------------------------------
+
+def _prepare(root: Path) -> None:
+    """Create the cache layout under ``root`` and check that it is writable (raises OSError).
+
+    A subdirectory found as a file (or a dangling link) is removed and recreated.
+    """
+    if root.exists() and not root.is_dir():
+        raise NotADirectoryError(errno.ENOTDIR, "it is not a directory", str(root))
+    root.mkdir(parents=True, exist_ok=True)
+    for name in SUBDIRS:
+        path = root / name
+        if not path.is_dir():
+            if path.exists() or path.is_symlink():
+                with contextlib.suppress(FileNotFoundError):
+                    path.unlink()
+            path.mkdir(exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix="probe-", dir=path)
+        os.close(fd)
+        os.unlink(probe)
+
+
+def _caller_stacklevel() -> int:
+    """Stack level of the first frame outside this package and ``contextlib`` (warnings)."""
+    internal = (str(Path(__file__).resolve().parents[1]), contextlib.__file__)
+    frame, level = sys._getframe(1), 1
+    while frame is not None and frame.f_code.co_filename.startswith(internal):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+def _fallback(configured: Path, reason: OSError) -> Path:
+    """A private temporary cache root replacing ``configured`` for this process."""
+    why = reason.strerror or str(reason)
+    if reason.filename and Path(reason.filename) != configured:
+        why = f"{why}: {reason.filename}"
+    try:
+        private = Path(tempfile.mkdtemp(prefix="symgroupoid-cache-"))
+        _prepare(private)
+    except OSError as exc:
+        raise CacheError(
+            f"the kernel cache {configured} is not writable ({why}) and no private temporary "
+            f"directory could be made ({exc}); set SYMGROUPOID_CACHE to a writable "
+            f"directory") from reason
+    atexit.register(shutil.rmtree, private, True)
+    warnings.warn(
+        f"the kernel cache {configured} is not writable ({why}); kernels built by this process "
+        f"go to the private temporary directory {private} (removed at exit). Set "
+        f"SYMGROUPOID_CACHE to a writable directory to keep them.",
+        RuntimeWarning, stacklevel=_caller_stacklevel())
+    return private
+
+
+def writable_root(configured: Path) -> Path:
+    """``configured``, prepared for writing, or this process's private fallback for it."""
+    with _STATE_LOCK:
+        fallback = _FALLBACKS.get(configured)
+        if fallback is not None:
+            return fallback
+        try:
+            _prepare(configured)
+        except OSError as exc:
+            _FALLBACKS[configured] = fallback = _fallback(configured, exc)
+            return fallback
+        return configured
+
+
+def sweep(root: Path) -> None:
+    """Remove what dead processes left in ``root/tmp`` (best effort, never blocks).
+
+    ``build-<key>-*``/``trash-<key>-*`` directories are removed while holding their key's
+    lock, which a live builder holds for as long as its directory exists; other leftovers
+    (no key: older versions, probes, temporary index files) once older than ``GRACE``.
+    """
+    now = time.time()
+    for sub in ("tmp", "index"):
+        try:
+            entries = list(os.scandir(root / sub))
+        except OSError:
+            continue
+        for entry in entries:
+            path = Path(entry.path)
+            match = _KEYED.match(entry.name) if sub == "tmp" else None
+            if match:
+                with _held_if_free(root / "locks" / f"{match.group(1)}.lock") as free:
+                    if free:
+                        _remove(path)
+            elif entry.name.startswith(("build-", "trash-", "probe-", ".")):
+                with contextlib.suppress(OSError):
+                    if now - entry.stat(follow_symlinks=False).st_mtime > GRACE:
+                        _remove(path)
+
+
+def sweep_once(root: Path) -> None:
+    """:func:`sweep` on the first use of a writable ``root`` in this process."""
+    with _STATE_LOCK:
+        if root in _SWEPT:
+            return
+        _SWEPT.add(root)
+    if os.access(root / "tmp", os.W_OK | os.X_OK):
+        sweep(root)
 
 
 class KernelCache:
-    """Index and kernel directories under a cache root."""
+    """Index and kernel directories under a cache root.
+
+    Reads look in this process's private fallback (if the root turned out unwritable) and
+    in the configured root; writes go to :meth:`write_root`.
+    """
 
     def __init__(self, root: Path | None = None):
         self.root = Path(root) if root is not None else cache_root()
+        self._located: dict[str, Path] = {}
 
-    @property
-    def index_dir(self) -> Path:
-        return self.root / "index"
+    def read_roots(self) -> tuple[Path, ...]:
+        fallback = _FALLBACKS.get(self.root)
+        return (fallback, self.root) if fallback is not None else (self.root,)
 
-    @property
-    def kernels_dir(self) -> Path:
-        return self.root / "kernels"
-
-    @property
-    def tmp_dir(self) -> Path:
-        return self.root / "tmp"
+    def write_root(self) -> Path:
+        """The root new entries go to (created; may warn and fall back, see module doc)."""
+        return writable_root(self.root)
 
     def lookup(self, input_key: str) -> str | None:
         """Source key recorded for an input key, if any."""
-        data = read_json(self.index_dir / f"{input_key}.json")
-        key = data.get("source_key") if data else None
-        return key if isinstance(key, str) else None
+        sweep_once(self.root)
+        for root in self.read_roots():
+            data = read_json(root / "index" / f"{input_key}.json")
+            key = data.get("source_key") if data else None
+            if isinstance(key, str):
+                return key
+        return None
 
     def record(self, input_key: str, source_key: str, prefix: str) -> None:
-        write_json_atomic(self.index_dir / f"{input_key}.json",
-                          {"source_key": source_key, "prefix": prefix})
+        path = self.write_root() / "index" / f"{input_key}.json"
+        data = {"source_key": source_key, "prefix": prefix}
+        try:
+            write_json_atomic(path, data)
+        except IsADirectoryError:  # a directory in the way of the index file
+            remove_tree(path)
+            write_json_atomic(path, data)
 
     def entry(self, source_key: str) -> Path:
-        return self.kernels_dir / source_key
+        """Directory of the kernel (where it was last verified, else where it would go)."""
+        located = self._located.get(source_key)
+        return located if located is not None else self.read_roots()[0] / "kernels" / source_key
 
     def verified_manifest(self, source_key: str) -> dict | None:
         """The manifest of a complete, undamaged kernel directory; None otherwise."""
-        entry = self.entry(source_key)
-        manifest = read_json(entry / MANIFEST)
-        if not manifest or manifest.get("source_key") != source_key:
-            return None
-        library = entry / str(manifest.get("library", ""))
-        try:
-            if not library.is_file() or file_sha256(library) != manifest.get("sha256"):
-                return None
-        except OSError:
-            return None
-        return manifest
+        for root in self.read_roots():
+            entry = root / "kernels" / source_key
+            manifest = _verified(entry, source_key)
+            if manifest is not None:
+                self._located[source_key] = entry
+                return manifest
+        return None
 
-    def new_build_dir(self) -> Path:
-        self.tmp_dir.mkdir(parents=True, exist_ok=True)
-        return Path(tempfile.mkdtemp(prefix="build-", dir=self.tmp_dir))
+    @contextlib.contextmanager
+    def build_lock(self, source_key: str, label: str) -> Iterator[None]:
+        """Hold the lock of ``source_key`` in the writable root (after sweeping it)."""
+        root = self.write_root()
+        sweep(root)
+        with exclusive(root / "locks" / f"{source_key}.lock", label):
+            yield
 
-    def install(self, build_dir: Path, source_key: str) -> None:
-        """Move a finished build directory into place (atomic; first writer wins)."""
-        self.kernels_dir.mkdir(parents=True, exist_ok=True)
-        target = self.entry(source_key)
+    def discard(self, source_key: str) -> None:
+        """Remove the writable root's entry of ``source_key`` (hold its lock)."""
+        self._located.pop(source_key, None)
+        remove_tree(self.write_root() / "kernels" / source_key)
+
+    def new_build_dir(self, source_key: str) -> Path:
+        """A fresh ``tmp/build-<source key>-*`` directory (hold the key's lock)."""
+        tmp = self.write_root() / "tmp"
+        tmp.mkdir(parents=True, exist_ok=True)
+        path = Path(tempfile.mkdtemp(prefix=f"build-{source_key}-", dir=tmp))
+        os.chmod(path, dir_mode())
+        return path
+
+    def install(self, build_dir: Path, source_key: str) -> Path:
+        """Move a finished build directory into place (atomic; hold the key's lock)."""
+        target = self.write_root() / "kernels" / source_key
+        target.parent.mkdir(parents=True, exist_ok=True)
         try:
             os.rename(build_dir, target)
         except OSError:
-            # another process installed the same kernel first (or a damaged copy is in
-            # the way: the caller verifies and, if needed, removes it and retries)
+            # something is in the way (e.g. a damaged entry another user owns): the caller
+            # verifies the entry and reports it
             shutil.rmtree(build_dir, ignore_errors=True)
+        return target
+
+
+def _verified(entry: Path, source_key: str) -> dict | None:
+    manifest = read_json(entry / MANIFEST)
+    if not manifest or manifest.get("source_key") != source_key:
+        return None
+    library = entry / str(manifest.get("library", ""))
+    try:
+        if not library.is_file() or file_sha256(library) != manifest.get("sha256"):
+            return None
+    except OSError:
+        return None
+    return manifest

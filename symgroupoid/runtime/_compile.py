@@ -11,13 +11,16 @@ from pathlib import Path
 
 import sympy as sp
 
+from .._errors import CacheError
 from ..codegen import generate_c, templates_digest
 from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
     DEFAULT_FLAGS,
+    NUMPY_HINT,
     CompilerNotFoundError,
     build_extension,
+    compile_args,
     find_compiler,
     load_extension,
     module_name,
@@ -27,7 +30,6 @@ from ._cache import (
     KernelCache,
     abi_tag,
     file_sha256,
-    remove_tree,
     sha256_of,
     write_json_atomic,
 )
@@ -35,6 +37,9 @@ from ._simulator import Simulator
 
 BACKENDS = ("auto", "c", "numpy")
 _LOADED: dict[str, object] = {}
+#: source key → (kernel, flags, label) of every kernel this process asked to build (lets an
+#: entry that fails to load be rebuilt)
+_RECIPES: dict[str, tuple[KernelSource, tuple[str, ...], str]] = {}
 #: what this process did: C generations, compiler runs, extension loads (cache diagnostics)
 STATS = {"codegen": 0, "builds": 0, "loads": 0}
 
@@ -91,53 +96,112 @@ def input_key(step, flags: Sequence[str]) -> str:
     return sha256_of([*parts, codegen_digest(), abi_tag(), *flags])[:32]
 
 
+def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
+    """Cache key of a generated kernel: its header, source and cdef, the ABI and the flags."""
+    return sha256_of([kernel.header, kernel.source, kernel.cdef, abi_tag(), *flags])[:32]
+
+
+def _same_entry(manifest: dict, stale: dict | None) -> bool:
+    return stale is not None and manifest.get("sha256") == stale.get("sha256")
+
+
 def build_cached(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCache,
-                 label: str) -> tuple[str, dict]:
+                 label: str, *, discard: dict | None = None) -> tuple[str, dict]:
     """Build ``kernel`` into the cache unless a verified entry exists; (source key, manifest).
 
-    The entry is keyed by a hash of the generated source and flags; it is built in a
-    temporary directory and renamed into place, and a damaged entry is rebuilt.
+    The entry is keyed by a hash of the generated source and flags.  On a miss the key's
+    lock is taken (other processes missing the same kernel wait, then find it built); the
+    build happens in a temporary directory renamed into place, and a damaged entry is
+    rebuilt.  ``discard``: the manifest of an entry that verified but failed to load; it is
+    removed and rebuilt unless another process has replaced it meanwhile.
     """
-    source_key = sha256_of([kernel.header, kernel.source, kernel.cdef, abi_tag(), *flags])[:32]
+    flags = tuple(flags)
+    source_key = source_key_of(kernel, flags)
+    _RECIPES[source_key] = (kernel, flags, label)
+    stale = discard if discard and discard.get("source_key") == source_key else None
     manifest = cache.verified_manifest(source_key)
-    if manifest is None:
-        remove_tree(cache.entry(source_key))  # absent, or damaged: rebuild from scratch
+    if manifest is None or _same_entry(manifest, stale):
         find_compiler()
-        build_dir = cache.new_build_dir()
-        try:
-            name = module_name(source_key)
-            STATS["builds"] += 1
-            library = build_extension(kernel, build_dir, name, flags)
-            write_json_atomic(build_dir / MANIFEST, {
-                "source_key": source_key, "module": name, "library": library.name,
-                "sha256": file_sha256(library), "prefix": kernel.prefix,
-                "flags": list(flags), "abi": abi_tag(), "system": label})
-        except BaseException:
-            shutil.rmtree(build_dir, ignore_errors=True)
-            raise
-        cache.install(build_dir, source_key)
-        manifest = cache.verified_manifest(source_key)
-        if manifest is None:
-            raise RuntimeError(f"{label}: the kernel cache entry {cache.entry(source_key)} "
-                               f"is damaged right after installation")
+        with cache.build_lock(source_key, label):
+            manifest = cache.verified_manifest(source_key)  # built while this one waited?
+            if manifest is None or _same_entry(manifest, stale):
+                manifest = _build_entry(kernel, flags, cache, label, source_key)
     return source_key, manifest
 
 
+def _build_entry(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCache, label: str,
+                 source_key: str) -> dict:
+    """Compile into a fresh build directory and install it (the key's lock is held)."""
+    cache.discard(source_key)  # absent, damaged or unloadable: rebuild from scratch
+    build_dir = cache.new_build_dir(source_key)
+    try:
+        name = module_name(source_key)
+        STATS["builds"] += 1
+        library = build_extension(kernel, build_dir, name, flags)
+        write_json_atomic(build_dir / MANIFEST, {
+            "source_key": source_key, "module": name, "library": library.name,
+            "sha256": file_sha256(library), "prefix": kernel.prefix,
+            "flags": list(flags), "compile_args": compile_args(flags), "abi": abi_tag(),
+            "system": label})
+    except BaseException:
+        shutil.rmtree(build_dir, ignore_errors=True)
+        raise
+    entry = cache.install(build_dir, source_key)
+    manifest = cache.verified_manifest(source_key)
+    if manifest is None or cache.entry(source_key) != entry:
+        raise CacheError(f"{label}: the kernel cache entry {entry} could not be installed "
+                         f"(something is in its way); remove it, or set SYMGROUPOID_CACHE to "
+                         f"another directory")
+    return manifest
+
+
+def _load_entry(source_key: str, manifest: dict, cache: KernelCache):
+    path = cache.entry(source_key) / str(manifest.get("library", ""))
+    try:
+        module = load_extension(path, str(manifest.get("module", "")))
+    except (ImportError, OSError) as exc:
+        raise CacheError(f"cannot load the cached kernel module {path}: {exc}") from exc
+    STATS["loads"] += 1
+    return module
+
+
+def _unloadable(error: CacheError, entry: Path) -> CacheError:
+    return CacheError(
+        f"{error}\nIt was rebuilt and still cannot be loaded: the kernel cache {entry.parent} "
+        f"may be on a file system that forbids executable code (noexec). Set "
+        f"SYMGROUPOID_CACHE to another directory. {NUMPY_HINT}")
+
+
 def load_cached(source_key: str, manifest: dict, cache: KernelCache):
-    """The extension module of a verified cache entry (loaded once per process)."""
+    """The extension module of a verified cache entry (loaded once per process).
+
+    An entry that verifies but does not load (its module file and manifest replaced
+    consistently by something else) is rebuilt once if this process has passed the kernel
+    to :func:`build_cached`; otherwise, or if it still fails, :class:`CacheError`.
+    """
     module = _LOADED.get(source_key)
     if module is None:
-        module = load_extension(cache.entry(source_key) / manifest["library"],
-                                manifest["module"])
-        STATS["loads"] += 1
+        try:
+            module = _load_entry(source_key, manifest, cache)
+        except CacheError as error:
+            recipe = _RECIPES.get(source_key)
+            if recipe is None:
+                raise
+            kernel, flags, label = recipe
+            _, manifest = build_cached(kernel, flags, cache, label, discard=manifest)
+            try:
+                module = _load_entry(source_key, manifest, cache)
+            except CacheError as again:
+                raise _unloadable(again, cache.entry(source_key)) from error
         _LOADED[source_key] = module
     return module
 
 
-def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str) -> tuple[str, dict]:
+def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
+           discard: dict | None = None) -> tuple[str, dict]:
     kernel = generate_c(step)
     STATS["codegen"] += 1
-    source_key, manifest = build_cached(kernel, flags, cache, step.name)
+    source_key, manifest = build_cached(kernel, flags, cache, step.name, discard=discard)
     cache.record(key, source_key, manifest["prefix"])
     return source_key, manifest
 
@@ -147,7 +211,8 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
     """The compiled kernel of ``step`` from the cache, building it on a miss.
 
     Raises :class:`CompilerNotFoundError` when a build is needed and no compiler exists,
-    :class:`CompilationError` when the compiler fails (the cache is left unchanged).
+    :class:`CompilationError` when the compiler fails (the cache is left unchanged),
+    :class:`CacheError` when the cache cannot serve the kernel (see :mod:`._cache`).
     """
     flags = tuple(flags)
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
@@ -156,8 +221,18 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
     manifest = cache.verified_manifest(source_key) if source_key else None
     if manifest is None:
         source_key, manifest = _build(step, flags, cache, key)
+    try:
+        module = load_cached(source_key, manifest, cache)
+    except CacheError as error:
+        if source_key in _RECIPES:  # built here: load_cached has already rebuilt it once
+            raise
+        source_key, manifest = _build(step, flags, cache, key, discard=manifest)
+        try:
+            module = _load_entry(source_key, manifest, cache)
+        except CacheError as again:
+            raise _unloadable(again, cache.entry(source_key)) from error
+        _LOADED[source_key] = module
     entry = cache.entry(source_key)
-    module = load_cached(source_key, manifest, cache)
     return CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns)), entry
 
 
@@ -172,9 +247,11 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
         or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
         ``"auto"``.
-    flags : extra compiler flags (default ``DEFAULT_FLAGS``); part of the cache key.
+    flags : extra compiler flags (default ``DEFAULT_FLAGS``); part of the cache key.  Builds
+        carry no debug information unless ``flags`` ask for it (``-g``).
     cache_dir : cache root (default ``$SYMGROUPOID_CACHE``, ``$XDG_CACHE_HOME/symgroupoid``
-        or ``~/.cache/symgroupoid``).
+        or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
+        private temporary directory for this process (with a ``RuntimeWarning``).
     tol_residual, tol_step, max_iterations : Newton options (see :class:`NewtonOptions`).
     """
     if backend not in BACKENDS:

@@ -1,0 +1,463 @@
+"""The kernel cache under real-world faults: read-only and unwritable roots, killed builders,
+files where directories belong, unloadable modules, a broken compiler, locks, the umask."""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import fcntl
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+import threading
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
+
+import symgroupoid as sg
+from symgroupoid.codegen import emit_c, generate_c
+from symgroupoid.runtime import CacheError, CompilationError, _cache, _compile
+from symgroupoid.runtime._build import DEFAULT_FLAGS
+from symgroupoid.runtime._programs import compile_program, program_source
+
+pytestmark = needs_cc
+
+OSCILLATOR = '''
+import sympy as sp
+import symgroupoid as sg
+
+
+def oscillator(name="oscillator"):
+    """A harmonic oscillator on the pair groupoid of the line (one unknown)."""
+    h, k = sp.symbols("h k", positive=True)
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return h * (((q1 - q0) / h) ** 2 / 2 - k * ((q0 + q1) / 2) ** 2 / 2)
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
+                             name=name).euler_lagrange()
+'''
+_namespace: dict = {}
+exec(OSCILLATOR, _namespace)
+oscillator = _namespace["oscillator"]
+
+SCRIPT = OSCILLATOR + '''
+import json, sys, warnings
+from symgroupoid.runtime import _compile
+
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("always")
+    sim = sg.compile_step(oscillator(), backend="c")
+    final = sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1]
+print(json.dumps({"warnings": [str(w.message) for w in caught], "entry": str(sim.cache_entry),
+                  "backend": sim.backend, "final": final.tolist(), **_compile.STATS}))
+'''
+
+CC_WRAPPER = """#!/bin/sh
+touch "$SG_COMPILER_STARTED"
+sleep 60
+exec cc "$@"
+"""
+
+
+@pytest.fixture
+def cache_dir() -> Path:
+    """This test's (empty, not yet created) cache root, set up by ``isolated_cache``."""
+    return _cache.cache_root()
+
+
+def reference_final() -> np.ndarray:
+    sim = oscillator().compile(backend="numpy")
+    return sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1]
+
+
+def _drop_file_permission_override() -> None:
+    """In a child running as root: remove CAP_DAC_OVERRIDE and CAP_DAC_READ_SEARCH from the
+    bounding set, so that after exec file permissions apply to it as to any owner."""
+    libc = ctypes.CDLL(None, use_errno=True)
+    for capability in (1, 2):
+        if libc.prctl(24, capability, 0, 0, 0) != 0:  # PR_CAPBSET_DROP
+            raise OSError(ctypes.get_errno(), "prctl(PR_CAPBSET_DROP) failed")
+
+
+def script_env(**env: str | None) -> dict[str, str]:
+    """The test environment with ``env`` applied (None removes a variable)."""
+    out = {**os.environ, "PYTHONPATH": str(REPO), "SYMGROUPOID_LOCK_TIMEOUT": "60"}
+    for name, value in env.items():
+        if value is None:
+            out.pop(name, None)
+        else:
+            out[name] = value
+    return out
+
+
+def run_script(env: dict[str, str], unprivileged: bool = False) -> dict:
+    """Run SCRIPT in a new process; ``unprivileged``: with file permissions enforced even
+    when the tests run as root."""
+    preexec = _drop_file_permission_override if unprivileged and os.geteuid() == 0 else None
+    try:
+        result = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True,
+                                text=True, env=env, preexec_fn=preexec, timeout=300)
+    except subprocess.SubprocessError as exc:
+        pytest.skip(f"cannot enforce file permissions for a root process: {exc}")
+    assert result.returncode == 0, result.stderr
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def tree(root: Path) -> list[str]:
+    return sorted(str(p.relative_to(root)) for p in root.rglob("*")) if root.exists() else []
+
+
+@contextlib.contextmanager
+def read_only(*paths: Path):
+    modes = [p.stat().st_mode for p in paths]
+    try:
+        for p in paths:
+            p.chmod(0o555)
+        yield
+    finally:
+        for p, mode in zip(paths, modes):
+            p.chmod(stat.S_IMODE(mode))
+
+
+@contextlib.contextmanager
+def umask(mask: int):
+    old = os.umask(mask)
+    try:
+        yield
+    finally:
+        os.umask(old)
+
+
+# -- concurrency, stale build directories, locks ------------------------------------------------
+
+def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, cache_dir):
+    """kill -9 of a process while its compiler runs: its build directory stays behind; the
+    next use removes it (the lock died with the process, not with the orphaned compiler)
+    and builds exactly once."""
+    wrapper = tmp_path / "slow-cc"
+    wrapper.write_text(CC_WRAPPER)
+    wrapper.chmod(0o755)
+    started = tmp_path / "compiler-started"
+    env = script_env(SYMGROUPOID_CACHE=str(cache_dir), CC=str(wrapper),
+                     SG_COMPILER_STARTED=str(started))
+    proc = subprocess.Popen([sys.executable, "-c", SCRIPT], env=env, start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.monotonic() + 120
+        while not started.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert started.exists(), "the build never reached the compiler"
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        left = sorted(p.name for p in (cache_dir / "tmp").iterdir())
+        assert len(left) == 1 and left[0].startswith("build-"), left
+        t0 = time.monotonic()
+        again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir),
+                                      SYMGROUPOID_LOCK_TIMEOUT="30"))
+        assert time.monotonic() - t0 < 30
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)  # the orphaned compiler wrapper
+    assert (again["builds"], again["loads"]) == (1, 1)
+    assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
+    assert list((cache_dir / "tmp").iterdir()) == []
+
+
+def test_threads_building_kernels_at_once(cache_dir):
+    """Threads of one process: one compiler run per kernel, and builds of different
+    kernels do not mix (each build changes the working directory and captures fds 1, 2)."""
+    names = ["oscillator_t1", "oscillator_t2", "oscillator_t1", "oscillator_t3"]
+    results: dict[int, np.ndarray] = {}
+    errors: list[BaseException] = []
+
+    def run(i: int) -> None:
+        try:
+            sim = sg.compile_step(oscillator(names[i]), backend="c")
+            results[i] = sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1]
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    builds = _compile.STATS["builds"]
+    threads = [threading.Thread(target=run, args=(i,)) for i in range(len(names))]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=300)
+    assert errors == [] and len(results) == len(names)
+    assert _compile.STATS["builds"] == builds + 3
+    assert all(np.abs(r - reference_final()).max() <= 1e-12 for r in results.values())
+    assert len(list((cache_dir / "kernels").iterdir())) == 3
+
+
+def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):
+    step = oscillator()
+    key = _compile.source_key_of(generate_c(step), DEFAULT_FLAGS)
+    _cache.writable_root(cache_dir)
+    tmp = cache_dir / "tmp"
+    live = tmp / f"build-{key}-live"
+    dead = tmp / f"build-{'0' * 32}-dead"
+    old_unkeyed, new_unkeyed = tmp / "build-abc123", tmp / "build-def456"
+    for path in (live, dead, old_unkeyed, new_unkeyed):
+        path.mkdir()
+        (path / "x.o").write_bytes(b"partial")
+    os.utime(old_unkeyed, (time.time() - 2 * _cache.GRACE,) * 2)
+    fd = os.open(cache_dir / "locks" / f"{key}.lock", os.O_RDWR | os.O_CREAT)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # as a live builder of this kernel holds it
+        _cache.sweep(cache_dir)
+        assert sorted(p.name for p in tmp.iterdir()) == sorted([live.name, new_unkeyed.name])
+    finally:
+        os.close(fd)
+    _cache.sweep(cache_dir)
+    assert [p.name for p in tmp.iterdir()] == [new_unkeyed.name]
+
+
+def test_warm_use_removes_a_dead_builders_directory(cache_dir):
+    """The leftover of a killed build of another kernel goes on the next warm load too."""
+    env = script_env(SYMGROUPOID_CACHE=str(cache_dir))
+    assert run_script(env)["builds"] == 1
+    dead = cache_dir / "tmp" / f"build-{'0' * 32}-killed"
+    dead.mkdir()
+    (dead / "partial.o").write_bytes(b"partial")
+    warm = run_script(env)
+    assert (warm["builds"], warm["loads"]) == (0, 1)
+    assert list((cache_dir / "tmp").iterdir()) == []
+
+
+def test_waiting_for_a_hung_builder_times_out_clearly(monkeypatch, cache_dir):
+    step = oscillator("oscillator_lock")
+    key = _compile.source_key_of(generate_c(step), DEFAULT_FLAGS)
+    lock = cache_dir / "locks" / f"{key}.lock"
+    lock.parent.mkdir(parents=True)
+    fd = os.open(lock, os.O_RDWR | os.O_CREAT)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)
+        os.write(fd, b"pid 4242 on some-host\n")
+        monkeypatch.setenv("SYMGROUPOID_LOCK_TIMEOUT", "0.3")
+        t0 = time.monotonic()
+        with pytest.raises(CacheError, match="pid 4242 on some-host") as info:
+            sg.compile_step(step, backend="c")
+        assert 0.3 <= time.monotonic() - t0 < 10
+        assert str(lock) in str(info.value) and "SYMGROUPOID_LOCK_TIMEOUT" in str(info.value)
+        monkeypatch.setenv("SYMGROUPOID_LOCK_TIMEOUT", "soon")
+        with pytest.raises(CacheError, match="positive number of seconds"):
+            sg.compile_step(step, backend="c")
+    finally:
+        os.close(fd)
+    monkeypatch.setenv("SYMGROUPOID_LOCK_TIMEOUT", "5")
+    assert sg.compile_step(step, backend="c").backend == "c"
+
+
+# -- unwritable roots ---------------------------------------------------------------------------
+
+def _assert_fell_back(result: dict, unwritable: Path) -> None:
+    (message,) = [w for w in result["warnings"] if "kernel cache" in w]
+    assert str(unwritable) in message and "not writable" in message
+    assert "SYMGROUPOID_CACHE" in message
+    assert result["backend"] == "c" and result["builds"] == 1
+    assert not Path(result["entry"]).is_relative_to(unwritable)
+    assert not Path(result["entry"]).exists(), "the private cache is removed at exit"
+    assert np.abs(np.array(result["final"]) - reference_final()).max() <= 1e-12
+
+
+def test_read_only_cache_root_falls_back_with_one_warning(cache_dir):
+    cache_dir.mkdir()
+    with read_only(cache_dir):
+        result = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)),
+                            unprivileged=True)
+    _assert_fell_back(result, cache_dir)
+    assert tree(cache_dir) == []
+
+
+def test_read_only_populated_cache_is_used_without_warning(cache_dir):
+    first = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
+    assert first["builds"] == 1
+    dirs = [cache_dir, *(p for p in cache_dir.rglob("*") if p.is_dir())]
+    before = tree(cache_dir)
+    with read_only(*dirs):
+        warm = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)),
+                          unprivileged=True)
+    assert warm["warnings"] == [] and (warm["builds"], warm["loads"]) == (0, 1)
+    assert warm["entry"] == first["entry"] and warm["final"] == first["final"]
+    assert tree(cache_dir) == before
+
+
+def test_unwritable_home_falls_back(tmp_path):
+    home = tmp_path / "home"
+    home.mkdir()
+    with read_only(home):
+        result = run_script(script_env(HOME=str(home), SYMGROUPOID_CACHE=None,
+                                       XDG_CACHE_HOME=None), unprivileged=True)
+    _assert_fell_back(result, home / ".cache" / "symgroupoid")
+    assert str(home / ".cache") in result["warnings"][0]
+    assert tree(home) == []
+
+
+def test_cache_root_that_is_a_file_falls_back(cache_dir):
+    cache_dir.parent.mkdir(parents=True, exist_ok=True)
+    cache_dir.write_text("not a cache")
+    result = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
+    _assert_fell_back(result, cache_dir)
+    assert "not a directory" in result["warnings"][0]
+    assert cache_dir.read_text() == "not a cache"
+
+
+# -- damage -------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["tmp", "kernels", "index", "locks"])
+def test_layout_directory_that_is_a_file_is_replaced(cache_dir, name):
+    cache_dir.mkdir()
+    (cache_dir / name).write_text("in the way")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        sim = sg.compile_step(oscillator(), backend="c")
+    assert sim.backend == "c" and sim.cache_entry.is_relative_to(cache_dir)
+    assert all((cache_dir / d).is_dir() for d in _cache.SUBDIRS)
+
+
+def _build_without_loading(step, cache_root: Path) -> tuple[Path, dict]:
+    cache = _cache.KernelCache(cache_root)
+    _compile._build(step, tuple(DEFAULT_FLAGS), cache, _compile.input_key(step, DEFAULT_FLAGS))
+    (entry,) = (cache_root / "kernels").iterdir()
+    return entry, json.loads((entry / "manifest.json").read_text())
+
+
+def _replace_library_consistently(entry: Path, manifest: dict, data: bytes) -> None:
+    """Replace the module and its manifest so that the hash matches the new bytes (by a
+    rename: writing into a module some process has loaded would crash that process)."""
+    library = entry / manifest["library"]
+    replacement = entry / "replacement"
+    replacement.write_bytes(data)
+    os.replace(replacement, library)
+    manifest = {**manifest, "sha256": _cache.file_sha256(library)}
+    (entry / "manifest.json").write_text(json.dumps(manifest))
+
+
+def test_garbage_module_with_matching_manifest_is_rebuilt(cache_dir):
+    entry, manifest = _build_without_loading(oscillator(), cache_dir)
+    _replace_library_consistently(entry, manifest, b"\x7fELF but not really" * 100)
+    again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
+    assert again["warnings"] == [] and (again["builds"], again["loads"]) == (1, 1)
+    assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
+    manifest = json.loads((entry / "manifest.json").read_text())
+    assert (entry / manifest["library"]).read_bytes()[:4] == b"\x7fELF"
+    assert list((cache_dir / "tmp").iterdir()) == []
+
+
+def test_kernel_directory_replaced_by_a_file_is_rebuilt(cache_dir):
+    entry, _ = _build_without_loading(oscillator(), cache_dir)
+    _cache.remove_tree(entry)
+    entry.write_text("in the way")
+    again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
+    assert (again["builds"], again["loads"]) == (1, 1) and entry.is_dir()
+    assert list((cache_dir / "tmp").iterdir()) == []
+
+
+def test_window_program_with_garbage_module_is_rebuilt(cache_dir):
+    """The boundary-value window programs load through the same cache (no step to
+    regenerate from: the source this process asked to build is kept)."""
+    x, y = sp.symbols("x y")
+    inputs, outputs = [x, y], [x * y + sp.sin(x), x - y]
+    kernel = program_source("sgw_garbage_window", inputs, [], outputs)
+    _compile.build_cached(kernel, tuple(DEFAULT_FLAGS), _cache.KernelCache(), "garbage window")
+    (entry,) = (cache_dir / "kernels").iterdir()
+    manifest = json.loads((entry / "manifest.json").read_text())
+    _replace_library_consistently(entry, manifest, b"garbage" * 64)
+    builds = _compile.STATS["builds"]
+    evaluate = compile_program("garbage window", inputs, [], outputs)
+    assert _compile.STATS["builds"] == builds + 1
+    values = np.array([[0.5, 2.0], [1.0, -1.0]])
+    expected = np.stack([values[:, 0] * values[:, 1] + np.sin(values[:, 0]),
+                         values[:, 0] - values[:, 1]], axis=1)
+    assert np.array_equal(evaluate(values), expected)
+
+
+def test_module_that_never_loads_gives_cache_error(monkeypatch, cache_dir):
+    def refuse(path, name):
+        raise ImportError(f"{path}: failed to map segment from shared object")
+
+    monkeypatch.setattr(_compile, "load_extension", refuse)
+    builds = _compile.STATS["builds"]
+    with pytest.raises(CacheError) as info:
+        sg.compile_step(oscillator("oscillator_noexec"), backend="c")
+    assert _compile.STATS["builds"] == builds + 2, "built, then rebuilt once"
+    text = str(info.value)
+    assert str(cache_dir / "kernels") in text and "SYMGROUPOID_CACHE" in text
+    assert 'backend="numpy"' in text
+
+
+# -- compiler -----------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("backend", ["auto", "c"])
+def test_compiler_that_always_fails_says_how_to_use_numpy(monkeypatch, cache_dir, backend):
+    monkeypatch.setenv("CC", "/bin/false")
+    with pytest.raises(CompilationError) as info:
+        sg.compile_step(oscillator(), backend=backend)
+    text = str(info.value)
+    assert "'/bin/false' fails even on a trivial C file" in text
+    assert 'backend="numpy"' in text and "SYMGROUPOID_BACKEND=numpy" in text
+    assert tree(cache_dir / "kernels") == [] and tree(cache_dir / "tmp") == []
+
+
+def test_kernel_rejected_by_a_working_compiler_is_not_blamed_on_the_compiler():
+    with pytest.raises(CompilationError) as info:
+        sg.compile_step(oscillator(), backend="c", flags=["-fno-such-option-for-symgroupoid"])
+    assert "trivial" not in str(info.value) and "SYMGROUPOID_BACKEND=numpy" in str(info.value)
+
+
+def _has_debug_info(library: Path) -> bool:
+    return b".debug_info" in library.read_bytes()
+
+
+def test_builds_carry_debug_information_only_when_asked(cache_dir):
+    plain = sg.compile_step(oscillator(), backend="c")
+    debug = sg.compile_step(oscillator(), backend="c", flags=[*DEFAULT_FLAGS, "-g"])
+    manifests = [json.loads((sim.cache_entry / "manifest.json").read_text())
+                 for sim in (plain, debug)]
+    assert manifests[0]["compile_args"] == ["-g0", *DEFAULT_FLAGS]
+    assert manifests[1]["compile_args"] == [*DEFAULT_FLAGS, "-g"]
+    assert not _has_debug_info(plain.cache_entry / manifests[0]["library"])
+    assert _has_debug_info(debug.cache_entry / manifests[1]["library"])
+
+
+# -- file modes ---------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("mask, expected", [(0o022, 0o644), (0o027, 0o640), (0o077, 0o600)],
+                         ids=["022", "027", "077"])
+def test_emitted_files_follow_the_umask(tmp_path, mask, expected):
+    with umask(mask):
+        written = emit_c(oscillator(), tmp_path / "out" / "osc")
+    assert [stat.S_IMODE(p.stat().st_mode) for p in written] == [expected, expected]
+
+
+def test_cache_files_and_directories_follow_the_umask(cache_dir):
+    with umask(0o027):
+        sim = sg.compile_step(oscillator(), backend="c")
+    manifest = json.loads((sim.cache_entry / "manifest.json").read_text())
+    (index,) = (cache_dir / "index").iterdir()
+    modes = {p.name: stat.S_IMODE(p.stat().st_mode) for p in
+             (sim.cache_entry, sim.cache_entry / "manifest.json", index,
+              sim.cache_entry / f"{manifest['prefix']}.c")}
+    assert modes == {sim.cache_entry.name: 0o750, "manifest.json": 0o640, index.name: 0o640,
+                     f"{manifest['prefix']}.c": 0o640}
+
+
+@pytest.mark.slow
+def test_make_generated_writes_readable_files(tmp_path):
+    with umask(0o022):
+        result = subprocess.run([sys.executable, "-m", "symgroupoid", "generate",
+                                 str(tmp_path / "generated")], capture_output=True, text=True,
+                                env=script_env(), timeout=600)
+    assert result.returncode == 0, result.stderr
+    files = sorted((tmp_path / "generated").iterdir())
+    assert files and {stat.S_IMODE(p.stat().st_mode) for p in files} == {0o644}
