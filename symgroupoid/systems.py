@@ -26,6 +26,11 @@ def plate_ball() -> DiscreteSystem:
     """Ball of radius r rolling without slipping on a plate rotating at rate Ω.
 
     Parameters ``h, r, Omega, c``; c fixes the rotation about the vertical axis per step.
+    This is the optimal-control model of seed 000 §6.2 (cost ½|v|², no rotational inertia):
+    its flow is constrained variational dynamics, not nonholonomic rolling, and its solutions
+    can escape to infinity.  The steps approximate that flow while the rotation per step is
+    small, hΩ|q|/r ≪ 1; at hΩ|q|/r ≈ 1 it reaches π/2 and the discrete solution leaves the
+    continuous one (docs/conventions.md §12).
     """
     h, r, omega, c = sp.symbols("h r Omega c", positive=True)
     G = PairGroupoid(EuclideanSpace("x y")) * SO3("g")
