@@ -52,6 +52,8 @@ class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
 class UnsupportedExpressionError(SymgroupoidError, ValueError):
     """An expression contains something compiled code cannot evaluate (a complex or infinite
     value, an undefined function, an unevaluated derivative, …); the message names it."""
+
+
 class CacheError(SymgroupoidError, RuntimeError):
     """The kernel cache cannot be used: a lock timed out, or a kernel stays unloadable.
 
