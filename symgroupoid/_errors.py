@@ -47,3 +47,7 @@ class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
         self.step = step
         self.residual_norm = residual_norm
         self.iterate = iterate
+
+
+class TrajectoryTooLargeError(SymgroupoidError, MemoryError):
+    """The states a simulation was asked to keep would not fit in this machine's memory."""
