@@ -10,8 +10,20 @@
  */
 #include "heavy_top.h"
 
+/* The Newton stepper turns an overflow or a NaN into HEAVY_TOP_NON_FINITE through isfinite()
+ * checks.  -ffast-math and -ffinite-math-only let the compiler assume that no value is ever
+ * NaN or infinite and delete those checks (a NaN input then comes back "converged"), so this
+ * kernel refuses to be compiled under them. */
+#if defined(__FAST_MATH__)
+#error "this symgroupoid kernel must not be compiled with -ffast-math (or -Ofast): it deletes the NaN and overflow checks of the Newton stepper"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "this symgroupoid kernel must not be compiled with -ffinite-math-only: it deletes the NaN and overflow checks of the Newton stepper"
+#endif
+
 #include <float.h>
+#include <limits.h>
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
@@ -224,27 +236,67 @@ static double heavy_top_norm_inf(const double *v, int n)
     return m;
 }
 
-/* Solve A x = b in place by LU with partial pivoting (A row-major, overwritten; x in b).
- * Multipliers use the reciprocal of each pivot (one division per column).
- * Returns 1 when a pivot is not above n * DBL_EPSILON * scale (numerically singular). */
-static int heavy_top_lu_solve(double *A, double *b, double scale)
+/* Solve A x = b in place (A row-major, overwritten; x returned in b).
+ * Every row of A and its entry of b are first multiplied by the power of two that brings the
+ * row's largest |entry| into [1/2, 1) (exact, no rounding), so the singularity test is
+ * relative to the size of each equation, not to the largest entry of A: equations of very
+ * different magnitudes are not mistaken for a singular system.  Then LU with partial
+ * pivoting, one division per column (reciprocal pivots), zero multipliers skipped.
+ * Returns HEAVY_TOP_OK; HEAVY_TOP_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
+ * n * DBL_EPSILON (numerically singular); HEAVY_TOP_NON_FINITE when an entry of A or b, or of
+ * their scaled or eliminated values, is not finite (overflow or NaN). */
+static int heavy_top_lu_solve(double *A, double *b)
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;
-    const double tiny = n * DBL_EPSILON * scale;
-    double inv[HEAVY_TOP_N_UNKNOWNS];
+    const double tiny = n * DBL_EPSILON;
+    double inv[HEAVY_TOP_N_UNKNOWNS], rmax[HEAVY_TOP_N_UNKNOWNS];
     int i, j, k;
+    for (i = 0; i < n; ++i) {
+        rmax[i] = heavy_top_norm_inf(A + i * n, n);
+        if (!isfinite(rmax[i]) || !isfinite(b[i])) {
+            return HEAVY_TOP_NON_FINITE;
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        double s, s2;
+        int e;
+        if (rmax[i] == 0.0) {
+            return HEAVY_TOP_SINGULAR_JACOBIAN;
+        }
+        (void)frexp(rmax[i], &e);
+        if (e >= -1000) {
+            s = ldexp(1.0, -e);
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] *= s;
+            }
+            b[i] *= s;
+        } else { /* 2^-e exceeds the double range: two exact factors */
+            s = ldexp(1.0, 1000);
+            s2 = ldexp(1.0, -e - 1000);
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] = A[i * n + j] * s * s2;
+            }
+            b[i] = b[i] * s * s2;
+        }
+        if (!isfinite(b[i])) {
+            return HEAVY_TOP_NON_FINITE;
+        }
+    }
     for (k = 0; k < n; ++k) {
         int piv = k;
-        double amax = fabs(A[k * n + k]);
-        for (i = k + 1; i < n; ++i) {
+        double amax = 0.0;
+        for (i = k; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
+            if (!isfinite(a)) {
+                return HEAVY_TOP_NON_FINITE;
+            }
             if (a > amax) {
                 amax = a;
                 piv = i;
             }
         }
         if (!(amax > tiny)) {
-            return 1;
+            return HEAVY_TOP_SINGULAR_JACOBIAN;
         }
         if (piv != k) {
             double t;
@@ -275,27 +327,32 @@ static int heavy_top_lu_solve(double *A, double *b, double scale)
         }
         b[i] = s * inv[i];
     }
-    return 0;
+    return isfinite(heavy_top_norm_inf(b, n)) ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
+}
+
+/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0 */
+static int heavy_top_options_valid(const heavy_top_options *options)
+{
+    return options->max_iterations >= 0 && options->tol_residual >= 0.0
+           && options->tol_step >= 0.0;
 }
 
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the last iterate).
- * Converged when |F|_inf <= tol_residual, or when the last Newton step was at most
- * tol_step * (1 + |u|_inf).  *iterations is the number of Newton updates made and
+ * The Jacobian at the guess is factored before any convergence test, so every call checks
+ * it at least once: a guess with |F|_inf <= tol_residual is accepted only when the Jacobian
+ * there is regular, and a degenerate step is reported as HEAVY_TOP_SINGULAR_JACOBIAN, never
+ * returned as solved.  Converged when |F|_inf <= tol_residual, or when the last Newton step
+ * was at most tol_step * (1 + |u|_inf).  *iterations is the number of Newton updates made and
  * *residual_norm the |F|_inf of the returned iterate.  The first evaluation computes F and J
- * together (a guess is rarely converged already); later ones F alone, then J if needed. */
-int heavy_top_solve_step(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
+ * together; later ones F alone, then F and J if another update is needed. */
+static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
-    heavy_top_options defaults;
     double F[HEAVY_TOP_N_EQUATIONS];
     double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
     double step_norm = 0.0;
-    int it, i;
-    if (options == NULL) {
-        heavy_top_default_options(&defaults);
-        options = &defaults;
-    }
+    int it, i, status;
     for (it = 0;; ++it) {
-        double rnorm, jscale;
+        double rnorm;
         if (it == 0) {
             heavy_top_residual_jacobian(u, known, p, F, J);
         } else {
@@ -307,6 +364,12 @@ int heavy_top_solve_step(const double *known, const double *p, const heavy_top_o
         if (!isfinite(rnorm)) {
             return HEAVY_TOP_NON_FINITE;
         }
+        if (it == 0) {
+            status = heavy_top_lu_solve(J, F);
+            if (status != HEAVY_TOP_OK) {
+                return status;
+            }
+        }
         if (rnorm <= options->tol_residual
             || (it > 0 && step_norm <= options->tol_step * (1.0 + heavy_top_norm_inf(u, HEAVY_TOP_N_UNKNOWNS)))) {
             return HEAVY_TOP_OK;
@@ -316,37 +379,70 @@ int heavy_top_solve_step(const double *known, const double *p, const heavy_top_o
         }
         if (it > 0) {
             heavy_top_residual_jacobian(u, known, p, F, J);
-        }
-        jscale = heavy_top_norm_inf(J, HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS);
-        if (!isfinite(jscale)) {
-            return HEAVY_TOP_NON_FINITE;
-        }
-        if (heavy_top_lu_solve(J, F, jscale)) {
-            return HEAVY_TOP_SINGULAR_JACOBIAN;
+            status = heavy_top_lu_solve(J, F);
+            if (status != HEAVY_TOP_OK) {
+                return status;
+            }
         }
         step_norm = heavy_top_norm_inf(F, HEAVY_TOP_N_UNKNOWNS);
-        if (!isfinite(step_norm)) {
-            return HEAVY_TOP_NON_FINITE;
-        }
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
         }
     }
 }
 
-/* Advance n_steps steps from known0.  Writes states[0 .. n_steps] (each HEAVY_TOP_N_KNOWNS
- * doubles), iterations[k] and residual_norms[k] for k < n_steps.  The Newton guess of the first
- * two steps (and of every step if options->extrapolate is 0) is heavy_top_predict; later ones
- * extrapolate the last two solutions linearly, u_k ~ 2 u_{k-1} - u_{k-2} (chart coordinates
- * and multipliers of consecutive steps), and fall back to heavy_top_predict if Newton fails
- * from there (iterations[k] counts both tries).
- * On failure returns the status, sets *failed_step = k (else -1) and copies the last Newton
- * iterate of that step to last_iterate (HEAVY_TOP_N_UNKNOWNS doubles; may be NULL); later
- * entries are not written. */
-int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, double *states, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+/* One Newton solve from the guess in u (see heavy_top_newton).  Returns
+ * HEAVY_TOP_INVALID_ARGUMENT, writing nothing, for a null pointer, invalid options, or a
+ * non-finite entry of known, p or the guess. */
+int heavy_top_solve_step(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     heavy_top_options defaults;
-    double u1[HEAVY_TOP_N_UNKNOWNS], u2[HEAVY_TOP_N_UNKNOWNS];
+    if (options == NULL) {
+        heavy_top_default_options(&defaults);
+        options = &defaults;
+    }
+    if (known == NULL || u == NULL || iterations == NULL || residual_norm == NULL
+        || p == NULL
+        || !heavy_top_options_valid(options)
+        || !isfinite(heavy_top_norm_inf(known, HEAVY_TOP_N_KNOWNS))
+        || !isfinite(heavy_top_norm_inf(p, HEAVY_TOP_N_PARAMETERS))
+        || !isfinite(heavy_top_norm_inf(u, HEAVY_TOP_N_UNKNOWNS))) {
+        return HEAVY_TOP_INVALID_ARGUMENT;
+    }
+    return heavy_top_newton(known, p, options, u, iterations, residual_norm);
+}
+
+/* 1 when a warm start is usable: count in 0..2 and its count solutions finite */
+static int heavy_top_warm_start_valid(const heavy_top_warm_start *warm)
+{
+    if (warm->count < 0 || warm->count > 2) {
+        return 0;
+    }
+    return (warm->count < 1 || isfinite(heavy_top_norm_inf(warm->u_last, HEAVY_TOP_N_UNKNOWNS)))
+           && (warm->count < 2 || isfinite(heavy_top_norm_inf(warm->u_before, HEAVY_TOP_N_UNKNOWNS)));
+}
+
+/* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
+ * Writes states[0 .. n_steps] (row k at states + k * HEAVY_TOP_N_KNOWNS), and iterations[k],
+ * residual_norms[k] for k < n_steps; needs capacity >= n_steps + 1 (rows of states;
+ * iterations and residual_norms hold at least capacity - 1 entries), else nothing is written
+ * and HEAVY_TOP_INVALID_ARGUMENT is returned.
+ * The Newton guess of a step is heavy_top_predict, or, when options->extrapolate is set and the
+ * warm start holds the solutions of the last two steps, their linear extrapolation
+ * u ~ 2 u_last - u_before (chart coordinates and multipliers of consecutive steps), falling
+ * back to heavy_top_predict if Newton fails from there (iterations[k] counts both tries).
+ * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
+ * call from the last state of this one with the same warm start continues the run exactly:
+ * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
+ * a new run.
+ * On failure returns the status, sets *failed_step = k (else -1; failed_step may be NULL)
+ * and copies the last Newton iterate of that step to last_iterate (HEAVY_TOP_N_UNKNOWNS
+ * doubles; may be NULL); iterations[k] and residual_norms[k] describe the failed step,
+ * states[k + 1 ..] are not written and warm still ends at step k - 1. */
+int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+{
+    heavy_top_options defaults;
+    heavy_top_warm_start fresh;
     long k;
     int i;
     if (failed_step != NULL) {
@@ -356,34 +452,39 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
         heavy_top_default_options(&defaults);
         options = &defaults;
     }
+    if (warm == NULL) {
+        memset(&fresh, 0, sizeof fresh);
+        warm = &fresh;
+    }
     if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
         || p == NULL
-        || n_steps < 0 || options->max_iterations < 0
-        || !(options->tol_residual >= 0.0) || !(options->tol_step >= 0.0)
+        || n_steps < 0 || capacity < 1 || n_steps > capacity - 1
+        || !heavy_top_options_valid(options) || !heavy_top_warm_start_valid(warm)
         || !isfinite(heavy_top_norm_inf(known0, HEAVY_TOP_N_KNOWNS))
         || !isfinite(heavy_top_norm_inf(p, HEAVY_TOP_N_PARAMETERS))) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
     memmove(states, known0, sizeof(double) * HEAVY_TOP_N_KNOWNS);
     for (k = 0; k < n_steps; ++k) {
-        const double *current = states + k * HEAVY_TOP_N_KNOWNS;
-        double *next = states + (k + 1) * HEAVY_TOP_N_KNOWNS;
+        const double *current = states + (size_t)k * HEAVY_TOP_N_KNOWNS;
+        double next[HEAVY_TOP_N_KNOWNS];
         double u[HEAVY_TOP_N_UNKNOWNS];
+        const int extrapolated = options->extrapolate && warm->count == 2;
         int status;
-        if (k < 2 || !options->extrapolate) {
-            heavy_top_predict(current, p, u);
-        } else {
+        if (extrapolated) {
             for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
-                u[i] = 2.0 * u1[i] - u2[i];
+                u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
             }
+        } else {
+            heavy_top_predict(current, p, u);
         }
-        status = heavy_top_solve_step(current, p, options, u, &iterations[k], &residual_norms[k]);
-        if (status != HEAVY_TOP_OK && k >= 2 && options->extrapolate) {
+        status = heavy_top_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
+        if (status != HEAVY_TOP_OK && extrapolated) {
             /* the extrapolated guess failed: retry from the prediction */
             int more = 0;
             heavy_top_predict(current, p, u);
-            status = heavy_top_solve_step(current, p, options, u, &more, &residual_norms[k]);
-            iterations[k] += more;
+            status = heavy_top_newton(current, p, options, u, &more, &residual_norms[k]);
+            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
         }
         if (status == HEAVY_TOP_OK) {
             heavy_top_next_knowns(u, current, p, next);
@@ -400,8 +501,12 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
             }
             return status;
         }
-        memcpy(u2, u1, sizeof u);
-        memcpy(u1, u, sizeof u);
+        memcpy(states + (size_t)(k + 1) * HEAVY_TOP_N_KNOWNS, next, sizeof next);
+        memcpy(warm->u_before, warm->u_last, sizeof u);
+        memcpy(warm->u_last, u, sizeof u);
+        if (warm->count < 2) {
+            ++warm->count;
+        }
     }
     return HEAVY_TOP_OK;
 }
@@ -412,13 +517,13 @@ const char *heavy_top_status_message(int status)
     case HEAVY_TOP_OK:
         return "converged";
     case HEAVY_TOP_SINGULAR_JACOBIAN:
-        return "singular Jacobian: the discrete Lagrangian is not regular at this step";
+        return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
     case HEAVY_TOP_NOT_CONVERGED:
         return "Newton's method reached the iteration cap without converging";
     case HEAVY_TOP_NON_FINITE:
-        return "non-finite value (NaN or infinity) during the step";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case HEAVY_TOP_INVALID_ARGUMENT:
-        return "invalid argument (null buffer, negative step count, bad option or non-finite input)";
+        return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     default:
         return "unknown status";
     }

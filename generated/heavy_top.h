@@ -30,8 +30,23 @@
  *   p[4] = I3
  *
  * Arrays are row-major C arrays of double; the Jacobian J is 3 x 3,
- * J[i * 3 + j] = dF_i/du_j.  heavy_top_simulate writes the states
- * states[k * HEAVY_TOP_N_KNOWNS + i], k = 0..n_steps, and stops at the first failing step.
+ * J[i * 3 + j] = dF_i/du_j.
+ *
+ * heavy_top_simulate(known0, p, n_steps, options, warm, states, capacity, iterations,
+ *                  residual_norms, failed_step, last_iterate)
+ *   writes the states states[k * HEAVY_TOP_N_KNOWNS + i], k = 0..n_steps, into a buffer of
+ *   `capacity` rows (iterations and residual_norms: capacity - 1 entries each); returns
+ *   HEAVY_TOP_INVALID_ARGUMENT and writes nothing when capacity < n_steps + 1.  It stops at the
+ *   first failing step (its index in *failed_step, its last Newton iterate in last_iterate)
+ *   and never writes a non-finite state.  options and warm may be NULL (defaults; a fresh
+ *   start).
+ * heavy_top_warm_start carries the Newton warm start from one call to the next: count (0, 1
+ *   or 2) solutions, u_last the unknowns of the latest solved step and u_before those of the
+ *   step before.  Zero it to start a run; to continue, call again from the last state of the
+ *   previous call with the same struct: a run split into calls of any lengths gives bitwise
+ *   the states of one call, with a buffer of fixed size.
+ * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
+ *   #error): they delete its NaN and overflow checks.
  */
 #ifndef HEAVY_TOP_KERNEL_H
 #define HEAVY_TOP_KERNEL_H
@@ -60,6 +75,12 @@ typedef struct {
     int extrapolate;
 } heavy_top_options;
 
+typedef struct {
+    int count;
+    double u_last[3];
+    double u_before[3];
+} heavy_top_warm_start;
+
 void heavy_top_default_options(heavy_top_options *options);
 void heavy_top_reconstruct(const double *u, double *fibre);
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F);
@@ -67,7 +88,7 @@ void heavy_top_residual_jacobian(const double *u, const double *known, const dou
 void heavy_top_predict(const double *known, const double *p, double *u);
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int heavy_top_solve_step(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm);
-int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, double *states, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
+int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 const char *heavy_top_status_message(int status);
 
 #ifdef __cplusplus

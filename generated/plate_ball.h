@@ -38,8 +38,23 @@
  *   p[3] = c
  *
  * Arrays are row-major C arrays of double; the Jacobian J is 8 x 8,
- * J[i * 8 + j] = dF_i/du_j.  plate_ball_simulate writes the states
- * states[k * PLATE_BALL_N_KNOWNS + i], k = 0..n_steps, and stops at the first failing step.
+ * J[i * 8 + j] = dF_i/du_j.
+ *
+ * plate_ball_simulate(known0, p, n_steps, options, warm, states, capacity, iterations,
+ *                  residual_norms, failed_step, last_iterate)
+ *   writes the states states[k * PLATE_BALL_N_KNOWNS + i], k = 0..n_steps, into a buffer of
+ *   `capacity` rows (iterations and residual_norms: capacity - 1 entries each); returns
+ *   PLATE_BALL_INVALID_ARGUMENT and writes nothing when capacity < n_steps + 1.  It stops at the
+ *   first failing step (its index in *failed_step, its last Newton iterate in last_iterate)
+ *   and never writes a non-finite state.  options and warm may be NULL (defaults; a fresh
+ *   start).
+ * plate_ball_warm_start carries the Newton warm start from one call to the next: count (0, 1
+ *   or 2) solutions, u_last the unknowns of the latest solved step and u_before those of the
+ *   step before.  Zero it to start a run; to continue, call again from the last state of the
+ *   previous call with the same struct: a run split into calls of any lengths gives bitwise
+ *   the states of one call, with a buffer of fixed size.
+ * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
+ *   #error): they delete its NaN and overflow checks.
  */
 #ifndef PLATE_BALL_KERNEL_H
 #define PLATE_BALL_KERNEL_H
@@ -68,6 +83,12 @@ typedef struct {
     int extrapolate;
 } plate_ball_options;
 
+typedef struct {
+    int count;
+    double u_last[8];
+    double u_before[8];
+} plate_ball_warm_start;
+
 void plate_ball_default_options(plate_ball_options *options);
 void plate_ball_reconstruct(const double *u, double *fibre);
 void plate_ball_residual(const double *u, const double *known, const double *p, double *F);
@@ -75,7 +96,7 @@ void plate_ball_residual_jacobian(const double *u, const double *known, const do
 void plate_ball_predict(const double *known, const double *p, double *u);
 void plate_ball_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int plate_ball_solve_step(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm);
-int plate_ball_simulate(const double *known0, const double *p, long n_steps, const plate_ball_options *options, double *states, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
+int plate_ball_simulate(const double *known0, const double *p, long n_steps, const plate_ball_options *options, plate_ball_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 const char *plate_ball_status_message(int status);
 
 #ifdef __cplusplus

@@ -10,8 +10,20 @@
  */
 #include "rigid_body.h"
 
+/* The Newton stepper turns an overflow or a NaN into RIGID_BODY_NON_FINITE through isfinite()
+ * checks.  -ffast-math and -ffinite-math-only let the compiler assume that no value is ever
+ * NaN or infinite and delete those checks (a NaN input then comes back "converged"), so this
+ * kernel refuses to be compiled under them. */
+#if defined(__FAST_MATH__)
+#error "this symgroupoid kernel must not be compiled with -ffast-math (or -Ofast): it deletes the NaN and overflow checks of the Newton stepper"
+#elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
+#error "this symgroupoid kernel must not be compiled with -ffinite-math-only: it deletes the NaN and overflow checks of the Newton stepper"
+#endif
+
 #include <float.h>
+#include <limits.h>
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
@@ -216,27 +228,67 @@ static double rigid_body_norm_inf(const double *v, int n)
     return m;
 }
 
-/* Solve A x = b in place by LU with partial pivoting (A row-major, overwritten; x in b).
- * Multipliers use the reciprocal of each pivot (one division per column).
- * Returns 1 when a pivot is not above n * DBL_EPSILON * scale (numerically singular). */
-static int rigid_body_lu_solve(double *A, double *b, double scale)
+/* Solve A x = b in place (A row-major, overwritten; x returned in b).
+ * Every row of A and its entry of b are first multiplied by the power of two that brings the
+ * row's largest |entry| into [1/2, 1) (exact, no rounding), so the singularity test is
+ * relative to the size of each equation, not to the largest entry of A: equations of very
+ * different magnitudes are not mistaken for a singular system.  Then LU with partial
+ * pivoting, one division per column (reciprocal pivots), zero multipliers skipped.
+ * Returns RIGID_BODY_OK; RIGID_BODY_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
+ * n * DBL_EPSILON (numerically singular); RIGID_BODY_NON_FINITE when an entry of A or b, or of
+ * their scaled or eliminated values, is not finite (overflow or NaN). */
+static int rigid_body_lu_solve(double *A, double *b)
 {
     const int n = RIGID_BODY_N_UNKNOWNS;
-    const double tiny = n * DBL_EPSILON * scale;
-    double inv[RIGID_BODY_N_UNKNOWNS];
+    const double tiny = n * DBL_EPSILON;
+    double inv[RIGID_BODY_N_UNKNOWNS], rmax[RIGID_BODY_N_UNKNOWNS];
     int i, j, k;
+    for (i = 0; i < n; ++i) {
+        rmax[i] = rigid_body_norm_inf(A + i * n, n);
+        if (!isfinite(rmax[i]) || !isfinite(b[i])) {
+            return RIGID_BODY_NON_FINITE;
+        }
+    }
+    for (i = 0; i < n; ++i) {
+        double s, s2;
+        int e;
+        if (rmax[i] == 0.0) {
+            return RIGID_BODY_SINGULAR_JACOBIAN;
+        }
+        (void)frexp(rmax[i], &e);
+        if (e >= -1000) {
+            s = ldexp(1.0, -e);
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] *= s;
+            }
+            b[i] *= s;
+        } else { /* 2^-e exceeds the double range: two exact factors */
+            s = ldexp(1.0, 1000);
+            s2 = ldexp(1.0, -e - 1000);
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] = A[i * n + j] * s * s2;
+            }
+            b[i] = b[i] * s * s2;
+        }
+        if (!isfinite(b[i])) {
+            return RIGID_BODY_NON_FINITE;
+        }
+    }
     for (k = 0; k < n; ++k) {
         int piv = k;
-        double amax = fabs(A[k * n + k]);
-        for (i = k + 1; i < n; ++i) {
+        double amax = 0.0;
+        for (i = k; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
+            if (!isfinite(a)) {
+                return RIGID_BODY_NON_FINITE;
+            }
             if (a > amax) {
                 amax = a;
                 piv = i;
             }
         }
         if (!(amax > tiny)) {
-            return 1;
+            return RIGID_BODY_SINGULAR_JACOBIAN;
         }
         if (piv != k) {
             double t;
@@ -267,27 +319,32 @@ static int rigid_body_lu_solve(double *A, double *b, double scale)
         }
         b[i] = s * inv[i];
     }
-    return 0;
+    return isfinite(rigid_body_norm_inf(b, n)) ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
+}
+
+/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0 */
+static int rigid_body_options_valid(const rigid_body_options *options)
+{
+    return options->max_iterations >= 0 && options->tol_residual >= 0.0
+           && options->tol_step >= 0.0;
 }
 
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the last iterate).
- * Converged when |F|_inf <= tol_residual, or when the last Newton step was at most
- * tol_step * (1 + |u|_inf).  *iterations is the number of Newton updates made and
+ * The Jacobian at the guess is factored before any convergence test, so every call checks
+ * it at least once: a guess with |F|_inf <= tol_residual is accepted only when the Jacobian
+ * there is regular, and a degenerate step is reported as RIGID_BODY_SINGULAR_JACOBIAN, never
+ * returned as solved.  Converged when |F|_inf <= tol_residual, or when the last Newton step
+ * was at most tol_step * (1 + |u|_inf).  *iterations is the number of Newton updates made and
  * *residual_norm the |F|_inf of the returned iterate.  The first evaluation computes F and J
- * together (a guess is rarely converged already); later ones F alone, then J if needed. */
-int rigid_body_solve_step(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
+ * together; later ones F alone, then F and J if another update is needed. */
+static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
-    rigid_body_options defaults;
     double F[RIGID_BODY_N_EQUATIONS];
     double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS];
     double step_norm = 0.0;
-    int it, i;
-    if (options == NULL) {
-        rigid_body_default_options(&defaults);
-        options = &defaults;
-    }
+    int it, i, status;
     for (it = 0;; ++it) {
-        double rnorm, jscale;
+        double rnorm;
         if (it == 0) {
             rigid_body_residual_jacobian(u, known, p, F, J);
         } else {
@@ -299,6 +356,12 @@ int rigid_body_solve_step(const double *known, const double *p, const rigid_body
         if (!isfinite(rnorm)) {
             return RIGID_BODY_NON_FINITE;
         }
+        if (it == 0) {
+            status = rigid_body_lu_solve(J, F);
+            if (status != RIGID_BODY_OK) {
+                return status;
+            }
+        }
         if (rnorm <= options->tol_residual
             || (it > 0 && step_norm <= options->tol_step * (1.0 + rigid_body_norm_inf(u, RIGID_BODY_N_UNKNOWNS)))) {
             return RIGID_BODY_OK;
@@ -308,37 +371,70 @@ int rigid_body_solve_step(const double *known, const double *p, const rigid_body
         }
         if (it > 0) {
             rigid_body_residual_jacobian(u, known, p, F, J);
-        }
-        jscale = rigid_body_norm_inf(J, RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS);
-        if (!isfinite(jscale)) {
-            return RIGID_BODY_NON_FINITE;
-        }
-        if (rigid_body_lu_solve(J, F, jscale)) {
-            return RIGID_BODY_SINGULAR_JACOBIAN;
+            status = rigid_body_lu_solve(J, F);
+            if (status != RIGID_BODY_OK) {
+                return status;
+            }
         }
         step_norm = rigid_body_norm_inf(F, RIGID_BODY_N_UNKNOWNS);
-        if (!isfinite(step_norm)) {
-            return RIGID_BODY_NON_FINITE;
-        }
         for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
         }
     }
 }
 
-/* Advance n_steps steps from known0.  Writes states[0 .. n_steps] (each RIGID_BODY_N_KNOWNS
- * doubles), iterations[k] and residual_norms[k] for k < n_steps.  The Newton guess of the first
- * two steps (and of every step if options->extrapolate is 0) is rigid_body_predict; later ones
- * extrapolate the last two solutions linearly, u_k ~ 2 u_{k-1} - u_{k-2} (chart coordinates
- * and multipliers of consecutive steps), and fall back to rigid_body_predict if Newton fails
- * from there (iterations[k] counts both tries).
- * On failure returns the status, sets *failed_step = k (else -1) and copies the last Newton
- * iterate of that step to last_iterate (RIGID_BODY_N_UNKNOWNS doubles; may be NULL); later
- * entries are not written. */
-int rigid_body_simulate(const double *known0, const double *p, long n_steps, const rigid_body_options *options, double *states, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+/* One Newton solve from the guess in u (see rigid_body_newton).  Returns
+ * RIGID_BODY_INVALID_ARGUMENT, writing nothing, for a null pointer, invalid options, or a
+ * non-finite entry of known, p or the guess. */
+int rigid_body_solve_step(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
     rigid_body_options defaults;
-    double u1[RIGID_BODY_N_UNKNOWNS], u2[RIGID_BODY_N_UNKNOWNS];
+    if (options == NULL) {
+        rigid_body_default_options(&defaults);
+        options = &defaults;
+    }
+    if (known == NULL || u == NULL || iterations == NULL || residual_norm == NULL
+        || p == NULL
+        || !rigid_body_options_valid(options)
+        || !isfinite(rigid_body_norm_inf(known, RIGID_BODY_N_KNOWNS))
+        || !isfinite(rigid_body_norm_inf(p, RIGID_BODY_N_PARAMETERS))
+        || !isfinite(rigid_body_norm_inf(u, RIGID_BODY_N_UNKNOWNS))) {
+        return RIGID_BODY_INVALID_ARGUMENT;
+    }
+    return rigid_body_newton(known, p, options, u, iterations, residual_norm);
+}
+
+/* 1 when a warm start is usable: count in 0..2 and its count solutions finite */
+static int rigid_body_warm_start_valid(const rigid_body_warm_start *warm)
+{
+    if (warm->count < 0 || warm->count > 2) {
+        return 0;
+    }
+    return (warm->count < 1 || isfinite(rigid_body_norm_inf(warm->u_last, RIGID_BODY_N_UNKNOWNS)))
+           && (warm->count < 2 || isfinite(rigid_body_norm_inf(warm->u_before, RIGID_BODY_N_UNKNOWNS)));
+}
+
+/* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
+ * Writes states[0 .. n_steps] (row k at states + k * RIGID_BODY_N_KNOWNS), and iterations[k],
+ * residual_norms[k] for k < n_steps; needs capacity >= n_steps + 1 (rows of states;
+ * iterations and residual_norms hold at least capacity - 1 entries), else nothing is written
+ * and RIGID_BODY_INVALID_ARGUMENT is returned.
+ * The Newton guess of a step is rigid_body_predict, or, when options->extrapolate is set and the
+ * warm start holds the solutions of the last two steps, their linear extrapolation
+ * u ~ 2 u_last - u_before (chart coordinates and multipliers of consecutive steps), falling
+ * back to rigid_body_predict if Newton fails from there (iterations[k] counts both tries).
+ * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
+ * call from the last state of this one with the same warm start continues the run exactly:
+ * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
+ * a new run.
+ * On failure returns the status, sets *failed_step = k (else -1; failed_step may be NULL)
+ * and copies the last Newton iterate of that step to last_iterate (RIGID_BODY_N_UNKNOWNS
+ * doubles; may be NULL); iterations[k] and residual_norms[k] describe the failed step,
+ * states[k + 1 ..] are not written and warm still ends at step k - 1. */
+int rigid_body_simulate(const double *known0, const double *p, long n_steps, const rigid_body_options *options, rigid_body_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+{
+    rigid_body_options defaults;
+    rigid_body_warm_start fresh;
     long k;
     int i;
     if (failed_step != NULL) {
@@ -348,34 +444,39 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
         rigid_body_default_options(&defaults);
         options = &defaults;
     }
+    if (warm == NULL) {
+        memset(&fresh, 0, sizeof fresh);
+        warm = &fresh;
+    }
     if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
         || p == NULL
-        || n_steps < 0 || options->max_iterations < 0
-        || !(options->tol_residual >= 0.0) || !(options->tol_step >= 0.0)
+        || n_steps < 0 || capacity < 1 || n_steps > capacity - 1
+        || !rigid_body_options_valid(options) || !rigid_body_warm_start_valid(warm)
         || !isfinite(rigid_body_norm_inf(known0, RIGID_BODY_N_KNOWNS))
         || !isfinite(rigid_body_norm_inf(p, RIGID_BODY_N_PARAMETERS))) {
         return RIGID_BODY_INVALID_ARGUMENT;
     }
     memmove(states, known0, sizeof(double) * RIGID_BODY_N_KNOWNS);
     for (k = 0; k < n_steps; ++k) {
-        const double *current = states + k * RIGID_BODY_N_KNOWNS;
-        double *next = states + (k + 1) * RIGID_BODY_N_KNOWNS;
+        const double *current = states + (size_t)k * RIGID_BODY_N_KNOWNS;
+        double next[RIGID_BODY_N_KNOWNS];
         double u[RIGID_BODY_N_UNKNOWNS];
+        const int extrapolated = options->extrapolate && warm->count == 2;
         int status;
-        if (k < 2 || !options->extrapolate) {
-            rigid_body_predict(current, p, u);
-        } else {
+        if (extrapolated) {
             for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
-                u[i] = 2.0 * u1[i] - u2[i];
+                u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
             }
+        } else {
+            rigid_body_predict(current, p, u);
         }
-        status = rigid_body_solve_step(current, p, options, u, &iterations[k], &residual_norms[k]);
-        if (status != RIGID_BODY_OK && k >= 2 && options->extrapolate) {
+        status = rigid_body_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
+        if (status != RIGID_BODY_OK && extrapolated) {
             /* the extrapolated guess failed: retry from the prediction */
             int more = 0;
             rigid_body_predict(current, p, u);
-            status = rigid_body_solve_step(current, p, options, u, &more, &residual_norms[k]);
-            iterations[k] += more;
+            status = rigid_body_newton(current, p, options, u, &more, &residual_norms[k]);
+            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
         }
         if (status == RIGID_BODY_OK) {
             rigid_body_next_knowns(u, current, p, next);
@@ -392,8 +493,12 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
             }
             return status;
         }
-        memcpy(u2, u1, sizeof u);
-        memcpy(u1, u, sizeof u);
+        memcpy(states + (size_t)(k + 1) * RIGID_BODY_N_KNOWNS, next, sizeof next);
+        memcpy(warm->u_before, warm->u_last, sizeof u);
+        memcpy(warm->u_last, u, sizeof u);
+        if (warm->count < 2) {
+            ++warm->count;
+        }
     }
     return RIGID_BODY_OK;
 }
@@ -404,13 +509,13 @@ const char *rigid_body_status_message(int status)
     case RIGID_BODY_OK:
         return "converged";
     case RIGID_BODY_SINGULAR_JACOBIAN:
-        return "singular Jacobian: the discrete Lagrangian is not regular at this step";
+        return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
     case RIGID_BODY_NOT_CONVERGED:
         return "Newton's method reached the iteration cap without converging";
     case RIGID_BODY_NON_FINITE:
-        return "non-finite value (NaN or infinity) during the step";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case RIGID_BODY_INVALID_ARGUMENT:
-        return "invalid argument (null buffer, negative step count, bad option or non-finite input)";
+        return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     default:
         return "unknown status";
     }

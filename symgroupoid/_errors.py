@@ -60,3 +60,7 @@ class CacheError(SymgroupoidError, RuntimeError):
     The message names the cache path and what to do (remove it, or point
     ``SYMGROUPOID_CACHE`` to another directory).
     """
+
+
+class TrajectoryTooLargeError(SymgroupoidError, MemoryError):
+    """The states a simulation was asked to keep would not fit in this machine's memory."""

@@ -193,7 +193,7 @@ def test_state_and_parameter_checks_name_the_problem():
         sim.simulate({**good, "g": 1.01 * np.eye(3)}, 1, params)
     with pytest.raises(sg.ShapeError, match="'g' needs shape"):
         sim.simulate({**good, "g": np.eye(2)}, 1, params)
-    with pytest.raises(ValueError, match="non-negative integer"):
+    with pytest.raises(sg.ShapeError, match="plate_ball: steps must be at least 0, got -1"):
         sim.simulate(good, -1, params)
 
 
@@ -228,6 +228,90 @@ def test_non_finite_values_stop_at_the_failing_step(backend, fall_step):
     assert q[-1] < 0 and (q[:-1] >= 0).all()
 
 
+def on_the_line(L, name):
+    """A first-order system on the pair groupoid of R with Lagrangian L(q₀, q₁; h)."""
+    h = sp.Symbol("h", positive=True)
+
+    def lagrangian(g):
+        (q0,), (q1,) = g.source, g.target
+        return L(q0, q1, h)
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), lagrangian,
+                             parameters=[h], name=name)
+
+
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), "numpy"])
+def test_a_guess_that_solves_a_singular_step_is_not_accepted(backend):
+    """L = (q₁ − q₀)⁴/(4h) at rest: the prediction q₂ = 2q₁ − q₀ = q₁ makes F exactly 0,
+    and ∂F/∂q₂ = −3(q₂ − q₁)²/h = 0 there.  The stepper used to accept the guess before
+    looking at the Jacobian (0 iterations, "converged"); it must report the singular step."""
+    step = on_the_line(lambda q0, q1, h: (q1 - q0) ** 4 / (4 * h), "quartic").euler_lagrange()
+    sim = step.compile(backend=backend, cache_dir=SESSION_CACHE)
+    params = {"h": 0.1}
+    known, p = sim.state({"q": (1.0, 1.0)}), sim.parameters(params)
+    guess = sim.kernel.predict(known, p)
+    assert sim.kernel.residual(guess, known, p).tolist() == [0.0]
+    with pytest.raises(sg.SingularJacobianError, match="quartic: step 0 failed: singular") as info:
+        sim.simulate({"q": (1.0, 1.0)}, 10, params)
+    assert info.value.step == 0 and len(info.value.trajectory) == 1
+    with pytest.raises(sg.SingularJacobianError):
+        sim.solve({"q": (1.0, 1.0)}, params)
+    with pytest.raises(sg.SingularJacobianError):
+        sim.solve({"q": (1.0, 1.0)}, params, guess=[1.0])
+    moving = sim.simulate({"q": (1.0, 1.1)}, 3, params)  # regular away from rest
+    assert np.allclose(moving["q"], [1.0, 1.1, 1.2, 1.3, 1.4], atol=1e-12)
+
+
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), "numpy"])
+def test_an_identically_degenerate_step_is_reported(backend):
+    """L = (q₁² − q₀²)/(2h): the DEL are 0 = 0 for every q₂ (F ≡ 0, J ≡ 0)."""
+    system = on_the_line(lambda q0, q1, h: (q1 ** 2 - q0 ** 2) / (2 * h), "degenerate")
+    try:
+        step = system.euler_lagrange()
+    except sg.SymgroupoidError as exc:  # rejected before any kernel exists
+        pytest.skip(f"the derivation rejects the degenerate system: {exc}")
+    sim = step.compile(backend=backend, cache_dir=SESSION_CACHE)
+    with pytest.raises(sg.SingularJacobianError, match="degenerate: step 0 failed") as info:
+        sim.simulate({"q": (0.5, 0.7)}, 4, {"h": 0.1})
+    assert info.value.iterate.shape == (1,)
+
+
+def two_masses():
+    """Two free particles, L = (h/2)(m₁((x₁−x₀)/h)² + m₂((y₁−y₀)/h)²): J = diag(−m₁/h, −m₂/h)."""
+    h, m1, m2 = sp.symbols("h m1 m2", positive=True)
+
+    def L(g):
+        (x0, y0), (x1, y1) = g.source, g.target
+        return h / 2 * (m1 * ((x1 - x0) / h) ** 2 + m2 * ((y1 - y0) / h) ** 2)
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x y")), L,
+                             parameters=[h, m1, m2], name="two masses").euler_lagrange()
+
+
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), "numpy"])
+def test_equations_of_very_different_sizes_are_not_called_singular(backend):
+    """m₁ = 10³⁰⁰, m₂ = 1: a regular Jacobian whose rows differ by 300 orders of magnitude.
+    Judged against its largest entry it looked singular ("not regular"); the pivots are
+    now judged per equation."""
+    sim = two_masses().compile(backend=backend, cache_dir=SESSION_CACHE)
+    traj = sim.simulate({"x": (0.0, 0.1), "y": (1.0, 0.5)}, 5,
+                        {"h": 0.01, "m1": 1e300, "m2": 1.0})
+    assert np.allclose(traj["x"], 0.1 * np.arange(7), atol=1e-12)
+    assert np.allclose(traj["y"], 1.0 - 0.5 * np.arange(7), atol=1e-12)
+
+
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), "numpy"])
+def test_overflow_is_reported_as_overflow_not_as_a_singular_jacobian(backend):
+    """m₁ = 10³⁰⁸ with h = 0.01: ∂F/∂x = −m₁/h overflows to infinity."""
+    sim = two_masses().compile(backend=backend, cache_dir=SESSION_CACHE)
+    params = {"h": 0.01, "m1": 1e308, "m2": 1.0}
+    with pytest.raises(sg.NewtonDivergenceError, match="overflow") as info:
+        sim.simulate({"x": (0.0, 0.1), "y": (1.0, 0.5)}, 5, params)
+    assert "not regular" not in str(info.value) and info.value.step == 0
+    with pytest.raises(sg.NewtonDivergenceError, match="overflow"):
+        sim.solve({"x": (0.0, 0.1), "y": (1.0, 0.5)}, params, guess=[0.2, 0.0])
+
+
 @needs_cc
 def test_iteration_cap_raises_divergence():
     sim = compiled("rigid_body")
@@ -241,7 +325,9 @@ def test_iteration_cap_raises_divergence():
 def test_newton_options_are_checked():
     with pytest.raises(ValueError, match="tol_step"):
         sg.NewtonOptions(tol_step=-1.0)
-    with pytest.raises(ValueError, match="max_iterations"):
+    with pytest.raises(ValueError, match="tol_residual"):
+        sg.NewtonOptions(tol_residual=float("nan"))
+    with pytest.raises(sg.ShapeError, match="max_iterations must be an integer"):
         sg.NewtonOptions(max_iterations=2.5)
 
 
@@ -273,3 +359,37 @@ def test_second_order_state_is_a_window_of_configurations():
     s3 = traj.states[3]  # (q_{k-2}, q_{k-1}, q_k, q_{k+1})
     momentum = leg.evaluate(s3, [], [0.1])[0]
     assert np.allclose(sim.from_momentum(s3[:2], momentum, {"h": 0.1}), s3, atol=1e-12)
+
+
+def test_lu_solve_judges_pivots_per_equation_and_reports_overflow():
+    """The NumPy twin of the kernel's LU: exact power-of-two row scaling (also for
+    subnormal rows), singular only for a zero row or a pivot below n·ε of its equation,
+    non-finite values reported as such."""
+    from symgroupoid.runtime._backends import NON_FINITE, OK, SINGULAR_JACOBIAN, lu_solve
+
+    A = np.array([[1e-310, 0.0, 2e-310], [0.0, 1e300, 0.0], [1.0, 0.0, -3.0]])
+    x = np.array([1.0, -2.0, 0.5])
+    status, solution = lu_solve(A, A @ x)
+    assert status == OK and np.allclose(solution, x, rtol=1e-14, atol=0)
+    assert lu_solve(np.array([[1.0, 2.0], [2.0, 4.0]]), [1.0, 1.0])[0] == SINGULAR_JACOBIAN
+    assert lu_solve(np.array([[1.0, 0.0], [0.0, 0.0]]), [1.0, 1.0])[0] == SINGULAR_JACOBIAN
+    assert lu_solve(np.array([[1.0, 2.0], [2.0, 4.0 + 1e-9]]), [1.0, 1.0])[0] == OK
+    assert lu_solve(np.array([[np.inf, 0.0], [0.0, 1.0]]), [1.0, 1.0])[0] == NON_FINITE
+    assert lu_solve(np.eye(2), [np.nan, 1.0])[0] == NON_FINITE
+    # the step overflows: |b_i| / (largest |A_ij| of its row) beyond the double range
+    assert lu_solve(np.diag([1e-10, 1.0]), [1e300, 1.0])[0] == NON_FINITE
+
+
+@pytest.mark.parametrize("backend", [pytest.param("c", marks=needs_cc), "numpy"])
+def test_non_finite_input_is_never_converged(backend, fall_step):
+    """A NaN state or guess handed to the kernel directly is an invalid argument (in C the
+    same check would vanish under -ffast-math, which the source therefore refuses)."""
+    sim = fall_step.compile(backend=backend, cache_dir=SESSION_CACHE)
+    p = sim.parameters({"h": 0.01, "a": 0.1, "m": 1.0})
+    from symgroupoid.runtime._backends import INVALID_ARGUMENT
+
+    for known, guess in [([np.nan, 1.0], [1.0]), ([1.0, 0.99], [np.nan])]:
+        status, *_ = sim.kernel.solve_step(np.array(known), p, np.array(guess), sim.options)
+        assert status == INVALID_ARGUMENT
+    run = sim.kernel.simulate(np.array([1.0, np.nan]), p, 3, sim.options)
+    assert run.status == INVALID_ARGUMENT

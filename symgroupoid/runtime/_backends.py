@@ -2,28 +2,45 @@
 
 :class:`CKernel` calls the compiled C (through cffi); :class:`NumpyKernel` evaluates the
 lambdified SymPy forms and runs the *same* Newton iteration in Python (same convergence
-tests, same LU with partial pivoting and singularity threshold), so both backends give the
-same trajectories up to rounding.
+tests, same row scaling, LU with partial pivoting and singularity threshold, same status
+codes), so both backends give the same trajectories up to rounding and fail alike.
+
+Every array handed to C goes through :func:`real_vector` (shape and value checks of user
+input, naming the argument) and then :func:`c_buffer` (exact dtype, C-contiguity and
+length of the buffer itself): nothing reaches the C side that could make it read or write
+outside a buffer.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import numbers
+from collections.abc import Iterator
+from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
 
+from .._errors import ShapeError
 from ..codegen._emit import DEFAULT_OPTIONS
+from ._validate import integer_argument
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT = range(5)
 
+#: the texts of ``<prefix>_status_message`` (the generated C returns the same strings)
 STATUS_MESSAGES = {
     OK: "converged",
-    SINGULAR_JACOBIAN: "singular Jacobian: the discrete Lagrangian is not regular at this step",
+    SINGULAR_JACOBIAN: "singular Jacobian: a pivot vanished relative to its equation, so the "
+                       "step equations do not determine the next state (the discrete "
+                       "Lagrangian is not regular here)",
     NOT_CONVERGED: "Newton's method reached the iteration cap without converging",
-    NON_FINITE: "non-finite value (NaN or infinity) during the step",
-    INVALID_ARGUMENT: "invalid argument",
+    NON_FINITE: "non-finite value (overflow to infinity, or NaN) in the residual, the "
+                "Jacobian, the Newton step or the next state",
+    INVALID_ARGUMENT: "invalid argument (null buffer, negative step count, capacity below "
+                      "n_steps + 1, bad option or warm start, or non-finite input)",
 }
+
+#: largest value of a C ``int`` (Newton iteration caps and counts are ints in the kernel)
+C_INT_MAX = 2**31 - 1
 
 
 @dataclass(frozen=True)
@@ -31,9 +48,13 @@ class NewtonOptions:
     """Newton options of a step.
 
     Converged when |F|_∞ ≤ ``tol_residual`` or the last Newton step was at most
-    ``tol_step``·(1 + |u|_∞); at most ``max_iterations`` updates.  With ``extrapolate`` the
-    guess of step k ≥ 2 is 2u_{k-1} − u_{k-2} (falling back to ``step.prediction`` if Newton
-    fails from it); otherwise every step starts from ``step.prediction``.
+    ``tol_step``·(1 + |u|_∞); at most ``max_iterations`` updates (an integer in
+    0 … 2³¹ − 1, the range of a C ``int``; integral floats such as ``1e3`` are accepted).
+    The Jacobian is factored at least once per step, so a step whose guess already
+    satisfies the residual test is still reported when its Jacobian is singular.  With
+    ``extrapolate`` the guess of step k ≥ 2 is 2u_{k-1} − u_{k-2} (falling back to
+    ``step.prediction`` if Newton fails from it); otherwise every step starts from
+    ``step.prediction``.
     """
 
     tol_residual: float = DEFAULT_OPTIONS["tol_residual"]
@@ -44,36 +65,172 @@ class NewtonOptions:
     def __post_init__(self):
         for name in ("tol_residual", "tol_step"):
             value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
+            if isinstance(value, (bool, np.bool_)) or not (
+                    isinstance(value, numbers.Real) and np.isfinite(float(value))
+                    and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-        if int(self.max_iterations) != self.max_iterations or self.max_iterations < 0:
-            raise ValueError(f"max_iterations must be an integer >= 0, got "
-                             f"{self.max_iterations!r}")
+            object.__setattr__(self, name, float(value))
+        object.__setattr__(self, "max_iterations", integer_argument(
+            self.max_iterations, "max_iterations", maximum=C_INT_MAX, owner="NewtonOptions"))
+        object.__setattr__(self, "extrapolate", bool(self.extrapolate))
 
 
 @dataclass
 class RawRun:
-    """What a kernel's simulate returns (states up to the failing step)."""
+    """What a kernel's ``simulate`` returns: n steps from one state.
 
-    states: np.ndarray  # (n_steps + 1, n_known); rows after a failure are not valid
-    iterations: np.ndarray  # (n_steps,) int
+    ``states`` has n + 1 rows; after a failure at step k only rows 0..k are valid (row k
+    is the known state of the failed step) and ``iterations[k]``, ``residual_norms[k]``
+    describe the failed step.
+    """
+
+    states: np.ndarray  # (n_steps + 1, n_known)
+    iterations: np.ndarray  # (n_steps,) int64
     residual_norms: np.ndarray  # (n_steps,)
     status: int
     failed_step: int  # -1 on success
     last_iterate: np.ndarray  # (n_unknown,)
 
+    @property
+    def completed(self) -> int:
+        """Steps solved: all of them, or the index of the failed step."""
+        return len(self.iterations) if self.status == OK else self.failed_step
 
-class CKernel:
+
+# --- checks at the C boundary ----------------------------------------------------------------
+
+def real_vector(value, length: int, name: str, *, owner: str = "",
+                finite: bool = False) -> np.ndarray:
+    """``value`` as a fresh C-contiguous float64 vector of ``length`` entries.
+
+    Accepts any real array-like of shape ``(length,)`` (integers and floats are converted
+    exactly); anything else — another shape (a scalar, a (2, 4) array, 20 entries),
+    complex, boolean or non-numeric entries, and non-finite entries when ``finite`` — is a
+    :class:`ShapeError` naming ``name``.
+    """
+    where = f"{owner}: " if owner else ""
+    try:
+        arr = np.asarray(value)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{where}{name} must be an array of {length} real numbers, got "
+                         f"{value!r}") from None
+    if arr.dtype.kind not in "iuf":
+        if arr.dtype.kind != "O":
+            raise ShapeError(f"{where}{name} must hold real numbers, got dtype {arr.dtype}")
+        try:
+            arr = arr.astype(np.float64)
+        except (TypeError, ValueError):
+            raise ShapeError(f"{where}{name} must hold real numbers, got {value!r}") from None
+    if arr.shape != (length,):
+        raise ShapeError(f"{where}{name} must have shape ({length},), got shape {arr.shape}")
+    out = np.array(arr, dtype=np.float64, order="C", copy=True)
+    if finite and not np.isfinite(out).all():
+        bad = np.flatnonzero(~np.isfinite(out)).tolist()
+        raise ShapeError(f"{where}{name} must be finite; entries {bad} are NaN or infinite")
+    return out
+
+
+def c_buffer(ffi, array: np.ndarray, length: int, name: str, ctype: str = "double"):
+    """A cffi pointer to ``array`` after checking it is exactly what C will access.
+
+    ``array`` must be a NumPy array of the dtype matching ``ctype`` (``double``: float64,
+    ``int``: the platform C int), C-contiguous and of exactly ``length`` elements; any
+    other buffer is a :class:`ShapeError` (the C side would read or write past it).
+    """
+    dtype = {"double": np.dtype(np.float64), "int": np.dtype(np.intc)}[ctype]
+    if not isinstance(array, np.ndarray):
+        raise ShapeError(f"{name}: the C buffer must be a NumPy array, got "
+                         f"{type(array).__name__}")
+    if array.dtype != dtype:
+        raise ShapeError(f"{name}: the C buffer must have dtype {dtype}, got {array.dtype}")
+    if not array.flags.c_contiguous:
+        raise ShapeError(f"{name}: the C buffer must be C-contiguous")
+    if array.size != length:
+        raise ShapeError(f"{name}: the C buffer must hold {length} elements, got "
+                         f"{array.size}")
+    return ffi.from_buffer(f"{ctype}[]", array)
+
+
+class _Kernel:
+    """Input checks shared by both kernels; subclasses implement the ``_raw`` methods."""
+
+    name = ""
+    n_u = n_k = n_p = 0
+    #: largest step count of one ``simulate`` call
+    max_steps = 2**53
+
+    def _inputs(self, known, p, u=None) -> tuple[np.ndarray, ...]:
+        arrays = [real_vector(known, self.n_k, "known"), real_vector(p, self.n_p, "p")]
+        if u is not None:
+            arrays.append(real_vector(u, self.n_u, "u"))
+        return tuple(arrays)
+
+    def residual(self, u, known, p) -> np.ndarray:
+        """F(u; known, p), shape (n_unknowns,)."""
+        known, p, u = self._inputs(known, p, u)
+        return self._residual(u, known, p)
+
+    def residual_jacobian(self, u, known, p) -> tuple[np.ndarray, np.ndarray]:
+        """F and its exact Jacobian J[i, j] = ∂F_i/∂u_j."""
+        known, p, u = self._inputs(known, p, u)
+        return self._residual_jacobian(u, known, p)
+
+    def predict(self, known, p) -> np.ndarray:
+        """The first Newton guess of a step."""
+        known, p = self._inputs(known, p)
+        return self._predict(known, p)
+
+    def next_knowns(self, u, known, p) -> np.ndarray:
+        """The next known state from a solved step."""
+        known, p, u = self._inputs(known, p, u)
+        return self._next_knowns(u, known, p)
+
+    def solve_step(self, known, p, u0, options: NewtonOptions):
+        """Newton's method from ``u0``: (status, last iterate, iterations, residual norm).
+
+        Non-finite ``known``, ``p`` or ``u0`` give ``INVALID_ARGUMENT`` (as in C).
+        """
+        known, p, u = self._inputs(known, p, u0)
+        if not all(np.isfinite(a).all() for a in (known, p, u)):
+            return INVALID_ARGUMENT, u, 0, float("nan")
+        return self._solve_step(known, p, u, options)
+
+    def simulate(self, known0, p, n_steps: int, options: NewtonOptions,
+                 warm=None) -> RawRun:
+        """``n_steps`` steps from ``known0``, continuing the Newton warm start ``warm``
+        (from :meth:`warm_start`; None: a fresh start), which is updated in place."""
+        known0, p = real_vector(known0, self.n_k, "known0"), real_vector(p, self.n_p, "p")
+        n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
+        if not (np.isfinite(known0).all() and np.isfinite(p).all()):
+            return RawRun(np.zeros((n_steps + 1, self.n_k)), np.zeros(n_steps, np.int64),
+                          np.zeros(n_steps), INVALID_ARGUMENT, -1, np.zeros(self.n_u))
+        return self._simulate(known0, p, n_steps, options,
+                              self.warm_start() if warm is None else warm)
+
+
+class CKernel(_Kernel):
     """The compiled kernel of a step (a cffi extension module)."""
 
     name = "c"
 
-    def __init__(self, module, prefix: str, n_unknowns: int, n_knowns: int):
+    def __init__(self, module, prefix: str, n_unknowns: int, n_knowns: int,
+                 n_parameters: int | None = None):
         self.module, self.ffi, self.lib = module, module.ffi, module.lib
         self.prefix, self.n_u, self.n_k = prefix, n_unknowns, n_knowns
+        self.n_p = int(getattr(self.lib, f"{prefix.upper()}_N_PARAMETERS")) \
+            if n_parameters is None else n_parameters
         self._f = {n: getattr(self.lib, f"{prefix}_{n}") for n in (
             "residual", "residual_jacobian", "predict", "next_knowns", "solve_step",
             "simulate", "reconstruct")}
+        self._warm_type = self.ffi.typeof(f"{prefix}_warm_start *")
+        self.max_steps = min(2**53, 2 ** (8 * self.ffi.sizeof("long") - 1) - 2)
+        sizes = {"UNKNOWNS": n_unknowns, "KNOWNS": n_knowns, "EQUATIONS": n_unknowns,
+                 "PARAMETERS": self.n_p}
+        for what, n in sizes.items():
+            compiled = int(getattr(self.lib, f"{prefix.upper()}_N_{what}"))
+            if compiled != n:
+                raise ShapeError(f"{prefix}: the compiled kernel has {compiled} {what.lower()}, "
+                                 f"the step {n}")
 
     def _options(self, options: NewtonOptions):
         opts = self.ffi.new(f"{self.prefix}_options *")
@@ -83,48 +240,65 @@ class CKernel:
         opts.extrapolate = int(bool(options.extrapolate))
         return opts
 
-    def _ptr(self, array: np.ndarray, ctype: str = "double[]"):
-        return self.ffi.from_buffer(ctype, array)
+    def _buf(self, array, length, name, ctype="double"):
+        return c_buffer(self.ffi, array, length, f"{self.prefix}: {name}", ctype)
 
-    def residual(self, u, known, p) -> np.ndarray:
+    def warm_start(self):
+        """A zeroed ``<prefix>_warm_start`` (a fresh run)."""
+        return self.ffi.new(self._warm_type)
+
+    def _residual(self, u, known, p) -> np.ndarray:
         F = np.empty(self.n_u)
-        self._f["residual"](self._ptr(u), self._ptr(known), self._ptr(p), self._ptr(F))
+        self._f["residual"](self._buf(u, self.n_u, "u"), self._buf(known, self.n_k, "known"),
+                            self._buf(p, self.n_p, "p"), self._buf(F, self.n_u, "F"))
         return F
 
-    def residual_jacobian(self, u, known, p) -> tuple[np.ndarray, np.ndarray]:
+    def _residual_jacobian(self, u, known, p) -> tuple[np.ndarray, np.ndarray]:
         F, J = np.empty(self.n_u), np.empty((self.n_u, self.n_u))
-        self._f["residual_jacobian"](self._ptr(u), self._ptr(known), self._ptr(p),
-                                     self._ptr(F), self._ptr(J))
+        self._f["residual_jacobian"](
+            self._buf(u, self.n_u, "u"), self._buf(known, self.n_k, "known"),
+            self._buf(p, self.n_p, "p"), self._buf(F, self.n_u, "F"),
+            self._buf(J, self.n_u * self.n_u, "J"))
         return F, J
 
-    def predict(self, known, p) -> np.ndarray:
+    def _predict(self, known, p) -> np.ndarray:
         u = np.empty(self.n_u)
-        self._f["predict"](self._ptr(known), self._ptr(p), self._ptr(u))
+        self._f["predict"](self._buf(known, self.n_k, "known"), self._buf(p, self.n_p, "p"),
+                           self._buf(u, self.n_u, "u"))
         return u
 
-    def next_knowns(self, u, known, p) -> np.ndarray:
+    def _next_knowns(self, u, known, p) -> np.ndarray:
         out = np.empty(self.n_k)
-        self._f["next_knowns"](self._ptr(u), self._ptr(known), self._ptr(p), self._ptr(out))
+        self._f["next_knowns"](self._buf(u, self.n_u, "u"), self._buf(known, self.n_k, "known"),
+                               self._buf(p, self.n_p, "p"),
+                               self._buf(out, self.n_k, "known_next"))
         return out
 
-    def solve_step(self, known, p, u0, options: NewtonOptions):
-        u = np.array(u0, dtype=float)
+    def _solve_step(self, known, p, u, options: NewtonOptions):
         it, rn = self.ffi.new("int *"), self.ffi.new("double *")
-        status = self._f["solve_step"](self._ptr(known), self._ptr(p), self._options(options),
-                                       self._ptr(u), it, rn)
+        status = self._f["solve_step"](
+            self._buf(known, self.n_k, "known"), self._buf(p, self.n_p, "p"),
+            self._options(options), self._buf(u, self.n_u, "u"), it, rn)
         return int(status), u, int(it[0]), float(rn[0])
 
-    def simulate(self, known0, p, n_steps: int, options: NewtonOptions) -> RawRun:
-        states = np.empty((n_steps + 1, self.n_k))
-        iterations = np.zeros(n_steps, dtype=np.intc)
-        norms = np.zeros(n_steps)
+    def _simulate(self, known0, p, n_steps: int, options: NewtonOptions, warm) -> RawRun:
+        if self.ffi.typeof(warm) is not self._warm_type:
+            raise ShapeError(f"{self.prefix}: the warm start must be a "
+                             f"{self._warm_type.cname} from warm_start(), got {warm!r}")
+        rows = n_steps + 1
+        states = np.empty((rows, self.n_k))
+        iterations = np.zeros(max(n_steps, 1), dtype=np.intc)
+        norms = np.zeros(max(n_steps, 1))
         last = np.zeros(self.n_u)
         failed = self.ffi.new("long *")
         status = self._f["simulate"](
-            self._ptr(known0), self._ptr(p), n_steps, self._options(options), self._ptr(states),
-            self._ptr(iterations, "int[]"), self._ptr(norms), failed, self._ptr(last))
-        return RawRun(states, iterations.astype(np.int64), norms, int(status), int(failed[0]),
-                      last)
+            self._buf(known0, self.n_k, "known0"), self._buf(p, self.n_p, "p"), n_steps,
+            self._options(options), warm, self._buf(states, rows * self.n_k, "states"), rows,
+            self._buf(iterations, max(n_steps, 1), "iterations", "int"),
+            self._buf(norms, max(n_steps, 1), "residual_norms"), failed,
+            self._buf(last, self.n_u, "last_iterate"))
+        return RawRun(states, iterations[:n_steps].astype(np.int64), norms[:n_steps],
+                      int(status), int(failed[0]), last)
 
 
 def norm_inf(v: np.ndarray) -> float:
@@ -138,17 +312,44 @@ def norm_inf(v: np.ndarray) -> float:
     return float(a.max())
 
 
-def lu_solve(A: np.ndarray, b: np.ndarray, scale: float) -> np.ndarray | None:
-    """LU with partial pivoting exactly as the C kernel (reciprocal pivots, zero multipliers
-    skipped); None when a pivot is not above n·ε·scale."""
+def lu_solve(A: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """(status, x) of A x = b exactly as ``<prefix>_lu_solve`` in the C kernel.
+
+    Every row of A and b is scaled by the power of two bringing the row's largest |entry|
+    into [1/2, 1) (exact), so singularity is judged relative to each equation; then LU with
+    partial pivoting (reciprocal pivots, zero multipliers skipped).  The status is
+    ``SINGULAR_JACOBIAN`` for a zero row or a pivot not above n·ε, ``NON_FINITE`` when a
+    value is infinite or NaN (overflow), else ``OK``.
+    """
     A, b = np.array(A, dtype=float), np.array(b, dtype=float)
     n = len(b)
-    tiny = n * np.finfo(float).eps * scale
+    tiny = n * np.finfo(float).eps
+    if not (np.isfinite(A).all() and np.isfinite(b).all()):
+        return NON_FINITE, b
+    with np.errstate(all="ignore"):
+        for i in range(n):
+            m = norm_inf(A[i])
+            if m == 0.0:
+                return SINGULAR_JACOBIAN, b
+            e = int(np.frexp(m)[1])
+            if e >= -1000:
+                s = np.ldexp(1.0, -e)
+                A[i] *= s
+                b[i] *= s
+            else:  # 2^-e exceeds the double range: two exact factors
+                s, s2 = np.ldexp(1.0, 1000), np.ldexp(1.0, -e - 1000)
+                A[i] = A[i] * s * s2
+                b[i] = b[i] * s * s2
+            if not np.isfinite(b[i]):
+                return NON_FINITE, b
     inv = np.empty(n)
     for k in range(n):
-        piv = k + int(np.argmax(np.abs(A[k:, k])))
-        if not abs(A[piv, k]) > tiny:
-            return None
+        column = np.abs(A[k:, k])
+        if not np.isfinite(column).all():
+            return NON_FINITE, b
+        piv = k + int(np.argmax(column))
+        if not column[piv - k] > tiny:
+            return SINGULAR_JACOBIAN, b
         if piv != k:
             A[[k, piv]] = A[[piv, k]]
             b[[k, piv]] = b[[piv, k]]
@@ -163,10 +364,19 @@ def lu_solve(A: np.ndarray, b: np.ndarray, scale: float) -> np.ndarray | None:
         for j in range(i + 1, n):
             s -= A[i, j] * b[j]
         b[i] = s * inv[i]
-    return b
+    return (OK if np.isfinite(norm_inf(b)) else NON_FINITE), b
 
 
-class NumpyKernel:
+@dataclass
+class NumpyWarmStart:
+    """The NumPy twin of ``<prefix>_warm_start``: the last two solved unknowns."""
+
+    count: int = 0
+    u_last: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    u_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+
+class NumpyKernel(_Kernel):
     """The same kernel evaluated with NumPy (lambdified SymPy; Newton in Python)."""
 
     name = "numpy"
@@ -174,6 +384,7 @@ class NumpyKernel:
     def __init__(self, step):
         self.step = step
         self.n_u, self.n_k = len(step.unknowns), len(step.knowns)
+        self.n_p = len(step.parameters)
         args = [list(step.unknowns), list(step.knowns), list(step.parameters)]
         self._F = sp.lambdify(args, sp.Matrix(step.residuals_in_unknowns()), "numpy",
                               cse=True)
@@ -181,77 +392,107 @@ class NumpyKernel:
         self._next = sp.lambdify(args, sp.Matrix(step.next_knowns), "numpy", cse=True)
         self._pred = sp.lambdify(args[1:], sp.Matrix(step.prediction), "numpy", cse=True)
 
-    def residual(self, u, known, p) -> np.ndarray:
+    def warm_start(self) -> NumpyWarmStart:
+        return NumpyWarmStart(0, np.zeros(self.n_u), np.zeros(self.n_u))
+
+    def _residual(self, u, known, p) -> np.ndarray:
         return np.asarray(self._F(u, known, p), dtype=float).reshape(self.n_u)
 
-    def residual_jacobian(self, u, known, p):
+    def _residual_jacobian(self, u, known, p):
         J = np.asarray(self._J(u, known, p), dtype=float).reshape(self.n_u, self.n_u)
-        return self.residual(u, known, p), J
+        return self._residual(u, known, p), J
 
-    def predict(self, known, p) -> np.ndarray:
+    def _predict(self, known, p) -> np.ndarray:
         return np.asarray(self._pred(known, p), dtype=float).reshape(self.n_u)
 
-    def next_knowns(self, u, known, p) -> np.ndarray:
+    def _next_knowns(self, u, known, p) -> np.ndarray:
         return np.asarray(self._next(u, known, p), dtype=float).reshape(self.n_k)
 
-    def solve_step(self, known, p, u0, options: NewtonOptions):
-        """Newton's method exactly as ``<prefix>_solve_step`` in the C kernel."""
-        u = np.array(u0, dtype=float)
+    def _solve_step(self, known, p, u0, options: NewtonOptions):
+        """Newton's method exactly as ``<prefix>_newton`` in the C kernel."""
+        with np.errstate(all="ignore"):
+            return self._newton(known, p, np.array(u0, dtype=float), options)
+
+    def _newton(self, known, p, u, options: NewtonOptions):
         step_norm = 0.0
         it = 0
-        with np.errstate(all="ignore"):
-            while True:
-                if it == 0:
-                    F, J = self.residual_jacobian(u, known, p)
-                else:
-                    F = self.residual(u, known, p)
-                rnorm = norm_inf(F)
-                if not np.isfinite(rnorm):
-                    return NON_FINITE, u, it, rnorm
-                if rnorm <= options.tol_residual or (
-                        it > 0 and step_norm <= options.tol_step * (1.0 + norm_inf(u))):
-                    return OK, u, it, rnorm
-                if it >= options.max_iterations:
-                    return NOT_CONVERGED, u, it, rnorm
-                if it > 0:
-                    F, J = self.residual_jacobian(u, known, p)
-                jscale = norm_inf(J)
-                if not np.isfinite(jscale):
-                    return NON_FINITE, u, it, rnorm
-                du = lu_solve(J, F, jscale)
-                if du is None:
-                    return SINGULAR_JACOBIAN, u, it, rnorm
-                step_norm = norm_inf(du)
-                if not np.isfinite(step_norm):
-                    return NON_FINITE, u, it, rnorm
-                u = u - du
-                it += 1
+        while True:
+            if it == 0:
+                F, J = self._residual_jacobian(u, known, p)
+            else:
+                F = self._residual(u, known, p)
+            rnorm = norm_inf(F)
+            if not np.isfinite(rnorm):
+                return NON_FINITE, u, it, rnorm
+            if it == 0:  # factor J before any convergence test (a degenerate step fails)
+                status, du = lu_solve(J, F)
+                if status != OK:
+                    return status, u, it, rnorm
+            if rnorm <= options.tol_residual or (
+                    it > 0 and step_norm <= options.tol_step * (1.0 + norm_inf(u))):
+                return OK, u, it, rnorm
+            if it >= options.max_iterations:
+                return NOT_CONVERGED, u, it, rnorm
+            if it > 0:
+                F, J = self._residual_jacobian(u, known, p)
+                status, du = lu_solve(J, F)
+                if status != OK:
+                    return status, u, it, rnorm
+            step_norm = norm_inf(du)
+            u = u - du
+            it += 1
 
-    def simulate(self, known0, p, n_steps: int, options: NewtonOptions) -> RawRun:
-        """As ``<prefix>_simulate``: predict twice, then (with ``options.extrapolate``)
-        extrapolate, retrying from the prediction when Newton fails from there."""
+    def _simulate(self, known0, p, n_steps: int, options: NewtonOptions,
+                  warm: NumpyWarmStart) -> RawRun:
+        """As ``<prefix>_simulate``: extrapolate from the warm start when it holds two
+        solutions (and ``options.extrapolate``), else predict; retry from the prediction
+        when Newton fails from an extrapolated guess."""
+        if not isinstance(warm, NumpyWarmStart) or warm.count not in (0, 1, 2):
+            raise ShapeError(f"{self.step.name}: the warm start must come from "
+                             f"warm_start(), got {warm!r}")
         states = np.empty((n_steps + 1, self.n_k))
         states[0] = known0
         iterations = np.zeros(n_steps, dtype=np.int64)
         norms = np.zeros(n_steps)
-        u1 = u2 = None
         for k in range(n_steps):
             current = states[k]
+            extrapolated = bool(options.extrapolate) and warm.count == 2
             with np.errstate(all="ignore"):
-                extrapolated = k >= 2 and options.extrapolate
-                u0 = 2.0 * u1 - u2 if extrapolated else self.predict(current, p)
-            status, u, iterations[k], norms[k] = self.solve_step(current, p, u0, options)
+                u0 = (2.0 * warm.u_last - warm.u_before if extrapolated
+                      else self._predict(current, p))
+            status, u, iterations[k], norms[k] = self._solve_step(current, p, u0, options)
             if status != OK and extrapolated:  # retry from the prediction
                 with np.errstate(all="ignore"):
-                    u0 = self.predict(current, p)
-                status, u, more, norms[k] = self.solve_step(current, p, u0, options)
-                iterations[k] += more
+                    u0 = self._predict(current, p)
+                status, u, more, norms[k] = self._solve_step(current, p, u0, options)
+                iterations[k] = min(iterations[k] + more, C_INT_MAX)
             if status == OK:
                 with np.errstate(all="ignore"):
-                    states[k + 1] = self.next_knowns(u, current, p)
-                if not np.isfinite(norm_inf(states[k + 1])):
+                    following = self._next_knowns(u, current, p)
+                if not np.isfinite(norm_inf(following)):
                     status = NON_FINITE
             if status != OK:
                 return RawRun(states, iterations, norms, status, k, u)
-            u1, u2 = u, u1
+            states[k + 1] = following
+            warm.u_before, warm.u_last = warm.u_last, np.array(u, dtype=float)
+            warm.count = min(warm.count + 1, 2)
         return RawRun(states, iterations, norms, OK, -1, np.zeros(self.n_u))
+
+
+def run_chunks(kernel, known0: np.ndarray, p: np.ndarray, steps: int,
+               options: NewtonOptions, chunk_steps: int) -> Iterator[tuple[int, RawRun]]:
+    """Advance ``steps`` steps in kernel calls of at most ``chunk_steps`` steps each.
+
+    Yields (index of the call's first state, its :class:`RawRun`) and stops after a failed
+    call.  The Newton warm start is carried from call to call, so the states are bitwise
+    those of one call of ``steps`` steps, while memory stays bounded by one chunk.
+    """
+    warm = kernel.warm_start()
+    known, done = known0, 0
+    while done < steps:
+        n = min(chunk_steps, steps - done)
+        run = kernel.simulate(known, p, n, options, warm)
+        yield done, run
+        if run.status != OK:
+            return
+        known, done = run.states[-1], done + n

@@ -17,8 +17,10 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import sympy as sp
 
+from .._errors import ShapeError
 from ..codegen._emit import KernelSource
 from ..codegen._printer import KernelCPrinter
+from ._backends import C_INT_MAX, c_buffer
 from ._build import DEFAULT_FLAGS, CompilationError, CompilerNotFoundError
 from ._cache import KernelCache
 
@@ -76,11 +78,17 @@ def compile_program(label: str, inputs: Sequence[sp.Symbol],
     n_in, n_out = len(inputs), len(outputs)
 
     def evaluate(values: np.ndarray) -> np.ndarray:
-        values = np.ascontiguousarray(values, dtype=float)
-        W = values.shape[0]
+        arr = np.asarray(values)
+        if arr.ndim != 2 or arr.shape[1] != n_in or arr.dtype.kind not in "iuf":
+            raise ShapeError(f"{label}: the window program takes a real (W, {n_in}) array, "
+                             f"got shape {arr.shape} and dtype {arr.dtype}")
+        W = arr.shape[0]
+        if W > C_INT_MAX:
+            raise ShapeError(f"{label}: at most {C_INT_MAX} windows per call, got {W}")
+        arr = np.ascontiguousarray(arr, dtype=np.float64)
         out = np.empty((W, n_out))
-        fn(W, n_in, n_out, ffi.cast("const double *", ffi.from_buffer(values)),
-           ffi.cast("double *", ffi.from_buffer(out)))
+        fn(W, n_in, n_out, c_buffer(ffi, arr, W * n_in, f"{label}: in"),
+           c_buffer(ffi, out, W * n_out, f"{label}: out"))
         return out
 
     return evaluate

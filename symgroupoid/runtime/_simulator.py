@@ -2,21 +2,35 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import os
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .._errors import NewtonDivergenceError, ShapeError, SingularJacobianError
+from .._errors import (
+    NewtonDivergenceError,
+    ShapeError,
+    SingularJacobianError,
+    TrajectoryTooLargeError,
+)
 from ._backends import (
     INVALID_ARGUMENT,
+    NON_FINITE,
     OK,
     SINGULAR_JACOBIAN,
     STATUS_MESSAGES,
     NewtonOptions,
+    real_vector,
+    run_chunks,
 )
 from ._layout import StateLayout
-from ._trajectory import Trajectory
+from ._trajectory import Sampler, Trajectory, kept_rows
+from ._validate import integer_argument
+
+#: steps per kernel call of a simulation: bounds the memory of a chunk and the delay of
+#: Ctrl-C (a KeyboardInterrupt is raised between calls)
+CHUNK_STEPS = 1 << 14
 
 
 class Simulator:
@@ -104,35 +118,145 @@ class Simulator:
         return arr.copy()
 
     # --- running --------------------------------------------------------------------------------
-    def simulate(self, initial, steps: int, params, *, options: NewtonOptions | None = None
+    def simulate(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
+                 every: int = 1, callback: Callable[[Trajectory], None] | None = None
                  ) -> Trajectory:
         """Advance ``steps`` steps from ``initial`` (see :meth:`state`).
 
-        Raises :class:`SingularJacobianError` or :class:`NewtonDivergenceError` (with the
-        failing step index, its residual norm and last Newton iterate) instead of returning
-        non-finite values.
+        The run is computed in chunks of at most ``CHUNK_STEPS`` steps (bitwise the states
+        of one uninterrupted run).  ``every`` = e keeps state 0, every e-th state and the
+        last one (1 + ⌈steps/e⌉ rows; see :class:`Trajectory` for the Newton data kept per
+        interval), so long runs need memory only for what they keep.  ``callback``, if
+        given, is called with each chunk's new states as soon as they are computed (a
+        :class:`Trajectory` as yielded by :meth:`stream`).
+
+        Raises :class:`SingularJacobianError` or :class:`NewtonDivergenceError` when step s
+        fails, with the step index, its residual norm and last Newton iterate, and
+        ``err.trajectory``: the trajectory up to state s (its kept states and state s).
+        Ctrl-C (:class:`KeyboardInterrupt`, also when raised by ``callback``) stops the run
+        within one chunk; the exception propagates with ``.trajectory``, the states kept so
+        far.  Non-finite values are never returned.  ``steps`` and ``every`` are integers
+        (integral floats such as ``1e7`` are accepted); a :class:`TrajectoryTooLargeError`
+        is raised up front when the states to keep exceed the machine's memory.
         """
-        if isinstance(steps, bool) or int(steps) != steps or steps < 0:
-            raise ValueError(f"{self.name}: steps must be a non-negative integer, got {steps!r}")
-        known0 = np.ascontiguousarray(self.state(initial))
-        p = np.ascontiguousarray(self.parameters(params))
-        run = self.kernel.simulate(known0, p, int(steps), options or self.options)
-        if run.status != OK:
-            raise self._failure(run.status, run.failed_step, run.iterations[run.failed_step],
-                                run.residual_norms[run.failed_step], run.last_iterate)
+        steps = integer_argument(steps, "steps", owner=self.name)
+        every = integer_argument(every, "every", minimum=1, owner=self.name)
+        known0 = self.state(initial)
+        p = self.parameters(params)
+        rows = kept_rows(steps, every)
+        self._check_memory(steps, every, rows)
+        states = np.empty((rows, self.layout.n_known))
+        indices = np.zeros(rows, dtype=np.int64)
+        iterations = np.zeros(rows - 1, dtype=np.int64)
+        norms = np.zeros(rows - 1)
+        states[0] = known0
+        filled = 1
+
+        def so_far() -> Trajectory:
+            return self._trajectory(states[:filled], iterations[:filled - 1],
+                                    norms[:filled - 1], p, indices[:filled], every)
+
+        try:
+            for piece in self._pieces(known0, p, steps, every, options):
+                r = len(piece.states) - 1
+                states[filled:filled + r] = piece.states[1:]
+                indices[filled:filled + r] = piece.step_indices[1:]
+                iterations[filled - 1:filled - 1 + r] = piece.newton_iterations
+                norms[filled - 1:filled - 1 + r] = piece.residual_norms
+                filled += r
+                if callback is not None:
+                    callback(piece)
+        except (SingularJacobianError, NewtonDivergenceError) as err:
+            tail = getattr(err, "trajectory", None)
+            if tail is not None and len(tail) > 1:
+                r = len(tail) - 1
+                states[filled:filled + r] = tail.states[1:]
+                indices[filled:filled + r] = tail.step_indices[1:]
+                iterations[filled - 1:filled - 1 + r] = tail.newton_iterations
+                norms[filled - 1:filled - 1 + r] = tail.residual_norms
+                filled += r
+            err.trajectory = so_far()
+            raise
+        except KeyboardInterrupt as interrupt:
+            interrupt.trajectory = so_far()
+            raise
+        return so_far()
+
+    def stream(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
+               every: int = 1) -> Iterator[Trajectory]:
+        """:meth:`simulate` as an iterator: one :class:`Trajectory` per chunk, for processing
+        a long run on the fly without keeping it.
+
+        Each piece starts with the last state of the previous piece (the first with state
+        0) followed by the states kept in the chunk, with their ``step_indices``; pieces
+        without a new kept state are skipped.  Joining the pieces (dropping the first row
+        of every piece after the first) gives ``simulate(..., every=every)``.  A failure at
+        step s raises as in :meth:`simulate`, with ``err.trajectory`` the piece from the
+        last state yielded to state s.
+        """
+        steps = integer_argument(steps, "steps", owner=self.name)
+        every = integer_argument(every, "every", minimum=1, owner=self.name)
+        return self._pieces(self.state(initial), self.parameters(params), steps, every,
+                            options)
+
+    def _pieces(self, known0: np.ndarray, p: np.ndarray, steps: int, every: int,
+                options: NewtonOptions | None) -> Iterator[Trajectory]:
+        options = options or self.options
+        sampler = Sampler(every, steps, known0)
+        for start, run in run_chunks(self.kernel, known0, p, steps, options, CHUNK_STEPS):
+            before_index, before_state = sampler.last_index, sampler.last_state
+            segment = sampler.take(start, run)
+            piece = self._trajectory(
+                np.concatenate([before_state[None], segment.states]), segment.iterations,
+                segment.residual_norms, p,
+                np.concatenate([[before_index], segment.step_indices]), every)
+            if run.status != OK:
+                k = run.failed_step
+                err = self._failure(run.status, start + k, run.iterations[k],
+                                    run.residual_norms[k], run.last_iterate)
+                err.trajectory = piece
+                raise err
+            if len(segment.states):
+                yield piece
+
+    def _trajectory(self, states, iterations, norms, p, indices, every) -> Trajectory:
         values = dict(zip(self.parameter_names, p.tolist()))
-        return Trajectory(self.layout, run.states, run.iterations, run.residual_norms, values,
-                          self.backend)
+        return Trajectory(self.layout, states, iterations, norms, values, self.backend,
+                          step_indices=indices, every=every)
+
+    def _check_memory(self, steps: int, every: int, rows: int) -> None:
+        """Refuse up front to keep more states than the machine's physical memory holds."""
+        try:
+            physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        except (AttributeError, ValueError, OSError):
+            return
+        needed = rows * (8 * self.layout.n_known + 24)
+        if physical > 0 and needed > physical:
+            raise TrajectoryTooLargeError(
+                f"{self.name}: keeping {rows} states (steps={steps}, every={every}) needs "
+                f"{needed / 2**30:.1f} GiB, more than this machine's memory "
+                f"({physical / 2**30:.1f} GiB); keep fewer with every=k, or process the run "
+                f"on the fly with Simulator.stream(...) or a callback")
 
     def step(self, state, params, *, options: NewtonOptions | None = None) -> np.ndarray:
         """One step: the next flat state from a state (named or flat)."""
         return self.simulate(state, 1, params, options=options).states[1].copy()
 
     def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None):
-        """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure."""
-        known = np.ascontiguousarray(self.state(state))
-        p = np.ascontiguousarray(self.parameters(params))
-        u0 = self.kernel.predict(known, p) if guess is None else np.asarray(guess, float)
+        """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure.
+
+        ``guess`` (default: the step's prediction) must hold ``len(step.unknowns)`` finite
+        numbers (a :class:`ShapeError` otherwise).
+        """
+        known = self.state(state)
+        p = self.parameters(params)
+        if guess is None:
+            u0 = self.kernel.predict(known, p)
+            if not np.isfinite(u0).all():
+                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0)
+        else:
+            u0 = real_vector(guess, len(self.equations.unknowns), "guess", owner=self.name,
+                             finite=True)
         status, u, it, rn = self.kernel.solve_step(known, p, u0, options or self.options)
         if status != OK:
             raise self._failure(status, 0, it, rn, u)
@@ -164,14 +288,13 @@ class Simulator:
                  iterate: np.ndarray) -> Exception:
         text = (f"{self.name}: step {step} failed: {STATUS_MESSAGES[status]} (after "
                 f"{int(iterations)} Newton iterations, |F|_inf = {residual_norm:.3e})")
-        if status == SINGULAR_JACOBIAN:
-            cls = SingularJacobianError
-        elif status == INVALID_ARGUMENT:
+        if status == INVALID_ARGUMENT:
             return ValueError(text)
-        else:
-            cls = NewtonDivergenceError
-        return cls(text, step=int(step), residual_norm=float(residual_norm),
-                   iterate=np.array(iterate, dtype=float))
+        cls = SingularJacobianError if status == SINGULAR_JACOBIAN else NewtonDivergenceError
+        err = cls(text, step=int(step), residual_norm=float(residual_norm),
+                  iterate=np.array(iterate, dtype=float))
+        err.trajectory = None
+        return err
 
     def __repr__(self) -> str:
         return (f"<Simulator {self.name!r}: {len(self.equations.unknowns)} unknowns, "

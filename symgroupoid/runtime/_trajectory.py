@@ -1,40 +1,68 @@
-"""Trajectory: the result of :meth:`Simulator.simulate`, with named arrays."""
+"""Trajectory: the result of :meth:`Simulator.simulate`, with named arrays.
+
+A run is computed in chunks (see :func:`~symgroupoid.runtime._backends.run_chunks`); a
+:class:`Sampler` keeps every ``every``-th state of the chunks and summarises the Newton
+data of the steps in between, so memory grows with the states kept, not the steps taken.
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from ._backends import OK, RawRun
 from ._layout import MULTIPLIER_KEYS, StateLayout
 
 
 class Trajectory:
-    """N steps from an initial state: N + 1 states and per-step solver data.
+    """States k = k_0, k_0 + e, k_0 + 2e, …, and the last one, of a run of N steps.
 
-    - ``traj.states``: (N+1, n_known) flat states (g_k, λ_k), k = 0..N;
-    - ``traj[name]``: a named part per state, e.g. ``traj["g"]`` (N+1, 3, 3),
-      ``traj["Gamma"]`` (N+1, 3); a coordinate of a pair-groupoid factor gives all its
-      positions q_0, q_1, …, q_{N+1} (the two initial ones and one per step: N+2 values);
-    - ``traj.multipliers``: (N+1, m) multipliers λ_k of each state;
-    - ``traj.newton_iterations`` (N,) and ``traj.residual_norms`` (N,): Newton updates and
-      final |F|_∞ of each step;
+    With ``every`` = e = 1 (the default of :meth:`Simulator.simulate`) every state is kept:
+
+    - ``traj.states``: (R, n_known) flat states (g_k, λ_k) of the kept steps (R = N + 1
+      when e = 1, else 1 + ⌈N/e⌉: state 0, every e-th state and the last state N);
+    - ``traj.step_indices`` (R,): the step index k of each kept state (0, e, 2e, …, N; a
+      run that stopped early ends at the last state it reached);
+    - ``traj[name]``: a named part per kept state, e.g. ``traj["g"]`` (R, 3, 3),
+      ``traj["Gamma"]`` (R, 3); a coordinate of a pair-groupoid factor, held at several
+      steps by each state (q_k, q_{k+1}), gives the older values of the first kept state
+      followed by the newest value of every kept state — with e = 1 all positions
+      q_0, q_1, …, q_{N+1} (N + 2 values), with e > 1 the positions q_0, q_1, q_{e+1},
+      q_{2e+1}, …;
+    - ``traj.multipliers``: (R, m) multipliers λ_k of each kept state;
+    - ``traj.newton_iterations`` (R − 1,) and ``traj.residual_norms`` (R − 1,): for each
+      interval between consecutive kept states, the total number of Newton updates and the
+      largest final |F|_∞ of its steps (with e = 1: those of each step);
+    - ``traj.steps``: the number of steps N covered; ``traj.every``: e;
     - ``traj.parameters``: the parameter values used, by name.
     """
 
     def __init__(self, layout: StateLayout, states: np.ndarray, iterations: np.ndarray,
-                 residual_norms: np.ndarray, parameters: dict, backend: str):
+                 residual_norms: np.ndarray, parameters: dict, backend: str, *,
+                 step_indices: np.ndarray | None = None, every: int = 1):
+        rows = len(states)
+        if step_indices is None:
+            step_indices = np.arange(rows, dtype=np.int64)
+        if not (len(iterations) == len(residual_norms) == rows - 1 == len(step_indices) - 1):
+            raise ValueError(f"inconsistent trajectory: {rows} states, {len(step_indices)} "
+                             f"step indices, {len(iterations)} iteration counts and "
+                             f"{len(residual_norms)} residual norms")
         self._layout = layout
         self.states = states
+        self.step_indices = np.asarray(step_indices, dtype=np.int64)
         self.newton_iterations = iterations
         self.residual_norms = residual_norms
         self.parameters = parameters
         self.backend = backend
-        for arr in (states, iterations, residual_norms):
+        self.every = int(every)
+        for arr in (self.states, self.step_indices, iterations, residual_norms):
             arr.setflags(write=False)
 
     @property
     def steps(self) -> int:
-        """Number of steps N."""
-        return len(self.newton_iterations)
+        """Number of steps N covered (from the first kept state to the last)."""
+        return int(self.step_indices[-1] - self.step_indices[0])
 
     def __len__(self) -> int:
         return len(self.states)
@@ -59,5 +87,72 @@ class Trajectory:
         return self.states[-1].copy()
 
     def __repr__(self) -> str:
-        return (f"<Trajectory {self._layout.step_name!r}: {self.steps} steps, parts "
+        kept = f", every {self.every}" if self.every != 1 else ""
+        return (f"<Trajectory {self._layout.step_name!r}: {self.steps} steps{kept}, parts "
                 f"{', '.join(self.keys())}; backend {self.backend}>")
+
+
+@dataclass
+class Segment:
+    """States kept from one chunk, with the Newton summary of the interval before each."""
+
+    states: np.ndarray  # (r, n_known)
+    step_indices: np.ndarray  # (r,)
+    iterations: np.ndarray  # (r,) total Newton updates since the previous kept state
+    residual_norms: np.ndarray  # (r,) largest |F| since the previous kept state
+
+
+class Sampler:
+    """Keeps state 0, every ``every``-th state and the last state of a run of ``steps``
+    steps delivered in chunks (a :class:`RawRun` each, in order).
+
+    Between consecutive kept states it sums the Newton iterations and takes the largest
+    residual norm of the steps; steps after the last kept state are carried to the next
+    chunk.  When a chunk failed at step s, its last valid state s is kept too (the end of
+    the trajectory up to the failure).
+    """
+
+    def __init__(self, every: int, steps: int, state0: np.ndarray):
+        self.every, self.steps = every, steps
+        self.last_index = 0
+        self.last_state = np.array(state0, dtype=float)
+        self._carry_iterations = 0
+        self._carry_norm = 0.0
+
+    def take(self, start: int, run: RawRun) -> Segment:
+        """The states kept from ``run``, whose first state has step index ``start``."""
+        m = run.completed
+        end = start + m
+        first = (start // self.every + 1) * self.every
+        kept = np.arange(first, end + 1, self.every, dtype=np.int64)
+        at_end = run.status != OK or end == self.steps
+        if at_end and end != self.last_index and (kept.size == 0 or kept[-1] != end):
+            kept = np.append(kept, end)
+        its, norms = run.iterations[:m], run.residual_norms[:m]
+        offsets = kept - start
+        bounds = np.concatenate(([0], offsets))
+        sums = np.zeros(len(kept), dtype=np.int64)
+        maxima = np.zeros(len(kept))
+        if len(kept):
+            nonempty = np.diff(bounds) > 0
+            if nonempty.any():
+                starts = bounds[:-1][nonempty]
+                sums[nonempty] = np.add.reduceat(its[:offsets[-1]], starts)
+                maxima[nonempty] = np.maximum.reduceat(norms[:offsets[-1]], starts)
+            sums[0] += self._carry_iterations
+            maxima[0] = max(maxima[0], self._carry_norm)
+            rest = slice(int(offsets[-1]), m)
+            self._carry_iterations = int(its[rest].sum())
+            self._carry_norm = float(norms[rest].max()) if m > offsets[-1] else 0.0
+            self.last_index = int(kept[-1])
+            self.last_state = run.states[offsets[-1]].copy()
+        else:
+            self._carry_iterations += int(its.sum())
+            if m:
+                self._carry_norm = max(self._carry_norm, float(norms.max()))
+        return Segment(run.states[offsets], kept, sums, maxima)
+
+
+def kept_rows(steps: int, every: int) -> int:
+    """Rows of a complete run: state 0, every ``every``-th state and the last (1 + ⌈N/e⌉)."""
+    return 1 + -(-steps // every)
