@@ -47,7 +47,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import symgroupoid as sg  # noqa: E402
-from symgroupoid.runtime._backends import lu_solve  # noqa: E402
+from symgroupoid.runtime._backends import SINGULAR_JACOBIAN, lu_solve  # noqa: E402
 from symgroupoid.systems import plate_ball  # noqa: E402
 
 R, OMEGA, C = 1.0, 0.1, 0.02
@@ -181,6 +181,13 @@ def equilibrated_newton(known: np.ndarray, u: np.ndarray, h: float,
     return u, float(np.abs(kernel.residual(u, known, p)).max())
 
 
+def global_pivot_singular(J: np.ndarray) -> bool:
+    """The former pivot test, pivot ≤ n·ε·max|J| over the whole Jacobian (not invariant under
+    scaling an equation), which rejected the regular step at 1 340 697."""
+    return bool(np.abs(kernel_pivots(J)).min() <= len(J) * np.finfo(float).eps
+                * np.abs(J).max())
+
+
 def kernel_pivots(J: np.ndarray) -> np.ndarray:
     """The pivots of LU with partial pivoting (the kernel's elimination order)."""
     A = np.array(J, dtype=float)
@@ -291,7 +298,9 @@ def failure_analysis(run: LongRun) -> dict:
     u, residual = equilibrated_newton(known, guess, h)
     cond_raw, cond_eq = conditioning(known, u, h)
     nxt = sim.kernel.next_knowns(u, known, p)
-    return {"step": run.steps, "kernel_singular": lu_solve(J, F, scale) is None,
+    status, _ = lu_solve(J, F)
+    return {"step": run.steps, "global_pivot_singular": global_pivot_singular(J),
+            "kernel_singular": status == SINGULAR_JACOBIAN,
             "smallest_pivot": float(pivots.min()),
             "threshold": len(F) * np.finfo(float).eps * scale,
             "cond_raw": cond_raw, "cond_eq": cond_eq, "residual": residual,
@@ -341,8 +350,9 @@ def print_origin_run(run: LongRun) -> None:
     if run.failure is not None:
         A = failure_analysis(run)
         print(f"    failure at step {run.steps}: {type(run.failure).__name__}: {run.failure}")
-        print(f"      kernel pivot test: smallest pivot {A['smallest_pivot']:.3e} vs threshold "
-              f"n·ε·max|J| = {A['threshold']:.3e} -> singular: {A['kernel_singular']}")
+        print(f"      former global pivot test: smallest pivot {A['smallest_pivot']:.3e} vs "
+              f"n·ε·max|J| = {A['threshold']:.3e} -> singular: {A['global_pivot_singular']}; "
+              f"kernel (per-equation scaled) test -> singular: {A['kernel_singular']}")
         print(f"      equilibrated Newton from the same guess: |F|_∞ = {A['residual']:.1e}, "
               f"cond(J) = {A['cond_raw']:.2e}, cond(D_r J D_c) = {A['cond_eq']:.2f}, "
               f"cos θ = {A['cos_theta']:.2e}, max|λ| = {A['multipliers']:.2e}")

@@ -14,7 +14,9 @@ from ._errors import (
     ShapeError,
     SingularJacobianError,
     SymgroupoidError,
+    TrajectoryTooLargeError,
     UndeclaredSymbolError,
+    UnsupportedExpressionError,
 )
 from .equations import (
     DiscreteSystem,
@@ -68,7 +70,8 @@ __all__ = [
     "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity", "NonholonomicSystem",
     "NotComposableError", "PairGroupoid", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3",
     "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError", "StationarityReport",
-    "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory", "UndeclaredSymbolError",
+    "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory", "TrajectoryTooLargeError",
+    "UndeclaredSymbolError", "UnsupportedExpressionError",
     "check_axioms", "compile_step", "emit_c", "hat3", "latex", "left_derivative",
     "right_derivative", "solve_boundary_value", "verify_stationary",
 ]

@@ -25,8 +25,6 @@ import numpy as np
 import pytest
 from kernel_support import REPO, SESSION_CACHE, compiled, needs_cc
 
-import symgroupoid as sg
-
 pytestmark = needs_cc
 
 
@@ -146,13 +144,13 @@ def _failing_step(B):
 
 
 def test_failing_step_is_regular(B):
-    """At step 1 340 697 the kernel's pivot test (pivot ≤ n·ε·max|J|) reports a singular
+    """At step 1 340 697 the former pivot test (pivot ≤ n·ε·max|J|) reported a singular
     Jacobian, but the step is regular: the equilibrated Jacobian D_r J D_c has condition ≈ 3.6
     (the raw one ≈ 5.6e14, rows carrying λ ~ 3e7) and Newton on it converges from the same
     guess to the rounding floor of the residual."""
     sim, p, known, guess = _failing_step(B)
     F, J = sim.kernel.residual_jacobian(guess, known, p)
-    assert B.lu_solve(J, F, np.abs(J).max()) is None
+    assert B.global_pivot_singular(J)
     u, residual = B.equilibrated_newton(known, guess, 0.01)
     cond_raw, cond_eq = B.conditioning(known, u, 0.01)
     assert residual < 1e-7 and cond_eq < 10 and cond_raw > 1e14
@@ -160,13 +158,14 @@ def test_failing_step_is_regular(B):
     assert 0 < B.diagnostics(nxt, 0.01)["cos"][0] < 1e-10
 
 
-@pytest.mark.xfail(strict=True, raises=sg.SingularJacobianError,
-                   reason="the Newton pivot test is relative to max|J|, not scale-invariant "
-                          "(docs/conventions.md §12)")
 def test_kernel_solves_the_regular_failing_step(B):
+    """The kernel judges each pivot relative to its own (power-of-two scaled) equation, so the
+    regular step is solved, to the solution of the equilibrated Newton."""
     sim, p, known, guess = _failing_step(B)
     u, _, residual = sim.solve(known, p, guess=guess)
     assert residual < 1e-7
+    reference, _ = B.equilibrated_newton(known, guess, 0.01)
+    assert np.allclose(u, reference, rtol=1e-9, atol=1e-9)
 
 
 @pytest.mark.slow
@@ -179,7 +178,9 @@ def test_long_run_from_the_origin(B):
     run = B.origin_run(h, 1_500_000)
     D, fold = run.extra["diag"], run.extra["fold"]
     assert run.extra["escape"] is not None and fold is not None
-    assert 1.0 < D["d"][fold] / (B.R / (B.OMEGA * h)) < 1.03
+    # sin θ ≤ hΩd/r puts the fold at d ≥ d* exactly; how far beyond depends on the direction
+    # of approach, which the chaotic escape sets (1–1.5 d* across parameter sets, §12)
+    assert 1.0 < D["d"][fold] / (B.R / (B.OMEGA * h)) < 1.5
     assert np.all(D["cos"] > 0)
     before = slice(0, fold)
     assert np.ptp(D["casimir"][before]) < 1e-8 * D["casimir"][0]
@@ -187,8 +188,4 @@ def test_long_run_from_the_origin(B):
     slope, d_end = B.end_slope(run, D)
     assert d_end > 100 * D["d"][fold]
     assert abs(slope - B.R) < 1e-3
-    if run.failure is not None:
-        assert isinstance(run.failure, sg.SingularJacobianError)
-        analysis = B.failure_analysis(run)
-        assert analysis["kernel_singular"]
-        assert analysis["cond_eq"] < 10 and analysis["residual"] < 1e-7
+    assert run.failure is None, f"the folded run failed at step {run.steps}: {run.failure}"
