@@ -9,7 +9,7 @@ The same mechanism as :func:`~symgroupoid.derivation.junction_variation` (docs/c
 2. the window's arrows g_{k+o} (named knowns, and the unknown arrow through its fibre chart
    τ(x)) are graph nodes; each term's gradient is instantiated at its arrows by substitution;
 3. residual b = Σ ⟨∇_{g_k} T_s, X⃖_b(g_k)⟩ − Σ ⟨∇_{g_{k+1}} T_s, X⃗_b(g_{k+1})⟩ over the terms
-   containing g_k and g_{k+1} — the derivative of the action sum along the junction
+   containing g_k and g_{k+1} (both halves are kept: ``left_rows``, ``right_rows``) — the derivative of the action sum along the junction
    variation of section b — then the constraints on the newest term;
 4. the step Jacobian ∂F/∂(x, λ) is forward-mode differentiation of those nodes along the
    unknowns (through the chart), one sweep per unknown.
@@ -38,6 +38,8 @@ class WindowGraph:
     graph: Graph
     residuals: list  # node ids: one per basis section, then the constraints
     del_rows: list  # node ids of the junction residuals alone (before constraints)
+    left_rows: list  # X⃖_b[S](g_k) (the g_k half of each junction residual)
+    right_rows: list  # X⃗_b[S](g_{k+1}) (the g_{k+1} half: del = left − right)
     constraint_rows: list  # node ids of φ on the newest term
     symbols: dict  # named symbol -> node (knowns, unknowns, parameters)
     arrows: dict  # offset -> named arrow (SymPy coordinates, fibre variables of the unknown)
@@ -117,7 +119,7 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
 
     left = _fields(g, G, "left", arrow_nodes[0])
     right = _fields(g, G, "right", arrow_nodes[1])
-    terms: list[list[int]] = [[] for _ in range(G.rank)]
+    halves: dict = {0: [[] for _ in range(G.rank)], 1: [[] for _ in range(G.rank)]}
     for s in starts:
         grads = instantiate(grad, s)
         for i in range(arity):
@@ -126,15 +128,16 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
                 continue
             part = grads[i * dim:(i + 1) * dim]
             fields = left if o == 0 else right
-            sign = g.one if o == 0 else g.minus_one
             for b in range(G.rank):
-                terms[b].extend(g.mul(sign, d, v) for d, v in zip(part, fields[b])
-                                if d != g.zero and v != g.zero)
-    dels = [g.add(*t) for t in terms]
+                halves[o][b].extend(g.mul(d, v) for d, v in zip(part, fields[b])
+                                    if d != g.zero and v != g.zero)
+    lefts = [g.add(*t) for t in halves[0]]
+    rights = [g.add(*t) for t in halves[1]]
+    dels = [g.sub(a, b) for a, b in zip(lefts, rights)]
     last = starts[-1]
     constraint_rows = instantiate(phis, last) if m else []
-    return WindowGraph(g, dels + constraint_rows, dels, constraint_rows, symbols, arrows,
-                       memo)
+    return WindowGraph(g, dels + constraint_rows, dels, lefts, rights, constraint_rows,
+                       symbols, arrows, memo)
 
 
 def step_jacobian(g: Graph, residuals: Sequence[int], unknowns: Sequence[int]
