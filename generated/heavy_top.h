@@ -82,7 +82,7 @@ typedef struct {
 } heavy_top_warm_start;
 
 void heavy_top_default_options(heavy_top_options *options);
-void heavy_top_reconstruct(const double *u, double *fibre);
+void heavy_top_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F);
 void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
 void heavy_top_predict(const double *known, const double *p, double *u);

@@ -27,6 +27,7 @@
 #include <string.h>
 
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
+ * (in the alpha-fibre of the known arrow's target)
  *   fibre[0] = (W_{k+1})_{11}
  *   fibre[1] = (W_{k+1})_{12}
  *   fibre[2] = (W_{k+1})_{13}
@@ -38,9 +39,11 @@
  *   fibre[8] = (W_{k+1})_{33}
  */
 
-void rigid_body_reconstruct(const double *u, double *fibre)
+void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre)
 {
     (void)u;
+    (void)known;
+    (void)p;
     (void)fibre;
     const double t0 = u[2]*u[2];
     const double t1 = -t0;

@@ -78,7 +78,7 @@ typedef struct {
 } rigid_body_warm_start;
 
 void rigid_body_default_options(rigid_body_options *options);
-void rigid_body_reconstruct(const double *u, double *fibre);
+void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F);
 void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
 void rigid_body_predict(const double *known, const double *p, double *u);

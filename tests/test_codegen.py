@@ -210,7 +210,9 @@ def test_c_reconstruction_is_the_cayley_map():
     lib, ffi = kernel.lib, kernel.ffi
     u = np.array([0.3, -0.2, 0.5])
     fibre = np.empty(9)
-    lib.rigid_body_reconstruct(ffi.from_buffer("double[]", u), ffi.from_buffer("double[]", fibre))
+    known, p = np.zeros(len(seed_step("rigid_body").knowns)), np.ones(4)
+    lib.rigid_body_reconstruct(ffi.from_buffer("double[]", u), ffi.from_buffer("double[]", known),
+                               ffi.from_buffer("double[]", p), ffi.from_buffer("double[]", fibre))
     W = fibre.reshape(3, 3)
     X = sg.hat3(u)
     cay = np.array(((sp.eye(3) - X / 2).inv() * (sp.eye(3) + X / 2)).evalf(), dtype=float)

@@ -63,8 +63,10 @@ def test_heavy_top_residual_is_the_body_momentum_balance():
         W0 = _random_rotation(group, rng)
         u = rng.uniform(-0.3, 0.3, 3)
         W1 = np.empty(9)
-        sim.kernel.lib.heavy_top_reconstruct(sim.kernel.ffi.from_buffer("double[]", u),
-                                             sim.kernel.ffi.from_buffer("double[]", W1))
+        known = np.concatenate([gamma, W0.ravel()])
+        buffer = sim.kernel.ffi.from_buffer
+        sim.kernel.lib.heavy_top_reconstruct(buffer("double[]", u), buffer("double[]", known),
+                                             buffer("double[]", p), buffer("double[]", W1))
         W1 = W1.reshape(3, 3)
         F = sim.kernel.residual(u, np.concatenate([gamma, W0.ravel()]), p)
         gamma1 = W0.T @ gamma

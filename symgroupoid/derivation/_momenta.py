@@ -142,7 +142,7 @@ def is_identically_zero(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool:
     """
     q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
     x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
-    on_group = G.arrow_from(q, G.fibre_chart(x))
+    on_group = G.arrow_from(q, G.fibre_chart(x, q))
     e = expr.xreplace(dict(zip(arrow, on_group)))
     return sp.simplify(sp.cancel(sp.together(e))) == 0
 

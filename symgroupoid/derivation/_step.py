@@ -149,11 +149,15 @@ def next_arrow(groupoid: Groupoid, previous: tuple, offset: int, matrix_form: bo
     return tuple(groupoid.arrow_from(groupoid.target(previous), fibre))
 
 
-def chart_of(groupoid: Groupoid, offset: int) -> tuple[tuple, tuple, dict]:
-    """Named fibre variables, chart coordinates and the map fibre ← chart of g_{k+offset}."""
+def chart_of(groupoid: Groupoid, offset: int, source: Sequence | None = None
+             ) -> tuple[tuple, tuple, dict]:
+    """Named fibre variables, chart coordinates and the map fibre ← chart of g_{k+offset},
+    whose source is ``source`` (default: its named source)."""
     fibre = tuple(groupoid.named_fibre(offset))
     chart = tuple(groupoid.named_chart(offset))
-    values = tuple(groupoid.fibre_chart(chart))
+    if source is None:
+        source = groupoid.named_source(offset)
+    values = tuple(groupoid.fibre_chart(chart, tuple(source)))
     cmap = {f: v for f, v in zip(fibre, values) if f != v}
     return fibre, chart, cmap
 
@@ -251,7 +255,7 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
     offsets, starts = window(arity)
     arrows = window_arrows(G, offsets)
     newest, first = offsets[-1], offsets[0]
-    fibre, chart, cmap = chart_of(G, newest)
+    fibre, chart, cmap = chart_of(G, newest, G.target(arrows[newest - 1]))
     lam = {s: multiplier_symbols(m, s) for s in starts}
     known_fibres = [f for o in offsets[1:-1] for f in G.named_fibre(o)]
     knowns = list(arrows[first]) + known_fibres + [x for s in starts[:-1] for x in lam[s]]
@@ -324,7 +328,7 @@ def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution:
         return [tidy(sum((c * d for c, d in zip(coeffs, dels)), sp.S.Zero))
                 for coeffs in coefficients] + psis
 
-    fibre, chart, cmap = chart_of(G, 1)
+    fibre, chart, cmap = chart_of(G, 1, G.target(arrows[0]))
     g0, g1 = arrows[0], arrows[1]
     return DerivedStep(
         name=name, groupoid=G, order=1, knowns=list(g0),

@@ -65,15 +65,24 @@ def _term(g: Graph, fs: SystemFunctions, parameters: Sequence, m: int,
 
 
 def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int]) -> list[list[int]]:
-    """X_b(a) (left or right invariant vector fields) at an arrow given by nodes."""
+    """X⃖_b(a) = d/dt m(a, h_b(t)) and X⃗_b(a) = −d/dt m(h_b(t)⁻¹, a) at t = 0 (seed 000
+    eqs. (1)–(2)) at an arrow given by nodes: the structure maps are evaluated on the section
+    curves and differentiated in t on the graph (forward mode), then t = 0."""
     generic = G._generic_arrow
-    templates = G._left_fields if side == "left" else G._right_fields
-    gmap = {a: g.input(a) for a in generic}
+    t = sp.Dummy("t", real=True)
+    symbols = {a: c for a, c in zip(generic, coords)}
+    symbols[t] = g.input(t)
     memo: dict = {}
-    nodes = [[from_sympy(g, c, gmap, f"the {side} fields of {G.name}", memo) for c in v]
-             for v in templates]
-    mapping = {gmap[a]: c for a, c in zip(generic, coords)}
-    return [g.substitute(v, mapping) for v in nodes]
+    q = G.target(generic) if side == "left" else G.source(generic)
+    out = []
+    for h in G._curves(q, t):
+        moved = G.multiply(generic, h) if side == "left" else G.multiply(G.inverse(h), generic)
+        nodes = [from_sympy(g, sp.sympify(c), symbols, f"the {side} fields of {G.name}", memo)
+                 for c in moved]
+        velocity = forward(g, nodes, {symbols[t]: g.one})
+        at_zero = g.substitute(velocity, {symbols[t]: g.zero})
+        out.append(at_zero if side == "left" else [g.neg(v) for v in at_zero])
+    return out
 
 
 def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequence,
@@ -90,21 +99,22 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
 
     arrows = window_arrows(G, offsets)
     newest = offsets[-1]
-    _, chart, cmap = chart_of(G, newest)
+    _, chart, cmap = chart_of(G, newest, G.target(arrows[newest - 1]))
     symbols: dict = {p: g.input(p) for p in parameters}
     symbols.update({x: g.input(x) for x in chart})
     memo: dict = {}
-    for f, value in cmap.items():
-        symbols[f] = from_sympy(g, value, symbols, f"the fibre chart of {G.name}", memo)
     lam = {s: multiplier_symbols(m, s) for s in starts}
     for s in starts:
         symbols.update({x: g.input(x) for x in lam[s]})
 
-    def node_of(expr) -> int:
+    def node_of(expr, what: str = "the arrows of the step") -> int:
         for s in sorted(sp.sympify(expr).free_symbols, key=str):
             if s not in symbols:
                 symbols[s] = g.input(s)
-        return from_sympy(g, expr, symbols, f"{name}: the arrows of the step", memo)
+        return from_sympy(g, expr, symbols, f"{name}: {what}", memo)
+
+    for f, value in cmap.items():
+        symbols[f] = node_of(value, f"the fibre chart of {G.name}")
 
     arrow_nodes = {o: [node_of(c) for c in arrows[o]] for o in offsets}
     flat_slots = [n for s in slot_nodes for n in s]

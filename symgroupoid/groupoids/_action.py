@@ -106,14 +106,17 @@ class ActionGroupoid(Groupoid):
     def fibre_of(self, a):
         return self._split(a)[1]
 
-    def fibre_chart(self, x):
+    def fibre_chart(self, x, source=None):
         return self.group.fibre_chart(x)
 
-    def fibre_chart_inverse(self, f):
+    def fibre_chart_inverse(self, f, source=None):
         return self.group.fibre_chart_inverse(f)
 
-    def chart_of_fibre(self, f):
+    def chart_of_fibre(self, f, source=None):
         return self.group.chart_of_fibre(f)
+
+    def named_groups(self):
+        return self.group.named_groups()
 
     def matrix_parts(self):
         return [(self.base_dim + o, g) for o, g in self.group.matrix_parts()]

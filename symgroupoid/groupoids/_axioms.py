@@ -95,6 +95,6 @@ def _section_checks(G, q, t, tol):
         raise _fail(G, "section velocities at ε(q) are linearly independent", q=q)
     rng = np.random.default_rng(1)
     x = [sp.Float(v) for v in G.random_chart(rng)]
-    arrow = G.arrow_from(q, G.fibre_chart(x))
+    arrow = G.arrow_from(q, G.fibre_chart(x, q))
     if not _close(G.source(arrow), q, tol):
         raise _fail(G, "the fibre chart lands in the α-fibre of q", q=q)

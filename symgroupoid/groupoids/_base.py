@@ -16,8 +16,9 @@ notation and the *chart* of an α-fibre a step is solved in:
 
 - ``arrow_from(q, f)`` builds the arrow with source ``q`` and fibre variables ``f``
   (pair groupoid: the target point; a Lie group: its matrix entries),
-- ``fibre_chart(f_x)`` maps chart coordinates to fibre variables (pair groupoid: identity;
-  Lie groups: a retraction τ, Cayley by default).
+- ``fibre_chart(x, q)`` maps chart coordinates to fibre variables of the α-fibre of q (pair
+  groupoid of Rⁿ: identity; Lie groups: a retraction τ, Cayley by default; pair groupoid of
+  a Lie group: q·τ(x)).
 """
 
 from __future__ import annotations
@@ -126,21 +127,25 @@ class Groupoid(ABC):
     def fibre_of(self, a: Sequence) -> tuple:
         """Fibre variables of ``a`` (inverse of :meth:`arrow_from` at fixed source)."""
 
-    def fibre_chart(self, x: Sequence) -> tuple:
-        """Fibre variables from chart coordinates (``rank`` of them).  Default: identity."""
+    def fibre_chart(self, x: Sequence, source: Sequence | None = None) -> tuple:
+        """Fibre variables from chart coordinates (``rank`` of them) in the α-fibre of
+        ``source`` (a chart may depend on the fibre's base point, e.g. q·τ(x) on the pair
+        groupoid of a Lie group).  Default: identity."""
         return tuple(x)
 
     @functools.cached_property
     def _numeric_fibre_chart(self):
         x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(self.rank))
-        return sp.lambdify([x], list(self.fibre_chart(x)), "numpy")
+        q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(self.base_dim))
+        return sp.lambdify([x, q], list(self.fibre_chart(x, q)), "numpy")
 
-    def numeric_fibre_chart(self, x: Sequence) -> np.ndarray:
+    def numeric_fibre_chart(self, x: Sequence, source: Sequence | None = None) -> np.ndarray:
         """:meth:`fibre_chart` evaluated numerically (lambdified once)."""
-        values = self._numeric_fibre_chart(np.asarray(x, float))
+        q = np.zeros(self.base_dim) if source is None else np.asarray(source, float)
+        values = self._numeric_fibre_chart(np.asarray(x, float), q)
         return np.array([float(v) for v in values])
 
-    def fibre_chart_inverse(self, f: Sequence) -> tuple:
+    def fibre_chart_inverse(self, f: Sequence, source: Sequence | None = None) -> tuple:
         """Chart coordinates of fibre variables (numeric).  Default: identity."""
         return tuple(f)
 
@@ -149,11 +154,16 @@ class Groupoid(ABC):
 
         Default: the next arrow repeats ``a``'s chart coordinates (``chart_of_fibre``).
         """
-        return tuple(self.chart_of_fibre(self.fibre_of(a)))
+        return tuple(self.chart_of_fibre(self.fibre_of(a), self.source(a)))
 
-    def chart_of_fibre(self, f: Sequence) -> tuple:
+    def chart_of_fibre(self, f: Sequence, source: Sequence | None = None) -> tuple:
         """Chart coordinates of fibre variables, symbolically.  Default: identity."""
         return tuple(f)
+
+    def named_groups(self) -> dict:
+        """Matrix-group parts of an arrow's named coordinates: name → MatrixLieGroup (their
+        values are checked to lie in the group)."""
+        return {}
 
     # --- naming in the papers' notation ---------------------------------------------------
     @abstractmethod
@@ -192,7 +202,7 @@ class Groupoid(ABC):
     def random_arrow(self, rng: np.random.Generator, source: Sequence | None = None) -> tuple:
         """A random arrow (optionally with prescribed source), as numeric coordinates."""
         q = self.random_base_point(rng) if source is None else tuple(source)
-        f = self.fibre_chart([sp.Float(v) for v in self.random_chart(rng)])
+        f = self.fibre_chart([sp.Float(v) for v in self.random_chart(rng)], q)
         return tuple(float(v) for v in self.arrow_from(q, [sp.N(v) for v in f]))
 
     def section_flow(self, q: Sequence, delta: Sequence) -> tuple:

@@ -247,14 +247,17 @@ class MatrixLieGroup(Groupoid):
     def fibre_of(self, a):
         return tuple(a)
 
-    def fibre_chart(self, x):
+    def fibre_chart(self, x, source=None):
         return self.entries(self.tau(x))
 
-    def chart_of_fibre(self, f):
+    def chart_of_fibre(self, f, source=None):
         return tuple(self.retraction_inverse(self.matrix(f)))
 
-    def fibre_chart_inverse(self, f):
+    def fibre_chart_inverse(self, f, source=None):
         return tuple(self.numeric_retraction_inverse(self.numeric_matrix([float(v) for v in f])))
+
+    def named_groups(self):
+        return {self.symbol_name: self}
 
     def numeric_retraction_inverse(self, M: np.ndarray) -> np.ndarray:
         """τ⁻¹ of a numeric group element."""

@@ -1,20 +1,29 @@
-"""Euclidean spaces and the pair groupoid Q × Q ⇉ Q (seed 000 §1.1, seed 001 §2.1.1)."""
+"""Euclidean spaces and the pair groupoid Q × Q ⇉ Q (seed 000 §1.1, seed 001 §2.1.1).
+
+Q is any configuration manifold the library has (:mod:`symgroupoid.groupoids._manifold`):
+Rⁿ, a matrix Lie group, or a product of these.  On a Lie group the arrows carry consecutive
+attitudes (R_k, R_{k+1}) and a step solves in retraction coordinates of the increment
+R_k⁻¹R_{k+1} — the setting of Lie group variational integrators with attitude-dependent
+potentials.
+"""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import sympy as sp
 
 from .._symbols import latex_name, scalar_symbol
 from ._base import Arrow, Groupoid
+from ._manifold import Manifold, as_manifold
 
 
-class EuclideanSpace:
+class EuclideanSpace(Manifold):
     """The manifold Rⁿ with named coordinates, e.g. ``EuclideanSpace("x y")``.
 
     ``EuclideanSpace.vector("Gamma", 3)`` names the coordinates Γ₁, Γ₂, Γ₃ of one
-    vector quantity.
+    vector quantity.  Its chart is the point itself: a step solves for q_{k+1}.
     """
 
     def __init__(self, names: str | Sequence[str]):
@@ -39,9 +48,16 @@ class EuclideanSpace:
     def dim(self) -> int:
         return len(self.names)
 
+    @property
+    def coords_dim(self) -> int:
+        return len(self.names)
+
     def point(self, offset: int) -> tuple:
         """The named point q_{k+offset}."""
         return tuple(scalar_symbol(s, offset) for s in self.latex)
+
+    def named_chart(self, offset: int) -> tuple:
+        return self.point(offset)
 
     def symbols_by_name(self, offset: int) -> dict:
         pts = self.point(offset)
@@ -49,6 +65,32 @@ class EuclideanSpace:
         if self.vector_name is not None:
             out[self.vector_name] = sp.Matrix(pts)
         return out
+
+    def curves(self, q, t):
+        n = self.dim
+        return [tuple(q[i] + (t if i == j else 0) for i in range(n)) for j in range(n)]
+
+    def chart(self, q, x):
+        return tuple(x)
+
+    def chart_inverse(self, q, p):
+        return tuple(p)
+
+    def numeric_chart_inverse(self, q, p):
+        return np.asarray(p, float)
+
+    def predict(self, q0, q1):
+        """Linear extrapolation q_{k+1} ≈ 2 q_k − q_{k−1}."""
+        return tuple(2 * b - a for a, b in zip(q0, q1))
+
+    def view_point(self, coords):
+        return tuple(coords)
+
+    def random_point(self, rng):
+        return tuple(float(v) for v in rng.uniform(-1.0, 1.0, self.dim))
+
+    def numeric_point(self, c):
+        return _point(c, self.dim)
 
     def __repr__(self) -> str:
         return f"EuclideanSpace({' '.join(self.names)!r})"
@@ -64,37 +106,49 @@ def _point(c, dim: int) -> tuple:
 
 
 class PairArrow(Arrow):
-    """An arrow (q₀, q₁) of a pair groupoid: ``.source`` = q₀, ``.target`` = q₁."""
+    """An arrow (q₀, q₁) of a pair groupoid: ``.source`` = q₀, ``.target`` = q₁ (a tuple of
+    coordinates on Rⁿ, a matrix on a Lie group, a tuple of parts on a product)."""
 
     @property
-    def source(self) -> tuple:
-        return self.coords[: len(self.coords) // 2]
+    def source(self):
+        G = self.groupoid
+        return G.space.view_point(self.coords[: G.base_dim])
 
     @property
-    def target(self) -> tuple:
-        return self.coords[len(self.coords) // 2:]
+    def target(self):
+        G = self.groupoid
+        return G.space.view_point(self.coords[G.base_dim:])
 
 
 class PairGroupoid(Groupoid):
     """The pair groupoid Q × Q ⇉ Q: α(q₀, q₁) = q₀, β = q₁, (q₀, q₁)(q₁, q₂) = (q₀, q₂).
 
-    Sections: the coordinate fields ∂/∂qʲ, as curves (q, q + t eⱼ).  The α-fibre chart is the
-    target point, so a step solves for q_{k+1}; the arrow g_k is (q_{k-1}, q_k).
+    Q: an :class:`EuclideanSpace`, a matrix Lie group (``SO3("R")``), or a product of these
+    (``SE2("g") * EuclideanSpace("psi")``).  Sections: a basis of TQ as curves
+    (q, c_j(t)) — the coordinate fields ∂/∂qʲ on Rⁿ, q·τ(tE_a) on a group.  The α-fibre of q
+    is charted by Q's chart around q: on Rⁿ the target point itself (a step solves for
+    q_{k+1}); on a group q·τ(x) (a step solves for τ⁻¹(q_k⁻¹q_{k+1})).  The arrow g_k is
+    (q_{k-1}, q_k).
     """
 
-    def __init__(self, space: EuclideanSpace):
-        if not isinstance(space, EuclideanSpace):
-            raise TypeError(f"PairGroupoid needs an EuclideanSpace, got {space!r}")
-        self.space = space
-        self.name = f"pair groupoid of R^{space.dim} ({', '.join(space.names)})"
+    def __init__(self, space):
+        try:
+            self.space = as_manifold(space)
+        except TypeError as exc:
+            raise TypeError(f"PairGroupoid needs a configuration manifold: {exc}") from None
+        names = ", ".join(getattr(self.space, "names", ()))
+        if isinstance(self.space, EuclideanSpace):
+            self.name = f"pair groupoid of R^{self.space.dim} ({names})"
+        else:
+            self.name = f"pair groupoid of {self.space!r}"
 
     @property
     def arrow_dim(self) -> int:
-        return 2 * self.space.dim
+        return 2 * self.space.coords_dim
 
     @property
     def base_dim(self) -> int:
-        return self.space.dim
+        return self.space.coords_dim
 
     @property
     def rank(self) -> int:
@@ -116,9 +170,7 @@ class PairGroupoid(Groupoid):
         return tuple(a[self.base_dim:]) + tuple(a[: self.base_dim])
 
     def section_curves(self, q, t):
-        n = self.base_dim
-        return [tuple(q) + tuple(q[i] + (t if i == j else 0) for i in range(n))
-                for j in range(n)]
+        return [tuple(q) + tuple(c) for c in self.space.curves(tuple(q), t)]
 
     def arrow_from(self, q, f):
         return tuple(q) + tuple(f)
@@ -126,17 +178,36 @@ class PairGroupoid(Groupoid):
     def fibre_of(self, a):
         return tuple(a[self.base_dim:])
 
+    def _source_or_fail(self, source):
+        if source is None:
+            if isinstance(self.space, EuclideanSpace):
+                return (0,) * self.base_dim
+            raise ValueError(f"{self.name}: the fibre chart needs the source point")
+        return tuple(source)
+
+    def fibre_chart(self, x, source=None):
+        return tuple(self.space.chart(self._source_or_fail(source), tuple(x)))
+
+    def chart_of_fibre(self, f, source=None):
+        return tuple(self.space.chart_inverse(self._source_or_fail(source), tuple(f)))
+
+    def fibre_chart_inverse(self, f, source=None):
+        q = self._source_or_fail(source)
+        return tuple(float(v) for v in self.space.numeric_chart_inverse(q, tuple(f)))
+
     def predict_chart(self, a):
-        """Linear extrapolation q_{k+1} ≈ 2 q_k − q_{k−1}."""
-        return tuple(2 * b - a0 for a0, b in zip(self.source(a), self.target(a)))
+        """Constant velocity: q_{k+1} ≈ 2 q_k − q_{k−1} on Rⁿ, q_k q_{k−1}⁻¹ q_k on a group."""
+        return tuple(self.space.predict(self.source(a), self.target(a)))
 
     def arrow_between(self, c0, c1):
-        """(q₀, q₁) for points q₀, q₁."""
-        c0, c1 = _point(c0, self.base_dim), _point(c1, self.base_dim)
-        return tuple(c0) + tuple(c1)
+        """(q₀, q₁) for configurations q₀, q₁ (points; matrices on a group)."""
+        return tuple(self.space.numeric_point(c0)) + tuple(self.space.numeric_point(c1))
 
     def configuration_after(self, c0, a):
-        return tuple(float(v) for v in self.target(a))
+        target = tuple(float(v) for v in self.target(a))
+        if isinstance(self.space, EuclideanSpace):
+            return target
+        return _numeric_view(self.space, target)
 
     def named_fibre(self, offset):
         return self.space.point(offset)
@@ -144,11 +215,32 @@ class PairGroupoid(Groupoid):
     def named_source(self, offset):
         return self.space.point(offset - 1)
 
+    def named_chart(self, offset):
+        return self.space.named_chart(offset)
+
     def symbols_by_name(self, offset):
         return self.space.symbols_by_name(offset)
+
+    def named_groups(self):
+        return {name: group for name, (_, group) in self.space.groups().items()}
+
+    def random_base_point(self, rng):
+        return self.space.random_point(rng)
 
     def view(self, coords):
         return PairArrow(self, coords)
 
     def __repr__(self) -> str:
         return f"PairGroupoid({self.space!r})"
+
+
+def _numeric_view(space, coords):
+    """A point with numeric values, as the user writes it (matrices as arrays)."""
+    from ._manifold import GroupManifold, ProductManifold
+
+    if isinstance(space, GroupManifold):
+        return space.group.numeric_matrix(coords)
+    if isinstance(space, ProductManifold):
+        parts = space._split(coords, space._coords)
+        return tuple(_numeric_view(f, p) for f, p in zip(space.factors, parts))
+    return tuple(coords)

@@ -89,17 +89,30 @@ class ProductGroupoid(Groupoid):
     def fibre_of(self, a):
         return self._map("fibre_of", (a, self._arrow_slices))
 
-    def fibre_chart(self, x):
-        return self._map("fibre_chart", (x, self._chart_slices))
+    def _with_source(self, name, v, slices, source):
+        parts = self._parts(v, slices)
+        qs = (self._parts(source, self._base_slices) if source is not None
+              else [None] * len(self.factors))
+        return sum((tuple(getattr(f, name)(p, q)) for f, p, q in zip(self.factors, parts, qs)),
+                   ())
 
-    def fibre_chart_inverse(self, f):
-        return self._map("fibre_chart_inverse", (f, self._fibre_slices))
+    def fibre_chart(self, x, source=None):
+        return self._with_source("fibre_chart", x, self._chart_slices, source)
 
-    def chart_of_fibre(self, f):
-        return self._map("chart_of_fibre", (f, self._fibre_slices))
+    def fibre_chart_inverse(self, f, source=None):
+        return self._with_source("fibre_chart_inverse", f, self._fibre_slices, source)
+
+    def chart_of_fibre(self, f, source=None):
+        return self._with_source("chart_of_fibre", f, self._fibre_slices, source)
 
     def predict_chart(self, a):
         return self._map("predict_chart", (a, self._arrow_slices))
+
+    def named_groups(self):
+        out: dict = {}
+        for f in self.factors:
+            out.update(f.named_groups())
+        return out
 
     def arrow_between(self, c0, c1):
         """Configurations are tuples with one configuration per factor."""

@@ -100,14 +100,22 @@ class TimeGroupoid(Groupoid):
     def fibre_of(self, a):
         return (a[1],) + tuple(self.inner.fibre_of(a[2:]))
 
-    def fibre_chart(self, x):
-        return (x[0],) + tuple(self.inner.fibre_chart(x[1:]))
+    @staticmethod
+    def _inner_source(source):
+        return None if source is None else tuple(source[1:])
 
-    def fibre_chart_inverse(self, f):
-        return (f[0],) + tuple(self.inner.fibre_chart_inverse(f[1:]))
+    def fibre_chart(self, x, source=None):
+        return (x[0],) + tuple(self.inner.fibre_chart(x[1:], self._inner_source(source)))
 
-    def chart_of_fibre(self, f):
-        return (f[0],) + tuple(self.inner.chart_of_fibre(f[1:]))
+    def fibre_chart_inverse(self, f, source=None):
+        return (f[0],) + tuple(self.inner.fibre_chart_inverse(f[1:],
+                                                              self._inner_source(source)))
+
+    def chart_of_fibre(self, f, source=None):
+        return (f[0],) + tuple(self.inner.chart_of_fibre(f[1:], self._inner_source(source)))
+
+    def named_groups(self):
+        return self.inner.named_groups()
 
     def predict_chart(self, a):
         return (2 * a[1] - a[0],) + tuple(self.inner.predict_chart(a[2:]))

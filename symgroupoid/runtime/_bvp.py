@@ -351,7 +351,8 @@ class BoundaryValueSolution:
     @functools.cached_property
     def controls(self) -> np.ndarray:
         G = self.system.groupoid
-        return np.array([G.fibre_chart_inverse(G.fibre_of(a)) for a in self.arrows], float)
+        return np.array([G.fibre_chart_inverse(G.fibre_of(a), G.source(a))
+                         for a in self.arrows], float)
 
     def __getitem__(self, name: str) -> np.ndarray:
         G = self.system.groupoid
@@ -471,12 +472,12 @@ def interpolate_arrows(G, total: Sequence, steps: int) -> np.ndarray:
     from the identity to ``total`` in the fibre chart), g_k = P_{k−1}⁻¹ P_k."""
     total = np.asarray(total, float)
     q = tuple(G.source(total))
-    x_id = np.asarray(G.fibre_chart_inverse(G.fibre_of(G.identity(q))), float)
-    x_end = np.asarray(G.fibre_chart_inverse(G.fibre_of(tuple(total))), float)
+    x_id = np.asarray(G.fibre_chart_inverse(G.fibre_of(G.identity(q)), q), float)
+    x_end = np.asarray(G.fibre_chart_inverse(G.fibre_of(tuple(total)), q), float)
     maps = _maps(G)
     P = [np.asarray(G.identity(q), float)]
     for k in range(1, steps + 1):
-        f = G.numeric_fibre_chart(x_id + (x_end - x_id) * k / steps)
+        f = G.numeric_fibre_chart(x_id + (x_end - x_id) * k / steps, q)
         P.append(np.array([float(v) for v in G.arrow_from(q, f)]))
     P = np.array(P)
     return maps.multiply(maps.inverse(P[:-1]), P[1:])

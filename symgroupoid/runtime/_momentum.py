@@ -48,7 +48,7 @@ class MomentumInitializer:
         self.lam_pos = np.array([position[s] for s in lam], dtype=np.int64)
         x = [sp.Dummy(f"x{a}", real=True) for a in range(self.rank)]
         p = [sp.Dummy(f"p{a}", real=True) for a in range(self.rank)]
-        on_fibre = tuple(G.arrow_from(self.source, G.fibre_chart(x)))
+        on_fibre = tuple(G.arrow_from(self.source, G.fibre_chart(x, self.source)))
         sub = dict(zip(arrow, on_fibre))
         phis = list(system.constraints(G.view(arrow))) if self.m else []
         eqs = sp.Matrix([mi.xreplace(sub) - pi for mi, pi in zip(forms.minus, p)]
@@ -60,7 +60,8 @@ class MomentumInitializer:
         self._arrow = sp.lambdify([x, list(self.source)], list(on_fibre), "numpy")
         identity = G.identity(self.source)
         self._guess = sp.lambdify([list(self.source)],
-                                  list(G.chart_of_fibre(G.fibre_of(identity))), "numpy")
+                                  list(G.chart_of_fibre(G.fibre_of(identity), self.source)),
+                                  "numpy")
         self._configuration = self._configuration_parts()
 
     def _configuration_parts(self) -> dict:
@@ -162,10 +163,10 @@ class SecondOrderMomentumInitializer:
         self.m = len(fs.constraints)
         forms = second_order_legendre_forms(G, fs, offset=-1)
         g0 = named(G, -1, False)
-        fib1, chart1, cmap1 = chart_of(G, 0)
-        fib2, chart2, cmap2 = chart_of(G, 1)
         g1 = next_arrow(G, g0, 0, False)
         g2 = next_arrow(G, g1, 1, False)
+        fib1, chart1, cmap1 = chart_of(G, 0, G.target(g0))
+        fib2, chart2, cmap2 = chart_of(G, 1, G.target(g1))
         lam = list(forms.multipliers)
         p = [sp.Dummy(f"p{a}") for a in range(2 * self.rank)]
         eqs = [e - pi for e, pi in zip(forms.minus, p)]

@@ -1,0 +1,277 @@
+"""Configuration manifolds Q of pair groupoids Q × Q ⇉ Q.
+
+A manifold here is what the pair groupoid needs of Q: flat coordinates of a point, named
+points at a step, curves through a point along a basis of TQ (the sections of the pair
+groupoid's algebroid), and a chart around each point in which a step solves for the next
+configuration.
+
+- :class:`~symgroupoid.groupoids.EuclideanSpace` Rⁿ: coordinates are the point; the chart is
+  the point itself (a step solves for q_{k+1}).
+- :class:`GroupManifold`: a matrix Lie group G as a manifold; coordinates are the free matrix
+  entries, curves q·τ(tE_a), and the chart around q is q·τ(x) — a step solves for the
+  retraction coordinates of the increment q_k⁻¹q_{k+1} (Lie group variational integrators).
+- :class:`ProductManifold`: products, e.g. ``SE2("g") * EuclideanSpace("psi")``.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from itertools import accumulate
+
+import numpy as np
+import sympy as sp
+
+
+class Manifold(ABC):
+    """The configuration manifold of a pair groupoid (see the module docstring)."""
+
+    @property
+    @abstractmethod
+    def dim(self) -> int:
+        """Dimension (the number of chart coordinates)."""
+
+    @property
+    @abstractmethod
+    def coords_dim(self) -> int:
+        """Length of a point's coordinate tuple (≥ dim)."""
+
+    @abstractmethod
+    def point(self, offset: int) -> tuple:
+        """The named point q_{k+offset} (coordinates as StepSymbols)."""
+
+    @abstractmethod
+    def named_chart(self, offset: int) -> tuple:
+        """Chart coordinates of q_{k+offset} around q_{k+offset−1} (a step's unknowns)."""
+
+    @abstractmethod
+    def symbols_by_name(self, offset: int) -> dict:
+        """Named parts of q_{k+offset}: ``{"x": x_{k+offset}}``, ``{"R": Matrix}``, …"""
+
+    @abstractmethod
+    def curves(self, q: Sequence, t: sp.Symbol) -> list[tuple]:
+        """A basis of T_qQ as curves through q (coordinate tuples in t)."""
+
+    @abstractmethod
+    def chart(self, q: Sequence, x: Sequence) -> tuple:
+        """The point with chart coordinates x in the chart around q."""
+
+    @abstractmethod
+    def chart_inverse(self, q: Sequence, p: Sequence) -> tuple:
+        """Chart coordinates of the point p in the chart around q (symbolic)."""
+
+    @abstractmethod
+    def numeric_chart_inverse(self, q: Sequence, p: Sequence) -> np.ndarray:
+        """Chart coordinates of p around q, numerically."""
+
+    @abstractmethod
+    def predict(self, q0: Sequence, q1: Sequence) -> tuple:
+        """Chart coordinates (around q1) of the configuration after q0, q1 at constant
+        velocity: the first Newton guess of a step."""
+
+    @abstractmethod
+    def view_point(self, coords: Sequence):
+        """The user-facing value of a point (a tuple, a Matrix, or a tuple of parts)."""
+
+    @abstractmethod
+    def random_point(self, rng: np.random.Generator) -> tuple:
+        """A random point (numeric coordinates)."""
+
+    @abstractmethod
+    def numeric_point(self, c) -> tuple:
+        """Numeric coordinates of a configuration given as the user writes it (checked)."""
+
+    def groups(self) -> dict:
+        """Named matrix-group parts of a point: name → (offset in the coordinates, group)."""
+        return {}
+
+    def __mul__(self, other):
+        return ProductManifold(self, as_manifold(other))
+
+    def __rmul__(self, other):
+        return ProductManifold(as_manifold(other), self)
+
+
+class GroupManifold(Manifold):
+    """A matrix Lie group as a manifold; points are group elements (free matrix entries)."""
+
+    def __init__(self, group):
+        self.group = group
+        self.names = (group.symbol_name,)
+        self.latex = (group.latex,)
+
+    @property
+    def dim(self) -> int:
+        return self.group.rank
+
+    @property
+    def coords_dim(self) -> int:
+        return self.group.arrow_dim
+
+    def point(self, offset):
+        return self.group.named_fibre(offset)
+
+    def named_chart(self, offset):
+        """Retraction coordinates of the increment, (τ⁻¹(R_{k+o−1}⁻¹R_{k+o}))_a."""
+        from .._symbols import StepSymbol, step_label
+
+        G = self.group
+        before, now = step_label(offset - 1), step_label(offset)
+        return tuple(StepSymbol(f"(\\tau^{{-1}}({G.latex}_{{{before}}}^{{-1}} "
+                                f"{G.latex}_{{{now}}}))_{{{a + 1}}}") for a in range(self.dim))
+
+    def symbols_by_name(self, offset):
+        return self.group.symbols_by_name(offset)
+
+    def curves(self, q, t):
+        M = self.group.matrix(q)
+        return [self.group.entries(M * self.group.tau([t if b == a else 0
+                                                       for b in range(self.dim)]))
+                for a in range(self.dim)]
+
+    def chart(self, q, x):
+        return self.group.entries(self.group.matrix(q) * self.group.tau(list(x)))
+
+    def chart_inverse(self, q, p):
+        G = self.group
+        increment = G._inverse_matrix(G.matrix(q)) * G.matrix(p)
+        return tuple(G.retraction_inverse(increment))
+
+    def numeric_chart_inverse(self, q, p):
+        G = self.group
+        M0, M1 = G.numeric_matrix(q), G.numeric_matrix(p)
+        return G.numeric_retraction_inverse(np.linalg.solve(M0, M1))
+
+    def predict(self, q0, q1):
+        """The increment repeats: q_{k+1} = q_k q_{k−1}⁻¹ q_k, i.e. x = τ⁻¹(q_{k−1}⁻¹q_k)."""
+        return self.chart_inverse(q0, q1)
+
+    def view_point(self, coords):
+        return self.group.matrix(coords)
+
+    def random_point(self, rng):
+        x = [sp.Float(v) for v in self.group.random_chart(rng, scale=1.0)]
+        return tuple(float(v) for v in self.group.fibre_chart(x))
+
+    def numeric_point(self, c):
+        M = self.group._numeric_matrix(c)
+        return tuple(float(M[i, j]) for i, j in self.group._free)
+
+    def groups(self):
+        return {self.group.symbol_name: (0, self.group)}
+
+    def __repr__(self) -> str:
+        return repr(self.group)
+
+
+def _slices(sizes):
+    ends = list(accumulate(sizes))
+    return [(e - s, e) for s, e in zip(sizes, ends)]
+
+
+class ProductManifold(Manifold):
+    """Q₁ × ⋯ × Q_n, coordinates concatenated; points are tuples of the factors' points."""
+
+    def __init__(self, *factors):
+        flat: list = []
+        for f in factors:
+            f = as_manifold(f)
+            flat.extend(f.factors if isinstance(f, ProductManifold) else [f])
+        self.factors = tuple(flat)
+        self._coords = _slices([f.coords_dim for f in self.factors])
+        self._charts = _slices([f.dim for f in self.factors])
+        self.names = tuple(n for f in self.factors for n in f.names)
+
+    @property
+    def dim(self):
+        return sum(f.dim for f in self.factors)
+
+    @property
+    def coords_dim(self):
+        return sum(f.coords_dim for f in self.factors)
+
+    def _split(self, v, slices):
+        return [tuple(v[lo:hi]) for lo, hi in slices]
+
+    def point(self, offset):
+        return sum((tuple(f.point(offset)) for f in self.factors), ())
+
+    def named_chart(self, offset):
+        return sum((tuple(f.named_chart(offset)) for f in self.factors), ())
+
+    def symbols_by_name(self, offset):
+        out: dict = {}
+        for f in self.factors:
+            out.update(f.symbols_by_name(offset))
+        return out
+
+    def curves(self, q, t):
+        parts = self._split(q, self._coords)
+        out = []
+        for i, f in enumerate(self.factors):
+            for c in f.curves(parts[i], t):
+                out.append(sum((tuple(c) if j == i else parts[j]
+                                for j in range(len(parts))), ()))
+        return out
+
+    def _pointwise(self, name, q, v, slices_v):
+        qs, vs = self._split(q, self._coords), self._split(v, slices_v)
+        return sum((tuple(getattr(f, name)(a, b)) for f, a, b in zip(self.factors, qs, vs)),
+                   ())
+
+    def chart(self, q, x):
+        return self._pointwise("chart", q, x, self._charts)
+
+    def chart_inverse(self, q, p):
+        return self._pointwise("chart_inverse", q, p, self._coords)
+
+    def numeric_chart_inverse(self, q, p):
+        return np.array(self._pointwise("numeric_chart_inverse", q, p, self._coords), float)
+
+    def predict(self, q0, q1):
+        return self._pointwise("predict", q0, q1, self._coords)
+
+    def view_point(self, coords):
+        return tuple(f.view_point(c) for f, c in zip(self.factors,
+                                                      self._split(coords, self._coords)))
+
+    def random_point(self, rng):
+        return sum((tuple(f.random_point(rng)) for f in self.factors), ())
+
+    def numeric_point(self, c):
+        from .._errors import ShapeError
+
+        try:
+            parts = list(c)
+        except TypeError:
+            parts = None
+        if parts is None or len(parts) != len(self.factors):
+            raise ShapeError(f"a configuration of {self!r} is a tuple of {len(self.factors)} "
+                             f"parts, one per factor")
+        return sum((tuple(f.numeric_point(p)) for f, p in zip(self.factors, parts)), ())
+
+    def groups(self):
+        out = {}
+        for f, (lo, _) in zip(self.factors, self._coords):
+            out.update({k: (lo + o, g) for k, (o, g) in f.groups().items()})
+        return out
+
+    def __repr__(self) -> str:
+        return " * ".join(repr(f) for f in self.factors)
+
+
+def as_manifold(space) -> Manifold:
+    """``space`` as a :class:`Manifold`: a manifold, a matrix Lie group, or a product of
+    Lie groups (a Lie group itself)."""
+    from ._matrix_groups import MatrixLieGroup
+    from ._product import ProductGroupoid
+
+    if isinstance(space, Manifold):
+        return space
+    if isinstance(space, MatrixLieGroup):
+        return GroupManifold(space)
+    if isinstance(space, ProductGroupoid) and all(isinstance(f, MatrixLieGroup)
+                                                  for f in space.factors):
+        return ProductManifold(*space.factors)
+    raise TypeError(f"not a configuration manifold: {space!r} (use EuclideanSpace, a matrix "
+                    f"Lie group such as SO3('R'), or a product of these)")
