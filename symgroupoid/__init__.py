@@ -8,8 +8,12 @@ their Lie–Poisson form, exact Jacobians, LaTeX and C kernels.
 from ._errors import (
     AxiomError,
     CallableError,
+    CoordinateNameError,
+    DegenerateSystemError,
+    InvalidExpressionError,
     NewtonDivergenceError,
     NotComposableError,
+    ParameterError,
     ShapeError,
     SingularJacobianError,
     SymgroupoidError,
@@ -61,10 +65,12 @@ from .runtime import (  # noqa: E402  (layer 5)
 
 __all__ = [
     "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CallableError",
-    "CompilationError", "DefinedGroupoid", "DiscreteSystem", "EuclideanSpace", "Groupoid",
+    "CompilationError", "CoordinateNameError", "DefinedGroupoid", "DegenerateSystemError",
+    "DiscreteSystem", "EuclideanSpace", "Groupoid", "InvalidExpressionError",
     "LegendreTransforms", "LiePoissonEquations", "MatrixLieGroup", "NamedMatrix",
     "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity", "NonholonomicSystem",
-    "NotComposableError", "PairGroupoid", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3",
+    "NotComposableError", "PairGroupoid", "ParameterError", "ProductGroupoid", "SE2", "SE3",
+    "SO2", "SO3",
     "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError", "StationarityReport",
     "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory", "UndeclaredSymbolError",
     "check_axioms", "compile_step", "emit_c", "hat3", "latex", "left_derivative",
