@@ -140,7 +140,7 @@ def check_symbols(system_name: str, what: str, exprs: Iterable[sp.Expr],
     allowed = set(coordinates) | set(parameters)
     bad = sorted((s for s in free - allowed), key=str)
     if bad:
-        _check_assumptions(system_name, what, bad, list(coordinates) + list(parameters))
+        _check_assumptions(system_name, what, bad, parameters)
         names = ", ".join(str(s) for s in bad)
         raise UndeclaredSymbolError(
             f"{system_name}: the {what} uses symbol(s) {names} that are neither coordinates of "
@@ -175,7 +175,8 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
 
 def _check_assumptions(system_name: str, what: str, undeclared: Sequence[sp.Symbol],
                        declared: Sequence) -> None:
-    """An undeclared symbol with the name of a declared one differs in its assumptions."""
+    """An undeclared symbol with the name of a declared parameter differs from it in its
+    assumptions: say so, showing both."""
     by_name: dict = {}
     for s in declared:
         by_name.setdefault(str(s), s)
