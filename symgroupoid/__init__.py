@@ -9,8 +9,12 @@ from ._errors import (
     AxiomError,
     CacheError,
     CallableError,
+    CoordinateNameError,
+    DegenerateSystemError,
+    InvalidExpressionError,
     NewtonDivergenceError,
     NotComposableError,
+    ParameterError,
     ShapeError,
     SingularJacobianError,
     SymgroupoidError,
@@ -63,12 +67,19 @@ from .runtime import (  # noqa: E402  (layer 5)
 )
 
 __all__ = [
+<<<<<<< HEAD
     "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CacheError",
     "CallableError",
     "CompilationError", "DefinedGroupoid", "DiscreteSystem", "EuclideanSpace", "Groupoid",
+=======
+    "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CallableError",
+    "CompilationError", "CoordinateNameError", "DefinedGroupoid", "DegenerateSystemError",
+    "DiscreteSystem", "EuclideanSpace", "Groupoid", "InvalidExpressionError",
+>>>>>>> deriv-checks
     "LegendreTransforms", "LiePoissonEquations", "MatrixLieGroup", "NamedMatrix",
     "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity", "NonholonomicSystem",
-    "NotComposableError", "PairGroupoid", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3",
+    "NotComposableError", "PairGroupoid", "ParameterError", "ProductGroupoid", "SE2", "SE3",
+    "SO2", "SO3",
     "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError", "StationarityReport",
     "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory", "TrajectoryTooLargeError",
     "UndeclaredSymbolError", "UnsupportedExpressionError",

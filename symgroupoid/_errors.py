@@ -49,11 +49,6 @@ class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
         self.iterate = iterate
 
 
-class UnsupportedExpressionError(SymgroupoidError, ValueError):
-    """An expression contains something compiled code cannot evaluate (a complex or infinite
-    value, an undefined function, an unevaluated derivative, …); the message names it."""
-
-
 class CacheError(SymgroupoidError, RuntimeError):
     """The kernel cache cannot be used: a lock timed out, or a kernel stays unloadable.
 
@@ -64,3 +59,40 @@ class CacheError(SymgroupoidError, RuntimeError):
 
 class TrajectoryTooLargeError(SymgroupoidError, MemoryError):
     """The states a simulation was asked to keep would not fit in this machine's memory."""
+
+
+class ParameterError(UndeclaredSymbolError, TypeError):
+    """A declared parameter is not a SymPy symbol (e.g. a string), or the expressions use a
+    symbol of the same name with other assumptions (so SymPy treats them as different)."""
+
+
+class InvalidExpressionError(SymgroupoidError, ValueError):
+    """A Lagrangian or constraint contains a non-finite or complex value (nan, ±oo, zoo, I)."""
+
+
+class UnsupportedExpressionError(InvalidExpressionError):
+    """An expression contains something compiled code cannot evaluate (a complex or infinite
+    value, an undefined function, an unevaluated derivative, …); the message names it."""
+
+
+class CoordinateNameError(SymgroupoidError, ValueError):
+    """A coordinate name is reserved (the multipliers' "lambda", "λ", "multipliers") or
+    names two different coordinates."""
+
+
+class DegenerateSystemError(SymgroupoidError, ValueError):
+    """The step equations cannot determine the step: equations identically zero, an unknown
+    that enters no equation, or a step Jacobian singular everywhere (a Lagrangian that is
+    not regular, dependent constraints, a multiplier no equation determines).
+
+    ``findings`` lists what was found, each with ``cause``, ``equations`` and ``unknowns``.
+    """
+
+    def __init__(self, message: str, *, findings: tuple = ()):
+        super().__init__(message)
+        self.findings = tuple(findings)
+
+    @property
+    def causes(self) -> tuple[str, ...]:
+        """The distinct causes found, in the order found."""
+        return tuple(dict.fromkeys(f.cause for f in self.findings))

@@ -59,6 +59,46 @@ def test_coordinate_lookalike_symbol_is_rejected() -> None:
         system(lagrangian=lambda g: kinetic(g) + q**2)
 
 
+# --- parameters given as strings or with other assumptions -------------------------------------
+
+def test_string_parameter_says_to_pass_symbols() -> None:
+    """parameters=["h"]: the message says to pass SymPy symbols and shows the symbol L uses."""
+    with pytest.raises(sg.ParameterError,
+                       match=r"^oscillator: parameters must be SymPy symbols, not strings: got "
+                             r"'h' — pass the symbols the expressions use, e\.g\. h = "
+                             r"sympy\.Symbol\('h', positive=True\) and parameters=\[h\]; the "
+                             r"Lagrangian uses Symbol\('h', positive=True\): pass that Symbol "
+                             r"object$") as info:
+        system(parameters=["h", m])
+    assert isinstance(info.value, sg.UndeclaredSymbolError)  # still an undeclared symbol
+
+
+def test_unused_string_parameter_is_rejected_too() -> None:
+    with pytest.raises(sg.ParameterError, match=r"not strings: got 'zeta' — pass the symbols"):
+        system(parameters=[h, m, "zeta"])
+
+
+def test_parameter_that_is_not_a_symbol() -> None:
+    with pytest.raises(sg.ParameterError,
+                       match=r"oscillator: parameters must be SymPy symbols; got 2\*h \(Mul\)"):
+        system(parameters=[2 * h, m])
+
+
+def test_parameter_declared_with_other_assumptions() -> None:
+    """L uses Symbol("h", positive=True), the declared parameter is Symbol("h"): the names
+    match but the assumptions differ — both are shown."""
+    with pytest.raises(sg.ParameterError,
+                       match=r"^oscillator: the Lagrangian uses Symbol\('h', positive=True\) but "
+                             r"the declared symbol is Symbol\('h'\): the names match but the "
+                             r"assumptions differ"):
+        system(parameters=[sp.Symbol("h"), m])
+    with pytest.raises(sg.ParameterError,
+                       match=r"the constraints uses Symbol\('zeta', real=True\) but the declared "
+                             r"symbol is Symbol\('zeta', positive=True\)"):
+        system(constraints=lambda g: [g.target[0] - sp.Symbol("zeta", real=True)],
+               parameters=[h, m, sp.Symbol("zeta", positive=True)])
+
+
 # --- malformed constraints and Lagrangians ------------------------------------------------------
 
 @pytest.mark.parametrize("constraints, message", [
@@ -140,7 +180,9 @@ def test_constraint_that_raises_is_wrapped() -> None:
         system(constraints=phi)
 
 
-def _defined(**overrides) -> sg.DefinedGroupoid:
+def _defined(check: bool = False, **overrides) -> sg.DefinedGroupoid:
+    """The pair groupoid of R by hand, with maps replaced; the construction-time axiom check
+    is off unless asked for, so that later stages can be exercised."""
     maps = dict(source=lambda a: (a[0],), target=lambda a: (a[1],),
                 multiply=lambda a, b: (a[0], b[1]), identity=lambda q: (q[0], q[0]),
                 inverse=lambda a: (a[1], a[0]), sections=lambda q, t: [(q[0], q[0] + t)])
@@ -149,7 +191,7 @@ def _defined(**overrides) -> sg.DefinedGroupoid:
         if key in overrides:
             names[key] = overrides.pop(key)
     maps.update(overrides)
-    return sg.DefinedGroupoid("hand-made line", **names, **maps)
+    return sg.DefinedGroupoid("hand-made line", **names, **maps, check=check)
 
 
 def test_user_structure_map_that_raises_is_wrapped() -> None:

@@ -14,14 +14,15 @@ from _systems import heavy_top_groupoid
 import symgroupoid as sg
 
 
-def line_groupoid(**overrides) -> sg.DefinedGroupoid:
-    """The pair groupoid of R written by hand (seed 001 §2.1.1), optionally with a map replaced."""
+def line_groupoid(check: bool = True, **overrides) -> sg.DefinedGroupoid:
+    """The pair groupoid of R written by hand (seed 001 §2.1.1), optionally with a map replaced
+    (``check=False`` skips the construction-time axiom check)."""
     maps: dict[str, Callable] = dict(
         source=lambda a: (a[0],), target=lambda a: (a[1],),
         multiply=lambda a, b: (a[0], b[1]), identity=lambda q: (q[0], q[0]),
         inverse=lambda a: (a[1], a[0]), sections=lambda q, t: [(q[0], q[0] + t)])
     maps.update(overrides)
-    return sg.DefinedGroupoid("line", base_names=["q"], fibre_names=["q"], **maps)
+    return sg.DefinedGroupoid("line", base_names=["q"], fibre_names=["q"], **maps, check=check)
 
 
 def translation_groupoid() -> sg.DefinedGroupoid:
@@ -74,7 +75,8 @@ def test_product_flattens_and_counts() -> None:
 # --- broken groupoids -------------------------------------------------------------------------
 
 def labelled_groupoid(z_multiply: Callable = lambda z, w: z + w,
-                      z_inverse: Callable = lambda z: -z) -> sg.DefinedGroupoid:
+                      z_inverse: Callable = lambda z: -z,
+                      check: bool = True) -> sg.DefinedGroupoid:
     """R × R × R ⇉ R: the pair groupoid of R times the group (R, +), arrows (q₀, q₁, z);
     the label's product and inverse can be replaced to break associativity or inverses."""
     return sg.DefinedGroupoid(
@@ -82,20 +84,24 @@ def labelled_groupoid(z_multiply: Callable = lambda z, w: z + w,
         source=lambda a: (a[0],), target=lambda a: (a[1],),
         multiply=lambda a, b: (a[0], b[1], z_multiply(a[2], b[2])),
         identity=lambda q: (q[0], q[0], 0), inverse=lambda a: (a[1], a[0], z_inverse(a[2])),
-        sections=lambda q, t: [(q[0], q[0] + t, 0), (q[0], q[0], t)])
+        sections=lambda q, t: [(q[0], q[0] + t, 0), (q[0], q[0], t)], check=check)
 
 
-BROKEN: dict[str, Callable[[], sg.DefinedGroupoid]] = {
-    "β(ab) = β(b)": lambda: line_groupoid(multiply=lambda a, b: (a[0], b[1] + a[0] / 10)),
+BROKEN: dict[str, Callable[..., sg.DefinedGroupoid]] = {
+    "β(ab) = β(b)": lambda check=False: line_groupoid(
+        multiply=lambda a, b: (a[0], b[1] + a[0] / 10), check=check),
     # z·w = z + w + z w² has 0 as unit but is not associative
-    "associativity (ab)c = a(bc)":
-        lambda: labelled_groupoid(z_multiply=lambda z, w: z + w + z * w**2),
+    "associativity (ab)c = a(bc)": lambda check=False: labelled_groupoid(
+        z_multiply=lambda z, w: z + w + z * w**2, check=check),
     # z⁻¹ = z: α, β of the inverse are right, a·a⁻¹ is not an identity
-    "a·a⁻¹ = ε(α(a))": lambda: labelled_groupoid(z_inverse=lambda z: z),
-    "α(a⁻¹) = β(a), β(a⁻¹) = α(a)": lambda: line_groupoid(inverse=lambda a: (a[1], a[0] + 1)),
-    "section 0: h(0) = ε(q)": lambda: line_groupoid(sections=lambda q, t: [(q[0], q[0] + t + 1)]),
-    "section 0: h(t) in the α-fibre of q":
-        lambda: line_groupoid(sections=lambda q, t: [(q[0] + t, q[0] + t)]),
+    "a·a⁻¹ = ε(α(a))": lambda check=False: labelled_groupoid(z_inverse=lambda z: z,
+                                                            check=check),
+    "α(a⁻¹) = β(a), β(a⁻¹) = α(a)": lambda check=False: line_groupoid(
+        inverse=lambda a: (a[1], a[0] + 1), check=check),
+    "section 0: h(0) = ε(q)": lambda check=False: line_groupoid(
+        sections=lambda q, t: [(q[0], q[0] + t + 1)], check=check),
+    "section 0: h(t) in the α-fibre of q": lambda check=False: line_groupoid(
+        sections=lambda q, t: [(q[0] + t, q[0] + t)], check=check),
 }
 
 
@@ -133,6 +139,15 @@ def test_broken_groupoid_reports_axiom_and_arrows(axiom: str) -> None:
         assert G.target(G.inverse(a)) != (a[0],)
 
 
+@pytest.mark.parametrize("axiom", sorted(BROKEN))
+def test_broken_groupoid_is_rejected_at_construction(axiom: str) -> None:
+    """DefinedGroupoid checks the axioms when it is constructed: each broken groupoid fails
+    there with the same axiom (check=False is what lets the test above build it)."""
+    with pytest.raises(sg.AxiomError, match=r"check=False skips this\)$") as info:
+        BROKEN[axiom](check=True)
+    assert info.value.axiom == axiom
+
+
 def test_dependent_sections_are_reported() -> None:
     """Two section curves with parallel velocities are not a basis of AG
     (docs/conventions.md §1)."""
@@ -142,7 +157,7 @@ def test_dependent_sections_are_reported() -> None:
         multiply=lambda a, b: (a[0], a[1], b[2], b[3]),
         identity=lambda q: (q[0], q[1], q[0], q[1]), inverse=lambda a: (a[2], a[3], a[0], a[1]),
         sections=lambda q, t: [(q[0], q[1], q[0] + t, q[1] + t),
-                               (q[0], q[1], q[0] + 2 * t, q[1] + 2 * t)])
+                               (q[0], q[1], q[0] + 2 * t, q[1] + 2 * t)], check=False)
     with pytest.raises(sg.AxiomError, match="linearly independent fails for q=\\("):
         sg.check_axioms(G)
 

@@ -92,8 +92,10 @@ def test_second_order_action_groupoid_composability():
     G = sg.ActionGroupoid(sg.EuclideanSpace.vector("p", 3), sg.SO3("W"),
                           lambda p, W: tuple(W.T * sp.Matrix(p)))
 
-    def L(a, b):
-        return a.point[2] * (b.matrix * sp.diag(1, 2, 3)).trace() + sum(b.point)
+    def L(a, b):  # the last term couples the two rotations: the step is regular
+        D = sp.diag(1, 2, 3)
+        return (a.point[2] * (b.matrix * D).trace() + sum(b.point)
+                + (a.matrix.T * b.matrix * D).trace())
 
     step = sg.SecondOrderSystem(G, L, name="action2").euler_lagrange()
     assert len(step.unknowns) == 3 and len(step.residuals) == 3

@@ -6,7 +6,17 @@ from collections.abc import Callable, Iterable, Sequence
 
 import sympy as sp
 
-from .._errors import CallableError, ShapeError, UndeclaredSymbolError
+from .._errors import (
+    CallableError,
+    InvalidExpressionError,
+    ParameterError,
+    ShapeError,
+    UndeclaredSymbolError,
+)
+
+#: values that make an expression non-finite, with how messages describe them
+_NON_FINITE = {sp.nan: "nan (not a number)", sp.zoo: "zoo (complex infinity)",
+               sp.oo: "oo (infinity)", -sp.oo: "-oo (minus infinity)"}
 
 
 def call_user(system_name: str, what: str, func: Callable, *arrows):
@@ -16,11 +26,46 @@ def call_user(system_name: str, what: str, func: Callable, *arrows):
             f"{system_name}: the {what} must be a function of the arrow (e.g. "
             f"lambda g: ...), got a {type(func).__name__}")
     try:
-        return func(*arrows)
+        value = func(*arrows)
     except Exception as exc:  # noqa: BLE001 - re-raised with context
         raise CallableError(
             f"{system_name}: evaluating the {what} on symbolic arrows raised "
             f"{type(exc).__name__}: {exc}") from exc
+    check_values(system_name, what, value, arrows)
+    return value
+
+
+def _display(arrows: Sequence) -> dict:
+    """Slot coordinates → the named coordinates of g_k, g_{k+1}, … (for messages)."""
+    out: dict = {}
+    for offset, arrow in enumerate(arrows):
+        groupoid, coords = getattr(arrow, "groupoid", None), getattr(arrow, "coords", None)
+        if groupoid is None or coords is None:
+            continue
+        out.update({c: n for c, n in zip(coords, groupoid.named_arrow(offset))
+                    if isinstance(c, sp.Symbol)})
+    return out
+
+
+def check_values(system_name: str, what: str, value, arrows: Sequence = ()) -> None:
+    """:func:`check_finite_real` on a user return value: a scalar, or each entry of a list
+    or matrix (entries that are not SymPy scalars are left to the shape checks)."""
+    if isinstance(value, sp.MatrixBase):
+        items = [(f"{what} (entry {i})", v) for i, v in enumerate(value)]
+    elif isinstance(value, (list, tuple)):
+        items = [(f"{what} (entry {i})", v) for i, v in enumerate(value)]
+    else:
+        items = [(what, value)]
+    display = None
+    for label, item in items:
+        try:
+            expr = sp.sympify(item)
+        except (sp.SympifyError, TypeError):
+            continue
+        if isinstance(expr, sp.Expr):
+            if display is None:
+                display = _display(arrows)
+            check_finite_real(system_name, label, expr, display)
 
 
 def as_scalar(system_name: str, what: str, value) -> sp.Expr:
@@ -40,6 +85,28 @@ def as_scalar(system_name: str, what: str, value) -> sp.Expr:
     if not isinstance(expr, sp.Expr):
         raise ShapeError(f"{system_name}: the {what} returned {expr!r}, not a scalar")
     return expr
+
+
+def check_finite_real(system_name: str, what: str, expr: sp.Expr,
+                      display: dict | None = None) -> None:
+    """Raise :class:`InvalidExpressionError` if ``expr`` contains nan, ±oo or zoo (also from
+    non-finite Python or NumPy floats, which SymPy turns into these) or the imaginary unit
+    (unless it cancels on expansion); the message names the value and the term of ``expr``
+    that contains it, with the coordinates shown through ``display``."""
+    atoms = expr.atoms()
+    bad = next((a for a in _NON_FINITE if a in atoms), None)
+    if bad is not None:
+        described = _NON_FINITE[bad]
+    elif sp.I in atoms and sp.expand(expr).has(sp.I):
+        bad, described = sp.I, "I (the imaginary unit; the expression must be real)"
+    else:
+        return
+    if expr == bad:
+        raise InvalidExpressionError(f"{system_name}: the {what} is {described}")
+    term = next(t for t in sp.Add.make_args(expr) if t.has(bad))
+    raise InvalidExpressionError(
+        f"{system_name}: the {what} contains {described} in the term "
+        f"{term.xreplace(display or {})}")
 
 
 def as_scalar_list(system_name: str, what: str, value) -> list[sp.Expr]:
@@ -64,14 +131,60 @@ def as_scalar_list(system_name: str, what: str, value) -> list[sp.Expr]:
 def check_symbols(system_name: str, what: str, exprs: Iterable[sp.Expr],
                   coordinates: Sequence, parameters: Sequence) -> None:
     """Raise :class:`UndeclaredSymbolError` naming symbols that are neither coordinates
-    nor declared parameters."""
-    allowed = set(coordinates) | set(parameters)
+    nor declared parameters, and :class:`ParameterError` for parameters that are not SymPy
+    symbols or that match a used symbol by name but not by assumptions."""
     free: set = set()
     for e in exprs:
         free |= e.free_symbols
+    check_parameters(system_name, what, parameters, free)
+    allowed = set(coordinates) | set(parameters)
     bad = sorted((s for s in free - allowed), key=str)
     if bad:
+        _check_assumptions(system_name, what, bad, parameters)
         names = ", ".join(str(s) for s in bad)
         raise UndeclaredSymbolError(
             f"{system_name}: the {what} uses symbol(s) {names} that are neither coordinates of "
             f"the arrow nor declared parameters; pass them in parameters=[...]")
+
+
+def _shown(s: sp.Symbol) -> str:
+    """A symbol with the assumptions it was declared with: ``Symbol('h', positive=True)``."""
+    return sp.srepr(s)
+
+
+def check_parameters(system_name: str, what: str, parameters: Sequence,
+                     used: Iterable[sp.Symbol] = ()) -> None:
+    """Every declared parameter must be a SymPy Symbol; a string (or any other object) is
+    reported with what to pass instead — and, when ``what`` uses a symbol of that name,
+    with that symbol."""
+    by_name = {str(s): s for s in used}
+    for p in parameters:
+        if isinstance(p, sp.Symbol):
+            continue
+        if isinstance(p, str):
+            hint = (f"; the {what} uses {_shown(by_name[p])}: pass that Symbol object"
+                    if p in by_name else "")
+            raise ParameterError(
+                f"{system_name}: parameters must be SymPy symbols, not strings: got {p!r} — "
+                f"pass the symbols the expressions use, e.g. {p} = sympy.Symbol({p!r}, "
+                f"positive=True) and parameters=[{p}]{hint}")
+        raise ParameterError(
+            f"{system_name}: parameters must be SymPy symbols; got {p!r} "
+            f"({type(p).__name__})")
+
+
+def _check_assumptions(system_name: str, what: str, undeclared: Sequence[sp.Symbol],
+                       declared: Sequence) -> None:
+    """An undeclared symbol with the name of a declared parameter differs from it in its
+    assumptions: say so, showing both."""
+    by_name: dict = {}
+    for s in declared:
+        by_name.setdefault(str(s), s)
+    for s in undeclared:
+        other = by_name.get(str(s))
+        if other is not None:
+            raise ParameterError(
+                f"{system_name}: the {what} uses {_shown(s)} but the declared symbol is "
+                f"{_shown(other)}: the names match but the assumptions differ, so SymPy treats "
+                f"them as different symbols; declare the parameter with the same assumptions "
+                f"(pass the very Symbol the {what} uses)")

@@ -22,6 +22,7 @@ from ..derivation._step import (
 )
 from ..groupoids import Groupoid
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
+from ._regularity import check_step
 from ._step import StepEquations
 
 
@@ -59,6 +60,7 @@ class DiscreteSystem:
         step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
                                            self.parameters))
         step.system = self
+        check_step(step)
         step.set_structured_source(self._matrix_form)
         return step
 
@@ -90,8 +92,10 @@ class DiscreteSystem:
 
     def lie_poisson(self) -> LiePoissonEquations:
         """The discrete constrained Lie–Poisson equations (seed 000 §6.1), Lie groups only."""
-        return LiePoissonEquations(lie_poisson_forms(self.name, self.groupoid, self._fs,
-                                                     self.parameters))
+        equations = LiePoissonEquations(lie_poisson_forms(self.name, self.groupoid, self._fs,
+                                                          self.parameters))
+        check_step(equations.reconstruction, lie_poisson=True)
+        return equations
 
     def __repr__(self) -> str:
         return (f"DiscreteSystem({self.name!r} on {self.groupoid.name}, "
@@ -139,6 +143,7 @@ class NonholonomicSystem:
         step = StepEquations(nonholonomic_step(self.name, self.groupoid, self._fs,
                                                self.distribution, self.parameters))
         step.system = self
+        check_step(step, distribution=len(self.distribution))
         return step
 
     def __repr__(self) -> str:

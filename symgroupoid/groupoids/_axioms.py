@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
-from .._errors import AxiomError
+from .._errors import AxiomError, ShapeError
 from ._base import Groupoid
 
 
@@ -20,16 +20,45 @@ def _close(a: Sequence, b: Sequence, tol: float) -> bool:
     return a.shape == b.shape and bool(np.allclose(a, b, atol=tol, rtol=tol))
 
 
-def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9) -> None:
+def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9,
+                 parameters: Mapping | None = None) -> None:
     """Check the groupoid axioms of ``G`` on random composable arrows.
 
     Verified: α, β of products; associativity; left and right identities; inverses;
     α∘ε = β∘ε = id; section curves lie in the α-fibre through ε(q) and their velocities are
     α-vertical and linearly independent (as many as the fibre dimension); the fibre chart
     lands in the α-fibre.  Raises :class:`AxiomError` naming the axiom and the arrows.
+
+    Structure maps may contain free symbols besides the coordinates (parameters of the
+    groupoid): ``parameters`` maps them (Symbols or their names) to values; symbols it does
+    not give get random values respecting their assumptions (positive → (0.5, 2)), and a
+    failure reports the values used.
     """
+    values = _parameter_values(G, parameters or {})
+    rng = np.random.default_rng(seed + 1)
+    chosen: set = set()
+    while True:
+        try:
+            _run(_Evaluated(G, values), samples, seed, tol)
+            return
+        except _FreeSymbols as free:
+            for s in sorted(free.symbols, key=str):
+                values[s] = _random_value(s, rng)
+                chosen.add(s)
+        except AxiomError as err:
+            if values:
+                shown = ", ".join(f"{s}={v:.6g}" for s, v in _sorted(values))
+                how = (f"; {', '.join(sorted(map(str, chosen)))} chosen at random — pass "
+                       "parameters={...} to check_axioms to choose them" if chosen else "")
+                err.args = (f"{err} (with parameter values {shown}{how})",)
+            err.parameters = {str(s): v for s, v in _sorted(values)}
+            raise
+
+
+def _run(G, samples: int, seed: int, tol: float) -> None:
     rng = np.random.default_rng(seed)
     t = sp.Dummy("t", real=True)
+    G.curve_parameter = t
     for _ in range(samples):
         a = G.random_arrow(rng)
         b = G.random_arrow(rng, G.target(a))
@@ -39,6 +68,113 @@ def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9
         _identity_checks(G, q, tol)
         _section_checks(G, q, t, tol)
 
+
+# --- parameters of the structure maps ---------------------------------------------------------
+
+class _FreeSymbols(Exception):
+    """A structure map returned free symbols on numeric input: parameters to be given values."""
+
+    def __init__(self, symbols: set):
+        super().__init__(", ".join(sorted(map(str, symbols))))
+        self.symbols = symbols
+
+
+def _sorted(values: Mapping) -> list:
+    return sorted(values.items(), key=lambda kv: str(kv[0]))
+
+
+def _parameter_values(G: Groupoid, parameters: Mapping) -> dict:
+    """``parameters`` with every key a Symbol (names are kept as given until a symbol of that
+    name shows up, see :class:`_Evaluated`) and every value a float."""
+    out: dict = {}
+    for key, value in parameters.items():
+        if not isinstance(key, (sp.Symbol, str)):
+            raise ShapeError(f"{G.name}: parameters must map SymPy symbols (or their names) to "
+                             f"numbers, got the key {key!r}")
+        try:
+            out[key] = float(value)
+        except (TypeError, ValueError) as exc:
+            raise ShapeError(f"{G.name}: the value of parameter {key} must be a number, got "
+                             f"{value!r}") from exc
+    return out
+
+
+def _random_value(s: sp.Symbol, rng: np.random.Generator) -> float:
+    """Random value respecting the assumptions: negative → (−2, −0.5), else (0.5, 2)."""
+    sign = -1.0 if (s.is_negative or s.is_nonpositive) else 1.0
+    if s.is_integer:
+        return sign * float(rng.integers(1, 4))
+    return sign * float(rng.uniform(0.5, 2.0))
+
+
+class _Evaluated:
+    """``G`` with the parameter values substituted into every structure-map output; raises
+    :class:`_FreeSymbols` when an output keeps a free symbol that has no value yet (the maps
+    are only called on numbers here, except for the section curves' parameter t)."""
+
+    def __init__(self, G: Groupoid, values: dict):
+        self.inner, self.name, self.values = G, G.name, values
+        self.curve_parameter = None
+
+    def _sub(self, coords: Sequence) -> tuple:
+        out = []
+        for c in coords:
+            e = sp.sympify(c)
+            free = e.free_symbols - {self.curve_parameter}
+            if free:
+                table = {s: self._value(s) for s in free}
+                missing = {s for s, v in table.items() if v is None}
+                if missing:
+                    raise _FreeSymbols(missing)
+                e = e.xreplace({s: sp.Float(v) for s, v in table.items()})
+            out.append(e)
+        return tuple(out)
+
+    def _value(self, s: sp.Symbol) -> float | None:
+        if s in self.values:
+            return self.values[s]
+        if str(s) in self.values:  # given by name: bind it to this symbol
+            self.values[s] = self.values.pop(str(s))
+            return self.values[s]
+        return None
+
+    def source(self, a):
+        return self._sub(self.inner.source(a))
+
+    def target(self, a):
+        return self._sub(self.inner.target(a))
+
+    def multiply(self, a, b):
+        return self._sub(self.inner.multiply(a, b))
+
+    def identity(self, q):
+        return self._sub(self.inner.identity(q))
+
+    def inverse(self, a):
+        return self._sub(self.inner.inverse(a))
+
+    def _curves(self, q, t):
+        return [self._sub(h) for h in self.inner._curves(q, t)]
+
+    def arrow_from(self, q, f):
+        return self._sub(self.inner.arrow_from(q, f))
+
+    def fibre_chart(self, x):
+        return self._sub(self.inner.fibre_chart(x))
+
+    def random_base_point(self, rng):
+        return self.inner.random_base_point(rng)
+
+    def random_chart(self, rng, scale: float = 0.5):
+        return self.inner.random_chart(rng, scale)
+
+    def random_arrow(self, rng, source=None):
+        if type(self.inner).random_arrow is Groupoid.random_arrow:
+            return Groupoid.random_arrow(self, rng, source)  # through the substituted maps
+        return tuple(float(v) for v in self._sub(self.inner.random_arrow(rng, source)))
+
+
+# --- the checks -----------------------------------------------------------------------------
 
 def _fail(G: Groupoid, axiom: str, **arrows) -> AxiomError:
     """An :class:`AxiomError` naming the axiom and showing the failing arrows (or base point).

@@ -6,9 +6,18 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
-from .._errors import CallableError, ShapeError, SymgroupoidError
+from .._errors import (
+    AxiomError,
+    CallableError,
+    CoordinateNameError,
+    ShapeError,
+    SymgroupoidError,
+)
 from .._symbols import latex_name, scalar_symbol
 from ._base import Groupoid
+
+#: names that ``StepEquations.symbol`` reserves for the multipliers λ
+RESERVED_NAMES = ("lambda", "λ", "multipliers")
 
 
 class DefinedGroupoid(Groupoid):
@@ -18,6 +27,10 @@ class DefinedGroupoid(Groupoid):
     (coordinates of the α-fibre); a step solves for the fibre coordinates of g_{k+1}.
     The invariant derivations, Legendre transforms and axiom checks are derived from the
     maps; nothing else has to be written.
+
+    The axioms are checked when the groupoid is constructed (:func:`check_axioms` on random
+    composable arrows; free symbols in the maps get random positive values); ``check=False``
+    skips this, e.g. to call ``check_axioms(G, parameters={...})`` with chosen values.
 
     Example (the pair groupoid of R, written by hand)::
 
@@ -30,16 +43,53 @@ class DefinedGroupoid(Groupoid):
 
     def __init__(self, name: str, *, base_names: Sequence[str], fibre_names: Sequence[str],
                  source: Callable, target: Callable, multiply: Callable, identity: Callable,
-                 inverse: Callable, sections: Callable, source_offset: int = -1):
+                 inverse: Callable, sections: Callable, source_offset: int = -1,
+                 check: bool = True):
         self.name = name
         self.base_names, self.fibre_names = tuple(base_names), tuple(fibre_names)
+        self.source_offset = source_offset
+        self._check_names()
         self._maps = dict(source=source, target=target, multiply=multiply,
                           identity=identity, inverse=inverse, sections=sections)
-        self.source_offset = source_offset
         # the section count must equal the fibre dimension (checked early, with a clear error)
         t = sp.Dummy("t")
         q = tuple(sp.Dummy(f"q{i}") for i in range(self.base_dim))
         self._curves(q, t)
+        if check:
+            self._check_axioms()
+
+    def _check_axioms(self) -> None:
+        from ._axioms import check_axioms
+
+        try:
+            check_axioms(self, samples=3)
+        except AxiomError as err:
+            err.args = (f"{err} (DefinedGroupoid checks the groupoid axioms when it is "
+                        "constructed; check=False skips this)",)
+            raise
+
+    def _check_names(self) -> None:
+        """Coordinate names must not be the multipliers' (``RESERVED_NAMES``) and must name
+        distinct symbols: distinct within the base and the fibre, and — with
+        ``source_offset=0``, where the source of g_k and its fibre carry the same step label —
+        distinct between them."""
+        for kind, names in (("base", self.base_names), ("fibre", self.fibre_names)):
+            for n in names:
+                if n in RESERVED_NAMES:
+                    raise CoordinateNameError(
+                        f"{self.name}: the {kind} coordinate name {n!r} is reserved for the "
+                        f"multipliers ({', '.join(map(repr, RESERVED_NAMES))} all name λ in "
+                        "step.symbol); rename the coordinate")
+            repeated = sorted({n for n in names if names.count(n) > 1})
+            if repeated:
+                raise CoordinateNameError(
+                    f"{self.name}: the {kind} coordinate name {repeated[0]!r} is repeated; "
+                    "each coordinate needs its own name")
+        shared = sorted(set(self.base_names) & set(self.fibre_names))
+        if shared and self.source_offset == 0:
+            raise CoordinateNameError(
+                f"{self.name}: {shared[0]!r} names both a base and a fibre coordinate with "
+                "source_offset=0, so both would be the same symbol at every step; rename one")
 
     @property
     def arrow_dim(self):

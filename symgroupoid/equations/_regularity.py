@@ -1,0 +1,533 @@
+"""Derivation-time diagnosis of step equations that cannot determine a step.
+
+A step F(u; k, p) = 0 determines its unknowns u (chart coordinates of the newest arrow, then
+the multipliers λ_{k+1}) near a solution exactly when the step Jacobian ∂F/∂u is invertible.
+For a first-order constrained system (seed 000 §3.3; docs/conventions.md §4) it has the blocks
+
+    ∂F/∂u = [ A  B ]    A = ∂(DEL)/∂x,   B = ∂(DEL)/∂λ_{k+1} = −X⃗[φ](g_{k+1}),
+            [ C  0 ]    C = ∂φ(g_{k+1})/∂x,
+
+and regularity of L (seed 000 Thm 2.16: F⁻L, F⁺L local diffeomorphisms) is its invertibility.
+:func:`diagnose` finds, before any step is taken,
+
+- residuals that are identically zero (a null Lagrangian: constant, zero, or a difference
+  f(β(g)) − f(α(g)); a constraint that is identically zero), structurally or numerically;
+- residuals that involve no unknown, and unknowns that enter no residual (a multiplier whose
+  constraint depends only on the target of the arrow, so that X⃗[φ] = 0);
+- a Jacobian singular at every one of several random admissible points, classified as
+  dependent constraints (rows of C), undetermined multipliers (columns of B), or else a
+  Lagrangian that is not regular, naming the rows and columns of the null spaces.
+
+The residuals are analytic in the unknowns, the knowns and the parameters, so a determinant
+that vanishes at several random points of an open set vanishes identically; a regular point
+anywhere clears the system.  Points where the residuals are not finite are not evidence and
+are replaced by others.  The points come from a fixed seed, so the diagnosis is deterministic.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+from sympy.core.function import AppliedUndef
+
+from .._errors import CoordinateNameError, DegenerateSystemError
+from ..groupoids._user import RESERVED_NAMES
+
+#: causes reported in :attr:`DegenerateSystemError.findings`
+IDENTICALLY_ZERO = "identically zero"
+NO_UNKNOWN = "involves no unknown"
+UNUSED_UNKNOWN = "unknown enters no equation"
+UNDETERMINED_MULTIPLIER = "undetermined multiplier"
+DEPENDENT_CONSTRAINTS = "dependent constraints"
+NOT_REGULAR = "not regular"
+
+_SMALL = 1e-8     # rows this small (relative to max(1, the largest entry)) may be noise
+_NUDGE = 1e-7     # relative move of the inputs that tells rounding noise from a function
+_RANK = 1e-12     # singular values below this fraction of the largest one are zero
+_SUPPORT = 1e-3   # weight of a row/column in a null space that counts it as involved
+_POINTS = 3       # random points that must all agree before anything is concluded
+_ATTEMPTS = 12    # points tried at most (non-finite ones are skipped)
+
+HOLONOMIC_HINT = (
+    "a constraint on configurations belongs on the configuration space: a holonomic form "
+    "DiscreteSystem(..., holonomic=lambda q: [...]) for constraints ψ(q) is planned for a "
+    "later version")
+
+
+@dataclass(frozen=True)
+class Finding:
+    """One reason why the step cannot be solved."""
+
+    cause: str
+    equations: tuple[str, ...]
+    unknowns: tuple[str, ...]
+    text: str
+
+
+@dataclass
+class Layout:
+    """How to name the rows and columns of a step: equation labels, which rows are
+    constraints (with their names) and which unknowns are their multipliers."""
+
+    labels: list[str]
+    unknowns: list[str]
+    constraint_rows: list[int] = field(default_factory=list)
+    constraint_names: list[str] = field(default_factory=list)
+    multiplier_columns: list[int] = field(default_factory=list)
+    order: int = 1
+
+    def constraint_of_row(self, i: int) -> str | None:
+        if i in self.constraint_rows:
+            return self.constraint_names[self.constraint_rows.index(i)]
+        return None
+
+
+def default_layout(step, section_labels: Sequence[str] | None = None,
+                   constraint_letter: str | None = None,
+                   constraint_rows: Sequence[int] | None = None) -> Layout:
+    """Rows: one per basis section (``section_labels``, default "the DEL along X_i"), then
+    the constraints (the last ``step.n_constraints`` rows unless ``constraint_rows`` is given)
+    named φ_a (Φ_a for second order, or ``constraint_letter``); multipliers: the last
+    ``step.n_constraints`` unknowns."""
+    n, m = len(step.residuals), step.n_constraints
+    rows = list(constraint_rows) if constraint_rows is not None else list(range(n - m, n))
+    letter = constraint_letter or ("Φ" if step.order == 2 else "φ")
+    names = [f"{letter}_{a + 1}" for a in range(len(rows))]
+    free = [i for i in range(n) if i not in rows]
+    if section_labels is None:
+        section_labels = [f"the DEL along X_{s + 1}" for s in range(len(free))]
+    labels = [""] * n
+    for i, text in zip(free, section_labels):
+        labels[i] = f"equation {i + 1} ({text})"
+    for i, name in zip(rows, names):
+        labels[i] = f"equation {i + 1} ({name} = 0)"
+    u = len(step.unknowns)
+    return Layout(labels=labels, unknowns=[str(s) for s in step.unknowns],
+                  constraint_rows=rows, constraint_names=names,
+                  multiplier_columns=list(range(u - m, u)), order=step.order)
+
+
+def diagnose(step, layout: Layout | None = None, *, points: int = _POINTS,
+             seed: int = 0) -> None:
+    """Raise :class:`DegenerateSystemError` if ``step`` cannot determine its unknowns.
+
+    Structural checks first (exact zeros, symbols that do not occur); then ``points`` random
+    admissible points (see :func:`random_point`) through ``step.evaluate``.
+    """
+    layout = layout or default_layout(step)
+    findings = structural_findings(step, layout)
+    if not findings:
+        findings = numeric_findings(step, layout, points, seed)
+    if findings:
+        raise DegenerateSystemError(_message(step, findings), findings=tuple(findings))
+
+
+def _message(step, findings: Sequence[Finding]) -> str:
+    texts = [f.text[:1].upper() + f.text[1:] for f in findings]
+    body = " ".join(f"({i + 1}) {t}" for i, t in enumerate(texts)) if len(texts) > 1 else texts[0]
+    return (f"{step.name}: the step equations cannot determine the step, so no simulation "
+            f"could solve them. {body}")
+
+
+# --- structural checks ------------------------------------------------------------------------
+
+def _unknown_symbols(step) -> list[set] | None:
+    """For each unknown, the symbols of the residuals through which it enters: itself and
+    the fibre variables whose chart expression (``step.reconstruction``) involves it; None
+    when the step does not expose its chart."""
+    reconstruction = getattr(step, "reconstruction", None)
+    if reconstruction is None:
+        return None
+    out = []
+    for u in step.unknowns:
+        syms = {u}
+        syms |= {f for f, e in reconstruction.items() if u in sp.sympify(e).free_symbols}
+        out.append(syms)
+    return out
+
+
+def structural_findings(step, layout: Layout) -> list[Finding]:
+    """Residuals that are exactly 0, residuals free of every unknown, unknowns in no
+    residual (the last two only when the chart of the unknown arrow is known; otherwise
+    the numeric checks find them)."""
+    residuals = [sp.sympify(r) for r in step.residuals]
+    zero = [i for i, r in enumerate(residuals) if r == 0]
+    through = _unknown_symbols(step)
+    if through is None:
+        return compose(layout, zero, [], [])
+    every = set().union(*through)
+    free = [r.free_symbols for r in residuals]
+    idle = [i for i in range(len(residuals)) if i not in zero and not free[i] & every]
+    unused = [j for j, syms in enumerate(through) if not any(f & syms for f in free)]
+    return compose(layout, zero, idle, unused, {i: residuals[i] for i in idle})
+
+
+# --- composing findings ----------------------------------------------------------------------
+
+def _names(items: Sequence[str]) -> str:
+    items = list(items)
+    return items[0] if len(items) == 1 else ", ".join(items[:-1]) + " and " + items[-1]
+
+
+def _verb(items: Sequence, one: str, many: str) -> str:
+    return one if len(items) == 1 else many
+
+
+def _short(expr) -> str:
+    text = str(expr)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+def compose(layout: Layout, zero: Sequence[int], idle: Sequence[int],
+            unused: Sequence[int], shown: dict | None = None) -> list[Finding]:
+    """Findings from rows that vanish, rows without unknowns and unknowns without rows."""
+    out: list[Finding] = []
+    crow = set(layout.constraint_rows)
+    zero_eq = [i for i in zero if i not in crow]
+    zero_c = [i for i in zero if i in crow]
+    n_eq = len(layout.labels) - len(crow)
+    if zero_eq:
+        out.append(_zero_equations(layout, zero_eq, all_of_them=len(zero_eq) == n_eq))
+    if zero_c:
+        out.append(_zero_constraints(layout, zero_c))
+    idle_eq = [i for i in idle if i not in crow]
+    idle_c = [i for i in idle if i in crow]
+    if idle_eq:
+        out.append(_idle_equations(layout, idle_eq, shown or {}))
+    if idle_c:
+        out.append(_idle_constraints(layout, idle_c))
+    if len(zero) == len(layout.labels):
+        return out  # nothing is left for an unknown to enter
+    explained = {layout.multiplier_columns[layout.constraint_rows.index(i)]
+                 for i in zero_c if layout.multiplier_columns}
+    mcols = set(layout.multiplier_columns)
+    chart = [j for j in unused if j not in mcols]
+    lam = [j for j in unused if j in mcols and j not in explained]
+    if chart:
+        out.append(_unused_chart(layout, chart))
+    if lam:
+        out.append(_undetermined(layout, lam))
+    return out
+
+
+def _zero_equations(layout: Layout, rows: Sequence[int], all_of_them: bool) -> Finding:
+    eqs = tuple(layout.labels[i] for i in rows)
+    if all_of_them:
+        text = (f"The Euler–Lagrange equations vanish identically: {_names(eqs)} "
+                f"{_verb(eqs, 'reads', 'read')} 0 = 0. The discrete Lagrangian is a null "
+                "Lagrangian — a constant, zero (e.g. a rigid body with zero inertia), or a "
+                "difference f(β(g)) − f(α(g)) such as a·(q₁ − q₀)/h or (q₁² − q₀²)/(2h) — "
+                "and determines no motion.")
+    else:
+        text = (f"{_names(eqs)} {_verb(eqs, 'reads', 'read')} 0 = 0: the discrete Lagrangian "
+                "and the constraints do not change along these sections, so nothing "
+                "determines the motion in these directions.")
+    return Finding(IDENTICALLY_ZERO, eqs, (), text)
+
+
+def _zero_constraints(layout: Layout, rows: Sequence[int]) -> Finding:
+    names = [layout.constraint_of_row(i) for i in rows]
+    lam = tuple(layout.unknowns[layout.multiplier_columns[layout.constraint_rows.index(i)]]
+                for i in rows if layout.multiplier_columns)
+    one = len(names) == 1
+    text = (f"The constraint{'' if one else 's'} {_names(names)} "
+            f"{_verb(names, 'is', 'are')} identically zero: "
+            + ("it constrains nothing" if one else "they constrain nothing")
+            + (f" and {'leaves its multiplier' if one else 'leave their multipliers'} "
+               f"{_names(lam)} undetermined" if lam else "")
+            + f"; remove {'it' if one else 'them'}.")
+    return Finding(IDENTICALLY_ZERO, tuple(layout.labels[i] for i in rows), lam, text)
+
+
+def _idle_equations(layout: Layout, rows: Sequence[int], shown: dict) -> Finding:
+    eqs = tuple(layout.labels[i] for i in rows)
+    exprs = "; ".join(f"{_short(shown[i])} = 0" for i in rows if i in shown)
+    text = (f"{_names(eqs)} {_verb(eqs, 'involves', 'involve')} none of the unknowns"
+            + (f" ({exprs})" if exprs else "")
+            + ": a condition on the known state, not an equation for the step. The discrete "
+            "Lagrangian does not depend on the unknown arrow in these directions (e.g. it "
+            "depends on the source α(g) or the target β(g) of the arrow only).")
+    return Finding(NO_UNKNOWN, eqs, (), text)
+
+
+def _idle_constraints(layout: Layout, rows: Sequence[int]) -> Finding:
+    names = [layout.constraint_of_row(i) for i in rows]
+    newest = "g_{k+2}" if layout.order == 2 else "g_{k+1}"
+    text = (f"The constraint{'s' if len(names) > 1 else ''} {_names(names)} "
+            f"{_verb(names, 'does', 'do')} not depend on the unknown arrow {newest} "
+            "(e.g. it depends only on the source α(g) of the arrow): it restricts the known "
+            "state, not the step, and its multiplier is not determined.")
+    return Finding(NO_UNKNOWN, tuple(layout.labels[i] for i in rows), (), text)
+
+
+def _unused_chart(layout: Layout, cols: Sequence[int]) -> Finding:
+    names = tuple(layout.unknowns[j] for j in cols)
+    text = (f"The unknown{'s' if len(names) > 1 else ''} {_names(names)} "
+            f"{_verb(names, 'enters', 'enter')} no equation: the discrete Lagrangian and the "
+            "constraints do not vary with "
+            f"{'it' if len(names) == 1 else 'them'}, so nothing determines "
+            f"{'it' if len(names) == 1 else 'them'}.")
+    return Finding(UNUSED_UNKNOWN, (), names, text)
+
+
+def _undetermined(layout: Layout, cols: Sequence[int], dependent: bool = False) -> Finding:
+    names = tuple(layout.unknowns[j] for j in cols)
+    phis = [layout.constraint_names[layout.multiplier_columns.index(j)] for j in cols]
+    plural = len(names) > 1
+    workaround = ("" if layout.order != 1 else
+                  "; meanwhile φ(g) = ψ(β(g)) − ψ(α(g)), with ψ = 0 at the initial "
+                  "configuration, imposes ψ = 0 with a determined multiplier")
+    if dependent:
+        head = (f"The multipliers {_names(names)} of {_names(phis)} are not determined by "
+                "the equations: a combination of these constraints is unchanged")
+    else:
+        head = (f"The multiplier{'s' if plural else ''} {_names(names)} of {_names(phis)} "
+                f"{_verb(names, 'enters', 'enter')} no equation, so nothing determines "
+                f"{'them' if plural else 'it'}: {_verb(names, 'its', 'each')} constraint is "
+                "unchanged")
+    text = (f"{head} under the variation at the junction (X⃗[φ] = 0 at the arrow it "
+            "constrains), which happens when a constraint depends only on the target β(g) of "
+            f"the arrow, as φ = |q₁|² − ℓ² does; {HOLONOMIC_HINT}{workaround}.")
+    return Finding(UNDETERMINED_MULTIPLIER, (), names, text)
+
+
+# --- numeric checks -------------------------------------------------------------------------
+
+def parameter_value(s: sp.Symbol, rng: np.random.Generator) -> float:
+    """A random value respecting the symbol's assumptions: positive/nonnegative → (0.5, 2),
+    negative/nonpositive → (−2, −0.5), integer → 1…3 with that sign, zero → 0."""
+    if s.is_zero:
+        return 0.0
+    sign = -1.0 if (s.is_negative or s.is_nonpositive) else 1.0
+    if s.is_integer:
+        return sign * float(rng.integers(1, 4))
+    return sign * float(rng.uniform(0.5, 2.0))
+
+
+def random_point(step, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(unknowns, knowns, parameters) at random: the known arrows composable and drawn by the
+    groupoid (group parts in the group), other knowns (multipliers, momenta) standard normal,
+    parameters by :func:`parameter_value`, and the unknowns near the step's prediction."""
+    G = step.groupoid
+    arrows = step.arrows
+    offsets = sorted(arrows)
+    values: dict = {}
+    previous = None
+    for o in offsets[:-1]:
+        a = G.random_arrow(rng) if previous is None else G.random_arrow(rng, G.target(previous))
+        names, nums = (arrows[o], a) if previous is None else (G.fibre_of(arrows[o]),
+                                                               G.fibre_of(a))
+        values.update({s: float(v) for s, v in zip(names, nums) if isinstance(s, sp.Symbol)})
+        previous = a
+    knowns = np.array([values[s] if s in values else rng.normal() for s in step.knowns])
+    params = np.array([parameter_value(s, rng) for s in step.parameters])
+    at = {s: sp.Float(v) for s, v in zip(step.knowns, knowns)}
+    prediction = list(getattr(step, "prediction", []))
+    guess = (np.array([_number(e, at) for e in prediction])
+             if len(prediction) == len(step.unknowns) else np.zeros(len(step.unknowns)))
+    n_chart = len(step.unknowns) - step.n_constraints
+    chart = np.asarray(G.random_chart(rng), float)
+    if chart.shape != (n_chart,):
+        chart = rng.uniform(-0.5, 0.5, n_chart)
+    delta = np.concatenate([0.2 * chart, 0.2 * rng.normal(size=step.n_constraints)])
+    return guess + delta, knowns, params
+
+
+def _number(expr, at: dict) -> float:
+    try:
+        value = complex(sp.sympify(expr).xreplace(at).evalf())
+    except (TypeError, ValueError, ZeroDivisionError):
+        return 0.0
+    return value.real if np.isfinite(value.real) and value.imag == 0 else 0.0
+
+
+def numeric(step) -> bool:
+    """Whether the residuals can be evaluated numerically: no undefined functions (an
+    abstract L_d(…)) and no unevaluated derivatives or integrals."""
+    kinds = (AppliedUndef, sp.Derivative, sp.Subs, sp.Integral)
+    return not any(sp.sympify(r).has(*kinds) for r in step.residuals)
+
+
+@dataclass
+class Sample:
+    """F and J at a random point, and at the same point with every input moved by a relative
+    ``_NUDGE``: a genuine value moves by about that fraction, rounding noise by ~100 %."""
+
+    F: np.ndarray
+    J: np.ndarray
+    F_nudged: np.ndarray
+    J_nudged: np.ndarray
+
+
+def _evaluate(step, u, k, p) -> tuple[np.ndarray, np.ndarray]:
+    with np.errstate(all="ignore"), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        F, J = step.evaluate(u, k, p)
+    return np.asarray(F, float), np.asarray(J, float)
+
+
+def sample(step, points: int, seed: int) -> list[Sample]:
+    """:class:`Sample` at ``points`` random points where everything is finite (fewer if
+    not found).
+
+    A point whose state cannot be drawn, or where F or J is not finite, is replaced by
+    another; if ``step.evaluate`` itself fails (a function NumPy cannot evaluate), there is
+    no numeric evidence at all and nothing is returned.
+    """
+    rng = np.random.default_rng(seed)
+    out: list[Sample] = []
+    for _ in range(_ATTEMPTS):
+        if len(out) == points:
+            break
+        try:
+            u, k, p = random_point(step, rng)
+        except (ArithmeticError, ValueError, TypeError):
+            continue
+        nudge = [x * (1 + _NUDGE * rng.uniform(-1, 1, np.shape(x))) for x in (u, k, p)]
+        try:
+            values = _evaluate(step, u, k, p) + _evaluate(step, *nudge)
+        except Exception:  # noqa: BLE001 - no numeric evidence; the structural checks stand
+            return []
+        if all(np.all(np.isfinite(v)) for v in values):
+            out.append(Sample(*values))
+    return out
+
+
+def _vanishing(value: np.ndarray, nudged: np.ndarray, scale: float) -> np.ndarray:
+    """Rows (of a vector or matrix) that are zero up to rounding: exactly zero, or small
+    (≤ _SMALL·max(1, scale)) and changing by more than 10 % under the relative nudge of the
+    inputs — rounding noise, where a genuine function of that size would move by ~_NUDGE."""
+    value, nudged = np.atleast_2d(value.T).T, np.atleast_2d(nudged.T).T
+    size = np.linalg.norm(value, axis=1)
+    change = np.linalg.norm(nudged - value, axis=1)
+    small = size <= _SMALL * max(1.0, scale)
+    return (size == 0) | (small & (change > 0.1 * size))
+
+
+def _zero_rows(s: Sample) -> np.ndarray:
+    return _vanishing(s.J, s.J_nudged, float(np.max(np.abs(s.J), initial=0.0)))
+
+
+def _zero_columns(s: Sample) -> np.ndarray:
+    return _vanishing(s.J.T, s.J_nudged.T, float(np.max(np.abs(s.J), initial=0.0)))
+
+
+def _zero_residuals(s: Sample) -> np.ndarray:
+    scale = float(max(np.max(np.abs(s.F), initial=0.0), np.max(np.abs(s.J), initial=0.0)))
+    return _vanishing(s.F, s.F_nudged, scale)
+
+
+def _equilibrated(J: np.ndarray) -> np.ndarray:
+    r = np.linalg.norm(J, axis=1)
+    J = J / np.where(r > 0, r, 1.0)[:, None]
+    c = np.linalg.norm(J, axis=0)
+    return J / np.where(c > 0, c, 1.0)[None, :]
+
+
+def _null_spaces(J: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:
+    """Numerical rank of the equilibrated J and bases of its left and right null spaces."""
+    U, s, Vt = np.linalg.svd(_equilibrated(J))
+    rank = int(np.sum(s > _RANK * s[0])) if s.size and s[0] > 0 else 0
+    return rank, U[:, rank:], Vt[rank:].T
+
+
+def _support(basis: np.ndarray) -> set[int]:
+    return set(np.flatnonzero(np.linalg.norm(basis, axis=1) > _SUPPORT).tolist())
+
+
+def numeric_findings(step, layout: Layout, points: int = _POINTS,
+                     seed: int = 0) -> list[Finding]:
+    """Zero rows/columns and rank deficiency of the Jacobian, each required at every sampled
+    point; nothing is concluded from fewer than ``points`` finite samples."""
+    if not numeric(step):
+        return []
+    samples = sample(step, points, seed)
+    n = len(layout.labels)
+    if len(samples) < points or any(s.J.shape != (n, n) for s in samples):
+        return []
+    zero_rows = np.all([_zero_rows(s) for s in samples], axis=0)
+    zero_cols = np.all([_zero_columns(s) for s in samples], axis=0)
+    if zero_rows.any() or zero_cols.any():
+        vanish = np.all([_zero_residuals(s) for s in samples], axis=0)
+        rows = np.flatnonzero(zero_rows)
+        zero = [int(i) for i in rows if vanish[i]]
+        idle = [int(i) for i in rows if not vanish[i]]
+        return compose(layout, zero, idle, [int(j) for j in np.flatnonzero(zero_cols)])
+    spaces = [_null_spaces(s.J) for s in samples]
+    if any(rank == n for rank, _, _ in spaces):
+        return []
+    return [_classify(layout, samples, spaces)]
+
+
+def _classify(layout: Layout, samples, spaces) -> Finding:
+    """Dependent constraint rows, then dependent multiplier columns, else not regular."""
+    rows, cols = layout.constraint_rows, layout.multiplier_columns
+    if rows:
+        sub = [_null_spaces(s.J[rows, :]) for s in samples]
+        if all(rank < len(rows) for rank, _, _ in sub):
+            involved = sorted(set().union(*(_support(left) for _, left, _ in sub)))
+            names = [layout.constraint_names[i] for i in involved]
+            lam = tuple(layout.unknowns[cols[i]] for i in involved) if cols else ()
+            text = (f"The constraints {_names(names)} are dependent (their derivatives on the "
+                    "unknown arrow are linearly dependent at every sampled point), so the "
+                    "constraint set is not cut out by independent equations"
+                    + (f" and the multipliers {_names(lam)} are not determined" if lam else "")
+                    + "; remove the redundant constraints.")
+            return Finding(DEPENDENT_CONSTRAINTS, tuple(layout.labels[rows[i]]
+                                                        for i in involved), lam, text)
+    if cols:
+        sub = [_null_spaces(s.J[:, cols]) for s in samples]
+        if all(rank < len(cols) for rank, _, _ in sub):
+            involved = sorted(set().union(*(_support(right) for _, _, right in sub)))
+            return _undetermined(layout, [cols[i] for i in involved], dependent=True)
+    rank = max(r for r, _, _ in spaces)
+    unknowns = sorted(set().union(*(_support(right) for _, _, right in spaces)))
+    equations = sorted(set().union(*(_support(left) for _, left, _ in spaces)))
+    eqs = tuple(layout.labels[i] for i in equations)
+    names = tuple(layout.unknowns[j] for j in unknowns)
+    on = " on the constraint set" if rows else ""
+    text = (f"The step Jacobian is singular at every sampled point (rank {rank} of "
+            f"{len(layout.labels)}): the discrete Lagrangian is not regular{on} (seed 000 "
+            f"Thm 2.16); the dependent equations are {_names(eqs)}, and the unknowns "
+            f"{_names(names)} are not determined along the null directions.")
+    return Finding(NOT_REGULAR, eqs, names, text)
+
+
+# --- entry point for the systems --------------------------------------------------------------
+
+def check_coordinate_names(step) -> None:
+    """A coordinate named like the multipliers' key would make ``step.symbol`` ambiguous."""
+    names = set(step.groupoid.symbols_by_name(0))
+    clash = sorted(names & set(RESERVED_NAMES))
+    if clash:
+        raise CoordinateNameError(
+            f"{step.name}: the coordinate name {clash[0]!r} of {step.groupoid.name} is "
+            f"reserved for the multipliers ({', '.join(map(repr, RESERVED_NAMES))} all name "
+            "λ in step.symbol); rename the coordinate")
+
+
+def check_step(step, *, distribution: int | None = None, lie_poisson: bool = False) -> None:
+    """The derivation-time checks of a system's step: coordinate names, then
+    :func:`diagnose` with the rows named for the kind of step.
+
+    ``distribution``: dim D_c of a nonholonomic step (its first rows are the DEL along the
+    basis of D_c, the rest the constraints ψ defining M_c, docs/conventions.md §10);
+    ``lie_poisson``: the reconstruction step of the Lie–Poisson form (seed 000 §6.1).
+    """
+    check_coordinate_names(step)
+    if distribution is not None:
+        n = len(step.residuals)
+        layout = default_layout(
+            step, [f"the DEL along the D_c basis element {a + 1}" for a in range(distribution)],
+            constraint_letter="ψ", constraint_rows=range(distribution, n))
+    elif lie_poisson:
+        rank = len(step.residuals) - step.n_constraints
+        layout = default_layout(
+            step, [f"μ + λ·Φ = m_{{k+1}} along E_{a + 1}" for a in range(rank)])
+    else:
+        layout = default_layout(step)
+    diagnose(step, layout)
