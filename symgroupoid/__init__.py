@@ -67,22 +67,15 @@ from .runtime import (  # noqa: E402  (layer 5)
 )
 
 __all__ = [
-<<<<<<< HEAD
     "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CacheError",
-    "CallableError",
-    "CompilationError", "DefinedGroupoid", "DiscreteSystem", "EuclideanSpace", "Groupoid",
-=======
-    "ActionGroupoid", "Arrow", "AxiomError", "BoundaryValueSolution", "CallableError",
-    "CompilationError", "CoordinateNameError", "DefinedGroupoid", "DegenerateSystemError",
-    "DiscreteSystem", "EuclideanSpace", "Groupoid", "InvalidExpressionError",
->>>>>>> deriv-checks
-    "LegendreTransforms", "LiePoissonEquations", "MatrixLieGroup", "NamedMatrix",
-    "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity", "NonholonomicSystem",
-    "NotComposableError", "PairGroupoid", "ParameterError", "ProductGroupoid", "SE2", "SE3",
-    "SO2", "SO3",
-    "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError", "StationarityReport",
-    "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory", "TrajectoryTooLargeError",
-    "UndeclaredSymbolError", "UnsupportedExpressionError",
-    "check_axioms", "compile_step", "emit_c", "hat3", "latex", "left_derivative",
-    "right_derivative", "solve_boundary_value", "verify_stationary",
+    "CallableError", "CompilationError", "CoordinateNameError", "DefinedGroupoid",
+    "DegenerateSystemError", "DiscreteSystem", "EuclideanSpace", "Groupoid",
+    "InvalidExpressionError", "LegendreTransforms", "LiePoissonEquations", "MatrixLieGroup",
+    "NamedMatrix", "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity",
+    "NonholonomicSystem", "NotComposableError", "PairGroupoid", "ParameterError",
+    "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "SecondOrderSystem", "ShapeError", "Simulator",
+    "SingularJacobianError", "StationarityReport", "StepEquations", "SymgroupoidError",
+    "TimeGroupoid", "Trajectory", "TrajectoryTooLargeError", "UndeclaredSymbolError",
+    "UnsupportedExpressionError", "check_axioms", "compile_step", "emit_c", "hat3", "latex",
+    "left_derivative", "right_derivative", "solve_boundary_value", "verify_stationary",
 ]

@@ -9,8 +9,9 @@ The same mechanism as :func:`~symgroupoid.derivation.junction_variation` (docs/c
 2. the window's arrows g_{k+o} (named knowns, and the unknown arrow through its fibre chart
    τ(x)) are graph nodes; each term's gradient is instantiated at its arrows by substitution;
 3. residual b = Σ ⟨∇_{g_k} T_s, X⃖_b(g_k)⟩ − Σ ⟨∇_{g_{k+1}} T_s, X⃗_b(g_{k+1})⟩ over the terms
-   containing g_k and g_{k+1} (both halves are kept: ``left_rows``, ``right_rows``) — the derivative of the action sum along the junction
-   variation of section b — then the constraints on the newest term;
+   containing g_k and g_{k+1} (both halves are kept: ``left_rows``, ``right_rows``) — the
+   derivative of the action sum along the junction variation of section b — then the
+   constraints on the newest term;
 4. the step Jacobian ∂F/∂(x, λ) is forward-mode differentiation of those nodes along the
    unknowns (through the chart), one sweep per unknown.
 

@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import sympy as sp
-from sympy.core.function import AppliedUndef
 
 from .._errors import CoordinateNameError, DegenerateSystemError
 from ..groupoids._user import RESERVED_NAMES
@@ -51,6 +50,7 @@ _RANK = 1e-12     # singular values below this fraction of the largest one are z
 _SUPPORT = 1e-3   # weight of a row/column in a null space that counts it as involved
 _POINTS = 3       # random points that must all agree before anything is concluded
 _ATTEMPTS = 12    # points tried at most (non-finite ones are skipped)
+_SIMPLIFY_NODES = 400  # rows of at most this many graph nodes are checked for zero exactly
 
 HOLONOMIC_HINT = (
     "a constraint on configurations belongs on the configuration space: a holonomic form "
@@ -93,7 +93,7 @@ def default_layout(step, section_labels: Sequence[str] | None = None,
     the constraints (the last ``step.n_constraints`` rows unless ``constraint_rows`` is given)
     named φ_a (Φ_a for second order, or ``constraint_letter``); multipliers: the last
     ``step.n_constraints`` unknowns."""
-    n, m = len(step.residuals), step.n_constraints
+    n, m = len(step), step.n_constraints
     rows = list(constraint_rows) if constraint_rows is not None else list(range(n - m, n))
     letter = constraint_letter or ("Φ" if step.order == 2 else "φ")
     names = [f"{letter}_{a + 1}" for a in range(len(rows))]
@@ -150,10 +150,56 @@ def _unknown_symbols(step) -> list[set] | None:
     return out
 
 
+def program_of(step):
+    """The step's program over the expression graph, or None when the step is symbolic
+    only (it uses undefined functions or other expressions code cannot evaluate)."""
+    from .._errors import UnsupportedExpressionError
+
+    try:
+        return step.program
+    except (UnsupportedExpressionError, AttributeError):
+        return None
+
+
 def structural_findings(step, layout: Layout) -> list[Finding]:
     """Residuals that are exactly 0, residuals free of every unknown, unknowns in no
-    residual (the last two only when the chart of the unknown arrow is known; otherwise
-    the numeric checks find them)."""
+    residual — read off the program's graph (which unknown inputs each residual node
+    depends on); for a symbolic-only step, off its SymPy residuals."""
+    program = program_of(step)
+    if program is not None:
+        return _graph_findings(step, program, layout)
+    return _sympy_findings(step, layout)
+
+
+def _graph_findings(step, program, layout: Layout) -> list[Finding]:
+    from ..ir import to_sympy
+
+    g = program.graph
+    F = program.outputs["F"]
+    unknown_nodes = [g.inputs.get(u) for u in step.unknowns]
+    reached = [set(g.reachable([r])) for r in F]
+    # exactly zero: structurally, or (rows small enough to simplify) as SymPy expressions,
+    # e.g. tr(S E) = 0 for a symmetric S and a skew E, which the graph does not cancel
+    zero = [i for i, r in enumerate(F) if r == g.zero or (
+        len(reached[i]) <= _SIMPLIFY_NODES and sp.expand(to_sympy(g, [r])[0]) == 0)]
+    idle = [i for i in range(len(F)) if i not in zero
+            and not any(n is not None and n in reached[i] for n in unknown_nodes)]
+    unused = [j for j, n in enumerate(unknown_nodes)
+              if n is None or not any(n in r for r in reached)]
+    if idle:  # a larger row without unknowns may still vanish: check numerically
+        samples = sample(step, _POINTS, 0)
+        if len(samples) == _POINTS:
+            vanish = np.all([_zero_residuals(s) for s in samples], axis=0)
+            zero += [i for i in idle if vanish[i]]
+            idle = [i for i in idle if not vanish[i]]
+    shown = {}
+    for i in idle:
+        if len(reached[i]) <= 200:
+            shown[i] = to_sympy(g, [F[i]])[0]
+    return compose(layout, zero, idle, unused, shown)
+
+
+def _sympy_findings(step, layout: Layout) -> list[Finding]:
     residuals = [sp.sympify(r) for r in step.residuals]
     zero = [i for i, r in enumerate(residuals) if r == 0]
     through = _unknown_symbols(step)
@@ -346,10 +392,9 @@ def _number(expr, at: dict) -> float:
 
 
 def numeric(step) -> bool:
-    """Whether the residuals can be evaluated numerically: no undefined functions (an
-    abstract L_d(…)) and no unevaluated derivatives or integrals."""
-    kinds = (AppliedUndef, sp.Derivative, sp.Subs, sp.Integral)
-    return not any(sp.sympify(r).has(*kinds) for r in step.residuals)
+    """Whether the residuals can be evaluated numerically: the step has a program (no
+    undefined functions such as an abstract L_d(…), no unevaluated derivatives)."""
+    return program_of(step) is not None
 
 
 @dataclass
@@ -520,12 +565,12 @@ def check_step(step, *, distribution: int | None = None, lie_poisson: bool = Fal
     """
     check_coordinate_names(step)
     if distribution is not None:
-        n = len(step.residuals)
+        n = len(step)
         layout = default_layout(
             step, [f"the DEL along the D_c basis element {a + 1}" for a in range(distribution)],
             constraint_letter="ψ", constraint_rows=range(distribution, n))
     elif lie_poisson:
-        rank = len(step.residuals) - step.n_constraints
+        rank = len(step) - step.n_constraints
         layout = default_layout(
             step, [f"μ + λ·Φ = m_{{k+1}} along E_{a + 1}" for a in range(rank)])
     else:

@@ -159,8 +159,8 @@ class _Evaluated:
     def arrow_from(self, q, f):
         return self._sub(self.inner.arrow_from(q, f))
 
-    def fibre_chart(self, x):
-        return self._sub(self.inner.fibre_chart(x))
+    def fibre_chart(self, x, source=None):
+        return self._sub(self.inner.fibre_chart(x, source))
 
     def random_base_point(self, rng):
         return self.inner.random_base_point(rng)

@@ -88,15 +88,33 @@ class Graph:
         return self.data[i] if self.op[i] == CONST else None
 
     def add(self, *ids: int) -> int:
-        """Σ ids, constants folded, zeros dropped, arguments in canonical order."""
-        op, data = self.op, self.data
+        """Σ ids: constants folded, like terms c₁·t + c₂·t combined (exactly), zeros dropped,
+        arguments in canonical order."""
+        op, data, args_of = self.op, self.data, self.args
         total = _ZERO
-        rest = []
+        terms: dict = {}  # term without its coefficient -> [coefficient, node, count]
         for i in ids:
-            if op[i] == CONST:
+            o = op[i]
+            if o == CONST:
                 total = total + data[i]
+                continue
+            if o == MUL and op[args_of[i][0]] == CONST:
+                key, c = args_of[i][1:], data[args_of[i][0]]
             else:
-                rest.append(i)
+                key, c = (i,), _ONE
+            hit = terms.get(key)
+            if hit is None:
+                terms[key] = [c, i, 1]
+            else:
+                hit[0] += c
+                hit[2] += 1
+        rest = []
+        for key, (c, node, count) in terms.items():
+            if count > 1:
+                if c == 0:
+                    continue
+                node = self.mul(self.const(c), *key) if c != 1 or len(key) > 1 else key[0]
+            rest.append(node)
         if total != 0:
             rest.append(self.const(total))
         if not rest:
