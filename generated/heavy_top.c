@@ -168,6 +168,127 @@ void heavy_top_residual_jacobian(const double *u, const double *known, const dou
     J[8] = t42;
 }
 
+/* S_i: the magnitude of the terms of F_i (their absolute values summed through the program);
+ * the rounding floor of F_i is a small multiple of DBL_EPSILON * S_i */
+
+void heavy_top_residual_scale(const double *u, const double *known, const double *p, double *S)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    const double t0 = -0.5*p[2];
+    const double t1 = 0.5*p[4];
+    const double t2 = 0.5*p[3];
+    const double t3 = t0 + t1 + t2;
+    const double t4 = -0.5*p[3];
+    const double t5 = 0.5*p[2];
+    const double t6 = t1 + t4 + t5;
+    const double t7 = -0.5*p[4];
+    const double t8 = t2 + t5 + t7;
+    const double t9 = 1.0/p[0];
+    const double t10 = p[0]*p[1];
+    const double t11 = u[2]*u[2];
+    const double t12 = u[1]*u[1];
+    const double t13 = u[0]*u[0];
+    const double t14 = t11 + t12 + t13 + 4.0;
+    const double t15 = 1.0/t14;
+    const double t16 = u[0]*u[1];
+    const double t17 = -2.0*u[2];
+    const double t18 = t16 + t17;
+    const double t19 = u[0]*u[2];
+    const double t20 = 2.0*u[1];
+    const double t21 = t19 + t20;
+    const double t22 = 2.0*u[2];
+    const double t23 = t16 + t22;
+    const double t24 = -u[1]*u[2];
+    const double t25 = 2.0*u[0];
+    const double t26 = t24 + t25;
+    const double t27 = -2.0*u[1];
+    const double t28 = t19 + t27;
+    const double t29 = u[1]*u[2];
+    const double t30 = t25 + t29;
+    const double t31 = known[2]*known[9];
+    const double t32 = known[1]*known[6];
+    const double t33 = known[0]*known[3];
+    const double t34 = t31 + t32 + t33;
+    const double t35 = known[2]*known[10];
+    const double t36 = known[1]*known[7];
+    const double t37 = known[0]*known[4];
+    const double t38 = t35 + t36 + t37;
+    const double t39 = -t6*t9*known[8];
+    const double t40 = t8*t9*known[10];
+    const double t41 = t3*t9*known[5];
+    const double t42 = -t8*t9*known[9];
+    const double t43 = -t3*t9*known[4];
+    const double t44 = t6*t9*known[6];
+    const double t45 = -t10*t38;
+    const double t46 = 2.0*t6*t9*t15*t30;
+    const double t47 = 2.0*t8*t9*t15*t26;
+    const double t48 = t10*t34;
+    const double t49 = -2.0*t3*t9*t15*t28;
+    const double t50 = 2.0*t8*t9*t15*t21;
+    const double t51 = 2.0*t3*t9*t15*t23;
+    const double t52 = -2.0*t6*t9*t15*t18;
+    const double t53 = t39 + t40;
+    const double t54 = t41 + t42;
+    const double t55 = t43 + t44;
+    const double t56 = t51 + t52;
+    const double t57 = -(t45 + t46 + t47);
+    const double t58 = -(t48 + t49 + t50);
+    const double t59 = -t56;
+    const double t60 = t15*t30;
+    const double t61 = t15*t26;
+    const double t62 = t15*t28;
+    const double t63 = t15*t21;
+    const double t64 = t15*t23;
+    const double t65 = t15*t18;
+    const double t66 = fabs(t1);
+    const double t67 = fabs(t2);
+    const double t68 = t0 + t1;
+    const double t69 = fabs(t0) + t66 + t67 + fabs(t68) + fabs(t2 + t68);
+    const double t70 = fabs(t5);
+    const double t71 = t1 + t4;
+    const double t72 = t66 + fabs(t4) + t70 + fabs(t71) + fabs(t5 + t71);
+    const double t73 = t2 + t5;
+    const double t74 = t67 + t70 + fabs(t7) + fabs(t73) + fabs(t7 + t73);
+    const double t75 = fabs(t9);
+    const double t76 = fabs(t10);
+    const double t77 = t11 + t12;
+    const double t78 = t13 + t77;
+    const double t79 = 2.0*fabs(t11) + 2.0*fabs(t12) + 2.0*fabs(t13) + fabs(t77) + fabs(t78) + fabs(4.0 + t78);
+    const double t80 = t79*fabs(-1.0/(t14*t14)) + fabs(t15);
+    const double t81 = fabs(t16);
+    const double t82 = fabs(t19);
+    const double t83 = fabs(t25);
+    const double t84 = t31 + t32;
+    const double t85 = fabs(t31) + fabs(t32) + fabs(t33) + fabs(t84) + fabs(t33 + t84);
+    const double t86 = t35 + t36;
+    const double t87 = fabs(t35) + fabs(t36) + fabs(t37) + fabs(t86) + fabs(t37 + t86);
+    const double t88 = t72*fabs(-t9*known[8]) + t75*fabs(-t6*known[8]) + 3.0*fabs(t39);
+    const double t89 = t74*fabs(t9*known[10]) + t75*fabs(t8*known[10]) + 2.0*fabs(t40);
+    const double t90 = t69*fabs(t9*known[5]) + t75*fabs(t3*known[5]) + 2.0*fabs(t41);
+    const double t91 = t74*fabs(-t9*known[9]) + t75*fabs(-t8*known[9]) + 3.0*fabs(t42);
+    const double t92 = t69*fabs(-t9*known[4]) + t75*fabs(-t3*known[4]) + 3.0*fabs(t43);
+    const double t93 = t72*fabs(t9*known[6]) + t75*fabs(t6*known[6]) + 2.0*fabs(t44);
+    const double t94 = t76*fabs(-t38) + t87*fabs(-t10) + 2.0*fabs(t45);
+    const double t95 = t72*fabs(2.0*t9*t60) + t75*fabs(2.0*t6*t60) + t80*fabs(2.0*t6*t9*t30) + (t83 + fabs(t29) + fabs(t30))*fabs(2.0*t6*t9*t15) + 4.0*fabs(t46);
+    const double t96 = fabs(2.0*t8*t9*t15);
+    const double t97 = t74*fabs(2.0*t9*t61) + t75*fabs(2.0*t8*t61) + t80*fabs(2.0*t8*t9*t26) + (2.0*fabs(t24) + t83 + fabs(t26))*t96 + 4.0*fabs(t47);
+    const double t98 = t69*fabs(-2.0*t9*t62) + t75*fabs(-2.0*t3*t62) + t80*fabs(-2.0*t3*t9*t28) + (t82 + fabs(t27) + fabs(t28))*fabs(-2.0*t3*t9*t15) + 4.0*fabs(t49);
+    const double t99 = t74*fabs(2.0*t9*t63) + t75*fabs(2.0*t8*t63) + t80*fabs(2.0*t8*t9*t21) + (t82 + fabs(t20) + fabs(t21))*t96 + 4.0*fabs(t50);
+    const double t100 = t69*fabs(2.0*t9*t64) + t75*fabs(2.0*t3*t64) + t80*fabs(2.0*t3*t9*t23) + (t81 + fabs(t22) + fabs(t23))*fabs(2.0*t3*t9*t15) + 4.0*fabs(t51);
+    const double t101 = t72*fabs(-2.0*t9*t65) + t75*fabs(-2.0*t6*t65) + t80*fabs(-2.0*t6*t9*t18) + (t81 + fabs(t17) + fabs(t18))*fabs(-2.0*t6*t9*t15) + 4.0*fabs(t52);
+    const double t102 = t45 + t46;
+    const double t103 = t48 + t49;
+    const double t104 = t76*fabs(t34) + t76*t85 + fabs(t48) + t98 + t99 + fabs(t103) + fabs(t50 + t103);
+    const double t105 = t88 + t89 + fabs(t53) + (t94 + t95 + t97 + fabs(t102) + fabs(t47 + t102) + fabs(t57)) + fabs(t53 + t57);
+    const double t106 = t90 + t91 + fabs(t54) + (t104 + fabs(t58)) + fabs(t54 + t58);
+    const double t107 = t92 + t93 + fabs(t55) + (t100 + t101 + fabs(t56) + fabs(t59)) + fabs(t55 + t59);
+    S[0] = t105;
+    S[1] = t106;
+    S[2] = t107;
+}
+
 /* first Newton guess for u from the known state */
 
 void heavy_top_predict(const double *known, const double *p, double *u)
@@ -227,8 +348,9 @@ void heavy_top_next_knowns(const double *u, const double *known, const double *p
 
 void heavy_top_default_options(heavy_top_options *options)
 {
-    options->tol_residual = 1e-12;
-    options->tol_step = 1e-10;
+    options->tol_residual = 0.0;
+    options->floor_factor = 1.0;
+    options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
 }
@@ -250,60 +372,48 @@ static double heavy_top_norm_inf(const double *v, int n)
     return m;
 }
 
-/* Solve A x = b in place (A row-major, overwritten; x returned in b).
- * Every row of A and its entry of b are first multiplied by the power of two that brings the
+/* LU factorisation in place (A row-major; L's multipliers below the diagonal, U on and
+ * above it).  Every row of A is first scaled by the power of two 2^-e[i] that brings the
  * row's largest |entry| into [1/2, 1) (exact, no rounding), so the singularity test is
  * relative to the size of each equation, not to the largest entry of A: equations of very
- * different magnitudes are not mistaken for a singular system.  Then LU with partial
- * pivoting, one division per column (reciprocal pivots), zero multipliers skipped.
+ * different magnitudes are not mistaken for a singular system.  Partial pivoting (perm[k]:
+ * the row swapped into place k), one division per column (inv: reciprocal pivots).
  * Returns HEAVY_TOP_OK; HEAVY_TOP_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
- * n * DBL_EPSILON (numerically singular); HEAVY_TOP_NON_FINITE when an entry of A or b, or of
- * their scaled or eliminated values, is not finite (overflow or NaN). */
-static int heavy_top_lu_solve(double *A, double *b)
+ * n * DBL_EPSILON (numerically singular); HEAVY_TOP_NON_FINITE when an entry is not finite
+ * (overflow or NaN). */
+static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *inv)
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;
     const double tiny = n * DBL_EPSILON;
-    double inv[HEAVY_TOP_N_UNKNOWNS], rmax[HEAVY_TOP_N_UNKNOWNS];
     int i, j, k;
     for (i = 0; i < n; ++i) {
-        rmax[i] = heavy_top_norm_inf(A + i * n, n);
-        if (!isfinite(rmax[i]) || !isfinite(b[i])) {
+        const double rmax = heavy_top_norm_inf(A + i * n, n);
+        if (!isfinite(rmax)) {
             return HEAVY_TOP_NON_FINITE;
         }
-    }
-    for (i = 0; i < n; ++i) {
-        double s, s2;
-        int e;
-        if (rmax[i] == 0.0) {
+        if (rmax == 0.0) {
             return HEAVY_TOP_SINGULAR_JACOBIAN;
         }
-        (void)frexp(rmax[i], &e);
-        if (e >= -1000) {
-            s = ldexp(1.0, -e);
+        (void)frexp(rmax, &e[i]);
+        if (e[i] > -1000 && e[i] < 1000) {
+            s[i] = ldexp(1.0, -e[i]);
             for (j = 0; j < n; ++j) {
-                A[i * n + j] *= s;
+                A[i * n + j] *= s[i];
             }
-            b[i] *= s;
-        } else { /* 2^-e exceeds the double range: two exact factors */
-            s = ldexp(1.0, 1000);
-            s2 = ldexp(1.0, -e - 1000);
+        } else { /* 2^-e[i] is not a normal double: scale with ldexp (still exact) */
+            s[i] = 0.0;
             for (j = 0; j < n; ++j) {
-                A[i * n + j] = A[i * n + j] * s * s2;
+                A[i * n + j] = ldexp(A[i * n + j], -e[i]);
             }
-            b[i] = b[i] * s * s2;
-        }
-        if (!isfinite(b[i])) {
-            return HEAVY_TOP_NON_FINITE;
         }
     }
+    /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
+     * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
     for (k = 0; k < n; ++k) {
         int piv = k;
         double amax = 0.0;
         for (i = k; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
-            if (!isfinite(a)) {
-                return HEAVY_TOP_NON_FINITE;
-            }
             if (a > amax) {
                 amax = a;
                 piv = i;
@@ -312,61 +422,144 @@ static int heavy_top_lu_solve(double *A, double *b)
         if (!(amax > tiny)) {
             return HEAVY_TOP_SINGULAR_JACOBIAN;
         }
+        perm[k] = piv;
         if (piv != k) {
-            double t;
             for (j = 0; j < n; ++j) {
-                t = A[k * n + j];
+                const double t = A[k * n + j];
                 A[k * n + j] = A[piv * n + j];
                 A[piv * n + j] = t;
             }
-            t = b[k];
-            b[k] = b[piv];
-            b[piv] = t;
         }
         inv[k] = 1.0 / A[k * n + k];
         for (i = k + 1; i < n; ++i) {
             const double l = A[i * n + k] * inv[k];
+            A[i * n + k] = l;
             if (l != 0.0) {
                 for (j = k + 1; j < n; ++j) {
                     A[i * n + j] -= l * A[k * n + j];
                 }
+            }
+        }
+    }
+    return HEAVY_TOP_OK;
+}
+
+/* Solve A x = b with the factors of heavy_top_lu_factor (x returned in b): the same row scaling,
+ * the row swaps, forward and back substitution.  Returns HEAVY_TOP_OK, or HEAVY_TOP_NON_FINITE
+ * when b or x is not finite. */
+static int heavy_top_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    int i, j, k;
+    for (i = 0; i < n; ++i) {
+        b[i] = s[i] != 0.0 ? b[i] * s[i] : ldexp(b[i], -e[i]);
+    }
+    if (!isfinite(heavy_top_norm_inf(b, n))) {
+        return HEAVY_TOP_NON_FINITE;
+    }
+    for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
+        if (perm[k] != k) {
+            const double t = b[k];
+            b[k] = b[perm[k]];
+            b[perm[k]] = t;
+        }
+    }
+    for (k = 0; k < n; ++k) {
+        for (i = k + 1; i < n; ++i) {
+            const double l = A[i * n + k];
+            if (l != 0.0) {
                 b[i] -= l * b[k];
             }
         }
     }
     for (i = n - 1; i >= 0; --i) {
-        double s = b[i];
+        double t = b[i];
         for (j = i + 1; j < n; ++j) {
-            s -= A[i * n + j] * b[j];
+            t -= A[i * n + j] * b[j];
         }
-        b[i] = s * inv[i];
+        b[i] = t * inv[i];
     }
     return isfinite(heavy_top_norm_inf(b, n)) ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
+}
+
+/* C_i = sum_j |J_ij| |u_j|: how far F_i moves when every unknown is rounded */
+static void heavy_top_coordinate_floor(const double *J, const double *u, double *C)
+{
+    int i, j;
+    for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+        double c = 0.0;
+        for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+            c += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * fabs(u[j]);
+        }
+        C[i] = c;
+    }
+}
+
+/* 1 when every |F_i| <= factor * DBL_EPSILON * (S_i + C_i): the residual is rounding noise,
+ * of its own terms (S) and of the unknowns (C) */
+static int heavy_top_at_floor(const double *F, const double *S, const double *C, double factor)
+{
+    int i;
+    for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * DBL_EPSILON * (S[i] + C[i]))) {
+            return 0;
+        }
+    }
+    return 1;
 }
 
 /* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0 */
 static int heavy_top_options_valid(const heavy_top_options *options)
 {
     return options->max_iterations >= 0 && options->tol_residual >= 0.0
-           && options->tol_step >= 0.0;
+           && options->floor_factor >= 0.0 && options->tol_step >= 0.0;
 }
 
-/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the last iterate).
+/* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
+static double heavy_top_relative_norm(const double *d, const double *u)
+{
+    double m = 0.0;
+    int j;
+    for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+        const double a = fabs(d[j]) / (1.0 + fabs(u[j]));
+        if (a > m) {
+            m = a;
+        }
+    }
+    return m;
+}
+
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
  * The Jacobian at the guess is factored before any convergence test, so every call checks
- * it at least once: a guess with |F|_inf <= tol_residual is accepted only when the Jacobian
- * there is regular, and a degenerate step is reported as HEAVY_TOP_SINGULAR_JACOBIAN, never
- * returned as solved.  Converged when |F|_inf <= tol_residual, or when the last Newton step
- * was at most tol_step * (1 + |u|_inf).  *iterations is the number of Newton updates made and
- * *residual_norm the |F|_inf of the returned iterate.  The first evaluation computes F and J
- * together; later ones F alone, then F and J if another update is needed. */
+ * it at least once: a degenerate step is reported as HEAVY_TOP_SINGULAR_JACOBIAN, never returned
+ * as solved.  An update reuses the last factorisation (a chord step) while the previous update
+ * reduced |F|_inf at least tenfold -- near the solution, where Newton's first update has
+ * already brought the error to the square of the guess's -- and refactors otherwise.
+ * Converged:
+ *  - after an update d_k (k >= 1) whose estimated remaining error rho/(1 - rho) |d_k| is at
+ *    most tol_step, with rho = |d_k| / |d_{k-1}| the observed contraction and |.| relative to
+ *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
+ *    noise of u): the update is applied and the residual evaluated there (a final check that
+ *    it is finite; it is the residual reported);
+ *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
+ *    fast) and every |F_i| is within its rounding floor,
+ *    |F_i| <= floor_factor * DBL_EPSILON * (S_i + sum_j |J_ij| |u_j|) with S the magnitudes of
+ *    the residuals' terms (heavy_top_residual_scale) and J the last factored Jacobian: Newton
+ *    has stalled on rounding noise;
+ *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
+ * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
+ * iterate. */
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[HEAVY_TOP_N_EQUATIONS];
+    double S[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
     double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
-    double step_norm = 0.0;
-    int it, i, status;
+    double inv[HEAVY_TOP_N_UNKNOWNS], s[HEAVY_TOP_N_UNKNOWNS];
+    int e[HEAVY_TOP_N_UNKNOWNS], perm[HEAVY_TOP_N_UNKNOWNS];
+    double previous = 0.0, last_step = 0.0;
+    int it, i, status, slow, done = 0;
     for (it = 0;; ++it) {
-        double rnorm;
+        double rnorm, step;
         if (it == 0) {
             heavy_top_residual_jacobian(u, known, p, F, J);
         } else {
@@ -378,30 +571,53 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         if (!isfinite(rnorm)) {
             return HEAVY_TOP_NON_FINITE;
         }
+        if (done) { /* the residual of the converged iterate, after its final update */
+            return HEAVY_TOP_OK;
+        }
         if (it == 0) {
-            status = heavy_top_lu_solve(J, F);
+            heavy_top_coordinate_floor(J, u, C);
+            status = heavy_top_lu_factor(J, e, s, perm, inv);
             if (status != HEAVY_TOP_OK) {
                 return status;
             }
         }
-        if (rnorm <= options->tol_residual
-            || (it > 0 && step_norm <= options->tol_step * (1.0 + heavy_top_norm_inf(u, HEAVY_TOP_N_UNKNOWNS)))) {
+        if (rnorm <= options->tol_residual) {
             return HEAVY_TOP_OK;
+        }
+        slow = it > 0 && !(rnorm <= 0.1 * previous);
+        if (slow) {
+            heavy_top_residual_scale(u, known, p, S);
+            if (heavy_top_at_floor(F, S, C, options->floor_factor)) {
+                return HEAVY_TOP_OK;
+            }
         }
         if (it >= options->max_iterations) {
             return HEAVY_TOP_NOT_CONVERGED;
         }
-        if (it > 0) {
+        if (slow) {
             heavy_top_residual_jacobian(u, known, p, F, J);
-            status = heavy_top_lu_solve(J, F);
+            heavy_top_coordinate_floor(J, u, C);
+            status = heavy_top_lu_factor(J, e, s, perm, inv);
             if (status != HEAVY_TOP_OK) {
                 return status;
             }
         }
-        step_norm = heavy_top_norm_inf(F, HEAVY_TOP_N_UNKNOWNS);
+        previous = rnorm;
+        status = heavy_top_lu_apply(J, e, s, perm, inv, F);
+        if (status != HEAVY_TOP_OK) {
+            return status;
+        }
+        step = heavy_top_relative_norm(F, u);
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
         }
+        if (step <= 4.0 * DBL_EPSILON) { /* the update is rounding noise of u */
+            done = 1;
+        } else if (it > 0 && step < last_step) {
+            const double rho = step / last_step;
+            done = rho / (1.0 - rho) * step <= options->tol_step;
+        }
+        last_step = step;
     }
 }
 

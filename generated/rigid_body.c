@@ -164,6 +164,109 @@ void rigid_body_residual_jacobian(const double *u, const double *known, const do
     J[8] = t39;
 }
 
+/* S_i: the magnitude of the terms of F_i (their absolute values summed through the program);
+ * the rounding floor of F_i is a small multiple of DBL_EPSILON * S_i */
+
+void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    const double t0 = -0.5*p[1];
+    const double t1 = 0.5*p[3];
+    const double t2 = 0.5*p[2];
+    const double t3 = t0 + t1 + t2;
+    const double t4 = -0.5*p[2];
+    const double t5 = 0.5*p[1];
+    const double t6 = t1 + t4 + t5;
+    const double t7 = -0.5*p[3];
+    const double t8 = t2 + t5 + t7;
+    const double t9 = 1.0/p[0];
+    const double t10 = u[2]*u[2];
+    const double t11 = u[1]*u[1];
+    const double t12 = u[0]*u[0];
+    const double t13 = t10 + t11 + t12 + 4.0;
+    const double t14 = 1.0/t13;
+    const double t15 = u[0]*u[1];
+    const double t16 = -2.0*u[2];
+    const double t17 = t15 + t16;
+    const double t18 = u[0]*u[2];
+    const double t19 = 2.0*u[1];
+    const double t20 = t18 + t19;
+    const double t21 = 2.0*u[2];
+    const double t22 = t15 + t21;
+    const double t23 = -u[1]*u[2];
+    const double t24 = 2.0*u[0];
+    const double t25 = t23 + t24;
+    const double t26 = -2.0*u[1];
+    const double t27 = t18 + t26;
+    const double t28 = u[1]*u[2];
+    const double t29 = t24 + t28;
+    const double t30 = -t6*t9*known[5];
+    const double t31 = t8*t9*known[7];
+    const double t32 = t3*t9*known[2];
+    const double t33 = -t8*t9*known[6];
+    const double t34 = -t3*t9*known[1];
+    const double t35 = t6*t9*known[3];
+    const double t36 = 2.0*t6*t9*t14*t29;
+    const double t37 = 2.0*t8*t9*t14*t25;
+    const double t38 = -2.0*t3*t9*t14*t27;
+    const double t39 = 2.0*t8*t9*t14*t20;
+    const double t40 = 2.0*t3*t9*t14*t22;
+    const double t41 = -2.0*t6*t9*t14*t17;
+    const double t42 = t30 + t31;
+    const double t43 = t32 + t33;
+    const double t44 = t34 + t35;
+    const double t45 = t36 + t37;
+    const double t46 = t38 + t39;
+    const double t47 = t40 + t41;
+    const double t48 = -t45;
+    const double t49 = -t46;
+    const double t50 = -t47;
+    const double t51 = t14*t29;
+    const double t52 = t14*t25;
+    const double t53 = t14*t27;
+    const double t54 = t14*t20;
+    const double t55 = t14*t22;
+    const double t56 = t14*t17;
+    const double t57 = fabs(t1);
+    const double t58 = fabs(t2);
+    const double t59 = t0 + t1;
+    const double t60 = fabs(t0) + t57 + t58 + fabs(t59) + fabs(t2 + t59);
+    const double t61 = fabs(t5);
+    const double t62 = t1 + t4;
+    const double t63 = t57 + fabs(t4) + t61 + fabs(t62) + fabs(t5 + t62);
+    const double t64 = t2 + t5;
+    const double t65 = t58 + t61 + fabs(t7) + fabs(t64) + fabs(t7 + t64);
+    const double t66 = fabs(t9);
+    const double t67 = t10 + t11;
+    const double t68 = t12 + t67;
+    const double t69 = 2.0*fabs(t10) + 2.0*fabs(t11) + 2.0*fabs(t12) + fabs(t67) + fabs(t68) + fabs(4.0 + t68);
+    const double t70 = t69*fabs(-1.0/(t13*t13)) + fabs(t14);
+    const double t71 = fabs(t15);
+    const double t72 = fabs(t18);
+    const double t73 = fabs(t24);
+    const double t74 = t63*fabs(-t9*known[5]) + t66*fabs(-t6*known[5]) + 3.0*fabs(t30);
+    const double t75 = t65*fabs(t9*known[7]) + t66*fabs(t8*known[7]) + 2.0*fabs(t31);
+    const double t76 = t60*fabs(t9*known[2]) + t66*fabs(t3*known[2]) + 2.0*fabs(t32);
+    const double t77 = t65*fabs(-t9*known[6]) + t66*fabs(-t8*known[6]) + 3.0*fabs(t33);
+    const double t78 = t60*fabs(-t9*known[1]) + t66*fabs(-t3*known[1]) + 3.0*fabs(t34);
+    const double t79 = t63*fabs(t9*known[3]) + t66*fabs(t6*known[3]) + 2.0*fabs(t35);
+    const double t80 = t63*fabs(2.0*t9*t51) + t66*fabs(2.0*t6*t51) + t70*fabs(2.0*t6*t9*t29) + (t73 + fabs(t28) + fabs(t29))*fabs(2.0*t6*t9*t14) + 4.0*fabs(t36);
+    const double t81 = fabs(2.0*t8*t9*t14);
+    const double t82 = t65*fabs(2.0*t9*t52) + t66*fabs(2.0*t8*t52) + t70*fabs(2.0*t8*t9*t25) + (2.0*fabs(t23) + t73 + fabs(t25))*t81 + 4.0*fabs(t37);
+    const double t83 = t60*fabs(-2.0*t9*t53) + t66*fabs(-2.0*t3*t53) + t70*fabs(-2.0*t3*t9*t27) + (t72 + fabs(t26) + fabs(t27))*fabs(-2.0*t3*t9*t14) + 4.0*fabs(t38);
+    const double t84 = t65*fabs(2.0*t9*t54) + t66*fabs(2.0*t8*t54) + t70*fabs(2.0*t8*t9*t20) + (t72 + fabs(t19) + fabs(t20))*t81 + 4.0*fabs(t39);
+    const double t85 = t60*fabs(2.0*t9*t55) + t66*fabs(2.0*t3*t55) + t70*fabs(2.0*t3*t9*t22) + (t71 + fabs(t21) + fabs(t22))*fabs(2.0*t3*t9*t14) + 4.0*fabs(t40);
+    const double t86 = t63*fabs(-2.0*t9*t56) + t66*fabs(-2.0*t6*t56) + t70*fabs(-2.0*t6*t9*t17) + (t71 + fabs(t16) + fabs(t17))*fabs(-2.0*t6*t9*t14) + 4.0*fabs(t41);
+    const double t87 = t74 + t75 + fabs(t42) + (t80 + t82 + fabs(t45) + fabs(t48)) + fabs(t42 + t48);
+    const double t88 = t76 + t77 + fabs(t43) + (t83 + t84 + fabs(t46) + fabs(t49)) + fabs(t43 + t49);
+    const double t89 = t78 + t79 + fabs(t44) + (t85 + t86 + fabs(t47) + fabs(t50)) + fabs(t44 + t50);
+    S[0] = t87;
+    S[1] = t88;
+    S[2] = t89;
+}
+
 /* first Newton guess for u from the known state */
 
 void rigid_body_predict(const double *known, const double *p, double *u)
@@ -217,8 +320,9 @@ void rigid_body_next_knowns(const double *u, const double *known, const double *
 
 void rigid_body_default_options(rigid_body_options *options)
 {
-    options->tol_residual = 1e-12;
-    options->tol_step = 1e-10;
+    options->tol_residual = 0.0;
+    options->floor_factor = 1.0;
+    options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
 }
@@ -240,60 +344,48 @@ static double rigid_body_norm_inf(const double *v, int n)
     return m;
 }
 
-/* Solve A x = b in place (A row-major, overwritten; x returned in b).
- * Every row of A and its entry of b are first multiplied by the power of two that brings the
+/* LU factorisation in place (A row-major; L's multipliers below the diagonal, U on and
+ * above it).  Every row of A is first scaled by the power of two 2^-e[i] that brings the
  * row's largest |entry| into [1/2, 1) (exact, no rounding), so the singularity test is
  * relative to the size of each equation, not to the largest entry of A: equations of very
- * different magnitudes are not mistaken for a singular system.  Then LU with partial
- * pivoting, one division per column (reciprocal pivots), zero multipliers skipped.
+ * different magnitudes are not mistaken for a singular system.  Partial pivoting (perm[k]:
+ * the row swapped into place k), one division per column (inv: reciprocal pivots).
  * Returns RIGID_BODY_OK; RIGID_BODY_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
- * n * DBL_EPSILON (numerically singular); RIGID_BODY_NON_FINITE when an entry of A or b, or of
- * their scaled or eliminated values, is not finite (overflow or NaN). */
-static int rigid_body_lu_solve(double *A, double *b)
+ * n * DBL_EPSILON (numerically singular); RIGID_BODY_NON_FINITE when an entry is not finite
+ * (overflow or NaN). */
+static int rigid_body_lu_factor(double *A, int *e, double *s, int *perm, double *inv)
 {
     const int n = RIGID_BODY_N_UNKNOWNS;
     const double tiny = n * DBL_EPSILON;
-    double inv[RIGID_BODY_N_UNKNOWNS], rmax[RIGID_BODY_N_UNKNOWNS];
     int i, j, k;
     for (i = 0; i < n; ++i) {
-        rmax[i] = rigid_body_norm_inf(A + i * n, n);
-        if (!isfinite(rmax[i]) || !isfinite(b[i])) {
+        const double rmax = rigid_body_norm_inf(A + i * n, n);
+        if (!isfinite(rmax)) {
             return RIGID_BODY_NON_FINITE;
         }
-    }
-    for (i = 0; i < n; ++i) {
-        double s, s2;
-        int e;
-        if (rmax[i] == 0.0) {
+        if (rmax == 0.0) {
             return RIGID_BODY_SINGULAR_JACOBIAN;
         }
-        (void)frexp(rmax[i], &e);
-        if (e >= -1000) {
-            s = ldexp(1.0, -e);
+        (void)frexp(rmax, &e[i]);
+        if (e[i] > -1000 && e[i] < 1000) {
+            s[i] = ldexp(1.0, -e[i]);
             for (j = 0; j < n; ++j) {
-                A[i * n + j] *= s;
+                A[i * n + j] *= s[i];
             }
-            b[i] *= s;
-        } else { /* 2^-e exceeds the double range: two exact factors */
-            s = ldexp(1.0, 1000);
-            s2 = ldexp(1.0, -e - 1000);
+        } else { /* 2^-e[i] is not a normal double: scale with ldexp (still exact) */
+            s[i] = 0.0;
             for (j = 0; j < n; ++j) {
-                A[i * n + j] = A[i * n + j] * s * s2;
+                A[i * n + j] = ldexp(A[i * n + j], -e[i]);
             }
-            b[i] = b[i] * s * s2;
-        }
-        if (!isfinite(b[i])) {
-            return RIGID_BODY_NON_FINITE;
         }
     }
+    /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
+     * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
     for (k = 0; k < n; ++k) {
         int piv = k;
         double amax = 0.0;
         for (i = k; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
-            if (!isfinite(a)) {
-                return RIGID_BODY_NON_FINITE;
-            }
             if (a > amax) {
                 amax = a;
                 piv = i;
@@ -302,61 +394,144 @@ static int rigid_body_lu_solve(double *A, double *b)
         if (!(amax > tiny)) {
             return RIGID_BODY_SINGULAR_JACOBIAN;
         }
+        perm[k] = piv;
         if (piv != k) {
-            double t;
             for (j = 0; j < n; ++j) {
-                t = A[k * n + j];
+                const double t = A[k * n + j];
                 A[k * n + j] = A[piv * n + j];
                 A[piv * n + j] = t;
             }
-            t = b[k];
-            b[k] = b[piv];
-            b[piv] = t;
         }
         inv[k] = 1.0 / A[k * n + k];
         for (i = k + 1; i < n; ++i) {
             const double l = A[i * n + k] * inv[k];
+            A[i * n + k] = l;
             if (l != 0.0) {
                 for (j = k + 1; j < n; ++j) {
                     A[i * n + j] -= l * A[k * n + j];
                 }
+            }
+        }
+    }
+    return RIGID_BODY_OK;
+}
+
+/* Solve A x = b with the factors of rigid_body_lu_factor (x returned in b): the same row scaling,
+ * the row swaps, forward and back substitution.  Returns RIGID_BODY_OK, or RIGID_BODY_NON_FINITE
+ * when b or x is not finite. */
+static int rigid_body_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    int i, j, k;
+    for (i = 0; i < n; ++i) {
+        b[i] = s[i] != 0.0 ? b[i] * s[i] : ldexp(b[i], -e[i]);
+    }
+    if (!isfinite(rigid_body_norm_inf(b, n))) {
+        return RIGID_BODY_NON_FINITE;
+    }
+    for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
+        if (perm[k] != k) {
+            const double t = b[k];
+            b[k] = b[perm[k]];
+            b[perm[k]] = t;
+        }
+    }
+    for (k = 0; k < n; ++k) {
+        for (i = k + 1; i < n; ++i) {
+            const double l = A[i * n + k];
+            if (l != 0.0) {
                 b[i] -= l * b[k];
             }
         }
     }
     for (i = n - 1; i >= 0; --i) {
-        double s = b[i];
+        double t = b[i];
         for (j = i + 1; j < n; ++j) {
-            s -= A[i * n + j] * b[j];
+            t -= A[i * n + j] * b[j];
         }
-        b[i] = s * inv[i];
+        b[i] = t * inv[i];
     }
     return isfinite(rigid_body_norm_inf(b, n)) ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
+}
+
+/* C_i = sum_j |J_ij| |u_j|: how far F_i moves when every unknown is rounded */
+static void rigid_body_coordinate_floor(const double *J, const double *u, double *C)
+{
+    int i, j;
+    for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+        double c = 0.0;
+        for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
+            c += fabs(J[i * RIGID_BODY_N_UNKNOWNS + j]) * fabs(u[j]);
+        }
+        C[i] = c;
+    }
+}
+
+/* 1 when every |F_i| <= factor * DBL_EPSILON * (S_i + C_i): the residual is rounding noise,
+ * of its own terms (S) and of the unknowns (C) */
+static int rigid_body_at_floor(const double *F, const double *S, const double *C, double factor)
+{
+    int i;
+    for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * DBL_EPSILON * (S[i] + C[i]))) {
+            return 0;
+        }
+    }
+    return 1;
 }
 
 /* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0 */
 static int rigid_body_options_valid(const rigid_body_options *options)
 {
     return options->max_iterations >= 0 && options->tol_residual >= 0.0
-           && options->tol_step >= 0.0;
+           && options->floor_factor >= 0.0 && options->tol_step >= 0.0;
 }
 
-/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the last iterate).
+/* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
+static double rigid_body_relative_norm(const double *d, const double *u)
+{
+    double m = 0.0;
+    int j;
+    for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
+        const double a = fabs(d[j]) / (1.0 + fabs(u[j]));
+        if (a > m) {
+            m = a;
+        }
+    }
+    return m;
+}
+
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
  * The Jacobian at the guess is factored before any convergence test, so every call checks
- * it at least once: a guess with |F|_inf <= tol_residual is accepted only when the Jacobian
- * there is regular, and a degenerate step is reported as RIGID_BODY_SINGULAR_JACOBIAN, never
- * returned as solved.  Converged when |F|_inf <= tol_residual, or when the last Newton step
- * was at most tol_step * (1 + |u|_inf).  *iterations is the number of Newton updates made and
- * *residual_norm the |F|_inf of the returned iterate.  The first evaluation computes F and J
- * together; later ones F alone, then F and J if another update is needed. */
+ * it at least once: a degenerate step is reported as RIGID_BODY_SINGULAR_JACOBIAN, never returned
+ * as solved.  An update reuses the last factorisation (a chord step) while the previous update
+ * reduced |F|_inf at least tenfold -- near the solution, where Newton's first update has
+ * already brought the error to the square of the guess's -- and refactors otherwise.
+ * Converged:
+ *  - after an update d_k (k >= 1) whose estimated remaining error rho/(1 - rho) |d_k| is at
+ *    most tol_step, with rho = |d_k| / |d_{k-1}| the observed contraction and |.| relative to
+ *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
+ *    noise of u): the update is applied and the residual evaluated there (a final check that
+ *    it is finite; it is the residual reported);
+ *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
+ *    fast) and every |F_i| is within its rounding floor,
+ *    |F_i| <= floor_factor * DBL_EPSILON * (S_i + sum_j |J_ij| |u_j|) with S the magnitudes of
+ *    the residuals' terms (rigid_body_residual_scale) and J the last factored Jacobian: Newton
+ *    has stalled on rounding noise;
+ *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
+ * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
+ * iterate. */
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[RIGID_BODY_N_EQUATIONS];
+    double S[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
     double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS];
-    double step_norm = 0.0;
-    int it, i, status;
+    double inv[RIGID_BODY_N_UNKNOWNS], s[RIGID_BODY_N_UNKNOWNS];
+    int e[RIGID_BODY_N_UNKNOWNS], perm[RIGID_BODY_N_UNKNOWNS];
+    double previous = 0.0, last_step = 0.0;
+    int it, i, status, slow, done = 0;
     for (it = 0;; ++it) {
-        double rnorm;
+        double rnorm, step;
         if (it == 0) {
             rigid_body_residual_jacobian(u, known, p, F, J);
         } else {
@@ -368,30 +543,53 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
         if (!isfinite(rnorm)) {
             return RIGID_BODY_NON_FINITE;
         }
+        if (done) { /* the residual of the converged iterate, after its final update */
+            return RIGID_BODY_OK;
+        }
         if (it == 0) {
-            status = rigid_body_lu_solve(J, F);
+            rigid_body_coordinate_floor(J, u, C);
+            status = rigid_body_lu_factor(J, e, s, perm, inv);
             if (status != RIGID_BODY_OK) {
                 return status;
             }
         }
-        if (rnorm <= options->tol_residual
-            || (it > 0 && step_norm <= options->tol_step * (1.0 + rigid_body_norm_inf(u, RIGID_BODY_N_UNKNOWNS)))) {
+        if (rnorm <= options->tol_residual) {
             return RIGID_BODY_OK;
+        }
+        slow = it > 0 && !(rnorm <= 0.1 * previous);
+        if (slow) {
+            rigid_body_residual_scale(u, known, p, S);
+            if (rigid_body_at_floor(F, S, C, options->floor_factor)) {
+                return RIGID_BODY_OK;
+            }
         }
         if (it >= options->max_iterations) {
             return RIGID_BODY_NOT_CONVERGED;
         }
-        if (it > 0) {
+        if (slow) {
             rigid_body_residual_jacobian(u, known, p, F, J);
-            status = rigid_body_lu_solve(J, F);
+            rigid_body_coordinate_floor(J, u, C);
+            status = rigid_body_lu_factor(J, e, s, perm, inv);
             if (status != RIGID_BODY_OK) {
                 return status;
             }
         }
-        step_norm = rigid_body_norm_inf(F, RIGID_BODY_N_UNKNOWNS);
+        previous = rnorm;
+        status = rigid_body_lu_apply(J, e, s, perm, inv, F);
+        if (status != RIGID_BODY_OK) {
+            return status;
+        }
+        step = rigid_body_relative_norm(F, u);
         for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
         }
+        if (step <= 4.0 * DBL_EPSILON) { /* the update is rounding noise of u */
+            done = 1;
+        } else if (it > 0 && step < last_step) {
+            const double rho = step / last_step;
+            done = rho / (1.0 - rho) * step <= options->tol_step;
+        }
+        last_step = step;
     }
 }
 

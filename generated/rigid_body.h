@@ -66,6 +66,7 @@ extern "C" {
 
 typedef struct {
     double tol_residual;
+    double floor_factor;
     double tol_step;
     int max_iterations;
     int extrapolate;
@@ -80,6 +81,7 @@ typedef struct {
 void rigid_body_default_options(rigid_body_options *options);
 void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F);
+void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S);
 void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
 void rigid_body_predict(const double *known, const double *p, double *u);
 void rigid_body_next_knowns(const double *u, const double *known, const double *p, double *known_next);

@@ -105,18 +105,31 @@ def test_adaptive_step_conserves_energy_while_the_step_varies():
     assert np.ptp(steps) > 0.03 * steps.mean()
 
 
+def _rounding_floor(st, known) -> float:
+    """ε·(E + Σ_j |J_ij||u_j|) at the solved step from ``known`` (the step program's rounding
+    bound E, output ``F_scale``): the smallest residual the step can be certified to reach.
+    It grows with t here (t₁ − t₀ of large times), so the last state bounds every step."""
+    f = st.program.numpy_function(["F", "F_scale", "J"], ["u", "known", "p"])
+    u = np.asarray(st.program.numpy_function(["predict"], ["known", "p"])(known, [])[0])
+    for _ in range(12):
+        F, E, J = f(u, known, [])
+        u = u - np.linalg.solve(J.reshape(len(F), len(F)), F)
+    F, E, J = f(u, known, [])
+    C = np.abs(J.reshape(len(F), len(F))) @ np.abs(u)
+    return float(np.finfo(float).eps * np.max(E + C))
+
+
 def test_adaptive_step_conserves_energy_over_10k_steps(tmp_path, monkeypatch):
     """The same over 10⁴ steps with the compiled stepper.  Each step's residual sits at its
-    rounding floor (|F|∞ ≈ 2e-12 for residual entries of size ~10²), so the energy error is
-    a random walk of that size: ~1e-10 after 10⁴ steps, far below the O(h²) ≈ 1e-3 energy
-    error of a fixed-step scheme — and every step is forward in time while h varies."""
+    rounding floor (default Newton options), so the energy error is a random walk of that
+    size: ~1e-10 after 10⁴ steps, far below the O(h²) ≈ 1e-3 energy error of a fixed-step
+    scheme — and every step is forward in time while h varies."""
     monkeypatch.setenv("SYMGROUPOID_CACHE", str(tmp_path))
     st = _adaptive_rigid_body().euler_lagrange()
     W = np.array(sg.SO3("W").cayley([0.02, 0.05, -0.03]).tolist(), float)
     known = np.concatenate([[0.0, 0.05], W.ravel()])
-    tight = sg.NewtonOptions(tol_residual=1e-15, tol_step=1e-16, max_iterations=60)
-    traj = st.compile().simulate(known, 10_000, [], options=tight)
-    assert traj.residual_norms.max() < 5e-12
+    traj = st.compile().simulate(known, 10_000, [])
+    assert traj.residual_norms.max() <= _rounding_floor(st, traj.states[-1])
     steps = np.diff(traj.states[:, :2], axis=1).ravel()
     errors = np.array([_rb_energy(s) for s in traj.states]) - _rb_energy(known)
     assert np.max(np.abs(errors)) < 3e-10

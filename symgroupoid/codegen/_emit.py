@@ -24,7 +24,8 @@ from ._kernel import c_identifier, kernel_blocks
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2")
 
 #: default Newton options compiled into ``<prefix>_default_options``
-DEFAULT_OPTIONS = {"tol_residual": 1e-12, "tol_step": 1e-10, "max_iterations": 50}
+DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
+                   "floor_factor": 1.0}
 
 
 def template_dir() -> Path:
@@ -126,9 +127,11 @@ def _context(step, prefix: str, header_name: str) -> dict:
         "fibre_names": [_ascii(s.name) for s in fibre],
         "residual_latex": residual_comments(step), "helpers": blocks.helpers,
         "reconstruct": blocks.reconstruct, "residual": blocks.residual,
-        "residual_jacobian": blocks.residual_jacobian, "predict": blocks.predict,
+        "residual_jacobian": blocks.residual_jacobian,
+        "residual_scale": blocks.residual_scale, "predict": blocks.predict,
         "next_knowns": blocks.next_knowns,
         "tol_residual": _c_double(DEFAULT_OPTIONS["tol_residual"]),
+        "floor_factor": _c_double(DEFAULT_OPTIONS["floor_factor"]),
         "tol_step": _c_double(DEFAULT_OPTIONS["tol_step"]),
         "max_iterations": DEFAULT_OPTIONS["max_iterations"],
     }

@@ -13,10 +13,11 @@ from ._c import KernelCPrinter, c_of_sympy
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
 from ._program import Program
+from ._rounding import rounding_error
 from ._sympy import from_sympy, to_sympy
 
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "forward",
-    "from_sympy", "gradient", "jacobian", "partial", "smooth_spec", "to_sympy",
+    "from_sympy", "gradient", "jacobian", "partial", "rounding_error", "smooth_spec", "to_sympy",
 ]

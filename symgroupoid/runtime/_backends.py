@@ -18,7 +18,6 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
-import sympy as sp
 
 from .._errors import ShapeError
 from ..codegen._emit import DEFAULT_OPTIONS
@@ -43,27 +42,42 @@ STATUS_MESSAGES = {
 C_INT_MAX = 2**31 - 1
 
 
+#: the unit roundoff of double precision (C's DBL_EPSILON)
+EPSILON = float(np.finfo(float).eps)
+
+
 @dataclass(frozen=True)
 class NewtonOptions:
-    """Newton options of a step.
+    """Newton options of a step (the kernels' ``<prefix>_newton``).
 
-    Converged when |F|_∞ ≤ ``tol_residual`` or the last Newton step was at most
-    ``tol_step``·(1 + |u|_∞); at most ``max_iterations`` updates (an integer in
-    0 … 2³¹ − 1, the range of a C ``int``; integral floats such as ``1e3`` are accepted).
-    The Jacobian is factored at least once per step, so a step whose guess already
-    satisfies the residual test is still reported when its Jacobian is singular.  With
-    ``extrapolate`` the guess of step k ≥ 2 is 2u_{k-1} − u_{k-2} (falling back to
-    ``step.prediction`` if Newton fails from it); otherwise every step starts from
-    ``step.prediction``.
+    Each step factors the Jacobian at the guess (so a singular step is always reported), then
+    updates; an update reuses the last factorisation (a chord step) while the previous one
+    reduced |F|_∞ at least tenfold, and refactors otherwise.  Converged:
+
+    - after an update d_k (k ≥ 1) whose estimated remaining error ρ/(1 − ρ)·|d_k| is at most
+      ``tol_step`` — ρ = |d_k|/|d_{k−1}| the observed contraction, |d| = max_j |d_j|/(1 + |u_j|)
+      — or an update of at most 4ε (rounding noise of u); the update is applied and the
+      residual evaluated there (reported, and checked to be finite);
+    - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and every
+      |F_i| ≤ ``floor_factor``·ε·(S_i + Σ_j |J_ij||u_j|), ε·S_i the rounding-error bound of F_i
+      (``StepEquations.program`` output ``F_scale``) and J the last factored Jacobian:
+      stalled at the rounding floor of the terms and of the unknowns;
+    - when |F|_∞ ≤ ``tol_residual`` (absolute; 0, i.e. off, by default).
+
+    At most ``max_iterations`` updates (an integer in 0 … 2³¹ − 1, the range of a C ``int``;
+    integral floats such as ``1e3`` are accepted).  With ``extrapolate`` the guess of step
+    k ≥ 2 is 2u_{k-1} − u_{k-2} (falling back to ``step.prediction`` if Newton fails from it);
+    otherwise every step starts from ``step.prediction``.
     """
 
     tol_residual: float = DEFAULT_OPTIONS["tol_residual"]
     tol_step: float = DEFAULT_OPTIONS["tol_step"]
     max_iterations: int = DEFAULT_OPTIONS["max_iterations"]
     extrapolate: bool = True
+    floor_factor: float = DEFAULT_OPTIONS["floor_factor"]
 
     def __post_init__(self):
-        for name in ("tol_residual", "tol_step"):
+        for name in ("tol_residual", "tol_step", "floor_factor"):
             value = getattr(self, name)
             if isinstance(value, (bool, np.bool_)) or not (
                     isinstance(value, numbers.Real) and np.isfinite(float(value))
@@ -235,6 +249,7 @@ class CKernel(_Kernel):
     def _options(self, options: NewtonOptions):
         opts = self.ffi.new(f"{self.prefix}_options *")
         opts.tol_residual = options.tol_residual
+        opts.floor_factor = options.floor_factor
         opts.tol_step = options.tol_step
         opts.max_iterations = int(options.max_iterations)
         opts.extrapolate = int(bool(options.extrapolate))
@@ -312,59 +327,107 @@ def norm_inf(v: np.ndarray) -> float:
     return float(a.max())
 
 
-def lu_solve(A: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
-    """(status, x) of A x = b exactly as ``<prefix>_lu_solve`` in the C kernel.
+@dataclass
+class LUFactors:
+    """The factors of :func:`lu_factor`: scaled, permuted and eliminated A (L below the
+    diagonal, U on and above), row exponents, pivot rows and reciprocal pivots."""
 
-    Every row of A and b is scaled by the power of two bringing the row's largest |entry|
+    A: np.ndarray
+    e: np.ndarray
+    perm: np.ndarray
+    inv: np.ndarray
+
+
+def lu_factor(A: np.ndarray) -> tuple[int, LUFactors | None]:
+    """(status, factors) exactly as ``<prefix>_lu_factor`` in the C kernel.
+
+    Every row of A is scaled by the power of two 2^-e bringing the row's largest |entry|
     into [1/2, 1) (exact), so singularity is judged relative to each equation; then LU with
     partial pivoting (reciprocal pivots, zero multipliers skipped).  The status is
     ``SINGULAR_JACOBIAN`` for a zero row or a pivot not above n·ε, ``NON_FINITE`` when a
     value is infinite or NaN (overflow), else ``OK``.
     """
-    A, b = np.array(A, dtype=float), np.array(b, dtype=float)
-    n = len(b)
-    tiny = n * np.finfo(float).eps
-    if not (np.isfinite(A).all() and np.isfinite(b).all()):
-        return NON_FINITE, b
+    A = np.array(A, dtype=float)
+    n = len(A)
+    tiny = n * EPSILON
+    e = np.zeros(n, dtype=np.int64)
     with np.errstate(all="ignore"):
         for i in range(n):
             m = norm_inf(A[i])
+            if not np.isfinite(m):
+                return NON_FINITE, None
             if m == 0.0:
-                return SINGULAR_JACOBIAN, b
-            e = int(np.frexp(m)[1])
-            if e >= -1000:
-                s = np.ldexp(1.0, -e)
-                A[i] *= s
-                b[i] *= s
-            else:  # 2^-e exceeds the double range: two exact factors
-                s, s2 = np.ldexp(1.0, 1000), np.ldexp(1.0, -e - 1000)
-                A[i] = A[i] * s * s2
-                b[i] = b[i] * s * s2
-            if not np.isfinite(b[i]):
-                return NON_FINITE, b
-    inv = np.empty(n)
-    for k in range(n):
-        column = np.abs(A[k:, k])
-        if not np.isfinite(column).all():
+                return SINGULAR_JACOBIAN, None
+            e[i] = int(np.frexp(m)[1])
+            A[i] = A[i] * np.ldexp(1.0, -e[i]) if -1000 < e[i] < 1000 else np.ldexp(A[i],
+                                                                                  -e[i])
+        # entries now lie in [-1, 1]; partial pivoting grows them at most 2^(n-1): no overflow
+        perm = np.zeros(n, dtype=np.int64)
+        inv = np.empty(n)
+        for k in range(n):
+            column = np.abs(A[k:, k])
+            piv = k + int(np.argmax(column))
+            if not column[piv - k] > tiny:
+                return SINGULAR_JACOBIAN, None
+            perm[k] = piv
+            if piv != k:
+                A[[k, piv]] = A[[piv, k]]
+            inv[k] = 1.0 / A[k, k]
+            for i in range(k + 1, n):
+                lik = A[i, k] * inv[k]
+                A[i, k] = lik
+                if lik != 0.0:
+                    A[i, k + 1:] -= lik * A[k, k + 1:]
+    return OK, LUFactors(A, e, perm, inv)
+
+
+def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """(status, x) solving A x = b with the factors, exactly as ``<prefix>_lu_apply``."""
+    A, n = factors.A, len(factors.A)
+    with np.errstate(all="ignore"):
+        b = np.array(b, dtype=float)
+        for i in range(n):
+            e = int(factors.e[i])
+            b[i] = b[i] * np.ldexp(1.0, -e) if -1000 < e < 1000 else np.ldexp(b[i], -e)
+        if not np.isfinite(b).all():
             return NON_FINITE, b
-        piv = k + int(np.argmax(column))
-        if not column[piv - k] > tiny:
-            return SINGULAR_JACOBIAN, b
-        if piv != k:
-            A[[k, piv]] = A[[piv, k]]
-            b[[k, piv]] = b[[piv, k]]
-        inv[k] = 1.0 / A[k, k]
-        for i in range(k + 1, n):
-            lik = A[i, k] * inv[k]
-            if lik != 0.0:
-                A[i, k + 1:] -= lik * A[k, k + 1:]
-                b[i] -= lik * b[k]
-    for i in range(n - 1, -1, -1):
-        s = b[i]
-        for j in range(i + 1, n):
-            s -= A[i, j] * b[j]
-        b[i] = s * inv[i]
+        for k in range(n):  # the row swaps, in order (L's rows were swapped with them)
+            piv = int(factors.perm[k])
+            if piv != k:
+                b[[k, piv]] = b[[piv, k]]
+        for k in range(n):
+            for i in range(k + 1, n):
+                lik = A[i, k]
+                if lik != 0.0:
+                    b[i] -= lik * b[k]
+        for i in range(n - 1, -1, -1):
+            t = b[i]
+            for j in range(i + 1, n):
+                t -= A[i, j] * b[j]
+            b[i] = t * factors.inv[i]
     return (OK if np.isfinite(norm_inf(b)) else NON_FINITE), b
+
+
+def coordinate_floor(J: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """C_i = Σ_j |J_ij|·|u_j|, as ``<prefix>_coordinate_floor`` (the same summation order)."""
+    C = np.zeros(len(J))
+    for j in range(J.shape[1]):
+        C = C + np.abs(J[:, j]) * abs(u[j])
+    return C
+
+
+def relative_norm(d: np.ndarray, u: np.ndarray) -> float:
+    """max_j |d_j| / (1 + |u_j|), as ``<prefix>_relative_norm``."""
+    with np.errstate(all="ignore"):
+        return float(np.max(np.abs(d) / (1.0 + np.abs(u)), initial=0.0))
+
+
+def lu_solve(A: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """(status, x) of A x = b: :func:`lu_factor` then :func:`lu_apply`."""
+    status, factors = lu_factor(A)
+    if status != OK:
+        return status, np.array(b, dtype=float)
+    return lu_apply(factors, b)
 
 
 @dataclass
@@ -377,7 +440,8 @@ class NumpyWarmStart:
 
 
 class NumpyKernel(_Kernel):
-    """The same kernel evaluated with NumPy (lambdified SymPy; Newton in Python)."""
+    """The same kernel evaluated with NumPy: the step's program (the same operations, in the
+    same order, as the generated C) and Newton in Python."""
 
     name = "numpy"
 
@@ -385,28 +449,29 @@ class NumpyKernel(_Kernel):
         self.step = step
         self.n_u, self.n_k = len(step.unknowns), len(step.knowns)
         self.n_p = len(step.parameters)
-        args = [list(step.unknowns), list(step.knowns), list(step.parameters)]
-        self._F = sp.lambdify(args, sp.Matrix(step.residuals_in_unknowns()), "numpy",
-                              cse=True)
-        self._J = sp.lambdify(args, step.jacobian(substitute=True), "numpy", cse=True)
-        self._next = sp.lambdify(args, sp.Matrix(step.next_knowns), "numpy", cse=True)
-        self._pred = sp.lambdify(args[1:], sp.Matrix(step.prediction), "numpy", cse=True)
+        program = step.program
+        args = ["u", "known", "p"]
+        self._F = program.numpy_function(["F"], args)
+        self._FJ = program.numpy_function(["F", "J"], args)
+        self._S = program.numpy_function(["F_scale"], args)
+        self._next = program.numpy_function(["next_knowns"], args)
+        self._pred = program.numpy_function(["predict"], ["known", "p"])
 
     def warm_start(self) -> NumpyWarmStart:
         return NumpyWarmStart(0, np.zeros(self.n_u), np.zeros(self.n_u))
 
     def _residual(self, u, known, p) -> np.ndarray:
-        return np.asarray(self._F(u, known, p), dtype=float).reshape(self.n_u)
+        return self._F(u, known, p)[0].reshape(self.n_u)
 
     def _residual_jacobian(self, u, known, p):
-        J = np.asarray(self._J(u, known, p), dtype=float).reshape(self.n_u, self.n_u)
-        return self._residual(u, known, p), J
+        F, J = self._FJ(u, known, p)
+        return F.reshape(self.n_u), J.reshape(self.n_u, self.n_u)
 
     def _predict(self, known, p) -> np.ndarray:
-        return np.asarray(self._pred(known, p), dtype=float).reshape(self.n_u)
+        return self._pred(known, p)[0].reshape(self.n_u)
 
     def _next_knowns(self, u, known, p) -> np.ndarray:
-        return np.asarray(self._next(u, known, p), dtype=float).reshape(self.n_k)
+        return self._next(u, known, p)[0].reshape(self.n_k)
 
     def _solve_step(self, known, p, u0, options: NewtonOptions):
         """Newton's method exactly as ``<prefix>_newton`` in the C kernel."""
@@ -414,7 +479,10 @@ class NumpyKernel(_Kernel):
             return self._newton(known, p, np.array(u0, dtype=float), options)
 
     def _newton(self, known, p, u, options: NewtonOptions):
-        step_norm = 0.0
+        """As ``<prefix>_newton`` (see :class:`NewtonOptions`)."""
+        previous = last_step = 0.0
+        factors = C = None
+        done = False
         it = 0
         while True:
             if it == 0:
@@ -424,22 +492,40 @@ class NumpyKernel(_Kernel):
             rnorm = norm_inf(F)
             if not np.isfinite(rnorm):
                 return NON_FINITE, u, it, rnorm
+            if done:  # the residual of the converged iterate, after its final update
+                return OK, u, it, rnorm
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
-                status, du = lu_solve(J, F)
+                C = coordinate_floor(J, u)
+                status, factors = lu_factor(J)
                 if status != OK:
                     return status, u, it, rnorm
-            if rnorm <= options.tol_residual or (
-                    it > 0 and step_norm <= options.tol_step * (1.0 + norm_inf(u))):
+            if rnorm <= options.tol_residual:
                 return OK, u, it, rnorm
+            slow = it > 0 and not rnorm <= 0.1 * previous
+            if slow:
+                S = self._S(u, known, p)[0].reshape(self.n_u)
+                if bool(np.all(np.abs(F) <= options.floor_factor * EPSILON * (S + C))):
+                    return OK, u, it, rnorm
             if it >= options.max_iterations:
                 return NOT_CONVERGED, u, it, rnorm
-            if it > 0:
+            if slow:
                 F, J = self._residual_jacobian(u, known, p)
-                status, du = lu_solve(J, F)
+                C = coordinate_floor(J, u)
+                status, factors = lu_factor(J)
                 if status != OK:
                     return status, u, it, rnorm
-            step_norm = norm_inf(du)
+            previous = rnorm
+            status, du = lu_apply(factors, F)
+            if status != OK:
+                return status, u, it, rnorm
+            step = relative_norm(du, u)
             u = u - du
+            if step <= 4.0 * EPSILON:  # the update is rounding noise of u
+                done = True
+            elif it > 0 and step < last_step:
+                rho = step / last_step
+                done = rho / (1.0 - rho) * step <= options.tol_step
+            last_step = step
             it += 1
 
     def _simulate(self, known0, p, n_steps: int, options: NewtonOptions,

@@ -238,8 +238,8 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
 
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
                  cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
-                 tol_step: float | None = None, max_iterations: int | None = None
-                 ) -> Simulator:
+                 tol_step: float | None = None, max_iterations: int | None = None,
+                 floor_factor: float | None = None) -> Simulator:
     """A :class:`Simulator` for ``step``: its C kernel (cffi, cached) or the NumPy backend.
 
     Parameters
@@ -252,7 +252,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     cache_dir : cache root (default ``$SYMGROUPOID_CACHE``, ``$XDG_CACHE_HOME/symgroupoid``
         or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
         private temporary directory for this process (with a ``RuntimeWarning``).
-    tol_residual, tol_step, max_iterations : Newton options (see :class:`NewtonOptions`).
+    tol_residual, tol_step, max_iterations, floor_factor : Newton options (see
+        :class:`NewtonOptions`).
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -261,7 +262,7 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         if backend not in BACKENDS:
             raise ValueError(f"SYMGROUPOID_BACKEND must be one of {BACKENDS}, got {backend!r}")
     given = {"tol_residual": tol_residual, "tol_step": tol_step,
-             "max_iterations": max_iterations}
+             "max_iterations": max_iterations, "floor_factor": floor_factor}
     options = NewtonOptions(**{k: v for k, v in given.items() if v is not None})
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)

@@ -1,0 +1,78 @@
+"""Rounding-error bounds of computed values: the floor a residual cannot go below.
+
+For a value computed by the straight-line program (its operations in the order the
+generated code performs them), running error analysis (Wilkinson; Higham, *Accuracy and
+Stability of Numerical Algorithms*, §3.3) bounds, to first order in the unit roundoff u, the
+error of the computed value by u·E, where E is built alongside the value:
+
+- an input is exact: E = 0; a constant that is not exactly a double: E = |c|;
+- a sum a₁ + … + a_n evaluated left to right: E = Σ E(a_k) + Σ_{m ≥ 2} |a₁ + … + a_m|
+  (each partial sum is rounded once);
+- a product a₁ ⋯ a_n: E = Σ_k |Π_{j≠k} a_j|·E(a_k) + (n − 1)|a₁ ⋯ a_n|;
+- a power or an elementary function f(x): E = Σ_k |∂f/∂x_k|·E(x_k) + c·|f|, with c the
+  roundings of its evaluation (repeated products for integer powers; one for a library
+  function, which is correctly rounded to within an ulp or so).
+
+Unlike the magnitude of the terms, E does not count the difference of nearby inputs as an
+error (x₁ − x₀ of nearby numbers is exact), so it stays tight when a residual is written in
+increments of coordinates far from zero.  Newton's method compares |F_i| with
+ε·(E_i + Σ_j |J_ij||u_j|) — the second term is the residual's change when the unknowns are
+rounded — to stop at the floor, whatever the scale of the equations.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import sympy as sp
+
+from ._ad import _product_partials, partial
+from ._functions import ELEMENTARY
+from ._graph import ADD, CONST, INPUT, MUL, POW, Graph
+
+
+def _exact_double(value: sp.Expr) -> bool:
+    """Whether a constant is exactly a double (an integer or a dyadic rational in range)."""
+    if value.is_Integer:
+        return abs(int(value)) <= 2**53
+    if value.is_Rational:
+        q = int(value.q)
+        return q & (q - 1) == 0 and abs(int(value.p)) <= 2**53
+    return False
+
+
+def rounding_error(g: Graph, outputs: Sequence[int]) -> list[int]:
+    """Nodes computing E(o) for every output (see the module docstring): the error of the
+    computed output is at most about ε·E(o) (ε = 2u, the machine epsilon)."""
+    absolute = ELEMENTARY[sp.Abs]
+
+    def abs_(n: int) -> int:
+        return g.func(absolute, n)
+
+    err: dict = {}
+    op, args, data = g.op, g.args, g.data
+    for n in g.reachable(outputs):
+        o = op[n]
+        a = args[n]
+        if o == INPUT:
+            err[n] = g.zero
+        elif o == CONST:
+            err[n] = g.zero if _exact_double(data[n]) else g.const(abs(data[n]))
+        elif o == ADD:
+            partial_sums, running = [], a[0]
+            for x in a[1:]:
+                running = g.add(running, x)
+                partial_sums.append(abs_(running))
+            err[n] = g.add(*[err[x] for x in a], *partial_sums)
+        elif o == MUL:
+            cofactors = _product_partials(g, n)
+            propagated = [g.mul(abs_(c), err[x]) for c, x in zip(cofactors, a)
+                          if err[x] != g.zero]
+            err[n] = g.add(*propagated, g.mul(g.const(len(a) - 1), abs_(n)))
+        else:
+            roundings = (abs(int(data[n])) if o == POW and data[n].is_Integer else 1)
+            propagated = [g.mul(abs_(partial(g, n, k)), err[x])
+                          for k, x in enumerate(a) if err[x] != g.zero]
+            err[n] = g.add(*propagated, g.mul(g.const(roundings), abs_(n)))
+    return [err[o] for o in outputs]
+
