@@ -64,11 +64,13 @@ def _term(g: Graph, fs: SystemFunctions, parameters: Sequence, m: int,
     return slot_nodes, generic_lam, grad, phis
 
 
-def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int]) -> list[list[int]]:
-    """X_b(a) (left or right invariant vector fields) at an arrow given by nodes."""
+def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int],
+            parameters: dict | None = None) -> list[list[int]]:
+    """X_b(a) (left or right invariant vector fields) at an arrow given by nodes; the
+    structure maps may use the step's parameters (their nodes in ``parameters``)."""
     generic = G._generic_arrow
     templates = G._left_fields if side == "left" else G._right_fields
-    gmap = {a: g.input(a) for a in generic}
+    gmap = {**(parameters or {}), **{a: g.input(a) for a in generic}}
     memo: dict = {}
     nodes = [[from_sympy(g, c, gmap, f"the {side} fields of {G.name}", memo) for c in v]
              for v in templates]
@@ -117,8 +119,9 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
             mapping.update({lg: symbols[x] for lg, x in zip(generic_lam, lam[s])})
         return g.substitute(nodes, mapping)
 
-    left = _fields(g, G, "left", arrow_nodes[0])
-    right = _fields(g, G, "right", arrow_nodes[1])
+    pnodes = {p: symbols[p] for p in parameters}
+    left = _fields(g, G, "left", arrow_nodes[0], pnodes)
+    right = _fields(g, G, "right", arrow_nodes[1], pnodes)
     halves: dict = {0: [[] for _ in range(G.rank)], 1: [[] for _ in range(G.rank)]}
     for s in starts:
         grads = instantiate(grad, s)
