@@ -186,8 +186,8 @@ class GroupoidMorphism:
         written); returns flat coordinates of G′ or parts (see :func:`flatten_arrow`).
     base_map : optional ``Φ₀(q) -> point of Q′`` on coordinate tuples; derived as α′∘Φ∘ε
         when omitted (a morphism determines it).
-    section : optional ``σ(g′) -> arrow of G`` with Φ∘σ = id (for :meth:`pull_back`: the
-        reduced Lagrangian L′ = L∘σ of a reduction).
+    section : optional ``σ(g′) -> arrow of G`` with Φ∘σ = id (a reduction then finds the
+        reduced Lagrangian by substitution, L′ = L∘σ).
     lift : optional ``lift(q, g′, params) -> arrow of G`` (numeric) with source q and
         Φ(arrow) = g′; by default such an arrow is found by Gauss–Newton in G's α-fibre chart.
     name : used in messages.
