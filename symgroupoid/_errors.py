@@ -96,3 +96,15 @@ class DegenerateSystemError(SymgroupoidError, ValueError):
     def causes(self) -> tuple[str, ...]:
         """The distinct causes found, in the order found."""
         return tuple(dict.fromkeys(f.cause for f in self.findings))
+
+
+class MorphismError(AxiomError):
+    """A map violates the conditions of a groupoid morphism (seed 000 Def. 4.1) or of a
+    morphism of discrete constrained Lagrangian systems (Def. 4.2); reported with the arrows
+    (``.axiom``, ``.arrows``) and the parameter values used (``.parameters``)."""
+
+
+class ReconstructionError(SymgroupoidError, ValueError):
+    """A reduced trajectory cannot be lifted: no arrow of the unreduced groupoid with the
+    required source maps to the reduced arrow (or the initial arrow does not project onto the
+    first reduced arrow)."""

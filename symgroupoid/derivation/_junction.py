@@ -32,9 +32,15 @@ def junction_variation(groupoid: Groupoid, action: sp.Expr, left: Sequence,
     ``action`` is an expression in independent slot coordinates; ``left``/``right`` are the
     coordinate tuples (of Dummy symbols) of the slots g_j and g_{j+1}.
     """
-    lhs = groupoid.apply_left(action, tuple(left))
-    rhs = groupoid.apply_right(action, tuple(right))
+    lhs, rhs = junction_halves(groupoid, action, left, right)
     return [a - b for a, b in zip(lhs, rhs)]
+
+
+def junction_halves(groupoid: Groupoid, action: sp.Expr, left: Sequence,
+                    right: Sequence) -> tuple[list, list]:
+    """The two halves of :func:`junction_variation`: (X⃖_b[S](g_j), X⃗_b[S](g_{j+1}))."""
+    return (groupoid.apply_left(action, tuple(left)),
+            groupoid.apply_right(action, tuple(right)))
 
 
 _counter = itertools.count()

@@ -65,13 +65,15 @@ def _term(g: Graph, fs: SystemFunctions, parameters: Sequence, m: int,
     return slot_nodes, generic_lam, grad, phis
 
 
-def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int]) -> list[list[int]]:
+def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int],
+            parameters: dict | None = None) -> list[list[int]]:
     """X⃖_b(a) = d/dt m(a, h_b(t)) and X⃗_b(a) = −d/dt m(h_b(t)⁻¹, a) at t = 0 (seed 000
     eqs. (1)–(2)) at an arrow given by nodes: the structure maps are evaluated on the section
-    curves and differentiated in t on the graph (forward mode), then t = 0."""
+    curves and differentiated in t on the graph (forward mode), then t = 0.  The structure
+    maps may use the step's parameters (their nodes in ``parameters``)."""
     generic = G._generic_arrow
     t = sp.Dummy("t", real=True)
-    symbols = {a: c for a, c in zip(generic, coords)}
+    symbols = {**(parameters or {}), **{a: c for a, c in zip(generic, coords)}}
     symbols[t] = g.input(t)
     memo: dict = {}
     q = G.target(generic) if side == "left" else G.source(generic)
@@ -128,8 +130,9 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
             mapping.update({lg: symbols[x] for lg, x in zip(generic_lam, lam[s])})
         return g.substitute(nodes, mapping)
 
-    left = _fields(g, G, "left", arrow_nodes[0])
-    right = _fields(g, G, "right", arrow_nodes[1])
+    pnodes = {p: symbols[p] for p in parameters}
+    left = _fields(g, G, "left", arrow_nodes[0], pnodes)
+    right = _fields(g, G, "right", arrow_nodes[1], pnodes)
     halves: dict = {0: [[] for _ in range(G.rank)], 1: [[] for _ in range(G.rank)]}
     for s in starts:
         grads = instantiate(grad, s)

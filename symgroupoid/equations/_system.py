@@ -7,6 +7,11 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 from .._errors import CallableError
+from ..derivation._energy_momentum import (
+    METHODS,
+    conserved_quantities,
+    energy_momentum_step,
+)
 from ..derivation._momenta import (
     is_identically_zero,
     legendre_forms,
@@ -101,6 +106,22 @@ class DiscreteSystem:
         return (f"DiscreteSystem({self.name!r} on {self.groupoid.name}, "
                 f"{self.n_constraints} constraints)")
 
+    def reduce(self, morphism, lagrangian: Callable | None = None,
+               constraints: Callable | None = None, name: str | None = None,
+               check: bool = True):
+        """The reduced system (G′, N′, L′) along a groupoid morphism Φ: G → G′ (seed 000
+        Def. 4.2, Thm 4.5, Cor. 4.6; docs/conventions.md §13).
+
+        L′ (and φ′) are given, or found by substitution L′ = L∘σ when Φ has a section σ;
+        L = L′∘Φ and φ = φ′∘Φ are verified (symbolically, else numerically on random arrows),
+        and, with ``check``, Φ's morphism axioms (:func:`check_morphism`).  The result is a
+        :class:`ReducedSystem`: its ``euler_lagrange()`` are the reduced equations, and it
+        projects and reconstructs trajectories.
+        """
+        from ._reduced import reduce_system
+
+        return reduce_system(self, morphism, lagrangian, constraints, name, check)
+
 
 class SecondOrderSystem(DiscreteSystem):
     """A second-order discrete system: L, Φ: G₂ → R on composable pairs (seed 001 §3).
@@ -125,26 +146,53 @@ class NonholonomicSystem:
     groupoid's section basis or a callable of the base point returning one.  The equations
     are not variational in the sense of :class:`DiscreteSystem`: no multipliers, and the
     flow is not Poisson in general.
+
+    ``method="holder"`` (default): the discrete Hölder principle with M_c.
+    ``method="energy_momentum"``: the integrator of Ferraro, Iglesias and Martín de Diego
+    with the bundle metric ``metric`` = G_c on AG (a rank × rank matrix in the section basis,
+    or a callable of the base point) and no M_c (``constraints=None``).
     """
 
-    def __init__(self, groupoid: Groupoid, lagrangian: Callable, constraints: Callable,
-                 distribution: Sequence, parameters: Sequence[sp.Symbol] = (),
-                 name: str = "nonholonomic"):
+    def __init__(self, groupoid: Groupoid, lagrangian: Callable,
+                 constraints: Callable | None = None, distribution: Sequence = (),
+                 parameters: Sequence[sp.Symbol] = (), name: str = "nonholonomic", *,
+                 method: str = "holder", metric=None):
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.distribution = list(distribution)
         self.parameters = list(parameters)
+        self.method, self.metric = method, metric
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters)
-        check_nonholonomic_dimensions(name, groupoid, len(self.distribution),
-                                      len(self._fs.constraints))
+        if method == "energy_momentum":
+            energy_momentum_step(name, groupoid, self._fs, self.distribution, metric,
+                                 self.parameters)  # checks G_c and D now
+        elif method == "holder":
+            check_nonholonomic_dimensions(name, groupoid, len(self.distribution),
+                                          len(self._fs.constraints))
+        else:
+            raise ValueError(f"{name}: method must be one of {METHODS}, got {method!r}")
 
     def euler_lagrange(self) -> StepEquations:
-        """The step g_k → g_{k+1}: the DEL along D_c and g_{k+1} ∈ M_c."""
-        step = StepEquations(nonholonomic_step(self.name, self.groupoid, self._fs,
-                                               self.distribution, self.parameters))
+        """The step g_k → g_{k+1}: the DEL along D_c and g_{k+1} ∈ M_c (``method="holder"``),
+        or the energy–momentum equations on D ⊕ D⊥ (docs/conventions.md §14)."""
+        if self.method == "energy_momentum":
+            derived = energy_momentum_step(self.name, self.groupoid, self._fs,
+                                           self.distribution, self.metric, self.parameters)
+        else:
+            derived = nonholonomic_step(self.name, self.groupoid, self._fs, self.distribution,
+                                        self.parameters)
+        step = StepEquations(derived)
         step.system = self
         check_step(step, distribution=len(self.distribution))
         return step
+
+    def conserved_quantities(self, metric=None):
+        """The energy ½‖F⁺L‖² (dual metric of G_c) and the momenta ⟨F⁺L, X_a⟩ of D's basis,
+        with whether each is proven conserved by the energy–momentum method
+        (docs/conventions.md §14).  ``metric`` defaults to the system's."""
+        return conserved_quantities(self.name, self.groupoid, self._fs, self.distribution,
+                                    self.metric if metric is None else metric,
+                                    self.parameters)
 
     def __repr__(self) -> str:
         return f"NonholonomicSystem({self.name!r} on {self.groupoid.name})"

@@ -1,19 +1,22 @@
 """Layer 1: Lie groupoids from structure maps, and their algebroid sections."""
 
 from ._action import ActionArrow, ActionGroupoid
+from ._atiyah import AtiyahArrow, AtiyahGroupoid
 from ._axioms import check_axioms
 from ._base import Arrow, Groupoid, derivation, left_derivative, right_derivative
 from ._matrix_form import NamedMatrix, StructuredMatrix
 from ._matrix_groups import SE2, SE3, SO2, SO3, MatrixArrow, MatrixLieGroup, hat3
+from ._morphism import GroupoidMorphism, check_morphism
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
 from ._product import ProductArrow, ProductGroupoid
 from ._time import TimeArrow, TimeGroupoid
 from ._user import DefinedGroupoid
 
 __all__ = [
-    "ActionArrow", "ActionGroupoid", "Arrow", "DefinedGroupoid", "EuclideanSpace", "Groupoid",
-    "MatrixArrow", "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow",
-    "PairGroupoid", "ProductArrow",
-    "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid", "check_axioms",
-    "derivation", "hat3", "left_derivative", "right_derivative",
+    "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",
+    "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",
+    "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow", "PairGroupoid",
+    "ProductArrow", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid",
+    "check_axioms", "check_morphism", "derivation", "hat3", "left_derivative",
+    "right_derivative",
 ]
