@@ -23,6 +23,16 @@ subexpression), and the residual and its slot derivatives are obtained by forwar
 differentiation of that program along the section fields — the chain rule applied assignment
 by assignment.  The program grows linearly with the number of derivatives instead of the
 expression swell of differentiating the expanded residual twice.
+
+The solver never returns a non-solution.  Inputs are checked before anything is assembled
+(runtime/_validate.py, the path the simulator's inputs take too).  The default initial path
+follows geodesics (exp(s·log g) on a Lie group), so a half-turn between the ends is split into
+N small turns instead of meeting the cut locus of the Cayley chart.  Success means the residual
+criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or ``tol``), the
+floor computed alongside the residual from the size of the terms that cancel in it
+(:func:`_magnitudes`) and its sensitivity to the rounding of the coordinates.  Anything else —
+the iteration cap, a stalled update, a line search without decrease, a singular Jacobian, a
+half-turn in the initial path — raises an error carrying the iterations and the residual.
 """
 
 from __future__ import annotations
@@ -234,7 +244,7 @@ def _magnitudes(program: _Program, outputs: Sequence) -> list:
         elif e.is_Pow:
             m = sp.Abs(s) + sp.Abs(e.exp * e.base ** (e.exp - 1)) * of(e.base)
         elif isinstance(e, sp.Function) and len(args) == 1:
-            u = sp.Dummy("u")
+            u = sp.Dummy("u", real=True)
             slope = sp.diff(e.func(u), u).xreplace({u: args[0]})
             m = sp.Abs(s) + sp.Abs(slope) * of(args[0])
         else:

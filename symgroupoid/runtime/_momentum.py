@@ -215,9 +215,9 @@ class SecondOrderMomentumInitializer:
     def solve(self, arrow, momentum: Sequence, params: np.ndarray, tol: float = 1e-14,
               max_iterations: int = 50) -> np.ndarray:
         if isinstance(arrow, Mapping):
-            raise ShapeError(f"{self.name}: a second-order system starts from its first arrow "
-                             "g₀ (flat coordinates, as in step.arrows) and a momentum, not "
-                             "from a configuration")
+            raise TypeError(f"{self.name}: a second-order system starts from its first arrow "
+                            "g₀ (flat coordinates, as in step.arrows) and a momentum, not "
+                            "from a configuration")
         g0 = checked_arrow(self.groupoid, arrow, "the first arrow g₀", owner=self.name)
         p = _numeric(momentum, "the momentum", self.name).ravel()
         if p.size != 2 * self.rank:

@@ -90,24 +90,26 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
 
 
 def real_argument(value, name: str, *, minimum: float | None = None, owner: str = "",
-                  error: type[ShapeError] = ShapeError) -> float:
-    """``value`` as a finite float, or ``error`` (a :class:`ShapeError` subclass) naming
-    ``name``.
+                  error: type[ShapeError] = ShapeError, finite: bool = True) -> float:
+    """``value`` as a float, or ``error`` (a :class:`ShapeError` subclass) naming ``name``.
 
     Accepted: real numbers (Python, NumPy, SymPy numbers, 0-d arrays).  Rejected: booleans,
-    strings, complex numbers, arrays with more than one element, NaN and infinities, and
-    values below ``minimum``.
+    strings, complex numbers, arrays and sequences, values below ``minimum``, and (unless
+    ``finite=False``) NaN and infinities.
     """
     where = _where(owner)
-    if (isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating))
-            or np.ndim(value) != 0):
-        raise error(f"{where}{name} must be a real number, got {type(value).__name__} "
-                    f"{value!r}")
+    bad = f"{where}{name} must be a real number, got {type(value).__name__} {value!r}"
+    if isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating,
+                          Sequence, Mapping)):
+        raise error(bad)
     try:
+        if np.ndim(value) != 0:
+            raise error(bad)
         real = float(value)
     except (TypeError, ValueError):
-        raise error(f"{where}{name} must be a real number, got {type(value).__name__} "
-                    f"{value!r}") from None
+        raise error(bad) from None
+    if not finite:
+        return real
     if not np.isfinite(real):
         raise error(f"{where}{name} must be finite, got {real!r}")
     if minimum is not None and real < minimum:
@@ -184,7 +186,8 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
             raise ParameterError(f"{where}missing {noun} {', '.join(missing)}")
         raw = [given[n] for n in names]
     else:
-        if isinstance(params, (str, bytes)) or np.ndim(params) != 1:
+        if (params.ndim != 1 if isinstance(params, np.ndarray)
+                else not isinstance(params, Sequence) or isinstance(params, (str, bytes))):
             raise ParameterError(f"{where}parameters must be a mapping name → value or a "
                                  f"sequence of {len(names)} values ({listing}), got "
                                  f"{type(params).__name__} {params!r}")
@@ -194,12 +197,10 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
                                  f"{len(names)} ({listing})")
     values = []
     for symbol, name, value in zip(parameters, names, raw):
-        try:
-            real = real_argument(value, f"parameter {name}", error=ParameterError)
-        except ParameterError as exc:
-            if "finite" in str(exc):
-                raise ParameterError(f"{where}non-finite parameter {name} = {value!r}") from None
-            raise ParameterError(f"{where}{exc}") from None
+        real = real_argument(value, f"parameter {name}", owner=owner, error=ParameterError,
+                             finite=False)
+        if not np.isfinite(real):
+            raise ParameterError(f"{where}non-finite parameter {name} = {value!r}")
         if isinstance(symbol, sp.Symbol):
             check_assumptions(symbol, real, owner=owner)
         values.append(real)
@@ -264,7 +265,7 @@ def group_element(group: MatrixLieGroup, value, name: str, *, owner: str = "") -
 def point(value, dim: int, name: str, *, owner: str = "") -> tuple:
     """``value`` as a point of Rⁿ (n = ``dim``): a number when n = 1, else n numbers."""
     arr = _float_array(value, name, owner)
-    if arr.shape not in ((dim,),) + (((),) if dim == 1 else ()):
+    if arr.shape != (dim,) and not (dim == 1 and arr.shape == ()):
         expected = "a number or 1 coordinate" if dim == 1 else f"{dim} coordinates"
         raise ShapeError(f"{_where(owner)}{name}: a point here has {expected} (shape "
                          f"({dim},)), got an array of shape {arr.shape}")
@@ -359,7 +360,7 @@ def _size(e: sp.Expr, size) -> sp.Expr:
     if e.is_Pow:  # b^n, n not a positive integer: |b^n| + |n b^(n−1)|·M(b)
         return sp.Abs(e) + sp.Abs(e.exp * e.base ** (e.exp - 1)) * size(e.base)
     if isinstance(e, sp.Function) and len(e.args) == 1 and not isinstance(e, sp.Piecewise):
-        u = sp.Dummy("u")  # f(u): |f(u)| + |f′(u)|·M(u)
+        u = sp.Dummy("u", real=True)  # f(u): |f(u)| + |f′(u)|·M(u)
         slope = sp.diff(e.func(u), u).xreplace({u: e.args[0]})
         return sp.Abs(e) + sp.Abs(slope) * size(e.args[0])
     return sp.Abs(e)
