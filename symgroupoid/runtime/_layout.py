@@ -228,6 +228,8 @@ class StateLayout:
         second order: g_{-1}, g_0, g_1, …, g_{N+1})."""
         states = np.asarray(states, float)
         offsets = list(self.arrow_index)
+        if not offsets:
+            raise ShapeError(f"{self.step_name}: the state holds no complete arrow")
         first = [states[0, self.arrow_index[o]] for o in offsets[:-1]]
         newest = states[:, self.arrow_index[offsets[-1]]]
         return np.vstack(first + [newest]) if first else newest
