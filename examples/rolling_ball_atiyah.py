@@ -31,7 +31,8 @@ import sympy as sp
 
 import symgroupoid as sg
 
-h, m, inertia, r, Om = sp.symbols("h m I r Omega", positive=True)
+h, m, inertia, r = sp.symbols("h m I r", positive=True)
+Om = sp.Symbol("Omega", nonnegative=True)  # Ω = 0: the table at rest
 E1, E2, E3 = sg.SO3.basis_matrices()
 PARAMS = {"h": 0.01, "m": 1.0, "I": 0.4, "r": 1.0, "Omega": 1.0}
 #: sections s1 = ∂x, s2 = ∂y, s3..s5 = E1..E3

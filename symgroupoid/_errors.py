@@ -61,7 +61,7 @@ class TrajectoryTooLargeError(SymgroupoidError, MemoryError):
     """The states a simulation was asked to keep would not fit in this machine's memory."""
 
 
-class ParameterError(UndeclaredSymbolError, TypeError):
+class ParameterDeclarationError(UndeclaredSymbolError, TypeError):
     """A declared parameter is not a SymPy symbol (e.g. a string), or the expressions use a
     symbol of the same name with other assumptions (so SymPy treats them as different)."""
 
@@ -108,3 +108,43 @@ class ReconstructionError(SymgroupoidError, ValueError):
     """A reduced trajectory cannot be lifted: no arrow of the unreduced groupoid with the
     required source maps to the reduced arrow (or the initial arrow does not project onto the
     first reduced arrow)."""
+
+
+class DomainError(ShapeError):
+    """An input has the right shape but lies outside its domain: a matrix that is not in its
+    group, a non-finite number, an initial state off the constraints."""
+
+
+class InputNameError(ShapeError, KeyError):
+    """A named input is unknown, missing or given twice (a state part, a coordinate of a
+    configuration, a parameter)."""
+
+    def __str__(self) -> str:  # the message itself, not KeyError's repr of it
+        return str(self.args[0]) if self.args else ""
+
+
+class ParameterError(DomainError, InputNameError):
+    """A parameter is unknown, missing, given twice, not a finite real number, or violates
+    the assumptions its symbol is declared with (positive, integer, …)."""
+
+
+class CutLocusError(SymgroupoidError, ArithmeticError):
+    """An arrow lies on the cut locus of the chart the equations are written in (Cayley: a
+    half-turn), where the Lagrangian or the constraints are not defined."""
+
+    def __init__(self, message: str, *, arrows: tuple = (), iterate=None):
+        super().__init__(message)
+        self.arrows = tuple(arrows)
+        self.iterate = iterate
+
+
+class BoundaryValueDivergenceError(NewtonDivergenceError):
+    """The boundary-value Newton iteration ended without meeting the residual criterion: the
+    iteration cap, a stalled update, or a line search that found no decrease.  ``iterations``
+    and ``history`` (|F|∞ per iteration) say how far it got."""
+
+    def __init__(self, message: str, *, iterations: int, history=(), step: int | None = None,
+                 residual_norm: float | None = None, iterate=None):
+        super().__init__(message, step=step, residual_norm=residual_norm, iterate=iterate)
+        self.iterations = iterations
+        self.history = list(history)

@@ -30,6 +30,7 @@ class StationarityReport:
     derivatives: dict = field(default_factory=dict)  # ε -> (S(ε) − S(−ε)) / 2ε
     scale: float = 0.0  # Σ |first-order changes of the terms| (normalisation)
     stationary: bool = False
+    extrapolated: float = 0.0  # dS/dt at t = 0 from the three differences (Richardson)
 
     def __bool__(self) -> bool:
         return self.stationary
@@ -105,11 +106,16 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
                       seed: int = 0) -> StationarityReport:
     """Check that a trajectory is a critical point of the discrete action.
 
-    ``trajectory`` is a :class:`~symgroupoid.runtime.Trajectory` (or any object with
-    ``arrows()`` and ``multipliers``) or an array of arrows (N, arrow_dim); ``multipliers``
-    (one row per action term) are then passed separately.  Returns a
+    ``trajectory`` is a :class:`~symgroupoid.runtime.Trajectory` (from
+    :meth:`Simulator.simulate`: its arrows g_0 … g_N and multipliers λ_0 … λ_N), a
+    :class:`BoundaryValueSolution` (or any object with ``arrows`` and ``multipliers``), or an
+    array of arrows (N, arrow_dim) with ``multipliers`` (one row per action term) passed
+    separately.  ``params`` default to the trajectory's own.  Returns a
     :class:`StationarityReport`; it is truthy when the central differences shrink like ε²
-    (or sit at rounding level) — a non-solution gives an O(1) derivative.
+    (or sit at rounding level) and their extrapolation to ε = 0 is negligible against the
+    first-order changes of the single terms — a non-solution gives an O(1) derivative.  At a
+    trivial solution (all arrows identities: every term's first-order change vanishes) the
+    differences are pure O(ε²), which the extrapolation removes.
     """
     G = system.groupoid
     arrows, lam, params = _unpack(trajectory, system, multipliers, params)
@@ -145,29 +151,61 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
         if e == eps:  # how large the first-order changes of the single terms are
             report.scale = float(np.abs(Tp - Tm).sum()) / (2 * e) + 1e-300
     d = list(report.derivatives.values())
+    # d(ε) = S′(0) + c₂ε² + c₄ε⁴ + …: eliminating the ε² and ε⁴ terms (Richardson) leaves S′(0)
+    report.extrapolated = (64 * d[2] - 20 * d[1] + d[0]) / 45
     noise = 1e-13 * float(np.abs(T0).sum()) / (eps / 4)
     shrinking = abs(d[2]) <= 0.35 * abs(d[1]) + noise and abs(d[1]) <= 0.35 * abs(d[0]) + noise
-    report.stationary = bool(shrinking and abs(d[2]) <= 1e-4 * report.scale + noise)
+    report.stationary = bool(shrinking and abs(report.extrapolated) <= 1e-4 * report.scale
+                             + noise)
     return report
 
 
 def _unpack(trajectory, system, multipliers, params):
-    if hasattr(trajectory, "arrows"):
+    """Arrows (N, arrow_dim), multipliers (one row per action term) and the parameter vector
+    of a :class:`BoundaryValueSolution`, a :class:`Trajectory` or an array of arrows."""
+    from ._errors import ShapeError
+    from .runtime._validate import parameter_vector
+
+    G, owner = system.groupoid, system.name
+    layout = getattr(trajectory, "_layout", None)
+    if hasattr(trajectory, "arrows"):  # a BoundaryValueSolution, or any object with arrows
         arrows = trajectory.arrows() if callable(trajectory.arrows) else trajectory.arrows
-        arrows = np.asarray(arrows, float)
         lam = trajectory.multipliers if multipliers is None else multipliers
-        lam = np.asarray(lam, float)
-        if params is None:
-            params = trajectory.parameters
+    elif layout is not None and hasattr(trajectory, "states"):  # a Trajectory
+        arrows = layout.arrows(trajectory.states)
+        lam = trajectory.multipliers if multipliers is None else multipliers
     else:
-        arrows = np.asarray(trajectory, float)
-        lam = np.asarray(multipliers if multipliers is not None else np.zeros((len(arrows), 0)),
-                         float)
-    if isinstance(params, dict):
-        params = [float(params[s] if s in params else params[str(s)])
-                  for s in system.parameters]
-    params = [] if params is None else list(params)
-    if arrows.ndim != 2 or arrows.shape[1] != system.groupoid.arrow_dim:
-        raise ValueError(f"{system.name}: arrows must have shape (N, "
-                         f"{system.groupoid.arrow_dim}), got {arrows.shape}")
-    return arrows, lam, params
+        arrows, lam = trajectory, multipliers
+    if params is None:
+        params = getattr(trajectory, "parameters", None)
+    try:
+        arrows = np.asarray(arrows, float)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{owner}: the trajectory must be a BoundaryValueSolution, a "
+                         f"Trajectory or an array of arrows (N, {G.arrow_dim}), got "
+                         f"{type(trajectory).__name__}") from None
+    if arrows.ndim != 2 or arrows.shape[1] != G.arrow_dim:
+        raise ShapeError(f"{owner}: arrows must have shape (N, {G.arrow_dim}), got "
+                         f"{arrows.shape}")
+    arity, m = len(system._fs.slots), len(system._fs.constraints)
+    terms = len(arrows) - arity + 1
+    if terms < 1:
+        raise ShapeError(f"{owner}: {len(arrows)} arrows hold no term of the action "
+                         f"(arity {arity})")
+    lam = np.zeros((terms, 0)) if lam is None and not m else lam
+    if lam is None:
+        raise ShapeError(f"{owner}: the system has {m} constraints; give the multipliers "
+                         f"({terms}, {m}), one row per action term")
+    try:
+        lam = np.asarray(lam, float)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{owner}: the multipliers must be numeric") from None
+    if lam.size == 0 and not m:
+        lam = np.zeros((terms, 0))
+    if lam.shape != (terms, m):
+        raise ShapeError(f"{owner}: multipliers must have shape ({terms}, {m}) (one row per "
+                         f"action term), got {lam.shape}")
+    if not (np.isfinite(arrows).all() and np.isfinite(lam).all()):
+        raise ShapeError(f"{owner}: the trajectory has non-finite values")
+    values, _ = parameter_vector(system.parameters, params, owner=owner)
+    return arrows, lam, list(values)

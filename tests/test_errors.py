@@ -63,7 +63,7 @@ def test_coordinate_lookalike_symbol_is_rejected() -> None:
 
 def test_string_parameter_says_to_pass_symbols() -> None:
     """parameters=["h"]: the message says to pass SymPy symbols and shows the symbol L uses."""
-    with pytest.raises(sg.ParameterError,
+    with pytest.raises(sg.ParameterDeclarationError,
                        match=r"^oscillator: parameters must be SymPy symbols, not strings: got "
                              r"'h' — pass the symbols the expressions use, e\.g\. h = "
                              r"sympy\.Symbol\('h', positive=True\) and parameters=\[h\]; the "
@@ -74,12 +74,13 @@ def test_string_parameter_says_to_pass_symbols() -> None:
 
 
 def test_unused_string_parameter_is_rejected_too() -> None:
-    with pytest.raises(sg.ParameterError, match=r"not strings: got 'zeta' — pass the symbols"):
+    with pytest.raises(sg.ParameterDeclarationError,
+                       match=r"not strings: got 'zeta' — pass the symbols"):
         system(parameters=[h, m, "zeta"])
 
 
 def test_parameter_that_is_not_a_symbol() -> None:
-    with pytest.raises(sg.ParameterError,
+    with pytest.raises(sg.ParameterDeclarationError,
                        match=r"oscillator: parameters must be SymPy symbols; got 2\*h \(Mul\)"):
         system(parameters=[2 * h, m])
 
@@ -87,12 +88,12 @@ def test_parameter_that_is_not_a_symbol() -> None:
 def test_parameter_declared_with_other_assumptions() -> None:
     """L uses Symbol("h", positive=True), the declared parameter is Symbol("h"): the names
     match but the assumptions differ — both are shown."""
-    with pytest.raises(sg.ParameterError,
+    with pytest.raises(sg.ParameterDeclarationError,
                        match=r"^oscillator: the Lagrangian uses Symbol\('h', positive=True\) but "
                              r"the declared symbol is Symbol\('h'\): the names match but the "
                              r"assumptions differ"):
         system(parameters=[sp.Symbol("h"), m])
-    with pytest.raises(sg.ParameterError,
+    with pytest.raises(sg.ParameterDeclarationError,
                        match=r"the constraints uses Symbol\('zeta', real=True\) but the declared "
                              r"symbol is Symbol\('zeta', positive=True\)"):
         system(constraints=lambda g: [g.target[0] - sp.Symbol("zeta", real=True)],

@@ -197,8 +197,8 @@ def test_heavy_top_at_rest_the_linearised_problem_is_singular(ht):
     n = 12
     arrows = np.array([ht.arrow(ht.E3, np.eye(3), (0.3, 0.1), (0.3, 0.1))] * n)
     lay = _bvp._layout(n, 2, 5, 3)
-    F, rows, cols, vals, _ = _bvp._assemble(kernel, lay, arrows, np.zeros((n - 1, 3)),
-                                            np.array(ht.parameter_values(0.1)))
+    F, rows, cols, vals, *_ = _bvp._assemble(kernel, lay, arrows, np.zeros((n - 1, 3)),
+                                             np.array(ht.parameter_values(0.1)))
     A = np.zeros((lay.size, lay.size))
     np.add.at(A, (rows, cols), vals)
     s = np.linalg.svd(A, compute_uv=False)

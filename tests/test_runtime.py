@@ -77,16 +77,20 @@ def test_prediction_and_extrapolation_reach_the_same_solutions(name):
 def test_trajectory_named_arrays():
     sim = compiled("plate_ball")
     params = SEED_DATA["plate_ball"][0]
-    W1 = np.asarray(sp.N(sg.SO3("g").cayley([0.01, -0.02, 0.002])), dtype=float)
-    initial = {"x": (0.0, 0.001), "y": (0.0, 0.0005), "g": W1, "lambda": [0.01, -0.02, 0.0]}
+    flat = initial_state(sim, "plate_ball")  # consistent: on the constraints
+    named = {part: sim.layout.view(flat[None], part) for part in ("x", "y", "g", "lambda")}
+    W1 = named["g"][0]
+    initial = {"x": tuple(named["x"]), "y": tuple(named["y"]), "g": W1,
+               "lambda": named["lambda"][0]}
+    assert np.array_equal(sim.state(initial), flat)
     traj = sim.simulate(initial, 50, params)
     assert traj.steps == 50 and len(traj) == 51
     assert traj["x"].shape == (52,) and traj["y"].shape == (52,)
-    assert traj["x"][:2].tolist() == [0.0, 0.001]
+    assert traj["x"][:2].tolist() == named["x"].tolist()
     assert np.array_equal(traj["x"][1:], traj.states[:, 2])
     assert traj["g"].shape == (51, 3, 3) and np.array_equal(traj["g"][0], W1)
     assert traj.multipliers.shape == (51, 3)
-    assert traj.multipliers[0].tolist() == [0.01, -0.02, 0.0]
+    assert traj.multipliers[0].tolist() == named["lambda"][0].tolist()
     assert traj.newton_iterations.shape == (50,) and traj.residual_norms.shape == (50,)
     assert (traj.residual_norms <= 1e-10).all() and np.isfinite(traj.states).all()
     assert traj.parameters == params

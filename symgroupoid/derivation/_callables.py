@@ -9,7 +9,7 @@ import sympy as sp
 from .._errors import (
     CallableError,
     InvalidExpressionError,
-    ParameterError,
+    ParameterDeclarationError,
     ShapeError,
     UndeclaredSymbolError,
 )
@@ -131,8 +131,8 @@ def as_scalar_list(system_name: str, what: str, value) -> list[sp.Expr]:
 def check_symbols(system_name: str, what: str, exprs: Iterable[sp.Expr],
                   coordinates: Sequence, parameters: Sequence) -> None:
     """Raise :class:`UndeclaredSymbolError` naming symbols that are neither coordinates
-    nor declared parameters, and :class:`ParameterError` for parameters that are not SymPy
-    symbols or that match a used symbol by name but not by assumptions."""
+    nor declared parameters, and :class:`ParameterDeclarationError` for parameters that are
+    not SymPy symbols or that match a used symbol by name but not by assumptions."""
     free: set = set()
     for e in exprs:
         free |= e.free_symbols
@@ -164,11 +164,11 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
         if isinstance(p, str):
             hint = (f"; the {what} uses {_shown(by_name[p])}: pass that Symbol object"
                     if p in by_name else "")
-            raise ParameterError(
+            raise ParameterDeclarationError(
                 f"{system_name}: parameters must be SymPy symbols, not strings: got {p!r} — "
                 f"pass the symbols the expressions use, e.g. {p} = sympy.Symbol({p!r}, "
                 f"positive=True) and parameters=[{p}]{hint}")
-        raise ParameterError(
+        raise ParameterDeclarationError(
             f"{system_name}: parameters must be SymPy symbols; got {p!r} "
             f"({type(p).__name__})")
 
@@ -183,7 +183,7 @@ def _check_assumptions(system_name: str, what: str, undeclared: Sequence[sp.Symb
     for s in undeclared:
         other = by_name.get(str(s))
         if other is not None:
-            raise ParameterError(
+            raise ParameterDeclarationError(
                 f"{system_name}: the {what} uses {_shown(s)} but the declared symbol is "
                 f"{_shown(other)}: the names match but the assumptions differ, so SymPy treats "
                 f"them as different symbols; declare the parameter with the same assumptions "

@@ -23,19 +23,33 @@ subexpression), and the residual and its slot derivatives are obtained by forwar
 differentiation of that program along the section fields — the chain rule applied assignment
 by assignment.  The program grows linearly with the number of derivatives instead of the
 expression swell of differentiating the expanded residual twice.
+
+The solver never returns a non-solution.  Inputs are checked before anything is assembled
+(runtime/_validate.py, the path the simulator's inputs take too).  The default initial path
+follows geodesics (exp(s·log g) on a Lie group), so a half-turn between the ends is split into
+N small turns instead of meeting the cut locus of the Cayley chart.  Success means the residual
+criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or ``tol``), the
+floor computed alongside the residual from the size of the terms that cancel in it
+(:func:`_magnitudes`) and its sensitivity to the rounding of the coordinates.  Anything else —
+the iteration cap, a stalled update, a line search without decrease, a singular Jacobian, a
+half-turn in the initial path — raises an error carrying the iterations and the residual.
 """
 
 from __future__ import annotations
 
 import functools
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import sympy as sp
 
 from .._errors import (
+    BoundaryValueDivergenceError,
+    CutLocusError,
+    DomainError,
     NewtonDivergenceError,
     NotComposableError,
     ShapeError,
@@ -44,7 +58,24 @@ from .._errors import (
 from .._symbols import multiplier_symbols
 from ..derivation._junction import slot
 from ..derivation._step import shifted, window
+from ..groupoids import (
+    SE3,
+    SO3,
+    ActionGroupoid,
+    EuclideanSpace,
+    MatrixLieGroup,
+    PairGroupoid,
+    ProductGroupoid,
+    TimeGroupoid,
+)
 from ._programs import compile_program
+from ._validate import arrow as checked_arrow
+from ._validate import (
+    configuration,
+    integer_argument,
+    parameter_vector,
+    real_argument,
+)
 
 # --- symbolic window kernel --------------------------------------------------------------
 
@@ -176,6 +207,53 @@ def _vectorised(args, outputs, program: _Program, label: str):
     return call
 
 
+def _magnitudes(program: _Program, outputs: Sequence) -> list:
+    """Atoms for the size M(o) of the terms that cancel in each output of ``program``.
+
+    Running through the assignments the outputs depend on: M of an input is |x|; of a sum,
+    the sum of its terms' M; of a product, the product; of b^n (n a positive integer),
+    M(b)^n; of another power or a function f(u), |f(u)| + |f′(u)|·M(u) (the rounding of the
+    argument carried through); of anything else, its absolute value.  Rounding each
+    operation once perturbs an output by about ε·M(o) (the running error bound of a
+    straight-line program), so ε·M(o) is the level below which |o| is rounding noise.
+    New assignments are appended to ``program``.
+    """
+    outputs = [sp.sympify(o) for o in outputs]
+    need: set = set()
+    for o in outputs:
+        need |= o.free_symbols
+    order = []
+    for s, e, _ in reversed(program.assignments):
+        if s in need:
+            order.append((s, e))
+            need |= e.free_symbols
+    size: dict = {}
+
+    def of(x):
+        if x in size:
+            return size[x]
+        return abs(x) if x.is_Number else sp.Abs(x)
+
+    for s, e in reversed(order):
+        args = e.args
+        if not all(a.is_Atom for a in args) or isinstance(e, sp.Piecewise):
+            m = sp.Abs(s)
+        elif e.is_Add or e.is_Mul:
+            m = e.func(*[of(a) for a in args])
+        elif e.is_Pow and e.exp.is_Integer and e.exp > 0:
+            m = of(e.base) ** e.exp
+        elif e.is_Pow:
+            m = sp.Abs(s) + sp.Abs(e.exp * e.base ** (e.exp - 1)) * of(e.base)
+        elif isinstance(e, sp.Function) and len(args) == 1:
+            u = sp.Dummy("u", real=True)
+            slope = sp.diff(e.func(u), u).xreplace({u: args[0]})
+            m = sp.Abs(s) + sp.Abs(slope) * of(args[0])
+        else:
+            m = sp.Abs(s)
+        size[s] = program.node(m)
+    return [of(o) if o.is_Atom else program.node(sp.Abs(o)) for o in outputs]
+
+
 def _seed(coords: Sequence, field: Sequence, sign: int = 1) -> dict:
     return {c: sign * v for c, v in zip(coords, field) if v != 0}
 
@@ -230,6 +308,7 @@ class WindowKernel:
         for s in self.starts:
             d = [P.tangent(res, {x: 1}, base) for x in lam[s]]
             blocks += [d[a][b] for b in range(r) for a in range(m)]
+        blocks += _magnitudes(P, res)  # the size of the terms that cancel in each r_b
         coords = [c for o in self.offsets for c in A[o]]
         lams = [x for s in self.starts for x in lam[s]]
         self._junction = _vectorised(coords + lams + params, blocks, P,
@@ -246,11 +325,17 @@ class WindowKernel:
                      for side in (0, 1) for c in range(r)}
                 for e in range(m):
                     cblocks += [d[side, c][e] for side in (0, 1) for c in range(r)]
+            cblocks += _magnitudes(Q, values)
             ccoords = [x for o in range(arity) for x in A[o]]
             self._term = _vectorised(ccoords + params, cblocks, Q, f"{system.name}_term")
 
     def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
         """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
+        return self.junction_terms(windows, lams, params)[:4]
+
+    def junction_terms(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
+        """:meth:`junction`'s blocks and the size of the terms that cancel in each residual
+        (W, rank) (:func:`_magnitudes`)."""
         W = len(windows)
         vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1),
                           np.broadcast_to(params, (W, len(params)))])
@@ -267,10 +352,15 @@ class WindowKernel:
         for s in self.starts:
             dlam[s] = out[:, k:k + r * self.m].reshape(W, r, self.m)
             k += r * self.m
-        return res, left, right, dlam
+        return res, left, right, dlam, out[:, k:k + r]
 
     def term(self, windows: np.ndarray, params: np.ndarray):
         """Constraint values and slot derivatives for T terms: windows (T, arity, arrow_dim)."""
+        return self.term_terms(windows, params)[:3]
+
+    def term_terms(self, windows: np.ndarray, params: np.ndarray):
+        """:meth:`term`'s values and blocks and the size of the terms that cancel in each
+        constraint value (T, m) (:func:`_magnitudes`)."""
         T, m, r = len(windows), self.m, self.rank
         vals = np.hstack([windows.reshape(T, -1), np.broadcast_to(params, (T, len(params)))])
         out = self._term(vals)
@@ -280,7 +370,7 @@ class WindowKernel:
             blk = out[:, k:k + 2 * m * r].reshape(T, m, 2, r)
             left[o], right[o] = blk[:, :, 0, :], blk[:, :, 1, :]
             k += 2 * m * r
-        return res, left, right
+        return res, left, right, out[:, k:k + m]
 
 
 @functools.lru_cache(maxsize=8)
@@ -306,6 +396,9 @@ class _Maps:
         self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy")
         q = G.target(a)
         self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy")
+        self._fields = {side: sp.lambdify([a], [c for v in fields for c in v], "numpy")
+                        for side, fields in (("left", G.left_field(a)),
+                                             ("right", G.right_field(a)))}
 
     @staticmethod
     def _rows(values, n):
@@ -320,6 +413,21 @@ class _Maps:
     def flow_at_target(self, A, D):
         """h(δ) ⊂ α⁻¹(β(A)) for each row."""
         return self._rows(self._flow(A.T, D.T), len(A))
+
+    def fields(self, A, side: str) -> np.ndarray:
+        """X⃖_c(a) (``side="left"``) or X⃗_c(a) at each row a of A: (n, rank, arrow_dim)."""
+        n, G = len(A), self.G
+        return self._rows(self._fields[side](A.T), n).reshape(n, G.rank, G.arrow_dim)
+
+    def rounding_scale(self, A, side: str) -> np.ndarray:
+        """s_c = Σ_m |X⁺_{mc}|·|a_m| at each row a of A, (n, rank): the size, in the units of
+        the section flow parameter δ_c, of the coordinates it moves (X⁺ the pseudo-inverse
+        of the fields (X_c)_m at a).  The rounding ε·|a_m| of the coordinates is a change
+        of about ε·s_c in δ_c; e.g. a rotation near the identity moves its small
+        off-diagonal entries at first order, so s ≈ |cay⁻¹(g)| there, not 1."""
+        with np.errstate(all="ignore"):
+            inverse = np.linalg.pinv(self.fields(A, side))  # (n, arrow_dim, rank)
+        return np.einsum("nmc,nm->nc", np.abs(inverse), np.abs(A))
 
 
 # --- the solution --------------------------------------------------------------------------
@@ -419,6 +527,27 @@ def _block_tridiagonal(rows, cols, vals, n, rhs, band) -> np.ndarray:
 
 # --- the solver --------------------------------------------------------------------------------
 
+#: accept the iterate when every |F_i| ≤ max(tol, ROUNDING_FACTOR·floor_i), floor_i the rounding
+#: floor of equation i (:func:`_rounding_floor`): ε·M_i, M_i the size of the terms that cancel
+#: in F_i (every operation of its evaluation rounded once), plus the effect of the rounding of
+#: the coordinates.  ε·M_i bounds the rounding of F_i up to the depth of the evaluation, while
+#: rounding errors mostly cancel one another: at solutions |F_i| sits at 0.01–0.5 of floor_i
+#: (measured on SO(3), SE(3) with translations up to 10⁴, SE(2), plate-ball, second-order
+#: rigid body with N up to 1000, heavy top with rotors, time groupoid with t ≈ 10³).
+#: A factor 8 leaves a margin of ≥ 16 over those, and a residual below 8·floor_i is a
+#: solution to within 8 roundings of its own terms.
+ROUNDING_FACTOR = 8.0
+
+#: at most this many halvings of a Newton step in the line search
+MAX_HALVINGS = 30
+
+#: an arrow with cos²(θ/2) ≤ this for a rotation block (θ its largest rotation angle) is a
+#: half-turn to rounding, on the cut locus of the Cayley chart and of the logarithm
+CUT_LOCUS_TOLERANCE = 1e-12
+
+_EPS = float(np.finfo(float).eps)
+
+
 @dataclass
 class _Layout:
     """Positions of the unknowns (δ_j, λ_t) and equations (DEL_j, Φ_t) in the banded system."""
@@ -445,147 +574,172 @@ def _layout(n: int, arity: int, rank: int, m: int) -> _Layout:
     return _Layout(junctions, terms, delta_index, lam_index, k)
 
 
-def _parameter_vector(system, params) -> tuple[np.ndarray, dict]:
-    if params is None:
-        params = {}
-    if isinstance(params, Mapping):
-        values, named = [], {}
-        for s in system.parameters:
-            if s in params:
-                v = params[s]
-            elif str(s) in params:
-                v = params[str(s)]
-            else:
-                raise KeyError(f"{system.name}: missing parameter {s}")
-            values.append(float(v))
-            named[str(s)] = float(v)
-        return np.array(values), named
-    values = np.asarray(params, float)
-    if values.shape != (len(system.parameters),):
-        raise ShapeError(f"{system.name}: expected {len(system.parameters)} parameters "
-                         f"({', '.join(map(str, system.parameters))}), got {values.shape}")
-    return values, {str(s): float(v) for s, v in zip(system.parameters, values)}
+# --- the initial guess: geodesic interpolation -------------------------------------------------
+
+def _so3_log(R: np.ndarray) -> np.ndarray:
+    """ω with exp(ω̂) = R for a rotation R, θ = |ω| ∈ [0, π]; accurate at and near a
+    half-turn, where θ/(2 sin θ)·vee(R − Rᵀ) is 0·∞ (there the axis is read off the
+    symmetric part: (R + Rᵀ)/2 − cos θ·I = (1 − cos θ)·a aᵀ)."""
+    c = float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))
+    s_axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+    s = float(np.linalg.norm(s_axis))  # sin θ
+    theta = float(np.arctan2(s, c))
+    if c > -0.5:
+        return s_axis * (theta / s if s > 1e-12 else 1.0 + s * s / 6.0)
+    B = (R + R.T) / 2.0 - c * np.eye(3)
+    i = int(np.argmax(np.diag(B)))
+    axis = B[:, i] / np.sqrt(max(B[i, i], 1e-300) * (1.0 - c))
+    if axis @ s_axis < 0:
+        axis = -axis
+    return theta * axis / np.linalg.norm(axis)
 
 
-def interpolate_arrows(G, total: Sequence, steps: int) -> np.ndarray:
-    """N arrows whose product is ``total``: P_k = (q, chart⁻¹ interpolated k/N of the way
-    from the identity to ``total`` in the fibre chart), g_k = P_{k−1}⁻¹ P_k."""
-    total = np.asarray(total, float)
+@functools.lru_cache(maxsize=16)
+def _exp_group(G):
+    """The same group with the exponential retraction (its fibre chart is exp)."""
+    return type(G)(G.symbol_name, retraction="exp")
+
+
+@functools.lru_cache(maxsize=4)
+def _se3_v_inverse():
+    w = sp.symbols("w1:4", real=True)
+    return sp.lambdify([w], SE3._V_inverse(w), "numpy")
+
+
+def _group_log(G, M: np.ndarray) -> np.ndarray | None:
+    """Lie-algebra coordinates x with exp(Σ x_a E_a) = M, or None when unavailable."""
+    if isinstance(G, SO3):
+        return _so3_log(M)
+    if isinstance(G, SE3):
+        w = _so3_log(M[:3, :3])
+        return np.concatenate([w, np.asarray(_se3_v_inverse()(w), float) @ M[:3, 3]])
+    try:
+        with np.errstate(all="ignore"):
+            x = np.asarray(G._numeric_log(M), float)
+    except NotImplementedError:
+        return None
+    return x if np.isfinite(x).all() else None
+
+
+def _chart_path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Arrows from ε(α(total)) to ``total`` interpolated in the fibre chart."""
     q = tuple(G.source(total))
     x_id = np.asarray(G.fibre_chart_inverse(G.fibre_of(G.identity(q)), q), float)
     x_end = np.asarray(G.fibre_chart_inverse(G.fibre_of(tuple(total)), q), float)
+    return np.array([[float(v) for v in G.arrow_from(q, G.numeric_fibre_chart(
+        x_id + (x_end - x_id) * t, q))] for t in s])
+
+
+def _path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Arrows P(s_i) ∈ α⁻¹(α(total)) from P(0) = ε to P(1) = total along a geodesic of each
+    factor: exp(s·log g) on a matrix Lie group (defined up to and including half-turns, where
+    the Cayley chart is not), a straight segment on a pair groupoid and in time, the group
+    part of an action groupoid; other groupoids: a straight line in the fibre chart."""
+    if isinstance(G, MatrixLieGroup):
+        x = _group_log(G, G.numeric_matrix(total))
+        if x is None:
+            return _chart_path(G, total, s)
+        exp = _exp_group(G)
+        return np.array([exp.numeric_fibre_chart(t * x) for t in s])
+    if isinstance(G, PairGroupoid) and isinstance(G.space, EuclideanSpace):
+        q0, q1 = total[:G.base_dim], total[G.base_dim:]
+        return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
+    if isinstance(G, ActionGroupoid):
+        n = G.base_dim
+        return np.hstack([np.tile(total[:n], (len(s), 1)), _path(G.group, total[n:], s)])
+    if isinstance(G, TimeGroupoid):
+        t0, t1 = total[0], total[1]
+        return np.column_stack([np.full(len(s), t0), t0 + s * (t1 - t0),
+                                _path(G.inner, total[2:], s)])
+    if isinstance(G, ProductGroupoid):
+        return np.hstack([_path(f, total[lo:hi], s)
+                          for f, (lo, hi) in zip(G.factors, G._arrow_slices)])
+    return _chart_path(G, total, s)
+
+
+def interpolate_arrows(G, total: Sequence, steps: int) -> np.ndarray:
+    """N arrows g_k = P_{k−1}⁻¹ P_k whose product is ``total``: P_k = P(k/N) on the geodesic
+    of :func:`_path` from the identity ε(α(total)) to ``total`` (on a Lie group
+    g_k = exp(log(total)/N), so a half-turn is split into N turns by π/N and the guess stays
+    off the cut locus of the Cayley chart)."""
+    total = np.asarray(total, float)
+    P = _path(G, total, np.arange(steps + 1) / steps)
+    P[0] = np.asarray(G.identity(tuple(G.source(total))), float)
+    P[-1] = total
     maps = _maps(G)
-    P = [np.asarray(G.identity(q), float)]
-    for k in range(1, steps + 1):
-        f = G.numeric_fibre_chart(x_id + (x_end - x_id) * k / steps, q)
-        P.append(np.array([float(v) for v in G.arrow_from(q, f)]))
-    P = np.array(P)
     return maps.multiply(maps.inverse(P[:-1]), P[1:])
 
 
-def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
-                         tol: float = 1e-10, tol_step: float = 1e-9,
-                         max_iterations: int = 30) -> BoundaryValueSolution:
-    """Solve a discrete two-point problem for the system behind ``step_equations``.
+# --- boundary data -----------------------------------------------------------------------------
 
-    First order: ``start`` and ``end`` are the end configurations (pair groupoid: points;
-    Lie group: matrices; products: tuples).  Second order: ``start = (c₀, c₁)`` and
-    ``end = (c_{N−1}, c_N)``, fixing the first and last arrows too.  ``guess``: N arrows
-    (N, arrow_dim), optionally with multipliers as ``(arrows, multipliers)``; default: the
-    interpolation of :func:`interpolate_arrows` and zero multipliers.
+@dataclass
+class _Boundary:
+    """Validated boundary data: the configurations, the arrow from the first to the last one,
+    and (second order) the fixed first and last arrows and the arrow between them."""
 
-    Converged when |F|∞ < ``tol``, or after a Newton update below ``tol_step``·(1 + |λ|∞):
-    Newton's quadratic convergence (the Jacobian is exact) leaves an error of the order of
-    its square, so the iterate is then at the residual's rounding floor — which grows with
-    N (for a residual scaled like 1/h², about N² ε), so a fixed absolute ``tol`` alone
-    would fail for large N.  Raises :class:`NewtonDivergenceError` naming the worst step
-    when Newton does not converge.
-    """
-    system = getattr(step_equations, "system", step_equations)
-    G = system.groupoid
-    a = len(system._fs.slots)
-    if steps < 2 * a:
-        raise ShapeError(f"{system.name}: a problem of order {a} needs at least {2 * a} "
-                         f"steps, got {steps}")
-    p, named = _parameter_vector(system, params)
-    r, m = G.rank, len(system._fs.constraints)
-    arrows, lam, first, last = _initial(system, a, m, start, end, steps, guess)
-    kernel = window_kernel(system)
-    lay = _layout(steps, a, r, m)
-    maps = _maps(G)
-    t0, history = time.perf_counter(), []
-    F, rows, cols, vals, worst = _assemble(kernel, lay, arrows, lam, p)
-    for it in range(max_iterations + 1):
-        norm = float(np.max(np.abs(F))) if F.size else 0.0
-        history.append(norm)
-        if not np.all(np.isfinite(F)) or not np.all(np.isfinite(vals)):
-            raise NewtonDivergenceError(
-                f"{system.name}: non-finite residual or Jacobian at Newton iteration {it}, "
-                f"step {worst}", step=worst, residual_norm=norm, iterate=arrows)
-        if norm < tol:
-            break
-        if it == max_iterations:
-            raise NewtonDivergenceError(
-                f"{system.name}: boundary-value Newton did not converge in {max_iterations} "
-                f"iterations; |F|∞ = {norm:.3e}, worst at step {worst}",
-                step=worst, residual_norm=norm, iterate=arrows)
-        try:
-            dz = _solve_banded(rows, cols, vals, lay.size, -F)
-        except np.linalg.LinAlgError as exc:
-            raise SingularJacobianError(
-                f"{system.name}: singular boundary-value Jacobian at Newton iteration {it} "
-                f"(|F|∞ = {norm:.3e}, worst at step {worst}); the boundary data may violate "
-                "the constraints or the Lagrangian is not regular there",
-                step=worst, residual_norm=norm, iterate=arrows) from exc
-        arrows, lam, (F, rows, cols, vals, worst) = _line_search(
-            kernel, lay, maps, arrows, lam, dz, F, p)
-        scale = 1.0 + (float(np.max(np.abs(lam))) if lam.size else 0.0)
-        if float(np.max(np.abs(dz))) <= tol_step * scale:
-            norm = float(np.max(np.abs(F))) if F.size else 0.0
-            history.append(norm)
-            it += 1
-            break
-    configurations = [start if a == 1 else start[0]]
-    for g in arrows:
-        configurations.append(G.configuration_after(configurations[-1], g))
-    return BoundaryValueSolution(system, arrows, lam, configurations, named, it, norm, history,
-                                 time.perf_counter() - t0)
+    configurations: tuple
+    total: np.ndarray
+    first: np.ndarray | None = None
+    last: np.ndarray | None = None
+    inner: np.ndarray | None = None
 
 
-def _initial(system, a, m, start, end, steps, guess):
-    G = system.groupoid
+def _boundary(system, a: int, start, end) -> _Boundary:
+    """``start``/``end`` checked as states are (:func:`configuration`), before any solve."""
+    G, owner = system.groupoid, system.name
     if a == 1:
-        total = G.arrow_between(start, end)
-        first = last = None
-    else:
-        try:
-            (c0, c1), (cn1, cn) = start, end
-        except (TypeError, ValueError) as exc:
-            raise ShapeError(f"{system.name}: second-order boundary data are two "
-                             "configurations at each end: start=(c0, c1), end=(cN-1, cN)") from exc
-        first = np.asarray(G.arrow_between(c0, c1), float)
-        last = np.asarray(G.arrow_between(cn1, cn), float)
-        total = G.arrow_between(c0, cn)
+        c0 = configuration(G, start, "start", owner=owner)
+        cn = configuration(G, end, "end", owner=owner)
+        return _Boundary((c0, cn), np.asarray(G.arrow_between(c0, cn), float))
+    pairs = []
+    for label, value in (("start", start), ("end", end)):
+        if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
+                or len(value) != 2:
+            raise ShapeError(f"{owner}: second-order boundary data are two configurations at "
+                             f"each end: start=(c0, c1), end=(cN-1, cN); {label} is not a pair")
+        pairs.append(tuple(configuration(G, c, f"{label}[{i}]", owner=owner)
+                           for i, c in enumerate(value)))
+    (c0, c1), (cn1, cn) = pairs
+    arrow_of = lambda x, y: np.asarray(G.arrow_between(x, y), float)  # noqa: E731
+    return _Boundary((c0, c1, cn1, cn), arrow_of(c0, cn), arrow_of(c0, c1), arrow_of(cn1, cn),
+                     arrow_of(c1, cn1))
+
+
+def _initial(system, a: int, m: int, data: _Boundary, steps: int, guess):
+    """The initial arrows and multipliers: ``guess`` (checked) or the geodesic
+    interpolation with zero multipliers."""
+    G, owner = system.groupoid, system.name
     n_terms = steps - a + 1
     if guess is None:
         if a == 1:
-            arrows = interpolate_arrows(G, total, steps)
-        else:
-            inner = interpolate_arrows(G, G.arrow_between(c1, cn1), steps - 2)
-            arrows = np.vstack([first, inner, last])
+            return interpolate_arrows(G, data.total, steps), np.zeros((n_terms, m))
+        inner = interpolate_arrows(G, data.inner, steps - 2)
+        return np.vstack([data.first, inner, data.last]), np.zeros((n_terms, m))
+    arrows, lam = (guess if isinstance(guess, tuple) else (guess, None))
+    try:
+        arrows = np.array(arrows, float)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{owner}: guess must be numeric arrows of shape ({steps}, "
+                         f"{G.arrow_dim})") from None
+    if arrows.shape != (steps, G.arrow_dim):
+        raise ShapeError(f"{owner}: guess must have shape ({steps}, {G.arrow_dim}) "
+                         f"(one arrow per step), got {arrows.shape}")
+    for k, row in enumerate(arrows):
+        checked_arrow(G, row, f"guess[{k}]", owner=owner)
+    if lam is None:
         lam = np.zeros((n_terms, m))
     else:
-        arrows, lam = (guess if isinstance(guess, tuple) else (guess, None))
-        arrows = np.array(arrows, float)
-        if arrows.shape != (steps, G.arrow_dim):
-            raise ShapeError(f"{system.name}: guess must have shape ({steps}, {G.arrow_dim}) "
-                             f"(one arrow per step), got {arrows.shape}")
-        lam = np.zeros((n_terms, m)) if lam is None else np.array(lam, float)
+        try:
+            lam = np.array(lam, float)
+        except (TypeError, ValueError):
+            raise ShapeError(f"{owner}: the multiplier guess must be numeric") from None
         if lam.shape != (n_terms, m):
-            raise ShapeError(f"{system.name}: multiplier guess must have shape "
+            raise ShapeError(f"{owner}: multiplier guess must have shape "
                              f"({n_terms}, {m}), got {lam.shape}")
-        _check_guess(system, arrows, total, first, last)
-    return arrows, lam, first, last
+        if not np.isfinite(lam).all():
+            raise DomainError(f"{owner}: the multiplier guess has non-finite entries")
+    _check_guess(system, arrows, data.total, data.first, data.last)
+    return arrows, lam
 
 
 def _check_guess(system, arrows, total, first, last):
@@ -607,35 +761,71 @@ def _check_guess(system, arrows, total, first, last):
                          "last arrows")
 
 
-def _line_search(kernel, lay, maps, arrows, lam, dz, F, p):
-    """Backtracking on |F|₂: the full Newton step when it reduces the residual (always near
-    a solution, so convergence stays quadratic), else halve it (at most 12 times)."""
-    r, m = kernel.rank, kernel.m
-    f0 = float(F @ F)
-    step = 1.0
-    for _ in range(12):
-        new_arrows, new_lam = _update(maps, lay, arrows, lam, step * dz, r, m)
-        assembled = _assemble(kernel, lay, new_arrows, new_lam, p)
-        Fn = assembled[0]
-        if np.all(np.isfinite(Fn)) and float(Fn @ Fn) <= (1 - 1e-4 * step) * f0:
-            return new_arrows, new_lam, assembled
-        step /= 2
-    return new_arrows, new_lam, assembled
+# --- the cut locus -----------------------------------------------------------------------------
+
+def _half_turns(G, arrows: np.ndarray) -> list[tuple[int, str, float]]:
+    """(arrow index, part name, det(I + R)/2ⁿ) of every matrix part of ``arrows`` whose
+    rotation block R is a half-turn to rounding: det(I + R)/2ⁿ = Π cos²(θ_i/2) over the
+    rotation angles θ_i (SO(3): cos²(θ/2)) vanishes exactly on the cut locus of the Cayley
+    chart cay⁻¹(R) = 2(R − I)(R + I)⁻¹, which is also where the logarithm is not unique."""
+    out = []
+    for start, group in G.matrix_parts():
+        n = group.n - 1 if group.affine else group.n
+        for k, a in enumerate(arrows):
+            R = group.numeric_matrix(a[start:start + group.arrow_dim])[:n, :n]
+            closeness = abs(float(np.linalg.det(np.eye(n) + R))) / 2.0 ** n
+            if closeness <= CUT_LOCUS_TOLERANCE:
+                out.append((k, group.symbol_name, closeness))
+    return out
 
 
-def _assemble(kernel, lay, arrows, lam, p):
+def _check_cut_locus(system, arrows: np.ndarray, what: str) -> None:
+    """A :class:`CutLocusError` naming the arrows of ``arrows`` that are half-turns."""
+    bad = _half_turns(system.groupoid, arrows)
+    if bad:
+        listing = ", ".join(f"arrows[{k}] (its {name!r} part, det(I + R)/2ⁿ = {c:.1e})"
+                            for k, name, c in bad[:6])
+        verb = "is a half-turn" if len(bad) == 1 else "are half-turns"
+        raise CutLocusError(
+            f"{system.name}: {what} {listing} {verb}, on the cut locus of the Cayley chart "
+            f"and of the logarithm, where "
+            f"Lagrangians and constraints written in these charts are not defined; use a "
+            f"guess that avoids half-turns (the default geodesic guess does) or more steps",
+            arrows=tuple(k for k, _, _ in bad), iterate=arrows)
+
+
+# --- assembly ----------------------------------------------------------------------------------
+
+class _Assembled(NamedTuple):
+    """The residual F, the Jacobian (COO triplets), the configuration where |F| is largest,
+    and the magnitude of the terms that cancel in every equation."""
+
+    F: np.ndarray
+    rows: np.ndarray
+    cols: np.ndarray
+    vals: np.ndarray
+    worst: int
+    cancel: np.ndarray  # per equation: the magnitude of the terms that cancel in it
+
+    def finite(self) -> bool:
+        return bool(np.isfinite(self.F).all() and np.isfinite(self.vals).all())
+
+
+def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
     a, r, m = kernel.arity, kernel.rank, kernel.m
     rows, cols, vals = [], [], []
     F = np.zeros(lay.size)
+    cancel = np.zeros(lay.size)  # |terms that cancel| per equation
     J = lay.junctions
     worst_val, worst = -1.0, 0
     if len(J):
         windows = np.stack([arrows[J + o] for o in kernel.offsets], axis=1)
         lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
                 else np.zeros((len(J), len(kernel.starts), 0)))
-        res, left, right, dlam = kernel.junction(windows, lams, p)
+        res, left, right, dlam, sizes = kernel.junction_terms(windows, lams, p)
         eq = np.array([lay.delta_index[j] for j in J])
         F[eq[:, None] + np.arange(r)] = res
+        cancel[eq[:, None] + np.arange(r)] = sizes
         for o in kernel.offsets:  # arrow j+o moves with δ_{j+o} (left) and δ_{j+o−1} (right)
             _add(rows, cols, vals, lay.delta_index, eq, J + o, left[o], r)
             _add(rows, cols, vals, lay.delta_index, eq, J + o - 1, -right[o], r)
@@ -647,16 +837,45 @@ def _assemble(kernel, lay, arrows, lam, p):
     if m:
         T = lay.terms
         windows = np.stack([arrows[T + o] for o in range(a)], axis=1)
-        res, left, right = kernel.term(windows, p)
+        res, left, right, sizes = kernel.term_terms(windows, p)
         eq = np.array([lay.lam_index[t] for t in T])
         F[eq[:, None] + np.arange(m)] = res
+        cancel[eq[:, None] + np.arange(m)] = sizes
         for o in range(a):
             _add(rows, cols, vals, lay.delta_index, eq, T + o, left[o], r, m)
             _add(rows, cols, vals, lay.delta_index, eq, T + o - 1, -right[o], r, m)
         bad = np.max(np.abs(res), axis=1)
         if bad.max() > worst_val:
             worst_val, worst = bad.max(), int(T[np.argmax(bad)]) + 1
-    return (F, np.concatenate(rows), np.concatenate(cols), np.concatenate(vals), worst)
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    return _Assembled(F, rows, cols, np.concatenate(vals), worst, cancel)
+
+
+def _rounding_floor(maps, lay, arrows, lam, state: _Assembled) -> np.ndarray:
+    """The rounding floor of each equation: ε·(the magnitudes that cancel in it
+    + Σ_c |∂F_i/∂z_c|·s_c).
+
+    A junction residual r = X⃖[S](g_j) − X⃗[S](g_{j+1}) is the difference of two halves, each
+    rounded to about ε·|half|.  And every equation feels the rounding of the coordinates it
+    is evaluated at: the arrows g_j, g_{j+1} that δ_j moves hold their coordinates to
+    ε·|a_m|, which is ε·s_c in δ_c (:meth:`_Maps.rounding_scale`), the multipliers to ε·|λ|;
+    through the Jacobian that is Σ_c |J_ic|·ε·s_c.  A residual scaled like 1/h² thus has a
+    floor ~ N²·ε·|coordinates|, which a fixed tolerance would miss.
+    """
+    r, m = maps.G.rank, lam.shape[1]
+    scale = np.zeros(lay.size)
+    if lay.delta_index:
+        j = np.array(list(lay.delta_index))
+        k = np.array(list(lay.delta_index.values()))
+        s = np.maximum(maps.rounding_scale(arrows[j], "left"),
+                       maps.rounding_scale(arrows[j + 1], "right"))
+        scale[k[:, None] + np.arange(r)] = s
+    for t, k in lay.lam_index.items():
+        scale[k:k + m] = np.abs(lam[t])
+    floor = state.cancel.copy()
+    with np.errstate(all="ignore"):
+        np.add.at(floor, state.rows, np.abs(state.vals) * scale[state.cols])
+    return _EPS * np.nan_to_num(floor, nan=np.inf)
 
 
 def _add(rows, cols, vals, index, eq, targets, block, width, height=None):
@@ -690,3 +909,149 @@ def _update(maps, lay, arrows, lam, dz, r, m):
     for t, k in lay.lam_index.items():
         lam[t] += dz[k:k + m]
     return arrows, lam
+
+
+def _excess(F: np.ndarray, floor: np.ndarray, tol: float) -> float:
+    """max_i |F_i| / max(tol, ROUNDING_FACTOR·floor_i): at most 1 when converged."""
+    if not F.size:
+        return 0.0
+    with np.errstate(all="ignore"):
+        ratio = np.abs(F) / np.maximum(tol, ROUNDING_FACTOR * floor)
+    return float(np.nan_to_num(ratio, nan=np.inf).max())
+
+
+# --- Newton's method ---------------------------------------------------------------------------
+
+def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
+                         tol: float = 1e-10, tol_step: float = 1e-9,
+                         max_iterations: int = 30) -> BoundaryValueSolution:
+    """Solve a discrete two-point problem for the system behind ``step_equations``.
+
+    First order: ``start`` and ``end`` are the end configurations (pair groupoid: points;
+    Lie group: matrices; products: tuples).  Second order: ``start = (c₀, c₁)`` and
+    ``end = (c_{N−1}, c_N)``, fixing the first and last arrows too.  ``guess``: N arrows
+    (N, arrow_dim), optionally with multipliers as ``(arrows, multipliers)``; default: the
+    geodesic interpolation of :func:`interpolate_arrows` (it avoids the Cayley chart's cut
+    locus, so a half-turn between the ends is solved) and zero multipliers.
+
+    Every input is checked before any solve, as :meth:`Simulator.simulate` checks its own
+    (runtime/_validate.py): the counts, the parameters (by name, with their declared
+    assumptions), the configurations (points: shape and finiteness; group parts: in the
+    group, det +1), the guess.
+
+    Converged only when the residual criterion holds: every equation's |F_i| is at most
+    max(``tol``, ROUNDING_FACTOR·floor_i), floor_i its rounding floor (ε times the terms that
+    cancel in it and its sensitivity to the rounding of the coordinates; it grows like N²
+    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss).  A Newton update
+    below ``tol_step``·(1 + |λ|∞) ends the iteration too: with the residual criterion met it
+    has converged, otherwise Newton has stalled above the floor.  Each update is
+    backtracked until |F|₂ decreases (:func:`_line_search`).  Raises
+    :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
+    iterations and the residual history) when the iteration cap is reached, Newton stalls or
+    the line search finds no decrease; :class:`SingularJacobianError` for a singular
+    Jacobian; :class:`CutLocusError` when an arrow of the initial path is a half-turn.
+    """
+    system = getattr(step_equations, "system", step_equations)
+    owner = system.name
+    G = system.groupoid
+    a = len(system._fs.slots)
+    steps = integer_argument(steps, "steps", owner=owner)
+    if steps < 2 * a:
+        raise ShapeError(f"{owner}: a problem of order {a} needs at least {2 * a} "
+                         f"steps, got {steps}")
+    max_iterations = integer_argument(max_iterations, "max_iterations", owner=owner)
+    tol = real_argument(tol, "tol", minimum=0.0, owner=owner)
+    tol_step = real_argument(tol_step, "tol_step", minimum=0.0, owner=owner)
+    p, named = parameter_vector(system.parameters, params, owner=owner)
+    r, m = G.rank, len(system._fs.constraints)
+    data = _boundary(system, a, start, end)
+    arrows, lam = _initial(system, a, m, data, steps, guess)
+    _check_cut_locus(system, arrows, "the initial path has" if guess is None
+                     else "the guess has")
+    kernel = window_kernel(system)
+    lay = _layout(steps, a, r, m)
+    maps = _maps(G)
+    t0, history = time.perf_counter(), []
+    state = _assemble(kernel, lay, arrows, lam, p)
+    if not state.finite():
+        raise NewtonDivergenceError(
+            f"{owner}: non-finite residual or Jacobian at the initial "
+            f"{'path' if guess is None else 'guess'}, at configuration {state.worst}: the "
+            f"Lagrangian or the constraints are not defined there", step=state.worst,
+            residual_norm=float(np.nanmax(np.abs(state.F), initial=0.0)), iterate=arrows)
+    it, stalled = 0, False
+    while True:
+        norm = float(np.max(np.abs(state.F), initial=0.0))
+        history.append(norm)
+        excess = _excess(state.F, _rounding_floor(maps, lay, arrows, lam, state), tol)
+        if excess <= 1.0:
+            break
+        if stalled:
+            raise _divergence(owner, f"stalled: the Newton update fell below tol_step = "
+                              f"{tol_step:g}", state, excess, it, history, arrows)
+        if it == max_iterations:
+            raise _divergence(owner, f"did not converge in {max_iterations} iterations",
+                              state, excess, it, history, arrows)
+        try:
+            with np.errstate(all="ignore"):
+                dz = _solve_banded(state.rows, state.cols, state.vals, lay.size, -state.F)
+        except np.linalg.LinAlgError as exc:
+            raise _singular(owner, state, it, arrows) from exc
+        if not np.isfinite(dz).all():
+            raise _singular(owner, state, it, arrows)
+        found = _line_search(kernel, lay, maps, arrows, lam, dz, state, p)
+        if found is None:
+            raise _divergence(owner, "found no decrease of |F| along the Newton direction "
+                              "(line search)", state, excess, it, history, arrows)
+        arrows, lam, state, length = found
+        it += 1
+        scale = 1.0 + float(np.max(np.abs(lam), initial=0.0))
+        stalled = length * float(np.max(np.abs(dz), initial=0.0)) <= tol_step * scale
+    configurations = [data.configurations[0]]
+    for g in arrows:
+        configurations.append(G.configuration_after(configurations[-1], g))
+    return BoundaryValueSolution(system, arrows, lam, configurations, named, it, norm, history,
+                                 time.perf_counter() - t0)
+
+
+def _divergence(owner: str, why: str, state: _Assembled, excess: float, it: int,
+                history: list, arrows) -> BoundaryValueDivergenceError:
+    norm = float(np.max(np.abs(state.F), initial=0.0))
+    return BoundaryValueDivergenceError(
+        f"{owner}: boundary-value Newton {why}; after {it} iterations |F|∞ = {norm:.3e}, "
+        f"worst at configuration {state.worst}, {excess:.1e} times the accepted residual "
+        f"max(tol, {ROUNDING_FACTOR:g}·rounding floor): not a solution",
+        iterations=it, history=history, step=state.worst, residual_norm=norm, iterate=arrows)
+
+
+def _singular(owner: str, state: _Assembled, it: int, arrows) -> SingularJacobianError:
+    norm = float(np.max(np.abs(state.F), initial=0.0))
+    return SingularJacobianError(
+        f"{owner}: singular boundary-value Jacobian at Newton iteration {it} "
+        f"(|F|∞ = {norm:.3e}, worst at configuration {state.worst}); the boundary data may "
+        "violate the constraints or the Lagrangian is not regular there",
+        step=state.worst, residual_norm=norm, iterate=arrows)
+
+
+def _line_search(kernel, lay, maps, arrows, lam, dz, state: _Assembled, p):
+    """Backtracking on |F|₂²: the full Newton step when it decreases the residual enough
+    (Armijo: by the fraction 10⁻⁴·t of it, t the step length; always so near a solution,
+    where convergence stays quadratic), else the step halved, at most MAX_HALVINGS times.
+
+    Returns (arrows, multipliers, assembled system, t) of the accepted step, or None when no
+    step length gave a decrease with finite values: the caller then raises instead of
+    carrying on from an iterate that is worse than the last (a Newton direction that is not
+    a descent direction of |F|₂² means the Jacobian is wrong or the values are not smooth
+    there, e.g. an arrow near the chart's cut locus).
+    """
+    r, m = kernel.rank, kernel.m
+    f0 = float(state.F @ state.F)
+    length = 1.0
+    for _ in range(MAX_HALVINGS):
+        new_arrows, new_lam = _update(maps, lay, arrows, lam, length * dz, r, m)
+        with np.errstate(all="ignore"):
+            trial = _assemble(kernel, lay, new_arrows, new_lam, p)
+        if trial.finite() and float(trial.F @ trial.F) <= (1 - 1e-4 * length) * f0:
+            return new_arrows, new_lam, trial, length
+        length /= 2
+    return None

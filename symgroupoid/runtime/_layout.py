@@ -22,13 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import ShapeError
-from .._symbols import multiplier_symbols
+from .._errors import DomainError, InputNameError, ShapeError
+from .._symbols import multiplier_symbols, step_label
 from ..groupoids import ActionGroupoid, MatrixLieGroup, ProductGroupoid
+from ._validate import GROUP_TOLERANCE, arrow, check_group_matrix
+
+__all__ = ["GROUP_TOLERANCE", "MULTIPLIER_KEYS", "Part", "StateLayout"]
 
 MULTIPLIER_KEYS = ("lambda", "λ", "multipliers")
-#: tolerance of the group-membership check of matrix parts (RᵀR = I, det R = 1)
-GROUP_TOLERANCE = 1e-9
 _OFFSETS = range(-3, 4)
 
 
@@ -110,9 +111,14 @@ class StateLayout:
 
     def __init__(self, step):
         self.step_name = step.name
+        self.groupoid = step.groupoid
         self.n_known = len(step.knowns)
         self.n_multipliers = step.n_constraints
         position = {s: i for i, s in enumerate(step.knowns)}
+        #: positions in the flat state of the coordinates of each known arrow, by offset
+        self.arrow_index = {o: np.array([position[c] for c in a], dtype=np.int64)
+                            for o, a in sorted(step.arrows.items())
+                            if all(c in position for c in a)}
         groups = _group_parts(step.groupoid)
         tables = {o: step.groupoid.symbols_by_name(o) for o in _OFFSETS}
         names = list(dict.fromkeys(n for o in _OFFSETS for n in tables[o]))
@@ -140,7 +146,7 @@ class StateLayout:
                 multipliers = value
                 continue
             if key not in self.parts:
-                raise KeyError(f"{self.step_name}: unknown state part {key!r}; the parts are "
+                raise InputNameError(f"{self.step_name}: unknown state part {key!r}; the parts are "
                                f"{', '.join(self.names)}"
                                + (" and 'lambda'" if self.n_multipliers else ""))
             self._assign(state, given, self.parts[key], value)
@@ -148,11 +154,22 @@ class StateLayout:
         missing = [p.name for p in self.parts.values()
                    if not given[p.index[p.index >= 0]].all()]
         if missing:
-            raise KeyError(f"{self.step_name}: the initial state misses {', '.join(missing)}")
+            raise InputNameError(f"{self.step_name}: the initial state misses {', '.join(missing)}")
+        self.check_finite(state)
+        return state
+
+    def check_finite(self, state: np.ndarray) -> None:
+        """A :class:`DomainError` naming the non-finite entries of a flat state."""
         bad = [self.describe(i) for i in np.flatnonzero(~np.isfinite(state))]
         if bad:
-            raise ValueError(f"{self.step_name}: non-finite initial data in {', '.join(bad)}")
-        return state
+            raise DomainError(f"{self.step_name}: non-finite initial data in {', '.join(bad)}")
+
+    def check_arrows(self, state: np.ndarray) -> None:
+        """Every known arrow of a flat state checked as named parts are (:func:`arrow`:
+        each matrix part in its group)."""
+        for o, index in self.arrow_index.items():
+            arrow(self.groupoid, state[index], f"the arrow g_{step_label(o)} of the state",
+                  owner=self.step_name)
 
     def _assign(self, state, given, part: Part, value) -> None:
         arr = self._as_array(part, value)
@@ -161,7 +178,7 @@ class StateLayout:
         mask = part.index >= 0
         idx = part.index[mask]
         if given[idx].any():
-            raise ValueError(f"{self.step_name}: state part {part.name!r} given twice (it "
+            raise InputNameError(f"{self.step_name}: state part {part.name!r} given twice (it "
                              f"overlaps another part given)")
         state[idx], given[idx] = arr[mask], True
 
@@ -170,7 +187,7 @@ class StateLayout:
         try:
             arr = np.asarray(value, dtype=float)
         except (TypeError, ValueError):
-            raise ValueError(f"{self.step_name}: state part {part.name!r} must be numeric, "
+            raise ShapeError(f"{self.step_name}: state part {part.name!r} must be numeric, "
                              f"got {value!r}") from None
         expected = part.index.shape if part.is_sequence else part.shape
         if arr.shape != expected:
@@ -184,18 +201,12 @@ class StateLayout:
         mask = part.index[0] < 0
         if mask.any() and not np.allclose(arr[mask], part.fixed[mask], rtol=0,
                                           atol=GROUP_TOLERANCE):
-            raise ValueError(f"{self.step_name}: {part.name!r} must have the fixed entries "
+            raise DomainError(f"{self.step_name}: {part.name!r} must have the fixed entries "
                              f"{part.fixed[mask].tolist()}")
         group = part.group
         if group is None or not np.isfinite(arr).all():
             return
-        n = group.n - 1 if group.affine else group.n
-        R = arr[:n, :n]
-        err = max(np.abs(R.T @ R - np.eye(n)).max(), abs(np.linalg.det(R) - 1.0))
-        if err > GROUP_TOLERANCE:
-            raise ValueError(f"{self.step_name}: {part.name!r} is not in {group.name}: its "
-                             f"rotation block is off orthonormal-with-det-1 by {err:.2e} "
-                             f"(tolerance {GROUP_TOLERANCE:g})")
+        check_group_matrix(group, arr, repr(part.name), owner=self.step_name)
 
     def _pack_multipliers(self, state, given, multipliers) -> None:
         part = self.multiplier_part
@@ -205,12 +216,24 @@ class StateLayout:
                                  f"multipliers; got lambda={multipliers!r}")
             return
         if multipliers is None:
-            raise KeyError(f"{self.step_name}: the initial state misses lambda "
+            raise InputNameError(f"{self.step_name}: the initial state misses lambda "
                            f"({self.n_multipliers} multipliers per step); give them, or start "
                            f"from a momentum (Simulator.from_momentum) to have them solved for")
         self._assign(state, given, part, multipliers)
 
     # --- flat states → named arrays -------------------------------------------------------------
+    def arrows(self, states: np.ndarray) -> np.ndarray:
+        """The arrows of consecutive states, oldest first: the known arrows of the first
+        state, then the newest known arrow of every later state (first order: g_0 … g_N;
+        second order: g_{-1}, g_0, g_1, …, g_{N+1})."""
+        states = np.asarray(states, float)
+        offsets = list(self.arrow_index)
+        if not offsets:
+            raise ShapeError(f"{self.step_name}: the state holds no complete arrow")
+        first = [states[0, self.arrow_index[o]] for o in offsets[:-1]]
+        newest = states[:, self.arrow_index[offsets[-1]]]
+        return np.vstack(first + [newest]) if first else newest
+
     def view(self, states: np.ndarray, name: str) -> np.ndarray:
         """A part over consecutive states: its values at all the steps they cover.
 

@@ -17,8 +17,23 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._errors import NewtonDivergenceError, ShapeError, SingularJacobianError
+from .._errors import (
+    DomainError,
+    InputNameError,
+    NewtonDivergenceError,
+    ShapeError,
+    SingularJacobianError,
+)
 from ._layout import StateLayout
+from ._validate import arrow as checked_arrow
+
+
+def _numeric(value, label: str, owner: str) -> np.ndarray:
+    """``value`` as a float array, or a :class:`ShapeError` naming ``label``."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{owner}: {label} must be numeric, got {value!r}") from None
 
 
 class MomentumInitializer:
@@ -80,7 +95,7 @@ class MomentumInitializer:
         if configuration is None:
             configuration = {}
         if not isinstance(configuration, Mapping):
-            values = np.asarray(configuration, dtype=float).ravel()
+            values = _numeric(configuration, "the configuration", self.name).ravel()
             if values.size != len(self.source_pos):
                 raise ShapeError(f"{self.name}: the configuration has {len(self.source_pos)} "
                                  f"coordinates, got {values.size}")
@@ -88,10 +103,10 @@ class MomentumInitializer:
         names = ", ".join(self._configuration) or "(none: the base is a point)"
         for key, value in configuration.items():
             if key not in self._configuration:
-                raise KeyError(f"{self.name}: {key!r} is not a coordinate of the "
+                raise InputNameError(f"{self.name}: {key!r} is not a coordinate of the "
                                f"configuration; expected {names}")
             part, o = self._configuration[key]
-            arr = np.asarray(value, dtype=float)
+            arr = _numeric(value, f"configuration part {key!r}", self.name)
             if arr.shape != part.shape:
                 raise ShapeError(f"{self.name}: configuration part {key!r} has shape "
                                  f"{arr.shape}, expected {part.shape}")
@@ -99,20 +114,20 @@ class MomentumInitializer:
             state[idx[idx >= 0]] = arr[idx >= 0]
         values = state[self.source_pos]
         if np.isnan(values).any():
-            raise KeyError(f"{self.name}: the configuration needs {names}")
+            raise InputNameError(f"{self.name}: the configuration needs {names}")
         return values
 
     def solve(self, configuration, momentum: Sequence, params: np.ndarray,
               tol: float = 1e-14, max_iterations: int = 50) -> np.ndarray:
         """The flat initial state (g₁, λ₁) for base point ``configuration`` and ``momentum``."""
         q = self._source_values(configuration)
-        p = np.asarray(momentum, dtype=float).ravel()
+        p = _numeric(momentum, "the momentum", self.name).ravel()
         if p.size != self.rank:
             raise ShapeError(f"{self.name}: the momentum has {self.rank} components (one per "
                              f"basis section), got {p.size}")
         for label, values in (("configuration", q), ("momentum", p)):
             if not np.isfinite(values).all():
-                raise ValueError(f"{self.name}: non-finite {label} {values.tolist()}")
+                raise DomainError(f"{self.name}: non-finite {label} {values.tolist()}")
         z = np.concatenate([np.asarray(self._guess(q), float).ravel(), np.zeros(self.m)])
         for _ in range(max_iterations):
             F = np.asarray(self._F(z, q, p, params), float).ravel()
@@ -160,6 +175,7 @@ class SecondOrderMomentumInitializer:
         system = step.system
         G, fs = step.groupoid, system._fs
         self.name, self.layout, self.rank = step.name, layout, G.rank
+        self.groupoid = G
         self.m = len(fs.constraints)
         forms = second_order_legendre_forms(G, fs, offset=-1)
         g0 = named(G, -1, False)
@@ -203,11 +219,13 @@ class SecondOrderMomentumInitializer:
             raise TypeError(f"{self.name}: a second-order system starts from its first arrow "
                             "g₀ (flat coordinates, as in step.arrows) and a momentum, not "
                             "from a configuration")
-        g0 = np.asarray(arrow, dtype=float).ravel()
-        p = np.asarray(momentum, dtype=float).ravel()
+        g0 = checked_arrow(self.groupoid, arrow, "the first arrow g₀", owner=self.name)
+        p = _numeric(momentum, "the momentum", self.name).ravel()
         if p.size != 2 * self.rank:
             raise ShapeError(f"{self.name}: a second-order momentum has {2 * self.rank} "
                              f"components (two per basis section), got {p.size}")
+        if not np.isfinite(p).all():
+            raise DomainError(f"{self.name}: non-finite momentum {p.tolist()}")
         guess = np.asarray(self._guess(g0), float).ravel()
         z = np.concatenate([guess, guess, np.zeros(2 * self.m)])
         for _ in range(max_iterations):

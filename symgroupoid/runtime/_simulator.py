@@ -26,7 +26,10 @@ from ._backends import (
 )
 from ._layout import StateLayout
 from ._trajectory import Sampler, Trajectory, kept_rows
-from ._validate import integer_argument
+from ._validate import constraint_check, integer_argument, parameter_vector
+
+#: an initial state may violate a constraint by this much (absolute) besides rounding
+INITIAL_CONSTRAINT_TOLERANCE = 1e-10
 
 #: steps per kernel call of a simulation: bounds the memory of a chunk and the delay of
 #: Ctrl-C (a KeyboardInterrupt is raised between calls)
@@ -67,55 +70,53 @@ class Simulator:
 
     # --- inputs ---------------------------------------------------------------------------------
     def parameters(self, params: Mapping | Sequence | None) -> np.ndarray:
-        """Parameter vector in ``step.parameters`` order from a mapping or a sequence."""
-        names = self.parameter_names
-        if params is None:
-            params = {}
-        if isinstance(params, Mapping):
-            given = {str(k): v for k, v in params.items()}
-            unknown = sorted(set(given) - set(names))
-            if unknown:
-                raise KeyError(f"{self.name}: unknown parameter(s) {', '.join(unknown)}; "
-                               f"the parameters are {', '.join(names)}")
-            missing = [n for n in names if n not in given]
-            if missing:
-                raise KeyError(f"{self.name}: missing parameter(s) {', '.join(missing)}")
-            values = [given[n] for n in names]
-        else:
-            values = list(params)
-            if len(values) != len(names):
-                raise ShapeError(f"{self.name}: {len(values)} parameter values given, expected "
-                                 f"{len(names)} ({', '.join(names)})")
-        try:
-            vector = np.array(values, dtype=float).reshape(len(names))
-        except (TypeError, ValueError):
-            raise ValueError(f"{self.name}: parameters must be real numbers, got "
-                             f"{values!r}") from None
-        bad = [n for n, v in zip(names, vector) if not np.isfinite(v)]
-        if bad:
-            raise ValueError(f"{self.name}: non-finite parameter(s) {', '.join(bad)}")
-        return vector
+        """Parameter vector in ``step.parameters`` order from a mapping or a sequence.
 
-    def state(self, initial: Mapping | Sequence | np.ndarray) -> np.ndarray:
+        One rule for every entry point (:func:`~symgroupoid.runtime._validate.parameter_vector`):
+        every parameter named exactly once (unknown names are rejected), finite real values
+        satisfying the assumptions the symbols are declared with (``positive=True``, …).
+        """
+        return parameter_vector(self.equations.parameters, params, owner=self.name)[0]
+
+    def state(self, initial: Mapping | Sequence | np.ndarray, params=None) -> np.ndarray:
         """The flat known state (g_k, λ_k) from named parts or a flat vector.
 
         Named parts (a mapping): each coordinate of a pair-groupoid factor as two consecutive
         configurations ``(q_0, q_1)``; a group part (``"g"``, ``"W"``) as its matrix, checked
         to lie in the group; other coordinates (``"Gamma"``) by value; the multipliers as
         ``"lambda"`` (required when the system has constraints).  A flat vector must have
-        ``len(step.knowns)`` finite entries, ordered as ``step.knowns``.
+        ``len(step.knowns)`` finite entries, ordered as ``step.knowns``; its group parts are
+        checked as named ones are.
+
+        With ``params`` (as for :meth:`simulate`) the known arrows must also satisfy the
+        system's constraints (first order φ(g_k); second order Φ on each known pair;
+        nonholonomic ψ(g_k)) to rounding: |φ_i| ≤ max(INITIAL_CONSTRAINT_TOLERANCE,
+        CONSTRAINT_ROUNDING·ε·M_i), M_i the size of φ_i's terms; a :class:`DomainError`
+        gives the violation of each constraint that does not hold.
         """
         if isinstance(initial, Mapping):
-            return self.layout.pack(initial)
-        arr = np.asarray(initial, dtype=float)
-        if arr.shape != (self.layout.n_known,):
-            raise ShapeError(f"{self.name}: a flat state has shape ({self.layout.n_known},) "
-                             f"(the knowns {', '.join(s.name for s in self.equations.knowns)}"
-                             f"); got shape {arr.shape}")
-        bad = [self.layout.describe(i) for i in np.flatnonzero(~np.isfinite(arr))]
-        if bad:
-            raise ValueError(f"{self.name}: non-finite initial data in {', '.join(bad)}")
-        return arr.copy()
+            state = self.layout.pack(initial)
+        else:
+            if isinstance(initial, (str, bytes)):
+                raise ShapeError(f"{self.name}: a state is a mapping of named parts or a flat "
+                                 f"vector, got {initial!r}")
+            try:
+                arr = np.asarray(initial, dtype=float)
+            except (TypeError, ValueError):
+                raise ShapeError(f"{self.name}: a flat state must be numeric, got "
+                                 f"{type(initial).__name__}") from None
+            if arr.shape != (self.layout.n_known,):
+                raise ShapeError(f"{self.name}: a flat state has shape ({self.layout.n_known},) "
+                                 f"(the knowns {', '.join(s.name for s in self.equations.knowns)}"
+                                 f"); got shape {arr.shape}")
+            self.layout.check_finite(arr)
+            self.layout.check_arrows(arr)
+            state = arr.copy()
+        if params is not None:
+            p = self.parameters(params)
+            constraint_check(self.equations)(state, p, atol=INITIAL_CONSTRAINT_TOLERANCE,
+                                             owner=self.name)
+        return state
 
     # --- running --------------------------------------------------------------------------------
     def simulate(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
@@ -141,8 +142,8 @@ class Simulator:
         """
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
-        known0 = self.state(initial)
         p = self.parameters(params)
+        known0 = self.state(initial, p)
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
         states = np.empty((rows, self.layout.n_known))
@@ -196,7 +197,8 @@ class Simulator:
         """
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
-        return self._pieces(self.state(initial), self.parameters(params), steps, every,
+        p = self.parameters(params)
+        return self._pieces(self.state(initial, p), p, steps, every,
                             options)
 
     def _pieces(self, known0: np.ndarray, p: np.ndarray, steps: int, every: int,
@@ -248,8 +250,8 @@ class Simulator:
         ``guess`` (default: the step's prediction) must hold ``len(step.unknowns)`` finite
         numbers (a :class:`ShapeError` otherwise).
         """
-        known = self.state(state)
         p = self.parameters(params)
+        known = self.state(state, p)
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
@@ -281,8 +283,9 @@ class Simulator:
             kind = (SecondOrderMomentumInitializer if self.equations.order == 2
                     else MomentumInitializer)
             self._momentum = kind(self.equations, self.layout)
-        state = self._momentum.solve(configuration, momentum, self.parameters(params))
-        return self.state(state)
+        p = self.parameters(params)
+        state = self._momentum.solve(configuration, momentum, p)
+        return self.state(state, p)
 
     def _failure(self, status: int, step: int, iterations: int, residual_norm: float,
                  iterate: np.ndarray) -> Exception:

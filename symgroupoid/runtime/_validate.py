@@ -1,22 +1,62 @@
 """One validation path for the numeric inputs of every runtime entry point.
 
-``simulate``, ``solve``, ``solve_boundary_value`` and the command line all check counts,
-states and parameters through the functions here, so a malformed input gets the same
-message, naming the argument, wherever it is given.
+``simulate``, ``solve``, ``from_momentum``, ``solve_boundary_value``, ``verify_stationary``
+and the command line check counts, parameters, configurations, arrows and states through the
+functions here, so a malformed input gets the same message, naming the argument, wherever it
+is given:
+
+- :func:`integer_argument`, :func:`real_argument` — counts and real numbers;
+- :func:`parameter_vector` — parameters by name or in order, with the assumptions their
+  symbols are declared with (positive, integer, …);
+- :func:`group_element`, :func:`check_group_matrix` — matrices of a matrix Lie group;
+- :func:`configuration` — a boundary configuration (a point, a group element, or a tuple
+  of them for products, action and time groupoids), per factor;
+- :func:`arrow` — flat arrow coordinates (shape, finiteness, every matrix part in its group);
+- :class:`ConstraintCheck` — the constraints of a system on a known state.
 """
 
 from __future__ import annotations
 
+import functools
 import numbers
+from collections.abc import Mapping, Sequence
 
 import numpy as np
+import sympy as sp
 
-from .._errors import ShapeError
+from .._errors import DomainError, ParameterError, ShapeError
+from ..groupoids import (
+    ActionGroupoid,
+    Groupoid,
+    MatrixLieGroup,
+    PairGroupoid,
+    ProductGroupoid,
+    TimeGroupoid,
+)
 
 #: the largest count accepted for steps, iterations and similar arguments (C ``long`` safe,
 #: and far beyond what fits in memory or time)
 MAX_COUNT = 2**53
 
+#: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
+#: last row of SE(n)): far above the rounding of a product of many rotations, far below any
+#: matrix that is not a rotation
+GROUP_TOLERANCE = 1e-9
+
+#: a constraint value counts as zero when |φ_i| ≤ max(atol, CONSTRAINT_ROUNDING·ε·M_i), M_i the
+#: magnitude of φ_i's terms (:func:`magnitude`): evaluating φ_i rounds each term by a few ε,
+#: so a consistent state computed in floating point (by hand, from a momentum, or as the last
+#: state of a run) is never rejected, while a violation above that is reported
+CONSTRAINT_ROUNDING = 1e3
+
+_EPS = float(np.finfo(float).eps)
+
+
+def _where(owner: str) -> str:
+    return f"{owner}: " if owner else ""
+
+
+# --- numbers ------------------------------------------------------------------------------------
 
 def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_COUNT,
                      owner: str = "") -> int:
@@ -27,7 +67,7 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
     infinities, non-integral values, values below ``minimum`` or above ``maximum``, and
     anything that is not a real number.
     """
-    where = f"{owner}: " if owner else ""
+    where = _where(owner)
     if isinstance(value, (bool, np.bool_)):
         raise ShapeError(f"{where}{name} must be an integer, got the boolean {value!r}")
     if isinstance(value, numbers.Integral):
@@ -47,3 +87,346 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
     if number > maximum:
         raise ShapeError(f"{where}{name} must be at most {maximum}, got {number}")
     return number
+
+
+def real_argument(value, name: str, *, minimum: float | None = None, owner: str = "",
+                  error: type[ShapeError] = ShapeError, finite: bool = True) -> float:
+    """``value`` as a float, or ``error`` (a :class:`ShapeError` subclass) naming ``name``.
+
+    Accepted: real numbers (Python, NumPy, SymPy numbers, 0-d arrays).  Rejected: booleans,
+    strings, complex numbers, arrays and sequences, values below ``minimum``, and (unless
+    ``finite=False``) NaN and infinities.
+    """
+    where = _where(owner)
+    bad = f"{where}{name} must be a real number, got {type(value).__name__} {value!r}"
+    if isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating,
+                          Sequence, Mapping)):
+        raise error(bad)
+    try:
+        if np.ndim(value) != 0:
+            raise error(bad)
+        real = float(value)
+    except (TypeError, ValueError):
+        raise error(bad) from None
+    if not finite:
+        return real
+    if not np.isfinite(real):
+        raise error(f"{where}{name} must be finite, got {real!r}")
+    if minimum is not None and real < minimum:
+        raise error(f"{where}{name} must be at least {minimum}, got {real!r}")
+    return real
+
+
+# --- parameters ---------------------------------------------------------------------------------
+
+#: assumptions checked on parameter values, in the order they are reported (a float is a
+#: rational number, so ``rational``/``irrational``/``algebraic`` say nothing about it)
+_CHECKED_ASSUMPTIONS = ("positive", "negative", "nonnegative", "nonpositive", "zero",
+                        "nonzero", "integer", "noninteger", "even", "odd", "prime",
+                        "composite")
+
+
+def _declared(symbol: sp.Symbol) -> list[tuple[str, bool]]:
+    """The checkable assumptions a symbol was declared with (``extended_`` forms included)."""
+    given = getattr(symbol, "_assumptions_orig", None)
+    if given is None:  # older SymPy: every known fact about the symbol
+        given = symbol.assumptions0
+    out = []
+    for key, value in given.items():
+        key = key.removeprefix("extended_")
+        if key in _CHECKED_ASSUMPTIONS and value is not None:
+            out.append((key, bool(value)))
+    return sorted(set(out), key=lambda kv: (_CHECKED_ASSUMPTIONS.index(kv[0]), kv[1]))
+
+
+def check_assumptions(symbol: sp.Symbol, value: float, *, owner: str = "") -> None:
+    """A :class:`ParameterError` naming the parameter and the assumption when ``value``
+    violates an assumption ``symbol`` is declared with (``positive=True``, ``integer=True``,
+    …; the value is taken exactly, as the rational number a float is)."""
+    exact = sp.Rational(value)
+    for key, expected in _declared(symbol):
+        holds = getattr(exact, f"is_{key}")
+        if holds is not None and bool(holds) != expected:
+            what = key if expected else f"not {key}"
+            raise ParameterError(f"{_where(owner)}parameter {symbol} is declared {what}, "
+                                 f"got {symbol} = {value!r}")
+
+
+def parameter_vector(parameters: Sequence, params, *, owner: str = ""
+                     ) -> tuple[np.ndarray, dict[str, float]]:
+    """The parameter values in ``parameters`` order, and the same by name.
+
+    ``params``: a mapping (keys: the parameter symbols or their names) naming every
+    parameter exactly once, or a sequence of values in ``parameters`` order (None: no
+    parameters).  Every value must be a finite real number satisfying the assumptions its
+    symbol is declared with (:func:`check_assumptions`).  Raises :class:`ParameterError`
+    (a ``KeyError`` and a ``ValueError``) naming the parameter otherwise: unknown names,
+    missing or repeated ones, a wrong count, a non-number, NaN/inf, a violated assumption.
+    """
+    where = _where(owner)
+    names = [str(s) for s in parameters]
+    listing = ", ".join(names) if names else "none"
+    if params is None:
+        params = {}
+    if isinstance(params, Mapping):
+        given: dict[str, object] = {}
+        for key, value in params.items():
+            label = str(key)
+            if label in given:
+                raise ParameterError(f"{where}parameter {label} given twice")
+            given[label] = value
+        unknown = [k for k in given if k not in names]
+        if unknown:
+            noun = "parameter" if len(unknown) == 1 else "parameters"
+            raise ParameterError(f"{where}unknown {noun} {', '.join(unknown)}; the parameters "
+                                 f"are {listing}")
+        missing = [n for n in names if n not in given]
+        if missing:
+            noun = "parameter" if len(missing) == 1 else "parameters"
+            raise ParameterError(f"{where}missing {noun} {', '.join(missing)}")
+        raw = [given[n] for n in names]
+    else:
+        if (params.ndim != 1 if isinstance(params, np.ndarray)
+                else not isinstance(params, Sequence) or isinstance(params, (str, bytes))):
+            raise ParameterError(f"{where}parameters must be a mapping name → value or a "
+                                 f"sequence of {len(names)} values ({listing}), got "
+                                 f"{type(params).__name__} {params!r}")
+        raw = list(params)
+        if len(raw) != len(names):
+            raise ParameterError(f"{where}{len(raw)} parameter values given, expected "
+                                 f"{len(names)} ({listing})")
+    values = []
+    for symbol, name, value in zip(parameters, names, raw):
+        real = real_argument(value, f"parameter {name}", owner=owner, error=ParameterError,
+                             finite=False)
+        if not np.isfinite(real):
+            raise ParameterError(f"{where}non-finite parameter {name} = {value!r}")
+        if isinstance(symbol, sp.Symbol):
+            check_assumptions(symbol, real, owner=owner)
+        values.append(real)
+    return np.array(values, dtype=float), dict(zip(names, values))
+
+
+# --- arrays and group elements ------------------------------------------------------------------
+
+def _float_array(value, name: str, owner: str) -> np.ndarray:
+    if isinstance(value, (str, bytes)):
+        raise ShapeError(f"{_where(owner)}{name} must be numeric, got {value!r}")
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{_where(owner)}{name} must be numeric (an array of real numbers), "
+                         f"got {type(value).__name__} {value!r}") from None
+
+
+def _finite(arr: np.ndarray, name: str, owner: str) -> np.ndarray:
+    if not np.isfinite(arr).all():
+        raise DomainError(f"{_where(owner)}{name} has non-finite entries: {arr.tolist()}")
+    return arr
+
+
+def check_group_matrix(group: MatrixLieGroup, M: np.ndarray, name: str, *,
+                       owner: str = "") -> None:
+    """A :class:`DomainError` unless the finite n×n matrix ``M`` lies in ``group``: its
+    rotation block R orthonormal with det R = +1 (a reflection is not in SO(n)), and for
+    SE(n) the last row (0, …, 0, 1) — each to :data:`GROUP_TOLERANCE`."""
+    where = _where(owner)
+    n = group.n - 1 if group.affine else group.n
+    if group.affine:
+        last = np.zeros(group.n)
+        last[-1] = 1.0
+        if np.abs(M[-1] - last).max() > GROUP_TOLERANCE:
+            raise DomainError(f"{where}{name} is not in {group.name}: its last row is "
+                              f"{M[-1].tolist()}, not {last.tolist()}")
+    R = M[:n, :n]
+    off = float(np.abs(R.T @ R - np.eye(n)).max())
+    if off > GROUP_TOLERANCE:
+        raise DomainError(f"{where}{name} is not in {group.name}: its rotation block is off "
+                          f"orthonormal by {off:.2e} (|RᵀR − I|, tolerance "
+                          f"{GROUP_TOLERANCE:g})")
+    det = float(np.linalg.det(R))
+    if abs(det - 1.0) > GROUP_TOLERANCE:
+        kind = " (a reflection, not a rotation)" if det < 0 else ""
+        raise DomainError(f"{where}{name} is not in {group.name}: det = {det:.6g}{kind}")
+
+
+def group_element(group: MatrixLieGroup, value, name: str, *, owner: str = "") -> np.ndarray:
+    """``value`` as the n×n matrix of an element of ``group``: :class:`ShapeError` for a
+    wrong shape, :class:`DomainError` for non-finite entries or a matrix not in the group."""
+    M = _float_array(value, name, owner)
+    if M.shape != (group.n, group.n):
+        raise ShapeError(f"{_where(owner)}{name}: a configuration of {group.name} is a "
+                         f"{group.n}×{group.n} matrix, got shape {M.shape}")
+    _finite(M, name, owner)
+    check_group_matrix(group, M, name, owner=owner)
+    return M
+
+
+def point(value, dim: int, name: str, *, owner: str = "") -> tuple:
+    """``value`` as a point of Rⁿ (n = ``dim``): a number when n = 1, else n numbers."""
+    arr = _float_array(value, name, owner)
+    if arr.shape != (dim,) and not (dim == 1 and arr.shape == ()):
+        expected = "a number or 1 coordinate" if dim == 1 else f"{dim} coordinates"
+        raise ShapeError(f"{_where(owner)}{name}: a point here has {expected} (shape "
+                         f"({dim},)), got an array of shape {arr.shape}")
+    return tuple(float(v) for v in _finite(arr.reshape(dim), name, owner))
+
+
+def _pieces(value, count: int, name: str, what: str, owner: str) -> tuple:
+    """``value`` as a tuple of ``count`` pieces (a configuration of a composite groupoid)."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence,
+                                                                          np.ndarray)):
+        raise ShapeError(f"{_where(owner)}{name} must be {what}, got {type(value).__name__}")
+    if len(value) != count:
+        raise ShapeError(f"{_where(owner)}{name} must be {what}: {count} parts, got "
+                         f"{len(value)}")
+    return tuple(value)
+
+
+def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
+    """A boundary configuration of ``groupoid``, checked as states are checked, per factor.
+
+    Pair groupoid: a point (shape, finiteness); matrix Lie group: a group element
+    (:func:`group_element`); action groupoid: ``(p, R)``; time groupoid: ``(t, c)``;
+    product: one configuration per factor.  Pieces are named ``name[i]``.  Groupoids without
+    a configuration space raise :class:`ShapeError`; other user groupoids are passed on to
+    their own ``arrow_between``.
+    """
+    if isinstance(groupoid, MatrixLieGroup):
+        return group_element(groupoid, value, name, owner=owner)
+    if isinstance(groupoid, PairGroupoid):
+        return point(value, groupoid.base_dim, name, owner=owner)
+    if isinstance(groupoid, ActionGroupoid):
+        p, R = _pieces(value, 2, name, f"a configuration (p, R) of {groupoid.name}", owner)
+        return (point(p, groupoid.base_dim, f"{name}[0]", owner=owner),
+                group_element(groupoid.group, R, f"{name}[1]", owner=owner))
+    if isinstance(groupoid, TimeGroupoid):
+        t, c = _pieces(value, 2, name, f"a configuration (t, c) of {groupoid.name}", owner)
+        return (real_argument(t, f"{name}[0] (the time)", owner=owner),
+                configuration(groupoid.inner, c, f"{name}[1]", owner=owner))
+    if isinstance(groupoid, ProductGroupoid):
+        parts = _pieces(value, len(groupoid.factors), name,
+                        f"a configuration of {groupoid.name}, one per factor", owner)
+        return tuple(configuration(f, c, f"{name}[{i}]", owner=owner)
+                     for i, (f, c) in enumerate(zip(groupoid.factors, parts)))
+    if type(groupoid).arrow_between is Groupoid.arrow_between:
+        raise ShapeError(f"{_where(owner)}{groupoid.name} has no configuration space "
+                         f"(arrow_between), so {name} cannot be given as a configuration")
+    return value
+
+
+def arrow(groupoid: Groupoid, value, name: str, *, owner: str = "") -> np.ndarray:
+    """Flat arrow coordinates: shape (arrow_dim,), finite, and every matrix part of the
+    arrow (``groupoid.matrix_parts()``) in its group (:func:`check_group_matrix`)."""
+    a = _float_array(value, name, owner)
+    if a.shape != (groupoid.arrow_dim,):
+        raise ShapeError(f"{_where(owner)}{name}: an arrow of {groupoid.name} has "
+                         f"{groupoid.arrow_dim} coordinates, got shape {a.shape}")
+    _finite(a, name, owner)
+    for start, group in groupoid.matrix_parts():
+        M = group.numeric_matrix(a[start:start + group.arrow_dim])
+        check_group_matrix(group, M, f"{name} (its {group.symbol_name!r} part)", owner=owner)
+    return a
+
+
+# --- constraints on a known state ---------------------------------------------------------------
+
+def magnitude(expr: sp.Expr) -> sp.Expr:
+    """An expression for the size of the terms that cancel in ``expr``: every sum replaced
+    by the sum of the magnitudes of its terms, recursively through products and positive
+    integer powers; a function f(u) or another power contributes |f(u)| + |f′(u)|·M(u) (the
+    rounding of its argument, carried through).  ε·M(expr) estimates the rounding error of
+    evaluating ``expr`` in floating point (up to a modest factor)."""
+    memo: dict = {}
+
+    def size(e: sp.Expr) -> sp.Expr:
+        hit = memo.get(e)
+        if hit is None:
+            hit = memo[e] = _size(e, size)
+        return hit
+
+    return size(sp.sympify(expr))
+
+
+def _size(e: sp.Expr, size) -> sp.Expr:
+    if e.is_Number:
+        return abs(e)
+    if e.is_Symbol:
+        return sp.Abs(e)
+    if e.is_Add or e.is_Mul:
+        return e.func(*[size(a) for a in e.args])
+    if e.is_Pow and e.exp.is_Integer and e.exp > 0:
+        return size(e.base) ** e.exp
+    if e.is_Pow:  # b^n, n not a positive integer: |b^n| + |n b^(n−1)|·M(b)
+        return sp.Abs(e) + sp.Abs(e.exp * e.base ** (e.exp - 1)) * size(e.base)
+    if isinstance(e, sp.Function) and len(e.args) == 1 and not isinstance(e, sp.Piecewise):
+        u = sp.Dummy("u", real=True)  # f(u): |f(u)| + |f′(u)|·M(u)
+        slope = sp.diff(e.func(u), u).xreplace({u: e.args[0]})
+        return sp.Abs(e) + sp.Abs(slope) * size(e.args[0])
+    return sp.Abs(e)
+
+
+class ConstraintCheck:
+    """The system's own constraints on the known arrows of a step's state.
+
+    First order: φ(g_k) on the known arrow; second order: Φ on each pair of consecutive known
+    arrows (Φ(g_{k-1}, g_k), Φ(g_k, g_{k+1})); nonholonomic systems: ψ(g_k) (g_k ∈ M_c).
+    Evaluated from ``step.system._fs`` (the constraints on slot coordinates), not from the
+    derived equations.
+    """
+
+    def __init__(self, step):
+        system = getattr(step, "system", None)
+        fs = getattr(system, "_fs", None)
+        self.name = step.name
+        self.windows: list[tuple[tuple[int, ...], np.ndarray]] = []
+        if fs is None or not fs.constraints:
+            return
+        position = {s: i for i, s in enumerate(step.knowns)}
+        known = sorted(o for o, a in step.arrows.items() if all(c in position for c in a))
+        arity = len(fs.slots)
+        for i in range(len(known) - arity + 1):
+            offsets = tuple(known[i:i + arity])
+            if offsets[-1] - offsets[0] != arity - 1:
+                continue
+            index = np.array([position[c] for o in offsets for c in step.arrows[o]])
+            self.windows.append((offsets, index))
+        coords = [c for s in fs.slots for c in s]
+        args = [coords, list(step.parameters)]
+        self._phi = sp.lambdify(args, list(fs.constraints), "numpy")
+        self._size = sp.lambdify(args, [magnitude(c) for c in fs.constraints], "numpy")
+
+    def violations(self, known: np.ndarray, params: np.ndarray, atol: float
+                   ) -> list[tuple[tuple[int, ...], int, float, float]]:
+        """(arrow offsets, constraint index, value, tolerance) of every violated constraint."""
+        out = []
+        for offsets, index in self.windows:
+            x = np.asarray(known, float)[index]
+            with np.errstate(all="ignore"):
+                values = np.asarray(self._phi(x, params), float).ravel()
+                sizes = np.asarray(self._size(x, params), float).ravel()
+            tol = np.maximum(atol, CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(sizes))
+            for i, (v, t) in enumerate(zip(values, tol)):
+                if not abs(v) <= t:
+                    out.append((offsets, i, float(v), float(t)))
+        return out
+
+    def __call__(self, known: np.ndarray, params: np.ndarray, *, atol: float,
+                 owner: str = "") -> None:
+        """A :class:`DomainError` listing the violation of each constraint that does not
+        hold on ``known`` (|φ_i| > max(atol, CONSTRAINT_ROUNDING·ε·M_i))."""
+        bad = self.violations(known, params, atol)
+        if not bad:
+            return
+        from .._symbols import step_label
+
+        lines = [f"φ_{i + 1}({', '.join('g_' + step_label(o) for o in offsets)}) = {v:.3e} "
+                 f"(tolerance {t:.1e})" for offsets, i, v, t in bad]
+        raise DomainError(f"{_where(owner)}the initial state violates the constraints: "
+                          f"{'; '.join(lines)}")
+
+
+@functools.lru_cache(maxsize=32)
+def constraint_check(step) -> ConstraintCheck:
+    """The (cached) :class:`ConstraintCheck` of a step."""
+    return ConstraintCheck(step)

@@ -1,0 +1,239 @@
+"""One validation path (runtime/_validate.py): counts, parameters with their declared
+assumptions, group elements, configurations, flat states and the constraints of an initial
+state — the same rule and message wherever the input is given."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    SEED_DATA,
+    compiled,
+    initial_state,
+    isolated_cache,
+    needs_cc,
+    seed_system,
+)
+
+import symgroupoid as sg
+from symgroupoid._errors import DomainError, InputNameError, ParameterError
+from symgroupoid.runtime._validate import (
+    ConstraintCheck,
+    check_assumptions,
+    configuration,
+    group_element,
+    integer_argument,
+    magnitude,
+    parameter_vector,
+    real_argument,
+)
+
+h = sp.Symbol("h", positive=True)
+
+
+# --- numbers and parameters ---------------------------------------------------------------------
+
+def test_integer_argument():
+    assert integer_argument(1e7, "steps") == 10**7
+    assert integer_argument(np.int64(3), "steps") == 3
+    for bad, message in ((2.5, "must be an integer, got 2.5"), (True, "boolean"),
+                         (np.nan, "finite integer"), (-1, "at least 0"), ("3", "got str")):
+        with pytest.raises(sg.ShapeError, match=message):
+            integer_argument(bad, "steps")
+
+
+def test_real_argument():
+    assert real_argument(sp.Rational(1, 4), "x") == 0.25
+    assert real_argument(np.float32(2.0), "x") == 2.0
+    for bad in ("0.1", 1j, True, np.array([1.0, 2.0]), np.inf, sp.Symbol("y")):
+        with pytest.raises(sg.ShapeError, match="x must be"):
+            real_argument(bad, "x")
+
+
+def test_parameter_names_counts_and_values():
+    m = sp.Symbol("m", nonnegative=True)
+    values, named = parameter_vector([h, m], {h: 0.1, "m": 0})
+    assert values.tolist() == [0.1, 0.0] and named == {"h": 0.1, "m": 0.0}
+    assert parameter_vector([h, m], np.array([0.1, 2.0]))[0].tolist() == [0.1, 2.0]
+    cases = [({"h": 0.1}, "missing parameter m"),
+             ({"h": 0.1, "m": 1, "k": 2}, "unknown parameter k; the parameters are h, m"),
+             ({h: 0.1, "h": 0.2, "m": 1}, "parameter h given twice"),
+             ([0.1], r"1 parameter values given, expected 2 \(h, m\)"),
+             (0.1, "parameters must be a mapping name → value or a sequence of 2 values"),
+             ({"h": "0.1", "m": 1}, "parameter h must be a real number, got str"),
+             ({"h": np.nan, "m": 1}, "non-finite parameter h"),
+             ({"h": 0.0, "m": 1}, "parameter h is declared positive, got h = 0.0"),
+             ({"h": 0.1, "m": -1e-300}, "parameter m is declared nonnegative")]
+    for params, message in cases:
+        with pytest.raises(ParameterError, match=message) as info:
+            parameter_vector([h, m], params, owner="sys")
+        assert str(info.value).startswith("sys: ")
+        assert isinstance(info.value, (KeyError, ValueError))
+
+
+@pytest.mark.parametrize("assumptions, good, bad, named", [
+    ({"negative": True}, -1.0, 0.0, "negative"),
+    ({"nonpositive": True}, 0.0, 1e-9, "nonpositive"),
+    ({"integer": True}, 2.0, 2.5, "integer"),
+    ({"integer": True, "positive": True}, 3.0, 0.0, "positive"),
+    ({"even": True}, 4.0, 3.0, "even"),
+    ({"odd": True}, 3.0, 4.0, "odd"),
+    ({"prime": True}, 7.0, 9.0, "prime"),
+    ({"nonzero": True}, -2.0, 0.0, "nonzero"),
+    ({"positive": False}, -1.0, 1.0, "not positive"),
+])
+def test_declared_assumptions_are_checked(assumptions, good, bad, named):
+    k = sp.Symbol("k", **assumptions)
+    check_assumptions(k, good)
+    with pytest.raises(ParameterError, match=f"parameter k is declared {named}, got k = {bad}"):
+        check_assumptions(k, bad)
+
+
+# --- group elements and configurations ----------------------------------------------------------
+
+def test_group_elements():
+    R = np.array(sg.SO3("t").cayley([0.1, -0.2, 0.3]).tolist(), float)
+    assert np.array_equal(group_element(sg.SO3("g"), R, "R"), R)
+    pose = np.eye(3)
+    pose[:2, :2] = [[0.0, -1.0], [1.0, 0.0]]
+    pose[:2, 2] = [5.0, -7.0]
+    group_element(sg.SE2("q"), pose, "pose")
+    bad_row = pose.copy()
+    bad_row[2, 0] = 0.5
+    for group, M, message in (
+            (sg.SO3("g"), np.diag([1.0, -1.0, 1.0]), "det = -1 .a reflection"),
+            (sg.SO3("g"), R + 1e-6, "off orthonormal by"),
+            (sg.SO2("s"), [[0.0, 1.0], [1.0, 0.0]], "det = -1"),
+            (sg.SE2("q"), bad_row, r"its last row is \[0.5, 0.0, 1.0\]"),
+            (sg.SE2("q"), np.eye(2), r"is a 3×3 matrix, got shape \(2, 2\)")):
+        with pytest.raises(sg.ShapeError, match=message):
+            group_element(group, M, "M")
+
+
+def test_configurations_of_composite_groupoids():
+    pair = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    assert configuration(pair, 2, "c") == (2.0,)
+    assert configuration(pair, [2], "c") == (2.0,)
+    timed = sg.TimeGroupoid(pair * sg.SO2("s"))
+    t, (q, S) = configuration(timed, (1, (0.5, np.eye(2))), "c")
+    assert t == 1.0 and q == (0.5,) and np.array_equal(S, np.eye(2))
+    with pytest.raises(DomainError, match=r"c\[1\]\[1\] is not in SO2\(s\)"):
+        configuration(timed, (1, (0.5, 2 * np.eye(2))), "c")
+    with pytest.raises(sg.ShapeError, match=r"c must be a configuration \(t, c\)"):
+        configuration(timed, 3.0, "c")
+    line = sg.DefinedGroupoid("line", base_names=["q"], fibre_names=["q"],
+                              source=lambda a: (a[0],), target=lambda a: (a[1],),
+                              multiply=lambda a, b: (a[0], b[1]),
+                              identity=lambda q: (q[0], q[0]), inverse=lambda a: (a[1], a[0]),
+                              sections=lambda q, t: [(q[0], q[0] + t)])
+    with pytest.raises(sg.ShapeError, match="line has no configuration space"):
+        configuration(line, 1.0, "start")
+
+
+def test_magnitude_sums_the_terms_that_cancel():
+    x, y = sp.symbols("x y", real=True)
+    M = sp.lambdify([x, y], magnitude(2 * (x - y) + sp.sin(x - y)))
+    assert M(1e8, 1e8) == pytest.approx(2 * 2e8 + 2e8)  # |sin| + |cos|·(|x| + |y|)
+    assert sp.lambdify([x], magnitude(x ** 2 - 1))(3.0) == pytest.approx(10.0)
+
+
+# --- states: flat vectors, group parts and constraints -------------------------------------------
+
+@needs_cc
+def test_a_flat_state_is_checked_like_named_parts():
+    sim = compiled("plate_ball")
+    state = initial_state(sim, "plate_ball")
+    assert np.array_equal(sim.state(state), state)
+    bad = state.copy()
+    bad[4:13] *= 1.01  # the 'g' block scaled off SO(3)
+    with pytest.raises(DomainError, match=r"plate_ball: the arrow g_k of the state \(its 'g' "
+                                          r"part\) is not in SO3\(g\)"):
+        sim.state(bad)
+    with pytest.raises(DomainError, match="not in SO3"):
+        sim.simulate(bad, 1, SEED_DATA["plate_ball"][0])
+    reflected = state.copy()
+    reflected[4:13] = np.diag([1.0, 1.0, -1.0]).ravel()
+    with pytest.raises(DomainError, match="det = -1"):
+        sim.state(reflected)
+    with pytest.raises(DomainError, match=r"'g' is not in SO3\(g\): det = -1"):
+        sim.state({"x": (0.0, 0.01), "y": (0.0, 0.0), "g": np.diag([1.0, -1.0, -1.0]) * -1,
+                   "lambda": [0, 0, 0]})
+
+
+@needs_cc
+def test_an_initial_state_off_the_constraints_is_reported_per_constraint():
+    """φ(g_k) at the known arrow, from the system's own constraints, with the violation of
+    each constraint that does not hold; consistent states pass."""
+    sim = compiled("plate_ball")
+    params = SEED_DATA["plate_ball"][0]
+    state = initial_state(sim, "plate_ball")  # from a momentum: consistent
+    sim.state(state, params)
+    sim.state(sim.simulate(state, 50, params).final_state(), params)
+    off = state.copy()
+    off[2] += 1e-6  # x_k moved: φ_2 = h(c + …) + (x_k − x_{k-1}) changes by 10⁻⁶,
+    #                 φ_1 through its term −hΩ(x_{k-1} + x_k)/2 by −hΩ/2·10⁻⁶
+    with pytest.raises(DomainError, match=r"violates the constraints: φ_1\(g_k\) = -5.000e-10 "
+                                          r"\(tolerance 1.0e-10\); φ_2\(g_k\) = 1.000e-06"):
+        sim.state(off, params)
+    check = ConstraintCheck(sim.equations)
+    violated = check.violations(off, sim.parameters(params), 1e-11)
+    assert [i for _, i, _, _ in violated] == [0, 1]
+    assert violated[1][2] == pytest.approx(1e-6, rel=1e-6)
+
+
+def test_second_order_constraints_are_checked_on_each_known_pair():
+    """Φ(g_{k-1}, g_k) and Φ(g_k, g_{k+1}) on the second-order state."""
+    system = sg.SecondOrderSystem(
+        sg.PairGroupoid(sg.EuclideanSpace("q")),
+        lambda a, b: (b.target[0] - 2 * a.target[0] + a.source[0]) ** 2 / h ** 3,
+        constraints=lambda a, b: [b.target[0] - a.target[0] - (a.target[0] - a.source[0])
+                                  - h ** 2],
+        parameters=[h], name="accel")
+    sim = system.euler_lagrange().compile(backend="numpy")
+    q = [0.0, 0.1, 0.21, 0.33]  # second differences 0.01 = h²
+    sim.state({"q": q, "lambda": [[0.0], [0.0]]}, {"h": 0.1})
+    with pytest.raises(DomainError, match=r"φ_1\(g_k, g_k\+1\) = 1.000e-03"):
+        sim.state({"q": [0.0, 0.1, 0.21, 0.331], "lambda": [[0.0], [0.0]]}, {"h": 0.1})
+    with pytest.raises(DomainError, match=r"φ_1\(g_k-1, g_k\) = -1.000e-03 \(tolerance "
+                                          r".*\); φ_1\(g_k, g_k\+1\) = 3.000e-03"):
+        sim.state({"q": [0.0, 0.1, 0.209, 0.331], "lambda": [[0.0], [0.0]]}, {"h": 0.1})
+
+
+# --- one rule for every entry point -------------------------------------------------------------
+
+@needs_cc
+def test_unknown_parameters_are_rejected_identically_everywhere():
+    """simulate, solve, from_momentum and solve_boundary_value give the same message."""
+    sim = compiled("plate_ball")
+    params, config, momentum = SEED_DATA["plate_ball"]
+    state = initial_state(sim, "plate_ball")
+    bad = {**params, "omega": 1.0}
+    calls = [lambda: sim.simulate(state, 1, bad), lambda: sim.solve(state, bad),
+             lambda: sim.from_momentum(config, momentum, bad),
+             lambda: sg.solve_boundary_value(seed_system("plate_ball"),
+                                             ((0.0, 0.0), np.eye(3)), ((0.1, 0.0), np.eye(3)),
+                                             4, params=bad)]
+    messages = set()
+    for call in calls:
+        with pytest.raises(ParameterError) as info:
+            call()
+        messages.add(str(info.value))
+    assert messages == {"plate_ball: unknown parameter omega; the parameters are h, r, "
+                        "Omega, c"}
+    negative = {**params, "h": -0.01}
+    for call in (lambda: sim.simulate(state, 1, negative),
+                 lambda: sim.from_momentum(config, momentum, negative)):
+        with pytest.raises(ParameterError, match="parameter h is declared positive, got "
+                                                 "h = -0.01"):
+            call()
+
+
+@needs_cc
+def test_from_momentum_names_its_bad_inputs():
+    sim = compiled("plate_ball")
+    params, config, momentum = SEED_DATA["plate_ball"]
+    with pytest.raises(InputNameError, match="'z' is not a coordinate of the configuration"):
+        sim.from_momentum({"z": 0.0}, momentum, params)
+    with pytest.raises(sg.ShapeError, match="the momentum must be numeric"):
+        sim.from_momentum(config, ["a", 0, 0, 0, 0], params)
