@@ -6,6 +6,15 @@
   L(Γ, W) = −(1/h) tr(J_d W) − h m g l Γ·e, J_d = ½ tr(I) I₃ − I (docs/conventions.md §9);
 - ``rigid_body``: the Moser–Veselov rigid body on SO(3), L(W) = −(1/h) tr(J_d W).
 
+Two families of multibody systems, sized by the number of bodies n, measure how derivation
+and code generation scale (``benchmarks/scaling.py``):
+
+- ``planar_chain(n)``: the planar n-link pendulum in angle coordinates on the pair groupoid
+  of Rⁿ, midpoint discrete Lagrangian;
+- ``spherical_chain(n)``: n rigid bodies joined by spherical joints, the first pinned, under
+  gravity — the Lie group variational integrator of Lee, Leok and McClamroch, written on a
+  product of action groupoids R⁹ × SO(3) ⇉ R⁹.
+
 The sign of the rigid-body Lagrangian is the one that makes its kinetic part positive:
 with W = cay(ξ), tr(J_d W) = tr J_d − ½ ξᵀ I ξ + O(|ξ|³), so −tr(J_d W)/h = ξᵀIξ/(2h) + const.
 The discrete Euler–Lagrange equations are linear in L, so the opposite sign gives the same
@@ -14,12 +23,22 @@ equations (and the same regularity near the identity); only the sign of the mome
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import sympy as sp
 
 from .equations import DiscreteSystem
-from .groupoids import SO3, ActionGroupoid, EuclideanSpace, NamedMatrix, PairGroupoid
+from .groupoids import (
+    SO3,
+    ActionGroupoid,
+    Arrow,
+    EuclideanSpace,
+    Groupoid,
+    NamedMatrix,
+    PairGroupoid,
+    ProductGroupoid,
+)
+from .runtime._validate import integer_argument
 
 
 def plate_ball() -> DiscreteSystem:
@@ -87,6 +106,124 @@ def rigid_body() -> DiscreteSystem:
         return -(Jd * g.matrix).trace() / h
 
     return DiscreteSystem(SO3("W"), L, parameters=[h, I1, I2, I3], name="rigid_body")
+
+
+def planar_chain(n: int) -> DiscreteSystem:
+    """The planar n-link pendulum in angle coordinates θ₁, …, θₙ; parameters ``h, g``.
+
+    Unit point masses at the tips of unit massless links; θ_j is the angle of link j from
+    the downward vertical, so tip i is at (x_i, y_i) = Σ_{j≤i} (sin θ_j, −cos θ_j) and moves
+    with v_i = Σ_{j≤i} θ̇_j (cos θ_j, sin θ_j).  The continuous Lagrangian is
+
+        L(θ, θ̇) = Σᵢ ½ |vᵢ|² − g Σᵢ yᵢ,
+
+    and the discrete one is its midpoint rule on the pair groupoid Rⁿ × Rⁿ ⇉ Rⁿ
+    (no constraints):
+
+        L_d(θ⁰, θ¹) = h · L((θ⁰ + θ¹)/2, (θ¹ − θ⁰)/h).
+
+    The step solves D₂L_d(θ_{k−1}, θ_k) + D₁L_d(θ_k, θ_{k+1}) = 0 for θ_{k+1}
+    (docs/conventions.md §2).
+    """
+    n = integer_argument(n, "n", minimum=1, owner="planar_chain")
+    h, grav = sp.symbols("h g", positive=True)
+    G = PairGroupoid(EuclideanSpace([f"theta{j}" for j in range(1, n + 1)]))
+
+    def L(g):
+        mid = [(a + b) / 2 for a, b in zip(g.source, g.target)]
+        rate = [(b - a) / h for a, b in zip(g.source, g.target)]
+        vx = vy = y = kinetic = potential = sp.Integer(0)
+        for theta, omega in zip(mid, rate):
+            vx += omega * sp.cos(theta)
+            vy += omega * sp.sin(theta)
+            y -= sp.cos(theta)
+            kinetic += (vx**2 + vy**2) / 2
+            potential += grav * y
+        return h * (kinetic - potential)
+
+    return DiscreteSystem(G, L, parameters=[h, grav], name=f"planar_chain_{n}")
+
+
+#: body-frame vectors of the spherical chain: joint i → joint i+1, and joint i → centre of
+#: mass of body i (unit bodies hanging along −e₃ at R = I)
+CHAIN_LINK = (0, 0, -1)
+CHAIN_CENTRE = (0, 0, sp.Rational(-1, 2))
+
+
+def chain_inertia(i: int) -> sp.Matrix:
+    """Principal inertia of body i (1-based): diag(1 + i/10, 6/5 + i/10, 1/2 + i/20)."""
+    return sp.diag(1 + sp.Rational(i, 10), sp.Rational(6, 5) + sp.Rational(i, 10),
+                   sp.Rational(1, 2) + sp.Rational(i, 20))
+
+
+def attitude_groupoid(n: int) -> tuple[Groupoid, Callable[[Arrow], list]]:
+    """The groupoid of n attitudes and a reader of its arrows.
+
+    Each body is an action groupoid R⁹ × SO(3) ⇉ R⁹: the base point is the 9 entries of the
+    attitude R_i (row-major), acted on by the relative rotation F_i, β(R, F) = R·F; the
+    arrow (R_i, F_i) goes from R_{i,k} to R_{i,k+1} = R_{i,k} F_i.  The chain is the product
+    of the n factors.  The reader maps an arrow to the list of (R_{i,k}, F_i) matrices.
+    """
+    def action(p, F):
+        return tuple(sp.Matrix(3, 3, list(p)) * F)
+
+    factors = [ActionGroupoid(EuclideanSpace([f"R^{i}_{r}{c}" for r in range(1, 4)
+                                              for c in range(1, 4)]),
+                              SO3(f"F^{i}"), action) for i in range(1, n + 1)]
+
+    def read(g) -> list:
+        return [(sp.Matrix(3, 3, list(g[i].point)), g[i].matrix) for i in range(n)]
+
+    return ProductGroupoid(*factors), read
+
+
+def centres_of_mass(R: Sequence[sp.Matrix]) -> list[sp.Matrix]:
+    """c_i = Σ_{j<i} R_j ℓ + R_i ρ: centres of mass of a chain pinned at the origin."""
+    link, centre = sp.Matrix(CHAIN_LINK), sp.Matrix(CHAIN_CENTRE)
+    out, joint = [], sp.zeros(3, 1)
+    for Ri in R:
+        out.append(joint + Ri * centre)
+        joint = joint + Ri * link
+    return out
+
+
+def spherical_chain(n: int) -> DiscreteSystem:
+    """n rigid bodies in a chain joined by spherical joints under gravity; parameters ``h, g``.
+
+    Body 1 is pinned at the origin; body i has unit mass, attitude R_i ∈ SO(3), principal
+    inertia J_i = :func:`chain_inertia` (i), the body-frame vector ℓ = (0, 0, −1) from its
+    joint to the next one and ρ = (0, 0, −½) from its joint to its centre of mass, so
+
+        c_i(R) = Σ_{j<i} R_j ℓ + R_i ρ.
+
+    One step moves R_{i,k} to R_{i,k+1} = R_{i,k} F_i.  The discrete Lagrangian (the Lie
+    group variational integrator of Lee, Leok and McClamroch: rotational part in F_i,
+    translational kinetic energy of the centres of mass by the difference quotient,
+    gravity by the trapezoid rule) is
+
+        L_d = Σᵢ [ (1/h) tr((I₃ − F_i) J_{d,i})
+                   + (1/(2h)) |c_i(R_{k+1}) − c_i(R_k)|²
+                   − (h/2) g e₃·(c_i(R_k) + c_i(R_{k+1})) ],   J_{d,i} = ½ tr(J_i) I₃ − J_i.
+
+    The groupoid is :func:`attitude_groupoid` (n), a product of action groupoids; the
+    unknowns of a step are the Cayley coordinates of F_{i,k+1} (docs/conventions.md §1–§2).
+    """
+    n = integer_argument(n, "n", minimum=1, owner="spherical_chain")
+    h, grav = sp.symbols("h g", positive=True)
+    G, read = attitude_groupoid(n)
+    up = sp.Matrix([0, 0, 1])
+    Jd = [chain_inertia(i).trace() / 2 * sp.eye(3) - chain_inertia(i) for i in range(1, n + 1)]
+
+    def L(g):
+        bodies = read(g)
+        before = centres_of_mass([R for R, _ in bodies])
+        after = centres_of_mass([R * F for R, F in bodies])
+        rotational = sum(((sp.eye(3) - F) * J).trace() for (_, F), J in zip(bodies, Jd))
+        kinetic = sum(((b - a).T * (b - a))[0, 0] for a, b in zip(before, after)) / 2
+        potential = sum((up.T * (a + b))[0, 0] for a, b in zip(before, after)) * grav / 2
+        return (rotational + kinetic) / h - h * potential
+
+    return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_{n}")
 
 
 SEED_SYSTEMS: dict[str, Callable[[], DiscreteSystem]] = {

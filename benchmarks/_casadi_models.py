@@ -1,0 +1,277 @@
+"""CasADi builds of the discrete equations of ``benchmarks/scaling.py``.
+
+The two model systems of ``symgroupoid.systems`` — ``planar_chain(n)`` and
+``spherical_chain(n)`` — are written again here with CasADi's SX graphs, so that the same
+discrete Euler–Lagrange step can be built, differentiated (algorithmic differentiation),
+solved (``rootfinder('fast_newton')``), accumulated over many steps (``mapaccum``),
+code-generated and compiled — a reference for build time, C size and time per step.
+
+Nothing here reads the library's expressions: only the state layout (the order of the unknowns,
+the knowns and the parameters) is the library's, so that the residual and the Jacobian can be
+compared with ``StepEquations.evaluate`` at the same points.
+
+Planar n-link pendulum (pair groupoid of Rⁿ; unknowns θ_{k+1}, knowns (θ_{k−1}, θ_k),
+parameters (h, g)):
+
+    L_d(θ⁰, θ¹) = h L((θ⁰ + θ¹)/2, (θ¹ − θ⁰)/h),  L = Σᵢ ½|vᵢ|² − g Σᵢ yᵢ,
+    F = D₂L_d(θ_{k−1}, θ_k) + D₁L_d(θ_k, θ_{k+1})          (Marsden–West).
+
+Spherical chain (product of action groupoids R⁹ × SO(3) ⇉ R⁹, β(R, F) = R·F; for each body
+the knowns are the 9 entries of R_{i,k} then the 9 entries of F_{i,k}, row-major; the unknowns
+are the Cayley coordinates x_i of F_{i,k+1} = cay(x_i), cay(x) = (I − x̂/2)⁻¹(I + x̂/2) =
+I + 4/(4 + |x|²)(x̂ + x̂²/2), x̂v = x × v, i.e. x̂ = Σ x_a E_a in the basis E₁, E₂, E₃ of
+docs/conventions.md §1).  The residual is the left-minus-right derivation of docs/conventions.md
+§2 for each body i and basis element E_a,
+
+    F_{i,a} = X⃖_a[L](g_k) − X⃗_a[L](g_{k+1}),
+    X⃖_a[L](R, F) = Σ ∂L/∂F_i ⊙ (F_i E_a),
+    X⃗_a[L](R, F) = Σ ∂L/∂F_i ⊙ (E_a F_i) − Σ ∂L/∂R_i ⊙ (R_i E_a),
+
+(⊙: entrywise product summed; X⃗ is −d/dt L(h(t)⁻¹·g) with h(t)⁻¹·(R, F) = (R e^{tE}, e^{−tE}F)),
+g_k = (R_k, F_k), g_{k+1} = (R_k F_k, cay(x)).  L_d is the docstring's of
+``symgroupoid.systems.spherical_chain``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+#: the so(3) basis E₁, E₂, E₃ (x̂ = Σ x_a E_a, x̂v = x × v)
+SO3_BASIS = [ca.DM([[0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+             ca.DM([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
+             ca.DM([[0, -1, 0], [1, 0, 0], [0, 0, 0]])]
+
+#: body-frame vectors of the spherical chain (as in symgroupoid.systems)
+LINK = ca.DM([0, 0, -1])
+CENTRE = ca.DM([0, 0, -0.5])
+
+
+def chain_inertia(i: int) -> np.ndarray:
+    """Principal moments of body i (1-based), as in ``symgroupoid.systems.chain_inertia``."""
+    return np.array([1 + i / 10, 6 / 5 + i / 10, 1 / 2 + i / 20])
+
+
+@dataclass
+class StepModel:
+    """One DEL step as CasADi functions of (u, known, p).
+
+    ``chart(known)`` is the chart of the current arrow (the unknowns that would repeat it) and
+    ``prediction(known)`` the first guess; the stepper guesses 2·chart − memory, with memory the
+    chart of the previous arrow (the extrapolated guess u_k ≈ 2u_{k−1} − u_{k−2}).
+    """
+
+    name: str
+    n_unknown: int
+    n_known: int
+    n_param: int
+    residual: ca.Function  # (u, known, p) -> F
+    jacobian: ca.Function  # (u, known, p) -> ∂F/∂u
+    advance: ca.Function  # (u, known) -> next known
+    chart: ca.Function  # known -> chart coordinates of the current arrow
+    prediction: ca.Function  # known -> first guess
+    build_seconds: float = 0.0
+
+
+def _finish(name: str, u, known, p, F, nxt, chart, prediction, t0: float) -> StepModel:
+    model = StepModel(
+        name=name, n_unknown=u.numel(), n_known=known.numel(), n_param=p.numel(),
+        residual=ca.Function(f"{name}_residual", [u, known, p], [F]),
+        jacobian=ca.Function(f"{name}_jacobian", [u, known, p], [ca.jacobian(F, u)]),
+        advance=ca.Function(f"{name}_advance", [u, known], [nxt]),
+        chart=ca.Function(f"{name}_chart", [known], [chart]),
+        prediction=ca.Function(f"{name}_prediction", [known], [prediction]))
+    model.build_seconds = time.perf_counter() - t0
+    return model
+
+
+# --- planar n-link pendulum ----------------------------------------------------------------------
+
+
+def planar_lagrangian(q0, q1, h, g):
+    """L_d(θ⁰, θ¹) = h L((θ⁰+θ¹)/2, (θ¹−θ⁰)/h) with running sums for the tip velocities."""
+    mid, rate = (q0 + q1) / 2, (q1 - q0) / h
+    vx = vy = y = kinetic = potential = 0
+    for j in range(q0.numel()):
+        vx = vx + rate[j] * ca.cos(mid[j])
+        vy = vy + rate[j] * ca.sin(mid[j])
+        y = y - ca.cos(mid[j])
+        kinetic = kinetic + (vx**2 + vy**2) / 2
+        potential = potential + g * y
+    return h * (kinetic - potential)
+
+
+def planar_chain(n: int) -> StepModel:
+    """The Marsden–West step of the planar n-link pendulum."""
+    t0 = time.perf_counter()
+    u, known, p = ca.SX.sym("u", n), ca.SX.sym("known", 2 * n), ca.SX.sym("p", 2)
+    a, b = ca.SX.sym("a", n), ca.SX.sym("b", n)
+    Ld = planar_lagrangian(a, b, p[0], p[1])
+    D1 = ca.Function("D1", [a, b, p], [ca.gradient(Ld, a)])
+    D2 = ca.Function("D2", [a, b, p], [ca.gradient(Ld, b)])
+    qm, qk = known[:n], known[n:]
+    F = D2(qm, qk, p) + D1(qk, u, p)
+    return _finish(f"planar_{n}", u, known, p, F, ca.vertcat(qk, u), qk, 2 * qk - qm, t0)
+
+
+# --- spherical chain (action groupoids R⁹ × SO(3)) ----------------------------------------------
+
+
+def row_major(v) -> ca.SX:
+    """A 3×3 matrix from its 9 entries in row-major order."""
+    return ca.reshape(v, 3, 3).T
+
+
+def entries(M) -> ca.SX:
+    """The 9 entries of a 3×3 matrix in row-major order."""
+    return ca.reshape(M.T, 9, 1)
+
+
+def hat(x) -> ca.SX:
+    return ca.vertcat(ca.horzcat(0, -x[2], x[1]), ca.horzcat(x[2], 0, -x[0]),
+                      ca.horzcat(-x[1], x[0], 0))
+
+
+def cayley(x) -> ca.SX:
+    """cay(x) = I + 4/(4 + |x|²)(x̂ + x̂²/2)."""
+    X = hat(x)
+    return ca.SX.eye(3) + 4 / (4 + ca.dot(x, x)) * (X + X @ X / 2)
+
+
+def cayley_inverse(F) -> ca.SX:
+    """cay⁻¹(F) = 2 vee(F − Fᵀ)/(1 + tr F)."""
+    return 2 * ca.vertcat(F[2, 1] - F[1, 2], F[0, 2] - F[2, 0], F[1, 0] - F[0, 1]) / (
+        1 + ca.trace(F))
+
+
+def centres_of_mass(R: list) -> list:
+    """c_i = Σ_{j<i} R_j ℓ + R_i ρ."""
+    out, joint = [], 0
+    for Ri in R:
+        out.append(joint + Ri @ CENTRE)
+        joint = joint + Ri @ LINK
+    return out
+
+
+def spherical_lagrangian(R: list, F: list, h, g):
+    """L_d = Σᵢ (1/h) tr((I − F_i)J_{d,i}) + |Δc_i|²/(2h) − (h/2) g e₃·(c_i + c_i⁺)."""
+    before = centres_of_mass(R)
+    after = centres_of_mass([Ri @ Fi for Ri, Fi in zip(R, F)])
+    total = 0
+    for i, (Fi, a, b) in enumerate(zip(F, before, after), start=1):
+        J = chain_inertia(i)
+        Jd = ca.DM(np.diag(J.sum() / 2 - J))
+        total = total + ca.trace((ca.SX.eye(3) - Fi) @ Jd) / h
+        total = total + ca.dot(b - a, b - a) / (2 * h)
+        total = total - h / 2 * g * (a[2] + b[2])
+    return total
+
+
+def _bodies(z, n: int) -> tuple[list, list]:
+    R = [row_major(z[18 * i: 18 * i + 9]) for i in range(n)]
+    F = [row_major(z[18 * i + 9: 18 * i + 18]) for i in range(n)]
+    return R, F
+
+
+def _frobenius(A, B):
+    return ca.sum1(ca.sum2(A * B))
+
+
+def spherical_chain(n: int) -> StepModel:
+    """The action-groupoid DEL step of the spherical chain (see the module docstring)."""
+    t0 = time.perf_counter()
+    u, known, p = ca.SX.sym("u", 3 * n), ca.SX.sym("known", 18 * n), ca.SX.sym("p", 2)
+    z = ca.SX.sym("z", 18 * n)
+    R, F = _bodies(z, n)
+    grad = ca.Function("dL", [z, p], [ca.gradient(spherical_lagrangian(R, F, p[0], p[1]), z)])
+    Rk, Fk = _bodies(known, n)
+    Fnext = [cayley(u[3 * i: 3 * i + 3]) for i in range(n)]
+    Rnext = [Ri @ Fi for Ri, Fi in zip(Rk, Fk)]
+    nxt = ca.vertcat(*[ca.vertcat(entries(Ri), entries(Fi)) for Ri, Fi in zip(Rnext, Fnext)])
+    dk, dn = _bodies(grad(known, p), n), _bodies(grad(nxt, p), n)
+    rows = []
+    for i in range(n):
+        for E in SO3_BASIS:
+            left = _frobenius(dk[1][i], Fk[i] @ E)
+            right = _frobenius(dn[1][i], E @ Fnext[i]) - _frobenius(dn[0][i], Rnext[i] @ E)
+            rows.append(left - right)
+    chart = ca.vertcat(*[cayley_inverse(Fi) for Fi in Fk])
+    return _finish(f"spherical_{n}", u, known, p, ca.vertcat(*rows), nxt, chart, chart, t0)
+
+
+# --- the compiled N-step stepper -----------------------------------------------------------------
+
+
+@dataclass
+class CompiledStepper:
+    """A ``mapaccum`` of ``steps`` Newton steps, generated as C, compiled at -O3 and loaded."""
+
+    model: StepModel
+    steps: int
+    run: ca.Function
+    seconds: dict = field(default_factory=dict)  # graph, generate, cc, load
+    c_bytes: int = 0
+
+    @property
+    def build_seconds(self) -> float:
+        """Model graph (with AD) + stepper graph + C generation + cc + load."""
+        return self.model.build_seconds + sum(self.seconds.values())
+
+    def initial(self, known0: np.ndarray) -> ca.DM:
+        """The accumulated state (known, memory) with memory = 2·chart − prediction."""
+        k = ca.DM(np.asarray(known0, float))
+        return ca.vertcat(k, 2 * self.model.chart(k) - self.model.prediction(k))
+
+    def trajectory(self, known0: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """The ``steps + 1`` known states from ``known0`` (rows)."""
+        out = np.array(self.run(self.initial(known0), ca.DM(np.asarray(params, float))))
+        states = out[: self.model.n_known].T
+        return np.vstack([np.asarray(known0, float), states])
+
+
+def compile_stepper(model: StepModel, steps: int, workdir: Path, *,
+                    tol_residual: float = 1e-12, tol_step: float = 1e-10,
+                    max_iterations: int = 50, flags: tuple[str, ...] = ("-O3",)
+                    ) -> CompiledStepper:
+    """Newton (fast_newton) + mapaccum over ``steps`` steps, C at ``flags``, loaded back."""
+    t0 = time.perf_counter()
+    nu, nk, npar = model.n_unknown, model.n_known, model.n_param
+    u, known, p = ca.SX.sym("u", nu), ca.SX.sym("k", nk), ca.SX.sym("p", npar)
+    G = ca.Function("G", [u, ca.vertcat(known, p)], [model.residual(u, known, p)])
+    newton = ca.rootfinder("newton", "fast_newton", G,
+                           {"abstol": tol_residual, "abstolStep": tol_step,
+                            "max_iter": max_iterations})
+    state, pp = ca.MX.sym("state", nk + nu), ca.MX.sym("p", npar)
+    k, m = state[:nk], state[nk:]
+    current = model.chart(k)
+    solved = newton(2 * current - m, ca.vertcat(k, pp))
+    one = ca.Function("one", [state, pp], [ca.vertcat(model.advance(solved, k), current)])
+    name = f"casadi_{model.name}"
+    accumulated = one.mapaccum(name, steps)
+    t1 = time.perf_counter()
+    workdir.mkdir(parents=True, exist_ok=True)
+    cwd = os.getcwd()
+    try:
+        os.chdir(workdir)
+        accumulated.generate(f"{name}.c")
+    finally:
+        os.chdir(cwd)
+    t2 = time.perf_counter()
+    library = workdir / f"{name}.so"
+    subprocess.run(["cc", *flags, "-shared", "-fPIC", str(workdir / f"{name}.c"), "-o",
+                    str(library), "-lm"], check=True, capture_output=True)
+    t3 = time.perf_counter()
+    run = ca.external(accumulated.name(), str(library))  # mapaccum names its nested blocks
+    t4 = time.perf_counter()
+    return CompiledStepper(model, steps, run,
+                           {"graph": t1 - t0, "generate": t2 - t1, "cc": t3 - t2, "load": t4 - t3},
+                           (workdir / f"{name}.c").stat().st_size)
+
+
+MODELS = {"planar": planar_chain, "3d": spherical_chain}
