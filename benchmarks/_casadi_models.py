@@ -16,19 +16,17 @@ parameters (h, g)):
     L_d(θ⁰, θ¹) = h L((θ⁰ + θ¹)/2, (θ¹ − θ⁰)/h),  L = Σᵢ ½|vᵢ|² − g Σᵢ yᵢ,
     F = D₂L_d(θ_{k−1}, θ_k) + D₁L_d(θ_k, θ_{k+1})          (Marsden–West).
 
-Spherical chain (product of action groupoids R⁹ × SO(3) ⇉ R⁹, β(R, F) = R·F; for each body
-the knowns are the 9 entries of R_{i,k} then the 9 entries of F_{i,k}, row-major; the unknowns
-are the Cayley coordinates x_i of F_{i,k+1} = cay(x_i), cay(x) = (I − x̂/2)⁻¹(I + x̂/2) =
+Spherical chain (the pair groupoid of SO(3)ⁿ: the knowns are every body's R_{i,k−1}, then
+every body's R_{i,k}, 9 entries each, row-major; the unknowns are the Cayley coordinates x_i
+of the increments, R_{i,k+1} = R_{i,k} cay(x_i), cay(x) = (I − x̂/2)⁻¹(I + x̂/2) =
 I + 4/(4 + |x|²)(x̂ + x̂²/2), x̂v = x × v, i.e. x̂ = Σ x_a E_a in the basis E₁, E₂, E₃ of
-docs/conventions.md §1).  The residual is the left-minus-right derivation of docs/conventions.md
-§2 for each body i and basis element E_a,
+docs/conventions.md §1).  The residual is the junction variation of docs/conventions.md §2 on
+the pair groupoid: for each body i and basis element E_a, the derivative of
+L_d(R_{k−1}, R_k) + L_d(R_k, R_{k+1}) along R_{i,k} ↦ R_{i,k}(I + tE_a),
 
-    F_{i,a} = X⃖_a[L](g_k) − X⃗_a[L](g_{k+1}),
-    X⃖_a[L](R, F) = Σ ∂L/∂F_i ⊙ (F_i E_a),
-    X⃗_a[L](R, F) = Σ ∂L/∂F_i ⊙ (E_a F_i) − Σ ∂L/∂R_i ⊙ (R_i E_a),
+    F_{i,a} = (∂L_d/∂R_b(R_{k−1}, R_k) + ∂L_d/∂R_a(R_k, R_{k+1}))_i ⊙ (R_{i,k} E_a)
 
-(⊙: entrywise product summed; X⃗ is −d/dt L(h(t)⁻¹·g) with h(t)⁻¹·(R, F) = (R e^{tE}, e^{−tE}F)),
-g_k = (R_k, F_k), g_{k+1} = (R_k F_k, cay(x)).  L_d is the docstring's of
+(⊙: entrywise product summed).  L_d is the docstring's of
 ``symgroupoid.systems.spherical_chain``.
 """
 
@@ -120,7 +118,7 @@ def planar_chain(n: int) -> StepModel:
     return _finish(f"planar_{n}", u, known, p, F, ca.vertcat(qk, u), qk, 2 * qk - qm, t0)
 
 
-# --- spherical chain (action groupoids R⁹ × SO(3)) ----------------------------------------------
+# --- spherical chain (the pair groupoid of SO(3)ⁿ) ----------------------------------------------
 
 
 def row_major(v) -> ca.SX:
@@ -159,24 +157,21 @@ def centres_of_mass(R: list) -> list:
     return out
 
 
-def spherical_lagrangian(R: list, F: list, h, g):
-    """L_d = Σᵢ (1/h) tr((I − F_i)J_{d,i}) + |Δc_i|²/(2h) − (h/2) g e₃·(c_i + c_i⁺)."""
-    before = centres_of_mass(R)
-    after = centres_of_mass([Ri @ Fi for Ri, Fi in zip(R, F)])
+def spherical_lagrangian(Ra: list, Rb: list, h, g):
+    """L_d = Σᵢ (1/h) tr((I − R_{a,i}ᵀR_{b,i})J_{d,i}) + |Δc_i|²/(2h) − (h/2) g e₃·(c_i + c_i⁺)."""
+    before, after = centres_of_mass(Ra), centres_of_mass(Rb)
     total = 0
-    for i, (Fi, a, b) in enumerate(zip(F, before, after), start=1):
+    for i, (A, B, a, b) in enumerate(zip(Ra, Rb, before, after), start=1):
         J = chain_inertia(i)
         Jd = ca.DM(np.diag(J.sum() / 2 - J))
-        total = total + ca.trace((ca.SX.eye(3) - Fi) @ Jd) / h
+        total = total + ca.trace((ca.SX.eye(3) - A.T @ B) @ Jd) / h
         total = total + ca.dot(b - a, b - a) / (2 * h)
         total = total - h / 2 * g * (a[2] + b[2])
     return total
 
 
-def _bodies(z, n: int) -> tuple[list, list]:
-    R = [row_major(z[18 * i: 18 * i + 9]) for i in range(n)]
-    F = [row_major(z[18 * i + 9: 18 * i + 18]) for i in range(n)]
-    return R, F
+def _attitudes(z, n: int) -> list:
+    return [row_major(z[9 * i: 9 * i + 9]) for i in range(n)]
 
 
 def _frobenius(A, B):
@@ -184,25 +179,26 @@ def _frobenius(A, B):
 
 
 def spherical_chain(n: int) -> StepModel:
-    """The action-groupoid DEL step of the spherical chain (see the module docstring)."""
+    """The pair-groupoid DEL step of the spherical chain on SO(3)ⁿ (see the module docstring):
+    for every body i and basis element E, the derivative of L_d(R_{k−1}, R_k) + L_d(R_k, R_{k+1})
+    along R_{i,k} ↦ R_{i,k}(I + tE), with R_{i,k+1} = R_{i,k} cay(u_i)."""
     t0 = time.perf_counter()
     u, known, p = ca.SX.sym("u", 3 * n), ca.SX.sym("known", 18 * n), ca.SX.sym("p", 2)
-    z = ca.SX.sym("z", 18 * n)
-    R, F = _bodies(z, n)
-    grad = ca.Function("dL", [z, p], [ca.gradient(spherical_lagrangian(R, F, p[0], p[1]), z)])
-    Rk, Fk = _bodies(known, n)
-    Fnext = [cayley(u[3 * i: 3 * i + 3]) for i in range(n)]
-    Rnext = [Ri @ Fi for Ri, Fi in zip(Rk, Fk)]
-    nxt = ca.vertcat(*[ca.vertcat(entries(Ri), entries(Fi)) for Ri, Fi in zip(Rnext, Fnext)])
-    dk, dn = _bodies(grad(known, p), n), _bodies(grad(nxt, p), n)
-    rows = []
-    for i in range(n):
-        for E in SO3_BASIS:
-            left = _frobenius(dk[1][i], Fk[i] @ E)
-            right = _frobenius(dn[1][i], E @ Fnext[i]) - _frobenius(dn[0][i], Rnext[i] @ E)
-            rows.append(left - right)
-    chart = ca.vertcat(*[cayley_inverse(Fi) for Fi in Fk])
-    return _finish(f"spherical_{n}", u, known, p, ca.vertcat(*rows), nxt, chart, chart, t0)
+    za, zb = ca.SX.sym("za", 9 * n), ca.SX.sym("zb", 9 * n)
+    Ld = spherical_lagrangian(_attitudes(za, n), _attitudes(zb, n), p[0], p[1])
+    grad = ca.Function("dL", [za, zb, p], [ca.gradient(Ld, za), ca.gradient(Ld, zb)])
+    prev, cur = known[:9 * n], known[9 * n:]
+    Rk = _attitudes(cur, n)
+    Rnext = [Ri @ cayley(u[3 * i: 3 * i + 3]) for i, Ri in enumerate(Rk)]
+    nxt = ca.vertcat(*[entries(Ri) for Ri in Rnext])
+    _, d_target = grad(prev, cur, p)
+    d_source, _ = grad(cur, nxt, p)
+    dt, ds = _attitudes(d_target, n), _attitudes(d_source, n)
+    rows = [_frobenius(dt[i] + ds[i], Rk[i] @ E) for i in range(n) for E in SO3_BASIS]
+    chart = ca.vertcat(*[cayley_inverse(A.T @ B)
+                         for A, B in zip(_attitudes(prev, n), Rk)])
+    return _finish(f"spherical_{n}", u, known, p, ca.vertcat(*rows), ca.vertcat(cur, nxt),
+                   chart, chart, t0)
 
 
 # --- the compiled N-step stepper -----------------------------------------------------------------

@@ -9,8 +9,8 @@ Two model systems of ``symgroupoid.systems``, sized by the number of bodies n:
 - ``planar``: ``planar_chain(n)``, the planar n-link pendulum in angle coordinates
   (pair groupoid of Rⁿ, midpoint discrete Lagrangian), n = 2, 4, 8, 16, 32, 64;
 - ``3d``: ``spherical_chain(n)``, n rigid bodies joined by spherical joints under gravity
-  (Lee–Leok–McClamroch Lie group variational integrator on a product of action groupoids
-  R⁹ × SO(3)), n = 1, 2, 3, 4, 6, 8.
+  (Lee–Leok–McClamroch Lie group variational integrator on the pair groupoid of SO(3)ⁿ),
+  n = 1, 2, 3, 4, 6, 8.
 
 For each n, through the public API only, in a subprocess with a time budget (``--budget``,
 "timeout" is printed when it runs out):
@@ -100,19 +100,17 @@ def initial_state(kind: str, n: int) -> np.ndarray:
     """The flat known state (in ``step.knowns`` order) both sides start from.
 
     planar: (θ_{−1}, θ_0) with θ_0,j = 0.6 cos(0.9 j), θ̇_0,j = 0.4 sin(1.3 j);
-    3d: per body R_i = cay(a_i) (a tilted chain) and F_i = cay(h ω_i), R row-major then F.
+    3d: every body's R_{i,0} = cay(a_i) (a tilted chain), then every body's
+    R_{i,1} = R_{i,0} cay(h ω_i), row-major (the arrow of the pair groupoid of SO(3)ⁿ).
     """
     h = PARAMS["h"]
     j = np.arange(1, n + 1)
     if kind == "planar":
         theta = 0.6 * np.cos(0.9 * j)
         return np.concatenate([theta - h * 0.4 * np.sin(1.3 * j), theta])
-    parts = []
-    for i in j:
-        a = np.array([0.3 * np.cos(i), 0.25 * np.sin(1.7 * i), 0.1 * i])
-        omega = np.array([0.6 * np.sin(i), -0.4 * np.cos(2 * i), 0.8])
-        parts += [cayley(a).ravel(), cayley(h * omega).ravel()]
-    return np.concatenate(parts)
+    R = [cayley(np.array([0.3 * np.cos(i), 0.25 * np.sin(1.7 * i), 0.1 * i])) for i in j]
+    F = [cayley(h * np.array([0.6 * np.sin(i), -0.4 * np.cos(2 * i), 0.8])) for i in j]
+    return np.concatenate([r.ravel() for r in R] + [(r @ f).ravel() for r, f in zip(R, F)])
 
 
 def random_point(kind: str, n: int, rng: np.random.Generator):
@@ -120,9 +118,9 @@ def random_point(kind: str, n: int, rng: np.random.Generator):
     params = np.array([rng.uniform(0.005, 0.1), rng.uniform(1.0, 10.0)])
     if kind == "planar":
         return rng.uniform(-1.5, 1.5, n), rng.uniform(-1.5, 1.5, 2 * n), params
-    known = np.concatenate([np.concatenate([cayley(rng.normal(size=3)).ravel(),
-                                            cayley(0.2 * rng.normal(size=3)).ravel()])
-                            for _ in range(n)])
+    R = [cayley(rng.normal(size=3)) for _ in range(n)]
+    R1 = [r @ cayley(0.2 * rng.normal(size=3)) for r in R]
+    known = np.concatenate([r.ravel() for r in R] + [r.ravel() for r in R1])
     return 0.2 * rng.normal(size=3 * n), known, params
 
 

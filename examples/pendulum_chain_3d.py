@@ -9,7 +9,8 @@ R_{i,k+1} = R_{i,k} F_i, and
     L_d = Σᵢ (1/h) tr((I₃ − F_i) J_{d,i}) + (1/(2h)) |c_i(R_{k+1}) − c_i(R_k)|²
           − (h/2) g e₃·(c_i(R_k) + c_i(R_{k+1})),        J_{d,i} = ½ tr(J_i) I₃ − J_i,
 
-on a product of action groupoids R⁹ × SO(3) ⇉ R⁹ (β(R, F) = R·F).  The script derives the
+on the pair groupoid of SO(3)ⁿ: an arrow carries every body's R_k and R_{k+1}, and a step
+solves for the Cayley coordinates of the increments F_i = R_{i,k}ᵀR_{i,k+1}.  The script derives the
 step for n = 2, prints its size and the start of two LaTeX lines, compiles it, simulates, and
 reports two structure checks along the motion:
 
@@ -43,22 +44,20 @@ def cayley(x: np.ndarray) -> np.ndarray:
     return np.eye(3) + 4 / (4 + x @ x) * (X + X @ X / 2)
 
 
-def initial_state(n: int, h: float) -> np.ndarray:
-    """A tilted, spinning chain: per body R_i then F_i = cay(h ω_i), row-major."""
-    parts = []
+def initial_state(n: int, h: float) -> dict:
+    """A tilted, spinning chain: R_{i,0} = cay(a_i) and R_{i,1} = R_{i,0} cay(h ω_i)."""
+    state = {}
     for i in range(1, n + 1):
         R = cayley(np.array([0.5 * np.cos(i), 0.4 * np.sin(i), 0.3 * i]))
         F = cayley(h * np.array([0.8 * np.sin(i), -0.6, 1.5]))
-        parts += [R.ravel(), F.ravel()]
-    return np.concatenate(parts)
+        state[f"R{i}"] = (R, R @ F)
+    return state
 
 
 def attitudes(states: np.ndarray, n: int) -> tuple[np.ndarray, np.ndarray]:
-    """(R_k, R_{k+1}) per state: arrays of shape (K, n, 3, 3)."""
-    blocks = states.reshape(len(states), n, 18)
-    R = blocks[:, :, :9].reshape(-1, n, 3, 3)
-    F = blocks[:, :, 9:].reshape(-1, n, 3, 3)
-    return R, R @ F
+    """(R_{k−1}, R_k) per state (the arrow of the pair groupoid): arrays (K, n, 3, 3)."""
+    blocks = states.reshape(len(states), 2, n, 3, 3)
+    return blocks[:, 0], blocks[:, 1]
 
 
 def centres(R: np.ndarray) -> np.ndarray:

@@ -168,127 +168,6 @@ void heavy_top_residual_jacobian(const double *u, const double *known, const dou
     J[8] = t42;
 }
 
-/* S_i: the magnitude of the terms of F_i (their absolute values summed through the program);
- * the rounding floor of F_i is a small multiple of DBL_EPSILON * S_i */
-
-void heavy_top_residual_scale(const double *u, const double *known, const double *p, double *S)
-{
-    (void)u;
-    (void)known;
-    (void)p;
-    const double t0 = -0.5*p[2];
-    const double t1 = 0.5*p[4];
-    const double t2 = 0.5*p[3];
-    const double t3 = t0 + t1 + t2;
-    const double t4 = -0.5*p[3];
-    const double t5 = 0.5*p[2];
-    const double t6 = t1 + t4 + t5;
-    const double t7 = -0.5*p[4];
-    const double t8 = t2 + t5 + t7;
-    const double t9 = 1.0/p[0];
-    const double t10 = p[0]*p[1];
-    const double t11 = u[2]*u[2];
-    const double t12 = u[1]*u[1];
-    const double t13 = u[0]*u[0];
-    const double t14 = t11 + t12 + t13 + 4.0;
-    const double t15 = 1.0/t14;
-    const double t16 = u[0]*u[1];
-    const double t17 = -2.0*u[2];
-    const double t18 = t16 + t17;
-    const double t19 = u[0]*u[2];
-    const double t20 = 2.0*u[1];
-    const double t21 = t19 + t20;
-    const double t22 = 2.0*u[2];
-    const double t23 = t16 + t22;
-    const double t24 = -u[1]*u[2];
-    const double t25 = 2.0*u[0];
-    const double t26 = t24 + t25;
-    const double t27 = -2.0*u[1];
-    const double t28 = t19 + t27;
-    const double t29 = u[1]*u[2];
-    const double t30 = t25 + t29;
-    const double t31 = known[2]*known[9];
-    const double t32 = known[1]*known[6];
-    const double t33 = known[0]*known[3];
-    const double t34 = t31 + t32 + t33;
-    const double t35 = known[2]*known[10];
-    const double t36 = known[1]*known[7];
-    const double t37 = known[0]*known[4];
-    const double t38 = t35 + t36 + t37;
-    const double t39 = -t6*t9*known[8];
-    const double t40 = t8*t9*known[10];
-    const double t41 = t3*t9*known[5];
-    const double t42 = -t8*t9*known[9];
-    const double t43 = -t3*t9*known[4];
-    const double t44 = t6*t9*known[6];
-    const double t45 = -t10*t38;
-    const double t46 = 2.0*t6*t9*t15*t30;
-    const double t47 = 2.0*t8*t9*t15*t26;
-    const double t48 = t10*t34;
-    const double t49 = -2.0*t3*t9*t15*t28;
-    const double t50 = 2.0*t8*t9*t15*t21;
-    const double t51 = 2.0*t3*t9*t15*t23;
-    const double t52 = -2.0*t6*t9*t15*t18;
-    const double t53 = t39 + t40;
-    const double t54 = t41 + t42;
-    const double t55 = t43 + t44;
-    const double t56 = t51 + t52;
-    const double t57 = -(t45 + t46 + t47);
-    const double t58 = -(t48 + t49 + t50);
-    const double t59 = -t56;
-    const double t60 = t15*t30;
-    const double t61 = t15*t26;
-    const double t62 = t15*t28;
-    const double t63 = t15*t21;
-    const double t64 = t15*t23;
-    const double t65 = t15*t18;
-    const double t66 = fabs(t1);
-    const double t67 = fabs(t2);
-    const double t68 = t0 + t1;
-    const double t69 = fabs(t0) + t66 + t67 + fabs(t68) + fabs(t2 + t68);
-    const double t70 = fabs(t5);
-    const double t71 = t1 + t4;
-    const double t72 = t66 + fabs(t4) + t70 + fabs(t71) + fabs(t5 + t71);
-    const double t73 = t2 + t5;
-    const double t74 = t67 + t70 + fabs(t7) + fabs(t73) + fabs(t7 + t73);
-    const double t75 = fabs(t9);
-    const double t76 = fabs(t10);
-    const double t77 = t11 + t12;
-    const double t78 = t13 + t77;
-    const double t79 = 2.0*fabs(t11) + 2.0*fabs(t12) + 2.0*fabs(t13) + fabs(t77) + fabs(t78) + fabs(4.0 + t78);
-    const double t80 = t79*fabs(-1.0/(t14*t14)) + fabs(t15);
-    const double t81 = fabs(t16);
-    const double t82 = fabs(t19);
-    const double t83 = fabs(t25);
-    const double t84 = t31 + t32;
-    const double t85 = fabs(t31) + fabs(t32) + fabs(t33) + fabs(t84) + fabs(t33 + t84);
-    const double t86 = t35 + t36;
-    const double t87 = fabs(t35) + fabs(t36) + fabs(t37) + fabs(t86) + fabs(t37 + t86);
-    const double t88 = t72*fabs(-t9*known[8]) + t75*fabs(-t6*known[8]) + 3.0*fabs(t39);
-    const double t89 = t74*fabs(t9*known[10]) + t75*fabs(t8*known[10]) + 2.0*fabs(t40);
-    const double t90 = t69*fabs(t9*known[5]) + t75*fabs(t3*known[5]) + 2.0*fabs(t41);
-    const double t91 = t74*fabs(-t9*known[9]) + t75*fabs(-t8*known[9]) + 3.0*fabs(t42);
-    const double t92 = t69*fabs(-t9*known[4]) + t75*fabs(-t3*known[4]) + 3.0*fabs(t43);
-    const double t93 = t72*fabs(t9*known[6]) + t75*fabs(t6*known[6]) + 2.0*fabs(t44);
-    const double t94 = t76*fabs(-t38) + t87*fabs(-t10) + 2.0*fabs(t45);
-    const double t95 = t72*fabs(2.0*t9*t60) + t75*fabs(2.0*t6*t60) + t80*fabs(2.0*t6*t9*t30) + (t83 + fabs(t29) + fabs(t30))*fabs(2.0*t6*t9*t15) + 4.0*fabs(t46);
-    const double t96 = fabs(2.0*t8*t9*t15);
-    const double t97 = t74*fabs(2.0*t9*t61) + t75*fabs(2.0*t8*t61) + t80*fabs(2.0*t8*t9*t26) + (2.0*fabs(t24) + t83 + fabs(t26))*t96 + 4.0*fabs(t47);
-    const double t98 = t69*fabs(-2.0*t9*t62) + t75*fabs(-2.0*t3*t62) + t80*fabs(-2.0*t3*t9*t28) + (t82 + fabs(t27) + fabs(t28))*fabs(-2.0*t3*t9*t15) + 4.0*fabs(t49);
-    const double t99 = t74*fabs(2.0*t9*t63) + t75*fabs(2.0*t8*t63) + t80*fabs(2.0*t8*t9*t21) + (t82 + fabs(t20) + fabs(t21))*t96 + 4.0*fabs(t50);
-    const double t100 = t69*fabs(2.0*t9*t64) + t75*fabs(2.0*t3*t64) + t80*fabs(2.0*t3*t9*t23) + (t81 + fabs(t22) + fabs(t23))*fabs(2.0*t3*t9*t15) + 4.0*fabs(t51);
-    const double t101 = t72*fabs(-2.0*t9*t65) + t75*fabs(-2.0*t6*t65) + t80*fabs(-2.0*t6*t9*t18) + (t81 + fabs(t17) + fabs(t18))*fabs(-2.0*t6*t9*t15) + 4.0*fabs(t52);
-    const double t102 = t45 + t46;
-    const double t103 = t48 + t49;
-    const double t104 = t76*fabs(t34) + t76*t85 + fabs(t48) + t98 + t99 + fabs(t103) + fabs(t50 + t103);
-    const double t105 = t88 + t89 + fabs(t53) + (t94 + t95 + t97 + fabs(t102) + fabs(t47 + t102) + fabs(t57)) + fabs(t53 + t57);
-    const double t106 = t90 + t91 + fabs(t54) + (t104 + fabs(t58)) + fabs(t54 + t58);
-    const double t107 = t92 + t93 + fabs(t55) + (t100 + t101 + fabs(t56) + fabs(t59)) + fabs(t55 + t59);
-    S[0] = t105;
-    S[1] = t106;
-    S[2] = t107;
-}
-
 /* first Newton guess for u from the known state */
 
 void heavy_top_predict(const double *known, const double *p, double *u)
@@ -349,7 +228,7 @@ void heavy_top_next_knowns(const double *u, const double *known, const double *p
 void heavy_top_default_options(heavy_top_options *options)
 {
     options->tol_residual = 0.0;
-    options->floor_factor = 1.0;
+    options->floor_factor = 8.0;
     options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
@@ -482,7 +361,25 @@ static int heavy_top_lu_apply(const double *A, const int *e, const double *s, co
     return isfinite(heavy_top_norm_inf(b, n)) ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
 }
 
-/* C_i = sum_j |J_ij| |u_j|: how far F_i moves when every unknown is rounded */
+/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
+ * estimate of the condition of the row-equilibrated Jacobian */
+static double heavy_top_pivot_ratio(const double *inv)
+{
+    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    int k;
+    for (k = 1; k < HEAVY_TOP_N_UNKNOWNS; ++k) {
+        const double a = fabs(inv[k]);
+        if (a < lo) {
+            lo = a;
+        }
+        if (a > hi) {
+            hi = a;
+        }
+    }
+    return hi / lo;
+}
+
+/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded */
 static void heavy_top_coordinate_floor(const double *J, const double *u, double *C)
 {
     int i, j;
@@ -491,17 +388,37 @@ static void heavy_top_coordinate_floor(const double *J, const double *u, double 
         for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
             c += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * fabs(u[j]);
         }
-        C[i] = c;
+        C[i] = DBL_EPSILON * c;
     }
 }
 
-/* 1 when every |F_i| <= factor * DBL_EPSILON * (S_i + C_i): the residual is rounding noise,
- * of its own terms (S) and of the unknowns (C) */
-static int heavy_top_at_floor(const double *F, const double *S, const double *C, double factor)
+/* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
+ * rounded (heavy_top_coordinate_floor, with the last factored Jacobian) and N_i the larger
+ * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
+ * also measures the rounding of F's own operations: the residual is as small as rounding
+ * lets it be -- an empirical floor, measured at the iterate rather than bounded */
+static int heavy_top_at_floor(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
 {
-    int i;
+    double v[HEAVY_TOP_N_UNKNOWNS], G[HEAVY_TOP_N_EQUATIONS], N[HEAVY_TOP_N_EQUATIONS];
+    int i, j, sign;
     for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
-        if (!(fabs(F[i]) <= factor * DBL_EPSILON * (S[i] + C[i]))) {
+        N[i] = C[i];
+    }
+    for (sign = -1; sign <= 1; sign += 2) {
+        for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+            const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
+            v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
+        }
+        heavy_top_residual(v, known, p, G);
+        for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+            const double d = fabs(G[i] - F[i]);
+            if (d > N[i] - C[i]) {
+                N[i] = C[i] + d;
+            }
+        }
+    }
+    for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * N[i])) {
             return 0;
         }
     }
@@ -542,17 +459,17 @@ static double heavy_top_relative_norm(const double *d, const double *u)
  *    noise of u): the update is applied and the residual evaluated there (a final check that
  *    it is finite; it is the residual reported);
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
- *    fast) and every |F_i| is within its rounding floor,
- *    |F_i| <= floor_factor * DBL_EPSILON * (S_i + sum_j |J_ij| |u_j|) with S the magnitudes of
- *    the residuals' terms (heavy_top_residual_scale) and J the last factored Jacobian: Newton
- *    has stalled on rounding noise;
+ *    fast) and either that update was at most 64 DBL_EPSILON times the ratio of the largest
+ *    to the smallest pivot (rounding noise of an update solved with that factorisation), or
+ *    every |F_i| is at most
+ *    floor_factor times its change under a rounding-level move of the unknowns
+ *    (heavy_top_at_floor): Newton has stalled on rounding noise;
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate. */
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[HEAVY_TOP_N_EQUATIONS];
-    double S[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
+    double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
     double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
     double inv[HEAVY_TOP_N_UNKNOWNS], s[HEAVY_TOP_N_UNKNOWNS];
     int e[HEAVY_TOP_N_UNKNOWNS], perm[HEAVY_TOP_N_UNKNOWNS];
@@ -585,11 +502,9 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             return HEAVY_TOP_OK;
         }
         slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow) {
-            heavy_top_residual_scale(u, known, p, S);
-            if (heavy_top_at_floor(F, S, C, options->floor_factor)) {
-                return HEAVY_TOP_OK;
-            }
+        if (slow && (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv)
+                     || heavy_top_at_floor(u, known, p, F, C, options->floor_factor))) {
+            return HEAVY_TOP_OK;
         }
         if (it >= options->max_iterations) {
             return HEAVY_TOP_NOT_CONVERGED;

@@ -85,7 +85,6 @@ typedef struct {
 void heavy_top_default_options(heavy_top_options *options);
 void heavy_top_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F);
-void heavy_top_residual_scale(const double *u, const double *known, const double *p, double *S);
 void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
 void heavy_top_predict(const double *known, const double *p, double *u);
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next);

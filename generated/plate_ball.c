@@ -332,262 +332,6 @@ void plate_ball_residual_jacobian(const double *u, const double *known, const do
     J[63] = 0.0;
 }
 
-/* S_i: the magnitude of the terms of F_i (their absolute values summed through the program);
- * the rounding floor of F_i is a small multiple of DBL_EPSILON * S_i */
-
-void plate_ball_residual_scale(const double *u, const double *known, const double *p, double *S)
-{
-    (void)u;
-    (void)known;
-    (void)p;
-    const double t0 = 1.0/(p[0]*p[0]);
-    const double t1 = 1.0/p[0];
-    const double t2 = u[4]*u[4];
-    const double t3 = -t2;
-    const double t4 = u[3]*u[3];
-    const double t5 = -t4;
-    const double t6 = u[2]*u[2];
-    const double t7 = t3 + t5 + t6 + 4.0;
-    const double t8 = t2 + t4 + t6 + 4.0;
-    const double t9 = 1.0/t8;
-    const double t10 = t7*t9;
-    const double t11 = u[2]*u[3];
-    const double t12 = -2.0*u[4];
-    const double t13 = t11 + t12;
-    const double t14 = 2.0*t9*t13;
-    const double t15 = u[2]*u[4];
-    const double t16 = 2.0*u[3];
-    const double t17 = t15 + t16;
-    const double t18 = 2.0*u[4];
-    const double t19 = t11 + t18;
-    const double t20 = t2 + t5 + t6 - 4.0;
-    const double t21 = -u[3]*u[4];
-    const double t22 = 2.0*u[2];
-    const double t23 = t21 + t22;
-    const double t24 = -2.0*t9*t23;
-    const double t25 = -2.0*u[3];
-    const double t26 = t15 + t25;
-    const double t27 = 2.0*t9*t26;
-    const double t28 = u[3]*u[4];
-    const double t29 = t22 + t28;
-    const double t30 = t3 + t4 + t6 - 4.0;
-    const double t31 = -2.0*t9*t19;
-    const double t32 = t9*t20;
-    const double t33 = -2.0*t9*t29;
-    const double t34 = t9*t30;
-    const double t35 = -2.0*t9*t17;
-    const double t36 = -known[1];
-    const double t37 = known[3] + t36;
-    const double t38 = -known[0];
-    const double t39 = known[2] + t38;
-    const double t40 = p[0]*known[15];
-    const double t41 = p[0]*known[14];
-    const double t42 = t1*t41;
-    const double t43 = 0.5*p[2]*t41;
-    const double t44 = p[0]*known[13];
-    const double t45 = t1*t44;
-    const double t46 = -0.5*p[2]*t44;
-    const double t47 = p[0]*t0*t39;
-    const double t48 = t42 + t47;
-    const double t49 = p[0]*t0*t37;
-    const double t50 = t45 + t49;
-    const double t51 = t43 + t50;
-    const double t52 = t46 + t48;
-    const double t53 = 0.5*t1*known[6]*t40;
-    const double t54 = 0.5*p[1]*t1*known[5]*t41;
-    const double t55 = 0.5*p[1]*t1*known[8]*t44;
-    const double t56 = 0.5*p[1]*t1*known[12]*t44;
-    const double t57 = -0.5*p[1]*t1*known[4]*t41;
-    const double t58 = 0.5*t1*known[9]*t40;
-    const double t59 = -0.5*p[1]*t1*known[7]*t44;
-    const double t60 = -0.5*p[1]*t1*known[12]*t41;
-    const double t61 = -0.5*t1*known[4]*t40;
-    const double t62 = -0.5*t1*known[8]*t40;
-    const double t63 = 0.5*p[1]*t1*known[11]*t41;
-    const double t64 = -0.5*p[1]*t1*known[10]*t44;
-    const double t65 = -known[3];
-    const double t66 = u[1] + t65;
-    const double t67 = -known[2];
-    const double t68 = u[0] + t67;
-    const double t69 = p[0]*u[7];
-    const double t70 = p[0]*u[6];
-    const double t71 = t1*t70;
-    const double t72 = 0.5*p[2]*t70;
-    const double t73 = p[0]*u[5];
-    const double t74 = t1*t73;
-    const double t75 = -0.5*p[2]*t73;
-    const double t76 = p[0]*t0*t68;
-    const double t77 = t71 + t76;
-    const double t78 = -t77;
-    const double t79 = p[0]*t0*t66;
-    const double t80 = t74 + t79;
-    const double t81 = -t80;
-    const double t82 = t72 + t81;
-    const double t83 = t75 + t78;
-    const double t84 = t1*t9*t26*t69;
-    const double t85 = -0.5*p[1]*t1*t34*t73;
-    const double t86 = p[1]*t1*t9*t19*t70;
-    const double t87 = -0.5*p[1]*t1*t32*t73;
-    const double t88 = t1*t9*t29*t69;
-    const double t89 = 0.5*p[1]*t1*t34*t70;
-    const double t90 = -0.5*p[1]*t1*t10*t70;
-    const double t91 = -p[1]*t1*t9*t13*t73;
-    const double t92 = 0.5*t1*t32*t69;
-    const double t93 = -p[1]*t1*t9*t23*t70;
-    const double t94 = -0.5*t1*t10*t69;
-    const double t95 = -p[1]*t1*t9*t17*t73;
-    const double t96 = -(t84 + t85 + t86 + t87);
-    const double t97 = -(t88 + t89 + t90 + t91);
-    const double t98 = -(t92 + t93 + t94 + t95);
-    const double t99 = t24 + t33;
-    const double t100 = -0.5*p[1]*t1*t99;
-    const double t101 = u[0] + known[2];
-    const double t102 = -0.5*p[2]*t101;
-    const double t103 = t1*t66;
-    const double t104 = t27 + t35;
-    const double t105 = 0.5*p[1]*t1*t104;
-    const double t106 = u[1] + known[3];
-    const double t107 = 0.5*p[2]*t106;
-    const double t108 = t1*t68;
-    const double t109 = t14 + t31;
-    const double t110 = 0.5*t1*t109;
-    const double t111 = p[3] + t110;
-    const double t112 = t1*t9;
-    const double t113 = t26*t69;
-    const double t114 = p[1]*t1;
-    const double t115 = t9*t114;
-    const double t116 = t19*t70;
-    const double t117 = t29*t69;
-    const double t118 = t13*t73;
-    const double t119 = t23*t70;
-    const double t120 = t17*t73;
-    const double t121 = fabs(t0);
-    const double t122 = fabs(t1);
-    const double t123 = 2.0*fabs(t2);
-    const double t124 = t123 + fabs(t3);
-    const double t125 = 2.0*fabs(t4);
-    const double t126 = t125 + fabs(t5);
-    const double t127 = 2.0*fabs(t6);
-    const double t128 = t3 + t5;
-    const double t129 = t6 + t128;
-    const double t130 = t2 + t4;
-    const double t131 = t6 + t130;
-    const double t132 = (t123 + t125 + t127 + fabs(t130) + fabs(t131) + fabs(4.0 + t131))*fabs(-1.0/(t8*t8));
-    const double t133 = fabs(t9);
-    const double t134 = t132 + t133;
-    const double t135 = (t124 + t126 + t127 + fabs(t128) + fabs(t129) + fabs(4.0 + t129))*t133 + t134*fabs(t7) + fabs(t10);
-    const double t136 = fabs(t11);
-    const double t137 = t136 + fabs(t12) + fabs(t13);
-    const double t138 = fabs(2.0*t9);
-    const double t139 = t134*fabs(2.0*t13) + t137*t138 + 2.0*fabs(t14);
-    const double t140 = fabs(t15);
-    const double t141 = t140 + fabs(t16) + fabs(t17);
-    const double t142 = t136 + fabs(t18) + fabs(t19);
-    const double t143 = t2 + t5;
-    const double t144 = t6 + t143;
-    const double t145 = fabs(t22);
-    const double t146 = 2.0*fabs(t21) + t145 + fabs(t23);
-    const double t147 = fabs(-2.0*t9);
-    const double t148 = t134*fabs(-2.0*t23) + t146*t147 + 2.0*fabs(t24);
-    const double t149 = t140 + fabs(t25) + fabs(t26);
-    const double t150 = t134*fabs(2.0*t26) + t138*t149 + 2.0*fabs(t27);
-    const double t151 = t145 + fabs(t28) + fabs(t29);
-    const double t152 = t3 + t4;
-    const double t153 = t6 + t152;
-    const double t154 = t134*fabs(-2.0*t19) + t142*t147 + 2.0*fabs(t31);
-    const double t155 = t134*fabs(t20) + t133*(t123 + t126 + t127 + fabs(t143) + fabs(t144) + fabs(-4.0 + t144)) + fabs(t32);
-    const double t156 = t134*fabs(-2.0*t29) + t147*t151 + 2.0*fabs(t33);
-    const double t157 = t134*fabs(t30) + t133*(t124 + t125 + t127 + fabs(t152) + fabs(t153) + fabs(-4.0 + t153)) + fabs(t34);
-    const double t158 = t134*fabs(-2.0*t17) + t141*t147 + 2.0*fabs(t35);
-    const double t159 = fabs(t40);
-    const double t160 = fabs(t41);
-    const double t161 = fabs(0.5*p[2]);
-    const double t162 = fabs(t44);
-    const double t163 = fabs(-0.5*p[2]);
-    const double t164 = fabs(p[0]*t0);
-    const double t165 = 2.0*t121*fabs(p[0]*t39) + (fabs(t38) + fabs(t39))*t164 + 2.0*fabs(t47);
-    const double t166 = 2.0*t121*fabs(p[0]*t37) + (fabs(t36) + fabs(t37))*t164 + 2.0*fabs(t49);
-    const double t167 = t160*t161 + 2.0*fabs(t43) + (fabs(t45) + 2.0*t122*t162 + t166 + fabs(t50)) + fabs(t51);
-    const double t168 = t162*t163 + 2.0*fabs(t46) + (fabs(t42) + 2.0*t122*t160 + t165 + fabs(t48)) + fabs(t52);
-    const double t169 = t122*fabs(0.5*known[6]*t40) + t159*fabs(0.5*t1*known[6]) + 3.0*fabs(t53);
-    const double t170 = t122*fabs(0.5*p[1]*known[5]*t41) + t160*fabs(0.5*p[1]*t1*known[5]) + 4.0*fabs(t54);
-    const double t171 = t122*fabs(0.5*p[1]*known[8]*t44) + t162*fabs(0.5*p[1]*t1*known[8]) + 4.0*fabs(t55);
-    const double t172 = t122*fabs(0.5*p[1]*known[12]*t44) + t162*fabs(0.5*p[1]*t1*known[12]) + 4.0*fabs(t56);
-    const double t173 = t122*fabs(-0.5*p[1]*known[4]*t41) + t160*fabs(-0.5*p[1]*t1*known[4]) + 4.0*fabs(t57);
-    const double t174 = t122*fabs(0.5*known[9]*t40) + t159*fabs(0.5*t1*known[9]) + 3.0*fabs(t58);
-    const double t175 = t122*fabs(-0.5*p[1]*known[7]*t44) + t162*fabs(-0.5*p[1]*t1*known[7]) + 4.0*fabs(t59);
-    const double t176 = t122*fabs(-0.5*p[1]*known[12]*t41) + t160*fabs(-0.5*p[1]*t1*known[12]) + 4.0*fabs(t60);
-    const double t177 = t122*fabs(-0.5*known[4]*t40) + t159*fabs(-0.5*t1*known[4]) + 3.0*fabs(t61);
-    const double t178 = t122*fabs(-0.5*known[8]*t40) + t159*fabs(-0.5*t1*known[8]) + 3.0*fabs(t62);
-    const double t179 = t122*fabs(0.5*p[1]*known[11]*t41) + t160*fabs(0.5*p[1]*t1*known[11]) + 4.0*fabs(t63);
-    const double t180 = t122*fabs(-0.5*p[1]*known[10]*t44) + t162*fabs(-0.5*p[1]*t1*known[10]) + 4.0*fabs(t64);
-    const double t181 = fabs(t66);
-    const double t182 = fabs(t65) + t181;
-    const double t183 = fabs(t68);
-    const double t184 = fabs(t67) + t183;
-    const double t185 = fabs(t69);
-    const double t186 = fabs(t70);
-    const double t187 = fabs(t73);
-    const double t188 = 2.0*t121*fabs(p[0]*t68) + t164*t184 + 2.0*fabs(t76);
-    const double t189 = fabs(t71) + 2.0*t122*t186 + t188 + fabs(t77) + fabs(t78);
-    const double t190 = 2.0*t121*fabs(p[0]*t66) + t164*t182 + 2.0*fabs(t79);
-    const double t191 = fabs(t74) + 2.0*t122*t187 + t190 + fabs(t80) + fabs(t81);
-    const double t192 = fabs(t69*t112);
-    const double t193 = t122*fabs(t9*t113) + t134*fabs(t1*t113) + t149*t192 + t185*fabs(t26*t112) + 3.0*fabs(t84);
-    const double t194 = fabs(-0.5*p[1]*t1*t73);
-    const double t195 = t122*fabs(-0.5*p[1]*t34*t73) + t157*t194 + t187*fabs(-0.5*p[1]*t1*t34) + 4.0*fabs(t85);
-    const double t196 = t122*fabs(p[1]*t9*t116) + t134*fabs(t114*t116) + t142*fabs(t70*t115) + t186*fabs(t19*t115) + 4.0*fabs(t86);
-    const double t197 = t122*fabs(-0.5*p[1]*t32*t73) + t155*t194 + t187*fabs(-0.5*p[1]*t1*t32) + 4.0*fabs(t87);
-    const double t198 = t122*fabs(t9*t117) + t134*fabs(t1*t117) + t151*t192 + t185*fabs(t29*t112) + 3.0*fabs(t88);
-    const double t199 = t122*fabs(0.5*p[1]*t34*t70) + t157*fabs(0.5*p[1]*t1*t70) + t186*fabs(0.5*p[1]*t1*t34) + 4.0*fabs(t89);
-    const double t200 = t122*fabs(-0.5*p[1]*t10*t70) + t135*fabs(-0.5*p[1]*t1*t70) + t186*fabs(-0.5*p[1]*t1*t10) + 4.0*fabs(t90);
-    const double t201 = fabs(-p[1]*t1*t9*t73);
-    const double t202 = t122*fabs(-p[1]*t9*t118) + t134*fabs(-p[1]*t1*t118) + t137*t201 + t187*fabs(-p[1]*t1*t9*t13) + 5.0*fabs(t91);
-    const double t203 = t122*fabs(0.5*t32*t69) + t155*fabs(0.5*t1*t69) + t185*fabs(0.5*t1*t32) + 3.0*fabs(t92);
-    const double t204 = t122*fabs(-p[1]*t9*t119) + t134*fabs(-p[1]*t1*t119) + t146*fabs(-p[1]*t1*t9*t70) + t186*fabs(-p[1]*t1*t9*t23) + 5.0*fabs(t93);
-    const double t205 = t122*fabs(-0.5*t10*t69) + t135*fabs(-0.5*t1*t69) + t185*fabs(-0.5*t1*t10) + 3.0*fabs(t94);
-    const double t206 = t122*fabs(-p[1]*t9*t120) + t134*fabs(-p[1]*t1*t120) + t141*t201 + t187*fabs(-p[1]*t1*t9*t17) + 5.0*fabs(t95);
-    const double t207 = t53 + t54;
-    const double t208 = t55 + t207;
-    const double t209 = t57 + t58;
-    const double t210 = t59 + t209;
-    const double t211 = t61 + t62;
-    const double t212 = t63 + t211;
-    const double t213 = t84 + t85;
-    const double t214 = t86 + t213;
-    const double t215 = t88 + t89;
-    const double t216 = t90 + t215;
-    const double t217 = t92 + t93;
-    const double t218 = t94 + t217;
-    const double t219 = t168 + (t163*t187 + 2.0*fabs(t75) + t189 + fabs(t83)) + fabs(t52 + t83);
-    const double t220 = t167 + (t161*t186 + 2.0*fabs(t72) + t191 + fabs(t82)) + fabs(t51 + t82);
-    const double t221 = t193 + t195 + t196 + t197 + fabs(t213) + fabs(t214) + fabs(t87 + t214) + fabs(t96);
-    const double t222 = t169 + t170 + t171 + t172 + fabs(t207) + fabs(t208) + fabs(t56 + t208) + t221 + fabs(t53 + t54 + t55 + t56 + t96);
-    const double t223 = t198 + t199 + t200 + t202 + fabs(t215) + fabs(t216) + fabs(t91 + t216) + fabs(t97);
-    const double t224 = t173 + t174 + t175 + t176 + fabs(t209) + fabs(t210) + fabs(t60 + t210) + t223 + fabs(t57 + t58 + t59 + t60 + t97);
-    const double t225 = t203 + t204 + t205 + t206 + fabs(t217) + fabs(t218) + fabs(t95 + t218) + fabs(t98);
-    const double t226 = t177 + t178 + t179 + t180 + fabs(t211) + fabs(t212) + fabs(t64 + t212) + t225 + fabs(t61 + t62 + t63 + t64 + t98);
-    const double t227 = t122*fabs(-0.5*p[1]*t99) + (t148 + t156 + fabs(t99))*fabs(-0.5*p[1]*t1) + 3.0*fabs(t100);
-    const double t228 = t100 + t102;
-    const double t229 = t227 + (t163*fabs(t101) + 2.0*fabs(t102)) + (t122*t181 + t122*t182 + fabs(t103)) + fabs(t228) + fabs(t103 + t228);
-    const double t230 = fabs(p[0]);
-    const double t231 = t229*t230 + fabs(p[0]*(t100 + t102 + t103));
-    const double t232 = t122*fabs(0.5*p[1]*t104) + (t150 + t158 + fabs(t104))*fabs(0.5*p[1]*t1) + 3.0*fabs(t105);
-    const double t233 = t105 + t107;
-    const double t234 = t232 + (t161*fabs(t106) + 2.0*fabs(t107)) + (t122*t183 + t122*t184 + fabs(t108)) + fabs(t233) + fabs(t108 + t233);
-    const double t235 = t230*t234 + fabs(p[0]*(t105 + t107 + t108));
-    const double t236 = t122*fabs(0.5*t109) + (t139 + t154 + fabs(t109))*fabs(0.5*t1) + 2.0*fabs(t110);
-    const double t237 = t230*(t236 + fabs(t111)) + fabs(p[0]*t111);
-    S[0] = t219;
-    S[1] = t220;
-    S[2] = t222;
-    S[3] = t224;
-    S[4] = t226;
-    S[5] = t231;
-    S[6] = t235;
-    S[7] = t237;
-}
-
 /* first Newton guess for u from the known state */
 
 void plate_ball_predict(const double *known, const double *p, double *u)
@@ -656,7 +400,7 @@ void plate_ball_next_knowns(const double *u, const double *known, const double *
 void plate_ball_default_options(plate_ball_options *options)
 {
     options->tol_residual = 0.0;
-    options->floor_factor = 1.0;
+    options->floor_factor = 8.0;
     options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
@@ -789,7 +533,25 @@ static int plate_ball_lu_apply(const double *A, const int *e, const double *s, c
     return isfinite(plate_ball_norm_inf(b, n)) ? PLATE_BALL_OK : PLATE_BALL_NON_FINITE;
 }
 
-/* C_i = sum_j |J_ij| |u_j|: how far F_i moves when every unknown is rounded */
+/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
+ * estimate of the condition of the row-equilibrated Jacobian */
+static double plate_ball_pivot_ratio(const double *inv)
+{
+    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    int k;
+    for (k = 1; k < PLATE_BALL_N_UNKNOWNS; ++k) {
+        const double a = fabs(inv[k]);
+        if (a < lo) {
+            lo = a;
+        }
+        if (a > hi) {
+            hi = a;
+        }
+    }
+    return hi / lo;
+}
+
+/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded */
 static void plate_ball_coordinate_floor(const double *J, const double *u, double *C)
 {
     int i, j;
@@ -798,17 +560,37 @@ static void plate_ball_coordinate_floor(const double *J, const double *u, double
         for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
             c += fabs(J[i * PLATE_BALL_N_UNKNOWNS + j]) * fabs(u[j]);
         }
-        C[i] = c;
+        C[i] = DBL_EPSILON * c;
     }
 }
 
-/* 1 when every |F_i| <= factor * DBL_EPSILON * (S_i + C_i): the residual is rounding noise,
- * of its own terms (S) and of the unknowns (C) */
-static int plate_ball_at_floor(const double *F, const double *S, const double *C, double factor)
+/* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
+ * rounded (plate_ball_coordinate_floor, with the last factored Jacobian) and N_i the larger
+ * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
+ * also measures the rounding of F's own operations: the residual is as small as rounding
+ * lets it be -- an empirical floor, measured at the iterate rather than bounded */
+static int plate_ball_at_floor(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
 {
-    int i;
+    double v[PLATE_BALL_N_UNKNOWNS], G[PLATE_BALL_N_EQUATIONS], N[PLATE_BALL_N_EQUATIONS];
+    int i, j, sign;
     for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
-        if (!(fabs(F[i]) <= factor * DBL_EPSILON * (S[i] + C[i]))) {
+        N[i] = C[i];
+    }
+    for (sign = -1; sign <= 1; sign += 2) {
+        for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
+            const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
+            v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
+        }
+        plate_ball_residual(v, known, p, G);
+        for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
+            const double d = fabs(G[i] - F[i]);
+            if (d > N[i] - C[i]) {
+                N[i] = C[i] + d;
+            }
+        }
+    }
+    for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * N[i])) {
             return 0;
         }
     }
@@ -849,17 +631,17 @@ static double plate_ball_relative_norm(const double *d, const double *u)
  *    noise of u): the update is applied and the residual evaluated there (a final check that
  *    it is finite; it is the residual reported);
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
- *    fast) and every |F_i| is within its rounding floor,
- *    |F_i| <= floor_factor * DBL_EPSILON * (S_i + sum_j |J_ij| |u_j|) with S the magnitudes of
- *    the residuals' terms (plate_ball_residual_scale) and J the last factored Jacobian: Newton
- *    has stalled on rounding noise;
+ *    fast) and either that update was at most 64 DBL_EPSILON times the ratio of the largest
+ *    to the smallest pivot (rounding noise of an update solved with that factorisation), or
+ *    every |F_i| is at most
+ *    floor_factor times its change under a rounding-level move of the unknowns
+ *    (plate_ball_at_floor): Newton has stalled on rounding noise;
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate. */
 static int plate_ball_newton(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[PLATE_BALL_N_EQUATIONS];
-    double S[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
+    double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
     double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS];
     double inv[PLATE_BALL_N_UNKNOWNS], s[PLATE_BALL_N_UNKNOWNS];
     int e[PLATE_BALL_N_UNKNOWNS], perm[PLATE_BALL_N_UNKNOWNS];
@@ -892,11 +674,9 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
             return PLATE_BALL_OK;
         }
         slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow) {
-            plate_ball_residual_scale(u, known, p, S);
-            if (plate_ball_at_floor(F, S, C, options->floor_factor)) {
-                return PLATE_BALL_OK;
-            }
+        if (slow && (last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(inv)
+                     || plate_ball_at_floor(u, known, p, F, C, options->floor_factor))) {
+            return PLATE_BALL_OK;
         }
         if (it >= options->max_iterations) {
             return PLATE_BALL_NOT_CONVERGED;

@@ -93,7 +93,6 @@ typedef struct {
 void plate_ball_default_options(plate_ball_options *options);
 void plate_ball_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void plate_ball_residual(const double *u, const double *known, const double *p, double *F);
-void plate_ball_residual_scale(const double *u, const double *known, const double *p, double *S);
 void plate_ball_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
 void plate_ball_predict(const double *known, const double *p, double *u);
 void plate_ball_next_knowns(const double *u, const double *known, const double *p, double *known_next);

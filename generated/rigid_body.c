@@ -164,109 +164,6 @@ void rigid_body_residual_jacobian(const double *u, const double *known, const do
     J[8] = t39;
 }
 
-/* S_i: the magnitude of the terms of F_i (their absolute values summed through the program);
- * the rounding floor of F_i is a small multiple of DBL_EPSILON * S_i */
-
-void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S)
-{
-    (void)u;
-    (void)known;
-    (void)p;
-    const double t0 = -0.5*p[1];
-    const double t1 = 0.5*p[3];
-    const double t2 = 0.5*p[2];
-    const double t3 = t0 + t1 + t2;
-    const double t4 = -0.5*p[2];
-    const double t5 = 0.5*p[1];
-    const double t6 = t1 + t4 + t5;
-    const double t7 = -0.5*p[3];
-    const double t8 = t2 + t5 + t7;
-    const double t9 = 1.0/p[0];
-    const double t10 = u[2]*u[2];
-    const double t11 = u[1]*u[1];
-    const double t12 = u[0]*u[0];
-    const double t13 = t10 + t11 + t12 + 4.0;
-    const double t14 = 1.0/t13;
-    const double t15 = u[0]*u[1];
-    const double t16 = -2.0*u[2];
-    const double t17 = t15 + t16;
-    const double t18 = u[0]*u[2];
-    const double t19 = 2.0*u[1];
-    const double t20 = t18 + t19;
-    const double t21 = 2.0*u[2];
-    const double t22 = t15 + t21;
-    const double t23 = -u[1]*u[2];
-    const double t24 = 2.0*u[0];
-    const double t25 = t23 + t24;
-    const double t26 = -2.0*u[1];
-    const double t27 = t18 + t26;
-    const double t28 = u[1]*u[2];
-    const double t29 = t24 + t28;
-    const double t30 = -t6*t9*known[5];
-    const double t31 = t8*t9*known[7];
-    const double t32 = t3*t9*known[2];
-    const double t33 = -t8*t9*known[6];
-    const double t34 = -t3*t9*known[1];
-    const double t35 = t6*t9*known[3];
-    const double t36 = 2.0*t6*t9*t14*t29;
-    const double t37 = 2.0*t8*t9*t14*t25;
-    const double t38 = -2.0*t3*t9*t14*t27;
-    const double t39 = 2.0*t8*t9*t14*t20;
-    const double t40 = 2.0*t3*t9*t14*t22;
-    const double t41 = -2.0*t6*t9*t14*t17;
-    const double t42 = t30 + t31;
-    const double t43 = t32 + t33;
-    const double t44 = t34 + t35;
-    const double t45 = t36 + t37;
-    const double t46 = t38 + t39;
-    const double t47 = t40 + t41;
-    const double t48 = -t45;
-    const double t49 = -t46;
-    const double t50 = -t47;
-    const double t51 = t14*t29;
-    const double t52 = t14*t25;
-    const double t53 = t14*t27;
-    const double t54 = t14*t20;
-    const double t55 = t14*t22;
-    const double t56 = t14*t17;
-    const double t57 = fabs(t1);
-    const double t58 = fabs(t2);
-    const double t59 = t0 + t1;
-    const double t60 = fabs(t0) + t57 + t58 + fabs(t59) + fabs(t2 + t59);
-    const double t61 = fabs(t5);
-    const double t62 = t1 + t4;
-    const double t63 = t57 + fabs(t4) + t61 + fabs(t62) + fabs(t5 + t62);
-    const double t64 = t2 + t5;
-    const double t65 = t58 + t61 + fabs(t7) + fabs(t64) + fabs(t7 + t64);
-    const double t66 = fabs(t9);
-    const double t67 = t10 + t11;
-    const double t68 = t12 + t67;
-    const double t69 = 2.0*fabs(t10) + 2.0*fabs(t11) + 2.0*fabs(t12) + fabs(t67) + fabs(t68) + fabs(4.0 + t68);
-    const double t70 = t69*fabs(-1.0/(t13*t13)) + fabs(t14);
-    const double t71 = fabs(t15);
-    const double t72 = fabs(t18);
-    const double t73 = fabs(t24);
-    const double t74 = t63*fabs(-t9*known[5]) + t66*fabs(-t6*known[5]) + 3.0*fabs(t30);
-    const double t75 = t65*fabs(t9*known[7]) + t66*fabs(t8*known[7]) + 2.0*fabs(t31);
-    const double t76 = t60*fabs(t9*known[2]) + t66*fabs(t3*known[2]) + 2.0*fabs(t32);
-    const double t77 = t65*fabs(-t9*known[6]) + t66*fabs(-t8*known[6]) + 3.0*fabs(t33);
-    const double t78 = t60*fabs(-t9*known[1]) + t66*fabs(-t3*known[1]) + 3.0*fabs(t34);
-    const double t79 = t63*fabs(t9*known[3]) + t66*fabs(t6*known[3]) + 2.0*fabs(t35);
-    const double t80 = t63*fabs(2.0*t9*t51) + t66*fabs(2.0*t6*t51) + t70*fabs(2.0*t6*t9*t29) + (t73 + fabs(t28) + fabs(t29))*fabs(2.0*t6*t9*t14) + 4.0*fabs(t36);
-    const double t81 = fabs(2.0*t8*t9*t14);
-    const double t82 = t65*fabs(2.0*t9*t52) + t66*fabs(2.0*t8*t52) + t70*fabs(2.0*t8*t9*t25) + (2.0*fabs(t23) + t73 + fabs(t25))*t81 + 4.0*fabs(t37);
-    const double t83 = t60*fabs(-2.0*t9*t53) + t66*fabs(-2.0*t3*t53) + t70*fabs(-2.0*t3*t9*t27) + (t72 + fabs(t26) + fabs(t27))*fabs(-2.0*t3*t9*t14) + 4.0*fabs(t38);
-    const double t84 = t65*fabs(2.0*t9*t54) + t66*fabs(2.0*t8*t54) + t70*fabs(2.0*t8*t9*t20) + (t72 + fabs(t19) + fabs(t20))*t81 + 4.0*fabs(t39);
-    const double t85 = t60*fabs(2.0*t9*t55) + t66*fabs(2.0*t3*t55) + t70*fabs(2.0*t3*t9*t22) + (t71 + fabs(t21) + fabs(t22))*fabs(2.0*t3*t9*t14) + 4.0*fabs(t40);
-    const double t86 = t63*fabs(-2.0*t9*t56) + t66*fabs(-2.0*t6*t56) + t70*fabs(-2.0*t6*t9*t17) + (t71 + fabs(t16) + fabs(t17))*fabs(-2.0*t6*t9*t14) + 4.0*fabs(t41);
-    const double t87 = t74 + t75 + fabs(t42) + (t80 + t82 + fabs(t45) + fabs(t48)) + fabs(t42 + t48);
-    const double t88 = t76 + t77 + fabs(t43) + (t83 + t84 + fabs(t46) + fabs(t49)) + fabs(t43 + t49);
-    const double t89 = t78 + t79 + fabs(t44) + (t85 + t86 + fabs(t47) + fabs(t50)) + fabs(t44 + t50);
-    S[0] = t87;
-    S[1] = t88;
-    S[2] = t89;
-}
-
 /* first Newton guess for u from the known state */
 
 void rigid_body_predict(const double *known, const double *p, double *u)
@@ -321,7 +218,7 @@ void rigid_body_next_knowns(const double *u, const double *known, const double *
 void rigid_body_default_options(rigid_body_options *options)
 {
     options->tol_residual = 0.0;
-    options->floor_factor = 1.0;
+    options->floor_factor = 8.0;
     options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
@@ -454,7 +351,25 @@ static int rigid_body_lu_apply(const double *A, const int *e, const double *s, c
     return isfinite(rigid_body_norm_inf(b, n)) ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
 }
 
-/* C_i = sum_j |J_ij| |u_j|: how far F_i moves when every unknown is rounded */
+/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
+ * estimate of the condition of the row-equilibrated Jacobian */
+static double rigid_body_pivot_ratio(const double *inv)
+{
+    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    int k;
+    for (k = 1; k < RIGID_BODY_N_UNKNOWNS; ++k) {
+        const double a = fabs(inv[k]);
+        if (a < lo) {
+            lo = a;
+        }
+        if (a > hi) {
+            hi = a;
+        }
+    }
+    return hi / lo;
+}
+
+/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded */
 static void rigid_body_coordinate_floor(const double *J, const double *u, double *C)
 {
     int i, j;
@@ -463,17 +378,37 @@ static void rigid_body_coordinate_floor(const double *J, const double *u, double
         for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
             c += fabs(J[i * RIGID_BODY_N_UNKNOWNS + j]) * fabs(u[j]);
         }
-        C[i] = c;
+        C[i] = DBL_EPSILON * c;
     }
 }
 
-/* 1 when every |F_i| <= factor * DBL_EPSILON * (S_i + C_i): the residual is rounding noise,
- * of its own terms (S) and of the unknowns (C) */
-static int rigid_body_at_floor(const double *F, const double *S, const double *C, double factor)
+/* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
+ * rounded (rigid_body_coordinate_floor, with the last factored Jacobian) and N_i the larger
+ * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
+ * also measures the rounding of F's own operations: the residual is as small as rounding
+ * lets it be -- an empirical floor, measured at the iterate rather than bounded */
+static int rigid_body_at_floor(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
 {
-    int i;
+    double v[RIGID_BODY_N_UNKNOWNS], G[RIGID_BODY_N_EQUATIONS], N[RIGID_BODY_N_EQUATIONS];
+    int i, j, sign;
     for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
-        if (!(fabs(F[i]) <= factor * DBL_EPSILON * (S[i] + C[i]))) {
+        N[i] = C[i];
+    }
+    for (sign = -1; sign <= 1; sign += 2) {
+        for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
+            const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
+            v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
+        }
+        rigid_body_residual(v, known, p, G);
+        for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+            const double d = fabs(G[i] - F[i]);
+            if (d > N[i] - C[i]) {
+                N[i] = C[i] + d;
+            }
+        }
+    }
+    for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * N[i])) {
             return 0;
         }
     }
@@ -514,17 +449,17 @@ static double rigid_body_relative_norm(const double *d, const double *u)
  *    noise of u): the update is applied and the residual evaluated there (a final check that
  *    it is finite; it is the residual reported);
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
- *    fast) and every |F_i| is within its rounding floor,
- *    |F_i| <= floor_factor * DBL_EPSILON * (S_i + sum_j |J_ij| |u_j|) with S the magnitudes of
- *    the residuals' terms (rigid_body_residual_scale) and J the last factored Jacobian: Newton
- *    has stalled on rounding noise;
+ *    fast) and either that update was at most 64 DBL_EPSILON times the ratio of the largest
+ *    to the smallest pivot (rounding noise of an update solved with that factorisation), or
+ *    every |F_i| is at most
+ *    floor_factor times its change under a rounding-level move of the unknowns
+ *    (rigid_body_at_floor): Newton has stalled on rounding noise;
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate. */
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[RIGID_BODY_N_EQUATIONS];
-    double S[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
+    double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
     double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS];
     double inv[RIGID_BODY_N_UNKNOWNS], s[RIGID_BODY_N_UNKNOWNS];
     int e[RIGID_BODY_N_UNKNOWNS], perm[RIGID_BODY_N_UNKNOWNS];
@@ -557,11 +492,9 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
             return RIGID_BODY_OK;
         }
         slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow) {
-            rigid_body_residual_scale(u, known, p, S);
-            if (rigid_body_at_floor(F, S, C, options->floor_factor)) {
-                return RIGID_BODY_OK;
-            }
+        if (slow && (last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(inv)
+                     || rigid_body_at_floor(u, known, p, F, C, options->floor_factor))) {
+            return RIGID_BODY_OK;
         }
         if (it >= options->max_iterations) {
             return RIGID_BODY_NOT_CONVERGED;

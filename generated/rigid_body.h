@@ -81,7 +81,6 @@ typedef struct {
 void rigid_body_default_options(rigid_body_options *options);
 void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F);
-void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S);
 void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
 void rigid_body_predict(const double *known, const double *p, double *u);
 void rigid_body_next_knowns(const double *u, const double *known, const double *p, double *known_next);

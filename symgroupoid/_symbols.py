@@ -60,8 +60,9 @@ def scalar_symbol(base_latex: str, offset: int) -> StepSymbol:
 
 
 def indexed_symbol(base_latex: str, offset: int, index: str) -> StepSymbol:
-    """Component ``index`` of a vector/matrix quantity: ``(g_{k})_{12}``."""
-    return StepSymbol(f"({base_latex}_{{{step_label(offset)}}})_{{{index}}}")
+    """Component ``index`` of a vector/matrix quantity: ``(g_{k})_{12}``; a base that has a
+    subscript of its own is parenthesised: ``((R_{1})_{k})_{12}``."""
+    return StepSymbol(f"({subscripted(base_latex, offset)})_{{{index}}}")
 
 
 def multiplier_symbols(count: int, offset: int) -> list[StepSymbol]:

@@ -157,24 +157,22 @@ def chain_inertia(i: int) -> sp.Matrix:
 
 
 def attitude_groupoid(n: int) -> tuple[Groupoid, Callable[[Arrow], list]]:
-    """The groupoid of n attitudes and a reader of its arrows.
+    """The pair groupoid of n attitudes, SO(3)ⁿ × SO(3)ⁿ ⇉ SO(3)ⁿ, and a reader of its arrows.
 
-    Each body is an action groupoid R⁹ × SO(3) ⇉ R⁹: the base point is the 9 entries of the
-    attitude R_i (row-major), acted on by the relative rotation F_i, β(R, F) = R·F; the
-    arrow (R_i, F_i) goes from R_{i,k} to R_{i,k+1} = R_{i,k} F_i.  The chain is the product
-    of the n factors.  The reader maps an arrow to the list of (R_{i,k}, F_i) matrices.
+    An arrow is (R_k, R_{k+1}) — every body's attitude at two consecutive steps — and a step
+    solves for the Cayley coordinates of each body's increment R_{i,k}ᵀR_{i,k+1}
+    (docs/conventions.md §1).  The reader maps an arrow to the list of (R_{i,k}, R_{i,k+1}).
     """
-    def action(p, F):
-        return tuple(sp.Matrix(3, 3, list(p)) * F)
-
-    factors = [ActionGroupoid(EuclideanSpace([f"R^{i}_{r}{c}" for r in range(1, 4)
-                                              for c in range(1, 4)]),
-                              SO3(f"F^{i}"), action) for i in range(1, n + 1)]
+    space = SO3("R1") if n == 1 else ProductGroupoid(*[SO3(f"R{i}") for i in range(1, n + 1)])
+    G = PairGroupoid(space)
 
     def read(g) -> list:
-        return [(sp.Matrix(3, 3, list(g[i].point)), g[i].matrix) for i in range(n)]
+        a, b = g.source, g.target
+        if n == 1:
+            return [(a, b)]
+        return list(zip(a, b))
 
-    return ProductGroupoid(*factors), read
+    return G, read
 
 
 def centres_of_mass(R: Sequence[sp.Matrix]) -> list[sp.Matrix]:
@@ -205,8 +203,9 @@ def spherical_chain(n: int) -> DiscreteSystem:
                    + (1/(2h)) |c_i(R_{k+1}) − c_i(R_k)|²
                    − (h/2) g e₃·(c_i(R_k) + c_i(R_{k+1})) ],   J_{d,i} = ½ tr(J_i) I₃ − J_i.
 
-    The groupoid is :func:`attitude_groupoid` (n), a product of action groupoids; the
-    unknowns of a step are the Cayley coordinates of F_{i,k+1} (docs/conventions.md §1–§2).
+    The groupoid is :func:`attitude_groupoid` (n), the pair groupoid of SO(3)ⁿ; the unknowns
+    of a step are the Cayley coordinates of F_{i,k+1} = R_{i,k}ᵀR_{i,k+1}
+    (docs/conventions.md §1–§2).
     """
     n = integer_argument(n, "n", minimum=1, owner="spherical_chain")
     h, grav = sp.symbols("h g", positive=True)
@@ -216,9 +215,10 @@ def spherical_chain(n: int) -> DiscreteSystem:
 
     def L(g):
         bodies = read(g)
-        before = centres_of_mass([R for R, _ in bodies])
-        after = centres_of_mass([R * F for R, F in bodies])
-        rotational = sum(((sp.eye(3) - F) * J).trace() for (_, F), J in zip(bodies, Jd))
+        before = centres_of_mass([Ra for Ra, _ in bodies])
+        after = centres_of_mass([Rb for _, Rb in bodies])
+        rotational = sum(((sp.eye(3) - Ra.T * Rb) * J).trace()
+                         for (Ra, Rb), J in zip(bodies, Jd))
         kinetic = sum(((b - a).T * (b - a))[0, 0] for a, b in zip(before, after)) / 2
         potential = sum((up.T * (a + b))[0, 0] for a, b in zip(before, after)) * grav / 2
         return (rotational + kinetic) / h - h * potential

@@ -6,7 +6,8 @@
   L = ½ Σ_jl M_jl θ̇_j θ̇_l cos(θ_j − θ_l) + g Σ_j (n + 1 − j) cos θ_j.
 - ``spherical_chain(n)``: the residual is the derivative of the action sum
   L_d(R_k, R_{k+1}) + L_d(R_{k+1}, R_{k+2}) along R_{k+1,i} ↦ R_{k+1,i}(I + tE_a) (the junction
-  variation of seed 000 Thm 2.13 on the action groupoid), with L_d written independently from
+  variation of seed 000 Thm 2.13 on the pair groupoid of SO(3)ⁿ), with L_d written
+  independently from
   the configurations; along a trajectory of the compiled kernel this residual vanishes, the
   discrete Noether momentum of rotations about the vertical is conserved and the energy error
   stays small.
@@ -160,18 +161,19 @@ def discrete_energy(Ra, Rb, h, g) -> float:
 
 
 def configurations(known: np.ndarray, n: int) -> tuple[list, list]:
-    """(R_k, R_{k+1}) from a known state (R_{k,i} then F_{k,i}, row-major, per body)."""
-    R = [known[18 * i: 18 * i + 9].reshape(3, 3) for i in range(n)]
-    F = [known[18 * i + 9: 18 * i + 18].reshape(3, 3) for i in range(n)]
-    return R, [r @ f for r, f in zip(R, F)]
+    """(R_{k−1}, R_k) from a known state (every body's R_{k−1}, then every body's R_k,
+    row-major: the arrow of the pair groupoid of SO(3)ⁿ)."""
+    R = [known[9 * i: 9 * i + 9].reshape(3, 3) for i in range(n)]
+    R1 = [known[9 * (n + i): 9 * (n + i) + 9].reshape(3, 3) for i in range(n)]
+    return R, R1
 
 
 def spherical_residual_at(step, n: int, rng, h: float, g: float) -> tuple[np.ndarray, ...]:
     R = [cayley(rng.normal(size=3)) for _ in range(n)]
     F = [cayley(0.3 * rng.normal(size=3)) for _ in range(n)]
     u = 0.3 * rng.normal(size=3 * n)
-    known = np.concatenate([np.concatenate([r.ravel(), f.ravel()]) for r, f in zip(R, F)])
     R1 = [r @ f for r, f in zip(R, F)]
+    known = np.concatenate([r.ravel() for r in R] + [r.ravel() for r in R1])
     R2 = [r @ cayley(u[3 * i: 3 * i + 3]) for i, r in enumerate(R1)]
     library, _ = step.evaluate(u, known, [h, g])
     return library, action_residual(R, R1, R2, h, g)
@@ -191,12 +193,9 @@ def test_spherical_chain_is_variational(n: int) -> None:
 
 
 def spherical_initial(n: int) -> np.ndarray:
-    parts = []
-    for i in range(1, n + 1):
-        R = cayley(np.array([0.4 * np.cos(i), 0.3 * np.sin(i), 0.2 * i]))
-        F = cayley(H * np.array([0.7 * np.sin(i), -0.5, 1.1]))
-        parts += [R.ravel(), F.ravel()]
-    return np.concatenate(parts)
+    R = [cayley(np.array([0.4 * np.cos(i), 0.3 * np.sin(i), 0.2 * i])) for i in range(1, n + 1)]
+    F = [cayley(H * np.array([0.7 * np.sin(i), -0.5, 1.1])) for i in range(1, n + 1)]
+    return np.concatenate([r.ravel() for r in R] + [(r @ f).ravel() for r, f in zip(R, F)])
 
 
 @needs_cc

@@ -106,10 +106,16 @@ def test_adaptive_step_conserves_energy_while_the_step_varies():
 
 
 def _rounding_floor(st, known) -> float:
-    """ε·(E + Σ_j |J_ij||u_j|) at the solved step from ``known`` (the step program's rounding
-    bound E, output ``F_scale``): the smallest residual the step can be certified to reach.
-    It grows with t here (t₁ − t₀ of large times), so the last state bounds every step."""
-    f = st.program.numpy_function(["F", "F_scale", "J"], ["u", "known", "p"])
+    """ε·(E + Σ_j |J_ij||u_j|) at the solved step from ``known``, E the running-error bound of
+    the residual program (:func:`symgroupoid.ir.rounding_error`): the smallest residual the
+    step can be certified to reach.  It grows with t here (the unknown t_{k+1} is rounded
+    relative to t, not to the step), so the last state bounds every step."""
+    from symgroupoid.ir import Program, rounding_error
+
+    P = st.program
+    bound = Program(P.graph, P.inputs, {"F": P.outputs["F"], "J": P.outputs["J"],
+                                        "E": rounding_error(P.graph, P.outputs["F"])})
+    f = bound.numpy_function(["F", "E", "J"], ["u", "known", "p"])
     u = np.asarray(st.program.numpy_function(["predict"], ["known", "p"])(known, [])[0])
     for _ in range(12):
         F, E, J = f(u, known, [])

@@ -25,7 +25,7 @@ TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2")
 
 #: default Newton options compiled into ``<prefix>_default_options``
 DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
-                   "floor_factor": 1.0}
+                   "floor_factor": 8.0}
 
 
 def template_dir() -> Path:
@@ -128,7 +128,7 @@ def _context(step, prefix: str, header_name: str) -> dict:
         "residual_latex": residual_comments(step), "helpers": blocks.helpers,
         "reconstruct": blocks.reconstruct, "residual": blocks.residual,
         "residual_jacobian": blocks.residual_jacobian,
-        "residual_scale": blocks.residual_scale, "predict": blocks.predict,
+        "predict": blocks.predict,
         "next_knowns": blocks.next_knowns,
         "tol_residual": _c_double(DEFAULT_OPTIONS["tol_residual"]),
         "floor_factor": _c_double(DEFAULT_OPTIONS["floor_factor"]),

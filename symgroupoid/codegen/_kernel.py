@@ -119,7 +119,6 @@ class KernelBlocks:
     reconstruct: Block
     residual: Block
     residual_jacobian: Block
-    residual_scale: Block
     predict: Block
     next_knowns: Block
     n_fibre: int
@@ -137,7 +136,6 @@ def kernel_blocks(step) -> KernelBlocks:
         reconstruct=build_block(program, [("fibre", "fibre")]),
         residual=build_block(program, [("F", "F")]),
         residual_jacobian=build_block(program, [("F", "F"), ("J", "J")]),
-        residual_scale=build_block(program, [("S", "F_scale")]),
         predict=build_block(program, [("u", "predict")]),
         next_knowns=build_block(program, [("known_next", "next_knowns")]),
         n_fibre=len(program.outputs["fibre"]),

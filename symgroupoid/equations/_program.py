@@ -10,7 +10,7 @@ f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded tree
 from __future__ import annotations
 
 from ..derivation._window import step_jacobian
-from ..ir import Graph, Program, from_sympy, rounding_error
+from ..ir import Graph, Program, from_sympy
 
 
 def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:
@@ -26,9 +26,7 @@ def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:
 
 
 def step_program(step) -> Program:
-    """The :class:`Program` of a :class:`StepEquations` (see the module docstring); its
-    output ``F_scale`` bounds the rounding error of evaluating each residual, ε·F_scale
-    (running error analysis, :func:`symgroupoid.ir.rounding_error`)."""
+    """The :class:`Program` of a :class:`StepEquations` (see the module docstring)."""
     d = step._d
     if d.window is not None:
         g, symbols, memo = d.window.graph, d.window.symbols, d.window.memo
@@ -51,7 +49,7 @@ def step_program(step) -> Program:
         inputs={"u": list(step.unknowns), "known": list(step.knowns),
                 "p": list(step.parameters)},
         outputs={"F": F, "J": [c for row in J for c in row],
-                 "F_scale": rounding_error(g, F), "fibre": fibre,
+                 "fibre": fibre,
                  "predict": nodes(step.prediction, "prediction"),
                  "next_knowns": nodes(step.next_knowns, "state update")})
     program.check_inputs()

@@ -58,10 +58,12 @@ class NewtonOptions:
       ``tol_step`` — ρ = |d_k|/|d_{k−1}| the observed contraction, |d| = max_j |d_j|/(1 + |u_j|)
       — or an update of at most 4ε (rounding noise of u); the update is applied and the
       residual evaluated there (reported, and checked to be finite);
-    - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and every
-      |F_i| ≤ ``floor_factor``·ε·(S_i + Σ_j |J_ij||u_j|), ε·S_i the rounding-error bound of F_i
-      (``StepEquations.program`` output ``F_scale``) and J the last factored Jacobian:
-      stalled at the rounding floor of the terms and of the unknowns;
+    - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and
+      either that update was at most 64ε times the ratio of the largest to the smallest pivot
+      (rounding noise of an update solved with that factorisation), or every |F_i| is at
+      most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_j| (J the last factored
+      Jacobian) and N_i its change under a move of every unknown by 4 ulps: stalled at the
+      rounding floor of the unknowns and of F's own operations;
     - when |F|_∞ ≤ ``tol_residual`` (absolute; 0, i.e. off, by default).
 
     At most ``max_iterations`` updates (an integer in 0 … 2³¹ − 1, the range of a C ``int``;
@@ -409,11 +411,11 @@ def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
 
 
 def coordinate_floor(J: np.ndarray, u: np.ndarray) -> np.ndarray:
-    """C_i = Σ_j |J_ij|·|u_j|, as ``<prefix>_coordinate_floor`` (the same summation order)."""
+    """C_i = ε·Σ_j |J_ij|·|u_j|, as ``<prefix>_coordinate_floor`` (the same summation order)."""
     C = np.zeros(len(J))
     for j in range(J.shape[1]):
         C = C + np.abs(J[:, j]) * abs(u[j])
-    return C
+    return EPSILON * C
 
 
 def relative_norm(d: np.ndarray, u: np.ndarray) -> float:
@@ -453,7 +455,6 @@ class NumpyKernel(_Kernel):
         args = ["u", "known", "p"]
         self._F = program.numpy_function(["F"], args)
         self._FJ = program.numpy_function(["F", "J"], args)
-        self._S = program.numpy_function(["F_scale"], args)
         self._next = program.numpy_function(["next_knowns"], args)
         self._pred = program.numpy_function(["predict"], ["known", "p"])
 
@@ -477,6 +478,17 @@ class NumpyKernel(_Kernel):
         """Newton's method exactly as ``<prefix>_newton`` in the C kernel."""
         with np.errstate(all="ignore"):
             return self._newton(known, p, np.array(u0, dtype=float), options)
+
+    def _at_floor(self, u, known, p, F, C, factor: float) -> bool:
+        """As ``<prefix>_at_floor``: every |F_i| ≤ factor·(C_i + N_i), N_i the larger change
+        of F_i when every unknown moves by 4 ulps (alternating signs, both ways)."""
+        move = 4.0 * EPSILON * np.where(np.abs(u) > np.finfo(float).tiny, np.abs(u), 1.0)
+        signs = np.where(np.arange(len(u)) % 2 == 0, 1.0, -1.0)
+        N = np.zeros(len(F))
+        for sign in (-1.0, 1.0):
+            G = self._residual(u + sign * signs * move, known, p)
+            N = np.maximum(N, np.abs(G - F))
+        return bool(np.all(np.abs(F) <= factor * (C + N)))
 
     def _newton(self, known, p, u, options: NewtonOptions):
         """As ``<prefix>_newton`` (see :class:`NewtonOptions`)."""
@@ -502,10 +514,10 @@ class NumpyKernel(_Kernel):
             if rnorm <= options.tol_residual:
                 return OK, u, it, rnorm
             slow = it > 0 and not rnorm <= 0.1 * previous
-            if slow:
-                S = self._S(u, known, p)[0].reshape(self.n_u)
-                if bool(np.all(np.abs(F) <= options.floor_factor * EPSILON * (S + C))):
-                    return OK, u, it, rnorm
+            ratio = float(np.max(np.abs(factors.inv)) / np.min(np.abs(factors.inv)))
+            if slow and (last_step <= 64.0 * EPSILON * ratio
+                         or self._at_floor(u, known, p, F, C, options.floor_factor)):
+                return OK, u, it, rnorm
             if it >= options.max_iterations:
                 return NOT_CONVERGED, u, it, rnorm
             if slow:
