@@ -24,9 +24,11 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 
 import symgroupoid as sg
 from symgroupoid.codegen import emit_c, generate_c
+from symgroupoid.codegen._emit import generate_program_c
+from symgroupoid.ir import Graph, Program, from_sympy
 from symgroupoid.runtime import CacheError, CompilationError, _cache, _compile
-from symgroupoid.runtime._build import DEFAULT_FLAGS
-from symgroupoid.runtime._programs import compile_program, program_source
+from symgroupoid.runtime._build import DEFAULT_FLAGS, default_flags
+from symgroupoid.runtime._programs import compile_program
 
 pytestmark = needs_cc
 
@@ -367,14 +369,18 @@ def test_window_program_with_garbage_module_is_rebuilt(cache_dir):
     """The boundary-value window programs load through the same cache (no step to
     regenerate from: the source this process asked to build is kept)."""
     x, y = sp.symbols("x y")
-    inputs, outputs = [x, y], [x * y + sp.sin(x), x - y]
-    kernel = program_source("sgw_garbage_window", inputs, [], outputs)
-    _compile.build_cached(kernel, tuple(DEFAULT_FLAGS), _cache.KernelCache(), "garbage window")
+    g = Graph()
+    nodes = {x: g.input(x), y: g.input(y)}
+    program = Program(g, {"a": [x, y]}, {"out": [from_sympy(g, e, nodes)
+                                                  for e in (x * y + sp.sin(x), x - y)]})
+    kernel = generate_program_c("garbage window", program, "a", "out")
+    _compile.build_cached(kernel, default_flags(program.size()), _cache.KernelCache(),
+                          "garbage window")
     (entry,) = (cache_dir / "kernels").iterdir()
     manifest = json.loads((entry / "manifest.json").read_text())
     _replace_library_consistently(entry, manifest, b"garbage" * 64)
     builds = _compile.STATS["builds"]
-    evaluate = compile_program("garbage window", inputs, [], outputs)
+    evaluate = compile_program("garbage window", program, "a", "out")
     assert _compile.STATS["builds"] == builds + 1
     values = np.array([[0.5, 2.0], [1.0, -1.0]])
     expected = np.stack([values[:, 0] * values[:, 1] + np.sin(values[:, 0]),

@@ -16,11 +16,11 @@ from ..codegen import generate_c, templates_digest
 from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
-    DEFAULT_FLAGS,
     NUMPY_HINT,
     CompilerNotFoundError,
     build_extension,
     compile_args,
+    default_flags,
     find_compiler,
     load_extension,
     module_name,
@@ -206,7 +206,7 @@ def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
     return source_key, manifest
 
 
-def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
+def load_c_kernel(step, flags: Sequence[str] | None = None,
                   cache_dir: str | os.PathLike | None = None) -> tuple[CKernel, Path]:
     """The compiled kernel of ``step`` from the cache, building it on a miss.
 
@@ -214,7 +214,7 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
     :class:`CompilationError` when the compiler fails (the cache is left unchanged),
     :class:`CacheError` when the cache cannot serve the kernel (see :mod:`._cache`).
     """
-    flags = tuple(flags)
+    flags = tuple(default_flags(step.program.size()) if flags is None else flags)
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     key = input_key(step, flags)
     source_key = cache.lookup(key)
@@ -247,7 +247,9 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
         or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
         ``"auto"``.
-    flags : extra compiler flags (default ``DEFAULT_FLAGS``); part of the cache key.  Builds
+    flags : compiler flags (default: ``DEFAULT_FLAGS``, -O3, or -O2 for programs of more than
+        ``LARGE_PROGRAM`` operations, which compile faster and run as fast); part of the
+        cache key.  Builds
         carry no debug information unless ``flags`` ask for it (``-g``).
     cache_dir : cache root (default ``$SYMGROUPOID_CACHE``, ``$XDG_CACHE_HOME/symgroupoid``
         or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
@@ -267,7 +269,7 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
     try:
-        kernel, entry = load_c_kernel(step, DEFAULT_FLAGS if flags is None else flags,
+        kernel, entry = load_c_kernel(step, flags,
                                       cache_dir)
     except CompilerNotFoundError as exc:
         if backend == "c":
