@@ -72,6 +72,8 @@ from .runtime import (  # noqa: E402  (layer 5)
     Trajectory,
     compile_step,
 )
+from . import diagnostics  # noqa: E402  (layer 6)
+from .plotting import plot_conservation, plot_trajectory  # noqa: E402
 
 __all__ = [
     "ActionGroupoid", "Arrow", "AtiyahGroupoid", "AxiomError", "BoundaryValueSolution",
@@ -84,6 +86,6 @@ __all__ = [
     "SO2", "SO3", "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError",
     "StationarityReport", "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory",
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
-    "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "emit_c", "hat3",
-    "latex", "left_derivative", "right_derivative", "solve_boundary_value", "verify_stationary",
+    "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "diagnostics", "emit_c", "hat3",
+    "latex", "left_derivative", "plot_conservation", "plot_trajectory", "right_derivative", "solve_boundary_value", "verify_stationary",
 ]
