@@ -8,13 +8,13 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from .._errors import ParameterError, ShapeError
 from ..derivation._momenta import (
     LegendreForms,
     LiePoissonForms,
     NoetherForms,
     momentum_symbols,
 )
-from .._errors import ParameterError, ShapeError
 from ..ir import Graph, Program, from_sympy
 from ._latex import latex
 from ._step import StepEquations

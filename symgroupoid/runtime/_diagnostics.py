@@ -74,7 +74,7 @@ class StateGraph:
                 f"these equations have no system attached (equations from "
                 f"DiscreteSystem.euler_lagrange() carry one)")
         self.name, self.step, self.fs = step.name, step, fs
-        self.groupoid = G = step.groupoid
+        self.groupoid = step.groupoid
         self.arity = len(fs.slots)
         self.m = step.n_constraints  # multipliers in the action (0 for nonholonomic steps)
         g = self.graph = Graph()
