@@ -134,7 +134,7 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     if energy or (energy is None and has_energy(trajectory, step_parameter)):
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 _energy(trajectory, step_parameter), idx))
-    for label, nq in _noether_quantities(ev.sg.step, momenta):
+    for label, nq in _noether_quantities(ev.sg, momenta):
         quantities.append(Drift(label, nq.along(trajectory), idx))
     show_phi = bool(ev.sg.phi) if constraints is None else constraints
     if show_phi and not ev.sg.phi:

@@ -73,7 +73,9 @@ class StateGraph:
                 f"{step.name}: diagnostics need the system's Lagrangian and constraints, and "
                 f"these equations have no system attached (equations from "
                 f"DiscreteSystem.euler_lagrange() carry one)")
-        self.name, self.step, self.fs = step.name, step, fs
+        # no reference to the step itself: graphs are cached per step in a weak mapping
+        self.name, self.system, self.fs = step.name, system, fs
+        self.knowns, self.parameters = list(step.knowns), list(step.parameters)
         self.groupoid = step.groupoid
         self.arity = len(fs.slots)
         self.m = step.n_constraints  # multipliers in the action (0 for nonholonomic steps)
@@ -174,7 +176,7 @@ class StateGraph:
         return [g.neg(self.instantiate([dL], 0)[0])], f"E_d = −∂L_d/∂{h}"
 
     def _step_symbol(self, name: str | None) -> sp.Symbol:
-        by_name = {str(p): p for p in self.step.parameters}
+        by_name = {str(p): p for p in self.parameters}
         if name is None:
             if "h" in by_name:
                 return by_name["h"]
@@ -188,8 +190,7 @@ class StateGraph:
         return by_name[str(name)]
 
     def program(self, outputs: dict) -> Program:
-        return Program(self.graph, {"known": list(self.step.knowns),
-                                    "p": list(self.step.parameters)}, outputs)
+        return Program(self.graph, {"known": self.knowns, "p": self.parameters}, outputs)
 
 
 _GRAPHS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
@@ -391,7 +392,6 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     coefficients) turned into them by ``system.noether(section)``.
     """
     ev, _ = _setup(trajectory)
-    step = ev.sg.step
     quantities: list[Drift] = []
     notes: list[str] = []
     idx = trajectory.step_indices
@@ -399,13 +399,13 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     if want_energy:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 globals()["energy"](trajectory, step_parameter), idx))
-    for label, nq in _noether_quantities(step, noether):
+    for label, nq in _noether_quantities(ev.sg, noether):
         quantities.append(Drift(label, nq.along(trajectory), idx))
     residual = None
     if ev.sg.phi:
         residual = float(np.max(np.abs(constraint_residuals(trajectory))))
     matching = scale = None
-    if _variational(step) and len(idx) > ev.sg.arity and np.all(np.diff(idx) == 1):
+    if _variational(ev.sg.system) and len(idx) > ev.sg.arity and np.all(np.diff(idx) == 1):
         try:
             mom = momenta(trajectory)
         except SymgroupoidError as err:  # e.g. a structure map the graph cannot take
@@ -417,15 +417,15 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
                                residual, matching, scale, notes)
 
 
-def _variational(step) -> bool:
-    """Whether the step is the DEL F⁺L(g_k) = F⁻L(g_{k+1}) in every section (not a
+def _variational(system) -> bool:
+    """Whether the system's step is the DEL F⁺L(g_k) = F⁻L(g_{k+1}) in every section (not a
     nonholonomic step, whose equations hold along D_c only)."""
     from ..equations import NonholonomicSystem
 
-    return not isinstance(step.system, NonholonomicSystem)
+    return not isinstance(system, NonholonomicSystem)
 
 
-def _noether_quantities(step, items) -> list[tuple[str, object]]:
+def _noether_quantities(sgraph: StateGraph, items) -> list[tuple[str, object]]:
     """(label, NoetherQuantity) pairs from NoetherQuantity objects or sections, or from a
     mapping label → either."""
     from ..equations import NoetherQuantity
@@ -435,9 +435,9 @@ def _noether_quantities(step, items) -> list[tuple[str, object]]:
     out = []
     for label, item in pairs:
         if not isinstance(item, NoetherQuantity):
-            system = step.system
+            system = sgraph.system
             if not hasattr(system, "noether"):
-                raise DiagnosticsError(f"{step.name}: Noether quantities from sections need a "
+                raise DiagnosticsError(f"{sgraph.name}: Noether quantities from sections need a "
                                        f"DiscreteSystem; pass NoetherQuantity objects")
             item = system.noether(item)
         if not item.is_symmetry:

@@ -36,7 +36,8 @@ class ConstraintProjection:
     """The Gauss–Newton projection of one step's known arrow (see the module docstring)."""
 
     def __init__(self, step, layout):
-        self.name, self.layout = step.name, layout
+        # no reference to the step or its layout: cached per step in a weak mapping
+        self.name, self.index = step.name, layout.arrow_index[0]
         if step.order != 1:
             raise ProjectionError(
                 f"{step.name}: project_initial handles first-order steps; for a second-order "
@@ -68,7 +69,7 @@ class ConstraintProjection:
         if not self.has_constraints:
             return state.copy()
         G = self.groupoid
-        index = self.layout.arrow_index[0]
+        index = self.index
         a0 = state[index]
         source = tuple(float(v) for v in G.source(tuple(a0)))
         x = np.array(G.fibre_chart_inverse(tuple(G.fibre_of(tuple(a0))), source), float)

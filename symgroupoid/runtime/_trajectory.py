@@ -38,6 +38,11 @@ class Trajectory:
       largest final |F|_∞ of its steps (with e = 1: those of each step);
     - ``traj.steps``: the number of steps N covered; ``traj.every``: e;
     - ``traj.parameters``: the parameter values used, by name.
+
+    Named views are computed on first access and cached (read-only arrays).  Diagnostics
+    (:mod:`symgroupoid.diagnostics`): ``traj.energy()``, ``traj.momenta()``,
+    ``traj.constraint_residuals()``, ``traj.conservation_summary()``; figures:
+    ``traj.plot()`` and :func:`symgroupoid.plot_conservation`.
     """
 
     def __init__(self, layout: StateLayout, states: np.ndarray, iterations: np.ndarray,
