@@ -42,10 +42,11 @@ class Simulator:
     Obtain one with ``step.compile()`` (or :func:`compile_step`).  Initial states are given
     by name (see :meth:`state`), parameters by name or in ``step.parameters`` order.
 
-    >>> sim = step.compile()                                             # doctest: +SKIP
-    >>> traj = sim.simulate({"x": (0.0, 0.01), "y": (0.0, 0.0), "g": W1,
-    ...                      "lambda": [0, 0, 0]}, steps=1000,
-    ...                     params={"h": 0.01, "r": 0.1, "Omega": 1.0, "c": 0.0})
+    >>> sim = sg.systems.plate_ball().euler_lagrange().compile()         # doctest: +SKIP
+    >>> params = {"h": 0.01, "r": 0.1, "Omega": 1.0, "c": 0.0}
+    >>> state = sim.project_initial({"x": (0.0, 0.01), "y": (0.0, 0.0), "g": np.eye(3),
+    ...                              "lambda": [0, 0, 0]}, params)     # onto φ = 0
+    >>> traj = sim.simulate(state, steps=1000, params=params)            # doctest: +SKIP
     >>> traj["x"], traj["g"], traj.multipliers                          # doctest: +SKIP
     """
 
@@ -286,6 +287,30 @@ class Simulator:
         p = self.parameters(params)
         state = self._momentum.solve(configuration, momentum, p)
         return self.state(state, p)
+
+    def project_initial(self, initial, params, *, max_iterations: int = 50) -> np.ndarray:
+        """A consistent initial state from one that violates the constraints.
+
+        ``initial`` is given as for :meth:`state` (named parts or a flat vector); the
+        multipliers may be left out (then λ_k = 0).  The known arrow g_k is moved within the
+        α-fibre of its source to a nearby zero of φ: Gauss–Newton with minimum-norm steps in
+        the fibre chart, x ← x − J⁺φ, with the exact constraint Jacobian J from the
+        expression graph (to first order the orthogonal projection in the chart).  On a
+        pair groupoid, (q₀, q₁) keeps q₀ and corrects q₁.  λ_k is kept as given.
+
+        Returns the flat state, checked like any initial state (:meth:`state` with
+        ``params``).  First-order steps only; a :class:`~symgroupoid.runtime._projection.
+        ProjectionError` (a :class:`DomainError`) when no zero of φ is found nearby.
+        """
+        from ._projection import projection
+
+        p = self.parameters(params)
+        if (isinstance(initial, Mapping) and self.layout.n_multipliers
+                and not any(k in initial for k in ("lambda", "λ", "multipliers"))):
+            initial = {**initial, "lambda": np.zeros(self.layout.n_multipliers)}
+        state = self.state(initial)
+        moved = projection(self.equations, self.layout)(state, p, max_iterations)
+        return self.state(moved, p)
 
     def _failure(self, status: int, step: int, iterations: int, residual_norm: float,
                  iterate: np.ndarray) -> Exception:
