@@ -17,6 +17,15 @@ from ..derivation._momenta import (
 from ._latex import latex
 from ._step import StepEquations
 
+#: characters of an expression shown in a repr before it is cut
+REPR_WIDTH = 60
+
+
+def _short(expr) -> str:
+    """An expression's text, cut to REPR_WIDTH characters."""
+    text = str(expr)
+    return text if len(text) <= REPR_WIDTH else text[:REPR_WIDTH - 1] + "…"
+
 
 class LegendreTransforms:
     """F⁻L(g_k, λ_k) and F⁺L(g_k, λ_k) in the basis of sections (seed 000 §3.3).
@@ -50,6 +59,11 @@ class LegendreTransforms:
         rows += [f"\\mathbb{{F}}^+L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.plus)]
         return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
 
+    def __repr__(self) -> str:
+        return (f"<LegendreTransforms F⁻L, F⁺L: {len(self.minus)} components each (section "
+                f"basis), on arrows of {len(self.arrow)} coordinates, "
+                f"{len(self.multipliers)} multipliers>")
+
 
 class NoetherQuantity:
     """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
@@ -78,6 +92,10 @@ class NoetherQuantity:
     def latex(self) -> str:
         return latex(self.expr)
 
+    def __repr__(self) -> str:
+        verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"
+        return f"<NoetherQuantity F_X = {_short(self.expr)} ({verdict})>"
+
 
 class LiePoissonEquations:
     """μ_{k+1} + λ_{k+1}·Φ_{k+1} = Ad*_{g_k}(μ_k + λ_k·Φ_k) (seed 000 §6.1).
@@ -102,3 +120,9 @@ class LiePoissonEquations:
         rows = [f"{latex(m)} &= {latex(u)}" for m, u in zip(nxt, self.update)]
         rows += [f"0 &= {latex(r)}" for r in self.residuals]
         return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+
+    def __repr__(self) -> str:
+        return (f"<LiePoissonEquations {self.reconstruction.name!r}: "
+                f"{len(self.momentum_symbols)} momenta, {len(self.residuals)} equations; "
+                f"reconstruction {len(self.reconstruction)} equations in "
+                f"{len(self.reconstruction.unknowns)} unknowns>")
