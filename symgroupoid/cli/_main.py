@@ -82,8 +82,8 @@ def _command(commands, name: str, run, help: str, description: str | None = None
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="symgroupoid", formatter_class=argparse.RawDescriptionHelpFormatter,
-        description="Discrete Lagrangian mechanics on Lie groupoids: derive the equations of "
-                    "a system file, emit C, simulate, solve boundary-value problems, verify.",
+        description="Discrete Lagrangian mechanics on Lie groupoids: derive the equations of a\n"
+                    "system file, emit C, simulate, solve boundary-value problems, verify.",
         epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"symgroupoid {__version__}")
     _debug_option(parser, False)

@@ -173,21 +173,31 @@ def declared_noether(source) -> list[Declared]:
     return out
 
 
+def _state_positions(step, quantity) -> np.ndarray | None:
+    """Where the quantity's arguments (the coordinates of g_k, then λ_k) sit in the
+    step's known state; None when they are not all there."""
+    position = {s: i for i, s in enumerate(step.knowns)}
+    needed = [*quantity.arrow, *quantity.multipliers]
+    if all(s in position for s in needed):
+        return np.array([position[s] for s in needed], dtype=int)
+    return None
+
+
 def noether_check(system, step, declared: Declared, traj, p) -> Check:
     """Symmetry (symbolic) and conservation along the run of one declared quantity."""
     name = f"Noether: {declared.name}"
+    if step.order != 1:
+        return Check(name, None, "Noether quantities are checked for first-order systems only")
     try:
         quantity = system.noether(declared.section, declared.f)
     except SymgroupoidError:
         raise
     except Exception as exc:
         return Check(name, False, f"cannot be built: {type(exc).__name__}: {exc}")
-    position = {s: i for i, s in enumerate(step.knowns)}
-    needed = [*quantity.arrow, *quantity.multipliers]
-    if not all(s in position for s in needed):
-        return Check(name, None, "its arrow is not one of the state's known arrows")
+    index = _state_positions(step, quantity)
+    if index is None:
+        return Check(name, None, "its arrows are not the known arrows of the state")
     a, m = len(quantity.arrow), len(quantity.multipliers)
-    index = np.array([position[s] for s in needed], dtype=int)
     values = np.array([quantity.evaluate(x[:a], x[a:a + m], p)
                        for x in np.asarray(traj.states)[:, index]])
     drift = float(np.max(np.abs(values - values[0])))
