@@ -187,6 +187,15 @@ def test_simulate_writes_the_library_trajectory(files, tmp_path, cached, capsys)
         assert list(data["columns"]) == ["x (step k-1)", "y (step k-1)", "x", "y",
                                          "lambda[0]"]
         assert dict(zip(data["parameter_names"], data["parameter_values"])) == RING_PARAMS
+    # the constraint report: |φ| on every kept state, here against states pushed off it
+    from symgroupoid.runtime._validate import constraint_check
+
+    states = expected.states + 1e-3 * np.arange(len(expected.states))[:, None]
+    values, levels = constraint_check(sim.equations).values(states, np.array([0.01, 1.0]))
+    x0, y0, x1, y1 = states[:, :4].T
+    assert np.allclose(values[:, 0], np.abs(x1 ** 2 + y1 ** 2 - x0 ** 2 - y0 ** 2) / 2,
+                       rtol=1e-12, atol=0)
+    assert values.shape == levels.shape == (len(states), 1) and (levels < 1e-12).all()
 
     code, _, _ = run(capsys, "simulate", files / "ring.py", "--steps", "50", "-o", out_csv)
     assert code == 0

@@ -9,6 +9,7 @@ the same message on the command line as in Python.
 from __future__ import annotations
 
 import json
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -109,13 +110,21 @@ def _refuse_constant(name: str):
 def _saved_state(path: Path, width: int):
     """The last state of a trajectory written by ``simulate -o FILE.npz``."""
     try:
-        with np.load(path, allow_pickle=False) as data:
-            if "states" not in data:
-                raise InputError(f"--initial {path}: no 'states' array (not a trajectory "
-                                 f"written by symgroupoid simulate)")
-            states = np.asarray(data["states"], float)
-    except (OSError, ValueError) as exc:
+        data = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise InputError(f"--initial {path}: no such file") from None
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
         raise InputError(f"--initial {path}: cannot be read as .npz ({exc})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise InputError(f"--initial {path}: not an .npz archive of arrays")
+    with data:
+        if "states" not in data.files:
+            raise InputError(f"--initial {path}: no 'states' array (not a trajectory "
+                             f"written by symgroupoid simulate)")
+        try:
+            states = np.asarray(data["states"], float)
+        except (OSError, ValueError, zipfile.BadZipFile) as exc:
+            raise InputError(f"--initial {path}: its states cannot be read ({exc})") from None
     if states.ndim != 2 or states.shape[1] != width or not len(states):
         raise InputError(f"--initial {path}: its states have shape {states.shape}; this "
                          f"system's states have {width} entries")

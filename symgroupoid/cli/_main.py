@@ -59,14 +59,15 @@ def _system_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("system", metavar="FILE.py[:NAME]", help=SYSTEM_HELP)
 
 
-def _runtime_options(parser: argparse.ArgumentParser, initial: bool = True) -> None:
+def _runtime_options(parser: argparse.ArgumentParser, stepper: bool = True) -> None:
     parser.add_argument("--params", metavar="NAME=VALUE,...",
                         help="parameter values, e.g. h=0.01,k=1 (over the file's PARAMS)")
-    if initial:
+    if stepper:
         parser.add_argument("--initial", metavar="FILE",
                             help="initial state: FILE.json (see below) or a trajectory .npz")
-    parser.add_argument("--backend", choices=BACKENDS, default="auto",
-                        help="C kernel (c), NumPy (numpy), or C when a compiler exists (auto)")
+        parser.add_argument("--backend", choices=BACKENDS, default="auto",
+                            help="C kernel (c), NumPy (numpy), or C when a compiler exists "
+                                 "(auto)")
 
 
 def _command(commands, name: str, run, help: str, description: str | None = None,
@@ -121,7 +122,7 @@ def build_parser() -> argparse.ArgumentParser:
     _system_options(bvp)
     bvp.add_argument("problem", metavar="BOUNDARY.json",
                      help="start, end, steps (and optionally params, guess)")
-    _runtime_options(bvp, initial=False)
+    _runtime_options(bvp, stepper=False)
     bvp.add_argument("--max-iterations", default="30", help="Newton iteration cap (default 30)")
     bvp.add_argument("--check", action="store_true",
                      help="check the solution against the discrete action (verify_stationary)")
