@@ -19,6 +19,15 @@ from ..ir import Graph, Program, from_sympy
 from ._latex import latex
 from ._step import StepEquations
 
+#: characters of an expression shown in a repr before it is cut
+REPR_WIDTH = 60
+
+
+def _short(expr) -> str:
+    """An expression's text, cut to REPR_WIDTH characters."""
+    text = str(expr)
+    return text if len(text) <= REPR_WIDTH else text[:REPR_WIDTH - 1] + "…"
+
 
 class LegendreTransforms:
     """F⁻L(g_k, λ_k) and F⁺L(g_k, λ_k) in the basis of sections (seed 000 §3.3).
@@ -51,6 +60,11 @@ class LegendreTransforms:
         rows = [f"\\mathbb{{F}}^-L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.minus)]
         rows += [f"\\mathbb{{F}}^+L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.plus)]
         return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+
+    def __repr__(self) -> str:
+        return (f"<LegendreTransforms F⁻L, F⁺L: {len(self.minus)} components each (section "
+                f"basis), on arrows of {len(self.arrow)} coordinates, "
+                f"{len(self.multipliers)} multipliers>")
 
 
 class NoetherQuantity:
@@ -112,6 +126,10 @@ class NoetherQuantity:
         f = self._program.numpy_function(["F"], ["known", "p"])
         return f(np.ascontiguousarray(states.T), p)[0][0]
 
+    def __repr__(self) -> str:
+        verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"
+        return f"<NoetherQuantity F_X = {_short(self.expr)} ({verdict})>"
+
 
 class LiePoissonEquations:
     """μ_{k+1} + λ_{k+1}·Φ_{k+1} = Ad*_{g_k}(μ_k + λ_k·Φ_k) (seed 000 §6.1).
@@ -136,3 +154,9 @@ class LiePoissonEquations:
         rows = [f"{latex(m)} &= {latex(u)}" for m, u in zip(nxt, self.update)]
         rows += [f"0 &= {latex(r)}" for r in self.residuals]
         return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+
+    def __repr__(self) -> str:
+        return (f"<LiePoissonEquations {self.reconstruction.name!r}: "
+                f"{len(self.momentum_symbols)} momenta, {len(self.residuals)} equations; "
+                f"reconstruction {len(self.reconstruction)} equations in "
+                f"{len(self.reconstruction.unknowns)} unknowns>")

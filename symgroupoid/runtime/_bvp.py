@@ -55,6 +55,8 @@ from .._errors import (
     ShapeError,
     SingularJacobianError,
 )
+from .._progress import note as progress_note
+from .._progress import reported
 from ..derivation._step import window
 from ..derivation._window import _fields, junction_nodes
 from ..groupoids import (
@@ -765,6 +767,8 @@ def _excess(F: np.ndarray, floor: np.ndarray, tol: float) -> float:
 
 # --- Newton's method ---------------------------------------------------------------------------
 
+@reported(lambda step_equations, *args, **kwargs:
+          f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
                          tol: float = 1e-10, tol_step: float = 1e-9,
                          max_iterations: int = 30) -> BoundaryValueSolution:
@@ -793,6 +797,9 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     iterations and the residual history) when the iteration cap is reached, Newton stalls or
     the line search finds no decrease; :class:`SingularJacobianError` for a singular
     Jacobian; :class:`CutLocusError` when an arrow of the initial path is a half-turn.
+
+    ``progress`` (keyword): report a solve taking longer than 2 s, with |F|∞ per iteration
+    (see :mod:`symgroupoid._progress`).
     """
     system = getattr(step_equations, "system", step_equations)
     owner = system.name
@@ -826,6 +833,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     while True:
         norm = float(np.max(np.abs(state.F), initial=0.0))
         history.append(norm)
+        progress_note(f"iteration {it}, |F|∞ = {norm:.2e}")
         excess = _excess(state.F, _rounding_floor(maps, lay, arrows, lam, state), tol)
         if excess <= 1.0:
             break

@@ -12,6 +12,7 @@ from pathlib import Path
 import sympy as sp
 
 from .._errors import CacheError
+from .._progress import reported
 from ..codegen import generate_c, templates_digest
 from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
@@ -236,6 +237,7 @@ def load_c_kernel(step, flags: Sequence[str] | None = None,
     return CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns)), entry
 
 
+@reported(lambda step, **options: f"{step.name}: building the kernel")
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
                  cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
                  tol_step: float | None = None, max_iterations: int | None = None,
@@ -256,6 +258,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         private temporary directory for this process (with a ``RuntimeWarning``).
     tol_residual, tol_step, max_iterations, floor_factor : Newton options (see
         :class:`NewtonOptions`).
+    progress : report code generation and compilation taking longer than 2 s (see
+        :mod:`symgroupoid._progress`; a cached kernel loads in milliseconds).
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")

@@ -14,6 +14,7 @@ from .._errors import (
     SingularJacobianError,
     TrajectoryTooLargeError,
 )
+from .._progress import Task
 from ._backends import (
     INVALID_ARGUMENT,
     NON_FINITE,
@@ -121,8 +122,8 @@ class Simulator:
 
     # --- running --------------------------------------------------------------------------------
     def simulate(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
-                 every: int = 1, callback: Callable[[Trajectory], None] | None = None
-                 ) -> Trajectory:
+                 every: int = 1, callback: Callable[[Trajectory], None] | None = None,
+                 progress: bool | None = None) -> Trajectory:
         """Advance ``steps`` steps from ``initial`` (see :meth:`state`).
 
         The run is computed in chunks of at most ``CHUNK_STEPS`` steps (bitwise the states
@@ -140,6 +141,8 @@ class Simulator:
         far.  Non-finite values are never returned.  ``steps`` and ``every`` are integers
         (integral floats such as ``1e7`` are accepted); a :class:`TrajectoryTooLargeError`
         is raised up front when the states to keep exceed the machine's memory.
+        ``progress``: report a run taking longer than 2 s, updated between chunks (see
+        :mod:`symgroupoid._progress`).
         """
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
@@ -158,8 +161,10 @@ class Simulator:
             return self._trajectory(states[:filled], iterations[:filled - 1],
                                     norms[:filled - 1], p, indices[:filled], every)
 
+        task = Task(f"{self.name}: simulating", total=steps, unit="steps",
+                    progress=progress).start()
         try:
-            for piece in self._pieces(known0, p, steps, every, options):
+            for piece in self._pieces(known0, p, steps, every, options, task):
                 r = len(piece.states) - 1
                 states[filled:filled + r] = piece.states[1:]
                 indices[filled:filled + r] = piece.step_indices[1:]
@@ -182,6 +187,8 @@ class Simulator:
         except KeyboardInterrupt as interrupt:
             interrupt.trajectory = so_far()
             raise
+        finally:
+            task.close(failed=filled < rows)
         return so_far()
 
     def stream(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
@@ -203,12 +210,15 @@ class Simulator:
                             options)
 
     def _pieces(self, known0: np.ndarray, p: np.ndarray, steps: int, every: int,
-                options: NewtonOptions | None) -> Iterator[Trajectory]:
+                options: NewtonOptions | None, task: Task | None = None
+                ) -> Iterator[Trajectory]:
         options = options or self.options
         sampler = Sampler(every, steps, known0)
         for start, run in run_chunks(self.kernel, known0, p, steps, options, CHUNK_STEPS):
             before_index, before_state = sampler.last_index, sampler.last_state
             segment = sampler.take(start, run)
+            if task is not None:
+                task.update(start + run.completed)
             piece = self._trajectory(
                 np.concatenate([before_state[None], segment.states]), segment.iterations,
                 segment.residual_norms, p,
