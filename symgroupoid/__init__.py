@@ -69,8 +69,12 @@ from .runtime import (  # noqa: E402  (layer 5)
     CompilationError,
     NewtonOptions,
     Simulator,
+    SweepResult,
     Trajectory,
+    TrajectoryBatch,
     compile_step,
+    sweep,
+    sweep_boundary_value,
 )
 
 __all__ = [
@@ -82,8 +86,10 @@ __all__ = [
     "NonholonomicSystem", "NotComposableError", "PairGroupoid", "ParameterDeclarationError",
     "ParameterError", "ProductGroupoid", "ReconstructionError", "ReducedSystem", "SE2", "SE3",
     "SO2", "SO3", "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError",
-    "StationarityReport", "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory",
+    "StationarityReport", "StepEquations", "SweepResult", "SymgroupoidError", "TimeGroupoid",
+    "Trajectory", "TrajectoryBatch",
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
     "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "emit_c", "hat3",
-    "latex", "left_derivative", "right_derivative", "solve_boundary_value", "verify_stationary",
+    "latex", "left_derivative", "right_derivative", "solve_boundary_value", "sweep",
+    "sweep_boundary_value", "verify_stationary",
 ]

@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import ctypes
 import functools
 import os
 import shutil
+import subprocess
+import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -21,6 +24,7 @@ from ._build import (
     CompilerNotFoundError,
     build_extension,
     compile_args,
+    compiler_command,
     find_compiler,
     load_extension,
     module_name,
@@ -53,6 +57,58 @@ def codegen_digest() -> str:
     package = Path(__file__).resolve().parents[1]
     files = sorted([*(package / "codegen").glob("*.py"), *(package / "ir").glob("*.py")])
     return sha256_of([__version__, templates_digest(), *(f.read_bytes() for f in files)])
+
+
+#: the flag that compiles (and links) a kernel's batched entry point with OpenMP threads
+OPENMP_FLAG = "-fopenmp"
+
+_OPENMP_PROBE = """#include <omp.h>
+int symgroupoid_openmp_probe(void)
+{
+    int n = 0;
+#pragma omp parallel reduction(+ : n)
+    n += 1;
+    return n > 0 ? omp_get_max_threads() : 0;
+}
+"""
+
+
+@functools.cache
+def _openmp_probe(command: tuple[str, ...]) -> bool:
+    """Whether ``command -fopenmp`` builds a shared object that loads (OpenMP runtime found)."""
+    with tempfile.TemporaryDirectory(prefix="symgroupoid-openmp-") as tmp:
+        source, library = Path(tmp) / "probe.c", Path(tmp) / "probe.so"
+        source.write_text(_OPENMP_PROBE, encoding="ascii")
+        try:
+            result = subprocess.run(
+                [*command, OPENMP_FLAG, "-shared", "-fPIC", str(source), "-o", str(library)],
+                stdin=subprocess.DEVNULL, capture_output=True, timeout=120)
+            if result.returncode != 0 or not library.is_file():
+                return False
+            return ctypes.CDLL(str(library)).symgroupoid_openmp_probe() > 0
+        except (OSError, subprocess.SubprocessError):
+            return False
+
+
+def openmp_available() -> bool:
+    """Whether kernels are built with OpenMP: the C compiler accepts ``-fopenmp`` and its
+    runtime loads (probed once per process and compiler), unless ``SYMGROUPOID_OPENMP=0``."""
+    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
+        return False
+    try:
+        command = tuple(compiler_command())
+    except CompilerNotFoundError:
+        return False
+    return _openmp_probe(command)
+
+
+def default_flags() -> tuple[str, ...]:
+    """The compiler flags of a kernel built without explicit ``flags``: ``DEFAULT_FLAGS``,
+    and ``-fopenmp`` when :func:`openmp_available` (the batched entry point
+    ``<prefix>_simulate_batch`` then shares trajectories among threads; nothing else in the
+    kernel changes).  Flags are part of the cache key, so both builds can be cached side by
+    side."""
+    return (*DEFAULT_FLAGS, OPENMP_FLAG) if openmp_available() else tuple(DEFAULT_FLAGS)
 
 
 def _atom_token(node, symbols: dict) -> str:
@@ -233,7 +289,39 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
             raise _unloadable(again, cache.entry(source_key)) from error
         _LOADED[source_key] = module
     entry = cache.entry(source_key)
-    return CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns)), entry
+    kernel = CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns))
+    kernel.source_key, kernel.flags = source_key, flags
+    return kernel, entry
+
+
+def kernel_source_of(kernel: CKernel, step) -> KernelSource:
+    """The generated C of a loaded kernel: from this process's builds, else generated again
+    from ``step`` (checked to hash to the kernel's source key)."""
+    recipe = _RECIPES.get(kernel.source_key)
+    if recipe is not None:
+        return recipe[0]
+    source = generate_c(step)
+    STATS["codegen"] += 1
+    if source_key_of(source, kernel.flags) != kernel.source_key:
+        raise CacheError(f"{step.name}: the kernel in the cache ({kernel.source_key}) is not "
+                         f"the C this step generates now; compile the step again")
+    _RECIPES[kernel.source_key] = (source, tuple(kernel.flags), step.name)
+    return source
+
+
+def load_kernel_source(kernel: KernelSource, flags: Sequence[str], label: str,
+                       n_unknowns: int, n_knowns: int,
+                       cache_dir: str | os.PathLike | None = None) -> tuple[CKernel, Path]:
+    """The compiled kernel of generated C ``kernel``: loaded from the cache by its source
+    key (a hash of the C, the flags and the ABI), built there on a miss (see
+    :func:`build_cached`).  What a process that never saw the step needs to run it."""
+    flags = tuple(flags)
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    source_key, manifest = build_cached(kernel, flags, cache, label)
+    module = load_cached(source_key, manifest, cache)
+    loaded = CKernel(module, manifest["prefix"], n_unknowns, n_knowns)
+    loaded.source_key, loaded.flags = source_key, flags
+    return loaded, cache.entry(source_key)
 
 
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
@@ -247,8 +335,9 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
         or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
         ``"auto"``.
-    flags : extra compiler flags (default ``DEFAULT_FLAGS``); part of the cache key.  Builds
-        carry no debug information unless ``flags`` ask for it (``-g``).
+    flags : extra compiler flags (default :func:`default_flags`: ``DEFAULT_FLAGS``, plus
+        ``-fopenmp`` when the compiler supports it); part of the cache key.  Builds carry no
+        debug information unless ``flags`` ask for it (``-g``).
     cache_dir : cache root (default ``$SYMGROUPOID_CACHE``, ``$XDG_CACHE_HOME/symgroupoid``
         or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
         private temporary directory for this process (with a ``RuntimeWarning``).
@@ -267,7 +356,7 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
     try:
-        kernel, entry = load_c_kernel(step, DEFAULT_FLAGS if flags is None else flags,
+        kernel, entry = load_c_kernel(step, default_flags() if flags is None else flags,
                                       cache_dir)
     except CompilerNotFoundError as exc:
         if backend == "c":
