@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import functools
 import os
@@ -34,6 +35,7 @@ from ._cache import (
     KernelCache,
     abi_tag,
     file_sha256,
+    read_json,
     sha256_of,
     write_json_atomic,
 )
@@ -90,25 +92,73 @@ def _openmp_probe(command: tuple[str, ...]) -> bool:
             return False
 
 
-def openmp_available() -> bool:
-    """Whether kernels are built with OpenMP: the C compiler accepts ``-fopenmp`` and its
-    runtime loads (probed once per process and compiler), unless ``SYMGROUPOID_OPENMP=0``."""
-    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
-        return False
+_OPENMP: dict[str, bool] = {}
+
+
+def _compiler_identity() -> tuple[tuple[str, ...], str] | None:
+    """(compiler command, a key naming that compiler binary as installed), or None."""
     try:
         command = tuple(compiler_command())
-    except CompilerNotFoundError:
+        path = Path(find_compiler())
+        stat = path.stat()
+    except (CompilerNotFoundError, OSError):
+        return None
+    key = sha256_of([*command, str(path.resolve()), str(stat.st_mtime_ns), str(stat.st_size),
+                     abi_tag()])[:32]
+    return command, key
+
+
+def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
+    """Whether kernels are built with OpenMP: the C compiler accepts ``-fopenmp`` and its
+    runtime loads.  Probed once per compiler: the answer is kept in this process and in the
+    cache (``probes/openmp-<compiler key>.json``, when the cache is writable), so a
+    warm start compiles nothing.  ``SYMGROUPOID_OPENMP=0`` turns OpenMP off."""
+    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
         return False
-    return _openmp_probe(command)
+    identity = _compiler_identity()
+    if identity is None:
+        return False
+    command, key = identity
+    if key in _OPENMP:
+        return _OPENMP[key]
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    name = f"openmp-{key}.json"
+    for root in cache.read_roots():
+        data = read_json(root / "probes" / name)
+        if data is not None and isinstance(data.get("openmp"), bool):
+            _OPENMP[key] = data["openmp"]
+            return data["openmp"]
+    result = _openmp_probe(command)
+    _OPENMP[key] = result
+    probes = cache.root / "probes"
+    with contextlib.suppress(OSError):  # an unwritable cache: probe again next time
+        probes.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
+    return result
 
 
-def default_flags() -> tuple[str, ...]:
+def default_flags(cache_dir: str | os.PathLike | None = None) -> tuple[str, ...]:
     """The compiler flags of a kernel built without explicit ``flags``: ``DEFAULT_FLAGS``,
     and ``-fopenmp`` when :func:`openmp_available` (the batched entry point
     ``<prefix>_simulate_batch`` then shares trajectories among threads; nothing else in the
     kernel changes).  Flags are part of the cache key, so both builds can be cached side by
     side."""
-    return (*DEFAULT_FLAGS, OPENMP_FLAG) if openmp_available() else tuple(DEFAULT_FLAGS)
+    if openmp_available(cache_dir):
+        return (*DEFAULT_FLAGS, OPENMP_FLAG)
+    return tuple(DEFAULT_FLAGS)
+
+
+def _step_flags(step, cache_dir) -> tuple[str, ...]:
+    """:func:`default_flags`; without a compiler, the default build of ``step`` that is in
+    the cache (with OpenMP or without), which needs no compiler to load."""
+    if _compiler_identity() is not None:
+        return default_flags(cache_dir)
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    for flags in ((*DEFAULT_FLAGS, OPENMP_FLAG), tuple(DEFAULT_FLAGS)):
+        source_key = cache.lookup(input_key(step, flags))
+        if source_key and cache.verified_manifest(source_key) is not None:
+            return flags
+    return tuple(DEFAULT_FLAGS)
 
 
 def _atom_token(node, symbols: dict) -> str:
@@ -356,7 +406,7 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
     try:
-        kernel, entry = load_c_kernel(step, default_flags() if flags is None else flags,
+        kernel, entry = load_c_kernel(step, _step_flags(step, cache_dir) if flags is None else flags,
                                       cache_dir)
     except CompilerNotFoundError as exc:
         if backend == "c":

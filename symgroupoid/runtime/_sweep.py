@@ -421,8 +421,7 @@ def _seconds_per_run(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
     if n == 0 or k == 0:
         return 1e-6
     t0 = time.perf_counter()
-    run_batch(sim, S[:n], P[:n] if len(P) > 1 else P, k, every if every <= k else k, options,
-              1)
+    run_batch(sim, S[:n], P[np.arange(n) % len(P)], k, min(every, k), options, 1)
     return (time.perf_counter() - t0) / n * (steps / k)
 
 
