@@ -257,3 +257,27 @@ def test_an_unpickled_simulator_checks_states_and_parameters_as_the_original():
     again = pickle.loads(pickle.dumps(copy))  # a restored simulator pickles again
     assert np.array_equal(again.simulate({"W": rotation(0.2)}, 20, RIGID).states,
                           sim.simulate({"W": rotation(0.2)}, 20, RIGID).states)
+
+
+def test_embedded_batch_program_reproduces_simulate_batch(tmp_path):
+    """examples/embed/batch.c: plate_ball_simulate_batch from plain C (no OpenMP)."""
+    exe = tmp_path / "batch_demo"
+    build = subprocess.run(
+        ["cc", "-std=c99", "-pedantic", "-O2", "-Wall", "-Wextra", "-Werror",
+         f"-I{REPO / 'generated'}", str(REPO / "examples" / "embed" / "batch.c"),
+         str(REPO / "generated" / "plate_ball.c"), "-lm", "-o", str(exe)],
+        capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    sim = compiled("plate_ball")
+    params = SEED_DATA["plate_ball"][0]
+    state = initial_state(sim, "plate_ball")
+    stdin = (" ".join(repr(float(v)) for v in sim.parameters(params)) + "\n"
+             + " ".join(repr(float(v)) for v in state) + "\n")
+    run = subprocess.run([str(exe), "5", "120", "7"], input=stdin, capture_output=True,
+                         text=True, check=True)
+    table = np.array([[float(v) for v in line.split()] for line in run.stdout.splitlines()])
+    starts = sim.simulate(state, 4, params).states
+    batch = sim.simulate_batch(starts, 120, params, every=7)
+    assert np.array_equal(table[:, 1], batch.status) and np.array_equal(table[:, 3], batch.kept)
+    assert np.abs(table[:, 4:] - batch.final_states).max() <= 1e-12 * max(
+        1.0, np.abs(batch.final_states).max())

@@ -180,8 +180,9 @@ def c_buffer(ffi, array: np.ndarray, length: int, name: str, ctype: str = "doubl
     """A cffi pointer to ``array`` after checking it is exactly what C will access.
 
     ``array`` must be a NumPy array of the dtype matching ``ctype`` (``double``: float64,
-    ``int``, ``long``, ``long long``: the platform C integers), C-contiguous and of exactly ``length`` elements; any
-    other buffer is a :class:`ShapeError` (the C side would read or write past it).
+    ``int``, ``long``, ``long long``: the platform C integers), C-contiguous and of exactly
+    ``length`` elements; any other buffer is a :class:`ShapeError` (the C side would read or
+    write past it).
     """
     dtype = {"double": np.dtype(np.float64), "int": np.dtype(np.intc),
              "long": np.dtype(ctypes.c_long), "long long": np.dtype(np.longlong)}[ctype]

@@ -406,8 +406,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
     try:
-        kernel, entry = load_c_kernel(step, _step_flags(step, cache_dir) if flags is None else flags,
-                                      cache_dir)
+        chosen = _step_flags(step, cache_dir) if flags is None else flags
+        kernel, entry = load_c_kernel(step, chosen, cache_dir)
     except CompilerNotFoundError as exc:
         if backend == "c":
             raise
