@@ -73,8 +73,7 @@ def _looks_like_one_set(params, n_params: int) -> bool:
     if isinstance(params, np.ndarray):
         return params.ndim <= 1
     if isinstance(params, Sequence) and not isinstance(params, (str, bytes)):
-        return all(_is_scalar(v) for v in params) and (len(params) == n_params
-                                                      or len(params) == 0)
+        return all(_is_scalar(v) for v in params)  # (a wrong count: the set's own error)
     return True
 
 

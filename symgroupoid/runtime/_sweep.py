@@ -366,7 +366,7 @@ def _run_dask(fn, task, chunks, receive, client) -> None:
 
     token = uuid.uuid4().hex[:12]
     held = client.submit(_hold, _dumps(task), key=f"symgroupoid-task-{token}", pure=False)
-    workers = max(1, len(client.scheduler_info().get("workers", {})))
+    workers = max(1, len(client.nthreads()))
     queue = list(enumerate(chunks))
     limit = IN_FLIGHT_PER_WORKER * workers
 
@@ -433,7 +433,7 @@ def _mode(client, workers: int | None, estimate: float, portable: bool, owner: s
 
             raise NotPortableError(f"{owner}: a NumPy-backend simulator cannot be sent to a "
                                    f"cluster; compile the step with backend='c'")
-        return "dask", max(1, len(client.scheduler_info().get("workers", {})))
+        return "dask", max(1, len(client.nthreads()))
     explicit = workers is not None
     workers = os.cpu_count() or 1 if workers is None else integer_argument(
         workers, "workers", minimum=1, owner=owner)
@@ -762,7 +762,7 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     else:
         chains = [[item] for item in items]
     if client is not None:
-        mode, n_workers = "dask", max(1, len(client.scheduler_info().get("workers", {})))
+        mode, n_workers = "dask", max(1, len(client.nthreads()))
     else:
         n_workers = os.cpu_count() or 1 if workers is None else integer_argument(
             workers, "workers", minimum=1, owner=owner)
