@@ -30,6 +30,9 @@
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
  * (in the alpha-fibre of the known arrow's target)
@@ -825,6 +828,138 @@ int plate_ball_simulate(const double *known0, const double *p, long n_steps, con
         if (warm->count < 2) {
             ++warm->count;
         }
+    }
+    return PLATE_BALL_OK;
+}
+
+/* Steps per plate_ball_simulate call inside plate_ball_simulate_batch: the chunk buffer of one
+ * trajectory (PLATE_BALL_BATCH_CHUNK + 1 states) stays within 32 KiB of stack per thread. */
+#define PLATE_BALL_BATCH_CHUNK (PLATE_BALL_N_KNOWNS >= 4096 ? 1 : (4096 / PLATE_BALL_N_KNOWNS < 64 ? 4096 / PLATE_BALL_N_KNOWNS : 64))
+
+/* One trajectory of plate_ball_simulate_batch: n_steps steps from known0 through
+ * plate_ball_simulate in chunks of at most PLATE_BALL_BATCH_CHUNK steps with one warm start (bitwise
+ * the states of one plate_ball_simulate call), keeping state 0, every `every`-th state and the
+ * last one.  Row r > 0 of iterations/residual_norms summarises the steps since the previous
+ * kept state: their Newton iterations summed, the largest residual norm.  A failure at step
+ * s keeps state s too (unless already kept) and records the failed step's own iterations,
+ * residual norm and last iterate. */
+static void plate_ball_batch_one(const double *known0, const double *p, long n_steps, long every, const plate_ball_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+{
+    double buffer[(PLATE_BALL_BATCH_CHUNK + 1) * PLATE_BALL_N_KNOWNS];
+    int its[PLATE_BALL_BATCH_CHUNK];
+    double norms[PLATE_BALL_BATCH_CHUNK];
+    plate_ball_warm_start warm;
+    long done = 0, last_kept = 0, r = 1;
+    long long carry_iterations = 0;
+    double carry_norm = 0.0;
+    memset(&warm, 0, sizeof warm);
+    *failed_step = -1;
+    *failed_iterations = 0;
+    *failed_residual_norm = 0.0;
+    for (;;) {
+        const long n = n_steps - done < PLATE_BALL_BATCH_CHUNK ? n_steps - done : PLATE_BALL_BATCH_CHUNK;
+        long fail = -1, solved, j;
+        const int st = plate_ball_simulate(done == 0 ? known0 : buffer, p, n, options, &warm, buffer, PLATE_BALL_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        if (st == PLATE_BALL_INVALID_ARGUMENT) { /* a non-finite state or parameter row */
+            *kept = done == 0 ? 0 : r;
+            *status = st;
+            return;
+        }
+        if (done == 0) {
+            memcpy(states, buffer, sizeof(double) * PLATE_BALL_N_KNOWNS);
+        }
+        solved = st == PLATE_BALL_OK ? n : fail;
+        for (j = 1; j <= solved; ++j) {
+            const long k = done + j;
+            carry_iterations += its[j - 1];
+            if (norms[j - 1] > carry_norm) {
+                carry_norm = norms[j - 1];
+            }
+            if (k % every == 0 || k == n_steps) {
+                memcpy(states + (size_t)r * PLATE_BALL_N_KNOWNS, buffer + (size_t)j * PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                carry_iterations = 0;
+                carry_norm = 0.0;
+                last_kept = k;
+                ++r;
+            }
+        }
+        if (st != PLATE_BALL_OK) {
+            if (done + fail != last_kept) { /* the last state reached ends the trajectory */
+                memcpy(states + (size_t)r * PLATE_BALL_N_KNOWNS, buffer + (size_t)fail * PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                ++r;
+            }
+            *failed_step = done + fail;
+            *failed_iterations = its[fail];
+            *failed_residual_norm = norms[fail];
+            *kept = r;
+            *status = st;
+            return;
+        }
+        done += n;
+        if (done >= n_steps) {
+            break;
+        }
+        /* the next call starts from the last state of this one (row n of the buffer) */
+        memmove(buffer, buffer + (size_t)n * PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
+    }
+    *kept = r;
+    *status = PLATE_BALL_OK;
+}
+
+/* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
+ * starts from known0 + b * PLATE_BALL_N_KNOWNS with the parameters p + b * p_stride (p_stride 0:
+ * one parameter vector for all, or PLATE_BALL_N_PARAMETERS) and is computed exactly as
+ * plate_ball_simulate computes it (bitwise: the same function, called in chunks with one warm
+ * start).  Its kept states go to states + b * rows * PLATE_BALL_N_KNOWNS (rows >= 1 +
+ * ceil(n_steps / every)), the Newton summaries of the intervals between them to iterations and
+ * residual_norms + b * (rows - 1), their number to kept[b], its status to status[b].  A
+ * trajectory that fails stops alone: failed_step[b] = s (else -1), failed_iterations[b] and
+ * failed_residual_norm[b] describe step s, last_iterate + b * PLATE_BALL_N_UNKNOWNS receives its last
+ * Newton iterate (these four may be NULL), and the others go on.  Trajectories are independent,
+ * so with OpenMP (compiled with -fopenmp) they are shared among n_threads threads (<= 0: the
+ * OpenMP default) without changing any result; without OpenMP they run one after the other.
+ * Returns PLATE_BALL_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
+ * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or PLATE_BALL_N_PARAMETERS, or
+ * invalid options; otherwise PLATE_BALL_OK (a non-finite row of known0 or p is reported as
+ * status[b] = PLATE_BALL_INVALID_ARGUMENT, kept[b] = 0). */
+int plate_ball_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+{
+    plate_ball_options defaults;
+    long b;
+    if (options == NULL) {
+        plate_ball_default_options(&defaults);
+        options = &defaults;
+    }
+    if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
+        || kept == NULL || status == NULL
+        || p == NULL
+        || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
+        || (p_stride != 0 && p_stride != PLATE_BALL_N_PARAMETERS)
+        || n_steps / every + (n_steps % every != 0) > rows - 1
+        || (size_t)rows > ((size_t)-1 / sizeof(double)) / PLATE_BALL_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
+        || !plate_ball_options_valid(options)) {
+        return PLATE_BALL_INVALID_ARGUMENT;
+    }
+    (void)n_threads;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads()) if (n_batch > 1)
+#endif
+    for (b = 0; b < n_batch; ++b) {
+        int unused_iterations;
+        long unused_step;
+        double unused_norm;
+        plate_ball_batch_one(known0 + (size_t)b * PLATE_BALL_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, options,
+                          states + (size_t)b * (size_t)rows * PLATE_BALL_N_KNOWNS,
+                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                          kept + b, status + b,
+                          failed_step != NULL ? failed_step + b : &unused_step,
+                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                          last_iterate != NULL ? last_iterate + (size_t)b * PLATE_BALL_N_UNKNOWNS : NULL);
     }
     return PLATE_BALL_OK;
 }

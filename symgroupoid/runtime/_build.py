@@ -28,7 +28,7 @@ DEFAULT_FLAGS: tuple[str, ...] = ("-O3", "-ffp-contract=off")
 LARGE_PROGRAM = 15_000
 
 
-def default_flags(operations: int) -> tuple[str, ...]:
+def optimisation_flags(operations: int) -> tuple[str, ...]:
     """The compiler flags of a kernel of ``operations`` operations (deterministic)."""
     if operations > LARGE_PROGRAM:
         return ("-O2",) + DEFAULT_FLAGS[1:]
@@ -119,6 +119,12 @@ def compile_args(flags: Sequence[str]) -> list[str]:
     return flags if any(f.startswith("-g") for f in flags) else ["-g0", *flags]
 
 
+def link_args(flags: Sequence[str]) -> list[str]:
+    """The extra linker arguments of a build: ``-fopenmp`` when the kernel is compiled with
+    it (the OpenMP runtime must be linked into the module too)."""
+    return ["-fopenmp"] if "-fopenmp" in flags else []
+
+
 def probe_compiler(command: Sequence[str]) -> str | None:
     """None if ``command`` compiles a trivial C file; otherwise what went wrong."""
     with tempfile.TemporaryDirectory(prefix="symgroupoid-probe-") as tmp:
@@ -167,7 +173,7 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     ffi = cffi.FFI()
     ffi.cdef(kernel.cdef)
     ffi.set_source(name, f'#include "{kernel.prefix}.c"\n', include_dirs=[str(build_dir)],
-                   extra_compile_args=compile_args(flags))
+                   extra_compile_args=compile_args(flags), extra_link_args=link_args(flags))
     with _BUILD_LOCK, captured_output() as out:
         try:
             library = Path(ffi.compile(tmpdir=str(build_dir), verbose=False))

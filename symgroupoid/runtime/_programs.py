@@ -20,7 +20,7 @@ import numpy as np
 from .._errors import ShapeError
 from ..codegen._emit import generate_program_c
 from ._backends import C_INT_MAX, c_buffer
-from ._build import CompilationError, CompilerNotFoundError, default_flags
+from ._build import CompilationError, CompilerNotFoundError, optimisation_flags
 from ._cache import KernelCache
 
 
@@ -36,7 +36,7 @@ def compile_program(label: str, program, inputs: str, outputs: str
     kernel = generate_program_c(label, program, inputs, outputs)
     cache = KernelCache()
     try:
-        key, manifest = build_cached(kernel, default_flags(program.size([outputs])), cache,
+        key, manifest = build_cached(kernel, optimisation_flags(program.size([outputs])), cache,
                                      label)
     except (CompilerNotFoundError, CompilationError) as exc:
         warnings.warn(f"{label}: window kernels stay in NumPy ({exc})", RuntimeWarning,

@@ -191,6 +191,39 @@ class Simulator:
             task.close(failed=filled < rows)
         return so_far()
 
+    def simulate_batch(self, states, steps: int, params, *, every: int = 1,
+                       options: NewtonOptions | None = None, threads: int | None = None):
+        """Advance B runs at once: one run from each row of ``states``.
+
+        ``states``: a table of initial states (a 2-D array (B, n_known) of flat states, or a
+        sequence of states as :meth:`state` takes them); ``params``: one parameter set for
+        all runs, or a table of B sets (a sequence of sets, a 2-D array (B, n_params) in
+        ``step.parameters`` order, a mapping name → column of B values, or a pandas
+        DataFrame).  Every row is checked as :meth:`simulate` checks its inputs (vectorised;
+        an error names the row).  ``every`` keeps state 0, every e-th state and the last, as
+        in :meth:`simulate`.
+
+        The compiled kernel advances all runs in one call of ``<prefix>_simulate_batch``,
+        each run by the same code as :meth:`simulate` (bitwise the same states, iterations
+        and residual norms), shared among ``threads`` OpenMP threads (None: all cores) when
+        the kernel was built with OpenMP.  A run that fails stops alone: its status, failing
+        step and the error :meth:`simulate` would raise are recorded, the others go on.
+        Returns a :class:`~symgroupoid.runtime._batch.TrajectoryBatch` (``batch[b]`` is run b
+        as a :class:`Trajectory`).
+        """
+        from ._batch import simulate_batch
+
+        return simulate_batch(self, states, steps, params, every=every, options=options,
+                              threads=threads)
+
+    def __reduce__(self):
+        """Pickled as its generated C, flags and content hash, options and the names and
+        layout of its step (plain data; see :mod:`symgroupoid.runtime._pickle`).  In another
+        process the kernel is built into, or loaded from, that process's kernel cache."""
+        from ._pickle import recipe_of, restore_simulator
+
+        return restore_simulator, (recipe_of(self),)
+
     def stream(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
                every: int = 1) -> Iterator[Trajectory]:
         """:meth:`simulate` as an iterator: one :class:`Trajectory` per chunk, for processing
