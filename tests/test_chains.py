@@ -219,3 +219,36 @@ def test_spherical_chain_trajectory(n: int) -> None:
     for states in traj.states:  # the attitudes stay rotations
         for R in configurations(states, n)[0]:
             np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
+
+
+def _rotation_section(n: int, row: int):
+    """The rotation of every body about the space axis e_row: X(R) = (R_iᵀ e_row)_i in the
+    left-trivialised basis R ê_a of each factor (row ``row`` of each R_i, stored row-major)."""
+    return lambda q: [q[9 * i + 3 * row + j] for i in range(n) for j in range(3)]
+
+
+@needs_cc
+def test_noether_on_the_pair_groupoid_of_so3_knows_its_rotations() -> None:
+    """The vertical rotation is a Noether symmetry of the 3D pendulum (checked on G, whose
+    base points are rotations, not arbitrary arrays), the horizontal one is not; the library's
+    own Noether quantity equals the independent complex-step momentum and, along compiled
+    steps, changes per step only at the rounding level of the DEL residual.
+
+    Measured (h = 0.01): per-step changes 1.2e-13 rms, the rounding level of the DEL residual
+    itself (written in F = R_kᵀR_{k+1}, whose I − F cancels to ε/(h|ω|) relative; any Newton
+    options give the same): 1.8e-10 relative after 2000 steps, 2e-9 after 10⁵."""
+    system = systems.spherical_chain(1)
+    vertical = system.noether(_rotation_section(1, 2))
+    assert vertical.is_symmetry and "random arrows" in vertical.verification
+    horizontal = system.noether(_rotation_section(1, 0))
+    assert not horizontal.is_symmetry
+    sim = chain_step("3d", 1).compile(backend="c", cache_dir=SESSION_CACHE)
+    traj = sim.simulate(spherical_initial(1), 2000, {"h": H, "g": G})
+    F = vertical.along(traj)
+    assert abs(F[0]) > 0.1
+    pairs = [configurations(s, 1) for s in traj.states]
+    np.testing.assert_allclose(F[::100], [vertical_momentum(a, b, H, G) for a, b in pairs[::100]],
+                               rtol=1e-12)
+    jumps = np.diff(F)
+    assert np.sqrt(np.mean(jumps ** 2)) < 1e-12 * abs(F[0]) / 0.2  # ~5ε·|F⁺L| per step
+    assert np.abs(F - F[0]).max() < 4e-10 * abs(F[0])

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
+import numpy as np
 import sympy as sp
 
 from .._symbols import indexed_symbol, multiplier_symbols
@@ -134,17 +135,75 @@ def noether_forms(G: Groupoid, forms: LegendreForms, section, f=None) -> Noether
     return NoetherForms(rhs, lhs - rhs, g, forms.multipliers)
 
 
-def is_identically_zero(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool:
-    """Whether ``expr`` (a function on G written in ``arrow``'s coordinates) vanishes on G.
+#: random arrows at which a symmetry defect is evaluated; relative size of a defect that
+#: counts as rounding (the defect is a difference of sums evaluated in floating point)
+NOETHER_SAMPLES = 8
+NOETHER_RELATIVE_DEFECT = 1e-9
+#: defects up to this many operations are also simplified symbolically
+SYMBOLIC_CHECK_OPS = 200
 
-    Matrix-group parts are parametrised by the fibre chart (so orthogonality holds) before
-    simplifying; the check is symbolic.
+
+def is_identically_zero(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool:
+    """Whether ``expr`` (a function on G written in ``arrow``'s coordinates, with other
+    symbols such as multipliers and parameters free) vanishes on G; see
+    :func:`vanishing_check`."""
+    return vanishing_check(expr, G, arrow)[0]
+
+
+def vanishing_check(expr: sp.Expr, G: Groupoid, arrow: tuple) -> tuple[bool, str]:
+    """Whether ``expr`` vanishes on G, and how that was decided.
+
+    First at :data:`NOETHER_SAMPLES` random arrows of G itself (``G.random_arrow``: on a
+    matrix-group base the base points are rotations, not arbitrary 3×3 arrays), with random
+    values of the other symbols: a defect above :data:`NOETHER_RELATIVE_DEFECT` times the
+    size of its terms there is a counterexample.  A defect that passes and has at most
+    :data:`SYMBOLIC_CHECK_OPS` operations is then simplified symbolically, with matrix-group
+    fibres parametrised by the fibre chart.  Larger defects, and those the simplification
+    cannot decide (a base that is a group, whose points it treats as arbitrary arrays), are
+    decided by the samples on G.
     """
-    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
-    x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
-    on_group = G.arrow_from(q, G.fibre_chart(x, q))
-    e = expr.xreplace(dict(zip(arrow, on_group)))
-    return sp.simplify(sp.cancel(sp.together(e))) == 0
+    expr = sp.sympify(expr)
+    if expr == 0:
+        return True, "identically zero"
+    sampled = _sampled_defect(expr, G, arrow)
+    if sampled is False:
+        return False, "nonzero at a random arrow"
+    if sp.count_ops(expr) <= SYMBOLIC_CHECK_OPS:
+        q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
+        x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
+        on_group = G.arrow_from(q, G.fibre_chart(x, q))
+        e = expr.xreplace(dict(zip(arrow, on_group)))
+        if sp.simplify(sp.cancel(sp.together(e))) == 0:
+            return True, "symbolic"
+    if sampled is None:
+        return False, "undecided: no random arrow gave a finite value"
+    return True, (f"numerical: zero to {NOETHER_RELATIVE_DEFECT:g} relative at "
+                  f"{NOETHER_SAMPLES} random arrows of {G.name}")
+
+
+def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool | None:
+    """True: |expr| is at rounding level at every usable random arrow; False: it is not at
+    one of them; None: no random arrow gave a finite real value."""
+    others = sorted(expr.free_symbols - set(arrow), key=sp.default_sort_key)
+    terms = sp.Add.make_args(expr)
+    f = sp.lambdify([list(arrow), others], [expr, sp.Add(*[sp.Abs(t) for t in terms])],
+                    "numpy", cse=True)
+    rng = np.random.default_rng(20260)
+    usable = 0
+    for _ in range(NOETHER_SAMPLES):
+        g = G.random_arrow(rng)
+        values = rng.uniform(0.5, 1.5, len(others))
+        with np.errstate(all="ignore"):
+            try:
+                defect, size = (complex(v) for v in f(list(g), list(values)))
+            except (ZeroDivisionError, OverflowError, ValueError, TypeError):
+                continue
+        if not (np.isfinite(defect) and np.isfinite(size)) or abs(defect.imag) > 0:
+            continue
+        usable += 1
+        if abs(defect.real) > NOETHER_RELATIVE_DEFECT * max(size.real, 1e-300):
+            return False
+    return True if usable else None
 
 
 def momentum_symbols(rank: int, offset: int) -> list:

@@ -70,8 +70,11 @@ class LegendreTransforms:
 class NoetherQuantity:
     """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
 
-    ``is_symmetry`` records the symbolic check that ⟨F⁻L, X(α)⟩ + f(α) = ⟨F⁺L, X(β)⟩ + f(β)
-    holds identically on G (with the multipliers free); ``defect`` is their difference.
+    ``is_symmetry`` records the check that ⟨F⁻L, X(α)⟩ + f(α) = ⟨F⁺L, X(β)⟩ + f(β) holds
+    identically on G (with the multipliers free); ``defect`` is their difference and
+    ``verification`` says how it was decided (symbolically, or numerically at random arrows
+    of G for defects too large to simplify; see
+    :func:`symgroupoid.derivation._momenta.vanishing_check`).
     """
 
     def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):
@@ -80,6 +83,7 @@ class NoetherQuantity:
         self.arrow: tuple = forms.arrow
         self.multipliers: list = forms.multipliers
         self.is_symmetry: bool = is_symmetry
+        self.verification: str = "symbolic"
         self.parameters = list(parameters)
 
     @functools.cached_property

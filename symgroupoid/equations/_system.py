@@ -14,10 +14,10 @@ from ..derivation._energy_momentum import (
     energy_momentum_step,
 )
 from ..derivation._momenta import (
-    is_identically_zero,
     legendre_forms,
     lie_poisson_forms,
     noether_forms,
+    vanishing_check,
 )
 from ..derivation._step import (
     check_nonholonomic_dimensions,
@@ -97,8 +97,10 @@ class DiscreteSystem:
         """
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self._fs),
                               section, f)
-        ok = is_identically_zero(forms.defect, self.groupoid, forms.arrow)
-        return NoetherQuantity(forms, ok, self.parameters)
+        ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow)
+        quantity = NoetherQuantity(forms, ok, self.parameters)
+        quantity.verification = how
+        return quantity
 
     def lie_poisson(self) -> LiePoissonEquations:
         """The discrete constrained Lie–Poisson equations (seed 000 §6.1), Lie groups only."""
