@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import io
 import logging
-import os
-import subprocess
 import sys
 import time
 import types
@@ -183,29 +181,3 @@ def test_demo_mentions_only_builds_that_happened():
     assert build_note(2) == " (including 2 one-time kernel builds)"
 
 
-WINDOW_SOURCES = """
-import hashlib
-import symgroupoid.runtime._bvp as bvp
-from symgroupoid.runtime._programs import program_source
-from symgroupoid.systems import plate_ball
-sources = []
-def capture(label, args, assignments, outputs):
-    sources.append(program_source("p", args, assignments, outputs).source)
-bvp.compile_program = capture
-bvp.WindowKernel(plate_ball())
-print(hashlib.sha256("".join(sources).encode()).hexdigest())
-"""
-
-
-@pytest.mark.slow
-def test_window_kernels_do_not_depend_on_the_hash_seed():
-    """A second process finds the boundary-value kernels in the cache (so the demo's
-    "one-time kernel build" is one-time): their C text is the same under any
-    PYTHONHASHSEED."""
-    digests = set()
-    for seed in ("1", "2"):
-        env = {**os.environ, "PYTHONHASHSEED": seed, "PYTHONPATH": str(REPO)}
-        result = subprocess.run([sys.executable, "-c", WINDOW_SOURCES], capture_output=True,
-                                text=True, env=env, check=True)
-        digests.add(result.stdout.strip())
-    assert len(digests) == 1
