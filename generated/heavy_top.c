@@ -185,9 +185,9 @@ void heavy_top_predict(const double *known, const double *p, double *u)
     (void)known;
     (void)p;
     const double t0 = 1.0/(1.0 + known[3] + known[7] + known[11]);
-    const double t1 = (2.0*known[10] - 2.0*known[8])*t0;
-    const double t2 = t0*(2.0*known[5] - 2.0*known[9]);
-    const double t3 = t0*(2.0*known[6] - 2.0*known[4]);
+    const double t1 = -0.5*(2.0*known[8] - 2.0*known[10])*t0 + 0.5*t0*(2.0*known[10] - 2.0*known[8]);
+    const double t2 = -0.5*t0*(2.0*known[9] - 2.0*known[5]) + 0.5*t0*(2.0*known[5] - 2.0*known[9]);
+    const double t3 = -0.5*t0*(2.0*known[4] - 2.0*known[6]) + 0.5*t0*(2.0*known[6] - 2.0*known[4]);
     u[0] = t1;
     u[1] = t2;
     u[2] = t3;

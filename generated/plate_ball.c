@@ -345,9 +345,9 @@ void plate_ball_predict(const double *known, const double *p, double *u)
     const double t0 = -known[0] + 2.0*known[2];
     const double t1 = -known[1] + 2.0*known[3];
     const double t2 = 1.0/(1.0 + known[4] + known[8] + known[12]);
-    const double t3 = (2.0*known[11] - 2.0*known[9])*t2;
-    const double t4 = t2*(2.0*known[6] - 2.0*known[10]);
-    const double t5 = t2*(2.0*known[7] - 2.0*known[5]);
+    const double t3 = -0.5*(2.0*known[9] - 2.0*known[11])*t2 + 0.5*t2*(2.0*known[11] - 2.0*known[9]);
+    const double t4 = -0.5*t2*(2.0*known[10] - 2.0*known[6]) + 0.5*t2*(2.0*known[6] - 2.0*known[10]);
+    const double t5 = -0.5*t2*(2.0*known[5] - 2.0*known[7]) + 0.5*t2*(2.0*known[7] - 2.0*known[5]);
     u[0] = t0;
     u[1] = t1;
     u[2] = t3;

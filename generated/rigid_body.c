@@ -183,9 +183,9 @@ void rigid_body_predict(const double *known, const double *p, double *u)
     (void)known;
     (void)p;
     const double t0 = 1.0/(1.0 + known[0] + known[4] + known[8]);
-    const double t1 = (2.0*known[7] - 2.0*known[5])*t0;
-    const double t2 = t0*(2.0*known[2] - 2.0*known[6]);
-    const double t3 = t0*(2.0*known[3] - 2.0*known[1]);
+    const double t1 = -0.5*(2.0*known[5] - 2.0*known[7])*t0 + 0.5*t0*(2.0*known[7] - 2.0*known[5]);
+    const double t2 = -0.5*t0*(2.0*known[6] - 2.0*known[2]) + 0.5*t0*(2.0*known[2] - 2.0*known[6]);
+    const double t3 = -0.5*t0*(2.0*known[1] - 2.0*known[3]) + 0.5*t0*(2.0*known[3] - 2.0*known[1]);
     u[0] = t1;
     u[1] = t2;
     u[2] = t3;

@@ -200,10 +200,29 @@ class Groupoid(ABC):
         return tuple(rng.uniform(-scale, scale, self.rank))
 
     def random_arrow(self, rng: np.random.Generator, source: Sequence | None = None) -> tuple:
-        """A random arrow (optionally with prescribed source), as numeric coordinates."""
+        """A random arrow (optionally with prescribed source), as numeric coordinates: the
+        arrow of random chart coordinates in the α-fibre of a random base point."""
         q = self.random_base_point(rng) if source is None else tuple(source)
-        f = self.fibre_chart([sp.Float(v) for v in self.random_chart(rng)], q)
-        return tuple(float(v) for v in self.arrow_from(q, [sp.N(v) for v in f]))
+        x = self.random_chart(rng)
+        try:
+            values = self._numeric_fibre_arrow()(*q, *x)
+        except (TypeError, ValueError, NameError, ZeroDivisionError, AttributeError):
+            values = None  # a structure map NumPy cannot evaluate: SymPy's own arithmetic
+        if values is None or not np.all(np.isfinite(np.asarray(values, dtype=float))):
+            f = self.fibre_chart([sp.Float(v) for v in x], q)
+            values = self.arrow_from(q, [sp.N(v) for v in f])
+        return tuple(float(v) for v in values)
+
+    def _numeric_fibre_arrow(self) -> Callable:
+        """(q, x) ↦ the arrow with source q and fibre chart coordinates x, compiled once."""
+        cached = self.__dict__.get("_fibre_arrow_function")
+        if cached is None:
+            q = [sp.Dummy(f"q{i}", real=True) for i in range(self.base_dim)]
+            x = [sp.Dummy(f"x{i}", real=True) for i in range(self.rank)]
+            arrow = self.arrow_from(q, self.fibre_chart(x, q))
+            cached = sp.lambdify([*q, *x], list(arrow), "numpy")
+            self.__dict__["_fibre_arrow_function"] = cached
+        return cached
 
     def section_flow(self, q: Sequence, delta: Sequence) -> tuple:
         """h(δ) ⊂ α⁻¹(q): the section curves h_a(δ_a) composed one after another, so that

@@ -463,7 +463,7 @@ class SO3(MatrixLieGroup):
 
     def cayley_inverse(self, M):
         # on SO(3): cay⁻¹(R) = 2(R − Rᵀ)/(1 + tr R)   (from seed 001 eq. (63))
-        return self.vee(2 * (M - M.T) / (1 + M.trace())).applyfunc(sp.cancel)
+        return self.vee(2 * (M - M.T) / (1 + M.trace()))
 
     def log(self, M):
         """θ/(2 sin θ)·vee(R − Rᵀ), the coefficient a smooth function of cos θ = (tr R − 1)/2."""
