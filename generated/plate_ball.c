@@ -29,7 +29,11 @@
 #include <limits.h>
 #include <math.h>
 #include <stddef.h>
+#include <stdint.h>
 #include <string.h>
+#if DBL_MANT_DIG != 53 || DBL_MAX_EXP != 1024 || DBL_MIN_EXP != -1021
+#error "this symgroupoid kernel needs IEEE-754 binary64 doubles"
+#endif
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -436,6 +440,31 @@ static double plate_ball_norm_inf(const double *v, int n)
  * Returns PLATE_BALL_OK; PLATE_BALL_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
  * n * DBL_EPSILON (numerically singular); PLATE_BALL_NON_FINITE when an entry is not finite
  * (overflow or NaN). */
+/* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1), read from the bits of
+ * an IEEE-754 double for normal x (no library call), from frexp for subnormal x. */
+static int plate_ball_binary_exponent(double x)
+{
+    uint64_t bits;
+    int biased;
+    memcpy(&bits, &x, sizeof bits);
+    biased = (int)((bits >> 52) & 0x7ff);
+    if (biased == 0) {
+        int e;
+        (void)frexp(x, &e);
+        return e;
+    }
+    return biased - 1022;
+}
+
+/* 2^k for -1022 <= k <= 1023, exactly (the bits of a normal double) */
+static double plate_ball_power_of_two(int k)
+{
+    const uint64_t bits = (uint64_t)(k + 1023) << 52;
+    double x;
+    memcpy(&x, &bits, sizeof x);
+    return x;
+}
+
 static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double *inv)
 {
     const int n = PLATE_BALL_N_UNKNOWNS;
@@ -449,9 +478,9 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
         if (rmax == 0.0) {
             return PLATE_BALL_SINGULAR_JACOBIAN;
         }
-        (void)frexp(rmax, &e[i]);
+        e[i] = plate_ball_binary_exponent(rmax);
         if (e[i] > -1000 && e[i] < 1000) {
-            s[i] = ldexp(1.0, -e[i]);
+            s[i] = plate_ball_power_of_two(-e[i]);
             for (j = 0; j < n; ++j) {
                 A[i * n + j] *= s[i];
             }
