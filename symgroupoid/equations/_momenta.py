@@ -96,9 +96,10 @@ class LiePoissonEquations:
         self.momentum_symbols: list = forms.momentum_symbols
         self.reconstruction = StepEquations(forms.reconstruction)
 
-    def latex(self) -> str:
-        """The update m_{k+1} = Ad*_{g_k} m_k componentwise, then the residuals."""
-        nxt = momentum_symbols(len(self.momentum_symbols), 1)
-        rows = [f"{latex(m)} &= {latex(u)}" for m, u in zip(nxt, self.update)]
-        rows += [f"0 &= {latex(r)}" for r in self.residuals]
-        return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+    def latex(self, width=None) -> str:
+        """μ_{k+1} = Ad*_{g_k} μ_k, then 0 = 𝔽⁻L_{k+1} − Ad*_{g_k} 𝔽⁻L_k and the constraints
+        (seed 000 §6.1), Ad* printed by name; rows broken to ``width`` pt (default 450)."""
+        from ._layout import render_align
+        from ._printing import lie_poisson_rows
+
+        return render_align(lie_poisson_rows(self, width))
