@@ -7,6 +7,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from .._arguments import integer_argument
 from .._errors import AxiomError, ShapeError
 from ._base import Groupoid
 
@@ -32,8 +33,11 @@ def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9
     Structure maps may contain free symbols besides the coordinates (parameters of the
     groupoid): ``parameters`` maps them (Symbols or their names) to values; symbols it does
     not give get random values respecting their assumptions (positive → (0.5, 2)), and a
-    failure reports the values used.
+    failure reports the values used.  ``samples`` (at least 1) and ``seed`` are counts
+    (:func:`~symgroupoid._arguments.integer_argument`).
     """
+    samples = integer_argument(samples, "samples", minimum=1, owner=G.name)
+    seed = integer_argument(seed, "seed", owner=G.name)
     values = _parameter_values(G, parameters or {})
     rng = np.random.default_rng(seed + 1)
     chosen: set = set()

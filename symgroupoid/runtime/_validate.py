@@ -18,12 +18,12 @@ is given:
 from __future__ import annotations
 
 import functools
-import numbers
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
+from .._arguments import MAX_COUNT, integer_argument  # noqa: F401  (one rule for counts)
 from .._errors import DomainError, ParameterError, ShapeError
 from ..groupoids import (
     ActionGroupoid,
@@ -33,10 +33,6 @@ from ..groupoids import (
     ProductGroupoid,
     TimeGroupoid,
 )
-
-#: the largest count accepted for steps, iterations and similar arguments (C ``long`` safe,
-#: and far beyond what fits in memory or time)
-MAX_COUNT = 2**53
 
 #: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
 #: last row of SE(n)): far above the rounding of a product of many rotations, far below any
@@ -57,37 +53,6 @@ def _where(owner: str) -> str:
 
 
 # --- numbers ------------------------------------------------------------------------------------
-
-def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_COUNT,
-                     owner: str = "") -> int:
-    """``value`` as an int, or a :class:`ShapeError` naming ``name``.
-
-    Accepted: Python and NumPy integers, and real numbers with an integral value
-    (``1e7``, ``np.float64(100.0)``) — one rule everywhere.  Rejected: booleans, NaN,
-    infinities, non-integral values, values below ``minimum`` or above ``maximum``, and
-    anything that is not a real number.
-    """
-    where = _where(owner)
-    if isinstance(value, (bool, np.bool_)):
-        raise ShapeError(f"{where}{name} must be an integer, got the boolean {value!r}")
-    if isinstance(value, numbers.Integral):
-        number = int(value)
-    elif isinstance(value, numbers.Real):
-        real = float(value)
-        if not np.isfinite(real):
-            raise ShapeError(f"{where}{name} must be a finite integer, got {value!r}")
-        if real != int(real):
-            raise ShapeError(f"{where}{name} must be an integer, got {value!r}")
-        number = int(real)
-    else:
-        raise ShapeError(f"{where}{name} must be an integer, got {type(value).__name__} "
-                         f"{value!r}")
-    if number < minimum:
-        raise ShapeError(f"{where}{name} must be at least {minimum}, got {number}")
-    if number > maximum:
-        raise ShapeError(f"{where}{name} must be at most {maximum}, got {number}")
-    return number
-
 
 def real_argument(value, name: str, *, minimum: float | None = None, owner: str = "",
                   error: type[ShapeError] = ShapeError, finite: bool = True) -> float:
@@ -410,6 +375,22 @@ class ConstraintCheck:
                 if not abs(v) <= t:
                     out.append((offsets, i, float(v), float(t)))
         return out
+
+    def values(self, states: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """|φ_i| on every known arrow of each row of ``states``, and the rounding level
+        CONSTRAINT_ROUNDING·ε·M_i it is judged against: two (rows, windows·m) arrays."""
+        states = np.atleast_2d(np.asarray(states, float))
+        rows = len(states)
+        values, levels = [np.zeros((rows, 0))], [np.zeros((rows, 0))]
+        for _, index in self.windows:
+            x = states[:, index].T
+            with np.errstate(all="ignore"):
+                phi = [np.broadcast_to(np.asarray(v, float), (rows,)) for v in self._phi(x, params)]
+                size = [np.broadcast_to(np.asarray(v, float), (rows,))
+                        for v in self._size(x, params)]
+            values.append(np.abs(np.stack(phi, axis=1)))
+            levels.append(CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(np.stack(size, axis=1)))
+        return np.hstack(values), np.hstack(levels)
 
     def __call__(self, known: np.ndarray, params: np.ndarray, *, atol: float,
                  owner: str = "") -> None:
