@@ -14,7 +14,17 @@ from __future__ import annotations
 
 import sympy as sp
 from sympy.functions.elementary.trigonometric import TrigonometricFunction
+from sympy.matrices.expressions.matexpr import MatrixElement
+from sympy.matrices.expressions.trace import Trace
 from sympy.printing.latex import LatexPrinter
+
+from .._errors import SymgroupoidError
+from .._symbols import StepSymbol
+
+
+class LatexVerificationError(SymgroupoidError, AssertionError):
+    """A printed form of an equation is not the equation (a defect of the printing: the
+    forms are built to be equal, and checked before they are printed)."""
 
 
 class Collected(sp.Expr):
@@ -51,6 +61,11 @@ def uncollected(expr: sp.Expr) -> sp.Expr:
 class NamedOperator(sp.MatrixSymbol):
     """A linear operator printed by name, e.g. Ad*_{g_k} (``NamedOperator(r"\\operatorname{Ad}
     ^{*}_{g_{k}}", 3, 3)``); its value is substituted when an equation is verified."""
+
+
+class NamedConstant(StepSymbol):
+    """A name printed verbatim that stands for an expression in the parameters only (a
+    user's abbreviation M = m₁ + m₂): products order it with the parameters."""
 
 
 class GroupoidLatexPrinter(LatexPrinter):
@@ -101,9 +116,51 @@ class GroupoidLatexPrinter(LatexPrinter):
     _print_sin = _print_cos = _print_tan = _print_trigonometric
     _print_cot = _print_sec = _print_csc = _print_trigonometric
 
+    def _print_Mul(self, expr) -> str:
+        """Products in the papers' order: numbers, parameters (plain symbols) and sums of
+        them, step variables (x_{k}, (g_{k})_{12}, …), functions (\\sin, tr), then the
+        rest: ``g h l_{1} \\left(m_{1} + m_{2}\\right) \\Delta x_{k} \\sin(\\bar{x}_{k})``.
+        Settings that fold fractions, and non-commutative or unevaluated products, print
+        as SymPy prints them."""
+        if (not isinstance(expr, sp.Mul) or not expr.is_commutative
+                or self._settings["fold_short_frac"] or self._settings["long_frac_ratio"]
+                or self.order in ("old", "none") or _unevaluated(expr)):
+            return super()._print_Mul(expr)
+        if expr.could_extract_minus_sign():
+            positive = -expr
+            if not isinstance(positive, sp.Mul):
+                return super()._print_Mul(expr)
+            return "- " + self._print_Mul(positive)
+        numerator, denominator = sp.fraction(expr, exact=True)
+        if denominator == 1:
+            return self._print_factors(expr)
+        return (f"\\frac{{{self._print_factors(numerator)}}}"
+                f"{{{self._print_factors(denominator)}}}")
+
+    def _print_factors(self, expr) -> str:
+        """The factors of a product side by side, in :func:`factor_rank` order, each
+        bracketed where SymPy brackets it."""
+        if isinstance(expr, list):
+            factors = expr
+        else:
+            factors = expr.as_ordered_factors() if isinstance(expr, sp.Mul) else [expr]
+        factors = sorted(factors, key=factor_rank)  # stable: SymPy's order within a rank
+        texts = []
+        for i, factor in enumerate(factors):
+            tex = self._print(factor)
+            if self._needs_mul_brackets(factor, first=i == 0, last=i == len(factors) - 1):
+                tex = f"\\left({tex}\\right)"
+            texts.append(tex)
+        return self._settings["mul_symbol_latex"].join(texts)
+
     def _print_Collected(self, expr: Collected) -> str:
         """``f \\left(a + b\\right)``; a factor 1/d prints as ``\\frac{a + b}{d}``."""
         numerator, denominator = sp.fraction(expr.factor)
+        if factor_rank(expr.total) == 1:  # a sum of parameters: in the product's order
+            product = self._print_factors([*sp.Mul.make_args(numerator), expr.total])
+            if denominator == 1:
+                return product
+            return f"\\frac{{{product}}}{{{self._print(denominator)}}}"
         total = self._print(expr.total)
         if numerator == 1 and denominator != 1:
             return f"\\frac{{{total}}}{{{self._print(denominator)}}}"
@@ -123,6 +180,34 @@ class MemoLatexPrinter(GroupoidLatexPrinter):
         if expr not in self._printed:
             self._printed[expr] = super().doprint(expr)
         return self._printed[expr]
+
+
+def _unevaluated(expr: sp.Mul) -> bool:
+    """An unevaluated product (identities or several numbers kept): SymPy prints it as given."""
+    args = expr.args
+    return args[0] is sp.S.One or any(isinstance(a, sp.Number) for a in args[1:])
+
+
+def factor_rank(factor: sp.Expr) -> int:
+    """0 numbers, 1 parameters (plain symbols, their powers and sums), 2 step variables
+    (:class:`StepSymbol`, matrix entries) and their powers, 3 functions and their powers,
+    4 anything else."""
+    base = factor.base if isinstance(factor, sp.Pow) else factor
+    if isinstance(factor, sp.Number):
+        return 0
+    if _is_parameter(base) or isinstance(base, NamedConstant) or (isinstance(base, sp.Add) and all(
+            _is_parameter(s) for s in base.free_symbols) and not base.atoms(
+            sp.Function, MatrixElement)):
+        return 1
+    if isinstance(base, (StepSymbol, MatrixElement)):
+        return 2
+    if isinstance(base, (sp.Function, Trace)):
+        return 3
+    return 4
+
+
+def _is_parameter(expr: sp.Expr) -> bool:
+    return type(expr) is sp.Symbol
 
 
 def _has_fraction(expr: sp.Expr) -> bool:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ._latex import Collected, GroupoidLatexPrinter
+from ._latex import Collected, GroupoidLatexPrinter, LatexVerificationError
 
 PAGE_WIDTH = 450.0  # pt
 _FONT_SIZE = 10.0  # pt, matplotlib's default
@@ -266,6 +266,7 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
     model = model or WidthModel(printer)
     pending = list(terms)
     lines: list[list[str]] = []
+    laid: list[Term] = []  # the terms as laid out (collected sums may have been split)
     current: list[Term] = []
 
     def room(continuation: bool) -> float:
@@ -296,6 +297,7 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
                 current.clear()
                 return
         lines.append(texts(current, continuation))
+        laid.extend(current)
         current.clear()
 
     while pending:
@@ -317,7 +319,17 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
         close()
     if current:
         close()
+    same_sum(laid, terms, f"the broken lines of {lhs} = …")
     return [_join(line) for line in lines]
+
+
+def same_sum(laid: list[Term], terms: list[Term], what: str) -> None:
+    """Raise :class:`~._latex.LatexVerificationError` unless Σ laid = Σ terms exactly."""
+    difference = sp.expand(sp.Add(*[t.value() for t in laid])
+                           - sp.Add(*[t.value() for t in terms]))
+    if difference != 0:
+        raise LatexVerificationError(f"{what}: the printed terms differ from the equation by "
+                                     f"{difference}")
 
 
 def render_align(rows: PrintedRows) -> str:

@@ -37,7 +37,9 @@ from .._symbols import StepSymbol, latex_name, multiplier_symbols, step_label
 from ._latex import (
     Collected,
     GroupoidLatexPrinter,
+    LatexVerificationError,
     MemoLatexPrinter,
+    NamedConstant,
     NamedOperator,
     latex,
     uncollected,
@@ -68,7 +70,8 @@ def arrow_label(index: str, offset: int) -> str:
 
 
 def accented(name: str, accent: str) -> str:
-    """LaTeX of a coordinate name with an accent on its root: ``theta1`` → ``\\bar{\\theta}_{1}``."""
+    """LaTeX of a coordinate name with an accent on its root: ``theta1`` →
+    ``\\bar{\\theta}_{1}``."""
     root, sups, subs = split_super_sub(name)
     tex = f"{accent}{{{latex_name(root)}}}"
     if sups:
@@ -144,9 +147,7 @@ class PieceRule:
 def piece_roots(coord: PairCoordinate) -> tuple[str, str]:
     """The LaTeX of q̄ and Δq of one coordinate, without index: ``\\bar{\\theta}_{1}``,
     ``\\Delta\\theta_{1}``."""
-    name = latex_name(coord.name)
-    space = "" if name.startswith("\\") else " "
-    return accented(coord.name, "\\bar"), f"\\Delta{space}{name}"
+    return accented(coord.name, "\\bar"), f"\\Delta {latex_name(coord.name)}"
 
 
 def piece_symbols(coord: PairCoordinate, label: str) -> tuple[StepSymbol, StepSymbol]:
@@ -228,7 +229,7 @@ def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mappin
     return sp.cancel(sp.together(difference)) == 0
 
 
-# --- the step's forms ------------------------------------------------------------------------------
+# --- the step's forms ----------------------------------------------------------------------------
 
 
 def _junction_system(step):
@@ -474,17 +475,64 @@ def with_recognised(form: Form, pieces: Sequence) -> Form:
 # --- abbreviations ------------------------------------------------------------------------------
 
 
-def _abbreviation_symbol(name) -> tuple[str, sp.Expr | None]:
-    if isinstance(name, sp.Symbol):
-        return latex(name), name
-    if isinstance(name, str) and name:
-        return name, None
-    raise LatexOptionError(f"latex: an abbreviation's name must be a non-empty string (its LaTeX) or "
-                    f"a SymPy Symbol, got {name!r}")
+@dataclass(frozen=True)
+class Abbreviation:
+    """A user-named piece: its LaTeX name, the symbol it prints as (a :class:`NamedConstant`
+    when its value is in the parameters only, so it is ordered with them), and its value:
+    an expression, or a callable of an arrow evaluated on each arrow of the window."""
+
+    tex: str
+    symbol: sp.Symbol | None
+    value: object
 
 
-def abbreviate(form: Form, step, abbreviations: Mapping, rule: PieceRule | None) -> Form:
-    """``form`` with each abbreviation recognised in the equations.
+def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
+    """The checked ``abbreviations`` option: a mapping name → expression or callable; a name
+    is a non-empty string (its LaTeX) or a SymPy Symbol, and prints unlike every symbol of
+    the step; an expression is a SymPy expression in symbols (not a number, not a string)."""
+    if abbreviations is None:
+        return []
+    if not isinstance(abbreviations, Mapping):
+        raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
+                               f"callable, got {type(abbreviations).__name__}")
+    taken = {latex(s) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
+                                *step.parameters]}
+    out = []
+    for name, value in abbreviations.items():
+        if isinstance(name, sp.Symbol):
+            tex, symbol = latex(name), name
+        elif isinstance(name, str) and name.strip():
+            tex, symbol = name, None
+        else:
+            raise LatexOptionError(f"latex: an abbreviation's name must be a non-empty string "
+                                   f"(its LaTeX) or a SymPy Symbol, got {name!r}")
+        if tex in taken:
+            raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like a symbol of "
+                                   f"{step.name}; choose another name")
+        taken.add(tex)
+        if not callable(value):
+            value = _abbreviation_value(tex, value)
+            if symbol is None and value.free_symbols <= set(step.parameters):
+                symbol = NamedConstant(tex)
+        out.append(Abbreviation(tex, symbol, value))
+    return out
+
+
+def _abbreviation_value(tex: str, value) -> sp.Expr:
+    try:
+        expr = sp.sympify(value, strict=True)
+    except sp.SympifyError:
+        expr = None
+    if not isinstance(expr, sp.Expr) or not expr.free_symbols:
+        raise LatexOptionError(f"latex: the abbreviation {tex!r} must stand for a SymPy "
+                               f"expression in the step's symbols, or a callable of an arrow; "
+                               f"got {value!r}")
+    return expr
+
+
+def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
+               rule: PieceRule | None) -> Form:
+    """``form`` with each abbreviation recognised in the equations and the "where" rows.
 
     ``name → expression``: the expression (in the step's symbols or the printed pieces) is
     replaced by the name wherever it occurs, also inside sums with a common factor.
@@ -496,15 +544,14 @@ def abbreviate(form: Form, step, abbreviations: Mapping, rule: PieceRule | None)
     equations = list(form.equations)
     generic = dict(form.generic)
     rows = list(form.definitions)
-    for name, value in abbreviations.items():
-        tex, symbol = _abbreviation_symbol(name)
-        if callable(value):
-            pairs, (g_symbol, g_value) = _per_arrow(step, tex, value, rule)
+    for a in abbreviations:
+        if callable(a.value):
+            pairs, (g_symbol, g_value) = _per_arrow(step, a.tex, a.value, rule)
             definitions.append(Definition(g_symbol, g_value, frozenset(p for p, _ in pairs)))
             generic[g_symbol] = pairs[0][0]
         else:
-            symbol = symbol if symbol is not None else StepSymbol(tex)
-            g_symbol, g_value = symbol, sp.sympify(value)
+            symbol = a.symbol if a.symbol is not None else StepSymbol(a.tex)
+            g_symbol, g_value = symbol, a.value
             pairs = [(symbol, g_value)]
             definitions.append(Definition(symbol, g_value, frozenset([symbol])))
         for s, v in pairs:
@@ -513,8 +560,10 @@ def abbreviate(form: Form, step, abbreviations: Mapping, rule: PieceRule | None)
         rows = [d if d.literal else Definition(
             d.lhs, replace_occurrences(d.rhs, g_value, g_symbol), d.names, d.literal)
             for d in rows]
-    return Form(equations, [layer, *form.layers], definitions + rows, form.index_range,
-                generic)
+    # the rows defining the equations' names, then the abbreviations they use, then the rest
+    ordered = ([d for d in rows if not d.literal] + definitions
+               + [d for d in rows if d.literal])
+    return Form(equations, [layer, *form.layers], ordered, form.index_range, generic)
 
 
 def _arrow_in_pieces(step, offset: int, index: str, rule: PieceRule | None) -> tuple:
@@ -603,21 +652,31 @@ def _match_sum(expr: sp.Add, value: sp.Add, symbol: sp.Expr) -> sp.Expr | None:
     return None
 
 
-# --- collecting -------------------------------------------------------------------------------------
+# --- collecting ----------------------------------------------------------------------------------
 
 
 def collect_terms(expr: sp.Expr, multipliers: Sequence, parameters: Sequence,
-                  printer: GroupoidLatexPrinter) -> list[Term]:
+                  printer: GroupoidLatexPrinter, variables: bool = False) -> list[Term]:
     """The terms of ``expr`` collected by multipliers and parameters (as SymPy's ``collect``
     does, one symbol after the other: λ·(…), h·(…), (Ω h/2)·(…)), then by common numeric
-    coefficients (½·(a + b)).  Both orders — multipliers first, parameters first — are
-    tried; the shorter printing is kept.  Single terms stay as they are."""
+    coefficients (½·(a + b)); factors common to all the terms of a collected sum are taken
+    out in front.  Both orders — multipliers first, parameters first — are tried (and, with
+    ``variables``, the step variables before the parameters: for a "where" row, which is at
+    one index); the shortest printing is kept.  Single terms stay as they are."""
     from ._layout import signed_terms
 
     ordered = [t.sign * t.expr for t in signed_terms(sp.expand(expr), printer)]
+    orders = [[*multipliers, *parameters], [*parameters, *multipliers]]
+    if variables:
+        steps = sorted((s for s in expr.free_symbols
+                        if isinstance(s, StepSymbol) and s not in set(multipliers)),
+                       key=sp.default_sort_key)
+        orders.append([*multipliers, *steps, *parameters])
     best: list[Term] | None = None
-    for symbols in ([*multipliers, *parameters], [*parameters, *multipliers]):
+    for symbols in orders:
         grouped = _by_coefficient(_by_symbols(ordered, list(symbols)))
+        if len(grouped) > 1 and common_monomial(grouped) != 1:
+            grouped = [_collected(sp.S.One, grouped)]
         terms = [_as_term(g) for g in grouped]
         if best is None or _printed_length(terms, printer) < _printed_length(best, printer):
             best = terms
@@ -713,8 +772,40 @@ def _collected(key: sp.Expr, parts: list) -> sp.Expr:
     factor = sp.Rational(sp.igcd(*[int(abs(c) * denominator) for c in coeffs]), denominator)
     if coeffs[0].is_negative:
         factor = -factor
-    total = sp.Add(*[_scaled(p, 1 / factor) for p in parts])
-    return _signed_collected(factor * key, total)
+    common = common_monomial(parts)
+    total = sp.Add(*[_divided(_scaled(p, 1 / factor), common) for p in parts])
+    return _signed_collected(factor * key * common, total)
+
+
+def _monomial(part: sp.Expr) -> sp.Expr:
+    """What multiplies a part: itself, or the factor of a collected part."""
+    sign, inner = _unsigned(part)
+    return inner.factor if isinstance(inner, Collected) else part
+
+
+def _divided(part: sp.Expr, m: sp.Expr) -> sp.Expr:
+    """``part / m`` (a collected part divides its factor)."""
+    sign, inner = _unsigned(part)
+    if isinstance(inner, Collected):
+        return _signed_collected(sign * inner.factor / m, inner.total)
+    return part / m
+
+
+def common_monomial(parts: Sequence[sp.Expr]) -> sp.Expr:
+    """The symbolic factors every one of ``parts`` has (of a collected part: its factor):
+    Ω h λ₁/2 and Ω h λ₂/2 share Ω h; x/h and y/h share 1/h.  Each base is taken to the
+    power closest to 0 among the parts, when the parts' powers all have one sign."""
+    powers = [_monomial(p).as_coeff_Mul()[1].as_powers_dict() for p in parts]
+    common = sp.S.One
+    for base in powers[0]:
+        exponents = [d.get(base, 0) for d in powers]
+        if not all(isinstance(e, sp.Integer) for e in exponents):
+            continue
+        if all(e > 0 for e in exponents):
+            common *= base ** min(exponents)
+        elif all(e < 0 for e in exponents):
+            common *= base ** max(exponents)
+    return common
 
 
 def _scaled(part: sp.Expr, c: sp.Rational) -> sp.Expr:
@@ -733,7 +824,7 @@ def _as_term(expr: sp.Expr) -> Term:
     return Term(1, expr)
 
 
-# --- the printed step -------------------------------------------------------------------------------
+# --- the printed step ----------------------------------------------------------------------------
 
 
 @dataclass
@@ -776,11 +867,28 @@ def printed_form(form: Form, step, printer: GroupoidLatexPrinter,
         for name in list(used):
             if name in layer:
                 used |= sp.sympify(layer[name]).free_symbols
-    definitions = [d for d in form.definitions if d.names & used]
+    definitions = used_definitions(form.definitions, used)
     if not all(_definition_holds(d, form) for d in definitions):
         return None
     length += sum(_definition_length(d, step.parameters, printer) for d in definitions)
     return Printed(equations, definitions, form.index_range, length, list(step.parameters))
+
+
+def used_definitions(definitions: Sequence[Definition], used: set) -> list[Definition]:
+    """The "where" rows the printing needs, in their order: those defining a symbol of the
+    equations (``used``), then, until nothing changes, those whose symbol a needed row's
+    right-hand side uses (an abbreviation inside a partial derivative's row)."""
+    needed: set = set()
+    referenced: set = set()
+    changed = True
+    while changed:
+        changed = False
+        for i, d in enumerate(definitions):
+            if i not in needed and (d.names & used or d.lhs in referenced):
+                needed.add(i)
+                referenced |= d.rhs.free_symbols
+                changed = True
+    return [d for i, d in enumerate(definitions) if i in needed]
 
 
 def _definition_holds(d: Definition, form: Form) -> bool:
@@ -794,7 +902,7 @@ def _definition_length(d: Definition, parameters: Sequence, printer) -> int:
     if d.literal:
         chosen = GroupoidLatexPrinter({"order": "none"}) if d.as_written else printer
         return len(chosen.doprint(d.lhs)) + len(chosen.doprint(d.rhs)) + 5
-    terms = collect_terms(d.rhs, (), parameters, printer)
+    terms = collect_terms(d.rhs, (), parameters, printer, variables=True)
     return len(printer.doprint(d.lhs)) + sum(len(printer.doprint(t.expr)) + 3 for t in terms)
 
 
@@ -807,30 +915,37 @@ def definition_rows(definitions: Sequence[Definition], width: float,
     literal = GroupoidLatexPrinter({"order": "none"})
     printer = MemoLatexPrinter()
     rows: list[Row] = []
-    line: list[str] = []
+    line: list[tuple[str, str]] = []  # (lhs, rhs) printed, packed onto one row
     for d in definitions:
         if not d.literal:
             if line:
                 rows.append(_definition_row(line))
                 line = []
             lhs = printer.doprint(d.lhs)
-            terms = collect_terms(d.rhs, (), parameters, printer)
+            terms = collect_terms(d.rhs, (), parameters, printer, variables=True)
             rows.append(Row(lhs, break_terms(lhs, terms, width, printer), numbered=False))
             continue
         chosen = literal if d.as_written else printer
-        text = f"{chosen.doprint(d.lhs)} = {chosen.doprint(d.rhs)}"
-        if line and formula_width(", \\quad ".join([*line, text])) > width:
+        pair = (chosen.doprint(d.lhs), chosen.doprint(d.rhs))
+        if line and formula_width(_packed([*line, pair])) > width:
             rows.append(_definition_row(line))
             line = []
-        line.append(text)
+        line.append(pair)
     if line:
         rows.append(_definition_row(line))
     return rows
 
 
-def _definition_row(texts: list[str]) -> Row:
-    lhs, first = texts[0].split(" = ", 1)
-    return Row(lhs, [", \\quad ".join([first, *texts[1:]])], numbered=False)
+def _packed(pairs: Sequence[tuple[str, str]]) -> str:
+    """``a = x, \\quad b = y``: the row as it renders."""
+    return ", \\quad ".join(f"{lhs} = {rhs}" for lhs, rhs in pairs)
+
+
+def _definition_row(pairs: Sequence[tuple[str, str]]) -> Row:
+    """One row ``a &= x, \\quad b = y, …`` (aligned at the first definition's sign)."""
+    (lhs, rhs), rest = pairs[0], pairs[1:]
+    return Row(lhs, [", \\quad ".join([rhs, *(f"{a} = {b}" for a, b in rest)])],
+               numbered=False)
 
 
 def printed_rows(printed: Printed, width: float, printer: GroupoidLatexPrinter) -> PrintedRows:
@@ -867,9 +982,7 @@ def printed_step(step, abbreviations: Mapping | None = None,
                  width: float | None = None) -> PrintedRows:
     """The rows of the step's equations in their shortest verified printed form."""
     width = _check_width(width)
-    if abbreviations is not None and not isinstance(abbreviations, Mapping):
-        raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
-                        f"callable, got {type(abbreviations).__name__}")
+    abbreviations = abbreviations_of(abbreviations, step)
     printer = MemoLatexPrinter()
     explicit = step.residuals
     forms = [(base_form(step), None)]
@@ -892,7 +1005,8 @@ def printed_step(step, abbreviations: Mapping | None = None,
         if result is not None:
             printed.append(result)
     if not printed:  # the base form is the residual itself: only a failed check gets here
-        raise AssertionError(f"{step.name}: the printed equations differ from the residuals")
+        raise LatexVerificationError(f"{step.name}: the printed equations differ from the "
+                                     f"residuals")
     # the shortest form (by its unbroken length) is laid out
     return printed_rows(min(printed, key=lambda p: p.length), width, printer)
 
@@ -902,6 +1016,43 @@ def _no_clash(form: Form, step) -> bool:
     names = {str(s) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
                               *step.parameters]}
     return not any(str(p) in names for layer in form.layers[:2] for p in layer)
+
+
+# --- Legendre transforms (seed 000 §3.3) ---------------------------------------------------------
+
+
+def verified_terms(expr: sp.Expr, multipliers: Sequence, parameters: Sequence,
+                   printer: GroupoidLatexPrinter, what: str) -> list[Term]:
+    """``expr`` collected (:func:`collect_terms`, step variables too: it is at one arrow),
+    checked to be ``expr``."""
+    from ._layout import same_sum
+
+    terms = collect_terms(expr, multipliers, parameters, printer, variables=True)
+    same_sum(terms, [Term(1, sp.sympify(expr))], what)
+    return terms
+
+
+def inline_latex(expr: sp.Expr, multipliers: Sequence, parameters: Sequence) -> str:
+    """``expr`` collected and verified (:func:`verified_terms`), on one line."""
+    from ._layout import term_text
+
+    printer = MemoLatexPrinter()
+    terms = verified_terms(expr, multipliers, parameters, printer, "the expression")
+    return " ".join(term_text(t, i == 0, printer) for i, t in enumerate(terms))
+
+
+def legendre_rows(lt, width: float | None = None) -> PrintedRows:
+    """(𝔽⁻L)_a = X⃗_a[L + λ·φ](g_k), then (𝔽⁺L)_a = X⃖_a[L + λ·φ](g_k): each collected by
+    multipliers, variables and parameters, verified, and broken to ``width`` pt."""
+    width = _check_width(width)
+    printer = MemoLatexPrinter()
+    items: list = []
+    for sign, forms in (("-", lt.minus), ("+", lt.plus)):
+        for a, e in enumerate(forms):
+            lhs = printer.doprint(StepSymbol(f"(\\mathbb{{F}}^{{{sign}}}L)_{{{a + 1}}}"))
+            terms = verified_terms(e, lt.multipliers, lt.parameters, printer, lhs)
+            items.append(Row(lhs, break_terms(lhs, terms, width, printer)))
+    return PrintedRows(items)
 
 
 # --- Lie–Poisson equations (seed 000 §6.1) ------------------------------------------------------
