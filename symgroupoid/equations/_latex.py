@@ -21,6 +21,11 @@ from sympy.printing.latex import LatexPrinter
 from .._errors import SymgroupoidError
 from .._symbols import StepSymbol
 
+#: operations of a step's residual program above which Jupyter shows the plain repr instead
+#: of the typeset equations (printing a 5-link planar chain, about 300 operations, takes a
+#: few seconds)
+DISPLAY_LIMIT = 400
+
 
 class LatexVerificationError(SymgroupoidError, AssertionError):
     """A printed form of an equation is not the equation (a defect of the printing: the

@@ -7,9 +7,9 @@ line that is a :class:`~._latex.Collected` sum is split into several collected s
 same factor; any other term stays whole.
 
 Widths are those of matplotlib's mathtext at 10 pt (DejaVu fonts), measured on the line as
-it renders (continuation lines measured with the left-hand side in front, so the bound holds
-wherever the alignment point falls).  Without matplotlib a conservative estimate from the
-length of the LaTeX is used.
+it renders: with the widest left-hand side of the block in front (the alignment column) and
+``=`` (continuation lines also ``\\quad``), so the bound holds for every line of the block.
+Without matplotlib a conservative estimate from the length of the LaTeX is used.
 """
 
 from __future__ import annotations
@@ -41,12 +41,22 @@ class Term:
 
 @dataclass
 class Row:
-    """A row ``lhs &= …``: ``lines[0]`` after the alignment point, ``lines[1:]`` its
-    continuation lines; ``numbered`` rows carry an equation number in ``align``."""
+    """A row ``lhs &= Σ terms``, broken into ``lines`` by :func:`lay_out` (``lines[0]`` after
+    the alignment point, ``lines[1:]`` its continuation lines); ``numbered`` rows carry an
+    equation number in ``align``."""
 
     lhs: str
-    lines: list[str]
+    terms: list[Term]
     numbered: bool = True
+    lines: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Definitions:
+    """"Where" definitions printed whole, ``(lhs, rhs)`` pairs packed ``a = x, \\quad b = y``
+    as many to a line as the width allows (by :func:`lay_out`)."""
+
+    pairs: list[tuple[str, str]]
 
 
 @dataclass
@@ -59,9 +69,12 @@ class Text:
 
 @dataclass
 class PrintedRows:
-    """What a whole printed block holds: equation rows, then text and definition rows."""
+    """What a whole printed block holds: equation rows, then text and definition rows, the
+    page width in pt and the printer of the terms."""
 
-    items: list = field(default_factory=list)  # Row | Text
+    items: list  # Row | Definitions | Text
+    width: float = 450.0
+    printer: GroupoidLatexPrinter = field(default_factory=GroupoidLatexPrinter)
 
 
 @functools.lru_cache(maxsize=1)
@@ -98,13 +111,14 @@ def _join(texts: list[str]) -> str:
     return " ".join(texts)
 
 
-def _prefix(lhs: str, continuation: bool) -> str:
-    return f"{lhs} = \\quad" if continuation else f"{lhs} ="
+def _prefix(column: str, continuation: bool) -> str:
+    return f"{column} = \\quad" if continuation else f"{column} ="
 
 
-def _line_width(lhs: str, texts: list[str], continuation: bool) -> float:
-    """The exact rendered width of a line (measured whole)."""
-    return formula_width(f"{_prefix(lhs, continuation)} {_join(texts)}")
+def _line_width(column: str, texts: list[str], continuation: bool) -> float:
+    """The exact rendered width of a line (measured whole, the widest left-hand side of the
+    block in front: the alignment column)."""
+    return formula_width(f"{_prefix(column, continuation)} {_join(texts)}")
 
 
 @functools.lru_cache(maxsize=1)
@@ -255,22 +269,24 @@ _CHECK = 0.97  # lines estimated above this fraction of the room are measured wh
 
 def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
                 printer: GroupoidLatexPrinter | None = None,
-                model: WidthModel | None = None) -> list[str]:
+                model: WidthModel | None = None, column: str | None = None) -> list[str]:
     """The right-hand side ``Σ terms`` as lines of at most ``width`` pt (rendered with
-    ``lhs = `` in front); returns the LaTeX of each line.
+    ``column = `` in front: the widest left-hand side of the block, ``lhs`` by default);
+    returns the LaTeX of each line.
 
     Lines are packed by the :class:`WidthModel`'s estimates; a line estimated above 97 % of
     the room is measured whole and gives back terms (or splits a collected sum) until it
     fits.  A single term wider than the page that cannot be split stays whole."""
     printer = printer or GroupoidLatexPrinter()
     model = model or WidthModel(printer)
+    column = lhs if column is None else column
     pending = list(terms)
     lines: list[list[str]] = []
     laid: list[Term] = []  # the terms as laid out (collected sums may have been split)
     current: list[Term] = []
 
     def room(continuation: bool) -> float:
-        return width - formula_width(_prefix(lhs, continuation))
+        return width - formula_width(_prefix(column, continuation))
 
     def texts(line: list[Term], continuation: bool) -> list[str]:
         return [term_text(t, i == 0 and not continuation, printer) for i, t in enumerate(line)]
@@ -281,7 +297,7 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
     def excess(line: list[Term], continuation: bool) -> float:
         if estimate(line, continuation) <= _CHECK * room(continuation):
             return 0.0
-        return _line_width(lhs, texts(line, continuation), continuation) - width
+        return _line_width(column, texts(line, continuation), continuation) - width
 
     def close() -> None:
         """Emit ``current``, giving back trailing terms while the whole line is too wide
@@ -324,7 +340,10 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
 
 
 def same_sum(laid: list[Term], terms: list[Term], what: str) -> None:
-    """Raise :class:`~._latex.LatexVerificationError` unless Σ laid = Σ terms exactly."""
+    """Raise :class:`~._latex.LatexVerificationError` unless Σ laid = Σ terms exactly (the
+    same terms, or the same sum expanded)."""
+    if laid == list(terms):
+        return
     difference = sp.expand(sp.Add(*[t.value() for t in laid])
                            - sp.Add(*[t.value() for t in terms]))
     if difference != 0:
@@ -332,12 +351,53 @@ def same_sum(laid: list[Term], terms: list[Term], what: str) -> None:
                                      f"{difference}")
 
 
+def lay_out(rows: PrintedRows) -> list:
+    """The items with every :class:`Row` broken to the page width and the
+    :class:`Definitions` packed into rows, all measured against the widest left-hand side
+    of the block (where ``align`` puts the alignment point)."""
+    heads = [item.lhs for item in rows.items if isinstance(item, Row)]
+    heads += [lhs for item in rows.items if isinstance(item, Definitions)
+              for lhs, _ in item.pairs]
+    column = max(heads, key=formula_width, default="")
+    model = WidthModel(rows.printer)
+    out: list = []
+    for item in rows.items:
+        if isinstance(item, Row):
+            lines = break_terms(item.lhs, item.terms, rows.width, rows.printer, model, column)
+            out.append(Row(item.lhs, item.terms, item.numbered, lines))
+        elif isinstance(item, Definitions):
+            out += _packed_rows(item.pairs, rows.width, column)
+        else:
+            out.append(item)
+    return out
+
+
+def _packed(pairs: list[tuple[str, str]]) -> str:
+    """``a = x, \\quad b = y``: the right-hand side of a packed row after its first ``a``."""
+    (_, rhs), rest = pairs[0], pairs[1:]
+    return ", \\quad ".join([rhs, *(f"{a} = {b}" for a, b in rest)])
+
+
+def _packed_rows(pairs: list[tuple[str, str]], width: float, column: str) -> list[Row]:
+    """Definitions several to a row while the row fits in ``width``."""
+    rows: list[Row] = []
+    line: list[tuple[str, str]] = []
+    for pair in pairs:
+        if line and _line_width(column, [_packed([*line, pair])], False) > width:
+            rows.append(Row(line[0][0], [], False, [_packed(line)]))
+            line = []
+        line.append(pair)
+    if line:
+        rows.append(Row(line[0][0], [], False, [_packed(line)]))
+    return rows
+
+
 def render_align(rows: PrintedRows) -> str:
     """An amsmath ``align`` environment: one numbered row per equation, continuation lines
     and "where" rows unnumbered (``\\notag``), words as ``\\intertext``."""
     out: list[str] = []
     intro = ""
-    for item in rows.items:
+    for item in lay_out(rows):
         if isinstance(item, Text):
             math = f" ${item.math}$" if item.math else ""
             intro = f"\\intertext{{{item.words}{math},}}\n"
@@ -354,7 +414,7 @@ def render_align(rows: PrintedRows) -> str:
 def render_aligned(rows: PrintedRows) -> str:
     """The same rows in an ``aligned`` block (no numbers; words as ``\\text``)."""
     out: list[str] = []
-    for item in rows.items:
+    for item in lay_out(rows):
         if isinstance(item, Text):
             math = f" {item.math}" if item.math else ""
             out.append(f"&\\text{{{item.words}}}{math},")

@@ -44,7 +44,7 @@ from ._latex import (
     latex,
     uncollected,
 )
-from ._layout import PAGE_WIDTH, PrintedRows, Row, Term, Text, break_terms
+from ._layout import PAGE_WIDTH, Definitions, PrintedRows, Row, Term, Text
 
 # --- names -------------------------------------------------------------------------------------
 
@@ -697,7 +697,7 @@ def _by_symbols(terms: list, symbols: list) -> list:
     order: list = []
     others: list = []
     for t in terms:
-        c, e = t.as_coeff_exponent(p)
+        c, e = _power_of(t, p)
         if e != 0 and not c.has(p):
             if e not in groups:
                 groups[e] = []
@@ -716,6 +716,16 @@ def _by_symbols(terms: list, symbols: list) -> list:
         else:
             out.append(_collected(p**e, _by_symbols(groups[e], later)))
     return out
+
+
+def _power_of(term: sp.Expr, p: sp.Symbol) -> tuple[sp.Expr, sp.Expr]:
+    """(c, e) with term = c·pᵉ, e the exponent of p as a factor of the product ``term``
+    (0 when p is not a factor; c may still contain p, e.g. inside sin(p))."""
+    if isinstance(term, Collected):
+        return term, sp.S.Zero
+    e = term.as_powers_dict().get(p, sp.S.Zero) if isinstance(term, (sp.Mul, sp.Pow)) \
+        else (sp.S.One if term == p else sp.S.Zero)
+    return (term / p**e if e != 0 else term), e
 
 
 def _by_coefficient(items: list) -> list:
@@ -836,6 +846,8 @@ class Printed:
     index_range: str
     length: int  # characters of the unbroken printing (what the forms are compared by)
     parameters: list = field(default_factory=list)
+    layers: list = field(default_factory=list)  # what writes the printed names out (Form)
+    generic: dict = field(default_factory=dict)  # "where" names at j → the same at k (Form)
 
 
 def _multipliers(step) -> list:
@@ -871,7 +883,8 @@ def printed_form(form: Form, step, printer: GroupoidLatexPrinter,
     if not all(_definition_holds(d, form) for d in definitions):
         return None
     length += sum(_definition_length(d, step.parameters, printer) for d in definitions)
-    return Printed(equations, definitions, form.index_range, length, list(step.parameters))
+    return Printed(equations, definitions, form.index_range, length, list(step.parameters),
+                   list(form.layers), dict(form.generic))
 
 
 def used_definitions(definitions: Sequence[Definition], used: set) -> list[Definition]:
@@ -906,57 +919,36 @@ def _definition_length(d: Definition, parameters: Sequence, printer) -> int:
     return len(printer.doprint(d.lhs)) + sum(len(printer.doprint(t.expr)) + 3 for t in terms)
 
 
-def definition_rows(definitions: Sequence[Definition], width: float,
-                    parameters: Sequence = ()) -> list[Row]:
-    """The "where" rows: literal ones packed ``a = …, \\quad b = …`` onto lines of at most
-    ``width``; the others collected by parameters and broken like equations."""
-    from ._layout import formula_width
-
+def definition_rows(definitions: Sequence[Definition], parameters: Sequence,
+                    printer: GroupoidLatexPrinter) -> list:
+    """The "where" rows: literal ones as :class:`~._layout.Definitions` (packed several to a
+    line), the others collected by variables and parameters, checked, and broken like
+    equations."""
     literal = GroupoidLatexPrinter({"order": "none"})
-    printer = MemoLatexPrinter()
-    rows: list[Row] = []
-    line: list[tuple[str, str]] = []  # (lhs, rhs) printed, packed onto one row
+    rows: list = []
     for d in definitions:
         if not d.literal:
-            if line:
-                rows.append(_definition_row(line))
-                line = []
             lhs = printer.doprint(d.lhs)
-            terms = collect_terms(d.rhs, (), parameters, printer, variables=True)
-            rows.append(Row(lhs, break_terms(lhs, terms, width, printer), numbered=False))
+            terms = verified_terms(d.rhs, (), parameters, printer, lhs)
+            rows.append(Row(lhs, terms, numbered=False))
             continue
         chosen = literal if d.as_written else printer
         pair = (chosen.doprint(d.lhs), chosen.doprint(d.rhs))
-        if line and formula_width(_packed([*line, pair])) > width:
-            rows.append(_definition_row(line))
-            line = []
-        line.append(pair)
-    if line:
-        rows.append(_definition_row(line))
+        if rows and isinstance(rows[-1], Definitions):
+            rows[-1].pairs.append(pair)
+        else:
+            rows.append(Definitions([pair]))
     return rows
 
 
-def _packed(pairs: Sequence[tuple[str, str]]) -> str:
-    """``a = x, \\quad b = y``: the row as it renders."""
-    return ", \\quad ".join(f"{lhs} = {rhs}" for lhs, rhs in pairs)
-
-
-def _definition_row(pairs: Sequence[tuple[str, str]]) -> Row:
-    """One row ``a &= x, \\quad b = y, …`` (aligned at the first definition's sign)."""
-    (lhs, rhs), rest = pairs[0], pairs[1:]
-    return Row(lhs, [", \\quad ".join([rhs, *(f"{a} = {b}" for a, b in rest)])],
-               numbered=False)
-
-
 def printed_rows(printed: Printed, width: float, printer: GroupoidLatexPrinter) -> PrintedRows:
-    """Equation rows broken to ``width``, then the "where" list."""
-    items: list = [Row("0", break_terms("0", terms, width, printer))
-                   for terms in printed.equations]
+    """Equation rows (broken to ``width`` when laid out), then the "where" list."""
+    items: list = [Row("0", terms) for terms in printed.equations]
     if printed.definitions:
         items.append(Text("where, for" if printed.index_range else "where",
                           printed.index_range))
-        items += definition_rows(printed.definitions, width, printed.parameters)
-    return PrintedRows(items)
+        items += definition_rows(printed.definitions, printed.parameters, printer)
+    return PrintedRows(items, width, printer)
 
 
 class LatexOptionError(SymgroupoidError, ValueError):
@@ -980,10 +972,21 @@ def _check_width(width) -> float:
 
 def printed_step(step, abbreviations: Mapping | None = None,
                  width: float | None = None) -> PrintedRows:
-    """The rows of the step's equations in their shortest verified printed form."""
+    """The rows of the step's equations in their shortest verified printed form (by the
+    length of its unbroken printing)."""
     width = _check_width(width)
-    abbreviations = abbreviations_of(abbreviations, step)
     printer = MemoLatexPrinter()
+    printed = verified_forms(step, abbreviations, printer)
+    return printed_rows(min(printed, key=lambda p: p.length), width, printer)
+
+
+def verified_forms(step, abbreviations: Mapping | None = None,
+                   printer: GroupoidLatexPrinter | None = None) -> list[Printed]:
+    """Every printed form of the step that equals its residuals: the derived form (matrix
+    or explicit), the window in named pieces, the partial derivatives of L in them, each
+    with recognised matrix pieces (W_kᵀΓ_k) and the ``abbreviations``."""
+    abbreviations = abbreviations_of(abbreviations, step)
+    printer = printer or MemoLatexPrinter()
     explicit = step.residuals
     forms = [(base_form(step), None)]
     system = _junction_system(step)
@@ -1007,8 +1010,7 @@ def printed_step(step, abbreviations: Mapping | None = None,
     if not printed:  # the base form is the residual itself: only a failed check gets here
         raise LatexVerificationError(f"{step.name}: the printed equations differ from the "
                                      f"residuals")
-    # the shortest form (by its unbroken length) is laid out
-    return printed_rows(min(printed, key=lambda p: p.length), width, printer)
+    return printed
 
 
 def _no_clash(form: Form, step) -> bool:
@@ -1050,9 +1052,9 @@ def legendre_rows(lt, width: float | None = None) -> PrintedRows:
     for sign, forms in (("-", lt.minus), ("+", lt.plus)):
         for a, e in enumerate(forms):
             lhs = printer.doprint(StepSymbol(f"(\\mathbb{{F}}^{{{sign}}}L)_{{{a + 1}}}"))
-            terms = verified_terms(e, lt.multipliers, lt.parameters, printer, lhs)
-            items.append(Row(lhs, break_terms(lhs, terms, width, printer)))
-    return PrintedRows(items)
+            items.append(Row(lhs, verified_terms(e, lt.multipliers, lt.parameters, printer,
+                                                 lhs)))
+    return PrintedRows(items, width, printer)
 
 
 # --- Lie–Poisson equations (seed 000 §6.1) ------------------------------------------------------
@@ -1062,13 +1064,18 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
     """μ_{k+1} = Ad*_{g_k} μ_k, then 0 = 𝔽⁻L_{k+1} − Ad*_{g_k} 𝔽⁻L_k (componentwise) and the
     constraints, with Ad* printed as a named operator and 𝔽⁻L_j = μ(g_j) + λ_j·Φ(g_j) in a
     "where" list.  Each printed row is verified against the explicit update and residuals,
-    with Ad*_{g_k} written out; rows that fail print explicitly."""
+    with Ad*_{g_k} written out; rows that fail print explicitly (collected, verified)."""
     from ..derivation._momenta import momentum_symbols
 
     width = _check_width(width)
     printer = MemoLatexPrinter()
     step = lp.reconstruction
     G, rank, m = step.groupoid, len(lp.momentum_symbols), step.n_constraints
+    multipliers = _multipliers(step)
+
+    def explicit_row(lhs: str, expr: sp.Expr) -> Row:
+        return Row(lhs, verified_terms(expr, multipliers, step.parameters, printer, lhs))
+
     g0, g1 = tuple(G.named_arrow(0)), tuple(G.named_arrow(1))
     ad = NamedOperator(f"\\operatorname{{Ad}}^{{*}}_{{{indexed_name(G.latex, 'k')}}}", rank, rank)
     ad_value = sp.ImmutableMatrix(G.Ad_star(G.matrix(g0)))
@@ -1079,11 +1086,10 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
     values = {ad: ad_value, mu0: sp.ImmutableMatrix(lp.momentum_symbols)}
     if all(equals_explicit(MatrixElement(update, a, 0), u, [values])
            for a, u in enumerate(lp.update)):
-        items.append(Row(printer.doprint(mu1), [printer.doprint(update)]))
+        items.append(Row(printer.doprint(mu1), [Term(1, update)]))
     else:
-        nxt = momentum_symbols(rank, 1)
-        items += [Row(printer.doprint(s), break_terms(printer.doprint(s), collect_terms(
-            u, (), step.parameters, printer), width, printer)) for s, u in zip(nxt, lp.update)]
+        items += [explicit_row(printer.doprint(s), u)
+                  for s, u in zip(momentum_symbols(rank, 1), lp.update)]
     F = {o: sp.MatrixSymbol(indexed_name("\\mathbb{F}^{-}L", label), rank, 1)
          for o, label in ((0, "k"), (1, "k+1"))}
     shift = dict(zip(g0, g1))
@@ -1094,19 +1100,16 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
     residual = sp.MatAdd(F[1], sp.MatMul(-1, ad, F[0]))
     if all(equals_explicit(MatrixElement(residual, a, 0), r, [layer])
            for a, r in enumerate(lp.residuals[:rank])):
-        items.append(Row("0", [f"{printer.doprint(F[1])} - {printer.doprint(ad)} "
-                               f"{printer.doprint(F[0])}"]))
+        items.append(Row("0", [Term(1, F[1]), Term(-1, sp.MatMul(ad, F[0]))]))
         where = _momentum_definitions(G, momentum, m, printer)
     else:
         where = []
-        items += [Row("0", break_terms("0", collect_terms(r, (), step.parameters, printer),
-                                       width, printer)) for r in lp.residuals[:rank]]
-    items += [Row("0", break_terms("0", collect_terms(r, (), step.parameters, printer),
-                                   width, printer)) for r in lp.residuals[rank:]]
+        items += [explicit_row("0", r) for r in lp.residuals[:rank]]
+    items += [explicit_row("0", r) for r in lp.residuals[rank:]]
     if where:
         items.append(Text("where, for", "j = k, k+1"))
-        items += definition_rows(where, width, step.parameters)
-    return PrintedRows(items)
+        items += definition_rows(where, step.parameters, printer)
+    return PrintedRows(items, width, printer)
 
 
 def _momentum_definitions(G, momentum: Sequence, m: int, printer) -> list[Definition]:

@@ -188,9 +188,15 @@ class StepEquations:
 
         return step_latex(self, document=document, abbreviations=abbreviations, width=width)
 
-    def _repr_latex_(self) -> str:
-        from ._latex import step_latex_aligned
+    def _repr_latex_(self) -> str | None:
+        """The equations typeset in Jupyter, for steps whose residual program has at most
+        ``DISPLAY_LIMIT`` operations (the printing derives and verifies SymPy forms, which
+        large systems should not pay for on display); None (the plain repr) otherwise —
+        :meth:`latex` prints any step on request."""
+        from ._latex import DISPLAY_LIMIT, step_latex_aligned
 
+        if self.program.size(["F"]) > DISPLAY_LIMIT:
+            return None
         return step_latex_aligned(self)
 
     def __repr__(self) -> str:
