@@ -121,6 +121,15 @@ class GroupoidLatexPrinter(LatexPrinter):
     _print_sin = _print_cos = _print_tan = _print_trigonometric
     _print_cot = _print_sec = _print_csc = _print_trigonometric
 
+    def _print_Add(self, expr, order=None) -> str:
+        """A sum whose terms all have coefficients over one denominator d > 1 prints over it:
+        ``\\frac{q_{k+1} + q_{k}}{2}`` rather than ``\\frac{q_{k+1}}{2} + \\frac{q_{k}}{2}``."""
+        denominator = _common_denominator(expr)
+        if denominator == 1 or self.order in ("old", "none"):
+            return super()._print_Add(expr, order)
+        numerator = sp.Add(*[t * denominator for t in expr.args])
+        return f"\\frac{{{super()._print_Add(numerator, order)}}}{{{denominator}}}"
+
     def _print_Mul(self, expr) -> str:
         """Products in the papers' order: numbers, parameters (plain symbols) and sums of
         them, step variables (x_{k}, (g_{k})_{12}, …), functions (\\sin, tr), then the
@@ -185,6 +194,12 @@ class MemoLatexPrinter(GroupoidLatexPrinter):
         if expr not in self._printed:
             self._printed[expr] = super().doprint(expr)
         return self._printed[expr]
+
+
+def _common_denominator(expr: sp.Add) -> int:
+    """d when every term's rational coefficient has the denominator d (else 1)."""
+    denominators = {t.as_coeff_Mul()[0].q for t in expr.args}
+    return denominators.pop() if len(denominators) == 1 else 1
 
 
 def _unevaluated(expr: sp.Mul) -> bool:

@@ -9,7 +9,7 @@ same factor; any other term stays whole.
 Widths are those of matplotlib's mathtext at 10 pt (DejaVu fonts), measured on the line as
 it renders: with the widest left-hand side of the block in front (the alignment column) and
 ``=`` (continuation lines also ``\\quad``), so the bound holds for every line of the block.
-Without matplotlib a conservative estimate from the length of the LaTeX is used.
+Without matplotlib an estimate from the length of the LaTeX (2.5 pt per character) is used.
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ from ._latex import Collected, GroupoidLatexPrinter, LatexVerificationError
 
 PAGE_WIDTH = 450.0  # pt
 _FONT_SIZE = 10.0  # pt, matplotlib's default
-_PT_PER_CHAR = 1.6  # upper estimate of mathtext width per LaTeX character, without matplotlib
+_PT_PER_CHAR = 2.5  # mathtext width per LaTeX character, without matplotlib (lines of the
+# seed systems render at 0.7–2.4 pt per character; single letters at up to 10)
 
 
 @dataclass(frozen=True)
@@ -61,10 +62,9 @@ class Definitions:
 
 @dataclass
 class Text:
-    """Words between rows (``\\intertext``), e.g. "where, for" and the math "j = k, k+1"."""
+    """Words between rows (``\\intertext``), with inline math: "where, for $j = k, k+1$,"."""
 
     words: str
-    math: str = ""
 
 
 @dataclass
@@ -93,9 +93,9 @@ _OVERSAMPLE = 8  # measure at 8 × 72 dpi: widths to 1/8 pt
 
 @functools.lru_cache(maxsize=8192)
 def formula_width(tex: str) -> float:
-    """Rendered width in pt of the math formula ``tex`` (mathtext, 10 pt), or the
-    conservative estimate ``1.6 pt × len(tex)`` when matplotlib is unavailable or cannot
-    parse it."""
+    """Rendered width in pt of the math formula ``tex`` (mathtext, 10 pt), or the estimate
+    ``2.5 pt × len(tex)`` when matplotlib is unavailable or cannot parse it (above what
+    whole lines render at; not a bound for very short formulas)."""
     parser = _parser()
     if parser is not None:
         mathtext, prop = parser
@@ -379,11 +379,22 @@ def _packed(pairs: list[tuple[str, str]]) -> str:
 
 
 def _packed_rows(pairs: list[tuple[str, str]], width: float, column: str) -> list[Row]:
-    """Definitions several to a row while the row fits in ``width``."""
+    """Definitions several to a row while the row fits in ``width`` (estimated as the sum of
+    its definitions' widths; measured whole above 97 % of the width)."""
+    separator = formula_width("a, \\quad b") - 2 * formula_width("a")
+    room = width - formula_width(column)  # the first definition's lhs sits in the column
+
+    def fits(line: list[tuple[str, str]]) -> bool:
+        estimate = sum(formula_width(f"{a} = {b}") for a, b in line) \
+            + separator * (len(line) - 1) - formula_width(line[0][0])
+        if estimate <= _CHECK * room:
+            return True
+        return _line_width(column, [_packed(line)], False) <= width
+
     rows: list[Row] = []
     line: list[tuple[str, str]] = []
     for pair in pairs:
-        if line and _line_width(column, [_packed([*line, pair])], False) > width:
+        if line and not fits([*line, pair]):
             rows.append(Row(line[0][0], [], False, [_packed(line)]))
             line = []
         line.append(pair)
@@ -399,8 +410,7 @@ def render_align(rows: PrintedRows) -> str:
     intro = ""
     for item in lay_out(rows):
         if isinstance(item, Text):
-            math = f" ${item.math}$" if item.math else ""
-            intro = f"\\intertext{{{item.words}{math},}}\n"
+            intro = f"\\intertext{{{item.words}}}\n"
             continue
         for i, line in enumerate(item.lines):
             last = i == len(item.lines) - 1
@@ -416,8 +426,7 @@ def render_aligned(rows: PrintedRows) -> str:
     out: list[str] = []
     for item in lay_out(rows):
         if isinstance(item, Text):
-            math = f" {item.math}" if item.math else ""
-            out.append(f"&\\text{{{item.words}}}{math},")
+            out.append(f"&\\text{{{item.words}}}")
             continue
         for i, line in enumerate(item.lines):
             head = f"{item.lhs} &= " if i == 0 else "&\\quad "

@@ -25,6 +25,7 @@ Nothing here runs unless LaTeX is asked for.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -150,9 +151,12 @@ def piece_roots(coord: PairCoordinate) -> tuple[str, str]:
     return accented(coord.name, "\\bar"), f"\\Delta {latex_name(coord.name)}"
 
 
-def piece_symbols(coord: PairCoordinate, label: str) -> tuple[StepSymbol, StepSymbol]:
-    """q̄ and Δq of one coordinate at the subscript ``label``."""
+def piece_symbols(coord: PairCoordinate, label: str | None) -> tuple[StepSymbol, StepSymbol]:
+    """q̄ and Δq of one coordinate at the subscript ``label`` (None: without index, the
+    arguments of L(q̄, Δq) in the "where" rows of its partial derivatives)."""
     mid, diff = piece_roots(coord)
+    if label is None:
+        return StepSymbol(mid), StepSymbol(diff)
     return StepSymbol(indexed_name(mid, label)), StepSymbol(indexed_name(diff, label))
 
 
@@ -198,6 +202,7 @@ class Definition:
     names: frozenset
     literal: bool = True  # printed whole, several to a line (else collected and broken)
     as_written: bool = False  # terms in the order given (the pieces' definitions)
+    intro: int = 0  # which of the form's intros (words before a group of rows) it follows
 
 
 @dataclass
@@ -208,8 +213,9 @@ class Form:
     equations: list
     layers: list = field(default_factory=list)  # list of {symbol: value}
     definitions: list = field(default_factory=list)  # list of Definition
-    index_range: str = ""  # e.g. "j = k, k+1"
+    intros: list = field(default_factory=lambda: ["where"])  # words before each group of rows
     generic: dict = field(default_factory=dict)  # symbol at index j → the same at k (checks)
+    unindexed: bool = False  # "where" rows in pieces without index (L's partial derivatives)
 
 
 def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
@@ -316,7 +322,7 @@ def window_in_pieces(step, rule: PieceRule, fs, matrix_form: bool,
 
 
 def _index_range(offsets: Sequence[int]) -> str:
-    return "j = " + ", ".join(step_label(o) for o in offsets)
+    return "$j = " + ", ".join(step_label(o) for o in offsets) + "$"
 
 
 def piece_form(step, rule: PieceRule) -> Form | None:
@@ -333,7 +339,7 @@ def piece_form(step, rule: PieceRule) -> Form | None:
     equations = [tidy(r) for r in w.rows + w.constraints]
     return Form(equations, [w.values, matrix_values(step)],
                 _piece_definitions(pair_coordinates(step.groupoid), rule),
-                _index_range(w.offsets), _generic_pieces(step.groupoid))
+                [f"where, for {_index_range(w.offsets)},"], _generic_pieces(step.groupoid))
 
 
 def _generic_pieces(G) -> dict:
@@ -344,10 +350,11 @@ def _generic_pieces(G) -> dict:
     return out
 
 
-def partial_symbol(root: str, label: str) -> StepSymbol:
+def partial_symbol(root: str, label: str | None) -> StepSymbol:
     """(∂_{root} L)_{label}: a partial derivative of the discrete Lagrangian, evaluated at the
-    arrow whose pieces carry ``label``."""
-    return StepSymbol(indexed_name(f"\\partial_{{{root}}} L", label))
+    arrow whose pieces carry ``label`` (None: ∂_{root} L itself, a function of the pieces)."""
+    name = f"\\partial_{{{root}}} L"
+    return StepSymbol(name if label is None else indexed_name(name, label))
 
 
 def derivative_form(step, rule: PieceRule) -> Form | None:
@@ -358,8 +365,9 @@ def derivative_form(step, rule: PieceRule) -> Form | None:
         ∂L/∂q₁ = ½ ∂L/∂q̄ + (1/τ) ∂L/∂Δq,    ∂L/∂q₀ = ½ ∂L/∂q̄ − (1/τ) ∂L/∂Δq,
 
     each partial named and evaluated at q̄_{k∓1/2}, Δq_{k∓1/2}; the "where" list gives each
-    partial once, at the generic index j − 1/2.  (The coefficients ±½, ±1/τ come from
-    varying the pieces themselves, so the groupoid's sign conventions carry over.)"""
+    partial once, as a function of the pieces (q̄, Δq), then the pieces at j − 1/2.  (The
+    coefficients ±½, ±1/τ come from varying the pieces themselves, so the groupoid's sign
+    conventions carry over.)"""
     from ..derivation._junction import junction_variation
     from ..derivation._step import tidy
 
@@ -389,25 +397,31 @@ def derivative_form(step, rule: PieceRule) -> Form | None:
                 piece = [(A[c.source] + A[c.target]) / 2, (A[c.target] - A[c.source]) / rule.tau]
                 X = junction_variation(G, piece[which], w.slots[0], w.slots[1])
                 rows = [r + at[o] * x.xreplace(w.substitution) for r, x in zip(rows, X)]
-                layer[at[o]] = _in_pieces(partial, coords, dummies, "k", o)
-            generic = partial_symbol(roots[which], half_label("j", 0))
-            definitions.append(Definition(generic, _in_pieces(partial, coords, dummies, "j", 0),
+                layer[at[o]] = _in_pieces(partial, coords, dummies, half_label("k", o))
+            generic = partial_symbol(roots[which], None)
+            definitions.append(Definition(generic, _in_pieces(partial, coords, dummies, None),
                                           frozenset(at.values()), literal=False))
             instances[generic] = at[0]
+    for c in coords:
+        instances.update(zip(piece_symbols(c, None), piece_symbols(c, half_label("k", 0))))
     equations = [tidy(r) for r in rows + w.constraints]
-    return Form(equations, [layer, w.values], definitions + _piece_definitions(coords, rule),
-                _index_range(w.offsets), instances)
+    intros = [f"where, for {_index_range(w.offsets)}, $(\\cdot)_{{j-1/2}}$ is taken at the "
+              f"pieces of index $j - 1/2$:", "with"]
+    return Form(equations, [layer, w.values],
+                definitions + _piece_definitions(coords, rule, intro=1), intros, instances,
+                unindexed=True)
 
 
-def _in_pieces(expr: sp.Expr, coords, dummies, index: str, offset: int) -> sp.Expr:
-    """``expr`` in the piece dummies, written in the named pieces at ``index+offset``."""
+def _in_pieces(expr: sp.Expr, coords, dummies, label: str | None) -> sp.Expr:
+    """``expr`` in the piece dummies, written in the named pieces of subscript ``label``."""
     sub = {}
     for c, (mid, diff) in zip(coords, dummies):
-        sub[mid], sub[diff] = piece_symbols(c, half_label(index, offset))
+        sub[mid], sub[diff] = piece_symbols(c, label)
     return sp.expand(expr.xreplace(sub))
 
 
-def _piece_definitions(coords: Sequence[PairCoordinate], rule: PieceRule) -> list[Definition]:
+def _piece_definitions(coords: Sequence[PairCoordinate], rule: PieceRule,
+                       intro: int = 0) -> list[Definition]:
     """The "where" rows of the pieces at the generic arrow g_j = (q_{j−1}, q_j); each
     defines the pieces of that name at every index (k−3/2 … k+3/2)."""
     out = []
@@ -419,7 +433,7 @@ def _piece_definitions(coords: Sequence[PairCoordinate], rule: PieceRule) -> lis
         for piece, value in rule.definitions(q0, q1, *generic):
             which = generic.index(piece)
             out.append(Definition(piece, value, frozenset(p[which] for p in at_k),
-                                  as_written=True))
+                                  as_written=True, intro=intro))
     return out
 
 
@@ -469,7 +483,8 @@ def with_recognised(form: Form, pieces: Sequence) -> Form:
     for symbol, value, values in pieces:
         layer.update(values)
         equations = [replace_occurrences(sp.expand(e), value, symbol) for e in equations]
-    return Form(equations, [*form.layers, layer], form.definitions, form.index_range)
+    return Form(equations, [*form.layers, layer], form.definitions, form.intros, form.generic,
+                form.unindexed)
 
 
 # --- abbreviations ------------------------------------------------------------------------------
@@ -546,7 +561,7 @@ def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
     rows = list(form.definitions)
     for a in abbreviations:
         if callable(a.value):
-            pairs, (g_symbol, g_value) = _per_arrow(step, a.tex, a.value, rule)
+            pairs, (g_symbol, g_value) = _per_arrow(step, a.tex, a.value, rule, form.unindexed)
             definitions.append(Definition(g_symbol, g_value, frozenset(p for p, _ in pairs)))
             generic[g_symbol] = pairs[0][0]
         else:
@@ -563,17 +578,19 @@ def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
     # the rows defining the equations' names, then the abbreviations they use, then the rest
     ordered = ([d for d in rows if not d.literal] + definitions
                + [d for d in rows if d.literal])
-    return Form(equations, [layer, *form.layers], ordered, form.index_range, generic)
+    return Form(equations, [layer, *form.layers], ordered, form.intros, generic, form.unindexed)
 
 
-def _arrow_in_pieces(step, offset: int, index: str, rule: PieceRule | None) -> tuple:
-    """The coordinates of g_{index+offset} with its pair coordinates written in the pieces."""
+def _arrow_in_pieces(step, offset: int, index: str, rule: PieceRule | None,
+                     unindexed: bool = False) -> tuple:
+    """The coordinates of g_{index+offset} with its pair coordinates written in the pieces
+    (``unindexed``: in the pieces without index)."""
     G = step.groupoid
     coords = list(G.named_arrow(offset)) if index == "k" else list(_generic_arrow(G))
     if rule is None:
         return tuple(coords)
     for c in pair_coordinates(G):
-        mid, diff = piece_symbols(c, half_label(index, offset))
+        mid, diff = piece_symbols(c, None if unindexed else half_label(index, offset))
         coords[c.source], coords[c.target] = rule.coordinates(coords[c.source],
                                                               coords[c.target], mid, diff)
     return tuple(coords)
@@ -601,8 +618,9 @@ def generic_renaming(G) -> dict:
     return rename
 
 
-def _per_arrow(step, tex: str, fn: Callable, rule: PieceRule | None):
-    """(symbol, value) at each window arrow, and the generic (symbol, value) at g_j."""
+def _per_arrow(step, tex: str, fn: Callable, rule: PieceRule | None, unindexed: bool = False):
+    """(symbol, value) at each window arrow, and the generic (symbol, value) at g_j (with
+    ``unindexed``, in the pieces without index, named without index)."""
     from ..derivation._callables import as_scalar, call_user
     from ..derivation._step import window
 
@@ -616,6 +634,11 @@ def _per_arrow(step, tex: str, fn: Callable, rule: PieceRule | None):
         return StepSymbol(indexed_name(tex, label(index, offset))), value
 
     pairs = [at("k", o) for o in window(step.order)[0]]
+    if unindexed:
+        arrow = G.view(_arrow_in_pieces(step, 0, "j", rule, unindexed=True))
+        value = as_scalar(step.name, f"abbreviation {tex}", call_user(
+            step.name, f"abbreviation {tex}", fn, arrow))
+        return pairs, (StepSymbol(tex), value)
     return pairs, at("j", 0)
 
 
@@ -843,7 +866,7 @@ class Printed:
 
     equations: list  # list of list[Term]
     definitions: list  # Definition rows whose names occur
-    index_range: str
+    intros: list  # words before each group of "where" rows
     length: int  # characters of the unbroken printing (what the forms are compared by)
     parameters: list = field(default_factory=list)
     layers: list = field(default_factory=list)  # what writes the printed names out (Form)
@@ -883,7 +906,7 @@ def printed_form(form: Form, step, printer: GroupoidLatexPrinter,
     if not all(_definition_holds(d, form) for d in definitions):
         return None
     length += sum(_definition_length(d, step.parameters, printer) for d in definitions)
-    return Printed(equations, definitions, form.index_range, length, list(step.parameters),
+    return Printed(equations, definitions, form.intros, length, list(step.parameters),
                    list(form.layers), dict(form.generic))
 
 
@@ -942,13 +965,27 @@ def definition_rows(definitions: Sequence[Definition], parameters: Sequence,
 
 
 def printed_rows(printed: Printed, width: float, printer: GroupoidLatexPrinter) -> PrintedRows:
-    """Equation rows (broken to ``width`` when laid out), then the "where" list."""
+    """Equation rows (broken to ``width`` when laid out), then the "where" list, each group
+    of its rows after its words."""
     items: list = [Row("0", terms) for terms in printed.equations]
-    if printed.definitions:
-        items.append(Text("where, for" if printed.index_range else "where",
-                          printed.index_range))
-        items += definition_rows(printed.definitions, printed.parameters, printer)
-    return PrintedRows(items, width, printer)
+    intro = None
+    for d in printed.definitions:
+        if d.intro != intro:
+            intro = d.intro
+            items.append(Text(printed.intros[intro]))
+        items += definition_rows([d], printed.parameters, printer)
+    return PrintedRows(_merged(items), width, printer)
+
+
+def _merged(items: list) -> list:
+    """Consecutive :class:`~._layout.Definitions` as one (packed together)."""
+    out: list = []
+    for item in items:
+        if isinstance(item, Definitions) and out and isinstance(out[-1], Definitions):
+            out[-1] = Definitions([*out[-1].pairs, *item.pairs])
+        else:
+            out.append(item)
+    return out
 
 
 class LatexOptionError(SymgroupoidError, ValueError):
@@ -970,14 +1007,26 @@ def _check_width(width) -> float:
     return value
 
 
+#: the shortest verified form of each printed step, by its abbreviations (a step printed
+#: again — as LaTeX, as a document, in Jupyter — is not derived and checked again)
+_PRINTED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def printed_step(step, abbreviations: Mapping | None = None,
                  width: float | None = None) -> PrintedRows:
     """The rows of the step's equations in their shortest verified printed form (by the
     length of its unbroken printing)."""
     width = _check_width(width)
-    printer = MemoLatexPrinter()
-    printed = verified_forms(step, abbreviations, printer)
-    return printed_rows(min(printed, key=lambda p: p.length), width, printer)
+    checked = tuple(abbreviations_of(abbreviations, step))
+    try:
+        known = _PRINTED.setdefault(step, {})
+        hash(checked)
+    except TypeError:  # unhashable abbreviations: printed afresh
+        known = {}
+    if checked not in known:
+        printed = verified_forms(step, abbreviations, MemoLatexPrinter())
+        known[checked] = min(printed, key=lambda p: p.length)
+    return printed_rows(known[checked], width, MemoLatexPrinter())
 
 
 def verified_forms(step, abbreviations: Mapping | None = None,
@@ -1107,7 +1156,7 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
         items += [explicit_row("0", r) for r in lp.residuals[:rank]]
     items += [explicit_row("0", r) for r in lp.residuals[rank:]]
     if where:
-        items.append(Text("where, for", "j = k, k+1"))
+        items.append(Text("where, for $j = k, k+1$,"))
         items += definition_rows(where, step.parameters, printer)
     return PrintedRows(items, width, printer)
 
