@@ -697,7 +697,8 @@ def collect_terms(expr: sp.Expr, multipliers: Sequence, parameters: Sequence,
         orders.append([*multipliers, *steps, *parameters])
     best: list[Term] | None = None
     for symbols in orders:
-        grouped = _by_coefficient(_by_symbols(ordered, list(symbols)))
+        grouped = _by_coefficient(_by_cofactor(_by_symbols(ordered, list(symbols)),
+                                               multipliers))
         if len(grouped) > 1 and common_monomial(grouped) != 1:
             grouped = [_collected(sp.S.One, grouped)]
         terms = [_as_term(g) for g in grouped]
@@ -749,6 +750,37 @@ def _power_of(term: sp.Expr, p: sp.Symbol) -> tuple[sp.Expr, sp.Expr]:
     e = term.as_powers_dict().get(p, sp.S.Zero) if isinstance(term, (sp.Mul, sp.Pow)) \
         else (sp.S.One if term == p else sp.S.Zero)
     return (term / p**e if e != 0 else term), e
+
+
+def _by_cofactor(items: list, multipliers: Sequence) -> list:
+    """Plain terms c·λ (λ a multiplier, c a non-constant factor free of multipliers) with the
+    same c up to sign collected as c·(±λ ± λ′): x_k ((λ_{k+1})₁ + (λ_k)₁),
+    (Ω h/2)((λ_{k+1})₂ + (λ_k)₂)."""
+    lam = set(multipliers)
+    keys: list = []
+    for item in items:
+        key = None
+        if not isinstance(_unsigned(item)[1], Collected):
+            factors = [f for f in sp.Mul.make_args(item) if f in lam]
+            if len(factors) == 1:
+                c = item / factors[0]
+                if c.free_symbols and not c.free_symbols & lam:
+                    sign = -1 if c.as_coeff_Mul()[0].is_negative else 1
+                    key = (sign * c, sign * factors[0])
+        keys.append(key)
+    groups: dict = {}
+    for key in keys:
+        if key is not None:
+            groups.setdefault(key[0], []).append(key[1])
+    out: list = []
+    done: set = set()
+    for item, key in zip(items, keys):
+        if key is None or len(groups[key[0]]) == 1:
+            out.append(item)
+        elif key[0] not in done:
+            out.append(_collected(key[0], groups[key[0]]))
+            done.add(key[0])
+    return out
 
 
 def _by_coefficient(items: list) -> list:
