@@ -10,15 +10,20 @@ g_j = (q_{j−1}, q_j) is written as
 
 *before* the variation is substituted into the named arrows, so the derivative of L comes out
 in q̄_{k∓1/2} and Δq_{k∓1/2} (the rule, and which parameter divides the differences, is
-chosen as the one in which L and the constraints are shortest).  User abbreviations
+chosen as the one in which L and the constraints are shortest).  A second form names the
+partial derivatives of L(q̄, Δq) themselves: the step reads ½(∂_q̄L_{k−1/2} + ∂_q̄L_{k+1/2})
+− (∂_ΔqL_{k+1/2} − ∂_ΔqL_{k−1/2})/h = 0 and the "where" list gives each partial once.
+Matrix parts (tr(g_k E_i E_j), W_kᵀΓ_k) and Ad*_{g_k} keep their names.  User abbreviations
 (``abbreviations={name: expression or callable of an arrow}``) are recognised next, then the
 terms are collected by multipliers and parameters, and the rows broken to the page width
 (:mod:`._layout`).
 
 Every printed equation — the pieces and abbreviations written out, matrices and named
 operators by their values — is checked to equal the explicit residual (the expanded
-difference is 0); a form that fails is not printed: the explicit form is.  Of the verified
-forms the shortest in total (equations and "where" list) is printed.
+difference is 0), and so is every "where" row; a form that fails is not printed.  The form
+as derived always passes; of the verified forms the shortest in total (equations and "where"
+list) is printed, and remembered for the step.  Breaking a row into lines is checked too
+(:func:`._layout.same_sum`).
 
 Nothing here runs unless LaTeX is asked for.
 """
@@ -33,7 +38,7 @@ import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 from sympy.printing.conventions import split_super_sub
 
-from .._errors import CallableError, SymgroupoidError
+from .._errors import SymgroupoidError
 from .._symbols import StepSymbol, latex_name, multiplier_symbols, step_label
 from ._latex import (
     Collected,
@@ -331,10 +336,7 @@ def piece_form(step, rule: PieceRule) -> Form | None:
     from ..derivation._step import tidy
 
     system = _junction_system(step)
-    try:
-        fs = _system_functions(system, step.structured is not None)
-    except (CallableError, NotImplementedError, TypeError, AttributeError, ValueError):
-        return None
+    fs = _system_functions(system, step.structured is not None)
     w = window_in_pieces(step, rule, fs, step.structured is not None)
     equations = [tidy(r) for r in w.rows + w.constraints]
     return Form(equations, [w.values, matrix_values(step)],
@@ -1070,14 +1072,9 @@ def verified_forms(step, abbreviations: Mapping | None = None,
     printer = printer or MemoLatexPrinter()
     explicit = step.residuals
     forms = [(base_form(step), None)]
-    system = _junction_system(step)
-    if system is not None:
-        rule = best_rule(system._fs, pair_coordinates(step.groupoid), step.parameters)
-        if rule is not None:
-            for build in (piece_form, derivative_form):
-                pieces = build(step, rule)
-                if pieces is not None and _no_clash(pieces, step):
-                    forms.append((pieces, rule))
+    for pieces, rule in _piece_forms(step):
+        if _no_clash(pieces, step):
+            forms.append((pieces, rule))
     recognised = action_pieces(step)
     if recognised:
         forms += [(with_recognised(form, recognised), rule) for form, rule in forms]
@@ -1092,6 +1089,32 @@ def verified_forms(step, abbreviations: Mapping | None = None,
         raise LatexVerificationError(f"{step.name}: the printed equations differ from the "
                                      f"residuals")
     return printed
+
+
+#: what building a form in named pieces may raise for a system it does not fit (a Lagrangian
+#: that does not take pieces, a groupoid without pair coordinates): that form is not offered
+_NOT_IN_PIECES = (SymgroupoidError, AttributeError, TypeError, ValueError, NotImplementedError)
+
+
+def _piece_forms(step) -> list[tuple[Form, PieceRule]]:
+    """The forms of the step in the named pieces of the rule L is shortest in (none when L
+    is not written in pieces or the step is not a junction variation of L)."""
+    system = _junction_system(step)
+    if system is None:
+        return []
+    try:
+        rule = best_rule(system._fs, pair_coordinates(step.groupoid), step.parameters)
+    except _NOT_IN_PIECES:
+        return []
+    out = []
+    for build in (piece_form, derivative_form):
+        try:
+            form = build(step, rule) if rule is not None else None
+        except _NOT_IN_PIECES:
+            form = None
+        if form is not None:
+            out.append((form, rule))
+    return out
 
 
 def _no_clash(form: Form, step) -> bool:
