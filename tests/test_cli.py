@@ -130,7 +130,7 @@ def test_derive_prints_latex_sizes_and_times(files, capsys):
     assert "% ring: 3 equations in 3 unknowns (order 1, 1 constraints, 5 knowns)" in out
     assert "% Jacobian 3×3: 6 structurally nonzero entries" in out
     assert "% derived in " in out and "% LaTeX written in " in out
-    assert "\\begin{align}" in out and "\\frac{x_{k+1}}{h}" in out
+    assert "\\begin{align}" in out and "\\frac{x_{k+1} + x_{k-1} - 2 x_{k}}{h}" in out
 
 
 def test_derive_document_and_pdf(files, tmp_path, capsys, monkeypatch):

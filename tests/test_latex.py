@@ -15,12 +15,67 @@ from symgroupoid.derivation._step import matrix_form_values
 from symgroupoid.groupoids._matrix_form import to_explicit
 
 mathtext = pytest.importorskip("matplotlib.mathtext")
+from matplotlib.font_manager import FontProperties  # noqa: E402
+
+PAGE = 450.0  # pt
+
+
+# --- reading an align environment back ------------------------------------------------------
+
+def _lines(tex: str) -> list[tuple[str, str, bool]]:
+    """(left-hand side, body, is a continuation line) of every line of an ``align``."""
+    body = tex.split("\\begin{align}\n", 1)[1].rsplit("\n\\end{align}", 1)[0]
+    out = []
+    for raw in body.split(" \\\\\n"):
+        raw = re.sub(r"^\\intertext\{.*\}\n", "", raw).removesuffix(" \\notag")
+        lhs, rhs = raw.split("&", 1)
+        continuation = rhs.startswith("\\quad ")
+        out.append((lhs.strip(), rhs.removeprefix("\\quad ").removeprefix("= "), continuation))
+    return out
+
+
+_PARSER = mathtext.MathTextParser("path")
+_FONT = FontProperties(family="DejaVu Sans", size=10, math_fontfamily="dejavusans")
+
+
+def _width(formula: str) -> float:
+    """Rendered width in pt at 10 pt (measured at 720 dpi)."""
+    return _PARSER.parse(f"${formula}$", dpi=720, prop=_FONT)[0] / 10
+
+
+def _line_widths(tex: str) -> list[float]:
+    """Each line as it renders in the ``align``: the widest left-hand side of the block (the
+    alignment column), ``=``, and ``\\quad`` before a continuation."""
+    lines = _lines(tex)
+    column = max((lhs for lhs, _, _ in lines if lhs), key=_width)
+    quad = "\\quad "
+    return [_width(f"{column} = {quad if cont else ''}{body}") for _, body, cont in lines]
 
 
 def _formulas(latex_align: str) -> list[str]:
+    """The right-hand sides of the rows of an ``align`` (continuation lines included), with
+    their ``\\notag`` and the ``\\intertext`` before them removed."""
     body = latex_align.split("\\begin{align}")[1].split("\\end{align}")[0]
-    return [line.split("&=", 1)[1].strip().rstrip("\\").strip()
-            for line in body.split("\\\\\n") if "&=" in line]
+    out = []
+    for line in body.strip().split(" \\\\\n"):
+        line = re.sub(r"^\\intertext\{.*\}\n", "", line).removesuffix(" \\notag")
+        if "&=" in line:
+            out.append(line.split("&=", 1)[1].strip())
+        elif line.startswith("&\\quad "):
+            out.append(line.removeprefix("&\\quad "))
+    return out
+
+
+def _equations(latex_align: str) -> list[str]:
+    """Each numbered equation of an ``align`` whole: its row and continuation lines joined."""
+    body = latex_align.split("\\begin{align}")[1].split("\\end{align}")[0]
+    out, current = [], []
+    for line in body.strip().split(" \\\\\n"):
+        current.append(line.split("&", 1)[1].removeprefix("= ").removeprefix("\\quad "))
+        if not line.endswith("\\notag"):
+            out.append(" ".join(current))
+            current = []
+    return out
 
 
 def _renders(formula: str) -> None:
@@ -65,15 +120,23 @@ def test_every_formula_renders_with_mathtext(plate_ball, heavy_top, plate_ball_s
     second = sg.SecondOrderSystem(
         sg.PairGroupoid(q), lambda a, b: (b.target[0] - 2 * a.target[0] + a.source[0]) ** 2,
         name="spline")
+    lie_poisson = rigid.lie_poisson().latex()
     sources = [plate_ball_step.latex(), heavy_top_step.latex(),
                plate_ball[0].legendre().latex(), heavy_top[0].legendre().latex(),
-               rigid.lie_poisson().latex(), second.euler_lagrange().latex()]
+               lie_poisson, second.euler_lagrange().latex()]
     count = 0
     for tex in sources:
         for formula in _formulas(tex):
             _renders(formula)
             count += 1
-    assert count >= 8 + 3 + 10 + 6 + 6 + 1
+        assert max(_line_widths(tex)) <= PAGE
+    # Lie–Poisson: μ_{k+1} = Ad*μ_k, 0 = 𝔽⁻L_{k+1} − Ad*𝔽⁻L_k and three "where" rows
+    assert count >= 8 + 3 + 10 + 6 + 5 + 1
+    # Ad*_{g_k} is printed as an operator, not as its cofactor expansion (seed 000 §6.1)
+    assert "\\mu_{k+1} &= \\operatorname{Ad}^{*}_{W_{k}} \\mu_{k}" in lie_poisson
+    assert ("0 &= (\\mathbb{F}^{-}L)_{k+1} - \\operatorname{Ad}^{*}_{W_{k}} "
+            "(\\mathbb{F}^{-}L)_{k}") in lie_poisson
+    assert "((\\mathbb{F}^{-}L)_{j})_{1} &=" in lie_poisson and "(W_{k})_{" not in lie_poisson
 
 
 def test_standalone_document_and_jupyter(plate_ball_step, tmp_path):

@@ -1,13 +1,76 @@
 """LaTeX in the papers' notation, by SymPy printer type dispatch.
 
 Step symbols print as their names (x_{k+1}, (g_{k})_{12}, (\\lambda_{k+1})_{1}); matrix
-entries are 1-based; diagonal constant matrices print as diag(…); traces as tr(…).
+entries are 1-based; diagonal constant matrices print as diag(…); traces as tr(…);
+trigonometric functions as \\sin(x) (parentheses sized only around fractions); a
+:class:`Collected` term as its common factor times its sum in parentheses.
+
+Whole steps print through :mod:`._printing` (named pieces, collected terms, a "where" list,
+every printed equation verified against the explicit residual) and :mod:`._layout` (rows
+broken to a page width).
 """
 
 from __future__ import annotations
 
 import sympy as sp
+from sympy.functions.elementary.trigonometric import TrigonometricFunction
+from sympy.matrices.expressions.matexpr import MatrixElement
+from sympy.matrices.expressions.trace import Trace
 from sympy.printing.latex import LatexPrinter
+
+from .._errors import SymgroupoidError
+from .._symbols import StepSymbol
+
+#: operations of a step's residual program above which Jupyter shows the plain repr instead
+#: of the typeset equations (printing a 5-link planar chain, about 300 operations, takes a
+#: few seconds)
+DISPLAY_LIMIT = 400
+
+
+class LatexVerificationError(SymgroupoidError, AssertionError):
+    """A printed form of an equation is not the equation (a defect of the printing: the
+    forms are built to be equal, and checked before they are printed)."""
+
+
+class Collected(sp.Expr):
+    """``factor · (total)`` kept as written: terms collected by a common factor.
+
+    ``Collected(h/2, a + b)`` prints as ``\\frac{h}{2} \\left(a + b\\right)``,
+    ``Collected(1/h, a - b)`` as ``\\frac{a - b}{h}``;
+    :meth:`expanded` is the plain product (what verification compares).
+    """
+
+    is_commutative = True
+
+    def __new__(cls, factor, total):
+        return sp.Expr.__new__(cls, sp.sympify(factor), sp.sympify(total))
+
+    @property
+    def factor(self) -> sp.Expr:
+        return self.args[0]
+
+    @property
+    def total(self) -> sp.Expr:
+        return self.args[1]
+
+    def expanded(self) -> sp.Expr:
+        """The product ``factor · total`` (nested collections expanded too)."""
+        return self.factor * uncollected(self.total)
+
+
+def uncollected(expr: sp.Expr) -> sp.Expr:
+    """``expr`` with every :class:`Collected` replaced by its product."""
+    return expr.replace(lambda e: isinstance(e, Collected), lambda e: e.expanded())
+
+
+class NamedOperator(sp.MatrixSymbol):
+    """A linear operator printed by name, e.g. Ad*_{g_k} (``NamedOperator(r"\\operatorname{Ad}
+    ^{*}_{g_{k}}", 3, 3)``); its value is substituted when an equation is verified."""
+
+
+class NamedConstant(StepSymbol):
+    """A name printed verbatim that stands for an expression in the parameters only (a
+    user's abbreviation M = m₁ + m₂): products order it with the parameters."""
 
 
 class GroupoidLatexPrinter(LatexPrinter):
@@ -17,6 +80,9 @@ class GroupoidLatexPrinter(LatexPrinter):
         super().__init__({"mul_symbol": None, **(settings or {})})
 
     def _print_StepSymbol(self, expr) -> str:
+        return expr.name
+
+    def _print_NamedOperator(self, expr) -> str:
         return expr.name
 
     def _print_MatrixElement(self, expr) -> str:
@@ -42,23 +108,171 @@ class GroupoidLatexPrinter(LatexPrinter):
 
     _print_NamedMatrix = _print_ImmutableDenseMatrix
 
+    def _print_trigonometric(self, expr: TrigonometricFunction, exp=None) -> str:
+        """\\sin(x), \\cos^{2}(x - y): plain parentheses unless the argument has a fraction."""
+        arg = self._print(expr.args[0])
+        name = f"\\{type(expr).__name__}"
+        if exp is not None:
+            name += f"^{{{exp}}}"
+        if _has_fraction(expr.args[0]):
+            return f"{name}\\left({arg}\\right)"
+        return f"{name}({arg})"
 
-def latex(expr) -> str:
+    _print_sin = _print_cos = _print_tan = _print_trigonometric
+    _print_cot = _print_sec = _print_csc = _print_trigonometric
+
+    def _print_Add(self, expr, order=None) -> str:
+        """A sum whose terms all have coefficients over one denominator d > 1 prints over it:
+        ``\\frac{q_{k+1} + q_{k}}{2}`` rather than ``\\frac{q_{k+1}}{2} + \\frac{q_{k}}{2}``."""
+        denominator = _common_denominator(expr)
+        if denominator == 1 or self.order in ("old", "none"):
+            return super()._print_Add(expr, order)
+        numerator = sp.Add(*[t * denominator for t in expr.args])
+        return f"\\frac{{{super()._print_Add(numerator, order)}}}{{{denominator}}}"
+
+    def _print_Mul(self, expr) -> str:
+        """Products in the papers' order: numbers, parameters (plain symbols) and sums of
+        them, step variables (x_{k}, (g_{k})_{12}, …), functions (\\sin, tr), then the
+        rest: ``g h l_{1} \\left(m_{1} + m_{2}\\right) \\Delta x_{k} \\sin(\\bar{x}_{k})``.
+        Settings that fold fractions, and non-commutative or unevaluated products, print
+        as SymPy prints them."""
+        if (not isinstance(expr, sp.Mul) or not expr.is_commutative
+                or self._settings["fold_short_frac"] or self._settings["long_frac_ratio"]
+                or self.order in ("old", "none") or _unevaluated(expr)):
+            return super()._print_Mul(expr)
+        if expr.could_extract_minus_sign():
+            positive = -expr
+            if not isinstance(positive, sp.Mul):
+                return super()._print_Mul(expr)
+            return "- " + self._print_Mul(positive)
+        numerator, denominator = sp.fraction(expr, exact=True)
+        if denominator == 1:
+            return self._print_factors(expr)
+        return (f"\\frac{{{self._print_factors(numerator)}}}"
+                f"{{{self._print_factors(denominator)}}}")
+
+    def _print_factors(self, expr) -> str:
+        """The factors of a product side by side, in :func:`factor_rank` order, each
+        bracketed where SymPy brackets it."""
+        if isinstance(expr, list):
+            factors = expr
+        else:
+            factors = expr.as_ordered_factors() if isinstance(expr, sp.Mul) else [expr]
+        factors = sorted(factors, key=factor_rank)  # stable: SymPy's order within a rank
+        texts = []
+        for i, factor in enumerate(factors):
+            tex = self._print(factor)
+            if self._needs_mul_brackets(factor, first=i == 0, last=i == len(factors) - 1):
+                tex = f"\\left({tex}\\right)"
+            texts.append(tex)
+        return self._settings["mul_symbol_latex"].join(texts)
+
+    def _print_Collected(self, expr: Collected) -> str:
+        """``f \\left(a + b\\right)``; a factor 1/d prints as ``\\frac{a + b}{d}``."""
+        numerator, denominator = sp.fraction(expr.factor)
+        if factor_rank(expr.total) == 1:  # a sum of parameters: in the product's order
+            product = self._print_factors([*sp.Mul.make_args(numerator), expr.total])
+            if denominator == 1:
+                return product
+            return f"\\frac{{{product}}}{{{self._print(denominator)}}}"
+        total = self._print(expr.total)
+        if numerator == 1 and denominator != 1:
+            return f"\\frac{{{total}}}{{{self._print(denominator)}}}"
+        factor = "" if expr.factor == 1 else self._print(expr.factor) + " "
+        return f"{factor}\\left({total}\\right)"
+
+
+class MemoLatexPrinter(GroupoidLatexPrinter):
+    """The printer remembering what it printed (one printing of a whole step prints the same
+    terms many times: to compare forms, to measure and to lay out lines)."""
+
+    def __init__(self, settings=None):
+        super().__init__(settings)
+        self._printed: dict = {}
+
+    def doprint(self, expr) -> str:
+        if expr not in self._printed:
+            self._printed[expr] = super().doprint(expr)
+        return self._printed[expr]
+
+
+def _common_denominator(expr: sp.Add) -> int:
+    """d when every term's rational coefficient has the denominator d (else 1)."""
+    denominators = {t.as_coeff_Mul()[0].q for t in expr.args}
+    return denominators.pop() if len(denominators) == 1 else 1
+
+
+def _unevaluated(expr: sp.Mul) -> bool:
+    """An unevaluated product (identities or several numbers kept): SymPy prints it as given."""
+    args = expr.args
+    return args[0] is sp.S.One or any(isinstance(a, sp.Number) for a in args[1:])
+
+
+def factor_rank(factor: sp.Expr) -> int:
+    """0 numbers, 1 parameters (plain symbols, their powers and sums), 2 step variables
+    (:class:`StepSymbol`, matrix entries) and their powers, 3 functions and their powers,
+    4 anything else."""
+    base = factor.base if isinstance(factor, sp.Pow) else factor
+    if isinstance(factor, sp.Number):
+        return 0
+    if _is_parameter(base) or isinstance(base, NamedConstant) or (isinstance(base, sp.Add) and all(
+            _is_parameter(s) for s in base.free_symbols) and not base.atoms(
+            sp.Function, MatrixElement)):
+        return 1
+    if isinstance(base, (StepSymbol, MatrixElement)):
+        return 2
+    if isinstance(base, (sp.Function, Trace)):
+        return 3
+    return 4
+
+
+def _is_parameter(expr: sp.Expr) -> bool:
+    return type(expr) is sp.Symbol
+
+
+def _has_fraction(expr: sp.Expr) -> bool:
+    """Whether ``expr`` prints with a fraction (a non-integer rational or a negative power)."""
+    return any((isinstance(e, sp.Rational) and e.q != 1)
+               or (isinstance(e, sp.Pow) and e.exp.is_negative)
+               for e in sp.preorder_traversal(expr))
+
+
+def latex(expr, **settings) -> str:
     """LaTeX of an expression in the papers' notation."""
-    return GroupoidLatexPrinter().doprint(expr)
+    return GroupoidLatexPrinter(settings).doprint(expr)
 
 
 def equation_lines(step) -> list[str]:
-    """One ``0 &= …`` line per residual (the matrix form when available)."""
+    """One ``0 &= …`` line per residual (the matrix form when available), unbroken: the
+    plain printing of :attr:`StepEquations.structured` or :attr:`StepEquations.residuals`."""
     forms = step.structured if step.structured is not None else step.residuals
     return [f"0 &= {latex(r)}" for r in forms]
 
 
-def step_latex(step, document: bool = False) -> str:
-    """An ``align`` environment of the step equations, or a standalone document."""
-    body = "\\begin{align}\n" + " \\\\\n".join(equation_lines(step)) + "\n\\end{align}"
+def step_latex(step, document: bool = False, abbreviations=None,
+               width: float | None = None) -> str:
+    """An ``align`` environment of the step equations, or a standalone document.
+
+    The equations are printed in their most readable verified form (:mod:`._printing`):
+    named pieces and ``abbreviations`` where they shorten it, terms collected by
+    multipliers and parameters, rows broken to ``width`` pt (default 450), and a "where"
+    list of what was named.
+    """
+    from ._layout import render_align
+    from ._printing import printed_step
+
+    body = render_align(printed_step(step, abbreviations=abbreviations, width=width))
     if not document:
         return body
     return ("\\documentclass{article}\n\\usepackage{amsmath,amssymb}\n\\begin{document}\n"
             f"% {step.name}: {len(step)} equations in {len(step.unknowns)} unknowns\n"
             f"{body}\n\\end{{document}}\n")
+
+
+def step_latex_aligned(step, abbreviations=None, width: float | None = None) -> str:
+    """The same rows as :func:`step_latex` in an ``aligned`` block between ``$$`` (Jupyter)."""
+    from ._layout import render_aligned
+    from ._printing import printed_step
+
+    rows = printed_step(step, abbreviations=abbreviations, width=width)
+    return "$$" + render_aligned(rows) + "$$"

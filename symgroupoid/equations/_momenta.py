@@ -13,10 +13,8 @@ from ..derivation._momenta import (
     LegendreForms,
     LiePoissonForms,
     NoetherForms,
-    momentum_symbols,
 )
 from ..ir import Graph, Program, from_sympy
-from ._latex import latex
 from ._step import StepEquations
 
 #: characters of an expression shown in a repr before it is cut
@@ -56,10 +54,14 @@ class LegendreTransforms:
                 np.asarray(params, float))
         return np.asarray(fm(*args), float).ravel(), np.asarray(fp(*args), float).ravel()
 
-    def latex(self) -> str:
-        rows = [f"\\mathbb{{F}}^-L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.minus)]
-        rows += [f"\\mathbb{{F}}^+L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.plus)]
-        return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+    def latex(self, width=None) -> str:
+        """(𝔽⁻L)_a, then (𝔽⁺L)_a, as an ``align`` environment: terms collected by multipliers,
+        variables and parameters (checked to be the transforms), rows broken to ``width``
+        pt (default 450)."""
+        from ._layout import render_align
+        from ._printing import legendre_rows
+
+        return render_align(legendre_rows(self, width))
 
     def __repr__(self) -> str:
         return (f"<LegendreTransforms F⁻L, F⁺L: {len(self.minus)} components each (section "
@@ -96,7 +98,11 @@ class NoetherQuantity:
                                    np.asarray(params, float)))
 
     def latex(self) -> str:
-        return latex(self.expr)
+        """F_X, its terms collected by multipliers, variables and parameters (checked to be
+        F_X), on one line."""
+        from ._printing import inline_latex
+
+        return inline_latex(self.expr, self.multipliers, self.parameters)
 
     @functools.cached_property
     def _program(self) -> Program:
@@ -152,12 +158,13 @@ class LiePoissonEquations:
         self.momentum_symbols: list = forms.momentum_symbols
         self.reconstruction = StepEquations(forms.reconstruction)
 
-    def latex(self) -> str:
-        """The update m_{k+1} = Ad*_{g_k} m_k componentwise, then the residuals."""
-        nxt = momentum_symbols(len(self.momentum_symbols), 1)
-        rows = [f"{latex(m)} &= {latex(u)}" for m, u in zip(nxt, self.update)]
-        rows += [f"0 &= {latex(r)}" for r in self.residuals]
-        return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+    def latex(self, width=None) -> str:
+        """μ_{k+1} = Ad*_{g_k} μ_k, then 0 = 𝔽⁻L_{k+1} − Ad*_{g_k} 𝔽⁻L_k and the constraints
+        (seed 000 §6.1), Ad* printed by name; rows broken to ``width`` pt (default 450)."""
+        from ._layout import render_align
+        from ._printing import lie_poisson_rows
+
+        return render_align(lie_poisson_rows(self, width))
 
     def __repr__(self) -> str:
         return (f"<LiePoissonEquations {self.reconstruction.name!r}: "

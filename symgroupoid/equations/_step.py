@@ -175,16 +175,29 @@ class StepEquations:
         return compile_step(self, **options)
 
     # --- LaTeX --------------------------------------------------------------------------------
-    def latex(self, document: bool = False) -> str:
-        """The equations as a LaTeX ``align`` environment (or a standalone document)."""
+    def latex(self, document: bool = False, abbreviations=None, width=None) -> str:
+        """The equations as a LaTeX ``align`` environment (or a standalone document).
+
+        Printed in the papers' style (``equations/_printing.py``): named pieces (midpoints,
+        difference quotients) where L is written with them, ``abbreviations``
+        (``{name: expression or callable of an arrow}``) where they occur, terms collected by
+        multipliers and parameters, rows broken to ``width`` pt (default 450), then a
+        "where" list; every printed equation is verified to be the residual.
+        """
         from ._latex import step_latex
 
-        return step_latex(self, document=document)
+        return step_latex(self, document=document, abbreviations=abbreviations, width=width)
 
-    def _repr_latex_(self) -> str:
-        from ._latex import equation_lines
+    def _repr_latex_(self) -> str | None:
+        """The equations typeset in Jupyter, for steps whose residual program has at most
+        ``DISPLAY_LIMIT`` operations (the printing derives and verifies SymPy forms, which
+        large systems should not pay for on display); None (the plain repr) otherwise —
+        :meth:`latex` prints any step on request."""
+        from ._latex import DISPLAY_LIMIT, step_latex_aligned
 
-        return "$$\\begin{aligned}" + " \\\\ ".join(equation_lines(self)) + "\\end{aligned}$$"
+        if self.program.size(["F"]) > DISPLAY_LIMIT:
+            return None
+        return step_latex_aligned(self)
 
     def __repr__(self) -> str:
         return (f"<StepEquations {self.name!r}: {len(self)} equations in "
