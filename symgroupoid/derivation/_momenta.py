@@ -147,6 +147,31 @@ def is_identically_zero(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool:
     return sp.simplify(sp.cancel(sp.together(e))) == 0
 
 
+def vanishes_on_restriction(expr: sp.Expr, G: Groupoid, arrow: tuple,
+                            fs: SystemFunctions) -> bool:
+    """Whether ``expr`` vanishes on N = G|_M = {g : ψ(α(g)) = 0 = ψ(β(g))}, M = {ψ = 0} the
+    holonomic constraint set (docs/conventions.md §15): the numerator of ``expr``, with the
+    arrow parametrised as in :func:`is_identically_zero`, reduces to 0 modulo a Gröbner basis
+    of the numerators of ψ(α(g)), ψ(β(g)) (every free symbol a polynomial variable).  A
+    sufficient condition; False when the expressions are not polynomial there."""
+    if not fs.n_holonomic:
+        return False
+    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
+    x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
+    on_group = tuple(G.arrow_from(q, G.fibre_chart(x, q)))
+    e = sp.sympify(expr).xreplace(dict(zip(arrow, on_group)))
+    ideal = fs.at_base(q) + fs.at_base(G.target(on_group))
+    numerators = [sp.fraction(sp.together(f))[0] for f in [e, *ideal]]
+    gens = sorted(set().union(*(f.free_symbols for f in numerators)), key=str)
+    try:
+        basis = sp.groebner([sp.expand(f) for f in numerators[1:]], *gens, order="grevlex")
+        _, remainder = basis.reduce(sp.expand(numerators[0]))
+    except (sp.PolynomialError, sp.polys.polyerrors.CoercionFailed,
+            sp.polys.polyerrors.GeneratorsError, sp.polys.polyerrors.DomainError):
+        return False
+    return sp.expand(remainder) == 0
+
+
 def momentum_symbols(rank: int, offset: int) -> list:
     """(μ_{k+offset})_a: discrete momenta in g*."""
     return [indexed_symbol(r"\mu", offset, str(a + 1)) for a in range(rank)]

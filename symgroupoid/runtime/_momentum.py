@@ -5,6 +5,9 @@ arrow g₁ ∈ α⁻¹(q₀) and its multipliers λ₁ from (docs/conventions.md
 
     F⁻[L + λ₁·φ](g₁) = p₀,      φ(g₁) = 0,
 
+(with holonomic constraints ψ, λ₁·ψ(α(g₁)) is part of λ₁·φ and the condition is ψ(β(g₁)) = 0,
+docs/conventions.md §15),
+
 with ⟨F⁻[L + λ·φ](g), X⟩ = X⃗[L + λ·φ](g) (``system.legendre().minus``).  The unknowns are the
 α-fibre chart coordinates of g₁ and λ₁: the same square structure as a step, whose F⁺ side is
 replaced by p₀, so the system is regular exactly where the step is.
@@ -65,7 +68,7 @@ class MomentumInitializer:
         p = [sp.Dummy(f"p{a}", real=True) for a in range(self.rank)]
         on_fibre = tuple(G.arrow_from(self.source, G.fibre_chart(x, self.source)))
         sub = dict(zip(arrow, on_fibre))
-        phis = list(system.constraints(G.view(arrow))) if self.m else []
+        phis = system._fs.rows_on(G, [arrow]) if self.m else []
         eqs = sp.Matrix([mi.xreplace(sub) - pi for mi, pi in zip(forms.minus, p)]
                         + [sp.sympify(f).xreplace(sub) for f in phis])
         unknowns = x + lam
@@ -170,7 +173,7 @@ class SecondOrderMomentumInitializer:
 
     def __init__(self, step, layout: StateLayout):
         from ..derivation._momenta import second_order_legendre_forms
-        from ..derivation._step import chart_of, named, next_arrow, shifted
+        from ..derivation._step import chart_of, named, next_arrow
 
         system = step.system
         G, fs = step.groupoid, system._fs
@@ -187,7 +190,7 @@ class SecondOrderMomentumInitializer:
         p = [sp.Dummy(f"p{a}") for a in range(2 * self.rank)]
         eqs = [e - pi for e, pi in zip(forms.minus, p)]
         for a, b in ((g0, g1), (g1, g2)):
-            eqs += shifted(fs, [a, b], [1] * self.m, lagrangian=False, separate=True)
+            eqs += fs.rows_on(G, [a, b])
         # differentiate through the charts, keeping the fibre variables as intermediates
         fibres, charts = list(fib1) + list(fib2), list(chart1) + list(chart2)
         sub = {**cmap1, **cmap2}
