@@ -130,6 +130,11 @@ def test_second_order_holonomic_step_and_boundary_value_problem() -> None:
     assert np.max(np.abs(np.sum(nodes ** 2, axis=1) - 1.0)) <= 1e-13
     assert np.all(sol.multipliers[:2] == 0.0)  # their nodes are fixed by the boundary data
     assert verify_stationary(sol, system, {"h": 0.05, "ell": 1.0})
+    sim = step.compile(backend="numpy")  # a start from a momentum: λ₀, λ₁ take its normal part
+    state = sim.from_momentum((1.0, 0.0, np.cos(0.01), np.sin(0.01)), [0.0, 1.0, 0.0, 1.0],
+                              {"h": 0.01, "ell": 1.0})
+    traj = sim.simulate(state, steps=10, params={"h": 0.01, "ell": 1.0})
+    assert np.max(np.abs(np.hypot(traj["x"], traj["y"]) - 1.0)) <= 4 * EPS
 
 
 # --- momenta and Noether ---------------------------------------------------------------------
@@ -322,6 +327,8 @@ def test_input_errors() -> None:
         plane(lambda q: q[0] ** 2 + q[1] ** 2 - 1)
     with pytest.raises(sg.CallableError, match="holonomic constraints"):
         plane(lambda q: [q[5]])
+    with pytest.raises(sg.CallableError, match="function of the base point"):
+        plane([1])
 
 
 def test_reduction_refuses_holonomic_systems() -> None:

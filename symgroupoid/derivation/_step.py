@@ -27,7 +27,7 @@ from typing import Any
 
 import sympy as sp
 
-from .._errors import ShapeError
+from .._errors import CallableError, ShapeError
 from .._symbols import multiplier_symbols, subscripted
 from ..groupoids import Groupoid
 from ._callables import as_scalar, as_scalar_list, call_user, check_symbols
@@ -179,6 +179,9 @@ def holonomic_functions(name: str, groupoid: Groupoid, holonomic: Callable, base
         raise ShapeError(f"{name}: {groupoid.name} has a single base point, so there is no "
                          f"configuration for holonomic constraints to restrict; write "
                          f"constraints on the arrows (constraints=) instead")
+    if not callable(holonomic):
+        raise CallableError(f"{name}: the holonomic constraints must be a function of the base "
+                            f"point (e.g. lambda q: [...]), got a {type(holonomic).__name__}")
     raw = call_user(name, what, holonomic, groupoid.base_view(base))
     psis = as_scalar_list(name, what, raw)
     check_symbols(name, what, psis, base, parameters)

@@ -71,7 +71,8 @@ class NoetherQuantity:
     """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
 
     ``is_symmetry`` records the symbolic check that ⟨F⁻L, X(α)⟩ + f(α) = ⟨F⁺L, X(β)⟩ + f(β)
-    holds identically on G (with the multipliers free); ``defect`` is their difference.
+    holds identically on G (with the multipliers free) — with holonomic constraints, on
+    N = G|_M (docs/conventions.md §15); ``defect`` is their difference.
     """
 
     def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):

@@ -31,6 +31,20 @@ from ._layout import StateLayout
 from ._validate import arrow as checked_arrow
 
 
+#: a Newton update at most this size (relative to the iterate) that is not 10 times smaller
+#: than the one before it is rounding: quadratic convergence has ended at a solution
+ROUNDING_UPDATE = 1e-9
+
+
+def converged(dz: np.ndarray, before: float, z: np.ndarray, tol: float) -> bool:
+    """Whether Newton has converged after the update ``dz`` (the one before it had size
+    ``before``): the update is below ``tol`` relative to the iterate, or it is rounding —
+    below ROUNDING_UPDATE relative and no longer shrinking (a badly scaled system, e.g.
+    rows of size 1/h³ next to constraint rows of size 1, stalls above ``tol``)."""
+    size, scale = float(np.abs(dz).max()), 1.0 + float(np.abs(z).max())
+    return size <= tol * scale or (size <= ROUNDING_UPDATE * scale and size > 0.1 * before)
+
+
 def _numeric(value, label: str, owner: str) -> np.ndarray:
     """``value`` as a float array, or a :class:`ShapeError` naming ``label``."""
     try:
@@ -132,6 +146,7 @@ class MomentumInitializer:
             if not np.isfinite(values).all():
                 raise DomainError(f"{self.name}: non-finite {label} {values.tolist()}")
         z = np.concatenate([np.asarray(self._guess(q), float).ravel(), np.zeros(self.m)])
+        previous = np.inf
         for _ in range(max_iterations):
             F = np.asarray(self._F(z, q, p, params), float).ravel()
             J = np.asarray(self._J(z, q, p, params), float).reshape(len(z), len(z))
@@ -147,8 +162,9 @@ class MomentumInitializer:
                     f"Jacobian)", step=0, residual_norm=float(np.abs(F).max()),
                     iterate=z) from None
             z = z - dz
-            if np.abs(dz).max() <= tol * (1.0 + np.abs(z).max()):
+            if converged(dz, previous, z, tol):
                 break
+            previous = float(np.abs(dz).max())
         else:
             raise NewtonDivergenceError(f"{self.name}: no initial state found for this momentum "
                                         f"in {max_iterations} Newton iterations", step=0,
@@ -231,6 +247,7 @@ class SecondOrderMomentumInitializer:
             raise DomainError(f"{self.name}: non-finite momentum {p.tolist()}")
         guess = np.asarray(self._guess(g0), float).ravel()
         z = np.concatenate([guess, guess, np.zeros(2 * self.m)])
+        previous = np.inf
         for _ in range(max_iterations):
             F, J, state = self._residual(z, g0, p, params)
             if not (np.isfinite(F).all() and np.isfinite(J).all()):
@@ -244,7 +261,8 @@ class SecondOrderMomentumInitializer:
                                             step=0, residual_norm=float(np.abs(F).max()),
                                             iterate=z) from None
             z = z - dz
-            if np.abs(dz).max() <= tol * (1.0 + np.abs(z).max()):
+            if converged(dz, previous, z, tol):
                 return self._residual(z, g0, p, params)[2]
+            previous = float(np.abs(dz).max())
         raise NewtonDivergenceError(f"{self.name}: no initial state found for this momentum",
                                     step=0, residual_norm=float(np.abs(F).max()), iterate=z)
