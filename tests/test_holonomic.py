@@ -351,9 +351,8 @@ def test_a_constraint_the_anchor_does_not_see_is_diagnosed() -> None:
     assert "dψ(ρ(X)) = 0 for every basis section" in text and "holonomic=" not in text
 
 
-# --- longer runs -----------------------------------------------------------------------------
+# --- longer runs ----------------------------------------------------------------------------------
 
-@pytest.mark.slow
 @needs_cc
 def test_spherical_pendulum_long_run() -> None:
     """10⁵ steps: |q_k| = ℓ to rounding, L_z to 1e-11, the energy bounded without drift."""
