@@ -147,14 +147,23 @@ def is_identically_zero(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool:
     return sp.simplify(sp.cancel(sp.together(e))) == 0
 
 
+#: Gröbner bases are computed for at most this many holonomic constraints (their cost grows
+#: steeply: a planar chain of five links, ten quadrics, takes minutes) and for defects of at
+#: most this many operations; larger checks report "not verified"
+GROEBNER_CONSTRAINTS = 2
+GROEBNER_OPS = 400
+
+
 def vanishes_on_restriction(expr: sp.Expr, G: Groupoid, arrow: tuple,
                             fs: SystemFunctions) -> bool:
     """Whether ``expr`` vanishes on N = G|_M = {g : ψ(α(g)) = 0 = ψ(β(g))}, M = {ψ = 0} the
     holonomic constraint set (docs/conventions.md §15): the numerator of ``expr``, with the
     arrow parametrised as in :func:`is_identically_zero`, reduces to 0 modulo a Gröbner basis
     of the numerators of ψ(α(g)), ψ(β(g)) (every free symbol a polynomial variable).  A
-    sufficient condition; False when the expressions are not polynomial there."""
-    if not fs.n_holonomic:
+    sufficient condition, tried for at most GROEBNER_CONSTRAINTS constraints and defects of
+    at most GROEBNER_OPS operations; False otherwise and when the expressions are not
+    polynomial there."""
+    if not 0 < fs.n_holonomic <= GROEBNER_CONSTRAINTS or sp.count_ops(expr) > GROEBNER_OPS:
         return False
     q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
     x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))

@@ -30,7 +30,6 @@ from .._errors import (
 from ._layout import StateLayout
 from ._validate import arrow as checked_arrow
 
-
 #: a Newton update at most this size (relative to the iterate) that is not 10 times smaller
 #: than the one before it is rounding: quadratic convergence has ended at a solution
 ROUNDING_UPDATE = 1e-9
