@@ -15,6 +15,11 @@ and code generation scale (``benchmarks/scaling.py``):
   gravity — the Lie group variational integrator of Lee, Leok and McClamroch, written on a
   product of action groupoids R⁹ × SO(3) ⇉ R⁹.
 
+Systems with holonomic constraints ψ(q) = 0 on the configuration space
+(docs/conventions.md §15): ``spherical_pendulum()``, ``link_chain(n)`` (a planar chain in
+Cartesian coordinates) and ``tilted_top()`` (the symmetric heavy top with its nutation held
+fixed, on S² × SO(3) ⇉ S²).
+
 The sign of the rigid-body Lagrangian is the one that makes its kinetic part positive:
 with W = cay(ξ), tr(J_d W) = tr J_d − ½ ξᵀ I ξ + O(|ξ|³), so −tr(J_d W)/h = ξᵀIξ/(2h) + const.
 The discrete Euler–Lagrange equations are linear in L, so the opposite sign gives the same
@@ -224,6 +229,84 @@ def spherical_chain(n: int) -> DiscreteSystem:
         return (rotational + kinetic) / h - h * potential
 
     return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_{n}")
+
+
+# --- holonomic constraints on the configuration space (docs/conventions.md §15) -------------
+
+def spherical_pendulum() -> DiscreteSystem:
+    """A unit mass on a sphere of radius ℓ under gravity; parameters ``h, ell, g``.
+
+    Pair groupoid of R³, L_d(q₀, q₁) = |q₁ − q₀|²/(2h) − (h/2) g (z₀ + z₁) (trapezoidal
+    gravity), holonomic ψ(q) = |q|² − ℓ².  The step solves
+    D₂L_d(q_{k−1}, q_k) + D₁L_d(q_k, q_{k+1}) + λ·∇ψ(q_k) = 0, ψ(q_{k+1}) = 0 (SHAKE).
+    Rotations about the vertical, X(q) = (−y, x, 0), are tangent to the sphere and leave
+    L_d invariant: their Noether quantity, the angular momentum about the vertical, is
+    conserved.
+    """
+    h, ell = sp.symbols("h ell", positive=True)
+    grav = sp.Symbol("g", nonnegative=True)
+    G = PairGroupoid(EuclideanSpace("x y z"))
+
+    def L(g):
+        (x0, y0, z0), (x1, y1, z1) = g.source, g.target
+        return ((x1 - x0) ** 2 + (y1 - y0) ** 2 + (z1 - z0) ** 2) / (2 * h) \
+            - h * grav * (z0 + z1) / 2
+
+    return DiscreteSystem(G, L, parameters=[h, ell, grav], name="spherical_pendulum",
+                          holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 + q[2] ** 2 - ell**2])
+
+
+def link_chain(n: int) -> DiscreteSystem:
+    """A planar chain of n unit point masses joined by rigid massless links, the first
+    pinned at the origin, in Cartesian coordinates; parameters ``h, g, l1, …, ln``.
+
+    Pair groupoid of R²ⁿ (x1, y1, …, xn, yn), L_d = Σᵢ |p_i¹ − p_i⁰|²/(2h) − (h/2) g (y_i⁰ +
+    y_i¹), holonomic ψ_i(p) = |p_i − p_{i−1}|² − l_i² (p₀ = 0).  Rotations about the pivot
+    are tangent to the constraint set; with g = 0 their Noether quantity (the angular
+    momentum) is conserved.
+    """
+    n = integer_argument(n, "n", minimum=1, owner="link_chain")
+    h = sp.Symbol("h", positive=True)
+    grav = sp.Symbol("g", nonnegative=True)
+    lengths = sp.symbols(f"l1:{n + 1}", positive=True)
+    names = " ".join(f"x{i} y{i}" for i in range(1, n + 1))
+    G = PairGroupoid(EuclideanSpace(names))
+
+    def L(g):
+        a, b = g.source, g.target
+        kinetic = sum((v - u) ** 2 for u, v in zip(a, b)) / (2 * h)
+        return kinetic - h * grav * sum(a[2 * i + 1] + b[2 * i + 1] for i in range(n)) / 2
+
+    def psi(q):
+        points = [(0, 0)] + [(q[2 * i], q[2 * i + 1]) for i in range(n)]
+        return [(points[i][0] - points[i - 1][0]) ** 2 + (points[i][1] - points[i - 1][1]) ** 2
+                - lengths[i - 1] ** 2 for i in range(1, n + 1)]
+
+    return DiscreteSystem(G, L, parameters=[h, grav, *lengths], name=f"link_chain_{n}",
+                          holonomic=psi)
+
+
+def tilted_top() -> DiscreteSystem:
+    """The heavy top with its nutation held fixed; parameters ``h, mgl, I1, I2, I3, c``.
+
+    The heavy top of :func:`heavy_top` on S² × SO(3) ⇉ S² with the holonomic constraint
+    ψ(Γ) = Γ₃ − c on the base (Γ the vertical in the body frame, c the cosine of the fixed
+    tilt).  The anchor ρ(E_a)(Γ) = d/dt (e^{tE_a})ᵀΓ = Γ × e_a makes the multiplier enter
+    the equations of E₁ and E₂ (dψ(ρ(E₁)) = −Γ₂, dψ(ρ(E₂)) = Γ₁) and not that of E₃, which
+    is tangent to the circle Γ₃ = c: for a symmetric top (I₁ = I₂) the spin about the
+    symmetry axis is a Noether quantity.
+    """
+    h, mgl, c = sp.symbols("h mgl c", positive=True)
+    I1, I2, I3 = inertia_symbols()
+    Jd = discrete_inertia(I1, I2, I3)
+    G = ActionGroupoid(EuclideanSpace.vector("Gamma", 3), SO3("W"),
+                       lambda p, W: tuple(W.T * sp.Matrix(p)))
+
+    def L(g):
+        return -(Jd * g.matrix).trace() / h - h * mgl * g.point[2]
+
+    return DiscreteSystem(G, L, parameters=[h, mgl, I1, I2, I3, c], name="tilted_top",
+                          holonomic=lambda gamma: [gamma[2] - c])
 
 
 SEED_SYSTEMS: dict[str, Callable[[], DiscreteSystem]] = {

@@ -1,7 +1,8 @@
 """Independent checks of computed trajectories against the variational principle.
 
 :func:`verify_stationary` evaluates the discrete action Σ [L + λ·φ] with NumPy from the
-system's own Lagrangian and constraints — not from the derived equations — and differentiates
+system's own Lagrangian and constraints (holonomic ones as λ·ψ(α(g)), docs/conventions.md
+§15) — not from the derived equations — and differentiates
 it numerically along random admissible variations (seed 000 §5.1, seed 001 eq. (11)):
 
     g_j ↦ h_{j-1}(t)⁻¹ · g_j · h_j(t),   h_j(t) ⊂ α⁻¹(β(g_j)),  h_j(0) = ε,   λ ↦ λ + t μ,

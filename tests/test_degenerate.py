@@ -190,7 +190,7 @@ def test_one_constraint_the_sum_of_two_others() -> None:
 
 def test_target_only_constraint_leaves_its_multiplier_undetermined() -> None:
     """φ = |q₁|² − ℓ² depends only on β(g): X⃗[φ] = 0, so λ_{k+1} enters no equation.  The
-    message names the multiplier and points to the holonomic form of a later version."""
+    message names the multiplier and points to the holonomic= argument."""
     err = degenerate(lambda: plane(lambda g: [g.target[0] ** 2 + g.target[1] ** 2 - ell**2]))
     assert err.causes == (reg.UNDETERMINED_MULTIPLIER,)
     assert err.findings[0].unknowns == ("(\\lambda_{k+1})_{1}",)
@@ -198,7 +198,7 @@ def test_target_only_constraint_leaves_its_multiplier_undetermined() -> None:
     assert "(\\lambda_{k+1})_{1} of φ_1 enters no equation" in text
     assert "depends only on the target β(g)" in text
     assert "DiscreteSystem(..., holonomic=lambda q: [...])" in text
-    assert "later version" in text
+    assert "later version" not in text and "docs/conventions.md §15" in text
     assert "not regular" not in text
 
 

@@ -206,6 +206,40 @@ def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool | None:
     return True if usable else None
 
 
+#: Gröbner bases are computed for at most this many holonomic constraints (their cost grows
+#: steeply: a planar chain of five links, ten quadrics, takes minutes) and for defects of at
+#: most this many operations; larger checks report "not verified"
+GROEBNER_CONSTRAINTS = 2
+GROEBNER_OPS = 400
+
+
+def vanishes_on_restriction(expr: sp.Expr, G: Groupoid, arrow: tuple,
+                            fs: SystemFunctions) -> bool:
+    """Whether ``expr`` vanishes on N = G|_M = {g : ψ(α(g)) = 0 = ψ(β(g))}, M = {ψ = 0} the
+    holonomic constraint set (docs/conventions.md §15): the numerator of ``expr``, with the
+    arrow parametrised as in :func:`is_identically_zero`, reduces to 0 modulo a Gröbner basis
+    of the numerators of ψ(α(g)), ψ(β(g)) (every free symbol a polynomial variable).  A
+    sufficient condition, tried for at most GROEBNER_CONSTRAINTS constraints and defects of
+    at most GROEBNER_OPS operations; False otherwise and when the expressions are not
+    polynomial there."""
+    if not 0 < fs.n_holonomic <= GROEBNER_CONSTRAINTS or sp.count_ops(expr) > GROEBNER_OPS:
+        return False
+    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
+    x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
+    on_group = tuple(G.arrow_from(q, G.fibre_chart(x, q)))
+    e = sp.sympify(expr).xreplace(dict(zip(arrow, on_group)))
+    ideal = fs.at_base(q) + fs.at_base(G.target(on_group))
+    numerators = [sp.fraction(sp.together(f))[0] for f in [e, *ideal]]
+    gens = sorted(set().union(*(f.free_symbols for f in numerators)), key=str)
+    try:
+        basis = sp.groebner([sp.expand(f) for f in numerators[1:]], *gens, order="grevlex")
+        _, remainder = basis.reduce(sp.expand(numerators[0]))
+    except (sp.PolynomialError, sp.polys.polyerrors.CoercionFailed,
+            sp.polys.polyerrors.GeneratorsError, sp.polys.polyerrors.DomainError):
+        return False
+    return sp.expand(remainder) == 0
+
+
 def momentum_symbols(rank: int, offset: int) -> list:
     """(μ_{k+offset})_a: discrete momenta in g*."""
     return [indexed_symbol(r"\mu", offset, str(a + 1)) for a in range(rank)]

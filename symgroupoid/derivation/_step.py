@@ -11,6 +11,12 @@ S = L(g_k) + λ_k·φ(g_k) + L(g_{k+1}) + λ_{k+1}·φ(g_{k+1}).
 Second order (seed 001 eqs. (13)/(15), constrained eq. (18); docs/conventions.md §8): L, Φ on G₂,
 S = Σ_{s=-1}^{1} [L + λ_{k+s}·Φ](g_{k+s}, g_{k+s+1}) varied at the same junction, with
 unknown g_{k+2} and the constraints Φ(g_{k+1}, g_{k+2}) = 0.
+
+Holonomic constraints ψ: Q → Rʰ (seed 000 §3.3 with N the restriction of G to M = {ψ = 0};
+docs/conventions.md §15) add λ·ψ(α(A₀)) to every term — the multiplier of a term sits at its
+source node — so the junction variation gives X⃖[L](g_k) − X⃗[L](g_{k+1}) +
+λ_{k+1}·dψ(β(g_k))(ρ(X)) = 0 through X⃗[ψ∘α] = −dψ∘ρ, and the step's row for ψ is
+ψ(β(newest arrow)) = 0 (ψ(α(·)) of the newest term holds by the step before).
 """
 
 from __future__ import annotations
@@ -21,7 +27,7 @@ from typing import Any
 
 import sympy as sp
 
-from .._errors import ShapeError
+from .._errors import CallableError, ShapeError
 from .._symbols import multiplier_symbols, subscripted
 from ..groupoids import Groupoid
 from ._callables import as_scalar, as_scalar_list, call_user, check_symbols
@@ -55,6 +61,7 @@ class DerivedStep:
     symbolic: Callable[[], list] | None = None  # SymPy residuals on demand
     graph: Callable[[], Any] | None = None  # the residuals as graph nodes, on demand
     n_equations: int = 0
+    n_holonomic: int = 0  # the last n_holonomic multipliers belong to holonomic constraints
     _window: Any = None
 
     @property
@@ -87,20 +94,54 @@ class DerivedStep:
 
 @dataclass
 class SystemFunctions:
-    """A Lagrangian and constraints evaluated on independent slot arrows."""
+    """A Lagrangian and constraints evaluated on independent slot arrows.
+
+    ``constraints`` are the functions the multipliers of a term multiply in the action
+    (L + λ·φ): the user's constraints φ on the term's arrows, then the holonomic
+    constraints at the term's source node, ψ(α(A₀)) (docs/conventions.md §15).
+    ``holonomic`` holds ψ on the generic base point ``base``; ``rows`` are the conditions a
+    step imposes on its newest term: φ, then ψ at the target of the term's last arrow.
+    """
 
     slots: tuple  # tuple of slot coordinate tuples
     lagrangian: sp.Expr
     constraints: list
     matrix_form: bool = False
+    base: tuple = ()  # generic base-point coordinates ψ is written in
+    holonomic: list = field(default_factory=list)  # ψ_a on ``base``
+    rows: list = field(default_factory=list)  # rows_on(the slots), set by evaluate_system
+
+    @property
+    def n_holonomic(self) -> int:
+        """How many of the constraints (the last ones) are holonomic."""
+        return len(self.holonomic)
+
+    def at_base(self, q: Sequence) -> list:
+        """ψ at the base point with coordinates ``q`` (expressions or numbers)."""
+        sub = dict(zip(self.base, q))
+        return [psi.xreplace(sub) for psi in self.holonomic]
+
+    def rows_on(self, groupoid: Groupoid, arrows: Sequence[Sequence]) -> list:
+        """The step's conditions on the term with these arrows: the user's constraints φ,
+        then ψ(β(last arrow)) (a term's own ψ(α(A₀)) is already zero by the step before)."""
+        sub: dict = {}
+        for s_old, s_new in zip(self.slots, arrows):
+            sub.update(slot_substitution(s_old, s_new))
+        m = len(self.constraints) - self.n_holonomic
+        return ([phi.xreplace(sub) for phi in self.constraints[:m]]
+                + self.at_base(groupoid.target(tuple(arrows[-1]))))
 
 
 def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
                     constraints: Callable | None, parameters: Sequence,
-                    arity: int = 1, matrix_form: bool = False) -> SystemFunctions:
+                    arity: int = 1, matrix_form: bool = False,
+                    holonomic: Callable | None = None) -> SystemFunctions:
     """Evaluate L and φ on ``arity`` independent symbolic arrows, with all input checks.
 
-    With ``matrix_form`` the matrix parts of the arrows are MatrixSymbols (for printing).
+    ``holonomic``: ψ(q) on a base point (``groupoid.base_view``); its components are added
+    to the constraints of every term at the term's source node, ψ(α(A₀))
+    (docs/conventions.md §15).  With ``matrix_form`` the matrix parts of the arrows are
+    MatrixSymbols (for printing).
     """
     slots = tuple(slot(groupoid, f"s{i}_", matrix_form) for i in range(arity))
     views = [groupoid.view(s) for s in slots]
@@ -114,11 +155,41 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
         phis = as_scalar_list(name, "constraints", raw)
         if not matrix_form:
             check_symbols(name, "constraints", phis, coords, parameters)
-    if len(phis) > groupoid.rank:
+    base = tuple(sp.Dummy(f"q{i}", real=True) for i in range(groupoid.base_dim))
+    psis = [] if holonomic is None else holonomic_functions(name, groupoid, holonomic, base,
+                                                           parameters)
+    if len(phis) + len(psis) > groupoid.rank:
+        held = f" and {len(psis)} holonomic" if psis else ""
         raise ShapeError(
-            f"{name}: {len(phis)} constraints but only {groupoid.rank} unknown fibre "
+            f"{name}: {len(phis)} constraints{held} but only {groupoid.rank} unknown fibre "
             f"coordinates per step on {groupoid.name}; more constraints than unknowns")
-    return SystemFunctions(slots, L, phis, matrix_form)
+    fs = SystemFunctions(slots, L, phis, matrix_form, base, psis)
+    fs.constraints = phis + fs.at_base(groupoid.source(slots[0]))
+    fs.rows = fs.rows_on(groupoid, slots)
+    return fs
+
+
+def holonomic_functions(name: str, groupoid: Groupoid, holonomic: Callable, base: tuple,
+                        parameters: Sequence) -> list:
+    """ψ(q) from the user's callable on a symbolic base point, checked: a list of scalars in
+    the base point's coordinates and the parameters, each depending on the point (a
+    constant constrains no configuration)."""
+    what = "holonomic constraints"
+    if groupoid.base_dim == 0:
+        raise ShapeError(f"{name}: {groupoid.name} has a single base point, so there is no "
+                         f"configuration for holonomic constraints to restrict; write "
+                         f"constraints on the arrows (constraints=) instead")
+    if not callable(holonomic):
+        raise CallableError(f"{name}: the holonomic constraints must be a function of the base "
+                            f"point (e.g. lambda q: [...]), got a {type(holonomic).__name__}")
+    raw = call_user(name, what, holonomic, groupoid.base_view(base))
+    psis = as_scalar_list(name, what, raw)
+    check_symbols(name, what, psis, base, parameters)
+    for a, psi in enumerate(psis):
+        if not psi.free_symbols & set(base):
+            raise ShapeError(f"{name}: holonomic constraint {a + 1} ({psi}) does not depend "
+                             f"on the configuration; ψ(q) must vary with the base point q")
+    return psis
 
 
 def shifted(fs: SystemFunctions, slots: Sequence[tuple], multipliers: Sequence,
@@ -209,8 +280,7 @@ def window_residuals(G: Groupoid, fs: SystemFunctions,
         sub.update(slot_substitution(A[o], arrows[o]))
     residuals = [tidy(d.xreplace(sub)) for d in variations]
     newest = [arrows[starts[-1] + i] for i in range(arity)]
-    residuals += [tidy(c) for c in shifted(fs, newest, [1] * m, lagrangian=False,
-                                                  separate=True)]
+    residuals += [tidy(c) for c in fs.rows_on(G, newest)]
     return residuals, arrows
 
 
@@ -271,7 +341,8 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
         parameters=list(parameters), n_constraints=m, offsets=(first, newest),
         arrows=arrows, prediction=prediction,
         symbolic=lambda: window_residuals(G, fs)[0],
-        graph=lambda: window_graph(name, G, fs, parameters), n_equations=G.rank + m)
+        graph=lambda: window_graph(name, G, fs, parameters), n_equations=G.rank + m,
+        n_holonomic=fs.n_holonomic)
 
 
 def check_nonholonomic_dimensions(name: str, G: Groupoid, r: int, m: int) -> None:
@@ -376,14 +447,15 @@ def verified_matrix_form(explicit: Sequence[sp.Expr], structured: Sequence[sp.Ex
 
 def matrix_form_residuals(name: str, groupoid: Groupoid, lagrangian: Callable,
                           constraints: Callable | None, parameters: Sequence,
-                          explicit: Sequence[sp.Expr], arity: int = 1) -> list | None:
+                          explicit: Sequence[sp.Expr], arity: int = 1,
+                          holonomic: Callable | None = None) -> list | None:
     """The residuals with matrix parts kept as matrices (for LaTeX), verified against the
     explicit residuals; None when the groupoid has no matrix part or the form is unavailable."""
     if not any(not g.affine for _, g in groupoid.matrix_parts()):
         return None
     try:
         fs = evaluate_system(name, groupoid, lagrangian, constraints, parameters,
-                             arity=arity, matrix_form=True)
+                             arity=arity, matrix_form=True, holonomic=holonomic)
         structured, _ = window_residuals(groupoid, fs)
     except (NotImplementedError, TypeError, AttributeError, ValueError):
         return None

@@ -11,7 +11,7 @@ The same mechanism as :func:`~symgroupoid.derivation.junction_variation` (docs/c
 3. residual b = Σ ⟨∇_{g_k} T_s, X⃖_b(g_k)⟩ − Σ ⟨∇_{g_{k+1}} T_s, X⃗_b(g_{k+1})⟩ over the terms
    containing g_k and g_{k+1} (both halves are kept: ``left_rows``, ``right_rows``) — the
    derivative of the action sum along the junction variation of section b — then the
-   constraints on the newest term;
+   constraints on the newest term (holonomic ones at the target of the newest arrow);
 4. the step Jacobian ∂F/∂(x, λ) is forward-mode differentiation of those nodes along the
    unknowns (through the chart), one sweep per unknown.
 
@@ -49,20 +49,24 @@ class WindowGraph:
 
 def _term(g: Graph, fs: SystemFunctions, parameters: Sequence, m: int,
           with_multipliers: bool):
-    """T = L + λ·φ on the generic slots, its gradient in the slot coordinates, and φ."""
+    """T = L + λ·φ on the generic slots, its gradient in the slot coordinates, φ, and the
+    rows a step imposes on the term (φ, then ψ at the target of its last arrow)."""
     smap = {c: g.input(c) for s in fs.slots for c in s}
     smap.update({p: g.input(p) for p in parameters})
     memo: dict = {}
     L = from_sympy(g, fs.lagrangian, smap, "the Lagrangian", memo)
     phis = [from_sympy(g, phi, smap, f"constraint {a + 1}", memo)
             for a, phi in enumerate(fs.constraints)]
+    held = len(fs.constraints) - fs.n_holonomic
+    rows = phis[:held] + [from_sympy(g, psi, smap, f"holonomic constraint {a + 1}", memo)
+                          for a, psi in enumerate(fs.rows[held:])]
     generic_lam = [g.input(sp.Dummy(f"lam{a}", real=True)) for a in range(m)]
     T = L
     if with_multipliers and m:
         T = g.add(L, *[g.mul(lam, phi) for lam, phi in zip(generic_lam, phis)])
     slot_nodes = [[smap[c] for c in s] for s in fs.slots]
     grad = gradient(g, T, [n for s in slot_nodes for n in s])
-    return slot_nodes, generic_lam, grad, phis
+    return slot_nodes, generic_lam, grad, phis, rows
 
 
 def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int],
@@ -95,7 +99,8 @@ class JunctionNodes:
     left: list  # X⃖_b[S](g_0), one per basis section
     right: list  # X⃗_b[S](g_1)
     residuals: list  # left − right: the junction residuals (docs/conventions.md §2)
-    constraints: dict  # start offset s -> φ on the term starting at s
+    constraints: dict  # start offset s -> φ on the term starting at s (as in the action)
+    rows: dict  # start offset s -> a step's rows on that term: φ, then ψ(β(its last arrow))
 
 
 def junction_nodes(g: Graph, G: Groupoid, fs: SystemFunctions, parameters: dict,
@@ -105,11 +110,14 @@ def junction_nodes(g: Graph, G: Groupoid, fs: SystemFunctions, parameters: dict,
     named knowns and a chart of the unknown for a step, independent inputs for a
     boundary-value window).  ``parameters``: symbol → node; ``multipliers[s]``: the nodes of
     λ_s of the term starting at s (None: the constraints are not in the action, as for
-    nonholonomic steps).  Also φ on every term of the window."""
+    nonholonomic steps).  Also φ on every term of the window, and the rows a step imposes
+    on each term: φ, then the holonomic constraints at the target of the term's last arrow
+    (their action terms, ψ at each term's source node, are among the φ: the junction
+    residual gets λ·dψ(β(g_0))(ρ(X)) from X⃗[ψ∘α](g_1), docs/conventions.md §15)."""
     arity, m = len(fs.slots), len(fs.constraints)
     _, starts = window(arity)
-    slot_nodes, generic_lam, grad, phis = _term(g, fs, list(parameters), m,
-                                                multipliers is not None)
+    slot_nodes, generic_lam, grad, phis, row_nodes = _term(g, fs, list(parameters), m,
+                                                           multipliers is not None)
     flat_slots = [n for s in slot_nodes for n in s]
     pmap = {g.inputs[p]: n for p, n in parameters.items() if p in g.inputs and
             g.inputs[p] != n}
@@ -139,8 +147,10 @@ def junction_nodes(g: Graph, G: Groupoid, fs: SystemFunctions, parameters: dict,
     lefts = [g.add(*t) for t in halves[0]]
     rights = [g.add(*t) for t in halves[1]]
     constraints = {s: instantiate(phis, s) if m else [] for s in starts}
+    rows = {s: instantiate(row_nodes, s) if fs.n_holonomic else constraints[s]
+            for s in starts}
     return JunctionNodes(lefts, rights, [g.sub(a, b) for a, b in zip(lefts, rights)],
-                         constraints)
+                         constraints, rows)
 
 
 def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequence,
@@ -177,7 +187,7 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
     jn = junction_nodes(g, G, fs, {p: symbols[p] for p in parameters}, arrow_nodes,
                         lam_nodes)
     dels = jn.residuals
-    constraint_rows = jn.constraints[starts[-1]]
+    constraint_rows = jn.rows[starts[-1]]
     return WindowGraph(g, dels + constraint_rows, dels, jn.left, jn.right, constraint_rows,
                        symbols, arrows, memo)
 

@@ -76,7 +76,8 @@ class NoetherQuantity:
     identically on G (with the multipliers free); ``defect`` is their difference and
     ``verification`` says how it was decided (symbolically, or numerically at random arrows
     of G for defects too large to simplify; see
-    :func:`symgroupoid.derivation._momenta.vanishing_check`).
+    :func:`symgroupoid.derivation._momenta.vanishing_check`) — with holonomic constraints,
+    on N = G|_M (docs/conventions.md §15).
     """
 
     def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):

@@ -125,10 +125,20 @@ class ReducedSystem(DiscreteSystem):
                 f"{self.unreduced.name!r} by {self.morphism.name})")
 
 
+def _no_holonomic(system: DiscreteSystem) -> None:
+    """Reduction relates the Lagrangians and the constraints on the arrows (Def. 4.2); a
+    system with holonomic constraints would need ψ = ψ′∘Φ₀ on the bases too."""
+    if getattr(system, "n_holonomic", 0):
+        raise NotImplementedError(
+            f"{system.name}: reduction of systems with holonomic constraints is not "
+            f"implemented (it would need ψ = ψ′∘Φ₀ on the bases, docs/conventions.md §15)")
+
+
 def reduce_system(system: DiscreteSystem, morphism: GroupoidMorphism,
                   lagrangian: Callable | None = None, constraints: Callable | None = None,
                   name: str | None = None, check: bool = True) -> ReducedSystem:
     """The reduced system (see :meth:`DiscreteSystem.reduce`)."""
+    _no_holonomic(system)
     if not isinstance(morphism, GroupoidMorphism):
         raise TypeError(f"{system.name}: reduce needs a GroupoidMorphism, got "
                         f"{type(morphism).__name__}")
@@ -157,6 +167,8 @@ def check_system_morphism(morphism: GroupoidMorphism, system: DiscreteSystem,
     if morphism.source is not system.groupoid or morphism.target is not other.groupoid:
         raise ValueError(f"{morphism.name} does not map {system.groupoid.name} to "
                          f"{other.groupoid.name}")
+    _no_holonomic(system)
+    _no_holonomic(other)
     check_morphism(morphism)
     if (system.constraints is None) != (other.constraints is None):
         raise ShapeError(f"{system.name} and {other.name}: one has constraints, the other "

@@ -53,9 +53,9 @@ _ATTEMPTS = 12    # points tried at most (non-finite ones are skipped)
 _SIMPLIFY_NODES = 400  # rows of at most this many graph nodes are checked for zero exactly
 
 HOLONOMIC_HINT = (
-    "a constraint on configurations belongs on the configuration space: a holonomic form "
-    "DiscreteSystem(..., holonomic=lambda q: [...]) for constraints ψ(q) is planned for a "
-    "later version")
+    "a constraint on configurations belongs on the configuration space: give it as "
+    "DiscreteSystem(..., holonomic=lambda q: [...]) for constraints ψ(q) on the base point q "
+    "(docs/conventions.md §15), whose multiplier is determined with the next arrow")
 
 
 @dataclass(frozen=True)
@@ -91,12 +91,14 @@ def default_layout(step, section_labels: Sequence[str] | None = None,
                    constraint_rows: Sequence[int] | None = None) -> Layout:
     """Rows: one per basis section (``section_labels``, default "the DEL along X_i"), then
     the constraints (the last ``step.n_constraints`` rows unless ``constraint_rows`` is given)
-    named φ_a (Φ_a for second order, or ``constraint_letter``); multipliers: the last
-    ``step.n_constraints`` unknowns."""
+    named φ_a (Φ_a for second order, or ``constraint_letter``) and the holonomic ones ψ_a;
+    multipliers: the last ``step.n_constraints`` unknowns."""
     n, m = len(step), step.n_constraints
     rows = list(constraint_rows) if constraint_rows is not None else list(range(n - m, n))
     letter = constraint_letter or ("Φ" if step.order == 2 else "φ")
-    names = [f"{letter}_{a + 1}" for a in range(len(rows))]
+    held = getattr(step, "n_holonomic", 0)
+    names = ([f"{letter}_{a + 1}" for a in range(len(rows) - held)]
+             + [f"ψ_{a + 1}" for a in range(held)])
     free = [i for i in range(n) if i not in rows]
     if section_labels is None:
         section_labels = [f"the DEL along X_{s + 1}" for s in range(len(free))]
@@ -314,10 +316,13 @@ def _idle_equations(layout: Layout, rows: Sequence[int], shown: dict) -> Finding
 def _idle_constraints(layout: Layout, rows: Sequence[int]) -> Finding:
     names = [layout.constraint_of_row(i) for i in rows]
     newest = "g_{k+2}" if layout.order == 2 else "g_{k+1}"
+    why = ("(the unknown arrow moves its target β in no direction that changes ψ)"
+           if all(n.startswith("ψ") for n in names) else
+           "(e.g. it depends only on the source α(g) of the arrow)")
     text = (f"The constraint{'s' if len(names) > 1 else ''} {_names(names)} "
             f"{_verb(names, 'does', 'do')} not depend on the unknown arrow {newest} "
-            "(e.g. it depends only on the source α(g) of the arrow): it restricts the known "
-            "state, not the step, and its multiplier is not determined.")
+            f"{why}: it restricts the known state, not the step, and its multiplier is not "
+            "determined.")
     return Finding(NO_UNKNOWN, tuple(layout.labels[i] for i in rows), (), text)
 
 
@@ -335,9 +340,6 @@ def _undetermined(layout: Layout, cols: Sequence[int], dependent: bool = False) 
     names = tuple(layout.unknowns[j] for j in cols)
     phis = [layout.constraint_names[layout.multiplier_columns.index(j)] for j in cols]
     plural = len(names) > 1
-    workaround = ("" if layout.order != 1 else
-                  "; meanwhile φ(g) = ψ(β(g)) − ψ(α(g)), with ψ = 0 at the initial "
-                  "configuration, imposes ψ = 0 with a determined multiplier")
     if dependent:
         head = (f"The multipliers {_names(names)} of {_names(phis)} are not determined by "
                 "the equations: a combination of these constraints is unchanged")
@@ -346,9 +348,15 @@ def _undetermined(layout: Layout, cols: Sequence[int], dependent: bool = False) 
                 f"{_verb(names, 'enters', 'enter')} no equation, so nothing determines "
                 f"{'them' if plural else 'it'}: {_verb(names, 'its', 'each')} constraint is "
                 "unchanged")
-    text = (f"{head} under the variation at the junction (X⃗[φ] = 0 at the arrow it "
-            "constrains), which happens when a constraint depends only on the target β(g) of "
-            f"the arrow, as φ = |q₁|² − ℓ² does; {HOLONOMIC_HINT}{workaround}.")
+    if all(p.startswith("ψ") for p in phis):
+        text = (f"{head} as the junction node moves (dψ(ρ(X)) = 0 for every basis section X, "
+                "ρ the anchor): the sections do not move the base point in a direction that "
+                "changes ψ, so ψ does not constrain the motion; remove it, or check that it "
+                "depends on coordinates of the base point the sections move.")
+    else:
+        text = (f"{head} under the variation at the junction (X⃗[φ] = 0 at the arrow it "
+                "constrains), which happens when a constraint depends only on the target β(g) "
+                f"of the arrow, as φ = |q₁|² − ℓ² does; {HOLONOMIC_HINT}.")
     return Finding(UNDETERMINED_MULTIPLIER, (), names, text)
 
 

@@ -18,7 +18,8 @@ class StepEquations:
     Attributes
     ----------
     residuals : list of SymPy expressions, one per equation: the DEL for each basis section
-        (X⃖[L + λ_k·φ](g_k) − X⃗[L + λ_{k+1}·φ](g_{k+1})) then the constraints φ(g_{k+1}).
+        (X⃖[L + λ_k·φ](g_k) − X⃗[L + λ_{k+1}·φ](g_{k+1})) then the constraints φ(g_{k+1})
+        and the holonomic constraints ψ(β(g_{k+1})).
         They are written in the named fibre variables of the unknown arrow (e.g. the matrix
         entries of g_{k+1}), which :attr:`reconstruction` expresses in the unknowns.
     unknowns : chart coordinates of the unknown arrow, then the multipliers λ_{k+1}.
@@ -40,6 +41,9 @@ class StepEquations:
         self.reconstruction: dict = dict(derived.chart_map)
         self.next_knowns: list[sp.Expr] = list(derived.next_knowns)
         self.n_constraints: int = derived.n_constraints
+        #: the last ``n_holonomic`` constraints are holonomic: ψ at the target of the newest
+        #: arrow, with the multipliers at its source (docs/conventions.md §15)
+        self.n_holonomic: int = derived.n_holonomic
         self.prediction: list[sp.Expr] = list(derived.prediction)
         self._n = derived.n_equations or len(derived.sympy_residuals())
         self._structured: list | None = None

@@ -17,6 +17,7 @@ from ..derivation._momenta import (
     legendre_forms,
     lie_poisson_forms,
     noether_forms,
+    vanishes_on_restriction,
     vanishing_check,
 )
 from ..derivation._step import (
@@ -43,23 +44,36 @@ class DiscreteSystem:
     constraints : optional callable ``φ(g) -> [expr, …]``; N = {φ = 0}.
     parameters : symbols the expressions may use besides the arrow's coordinates.
     name : used in messages and generated code.
+    holonomic : optional callable ``ψ(q) -> [expr, …]`` on a base point q (as
+        ``groupoid.base_view`` gives it: a tuple of coordinates, a matrix on the pair
+        groupoid of a Lie group, a tuple of parts on a product): constraints on the
+        configuration space, N = G|_M the restriction to M = {ψ = 0} (seed 000 §3.3,
+        docs/conventions.md §15).  The multipliers of ψ follow those of φ; the multiplier
+        of ψ on the arrow g_k sits at its source α(g_k).
     """
 
     def __init__(self, groupoid: Groupoid, lagrangian: Callable,
                  constraints: Callable | None = None, parameters: Sequence[sp.Symbol] = (),
-                 name: str = "system"):
+                 name: str = "system", *, holonomic: Callable | None = None):
         if not isinstance(groupoid, Groupoid):
             raise TypeError(f"{name}: groupoid must be a symgroupoid Groupoid, got "
                             f"{type(groupoid).__name__}")
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
+        self.holonomic = holonomic
         self.parameters = list(parameters)
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters,
-                                   arity=self._arity)
+                                   arity=self._arity, holonomic=holonomic)
 
     @property
     def n_constraints(self) -> int:
+        """Multipliers per arrow: the constraints φ, then the holonomic constraints ψ."""
         return len(self._fs.constraints)
+
+    @property
+    def n_holonomic(self) -> int:
+        """The number of holonomic constraints ψ (the last ``n_holonomic`` multipliers)."""
+        return self._fs.n_holonomic
 
     @reported(lambda self: f"{self.name}: deriving the equations")
     def euler_lagrange(self) -> StepEquations:
@@ -79,7 +93,7 @@ class DiscreteSystem:
         try:
             return matrix_form_residuals(
                 self.name, self.groupoid, self.lagrangian, self.constraints, self.parameters,
-                explicit, arity=self._arity)
+                explicit, arity=self._arity, holonomic=self.holonomic)
         except CallableError:
             return None  # user code needs explicit matrices: print entries
 
@@ -93,11 +107,16 @@ class DiscreteSystem:
         ``section``: a basis index, a list of coefficients, or a callable of the base point
         returning coefficients; ``f``: the quasi-invariance function on the base (callable
         or expression), default 0.  The result records whether X is verified symbolically
-        to be a Noether symmetry.
+        to be a Noether symmetry.  With holonomic constraints ψ the defect carries the
+        multiplier term −λ·dψ(α(g))(ρ(X)), and X is a symmetry when the defect vanishes on
+        N = G|_M: X tangent to M = {ψ = 0} and L invariant there (docs/conventions.md §15).
         """
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self._fs),
                               section, f)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow)
+        if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
+                                              self._fs):
+            ok, how = True, "symbolic on N = G|_M (ideal membership)"
         quantity = NoetherQuantity(forms, ok, self.parameters)
         quantity.verification = how
         return quantity
@@ -110,8 +129,10 @@ class DiscreteSystem:
         return equations
 
     def __repr__(self) -> str:
-        return (f"{type(self).__name__}({self.name!r} on {self.groupoid.name}, "
-                f"{self.n_constraints} constraints)")
+        held = self.n_holonomic
+        counted = (f"{self.n_constraints - held} constraints, {held} holonomic" if held
+                   else f"{self.n_constraints} constraints")
+        return f"{type(self).__name__}({self.name!r} on {self.groupoid.name}, {counted})"
 
     def reduce(self, morphism, lagrangian: Callable | None = None,
                constraints: Callable | None = None, name: str | None = None,

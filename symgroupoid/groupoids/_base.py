@@ -190,6 +190,13 @@ class Groupoid(ABC):
         """The user-facing :class:`Arrow` for these coordinates."""
         return Arrow(self, coords)
 
+    def base_view(self, coords: Sequence):
+        """The user-facing value of a base point q ∈ Q (what a holonomic constraint ψ(q)
+        receives): the coordinate tuple by default; a pair groupoid gives its points as
+        ``.source``/``.target`` do (a matrix on a Lie group), a product a tuple of its
+        factors' base points."""
+        return tuple(coords)
+
     # --- numerics -------------------------------------------------------------------------
     def random_base_point(self, rng: np.random.Generator) -> tuple:
         """A random base point (used by :func:`check_axioms` and property tests)."""

@@ -230,6 +230,9 @@ class PairGroupoid(Groupoid):
     def view(self, coords):
         return PairArrow(self, coords)
 
+    def base_view(self, coords):
+        return self.space.view_point(tuple(coords))
+
     def __repr__(self) -> str:
         return f"PairGroupoid({self.space!r})"
 

@@ -163,5 +163,10 @@ class ProductGroupoid(Groupoid):
     def view(self, coords):
         return ProductArrow(self, coords)
 
+    def base_view(self, coords):
+        """One base point per factor: ``q[i]`` is the base point of factor i."""
+        return tuple(f.base_view(p) for f, p in zip(self.factors,
+                                                      self._parts(coords, self._base_slices)))
+
     def __repr__(self):
         return " * ".join(repr(f) for f in self.factors)

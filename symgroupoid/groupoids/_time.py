@@ -156,4 +156,8 @@ class TimeGroupoid(Groupoid):
     def view(self, coords):
         return TimeArrow(self, coords)
 
+    def base_view(self, coords):
+        """(t, q): the time and the inner groupoid's base point."""
+        return (coords[0], self.inner.base_view(tuple(coords[1:])))
+
 

@@ -73,6 +73,7 @@ from ..ir import Graph, Program, forward, rounding_error
 from ._programs import compile_program
 from ._validate import arrow as checked_arrow
 from ._validate import (
+    check_holonomic_nodes,
     configuration,
     integer_argument,
     parameter_vector,
@@ -124,6 +125,7 @@ class WindowKernel:
     def __init__(self, system):
         G, fs = system.groupoid, system._fs
         self.groupoid, self.rank, self.m = G, G.rank, len(fs.constraints)
+        self.held = fs.n_holonomic  # the last ``held`` multipliers are holonomic (§15)
         self.arity = len(fs.slots)
         self.offsets, self.starts = window(self.arity)
         self.parameters = list(system.parameters)
@@ -692,8 +694,28 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
         bad = np.max(np.abs(res), axis=1)
         if bad.max() > worst_val:
             worst_val, worst = bad.max(), int(T[np.argmax(bad)]) + 1
+    if kernel.held:
+        _pin_end_nodes(kernel, lay, lam, F, cancel, rows, cols, vals)
     rows, cols = np.concatenate(rows), np.concatenate(cols)
     return _Assembled(F, rows, cols, np.concatenate(vals), worst, cancel)
+
+
+def _pin_end_nodes(kernel, lay, lam, F, cancel, rows, cols, vals) -> None:
+    """Holonomic multipliers of the terms whose source node is fixed by the boundary data:
+    their row ψ(α(g_t)) is a constant (checked to be 0) and they enter no junction, so the
+    row becomes λ = 0 (docs/conventions.md §15).  A term's source node is free exactly when
+    it is the node of a free junction, α(g_t) = β(g_{t−1}) with t − 1 a junction."""
+    m, held = kernel.m, kernel.held
+    free = set((lay.junctions + 1).tolist())
+    for t in lay.terms:
+        if int(t) in free:
+            continue
+        index = lay.lam_index[int(t)] + np.arange(m - held, m)
+        F[index] = lam[t, m - held:]
+        cancel[index] = 0.0
+        rows.append(index)
+        cols.append(index)
+        vals.append(np.ones(held))
 
 
 def _rounding_floor(maps, lay, arrows, lam, state: _Assembled) -> np.ndarray:
@@ -815,6 +837,9 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     p, named = parameter_vector(system.parameters, params, owner=owner)
     r, m = G.rank, len(system._fs.constraints)
     data = _boundary(system, a, start, end)
+    check_holonomic_nodes(system, [data.total] if a == 1 else [data.first, data.last],
+                          [("start", "end")] if a == 1 else
+                          [("start[0]", "start[1]"), ("end[0]", "end[1]")], p, owner=owner)
     arrows, lam = _initial(system, a, m, data, steps, guess)
     _check_cut_locus(system, arrows, "the initial path has" if guess is None
                      else "the guess has")

@@ -108,6 +108,11 @@ class StateGraph:
         self.L = from_sympy(g, fs.lagrangian, smap, f"{self.name}: the Lagrangian", memo)
         self.phi = [from_sympy(g, c, smap, f"{self.name}: constraint {a + 1}", memo)
                     for a, c in enumerate(fs.constraints)]
+        plain = len(fs.constraints) - fs.n_holonomic
+        #: a step's conditions on a term: φ, then ψ at the target of its last arrow
+        self.rows = self.phi[:plain] + [
+            from_sympy(g, c, smap, f"{self.name}: holonomic constraint {a + 1}", memo)
+            for a, c in enumerate(fs.rows[plain:])]
         self.generic_lam = [g.input(sp.Dummy(f"lam{a}", real=True)) for a in range(self.m)]
         T = g.add(self.L, *[g.mul(lam, c) for lam, c in zip(self.generic_lam, self.phi)])
         self.slots = [smap[c] for s in fs.slots for c in s]
@@ -158,8 +163,9 @@ class StateGraph:
 
     @functools.cached_property
     def constraints(self) -> list[int]:
-        """φ on the newest term of the state."""
-        return self.instantiate(self.phi, self.starts[-1])
+        """φ on the newest term of the state (holonomic constraints: ψ at the target of its
+        last arrow, the newest node)."""
+        return self.instantiate(self.rows, self.starts[-1])
 
     def energy(self, step_parameter: str | None) -> tuple[list[int], str]:
         """The energy node and its description (see the module docstring)."""

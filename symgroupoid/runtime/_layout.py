@@ -11,7 +11,8 @@ the state is given as the sequence of its consecutive values, oldest first:
   group);
 - another coordinate (the point Γ of an action groupoid): its value; a vector part
   (``"Gamma"``) as the whole vector or by components (``"Gamma_1"``, …);
-- the multipliers: ``"lambda"``, m values (required when there are constraints).
+- the multipliers: ``"lambda"``, m values (required when there are constraints; when all
+  of them are holonomic they enter no step and default to 0, docs/conventions.md §15).
 """
 
 from __future__ import annotations
@@ -115,6 +116,7 @@ class StateLayout:
         self.groupoid = step.groupoid
         self.n_known = len(step.knowns)
         self.n_multipliers = step.n_constraints
+        self.n_holonomic = getattr(step, "n_holonomic", 0)
         position = {s: i for i, s in enumerate(step.knowns)}
         #: positions in the flat state of the coordinates of each known arrow, by offset
         self.arrow_index = {o: np.array([position[c] for c in a], dtype=np.int64)
@@ -216,6 +218,10 @@ class StateLayout:
                 raise ShapeError(f"{self.step_name}: the system has no constraints, hence no "
                                  f"multipliers; got lambda={multipliers!r}")
             return
+        if multipliers is None and self.n_holonomic == self.n_multipliers:
+            # only holonomic multipliers: those of the known arrows sit at their sources,
+            # nodes no step varies again, so they enter no step (docs/conventions.md §15)
+            multipliers = np.zeros(part.index.shape if part.is_sequence else part.shape)
         if multipliers is None:
             raise InputNameError(f"{self.step_name}: the initial state misses lambda "
                            f"({self.n_multipliers} multipliers per step); give them, or start "

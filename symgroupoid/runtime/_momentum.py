@@ -5,6 +5,9 @@ arrow g₁ ∈ α⁻¹(q₀) and its multipliers λ₁ from (docs/conventions.md
 
     F⁻[L + λ₁·φ](g₁) = p₀,      φ(g₁) = 0,
 
+(with holonomic constraints ψ, λ₁·ψ(α(g₁)) is part of λ₁·φ and the condition is ψ(β(g₁)) = 0,
+docs/conventions.md §15),
+
 with ⟨F⁻[L + λ·φ](g), X⟩ = X⃗[L + λ·φ](g) (``system.legendre().minus``).  The unknowns are the
 α-fibre chart coordinates of g₁ and λ₁: the same square structure as a step, whose F⁺ side is
 replaced by p₀, so the system is regular exactly where the step is.
@@ -26,6 +29,19 @@ from .._errors import (
 )
 from ._layout import StateLayout
 from ._validate import arrow as checked_arrow
+
+#: a Newton update at most this size (relative to the iterate) that is not 10 times smaller
+#: than the one before it is rounding: quadratic convergence has ended at a solution
+ROUNDING_UPDATE = 1e-9
+
+
+def converged(dz: np.ndarray, before: float, z: np.ndarray, tol: float) -> bool:
+    """Whether Newton has converged after the update ``dz`` (the one before it had size
+    ``before``): the update is below ``tol`` relative to the iterate, or it is rounding —
+    below ROUNDING_UPDATE relative and no longer shrinking (a badly scaled system, e.g.
+    rows of size 1/h³ next to constraint rows of size 1, stalls above ``tol``)."""
+    size, scale = float(np.abs(dz).max()), 1.0 + float(np.abs(z).max())
+    return size <= tol * scale or (size <= ROUNDING_UPDATE * scale and size > 0.1 * before)
 
 
 def _numeric(value, label: str, owner: str) -> np.ndarray:
@@ -65,7 +81,7 @@ class MomentumInitializer:
         p = [sp.Dummy(f"p{a}", real=True) for a in range(self.rank)]
         on_fibre = tuple(G.arrow_from(self.source, G.fibre_chart(x, self.source)))
         sub = dict(zip(arrow, on_fibre))
-        phis = list(system.constraints(G.view(arrow))) if self.m else []
+        phis = system._fs.rows_on(G, [arrow]) if self.m else []
         eqs = sp.Matrix([mi.xreplace(sub) - pi for mi, pi in zip(forms.minus, p)]
                         + [sp.sympify(f).xreplace(sub) for f in phis])
         unknowns = x + lam
@@ -129,6 +145,7 @@ class MomentumInitializer:
             if not np.isfinite(values).all():
                 raise DomainError(f"{self.name}: non-finite {label} {values.tolist()}")
         z = np.concatenate([np.asarray(self._guess(q), float).ravel(), np.zeros(self.m)])
+        previous = np.inf
         for _ in range(max_iterations):
             F = np.asarray(self._F(z, q, p, params), float).ravel()
             J = np.asarray(self._J(z, q, p, params), float).reshape(len(z), len(z))
@@ -144,8 +161,9 @@ class MomentumInitializer:
                     f"Jacobian)", step=0, residual_norm=float(np.abs(F).max()),
                     iterate=z) from None
             z = z - dz
-            if np.abs(dz).max() <= tol * (1.0 + np.abs(z).max()):
+            if converged(dz, previous, z, tol):
                 break
+            previous = float(np.abs(dz).max())
         else:
             raise NewtonDivergenceError(f"{self.name}: no initial state found for this momentum "
                                         f"in {max_iterations} Newton iterations", step=0,
@@ -170,7 +188,7 @@ class SecondOrderMomentumInitializer:
 
     def __init__(self, step, layout: StateLayout):
         from ..derivation._momenta import second_order_legendre_forms
-        from ..derivation._step import chart_of, named, next_arrow, shifted
+        from ..derivation._step import chart_of, named, next_arrow
 
         system = step.system
         G, fs = step.groupoid, system._fs
@@ -187,7 +205,7 @@ class SecondOrderMomentumInitializer:
         p = [sp.Dummy(f"p{a}") for a in range(2 * self.rank)]
         eqs = [e - pi for e, pi in zip(forms.minus, p)]
         for a, b in ((g0, g1), (g1, g2)):
-            eqs += shifted(fs, [a, b], [1] * self.m, lagrangian=False, separate=True)
+            eqs += fs.rows_on(G, [a, b])
         # differentiate through the charts, keeping the fibre variables as intermediates
         fibres, charts = list(fib1) + list(fib2), list(chart1) + list(chart2)
         sub = {**cmap1, **cmap2}
@@ -228,6 +246,7 @@ class SecondOrderMomentumInitializer:
             raise DomainError(f"{self.name}: non-finite momentum {p.tolist()}")
         guess = np.asarray(self._guess(g0), float).ravel()
         z = np.concatenate([guess, guess, np.zeros(2 * self.m)])
+        previous = np.inf
         for _ in range(max_iterations):
             F, J, state = self._residual(z, g0, p, params)
             if not (np.isfinite(F).all() and np.isfinite(J).all()):
@@ -241,7 +260,8 @@ class SecondOrderMomentumInitializer:
                                             step=0, residual_norm=float(np.abs(F).max()),
                                             iterate=z) from None
             z = z - dz
-            if np.abs(dz).max() <= tol * (1.0 + np.abs(z).max()):
+            if converged(dz, previous, z, tol):
                 return self._residual(z, g0, p, params)[2]
+            previous = float(np.abs(dz).max())
         raise NewtonDivergenceError(f"{self.name}: no initial state found for this momentum",
                                     step=0, residual_norm=float(np.abs(F).max()), iterate=z)

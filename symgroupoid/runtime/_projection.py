@@ -8,8 +8,10 @@ arrow_from(α(g_k), τ(x)) and x₀ = τ⁻¹(g_k), Gauss–Newton with minimum-
 
 converges to a point of N = {φ = 0} near x₀ (to first order the orthogonal projection of x₀
 in the chart).  On a pair groupoid (q₀, q₁) this keeps q₀ and corrects q₁; on a Lie group it
-corrects the element; on a time groupoid with φ = t₁ − t₀ − h it sets t₁.  The multipliers
-λ_k are not changed (they enter the run only through F⁺L(g_k, λ_k)).
+corrects the element; on a time groupoid with φ = t₁ − t₀ − h it sets t₁.  Holonomic
+constraints are projected at the target, ψ(β(g_k)) = 0; the source must already lie on M
+(the state check names ψ(α(g_k)) otherwise).  The multipliers λ_k are not changed (they
+enter the run only through F⁺L(g_k, λ_k)).
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ class ConstraintProjection:
         moved = tuple(G.arrow_from(source, G.fibre_chart(tuple(self.chart), source)))
         arrow = [from_sympy(g, c, symbols, f"{step.name}: the fibre chart of the known arrow")
                  for c in moved]
-        phi = g.substitute(sgraph.phi, dict(zip(sgraph.slots, arrow)))
+        phi = g.substitute(sgraph.rows, dict(zip(sgraph.slots, arrow)))
         J = step_jacobian(g, phi, [symbols[x] for x in self.chart])
         self.program = Program(g, {"x": list(self.chart), "known": list(step.knowns),
                                    "p": list(step.parameters)},

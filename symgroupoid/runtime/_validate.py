@@ -336,6 +336,8 @@ class ConstraintCheck:
 
     First order: φ(g_k) on the known arrow; second order: Φ on each pair of consecutive known
     arrows (Φ(g_{k-1}, g_k), Φ(g_k, g_{k+1})); nonholonomic systems: ψ(g_k) (g_k ∈ M_c).
+    Holonomic constraints ψ(q) at both ends of each window, ψ(α(first arrow)) and
+    ψ(β(last arrow)), so every node of the known arrows lies on M (docs/conventions.md §15).
     Evaluated from ``step.system._fs`` (the constraints on slot coordinates), not from the
     derived equations.
     """
@@ -358,8 +360,24 @@ class ConstraintCheck:
             self.windows.append((offsets, index))
         coords = [c for s in fs.slots for c in s]
         args = [coords, list(step.parameters)]
-        self._phi = sp.lambdify(args, list(fs.constraints), "numpy")
-        self._size = sp.lambdify(args, [magnitude(c) for c in fs.constraints], "numpy")
+        held = fs.n_holonomic
+        plain = len(fs.constraints) - held
+        functions = list(fs.constraints) + list(fs.rows[plain:])
+        self._labels = ([(f"φ_{i + 1}", "{}") for i in range(plain)]
+                        + [(f"ψ_{a + 1}", "α({first})") for a in range(held)]
+                        + [(f"ψ_{a + 1}", "β({last})") for a in range(held)])
+        self._phi = sp.lambdify(args, functions, "numpy")
+        self._size = sp.lambdify(args, [magnitude(c) for c in functions], "numpy")
+
+    def label(self, offsets: tuple[int, ...], i: int) -> str:
+        """How a message names constraint ``i`` on the window of arrows at ``offsets``:
+        φ_1(g_k), φ_1(g_{k-1}, g_k), ψ_1(α(g_k)), ψ_1(β(g_k))."""
+        from .._symbols import step_label
+
+        arrows = ["g_" + step_label(o) for o in offsets]
+        name, where = self._labels[i]
+        return name + "(" + where.format(", ".join(arrows), first=arrows[0],
+                                          last=arrows[-1]) + ")"
 
     def violations(self, known: np.ndarray, params: np.ndarray, atol: float
                    ) -> list[tuple[tuple[int, ...], int, float, float]]:
@@ -399,10 +417,8 @@ class ConstraintCheck:
         bad = self.violations(known, params, atol)
         if not bad:
             return
-        from .._symbols import step_label
-
-        lines = [f"φ_{i + 1}({', '.join('g_' + step_label(o) for o in offsets)}) = {v:.3e} "
-                 f"(tolerance {t:.1e})" for offsets, i, v, t in bad]
+        lines = [f"{self.label(offsets, i)} = {v:.3e} (tolerance {t:.1e})"
+                 for offsets, i, v, t in bad]
         raise DomainError(f"{_where(owner)}the initial state violates the constraints: "
                           f"{'; '.join(lines)}")
 
@@ -411,3 +427,38 @@ class ConstraintCheck:
 def constraint_check(step) -> ConstraintCheck:
     """The (cached) :class:`ConstraintCheck` of a step."""
     return ConstraintCheck(step)
+
+
+#: boundary configurations must satisfy the holonomic constraints to this tolerance (or to
+#: the rounding level of evaluating ψ there, when larger), as initial states do
+BOUNDARY_CONSTRAINT_TOLERANCE = 1e-10
+
+
+def check_holonomic_nodes(system, arrows: Sequence, labels: Sequence[tuple[str, str]],
+                          params, *, atol: float = BOUNDARY_CONSTRAINT_TOLERANCE,
+                          owner: str = "") -> None:
+    """A :class:`DomainError` unless ψ(α(a)) = 0 = ψ(β(a)) for every arrow a of ``arrows``
+    (numeric flat coordinates; ``labels``: how to name the source and the target of each):
+    boundary data of a problem with holonomic constraints must lie on M = {ψ = 0}
+    (docs/conventions.md §15).  Nothing to check without holonomic constraints."""
+    fs = getattr(system, "_fs", None)
+    if fs is None or not fs.n_holonomic:
+        return
+    G = system.groupoid
+    args = [list(fs.base), list(system.parameters)]
+    psi = sp.lambdify(args, list(fs.holonomic), "numpy")
+    size = sp.lambdify(args, [magnitude(c) for c in fs.holonomic], "numpy")
+    p = np.asarray(params, float)
+    bad = []
+    for a, names in zip(arrows, labels):
+        a = tuple(float(v) for v in a)
+        for end, q in zip(names, (G.source(a), G.target(a))):
+            with np.errstate(all="ignore"):
+                values = np.asarray(psi(np.asarray(q, float), p), float).ravel()
+                sizes = np.asarray(size(np.asarray(q, float), p), float).ravel()
+            tol = np.maximum(atol, CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(sizes))
+            bad += [f"ψ_{i + 1}({end}) = {v:.3e} (tolerance {t:.1e})"
+                    for i, (v, t) in enumerate(zip(values, tol)) if not abs(v) <= t]
+    if bad:
+        raise DomainError(f"{_where(owner)}the boundary data are not on the holonomic "
+                          f"constraint set M = {{ψ = 0}}: {'; '.join(bad)}")
