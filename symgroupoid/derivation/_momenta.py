@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from .._errors import DomainError, InputTypeError, ShapeError
 from .._symbols import indexed_symbol, multiplier_symbols
 from ..groupoids import Groupoid, MatrixLieGroup
 from ._junction import slot, slot_substitution
@@ -99,12 +100,13 @@ def section_coefficients(G: Groupoid, section, q: Sequence) -> list[sp.Expr]:
     """Coefficients X^a(q) of a section in the basis: an index, a list or a callable of q."""
     if isinstance(section, int):
         if not 0 <= section < G.rank:
-            raise IndexError(f"{G.name}: section index {section} out of range 0..{G.rank - 1}")
+            raise DomainError(f"{G.name}: section index {section} out of range "
+                              f"0..{G.rank - 1}")
         return [sp.S.One if a == section else sp.S.Zero for a in range(G.rank)]
     coeffs = section(tuple(q)) if callable(section) else section
     coeffs = [sp.sympify(c) for c in coeffs]
     if len(coeffs) != G.rank:
-        raise ValueError(f"{G.name}: a section needs {G.rank} coefficients, got {len(coeffs)}")
+        raise ShapeError(f"{G.name}: a section needs {G.rank} coefficients, got {len(coeffs)}")
     return coeffs
 
 
@@ -167,7 +169,7 @@ def lie_poisson_forms(name: str, G: Groupoid, fs: SystemFunctions,
                       parameters: Sequence) -> LiePoissonForms:
     """Seed 000 §6.1 for a matrix Lie group G."""
     if not isinstance(G, MatrixLieGroup):
-        raise TypeError(f"{name}: the Lie–Poisson form needs a Lie group, not {G.name}")
+        raise InputTypeError(f"{name}: the Lie–Poisson form needs a Lie group, not {G.name}")
     m, r = len(fs.constraints), G.rank
     now, nxt = legendre_forms(G, fs, 0), legendre_forms(G, fs, 1)
     g0 = now.arrow

@@ -75,10 +75,25 @@ def cache_root() -> Path:
     """The configured cache directory (not created; see :class:`KernelCache` for fallback)."""
     override = os.environ.get("SYMGROUPOID_CACHE")
     if override:
-        return Path(override).expanduser()
+        return _expanded(override)
     xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
-    return base / "symgroupoid"
+    if xdg:
+        return _expanded(xdg) / "symgroupoid"
+    try:
+        home = Path.home()
+    except (RuntimeError, KeyError, OSError) as exc:
+        raise CacheError(f"no kernel cache directory: the home directory cannot be "
+                         f"determined ({exc}); set SYMGROUPOID_CACHE to a directory") from exc
+    return home / ".cache" / "symgroupoid"
+
+
+def _expanded(text: str) -> Path:
+    """``text`` with a leading ``~`` or ``~user`` expanded; kept as written (as a shell
+    does) when that user or the home directory is unknown."""
+    try:
+        return Path(text).expanduser()
+    except (RuntimeError, KeyError, OSError):
+        return Path(text)
 
 
 def abi_tag() -> str:

@@ -11,7 +11,14 @@ from pathlib import Path
 
 import sympy as sp
 
-from .._errors import CacheError
+from .._arguments import (
+    choice_argument,
+    instance_argument,
+    name_argument,
+    path_argument,
+    sequence_argument,
+)
+from .._errors import CacheError, InputTypeError
 from ..codegen import generate_c, templates_digest
 from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
@@ -236,6 +243,19 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
     return CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns)), entry
 
 
+def compiler_flags(flags, owner: str = "") -> tuple[str, ...]:
+    """``flags`` as a tuple of compiler arguments: None (``DEFAULT_FLAGS``) or a list of
+    strings without NUL characters.  A single string is refused: it would be taken letter
+    by letter (``"-O2"`` as ``"-"``, ``"O"``, ``"2"``); pass ``["-O2"]``."""
+    if flags is None:
+        return DEFAULT_FLAGS
+    if isinstance(flags, str):
+        raise InputTypeError(f"{owner}: flags must be a list of compiler arguments, got the "
+                             f"string {flags!r}; pass [{flags!r}]")
+    items = sequence_argument(flags, "flags", owner=owner)
+    return tuple(name_argument(f, f"flags[{i}]", owner=owner) for i, f in enumerate(items))
+
+
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
                  cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
                  tol_step: float | None = None, max_iterations: int | None = None,
@@ -247,28 +267,38 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
         or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
         ``"auto"``.
-    flags : extra compiler flags (default ``DEFAULT_FLAGS``); part of the cache key.  Builds
-        carry no debug information unless ``flags`` ask for it (``-g``).
-    cache_dir : cache root (default ``$SYMGROUPOID_CACHE``, ``$XDG_CACHE_HOME/symgroupoid``
-        or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
+    flags : extra compiler flags, a list of strings (default ``DEFAULT_FLAGS``); part of the
+        cache key.  Builds carry no debug information unless ``flags`` ask for it (``-g``).
+    cache_dir : cache root, a path (default ``$SYMGROUPOID_CACHE``,
+        ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
         private temporary directory for this process (with a ``RuntimeWarning``).
     tol_residual, tol_step, max_iterations, floor_factor : Newton options (see
         :class:`NewtonOptions`).
+
+    Every argument is checked before anything is built, whichever backend is used
+    (:class:`~symgroupoid.DomainError` for a backend that is not one of ``BACKENDS``,
+    :class:`~symgroupoid.InputTypeError` or :class:`~symgroupoid.ShapeError` for malformed
+    flags or paths).
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    from ..equations import StepEquations
+
+    instance_argument(step, StepEquations, "step", "the StepEquations of a system (from "
+                      "system.euler_lagrange())", owner="compile_step")
+    owner = step.name
+    backend = choice_argument(backend, BACKENDS, "backend", owner=owner)
     if backend == "auto":
         backend = os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto"
-        if backend not in BACKENDS:
-            raise ValueError(f"SYMGROUPOID_BACKEND must be one of {BACKENDS}, got {backend!r}")
+        choice_argument(backend, BACKENDS, "SYMGROUPOID_BACKEND", owner=owner)
+    flags = compiler_flags(flags, owner)
+    cache_dir = None if cache_dir is None else path_argument(cache_dir, "cache_dir",
+                                                             owner=owner)
     given = {"tol_residual": tol_residual, "tol_step": tol_step,
              "max_iterations": max_iterations, "floor_factor": floor_factor}
     options = NewtonOptions(**{k: v for k, v in given.items() if v is not None})
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
     try:
-        kernel, entry = load_c_kernel(step, DEFAULT_FLAGS if flags is None else flags,
-                                      cache_dir)
+        kernel, entry = load_c_kernel(step, flags, cache_dir)
     except CompilerNotFoundError as exc:
         if backend == "c":
             raise

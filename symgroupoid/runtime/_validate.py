@@ -5,7 +5,8 @@ and the command line check counts, parameters, configurations, arrows and states
 functions here, so a malformed input gets the same message, naming the argument, wherever it
 is given:
 
-- :func:`integer_argument`, :func:`real_argument` — counts and real numbers;
+- :func:`integer_argument`, :func:`real_argument`, :func:`real_array` — counts, real
+  numbers and arrays of them (symgroupoid/_arguments.py, shared with the other layers);
 - :func:`parameter_vector` — parameters by name or in order, with the assumptions their
   symbols are declared with (positive, integer, …);
 - :func:`group_element`, :func:`check_group_matrix` — matrices of a matrix Lie group;
@@ -18,12 +19,12 @@ is given:
 from __future__ import annotations
 
 import functools
-import numbers
 from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
+from .._arguments import integer_argument, real_argument, real_array
 from .._errors import DomainError, ParameterError, ShapeError
 from ..groupoids import (
     ActionGroupoid,
@@ -54,67 +55,6 @@ _EPS = float(np.finfo(float).eps)
 
 def _where(owner: str) -> str:
     return f"{owner}: " if owner else ""
-
-
-# --- numbers ------------------------------------------------------------------------------------
-
-def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_COUNT,
-                     owner: str = "") -> int:
-    """``value`` as an int, or a :class:`ShapeError` naming ``name``.
-
-    Accepted: Python and NumPy integers, and real numbers with an integral value
-    (``1e7``, ``np.float64(100.0)``) — one rule everywhere.  Rejected: booleans, NaN,
-    infinities, non-integral values, values below ``minimum`` or above ``maximum``, and
-    anything that is not a real number.
-    """
-    where = _where(owner)
-    if isinstance(value, (bool, np.bool_)):
-        raise ShapeError(f"{where}{name} must be an integer, got the boolean {value!r}")
-    if isinstance(value, numbers.Integral):
-        number = int(value)
-    elif isinstance(value, numbers.Real):
-        real = float(value)
-        if not np.isfinite(real):
-            raise ShapeError(f"{where}{name} must be a finite integer, got {value!r}")
-        if real != int(real):
-            raise ShapeError(f"{where}{name} must be an integer, got {value!r}")
-        number = int(real)
-    else:
-        raise ShapeError(f"{where}{name} must be an integer, got {type(value).__name__} "
-                         f"{value!r}")
-    if number < minimum:
-        raise ShapeError(f"{where}{name} must be at least {minimum}, got {number}")
-    if number > maximum:
-        raise ShapeError(f"{where}{name} must be at most {maximum}, got {number}")
-    return number
-
-
-def real_argument(value, name: str, *, minimum: float | None = None, owner: str = "",
-                  error: type[ShapeError] = ShapeError, finite: bool = True) -> float:
-    """``value`` as a float, or ``error`` (a :class:`ShapeError` subclass) naming ``name``.
-
-    Accepted: real numbers (Python, NumPy, SymPy numbers, 0-d arrays).  Rejected: booleans,
-    strings, complex numbers, arrays and sequences, values below ``minimum``, and (unless
-    ``finite=False``) NaN and infinities.
-    """
-    where = _where(owner)
-    bad = f"{where}{name} must be a real number, got {type(value).__name__} {value!r}"
-    if isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating,
-                          Sequence, Mapping)):
-        raise error(bad)
-    try:
-        if np.ndim(value) != 0:
-            raise error(bad)
-        real = float(value)
-    except (TypeError, ValueError):
-        raise error(bad) from None
-    if not finite:
-        return real
-    if not np.isfinite(real):
-        raise error(f"{where}{name} must be finite, got {real!r}")
-    if minimum is not None and real < minimum:
-        raise error(f"{where}{name} must be at least {minimum}, got {real!r}")
-    return real
 
 
 # --- parameters ---------------------------------------------------------------------------------
@@ -210,13 +150,7 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
 # --- arrays and group elements ------------------------------------------------------------------
 
 def _float_array(value, name: str, owner: str) -> np.ndarray:
-    if isinstance(value, (str, bytes)):
-        raise ShapeError(f"{_where(owner)}{name} must be numeric, got {value!r}")
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ShapeError(f"{_where(owner)}{name} must be numeric (an array of real numbers), "
-                         f"got {type(value).__name__} {value!r}") from None
+    return real_array(value, name, owner=owner)
 
 
 def _finite(arr: np.ndarray, name: str, owner: str) -> np.ndarray:
