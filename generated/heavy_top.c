@@ -25,6 +25,9 @@
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
  * (in the alpha-fibre of the known arrow's target)
@@ -81,27 +84,26 @@ void heavy_top_residual(const double *u, const double *known, const double *p, d
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = 0.5*p[4];
-    const double t1 = 0.5*p[3];
-    const double t2 = -0.5*p[2] + t0 + t1;
-    const double t3 = 0.5*p[2];
-    const double t4 = t0 - 0.5*p[3] + t3;
-    const double t5 = t1 + t3 - 0.5*p[4];
-    const double t6 = 1.0/p[0];
-    const double t7 = p[0]*p[1];
-    const double t8 = 1.0/(u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0);
-    const double t9 = u[0]*u[1];
-    const double t10 = u[0]*u[2];
-    const double t11 = 2.0*u[0];
-    const double t12 = -t7*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) + 2.0*t4*t6*t8*(t11 + u[1]*u[2]) + 2.0*t5*t6*t8*(-u[1]*u[2] + t11);
-    const double t13 = t7*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) - 2.0*t2*t6*t8*(t10 - 2.0*u[1]) + 2.0*t5*t6*t8*(t10 + 2.0*u[1]);
-    const double t14 = 2.0*t2*t6*t8*(t9 + 2.0*u[2]) - 2.0*t4*t6*t8*(t9 - 2.0*u[2]);
-    const double t15 = -t4*t6*known[8] + t5*t6*known[10] - t12;
-    const double t16 = t2*t6*known[5] - t5*t6*known[9] - t13;
-    const double t17 = -t2*t6*known[4] + t4*t6*known[6] - t14;
-    F[0] = t15;
-    F[1] = t16;
-    F[2] = t17;
+    const double t0 = 1.0/(u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0);
+    const double t1 = u[0]*u[1];
+    const double t2 = u[0]*u[2];
+    const double t3 = 2.0*u[0];
+    const double t4 = 0.5*p[4];
+    const double t5 = 0.5*p[3];
+    const double t6 = -0.5*p[2] + t4 + t5;
+    const double t7 = 0.5*p[2];
+    const double t8 = t4 - 0.5*p[3] + t7;
+    const double t9 = t5 + t7 - 0.5*p[4];
+    const double t10 = 1.0/p[0];
+    const double t11 = -p[0]*p[1]*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) + 2.0*t0*(t3 + u[1]*u[2])*t8*t10 + 2.0*t0*(-u[1]*u[2] + t3)*t9*t10;
+    const double t12 = p[0]*p[1]*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) - 2.0*t0*(t2 - 2.0*u[1])*t6*t10 + 2.0*t0*(t2 + 2.0*u[1])*t9*t10;
+    const double t13 = 2.0*t0*(t1 + 2.0*u[2])*t6*t10 - 2.0*t0*(t1 - 2.0*u[2])*t8*t10;
+    const double t14 = -known[8]*t8*t10 + known[10]*t9*t10 - t11;
+    const double t15 = known[5]*t6*t10 - known[9]*t9*t10 - t12;
+    const double t16 = -known[4]*t6*t10 + known[6]*t8*t10 - t13;
+    F[0] = t14;
+    F[1] = t15;
+    F[2] = t16;
 }
 
 /* F and the exact Jacobian J[i * HEAVY_TOP_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
@@ -111,61 +113,69 @@ void heavy_top_residual_jacobian(const double *u, const double *known, const dou
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = 0.5*p[4];
-    const double t1 = 0.5*p[3];
-    const double t2 = -0.5*p[2] + t0 + t1;
-    const double t3 = 0.5*p[2];
-    const double t4 = t0 - 0.5*p[3] + t3;
-    const double t5 = t1 + t3 - 0.5*p[4];
-    const double t6 = 1.0/p[0];
-    const double t7 = p[0]*p[1];
-    const double t8 = u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0;
-    const double t9 = 1.0/t8;
-    const double t10 = u[0]*u[1];
-    const double t11 = t10 - 2.0*u[2];
-    const double t12 = u[0]*u[2];
-    const double t13 = t12 + 2.0*u[1];
-    const double t14 = t10 + 2.0*u[2];
-    const double t15 = 2.0*u[0];
-    const double t16 = -u[1]*u[2] + t15;
-    const double t17 = t12 - 2.0*u[1];
-    const double t18 = t15 + u[1]*u[2];
-    const double t19 = -t7*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) + 2.0*t4*t6*t9*t18 + 2.0*t5*t6*t9*t16;
-    const double t20 = t7*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) - 2.0*t2*t6*t9*t17 + 2.0*t5*t6*t9*t13;
-    const double t21 = -t4*t6*known[8] + t5*t6*known[10] - t19;
-    const double t22 = t2*t6*known[5] - t5*t6*known[9] - t20;
-    const double t23 = -t2*t6*known[4] + t4*t6*known[6] - (2.0*t2*t6*t9*t14 - 2.0*t4*t6*t9*t11);
-    const double t24 = 1.0/(t8*t8);
-    const double t25 = 4.0*t4*t6*t9;
-    const double t26 = 4.0*t5*t6*t9;
-    const double t27 = 4.0*t2*t6*u[0]*t17*t24 - 2.0*t2*t6*u[2]*t9 + (-4.0*t5*t6*u[0]*t13*t24 + 2.0*t5*t6*u[2]*t9);
-    const double t28 = -4.0*t2*t6*u[0]*t14*t24 + 2.0*t2*t6*u[1]*t9 + (4.0*t4*t6*u[0]*t11*t24 - 2.0*t4*t6*u[1]*t9);
-    const double t29 = -(-4.0*t4*t6*u[0]*t18*t24 + t25 + (-4.0*t5*t6*u[0]*t16*t24 + t26));
-    const double t30 = -t27;
-    const double t31 = -t28;
-    const double t32 = 4.0*t2*t6*t9;
-    const double t33 = -4.0*t4*t6*u[1]*t18*t24 + 2.0*t4*t6*u[2]*t9 + (-4.0*t5*t6*u[1]*t16*t24 - 2.0*t5*t6*u[2]*t9);
-    const double t34 = -4.0*t2*t6*u[1]*t14*t24 + 2.0*t2*t6*u[0]*t9 + (4.0*t4*t6*u[1]*t11*t24 - 2.0*t4*t6*u[0]*t9);
-    const double t35 = -t33;
-    const double t36 = -(4.0*t2*t6*u[1]*t17*t24 + t32 + (t26 - 4.0*t5*t6*u[1]*t13*t24));
-    const double t37 = -t34;
-    const double t38 = -4.0*t4*t6*u[2]*t18*t24 + 2.0*t4*t6*u[1]*t9 + (-4.0*t5*t6*u[2]*t16*t24 - 2.0*t5*t6*u[1]*t9);
-    const double t39 = 4.0*t2*t6*u[2]*t17*t24 - 2.0*t2*t6*u[0]*t9 + (-4.0*t5*t6*u[2]*t13*t24 + 2.0*t5*t6*u[0]*t9);
-    const double t40 = -t38;
-    const double t41 = -t39;
-    const double t42 = -(t32 - 4.0*t2*t6*u[2]*t14*t24 + (t25 + 4.0*t4*t6*u[2]*t11*t24));
-    F[0] = t21;
-    F[1] = t22;
-    F[2] = t23;
-    J[0] = t29;
-    J[1] = t35;
-    J[2] = t40;
-    J[3] = t30;
-    J[4] = t36;
-    J[5] = t41;
-    J[6] = t31;
-    J[7] = t37;
-    J[8] = t42;
+    const double t0 = u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0;
+    const double t1 = 1.0/t0;
+    const double t2 = u[0]*u[1];
+    const double t3 = t2 - 2.0*u[2];
+    const double t4 = u[0]*u[2];
+    const double t5 = t4 + 2.0*u[1];
+    const double t6 = t2 + 2.0*u[2];
+    const double t7 = 2.0*u[0];
+    const double t8 = -u[1]*u[2] + t7;
+    const double t9 = t4 - 2.0*u[1];
+    const double t10 = t7 + u[1]*u[2];
+    const double t11 = 0.5*p[4];
+    const double t12 = 0.5*p[3];
+    const double t13 = -0.5*p[2] + t11 + t12;
+    const double t14 = 0.5*p[2];
+    const double t15 = t11 - 0.5*p[3] + t14;
+    const double t16 = t12 + t14 - 0.5*p[4];
+    const double t17 = 1.0/p[0];
+    const double t18 = -p[0]*p[1]*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) + 2.0*t1*t10*t15*t17 + 2.0*t1*t8*t16*t17;
+    const double t19 = p[0]*p[1]*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) - 2.0*t1*t9*t13*t17 + 2.0*t1*t5*t16*t17;
+    const double t20 = -known[8]*t15*t17 + known[10]*t16*t17 - t18;
+    const double t21 = known[5]*t13*t17 - known[9]*t16*t17 - t19;
+    const double t22 = -known[4]*t13*t17 + known[6]*t15*t17 - (2.0*t1*t6*t13*t17 - 2.0*t1*t3*t15*t17);
+    const double t23 = 1.0/(t0*t0);
+    const double t24 = t15*t17;
+    const double t25 = t10*t24;
+    const double t26 = 4.0*t1*t24;
+    const double t27 = t16*t17;
+    const double t28 = t8*t27;
+    const double t29 = 4.0*t1*t27;
+    const double t30 = t13*t17;
+    const double t31 = t9*t30;
+    const double t32 = t5*t27;
+    const double t33 = t6*t30;
+    const double t34 = t3*t24;
+    const double t35 = 4.0*u[0]*t23*t31 - 2.0*u[2]*t1*t30 + (-4.0*u[0]*t23*t32 + 2.0*u[2]*t1*t27);
+    const double t36 = -4.0*u[0]*t23*t33 + 2.0*u[1]*t1*t30 + (4.0*u[0]*t23*t34 - 2.0*u[1]*t1*t24);
+    const double t37 = -(-4.0*u[0]*t23*t25 + t26 + (-4.0*u[0]*t23*t28 + t29));
+    const double t38 = -t35;
+    const double t39 = -t36;
+    const double t40 = 4.0*t1*t30;
+    const double t41 = -4.0*u[1]*t23*t25 + 2.0*u[2]*t1*t24 + (-4.0*u[1]*t23*t28 - 2.0*u[2]*t1*t27);
+    const double t42 = -4.0*u[1]*t23*t33 + 2.0*u[0]*t1*t30 + (4.0*u[1]*t23*t34 - 2.0*u[0]*t1*t24);
+    const double t43 = -t41;
+    const double t44 = -(4.0*u[1]*t23*t31 + t40 + (t29 - 4.0*u[1]*t23*t32));
+    const double t45 = -t42;
+    const double t46 = -4.0*u[2]*t23*t25 + 2.0*u[1]*t1*t24 + (-4.0*u[2]*t23*t28 - 2.0*u[1]*t1*t27);
+    const double t47 = 4.0*u[2]*t23*t31 - 2.0*u[0]*t1*t30 + (-4.0*u[2]*t23*t32 + 2.0*u[0]*t1*t27);
+    const double t48 = -t46;
+    const double t49 = -t47;
+    const double t50 = -(t40 - 4.0*u[2]*t23*t33 + (t26 + 4.0*u[2]*t23*t34));
+    F[0] = t20;
+    F[1] = t21;
+    F[2] = t22;
+    J[0] = t37;
+    J[1] = t43;
+    J[2] = t48;
+    J[3] = t38;
+    J[4] = t44;
+    J[5] = t49;
+    J[6] = t39;
+    J[7] = t45;
+    J[8] = t50;
 }
 
 /* first Newton guess for u from the known state */
@@ -652,6 +662,138 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
         if (warm->count < 2) {
             ++warm->count;
         }
+    }
+    return HEAVY_TOP_OK;
+}
+
+/* Steps per heavy_top_simulate call inside heavy_top_simulate_batch: the chunk buffer of one
+ * trajectory (HEAVY_TOP_BATCH_CHUNK + 1 states) stays within 32 KiB of stack per thread. */
+#define HEAVY_TOP_BATCH_CHUNK (HEAVY_TOP_N_KNOWNS >= 4096 ? 1 : (4096 / HEAVY_TOP_N_KNOWNS < 64 ? 4096 / HEAVY_TOP_N_KNOWNS : 64))
+
+/* One trajectory of heavy_top_simulate_batch: n_steps steps from known0 through
+ * heavy_top_simulate in chunks of at most HEAVY_TOP_BATCH_CHUNK steps with one warm start (bitwise
+ * the states of one heavy_top_simulate call), keeping state 0, every `every`-th state and the
+ * last one.  Row r > 0 of iterations/residual_norms summarises the steps since the previous
+ * kept state: their Newton iterations summed, the largest residual norm.  A failure at step
+ * s keeps state s too (unless already kept) and records the failed step's own iterations,
+ * residual norm and last iterate. */
+static void heavy_top_batch_one(const double *known0, const double *p, long n_steps, long every, const heavy_top_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+{
+    double buffer[(HEAVY_TOP_BATCH_CHUNK + 1) * HEAVY_TOP_N_KNOWNS];
+    int its[HEAVY_TOP_BATCH_CHUNK];
+    double norms[HEAVY_TOP_BATCH_CHUNK];
+    heavy_top_warm_start warm;
+    long done = 0, last_kept = 0, r = 1;
+    long long carry_iterations = 0;
+    double carry_norm = 0.0;
+    memset(&warm, 0, sizeof warm);
+    *failed_step = -1;
+    *failed_iterations = 0;
+    *failed_residual_norm = 0.0;
+    for (;;) {
+        const long n = n_steps - done < HEAVY_TOP_BATCH_CHUNK ? n_steps - done : HEAVY_TOP_BATCH_CHUNK;
+        long fail = -1, solved, j;
+        const int st = heavy_top_simulate(done == 0 ? known0 : buffer, p, n, options, &warm, buffer, HEAVY_TOP_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        if (st == HEAVY_TOP_INVALID_ARGUMENT) { /* a non-finite state or parameter row */
+            *kept = done == 0 ? 0 : r;
+            *status = st;
+            return;
+        }
+        if (done == 0) {
+            memcpy(states, buffer, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+        }
+        solved = st == HEAVY_TOP_OK ? n : fail;
+        for (j = 1; j <= solved; ++j) {
+            const long k = done + j;
+            carry_iterations += its[j - 1];
+            if (norms[j - 1] > carry_norm) {
+                carry_norm = norms[j - 1];
+            }
+            if (k % every == 0 || k == n_steps) {
+                memcpy(states + (size_t)r * HEAVY_TOP_N_KNOWNS, buffer + (size_t)j * HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                carry_iterations = 0;
+                carry_norm = 0.0;
+                last_kept = k;
+                ++r;
+            }
+        }
+        if (st != HEAVY_TOP_OK) {
+            if (done + fail != last_kept) { /* the last state reached ends the trajectory */
+                memcpy(states + (size_t)r * HEAVY_TOP_N_KNOWNS, buffer + (size_t)fail * HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                ++r;
+            }
+            *failed_step = done + fail;
+            *failed_iterations = its[fail];
+            *failed_residual_norm = norms[fail];
+            *kept = r;
+            *status = st;
+            return;
+        }
+        done += n;
+        if (done >= n_steps) {
+            break;
+        }
+        /* the next call starts from the last state of this one (row n of the buffer) */
+        memmove(buffer, buffer + (size_t)n * HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+    }
+    *kept = r;
+    *status = HEAVY_TOP_OK;
+}
+
+/* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
+ * starts from known0 + b * HEAVY_TOP_N_KNOWNS with the parameters p + b * p_stride (p_stride 0:
+ * one parameter vector for all, or HEAVY_TOP_N_PARAMETERS) and is computed exactly as
+ * heavy_top_simulate computes it (bitwise: the same function, called in chunks with one warm
+ * start).  Its kept states go to states + b * rows * HEAVY_TOP_N_KNOWNS (rows >= 1 +
+ * ceil(n_steps / every)), the Newton summaries of the intervals between them to iterations and
+ * residual_norms + b * (rows - 1), their number to kept[b], its status to status[b].  A
+ * trajectory that fails stops alone: failed_step[b] = s (else -1), failed_iterations[b] and
+ * failed_residual_norm[b] describe step s, last_iterate + b * HEAVY_TOP_N_UNKNOWNS receives its last
+ * Newton iterate (these four may be NULL), and the others go on.  Trajectories are independent,
+ * so with OpenMP (compiled with -fopenmp) they are shared among n_threads threads (<= 0: the
+ * OpenMP default) without changing any result; without OpenMP they run one after the other.
+ * Returns HEAVY_TOP_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
+ * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or HEAVY_TOP_N_PARAMETERS, or
+ * invalid options; otherwise HEAVY_TOP_OK (a non-finite row of known0 or p is reported as
+ * status[b] = HEAVY_TOP_INVALID_ARGUMENT, kept[b] = 0). */
+int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+{
+    heavy_top_options defaults;
+    long b;
+    if (options == NULL) {
+        heavy_top_default_options(&defaults);
+        options = &defaults;
+    }
+    if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
+        || kept == NULL || status == NULL
+        || p == NULL
+        || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
+        || (p_stride != 0 && p_stride != HEAVY_TOP_N_PARAMETERS)
+        || n_steps / every + (n_steps % every != 0) > rows - 1
+        || (size_t)rows > ((size_t)-1 / sizeof(double)) / HEAVY_TOP_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
+        || !heavy_top_options_valid(options)) {
+        return HEAVY_TOP_INVALID_ARGUMENT;
+    }
+    (void)n_threads;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads()) if (n_batch > 1)
+#endif
+    for (b = 0; b < n_batch; ++b) {
+        int unused_iterations;
+        long unused_step;
+        double unused_norm;
+        heavy_top_batch_one(known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, options,
+                          states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
+                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                          kept + b, status + b,
+                          failed_step != NULL ? failed_step + b : &unused_step,
+                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                          last_iterate != NULL ? last_iterate + (size_t)b * HEAVY_TOP_N_UNKNOWNS : NULL);
     }
     return HEAVY_TOP_OK;
 }

@@ -45,6 +45,19 @@
  *   step before.  Zero it to start a run; to continue, call again from the last state of the
  *   previous call with the same struct: a run split into calls of any lengths gives bitwise
  *   the states of one call, with a buffer of fixed size.
+ * heavy_top_simulate_batch(n_batch, known0, p, p_stride, n_steps, every, options, states,
+ *                        rows, iterations, residual_norms, kept, status, failed_step,
+ *                        failed_iterations, failed_residual_norm, last_iterate, n_threads)
+ *   advances n_batch independent trajectories (row b of known0, parameters p + b * p_stride
+ *   with p_stride 0 or HEAVY_TOP_N_PARAMETERS), each bitwise as heavy_top_simulate would, keeping
+ *   state 0, every `every`-th state and the last one: trajectory b's states at
+ *   states + b * rows * HEAVY_TOP_N_KNOWNS (rows >= 1 + ceil(n_steps / every)), kept[b] of them,
+ *   with the Newton iterations (summed) and largest residual norm of the steps between
+ *   consecutive kept states in iterations / residual_norms + b * (rows - 1).  A failing
+ *   trajectory stops alone (status[b], failed_step[b]; the failed step's iterations, residual
+ *   norm and last iterate) and keeps the last state it reached.  Compiled with -fopenmp the
+ *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default), with
+ *   the same results; otherwise they run one after the other.
  * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
  *   #error): they delete its NaN and overflow checks.
  */
@@ -90,6 +103,7 @@ void heavy_top_predict(const double *known, const double *p, double *u);
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int heavy_top_solve_step(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm);
 int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
+int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 const char *heavy_top_status_message(int status);
 
 #ifdef __cplusplus

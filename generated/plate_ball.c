@@ -30,6 +30,9 @@
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
  * (in the alpha-fibre of the known arrow's target)
@@ -86,54 +89,54 @@ void plate_ball_residual(const double *u, const double *known, const double *p, 
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = 1.0/(p[0]*p[0]);
-    const double t1 = 1.0/p[0];
-    const double t2 = u[4]*u[4];
+    const double t0 = u[4]*u[4];
+    const double t1 = -t0;
+    const double t2 = u[3]*u[3];
     const double t3 = -t2;
-    const double t4 = u[3]*u[3];
-    const double t5 = -t4;
-    const double t6 = u[2]*u[2];
-    const double t7 = 1.0/(t2 + t4 + t6 + 4.0);
-    const double t8 = (t3 + t5 + t6 + 4.0)*t7;
-    const double t9 = u[2]*u[3];
-    const double t10 = t9 - 2.0*u[4];
-    const double t11 = u[2]*u[4];
-    const double t12 = t11 + 2.0*u[3];
-    const double t13 = t9 + 2.0*u[4];
-    const double t14 = 2.0*u[2];
-    const double t15 = -u[3]*u[4] + t14;
-    const double t16 = t11 - 2.0*u[3];
-    const double t17 = t14 + u[3]*u[4];
-    const double t18 = t7*(t2 + t5 + t6 - 4.0);
-    const double t19 = t7*(t3 + t4 + t6 - 4.0);
+    const double t4 = u[2]*u[2];
+    const double t5 = 1.0/(t0 + t2 + t4 + 4.0);
+    const double t6 = (t1 + t3 + t4 + 4.0)*t5;
+    const double t7 = u[2]*u[3];
+    const double t8 = t7 - 2.0*u[4];
+    const double t9 = u[2]*u[4];
+    const double t10 = t9 + 2.0*u[3];
+    const double t11 = t7 + 2.0*u[4];
+    const double t12 = 2.0*u[2];
+    const double t13 = -u[3]*u[4] + t12;
+    const double t14 = t9 - 2.0*u[3];
+    const double t15 = t12 + u[3]*u[4];
+    const double t16 = 1.0/(p[0]*p[0]);
+    const double t17 = 1.0/p[0];
+    const double t18 = t5*(t0 + t3 + t4 - 4.0);
+    const double t19 = t5*(t1 + t2 + t4 - 4.0);
     const double t20 = p[0]*known[15];
     const double t21 = p[0]*known[14];
     const double t22 = p[0]*known[13];
-    const double t23 = 0.5*p[2]*t21 + (t1*t22 + p[0]*t0*(known[3] - known[1]));
-    const double t24 = -0.5*p[2]*t22 + (t1*t21 + p[0]*t0*(known[2] - known[0]));
+    const double t23 = 0.5*p[2]*t21 + (t17*t22 + p[0]*t16*(known[3] - known[1]));
+    const double t24 = -0.5*p[2]*t22 + (t17*t21 + p[0]*t16*(known[2] - known[0]));
     const double t25 = u[1] - known[3];
     const double t26 = u[0] - known[2];
     const double t27 = p[0]*u[7];
     const double t28 = p[0]*u[6];
     const double t29 = p[0]*u[5];
-    const double t30 = t24 + (-0.5*p[2]*t29 - (t1*t28 + p[0]*t0*t26));
-    const double t31 = t23 + (0.5*p[2]*t28 - (t1*t29 + p[0]*t0*t25));
-    const double t32 = 0.5*t1*known[6]*t20 + 0.5*p[1]*t1*known[5]*t21 + 0.5*p[1]*t1*known[8]*t22 + 0.5*p[1]*t1*known[12]*t22 - (t1*t7*t16*t27 - 0.5*p[1]*t1*t19*t29 + p[1]*t1*t7*t13*t28 - 0.5*p[1]*t1*t18*t29);
-    const double t33 = -0.5*p[1]*t1*known[4]*t21 + 0.5*t1*known[9]*t20 - 0.5*p[1]*t1*known[7]*t22 - 0.5*p[1]*t1*known[12]*t21 - (t1*t7*t17*t27 + 0.5*p[1]*t1*t19*t28 - 0.5*p[1]*t1*t8*t28 - p[1]*t1*t7*t10*t29);
-    const double t34 = -0.5*t1*known[4]*t20 - 0.5*t1*known[8]*t20 + 0.5*p[1]*t1*known[11]*t21 - 0.5*p[1]*t1*known[10]*t22 - (0.5*t1*t18*t27 - p[1]*t1*t7*t15*t28 - 0.5*t1*t8*t27 - p[1]*t1*t7*t12*t29);
-    const double t35 = -0.5*p[1]*t1*(-2.0*t7*t15 - 2.0*t7*t17) - 0.5*p[2]*(u[0] + known[2]) + t1*t25;
-    const double t36 = p[0]*t35;
-    const double t37 = 0.5*p[1]*t1*(2.0*t7*t16 - 2.0*t7*t12) + 0.5*p[2]*(u[1] + known[3]) + t1*t26;
-    const double t38 = p[0]*t37;
-    const double t39 = p[0]*(p[3] + 0.5*t1*(2.0*t7*t10 - 2.0*t7*t13));
-    F[0] = t30;
-    F[1] = t31;
-    F[2] = t32;
-    F[3] = t33;
-    F[4] = t34;
-    F[5] = t36;
-    F[6] = t38;
-    F[7] = t39;
+    const double t30 = -0.5*p[1]*t17*(-2.0*t5*t13 - 2.0*t5*t15) - 0.5*p[2]*(u[0] + known[2]) + t17*t25;
+    const double t31 = p[0]*t30;
+    const double t32 = 0.5*p[1]*t17*(2.0*t5*t14 - 2.0*t5*t10) + 0.5*p[2]*(u[1] + known[3]) + t17*t26;
+    const double t33 = p[0]*t32;
+    const double t34 = p[0]*(p[3] + 0.5*t17*(2.0*t5*t8 - 2.0*t5*t11));
+    const double t35 = t24 + (-0.5*p[2]*t29 - (t17*t28 + p[0]*t16*t26));
+    const double t36 = t23 + (0.5*p[2]*t28 - (t17*t29 + p[0]*t16*t25));
+    const double t37 = 0.5*known[6]*t17*t20 + 0.5*p[1]*known[5]*t17*t21 + 0.5*p[1]*known[8]*t17*t22 + 0.5*p[1]*known[12]*t17*t22 - (t5*t14*t17*t27 - 0.5*p[1]*t17*t19*t29 + p[1]*t5*t11*t17*t28 - 0.5*p[1]*t17*t18*t29);
+    const double t38 = -0.5*p[1]*known[4]*t17*t21 + 0.5*known[9]*t17*t20 - 0.5*p[1]*known[7]*t17*t22 - 0.5*p[1]*known[12]*t17*t21 - (t5*t15*t17*t27 + 0.5*p[1]*t17*t19*t28 - 0.5*p[1]*t6*t17*t28 - p[1]*t5*t8*t17*t29);
+    const double t39 = -0.5*known[4]*t17*t20 - 0.5*known[8]*t17*t20 + 0.5*p[1]*known[11]*t17*t21 - 0.5*p[1]*known[10]*t17*t22 - (0.5*t17*t18*t27 - p[1]*t5*t13*t17*t28 - 0.5*t6*t17*t27 - p[1]*t5*t10*t17*t29);
+    F[0] = t35;
+    F[1] = t36;
+    F[2] = t37;
+    F[3] = t38;
+    F[4] = t39;
+    F[5] = t31;
+    F[6] = t33;
+    F[7] = t34;
 }
 
 /* F and the exact Jacobian J[i * PLATE_BALL_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
@@ -143,190 +146,191 @@ void plate_ball_residual_jacobian(const double *u, const double *known, const do
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = 1.0/(p[0]*p[0]);
-    const double t1 = 1.0/p[0];
-    const double t2 = u[4]*u[4];
+    const double t0 = u[4]*u[4];
+    const double t1 = -t0;
+    const double t2 = u[3]*u[3];
     const double t3 = -t2;
-    const double t4 = u[3]*u[3];
-    const double t5 = -t4;
-    const double t6 = u[2]*u[2];
-    const double t7 = t3 + t5 + t6 + 4.0;
-    const double t8 = t2 + t4 + t6 + 4.0;
-    const double t9 = 1.0/t8;
-    const double t10 = t7*t9;
-    const double t11 = u[2]*u[3];
-    const double t12 = t11 - 2.0*u[4];
-    const double t13 = u[2]*u[4];
-    const double t14 = t13 + 2.0*u[3];
-    const double t15 = t11 + 2.0*u[4];
-    const double t16 = t2 + t5 + t6 - 4.0;
-    const double t17 = 2.0*u[2];
-    const double t18 = -u[3]*u[4] + t17;
-    const double t19 = t13 - 2.0*u[3];
-    const double t20 = t17 + u[3]*u[4];
-    const double t21 = t3 + t4 + t6 - 4.0;
-    const double t22 = t9*t16;
-    const double t23 = -4.0*t9;
-    const double t24 = t9*t21;
+    const double t4 = u[2]*u[2];
+    const double t5 = t1 + t3 + t4 + 4.0;
+    const double t6 = t0 + t2 + t4 + 4.0;
+    const double t7 = 1.0/t6;
+    const double t8 = t5*t7;
+    const double t9 = u[2]*u[3];
+    const double t10 = t9 - 2.0*u[4];
+    const double t11 = u[2]*u[4];
+    const double t12 = t11 + 2.0*u[3];
+    const double t13 = t9 + 2.0*u[4];
+    const double t14 = t0 + t3 + t4 - 4.0;
+    const double t15 = 2.0*u[2];
+    const double t16 = -u[3]*u[4] + t15;
+    const double t17 = t11 - 2.0*u[3];
+    const double t18 = t15 + u[3]*u[4];
+    const double t19 = t1 + t2 + t4 - 4.0;
+    const double t20 = 1.0/(p[0]*p[0]);
+    const double t21 = 1.0/p[0];
+    const double t22 = t7*t14;
+    const double t23 = -4.0*t7;
+    const double t24 = t7*t19;
     const double t25 = p[0]*known[15];
     const double t26 = p[0]*known[14];
     const double t27 = p[0]*known[13];
-    const double t28 = 0.5*p[2]*t26 + (t1*t27 + p[0]*t0*(known[3] - known[1]));
-    const double t29 = -0.5*p[2]*t27 + (t1*t26 + p[0]*t0*(known[2] - known[0]));
+    const double t28 = 0.5*p[2]*t26 + (t21*t27 + p[0]*t20*(known[3] - known[1]));
+    const double t29 = -0.5*p[2]*t27 + (t21*t26 + p[0]*t20*(known[2] - known[0]));
     const double t30 = u[1] - known[3];
     const double t31 = u[0] - known[2];
     const double t32 = p[0]*u[7];
     const double t33 = p[0]*u[6];
-    const double t34 = p[0]*u[5];
-    const double t35 = t29 + (-0.5*p[2]*t34 - (t1*t33 + p[0]*t0*t31));
-    const double t36 = t28 + (0.5*p[2]*t33 - (t1*t34 + p[0]*t0*t30));
-    const double t37 = 0.5*t1*known[6]*t25 + 0.5*p[1]*t1*known[5]*t26 + 0.5*p[1]*t1*known[8]*t27 + 0.5*p[1]*t1*known[12]*t27 - (t1*t9*t19*t32 - 0.5*p[1]*t1*t24*t34 + p[1]*t1*t9*t15*t33 - 0.5*p[1]*t1*t22*t34);
-    const double t38 = -0.5*p[1]*t1*known[4]*t26 + 0.5*t1*known[9]*t25 - 0.5*p[1]*t1*known[7]*t27 - 0.5*p[1]*t1*known[12]*t26 - (t1*t9*t20*t32 + 0.5*p[1]*t1*t24*t33 - 0.5*p[1]*t1*t10*t33 - p[1]*t1*t9*t12*t34);
-    const double t39 = -0.5*t1*known[4]*t25 - 0.5*t1*known[8]*t25 + 0.5*p[1]*t1*known[11]*t26 - 0.5*p[1]*t1*known[10]*t27 - (0.5*t1*t22*t32 - p[1]*t1*t9*t18*t33 - 0.5*t1*t10*t32 - p[1]*t1*t9*t14*t34);
-    const double t40 = -0.5*p[1]*t1*(-2.0*t9*t18 - 2.0*t9*t20) - 0.5*p[2]*(u[0] + known[2]) + t1*t30;
-    const double t41 = p[0]*t40;
-    const double t42 = 0.5*p[1]*t1*(2.0*t9*t19 - 2.0*t9*t14) + 0.5*p[2]*(u[1] + known[3]) + t1*t31;
-    const double t43 = p[0]*t42;
-    const double t44 = p[0]*(p[3] + 0.5*t1*(2.0*t9*t12 - 2.0*t9*t15));
-    const double t45 = -p[0]*t0;
-    const double t46 = -0.5*p[0]*p[2];
-    const double t47 = p[0]*t1;
-    const double t48 = 0.5*p[0]*p[2];
-    const double t49 = 1.0/(t8*t8);
-    const double t50 = 2.0*u[2]*t9;
-    const double t51 = t50 - 2.0*u[2]*t7*t49;
-    const double t52 = 2.0*u[3]*t9;
-    const double t53 = 2.0*u[4]*t9;
-    const double t54 = -2.0*u[3]*t9;
-    const double t55 = t50 - 2.0*u[2]*t16*t49;
-    const double t56 = t50 - 2.0*u[2]*t21*t49;
-    const double t57 = -2.0*u[4]*t9;
-    const double t58 = t1*t9;
-    const double t59 = t1*t19*t32;
-    const double t60 = t32*t58;
-    const double t61 = u[4]*t60;
-    const double t62 = p[1]*t1;
-    const double t63 = t9*t62;
-    const double t64 = t62*t15*t33;
-    const double t65 = t33*t63;
-    const double t66 = t1*t20*t32;
-    const double t67 = t12*t34;
-    const double t68 = t18*t33;
-    const double t69 = t14*t34;
-    const double t70 = -2.0*u[2]*t49*t59 + t61 - 0.5*p[1]*t1*t34*t56 + (-2.0*u[2]*t49*t64 + u[3]*t65) - 0.5*p[1]*t1*t34*t55;
-    const double t71 = -2.0*u[2]*t49*t66 + 2.0*t60 + 0.5*p[1]*t1*t33*t56 - 0.5*p[1]*t1*t33*t51 + (2.0*p[1]*t1*u[2]*t49*t67 - p[1]*t1*u[3]*t9*t34);
-    const double t72 = 0.5*t1*t32*t55 + (2.0*p[1]*t1*u[2]*t49*t68 - 2.0*p[1]*t1*t9*t33) - 0.5*t1*t32*t51 + (2.0*p[1]*t1*u[2]*t49*t69 - p[1]*t1*u[4]*t9*t34);
-    const double t73 = -t70;
-    const double t74 = -t71;
-    const double t75 = -t72;
-    const double t76 = -0.5*p[0]*p[1]*t1*(t23 + 4.0*u[2]*t18*t49 + (t23 + 4.0*u[2]*t20*t49));
-    const double t77 = 0.5*p[0]*p[1]*t1*(-4.0*u[2]*t19*t49 + t53 + (4.0*u[2]*t14*t49 + t57));
-    const double t78 = 0.5*p[0]*t1*(-4.0*u[2]*t12*t49 + t52 + (4.0*u[2]*t15*t49 + t54));
-    const double t79 = t54 - 2.0*u[3]*t7*t49;
-    const double t80 = -2.0*u[2]*t9;
-    const double t81 = t54 - 2.0*u[3]*t16*t49;
-    const double t82 = t52 - 2.0*u[3]*t21*t49;
-    const double t83 = -p[1]*t1*u[2]*t9*t34;
-    const double t84 = -2.0*u[3]*t49*t59 - 2.0*t60 - 0.5*p[1]*t1*t34*t82 + (-2.0*u[3]*t49*t64 + u[2]*t65) - 0.5*p[1]*t1*t34*t81;
-    const double t85 = t61 - 2.0*u[3]*t49*t66 + 0.5*p[1]*t1*t33*t82 - 0.5*p[1]*t1*t33*t79 + (2.0*p[1]*t1*u[3]*t49*t67 + t83);
-    const double t86 = 0.5*t1*t32*t81 + (2.0*p[1]*t1*u[3]*t49*t68 + p[1]*t1*u[4]*t9*t33) - 0.5*t1*t32*t79 + (2.0*p[1]*t1*u[3]*t49*t69 - 2.0*p[1]*t1*t9*t34);
-    const double t87 = -t84;
-    const double t88 = -t85;
-    const double t89 = -t86;
-    const double t90 = -0.5*p[0]*p[1]*t1*(t53 + 4.0*u[3]*t18*t49 + (t57 + 4.0*u[3]*t20*t49));
-    const double t91 = 0.5*p[0]*p[1]*t1*(t23 - 4.0*u[3]*t19*t49 + (t23 + 4.0*u[3]*t14*t49));
-    const double t92 = 0.5*p[0]*t1*(t50 - 4.0*u[3]*t12*t49 + (4.0*u[3]*t15*t49 + t80));
-    const double t93 = t57 - 2.0*u[4]*t7*t49;
-    const double t94 = t53 - 2.0*u[4]*t16*t49;
-    const double t95 = t57 - 2.0*u[4]*t21*t49;
-    const double t96 = -2.0*u[4]*t49*t59 + u[2]*t60 - 0.5*p[1]*t1*t34*t95 + (-2.0*u[4]*t49*t64 + 2.0*t65) - 0.5*p[1]*t1*t34*t94;
-    const double t97 = -2.0*u[4]*t49*t66 + u[3]*t60 + 0.5*p[1]*t1*t33*t95 - 0.5*p[1]*t1*t33*t93 + (2.0*p[1]*t1*u[4]*t49*t67 + 2.0*p[1]*t1*t9*t34);
-    const double t98 = 0.5*t1*t32*t94 + (2.0*p[1]*t1*u[4]*t49*t68 + p[1]*t1*u[3]*t9*t33) - 0.5*t1*t32*t93 + (t83 + 2.0*p[1]*t1*u[4]*t49*t69);
-    const double t99 = -t96;
-    const double t100 = -t97;
-    const double t101 = -t98;
-    const double t102 = -0.5*p[0]*p[1]*t1*(t52 + 4.0*u[4]*t18*t49 + (t54 + 4.0*u[4]*t20*t49));
-    const double t103 = 0.5*p[0]*p[1]*t1*(t50 - 4.0*u[4]*t19*t49 + (t80 + 4.0*u[4]*t14*t49));
-    const double t104 = 0.5*p[0]*t1*(t23 - 4.0*u[4]*t12*t49 + (t23 + 4.0*u[4]*t15*t49));
-    const double t105 = -t47;
-    const double t106 = -(-0.5*p[0]*p[1]*t1*t24 - 0.5*p[0]*p[1]*t1*t22);
-    const double t107 = p[0]*p[1]*t1*t9*t12;
-    const double t108 = p[0]*p[1]*t1*t9*t14;
-    const double t109 = -p[0]*t15*t63;
-    const double t110 = -(0.5*p[0]*p[1]*t1*t24 - 0.5*p[0]*p[1]*t1*t10);
-    const double t111 = p[0]*p[1]*t1*t9*t18;
-    const double t112 = -p[0]*t19*t58;
-    const double t113 = -p[0]*t20*t58;
-    const double t114 = -(0.5*p[0]*t1*t22 - 0.5*p[0]*t1*t10);
-    F[0] = t35;
-    F[1] = t36;
-    F[2] = t37;
-    F[3] = t38;
-    F[4] = t39;
-    F[5] = t41;
-    F[6] = t43;
-    F[7] = t44;
-    J[0] = t45;
+    const double t34 = t21*t33;
+    const double t35 = p[0]*u[5];
+    const double t36 = t21*t35;
+    const double t37 = -0.5*p[1]*t21*(-2.0*t7*t16 - 2.0*t7*t18) - 0.5*p[2]*(u[0] + known[2]) + t21*t30;
+    const double t38 = p[0]*t37;
+    const double t39 = 0.5*p[1]*t21*(2.0*t7*t17 - 2.0*t7*t12) + 0.5*p[2]*(u[1] + known[3]) + t21*t31;
+    const double t40 = p[0]*t39;
+    const double t41 = p[0]*(p[3] + 0.5*t21*(2.0*t7*t10 - 2.0*t7*t13));
+    const double t42 = t29 + (-0.5*p[2]*t35 - (t34 + p[0]*t20*t31));
+    const double t43 = t28 + (0.5*p[2]*t33 - (t36 + p[0]*t20*t30));
+    const double t44 = 0.5*known[6]*t21*t25 + 0.5*p[1]*known[5]*t21*t26 + 0.5*p[1]*known[8]*t21*t27 + 0.5*p[1]*known[12]*t21*t27 - (t7*t17*t21*t32 - 0.5*p[1]*t21*t24*t35 + p[1]*t7*t13*t21*t33 - 0.5*p[1]*t21*t22*t35);
+    const double t45 = -0.5*p[1]*known[4]*t21*t26 + 0.5*known[9]*t21*t25 - 0.5*p[1]*known[7]*t21*t27 - 0.5*p[1]*known[12]*t21*t26 - (t7*t18*t21*t32 + 0.5*p[1]*t21*t24*t33 - 0.5*p[1]*t8*t21*t33 - p[1]*t7*t10*t21*t35);
+    const double t46 = -0.5*known[4]*t21*t25 - 0.5*known[8]*t21*t25 + 0.5*p[1]*known[11]*t21*t26 - 0.5*p[1]*known[10]*t21*t27 - (0.5*t21*t22*t32 - p[1]*t7*t16*t21*t33 - 0.5*t8*t21*t32 - p[1]*t7*t12*t21*t35);
+    const double t47 = -p[0]*t20;
+    const double t48 = -0.5*p[0]*p[2];
+    const double t49 = p[0]*t21;
+    const double t50 = 0.5*p[0]*p[2];
+    const double t51 = 1.0/(t6*t6);
+    const double t52 = 2.0*u[2]*t7;
+    const double t53 = t52 - 2.0*u[2]*t5*t51;
+    const double t54 = 2.0*u[3]*t7;
+    const double t55 = 2.0*u[4]*t7;
+    const double t56 = -2.0*u[3]*t7;
+    const double t57 = t52 - 2.0*u[2]*t14*t51;
+    const double t58 = t52 - 2.0*u[2]*t19*t51;
+    const double t59 = -2.0*u[4]*t7;
+    const double t60 = t21*t32;
+    const double t61 = t17*t60;
+    const double t62 = t7*t60;
+    const double t63 = u[4]*t62;
+    const double t64 = p[1]*t7;
+    const double t65 = p[1]*t13*t34;
+    const double t66 = t34*t64;
+    const double t67 = t18*t60;
+    const double t68 = t10*t36;
+    const double t69 = t16*t34;
+    const double t70 = t12*t36;
+    const double t71 = -2.0*u[2]*t51*t61 + t63 - 0.5*p[1]*t21*t35*t58 + (-2.0*u[2]*t51*t65 + u[3]*t66) - 0.5*p[1]*t21*t35*t57;
+    const double t72 = -2.0*u[2]*t51*t67 + 2.0*t62 + 0.5*p[1]*t21*t33*t58 - 0.5*p[1]*t34*t53 + (2.0*p[1]*u[2]*t51*t68 - p[1]*u[3]*t7*t36);
+    const double t73 = 0.5*t21*t32*t57 + (2.0*p[1]*u[2]*t51*t69 - 2.0*p[1]*t7*t34) - 0.5*t53*t60 + (2.0*p[1]*u[2]*t51*t70 - p[1]*u[4]*t7*t36);
+    const double t74 = -0.5*p[0]*p[1]*t21*(t23 + 4.0*u[2]*t16*t51 + (t23 + 4.0*u[2]*t18*t51));
+    const double t75 = 0.5*p[0]*p[1]*t21*(-4.0*u[2]*t17*t51 + t55 + (4.0*u[2]*t12*t51 + t59));
+    const double t76 = 0.5*p[0]*t21*(-4.0*u[2]*t10*t51 + t54 + (4.0*u[2]*t13*t51 + t56));
+    const double t77 = -t71;
+    const double t78 = -t72;
+    const double t79 = -t73;
+    const double t80 = t56 - 2.0*u[3]*t5*t51;
+    const double t81 = -2.0*u[2]*t7;
+    const double t82 = t56 - 2.0*u[3]*t14*t51;
+    const double t83 = t54 - 2.0*u[3]*t19*t51;
+    const double t84 = -p[1]*u[2]*t7*t36;
+    const double t85 = -2.0*u[3]*t51*t61 - 2.0*t62 - 0.5*p[1]*t21*t35*t83 + (-2.0*u[3]*t51*t65 + u[2]*t66) - 0.5*p[1]*t21*t35*t82;
+    const double t86 = t63 - 2.0*u[3]*t51*t67 + 0.5*p[1]*t21*t33*t83 - 0.5*p[1]*t34*t80 + (2.0*p[1]*u[3]*t51*t68 + t84);
+    const double t87 = 0.5*t21*t32*t82 + (2.0*p[1]*u[3]*t51*t69 + p[1]*u[4]*t7*t34) - 0.5*t60*t80 + (2.0*p[1]*u[3]*t51*t70 - 2.0*p[1]*t7*t36);
+    const double t88 = -0.5*p[0]*p[1]*t21*(t55 + 4.0*u[3]*t16*t51 + (t59 + 4.0*u[3]*t18*t51));
+    const double t89 = 0.5*p[0]*p[1]*t21*(t23 - 4.0*u[3]*t17*t51 + (t23 + 4.0*u[3]*t12*t51));
+    const double t90 = 0.5*p[0]*t21*(t52 - 4.0*u[3]*t10*t51 + (4.0*u[3]*t13*t51 + t81));
+    const double t91 = -t85;
+    const double t92 = -t86;
+    const double t93 = -t87;
+    const double t94 = t59 - 2.0*u[4]*t5*t51;
+    const double t95 = t55 - 2.0*u[4]*t14*t51;
+    const double t96 = t59 - 2.0*u[4]*t19*t51;
+    const double t97 = -2.0*u[4]*t51*t61 + u[2]*t62 - 0.5*p[1]*t21*t35*t96 + (-2.0*u[4]*t51*t65 + 2.0*t66) - 0.5*p[1]*t21*t35*t95;
+    const double t98 = -2.0*u[4]*t51*t67 + u[3]*t62 + 0.5*p[1]*t21*t33*t96 - 0.5*p[1]*t34*t94 + (2.0*p[1]*u[4]*t51*t68 + 2.0*p[1]*t7*t36);
+    const double t99 = 0.5*t21*t32*t95 + (2.0*p[1]*u[4]*t51*t69 + p[1]*u[3]*t7*t34) - 0.5*t60*t94 + (t84 + 2.0*p[1]*u[4]*t51*t70);
+    const double t100 = -0.5*p[0]*p[1]*t21*(t54 + 4.0*u[4]*t16*t51 + (t56 + 4.0*u[4]*t18*t51));
+    const double t101 = 0.5*p[0]*p[1]*t21*(t52 - 4.0*u[4]*t17*t51 + (t81 + 4.0*u[4]*t12*t51));
+    const double t102 = 0.5*p[0]*t21*(t23 - 4.0*u[4]*t10*t51 + (t23 + 4.0*u[4]*t13*t51));
+    const double t103 = -t97;
+    const double t104 = -t98;
+    const double t105 = -t99;
+    const double t106 = -t49;
+    const double t107 = -(-0.5*p[0]*p[1]*t21*t24 - 0.5*p[0]*p[1]*t21*t22);
+    const double t108 = p[0]*p[1]*t7*t10*t21;
+    const double t109 = p[0]*p[1]*t7*t12*t21;
+    const double t110 = -p[0]*t21*t13*t64;
+    const double t111 = -(0.5*p[0]*p[1]*t21*t24 - 0.5*p[0]*p[1]*t8*t21);
+    const double t112 = p[0]*p[1]*t7*t16*t21;
+    const double t113 = -p[0]*t21*t7*t17;
+    const double t114 = -p[0]*t21*t7*t18;
+    const double t115 = -(0.5*p[0]*t21*t22 - 0.5*p[0]*t8*t21);
+    F[0] = t42;
+    F[1] = t43;
+    F[2] = t44;
+    F[3] = t45;
+    F[4] = t46;
+    F[5] = t38;
+    F[6] = t40;
+    F[7] = t41;
+    J[0] = t47;
     J[1] = 0.0;
     J[2] = 0.0;
     J[3] = 0.0;
     J[4] = 0.0;
-    J[5] = t46;
-    J[6] = t105;
+    J[5] = t48;
+    J[6] = t106;
     J[7] = 0.0;
     J[8] = 0.0;
-    J[9] = t45;
+    J[9] = t47;
     J[10] = 0.0;
     J[11] = 0.0;
     J[12] = 0.0;
-    J[13] = t105;
-    J[14] = t48;
+    J[13] = t106;
+    J[14] = t50;
     J[15] = 0.0;
     J[16] = 0.0;
     J[17] = 0.0;
-    J[18] = t73;
-    J[19] = t87;
-    J[20] = t99;
-    J[21] = t106;
-    J[22] = t109;
-    J[23] = t112;
+    J[18] = t77;
+    J[19] = t91;
+    J[20] = t103;
+    J[21] = t107;
+    J[22] = t110;
+    J[23] = t113;
     J[24] = 0.0;
     J[25] = 0.0;
-    J[26] = t74;
-    J[27] = t88;
-    J[28] = t100;
-    J[29] = t107;
-    J[30] = t110;
-    J[31] = t113;
+    J[26] = t78;
+    J[27] = t92;
+    J[28] = t104;
+    J[29] = t108;
+    J[30] = t111;
+    J[31] = t114;
     J[32] = 0.0;
     J[33] = 0.0;
-    J[34] = t75;
-    J[35] = t89;
-    J[36] = t101;
-    J[37] = t108;
-    J[38] = t111;
-    J[39] = t114;
-    J[40] = t46;
-    J[41] = t47;
-    J[42] = t76;
-    J[43] = t90;
-    J[44] = t102;
+    J[34] = t79;
+    J[35] = t93;
+    J[36] = t105;
+    J[37] = t109;
+    J[38] = t112;
+    J[39] = t115;
+    J[40] = t48;
+    J[41] = t49;
+    J[42] = t74;
+    J[43] = t88;
+    J[44] = t100;
     J[45] = 0.0;
     J[46] = 0.0;
     J[47] = 0.0;
-    J[48] = t47;
-    J[49] = t48;
-    J[50] = t77;
-    J[51] = t91;
-    J[52] = t103;
+    J[48] = t49;
+    J[49] = t50;
+    J[50] = t75;
+    J[51] = t89;
+    J[52] = t101;
     J[53] = 0.0;
     J[54] = 0.0;
     J[55] = 0.0;
     J[56] = 0.0;
     J[57] = 0.0;
-    J[58] = t78;
-    J[59] = t92;
-    J[60] = t104;
+    J[58] = t76;
+    J[59] = t90;
+    J[60] = t102;
     J[61] = 0.0;
     J[62] = 0.0;
     J[63] = 0.0;
@@ -824,6 +828,138 @@ int plate_ball_simulate(const double *known0, const double *p, long n_steps, con
         if (warm->count < 2) {
             ++warm->count;
         }
+    }
+    return PLATE_BALL_OK;
+}
+
+/* Steps per plate_ball_simulate call inside plate_ball_simulate_batch: the chunk buffer of one
+ * trajectory (PLATE_BALL_BATCH_CHUNK + 1 states) stays within 32 KiB of stack per thread. */
+#define PLATE_BALL_BATCH_CHUNK (PLATE_BALL_N_KNOWNS >= 4096 ? 1 : (4096 / PLATE_BALL_N_KNOWNS < 64 ? 4096 / PLATE_BALL_N_KNOWNS : 64))
+
+/* One trajectory of plate_ball_simulate_batch: n_steps steps from known0 through
+ * plate_ball_simulate in chunks of at most PLATE_BALL_BATCH_CHUNK steps with one warm start (bitwise
+ * the states of one plate_ball_simulate call), keeping state 0, every `every`-th state and the
+ * last one.  Row r > 0 of iterations/residual_norms summarises the steps since the previous
+ * kept state: their Newton iterations summed, the largest residual norm.  A failure at step
+ * s keeps state s too (unless already kept) and records the failed step's own iterations,
+ * residual norm and last iterate. */
+static void plate_ball_batch_one(const double *known0, const double *p, long n_steps, long every, const plate_ball_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+{
+    double buffer[(PLATE_BALL_BATCH_CHUNK + 1) * PLATE_BALL_N_KNOWNS];
+    int its[PLATE_BALL_BATCH_CHUNK];
+    double norms[PLATE_BALL_BATCH_CHUNK];
+    plate_ball_warm_start warm;
+    long done = 0, last_kept = 0, r = 1;
+    long long carry_iterations = 0;
+    double carry_norm = 0.0;
+    memset(&warm, 0, sizeof warm);
+    *failed_step = -1;
+    *failed_iterations = 0;
+    *failed_residual_norm = 0.0;
+    for (;;) {
+        const long n = n_steps - done < PLATE_BALL_BATCH_CHUNK ? n_steps - done : PLATE_BALL_BATCH_CHUNK;
+        long fail = -1, solved, j;
+        const int st = plate_ball_simulate(done == 0 ? known0 : buffer, p, n, options, &warm, buffer, PLATE_BALL_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        if (st == PLATE_BALL_INVALID_ARGUMENT) { /* a non-finite state or parameter row */
+            *kept = done == 0 ? 0 : r;
+            *status = st;
+            return;
+        }
+        if (done == 0) {
+            memcpy(states, buffer, sizeof(double) * PLATE_BALL_N_KNOWNS);
+        }
+        solved = st == PLATE_BALL_OK ? n : fail;
+        for (j = 1; j <= solved; ++j) {
+            const long k = done + j;
+            carry_iterations += its[j - 1];
+            if (norms[j - 1] > carry_norm) {
+                carry_norm = norms[j - 1];
+            }
+            if (k % every == 0 || k == n_steps) {
+                memcpy(states + (size_t)r * PLATE_BALL_N_KNOWNS, buffer + (size_t)j * PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                carry_iterations = 0;
+                carry_norm = 0.0;
+                last_kept = k;
+                ++r;
+            }
+        }
+        if (st != PLATE_BALL_OK) {
+            if (done + fail != last_kept) { /* the last state reached ends the trajectory */
+                memcpy(states + (size_t)r * PLATE_BALL_N_KNOWNS, buffer + (size_t)fail * PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                ++r;
+            }
+            *failed_step = done + fail;
+            *failed_iterations = its[fail];
+            *failed_residual_norm = norms[fail];
+            *kept = r;
+            *status = st;
+            return;
+        }
+        done += n;
+        if (done >= n_steps) {
+            break;
+        }
+        /* the next call starts from the last state of this one (row n of the buffer) */
+        memmove(buffer, buffer + (size_t)n * PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
+    }
+    *kept = r;
+    *status = PLATE_BALL_OK;
+}
+
+/* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
+ * starts from known0 + b * PLATE_BALL_N_KNOWNS with the parameters p + b * p_stride (p_stride 0:
+ * one parameter vector for all, or PLATE_BALL_N_PARAMETERS) and is computed exactly as
+ * plate_ball_simulate computes it (bitwise: the same function, called in chunks with one warm
+ * start).  Its kept states go to states + b * rows * PLATE_BALL_N_KNOWNS (rows >= 1 +
+ * ceil(n_steps / every)), the Newton summaries of the intervals between them to iterations and
+ * residual_norms + b * (rows - 1), their number to kept[b], its status to status[b].  A
+ * trajectory that fails stops alone: failed_step[b] = s (else -1), failed_iterations[b] and
+ * failed_residual_norm[b] describe step s, last_iterate + b * PLATE_BALL_N_UNKNOWNS receives its last
+ * Newton iterate (these four may be NULL), and the others go on.  Trajectories are independent,
+ * so with OpenMP (compiled with -fopenmp) they are shared among n_threads threads (<= 0: the
+ * OpenMP default) without changing any result; without OpenMP they run one after the other.
+ * Returns PLATE_BALL_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
+ * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or PLATE_BALL_N_PARAMETERS, or
+ * invalid options; otherwise PLATE_BALL_OK (a non-finite row of known0 or p is reported as
+ * status[b] = PLATE_BALL_INVALID_ARGUMENT, kept[b] = 0). */
+int plate_ball_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+{
+    plate_ball_options defaults;
+    long b;
+    if (options == NULL) {
+        plate_ball_default_options(&defaults);
+        options = &defaults;
+    }
+    if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
+        || kept == NULL || status == NULL
+        || p == NULL
+        || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
+        || (p_stride != 0 && p_stride != PLATE_BALL_N_PARAMETERS)
+        || n_steps / every + (n_steps % every != 0) > rows - 1
+        || (size_t)rows > ((size_t)-1 / sizeof(double)) / PLATE_BALL_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
+        || !plate_ball_options_valid(options)) {
+        return PLATE_BALL_INVALID_ARGUMENT;
+    }
+    (void)n_threads;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads()) if (n_batch > 1)
+#endif
+    for (b = 0; b < n_batch; ++b) {
+        int unused_iterations;
+        long unused_step;
+        double unused_norm;
+        plate_ball_batch_one(known0 + (size_t)b * PLATE_BALL_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, options,
+                          states + (size_t)b * (size_t)rows * PLATE_BALL_N_KNOWNS,
+                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                          kept + b, status + b,
+                          failed_step != NULL ? failed_step + b : &unused_step,
+                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                          last_iterate != NULL ? last_iterate + (size_t)b * PLATE_BALL_N_UNKNOWNS : NULL);
     }
     return PLATE_BALL_OK;
 }

@@ -25,6 +25,9 @@
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
  * (in the alpha-fibre of the known arrow's target)
@@ -81,23 +84,23 @@ void rigid_body_residual(const double *u, const double *known, const double *p, 
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = 0.5*p[3];
-    const double t1 = 0.5*p[2];
-    const double t2 = -0.5*p[1] + t0 + t1;
-    const double t3 = 0.5*p[1];
-    const double t4 = t0 - 0.5*p[2] + t3;
-    const double t5 = t1 + t3 - 0.5*p[3];
-    const double t6 = 1.0/p[0];
-    const double t7 = 1.0/(u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0);
-    const double t8 = u[0]*u[1];
-    const double t9 = u[0]*u[2];
-    const double t10 = 2.0*u[0];
-    const double t11 = 2.0*t4*t6*t7*(t10 + u[1]*u[2]) + 2.0*t5*t6*t7*(-u[1]*u[2] + t10);
-    const double t12 = -2.0*t2*t6*t7*(t9 - 2.0*u[1]) + 2.0*t5*t6*t7*(t9 + 2.0*u[1]);
-    const double t13 = 2.0*t2*t6*t7*(t8 + 2.0*u[2]) - 2.0*t4*t6*t7*(t8 - 2.0*u[2]);
-    const double t14 = -t4*t6*known[5] + t5*t6*known[7] - t11;
-    const double t15 = t2*t6*known[2] - t5*t6*known[6] - t12;
-    const double t16 = -t2*t6*known[1] + t4*t6*known[3] - t13;
+    const double t0 = 1.0/(u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0);
+    const double t1 = u[0]*u[1];
+    const double t2 = u[0]*u[2];
+    const double t3 = 2.0*u[0];
+    const double t4 = 0.5*p[3];
+    const double t5 = 0.5*p[2];
+    const double t6 = -0.5*p[1] + t4 + t5;
+    const double t7 = 0.5*p[1];
+    const double t8 = t4 - 0.5*p[2] + t7;
+    const double t9 = t5 + t7 - 0.5*p[3];
+    const double t10 = 1.0/p[0];
+    const double t11 = 2.0*t0*(t3 + u[1]*u[2])*t8*t10 + 2.0*t0*(-u[1]*u[2] + t3)*t9*t10;
+    const double t12 = -2.0*t0*(t2 - 2.0*u[1])*t6*t10 + 2.0*t0*(t2 + 2.0*u[1])*t9*t10;
+    const double t13 = 2.0*t0*(t1 + 2.0*u[2])*t6*t10 - 2.0*t0*(t1 - 2.0*u[2])*t8*t10;
+    const double t14 = -known[5]*t8*t10 + known[7]*t9*t10 - t11;
+    const double t15 = known[2]*t6*t10 - known[6]*t9*t10 - t12;
+    const double t16 = -known[1]*t6*t10 + known[3]*t8*t10 - t13;
     F[0] = t14;
     F[1] = t15;
     F[2] = t16;
@@ -110,58 +113,67 @@ void rigid_body_residual_jacobian(const double *u, const double *known, const do
     (void)u;
     (void)known;
     (void)p;
-    const double t0 = 0.5*p[3];
-    const double t1 = 0.5*p[2];
-    const double t2 = -0.5*p[1] + t0 + t1;
-    const double t3 = 0.5*p[1];
-    const double t4 = t0 - 0.5*p[2] + t3;
-    const double t5 = t1 + t3 - 0.5*p[3];
-    const double t6 = 1.0/p[0];
-    const double t7 = u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0;
-    const double t8 = 1.0/t7;
-    const double t9 = u[0]*u[1];
-    const double t10 = t9 - 2.0*u[2];
-    const double t11 = u[0]*u[2];
-    const double t12 = t11 + 2.0*u[1];
-    const double t13 = t9 + 2.0*u[2];
-    const double t14 = 2.0*u[0];
-    const double t15 = -u[1]*u[2] + t14;
-    const double t16 = t11 - 2.0*u[1];
-    const double t17 = t14 + u[1]*u[2];
-    const double t18 = -t4*t6*known[5] + t5*t6*known[7] - (2.0*t4*t6*t8*t17 + 2.0*t5*t6*t8*t15);
-    const double t19 = t2*t6*known[2] - t5*t6*known[6] - (-2.0*t2*t6*t8*t16 + 2.0*t5*t6*t8*t12);
-    const double t20 = -t2*t6*known[1] + t4*t6*known[3] - (2.0*t2*t6*t8*t13 - 2.0*t4*t6*t8*t10);
-    const double t21 = 1.0/(t7*t7);
-    const double t22 = 4.0*t4*t6*t8;
-    const double t23 = 4.0*t5*t6*t8;
-    const double t24 = 4.0*t2*t6*u[0]*t16*t21 - 2.0*t2*t6*u[2]*t8 + (-4.0*t5*t6*u[0]*t12*t21 + 2.0*t5*t6*u[2]*t8);
-    const double t25 = -4.0*t2*t6*u[0]*t13*t21 + 2.0*t2*t6*u[1]*t8 + (4.0*t4*t6*u[0]*t10*t21 - 2.0*t4*t6*u[1]*t8);
-    const double t26 = -(-4.0*t4*t6*u[0]*t17*t21 + t22 + (-4.0*t5*t6*u[0]*t15*t21 + t23));
-    const double t27 = -t24;
-    const double t28 = -t25;
-    const double t29 = 4.0*t2*t6*t8;
-    const double t30 = -4.0*t4*t6*u[1]*t17*t21 + 2.0*t4*t6*u[2]*t8 + (-4.0*t5*t6*u[1]*t15*t21 - 2.0*t5*t6*u[2]*t8);
-    const double t31 = -4.0*t2*t6*u[1]*t13*t21 + 2.0*t2*t6*u[0]*t8 + (4.0*t4*t6*u[1]*t10*t21 - 2.0*t4*t6*u[0]*t8);
-    const double t32 = -t30;
-    const double t33 = -(4.0*t2*t6*u[1]*t16*t21 + t29 + (t23 - 4.0*t5*t6*u[1]*t12*t21));
-    const double t34 = -t31;
-    const double t35 = -4.0*t4*t6*u[2]*t17*t21 + 2.0*t4*t6*u[1]*t8 + (-4.0*t5*t6*u[2]*t15*t21 - 2.0*t5*t6*u[1]*t8);
-    const double t36 = 4.0*t2*t6*u[2]*t16*t21 - 2.0*t2*t6*u[0]*t8 + (-4.0*t5*t6*u[2]*t12*t21 + 2.0*t5*t6*u[0]*t8);
-    const double t37 = -t35;
-    const double t38 = -t36;
-    const double t39 = -(t29 - 4.0*t2*t6*u[2]*t13*t21 + (t22 + 4.0*t4*t6*u[2]*t10*t21));
+    const double t0 = u[2]*u[2] + u[1]*u[1] + u[0]*u[0] + 4.0;
+    const double t1 = 1.0/t0;
+    const double t2 = u[0]*u[1];
+    const double t3 = t2 - 2.0*u[2];
+    const double t4 = u[0]*u[2];
+    const double t5 = t4 + 2.0*u[1];
+    const double t6 = t2 + 2.0*u[2];
+    const double t7 = 2.0*u[0];
+    const double t8 = -u[1]*u[2] + t7;
+    const double t9 = t4 - 2.0*u[1];
+    const double t10 = t7 + u[1]*u[2];
+    const double t11 = 0.5*p[3];
+    const double t12 = 0.5*p[2];
+    const double t13 = -0.5*p[1] + t11 + t12;
+    const double t14 = 0.5*p[1];
+    const double t15 = t11 - 0.5*p[2] + t14;
+    const double t16 = t12 + t14 - 0.5*p[3];
+    const double t17 = 1.0/p[0];
+    const double t18 = -known[5]*t15*t17 + known[7]*t16*t17 - (2.0*t1*t10*t15*t17 + 2.0*t1*t8*t16*t17);
+    const double t19 = known[2]*t13*t17 - known[6]*t16*t17 - (-2.0*t1*t9*t13*t17 + 2.0*t1*t5*t16*t17);
+    const double t20 = -known[1]*t13*t17 + known[3]*t15*t17 - (2.0*t1*t6*t13*t17 - 2.0*t1*t3*t15*t17);
+    const double t21 = 1.0/(t0*t0);
+    const double t22 = t15*t17;
+    const double t23 = t10*t22;
+    const double t24 = 4.0*t1*t22;
+    const double t25 = t16*t17;
+    const double t26 = t8*t25;
+    const double t27 = 4.0*t1*t25;
+    const double t28 = t13*t17;
+    const double t29 = t9*t28;
+    const double t30 = t5*t25;
+    const double t31 = t6*t28;
+    const double t32 = t3*t22;
+    const double t33 = 4.0*u[0]*t21*t29 - 2.0*u[2]*t1*t28 + (-4.0*u[0]*t21*t30 + 2.0*u[2]*t1*t25);
+    const double t34 = -4.0*u[0]*t21*t31 + 2.0*u[1]*t1*t28 + (4.0*u[0]*t21*t32 - 2.0*u[1]*t1*t22);
+    const double t35 = -(-4.0*u[0]*t21*t23 + t24 + (-4.0*u[0]*t21*t26 + t27));
+    const double t36 = -t33;
+    const double t37 = -t34;
+    const double t38 = 4.0*t1*t28;
+    const double t39 = -4.0*u[1]*t21*t23 + 2.0*u[2]*t1*t22 + (-4.0*u[1]*t21*t26 - 2.0*u[2]*t1*t25);
+    const double t40 = -4.0*u[1]*t21*t31 + 2.0*u[0]*t1*t28 + (4.0*u[1]*t21*t32 - 2.0*u[0]*t1*t22);
+    const double t41 = -t39;
+    const double t42 = -(4.0*u[1]*t21*t29 + t38 + (t27 - 4.0*u[1]*t21*t30));
+    const double t43 = -t40;
+    const double t44 = -4.0*u[2]*t21*t23 + 2.0*u[1]*t1*t22 + (-4.0*u[2]*t21*t26 - 2.0*u[1]*t1*t25);
+    const double t45 = 4.0*u[2]*t21*t29 - 2.0*u[0]*t1*t28 + (-4.0*u[2]*t21*t30 + 2.0*u[0]*t1*t25);
+    const double t46 = -t44;
+    const double t47 = -t45;
+    const double t48 = -(t38 - 4.0*u[2]*t21*t31 + (t24 + 4.0*u[2]*t21*t32));
     F[0] = t18;
     F[1] = t19;
     F[2] = t20;
-    J[0] = t26;
-    J[1] = t32;
-    J[2] = t37;
-    J[3] = t27;
-    J[4] = t33;
-    J[5] = t38;
-    J[6] = t28;
-    J[7] = t34;
-    J[8] = t39;
+    J[0] = t35;
+    J[1] = t41;
+    J[2] = t46;
+    J[3] = t36;
+    J[4] = t42;
+    J[5] = t47;
+    J[6] = t37;
+    J[7] = t43;
+    J[8] = t48;
 }
 
 /* first Newton guess for u from the known state */
@@ -642,6 +654,138 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
         if (warm->count < 2) {
             ++warm->count;
         }
+    }
+    return RIGID_BODY_OK;
+}
+
+/* Steps per rigid_body_simulate call inside rigid_body_simulate_batch: the chunk buffer of one
+ * trajectory (RIGID_BODY_BATCH_CHUNK + 1 states) stays within 32 KiB of stack per thread. */
+#define RIGID_BODY_BATCH_CHUNK (RIGID_BODY_N_KNOWNS >= 4096 ? 1 : (4096 / RIGID_BODY_N_KNOWNS < 64 ? 4096 / RIGID_BODY_N_KNOWNS : 64))
+
+/* One trajectory of rigid_body_simulate_batch: n_steps steps from known0 through
+ * rigid_body_simulate in chunks of at most RIGID_BODY_BATCH_CHUNK steps with one warm start (bitwise
+ * the states of one rigid_body_simulate call), keeping state 0, every `every`-th state and the
+ * last one.  Row r > 0 of iterations/residual_norms summarises the steps since the previous
+ * kept state: their Newton iterations summed, the largest residual norm.  A failure at step
+ * s keeps state s too (unless already kept) and records the failed step's own iterations,
+ * residual norm and last iterate. */
+static void rigid_body_batch_one(const double *known0, const double *p, long n_steps, long every, const rigid_body_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+{
+    double buffer[(RIGID_BODY_BATCH_CHUNK + 1) * RIGID_BODY_N_KNOWNS];
+    int its[RIGID_BODY_BATCH_CHUNK];
+    double norms[RIGID_BODY_BATCH_CHUNK];
+    rigid_body_warm_start warm;
+    long done = 0, last_kept = 0, r = 1;
+    long long carry_iterations = 0;
+    double carry_norm = 0.0;
+    memset(&warm, 0, sizeof warm);
+    *failed_step = -1;
+    *failed_iterations = 0;
+    *failed_residual_norm = 0.0;
+    for (;;) {
+        const long n = n_steps - done < RIGID_BODY_BATCH_CHUNK ? n_steps - done : RIGID_BODY_BATCH_CHUNK;
+        long fail = -1, solved, j;
+        const int st = rigid_body_simulate(done == 0 ? known0 : buffer, p, n, options, &warm, buffer, RIGID_BODY_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        if (st == RIGID_BODY_INVALID_ARGUMENT) { /* a non-finite state or parameter row */
+            *kept = done == 0 ? 0 : r;
+            *status = st;
+            return;
+        }
+        if (done == 0) {
+            memcpy(states, buffer, sizeof(double) * RIGID_BODY_N_KNOWNS);
+        }
+        solved = st == RIGID_BODY_OK ? n : fail;
+        for (j = 1; j <= solved; ++j) {
+            const long k = done + j;
+            carry_iterations += its[j - 1];
+            if (norms[j - 1] > carry_norm) {
+                carry_norm = norms[j - 1];
+            }
+            if (k % every == 0 || k == n_steps) {
+                memcpy(states + (size_t)r * RIGID_BODY_N_KNOWNS, buffer + (size_t)j * RIGID_BODY_N_KNOWNS, sizeof(double) * RIGID_BODY_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                carry_iterations = 0;
+                carry_norm = 0.0;
+                last_kept = k;
+                ++r;
+            }
+        }
+        if (st != RIGID_BODY_OK) {
+            if (done + fail != last_kept) { /* the last state reached ends the trajectory */
+                memcpy(states + (size_t)r * RIGID_BODY_N_KNOWNS, buffer + (size_t)fail * RIGID_BODY_N_KNOWNS, sizeof(double) * RIGID_BODY_N_KNOWNS);
+                iterations[r - 1] = carry_iterations;
+                residual_norms[r - 1] = carry_norm;
+                ++r;
+            }
+            *failed_step = done + fail;
+            *failed_iterations = its[fail];
+            *failed_residual_norm = norms[fail];
+            *kept = r;
+            *status = st;
+            return;
+        }
+        done += n;
+        if (done >= n_steps) {
+            break;
+        }
+        /* the next call starts from the last state of this one (row n of the buffer) */
+        memmove(buffer, buffer + (size_t)n * RIGID_BODY_N_KNOWNS, sizeof(double) * RIGID_BODY_N_KNOWNS);
+    }
+    *kept = r;
+    *status = RIGID_BODY_OK;
+}
+
+/* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
+ * starts from known0 + b * RIGID_BODY_N_KNOWNS with the parameters p + b * p_stride (p_stride 0:
+ * one parameter vector for all, or RIGID_BODY_N_PARAMETERS) and is computed exactly as
+ * rigid_body_simulate computes it (bitwise: the same function, called in chunks with one warm
+ * start).  Its kept states go to states + b * rows * RIGID_BODY_N_KNOWNS (rows >= 1 +
+ * ceil(n_steps / every)), the Newton summaries of the intervals between them to iterations and
+ * residual_norms + b * (rows - 1), their number to kept[b], its status to status[b].  A
+ * trajectory that fails stops alone: failed_step[b] = s (else -1), failed_iterations[b] and
+ * failed_residual_norm[b] describe step s, last_iterate + b * RIGID_BODY_N_UNKNOWNS receives its last
+ * Newton iterate (these four may be NULL), and the others go on.  Trajectories are independent,
+ * so with OpenMP (compiled with -fopenmp) they are shared among n_threads threads (<= 0: the
+ * OpenMP default) without changing any result; without OpenMP they run one after the other.
+ * Returns RIGID_BODY_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
+ * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or RIGID_BODY_N_PARAMETERS, or
+ * invalid options; otherwise RIGID_BODY_OK (a non-finite row of known0 or p is reported as
+ * status[b] = RIGID_BODY_INVALID_ARGUMENT, kept[b] = 0). */
+int rigid_body_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+{
+    rigid_body_options defaults;
+    long b;
+    if (options == NULL) {
+        rigid_body_default_options(&defaults);
+        options = &defaults;
+    }
+    if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
+        || kept == NULL || status == NULL
+        || p == NULL
+        || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
+        || (p_stride != 0 && p_stride != RIGID_BODY_N_PARAMETERS)
+        || n_steps / every + (n_steps % every != 0) > rows - 1
+        || (size_t)rows > ((size_t)-1 / sizeof(double)) / RIGID_BODY_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
+        || !rigid_body_options_valid(options)) {
+        return RIGID_BODY_INVALID_ARGUMENT;
+    }
+    (void)n_threads;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads()) if (n_batch > 1)
+#endif
+    for (b = 0; b < n_batch; ++b) {
+        int unused_iterations;
+        long unused_step;
+        double unused_norm;
+        rigid_body_batch_one(known0 + (size_t)b * RIGID_BODY_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, options,
+                          states + (size_t)b * (size_t)rows * RIGID_BODY_N_KNOWNS,
+                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                          kept + b, status + b,
+                          failed_step != NULL ? failed_step + b : &unused_step,
+                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                          last_iterate != NULL ? last_iterate + (size_t)b * RIGID_BODY_N_UNKNOWNS : NULL);
     }
     return RIGID_BODY_OK;
 }

@@ -65,28 +65,35 @@ from .verification import StationarityReport, verify_stationary
 
 __version__ = "0.1.0"
 
+from . import diagnostics  # noqa: E402  (layer 6)
 from .codegen import emit_c  # noqa: E402  (layer 4)
+from .plotting import plot_conservation, plot_trajectory  # noqa: E402
 from .runtime import (  # noqa: E402  (layer 5)
     CompilationError,
     NewtonOptions,
     Simulator,
+    SweepResult,
     Trajectory,
+    TrajectoryBatch,
     compile_step,
+    sweep,
+    sweep_boundary_value,
 )
 
 __all__ = [
     "ActionGroupoid", "Arrow", "AtiyahGroupoid", "AxiomError", "BoundaryValueSolution",
-    "CacheError", "CallableError", "CompilationError", "CoordinateNameError",
-    "DefinedGroupoid", "DegenerateSystemError", "DiscreteSystem", "EuclideanSpace", "Groupoid",
-    "GroupoidMorphism", "InputTypeError", "InvalidExpressionError", "LegendreTransforms",
-    "LiePoissonEquations", "MatrixLieGroup", "MorphismError", "NamedMatrix",
-    "NewtonDivergenceError", "NewtonOptions", "NoetherQuantity", "NonholonomicSystem",
-    "NotComposableError", "PairGroupoid", "ParameterDeclarationError", "ParameterError",
-    "ProductGroupoid", "ReconstructionError", "ReducedSystem", "SE2", "SE3", "SO2", "SO3",
-    "SecondOrderSystem", "ShapeError", "Simulator", "SingularJacobianError",
-    "StationarityReport", "StepEquations", "SymgroupoidError", "TimeGroupoid", "Trajectory",
+    "CacheError", "CallableError", "CompilationError", "CoordinateNameError", "DefinedGroupoid",
+    "DegenerateSystemError", "DiscreteSystem", "EuclideanSpace", "Groupoid", "GroupoidMorphism",
+    "InputTypeError", "InvalidExpressionError", "LegendreTransforms", "LiePoissonEquations",
+    "MatrixLieGroup", "MorphismError", "NamedMatrix", "NewtonDivergenceError", "NewtonOptions",
+    "NoetherQuantity", "NonholonomicSystem", "NotComposableError", "PairGroupoid",
+    "ParameterDeclarationError", "ParameterError", "ProductGroupoid", "ReconstructionError",
+    "ReducedSystem", "SE2", "SE3", "SO2", "SO3", "SecondOrderSystem", "ShapeError", "Simulator",
+    "SingularJacobianError", "StationarityReport", "StepEquations", "SweepResult",
+    "SymgroupoidError", "TimeGroupoid", "Trajectory", "TrajectoryBatch",
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
-    "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "emit_c",
-    "hat3", "latex", "left_derivative", "right_derivative", "solve_boundary_value",
+    "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "diagnostics",
+    "emit_c", "hat3", "latex", "left_derivative", "plot_conservation", "plot_trajectory",
+    "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",
     "verify_stationary",
 ]

@@ -12,6 +12,8 @@ owner: the system, groupoid or simulator it was given to):
 One rule per kind of argument, wherever it is given: booleans are not numbers, strings are
 not numbers (``"1.5"`` is refused, not parsed), complex values are refused even with a zero
 imaginary part, and so are dates, durations and integers beyond the range of a double.
+The module lives below every layer, so the groupoid checks (layer 1), the runtime (layer 5)
+and the command line all read ``steps=1e7``, ``steps=-5`` or ``samples=2.5`` the same way.
 """
 
 from __future__ import annotations
@@ -24,6 +26,10 @@ from pathlib import Path
 import numpy as np
 
 from ._errors import DomainError, InputTypeError, ShapeError
+
+#: the largest count accepted for steps, iterations and similar arguments (C ``long`` safe,
+#: and far beyond what fits in memory or time)
+MAX_COUNT = 2**53
 
 
 def where(owner: str) -> str:
@@ -38,7 +44,7 @@ def _shown(value) -> str:
 
 # --- numbers ------------------------------------------------------------------------------------
 
-def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = 2**53,
+def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_COUNT,
                      owner: str = "") -> int:
     """``value`` as an int, or a :class:`ShapeError` naming ``name``.
 
@@ -253,7 +259,7 @@ def sequence_argument(value, name: str, *, owner: str = "") -> list:
     return list(value)
 
 
-__all__ = ["callable_argument", "choice_argument", "flag_argument", "instance_argument",
-           "integer_argument", "name_argument", "names_argument", "path_argument",
-           "real_argument", "real_array", "sequence_argument", "where"]
+__all__ = ["MAX_COUNT", "callable_argument", "choice_argument", "flag_argument",
+           "instance_argument", "integer_argument", "name_argument", "names_argument",
+           "path_argument", "real_argument", "real_array", "sequence_argument", "where"]
 

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
+from ._arguments import integer_argument
 from .groupoids import Groupoid
 
 
@@ -118,6 +119,7 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     differences are pure O(ε²), which the extrapolation removes.
     """
     G = system.groupoid
+    seed = integer_argument(seed, "seed", owner=system.name)
     arrows, lam, params = _unpack(trajectory, system, multipliers, params)
     L, phi, arity, m = _cached_terms(system)
     ng = _NumericGroupoid(G)

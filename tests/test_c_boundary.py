@@ -135,11 +135,15 @@ def test_window_programs_check_their_input_array():
     """The compiled boundary-value window programs (the other cffi call site)."""
     import sympy as sp
 
+    from symgroupoid.ir import Graph, Program, from_sympy
     from symgroupoid.runtime._programs import compile_program
 
     a, b = sp.symbols("a b")
-    t = sp.Symbol("t0")
-    fn = compile_program("boundary check", [a, b], [(t, a * b)], [t + 1, t - a])
+    g = Graph()
+    nodes = {a: g.input(a), b: g.input(b)}
+    program = Program(g, {"a": [a, b]}, {"out": [from_sympy(g, e, nodes)
+                                                  for e in (a * b + 1, a * b - a)]})
+    fn = compile_program("boundary check", program, "a", "out")
     assert fn is not None
     out = fn(np.array([[2.0, 3.0], [1.0, -1.0]]))
     assert np.array_equal(out, [[7.0, 4.0], [0.0, -2.0]])

@@ -24,9 +24,11 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 
 import symgroupoid as sg
 from symgroupoid.codegen import emit_c, generate_c
+from symgroupoid.codegen._emit import generate_program_c
+from symgroupoid.ir import Graph, Program, from_sympy
 from symgroupoid.runtime import CacheError, CompilationError, _cache, _compile
-from symgroupoid.runtime._build import DEFAULT_FLAGS
-from symgroupoid.runtime._programs import compile_program, program_source
+from symgroupoid.runtime._build import optimisation_flags
+from symgroupoid.runtime._programs import compile_program
 
 pytestmark = needs_cc
 
@@ -149,7 +151,7 @@ def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, ca
     wrapper.chmod(0o755)
     started = tmp_path / "compiler-started"
     env = script_env(SYMGROUPOID_CACHE=str(cache_dir), CC=str(wrapper),
-                     SG_COMPILER_STARTED=str(started))
+                     SG_COMPILER_STARTED=str(started), SYMGROUPOID_OPENMP="0")
     proc = subprocess.Popen([sys.executable, "-c", SCRIPT], env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -163,7 +165,7 @@ def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, ca
         assert len(left) == 1 and left[0].startswith("build-"), left
         t0 = time.monotonic()
         again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir),
-                                      SYMGROUPOID_LOCK_TIMEOUT="30"))
+                                      SYMGROUPOID_LOCK_TIMEOUT="30", SYMGROUPOID_OPENMP="0"))
         assert time.monotonic() - t0 < 30
     finally:
         with contextlib.suppress(ProcessLookupError):
@@ -201,7 +203,7 @@ def test_threads_building_kernels_at_once(cache_dir):
 
 def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):
     step = oscillator()
-    key = _compile.source_key_of(generate_c(step), DEFAULT_FLAGS)
+    key = _compile.source_key_of(generate_c(step), _compile.default_flags())
     _cache.writable_root(cache_dir)
     tmp = cache_dir / "tmp"
     live = tmp / f"build-{key}-live"
@@ -236,7 +238,7 @@ def test_warm_use_removes_a_dead_builders_directory(cache_dir):
 
 def test_waiting_for_a_hung_builder_times_out_clearly(monkeypatch, cache_dir):
     step = oscillator("oscillator_lock")
-    key = _compile.source_key_of(generate_c(step), DEFAULT_FLAGS)
+    key = _compile.source_key_of(generate_c(step), _compile.default_flags())
     lock = cache_dir / "locks" / f"{key}.lock"
     lock.parent.mkdir(parents=True)
     fd = os.open(lock, os.O_RDWR | os.O_CREAT)
@@ -327,7 +329,8 @@ def test_layout_directory_that_is_a_file_is_replaced(cache_dir, name):
 
 def _build_without_loading(step, cache_root: Path) -> tuple[Path, dict]:
     cache = _cache.KernelCache(cache_root)
-    _compile._build(step, tuple(DEFAULT_FLAGS), cache, _compile.input_key(step, DEFAULT_FLAGS))
+    flags = _compile.default_flags()  # what compile_step builds by default
+    _compile._build(step, flags, cache, _compile.input_key(step, flags))
     (entry,) = (cache_root / "kernels").iterdir()
     return entry, json.loads((entry / "manifest.json").read_text())
 
@@ -367,14 +370,18 @@ def test_window_program_with_garbage_module_is_rebuilt(cache_dir):
     """The boundary-value window programs load through the same cache (no step to
     regenerate from: the source this process asked to build is kept)."""
     x, y = sp.symbols("x y")
-    inputs, outputs = [x, y], [x * y + sp.sin(x), x - y]
-    kernel = program_source("sgw_garbage_window", inputs, [], outputs)
-    _compile.build_cached(kernel, tuple(DEFAULT_FLAGS), _cache.KernelCache(), "garbage window")
+    g = Graph()
+    nodes = {x: g.input(x), y: g.input(y)}
+    program = Program(g, {"a": [x, y]}, {"out": [from_sympy(g, e, nodes)
+                                                  for e in (x * y + sp.sin(x), x - y)]})
+    kernel = generate_program_c("garbage window", program, "a", "out")
+    _compile.build_cached(kernel, optimisation_flags(program.size()), _cache.KernelCache(),
+                          "garbage window")
     (entry,) = (cache_dir / "kernels").iterdir()
     manifest = json.loads((entry / "manifest.json").read_text())
     _replace_library_consistently(entry, manifest, b"garbage" * 64)
     builds = _compile.STATS["builds"]
-    evaluate = compile_program("garbage window", inputs, [], outputs)
+    evaluate = compile_program("garbage window", program, "a", "out")
     assert _compile.STATS["builds"] == builds + 1
     values = np.array([[0.5, 2.0], [1.0, -1.0]])
     expected = np.stack([values[:, 0] * values[:, 1] + np.sin(values[:, 0]),
@@ -421,11 +428,12 @@ def _has_debug_info(library: Path) -> bool:
 
 def test_builds_carry_debug_information_only_when_asked(cache_dir):
     plain = sg.compile_step(oscillator(), backend="c")
-    debug = sg.compile_step(oscillator(), backend="c", flags=[*DEFAULT_FLAGS, "-g"])
+    flags = _compile.default_flags()
+    debug = sg.compile_step(oscillator(), backend="c", flags=[*flags, "-g"])
     manifests = [json.loads((sim.cache_entry / "manifest.json").read_text())
                  for sim in (plain, debug)]
-    assert manifests[0]["compile_args"] == ["-g0", *DEFAULT_FLAGS]
-    assert manifests[1]["compile_args"] == [*DEFAULT_FLAGS, "-g"]
+    assert manifests[0]["compile_args"] == ["-g0", *flags]
+    assert manifests[1]["compile_args"] == [*flags, "-g"]
     assert not _has_debug_info(plain.cache_entry / manifests[0]["library"])
     assert _has_debug_info(debug.cache_entry / manifests[1]["library"])
 

@@ -20,8 +20,8 @@ import numpy as np
 import pytest
 import sympy as sp
 from _hostile import (
-    H,
     PROFILES,
+    H,
     judge,
     junk,
     profile,

@@ -21,7 +21,8 @@ import jinja2
 
 from ._kernel import c_identifier, kernel_blocks
 
-TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2")
+TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
+                  "program.h.j2")
 
 #: default Newton options compiled into ``<prefix>_default_options``
 DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
@@ -182,6 +183,27 @@ def current_umask() -> int:
 def file_mode() -> int:
     """Mode of a newly created regular file under the current umask (0644 under 022)."""
     return 0o666 & ~current_umask()
+
+
+def generate_program_c(label: str, program, inputs: str, outputs: str) -> KernelSource:
+    """C99 of a batched program: ``<prefix>_eval(n, n_in, n_out, in, out)`` applies the
+    program's output ``outputs`` to n items, each the input array ``inputs`` (row k of
+    ``in``).  Used for the boundary-value solver's window kernels; deterministic for equal
+    programs."""
+    from .. import __version__
+    from ._kernel import build_block, program_helpers
+
+    prefix = "sgw_" + c_identifier(label)
+    block = build_block(program, [("o", outputs)], input_names={inputs: "a"})
+    ctx = {"p": prefix, "P": prefix.upper(), "label": _ascii(label), "version": __version__,
+           "header_name": f"{prefix}.h", "n_in": len(program.inputs[inputs]),
+           "n_out": len(program.outputs[outputs]), "block": block,
+           "helpers": program_helpers(program, [outputs])}
+    env = _environment(str(template_dir()))
+    signature = f"void {prefix}_eval(int n, int n_in, int n_out, const double *in, double *out);"
+    return KernelSource(prefix=prefix, header_name=f"{prefix}.h",
+                        header=env.get_template("program.h.j2").render(ctx),
+                        source=env.get_template("program.c.j2").render(ctx), cdef=signature)
 
 
 def write_atomic(path: Path, text: str) -> None:

@@ -211,6 +211,11 @@ class ConservedQuantities:
     def momentum_conserved(self) -> list[bool]:
         return [c != "fails" for c in self.momentum_checks]
 
+    def __repr__(self) -> str:
+        momenta = ", ".join(self.momentum_checks) or "none"
+        return (f"<ConservedQuantities: energy ({self.energy_check}), "
+                f"{len(self.momenta)} momenta ({momenta})>")
+
     def evaluate(self, arrows, params: Sequence) -> tuple[np.ndarray, np.ndarray]:
         """(energy (N,), momenta (N, r)) at the rows of ``arrows`` (flat coordinates)."""
         f = sp.lambdify([list(self.arrow), list(self.parameters)],

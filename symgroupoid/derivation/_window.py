@@ -88,6 +88,61 @@ def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int],
     return out
 
 
+@dataclass
+class JunctionNodes:
+    """The junction variation of a window's action at given arrows (graph nodes)."""
+
+    left: list  # X⃖_b[S](g_0), one per basis section
+    right: list  # X⃗_b[S](g_1)
+    residuals: list  # left − right: the junction residuals (docs/conventions.md §2)
+    constraints: dict  # start offset s -> φ on the term starting at s
+
+
+def junction_nodes(g: Graph, G: Groupoid, fs: SystemFunctions, parameters: dict,
+                   arrows: dict, multipliers: dict | None) -> JunctionNodes:
+    """The junction variation between the window's arrows at offsets 0 and 1, at arrows given
+    as graph nodes (``arrows[o]``: the coordinate nodes of the arrow at offset o; any nodes —
+    named knowns and a chart of the unknown for a step, independent inputs for a
+    boundary-value window).  ``parameters``: symbol → node; ``multipliers[s]``: the nodes of
+    λ_s of the term starting at s (None: the constraints are not in the action, as for
+    nonholonomic steps).  Also φ on every term of the window."""
+    arity, m = len(fs.slots), len(fs.constraints)
+    _, starts = window(arity)
+    slot_nodes, generic_lam, grad, phis = _term(g, fs, list(parameters), m,
+                                                multipliers is not None)
+    flat_slots = [n for s in slot_nodes for n in s]
+    pmap = {g.inputs[p]: n for p, n in parameters.items() if p in g.inputs and
+            g.inputs[p] != n}
+    dim = G.arrow_dim
+
+    def instantiate(nodes: Sequence[int], s: int) -> list[int]:
+        mapping = dict(zip(flat_slots, [c for i in range(arity) for c in arrows[s + i]]))
+        mapping.update(pmap)
+        if multipliers is not None:
+            mapping.update(dict(zip(generic_lam, multipliers[s])))
+        return g.substitute(nodes, mapping)
+
+    left = _fields(g, G, "left", arrows[0], parameters)
+    right = _fields(g, G, "right", arrows[1], parameters)
+    halves: dict = {0: [[] for _ in range(G.rank)], 1: [[] for _ in range(G.rank)]}
+    for s in starts:
+        grads = instantiate(grad, s)
+        for i in range(arity):
+            o = s + i
+            if o not in (0, 1):
+                continue
+            part = grads[i * dim:(i + 1) * dim]
+            fields = left if o == 0 else right
+            for b in range(G.rank):
+                halves[o][b].extend(g.mul(d, v) for d, v in zip(part, fields[b])
+                                    if d != g.zero and v != g.zero)
+    lefts = [g.add(*t) for t in halves[0]]
+    rights = [g.add(*t) for t in halves[1]]
+    constraints = {s: instantiate(phis, s) if m else [] for s in starts}
+    return JunctionNodes(lefts, rights, [g.sub(a, b) for a, b in zip(lefts, rights)],
+                         constraints)
+
+
 def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequence,
                  multipliers: bool = True) -> WindowGraph:
     """The residual nodes of the step of order ``len(fs.slots)`` (see the module docstring).
@@ -98,8 +153,6 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
     arity, m = len(fs.slots), len(fs.constraints)
     offsets, starts = window(arity)
     g = Graph()
-    slot_nodes, generic_lam, grad, phis = _term(g, fs, parameters, m, multipliers)
-
     arrows = window_arrows(G, offsets)
     newest = offsets[-1]
     _, chart, cmap = chart_of(G, newest, G.target(arrows[newest - 1]))
@@ -120,37 +173,12 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
         symbols[f] = node_of(value, f"the fibre chart of {G.name}")
 
     arrow_nodes = {o: [node_of(c) for c in arrows[o]] for o in offsets}
-    flat_slots = [n for s in slot_nodes for n in s]
-    dim = G.arrow_dim
-
-    def instantiate(nodes: Sequence[int], s: int) -> list[int]:
-        mapping = dict(zip(flat_slots, [c for i in range(arity)
-                                        for c in arrow_nodes[s + i]]))
-        if multipliers:
-            mapping.update({lg: symbols[x] for lg, x in zip(generic_lam, lam[s])})
-        return g.substitute(nodes, mapping)
-
-    pnodes = {p: symbols[p] for p in parameters}
-    left = _fields(g, G, "left", arrow_nodes[0], pnodes)
-    right = _fields(g, G, "right", arrow_nodes[1], pnodes)
-    halves: dict = {0: [[] for _ in range(G.rank)], 1: [[] for _ in range(G.rank)]}
-    for s in starts:
-        grads = instantiate(grad, s)
-        for i in range(arity):
-            o = s + i
-            if o not in (0, 1):
-                continue
-            part = grads[i * dim:(i + 1) * dim]
-            fields = left if o == 0 else right
-            for b in range(G.rank):
-                halves[o][b].extend(g.mul(d, v) for d, v in zip(part, fields[b])
-                                    if d != g.zero and v != g.zero)
-    lefts = [g.add(*t) for t in halves[0]]
-    rights = [g.add(*t) for t in halves[1]]
-    dels = [g.sub(a, b) for a, b in zip(lefts, rights)]
-    last = starts[-1]
-    constraint_rows = instantiate(phis, last) if m else []
-    return WindowGraph(g, dels + constraint_rows, dels, lefts, rights, constraint_rows,
+    lam_nodes = {s: [symbols[x] for x in lam[s]] for s in starts} if multipliers else None
+    jn = junction_nodes(g, G, fs, {p: symbols[p] for p in parameters}, arrow_nodes,
+                        lam_nodes)
+    dels = jn.residuals
+    constraint_rows = jn.constraints[starts[-1]]
+    return WindowGraph(g, dels + constraint_rows, dels, jn.left, jn.right, constraint_rows,
                        symbols, arrows, memo)
 
 

@@ -8,14 +8,25 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from .._errors import ParameterError, ShapeError
 from ..derivation._momenta import (
     LegendreForms,
     LiePoissonForms,
     NoetherForms,
     momentum_symbols,
 )
+from ..ir import Graph, Program, from_sympy
 from ._latex import latex
 from ._step import StepEquations
+
+#: characters of an expression shown in a repr before it is cut
+REPR_WIDTH = 60
+
+
+def _short(expr) -> str:
+    """An expression's text, cut to REPR_WIDTH characters."""
+    text = str(expr)
+    return text if len(text) <= REPR_WIDTH else text[:REPR_WIDTH - 1] + "…"
 
 
 class LegendreTransforms:
@@ -50,6 +61,11 @@ class LegendreTransforms:
         rows += [f"\\mathbb{{F}}^+L_{{{a + 1}}} &= {latex(e)}" for a, e in enumerate(self.plus)]
         return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
 
+    def __repr__(self) -> str:
+        return (f"<LegendreTransforms F⁻L, F⁺L: {len(self.minus)} components each (section "
+                f"basis), on arrows of {len(self.arrow)} coordinates, "
+                f"{len(self.multipliers)} multipliers>")
+
 
 class NoetherQuantity:
     """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
@@ -78,6 +94,42 @@ class NoetherQuantity:
     def latex(self) -> str:
         return latex(self.expr)
 
+    @functools.cached_property
+    def _program(self) -> Program:
+        g = Graph()
+        names = [*self.arrow, *self.multipliers]
+        symbols = {s: g.input(s) for s in (*names, *self.parameters)
+                   if isinstance(s, sp.Symbol)}
+        node = from_sympy(g, self.expr, symbols, "the Noether quantity")
+        return Program(g, {"known": names, "p": list(self.parameters)}, {"F": [node]})
+
+    def along(self, trajectory) -> np.ndarray:
+        """F_X at every kept state of ``trajectory``, shape (R,): one vectorised evaluation.
+
+        The states (g_k, λ_k) of a first-order step are the arrow coordinates and
+        multipliers this quantity is written in, in that order; parameters are read by name
+        from ``trajectory.parameters``.  Along a solution of a system with this symmetry
+        F_X is constant up to the rounding of the steps (seed 000 Thm 4.9).
+        """
+        states = np.asarray(trajectory.states, float)
+        n = len(self.arrow) + len(self.multipliers)
+        if states.ndim != 2 or states.shape[1] != n:
+            raise ShapeError(f"NoetherQuantity.along: the quantity is written in {n} state "
+                             f"entries (arrow and multipliers), the trajectory's states have "
+                             f"shape {states.shape}; use a trajectory of this system's step")
+        values = getattr(trajectory, "parameters", {})
+        missing = [str(s) for s in self.parameters if str(s) not in values]
+        if missing:
+            raise ParameterError(f"NoetherQuantity.along: the trajectory gives no value for "
+                                 f"{', '.join(missing)}")
+        p = np.array([float(values[str(s)]) for s in self.parameters])
+        f = self._program.numpy_function(["F"], ["known", "p"])
+        return f(np.ascontiguousarray(states.T), p)[0][0]
+
+    def __repr__(self) -> str:
+        verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"
+        return f"<NoetherQuantity F_X = {_short(self.expr)} ({verdict})>"
+
 
 class LiePoissonEquations:
     """μ_{k+1} + λ_{k+1}·Φ_{k+1} = Ad*_{g_k}(μ_k + λ_k·Φ_k) (seed 000 §6.1).
@@ -102,3 +154,9 @@ class LiePoissonEquations:
         rows = [f"{latex(m)} &= {latex(u)}" for m, u in zip(nxt, self.update)]
         rows += [f"0 &= {latex(r)}" for r in self.residuals]
         return "\\begin{align}\n" + " \\\\\n".join(rows) + "\n\\end{align}"
+
+    def __repr__(self) -> str:
+        return (f"<LiePoissonEquations {self.reconstruction.name!r}: "
+                f"{len(self.momentum_symbols)} momenta, {len(self.residuals)} equations; "
+                f"reconstruction {len(self.reconstruction)} equations in "
+                f"{len(self.reconstruction.unknowns)} unknowns>")

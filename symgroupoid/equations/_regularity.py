@@ -178,20 +178,31 @@ def _graph_findings(step, program, layout: Layout) -> list[Finding]:
     F = program.outputs["F"]
     unknown_nodes = [g.inputs.get(u) for u in step.unknowns]
     reached = [set(g.reachable([r])) for r in F]
-    # exactly zero: structurally, or (rows small enough to simplify) as SymPy expressions,
-    # e.g. tr(S E) = 0 for a symmetric S and a skew E, which the graph does not cancel
-    zero = [i for i, r in enumerate(F) if r == g.zero or (
-        len(reached[i]) <= _SIMPLIFY_NODES and sp.expand(to_sympy(g, [r])[0]) == 0)]
+    samples = sample(step, _POINTS, 0)
+    numeric = len(samples) == _POINTS
+    small = (np.all([_small_residuals(s_) for s_ in samples], axis=0) if numeric
+             else np.ones(len(F), dtype=bool))
+    vanish = (np.all([_zero_residuals(s_) for s_ in samples], axis=0) if numeric
+              else np.zeros(len(F), dtype=bool))
+
+    def is_zero(i: int) -> bool:
+        """Exactly zero: structurally; or, for a row that is numerically small everywhere
+        sampled, as a SymPy expression when it is small enough to simplify (tr(S E) = 0
+        for a symmetric S and a skew E, which the graph does not cancel), else by the
+        numeric test that tells rounding noise from a small value."""
+        if F[i] == g.zero:
+            return True
+        if not small[i]:
+            return False
+        if len(reached[i]) <= _SIMPLIFY_NODES:
+            return sp.expand(to_sympy(g, [F[i]])[0]) == 0
+        return bool(vanish[i])
+
+    zero = [i for i in range(len(F)) if is_zero(i)]
     idle = [i for i in range(len(F)) if i not in zero
             and not any(n is not None and n in reached[i] for n in unknown_nodes)]
     unused = [j for j, n in enumerate(unknown_nodes)
               if n is None or not any(n in r for r in reached)]
-    if idle:  # a larger row without unknowns may still vanish: check numerically
-        samples = sample(step, _POINTS, 0)
-        if len(samples) == _POINTS:
-            vanish = np.all([_zero_residuals(s) for s in samples], axis=0)
-            zero += [i for i in idle if vanish[i]]
-            idle = [i for i in idle if not vanish[i]]
     shown = {}
     for i in idle:
         if len(reached[i]) <= 200:
@@ -459,6 +470,12 @@ def _zero_rows(s: Sample) -> np.ndarray:
 
 def _zero_columns(s: Sample) -> np.ndarray:
     return _vanishing(s.J.T, s.J_nudged.T, float(np.max(np.abs(s.J), initial=0.0)))
+
+
+def _small_residuals(s: Sample) -> np.ndarray:
+    """Residuals at most _SMALL relative to the sample's scale (candidates for zero)."""
+    scale = float(max(np.max(np.abs(s.F), initial=0.0), np.max(np.abs(s.J), initial=0.0)))
+    return np.abs(s.F) <= _SMALL * max(1.0, scale)
 
 
 def _zero_residuals(s: Sample) -> np.ndarray:

@@ -8,12 +8,13 @@ import sympy as sp
 
 from .._arguments import choice_argument, instance_argument, name_argument, sequence_argument
 from .._errors import CallableError, InputTypeError
+from .._progress import reported
+from ..derivation._callables import call_user, check_values
 from ..derivation._energy_momentum import (
     METHODS,
     conserved_quantities,
     energy_momentum_step,
 )
-from ..derivation._callables import call_user, check_values
 from ..derivation._momenta import (
     is_identically_zero,
     legendre_forms,
@@ -93,8 +94,12 @@ class DiscreteSystem:
     def n_constraints(self) -> int:
         return len(self._fs.constraints)
 
+    @reported(lambda self: f"{self.name}: deriving the equations")
     def euler_lagrange(self) -> StepEquations:
-        """The step (g_k, λ_k) → (g_{k+1}, λ_{k+1}) (seed 000 §3.3; docs/conventions.md §4)."""
+        """The step (g_k, λ_k) → (g_{k+1}, λ_{k+1}) (seed 000 §3.3; docs/conventions.md §4).
+
+        ``progress`` (keyword): report a derivation that takes longer than 2 s (see
+        :mod:`symgroupoid._progress`)."""
         step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
                                            self.parameters))
         step.system = self
@@ -136,7 +141,7 @@ class DiscreteSystem:
         return equations
 
     def __repr__(self) -> str:
-        return (f"DiscreteSystem({self.name!r} on {self.groupoid.name}, "
+        return (f"{type(self).__name__}({self.name!r} on {self.groupoid.name}, "
                 f"{self.n_constraints} constraints)")
 
     def reduce(self, morphism, lagrangian: Callable | None = None,
@@ -205,9 +210,11 @@ class NonholonomicSystem:
             check_nonholonomic_dimensions(name, groupoid, len(self.distribution),
                                           len(self._fs.constraints))
 
+    @reported(lambda self: f"{self.name}: deriving the equations")
     def euler_lagrange(self) -> StepEquations:
         """The step g_k → g_{k+1}: the DEL along D_c and g_{k+1} ∈ M_c (``method="holder"``),
-        or the energy–momentum equations on D ⊕ D⊥ (docs/conventions.md §14)."""
+        or the energy–momentum equations on D ⊕ D⊥ (docs/conventions.md §14).  ``progress``
+        (keyword): as for :meth:`DiscreteSystem.euler_lagrange`."""
         if self.method == "energy_momentum":
             derived = energy_momentum_step(self.name, self.groupoid, self._fs,
                                            self.distribution, self.metric, self.parameters)

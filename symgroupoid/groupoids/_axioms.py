@@ -33,7 +33,8 @@ def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9
     Structure maps may contain free symbols besides the coordinates (parameters of the
     groupoid): ``parameters`` maps them (Symbols or their names) to values; symbols it does
     not give get random values respecting their assumptions (positive → (0.5, 2)), and a
-    failure reports the values used.
+    failure reports the values used.  ``samples`` (at least 1) and ``seed`` are counts
+    (:func:`~symgroupoid._arguments.integer_argument`).
     """
     instance_argument(G, Groupoid, "G", "a Groupoid", owner="check_axioms")
     samples = integer_argument(samples, "samples", minimum=1, owner=G.name)

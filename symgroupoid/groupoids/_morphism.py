@@ -26,6 +26,7 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from .._arguments import integer_argument
 from .._errors import (
     CallableError,
     MorphismError,
@@ -501,8 +502,11 @@ def check_morphism(phi: GroupoidMorphism, samples: int = 5, seed: int = 0,
     (Φa, Φb) composable, Φ(ab) = Φ(a)Φ(b), α′∘Φ = Φ₀∘α, β′∘Φ = Φ₀∘β, Φ∘ε = ε′∘Φ₀,
     Φ∘i = i′∘Φ, and TΦ(A_qG) ⊂ A_{Φ₀(q)}G′.  Free parameters get the values in ``params``
     or random ones.  Raises :class:`MorphismError` naming the identity, the arrows and the
-    parameter values.
+    parameter values.  ``samples`` (at least 1) and ``seed`` are counts
+    (:func:`~symgroupoid._arguments.integer_argument`).
     """
+    samples = integer_argument(samples, "samples", minimum=1, owner=phi.name)
+    seed = integer_argument(seed, "seed", owner=phi.name)
     G, H = phi.source, phi.target
     rng = np.random.default_rng(seed)
     values = ParameterValues(params, rng)

@@ -2,11 +2,16 @@
 
 from .._errors import CacheError
 from ._backends import NewtonOptions
+from ._batch import TrajectoryBatch
 from ._build import CompilationError, CompilerNotFoundError
 from ._cache import cache_root
 from ._compile import compile_step
+from ._pickle import DetachedStepError, NotPortableError
 from ._simulator import Simulator
+from ._sweep import ReduceError, SweepResult, sweep, sweep_boundary_value
 from ._trajectory import Trajectory
 
-__all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "NewtonOptions",
-           "Simulator", "Trajectory", "cache_root", "compile_step"]
+__all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "DetachedStepError",
+           "NewtonOptions", "NotPortableError", "ReduceError", "Simulator", "SweepResult",
+           "Trajectory", "TrajectoryBatch", "cache_root", "compile_step", "sweep",
+           "sweep_boundary_value"]

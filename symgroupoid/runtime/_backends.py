@@ -13,6 +13,7 @@ outside a buffer.
 
 from __future__ import annotations
 
+import ctypes
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -125,6 +126,35 @@ class RawRun:
         return len(self.iterations) if self.status == OK else self.failed_step
 
 
+@dataclass
+class BatchRun:
+    """What a kernel's ``simulate_batch`` returns: B runs of n steps, every e-th state kept.
+
+    Trajectory b has ``kept[b]`` valid rows ``states[b, :kept[b]]`` (state 0, every e-th
+    state, and the last state reached); ``iterations[b, r - 1]`` and
+    ``residual_norms[b, r - 1]`` summarise the steps between kept rows r − 1 and r (Newton
+    iterations summed, largest residual norm).  Rows past ``kept[b]`` hold no data (only a
+    failed run has them).  ``status[b]`` is the run's status; a failed run stopped at step
+    ``failed_step[b]``, whose own iterations, residual norm and last Newton iterate are
+    ``failed_iterations``, ``failed_residual_norms`` and ``last_iterate``.
+    """
+
+    states: np.ndarray  # (B, rows, n_known)
+    iterations: np.ndarray  # (B, rows - 1) int64
+    residual_norms: np.ndarray  # (B, rows - 1)
+    kept: np.ndarray  # (B,) int64
+    status: np.ndarray  # (B,) int
+    failed_step: np.ndarray  # (B,) int64, -1 when the run completed
+    failed_iterations: np.ndarray  # (B,) int64
+    failed_residual_norms: np.ndarray  # (B,)
+    last_iterate: np.ndarray  # (B, n_unknown)
+
+
+def batch_rows(steps: int, every: int) -> int:
+    """Rows kept of a complete run: state 0, every ``every``-th state and the last."""
+    return 1 + -(-steps // every)
+
+
 # --- checks at the C boundary ----------------------------------------------------------------
 
 def real_vector(value, length: int, name: str, *, owner: str = "",
@@ -151,10 +181,12 @@ def c_buffer(ffi, array: np.ndarray, length: int, name: str, ctype: str = "doubl
     """A cffi pointer to ``array`` after checking it is exactly what C will access.
 
     ``array`` must be a NumPy array of the dtype matching ``ctype`` (``double``: float64,
-    ``int``: the platform C int), C-contiguous and of exactly ``length`` elements; any
-    other buffer is a :class:`ShapeError` (the C side would read or write past it).
+    ``int``, ``long``, ``long long``: the platform C integers), C-contiguous and of exactly
+    ``length`` elements; any other buffer is a :class:`ShapeError` (the C side would read or
+    write past it).
     """
-    dtype = {"double": np.dtype(np.float64), "int": np.dtype(np.intc)}[ctype]
+    dtype = {"double": np.dtype(np.float64), "int": np.dtype(np.intc),
+             "long": np.dtype(ctypes.c_long), "long long": np.dtype(np.longlong)}[ctype]
     if not isinstance(array, np.ndarray):
         raise ShapeError(f"{name}: the C buffer must be a NumPy array, got "
                          f"{type(array).__name__}")
@@ -224,6 +256,72 @@ class _Kernel:
         return self._simulate(known0, p, n_steps, options,
                               self.warm_start() if warm is None else warm)
 
+    def simulate_batch(self, known0: np.ndarray, p: np.ndarray, n_steps: int, every: int,
+                       options: NewtonOptions, threads: int | None = None) -> BatchRun:
+        """B runs of ``n_steps`` steps from the rows of ``known0`` (B, n_known) with the
+        rows of ``p`` (B, n_params), or one parameter vector ``p`` (n_params,) for all;
+        every ``every``-th state kept (see :class:`BatchRun`).  Each run is computed
+        exactly as :meth:`simulate` computes it.  ``threads``: ignored here (one run after
+        the other); the compiled kernel shares runs among OpenMP threads."""
+        known0, p = self._batch_inputs(known0, p)
+        n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
+        every = integer_argument(every, "every", minimum=1, maximum=self.max_steps)
+        out = self._batch_buffers(len(known0), n_steps, every)
+        for b in range(len(known0)):
+            self._batch_one(known0[b], p[b] if p.ndim == 2 else p, n_steps, every, options,
+                            out, b)
+        return out
+
+    def _batch_inputs(self, known0, p) -> tuple[np.ndarray, np.ndarray]:
+        known0 = np.ascontiguousarray(known0, dtype=np.float64)
+        p = np.ascontiguousarray(p, dtype=np.float64)
+        if known0.ndim != 2 or known0.shape[1] != self.n_k:
+            raise ShapeError(f"known0 must have shape (B, {self.n_k}), got {known0.shape}")
+        if p.shape not in ((self.n_p,), (len(known0), self.n_p)):
+            raise ShapeError(f"p must have shape ({self.n_p},) or ({len(known0)}, "
+                             f"{self.n_p}), got {p.shape}")
+        return known0, p
+
+    def _batch_buffers(self, n_batch: int, n_steps: int, every: int) -> BatchRun:
+        rows = batch_rows(n_steps, every)
+        return BatchRun(
+            np.empty((n_batch, rows, self.n_k)), np.zeros((n_batch, rows - 1), np.int64),
+            np.zeros((n_batch, rows - 1)), np.zeros(n_batch, np.int64),
+            np.zeros(n_batch, np.intc), np.full(n_batch, -1, np.int64),
+            np.zeros(n_batch, np.int64), np.zeros(n_batch), np.zeros((n_batch, self.n_u)))
+
+    def _batch_one(self, known0, p, n_steps: int, every: int, options: NewtonOptions,
+                   out: BatchRun, b: int) -> None:
+        """Run b of :meth:`simulate_batch` through :func:`run_chunks` (the logic of
+        ``<prefix>_simulate_batch``)."""
+        out.states[b, 0] = known0
+        r, last_kept, carry_it, carry_norm = 1, 0, 0, 0.0
+        for start, run in run_chunks(self, known0, p, n_steps, options, 1 << 14):
+            if run.status == INVALID_ARGUMENT:
+                out.kept[b], out.status[b] = 0, run.status
+                return
+            for j in range(1, run.completed + 1):
+                k = start + j
+                carry_it += int(run.iterations[j - 1])
+                carry_norm = max(carry_norm, float(run.residual_norms[j - 1]))
+                if k % every == 0 or k == n_steps:
+                    out.states[b, r] = run.states[j]
+                    out.iterations[b, r - 1], out.residual_norms[b, r - 1] = carry_it, carry_norm
+                    r, last_kept, carry_it, carry_norm = r + 1, k, 0, 0.0
+            if run.status != OK:
+                s = start + run.failed_step
+                if s != last_kept:
+                    out.states[b, r] = run.states[run.failed_step]
+                    out.iterations[b, r - 1], out.residual_norms[b, r - 1] = carry_it, carry_norm
+                    r += 1
+                out.failed_step[b] = s
+                out.failed_iterations[b] = int(run.iterations[run.failed_step])
+                out.failed_residual_norms[b] = float(run.residual_norms[run.failed_step])
+                out.last_iterate[b] = run.last_iterate
+                out.kept[b], out.status[b] = r, run.status
+                return
+        out.kept[b], out.status[b] = r, OK
+
 
 class CKernel(_Kernel):
     """The compiled kernel of a step (a cffi extension module)."""
@@ -248,6 +346,60 @@ class CKernel(_Kernel):
             if compiled != n:
                 raise ShapeError(f"{prefix}: the compiled kernel has {compiled} {what.lower()}, "
                                  f"the step {n}")
+
+    @property
+    def openmp(self) -> bool:
+        """Whether the module was built with OpenMP (``simulate_batch`` uses threads)."""
+        return "-fopenmp" in getattr(self, "flags", ())
+
+    def simulate_batch(self, known0: np.ndarray, p: np.ndarray, n_steps: int, every: int,
+                       options: NewtonOptions, threads: int | None = None) -> BatchRun:
+        """:meth:`_Kernel.simulate_batch` in one call of ``<prefix>_simulate_batch``, the
+        runs shared among ``threads`` OpenMP threads (None: the OpenMP default, all cores)
+        when the module was built with ``-fopenmp``."""
+        fn = getattr(self.lib, f"{self.prefix}_simulate_batch", None)
+        if fn is None:  # a module built before the batched entry point existed
+            return super().simulate_batch(known0, p, n_steps, every, options, threads)
+        known0, p = self._batch_inputs(known0, p)
+        n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
+        every = integer_argument(every, "every", minimum=1, maximum=self.max_steps)
+        threads = 0 if threads is None else integer_argument(threads, "threads", minimum=1,
+                                                             maximum=C_INT_MAX)
+        B = len(known0)
+        out = self._batch_buffers(B, n_steps, every)
+        if B == 0:
+            return out
+        rows = out.states.shape[1]
+        kept = np.zeros(B, dtype=np.dtype(ctypes.c_long))
+        failed = np.zeros(B, dtype=np.dtype(ctypes.c_long))
+        failed_it = np.zeros(B, dtype=np.intc)
+        iterations = np.zeros((B, rows - 1), dtype=np.longlong)
+        status = fn(
+            B, self._buf(known0, B * self.n_k, "known0"),
+            self._buf(p, p.size, "p"), 0 if p.ndim == 1 else self.n_p, n_steps, every,
+            self._options(options),
+            self._buf(out.states,
+                      B * rows * self.n_k, "states"), rows,
+            self._buf(iterations if rows > 1 else np.zeros(1, np.longlong),
+                      max(B * (rows - 1), 1), "iterations", "long long"),
+            self._buf(out.residual_norms if rows > 1 else np.zeros(1),
+                      max(B * (rows - 1), 1), "residual_norms"),
+            self._buf(kept, B, "kept", "long"),
+            self._buf(out.status, B, "status", "int"),
+            self._buf(failed, B, "failed_step", "long"),
+            self._buf(failed_it, B, "failed_iterations",
+                      "int"),
+            self._buf(out.failed_residual_norms, B,
+                      "failed_residual_norm"),
+            self._buf(out.last_iterate, B * self.n_u,
+                      "last_iterate"), threads)
+        if status != OK:
+            raise ValueError(f"{self.prefix}_simulate_batch: {STATUS_MESSAGES[int(status)]}")
+        out.iterations[...] = iterations
+        out.kept[...] = kept
+        out.failed_step[...] = failed
+        out.failed_iterations[...] = failed_it
+        return out
 
     def _options(self, options: NewtonOptions):
         opts = self.ffi.new(f"{self.prefix}_options *")

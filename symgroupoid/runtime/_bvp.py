@@ -17,20 +17,20 @@ windows, without a compiler); the banded system is solved in time linear in N (L
 banded solver through SciPy when installed, a block-tridiagonal elimination in NumPy
 otherwise).
 
-The derivatives are exact but never expanded into expression trees: the window action is
-written as a straight-line program of elementary operations (one assignment per distinct
-subexpression), and the residual and its slot derivatives are obtained by forward-mode
-differentiation of that program along the section fields — the chain rule applied assignment
-by assignment.  The program grows linearly with the number of derivatives instead of the
-expression swell of differentiating the expanded residual twice.
+The derivatives are exact but never expanded into expression trees: the window's junction
+residual is built on the expression graph by the derivation's own junction variation
+(:func:`symgroupoid.derivation._window.junction_nodes`, the same code as a step's), and its slot
+derivatives by forward-mode differentiation along the section fields — one algorithmic
+differentiation in the library, for steps and windows alike.
 
 The solver never returns a non-solution.  Inputs are checked before anything is assembled
 (runtime/_validate.py, the path the simulator's inputs take too).  The default initial path
 follows geodesics (exp(s·log g) on a Lie group), so a half-turn between the ends is split into
 N small turns instead of meeting the cut locus of the Cayley chart.  Success means the residual
 criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or ``tol``), the
-floor computed alongside the residual from the size of the terms that cancel in it
-(:func:`_magnitudes`) and its sensitivity to the rounding of the coordinates.  Anything else —
+floor computed alongside the residual from its running-error bound
+(:func:`symgroupoid.ir.rounding_error`) and its sensitivity to the rounding of the
+coordinates.  Anything else —
 the iteration cap, a stalled update, a line search without decrease, a singular Jacobian, a
 half-turn in the initial path — raises an error carrying the iterations and the residual.
 """
@@ -55,9 +55,10 @@ from .._errors import (
     ShapeError,
     SingularJacobianError,
 )
-from .._symbols import multiplier_symbols
-from ..derivation._junction import slot
-from ..derivation._step import shifted, window
+from .._progress import note as progress_note
+from .._progress import reported
+from ..derivation._step import window
+from ..derivation._window import _fields, junction_nodes
 from ..groupoids import (
     SE3,
     SO3,
@@ -68,6 +69,7 @@ from ..groupoids import (
     ProductGroupoid,
     TimeGroupoid,
 )
+from ..ir import Graph, Program, forward, rounding_error
 from ._programs import compile_program
 from ._validate import arrow as checked_arrow
 from ._validate import (
@@ -79,183 +81,30 @@ from ._validate import (
 
 # --- symbolic window kernel --------------------------------------------------------------
 
-class _Program:
-    """A straight-line program: assignments ``t_j = e_j`` of elementary operations (a sum, a
-    product, a power or a function of earlier symbols and the inputs), one per distinct
-    subexpression, extended by forward-mode directional derivatives.
-
-    Subexpressions that are not plain arithmetic or functions of expressions (``Piecewise``,
-    …) stay whole; their derivatives are taken by SymPy and written as programs in turn.
-    """
-
-    def __init__(self):
-        self.assignments: list[tuple[sp.Symbol, sp.Expr, tuple]] = []
-        self._memo: dict = {}
-        self._names = sp.numbered_symbols("t", real=True)
-
-    def node(self, expr) -> sp.Expr:
-        """An atom standing for ``expr``, adding the assignments it needs."""
-        expr = sp.sympify(expr)
-        if expr.is_Atom:
-            return expr
-        hit = self._memo.get(expr)
-        if hit is not None:
-            return hit
-        if _elementary(expr):
-            e = expr.func(*[self.node(a) for a in expr.args])
-            if e.is_Atom:
-                return e
-            deps = tuple(a for a in e.args if a.is_Symbol)
-        else:
-            e, deps = expr, tuple(expr.free_symbols)
-        hit = self._memo.get(e)
-        if hit is None:
-            hit = next(self._names)
-            self.assignments.append((hit, e, deps))
-            self._memo[e] = hit
-        self._memo[expr] = hit
-        return hit
-
-    def tangent(self, targets: Sequence, seed: dict, upto: int | None = None) -> list:
-        """d/dt of the atoms ``targets`` along the input tangent ``seed`` (symbol → value),
-        through the first ``upto`` assignments; new assignments are appended."""
-        tan = {x: self.node(v) for x, v in seed.items() if v != 0}
-        for s, e, deps in self.assignments[:upto]:
-            if not any(x in tan for x in deps):
-                continue
-            d = _chain_rule(e, deps, tan)
-            if d != 0:
-                tan[s] = self.node(d)
-        return [tan.get(t, sp.S.Zero) for t in targets]
-
-    def needed(self, outputs: Sequence) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list]:
-        """The assignments the outputs depend on, in order, with their targets renamed so
-        that a name is reused once its value is dead (evaluated on arrays of windows, this
-        keeps the live temporaries few instead of one per assignment); and the outputs in
-        the new names."""
-        outputs = [sp.sympify(o) for o in outputs]
-        need: set = set()
-        for o in outputs:
-            need |= o.free_symbols
-        keep = []
-        for s, e, _ in reversed(self.assignments):
-            if s in need:
-                keep.append((s, e))
-                need |= e.free_symbols
-        keep.reverse()
-        last: dict = {}
-        for i, (_, e) in enumerate(keep):
-            for x in e.free_symbols:
-                last[x] = i
-        for o in outputs:
-            for x in o.free_symbols:
-                last[x] = len(keep)
-        names = sp.numbered_symbols("r", real=True)
-        free: list = []
-        rename: dict = {}
-        out = []
-        for i, (s, e) in enumerate(keep):
-            renamed = e.xreplace(rename)
-            free += [rename[x] for x in e.free_symbols if x in rename and last[x] == i]
-            rename[s] = free.pop() if free else next(names)
-            out.append((rename[s], renamed))
-        return out, [o.xreplace(rename) for o in outputs]
-
-
-def _elementary(expr) -> bool:
-    return ((expr.is_Add or expr.is_Mul or expr.is_Pow or isinstance(expr, sp.Function))
-            and all(isinstance(a, sp.Expr) for a in expr.args)
-            and not isinstance(expr, sp.Piecewise))
-
-
-def _chain_rule(e, deps, tan) -> sp.Expr:
-    """Directional derivative of one assignment from the tangents of its dependencies."""
-    if e.is_Add:
-        return sp.Add(*[tan[a] for a in e.args if a in tan])
-    if e.is_Mul:
-        args = e.args
-        return sp.Add(*[sp.Mul(tan[a], *args[:i], *args[i + 1:])
-                        for i, a in enumerate(args) if a in tan])
-    if e.is_Pow:
-        b, n = e.args
-        out = n * b ** (n - 1) * tan[b] if b in tan else sp.S.Zero
-        return out + (sp.log(b) * e * tan[n] if n in tan else 0)
-    return sp.Add(*[sp.diff(e, x) * tan[x] for x in deps if x in tan])
-
-
-def _vectorised(args, outputs, program: _Program, label: str):
-    """Evaluate the program's outputs for W windows: (W, n_args) → (W, n_outputs).
+def _vectorised(label: str, program: Program, inputs: str, outputs: str):
+    """Evaluate ``program``'s output for W windows: (W, n_in) → (W, n_out).
 
     Compiled to C through the kernel cache when a compiler is available (the same build path
-    as the step kernels); NumPy (lambdify, vectorised over windows) otherwise."""
-    assignments, outs = program.needed(outputs)
-    compiled = compile_program(label, args, assignments, outs)
+    as the step kernels); the program's NumPy form (vectorised over windows) otherwise."""
+    compiled = compile_program(label, program, inputs, outputs)
     if compiled is not None:
         def call_c(values: np.ndarray) -> np.ndarray:
             with np.errstate(all="ignore"):
                 return compiled(values)
 
         return call_c
-    f = sp.lambdify(args, outputs, "numpy", cse=program.needed)
+    f = program.numpy_function([outputs], [inputs])
 
     def call(values: np.ndarray) -> np.ndarray:
-        with np.errstate(all="ignore"):  # non-finite values are detected by the caller
-            out = f(*values.T)
-        return np.array([np.broadcast_to(np.asarray(o, float), (len(values),))
-                         for o in out]).T
+        return f(np.asarray(values, float).T)[0].T
 
     return call
 
 
-def _magnitudes(program: _Program, outputs: Sequence) -> list:
-    """Atoms for the size M(o) of the terms that cancel in each output of ``program``.
-
-    Running through the assignments the outputs depend on: M of an input is |x|; of a sum,
-    the sum of its terms' M; of a product, the product; of b^n (n a positive integer),
-    M(b)^n; of another power or a function f(u), |f(u)| + |f′(u)|·M(u) (the rounding of the
-    argument carried through); of anything else, its absolute value.  Rounding each
-    operation once perturbs an output by about ε·M(o) (the running error bound of a
-    straight-line program), so ε·M(o) is the level below which |o| is rounding noise.
-    New assignments are appended to ``program``.
-    """
-    outputs = [sp.sympify(o) for o in outputs]
-    need: set = set()
-    for o in outputs:
-        need |= o.free_symbols
-    order = []
-    for s, e, _ in reversed(program.assignments):
-        if s in need:
-            order.append((s, e))
-            need |= e.free_symbols
-    size: dict = {}
-
-    def of(x):
-        if x in size:
-            return size[x]
-        return abs(x) if x.is_Number else sp.Abs(x)
-
-    for s, e in reversed(order):
-        args = e.args
-        if not all(a.is_Atom for a in args) or isinstance(e, sp.Piecewise):
-            m = sp.Abs(s)
-        elif e.is_Add or e.is_Mul:
-            m = e.func(*[of(a) for a in args])
-        elif e.is_Pow and e.exp.is_Integer and e.exp > 0:
-            m = of(e.base) ** e.exp
-        elif e.is_Pow:
-            m = sp.Abs(s) + sp.Abs(e.exp * e.base ** (e.exp - 1)) * of(e.base)
-        elif isinstance(e, sp.Function) and len(args) == 1:
-            u = sp.Dummy("u", real=True)
-            slope = sp.diff(e.func(u), u).xreplace({u: args[0]})
-            m = sp.Abs(s) + sp.Abs(slope) * of(args[0])
-        else:
-            m = sp.Abs(s)
-        size[s] = program.node(m)
-    return [of(o) if o.is_Atom else program.node(sp.Abs(o)) for o in outputs]
-
-
-def _seed(coords: Sequence, field: Sequence, sign: int = 1) -> dict:
-    return {c: sign * v for c, v in zip(coords, field) if v != 0}
+def _slot_derivatives(g: Graph, values: list, coords: list, fields: list, order) -> list:
+    """d/dt values along each field (a tangent vector on ``coords``), forward mode."""
+    return [forward(g, values, {c: v for c, v in zip(coords, field) if v != g.zero}, order)
+            for field in fields]
 
 
 class WindowKernel:
@@ -265,8 +114,8 @@ class WindowKernel:
     ``left[o]`` = X⃖_b[r_i] on slot o and ``right[o]`` = X⃗_b[r_i] on slot o (rank × rank),
     and ``dlam[s]`` = ∂r/∂λ_s; likewise for the constraints of the term starting at 0.
 
-    The window action S = Σ_s [L + λ_s·Φ](terms starting at s) (seed 001 eq. (17)) becomes a
-    :class:`_Program`; the junction residual r_b = X⃖_b[S](g_j) − X⃗_b[S](g_{j+1}) is its
+    The window action S = Σ_s [L + λ_s·Φ](terms starting at s) (seed 001 eq. (17)) is built on
+    the expression graph; the junction residual r_b = X⃖_b[S](g_j) − X⃗_b[S](g_{j+1}) is its
     derivative along the left field of section b on slot 0 and minus the right field on slot
     1 (the junction variation, docs/conventions.md §2), and each block a derivative of r along one
     section field on one slot.
@@ -279,63 +128,59 @@ class WindowKernel:
         self.offsets, self.starts = window(self.arity)
         self.parameters = list(system.parameters)
         r, m, arity = self.rank, self.m, self.arity
-        A = {o: slot(G, f"v{o + 2}_") for o in self.offsets}
-        lam = {s: multiplier_symbols(m, s) for s in self.starts}
-        S = sum((shifted(fs, [A[s + i] for i in range(arity)], lam[s]) for s in self.starts),
-                sp.S.Zero)
-        constraints = shifted(fs, [A[i] for i in range(arity)], [1] * m, lagrangian=False,
-                              separate=True)
-        # plain identifiers for every input, so the generated code needs no renaming
-        inputs = ([c for o in self.offsets for c in A[o]]
-                  + [x for s in self.starts for x in lam[s]] + self.parameters)
-        plain = {x: sp.Symbol(f"a{i}", real=True) for i, x in enumerate(inputs)}
-        A = {o: tuple(plain[c] for c in A[o]) for o in self.offsets}
-        lam = {s: [plain[x] for x in lam[s]] for s in self.starts}
-        params = [plain[x] for x in self.parameters]
-        fields = {o: (G.left_field(A[o]), G.right_field(A[o])) for o in self.offsets}
-
-        P = _Program()
-        action = P.node(S.xreplace(plain))
-        res = [P.tangent([action], {**_seed(A[0], fields[0][0][b]),
-                                    **_seed(A[1], fields[1][1][b], -1)})[0] for b in range(r)]
-        base = len(P.assignments)
+        g = Graph()
+        # plain, position-named inputs: the generated code depends on nothing else
+        A = {o: [sp.Symbol(f"a{o + 2}_{i}", real=True) for i in range(G.arrow_dim)]
+             for o in self.offsets}
+        lam = {s: [sp.Symbol(f"l{s + 2}_{a}", real=True) for a in range(m)]
+               for s in self.starts}
+        nodes = {x: g.input(x) for o in self.offsets for x in A[o]}
+        nodes.update({x: g.input(x) for s in self.starts for x in lam[s]})
+        pnodes = {p: g.input(p) for p in self.parameters}
+        arrows = {o: [nodes[x] for x in A[o]] for o in self.offsets}
+        jn = junction_nodes(g, G, fs, pnodes, arrows,
+                            {s: [nodes[x] for x in lam[s]] for s in self.starts})
+        fields = {o: (_fields(g, G, "left", arrows[o], pnodes),
+                      _fields(g, G, "right", arrows[o], pnodes)) for o in self.offsets}
+        res = jn.residuals
+        order = g.reachable(res)
         blocks = list(res)
         for o in self.offsets:
-            d = {(side, c): P.tangent(res, _seed(A[o], fields[o][side][c]), base)
-                 for side in (0, 1) for c in range(r)}
+            d = [_slot_derivatives(g, res, arrows[o], fields[o][side], order)
+                 for side in (0, 1)]
             for b in range(r):
-                blocks += [d[side, c][b] for side in (0, 1) for c in range(r)]
+                blocks += [d[side][c][b] for side in (0, 1) for c in range(r)]
         for s in self.starts:
-            d = [P.tangent(res, {x: 1}, base) for x in lam[s]]
+            d = [forward(g, res, {nodes[x]: g.one}, order) for x in lam[s]]
             blocks += [d[a][b] for b in range(r) for a in range(m)]
-        blocks += _magnitudes(P, res)  # the size of the terms that cancel in each r_b
-        coords = [c for o in self.offsets for c in A[o]]
+        blocks += rounding_error(g, res)  # the rounding bound of each junction residual
+        coords = [x for o in self.offsets for x in A[o]]
         lams = [x for s in self.starts for x in lam[s]]
-        self._junction = _vectorised(coords + lams + params, blocks, P,
-                                     f"{system.name}_junction")
+        program = Program(g, {"a": coords + lams + self.parameters}, {"junction": blocks})
+        self._junction = _vectorised(f"{system.name}_junction", program, "a", "junction")
 
         self._term = None
         if m:
-            Q = _Program()
-            values = [Q.node(c.xreplace(plain)) for c in constraints]
-            base = len(Q.assignments)
+            values = jn.constraints[0]
+            corder = g.reachable(values)
             cblocks = list(values)
             for o in range(arity):
-                d = {(side, c): Q.tangent(values, _seed(A[o], fields[o][side][c]), base)
-                     for side in (0, 1) for c in range(r)}
+                d = [_slot_derivatives(g, values, arrows[o], fields[o][side], corder)
+                     for side in (0, 1)]
                 for e in range(m):
-                    cblocks += [d[side, c][e] for side in (0, 1) for c in range(r)]
-            cblocks += _magnitudes(Q, values)
+                    cblocks += [d[side][c][e] for side in (0, 1) for c in range(r)]
+            cblocks += rounding_error(g, values)
             ccoords = [x for o in range(arity) for x in A[o]]
-            self._term = _vectorised(ccoords + params, cblocks, Q, f"{system.name}_term")
+            program = Program(g, {"a": ccoords + self.parameters}, {"term": cblocks})
+            self._term = _vectorised(f"{system.name}_term", program, "a", "term")
 
     def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
         """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
         return self.junction_terms(windows, lams, params)[:4]
 
     def junction_terms(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
-        """:meth:`junction`'s blocks and the size of the terms that cancel in each residual
-        (W, rank) (:func:`_magnitudes`)."""
+        """:meth:`junction`'s blocks and the rounding bound E of each residual (W, rank): its
+        rounding error is at most about ε·E (:func:`symgroupoid.ir.rounding_error`)."""
         W = len(windows)
         vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1),
                           np.broadcast_to(params, (W, len(params)))])
@@ -359,8 +204,8 @@ class WindowKernel:
         return self.term_terms(windows, params)[:3]
 
     def term_terms(self, windows: np.ndarray, params: np.ndarray):
-        """:meth:`term`'s values and blocks and the size of the terms that cancel in each
-        constraint value (T, m) (:func:`_magnitudes`)."""
+        """:meth:`term`'s values and blocks and the rounding bound of each constraint value
+        (T, m)."""
         T, m, r = len(windows), self.m, self.rank
         vals = np.hstack([windows.reshape(T, -1), np.broadcast_to(params, (T, len(params)))])
         out = self._term(vals)
@@ -922,6 +767,8 @@ def _excess(F: np.ndarray, floor: np.ndarray, tol: float) -> float:
 
 # --- Newton's method ---------------------------------------------------------------------------
 
+@reported(lambda step_equations, *args, **kwargs:
+          f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
                          tol: float = 1e-10, tol_step: float = 1e-9,
                          max_iterations: int = 30) -> BoundaryValueSolution:
@@ -950,6 +797,9 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     iterations and the residual history) when the iteration cap is reached, Newton stalls or
     the line search finds no decrease; :class:`SingularJacobianError` for a singular
     Jacobian; :class:`CutLocusError` when an arrow of the initial path is a half-turn.
+
+    ``progress`` (keyword): report a solve taking longer than 2 s, with |F|∞ per iteration
+    (see :mod:`symgroupoid._progress`).
     """
     system = getattr(step_equations, "system", step_equations)
     owner = system.name
@@ -983,6 +833,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     while True:
         norm = float(np.max(np.abs(state.F), initial=0.0))
         history.append(norm)
+        progress_note(f"iteration {it}, |F|∞ = {norm:.2e}")
         excess = _excess(state.F, _rounding_floor(maps, lay, arrows, lam, state), tol)
         if excess <= 1.0:
             break

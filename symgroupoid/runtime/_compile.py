@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import functools
 import os
 import shutil
+import subprocess
+import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -19,24 +23,27 @@ from .._arguments import (
     sequence_argument,
 )
 from .._errors import CacheError, InputTypeError
+from .._progress import reported
 from ..codegen import generate_c, templates_digest
 from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
-    DEFAULT_FLAGS,
     NUMPY_HINT,
     CompilerNotFoundError,
     build_extension,
     compile_args,
+    compiler_command,
     find_compiler,
     load_extension,
     module_name,
+    optimisation_flags,
 )
 from ._cache import (
     MANIFEST,
     KernelCache,
     abi_tag,
     file_sha256,
+    read_json,
     sha256_of,
     write_json_atomic,
 )
@@ -60,6 +67,110 @@ def codegen_digest() -> str:
     package = Path(__file__).resolve().parents[1]
     files = sorted([*(package / "codegen").glob("*.py"), *(package / "ir").glob("*.py")])
     return sha256_of([__version__, templates_digest(), *(f.read_bytes() for f in files)])
+
+
+#: the flag that compiles (and links) a kernel's batched entry point with OpenMP threads
+OPENMP_FLAG = "-fopenmp"
+
+_OPENMP_PROBE = """#include <omp.h>
+int symgroupoid_openmp_probe(void)
+{
+    int n = 0;
+#pragma omp parallel reduction(+ : n)
+    n += 1;
+    return n > 0 ? omp_get_max_threads() : 0;
+}
+"""
+
+
+@functools.cache
+def _openmp_probe(command: tuple[str, ...]) -> bool:
+    """Whether ``command -fopenmp`` builds a shared object that loads (OpenMP runtime found)."""
+    with tempfile.TemporaryDirectory(prefix="symgroupoid-openmp-") as tmp:
+        source, library = Path(tmp) / "probe.c", Path(tmp) / "probe.so"
+        source.write_text(_OPENMP_PROBE, encoding="ascii")
+        try:
+            result = subprocess.run(
+                [*command, OPENMP_FLAG, "-shared", "-fPIC", str(source), "-o", str(library)],
+                stdin=subprocess.DEVNULL, capture_output=True, timeout=120)
+            if result.returncode != 0 or not library.is_file():
+                return False
+            return ctypes.CDLL(str(library)).symgroupoid_openmp_probe() > 0
+        except (OSError, subprocess.SubprocessError):
+            return False
+
+
+_OPENMP: dict[str, bool] = {}
+
+
+def _compiler_identity() -> tuple[tuple[str, ...], str] | None:
+    """(compiler command, a key naming that compiler binary as installed), or None."""
+    try:
+        command = tuple(compiler_command())
+        path = Path(find_compiler())
+        stat = path.stat()
+    except (CompilerNotFoundError, OSError):
+        return None
+    key = sha256_of([*command, str(path.resolve()), str(stat.st_mtime_ns), str(stat.st_size),
+                     abi_tag()])[:32]
+    return command, key
+
+
+def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
+    """Whether kernels are built with OpenMP: the C compiler accepts ``-fopenmp`` and its
+    runtime loads.  Probed once per compiler: the answer is kept in this process and in the
+    cache (``probes/openmp-<compiler key>.json``, when the cache is writable), so a
+    warm start compiles nothing.  ``SYMGROUPOID_OPENMP=0`` turns OpenMP off."""
+    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
+        return False
+    identity = _compiler_identity()
+    if identity is None:
+        return False
+    command, key = identity
+    if key in _OPENMP:
+        return _OPENMP[key]
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    name = f"openmp-{key}.json"
+    for root in cache.read_roots():
+        data = read_json(root / "probes" / name)
+        if data is not None and isinstance(data.get("openmp"), bool):
+            _OPENMP[key] = data["openmp"]
+            return data["openmp"]
+    result = _openmp_probe(command)
+    _OPENMP[key] = result
+    probes = cache.root / "probes"
+    with contextlib.suppress(OSError):  # an unwritable cache: probe again next time
+        probes.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
+    return result
+
+
+def default_flags(cache_dir: str | os.PathLike | None = None,
+                  operations: int = 0) -> tuple[str, ...]:
+    """The compiler flags of a kernel of ``operations`` operations built without explicit
+    ``flags``: :func:`optimisation_flags` (``DEFAULT_FLAGS``, at -O2 for large programs), and
+    ``-fopenmp`` when :func:`openmp_available` (the batched entry point
+    ``<prefix>_simulate_batch`` then shares trajectories among threads; nothing else in the
+    kernel changes).  Flags are part of the cache key, so both builds can be cached side by
+    side."""
+    flags = optimisation_flags(operations)
+    if openmp_available(cache_dir):
+        return (*flags, OPENMP_FLAG)
+    return tuple(flags)
+
+
+def _step_flags(step, cache_dir) -> tuple[str, ...]:
+    """:func:`default_flags`; without a compiler, the default build of ``step`` that is in
+    the cache (with OpenMP or without), which needs no compiler to load."""
+    base = optimisation_flags(step.program.size())
+    if _compiler_identity() is not None:
+        return default_flags(cache_dir, step.program.size())
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    for flags in ((*base, OPENMP_FLAG), tuple(base)):
+        source_key = cache.lookup(input_key(step, flags))
+        if source_key and cache.verified_manifest(source_key) is not None:
+            return flags
+    return tuple(base)
 
 
 def _atom_token(node, symbols: dict) -> str:
@@ -213,7 +324,7 @@ def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
     return source_key, manifest
 
 
-def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
+def load_c_kernel(step, flags: Sequence[str] | None = None,
                   cache_dir: str | os.PathLike | None = None) -> tuple[CKernel, Path]:
     """The compiled kernel of ``step`` from the cache, building it on a miss.
 
@@ -221,7 +332,7 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
     :class:`CompilationError` when the compiler fails (the cache is left unchanged),
     :class:`CacheError` when the cache cannot serve the kernel (see :mod:`._cache`).
     """
-    flags = tuple(flags)
+    flags = tuple(_step_flags(step, cache_dir) if flags is None else flags)
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     key = input_key(step, flags)
     source_key = cache.lookup(key)
@@ -240,15 +351,18 @@ def load_c_kernel(step, flags: Sequence[str] = DEFAULT_FLAGS,
             raise _unloadable(again, cache.entry(source_key)) from error
         _LOADED[source_key] = module
     entry = cache.entry(source_key)
-    return CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns)), entry
+    kernel = CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns))
+    kernel.source_key, kernel.flags = source_key, flags
+    return kernel, entry
 
 
-def compiler_flags(flags, owner: str = "") -> tuple[str, ...]:
-    """``flags`` as a tuple of compiler arguments: None (``DEFAULT_FLAGS``) or a list of
-    strings without NUL characters.  A single string is refused: it would be taken letter
-    by letter (``"-O2"`` as ``"-"``, ``"O"``, ``"2"``); pass ``["-O2"]``."""
+def compiler_flags(flags, owner: str = "") -> tuple[str, ...] | None:
+    """``flags`` as a tuple of compiler arguments, or None (the step's
+    :func:`default_flags`, chosen when it is built): a list of strings without NUL
+    characters.  A single string is refused: it would be taken letter by letter (``"-O2"``
+    as ``"-"``, ``"O"``, ``"2"``); pass ``["-O2"]``."""
     if flags is None:
-        return DEFAULT_FLAGS
+        return None
     if isinstance(flags, str):
         raise InputTypeError(f"{owner}: flags must be a list of compiler arguments, got the "
                              f"string {flags!r}; pass [{flags!r}]")
@@ -256,6 +370,37 @@ def compiler_flags(flags, owner: str = "") -> tuple[str, ...]:
     return tuple(name_argument(f, f"flags[{i}]", owner=owner) for i, f in enumerate(items))
 
 
+def kernel_source_of(kernel: CKernel, step) -> KernelSource:
+    """The generated C of a loaded kernel: from this process's builds, else generated again
+    from ``step`` (checked to hash to the kernel's source key)."""
+    recipe = _RECIPES.get(kernel.source_key)
+    if recipe is not None:
+        return recipe[0]
+    source = generate_c(step)
+    STATS["codegen"] += 1
+    if source_key_of(source, kernel.flags) != kernel.source_key:
+        raise CacheError(f"{step.name}: the kernel in the cache ({kernel.source_key}) is not "
+                         f"the C this step generates now; compile the step again")
+    _RECIPES[kernel.source_key] = (source, tuple(kernel.flags), step.name)
+    return source
+
+
+def load_kernel_source(kernel: KernelSource, flags: Sequence[str], label: str,
+                       n_unknowns: int, n_knowns: int,
+                       cache_dir: str | os.PathLike | None = None) -> tuple[CKernel, Path]:
+    """The compiled kernel of generated C ``kernel``: loaded from the cache by its source
+    key (a hash of the C, the flags and the ABI), built there on a miss (see
+    :func:`build_cached`).  What a process that never saw the step needs to run it."""
+    flags = tuple(flags)
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    source_key, manifest = build_cached(kernel, flags, cache, label)
+    module = load_cached(source_key, manifest, cache)
+    loaded = CKernel(module, manifest["prefix"], n_unknowns, n_knowns)
+    loaded.source_key, loaded.flags = source_key, flags
+    return loaded, cache.entry(source_key)
+
+
+@reported(lambda step, **options: f"{step.name}: building the kernel")
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
                  cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
                  tol_step: float | None = None, max_iterations: int | None = None,
@@ -267,13 +412,18 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
         or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
         ``"auto"``.
-    flags : extra compiler flags, a list of strings (default ``DEFAULT_FLAGS``); part of the
-        cache key.  Builds carry no debug information unless ``flags`` ask for it (``-g``).
+    flags : compiler flags, a list of strings (default :func:`default_flags`:
+        ``DEFAULT_FLAGS``, at -O2 above ``LARGE_PROGRAM`` operations, which compile faster
+        and run as fast, plus ``-fopenmp`` when the compiler supports it); part of the cache
+        key.  Builds carry no debug information unless ``flags`` ask for it (``-g``).
     cache_dir : cache root, a path (default ``$SYMGROUPOID_CACHE``,
-        ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
-        private temporary directory for this process (with a ``RuntimeWarning``).
+        ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``).  If it cannot be
+        written, kernels are built in a private temporary directory for this process (with
+        a ``RuntimeWarning``).
     tol_residual, tol_step, max_iterations, floor_factor : Newton options (see
         :class:`NewtonOptions`).
+    progress : report code generation and compilation taking longer than 2 s (see
+        :mod:`symgroupoid._progress`; a cached kernel loads in milliseconds).
 
     Every argument is checked before anything is built, whichever backend is used
     (:class:`~symgroupoid.DomainError` for a backend that is not one of ``BACKENDS``,
@@ -298,7 +448,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
     try:
-        kernel, entry = load_c_kernel(step, flags, cache_dir)
+        chosen = _step_flags(step, cache_dir) if flags is None else flags
+        kernel, entry = load_c_kernel(step, chosen, cache_dir)
     except CompilerNotFoundError as exc:
         if backend == "c":
             raise

@@ -111,6 +111,7 @@ class StateLayout:
 
     def __init__(self, step):
         self.step_name = step.name
+        self.equations = step  # the StepEquations (diagnostics evaluate its system's L, φ)
         self.groupoid = step.groupoid
         self.n_known = len(step.knowns)
         self.n_multipliers = step.n_constraints

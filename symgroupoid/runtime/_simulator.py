@@ -16,6 +16,7 @@ from .._errors import (
     SingularJacobianError,
     TrajectoryTooLargeError,
 )
+from .._progress import Task
 from ._backends import (
     INVALID_ARGUMENT,
     NON_FINITE,
@@ -44,10 +45,11 @@ class Simulator:
     Obtain one with ``step.compile()`` (or :func:`compile_step`).  Initial states are given
     by name (see :meth:`state`), parameters by name or in ``step.parameters`` order.
 
-    >>> sim = step.compile()                                             # doctest: +SKIP
-    >>> traj = sim.simulate({"x": (0.0, 0.01), "y": (0.0, 0.0), "g": W1,
-    ...                      "lambda": [0, 0, 0]}, steps=1000,
-    ...                     params={"h": 0.01, "r": 0.1, "Omega": 1.0, "c": 0.0})
+    >>> sim = sg.systems.plate_ball().euler_lagrange().compile()         # doctest: +SKIP
+    >>> params = {"h": 0.01, "r": 0.1, "Omega": 1.0, "c": 0.0}
+    >>> state = sim.project_initial({"x": (0.0, 0.01), "y": (0.0, 0.0), "g": np.eye(3),
+    ...                              "lambda": [0, 0, 0]}, params)     # onto φ = 0
+    >>> traj = sim.simulate(state, steps=1000, params=params)            # doctest: +SKIP
     >>> traj["x"], traj["g"], traj.multipliers                          # doctest: +SKIP
     """
 
@@ -118,8 +120,8 @@ class Simulator:
 
     # --- running --------------------------------------------------------------------------------
     def simulate(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
-                 every: int = 1, callback: Callable[[Trajectory], None] | None = None
-                 ) -> Trajectory:
+                 every: int = 1, callback: Callable[[Trajectory], None] | None = None,
+                 progress: bool | None = None) -> Trajectory:
         """Advance ``steps`` steps from ``initial`` (see :meth:`state`).
 
         The run is computed in chunks of at most ``CHUNK_STEPS`` steps (bitwise the states
@@ -138,7 +140,8 @@ class Simulator:
         (integral floats such as ``1e7`` are accepted); ``options`` is None (the
         simulator's options) or a :class:`NewtonOptions`; ``callback`` None or a function;
         a :class:`TrajectoryTooLargeError` is raised up front when the states to keep
-        exceed the machine's memory.
+        exceed the machine's memory.  ``progress``: report a run taking longer than 2 s,
+        updated between chunks (see :mod:`symgroupoid._progress`).
         """
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
@@ -159,8 +162,10 @@ class Simulator:
             return self._trajectory(states[:filled], iterations[:filled - 1],
                                     norms[:filled - 1], p, indices[:filled], every)
 
+        task = Task(f"{self.name}: simulating", total=steps, unit="steps",
+                    progress=progress).start()
         try:
-            for piece in self._pieces(known0, p, steps, every, options):
+            for piece in self._pieces(known0, p, steps, every, options, task):
                 r = len(piece.states) - 1
                 states[filled:filled + r] = piece.states[1:]
                 indices[filled:filled + r] = piece.step_indices[1:]
@@ -183,7 +188,42 @@ class Simulator:
         except KeyboardInterrupt as interrupt:
             interrupt.trajectory = so_far()
             raise
+        finally:
+            task.close(failed=filled < rows)
         return so_far()
+
+    def simulate_batch(self, states, steps: int, params, *, every: int = 1,
+                       options: NewtonOptions | None = None, threads: int | None = None):
+        """Advance B runs at once: one run from each row of ``states``.
+
+        ``states``: a table of initial states (a 2-D array (B, n_known) of flat states, or a
+        sequence of states as :meth:`state` takes them); ``params``: one parameter set for
+        all runs, or a table of B sets (a sequence of sets, a 2-D array (B, n_params) in
+        ``step.parameters`` order, a mapping name → column of B values, or a pandas
+        DataFrame).  Every row is checked as :meth:`simulate` checks its inputs (vectorised;
+        an error names the row).  ``every`` keeps state 0, every e-th state and the last, as
+        in :meth:`simulate`.
+
+        The compiled kernel advances all runs in one call of ``<prefix>_simulate_batch``,
+        each run by the same code as :meth:`simulate` (bitwise the same states, iterations
+        and residual norms), shared among ``threads`` OpenMP threads (None: all cores) when
+        the kernel was built with OpenMP.  A run that fails stops alone: its status, failing
+        step and the error :meth:`simulate` would raise are recorded, the others go on.
+        Returns a :class:`~symgroupoid.runtime._batch.TrajectoryBatch` (``batch[b]`` is run b
+        as a :class:`Trajectory`).
+        """
+        from ._batch import simulate_batch
+
+        return simulate_batch(self, states, steps, params, every=every, options=options,
+                              threads=threads)
+
+    def __reduce__(self):
+        """Pickled as its generated C, flags and content hash, options and the names and
+        layout of its step (plain data; see :mod:`symgroupoid.runtime._pickle`).  In another
+        process the kernel is built into, or loaded from, that process's kernel cache."""
+        from ._pickle import recipe_of, restore_simulator
+
+        return restore_simulator, (recipe_of(self),)
 
     def stream(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
                every: int = 1) -> Iterator[Trajectory]:
@@ -204,11 +244,13 @@ class Simulator:
         return self._pieces(self.state(initial, p), p, steps, every, options)
 
     def _pieces(self, known0: np.ndarray, p: np.ndarray, steps: int, every: int,
-                options: NewtonOptions) -> Iterator[Trajectory]:
+                options: NewtonOptions, task: Task | None = None) -> Iterator[Trajectory]:
         sampler = Sampler(every, steps, known0)
         for start, run in run_chunks(self.kernel, known0, p, steps, options, CHUNK_STEPS):
             before_index, before_state = sampler.last_index, sampler.last_state
             segment = sampler.take(start, run)
+            if task is not None:
+                task.update(start + run.completed)
             piece = self._trajectory(
                 np.concatenate([before_state[None], segment.states]), segment.iterations,
                 segment.residual_norms, p,
@@ -289,6 +331,30 @@ class Simulator:
         p = self.parameters(params)
         state = self._momentum.solve(configuration, momentum, p)
         return self.state(state, p)
+
+    def project_initial(self, initial, params, *, max_iterations: int = 50) -> np.ndarray:
+        """A consistent initial state from one that violates the constraints.
+
+        ``initial`` is given as for :meth:`state` (named parts or a flat vector); the
+        multipliers may be left out (then λ_k = 0).  The known arrow g_k is moved within the
+        α-fibre of its source to a nearby zero of φ: Gauss–Newton with minimum-norm steps in
+        the fibre chart, x ← x − J⁺φ, with the exact constraint Jacobian J from the
+        expression graph (to first order the orthogonal projection in the chart).  On a
+        pair groupoid, (q₀, q₁) keeps q₀ and corrects q₁.  λ_k is kept as given.
+
+        Returns the flat state, checked like any initial state (:meth:`state` with
+        ``params``).  First-order steps only; a :class:`~symgroupoid.runtime._projection.
+        ProjectionError` (a :class:`DomainError`) when no zero of φ is found nearby.
+        """
+        from ._projection import projection
+
+        p = self.parameters(params)
+        if (isinstance(initial, Mapping) and self.layout.n_multipliers
+                and not any(k in initial for k in ("lambda", "λ", "multipliers"))):
+            initial = {**initial, "lambda": np.zeros(self.layout.n_multipliers)}
+        state = self.state(initial)
+        moved = projection(self.equations, self.layout)(state, p, max_iterations)
+        return self.state(moved, p)
 
     def _failure(self, status: int, step: int, iterations: int, residual_norm: float,
                  iterate: np.ndarray) -> Exception:

@@ -7,6 +7,8 @@ data of the steps in between, so memory grows with the states kept, not the step
 
 from __future__ import annotations
 
+import html
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,6 +38,11 @@ class Trajectory:
       largest final |F|_∞ of its steps (with e = 1: those of each step);
     - ``traj.steps``: the number of steps N covered; ``traj.every``: e;
     - ``traj.parameters``: the parameter values used, by name.
+
+    Named views are computed on first access and cached (read-only arrays).  Diagnostics
+    (:mod:`symgroupoid.diagnostics`): ``traj.energy()``, ``traj.momenta()``,
+    ``traj.constraint_residuals()``, ``traj.conservation_summary()``; figures:
+    ``traj.plot()`` and :func:`symgroupoid.plot_conservation`.
     """
 
     def __init__(self, layout: StateLayout, states: np.ndarray, iterations: np.ndarray,
@@ -58,6 +65,7 @@ class Trajectory:
         self.every = int(every)
         for arr in (self.states, self.step_indices, iterations, residual_norms):
             arr.setflags(write=False)
+        self._views: dict = {}  # named views, computed on first access (states are read-only)
 
     @property
     def steps(self) -> int:
@@ -69,15 +77,25 @@ class Trajectory:
 
     @property
     def multipliers(self) -> np.ndarray:
-        return self._layout.view(self.states, "lambda")
+        return self._view("lambda")
 
     def keys(self) -> list[str]:
         return list(self._layout.names) + (["lambda"] if self._layout.n_multipliers else [])
 
     def __getitem__(self, name: str) -> np.ndarray:
+        """A named part at every kept state (read-only; computed once, then cached)."""
         if name not in self._layout.parts and name not in MULTIPLIER_KEYS:
             raise KeyError(f"no part named {name!r}; available: {', '.join(self.keys())}")
-        return self._layout.view(self.states, name)
+        return self._view(name)
+
+    def _view(self, name: str) -> np.ndarray:
+        key = "lambda" if name in MULTIPLIER_KEYS else name
+        hit = self._views.get(key)
+        if hit is None:
+            hit = self._layout.view(self.states, key)
+            hit.setflags(write=False)
+            self._views[key] = hit
+        return hit
 
     def __contains__(self, name: str) -> bool:
         return name in self._layout.parts or name in MULTIPLIER_KEYS
@@ -86,10 +104,74 @@ class Trajectory:
         """The last flat state (a valid initial state for a continuation)."""
         return self.states[-1].copy()
 
+    # --- diagnostics (symgroupoid.diagnostics) -------------------------------------------------
+    def energy(self, step_parameter: str | None = None) -> np.ndarray:
+        """The discrete energy at every kept state, (R,): E_d = −∂L_d/∂h for the step
+        parameter h (default: the parameter named "h"), or on a time groupoid the energy
+        conjugate to time, −∂L/∂t₁ (seed 000 §6.3).  See :mod:`symgroupoid.diagnostics`."""
+        from ._diagnostics import energy
+
+        return energy(self, step_parameter)
+
+    def momenta(self):
+        """The discrete momenta F⁻L, F⁺L (seed 000 §3.3) at every kept state: a
+        :class:`~symgroupoid.diagnostics.Momenta` with arrays ``minus``, ``plus`` (R, rank)."""
+        from ._diagnostics import momenta
+
+        return momenta(self)
+
+    def constraint_residuals(self) -> np.ndarray:
+        """The system's constraints φ on the newest known arrows of every kept state, (R, m)."""
+        from ._diagnostics import constraint_residuals
+
+        return constraint_residuals(self)
+
+    def conservation_summary(self, **options):
+        """Max drift of each conserved quantity, with its rounding floor (see
+        :func:`symgroupoid.diagnostics.conservation_summary` for the options)."""
+        from ._diagnostics import conservation_summary
+
+        return conservation_summary(self, **options)
+
+    def plot(self, parts: Sequence[str] | None = None, *, path=None, **options):
+        """A matplotlib figure of the named parts against the step (see
+        :func:`symgroupoid.plotting.plot_trajectory`); saved to ``path`` if given."""
+        from ..plotting import plot_trajectory
+
+        return plot_trajectory(self, parts, path=path, **options)
+
+    # --- display --------------------------------------------------------------------------------
+    def _summary(self) -> list[tuple[str, str]]:
+        rows = [("system", self._layout.step_name),
+                ("steps", f"{self.steps} ({len(self)} states kept"
+                          + (f", every {self.every})" if self.every != 1 else ")")),
+                ("parts", ", ".join(f"{k} {self._part_shape(k)}" for k in self.keys())),
+                ("parameters", ", ".join(f"{k}={v:g}" for k, v in self.parameters.items())
+                 or "none"),
+                ("backend", self.backend)]
+        if len(self.newton_iterations):
+            per_step = self.newton_iterations.sum() / max(self.steps, 1)
+            rows.append(("Newton", f"{per_step:.2f} iterations per step, largest |F|∞ "
+                                   f"{self.residual_norms.max():.1e}"))
+        return rows
+
+    def _part_shape(self, name: str) -> str:
+        part = self._layout.multiplier_part if name == "lambda" else self._layout.parts[name]
+        shape = part.shape if part is not None else ()
+        return "×".join(map(str, shape)) if shape else "scalar"
+
     def __repr__(self) -> str:
-        kept = f", every {self.every}" if self.every != 1 else ""
-        return (f"<Trajectory {self._layout.step_name!r}: {self.steps} steps{kept}, parts "
-                f"{', '.join(self.keys())}; backend {self.backend}>")
+        rows = dict(self._summary())
+        steps = rows.pop("steps").split(" ", 1)
+        head = (f"<Trajectory {rows.pop('system')!r}: {steps[0]} steps {steps[1]}, "
+                f"backend {rows.pop('backend')}")
+        return "\n  ".join([head] + [f"{k}: {v}" for k, v in rows.items()]) + ">"
+
+    def _repr_html_(self) -> str:
+        rows = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                       f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
+                       for k, v in self._summary())
+        return f"<table><caption>Trajectory</caption>{rows}</table>"
 
 
 @dataclass

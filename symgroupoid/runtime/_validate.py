@@ -24,7 +24,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import integer_argument, real_argument, real_array
+from .._arguments import MAX_COUNT, integer_argument, real_argument, real_array  # noqa: F401
 from .._errors import DomainError, ParameterError, ShapeError
 from ..groupoids import (
     ActionGroupoid,
@@ -34,10 +34,6 @@ from ..groupoids import (
     ProductGroupoid,
     TimeGroupoid,
 )
-
-#: the largest count accepted for steps, iterations and similar arguments (C ``long`` safe,
-#: and far beyond what fits in memory or time)
-MAX_COUNT = 2**53
 
 #: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
 #: last row of SE(n)): far above the rounding of a product of many rotations, far below any
@@ -344,6 +340,22 @@ class ConstraintCheck:
                 if not abs(v) <= t:
                     out.append((offsets, i, float(v), float(t)))
         return out
+
+    def values(self, states: np.ndarray, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """|φ_i| on every known arrow of each row of ``states``, and the rounding level
+        CONSTRAINT_ROUNDING·ε·M_i it is judged against: two (rows, windows·m) arrays."""
+        states = np.atleast_2d(np.asarray(states, float))
+        rows = len(states)
+        values, levels = [np.zeros((rows, 0))], [np.zeros((rows, 0))]
+        for _, index in self.windows:
+            x = states[:, index].T
+            with np.errstate(all="ignore"):
+                phi = [np.broadcast_to(np.asarray(v, float), (rows,)) for v in self._phi(x, params)]
+                size = [np.broadcast_to(np.asarray(v, float), (rows,))
+                        for v in self._size(x, params)]
+            values.append(np.abs(np.stack(phi, axis=1)))
+            levels.append(CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(np.stack(size, axis=1)))
+        return np.hstack(values), np.hstack(levels)
 
     def __call__(self, known: np.ndarray, params: np.ndarray, *, atol: float,
                  owner: str = "") -> None:

@@ -1,0 +1,38 @@
+"""``bvp``: a discrete two-point problem from a JSON file of boundary data."""
+
+from __future__ import annotations
+
+import argparse
+
+from ..runtime._bvp import solve_boundary_value
+from ..verification import verify_stationary
+from ._common import derive, say
+from ._inputs import boundary_problem, parameters, parse_count
+from ._output import check_format, write_solution
+
+
+def run_bvp(args: argparse.Namespace) -> int:
+    problem = boundary_problem(args.problem)
+    out = check_format(args.output)
+    max_iterations = parse_count(args.max_iterations, "max-iterations")
+    derived = derive(args.system)
+    params = parameters(derived.source, args.params, extra=problem["params"])
+    say(f"{derived.step.name}: derived in {derived.seconds:.2f} s")
+    solution = solve_boundary_value(derived.step, problem["start"], problem["end"],
+                                    problem["steps"], guess=problem["guess"], params=params,
+                                    max_iterations=max_iterations)
+    say(f"{derived.step.name}: {solution.steps} steps, converged in {solution.iterations} "
+        f"Newton iterations to |F|∞ = {solution.residual_norm:.1e} "
+        f"({solution.seconds:.2f} s)")
+    say("|F|∞ by iteration: " + ", ".join(f"{v:.1e}" for v in solution.history))
+    status = 0
+    if args.check:
+        report = verify_stationary(solution, derived.system)
+        verdict = "yes" if report else "NO"
+        say(f"critical point of the discrete action: {verdict} (dS/dt extrapolated "
+            f"{report.extrapolated:.1e}, terms {report.scale:.1e})")
+        status = 0 if report else 1
+    if out is not None:
+        write_solution(out, solution)
+        say(f"wrote {out}")
+    return status

@@ -1,0 +1,55 @@
+"""``cache info`` and ``cache clear``: the kernel cache of this user (``SYMGROUPOID_CACHE``)."""
+
+from __future__ import annotations
+
+import argparse
+import time
+from collections import defaultdict
+
+from ..runtime._maintenance import cache_info, clear_cache
+from ._common import say
+
+
+def size_text(n: int) -> str:
+    for unit in ("bytes", "KiB", "MiB", "GiB"):
+        if n < 1024 or unit == "GiB":
+            return f"{n} {unit}" if unit == "bytes" else f"{n:.1f} {unit}"
+        n /= 1024
+    return f"{n:.1f} GiB"  # pragma: no cover
+
+
+def run_info(args: argparse.Namespace) -> int:
+    info = cache_info()
+    say(f"kernel cache: {info.root}")
+    if not info.exists:
+        say("  (empty: not created yet)")
+        return 0
+    say(f"  {len(info.kernels)} kernels, {size_text(info.size)}; {info.index_entries} index "
+        f"entries; {info.leftovers} items in tmp/")
+    by_system: dict[str, list] = defaultdict(list)
+    for kernel in info.kernels:
+        by_system[kernel.system].append(kernel)
+    if by_system:
+        width = max(len("system"), *map(len, by_system))
+        say(f"  {'system':<{width}}  kernels  size        newest")
+        for system in sorted(by_system):
+            kernels = by_system[system]
+            newest = time.strftime("%Y-%m-%d %H:%M",
+                                   time.localtime(max(k.modified for k in kernels)))
+            size = size_text(sum(k.size for k in kernels))
+            say(f"  {system:<{width}}  {len(kernels):>7}  {size:<10}  {newest}")
+    damaged = [k.key for k in info.kernels if not k.complete]
+    if damaged:
+        say(f"  {len(damaged)} incomplete or damaged (rebuilt on use): {', '.join(damaged)}")
+    return 0
+
+
+def run_clear(args: argparse.Namespace) -> int:
+    result = clear_cache()
+    say(f"kernel cache: {result.root}")
+    say(f"  removed {result.removed} kernels ({size_text(result.freed)}) and "
+        f"{result.index_entries} index entries")
+    if result.busy:
+        say(f"  left {len(result.busy)} being built by another process: "
+            f"{', '.join(result.busy)}")
+    return 0

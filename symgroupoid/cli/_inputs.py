@@ -1,0 +1,191 @@
+"""The command line's numeric inputs: ``--params`` text, initial states and boundary data.
+
+Values are read here only as far as their *form* goes (text → numbers, JSON → lists); every
+check of their *content* — parameter names and assumptions, shapes, group membership,
+constraints, counts — is the library's own (runtime/_validate.py), so a malformed value gets
+the same message on the command line as in Python.
+"""
+
+from __future__ import annotations
+
+import json
+import zipfile
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .._arguments import integer_argument
+from ._errors import InputError
+from ._system_file import SystemFile
+
+#: keys of an initial state given by a configuration and a discrete momentum
+MOMENTUM_KEYS = ("configuration", "momentum")
+#: keys of a boundary-value problem file
+BOUNDARY_KEYS = ("start", "end", "steps", "params", "guess")
+
+
+def parse_number(text: str, what: str) -> float:
+    """A real number from text (``0.01``, ``1e-3``, ``-2``), or :class:`InputError`."""
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"{what}: {text!r} is not a number") from None
+
+
+def parse_count(text: str, name: str, minimum: int = 0) -> int:
+    """A count from text by the library's rule for counts (``1e7`` accepted, ``2.5`` and
+    ``-5`` refused; :func:`~symgroupoid._arguments.integer_argument`)."""
+    try:
+        value: float | int = int(text)
+    except ValueError:
+        value = parse_number(text, f"--{name}")
+    return integer_argument(value, f"--{name}", minimum=minimum)
+
+
+def parse_params(text: str | None) -> dict[str, float]:
+    """``"h=0.01, g=9.81"`` → ``{"h": 0.01, "g": 9.81}``.
+
+    Each item is ``name=value``; names may not repeat.  Whether the names are the system's
+    parameters, and the values allowed, is checked where they are used.
+    """
+    if text is None:
+        return {}
+    out: dict[str, float] = {}
+    for item in text.split(","):
+        item = item.strip()
+        if not item:
+            continue
+        name, sep, value = item.partition("=")
+        name, value = name.strip(), value.strip()
+        if not sep or not name or not value:
+            raise InputError(f"--params: {item!r} is not of the form name=value "
+                             f"(e.g. --params h=0.01,k=1)")
+        if name in out:
+            raise InputError(f"--params: {name} given twice")
+        out[name] = parse_number(value, f"--params {name}")
+    return out
+
+
+def parameters(source: SystemFile, text: str | None, extra: Mapping | None = None) -> dict:
+    """Parameter values: the file's ``PARAMS``, then ``extra`` (e.g. a boundary file's
+    ``params``), then ``--params``, each overriding the one before by name."""
+    merged: dict = {}
+    for label, values in ((f"{source.path.name}: PARAMS", source.convention("PARAMS")),
+                          ("params", extra)):
+        if values is None:
+            continue
+        if not isinstance(values, Mapping):
+            raise InputError(f"{label} must map parameter names to values, got "
+                             f"{type(values).__name__}")
+        merged.update({str(k): v for k, v in values.items()})
+    merged.update(parse_params(text))
+    return merged
+
+
+# --- files --------------------------------------------------------------------------------------
+
+def read_json(path: str | Path, what: str):
+    """The JSON value in ``path`` (``what`` names the option in messages)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError(f"{what} {path}: no such file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"{what} {path}: cannot be read ({exc})") from None
+    try:
+        return json.loads(text, parse_constant=_refuse_constant)
+    except json.JSONDecodeError as exc:
+        raise InputError(f"{what} {path}: not valid JSON: {exc.msg} (line {exc.lineno}, "
+                         f"column {exc.colno})") from None
+    except ValueError as exc:
+        raise InputError(f"{what} {path}: {exc}") from None
+
+
+def _refuse_constant(name: str):
+    raise ValueError(f"{name} is not a number JSON allows (values must be finite)")
+
+
+def _saved_state(path: Path, width: int):
+    """The last state of a trajectory written by ``simulate -o FILE.npz``."""
+    try:
+        data = np.load(path, allow_pickle=False)
+    except FileNotFoundError:
+        raise InputError(f"--initial {path}: no such file") from None
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise InputError(f"--initial {path}: cannot be read as .npz ({exc})") from None
+    if not isinstance(data, np.lib.npyio.NpzFile):
+        raise InputError(f"--initial {path}: not an .npz archive of arrays")
+    with data:
+        if "states" not in data.files:
+            raise InputError(f"--initial {path}: no 'states' array (not a trajectory "
+                             f"written by symgroupoid simulate)")
+        try:
+            states = np.asarray(data["states"], float)
+        except (OSError, ValueError, zipfile.BadZipFile) as exc:
+            raise InputError(f"--initial {path}: its states cannot be read ({exc})") from None
+    if states.ndim != 2 or states.shape[1] != width or not len(states):
+        raise InputError(f"--initial {path}: its states have shape {states.shape}; this "
+                         f"system's states have {width} entries")
+    return states[-1]
+
+
+def initial_data(source: SystemFile, path: str | None, width: int):
+    """The initial-state value: ``--initial`` (JSON, or a saved trajectory's last state)
+    else the file's ``INITIAL``; None when neither is given."""
+    if path is None:
+        return source.convention("INITIAL")
+    if Path(path).suffix == ".npz":
+        return _saved_state(Path(path), width)
+    return read_json(path, "--initial")
+
+
+def initial_state(sim, data, params, *, origin: str = "--initial") -> np.ndarray:
+    """The flat initial state of ``sim`` from ``data`` (see docs/cli.md):
+
+    - a mapping of named state parts (``{"x": [0, 0.01], "g": [[…]], "lambda": […]}``),
+      as :meth:`Simulator.state` reads them;
+    - ``{"configuration": …, "momentum": […]}``: :meth:`Simulator.from_momentum`;
+    - a list: the flat state, ordered as ``step.knowns``.
+    """
+    if data is None:
+        raise InputError(f"{sim.name}: no initial state: give --initial FILE.json, or "
+                         f"define INITIAL in the system file")
+    if isinstance(data, Mapping) and "momentum" in data:
+        extra = sorted(set(map(str, data)) - set(MOMENTUM_KEYS))
+        if extra:
+            raise InputError(f"{origin}: a state from a momentum has only the keys "
+                             f"'configuration' and 'momentum'; got also {', '.join(extra)}")
+        return sim.from_momentum(data.get("configuration"), data["momentum"], params)
+    if isinstance(data, (str, bytes, int, float, bool)):
+        raise InputError(f"{origin}: an initial state is an object of named parts, "
+                         f"{{\"configuration\": …, \"momentum\": […]}}, or a list; got "
+                         f"{type(data).__name__} {data!r}")
+    return sim.state(data, params)
+
+
+def boundary_problem(path: str) -> dict:
+    """The boundary-value problem in a JSON file: ``start``, ``end``, ``steps`` (required),
+    ``params`` and ``guess`` (optional)."""
+    data = read_json(path, "bvp")
+    if not isinstance(data, dict):
+        raise InputError(f"bvp {path}: expected an object with the keys "
+                         f"{', '.join(BOUNDARY_KEYS)}; got {type(data).__name__}")
+    unknown = sorted(set(data) - set(BOUNDARY_KEYS))
+    if unknown:
+        raise InputError(f"bvp {path}: unknown key(s) {', '.join(unknown)}; the keys are "
+                         f"{', '.join(BOUNDARY_KEYS)}")
+    missing = [k for k in ("start", "end", "steps") if k not in data]
+    if missing:
+        raise InputError(f"bvp {path}: missing {', '.join(missing)}")
+    guess = data.get("guess")
+    if isinstance(guess, dict):
+        extra = sorted(set(guess) - {"arrows", "multipliers"})
+        if extra or "arrows" not in guess:
+            raise InputError(f"bvp {path}: a guess object has the keys 'arrows' and "
+                             f"(optionally) 'multipliers'")
+        guess = (guess["arrows"], guess["multipliers"]) if "multipliers" in guess \
+            else guess["arrows"]
+    return {"start": data["start"], "end": data["end"], "steps": data["steps"],
+            "params": data.get("params"), "guess": guess}

@@ -1,0 +1,255 @@
+"""``verify``: independent checks of a system's equations, kernel and conservation laws.
+
+1. The exact Jacobian (the step program) against central differences of the residual.
+2. The compiled kernel's residual and Jacobian against the NumPy evaluation of the program.
+3. The kernel's residual against the residuals derived independently in SymPy.
+4. The variational principle on a short run (:func:`~symgroupoid.verify_stationary`).
+5. Each Noether quantity the system file declares (``NOETHER``): the section verified to be
+   a symmetry (seed 000 Def. 4.8) and the quantity conserved along the short run
+   (Thm 4.9).
+
+Points for 1–3 are the states of the short run with the unknowns drawn at random around the
+step's prediction, so every chart is evaluated where it is defined.  Each comparison is
+relative to the size of its row: ``scale_i = |F_i| + max_j |J_ij|·max(1, |u_j|)``.
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+import sympy as sp
+
+from .._errors import SymgroupoidError
+from ..equations import DiscreteSystem
+from ..verification import verify_stationary
+from ._common import derive, say, stepper
+from ._errors import InputError
+from ._inputs import initial_data, initial_state, parameters, parse_count
+
+#: relative tolerance of the Jacobian against central differences (their truncation and
+#: rounding errors are ~1e-10 of the row's size; a wrong entry is of the order of the entry)
+JACOBIAN_TOLERANCE = 1e-6
+#: relative tolerance of the compiled kernel against the NumPy evaluation of the same program
+KERNEL_TOLERANCE = 1e-9
+#: relative tolerance of the kernel against the independent SymPy residuals
+SYMPY_TOLERANCE = 1e-8
+#: a Noether quantity F is conserved when max_k |F_k − F_0| ≤ this × max(1, max_k |F_k|)
+NOETHER_TOLERANCE = 1e-8
+#: relative spread of the random unknowns around the prediction
+SPREAD = 0.1
+
+
+@dataclass
+class Check:
+    """One row of the table: ``passed`` True, False, or None (skipped)."""
+
+    name: str
+    passed: bool | None
+    detail: str
+
+    @property
+    def result(self) -> str:
+        return {True: "pass", False: "FAIL", None: "skip"}[self.passed]
+
+
+def _row_scale(F: np.ndarray, J: np.ndarray, u: np.ndarray) -> np.ndarray:
+    return np.abs(F) + np.max(np.abs(J) * np.maximum(1.0, np.abs(u)), axis=1,
+                              initial=0.0) + 1e-300
+
+
+def sample_points(sim, states: np.ndarray, p: np.ndarray, count: int,
+                  rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(unknowns, known state) pairs: ``count`` states of the run, unknowns random around
+    the step's prediction from each."""
+    rows = np.unique(np.linspace(0, len(states) - 1, count).round().astype(int))
+    points = []
+    for r in rows:
+        known = np.asarray(states[r], float)
+        u0 = sim.kernel.predict(known, p)
+        u = u0 + SPREAD * (np.abs(u0) + 0.01) * rng.standard_normal(len(u0))
+        points.append((u, known))
+    return points
+
+
+def jacobian_check(step, points, p) -> Check:
+    """The exact Jacobian against central differences of the residual (NumPy program)."""
+    residual = step.program.numpy_function(["F"], ["u", "known", "p"])
+    worst = 0.0
+    for u, known in points:
+        F, J = step.evaluate(u, known, p)
+        n = len(u)
+        delta = np.cbrt(np.finfo(float).eps) * np.maximum(1.0, np.abs(u))
+        shifts = np.zeros((n, 2 * n))
+        shifts[np.arange(n), 2 * np.arange(n)] = delta
+        shifts[np.arange(n), 2 * np.arange(n) + 1] = -delta
+        (Fs,) = residual(u[:, None] + shifts, known, p)
+        differences = (Fs[:, 0::2] - Fs[:, 1::2]) / (2 * delta)
+        error = np.abs(differences - J) * np.maximum(1.0, np.abs(u))
+        worst = max(worst, float(np.max(error / _row_scale(F, J, u)[:, None], initial=0.0)))
+    return Check("Jacobian vs finite differences", worst <= JACOBIAN_TOLERANCE,
+                 f"{len(points)} points, largest relative error {worst:.1e} "
+                 f"(tolerance {JACOBIAN_TOLERANCE:g})")
+
+
+def kernel_check(sim, points, p) -> Check:
+    """The compiled kernel's F and J against the NumPy evaluation of the step program."""
+    name = "compiled C vs NumPy program"
+    if sim.backend != "c":
+        return Check(name, None, f"the {sim.backend} backend is the NumPy program itself")
+    worst = 0.0
+    for u, known in points:
+        Fc, Jc = sim.kernel.residual_jacobian(u, known, p)
+        Fn, Jn = sim.equations.evaluate(u, known, p)
+        scale = _row_scale(Fn, Jn, u)
+        error = np.maximum(np.abs(Fc - Fn),
+                           np.max(np.abs(Jc - Jn) * np.maximum(1.0, np.abs(u)), axis=1,
+                                  initial=0.0))
+        worst = max(worst, float(np.max(error / scale, initial=0.0)))
+    return Check(name, worst <= KERNEL_TOLERANCE,
+                 f"residual and Jacobian, largest relative difference {worst:.1e} "
+                 f"(tolerance {KERNEL_TOLERANCE:g})")
+
+
+def sympy_check(sim, points, p) -> Check:
+    """The kernel's residual against the residuals derived in SymPy (an independent
+    derivation: the junction variation of the action in SymPy, not the graph)."""
+    step = sim.equations
+    name = f"{'compiled C' if sim.backend == 'c' else 'NumPy backend'} vs SymPy residuals"
+    residuals = sp.lambdify([list(step.unknowns), list(step.knowns), list(step.parameters)],
+                            step.residuals_in_unknowns(), "numpy")
+    worst = 0.0
+    for u, known in points:
+        Fk = sim.kernel.residual(u, known, p)
+        with np.errstate(all="ignore"):
+            Fs = np.array([float(v) for v in residuals(u, known, p)])
+        _, J = step.evaluate(u, known, p)
+        worst = max(worst, float(np.max(np.abs(Fk - Fs) / _row_scale(Fs, J, u), initial=0.0)))
+    ok = bool(np.isfinite(worst)) and worst <= SYMPY_TOLERANCE
+    return Check(name, ok, f"largest relative difference {worst:.1e} "
+                           f"(tolerance {SYMPY_TOLERANCE:g})")
+
+
+def stationarity_check(system, traj) -> Check:
+    name = f"variational principle ({traj.steps} steps)"
+    if not isinstance(system, DiscreteSystem):
+        return Check(name, None, "nonholonomic equations are not the critical points of an "
+                                 "action")
+    report = verify_stationary(traj, system)
+    return Check(name, bool(report), f"dS/dt along a random variation {report.extrapolated:.1e} "
+                                     f"(terms {report.scale:.1e})")
+
+
+@dataclass
+class Declared:
+    name: str
+    section: object
+    f: object
+
+
+def declared_noether(source) -> list[Declared]:
+    """The file's ``NOETHER`` list (see :mod:`symgroupoid.cli._system_file`)."""
+    raw = source.convention("NOETHER", [])
+    label = f"{source.path.name}: NOETHER"
+    if raw is None:
+        return []
+    if isinstance(raw, (str, bytes, Mapping)) or not isinstance(raw, (list, tuple)):
+        raise InputError(f"{label} must be a list of sections or of dicts with 'section', "
+                         f"got {type(raw).__name__}")
+    out = []
+    for i, entry in enumerate(raw):
+        if isinstance(entry, Mapping):
+            extra = sorted(set(map(str, entry)) - {"name", "section", "f"})
+            if extra or "section" not in entry:
+                raise InputError(f"{label}[{i}]: a dict entry has the keys 'section' "
+                                 f"(required), 'name' and 'f'")
+            out.append(Declared(str(entry.get("name", f"NOETHER[{i}]")), entry["section"],
+                                entry.get("f")))
+        else:
+            name = f"section {entry}" if isinstance(entry, int) else f"NOETHER[{i}]"
+            out.append(Declared(name, entry, None))
+    return out
+
+
+def _state_positions(step, quantity) -> np.ndarray | None:
+    """Where the quantity's arguments (the coordinates of g_k, then λ_k) sit in the
+    step's known state; None when they are not all there."""
+    position = {s: i for i, s in enumerate(step.knowns)}
+    needed = [*quantity.arrow, *quantity.multipliers]
+    if all(s in position for s in needed):
+        return np.array([position[s] for s in needed], dtype=int)
+    return None
+
+
+def noether_check(system, step, declared: Declared, traj, p) -> Check:
+    """Symmetry (symbolic) and conservation along the run of one declared quantity."""
+    name = f"Noether: {declared.name}"
+    if step.order != 1:
+        return Check(name, None, "Noether quantities are checked for first-order systems only")
+    try:
+        quantity = system.noether(declared.section, declared.f)
+    except SymgroupoidError:
+        raise
+    except Exception as exc:
+        return Check(name, False, f"cannot be built: {type(exc).__name__}: {exc}")
+    index = _state_positions(step, quantity)
+    if index is None:
+        return Check(name, None, "its arrows are not the known arrows of the state")
+    a, m = len(quantity.arrow), len(quantity.multipliers)
+    values = np.array([quantity.evaluate(x[:a], x[a:a + m], p)
+                       for x in np.asarray(traj.states)[:, index]])
+    drift = float(np.max(np.abs(values - values[0])))
+    tolerance = NOETHER_TOLERANCE * max(1.0, float(np.max(np.abs(values))))
+    symmetry = "symmetry verified symbolically" if quantity.is_symmetry else \
+        "NOT verified to be a symmetry"
+    ok = quantity.is_symmetry and drift <= tolerance
+    return Check(name, ok, f"{symmetry}; value {values[0]:.6g}, drift {drift:.1e} over "
+                           f"{len(values)} states (tolerance {tolerance:.0e})")
+
+
+def table(checks: list[Check]) -> list[str]:
+    width = max(len("check"), *(len(c.name) for c in checks))
+    lines = [f"{'check':<{width}}  result  detail"]
+    lines += [f"{c.name:<{width}}  {c.result:<6}  {c.detail}" for c in checks]
+    return lines
+
+
+def run_verify(args: argparse.Namespace) -> int:
+    steps = parse_count(args.steps, "steps", minimum=2)
+    count = parse_count(args.points, "points", minimum=1)
+    seed = parse_count(args.seed, "seed")
+    derived = derive(args.system)
+    sim = stepper(derived, args.backend).sim
+    step, system = derived.step, derived.system
+    params = parameters(derived.source, args.params)
+    p = sim.parameters(params)
+    data = initial_data(derived.source, args.initial, sim.layout.n_known)
+    state = initial_state(sim, data, params)
+    declared = declared_noether(derived.source) if isinstance(system, DiscreteSystem) else []
+    checks: list[Check] = []
+    traj = None
+    try:
+        traj = sim.simulate(state, steps, params)
+        states = traj.states
+    except SymgroupoidError as err:
+        checks.append(Check(f"short run ({steps} steps)", False, str(err)))
+        states = state[None]
+    points = sample_points(sim, states, p, count, np.random.default_rng(seed))
+    checks.append(jacobian_check(step, points, p))
+    checks.append(kernel_check(sim, points, p))
+    if args.no_sympy:
+        checks.append(Check("kernel vs SymPy residuals", None, "--no-sympy"))
+    else:
+        checks.append(sympy_check(sim, points, p))
+    if traj is not None:
+        checks.append(stationarity_check(system, traj))
+        checks += [noether_check(system, step, d, traj, p) for d in declared]
+    failed = sum(c.passed is False for c in checks)
+    for line in table(checks):
+        say(line)
+    ran = sum(c.passed is not None for c in checks)
+    say(f"{step.name}: {ran - failed} of {ran} checks passed" +
+        (f", {len(checks) - ran} skipped" if len(checks) > ran else ""))
+    return 1 if failed else 0

@@ -1,0 +1,160 @@
+"""Figures of trajectories and of the drift of their conserved quantities (matplotlib).
+
+matplotlib is an optional dependency (``pip install 'symgroupoid[plot]'``), imported when a
+figure is asked for.  Figures are :class:`matplotlib.figure.Figure` objects made without
+pyplot (no global state; they display in Jupyter and save with ``fig.savefig``); pass
+``path=`` to save one directly.
+
+The rounding floor drawn (dashed) next to each drift is ε·|Q|·√k
+(:func:`~symgroupoid.diagnostics.rounding_floor`): a conserved quantity Q computed in double
+precision moves by about one rounding ε·|Q| per step, in random directions, so after k steps
+its drift is of order ε·|Q|·√k.  Dotted: σ·√k with σ the measured step-to-step change of Q
+(:attr:`~symgroupoid.diagnostics.Drift.step_variation`), the random walk of the rounding the
+steps actually incur (a Newton residual at its own floor can exceed ε·|Q|).  A drift that
+follows these lines is rounding; one that grows like k, far above them, is not.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from os import PathLike
+
+import numpy as np
+
+from ._errors import SymgroupoidError
+from .runtime._diagnostics import (
+    Drift,
+    _noether_quantities,
+    _setup,
+    constraint_residuals,
+    energy_label,
+    has_energy,
+)
+from .runtime._diagnostics import energy as _energy
+
+__all__ = ["MissingDependencyError", "plot_conservation", "plot_trajectory"]
+
+
+class MissingDependencyError(SymgroupoidError, ImportError):
+    """An optional dependency (matplotlib for figures) is not installed."""
+
+
+def _figure_class():
+    try:
+        from matplotlib.figure import Figure
+    except ImportError as err:
+        raise MissingDependencyError(
+            "figures need matplotlib, which is not installed: pip install matplotlib (or "
+            "pip install 'symgroupoid[plot]')") from err
+    return Figure
+
+
+def _finish(fig, path: str | PathLike | None):
+    fig.tight_layout()
+    if path is not None:
+        fig.savefig(path, dpi=120)
+    return fig
+
+
+def _part_positions(trajectory, name: str, n: int) -> np.ndarray:
+    """Step positions of the n values of a named part (older values of the first state first,
+    then the newest value of each state; see :class:`Trajectory`)."""
+    idx = np.asarray(trajectory.step_indices, float)
+    older = n - len(idx)
+    return np.concatenate([idx[0] + np.arange(older), idx + older])
+
+
+def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
+                    path: str | PathLike | None = None, max_parts: int = 6):
+    """One panel per named part (default: the first ``max_parts`` of ``trajectory.keys()``),
+    every entry of the part against its step position (a pair-groupoid coordinate at
+    q_0 … q_{N+1}, a matrix part entry by entry).  Returns the figure."""
+    Figure = _figure_class()
+    names = list(trajectory.keys())[:max_parts] if parts is None else list(parts)
+    for name in names:
+        if name not in trajectory:
+            raise KeyError(f"no part named {name!r}; available: "
+                           f"{', '.join(trajectory.keys())}")
+    if not names:
+        raise ValueError("plot_trajectory: no parts to plot")
+    fig = Figure(figsize=(7, 2.2 * len(names) + 0.6))
+    axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
+    for ax, name in zip(axes, names):
+        values = np.asarray(trajectory[name])
+        flat = values.reshape(len(values), -1)
+        x = _part_positions(trajectory, name, len(values))
+        for j in range(flat.shape[1]):
+            label = name if flat.shape[1] == 1 else (
+                f"{name}{list(np.unravel_index(j, values.shape[1:]))}")
+            ax.plot(x, flat[:, j], lw=1, label=label)
+        ax.set_ylabel(name)
+        if 1 < flat.shape[1] <= 9:
+            ax.legend(fontsize="x-small", ncols=min(flat.shape[1], 3), loc="best")
+    axes[-1].set_xlabel("step k")
+    axes[0].set_title(f"{trajectory._layout.step_name}: {trajectory.steps} steps")
+    return _finish(fig, path)
+
+
+def _drift_panel(ax, quantities: list[Drift]) -> None:
+    for i, q in enumerate(quantities):
+        color = f"C{i}"
+        drift = q.drift
+        k = np.asarray(q.step_indices)
+        ax.semilogy(k, np.where(drift > 0, drift, np.nan), color=color, lw=1,
+                    label=f"{q.name} (max {q.max_drift:.1e})")
+        floor = q.floor
+        ax.semilogy(k, np.where(floor > 0, floor, np.nan), color=color, lw=1, ls="--",
+                    alpha=0.7)
+        measured = q.measured_floor
+        ax.semilogy(k, np.where(measured > 0, measured, np.nan), color=color, lw=1, ls=":",
+                    alpha=0.7)
+    ax.plot([], [], color="0.4", ls="--", lw=1, label="rounding floor ε·|Q|·√k")
+    ax.plot([], [], color="0.4", ls=":", lw=1, label="step-to-step variation σ·√k")
+    ax.set_ylabel("|Q_k − Q_0|")
+    ax.legend(fontsize="small", loc="best")
+
+
+def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence = (), *,
+                      constraints: bool | None = None, step_parameter: str | None = None,
+                      path: str | PathLike | None = None):
+    """The drift |Q_k − Q_0| of each conserved quantity on a log scale, each with its
+    rounding floor ε·|Q|·√k dashed in the same colour, and (``constraints``) the constraint
+    residual max_a |φ_a| of each state in a second panel.
+
+    ``energy``: the discrete energy (see :func:`symgroupoid.diagnostics.energy`; None: when
+    defined); ``momenta``: Noether quantities (:class:`~symgroupoid.NoetherQuantity`, or
+    sections given to ``system.noether``; a mapping label → quantity names them);
+    ``constraints``: None plots them when the system
+    has constraints.  Returns the figure (saved to ``path`` if given).
+    """
+    Figure = _figure_class()
+    ev, _ = _setup(trajectory)
+    idx = trajectory.step_indices
+    quantities = []
+    if energy or (energy is None and has_energy(trajectory, step_parameter)):
+        quantities.append(Drift(energy_label(trajectory, step_parameter),
+                                _energy(trajectory, step_parameter), idx))
+    for label, nq in _noether_quantities(ev.sg, momenta):
+        quantities.append(Drift(label, nq.along(trajectory), idx))
+    show_phi = bool(ev.sg.phi) if constraints is None else constraints
+    if show_phi and not ev.sg.phi:
+        raise ValueError(f"{ev.sg.name}: the system has no constraints to plot")
+    if not quantities and not show_phi:
+        raise ValueError(f"{ev.sg.name}: nothing to plot: no energy is defined (pass "
+                         f"step_parameter=...) and no Noether quantity was given (momenta=[...])")
+    panels = int(bool(quantities)) + int(show_phi)
+    fig = Figure(figsize=(7, 3 * panels + 0.6))
+    axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])
+    if quantities:
+        _drift_panel(axes[0], quantities)
+    if show_phi:
+        ax = axes[-1]
+        phi = np.max(np.abs(constraint_residuals(trajectory)), axis=1)
+        ax.semilogy(idx, np.where(phi > 0, phi, np.nan), color="C7", lw=1,
+                    label=f"max |φ| (max {phi.max():.1e})")
+        ax.set_ylabel("constraints |φ|")
+        ax.legend(fontsize="small", loc="best")
+    axes[-1].set_xlabel("step k")
+    axes[0].set_title(f"{trajectory._layout.step_name}: conservation over "
+                      f"{trajectory.steps} steps")
+    return _finish(fig, path)

@@ -1,0 +1,465 @@
+"""Many trajectories at once: checked input tables and :meth:`Simulator.simulate_batch`.
+
+A batch is B independent runs of the same step, from the rows of a state table with the rows
+of a parameter table (or one parameter set for all).  The compiled kernel advances them in
+one call of ``<prefix>_simulate_batch`` (see templates/kernel.c.j2): each run by the very
+function :meth:`Simulator.simulate` uses, so the states are bitwise those of B separate
+``simulate`` calls, and the runs are shared among OpenMP threads when the kernel was built
+with ``-fopenmp``.
+
+Layout: the states of run b are one contiguous block (rows × n_known, row-major), the runs one
+after the other.  The Newton solve of a step is branchy (pivoting, chord or refactor, the
+convergence tests differ per run), so interleaving runs lane by lane (structure of arrays)
+would run every lane through every branch; what the compiler vectorises is the straight-line
+residual and Jacobian code within a run, which this layout keeps on contiguous memory.
+
+Inputs are checked as :meth:`Simulator.state` and :meth:`Simulator.parameters` check one
+state and one parameter set, but vectorised over the rows: every row is screened with NumPy
+against half of each tolerance, and a row the screen flags goes through the scalar check,
+which decides and raises its own error, prefixed with the row's index.  Rows the screen
+passes are far inside the tolerances, so the outcome is the scalar check's for every row.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from .._errors import DomainError, ParameterError, ShapeError, SymgroupoidError
+from ._backends import OK, BatchRun, NewtonOptions, batch_rows
+from ._trajectory import Trajectory
+from ._validate import (
+    _CHECKED_ASSUMPTIONS,
+    CONSTRAINT_ROUNDING,
+    GROUP_TOLERANCE,
+    _declared,
+    constraint_check,
+    integer_argument,
+)
+
+_EPS = float(np.finfo(float).eps)
+
+#: trajectory-steps per kernel call of a batch: bounds the delay of Ctrl-C (the runs are
+#: split between calls, never a run)
+CALL_WORK = 1 << 24
+
+
+def _at_row(error: Exception, what: str, index) -> Exception:
+    """``error`` (from the scalar check of one row) with the row named in front."""
+    label = index if isinstance(index, tuple) else (index,)
+    text = f"{what} {', '.join(str(i) for i in label)}: {error}"
+    try:
+        return type(error)(text)
+    except TypeError:  # an error class with another constructor: keep it as it is
+        return error
+
+
+# --- parameters ---------------------------------------------------------------------------------
+
+def _is_scalar(value) -> bool:
+    return np.ndim(value) == 0 and not isinstance(value, (Mapping, str, bytes))
+
+
+def _looks_like_one_set(params, n_params: int) -> bool:
+    """A single parameter set: None, a mapping of scalars, or a flat sequence of numbers."""
+    if params is None:
+        return True
+    if isinstance(params, Mapping):
+        return all(_is_scalar(v) for v in params.values())
+    if hasattr(params, "columns") and hasattr(params, "to_numpy"):  # a DataFrame
+        return False
+    if isinstance(params, np.ndarray):
+        return params.ndim <= 1
+    if isinstance(params, Sequence) and not isinstance(params, (str, bytes)):
+        return all(_is_scalar(v) for v in params)  # (a wrong count: the set's own error)
+    return True
+
+
+def _column_rows(sim, table: Mapping) -> list[dict]:
+    """The rows of a mapping name → column (all columns of one length)."""
+    lengths = {str(k): np.shape(v)[0] if np.ndim(v) == 1 else None for k, v in table.items()}
+    bad = [k for k, n in lengths.items() if n is None]
+    if bad:
+        raise ParameterError(f"{sim.name}: a parameter table maps each name to a column of "
+                             f"values (one per set); {', '.join(bad)} is not a 1-D column")
+    if len(set(lengths.values())) > 1:
+        raise ParameterError(f"{sim.name}: the parameter columns have different lengths "
+                             f"{lengths}")
+    n = next(iter(lengths.values()), 0)
+    return [{k: v[i] for k, v in table.items()} for i in range(n)]
+
+
+def parameter_table(sim, params) -> tuple[np.ndarray, bool]:
+    """(P, one): the parameter sets as rows of P (m, n_params), checked, and whether
+    ``params`` was a single set (m = 1).
+
+    ``params``: one set (as :meth:`Simulator.parameters` takes it), or a table of sets: a
+    sequence of sets, a 2-D array (m, n_params), a mapping name → column of m values, or a
+    pandas DataFrame with one column per parameter.
+    """
+    n_p = len(sim.parameter_names)
+    if _looks_like_one_set(params, n_p):
+        return sim.parameters(params)[None, :], True
+    if hasattr(params, "columns") and hasattr(params, "to_numpy"):
+        params = {str(c): np.asarray(params[c].to_numpy()) for c in params.columns}
+    if isinstance(params, Mapping):
+        rows: Sequence = _column_rows(sim, params)
+        if not rows:
+            raise ParameterError(f"{sim.name}: the parameter table is empty")
+        sim.parameters(rows[0])  # names: unknown, missing, repeated
+        columns = [np.asarray(params[k] if k in params else params[_key(params, k)])
+                   for k in sim.parameter_names]
+        values = _numeric_columns(columns, len(rows))
+        return _checked_rows(sim, values, lambda i: rows[i]), False
+    if isinstance(params, np.ndarray) and params.ndim == 2 and params.dtype.kind in "iuf":
+        if params.shape[1] != n_p:
+            raise ParameterError(f"{sim.name}: a parameter table has one column per parameter "
+                                 f"({n_p}: {', '.join(sim.parameter_names) or 'none'}); got "
+                                 f"shape {params.shape}")
+        values = np.array(params, dtype=float)
+        return _checked_rows(sim, values, lambda i: params[i]), False
+    if isinstance(params, (np.ndarray, Sequence)) and not isinstance(params, (str, bytes)):
+        sets = list(params)
+        if not sets:
+            raise ParameterError(f"{sim.name}: the parameter table is empty")
+        out = np.empty((len(sets), n_p))
+        for i, one in enumerate(sets):
+            try:
+                out[i] = sim.parameters(one)
+            except SymgroupoidError as err:
+                raise _at_row(err, "parameter set", i) from err
+        return out, False
+    raise ParameterError(f"{sim.name}: parameters must be one set (a mapping name → value or "
+                         f"a sequence of {n_p} values) or a table of sets, got "
+                         f"{type(params).__name__}")
+
+
+def _key(table: Mapping, name: str):
+    return next(k for k in table if str(k) == name)
+
+
+def _numeric_columns(columns: list[np.ndarray], n: int) -> np.ndarray:
+    """Float columns (m, n_params); NaN marks an entry that is not a real number (the scalar
+    check of its row then reports it)."""
+    out = np.empty((n, len(columns)))
+    for j, col in enumerate(columns):
+        if col.dtype.kind in "iuf":
+            out[:, j] = col.astype(float)
+        else:
+            out[:, j] = np.nan
+    return out
+
+
+def _assumption_holds(key: str, v: np.ndarray) -> np.ndarray | None:
+    """Whether the exact rational numbers ``v`` have the property ``key``; None when not
+    vectorised (then every row goes through the scalar check)."""
+    integral = np.floor(v) == v
+    tests = {
+        "positive": v > 0, "negative": v < 0, "nonnegative": v >= 0, "nonpositive": v <= 0,
+        "zero": v == 0, "nonzero": v != 0, "integer": integral, "noninteger": ~integral,
+        "even": integral & (np.fmod(v, 2) == 0), "odd": integral & (np.abs(np.fmod(v, 2)) == 1),
+    }
+    return tests.get(key)
+
+
+def _checked_rows(sim, values: np.ndarray, row) -> np.ndarray:
+    """``values`` (m, n_params) after the vectorised screen; a flagged row is checked by
+    :meth:`Simulator.parameters` (``row(i)``: the row as given), which raises."""
+    flagged = ~np.isfinite(values).all(axis=1)
+    with np.errstate(invalid="ignore"):
+        for j, symbol in enumerate(sim.equations.parameters):
+            for key, expected in _declared(symbol) if hasattr(symbol, "assumptions0") else ():
+                if key not in _CHECKED_ASSUMPTIONS:
+                    continue
+                holds = _assumption_holds(key, values[:, j])
+                flagged |= np.ones(len(values), bool) if holds is None else holds != expected
+    for i in np.flatnonzero(flagged):
+        try:
+            values[i] = sim.parameters(row(int(i)))
+        except SymgroupoidError as err:
+            raise _at_row(err, "parameter set", int(i)) from err
+    return values
+
+
+# --- states -------------------------------------------------------------------------------------
+
+def _group_matrices(group, coords: np.ndarray) -> np.ndarray:
+    """The matrices (B, n, n) of arrow coordinates (B, arrow_dim) of a matrix Lie group."""
+    free = getattr(group, "_free", None)
+    if free is not None and len(free) == coords.shape[1]:
+        M = np.broadcast_to(np.eye(group.n), (len(coords), group.n, group.n)).copy()
+        for k, (i, j) in enumerate(free):
+            M[:, i, j] = coords[:, k]
+        return M
+    return np.array([group.numeric_matrix(c) for c in coords]).reshape(-1, group.n, group.n)
+
+
+def _group_screen(group, M: np.ndarray) -> np.ndarray:
+    """Rows whose matrix is not clearly in ``group`` (half of :data:`GROUP_TOLERANCE`)."""
+    half = GROUP_TOLERANCE / 2
+    n = group.n - 1 if group.affine else group.n
+    flagged = np.zeros(len(M), bool)
+    if group.affine:
+        last = np.zeros(group.n)
+        last[-1] = 1.0
+        flagged |= ~(np.abs(M[:, -1, :] - last).max(axis=1) <= half)
+    R = M[:, :n, :n]
+    with np.errstate(all="ignore"):
+        off = np.abs(np.einsum("bki,bkj->bij", R, R) - np.eye(n)).max(axis=(1, 2))
+        flagged |= ~(off <= half)
+        flagged |= ~(np.abs(np.linalg.det(R) - 1.0) <= half)
+    return flagged
+
+
+def state_table(sim, initial) -> tuple[np.ndarray, bool]:
+    """(S, one): the initial states as rows of S (B, n_known), each checked as
+    :meth:`Simulator.state` checks it (without the constraints, which need the parameters:
+    :func:`check_constraints`), and whether ``initial`` was a single state.
+
+    ``initial``: one state (a mapping of named parts, or a flat vector), or a table: a 2-D
+    array (B, n_known), or a sequence of states.
+    """
+    n_k = sim.layout.n_known
+    if isinstance(initial, Mapping):
+        return sim.state(initial)[None, :], True
+    if isinstance(initial, (str, bytes)):
+        return sim.state(initial)[None, :], True  # raises the state's own error
+    if isinstance(initial, np.ndarray) and initial.dtype.kind in "iuf":
+        if initial.ndim == 1:
+            return sim.state(initial)[None, :], True
+        if initial.ndim != 2 or initial.shape[1] != n_k:
+            raise ShapeError(f"{sim.name}: a table of flat states has shape (B, {n_k}) (the "
+                             f"knowns {', '.join(s.name for s in sim.equations.knowns)}); got "
+                             f"shape {initial.shape}")
+        return _screened_states(sim, np.array(initial, dtype=float)), False
+    if isinstance(initial, Sequence) or isinstance(initial, np.ndarray):
+        rows = list(initial)
+        if rows and all(_is_scalar(v) for v in rows):
+            return sim.state(initial)[None, :], True
+        if not rows:
+            raise ShapeError(f"{sim.name}: the table of initial states is empty")
+        if all(not isinstance(r, Mapping) for r in rows):
+            try:
+                arr = np.asarray(rows, dtype=float)
+            except (TypeError, ValueError):
+                arr = None
+            if arr is not None and arr.ndim == 2 and arr.shape[1] == n_k:
+                return _screened_states(sim, arr), False
+        out = np.empty((len(rows), n_k))
+        for i, one in enumerate(rows):
+            try:
+                out[i] = sim.state(one)
+            except SymgroupoidError as err:
+                raise _at_row(err, "initial state", i) from err
+        return out, False
+    return sim.state(initial)[None, :], True
+
+
+def _screened_states(sim, S: np.ndarray) -> np.ndarray:
+    """Flat states (B, n_known): finiteness and every matrix part of every known arrow
+    screened in bulk, flagged rows checked (and reported) by :meth:`Simulator.state`."""
+    flagged = ~np.isfinite(S).all(axis=1)
+    groupoid = sim.layout.groupoid
+    safe = np.where(np.isfinite(S), S, 0.0)
+    for index in sim.layout.arrow_index.values():
+        for start, group in groupoid.matrix_parts():
+            coords = safe[:, index[start:start + group.arrow_dim]]
+            flagged |= _group_screen(group, _group_matrices(group, coords))
+    for i in np.flatnonzero(flagged):
+        try:
+            sim.state(S[i])
+        except SymgroupoidError as err:
+            raise _at_row(err, "initial state", int(i)) from err
+    return S
+
+
+def check_constraints(sim, S: np.ndarray, P: np.ndarray, atol: float,
+                      labels=None) -> None:
+    """The system's constraints on every pair (S[i], P[i]) (rows of equal count, or one
+    parameter row for all), as :meth:`Simulator.state` checks them with parameters; the
+    first violating pair raises the scalar check's :class:`DomainError`, naming the row
+    (``labels(i)``: its index as the caller shows it)."""
+    check = constraint_check(sim.equations)
+    if not check.windows or not len(S):
+        return
+    P = np.broadcast_to(P, (len(S), P.shape[-1]))
+    flagged = np.zeros(len(S), bool)
+    try:
+        for _, index in check.windows:
+            X = S[:, index].T
+            cols = list(P.T)
+            with np.errstate(all="ignore"):
+                values = [np.broadcast_to(np.asarray(v, float), (len(S),))
+                          for v in check._phi(X, cols)]
+                sizes = [np.broadcast_to(np.asarray(v, float), (len(S),))
+                         for v in check._size(X, cols)]
+            for v, size in zip(values, sizes):
+                tol = np.maximum(atol, CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(size))
+                flagged |= ~(np.abs(v) <= tol / 2)
+    except (TypeError, ValueError, IndexError):  # not vectorisable: every row is checked
+        flagged[:] = True
+    for i in np.flatnonzero(flagged):
+        try:
+            check(S[i], P[i], atol=atol, owner=sim.name)
+        except DomainError as err:
+            if labels is None:
+                raise _at_row(err, "initial state", int(i)) from err
+            state, pset = labels(int(i))
+            raise _at_row(err, f"initial state {state} with parameter set", pset) from err
+
+
+# --- the batch ----------------------------------------------------------------------------------
+
+class TrajectoryBatch:
+    """B runs of :meth:`Simulator.simulate_batch`: arrays indexed by run, and each run as the
+    :class:`Trajectory` that :meth:`Simulator.simulate` returns for it.
+
+    - ``batch.states`` (B, R, n_known): the kept states of every run (state 0, every e-th,
+      the last), R = 1 + ⌈steps/e⌉; ``batch.kept`` (B,): the valid rows of each run.  A run
+      that failed at step s ends with state s and has fewer valid rows: its rows past
+      ``kept[b]`` are NaN (and its ``newton_iterations`` there −1): they are not data.
+    - ``batch.newton_iterations``, ``batch.residual_norms`` (B, R − 1): per interval between
+      kept states, as in :class:`Trajectory`;
+    - ``batch.status`` (B,): 0 for a completed run, else the kernel's status
+      (1 singular Jacobian, 2 Newton not converged, 3 non-finite value); ``batch.ok``;
+      ``batch.failed_step`` (B,): the failing step s, −1 for a completed run;
+    - ``batch[b]``: run b as a :class:`Trajectory` (a failed run: up to state s, as
+      ``err.trajectory`` of the error ``simulate`` raises); ``batch.error(b)``: that error;
+    - ``batch.final_states`` (B, n_known): the last state each run reached;
+    - ``batch.parameters`` (B, n_params): the parameters of each run.
+    """
+
+    def __init__(self, sim, raw: BatchRun, parameters: np.ndarray, steps: int, every: int):
+        self._sim = sim
+        self._raw = raw
+        self.steps, self.every = int(steps), int(every)
+        self.parameters = np.broadcast_to(parameters, (len(raw.kept), parameters.shape[-1]))
+        self.states = raw.states
+        self.kept = raw.kept
+        self.newton_iterations = raw.iterations
+        self.residual_norms = raw.residual_norms
+        self.status = raw.status.astype(np.int64)
+        self.failed_step = raw.failed_step
+        rows = self.states.shape[1]
+        short = np.flatnonzero(self.kept < rows) if self.states.flags.writeable else ()
+        for b in short:
+            k = int(self.kept[b])
+            self.states[b, k:] = np.nan
+            self.newton_iterations[b, max(k - 1, 0):] = -1
+            self.residual_norms[b, max(k - 1, 0):] = np.nan
+        for arr in (self.states, self.kept, self.newton_iterations, self.residual_norms,
+                    self.status, self.failed_step):
+            arr.setflags(write=False)
+
+    def __len__(self) -> int:
+        return len(self.kept)
+
+    @property
+    def ok(self) -> np.ndarray:
+        """(B,) True for the runs that completed every step."""
+        return self.status == OK
+
+    @property
+    def final_states(self) -> np.ndarray:
+        """(B, n_known) the last state each run reached (state N, or s for a failed run)."""
+        return self.states[np.arange(len(self)), self.kept - 1].copy()
+
+    def step_indices(self, b: int) -> np.ndarray:
+        """The step index of each kept state of run b."""
+        k = int(self.kept[b])
+        out = np.arange(k, dtype=np.int64) * self.every
+        if k > 1:
+            out[-1] = self.steps if self.status[b] == OK else int(self.failed_step[b])
+        return out
+
+    def __getitem__(self, b: int) -> Trajectory:
+        if isinstance(b, (bool, np.bool_)) or not isinstance(b, (int, np.integer)):
+            raise TypeError(f"a batch is indexed by run number, got {b!r}")
+        b = int(b) + (len(self) if b < 0 else 0)
+        if not 0 <= b < len(self):
+            raise IndexError(f"run {b} out of range for a batch of {len(self)}")
+        k = int(self.kept[b])
+        sim = self._sim
+        return sim._trajectory(self.states[b, :k], self.newton_iterations[b, :k - 1],
+                               self.residual_norms[b, :k - 1], self.parameters[b],
+                               self.step_indices(b), self.every)
+
+    def __iter__(self):
+        return (self[b] for b in range(len(self)))
+
+    def error(self, b: int) -> Exception | None:
+        """The error :meth:`Simulator.simulate` raises for run b (None if it completed), with
+        ``.trajectory`` the run up to the failing step."""
+        if self.status[b] == OK:
+            return None
+        raw = self._raw
+        err = self._sim._failure(int(self.status[b]), int(self.failed_step[b]),
+                                 int(raw.failed_iterations[b]),
+                                 float(raw.failed_residual_norms[b]), raw.last_iterate[b])
+        err.trajectory = self[b]
+        return err
+
+    def __repr__(self) -> str:
+        failed = int((~self.ok).sum())
+        return (f"<TrajectoryBatch {self._sim.name!r}: {len(self)} runs of {self.steps} steps"
+                f"{f', every {self.every}' if self.every != 1 else ''}, {failed} failed>")
+
+
+def _check_memory(sim, runs: int, rows: int) -> None:
+    try:
+        physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return
+    needed = runs * rows * (8 * sim.layout.n_known + 16)
+    if physical > 0 and needed > physical:
+        from .._errors import TrajectoryTooLargeError
+
+        raise TrajectoryTooLargeError(
+            f"{sim.name}: keeping {rows} states of each of {runs} runs needs "
+            f"{needed / 2**30:.1f} GiB, more than this machine's memory "
+            f"({physical / 2**30:.1f} GiB); keep fewer with every=k, or reduce each run on "
+            f"the fly with sweep(..., reduce=...)")
+
+
+def run_batch(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
+              options: NewtonOptions | None, threads: int | None) -> BatchRun:
+    """Checked tables in, raw batch out: kernel calls of at most :data:`CALL_WORK`
+    trajectory-steps each (whole runs; at least a few runs per thread)."""
+    options = options or sim.options
+    B = len(S)
+    per_call = max(8 * (threads or os.cpu_count() or 1), CALL_WORK // max(steps, 1))
+    if B <= per_call:
+        return sim.kernel.simulate_batch(S, P if len(P) > 1 else P[0], steps, every, options,
+                                         threads)
+    out = sim.kernel._batch_buffers(B, steps, every)
+    for a in range(0, B, per_call):
+        z = min(B, a + per_call)
+        part = sim.kernel.simulate_batch(S[a:z], P[a:z] if len(P) > 1 else P[0], steps, every,
+                                         options, threads)
+        for name in BatchRun.__dataclass_fields__:
+            getattr(out, name)[a:z] = getattr(part, name)
+    return out
+
+
+def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
+                   options: NewtonOptions | None = None,
+                   threads: int | None = None) -> TrajectoryBatch:
+    """See :meth:`Simulator.simulate_batch`."""
+    steps = integer_argument(steps, "steps", owner=sim.name)
+    every = integer_argument(every, "every", minimum=1, owner=sim.name)
+    if threads is not None:
+        threads = integer_argument(threads, "threads", minimum=1, maximum=2**31 - 1,
+                                   owner=sim.name)
+    S, _ = state_table(sim, states)
+    P, one = parameter_table(sim, params)
+    if not one and len(P) != len(S):
+        raise ShapeError(f"{sim.name}: {len(S)} initial states but {len(P)} parameter sets; "
+                         f"give one set for all, or one per state")
+    from ._simulator import INITIAL_CONSTRAINT_TOLERANCE
+
+    check_constraints(sim, S, P, INITIAL_CONSTRAINT_TOLERANCE)
+    _check_memory(sim, len(S), batch_rows(steps, every))
+    raw = run_batch(sim, S, P, steps, every, options, threads)
+    return TrajectoryBatch(sim, raw, P, steps, every)

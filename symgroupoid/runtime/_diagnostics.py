@@ -1,0 +1,446 @@
+"""Structure-preservation diagnostics along a trajectory, evaluated on the expression graph.
+
+Every quantity is a small :class:`~symgroupoid.ir.Program` over the flat known state of the
+step (inputs ``known`` and ``p``), built from the system's own Lagrangian L and constraints
+φ by the same mechanism as the step itself (:mod:`symgroupoid.derivation._window`): the term
+T = L + λ·φ is captured once on generic slot arrows, differentiated by reverse mode, and
+instantiated at the arrows the state holds; the invariant vector fields X⃖_b, X⃗_b come from
+the structure maps (seed 000 eqs. (1)–(2)).  A whole trajectory is one vectorised evaluation
+(the states are the batch axis); the SymPy residuals of the step are never needed.
+
+Quantities (docs/conventions.md §3, §7):
+
+- discrete momenta (seed 000 §3.3), per state (g_k, λ_k) of a first-order step:
+  ⟨F⁻L(g_k, λ_k), X_b⟩ = X⃗_b[L + λ_k·φ](g_k),  ⟨F⁺L(g_k, λ_k), X_b⟩ = X⃖_b[L + λ_k·φ](g_k);
+  along a solution F⁺L(g_k, λ_k) = F⁻L(g_{k+1}, λ_{k+1}) (the DEL).  Second order (seed 001
+  §4): the momenta of the window (g_{k-1}, g_k, g_{k+1}) of
+  :func:`~symgroupoid.derivation._momenta.second_order_legendre_forms`, with
+  F⁺L(state k) = F⁻L(state k+2);
+- the discrete energy: E_d = −∂L_d/∂h(g_k) for a declared step parameter h (the energy a
+  fixed-step variational integrator keeps to O(h²) without drift), or, on a
+  :class:`~symgroupoid.groupoids.TimeGroupoid`, the energy conjugate to time
+  E(g_k) = −X⃖_t[L](g_k) = −∂L/∂t₁(g_k) (seed 000 §6.3), which the adaptive
+  (unconstrained-time) step conserves exactly;
+- constraint residuals: φ on the newest known arrows of each state (first order φ(g_k),
+  second order Φ(g_k, g_{k+1}), nonholonomic ψ(g_k)).
+"""
+
+from __future__ import annotations
+
+import functools
+import weakref
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import sympy as sp
+
+from .._errors import SymgroupoidError
+from .._symbols import multiplier_symbols
+from ..derivation._window import _fields
+from ..groupoids import TimeGroupoid
+from ..ir import Graph, Program, from_sympy, gradient
+
+_EPS = float(np.finfo(float).eps)
+
+
+class DiagnosticsError(SymgroupoidError, ValueError):
+    """A diagnostic is not defined for this trajectory (no system attached to its equations,
+    no step parameter for the energy, a second-order energy, …); the message says why."""
+
+
+@dataclass
+class Momenta:
+    """F⁻L and F⁺L along a trajectory: arrays (R, rank) in the section basis."""
+
+    minus: np.ndarray
+    plus: np.ndarray
+
+    def matching(self, lag: int = 1) -> np.ndarray:
+        """F⁺L(state k) − F⁻L(state k+lag), (R − lag, rank): zero along a solution of the DEL
+        (lag 1 for first order, 2 for second order), when every state is kept."""
+        return self.plus[:-lag] - self.minus[lag:]
+
+
+class StateGraph:
+    """The graph of the diagnostics of one step's known state (see the module docstring)."""
+
+    def __init__(self, step):
+        system = getattr(step, "system", None)
+        fs = getattr(system, "_fs", None)
+        if fs is None:
+            raise DiagnosticsError(
+                f"{step.name}: diagnostics need the system's Lagrangian and constraints, and "
+                f"these equations have no system attached (equations from "
+                f"DiscreteSystem.euler_lagrange() carry one)")
+        # no reference to the step itself: graphs are cached per step in a weak mapping
+        self.name, self.system, self.fs = step.name, system, fs
+        self.knowns, self.parameters = list(step.knowns), list(step.parameters)
+        self.groupoid = step.groupoid
+        self.arity = len(fs.slots)
+        self.m = step.n_constraints  # multipliers in the action (0 for nonholonomic steps)
+        g = self.graph = Graph()
+        self.symbols = {s: g.input(s) for s in (*step.knowns, *step.parameters)}
+        self.pnodes = {p: self.symbols[p] for p in step.parameters}
+        self.memo: dict = {}
+        available = set(step.knowns) | set(step.parameters)
+        self.offsets = [o for o in sorted(step.arrows)
+                        if all(sp.sympify(c).free_symbols <= available
+                               for c in step.arrows[o])]
+        self.arrows = {o: [from_sympy(g, c, self.symbols, f"{self.name}: the arrows of the "
+                                      f"state", self.memo) for c in step.arrows[o]]
+                       for o in self.offsets}
+        self.starts = [s for s in self.offsets
+                       if all(s + i in self.arrows for i in range(self.arity))]
+        if not self.starts:
+            raise DiagnosticsError(f"{self.name}: the state holds no complete term of the "
+                                   f"action")
+        self.lam = {s: [self.symbols[x] for x in multiplier_symbols(self.m, s)]
+                    for s in self.starts}
+        self._generic()
+
+    # --- the term L + λ·φ on generic slots ----------------------------------------------------
+    def _generic(self) -> None:
+        g, fs = self.graph, self.fs
+        smap = {c: g.input(c) for s in fs.slots for c in s}
+        smap.update(self.pnodes)
+        memo: dict = {}
+        self.L = from_sympy(g, fs.lagrangian, smap, f"{self.name}: the Lagrangian", memo)
+        self.phi = [from_sympy(g, c, smap, f"{self.name}: constraint {a + 1}", memo)
+                    for a, c in enumerate(fs.constraints)]
+        self.generic_lam = [g.input(sp.Dummy(f"lam{a}", real=True)) for a in range(self.m)]
+        T = g.add(self.L, *[g.mul(lam, c) for lam, c in zip(self.generic_lam, self.phi)])
+        self.slots = [smap[c] for s in fs.slots for c in s]
+        self.grad_T = gradient(g, T, self.slots)
+
+    def instantiate(self, nodes: Sequence[int], s: int) -> list[int]:
+        """Generic-slot nodes at the term starting at offset s (its arrows and λ_{k+s})."""
+        arrows = [c for i in range(self.arity) for c in self.arrows[s + i]]
+        mapping = dict(zip(self.slots, arrows))
+        mapping.update(zip(self.generic_lam, self.lam[s]))
+        return self.graph.substitute(list(nodes), mapping)
+
+    @functools.cache  # noqa: B019 - one StateGraph per step, kept with it
+    def fields(self, side: str, o: int) -> list[list[int]]:
+        """X⃖_b (side "left") or X⃗_b ("right") at the state's arrow g_{k+o}."""
+        return _fields(self.graph, self.groupoid, side, self.arrows[o], self.pnodes)
+
+    def derivation(self, side: str, o: int, terms: Sequence[int], grad=None) -> list[int]:
+        """Σ over the terms T_s of X_b[T_s] at the arrow g_{k+o} (one node per section b)."""
+        g, dim = self.graph, self.groupoid.arrow_dim
+        grad = self.grad_T if grad is None else grad
+        fields = self.fields(side, o)
+        rows = [[] for _ in range(self.groupoid.rank)]
+        for s in terms:
+            i = o - s
+            inst = self.instantiate(grad[i * dim:(i + 1) * dim], s)
+            for b in range(self.groupoid.rank):
+                rows[b].extend(g.mul(d, v) for d, v in zip(inst, fields[b])
+                               if d != g.zero and v != g.zero)
+        return [g.add(*r) for r in rows]
+
+    # --- the quantities ------------------------------------------------------------------------
+    @functools.cached_property
+    def momenta(self) -> tuple[list[int], list[int]]:
+        """(F⁻L, F⁺L) nodes of the state (see the module docstring)."""
+        d = self.derivation
+        if self.arity == 1:
+            return d("right", 0, [0]), d("left", 0, [0])
+        a0, a1, a2 = self.offsets[:3]
+        t0, t1 = self.starts[:2]
+        g = self.graph
+        plus = ([g.sub(x, y) for x, y in zip(d("left", a1, [t0, t1]), d("right", a2, [t1]))]
+                + d("left", a2, [t1]))
+        minus = (d("right", a0, [t0])
+                 + [g.sub(y, x) for x, y in zip(d("left", a0, [t0]),
+                                                d("right", a1, [t0, t1]))])
+        return minus, plus
+
+    @functools.cached_property
+    def constraints(self) -> list[int]:
+        """φ on the newest term of the state."""
+        return self.instantiate(self.phi, self.starts[-1])
+
+    def energy(self, step_parameter: str | None) -> tuple[list[int], str]:
+        """The energy node and its description (see the module docstring)."""
+        if self.arity != 1:
+            raise DiagnosticsError(f"{self.name}: the discrete energy is defined here for "
+                                   f"first-order systems (L: G → R) only")
+        g = self.graph
+        if step_parameter is None and isinstance(self.groupoid, TimeGroupoid):
+            grad_L = gradient(g, self.L, self.slots)
+            # the time section ∂/∂t is the first basis section of R×R×G
+            return [g.neg(self.derivation("left", 0, [0], grad_L)[0])], "E = −∂L/∂t₁"
+        h = self._step_symbol(step_parameter)
+        (dL,) = gradient(g, self.L, [self.pnodes[h]])
+        return [g.neg(self.instantiate([dL], 0)[0])], f"E_d = −∂L_d/∂{h}"
+
+    def _step_symbol(self, name: str | None) -> sp.Symbol:
+        by_name = {str(p): p for p in self.parameters}
+        if name is None:
+            if "h" in by_name:
+                return by_name["h"]
+            raise DiagnosticsError(
+                f"{self.name}: the discrete energy E_d = −∂L_d/∂h needs the step parameter; "
+                f"no parameter is named 'h' (parameters: "
+                f"{', '.join(by_name) or 'none'}): pass step_parameter=...")
+        if str(name) not in by_name:
+            raise DiagnosticsError(f"{self.name}: step_parameter={name!r} is not a parameter "
+                                   f"of the system (parameters: {', '.join(by_name) or 'none'})")
+        return by_name[str(name)]
+
+    def program(self, outputs: dict) -> Program:
+        return Program(self.graph, {"known": self.knowns, "p": self.parameters}, outputs)
+
+
+_GRAPHS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def state_graph(step) -> StateGraph:
+    """The (cached) :class:`StateGraph` of a step."""
+    hit = _GRAPHS.get(step)
+    if hit is None:
+        hit = _GRAPHS[step] = StateGraph(step)
+    return hit
+
+
+# --- evaluation along trajectories ------------------------------------------------------------
+
+@dataclass
+class _Evaluator:
+    """Programs of one step, compiled for NumPy once per output set."""
+
+    sg: StateGraph
+    programs: dict = field(default_factory=dict)
+
+    def __call__(self, key: str, make, states: np.ndarray, p: np.ndarray) -> np.ndarray:
+        program = self.programs.get(key)
+        if program is None:
+            program = self.programs[key] = self.sg.program({"out": make()})
+        f = program.numpy_function(["out"], ["known", "p"])
+        (out,) = f(np.ascontiguousarray(np.asarray(states, float).T), p)
+        return out.T  # (R, n)
+
+
+_EVALUATORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def _setup(trajectory) -> tuple[_Evaluator, np.ndarray]:
+    step = getattr(trajectory._layout, "equations", None)
+    if step is None:
+        raise DiagnosticsError(f"{trajectory._layout.step_name}: this trajectory does not "
+                               f"know the equations it solves")
+    ev = _EVALUATORS.get(step)
+    if ev is None:
+        ev = _EVALUATORS[step] = _Evaluator(state_graph(step))
+    p = np.array([trajectory.parameters[str(s)] for s in step.parameters], dtype=float)
+    return ev, p
+
+
+def momenta(trajectory) -> Momenta:
+    """The discrete momenta F⁻L, F⁺L at every kept state (see the module docstring)."""
+    ev, p = _setup(trajectory)
+    minus = ev("minus", lambda: ev.sg.momenta[0], trajectory.states, p)
+    plus = ev("plus", lambda: ev.sg.momenta[1], trajectory.states, p)
+    return Momenta(minus, plus)
+
+
+def energy(trajectory, step_parameter: str | None = None) -> np.ndarray:
+    """The discrete energy at every kept state, (R,) (see the module docstring).
+
+    ``step_parameter``: the name of the step-size parameter h (default: a parameter named
+    "h"); on a :class:`TimeGroupoid` the default is the energy conjugate to time.
+    """
+    ev, p = _setup(trajectory)
+    key = f"energy:{step_parameter}"
+    return ev(key, lambda: ev.sg.energy(step_parameter)[0], trajectory.states, p)[:, 0]
+
+
+def energy_label(trajectory, step_parameter: str | None = None) -> str:
+    """What :func:`energy` computes for this trajectory, e.g. ``"E_d = −∂L_d/∂h"``."""
+    ev, _ = _setup(trajectory)
+    return ev.sg.energy(step_parameter)[1]
+
+
+def constraint_residuals(trajectory) -> np.ndarray:
+    """φ at every kept state, (R, m) (see the module docstring); (R, 0) without constraints."""
+    ev, p = _setup(trajectory)
+    if not ev.sg.phi:
+        return np.zeros((len(trajectory.states), 0))
+    return ev("constraints", lambda: ev.sg.constraints, trajectory.states, p)
+
+
+def has_energy(trajectory, step_parameter: str | None = None) -> bool:
+    """Whether :func:`energy` is defined for this trajectory."""
+    try:
+        energy_label(trajectory, step_parameter)
+    except DiagnosticsError:
+        return False
+    return True
+
+
+# --- drift and the rounding floor ----------------------------------------------------------------
+
+def rounding_floor(values: np.ndarray, step_indices: np.ndarray) -> np.ndarray:
+    """ε·|Q|·√k: the drift of a conserved quantity Q after k steps when each step adds one
+    independent rounding error of relative size ε (a random walk), |Q| = max_k |Q_k| the
+    quantity's scale along the run, k counted from the first kept state.
+
+    A drift within a small multiple of this floor is rounding; a drift far above it, or
+    growing like k rather than √k, is a defect of the scheme or of the solve.
+    """
+    values = np.asarray(values, float)
+    scale = float(np.max(np.abs(values))) if values.size else 0.0
+    k = np.asarray(step_indices, float) - float(step_indices[0])
+    return _EPS * scale * np.sqrt(k)
+
+
+@dataclass
+class Drift:
+    """A quantity Q along a trajectory and its drift |Q_k − Q_0| against the rounding floor."""
+
+    name: str
+    values: np.ndarray
+    step_indices: np.ndarray
+
+    @property
+    def drift(self) -> np.ndarray:
+        return np.abs(self.values - self.values[0])
+
+    @property
+    def max_drift(self) -> float:
+        return float(self.drift.max()) if len(self.values) else 0.0
+
+    @property
+    def scale(self) -> float:
+        return float(np.max(np.abs(self.values))) if len(self.values) else 0.0
+
+    @property
+    def floor(self) -> np.ndarray:
+        return rounding_floor(self.values, self.step_indices)
+
+    @property
+    def final_floor(self) -> float:
+        return float(self.floor[-1]) if len(self.values) else 0.0
+
+    @property
+    def step_variation(self) -> float:
+        """σ = RMS over the intervals of (Q_{k+e} − Q_k)/√e: the measured size of one step's
+        change of Q.  For a quantity conserved up to rounding this is the per-step rounding
+        actually incurred (often above ε·|Q|: the Newton residual of a step sits at its own
+        rounding floor, e.g. times rounded relative to t on a time groupoid), and σ·√k is
+        the drift a random walk of it reaches; a drift far above σ·√k is systematic."""
+        if len(self.values) < 2:
+            return 0.0
+        d = np.diff(self.values) / np.sqrt(np.diff(self.step_indices).astype(float))
+        return float(np.sqrt(np.mean(d * d)))
+
+    @property
+    def measured_floor(self) -> np.ndarray:
+        """σ·√k (see :attr:`step_variation`)."""
+        k = np.asarray(self.step_indices, float) - float(self.step_indices[0])
+        return self.step_variation * np.sqrt(k)
+
+
+@dataclass
+class ConservationSummary:
+    """Max drift of each conserved quantity of a run, with the rounding floor ε·|Q|·√N.
+
+    ``quantities``: one :class:`Drift` per quantity (the energy when defined, then each
+    Noether quantity asked for); ``constraint_residual``: max |φ| over the states (None
+    without constraints); ``momentum_matching``: max |F⁺L(g_k) − F⁻L(g_{k+1})| over
+    consecutive states (the DEL as a momentum match; None unless every state is kept);
+    ``momentum_scale``: max |F±L| (the size the matching is to be compared with).
+    """
+
+    name: str
+    steps: int
+    quantities: list
+    constraint_residual: float | None = None
+    momentum_matching: float | None = None
+    momentum_scale: float | None = None
+    notes: list = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        """Human-readable lines, one per check."""
+        out = [f"{self.name}: {self.steps} steps"]
+        for q in self.quantities:
+            rel = q.max_drift / q.scale if q.scale else 0.0
+            out.append(f"{q.name}: max |Q_k − Q_0| = {q.max_drift:.2e} (relative {rel:.1e}); "
+                       f"rounding floor ε·|Q|·√N = {q.final_floor:.1e}, step-to-step "
+                       f"variation σ·√N = {q.step_variation * np.sqrt(self.steps):.1e}")
+        if self.momentum_matching is not None:
+            out.append(f"momenta: max |F⁺L(g_k) − F⁻L(g_{{k+1}})| = {self.momentum_matching:.2e} "
+                       f"(|F±L| up to {self.momentum_scale:.1e})")
+        if self.constraint_residual is not None:
+            out.append(f"constraints: max |φ| = {self.constraint_residual:.2e}")
+        out.extend(self.notes)
+        return out
+
+    def __str__(self) -> str:
+        return "\n".join(self.lines())
+
+
+def conservation_summary(trajectory, *, energy: bool | None = None,
+                         noether: Sequence = (), step_parameter: str | None = None
+                         ) -> ConservationSummary:
+    """The max drift of each conserved quantity along ``trajectory`` and its rounding floor.
+
+    ``energy``: include the discrete energy (None: when it is defined — a step parameter
+    named ``step_parameter`` or "h", or a time groupoid; True: required, an error otherwise);
+    ``noether``: :class:`~symgroupoid.NoetherQuantity` objects, or sections (an index or
+    coefficients) turned into them by ``system.noether(section)``.
+    """
+    ev, _ = _setup(trajectory)
+    quantities: list[Drift] = []
+    notes: list[str] = []
+    idx = trajectory.step_indices
+    want_energy = energy if energy is not None else has_energy(trajectory, step_parameter)
+    if want_energy:
+        quantities.append(Drift(energy_label(trajectory, step_parameter),
+                                globals()["energy"](trajectory, step_parameter), idx))
+    for label, nq in _noether_quantities(ev.sg, noether):
+        quantities.append(Drift(label, nq.along(trajectory), idx))
+    residual = None
+    if ev.sg.phi:
+        residual = float(np.max(np.abs(constraint_residuals(trajectory))))
+    matching = scale = None
+    if _variational(ev.sg.system) and len(idx) > ev.sg.arity and np.all(np.diff(idx) == 1):
+        try:
+            mom = momenta(trajectory)
+        except SymgroupoidError as err:  # e.g. a structure map the graph cannot take
+            notes.append(f"momenta: not evaluated ({err})")
+        else:
+            matching = float(np.max(np.abs(mom.matching(ev.sg.arity))))
+            scale = float(max(np.max(np.abs(mom.minus)), np.max(np.abs(mom.plus))))
+    return ConservationSummary(trajectory._layout.step_name, trajectory.steps, quantities,
+                               residual, matching, scale, notes)
+
+
+def _variational(system) -> bool:
+    """Whether the system's step is the DEL F⁺L(g_k) = F⁻L(g_{k+1}) in every section (not a
+    nonholonomic step, whose equations hold along D_c only)."""
+    from ..equations import NonholonomicSystem
+
+    return not isinstance(system, NonholonomicSystem)
+
+
+def _noether_quantities(sgraph: StateGraph, items) -> list[tuple[str, object]]:
+    """(label, NoetherQuantity) pairs from NoetherQuantity objects or sections, or from a
+    mapping label → either."""
+    from ..equations import NoetherQuantity
+
+    pairs = (list(items.items()) if isinstance(items, Mapping)
+             else [(f"Noether F_X[{i}]", item) for i, item in enumerate(items)])
+    out = []
+    for label, item in pairs:
+        if not isinstance(item, NoetherQuantity):
+            system = sgraph.system
+            if not hasattr(system, "noether"):
+                raise DiagnosticsError(f"{sgraph.name}: Noether quantities from sections need a "
+                                       f"DiscreteSystem; pass NoetherQuantity objects")
+            item = system.noether(item)
+        if not item.is_symmetry:
+            label += " (not a verified symmetry)"
+        out.append((str(label), item))
+    return out

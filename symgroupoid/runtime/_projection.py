@@ -1,0 +1,112 @@
+"""Projecting an initial state onto the constraints (:meth:`Simulator.project_initial`).
+
+The known arrow g_k of a first-order state is moved within its α-fibre — its source α(g_k)
+fixed — to the nearest zero of the constraints in the fibre chart: with g(x) =
+arrow_from(α(g_k), τ(x)) and x₀ = τ⁻¹(g_k), Gauss–Newton with minimum-norm steps
+
+    x ← x − J⁺ φ(g(x)),   J = ∂φ(g(x))/∂x  (m × rank, forward mode on the graph),
+
+converges to a point of N = {φ = 0} near x₀ (to first order the orthogonal projection of x₀
+in the chart).  On a pair groupoid (q₀, q₁) this keeps q₀ and corrects q₁; on a Lie group it
+corrects the element; on a time groupoid with φ = t₁ − t₀ − h it sets t₁.  The multipliers
+λ_k are not changed (they enter the run only through F⁺L(g_k, λ_k)).
+"""
+
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+import sympy as sp
+
+from .._errors import DomainError
+from ..derivation._window import step_jacobian
+from ..ir import Program, from_sympy
+from ._diagnostics import state_graph
+
+_EPS = float(np.finfo(float).eps)
+
+
+class ProjectionError(DomainError):
+    """An initial state cannot be projected onto the constraints (no nearby zero of φ in the
+    fibre of its source, or a step kind the projection does not handle)."""
+
+
+class ConstraintProjection:
+    """The Gauss–Newton projection of one step's known arrow (see the module docstring)."""
+
+    def __init__(self, step, layout):
+        # no reference to the step or its layout: cached per step in a weak mapping
+        self.name, self.index = step.name, layout.arrow_index[0]
+        if step.order != 1:
+            raise ProjectionError(
+                f"{step.name}: project_initial handles first-order steps; for a second-order "
+                f"step give consistent arrows, or start from a momentum "
+                f"(Simulator.from_momentum)")
+        sgraph = state_graph(step)
+        self.has_constraints = bool(sgraph.phi)
+        if not self.has_constraints:
+            return
+        G, g = step.groupoid, sgraph.graph
+        self.groupoid = G
+        self.chart = [sp.Dummy(f"x{i}", real=True) for i in range(G.rank)]
+        symbols = dict(sgraph.symbols)
+        symbols.update({x: g.input(x) for x in self.chart})
+        source = tuple(G.source(step.arrows[0]))
+        moved = tuple(G.arrow_from(source, G.fibre_chart(tuple(self.chart), source)))
+        arrow = [from_sympy(g, c, symbols, f"{step.name}: the fibre chart of the known arrow")
+                 for c in moved]
+        phi = g.substitute(sgraph.phi, dict(zip(sgraph.slots, arrow)))
+        J = step_jacobian(g, phi, [symbols[x] for x in self.chart])
+        self.program = Program(g, {"x": list(self.chart), "known": list(step.knowns),
+                                   "p": list(step.parameters)},
+                               {"phi": phi, "J": [c for row in J for c in row],
+                                "arrow": arrow})
+        self.m = len(phi)
+
+    def __call__(self, state: np.ndarray, p: np.ndarray, max_iterations: int = 50
+                 ) -> np.ndarray:
+        if not self.has_constraints:
+            return state.copy()
+        G = self.groupoid
+        index = self.index
+        a0 = state[index]
+        source = tuple(float(v) for v in G.source(tuple(a0)))
+        x = np.array(G.fibre_chart_inverse(tuple(G.fibre_of(tuple(a0))), source), float)
+        f = self.program.numpy_function(["phi", "J", "arrow"], ["x", "known", "p"])
+        best, history = None, []
+        for _ in range(max_iterations):
+            phi, J, arrow = f(x, state, p)
+            norm = float(np.max(np.abs(phi))) if len(phi) else 0.0
+            if not np.isfinite(norm) or not np.isfinite(J).all():
+                break
+            history.append(norm)
+            if best is None or norm < best[0]:
+                best = (norm, arrow)
+            # stop at the rounding floor: no further halving of the residual
+            if len(history) > 2 and history[-1] > 0.5 * min(history[:-1]) and norm < 1e-8:
+                break
+            if norm == 0.0:
+                break
+            dx = np.linalg.lstsq(J.reshape(self.m, len(x)), phi, rcond=None)[0]
+            x = x - dx
+        if best is None or not best[0] < 1e-8:
+            shown = ", ".join(f"{v:.1e}" for v in history[-4:]) or "non-finite"
+            raise ProjectionError(
+                f"{self.name}: could not project the initial state onto the constraints: "
+                f"Gauss–Newton in the fibre of α(g_k) reached |φ|∞ = {shown}; no zero of the "
+                f"constraints near the given arrow (check the parameters, or start closer)")
+        out = state.copy()
+        out[index] = best[1]
+        return out
+
+
+_PROJECTIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def projection(step, layout) -> ConstraintProjection:
+    """The (cached) :class:`ConstraintProjection` of a step."""
+    hit = _PROJECTIONS.get(step)
+    if hit is None:
+        hit = _PROJECTIONS[step] = ConstraintProjection(step, layout)
+    return hit
