@@ -27,6 +27,9 @@ import numpy as np
 
 from ._errors import DomainError, InputTypeError, ShapeError
 
+#: NumPy dates and durations (``np.timedelta64`` is a ``numbers.Integral``)
+_TIMES = (np.datetime64, np.timedelta64)
+
 #: the largest count accepted for steps, iterations and similar arguments (C ``long`` safe,
 #: and far beyond what fits in memory or time)
 MAX_COUNT = 2**53
@@ -56,6 +59,9 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
     at = where(owner)
     if isinstance(value, (bool, np.bool_)):
         raise ShapeError(f"{at}{name} must be an integer, got the boolean {value!r}")
+    if isinstance(value, _TIMES):  # NumPy durations are integers to `numbers`, not counts
+        raise ShapeError(f"{at}{name} must be an integer, got {type(value).__name__} "
+                         f"{_shown(value)}")
     if isinstance(value, numbers.Integral):
         number = int(value)
     elif isinstance(value, numbers.Real):
@@ -111,7 +117,8 @@ def flag_argument(value, name: str, *, owner: str = "") -> bool:
     anything else (a string such as ``"no"``, None) is a :class:`ShapeError`."""
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
-    if isinstance(value, numbers.Integral) and int(value) in (0, 1):
+    if isinstance(value, numbers.Integral) and not isinstance(value, _TIMES) \
+            and int(value) in (0, 1):
         return bool(value)
     raise ShapeError(f"{where(owner)}{name} must be True or False, got "
                      f"{type(value).__name__} {_shown(value)}")

@@ -129,6 +129,11 @@ class InputTypeError(ShapeError, TypeError):
     path or a list of names is expected (also a ``TypeError``)."""
 
 
+class OutputError(SymgroupoidError, OSError):
+    """A file cannot be written (its directory missing or read-only, a directory or a file
+    in the way); the message names the path and the reason."""
+
+
 class ParameterError(DomainError, InputNameError):
     """A parameter is unknown, missing, given twice, not a finite real number, or violates
     the assumptions its symbol is declared with (positive, integer, …)."""

@@ -26,6 +26,7 @@ from _hostile import (
     junk,
     profile,
     scalars,
+    scratch_cwd,  # noqa: F401  (autouse fixture)
     verify_trajectory,
 )
 from hypothesis import given

@@ -167,7 +167,7 @@ def as_scalar_list(system_name: str, what: str, value) -> list[sp.Expr]:
         try:
             out.append(as_scalar(system_name, f"{what} (entry {i})", v))
         except ShapeError as exc:
-            raise ShapeError(f"{exc} — constraints must be a list of scalars") from exc
+            raise ShapeError(f"{exc} — {what} must be a list of scalars") from exc
     return out
 
 

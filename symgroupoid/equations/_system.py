@@ -129,7 +129,7 @@ class DiscreteSystem:
         to be a Noether symmetry.
         """
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self._fs),
-                              section, f)
+                              section, f, self.parameters)
         ok = is_identically_zero(forms.defect, self.groupoid, forms.arrow)
         return NoetherQuantity(forms, ok, self.parameters)
 

@@ -27,7 +27,7 @@ from .._arguments import (
     real_array,
 )
 from .._errors import ShapeError
-from ..codegen._emit import DEFAULT_OPTIONS
+from ..codegen._emit import DEFAULT_OPTIONS, MAX_THREADS
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT = range(5)
 
@@ -364,7 +364,7 @@ class CKernel(_Kernel):
         n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
         every = integer_argument(every, "every", minimum=1, maximum=self.max_steps)
         threads = 0 if threads is None else integer_argument(threads, "threads", minimum=1,
-                                                             maximum=C_INT_MAX)
+                                                             maximum=MAX_THREADS)
         B = len(known0)
         out = self._batch_buffers(B, n_steps, every)
         if B == 0:

@@ -42,7 +42,9 @@ from ._cache import (
     MANIFEST,
     KernelCache,
     abi_tag,
+    absolute_root,
     file_sha256,
+    prepared,
     read_json,
     sha256_of,
     write_json_atomic,
@@ -139,9 +141,11 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
     result = _openmp_probe(command)
     _OPENMP[key] = result
     probes = cache.root / "probes"
-    with contextlib.suppress(OSError):  # an unwritable cache: probe again next time
-        probes.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
+    # kept only in a writable kernel cache (never in a foreign or read-only directory)
+    with contextlib.suppress(OSError):
+        if prepared(cache.root):
+            probes.mkdir(exist_ok=True)
+            write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
     return result
 
 
@@ -417,9 +421,10 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         and run as fast, plus ``-fopenmp`` when the compiler supports it); part of the cache
         key.  Builds carry no debug information unless ``flags`` ask for it (``-g``).
     cache_dir : cache root, a path (default ``$SYMGROUPOID_CACHE``,
-        ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``).  If it cannot be
-        written, kernels are built in a private temporary directory for this process (with
-        a ``RuntimeWarning``).
+        ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``); a relative path is
+        taken relative to the working directory of this call.  If it cannot be written,
+        kernels are built in a private temporary directory for this process (with a
+        ``RuntimeWarning``).
     tol_residual, tol_step, max_iterations, floor_factor : Newton options (see
         :class:`NewtonOptions`).
     progress : report code generation and compilation taking longer than 2 s (see
@@ -440,8 +445,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         backend = os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto"
         choice_argument(backend, BACKENDS, "SYMGROUPOID_BACKEND", owner=owner)
     flags = compiler_flags(flags, owner)
-    cache_dir = None if cache_dir is None else path_argument(cache_dir, "cache_dir",
-                                                             owner=owner)
+    if cache_dir is not None:  # resolved now: a later chdir cannot move the cache
+        cache_dir = absolute_root(path_argument(cache_dir, "cache_dir", owner=owner))
     given = {"tol_residual": tol_residual, "tol_step": tol_step,
              "max_iterations": max_iterations, "floor_factor": floor_factor}
     options = NewtonOptions(**{k: v for k, v in given.items() if v is not None})

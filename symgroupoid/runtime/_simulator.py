@@ -206,8 +206,9 @@ class Simulator:
 
         The compiled kernel advances all runs in one call of ``<prefix>_simulate_batch``,
         each run by the same code as :meth:`simulate` (bitwise the same states, iterations
-        and residual norms), shared among ``threads`` OpenMP threads (None: all cores) when
-        the kernel was built with OpenMP.  A run that fails stops alone: its status, failing
+        and residual norms), shared among ``threads`` OpenMP threads (None: all cores; an
+        integer 1 … ``MAX_THREADS`` = 1024, never more than one per run) when the kernel was
+        built with OpenMP.  A run that fails stops alone: its status, failing
         step and the error :meth:`simulate` would raise are recorded, the others go on.
         Returns a :class:`~symgroupoid.runtime._batch.TrajectoryBatch` (``batch[b]`` is run b
         as a :class:`Trajectory`).
@@ -345,9 +346,12 @@ class Simulator:
         Returns the flat state, checked like any initial state (:meth:`state` with
         ``params``).  First-order steps only; a :class:`~symgroupoid.runtime._projection.
         ProjectionError` (a :class:`DomainError`) when no zero of φ is found nearby.
+        ``max_iterations``: the Gauss–Newton iteration cap, an integer in 1 … 10⁶.
         """
         from ._projection import projection
 
+        max_iterations = integer_argument(max_iterations, "max_iterations", minimum=1,
+                                          maximum=10**6, owner=self.name)
         p = self.parameters(params)
         if (isinstance(initial, Mapping) and self.layout.n_multipliers
                 and not any(k in initial for k in ("lambda", "λ", "multipliers"))):

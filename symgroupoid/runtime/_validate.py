@@ -24,7 +24,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import MAX_COUNT, integer_argument, real_argument, real_array  # noqa: F401
+from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
+    MAX_COUNT,
+    instance_argument,
+    integer_argument,
+    real_argument,
+    real_array,
+)
 from .._errors import DomainError, ParameterError, ShapeError
 from ..groupoids import (
     ActionGroupoid,
@@ -51,6 +57,23 @@ _EPS = float(np.finfo(float).eps)
 
 def _where(owner: str) -> str:
     return f"{owner}: " if owner else ""
+
+
+# --- systems ------------------------------------------------------------------------------------
+
+def system_argument(value, name: str, *, owner: str = ""):
+    """The discrete system behind ``value``: a :class:`~symgroupoid.DiscreteSystem` (also
+    second-order, reduced) or :class:`~symgroupoid.NonholonomicSystem`, or the step equations
+    derived from one (their ``.system``); an :class:`~symgroupoid.InputTypeError` naming
+    ``name`` for anything else (a string, a groupoid, equations with no system attached)."""
+    from ..equations import DiscreteSystem, NonholonomicSystem, StepEquations
+
+    if isinstance(value, StepEquations):
+        value = getattr(value, "system", None) or value
+    return instance_argument(value, (DiscreteSystem, NonholonomicSystem), name,
+                             "a discrete system (DiscreteSystem, SecondOrderSystem, "
+                             "NonholonomicSystem) or the step equations derived from one",
+                             owner=owner)
 
 
 # --- parameters ---------------------------------------------------------------------------------
