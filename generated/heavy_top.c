@@ -784,7 +784,8 @@ static void heavy_top_batch_one(const double *known0, const double *p, long n_st
  * failed_residual_norm[b] describe step s, last_iterate + b * HEAVY_TOP_N_UNKNOWNS receives its last
  * Newton iterate (these four may be NULL), and the others go on.  Trajectories are independent,
  * so with OpenMP (compiled with -fopenmp) they are shared among n_threads threads (<= 0: the
- * OpenMP default) without changing any result; without OpenMP they run one after the other.
+ * OpenMP default; at most n_batch and HEAVY_TOP_MAX_THREADS) without changing any result;
+ * without OpenMP they run one after the other.
  * Returns HEAVY_TOP_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
  * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or HEAVY_TOP_N_PARAMETERS, or
  * invalid options; otherwise HEAVY_TOP_OK (a non-finite row of known0 or p is reported as
@@ -807,9 +808,22 @@ int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p
         || !heavy_top_options_valid(options)) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
-    (void)n_threads;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads()) if (n_batch > 1)
+    /* no more threads than trajectories, nor than HEAVY_TOP_MAX_THREADS: a team is created
+     * whole, and a huge n_threads would exhaust memory before any work is done */
+    long team = n_threads > 0 ? n_threads : omp_get_max_threads();
+    if (team > n_batch) {
+        team = n_batch;
+    }
+    if (team > HEAVY_TOP_MAX_THREADS) {
+        team = HEAVY_TOP_MAX_THREADS;
+    }
+    if (team < 1) {
+        team = 1;
+    }
+#pragma omp parallel for schedule(dynamic, 1) num_threads((int)team) if (team > 1)
+#else
+    (void)n_threads;
 #endif
     for (b = 0; b < n_batch; ++b) {
         int unused_iterations;

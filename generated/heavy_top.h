@@ -56,8 +56,9 @@
  *   consecutive kept states in iterations / residual_norms + b * (rows - 1).  A failing
  *   trajectory stops alone (status[b], failed_step[b]; the failed step's iterations, residual
  *   norm and last iterate) and keeps the last state it reached.  Compiled with -fopenmp the
- *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default), with
- *   the same results; otherwise they run one after the other.
+ *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default; never
+ *   more than n_batch or HEAVY_TOP_MAX_THREADS), with the same results; otherwise they run one
+ *   after the other.
  * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
  *   #error): they delete its NaN and overflow checks.
  */
@@ -74,6 +75,7 @@ extern "C" {
 #define HEAVY_TOP_N_PARAMETERS 5
 #define HEAVY_TOP_N_FIBRE 9
 #define HEAVY_TOP_N_CONSTRAINTS 0
+#define HEAVY_TOP_MAX_THREADS 1024
 
 #define HEAVY_TOP_OK 0
 #define HEAVY_TOP_SINGULAR_JACOBIAN 1

@@ -950,7 +950,8 @@ static void plate_ball_batch_one(const double *known0, const double *p, long n_s
  * failed_residual_norm[b] describe step s, last_iterate + b * PLATE_BALL_N_UNKNOWNS receives its last
  * Newton iterate (these four may be NULL), and the others go on.  Trajectories are independent,
  * so with OpenMP (compiled with -fopenmp) they are shared among n_threads threads (<= 0: the
- * OpenMP default) without changing any result; without OpenMP they run one after the other.
+ * OpenMP default; at most n_batch and PLATE_BALL_MAX_THREADS) without changing any result;
+ * without OpenMP they run one after the other.
  * Returns PLATE_BALL_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
  * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or PLATE_BALL_N_PARAMETERS, or
  * invalid options; otherwise PLATE_BALL_OK (a non-finite row of known0 or p is reported as
@@ -973,9 +974,22 @@ int plate_ball_simulate_batch(long n_batch, const double *known0, const double *
         || !plate_ball_options_valid(options)) {
         return PLATE_BALL_INVALID_ARGUMENT;
     }
-    (void)n_threads;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 1) num_threads(n_threads > 0 ? n_threads : omp_get_max_threads()) if (n_batch > 1)
+    /* no more threads than trajectories, nor than PLATE_BALL_MAX_THREADS: a team is created
+     * whole, and a huge n_threads would exhaust memory before any work is done */
+    long team = n_threads > 0 ? n_threads : omp_get_max_threads();
+    if (team > n_batch) {
+        team = n_batch;
+    }
+    if (team > PLATE_BALL_MAX_THREADS) {
+        team = PLATE_BALL_MAX_THREADS;
+    }
+    if (team < 1) {
+        team = 1;
+    }
+#pragma omp parallel for schedule(dynamic, 1) num_threads((int)team) if (team > 1)
+#else
+    (void)n_threads;
 #endif
     for (b = 0; b < n_batch; ++b) {
         int unused_iterations;

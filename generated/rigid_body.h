@@ -52,8 +52,9 @@
  *   consecutive kept states in iterations / residual_norms + b * (rows - 1).  A failing
  *   trajectory stops alone (status[b], failed_step[b]; the failed step's iterations, residual
  *   norm and last iterate) and keeps the last state it reached.  Compiled with -fopenmp the
- *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default), with
- *   the same results; otherwise they run one after the other.
+ *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default; never
+ *   more than n_batch or RIGID_BODY_MAX_THREADS), with the same results; otherwise they run one
+ *   after the other.
  * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
  *   #error): they delete its NaN and overflow checks.
  */
@@ -70,6 +71,7 @@ extern "C" {
 #define RIGID_BODY_N_PARAMETERS 4
 #define RIGID_BODY_N_FIBRE 9
 #define RIGID_BODY_N_CONSTRAINTS 0
+#define RIGID_BODY_MAX_THREADS 1024
 
 #define RIGID_BODY_OK 0
 #define RIGID_BODY_SINGULAR_JACOBIAN 1

@@ -1,21 +1,51 @@
-"""Counts given to any entry point (steps, samples, iterations, seeds): one rule everywhere.
+"""Checks of plain arguments shared by every layer: counts, real numbers, real arrays, names,
+callables, choices, instances, file-system paths.
 
-It lives below every layer, so the groupoid checks (layer 1), the runtime (layer 5) and the
-command line all read ``steps=1e7``, ``steps=-5`` or ``samples=2.5`` the same way.
+Each check returns the argument in its canonical form or raises a
+:class:`~symgroupoid.SymgroupoidError` subclass whose message names the argument (and the
+owner: the system, groupoid or simulator it was given to):
+
+- :class:`~symgroupoid.ShapeError` — not a number, the wrong shape, a value out of range;
+- :class:`~symgroupoid.InputTypeError` — an object of the wrong kind (also a ``TypeError``);
+- :class:`~symgroupoid.DomainError` — a value outside its domain or its choices.
+
+One rule per kind of argument, wherever it is given: booleans are not numbers, strings are
+not numbers (``"1.5"`` is refused, not parsed), complex values are refused even with a zero
+imaginary part, and so are dates, durations and integers beyond the range of a double.
+The module lives below every layer, so the groupoid checks (layer 1), the runtime (layer 5)
+and the command line all read ``steps=1e7``, ``steps=-5`` or ``samples=2.5`` the same way.
 """
 
 from __future__ import annotations
 
 import numbers
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
 
 import numpy as np
 
-from ._errors import ShapeError
+from ._errors import DomainError, InputTypeError, ShapeError
+
+#: NumPy dates and durations (``np.timedelta64`` is a ``numbers.Integral``)
+_TIMES = (np.datetime64, np.timedelta64)
 
 #: the largest count accepted for steps, iterations and similar arguments (C ``long`` safe,
 #: and far beyond what fits in memory or time)
 MAX_COUNT = 2**53
 
+
+def where(owner: str) -> str:
+    """The ``"owner: "`` prefix of a message (empty without an owner)."""
+    return f"{owner}: " if owner else ""
+
+
+def _shown(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:77] + "..."
+
+
+# --- numbers ------------------------------------------------------------------------------------
 
 def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_COUNT,
                      owner: str = "") -> int:
@@ -26,23 +56,217 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
     infinities, non-integral values, values below ``minimum`` or above ``maximum``, and
     anything that is not a real number.
     """
-    where = f"{owner}: " if owner else ""
+    at = where(owner)
     if isinstance(value, (bool, np.bool_)):
-        raise ShapeError(f"{where}{name} must be an integer, got the boolean {value!r}")
+        raise ShapeError(f"{at}{name} must be an integer, got the boolean {value!r}")
+    if isinstance(value, _TIMES):  # NumPy durations are integers to `numbers`, not counts
+        raise ShapeError(f"{at}{name} must be an integer, got {type(value).__name__} "
+                         f"{_shown(value)}")
     if isinstance(value, numbers.Integral):
         number = int(value)
     elif isinstance(value, numbers.Real):
         real = float(value)
         if not np.isfinite(real):
-            raise ShapeError(f"{where}{name} must be a finite integer, got {value!r}")
+            raise ShapeError(f"{at}{name} must be a finite integer, got {value!r}")
         if real != int(real):
-            raise ShapeError(f"{where}{name} must be an integer, got {value!r}")
+            raise ShapeError(f"{at}{name} must be an integer, got {value!r}")
         number = int(real)
     else:
-        raise ShapeError(f"{where}{name} must be an integer, got {type(value).__name__} "
-                         f"{value!r}")
+        raise ShapeError(f"{at}{name} must be an integer, got {type(value).__name__} "
+                         f"{_shown(value)}")
     if number < minimum:
-        raise ShapeError(f"{where}{name} must be at least {minimum}, got {number}")
+        raise ShapeError(f"{at}{name} must be at least {minimum}, got {number}")
     if number > maximum:
-        raise ShapeError(f"{where}{name} must be at most {maximum}, got {number}")
+        raise ShapeError(f"{at}{name} must be at most {maximum}, got {number}")
     return number
+
+
+def real_argument(value, name: str, *, minimum: float | None = None, owner: str = "",
+                  error: type[ShapeError] = ShapeError, finite: bool = True) -> float:
+    """``value`` as a float, or ``error`` (a :class:`ShapeError` subclass) naming ``name``.
+
+    Accepted: real numbers (Python, NumPy, SymPy numbers, 0-d arrays).  Rejected: booleans,
+    strings, complex numbers, arrays and sequences, integers beyond the range of a double,
+    values below ``minimum``, and (unless ``finite=False``) NaN and infinities.
+    """
+    at = where(owner)
+    bad = f"{at}{name} must be a real number, got {type(value).__name__} {_shown(value)}"
+    if isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating,
+                          np.datetime64, np.timedelta64, Sequence, Mapping)):
+        raise error(bad)
+    try:
+        if np.ndim(value) != 0 or np.asarray(value).dtype.kind not in "iufO":
+            raise error(bad)
+        real = float(value)
+    except (TypeError, ValueError, AttributeError):
+        raise error(bad) from None
+    except OverflowError:
+        raise error(f"{at}{name} is beyond the range of a double, got "
+                    f"{_shown(value)}") from None
+    if not finite:
+        return real
+    if not np.isfinite(real):
+        raise error(f"{at}{name} must be finite, got {real!r}")
+    if minimum is not None and real < minimum:
+        raise error(f"{at}{name} must be at least {minimum}, got {real!r}")
+    return real
+
+
+def flag_argument(value, name: str, *, owner: str = "") -> bool:
+    """``value`` as a bool: ``True``/``False`` (Python or NumPy) or the integers 0 and 1;
+    anything else (a string such as ``"no"``, None) is a :class:`ShapeError`."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, numbers.Integral) and not isinstance(value, _TIMES) \
+            and int(value) in (0, 1):
+        return bool(value)
+    raise ShapeError(f"{where(owner)}{name} must be True or False, got "
+                     f"{type(value).__name__} {_shown(value)}")
+
+
+#: NumPy dtype kinds holding real numbers (integers, unsigned integers, floats)
+_REAL_KINDS = "iuf"
+
+
+def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
+    """``value`` as a float64 array of the same shape, or a :class:`ShapeError` naming
+    ``name``.
+
+    Accepted: real numbers and (nested) sequences or arrays of them — Python, NumPy and SymPy
+    numbers.  Rejected, whatever their values: strings (also numeric-looking ones), bytes,
+    booleans, complex numbers (also with a zero imaginary part, which NumPy would drop with
+    only a warning), dates and durations, None, mappings, sets, ragged nesting, and integers
+    beyond the range of a double.  Values are not checked for finiteness here.
+    """
+    at = where(owner)
+    kind = f"an array of real numbers, got {type(value).__name__} {_shown(value)}"
+    if isinstance(value, (str, bytes, Mapping, set, frozenset)) or value is None:
+        raise ShapeError(f"{at}{name} must be {kind}")
+    try:
+        raw = np.asarray(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ShapeError(f"{at}{name} must be {kind}") from None
+    if raw.dtype.kind == "O":
+        for item in raw.flat:
+            _check_real_item(item, name, at)
+    elif raw.dtype.kind not in _REAL_KINDS:
+        raise ShapeError(f"{at}{name} must hold real numbers, got dtype {raw.dtype} "
+                         f"({_shown(value)})")
+    try:
+        return np.array(raw, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ShapeError(f"{at}{name} must be {kind}") from None
+    except OverflowError:
+        raise ShapeError(f"{at}{name} has an entry beyond the range of a double: "
+                         f"{_shown(value)}") from None
+
+
+def _check_real_item(item, name: str, at: str) -> None:
+    """An entry of an object array: a real number (not a bool, string, complex, …)."""
+    if isinstance(item, (bool, np.bool_, str, bytes, complex, np.complexfloating)) \
+            or not isinstance(item, numbers.Real) and not _is_real_number(item):
+        raise ShapeError(f"{at}{name} must hold real numbers, got the entry "
+                         f"{type(item).__name__} {_shown(item)}")
+    try:
+        float(item)
+    except OverflowError:
+        raise ShapeError(f"{at}{name} has an entry beyond the range of a double: "
+                         f"{_shown(item)}") from None
+    except (TypeError, ValueError):
+        raise ShapeError(f"{at}{name} must hold real numbers, got the entry "
+                         f"{_shown(item)}") from None
+
+
+def _is_real_number(item) -> bool:
+    """A SymPy number that is real (``Rational(1, 3)``, ``Float(2)``, ``pi``…)."""
+    is_number = getattr(item, "is_number", False)
+    return bool(is_number) and getattr(item, "is_extended_real", False) is True
+
+
+# --- objects ------------------------------------------------------------------------------------
+
+def name_argument(value, name: str, *, owner: str = "", empty: bool = False) -> str:
+    """``value`` as a name: a string (non-empty unless ``empty``), without NUL characters;
+    an :class:`InputTypeError` or :class:`ShapeError` naming ``name`` otherwise."""
+    if not isinstance(value, str):
+        raise InputTypeError(f"{where(owner)}{name} must be a string, got "
+                             f"{type(value).__name__} {_shown(value)}")
+    if not value.strip() and not empty:
+        raise ShapeError(f"{where(owner)}{name} must not be empty, got {value!r}")
+    if "\0" in value:
+        raise ShapeError(f"{where(owner)}{name} must not contain NUL characters, got "
+                         f"{value!r}")
+    return value
+
+
+def names_argument(value, name: str, *, owner: str = "") -> tuple[str, ...]:
+    """A sequence of names (each :func:`name_argument`); a single string is refused (it
+    would be read letter by letter)."""
+    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence,
+                                                                          np.ndarray)):
+        raise InputTypeError(f"{where(owner)}{name} must be a list of strings, got "
+                             f"{type(value).__name__} {_shown(value)}")
+    return tuple(name_argument(v, f"{name}[{i}]", owner=owner) for i, v in enumerate(value))
+
+
+def callable_argument(value, name: str, *, owner: str = "", none: bool = False):
+    """``value`` if it is callable (or None when ``none``), else an :class:`InputTypeError`."""
+    if value is None and none:
+        return None
+    if not callable(value):
+        raise InputTypeError(f"{where(owner)}{name} must be a function, got "
+                             f"{type(value).__name__} {_shown(value)}")
+    return value
+
+
+def instance_argument(value, kinds, name: str, what: str, *, owner: str = ""):
+    """``value`` if it is an instance of ``kinds``, else an :class:`InputTypeError` saying
+    ``what`` is expected."""
+    if not isinstance(value, kinds):
+        raise InputTypeError(f"{where(owner)}{name} must be {what}, got "
+                             f"{type(value).__name__} {_shown(value)}")
+    return value
+
+
+def choice_argument(value, choices: Sequence, name: str, *, owner: str = ""):
+    """``value`` if it is one of ``choices`` (compared as strings are: no conversion), else
+    a :class:`DomainError` listing them."""
+    if not isinstance(value, str) or value not in choices:
+        raise DomainError(f"{where(owner)}{name} must be one of "
+                          f"{', '.join(map(repr, choices))}, got {_shown(value)}")
+    return value
+
+
+def path_argument(value, name: str, *, owner: str = "") -> Path:
+    """``value`` as a :class:`~pathlib.Path`: a ``str`` or ``os.PathLike`` giving a string,
+    non-empty and without NUL characters."""
+    if isinstance(value, (bytes, bytearray)) or not isinstance(value, (str, os.PathLike)):
+        raise InputTypeError(f"{where(owner)}{name} must be a path (str or os.PathLike), got "
+                             f"{type(value).__name__} {_shown(value)}")
+    text = os.fspath(value)
+    if not isinstance(text, str):
+        raise InputTypeError(f"{where(owner)}{name} must be a path giving a str, got "
+                             f"{type(text).__name__}")
+    if not text:
+        raise ShapeError(f"{where(owner)}{name} must not be empty")
+    if "\0" in text:
+        raise ShapeError(f"{where(owner)}{name} must not contain NUL characters, got "
+                         f"{text!r}")
+    return Path(text)
+
+
+def sequence_argument(value, name: str, *, owner: str = "") -> list:
+    """``value`` as a list: a list, tuple or other sequence (not a string, bytes, mapping or
+    set, whose order or items are not those of a list); an :class:`InputTypeError`
+    otherwise."""
+    if isinstance(value, (str, bytes, Mapping, set, frozenset)) or not isinstance(
+            value, (Sequence, np.ndarray)):
+        raise InputTypeError(f"{where(owner)}{name} must be a list or tuple, got "
+                             f"{type(value).__name__} {_shown(value)}")
+    return list(value)
+
+
+__all__ = ["MAX_COUNT", "callable_argument", "choice_argument", "flag_argument",
+           "instance_argument", "integer_argument", "name_argument", "names_argument",
+           "path_argument", "real_argument", "real_array", "sequence_argument", "where"]
+

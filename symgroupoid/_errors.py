@@ -112,7 +112,8 @@ class ReconstructionError(SymgroupoidError, ValueError):
 
 class DomainError(ShapeError):
     """An input has the right shape but lies outside its domain: a matrix that is not in its
-    group, a non-finite number, an initial state off the constraints."""
+    group, a non-finite number, an initial state off the constraints, a value that is not
+    one of an option's choices."""
 
 
 class InputNameError(ShapeError, KeyError):
@@ -121,6 +122,16 @@ class InputNameError(ShapeError, KeyError):
 
     def __str__(self) -> str:  # the message itself, not KeyError's repr of it
         return str(self.args[0]) if self.args else ""
+
+
+class InputTypeError(ShapeError, TypeError):
+    """An argument is an object of the wrong kind: a string where a groupoid, a function, a
+    path or a list of names is expected (also a ``TypeError``)."""
+
+
+class OutputError(SymgroupoidError, OSError):
+    """A file cannot be written (its directory missing or read-only, a directory or a file
+    in the way); the message names the path and the reason."""
 
 
 class ParameterError(DomainError, InputNameError):

@@ -30,6 +30,8 @@ import threading
 import time
 from collections.abc import Callable
 
+from ._arguments import flag_argument
+
 logger = logging.getLogger("symgroupoid")
 
 #: seconds a piece of work runs before anything is reported
@@ -91,6 +93,8 @@ class Task:
         self.description = description
         self.total = total
         self.unit = unit
+        if progress is not None:  # True or False (or 1, 0): a string such as "no" is refused
+            progress = flag_argument(progress, "progress", owner=description)
         self.mode = _mode(progress)
         self.done = 0
         self.status_note = ""

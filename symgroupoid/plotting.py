@@ -21,7 +21,14 @@ from os import PathLike
 
 import numpy as np
 
-from ._errors import SymgroupoidError
+from ._arguments import flag_argument, integer_argument, names_argument, path_argument
+from ._errors import (
+    DomainError,
+    InputNameError,
+    InputTypeError,
+    OutputError,
+    SymgroupoidError,
+)
 from .runtime._diagnostics import (
     Drift,
     _noether_quantities,
@@ -49,11 +56,38 @@ def _figure_class():
     return Figure
 
 
-def _finish(fig, path: str | PathLike | None):
+def _output(path, owner: str):
+    """``path`` checked before any drawing: None, or a path whose suffix names a format
+    matplotlib writes (``.png``, ``.pdf``, ``.svg``, …)."""
+    if path is None:
+        return None
+    path = path_argument(path, "path", owner=owner)
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    formats = FigureCanvasBase.get_supported_filetypes()
+    if path.suffix.lstrip(".").lower() not in formats:
+        raise DomainError(f"{owner}: path {str(path)!r} must end in the suffix of a figure "
+                          f"format ({', '.join('.' + f for f in sorted(formats))})")
+    return path
+
+
+def _finish(fig, path: str | PathLike | None, owner: str):
     fig.tight_layout()
     if path is not None:
-        fig.savefig(path, dpi=120)
+        try:
+            fig.savefig(path, dpi=120)
+        except OSError as exc:
+            raise OutputError(f"{owner}: the figure cannot be written to {str(path)!r}: "
+                              f"{exc.strerror or exc}") from exc
     return fig
+
+
+def _owner(trajectory) -> str:
+    layout = getattr(trajectory, "_layout", None)
+    if layout is None:
+        raise InputTypeError(f"plot_trajectory: trajectory must be a Trajectory (from "
+                             f"Simulator.simulate), got {type(trajectory).__name__}")
+    return layout.step_name
 
 
 def _part_positions(trajectory, name: str, n: int) -> np.ndarray:
@@ -70,13 +104,18 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
     every entry of the part against its step position (a pair-groupoid coordinate at
     q_0 … q_{N+1}, a matrix part entry by entry).  Returns the figure."""
     Figure = _figure_class()
-    names = list(trajectory.keys())[:max_parts] if parts is None else list(parts)
+    owner = _owner(trajectory)
+    max_parts = integer_argument(max_parts, "max_parts", minimum=1, owner=owner)
+    names = (list(trajectory.keys())[:max_parts] if parts is None
+             else list(names_argument([parts] if isinstance(parts, str) else parts, "parts",
+                                      owner=owner)))
     for name in names:
         if name not in trajectory:
-            raise KeyError(f"no part named {name!r}; available: "
-                           f"{', '.join(trajectory.keys())}")
+            raise InputNameError(f"{owner}: no part named {name!r}; available: "
+                                 f"{', '.join(trajectory.keys())}")
     if not names:
-        raise ValueError("plot_trajectory: no parts to plot")
+        raise DomainError(f"{owner}: plot_trajectory: no parts to plot (parts is empty)")
+    path = _output(path, owner)
     fig = Figure(figsize=(7, 2.2 * len(names) + 0.6))
     axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
     for ax, name in zip(axes, names):
@@ -92,7 +131,7 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
             ax.legend(fontsize="x-small", ncols=min(flat.shape[1], 3), loc="best")
     axes[-1].set_xlabel("step k")
     axes[0].set_title(f"{trajectory._layout.step_name}: {trajectory.steps} steps")
-    return _finish(fig, path)
+    return _finish(fig, path, owner)
 
 
 def _drift_panel(ax, quantities: list[Drift]) -> None:
@@ -129,6 +168,11 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     """
     Figure = _figure_class()
     ev, _ = _setup(trajectory)
+    owner = ev.sg.name
+    energy = None if energy is None else flag_argument(energy, "energy", owner=owner)
+    constraints = (None if constraints is None
+                   else flag_argument(constraints, "constraints", owner=owner))
+    path = _output(path, owner)
     idx = trajectory.step_indices
     quantities = []
     if energy or (energy is None and has_energy(trajectory, step_parameter)):
@@ -138,9 +182,10 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
         quantities.append(Drift(label, nq.along(trajectory), idx))
     show_phi = bool(ev.sg.phi) if constraints is None else constraints
     if show_phi and not ev.sg.phi:
-        raise ValueError(f"{ev.sg.name}: the system has no constraints to plot")
+        raise DomainError(f"{ev.sg.name}: constraints=True, but the system has no "
+                          f"constraints to plot")
     if not quantities and not show_phi:
-        raise ValueError(f"{ev.sg.name}: nothing to plot: no energy is defined (pass "
+        raise DomainError(f"{ev.sg.name}: nothing to plot: no energy is defined (pass "
                          f"step_parameter=...) and no Noether quantity was given (momenta=[...])")
     panels = int(bool(quantities)) + int(show_phi)
     fig = Figure(figsize=(7, 3 * panels + 0.6))
@@ -157,4 +202,4 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     axes[-1].set_xlabel("step k")
     axes[0].set_title(f"{trajectory._layout.step_name}: conservation over "
                       f"{trajectory.steps} steps")
-    return _finish(fig, path)
+    return _finish(fig, path, owner)

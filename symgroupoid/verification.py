@@ -22,6 +22,7 @@ import numpy as np
 import sympy as sp
 
 from ._arguments import integer_argument
+from ._errors import DomainError
 from .groupoids import Groupoid
 
 
@@ -119,8 +120,15 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     trivial solution (all arrows identities: every term's first-order change vanishes) the
     differences are pure O(ε²), which the extrapolation removes.
     """
+    from .runtime._validate import real_argument, system_argument
+
+    system = system_argument(system, "system", owner="verify_stationary")
     G = system.groupoid
-    seed = integer_argument(seed, "seed", owner=system.name)
+    seed = integer_argument(seed, "seed", maximum=2**63 - 1, owner=system.name)
+    eps = real_argument(eps, "eps", owner=system.name)
+    if not 0 < eps <= 1:
+        raise DomainError(f"{system.name}: eps must be in (0, 1] (the size of the "
+                          f"variations), got {eps!r}")
     arrows, lam, params = _unpack(trajectory, system, multipliers, params)
     L, phi, arity, m = _cached_terms(system)
     ng = _NumericGroupoid(G)
@@ -167,7 +175,7 @@ def _unpack(trajectory, system, multipliers, params):
     """Arrows (N, arrow_dim), multipliers (one row per action term) and the parameter vector
     of a :class:`BoundaryValueSolution`, a :class:`Trajectory` or an array of arrows."""
     from ._errors import ShapeError
-    from .runtime._validate import parameter_vector
+    from .runtime._validate import parameter_vector, real_array
 
     G, owner = system.groupoid, system.name
     layout = getattr(trajectory, "_layout", None)
@@ -182,11 +190,11 @@ def _unpack(trajectory, system, multipliers, params):
     if params is None:
         params = getattr(trajectory, "parameters", None)
     try:
-        arrows = np.asarray(arrows, float)
-    except (TypeError, ValueError):
+        arrows = real_array(arrows, "the arrows", owner=owner)
+    except ShapeError as err:
         raise ShapeError(f"{owner}: the trajectory must be a BoundaryValueSolution, a "
                          f"Trajectory or an array of arrows (N, {G.arrow_dim}), got "
-                         f"{type(trajectory).__name__}") from None
+                         f"{type(trajectory).__name__} ({err})") from None
     if arrows.ndim != 2 or arrows.shape[1] != G.arrow_dim:
         raise ShapeError(f"{owner}: arrows must have shape (N, {G.arrow_dim}), got "
                          f"{arrows.shape}")
@@ -199,16 +207,16 @@ def _unpack(trajectory, system, multipliers, params):
     if lam is None:
         raise ShapeError(f"{owner}: the system has {m} constraints; give the multipliers "
                          f"({terms}, {m}), one row per action term")
-    try:
-        lam = np.asarray(lam, float)
-    except (TypeError, ValueError):
-        raise ShapeError(f"{owner}: the multipliers must be numeric") from None
+    lam = real_array(lam, "the multipliers", owner=owner)
     if lam.size == 0 and not m:
         lam = np.zeros((terms, 0))
     if lam.shape != (terms, m):
         raise ShapeError(f"{owner}: multipliers must have shape ({terms}, {m}) (one row per "
                          f"action term), got {lam.shape}")
-    if not (np.isfinite(arrows).all() and np.isfinite(lam).all()):
-        raise ShapeError(f"{owner}: the trajectory has non-finite values")
+    for what, values in (("arrows", arrows), ("multipliers", lam)):
+        if not np.isfinite(values).all():
+            row = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
+            raise DomainError(f"{owner}: the trajectory's {what} have non-finite values "
+                              f"(row {row}: {values[row].tolist()})")
     values, _ = parameter_vector(system.parameters, params, owner=owner)
     return arrows, lam, list(values)

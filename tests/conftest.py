@@ -84,3 +84,12 @@ def heavy_top():
 @pytest.fixture(scope="session")
 def heavy_top_step(heavy_top):
     return heavy_top[0].euler_lagrange()
+
+
+def pytest_terminal_summary(terminalreporter) -> None:
+    """The tally of the hostile-input tests (tests/_hostile.py), when any of them ran."""
+    import sys
+
+    hostile = sys.modules.get("_hostile")
+    for line in hostile.TALLY.lines() if hostile is not None else []:
+        terminalreporter.write_line(line)

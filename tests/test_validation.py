@@ -235,5 +235,5 @@ def test_from_momentum_names_its_bad_inputs():
     params, config, momentum = SEED_DATA["plate_ball"]
     with pytest.raises(InputNameError, match="'z' is not a coordinate of the configuration"):
         sim.from_momentum({"z": 0.0}, momentum, params)
-    with pytest.raises(sg.ShapeError, match="the momentum must be numeric"):
+    with pytest.raises(sg.ShapeError, match="the momentum must hold real numbers"):
         sim.from_momentum(config, ["a", 0, 0, 0, 0], params)

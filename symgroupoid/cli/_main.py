@@ -2,8 +2,9 @@
 
 Exit statuses: 0 success; 1 an error (a :class:`~symgroupoid.SymgroupoidError`, a file that
 cannot be read or written) or a failed check, reported as one line
-``symgroupoid: error: …`` on stderr (``--debug``: the traceback instead); 2 a malformed
-command line (usage on stderr); 130 interrupted (Ctrl-C).
+``symgroupoid: error: …`` on stderr (``--debug``: the traceback instead; any other exception
+is a defect, reported the same way as an "internal error"); 2 a malformed command line
+(usage on stderr); 130 interrupted (Ctrl-C).
 """
 
 from __future__ import annotations
@@ -180,5 +181,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             raise
         print("symgroupoid: interrupted", file=sys.stderr, flush=True)
         return INTERRUPTED
+    except Exception as err:  # a defect of the library: still one line, never a traceback
+        if args.debug:
+            raise
+        return _fail(f"internal error ({type(err).__name__}: {err}); this is a defect of "
+                     f"symgroupoid: please report it with the output of --debug")
     finally:
         set_default(previous)

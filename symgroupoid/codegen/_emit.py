@@ -11,6 +11,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import os
+import re
 import tempfile
 import threading
 from dataclasses import dataclass
@@ -19,10 +20,16 @@ from pathlib import Path
 
 import jinja2
 
+from .._arguments import instance_argument, name_argument, path_argument
+from .._errors import OutputError, ShapeError
 from ._kernel import c_identifier, kernel_blocks
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
                   "program.h.j2")
+
+#: the most OpenMP threads ``<prefix>_simulate_batch`` starts (a team is created whole:
+#: thousands of threads exhaust memory before any work is done)
+MAX_THREADS = 1024
 
 #: default Newton options compiled into ``<prefix>_default_options``
 DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
@@ -135,6 +142,7 @@ def _context(step, prefix: str, header_name: str) -> dict:
         "floor_factor": _c_double(DEFAULT_OPTIONS["floor_factor"]),
         "tol_step": _c_double(DEFAULT_OPTIONS["tol_step"]),
         "max_iterations": DEFAULT_OPTIONS["max_iterations"],
+        "max_threads": MAX_THREADS,
     }
 
 
@@ -225,18 +233,45 @@ def write_atomic(path: Path, text: str) -> None:
         raise
 
 
+#: file names ``emit_c`` writes: the portable file name characters, as an ``#include "…"``
+#: names them on every system
+_PORTABLE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
+
+
 def emit_c(step, path: str | os.PathLike, prefix: str | None = None) -> tuple[Path, Path]:
     """Write ``path.c`` and ``path.h`` for ``step``; return their paths.
 
     C identifiers are prefixed by the sanitised ``prefix`` (default: ``step.name``), e.g.
     ``plate_ball_simulate``; the source includes the header by its file name.  Both files are
-    written atomically.
+    written atomically; missing directories are created.  ``step``: the
+    :class:`~symgroupoid.StepEquations` of a system; ``path``: a ``str`` or ``os.PathLike``
+    naming a file (not a directory such as ``/`` or ``.``) whose name is portable (ASCII
+    letters, digits, ``._+-``: the source includes the header by it); ``prefix``: None or a
+    string.
+    A file that cannot be written is an :class:`~symgroupoid.OutputError` naming it.
     """
-    base = Path(path)
+    from ..equations import StepEquations
+
+    instance_argument(step, StepEquations, "step", "the StepEquations of a system (from "
+                      "system.euler_lagrange())", owner="emit_c")
+    base = path_argument(path, "path", owner=step.name)
+    if prefix is not None:
+        prefix = name_argument(prefix, "prefix", owner=step.name, empty=True)
     if base.suffix in (".c", ".h"):
         base = base.with_suffix("")
+    if base.name in ("", ".", ".."):
+        raise ShapeError(f"{step.name}: path must name the files to write (path.c and "
+                         f"path.h), got the directory {str(path)!r}")
+    if not _PORTABLE_NAME.fullmatch(base.name):
+        raise ShapeError(f"{step.name}: path: the file name {base.name!r} must consist of "
+                         f"ASCII letters, digits, '.', '_', '+' and '-' (the source includes "
+                         f"the header by this name)")
     c_path, h_path = base.with_name(base.name + ".c"), base.with_name(base.name + ".h")
     kernel = generate_c(step, prefix, header_name=h_path.name)
-    write_atomic(h_path, kernel.header)
-    write_atomic(c_path, kernel.source)
+    for target, text in ((h_path, kernel.header), (c_path, kernel.source)):
+        try:
+            write_atomic(target, text)
+        except OSError as exc:
+            raise OutputError(f"{step.name}: cannot write {target}: "
+                              f"{exc.strerror or exc}") from exc
     return c_path, h_path

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import sys
 from collections.abc import Callable, Iterable, Sequence
 
 import sympy as sp
@@ -90,16 +92,26 @@ def as_scalar(system_name: str, what: str, value) -> sp.Expr:
 def check_finite_real(system_name: str, what: str, expr: sp.Expr,
                       display: dict | None = None) -> None:
     """Raise :class:`InvalidExpressionError` if ``expr`` contains nan, ±oo or zoo (also from
-    non-finite Python or NumPy floats, which SymPy turns into these) or the imaginary unit
-    (unless it cancels on expansion); the message names the value and the term of ``expr``
-    that contains it, with the coordinates shown through ``display``."""
+    non-finite Python or NumPy floats, which SymPy turns into these), a constant beyond the
+    range of a double (``Float("1e400")``: compiled code would read it as infinity), or the
+    imaginary unit (unless it cancels on expansion); the message names the value and the
+    term of ``expr`` that contains it, with the coordinates shown through ``display``."""
     atoms = expr.atoms()
     bad = next((a for a in _NON_FINITE if a in atoms), None)
+    huge = None if bad is not None else next(
+        (a for a in sorted(atoms, key=sp.default_sort_key)
+         if isinstance(a, sp.Number) and _beyond_double(a)), None)
     if bad is not None:
         described = _NON_FINITE[bad]
+    elif huge is not None:
+        bad = huge
+        described = (f"the constant {sp.Float(huge, 3)}, beyond the range of a double "
+                     f"(|c| > {sys.float_info.max:.4g}; compiled code would read it as "
+                     f"infinity)")
     elif sp.I in atoms and sp.expand(expr).has(sp.I):
         bad, described = sp.I, "I (the imaginary unit; the expression must be real)"
     else:
+        check_real_branches(system_name, what, expr, display)
         return
     if expr == bad:
         raise InvalidExpressionError(f"{system_name}: the {what} is {described}")
@@ -107,6 +119,37 @@ def check_finite_real(system_name: str, what: str, expr: sp.Expr,
     raise InvalidExpressionError(
         f"{system_name}: the {what} contains {described} in the term "
         f"{term.xreplace(display or {})}")
+
+
+#: functions real only on part of the real line (and powers with a non-integer exponent)
+_PARTIAL = (sp.log, sp.asin, sp.acos, sp.acosh, sp.atanh, sp.acoth, sp.asec, sp.acsc)
+
+
+def check_real_branches(system_name: str, what: str, expr: sp.Expr,
+                        display: dict | None = None) -> None:
+    """Raise :class:`InvalidExpressionError` when a logarithm, inverse trigonometric
+    function or fractional power in ``expr`` is not real at any real point (SymPy decides
+    it from the assumptions: ``log(-1 - q**2)``, ``sqrt(-h)`` with h positive): such an
+    expression is NaN wherever it is evaluated."""
+    parts = [e for e in expr.atoms(sp.Function, sp.Pow)
+             if isinstance(e, _PARTIAL) or (isinstance(e, sp.Pow) and e.exp.is_integer
+                                            is False)]
+    for e in sorted(parts, key=sp.default_sort_key):
+        if e.is_extended_real is False:
+            raise InvalidExpressionError(
+                f"{system_name}: the {what} contains {e.xreplace(display or {})}, which is "
+                f"not real for any real value of the coordinates and parameters (the "
+                f"expression must be real)")
+
+
+def _beyond_double(number: sp.Number) -> bool:
+    """Whether a finite SymPy number is too large in magnitude for a double."""
+    try:
+        return not math.isfinite(float(number))
+    except OverflowError:
+        return True
+    except TypeError:  # not real: reported as such by the caller
+        return False
 
 
 def as_scalar_list(system_name: str, what: str, value) -> list[sp.Expr]:
@@ -124,7 +167,7 @@ def as_scalar_list(system_name: str, what: str, value) -> list[sp.Expr]:
         try:
             out.append(as_scalar(system_name, f"{what} (entry {i})", v))
         except ShapeError as exc:
-            raise ShapeError(f"{exc} — constraints must be a list of scalars") from exc
+            raise ShapeError(f"{exc} — {what} must be a list of scalars") from exc
     return out
 
 
@@ -158,7 +201,14 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
     reported with what to pass instead — and, when ``what`` uses a symbol of that name,
     with that symbol."""
     by_name = {str(s): s for s in used}
+    seen: set[str] = set()
     for p in parameters:
+        if isinstance(p, sp.Symbol):
+            if str(p) in seen:
+                raise ParameterDeclarationError(
+                    f"{system_name}: parameter {p} is declared twice; parameters are given "
+                    f"by name, so each name may appear once")
+            seen.add(str(p))
         if isinstance(p, sp.Symbol):
             continue
         if isinstance(p, str):

@@ -28,9 +28,10 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import ShapeError
+from .._errors import DomainError, ShapeError
 from ..groupoids import Groupoid
 from ..groupoids._morphism import ParameterValues
+from ._callables import call_user, check_values
 from ._junction import junction_halves, slot, slot_substitution
 from ._momenta import legendre_forms
 from ._step import (
@@ -50,10 +51,10 @@ METHODS = ("holder", "energy_momentum")
 
 def metric_at(name: str, G: Groupoid, metric, q: Sequence) -> sp.Matrix:
     """G_c at the base point q: a rank × rank symmetric matrix (constant or callable)."""
-    value = metric(tuple(q)) if callable(metric) else metric
+    value = call_user(name, "metric", metric, tuple(q)) if callable(metric) else metric
     if value is None:
-        raise ValueError(f"{name}: the energy–momentum method needs metric=G_c, a bundle "
-                         f"metric on AG (a {G.rank}×{G.rank} matrix in the section basis)")
+        raise DomainError(f"{name}: the energy–momentum method needs metric=G_c, a bundle "
+                          f"metric on AG (a {G.rank}×{G.rank} matrix in the section basis)")
     try:
         M = sp.Matrix(value)
     except (TypeError, ValueError, sp.SympifyError) as exc:
@@ -62,8 +63,9 @@ def metric_at(name: str, G: Groupoid, metric, q: Sequence) -> sp.Matrix:
     if M.shape != (G.rank, G.rank):
         raise ShapeError(f"{name}: the metric is {M.shape[0]}×{M.shape[1]}; the algebroid has "
                          f"rank {G.rank}")
+    check_values(name, "metric", M)
     if any(sp.expand(e) != 0 for e in M - M.T):
-        raise ValueError(f"{name}: the metric G_c is not symmetric: {M.tolist()}")
+        raise DomainError(f"{name}: the metric G_c is not symmetric: {M.tolist()}")
     return M
 
 
@@ -109,8 +111,8 @@ def _check_numerically(name: str, C: sp.Matrix, Gm: sp.Matrix, q: Sequence) -> N
             raise ShapeError(f"{name}: the elements of D are linearly dependent at "
                              f"{_show(sub)}")
         if np.linalg.eigvalsh(Gn).min() <= 0:
-            raise ValueError(f"{name}: the metric G_c is not positive definite at "
-                             f"{_show(sub)}: eigenvalues {np.linalg.eigvalsh(Gn).tolist()}")
+            raise DomainError(f"{name}: the metric G_c is not positive definite at "
+                              f"{_show(sub)}: eigenvalues {np.linalg.eigvalsh(Gn).tolist()}")
 
 
 def _show(sub: dict) -> str:

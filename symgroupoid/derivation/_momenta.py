@@ -13,14 +13,23 @@ All are built from the same invariant derivations as the Euler–Lagrange equati
 
 from __future__ import annotations
 
+import numbers
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
 
+from .._errors import DomainError, InputTypeError, ShapeError
 from .._symbols import indexed_symbol, multiplier_symbols
 from ..groupoids import Groupoid, MatrixLieGroup
+from ._callables import (
+    as_scalar,
+    as_scalar_list,
+    call_user,
+    check_finite_real,
+    check_symbols,
+)
 from ._junction import slot, slot_substitution
 from ._step import (
     DerivedStep,
@@ -96,23 +105,62 @@ def second_order_legendre_forms(G: Groupoid, fs: SystemFunctions,
                          [tidy(e.xreplace(sub)) for e in plus], flat, lam)
 
 
-def section_coefficients(G: Groupoid, section, q: Sequence) -> list[sp.Expr]:
-    """Coefficients X^a(q) of a section in the basis: an index, a list or a callable of q."""
-    if isinstance(section, int):
-        if not 0 <= section < G.rank:
-            raise IndexError(f"{G.name}: section index {section} out of range 0..{G.rank - 1}")
-        return [sp.S.One if a == section else sp.S.Zero for a in range(G.rank)]
-    coeffs = section(tuple(q)) if callable(section) else section
-    coeffs = [sp.sympify(c) for c in coeffs]
+def section_coefficients(G: Groupoid, section, q: Sequence, parameters: Sequence = ()
+                         ) -> list[sp.Expr]:
+    """Coefficients X^a(q) of a section in the basis: an index, a list or a callable of q.
+
+    A list (or what the callable returns) holds ``G.rank`` real, finite scalar expressions
+    in the base coordinates q and ``parameters``; anything else — a string, a boolean, a
+    nested list, nan, oo, I, an undeclared symbol — is a :class:`~symgroupoid.ShapeError` or
+    :class:`~symgroupoid.InvalidExpressionError` naming the section.
+    """
+    if isinstance(section, numbers.Integral) and not isinstance(section, (bool, np.bool_)):
+        if not 0 <= int(section) < G.rank:
+            raise DomainError(f"{G.name}: section index {section} out of range "
+                              f"0..{G.rank - 1}")
+        return [sp.S.One if a == int(section) else sp.S.Zero for a in range(G.rank)]
+    if callable(section):
+        coeffs = call_user(G.name, "section", section, tuple(q))
+    else:
+        coeffs = section
+    if isinstance(coeffs, np.ndarray):
+        coeffs = coeffs.tolist()
+    if isinstance(coeffs, (str, bytes)) or any(isinstance(c, (str, bytes))
+                                              for c in _items(coeffs)):
+        raise ShapeError(f"{G.name}: a section is a basis index, a list of {G.rank} "
+                         f"coefficients or a function of the base point returning them; "
+                         f"got {coeffs!r} (strings are not coefficients)")
+    coeffs = as_scalar_list(G.name, "section", coeffs)
     if len(coeffs) != G.rank:
-        raise ValueError(f"{G.name}: a section needs {G.rank} coefficients, got {len(coeffs)}")
+        raise ShapeError(f"{G.name}: a section needs {G.rank} coefficients, got {len(coeffs)}")
+    for a, c in enumerate(coeffs):
+        check_finite_real(G.name, f"section (coefficient {a})", c)
+    check_symbols(G.name, "section", coeffs, _coordinates(q), parameters)
     return coeffs
 
 
-def _base_function(f, q: Sequence) -> sp.Expr:
-    if f is None or f == 0:
+def _coordinates(q: Sequence) -> set:
+    """The arrow coordinates a base point q = α(g) or β(g) is written in."""
+    return set().union(*(sp.sympify(c).free_symbols for c in q))
+
+
+def _items(value) -> list:
+    return list(value) if isinstance(value, (list, tuple)) else []
+
+
+def _base_function(f, q: Sequence, name: str = "", parameters: Sequence = ()) -> sp.Expr:
+    """f(q) of a quasi-invariance function (callable or expression), checked as a section's
+    coefficients are."""
+    if f is None or (not callable(f) and isinstance(f, (int, float)) and f == 0):
         return sp.S.Zero
-    return sp.sympify(f(tuple(q)) if callable(f) else f)
+    value = call_user(name, "quasi-invariance function f", f, tuple(q)) if callable(f) else f
+    if isinstance(value, (str, bytes)):
+        raise ShapeError(f"{name}: the quasi-invariance function f must give an expression, "
+                         f"got the string {value!r}")
+    expr = as_scalar(name, "quasi-invariance function f", value)
+    check_finite_real(name, "quasi-invariance function f", expr)
+    check_symbols(name, "quasi-invariance function f", [expr], _coordinates(q), parameters)
+    return expr
 
 
 @dataclass
@@ -125,13 +173,17 @@ class NoetherForms:
     multipliers: list
 
 
-def noether_forms(G: Groupoid, forms: LegendreForms, section, f=None) -> NoetherForms:
-    """The Noether quantity of ``section`` (seed 000 Thm 4.9) and its symmetry defect."""
+def noether_forms(G: Groupoid, forms: LegendreForms, section, f=None,
+                  parameters: Sequence = ()) -> NoetherForms:
+    """The Noether quantity of ``section`` (seed 000 Thm 4.9) and its symmetry defect;
+    ``parameters``: the symbols the section and ``f`` may use besides the base point."""
     g = forms.arrow
     qa, qb = G.source(g), G.target(g)
-    Xa, Xb = section_coefficients(G, section, qa), section_coefficients(G, section, qb)
-    lhs = sum((c * m for c, m in zip(Xa, forms.minus)), sp.S.Zero) + _base_function(f, qa)
-    rhs = sum((c * p for c, p in zip(Xb, forms.plus)), sp.S.Zero) + _base_function(f, qb)
+    Xa = section_coefficients(G, section, qa, parameters)
+    Xb = section_coefficients(G, section, qb, parameters)
+    fa, fb = (_base_function(f, q, G.name, parameters) for q in (qa, qb))
+    lhs = sum((c * m for c, m in zip(Xa, forms.minus)), sp.S.Zero) + fa
+    rhs = sum((c * p for c, p in zip(Xb, forms.plus)), sp.S.Zero) + fb
     return NoetherForms(rhs, lhs - rhs, g, forms.multipliers)
 
 
@@ -260,7 +312,7 @@ def lie_poisson_forms(name: str, G: Groupoid, fs: SystemFunctions,
                       parameters: Sequence) -> LiePoissonForms:
     """Seed 000 §6.1 for a matrix Lie group G."""
     if not isinstance(G, MatrixLieGroup):
-        raise TypeError(f"{name}: the Lie–Poisson form needs a Lie group, not {G.name}")
+        raise InputTypeError(f"{name}: the Lie–Poisson form needs a Lie group, not {G.name}")
     m, r = len(fs.constraints), G.rank
     now, nxt = legendre_forms(G, fs, 0), legendre_forms(G, fs, 1)
     g0 = now.arrow

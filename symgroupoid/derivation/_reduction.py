@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import MorphismError, ShapeError
+from .._errors import DomainError, MorphismError, ShapeError
 from ..groupoids._morphism import GroupoidMorphism, ParameterValues
 from ._callables import as_scalar, as_scalar_list, call_user
 from ._junction import slot
@@ -53,8 +53,8 @@ class IdentityCheck:
 def pulled_back(name: str, phi: GroupoidMorphism, func: Callable, what: str) -> Callable:
     """f′ = f∘σ as a callable on arrows of G′ (σ the section of Φ)."""
     if not phi.has_section:
-        raise ValueError(f"{name}: {phi.name} has no section, so the reduced {what} cannot be "
-                         f"found by substitution; give it explicitly")
+        raise DomainError(f"{name}: {phi.name} has no section, so the reduced {what} cannot "
+                          f"be found by substitution; give it explicitly")
 
     def reduced(g):
         return call_user(name, what, func, phi.source.view(phi.section(g.coords)))

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 import sympy as sp
 
-from .._errors import ParameterError, ShapeError
+from .._errors import InputTypeError, ParameterError, ShapeError
 from ..derivation._momenta import (
     LegendreForms,
     LiePoissonForms,
@@ -122,6 +122,11 @@ class NoetherQuantity:
         from ``trajectory.parameters``.  Along a solution of a system with this symmetry
         F_X is constant up to the rounding of the steps (seed 000 Thm 4.9).
         """
+        if not hasattr(trajectory, "states") or not isinstance(
+                getattr(trajectory, "parameters", None), Mapping):
+            raise InputTypeError(f"NoetherQuantity.along: trajectory must be a Trajectory "
+                                 f"(from Simulator.simulate), got "
+                                 f"{type(trajectory).__name__}")
         states = np.asarray(trajectory.states, float)
         n = len(self.arrow) + len(self.multipliers)
         if states.ndim != 2 or states.shape[1] != n:

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import ShapeError
+from .._errors import DomainError, InputTypeError, ShapeError
 from ..derivation._reduction import reduce_functions
 from ..groupoids._morphism import GroupoidMorphism, check_morphism
 from ._system import DiscreteSystem
@@ -140,15 +140,15 @@ def reduce_system(system: DiscreteSystem, morphism: GroupoidMorphism,
     """The reduced system (see :meth:`DiscreteSystem.reduce`)."""
     _no_holonomic(system)
     if not isinstance(morphism, GroupoidMorphism):
-        raise TypeError(f"{system.name}: reduce needs a GroupoidMorphism, got "
-                        f"{type(morphism).__name__}")
+        raise InputTypeError(f"{system.name}: reduce needs a GroupoidMorphism, got "
+                             f"{type(morphism).__name__}")
     if system._arity != 1:
         raise NotImplementedError(f"{system.name}: reduction is implemented for first-order "
                                   f"systems (L: G → R)")
     if morphism.source is not system.groupoid:
-        raise ValueError(f"{system.name}: the morphism {morphism.name} starts at "
-                         f"{morphism.source.name}, not at the system's groupoid "
-                         f"{system.groupoid.name}")
+        raise DomainError(f"{system.name}: the morphism {morphism.name} starts at "
+                          f"{morphism.source.name}, not at the system's groupoid "
+                          f"{system.groupoid.name}")
     name = name or f"{system.name}_reduced"
     if check:
         check_morphism(morphism, samples=3)
@@ -165,8 +165,8 @@ def check_system_morphism(morphism: GroupoidMorphism, system: DiscreteSystem,
     morphism, L = L′∘Φ and φ = φ′∘Φ.  Returns how each identity was verified; raises
     :class:`~symgroupoid.MorphismError` otherwise."""
     if morphism.source is not system.groupoid or morphism.target is not other.groupoid:
-        raise ValueError(f"{morphism.name} does not map {system.groupoid.name} to "
-                         f"{other.groupoid.name}")
+        raise DomainError(f"{morphism.name} does not map {system.groupoid.name} to "
+                          f"{other.groupoid.name}")
     _no_holonomic(system)
     _no_holonomic(other)
     check_morphism(morphism)

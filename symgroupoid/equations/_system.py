@@ -6,8 +6,10 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
-from .._errors import CallableError
+from .._arguments import choice_argument, instance_argument, name_argument, sequence_argument
+from .._errors import CallableError, InputTypeError
 from .._progress import reported
+from ..derivation._callables import call_user, check_values
 from ..derivation._energy_momentum import (
     METHODS,
     conserved_quantities,
@@ -33,6 +35,39 @@ from ._regularity import check_step
 from ._step import StepEquations
 
 
+def system_arguments(name, groupoid, parameters) -> tuple[str, Groupoid, list]:
+    """The name (a non-empty string), the groupoid (a :class:`Groupoid`) and the parameters
+    (a list or tuple; its entries are checked to be SymPy symbols with the expressions) of
+    a system, or a :class:`~symgroupoid.SymgroupoidError` naming the argument."""
+    name = name_argument(name, "the system's name", owner="system")
+    instance_argument(groupoid, Groupoid, "groupoid", "a symgroupoid Groupoid (e.g. "
+                      "PairGroupoid(EuclideanSpace('q')), SO3('W'))", owner=name)
+    if isinstance(parameters, sp.Symbol):
+        parameters = [parameters]
+    return name, groupoid, sequence_argument(parameters, "parameters", owner=name)
+
+
+def distribution_elements(name: str, groupoid: Groupoid, distribution) -> list:
+    """The basis of D_c: a list whose elements are lists of section coefficients or
+    functions of the base point returning them.  Each function is called once here on a
+    symbolic base point, so that one that raises, or coefficients that are not finite real
+    expressions, are reported now with the element's index."""
+    elements = sequence_argument(distribution, "distribution", owner=name)
+    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(groupoid.base_dim))
+    for i, element in enumerate(elements):
+        what = f"distribution element {i}"
+        if callable(element):
+            call_user(name, what, element, q)
+        elif isinstance(element, (str, bytes)) or not isinstance(element, (Sequence,
+                                                                          sp.MatrixBase)):
+            raise InputTypeError(f"{name}: {what} must be a list of {groupoid.rank} section "
+                                 f"coefficients or a function of the base point, got "
+                                 f"{type(element).__name__} {element!r}")
+        else:
+            check_values(name, what, list(element))
+    return elements
+
+
 class DiscreteSystem:
     _arity = 1  # L: G -> R
     """A discrete constrained Lagrangian system (G, N, L) (seed 000 Def. 3.2).
@@ -55,13 +90,11 @@ class DiscreteSystem:
     def __init__(self, groupoid: Groupoid, lagrangian: Callable,
                  constraints: Callable | None = None, parameters: Sequence[sp.Symbol] = (),
                  name: str = "system", *, holonomic: Callable | None = None):
-        if not isinstance(groupoid, Groupoid):
-            raise TypeError(f"{name}: groupoid must be a symgroupoid Groupoid, got "
-                            f"{type(groupoid).__name__}")
+        name, groupoid, parameters = system_arguments(name, groupoid, parameters)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.holonomic = holonomic
-        self.parameters = list(parameters)
+        self.parameters = parameters
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters,
                                    arity=self._arity, holonomic=holonomic)
 
@@ -112,7 +145,7 @@ class DiscreteSystem:
         N = G|_M: X tangent to M = {ψ = 0} and L invariant there (docs/conventions.md §15).
         """
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self._fs),
-                              section, f)
+                              section, f, self.parameters)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
                                               self._fs):
@@ -185,20 +218,20 @@ class NonholonomicSystem:
                  constraints: Callable | None = None, distribution: Sequence = (),
                  parameters: Sequence[sp.Symbol] = (), name: str = "nonholonomic", *,
                  method: str = "holder", metric=None):
+        name, groupoid, parameters = system_arguments(name, groupoid, parameters)
+        choice_argument(method, METHODS, "method", owner=name)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
-        self.distribution = list(distribution)
-        self.parameters = list(parameters)
+        self.distribution = distribution_elements(name, groupoid, distribution)
+        self.parameters = parameters
         self.method, self.metric = method, metric
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters)
         if method == "energy_momentum":
             energy_momentum_step(name, groupoid, self._fs, self.distribution, metric,
                                  self.parameters)  # checks G_c and D now
-        elif method == "holder":
+        else:
             check_nonholonomic_dimensions(name, groupoid, len(self.distribution),
                                           len(self._fs.constraints))
-        else:
-            raise ValueError(f"{name}: method must be one of {METHODS}, got {method!r}")
 
     @reported(lambda self: f"{self.name}: deriving the equations")
     def euler_lagrange(self) -> StepEquations:

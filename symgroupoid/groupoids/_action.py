@@ -12,7 +12,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import sympy as sp
 
-from .._errors import CallableError, ShapeError
+from .._arguments import callable_argument, instance_argument
+from .._errors import AxiomError, CallableError, ShapeError, SymgroupoidError
 from ._base import Arrow, Groupoid
 from ._matrix_groups import MatrixLieGroup
 from ._pair import EuclideanSpace
@@ -45,12 +46,59 @@ class ActionArrow(Arrow):
 
 
 class ActionGroupoid(Groupoid):
-    """P × H ⇉ P for a right action ``action(p, W) -> p·W`` (p a tuple, W a SymPy Matrix)."""
+    """P × H ⇉ P for a right action ``action(p, W) -> p·W`` (p a tuple, W a SymPy Matrix).
+
+    The action axioms p·I = p and (p·W₁)·W₂ = p·(W₁W₂) are checked numerically when the
+    groupoid is constructed (``check=False`` skips this).
+    """
 
     def __init__(self, space: EuclideanSpace, group: MatrixLieGroup,
-                 action: Callable[[tuple, sp.Matrix], Sequence]):
-        self.space, self.group, self.action = space, group, action
+                 action: Callable[[tuple, sp.Matrix], Sequence], check: bool = True):
+        owner = "ActionGroupoid"
+        instance_argument(space, EuclideanSpace, "space", "an EuclideanSpace", owner=owner)
+        instance_argument(group, MatrixLieGroup, "group", "a matrix Lie group (SO3('W'), …)",
+                          owner=owner)
+        self.space, self.group = space, group
         self.name = f"({', '.join(space.names)}) ⋊ {group.name}"
+        self.action = callable_argument(action, "the action", owner=self.name)
+        if check:
+            self._check_action()
+
+    def _check_action(self, seed: int = 0, tol: float = 1e-9) -> None:
+        """The action axioms at random points (seed 001 §2.1.1): p·I = p and
+        (p·W₁)·W₂ = p·(W₁W₂); free symbols of the action get random values in (0.5, 2).
+        An :class:`AxiomError` names the failing identity and the point (a left action
+        W·p passed as a right action fails the second one); ``check=False`` skips this."""
+        rng = np.random.default_rng(seed)
+        p = tuple(sp.Float(v) for v in rng.normal(size=self.base_dim))
+        w1, w2 = (self.group.random_arrow(rng) for _ in range(2))
+        values: dict = {}
+
+        def act(point, w) -> np.ndarray:
+            out = []
+            for c in self._act(point, w):
+                e = sp.sympify(c)
+                for sym in sorted(e.free_symbols - set(values), key=str):
+                    values[sym] = sp.Float(rng.uniform(0.5, 2.0))
+                e = sp.N(e.xreplace(values))
+                if not (e.is_number and e.is_extended_real):
+                    raise ShapeError(f"{self.name}: the action returned {c}, not a real "
+                                     f"number, at p = {[float(v) for v in point]}")
+                out.append(float(e))
+            return np.array(out)
+
+        identity = act(p, self.group.identity(()))
+        if not np.allclose(identity, np.asarray(p, float), atol=tol, rtol=tol):
+            raise AxiomError(f"{self.name}: the action is not a right action: p·I ≠ p for "
+                             f"p = {[float(v) for v in p]} (got {identity.tolist()}); "
+                             f"check=False skips this check")
+        stepwise = act(tuple(sp.Float(v) for v in act(p, w1)), w2)
+        at_once = act(p, self.group.multiply(w1, w2))
+        if not np.allclose(stepwise, at_once, atol=tol, rtol=tol):
+            raise AxiomError(f"{self.name}: the action is not a right action: (p·W₁)·W₂ ≠ "
+                             f"p·(W₁W₂) for p = {[float(v) for v in p]} ({stepwise.tolist()} "
+                             f"≠ {at_once.tolist()}; a left action W·p gives W₂W₁p); "
+                             f"check=False skips this check")
 
     @property
     def arrow_dim(self):
@@ -71,9 +119,18 @@ class ActionGroupoid(Groupoid):
     def _act(self, p, w) -> tuple:
         try:
             out = self.action(tuple(p), self.group.matrix(w))
+        except SymgroupoidError:
+            raise
         except Exception as exc:  # noqa: BLE001
             raise CallableError(f"{self.name}: the action raised {exc!r}") from exc
-        out = tuple(out)
+        if isinstance(out, (str, bytes)):
+            raise ShapeError(f"{self.name}: the action returned the string {out!r}, not a "
+                             f"tuple of coordinates")
+        try:
+            out = tuple(out)
+        except TypeError as exc:
+            raise ShapeError(f"{self.name}: the action returned {type(out).__name__} "
+                             f"{out!r}, not a tuple of coordinates") from exc
         if len(out) != self.base_dim:
             raise ShapeError(f"{self.name}: the action returned {len(out)} coordinates, "
                              f"the space has {self.base_dim}")

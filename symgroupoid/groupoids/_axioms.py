@@ -7,8 +7,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import integer_argument
-from .._errors import AxiomError, ShapeError
+from .._arguments import instance_argument, integer_argument, real_argument
+from .._errors import AxiomError, InputTypeError, ShapeError
 from ._base import Groupoid
 
 
@@ -36,8 +36,13 @@ def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9
     failure reports the values used.  ``samples`` (at least 1) and ``seed`` are counts
     (:func:`~symgroupoid._arguments.integer_argument`).
     """
+    instance_argument(G, Groupoid, "G", "a Groupoid", owner="check_axioms")
     samples = integer_argument(samples, "samples", minimum=1, owner=G.name)
-    seed = integer_argument(seed, "seed", owner=G.name)
+    seed = integer_argument(seed, "seed", maximum=2**63 - 2, owner=G.name)
+    tol = real_argument(tol, "tol", minimum=0.0, owner=G.name)
+    if parameters is not None and not isinstance(parameters, Mapping):
+        raise InputTypeError(f"{G.name}: parameters must be a mapping symbol → value, got "
+                             f"{type(parameters).__name__} {parameters!r}")
     values = _parameter_values(G, parameters or {})
     rng = np.random.default_rng(seed + 1)
     chosen: set = set()
@@ -95,11 +100,7 @@ def _parameter_values(G: Groupoid, parameters: Mapping) -> dict:
         if not isinstance(key, (sp.Symbol, str)):
             raise ShapeError(f"{G.name}: parameters must map SymPy symbols (or their names) to "
                              f"numbers, got the key {key!r}")
-        try:
-            out[key] = float(value)
-        except (TypeError, ValueError) as exc:
-            raise ShapeError(f"{G.name}: the value of parameter {key} must be a number, got "
-                             f"{value!r}") from exc
+        out[key] = real_argument(value, f"the value of parameter {key}", owner=G.name)
     return out
 
 
@@ -120,10 +121,14 @@ class _Evaluated:
         self.inner, self.name, self.values = G, G.name, values
         self.curve_parameter = None
 
-    def _sub(self, coords: Sequence) -> tuple:
+    def _sub(self, coords: Sequence, what: str) -> tuple:
         out = []
         for c in coords:
-            e = sp.sympify(c)
+            try:
+                e = sp.sympify(c)
+            except (sp.SympifyError, TypeError, ValueError) as exc:
+                raise ShapeError(f"{self.name}: the {what} returned {c!r}, not a number or "
+                                 f"expression") from exc
             free = e.free_symbols - {self.curve_parameter}
             if free:
                 table = {s: self._value(s) for s in free}
@@ -131,6 +136,9 @@ class _Evaluated:
                 if missing:
                     raise _FreeSymbols(missing)
                 e = e.xreplace({s: sp.Float(v) for s, v in table.items()})
+            if not e.free_symbols and _not_real(e):
+                raise ShapeError(f"{self.name}: the {what} returned {e}, not a finite real "
+                                 f"number (structure maps take real arrows to real arrows)")
             out.append(e)
         return tuple(out)
 
@@ -143,28 +151,29 @@ class _Evaluated:
         return None
 
     def source(self, a):
-        return self._sub(self.inner.source(a))
+        return self._sub(self.inner.source(a), "source map")
 
     def target(self, a):
-        return self._sub(self.inner.target(a))
+        return self._sub(self.inner.target(a), "target map")
 
     def multiply(self, a, b):
-        return self._sub(self.inner.multiply(a, b))
+        return self._sub(self.inner.multiply(a, b), "multiply map")
 
     def identity(self, q):
-        return self._sub(self.inner.identity(q))
+        return self._sub(self.inner.identity(q), "identity map")
 
     def inverse(self, a):
-        return self._sub(self.inner.inverse(a))
+        return self._sub(self.inner.inverse(a), "inverse map")
 
     def _curves(self, q, t):
-        return [self._sub(h) for h in self.inner._curves(q, t)]
+        return [self._sub(h, f"section curve {i}")
+                for i, h in enumerate(self.inner._curves(q, t))]
 
     def arrow_from(self, q, f):
-        return self._sub(self.inner.arrow_from(q, f))
+        return self._sub(self.inner.arrow_from(q, f), "arrow_from map")
 
     def fibre_chart(self, x, source=None):
-        return self._sub(self.inner.fibre_chart(x, source))
+        return self._sub(self.inner.fibre_chart(x, source), "fibre chart")
 
     def random_base_point(self, rng):
         return self.inner.random_base_point(rng)
@@ -175,7 +184,16 @@ class _Evaluated:
     def random_arrow(self, rng, source=None):
         if type(self.inner).random_arrow is Groupoid.random_arrow:
             return Groupoid.random_arrow(self, rng, source)  # through the substituted maps
-        return tuple(float(v) for v in self._sub(self.inner.random_arrow(rng, source)))
+        return tuple(float(v) for v in self._sub(self.inner.random_arrow(rng, source),
+                                                  "random arrow"))
+
+
+def _not_real(e: sp.Expr) -> bool:
+    """A number that is not a finite real one: complex, ±oo, zoo, nan."""
+    if not e.is_number:
+        return False
+    return e.has(sp.nan, sp.zoo, sp.oo, -sp.oo) or e.is_extended_real is False or (
+        e.is_extended_real is None and abs(complex(sp.N(e)).imag) > 0)
 
 
 # --- the checks -----------------------------------------------------------------------------

@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .._errors import CallableError, ShapeError
+from .._errors import CallableError, InputTypeError, ShapeError
 
 Coords = tuple  # flat tuple of SymPy expressions (or numbers)
 
@@ -258,7 +258,9 @@ class Groupoid(ABC):
         from ._product import ProductGroupoid
 
         if not isinstance(other, Groupoid):
-            return NotImplemented
+            raise InputTypeError(f"{self.name}: a groupoid can only be multiplied by a "
+                                 f"groupoid (the product G₁ × G₂), got "
+                                 f"{type(other).__name__} {other!r}")
         return ProductGroupoid(self, other)
 
     def __repr__(self) -> str:

@@ -22,6 +22,8 @@ from itertools import accumulate
 import numpy as np
 import sympy as sp
 
+from .._errors import InputTypeError
+
 
 class Manifold(ABC):
     """The configuration manifold of a pair groupoid (see the module docstring)."""
@@ -273,5 +275,5 @@ def as_manifold(space) -> Manifold:
     if isinstance(space, ProductGroupoid) and all(isinstance(f, MatrixLieGroup)
                                                   for f in space.factors):
         return ProductManifold(*space.factors)
-    raise TypeError(f"not a configuration manifold: {space!r} (use EuclideanSpace, a matrix "
-                    f"Lie group such as SO3('R'), or a product of these)")
+    raise InputTypeError(f"not a configuration manifold: {space!r} (use EuclideanSpace, a "
+                         f"matrix Lie group such as SO3('R'), or a product of these)")

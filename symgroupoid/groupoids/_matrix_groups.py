@@ -22,6 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from .._arguments import choice_argument, name_argument
 from .._symbols import StepSymbol, indexed_symbol, latex_name, step_label
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
@@ -85,8 +86,8 @@ class MatrixLieGroup(Groupoid):
     group_name: str = "G"
 
     def __init__(self, name: str = "g", retraction: str = "cayley"):
-        if retraction not in RETRACTIONS:
-            raise ValueError(f"retraction must be one of {RETRACTIONS}, got {retraction!r}")
+        name = name_argument(name, "the group's name", owner=self.group_name)
+        choice_argument(retraction, RETRACTIONS, "retraction", owner=self.group_name)
         self.symbol_name = name
         self.latex = latex_name(name)
         self.retraction = retraction

@@ -14,6 +14,8 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from .._arguments import integer_argument, name_argument, names_argument
+from .._errors import CoordinateNameError, InputTypeError, ShapeError
 from .._symbols import latex_name, scalar_symbol
 from ._base import Arrow, Groupoid
 from ._manifold import Manifold, as_manifold
@@ -29,17 +31,21 @@ class EuclideanSpace(Manifold):
     def __init__(self, names: str | Sequence[str]):
         if isinstance(names, str):
             names = names.replace(",", " ").split()
-        self.names: tuple[str, ...] = tuple(names)
+        self.names: tuple[str, ...] = names_argument(names, "the coordinate names",
+                                                     owner="EuclideanSpace")
         if not self.names:
-            raise ValueError("EuclideanSpace needs at least one coordinate name")
+            raise ShapeError("EuclideanSpace needs at least one coordinate name")
         if len(set(self.names)) != len(self.names):
-            raise ValueError(f"repeated coordinate names in {self.names}")
+            raise CoordinateNameError(f"EuclideanSpace: repeated coordinate names in "
+                                      f"{self.names}")
         self.latex = tuple(latex_name(n) for n in self.names)
         self.vector_name: str | None = None
 
     @classmethod
     def vector(cls, name: str, dim: int) -> EuclideanSpace:
         """Rⁿ whose coordinates are the components ``name_1 … name_n`` of one vector."""
+        name = name_argument(name, "the vector's name", owner="EuclideanSpace.vector")
+        dim = integer_argument(dim, "dim", minimum=1, owner="EuclideanSpace.vector")
         space = cls([f"{name}_{i + 1}" for i in range(dim)])
         space.vector_name = name
         return space
@@ -134,8 +140,9 @@ class PairGroupoid(Groupoid):
     def __init__(self, space):
         try:
             self.space = as_manifold(space)
-        except TypeError as exc:
-            raise TypeError(f"PairGroupoid needs a configuration manifold: {exc}") from None
+        except InputTypeError as exc:
+            raise InputTypeError(f"PairGroupoid needs a configuration manifold: {exc}") \
+                from None
         names = ", ".join(getattr(self.space, "names", ()))
         if isinstance(self.space, EuclideanSpace):
             self.name = f"pair groupoid of R^{self.space.dim} ({names})"

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from itertools import accumulate
 
+from .._arguments import instance_argument
+from .._errors import ShapeError
 from ._base import Arrow, Groupoid
 
 
@@ -32,6 +34,11 @@ class ProductGroupoid(Groupoid):
     """G₁ × ⋯ × G_n with componentwise α, β, m, ε, i and the union of the factors' sections."""
 
     def __init__(self, *factors: Groupoid):
+        if not factors:
+            raise ShapeError("ProductGroupoid needs at least one factor")
+        for i, f in enumerate(factors):
+            instance_argument(f, Groupoid, f"factor {i}", "a Groupoid",
+                              owner="ProductGroupoid")
         flat: list[Groupoid] = []
         for f in factors:
             flat.extend(f.factors if isinstance(f, ProductGroupoid) else [f])

@@ -8,6 +8,7 @@ t_{k+1} and the fibre chart of G.
 
 from __future__ import annotations
 
+from .._arguments import instance_argument, name_argument
 from .._symbols import StepSymbol, subscripted
 from ._base import Arrow, Groupoid
 
@@ -45,7 +46,9 @@ class TimeGroupoid(Groupoid):
     """R × R × G ⇉ R × Q for a groupoid G."""
 
     def __init__(self, inner: Groupoid, time_name: str = "t"):
-        self.inner = inner
+        self.inner = instance_argument(inner, Groupoid, "the inner groupoid", "a Groupoid",
+                                       owner="TimeGroupoid")
+        time_name = name_argument(time_name, "time_name", owner="TimeGroupoid")
         self.time_latex = time_name
         self.name = f"R×R×({inner.name})"
 

@@ -4,12 +4,15 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import numpy as np
 import sympy as sp
 
+from .._arguments import callable_argument, name_argument, names_argument
 from .._errors import (
     AxiomError,
     CallableError,
     CoordinateNameError,
+    DomainError,
     ShapeError,
     SymgroupoidError,
 )
@@ -45,12 +48,24 @@ class DefinedGroupoid(Groupoid):
                  source: Callable, target: Callable, multiply: Callable, identity: Callable,
                  inverse: Callable, sections: Callable, source_offset: int = -1,
                  check: bool = True):
-        self.name = name
-        self.base_names, self.fibre_names = tuple(base_names), tuple(fibre_names)
-        self.source_offset = source_offset
+        self.name = name_argument(name, "the groupoid's name", owner="DefinedGroupoid")
+        self.base_names = names_argument(base_names, "base_names", owner=name)
+        self.fibre_names = names_argument(fibre_names, "fibre_names", owner=name)
+        if not self.fibre_names:
+            raise ShapeError(f"{name}: fibre_names is empty; the α-fibres need at least one "
+                             f"coordinate (a step solves for them)")
+        if not isinstance(source_offset, (int, np.integer)) or isinstance(
+                source_offset, (bool, np.bool_)) or source_offset not in (-1, 0):
+            raise DomainError(f"{name}: source_offset must be -1 (the source of g_k is the "
+                              f"configuration at step k-1, as for a pair groupoid) or 0 (at "
+                              f"step k, as for an action groupoid), got {source_offset!r}")
+        self.source_offset = int(source_offset)
         self._check_names()
-        self._maps = dict(source=source, target=target, multiply=multiply,
-                          identity=identity, inverse=inverse, sections=sections)
+        maps = dict(source=source, target=target, multiply=multiply, identity=identity,
+                    inverse=inverse, sections=sections)
+        for key, value in maps.items():
+            callable_argument(value, f"the {key} map", owner=name)
+        self._maps = maps
         # the section count must equal the fibre dimension (checked early, with a clear error)
         t = sp.Dummy("t")
         q = tuple(sp.Dummy(f"q{i}") for i in range(self.base_dim))
@@ -112,6 +127,9 @@ class DefinedGroupoid(Groupoid):
         except Exception as exc:  # noqa: BLE001 - re-raised with context
             raise CallableError(f"{self.name}: the {map_name} map raised "
                                 f"{type(exc).__name__}: {exc}") from exc
+        if isinstance(out, (str, bytes)):
+            raise ShapeError(f"{self.name}: the {map_name} map returned the string {out!r}, "
+                             f"not a tuple of coordinates")
         try:
             out = tuple(out)
         except TypeError as exc:

@@ -14,15 +14,20 @@ outside a buffer.
 from __future__ import annotations
 
 import ctypes
-import numbers
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._arguments import (
+    flag_argument,
+    instance_argument,
+    integer_argument,
+    real_argument,
+    real_array,
+)
 from .._errors import ShapeError
-from ..codegen._emit import DEFAULT_OPTIONS
-from ._validate import integer_argument
+from ..codegen._emit import DEFAULT_OPTIONS, MAX_THREADS
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT = range(5)
 
@@ -80,16 +85,23 @@ class NewtonOptions:
     floor_factor: float = DEFAULT_OPTIONS["floor_factor"]
 
     def __post_init__(self):
+        owner = "NewtonOptions"
         for name in ("tol_residual", "tol_step", "floor_factor"):
-            value = getattr(self, name)
-            if isinstance(value, (bool, np.bool_)) or not (
-                    isinstance(value, numbers.Real) and np.isfinite(float(value))
-                    and value >= 0):
-                raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, real_argument(getattr(self, name), name,
+                                                         minimum=0.0, owner=owner))
         object.__setattr__(self, "max_iterations", integer_argument(
-            self.max_iterations, "max_iterations", maximum=C_INT_MAX, owner="NewtonOptions"))
-        object.__setattr__(self, "extrapolate", bool(self.extrapolate))
+            self.max_iterations, "max_iterations", maximum=C_INT_MAX, owner=owner))
+        object.__setattr__(self, "extrapolate", flag_argument(self.extrapolate,
+                                                              "extrapolate", owner=owner))
+
+    @classmethod
+    def of(cls, options, default: NewtonOptions, *, owner: str = "") -> NewtonOptions:
+        """``options`` as given to a solve: None (``default``) or a :class:`NewtonOptions`;
+        anything else is an :class:`~symgroupoid.InputTypeError` naming ``options``."""
+        if options is None:
+            return default
+        return instance_argument(options, cls, "options", "a NewtonOptions (or None)",
+                                 owner=owner)
 
 
 @dataclass
@@ -155,18 +167,7 @@ def real_vector(value, length: int, name: str, *, owner: str = "",
     :class:`ShapeError` naming ``name``.
     """
     where = f"{owner}: " if owner else ""
-    try:
-        arr = np.asarray(value)
-    except (TypeError, ValueError):
-        raise ShapeError(f"{where}{name} must be an array of {length} real numbers, got "
-                         f"{value!r}") from None
-    if arr.dtype.kind not in "iuf":
-        if arr.dtype.kind != "O":
-            raise ShapeError(f"{where}{name} must hold real numbers, got dtype {arr.dtype}")
-        try:
-            arr = arr.astype(np.float64)
-        except (TypeError, ValueError):
-            raise ShapeError(f"{where}{name} must hold real numbers, got {value!r}") from None
+    arr = real_array(value, name, owner=owner)
     if arr.shape != (length,):
         raise ShapeError(f"{where}{name} must have shape ({length},), got shape {arr.shape}")
     out = np.array(arr, dtype=np.float64, order="C", copy=True)
@@ -363,7 +364,7 @@ class CKernel(_Kernel):
         n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
         every = integer_argument(every, "every", minimum=1, maximum=self.max_steps)
         threads = 0 if threads is None else integer_argument(threads, "threads", minimum=1,
-                                                             maximum=C_INT_MAX)
+                                                             maximum=MAX_THREADS)
         B = len(known0)
         out = self._batch_buffers(B, n_steps, every)
         if B == 0:

@@ -27,8 +27,14 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from .._errors import DomainError, ParameterError, ShapeError, SymgroupoidError
-from ._backends import OK, BatchRun, NewtonOptions, batch_rows
+from .._errors import (
+    DomainError,
+    InputTypeError,
+    ParameterError,
+    ShapeError,
+    SymgroupoidError,
+)
+from ._backends import MAX_THREADS, OK, BatchRun, NewtonOptions, batch_rows
 from ._trajectory import Trajectory
 from ._validate import (
     _CHECKED_ASSUMPTIONS,
@@ -37,6 +43,7 @@ from ._validate import (
     _declared,
     constraint_check,
     integer_argument,
+    real_array,
 )
 
 _EPS = float(np.finfo(float).eps)
@@ -44,6 +51,10 @@ _EPS = float(np.finfo(float).eps)
 #: trajectory-steps per kernel call of a batch: bounds the delay of Ctrl-C (the runs are
 #: split between calls, never a run)
 CALL_WORK = 1 << 24
+
+
+class RunIndexError(ShapeError, IndexError):
+    """A run number outside a batch (also an ``IndexError``)."""
 
 
 def _at_row(error: Exception, what: str, index) -> Exception:
@@ -58,8 +69,16 @@ def _at_row(error: Exception, what: str, index) -> Exception:
 
 # --- parameters ---------------------------------------------------------------------------------
 
+def _ndim(value) -> int | None:
+    """The number of dimensions NumPy sees in ``value``; None for ragged nesting."""
+    try:
+        return np.ndim(value)
+    except ValueError:
+        return None
+
+
 def _is_scalar(value) -> bool:
-    return np.ndim(value) == 0 and not isinstance(value, (Mapping, str, bytes))
+    return _ndim(value) == 0 and not isinstance(value, (Mapping, str, bytes))
 
 
 def _looks_like_one_set(params, n_params: int) -> bool:
@@ -79,7 +98,7 @@ def _looks_like_one_set(params, n_params: int) -> bool:
 
 def _column_rows(sim, table: Mapping) -> list[dict]:
     """The rows of a mapping name → column (all columns of one length)."""
-    lengths = {str(k): np.shape(v)[0] if np.ndim(v) == 1 else None for k, v in table.items()}
+    lengths = {str(k): len(v) if _ndim(v) == 1 else None for k, v in table.items()}
     bad = [k for k, n in lengths.items() if n is None]
     if bad:
         raise ParameterError(f"{sim.name}: a parameter table maps each name to a column of "
@@ -219,42 +238,46 @@ def state_table(sim, initial) -> tuple[np.ndarray, bool]:
     :func:`check_constraints`), and whether ``initial`` was a single state.
 
     ``initial``: one state (a mapping of named parts, or a flat vector), or a table: a 2-D
-    array (B, n_known), or a sequence of states.
+    array (B, n_known), or a sequence of states.  Entries are read by the one rule for real
+    arrays (:func:`~symgroupoid._arguments.real_array`): strings, booleans, complex
+    numbers and dates are refused, as :meth:`Simulator.state` refuses them.
     """
     n_k = sim.layout.n_known
-    if isinstance(initial, Mapping):
-        return sim.state(initial)[None, :], True
-    if isinstance(initial, (str, bytes)):
-        return sim.state(initial)[None, :], True  # raises the state's own error
-    if isinstance(initial, np.ndarray) and initial.dtype.kind in "iuf":
-        if initial.ndim == 1:
+    if isinstance(initial, (Mapping, str, bytes)) or initial is None:
+        return sim.state(initial)[None, :], True  # one state, or the state's own error
+    if isinstance(initial, np.ndarray) and initial.ndim != 2:
+        if initial.ndim <= 1:
             return sim.state(initial)[None, :], True
-        if initial.ndim != 2 or initial.shape[1] != n_k:
-            raise ShapeError(f"{sim.name}: a table of flat states has shape (B, {n_k}) (the "
-                             f"knowns {', '.join(s.name for s in sim.equations.knowns)}); got "
-                             f"shape {initial.shape}")
-        return _screened_states(sim, np.array(initial, dtype=float)), False
-    if isinstance(initial, Sequence) or isinstance(initial, np.ndarray):
-        rows = list(initial)
+        raise ShapeError(f"{sim.name}: a table of flat states has shape (B, {n_k}) (the "
+                         f"knowns {', '.join(s.name for s in sim.equations.knowns)}); got "
+                         f"shape {initial.shape}")
+    if not isinstance(initial, (Sequence, np.ndarray)):
+        return sim.state(initial)[None, :], True  # refused there, with its message
+    rows = list(initial)
+    if not isinstance(initial, np.ndarray):
         if rows and all(_is_scalar(v) for v in rows):
             return sim.state(initial)[None, :], True
         if not rows:
             raise ShapeError(f"{sim.name}: the table of initial states is empty")
-        if all(not isinstance(r, Mapping) for r in rows):
-            try:
-                arr = np.asarray(rows, dtype=float)
-            except (TypeError, ValueError):
-                arr = None
-            if arr is not None and arr.ndim == 2 and arr.shape[1] == n_k:
-                return _screened_states(sim, arr), False
-        out = np.empty((len(rows), n_k))
-        for i, one in enumerate(rows):
-            try:
-                out[i] = sim.state(one)
-            except SymgroupoidError as err:
-                raise _at_row(err, "initial state", i) from err
-        return out, False
-    return sim.state(initial)[None, :], True
+    if all(not isinstance(r, Mapping) for r in rows):
+        try:
+            arr = real_array(rows if rows else initial, "the table of initial states",
+                             owner=sim.name)
+        except ShapeError:
+            arr = None  # each row is checked below, and reported by its index
+        if arr is not None and arr.ndim == 2 and arr.shape[1] == n_k:
+            return _screened_states(sim, arr), False
+        if isinstance(initial, np.ndarray) and arr is not None:
+            raise ShapeError(f"{sim.name}: a table of flat states has shape (B, {n_k}) (the "
+                             f"knowns {', '.join(s.name for s in sim.equations.knowns)}); "
+                             f"got shape {arr.shape}")
+    out = np.empty((len(rows), n_k))
+    for i, one in enumerate(rows):
+        try:
+            out[i] = sim.state(one)
+        except SymgroupoidError as err:
+            raise _at_row(err, "initial state", i) from err
+    return out, False
 
 
 def _screened_states(sim, S: np.ndarray) -> np.ndarray:
@@ -368,18 +391,26 @@ class TrajectoryBatch:
 
     def step_indices(self, b: int) -> np.ndarray:
         """The step index of each kept state of run b."""
+        b = self._run(b)
         k = int(self.kept[b])
         out = np.arange(k, dtype=np.int64) * self.every
         if k > 1:
             out[-1] = self.steps if self.status[b] == OK else int(self.failed_step[b])
         return out
 
-    def __getitem__(self, b: int) -> Trajectory:
+    def _run(self, b) -> int:
+        """``b`` as a run number 0 … B − 1 (negative counts from the end)."""
         if isinstance(b, (bool, np.bool_)) or not isinstance(b, (int, np.integer)):
-            raise TypeError(f"a batch is indexed by run number, got {b!r}")
-        b = int(b) + (len(self) if b < 0 else 0)
-        if not 0 <= b < len(self):
-            raise IndexError(f"run {b} out of range for a batch of {len(self)}")
+            raise InputTypeError(f"{self._sim.name}: a batch is indexed by run number, got "
+                                 f"{type(b).__name__} {b!r}")
+        run = int(b) + (len(self) if b < 0 else 0)
+        if not 0 <= run < len(self):
+            raise RunIndexError(f"{self._sim.name}: run {int(b)} out of range for a batch of "
+                                f"{len(self)}")
+        return run
+
+    def __getitem__(self, b: int) -> Trajectory:
+        b = self._run(b)
         k = int(self.kept[b])
         sim = self._sim
         return sim._trajectory(self.states[b, :k], self.newton_iterations[b, :k - 1],
@@ -392,6 +423,7 @@ class TrajectoryBatch:
     def error(self, b: int) -> Exception | None:
         """The error :meth:`Simulator.simulate` raises for run b (None if it completed), with
         ``.trajectory`` the run up to the failing step."""
+        b = self._run(b)
         if self.status[b] == OK:
             return None
         raw = self._raw
@@ -407,7 +439,7 @@ class TrajectoryBatch:
                 f"{f', every {self.every}' if self.every != 1 else ''}, {failed} failed>")
 
 
-def _check_memory(sim, runs: int, rows: int) -> None:
+def _check_memory(sim, runs: int, rows: int, steps: int, every: int) -> None:
     try:
         physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, ValueError, OSError):
@@ -417,7 +449,8 @@ def _check_memory(sim, runs: int, rows: int) -> None:
         from .._errors import TrajectoryTooLargeError
 
         raise TrajectoryTooLargeError(
-            f"{sim.name}: keeping {rows} states of each of {runs} runs needs "
+            f"{sim.name}: keeping {rows} states (steps={steps}, every={every}) of each of "
+            f"{runs} runs needs "
             f"{needed / 2**30:.1f} GiB, more than this machine's memory "
             f"({physical / 2**30:.1f} GiB); keep fewer with every=k, or reduce each run on "
             f"the fly with sweep(..., reduce=...)")
@@ -449,8 +482,9 @@ def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
     """See :meth:`Simulator.simulate_batch`."""
     steps = integer_argument(steps, "steps", owner=sim.name)
     every = integer_argument(every, "every", minimum=1, owner=sim.name)
+    options = NewtonOptions.of(options, sim.options, owner=sim.name)
     if threads is not None:
-        threads = integer_argument(threads, "threads", minimum=1, maximum=2**31 - 1,
+        threads = integer_argument(threads, "threads", minimum=1, maximum=MAX_THREADS,
                                    owner=sim.name)
     S, _ = state_table(sim, states)
     P, one = parameter_table(sim, params)
@@ -460,6 +494,6 @@ def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
     from ._simulator import INITIAL_CONSTRAINT_TOLERANCE
 
     check_constraints(sim, S, P, INITIAL_CONSTRAINT_TOLERANCE)
-    _check_memory(sim, len(S), batch_rows(steps, every))
+    _check_memory(sim, len(S), batch_rows(steps, every), steps, every)
     raw = run_batch(sim, S, P, steps, every, options, threads)
     return TrajectoryBatch(sim, raw, P, steps, every)

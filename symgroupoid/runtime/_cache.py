@@ -22,7 +22,12 @@ Concurrency and failures:
   The kernel releases an ``flock`` when its holder dies, so a killed builder blocks nobody.
 * A build directory is only ever written while its key's lock is held, so one whose lock
   is free belongs to a dead process: it is removed on the next use of the cache.
-* ``index``, ``kernels``, ``locks`` or ``tmp`` found as a file is removed and recreated.
+* The root is marked as a kernel cache (``CACHEDIR.TAG``) when it is created, or when
+  found empty or holding only the cache's own directories; a directory holding anything
+  else is never written into, swept or cleared (it is treated as unwritable, below), so a
+  cache variable pointed at ``$HOME`` or a project cannot delete a file.
+* ``index``, ``kernels``, ``locks`` or ``tmp`` found as a file in a marked root is removed
+  and recreated.
   A cache root that cannot be written (read-only, not a directory, ``$HOME`` unwritable)
   is still read, and kernels built by this process go to a private temporary directory
   (one :class:`RuntimeWarning` naming the path and the reason; removed at exit).
@@ -59,6 +64,14 @@ except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
 MANIFEST = "manifest.json"
 FORMAT_VERSION = 1
 SUBDIRS = ("index", "kernels", "locks", "tmp")
+#: the file that marks a directory as a kernel cache (the Cache Directory Tagging
+#: convention, so backup tools skip it); only a marked root is ever cleaned or swept
+MARKER = "CACHEDIR.TAG"
+_SIGNATURE = "Signature: 8a477f597d28d172789f06886806bc55"
+_MARKER_TEXT = (f"{_SIGNATURE}\n# This directory is a symgroupoid kernel cache: compiled "
+                f"kernels, rebuilt on demand.\n# It can be removed at any time.\n")
+#: what a cache root holds besides the marker (a root holding only these is adopted)
+_CACHE_NAMES = frozenset(SUBDIRS) | {"probes"}
 #: seconds a process waits for another one building the same kernel
 LOCK_TIMEOUT = 600.0
 #: age (seconds) after which leftovers that name no kernel (``build-*`` of older versions,
@@ -75,10 +88,32 @@ def cache_root() -> Path:
     """The configured cache directory (not created; see :class:`KernelCache` for fallback)."""
     override = os.environ.get("SYMGROUPOID_CACHE")
     if override:
-        return Path(override).expanduser()
+        return absolute_root(_expanded(override))
     xdg = os.environ.get("XDG_CACHE_HOME")
-    base = Path(xdg).expanduser() if xdg else Path.home() / ".cache"
-    return base / "symgroupoid"
+    if xdg:
+        return absolute_root(_expanded(xdg) / "symgroupoid")
+    try:
+        home = Path.home()
+    except (RuntimeError, KeyError, OSError) as exc:
+        raise CacheError(f"no kernel cache directory: the home directory cannot be "
+                         f"determined ({exc}); set SYMGROUPOID_CACHE to a directory") from exc
+    return home / ".cache" / "symgroupoid"
+
+
+def absolute_root(path: str | os.PathLike) -> Path:
+    """A cache root as an absolute, normalised path (``~`` expanded): a relative one is
+    resolved against the working directory once, when it is given, so a later change of
+    directory cannot move the cache (or scatter entries over several directories)."""
+    return Path(os.path.abspath(_expanded(os.fspath(path))))
+
+
+def _expanded(text: str) -> Path:
+    """``text`` with a leading ``~`` or ``~user`` expanded; kept as written (as a shell
+    does) when that user or the home directory is unknown."""
+    try:
+        return Path(text).expanduser()
+    except (RuntimeError, KeyError, OSError):
+        return Path(text)
 
 
 def abi_tag() -> str:
@@ -240,14 +275,59 @@ def _held_if_free(path: Path) -> Iterator[bool]:
 
 # -- writable root, fallback and sweeping ------------------------------------------------------
 
+class ForeignDirectoryError(OSError):
+    """The configured cache root is a directory holding other things than a kernel cache."""
+
+
+def is_cache_root(root: Path) -> bool:
+    """Whether ``root`` carries the cache marker (see :data:`MARKER`)."""
+    try:
+        with open(root / MARKER, encoding="ascii", errors="replace") as fh:
+            return fh.read(len(_SIGNATURE)) == _SIGNATURE
+    except OSError:
+        return False
+
+
+def _foreign_entries(root: Path) -> list[str]:
+    """Names in ``root`` that a kernel cache does not hold (empty: the root is, or can
+    become, a cache).  A cache directory name taken by a file counts as foreign unless the
+    root is marked: only a marked cache has files in its layout replaced."""
+    marked = is_cache_root(root)
+    try:
+        entries = list(os.scandir(root))
+    except FileNotFoundError:
+        return []
+    return sorted(e.name for e in entries
+                  if e.name != MARKER and (e.name not in _CACHE_NAMES
+                                           or not (marked or e.is_dir(follow_symlinks=False))))
+
+
+def _claim(root: Path) -> None:
+    """Mark ``root`` as a kernel cache, unless it holds anything else: then it is never
+    written, cleaned or swept (raises :class:`ForeignDirectoryError`)."""
+    if is_cache_root(root):
+        return
+    foreign = _foreign_entries(root)
+    if foreign:
+        shown = ", ".join(foreign[:3]) + (", …" if len(foreign) > 3 else "")
+        raise ForeignDirectoryError(
+            errno.EEXIST, f"it is not a kernel cache: it holds other files ({shown}), which "
+            f"symgroupoid leaves alone; a cache goes to an empty or new directory",
+            str(root))
+    write_atomic(root / MARKER, _MARKER_TEXT)
+
+
 def _prepare(root: Path) -> None:
     """Create the cache layout under ``root`` and check that it is writable (raises OSError).
 
-    A subdirectory found as a file (or a dangling link) is removed and recreated.
+    The root is marked as a kernel cache first (:func:`_claim`; a directory holding other
+    files raises :class:`ForeignDirectoryError` and is left untouched).  A subdirectory of
+    a marked root found as a file (or a dangling link) is removed and recreated.
     """
     if root.exists() and not root.is_dir():
         raise NotADirectoryError(errno.ENOTDIR, "it is not a directory", str(root))
     root.mkdir(parents=True, exist_ok=True)
+    _claim(root)
     for name in SUBDIRS:
         path = root / name
         if not path.is_dir():
@@ -274,21 +354,35 @@ def _fallback(configured: Path, reason: OSError) -> Path:
     why = reason.strerror or str(reason)
     if reason.filename and Path(reason.filename) != configured:
         why = f"{why}: {reason.filename}"
+    state = "is not used" if isinstance(reason, ForeignDirectoryError) else "is not writable"
     try:
         private = Path(tempfile.mkdtemp(prefix="symgroupoid-cache-"))
         _prepare(private)
     except OSError as exc:
         raise CacheError(
-            f"the kernel cache {configured} is not writable ({why}) and no private temporary "
+            f"the kernel cache {configured} {state} ({why}) and no private temporary "
             f"directory could be made ({exc}); set SYMGROUPOID_CACHE to a writable "
             f"directory") from reason
     atexit.register(shutil.rmtree, private, True)
     warnings.warn(
-        f"the kernel cache {configured} is not writable ({why}); kernels built by this process "
+        f"the kernel cache {configured} {state} ({why}); kernels built by this process "
         f"go to the private temporary directory {private} (removed at exit). Set "
         f"SYMGROUPOID_CACHE to a writable directory to keep them.",
         RuntimeWarning, stacklevel=_caller_stacklevel())
     return private
+
+
+def prepared(root: Path) -> bool:
+    """Whether ``root`` is (now) a writable kernel cache: :func:`_prepare` without the
+    fallback, for optional writes such as probe results."""
+    with _STATE_LOCK:
+        if root in _FALLBACKS:
+            return False
+        try:
+            _prepare(root)
+        except OSError:
+            return False
+        return True
 
 
 def writable_root(configured: Path) -> Path:
@@ -311,7 +405,10 @@ def sweep(root: Path) -> None:
     ``build-<key>-*``/``trash-<key>-*`` directories are removed while holding their key's
     lock, which a live builder holds for as long as its directory exists; other leftovers
     (no key: older versions, probes, temporary index files) once older than ``GRACE``.
+    Only a marked cache root (:func:`is_cache_root`) is swept.
     """
+    if not is_cache_root(root):
+        return
     now = time.time()
     for sub in ("tmp", "index"):
         try:
@@ -349,7 +446,7 @@ class KernelCache:
     """
 
     def __init__(self, root: Path | None = None):
-        self.root = Path(root) if root is not None else cache_root()
+        self.root = absolute_root(root) if root is not None else cache_root()
         self._located: dict[str, Path] = {}
 
     def read_roots(self) -> tuple[Path, ...]:

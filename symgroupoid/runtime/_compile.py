@@ -15,7 +15,14 @@ from pathlib import Path
 
 import sympy as sp
 
-from .._errors import CacheError
+from .._arguments import (
+    choice_argument,
+    instance_argument,
+    name_argument,
+    path_argument,
+    sequence_argument,
+)
+from .._errors import CacheError, InputTypeError
 from .._progress import reported
 from ..codegen import generate_c, templates_digest
 from ..codegen._emit import KernelSource
@@ -35,7 +42,9 @@ from ._cache import (
     MANIFEST,
     KernelCache,
     abi_tag,
+    absolute_root,
     file_sha256,
+    prepared,
     read_json,
     sha256_of,
     write_json_atomic,
@@ -132,9 +141,11 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
     result = _openmp_probe(command)
     _OPENMP[key] = result
     probes = cache.root / "probes"
-    with contextlib.suppress(OSError):  # an unwritable cache: probe again next time
-        probes.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
+    # kept only in a writable kernel cache (never in a foreign or read-only directory)
+    with contextlib.suppress(OSError):
+        if prepared(cache.root):
+            probes.mkdir(exist_ok=True)
+            write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
     return result
 
 
@@ -349,6 +360,20 @@ def load_c_kernel(step, flags: Sequence[str] | None = None,
     return kernel, entry
 
 
+def compiler_flags(flags, owner: str = "") -> tuple[str, ...] | None:
+    """``flags`` as a tuple of compiler arguments, or None (the step's
+    :func:`default_flags`, chosen when it is built): a list of strings without NUL
+    characters.  A single string is refused: it would be taken letter by letter (``"-O2"``
+    as ``"-"``, ``"O"``, ``"2"``); pass ``["-O2"]``."""
+    if flags is None:
+        return None
+    if isinstance(flags, str):
+        raise InputTypeError(f"{owner}: flags must be a list of compiler arguments, got the "
+                             f"string {flags!r}; pass [{flags!r}]")
+    items = sequence_argument(flags, "flags", owner=owner)
+    return tuple(name_argument(f, f"flags[{i}]", owner=owner) for i, f in enumerate(items))
+
+
 def kernel_source_of(kernel: CKernel, step) -> KernelSource:
     """The generated C of a loaded kernel: from this process's builds, else generated again
     from ``step`` (checked to hash to the kernel's source key)."""
@@ -391,24 +416,37 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
         or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
         ``"auto"``.
-    flags : compiler flags (default :func:`default_flags`: ``DEFAULT_FLAGS``, at -O2 above
-        ``LARGE_PROGRAM`` operations, which compile faster and run as fast, plus ``-fopenmp``
-        when the compiler supports it); part of the cache key.  Builds carry no debug
-        information unless ``flags`` ask for it (``-g``).
-    cache_dir : cache root (default ``$SYMGROUPOID_CACHE``, ``$XDG_CACHE_HOME/symgroupoid``
-        or ``~/.cache/symgroupoid``).  If it cannot be written, kernels are built in a
-        private temporary directory for this process (with a ``RuntimeWarning``).
+    flags : compiler flags, a list of strings (default :func:`default_flags`:
+        ``DEFAULT_FLAGS``, at -O2 above ``LARGE_PROGRAM`` operations, which compile faster
+        and run as fast, plus ``-fopenmp`` when the compiler supports it); part of the cache
+        key.  Builds carry no debug information unless ``flags`` ask for it (``-g``).
+    cache_dir : cache root, a path (default ``$SYMGROUPOID_CACHE``,
+        ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``); a relative path is
+        taken relative to the working directory of this call.  If it cannot be written,
+        kernels are built in a private temporary directory for this process (with a
+        ``RuntimeWarning``).
     tol_residual, tol_step, max_iterations, floor_factor : Newton options (see
         :class:`NewtonOptions`).
     progress : report code generation and compilation taking longer than 2 s (see
         :mod:`symgroupoid._progress`; a cached kernel loads in milliseconds).
+
+    Every argument is checked before anything is built, whichever backend is used
+    (:class:`~symgroupoid.DomainError` for a backend that is not one of ``BACKENDS``,
+    :class:`~symgroupoid.InputTypeError` or :class:`~symgroupoid.ShapeError` for malformed
+    flags or paths).
     """
-    if backend not in BACKENDS:
-        raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+    from ..equations import StepEquations
+
+    instance_argument(step, StepEquations, "step", "the StepEquations of a system (from "
+                      "system.euler_lagrange())", owner="compile_step")
+    owner = step.name
+    backend = choice_argument(backend, BACKENDS, "backend", owner=owner)
     if backend == "auto":
         backend = os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto"
-        if backend not in BACKENDS:
-            raise ValueError(f"SYMGROUPOID_BACKEND must be one of {BACKENDS}, got {backend!r}")
+        choice_argument(backend, BACKENDS, "SYMGROUPOID_BACKEND", owner=owner)
+    flags = compiler_flags(flags, owner)
+    if cache_dir is not None:  # resolved now: a later chdir cannot move the cache
+        cache_dir = absolute_root(path_argument(cache_dir, "cache_dir", owner=owner))
     given = {"tol_residual": tol_residual, "tol_step": tol_step,
              "max_iterations": max_iterations, "floor_factor": floor_factor}
     options = NewtonOptions(**{k: v for k, v in given.items() if v is not None})

@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
+from .._arguments import flag_argument
 from .._errors import SymgroupoidError
 from .._symbols import multiplier_symbols
 from ..derivation._window import _fields
@@ -183,6 +184,10 @@ class StateGraph:
 
     def _step_symbol(self, name: str | None) -> sp.Symbol:
         by_name = {str(p): p for p in self.parameters}
+        if name is not None and not isinstance(name, (str, sp.Symbol)):
+            raise DiagnosticsError(f"{self.name}: step_parameter must be the name of a "
+                                   f"parameter (a string), got {type(name).__name__} "
+                                   f"{name!r}")
         if name is None:
             if "h" in by_name:
                 return by_name["h"]
@@ -232,7 +237,11 @@ _EVALUATORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def _setup(trajectory) -> tuple[_Evaluator, np.ndarray]:
-    step = getattr(trajectory._layout, "equations", None)
+    layout = getattr(trajectory, "_layout", None)
+    if layout is None or not hasattr(trajectory, "states"):
+        raise DiagnosticsError(f"trajectory must be a Trajectory (from Simulator.simulate), "
+                               f"got {type(trajectory).__name__}")
+    step = getattr(layout, "equations", None)
     if step is None:
         raise DiagnosticsError(f"{trajectory._layout.step_name}: this trajectory does not "
                                f"know the equations it solves")
@@ -398,6 +407,8 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     coefficients) turned into them by ``system.noether(section)``.
     """
     ev, _ = _setup(trajectory)
+    if energy is not None:
+        energy = flag_argument(energy, "energy", owner=ev.sg.name)
     quantities: list[Drift] = []
     notes: list[str] = []
     idx = trajectory.step_indices
@@ -436,6 +447,11 @@ def _noether_quantities(sgraph: StateGraph, items) -> list[tuple[str, object]]:
     mapping label → either."""
     from ..equations import NoetherQuantity
 
+    if isinstance(items, (str, bytes)) or not isinstance(items, (Mapping, Sequence,
+                                                                  np.ndarray)):
+        raise DiagnosticsError(f"{sgraph.name}: noether must be a list of Noether quantities "
+                               f"or sections (or a mapping label → one), got "
+                               f"{type(items).__name__} {items!r}")
     pairs = (list(items.items()) if isinstance(items, Mapping)
              else [(f"Noether F_X[{i}]", item) for i, item in enumerate(items)])
     out = []

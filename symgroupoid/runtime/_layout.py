@@ -26,7 +26,7 @@ import sympy as sp
 from .._errors import DomainError, InputNameError, ShapeError
 from .._symbols import multiplier_symbols, step_label
 from ..groupoids import ActionGroupoid, MatrixLieGroup, ProductGroupoid
-from ._validate import GROUP_TOLERANCE, arrow, check_group_matrix
+from ._validate import GROUP_TOLERANCE, arrow, check_group_matrix, real_array
 
 __all__ = ["GROUP_TOLERANCE", "MULTIPLIER_KEYS", "Part", "StateLayout"]
 
@@ -187,11 +187,7 @@ class StateLayout:
 
     def _as_array(self, part: Part, value) -> np.ndarray:
         """Values of ``part`` as an array of shape (len(offsets),) + part.shape."""
-        try:
-            arr = np.asarray(value, dtype=float)
-        except (TypeError, ValueError):
-            raise ShapeError(f"{self.step_name}: state part {part.name!r} must be numeric, "
-                             f"got {value!r}") from None
+        arr = real_array(value, f"state part {part.name!r}", owner=self.step_name)
         expected = part.index.shape if part.is_sequence else part.shape
         if arr.shape != expected:
             what = (f"{len(part.offsets)} consecutive values (oldest first) of shape "

@@ -14,11 +14,16 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .._errors import CacheError
 from ._cache import (
     MANIFEST,
+    MARKER,
+    _foreign_entries,
     _held_if_free,
     _verified,
+    absolute_root,
     cache_root,
+    is_cache_root,
     read_json,
     remove_tree,
     sweep,
@@ -87,7 +92,7 @@ def _kernel(entry: Path) -> CachedKernel:
 
 def cache_info(root: Path | None = None) -> CacheInfo:
     """What the cache at ``root`` (default: the configured cache) holds."""
-    root = Path(root) if root is not None else cache_root()
+    root = absolute_root(root) if root is not None else cache_root()
     info = CacheInfo(root, root.is_dir())
     if not info.exists:
         return info
@@ -100,10 +105,17 @@ def cache_info(root: Path | None = None) -> CacheInfo:
 def clear_cache(root: Path | None = None) -> ClearedCache:
     """Remove every kernel not being built right now, and the index (see the module
     docstring)."""
-    root = Path(root) if root is not None else cache_root()
+    root = absolute_root(root) if root is not None else cache_root()
     result = ClearedCache(root)
     if not root.is_dir():
         return result
+    if not is_cache_root(root):
+        foreign = _foreign_entries(root)
+        if foreign:
+            raise CacheError(f"{root} is not a symgroupoid kernel cache (no {MARKER}; it "
+                             f"holds {', '.join(foreign[:3])}{', …' if len(foreign) > 3 else ''}"
+                             f"): nothing was removed")
+        return result  # empty, or only an unmarked cache layout: nothing of ours to remove
     for entry in _entries(root / "kernels"):
         with _held_if_free(root / "locks" / f"{entry.name}.lock") as free:
             if not free:

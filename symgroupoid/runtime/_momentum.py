@@ -23,12 +23,14 @@ import sympy as sp
 from .._errors import (
     DomainError,
     InputNameError,
+    InputTypeError,
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
 )
 from ._layout import StateLayout
 from ._validate import arrow as checked_arrow
+from ._validate import real_array
 
 #: a Newton update at most this size (relative to the iterate) that is not 10 times smaller
 #: than the one before it is rounding: quadratic convergence has ended at a solution
@@ -45,11 +47,9 @@ def converged(dz: np.ndarray, before: float, z: np.ndarray, tol: float) -> bool:
 
 
 def _numeric(value, label: str, owner: str) -> np.ndarray:
-    """``value`` as a float array, or a :class:`ShapeError` naming ``label``."""
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ShapeError(f"{owner}: {label} must be numeric, got {value!r}") from None
+    """``value`` as a float array, or a :class:`ShapeError` naming ``label``
+    (:func:`~symgroupoid._arguments.real_array`: no strings, booleans or complex values)."""
+    return real_array(value, label, owner=owner)
 
 
 class MomentumInitializer:
@@ -234,9 +234,9 @@ class SecondOrderMomentumInitializer:
     def solve(self, arrow, momentum: Sequence, params: np.ndarray, tol: float = 1e-14,
               max_iterations: int = 50) -> np.ndarray:
         if isinstance(arrow, Mapping):
-            raise TypeError(f"{self.name}: a second-order system starts from its first arrow "
-                            "g₀ (flat coordinates, as in step.arrows) and a momentum, not "
-                            "from a configuration")
+            raise InputTypeError(f"{self.name}: a second-order system starts from its first "
+                                 "arrow g₀ (flat coordinates, as in step.arrows) and a "
+                                 "momentum, not from a configuration")
         g0 = checked_arrow(self.groupoid, arrow, "the first arrow g₀", owner=self.name)
         p = _numeric(momentum, "the momentum", self.name).ravel()
         if p.size != 2 * self.rank:

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .._arguments import callable_argument
 from .._errors import (
+    DomainError,
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
@@ -27,7 +29,7 @@ from ._backends import (
 )
 from ._layout import StateLayout
 from ._trajectory import Sampler, Trajectory, kept_rows
-from ._validate import constraint_check, integer_argument, parameter_vector
+from ._validate import constraint_check, integer_argument, parameter_vector, real_array
 
 #: an initial state may violate a constraint by this much (absolute) besides rounding
 INITIAL_CONSTRAINT_TOLERANCE = 1e-10
@@ -99,14 +101,10 @@ class Simulator:
         if isinstance(initial, Mapping):
             state = self.layout.pack(initial)
         else:
-            if isinstance(initial, (str, bytes)):
+            if isinstance(initial, (str, bytes)) or initial is None:
                 raise ShapeError(f"{self.name}: a state is a mapping of named parts or a flat "
                                  f"vector, got {initial!r}")
-            try:
-                arr = np.asarray(initial, dtype=float)
-            except (TypeError, ValueError):
-                raise ShapeError(f"{self.name}: a flat state must be numeric, got "
-                                 f"{type(initial).__name__}") from None
+            arr = real_array(initial, "a flat state", owner=self.name)
             if arr.shape != (self.layout.n_known,):
                 raise ShapeError(f"{self.name}: a flat state has shape ({self.layout.n_known},) "
                                  f"(the knowns {', '.join(s.name for s in self.equations.knowns)}"
@@ -139,13 +137,16 @@ class Simulator:
         Ctrl-C (:class:`KeyboardInterrupt`, also when raised by ``callback``) stops the run
         within one chunk; the exception propagates with ``.trajectory``, the states kept so
         far.  Non-finite values are never returned.  ``steps`` and ``every`` are integers
-        (integral floats such as ``1e7`` are accepted); a :class:`TrajectoryTooLargeError`
-        is raised up front when the states to keep exceed the machine's memory.
-        ``progress``: report a run taking longer than 2 s, updated between chunks (see
-        :mod:`symgroupoid._progress`).
+        (integral floats such as ``1e7`` are accepted); ``options`` is None (the
+        simulator's options) or a :class:`NewtonOptions`; ``callback`` None or a function;
+        a :class:`TrajectoryTooLargeError` is raised up front when the states to keep
+        exceed the machine's memory.  ``progress``: report a run taking longer than 2 s,
+        updated between chunks (see :mod:`symgroupoid._progress`).
         """
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
+        options = NewtonOptions.of(options, self.options, owner=self.name)
+        callback = callable_argument(callback, "callback", owner=self.name, none=True)
         p = self.parameters(params)
         known0 = self.state(initial, p)
         rows = kept_rows(steps, every)
@@ -205,8 +206,9 @@ class Simulator:
 
         The compiled kernel advances all runs in one call of ``<prefix>_simulate_batch``,
         each run by the same code as :meth:`simulate` (bitwise the same states, iterations
-        and residual norms), shared among ``threads`` OpenMP threads (None: all cores) when
-        the kernel was built with OpenMP.  A run that fails stops alone: its status, failing
+        and residual norms), shared among ``threads`` OpenMP threads (None: all cores; an
+        integer 1 … ``MAX_THREADS`` = 1024, never more than one per run) when the kernel was
+        built with OpenMP.  A run that fails stops alone: its status, failing
         step and the error :meth:`simulate` would raise are recorded, the others go on.
         Returns a :class:`~symgroupoid.runtime._batch.TrajectoryBatch` (``batch[b]`` is run b
         as a :class:`Trajectory`).
@@ -238,14 +240,12 @@ class Simulator:
         """
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
+        options = NewtonOptions.of(options, self.options, owner=self.name)
         p = self.parameters(params)
-        return self._pieces(self.state(initial, p), p, steps, every,
-                            options)
+        return self._pieces(self.state(initial, p), p, steps, every, options)
 
     def _pieces(self, known0: np.ndarray, p: np.ndarray, steps: int, every: int,
-                options: NewtonOptions | None, task: Task | None = None
-                ) -> Iterator[Trajectory]:
-        options = options or self.options
+                options: NewtonOptions, task: Task | None = None) -> Iterator[Trajectory]:
         sampler = Sampler(every, steps, known0)
         for start, run in run_chunks(self.kernel, known0, p, steps, options, CHUNK_STEPS):
             before_index, before_state = sampler.last_index, sampler.last_state
@@ -292,8 +292,10 @@ class Simulator:
         """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure.
 
         ``guess`` (default: the step's prediction) must hold ``len(step.unknowns)`` finite
-        numbers (a :class:`ShapeError` otherwise).
+        numbers (a :class:`ShapeError` otherwise).  ``options``: None (the simulator's) or a
+        :class:`NewtonOptions`, as for :meth:`simulate`.
         """
+        options = NewtonOptions.of(options, self.options, owner=self.name)
         p = self.parameters(params)
         known = self.state(state, p)
         if guess is None:
@@ -303,7 +305,7 @@ class Simulator:
         else:
             u0 = real_vector(guess, len(self.equations.unknowns), "guess", owner=self.name,
                              finite=True)
-        status, u, it, rn = self.kernel.solve_step(known, p, u0, options or self.options)
+        status, u, it, rn = self.kernel.solve_step(known, p, u0, options)
         if status != OK:
             raise self._failure(status, 0, it, rn, u)
         return u, it, rn
@@ -344,9 +346,12 @@ class Simulator:
         Returns the flat state, checked like any initial state (:meth:`state` with
         ``params``).  First-order steps only; a :class:`~symgroupoid.runtime._projection.
         ProjectionError` (a :class:`DomainError`) when no zero of φ is found nearby.
+        ``max_iterations``: the Gauss–Newton iteration cap, an integer in 1 … 10⁶.
         """
         from ._projection import projection
 
+        max_iterations = integer_argument(max_iterations, "max_iterations", minimum=1,
+                                          maximum=10**6, owner=self.name)
         p = self.parameters(params)
         if (isinstance(initial, Mapping) and self.layout.n_multipliers
                 and not any(k in initial for k in ("lambda", "λ", "multipliers"))):
@@ -359,8 +364,8 @@ class Simulator:
                  iterate: np.ndarray) -> Exception:
         text = (f"{self.name}: step {step} failed: {STATUS_MESSAGES[status]} (after "
                 f"{int(iterations)} Newton iterations, |F|_inf = {residual_norm:.3e})")
-        if status == INVALID_ARGUMENT:
-            return ValueError(text)
+        if status == INVALID_ARGUMENT:  # the checks above let nothing invalid through
+            return DomainError(text)
         cls = SingularJacobianError if status == SINGULAR_JACOBIAN else NewtonDivergenceError
         err = cls(text, step=int(step), residual_norm=float(residual_norm),
                   iterate=np.array(iterate, dtype=float))

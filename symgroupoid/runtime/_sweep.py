@@ -41,25 +41,36 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._arguments import (
+    callable_argument,
+    choice_argument,
+    flag_argument,
+    instance_argument,
+)
 from .._errors import (
     CutLocusError,
+    DomainError,
+    InputTypeError,
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
     SymgroupoidError,
 )
-from ._backends import OK, NewtonOptions
+from ._backends import OK, NewtonOptions, batch_rows
 from ._batch import (
     TrajectoryBatch,
     _at_row,
+    _check_memory,
     check_constraints,
     parameter_table,
     run_batch,
     state_table,
 )
-from ._validate import integer_argument
+from ._validate import integer_argument, system_argument
 
 COMBINE = ("product", "zip")
+#: the options of :func:`solve_boundary_value` a boundary-value sweep passes on
+SOLVER_OPTIONS = ("tol", "tol_step", "max_iterations")
 #: a sweep estimated below this many seconds of work runs in this process
 IN_PROCESS_SECONDS = 2.0
 #: per-task overhead assumed when sizing chunks (seconds): a local pool, a Dask cluster
@@ -123,7 +134,7 @@ class SweepResult:
     def masked(self) -> np.ma.MaskedArray:
         """``values`` with the failed runs masked."""
         if self.values is None:
-            raise ValueError("this sweep has no reduced values (no reduce was given)")
+            raise DomainError("masked: this sweep has no reduced values (no reduce was given)")
         mask = ~self.ok
         mask = mask.reshape(mask.shape + (1,) * (self.values.ndim - mask.ndim))
         return np.ma.masked_array(self.values, np.broadcast_to(mask, self.values.shape))
@@ -202,8 +213,6 @@ class _Grid:
 
 def _grid(combine: str, n_states: int, n_params: int, one_state: bool,
           one_param: bool, owner: str) -> _Grid:
-    if combine not in COMBINE:
-        raise ValueError(f"combine must be one of {COMBINE}, got {combine!r}")
     if combine == "zip" and not (one_state or one_param) and n_states != n_params:
         raise ShapeError(f"{owner}: combine='zip' pairs the i-th initial state with the i-th "
                          f"parameter set; got {n_states} states and {n_params} sets")
@@ -453,15 +462,33 @@ def _mode(client, workers: int | None, estimate: float, portable: bool, owner: s
 # --- simulation sweeps --------------------------------------------------------------------------
 
 def _as_simulator(sim):
+    """A :class:`Simulator`, or step equations compiled here; an
+    :class:`~symgroupoid.InputTypeError` for anything else."""
+    from ..equations import StepEquations
     from ._simulator import Simulator
 
     if isinstance(sim, Simulator):
         return sim
-    compile_ = getattr(sim, "compile", None)
-    if compile_ is None:
-        raise TypeError(f"sweep takes a Simulator (step.compile()) or step equations, got "
-                        f"{type(sim).__name__}")
-    return compile_()
+    instance_argument(sim, StepEquations, "sim", "a Simulator (step.compile()) or step "
+                      "equations", owner="sweep")
+    return sim.compile()
+
+
+def progress_argument(progress, owner: str):
+    """``progress`` of a sweep: None, True, False or a function ``progress(done, total)``."""
+    if progress is None or callable(progress):
+        return progress
+    return flag_argument(progress, "progress", owner=owner)
+
+
+def client_argument(client, owner: str):
+    """``client``: None or a ``dask.distributed.Client`` (anything with ``submit`` and
+    ``nthreads``)."""
+    if client is None or all(callable(getattr(client, m, None)) for m in ("submit",
+                                                                          "nthreads")):
+        return client
+    raise InputTypeError(f"{owner}: client must be a dask.distributed.Client (or None), got "
+                         f"{type(client).__name__}")
 
 
 def _validated_pairs(sim, S, P, grid: _Grid) -> None:
@@ -551,17 +578,27 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
     every run is computed as :meth:`Simulator.simulate` computes it.
     """
     sim = _as_simulator(sim)
+    owner = sim.name
     if steps is None:
-        raise TypeError("sweep needs steps=")
-    steps = integer_argument(steps, "steps", owner=sim.name)
-    every = integer_argument(every, "every", minimum=1, owner=sim.name)
+        raise InputTypeError(f"{owner}: sweep needs steps= (the number of steps of every run)")
+    steps = integer_argument(steps, "steps", owner=owner)
+    every = integer_argument(every, "every", minimum=1, owner=owner)
+    combine = choice_argument(combine, COMBINE, "combine", owner=owner)
+    options = NewtonOptions.of(options, sim.options, owner=owner)
+    reduce = callable_argument(reduce, "reduce", owner=owner, none=True)
+    reduce_failures = flag_argument(reduce_failures, "reduce_failures", owner=owner)
+    client = client_argument(client, owner)
+    progress = progress_argument(progress, owner)
     if chunk_size is not None:
-        chunk_size = integer_argument(chunk_size, "chunk_size", minimum=1, owner=sim.name)
+        chunk_size = integer_argument(chunk_size, "chunk_size", minimum=1, owner=owner)
     S, one_state = state_table(sim, initial)
     P, one_param = parameter_table(sim, params)
     grid = _grid(combine, len(S), len(P), one_state, one_param, sim.name)
     _validated_pairs(sim, S, P, grid)
     total = grid.size
+    # every trajectory comes back without reduce; with it, a task holds its runs' states
+    _check_memory(sim, total if reduce is None else 1, batch_rows(steps, every), steps,
+                  every)
     per_run = _seconds_per_run(sim, S, P, steps, every, options)
     mode, workers = _mode(client, workers, per_run * total, sim.backend == "c", sim.name)
     size = chunk_runs(total, per_run, workers, mode, chunk_size)
@@ -731,11 +768,22 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     travels to worker processes with cloudpickle (its symbolic definition; the window
     kernels are then built into, or loaded from, each worker's kernel cache).
     """
-    system = getattr(step, "system", None) or step
+    system = system_argument(step, "step", owner="sweep_boundary_value")
     owner = system.name
+    unknown = sorted(set(solver_options) - set(SOLVER_OPTIONS))
+    if unknown:
+        raise InputTypeError(f"{owner}: sweep_boundary_value got unknown option(s) "
+                             f"{', '.join(unknown)}; the solver's options are "
+                             f"{', '.join(SOLVER_OPTIONS)}")
     steps = integer_argument(steps, "steps", owner=owner)
-    if combine not in COMBINE:
-        raise ValueError(f"combine must be one of {COMBINE}, got {combine!r}")
+    combine = choice_argument(combine, COMBINE, "combine", owner=owner)
+    continuation = flag_argument(continuation, "continuation", owner=owner)
+    reduce = callable_argument(reduce, "reduce", owner=owner, none=True)
+    reduce_failures = flag_argument(reduce_failures, "reduce_failures", owner=owner)
+    client = client_argument(client, owner)
+    progress = progress_argument(progress, owner)
+    if chunk_size is not None:
+        chunk_size = integer_argument(chunk_size, "chunk_size", minimum=1, owner=owner)
     starts = _sequence(starts, "starts", owner)
     ends = _sequence(ends, "ends", owner)
     P, one_param = parameter_table(_ParameterOwner(system), params)

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._errors import InputNameError
 from ._backends import OK, RawRun
 from ._layout import MULTIPLIER_KEYS, StateLayout
 
@@ -84,8 +85,10 @@ class Trajectory:
 
     def __getitem__(self, name: str) -> np.ndarray:
         """A named part at every kept state (read-only; computed once, then cached)."""
-        if name not in self._layout.parts and name not in MULTIPLIER_KEYS:
-            raise KeyError(f"no part named {name!r}; available: {', '.join(self.keys())}")
+        if not isinstance(name, str) or (name not in self._layout.parts
+                                         and name not in MULTIPLIER_KEYS):
+            raise InputNameError(f"{self._layout.step_name}: no part named {name!r}; "
+                                 f"available: {', '.join(self.keys())}")
         return self._view(name)
 
     def _view(self, name: str) -> np.ndarray:
@@ -98,7 +101,8 @@ class Trajectory:
         return hit
 
     def __contains__(self, name: str) -> bool:
-        return name in self._layout.parts or name in MULTIPLIER_KEYS
+        return isinstance(name, str) and (name in self._layout.parts
+                                          or name in MULTIPLIER_KEYS)
 
     def final_state(self) -> np.ndarray:
         """The last flat state (a valid initial state for a continuation)."""

@@ -5,7 +5,8 @@ and the command line check counts, parameters, configurations, arrows and states
 functions here, so a malformed input gets the same message, naming the argument, wherever it
 is given:
 
-- :func:`integer_argument`, :func:`real_argument` — counts and real numbers;
+- :func:`integer_argument`, :func:`real_argument`, :func:`real_array` — counts, real
+  numbers and arrays of them (symgroupoid/_arguments.py, shared with the other layers);
 - :func:`parameter_vector` — parameters by name or in order, with the assumptions their
   symbols are declared with (positive, integer, …);
 - :func:`group_element`, :func:`check_group_matrix` — matrices of a matrix Lie group;
@@ -23,7 +24,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import MAX_COUNT, integer_argument  # noqa: F401  (one rule for counts)
+from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
+    MAX_COUNT,
+    instance_argument,
+    integer_argument,
+    real_argument,
+    real_array,
+)
 from .._errors import DomainError, ParameterError, ShapeError
 from ..groupoids import (
     ActionGroupoid,
@@ -52,34 +59,21 @@ def _where(owner: str) -> str:
     return f"{owner}: " if owner else ""
 
 
-# --- numbers ------------------------------------------------------------------------------------
+# --- systems ------------------------------------------------------------------------------------
 
-def real_argument(value, name: str, *, minimum: float | None = None, owner: str = "",
-                  error: type[ShapeError] = ShapeError, finite: bool = True) -> float:
-    """``value`` as a float, or ``error`` (a :class:`ShapeError` subclass) naming ``name``.
+def system_argument(value, name: str, *, owner: str = ""):
+    """The discrete system behind ``value``: a :class:`~symgroupoid.DiscreteSystem` (also
+    second-order, reduced) or :class:`~symgroupoid.NonholonomicSystem`, or the step equations
+    derived from one (their ``.system``); an :class:`~symgroupoid.InputTypeError` naming
+    ``name`` for anything else (a string, a groupoid, equations with no system attached)."""
+    from ..equations import DiscreteSystem, NonholonomicSystem, StepEquations
 
-    Accepted: real numbers (Python, NumPy, SymPy numbers, 0-d arrays).  Rejected: booleans,
-    strings, complex numbers, arrays and sequences, values below ``minimum``, and (unless
-    ``finite=False``) NaN and infinities.
-    """
-    where = _where(owner)
-    bad = f"{where}{name} must be a real number, got {type(value).__name__} {value!r}"
-    if isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating,
-                          Sequence, Mapping)):
-        raise error(bad)
-    try:
-        if np.ndim(value) != 0:
-            raise error(bad)
-        real = float(value)
-    except (TypeError, ValueError):
-        raise error(bad) from None
-    if not finite:
-        return real
-    if not np.isfinite(real):
-        raise error(f"{where}{name} must be finite, got {real!r}")
-    if minimum is not None and real < minimum:
-        raise error(f"{where}{name} must be at least {minimum}, got {real!r}")
-    return real
+    if isinstance(value, StepEquations):
+        value = getattr(value, "system", None) or value
+    return instance_argument(value, (DiscreteSystem, NonholonomicSystem), name,
+                             "a discrete system (DiscreteSystem, SecondOrderSystem, "
+                             "NonholonomicSystem) or the step equations derived from one",
+                             owner=owner)
 
 
 # --- parameters ---------------------------------------------------------------------------------
@@ -175,13 +169,7 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
 # --- arrays and group elements ------------------------------------------------------------------
 
 def _float_array(value, name: str, owner: str) -> np.ndarray:
-    if isinstance(value, (str, bytes)):
-        raise ShapeError(f"{_where(owner)}{name} must be numeric, got {value!r}")
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ShapeError(f"{_where(owner)}{name} must be numeric (an array of real numbers), "
-                         f"got {type(value).__name__} {value!r}") from None
+    return real_array(value, name, owner=owner)
 
 
 def _finite(arr: np.ndarray, name: str, owner: str) -> np.ndarray:

@@ -1,0 +1,278 @@
+"""Hostile input at the command line: ``symgroupoid.cli.main([...])``.
+
+Every command (``simulate``, ``verify``, ``bvp``, ``derive``, ``emit``, ``cache``) gets system
+files that do not parse, raise, exit, define no system or several, define junk ``PARAMS``,
+``INITIAL`` or ``NOETHER``, or are not files; option texts that are not numbers, counts out
+of range, ``--params`` of every malformed form; ``--initial`` and boundary-value files with
+arbitrary JSON (junk keys, strings, NaN spelled out, nested lists, huge numbers) or bytes
+that are not JSON or not an ``.npz``; output paths that cannot be written.
+
+The contract (docs/cli.md): exit status 0 (and the output file written when asked for), 1
+with exactly one line ``symgroupoid: error: …`` on stderr that is not an "internal error"
+(any other exception is a defect the command line still reports in one line), or 2 for a
+malformed command line (argparse's usage and error).  Never a traceback.  The NumPy backend
+is used throughout (``SYMGROUPOID_BACKEND=numpy``): no C build per example.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _hostile import (
+    PROFILES,
+    TALLY,
+    Defect,
+    profile,
+    scratch_cwd,  # noqa: F401  (autouse fixture)
+)
+from hypothesis import given
+from hypothesis import strategies as st
+from kernel_support import REPO, isolated_cache  # noqa: F401  (autouse fixture)
+
+from symgroupoid.cli import _main, main
+
+SPRING = REPO / "examples" / "cli" / "spring.py"
+
+#: system files a hostile user passes (written into the scratch working directory)
+SYSTEM_FILES = {
+    "syntax.py": "def (:\n",
+    "raises.py": "raise RuntimeError('boom')\n",
+    "exits.py": "import sys\nsys.exit(3)\n",
+    "empty.py": "",
+    "nothing.py": "x = 1\n",
+    "binary.py": b"\0\0\xff",
+    "two.py": "from spring import *\nother = spring\n",
+    "junk_params.py": "from spring import *\nPARAMS = 'h=1'\n",
+    "bad_params.py": "from spring import *\nPARAMS = {'h': 'a', 'zeta': 1}\n",
+    "junk_initial.py": "from spring import *\nINITIAL = 3\n",
+    "bad_initial.py": "from spring import *\nINITIAL = {'q': [float('nan'), 1]}\n",
+    "junk_noether.py": "from spring import *\nNOETHER = [object(), {'section': 'x'}]\n",
+    "factory.py": ("import symgroupoid as sg\nfrom spring import spring as _s\n"
+                   "def make() -> sg.DiscreteSystem:\n    return 3\n"),
+    "keyerror.py": "from spring import *\nimport os\nos.environ['__missing__']\n",
+}
+TARGETS = ["spring.py", "spring.py:spring", "spring.py:PARAMS", "spring.py:nope",
+           "spring.py:", "missing.py", "folder.py", "", ":", "spring", "notes.txt",
+           *SYSTEM_FILES, "factory.py:make"]
+
+numbers_text = st.one_of(
+    st.sampled_from(["10", "1e3", "-1", "2.5", "nan", "inf", "-inf", "1e400", "", " 5 ",
+                     "5_0", "0x10", "１０", "1e-3", "9" * 30, "0", "1.0", "--", "3 4"]),
+    st.text(max_size=4))
+param_text = st.one_of(
+    st.sampled_from(["h=0.1", "h=", "=1", "h=1,h=2", "h=nan", "zeta=1", "h=1e400",
+                     "h=-1", "k=1e308,h=1e-300", "h=0.1,,k=2", "h:0.1", "h=1j", ",", "h=0.1 k=1",
+                     "H=0.1", "h=0.05,k=1e400"]),
+    st.text(max_size=8))
+
+json_values = st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(-10**30, 10**30),
+              st.floats(allow_nan=False, allow_infinity=False), st.text(max_size=4)),
+    lambda inner: st.one_of(st.lists(inner, max_size=4),
+                            st.dictionaries(st.text(max_size=6), inner, max_size=4)),
+    max_leaves=8)
+
+
+@st.composite
+def initial_files(draw) -> str:
+    """An --initial file: valid JSON states, near-valid ones, any JSON, or junk bytes."""
+    kind = draw(st.sampled_from(["valid", "near", "json", "text", "npz", "missing",
+                                 "directory"]))
+    if kind == "missing":
+        return "absent.json"
+    if kind == "directory":
+        return "."
+    if kind == "npz":
+        name = draw(st.sampled_from(["junk.npz", "states.npz", "wide.npz"]))
+        if name == "junk.npz":
+            Path(name).write_bytes(draw(st.binary(max_size=40)))
+        elif name == "states.npz":
+            np.savez(name, states=np.array([[0.1, 0.2]]))
+        else:
+            np.savez(name, states=np.zeros((2, 5)), other=np.ones(3))
+        return name
+    name = "initial.json"
+    if kind == "valid":
+        data = draw(st.sampled_from([{"q": [1.0, 0.999]}, [1.0, 0.999],
+                                     {"configuration": {"q": 1.0}, "momentum": [0.1]}]))
+        Path(name).write_text(json.dumps(data))
+    elif kind == "near":
+        data = draw(st.sampled_from([
+            {"q": [1.0]}, {"q": [1.0, "a"]}, {"q": [[1.0, 2.0]]}, {"x": [1.0, 2.0]},
+            {"q": [1.0, 0.9], "lambda": [1]}, {"configuration": {"q": "a"}, "momentum": [1]},
+            {"configuration": {"q": 1.0}, "momentum": [1, 2]}, {"momentum": [1]},
+            {"configuration": None, "momentum": None}, [1.0, 2.0, 3.0], [], "q", 3,
+            {"q": [1e308, -1e308]}, {"q": [1, 2], "extra": 1}]))
+        Path(name).write_text(json.dumps(data))
+    elif kind == "json":
+        Path(name).write_text(json.dumps(draw(json_values)))
+    else:
+        Path(name).write_bytes(draw(st.sampled_from(
+            [b"{", b"NaN", b'{"q": [NaN, 1]}', b'{"q": [Infinity, 1]}', b"\xff\xfe",
+             b'{"q": [1e999, 1]}', b""])))
+    return name
+
+
+@st.composite
+def boundary_files(draw) -> str:
+    name = "problem.json"
+    kind = draw(st.sampled_from(["valid", "field", "json", "text"]))
+    problem = {"start": 0.0, "end": 1.0, "steps": 6, "params": {"h": 0.05, "k": 4.0}}
+    if kind == "field":
+        key = draw(st.sampled_from(["start", "end", "steps", "params", "guess", "extra"]))
+        problem[key] = draw(st.one_of(json_values, st.sampled_from(
+            [[0.0, 1.0], "a", -3, 2.5, 1e300, {"arrows": [[0, 1]]},
+             {"arrows": [[0.0, 0.1]] * 6, "multipliers": [[1]]}, [[0.0, 0.2]] * 6])))
+        if draw(st.booleans()):
+            problem.pop(key, None)
+    elif kind == "json":
+        problem = draw(json_values)
+    if kind == "text":
+        Path(name).write_bytes(draw(st.sampled_from([b"{", b'{"start": NaN}', b"[]"])))
+    else:
+        Path(name).write_text(json.dumps(problem))
+    return name
+
+
+outputs = st.sampled_from(["out.npz", "out.csv", "out.txt", "missing/out.npz", "",
+                           "folder.py/out.npz", "spring.py/x.csv", "out"])
+
+
+@st.composite
+def command_lines(draw) -> list[str]:
+    command = draw(st.sampled_from(["simulate", "simulate", "verify", "bvp", "derive", "emit",
+                                    "cache", "junk"]))
+    target = draw(st.sampled_from(TARGETS))
+    if command == "simulate":
+        argv = ["simulate", target, "--steps", draw(numbers_text)]
+        if draw(st.booleans()):
+            argv += ["--every", draw(numbers_text)]
+        if draw(st.booleans()):
+            argv += ["--params", draw(param_text)]
+        if draw(st.booleans()):
+            argv += ["--initial", draw(initial_files())]
+        if draw(st.booleans()):
+            argv += ["-o", draw(outputs)]
+    elif command == "verify":
+        argv = ["verify", target, "--steps", draw(numbers_text), "--points",
+                draw(st.sampled_from(["2", "0", "-1", "x", "1e9"])), "--seed",
+                draw(st.sampled_from(["0", "-1", "1.5", "2e20", "x"])), "--no-sympy"]
+        if draw(st.booleans()):
+            argv += ["--params", draw(param_text)]
+        if draw(st.booleans()):
+            argv += ["--initial", draw(initial_files())]
+    elif command == "bvp":
+        argv = ["bvp", target, draw(st.one_of(boundary_files(), st.just("absent.json"))),
+                "--max-iterations", draw(numbers_text)]
+        if draw(st.booleans()):
+            argv += ["--params", draw(param_text)]
+        if draw(st.booleans()):
+            argv += ["-o", draw(outputs)]
+        if draw(st.booleans()):
+            argv += ["--check"]
+    elif command == "derive":
+        argv = ["derive", target]
+        if draw(st.booleans()):
+            argv += ["--document", draw(st.sampled_from(["eq.tex", "missing/eq.tex", "",
+                                                         "folder.py", "spring.py/e.tex"]))]
+    elif command == "emit":
+        argv = ["emit", target, "-o", draw(st.sampled_from(["outdir", "", "spring.py",
+                                                            "a\0b", "folder.py/x"]))]
+        if draw(st.booleans()):
+            argv += ["--name", draw(st.sampled_from(["", "k", "../k", "a/b", "é", "..."]))]
+        if draw(st.booleans()):
+            argv += ["--prefix", draw(st.sampled_from(["", "int", "1x", "a b", "é"]))]
+    elif command == "cache":
+        argv = ["cache", draw(st.sampled_from(["info", "clear", "purge", ""]))]
+    else:
+        argv = draw(st.lists(st.text(max_size=6), max_size=4))
+    return argv
+
+
+def run_cli(argv: list[str]) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            status = main(argv)
+        except SystemExit as exit_:
+            status = exit_.code if isinstance(exit_.code, int) else 1
+    return status, out.getvalue(), err.getvalue()
+
+
+def judge_cli(argv: list[str]) -> None:
+    """The exit status and stderr of one command line against the contract."""
+    counts = TALLY["command line"]
+    counts.tried += 1
+    try:
+        status, out, err = run_cli(argv)
+    except BaseException as exc:  # noqa: BLE001 - anything escaping main is a defect
+        counts.defects += 1
+        raise Defect(f"{argv}: main raised {type(exc).__name__}: {exc}") from exc
+    lines = [line for line in err.splitlines() if line.strip()]
+    problem = None
+    if "Traceback" in err:
+        problem = "a traceback on stderr"
+    elif status == 0:
+        for i, arg in enumerate(argv[:-1]):
+            if arg == "-o" and argv[0] in ("simulate", "bvp") and not Path(argv[i + 1]).is_file():
+                problem = f"exit 0 without writing {argv[i + 1]}"
+    elif status == 1:
+        errors = [line for line in lines if line.startswith("symgroupoid: error:")]
+        if len(errors) != 1 or lines[-1] != errors[0]:
+            problem = f"exit 1 without exactly one closing error line: {lines[-3:]}"
+        elif "internal error" in errors[0]:
+            problem = errors[0]
+    elif status == 2:
+        if not any("usage:" in line for line in lines) or "error:" not in lines[-1]:
+            problem = f"exit 2 without argparse's usage and error: {lines[-3:]}"
+    else:
+        problem = f"exit status {status}"
+    if problem is not None:
+        counts.defects += 1
+        raise Defect(f"symgroupoid {' '.join(map(repr, argv))}: {problem}\n{err[-1500:]}")
+    if status == 0:
+        counts.valid += 1
+    else:
+        counts.clear += 1
+
+
+@pytest.fixture
+def system_files(monkeypatch):
+    monkeypatch.setenv("SYMGROUPOID_BACKEND", "numpy")
+    shutil.copy(SPRING, "spring.py")
+    Path("folder.py").mkdir()
+    Path("notes.txt").write_text("not python")
+    for name, text in SYSTEM_FILES.items():
+        Path(name).write_bytes(text if isinstance(text, bytes) else text.encode())
+    monkeypatch.syspath_prepend(str(Path.cwd()))
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_command_lines(system_files, run):
+    @profile(run, 14, 300)
+    @given(argv=command_lines())
+    def prop(argv):
+        judge_cli(argv)
+
+    prop()
+
+
+def test_an_unexpected_exception_is_one_line_not_a_traceback(system_files, monkeypatch):
+    """A defect inside a command still ends in one line (and --debug shows it raw)."""
+    def broken(args):
+        raise TypeError("an internal mistake")
+
+    monkeypatch.setattr(_main, "run_simulate", broken)
+    status, out, err = run_cli(["simulate", "spring.py", "--steps", "3"])
+    assert status == 1 and "Traceback" not in err
+    assert err.strip().splitlines() == ["symgroupoid: error: internal error (TypeError: an "
+                                        "internal mistake); this is a defect of symgroupoid: "
+                                        "please report it with the output of --debug"]
+    with pytest.raises(TypeError, match="an internal mistake"):
+        main(["simulate", "spring.py", "--steps", "3", "--debug"])

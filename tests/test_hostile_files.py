@@ -1,0 +1,336 @@
+"""Hostile input where the library meets the file system: ``emit_c``, the kernel cache
+(``compile_step(cache_dir=...)``, the cache's files and directories, its environment
+variables) and the cache maintenance functions.
+
+``emit_c``: steps that are not steps, paths of the wrong type, empty, ``/``, with NUL
+characters, under a file, relative (the working directory is a scratch directory, see
+``scratch_cwd``); prefixes of the wrong type, C keywords, leading digits, non-ASCII.  A
+valid call writes a header and a source that are exactly ``generate_c``'s, with the mode an
+ordinary file gets, whose identifiers are valid C, and which the C compiler accepts
+(``-fsyntax-only -std=c99``).
+
+The cache: after a kernel is built, one of its files or directories is damaged (garbage or
+a list as manifest, a truncated or missing module, a directory or file in the way of any
+part, an index pointing outside the cache, a symlink loop, a stale build directory) and
+the kernel is asked for again: the answer must be a kernel that steps exactly as the NumPy
+backend does, or a CacheError naming the cache.  Environment variables get junk values.
+Every build here uses ``-O0`` and its own flag, so each example builds a new kernel.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import os
+import re
+import shutil
+import stat
+import subprocess
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from _hostile import (
+    PROFILES,
+    judge,
+    junk,
+    oscillator,
+    profile,
+    scalars,
+    scratch_cwd,  # noqa: F401  (autouse fixture)
+)
+from hypothesis import given
+from hypothesis import strategies as st
+from kernel_support import HAVE_CC, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
+
+import symgroupoid as sg
+from symgroupoid.codegen import generate_c
+from symgroupoid.codegen._kernel import _C_KEYWORDS
+from symgroupoid.runtime._cache import KernelCache, cache_root
+from symgroupoid.runtime._maintenance import cache_info, clear_cache
+
+STEP = oscillator().euler_lagrange()
+PARAMS = {"h": 0.1, "k": 1.0}
+START = {"q": (0.1, 0.2)}
+REFERENCE = STEP.compile(backend="numpy").simulate(START, 3, PARAMS).states
+_BUILD = itertools.count()
+
+
+def fresh_flags() -> list[str]:
+    """Flags of a kernel no other example has built (a new cache key each time)."""
+    return ["-O0", f"-DSG_HOSTILE_BUILD_{os.getpid()}_{next(_BUILD)}"]
+
+
+# --- emit_c ---------------------------------------------------------------------------------------
+
+IDENTIFIER = re.compile(r"^[a-z_][a-z0-9_]*$")
+
+
+def check_emitted(prefix):
+    def verify(paths):
+        c_path, h_path = (Path(p) for p in paths)
+        kernel = generate_c(STEP, prefix, header_name=h_path.name)
+        assert c_path.read_text() == kernel.source and h_path.read_text() == kernel.header
+        assert IDENTIFIER.match(kernel.prefix) and kernel.prefix not in _C_KEYWORDS
+        umask = os.umask(0)
+        os.umask(umask)
+        for p in paths:
+            assert stat.S_IMODE(Path(p).stat().st_mode) == 0o666 & ~umask
+        if HAVE_CC:
+            result = subprocess.run(["cc", "-std=c99", "-fsyntax-only", "-Wall", "-Werror",
+                                     "-I", str(c_path.parent), str(c_path)],
+                                    capture_output=True, text=True, timeout=120)
+            assert result.returncode == 0, result.stderr
+    return verify
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_emit_c(run):
+    Path("file").write_text("a file in the way")
+    paths = st.one_of(st.sampled_from(["out/k", "k.c", "k.h", "deep/er/k", "", "/", ".", "..",
+                                       "file/k", "a\0b", "k.", " ", "ü/k", "out/"]),
+                      st.text(max_size=6), junk(max_leaves=2))
+    prefixes = st.one_of(st.none(), st.sampled_from(["", "int", "1abc", "é", "a b", "_",
+                                                     "main", "NULL", "x" * 80, "static",
+                                                     "__", "double"]),
+                         st.text(max_size=5), scalars)
+
+    @profile(run, 5)
+    @given(data=st.data())
+    def prop(data):
+        which = data.draw(st.sampled_from(["step", "path", "prefix"]))
+        step, path, prefix = STEP, "out/kernel", None
+        if which == "step":
+            step = data.draw(st.one_of(junk(max_leaves=2), st.just(STEP.system)))
+        elif which == "path":
+            path = data.draw(paths)
+        else:
+            prefix = data.draw(prefixes)
+        judge("emit_c", lambda: sg.emit_c(step, path, prefix=prefix),
+              [which, "emit_c"], owner=STEP.name, verify=check_emitted(prefix))
+
+    prop()
+
+
+# --- the cache ------------------------------------------------------------------------------------
+
+def _entry(root: Path) -> Path:
+    return next(p for p in (root / "kernels").iterdir())
+
+
+def _replace(path: Path, data: bytes) -> None:
+    """Put ``data`` at ``path`` through a new file (a loaded module is never rewritten in
+    place: the running process maps it)."""
+    tmp = path.with_name(path.name + ".new")
+    tmp.write_bytes(data)
+    os.replace(tmp, path)
+
+
+def _in_the_way(path: Path, kind: str) -> None:
+    """Replace ``path`` (file or directory) by a file or an empty directory."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path)
+    elif path.exists() or path.is_symlink():
+        path.unlink()
+    if kind == "file":
+        path.write_text("in the way")
+    else:
+        path.mkdir()
+
+
+def damage(root: Path, how: str) -> None:
+    entry = _entry(root)
+    module = next(entry.glob("*.so"))
+    if how == "manifest garbage":
+        _replace(entry / "manifest.json", b"{not json")
+    elif how == "manifest list":
+        _replace(entry / "manifest.json", b"[1, 2, 3]")
+    elif how == "manifest wrong hash":
+        data = json.loads((entry / "manifest.json").read_text())
+        data["sha256"] = "0" * 64
+        _replace(entry / "manifest.json", json.dumps(data).encode())
+    elif how == "module truncated":
+        _replace(module, module.read_bytes()[:64])
+    elif how == "module missing":
+        module.unlink()
+    elif how == "module directory":
+        _in_the_way(module, "dir")
+    elif how in ("kernels", "index", "tmp", "locks"):
+        _in_the_way(root / how, "file")
+    elif how == "entry file":
+        _in_the_way(entry, "file")
+    elif how == "entry symlink loop":
+        shutil.rmtree(entry)
+        entry.symlink_to(entry)
+    elif how == "index garbage":
+        for f in (root / "index").iterdir():
+            _replace(f, b"\0\0")
+    elif how == "index outside":
+        for f in (root / "index").iterdir():
+            _replace(f, json.dumps({"source_key": "../../x", "prefix": 3}).encode())
+    elif how == "stale build":
+        (root / "tmp" / f"build-{entry.name}-stale").mkdir(parents=True)
+    elif how == "root file":
+        shutil.rmtree(root)
+        root.write_text("in the way")
+
+
+DAMAGE = ["manifest garbage", "manifest list", "manifest wrong hash", "module truncated",
+          "module missing", "module directory", "kernels", "index", "tmp", "locks",
+          "entry file", "entry symlink loop", "index garbage", "index outside", "stale build",
+          "root file"]
+
+
+def check_kernel(sim) -> None:
+    assert sim.backend == "c"
+    states = sim.simulate(START, 3, PARAMS).states
+    assert np.allclose(states, REFERENCE, rtol=1e-13, atol=1e-15), (states, REFERENCE)
+
+
+@needs_cc
+@pytest.mark.parametrize("run", PROFILES)
+def test_damaged_cache(tmp_path, run):
+    @profile(run, 2, 30)
+    @given(how=st.sampled_from(DAMAGE), relative=st.booleans())
+    def prop(how, relative):
+        root = tmp_path / f"cache-{next(_BUILD)}"
+        flags = fresh_flags()
+        cache_dir = os.path.relpath(root) if relative else root
+        check_kernel(STEP.compile(backend="c", cache_dir=cache_dir, flags=flags))
+        damage(root, how)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # an unwritable root falls back
+            judge("compile_step (damaged cache)",
+                  lambda: STEP.compile(backend="c", cache_dir=cache_dir, flags=flags),
+                  ["cache", "kernel cache", str(root)], owner=STEP.name, verify=check_kernel)
+
+    prop()
+
+
+# --- environment variables and maintenance --------------------------------------------------------
+
+ENVIRONMENT = {
+    "SYMGROUPOID_CACHE": ["", "relative", "~", "~nobody-here/x", "file", " ", "a\nb"],
+    "SYMGROUPOID_BACKEND": ["", "numpy", "NumPy", "c ", "fortran", "auto"],
+    "SYMGROUPOID_LOCK_TIMEOUT": ["", "0", "-1", "nan", "inf", "ten", "1e999", "5"],
+    "SYMGROUPOID_OPENMP": ["", "0", "1", "no", "yes"],
+    "XDG_CACHE_HOME": ["", "relative", "file"],
+}
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_environment_and_maintenance(monkeypatch, run):
+    """Junk in the environment, then a NumPy-backend compile (whatever the backend
+    variable says, an explicit backend wins), ``cache_info`` and ``clear_cache``."""
+    Path("file").write_text("a file in the way")
+
+    @profile(run, 6)
+    @given(data=st.data())
+    def prop(data):
+        key = data.draw(st.sampled_from(sorted(ENVIRONMENT)))
+        value = data.draw(st.one_of(st.sampled_from(ENVIRONMENT[key]),
+                                    st.text(alphabet="abc/~. 0", max_size=6)))
+        with monkeypatch.context() as m:
+            if key == "XDG_CACHE_HOME":
+                m.delenv("SYMGROUPOID_CACHE", raising=False)
+            m.setenv(key, value)
+            action = data.draw(st.sampled_from(["compile", "info", "clear", "root"]))
+
+            def call():
+                if action == "compile":
+                    return STEP.compile(backend="numpy")
+                if action == "info":
+                    return cache_info()
+                if action == "clear":
+                    return clear_cache()
+                return KernelCache().root
+
+            def verify(result):
+                if action == "compile":
+                    assert np.allclose(result.simulate(START, 3, PARAMS).states, REFERENCE)
+                elif action == "root":
+                    assert result.is_absolute() and result == cache_root()
+                else:
+                    assert Path(result.root).is_absolute()
+
+            judge(f"environment ({action})", call, [key, "cache"], verify=verify)
+
+    prop()
+
+
+# --- regression tests -------------------------------------------------------------------------
+
+@needs_cc
+def test_relative_cache_dir_is_resolved_once_against_the_working_directory(tmp_path,
+                                                                           monkeypatch):
+    """A relative ``cache_dir`` is the directory of that name in the working directory of
+    the call, made absolute then: entries never land beside later working directories."""
+    work, elsewhere = tmp_path / "work", tmp_path / "elsewhere"
+    work.mkdir()
+    elsewhere.mkdir()
+    monkeypatch.chdir(work)
+    flags = fresh_flags()
+    sim = STEP.compile(backend="c", cache_dir="relative", flags=flags)
+    assert sim.cache_entry.is_absolute()
+    assert sim.cache_entry.parent.parent == work / "relative"
+    monkeypatch.chdir(elsewhere)
+    assert KernelCache(Path("x")).root == elsewhere / "x"
+    assert sim.simulate(START, 3, PARAMS).states.tolist() == REFERENCE.tolist()
+    assert not any(elsewhere.iterdir())
+
+
+def test_relative_cache_variable_is_absolute(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("SYMGROUPOID_CACHE", "rel/../cache")
+    assert cache_root() == tmp_path / "cache"
+
+
+def _foreign_directory(path: Path) -> dict[Path, bytes]:
+    """A directory a cache variable may point at by mistake ($HOME, a project): files of
+    the user's under the cache's own names, and old dotfiles a sweep would take for
+    leftovers.  Returns what must survive."""
+    files = {path / "notes.txt": b"mine", path / "index" / "table.json": b"{}",
+             path / "index" / ".hidden": b"h", path / "tmp" / ".build-x": b"t",
+             path / "kernels" / "k" / "data": b"d", path / "locks" / "l.lock": b""}
+    for f, data in files.items():
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_bytes(data)
+        os.utime(f, (0, 0))  # older than any grace period
+    return files
+
+
+@needs_cc
+def test_a_directory_that_is_not_a_cache_is_never_written_cleaned_or_swept(tmp_path,
+                                                                           monkeypatch):
+    home = tmp_path / "home"
+    files = _foreign_directory(home)
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(home))
+    with pytest.warns(RuntimeWarning, match=r"is not used \(it is not a kernel cache: it "
+                                            r"holds other files \(notes.txt"):
+        sim = STEP.compile(backend="c", flags=fresh_flags())
+    check_kernel(sim)
+    assert not str(sim.cache_entry).startswith(str(home))
+    with pytest.raises(sg.CacheError, match="is not a symgroupoid kernel cache .*nothing was "
+                                            "removed"):
+        clear_cache()
+    cache_info()  # reading is harmless
+    for f, data in files.items():
+        assert f.read_bytes() == data, f"{f} was changed"
+    assert not (home / "CACHEDIR.TAG").exists() and not (home / "probes").exists()
+
+
+@needs_cc
+def test_a_new_or_empty_cache_root_is_marked_and_an_old_layout_is_adopted(tmp_path):
+    new = tmp_path / "new"
+    STEP.compile(backend="c", cache_dir=new, flags=fresh_flags())
+    assert (new / "CACHEDIR.TAG").read_text().startswith(
+        "Signature: 8a477f597d28d172789f06886806bc55")
+    old = tmp_path / "old"
+    for name in ("index", "kernels", "locks", "tmp", "probes"):
+        (old / name).mkdir(parents=True)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        check_kernel(STEP.compile(backend="c", cache_dir=old, flags=fresh_flags()))
+    assert (old / "CACHEDIR.TAG").is_file()
+    assert clear_cache(old).removed == 1

@@ -1,0 +1,249 @@
+"""Regression tests of the defects the hostile-input suite found, one mechanism each.
+
+Each test states the defect it pins (the behaviour before the fix in parentheses); the
+property tests that found them are in tests/test_hostile_*.py.  Further regression tests
+live next to their subject: the relative and foreign cache roots in test_hostile_files.py,
+the OpenMP team size in test_hostile_isolated.py, the command line's last resort in
+test_hostile_cli.py.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from _hostile import H, diagonal, oscillator, scratch_cwd  # noqa: F401  (autouse fixture)
+from _hostile_cases import case_of
+from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
+
+import symgroupoid as sg
+from symgroupoid._arguments import flag_argument, integer_argument
+from symgroupoid.runtime._validate import system_argument
+
+# --- one rule for arguments -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("value", [np.timedelta64(3, "D"), np.timedelta64(1),
+                                   np.datetime64("2020-01-01")])
+def test_numpy_durations_are_not_counts_or_flags(value):
+    """(``np.timedelta64`` is a ``numbers.Integral``: ``int()`` of it raised TypeError.)"""
+    with pytest.raises(sg.ShapeError, match="steps must be an integer"):
+        integer_argument(value, "steps")
+    with pytest.raises(sg.ShapeError, match="progress must be True or False"):
+        flag_argument(value, "progress")
+
+
+def test_progress_must_be_a_switch():
+    """(A string such as "no" turned progress bars on.)"""
+    sim = case_of("oscillator").sim
+    with pytest.raises(sg.ShapeError, match="oscillator: simulating: progress must be True or "
+                                            "False, got str 'no'"):
+        sim.simulate({"q": (0.1, 0.2)}, 2, {"h": 0.1, "k": 1.0}, progress="no")
+    with pytest.raises(sg.ShapeError, match="progress must be True or False"):
+        oscillator().euler_lagrange(progress="no")
+
+
+# --- batches and sweeps ---------------------------------------------------------------------------
+
+def _rows(name: str = "diagonal") -> tuple[np.ndarray, dict]:
+    case = case_of(name)
+    return case.sim.simulate(case.flat, 2, case.params).states[:2], case.params
+
+
+@pytest.mark.parametrize("dtype", [str, bool, complex, "M8[D]"])
+def test_a_batch_reads_its_states_by_the_one_rule_for_real_arrays(dtype):
+    """(Strings were parsed, booleans read as 0/1, dates as day numbers and complex parts
+    dropped: a batch ran states that simulate refuses.)"""
+    S, params = _rows()
+    table = S.astype(np.int64).astype(dtype) if dtype == "M8[D]" else S.astype(dtype)
+    with pytest.raises(sg.ShapeError, match="initial state 0: diagonal: a flat state must "
+                                            "hold real numbers"):
+        case_of("diagonal").sim.simulate_batch(table, 2, params)
+
+
+def test_a_ragged_table_of_states_names_the_row():
+    S, params = _rows()
+    with pytest.raises(sg.ShapeError, match="initial state 1: .*shape"):
+        case_of("diagonal").sim.simulate_batch([S[0].tolist(), S[1][:-1].tolist()], 2,
+                                               params)
+
+
+def test_batches_and_sweeps_check_their_options():
+    """(``options="x"`` reached the kernel: AttributeError 'str' has no 'extrapolate'.)"""
+    S, params = _rows()
+    sim = case_of("diagonal").sim
+    with pytest.raises(sg.InputTypeError, match="diagonal: options must be a NewtonOptions"):
+        sim.simulate_batch(S, 2, params, options="x")
+    with pytest.raises(sg.InputTypeError, match="diagonal: options must be a NewtonOptions"):
+        sg.sweep(sim, S, params, 2, options=3, workers=1)
+
+
+def test_a_batch_too_large_for_memory_names_steps_and_every():
+    S, params = _rows()
+    with pytest.raises(sg.TrajectoryTooLargeError, match=r"steps=35184372088832, every=1"):
+        case_of("diagonal").sim.simulate_batch(S, 2**45, params)
+    with pytest.raises(sg.TrajectoryTooLargeError, match=r"steps=35184372088832"):
+        sg.sweep(case_of("diagonal").sim, S, params, 2**45, workers=1)
+
+
+@pytest.mark.parametrize("change, error, message", [
+    ({"combine": "Zip"}, sg.ShapeError, "combine must be one of 'product', 'zip'"),
+    ({"steps": None}, sg.InputTypeError, "sweep needs steps="),
+    ({"reduce": 3}, sg.InputTypeError, "reduce must be a function"),
+    ({"reduce_failures": "yes"}, sg.ShapeError, "reduce_failures must be True or False"),
+    ({"client": "localhost"}, sg.InputTypeError, "client must be a dask.distributed.Client"),
+    ({"progress": "x"}, sg.ShapeError, "progress must be True or False"),
+])
+def test_sweep_checks_every_argument_before_any_run(change, error, message):
+    """(A misspelt combine was a ValueError, steps=None a TypeError, a reduce that is not a
+    function failed inside the first run, junk client or progress were accepted or failed
+    late.)"""
+    S, params = _rows()
+    kwargs = {"steps": 2, "workers": 1, **change}
+    with pytest.raises(error, match=message):
+        sg.sweep(case_of("diagonal").sim, S, params, **kwargs)
+    with pytest.raises(sg.InputTypeError, match="sweep: sim must be a Simulator"):
+        sg.sweep("diagonal", S, params, 2)
+
+
+def test_sweep_boundary_value_checks_the_system_and_the_solver_options():
+    """(A string as the system was an AttributeError; an unknown option a TypeError inside
+    the first run.)"""
+    step = oscillator().euler_lagrange()
+    with pytest.raises(sg.InputTypeError, match="sweep_boundary_value: step must be a "
+                                                "discrete system"):
+        sg.sweep_boundary_value("x", [0.0], [1.0], 6, {"h": 0.1, "k": 1.0})
+    with pytest.raises(sg.InputTypeError, match="unknown option.*tolerance; the solver's "
+                                                "options are tol, tol_step, max_iterations"):
+        sg.sweep_boundary_value(step, [0.0], [1.0], 6, {"h": 0.1, "k": 1.0}, workers=1,
+                                tolerance=1e-9)
+
+
+def test_the_openmp_team_is_bounded_in_python_too():
+    S, params = _rows()
+    with pytest.raises(sg.ShapeError, match="threads must be at most 1024"):
+        case_of("diagonal").sim.simulate_batch(S, 2, params, threads=10**5)
+
+
+# --- states, diagnostics, figures -------------------------------------------------------------
+
+def test_project_initial_checks_its_iteration_cap():
+    """(A string cap was a TypeError from range(); 0 reported a "non-finite" residual.)"""
+    sim = case_of("diagonal").sim
+    state = {"x": (0.0, 0.1), "y": (0.0, 0.3)}
+    for cap in ("x", 0, -1, 2.5, True):
+        with pytest.raises(sg.ShapeError, match="diagonal: max_iterations must be"):
+            sim.project_initial(state, {"h": 0.1, "k": 1.0}, max_iterations=cap)
+
+
+@pytest.mark.parametrize("section, error, message", [
+    ([sp.nan, 0], sg.InvalidExpressionError, r"section \(coefficient 0\) is nan"),
+    ([sp.I, 0], sg.InvalidExpressionError, r"section \(coefficient 0\) is I"),
+    ([sp.Symbol("zeta"), 0], sg.UndeclaredSymbolError, "the section uses symbol.*zeta"),
+    (["x", 0], sg.ShapeError, "strings are not coefficients"),
+    ("!", sg.ShapeError, "strings are not coefficients"),
+    ([True, 0], sg.ShapeError, r"section \(entry 0\)"),
+    ([[1, 0]], sg.ShapeError, r"section \(entry 0\)"),
+    (None, sg.ShapeError, "section must return a list"),
+    (lambda q: 1 / 0, sg.CallableError, "evaluating the section"),
+])
+def test_noether_sections_are_checked_as_expressions(section, error, message):
+    """(Sections were sympified unchecked: SympifyError and TypeError from SymPy, or a
+    quantity with nan, I or an undeclared symbol that failed only when evaluated.)"""
+    with pytest.raises(error, match=message):
+        diagonal().noether(section)
+
+
+def test_noether_sections_may_use_parameters_and_the_base_point():
+    system = diagonal()
+    quantity = system.noether(lambda q: [H, q[0] * 0])
+    assert quantity.expr.has(H)
+
+
+def test_diagnostics_name_what_is_wrong():
+    """(Junk noether lists, step parameters and part names were TypeError or KeyError;
+    ``energy="x"`` was taken as True.)"""
+    traj = case_of("diagonal").sim.simulate(case_of("diagonal").flat, 3, {"h": 0.1, "k": 1.0})
+    with pytest.raises(sg.SymgroupoidError, match="noether must be a list"):
+        traj.conservation_summary(noether=3)
+    with pytest.raises(sg.ShapeError, match="energy must be True or False"):
+        traj.conservation_summary(energy="x")
+    with pytest.raises(sg.SymgroupoidError, match="step_parameter must be the name of a "
+                                                  "parameter"):
+        traj.energy([1])
+    with pytest.raises(sg.ShapeError, match="diagonal: no part named 'nope'") as info:
+        traj["nope"]
+    assert isinstance(info.value, KeyError)
+    with pytest.raises(sg.ShapeError, match="no part named"):
+        traj[[1]]
+    with pytest.raises(sg.InputTypeError, match="NoetherQuantity.along: trajectory must be"):
+        diagonal().noether(0).along("x")
+
+
+def test_figures_check_parts_and_paths_before_drawing(tmp_path):
+    traj = case_of("diagonal").sim.simulate(case_of("diagonal").flat, 3, {"h": 0.1, "k": 1.0})
+    with pytest.raises(sg.InputTypeError, match="parts must be a list of strings"):
+        sg.plot_trajectory(traj, 3)
+    with pytest.raises(sg.ShapeError, match=r"path 'f.xyz' must end in the suffix of a "
+                                            r"figure format"):
+        sg.plot_trajectory(traj, ["x"], path="f.xyz")
+    with pytest.raises(sg.OutputError, match="cannot be written to"):
+        sg.plot_trajectory(traj, ["x"], path=str(tmp_path / "missing" / "f.png"))
+    with pytest.raises(sg.ShapeError, match="constraints must be True or False"):
+        sg.plot_conservation(traj, constraints="yes")
+
+
+# --- verification and C output ------------------------------------------------------------------
+
+def test_verify_stationary_checks_system_eps_and_arrows():
+    """(A string system was an AttributeError, eps=0 a ZeroDivisionError, arrows given as
+    strings were parsed and complex ones lost their imaginary part.)"""
+    case = case_of("oscillator")
+    traj = case.sim.simulate(case.flat, 4, case.params)
+    arrows = traj._layout.arrows(traj.states)
+    system = case.step.system
+    with pytest.raises(sg.InputTypeError, match="verify_stationary: system must be a discrete "
+                                                "system"):
+        sg.verify_stationary(traj, "oscillator")
+    assert system_argument(case.step, "system") is system
+    for eps in (0, -1e-3, float("nan"), 2.0):
+        with pytest.raises(sg.ShapeError, match="eps"):
+            sg.verify_stationary(traj, system, eps=eps)
+    for bad in (arrows.astype(str), arrows.astype(complex) + 1j):
+        with pytest.raises(sg.ShapeError, match="the arrows must hold real numbers"):
+            sg.verify_stationary(bad, system, case.params)
+
+
+def test_emit_c_checks_step_path_and_prefix(tmp_path):
+    """(A system instead of its step was a TypeError from len(), "" or "/" a ValueError from
+    pathlib, a prefix that is not a string an AttributeError, an unwritable target a raw
+    OSError; a file name with a quote or a non-ASCII character was written into the
+    source's #include: a UnicodeEncodeError, or C that does not compile.)"""
+    step = oscillator().euler_lagrange()
+    with pytest.raises(sg.InputTypeError, match="emit_c: step must be the StepEquations"):
+        sg.emit_c(step.system, tmp_path / "k")
+    for path, message in (("", "path must not be empty"), ("/", "path must name the files"),
+                          (3, "path must be a path"), (tmp_path / "\x80", "portable|ASCII"),
+                          (tmp_path / 'a"b', "ASCII letters")):
+        with pytest.raises(sg.ShapeError, match=message):
+            sg.emit_c(step, path)
+    with pytest.raises(sg.InputTypeError, match="prefix must be a string"):
+        sg.emit_c(step, tmp_path / "k", prefix=3)
+    (tmp_path / "file").write_text("in the way")
+    with pytest.raises(sg.OutputError, match=r"oscillator: cannot write .*file/k\.h"):
+        sg.emit_c(step, tmp_path / "file" / "k")
+
+
+def test_a_batch_is_indexed_by_run_number():
+    """(A string or an out-of-range run in ``batch.error(b)`` was a raw NumPy error.)"""
+    S, params = _rows()
+    batch = case_of("diagonal").sim.simulate_batch(S, 2, params)
+    assert np.array_equal(batch[-1].states, batch[1].states)
+    for bad in ("0", 1.0, None, True):
+        with pytest.raises(sg.InputTypeError, match="indexed by run number"):
+            batch[bad]
+    with pytest.raises(sg.ShapeError, match="run 2 out of range for a batch of 2") as info:
+        batch.error(2)
+    assert isinstance(info.value, IndexError)
+    with pytest.raises(sg.ShapeError, match="out of range"):
+        batch.step_indices(-3)

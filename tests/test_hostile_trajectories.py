@@ -1,0 +1,348 @@
+"""Hostile input at the entry points that take a state or a trajectory:
+``Simulator.project_initial``, the diagnostics (``traj.energy()``, ``traj.momenta()``,
+``traj.constraint_residuals()``, ``traj.conservation_summary()``, ``traj[name]``,
+``NoetherQuantity.along``), the figures (``plot_trajectory``, ``plot_conservation``) and
+``verify_stationary`` on trajectories and arrays of arrows.
+
+Malformed input: states off the constraints or off their group, malformed parts, unknown
+names, parameters, iteration caps and step parameters of the wrong kind, sections that are
+not sections, Noether quantities of another system, paths that cannot be written or whose
+format is unknown, trajectories that are not trajectories, arrows with NaN, strings or
+complex entries, multipliers of the wrong shape.
+
+The invariant (tests/_hostile.py): a clear SymgroupoidError, or a correct result checked
+independently — a projected state satisfies the constraints (evaluated from the system's
+own SymPy constraints) with its source and multipliers unchanged; the energy is
+−∂L_d/∂h of the SymPy Lagrangian; the momenta match along the run (F⁺L(g_k) = F⁻L(g_{k+1}),
+the DEL); the constraint residuals vanish along a run; a solution from ``simulate`` is
+stationary and a path that is not a solution is not.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import sympy as sp
+from _hostile import (
+    PROFILES,
+    assert_finite,
+    judge,
+    junk,
+    near,
+    profile,
+    scalars,
+    scratch_cwd,  # noqa: F401  (autouse fixture)
+)
+from _hostile_cases import CASES, Case, case_of, counts, initial_states, parameter_sets
+from hypothesis import given
+from hypothesis import strategies as st
+from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
+
+import symgroupoid as sg
+
+# --- independent evaluations ------------------------------------------------------------------
+
+
+@functools.cache
+def constraint_values(name: str):
+    """φ(g_k) of a first-order case from the system's SymPy constraints, as a function of
+    (known state, parameters)."""
+    step = case_of(name).step
+    phis = step.system.constraints(step.groupoid.view(step.arrows[0]))
+    return sp.lambdify([step.knowns, step.parameters], sp.Matrix(list(phis)), "numpy")
+
+
+@functools.cache
+def energy_function(name: str, h: str):
+    """−∂L_d/∂h at the newest arrow of a first-order state, from the SymPy Lagrangian."""
+    step = case_of(name).step
+    L = sp.sympify(step.system.lagrangian(step.groupoid.view(step.arrows[0])))
+    symbol = next(s for s in step.parameters if str(s) == h)
+    return sp.lambdify([step.knowns, step.parameters], -sp.diff(L, symbol), "numpy")
+
+
+@functools.cache
+def run_of(name: str):
+    case = case_of(name)
+    return case.sim.simulate(case.flat, 6, case.params)
+
+
+def parameter_vector(case: Case, params) -> np.ndarray:
+    return case.sim.parameters(params)
+
+
+# --- project_initial ----------------------------------------------------------------------------
+
+@st.composite
+def off_constraint_states(draw, case: Case):
+    """(value, names): a valid state with the newest configuration moved (off the
+    constraints), or a malformed state."""
+    if draw(st.booleans()):
+        return draw(initial_states(case))
+    state = dict(case.named)
+    for key, value in case.named.items():
+        arr = np.asarray(value, float)
+        if key != "lambda" and arr.ndim == 1 and arr.shape[0] == 2:
+            moved = arr.copy()
+            moved[-1] += draw(st.sampled_from([1e-3, -0.05, 0.3, 1e-12, 5.0]))
+            state[key] = moved
+    if draw(st.booleans()):
+        state.pop("lambda", None)
+    return state, ["state", "constraints", "project_initial"]
+
+
+@pytest.mark.parametrize("run", PROFILES)
+@pytest.mark.parametrize("name", CASES)
+def test_project_initial(name, run):
+    case = case_of(name)
+    sim = case.sim
+
+    @profile(run, 5)
+    @given(data=st.data())
+    def prop(data):
+        which = data.draw(st.sampled_from(["initial", "initial", "params", "max_iterations"]))
+        initial, params, cap, names = case.named, case.params, 50, []
+        if which == "initial":
+            initial, names = data.draw(off_constraint_states(case))
+        elif which == "params":
+            params, names = data.draw(parameter_sets(case))
+        else:
+            cap, names = data.draw(st.one_of(counts, st.integers(1, 60))), ["max_iterations"]
+            cap = 40 if isinstance(cap, int) and cap > 10**6 else cap
+        names = names + ["project_initial", "constraints"]
+
+        def verify(state):
+            assert_finite(state, "project_initial")
+            p = parameter_vector(case, params)
+            start = initial
+            if isinstance(initial, dict) and sim.layout.n_multipliers \
+                    and "lambda" not in initial:
+                start = {**initial, "lambda": np.zeros(sim.layout.n_multipliers)}
+            before = sim.state(start)
+            G = case.step.groupoid
+            new, old = sim.layout.arrows(state[None])[0], sim.layout.arrows(before[None])[0]
+            assert np.array_equal(np.asarray(G.source(new), float),
+                                  np.asarray(G.source(old), float)), \
+                "the projection moved the source α(g_k)"
+            if sim.layout.n_multipliers:
+                assert np.array_equal(sim.layout.view(state[None], "lambda"),
+                                      sim.layout.view(before[None], "lambda"))
+            if case.step.n_constraints and case.step.order == 1:
+                phi = np.asarray(constraint_values(name)(state, p), float).ravel()
+                assert np.abs(phi).max() <= 1e-8, f"φ = {phi} after the projection"
+
+        judge("Simulator.project_initial",
+              lambda: sim.project_initial(initial, params, max_iterations=cap), names,
+              owner=sim.name, verify=verify)
+
+    prop()
+
+
+# --- diagnostics ----------------------------------------------------------------------------------
+
+def check_energy(name: str, traj, step_parameter, values) -> None:
+    assert np.shape(values) == (len(traj),) and np.isfinite(values).all(), values
+    step = case_of(name).step
+    h = "h" if step_parameter is None else str(step_parameter)
+    if step.order != 1 or isinstance(step.groupoid, sg.TimeGroupoid):
+        return
+    p = case_of(name).sim.parameters(traj.parameters)
+    want = np.array([float(energy_function(name, h)(s, p)) for s in traj.states])
+    assert np.allclose(values, want, rtol=1e-9, atol=1e-12 * (1 + np.abs(want).max())), \
+        (values, want)
+
+
+def check_momenta(name: str, traj, momenta) -> None:
+    step = case_of(name).step
+    assert momenta.minus.shape == momenta.plus.shape == (len(traj), step.groupoid.rank
+                                                         * step.order)
+    assert np.isfinite(momenta.minus).all() and np.isfinite(momenta.plus).all()
+    lag = 1 if step.order == 1 else 2
+    mismatch = np.abs(momenta.matching(lag)).max(initial=0.0)
+    scale = max(np.abs(momenta.minus).max(), np.abs(momenta.plus).max(), 1.0)
+    assert mismatch <= 1e-8 * scale, f"F⁺L(g_k) ≠ F⁻L(g_k+{lag}): {mismatch:.2e}"
+
+
+@st.composite
+def diagnostic_calls(draw, name: str):
+    """(label, call, names, verify) of one diagnostic with hostile arguments."""
+    case = case_of(name)
+    traj = run_of(name)
+    system = case.step.system
+    step_parameters = st.one_of(st.sampled_from([None, "h", "k", "zeta", "", "H"]), scalars,
+                                junk(max_leaves=2))
+    sections = st.one_of(st.integers(-2, 7), near([1.0] * case.step.groupoid.rank),
+                         junk(max_leaves=2))
+    kind = draw(st.sampled_from(["energy", "momenta", "constraints", "summary", "part",
+                                 "noether"]))
+    if kind == "energy":
+        h = draw(step_parameters)
+        return ("Trajectory.energy", lambda: traj.energy(h),
+                ["step_parameter", "h", "energy", str(h)],
+                lambda v: check_energy(name, traj, h, v))
+    if kind == "momenta":
+        return ("Trajectory.momenta", traj.momenta, ["momenta"],
+                lambda m: check_momenta(name, traj, m))
+    if kind == "constraints":
+        def verify(values):
+            assert values.shape == (len(traj), case.step.n_constraints)
+            assert np.abs(values).max(initial=0.0) <= 1e-8, values
+        return ("Trajectory.constraint_residuals", traj.constraint_residuals, ["constraints"],
+                verify)
+    if kind == "summary":
+        energy = draw(st.one_of(st.sampled_from([None, True, False]), scalars))
+        noether = draw(st.one_of(st.just(()), st.lists(sections, max_size=2), junk()))
+        h = draw(st.one_of(st.none(), step_parameters))
+
+        def verify(summary):
+            assert all(isinstance(line, str) for line in summary.lines())
+            for q in summary.quantities:
+                assert np.isfinite(q.values).all() and np.isfinite(q.max_drift)
+        return ("Trajectory.conservation_summary",
+                lambda: traj.conservation_summary(energy=energy, noether=noether,
+                                                  step_parameter=h),
+                ["energy", "noether", "section", "step_parameter", "h", "coefficients"],
+                verify)
+    if kind == "part":
+        key = draw(st.one_of(st.sampled_from(sorted(case.named)), st.text(max_size=3),
+                             scalars))
+
+        def verify(values):  # a pair coordinate: q_0 … q_{N+1}, one more than the states
+            assert len(values) >= len(traj)
+            assert_finite(values, f"traj[{key!r}]")
+        return ("Trajectory[name]", lambda: traj[key], ["part", str(key)], verify)
+    section = draw(sections)
+    target = draw(st.one_of(st.just(traj), junk(max_leaves=2)))
+
+    def call():
+        quantity = system.noether(section)
+        return quantity.along(target)
+
+    def verify(values):
+        assert np.shape(values) == (len(traj),) and np.isfinite(values).all()
+    return ("NoetherQuantity.along", call, ["section", "coefficients", "trajectory",
+                                            "NoetherQuantity.along"], verify)
+
+
+@pytest.mark.parametrize("run", PROFILES)
+@pytest.mark.parametrize("name", CASES)
+def test_diagnostics(name, run):
+    case = case_of(name)
+
+    @profile(run, 6)
+    @given(call=diagnostic_calls(name))
+    def prop(call):
+        label, fn, names, verify = call
+        judge(label, fn, names, owner=case.sim.name, verify=verify)
+
+    prop()
+
+
+# --- figures ------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_figures(run):
+    """``plot_trajectory`` and ``plot_conservation``: parts, paths, switches (the valid
+    figures are drawn: few examples)."""
+    name = "diagonal"
+    traj = run_of(name)
+    paths = st.one_of(st.none(), st.sampled_from(["fig.png", "fig.pdf", "fig.xyz", "",
+                                                  "missing/dir/fig.png", "fig", 3, b"f.png",
+                                                  "a\0b.png", "."]), junk(max_leaves=2))
+
+    @profile(run, 4, 60)
+    @given(data=st.data())
+    def prop(data):
+        path = data.draw(paths)
+        if data.draw(st.booleans()):
+            parts = data.draw(st.one_of(st.none(), st.sampled_from(
+                [["x"], "x", ["x", "nope"], [], [1], ["lambda"]]), junk(max_leaves=2)))
+            max_parts = data.draw(st.one_of(st.just(6), counts))
+            label, call = "plot_trajectory", lambda: sg.plot_trajectory(
+                traj, parts, path=path, max_parts=max_parts)
+            names = ["parts", "path", "max_parts", "part"]
+        else:
+            energy = data.draw(st.one_of(st.sampled_from([None, True, False]), scalars))
+            constraints = data.draw(st.one_of(st.sampled_from([None, True, False]), scalars))
+            momenta = data.draw(st.one_of(st.just(()), st.sampled_from([[0], [[1, 1]], [7]]),
+                                          junk(max_leaves=2)))
+            label, call = "plot_conservation", lambda: sg.plot_conservation(
+                traj, energy, momenta, constraints=constraints, path=path)
+            names = ["energy", "noether", "constraints", "path", "section", "coefficients",
+                     "plot"]
+
+        def verify(fig):
+            assert len(fig.axes) >= 1
+            if path is not None:
+                import pathlib
+
+                assert pathlib.Path(path).stat().st_size > 0
+
+        judge(label, call, names, owner=name, verify=verify)
+
+    prop()
+
+
+# --- verify_stationary ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("run", PROFILES)
+@pytest.mark.parametrize("name", ["oscillator", "diagonal", "accel"])
+def test_verify_stationary(name, run):
+    case = case_of(name)
+    system = case.step.system
+    traj = run_of(name)
+    arrows = traj._layout.arrows(traj.states)
+    lam = traj.multipliers
+    straight = None
+    if name == "oscillator":  # q_k = 0.1·k + 0.3: composable, not a solution
+        q = 0.3 + 0.1 * np.arange(len(arrows) + 1)
+        straight = np.stack([q[:-1], q[1:]], axis=1)
+
+    @profile(run, 6)
+    @given(data=st.data())
+    def prop(data):
+        which = data.draw(st.sampled_from(["trajectory", "arrows", "straight", "system",
+                                           "params", "multipliers", "eps", "seed"]))
+        args = {"trajectory": traj, "system": system, "params": None, "multipliers": None,
+                "eps": 1e-3, "seed": 0}
+        expect = True
+        names = [which]
+        if which == "trajectory":
+            args["trajectory"] = data.draw(junk())
+            names = ["trajectory", "arrows"]
+        elif which == "arrows":
+            args["trajectory"] = data.draw(near(arrows))
+            args["multipliers"], args["params"] = lam, case.params
+            names = ["arrows", "trajectory", "multipliers"]
+            expect = None  # a moved arrow: no claim either way
+        elif which == "straight":
+            if straight is None:
+                return
+            args["trajectory"], args["params"] = straight, case.params
+            expect = False
+        elif which == "system":
+            args["system"] = data.draw(st.one_of(junk(), st.just(sg.SO3("R"))))
+        elif which == "params":
+            args["params"], names = data.draw(parameter_sets(case))
+        elif which == "multipliers":
+            args["multipliers"] = data.draw(st.one_of(near(lam), junk()))
+        elif which == "eps":
+            args["eps"] = data.draw(st.one_of(scalars, st.floats(1e-6, 1e-2)))
+        else:
+            args["seed"] = data.draw(st.one_of(scalars, st.integers(-5, 2**70)))
+        value_given = args["trajectory"] is traj and which in ("params", "multipliers")
+
+        def verify(report):
+            assert isinstance(report, sg.StationarityReport)
+            if expect is True and not value_given:
+                assert report, f"{name}: a solution from simulate is not stationary: {report}"
+            if expect is False:
+                assert not report, f"{name}: a straight path that is no solution is " \
+                                   f"reported stationary: {report}"
+
+        judge("verify_stationary", lambda: sg.verify_stationary(**args), names,
+              owner=system.name, verify=verify)
+
+    prop()
