@@ -69,7 +69,8 @@ from ..groupoids import (
     ProductGroupoid,
     TimeGroupoid,
 )
-from ..ir import Graph, Program, forward, rounding_error
+from ..ir import Graph, Program, forward, from_sympy, rounding_error
+from ._banded import Inertia, banded_inertia
 from ._programs import compile_program
 from ._validate import arrow as checked_arrow
 from ._validate import (
@@ -224,6 +225,41 @@ def window_kernel(system) -> WindowKernel:
     return WindowKernel(system)
 
 
+class CostKernel:
+    """The discrete cost S = Σ_k L(g_k, …, g_{k+arity−1}) of an arrow sequence: the
+    system's Lagrangian on the expression graph, evaluated with NumPy for all terms at once
+    (no compiler: it is a single value per term)."""
+
+    def __init__(self, system):
+        fs = system._fs
+        g = Graph()
+        coords = [c for slot in fs.slots for c in slot]
+        symbols = {c: g.input(c) for c in coords}
+        symbols.update({q: g.input(q) for q in system.parameters})
+        lagrangian = from_sympy(g, fs.lagrangian, symbols, f"{system.name}: the Lagrangian")
+        program = Program(g, {"a": coords + list(system.parameters)}, {"cost": [lagrangian]})
+        self.arity = len(fs.slots)
+        self._f = program.numpy_function(["cost"], ["a"])
+
+    def terms(self, arrows: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """L on every window of ``arity`` consecutive arrows."""
+        T = len(arrows) - self.arity + 1
+        windows = np.hstack([arrows[o:o + T] for o in range(self.arity)])
+        values = np.hstack([windows, np.broadcast_to(params, (T, len(params)))])
+        with np.errstate(all="ignore"):
+            out = self._f(values.T)[0]
+        return np.broadcast_to(np.asarray(out, float).reshape(-1), (T,))
+
+    def __call__(self, arrows: np.ndarray, params: np.ndarray) -> float:
+        return float(np.sum(self.terms(arrows, params)))
+
+
+@functools.lru_cache(maxsize=8)
+def cost_kernel(system) -> CostKernel:
+    """The (cached) cost kernel of a system."""
+    return CostKernel(system)
+
+
 # --- numeric structure maps ------------------------------------------------------------------
 
 @functools.lru_cache(maxsize=16)
@@ -285,6 +321,14 @@ class BoundaryValueSolution:
     ``controls`` (N, rank) — chart coordinates of each arrow (Lie groups: τ⁻¹(g_k) = hξ_k);
     ``configurations`` — the N + 1 configurations; ``sol[name]`` — a named part of every
     arrow (``"x"``: the target point of each arrow; ``"g"``: each arrow's matrix; …).
+
+    What was found: ``cost`` — the discrete cost Σ_k L_d (the action without the multiplier
+    terms, which vanish on the constraints); ``inertia`` — (positive, negative, zero)
+    eigenvalue counts of the Hessian of the action restricted to the admissible variations
+    (the junction variations δ_j, which keep the ends and the composability) and, with
+    constraints, to those tangent to Φ = 0: the Hessian of the Lagrangian on the tangent
+    space of the constraints (see :func:`_reduced_inertia`), or None when it is singular to
+    rounding; ``is_local_minimum``; ``method`` — the iterations used.
     """
 
     system: object
@@ -296,6 +340,9 @@ class BoundaryValueSolution:
     residual_norm: float
     history: list = field(default_factory=list)
     seconds: float = 0.0
+    cost: float = float("nan")
+    inertia: Inertia | None = None
+    method: str = "Newton"
 
     @property
     def steps(self) -> int:
@@ -322,9 +369,31 @@ class BoundaryValueSolution:
                                          else float(e))
         return out if isinstance(value, sp.MatrixBase) else out[:, 0, 0]
 
+    @property
+    def is_local_minimum(self) -> bool | None:
+        """True: a strict local minimum of the cost among admissible paths that keep the
+        constraints (the reduced Hessian is positive definite: the second-order sufficient
+        condition); False: not a minimum (the reduced Hessian has a negative eigenvalue, so
+        some admissible variation lowers the cost: a saddle or a maximum); None: not decided
+        at second order (the reduced Hessian or the KKT matrix is singular to rounding)."""
+        if self.inertia is None:
+            return None
+        return self.inertia.negative == 0
+
+    @property
+    def kind(self) -> str:
+        """'local minimum', 'saddle (k descent directions)' or 'degenerate'."""
+        if self.inertia is None:
+            return "degenerate stationary point"
+        k = self.inertia.negative
+        if k == 0:
+            return "local minimum"
+        return f"saddle, NOT a minimum ({k} descent direction{'s' if k > 1 else ''})"
+
     def __repr__(self) -> str:
         return (f"<BoundaryValueSolution {self.system.name!r}: {self.steps} arrows, "
-                f"{self.iterations} Newton iterations, |F| = {self.residual_norm:.2e}>")
+                f"{self.iterations} iterations ({self.method}), |F| = "
+                f"{self.residual_norm:.2e}, cost {self.cost:.10g}, {self.kind}>")
 
 
 # --- linear algebra --------------------------------------------------------------------------
@@ -765,13 +834,265 @@ def _excess(F: np.ndarray, floor: np.ndarray, tol: float) -> float:
     return float(np.nan_to_num(ratio, nan=np.inf).max())
 
 
-# --- Newton's method ---------------------------------------------------------------------------
+# --- the iteration -----------------------------------------------------------------------------
+
+#: the fast path hands over to the globalised iteration after this many consecutive damped
+#: Newton steps (line-search length at most DAMPED_LENGTH)
+MAX_DAMPED = 4
+DAMPED_LENGTH = 0.25
+
+#: at most this many trial regularisations μ per globalised iteration
+MAX_CORRECTIONS = 40
+
+
+@dataclass
+class _Context:
+    """What stays fixed during one solve."""
+
+    owner: str
+    kernel: WindowKernel
+    cost: CostKernel
+    lay: _Layout
+    maps: _Maps
+    p: np.ndarray
+    tol: float
+    tol_step: float
+    max_iterations: int
+
+    @property
+    def r(self) -> int:
+        return self.kernel.rank
+
+    @property
+    def m(self) -> int:
+        return self.kernel.m
+
+    def assemble(self, arrows, lam) -> _Assembled:
+        with np.errstate(all="ignore"):
+            return _assemble(self.kernel, self.lay, arrows, lam, self.p)
+
+    def excess(self, arrows, lam, state: _Assembled) -> float:
+        return _excess(state.F, _rounding_floor(self.maps, self.lay, arrows, lam, state),
+                       self.tol)
+
+    def update(self, arrows, lam, dz):
+        return _update(self.maps, self.lay, arrows, lam, dz, self.r, self.m)
+
+
+@dataclass
+class _Run:
+    """The iterations of one solve, across its phases: |F|∞ before each update, the count,
+    whether the last update was below ``tol_step``, and the phases used."""
+
+    history: list = field(default_factory=list)
+    iterations: int = 0
+    stalled: bool = False
+    methods: list = field(default_factory=list)
+
+    def record(self, state: _Assembled) -> float:
+        norm = float(np.max(np.abs(state.F), initial=0.0))
+        self.history.append(norm)
+        progress_note(f"iteration {self.iterations}, |F|∞ = {norm:.2e}")
+        return norm
+
+    def step_taken(self, ctx: _Context, dz: np.ndarray, length: float, lam) -> None:
+        self.iterations += 1
+        scale = 1.0 + float(np.max(np.abs(lam), initial=0.0))
+        self.stalled = length * float(np.max(np.abs(dz), initial=0.0)) <= ctx.tol_step * scale
+
+
+class _Handover(Exception):
+    """The fast path gives up (no decrease, or damped steps only): the reason."""
+
+
+def _check_budget(ctx: _Context, run: _Run, state: _Assembled, excess: float, arrows) -> None:
+    if run.stalled:
+        raise _divergence(ctx.owner, f"stalled: the update fell below tol_step = "
+                          f"{ctx.tol_step:g}", state, excess, run, arrows)
+    if run.iterations >= ctx.max_iterations:
+        raise _divergence(ctx.owner, f"did not converge in {ctx.max_iterations} iterations",
+                          state, excess, run, arrows)
+
+
+def _newton_direction(ctx: _Context, state: _Assembled, run: _Run, arrows,
+                      rows=None, cols=None, vals=None) -> np.ndarray:
+    """The solution dz of J·dz = −F (J given as COO triplets, default the Jacobian)."""
+    rows = state.rows if rows is None else rows
+    cols = state.cols if cols is None else cols
+    vals = state.vals if vals is None else vals
+    try:
+        with np.errstate(all="ignore"):
+            dz = _solve_banded(rows, cols, vals, ctx.lay.size, -state.F)
+    except np.linalg.LinAlgError as exc:
+        raise _singular(ctx.owner, state, run.iterations, arrows) from exc
+    if not np.isfinite(dz).all():
+        raise _singular(ctx.owner, state, run.iterations, arrows)
+    return dz
+
+
+def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
+    """Structured Newton on the necessary conditions, backtracking on |F|₂²: quadratic
+    convergence from a good guess.  Raises :class:`_Handover` when the line search finds no
+    decrease or MAX_DAMPED consecutive steps were damped (far from a solution, where the
+    globalised iteration does better)."""
+    run.methods.append("Newton")
+    damped = 0
+    while True:
+        run.record(state)
+        excess = ctx.excess(arrows, lam, state)
+        if excess <= 1.0:
+            return arrows, lam, state
+        _check_budget(ctx, run, state, excess, arrows)
+        dz = _newton_direction(ctx, state, run, arrows)
+        found = _line_search(ctx.kernel, ctx.lay, ctx.maps, arrows, lam, dz, state, ctx.p)
+        if found is None:
+            raise _Handover("found no decrease of |F| along the Newton direction (line search)")
+        arrows, lam, state, length = found
+        run.step_taken(ctx, dz, length, lam)
+        damped = damped + 1 if length <= DAMPED_LENGTH else 0
+        if damped >= MAX_DAMPED and not run.stalled:
+            raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row")
+
+
+# --- the globalised iteration: inertia-corrected Newton on the action ------------------------------
+
+def _gradient_of_cost(ctx: _Context, state: _Assembled, lam) -> np.ndarray:
+    """∇S in the unknowns (zero in the multiplier rows): the junction residuals are ∂/∂δ of
+    Σ [L + λ·Φ], so ∇S = F_δ − (∂F_δ/∂λ)·λ."""
+    z = np.zeros(ctx.lay.size)
+    for t, k in ctx.lay.lam_index.items():
+        z[k:k + ctx.m] = lam[t]
+    g = state.F - _apply(state.rows, state.cols, state.vals, z, ctx.lay.size)
+    g[_multiplier_rows(ctx.lay, ctx.m)] = 0.0
+    return g
+
+
+def _apply(rows, cols, vals, z, n) -> np.ndarray:
+    """A·z for A given by COO triplets."""
+    out = np.zeros(n)
+    np.add.at(out, rows, vals * z[cols])
+    return out
+
+
+def _multiplier_rows(lay: _Layout, m: int) -> np.ndarray:
+    if not m or not lay.lam_index:
+        return np.zeros(0, int)
+    return (np.array(list(lay.lam_index.values()))[:, None] + np.arange(m)).ravel()
+
+
+def _variation_rows(lay: _Layout, r: int) -> np.ndarray:
+    if not lay.delta_index:
+        return np.zeros(0, int)
+    return (np.array(list(lay.delta_index.values()))[:, None] + np.arange(r)).ravel()
+
+
+def _convexified_direction(ctx: _Context, state: _Assembled, run: _Run, arrows, mu_last):
+    """The step of the globalised iteration and its regularisation μ ≥ 0.
+
+    With K the Jacobian (the Hessian of the Lagrangian Σ [L + λ·Φ] in the variations δ,
+    bordered by the constraint gradients: the KKT matrix of min Σ L s.t. Φ = 0), K + μ·I_δ
+    is required to have the inertia (n_δ, n_λ, 0) — then its δ-block is positive definite on
+    the tangent space of the constraints, and the step is a descent direction of the merit
+    function (Nocedal–Wright §18.3; Ipopt's inertia correction).  μ = 0 when K itself has it
+    (the step is then Newton's); else μ starts at max(μ_min, μ_last/3) and grows ×8."""
+    lay = ctx.lay
+    dvars = _variation_rows(lay, ctx.r)
+    expected = (len(dvars), lay.size - len(dvars), 0)
+    diag = state.rows == state.cols
+    scale = float(np.mean(np.abs(state.vals[diag]))) if diag.any() else 1.0
+    mu = 0.0
+    for _ in range(MAX_CORRECTIONS):
+        rows = np.concatenate([state.rows, dvars])
+        cols = np.concatenate([state.cols, dvars])
+        vals = np.concatenate([state.vals, np.full(len(dvars), mu)])
+        inertia = banded_inertia(rows, cols, vals, lay.size)
+        if inertia is not None and tuple(inertia) == expected:
+            dz = _newton_direction(ctx, state, run, arrows, rows, cols, vals)
+            return dz, mu, float(np.sum(vals * dz[rows] * dz[cols]))
+        mu = max(1e-8 * scale, mu_last / 3.0) if mu == 0.0 else 8.0 * mu
+    raise _singular(ctx.owner, state, run.iterations, arrows)
+
+
+def _merit(ctx: _Context, arrows, state: _Assembled, nu: float) -> float:
+    """φ_ν = Σ L + ν·‖Φ‖₁ (the exact ℓ₁ penalty function)."""
+    phi = state.F[_multiplier_rows(ctx.lay, ctx.m)]
+    return ctx.cost(arrows, ctx.p) + nu * float(np.abs(phi).sum())
+
+
+def _globalised(ctx: _Context, arrows, lam, run: _Run):
+    """Inertia-corrected Newton (SQP) steps with a backtracking search on the ℓ₁ merit
+    function φ_ν = Σ L + ν‖Φ‖₁: every step decreases φ_ν, so the iteration descends the
+    action (seeks a local minimum of Σ L on Φ = 0, as an interior-point NLP solver does)
+    instead of any root of F; near a minimum μ = 0 and the full Newton step is taken
+    whenever it decreases |F|₂ too, which keeps the convergence quadratic."""
+    run.methods.append("inertia-corrected Newton")
+    state = ctx.assemble(arrows, lam)
+    if not state.finite():
+        raise _divergence(ctx.owner, "met a non-finite residual", state, np.inf, run, arrows)
+    nu, mu_last = 0.0, 0.0
+    lam_rows = _multiplier_rows(ctx.lay, ctx.m)
+    while True:
+        run.record(state)
+        excess = ctx.excess(arrows, lam, state)
+        if excess <= 1.0:
+            return arrows, lam, state
+        _check_budget(ctx, run, state, excess, arrows)
+        dz, mu, curvature = _convexified_direction(ctx, state, run, arrows, mu_last)
+        mu_last = mu
+        g = _gradient_of_cost(ctx, state, lam)
+        violation = float(np.abs(state.F[lam_rows]).sum())
+        lam_next = np.abs(_current_multipliers(ctx, lam) + dz)[lam_rows]
+        nu = max(nu, 1.1 * float(np.max(lam_next, initial=0.0)))
+        if violation > 0:  # Nocedal–Wright (18.36), ρ = 0.1
+            nu = max(nu, (float(g @ dz) + curvature / 2) / (0.9 * violation))
+        slope = float(g @ dz) - nu * violation
+        found = _merit_search(ctx, arrows, lam, dz, state, nu, slope, newton=mu == 0.0)
+        if found is None:
+            raise _divergence(ctx.owner, "found no decrease of the merit function Σ L + ν‖Φ‖₁ "
+                              "along the inertia-corrected Newton direction (line search)",
+                              state, excess, run, arrows)
+        arrows, lam, state, length = found
+        run.step_taken(ctx, dz, length, lam)
+
+
+def _current_multipliers(ctx: _Context, lam) -> np.ndarray:
+    z = np.zeros(ctx.lay.size)
+    for t, k in ctx.lay.lam_index.items():
+        z[k:k + ctx.m] = lam[t]
+    return z
+
+
+def _merit_search(ctx: _Context, arrows, lam, dz, state: _Assembled, nu: float, slope: float,
+                  newton: bool):
+    """Backtracking until φ_ν decreases by the Armijo fraction 10⁻⁴·t·|slope|; a full
+    unregularised Newton step is also taken when it decreases |F|₂² (near a solution, where
+    the merit function would reject it: the Maratos effect), and any step that lands within
+    the rounding floor.  None when no step length gives a decrease."""
+    phi0 = _merit(ctx, arrows, state, nu)
+    f0 = float(state.F @ state.F)
+    length = 1.0
+    for _ in range(MAX_HALVINGS):
+        new_arrows, new_lam = ctx.update(arrows, lam, length * dz)
+        trial = ctx.assemble(new_arrows, new_lam)
+        if trial.finite():
+            accept = _merit(ctx, new_arrows, trial, nu) <= phi0 + 1e-4 * length * min(slope, 0.0)
+            accept = accept and slope < 0
+            if newton and length == 1.0:
+                accept = accept or float(trial.F @ trial.F) <= (1 - 1e-4) * f0
+            if accept or ctx.excess(new_arrows, new_lam, trial) <= 1.0:
+                return new_arrows, new_lam, trial, length
+        length /= 2
+    return None
+
+
+# --- the solve ---------------------------------------------------------------------------------
 
 @reported(lambda step_equations, *args, **kwargs:
           f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
                          tol: float = 1e-10, tol_step: float = 1e-9,
-                         max_iterations: int = 30) -> BoundaryValueSolution:
+                         max_iterations: int = 100,
+                         minimum: bool = False) -> BoundaryValueSolution:
     """Solve a discrete two-point problem for the system behind ``step_equations``.
 
     First order: ``start`` and ``end`` are the end configurations (pair groupoid: points;
@@ -786,17 +1107,29 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     assumptions), the configurations (points: shape and finiteness; group parts: in the
     group, det +1), the guess.
 
+    The iteration.  Structured Newton on the necessary conditions (junction residuals and
+    constraints; block-banded Jacobian, solved in time linear in N), each update backtracked
+    until |F|₂ decreases (:func:`_line_search`), is the fast path.  When it finds no decrease
+    or takes MAX_DAMPED damped steps in a row, the solve restarts from the initial path with
+    the globalised iteration (:func:`_globalised`): Newton steps on the same banded system
+    regularised until the Hessian of the Lagrangian is positive definite on the tangent
+    space of the constraints (its inertia from a banded LDLᵀ), with a line search on the ℓ₁
+    merit function Σ L + ν‖Φ‖₁ — a descent method for the action, as an interior-point NLP
+    solver is.  ``max_iterations`` bounds the iterations of both phases together.
+    ``minimum=True`` asks for a local minimum: a stationary point that is not one (see
+    :attr:`BoundaryValueSolution.is_local_minimum`) sends the solve to the globalised
+    iteration from the initial path, and if that finds none either the solve raises.
+
     Converged only when the residual criterion holds: every equation's |F_i| is at most
     max(``tol``, ROUNDING_FACTOR·floor_i), floor_i its rounding floor (ε times the terms that
     cancel in it and its sensitivity to the rounding of the coordinates; it grows like N²
-    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss).  A Newton update
-    below ``tol_step``·(1 + |λ|∞) ends the iteration too: with the residual criterion met it
-    has converged, otherwise Newton has stalled above the floor.  Each update is
-    backtracked until |F|₂ decreases (:func:`_line_search`).  Raises
-    :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
-    iterations and the residual history) when the iteration cap is reached, Newton stalls or
-    the line search finds no decrease; :class:`SingularJacobianError` for a singular
-    Jacobian; :class:`CutLocusError` when an arrow of the initial path is a half-turn.
+    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss).  An update
+    below ``tol_step``·(1 + |λ|∞) with the criterion unmet means the iteration has stalled.
+    Raises :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
+    iterations and the residual history) when the iteration cap is reached, the iteration
+    stalls or both phases' line searches find no decrease; :class:`SingularJacobianError`
+    for a singular Jacobian; :class:`CutLocusError` when an arrow of the initial path is a
+    half-turn.
 
     ``progress`` (keyword): report a solve taking longer than 2 s, with |F|∞ per iteration
     (see :mod:`symgroupoid._progress`).
@@ -812,73 +1145,81 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     max_iterations = integer_argument(max_iterations, "max_iterations", owner=owner)
     tol = real_argument(tol, "tol", minimum=0.0, owner=owner)
     tol_step = real_argument(tol_step, "tol_step", minimum=0.0, owner=owner)
+    if not isinstance(minimum, (bool, np.bool_)):
+        raise ShapeError(f"{owner}: minimum must be True or False, got {minimum!r}")
     p, named = parameter_vector(system.parameters, params, owner=owner)
     r, m = G.rank, len(system._fs.constraints)
     data = _boundary(system, a, start, end)
     arrows, lam = _initial(system, a, m, data, steps, guess)
     _check_cut_locus(system, arrows, "the initial path has" if guess is None
                      else "the guess has")
-    kernel = window_kernel(system)
-    lay = _layout(steps, a, r, m)
-    maps = _maps(G)
-    t0, history = time.perf_counter(), []
-    state = _assemble(kernel, lay, arrows, lam, p)
+    ctx = _Context(owner, window_kernel(system), cost_kernel(system), _layout(steps, a, r, m),
+                   _maps(G), p, tol, tol_step, max_iterations)
+    t0, run = time.perf_counter(), _Run()
+    state = ctx.assemble(arrows, lam)
     if not state.finite():
         raise NewtonDivergenceError(
             f"{owner}: non-finite residual or Jacobian at the initial "
             f"{'path' if guess is None else 'guess'}, at configuration {state.worst}: the "
             f"Lagrangian or the constraints are not defined there", step=state.worst,
             residual_norm=float(np.nanmax(np.abs(state.F), initial=0.0)), iterate=arrows)
-    it, stalled = 0, False
-    while True:
-        norm = float(np.max(np.abs(state.F), initial=0.0))
-        history.append(norm)
-        progress_note(f"iteration {it}, |F|∞ = {norm:.2e}")
-        excess = _excess(state.F, _rounding_floor(maps, lay, arrows, lam, state), tol)
-        if excess <= 1.0:
-            break
-        if stalled:
-            raise _divergence(owner, f"stalled: the Newton update fell below tol_step = "
-                              f"{tol_step:g}", state, excess, it, history, arrows)
-        if it == max_iterations:
-            raise _divergence(owner, f"did not converge in {max_iterations} iterations",
-                              state, excess, it, history, arrows)
-        try:
-            with np.errstate(all="ignore"):
-                dz = _solve_banded(state.rows, state.cols, state.vals, lay.size, -state.F)
-        except np.linalg.LinAlgError as exc:
-            raise _singular(owner, state, it, arrows) from exc
-        if not np.isfinite(dz).all():
-            raise _singular(owner, state, it, arrows)
-        found = _line_search(kernel, lay, maps, arrows, lam, dz, state, p)
-        if found is None:
-            raise _divergence(owner, "found no decrease of |F| along the Newton direction "
-                              "(line search)", state, excess, it, history, arrows)
-        arrows, lam, state, length = found
-        it += 1
-        scale = 1.0 + float(np.max(np.abs(lam), initial=0.0))
-        stalled = length * float(np.max(np.abs(dz), initial=0.0)) <= tol_step * scale
+    found, inertia = _solve(ctx, arrows, lam, state, run, minimum)
+    arrows, lam, state = found
     configurations = [data.configurations[0]]
     for g in arrows:
         configurations.append(G.configuration_after(configurations[-1], g))
-    return BoundaryValueSolution(system, arrows, lam, configurations, named, it, norm, history,
-                                 time.perf_counter() - t0)
+    return BoundaryValueSolution(
+        system, arrows, lam, configurations, named, run.iterations, run.history[-1],
+        run.history, time.perf_counter() - t0, cost=ctx.cost(arrows, p), inertia=inertia,
+        method=" → ".join(run.methods))
 
 
-def _divergence(owner: str, why: str, state: _Assembled, excess: float, it: int,
-                history: list, arrows) -> BoundaryValueDivergenceError:
+def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bool):
+    """The fast path, then (on its failure, or for ``minimum`` at a non-minimum) the
+    globalised iteration from the initial path; returns ((arrows, λ, state), inertia)."""
+    initial = (arrows, lam)
+    try:
+        found = _fast_newton(ctx, arrows, lam, state, run)
+    except _Handover as why:
+        found = _globalised_after(ctx, initial, run, str(why))
+        return found, _reduced_inertia(ctx, found[2])
+    inertia = _reduced_inertia(ctx, found[2])
+    if minimum and not _is_minimum(inertia):
+        found = _globalised_after(ctx, initial, run, "it reached a stationary point that is "
+                                  f"not a local minimum ({_describe(inertia)})")
+        inertia = _reduced_inertia(ctx, found[2])
+        if not _is_minimum(inertia):
+            raise _divergence(ctx.owner, "found no local minimum: the globalised iteration "
+                              f"reached a stationary point that is not one "
+                              f"({_describe(inertia)})", found[2], 0.0, run, found[0])
+    return found, inertia
+
+
+def _globalised_after(ctx: _Context, initial, run: _Run, why: str):
+    """The globalised iteration from the initial path; its errors name why the fast path
+    ended too."""
+    try:
+        return _globalised(ctx, *initial, run)
+    except (BoundaryValueDivergenceError, SingularJacobianError) as exc:
+        exc.args = (f"{exc.args[0]} (after the Newton fast path {why})",) + exc.args[1:]
+        raise
+
+
+def _divergence(owner: str, why: str, state: _Assembled, excess: float, run: _Run,
+                arrows) -> BoundaryValueDivergenceError:
     norm = float(np.max(np.abs(state.F), initial=0.0))
     return BoundaryValueDivergenceError(
-        f"{owner}: boundary-value Newton {why}; after {it} iterations |F|∞ = {norm:.3e}, "
-        f"worst at configuration {state.worst}, {excess:.1e} times the accepted residual "
-        f"max(tol, {ROUNDING_FACTOR:g}·rounding floor): not a solution",
-        iterations=it, history=history, step=state.worst, residual_norm=norm, iterate=arrows)
+        f"{owner}: boundary-value iteration {why}; after {run.iterations} iterations "
+        f"|F|∞ = {norm:.3e}, worst at configuration {state.worst}, {excess:.1e} times the "
+        f"accepted residual max(tol, {ROUNDING_FACTOR:g}·rounding floor): not a solution",
+        iterations=run.iterations, history=run.history, step=state.worst,
+        residual_norm=norm, iterate=arrows)
 
 
 def _singular(owner: str, state: _Assembled, it: int, arrows) -> SingularJacobianError:
     norm = float(np.max(np.abs(state.F), initial=0.0))
     return SingularJacobianError(
-        f"{owner}: singular boundary-value Jacobian at Newton iteration {it} "
+        f"{owner}: singular boundary-value Jacobian at iteration {it} "
         f"(|F|∞ = {norm:.3e}, worst at configuration {state.worst}); the boundary data may "
         "violate the constraints or the Lagrangian is not regular there",
         step=state.worst, residual_norm=norm, iterate=arrows)
@@ -888,12 +1229,15 @@ def _line_search(kernel, lay, maps, arrows, lam, dz, state: _Assembled, p):
     """Backtracking on |F|₂²: the full Newton step when it decreases the residual enough
     (Armijo: by the fraction 10⁻⁴·t of it, t the step length; always so near a solution,
     where convergence stays quadratic), else the step halved, at most MAX_HALVINGS times.
+    Backtracking stops at the rounding floor: a trial whose |F|₂² is within the floor's
+    (Σ (ROUNDING_FACTOR·floor_i)², where the comparison of two residuals is rounding noise)
+    is taken at once, and the convergence test decides.
 
     Returns (arrows, multipliers, assembled system, t) of the accepted step, or None when no
-    step length gave a decrease with finite values: the caller then raises instead of
-    carrying on from an iterate that is worse than the last (a Newton direction that is not
-    a descent direction of |F|₂² means the Jacobian is wrong or the values are not smooth
-    there, e.g. an arrow near the chart's cut locus).
+    step length gave a decrease with finite values: the caller then does not carry on from
+    an iterate that is worse than the last (a Newton direction that is not a descent
+    direction of |F|₂² means the Jacobian is wrong or the values are not smooth there, e.g.
+    an arrow near the chart's cut locus).
     """
     r, m = kernel.rank, kernel.m
     f0 = float(state.F @ state.F)
@@ -902,7 +1246,42 @@ def _line_search(kernel, lay, maps, arrows, lam, dz, state: _Assembled, p):
         new_arrows, new_lam = _update(maps, lay, arrows, lam, length * dz, r, m)
         with np.errstate(all="ignore"):
             trial = _assemble(kernel, lay, new_arrows, new_lam, p)
-        if trial.finite() and float(trial.F @ trial.F) <= (1 - 1e-4 * length) * f0:
-            return new_arrows, new_lam, trial, length
+        if trial.finite():
+            f = float(trial.F @ trial.F)
+            if f <= (1 - 1e-4 * length) * f0:
+                return new_arrows, new_lam, trial, length
+            floor = ROUNDING_FACTOR * _rounding_floor(maps, lay, new_arrows, new_lam, trial)
+            if f <= float(floor @ floor):
+                return new_arrows, new_lam, trial, length
         length /= 2
     return None
+
+
+# --- what was found: the cost and the second-order condition ------------------------------------
+
+def _reduced_inertia(ctx: _Context, state: _Assembled) -> Inertia | None:
+    """The inertia of the Hessian of the Lagrangian Σ [L + λ·Φ] restricted to the admissible
+    variations tangent to the constraints, from the KKT matrix K (the symmetric part of the
+    Jacobian at the solution, :func:`banded_inertia`): when K is nonsingular the constraint
+    gradients have full rank and inertia(K) = inertia(ZᵀHZ) + (n_λ, n_λ, 0) (Z a basis of
+    their null space; Gould 1985), so ZᵀHZ has pos(K) − n_λ positive and neg(K) − n_λ
+    negative eigenvalues.  None when K is numerically singular (the reduced Hessian and the
+    constraint rank are then not determined by the inertia alone)."""
+    inertia = banded_inertia(state.rows, state.cols, state.vals, ctx.lay.size)
+    n_lam = len(_multiplier_rows(ctx.lay, ctx.m))
+    if inertia is None or inertia.zero or inertia.negative < n_lam:
+        return None
+    return Inertia(inertia.positive - n_lam, inertia.negative - n_lam, 0)
+
+
+def _is_minimum(inertia: Inertia | None) -> bool:
+    return inertia is not None and inertia.negative == 0
+
+
+def _describe(inertia: Inertia | None) -> str:
+    if inertia is None:
+        return "degenerate: the reduced Hessian is singular to rounding"
+    if inertia.negative == 0:
+        return "a strict local minimum"
+    return (f"a saddle: the reduced Hessian has {inertia.negative} negative "
+            f"eigenvalue{'s' if inertia.negative > 1 else ''}")
