@@ -50,18 +50,22 @@ def _symmetric_blocks(rows, cols, vals, n: int):
     r = np.concatenate([rows, cols])
     c = np.concatenate([cols, rows])
     v = np.concatenate([vals, vals]) / 2.0
-    K = np.zeros(n)
-    np.maximum.at(K, r, np.abs(v))
-    scale = 1.0 / np.sqrt(np.where(K > 0, K, 1.0))
-    v = v * scale[r] * scale[c]
     b = max(int(np.max(np.abs(r - c), initial=0)), 1)
     nb = -(-n // b)
-    D = np.zeros((nb, b, b))
-    B = np.zeros((nb, b, b))
     bi, bj = r // b, c // b
-    same, below = bi == bj, bi == bj + 1
-    np.add.at(D, (bi[same], r[same] % b, c[same] % b), v[same])
-    np.add.at(B, (bi[below], r[below] % b, c[below] % b), v[below])
+    flat = (r % b) * b + c % b
+
+    def gather(mask: np.ndarray) -> np.ndarray:
+        index = bi[mask] * b * b + flat[mask]
+        out = np.bincount(index, weights=v[mask], minlength=nb * b * b)
+        return out.astype(float).reshape(nb, b, b)
+
+    D, B = gather(bi == bj), gather(bi == bj + 1)
+    big = np.maximum(np.abs(D).max(axis=2), np.abs(B).max(axis=2))  # row maxima (nb, b)
+    big[:-1] = np.maximum(big[:-1], np.abs(B[1:]).max(axis=1))  # the blocks above: B_{k+1}ᵀ
+    scale = 1.0 / np.sqrt(np.where(big > 0, big, 1.0))
+    D *= scale[:, :, None] * scale[:, None, :]
+    B[1:] *= scale[1:, :, None] * scale[:-1, None, :]
     pad = np.arange(n, nb * b)
     D[pad // b, pad % b, pad % b] = 1.0
     return D, B, len(pad)

@@ -29,8 +29,8 @@ follows geodesics (exp(s·log g) on a Lie group), so a half-turn between the end
 N small turns instead of meeting the cut locus of the Cayley chart.  Success means the residual
 criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or ``tol``), the
 floor computed alongside the residual from its running-error bound
-(:func:`symgroupoid.ir.rounding_error`) and its sensitivity to the rounding of the
-coordinates.  Anything else —
+(:func:`symgroupoid.ir.rounding_error`), which also counts the rounding of the stored
+coordinates and multipliers.  Anything else —
 the iteration cap, a stalled update, a line search without decrease, a singular Jacobian, a
 half-turn in the initial path — raises an error carrying the iterations and the residual.
 """
@@ -154,9 +154,11 @@ class WindowKernel:
         for s in self.starts:
             d = [forward(g, res, {nodes[x]: g.one}, order) for x in lam[s]]
             blocks += [d[a][b] for b in range(r) for a in range(m)]
-        blocks += rounding_error(g, res)  # the rounding bound of each junction residual
         coords = [x for o in self.offsets for x in A[o]]
         lams = [x for s in self.starts for x in lam[s]]
+        # the rounding bound of each junction residual, the coordinates and multipliers
+        # counted as rounded values (see _rounding_floor)
+        blocks += rounding_error(g, res, [nodes[x] for x in coords + lams])
         program = Program(g, {"a": coords + lams + self.parameters}, {"junction": blocks})
         self._junction = _vectorised(f"{system.name}_junction", program, "a", "junction")
 
@@ -170,8 +172,8 @@ class WindowKernel:
                      for side in (0, 1)]
                 for e in range(m):
                     cblocks += [d[side][c][e] for side in (0, 1) for c in range(r)]
-            cblocks += rounding_error(g, values)
             ccoords = [x for o in range(arity) for x in A[o]]
+            cblocks += rounding_error(g, values, [nodes[x] for x in ccoords])
             program = Program(g, {"a": ccoords + self.parameters}, {"term": cblocks})
             self._term = _vectorised(f"{system.name}_term", program, "a", "term")
 
@@ -277,9 +279,6 @@ class _Maps:
         self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy")
         q = G.target(a)
         self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy")
-        self._fields = {side: sp.lambdify([a], [c for v in fields for c in v], "numpy")
-                        for side, fields in (("left", G.left_field(a)),
-                                             ("right", G.right_field(a)))}
 
     @staticmethod
     def _rows(values, n):
@@ -294,21 +293,6 @@ class _Maps:
     def flow_at_target(self, A, D):
         """h(δ) ⊂ α⁻¹(β(A)) for each row."""
         return self._rows(self._flow(A.T, D.T), len(A))
-
-    def fields(self, A, side: str) -> np.ndarray:
-        """X⃖_c(a) (``side="left"``) or X⃗_c(a) at each row a of A: (n, rank, arrow_dim)."""
-        n, G = len(A), self.G
-        return self._rows(self._fields[side](A.T), n).reshape(n, G.rank, G.arrow_dim)
-
-    def rounding_scale(self, A, side: str) -> np.ndarray:
-        """s_c = Σ_m |X⁺_{mc}|·|a_m| at each row a of A, (n, rank): the size, in the units of
-        the section flow parameter δ_c, of the coordinates it moves (X⁺ the pseudo-inverse
-        of the fields (X_c)_m at a).  The rounding ε·|a_m| of the coordinates is a change
-        of about ε·s_c in δ_c; e.g. a rotation near the identity moves its small
-        off-diagonal entries at first order, so s ≈ |cay⁻¹(g)| there, not 1."""
-        with np.errstate(all="ignore"):
-            inverse = np.linalg.pinv(self.fields(A, side))  # (n, arrow_dim, rank)
-        return np.einsum("nmc,nm->nc", np.abs(inverse), np.abs(A))
 
 
 # --- the solution --------------------------------------------------------------------------
@@ -472,6 +456,22 @@ class _Layout:
     lam_index: dict
     size: int
 
+    @functools.cached_property
+    def delta_at(self) -> np.ndarray:
+        """delta_index as an array over positions 0 … n (−1: not an unknown)."""
+        return _index_array(self.delta_index, len(self.terms) + len(self.junctions) + 2)
+
+    @functools.cached_property
+    def lam_at(self) -> np.ndarray:
+        return _index_array(self.lam_index, len(self.terms) + len(self.junctions) + 2)
+
+
+def _index_array(index: dict, n: int) -> np.ndarray:
+    out = np.full(max(n, max(index, default=-1) + 2), -1, dtype=np.int64)
+    for position, k in index.items():
+        out[position] = k
+    return out
+
 
 def _layout(n: int, arity: int, rank: int, m: int) -> _Layout:
     junctions = np.arange(arity - 1, n - arity)
@@ -544,6 +544,24 @@ def _chart_path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
         x_id + (x_end - x_id) * t, q))] for t in s])
 
 
+def _chart_rows(G, X: np.ndarray) -> np.ndarray:
+    """``G.numeric_fibre_chart(x)`` (at the identity's fibre) for every row x of X, in one
+    vectorised call of the lambdified chart when it broadcasts (checked on the first and
+    last rows against the single-row form), else row by row."""
+    q = np.zeros(G.base_dim)
+    single = [G.numeric_fibre_chart(x) for x in X[[0, -1]]]
+    try:
+        with np.errstate(all="ignore"):
+            values = G._numeric_fibre_chart(X.T, q)
+        rows = np.array([np.broadcast_to(np.asarray(v, float), (len(X),)) for v in values]).T
+        if rows.shape == (len(X), len(single[0])) and np.isfinite(rows).all() and \
+                np.allclose(rows[[0, -1]], single, rtol=1e-14, atol=1e-15):
+            return rows
+    except (TypeError, ValueError, AttributeError):
+        pass
+    return np.array([G.numeric_fibre_chart(x) for x in X])
+
+
 def _path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Arrows P(s_i) ∈ α⁻¹(α(total)) from P(0) = ε to P(1) = total along a geodesic of each
     factor: exp(s·log g) on a matrix Lie group (defined up to and including half-turns, where
@@ -553,8 +571,7 @@ def _path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
         x = _group_log(G, G.numeric_matrix(total))
         if x is None:
             return _chart_path(G, total, s)
-        exp = _exp_group(G)
-        return np.array([exp.numeric_fibre_chart(t * x) for t in s])
+        return _chart_rows(_exp_group(G), np.outer(s, x))
     if isinstance(G, PairGroupoid) and isinstance(G.space, EuclideanSpace):
         q0, q1 = total[:G.base_dim], total[G.base_dim:]
         return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
@@ -685,12 +702,19 @@ def _half_turns(G, arrows: np.ndarray) -> list[tuple[int, str, float]]:
     out = []
     for start, group in G.matrix_parts():
         n = group.n - 1 if group.affine else group.n
-        for k, a in enumerate(arrows):
-            R = group.numeric_matrix(a[start:start + group.arrow_dim])[:n, :n]
-            closeness = abs(float(np.linalg.det(np.eye(n) + R))) / 2.0 ** n
-            if closeness <= CUT_LOCUS_TOLERANCE:
-                out.append((k, group.symbol_name, closeness))
-    return out
+        R = _numeric_matrices(group, arrows[:, start:start + group.arrow_dim])[:, :n, :n]
+        closeness = np.abs(np.linalg.det(np.eye(n) + R)) / 2.0 ** n
+        out += [(int(k), group.symbol_name, float(closeness[k]))
+                for k in np.flatnonzero(closeness <= CUT_LOCUS_TOLERANCE)]
+    return sorted(out)
+
+
+def _numeric_matrices(group, coords: np.ndarray) -> np.ndarray:
+    """:meth:`MatrixLieGroup.numeric_matrix` of every row of ``coords``: (n_rows, n, n)."""
+    M = np.broadcast_to(np.eye(group.n), (len(coords), group.n, group.n)).copy()
+    for c, (i, j) in enumerate(group._free):
+        M[:, i, j] = coords[:, c]
+    return M
 
 
 def _check_cut_locus(system, arrows: np.ndarray, what: str) -> None:
@@ -741,10 +765,10 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
         F[eq[:, None] + np.arange(r)] = res
         cancel[eq[:, None] + np.arange(r)] = sizes
         for o in kernel.offsets:  # arrow j+o moves with δ_{j+o} (left) and δ_{j+o−1} (right)
-            _add(rows, cols, vals, lay.delta_index, eq, J + o, left[o], r)
-            _add(rows, cols, vals, lay.delta_index, eq, J + o - 1, -right[o], r)
+            _add(rows, cols, vals, lay.delta_at, eq, J + o, left[o], r)
+            _add(rows, cols, vals, lay.delta_at, eq, J + o - 1, -right[o], r)
         for s in kernel.starts:
-            _add(rows, cols, vals, lay.lam_index, eq, J + s, dlam[s], m)
+            _add(rows, cols, vals, lay.lam_at, eq, J + s, dlam[s], m)
         bad = np.max(np.abs(res), axis=1)
         if bad.max() > worst_val:
             worst_val, worst = bad.max(), int(J[np.argmax(bad)]) + 1
@@ -756,8 +780,8 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
         F[eq[:, None] + np.arange(m)] = res
         cancel[eq[:, None] + np.arange(m)] = sizes
         for o in range(a):
-            _add(rows, cols, vals, lay.delta_index, eq, T + o, left[o], r, m)
-            _add(rows, cols, vals, lay.delta_index, eq, T + o - 1, -right[o], r, m)
+            _add(rows, cols, vals, lay.delta_at, eq, T + o, left[o], r, m)
+            _add(rows, cols, vals, lay.delta_at, eq, T + o - 1, -right[o], r, m)
         bad = np.max(np.abs(res), axis=1)
         if bad.max() > worst_val:
             worst_val, worst = bad.max(), int(T[np.argmax(bad)]) + 1
@@ -766,40 +790,36 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
 
 
 def _rounding_floor(maps, lay, arrows, lam, state: _Assembled) -> np.ndarray:
-    """The rounding floor of each equation: ε·(the magnitudes that cancel in it
-    + Σ_c |∂F_i/∂z_c|·s_c).
+    """The rounding floor of each equation: ε·E_i, E_i the running-error bound of its
+    evaluation computed by the window kernels alongside it (:func:`symgroupoid.ir.rounding_error`)
+    with the arrows' coordinates and the multipliers taken as rounded values themselves.
 
-    A junction residual r = X⃖[S](g_j) − X⃗[S](g_{j+1}) is the difference of two halves, each
-    rounded to about ε·|half|.  And every equation feels the rounding of the coordinates it
-    is evaluated at: the arrows g_j, g_{j+1} that δ_j moves hold their coordinates to
-    ε·|a_m|, which is ε·s_c in δ_c (:meth:`_Maps.rounding_scale`), the multipliers to ε·|λ|;
-    through the Jacobian that is Σ_c |J_ic|·ε·s_c.  A residual scaled like 1/h² thus has a
-    floor ~ N²·ε·|coordinates|, which a fixed tolerance would miss.
+    So the floor counts every rounding of the evaluation — a junction residual
+    r = X⃖[S](g_j) − X⃗[S](g_{j+1}) is the difference of two halves, each rounded — and, to
+    first order, the residual's change when each stored coordinate a_m moves by ε·|a_m|
+    (Σ_m |∂F_i/∂a_m|·|a_m|, propagated through the program with absolute values): an
+    iterate cannot be held closer than that.  A residual scaled like 1/h² thus has a floor
+    ~ N²·ε·|coordinates|, which a fixed tolerance would miss; a constraint on small chart
+    coordinates computed from matrix entries near 1 feels the rounding of those entries
+    although they do not move along the group (the rounding leaves the group), which the
+    variations alone would miss.
     """
-    r, m = maps.G.rank, lam.shape[1]
-    scale = np.zeros(lay.size)
-    if lay.delta_index:
-        j = np.array(list(lay.delta_index))
-        k = np.array(list(lay.delta_index.values()))
-        s = np.maximum(maps.rounding_scale(arrows[j], "left"),
-                       maps.rounding_scale(arrows[j + 1], "right"))
-        scale[k[:, None] + np.arange(r)] = s
-    for t, k in lay.lam_index.items():
-        scale[k:k + m] = np.abs(lam[t])
-    floor = state.cancel.copy()
     with np.errstate(all="ignore"):
-        np.add.at(floor, state.rows, np.abs(state.vals) * scale[state.cols])
-    return _EPS * np.nan_to_num(floor, nan=np.inf)
+        return _EPS * np.nan_to_num(state.cancel, nan=np.inf)
 
 
 def _add(rows, cols, vals, index, eq, targets, block, width, height=None):
     """Scatter ``block[w]`` (height × width) at equation row ``eq[w]`` and the unknowns of
-    ``targets[w]`` in ``index`` (skipping targets that are not unknowns)."""
+    ``targets[w]`` in ``index`` (an array over positions, −1 where there is no unknown;
+    targets that are not unknowns are skipped)."""
     height = block.shape[1] if height is None else height
-    keep = np.array([t in index for t in targets], bool)
+    inside = (targets >= 0) & (targets < len(index))
+    start = np.full(len(targets), -1)
+    start[inside] = index[targets[inside]]
+    keep = start >= 0
     if not keep.any():
         return
-    start = np.array([index[t] for t in targets[keep]])
+    start = start[keep]
     ii = eq[keep][:, None, None] + np.arange(height)[None, :, None]
     jj = start[:, None, None] + np.arange(width)[None, None, :]
     ii, jj = np.broadcast_arrays(ii, jj)
@@ -831,6 +851,7 @@ def _excess(F: np.ndarray, floor: np.ndarray, tol: float) -> float:
         return 0.0
     with np.errstate(all="ignore"):
         ratio = np.abs(F) / np.maximum(tol, ROUNDING_FACTOR * floor)
+    ratio[F == 0] = 0.0  # an exact zero meets any floor, also a zero one (0/0)
     return float(np.nan_to_num(ratio, nan=np.inf).max())
 
 
@@ -886,8 +907,9 @@ class _Run:
 
     history: list = field(default_factory=list)
     iterations: int = 0
-    stalled: bool = False
+    stalled: str = ""
     methods: list = field(default_factory=list)
+    at_floor: int = 0  # consecutive steps taken only because |F| was at the rounding floor
 
     def record(self, state: _Assembled) -> float:
         norm = float(np.max(np.abs(state.F), initial=0.0))
@@ -895,10 +917,34 @@ class _Run:
         progress_note(f"iteration {self.iterations}, |F|∞ = {norm:.2e}")
         return norm
 
-    def step_taken(self, ctx: _Context, dz: np.ndarray, length: float, lam) -> None:
+    def step_taken(self, ctx: _Context, step: _Step, before: tuple) -> None:
+        """Count the step and decide whether the iteration has stalled: an update below
+        ``tol_step``·(1 + |λ|∞), one that changed no stored value, or a second step in a row
+        that did not decrease |F| but was taken because |F| is at the rounding floor (where
+        the comparison of residuals is noise) without meeting the criterion."""
         self.iterations += 1
-        scale = 1.0 + float(np.max(np.abs(lam), initial=0.0))
-        self.stalled = length * float(np.max(np.abs(dz), initial=0.0)) <= ctx.tol_step * scale
+        self.at_floor = self.at_floor + 1 if step.at_floor else 0
+        scale = 1.0 + float(np.max(np.abs(step.lam), initial=0.0))
+        size = step.length * float(np.max(np.abs(step.dz), initial=0.0))
+        if size <= ctx.tol_step * scale:
+            self.stalled = f"the update fell below tol_step = {ctx.tol_step:g}"
+        elif np.array_equal(before[0], step.arrows) and np.array_equal(before[1], step.lam):
+            self.stalled = "the update changed no stored value"
+        elif self.at_floor >= 2:
+            self.stalled = ("|F| stopped decreasing at the rounding floor: the floor estimate is "
+                            "below the residual's actual noise there")
+
+
+class _Step(NamedTuple):
+    """An accepted step: the new iterate, its assembled system, the step length along dz,
+    and whether it was taken only because |F| was at the rounding floor."""
+
+    arrows: np.ndarray
+    lam: np.ndarray
+    state: _Assembled
+    length: float
+    dz: np.ndarray
+    at_floor: bool = False
 
 
 class _Handover(Exception):
@@ -907,8 +953,7 @@ class _Handover(Exception):
 
 def _check_budget(ctx: _Context, run: _Run, state: _Assembled, excess: float, arrows) -> None:
     if run.stalled:
-        raise _divergence(ctx.owner, f"stalled: the update fell below tol_step = "
-                          f"{ctx.tol_step:g}", state, excess, run, arrows)
+        raise _divergence(ctx.owner, f"stalled: {run.stalled}", state, excess, run, arrows)
     if run.iterations >= ctx.max_iterations:
         raise _divergence(ctx.owner, f"did not converge in {ctx.max_iterations} iterations",
                           state, excess, run, arrows)
@@ -944,12 +989,12 @@ def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
             return arrows, lam, state
         _check_budget(ctx, run, state, excess, arrows)
         dz = _newton_direction(ctx, state, run, arrows)
-        found = _line_search(ctx.kernel, ctx.lay, ctx.maps, arrows, lam, dz, state, ctx.p)
-        if found is None:
+        step = _line_search(ctx.kernel, ctx.lay, ctx.maps, arrows, lam, dz, state, ctx.p)
+        if step is None:
             raise _Handover("found no decrease of |F| along the Newton direction (line search)")
-        arrows, lam, state, length = found
-        run.step_taken(ctx, dz, length, lam)
-        damped = damped + 1 if length <= DAMPED_LENGTH else 0
+        run.step_taken(ctx, step, (arrows, lam))
+        arrows, lam, state = step.arrows, step.lam, step.state
+        damped = damped + 1 if step.length <= DAMPED_LENGTH else 0
         if damped >= MAX_DAMPED and not run.stalled:
             raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row")
 
@@ -1046,13 +1091,13 @@ def _globalised(ctx: _Context, arrows, lam, run: _Run):
         if violation > 0:  # Nocedal–Wright (18.36), ρ = 0.1
             nu = max(nu, (float(g @ dz) + curvature / 2) / (0.9 * violation))
         slope = float(g @ dz) - nu * violation
-        found = _merit_search(ctx, arrows, lam, dz, state, nu, slope, newton=mu == 0.0)
-        if found is None:
+        step = _merit_search(ctx, arrows, lam, dz, state, nu, slope, newton=mu == 0.0)
+        if step is None:
             raise _divergence(ctx.owner, "found no decrease of the merit function Σ L + ν‖Φ‖₁ "
                               "along the inertia-corrected Newton direction (line search)",
                               state, excess, run, arrows)
-        arrows, lam, state, length = found
-        run.step_taken(ctx, dz, length, lam)
+        run.step_taken(ctx, step, (arrows, lam))
+        arrows, lam, state = step.arrows, step.lam, step.state
 
 
 def _current_multipliers(ctx: _Context, lam) -> np.ndarray:
@@ -1075,14 +1120,24 @@ def _merit_search(ctx: _Context, arrows, lam, dz, state: _Assembled, nu: float, 
         new_arrows, new_lam = ctx.update(arrows, lam, length * dz)
         trial = ctx.assemble(new_arrows, new_lam)
         if trial.finite():
-            accept = _merit(ctx, new_arrows, trial, nu) <= phi0 + 1e-4 * length * min(slope, 0.0)
-            accept = accept and slope < 0
+            f = float(trial.F @ trial.F)
+            accept = slope < 0 and \
+                _merit(ctx, new_arrows, trial, nu) <= phi0 + 1e-4 * length * slope
             if newton and length == 1.0:
-                accept = accept or float(trial.F @ trial.F) <= (1 - 1e-4) * f0
-            if accept or ctx.excess(new_arrows, new_lam, trial) <= 1.0:
-                return new_arrows, new_lam, trial, length
+                accept = accept or f <= (1 - 1e-4) * f0
+            if accept:
+                return _Step(new_arrows, new_lam, trial, length, dz)
+            if _within_floor(ctx.maps, ctx.lay, new_arrows, new_lam, trial, f):
+                return _Step(new_arrows, new_lam, trial, length, dz, at_floor=True)
         length /= 2
     return None
+
+
+def _within_floor(maps, lay, arrows, lam, state: _Assembled, f: float) -> bool:
+    """|F|₂² ≤ Σ (ROUNDING_FACTOR·floor_i)²: the residual is at its rounding floor, where
+    comparing two residuals is comparing noise."""
+    floor = ROUNDING_FACTOR * _rounding_floor(maps, lay, arrows, lam, state)
+    return f <= float(floor @ floor)
 
 
 # --- the solve ---------------------------------------------------------------------------------
@@ -1090,7 +1145,7 @@ def _merit_search(ctx: _Context, arrows, lam, dz, state: _Assembled, nu: float, 
 @reported(lambda step_equations, *args, **kwargs:
           f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
-                         tol: float = 1e-10, tol_step: float = 1e-9,
+                         tol: float = 0.0, tol_step: float = 0.0,
                          max_iterations: int = 100,
                          minimum: bool = False) -> BoundaryValueSolution:
     """Solve a discrete two-point problem for the system behind ``step_equations``.
@@ -1123,8 +1178,10 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     Converged only when the residual criterion holds: every equation's |F_i| is at most
     max(``tol``, ROUNDING_FACTOR·floor_i), floor_i its rounding floor (ε times the terms that
     cancel in it and its sensitivity to the rounding of the coordinates; it grows like N²
-    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss).  An update
-    below ``tol_step``·(1 + |λ|∞) with the criterion unmet means the iteration has stalled.
+    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss); ``tol`` > 0
+    accepts residuals up to it as well.  The iteration has stalled when an update changes no
+    stored value, two steps in a row were taken at the floor without meeting the criterion,
+    or (``tol_step`` > 0) an update falls below ``tol_step``·(1 + |λ|∞).
     Raises :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
     iterations and the residual history) when the iteration cap is reached, the iteration
     stalls or both phases' line searches find no decrease; :class:`SingularJacobianError`
@@ -1165,13 +1222,24 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
             residual_norm=float(np.nanmax(np.abs(state.F), initial=0.0)), iterate=arrows)
     found, inertia = _solve(ctx, arrows, lam, state, run, minimum)
     arrows, lam, state = found
-    configurations = [data.configurations[0]]
-    for g in arrows:
-        configurations.append(G.configuration_after(configurations[-1], g))
     return BoundaryValueSolution(
-        system, arrows, lam, configurations, named, run.iterations, run.history[-1],
+        system, arrows, lam, _configurations(G, data.configurations[0], arrows), named,
+        run.iterations, run.history[-1],
         run.history, time.perf_counter() - t0, cost=ctx.cost(arrows, p), inertia=inertia,
         method=" → ".join(run.methods))
+
+
+def _configurations(G, start, arrows: np.ndarray) -> list:
+    """The N + 1 configurations from the first along the arrows (a matrix group: products of
+    the arrows' matrices)."""
+    out = [start]
+    if isinstance(G, MatrixLieGroup):
+        for M in _numeric_matrices(G, arrows):
+            out.append(out[-1] @ M)
+        return out
+    for g in arrows:
+        out.append(G.configuration_after(out[-1], g))
+    return out
 
 
 def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bool):
@@ -1233,8 +1301,8 @@ def _line_search(kernel, lay, maps, arrows, lam, dz, state: _Assembled, p):
     (Σ (ROUNDING_FACTOR·floor_i)², where the comparison of two residuals is rounding noise)
     is taken at once, and the convergence test decides.
 
-    Returns (arrows, multipliers, assembled system, t) of the accepted step, or None when no
-    step length gave a decrease with finite values: the caller then does not carry on from
+    Returns the accepted :class:`_Step`, or None when no step length gave a decrease with
+    finite values: the caller then does not carry on from
     an iterate that is worse than the last (a Newton direction that is not a descent
     direction of |F|₂² means the Jacobian is wrong or the values are not smooth there, e.g.
     an arrow near the chart's cut locus).
@@ -1249,10 +1317,9 @@ def _line_search(kernel, lay, maps, arrows, lam, dz, state: _Assembled, p):
         if trial.finite():
             f = float(trial.F @ trial.F)
             if f <= (1 - 1e-4 * length) * f0:
-                return new_arrows, new_lam, trial, length
-            floor = ROUNDING_FACTOR * _rounding_floor(maps, lay, new_arrows, new_lam, trial)
-            if f <= float(floor @ floor):
-                return new_arrows, new_lam, trial, length
+                return _Step(new_arrows, new_lam, trial, length, dz)
+            if _within_floor(maps, lay, new_arrows, new_lam, trial, f):
+                return _Step(new_arrows, new_lam, trial, length, dz, at_floor=True)
         length /= 2
     return None
 
