@@ -120,7 +120,8 @@ def random_problems(count: int = 20, seed: int = 20240609, steps: tuple = (100, 
                     ) -> list[Problem]:
     """``count`` problems alternating SE(2) and SO(3) (every fourth SO(3) one unconstrained):
     an end rotation by an angle in [0°, 150°] about a uniform random axis (SE(2): about the
-    normal, with a translation in [−1.5, 1.5]²), inertias in [0.5, 3], u in [−0.5, 0.5], N in ``steps``."""
+    normal, with a translation in [−1.5, 1.5]²), inertias in [0.5, 3], u in [−0.5, 0.5],
+    N in ``steps``."""
     rng = np.random.default_rng(seed)
     out = []
     for i in range(count):

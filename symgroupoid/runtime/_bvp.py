@@ -366,13 +366,13 @@ class BoundaryValueSolution:
 
     @property
     def kind(self) -> str:
-        """'local minimum', 'saddle (k descent directions)' or 'degenerate'."""
+        """What the second-order condition says, in words (see :attr:`is_local_minimum`)."""
         if self.inertia is None:
-            return "degenerate stationary point"
+            return "undetermined (the reduced Hessian is singular to rounding)"
         k = self.inertia.negative
         if k == 0:
             return "local minimum"
-        return f"saddle, NOT a minimum ({k} descent direction{'s' if k > 1 else ''})"
+        return f"NOT a local minimum: a saddle with {k} descent direction{'s' if k > 1 else ''}"
 
     def __repr__(self) -> str:
         return (f"<BoundaryValueSolution {self.system.name!r}: {self.steps} arrows, "
@@ -544,6 +544,21 @@ def _chart_path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
         x_id + (x_end - x_id) * t, q))] for t in s])
 
 
+def _so3_exp_rows(W: np.ndarray) -> np.ndarray:
+    """exp(ω̂) for every row ω of W (Rodrigues, sin θ/θ and (1 − cos θ)/θ² by their series
+    near θ = 0), as arrows of SO(3) (the nine entries, row-major)."""
+    theta = np.linalg.norm(W, axis=1)
+    small = theta < 1e-4
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 1 - theta ** 2 / 6, np.sin(t) / t)
+    b = np.where(small, 0.5 - theta ** 2 / 24, (1 - np.cos(t)) / t ** 2)
+    K = np.zeros((len(W), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -W[:, 2], W[:, 1], -W[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    R = np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
+    return R.reshape(len(W), 9)
+
+
 def _chart_rows(G, X: np.ndarray) -> np.ndarray:
     """``G.numeric_fibre_chart(x)`` (at the identity's fibre) for every row x of X, in one
     vectorised call of the lambdified chart when it broadcasts (checked on the first and
@@ -571,6 +586,8 @@ def _path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
         x = _group_log(G, G.numeric_matrix(total))
         if x is None:
             return _chart_path(G, total, s)
+        if isinstance(G, SO3):
+            return _so3_exp_rows(np.outer(s, x))
         return _chart_rows(_exp_group(G), np.outer(s, x))
     if isinstance(G, PairGroupoid) and isinstance(G.space, EuclideanSpace):
         q0, q1 = total[:G.base_dim], total[G.base_dim:]
@@ -999,7 +1016,7 @@ def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
             raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row")
 
 
-# --- the globalised iteration: inertia-corrected Newton on the action ------------------------------
+# --- the globalised iteration: inertia-corrected Newton on the action ---------------------------
 
 def _gradient_of_cost(ctx: _Context, state: _Assembled, lam) -> np.ndarray:
     """∇S in the unknowns (zero in the multiplier rows): the junction residuals are ∂/∂δ of
