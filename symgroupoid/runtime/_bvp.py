@@ -1056,21 +1056,28 @@ def _convexified_direction(ctx: _Context, state: _Assembled, run: _Run, arrows, 
     is required to have the inertia (n_δ, n_λ, 0) — then its δ-block is positive definite on
     the tangent space of the constraints, and the step is a descent direction of the merit
     function (Nocedal–Wright §18.3; Ipopt's inertia correction).  μ = 0 when K itself has it
-    (the step is then Newton's); else μ starts at max(μ_min, μ_last/3) and grows ×8."""
+    (the step is then Newton's); else μ starts at max(μ_min, μ_last/3) and grows ×8.  A zero
+    eigenvalue (dependent constraint gradients) also puts −δ_c·I on the multiplier block.
+    Returns (dz, μ, pᵀ(H + μI)p) with p the δ part of dz."""
     lay = ctx.lay
-    dvars = _variation_rows(lay, ctx.r)
-    expected = (len(dvars), lay.size - len(dvars), 0)
+    dvars, lvars = _variation_rows(lay, ctx.r), _multiplier_rows(lay, ctx.m)
+    expected = (len(dvars), len(lvars), 0)
     diag = state.rows == state.cols
     scale = float(np.mean(np.abs(state.vals[diag]))) if diag.any() else 1.0
-    mu = 0.0
+    mu, delta_c = 0.0, 0.0
     for _ in range(MAX_CORRECTIONS):
-        rows = np.concatenate([state.rows, dvars])
-        cols = np.concatenate([state.cols, dvars])
-        vals = np.concatenate([state.vals, np.full(len(dvars), mu)])
+        rows = np.concatenate([state.rows, dvars, lvars])
+        cols = np.concatenate([state.cols, dvars, lvars])
+        vals = np.concatenate([state.vals, np.full(len(dvars), mu),
+                               np.full(len(lvars), -delta_c)])
         inertia = banded_inertia(rows, cols, vals, lay.size)
         if inertia is not None and tuple(inertia) == expected:
             dz = _newton_direction(ctx, state, run, arrows, rows, cols, vals)
-            return dz, mu, float(np.sum(vals * dz[rows] * dz[cols]))
+            p = np.zeros(lay.size)
+            p[dvars] = dz[dvars]
+            return dz, mu, float(np.sum(vals * p[rows] * p[cols]))
+        if inertia is not None and inertia.zero and len(lvars):
+            delta_c = 1e-8 * scale
         mu = max(1e-8 * scale, mu_last / 3.0) if mu == 0.0 else 8.0 * mu
     raise _singular(ctx.owner, state, run.iterations, arrows)
 
@@ -1106,7 +1113,7 @@ def _globalised(ctx: _Context, arrows, lam, run: _Run):
         lam_next = np.abs(_current_multipliers(ctx, lam) + dz)[lam_rows]
         nu = max(nu, 1.1 * float(np.max(lam_next, initial=0.0)))
         if violation > 0:  # Nocedal–Wright (18.36), ρ = 0.1
-            nu = max(nu, (float(g @ dz) + curvature / 2) / (0.9 * violation))
+            nu = max(nu, (float(g @ dz) + max(curvature, 0.0) / 2) / (0.9 * violation))
         slope = float(g @ dz) - nu * violation
         step = _merit_search(ctx, arrows, lam, dz, state, nu, slope, newton=mu == 0.0)
         if step is None:
