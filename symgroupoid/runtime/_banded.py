@@ -35,6 +35,10 @@ PIVOT_TOLERANCE = 1e-10
 #: at most this many blocks merged into one delayed pivot
 MAX_MERGED = 24
 
+#: the smallest block size (a multiple of the bandwidth): fewer, larger blocks cost less
+#: per row in the elimination loop
+MIN_BLOCK = 16
+
 
 class Inertia(NamedTuple):
     """Numbers of positive, negative and zero eigenvalues of a symmetric matrix."""
@@ -47,20 +51,22 @@ class Inertia(NamedTuple):
 def _symmetric_blocks(rows, cols, vals, n: int):
     """Diagonal and sub-diagonal blocks (nb, b, b) of SKS, K = (A + Aᵀ)/2 from COO triplets
     of A (duplicates summed), padded with an identity to nb·b rows; returns (D, B, pad)."""
-    r = np.concatenate([rows, cols])
-    c = np.concatenate([cols, rows])
-    v = np.concatenate([vals, vals]) / 2.0
-    b = max(int(np.max(np.abs(r - c), initial=0)), 1)
+    w = max(int(np.max(np.abs(rows - cols), initial=0)), 1)
+    b = w * max(1, -(-MIN_BLOCK // w))
     nb = -(-n // b)
-    bi, bj = r // b, c // b
-    flat = (r % b) * b + c % b
+    bi, bj = rows // b, cols // b
+    flat = (rows % b) * b + cols % b
 
-    def gather(mask: np.ndarray) -> np.ndarray:
-        index = bi[mask] * b * b + flat[mask]
-        out = np.bincount(index, weights=v[mask], minlength=nb * b * b)
-        return out.astype(float).reshape(nb, b, b)
+    def gather(mask: np.ndarray, shift: int = 0) -> np.ndarray:
+        index = (bi[mask] + shift) * b * b + flat[mask]
+        out = np.bincount(index, weights=vals[mask], minlength=(nb + 1) * b * b)
+        return out[:nb * b * b].astype(float).reshape(nb, b, b)
 
-    D, B = gather(bi == bj), gather(bi == bj + 1)
+    A_diag = gather(bi == bj)
+    A_below = gather(bi == bj + 1)  # A[block k, block k − 1] at k
+    A_above = gather(bi + 1 == bj, shift=1)  # A[block k − 1, block k] at k
+    D = (A_diag + np.swapaxes(A_diag, 1, 2)) / 2
+    B = (A_below + np.swapaxes(A_above, 1, 2)) / 2
     big = np.maximum(np.abs(D).max(axis=2), np.abs(B).max(axis=2))  # row maxima (nb, b)
     big[:-1] = np.maximum(big[:-1], np.abs(B[1:]).max(axis=1))  # the blocks above: B_{k+1}ᵀ
     scale = 1.0 / np.sqrt(np.where(big > 0, big, 1.0))
@@ -80,9 +86,8 @@ def banded_inertia(rows, cols, vals, n: int) -> Inertia | None:
     D, B, pad = _symmetric_blocks(np.asarray(rows), np.asarray(cols), np.asarray(vals, float),
                                   n)
     nb, b = D.shape[0], D.shape[1]
-    positive = negative = 0
+    positive = negative = zero = 0
     P = D[0]
-    zero = 0
     for k in range(1, nb):
         mu, Q = np.linalg.eigh(P)
         tiny = np.abs(mu) <= PIVOT_TOLERANCE
@@ -106,3 +111,4 @@ def banded_inertia(rows, cols, vals, n: int) -> Inertia | None:
     positive += int((mu > PIVOT_TOLERANCE).sum())
     negative += int((mu < -PIVOT_TOLERANCE).sum())
     return Inertia(positive - pad, negative, zero)
+

@@ -390,8 +390,8 @@ def _solve_banded(rows, cols, vals, n, rhs) -> np.ndarray:
         from scipy.linalg import solve_banded
     except ImportError:  # pragma: no cover - exercised by forcing the fallback in tests
         return _block_tridiagonal(rows, cols, vals, n, rhs, max(kl, ku))
-    ab = np.zeros((kl + ku + 1, n))
-    np.add.at(ab, (ku + rows - cols, cols), vals)
+    ab = np.bincount((ku + rows - cols) * n + cols, weights=vals,
+                     minlength=(kl + ku + 1) * n).reshape(kl + ku + 1, n)
     return solve_banded((kl, ku), ab, rhs)
 
 
@@ -464,6 +464,16 @@ class _Layout:
     @functools.cached_property
     def lam_at(self) -> np.ndarray:
         return _index_array(self.lam_index, len(self.terms) + len(self.junctions) + 2)
+
+    @functools.cached_property
+    def moved(self) -> np.ndarray:
+        """The positions j with a variation δ_j, increasing."""
+        return np.array(sorted(self.delta_index), dtype=np.int64)
+
+    @functools.cached_property
+    def multiplied(self) -> np.ndarray:
+        """The terms t with multipliers λ_t, increasing."""
+        return np.array(sorted(self.lam_index), dtype=np.int64)
 
 
 def _index_array(index: dict, n: int) -> np.ndarray:
@@ -778,7 +788,7 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
         lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
                 else np.zeros((len(J), len(kernel.starts), 0)))
         res, left, right, dlam, sizes = kernel.junction_terms(windows, lams, p)
-        eq = np.array([lay.delta_index[j] for j in J])
+        eq = lay.delta_at[J]
         F[eq[:, None] + np.arange(r)] = res
         cancel[eq[:, None] + np.arange(r)] = sizes
         for o in kernel.offsets:  # arrow j+o moves with δ_{j+o} (left) and δ_{j+o−1} (right)
@@ -793,7 +803,7 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
         T = lay.terms
         windows = np.stack([arrows[T + o] for o in range(a)], axis=1)
         res, left, right, sizes = kernel.term_terms(windows, p)
-        eq = np.array([lay.lam_index[t] for t in T])
+        eq = lay.lam_at[T]
         F[eq[:, None] + np.arange(m)] = res
         cancel[eq[:, None] + np.arange(m)] = sizes
         for o in range(a):
@@ -846,19 +856,17 @@ def _add(rows, cols, vals, index, eq, targets, block, width, height=None):
 
 
 def _update(maps, lay, arrows, lam, dz, r, m):
-    n = len(arrows)
-    D = np.zeros((n + 1, r))
-    for j, k in lay.delta_index.items():
-        D[j] = dz[k:k + r]
     arrows = arrows.copy()
-    moved = np.array(sorted(lay.delta_index))
+    moved = lay.moved
     if len(moved):
-        H = maps.flow_at_target(arrows[moved], D[moved])
+        D = dz[lay.delta_at[moved][:, None] + np.arange(r)]
+        H = maps.flow_at_target(arrows[moved], D)
         arrows[moved] = maps.multiply(arrows[moved], H)  # g_j · h(δ_j)
         arrows[moved + 1] = maps.multiply(maps.inverse(H), arrows[moved + 1])  # h⁻¹ · g_{j+1}
     lam = lam.copy()
-    for t, k in lay.lam_index.items():
-        lam[t] += dz[k:k + m]
+    terms = lay.multiplied
+    if m and len(terms):
+        lam[terms] += dz[lay.lam_at[terms][:, None] + np.arange(m)]
     return arrows, lam
 
 
