@@ -67,14 +67,19 @@ def _symmetric_blocks(rows, cols, vals, n: int):
     A_above = gather(bi + 1 == bj, shift=1)  # A[block k − 1, block k] at k
     D = (A_diag + np.swapaxes(A_diag, 1, 2)) / 2
     B = (A_below + np.swapaxes(A_above, 1, 2)) / 2
+    _equilibrate(D, B)
+    pad = np.arange(n, nb * b)
+    D[pad // b, pad % b, pad % b] = 1.0
+    return D, B, len(pad)
+
+
+def _equilibrate(D: np.ndarray, B: np.ndarray) -> None:
+    """K ↦ SKS in place, S = diag(1/√max_j|K_ij|) (a congruence: the inertia is kept)."""
     big = np.maximum(np.abs(D).max(axis=2), np.abs(B).max(axis=2))  # row maxima (nb, b)
     big[:-1] = np.maximum(big[:-1], np.abs(B[1:]).max(axis=1))  # the blocks above: B_{k+1}ᵀ
     scale = 1.0 / np.sqrt(np.where(big > 0, big, 1.0))
     D *= scale[:, :, None] * scale[:, None, :]
     B[1:] *= scale[1:, :, None] * scale[:-1, None, :]
-    pad = np.arange(n, nb * b)
-    D[pad // b, pad % b, pad % b] = 1.0
-    return D, B, len(pad)
 
 
 def banded_inertia(rows, cols, vals, n: int) -> Inertia | None:

@@ -1069,7 +1069,8 @@ def _convexified_direction(ctx: _Context, state: _Assembled, run: _Run, arrows, 
     Returns (dz, μ, pᵀ(H + μI)p) with p the δ part of dz."""
     lay = ctx.lay
     dvars, lvars = _variation_rows(lay, ctx.r), _multiplier_rows(lay, ctx.m)
-    expected = (len(dvars), len(lvars), 0)
+    n_lam, (plus, minus) = _bordering(ctx, state)
+    expected = (len(dvars) + plus, n_lam + minus, 0)
     diag = state.rows == state.cols
     scale = float(np.mean(np.abs(state.vals[diag]))) if diag.any() else 1.0
     mu, delta_c = 0.0, 0.0
@@ -1367,10 +1368,29 @@ def _reduced_inertia(ctx: _Context, state: _Assembled) -> Inertia | None:
     negative eigenvalues.  None when K is numerically singular (the reduced Hessian and the
     constraint rank are then not determined by the inertia alone)."""
     inertia = banded_inertia(state.rows, state.cols, state.vals, ctx.lay.size)
-    n_lam = len(_multiplier_rows(ctx.lay, ctx.m))
-    if inertia is None or inertia.zero or inertia.negative < n_lam:
+    n_lam, (plus, minus) = _bordering(ctx, state)
+    if inertia is None or inertia.zero or inertia.negative < n_lam + minus \
+            or inertia.positive < n_lam + plus:
         return None
-    return Inertia(inertia.positive - n_lam, inertia.negative - n_lam, 0)
+    return Inertia(inertia.positive - n_lam - plus, inertia.negative - n_lam - minus, 0)
+
+
+def _bordering(ctx: _Context, state: _Assembled) -> tuple[int, tuple[int, int]]:
+    """The multiplier rows that border the Hessian (n_λ), and the signs of those that are
+    decoupled — a row and column with nothing but a diagonal entry d, such as a multiplier
+    fixed by a boundary condition (row λ = 0): each adds one eigenvalue of the sign of d,
+    not a ± pair."""
+    lam_rows = _multiplier_rows(ctx.lay, ctx.m)
+    if not len(lam_rows):
+        return 0, (0, 0)
+    off = (state.rows != state.cols) & (state.vals != 0)
+    touched = np.zeros(ctx.lay.size, bool)
+    touched[state.rows[off]] = touched[state.cols[off]] = True
+    alone = lam_rows[~touched[lam_rows]]
+    diag = np.bincount(state.rows[~off & (state.rows == state.cols)],
+                       weights=state.vals[~off & (state.rows == state.cols)],
+                       minlength=ctx.lay.size)[alone]
+    return len(lam_rows) - len(alone), (int((diag > 0).sum()), int((diag < 0).sum()))
 
 
 def _is_minimum(inertia: Inertia | None) -> bool:
