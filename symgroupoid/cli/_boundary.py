@@ -22,9 +22,10 @@ def run_bvp(args: argparse.Namespace) -> int:
                                     problem["steps"], guess=problem["guess"], params=params,
                                     max_iterations=max_iterations)
     say(f"{derived.step.name}: {solution.steps} steps, converged in {solution.iterations} "
-        f"Newton iterations to |F|∞ = {solution.residual_norm:.1e} "
+        f"iterations ({solution.method}) to |F|∞ = {solution.residual_norm:.1e} "
         f"({solution.seconds:.2f} s)")
     say("|F|∞ by iteration: " + ", ".join(f"{v:.1e}" for v in solution.history))
+    say(f"cost Σ L_d = {solution.cost:.12g}; second-order condition: {solution.kind}")
     status = 0
     if args.check:
         report = verify_stationary(solution, derived.system)

@@ -5,7 +5,8 @@ generated code performs them), running error analysis (Wilkinson; Higham, *Accur
 Stability of Numerical Algorithms*, §3.3) bounds, to first order in the unit roundoff u, the
 error of the computed value by u·E, where E is built alongside the value:
 
-- an input is exact: E = 0; a constant that is not exactly a double: E = |c|;
+- an input is exact: E = 0 (or E = |x| when it is itself a rounded value); a constant that
+  is not exactly a double: E = |c|;
 - a sum a₁ + … + a_n evaluated left to right: E = Σ E(a_k) + Σ_{m ≥ 2} |a₁ + … + a_m|
   (each partial sum is rounded once);
 - a product a₁ ⋯ a_n: E = Σ_k |Π_{j≠k} a_j|·E(a_k) + (n − 1)|a₁ ⋯ a_n|;
@@ -41,10 +42,15 @@ def _exact_double(value: sp.Expr) -> bool:
     return False
 
 
-def rounding_error(g: Graph, outputs: Sequence[int]) -> list[int]:
+def rounding_error(g: Graph, outputs: Sequence[int], perturbed: Sequence[int] = ()
+                   ) -> list[int]:
     """Nodes computing E(o) for every output (see the module docstring): the error of the
-    computed output is at most about ε·E(o) (ε = 2u, the machine epsilon)."""
+    computed output is at most about ε·E(o) (ε = 2u, the machine epsilon).  ``perturbed``:
+    input nodes that carry a rounding of their own (E = |x|: stored coordinates that are
+    the result of earlier arithmetic), so E also bounds the output's change when they are
+    rounded; the other inputs are exact."""
     absolute = ELEMENTARY[sp.Abs]
+    perturbed = frozenset(perturbed)
 
     def abs_(n: int) -> int:
         return g.func(absolute, n)
@@ -55,7 +61,7 @@ def rounding_error(g: Graph, outputs: Sequence[int]) -> list[int]:
         o = op[n]
         a = args[n]
         if o == INPUT:
-            err[n] = g.zero
+            err[n] = abs_(n) if n in perturbed else g.zero
         elif o == CONST:
             err[n] = g.zero if _exact_double(data[n]) else g.const(abs(data[n]))
         elif o == ADD:

@@ -29,8 +29,8 @@ follows geodesics (exp(s·log g) on a Lie group), so a half-turn between the end
 N small turns instead of meeting the cut locus of the Cayley chart.  Success means the residual
 criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or ``tol``), the
 floor computed alongside the residual from its running-error bound
-(:func:`symgroupoid.ir.rounding_error`) and its sensitivity to the rounding of the
-coordinates.  Anything else —
+(:func:`symgroupoid.ir.rounding_error`), which also counts the rounding of the stored
+coordinates and multipliers.  Anything else —
 the iteration cap, a stalled update, a line search without decrease, a singular Jacobian, a
 half-turn in the initial path — raises an error carrying the iterations and the residual.
 """
@@ -69,7 +69,8 @@ from ..groupoids import (
     ProductGroupoid,
     TimeGroupoid,
 )
-from ..ir import Graph, Program, forward, rounding_error
+from ..ir import Graph, Program, forward, from_sympy, rounding_error
+from ._banded import Inertia, banded_inertia
 from ._programs import compile_program
 from ._validate import arrow as checked_arrow
 from ._validate import (
@@ -155,9 +156,11 @@ class WindowKernel:
         for s in self.starts:
             d = [forward(g, res, {nodes[x]: g.one}, order) for x in lam[s]]
             blocks += [d[a][b] for b in range(r) for a in range(m)]
-        blocks += rounding_error(g, res)  # the rounding bound of each junction residual
         coords = [x for o in self.offsets for x in A[o]]
         lams = [x for s in self.starts for x in lam[s]]
+        # the rounding bound of each junction residual, the coordinates and multipliers
+        # counted as rounded values (see _rounding_floor)
+        blocks += rounding_error(g, res, [nodes[x] for x in coords + lams])
         program = Program(g, {"a": coords + lams + self.parameters}, {"junction": blocks})
         self._junction = _vectorised(f"{system.name}_junction", program, "a", "junction")
 
@@ -171,8 +174,8 @@ class WindowKernel:
                      for side in (0, 1)]
                 for e in range(m):
                     cblocks += [d[side][c][e] for side in (0, 1) for c in range(r)]
-            cblocks += rounding_error(g, values)
             ccoords = [x for o in range(arity) for x in A[o]]
+            cblocks += rounding_error(g, values, [nodes[x] for x in ccoords])
             program = Program(g, {"a": ccoords + self.parameters}, {"term": cblocks})
             self._term = _vectorised(f"{system.name}_term", program, "a", "term")
 
@@ -226,6 +229,41 @@ def window_kernel(system) -> WindowKernel:
     return WindowKernel(system)
 
 
+class CostKernel:
+    """The discrete cost S = Σ_k L(g_k, …, g_{k+arity−1}) of an arrow sequence: the
+    system's Lagrangian on the expression graph, evaluated with NumPy for all terms at once
+    (no compiler: it is a single value per term)."""
+
+    def __init__(self, system):
+        fs = system._fs
+        g = Graph()
+        coords = [c for slot in fs.slots for c in slot]
+        symbols = {c: g.input(c) for c in coords}
+        symbols.update({q: g.input(q) for q in system.parameters})
+        lagrangian = from_sympy(g, fs.lagrangian, symbols, f"{system.name}: the Lagrangian")
+        program = Program(g, {"a": coords + list(system.parameters)}, {"cost": [lagrangian]})
+        self.arity = len(fs.slots)
+        self._f = program.numpy_function(["cost"], ["a"])
+
+    def terms(self, arrows: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """L on every window of ``arity`` consecutive arrows."""
+        T = len(arrows) - self.arity + 1
+        windows = np.hstack([arrows[o:o + T] for o in range(self.arity)])
+        values = np.hstack([windows, np.broadcast_to(params, (T, len(params)))])
+        with np.errstate(all="ignore"):
+            out = self._f(values.T)[0]
+        return np.broadcast_to(np.asarray(out, float).reshape(-1), (T,))
+
+    def __call__(self, arrows: np.ndarray, params: np.ndarray) -> float:
+        return float(np.sum(self.terms(arrows, params)))
+
+
+@functools.lru_cache(maxsize=8)
+def cost_kernel(system) -> CostKernel:
+    """The (cached) cost kernel of a system."""
+    return CostKernel(system)
+
+
 # --- numeric structure maps ------------------------------------------------------------------
 
 @functools.lru_cache(maxsize=16)
@@ -243,9 +281,6 @@ class _Maps:
         self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy")
         q = G.target(a)
         self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy")
-        self._fields = {side: sp.lambdify([a], [c for v in fields for c in v], "numpy")
-                        for side, fields in (("left", G.left_field(a)),
-                                             ("right", G.right_field(a)))}
 
     @staticmethod
     def _rows(values, n):
@@ -261,21 +296,6 @@ class _Maps:
         """h(δ) ⊂ α⁻¹(β(A)) for each row."""
         return self._rows(self._flow(A.T, D.T), len(A))
 
-    def fields(self, A, side: str) -> np.ndarray:
-        """X⃖_c(a) (``side="left"``) or X⃗_c(a) at each row a of A: (n, rank, arrow_dim)."""
-        n, G = len(A), self.G
-        return self._rows(self._fields[side](A.T), n).reshape(n, G.rank, G.arrow_dim)
-
-    def rounding_scale(self, A, side: str) -> np.ndarray:
-        """s_c = Σ_m |X⁺_{mc}|·|a_m| at each row a of A, (n, rank): the size, in the units of
-        the section flow parameter δ_c, of the coordinates it moves (X⁺ the pseudo-inverse
-        of the fields (X_c)_m at a).  The rounding ε·|a_m| of the coordinates is a change
-        of about ε·s_c in δ_c; e.g. a rotation near the identity moves its small
-        off-diagonal entries at first order, so s ≈ |cay⁻¹(g)| there, not 1."""
-        with np.errstate(all="ignore"):
-            inverse = np.linalg.pinv(self.fields(A, side))  # (n, arrow_dim, rank)
-        return np.einsum("nmc,nm->nc", np.abs(inverse), np.abs(A))
-
 
 # --- the solution --------------------------------------------------------------------------
 
@@ -287,6 +307,14 @@ class BoundaryValueSolution:
     ``controls`` (N, rank) — chart coordinates of each arrow (Lie groups: τ⁻¹(g_k) = hξ_k);
     ``configurations`` — the N + 1 configurations; ``sol[name]`` — a named part of every
     arrow (``"x"``: the target point of each arrow; ``"g"``: each arrow's matrix; …).
+
+    What was found: ``cost`` — the discrete cost Σ_k L_d (the action without the multiplier
+    terms, which vanish on the constraints); ``inertia`` — (positive, negative, zero)
+    eigenvalue counts of the Hessian of the action restricted to the admissible variations
+    (the junction variations δ_j, which keep the ends and the composability) and, with
+    constraints, to those tangent to Φ = 0: the Hessian of the Lagrangian on the tangent
+    space of the constraints (see :func:`_reduced_inertia`), or None when it is singular to
+    rounding; ``is_local_minimum``; ``method`` — the iterations used.
     """
 
     system: object
@@ -298,6 +326,9 @@ class BoundaryValueSolution:
     residual_norm: float
     history: list = field(default_factory=list)
     seconds: float = 0.0
+    cost: float = float("nan")
+    inertia: Inertia | None = None
+    method: str = "Newton"
 
     @property
     def steps(self) -> int:
@@ -324,9 +355,31 @@ class BoundaryValueSolution:
                                          else float(e))
         return out if isinstance(value, sp.MatrixBase) else out[:, 0, 0]
 
+    @property
+    def is_local_minimum(self) -> bool | None:
+        """True: a strict local minimum of the cost among admissible paths that keep the
+        constraints (the reduced Hessian is positive definite: the second-order sufficient
+        condition); False: not a minimum (the reduced Hessian has a negative eigenvalue, so
+        some admissible variation lowers the cost: a saddle or a maximum); None: not decided
+        at second order (the reduced Hessian or the KKT matrix is singular to rounding)."""
+        if self.inertia is None:
+            return None
+        return self.inertia.negative == 0
+
+    @property
+    def kind(self) -> str:
+        """What the second-order condition says, in words (see :attr:`is_local_minimum`)."""
+        if self.inertia is None:
+            return "undetermined (the reduced Hessian is singular to rounding)"
+        k = self.inertia.negative
+        if k == 0:
+            return "local minimum"
+        return f"NOT a local minimum: a saddle with {k} descent direction{'s' if k > 1 else ''}"
+
     def __repr__(self) -> str:
         return (f"<BoundaryValueSolution {self.system.name!r}: {self.steps} arrows, "
-                f"{self.iterations} Newton iterations, |F| = {self.residual_norm:.2e}>")
+                f"{self.iterations} iterations ({self.method}), |F| = "
+                f"{self.residual_norm:.2e}, cost {self.cost:.10g}, {self.kind}>")
 
 
 # --- linear algebra --------------------------------------------------------------------------
@@ -339,8 +392,8 @@ def _solve_banded(rows, cols, vals, n, rhs) -> np.ndarray:
         from scipy.linalg import solve_banded
     except ImportError:  # pragma: no cover - exercised by forcing the fallback in tests
         return _block_tridiagonal(rows, cols, vals, n, rhs, max(kl, ku))
-    ab = np.zeros((kl + ku + 1, n))
-    np.add.at(ab, (ku + rows - cols, cols), vals)
+    ab = np.bincount((ku + rows - cols) * n + cols, weights=vals,
+                     minlength=(kl + ku + 1) * n).reshape(kl + ku + 1, n)
     return solve_banded((kl, ku), ab, rhs)
 
 
@@ -404,6 +457,32 @@ class _Layout:
     delta_index: dict
     lam_index: dict
     size: int
+
+    @functools.cached_property
+    def delta_at(self) -> np.ndarray:
+        """delta_index as an array over positions 0 … n (−1: not an unknown)."""
+        return _index_array(self.delta_index, len(self.terms) + len(self.junctions) + 2)
+
+    @functools.cached_property
+    def lam_at(self) -> np.ndarray:
+        return _index_array(self.lam_index, len(self.terms) + len(self.junctions) + 2)
+
+    @functools.cached_property
+    def moved(self) -> np.ndarray:
+        """The positions j with a variation δ_j, increasing."""
+        return np.array(sorted(self.delta_index), dtype=np.int64)
+
+    @functools.cached_property
+    def multiplied(self) -> np.ndarray:
+        """The terms t with multipliers λ_t, increasing."""
+        return np.array(sorted(self.lam_index), dtype=np.int64)
+
+
+def _index_array(index: dict, n: int) -> np.ndarray:
+    out = np.full(max(n, max(index, default=-1) + 2), -1, dtype=np.int64)
+    for position, k in index.items():
+        out[position] = k
+    return out
 
 
 def _layout(n: int, arity: int, rank: int, m: int) -> _Layout:
@@ -477,6 +556,39 @@ def _chart_path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
         x_id + (x_end - x_id) * t, q))] for t in s])
 
 
+def _so3_exp_rows(W: np.ndarray) -> np.ndarray:
+    """exp(ω̂) for every row ω of W (Rodrigues, sin θ/θ and (1 − cos θ)/θ² by their series
+    near θ = 0), as arrows of SO(3) (the nine entries, row-major)."""
+    theta = np.linalg.norm(W, axis=1)
+    small = theta < 1e-4
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 1 - theta ** 2 / 6, np.sin(t) / t)
+    b = np.where(small, 0.5 - theta ** 2 / 24, (1 - np.cos(t)) / t ** 2)
+    K = np.zeros((len(W), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -W[:, 2], W[:, 1], -W[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    R = np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
+    return R.reshape(len(W), 9)
+
+
+def _chart_rows(G, X: np.ndarray) -> np.ndarray:
+    """``G.numeric_fibre_chart(x)`` (at the identity's fibre) for every row x of X, in one
+    vectorised call of the lambdified chart when it broadcasts (checked on the first and
+    last rows against the single-row form), else row by row."""
+    q = np.zeros(G.base_dim)
+    single = [G.numeric_fibre_chart(x) for x in X[[0, -1]]]
+    try:
+        with np.errstate(all="ignore"):
+            values = G._numeric_fibre_chart(X.T, q)
+        rows = np.array([np.broadcast_to(np.asarray(v, float), (len(X),)) for v in values]).T
+        if rows.shape == (len(X), len(single[0])) and np.isfinite(rows).all() and \
+                np.allclose(rows[[0, -1]], single, rtol=1e-14, atol=1e-15):
+            return rows
+    except (TypeError, ValueError, AttributeError):
+        pass
+    return np.array([G.numeric_fibre_chart(x) for x in X])
+
+
 def _path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Arrows P(s_i) ∈ α⁻¹(α(total)) from P(0) = ε to P(1) = total along a geodesic of each
     factor: exp(s·log g) on a matrix Lie group (defined up to and including half-turns, where
@@ -486,8 +598,9 @@ def _path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
         x = _group_log(G, G.numeric_matrix(total))
         if x is None:
             return _chart_path(G, total, s)
-        exp = _exp_group(G)
-        return np.array([exp.numeric_fibre_chart(t * x) for t in s])
+        if isinstance(G, SO3):
+            return _so3_exp_rows(np.outer(s, x))
+        return _chart_rows(_exp_group(G), np.outer(s, x))
     if isinstance(G, PairGroupoid) and isinstance(G.space, EuclideanSpace):
         q0, q1 = total[:G.base_dim], total[G.base_dim:]
         return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
@@ -618,12 +731,19 @@ def _half_turns(G, arrows: np.ndarray) -> list[tuple[int, str, float]]:
     out = []
     for start, group in G.matrix_parts():
         n = group.n - 1 if group.affine else group.n
-        for k, a in enumerate(arrows):
-            R = group.numeric_matrix(a[start:start + group.arrow_dim])[:n, :n]
-            closeness = abs(float(np.linalg.det(np.eye(n) + R))) / 2.0 ** n
-            if closeness <= CUT_LOCUS_TOLERANCE:
-                out.append((k, group.symbol_name, closeness))
-    return out
+        R = _numeric_matrices(group, arrows[:, start:start + group.arrow_dim])[:, :n, :n]
+        closeness = np.abs(np.linalg.det(np.eye(n) + R)) / 2.0 ** n
+        out += [(int(k), group.symbol_name, float(closeness[k]))
+                for k in np.flatnonzero(closeness <= CUT_LOCUS_TOLERANCE)]
+    return sorted(out)
+
+
+def _numeric_matrices(group, coords: np.ndarray) -> np.ndarray:
+    """:meth:`MatrixLieGroup.numeric_matrix` of every row of ``coords``: (n_rows, n, n)."""
+    M = np.broadcast_to(np.eye(group.n), (len(coords), group.n, group.n)).copy()
+    for c, (i, j) in enumerate(group._free):
+        M[:, i, j] = coords[:, c]
+    return M
 
 
 def _check_cut_locus(system, arrows: np.ndarray, what: str) -> None:
@@ -670,14 +790,14 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
         lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
                 else np.zeros((len(J), len(kernel.starts), 0)))
         res, left, right, dlam, sizes = kernel.junction_terms(windows, lams, p)
-        eq = np.array([lay.delta_index[j] for j in J])
+        eq = lay.delta_at[J]
         F[eq[:, None] + np.arange(r)] = res
         cancel[eq[:, None] + np.arange(r)] = sizes
         for o in kernel.offsets:  # arrow j+o moves with δ_{j+o} (left) and δ_{j+o−1} (right)
-            _add(rows, cols, vals, lay.delta_index, eq, J + o, left[o], r)
-            _add(rows, cols, vals, lay.delta_index, eq, J + o - 1, -right[o], r)
+            _add(rows, cols, vals, lay.delta_at, eq, J + o, left[o], r)
+            _add(rows, cols, vals, lay.delta_at, eq, J + o - 1, -right[o], r)
         for s in kernel.starts:
-            _add(rows, cols, vals, lay.lam_index, eq, J + s, dlam[s], m)
+            _add(rows, cols, vals, lay.lam_at, eq, J + s, dlam[s], m)
         bad = np.max(np.abs(res), axis=1)
         if bad.max() > worst_val:
             worst_val, worst = bad.max(), int(J[np.argmax(bad)]) + 1
@@ -685,12 +805,12 @@ def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
         T = lay.terms
         windows = np.stack([arrows[T + o] for o in range(a)], axis=1)
         res, left, right, sizes = kernel.term_terms(windows, p)
-        eq = np.array([lay.lam_index[t] for t in T])
+        eq = lay.lam_at[T]
         F[eq[:, None] + np.arange(m)] = res
         cancel[eq[:, None] + np.arange(m)] = sizes
         for o in range(a):
-            _add(rows, cols, vals, lay.delta_index, eq, T + o, left[o], r, m)
-            _add(rows, cols, vals, lay.delta_index, eq, T + o - 1, -right[o], r, m)
+            _add(rows, cols, vals, lay.delta_at, eq, T + o, left[o], r, m)
+            _add(rows, cols, vals, lay.delta_at, eq, T + o - 1, -right[o], r, m)
         bad = np.max(np.abs(res), axis=1)
         if bad.max() > worst_val:
             worst_val, worst = bad.max(), int(T[np.argmax(bad)]) + 1
@@ -719,40 +839,36 @@ def _pin_end_nodes(kernel, lay, lam, F, cancel, rows, cols, vals) -> None:
 
 
 def _rounding_floor(maps, lay, arrows, lam, state: _Assembled) -> np.ndarray:
-    """The rounding floor of each equation: ε·(the magnitudes that cancel in it
-    + Σ_c |∂F_i/∂z_c|·s_c).
+    """The rounding floor of each equation: ε·E_i, E_i the running-error bound of its
+    evaluation computed by the window kernels alongside it (:func:`symgroupoid.ir.rounding_error`)
+    with the arrows' coordinates and the multipliers taken as rounded values themselves.
 
-    A junction residual r = X⃖[S](g_j) − X⃗[S](g_{j+1}) is the difference of two halves, each
-    rounded to about ε·|half|.  And every equation feels the rounding of the coordinates it
-    is evaluated at: the arrows g_j, g_{j+1} that δ_j moves hold their coordinates to
-    ε·|a_m|, which is ε·s_c in δ_c (:meth:`_Maps.rounding_scale`), the multipliers to ε·|λ|;
-    through the Jacobian that is Σ_c |J_ic|·ε·s_c.  A residual scaled like 1/h² thus has a
-    floor ~ N²·ε·|coordinates|, which a fixed tolerance would miss.
+    So the floor counts every rounding of the evaluation — a junction residual
+    r = X⃖[S](g_j) − X⃗[S](g_{j+1}) is the difference of two halves, each rounded — and, to
+    first order, the residual's change when each stored coordinate a_m moves by ε·|a_m|
+    (Σ_m |∂F_i/∂a_m|·|a_m|, propagated through the program with absolute values): an
+    iterate cannot be held closer than that.  A residual scaled like 1/h² thus has a floor
+    ~ N²·ε·|coordinates|, which a fixed tolerance would miss; a constraint on small chart
+    coordinates computed from matrix entries near 1 feels the rounding of those entries
+    although they do not move along the group (the rounding leaves the group), which the
+    variations alone would miss.
     """
-    r, m = maps.G.rank, lam.shape[1]
-    scale = np.zeros(lay.size)
-    if lay.delta_index:
-        j = np.array(list(lay.delta_index))
-        k = np.array(list(lay.delta_index.values()))
-        s = np.maximum(maps.rounding_scale(arrows[j], "left"),
-                       maps.rounding_scale(arrows[j + 1], "right"))
-        scale[k[:, None] + np.arange(r)] = s
-    for t, k in lay.lam_index.items():
-        scale[k:k + m] = np.abs(lam[t])
-    floor = state.cancel.copy()
     with np.errstate(all="ignore"):
-        np.add.at(floor, state.rows, np.abs(state.vals) * scale[state.cols])
-    return _EPS * np.nan_to_num(floor, nan=np.inf)
+        return _EPS * np.nan_to_num(state.cancel, nan=np.inf)
 
 
 def _add(rows, cols, vals, index, eq, targets, block, width, height=None):
     """Scatter ``block[w]`` (height × width) at equation row ``eq[w]`` and the unknowns of
-    ``targets[w]`` in ``index`` (skipping targets that are not unknowns)."""
+    ``targets[w]`` in ``index`` (an array over positions, −1 where there is no unknown;
+    targets that are not unknowns are skipped)."""
     height = block.shape[1] if height is None else height
-    keep = np.array([t in index for t in targets], bool)
+    inside = (targets >= 0) & (targets < len(index))
+    start = np.full(len(targets), -1)
+    start[inside] = index[targets[inside]]
+    keep = start >= 0
     if not keep.any():
         return
-    start = np.array([index[t] for t in targets[keep]])
+    start = start[keep]
     ii = eq[keep][:, None, None] + np.arange(height)[None, :, None]
     jj = start[:, None, None] + np.arange(width)[None, None, :]
     ii, jj = np.broadcast_arrays(ii, jj)
@@ -762,19 +878,17 @@ def _add(rows, cols, vals, index, eq, targets, block, width, height=None):
 
 
 def _update(maps, lay, arrows, lam, dz, r, m):
-    n = len(arrows)
-    D = np.zeros((n + 1, r))
-    for j, k in lay.delta_index.items():
-        D[j] = dz[k:k + r]
     arrows = arrows.copy()
-    moved = np.array(sorted(lay.delta_index))
+    moved = lay.moved
     if len(moved):
-        H = maps.flow_at_target(arrows[moved], D[moved])
+        D = dz[lay.delta_at[moved][:, None] + np.arange(r)]
+        H = maps.flow_at_target(arrows[moved], D)
         arrows[moved] = maps.multiply(arrows[moved], H)  # g_j · h(δ_j)
         arrows[moved + 1] = maps.multiply(maps.inverse(H), arrows[moved + 1])  # h⁻¹ · g_{j+1}
     lam = lam.copy()
-    for t, k in lay.lam_index.items():
-        lam[t] += dz[k:k + m]
+    terms = lay.multiplied
+    if m and len(terms):
+        lam[terms] += dz[lay.lam_at[terms][:, None] + np.arange(m)]
     return arrows, lam
 
 
@@ -784,16 +898,311 @@ def _excess(F: np.ndarray, floor: np.ndarray, tol: float) -> float:
         return 0.0
     with np.errstate(all="ignore"):
         ratio = np.abs(F) / np.maximum(tol, ROUNDING_FACTOR * floor)
+    ratio[F == 0] = 0.0  # an exact zero meets any floor, also a zero one (0/0)
     return float(np.nan_to_num(ratio, nan=np.inf).max())
 
 
-# --- Newton's method ---------------------------------------------------------------------------
+# --- the iteration -----------------------------------------------------------------------------
+
+#: the fast path hands over to the globalised iteration after this many consecutive damped
+#: Newton steps (line-search length at most DAMPED_LENGTH)
+MAX_DAMPED = 4
+DAMPED_LENGTH = 0.25
+
+#: at most this many trial regularisations μ per globalised iteration
+MAX_CORRECTIONS = 40
+
+
+@dataclass
+class _Context:
+    """What stays fixed during one solve."""
+
+    owner: str
+    kernel: WindowKernel
+    cost: CostKernel
+    lay: _Layout
+    maps: _Maps
+    p: np.ndarray
+    tol: float
+    tol_step: float
+    max_iterations: int
+
+    @property
+    def r(self) -> int:
+        return self.kernel.rank
+
+    @property
+    def m(self) -> int:
+        return self.kernel.m
+
+    def assemble(self, arrows, lam) -> _Assembled:
+        with np.errstate(all="ignore"):
+            return _assemble(self.kernel, self.lay, arrows, lam, self.p)
+
+    def excess(self, arrows, lam, state: _Assembled) -> float:
+        return _excess(state.F, _rounding_floor(self.maps, self.lay, arrows, lam, state),
+                       self.tol)
+
+    def update(self, arrows, lam, dz):
+        return _update(self.maps, self.lay, arrows, lam, dz, self.r, self.m)
+
+
+@dataclass
+class _Run:
+    """The iterations of one solve, across its phases: |F|∞ before each update, the count,
+    whether the last update was below ``tol_step``, and the phases used."""
+
+    history: list = field(default_factory=list)
+    iterations: int = 0
+    stalled: str = ""
+    methods: list = field(default_factory=list)
+    at_floor: int = 0  # consecutive steps taken only because |F| was at the rounding floor
+
+    def record(self, state: _Assembled) -> float:
+        norm = float(np.max(np.abs(state.F), initial=0.0))
+        self.history.append(norm)
+        progress_note(f"iteration {self.iterations}, |F|∞ = {norm:.2e}")
+        return norm
+
+    def step_taken(self, ctx: _Context, step: _Step, before: tuple) -> None:
+        """Count the step and decide whether the iteration has stalled: an update below
+        ``tol_step``·(1 + |λ|∞), one that changed no stored value, or a second step in a row
+        that did not decrease |F| but was taken because |F| is at the rounding floor (where
+        the comparison of residuals is noise) without meeting the criterion."""
+        self.iterations += 1
+        self.at_floor = self.at_floor + 1 if step.at_floor else 0
+        scale = 1.0 + float(np.max(np.abs(step.lam), initial=0.0))
+        size = step.length * float(np.max(np.abs(step.dz), initial=0.0))
+        if size <= ctx.tol_step * scale:
+            self.stalled = f"the update fell below tol_step = {ctx.tol_step:g}"
+        elif np.array_equal(before[0], step.arrows) and np.array_equal(before[1], step.lam):
+            self.stalled = "the update changed no stored value"
+        elif self.at_floor >= 2:
+            self.stalled = ("|F| stopped decreasing at the rounding floor: the floor estimate is "
+                            "below the residual's actual noise there")
+
+
+class _Step(NamedTuple):
+    """An accepted step: the new iterate, its assembled system, the step length along dz,
+    and whether it was taken only because |F| was at the rounding floor."""
+
+    arrows: np.ndarray
+    lam: np.ndarray
+    state: _Assembled
+    length: float
+    dz: np.ndarray
+    at_floor: bool = False
+
+
+class _Handover(Exception):
+    """The fast path gives up (no decrease, or damped steps only): the reason."""
+
+
+def _check_budget(ctx: _Context, run: _Run, state: _Assembled, excess: float, arrows) -> None:
+    if run.stalled:
+        raise _divergence(ctx.owner, f"stalled: {run.stalled}", state, excess, run, arrows)
+    if run.iterations >= ctx.max_iterations:
+        raise _divergence(ctx.owner, f"did not converge in {ctx.max_iterations} iterations",
+                          state, excess, run, arrows)
+
+
+def _newton_direction(ctx: _Context, state: _Assembled, run: _Run, arrows,
+                      rows=None, cols=None, vals=None) -> np.ndarray:
+    """The solution dz of J·dz = −F (J given as COO triplets, default the Jacobian)."""
+    rows = state.rows if rows is None else rows
+    cols = state.cols if cols is None else cols
+    vals = state.vals if vals is None else vals
+    try:
+        with np.errstate(all="ignore"):
+            dz = _solve_banded(rows, cols, vals, ctx.lay.size, -state.F)
+    except np.linalg.LinAlgError as exc:
+        raise _singular(ctx.owner, state, run.iterations, arrows) from exc
+    if not np.isfinite(dz).all():
+        raise _singular(ctx.owner, state, run.iterations, arrows)
+    return dz
+
+
+def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
+    """Structured Newton on the necessary conditions, backtracking on |F|₂²: quadratic
+    convergence from a good guess.  Raises :class:`_Handover` when the line search finds no
+    decrease or MAX_DAMPED consecutive steps were damped (far from a solution, where the
+    globalised iteration does better)."""
+    run.methods.append("Newton")
+    damped = 0
+    while True:
+        run.record(state)
+        excess = ctx.excess(arrows, lam, state)
+        if excess <= 1.0:
+            return arrows, lam, state
+        _check_budget(ctx, run, state, excess, arrows)
+        dz = _newton_direction(ctx, state, run, arrows)
+        step = _line_search(ctx.kernel, ctx.lay, ctx.maps, arrows, lam, dz, state, ctx.p)
+        if step is None:
+            raise _Handover("found no decrease of |F| along the Newton direction (line search)")
+        run.step_taken(ctx, step, (arrows, lam))
+        arrows, lam, state = step.arrows, step.lam, step.state
+        damped = damped + 1 if step.length <= DAMPED_LENGTH else 0
+        if damped >= MAX_DAMPED and not run.stalled:
+            raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row")
+
+
+# --- the globalised iteration: inertia-corrected Newton on the action ---------------------------
+
+def _gradient_of_cost(ctx: _Context, state: _Assembled, lam) -> np.ndarray:
+    """∇S in the unknowns (zero in the multiplier rows): the junction residuals are ∂/∂δ of
+    Σ [L + λ·Φ], so ∇S = F_δ − (∂F_δ/∂λ)·λ."""
+    z = np.zeros(ctx.lay.size)
+    for t, k in ctx.lay.lam_index.items():
+        z[k:k + ctx.m] = lam[t]
+    g = state.F - _apply(state.rows, state.cols, state.vals, z, ctx.lay.size)
+    g[_multiplier_rows(ctx.lay, ctx.m)] = 0.0
+    return g
+
+
+def _apply(rows, cols, vals, z, n) -> np.ndarray:
+    """A·z for A given by COO triplets."""
+    out = np.zeros(n)
+    np.add.at(out, rows, vals * z[cols])
+    return out
+
+
+def _multiplier_rows(lay: _Layout, m: int) -> np.ndarray:
+    if not m or not lay.lam_index:
+        return np.zeros(0, int)
+    return (np.array(list(lay.lam_index.values()))[:, None] + np.arange(m)).ravel()
+
+
+def _variation_rows(lay: _Layout, r: int) -> np.ndarray:
+    if not lay.delta_index:
+        return np.zeros(0, int)
+    return (np.array(list(lay.delta_index.values()))[:, None] + np.arange(r)).ravel()
+
+
+def _convexified_direction(ctx: _Context, state: _Assembled, run: _Run, arrows, mu_last):
+    """The step of the globalised iteration and its regularisation μ ≥ 0.
+
+    With K the Jacobian (the Hessian of the Lagrangian Σ [L + λ·Φ] in the variations δ,
+    bordered by the constraint gradients: the KKT matrix of min Σ L s.t. Φ = 0), K + μ·I_δ
+    is required to have the inertia (n_δ, n_λ, 0) — then its δ-block is positive definite on
+    the tangent space of the constraints, and the step is a descent direction of the merit
+    function (Nocedal–Wright §18.3; Ipopt's inertia correction).  μ = 0 when K itself has it
+    (the step is then Newton's); else μ starts at max(μ_min, μ_last/3) and grows ×8.  A zero
+    eigenvalue (dependent constraint gradients) also puts −δ_c·I on the multiplier block.
+    Returns (dz, μ, pᵀ(H + μI)p) with p the δ part of dz."""
+    lay = ctx.lay
+    dvars, lvars = _variation_rows(lay, ctx.r), _multiplier_rows(lay, ctx.m)
+    n_lam, (plus, minus) = _bordering(ctx, state)
+    expected = (len(dvars) + plus, n_lam + minus, 0)
+    diag = state.rows == state.cols
+    scale = float(np.mean(np.abs(state.vals[diag]))) if diag.any() else 1.0
+    mu, delta_c = 0.0, 0.0
+    for _ in range(MAX_CORRECTIONS):
+        rows = np.concatenate([state.rows, dvars, lvars])
+        cols = np.concatenate([state.cols, dvars, lvars])
+        vals = np.concatenate([state.vals, np.full(len(dvars), mu),
+                               np.full(len(lvars), -delta_c)])
+        inertia = banded_inertia(rows, cols, vals, lay.size)
+        if inertia is not None and tuple(inertia) == expected:
+            dz = _newton_direction(ctx, state, run, arrows, rows, cols, vals)
+            p = np.zeros(lay.size)
+            p[dvars] = dz[dvars]
+            return dz, mu, float(np.sum(vals * p[rows] * p[cols]))
+        if inertia is not None and inertia.zero and len(lvars):
+            delta_c = 1e-8 * scale
+        mu = max(1e-8 * scale, mu_last / 3.0) if mu == 0.0 else 8.0 * mu
+    raise _singular(ctx.owner, state, run.iterations, arrows)
+
+
+def _merit(ctx: _Context, arrows, state: _Assembled, nu: float) -> float:
+    """φ_ν = Σ L + ν·‖Φ‖₁ (the exact ℓ₁ penalty function)."""
+    phi = state.F[_multiplier_rows(ctx.lay, ctx.m)]
+    return ctx.cost(arrows, ctx.p) + nu * float(np.abs(phi).sum())
+
+
+def _globalised(ctx: _Context, arrows, lam, run: _Run):
+    """Inertia-corrected Newton (SQP) steps with a backtracking search on the ℓ₁ merit
+    function φ_ν = Σ L + ν‖Φ‖₁: every step decreases φ_ν, so the iteration descends the
+    action (seeks a local minimum of Σ L on Φ = 0, as an interior-point NLP solver does)
+    instead of any root of F; near a minimum μ = 0 and the full Newton step is taken
+    whenever it decreases |F|₂ too, which keeps the convergence quadratic."""
+    run.methods.append("inertia-corrected Newton")
+    state = ctx.assemble(arrows, lam)
+    if not state.finite():
+        raise _divergence(ctx.owner, "met a non-finite residual", state, np.inf, run, arrows)
+    nu, mu_last = 0.0, 0.0
+    lam_rows = _multiplier_rows(ctx.lay, ctx.m)
+    while True:
+        run.record(state)
+        excess = ctx.excess(arrows, lam, state)
+        if excess <= 1.0:
+            return arrows, lam, state
+        _check_budget(ctx, run, state, excess, arrows)
+        dz, mu, curvature = _convexified_direction(ctx, state, run, arrows, mu_last)
+        mu_last = mu
+        g = _gradient_of_cost(ctx, state, lam)
+        violation = float(np.abs(state.F[lam_rows]).sum())
+        lam_next = np.abs(_current_multipliers(ctx, lam) + dz)[lam_rows]
+        nu = max(nu, 1.1 * float(np.max(lam_next, initial=0.0)))
+        if violation > 0:  # Nocedal–Wright (18.36), ρ = 0.1
+            nu = max(nu, (float(g @ dz) + max(curvature, 0.0) / 2) / (0.9 * violation))
+        slope = float(g @ dz) - nu * violation
+        step = _merit_search(ctx, arrows, lam, dz, state, nu, slope, newton=mu == 0.0)
+        if step is None:
+            raise _divergence(ctx.owner, "found no decrease of the merit function Σ L + ν‖Φ‖₁ "
+                              "along the inertia-corrected Newton direction (line search)",
+                              state, excess, run, arrows)
+        run.step_taken(ctx, step, (arrows, lam))
+        arrows, lam, state = step.arrows, step.lam, step.state
+
+
+def _current_multipliers(ctx: _Context, lam) -> np.ndarray:
+    z = np.zeros(ctx.lay.size)
+    for t, k in ctx.lay.lam_index.items():
+        z[k:k + ctx.m] = lam[t]
+    return z
+
+
+def _merit_search(ctx: _Context, arrows, lam, dz, state: _Assembled, nu: float, slope: float,
+                  newton: bool):
+    """Backtracking until φ_ν decreases by the Armijo fraction 10⁻⁴·t·|slope|; a full
+    unregularised Newton step is also taken when it decreases |F|₂² (near a solution, where
+    the merit function would reject it: the Maratos effect), and any step that lands within
+    the rounding floor.  None when no step length gives a decrease."""
+    phi0 = _merit(ctx, arrows, state, nu)
+    f0 = float(state.F @ state.F)
+    length = 1.0
+    for _ in range(MAX_HALVINGS):
+        new_arrows, new_lam = ctx.update(arrows, lam, length * dz)
+        trial = ctx.assemble(new_arrows, new_lam)
+        if trial.finite():
+            f = float(trial.F @ trial.F)
+            accept = slope < 0 and \
+                _merit(ctx, new_arrows, trial, nu) <= phi0 + 1e-4 * length * slope
+            if newton and length == 1.0:
+                accept = accept or f <= (1 - 1e-4) * f0
+            if accept:
+                return _Step(new_arrows, new_lam, trial, length, dz)
+            if _within_floor(ctx.maps, ctx.lay, new_arrows, new_lam, trial, f):
+                return _Step(new_arrows, new_lam, trial, length, dz, at_floor=True)
+        length /= 2
+    return None
+
+
+def _within_floor(maps, lay, arrows, lam, state: _Assembled, f: float) -> bool:
+    """|F|₂² ≤ Σ (ROUNDING_FACTOR·floor_i)²: the residual is at its rounding floor, where
+    comparing two residuals is comparing noise."""
+    floor = ROUNDING_FACTOR * _rounding_floor(maps, lay, arrows, lam, state)
+    return f <= float(floor @ floor)
+
+
+# --- the solve ---------------------------------------------------------------------------------
 
 @reported(lambda step_equations, *args, **kwargs:
           f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
-                         tol: float = 1e-10, tol_step: float = 1e-9,
-                         max_iterations: int = 30) -> BoundaryValueSolution:
+                         tol: float = 0.0, tol_step: float = 0.0,
+                         max_iterations: int = 100,
+                         minimum: bool = False) -> BoundaryValueSolution:
     """Solve a discrete two-point problem for the system behind ``step_equations``.
 
     First order: ``start`` and ``end`` are the end configurations (pair groupoid: points;
@@ -808,17 +1217,31 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     assumptions), the configurations (points: shape and finiteness; group parts: in the
     group, det +1), the guess.
 
+    The iteration.  Structured Newton on the necessary conditions (junction residuals and
+    constraints; block-banded Jacobian, solved in time linear in N), each update backtracked
+    until |F|₂ decreases (:func:`_line_search`), is the fast path.  When it finds no decrease
+    or takes MAX_DAMPED damped steps in a row, the solve restarts from the initial path with
+    the globalised iteration (:func:`_globalised`): Newton steps on the same banded system
+    regularised until the Hessian of the Lagrangian is positive definite on the tangent
+    space of the constraints (its inertia from a banded LDLᵀ), with a line search on the ℓ₁
+    merit function Σ L + ν‖Φ‖₁ — a descent method for the action, as an interior-point NLP
+    solver is.  ``max_iterations`` bounds the iterations of both phases together.
+    ``minimum=True`` asks for a local minimum: a stationary point that is not one (see
+    :attr:`BoundaryValueSolution.is_local_minimum`) sends the solve to the globalised
+    iteration from the initial path, and if that finds none either the solve raises.
+
     Converged only when the residual criterion holds: every equation's |F_i| is at most
     max(``tol``, ROUNDING_FACTOR·floor_i), floor_i its rounding floor (ε times the terms that
     cancel in it and its sensitivity to the rounding of the coordinates; it grows like N²
-    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss).  A Newton update
-    below ``tol_step``·(1 + |λ|∞) ends the iteration too: with the residual criterion met it
-    has converged, otherwise Newton has stalled above the floor.  Each update is
-    backtracked until |F|₂ decreases (:func:`_line_search`).  Raises
-    :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
-    iterations and the residual history) when the iteration cap is reached, Newton stalls or
-    the line search finds no decrease; :class:`SingularJacobianError` for a singular
-    Jacobian; :class:`CutLocusError` when an arrow of the initial path is a half-turn.
+    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss); ``tol`` > 0
+    accepts residuals up to it as well.  The iteration has stalled when an update changes no
+    stored value, two steps in a row were taken at the floor without meeting the criterion,
+    or (``tol_step`` > 0) an update falls below ``tol_step``·(1 + |λ|∞).
+    Raises :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
+    iterations and the residual history) when the iteration cap is reached, the iteration
+    stalls or both phases' line searches find no decrease; :class:`SingularJacobianError`
+    for a singular Jacobian; :class:`CutLocusError` when an arrow of the initial path is a
+    half-turn.
 
     ``progress`` (keyword): report a solve taking longer than 2 s, with |F|∞ per iteration
     (see :mod:`symgroupoid._progress`).
@@ -834,6 +1257,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     max_iterations = integer_argument(max_iterations, "max_iterations", owner=owner)
     tol = real_argument(tol, "tol", minimum=0.0, owner=owner)
     tol_step = real_argument(tol_step, "tol_step", minimum=0.0, owner=owner)
+    if not isinstance(minimum, (bool, np.bool_)):
+        raise ShapeError(f"{owner}: minimum must be True or False, got {minimum!r}")
     p, named = parameter_vector(system.parameters, params, owner=owner)
     r, m = G.rank, len(system._fs.constraints)
     data = _boundary(system, a, start, end)
@@ -843,67 +1268,84 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     arrows, lam = _initial(system, a, m, data, steps, guess)
     _check_cut_locus(system, arrows, "the initial path has" if guess is None
                      else "the guess has")
-    kernel = window_kernel(system)
-    lay = _layout(steps, a, r, m)
-    maps = _maps(G)
-    t0, history = time.perf_counter(), []
-    state = _assemble(kernel, lay, arrows, lam, p)
+    ctx = _Context(owner, window_kernel(system), cost_kernel(system), _layout(steps, a, r, m),
+                   _maps(G), p, tol, tol_step, max_iterations)
+    t0, run = time.perf_counter(), _Run()
+    state = ctx.assemble(arrows, lam)
     if not state.finite():
         raise NewtonDivergenceError(
             f"{owner}: non-finite residual or Jacobian at the initial "
             f"{'path' if guess is None else 'guess'}, at configuration {state.worst}: the "
             f"Lagrangian or the constraints are not defined there", step=state.worst,
             residual_norm=float(np.nanmax(np.abs(state.F), initial=0.0)), iterate=arrows)
-    it, stalled = 0, False
-    while True:
-        norm = float(np.max(np.abs(state.F), initial=0.0))
-        history.append(norm)
-        progress_note(f"iteration {it}, |F|∞ = {norm:.2e}")
-        excess = _excess(state.F, _rounding_floor(maps, lay, arrows, lam, state), tol)
-        if excess <= 1.0:
-            break
-        if stalled:
-            raise _divergence(owner, f"stalled: the Newton update fell below tol_step = "
-                              f"{tol_step:g}", state, excess, it, history, arrows)
-        if it == max_iterations:
-            raise _divergence(owner, f"did not converge in {max_iterations} iterations",
-                              state, excess, it, history, arrows)
-        try:
-            with np.errstate(all="ignore"):
-                dz = _solve_banded(state.rows, state.cols, state.vals, lay.size, -state.F)
-        except np.linalg.LinAlgError as exc:
-            raise _singular(owner, state, it, arrows) from exc
-        if not np.isfinite(dz).all():
-            raise _singular(owner, state, it, arrows)
-        found = _line_search(kernel, lay, maps, arrows, lam, dz, state, p)
-        if found is None:
-            raise _divergence(owner, "found no decrease of |F| along the Newton direction "
-                              "(line search)", state, excess, it, history, arrows)
-        arrows, lam, state, length = found
-        it += 1
-        scale = 1.0 + float(np.max(np.abs(lam), initial=0.0))
-        stalled = length * float(np.max(np.abs(dz), initial=0.0)) <= tol_step * scale
-    configurations = [data.configurations[0]]
+    found, inertia = _solve(ctx, arrows, lam, state, run, minimum)
+    arrows, lam, state = found
+    return BoundaryValueSolution(
+        system, arrows, lam, _configurations(G, data.configurations[0], arrows), named,
+        run.iterations, run.history[-1],
+        run.history, time.perf_counter() - t0, cost=ctx.cost(arrows, p), inertia=inertia,
+        method=" → ".join(run.methods))
+
+
+def _configurations(G, start, arrows: np.ndarray) -> list:
+    """The N + 1 configurations from the first along the arrows (a matrix group: products of
+    the arrows' matrices)."""
+    out = [start]
+    if isinstance(G, MatrixLieGroup):
+        for M in _numeric_matrices(G, arrows):
+            out.append(out[-1] @ M)
+        return out
     for g in arrows:
-        configurations.append(G.configuration_after(configurations[-1], g))
-    return BoundaryValueSolution(system, arrows, lam, configurations, named, it, norm, history,
-                                 time.perf_counter() - t0)
+        out.append(G.configuration_after(out[-1], g))
+    return out
 
 
-def _divergence(owner: str, why: str, state: _Assembled, excess: float, it: int,
-                history: list, arrows) -> BoundaryValueDivergenceError:
+def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bool):
+    """The fast path, then (on its failure, or for ``minimum`` at a non-minimum) the
+    globalised iteration from the initial path; returns ((arrows, λ, state), inertia)."""
+    initial = (arrows, lam)
+    try:
+        found = _fast_newton(ctx, arrows, lam, state, run)
+    except _Handover as why:
+        found = _globalised_after(ctx, initial, run, str(why))
+        return found, _reduced_inertia(ctx, found[2])
+    inertia = _reduced_inertia(ctx, found[2])
+    if minimum and not _is_minimum(inertia):
+        found = _globalised_after(ctx, initial, run, "it reached a stationary point that is "
+                                  f"not a local minimum ({_describe(inertia)})")
+        inertia = _reduced_inertia(ctx, found[2])
+        if not _is_minimum(inertia):
+            raise _divergence(ctx.owner, "found no local minimum: the globalised iteration "
+                              f"reached a stationary point that is not one "
+                              f"({_describe(inertia)})", found[2], 0.0, run, found[0])
+    return found, inertia
+
+
+def _globalised_after(ctx: _Context, initial, run: _Run, why: str):
+    """The globalised iteration from the initial path; its errors name why the fast path
+    ended too."""
+    try:
+        return _globalised(ctx, *initial, run)
+    except (BoundaryValueDivergenceError, SingularJacobianError) as exc:
+        exc.args = (f"{exc.args[0]} (after the Newton fast path {why})",) + exc.args[1:]
+        raise
+
+
+def _divergence(owner: str, why: str, state: _Assembled, excess: float, run: _Run,
+                arrows) -> BoundaryValueDivergenceError:
     norm = float(np.max(np.abs(state.F), initial=0.0))
     return BoundaryValueDivergenceError(
-        f"{owner}: boundary-value Newton {why}; after {it} iterations |F|∞ = {norm:.3e}, "
-        f"worst at configuration {state.worst}, {excess:.1e} times the accepted residual "
-        f"max(tol, {ROUNDING_FACTOR:g}·rounding floor): not a solution",
-        iterations=it, history=history, step=state.worst, residual_norm=norm, iterate=arrows)
+        f"{owner}: boundary-value iteration {why}; after {run.iterations} iterations "
+        f"|F|∞ = {norm:.3e}, worst at configuration {state.worst}, {excess:.1e} times the "
+        f"accepted residual max(tol, {ROUNDING_FACTOR:g}·rounding floor): not a solution",
+        iterations=run.iterations, history=run.history, step=state.worst,
+        residual_norm=norm, iterate=arrows)
 
 
 def _singular(owner: str, state: _Assembled, it: int, arrows) -> SingularJacobianError:
     norm = float(np.max(np.abs(state.F), initial=0.0))
     return SingularJacobianError(
-        f"{owner}: singular boundary-value Jacobian at Newton iteration {it} "
+        f"{owner}: singular boundary-value Jacobian at iteration {it} "
         f"(|F|∞ = {norm:.3e}, worst at configuration {state.worst}); the boundary data may "
         "violate the constraints or the Lagrangian is not regular there",
         step=state.worst, residual_norm=norm, iterate=arrows)
@@ -913,12 +1355,15 @@ def _line_search(kernel, lay, maps, arrows, lam, dz, state: _Assembled, p):
     """Backtracking on |F|₂²: the full Newton step when it decreases the residual enough
     (Armijo: by the fraction 10⁻⁴·t of it, t the step length; always so near a solution,
     where convergence stays quadratic), else the step halved, at most MAX_HALVINGS times.
+    Backtracking stops at the rounding floor: a trial whose |F|₂² is within the floor's
+    (Σ (ROUNDING_FACTOR·floor_i)², where the comparison of two residuals is rounding noise)
+    is taken at once, and the convergence test decides.
 
-    Returns (arrows, multipliers, assembled system, t) of the accepted step, or None when no
-    step length gave a decrease with finite values: the caller then raises instead of
-    carrying on from an iterate that is worse than the last (a Newton direction that is not
-    a descent direction of |F|₂² means the Jacobian is wrong or the values are not smooth
-    there, e.g. an arrow near the chart's cut locus).
+    Returns the accepted :class:`_Step`, or None when no step length gave a decrease with
+    finite values: the caller then does not carry on from
+    an iterate that is worse than the last (a Newton direction that is not a descent
+    direction of |F|₂² means the Jacobian is wrong or the values are not smooth there, e.g.
+    an arrow near the chart's cut locus).
     """
     r, m = kernel.rank, kernel.m
     f0 = float(state.F @ state.F)
@@ -927,7 +1372,60 @@ def _line_search(kernel, lay, maps, arrows, lam, dz, state: _Assembled, p):
         new_arrows, new_lam = _update(maps, lay, arrows, lam, length * dz, r, m)
         with np.errstate(all="ignore"):
             trial = _assemble(kernel, lay, new_arrows, new_lam, p)
-        if trial.finite() and float(trial.F @ trial.F) <= (1 - 1e-4 * length) * f0:
-            return new_arrows, new_lam, trial, length
+        if trial.finite():
+            f = float(trial.F @ trial.F)
+            if f <= (1 - 1e-4 * length) * f0:
+                return _Step(new_arrows, new_lam, trial, length, dz)
+            if _within_floor(maps, lay, new_arrows, new_lam, trial, f):
+                return _Step(new_arrows, new_lam, trial, length, dz, at_floor=True)
         length /= 2
     return None
+
+
+# --- what was found: the cost and the second-order condition ------------------------------------
+
+def _reduced_inertia(ctx: _Context, state: _Assembled) -> Inertia | None:
+    """The inertia of the Hessian of the Lagrangian Σ [L + λ·Φ] restricted to the admissible
+    variations tangent to the constraints, from the KKT matrix K (the symmetric part of the
+    Jacobian at the solution, :func:`banded_inertia`): when K is nonsingular the constraint
+    gradients have full rank and inertia(K) = inertia(ZᵀHZ) + (n_λ, n_λ, 0) (Z a basis of
+    their null space; Gould 1985), so ZᵀHZ has pos(K) − n_λ positive and neg(K) − n_λ
+    negative eigenvalues.  None when K is numerically singular (the reduced Hessian and the
+    constraint rank are then not determined by the inertia alone)."""
+    inertia = banded_inertia(state.rows, state.cols, state.vals, ctx.lay.size)
+    n_lam, (plus, minus) = _bordering(ctx, state)
+    if inertia is None or inertia.zero or inertia.negative < n_lam + minus \
+            or inertia.positive < n_lam + plus:
+        return None
+    return Inertia(inertia.positive - n_lam - plus, inertia.negative - n_lam - minus, 0)
+
+
+def _bordering(ctx: _Context, state: _Assembled) -> tuple[int, tuple[int, int]]:
+    """The multiplier rows that border the Hessian (n_λ), and the signs of those that are
+    decoupled — a row and column with nothing but a diagonal entry d, such as a multiplier
+    fixed by a boundary condition (row λ = 0): each adds one eigenvalue of the sign of d,
+    not a ± pair."""
+    lam_rows = _multiplier_rows(ctx.lay, ctx.m)
+    if not len(lam_rows):
+        return 0, (0, 0)
+    off = (state.rows != state.cols) & (state.vals != 0)
+    touched = np.zeros(ctx.lay.size, bool)
+    touched[state.rows[off]] = touched[state.cols[off]] = True
+    alone = lam_rows[~touched[lam_rows]]
+    diag = np.bincount(state.rows[~off & (state.rows == state.cols)],
+                       weights=state.vals[~off & (state.rows == state.cols)],
+                       minlength=ctx.lay.size)[alone]
+    return len(lam_rows) - len(alone), (int((diag > 0).sum()), int((diag < 0).sum()))
+
+
+def _is_minimum(inertia: Inertia | None) -> bool:
+    return inertia is not None and inertia.negative == 0
+
+
+def _describe(inertia: Inertia | None) -> str:
+    if inertia is None:
+        return "degenerate: the reduced Hessian is singular to rounding"
+    if inertia.negative == 0:
+        return "a strict local minimum"
+    return (f"a saddle: the reduced Hessian has {inertia.negative} negative "
+            f"eigenvalue{'s' if inertia.negative > 1 else ''}")

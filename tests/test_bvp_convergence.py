@@ -1,0 +1,398 @@
+"""The boundary-value solver to the rounding floor, its globalised iteration, and what it says
+about the point it found: the cost Σ L_d and the second-order condition."""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import pathlib
+import sys
+
+import numpy as np
+import pytest
+import sympy as sp
+from conftest import load_example
+
+import symgroupoid as sg
+from symgroupoid._errors import BoundaryValueDivergenceError
+from symgroupoid.ir import Graph, rounding_error
+from symgroupoid.runtime import _bvp
+from symgroupoid.runtime._banded import banded_inertia
+from symgroupoid.verification import action
+
+BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
+h = sp.Symbol("h", positive=True)
+
+
+def _benchmark_module(name: str):
+    """``benchmarks/<name>.py`` as a module (the problem families shared with the benchmark)."""
+    if str(BENCHMARKS) not in sys.path:
+        sys.path.insert(0, str(BENCHMARKS))
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
+
+
+@pytest.fixture
+def numpy_windows(monkeypatch):
+    """Window programs evaluated with NumPy: small problems need no C build."""
+    monkeypatch.setenv("SYMGROUPOID_BACKEND", "numpy")
+
+
+@pytest.fixture(scope="module")
+def problems():
+    return _benchmark_module("_bvp_problems")
+
+
+# --- an independent solution of the SO(3) Cayley problem: shooting on seed 000 §6.1 -------------
+
+INERTIA = (1.0, 2.0, 3.0)
+
+
+def _cay(x) -> np.ndarray:
+    """cay(x̂) = I + 4/(4 + |x|²)(x̂ + x̂²/2) (seed 001 eq. (63))."""
+    X = np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
+    return np.eye(3) + 4.0 / (4.0 + float(np.dot(x, x))) * (X + X @ X / 2)
+
+
+def _next_chart(x: tuple) -> tuple:
+    """x_{k+1} from seed 000 §6.1 with l = ½ξᵀIξ, x = hξ (the factors h cancel):
+    (1 + x̂_{k+1}/2 + x_{k+1}x_{k+1}ᵀ/4)·I·x_{k+1} = (1 − x̂_k/2 + x_k x_kᵀ/4)·I·x_k
+    (the duals of the left-trivialised dcay⁻¹ at ±x, App. D): with m = I·x,
+    m_{k+1} + x_{k+1} × m_{k+1}/2 + x_{k+1}(x_{k+1}·m_{k+1})/4 = μ_k, solved by fixed-point
+    iteration (a contraction by about |x|); plain floats, the vectors are three long."""
+    a, b, c = INERTIA
+    x1, x2, x3 = x
+    m1, m2, m3 = a * x1, b * x2, c * x3
+    d = (x1 * m1 + x2 * m2 + x3 * m3) / 4
+    mu = (m1 - (x2 * m3 - x3 * m2) / 2 + x1 * d, m2 - (x3 * m1 - x1 * m3) / 2 + x2 * d,
+          m3 - (x1 * m2 - x2 * m1) / 2 + x3 * d)
+    y1, y2, y3 = x
+    for _ in range(40):
+        m1, m2, m3 = a * y1, b * y2, c * y3
+        d = (y1 * m1 + y2 * m2 + y3 * m3) / 4
+        z1 = (mu[0] - (y2 * m3 - y3 * m2) / 2 - y1 * d) / a
+        z2 = (mu[1] - (y3 * m1 - y1 * m3) / 2 - y2 * d) / b
+        z3 = (mu[2] - (y1 * m2 - y2 * m1) / 2 - y3 * d) / c
+        done = max(abs(z1 - y1), abs(z2 - y2), abs(z3 - y3)) <= 1e-16 * max(
+            abs(y1), abs(y2), abs(y3))
+        y1, y2, y3 = z1, z2, z3
+        if done:
+            break
+    return y1, y2, y3
+
+
+def _shoot(x0, steps: int) -> tuple[np.ndarray, np.ndarray]:
+    """March the discrete equations from the first chart; the end attitude and all charts."""
+    x = tuple(float(v) for v in x0)
+    charts = [x]
+    for _ in range(steps - 1):
+        x = _next_chart(x)
+        charts.append(x)
+    R = np.eye(3)
+    for c in charts:
+        R = R @ _cay(c)
+    return R, np.array(charts)
+
+
+def _shooting_solution(end: np.ndarray, steps: int, x0: np.ndarray) -> np.ndarray:
+    """The charts x_k of the solution reaching ``end``: Newton on the first chart, with a
+    finite-difference Jacobian of the end attitude's skew part."""
+
+    def miss(x):
+        R, charts = _shoot(x, steps)
+        E = R.T @ end
+        return np.array([E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]]), charts
+
+    for _ in range(12):
+        f, charts = miss(x0)
+        if np.abs(f).max() <= 1e-14:
+            return charts
+        eps = 1e-7 * np.abs(x0).max()
+        J = np.column_stack([(miss(x0 + eps * e)[0] - f) / eps for e in np.eye(3)])
+        x0 = x0 + np.linalg.solve(J, -f)
+    raise AssertionError("the shooting reference did not converge")
+
+
+@pytest.fixture(scope="module")
+def so3_control():
+    """Seed 000 §6.1: L(g) = h·½ξᵀIξ, ξ = cay⁻¹(g)/h, I = diag(1, 2, 3)."""
+
+    def L(g):
+        xi = g.coordinates / h
+        return h * (xi.T * sp.diag(1, 2, 3) * xi)[0, 0] / 2
+
+    return sg.DiscreteSystem(sg.SO3("g"), L, parameters=[h], name="so3_control")
+
+
+def test_cayley_problem_at_n1000_agrees_with_an_independent_solution(so3_control):
+    """Default options, N = 1000: the velocities ξ_k = x_k/h agree with the shooting solution
+    of seed 000 §6.1's equations to 1e-12 (with the former fixed tol = 1e-10 the solve
+    stopped one iteration early, 2e-11 away)."""
+    n = 1000
+    end = _cay(np.array([0.9, -0.6, 1.4]))
+    sol = sg.solve_boundary_value(so3_control, np.eye(3), end, n, params=[1 / n])
+    first = _bvp.interpolate_arrows(so3_control.groupoid, end.ravel(), n)[0]  # the geodesic
+    reference = _shooting_solution(end, n, np.array(so3_control.groupoid.fibre_chart_inverse(
+        first)))
+    assert np.abs(sol.controls - reference).max() * n < 1e-12
+    assert sol.is_local_minimum and sol.cost == pytest.approx(
+        action(so3_control, sol.arrows, None, [1 / n]), rel=1e-13)
+
+
+# --- the rounding floor ------------------------------------------------------------------------
+
+def test_rounding_error_counts_the_rounding_of_perturbed_inputs():
+    """E(x·y − z) with x, y, z rounded values bounds the change |y||x| + |x||y| + |z| of the
+    result when each moves by its own rounding; exact inputs add nothing."""
+    g = Graph()
+    x, y, z = (g.input(sp.Symbol(s)) for s in "xyz")
+    f = g.sub(g.mul(x, y), z)
+    exact, = rounding_error(g, [f])
+    rounded, = rounding_error(g, [f], [x, y, z])
+    only_z, = rounding_error(g, [f], [z])
+    from symgroupoid.ir import Program
+    values = {"x": 3.0e8, "y": -2.0, "z": 5.0e8}
+    P = Program(g, {"v": [sp.Symbol(s) for s in "xyz"]},
+                {"E": [exact, rounded, only_z]})
+    E = P.numpy_function(["E"], ["v"])(np.array(list(values.values())))[0]
+    change = 2 * abs(values["x"] * values["y"]) + abs(values["z"])
+    assert E[1] >= E[0] + change - 1e-6 * change
+    assert E[2] == pytest.approx(E[0] + abs(values["z"]), rel=1e-12)
+
+
+def test_line_search_at_the_rounding_floor_takes_the_step_at_once(so3_control, monkeypatch):
+    """At a solution (|F| at its floor) a step that cannot decrease |F| — here dz = 0, where
+    the Armijo test always fails — is taken with one evaluation, not halved 30 times."""
+    end = _cay(np.array([0.4, 0.2, -0.5]))
+    sol = sg.solve_boundary_value(so3_control, np.eye(3), end, 40, params=[1 / 40])
+    kernel, lay = _bvp.window_kernel(so3_control), _bvp._layout(40, 1, 3, 0)
+    p = np.array([1 / 40])
+    state = _bvp._assemble(kernel, lay, sol.arrows, sol.multipliers, p)
+    calls = []
+    assemble = _bvp._assemble
+    monkeypatch.setattr(_bvp, "_assemble", lambda *a: calls.append(1) or assemble(*a))
+    step = _bvp._line_search(kernel, lay, _bvp._maps(so3_control.groupoid), sol.arrows,
+                             sol.multipliers, np.zeros(lay.size), state, p)
+    assert step is not None and step.length == 1.0 and step.at_floor and len(calls) == 1
+
+
+def test_rigid_body_line_search_never_backtracks(monkeypatch):
+    """The N = 1000 attitude maneuver (seed 001 §3.3.4): every update is a full Newton step,
+    with one assembly per iteration, up to the floor."""
+    rb = load_example("rigid_body_attitude")
+    calls = []
+    assemble = _bvp._assemble
+    monkeypatch.setattr(_bvp, "_assemble", lambda *a: calls.append(1) or assemble(*a))
+    sol = rb.solve(1000)
+    assert sol.iterations <= 5 and len(calls) == sol.iterations + 1
+    assert sol.method == "Newton" and sol.is_local_minimum
+    assert sol.cost == pytest.approx(rb.cost(sol), rel=1e-12)
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_a_constraint_of_small_chart_coordinates_converges_to_its_floor(problems):
+    """SE(2) unicycle, N = 151: the last update needed is ~1e-22 (the constraint v₂ = x₃ of
+    arrows near the identity, a difference of products of matrix entries); the former
+    absolute criterion tol_step = 1e-9 called that a stall, the floor-relative one does not."""
+    p = problems.random_problems(20, seed=1, steps=(60, 200))[10]
+    assert p.kind == "se2" and p.steps == 151
+    sol = p.solve()
+    kernel, lay = _bvp.window_kernel(p.system), _bvp._layout(p.steps, 1, 3, 1)
+    state = _bvp._assemble(kernel, lay, sol.arrows, sol.multipliers, np.array(p.params))
+    floor = _bvp._rounding_floor(None, lay, sol.arrows, sol.multipliers, state)
+    assert _bvp._excess(state.F, floor, 0.0) <= 1.0
+    with pytest.raises(BoundaryValueDivergenceError, match="tol_step"):
+        p.solve(tol_step=1e-9)
+
+
+# --- globalisation -------------------------------------------------------------------------------
+
+def _dense(state, n: int) -> np.ndarray:
+    A = np.zeros((n, n))
+    np.add.at(A, (state.rows, state.cols), state.vals)
+    return A
+
+
+def _reduced_hessian_eigenvalues(system, sol, params) -> np.ndarray:
+    """Eigenvalues of ZᵀHZ from dense linear algebra: H the δ-block of the symmetrised
+    Jacobian at the solution, Z an orthonormal basis of the null space of the constraint
+    gradients (independent of the banded LDLᵀ)."""
+    from scipy.linalg import null_space
+
+    G = system.groupoid
+    a, m = len(system._fs.slots), len(system._fs.constraints)
+    lay = _bvp._layout(sol.steps, a, G.rank, m)
+    state = _bvp._assemble(_bvp.window_kernel(system), lay, sol.arrows, sol.multipliers,
+                           np.asarray(params, float))
+    K = _dense(state, lay.size)
+    K = (K + K.T) / 2
+    d, c = _bvp._variation_rows(lay, G.rank), _bvp._multiplier_rows(lay, m)
+    H = K[np.ix_(d, d)]
+    Z = null_space(K[np.ix_(c, d)]) if len(c) else np.eye(len(d))
+    return np.linalg.eigvalsh(Z.T @ H @ Z)
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_globalised_iteration_converges_where_newton_crawls(problems, monkeypatch):
+    """SO(3) steering with ψ = ξ₃ − uξ₁ (13° turn, N = 150): Newton alone from the geodesic
+    guess crawls with damped steps (it fails the former cap of 30 iterations); the solver
+    hands over to the inertia-corrected iteration and converges in half of that, to a
+    stationary point (checked on the action) that is a strict local minimum (checked by dense
+    linear algebra)."""
+    base = problems.random_problems()[11]
+    p = dataclasses.replace(base, steps=150, params=(1 / 150,) + base.params[1:])
+    sol = p.solve()
+    assert "inertia-corrected" in sol.method and sol.iterations <= 15
+    assert sg.verify_stationary(sol, p.system).stationary
+    eigenvalues = _reduced_hessian_eigenvalues(p.system, sol, p.params)
+    assert eigenvalues.min() > 0 and sol.is_local_minimum
+    assert sol.inertia.positive == len(eigenvalues)
+    assert sol.cost == pytest.approx(p.cost(sol.arrows), rel=1e-12)
+
+    def refuse(ctx, initial, run, why):
+        raise BoundaryValueDivergenceError(why, iterations=run.iterations)
+
+    monkeypatch.setattr(_bvp, "MAX_DAMPED", 10**9)
+    monkeypatch.setattr(_bvp, "_globalised_after", refuse)
+    with pytest.raises(BoundaryValueDivergenceError, match="30 iterations"):
+        p.solve(max_iterations=30)
+
+
+# --- the second-order condition ------------------------------------------------------------------
+
+def test_banded_inertia_matches_dense_eigenvalues():
+    """Random symmetric banded matrices: definite, indefinite, saddle-point (zero blocks, as
+    KKT matrices have) and singular ones."""
+    rng = np.random.default_rng(7)
+    for trial in range(120):
+        n, w = int(rng.integers(1, 50)), int(rng.integers(0, 6))
+        A = rng.normal(size=(n, n)) * (np.abs(np.subtract.outer(range(n), range(n))) <= w)
+        if trial % 3 == 0:
+            idx = rng.choice(n, size=n // 3, replace=False)
+            A[np.ix_(idx, idx)] = 0.0
+        if trial % 5 == 0:
+            A = A @ A.T * (np.abs(np.subtract.outer(range(n), range(n))) <= w)
+        if trial % 7 == 0 and n > 2:
+            A[:, 1] = A[1, :] = 0.0
+        ev = np.linalg.eigvalsh((A + A.T) / 2)
+        tiny = 1e-9 * max(np.abs(ev).max(), 1e-300)
+        expected = ((ev > tiny).sum(), (ev < -tiny).sum(), (np.abs(ev) <= tiny).sum())
+        r, c = np.nonzero(A)
+        assert tuple(banded_inertia(r, c, A[r, c], n)) == expected, (n, w, trial)
+
+
+@pytest.fixture(scope="module")
+def spring():
+    """L = (q₁ − q₀)²/(2h) − h k (q₀² + q₁²)/4 on the pair groupoid of R (a harmonic
+    oscillator, ω = √k): the action is minimal only up to the first conjugate point, ωT = π."""
+    k = sp.Symbol("k", positive=True)
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return (q1 - q0) ** 2 / (2 * h) - h * k * (q0 ** 2 + q1 ** 2) / 4
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
+                             name="spring")
+
+
+@pytest.mark.usefixtures("numpy_windows")
+@pytest.mark.parametrize("k, descent", [(4.0, 0), (16.0, 1), (60.0, 2)])
+def test_a_stationary_point_past_conjugate_points_is_flagged(spring, k, descent):
+    """T = 1, ω = √k: ωT = 2, 4, 7.7 passes 0, 1, 2 conjugate points (multiples of π), so
+    the Hessian of the action has that many negative eigenvalues (dense check), the flag
+    and the repr say so, and ``minimum=True`` refuses the saddle."""
+    sol = sg.solve_boundary_value(spring, 0.0, 1.0, 40, params=[1 / 40, k])
+    eigenvalues = _reduced_hessian_eigenvalues(spring, sol, [1 / 40, k])
+    assert (eigenvalues < 0).sum() == descent
+    assert sol.inertia.negative == descent and sol.is_local_minimum == (descent == 0)
+    assert repr(sol).endswith(", local minimum>") == (descent == 0)
+    assert ("NOT a local minimum" in repr(sol)) == (descent > 0)
+    assert sol.cost == pytest.approx(action(spring, sol.arrows, None, [1 / 40, k]), rel=1e-12)
+    if descent:
+        with pytest.raises(BoundaryValueDivergenceError):
+            sg.solve_boundary_value(spring, 0.0, 1.0, 40, params=[1 / 40, k], minimum=True,
+                                    max_iterations=20)
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_a_turn_past_two_pi_is_a_saddle():
+    """Isotropic inertia (a bi-invariant metric): the uniform rotation by 2.5π about an axis is
+    a discrete geodesic past its conjugate point at 2π, of multiplicity two (the directions
+    normal to the axis), so the reduced Hessian has two negative eigenvalues."""
+
+    def L(g):
+        xi = g.coordinates / h
+        return h * (xi.T * xi)[0, 0] / 2
+
+    system = sg.DiscreteSystem(sg.SO3("g"), L, parameters=[h], name="so3_isotropic")
+    n, axis = 60, np.array([1.0, 2.0, 2.0]) / 3
+    arrow = sg.SO3("g").numeric_fibre_chart(2 * np.tan(2.5 * np.pi / (2 * n)) * axis)
+    guess = np.tile(arrow, (n, 1))
+    end = np.linalg.matrix_power(arrow.reshape(3, 3), n)
+    sol = sg.solve_boundary_value(system, np.eye(3), end, n, params=[1 / n], guess=guess)
+    assert np.abs(sol.arrows - guess).max() < 1e-12
+    assert sol.inertia.negative == 2 and sol.is_local_minimum is False
+    assert (_reduced_hessian_eigenvalues(system, sol, [1 / n]) < 0).sum() == 2
+    default = sg.solve_boundary_value(system, np.eye(3), end, n, params=[1 / n])
+    assert default.is_local_minimum and default.cost < sol.cost
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_cli_prints_the_cost_and_the_second_order_condition(tmp_path, capsys):
+    import json
+
+    from symgroupoid.cli import main
+
+    problem = tmp_path / "problem.json"
+    problem.write_text(json.dumps({"start": 0.0, "end": 1.0, "steps": 20,
+                                   "params": {"h": 0.05, "k": 16.0}}))
+    spring = pathlib.Path(__file__).resolve().parent.parent / "examples" / "cli" / "spring.py"
+    assert main(["bvp", str(spring), str(problem)]) == 0
+    out = capsys.readouterr().out
+    assert "cost Σ L_d = " in out
+    assert "second-order condition: NOT a local minimum: a saddle with 1 descent direction" \
+        in out
+    assert main(["bvp", str(spring), str(problem), "--params", "k=1"]) == 0
+    assert "second-order condition: local minimum" in capsys.readouterr().out
+
+
+# --- slow: large N and the comparison with an interior-point NLP solver ----------------------
+
+@pytest.mark.slow
+def test_rigid_body_at_n16000_converges_like_n1000():
+    """Seed 001 §3.3.4 at N = 16000 (the residual's floor grows like N²): as many Newton
+    iterations as at N = 1000 (±1), every update a full step, and the costs of N = 1000,
+    4000, 16000 converge at second order (the N = 16000 solution is the limit's)."""
+    rb = load_example("rigid_body_attitude")
+    sols = {n: rb.solve(n) for n in (1000, 4000, 16000)}
+    assert abs(sols[16000].iterations - sols[1000].iterations) <= 1
+    costs = [sols[n].cost for n in (1000, 4000, 16000)]
+    ratio = (costs[0] - costs[1]) / (costs[1] - costs[2])
+    assert 14 < ratio < 18, ratio  # (1/1000² − 1/4000²)/(1/4000² − 1/16000²) = 16
+    assert sols[16000].is_local_minimum
+
+
+@pytest.mark.slow
+def test_twenty_random_problems_against_ipopt(problems):
+    """SO(3) and SE(2), end rotations up to 150°, random inertias and N in [100, 2000], the
+    default guess: every problem Ipopt (on the CasADi Opti transcription) solves, the library
+    solves too, at the same stationary point or at a lower cost."""
+    casadi_models = pytest.importorskip("casadi") and _benchmark_module("_bvp_casadi")
+    from symgroupoid.runtime._bvp import interpolate_arrows
+
+    for p in problems.random_problems():
+        G = p.system.groupoid
+        guess = interpolate_arrows(G, G.arrow_between(p.start, p.end), p.steps)
+        chart = np.array([G.fibre_chart_inverse(a) for a in guess])
+        ipopt = casadi_models.solve_ipopt(casadi_models.first_order(p.kind, p.end, p.params,
+                                                                    chart))
+        if not ipopt.success:
+            continue
+        sol = p.solve()
+        same = np.abs(sol.controls - ipopt.chart).max() < 1e-8
+        assert same or sol.cost < ipopt.cost - 1e-9, (p.label, sol.cost, ipopt.cost)
