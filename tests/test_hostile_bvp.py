@@ -279,17 +279,11 @@ def test_sweep_boundary_value(name, run):
 
 # --- known defects in runtime/_bvp.py (fixes described in tests/_hostile.py KNOWN) ------------
 
-@pytest.mark.xfail(strict=True, raises=AttributeError,
-                   reason="solve_boundary_value reads .system/.name of its first argument "
-                          "without checking it is a system or its step equations")
 def test_known_bvp_system_that_is_not_a_system():
     with pytest.raises(sg.SymgroupoidError, match="step"):
         sg.solve_boundary_value("not a system", 0.0, 1.0, 6, params={"h": 0.1})
 
 
-@pytest.mark.xfail(strict=True, raises=ValueError,
-                   reason="a guess given as a tuple of arrows is unpacked as (arrows, "
-                          "multipliers)")
 def test_known_bvp_guess_given_as_a_tuple_of_arrows():
     p = problem("oscillator")
     arrows = valid_solution("oscillator").arrows
@@ -298,9 +292,6 @@ def test_known_bvp_guess_given_as_a_tuple_of_arrows():
     assert np.allclose(solution.arrows, arrows)
 
 
-@pytest.mark.xfail(strict=True, raises=(AssertionError, np.exceptions.ComplexWarning),
-                   reason="the guess is converted with np.array(..., float): strings are "
-                          "parsed, booleans read as 0/1, complex parts dropped")
 def test_known_bvp_guess_converted_without_the_one_validation():
     import warnings
 

@@ -46,10 +46,12 @@ from typing import NamedTuple
 import numpy as np
 import sympy as sp
 
+from .._arguments import real_array
 from .._errors import (
     BoundaryValueDivergenceError,
     CutLocusError,
     DomainError,
+    InputTypeError,
     NewtonDivergenceError,
     NotComposableError,
     ShapeError,
@@ -665,6 +667,27 @@ def _boundary(system, a: int, start, end) -> _Boundary:
                      arrow_of(c1, cn1))
 
 
+def _boundary_system(step_equations):
+    """The system behind the first argument of :func:`solve_boundary_value` (a system, or
+    its step equations), or an :class:`InputTypeError` naming what was given."""
+    system = getattr(step_equations, "system", step_equations)
+    if not all(hasattr(system, a) for a in ("_fs", "groupoid", "name", "parameters")):
+        raise InputTypeError(
+            f"solve_boundary_value: the first argument must be a system (DiscreteSystem, "
+            f"SecondOrderSystem, …) or its step equations (system.euler_lagrange()), got "
+            f"{type(step_equations).__name__}")
+    return system
+
+
+def _split_guess(guess, steps: int):
+    """(arrows, multipliers or None) of a guess: an (N, arrow_dim) table of arrows, or the
+    pair ``(arrows, multipliers)``, a 2-tuple whose first entry is itself a table (a tuple
+    of N arrows is arrows)."""
+    if isinstance(guess, tuple) and len(guess) == 2 and np.ndim(guess[0]) == 2:
+        return guess
+    return guess, None
+
+
 def _initial(system, a: int, m: int, data: _Boundary, steps: int, guess):
     """The initial arrows and multipliers: ``guess`` (checked) or the geodesic
     interpolation with zero multipliers."""
@@ -675,12 +698,8 @@ def _initial(system, a: int, m: int, data: _Boundary, steps: int, guess):
             return interpolate_arrows(G, data.total, steps), np.zeros((n_terms, m))
         inner = interpolate_arrows(G, data.inner, steps - 2)
         return np.vstack([data.first, inner, data.last]), np.zeros((n_terms, m))
-    arrows, lam = (guess if isinstance(guess, tuple) else (guess, None))
-    try:
-        arrows = np.array(arrows, float)
-    except (TypeError, ValueError):
-        raise ShapeError(f"{owner}: guess must be numeric arrows of shape ({steps}, "
-                         f"{G.arrow_dim})") from None
+    arrows, lam = _split_guess(guess, steps)
+    arrows = real_array(arrows, "guess", owner=owner)
     if arrows.shape != (steps, G.arrow_dim):
         raise ShapeError(f"{owner}: guess must have shape ({steps}, {G.arrow_dim}) "
                          f"(one arrow per step), got {arrows.shape}")
@@ -689,10 +708,7 @@ def _initial(system, a: int, m: int, data: _Boundary, steps: int, guess):
     if lam is None:
         lam = np.zeros((n_terms, m))
     else:
-        try:
-            lam = np.array(lam, float)
-        except (TypeError, ValueError):
-            raise ShapeError(f"{owner}: the multiplier guess must be numeric") from None
+        lam = real_array(lam, "the multiplier guess", owner=owner)
         if lam.shape != (n_terms, m):
             raise ShapeError(f"{owner}: multiplier guess must have shape "
                              f"({n_terms}, {m}), got {lam.shape}")
@@ -1246,7 +1262,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     ``progress`` (keyword): report a solve taking longer than 2 s, with |F|∞ per iteration
     (see :mod:`symgroupoid._progress`).
     """
-    system = getattr(step_equations, "system", step_equations)
+    system = _boundary_system(step_equations)
     owner = system.name
     G = system.groupoid
     a = len(system._fs.slots)
