@@ -135,6 +135,7 @@ def test_atiyah_of_a_group_by_itself_is_the_group():
     assert all(sp.expand(a - b) == 0 for a, b in zip(got, expected))
 
 
+@pytest.mark.slow
 def test_elroys_beanie_reduced_trajectory_is_the_reduction_of_the_unreduced_one():
     """Compiled kernels: the reduced trajectory equals π of the unreduced one to 1e-12; it
     satisfies the discrete Lagrange–Poincaré equations with the rotation angle cΔψ − Ω₃ (the

@@ -25,7 +25,8 @@ VERIFYING = {
     "optimal_control_so3_se2.py": "verified against seed 000 §6.1 and seed 001 Appendix D",
 }
 # long-running demonstrations (boundary-value solves), run with the slow tests only
-SLOW = {"optimal_control_lie_groups.py", "elroys_beanie.py"}
+SLOW = {"optimal_control_lie_groups.py", "elroys_beanie.py", "euler_poincare_so3.py",
+        "holonomic_constraints.py"}
 TIMEOUT = 300
 
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import sympy as sp
 from conftest import newton, predicted
 
@@ -91,6 +92,7 @@ def _on_group(expr, G, offsets=(0, 1)):
     return sp.cancel(sp.together(expr.xreplace(subs)))
 
 
+@pytest.mark.slow
 def test_lie_poisson_equals_euler_lagrange_on_so3():
     """Seed 000 §6.1: μ_{k+1} + λ_{k+1}Φ_{k+1} − Ad*_{g_k}(μ_k + λ_kΦ_k) is minus the DEL
     residual X⃖[L+λ_kφ](g_k) − X⃗[L+λ_{k+1}φ](g_{k+1}), identically on SO(3); the

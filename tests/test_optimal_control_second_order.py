@@ -212,6 +212,7 @@ def test_heavy_top_at_rest_the_linearised_problem_is_singular(ht):
 
 # --- the forward-mode window kernel -----------------------------------------------------------
 
+@pytest.mark.slow
 def test_window_kernel_matches_symbolic_derivatives():
     """The kernel's residual and blocks equal the X⃖/X⃗ derivatives of the window residual
     differentiated as expression trees, on a constrained second-order system on a product

@@ -123,6 +123,7 @@ def test_pair_groupoid_of_se2_reduces_to_se2():
     assert d["reconstruction"] < 1e-11 and d["momenta"] < 1e-13
 
 
+@pytest.mark.slow
 def test_heavy_top_as_reduction_of_the_pair_groupoid_of_so3():
     """(R₀, R₁) ↦ (R₀ᵀe₃, R₀ᵀR₁) maps L(R₀, R₁) = −tr(J_d R₀ᵀR₁)/h − h mgl (R₀ᵀe₃)₃ onto the
     heavy top of ``systems.heavy_top`` (S² × SO(3) ⇉ S²): same equations, Cor. 4.6 on a run.
@@ -157,6 +158,7 @@ def test_heavy_top_as_reduction_of_the_pair_groupoid_of_so3():
     assert d["reconstruction"] < 1e-12 and d["momenta"] < 1e-13
 
 
+@pytest.mark.slow
 def test_constrained_system_reduces_with_its_multipliers():
     """φ(g₀, g₁) = tr(g₀ᵀg₁ E₃)/2 on the pair groupoid of SO(3) reduces to φ′(W) = tr(W E₃)/2
     on SO(3) (found through the section); the multipliers are shared."""
