@@ -142,6 +142,8 @@ KNOWN: list[Known] = [
     Known(_BVP, (np.exceptions.ComplexWarning, TypeError, ValueError),
           r"ComplexWarning|complex|could not convert|invalid literal|setting an array",
           "test_hostile_bvp.py::test_known_bvp_guess_converted_without_the_one_validation"),
+    Known(_BVP, TypeError, r"len\(\) of unsized object",
+          "test_hostile_bvp.py::test_known_bvp_second_order_end_given_as_a_scalar_array"),
 ]
 
 

@@ -333,6 +333,7 @@ class ConstraintCheck:
         fs = getattr(system, "_fs", None)
         self.name = step.name
         self.windows: list[tuple[tuple[int, ...], np.ndarray]] = []
+        self.used: list[tuple[int, str]] = []
         if fs is None or not fs.constraints:
             return
         position = {s: i for i, s in enumerate(step.knowns)}
@@ -346,6 +347,9 @@ class ConstraintCheck:
             self.windows.append((offsets, index))
         coords = [c for s in fs.slots for c in s]
         args = [coords, list(step.parameters)]
+        #: (position, name) of the parameters the constraints depend on (named in messages)
+        self.used = [(i, str(p)) for i, p in enumerate(step.parameters)
+                     if any(sp.sympify(c).has(p) for c in fs.constraints)]
         self._phi = sp.lambdify(args, list(fs.constraints), "numpy")
         self._size = sp.lambdify(args, [magnitude(c) for c in fs.constraints], "numpy")
 
@@ -391,7 +395,10 @@ class ConstraintCheck:
 
         lines = [f"φ_{i + 1}({', '.join('g_' + step_label(o) for o in offsets)}) = {v:.3e} "
                  f"(tolerance {t:.1e})" for offsets, i, v, t in bad]
-        raise DomainError(f"{_where(owner)}the initial state violates the constraints: "
+        values = np.asarray(params, float).ravel()
+        given = (f" (with the parameters {', '.join(f'{n}={values[i]:.6g}' for i, n in self.used)})"
+                 if self.used else "")
+        raise DomainError(f"{_where(owner)}the initial state violates the constraints{given}: "
                           f"{'; '.join(lines)}")
 
 
