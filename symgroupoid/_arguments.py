@@ -30,6 +30,10 @@ from ._errors import DomainError, InputTypeError, ShapeError
 #: NumPy dates and durations (``np.timedelta64`` is a ``numbers.Integral``)
 _TIMES = (np.datetime64, np.timedelta64)
 
+#: the largest dimension of a symbolic space (far beyond what can be derived; a dimension
+#: such as 10¹² would otherwise allocate its coordinate names before failing)
+MAX_DIMENSION = 100_000
+
 #: the largest count accepted for steps, iterations and similar arguments (C ``long`` safe,
 #: and far beyond what fits in memory or time)
 MAX_COUNT = 2**53
@@ -202,8 +206,7 @@ def name_argument(value, name: str, *, owner: str = "", empty: bool = False) -> 
 def names_argument(value, name: str, *, owner: str = "") -> tuple[str, ...]:
     """A sequence of names (each :func:`name_argument`); a single string is refused (it
     would be read letter by letter)."""
-    if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence,
-                                                                          np.ndarray)):
+    if isinstance(value, (str, bytes, Mapping)) or not _is_sequence(value):
         raise InputTypeError(f"{where(owner)}{name} must be a list of strings, got "
                              f"{type(value).__name__} {_shown(value)}")
     return tuple(name_argument(v, f"{name}[{i}]", owner=owner) for i, v in enumerate(value))
@@ -259,14 +262,21 @@ def sequence_argument(value, name: str, *, owner: str = "") -> list:
     """``value`` as a list: a list, tuple or other sequence (not a string, bytes, mapping or
     set, whose order or items are not those of a list); an :class:`InputTypeError`
     otherwise."""
-    if isinstance(value, (str, bytes, Mapping, set, frozenset)) or not isinstance(
-            value, (Sequence, np.ndarray)):
+    if isinstance(value, (str, bytes, Mapping, set, frozenset)) or not _is_sequence(value):
         raise InputTypeError(f"{where(owner)}{name} must be a list or tuple, got "
                              f"{type(value).__name__} {_shown(value)}")
     return list(value)
 
 
-__all__ = ["MAX_COUNT", "callable_argument", "choice_argument", "flag_argument",
+def _is_sequence(value) -> bool:
+    """A sequence, or a NumPy array with at least one dimension (a 0-d array is a
+    scalar: it cannot be iterated)."""
+    if isinstance(value, np.ndarray):
+        return value.ndim > 0
+    return isinstance(value, Sequence)
+
+
+__all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "choice_argument", "flag_argument",
            "instance_argument", "integer_argument", "name_argument", "names_argument",
            "path_argument", "real_argument", "real_array", "sequence_argument", "where"]
 

@@ -32,6 +32,7 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
+from ._arguments import MAX_DIMENSION
 from .equations import DiscreteSystem
 from .groupoids import (
     SO3,
@@ -130,7 +131,7 @@ def planar_chain(n: int) -> DiscreteSystem:
     The step solves D₂L_d(θ_{k−1}, θ_k) + D₁L_d(θ_k, θ_{k+1}) = 0 for θ_{k+1}
     (docs/conventions.md §2).
     """
-    n = integer_argument(n, "n", minimum=1, owner="planar_chain")
+    n = integer_argument(n, "n", minimum=1, maximum=MAX_DIMENSION, owner="planar_chain")
     h, grav = sp.symbols("h g", positive=True)
     G = PairGroupoid(EuclideanSpace([f"theta{j}" for j in range(1, n + 1)]))
 
@@ -212,7 +213,7 @@ def spherical_chain(n: int) -> DiscreteSystem:
     of a step are the Cayley coordinates of F_{i,k+1} = R_{i,k}ᵀR_{i,k+1}
     (docs/conventions.md §1–§2).
     """
-    n = integer_argument(n, "n", minimum=1, owner="spherical_chain")
+    n = integer_argument(n, "n", minimum=1, maximum=MAX_DIMENSION, owner="spherical_chain")
     h, grav = sp.symbols("h g", positive=True)
     G, read = attitude_groupoid(n)
     up = sp.Matrix([0, 0, 1])

@@ -133,16 +133,7 @@ class Known:
 #: defects in runtime/_bvp.py (not changed here), each with its strict xfail test; the fix
 #: of each is described in the test's reason
 _BVP = ("solve_boundary_value", "sweep_boundary_value")
-KNOWN: list[Known] = [
-    Known(("solve_boundary_value",), (AttributeError, TypeError),
-          r"object has no attribute '(name|groupoid|_fs|parameters|system)'|has no len",
-          "test_hostile_bvp.py::test_known_bvp_system_that_is_not_a_system"),
-    Known(_BVP, ValueError, r"values to unpack",
-          "test_hostile_bvp.py::test_known_bvp_guess_given_as_a_tuple_of_arrows"),
-    Known(_BVP, (np.exceptions.ComplexWarning, TypeError, ValueError),
-          r"ComplexWarning|complex|could not convert|invalid literal|setting an array",
-          "test_hostile_bvp.py::test_known_bvp_guess_converted_without_the_one_validation"),
-]
+KNOWN: list[Known] = []  # none open: each listed defect was fixed and its test kept
 
 
 def named(message: str, names: Sequence[str]) -> bool:

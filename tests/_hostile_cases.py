@@ -180,7 +180,7 @@ def newton_options(draw):
         return draw(junk()), ["options"]
     key = draw(st.sampled_from(OPTION_FIELDS))
     value = draw(st.one_of(scalars, st.floats(0, 1e-3), st.integers(0, 60)))
-    return ("fields", {key: value}), [key, "NewtonOptions"]
+    return OptionFields({key: value}), [key, "NewtonOptions"]
 
 
 def tolerance_of(options) -> dict:
@@ -204,8 +204,13 @@ def check_run(case: Case, params, options=None):
     return verify
 
 
+class OptionFields(dict):
+    """Fields of a NewtonOptions drawn by :func:`newton_options`, built inside the call."""
+
+
 def built_options(value):
-    """A ("fields", {...}) draw becomes NewtonOptions(**fields) (built inside the call)."""
-    if isinstance(value, tuple) and len(value) == 2 and value[0] == "fields":
-        return sg.NewtonOptions(**value[1])
+    """An :class:`OptionFields` draw becomes ``NewtonOptions(**fields)``; anything else is
+    passed on as drawn."""
+    if isinstance(value, OptionFields):
+        return sg.NewtonOptions(**value)
     return value

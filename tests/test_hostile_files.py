@@ -191,7 +191,7 @@ def check_kernel(sim) -> None:
 @needs_cc
 @pytest.mark.parametrize("run", PROFILES)
 def test_damaged_cache(tmp_path, run):
-    @profile(run, 2, 30)
+    @profile(run, 1, 30)
     @given(how=st.sampled_from(DAMAGE), relative=st.booleans())
     def prop(how, relative):
         root = tmp_path / f"cache-{next(_BUILD)}"
@@ -220,10 +220,14 @@ ENVIRONMENT = {
 
 
 @pytest.mark.parametrize("run", PROFILES)
-def test_environment_and_maintenance(monkeypatch, run):
+def test_environment_and_maintenance(tmp_path, monkeypatch, run):
     """Junk in the environment, then a NumPy-backend compile (whatever the backend
-    variable says, an explicit backend wins), ``cache_info`` and ``clear_cache``."""
+    variable says, an explicit backend wins), ``cache_info`` and ``clear_cache``.  The home
+    directory is a scratch one: an empty variable falls back to ``~/.cache``, which must
+    never be the user's."""
     Path("file").write_text("a file in the way")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
 
     @profile(run, 6)
     @given(data=st.data())
@@ -307,7 +311,7 @@ def test_a_directory_that_is_not_a_cache_is_never_written_cleaned_or_swept(tmp_p
     files = _foreign_directory(home)
     monkeypatch.setenv("SYMGROUPOID_CACHE", str(home))
     with pytest.warns(RuntimeWarning, match=r"is not used \(it is not a kernel cache: it "
-                                            r"holds other files \(notes.txt"):
+                                            r"holds other files \(index/.hidden"):
         sim = STEP.compile(backend="c", flags=fresh_flags())
     check_kernel(sim)
     assert not str(sim.cache_entry).startswith(str(home))
@@ -318,6 +322,27 @@ def test_a_directory_that_is_not_a_cache_is_never_written_cleaned_or_swept(tmp_p
     for f, data in files.items():
         assert f.read_bytes() == data, f"{f} was changed"
     assert not (home / "CACHEDIR.TAG").exists() and not (home / "probes").exists()
+
+
+@needs_cc
+def test_directories_named_like_the_cache_with_other_contents_are_not_adopted(tmp_path,
+                                                                             monkeypatch):
+    """Only a layout a cache writes (hash-named entries) is adopted as an old cache; a
+    project's own index/ or tmp/ directory is not, even with nothing else beside it."""
+    project = tmp_path / "project"
+    files = {project / "index" / "table.json": b"{}", project / "tmp" / ".x": b"t",
+             project / "kernels" / "README": b"r"}
+    for f, data in files.items():
+        f.parent.mkdir(parents=True, exist_ok=True)
+        f.write_bytes(data)
+        os.utime(f, (0, 0))
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(project))
+    with pytest.warns(RuntimeWarning, match=r"holds other files \(index/table.json, "
+                                            r"kernels/README, tmp/.x\)"):
+        check_kernel(STEP.compile(backend="c", flags=fresh_flags()))
+    with pytest.raises(sg.CacheError, match="nothing was removed"):
+        clear_cache()
+    assert all(f.read_bytes() == data for f, data in files.items())
 
 
 @needs_cc

@@ -15,6 +15,7 @@ import subprocess
 import sys
 
 import numpy as np
+from _hostile import scratch_cwd  # noqa: F401  (autouse fixture)
 from kernel_support import SEED_DATA, compiled, initial_state, needs_cc
 
 CHILD = r"""

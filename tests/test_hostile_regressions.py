@@ -247,3 +247,52 @@ def test_a_batch_is_indexed_by_run_number():
     assert isinstance(info.value, IndexError)
     with pytest.raises(sg.ShapeError, match="out of range"):
         batch.step_indices(-3)
+
+
+def test_a_scalar_array_is_not_a_list():
+    """(A 0-d NumPy array passed the sequence check and failed in ``list()`` with a raw
+    TypeError: 'iteration over a 0-d array'.)"""
+    plane = sg.PairGroupoid(sg.EuclideanSpace("x y"))
+    with pytest.raises(sg.InputTypeError, match="hostile: parameters must be a list or tuple, "
+                                                "got ndarray"):
+        sg.DiscreteSystem(plane, lambda g: (g.target[0] - g.source[0]) ** 2 / H,
+                          parameters=np.array(0.0), name="hostile")
+    with pytest.raises(sg.InputTypeError, match="must be a list of strings"):
+        sg.PairGroupoid(sg.EuclideanSpace(np.array("x")))
+
+
+def test_counts_that_size_an_allocation_are_bounded():
+    """(``EuclideanSpace.vector("x", 10**12)`` built 10¹² coordinate names — the process
+    grew past 8 GB; ``planar_chain(10**9)`` likewise; a sweep with ``workers=10**6``
+    started one process per task.)"""
+    from symgroupoid import systems
+
+    with pytest.raises(sg.ShapeError, match="dim must be at most 100000, got 1000000000000"):
+        sg.EuclideanSpace.vector("x", 10**12)
+    with pytest.raises(sg.ShapeError, match="planar_chain: n must be at most 100000"):
+        systems.planar_chain(10**9)
+    S, params = _rows()
+    with pytest.raises(sg.ShapeError, match="workers must be at most"):
+        sg.sweep(case_of("diagonal").sim, S, params, 2, workers=10**6)
+
+
+def test_verify_samples_at_most_every_state():
+    """(``symgroupoid verify --points 1e9`` allocated 10⁹ sample positions.)"""
+    from symgroupoid.cli._verify import sample_points
+
+    case = case_of("oscillator")
+    states = case.sim.simulate(case.flat, 4, case.params).states
+    points = sample_points(case.sim, states, case.sim.parameters(case.params), 10**12,
+                           np.random.default_rng(0))
+    assert len(points) == len(states)
+
+
+@pytest.mark.parametrize("metric", [[[], None], [[1, 0], [0]], "ab", [[1, "a"], [0, 1]],
+                                    [[[1]]], []])
+def test_a_metric_that_is_not_a_matrix_is_named(metric):
+    """(``metric=[[], None]`` reached SymPy's matrix parser: a raw ZeroDivisionError.)"""
+    plane = sg.PairGroupoid(sg.EuclideanSpace("x y"))
+    with pytest.raises(sg.ShapeError, match="nh: the metric must be a matrix"):
+        sg.NonholonomicSystem(plane, lambda g: (g.target[0] - g.source[0]) ** 2 / H,
+                              distribution=[[1, 1]], parameters=[H], method="energy_momentum",
+                              metric=metric, name="nh")

@@ -29,7 +29,6 @@ from _hostile import (
     scalars,
     scratch_cwd,  # noqa: F401  (autouse fixture)
     step_residual_ok,
-    verify_trajectory,
 )
 from _hostile_cases import (
     CASES,
@@ -123,9 +122,9 @@ def _params_or_none(case: Case, params):
 @pytest.mark.parametrize("how", ["simulate", "stream", "step"])
 def test_simulate_with_one_malformed_argument(name, how, run):
     case = case_of(name)
-    examples = {"simulate": 14, "stream": 5, "step": 5}[how]
+    examples = {"simulate": 10, "stream": 4, "step": 4}[how]
 
-    @profile(run, examples)
+    @profile(run, examples, 10 * examples)
     @given(call=simulate_calls(case))
     def prop(call):
         args, names = call
@@ -141,7 +140,7 @@ def test_simulate_with_one_malformed_argument(name, how, run):
 def test_simulate_with_every_argument_malformed(name, run):
     case = case_of(name)
 
-    @profile(run, 6)
+    @profile(run, 6, 60)
     @given(call=simulate_calls(case, chaos=True))
     def prop(call):
         args, names = call
@@ -160,7 +159,7 @@ def test_solve_with_malformed_arguments(name, run):
     p0 = sim.parameters(case.params)
     u0 = sim.kernel.predict(case.flat, p0)
 
-    @profile(run, 10)
+    @profile(run, 7, 100)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["state", "params", "guess", "options"]))
@@ -204,7 +203,7 @@ def test_from_momentum_with_malformed_arguments(name, run):
         valid = case.momentum
     config0, momentum0 = valid
 
-    @profile(run, 10)
+    @profile(run, 7, 100)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["configuration", "momentum", "params"]))
@@ -236,10 +235,19 @@ def test_from_momentum_with_malformed_arguments(name, run):
             layout = sim.layout
             arrow = layout.arrows(np.asarray(state)[None])[-1]
             lam = layout.view(np.asarray(state)[None], "lambda")[-1]
-            minus, _ = system.legendre().evaluate(arrow, lam, p)
+            legendre = system.legendre()
+            minus = np.asarray(legendre.evaluate(arrow, lam, p)[0], float).ravel()
             target = np.asarray(momentum, float).ravel()
-            assert np.allclose(np.asarray(minus, float).ravel(), target, rtol=1e-7,
-                               atol=1e-7 * (1 + np.abs(target).max())), (minus, target)
+            # F⁻L is known to the rounding of its terms: their size is its sensitivity to a
+            # relative change of each coordinate of the arrow
+            scale = np.zeros_like(minus)
+            for j in range(len(arrow)):
+                moved = np.array(arrow, float)
+                moved[j] += 1e-6 * (1.0 + abs(moved[j]))
+                change = np.asarray(legendre.evaluate(moved, lam, p)[0], float).ravel()
+                scale += np.abs(change - minus) / 1e-6
+            bound = 1e-7 * np.abs(target) + 1e-12 + 1e3 * np.finfo(float).eps * scale
+            assert (np.abs(minus - target) <= bound).all(), (minus, target, bound)
 
         judge("Simulator.from_momentum",
               lambda: sim.from_momentum(config, momentum, params), names, owner=sim.name,
@@ -255,7 +263,7 @@ def test_from_momentum_with_malformed_arguments(name, run):
 def test_state_with_malformed_parts(name, run):
     case = case_of(name)
 
-    @profile(run, 10)
+    @profile(run, 7, 100)
     @given(initial=initial_states(case))
     def prop(initial):
         value, names = initial
@@ -272,7 +280,7 @@ def test_state_with_malformed_parts(name, run):
 
 @pytest.mark.parametrize("run", PROFILES)
 def test_newton_options_fields(run):
-    @profile(run, 25)
+    @profile(run, 15, 250)
     @given(key=st.sampled_from(OPTION_FIELDS), value=st.one_of(scalars, junk()))
     def prop(key, value):
         def verify(options):
@@ -296,7 +304,7 @@ def test_compile_step_arguments(run):
     or a flag set that needs no build: a malformed argument must be refused up front)."""
     step = tiny_case("oscillator").step
 
-    @profile(run, 25)
+    @profile(run, 15, 250)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["backend", "flags", "cache_dir", "tol_residual",
@@ -312,8 +320,12 @@ def test_compile_step_arguments(run):
             assert isinstance(sim, sg.Simulator)
             if which == "backend":
                 assert value in ("numpy", "c", "auto")
-            traj = sim.simulate({"q": (0.1, 0.2)}, 2, {"h": 0.1, "k": 1.0})
-            verify_trajectory(step, traj, sim.parameters({"h": 0.1, "k": 1.0}))
+            try:
+                traj = sim.simulate({"q": (0.1, 0.2)}, 2, {"h": 0.1, "k": 1.0})
+            except (sg.NewtonDivergenceError, sg.SingularJacobianError):
+                assert sim.options.max_iterations < 3, sim.options  # a cap that is too low
+                return
+            check_run(tiny_case("oscillator"), {"h": 0.1, "k": 1.0}, sim.options)(traj)
 
         if which == "backend" and value in ("c", "auto"):
             kwargs["backend"] = "numpy"  # a valid choice; building C is tested elsewhere

@@ -29,6 +29,7 @@ from _hostile import (
     scratch_cwd,  # noqa: F401  (autouse fixture)
     verify_trajectory,
 )
+from _hostile_cases import runnable
 from hypothesis import given
 from hypothesis import strategies as st
 from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
@@ -124,7 +125,7 @@ ACTIONS = {
 
 @pytest.mark.parametrize("run", PROFILES)
 def test_action_groupoids(run):
-    @profile(run, 10)
+    @profile(run, 10, 80)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["space", "group", "action"]))
@@ -169,7 +170,7 @@ MAP_FAULTS = {
 
 @pytest.mark.parametrize("run", PROFILES)
 def test_defined_groupoids(run):
-    @profile(run, 12)
+    @profile(run, 12, 120)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["map", "name", "base_names", "fibre_names",
@@ -214,6 +215,8 @@ def test_check_axioms_arguments(run):
             target = data.draw(junk())
         else:
             kwargs[which] = data.draw(st.one_of(scalars, junk()))
+        if which == "samples":  # an accepted count runs that many samples: keep it short
+            kwargs["samples"] = runnable(kwargs["samples"], memory_checked=False)
         judge("check_axioms", lambda: sg.check_axioms(target, **kwargs),
               [which, "parameter"], verify=lambda result: None)
 
@@ -341,7 +344,7 @@ def verify_system(system) -> None:
 def test_systems_with_malformed_lagrangians(run):
     line = sg.PairGroupoid(sg.EuclideanSpace("q"))
 
-    @profile(run, 14)
+    @profile(run, 14, 120)
     @given(data=st.data())
     def prop(data):
         if data.draw(st.booleans()):
@@ -369,7 +372,7 @@ def test_systems_with_malformed_lagrangians(run):
 def test_systems_with_malformed_constraints_and_declarations(run):
     plane = sg.PairGroupoid(sg.EuclideanSpace("x y"))
 
-    @profile(run, 14)
+    @profile(run, 14, 120)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["constraints", "parameters", "name", "groupoid",
@@ -425,7 +428,7 @@ def test_second_order_systems(run):
         "constraint not a list": (accel, lambda a, b: b.target[0], ["constraints"]),
     }
 
-    @profile(run, 6)
+    @profile(run, 6, 40)
     @given(key=st.sampled_from(sorted(variants)))
     def prop(key):
         lagrangian, constraints, expected = variants[key]
@@ -453,7 +456,7 @@ def test_second_order_systems(run):
 def test_nonholonomic_systems(run):
     plane = sg.PairGroupoid(sg.EuclideanSpace("x y"))
 
-    @profile(run, 10)
+    @profile(run, 10, 80)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["distribution", "method", "metric", "groupoid",

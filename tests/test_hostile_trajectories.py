@@ -252,7 +252,7 @@ def test_figures(run):
                                                   "missing/dir/fig.png", "fig", 3, b"f.png",
                                                   "a\0b.png", "."]), junk(max_leaves=2))
 
-    @profile(run, 4, 60)
+    @profile(run, 2, 60)
     @given(data=st.data())
     def prop(data):
         path = data.draw(paths)

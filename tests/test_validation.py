@@ -173,7 +173,9 @@ def test_an_initial_state_off_the_constraints_is_reported_per_constraint():
     off = state.copy()
     off[2] += 1e-6  # x_k moved: φ_2 = h(c + …) + (x_k − x_{k-1}) changes by 10⁻⁶,
     #                 φ_1 through its term −hΩ(x_{k-1} + x_k)/2 by −hΩ/2·10⁻⁶
-    with pytest.raises(DomainError, match=r"violates the constraints: φ_1\(g_k\) = -5.000e-10 "
+    with pytest.raises(DomainError, match=r"violates the constraints \(with the parameters "
+                                          r"h=0.01, r=1, Omega=0.1, c=0.02\): "
+                                          r"φ_1\(g_k\) = -5.000e-10 "
                                           r"\(tolerance 1.0e-10\); φ_2\(g_k\) = 1.000e-06"):
         sim.state(off, params)
     check = ConstraintCheck(sim.equations)

@@ -64,6 +64,7 @@ def sample_points(sim, states: np.ndarray, p: np.ndarray, count: int,
                   rng: np.random.Generator) -> list[tuple[np.ndarray, np.ndarray]]:
     """(unknowns, known state) pairs: ``count`` states of the run, unknowns random around
     the step's prediction from each."""
+    count = min(count, len(states))  # at most every state once (--points 1e9 allocates nothing)
     rows = np.unique(np.linspace(0, len(states) - 1, count).round().astype(int))
     points = []
     for r in rows:

@@ -238,3 +238,26 @@ def _check_assumptions(system_name: str, what: str, undeclared: Sequence[sp.Symb
                 f"{_shown(other)}: the names match but the assumptions differ, so SymPy treats "
                 f"them as different symbols; declare the parameter with the same assumptions "
                 f"(pass the very Symbol the {what} uses)")
+
+
+def as_matrix(system_name: str, what: str, value) -> sp.Matrix:
+    """A SymPy matrix from a user value: a SymPy or NumPy matrix, or a list of equal-length
+    rows of scalars; anything else (a ragged or empty table, a row that is not a list, a
+    string) is a :class:`ShapeError` naming ``what``, never an error from SymPy's parser."""
+    bad = ShapeError(f"{system_name}: the {what} must be a matrix (a list of equal-length "
+                     f"rows of scalars), got {type(value).__name__} {value!r}"[:300])
+    if isinstance(value, sp.MatrixBase):
+        return sp.Matrix(value)
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) and not (
+            hasattr(value, "tolist") and getattr(value, "ndim", 0) == 2):
+        raise bad
+    rows = value.tolist() if hasattr(value, "tolist") else list(value)
+    if not rows or any(isinstance(r, (str, bytes)) or not isinstance(r, (list, tuple))
+                       for r in rows) or len({len(r) for r in rows}) != 1 or not rows[0]:
+        raise bad
+    if any(isinstance(c, (str, bytes, list, tuple, dict, set)) for r in rows for c in r):
+        raise bad
+    try:
+        return sp.Matrix(rows)
+    except (TypeError, ValueError, ArithmeticError, sp.SympifyError) as exc:
+        raise bad from exc

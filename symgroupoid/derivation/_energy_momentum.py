@@ -31,7 +31,7 @@ import sympy as sp
 from .._errors import DomainError, ShapeError
 from ..groupoids import Groupoid
 from ..groupoids._morphism import ParameterValues
-from ._callables import call_user, check_values
+from ._callables import as_matrix, call_user, check_values
 from ._junction import junction_halves, slot, slot_substitution
 from ._momenta import legendre_forms
 from ._step import (
@@ -55,11 +55,7 @@ def metric_at(name: str, G: Groupoid, metric, q: Sequence) -> sp.Matrix:
     if value is None:
         raise DomainError(f"{name}: the energy–momentum method needs metric=G_c, a bundle "
                           f"metric on AG (a {G.rank}×{G.rank} matrix in the section basis)")
-    try:
-        M = sp.Matrix(value)
-    except (TypeError, ValueError, sp.SympifyError) as exc:
-        raise ShapeError(f"{name}: the metric must be a {G.rank}×{G.rank} matrix, got "
-                         f"{value!r}") from exc
+    M = as_matrix(name, "metric", value)
     if M.shape != (G.rank, G.rank):
         raise ShapeError(f"{name}: the metric is {M.shape[0]}×{M.shape[1]}; the algebroid has "
                          f"rank {G.rank}")

@@ -14,7 +14,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import integer_argument, name_argument, names_argument
+from .._arguments import MAX_DIMENSION, integer_argument, name_argument, names_argument
 from .._errors import CoordinateNameError, InputTypeError, ShapeError
 from .._symbols import latex_name, scalar_symbol
 from ._base import Arrow, Groupoid
@@ -45,7 +45,8 @@ class EuclideanSpace(Manifold):
     def vector(cls, name: str, dim: int) -> EuclideanSpace:
         """Rⁿ whose coordinates are the components ``name_1 … name_n`` of one vector."""
         name = name_argument(name, "the vector's name", owner="EuclideanSpace.vector")
-        dim = integer_argument(dim, "dim", minimum=1, owner="EuclideanSpace.vector")
+        dim = integer_argument(dim, "dim", minimum=1, maximum=MAX_DIMENSION,
+                               owner="EuclideanSpace.vector")
         space = cls([f"{name}_{i + 1}" for i in range(dim)])
         space.vector_name = name
         return space

@@ -23,11 +23,12 @@ Concurrency and failures:
 * A build directory is only ever written while its key's lock is held, so one whose lock
   is free belongs to a dead process: it is removed on the next use of the cache.
 * The root is marked as a kernel cache (``CACHEDIR.TAG``) when it is created, or when
-  found empty or holding only the cache's own directories; a directory holding anything
-  else is never written into, swept or cleared (it is treated as unwritable, below), so a
-  cache variable pointed at ``$HOME`` or a project cannot delete a file.
-* ``index``, ``kernels``, ``locks`` or ``tmp`` found as a file in a marked root is removed
-  and recreated.
+  found empty or holding only a cache layout (the directories above with hash-named
+  entries: a cache written before roots were marked); a directory holding anything else
+  is never written into, swept or cleared (it is treated as unwritable, below), so a cache
+  variable pointed at ``$HOME`` or a project cannot delete a file.
+* ``index``, ``kernels``, ``locks`` or ``tmp`` found as a file is removed and recreated (in
+  a root marked just now: moved aside as ``<name>.displaced-*``).
   A cache root that cannot be written (read-only, not a directory, ``$HOME`` unwritable)
   is still read, and kernels built by this process go to a private temporary directory
   (one :class:`RuntimeWarning` naming the path and the reason; removed at exit).
@@ -288,25 +289,46 @@ def is_cache_root(root: Path) -> bool:
         return False
 
 
+#: what each directory of a cache holds (an unmarked root is adopted only if its
+#: directories hold nothing else: a cache layout written before roots were marked)
+_CACHE_CONTENT = {
+    "index": re.compile(r"\.?[0-9a-f]{32}\.json.*"),
+    "kernels": re.compile(r"[0-9a-f]{32}"),
+    "locks": re.compile(r"[0-9a-f]{32}\.lock"),
+    "tmp": re.compile(r"(build|trash|probe)-.*"),
+    "probes": re.compile(r"\.?openmp-[0-9a-f]{32}\.json.*"),
+}
+
+
 def _foreign_entries(root: Path) -> list[str]:
-    """Names in ``root`` that a kernel cache does not hold (empty: the root is, or can
-    become, a cache).  A cache directory name taken by a file counts as foreign unless the
-    root is marked: only a marked cache has files in its layout replaced."""
-    marked = is_cache_root(root)
+    """What in ``root`` a kernel cache does not hold (empty: the root is, or can become, a
+    cache): names other than the cache's, and entries of its directories that no cache
+    writes."""
     try:
         entries = list(os.scandir(root))
     except FileNotFoundError:
         return []
-    return sorted(e.name for e in entries
-                  if e.name != MARKER and (e.name not in _CACHE_NAMES
-                                           or not (marked or e.is_dir(follow_symlinks=False))))
+    out = []
+    for e in entries:
+        if e.name == MARKER:
+            continue
+        if e.name not in _CACHE_NAMES:
+            out.append(e.name)
+        elif e.is_dir(follow_symlinks=False):
+            try:
+                names = os.listdir(e.path)
+            except OSError:
+                names = []
+            out += [f"{e.name}/{n}" for n in names if not _CACHE_CONTENT[e.name].fullmatch(n)]
+    return sorted(out)
 
 
-def _claim(root: Path) -> None:
+def _claim(root: Path) -> bool:
     """Mark ``root`` as a kernel cache, unless it holds anything else: then it is never
-    written, cleaned or swept (raises :class:`ForeignDirectoryError`)."""
+    written, cleaned or swept (raises :class:`ForeignDirectoryError`).  Whether it was
+    unmarked until now."""
     if is_cache_root(root):
-        return
+        return False
     foreign = _foreign_entries(root)
     if foreign:
         shown = ", ".join(foreign[:3]) + (", …" if len(foreign) > 3 else "")
@@ -315,25 +337,30 @@ def _claim(root: Path) -> None:
             f"symgroupoid leaves alone; a cache goes to an empty or new directory",
             str(root))
     write_atomic(root / MARKER, _MARKER_TEXT)
+    return True
 
 
 def _prepare(root: Path) -> None:
     """Create the cache layout under ``root`` and check that it is writable (raises OSError).
 
     The root is marked as a kernel cache first (:func:`_claim`; a directory holding other
-    files raises :class:`ForeignDirectoryError` and is left untouched).  A subdirectory of
-    a marked root found as a file (or a dangling link) is removed and recreated.
+    files raises :class:`ForeignDirectoryError` and is left untouched).  A subdirectory
+    found as a file (or a dangling link) is removed and recreated — or, in a root marked
+    just now (whose files may not be the cache's), moved aside as ``<name>.displaced-*``.
     """
     if root.exists() and not root.is_dir():
         raise NotADirectoryError(errno.ENOTDIR, "it is not a directory", str(root))
     root.mkdir(parents=True, exist_ok=True)
-    _claim(root)
+    adopted = _claim(root)
     for name in SUBDIRS:
         path = root / name
         if not path.is_dir():
             if path.exists() or path.is_symlink():
-                with contextlib.suppress(FileNotFoundError):
-                    path.unlink()
+                if adopted:
+                    os.replace(path, root / f"{name}.displaced-{os.getpid()}-{time.time_ns()}")
+                else:
+                    with contextlib.suppress(FileNotFoundError):
+                        path.unlink()
             path.mkdir(exist_ok=True)
         fd, probe = tempfile.mkstemp(prefix="probe-", dir=path)
         os.close(fd)

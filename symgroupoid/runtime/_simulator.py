@@ -331,7 +331,16 @@ class Simulator:
             self._momentum = kind(self.equations, self.layout)
         p = self.parameters(params)
         state = self._momentum.solve(configuration, momentum, p)
-        return self.state(state, p)
+        try:
+            return self.state(state, p)
+        except DomainError as err:  # Newton stopped at its step test, not on φ = 0
+            if "(α(" in str(err):  # ψ(α(g)) ≠ 0: the given base point is off M, an input error
+                raise
+            raise NewtonDivergenceError(
+                f"{self.name}: no consistent initial state found for the momentum "
+                f"{np.asarray(momentum, dtype=object).ravel().tolist()}: the state solved from "
+                f"it does not satisfy the constraints (the momentum may be too large for "
+                f"double precision); {err}", step=0, iterate=state) from err
 
     def project_initial(self, initial, params, *, max_iterations: int = 50) -> np.ndarray:
         """A consistent initial state from one that violates the constraints.

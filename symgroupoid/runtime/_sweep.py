@@ -347,6 +347,7 @@ def _run_pool(fn, task, chunks, receive, workers: int) -> None:
 
     payload = _dumps(task)
     pending = dict(enumerate(chunks))
+    workers = max(1, min(workers, len(pending)))  # no process without a task
     for attempt in range(4):
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(max_workers=workers, mp_context=context,
@@ -434,6 +435,16 @@ def _seconds_per_run(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
     return (time.perf_counter() - t0) / n * (steps / k)
 
 
+#: the most worker processes of a local pool: four per core (at least 64)
+MAX_WORKERS = max(64, 4 * (os.cpu_count() or 1))
+
+
+def workers_argument(workers, owner: str) -> int:
+    """``workers``: an integer 1 … :data:`MAX_WORKERS` (a pool starts one process per
+    task up to this number, so a huge count would start thousands of processes)."""
+    return integer_argument(workers, "workers", minimum=1, maximum=MAX_WORKERS, owner=owner)
+
+
 def _mode(client, workers: int | None, estimate: float, portable: bool, owner: str
           ) -> tuple[str, int]:
     if client is not None:
@@ -444,8 +455,7 @@ def _mode(client, workers: int | None, estimate: float, portable: bool, owner: s
                                    f"cluster; compile the step with backend='c'")
         return "dask", max(1, len(client.nthreads()))
     explicit = workers is not None
-    workers = os.cpu_count() or 1 if workers is None else integer_argument(
-        workers, "workers", minimum=1, owner=owner)
+    workers = os.cpu_count() or 1 if workers is None else workers_argument(workers, owner)
     if workers == 1 or (not explicit and estimate < IN_PROCESS_SECONDS):
         return "serial", 1
     if not portable:
@@ -733,7 +743,8 @@ def run_boundary_value_chunk(task: BoundaryValueTask, chains: list) -> list:
 
 
 def _sequence(value, what: str, owner: str) -> list:
-    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)):
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
+            or np.ndim(value) == 0:
         raise ShapeError(f"{owner}: {what} must be a sequence of boundary configurations "
                          f"(one per run; [c] for one), got {type(value).__name__}")
     out = list(value)
@@ -812,8 +823,8 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     if client is not None:
         mode, n_workers = "dask", max(1, len(client.nthreads()))
     else:
-        n_workers = os.cpu_count() or 1 if workers is None else integer_argument(
-            workers, "workers", minimum=1, owner=owner)
+        n_workers = os.cpu_count() or 1 if workers is None else workers_argument(workers,
+                                                                                 owner)
         mode = "serial" if n_workers == 1 else "local"
     per_task = chunk_size or max(1, math.ceil(len(chains) / (TASKS_PER_WORKER * n_workers)))
     tasks = [(chains[a:a + per_task],) for a in range(0, len(chains), per_task)]

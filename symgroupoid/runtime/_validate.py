@@ -335,6 +335,7 @@ class ConstraintCheck:
         fs = getattr(system, "_fs", None)
         self.name = step.name
         self.windows: list[tuple[tuple[int, ...], np.ndarray]] = []
+        self.used: list[tuple[int, str]] = []
         if fs is None or not fs.constraints:
             return
         position = {s: i for i, s in enumerate(step.knowns)}
@@ -354,6 +355,9 @@ class ConstraintCheck:
         self._labels = ([(f"φ_{i + 1}", "{}") for i in range(plain)]
                         + [(f"ψ_{a + 1}", "α({first})") for a in range(held)]
                         + [(f"ψ_{a + 1}", "β({last})") for a in range(held)])
+        #: (position, name) of the parameters the constraints depend on (named in messages)
+        self.used = [(i, str(p)) for i, p in enumerate(step.parameters)
+                     if any(sp.sympify(c).has(p) for c in functions)]
         self._phi = sp.lambdify(args, functions, "numpy")
         self._size = sp.lambdify(args, [magnitude(c) for c in functions], "numpy")
 
@@ -407,7 +411,10 @@ class ConstraintCheck:
             return
         lines = [f"{self.label(offsets, i)} = {v:.3e} (tolerance {t:.1e})"
                  for offsets, i, v, t in bad]
-        raise DomainError(f"{_where(owner)}the initial state violates the constraints: "
+        values = np.asarray(params, float).ravel()
+        given = (f" (with the parameters {', '.join(f'{n}={values[i]:.6g}' for i, n in self.used)})"
+                 if self.used else "")
+        raise DomainError(f"{_where(owner)}the initial state violates the constraints{given}: "
                           f"{'; '.join(lines)}")
 
 
