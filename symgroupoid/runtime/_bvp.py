@@ -30,9 +30,14 @@ N small turns instead of meeting the cut locus of the Cayley chart.  Success mea
 criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or ``tol``), the
 floor computed alongside the residual from its running-error bound
 (:func:`symgroupoid.ir.rounding_error`), which also counts the rounding of the stored
-coordinates and multipliers.  Anything else —
-the iteration cap, a stalled update, a line search without decrease, a singular Jacobian, a
-half-turn in the initial path — raises an error carrying the iterations and the residual.
+coordinates and multipliers.  Newton's method is the fast path; when it stalls in damped
+steps or finds no decrease, the solve restarts with Newton steps regularised by the inertia
+of the KKT matrix and a line search on an ℓ₁ merit function (a descent method on the
+action).  The solution reports its cost and whether it is a local minimum (the inertia of
+the Hessian of the Lagrangian on the admissible variations tangent to the constraints, by a
+banded LDLᵀ: runtime/_banded.py).  Anything else — the iteration cap, a stalled update, a
+line search without decrease, a singular Jacobian, a half-turn in the initial path — raises
+an error carrying the iterations and the residual.
 """
 
 from __future__ import annotations
