@@ -161,6 +161,7 @@ def test_elroys_beanie_reduced_trajectory_is_the_reduction_of_the_unreduced_one(
     assert "\\psi_{k+1}" in tex and "(g_{k+1})_{13}" in tex
 
 
+@pytest.mark.slow
 def test_elroys_beanie_kernel_is_deterministic_and_strict_c99(tmp_path):
     """The reduced step's C code is byte-identical under different hash seeds and compiles as
     strict C99 (nothing about the Atiyah groupoid is special-cased in code generation)."""

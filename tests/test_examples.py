@@ -26,7 +26,8 @@ VERIFYING = {
 }
 # long-running demonstrations (boundary-value solves), run with the slow tests only
 SLOW = {"optimal_control_lie_groups.py", "elroys_beanie.py", "euler_poincare_so3.py",
-        "holonomic_constraints.py"}
+        "holonomic_constraints.py", "optimal_control_so3_se2.py", "heavy_top_rotors.py",
+        "plate_ball_steering.py"}
 TIMEOUT = 300
 
 

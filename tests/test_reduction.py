@@ -64,6 +64,7 @@ def _rotation(x):
     return np.array(sg.SO3("t").cayley([sp.Float(v) for v in x]).evalf().tolist(), float)
 
 
+@pytest.mark.slow
 def test_pair_groupoid_of_so3_reduces_to_the_discrete_euler_poincare_equations():
     """Reducing L(g₀, g₁) = −tr(J_d g₀ᵀg₁)/h by (g₀, g₁) ↦ g₀⁻¹g₁ gives, with L′ found through
     the section, exactly the Moser–Veselov (discrete Euler–Poincaré) equations of

@@ -3,6 +3,7 @@ same junction variation as first order."""
 
 from __future__ import annotations
 
+import pytest
 import sympy as sp
 
 import symgroupoid as sg
@@ -128,6 +129,7 @@ def test_second_order_legendre_on_pair_groupoid():
     assert all(sp.simplify(a - b) == 0 for a, b in zip(leg.minus, expect_minus))
 
 
+@pytest.mark.slow
 def test_second_order_compiles_and_starts_from_a_momentum(tmp_path, monkeypatch):
     """Seed 001 §3: a second-order step compiles and simulates like a first-order one, and
     (velocity-like arrow, momentum) initial data reproduce a trajectory: the momentum of the

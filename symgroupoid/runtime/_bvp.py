@@ -661,7 +661,7 @@ def _boundary(system, a: int, start, end) -> _Boundary:
     pairs = []
     for label, value in (("start", start), ("end", end)):
         if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
-                or np.ndim(value) == 0 or len(value) != 2:
+                or (isinstance(value, np.ndarray) and value.ndim == 0) or len(value) != 2:
             raise ShapeError(f"{owner}: second-order boundary data are two configurations at "
                              f"each end: start=(c0, c1), end=(cN-1, cN); {label} is not a pair")
         pairs.append(tuple(configuration(G, c, f"{label}[{i}]", owner=owner)
