@@ -296,3 +296,18 @@ def test_a_metric_that_is_not_a_matrix_is_named(metric):
         sg.NonholonomicSystem(plane, lambda g: (g.target[0] - g.source[0]) ** 2 / H,
                               distribution=[[1, 1]], parameters=[H], method="energy_momentum",
                               metric=metric, name="nh")
+
+
+def test_stationarity_is_checked_at_the_scale_of_the_coordinates():
+    """(Variations of absolute size ε vanished in the rounding of coordinates of size
+    1e150: every path, solution or not, was reported stationary; an action that overflows
+    was reported "not stationary" with NaN derivatives.)"""
+    system = oscillator()
+    params = {"h": 0.1, "k": 1.0}
+    q = 1e150 + 1e148 * np.arange(8)  # a straight path: not a solution
+    report = sg.verify_stationary(np.stack([q[:-1], q[1:]], axis=1), system, params)
+    assert not report and report.scale > 1e290
+    with pytest.raises(sg.ShapeError, match="the discrete action is not finite on this "
+                                            "trajectory"):
+        q = 1e300 * np.arange(1, 9)
+        sg.verify_stationary(np.stack([q[:-1], q[1:]], axis=1), system, params)
