@@ -177,10 +177,12 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     T0 = action_terms(system, arrows, lam, params)
     if not np.isfinite(T0).all():
         k = int(np.flatnonzero(~np.isfinite(T0))[0])
+        given = ", ".join(f"{s}={v:.6g}" for s, v in zip(system.parameters, params))
         raise DomainError(f"{system.name}: the discrete action is not finite on this "
                           f"trajectory (term {k} = {T0[k]}: the Lagrangian or the constraints "
-                          f"overflow or are undefined there), so its stationarity cannot be "
-                          f"checked")
+                          f"overflow or are undefined there"
+                          f"{f', with the parameters {given}' if given else ''}), so its "
+                          f"stationarity cannot be checked")
     report = StationarityReport()
     for e in (eps, eps / 2, eps / 4):
         Tp = action_terms(system, *varied(e), params)

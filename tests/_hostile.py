@@ -12,9 +12,10 @@ library's contract on bad input:
 
 Anything else is a defect: another exception type (from NumPy, SymPy, cffi or Python itself),
 a ``ComplexWarning`` (an imaginary part silently dropped), a non-finite or incorrect result.
-Defects that live in code this suite may not change are listed in :data:`KNOWN`, each with
-the strict ``xfail`` test that reproduces it; :func:`judge` counts them separately instead of
-failing, so the properties keep running over the rest of the input space.
+Defects that live in code this suite may not change are listed in :data:`KNOWN` (a raw
+exception) and :data:`KNOWN_RESULTS` (a wrong result), each with the strict ``xfail`` test
+that reproduces it; :func:`judge` counts them separately instead of failing, so the
+properties keep running over the rest of the input space.
 
 :data:`TALLY` counts, per entry point, the examples tried, the clear errors, the valid calls,
 the known defects and the defects; ``tests/conftest.py`` prints it at the end of the session.
@@ -139,11 +140,41 @@ KNOWN: list[Known] = [
           "test_hostile_bvp.py::test_known_bvp_system_that_is_not_a_system"),
     Known(_BVP, ValueError, r"values to unpack",
           "test_hostile_bvp.py::test_known_bvp_guess_given_as_a_tuple_of_arrows"),
-    Known(_BVP, (np.exceptions.ComplexWarning, TypeError, ValueError),
-          r"ComplexWarning|complex|could not convert|invalid literal|setting an array",
+    Known(_BVP, (np.exceptions.ComplexWarning, TypeError, ValueError, OverflowError),
+          r"ComplexWarning|complex|could not convert|invalid literal|setting an array|"
+          r"too large to convert",
           "test_hostile_bvp.py::test_known_bvp_guess_converted_without_the_one_validation"),
     Known(_BVP, TypeError, r"len\(\) of unsized object",
           "test_hostile_bvp.py::test_known_bvp_second_order_end_given_as_a_scalar_array"),
+]
+
+
+@dataclass(frozen=True)
+class KnownResult:
+    """A known defect that returns a wrong result instead of raising, recognised by a
+    predicate on the result; reproduced by a strict xfail test."""
+
+    entries: tuple[str, ...]
+    predicate: Callable[[object], bool]
+    test: str
+
+    def matches(self, entry: str, result) -> bool:
+        try:
+            return entry in self.entries and bool(self.predicate(result))
+        except Exception:  # noqa: BLE001 - a result the predicate cannot read: not this one
+            return False
+
+
+def _accepted_by_the_absolute_tolerance(solution) -> bool:
+    """A boundary-value "solution" whose every iterate, the initial path included, was
+    within the absolute tolerance (1e-10 by default): equations scaled so small (a step
+    h ≈ 10³ in L = (Δ²q)²/2h³) that the initial path is accepted unsolved."""
+    return bool(solution.history) and max(solution.history) <= 1e-10
+
+
+KNOWN_RESULTS: list[KnownResult] = [
+    KnownResult(_BVP, _accepted_by_the_absolute_tolerance,
+                "test_hostile_bvp.py::test_known_bvp_absolute_tolerance_accepts_small_equations"),
 ]
 
 
@@ -195,6 +226,9 @@ def judge(entry: str, call: Callable[[], object], names: Sequence[str], *,
         try:
             verify(result)
         except AssertionError:
+            if any(k.matches(entry, result) for k in KNOWN_RESULTS):
+                counts.known += 1
+                return result
             counts.defects += 1
             raise
     counts.valid += 1

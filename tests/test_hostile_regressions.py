@@ -230,7 +230,8 @@ def test_emit_c_checks_step_path_and_prefix(tmp_path):
     with pytest.raises(sg.InputTypeError, match="prefix must be a string"):
         sg.emit_c(step, tmp_path / "k", prefix=3)
     (tmp_path / "file").write_text("in the way")
-    with pytest.raises(sg.OutputError, match=r"oscillator: cannot write .*file/k\.h"):
+    with pytest.raises(sg.OutputError,
+                       match=r"oscillator: path '.*file/k': cannot write .*file/k\.h"):
         sg.emit_c(step, tmp_path / "file" / "k")
 
 
@@ -311,3 +312,12 @@ def test_stationarity_is_checked_at_the_scale_of_the_coordinates():
                                             "trajectory"):
         q = 1e300 * np.arange(1, 9)
         sg.verify_stationary(np.stack([q[:-1], q[1:]], axis=1), system, params)
+
+
+def test_a_noether_quantity_that_overflows_is_an_error_not_a_nan():
+    """(A section with coefficients near 1e308 returned inf and NaN along the run.)"""
+    traj = case_of("diagonal").sim.simulate(case_of("diagonal").flat, 3, {"h": 0.1, "k": 1.0})
+    quantity = diagonal().noether([1e308, 1e308])
+    with pytest.raises(sg.ShapeError, match="NoetherQuantity.along: the quantity .* is not "
+                                            "finite at state 0"):
+        quantity.along(traj)

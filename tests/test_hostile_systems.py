@@ -53,7 +53,8 @@ def verify_space(space) -> None:
     assert isinstance(space, sg.EuclideanSpace)
     assert all(isinstance(n, str) and n for n in space.names)
     assert len(set(space.names)) == len(space.names) >= 1
-    verify_groupoid(sg.PairGroupoid(space))
+    if len(space.names) <= 20:  # an accepted dimension of 10⁵ is valid, but not checked here
+        verify_groupoid(sg.PairGroupoid(space))
 
 
 @pytest.mark.parametrize("run", PROFILES)
