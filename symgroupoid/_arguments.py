@@ -51,6 +51,15 @@ def _shown(value) -> str:
 
 # --- numbers ------------------------------------------------------------------------------------
 
+def ndim(value) -> int | None:
+    """The number of dimensions NumPy sees in ``value``; None for ragged nesting (where
+    ``np.ndim`` raises)."""
+    try:
+        return np.ndim(value)
+    except ValueError:
+        return None
+
+
 def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_COUNT,
                      owner: str = "") -> int:
     """``value`` as an int, or a :class:`ShapeError` naming ``name``.

@@ -69,6 +69,22 @@ class _NumericGroupoid:
         return h
 
 
+def _section_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.ndarray:
+    """For each basis section, the size (at least 1) of the arrow coordinates its flow moves
+    (positions on a pair groupoid; matrix entries, of size 1, on a Lie group)."""
+    q = np.asarray(ng.target(arrows[0]), float)
+    q = q / max(1.0, float(np.abs(q).max(initial=0.0)))  # probed where a move of 1e-3 shows
+    still = np.asarray(ng.flow(q, np.zeros(rank), 0.0), float)
+    sizes = np.ones(rank)
+    with np.errstate(all="ignore"):
+        for a in range(rank):
+            moved = np.asarray(ng.flow(q, np.eye(rank)[a], 1e-3), float)
+            mask = ~(np.abs(moved - still) <= 0.0)
+            if mask.any():
+                sizes[a] = max(1.0, float(np.nanmax(np.abs(arrows[:, mask]), initial=0.0)))
+    return sizes
+
+
 def _action_terms(system) -> tuple:
     """Lambdified L and φ on the system's own slot coordinates (independent of the DEL)."""
     fs = system._fs
@@ -118,7 +134,9 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     (or sit at rounding level) and their extrapolation to ε = 0 is negligible against the
     first-order changes of the single terms — a non-solution gives an O(1) derivative.  At a
     trivial solution (all arrows identities: every term's first-order change vanishes) the
-    differences are pure O(ε²), which the extrapolation removes.
+    differences are pure O(ε²), which the extrapolation removes.  The variations have size
+    ε relative to the largest coordinate and multiplier (at least 1).  An action that is not
+    finite on the trajectory is a :class:`~symgroupoid.DomainError`.
     """
     from .runtime._validate import real_argument, system_argument
 
@@ -140,6 +158,10 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     coeffs[:arity - 1] = 0.0
     coeffs[n - arity:] = 0.0
     mus = rng.normal(size=lam.shape) if m else None
+    # variations relative to the size of what they move: an absolute ε would vanish in the
+    # rounding of coordinates of size 1e150 and report any path as stationary
+    coeffs = coeffs * _section_sizes(ng, arrows, G.rank)
+    size_l = max(1.0, float(np.abs(lam).max(initial=0.0)))
 
     def varied(t: float) -> tuple[np.ndarray, np.ndarray | None]:
         hs = [ng.flow(ng.target(arrows[j]), coeffs[j], t) for j in range(n - 1)]
@@ -151,9 +173,17 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
             if j < n - 1:
                 g = np.asarray(ng.multiply(g, hs[j]), float)
             out.append(g)
-        return np.array(out), (lam + t * mus if m else None)
+        return np.array(out), (lam + t * size_l * mus if m else None)
 
     T0 = action_terms(system, arrows, lam, params)
+    if not np.isfinite(T0).all():
+        k = int(np.flatnonzero(~np.isfinite(T0))[0])
+        given = ", ".join(f"{s}={v:.6g}" for s, v in zip(system.parameters, params))
+        raise DomainError(f"{system.name}: the discrete action is not finite on this "
+                          f"trajectory (term {k} = {T0[k]}: the Lagrangian or the constraints "
+                          f"overflow or are undefined there"
+                          f"{f', with the parameters {given}' if given else ''}), so its "
+                          f"stationarity cannot be checked")
     report = StationarityReport()
     for e in (eps, eps / 2, eps / 4):
         Tp = action_terms(system, *varied(e), params)

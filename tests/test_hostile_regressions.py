@@ -230,7 +230,8 @@ def test_emit_c_checks_step_path_and_prefix(tmp_path):
     with pytest.raises(sg.InputTypeError, match="prefix must be a string"):
         sg.emit_c(step, tmp_path / "k", prefix=3)
     (tmp_path / "file").write_text("in the way")
-    with pytest.raises(sg.OutputError, match=r"oscillator: cannot write .*file/k\.h"):
+    with pytest.raises(sg.OutputError,
+                       match=r"oscillator: path '.*file/k': cannot write .*file/k\.h"):
         sg.emit_c(step, tmp_path / "file" / "k")
 
 
@@ -296,3 +297,27 @@ def test_a_metric_that_is_not_a_matrix_is_named(metric):
         sg.NonholonomicSystem(plane, lambda g: (g.target[0] - g.source[0]) ** 2 / H,
                               distribution=[[1, 1]], parameters=[H], method="energy_momentum",
                               metric=metric, name="nh")
+
+
+def test_stationarity_is_checked_at_the_scale_of_the_coordinates():
+    """(Variations of absolute size ε vanished in the rounding of coordinates of size
+    1e150: every path, solution or not, was reported stationary; an action that overflows
+    was reported "not stationary" with NaN derivatives.)"""
+    system = oscillator()
+    params = {"h": 0.1, "k": 1.0}
+    q = 1e150 + 1e148 * np.arange(8)  # a straight path: not a solution
+    report = sg.verify_stationary(np.stack([q[:-1], q[1:]], axis=1), system, params)
+    assert not report and report.scale > 1e290
+    with pytest.raises(sg.ShapeError, match="the discrete action is not finite on this "
+                                            "trajectory"):
+        q = 1e300 * np.arange(1, 9)
+        sg.verify_stationary(np.stack([q[:-1], q[1:]], axis=1), system, params)
+
+
+def test_a_noether_quantity_that_overflows_is_an_error_not_a_nan():
+    """(A section with coefficients near 1e308 returned inf and NaN along the run.)"""
+    traj = case_of("diagonal").sim.simulate(case_of("diagonal").flat, 3, {"h": 0.1, "k": 1.0})
+    quantity = diagonal().noether([1e308, 1e308])
+    with pytest.raises(sg.ShapeError, match="NoetherQuantity.along: the quantity .* is not "
+                                            "finite at state 0"):
+        quantity.along(traj)

@@ -51,20 +51,29 @@ Exit status: 0 success, 1 error or failed check (one line on stderr; --debug for
 traceback), 2 malformed command line, 130 interrupted.  Details: docs/cli.md."""
 
 
+def path_text(text: str) -> str:
+    """A file or directory option: text without NUL characters (no file name holds one);
+    refused as a malformed command line (status 2)."""
+    if "\0" in text:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a path: it contains a NUL "
+                                         f"character")
+    return text
+
+
 def _debug_option(parser: argparse.ArgumentParser, default) -> None:
     parser.add_argument("--debug", action="store_true", default=default,
                         help="on an error, show the Python traceback instead of one line")
 
 
 def _system_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("system", metavar="FILE.py[:NAME]", help=SYSTEM_HELP)
+    parser.add_argument("system", metavar="FILE.py[:NAME]", type=path_text, help=SYSTEM_HELP)
 
 
 def _runtime_options(parser: argparse.ArgumentParser, stepper: bool = True) -> None:
     parser.add_argument("--params", metavar="NAME=VALUE,...",
                         help="parameter values, e.g. h=0.01,k=1 (over the file's PARAMS)")
     if stepper:
-        parser.add_argument("--initial", metavar="FILE",
+        parser.add_argument("--initial", metavar="FILE", type=path_text,
                             help="initial state: FILE.json (see below) or a trajectory .npz")
         parser.add_argument("--backend", choices=BACKENDS, default="auto",
                             help="C kernel (c), NumPy (numpy), or C when a compiler exists "
@@ -95,14 +104,14 @@ def build_parser() -> argparse.ArgumentParser:
                       "print the discrete Euler–Lagrange equations as LaTeX, with sizes and "
                       "times")
     _system_options(derive)
-    derive.add_argument("--document", metavar="OUT.tex",
+    derive.add_argument("--document", metavar="OUT.tex", type=path_text,
                         help="write a standalone LaTeX document instead of printing")
     derive.add_argument("--pdf", action="store_true",
                         help="also run pdflatex on the document (default OUT.tex: NAME.tex)")
 
     emit = _command(commands, "emit", run_emit, "write the C99 kernel (NAME.c, NAME.h)")
     _system_options(emit)
-    emit.add_argument("-o", "--output", required=True, metavar="DIR",
+    emit.add_argument("-o", "--output", required=True, metavar="DIR", type=path_text,
                       help="output directory (created if missing)")
     emit.add_argument("--name", help="file name stem (default: the system's name)")
     emit.add_argument("--prefix", help="prefix of the C identifiers (default: the system's "
@@ -115,19 +124,19 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_argument("--every", default="1",
                           help="keep state 0, every k-th state and the last (default 1)")
     _runtime_options(simulate)
-    simulate.add_argument("-o", "--output", metavar="TRAJ.npz|TRAJ.csv",
+    simulate.add_argument("-o", "--output", metavar="TRAJ.npz|TRAJ.csv", type=path_text,
                           help="write the kept states")
 
     bvp = _command(commands, "bvp", run_bvp,
                    "solve a discrete two-point (optimal control) problem", epilog=True)
     _system_options(bvp)
-    bvp.add_argument("problem", metavar="BOUNDARY.json",
+    bvp.add_argument("problem", metavar="BOUNDARY.json", type=path_text,
                      help="start, end, steps (and optionally params, guess)")
     _runtime_options(bvp, stepper=False)
     bvp.add_argument("--max-iterations", default="30", help="Newton iteration cap (default 30)")
     bvp.add_argument("--check", action="store_true",
                      help="check the solution against the discrete action (verify_stationary)")
-    bvp.add_argument("-o", "--output", metavar="SOLUTION.npz|SOLUTION.csv",
+    bvp.add_argument("-o", "--output", metavar="SOLUTION.npz|SOLUTION.csv", type=path_text,
                      help="write the arrows, multipliers and named parts")
 
     verify = _command(commands, "verify", run_verify,
@@ -151,7 +160,7 @@ def build_parser() -> argparse.ArgumentParser:
     generate = _command(commands, "generate", run_generate,
                         "emit the C kernels of the seed systems (plate-ball, heavy top, rigid "
                         "body)")
-    generate.add_argument("outdir", help="output directory (created if missing)")
+    generate.add_argument("outdir", type=path_text, help="output directory (created if missing)")
     return parser
 
 

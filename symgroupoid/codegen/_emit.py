@@ -272,6 +272,6 @@ def emit_c(step, path: str | os.PathLike, prefix: str | None = None) -> tuple[Pa
         try:
             write_atomic(target, text)
         except OSError as exc:
-            raise OutputError(f"{step.name}: cannot write {target}: "
+            raise OutputError(f"{step.name}: path {str(path)!r}: cannot write {target}: "
                               f"{exc.strerror or exc}") from exc
     return c_path, h_path

@@ -255,9 +255,20 @@ def as_matrix(system_name: str, what: str, value) -> sp.Matrix:
     if not rows or any(isinstance(r, (str, bytes)) or not isinstance(r, (list, tuple))
                        for r in rows) or len({len(r) for r in rows}) != 1 or not rows[0]:
         raise bad
-    if any(isinstance(c, (str, bytes, list, tuple, dict, set)) for r in rows for c in r):
+    if not all(_is_scalar_expression(c) for r in rows for c in r):
         raise bad
     try:
         return sp.Matrix(rows)
     except (TypeError, ValueError, ArithmeticError, sp.SympifyError) as exc:
         raise bad from exc
+
+
+def _is_scalar_expression(value) -> bool:
+    """A number or SymPy scalar expression (not a string, boolean, None or container)."""
+    if isinstance(value, (str, bytes, bool, list, tuple, dict, set)) or value is None:
+        return False
+    try:
+        expr = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError, ValueError):
+        return False
+    return isinstance(expr, sp.Expr)

@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._errors import InputTypeError, ParameterError, ShapeError
+from .._errors import DomainError, InputTypeError, ParameterError, ShapeError
 from ..derivation._momenta import (
     LegendreForms,
     LiePoissonForms,
@@ -140,7 +140,15 @@ class NoetherQuantity:
                                  f"{', '.join(missing)}")
         p = np.array([float(values[str(s)]) for s in self.parameters])
         f = self._program.numpy_function(["F"], ["known", "p"])
-        return f(np.ascontiguousarray(states.T), p)[0][0]
+        with np.errstate(all="ignore"):
+            out = np.broadcast_to(np.asarray(f(np.ascontiguousarray(states.T), p)[0][0],
+                                             float), (len(states),))
+        if not np.isfinite(out).all():
+            k = int(np.flatnonzero(~np.isfinite(out))[0])
+            raise DomainError(f"NoetherQuantity.along: the quantity F_X = {_short(self.expr)} "
+                              f"is not finite at state {k} ({out[k]}): it overflows there "
+                              f"(check the section's coefficients and the parameters)")
+        return out.copy()
 
     def __repr__(self) -> str:
         verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"

@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 from .._arguments import choice_argument, instance_argument, name_argument, sequence_argument
-from .._errors import CallableError, InputTypeError
+from .._errors import CallableError, InputTypeError, ShapeError
 from .._progress import reported
 from ..derivation._callables import call_user, check_values
 from ..derivation._energy_momentum import (
@@ -57,15 +57,33 @@ def distribution_elements(name: str, groupoid: Groupoid, distribution) -> list:
     for i, element in enumerate(elements):
         what = f"distribution element {i}"
         if callable(element):
-            call_user(name, what, element, q)
-        elif isinstance(element, (str, bytes)) or not isinstance(element, (Sequence,
-                                                                          sp.MatrixBase)):
-            raise InputTypeError(f"{name}: {what} must be a list of {groupoid.rank} section "
-                                 f"coefficients or a function of the base point, got "
-                                 f"{type(element).__name__} {element!r}")
+            _coefficients(name, f"{what} (the value of its function)",
+                          call_user(name, what, element, q), groupoid.rank)
         else:
-            check_values(name, what, list(element))
+            _coefficients(name, what, element, groupoid.rank)
     return elements
+
+
+def _coefficients(name: str, what: str, value, rank: int) -> None:
+    """Check one element of D_c given as coefficients: a list or matrix of ``rank``
+    finite real expressions (an :class:`InputTypeError` or :class:`ShapeError` otherwise)."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, sp.MatrixBase)):
+        raise InputTypeError(f"{name}: {what} must be a list of {rank} section coefficients "
+                             f"or a function of the base point returning one, got "
+                             f"{type(value).__name__} {value!r}")
+    entries = list(value)
+    for j, entry in enumerate(entries):
+        try:
+            expr = sp.sympify(entry, strict=True)
+        except (sp.SympifyError, TypeError, ValueError):
+            expr = None
+        if not isinstance(expr, sp.Expr):
+            raise InputTypeError(f"{name}: {what}, coefficient {j} is not a real expression: "
+                                 f"{type(entry).__name__} {entry!r}")
+    check_values(name, what, entries)
+    if len(entries) != rank:
+        raise ShapeError(f"{name}: {what} has {len(entries)} coefficients; the algebroid "
+                         f"has rank {rank}")
 
 
 class DiscreteSystem:

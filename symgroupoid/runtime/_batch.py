@@ -27,6 +27,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .._arguments import ndim
 from .._errors import (
     DomainError,
     InputTypeError,
@@ -69,16 +70,8 @@ def _at_row(error: Exception, what: str, index) -> Exception:
 
 # --- parameters ---------------------------------------------------------------------------------
 
-def _ndim(value) -> int | None:
-    """The number of dimensions NumPy sees in ``value``; None for ragged nesting."""
-    try:
-        return np.ndim(value)
-    except ValueError:
-        return None
-
-
 def _is_scalar(value) -> bool:
-    return _ndim(value) == 0 and not isinstance(value, (Mapping, str, bytes))
+    return ndim(value) == 0 and not isinstance(value, (Mapping, str, bytes))
 
 
 def _looks_like_one_set(params, n_params: int) -> bool:
@@ -98,7 +91,7 @@ def _looks_like_one_set(params, n_params: int) -> bool:
 
 def _column_rows(sim, table: Mapping) -> list[dict]:
     """The rows of a mapping name → column (all columns of one length)."""
-    lengths = {str(k): len(v) if _ndim(v) == 1 else None for k, v in table.items()}
+    lengths = {str(k): len(v) if ndim(v) == 1 else None for k, v in table.items()}
     bad = [k for k, n in lengths.items() if n is None]
     if bad:
         raise ParameterError(f"{sim.name}: a parameter table maps each name to a column of "

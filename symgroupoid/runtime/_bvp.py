@@ -51,7 +51,7 @@ from typing import NamedTuple
 import numpy as np
 import sympy as sp
 
-from .._arguments import real_array
+from .._arguments import ndim, real_array
 from .._errors import (
     BoundaryValueDivergenceError,
     CutLocusError,
@@ -434,7 +434,7 @@ def _block_tridiagonal(rows, cols, vals, n, rhs, band) -> np.ndarray:
 
 # --- the solver --------------------------------------------------------------------------------
 
-#: accept the iterate when every |F_i| ≤ max(tol, ROUNDING_FACTOR·floor_i), floor_i the rounding
+#: accept the iterate when every |F_i| ≤ max(tol/ε, ROUNDING_FACTOR)·floor_i, floor_i the rounding
 #: floor of equation i (:func:`_rounding_floor`): ε·M_i, M_i the size of the terms that cancel
 #: in F_i (every operation of its evaluation rounded once), plus the effect of the rounding of
 #: the coordinates.  ε·M_i bounds the rounding of F_i up to the depth of the evaluation, while
@@ -688,7 +688,7 @@ def _split_guess(guess, steps: int):
     """(arrows, multipliers or None) of a guess: an (N, arrow_dim) table of arrows, or the
     pair ``(arrows, multipliers)``, a 2-tuple whose first entry is itself a table (a tuple
     of N arrows is arrows)."""
-    if isinstance(guess, tuple) and len(guess) == 2 and np.ndim(guess[0]) == 2:
+    if isinstance(guess, tuple) and len(guess) == 2 and ndim(guess[0]) == 2:
         return guess
     return guess, None
 
@@ -914,11 +914,16 @@ def _update(maps, lay, arrows, lam, dz, r, m):
 
 
 def _excess(F: np.ndarray, floor: np.ndarray, tol: float) -> float:
-    """max_i |F_i| / max(tol, ROUNDING_FACTOR·floor_i): at most 1 when converged."""
+    """max_i |F_i| / (max(tol/ε, ROUNDING_FACTOR)·floor_i): at most 1 when converged.
+
+    ``tol`` is relative, on the scale of ε: floor_i/ε is the size of the terms of F_i and of
+    its sensitivity to the coordinates, so the criterion is invariant under a rescaling of
+    the Lagrangian or of the step (an absolute tolerance accepts the initial path of
+    equations whose terms are all below it)."""
     if not F.size:
         return 0.0
     with np.errstate(all="ignore"):
-        ratio = np.abs(F) / np.maximum(tol, ROUNDING_FACTOR * floor)
+        ratio = np.abs(F) / (max(tol / _EPS, ROUNDING_FACTOR) * floor)
     ratio[F == 0] = 0.0  # an exact zero meets any floor, also a zero one (0/0)
     return float(np.nan_to_num(ratio, nan=np.inf).max())
 
@@ -1252,10 +1257,13 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     iteration from the initial path, and if that finds none either the solve raises.
 
     Converged only when the residual criterion holds: every equation's |F_i| is at most
-    max(``tol``, ROUNDING_FACTOR·floor_i), floor_i its rounding floor (ε times the terms that
-    cancel in it and its sensitivity to the rounding of the coordinates; it grows like N²
-    for a residual scaled like 1/h², which a fixed ``tol`` alone would miss); ``tol`` > 0
-    accepts residuals up to it as well.  The iteration has stalled when an update changes no
+    ROUNDING_FACTOR·floor_i, floor_i its rounding floor (ε times the terms that cancel in it
+    and its sensitivity to the rounding of the coordinates; it grows like N² for a residual
+    scaled like 1/h², which a fixed tolerance would miss).  ``tol`` is a relative tolerance
+    on the same scale: above ROUNDING_FACTOR·ε it accepts |F_i| ≤ (tol/ε)·floor_i, the
+    residual that a relative change ``tol`` of the terms and coordinates would leave.  It is
+    invariant under a rescaling of the Lagrangian or of h, so it never accepts the initial
+    path of equations that are merely small.  The iteration has stalled when an update changes no
     stored value, two steps in a row were taken at the floor without meeting the criterion,
     or (``tol_step`` > 0) an update falls below ``tol_step``·(1 + |λ|∞).
     Raises :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
@@ -1358,7 +1366,7 @@ def _divergence(owner: str, why: str, state: _Assembled, excess: float, run: _Ru
     return BoundaryValueDivergenceError(
         f"{owner}: boundary-value iteration {why}; after {run.iterations} iterations "
         f"|F|∞ = {norm:.3e}, worst at configuration {state.worst}, {excess:.1e} times the "
-        f"accepted residual max(tol, {ROUNDING_FACTOR:g}·rounding floor): not a solution",
+        f"accepted residual max(tol/ε, {ROUNDING_FACTOR:g})·rounding floor: not a solution",
         iterations=run.iterations, history=run.history, step=state.worst,
         residual_norm=norm, iterate=arrows)
 

@@ -229,8 +229,15 @@ class _Evaluator:
         if program is None:
             program = self.programs[key] = self.sg.program({"out": make()})
         f = program.numpy_function(["out"], ["known", "p"])
-        (out,) = f(np.ascontiguousarray(np.asarray(states, float).T), p)
-        return out.T  # (R, n)
+        with np.errstate(all="ignore"):
+            (out,) = f(np.ascontiguousarray(np.asarray(states, float).T), p)
+        out = np.asarray(out, float).T  # (R, n)
+        if not np.isfinite(out).all():
+            row = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
+            raise DiagnosticsError(f"{self.sg.name}: {key} is not finite at kept state {row} "
+                                   f"({out[row].tolist()}): it overflows there or is not "
+                                   f"defined (check the parameters)")
+        return out
 
 
 _EVALUATORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -744,7 +744,7 @@ def run_boundary_value_chunk(task: BoundaryValueTask, chains: list) -> list:
 
 def _sequence(value, what: str, owner: str) -> list:
     if isinstance(value, (str, bytes)) or not isinstance(value, (Sequence, np.ndarray)) \
-            or np.ndim(value) == 0:
+            or (isinstance(value, np.ndarray) and value.ndim == 0):
         raise ShapeError(f"{owner}: {what} must be a sequence of boundary configurations "
                          f"(one per run; [c] for one), got {type(value).__name__}")
     out = list(value)
