@@ -103,16 +103,19 @@ def real_argument(value, name: str, *, minimum: float | None = None, owner: str 
     values below ``minimum``, and (unless ``finite=False``) NaN and infinities.
     """
     at = where(owner)
-    bad = f"{at}{name} must be a real number, got {type(value).__name__} {_shown(value)}"
+
+    def bad() -> str:  # built only on failure: repr of a large array is not free
+        return f"{at}{name} must be a real number, got {type(value).__name__} {_shown(value)}"
+
     if isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating,
                           np.datetime64, np.timedelta64, Sequence, Mapping)):
-        raise error(bad)
+        raise error(bad())
     try:
         if np.ndim(value) != 0 or np.asarray(value).dtype.kind not in "iufO":
-            raise error(bad)
+            raise error(bad())
         real = float(value)
     except (TypeError, ValueError, AttributeError):
-        raise error(bad) from None
+        raise error(bad()) from None
     except OverflowError:
         raise error(f"{at}{name} is beyond the range of a double, got "
                     f"{_shown(value)}") from None
@@ -152,13 +155,16 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
     beyond the range of a double.  Values are not checked for finiteness here.
     """
     at = where(owner)
-    kind = f"an array of real numbers, got {type(value).__name__} {_shown(value)}"
+
+    def kind() -> str:  # built only on failure: repr of a large array is not free
+        return f"an array of real numbers, got {type(value).__name__} {_shown(value)}"
+
     if isinstance(value, (str, bytes, Mapping, set, frozenset)) or value is None:
-        raise ShapeError(f"{at}{name} must be {kind}")
+        raise ShapeError(f"{at}{name} must be {kind()}")
     try:
         raw = np.asarray(value)
     except (TypeError, ValueError, OverflowError):
-        raise ShapeError(f"{at}{name} must be {kind}") from None
+        raise ShapeError(f"{at}{name} must be {kind()}") from None
     if raw.dtype.kind == "O":
         for item in raw.flat:
             _check_real_item(item, name, at)
@@ -168,7 +174,7 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
     try:
         return np.array(raw, dtype=np.float64)
     except (TypeError, ValueError):
-        raise ShapeError(f"{at}{name} must be {kind}") from None
+        raise ShapeError(f"{at}{name} must be {kind()}") from None
     except OverflowError:
         raise ShapeError(f"{at}{name} has an entry beyond the range of a double: "
                          f"{_shown(value)}") from None

@@ -334,8 +334,8 @@ class Simulator:
         try:
             return self.state(state, p)
         except DomainError as err:  # Newton stopped at its step test, not on φ = 0
-            if "(α(" in str(err):  # ψ(α(g)) ≠ 0: the given base point is off M, an input error
-                raise
+            if "ψ∘α" in getattr(err, "violated", ()):  # the given base point is off M: an
+                raise                                    # input error, not a failed solve
             raise NewtonDivergenceError(
                 f"{self.name}: no consistent initial state found for the momentum "
                 f"{np.asarray(momentum, dtype=object).ravel().tolist()}: the state solved from "

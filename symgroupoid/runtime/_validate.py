@@ -355,6 +355,9 @@ class ConstraintCheck:
         self._labels = ([(f"φ_{i + 1}", "{}") for i in range(plain)]
                         + [(f"ψ_{a + 1}", "α({first})") for a in range(held)]
                         + [(f"ψ_{a + 1}", "β({last})") for a in range(held)])
+        #: what each constraint is: "φ", "ψ∘α" (ψ at the first node) or "ψ∘β"; a
+        #: DomainError raised by __call__ carries the kinds of the violated ones as .violated
+        self._kinds = ["φ"] * plain + ["ψ∘α"] * held + ["ψ∘β"] * held
         #: (position, name) of the parameters the constraints depend on (named in messages)
         self.used = [(i, str(p)) for i, p in enumerate(step.parameters)
                      if any(sp.sympify(c).has(p) for c in functions)]
@@ -414,8 +417,10 @@ class ConstraintCheck:
         values = np.asarray(params, float).ravel()
         given = (f" (with the parameters {', '.join(f'{n}={values[i]:.6g}' for i, n in self.used)})"
                  if self.used else "")
-        raise DomainError(f"{_where(owner)}the initial state violates the constraints{given}: "
-                          f"{'; '.join(lines)}")
+        error = DomainError(f"{_where(owner)}the initial state violates the constraints"
+                            f"{given}: {'; '.join(lines)}")
+        error.violated = tuple(self._kinds[i] for _, i, _, _ in bad)
+        raise error
 
 
 @functools.lru_cache(maxsize=32)
