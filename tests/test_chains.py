@@ -221,6 +221,41 @@ def test_spherical_chain_trajectory(n: int) -> None:
             np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-12)
 
 
+@needs_cc
+def test_spherical_chain_stays_on_the_group() -> None:
+    """The stored attitudes are renormalised each step (docs/conventions.md §16): over 5000
+    steps RᵀR − I stays at a few roundings, where a plain product R_k·cay(u) lets it
+    random-walk (to ~1e-14 here) and the Noether identity with it."""
+    sim = chain_step("3d", 1).compile(backend="c", cache_dir=SESSION_CACHE)
+    traj = sim.simulate(spherical_initial(1), 5000, {"h": H, "g": G}, every=50)
+    defect = max(np.abs(R.T @ R - np.eye(3)).max()
+                 for s in traj.states for R in sum(configurations(s, 1), []))
+    assert defect <= 4 * np.finfo(float).eps, defect
+
+
+def test_renormalised_matrix_is_the_identity_on_the_group() -> None:
+    """Q(3I − QᵀQ)/2 on the rotation block: exactly M on SO(3), SE(3); an orthogonality
+    defect δ goes to O(δ²); groups' own arrows are left alone."""
+    import sympy as sp
+
+    for group, x in ((sg.SO3("R"), [0.3, -0.2, 0.5]), (sg.SE3("g"), [0.3, -0.2, 0.5, 1, 2, 3]),
+                     (sg.SE2("g"), [0.4, 1.0, -2.0]), (sg.SO2("r"), [0.7])):
+        M = group.cayley([sp.Rational(str(v)) for v in x])
+        assert sp.simplify(group.renormalised_matrix(M) - M) == sp.zeros(*M.shape)
+        m = group.rotation_block
+        A = np.array(M.evalf(), float)
+        A[:m, :m] += 1e-6 * np.arange(m * m).reshape(m, m) / m**2
+        B = np.array(group.renormalised_matrix(sp.Matrix(A)), float)
+        before = np.abs(A[:m, :m].T @ A[:m, :m] - np.eye(m)).max()
+        after = np.abs(B[:m, :m].T @ B[:m, :m] - np.eye(m)).max()
+        assert before > 1e-7 and after < 1e-11, (group, before, after)
+        np.testing.assert_array_equal(B[m:], A[m:])  # translation rows untouched
+    pair = sg.PairGroupoid(sg.SO3("R"))
+    f = sp.symbols("f0:9")
+    assert sg.SO3("R").renormalised_fibre(f) == tuple(f)  # a Lie group's own arrows: as they are
+    assert pair.renormalised_fibre(f) != tuple(f)
+
+
 def _rotation_section(n: int, row: int):
     """The rotation of every body about the space axis e_row: X(R) = (R_iᵀ e_row)_i in the
     left-trivialised basis R ê_a of each factor (row ``row`` of each R_i, stored row-major)."""

@@ -233,6 +233,18 @@ def chart_of(groupoid: Groupoid, offset: int, source: Sequence | None = None
     return fibre, chart, cmap
 
 
+def next_map(groupoid: Groupoid, fibre: Sequence, cmap: dict) -> dict:
+    """The substitution that gives a step's next known state: ``cmap`` (fibre ← chart of the
+    newest arrow) with the newest fibre renormalised (:meth:`Groupoid.renormalised_fibre`,
+    the identity on the fibre: docs/conventions.md §16).  Only the stored state uses it; the
+    residuals use ``cmap`` itself."""
+    values = [cmap.get(f, f) for f in fibre]
+    renormalised = groupoid.renormalised_fibre(values)
+    out = dict(cmap)
+    out.update({f: v for f, v in zip(fibre, renormalised) if f != v})
+    return out
+
+
 def tidy(expr: sp.Expr) -> sp.Expr:
     """Expand polynomial-like residuals; keep rational ones (sum denominators) unexpanded."""
     expr = sp.sympify(expr)
@@ -332,7 +344,8 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
     shifted_fibres = [f for o in offsets[2:] for f in G.named_fibre(o)]
     next_knowns = (list(arrows[first + 1]) + shifted_fibres
                    + [x for s in starts[1:] for x in lam[s]])
-    next_knowns = [sp.sympify(e).xreplace(cmap) for e in next_knowns]
+    successor = next_map(G, fibre, cmap)
+    next_knowns = [sp.sympify(e).xreplace(successor) for e in next_knowns]
     prediction = list(G.predict_chart(arrows[newest - 1])) + lam[starts[-2]]
     return DerivedStep(
         name=name, groupoid=G, order=arity, knowns=knowns,
@@ -404,8 +417,8 @@ def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution:
     return DerivedStep(
         name=name, groupoid=G, order=1, knowns=list(g0),
         fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap, multipliers_next=[],
-        next_knowns=[sp.sympify(c).xreplace(cmap) for c in g1], parameters=list(parameters),
-        n_constraints=0, offsets=(0, 1), arrows=arrows,
+        next_knowns=[sp.sympify(c).xreplace(next_map(G, fibre, cmap)) for c in g1],
+        parameters=list(parameters), n_constraints=0, offsets=(0, 1), arrows=arrows,
         prediction=list(G.predict_chart(g0)), symbolic=symbolic, graph=graph,
         n_equations=len(distribution) + len(fs.constraints))
 

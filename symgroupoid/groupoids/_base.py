@@ -133,6 +133,15 @@ class Groupoid(ABC):
         groupoid of a Lie group).  Default: identity."""
         return tuple(x)
 
+    def renormalised_fibre(self, f: Sequence) -> tuple:
+        """Fibre variables f computed by a step (``fibre_chart`` of the solved chart
+        coordinates, rounded) pulled back onto the fibre where they over-parametrise it —
+        the identity on the fibre.  The pair groupoid of a matrix Lie group renormalises the
+        rotation block of q_{k+1} (docs/conventions.md §16), so that q_k stays on the group
+        over any number of steps.  Default: f (the arrow of a Lie group groupoid is the
+        retraction of the step's own unknowns, never a product of stored values)."""
+        return tuple(f)
+
     @functools.cached_property
     def _numeric_fibre_chart(self):
         x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(self.rank))

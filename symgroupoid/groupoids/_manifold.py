@@ -87,6 +87,12 @@ class Manifold(ABC):
         """Named matrix-group parts of a point: name → (offset in the coordinates, group)."""
         return {}
 
+    def renormalised(self, p: Sequence) -> tuple:
+        """The coordinates p of a computed point pulled back onto Q where they
+        over-parametrise it (a matrix group's rotation block: see
+        :meth:`MatrixLieGroup.renormalised_matrix`); the identity on Q.  Default: p."""
+        return tuple(p)
+
     def __mul__(self, other):
         return ProductManifold(self, as_manifold(other))
 
@@ -162,6 +168,10 @@ class GroupManifold(Manifold):
     def groups(self):
         return {self.group.symbol_name: (0, self.group)}
 
+    def renormalised(self, p):
+        G = self.group
+        return G.entries(G.renormalised_matrix(G.matrix(tuple(p))))
+
     def __repr__(self) -> str:
         return repr(self.group)
 
@@ -229,6 +239,11 @@ class ProductManifold(Manifold):
 
     def numeric_chart_inverse(self, q, p):
         return np.array(self._pointwise("numeric_chart_inverse", q, p, self._coords), float)
+
+    def renormalised(self, p):
+        return sum((f.renormalised(part) for f, part in zip(self.factors,
+                                                             self._split(p, self._coords))),
+                   ())
 
     def predict(self, q0, q1):
         return self._pointwise("predict", q0, q1, self._coords)

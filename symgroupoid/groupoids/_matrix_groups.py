@@ -187,6 +187,28 @@ class MatrixLieGroup(Groupoid):
     def _inverse_matrix(self, M: sp.Matrix) -> sp.Matrix:
         return M.inv()
 
+    #: size of the rotation block (the leading block whose columns are orthonormal on the
+    #: group: SO(n), and the linear part of SE(n)); 0 when the group has none
+    rotation_block: int = 0
+
+    def renormalised_matrix(self, M: sp.Matrix) -> sp.Matrix:
+        """M with its rotation block Q replaced by Q(3I − QᵀQ)/2 (one Newton–Schulz step
+        toward the nearest orthogonal matrix; docs/conventions.md §16).
+
+        The identity on the group (QᵀQ = I), so no equation changes; off the group it takes
+        the orthogonality defect δ = QᵀQ − I to O(δ²).  Applied to the configuration a step
+        stores (q_{k+1} = q_k τ(x), rounded), it keeps q_k on the group to rounding over any
+        number of steps instead of letting the defect random-walk — which would otherwise
+        break the discrete Noether identity by O(δ·|∂L|) per step.  Groups without a
+        rotation block: M itself."""
+        m = self.rotation_block
+        if not m:
+            return M
+        Q = M[:m, :m]
+        out = sp.Matrix(M)
+        out[:m, :m] = Q * (3 * sp.eye(m) - Q.T * Q) / 2
+        return out
+
     def section_curves(self, q, t):
         return [self.entries(self.cayley([t if b == a else 0 for b in range(self.rank)]))
                 for a in range(self.rank)]
@@ -407,6 +429,7 @@ class SO2(MatrixLieGroup):
 
     n = 2
     group_name = "SO2"
+    rotation_block = 2
 
     @classmethod
     def _basis(cls):
@@ -440,6 +463,7 @@ class SO3(MatrixLieGroup):
 
     n = 3
     group_name = "SO3"
+    rotation_block = 3
 
     @classmethod
     def _basis(cls):
@@ -533,6 +557,7 @@ class SE2(_SpecialEuclidean):
 
     n = 3
     group_name = "SE2"
+    rotation_block = 2
     rot = SO2
 
     @classmethod
@@ -566,6 +591,7 @@ class SE3(_SpecialEuclidean):
 
     n = 4
     group_name = "SE3"
+    rotation_block = 3
     rot = SO3
 
     @classmethod

@@ -199,6 +199,9 @@ class PairGroupoid(Groupoid):
     def chart_of_fibre(self, f, source=None):
         return tuple(self.space.chart_inverse(self._source_or_fail(source), tuple(f)))
 
+    def renormalised_fibre(self, f):
+        return self.space.renormalised(tuple(f))
+
     def fibre_chart_inverse(self, f, source=None):
         q = self._source_or_fail(source)
         return tuple(float(v) for v in self.space.numeric_chart_inverse(q, tuple(f)))

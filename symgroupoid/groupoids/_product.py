@@ -115,6 +115,9 @@ class ProductGroupoid(Groupoid):
     def predict_chart(self, a):
         return self._map("predict_chart", (a, self._arrow_slices))
 
+    def renormalised_fibre(self, f):
+        return self._map("renormalised_fibre", (f, self._fibre_slices))
+
     def named_groups(self):
         out: dict = {}
         for f in self.factors:
