@@ -26,6 +26,7 @@ from ._errors import (
     TrajectoryTooLargeError,
     UndeclaredSymbolError,
     UnsupportedExpressionError,
+    UnsupportedFeatureError,
 )
 from .equations import (
     DiscreteSystem,
@@ -93,6 +94,7 @@ __all__ = [
     "SingularJacobianError", "StationarityReport", "StepEquations", "SweepResult",
     "SymgroupoidError", "TimeGroupoid", "Trajectory", "TrajectoryBatch",
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
+    "UnsupportedFeatureError",
     "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "diagnostics",
     "emit_c", "hat3", "latex", "left_derivative", "plot_conservation", "plot_trajectory",
     "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",

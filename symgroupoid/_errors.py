@@ -149,6 +149,11 @@ class CutLocusError(SymgroupoidError, ArithmeticError):
         self.iterate = iterate
 
 
+class UnsupportedFeatureError(SymgroupoidError, NotImplementedError):
+    """A valid request the library does not implement for this kind of system (the message
+    says which combination), e.g. reduction of a system with holonomic constraints."""
+
+
 class BoundaryValueDivergenceError(NewtonDivergenceError):
     """The boundary-value Newton iteration ended without meeting the residual criterion: the
     iteration cap, a stalled update, or a line search that found no decrease.  ``iterations``

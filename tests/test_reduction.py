@@ -236,7 +236,7 @@ def test_second_order_systems_are_not_reduced_silently():
     h = sp.Symbol("h", positive=True)
     so = sg.SecondOrderSystem(P, lambda a, b: (a.matrix.trace() - b.matrix.trace()) ** 2 / h,
                               parameters=[h])
-    with pytest.raises(NotImplementedError, match="first-order"):
+    with pytest.raises(sg.UnsupportedFeatureError, match="first-order"):
         so.reduce(_to_group(P, sg.SO3("W")))
 
 

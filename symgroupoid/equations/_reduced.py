@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import DomainError, InputTypeError, ShapeError
+from .._errors import DomainError, InputTypeError, ShapeError, UnsupportedFeatureError
 from ..derivation._reduction import reduce_functions
 from ..groupoids._morphism import GroupoidMorphism, check_morphism
 from ._system import DiscreteSystem
@@ -129,7 +129,7 @@ def _no_holonomic(system: DiscreteSystem) -> None:
     """Reduction relates the Lagrangians and the constraints on the arrows (Def. 4.2); a
     system with holonomic constraints would need ψ = ψ′∘Φ₀ on the bases too."""
     if getattr(system, "n_holonomic", 0):
-        raise NotImplementedError(
+        raise UnsupportedFeatureError(
             f"{system.name}: reduction of systems with holonomic constraints is not "
             f"implemented (it would need ψ = ψ′∘Φ₀ on the bases, docs/conventions.md §15)")
 
@@ -143,7 +143,7 @@ def reduce_system(system: DiscreteSystem, morphism: GroupoidMorphism,
         raise InputTypeError(f"{system.name}: reduce needs a GroupoidMorphism, got "
                              f"{type(morphism).__name__}")
     if system._arity != 1:
-        raise NotImplementedError(f"{system.name}: reduction is implemented for first-order "
+        raise UnsupportedFeatureError(f"{system.name}: reduction is implemented for first-order "
                                   f"systems (L: G → R)")
     if morphism.source is not system.groupoid:
         raise DomainError(f"{system.name}: the morphism {morphism.name} starts at "

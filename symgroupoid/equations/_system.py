@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 from .._arguments import choice_argument, instance_argument, name_argument, sequence_argument
-from .._errors import CallableError, InputTypeError, ShapeError
+from .._errors import CallableError, InputTypeError, ShapeError, UnsupportedFeatureError
 from .._progress import reported
 from ..derivation._callables import call_user, check_values
 from ..derivation._energy_momentum import (
@@ -214,7 +214,7 @@ class SecondOrderSystem(DiscreteSystem):
     _arity = 2
 
     def lie_poisson(self):
-        raise NotImplementedError(f"{self.name}: the Lie–Poisson form is first order only")
+        raise UnsupportedFeatureError(f"{self.name}: the Lie–Poisson form is first order only")
 
 
 class NonholonomicSystem:

@@ -27,6 +27,7 @@ from .._errors import (
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
+    UnsupportedFeatureError,
 )
 from ._layout import StateLayout
 from ._validate import arrow as checked_arrow
@@ -61,7 +62,7 @@ class MomentumInitializer:
             raise TypeError(f"{step.name}: starting from a momentum needs the DiscreteSystem "
                             f"that derived the step (step.system)")
         if step.order != 1:
-            raise NotImplementedError(f"{step.name}: momentum initial data are implemented for "
+            raise UnsupportedFeatureError(f"{step.name}: momentum initial data are implemented for "
                                       f"first-order systems; give consecutive configurations")
         self.name, self.layout = step.name, layout
         G = step.groupoid
