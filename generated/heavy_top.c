@@ -33,6 +33,16 @@
 #include <omp.h>
 #endif
 
+/* The Newton stepper's loops run over the (compile-time) number of unknowns; for a few
+ * unknowns they are unrolled completely (no loop overhead, constant offsets). */
+#if HEAVY_TOP_N_UNKNOWNS <= 16 && defined(__clang__)
+#define HEAVY_TOP_UNROLL _Pragma("clang loop unroll(full)")
+#elif HEAVY_TOP_N_UNKNOWNS <= 16 && defined(__GNUC__)
+#define HEAVY_TOP_UNROLL _Pragma("GCC unroll 16")
+#else
+#define HEAVY_TOP_UNROLL
+#endif
+
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
  * (in the alpha-fibre of the known arrow's target)
  *   fibre[0] = (W_{k+1})_{11}
@@ -248,21 +258,40 @@ void heavy_top_default_options(heavy_top_options *options)
     options->extrapolate = 1;
 }
 
-/* max_i |v_i|; a non-finite entry is returned as soon as it is met (fmax would drop NaN) */
+/* The bits of |x| as an integer: for x >= 0 the integers are ordered as the doubles, above
+ * every finite |x| come the infinities, then the NaNs (all >= HEAVY_TOP_INF_BITS) */
+#define HEAVY_TOP_INF_BITS UINT64_C(0x7ff0000000000000)
+static uint64_t heavy_top_abs_bits(double x)
+{
+    uint64_t bits;
+    memcpy(&bits, &x, sizeof bits);
+    return bits & UINT64_C(0x7fffffffffffffff);
+}
+
+static double heavy_top_from_bits(uint64_t bits)
+{
+    double x;
+    memcpy(&x, &bits, sizeof x);
+    return x;
+}
+
+/* max_i |v_i|; if an entry is not finite, the first such |v_i| (fmax would drop NaN).  One
+ * integer pass over the bits of |v_i| (see heavy_top_abs_bits), and a second pass only when the
+ * largest is not finite. */
 static double heavy_top_norm_inf(const double *v, int n)
 {
-    double m = 0.0;
+    uint64_t m = 0;
     int i;
     for (i = 0; i < n; ++i) {
-        const double a = fabs(v[i]);
-        if (!isfinite(a)) {
-            return a;
-        }
-        if (a > m) {
-            m = a;
-        }
+        const uint64_t a = heavy_top_abs_bits(v[i]);
+        m = a > m ? a : m;
     }
-    return m;
+    if (m < HEAVY_TOP_INF_BITS) {
+        return heavy_top_from_bits(m);
+    }
+    for (i = 0; heavy_top_abs_bits(v[i]) < HEAVY_TOP_INF_BITS; ++i) {
+    }
+    return fabs(v[i]);
 }
 
 /* LU factorisation in place (A row-major; L's multipliers below the diagonal, U on and
@@ -303,16 +332,28 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;
     const double tiny = n * DBL_EPSILON;
+    uint64_t rmax[HEAVY_TOP_N_UNKNOWNS];
     int i, j, k;
-    for (i = 0; i < n; ++i) {
-        const double rmax = heavy_top_norm_inf(A + i * n, n);
-        if (!isfinite(rmax)) {
+    HEAVY_TOP_UNROLL
+    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (heavy_top_abs_bits) */
+        uint64_t m = 0;
+        HEAVY_TOP_UNROLL
+        for (j = 0; j < n; ++j) {
+            const uint64_t a = heavy_top_abs_bits(A[i * n + j]);
+            m = a > m ? a : m;
+        }
+        rmax[i] = m;
+    }
+    for (i = 0; i < n; ++i) { /* the first failing row decides the status */
+        if (rmax[i] >= HEAVY_TOP_INF_BITS) {
             return HEAVY_TOP_NON_FINITE;
         }
-        if (rmax == 0.0) {
+        if (rmax[i] == 0) {
             return HEAVY_TOP_SINGULAR_JACOBIAN;
         }
-        e[i] = heavy_top_binary_exponent(rmax);
+    }
+    for (i = 0; i < n; ++i) {
+        e[i] = heavy_top_binary_exponent(heavy_top_from_bits(rmax[i]));
         if (e[i] > -1000 && e[i] < 1000) {
             s[i] = heavy_top_power_of_two(-e[i]);
             for (j = 0; j < n; ++j) {
@@ -327,9 +368,11 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+    HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) {
         int piv = k;
         double amax = 0.0;
+        HEAVY_TOP_UNROLL
         for (i = k; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
             if (a > amax) {
@@ -342,6 +385,7 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
         }
         perm[k] = piv;
         if (piv != k) {
+            HEAVY_TOP_UNROLL
             for (j = 0; j < n; ++j) {
                 const double t = A[k * n + j];
                 A[k * n + j] = A[piv * n + j];
@@ -349,10 +393,12 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
             }
         }
         inv[k] = 1.0 / A[k * n + k];
+        HEAVY_TOP_UNROLL
         for (i = k + 1; i < n; ++i) {
             const double l = A[i * n + k] * inv[k];
             A[i * n + k] = l;
             if (l != 0.0) {
+                HEAVY_TOP_UNROLL
                 for (j = k + 1; j < n; ++j) {
                     A[i * n + j] -= l * A[k * n + j];
                 }
@@ -364,25 +410,26 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
 
 /* Solve A x = b with the factors of heavy_top_lu_factor (x returned in b): the same row scaling,
  * the row swaps, forward and back substitution.  Returns HEAVY_TOP_OK, or HEAVY_TOP_NON_FINITE
- * when b or x is not finite. */
+ * when x is not finite -- in particular whenever b or its scaling is not finite: a non-finite
+ * entry of the scaled b stays non-finite through the substitutions (the multipliers and
+ * pivots are finite, zero multipliers are skipped), so one test of x covers both. */
 static int heavy_top_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;
     int i, j, k;
+    HEAVY_TOP_UNROLL
     for (i = 0; i < n; ++i) {
         b[i] = s[i] != 0.0 ? b[i] * s[i] : ldexp(b[i], -e[i]);
     }
-    if (!isfinite(heavy_top_norm_inf(b, n))) {
-        return HEAVY_TOP_NON_FINITE;
-    }
+    HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
-        if (perm[k] != k) {
-            const double t = b[k];
-            b[k] = b[perm[k]];
-            b[perm[k]] = t;
-        }
+        const double t = b[k];
+        b[k] = b[perm[k]];
+        b[perm[k]] = t;
     }
+    HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) {
+        HEAVY_TOP_UNROLL
         for (i = k + 1; i < n; ++i) {
             const double l = A[i * n + k];
             if (l != 0.0) {
@@ -390,14 +437,16 @@ static int heavy_top_lu_apply(const double *A, const int *e, const double *s, co
             }
         }
     }
+    HEAVY_TOP_UNROLL
     for (i = n - 1; i >= 0; --i) {
         double t = b[i];
+        HEAVY_TOP_UNROLL
         for (j = i + 1; j < n; ++j) {
             t -= A[i * n + j] * b[j];
         }
         b[i] = t * inv[i];
     }
-    return isfinite(heavy_top_norm_inf(b, n)) ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
+    return heavy_top_norm_inf(b, n) < INFINITY ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
 }
 
 /* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
@@ -418,21 +467,32 @@ static double heavy_top_pivot_ratio(const double *inv)
     return hi / lo;
 }
 
-/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded */
+/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded
+ * (each sum from j = 0 up; the loop over i innermost) */
 static void heavy_top_coordinate_floor(const double *J, const double *u, double *C)
 {
     int i, j;
+    HEAVY_TOP_UNROLL
     for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
-        double c = 0.0;
-        for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
-            c += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * fabs(u[j]);
+        C[i] = 0.0;
+    }
+    HEAVY_TOP_UNROLL
+    for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+        const double a = fabs(u[j]);
+        HEAVY_TOP_UNROLL
+        for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+            C[i] += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * a;
         }
-        C[i] = DBL_EPSILON * c;
+    }
+    HEAVY_TOP_UNROLL
+    for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+        C[i] *= DBL_EPSILON;
     }
 }
 
 /* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
- * rounded (heavy_top_coordinate_floor, with the last factored Jacobian) and N_i the larger
+ * rounded (heavy_top_coordinate_floor, with the last factored Jacobian at the point where it
+ * was evaluated) and N_i the larger
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
@@ -491,7 +551,8 @@ static double heavy_top_relative_norm(const double *d, const double *u)
  * as solved.  An update reuses the last factorisation (a chord step) while the previous update
  * reduced |F|_inf at least tenfold -- near the solution, where Newton's first update has
  * already brought the error to the square of the guess's -- and refactors otherwise.
- * Converged:
+ * The last factored Jacobian J is kept unfactored beside its factors, with the point u_J where
+ * it was evaluated.  Converged:
  *  - after an update d_k (k >= 1) whose estimated remaining error rho/(1 - rho) |d_k| is at
  *    most tol_step, with rho = |d_k| / |d_{k-1}| the observed contraction and |.| relative to
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
@@ -502,15 +563,16 @@ static double heavy_top_relative_norm(const double *d, const double *u)
  *    to the smallest pivot (rounding noise of an update solved with that factorisation), or
  *    every |F_i| is at most
  *    floor_factor times its change under a rounding-level move of the unknowns
- *    (heavy_top_at_floor): Newton has stalled on rounding noise;
+ *    (heavy_top_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|): Newton has stalled
+ *    on rounding noise;
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate. */
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
-    double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
-    double inv[HEAVY_TOP_N_UNKNOWNS], s[HEAVY_TOP_N_UNKNOWNS];
+    double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], LU[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
+    double inv[HEAVY_TOP_N_UNKNOWNS], s[HEAVY_TOP_N_UNKNOWNS], uJ[HEAVY_TOP_N_UNKNOWNS];
     int e[HEAVY_TOP_N_UNKNOWNS], perm[HEAVY_TOP_N_UNKNOWNS];
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, done = 0;
@@ -524,15 +586,16 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         rnorm = heavy_top_norm_inf(F, HEAVY_TOP_N_EQUATIONS);
         *iterations = it;
         *residual_norm = rnorm;
-        if (!isfinite(rnorm)) {
+        if (!(rnorm < INFINITY)) {
             return HEAVY_TOP_NON_FINITE;
         }
         if (done) { /* the residual of the converged iterate, after its final update */
             return HEAVY_TOP_OK;
         }
         if (it == 0) {
-            heavy_top_coordinate_floor(J, u, C);
-            status = heavy_top_lu_factor(J, e, s, perm, inv);
+            memcpy(uJ, u, sizeof uJ);
+            memcpy(LU, J, sizeof LU);
+            status = heavy_top_lu_factor(LU, e, s, perm, inv);
             if (status != HEAVY_TOP_OK) {
                 return status;
             }
@@ -541,27 +604,34 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             return HEAVY_TOP_OK;
         }
         slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow && (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv)
-                     || heavy_top_at_floor(u, known, p, F, C, options->floor_factor))) {
+        if (slow && last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv)) {
             return HEAVY_TOP_OK;
+        }
+        if (slow) {
+            heavy_top_coordinate_floor(J, uJ, C);
+            if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
+                return HEAVY_TOP_OK;
+            }
         }
         if (it >= options->max_iterations) {
             return HEAVY_TOP_NOT_CONVERGED;
         }
         if (slow) {
             heavy_top_residual_jacobian(u, known, p, F, J);
-            heavy_top_coordinate_floor(J, u, C);
-            status = heavy_top_lu_factor(J, e, s, perm, inv);
+            memcpy(uJ, u, sizeof uJ);
+            memcpy(LU, J, sizeof LU);
+            status = heavy_top_lu_factor(LU, e, s, perm, inv);
             if (status != HEAVY_TOP_OK) {
                 return status;
             }
         }
         previous = rnorm;
-        status = heavy_top_lu_apply(J, e, s, perm, inv, F);
+        status = heavy_top_lu_apply(LU, e, s, perm, inv, F);
         if (status != HEAVY_TOP_OK) {
             return status;
         }
         step = heavy_top_relative_norm(F, u);
+        HEAVY_TOP_UNROLL
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
         }

@@ -38,6 +38,16 @@
 #include <omp.h>
 #endif
 
+/* The Newton stepper's loops run over the (compile-time) number of unknowns; for a few
+ * unknowns they are unrolled completely (no loop overhead, constant offsets). */
+#if PLATE_BALL_N_UNKNOWNS <= 16 && defined(__clang__)
+#define PLATE_BALL_UNROLL _Pragma("clang loop unroll(full)")
+#elif PLATE_BALL_N_UNKNOWNS <= 16 && defined(__GNUC__)
+#define PLATE_BALL_UNROLL _Pragma("GCC unroll 16")
+#else
+#define PLATE_BALL_UNROLL
+#endif
+
 /* alpha-fibre chart: the fibre variables of the unknown arrow from its chart coordinates
  * (in the alpha-fibre of the known arrow's target)
  *   fibre[0] = (g_{k+1})_{11}
@@ -414,21 +424,40 @@ void plate_ball_default_options(plate_ball_options *options)
     options->extrapolate = 1;
 }
 
-/* max_i |v_i|; a non-finite entry is returned as soon as it is met (fmax would drop NaN) */
+/* The bits of |x| as an integer: for x >= 0 the integers are ordered as the doubles, above
+ * every finite |x| come the infinities, then the NaNs (all >= PLATE_BALL_INF_BITS) */
+#define PLATE_BALL_INF_BITS UINT64_C(0x7ff0000000000000)
+static uint64_t plate_ball_abs_bits(double x)
+{
+    uint64_t bits;
+    memcpy(&bits, &x, sizeof bits);
+    return bits & UINT64_C(0x7fffffffffffffff);
+}
+
+static double plate_ball_from_bits(uint64_t bits)
+{
+    double x;
+    memcpy(&x, &bits, sizeof x);
+    return x;
+}
+
+/* max_i |v_i|; if an entry is not finite, the first such |v_i| (fmax would drop NaN).  One
+ * integer pass over the bits of |v_i| (see plate_ball_abs_bits), and a second pass only when the
+ * largest is not finite. */
 static double plate_ball_norm_inf(const double *v, int n)
 {
-    double m = 0.0;
+    uint64_t m = 0;
     int i;
     for (i = 0; i < n; ++i) {
-        const double a = fabs(v[i]);
-        if (!isfinite(a)) {
-            return a;
-        }
-        if (a > m) {
-            m = a;
-        }
+        const uint64_t a = plate_ball_abs_bits(v[i]);
+        m = a > m ? a : m;
     }
-    return m;
+    if (m < PLATE_BALL_INF_BITS) {
+        return plate_ball_from_bits(m);
+    }
+    for (i = 0; plate_ball_abs_bits(v[i]) < PLATE_BALL_INF_BITS; ++i) {
+    }
+    return fabs(v[i]);
 }
 
 /* LU factorisation in place (A row-major; L's multipliers below the diagonal, U on and
@@ -469,16 +498,28 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
 {
     const int n = PLATE_BALL_N_UNKNOWNS;
     const double tiny = n * DBL_EPSILON;
+    uint64_t rmax[PLATE_BALL_N_UNKNOWNS];
     int i, j, k;
-    for (i = 0; i < n; ++i) {
-        const double rmax = plate_ball_norm_inf(A + i * n, n);
-        if (!isfinite(rmax)) {
+    PLATE_BALL_UNROLL
+    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (plate_ball_abs_bits) */
+        uint64_t m = 0;
+        PLATE_BALL_UNROLL
+        for (j = 0; j < n; ++j) {
+            const uint64_t a = plate_ball_abs_bits(A[i * n + j]);
+            m = a > m ? a : m;
+        }
+        rmax[i] = m;
+    }
+    for (i = 0; i < n; ++i) { /* the first failing row decides the status */
+        if (rmax[i] >= PLATE_BALL_INF_BITS) {
             return PLATE_BALL_NON_FINITE;
         }
-        if (rmax == 0.0) {
+        if (rmax[i] == 0) {
             return PLATE_BALL_SINGULAR_JACOBIAN;
         }
-        e[i] = plate_ball_binary_exponent(rmax);
+    }
+    for (i = 0; i < n; ++i) {
+        e[i] = plate_ball_binary_exponent(plate_ball_from_bits(rmax[i]));
         if (e[i] > -1000 && e[i] < 1000) {
             s[i] = plate_ball_power_of_two(-e[i]);
             for (j = 0; j < n; ++j) {
@@ -493,9 +534,11 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+    PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) {
         int piv = k;
         double amax = 0.0;
+        PLATE_BALL_UNROLL
         for (i = k; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
             if (a > amax) {
@@ -508,6 +551,7 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
         }
         perm[k] = piv;
         if (piv != k) {
+            PLATE_BALL_UNROLL
             for (j = 0; j < n; ++j) {
                 const double t = A[k * n + j];
                 A[k * n + j] = A[piv * n + j];
@@ -515,10 +559,12 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
             }
         }
         inv[k] = 1.0 / A[k * n + k];
+        PLATE_BALL_UNROLL
         for (i = k + 1; i < n; ++i) {
             const double l = A[i * n + k] * inv[k];
             A[i * n + k] = l;
             if (l != 0.0) {
+                PLATE_BALL_UNROLL
                 for (j = k + 1; j < n; ++j) {
                     A[i * n + j] -= l * A[k * n + j];
                 }
@@ -530,25 +576,26 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
 
 /* Solve A x = b with the factors of plate_ball_lu_factor (x returned in b): the same row scaling,
  * the row swaps, forward and back substitution.  Returns PLATE_BALL_OK, or PLATE_BALL_NON_FINITE
- * when b or x is not finite. */
+ * when x is not finite -- in particular whenever b or its scaling is not finite: a non-finite
+ * entry of the scaled b stays non-finite through the substitutions (the multipliers and
+ * pivots are finite, zero multipliers are skipped), so one test of x covers both. */
 static int plate_ball_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
 {
     const int n = PLATE_BALL_N_UNKNOWNS;
     int i, j, k;
+    PLATE_BALL_UNROLL
     for (i = 0; i < n; ++i) {
         b[i] = s[i] != 0.0 ? b[i] * s[i] : ldexp(b[i], -e[i]);
     }
-    if (!isfinite(plate_ball_norm_inf(b, n))) {
-        return PLATE_BALL_NON_FINITE;
-    }
+    PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
-        if (perm[k] != k) {
-            const double t = b[k];
-            b[k] = b[perm[k]];
-            b[perm[k]] = t;
-        }
+        const double t = b[k];
+        b[k] = b[perm[k]];
+        b[perm[k]] = t;
     }
+    PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) {
+        PLATE_BALL_UNROLL
         for (i = k + 1; i < n; ++i) {
             const double l = A[i * n + k];
             if (l != 0.0) {
@@ -556,14 +603,16 @@ static int plate_ball_lu_apply(const double *A, const int *e, const double *s, c
             }
         }
     }
+    PLATE_BALL_UNROLL
     for (i = n - 1; i >= 0; --i) {
         double t = b[i];
+        PLATE_BALL_UNROLL
         for (j = i + 1; j < n; ++j) {
             t -= A[i * n + j] * b[j];
         }
         b[i] = t * inv[i];
     }
-    return isfinite(plate_ball_norm_inf(b, n)) ? PLATE_BALL_OK : PLATE_BALL_NON_FINITE;
+    return plate_ball_norm_inf(b, n) < INFINITY ? PLATE_BALL_OK : PLATE_BALL_NON_FINITE;
 }
 
 /* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
@@ -584,21 +633,32 @@ static double plate_ball_pivot_ratio(const double *inv)
     return hi / lo;
 }
 
-/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded */
+/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded
+ * (each sum from j = 0 up; the loop over i innermost) */
 static void plate_ball_coordinate_floor(const double *J, const double *u, double *C)
 {
     int i, j;
+    PLATE_BALL_UNROLL
     for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
-        double c = 0.0;
-        for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
-            c += fabs(J[i * PLATE_BALL_N_UNKNOWNS + j]) * fabs(u[j]);
+        C[i] = 0.0;
+    }
+    PLATE_BALL_UNROLL
+    for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
+        const double a = fabs(u[j]);
+        PLATE_BALL_UNROLL
+        for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
+            C[i] += fabs(J[i * PLATE_BALL_N_UNKNOWNS + j]) * a;
         }
-        C[i] = DBL_EPSILON * c;
+    }
+    PLATE_BALL_UNROLL
+    for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
+        C[i] *= DBL_EPSILON;
     }
 }
 
 /* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
- * rounded (plate_ball_coordinate_floor, with the last factored Jacobian) and N_i the larger
+ * rounded (plate_ball_coordinate_floor, with the last factored Jacobian at the point where it
+ * was evaluated) and N_i the larger
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
@@ -657,7 +717,8 @@ static double plate_ball_relative_norm(const double *d, const double *u)
  * as solved.  An update reuses the last factorisation (a chord step) while the previous update
  * reduced |F|_inf at least tenfold -- near the solution, where Newton's first update has
  * already brought the error to the square of the guess's -- and refactors otherwise.
- * Converged:
+ * The last factored Jacobian J is kept unfactored beside its factors, with the point u_J where
+ * it was evaluated.  Converged:
  *  - after an update d_k (k >= 1) whose estimated remaining error rho/(1 - rho) |d_k| is at
  *    most tol_step, with rho = |d_k| / |d_{k-1}| the observed contraction and |.| relative to
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
@@ -668,15 +729,16 @@ static double plate_ball_relative_norm(const double *d, const double *u)
  *    to the smallest pivot (rounding noise of an update solved with that factorisation), or
  *    every |F_i| is at most
  *    floor_factor times its change under a rounding-level move of the unknowns
- *    (plate_ball_at_floor): Newton has stalled on rounding noise;
+ *    (plate_ball_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|): Newton has stalled
+ *    on rounding noise;
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate. */
 static int plate_ball_newton(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
-    double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS];
-    double inv[PLATE_BALL_N_UNKNOWNS], s[PLATE_BALL_N_UNKNOWNS];
+    double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], LU[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS];
+    double inv[PLATE_BALL_N_UNKNOWNS], s[PLATE_BALL_N_UNKNOWNS], uJ[PLATE_BALL_N_UNKNOWNS];
     int e[PLATE_BALL_N_UNKNOWNS], perm[PLATE_BALL_N_UNKNOWNS];
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, done = 0;
@@ -690,15 +752,16 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
         rnorm = plate_ball_norm_inf(F, PLATE_BALL_N_EQUATIONS);
         *iterations = it;
         *residual_norm = rnorm;
-        if (!isfinite(rnorm)) {
+        if (!(rnorm < INFINITY)) {
             return PLATE_BALL_NON_FINITE;
         }
         if (done) { /* the residual of the converged iterate, after its final update */
             return PLATE_BALL_OK;
         }
         if (it == 0) {
-            plate_ball_coordinate_floor(J, u, C);
-            status = plate_ball_lu_factor(J, e, s, perm, inv);
+            memcpy(uJ, u, sizeof uJ);
+            memcpy(LU, J, sizeof LU);
+            status = plate_ball_lu_factor(LU, e, s, perm, inv);
             if (status != PLATE_BALL_OK) {
                 return status;
             }
@@ -707,27 +770,34 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
             return PLATE_BALL_OK;
         }
         slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow && (last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(inv)
-                     || plate_ball_at_floor(u, known, p, F, C, options->floor_factor))) {
+        if (slow && last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(inv)) {
             return PLATE_BALL_OK;
+        }
+        if (slow) {
+            plate_ball_coordinate_floor(J, uJ, C);
+            if (plate_ball_at_floor(u, known, p, F, C, options->floor_factor)) {
+                return PLATE_BALL_OK;
+            }
         }
         if (it >= options->max_iterations) {
             return PLATE_BALL_NOT_CONVERGED;
         }
         if (slow) {
             plate_ball_residual_jacobian(u, known, p, F, J);
-            plate_ball_coordinate_floor(J, u, C);
-            status = plate_ball_lu_factor(J, e, s, perm, inv);
+            memcpy(uJ, u, sizeof uJ);
+            memcpy(LU, J, sizeof LU);
+            status = plate_ball_lu_factor(LU, e, s, perm, inv);
             if (status != PLATE_BALL_OK) {
                 return status;
             }
         }
         previous = rnorm;
-        status = plate_ball_lu_apply(J, e, s, perm, inv, F);
+        status = plate_ball_lu_apply(LU, e, s, perm, inv, F);
         if (status != PLATE_BALL_OK) {
             return status;
         }
         step = plate_ball_relative_norm(F, u);
+        PLATE_BALL_UNROLL
         for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
         }

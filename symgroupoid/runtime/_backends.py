@@ -67,9 +67,9 @@ class NewtonOptions:
     - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and
       either that update was at most 64ε times the ratio of the largest to the smallest pivot
       (rounding noise of an update solved with that factorisation), or every |F_i| is at
-      most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_j| (J the last factored
-      Jacobian) and N_i its change under a move of every unknown by 4 ulps: stalled at the
-      rounding floor of the unknowns and of F's own operations;
+      most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_J,j| (J the last factored
+      Jacobian, evaluated at u_J) and N_i its change under a move of every unknown by 4 ulps:
+      stalled at the rounding floor of the unknowns and of F's own operations;
     - when |F|_∞ ≤ ``tol_residual`` (absolute; 0, i.e. off, by default).
 
     At most ``max_iterations`` updates (an integer in 0 … 2³¹ − 1, the range of a C ``int``;
@@ -537,15 +537,16 @@ def lu_factor(A: np.ndarray) -> tuple[int, LUFactors | None]:
 
 
 def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
-    """(status, x) solving A x = b with the factors, exactly as ``<prefix>_lu_apply``."""
+    """(status, x) solving A x = b with the factors, exactly as ``<prefix>_lu_apply``;
+    ``NON_FINITE`` when x is not finite (in particular when b or its scaling is not)."""
     A, n = factors.A, len(factors.A)
     with np.errstate(all="ignore"):
         b = np.array(b, dtype=float)
         for i in range(n):
             e = int(factors.e[i])
             b[i] = b[i] * np.ldexp(1.0, -e) if -1000 < e < 1000 else np.ldexp(b[i], -e)
-        if not np.isfinite(b).all():
-            return NON_FINITE, b
+        # a non-finite entry of the scaled b stays non-finite through the substitutions
+        # (finite multipliers and pivots, zero multipliers skipped): one test of x covers it
         for k in range(n):  # the row swaps, in order (L's rows were swapped with them)
             piv = int(factors.perm[k])
             if piv != k:
@@ -646,7 +647,7 @@ class NumpyKernel(_Kernel):
     def _newton(self, known, p, u, options: NewtonOptions):
         """As ``<prefix>_newton`` (see :class:`NewtonOptions`)."""
         previous = last_step = 0.0
-        factors = C = None
+        factors = uJ = None
         done = False
         it = 0
         while True:
@@ -660,7 +661,7 @@ class NumpyKernel(_Kernel):
             if done:  # the residual of the converged iterate, after its final update
                 return OK, u, it, rnorm
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
-                C = coordinate_floor(J, u)
+                uJ = u
                 status, factors = lu_factor(J)
                 if status != OK:
                     return status, u, it, rnorm
@@ -669,13 +670,14 @@ class NumpyKernel(_Kernel):
             slow = it > 0 and not rnorm <= 0.1 * previous
             ratio = float(np.max(np.abs(factors.inv)) / np.min(np.abs(factors.inv)))
             if slow and (last_step <= 64.0 * EPSILON * ratio
-                         or self._at_floor(u, known, p, F, C, options.floor_factor)):
+                         or self._at_floor(u, known, p, F, coordinate_floor(J, uJ),
+                                           options.floor_factor)):
                 return OK, u, it, rnorm
             if it >= options.max_iterations:
                 return NOT_CONVERGED, u, it, rnorm
             if slow:
                 F, J = self._residual_jacobian(u, known, p)
-                C = coordinate_floor(J, u)
+                uJ = u
                 status, factors = lu_factor(J)
                 if status != OK:
                     return status, u, it, rnorm
