@@ -42,6 +42,7 @@ an error carrying the iterations and the residual.
 
 from __future__ import annotations
 
+import collections
 import functools
 import time
 from collections.abc import Sequence
@@ -301,14 +302,18 @@ class _Maps:
         b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
         d = tuple(sp.Dummy(f"d{i}") for i in range(G.rank))
         self.G = G
-        self._mul = sp.lambdify([a, b], list(G.multiply(a, b)), "numpy")
-        self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy")
+        self._mul = sp.lambdify([a, b], list(G.multiply(a, b)), "numpy", cse=True)
+        self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy", cse=True)
         q = G.target(a)
-        self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy")
+        self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy", cse=True)
 
     @staticmethod
     def _rows(values, n):
-        return np.array([np.broadcast_to(np.asarray(v, float), (n,)) for v in values]).T
+        """The (n, len(values)) table of the lambdified entries (arrays or constants)."""
+        out = np.empty((n, len(values)))
+        for i, v in enumerate(values):
+            out[:, i] = v
+        return out
 
     def multiply(self, A, B):
         return self._rows(self._mul(A.T, B.T), len(A))
@@ -1170,8 +1175,18 @@ class _Step(NamedTuple):
     at_floor: bool = False
 
 
+#: the fast path keeps its last this many iterates as restart points for the globalised
+#: iteration (with the initial path: :func:`_restart_points`)
+RESTART_CANDIDATES = 8
+
+
 class _Handover(Exception):
-    """The fast path gives up (no decrease, or damped steps only): the reason."""
+    """The fast path gives up (no decrease, or damped steps only): the reason, and its last
+    iterates (arrows, λ, state), oldest first."""
+
+    def __init__(self, why: str, iterates: Sequence = ()):
+        super().__init__(why)
+        self.iterates = list(iterates)
 
 
 def _check_budget(ctx: _Context, run: _Run, state: _Assembled, excess: float, arrows) -> None:
@@ -1206,8 +1221,10 @@ def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
     globalised iteration does better)."""
     run.methods.append("Newton")
     damped = 0
+    recent = collections.deque(maxlen=RESTART_CANDIDATES)
     while True:
         run.record(state)
+        recent.append((arrows, lam, state))
         excess = ctx.excess(arrows, lam, state)
         if excess <= 1.0:
             return arrows, lam, state
@@ -1215,12 +1232,36 @@ def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
         dz = _newton_direction(ctx, state, run, arrows)
         step = _line_search(ctx.kernel, ctx.lay, ctx.maps, arrows, lam, dz, state, ctx.p)
         if step is None:
-            raise _Handover("found no decrease of |F| along the Newton direction (line search)")
+            raise _Handover("found no decrease of |F| along the Newton direction (line search)",
+                            recent)
         run.step_taken(ctx, step, (arrows, lam))
         arrows, lam, state = step.arrows, step.lam, step.state
         damped = damped + 1 if step.length <= DAMPED_LENGTH else 0
         if damped >= MAX_DAMPED and not run.stalled:
-            raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row")
+            recent.append((arrows, lam, state))
+            raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row", recent)
+
+
+def _restart_points(ctx: _Context, initial: tuple, iterates: Sequence) -> list:
+    """Where the globalised iteration starts after a handover, in the order to try: the
+    fast path's iterate of least ℓ₁ merit φ_ν = Σ L + ν‖Φ‖₁ (ν = 1.1·max|λ| over the
+    candidates, the globalised iteration's own first weight) when it is below the initial
+    path's, then the initial path (the fallback: a descent from there reaches the minimum
+    the initial path leads to even when the fast path wandered off towards another
+    stationary point)."""
+    lam_rows = _multiplier_rows(ctx.lay, ctx.m)
+    nu = 1.1 * max((float(np.max(np.abs(lam), initial=0.0)) for _, lam, _ in iterates),
+                   default=0.0)
+
+    def merit(point) -> float:
+        arrows, _, state = point
+        value = ctx.cost(arrows, ctx.p) + nu * float(np.abs(state.F[lam_rows]).sum())
+        return value if np.isfinite(value) else np.inf
+
+    best = min(iterates, key=merit, default=None)
+    if best is None or merit(best) >= merit(initial):
+        return [initial[:2]]
+    return [best[:2], initial[:2]]
 
 
 # --- the globalised iteration: inertia-corrected Newton on the action ---------------------------
@@ -1484,18 +1525,19 @@ def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bo
     """The fast path, then (on its failure, or for ``minimum`` at a non-minimum) the
     globalised iteration; returns ((arrows, λ, state), second_order): ``(inertia,)`` when it
     was computed, ``()`` when it is left for the solution to compute on request."""
-    initial = (arrows, lam)
+    initial = (arrows, lam, state)
     try:
         found = _fast_newton(ctx, arrows, lam, state, run)
     except _Handover as why:
-        found = _globalised_after(ctx, initial, run, str(why))
+        found = _globalised_after(ctx, _restart_points(ctx, initial, why.iterates), run,
+                                  str(why))
         return found, (_reduced_inertia(ctx, found[2]),)
     if not minimum:
         return found, ()
     inertia = _reduced_inertia(ctx, found[2])
     if not _is_minimum(inertia):
-        found = _globalised_after(ctx, initial, run, "it reached a stationary point that is "
-                                  f"not a local minimum ({_describe(inertia)})")
+        found = _globalised_after(ctx, [initial[:2]], run, "it reached a stationary point "
+                                  f"that is not a local minimum ({_describe(inertia)})")
         inertia = _reduced_inertia(ctx, found[2])
         if not _is_minimum(inertia):
             raise _divergence(ctx.owner, "found no local minimum: the globalised iteration "
@@ -1504,14 +1546,28 @@ def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bo
     return found, (inertia,)
 
 
-def _globalised_after(ctx: _Context, initial, run: _Run, why: str):
-    """The globalised iteration from the initial path; its errors name why the fast path
-    ended too."""
-    try:
-        return _globalised(ctx, *initial, run)
-    except (BoundaryValueDivergenceError, SingularJacobianError) as exc:
-        exc.args = (f"{exc.args[0]} (after the Newton fast path {why})",) + exc.args[1:]
-        raise
+def _globalised_after(ctx: _Context, starts: list, run: _Run, why: str):
+    """The globalised iteration from each of ``starts`` (arrows, λ) in turn until one
+    converges (the iteration cap counts them all); the last one's errors name why the fast
+    path ended too."""
+    for k, start in enumerate(starts):
+        run.stalled, run.at_floor = "", 0
+        try:
+            return _globalised(ctx, *start, run)
+        except (BoundaryValueDivergenceError, SingularJacobianError) as exc:
+            if k + 1 < len(starts) and run.iterations < ctx.max_iterations:
+                why = (f"{why}; from its best iterate, the globalised iteration "
+                       f"{_first_line(exc)}")
+                continue
+            exc.args = (f"{exc.args[0]} (after the Newton fast path {why})",) + exc.args[1:]
+            raise
+
+
+def _first_line(exc: Exception) -> str:
+    """What went wrong, in the words of ``exc`` without its owner prefix or its numbers."""
+    text = str(exc.args[0]) if exc.args else type(exc).__name__
+    text = text.split(": ", 1)[-1]
+    return text.split(";", 1)[0]
 
 
 def _divergence(owner: str, why: str, state: _Assembled, excess: float, run: _Run,
