@@ -1548,14 +1548,18 @@ def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bo
 
 def _globalised_after(ctx: _Context, starts: list, run: _Run, why: str):
     """The globalised iteration from each of ``starts`` (arrows, λ) in turn until one
-    converges (the iteration cap counts them all); the last one's errors name why the fast
+    converges; the next start is tried after a line search without decrease, a non-finite
+    residual or a singular Jacobian, not after a stall (the update fell below ``tol_step``
+    or stopped changing the iterate: the caller's criterion, or the rounding floor) nor at
+    the iteration cap, which counts every start.  The last one's errors name why the fast
     path ended too."""
     for k, start in enumerate(starts):
-        run.stalled, run.at_floor = "", 0
+        run.at_floor = 0
         try:
             return _globalised(ctx, *start, run)
         except (BoundaryValueDivergenceError, SingularJacobianError) as exc:
-            if k + 1 < len(starts) and run.iterations < ctx.max_iterations:
+            if k + 1 < len(starts) and not run.stalled and \
+                    run.iterations < ctx.max_iterations:
                 why = (f"{why}; from its best iterate, the globalised iteration "
                        f"{_first_line(exc)}")
                 continue
