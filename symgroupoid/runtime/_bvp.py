@@ -31,9 +31,10 @@ criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or `
 floor computed alongside the residual from its running-error bound
 (:func:`symgroupoid.ir.rounding_error`), which also counts the rounding of the stored
 coordinates and multipliers.  Newton's method is the fast path; when it stalls in damped
-steps or finds no decrease, the solve restarts with Newton steps regularised by the inertia
-of the KKT matrix and a line search on an ℓ₁ merit function (a descent method on the
-action).  The solution reports its cost and whether it is a local minimum (the inertia of
+steps or finds no decrease, the solve restarts — from the fast path's iterate of least ℓ₁
+merit, else (or when that fails) from the initial path — with Newton steps regularised by
+the inertia of the KKT matrix and a line search on an ℓ₁ merit function (a descent method
+on the action).  The solution reports its cost and whether it is a local minimum (the inertia of
 the Hessian of the Lagrangian on the admissible variations tangent to the constraints, by a
 banded LDLᵀ: runtime/_banded.py).  Anything else — the iteration cap, a stalled update, a
 line search without decrease, a singular Jacobian, a half-turn in the initial path — raises
@@ -1438,12 +1439,15 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     The iteration.  Structured Newton on the necessary conditions (junction residuals and
     constraints; block-banded Jacobian, solved in time linear in N), each update backtracked
     until |F|₂ decreases (:func:`_line_search`), is the fast path.  When it finds no decrease
-    or takes MAX_DAMPED damped steps in a row, the solve restarts from the initial path with
-    the globalised iteration (:func:`_globalised`): Newton steps on the same banded system
-    regularised until the Hessian of the Lagrangian is positive definite on the tangent
-    space of the constraints (its inertia from a banded LDLᵀ), with a line search on the ℓ₁
-    merit function Σ L + ν‖Φ‖₁ — a descent method for the action, as an interior-point NLP
-    solver is.  ``max_iterations`` bounds the iterations of both phases together.
+    or takes MAX_DAMPED damped steps in a row, the solve restarts with the globalised
+    iteration (:func:`_globalised`) from the fast path's iterate of least ℓ₁ merit when it
+    is below the initial path's, from the initial path otherwise and when the first restart
+    finds no decrease (:func:`_restart_points`, :func:`_globalised_after`): Newton steps
+    on the same banded system regularised until the Hessian of the Lagrangian is positive
+    definite on the tangent space of the constraints (its inertia from a banded LDLᵀ), with
+    a line search on the ℓ₁ merit function Σ L + ν‖Φ‖₁ — a descent method for the action,
+    as an interior-point NLP solver is.  ``max_iterations`` bounds the iterations of all
+    phases together.
     ``minimum=True`` asks for a local minimum: a stationary point that is not one (see
     :attr:`BoundaryValueSolution.is_local_minimum`) sends the solve to the globalised
     iteration from the initial path, and if that finds none either the solve raises.
