@@ -31,9 +31,10 @@ criterion: every equation at most ROUNDING_FACTOR times its rounding floor (or `
 floor computed alongside the residual from its running-error bound
 (:func:`symgroupoid.ir.rounding_error`), which also counts the rounding of the stored
 coordinates and multipliers.  Newton's method is the fast path; when it stalls in damped
-steps or finds no decrease, the solve restarts with Newton steps regularised by the inertia
-of the KKT matrix and a line search on an ℓ₁ merit function (a descent method on the
-action).  The solution reports its cost and whether it is a local minimum (the inertia of
+steps or finds no decrease, the solve restarts — from the fast path's iterate of least ℓ₁
+merit, else (or when that fails) from the initial path — with Newton steps regularised by
+the inertia of the KKT matrix and a line search on an ℓ₁ merit function (a descent method
+on the action).  The solution reports its cost and whether it is a local minimum (the inertia of
 the Hessian of the Lagrangian on the admissible variations tangent to the constraints, by a
 banded LDLᵀ: runtime/_banded.py).  Anything else — the iteration cap, a stalled update, a
 line search without decrease, a singular Jacobian, a half-turn in the initial path — raises
@@ -42,6 +43,7 @@ an error carrying the iterations and the residual.
 
 from __future__ import annotations
 
+import collections
 import functools
 import time
 from collections.abc import Sequence
@@ -193,11 +195,20 @@ class WindowKernel:
     def junction_terms(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
         """:meth:`junction`'s blocks and the rounding bound E of each residual (W, rank): its
         rounding error is at most about ε·E (:func:`symgroupoid.ir.rounding_error`)."""
+        return self.split_junction(self.junction_values(windows, lams, params))
+
+    def junction_values(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray
+                        ) -> np.ndarray:
+        """The junction program's outputs for W windows, one row each (see
+        :meth:`split_junction`)."""
         W = len(windows)
         vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1),
                           np.broadcast_to(params, (W, len(params)))])
-        out = self._junction(vals)  # (W, total)
-        r, k = self.rank, 0
+        return self._junction(vals)  # (W, total)
+
+    def split_junction(self, out: np.ndarray):
+        """(residuals, left, right, dlam, rounding bounds) as views of the outputs ``out``."""
+        W, r, k = len(out), self.rank, 0
         res = out[:, k:k + r]
         k += r
         left, right = {}, {}
@@ -218,9 +229,17 @@ class WindowKernel:
     def term_terms(self, windows: np.ndarray, params: np.ndarray):
         """:meth:`term`'s values and blocks and the rounding bound of each constraint value
         (T, m)."""
-        T, m, r = len(windows), self.m, self.rank
-        vals = np.hstack([windows.reshape(T, -1), np.broadcast_to(params, (T, len(params)))])
-        out = self._term(vals)
+        return self.split_term(self.term_values(windows, params))
+
+    def term_values(self, windows: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """The term program's outputs for T windows, one row each (see :meth:`split_term`)."""
+        T = len(windows)
+        return self._term(np.hstack([windows.reshape(T, -1),
+                                     np.broadcast_to(params, (T, len(params)))]))
+
+    def split_term(self, out: np.ndarray):
+        """(constraint values, left, right, rounding bounds) as views of the outputs ``out``."""
+        T, m, r = len(out), self.m, self.rank
         res = out[:, :m]
         left, right, k = {}, {}, m
         for o in range(self.arity):
@@ -284,14 +303,18 @@ class _Maps:
         b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
         d = tuple(sp.Dummy(f"d{i}") for i in range(G.rank))
         self.G = G
-        self._mul = sp.lambdify([a, b], list(G.multiply(a, b)), "numpy")
-        self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy")
+        self._mul = sp.lambdify([a, b], list(G.multiply(a, b)), "numpy", cse=True)
+        self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy", cse=True)
         q = G.target(a)
-        self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy")
+        self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy", cse=True)
 
     @staticmethod
     def _rows(values, n):
-        return np.array([np.broadcast_to(np.asarray(v, float), (n,)) for v in values]).T
+        """The (n, len(values)) table of the lambdified entries (arrays or constants)."""
+        out = np.empty((n, len(values)))
+        for i, v in enumerate(values):
+            out[:, i] = v
+        return out
 
     def multiply(self, A, B):
         return self._rows(self._mul(A.T, B.T), len(A))
@@ -312,8 +335,9 @@ class BoundaryValueSolution:
 
     ``arrows`` (N, arrow_dim); ``multipliers`` (terms, m) — the costates of optimal control;
     ``controls`` (N, rank) — chart coordinates of each arrow (Lie groups: τ⁻¹(g_k) = hξ_k);
-    ``configurations`` — the N + 1 configurations; ``sol[name]`` — a named part of every
-    arrow (``"x"``: the target point of each arrow; ``"g"``: each arrow's matrix; …).
+    ``configurations`` — the N + 1 configurations from ``origin``, the first, along the
+    arrows; ``sol[name]`` — a named part of every arrow (``"x"``: the target point of each
+    arrow; ``"g"``: each arrow's matrix; …).
 
     What was found: ``cost`` — the discrete cost Σ_k L_d (the action without the multiplier
     terms, which vanish on the constraints); ``inertia`` — (positive, negative, zero)
@@ -322,24 +346,43 @@ class BoundaryValueSolution:
     constraints, to those tangent to Φ = 0: the Hessian of the Lagrangian on the tangent
     space of the constraints (see :func:`_reduced_inertia`), or None when it is singular to
     rounding; ``is_local_minimum``; ``method`` — the iterations used.
+
+    The configurations and the second-order condition are computed when first asked for
+    (the inertia from the KKT matrix re-assembled at the solution, the same matrix the
+    solve ended with), so a solve whose caller needs neither does not pay for them.
     """
 
     system: object
     arrows: np.ndarray
     multipliers: np.ndarray
-    configurations: list
+    origin: object
     parameters: dict
     iterations: int
     residual_norm: float
     history: list = field(default_factory=list)
     seconds: float = 0.0
     cost: float = float("nan")
-    inertia: Inertia | None = None
+    #: (the inertia,) once known, () until then (see :attr:`inertia`)
+    second_order: tuple = ()
     method: str = "Newton"
 
     @property
     def steps(self) -> int:
         return len(self.arrows)
+
+    @functools.cached_property
+    def configurations(self) -> list:
+        """The N + 1 configurations from :attr:`origin` along the arrows."""
+        return _configurations(self.system.groupoid, self.origin, self.arrows)
+
+    @property
+    def inertia(self) -> Inertia | None:
+        """(positive, negative, zero) eigenvalue counts of the reduced Hessian (see the class
+        docstring), or None when it is singular to rounding."""
+        if not self.second_order:
+            p = np.array([self.parameters[str(q)] for q in self.system.parameters], float)
+            self.second_order = (_inertia_at(self.system, self.arrows, self.multipliers, p),)
+        return self.second_order[0]
 
     @functools.cached_property
     def controls(self) -> np.ndarray:
@@ -391,17 +434,25 @@ class BoundaryValueSolution:
 
 # --- linear algebra --------------------------------------------------------------------------
 
-def _solve_banded(rows, cols, vals, n, rhs) -> np.ndarray:
-    """Solve the sparse banded system (COO triplets) in time linear in its size."""
-    kl = int(np.max(rows - cols, initial=0))
-    ku = int(np.max(cols - rows, initial=0))
+def _solve_banded(rows, cols, vals, n, rhs, band: _Band | None = None) -> np.ndarray:
+    """Solve the sparse banded system (COO triplets) in time linear in its size: LAPACK's
+    ``gbsv`` (LU with partial pivoting in banded storage) through SciPy; ``band``, the
+    triplets' :class:`_Band` when known (a solve's every Jacobian shares one)."""
     try:
-        from scipy.linalg import solve_banded
+        from scipy.linalg import lapack
     except ImportError:  # pragma: no cover - exercised by forcing the fallback in tests
+        kl = int(np.max(rows - cols, initial=0))
+        ku = int(np.max(cols - rows, initial=0))
         return _block_tridiagonal(rows, cols, vals, n, rhs, max(kl, ku))
-    ab = np.bincount((ku + rows - cols) * n + cols, weights=vals,
-                     minlength=(kl + ku + 1) * n).reshape(kl + ku + 1, n)
-    return solve_banded((kl, ku), ab, rhs)
+    band = _Band.of(rows, cols, n) if band is None else band
+    ab = band.matrix(vals)
+    _, _, x, info = lapack.dgbsv(band.kl, band.ku, ab, np.array(rhs, float),
+                                 overwrite_ab=True, overwrite_b=True)
+    if info > 0:
+        raise np.linalg.LinAlgError(f"singular banded matrix (zero pivot {info})")
+    if info < 0:  # pragma: no cover - the arguments are built above
+        raise ValueError(f"gbsv: illegal argument {-info}")
+    return x
 
 
 def _block_tridiagonal(rows, cols, vals, n, rhs, band) -> np.ndarray:
@@ -492,9 +543,13 @@ def _index_array(index: dict, n: int) -> np.ndarray:
     return out
 
 
+@functools.lru_cache(maxsize=16)
 def _layout(n: int, arity: int, rank: int, m: int) -> _Layout:
+    """The positions of the unknowns and equations of N = ``n`` steps (cached: the layout
+    and its index arrays are read-only and shared by the solves of one size)."""
     junctions = np.arange(arity - 1, n - arity)
     terms = np.arange(0, n - arity + 1)
+    junctions.flags.writeable = terms.flags.writeable = False
     delta_index, lam_index, k = {}, {}, 0
     term_set = set(terms.tolist())
     for p in range(n + 1):  # interleave by position: λ_p then δ_p
@@ -794,69 +849,170 @@ class _Assembled(NamedTuple):
     vals: np.ndarray
     worst: int
     cancel: np.ndarray  # per equation: the magnitude of the terms that cancel in it
+    band: _Band | None = None  # where each triplet lands in LAPACK's banded storage
 
     def finite(self) -> bool:
         return bool(np.isfinite(self.F).all() and np.isfinite(self.vals).all())
 
 
-def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
+class _Band(NamedTuple):
+    """LAPACK's general banded storage of a fixed sparsity pattern: the lower and upper
+    bandwidths and, per triplet, its flat position in the (2·kl + ku + 1, n) array that
+    ``gbsv`` factorises in place (the first kl rows are its workspace)."""
+
+    kl: int
+    ku: int
+    index: np.ndarray
+    n: int
+
+    @classmethod
+    def of(cls, rows: np.ndarray, cols: np.ndarray, n: int) -> _Band:
+        kl = int(np.max(rows - cols, initial=0))
+        ku = int(np.max(cols - rows, initial=0))
+        return cls(kl, ku, (kl + ku + rows - cols) * n + cols, n)
+
+    def matrix(self, vals: np.ndarray) -> np.ndarray:
+        """The banded storage of the matrix with these triplet values (duplicates summed)."""
+        size = (2 * self.kl + self.ku + 1) * self.n
+        return np.bincount(self.index, weights=vals, minlength=size).reshape(-1, self.n)
+
+
+class _Pattern(NamedTuple):
+    """Where every output of the window programs lands in F and in the Jacobian, for one
+    layout: the sparsity pattern is the same at every iterate, so the assembly is a gather.
+
+    The outputs are read from the flat vector [junction outputs, term outputs, 1]: triplet
+    k has the value sign[k]·flat[src[k]], equation f_rows[i] the residual flat[f_src[i]] and
+    the cancelling magnitude flat[c_src[i]]; the rows ``pin_rows`` hold the holonomic
+    multipliers λ[pin_terms, m − held:] of the terms with a fixed source node."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    src: np.ndarray
+    sign: np.ndarray
+    f_rows: np.ndarray
+    f_src: np.ndarray
+    c_src: np.ndarray
+    pin_rows: np.ndarray
+    pin_terms: np.ndarray
+    band: _Band
+
+
+def _pattern(kernel, lay) -> _Pattern:
+    """The :class:`_Pattern` of ``lay``: the scatter of :func:`_add` run once on the
+    positions of the outputs (position + 1, negated where the block enters with a minus)."""
     a, r, m = kernel.arity, kernel.rank, kernel.m
     rows, cols, vals = [], [], []
-    F = np.zeros(lay.size)
-    cancel = np.zeros(lay.size)  # |terms that cancel| per equation
+    f_rows, f_src, c_src = [], [], []
+    base = 0
     J = lay.junctions
-    worst_val, worst = -1.0, 0
     if len(J):
-        windows = np.stack([arrows[J + o] for o in kernel.offsets], axis=1)
-        lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
-                else np.zeros((len(J), len(kernel.starts), 0)))
-        res, left, right, dlam, sizes = kernel.junction_terms(windows, lams, p)
+        width = r + 2 * r * r * len(kernel.offsets) + r * m * len(kernel.starts) + r
+        positions = 1.0 + np.arange(len(J) * width, dtype=float).reshape(len(J), width)
+        res, left, right, dlam, sizes = kernel.split_junction(positions)
         eq = lay.delta_at[J]
-        F[eq[:, None] + np.arange(r)] = res
-        cancel[eq[:, None] + np.arange(r)] = sizes
+        f_rows.append((eq[:, None] + np.arange(r)).ravel())
+        f_src.append(res.ravel())
+        c_src.append(sizes.ravel())
         for o in kernel.offsets:  # arrow j+o moves with δ_{j+o} (left) and δ_{j+o−1} (right)
             _add(rows, cols, vals, lay.delta_at, eq, J + o, left[o], r)
             _add(rows, cols, vals, lay.delta_at, eq, J + o - 1, -right[o], r)
         for s in kernel.starts:
             _add(rows, cols, vals, lay.lam_at, eq, J + s, dlam[s], m)
-        bad = np.max(np.abs(res), axis=1)
-        if bad.max() > worst_val:
-            worst_val, worst = bad.max(), int(J[np.argmax(bad)]) + 1
+        base = positions.size
     if m:
         T = lay.terms
-        windows = np.stack([arrows[T + o] for o in range(a)], axis=1)
-        res, left, right, sizes = kernel.term_terms(windows, p)
+        width = m + 2 * m * r * a + m
+        positions = base + 1.0 + np.arange(len(T) * width, dtype=float).reshape(len(T), width)
+        res, left, right, sizes = kernel.split_term(positions)
         eq = lay.lam_at[T]
-        F[eq[:, None] + np.arange(m)] = res
-        cancel[eq[:, None] + np.arange(m)] = sizes
+        f_rows.append((eq[:, None] + np.arange(m)).ravel())
+        f_src.append(res.ravel())
+        c_src.append(sizes.ravel())
         for o in range(a):
             _add(rows, cols, vals, lay.delta_at, eq, T + o, left[o], r, m)
             _add(rows, cols, vals, lay.delta_at, eq, T + o - 1, -right[o], r, m)
-        bad = np.max(np.abs(res), axis=1)
-        if bad.max() > worst_val:
-            worst_val, worst = bad.max(), int(T[np.argmax(bad)]) + 1
-    if kernel.held:
-        _pin_end_nodes(kernel, lay, lam, F, cancel, rows, cols, vals)
+        base += positions.size
+    pin_rows, pin_terms = _pinned(kernel, lay)
+    if len(pin_rows):  # the row λ = 0: a unit diagonal, read from the trailing 1
+        rows.append(pin_rows)
+        cols.append(pin_rows)
+        vals.append(np.full(len(pin_rows), base + 1.0))
     rows, cols = np.concatenate(rows), np.concatenate(cols)
-    return _Assembled(F, rows, cols, np.concatenate(vals), worst, cancel)
+    code = np.concatenate(vals)
+    as_index = lambda parts: (np.concatenate(parts) - 1).astype(np.int64)  # noqa: E731
+    pattern = _Pattern(rows, cols, (np.abs(code) - 1).astype(np.int64), np.sign(code),
+                       np.concatenate(f_rows).astype(np.int64), as_index(f_src),
+                       as_index(c_src), pin_rows, pin_terms, _Band.of(rows, cols, lay.size))
+    for array in (*pattern[:-1], pattern.band.index):  # shared by every assembly
+        array.flags.writeable = False
+    return pattern
 
 
-def _pin_end_nodes(kernel, lay, lam, F, cancel, rows, cols, vals) -> None:
-    """Holonomic multipliers of the terms whose source node is fixed by the boundary data:
-    their row ψ(α(g_t)) is a constant (checked to be 0) and they enter no junction, so the
+def _pinned(kernel, lay) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of the holonomic multipliers of the terms whose source node is fixed by the
+    boundary data (``held`` per term, in order), and those terms.
+
+    Their row ψ(α(g_t)) is a constant (checked to be 0) and they enter no junction, so the
     row becomes λ = 0 (docs/conventions.md §15).  A term's source node is free exactly when
     it is the node of a free junction, α(g_t) = β(g_{t−1}) with t − 1 a junction."""
     m, held = kernel.m, kernel.held
+    if not held:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
     free = set((lay.junctions + 1).tolist())
-    for t in lay.terms:
-        if int(t) in free:
-            continue
-        index = lay.lam_index[int(t)] + np.arange(m - held, m)
-        F[index] = lam[t, m - held:]
-        cancel[index] = 0.0
-        rows.append(index)
-        cols.append(index)
-        vals.append(np.ones(held))
+    fixed = [int(t) for t in lay.terms if int(t) not in free]
+    rows = [lay.lam_index[t] + np.arange(m - held, m) for t in fixed]
+    return (np.concatenate(rows).astype(np.int64) if rows else np.zeros(0, np.int64),
+            np.array(fixed, np.int64))
+
+
+#: the patterns of the layouts met lately, per kernel (a solve of N steps reuses its own)
+_PATTERNS_KEPT = 8
+
+
+def _pattern_of(kernel, lay) -> _Pattern:
+    cache = kernel.__dict__.setdefault("_patterns", {})
+    key = (lay.size, len(lay.junctions), len(lay.terms))
+    if key not in cache:
+        if len(cache) >= _PATTERNS_KEPT:
+            cache.pop(next(iter(cache)))
+        cache[key] = _pattern(kernel, lay)
+    return cache[key]
+
+
+def _assemble(kernel, lay, arrows, lam, p) -> _Assembled:
+    """F, its Jacobian and the cancelling magnitudes at (arrows, λ): the window programs on
+    every junction and term window, gathered into place by the layout's :class:`_Pattern`."""
+    a, m = kernel.arity, kernel.m
+    pattern = _pattern_of(kernel, lay)
+    parts, worst_val, worst = [], -1.0, 0
+    J = lay.junctions
+    if len(J):
+        windows = np.stack([arrows[J + o] for o in kernel.offsets], axis=1)
+        lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
+                else np.zeros((len(J), len(kernel.starts), 0)))
+        out = kernel.junction_values(windows, lams, p)
+        parts.append(out.ravel())
+        bad = np.max(np.abs(out[:, :kernel.rank]), axis=1)
+        worst_val, worst = bad.max(), int(J[np.argmax(bad)]) + 1
+    if m:
+        T = lay.terms
+        out = kernel.term_values(np.stack([arrows[T + o] for o in range(a)], axis=1), p)
+        parts.append(out.ravel())
+        bad = np.max(np.abs(out[:, :m]), axis=1)
+        if bad.max() > worst_val:
+            worst = int(T[np.argmax(bad)]) + 1
+    parts.append(np.ones(1))
+    flat = np.concatenate(parts)
+    F = np.zeros(lay.size)
+    cancel = np.zeros(lay.size)
+    F[pattern.f_rows] = flat[pattern.f_src]
+    cancel[pattern.f_rows] = flat[pattern.c_src]
+    if len(pattern.pin_rows):  # the rows λ = 0 (docs/conventions.md §15, _pinned)
+        F[pattern.pin_rows] = lam[pattern.pin_terms, m - kernel.held:].reshape(-1)
+        cancel[pattern.pin_rows] = 0.0
+    vals = pattern.sign * flat[pattern.src]
+    return _Assembled(F, pattern.rows, pattern.cols, vals, worst, cancel, pattern.band)
 
 
 def _rounding_floor(maps, lay, arrows, lam, state: _Assembled) -> np.ndarray:
@@ -1020,8 +1176,18 @@ class _Step(NamedTuple):
     at_floor: bool = False
 
 
+#: the fast path keeps its last this many iterates as restart points for the globalised
+#: iteration (with the initial path: :func:`_restart_points`)
+RESTART_CANDIDATES = 8
+
+
 class _Handover(Exception):
-    """The fast path gives up (no decrease, or damped steps only): the reason."""
+    """The fast path gives up (no decrease, or damped steps only): the reason, and its last
+    iterates (arrows, λ, state), oldest first."""
+
+    def __init__(self, why: str, iterates: Sequence = ()):
+        super().__init__(why)
+        self.iterates = list(iterates)
 
 
 def _check_budget(ctx: _Context, run: _Run, state: _Assembled, excess: float, arrows) -> None:
@@ -1040,7 +1206,8 @@ def _newton_direction(ctx: _Context, state: _Assembled, run: _Run, arrows,
     vals = state.vals if vals is None else vals
     try:
         with np.errstate(all="ignore"):
-            dz = _solve_banded(rows, cols, vals, ctx.lay.size, -state.F)
+            dz = _solve_banded(rows, cols, vals, ctx.lay.size, -state.F,
+                               state.band if vals is state.vals else None)
     except np.linalg.LinAlgError as exc:
         raise _singular(ctx.owner, state, run.iterations, arrows) from exc
     if not np.isfinite(dz).all():
@@ -1055,8 +1222,10 @@ def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
     globalised iteration does better)."""
     run.methods.append("Newton")
     damped = 0
+    recent = collections.deque(maxlen=RESTART_CANDIDATES)
     while True:
         run.record(state)
+        recent.append((arrows, lam, state))
         excess = ctx.excess(arrows, lam, state)
         if excess <= 1.0:
             return arrows, lam, state
@@ -1064,12 +1233,36 @@ def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
         dz = _newton_direction(ctx, state, run, arrows)
         step = _line_search(ctx.kernel, ctx.lay, ctx.maps, arrows, lam, dz, state, ctx.p)
         if step is None:
-            raise _Handover("found no decrease of |F| along the Newton direction (line search)")
+            raise _Handover("found no decrease of |F| along the Newton direction (line search)",
+                            recent)
         run.step_taken(ctx, step, (arrows, lam))
         arrows, lam, state = step.arrows, step.lam, step.state
         damped = damped + 1 if step.length <= DAMPED_LENGTH else 0
         if damped >= MAX_DAMPED and not run.stalled:
-            raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row")
+            recent.append((arrows, lam, state))
+            raise _Handover(f"{MAX_DAMPED} damped Newton steps in a row", recent)
+
+
+def _restart_points(ctx: _Context, initial: tuple, iterates: Sequence) -> list:
+    """Where the globalised iteration starts after a handover, in the order to try: the
+    fast path's iterate of least ℓ₁ merit φ_ν = Σ L + ν‖Φ‖₁ (ν = 1.1·max|λ| over the
+    candidates, the globalised iteration's own first weight) when it is below the initial
+    path's, then the initial path (the fallback: a descent from there reaches the minimum
+    the initial path leads to even when the fast path wandered off towards another
+    stationary point)."""
+    lam_rows = _multiplier_rows(ctx.lay, ctx.m)
+    nu = 1.1 * max((float(np.max(np.abs(lam), initial=0.0)) for _, lam, _ in iterates),
+                   default=0.0)
+
+    def merit(point) -> float:
+        arrows, _, state = point
+        value = ctx.cost(arrows, ctx.p) + nu * float(np.abs(state.F[lam_rows]).sum())
+        return value if np.isfinite(value) else np.inf
+
+    best = min(iterates, key=merit, default=None)
+    if best is None or merit(best) >= merit(initial):
+        return [initial[:2]]
+    return [best[:2], initial[:2]]
 
 
 # --- the globalised iteration: inertia-corrected Newton on the action ---------------------------
@@ -1246,12 +1439,15 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     The iteration.  Structured Newton on the necessary conditions (junction residuals and
     constraints; block-banded Jacobian, solved in time linear in N), each update backtracked
     until |F|₂ decreases (:func:`_line_search`), is the fast path.  When it finds no decrease
-    or takes MAX_DAMPED damped steps in a row, the solve restarts from the initial path with
-    the globalised iteration (:func:`_globalised`): Newton steps on the same banded system
-    regularised until the Hessian of the Lagrangian is positive definite on the tangent
-    space of the constraints (its inertia from a banded LDLᵀ), with a line search on the ℓ₁
-    merit function Σ L + ν‖Φ‖₁ — a descent method for the action, as an interior-point NLP
-    solver is.  ``max_iterations`` bounds the iterations of both phases together.
+    or takes MAX_DAMPED damped steps in a row, the solve restarts with the globalised
+    iteration (:func:`_globalised`) from the fast path's iterate of least ℓ₁ merit when it
+    is below the initial path's, from the initial path otherwise and when the first restart
+    finds no decrease (:func:`_restart_points`, :func:`_globalised_after`): Newton steps
+    on the same banded system regularised until the Hessian of the Lagrangian is positive
+    definite on the tangent space of the constraints (its inertia from a banded LDLᵀ), with
+    a line search on the ℓ₁ merit function Σ L + ν‖Φ‖₁ — a descent method for the action,
+    as an interior-point NLP solver is.  ``max_iterations`` bounds the iterations of all
+    phases together.
     ``minimum=True`` asks for a local minimum: a stationary point that is not one (see
     :attr:`BoundaryValueSolution.is_local_minimum`) sends the solve to the globalised
     iteration from the initial path, and if that finds none either the solve raises.
@@ -1289,7 +1485,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     if not isinstance(minimum, (bool, np.bool_)):
         raise ShapeError(f"{owner}: minimum must be True or False, got {minimum!r}")
     p, named = parameter_vector(system.parameters, params, owner=owner)
-    r, m = G.rank, len(system._fs.constraints)
+    m = len(system._fs.constraints)
     data = _boundary(system, a, start, end)
     check_holonomic_nodes(system, [data.total] if a == 1 else [data.first, data.last],
                           [("start", "end")] if a == 1 else
@@ -1297,7 +1493,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     arrows, lam = _initial(system, a, m, data, steps, guess)
     _check_cut_locus(system, arrows, "the initial path has" if guess is None
                      else "the guess has")
-    ctx = _Context(owner, window_kernel(system), cost_kernel(system), _layout(steps, a, r, m),
+    kernel = window_kernel(system)
+    ctx = _Context(owner, kernel, cost_kernel(system), _layout(steps, a, kernel.rank, m),
                    _maps(G), p, tol, tol_step, max_iterations)
     t0, run = time.perf_counter(), _Run()
     state = ctx.assemble(arrows, lam)
@@ -1310,10 +1507,9 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     found, inertia = _solve(ctx, arrows, lam, state, run, minimum)
     arrows, lam, state = found
     return BoundaryValueSolution(
-        system, arrows, lam, _configurations(G, data.configurations[0], arrows), named,
-        run.iterations, run.history[-1],
-        run.history, time.perf_counter() - t0, cost=ctx.cost(arrows, p), inertia=inertia,
-        method=" → ".join(run.methods))
+        system, arrows, lam, data.configurations[0], named, run.iterations, run.history[-1],
+        run.history, time.perf_counter() - t0, cost=ctx.cost(arrows, p),
+        second_order=inertia, method=" → ".join(run.methods))
 
 
 def _configurations(G, start, arrows: np.ndarray) -> list:
@@ -1331,33 +1527,55 @@ def _configurations(G, start, arrows: np.ndarray) -> list:
 
 def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bool):
     """The fast path, then (on its failure, or for ``minimum`` at a non-minimum) the
-    globalised iteration from the initial path; returns ((arrows, λ, state), inertia)."""
-    initial = (arrows, lam)
+    globalised iteration; returns ((arrows, λ, state), second_order): ``(inertia,)`` when it
+    was computed, ``()`` when it is left for the solution to compute on request."""
+    initial = (arrows, lam, state)
     try:
         found = _fast_newton(ctx, arrows, lam, state, run)
     except _Handover as why:
-        found = _globalised_after(ctx, initial, run, str(why))
-        return found, _reduced_inertia(ctx, found[2])
+        found = _globalised_after(ctx, _restart_points(ctx, initial, why.iterates), run,
+                                  str(why))
+        return found, (_reduced_inertia(ctx, found[2]),)
+    if not minimum:
+        return found, ()
     inertia = _reduced_inertia(ctx, found[2])
-    if minimum and not _is_minimum(inertia):
-        found = _globalised_after(ctx, initial, run, "it reached a stationary point that is "
-                                  f"not a local minimum ({_describe(inertia)})")
+    if not _is_minimum(inertia):
+        found = _globalised_after(ctx, [initial[:2]], run, "it reached a stationary point "
+                                  f"that is not a local minimum ({_describe(inertia)})")
         inertia = _reduced_inertia(ctx, found[2])
         if not _is_minimum(inertia):
             raise _divergence(ctx.owner, "found no local minimum: the globalised iteration "
                               f"reached a stationary point that is not one "
                               f"({_describe(inertia)})", found[2], 0.0, run, found[0])
-    return found, inertia
+    return found, (inertia,)
 
 
-def _globalised_after(ctx: _Context, initial, run: _Run, why: str):
-    """The globalised iteration from the initial path; its errors name why the fast path
-    ended too."""
-    try:
-        return _globalised(ctx, *initial, run)
-    except (BoundaryValueDivergenceError, SingularJacobianError) as exc:
-        exc.args = (f"{exc.args[0]} (after the Newton fast path {why})",) + exc.args[1:]
-        raise
+def _globalised_after(ctx: _Context, starts: list, run: _Run, why: str):
+    """The globalised iteration from each of ``starts`` (arrows, λ) in turn until one
+    converges; the next start is tried after a line search without decrease, a non-finite
+    residual or a singular Jacobian, not after a stall (the update fell below ``tol_step``
+    or stopped changing the iterate: the caller's criterion, or the rounding floor) nor at
+    the iteration cap, which counts every start.  The last one's errors name why the fast
+    path ended too."""
+    for k, start in enumerate(starts):
+        run.at_floor = 0
+        try:
+            return _globalised(ctx, *start, run)
+        except (BoundaryValueDivergenceError, SingularJacobianError) as exc:
+            if k + 1 < len(starts) and not run.stalled and \
+                    run.iterations < ctx.max_iterations:
+                why = (f"{why}; from its best iterate, the globalised iteration "
+                       f"{_first_line(exc)}")
+                continue
+            exc.args = (f"{exc.args[0]} (after the Newton fast path {why})",) + exc.args[1:]
+            raise
+
+
+def _first_line(exc: Exception) -> str:
+    """What went wrong, in the words of ``exc`` without its owner prefix or its numbers."""
+    text = str(exc.args[0]) if exc.args else type(exc).__name__
+    text = text.split(": ", 1)[-1]
+    return text.split(";", 1)[0]
 
 
 def _divergence(owner: str, why: str, state: _Assembled, excess: float, run: _Run,
@@ -1427,6 +1645,24 @@ def _reduced_inertia(ctx: _Context, state: _Assembled) -> Inertia | None:
             or inertia.positive < n_lam + plus:
         return None
     return Inertia(inertia.positive - n_lam - plus, inertia.negative - n_lam - minus, 0)
+
+
+class _Shape(NamedTuple):
+    """The layout and the multiplier count: what :func:`_reduced_inertia` reads of a solve."""
+
+    lay: _Layout
+    m: int
+
+
+def _inertia_at(system, arrows: np.ndarray, lam: np.ndarray, p: np.ndarray
+                ) -> Inertia | None:
+    """:func:`_reduced_inertia` at a solution (arrows, λ) of ``system``, its KKT matrix
+    assembled there."""
+    kernel = window_kernel(system)
+    lay = _layout(len(arrows), kernel.arity, kernel.rank, kernel.m)
+    with np.errstate(all="ignore"):
+        state = _assemble(kernel, lay, arrows, lam, p)
+    return _reduced_inertia(_Shape(lay, kernel.m), state)
 
 
 def _bordering(ctx: _Context, state: _Assembled) -> tuple[int, tuple[int, int]]:
