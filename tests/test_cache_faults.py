@@ -390,7 +390,7 @@ def test_window_program_with_garbage_module_is_rebuilt(cache_dir):
 
 
 def test_module_that_never_loads_gives_cache_error(monkeypatch, cache_dir):
-    def refuse(path, name):
+    def refuse(path, name, *types):
         raise ImportError(f"{path}: failed to map segment from shared object")
 
     monkeypatch.setattr(_compile, "load_extension", refuse)

@@ -1,4 +1,5 @@
-"""compile_step: a step's C kernel, built with cffi and cached on disk, or the NumPy backend."""
+"""compile_step: a step's C kernel, built as a shared library loaded with cffi and cached on
+disk, or the NumPy backend."""
 
 from __future__ import annotations
 
@@ -259,10 +260,11 @@ def _build_entry(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCach
     try:
         name = module_name(source_key)
         STATS["builds"] += 1
-        library = build_extension(kernel, build_dir, name, flags)
+        library, ffi_source = build_extension(kernel, build_dir, name, flags)
         write_json_atomic(build_dir / MANIFEST, {
             "source_key": source_key, "module": name, "library": library.name,
             "sha256": file_sha256(library), "prefix": kernel.prefix,
+            "ffi": ffi_source, "ffi_sha256": sha256_of([ffi_source]),
             "flags": list(flags), "compile_args": compile_args(flags), "abi": abi_tag(),
             "system": label})
     except BaseException:
@@ -280,7 +282,7 @@ def _build_entry(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCach
 def _load_entry(source_key: str, manifest: dict, cache: KernelCache):
     path = cache.entry(source_key) / str(manifest.get("library", ""))
     try:
-        module = load_extension(path, str(manifest.get("module", "")))
+        module = load_extension(path, str(manifest.get("module", "")), manifest["ffi"])
     except (ImportError, OSError) as exc:
         raise CacheError(f"cannot load the cached kernel module {path}: {exc}") from exc
     STATS["loads"] += 1
@@ -295,7 +297,8 @@ def _unloadable(error: CacheError, entry: Path) -> CacheError:
 
 
 def load_cached(source_key: str, manifest: dict, cache: KernelCache):
-    """The extension module of a verified cache entry (loaded once per process).
+    """The loaded library (``ffi``, ``lib``) of a verified cache entry (loaded once per
+    process).
 
     An entry that verifies but does not load (its module file and manifest replaced
     consistently by something else) is rebuilt once if this process has passed the kernel
