@@ -143,20 +143,31 @@ def _words(text: str | None) -> list[str]:
         return text.split()
 
 
-def build_command(source: str, library: str, flags: Sequence[str]) -> list[str]:
-    """The one compiler run that compiles ``source`` and links it into the shared library
-    ``library``.
+#: the kernels compile_step builds are spread over at most this many translation units
+#: (by size, see ``codegen.generate_c``), compiled at the same time
+TRANSLATION_UNITS = 2
 
-    The flags come in the order a Python extension build uses: Python's configured
-    ``CFLAGS`` and ``CCSHARED`` (position-independent code), then ``$CPPFLAGS`` and
-    ``$CFLAGS`` from the environment, then :func:`compile_args` (so ``flags`` decide the
-    optimisation level); ``$LDFLAGS``, :func:`link_args` and the maths library last.
-    """
+
+def compiler_flags_of(flags: Sequence[str]) -> list[str]:
+    """The compiler and its flags for every run of a build, in the order a Python extension
+    build uses: Python's configured ``CFLAGS`` and ``CCSHARED`` (position-independent
+    code), then ``$CPPFLAGS`` and ``$CFLAGS`` from the environment, then
+    :func:`compile_args` (so ``flags`` decide the optimisation level)."""
     config = sysconfig.get_config_var
     return [*compiler_command(), *_words(config("CFLAGS")), *_words(config("CCSHARED")),
             *_words(os.environ.get("CPPFLAGS")), *_words(os.environ.get("CFLAGS")),
-            *compile_args(flags), "-fPIC", "-shared", source, "-o", library,
-            *_words(os.environ.get("LDFLAGS")), *link_args(flags), "-lm"]
+            *compile_args(flags), "-fPIC"]
+
+
+def link_tail(flags: Sequence[str]) -> list[str]:
+    """What ends a link: ``$LDFLAGS``, :func:`link_args` and the maths library."""
+    return [*_words(os.environ.get("LDFLAGS")), *link_args(flags), "-lm"]
+
+
+def build_command(source: str, library: str, flags: Sequence[str]) -> list[str]:
+    """The one compiler run that compiles ``source`` and links it into the shared library
+    ``library`` (:func:`compiler_flags_of`, then :func:`link_tail`)."""
+    return [*compiler_flags_of(flags), "-shared", source, "-o", library, *link_tail(flags)]
 
 
 def ffi_module_source(kernel: KernelSource, name: str, directory: Path) -> str:
@@ -194,20 +205,48 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     """
     ffi_source = ffi_module_source(kernel, name, build_dir)
     (build_dir / kernel.header_name).write_text(kernel.header, encoding="ascii")
-    source = build_dir / f"{kernel.prefix}.c"
-    source.write_text(kernel.source, encoding="ascii")
+    sources = [(f"{kernel.prefix}.c", kernel.source), *kernel.units]
+    for file_name, text in sources:
+        (build_dir / file_name).write_text(text, encoding="ascii")
     library = build_dir / f"{name}.so"
-    command = build_command(source.name, library.name, flags)
-    try:
-        result = subprocess.run(command, cwd=build_dir, stdin=subprocess.DEVNULL,
-                                capture_output=True, text=True, errors="replace")
-    except OSError as exc:
-        raise _failure(kernel, f"cannot run {command[0]!r}: {exc}", str(exc)) from exc
-    output = (result.stdout + result.stderr).strip()
-    if result.returncode != 0 or not library.is_file():
-        raise _failure(kernel, f"command {command[0]!r} failed with exit status "
-                       f"{result.returncode}", output)
+    if len(sources) == 1:
+        _run(kernel, [build_command(sources[0][0], library.name, flags)], build_dir)
+    else:  # the units at the same time, then one link
+        objects = [f"{Path(file_name).stem}.o" for file_name, _ in sources]
+        base = compiler_flags_of(flags)
+        _run(kernel, [[*base, "-c", file_name, "-o", obj]
+                      for (file_name, _), obj in zip(sources, objects)], build_dir)
+        _run(kernel, [[*base, "-shared", *objects, "-o", library.name, *link_tail(flags)]],
+             build_dir)
+        for obj in objects:
+            (build_dir / obj).unlink(missing_ok=True)
+    if not library.is_file():
+        raise _failure(kernel, "the compiler wrote no library", "")
     return library, ffi_source
+
+
+def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path) -> None:
+    """Run compiler ``commands`` at the same time in ``cwd``; :class:`CompilationError` with
+    the output of every failed one."""
+    processes, failures = [], []
+    try:
+        for command in commands:
+            processes.append((command, subprocess.Popen(
+                command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT, text=True, errors="replace")))
+    except OSError as exc:
+        for _, process in processes:
+            process.kill()
+            process.communicate()
+        raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc)) from exc
+    for command, process in processes:
+        output, _ = process.communicate()
+        if process.returncode != 0:
+            failures.append((command, process.returncode, output.strip()))
+    if failures:
+        command, status, _ = failures[0]
+        raise _failure(kernel, f"command {command[0]!r} failed with exit status {status}",
+                       "\n".join(output for _, _, output in failures))
 
 
 def load_extension(path: Path, name: str, ffi_source: str | None = None

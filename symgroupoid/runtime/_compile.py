@@ -30,6 +30,7 @@ from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
     NUMPY_HINT,
+    TRANSLATION_UNITS,
     CompilerNotFoundError,
     build_extension,
     compile_args,
@@ -219,9 +220,20 @@ def input_key(step, flags: Sequence[str]) -> str:
     return sha256_of([*parts, codegen_digest(), abi_tag(), *flags])[:32]
 
 
+def step_kernel(step) -> KernelSource:
+    """The C that :func:`compile_step` builds for ``step``: :func:`generate_c` without the
+    residuals' LaTeX in its opening comment (which needs the SymPy residuals; a compiled
+    kernel never shows it, and :func:`emit_c` writes it), a large kernel's functions in
+    ``TRANSLATION_UNITS`` files compiled at the same time."""
+    return generate_c(step, latex=False, units=TRANSLATION_UNITS)
+
+
 def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
-    """Cache key of a generated kernel: its header, source and cdef, the ABI and the flags."""
-    return sha256_of([kernel.header, kernel.source, kernel.cdef, abi_tag(), *flags])[:32]
+    """Cache key of a generated kernel: its header, source, further translation units and
+    cdef, the ABI and the flags."""
+    units = [part for unit in kernel.units for part in unit]
+    return sha256_of([kernel.header, kernel.source, str(len(units)), *units, kernel.cdef,
+                      abi_tag(), *flags])[:32]
 
 
 def _same_entry(manifest: dict, stale: dict | None) -> bool:
@@ -324,7 +336,7 @@ def load_cached(source_key: str, manifest: dict, cache: KernelCache):
 
 def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
            discard: dict | None = None) -> tuple[str, dict]:
-    kernel = generate_c(step)
+    kernel = step_kernel(step)
     STATS["codegen"] += 1
     source_key, manifest = build_cached(kernel, flags, cache, step.name, discard=discard)
     cache.record(key, source_key, manifest["prefix"])
@@ -383,7 +395,7 @@ def kernel_source_of(kernel: CKernel, step) -> KernelSource:
     recipe = _RECIPES.get(kernel.source_key)
     if recipe is not None:
         return recipe[0]
-    source = generate_c(step)
+    source = step_kernel(step)
     STATS["codegen"] += 1
     if source_key_of(source, kernel.flags) != kernel.source_key:
         raise CacheError(f"{step.name}: the kernel in the cache ({kernel.source_key}) is not "
