@@ -18,7 +18,7 @@ import subprocess
 import sysconfig
 import tempfile
 import types
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from .._errors import SymgroupoidError
@@ -200,45 +200,64 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     path and the source of its cffi module (:func:`ffi_module_source`, for
     :func:`load_extension`).
 
-    The header and source are written next to the library (and stay there).  Compiler
-    output is captured and shown in :class:`CompilationError` on failure.
+    The header and sources are written next to the library (and stay there); the type
+    table is made while the compiler runs.  Compiler output is captured and shown in
+    :class:`CompilationError` on failure.
     """
-    ffi_source = ffi_module_source(kernel, name, build_dir)
     (build_dir / kernel.header_name).write_text(kernel.header, encoding="ascii")
     sources = [(f"{kernel.prefix}.c", kernel.source), *kernel.units]
     for file_name, text in sources:
         (build_dir / file_name).write_text(text, encoding="ascii")
     library = build_dir / f"{name}.so"
+    ffi: list[str] = []
+
+    def type_table() -> None:  # Python work done while the compiler runs
+        ffi.append(ffi_module_source(kernel, name, build_dir))
+
     if len(sources) == 1:
-        _run(kernel, [build_command(sources[0][0], library.name, flags)], build_dir)
+        _run(kernel, [build_command(sources[0][0], library.name, flags)], build_dir,
+             type_table)
     else:  # the units at the same time, then one link
         objects = [f"{Path(file_name).stem}.o" for file_name, _ in sources]
         base = compiler_flags_of(flags)
         _run(kernel, [[*base, "-c", file_name, "-o", obj]
-                      for (file_name, _), obj in zip(sources, objects)], build_dir)
+                      for (file_name, _), obj in zip(sources, objects)], build_dir,
+             type_table)
         _run(kernel, [[*base, "-shared", *objects, "-o", library.name, *link_tail(flags)]],
              build_dir)
         for obj in objects:
             (build_dir / obj).unlink(missing_ok=True)
     if not library.is_file():
         raise _failure(kernel, "the compiler wrote no library", "")
-    return library, ffi_source
+    return library, ffi[0]
 
 
-def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path) -> None:
-    """Run compiler ``commands`` at the same time in ``cwd``; :class:`CompilationError` with
-    the output of every failed one."""
-    processes, failures = [], []
+def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path,
+         meanwhile: Callable[[], None] | None = None) -> None:
+    """Run compiler ``commands`` at the same time in ``cwd`` (and ``meanwhile()`` while they
+    run); :class:`CompilationError` with the output of every failed one."""
+    processes: list = []
+
+    def stop() -> None:
+        for _, process in processes:
+            process.kill()
+            process.communicate()
+
     try:
         for command in commands:
             processes.append((command, subprocess.Popen(
                 command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                 stderr=subprocess.STDOUT, text=True, errors="replace")))
     except OSError as exc:
-        for _, process in processes:
-            process.kill()
-            process.communicate()
+        stop()
         raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc)) from exc
+    try:
+        if meanwhile is not None:
+            meanwhile()
+    except BaseException:
+        stop()
+        raise
+    failures = []
     for command, process in processes:
         output, _ = process.communicate()
         if process.returncode != 0:
