@@ -22,6 +22,7 @@ from symgroupoid.codegen._kernel import (
     assign_units,
 )
 from symgroupoid.runtime import CompilationError, _cache, _compile
+from symgroupoid.runtime._simulator import Simulator
 from symgroupoid.systems import planar_chain
 
 pytestmark = needs_cc
@@ -65,15 +66,16 @@ def test_a_kernel_in_two_units_computes_what_the_one_file_kernel_computes():
     assert one.units == () and len(two.units) == 1
     assert two.units[0][0] == f"{two.prefix}_unit1.c"
     assert two.header == one.header and two.cdef == one.cdef
-    sim = sg.compile_step(step, backend="c")
-    assert sorted(p.name for p in sim.cache_entry.iterdir() if p.suffix == ".c") == [
+    kernel, entry = _compile.load_kernel_source(two, _compile.default_flags(), step.name,
+                                                len(step.unknowns), len(step.knowns))
+    assert sorted(p.name for p in entry.iterdir() if p.suffix == ".c") == [
         f"{two.prefix}.c", f"{two.prefix}_unit1.c"]
-    assert not list(sim.cache_entry.glob("*.o"))
+    assert not list(entry.glob("*.o"))
     state = chain_state(6)
-    c = sim.simulate(state, 40, PARAMS).states
-    numpy = step.compile(backend="numpy").simulate(state, 40, PARAMS).states
-    assert np.array_equal(c, numpy)
-    library = next(sim.cache_entry.glob("*.so"))
+    numpy = step.compile(backend="numpy")
+    c = Simulator(step, kernel, numpy.options).simulate(state, 40, PARAMS).states
+    assert np.array_equal(c, numpy.simulate(state, 40, PARAMS).states)
+    library = next(entry.glob("*.so"))
     symbols = subprocess.run(["nm", "-D", "--defined-only", str(library)],
                              capture_output=True, text=True)
     if symbols.returncode == 0:
@@ -83,8 +85,10 @@ def test_a_kernel_in_two_units_computes_what_the_one_file_kernel_computes():
 
 def test_a_unit_the_compiler_rejects_is_a_compilation_error():
     step = planar_chain(6).euler_lagrange()
+    two = generate_c(step, latex=False, units=2)
     with pytest.raises(CompilationError) as info:
-        sg.compile_step(step, backend="c", flags=["-fno-such-option-for-symgroupoid"])
+        _compile.load_kernel_source(two, ["-fno-such-option-for-symgroupoid"], step.name,
+                                    len(step.unknowns), len(step.knowns))
     assert "-fno-such-option-for-symgroupoid" in info.value.output
     assert not list((_cache.cache_root() / "kernels").glob("*"))
 

@@ -30,7 +30,6 @@ from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
     NUMPY_HINT,
-    TRANSLATION_UNITS,
     CompilerNotFoundError,
     build_extension,
     compile_args,
@@ -39,6 +38,7 @@ from ._build import (
     load_extension,
     module_name,
     optimisation_flags,
+    translation_units,
 )
 from ._cache import (
     MANIFEST,
@@ -223,9 +223,9 @@ def input_key(step, flags: Sequence[str]) -> str:
 def step_kernel(step) -> KernelSource:
     """The C that :func:`compile_step` builds for ``step``: :func:`generate_c` without the
     residuals' LaTeX in its opening comment (which needs the SymPy residuals; a compiled
-    kernel never shows it, and :func:`emit_c` writes it), a large kernel's functions in
-    ``TRANSLATION_UNITS`` files compiled at the same time."""
-    return generate_c(step, latex=False, units=TRANSLATION_UNITS)
+    kernel never shows it, and :func:`emit_c` writes it); a large kernel's functions in
+    :func:`~._build.translation_units` files compiled at the same time."""
+    return generate_c(step, latex=False, units=translation_units())
 
 
 def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
