@@ -23,7 +23,7 @@ import sympy as sp
 from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid.codegen import emit_c, generate_c
+from symgroupoid.codegen import emit_c
 from symgroupoid.codegen._emit import generate_program_c
 from symgroupoid.ir import Graph, Program, from_sympy
 from symgroupoid.runtime import CacheError, CompilationError, _cache, _compile
@@ -203,7 +203,7 @@ def test_threads_building_kernels_at_once(cache_dir):
 
 def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):
     step = oscillator()
-    key = _compile.source_key_of(generate_c(step), _compile.default_flags())
+    key = _compile.source_key_of(_compile.step_kernel(step), _compile.default_flags())
     _cache.writable_root(cache_dir)
     tmp = cache_dir / "tmp"
     live = tmp / f"build-{key}-live"
@@ -238,7 +238,7 @@ def test_warm_use_removes_a_dead_builders_directory(cache_dir):
 
 def test_waiting_for_a_hung_builder_times_out_clearly(monkeypatch, cache_dir):
     step = oscillator("oscillator_lock")
-    key = _compile.source_key_of(generate_c(step), _compile.default_flags())
+    key = _compile.source_key_of(_compile.step_kernel(step), _compile.default_flags())
     lock = cache_dir / "locks" / f"{key}.lock"
     lock.parent.mkdir(parents=True)
     fd = os.open(lock, os.O_RDWR | os.O_CREAT)
@@ -390,7 +390,7 @@ def test_window_program_with_garbage_module_is_rebuilt(cache_dir):
 
 
 def test_module_that_never_loads_gives_cache_error(monkeypatch, cache_dir):
-    def refuse(path, name):
+    def refuse(path, name, *types):
         raise ImportError(f"{path}: failed to map segment from shared object")
 
     monkeypatch.setattr(_compile, "load_extension", refuse)

@@ -22,10 +22,10 @@ import jinja2
 
 from .._arguments import instance_argument, name_argument, path_argument
 from .._errors import OutputError, ShapeError
-from ._kernel import c_identifier, kernel_blocks
+from ._kernel import assign_units, c_identifier, kernel_blocks
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
-                  "program.h.j2")
+                  "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2")
 
 #: the most OpenMP threads ``<prefix>_simulate_batch`` starts (a team is created whole:
 #: thousands of threads exhaust memory before any work is done)
@@ -70,13 +70,16 @@ def templates_digest() -> str:
 
 @dataclass(frozen=True)
 class KernelSource:
-    """The generated kernel: header, C source, the cffi declarations, and the C prefix."""
+    """The generated kernel: header, C source, the cffi declarations, and the C prefix;
+    ``units``: further translation units (file name, C source) compiled with the source
+    into the same library (none for a kernel in one file)."""
 
     prefix: str
     header_name: str
     header: str
     source: str
     cdef: str
+    units: tuple[tuple[str, str], ...] = ()
 
 
 def _ascii(text: str) -> str:
@@ -96,11 +99,18 @@ LATEX_COMMENT_OPS = 300
 LATEX_COMMENT_CHARS = 2000
 
 
-def residual_comments(step) -> list[str]:
-    """One comment line per residual: its LaTeX when the system is small enough for printing
-    to be cheap and the line short; else a short note (the equations stay available from
-    ``StepEquations.latex()``)."""
-    from ..equations import latex
+def residual_comments(step, latex: bool = True) -> list[str]:
+    """One comment line per residual: its LaTeX when ``latex`` is set and the system is small
+    enough for printing to be cheap and the line short; else a short note (the equations
+    stay available from ``StepEquations.latex()``).
+
+    The LaTeX needs the step's SymPy residuals (:attr:`StepEquations.residuals`), built on
+    first request: a kernel built only to be compiled skips them (``latex=False``).
+    """
+    if not latex:
+        return [f"equation {i} of the step (print the equations with "
+                f"StepEquations.latex())" for i in range(len(step))]
+    from ..equations import latex as latex_of
 
     ops = step.program.size(["F"])
     if ops > LATEX_COMMENT_OPS:
@@ -109,7 +119,7 @@ def residual_comments(step) -> list[str]:
     forms = step.structured if step.structured is not None else step.residuals
     out = []
     for i, r in enumerate(forms):
-        text = _ascii(latex(r))
+        text = _ascii(latex_of(r))
         if len(text) > LATEX_COMMENT_CHARS:
             text = (f"equation {i} of the step ({len(text)} characters of LaTeX; print it "
                     f"with StepEquations.latex())")
@@ -117,10 +127,12 @@ def residual_comments(step) -> list[str]:
     return out
 
 
-def _context(step, prefix: str, header_name: str) -> dict:
+def _context(step, prefix: str, header_name: str, latex: bool, units: int) -> dict:
     from .. import __version__
 
     blocks = kernel_blocks(step)
+    n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
+                            blocks.predict, blocks.next_knowns], units)
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
     return {
         "p": prefix, "P": prefix.upper(), "header_name": header_name,
@@ -133,7 +145,7 @@ def _context(step, prefix: str, header_name: str) -> dict:
         "known_names": [_ascii(s.name) for s in step.knowns],
         "parameter_names": [_ascii(s.name) for s in step.parameters],
         "fibre_names": [_ascii(s.name) for s in fibre],
-        "residual_latex": residual_comments(step), "helpers": blocks.helpers,
+        "residual_latex": residual_comments(step, latex), "helpers": blocks.helpers,
         "reconstruct": blocks.reconstruct, "residual": blocks.residual,
         "residual_jacobian": blocks.residual_jacobian,
         "predict": blocks.predict,
@@ -142,16 +154,21 @@ def _context(step, prefix: str, header_name: str) -> dict:
         "floor_factor": _c_double(DEFAULT_OPTIONS["floor_factor"]),
         "tol_step": _c_double(DEFAULT_OPTIONS["tol_step"]),
         "max_iterations": DEFAULT_OPTIONS["max_iterations"],
-        "max_threads": MAX_THREADS,
+        "max_threads": MAX_THREADS, "n_units": n_units,
     }
 
 
-def generate_c(step, prefix: str | None = None, header_name: str | None = None
-               ) -> KernelSource:
+def generate_c(step, prefix: str | None = None, header_name: str | None = None, *,
+               latex: bool = True, units: int = 1) -> KernelSource:
     """Generate (without writing) the C kernel of ``step``.
 
     ``prefix`` (default: sanitised ``step.name``) prefixes every C identifier;
-    ``header_name`` (default ``<prefix>.h``) is the header the source includes.
+    ``header_name`` (default ``<prefix>.h``) is the header the source includes; ``latex``:
+    whether the opening comment lists the residuals in LaTeX (for small systems, see
+    :func:`residual_comments`; it costs the SymPy residuals, so the kernels that
+    ``compile_step`` builds go without); ``units``: at most this many translation units,
+    the straight-line functions spread over them by size (:func:`assign_units`; a kernel
+    too small to gain stays in one), so that they can be compiled at the same time.
     """
     prefix = c_identifier(step.name if prefix is None else prefix)
     if len(step) != len(step.unknowns):
@@ -159,11 +176,14 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None
                          f"{len(step.unknowns)} unknowns; a Newton kernel needs a square system")
     env = _environment(str(template_dir()))
     header_name = header_name or f"{prefix}.h"
-    ctx = _context(step, prefix, header_name)
+    ctx = _context(step, prefix, header_name, latex, units)
+    unit_template = env.get_template("unit.c.j2")
     return KernelSource(prefix=prefix, header_name=header_name,
                         header=env.get_template("kernel.h.j2").render(ctx),
                         source=env.get_template("kernel.c.j2").render(ctx),
-                        cdef=env.get_template("cdef.j2").render(ctx))
+                        cdef=env.get_template("cdef.j2").render(ctx),
+                        units=tuple((f"{prefix}_unit{k}.c", unit_template.render(ctx, unit=k))
+                                    for k in range(1, ctx["n_units"])))
 
 
 _UMASK_LOCK = threading.Lock()

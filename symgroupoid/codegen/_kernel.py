@@ -48,6 +48,11 @@ class Part:
 
     locals: list[str] = field(default_factory=list)  # "const double t3 = …;" / "w[2] = …;"
     stores: list[str] = field(default_factory=list)  # "F[0] = …;"
+    unit: int = 0  # the translation unit defining it (0: the kernel's source)
+
+    @property
+    def statements(self) -> int:
+        return len(self.locals) + len(self.stores)
 
 
 @dataclass
@@ -71,7 +76,17 @@ class Block:
 
     @property
     def statements(self) -> int:
-        return sum(len(p.locals) + len(p.stores) for p in self.parts)
+        return sum(p.statements for p in self.parts)
+
+    @property
+    def unit(self) -> int:
+        """The translation unit defining the function of a block in one part (a split
+        block's function, which only calls its parts, stays in the kernel's source)."""
+        return self.parts[0].unit if not self.split else 0
+
+    def units(self) -> set[int]:
+        """The translation units defining some of this block's code."""
+        return {p.unit for p in self.parts}
 
 
 def build_block(program, outputs: Sequence[tuple[str, str]], part_size: int | None = None,
@@ -130,6 +145,47 @@ class KernelBlocks:
     helpers: list[str] = field(default_factory=list)  # C helper functions (smooth maps)
 
 
+#: the C compiler's time on a kernel's fixed code (the Newton stepper, the run loops), in
+#: statements of the straight-line blocks that take it as long to compile (measured at -O3:
+#: 0.29 s for the planar 2-link chain's kernel, 0.65 ms per statement at 16 links)
+FIXED_STATEMENTS = 450
+#: a kernel whose blocks hold fewer statements is compiled as one translation unit (a second
+#: one would save less than starting it costs)
+UNIT_MIN_STATEMENTS = 300
+
+
+def assign_units(blocks: Sequence[Block], units: int) -> int:
+    """Distribute the code of ``blocks`` over at most ``units`` translation units so that
+    each takes the C compiler about as long (deterministic); the number of units used.
+
+    The items moved are whole functions of one part and the parts of split functions
+    (empty ones stay); unit 0, the kernel's source, also holds the fixed code
+    (:data:`FIXED_STATEMENTS`).
+    Items are placed largest first on the least loaded unit (ties: the lower unit, then
+    the earlier item), and the units are then numbered in order of their first item.
+    """
+    items = [part for block in blocks for part in block.parts]
+    for part in items:
+        part.unit = 0
+    total = sum(part.statements for part in items)
+    if units <= 1 or total < UNIT_MIN_STATEMENTS:
+        return 1
+    loads = [FIXED_STATEMENTS] + [0] * (units - 1)
+    order = sorted((i for i in range(len(items)) if items[i].statements),
+                   key=lambda i: (-items[i].statements, i))
+    for i in order:
+        unit = min(range(units), key=lambda u: (loads[u], u))
+        items[i].unit = unit
+        loads[unit] += items[i].statements
+    first: dict[int, int] = {0: -1}
+    for i, part in enumerate(items):
+        first.setdefault(part.unit, i)
+    number = {u: k for k, u in enumerate(sorted(first, key=first.get))}
+    for part in items:
+        part.unit = number[part.unit]
+    return len(number)
+
+
 def program_helpers(program, outputs: Sequence[str]) -> list[str]:
     """The C helper functions (smooth special functions) the named outputs need."""
     helpers: dict = {}
@@ -153,5 +209,5 @@ def kernel_blocks(step) -> KernelBlocks:
     )
 
 
-__all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "build_block", "c_identifier",
-           "kernel_blocks", "program_helpers"]
+__all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "build_block",
+           "c_identifier", "kernel_blocks", "program_helpers"]

@@ -4,8 +4,9 @@ Layout under the cache root (``$SYMGROUPOID_CACHE``, else ``$XDG_CACHE_HOME/symg
 else ``~/.cache/symgroupoid``)::
 
     index/<input key>.json     symbolic inputs → source key (lets a warm load skip codegen)
-    kernels/<source key>/      one built kernel: the extension module, its C source and
-                               manifest.json with the SHA-256 of the module file
+    kernels/<source key>/      one built kernel: the shared library, its C source and
+                               manifest.json with the SHA-256 of the library file and the
+                               library's cffi type table (with its own SHA-256)
     locks/<source key>.lock    held (``flock``) by the one process building that kernel
     tmp/                       build directories ``build-<source key>-*``, renamed into
                                kernels/ when complete
@@ -63,7 +64,8 @@ except ImportError:  # pragma: no cover - not POSIX: builds are not serialised
     fcntl = None
 
 MANIFEST = "manifest.json"
-FORMAT_VERSION = 1
+#: 2: kernels are shared libraries loaded in cffi's ABI mode (1: Python extension modules)
+FORMAT_VERSION = 2
 SUBDIRS = ("index", "kernels", "locks", "tmp")
 #: the file that marks a directory as a kernel cache (the Cache Directory Tagging
 #: convention, so backup tools skip it); only a marked root is ever cleaned or swept
@@ -118,7 +120,8 @@ def _expanded(text: str) -> Path:
 
 
 def abi_tag() -> str:
-    """What a built extension module depends on besides its source."""
+    """What a built kernel depends on besides its source (the interpreter and cffi, which
+    wrote its type table; the cache's format)."""
     import cffi
 
     return "|".join([sys.implementation.cache_tag or "", sysconfig.get_config_var("EXT_SUFFIX")
@@ -555,6 +558,9 @@ class KernelCache:
 def _verified(entry: Path, source_key: str) -> dict | None:
     manifest = read_json(entry / MANIFEST)
     if not manifest or manifest.get("source_key") != source_key:
+        return None
+    ffi = manifest.get("ffi")
+    if not isinstance(ffi, str) or sha256_of([ffi]) != manifest.get("ffi_sha256"):
         return None
     library = entry / str(manifest.get("library", ""))
     try:

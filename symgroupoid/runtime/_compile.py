@@ -1,4 +1,5 @@
-"""compile_step: a step's C kernel, built with cffi and cached on disk, or the NumPy backend."""
+"""compile_step: a step's C kernel, built as a shared library loaded with cffi and cached on
+disk, or the NumPy backend."""
 
 from __future__ import annotations
 
@@ -37,6 +38,7 @@ from ._build import (
     load_extension,
     module_name,
     optimisation_flags,
+    translation_units,
 )
 from ._cache import (
     MANIFEST,
@@ -218,9 +220,20 @@ def input_key(step, flags: Sequence[str]) -> str:
     return sha256_of([*parts, codegen_digest(), abi_tag(), *flags])[:32]
 
 
+def step_kernel(step) -> KernelSource:
+    """The C that :func:`compile_step` builds for ``step``: :func:`generate_c` without the
+    residuals' LaTeX in its opening comment (which needs the SymPy residuals; a compiled
+    kernel never shows it, and :func:`emit_c` writes it); a large kernel's functions in
+    :func:`~._build.translation_units` files compiled at the same time."""
+    return generate_c(step, latex=False, units=translation_units())
+
+
 def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
-    """Cache key of a generated kernel: its header, source and cdef, the ABI and the flags."""
-    return sha256_of([kernel.header, kernel.source, kernel.cdef, abi_tag(), *flags])[:32]
+    """Cache key of a generated kernel: its header, source, further translation units and
+    cdef, the ABI and the flags."""
+    units = [part for unit in kernel.units for part in unit]
+    return sha256_of([kernel.header, kernel.source, str(len(units)), *units, kernel.cdef,
+                      abi_tag(), *flags])[:32]
 
 
 def _same_entry(manifest: dict, stale: dict | None) -> bool:
@@ -259,10 +272,11 @@ def _build_entry(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCach
     try:
         name = module_name(source_key)
         STATS["builds"] += 1
-        library = build_extension(kernel, build_dir, name, flags)
+        library, ffi_source = build_extension(kernel, build_dir, name, flags)
         write_json_atomic(build_dir / MANIFEST, {
             "source_key": source_key, "module": name, "library": library.name,
             "sha256": file_sha256(library), "prefix": kernel.prefix,
+            "ffi": ffi_source, "ffi_sha256": sha256_of([ffi_source]),
             "flags": list(flags), "compile_args": compile_args(flags), "abi": abi_tag(),
             "system": label})
     except BaseException:
@@ -280,7 +294,7 @@ def _build_entry(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCach
 def _load_entry(source_key: str, manifest: dict, cache: KernelCache):
     path = cache.entry(source_key) / str(manifest.get("library", ""))
     try:
-        module = load_extension(path, str(manifest.get("module", "")))
+        module = load_extension(path, str(manifest.get("module", "")), manifest["ffi"])
     except (ImportError, OSError) as exc:
         raise CacheError(f"cannot load the cached kernel module {path}: {exc}") from exc
     STATS["loads"] += 1
@@ -295,7 +309,8 @@ def _unloadable(error: CacheError, entry: Path) -> CacheError:
 
 
 def load_cached(source_key: str, manifest: dict, cache: KernelCache):
-    """The extension module of a verified cache entry (loaded once per process).
+    """The loaded library (``ffi``, ``lib``) of a verified cache entry (loaded once per
+    process).
 
     An entry that verifies but does not load (its module file and manifest replaced
     consistently by something else) is rebuilt once if this process has passed the kernel
@@ -321,7 +336,7 @@ def load_cached(source_key: str, manifest: dict, cache: KernelCache):
 
 def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
            discard: dict | None = None) -> tuple[str, dict]:
-    kernel = generate_c(step)
+    kernel = step_kernel(step)
     STATS["codegen"] += 1
     source_key, manifest = build_cached(kernel, flags, cache, step.name, discard=discard)
     cache.record(key, source_key, manifest["prefix"])
@@ -380,7 +395,7 @@ def kernel_source_of(kernel: CKernel, step) -> KernelSource:
     recipe = _RECIPES.get(kernel.source_key)
     if recipe is not None:
         return recipe[0]
-    source = generate_c(step)
+    source = step_kernel(step)
     STATS["codegen"] += 1
     if source_key_of(source, kernel.flags) != kernel.source_key:
         raise CacheError(f"{step.name}: the kernel in the cache ({kernel.source_key}) is not "

@@ -1,0 +1,184 @@
+"""Building kernels: shared libraries loaded in cffi's ABI mode, the compile path without the
+SymPy residuals, large kernels spread over translation units compiled at the same time."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from kernel_support import REPO, compiled, isolated_cache, needs_cc  # noqa: F401  (autouse)
+
+import symgroupoid as sg
+from symgroupoid.codegen import generate_c
+from symgroupoid.codegen._kernel import (
+    FIXED_STATEMENTS,
+    UNIT_MIN_STATEMENTS,
+    Block,
+    Part,
+    assign_units,
+)
+from symgroupoid.runtime import CompilationError, _cache, _compile
+from symgroupoid.runtime._simulator import Simulator
+from symgroupoid.systems import planar_chain
+
+pytestmark = needs_cc
+
+PARAMS = {"h": 0.01, "g": 9.81}
+
+
+def chain_state(n: int) -> np.ndarray:
+    j = np.arange(1, n + 1)
+    theta = 0.6 * np.cos(0.9 * j)
+    return np.concatenate([theta - 0.004 * np.sin(1.3 * j), theta])
+
+
+def _block(*sizes: int) -> Block:
+    return Block(parts=[Part(locals=["x;"] * size) for size in sizes])
+
+
+# --- translation units ------------------------------------------------------------------------
+
+def test_units_balance_the_compiler_work_deterministically():
+    blocks = [_block(0), _block(400), _block(500, 500, 80), _block(30), _block(30)]
+    assert assign_units(blocks, 2) == 2
+    units = [p.unit for b in blocks for p in b.parts]
+    loads = [FIXED_STATEMENTS, 0]
+    for b in blocks:
+        for p in b.parts:
+            loads[p.unit] += p.statements
+    assert max(loads) - min(loads) <= 500, loads  # at most one part apart
+    assert blocks[0].parts[0].unit == 0, "an empty function stays in the kernel's source"
+    again = [_block(0), _block(400), _block(500, 500, 80), _block(30), _block(30)]
+    assign_units(again, 2)
+    assert [p.unit for b in again for p in b.parts] == units
+    small = [_block(UNIT_MIN_STATEMENTS - 1)]
+    assert assign_units(small, 2) == 1 and small[0].parts[0].unit == 0
+    assert assign_units(blocks, 1) == 1 and {p.unit for b in blocks for p in b.parts} == {0}
+
+
+def test_a_kernel_in_two_units_computes_what_the_one_file_kernel_computes():
+    step = planar_chain(6).euler_lagrange()
+    one, two = generate_c(step, latex=False), generate_c(step, latex=False, units=2)
+    assert one.units == () and len(two.units) == 1
+    assert two.units[0][0] == f"{two.prefix}_unit1.c"
+    assert two.header == one.header and two.cdef == one.cdef
+    kernel, entry = _compile.load_kernel_source(two, _compile.default_flags(), step.name,
+                                                len(step.unknowns), len(step.knowns))
+    assert sorted(p.name for p in entry.iterdir() if p.suffix == ".c") == [
+        f"{two.prefix}.c", f"{two.prefix}_unit1.c"]
+    assert not list(entry.glob("*.o"))
+    state = chain_state(6)
+    numpy = step.compile(backend="numpy")
+    c = Simulator(step, kernel, numpy.options).simulate(state, 40, PARAMS).states
+    assert np.array_equal(c, numpy.simulate(state, 40, PARAMS).states)
+    library = next(entry.glob("*.so"))
+    symbols = subprocess.run(["nm", "-D", "--defined-only", str(library)],
+                             capture_output=True, text=True)
+    if symbols.returncode == 0:
+        assert f"{two.prefix}_residual_jacobian" in symbols.stdout
+        assert "_part" not in symbols.stdout, "parts are not exported"
+
+
+def test_a_unit_the_compiler_rejects_is_a_compilation_error():
+    step = planar_chain(6).euler_lagrange()
+    two = generate_c(step, latex=False, units=2)
+    with pytest.raises(CompilationError) as info:
+        _compile.load_kernel_source(two, ["-fno-such-option-for-symgroupoid"], step.name,
+                                    len(step.unknowns), len(step.knowns))
+    assert "-fno-such-option-for-symgroupoid" in info.value.output
+    assert not list((_cache.cache_root() / "kernels").glob("*"))
+
+
+# --- the compile path -------------------------------------------------------------------------
+
+def test_compiling_builds_no_sympy_residuals_and_emitting_keeps_the_latex():
+    step = planar_chain(1).euler_lagrange()
+    sim = sg.compile_step(step, backend="c")
+    assert step._d.residuals is None, "compile_step built the SymPy residuals"
+    source = (sim.cache_entry / f"{sim.kernel.prefix}.c").read_text()
+    assert "print the equations with StepEquations.latex()" in source
+    assert "\\theta" not in source
+    emitted = generate_c(step).source
+    assert "\\theta" in emitted  # what emit_c writes keeps the residuals in LaTeX
+
+
+# --- ABI mode ---------------------------------------------------------------------------------
+
+_LAYOUT = r"""
+#include <stddef.h>
+#include <stdio.h>
+#include "{header}"
+int main(void)
+{{
+    printf("%zu %zu %zu %zu %zu %zu %zu %zu\n", sizeof({p}_options), sizeof({p}_warm_start),
+           offsetof({p}_options, tol_step), offsetof({p}_options, max_iterations),
+           offsetof({p}_options, extrapolate), offsetof({p}_warm_start, u_last),
+           offsetof({p}_warm_start, u_before), (size_t){P}_N_KNOWNS);
+    return 0;
+}}
+"""
+
+
+def test_the_type_table_agrees_with_the_compiled_header(tmp_path):
+    """cffi's ABI mode lays out structures from the declarations: they must be the C
+    compiler's layout of the header the library was compiled with."""
+    sim = compiled("rigid_body")
+    p, ffi = sim.kernel.prefix, sim.kernel.ffi
+    program = tmp_path / "layout.c"
+    program.write_text(_LAYOUT.format(header=sim.cache_entry / f"{p}.h", p=p, P=p.upper()))
+    exe = tmp_path / "layout"
+    subprocess.run(["cc", str(program), "-o", str(exe)], check=True)
+    got = [int(v) for v in subprocess.run([str(exe)], capture_output=True, text=True,
+                                          check=True).stdout.split()]
+    assert got == [ffi.sizeof(f"{p}_options"), ffi.sizeof(f"{p}_warm_start"),
+                   ffi.offsetof(f"{p}_options", "tol_step"),
+                   ffi.offsetof(f"{p}_options", "max_iterations"),
+                   ffi.offsetof(f"{p}_options", "extrapolate"),
+                   ffi.offsetof(f"{p}_warm_start", "u_last"),
+                   ffi.offsetof(f"{p}_warm_start", "u_before"),
+                   int(getattr(sim.kernel.lib, f"{p.upper()}_N_KNOWNS"))]
+
+
+def test_a_damaged_type_table_is_detected_and_rebuilt():
+    step = planar_chain(1).euler_lagrange()
+    flags = _compile.default_flags()
+    cache = _cache.KernelCache(_cache.cache_root())
+    key = _compile.input_key(step, flags)
+    source_key, manifest = _compile._build(step, flags, cache, key)
+    path = cache.entry(source_key) / _cache.MANIFEST
+    damaged = {**manifest, "ffi": manifest["ffi"].replace("_N_KNOWNS',2", "_N_KNOWNS',7")}
+    assert damaged["ffi"] != manifest["ffi"]
+    path.write_text(json.dumps(damaged))
+    assert cache.verified_manifest(source_key) is None
+    builds = _compile.STATS["builds"]
+    sim = sg.compile_step(step, backend="c")
+    assert _compile.STATS["builds"] == builds + 1
+    assert sim.simulate(chain_state(1), 5, PARAMS).states.shape == (6, 2)
+
+
+BLOCKED = """
+import sys
+for name in ("setuptools", "distutils", "_distutils_hack"):
+    sys.modules[name] = None  # importing them fails
+from symgroupoid.systems import planar_chain
+sim = planar_chain(1).euler_lagrange().compile(backend="c")
+print(sim.backend)
+"""
+
+
+def test_building_needs_neither_setuptools_nor_python_headers(tmp_path):
+    import sysconfig
+
+    from symgroupoid.runtime._build import build_command
+
+    include = sysconfig.get_paths()["include"]
+    assert not any(include in word for word in build_command("k.c", "k.so", ["-O2"]))
+    result = subprocess.run([sys.executable, "-c", BLOCKED], capture_output=True, text=True,
+                            env={**os.environ, "PYTHONPATH": str(REPO),
+                                 "SYMGROUPOID_CACHE": str(tmp_path / "cache")})
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.split()[-1] == "c"
