@@ -8,6 +8,7 @@ from pathlib import Path
 import numpy as np
 import sympy as sp
 
+from ._lambdify import NUMPY_MODULES
 from .groupoids import SO3
 from .runtime._bvp import solve_boundary_value
 from .runtime._compile import STATS
@@ -17,7 +18,7 @@ from .verification import verify_stationary
 
 def _constraint_function(system):
     fs = system._fs
-    return sp.lambdify([list(fs.slots[0]), list(system.parameters)], fs.constraints, "numpy")
+    return sp.lambdify([list(fs.slots[0]), list(system.parameters)], fs.constraints, NUMPY_MODULES)
 
 
 def _rolling_rotation(x0, y0, x1, y1, h, r, Omega, c) -> np.ndarray:

@@ -23,6 +23,7 @@ import sympy as sp
 
 from ._arguments import integer_argument
 from ._errors import DomainError
+from ._lambdify import NUMPY_MODULES
 from .groupoids import Groupoid
 
 
@@ -52,10 +53,10 @@ class _NumericGroupoid:
         b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
         q = tuple(sp.Dummy(f"q{i}") for i in range(G.base_dim))
         t = sp.Dummy("t")
-        self.multiply = sp.lambdify([a, b], list(G.multiply(a, b)), "numpy")
-        self.inverse = sp.lambdify([a], list(G.inverse(a)), "numpy")
-        self.target = sp.lambdify([a], list(G.target(a)), "numpy")
-        self.curves = [sp.lambdify([q, t], list(h), "numpy") for h in G._curves(q, t)]
+        self.multiply = sp.lambdify([a, b], list(G.multiply(a, b)), NUMPY_MODULES)
+        self.inverse = sp.lambdify([a], list(G.inverse(a)), NUMPY_MODULES)
+        self.target = sp.lambdify([a], list(G.target(a)), NUMPY_MODULES)
+        self.curves = [sp.lambdify([q, t], list(h), NUMPY_MODULES) for h in G._curves(q, t)]
 
     def flow(self, q: np.ndarray, coeffs: np.ndarray, t: float) -> np.ndarray:
         """h(t) ⊂ α⁻¹(q): the product of section curves h_a(c_a t), each at the target of the
@@ -90,8 +91,8 @@ def _action_terms(system) -> tuple:
     fs = system._fs
     coords = [c for s in fs.slots for c in s]
     args = [coords, list(system.parameters)]
-    L = sp.lambdify(args, fs.lagrangian, "numpy")
-    phi = sp.lambdify(args, fs.constraints, "numpy") if fs.constraints else None
+    L = sp.lambdify(args, fs.lagrangian, NUMPY_MODULES)
+    phi = sp.lambdify(args, fs.constraints, NUMPY_MODULES) if fs.constraints else None
     return L, phi, len(fs.slots), len(fs.constraints)
 
 

@@ -23,6 +23,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import SymgroupoidError
+from .._lambdify import NUMPY_MODULES
 from ..equations import DiscreteSystem
 from ..verification import verify_stationary
 from ._common import derive, say, stepper
@@ -120,7 +121,7 @@ def sympy_check(sim, points, p) -> Check:
     step = sim.equations
     name = f"{'compiled C' if sim.backend == 'c' else 'NumPy backend'} vs SymPy residuals"
     residuals = sp.lambdify([list(step.unknowns), list(step.knowns), list(step.parameters)],
-                            step.residuals_in_unknowns(), "numpy")
+                            step.residuals_in_unknowns(), NUMPY_MODULES)
     worst = 0.0
     for u, known in points:
         Fk = sim.kernel.residual(u, known, p)

@@ -29,6 +29,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import DomainError, ShapeError
+from .._lambdify import NUMPY_MODULES
 from ..groupoids import Groupoid
 from ..groupoids._morphism import ParameterValues
 from ._callables import as_matrix, call_user, check_values
@@ -217,7 +218,7 @@ class ConservedQuantities:
     def evaluate(self, arrows, params: Sequence) -> tuple[np.ndarray, np.ndarray]:
         """(energy (N,), momenta (N, r)) at the rows of ``arrows`` (flat coordinates)."""
         f = sp.lambdify([list(self.arrow), list(self.parameters)],
-                        [self.energy] + list(self.momenta), "numpy")
+                        [self.energy] + list(self.momenta), NUMPY_MODULES)
         X = np.atleast_2d(np.asarray(arrows, float))
         out = f(list(X.T), np.asarray(params, float))
         n = X.shape[0]
@@ -256,7 +257,7 @@ def _identity_check(G: Groupoid, e: sp.Expr, arrow: tuple, samples: int = 6) -> 
     free = sorted(e.free_symbols - set(arrow), key=lambda s: s.name)
     terms = sp.Add.make_args(sp.expand(e))
     f = sp.lambdify([list(arrow), free], [e, sum((abs(t) for t in terms), sp.S.Zero)],
-                    "numpy")
+                    NUMPY_MODULES)
     rng = np.random.default_rng(0)
     for _ in range(samples):
         p = ParameterValues(rng=rng).vector(free)

@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import DomainError, InputTypeError, ShapeError
+from .._lambdify import NUMPY_MODULES
 from .._symbols import indexed_symbol, multiplier_symbols
 from ..groupoids import Groupoid, MatrixLieGroup
 from ._callables import (
@@ -239,7 +240,7 @@ def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool | None:
     others = sorted(expr.free_symbols - set(arrow), key=sp.default_sort_key)
     terms = sp.Add.make_args(expr)
     f = sp.lambdify([list(arrow), others], [expr, sp.Add(*[sp.Abs(t) for t in terms])],
-                    "numpy", cse=True)
+                    NUMPY_MODULES, cse=True)
     rng = np.random.default_rng(20260)
     usable = 0
     for _ in range(NOETHER_SAMPLES):

@@ -23,6 +23,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import DomainError, MorphismError, ShapeError
+from .._lambdify import NUMPY_MODULES
 from ..groupoids._morphism import GroupoidMorphism, ParameterValues
 from ._callables import as_scalar, as_scalar_list, call_user
 from ._junction import slot
@@ -74,8 +75,8 @@ def check_identity(name: str, what: str, phi: GroupoidMorphism, f: sp.Expr,
     G = phi.source
     free = (difference.free_symbols | sp.sympify(f).free_symbols) - set(source_slot)
     symbols = sorted(free, key=lambda s: s.name)
-    lhs = sp.lambdify([source_slot, symbols], f, "numpy")
-    rhs = sp.lambdify([source_slot, symbols], composed, "numpy")
+    lhs = sp.lambdify([source_slot, symbols], f, NUMPY_MODULES)
+    rhs = sp.lambdify([source_slot, symbols], composed, NUMPY_MODULES)
     rng = np.random.default_rng(seed)
     worst = 0.0
     for _ in range(samples):

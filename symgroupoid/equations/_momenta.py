@@ -9,6 +9,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import DomainError, InputTypeError, ParameterError, ShapeError
+from .._lambdify import NUMPY_MODULES
 from ..derivation._momenta import (
     LegendreForms,
     LiePoissonForms,
@@ -44,8 +45,8 @@ class LegendreTransforms:
     @functools.cached_property
     def _numeric(self):
         args = [list(self.arrow), list(self.multipliers), list(self.parameters)]
-        return (sp.lambdify(args, sp.Matrix(self.minus), "numpy"),
-                sp.lambdify(args, sp.Matrix(self.plus), "numpy"))
+        return (sp.lambdify(args, sp.Matrix(self.minus), NUMPY_MODULES),
+                sp.lambdify(args, sp.Matrix(self.plus), NUMPY_MODULES))
 
     def evaluate(self, arrow: Sequence, multipliers: Sequence = (), params: Sequence = ()):
         """Numeric (F⁻L, F⁺L) at an arrow (flat coordinates) and multipliers."""
@@ -92,7 +93,7 @@ class NoetherQuantity:
     @functools.cached_property
     def _numeric(self):
         args = [list(self.arrow), list(self.multipliers), list(self.parameters)]
-        return sp.lambdify(args, self.expr, "numpy")
+        return sp.lambdify(args, self.expr, NUMPY_MODULES)
 
     def evaluate(self, arrow: Sequence, multipliers: Sequence = (), params: Sequence = ()):
         return float(self._numeric(np.asarray(arrow, float), np.asarray(multipliers, float),

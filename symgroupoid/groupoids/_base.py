@@ -32,6 +32,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import CallableError, InputTypeError, ShapeError
+from .._lambdify import NUMPY_MODULES
 
 Coords = tuple  # flat tuple of SymPy expressions (or numbers)
 
@@ -146,7 +147,7 @@ class Groupoid(ABC):
     def _numeric_fibre_chart(self):
         x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(self.rank))
         q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(self.base_dim))
-        return sp.lambdify([x, q], list(self.fibre_chart(x, q)), "numpy")
+        return sp.lambdify([x, q], list(self.fibre_chart(x, q)), NUMPY_MODULES)
 
     def numeric_fibre_chart(self, x: Sequence, source: Sequence | None = None) -> np.ndarray:
         """:meth:`fibre_chart` evaluated numerically (lambdified once)."""
@@ -236,7 +237,7 @@ class Groupoid(ABC):
             q = [sp.Dummy(f"q{i}", real=True) for i in range(self.base_dim)]
             x = [sp.Dummy(f"x{i}", real=True) for i in range(self.rank)]
             arrow = self.arrow_from(q, self.fibre_chart(x, q))
-            cached = sp.lambdify([*q, *x], list(arrow), "numpy")
+            cached = sp.lambdify([*q, *x], list(arrow), NUMPY_MODULES)
             self.__dict__["_fibre_arrow_function"] = cached
         return cached
 

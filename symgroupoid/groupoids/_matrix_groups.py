@@ -23,6 +23,7 @@ import numpy as np
 import sympy as sp
 
 from .._arguments import choice_argument, name_argument
+from .._lambdify import NUMPY_MODULES
 from .._symbols import StepSymbol, indexed_symbol, latex_name, step_label
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
@@ -419,7 +420,7 @@ def _tidy(retraction: str):
 @functools.cache
 def _numeric_log(cls):
     M = sp.MatrixSymbol("M", cls.n, cls.n)
-    return sp.lambdify([M], list(cls("log", retraction="exp").log(sp.Matrix(M))), "numpy")
+    return sp.lambdify([M], list(cls("log", retraction="exp").log(sp.Matrix(M))), NUMPY_MODULES)
 
 
 # --- the built-in groups --------------------------------------------------------------------

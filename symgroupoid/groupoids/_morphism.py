@@ -34,6 +34,7 @@ from .._errors import (
     ShapeError,
     SymgroupoidError,
 )
+from .._lambdify import NUMPY_MODULES
 from ._base import Groupoid
 
 #: relative tolerance of the numeric identities (morphism axioms, lifts, AΦ)
@@ -155,7 +156,7 @@ class ParameterValues:
 
 
 def _lambdify(args: Sequence, exprs: Sequence) -> Callable:
-    return sp.lambdify(list(args), list(exprs), "numpy")
+    return sp.lambdify(list(args), list(exprs), NUMPY_MODULES)
 
 
 def arrows_of(G: Groupoid, value) -> np.ndarray:
@@ -439,8 +440,8 @@ class GroupoidMorphism:
         qs, V, B, syms = self._algebroid_templates
         key = "_algebroid_numeric"
         if key not in self.__dict__:
-            self.__dict__[key] = (sp.lambdify([qs, syms], sp.Matrix(V), "numpy"),
-                                  sp.lambdify([qs, syms], sp.Matrix(B), "numpy"))
+            self.__dict__[key] = (sp.lambdify([qs, syms], sp.Matrix(V), NUMPY_MODULES),
+                                  sp.lambdify([qs, syms], sp.Matrix(B), NUMPY_MODULES))
         fV, fB = self.__dict__[key]
         p = self._params(params, syms)
         qv = np.asarray(q, float)

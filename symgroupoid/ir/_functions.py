@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
+from .._lambdify import NUMPY_MODULES
 from ._graph import Graph
 
 
@@ -223,7 +224,7 @@ def _numpy_smooth(cls):
     from ..groupoids._smooth import THRESHOLD
 
     s = cls.closed_form.free_symbols.pop()
-    closed = sp.lambdify([s], cls.closed_form, "numpy")
+    closed = sp.lambdify([s], cls.closed_form, NUMPY_MODULES)
     coeffs = [float(c) for c in cls.taylor()][::-1]
     point = float(cls.point)
     away = point + cls.inside * 2 * THRESHOLD
@@ -275,7 +276,7 @@ class Opaque(FunctionSpec):
         return "sg_opaque_" + hashlib.sha256(self.key_text.encode()).hexdigest()[:12]
 
     def numpy_namespace(self):
-        return {self._name: sp.lambdify(list(self.placeholders), self.expr, "numpy")}
+        return {self._name: sp.lambdify(list(self.placeholders), self.expr, NUMPY_MODULES)}
 
     def sympy(self, args):
         return self.expr.xreplace(dict(zip(self.placeholders, args)))

@@ -64,6 +64,7 @@ from .._errors import (
     ShapeError,
     SingularJacobianError,
 )
+from .._lambdify import NUMPY_MODULES
 from .._progress import note as progress_note
 from .._progress import reported
 from ..derivation._step import window
@@ -303,10 +304,10 @@ class _Maps:
         b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
         d = tuple(sp.Dummy(f"d{i}") for i in range(G.rank))
         self.G = G
-        self._mul = sp.lambdify([a, b], list(G.multiply(a, b)), "numpy", cse=True)
-        self._inv = sp.lambdify([a], list(G.inverse(a)), "numpy", cse=True)
+        self._mul = sp.lambdify([a, b], list(G.multiply(a, b)), NUMPY_MODULES, cse=True)
+        self._inv = sp.lambdify([a], list(G.inverse(a)), NUMPY_MODULES, cse=True)
         q = G.target(a)
-        self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), "numpy", cse=True)
+        self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), NUMPY_MODULES, cse=True)
 
     @staticmethod
     def _rows(values, n):
@@ -591,7 +592,7 @@ def _exp_group(G):
 @functools.lru_cache(maxsize=4)
 def _se3_v_inverse():
     w = sp.symbols("w1:4", real=True)
-    return sp.lambdify([w], SE3._V_inverse(w), "numpy")
+    return sp.lambdify([w], SE3._V_inverse(w), NUMPY_MODULES)
 
 
 def _group_log(G, M: np.ndarray) -> np.ndarray | None:

@@ -29,6 +29,7 @@ from .._errors import (
     SingularJacobianError,
     UnsupportedFeatureError,
 )
+from .._lambdify import NUMPY_MODULES
 from ._layout import StateLayout
 from ._validate import arrow as checked_arrow
 from ._validate import real_array
@@ -87,13 +88,13 @@ class MomentumInitializer:
                         + [sp.sympify(f).xreplace(sub) for f in phis])
         unknowns = x + lam
         args = [unknowns, list(self.source), p, list(step.parameters)]
-        self._F = sp.lambdify(args, eqs, "numpy", cse=True)
-        self._J = sp.lambdify(args, eqs.jacobian(unknowns), "numpy", cse=True)
-        self._arrow = sp.lambdify([x, list(self.source)], list(on_fibre), "numpy")
+        self._F = sp.lambdify(args, eqs, NUMPY_MODULES, cse=True)
+        self._J = sp.lambdify(args, eqs.jacobian(unknowns), NUMPY_MODULES, cse=True)
+        self._arrow = sp.lambdify([x, list(self.source)], list(on_fibre), NUMPY_MODULES)
         identity = G.identity(self.source)
         self._guess = sp.lambdify([list(self.source)],
                                   list(G.chart_of_fibre(G.fibre_of(identity), self.source)),
-                                  "numpy")
+                                  NUMPY_MODULES)
         self._configuration = self._configuration_parts()
 
     def _configuration_parts(self) -> dict:
@@ -212,15 +213,15 @@ class SecondOrderMomentumInitializer:
         sub = {**cmap1, **cmap2}
         E = sp.Matrix(eqs)
         args = [fibres + lam, list(g0), p, list(step.parameters)]
-        self._F = sp.lambdify(args, E, "numpy", cse=True)
-        self._J = sp.lambdify(args, E.jacobian(fibres + lam), "numpy", cse=True)
+        self._F = sp.lambdify(args, E, NUMPY_MODULES, cse=True)
+        self._J = sp.lambdify(args, E.jacobian(fibres + lam), NUMPY_MODULES, cse=True)
         values = sp.Matrix([sub.get(f, f) for f in fibres])
-        self._fibres = sp.lambdify([charts], values, "numpy")
-        self._dfibres = sp.lambdify([charts], values.jacobian(charts), "numpy")
+        self._fibres = sp.lambdify([charts], values, NUMPY_MODULES)
+        self._dfibres = sp.lambdify([charts], values.jacobian(charts), NUMPY_MODULES)
         self.n_fibre, self.n_chart = len(fibres), len(charts)
         if [str(s) for s in step.knowns] != [str(s) for s in (*g0, *fib1, *fib2, *lam)]:
             raise RuntimeError(f"{step.name}: second-order state layout mismatch")
-        self._guess = sp.lambdify([list(g0)], list(G.predict_chart(g0)), "numpy")
+        self._guess = sp.lambdify([list(g0)], list(G.predict_chart(g0)), NUMPY_MODULES)
 
     def _residual(self, z, g0, p, params):
         x, lam = z[:self.n_chart], z[self.n_chart:]

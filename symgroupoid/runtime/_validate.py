@@ -32,6 +32,7 @@ from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
     real_array,
 )
 from .._errors import DomainError, ParameterError, ShapeError
+from .._lambdify import NUMPY_MODULES
 from ..groupoids import (
     ActionGroupoid,
     Groupoid,
@@ -361,8 +362,8 @@ class ConstraintCheck:
         #: (position, name) of the parameters the constraints depend on (named in messages)
         self.used = [(i, str(p)) for i, p in enumerate(step.parameters)
                      if any(sp.sympify(c).has(p) for c in functions)]
-        self._phi = sp.lambdify(args, functions, "numpy")
-        self._size = sp.lambdify(args, [magnitude(c) for c in functions], "numpy")
+        self._phi = sp.lambdify(args, functions, NUMPY_MODULES)
+        self._size = sp.lambdify(args, [magnitude(c) for c in functions], NUMPY_MODULES)
 
     def label(self, offsets: tuple[int, ...], i: int) -> str:
         """How a message names constraint ``i`` on the window of arrows at ``offsets``:
@@ -446,8 +447,8 @@ def check_holonomic_nodes(system, arrows: Sequence, labels: Sequence[tuple[str, 
         return
     G = system.groupoid
     args = [list(fs.base), list(system.parameters)]
-    psi = sp.lambdify(args, list(fs.holonomic), "numpy")
-    size = sp.lambdify(args, [magnitude(c) for c in fs.holonomic], "numpy")
+    psi = sp.lambdify(args, list(fs.holonomic), NUMPY_MODULES)
+    size = sp.lambdify(args, [magnitude(c) for c in fs.holonomic], NUMPY_MODULES)
     p = np.asarray(params, float)
     bad = []
     for a, names in zip(arrows, labels):
