@@ -10,5 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-#: ``sympy.lambdify(args, exprs, NUMPY_MODULES)``
-NUMPY_MODULES = [np]
+#: ``sympy.lambdify(args, exprs, NUMPY_MODULES)``; the name ``numpy`` itself is bound too, for
+#: printers of the library's own functions that write ``numpy.…`` (groupoids/_smooth.py)
+NUMPY_MODULES = [{"numpy": np}, np]
