@@ -411,8 +411,10 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
 /* Solve A x = b with the factors of heavy_top_lu_factor (x returned in b): the same row scaling,
  * the row swaps, forward and back substitution.  Returns HEAVY_TOP_OK, or HEAVY_TOP_NON_FINITE
  * when x is not finite -- in particular whenever b or its scaling is not finite: a non-finite
- * entry of the scaled b stays non-finite through the substitutions (the multipliers and
- * pivots are finite, zero multipliers are skipped), so one test of x covers both. */
+ * entry of the scaled b stays non-finite through the substitutions (it is only multiplied by
+ * finite multipliers and reciprocal pivots -- a zero one gives NaN -- and added to other
+ * entries), so one test of x covers both.  Every multiplier is applied, zero ones too (a
+ * test per multiplier costs more than the multiplication it would skip). */
 static int heavy_top_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;
@@ -431,10 +433,7 @@ static int heavy_top_lu_apply(const double *A, const int *e, const double *s, co
     for (k = 0; k < n; ++k) {
         HEAVY_TOP_UNROLL
         for (i = k + 1; i < n; ++i) {
-            const double l = A[i * n + k];
-            if (l != 0.0) {
-                b[i] -= l * b[k];
-            }
+            b[i] -= A[i * n + k] * b[k];
         }
     }
     HEAVY_TOP_UNROLL

@@ -546,16 +546,14 @@ def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
             e = int(factors.e[i])
             b[i] = b[i] * np.ldexp(1.0, -e) if -1000 < e < 1000 else np.ldexp(b[i], -e)
         # a non-finite entry of the scaled b stays non-finite through the substitutions
-        # (finite multipliers and pivots, zero multipliers skipped): one test of x covers it
+        # (finite multipliers, zero ones applied too, and pivots): one test of x covers it
         for k in range(n):  # the row swaps, in order (L's rows were swapped with them)
             piv = int(factors.perm[k])
             if piv != k:
                 b[[k, piv]] = b[[piv, k]]
         for k in range(n):
             for i in range(k + 1, n):
-                lik = A[i, k]
-                if lik != 0.0:
-                    b[i] -= lik * b[k]
+                b[i] -= A[i, k] * b[k]
         for i in range(n - 1, -1, -1):
             t = b[i]
             for j in range(i + 1, n):
