@@ -489,6 +489,38 @@ static void heavy_top_coordinate_floor(const double *J, const double *u, double 
     }
 }
 
+/* 1 when every |F_i| <= 64 DBL_EPSILON kappa sum_j |J_ij| (1 + min(|u_j|, |u_J,j|)), kappa the
+ * pivot ratio of J's factorisation: the residual is one that an update at the rounding noise
+ * of a solve with that factorisation would leave (F ~ J d).  J is the Jacobian evaluated at
+ * u_J, and the weights never exceed those at u_J, so an iterate u that ran away from the
+ * solution (|u| ~ 1e90, where relative updates are tiny and J vanishes) is not accepted for
+ * its small relative update.  Each sum from j = 0 up. */
+static int heavy_top_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const double *inv)
+{
+    const double bound = 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv);
+    double S[HEAVY_TOP_N_EQUATIONS];
+    int i, j;
+    HEAVY_TOP_UNROLL
+    for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+        S[i] = 0.0;
+    }
+    HEAVY_TOP_UNROLL
+    for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+        const double a = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j]));
+        HEAVY_TOP_UNROLL
+        for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+            S[i] += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * a;
+        }
+    }
+    HEAVY_TOP_UNROLL
+    for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= bound * S[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 /* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
  * rounded (heavy_top_coordinate_floor, with the last factored Jacobian at the point where it
  * was evaluated) and N_i the larger
@@ -555,16 +587,22 @@ static double heavy_top_relative_norm(const double *d, const double *u)
  *  - after an update d_k (k >= 1) whose estimated remaining error rho/(1 - rho) |d_k| is at
  *    most tol_step, with rho = |d_k| / |d_{k-1}| the observed contraction and |.| relative to
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
- *    noise of u): the update is applied and the residual evaluated there (a final check that
- *    it is finite; it is the residual reported);
+ *    noise of u): the update is applied and the residual evaluated there (it is the residual
+ *    reported), and the iterate is accepted only if a rounding-level update explains that
+ *    residual (heavy_top_explained_by_rounding), or failing that heavy_top_at_floor; otherwise
+ *    Newton goes on (a small relative update at a runaway iterate is not convergence);
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
- *    fast) and either that update was at most 64 DBL_EPSILON times the ratio of the largest
- *    to the smallest pivot (rounding noise of an update solved with that factorisation), or
- *    every |F_i| is at most
- *    floor_factor times its change under a rounding-level move of the unknowns
- *    (heavy_top_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|): Newton has stalled
- *    on rounding noise;
+ *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
+ *    move of the unknowns (heavy_top_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
+ *    Newton has stalled on rounding noise;
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
+ *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
+ *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
+ *    that factorisation), and a rounding-level update explains the residual
+ *    (heavy_top_explained_by_rounding).
+ * Not converged (HEAVY_TOP_NOT_CONVERGED): after max_iterations updates, or when the update is
+ * that rounding noise but the residual is not explained by it: Newton cannot improve the
+ * iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate. */
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
@@ -588,8 +626,15 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         if (!(rnorm < INFINITY)) {
             return HEAVY_TOP_NON_FINITE;
         }
-        if (done) { /* the residual of the converged iterate, after its final update */
-            return HEAVY_TOP_OK;
+        if (done) { /* after the final update: accepted only at the rounding floor */
+            if (heavy_top_explained_by_rounding(F, J, u, uJ, inv)) {
+                return HEAVY_TOP_OK;
+            }
+            heavy_top_coordinate_floor(J, uJ, C);
+            if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
+                return HEAVY_TOP_OK;
+            }
+            done = 0; /* a small update, a residual above the floor: iterate on */
         }
         if (it == 0) {
             memcpy(uJ, u, sizeof uJ);
@@ -603,13 +648,14 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             return HEAVY_TOP_OK;
         }
         slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow && last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv)) {
-            return HEAVY_TOP_OK;
-        }
         if (slow) {
             heavy_top_coordinate_floor(J, uJ, C);
             if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
                 return HEAVY_TOP_OK;
+            }
+            if (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv)) {
+                /* the update is rounding noise: accepted if it explains the residual */
+                return heavy_top_explained_by_rounding(F, J, u, uJ, inv) ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
             }
         }
         if (it >= options->max_iterations) {

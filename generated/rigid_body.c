@@ -481,6 +481,38 @@ static void rigid_body_coordinate_floor(const double *J, const double *u, double
     }
 }
 
+/* 1 when every |F_i| <= 64 DBL_EPSILON kappa sum_j |J_ij| (1 + min(|u_j|, |u_J,j|)), kappa the
+ * pivot ratio of J's factorisation: the residual is one that an update at the rounding noise
+ * of a solve with that factorisation would leave (F ~ J d).  J is the Jacobian evaluated at
+ * u_J, and the weights never exceed those at u_J, so an iterate u that ran away from the
+ * solution (|u| ~ 1e90, where relative updates are tiny and J vanishes) is not accepted for
+ * its small relative update.  Each sum from j = 0 up. */
+static int rigid_body_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const double *inv)
+{
+    const double bound = 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(inv);
+    double S[RIGID_BODY_N_EQUATIONS];
+    int i, j;
+    RIGID_BODY_UNROLL
+    for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+        S[i] = 0.0;
+    }
+    RIGID_BODY_UNROLL
+    for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
+        const double a = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j]));
+        RIGID_BODY_UNROLL
+        for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+            S[i] += fabs(J[i * RIGID_BODY_N_UNKNOWNS + j]) * a;
+        }
+    }
+    RIGID_BODY_UNROLL
+    for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= bound * S[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 /* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
  * rounded (rigid_body_coordinate_floor, with the last factored Jacobian at the point where it
  * was evaluated) and N_i the larger
@@ -547,16 +579,22 @@ static double rigid_body_relative_norm(const double *d, const double *u)
  *  - after an update d_k (k >= 1) whose estimated remaining error rho/(1 - rho) |d_k| is at
  *    most tol_step, with rho = |d_k| / |d_{k-1}| the observed contraction and |.| relative to
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
- *    noise of u): the update is applied and the residual evaluated there (a final check that
- *    it is finite; it is the residual reported);
+ *    noise of u): the update is applied and the residual evaluated there (it is the residual
+ *    reported), and the iterate is accepted only if a rounding-level update explains that
+ *    residual (rigid_body_explained_by_rounding), or failing that rigid_body_at_floor; otherwise
+ *    Newton goes on (a small relative update at a runaway iterate is not convergence);
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
- *    fast) and either that update was at most 64 DBL_EPSILON times the ratio of the largest
- *    to the smallest pivot (rounding noise of an update solved with that factorisation), or
- *    every |F_i| is at most
- *    floor_factor times its change under a rounding-level move of the unknowns
- *    (rigid_body_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|): Newton has stalled
- *    on rounding noise;
+ *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
+ *    move of the unknowns (rigid_body_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
+ *    Newton has stalled on rounding noise;
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
+ *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
+ *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
+ *    that factorisation), and a rounding-level update explains the residual
+ *    (rigid_body_explained_by_rounding).
+ * Not converged (RIGID_BODY_NOT_CONVERGED): after max_iterations updates, or when the update is
+ * that rounding noise but the residual is not explained by it: Newton cannot improve the
+ * iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate. */
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
@@ -580,8 +618,15 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
         if (!(rnorm < INFINITY)) {
             return RIGID_BODY_NON_FINITE;
         }
-        if (done) { /* the residual of the converged iterate, after its final update */
-            return RIGID_BODY_OK;
+        if (done) { /* after the final update: accepted only at the rounding floor */
+            if (rigid_body_explained_by_rounding(F, J, u, uJ, inv)) {
+                return RIGID_BODY_OK;
+            }
+            rigid_body_coordinate_floor(J, uJ, C);
+            if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
+                return RIGID_BODY_OK;
+            }
+            done = 0; /* a small update, a residual above the floor: iterate on */
         }
         if (it == 0) {
             memcpy(uJ, u, sizeof uJ);
@@ -595,13 +640,14 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
             return RIGID_BODY_OK;
         }
         slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow && last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(inv)) {
-            return RIGID_BODY_OK;
-        }
         if (slow) {
             rigid_body_coordinate_floor(J, uJ, C);
             if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
                 return RIGID_BODY_OK;
+            }
+            if (last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(inv)) {
+                /* the update is rounding noise: accepted if it explains the residual */
+                return rigid_body_explained_by_rounding(F, J, u, uJ, inv) ? RIGID_BODY_OK : RIGID_BODY_NOT_CONVERGED;
             }
         }
         if (it >= options->max_iterations) {

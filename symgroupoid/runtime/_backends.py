@@ -63,14 +63,21 @@ class NewtonOptions:
     - after an update d_k (k ≥ 1) whose estimated remaining error ρ/(1 − ρ)·|d_k| is at most
       ``tol_step`` — ρ = |d_k|/|d_{k−1}| the observed contraction, |d| = max_j |d_j|/(1 + |u_j|)
       — or an update of at most 4ε (rounding noise of u); the update is applied and the
-      residual evaluated there (reported, and checked to be finite);
+      residual evaluated there (reported), and the iterate is accepted only when that
+      residual is at the rounding floor: every |F_i| ≤ ``floor_factor``·ε·Σ_j |J_ij|·
+      min(|u_j|, |u_J,j|), or failing that the floor test below; otherwise Newton goes on (a
+      small relative update at a runaway iterate, |u| ~ 10⁹⁰, is not convergence);
     - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and
-      either that update was at most 64ε times the ratio of the largest to the smallest pivot
-      (rounding noise of an update solved with that factorisation), or every |F_i| is at
-      most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_J,j| (J the last factored
-      Jacobian, evaluated at u_J) and N_i its change under a move of every unknown by 4 ulps:
-      stalled at the rounding floor of the unknowns and of F's own operations;
+      every |F_i| is at most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_J,j| (J the
+      last factored Jacobian, evaluated at u_J) and N_i its change under a move of every
+      unknown by 4 ulps: stalled at the rounding floor of the unknowns and of F's own
+      operations;
     - when |F|_∞ ≤ ``tol_residual`` (absolute; 0, i.e. off, by default).
+
+    Not converged: after ``max_iterations`` updates, or when an update that did not reduce
+    |F|_∞ tenfold was at most 64ε times the ratio of the largest to the smallest pivot
+    (rounding noise of an update solved with that factorisation) while |F| is above its
+    floor — Newton cannot improve the iterate.
 
     At most ``max_iterations`` updates (an integer in 0 … 2³¹ − 1, the range of a C ``int``;
     integral floats such as ``1e3`` are accepted).  With ``extrapolate`` the guess of step
@@ -570,6 +577,26 @@ def coordinate_floor(J: np.ndarray, u: np.ndarray) -> np.ndarray:
     return EPSILON * C
 
 
+def explained_by_rounding(F: np.ndarray, J: np.ndarray, u: np.ndarray, uJ: np.ndarray,
+                          ratio: float) -> bool:
+    """As ``<prefix>_explained_by_rounding``: every |F_i| ≤ 64ε·κ·Σ_j |J_ij|·(1 + m_j),
+    m_j = min(|u_j|, |u_J,j|), κ the pivot ratio — the residual a rounding-level update of a
+    solve with J (evaluated at u_J) would leave; the weights never exceed those at u_J, so a
+    runaway iterate is not accepted for its small relative update (the same summation
+    order)."""
+    bound = 64.0 * EPSILON * ratio
+    m = 1.0 + np.minimum(np.abs(u), np.abs(uJ))
+    S = np.zeros(len(J))
+    for j in range(J.shape[1]):
+        S = S + np.abs(J[:, j]) * m[j]
+    return bool(np.all(np.abs(F) <= bound * S))
+
+
+def pivot_ratio(factors: LUFactors) -> float:
+    """max |pivot| / min |pivot| (from the reciprocal pivots), as ``<prefix>_pivot_ratio``."""
+    return float(np.max(np.abs(factors.inv)) / np.min(np.abs(factors.inv)))
+
+
 def relative_norm(d: np.ndarray, u: np.ndarray) -> float:
     """max_j |d_j| / (1 + |u_j|), as ``<prefix>_relative_norm``."""
     with np.errstate(all="ignore"):
@@ -656,8 +683,11 @@ class NumpyKernel(_Kernel):
             rnorm = norm_inf(F)
             if not np.isfinite(rnorm):
                 return NON_FINITE, u, it, rnorm
-            if done:  # the residual of the converged iterate, after its final update
-                return OK, u, it, rnorm
+            if done:  # after the final update: accepted only at the rounding floor
+                if explained_by_rounding(F, J, u, uJ, pivot_ratio(factors)) or self._at_floor(
+                        u, known, p, F, coordinate_floor(J, uJ), options.floor_factor):
+                    return OK, u, it, rnorm
+                done = False  # a small update, a residual above the floor: iterate on
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
                 uJ = u
                 status, factors = lu_factor(J)
@@ -666,11 +696,13 @@ class NumpyKernel(_Kernel):
             if rnorm <= options.tol_residual:
                 return OK, u, it, rnorm
             slow = it > 0 and not rnorm <= 0.1 * previous
-            ratio = float(np.max(np.abs(factors.inv)) / np.min(np.abs(factors.inv)))
-            if slow and (last_step <= 64.0 * EPSILON * ratio
-                         or self._at_floor(u, known, p, F, coordinate_floor(J, uJ),
-                                           options.floor_factor)):
+            ratio = pivot_ratio(factors)
+            if slow and self._at_floor(u, known, p, F, coordinate_floor(J, uJ),
+                                       options.floor_factor):
                 return OK, u, it, rnorm
+            if slow and last_step <= 64.0 * EPSILON * ratio:  # the update is rounding noise
+                return (OK if explained_by_rounding(F, J, u, uJ, ratio) else NOT_CONVERGED,
+                        u, it, rnorm)
             if it >= options.max_iterations:
                 return NOT_CONVERGED, u, it, rnorm
             if slow:
