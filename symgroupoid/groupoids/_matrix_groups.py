@@ -215,6 +215,11 @@ class MatrixLieGroup(Groupoid):
                 for a in range(self.rank)]
 
     # --- retractions ----------------------------------------------------------------------
+    @classmethod
+    def _cayley_closed_form(cls, x: Sequence) -> sp.Matrix | None:
+        """cay(ξ) in closed form where one is known (None: solved symbolically)."""
+        return None
+
     def cayley(self, x: Sequence) -> sp.Matrix:
         """cay(ξ) = (I − ξ/2)⁻¹(I + ξ/2), ξ = Σ x_a E_a (seed 000 §6.1)."""
         return _cayley_template(type(self)).xreplace(dict(zip(_dtau_dummies(type(self)), x)))
@@ -372,6 +377,9 @@ def _dtau_dummies(cls) -> tuple:
 @functools.cache
 def _cayley_template(cls) -> sp.Matrix:
     x = _dtau_dummies(cls)
+    closed = cls._cayley_closed_form(x)
+    if closed is not None:  # the same canonical form as below, without the symbolic solve
+        return closed.applyfunc(lambda e: sp.factor(sp.together(e)))
     X = cls.hat(x)
     eye = sp.eye(cls.n)
     M = (eye - X / 2).LUsolve(eye + X / 2)
@@ -469,6 +477,12 @@ class SO3(MatrixLieGroup):
     @classmethod
     def _basis(cls):
         return [hat3((1, 0, 0)), hat3((0, 1, 0)), hat3((0, 0, 1))]
+
+    @classmethod
+    def _cayley_closed_form(cls, x):
+        """cay(ξ) = I + 4/(4 + |x|²)(ξ + ξ²/2) (seed 000 §6.1), ξ = x̂."""
+        X = cls.hat(x)
+        return sp.eye(3) + 4 / (4 + sum(v**2 for v in x)) * (X + X * X / 2)
 
     def _inverse_matrix(self, M):
         return M.T
