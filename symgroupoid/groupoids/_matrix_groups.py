@@ -205,9 +205,9 @@ class MatrixLieGroup(Groupoid):
         m = self.rotation_block
         if not m:
             return M
-        Q = M[:m, :m]
+        entries, template = _renormalised_template(m)
         out = sp.Matrix(M)
-        out[:m, :m] = Q * (3 * sp.eye(m) - Q.T * Q) / 2
+        out[:m, :m] = template.xreplace({d: M[i, j] for (i, j), d in entries.items()})
         return out
 
     def section_curves(self, q, t):
@@ -367,6 +367,15 @@ class MatrixLieGroup(Groupoid):
 
 def _simplify_matrix(M: sp.Matrix) -> sp.Matrix:
     return M.applyfunc(lambda e: sp.factor(sp.cancel(e)))
+
+
+@functools.cache
+def _renormalised_template(m: int) -> tuple[dict, sp.Matrix]:
+    """Q(3I − QᵀQ)/2 on an m×m matrix of placeholders (substituted, not multiplied out
+    again, for each matrix: SymPy's matrix product of large entries is slow)."""
+    entries = {(i, j): sp.Dummy(f"q{i}{j}") for i in range(m) for j in range(m)}
+    Q = sp.Matrix(m, m, lambda i, j: entries[(i, j)])
+    return entries, Q * (3 * sp.eye(m) - Q.T * Q) / 2
 
 
 @functools.cache
