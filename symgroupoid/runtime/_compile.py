@@ -426,6 +426,11 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
                  floor_factor: float | None = None) -> Simulator:
     """A :class:`Simulator` for ``step``: its C kernel (cffi, cached) or the NumPy backend.
 
+    Every argument is checked before anything is built, whichever backend is used
+    (:class:`~symgroupoid.DomainError` for a backend that is not one of ``BACKENDS``,
+    :class:`~symgroupoid.InputTypeError` or :class:`~symgroupoid.ShapeError` for malformed
+    flags or paths).
+
     Parameters
     ----------
     backend : ``"auto"`` (C if a compiler is available, else NumPy with a warning), ``"c"``
@@ -444,11 +449,6 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         :class:`NewtonOptions`).
     progress : report code generation and compilation taking longer than 2 s (see
         :mod:`symgroupoid._progress`; a cached kernel loads in milliseconds).
-
-    Every argument is checked before anything is built, whichever backend is used
-    (:class:`~symgroupoid.DomainError` for a backend that is not one of ``BACKENDS``,
-    :class:`~symgroupoid.InputTypeError` or :class:`~symgroupoid.ShapeError` for malformed
-    flags or paths).
     """
     from ..equations import StepEquations
 
