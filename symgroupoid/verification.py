@@ -145,8 +145,8 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     G = system.groupoid
     seed = integer_argument(seed, "seed", maximum=2**63 - 1, owner=system.name)
     eps = real_argument(eps, "eps", owner=system.name)
-    if not 0 < eps <= 1:
-        raise DomainError(f"{system.name}: eps must be in (0, 1] (the size of the "
+    if not 1e-300 <= eps <= 1:  # ε/4 is used too: it must stay a normal, nonzero double
+        raise DomainError(f"{system.name}: eps must be in [1e-300, 1] (the size of the "
                           f"variations), got {eps!r}")
     arrows, lam, params = _unpack(trajectory, system, multipliers, params)
     L, phi, arity, m = _cached_terms(system)

@@ -338,3 +338,11 @@ def test_argument_checks_build_their_messages_only_on_failure(monkeypatch):
     monkeypatch.undo()
     with pytest.raises(sg.ShapeError, match="states must be an array of real numbers"):
         _arguments.real_array("x", "states")
+
+
+def test_verify_stationary_refuses_a_subnormal_eps():
+    """ε/4 of a subnormal ε is 0: refused up front, not a ZeroDivisionError."""
+    arrows = np.array([[0.0, 0.1], [0.1, 0.2], [0.2, 0.3]])
+    for eps in (5e-324, 1e-310):
+        with pytest.raises(sg.DomainError, match="eps must be in"):
+            sg.verify_stationary(arrows, oscillator(), params={"h": 0.1, "k": 1.0}, eps=eps)

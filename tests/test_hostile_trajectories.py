@@ -311,7 +311,8 @@ def test_verify_stationary(name, run):
         names = [which]
         if which == "trajectory":
             args["trajectory"] = data.draw(junk())
-            names = ["trajectory", "arrows"]
+            # raw arrows carry no parameters: with params=None that is the error to name
+            names = ["trajectory", "arrows", "parameters"]
         elif which == "arrows":
             args["trajectory"] = data.draw(near(arrows))
             args["multipliers"], args["params"] = lam, case.params
