@@ -346,3 +346,13 @@ def test_verify_stationary_refuses_a_subnormal_eps():
     for eps in (5e-324, 1e-310):
         with pytest.raises(sg.DomainError, match="eps must be in"):
             sg.verify_stationary(arrows, oscillator(), params={"h": 0.1, "k": 1.0}, eps=eps)
+
+
+def test_conservation_summary_refuses_a_0d_array_of_noether_quantities():
+    """noether=np.array(0.0) was iterated over (a raw TypeError)."""
+    sim = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")),
+                            lambda g: (g.target[0] - g.source[0]) ** 2 / 2,
+                            name="free").euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate({"q": (0.0, 0.1)}, 3, {})
+    with pytest.raises(sg.SymgroupoidError, match="noether must be a list"):
+        traj.conservation_summary(noether=np.array(0.0))

@@ -455,7 +455,8 @@ def _noether_quantities(sgraph: StateGraph, items) -> list[tuple[str, object]]:
     from ..equations import NoetherQuantity
 
     if isinstance(items, (str, bytes)) or not isinstance(items, (Mapping, Sequence,
-                                                                  np.ndarray)):
+                                                                  np.ndarray)) \
+            or (isinstance(items, np.ndarray) and items.ndim == 0):
         raise DiagnosticsError(f"{sgraph.name}: noether must be a list of Noether quantities "
                                f"or sections (or a mapping label → one), got "
                                f"{type(items).__name__} {items!r}")
