@@ -113,7 +113,10 @@ class ReconstructionError(SymgroupoidError, ValueError):
 class DomainError(ShapeError):
     """An input has the right shape but lies outside its domain: a matrix that is not in its
     group, a non-finite number, an initial state off the constraints, a value that is not
-    one of an option's choices."""
+    one of an option's choices.  ``violated``: for an initial state off the constraints, the
+    kind of each violated one ("φ", "ψ∘α" at the first node, "ψ∘β"); empty otherwise."""
+
+    violated: tuple[str, ...] = ()
 
 
 class InputNameError(ShapeError, KeyError):

@@ -334,7 +334,7 @@ class Simulator:
         try:
             return self.state(state, p)
         except DomainError as err:  # Newton stopped at its step test, not on φ = 0
-            if "ψ∘α" in getattr(err, "violated", ()):  # the given base point is off M: an
+            if "ψ∘α" in err.violated:  # the given base point is off M: an
                 raise                                    # input error, not a failed solve
             raise NewtonDivergenceError(
                 f"{self.name}: no consistent initial state found for the momentum "
