@@ -24,11 +24,11 @@ from symgroupoid.codegen._emit import generate_program_c
 from symgroupoid.systems import plate_ball, rigid_body, spherical_chain
 
 digests = {}
-def capture(label, program, inputs, outputs):
+def capture(label, program, inputs, outputs, backend="auto"):
     text = generate_program_c(label, program, inputs, outputs).source
     digests[label] = hashlib.sha256(text.encode()).hexdigest()
-    return None  # evaluate with NumPy: this script only looks at the C text
-bvp.compile_program = capture
+    return None  # nothing is evaluated: this script only looks at the C text
+bvp.ProgramEvaluator = capture
 for system in (rigid_body(), plate_ball()):
     bvp.WindowKernel(system)
 for system in (plate_ball(), spherical_chain(1)):
@@ -80,11 +80,13 @@ def test_step_and_window_kernels_do_not_depend_on_the_hash_seed():
 @pytest.mark.slow
 def test_a_second_process_runs_the_compiler_zero_times(tmp_path):
     """A boundary-value solve and a simulation in a fresh process with a warm cache: no
-    compilation, and bitwise the same solution, iterations and trajectory."""
+    compilation, and bitwise the same solution, iterations and trajectory.  (The cold
+    process solves with the window programs' NumPy form while their kernel is built in the
+    background; it exits only once that build is in the cache.)"""
     cache = {"SYMGROUPOID_CACHE": str(tmp_path / "cache")}
     cold = _result(_run(SOLVE, "7", **cache))
     warm = _result(_run(SOLVE, "8", **cache))
-    assert cold["builds"] >= 2  # the window kernel(s) and the step kernel
+    assert cold["builds"] >= 1  # the step kernel (the window kernel in the background)
     assert warm["builds"] == 0 and warm["codegen"] == 0
     for key in ("arrows", "states", "iterations"):
         assert warm[key] == cold[key]

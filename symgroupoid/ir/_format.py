@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from ._graph import ADD, CONST, INPUT, MUL, POW, Graph
+from ._libm import numpy_name
 
 #: precedence levels of printed expressions
 ATOM, PRODUCT, SUM = 3, 2, 1
@@ -55,8 +56,9 @@ def c_constant(value: sp.Expr) -> str:
 
 
 C = Dialect("c", c_constant, lambda spec, args: spec.c_expression(args), "sqrt", "pow")
+#: C's pow in NumPy code is C's own (:mod:`._libm`), bound by the code's namespace
 NUMPY = Dialect("numpy", c_constant, lambda spec, args: spec.numpy_expression(args),
-                "np.sqrt", "np.power")
+                "np.sqrt", numpy_name("pow"))
 
 
 @dataclass

@@ -21,6 +21,7 @@ import sympy as sp
 
 from .._lambdify import NUMPY_MODULES
 from ._graph import Graph
+from ._libm import LIBM, SCALAR, numpy_name
 
 
 class FunctionSpec:
@@ -87,7 +88,12 @@ class Elementary(FunctionSpec):
         return f"{self.c_name}({', '.join(args)})"
 
     def numpy_expression(self, args):
-        return f"{self.numpy_name}({', '.join(args)})"
+        name = numpy_name(self.c_name) if self.c_name in LIBM else self.numpy_name
+        return f"{name}({', '.join(args)})"
+
+    def numpy_namespace(self):
+        """C's function itself where NumPy's may round differently (:mod:`._libm`)."""
+        return {numpy_name(self.c_name): LIBM[self.c_name]} if self.c_name in LIBM else {}
 
     def sympy(self, args):
         return self.sympy_func(*args)
@@ -218,26 +224,59 @@ def smooth_spec(cls) -> Smooth:
 @functools.cache
 def _numpy_smooth(cls):
     """f(s) on arrays: the Taylor polynomial near s₀, the closed form (at a safe point
-    substituted near s₀, so no 0/0 is ever evaluated) elsewhere."""
+    substituted near s₀, so no 0/0 is ever evaluated) elsewhere — the same operations as the
+    C helper of :class:`Smooth` (its Horner polynomial, its closed form with C's functions),
+    so that both give the same bits."""
     import numpy as np
 
     from ..groupoids._smooth import THRESHOLD
 
-    s = cls.closed_form.free_symbols.pop()
-    closed = sp.lambdify([s], cls.closed_form, NUMPY_MODULES)
-    coeffs = [float(c) for c in cls.taylor()][::-1]
+    coeffs = [float(sp.Float(c, 17)) for c in cls.taylor()][::-1]  # the C helper's literals
     point = float(cls.point)
     away = point + cls.inside * 2 * THRESHOLD
+    closed = _closed_form_elementwise(cls, away)
 
     def f(x):
         x = np.asarray(x, dtype=float)
         d = x - point
         near = np.abs(d) < THRESHOLD
+        out = np.empty(x.shape)
         with np.errstate(all="ignore"):
-            far = closed(np.where(near, away, x))
-        return np.where(near, np.polyval(coeffs, d), far)
+            out[near] = np.polyval(coeffs, d[near])
+            out[~near] = closed(x[~near])
+        return out if out.ndim else float(out)
 
     return f
+
+
+def _closed_form_elementwise(cls, point: float):
+    """The closed form of a smooth function on arrays, computed as its C helper computes it.
+
+    The C text of the closed form (:func:`~._c.c_of_sympy`: literals as doubles, C's
+    function names, ``pow`` for general powers) is also a Python expression with the same
+    operations in the same order — C's arithmetic operators have Python's precedence and
+    associativity, both in IEEE double — so it is evaluated element by element with C's own
+    functions (:data:`~._libm.SCALAR`).  A closed form whose C text is not such an
+    expression (checked at ``point``) falls back to NumPy's functions (same values, possibly
+    different last bits)."""
+    import numpy as np
+
+    from ._c import c_of_sympy
+
+    s = cls.closed_form.free_symbols.pop()
+    text = c_of_sympy(cls.closed_form, {s: "s"})
+    try:
+        scalar = eval(compile(f"lambda s: {text}", f"<{cls.__name__}>", "eval"),  # noqa: S307
+                      {"__builtins__": {}, **SCALAR})
+        float(scalar(point))
+    except Exception:  # noqa: BLE001 - not Python: NumPy's own forms
+        return sp.lambdify([s], cls.closed_form, NUMPY_MODULES)
+    ufunc = np.frompyfunc(scalar, 1, 1)
+
+    def closed(x):
+        return np.asarray(ufunc(x), dtype=float)
+
+    return closed
 
 
 # --- anything else SymPy can differentiate and print: opaque functions -------------------------

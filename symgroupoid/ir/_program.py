@@ -99,6 +99,7 @@ class Program:
 
 def _compile_numpy(program: Program, outputs: list[str], inputs: list[str]):
     from ._format import NUMPY, functions_used, listing
+    from ._libm import namespace as libm_namespace
 
     g = program.graph
     pos = program.input_positions()
@@ -113,7 +114,7 @@ def _compile_numpy(program: Program, outputs: list[str], inputs: list[str]):
                                  f"the inputs {inputs}")
             names[n] = f"_in{arrays[array]}[{i}]"
     code = listing(g, outs, names, NUMPY)
-    namespace: dict = {"np": np}
+    namespace: dict = {"np": np, **libm_namespace()}
     for spec in functions_used(g, outs):
         namespace.update(spec.numpy_namespace())
     lines = [f"def _f({', '.join('_in' + str(i) for i in range(len(inputs)))}):"]

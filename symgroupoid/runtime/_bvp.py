@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import collections
 import functools
+import os
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -53,7 +54,7 @@ from typing import NamedTuple
 import numpy as np
 import sympy as sp
 
-from .._arguments import ndim, real_array
+from .._arguments import choice_argument, ndim, real_array
 from .._errors import (
     BoundaryValueDivergenceError,
     CutLocusError,
@@ -80,8 +81,9 @@ from ..groupoids import (
     TimeGroupoid,
 )
 from ..ir import Graph, Program, forward, from_sympy, rounding_error
+from . import _lapack
 from ._banded import Inertia, banded_inertia
-from ._programs import compile_program
+from ._programs import ProgramEvaluator
 from ._validate import arrow as checked_arrow
 from ._validate import (
     check_holonomic_nodes,
@@ -93,24 +95,17 @@ from ._validate import (
 
 # --- symbolic window kernel --------------------------------------------------------------
 
-def _vectorised(label: str, program: Program, inputs: str, outputs: str):
+def _vectorised(label: str, program: Program, inputs: str, outputs: str) -> ProgramEvaluator:
     """Evaluate ``program``'s output for W windows: (W, n_in) → (W, n_out).
 
-    Compiled to C through the kernel cache when a compiler is available (the same build path
-    as the step kernels); the program's NumPy form (vectorised over windows) otherwise."""
-    compiled = compile_program(label, program, inputs, outputs)
-    if compiled is not None:
-        def call_c(values: np.ndarray) -> np.ndarray:
-            with np.errstate(all="ignore"):
-                return compiled(values)
-
-        return call_c
-    f = program.numpy_function([outputs], [inputs])
-
-    def call(values: np.ndarray) -> np.ndarray:
-        return f(np.asarray(values, float).T)[0].T
-
-    return call
+    Compiled to C through the kernel cache (the same build path as the step kernels) when a
+    compiler is available; until the kernel is built — in the background, so that a first
+    solve never waits for the compiler — and without a compiler, the program's NumPy form
+    (vectorised over windows), which computes the same bits (:class:`ProgramEvaluator`).
+    ``SYMGROUPOID_BACKEND`` = ``numpy`` or ``c`` forces one of the two (``c``: build first)."""
+    backend = choice_argument(os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto",
+                              ("auto", "c", "numpy"), "SYMGROUPOID_BACKEND", owner=label)
+    return ProgramEvaluator(label, program, inputs, outputs, backend)
 
 
 def _slot_derivatives(g: Graph, values: list, coords: list, fields: list, order) -> list:
@@ -437,18 +432,21 @@ class BoundaryValueSolution:
 
 def _solve_banded(rows, cols, vals, n, rhs, band: _Band | None = None) -> np.ndarray:
     """Solve the sparse banded system (COO triplets) in time linear in its size: LAPACK's
-    ``gbsv`` (LU with partial pivoting in banded storage) through SciPy; ``band``, the
+    ``gbsv`` (LU with partial pivoting in banded storage) — NumPy's own LAPACK
+    (:mod:`._lapack`), else SciPy's, else block elimination in NumPy; ``band``, the
     triplets' :class:`_Band` when known (a solve's every Jacobian shares one)."""
-    try:
-        from scipy.linalg import lapack
-    except ImportError:  # pragma: no cover - exercised by forcing the fallback in tests
-        kl = int(np.max(rows - cols, initial=0))
-        ku = int(np.max(cols - rows, initial=0))
-        return _block_tridiagonal(rows, cols, vals, n, rhs, max(kl, ku))
     band = _Band.of(rows, cols, n) if band is None else band
     ab = band.matrix(vals)
-    _, _, x, info = lapack.dgbsv(band.kl, band.ku, ab, np.array(rhs, float),
-                                 overwrite_ab=True, overwrite_b=True)
+    solved = _lapack.dgbsv(band.kl, band.ku, ab, np.asarray(rhs, float))
+    if solved is None:
+        try:
+            from scipy.linalg import lapack
+        except ImportError:  # pragma: no cover - exercised by forcing the fallback in tests
+            return _block_tridiagonal(rows, cols, vals, n, rhs, max(band.kl, band.ku))
+        _, _, x, info = lapack.dgbsv(band.kl, band.ku, ab, np.array(rhs, float),
+                                     overwrite_ab=True, overwrite_b=True)
+    else:
+        x, info = solved
     if info > 0:
         raise np.linalg.LinAlgError(f"singular banded matrix (zero pivot {info})")
     if info < 0:  # pragma: no cover - the arguments are built above
