@@ -92,3 +92,23 @@ def test_unknown_backend_in_the_environment_is_refused(monkeypatch):
 
 def test_wait_for_kernels_with_nothing_building_returns_at_once():
     assert wait_for_kernels(0) is True
+
+
+def test_numpy_form_is_evaluated_in_bounded_chunks(monkeypatch):
+    """Rows are evaluated a bounded number at a time (memory), with the same bits."""
+    from symgroupoid.runtime import _programs
+
+    program = _program(5)
+    whole = program.numpy_function(["out"], ["a"])(VALUES.T)[0].T
+    seen = []
+    monkeypatch.setattr(_programs, "NUMPY_ROWS", 10)
+    evaluator = ProgramEvaluator("evaluator chunks", program, "a", "out", backend="numpy")
+    raw = program.numpy_function(["out"], ["a"])
+
+    def spy(values):
+        seen.append(values.shape[1])
+        return raw(values)
+
+    evaluator._numpy = spy
+    assert np.array_equal(evaluator(VALUES), whole)
+    assert max(seen) == 10 and sum(seen) == len(VALUES)
