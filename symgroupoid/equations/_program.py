@@ -10,7 +10,7 @@ f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded tree
 from __future__ import annotations
 
 from ..derivation._window import step_jacobian
-from ..ir import Graph, Program, from_sympy
+from ..ir import Graph, Program, compact, from_sympy
 
 
 def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:
@@ -44,13 +44,11 @@ def step_program(step) -> Program:
         return [from_sympy(g, e, symbols, f"{step.name}: the {what}", memo) for e in exprs]
 
     fibre = [symbols[f] for f in step.fibre_unknowns if f in step.reconstruction]
-    program = Program(
-        graph=g,
-        inputs={"u": list(step.unknowns), "known": list(step.knowns),
-                "p": list(step.parameters)},
-        outputs={"F": F, "J": [c for row in J for c in row],
-                 "fibre": fibre,
-                 "predict": nodes(step.prediction, "prediction"),
-                 "next_knowns": nodes(step.next_knowns, "state update")})
+    outputs = {"F": F, "J": [c for row in J for c in row], "fibre": fibre,
+               "predict": nodes(step.prediction, "prediction"),
+               "next_knowns": nodes(step.next_knowns, "state update")}
+    inputs = {"u": list(step.unknowns), "known": list(step.knowns),
+              "p": list(step.parameters)}
+    program = Program(graph=g, inputs=inputs, outputs=outputs)
     program.check_inputs()
-    return program
+    return program.compacted()
