@@ -10,7 +10,7 @@ f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded tree
 from __future__ import annotations
 
 from ..derivation._window import step_jacobian
-from ..ir import Graph, Program, compact, from_sympy
+from ..ir import Graph, Program, from_sympy
 
 
 def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:
