@@ -57,22 +57,27 @@ class Part:
 
 @dataclass
 class Block:
-    """A kernel function body: one part, or several run in order with a work array."""
+    """A kernel function body: one part, or several run in order with a work array.
+
+    ``borrowed``: how many leading parts are the part functions of another block (the
+    residual's, which the residual-and-Jacobian block calls instead of compiling them
+    again)."""
 
     parts: list[Part] = field(default_factory=list)
     work: int = 0  # doubles in the work array shared by the parts (0: not split)
-
-    @property
-    def locals(self) -> list[str]:
-        return self.parts[0].locals if len(self.parts) == 1 else []
-
-    @property
-    def stores(self) -> list[str]:
-        return self.parts[0].stores if len(self.parts) == 1 else []
+    borrowed: int = 0
 
     @property
     def split(self) -> bool:
-        return len(self.parts) > 1
+        return len(self.parts) > 1 or self.work > 0
+
+    @property
+    def locals(self) -> list[str]:
+        return self.parts[0].locals if not self.split else []
+
+    @property
+    def stores(self) -> list[str]:
+        return self.parts[0].stores if not self.split else []
 
     @property
     def statements(self) -> int:
@@ -86,7 +91,60 @@ class Block:
 
     def units(self) -> set[int]:
         """The translation units defining some of this block's code."""
-        return {p.unit for p in self.parts}
+        return {p.unit for p in self.parts[self.borrowed:]}
+
+
+def _input_names(program, input_names: dict | None) -> dict:
+    """C names of the program's input nodes: ``array[i]``."""
+    rename = input_names or {}
+    return {n: f"{rename.get(array, array)}[{i}]"
+            for n, (array, i) in program.input_positions().items()}
+
+
+def _chunks(nodes: Sequence[int], part_size: int) -> list[list[int]]:
+    return [list(nodes[i:i + part_size]) for i in range(0, len(nodes), part_size)] or [[]]
+
+
+def _targets(program, outputs: Sequence[tuple[str, str]]) -> list[tuple[str, int]]:
+    """(C lvalue, node) of every entry of the named outputs, e.g. ``("F[0]", 17)``."""
+    return [(f"{array}[{i}]", n) for array, name in outputs
+            for i, n in enumerate(program.outputs[name])]
+
+
+def _parts(g, p, chunks: list[list[int]], stores: Sequence[tuple[str, int, int, int]],
+           names: dict) -> tuple[list[Part], int]:
+    """The parts computing ``chunks`` (runs of the named nodes of plan ``p``) and the output
+    ``stores`` (lvalue, node, first part, last part): each store in the part computing its
+    node, kept within its range (a leaf's store: the last part of its range).  A value read
+    by another part than the one computing it lives in the work array; returns the parts and
+    the size of that array.  ``names`` (the inputs' C names) receives the named nodes'."""
+    part_of = {n: k for k, chunk in enumerate(chunks) for n in chunk}
+    placed = [(t, n, min(max(part_of.get(n, hi), lo), hi)) for t, n, lo, hi in stores]
+    shared: dict = {}
+    for k, chunk in enumerate(chunks):
+        for n in chunk:
+            for r in sorted(p.refs[n]):
+                if part_of[r] != k and r not in shared:
+                    shared[r] = len(shared)
+    for _, n, k in placed:
+        if n in part_of and part_of[n] != k and n not in shared:
+            shared[n] = len(shared)
+    local = iter(range(len(p.named)))
+    for n in p.named:
+        names[n] = f"w[{shared[n]}]" if n in shared else f"t{next(local)}"
+    stores_at: dict = {}
+    for t, n, k in placed:
+        stores_at.setdefault(k, []).append((t, n))
+    parts, writer = [], None
+    for k, chunk in enumerate(chunks):
+        statements, writer = write(g, p, chunk, names, C, writer)
+        part = Part()
+        for (name, text), n in zip(statements, chunk):
+            decl = "" if n in shared else "const double "
+            part.locals.append(f"{decl}{name} = {text};")
+        part.stores = [f"{t} = {writer.atom(n)[0]};" for t, n in stores_at.get(k, [])]
+        parts.append(part)
+    return parts, len(shared)
 
 
 def build_block(program, outputs: Sequence[tuple[str, str]], part_size: int | None = None,
@@ -97,39 +155,41 @@ def build_block(program, outputs: Sequence[tuple[str, str]], part_size: int | No
     ``input_names``: C array names of the program's input arrays (default: their own names).
     """
     g = program.graph
-    nodes = [n for _, name in outputs for n in program.outputs[name]]
-    targets = [f"{array}[{i}]" for array, name in outputs
-               for i in range(len(program.outputs[name]))]
-    rename = input_names or {}
-    names = {n: f"{rename.get(array, array)}[{i}]"
-             for n, (array, i) in program.input_positions().items()}
-    p = plan(g, nodes)
+    targets = _targets(program, outputs)
+    p = plan(g, [n for _, n in targets])
+    chunks = _chunks(p.named, PART_SIZE if part_size is None else part_size)
+    last = len(chunks) - 1
+    parts, work = _parts(g, p, chunks, [(t, n, 0, last) for t, n in targets],
+                         _input_names(program, input_names))
+    return Block(parts=parts, work=work if len(chunks) > 1 else 0)
+
+
+def residual_blocks(program, part_size: int | None = None) -> tuple[Block, Block]:
+    """The residual block and the residual-and-Jacobian block of a step's program.
+
+    When F and J together need more than one part, one plan computes both: first the parts
+    of the nodes F needs, which store F, then the Jacobian's, which read the residual's
+    values from the work array.  The residual function is the first parts alone, and the
+    residual-and-Jacobian function calls them before its own (``Block.borrowed``): the
+    residual's code is compiled once, not twice (the same values: the same operations).
+    Smaller kernels get a block each, in one function without a work array.
+    """
     part_size = PART_SIZE if part_size is None else part_size
-    chunks = [p.named[i:i + part_size] for i in range(0, len(p.named), part_size)] or [[]]
-    part_of = {n: k for k, chunk in enumerate(chunks) for n in chunk}
-    shared: dict = {}
-    for k, chunk in enumerate(chunks):
-        for n in chunk:
-            for r in sorted(p.refs[n]):
-                if part_of[r] != k and r not in shared:
-                    shared[r] = len(shared)
-    local = iter(range(len(p.named)))
-    for n in p.named:
-        names[n] = f"w[{shared[n]}]" if n in shared else f"t{next(local)}"
-    block = Block(work=len(shared) if len(chunks) > 1 else 0)
-    stores_at: dict = {}
-    for target, n in zip(targets, nodes):
-        stores_at.setdefault(part_of.get(n, len(chunks) - 1), []).append((target, n))
-    writer = None
-    for k, chunk in enumerate(chunks):
-        statements, writer = write(g, p, chunk, names, C, writer)
-        part = Part()
-        for (name, text), n in zip(statements, chunk):
-            decl = "" if n in shared else "const double "
-            part.locals.append(f"{decl}{name} = {text};")
-        part.stores = [f"{t} = {writer.atom(n)[0]};" for t, n in stores_at.get(k, [])]
-        block.parts.append(part)
-    return block
+    g = program.graph
+    f_targets = _targets(program, [("F", "F")])
+    j_targets = _targets(program, [("J", "J")])
+    p = plan(g, [n for _, n in f_targets + j_targets])
+    if len(p.named) + len(f_targets) + len(j_targets) <= part_size:
+        return (build_block(program, [("F", "F")], part_size),
+                build_block(program, [("F", "F"), ("J", "J")], part_size))
+    in_f = dict.fromkeys(g.reachable([n for _, n in f_targets]))
+    f_chunks = _chunks([n for n in p.named if n in in_f], part_size)
+    j_chunks = _chunks([n for n in p.named if n not in in_f], part_size)
+    k, last = len(f_chunks), len(f_chunks) + len(j_chunks) - 1
+    stores = [(t, n, 0, k - 1) for t, n in f_targets] + [(t, n, k, last) for t, n in j_targets]
+    parts, work = _parts(g, p, f_chunks + j_chunks, stores, _input_names(program, None))
+    work = max(work, 1)
+    return Block(parts=parts[:k], work=work), Block(parts=parts, work=work, borrowed=k)
 
 
 @dataclass
@@ -164,7 +224,7 @@ def assign_units(blocks: Sequence[Block], units: int) -> int:
     Items are placed largest first on the least loaded unit (ties: the lower unit, then
     the earlier item), and the units are then numbered in order of their first item.
     """
-    items = [part for block in blocks for part in block.parts]
+    items = list({id(part): part for block in blocks for part in block.parts}.values())
     for part in items:
         part.unit = 0
     total = sum(part.statements for part in items)
@@ -198,10 +258,11 @@ def program_helpers(program, outputs: Sequence[str]) -> list[str]:
 def kernel_blocks(step) -> KernelBlocks:
     """All function bodies of the kernel of ``step`` (deterministic for equal input)."""
     program = step.program
+    residual, residual_jacobian = residual_blocks(program)
     return KernelBlocks(
         reconstruct=build_block(program, [("fibre", "fibre")]),
-        residual=build_block(program, [("F", "F")]),
-        residual_jacobian=build_block(program, [("F", "F"), ("J", "J")]),
+        residual=residual,
+        residual_jacobian=residual_jacobian,
         predict=build_block(program, [("u", "predict")]),
         next_knowns=build_block(program, [("known_next", "next_knowns")]),
         n_fibre=len(program.outputs["fibre"]),
@@ -210,4 +271,4 @@ def kernel_blocks(step) -> KernelBlocks:
 
 
 __all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "build_block",
-           "c_identifier", "kernel_blocks", "program_helpers"]
+           "c_identifier", "kernel_blocks", "program_helpers", "residual_blocks"]

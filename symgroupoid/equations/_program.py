@@ -4,7 +4,9 @@ outputs of one expression graph (:class:`symgroupoid.ir.Program`).
 Steps derived on the graph (``DerivedStep.window``) reuse its residual nodes; steps known only
 as SymPy expressions (e.g. the Lie–Poisson reconstruction) are captured into a graph here.
 Either way the Jacobian ∂F/∂(x, λ) is forward-mode differentiation through the fibre chart
-f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded trees.
+f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded trees.  The
+finished program is compacted (:func:`symgroupoid.ir.compact`): the same values in fewer
+floating-point operations, the form the C kernels and the NumPy backend both evaluate.
 """
 
 from __future__ import annotations
@@ -25,8 +27,10 @@ def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:
     return symbols
 
 
-def step_program(step) -> Program:
-    """The :class:`Program` of a :class:`StepEquations` (see the module docstring)."""
+def step_program(step, compacted: bool = True) -> Program:
+    """The :class:`Program` of a :class:`StepEquations` (see the module docstring), compacted
+    (:meth:`Program.compacted`: fewer operations for the same values) unless ``compacted``
+    is False."""
     d = step._d
     if d.window is not None:
         g, symbols, memo = d.window.graph, d.window.symbols, d.window.memo
@@ -44,13 +48,11 @@ def step_program(step) -> Program:
         return [from_sympy(g, e, symbols, f"{step.name}: the {what}", memo) for e in exprs]
 
     fibre = [symbols[f] for f in step.fibre_unknowns if f in step.reconstruction]
-    program = Program(
-        graph=g,
-        inputs={"u": list(step.unknowns), "known": list(step.knowns),
-                "p": list(step.parameters)},
-        outputs={"F": F, "J": [c for row in J for c in row],
-                 "fibre": fibre,
-                 "predict": nodes(step.prediction, "prediction"),
-                 "next_knowns": nodes(step.next_knowns, "state update")})
+    outputs = {"F": F, "J": [c for row in J for c in row], "fibre": fibre,
+               "predict": nodes(step.prediction, "prediction"),
+               "next_knowns": nodes(step.next_knowns, "state update")}
+    inputs = {"u": list(step.unknowns), "known": list(step.knowns),
+              "p": list(step.parameters)}
+    program = Program(graph=g, inputs=inputs, outputs=outputs)
     program.check_inputs()
-    return program
+    return program.compacted() if compacted else program

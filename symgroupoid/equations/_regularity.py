@@ -390,16 +390,29 @@ def random_point(step, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray
         previous = a
     knowns = np.array([values[s] if s in values else rng.normal() for s in step.knowns])
     params = np.array([parameter_value(s, rng) for s in step.parameters])
-    at = {s: sp.Float(v) for s, v in zip(step.knowns, knowns)}
-    prediction = list(getattr(step, "prediction", []))
-    guess = (np.array([_number(e, at) for e in prediction])
-             if len(prediction) == len(step.unknowns) else np.zeros(len(step.unknowns)))
+    guess = _prediction(step, knowns, params)
     n_chart = len(step.unknowns) - step.n_constraints
     chart = np.asarray(G.random_chart(rng), float)
     if chart.shape != (n_chart,):
         chart = rng.uniform(-0.5, 0.5, n_chart)
     delta = np.concatenate([0.2 * chart, 0.2 * rng.normal(size=step.n_constraints)])
     return guess + delta, knowns, params
+
+
+def _prediction(step, knowns: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """The step's prediction of the unknowns at these knowns (0 where it is not a finite
+    number, and everywhere when the step has none): from its program's ``predict`` output
+    when it has one (NumPy, no SymPy evaluation), else from the SymPy expressions."""
+    prediction = list(getattr(step, "prediction", []))
+    if len(prediction) != len(step.unknowns):
+        return np.zeros(len(step.unknowns))
+    program = program_of(step)
+    if program is not None and "predict" in program.outputs:
+        with np.errstate(all="ignore"):
+            guess = program.numpy_function(["predict"], ["known", "p"])(knowns, params)[0]
+        return np.where(np.isfinite(guess), guess, 0.0)
+    at = {s: sp.Float(v) for s, v in zip(step.knowns, knowns)}
+    return np.array([_number(e, at) for e in prediction])
 
 
 def _number(expr, at: dict) -> float:

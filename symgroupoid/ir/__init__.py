@@ -10,6 +10,7 @@ the graph only on demand (:func:`to_sympy`).
 
 from ._ad import forward, gradient, jacobian, partial
 from ._c import KernelCPrinter, c_of_sympy
+from ._compact import compact
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
 from ._program import Program
@@ -18,6 +19,6 @@ from ._sympy import from_sympy, to_sympy
 
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
-    "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "forward",
+    "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "compact", "forward",
     "from_sympy", "gradient", "jacobian", "partial", "rounding_error", "smooth_spec", "to_sympy",
 ]

@@ -75,6 +75,7 @@ def plan(g: Graph, outputs: Sequence[int], inline: bool = True) -> Plan:
     order = [n for n in g.reachable(outputs) if g.args[n]]
     uses = g.uses(order)
     outs = set(outputs)
+    summed = _only_in_sums(g, order)
     size: dict = {}
     reads: dict = {}  # node -> frozenset of named nodes its (possibly inlined) text reads
     p = Plan()
@@ -87,7 +88,8 @@ def plan(g: Graph, outputs: Sequence[int], inline: bool = True) -> Plan:
                 r |= reads[a]
             elif g.args[a]:
                 r.add(a)
-        if inline and uses.get(n, 0) == 1 and n not in outs and s <= MAX_INLINE_OPS:
+        single = uses.get(n, 0) == 1 and s <= MAX_INLINE_OPS
+        if inline and n not in outs and (single or (n in summed and s == 1)):
             p.inlined.add(n)
             size[n], reads[n] = s, frozenset(r)
         else:
@@ -95,6 +97,19 @@ def plan(g: Graph, outputs: Sequence[int], inline: bool = True) -> Plan:
             p.refs[n] = r
             size[n], reads[n] = 1, frozenset()
     return p
+
+
+def _only_in_sums(g: Graph, order: Sequence[int]) -> set:
+    """The negations −x (``MUL(-1, x)``) among ``order`` whose every user is a sum: written
+    into each sum as a subtraction (``a - x``, exact: a + (−x) = a − x), never named."""
+    minus_one = g.minus_one
+    negations = {n for n in order if g.op[n] == MUL and len(g.args[n]) == 2
+                 and g.args[n][0] == minus_one}
+    other: set = set()
+    for n in order:
+        if g.op[n] != ADD:
+            other.update(a for a in g.args[n] if a in negations)
+    return negations - other
 
 
 @dataclass

@@ -46,6 +46,25 @@ class Program:
         """Number of operations (non-leaf nodes) the named outputs need."""
         return sum(1 for n in self.nodes(names) if self.graph.args[n])
 
+    def compacted(self) -> Program:
+        """The same outputs over a new graph with fewer operations
+        (:func:`~symgroupoid.ir.compact`: one node for S and −S, shared prefixes of products
+        and sums); every input symbol keeps an input node."""
+        from ._compact import compact
+
+        names = list(self.outputs)
+        flat = [n for k in names for n in self.outputs[k]]
+        graph, nodes = compact(self.graph, flat)
+        for symbols in self.inputs.values():
+            for s in symbols:
+                graph.input(s)
+        outputs, k = {}, 0
+        for name in names:
+            m = len(self.outputs[name])
+            outputs[name] = nodes[k:k + m]
+            k += m
+        return Program(graph, {k: list(v) for k, v in self.inputs.items()}, outputs)
+
     def check_inputs(self, names: Sequence[str] | None = None) -> None:
         """Every input node the outputs read is an entry of an input array."""
         known = self.input_positions()
