@@ -31,7 +31,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from .._errors import CallableError, InputTypeError, ShapeError
+from .._errors import CallableError, InputTypeError, ShapeError, SymgroupoidError
 from .._lambdify import NUMPY_MODULES
 
 Coords = tuple  # flat tuple of SymPy expressions (or numbers)
@@ -236,8 +236,8 @@ class Groupoid(ABC):
         if cached is None:
             q = [sp.Dummy(f"q{i}", real=True) for i in range(self.base_dim)]
             x = [sp.Dummy(f"x{i}", real=True) for i in range(self.rank)]
-            arrow = self.arrow_from(q, self.fibre_chart(x, q))
-            cached = sp.lambdify([*q, *x], list(arrow), NUMPY_MODULES)
+            arrow = [sp.sympify(c) for c in self.arrow_from(q, self.fibre_chart(x, q))]
+            cached = _graph_function([*q, *x], arrow)
             self.__dict__["_fibre_arrow_function"] = cached
         return cached
 
@@ -461,3 +461,26 @@ def right_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr
     a = groupoid.named_arrow(0) if a is None else tuple(a)
     expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
     return groupoid.apply_right(expr, a)
+
+
+def _graph_function(symbols: list, exprs: list) -> Callable:
+    """f(*values) -> list of floats: ``exprs`` evaluated in NumPy through the expression graph
+    (linear in the size of the expressions' DAG; :func:`sympy.lambdify` prints the expanded
+    trees, 10× slower for a product groupoid of many rotations); lambdify for expressions
+    the graph refuses."""
+    from ..ir import Graph, Program, from_sympy
+
+    try:
+        g = Graph()
+        nodes = {s: g.input(s) for s in symbols}
+        memo: dict = {}
+        outs = [from_sympy(g, e, nodes, memo=memo) for e in exprs]
+    except SymgroupoidError:
+        return sp.lambdify(symbols, exprs, NUMPY_MODULES)
+    evaluate = Program(g, {"z": list(symbols)}, {"out": outs}).numpy_function(["out"], ["z"])
+
+    def f(*values):
+        return list(evaluate(np.array(values, dtype=float))[0])
+
+    return f
+
