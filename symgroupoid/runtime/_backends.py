@@ -693,7 +693,9 @@ def explained_by_rounding(F: np.ndarray, J: np.ndarray, u: np.ndarray, uJ: np.nd
     m_j = min(|u_j|, |u_J,j|), κ the pivot ratio — the residual a rounding-level update of a
     solve with J (evaluated at u_J) would leave; the weights never exceed those at u_J, so a
     runaway iterate is not accepted for its small relative update (the same summation
-    order)."""
+    order).  The C kernel first compares |F_i| with the bound times max_j |J_ij| when every
+    weight is finite (S_i is at least that as computed, rounding being monotone), and sums
+    only when that does not decide: the answer is always this one."""
     bound = 64.0 * EPSILON * ratio
     m = 1.0 + np.minimum(np.abs(u), np.abs(uJ))
     S = np.zeros(len(J))
