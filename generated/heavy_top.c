@@ -332,15 +332,6 @@ static double heavy_top_norm_inf(const double *v, int n)
     return fabs(v[i]);
 }
 
-/* LU factorisation in place (A row-major; L's multipliers below the diagonal, U on and
- * above it).  Every row of A is first scaled by the power of two 2^-e[i] that brings the
- * row's largest |entry| into [1/2, 1) (exact, no rounding), so the singularity test is
- * relative to the size of each equation, not to the largest entry of A: equations of very
- * different magnitudes are not mistaken for a singular system.  Partial pivoting (perm[k]:
- * the row swapped into place k), one division per column (inv: reciprocal pivots).
- * Returns HEAVY_TOP_OK; HEAVY_TOP_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
- * n * DBL_EPSILON (numerically singular); HEAVY_TOP_NON_FINITE when an entry is not finite
- * (overflow or NaN). */
 /* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1), read from the bits of
  * an IEEE-754 double for normal x (no library call), from frexp for subnormal x. */
 static int heavy_top_binary_exponent(double x)
@@ -366,18 +357,44 @@ static double heavy_top_power_of_two(int k)
     return x;
 }
 
-static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *inv)
+/* The factors of a Jacobian (heavy_top_lu_factor): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * heavy_top_explained_by_rounding). */
+typedef struct {
+    double A[HEAVY_TOP_N_UNKNOWNS * HEAVY_TOP_N_UNKNOWNS];
+    double s[HEAVY_TOP_N_UNKNOWNS];
+    double inv[HEAVY_TOP_N_UNKNOWNS];
+    double row_max[HEAVY_TOP_N_UNKNOWNS];
+    int e[HEAVY_TOP_N_UNKNOWNS];
+    int perm[HEAVY_TOP_N_UNKNOWNS];
+    int normal;
+} heavy_top_lu;
+
+/* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
+ * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
+ * rounding), so the singularity test is relative to the size of each equation, not to the
+ * largest entry of J: equations of very different magnitudes are not mistaken for a singular
+ * system.  Partial pivoting (perm[k]: the row swapped into place k; the first largest |entry|
+ * of the column), one division per column (inv: reciprocal pivots), zero multipliers skipped.
+ * Returns HEAVY_TOP_OK; HEAVY_TOP_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
+ * n * DBL_EPSILON (numerically singular); HEAVY_TOP_NON_FINITE when an entry is not finite
+ * (overflow or NaN); the first failing row decides. */
+static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;
     const double tiny = n * DBL_EPSILON;
+    double *A = f->A;
     uint64_t rmax[HEAVY_TOP_N_UNKNOWNS];
     int i, j, k;
     HEAVY_TOP_UNROLL
-    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (heavy_top_abs_bits) */
+    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (heavy_top_abs_bits), its sum */
         uint64_t m = 0;
         HEAVY_TOP_UNROLL
         for (j = 0; j < n; ++j) {
-            const uint64_t a = heavy_top_abs_bits(A[i * n + j]);
+            const uint64_t a = heavy_top_abs_bits(J[i * n + j]);
             m = a > m ? a : m;
         }
         rmax[i] = m;
@@ -390,17 +407,30 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
             return HEAVY_TOP_SINGULAR_JACOBIAN;
         }
     }
+    f->normal = 1;
+    HEAVY_TOP_UNROLL
     for (i = 0; i < n; ++i) {
-        e[i] = heavy_top_binary_exponent(heavy_top_from_bits(rmax[i]));
-        if (e[i] > -1000 && e[i] < 1000) {
-            s[i] = heavy_top_power_of_two(-e[i]);
-            for (j = 0; j < n; ++j) {
-                A[i * n + j] *= s[i];
-            }
+        f->row_max[i] = heavy_top_from_bits(rmax[i]);
+        f->e[i] = heavy_top_binary_exponent(heavy_top_from_bits(rmax[i]));
+        if (f->e[i] > -1000 && f->e[i] < 1000) {
+            f->s[i] = heavy_top_power_of_two(-f->e[i]);
         } else { /* 2^-e[i] is not a normal double: scale with ldexp (still exact) */
-            s[i] = 0.0;
+            f->s[i] = 0.0;
+            f->normal = 0;
+        }
+    }
+    if (f->normal) {
+        HEAVY_TOP_UNROLL
+        for (i = 0; i < n; ++i) {
+            HEAVY_TOP_UNROLL
             for (j = 0; j < n; ++j) {
-                A[i * n + j] = ldexp(A[i * n + j], -e[i]);
+                A[i * n + j] = J[i * n + j] * f->s[i];
+            }
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] = f->s[i] != 0.0 ? J[i * n + j] * f->s[i] : ldexp(J[i * n + j], -f->e[i]);
             }
         }
     }
@@ -409,19 +439,17 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
     HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) {
         int piv = k;
-        double amax = 0.0;
+        double amax = fabs(A[k * n + k]);
         HEAVY_TOP_UNROLL
-        for (i = k; i < n; ++i) {
+        for (i = k + 1; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
-            if (a > amax) {
-                amax = a;
-                piv = i;
-            }
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
         }
         if (!(amax > tiny)) {
             return HEAVY_TOP_SINGULAR_JACOBIAN;
         }
-        perm[k] = piv;
+        f->perm[k] = piv;
         if (piv != k) {
             HEAVY_TOP_UNROLL
             for (j = 0; j < n; ++j) {
@@ -430,10 +458,10 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
                 A[piv * n + j] = t;
             }
         }
-        inv[k] = 1.0 / A[k * n + k];
+        f->inv[k] = 1.0 / A[k * n + k];
         HEAVY_TOP_UNROLL
         for (i = k + 1; i < n; ++i) {
-            const double l = A[i * n + k] * inv[k];
+            const double l = A[i * n + k] * f->inv[k];
             A[i * n + k] = l;
             if (l != 0.0) {
                 HEAVY_TOP_UNROLL
@@ -446,26 +474,33 @@ static int heavy_top_lu_factor(double *A, int *e, double *s, int *perm, double *
     return HEAVY_TOP_OK;
 }
 
-/* Solve A x = b with the factors of heavy_top_lu_factor (x returned in b): the same row scaling,
- * the row swaps, forward and back substitution.  Returns HEAVY_TOP_OK, or HEAVY_TOP_NON_FINITE
- * when x is not finite -- in particular whenever b or its scaling is not finite: a non-finite
- * entry of the scaled b stays non-finite through the substitutions (it is only multiplied by
- * finite multipliers and reciprocal pivots -- a zero one gives NaN -- and added to other
- * entries), so one test of x covers both.  Every multiplier is applied, zero ones too (a
- * test per multiplier costs more than the multiplication it would skip). */
-static int heavy_top_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
+/* Solve J x = b with the factors of heavy_top_lu_factor (x returned in b): the same row
+ * scaling, the row swaps, forward and back substitution.  Returns HEAVY_TOP_OK, or
+ * HEAVY_TOP_NON_FINITE when x is not finite -- in particular whenever b or its scaling is not
+ * finite: a non-finite entry of the scaled b stays non-finite through the substitutions (it
+ * is only multiplied by finite multipliers and reciprocal pivots -- a zero one gives NaN --
+ * and added to other entries), so one test of x covers both.  Every multiplier is applied,
+ * zero ones too (a test per multiplier costs more than the multiplication it would skip). */
+static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;
+    const double *A = f->A;
     int i, j, k;
-    HEAVY_TOP_UNROLL
-    for (i = 0; i < n; ++i) {
-        b[i] = s[i] != 0.0 ? b[i] * s[i] : ldexp(b[i], -e[i]);
+    if (f->normal) {
+        HEAVY_TOP_UNROLL
+        for (i = 0; i < n; ++i) {
+            b[i] *= f->s[i];
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
+        }
     }
     HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
-        b[k] = b[perm[k]];
-        b[perm[k]] = t;
+        b[k] = b[f->perm[k]];
+        b[f->perm[k]] = t;
     }
     HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) {
@@ -481,7 +516,7 @@ static int heavy_top_lu_apply(const double *A, const int *e, const double *s, co
         for (j = i + 1; j < n; ++j) {
             t -= A[i * n + j] * b[j];
         }
-        b[i] = t * inv[i];
+        b[i] = t * f->inv[i];
     }
     return heavy_top_norm_inf(b, n) < INFINITY ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
 }
@@ -527,27 +562,45 @@ static void heavy_top_coordinate_floor(const double *J, const double *u, double 
     }
 }
 
-/* 1 when every |F_i| <= 64 DBL_EPSILON kappa sum_j |J_ij| (1 + min(|u_j|, |u_J,j|)), kappa the
- * pivot ratio of J's factorisation: the residual is one that an update at the rounding noise
- * of a solve with that factorisation would leave (F ~ J d).  J is the Jacobian evaluated at
- * u_J, and the weights never exceed those at u_J, so an iterate u that ran away from the
- * solution (|u| ~ 1e90, where relative updates are tiny and J vanishes) is not accepted for
- * its small relative update.  Each sum from j = 0 up. */
-static int heavy_top_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const double *inv)
+/* 1 when every |F_i| <= 64 DBL_EPSILON kappa S_i, S_i = sum_j |J_ij| (1 + min(|u_j|, |u_J,j|))
+ * (each sum from j = 0 up), kappa the pivot ratio of J's factorisation f: the residual is one
+ * that an update at the rounding noise of a solve with that factorisation would leave
+ * (F ~ J d).  J is the Jacobian evaluated at u_J, and the weights never exceed those at u_J,
+ * so an iterate u that ran away from the solution (|u| ~ 1e90, where relative updates are
+ * tiny and J vanishes) is not accepted for its small relative update.
+ * The row sums R_i = sum_j |J_ij| of the factorisation decide first when every weight
+ * a_j = 1 + min(...) is finite: then S_i >= R_i as computed (each rounded term |J_ij| a_j
+ * >= |J_ij| since a_j >= 1, and rounding is monotone), so |F_i| <= bound R_i for every i
+ * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
+static int heavy_top_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const heavy_top_lu *f)
 {
-    const double bound = 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv);
-    double S[HEAVY_TOP_N_EQUATIONS];
-    int i, j;
+    const double bound = 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(f->inv);
+    double a[HEAVY_TOP_N_UNKNOWNS], S[HEAVY_TOP_N_EQUATIONS];
+    uint64_t amax = 0;
+    int i, j, below = 1;
+    HEAVY_TOP_UNROLL
+    for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+        const uint64_t bits = heavy_top_abs_bits(a[j] = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j])));
+        amax = bits > amax ? bits : amax;
+    }
+    if (amax < HEAVY_TOP_INF_BITS) {
+        HEAVY_TOP_UNROLL
+        for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+            below &= fabs(F[i]) <= bound * f->row_max[i];
+        }
+        if (below) {
+            return 1;
+        }
+    }
     HEAVY_TOP_UNROLL
     for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
     HEAVY_TOP_UNROLL
     for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
-        const double a = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j]));
         HEAVY_TOP_UNROLL
         for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
-            S[i] += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * a;
+            S[i] += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * a[j];
         }
     }
     HEAVY_TOP_UNROLL
@@ -646,9 +699,8 @@ static double heavy_top_relative_norm(const double *d, const double *u)
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
-    double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], LU[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
-    double inv[HEAVY_TOP_N_UNKNOWNS], s[HEAVY_TOP_N_UNKNOWNS], uJ[HEAVY_TOP_N_UNKNOWNS];
-    int e[HEAVY_TOP_N_UNKNOWNS], perm[HEAVY_TOP_N_UNKNOWNS];
+    double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], uJ[HEAVY_TOP_N_UNKNOWNS];
+    heavy_top_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, done = 0;
     for (it = 0;; ++it) {
@@ -665,7 +717,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             return HEAVY_TOP_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (heavy_top_explained_by_rounding(F, J, u, uJ, inv)) {
+            if (heavy_top_explained_by_rounding(F, J, u, uJ, &lu)) {
                 return HEAVY_TOP_OK;
             }
             heavy_top_coordinate_floor(J, uJ, C);
@@ -676,8 +728,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         }
         if (it == 0) {
             memcpy(uJ, u, sizeof uJ);
-            memcpy(LU, J, sizeof LU);
-            status = heavy_top_lu_factor(LU, e, s, perm, inv);
+            status = heavy_top_lu_factor(J, &lu);
             if (status != HEAVY_TOP_OK) {
                 return status;
             }
@@ -691,9 +742,9 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
                 return HEAVY_TOP_OK;
             }
-            if (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(inv)) {
+            if (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv)) {
                 /* the update is rounding noise: accepted if it explains the residual */
-                return heavy_top_explained_by_rounding(F, J, u, uJ, inv) ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
+                return heavy_top_explained_by_rounding(F, J, u, uJ, &lu) ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
             }
         }
         if (it >= options->max_iterations) {
@@ -702,14 +753,13 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         if (slow) {
             heavy_top_residual_jacobian(u, known, p, F, J);
             memcpy(uJ, u, sizeof uJ);
-            memcpy(LU, J, sizeof LU);
-            status = heavy_top_lu_factor(LU, e, s, perm, inv);
+            status = heavy_top_lu_factor(J, &lu);
             if (status != HEAVY_TOP_OK) {
                 return status;
             }
         }
         previous = rnorm;
-        status = heavy_top_lu_apply(LU, e, s, perm, inv, F);
+        status = heavy_top_lu_apply(&lu, F);
         if (status != HEAVY_TOP_OK) {
             return status;
         }

@@ -530,15 +530,6 @@ static double plate_ball_norm_inf(const double *v, int n)
     return fabs(v[i]);
 }
 
-/* LU factorisation in place (A row-major; L's multipliers below the diagonal, U on and
- * above it).  Every row of A is first scaled by the power of two 2^-e[i] that brings the
- * row's largest |entry| into [1/2, 1) (exact, no rounding), so the singularity test is
- * relative to the size of each equation, not to the largest entry of A: equations of very
- * different magnitudes are not mistaken for a singular system.  Partial pivoting (perm[k]:
- * the row swapped into place k), one division per column (inv: reciprocal pivots).
- * Returns PLATE_BALL_OK; PLATE_BALL_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
- * n * DBL_EPSILON (numerically singular); PLATE_BALL_NON_FINITE when an entry is not finite
- * (overflow or NaN). */
 /* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1), read from the bits of
  * an IEEE-754 double for normal x (no library call), from frexp for subnormal x. */
 static int plate_ball_binary_exponent(double x)
@@ -564,18 +555,44 @@ static double plate_ball_power_of_two(int k)
     return x;
 }
 
-static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double *inv)
+/* The factors of a Jacobian (plate_ball_lu_factor): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * plate_ball_explained_by_rounding). */
+typedef struct {
+    double A[PLATE_BALL_N_UNKNOWNS * PLATE_BALL_N_UNKNOWNS];
+    double s[PLATE_BALL_N_UNKNOWNS];
+    double inv[PLATE_BALL_N_UNKNOWNS];
+    double row_max[PLATE_BALL_N_UNKNOWNS];
+    int e[PLATE_BALL_N_UNKNOWNS];
+    int perm[PLATE_BALL_N_UNKNOWNS];
+    int normal;
+} plate_ball_lu;
+
+/* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
+ * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
+ * rounding), so the singularity test is relative to the size of each equation, not to the
+ * largest entry of J: equations of very different magnitudes are not mistaken for a singular
+ * system.  Partial pivoting (perm[k]: the row swapped into place k; the first largest |entry|
+ * of the column), one division per column (inv: reciprocal pivots), zero multipliers skipped.
+ * Returns PLATE_BALL_OK; PLATE_BALL_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
+ * n * DBL_EPSILON (numerically singular); PLATE_BALL_NON_FINITE when an entry is not finite
+ * (overflow or NaN); the first failing row decides. */
+static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
 {
     const int n = PLATE_BALL_N_UNKNOWNS;
     const double tiny = n * DBL_EPSILON;
+    double *A = f->A;
     uint64_t rmax[PLATE_BALL_N_UNKNOWNS];
     int i, j, k;
     PLATE_BALL_UNROLL
-    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (plate_ball_abs_bits) */
+    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (plate_ball_abs_bits), its sum */
         uint64_t m = 0;
         PLATE_BALL_UNROLL
         for (j = 0; j < n; ++j) {
-            const uint64_t a = plate_ball_abs_bits(A[i * n + j]);
+            const uint64_t a = plate_ball_abs_bits(J[i * n + j]);
             m = a > m ? a : m;
         }
         rmax[i] = m;
@@ -588,17 +605,30 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
             return PLATE_BALL_SINGULAR_JACOBIAN;
         }
     }
+    f->normal = 1;
+    PLATE_BALL_UNROLL
     for (i = 0; i < n; ++i) {
-        e[i] = plate_ball_binary_exponent(plate_ball_from_bits(rmax[i]));
-        if (e[i] > -1000 && e[i] < 1000) {
-            s[i] = plate_ball_power_of_two(-e[i]);
-            for (j = 0; j < n; ++j) {
-                A[i * n + j] *= s[i];
-            }
+        f->row_max[i] = plate_ball_from_bits(rmax[i]);
+        f->e[i] = plate_ball_binary_exponent(plate_ball_from_bits(rmax[i]));
+        if (f->e[i] > -1000 && f->e[i] < 1000) {
+            f->s[i] = plate_ball_power_of_two(-f->e[i]);
         } else { /* 2^-e[i] is not a normal double: scale with ldexp (still exact) */
-            s[i] = 0.0;
+            f->s[i] = 0.0;
+            f->normal = 0;
+        }
+    }
+    if (f->normal) {
+        PLATE_BALL_UNROLL
+        for (i = 0; i < n; ++i) {
+            PLATE_BALL_UNROLL
             for (j = 0; j < n; ++j) {
-                A[i * n + j] = ldexp(A[i * n + j], -e[i]);
+                A[i * n + j] = J[i * n + j] * f->s[i];
+            }
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] = f->s[i] != 0.0 ? J[i * n + j] * f->s[i] : ldexp(J[i * n + j], -f->e[i]);
             }
         }
     }
@@ -607,19 +637,17 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
     PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) {
         int piv = k;
-        double amax = 0.0;
+        double amax = fabs(A[k * n + k]);
         PLATE_BALL_UNROLL
-        for (i = k; i < n; ++i) {
+        for (i = k + 1; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
-            if (a > amax) {
-                amax = a;
-                piv = i;
-            }
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
         }
         if (!(amax > tiny)) {
             return PLATE_BALL_SINGULAR_JACOBIAN;
         }
-        perm[k] = piv;
+        f->perm[k] = piv;
         if (piv != k) {
             PLATE_BALL_UNROLL
             for (j = 0; j < n; ++j) {
@@ -628,10 +656,10 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
                 A[piv * n + j] = t;
             }
         }
-        inv[k] = 1.0 / A[k * n + k];
+        f->inv[k] = 1.0 / A[k * n + k];
         PLATE_BALL_UNROLL
         for (i = k + 1; i < n; ++i) {
-            const double l = A[i * n + k] * inv[k];
+            const double l = A[i * n + k] * f->inv[k];
             A[i * n + k] = l;
             if (l != 0.0) {
                 PLATE_BALL_UNROLL
@@ -644,26 +672,33 @@ static int plate_ball_lu_factor(double *A, int *e, double *s, int *perm, double 
     return PLATE_BALL_OK;
 }
 
-/* Solve A x = b with the factors of plate_ball_lu_factor (x returned in b): the same row scaling,
- * the row swaps, forward and back substitution.  Returns PLATE_BALL_OK, or PLATE_BALL_NON_FINITE
- * when x is not finite -- in particular whenever b or its scaling is not finite: a non-finite
- * entry of the scaled b stays non-finite through the substitutions (it is only multiplied by
- * finite multipliers and reciprocal pivots -- a zero one gives NaN -- and added to other
- * entries), so one test of x covers both.  Every multiplier is applied, zero ones too (a
- * test per multiplier costs more than the multiplication it would skip). */
-static int plate_ball_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
+/* Solve J x = b with the factors of plate_ball_lu_factor (x returned in b): the same row
+ * scaling, the row swaps, forward and back substitution.  Returns PLATE_BALL_OK, or
+ * PLATE_BALL_NON_FINITE when x is not finite -- in particular whenever b or its scaling is not
+ * finite: a non-finite entry of the scaled b stays non-finite through the substitutions (it
+ * is only multiplied by finite multipliers and reciprocal pivots -- a zero one gives NaN --
+ * and added to other entries), so one test of x covers both.  Every multiplier is applied,
+ * zero ones too (a test per multiplier costs more than the multiplication it would skip). */
+static int plate_ball_lu_apply(const plate_ball_lu *f, double *b)
 {
     const int n = PLATE_BALL_N_UNKNOWNS;
+    const double *A = f->A;
     int i, j, k;
-    PLATE_BALL_UNROLL
-    for (i = 0; i < n; ++i) {
-        b[i] = s[i] != 0.0 ? b[i] * s[i] : ldexp(b[i], -e[i]);
+    if (f->normal) {
+        PLATE_BALL_UNROLL
+        for (i = 0; i < n; ++i) {
+            b[i] *= f->s[i];
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
+        }
     }
     PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
-        b[k] = b[perm[k]];
-        b[perm[k]] = t;
+        b[k] = b[f->perm[k]];
+        b[f->perm[k]] = t;
     }
     PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) {
@@ -679,7 +714,7 @@ static int plate_ball_lu_apply(const double *A, const int *e, const double *s, c
         for (j = i + 1; j < n; ++j) {
             t -= A[i * n + j] * b[j];
         }
-        b[i] = t * inv[i];
+        b[i] = t * f->inv[i];
     }
     return plate_ball_norm_inf(b, n) < INFINITY ? PLATE_BALL_OK : PLATE_BALL_NON_FINITE;
 }
@@ -725,27 +760,45 @@ static void plate_ball_coordinate_floor(const double *J, const double *u, double
     }
 }
 
-/* 1 when every |F_i| <= 64 DBL_EPSILON kappa sum_j |J_ij| (1 + min(|u_j|, |u_J,j|)), kappa the
- * pivot ratio of J's factorisation: the residual is one that an update at the rounding noise
- * of a solve with that factorisation would leave (F ~ J d).  J is the Jacobian evaluated at
- * u_J, and the weights never exceed those at u_J, so an iterate u that ran away from the
- * solution (|u| ~ 1e90, where relative updates are tiny and J vanishes) is not accepted for
- * its small relative update.  Each sum from j = 0 up. */
-static int plate_ball_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const double *inv)
+/* 1 when every |F_i| <= 64 DBL_EPSILON kappa S_i, S_i = sum_j |J_ij| (1 + min(|u_j|, |u_J,j|))
+ * (each sum from j = 0 up), kappa the pivot ratio of J's factorisation f: the residual is one
+ * that an update at the rounding noise of a solve with that factorisation would leave
+ * (F ~ J d).  J is the Jacobian evaluated at u_J, and the weights never exceed those at u_J,
+ * so an iterate u that ran away from the solution (|u| ~ 1e90, where relative updates are
+ * tiny and J vanishes) is not accepted for its small relative update.
+ * The row sums R_i = sum_j |J_ij| of the factorisation decide first when every weight
+ * a_j = 1 + min(...) is finite: then S_i >= R_i as computed (each rounded term |J_ij| a_j
+ * >= |J_ij| since a_j >= 1, and rounding is monotone), so |F_i| <= bound R_i for every i
+ * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
+static int plate_ball_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const plate_ball_lu *f)
 {
-    const double bound = 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(inv);
-    double S[PLATE_BALL_N_EQUATIONS];
-    int i, j;
+    const double bound = 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(f->inv);
+    double a[PLATE_BALL_N_UNKNOWNS], S[PLATE_BALL_N_EQUATIONS];
+    uint64_t amax = 0;
+    int i, j, below = 1;
+    PLATE_BALL_UNROLL
+    for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
+        const uint64_t bits = plate_ball_abs_bits(a[j] = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j])));
+        amax = bits > amax ? bits : amax;
+    }
+    if (amax < PLATE_BALL_INF_BITS) {
+        PLATE_BALL_UNROLL
+        for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
+            below &= fabs(F[i]) <= bound * f->row_max[i];
+        }
+        if (below) {
+            return 1;
+        }
+    }
     PLATE_BALL_UNROLL
     for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
     PLATE_BALL_UNROLL
     for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
-        const double a = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j]));
         PLATE_BALL_UNROLL
         for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
-            S[i] += fabs(J[i * PLATE_BALL_N_UNKNOWNS + j]) * a;
+            S[i] += fabs(J[i * PLATE_BALL_N_UNKNOWNS + j]) * a[j];
         }
     }
     PLATE_BALL_UNROLL
@@ -844,9 +897,8 @@ static double plate_ball_relative_norm(const double *d, const double *u)
 static int plate_ball_newton(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
-    double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], LU[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS];
-    double inv[PLATE_BALL_N_UNKNOWNS], s[PLATE_BALL_N_UNKNOWNS], uJ[PLATE_BALL_N_UNKNOWNS];
-    int e[PLATE_BALL_N_UNKNOWNS], perm[PLATE_BALL_N_UNKNOWNS];
+    double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], uJ[PLATE_BALL_N_UNKNOWNS];
+    plate_ball_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, done = 0;
     for (it = 0;; ++it) {
@@ -863,7 +915,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
             return PLATE_BALL_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (plate_ball_explained_by_rounding(F, J, u, uJ, inv)) {
+            if (plate_ball_explained_by_rounding(F, J, u, uJ, &lu)) {
                 return PLATE_BALL_OK;
             }
             plate_ball_coordinate_floor(J, uJ, C);
@@ -874,8 +926,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
         }
         if (it == 0) {
             memcpy(uJ, u, sizeof uJ);
-            memcpy(LU, J, sizeof LU);
-            status = plate_ball_lu_factor(LU, e, s, perm, inv);
+            status = plate_ball_lu_factor(J, &lu);
             if (status != PLATE_BALL_OK) {
                 return status;
             }
@@ -889,9 +940,9 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
             if (plate_ball_at_floor(u, known, p, F, C, options->floor_factor)) {
                 return PLATE_BALL_OK;
             }
-            if (last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(inv)) {
+            if (last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(lu.inv)) {
                 /* the update is rounding noise: accepted if it explains the residual */
-                return plate_ball_explained_by_rounding(F, J, u, uJ, inv) ? PLATE_BALL_OK : PLATE_BALL_NOT_CONVERGED;
+                return plate_ball_explained_by_rounding(F, J, u, uJ, &lu) ? PLATE_BALL_OK : PLATE_BALL_NOT_CONVERGED;
             }
         }
         if (it >= options->max_iterations) {
@@ -900,14 +951,13 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
         if (slow) {
             plate_ball_residual_jacobian(u, known, p, F, J);
             memcpy(uJ, u, sizeof uJ);
-            memcpy(LU, J, sizeof LU);
-            status = plate_ball_lu_factor(LU, e, s, perm, inv);
+            status = plate_ball_lu_factor(J, &lu);
             if (status != PLATE_BALL_OK) {
                 return status;
             }
         }
         previous = rnorm;
-        status = plate_ball_lu_apply(LU, e, s, perm, inv, F);
+        status = plate_ball_lu_apply(&lu, F);
         if (status != PLATE_BALL_OK) {
             return status;
         }

@@ -324,15 +324,6 @@ static double rigid_body_norm_inf(const double *v, int n)
     return fabs(v[i]);
 }
 
-/* LU factorisation in place (A row-major; L's multipliers below the diagonal, U on and
- * above it).  Every row of A is first scaled by the power of two 2^-e[i] that brings the
- * row's largest |entry| into [1/2, 1) (exact, no rounding), so the singularity test is
- * relative to the size of each equation, not to the largest entry of A: equations of very
- * different magnitudes are not mistaken for a singular system.  Partial pivoting (perm[k]:
- * the row swapped into place k), one division per column (inv: reciprocal pivots).
- * Returns RIGID_BODY_OK; RIGID_BODY_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
- * n * DBL_EPSILON (numerically singular); RIGID_BODY_NON_FINITE when an entry is not finite
- * (overflow or NaN). */
 /* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1), read from the bits of
  * an IEEE-754 double for normal x (no library call), from frexp for subnormal x. */
 static int rigid_body_binary_exponent(double x)
@@ -358,18 +349,44 @@ static double rigid_body_power_of_two(int k)
     return x;
 }
 
-static int rigid_body_lu_factor(double *A, int *e, double *s, int *perm, double *inv)
+/* The factors of a Jacobian (rigid_body_lu_factor): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * rigid_body_explained_by_rounding). */
+typedef struct {
+    double A[RIGID_BODY_N_UNKNOWNS * RIGID_BODY_N_UNKNOWNS];
+    double s[RIGID_BODY_N_UNKNOWNS];
+    double inv[RIGID_BODY_N_UNKNOWNS];
+    double row_max[RIGID_BODY_N_UNKNOWNS];
+    int e[RIGID_BODY_N_UNKNOWNS];
+    int perm[RIGID_BODY_N_UNKNOWNS];
+    int normal;
+} rigid_body_lu;
+
+/* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
+ * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
+ * rounding), so the singularity test is relative to the size of each equation, not to the
+ * largest entry of J: equations of very different magnitudes are not mistaken for a singular
+ * system.  Partial pivoting (perm[k]: the row swapped into place k; the first largest |entry|
+ * of the column), one division per column (inv: reciprocal pivots), zero multipliers skipped.
+ * Returns RIGID_BODY_OK; RIGID_BODY_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
+ * n * DBL_EPSILON (numerically singular); RIGID_BODY_NON_FINITE when an entry is not finite
+ * (overflow or NaN); the first failing row decides. */
+static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
 {
     const int n = RIGID_BODY_N_UNKNOWNS;
     const double tiny = n * DBL_EPSILON;
+    double *A = f->A;
     uint64_t rmax[RIGID_BODY_N_UNKNOWNS];
     int i, j, k;
     RIGID_BODY_UNROLL
-    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (rigid_body_abs_bits) */
+    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (rigid_body_abs_bits), its sum */
         uint64_t m = 0;
         RIGID_BODY_UNROLL
         for (j = 0; j < n; ++j) {
-            const uint64_t a = rigid_body_abs_bits(A[i * n + j]);
+            const uint64_t a = rigid_body_abs_bits(J[i * n + j]);
             m = a > m ? a : m;
         }
         rmax[i] = m;
@@ -382,17 +399,30 @@ static int rigid_body_lu_factor(double *A, int *e, double *s, int *perm, double 
             return RIGID_BODY_SINGULAR_JACOBIAN;
         }
     }
+    f->normal = 1;
+    RIGID_BODY_UNROLL
     for (i = 0; i < n; ++i) {
-        e[i] = rigid_body_binary_exponent(rigid_body_from_bits(rmax[i]));
-        if (e[i] > -1000 && e[i] < 1000) {
-            s[i] = rigid_body_power_of_two(-e[i]);
-            for (j = 0; j < n; ++j) {
-                A[i * n + j] *= s[i];
-            }
+        f->row_max[i] = rigid_body_from_bits(rmax[i]);
+        f->e[i] = rigid_body_binary_exponent(rigid_body_from_bits(rmax[i]));
+        if (f->e[i] > -1000 && f->e[i] < 1000) {
+            f->s[i] = rigid_body_power_of_two(-f->e[i]);
         } else { /* 2^-e[i] is not a normal double: scale with ldexp (still exact) */
-            s[i] = 0.0;
+            f->s[i] = 0.0;
+            f->normal = 0;
+        }
+    }
+    if (f->normal) {
+        RIGID_BODY_UNROLL
+        for (i = 0; i < n; ++i) {
+            RIGID_BODY_UNROLL
             for (j = 0; j < n; ++j) {
-                A[i * n + j] = ldexp(A[i * n + j], -e[i]);
+                A[i * n + j] = J[i * n + j] * f->s[i];
+            }
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] = f->s[i] != 0.0 ? J[i * n + j] * f->s[i] : ldexp(J[i * n + j], -f->e[i]);
             }
         }
     }
@@ -401,19 +431,17 @@ static int rigid_body_lu_factor(double *A, int *e, double *s, int *perm, double 
     RIGID_BODY_UNROLL
     for (k = 0; k < n; ++k) {
         int piv = k;
-        double amax = 0.0;
+        double amax = fabs(A[k * n + k]);
         RIGID_BODY_UNROLL
-        for (i = k; i < n; ++i) {
+        for (i = k + 1; i < n; ++i) {
             const double a = fabs(A[i * n + k]);
-            if (a > amax) {
-                amax = a;
-                piv = i;
-            }
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
         }
         if (!(amax > tiny)) {
             return RIGID_BODY_SINGULAR_JACOBIAN;
         }
-        perm[k] = piv;
+        f->perm[k] = piv;
         if (piv != k) {
             RIGID_BODY_UNROLL
             for (j = 0; j < n; ++j) {
@@ -422,10 +450,10 @@ static int rigid_body_lu_factor(double *A, int *e, double *s, int *perm, double 
                 A[piv * n + j] = t;
             }
         }
-        inv[k] = 1.0 / A[k * n + k];
+        f->inv[k] = 1.0 / A[k * n + k];
         RIGID_BODY_UNROLL
         for (i = k + 1; i < n; ++i) {
-            const double l = A[i * n + k] * inv[k];
+            const double l = A[i * n + k] * f->inv[k];
             A[i * n + k] = l;
             if (l != 0.0) {
                 RIGID_BODY_UNROLL
@@ -438,26 +466,33 @@ static int rigid_body_lu_factor(double *A, int *e, double *s, int *perm, double 
     return RIGID_BODY_OK;
 }
 
-/* Solve A x = b with the factors of rigid_body_lu_factor (x returned in b): the same row scaling,
- * the row swaps, forward and back substitution.  Returns RIGID_BODY_OK, or RIGID_BODY_NON_FINITE
- * when x is not finite -- in particular whenever b or its scaling is not finite: a non-finite
- * entry of the scaled b stays non-finite through the substitutions (it is only multiplied by
- * finite multipliers and reciprocal pivots -- a zero one gives NaN -- and added to other
- * entries), so one test of x covers both.  Every multiplier is applied, zero ones too (a
- * test per multiplier costs more than the multiplication it would skip). */
-static int rigid_body_lu_apply(const double *A, const int *e, const double *s, const int *perm, const double *inv, double *b)
+/* Solve J x = b with the factors of rigid_body_lu_factor (x returned in b): the same row
+ * scaling, the row swaps, forward and back substitution.  Returns RIGID_BODY_OK, or
+ * RIGID_BODY_NON_FINITE when x is not finite -- in particular whenever b or its scaling is not
+ * finite: a non-finite entry of the scaled b stays non-finite through the substitutions (it
+ * is only multiplied by finite multipliers and reciprocal pivots -- a zero one gives NaN --
+ * and added to other entries), so one test of x covers both.  Every multiplier is applied,
+ * zero ones too (a test per multiplier costs more than the multiplication it would skip). */
+static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
 {
     const int n = RIGID_BODY_N_UNKNOWNS;
+    const double *A = f->A;
     int i, j, k;
-    RIGID_BODY_UNROLL
-    for (i = 0; i < n; ++i) {
-        b[i] = s[i] != 0.0 ? b[i] * s[i] : ldexp(b[i], -e[i]);
+    if (f->normal) {
+        RIGID_BODY_UNROLL
+        for (i = 0; i < n; ++i) {
+            b[i] *= f->s[i];
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
+        }
     }
     RIGID_BODY_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
-        b[k] = b[perm[k]];
-        b[perm[k]] = t;
+        b[k] = b[f->perm[k]];
+        b[f->perm[k]] = t;
     }
     RIGID_BODY_UNROLL
     for (k = 0; k < n; ++k) {
@@ -473,7 +508,7 @@ static int rigid_body_lu_apply(const double *A, const int *e, const double *s, c
         for (j = i + 1; j < n; ++j) {
             t -= A[i * n + j] * b[j];
         }
-        b[i] = t * inv[i];
+        b[i] = t * f->inv[i];
     }
     return rigid_body_norm_inf(b, n) < INFINITY ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
 }
@@ -519,27 +554,45 @@ static void rigid_body_coordinate_floor(const double *J, const double *u, double
     }
 }
 
-/* 1 when every |F_i| <= 64 DBL_EPSILON kappa sum_j |J_ij| (1 + min(|u_j|, |u_J,j|)), kappa the
- * pivot ratio of J's factorisation: the residual is one that an update at the rounding noise
- * of a solve with that factorisation would leave (F ~ J d).  J is the Jacobian evaluated at
- * u_J, and the weights never exceed those at u_J, so an iterate u that ran away from the
- * solution (|u| ~ 1e90, where relative updates are tiny and J vanishes) is not accepted for
- * its small relative update.  Each sum from j = 0 up. */
-static int rigid_body_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const double *inv)
+/* 1 when every |F_i| <= 64 DBL_EPSILON kappa S_i, S_i = sum_j |J_ij| (1 + min(|u_j|, |u_J,j|))
+ * (each sum from j = 0 up), kappa the pivot ratio of J's factorisation f: the residual is one
+ * that an update at the rounding noise of a solve with that factorisation would leave
+ * (F ~ J d).  J is the Jacobian evaluated at u_J, and the weights never exceed those at u_J,
+ * so an iterate u that ran away from the solution (|u| ~ 1e90, where relative updates are
+ * tiny and J vanishes) is not accepted for its small relative update.
+ * The row sums R_i = sum_j |J_ij| of the factorisation decide first when every weight
+ * a_j = 1 + min(...) is finite: then S_i >= R_i as computed (each rounded term |J_ij| a_j
+ * >= |J_ij| since a_j >= 1, and rounding is monotone), so |F_i| <= bound R_i for every i
+ * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
+static int rigid_body_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const rigid_body_lu *f)
 {
-    const double bound = 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(inv);
-    double S[RIGID_BODY_N_EQUATIONS];
-    int i, j;
+    const double bound = 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(f->inv);
+    double a[RIGID_BODY_N_UNKNOWNS], S[RIGID_BODY_N_EQUATIONS];
+    uint64_t amax = 0;
+    int i, j, below = 1;
+    RIGID_BODY_UNROLL
+    for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
+        const uint64_t bits = rigid_body_abs_bits(a[j] = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j])));
+        amax = bits > amax ? bits : amax;
+    }
+    if (amax < RIGID_BODY_INF_BITS) {
+        RIGID_BODY_UNROLL
+        for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+            below &= fabs(F[i]) <= bound * f->row_max[i];
+        }
+        if (below) {
+            return 1;
+        }
+    }
     RIGID_BODY_UNROLL
     for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
     RIGID_BODY_UNROLL
     for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
-        const double a = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j]));
         RIGID_BODY_UNROLL
         for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
-            S[i] += fabs(J[i * RIGID_BODY_N_UNKNOWNS + j]) * a;
+            S[i] += fabs(J[i * RIGID_BODY_N_UNKNOWNS + j]) * a[j];
         }
     }
     RIGID_BODY_UNROLL
@@ -638,9 +691,8 @@ static double rigid_body_relative_norm(const double *d, const double *u)
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
-    double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], LU[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS];
-    double inv[RIGID_BODY_N_UNKNOWNS], s[RIGID_BODY_N_UNKNOWNS], uJ[RIGID_BODY_N_UNKNOWNS];
-    int e[RIGID_BODY_N_UNKNOWNS], perm[RIGID_BODY_N_UNKNOWNS];
+    double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], uJ[RIGID_BODY_N_UNKNOWNS];
+    rigid_body_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, done = 0;
     for (it = 0;; ++it) {
@@ -657,7 +709,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
             return RIGID_BODY_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (rigid_body_explained_by_rounding(F, J, u, uJ, inv)) {
+            if (rigid_body_explained_by_rounding(F, J, u, uJ, &lu)) {
                 return RIGID_BODY_OK;
             }
             rigid_body_coordinate_floor(J, uJ, C);
@@ -668,8 +720,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
         }
         if (it == 0) {
             memcpy(uJ, u, sizeof uJ);
-            memcpy(LU, J, sizeof LU);
-            status = rigid_body_lu_factor(LU, e, s, perm, inv);
+            status = rigid_body_lu_factor(J, &lu);
             if (status != RIGID_BODY_OK) {
                 return status;
             }
@@ -683,9 +734,9 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
             if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
                 return RIGID_BODY_OK;
             }
-            if (last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(inv)) {
+            if (last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv)) {
                 /* the update is rounding noise: accepted if it explains the residual */
-                return rigid_body_explained_by_rounding(F, J, u, uJ, inv) ? RIGID_BODY_OK : RIGID_BODY_NOT_CONVERGED;
+                return rigid_body_explained_by_rounding(F, J, u, uJ, &lu) ? RIGID_BODY_OK : RIGID_BODY_NOT_CONVERGED;
             }
         }
         if (it >= options->max_iterations) {
@@ -694,14 +745,13 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
         if (slow) {
             rigid_body_residual_jacobian(u, known, p, F, J);
             memcpy(uJ, u, sizeof uJ);
-            memcpy(LU, J, sizeof LU);
-            status = rigid_body_lu_factor(LU, e, s, perm, inv);
+            status = rigid_body_lu_factor(J, &lu);
             if (status != RIGID_BODY_OK) {
                 return status;
             }
         }
         previous = rnorm;
-        status = rigid_body_lu_apply(LU, e, s, perm, inv, F);
+        status = rigid_body_lu_apply(&lu, F);
         if (status != RIGID_BODY_OK) {
             return status;
         }

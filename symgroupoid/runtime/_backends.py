@@ -134,6 +134,21 @@ class RawRun:
 
 
 @dataclass
+class ChunkRun:
+    """What a kernel's ``simulate_into`` returns (its states, iterations and residual norms
+    are written into the caller's buffers).
+
+    ``completed`` steps were solved; on failure ``failed_step`` (counted from the chunk's
+    first state) is the step that failed and ``last_iterate`` its last Newton iterate.
+    """
+
+    status: int
+    completed: int
+    failed_step: int  # -1 on success
+    last_iterate: np.ndarray  # (n_unknown,)
+
+
+@dataclass
 class BatchRun:
     """What a kernel's ``simulate_batch`` returns: B runs of n steps, every e-th state kept.
 
@@ -207,6 +222,38 @@ def c_buffer(ffi, array: np.ndarray, length: int, name: str, ctype: str = "doubl
     return ffi.from_buffer(f"{ctype}[]", array)
 
 
+def _run_buffers(states, iterations, residual_norms, n_known: int) -> int:
+    """The rows R of the buffers of :meth:`_Kernel.simulate_into`, after checking them:
+    ``states`` a C-contiguous float64 (R, n_known) array with R ≥ 1, ``iterations`` and
+    ``residual_norms`` C-contiguous 1-D arrays of R − 1 C ``int`` and float64 entries."""
+    for name, array, dtype, ndim in (("states", states, np.float64, 2),
+                                     ("iterations", iterations, np.intc, 1),
+                                     ("residual_norms", residual_norms, np.float64, 1)):
+        if not (isinstance(array, np.ndarray) and array.dtype == np.dtype(dtype)
+                and array.ndim == ndim and array.flags.c_contiguous
+                and array.flags.writeable):
+            raise ShapeError(f"{name}: a run buffer must be a writeable C-contiguous "
+                             f"{ndim}-D NumPy array of dtype {np.dtype(dtype)}, got "
+                             f"{_describe(array)}")
+    if states.shape[1:] != (n_known,) or len(states) < 1:
+        raise ShapeError(f"states: a run buffer has shape (R, {n_known}) with R >= 1, got "
+                         f"{states.shape}")
+    rows = len(states)
+    for name, array in (("iterations", iterations), ("residual_norms", residual_norms)):
+        if array.shape != (rows - 1,):
+            raise ShapeError(f"{name}: a run buffer of {rows} states has shape "
+                             f"({rows - 1},), got {array.shape}")
+    return rows
+
+
+def _describe(array) -> str:
+    if not isinstance(array, np.ndarray):
+        return type(array).__name__
+    layout = "C-contiguous" if array.flags.c_contiguous else "not C-contiguous"
+    access = "" if array.flags.writeable else ", read-only"
+    return f"a {array.ndim}-D {layout} array of dtype {array.dtype}{access}"
+
+
 class _Kernel:
     """Input checks shared by both kernels; subclasses implement the ``_raw`` methods."""
 
@@ -262,6 +309,45 @@ class _Kernel:
                           np.zeros(n_steps), INVALID_ARGUMENT, -1, np.zeros(self.n_u))
         return self._simulate(known0, p, n_steps, options,
                               self.warm_start() if warm is None else warm)
+
+    def simulate_into(self, states: np.ndarray, iterations: np.ndarray,
+                      residual_norms: np.ndarray, start: int, n_steps: int, p,
+                      options: NewtonOptions, warm) -> ChunkRun:
+        """``n_steps`` steps from row ``start`` of ``states``, written in place: rows
+        start + 1 … start + n of ``states`` and entries start … start + n − 1 of
+        ``iterations`` and ``residual_norms`` (a failure at step k writes rows up to
+        start + k, and entry start + k describes the failed step).  The Newton warm start
+        ``warm`` (from :meth:`warm_start`) is continued and updated, as by :meth:`simulate`:
+        calls on consecutive row ranges give bitwise the states of one call.
+
+        The buffers of a whole run: ``states`` float64 (R, n_known), ``iterations`` C
+        ``int`` (R − 1,), ``residual_norms`` float64 (R − 1,), all C-contiguous, with
+        0 ≤ start and start + n_steps ≤ R − 1; anything else is a :class:`ShapeError`
+        (nothing outside these buffers is ever written).  A non-finite row ``start`` or
+        ``p`` gives ``INVALID_ARGUMENT`` with nothing written.
+        """
+        rows = _run_buffers(states, iterations, residual_norms, self.n_k)
+        p = real_vector(p, self.n_p, "p")
+        start = integer_argument(start, "start", maximum=rows - 1)
+        n_steps = integer_argument(n_steps, "n_steps", maximum=min(rows - 1 - start,
+                                                                   self.max_steps))
+        if not (np.isfinite(states[start]).all() and np.isfinite(p).all()):
+            return ChunkRun(INVALID_ARGUMENT, 0, -1, np.zeros(self.n_u))
+        if n_steps == 0:
+            return ChunkRun(OK, 0, -1, np.zeros(self.n_u))
+        return self._simulate_into(states, iterations, residual_norms, start, n_steps, p,
+                                   options, self.warm_start() if warm is None else warm)
+
+    def _simulate_into(self, states, iterations, residual_norms, start: int, n_steps: int,
+                       p, options: NewtonOptions, warm) -> ChunkRun:
+        """:meth:`simulate_into` through :meth:`_simulate` (its states copied in)."""
+        run = self._simulate(states[start].copy(), p, n_steps, options, warm)
+        m = run.completed
+        written = m if run.status == OK else m + 1
+        states[start + 1:start + m + 1] = run.states[1:m + 1]
+        iterations[start:start + written] = run.iterations[:written]
+        residual_norms[start:start + written] = run.residual_norms[:written]
+        return ChunkRun(run.status, m, run.failed_step, run.last_iterate)
 
     def simulate_batch(self, known0: np.ndarray, p: np.ndarray, n_steps: int, every: int,
                        options: NewtonOptions, threads: int | None = None) -> BatchRun:
@@ -424,6 +510,32 @@ class CKernel(_Kernel):
         """A zeroed ``<prefix>_warm_start`` (a fresh run)."""
         return self.ffi.new(self._warm_type)
 
+    def _check_warm(self, warm) -> None:
+        """A :class:`ShapeError` unless ``warm`` is a ``<prefix>_warm_start *`` (any other
+        object, cdata of another type included, would be read and written by C)."""
+        if not (isinstance(warm, self.ffi.CData) and self.ffi.typeof(warm) is self._warm_type):
+            raise ShapeError(f"{self.prefix}: the warm start must be a "
+                             f"{self._warm_type.cname} from warm_start(), got {warm!r}")
+
+    def _simulate_into(self, states, iterations, residual_norms, start: int, n_steps: int,
+                       p, options: NewtonOptions, warm) -> ChunkRun:
+        """One ``<prefix>_simulate`` call writing straight into the run's buffers: its
+        state buffer starts at row ``start`` and holds the capacity = R − start rows left
+        (its iterations and residual norms the R − 1 − start entries left), exactly what
+        the arrays hold from there on; row ``start`` is the call's initial state."""
+        self._check_warm(warm)
+        rows = len(states)
+        base = self._buf(states, rows * self.n_k, "states") + start * self.n_k
+        last = np.zeros(self.n_u)
+        failed = self.ffi.new("long *")
+        status = int(self._f["simulate"](
+            base, self._buf(p, self.n_p, "p"), n_steps, self._options(options), warm, base,
+            rows - start, self._buf(iterations, rows - 1, "iterations", "int") + start,
+            self._buf(residual_norms, rows - 1, "residual_norms") + start, failed,
+            self._buf(last, self.n_u, "last_iterate")))
+        k = int(failed[0])
+        return ChunkRun(status, n_steps if status == OK else max(k, 0), k, last)
+
     def _residual(self, u, known, p) -> np.ndarray:
         F = np.empty(self.n_u)
         self._f["residual"](self._buf(u, self.n_u, "u"), self._buf(known, self.n_k, "known"),
@@ -459,9 +571,7 @@ class CKernel(_Kernel):
         return int(status), u, int(it[0]), float(rn[0])
 
     def _simulate(self, known0, p, n_steps: int, options: NewtonOptions, warm) -> RawRun:
-        if self.ffi.typeof(warm) is not self._warm_type:
-            raise ShapeError(f"{self.prefix}: the warm start must be a "
-                             f"{self._warm_type.cname} from warm_start(), got {warm!r}")
+        self._check_warm(warm)
         rows = n_steps + 1
         states = np.empty((rows, self.n_k))
         iterations = np.zeros(max(n_steps, 1), dtype=np.intc)
@@ -583,7 +693,9 @@ def explained_by_rounding(F: np.ndarray, J: np.ndarray, u: np.ndarray, uJ: np.nd
     m_j = min(|u_j|, |u_J,j|), κ the pivot ratio — the residual a rounding-level update of a
     solve with J (evaluated at u_J) would leave; the weights never exceed those at u_J, so a
     runaway iterate is not accepted for its small relative update (the same summation
-    order)."""
+    order).  The C kernel first compares |F_i| with the bound times max_j |J_ij| when every
+    weight is finite (S_i is at least that as computed, rounding being monotone), and sums
+    only when that does not decide: the answer is always this one."""
     bound = 64.0 * EPSILON * ratio
     m = 1.0 + np.minimum(np.abs(u), np.abs(uJ))
     S = np.zeros(len(J))

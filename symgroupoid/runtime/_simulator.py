@@ -125,7 +125,8 @@ class Simulator:
         """Advance ``steps`` steps from ``initial`` (see :meth:`state`).
 
         The run is computed in chunks of at most ``CHUNK_STEPS`` steps (bitwise the states
-        of one uninterrupted run).  ``every`` = e keeps state 0, every e-th state and the
+        of one uninterrupted run); with ``every`` = 1 the kernel writes every chunk straight
+        into the arrays of the result.  ``every`` = e keeps state 0, every e-th state and the
         last one (1 + ⌈steps/e⌉ rows; see :class:`Trajectory` for the Newton data kept per
         interval), so long runs need memory only for what they keep.  ``callback``, if
         given, is called with each chunk's new states as soon as they are computed (a
@@ -151,46 +152,22 @@ class Simulator:
         known0 = self.state(initial, p)
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
-        states = np.empty((rows, self.layout.n_known))
-        indices = np.zeros(rows, dtype=np.int64)
-        iterations = np.zeros(rows - 1, dtype=np.int64)
-        norms = np.zeros(rows - 1)
-        states[0] = known0
-        filled = 1
-
-        def so_far() -> Trajectory:
-            return self._trajectory(states[:filled], iterations[:filled - 1],
-                                    norms[:filled - 1], p, indices[:filled], every)
-
+        run = (_WholeRun(self, known0, p, rows) if every == 1
+               else _SampledRun(self, known0, p, rows, every))
         task = Task(f"{self.name}: simulating", total=steps, unit="steps",
                     progress=progress).start()
         try:
-            for piece in self._pieces(known0, p, steps, every, options, task):
-                r = len(piece.states) - 1
-                states[filled:filled + r] = piece.states[1:]
-                indices[filled:filled + r] = piece.step_indices[1:]
-                iterations[filled - 1:filled - 1 + r] = piece.newton_iterations
-                norms[filled - 1:filled - 1 + r] = piece.residual_norms
-                filled += r
-                if callback is not None:
-                    callback(piece)
+            run.advance(steps, options, task, callback)
         except (SingularJacobianError, NewtonDivergenceError) as err:
-            tail = getattr(err, "trajectory", None)
-            if tail is not None and len(tail) > 1:
-                r = len(tail) - 1
-                states[filled:filled + r] = tail.states[1:]
-                indices[filled:filled + r] = tail.step_indices[1:]
-                iterations[filled - 1:filled - 1 + r] = tail.newton_iterations
-                norms[filled - 1:filled - 1 + r] = tail.residual_norms
-                filled += r
-            err.trajectory = so_far()
+            run.add_tail(getattr(err, "trajectory", None))
+            err.trajectory = run.so_far()
             raise
         except KeyboardInterrupt as interrupt:
-            interrupt.trajectory = so_far()
+            interrupt.trajectory = run.so_far()
             raise
         finally:
-            task.close(failed=filled < rows)
-        return so_far()
+            task.close(failed=run.filled < rows)
+        return run.so_far()
 
     def simulate_batch(self, states, steps: int, params, *, every: int = 1,
                        options: NewtonOptions | None = None, threads: int | None = None):
@@ -265,6 +242,16 @@ class Simulator:
             if len(segment.states):
                 yield piece
 
+    def _chunk_failure(self, chunk, start: int, iterations: np.ndarray,
+                       norms: np.ndarray) -> Exception:
+        """The error of a :class:`~symgroupoid.runtime._backends.ChunkRun` that failed
+        (its failed step's data at entry start + k of the run's buffers)."""
+        k = chunk.failed_step
+        if k < 0:  # nothing was solved: the kernel refused its arguments
+            return self._failure(chunk.status, start, 0, float("nan"), chunk.last_iterate)
+        return self._failure(chunk.status, start + k, iterations[start + k],
+                             norms[start + k], chunk.last_iterate)
+
     def _trajectory(self, states, iterations, norms, p, indices, every) -> Trajectory:
         values = dict(zip(self.parameter_names, p.tolist()))
         return Trajectory(self.layout, states, iterations, norms, values, self.backend,
@@ -276,7 +263,7 @@ class Simulator:
             physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
         except (AttributeError, ValueError, OSError):
             return
-        needed = rows * (8 * self.layout.n_known + 24)
+        needed = rows * (8 * self.layout.n_known + 28)
         if physical > 0 and needed > physical:
             raise TrajectoryTooLargeError(
                 f"{self.name}: keeping {rows} states (steps={steps}, every={every}) needs "
@@ -384,3 +371,89 @@ class Simulator:
     def __repr__(self) -> str:
         return (f"<Simulator {self.name!r}: {len(self.equations.unknowns)} unknowns, "
                 f"backend {self.backend}>")
+
+
+class _WholeRun:
+    """The buffers of a run that keeps every state (``every`` = 1), filled in place.
+
+    The kernel writes each chunk's states, Newton iterations and residual norms straight
+    into the arrays of the result (:meth:`~symgroupoid.runtime._backends._Kernel.
+    simulate_into`, its first state the last row written), so a state is written once and
+    never copied; a chunk only marks where progress is reported, Ctrl-C is seen and a
+    callback is called.
+    """
+
+    def __init__(self, sim: Simulator, known0: np.ndarray, p: np.ndarray, rows: int):
+        self.sim, self.p = sim, p
+        self.states = np.empty((rows, sim.layout.n_known))
+        self.states[0] = known0
+        self.iterations = np.zeros(rows - 1, dtype=np.intc)
+        self.norms = np.zeros(rows - 1)
+        self.filled = 1
+
+    def advance(self, steps: int, options: NewtonOptions, task: Task, callback) -> None:
+        kernel, warm = self.sim.kernel, self.sim.kernel.warm_start()
+        done = 0
+        while done < steps:
+            n = min(CHUNK_STEPS, steps - done)
+            chunk = kernel.simulate_into(self.states, self.iterations, self.norms, done, n,
+                                         self.p, options, warm)
+            self.filled = done + chunk.completed + 1
+            task.update(done + chunk.completed)
+            if chunk.status != OK:
+                err = self.sim._chunk_failure(chunk, done, self.iterations, self.norms)
+                err.trajectory = self.so_far()
+                raise err
+            if callback is not None:
+                callback(self._between(done, done + n))
+            done += n
+
+    def add_tail(self, tail) -> None:
+        """Nothing to add: a failed chunk wrote its states in place."""
+
+    def _between(self, first: int, last: int) -> Trajectory:
+        """States first … last (views of the buffers), with the Newton data of the steps."""
+        return self.sim._trajectory(
+            self.states[first:last + 1], self.iterations[first:last].astype(np.int64),
+            self.norms[first:last], self.p, np.arange(first, last + 1, dtype=np.int64), 1)
+
+    def so_far(self) -> Trajectory:
+        return self._between(0, self.filled - 1)
+
+
+class _SampledRun:
+    """The buffers of a run that keeps state 0, every e-th state and the last: each chunk's
+    kept states (a :class:`Sampler` piece, see :meth:`Simulator.stream`) are copied in."""
+
+    def __init__(self, sim: Simulator, known0: np.ndarray, p: np.ndarray, rows: int,
+                 every: int):
+        self.sim, self.p, self.every = sim, p, every
+        self.known0 = known0
+        self.states = np.empty((rows, sim.layout.n_known))
+        self.indices = np.zeros(rows, dtype=np.int64)
+        self.iterations = np.zeros(rows - 1, dtype=np.int64)
+        self.norms = np.zeros(rows - 1)
+        self.states[0] = known0
+        self.filled = 1
+
+    def advance(self, steps: int, options: NewtonOptions, task: Task, callback) -> None:
+        for piece in self.sim._pieces(self.known0, self.p, steps, self.every, options, task):
+            self.add_tail(piece)
+            if callback is not None:
+                callback(piece)
+
+    def add_tail(self, piece: Trajectory | None) -> None:
+        """Append the states of ``piece`` after its first (the last state kept so far)."""
+        if piece is None or len(piece) < 2:
+            return
+        f, r = self.filled, len(piece) - 1
+        self.states[f:f + r] = piece.states[1:]
+        self.indices[f:f + r] = piece.step_indices[1:]
+        self.iterations[f - 1:f - 1 + r] = piece.newton_iterations
+        self.norms[f - 1:f - 1 + r] = piece.residual_norms
+        self.filled += r
+
+    def so_far(self) -> Trajectory:
+        f = self.filled
+        return self.sim._trajectory(self.states[:f], self.iterations[:f - 1],
+                                    self.norms[:f - 1], self.p, self.indices[:f], self.every)
