@@ -163,3 +163,37 @@ def test_window_kernels_compiled_and_numpy_agree(so3_control, monkeypatch, tmp_p
     assert np.array_equal(r1, r2) and np.abs(r1).max() > 1e-3
     for o in compiled.offsets:
         assert np.array_equal(left1[o], left2[o]) and np.array_equal(right1[o], right2[o])
+
+
+@pytest.mark.parametrize("which", ["so3", "second_order"])
+def test_junction_blocks_are_the_derivatives_along_the_fields(so3_control, which):
+    """Each block (reverse mode: the residual's gradient contracted with the field) is the
+    derivative of the junction residual along X⃖_c or X⃗_c on its slot: central differences
+    of the residual with the slot's arrow moved by the section flow."""
+    W = sg.SO3("W")
+    system = so3_control if which == "so3" else sg.SecondOrderSystem(
+        W, lambda a, b: sp.Rational(1, 2) * sum(
+            (i + 1) * (b.coordinates[i] - a.coordinates[i]) ** 2 for i in range(3)),
+        name="so2_blocks")
+    kernel, G = _bvp.window_kernel(system), system.groupoid
+    maps = _bvp._maps(G)
+    rng = np.random.default_rng(11)
+    arrows = np.array([np.array(W.cayley(list(rng.uniform(-0.4, 0.4, 3))).tolist(),
+                                float).ravel() for _ in range(len(kernel.offsets))])
+    windows, lams = arrows[None], np.zeros((1, len(kernel.starts), kernel.m))
+    params = np.array([0.1]) if which == "so3" else np.zeros(0)
+    _, left, right, _ = kernel.junction(windows, lams, params)
+    t = 1e-6
+    for k, o in enumerate(kernel.offsets):
+        for side, blocks in (("left", left[o][0]), ("right", right[o][0])):
+            for c in range(3):
+                moved = []
+                for s in (t, -t):
+                    h = maps.flow_at_target(arrows[k][None], (np.eye(3)[c] * s)[None])
+                    a = (maps.multiply(arrows[k][None], h) if side == "left" else
+                         maps.multiply(maps.inverse(h), arrows[k][None]))
+                    w = windows.copy()
+                    w[0, k] = a[0]
+                    moved.append(kernel.junction(w, lams, params)[0][0])
+                fd = (moved[0] - moved[1]) / (2 * t) * (1 if side == "left" else -1)
+                assert np.allclose(blocks[:, c], fd, rtol=1e-6, atol=1e-7), (o, side, c)

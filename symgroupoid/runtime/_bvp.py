@@ -80,7 +80,7 @@ from ..groupoids import (
     ProductGroupoid,
     TimeGroupoid,
 )
-from ..ir import Graph, Program, forward, from_sympy, rounding_error
+from ..ir import Graph, Program, forward, from_sympy, gradient, rounding_error
 from . import _lapack
 from ._banded import Inertia, banded_inertia
 from ._programs import ProgramEvaluator
@@ -106,6 +106,29 @@ def _vectorised(label: str, program: Program, inputs: str, outputs: str) -> Prog
     backend = choice_argument(os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto",
                               ("auto", "c", "numpy"), "SYMGROUPOID_BACKEND", owner=label)
     return ProgramEvaluator(label, program, inputs, outputs, backend)
+
+
+def _field_derivatives(g: Graph, values: list, arrows: dict, fields: dict) -> dict:
+    """d[o][side][c][i] = the derivative of values[i] along field c of ``side`` on slot o.
+
+    Reverse mode: one backward sweep per value gives its gradient with respect to every
+    arrow coordinate of the window, then each field derivative is the gradient contracted
+    with the field, Σ_j ∂v/∂a_{o,j}·X_c(a_o)_j.  Forward mode would sweep the values once per
+    field (slots × 2 sides × rank sweeps); the residuals are few (the rank), so reverse
+    costs a third as many operations for a second-order window."""
+    coords = [c for o in arrows for c in arrows[o]]
+    grads = [dict(zip(coords, gradient(g, v, coords))) for v in values]
+    out: dict = {}
+    for o, a in arrows.items():
+        out[o] = [[[_contract(g, grad, a, field) for grad in grads] for field in fields[o][side]]
+                  for side in (0, 1)]
+    return out
+
+
+def _contract(g: Graph, grad: dict, coords: list, field: list) -> int:
+    terms = [g.mul(grad[c], v) for c, v in zip(coords, field)
+             if v != g.zero and grad[c] != g.zero]
+    return g.add(*terms) if terms else g.zero
 
 
 def _slot_derivatives(g: Graph, values: list, coords: list, fields: list, order) -> list:
@@ -153,11 +176,10 @@ class WindowKernel:
         res = jn.residuals
         order = g.reachable(res)
         blocks = list(res)
+        along = _field_derivatives(g, res, arrows, fields)
         for o in self.offsets:
-            d = [_slot_derivatives(g, res, arrows[o], fields[o][side], order)
-                 for side in (0, 1)]
             for b in range(r):
-                blocks += [d[side][c][b] for side in (0, 1) for c in range(r)]
+                blocks += [along[o][side][c][b] for side in (0, 1) for c in range(r)]
         for s in self.starts:
             d = [forward(g, res, {nodes[x]: g.one}, order) for x in lam[s]]
             blocks += [d[a][b] for b in range(r) for a in range(m)]
@@ -299,28 +321,62 @@ class _Maps:
         b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
         d = tuple(sp.Dummy(f"d{i}") for i in range(G.rank))
         self.G = G
-        self._mul = sp.lambdify([a, b], list(G.multiply(a, b)), NUMPY_MODULES, cse=True)
-        self._inv = sp.lambdify([a], list(G.inverse(a)), NUMPY_MODULES, cse=True)
-        q = G.target(a)
-        self._flow = sp.lambdify([a, d], list(G.section_flow(q, d)), NUMPY_MODULES, cse=True)
-
-    @staticmethod
-    def _rows(values, n):
-        """The (n, len(values)) table of the lambdified entries (arrays or constants)."""
-        out = np.empty((n, len(values)))
-        for i, v in enumerate(values):
-            out[:, i] = v
-        return out
+        program = _structure_program(G, a, b, d)
+        self._mul = program.numpy_function(["multiply"], ["a", "b"])
+        self._inv = program.numpy_function(["inverse"], ["a"])
+        self._flow = program.numpy_function(["flow"], ["a", "d"])
 
     def multiply(self, A, B):
-        return self._rows(self._mul(A.T, B.T), len(A))
+        return self._mul(A.T, B.T)[0].T
 
     def inverse(self, A):
-        return self._rows(self._inv(A.T), len(A))
+        return self._inv(A.T)[0].T
 
     def flow_at_target(self, A, D):
         """h(δ) ⊂ α⁻¹(β(A)) for each row."""
-        return self._rows(self._flow(A.T, D.T), len(A))
+        return self._flow(A.T, D.T)[0].T
+
+
+def _structure_program(G, a: tuple, b: tuple, d: tuple) -> Program:
+    """The structure maps a solve applies to rows of arrows, on the expression graph: the
+    product m(a, b), the inverse of a, and the section flow h(δ) ⊂ α⁻¹(β(a))."""
+    g = Graph()
+    nodes = {x: g.input(x) for x in (*a, *b, *d)}
+    memo: dict = {}
+
+    def build(exprs, what: str) -> list[int]:
+        return [from_sympy(g, sp.sympify(e), nodes, f"{G.name}: {what}", memo) for e in exprs]
+
+    outputs = {"multiply": build(G.multiply(a, b), "the multiplication"),
+               "inverse": build(G.inverse(a), "the inverse"),
+               "flow": _section_flow_nodes(g, G, [nodes[x] for x in a],
+                                           [nodes[x] for x in d])}
+    return Program(g, {"a": list(a), "b": list(b), "d": list(d)}, outputs)
+
+
+def _section_flow_nodes(g: Graph, G, arrow: list[int], delta: list[int]) -> list[int]:
+    """:meth:`~symgroupoid.groupoids.Groupoid.section_flow` at the target of ``arrow``, built
+    on the graph: the section curves h_c(δ_c) composed one after another, each at the
+    target of the product so far.  The structure maps are expanded once, at generic
+    arguments, and applied to graph nodes — composing them in SymPy would expand the
+    products of curves (for a rotation group, of Cayley matrices) symbolically."""
+    a, t = G._generic_arrow, sp.Dummy("t", real=True)
+    b = tuple(sp.Dummy(f"b{i}", real=True) for i in range(G.arrow_dim))
+    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
+    curves = G._curves(q, t)
+    product, target = list(G.multiply(a, b)), list(G.target(a))
+
+    def apply(exprs: list, values: dict) -> list[int]:
+        return [from_sympy(g, sp.sympify(e), values, f"{G.name}: the section flow")
+                for e in exprs]
+
+    point = apply(target, dict(zip(a, arrow)))
+    h = None
+    for c, d in enumerate(delta):
+        piece = apply(list(curves[c]), {**dict(zip(q, point)), t: d})
+        h = piece if h is None else apply(product, {**dict(zip(a, h)), **dict(zip(b, piece))})
+        point = apply(target, dict(zip(a, h)))
+    return h
 
 
 # --- the solution --------------------------------------------------------------------------
