@@ -13,7 +13,7 @@ import pytest
 from kernel_support import REPO, compiled, isolated_cache, needs_cc  # noqa: F401  (autouse)
 
 import symgroupoid as sg
-from symgroupoid.codegen import generate_c
+from symgroupoid.codegen import _kernel, generate_c
 from symgroupoid.codegen._kernel import (
     FIXED_STATEMENTS,
     UNIT_MIN_STATEMENTS,
@@ -60,7 +60,8 @@ def test_units_balance_the_compiler_work_deterministically():
     assert assign_units(blocks, 1) == 1 and {p.unit for b in blocks for p in b.parts} == {0}
 
 
-def test_a_kernel_in_two_units_computes_what_the_one_file_kernel_computes():
+def test_a_kernel_in_two_units_computes_what_the_one_file_kernel_computes(monkeypatch):
+    monkeypatch.setattr(_kernel, "UNIT_MIN_STATEMENTS", 300)  # a small chain splits too
     step = planar_chain(6).euler_lagrange()
     one, two = generate_c(step, latex=False), generate_c(step, latex=False, units=2)
     assert one.units == () and len(two.units) == 1
@@ -83,7 +84,8 @@ def test_a_kernel_in_two_units_computes_what_the_one_file_kernel_computes():
         assert "_part" not in symbols.stdout, "parts are not exported"
 
 
-def test_a_unit_the_compiler_rejects_is_a_compilation_error():
+def test_a_unit_the_compiler_rejects_is_a_compilation_error(monkeypatch):
+    monkeypatch.setattr(_kernel, "UNIT_MIN_STATEMENTS", 300)
     step = planar_chain(6).euler_lagrange()
     two = generate_c(step, latex=False, units=2)
     with pytest.raises(CompilationError) as info:

@@ -147,7 +147,7 @@ def _words(text: str | None) -> list[str]:
 #: (by size, see ``codegen.generate_c``), compiled at the same time, where at least
 #: PARALLEL_CPUS processors are usable (see :func:`translation_units`)
 TRANSLATION_UNITS = 2
-PARALLEL_CPUS = 4
+PARALLEL_CPUS = 2
 
 
 def usable_cpus() -> int:
@@ -162,11 +162,12 @@ def translation_units() -> int:
     """How many translation units a large kernel is built from: ``TRANSLATION_UNITS`` on a
     machine of ``PARALLEL_CPUS`` usable processors or more, else one.
 
-    Measured (planar 16-link chain, -O3): one unit 1.15 s of compiler time; two units
-    1.3 s of compiler time, 0.7 s of wall time when a second processor is free, 1.3 s when
-    it is not (two processors shared with other work): the split only pays where a
-    processor is likely to be free.  The kernel's C then depends on the machine (its
-    source key too); what it computes does not.
+    Measured on two processors with the second one free (wall seconds of the compiler, one
+    unit → two): planar 8-link chain 0.62 → 0.47, 3D chain of 3 bodies 0.73 → 0.46, of 8
+    bodies 1.78 → 0.93; the compiler's total time grows by about 10 %, so where the second
+    processor is busy the build takes that much longer.  Small kernels stay in one unit
+    (``codegen._kernel.UNIT_MIN_STATEMENTS``).  The kernel's C then depends on the machine
+    (its source key too); what it computes does not.
     """
     return TRANSLATION_UNITS if usable_cpus() >= PARALLEL_CPUS else 1
 
