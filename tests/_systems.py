@@ -110,3 +110,23 @@ def so3_control_system() -> sg.DiscreteSystem:
 
 def se2_control_system() -> sg.DiscreteSystem:
     return control_system(sg.SE2("s"), se2_cost, se2_psi, SE2_PARAMETERS, "oc_se2")
+
+
+# --- a run that fails at a fixed step (long-run tests) -----------------------------------------
+
+def falling(name: str = "fall"):
+    """A particle on R under a force ∝ 1/√q: NaN once q < 0, so the run fails at a fixed
+    step (L = h[((q₁−q₀)/h)²/2 − a·√q₀])."""
+    h, a = sp.symbols("h a", positive=True)
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return h * (((q1 - q0) / h) ** 2 / 2 - a * sp.sqrt(q0))
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, a],
+                             name=name).euler_lagrange()
+
+
+FALL_PARAMS = {"h": 0.01, "a": 0.1}
+FALL_START = {"q": (1.0, 0.99)}
+

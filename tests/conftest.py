@@ -93,3 +93,14 @@ def pytest_terminal_summary(terminalreporter) -> None:
     hostile = sys.modules.get("_hostile")
     for line in hostile.TALLY.lines() if hostile is not None else []:
         terminalreporter.write_line(line)
+
+
+@pytest.fixture
+def chunk(monkeypatch):
+    """Set the steps per kernel call of a simulation."""
+    import symgroupoid.runtime._simulator as simulator_module
+
+    def set_chunk(n: int) -> None:
+        monkeypatch.setattr(simulator_module, "CHUNK_STEPS", n)
+    return set_chunk
+

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 import pytest
-import sympy as sp
+from _systems import FALL_PARAMS, FALL_START, falling
 from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
     SEED_DATA,
     SESSION_CACHE,
@@ -22,40 +22,16 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-import symgroupoid.runtime._simulator as simulator_module
 from symgroupoid.runtime._backends import CKernel
 
 BACKENDS = [pytest.param("c", marks=needs_cc), "numpy"]
 
 
-def falling(name="fall"):
-    """A particle on R under a force ∝ 1/√q: NaN once q < 0, so the run fails at a fixed
-    step (L = h[((q₁−q₀)/h)²/2 − a·√q₀])."""
-    h, a = sp.symbols("h a", positive=True)
-
-    def L(g):
-        (q0,), (q1,) = g.source, g.target
-        return h * (((q1 - q0) / h) ** 2 / 2 - a * sp.sqrt(q0))
-
-    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, a],
-                             name=name).euler_lagrange()
-
-
-FALL_PARAMS = {"h": 0.01, "a": 0.1}
-FALL_START = {"q": (1.0, 0.99)}
 
 
 @pytest.fixture(scope="module")
 def fall_step():
     return falling()
-
-
-@pytest.fixture
-def chunk(monkeypatch):
-    """Set the steps per kernel call of a simulation."""
-    def set_chunk(n: int) -> None:
-        monkeypatch.setattr(simulator_module, "CHUNK_STEPS", n)
-    return set_chunk
 
 
 class CountingKernel:
