@@ -218,9 +218,19 @@ def test_iteration_cap_failure_keeps_the_steps_before(chunk):
 
 # --- Ctrl-C -----------------------------------------------------------------------------------
 
+@pytest.fixture
+def ctrl_c():
+    """SIGINT raises KeyboardInterrupt, as in an interactive session: a process started in
+    the background by a non-interactive shell inherits SIGINT ignored, and Python then
+    leaves it ignored."""
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
+
+
 @needs_cc
 @pytest.mark.parametrize("how", ["raise", "signal"])
-def test_keyboard_interrupt_in_a_callback_stops_after_that_chunk(how, chunk):
+def test_keyboard_interrupt_in_a_callback_stops_after_that_chunk(how, chunk, ctrl_c):
     sim, kernel = counted(compiled("rigid_body"))
     params = SEED_DATA["rigid_body"][0]
     state = initial_state(compiled("rigid_body"), "rigid_body")
@@ -242,7 +252,7 @@ def test_keyboard_interrupt_in_a_callback_stops_after_that_chunk(how, chunk):
 
 
 @needs_cc
-def test_ctrl_c_during_a_long_run_stops_within_a_chunk():
+def test_ctrl_c_during_a_long_run_stops_within_a_chunk(ctrl_c):
     """SIGINT while the C kernel runs: the run stops at the end of the current chunk
     (~10 ms) with the states computed so far."""
     sim = compiled("rigid_body")
