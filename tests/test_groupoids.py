@@ -265,3 +265,27 @@ def test_action_groupoid_derivations_match_table() -> None:
             F, lambda t, E=E: (*((sp.eye(3) + t * E).T * p), *((sp.eye(3) - t * E) * W)))
         assert sp.expand(lv - exp_l) == 0
         assert sp.expand(rv - exp_r) == 0
+
+
+@pytest.mark.parametrize("name", sorted(BUILT_IN))
+def test_section_flow_on_the_graph_is_the_section_flow(name: str) -> None:
+    """``section_flow_nodes`` (the flow composed on the expression graph) evaluates to
+    ``section_flow`` (composed in SymPy) at random arrows and chart vectors."""
+    from symgroupoid.ir import Graph, Program
+
+    G = BUILT_IN[name]()
+    a = G._generic_arrow
+    d = tuple(sp.Dummy(f"d{i}", real=True) for i in range(G.rank))
+    g = Graph()
+    nodes = {x: g.input(x) for x in (*a, *d)}
+    flow = G.section_flow_nodes(g, [nodes[x] for x in a], [nodes[x] for x in d])
+    f = Program(g, {"a": list(a), "d": list(d)}, {"flow": flow}).numpy_function(
+        ["flow"], ["a", "d"])
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        arrow = G.random_arrow(rng)
+        delta = rng.uniform(-0.3, 0.3, G.rank)
+        target = G.target(arrow)
+        expected = [float(sp.N(c)) for c in G.section_flow(target, [sp.Float(v) for v in delta])]
+        np.testing.assert_allclose(f(np.array(arrow), delta)[0], expected, rtol=1e-12,
+                                   atol=1e-12)

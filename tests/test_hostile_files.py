@@ -47,6 +47,7 @@ from kernel_support import HAVE_CC, isolated_cache, needs_cc  # noqa: F401  (aut
 import symgroupoid as sg
 from symgroupoid.codegen import generate_c
 from symgroupoid.codegen._kernel import _C_KEYWORDS
+from symgroupoid.runtime import _programs
 from symgroupoid.runtime._cache import KernelCache, cache_root
 from symgroupoid.runtime._maintenance import cache_info, clear_cache
 
@@ -259,6 +260,42 @@ def test_environment_and_maintenance(tmp_path, monkeypatch, run):
                     assert Path(result.root).is_absolute()
 
             judge(f"environment ({action})", call, [key, "cache"], verify=verify)
+
+    prop()
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_environment_of_a_boundary_value_solve(tmp_path, monkeypatch, run):
+    """Junk in the backend and cache variables, then a boundary-value solve (its window
+    kernel is built in the background where a compiler and a cache are usable): the same
+    solution as the NumPy backend's, bit for bit, or a clear error naming the variable."""
+    Path("file").write_text("a file in the way")
+    monkeypatch.setenv("HOME", str(tmp_path / "home"))
+    system = oscillator()
+
+    def solve():
+        sol = sg.solve_boundary_value(oscillator(), (0.1,), (0.3,), 6, params=PARAMS)
+        _programs.wait_for_kernels(120)
+        return sol
+
+    with monkeypatch.context() as m:
+        m.setenv("SYMGROUPOID_BACKEND", "numpy")
+        reference = sg.solve_boundary_value(system, (0.1,), (0.3,), 6, params=PARAMS).arrows
+
+    @profile(run, 4)
+    @given(data=st.data())
+    def prop(data):
+        key = data.draw(st.sampled_from(["SYMGROUPOID_BACKEND", "SYMGROUPOID_CACHE"]))
+        value = data.draw(st.one_of(st.sampled_from(ENVIRONMENT[key]),
+                                    st.text(alphabet="abc/~. 0", max_size=6)))
+        with monkeypatch.context() as m, warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # a cache it cannot use
+            m.setenv(key, value)
+
+            def verify(sol):
+                assert np.array_equal(sol.arrows, reference)
+
+            judge("environment (boundary value)", solve, [key, "cache"], verify=verify)
 
     prop()
 

@@ -253,6 +253,32 @@ class Groupoid(ABC):
             point = tuple(self.target(h))
         return h
 
+    def section_flow_nodes(self, g, arrow: Sequence[int], delta: Sequence[int]) -> list[int]:
+        """:meth:`section_flow` at the target of an arrow given by graph nodes, built on the
+        expression graph ``g`` (symgroupoid.ir): the section curves h_c(δ_c) composed one
+        after another, each at the target of the product so far.  The structure maps are
+        expanded once, at generic arguments, and applied to nodes — composing them in SymPy
+        expands the products of curves (on a rotation group, of Cayley matrices)."""
+        from ..ir import from_sympy
+
+        a, t = self._generic_arrow, sp.Dummy("t", real=True)
+        b = tuple(sp.Dummy(f"b{i}", real=True) for i in range(self.arrow_dim))
+        q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(self.base_dim))
+        curves = self._curves(q, t)
+        product, target = list(self.multiply(a, b)), list(self.target(a))
+
+        def apply(exprs: list, values: dict) -> list[int]:
+            return [from_sympy(g, sp.sympify(e), values, f"{self.name}: the section flow")
+                    for e in exprs]
+
+        point = apply(target, dict(zip(a, arrow)))
+        h: list[int] = []
+        for c, d in enumerate(delta):
+            piece = apply(list(curves[c]), {**dict(zip(q, point)), t: d})
+            h = piece if c == 0 else apply(product, {**dict(zip(a, h)), **dict(zip(b, piece))})
+            point = apply(target, dict(zip(a, h)))
+        return h
+
     # --- configurations (boundary data of boundary-value problems) ----------------------
     def arrow_between(self, c0, c1) -> tuple:
         """The arrow from configuration ``c0`` to ``c1`` (numeric).  Pair groupoids: points;

@@ -349,34 +349,8 @@ def _structure_program(G, a: tuple, b: tuple, d: tuple) -> Program:
 
     outputs = {"multiply": build(G.multiply(a, b), "the multiplication"),
                "inverse": build(G.inverse(a), "the inverse"),
-               "flow": _section_flow_nodes(g, G, [nodes[x] for x in a],
-                                           [nodes[x] for x in d])}
+               "flow": G.section_flow_nodes(g, [nodes[x] for x in a], [nodes[x] for x in d])}
     return Program(g, {"a": list(a), "b": list(b), "d": list(d)}, outputs)
-
-
-def _section_flow_nodes(g: Graph, G, arrow: list[int], delta: list[int]) -> list[int]:
-    """:meth:`~symgroupoid.groupoids.Groupoid.section_flow` at the target of ``arrow``, built
-    on the graph: the section curves h_c(δ_c) composed one after another, each at the
-    target of the product so far.  The structure maps are expanded once, at generic
-    arguments, and applied to graph nodes — composing them in SymPy would expand the
-    products of curves (for a rotation group, of Cayley matrices) symbolically."""
-    a, t = G._generic_arrow, sp.Dummy("t", real=True)
-    b = tuple(sp.Dummy(f"b{i}", real=True) for i in range(G.arrow_dim))
-    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
-    curves = G._curves(q, t)
-    product, target = list(G.multiply(a, b)), list(G.target(a))
-
-    def apply(exprs: list, values: dict) -> list[int]:
-        return [from_sympy(g, sp.sympify(e), values, f"{G.name}: the section flow")
-                for e in exprs]
-
-    point = apply(target, dict(zip(a, arrow)))
-    h = None
-    for c, d in enumerate(delta):
-        piece = apply(list(curves[c]), {**dict(zip(q, point)), t: d})
-        h = piece if h is None else apply(product, {**dict(zip(a, h)), **dict(zip(b, piece))})
-        point = apply(target, dict(zip(a, h)))
-    return h
 
 
 # --- the solution --------------------------------------------------------------------------

@@ -38,11 +38,9 @@ from ._cache import KernelCache
 #: starts to dominate below about 1000 rows
 NUMPY_ROWS = 2048
 
-#: the background builds of this process (source key → thread): one per kernel
-_BUILDS: dict[str, threading.Thread] = {}
-#: every background thread started (builds, and loads after another evaluator's build)
+#: the background builds this process has started
 _THREADS: list[threading.Thread] = []
-_BUILDS_LOCK = threading.Lock()
+_THREADS_LOCK = threading.Lock()
 
 
 def compile_program(label: str, program, inputs: str, outputs: str
@@ -54,17 +52,22 @@ def compile_program(label: str, program, inputs: str, outputs: str
 
     if os.environ.get("SYMGROUPOID_BACKEND", "auto") == "numpy":
         return None
-    kernel = generate_program_c(label, program, inputs, outputs)
+    kernel, flags = _source(label, program, inputs, outputs)
     cache = KernelCache()
     try:
-        key, manifest = build_cached(kernel, optimisation_flags(program.size([outputs])), cache,
-                                     label)
+        key, manifest = build_cached(kernel, flags, cache, label)
     except (CompilerNotFoundError, CompilationError) as exc:
         warnings.warn(f"{label}: window kernels stay in NumPy ({exc})", RuntimeWarning,
                       stacklevel=3)
         return None
     return _evaluator(label, program, inputs, outputs, kernel.prefix,
                       load_cached(key, manifest, cache))
+
+
+def _source(label: str, program, inputs: str, outputs: str) -> tuple:
+    """The generated C of a program's output and the flags it is built with."""
+    return (generate_program_c(label, program, inputs, outputs),
+            optimisation_flags(program.size([outputs])))
 
 
 def _evaluator(label: str, program, inputs: str, outputs: str, prefix: str, module):
@@ -152,8 +155,7 @@ class ProgramEvaluator:
     def _start(self) -> None:
         from ._compile import load_cached, source_key_of
 
-        kernel = generate_program_c(self.label, self.program, self.inputs, self.outputs)
-        flags = optimisation_flags(self.program.size([self.outputs]))
+        kernel, flags = _source(self.label, self.program, self.inputs, self.outputs)
         cache = KernelCache()
         key = source_key_of(kernel, flags)
         manifest = cache.verified_manifest(key)
@@ -163,20 +165,11 @@ class ProgramEvaluator:
                 return
             except Exception:  # noqa: BLE001 - rebuilt in the background, as a miss
                 pass
-        with _BUILDS_LOCK:
-            thread = _BUILDS.get(key)
-            if thread is None or not thread.is_alive():
-                thread = threading.Thread(target=self._build, args=(kernel, flags, cache),
-                                          name=f"symgroupoid build {self.label}")
-                _BUILDS[key] = thread
-                _THREADS.append(thread)
-                thread.start()
-                self._thread = thread
-                return
-        # another evaluator of the same kernel is building it: load when it is done
-        self._thread = threading.Thread(target=self._after, args=(thread, kernel, flags),
-                                        name=f"symgroupoid load {self.label}")
-        with _BUILDS_LOCK:
+        # built in the background; another evaluator building the same kernel holds its
+        # cache lock, so this one waits for that build and loads it (build_cached)
+        self._thread = threading.Thread(target=self._build, args=(kernel, flags, cache),
+                                        name=f"symgroupoid build {self.label}")
+        with _THREADS_LOCK:
             _THREADS.append(self._thread)
         self._thread.start()
 
@@ -192,10 +185,6 @@ class ProgramEvaluator:
     def _loaded(self, kernel, module) -> Callable:
         return _evaluator(self.label, self.program, self.inputs, self.outputs, kernel.prefix,
                           module)
-
-    def _after(self, thread: threading.Thread, kernel, flags) -> None:
-        thread.join()
-        self._build(kernel, flags, KernelCache())
 
     def _report_failure(self) -> None:
         failure, self._failure = self._failure, None
@@ -213,7 +202,7 @@ def wait_for_kernels(timeout: float | None = None) -> bool:
     import time
 
     deadline = None if timeout is None else time.monotonic() + timeout
-    with _BUILDS_LOCK:
+    with _THREADS_LOCK:
         _THREADS[:] = [t for t in _THREADS if t.is_alive()]
         threads = list(_THREADS)
     for thread in threads:
