@@ -181,6 +181,9 @@ class _Evaluated:
     def random_chart(self, rng, scale: float = 0.5):
         return self.inner.random_chart(rng, scale)
 
+    def numeric_fibre_arrow(self, q, x):
+        return Groupoid.numeric_fibre_arrow(self, q, x)  # through the substituted maps
+
     def random_arrow(self, rng, source=None):
         if type(self.inner).random_arrow is Groupoid.random_arrow:
             return Groupoid.random_arrow(self, rng, source)  # through the substituted maps

@@ -220,7 +220,12 @@ class Groupoid(ABC):
         """A random arrow (optionally with prescribed source), as numeric coordinates: the
         arrow of random chart coordinates in the α-fibre of a random base point."""
         q = self.random_base_point(rng) if source is None else tuple(source)
-        x = self.random_chart(rng)
+        return self.numeric_fibre_arrow(q, self.random_chart(rng))
+
+    def numeric_fibre_arrow(self, q: Sequence, x: Sequence) -> tuple:
+        """The arrow with source q and fibre chart coordinates x, numerically (the
+        symbolic maps compiled once; SymPy's own arithmetic where NumPy cannot evaluate
+        them)."""
         try:
             values = self._numeric_fibre_arrow()(*q, *x)
         except (TypeError, ValueError, NameError, ZeroDivisionError, AttributeError):

@@ -58,6 +58,11 @@ class Manifold(ABC):
     def chart(self, q: Sequence, x: Sequence) -> tuple:
         """The point with chart coordinates x in the chart around q."""
 
+    def numeric_chart(self, q: Sequence, x: Sequence) -> np.ndarray:
+        """:meth:`chart` at numeric q and x (default: SymPy's arithmetic on Floats)."""
+        return np.array([float(sp.N(v)) for v in self.chart(tuple(sp.Float(c) for c in q),
+                                                             tuple(sp.Float(c) for c in x))])
+
     @abstractmethod
     def chart_inverse(self, q: Sequence, p: Sequence) -> tuple:
         """Chart coordinates of the point p in the chart around q (symbolic)."""
@@ -132,18 +137,20 @@ class GroupManifold(Manifold):
         return self.group.symbols_by_name(offset)
 
     def curves(self, q, t):
-        M = self.group.matrix(q)
-        return [self.group.entries(M * self.group.tau([t if b == a else 0
-                                                       for b in range(self.dim)]))
+        return [self.group.translated_retraction(q, [t if b == a else 0
+                                                     for b in range(self.dim)])
                 for a in range(self.dim)]
 
     def chart(self, q, x):
-        return self.group.entries(self.group.matrix(q) * self.group.tau(list(x)))
+        return self.group.translated_retraction(q, x)
 
     def chart_inverse(self, q, p):
+        return self.group.increment_coordinates(q, p)
+
+    def numeric_chart(self, q, x):
         G = self.group
-        increment = G._inverse_matrix(G.matrix(q)) * G.matrix(p)
-        return tuple(G.retraction_inverse(increment))
+        M = G.numeric_matrix([float(v) for v in q]) @ G.numeric_tau(x)
+        return np.array([M[i, j] for i, j in G._free])
 
     def numeric_chart_inverse(self, q, p):
         G = self.group
@@ -158,8 +165,9 @@ class GroupManifold(Manifold):
         return self.group.matrix(coords)
 
     def random_point(self, rng):
-        x = [sp.Float(v) for v in self.group.random_chart(rng, scale=1.0)]
-        return tuple(float(v) for v in self.group.fibre_chart(x))
+        G = self.group
+        M = G.numeric_tau(G.random_chart(rng, scale=1.0))
+        return tuple(float(M[i, j]) for i, j in G._free)
 
     def numeric_point(self, c):
         M = self.group._numeric_matrix(c)
@@ -236,6 +244,11 @@ class ProductManifold(Manifold):
 
     def chart_inverse(self, q, p):
         return self._pointwise("chart_inverse", q, p, self._coords)
+
+    def numeric_chart(self, q, x):
+        qs, xs = self._split(q, self._coords), self._split(x, self._charts)
+        return np.concatenate([np.asarray(f.numeric_chart(a, b), float)
+                               for f, a, b in zip(self.factors, qs, xs)])
 
     def numeric_chart_inverse(self, q, p):
         return np.array(self._pointwise("numeric_chart_inverse", q, p, self._coords), float)

@@ -232,6 +232,22 @@ class MatrixLieGroup(Groupoid):
         """The retraction in use (``self.retraction``)."""
         return self.cayley(x) if self.retraction == "cayley" else self.exp(x)
 
+    def translated_retraction(self, q: Sequence, x: Sequence) -> tuple:
+        """The entries of q·τ(x): the chart of the group around q (the point reached from q
+        by the retraction coordinates x of the increment; seed 000 §6.1)."""
+        if block_of(tuple(q), self._free) is not None:  # matrix form: a structured product
+            return self.entries(self.matrix(q) * self.tau(list(x)))
+        return _instantiated(self, "translated_retraction", (*q, *x))
+
+    def increment_coordinates(self, q: Sequence, p: Sequence) -> tuple:
+        """τ⁻¹(q⁻¹p): the retraction coordinates of the increment from q to p (symbolic;
+        valid for q, p in the group)."""
+        if block_of(tuple(q), self._free) is not None or block_of(tuple(p), self._free) \
+                is not None:
+            return tuple(self.retraction_inverse(self._inverse_matrix(self.matrix(q))
+                                                 * self.matrix(p)))
+        return _instantiated(self, "increment_coordinates", (*q, *p))
+
     def retraction_inverse(self, M: sp.Matrix) -> sp.Matrix:
         """τ⁻¹(M) symbolically, valid for M in the group."""
         if self.retraction == "cayley":
@@ -295,6 +311,12 @@ class MatrixLieGroup(Groupoid):
             xi = 2.0 * (M - eye) @ np.linalg.inv(M + eye)
             return self._numeric_vee(xi)
         return self._numeric_log(M)
+
+    def numeric_tau(self, x: Sequence) -> np.ndarray:
+        """τ(x) of numeric coordinates x (NumPy; the symbolic retraction, lambdified once
+        per group class and retraction)."""
+        return np.asarray(_numeric_tau(type(self), self.retraction)(*[float(v) for v in x]),
+                          float).reshape(self.n, self.n)
 
     def _numeric_vee(self, xi: np.ndarray) -> np.ndarray:
         B = [np.array(E.tolist(), dtype=float) for E in self._basis()]
@@ -378,6 +400,44 @@ def _renormalised_template(m: int) -> tuple[dict, sp.Matrix]:
     return entries, Q * (3 * sp.eye(m) - Q.T * Q) / 2
 
 
+#: (group class, retraction, map) → (placeholders, entries): the maps of
+#: :func:`_instantiated`, derived once per kind of group
+_MAP_TEMPLATES: dict[tuple, tuple[tuple, tuple]] = {}
+
+
+def _instantiated(group: MatrixLieGroup, name: str, values: Sequence) -> tuple:
+    """``group.<name>(…)`` at ``values``: the map derived once on placeholders for every
+    group of the same class and retraction (the class fixes the basis, the free entries and
+    the structure maps), then substituted.  SymPy's products of symbolic matrices cost
+    about 10–20 ms per group element (3D chain of 8 bodies: 0.3 s of its derivation);
+    a substitution about 0.5 ms."""
+    key = (type(group), group.retraction, name)
+    template = _MAP_TEMPLATES.get(key)
+    if template is None:
+        direct = {"translated_retraction": _direct_translated_retraction,
+                  "increment_coordinates": _direct_increment_coordinates}[name]
+        placeholders = tuple(sp.Dummy(f"a{i}") for i in range(len(values)))
+        template = (placeholders, tuple(sp.sympify(e) for e in direct(group, placeholders)))
+        _MAP_TEMPLATES[key] = template
+    placeholders, entries = template
+    if len(placeholders) != len(values):
+        raise ValueError(f"{group!r}.{name}: {len(values)} values for "
+                         f"{len(placeholders)} coordinates")
+    sub = dict(zip(placeholders, (sp.sympify(v) for v in values)))
+    return tuple(e.xreplace(sub) for e in entries)
+
+
+def _direct_translated_retraction(group: MatrixLieGroup, values: Sequence) -> tuple:
+    q, x = values[:group.arrow_dim], values[group.arrow_dim:]
+    return group.entries(group.matrix(q) * group.tau(list(x)))
+
+
+def _direct_increment_coordinates(group: MatrixLieGroup, values: Sequence) -> tuple:
+    q, p = values[:group.arrow_dim], values[group.arrow_dim:]
+    return tuple(group.retraction_inverse(group._inverse_matrix(group.matrix(q))
+                                          * group.matrix(p)))
+
+
 @functools.cache
 def _dtau_dummies(cls) -> tuple:
     return tuple(sp.Dummy(f"y{a}", real=True) for a in range(len(cls._basis())))
@@ -432,6 +492,12 @@ def _tidy(retraction: str):
     if retraction == "cayley":
         return lambda e: sp.factor(sp.cancel(e))
     return lambda e: e
+
+
+@functools.cache
+def _numeric_tau(cls, retraction: str):
+    return sp.lambdify(list(_dtau_dummies(cls)), list(_tau_template(cls, retraction)),
+                       NUMPY_MODULES)
 
 
 @functools.cache

@@ -83,6 +83,9 @@ class EuclideanSpace(Manifold):
     def chart_inverse(self, q, p):
         return tuple(p)
 
+    def numeric_chart(self, q, x):
+        return np.asarray(x, float)
+
     def numeric_chart_inverse(self, q, p):
         return np.asarray(p, float)
 
@@ -201,6 +204,11 @@ class PairGroupoid(Groupoid):
 
     def renormalised_fibre(self, f):
         return self.space.renormalised(tuple(f))
+
+    def numeric_fibre_arrow(self, q, x):
+        """(q, q·τ(x)) on a group, (q, x) on Rⁿ: the space's chart, numerically."""
+        q = tuple(float(v) for v in q)
+        return q + tuple(float(v) for v in self.space.numeric_chart(q, x))
 
     def fibre_chart_inverse(self, f, source=None):
         q = self._source_or_fail(source)

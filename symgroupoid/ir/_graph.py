@@ -69,9 +69,10 @@ class Graph:
 
     def const(self, value) -> int:
         """The constant ``value`` (a SymPy number, or anything SymPy turns into one)."""
-        value = sp.sympify(value)
-        if not value.is_number or value.free_symbols:
-            raise ValueError(f"not a constant: {value!r}")
+        if not isinstance(value, sp.Number):  # Numbers (most calls) need no checks
+            value = sp.sympify(value)
+            if not value.is_number or value.free_symbols:
+                raise ValueError(f"not a constant: {value!r}")
         return self._node(CONST, (), value, (CONST, _number_key(value)))
 
     def input(self, symbol: sp.Symbol) -> int:

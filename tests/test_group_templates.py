@@ -1,0 +1,99 @@
+"""The structure maps a matrix group derives once per class and substitutes for every
+element (``translated_retraction`` q·τ(x), ``increment_coordinates`` τ⁻¹(q⁻¹p)) equal the
+direct symbolic products; the numeric retraction and the pair groupoid's numeric fibre
+arrow equal SymPy's evaluation of the symbolic maps."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+
+import symgroupoid as sg
+from symgroupoid.groupoids._base import Groupoid
+from symgroupoid.groupoids._matrix_groups import (
+    _direct_increment_coordinates,
+    _direct_translated_retraction,
+)
+
+CASES = [(sg.SO2, "cayley"), (sg.SO2, "exp"), (sg.SO3, "cayley"), (sg.SO3, "exp"),
+         (sg.SE2, "cayley"), (sg.SE2, "exp"), (sg.SE3, "cayley"), (sg.SE3, "exp")]
+
+
+def _at(exprs, values: dict) -> np.ndarray:
+    return np.array([complex(sp.N(sp.sympify(e).xreplace(values), 30)) for e in exprs])
+
+
+@pytest.mark.parametrize("group,retraction", CASES)
+def test_translated_retraction_is_the_product(group, retraction):
+    """q·τ(x) from the class template equals the product computed for this element, at a
+    random point (two elements of one class share the template but keep their symbols)."""
+    G, H = group("A", retraction=retraction), group("B", retraction=retraction)
+    rng = np.random.default_rng(3)
+    for K in (G, H):
+        q = sp.symbols(f"{K.name}q0:{K.arrow_dim}", real=True)
+        x = sp.symbols(f"{K.name}x0:{K.rank}", real=True)
+        got = K.translated_retraction(q, x)
+        assert set().union(*(sp.sympify(e).free_symbols for e in got)) <= set(q) | set(x)
+        want = _direct_translated_retraction(K, (*q, *x))
+        values = {s: sp.Float(v, 30) for s, v in zip((*q, *x),
+                                                      rng.uniform(-0.7, 0.7, len(q) + len(x)))}
+        assert np.allclose(_at(got, values), _at(want, values), rtol=0, atol=1e-20)
+
+
+@pytest.mark.parametrize("group,retraction", CASES)
+def test_increment_coordinates_invert_the_chart(group, retraction):
+    """τ⁻¹(q⁻¹p) at p = q·τ(y) returns y (q, p in the group), and equals the direct
+    computation symbolically evaluated."""
+    G = group("g", retraction=retraction)
+    rng = np.random.default_rng(5)
+    q = G.numeric_fibre_chart(rng.uniform(-0.5, 0.5, G.rank))
+    y = rng.uniform(-0.5, 0.5, G.rank)
+    p = G.numeric_matrix(q) @ G.numeric_tau(y)
+    p = [p[i, j] for i, j in G._free]
+    qs = sp.symbols(f"q0:{G.arrow_dim}", real=True)
+    ps = sp.symbols(f"p0:{G.arrow_dim}", real=True)
+    got = G.increment_coordinates(qs, ps)
+    values = {**{s: sp.Float(v, 30) for s, v in zip(qs, q)},
+              **{s: sp.Float(v, 30) for s, v in zip(ps, p)}}
+    assert np.allclose(_at(got, values).real, y, rtol=0, atol=1e-12)
+    want = _direct_increment_coordinates(G, (*qs, *ps))
+    assert np.allclose(_at(got, values), _at(want, values), rtol=0, atol=1e-20)
+
+
+@pytest.mark.parametrize("group,retraction", CASES)
+def test_numeric_tau_is_the_symbolic_retraction(group, retraction):
+    G = group("g", retraction=retraction)
+    x = np.random.default_rng(7).uniform(-0.8, 0.8, G.rank)
+    want = np.array(G.tau([sp.Float(v, 30) for v in x]).evalf(30).tolist(), dtype=float)
+    assert np.allclose(G.numeric_tau(x), want, rtol=0, atol=1e-15)
+    assert np.allclose(G.numeric_tau(np.zeros(G.rank)), np.eye(G.n), rtol=0, atol=0)
+
+
+def test_pair_groupoid_numeric_fibre_arrow_is_the_symbolic_one():
+    """The pair groupoid of SO(3) × SE(2) × R draws its arrows (q, q·τ(x)) numerically; the
+    generic route (the symbolic fibre chart, compiled) gives the same arrow."""
+    from symgroupoid.groupoids._manifold import GroupManifold, ProductManifold
+
+    P = sg.PairGroupoid(ProductManifold(GroupManifold(sg.SO3("R")),
+                                        GroupManifold(sg.SE2("g", retraction="exp")),
+                                        sg.EuclideanSpace("z")))
+    rng = np.random.default_rng(11)
+    q = P.random_base_point(rng)
+    x = P.random_chart(rng)
+    got = P.numeric_fibre_arrow(q, x)
+    want = Groupoid.numeric_fibre_arrow(P, q, x)
+    assert len(got) == len(want) == 2 * P.base_dim
+    assert np.allclose(got, want, rtol=0, atol=1e-14)
+    assert np.allclose(got[:P.base_dim], q, rtol=0, atol=0)
+
+
+def test_matrix_form_keeps_the_structured_product():
+    """In matrix form (coordinates: the entries of one MatrixSymbol) the chart is the
+    structured product R·τ(x), not the entrywise template."""
+    G = sg.SO3("R")
+    R = sp.MatrixSymbol("R", 3, 3)
+    q = tuple(R[i, j] for i in range(3) for j in range(3))
+    x = sp.symbols("x0:3", real=True)
+    got = G.translated_retraction(q, x)
+    assert got == _direct_translated_retraction(G, (*q, *x))
