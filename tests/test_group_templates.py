@@ -97,3 +97,41 @@ def test_matrix_form_keeps_the_structured_product():
     x = sp.symbols("x0:3", real=True)
     got = G.translated_retraction(q, x)
     assert got == _direct_translated_retraction(G, (*q, *x))
+
+
+def _pair_groupoids():
+    from symgroupoid.groupoids._manifold import GroupManifold, ProductManifold
+
+    return [
+        sg.PairGroupoid(sg.EuclideanSpace("x y")),
+        sg.PairGroupoid(sg.SO3("R")),
+        sg.PairGroupoid(ProductManifold(GroupManifold(sg.SE3("g")),
+                                        GroupManifold(sg.SO2("r", retraction="exp")),
+                                        sg.EuclideanSpace("z"))),
+        sg.PairGroupoid(ProductManifold(GroupManifold(sg.SE2("g", retraction="exp")),
+                                        GroupManifold(sg.SO3("R", retraction="exp")))),
+    ]
+
+
+@pytest.mark.parametrize("index", range(4))
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_pair_groupoid_fields_in_closed_form(index, side):
+    """The pair groupoid's closed-form fields (the space's tangent basis q·E_b padded with
+    zeros) equal the generic derivation d/dt m(a, h_b(t)) (left), −d/dt m(h_b(t)⁻¹, a)
+    (right) at t = 0 on the graph, at a random arrow."""
+    from symgroupoid.ir import Graph, to_sympy
+
+    G = _pair_groupoids()[index]
+    g = Graph()
+    symbols = sp.symbols(f"a0:{G.arrow_dim}", real=True)
+    coords = [g.input(s) for s in symbols]
+    closed = G.field_nodes(g, side, coords)
+    generic = Groupoid.field_nodes(G, g, side, coords)
+    assert len(closed) == len(generic) == G.rank
+    rng = np.random.default_rng(13)
+    arrow = G.random_arrow(rng)
+    values = {s: sp.Float(v, 30) for s, v in zip(symbols, arrow)}
+    for a, b in zip(closed, generic):
+        assert len(a) == len(b) == G.arrow_dim
+        assert np.allclose(_at(to_sympy(g, a), values), _at(to_sympy(g, b), values),
+                           rtol=0, atol=1e-20)

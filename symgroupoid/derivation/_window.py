@@ -71,25 +71,9 @@ def _term(g: Graph, fs: SystemFunctions, parameters: Sequence, m: int,
 
 def _fields(g: Graph, G: Groupoid, side: str, coords: Sequence[int],
             parameters: dict | None = None) -> list[list[int]]:
-    """X⃖_b(a) = d/dt m(a, h_b(t)) and X⃗_b(a) = −d/dt m(h_b(t)⁻¹, a) at t = 0 (seed 000
-    eqs. (1)–(2)) at an arrow given by nodes: the structure maps are evaluated on the section
-    curves and differentiated in t on the graph (forward mode), then t = 0.  The structure
-    maps may use the step's parameters (their nodes in ``parameters``)."""
-    generic = G._generic_arrow
-    t = sp.Dummy("t", real=True)
-    symbols = {**(parameters or {}), **{a: c for a, c in zip(generic, coords)}}
-    symbols[t] = g.input(t)
-    memo: dict = {}
-    q = G.target(generic) if side == "left" else G.source(generic)
-    out = []
-    for h in G._curves(q, t):
-        moved = G.multiply(generic, h) if side == "left" else G.multiply(G.inverse(h), generic)
-        nodes = [from_sympy(g, sp.sympify(c), symbols, f"the {side} fields of {G.name}", memo)
-                 for c in moved]
-        velocity = forward(g, nodes, {symbols[t]: g.one})
-        at_zero = g.substitute(velocity, {symbols[t]: g.zero})
-        out.append(at_zero if side == "left" else [g.neg(v) for v in at_zero])
-    return out
+    """X⃖_b(a) (``side="left"``) or X⃗_b(a) at an arrow given by nodes: the groupoid's
+    :meth:`~symgroupoid.groupoids.Groupoid.field_nodes` (seed 000 eqs. (1)–(2))."""
+    return G.field_nodes(g, side, coords, parameters)
 
 
 @dataclass

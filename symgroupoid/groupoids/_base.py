@@ -258,6 +258,35 @@ class Groupoid(ABC):
             point = tuple(self.target(h))
         return h
 
+    def field_nodes(self, g, side: str, coords: Sequence[int],
+                    parameters: dict | None = None) -> list[list[int]]:
+        """The left fields X⃖_b(a) = d/dt m(a, h_b(t)) (``side="left"``) or the right fields
+        X⃗_b(a) = −d/dt m(h_b(t)⁻¹, a) at t = 0 (seed 000 eqs. (1)–(2)), one per basis
+        section, at an arrow given by nodes of the expression graph ``g`` (symgroupoid.ir).
+
+        The structure maps are evaluated on the section curves and differentiated in t on
+        the graph (forward mode), then t = 0.  They may use the step's parameters (symbol →
+        node in ``parameters``).  Groupoids whose fields have a closed form override this.
+        """
+        from ..ir import forward, from_sympy
+
+        generic = self._generic_arrow
+        t = sp.Dummy("t", real=True)
+        symbols = {**(parameters or {}), **{a: c for a, c in zip(generic, coords)}}
+        symbols[t] = g.input(t)
+        memo: dict = {}
+        q = self.target(generic) if side == "left" else self.source(generic)
+        out = []
+        for h in self._curves(q, t):
+            moved = (self.multiply(generic, h) if side == "left"
+                     else self.multiply(self.inverse(h), generic))
+            nodes = [from_sympy(g, sp.sympify(c), symbols, f"the {side} fields of {self.name}",
+                                memo) for c in moved]
+            velocity = forward(g, nodes, {symbols[t]: g.one})
+            at_zero = g.substitute(velocity, {symbols[t]: g.zero})
+            out.append(at_zero if side == "left" else [g.neg(v) for v in at_zero])
+        return out
+
     def section_flow_nodes(self, g, arrow: Sequence[int], delta: Sequence[int]) -> list[int]:
         """:meth:`section_flow` at the target of an arrow given by graph nodes, built on the
         expression graph ``g`` (symgroupoid.ir): the section curves h_c(δ_c) composed one

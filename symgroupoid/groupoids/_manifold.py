@@ -54,6 +54,24 @@ class Manifold(ABC):
     def curves(self, q: Sequence, t: sp.Symbol) -> list[tuple]:
         """A basis of T_qQ as curves through q (coordinate tuples in t)."""
 
+    def tangent_nodes(self, g, q: Sequence[int]) -> list[list[int]]:
+        """The velocities ċ_b(0) of :meth:`curves` at a point given by nodes of the
+        expression graph ``g``: one list of coordinate nodes per basis vector of T_qQ.
+        Default: the curves at placeholder coordinates, differentiated in t on the graph."""
+        from ..ir import forward, from_sympy
+
+        t = sp.Dummy("t", real=True)
+        placeholders = tuple(sp.Dummy(f"q{i}", real=True) for i in range(self.coords_dim))
+        symbols = {**dict(zip(placeholders, q)), t: g.input(t)}
+        memo: dict = {}
+        out = []
+        for curve in self.curves(placeholders, t):
+            nodes = [from_sympy(g, sp.sympify(c), symbols, "the tangent basis", memo)
+                     for c in curve]
+            velocity = forward(g, nodes, {symbols[t]: g.one})
+            out.append(g.substitute(velocity, {symbols[t]: g.zero}))
+        return out
+
     @abstractmethod
     def chart(self, q: Sequence, x: Sequence) -> tuple:
         """The point with chart coordinates x in the chart around q."""
@@ -140,6 +158,26 @@ class GroupManifold(Manifold):
         return [self.group.translated_retraction(q, [t if b == a else 0
                                                      for b in range(self.dim)])
                 for a in range(self.dim)]
+
+    def tangent_nodes(self, g, q):
+        """ċ_b(0) = q·E_b (τ(tE_b) = I + tE_b + O(t²) for the Cayley map and exp), the free
+        entries of the product, on the graph."""
+        G = self.group
+        M = [[None] * G.n for _ in range(G.n)]
+        identity = sp.eye(G.n)
+        for i in range(G.n):
+            for j in range(G.n):
+                M[i][j] = g.const(identity[i, j])
+        for (i, j), c in zip(G._free, q):
+            M[i][j] = c
+        out = []
+        for E in G._basis():
+            entries = []
+            for i, j in G._free:
+                terms = [g.mul(g.const(E[k, j]), M[i][k]) for k in range(G.n) if E[k, j] != 0]
+                entries.append(g.add(*terms) if terms else g.zero)
+            out.append(entries)
+        return out
 
     def chart(self, q, x):
         return self.group.translated_retraction(q, x)
@@ -238,6 +276,16 @@ class ProductManifold(Manifold):
         qs, vs = self._split(q, self._coords), self._split(v, slices_v)
         return sum((tuple(getattr(f, name)(a, b)) for f, a, b in zip(self.factors, qs, vs)),
                    ())
+
+    def tangent_nodes(self, g, q):
+        """Each factor's tangent basis, the other factors' coordinates zero."""
+        parts = self._split(list(q), self._coords)
+        out = []
+        for i, f in enumerate(self.factors):
+            for v in f.tangent_nodes(g, parts[i]):
+                out.append([c for j, part in enumerate(parts)
+                            for c in (v if j == i else [g.zero] * len(part))])
+        return out
 
     def chart(self, q, x):
         return self._pointwise("chart", q, x, self._charts)

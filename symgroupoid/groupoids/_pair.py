@@ -77,6 +77,10 @@ class EuclideanSpace(Manifold):
         n = self.dim
         return [tuple(q[i] + (t if i == j else 0) for i in range(n)) for j in range(n)]
 
+    def tangent_nodes(self, g, q):
+        n = self.dim
+        return [[g.one if i == j else g.zero for i in range(n)] for j in range(n)]
+
     def chart(self, q, x):
         return tuple(x)
 
@@ -185,6 +189,18 @@ class PairGroupoid(Groupoid):
 
     def arrow_from(self, q, f):
         return tuple(q) + tuple(f)
+
+    def field_nodes(self, g, side, coords, parameters=None):
+        """Closed form of the fields of (q₀, q₁): m(a, h_b(t)) = (q₀, c_b(t)) with c_b the
+        space's curves at q₁, so X⃖_b = (0, ċ_b(0)); m(h_b(t)⁻¹, a) = (c_b(t), q₁) with c_b
+        at q₀, so X⃗_b = (−ċ_b(0), 0) — the tangent basis of the space
+        (:meth:`Manifold.tangent_nodes`) padded with zeros."""
+        n = self.base_dim
+        coords = list(coords)
+        if side == "left":
+            return [[g.zero] * n + v for v in self.space.tangent_nodes(g, coords[n:])]
+        return [[g.neg(c) for c in v] + [g.zero] * n
+                for v in self.space.tangent_nodes(g, coords[:n])]
 
     def fibre_of(self, a):
         return tuple(a[self.base_dim:])
