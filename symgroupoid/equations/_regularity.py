@@ -453,8 +453,16 @@ def sample(step, points: int, seed: int) -> list[Sample]:
 
     A point whose state cannot be drawn, or where F or J is not finite, is replaced by
     another; if ``step.evaluate`` itself fails (a function NumPy cannot evaluate), there is
-    no numeric evidence at all and nothing is returned.
+    no numeric evidence at all and nothing is returned.  The samples of a step are drawn
+    once (the structural and the numeric checks read the same ones).
     """
+    memo = getattr(step, "__dict__", {}).setdefault("_regularity_samples", {})
+    if (points, seed) not in memo:
+        memo[(points, seed)] = _draw_samples(step, points, seed)
+    return list(memo[(points, seed)])
+
+
+def _draw_samples(step, points: int, seed: int) -> list[Sample]:
     rng = np.random.default_rng(seed)
     out: list[Sample] = []
     for _ in range(_ATTEMPTS):
