@@ -465,21 +465,46 @@ def sample(step, points: int, seed: int) -> list[Sample]:
 def _draw_samples(step, points: int, seed: int) -> list[Sample]:
     rng = np.random.default_rng(seed)
     out: list[Sample] = []
-    for _ in range(_ATTEMPTS):
-        if len(out) == points:
+    attempts = 0
+    while len(out) < points and attempts < _ATTEMPTS:
+        drawn = []
+        while len(drawn) < points - len(out) and attempts < _ATTEMPTS:
+            attempts += 1
+            try:
+                u, k, p = random_point(step, rng)
+            except (ArithmeticError, ValueError, TypeError):
+                continue
+            nudge = [x * (1 + _NUDGE * rng.uniform(-1, 1, np.shape(x))) for x in (u, k, p)]
+            drawn.append(((u, k, p), tuple(nudge)))
+        if not drawn:
             break
         try:
-            u, k, p = random_point(step, rng)
-        except (ArithmeticError, ValueError, TypeError):
-            continue
-        nudge = [x * (1 + _NUDGE * rng.uniform(-1, 1, np.shape(x))) for x in (u, k, p)]
-        try:
-            values = _evaluate(step, u, k, p) + _evaluate(step, *nudge)
+            values = _evaluate_points(step, [d[0] for d in drawn] + [d[1] for d in drawn])
         except Exception:  # noqa: BLE001 - no numeric evidence; the structural checks stand
             return []
-        if all(np.all(np.isfinite(v)) for v in values):
-            out.append(Sample(*values))
+        for i in range(len(drawn)):
+            both = values[i] + values[len(drawn) + i]
+            if all(np.all(np.isfinite(v)) for v in both):
+                out.append(Sample(*both))
     return out
+
+
+def _evaluate_points(step, points: list) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(F, J) at each (u, k, p) of ``points``: a step's program walked once for all of them
+    (:func:`symgroupoid.ir.interpret`, no code compiled), else ``step.evaluate`` per point."""
+    from ..ir import interpret
+    from ._step import StepEquations
+
+    program = program_of(step)
+    if type(step).evaluate is not StepEquations.evaluate or program is None:
+        return [_evaluate(step, *point) for point in points]
+    U, K, P = (np.stack([np.asarray(pt[i], float) for pt in points], axis=-1)
+               for i in range(3))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        F, J = interpret(program, ["F", "J"], ["u", "known", "p"], U, K, P)
+    J = J.reshape((len(step), len(step.unknowns), len(points)))
+    return [(F[:, b], J[:, :, b]) for b in range(len(points))]
 
 
 def _vanishing(value: np.ndarray, nudged: np.ndarray, scale: float) -> np.ndarray:

@@ -13,12 +13,13 @@ from ._c import KernelCPrinter, c_of_sympy
 from ._compact import compact
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
-from ._program import Program
+from ._program import Program, interpret
 from ._rounding import rounding_error
 from ._sympy import from_sympy, to_sympy
 
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "compact", "forward",
-    "from_sympy", "gradient", "jacobian", "partial", "rounding_error", "smooth_spec", "to_sympy",
+    "from_sympy", "gradient", "interpret", "jacobian", "partial", "rounding_error",
+    "smooth_spec", "to_sympy",
 ]

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from ._graph import CONST, FUNC, INPUT, POW, Graph
+from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW, Graph
 
 
 @dataclass
@@ -114,6 +114,85 @@ class Program:
             f = _compile_numpy(self, list(outputs), list(inputs))
             self._numpy[key] = f
         return f
+
+
+def interpret(program: Program, outputs: Sequence[str], inputs: Sequence[str], *arrays):
+    """The named outputs at input arrays of shape (n,) or (n, B), evaluated by walking the
+    graph node by node with NumPy — the operations of :meth:`Program.numpy_function` (equal
+    to rounding: a quotient is a product with a reciprocal here) without printing and
+    compiling code first.  For a few evaluations of a large program
+    (a derivation's regularity samples) this is the cheaper way; for many, the compiled
+    function is.  Returns a tuple of arrays of shape (m,) or (m, B)."""
+    from ._format import NUMPY
+    from ._libm import namespace as libm_namespace
+
+    g = program.graph
+    pos = program.input_positions()
+    values_in = [np.asarray(a, dtype=float) for a in arrays]
+    batch = next((v.shape[1:] for v in values_in if v.ndim > 1), ())
+    index = {name: i for i, name in enumerate(inputs)}
+    outs = [n for k in outputs for n in program.outputs[k]]
+    namespace: dict = {"np": np, **libm_namespace()}
+    functions: dict = {}
+    value: dict = {}
+    with np.errstate(all="ignore"):
+        for n in g.reachable(outs):
+            o, a = g.op[n], g.args[n]
+            if o == CONST:
+                value[n] = float(g.data[n])
+            elif o == INPUT:
+                array, i = pos.get(n, (None, None))
+                if array not in index:
+                    raise ValueError(f"the outputs {list(outputs)} read {g.data[n]}, which "
+                                     f"is not in the inputs {list(inputs)}")
+                value[n] = values_in[index[array]][i]
+            elif o == ADD:
+                total = value[a[0]]
+                for x in a[1:]:
+                    total = total + value[x]
+                value[n] = total
+            elif o == MUL:
+                product = value[a[0]]
+                for x in a[1:]:
+                    product = product * value[x]
+                value[n] = product
+            elif o == POW:
+                value[n] = _power(value[a[0]], g.data[n], namespace[NUMPY.pow])
+            else:
+                spec = g.data[n]
+                f = functions.get(spec.key)
+                if f is None:
+                    names = [f"_a{k}" for k in range(len(a))]
+                    scope = {**namespace, **spec.numpy_namespace()}
+                    f = eval(f"lambda {', '.join(names)}: "  # noqa: S307 - our own text
+                             f"{spec.numpy_expression(names)}", scope)
+                    functions[spec.key] = f
+                value[n] = f(*[value[x] for x in a])
+    results, k = [], 0
+    for name in outputs:
+        m = len(program.outputs[name])
+        rows = [np.broadcast_to(np.asarray(value[x], dtype=float), batch)
+                for x in outs[k:k + m]]
+        results.append(np.array(rows, dtype=float).reshape((m,) + batch))
+        k += m
+    return tuple(results)
+
+
+def _power(base, e: sp.Expr, pow_function):
+    """base**e as the formatter writes it: small integer powers as products, square roots
+    with sqrt, others with the C library's pow."""
+    from ._format import MAX_UNROLLED_POWER
+
+    if e.is_Integer and 1 <= abs(int(e)) <= MAX_UNROLLED_POWER:
+        product = base
+        for _ in range(abs(int(e)) - 1):
+            product = product * base
+        return product if e > 0 else 1.0 / product
+    if e == sp.Rational(1, 2):
+        return np.sqrt(base)
+    if e == sp.Rational(-1, 2):
+        return 1.0 / np.sqrt(base)
+    return pow_function(base, float(e))
 
 
 def _compile_numpy(program: Program, outputs: list[str], inputs: list[str]):
