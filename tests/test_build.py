@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import subprocess
 import sys
 
@@ -15,13 +16,13 @@ from kernel_support import REPO, compiled, isolated_cache, needs_cc  # noqa: F40
 import symgroupoid as sg
 from symgroupoid.codegen import _kernel, generate_c
 from symgroupoid.codegen._kernel import (
-    FIXED_STATEMENTS,
     UNIT_MIN_STATEMENTS,
     Block,
     Part,
     assign_units,
+    stepper_statements,
 )
-from symgroupoid.runtime import CompilationError, _cache, _compile
+from symgroupoid.runtime import CompilationError, _build, _cache, _compile
 from symgroupoid.runtime._simulator import Simulator
 from symgroupoid.systems import planar_chain
 
@@ -44,49 +45,116 @@ def _block(*sizes: int) -> Block:
 
 def test_units_balance_the_compiler_work_deterministically():
     blocks = [_block(0), _block(400), _block(500, 500, 80), _block(30), _block(30)]
-    assert assign_units(blocks, 2) == 2
+    assert assign_units(blocks, 2, 12) == 2
     units = [p.unit for b in blocks for p in b.parts]
-    loads = [FIXED_STATEMENTS, 0]
+    loads = [stepper_statements(12), 0]
     for b in blocks:
         for p in b.parts:
             loads[p.unit] += p.statements
     assert max(loads) - min(loads) <= 500, loads  # at most one part apart
     assert blocks[0].parts[0].unit == 0, "an empty function stays in the kernel's source"
     again = [_block(0), _block(400), _block(500, 500, 80), _block(30), _block(30)]
-    assign_units(again, 2)
+    assign_units(again, 2, 12)
     assert [p.unit for b in again for p in b.parts] == units
-    small = [_block(UNIT_MIN_STATEMENTS - 1)]
-    assert assign_units(small, 2) == 1 and small[0].parts[0].unit == 0
-    assert assign_units(blocks, 1) == 1 and {p.unit for b in blocks for p in b.parts} == {0}
+    assert assign_units(blocks, 1, 12) == 1 and {p.unit for b in blocks for p in b.parts} == {0}
 
 
-def test_a_kernel_in_two_units_computes_what_the_one_file_kernel_computes(monkeypatch):
-    monkeypatch.setattr(_kernel, "UNIT_MIN_STATEMENTS", 300)  # a small chain splits too
-    step = planar_chain(6).euler_lagrange()
-    one, two = generate_c(step, latex=False), generate_c(step, latex=False, units=2)
-    assert one.units == () and len(two.units) == 1
-    assert two.units[0][0] == f"{two.prefix}_unit1.c"
-    assert two.header == one.header and two.cdef == one.cdef
-    kernel, entry = _compile.load_kernel_source(two, _compile.default_flags(), step.name,
+def test_the_stepper_of_a_small_kernel_compiles_beside_its_functions():
+    # the stepper outweighs the straight-line functions of a small kernel: they all go to
+    # unit 1, compiled at the same time as the stepper in unit 0
+    small = [_block(56), _block(91), _block(4), _block(4)]
+    assert stepper_statements(2) > 155
+    assert assign_units(small, 2, 2) == 2
+    assert {p.unit for b in small for p in b.parts} == {1}
+    # except an unrolled stepper of 7 or 8 unknowns beside fewer than UNIT_MIN_STATEMENTS
+    # (the plate-ball: 8 unknowns, 379 statements, steps faster in one unit)
+    for n, size, kept in ((8, UNIT_MIN_STATEMENTS - 1, True), (7, 300, True),
+                          (6, 300, False), (9, 300, False), (8, UNIT_MIN_STATEMENTS, False)):
+        close = [_block(size)]
+        assert (assign_units(close, 2, n) == 1) == kept, (n, size)
+        assert (close[0].parts[0].unit == 0) == kept
+
+
+def test_the_stepper_cost_grows_with_its_unrolled_size():
+    unrolled = [stepper_statements(n) for n in range(1, 9)]
+    assert unrolled == sorted(unrolled) and len(set(unrolled)) == 8
+    assert stepper_statements(9) == stepper_statements(40) < stepper_statements(8)
+
+
+def test_a_cold_unit_is_lowered_only_from_the_optimising_levels():
+    assert _build.unit_flags(("-O3", "-ffp-contract=off"), cold=True) == (
+        "-O3", "-ffp-contract=off", _build.COLD_LEVEL)
+    assert _build.unit_flags(("-O3", "-fopenmp"), cold=False) == ("-O3", "-fopenmp")
+    for kept in (("-O0",), ("-O2", "-Og"), ("-Os",), ("-march=native",), ()):
+        assert _build.unit_flags(kept, cold=True) == kept
+
+
+def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatch):
+    step = planar_chain(2).euler_lagrange()
+    one, three = generate_c(step, latex=False), generate_c(step, latex=False, units=2)
+    assert one.units == () and one.cold == ()
+    prefix = three.prefix
+    assert [name for name, _ in three.units] == [f"{prefix}_unit1.c", f"{prefix}_cold.c"]
+    assert three.cold == (f"{prefix}_cold.c",)
+    assert three.header == one.header and three.cdef == one.cdef
+    assert f"{prefix}_simulate_batch(" not in three.source
+    assert f"int {prefix}_simulate(" not in three.units[0][1]
+    assert f"{prefix}_residual_jacobian(" not in three.source.split(f"{prefix}_newton(")[0]
+    commands: list = []
+    run = _build._run
+    monkeypatch.setattr(_build, "_run", lambda kernel, cmds, *a, **k: (
+        commands.extend(cmds), run(kernel, cmds, *a, **k))[1])
+    kernel, entry = _compile.load_kernel_source(three, _compile.default_flags(), step.name,
                                                 len(step.unknowns), len(step.knowns))
-    assert sorted(p.name for p in entry.iterdir() if p.suffix == ".c") == [
-        f"{two.prefix}.c", f"{two.prefix}_unit1.c"]
+    assert sorted(p.name for p in entry.iterdir() if p.suffix == ".c") == sorted(
+        [f"{prefix}.c", f"{prefix}_cold.c", f"{prefix}_unit1.c"])
     assert not list(entry.glob("*.o"))
-    state = chain_state(6)
+    def level(command):
+        return [word for word in command if word.startswith("-O")][-1]
+
+    cold_runs = [c for c in commands if f"{prefix}_cold.c" in c]
+    assert len(commands) == 4 and len(cold_runs) == 1, commands  # 3 units, 1 link
+    assert level(cold_runs[0]) == _build.COLD_LEVEL
+    assert all(level(c) == "-O3" for c in commands if c not in cold_runs)
+    state = chain_state(2)
     numpy = step.compile(backend="numpy")
-    c = Simulator(step, kernel, numpy.options).simulate(state, 40, PARAMS).states
+    whole = _compile.load_kernel_source(one, _compile.default_flags(), step.name,
+                                        len(step.unknowns), len(step.knowns))[0]
+    split = Simulator(step, kernel, numpy.options)
+    c = split.simulate(state, 40, PARAMS).states
+    assert np.array_equal(c, Simulator(step, whole, numpy.options).simulate(
+        state, 40, PARAMS).states)
     assert np.array_equal(c, numpy.simulate(state, 40, PARAMS).states)
+    batch = split.simulate_batch(np.stack([state, state]), 40, PARAMS)
+    assert np.array_equal(batch.states[1], c)
     library = next(entry.glob("*.so"))
     symbols = subprocess.run(["nm", "-D", "--defined-only", str(library)],
                              capture_output=True, text=True)
     if symbols.returncode == 0:
-        assert f"{two.prefix}_residual_jacobian" in symbols.stdout
+        assert f"{prefix}_residual_jacobian" in symbols.stdout
+        assert f"{prefix}_simulate_batch" in symbols.stdout
         assert "_part" not in symbols.stdout, "parts are not exported"
 
 
-def test_a_unit_the_compiler_rejects_is_a_compilation_error(monkeypatch):
-    monkeypatch.setattr(_kernel, "UNIT_MIN_STATEMENTS", 300)
-    step = planar_chain(6).euler_lagrange()
+def test_a_large_kernel_splits_its_functions_over_units_too(monkeypatch):
+    monkeypatch.setattr(_kernel, "PART_SIZE", 100)  # parts to spread over both units
+    monkeypatch.setattr(_kernel, "stepper_statements", lambda n: 0)
+    step = planar_chain(4).euler_lagrange()
+    two = generate_c(step, latex=False, units=2)
+    assert [name for name, _ in two.units] == [f"{two.prefix}_unit1.c", f"{two.prefix}_cold.c"]
+    assert re.search(r"static void \w+_part\d+\(", two.source)
+    assert re.search(r"_UNIT_LOCAL void \w+_part\d+\(", two.units[0][1])
+    kernel, _ = _compile.load_kernel_source(two, _compile.default_flags(), step.name,
+                                            len(step.unknowns), len(step.knowns))
+    numpy = step.compile(backend="numpy")
+    state = chain_state(4)
+    assert np.array_equal(Simulator(step, kernel, numpy.options).simulate(state, 40,
+                                                                          PARAMS).states,
+                          numpy.simulate(state, 40, PARAMS).states)
+
+
+def test_a_unit_the_compiler_rejects_is_a_compilation_error():
+    step = planar_chain(2).euler_lagrange()
     two = generate_c(step, latex=False, units=2)
     with pytest.raises(CompilationError) as info:
         _compile.load_kernel_source(two, ["-fno-such-option-for-symgroupoid"], step.name,

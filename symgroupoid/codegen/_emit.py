@@ -25,7 +25,8 @@ from .._errors import OutputError, ShapeError
 from ._kernel import assign_units, c_identifier, kernel_blocks
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
-                  "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2")
+                  "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.j2",
+                  "cold.c.j2")
 
 #: the most OpenMP threads ``<prefix>_simulate_batch`` starts (a team is created whole:
 #: thousands of threads exhaust memory before any work is done)
@@ -72,7 +73,9 @@ def templates_digest() -> str:
 class KernelSource:
     """The generated kernel: header, C source, the cffi declarations, and the C prefix;
     ``units``: further translation units (file name, C source) compiled with the source
-    into the same library (none for a kernel in one file)."""
+    into the same library (none for a kernel in one file); ``cold``: the file names among
+    ``units`` of code that does no arithmetic of a step, built at a lower optimisation
+    level (``symgroupoid.runtime._build.unit_flags``)."""
 
     prefix: str
     header_name: str
@@ -80,6 +83,7 @@ class KernelSource:
     source: str
     cdef: str
     units: tuple[tuple[str, str], ...] = ()
+    cold: tuple[str, ...] = ()
 
 
 def _ascii(text: str) -> str:
@@ -132,7 +136,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int) -> di
 
     blocks = kernel_blocks(step)
     n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
-                            blocks.predict, blocks.next_knowns], units)
+                            blocks.predict, blocks.next_knowns], units, len(step.unknowns))
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
     return {
         "p": prefix, "P": prefix.upper(), "header_name": header_name,
@@ -154,7 +158,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int) -> di
         "floor_factor": _c_double(DEFAULT_OPTIONS["floor_factor"]),
         "tol_step": _c_double(DEFAULT_OPTIONS["tol_step"]),
         "max_iterations": DEFAULT_OPTIONS["max_iterations"],
-        "max_threads": MAX_THREADS, "n_units": n_units,
+        "max_threads": MAX_THREADS, "n_units": n_units, "cold_unit": units > 1,
     }
 
 
@@ -166,9 +170,12 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     ``header_name`` (default ``<prefix>.h``) is the header the source includes; ``latex``:
     whether the opening comment lists the residuals in LaTeX (for small systems, see
     :func:`residual_comments`; it costs the SymPy residuals, so the kernels that
-    ``compile_step`` builds go without); ``units``: at most this many translation units,
-    the straight-line functions spread over them by size (:func:`assign_units`; a kernel
-    too small to gain stays in one), so that they can be compiled at the same time.
+    ``compile_step`` builds go without); ``units``: at most this many translation units
+    for the stepper and the straight-line functions, spread over them by the compiler's
+    time (:func:`assign_units`), and for ``units > 1`` one more, ``<prefix>_cold.c``, of
+    the code that does no arithmetic of a step (``templates/cold.j2``: the batched entry
+    point, the status messages; ``KernelSource.cold``), so that they can all be compiled at
+    the same time.  ``units=1`` (the default) is one self-contained file.
     """
     prefix = c_identifier(step.name if prefix is None else prefix)
     if len(step) != len(step.unknowns):
@@ -178,12 +185,15 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     header_name = header_name or f"{prefix}.h"
     ctx = _context(step, prefix, header_name, latex, units)
     unit_template = env.get_template("unit.c.j2")
+    further = [(f"{prefix}_unit{k}.c", unit_template.render(ctx, unit=k))
+               for k in range(1, ctx["n_units"])]
+    cold = (f"{prefix}_cold.c",) if ctx["cold_unit"] else ()
+    further += [(name, env.get_template("cold.c.j2").render(ctx)) for name in cold]
     return KernelSource(prefix=prefix, header_name=header_name,
                         header=env.get_template("kernel.h.j2").render(ctx),
                         source=env.get_template("kernel.c.j2").render(ctx),
                         cdef=env.get_template("cdef.j2").render(ctx),
-                        units=tuple((f"{prefix}_unit{k}.c", unit_template.render(ctx, unit=k))
-                                    for k in range(1, ctx["n_units"])))
+                        units=tuple(further), cold=cold)
 
 
 _UMASK_LOCK = threading.Lock()

@@ -205,34 +205,64 @@ class KernelBlocks:
     helpers: list[str] = field(default_factory=list)  # C helper functions (smooth maps)
 
 
-#: the C compiler's time on a kernel's fixed code (the Newton stepper, the run loops), in
-#: statements of the straight-line blocks that take it as long to compile (measured at -O3:
-#: 0.29 s for the planar 2-link chain's kernel, 0.65 ms per statement at 16 links)
-FIXED_STATEMENTS = 450
-#: a kernel whose blocks hold fewer statements is compiled as one translation unit: its
-#: residual and Jacobian stay inlinable into the Newton stepper, which matters for small
-#: systems (the plate-ball, 379 statements, steps in 0.28 µs whole and 0.34 µs split), while a
-#: second unit saves little compiler time there (planar 2-link chain: 0.256 → 0.224 s wall)
+#: the Newton stepper's loops are unrolled completely up to this many unknowns (the
+#: ``<P>_UNROLL`` macro of kernel.c.j2)
+UNROLLED_UNKNOWNS = 8
+
+
+def stepper_statements(n_unknowns: int) -> int:
+    """The C compiler's time on a kernel's hot fixed code (Newton stepper, LU, simulate; not
+    the batched entry point, see ``templates/cold.j2``) for ``n_unknowns`` unknowns, in
+    statements of the straight-line blocks that take it as long to compile.
+
+    Measured at -O3 (gcc 12, CPU seconds): the straight-line blocks take 0.3 to 0.5 ms a
+    statement (planar 8- and 16-link chains, 3D chains of 2 to 8 bodies), the Jacobian's
+    more than the others' (the planar 16-link chain's: 0.8 ms); the stepper unrolled
+    completely (n ≤ :data:`UNROLLED_UNKNOWNS`) takes 0.144, 0.172, 0.201, 0.266, 0.38 s at
+    n = 2, 3, 4, 6, 8 (320 + 10 n² statements at 0.4 ms: within 5 %), rolled 0.29, 0.33,
+    0.35, 0.25, 0.24 s at n = 9, 12, 16, 18, 24 (500 statements: as much of the large
+    kernels' Jacobians).
+    """
+    if n_unknowns <= UNROLLED_UNKNOWNS:
+        return 320 + 10 * n_unknowns * n_unknowns
+    return 500
+
+
+#: a kernel of more than 6 and at most :data:`UNROLLED_UNKNOWNS` unknowns whose blocks hold
+#: fewer statements keeps them in the stepper's translation unit.  Measured on the
+#: plate-ball (8 unknowns, 379 statements): 0.27 µs a step with its functions beside the
+#: stepper, 0.34 µs with them in a unit of their own -- the same machine code for every
+#: function, placed differently around the 14 kB of the unrolled LU factorisation -- while
+#: the planar chains of 2, 4 and 8 links and the 3D chains of 1, 2 and 3 bodies (2 to 9
+#: unknowns) step as fast either way (within 2 %).
 UNIT_MIN_STATEMENTS = 600
+#: the smallest number of unknowns whose small blocks stay beside the stepper (above)
+CLOSE_UNKNOWNS = 7
 
 
-def assign_units(blocks: Sequence[Block], units: int) -> int:
+def assign_units(blocks: Sequence[Block], units: int, n_unknowns: int) -> int:
     """Distribute the code of ``blocks`` over at most ``units`` translation units so that
     each takes the C compiler about as long (deterministic); the number of units used.
 
+    Unit 0, the kernel's source, holds the hot fixed code (:func:`stepper_statements`
+    of ``n_unknowns``), which for small kernels takes the compiler longer than all the
+    blocks: they then go to unit 1 and both compile at the same time (planar 2-link chain:
+    0.27 s in one unit; 0.14 s for the stepper beside 0.06 s for the blocks).  Blocks of
+    fewer than :data:`UNIT_MIN_STATEMENTS` statements of a kernel of
+    :data:`CLOSE_UNKNOWNS` to :data:`UNROLLED_UNKNOWNS` unknowns stay in unit 0 (see there).
     The items moved are whole functions of one part and the parts of split functions
-    (empty ones stay); unit 0, the kernel's source, also holds the fixed code
-    (:data:`FIXED_STATEMENTS`).
-    Items are placed largest first on the least loaded unit (ties: the lower unit, then
-    the earlier item), and the units are then numbered in order of their first item.
+    (empty ones stay).  Items are placed largest first on the least loaded unit (ties: the
+    lower unit, then the earlier item), and the units are then numbered in order of their
+    first item (unit 0 first).
     """
     items = list({id(part): part for block in blocks for part in block.parts}.values())
     for part in items:
         part.unit = 0
     total = sum(part.statements for part in items)
-    if units <= 1 or total < UNIT_MIN_STATEMENTS:
+    close = CLOSE_UNKNOWNS <= n_unknowns <= UNROLLED_UNKNOWNS and total < UNIT_MIN_STATEMENTS
+    if units <= 1 or close:
         return 1
-    loads = [FIXED_STATEMENTS] + [0] * (units - 1)
+    loads = [stepper_statements(n_unknowns)] + [0] * (units - 1)
     order = sorted((i for i in range(len(items)) if items[i].statements),
                    key=lambda i: (-items[i].statements, i))
     for i in order:
@@ -273,4 +303,5 @@ def kernel_blocks(step) -> KernelBlocks:
 
 
 __all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "build_block",
-           "c_identifier", "kernel_blocks", "program_helpers", "residual_blocks"]
+           "c_identifier", "kernel_blocks", "program_helpers", "residual_blocks",
+           "stepper_statements"]

@@ -39,6 +39,25 @@ def optimisation_flags(operations: int) -> tuple[str, ...]:
         return ("-O2",) + DEFAULT_FLAGS[1:]
     return DEFAULT_FLAGS
 
+#: the optimisation level of a kernel's cold unit (``KernelSource.cold``: the batched entry
+#: point with its OpenMP region, the status messages): 0.05 s of the compiler at -O1
+#: against 0.11 s at -O3 (CPU time, any system), run beside the other units
+COLD_LEVEL = "-O1"
+#: the levels a cold unit is lowered from (a build at -O0, -O1, -Og or -Os keeps its own)
+LOWERED_LEVELS = frozenset({"-O", "-O2", "-O3"})
+
+
+def unit_flags(flags: Sequence[str], cold: bool) -> tuple[str, ...]:
+    """The flags of one translation unit of a build at ``flags``: ``flags`` themselves, and
+    for a cold unit :data:`COLD_LEVEL` after them when their last ``-O`` option is one of
+    :data:`LOWERED_LEVELS` (deterministic).  A cold unit does no floating-point arithmetic
+    of a step, so its level changes no result."""
+    flags = tuple(flags)
+    levels = [f for f in flags if f.startswith("-O")]
+    if cold and levels and levels[-1] in LOWERED_LEVELS:
+        return (*flags, COLD_LEVEL)
+    return flags
+
 #: how to do without a compiler (appended to every compiler error)
 NUMPY_HINT = ('To use the NumPy backend instead (same results, slower), pass backend="numpy" '
               '(compile_step, DiscreteSystem.compile) or set SYMGROUPOID_BACKEND=numpy.')
@@ -159,15 +178,17 @@ def usable_cpus() -> int:
 
 
 def translation_units() -> int:
-    """How many translation units a large kernel is built from: ``TRANSLATION_UNITS`` on a
-    machine of ``PARALLEL_CPUS`` usable processors or more, else one.
+    """How many translation units a kernel's stepper and straight-line functions are built
+    from: ``TRANSLATION_UNITS`` on a machine of ``PARALLEL_CPUS`` usable processors or more
+    (and then one more, the cold unit, see ``codegen.generate_c``), else one file.
 
     Measured on two processors with the second one free (wall seconds of the compiler, one
     unit → two): planar 8-link chain 0.62 → 0.47, 3D chain of 3 bodies 0.73 → 0.46, of 8
     bodies 1.78 → 0.93; the compiler's total time grows by about 10 %, so where the second
-    processor is busy the build takes that much longer.  Small kernels stay in one unit
-    (``codegen._kernel.UNIT_MIN_STATEMENTS``).  The kernel's C then depends on the machine
-    (its source key too); what it computes does not.
+    processor is busy the build takes that much longer.  Small kernels too: their stepper
+    takes the compiler longer than their straight-line functions
+    (``codegen._kernel.assign_units``).  The kernel's C then depends on the machine (its
+    source key too); what it computes does not.
     """
     return TRANSLATION_UNITS if usable_cpus() >= PARALLEL_CPUS else 1
 
@@ -224,8 +245,10 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     path and the source of its cffi module (:func:`ffi_module_source`, for
     :func:`load_extension`).
 
-    The header and sources are written next to the library (and stay there); the type
-    table is made while the compiler runs.  Compiler output is captured and shown in
+    The header and sources are written next to the library (and stay there); a kernel in
+    several units is compiled by one compiler run per unit, all at the same time (a cold
+    unit with :func:`unit_flags`), then linked by one more; the type table is made while
+    the compiler runs.  Compiler output is captured and shown in
     :class:`CompilationError` on failure.
     """
     (build_dir / kernel.header_name).write_text(kernel.header, encoding="ascii")
@@ -243,12 +266,12 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
              type_table)
     else:  # the units at the same time, then one link
         objects = [f"{Path(file_name).stem}.o" for file_name, _ in sources]
-        base = compiler_flags_of(flags)
-        _run(kernel, [[*base, "-c", file_name, "-o", obj]
+        _run(kernel, [[*compiler_flags_of(unit_flags(flags, file_name in kernel.cold)),
+                       "-c", file_name, "-o", obj]
                       for (file_name, _), obj in zip(sources, objects)], build_dir,
              type_table)
-        _run(kernel, [[*base, "-shared", *objects, "-o", library.name, *link_tail(flags)]],
-             build_dir)
+        _run(kernel, [[*compiler_flags_of(flags), "-shared", *objects, "-o", library.name,
+                       *link_tail(flags)]], build_dir)
         for obj in objects:
             (build_dir / obj).unlink(missing_ok=True)
     if not library.is_file():

@@ -229,11 +229,12 @@ def step_kernel(step) -> KernelSource:
 
 
 def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
-    """Cache key of a generated kernel: its header, source, further translation units and
-    cdef, the ABI and the flags."""
+    """Cache key of a generated kernel: its header, source, further translation units (and
+    which are cold) and cdef, the ABI and the flags."""
     units = [part for unit in kernel.units for part in unit]
-    return sha256_of([kernel.header, kernel.source, str(len(units)), *units, kernel.cdef,
-                      abi_tag(), *flags])[:32]
+    return sha256_of([kernel.header, kernel.source, str(len(units)), *units,
+                      str(len(kernel.cold)), *kernel.cold, kernel.cdef, abi_tag(),
+                      *flags])[:32]
 
 
 def _same_entry(manifest: dict, stale: dict | None) -> bool:
