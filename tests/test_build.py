@@ -252,3 +252,38 @@ def test_building_needs_neither_setuptools_nor_python_headers(tmp_path):
                                  "SYMGROUPOID_CACHE": str(tmp_path / "cache")})
     assert result.returncode == 0, result.stderr
     assert result.stdout.split()[-1] == "c"
+
+
+@needs_cc
+def test_the_openmp_probe_runs_while_the_c_is_generated(monkeypatch, tmp_path):
+    """A first build in a process whose compiler's OpenMP support is not known starts the
+    probe in the background (start_openmp_probe), generates the C meanwhile and builds from
+    that C; the answer is the probe's, kept in the process and in the cache; a known answer
+    starts nothing, and SYMGROUPOID_OPENMP=0 never probes."""
+    monkeypatch.setattr(_compile, "_OPENMP", {})
+    monkeypatch.setattr(_compile, "_PENDING", {})
+    calls = []
+    real = _compile._openmp_probe.__wrapped__
+
+    def probe(command):
+        calls.append(tuple(command))
+        return real(command)
+
+    monkeypatch.setattr(_compile, "_openmp_probe", probe)
+    step = planar_chain(2).euler_lagrange()
+    before = _compile.STATS["codegen"]
+    sim = sg.compile_step(step, backend="c", cache_dir=tmp_path)
+    assert len(calls) == 1 and _compile.STATS["codegen"] == before + 1  # C generated once
+    answer = real(calls[0])
+    assert _compile.openmp_available(tmp_path) is answer
+    assert ("-fopenmp" in sim.kernel.flags) is answer
+    assert list((tmp_path / "probes").glob("openmp-*.json"))
+    assert not _compile.start_openmp_probe(tmp_path)  # known in this process
+    monkeypatch.setattr(_compile, "_OPENMP", {})
+    assert not _compile.start_openmp_probe(tmp_path)  # known in the cache
+    assert not _compile.start_openmp_probe(tmp_path / "fresh") or _compile.openmp_available(
+        tmp_path / "fresh") is answer
+    monkeypatch.setenv("SYMGROUPOID_OPENMP", "0")
+    monkeypatch.setattr(_compile, "_OPENMP", {})
+    assert not _compile.start_openmp_probe(tmp_path / "other")
+    assert len(calls) <= 2

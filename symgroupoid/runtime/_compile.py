@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import threading
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -105,6 +106,8 @@ def _openmp_probe(command: tuple[str, ...]) -> bool:
 
 
 _OPENMP: dict[str, bool] = {}
+#: probes running in a background thread (compiler key → the thread's result holder)
+_PENDING: dict[str, tuple[threading.Thread, list]] = {}
 
 
 def _compiler_identity() -> tuple[tuple[str, ...], str] | None:
@@ -135,12 +138,16 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
         return _OPENMP[key]
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     name = f"openmp-{key}.json"
-    for root in cache.read_roots():
-        data = read_json(root / "probes" / name)
-        if data is not None and isinstance(data.get("openmp"), bool):
-            _OPENMP[key] = data["openmp"]
-            return data["openmp"]
-    result = _openmp_probe(command)
+    known = _cached_probe(cache, name)
+    if known is not None:
+        _OPENMP[key] = known
+        return known
+    pending = _PENDING.pop(key, None)
+    if pending is not None:  # started by start_openmp_probe: wait for its answer
+        pending[0].join()
+        result = pending[1][0] if pending[1] else False
+    else:
+        result = _openmp_probe(command)
     _OPENMP[key] = result
     probes = cache.root / "probes"
     # kept only in a writable kernel cache (never in a foreign or read-only directory)
@@ -149,6 +156,39 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
             probes.mkdir(exist_ok=True)
             write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
     return result
+
+
+def _cached_probe(cache: KernelCache, name: str) -> bool | None:
+    """The OpenMP answer kept in the cache (``probes/<name>``), or None."""
+    for root in cache.read_roots():
+        data = read_json(root / "probes" / name)
+        if data is not None and isinstance(data.get("openmp"), bool):
+            return data["openmp"]
+    return None
+
+
+def start_openmp_probe(cache_dir: str | os.PathLike | None = None) -> bool:
+    """Start the OpenMP probe of :func:`openmp_available` in a background thread when its
+    answer is not known yet (neither in this process nor in the cache), so that it runs
+    while the kernel's C is generated; True if a probe was started.  The answer is
+    collected (and kept) by the next :func:`openmp_available`."""
+    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
+        return False
+    identity = _compiler_identity()
+    if identity is None:
+        return False
+    command, key = identity
+    if key in _OPENMP or key in _PENDING:
+        return False
+    cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
+    if _cached_probe(cache, f"openmp-{key}.json") is not None:
+        return False
+    holder: list = []
+    thread = threading.Thread(target=lambda: holder.append(_openmp_probe(command)),
+                              name="symgroupoid-openmp-probe", daemon=True)
+    thread.start()
+    _PENDING[key] = (thread, holder)
+    return True
 
 
 def default_flags(cache_dir: str | os.PathLike | None = None,
@@ -336,17 +376,21 @@ def load_cached(source_key: str, manifest: dict, cache: KernelCache):
 
 
 def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
-           discard: dict | None = None) -> tuple[str, dict]:
-    kernel = step_kernel(step)
-    STATS["codegen"] += 1
+           discard: dict | None = None, kernel: KernelSource | None = None
+           ) -> tuple[str, dict]:
+    if kernel is None:
+        kernel = step_kernel(step)
+        STATS["codegen"] += 1
     source_key, manifest = build_cached(kernel, flags, cache, step.name, discard=discard)
     cache.record(key, source_key, manifest["prefix"])
     return source_key, manifest
 
 
 def load_c_kernel(step, flags: Sequence[str] | None = None,
-                  cache_dir: str | os.PathLike | None = None) -> tuple[CKernel, Path]:
-    """The compiled kernel of ``step`` from the cache, building it on a miss.
+                  cache_dir: str | os.PathLike | None = None, *,
+                  source: KernelSource | None = None) -> tuple[CKernel, Path]:
+    """The compiled kernel of ``step`` from the cache, building it on a miss (from
+    ``source``, the step's :func:`step_kernel` when already generated).
 
     Raises :class:`CompilerNotFoundError` when a build is needed and no compiler exists,
     :class:`CompilationError` when the compiler fails (the cache is left unchanged),
@@ -358,7 +402,7 @@ def load_c_kernel(step, flags: Sequence[str] | None = None,
     source_key = cache.lookup(key)
     manifest = cache.verified_manifest(source_key) if source_key else None
     if manifest is None:
-        source_key, manifest = _build(step, flags, cache, key)
+        source_key, manifest = _build(step, flags, cache, key, kernel=source)
     try:
         module = load_cached(source_key, manifest, cache)
     except CacheError as error:
@@ -469,8 +513,14 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
     try:
+        source = None
+        if flags is None and start_openmp_probe(cache_dir):
+            # a first build here (the compiler's OpenMP support is not known yet): the C is
+            # generated while the probe runs, instead of after it
+            source = step_kernel(step)
+            STATS["codegen"] += 1
         chosen = _step_flags(step, cache_dir) if flags is None else flags
-        kernel, entry = load_c_kernel(step, chosen, cache_dir)
+        kernel, entry = load_c_kernel(step, chosen, cache_dir, source=source)
     except CompilerNotFoundError as exc:
         if backend == "c":
             raise
