@@ -25,6 +25,8 @@ SESSION_CACHE = Path(tempfile.mkdtemp(prefix="symgroupoid-test-kernels-"))
 atexit.register(shutil.rmtree, SESSION_CACHE, True)
 HAVE_CC = shutil.which("cc") is not None
 needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler (cc) on PATH")
+#: both step backends as a parametrisation (the C one needs a compiler)
+BACKENDS = [pytest.param("c", marks=needs_cc), "numpy"]
 
 #: parameters and momentum initial data (base point, p₀) of the seed systems
 SEED_DATA = {

@@ -15,6 +15,7 @@ import subprocess
 import numpy as np
 import pytest
 from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    BACKENDS,
     REPO,
     SEED_DATA,
     SESSION_CACHE,
@@ -35,7 +36,6 @@ from symgroupoid.runtime._backends import (
     real_vector,
 )
 
-BACKENDS = [pytest.param("c", marks=needs_cc), "numpy"]
 BAD_GUESSES = {
     "length 1": [0.0],
     "length 20": np.zeros(20),

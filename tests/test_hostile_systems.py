@@ -62,8 +62,8 @@ def test_spaces_and_built_in_groupoids(run):
     @profile(run, 20)
     @given(data=st.data())
     def prop(data):
-        kind = data.draw(st.sampled_from(["space", "vector", "pair", "group", "time",
-                                          "product", "multiply"]))
+        kind = data.draw(st.sampled_from(["space", "vector", "pair", "group", "group maps",
+                                          "time", "product", "multiply"]))
         if kind == "space":
             value = data.draw(names)
             judge("EuclideanSpace", lambda: sg.EuclideanSpace(value),
@@ -86,6 +86,30 @@ def test_spaces_and_built_in_groupoids(run):
                                              scalars))
             judge("matrix Lie group", lambda: cls(name, retraction=retraction),
                   ["name", "retraction"], verify=lambda G: isinstance(G, sg.MatrixLieGroup))
+        elif kind == "group maps":
+            G = data.draw(st.sampled_from([sg.SO2("R"), sg.SO3("R"), sg.SE2("g", "exp"),
+                                           sg.SE3("g")]))
+            coords = st.one_of(junk(), st.lists(st.floats(-2, 2), min_size=1, max_size=13),
+                               *[st.lists(st.floats(-2, 2), min_size=k, max_size=k)
+                                 for k in (G.rank, G.arrow_dim)])
+            q, x = data.draw(coords), data.draw(coords)
+            method = data.draw(st.sampled_from(["translated_retraction",
+                                                "increment_coordinates", "numeric_tau"]))
+            args = (x,) if method == "numeric_tau" else (q, x)
+
+            def check(result):
+                assert len(np.ravel(np.asarray(result, dtype=object))) in (
+                    G.n * G.n, G.arrow_dim, G.rank)
+
+            judge(f"MatrixLieGroup.{method}", lambda: getattr(G, method)(*args),
+                  ["coordinates", "expression", "finite real", "sequence"], verify=check)
+            # a refused call leaves the maps of the class intact
+            rng = np.random.default_rng(0)
+            y = rng.uniform(-0.5, 0.5, G.rank)
+            M = G.numeric_tau(y)
+            assert np.allclose(G.increment_coordinates(G.entries(sp.eye(G.n)),
+                                                       [M[i, j] for i, j in G._free]),
+                               y, atol=1e-12)
         elif kind == "time":
             inner = data.draw(st.one_of(junk(), st.just(sg.SO2("s"))))
             time_name = data.draw(st.one_of(st.just("t"), names))

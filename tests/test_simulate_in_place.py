@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from _systems import FALL_PARAMS, FALL_START, falling
 from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    BACKENDS,
     SEED_DATA,
     SESSION_CACHE,
     compiled,
@@ -19,10 +20,6 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid.runtime._backends import INVALID_ARGUMENT, OK
-
-BACKENDS = [pytest.param("c", marks=needs_cc), "numpy"]
-
-
 
 
 @pytest.fixture(scope="module")

@@ -235,18 +235,44 @@ class MatrixLieGroup(Groupoid):
     def translated_retraction(self, q: Sequence, x: Sequence) -> tuple:
         """The entries of q·τ(x): the chart of the group around q (the point reached from q
         by the retraction coordinates x of the increment; seed 000 §6.1)."""
-        if block_of(tuple(q), self._free) is not None:  # matrix form: a structured product
+        q, x = self._checked(q, "q", self.arrow_dim), self._checked(x, "x", self.rank)
+        if block_of(q, self._free) is not None:  # matrix form: a structured product
             return self.entries(self.matrix(q) * self.tau(list(x)))
         return _instantiated(self, "translated_retraction", (*q, *x))
 
     def increment_coordinates(self, q: Sequence, p: Sequence) -> tuple:
         """τ⁻¹(q⁻¹p): the retraction coordinates of the increment from q to p (symbolic;
         valid for q, p in the group)."""
-        if block_of(tuple(q), self._free) is not None or block_of(tuple(p), self._free) \
-                is not None:
+        q, p = self._checked(q, "q", self.arrow_dim), self._checked(p, "p", self.arrow_dim)
+        if block_of(q, self._free) is not None or block_of(p, self._free) is not None:
             return tuple(self.retraction_inverse(self._inverse_matrix(self.matrix(q))
                                                  * self.matrix(p)))
         return _instantiated(self, "increment_coordinates", (*q, *p))
+
+    def _checked(self, values: Sequence, what: str, size: int) -> tuple:
+        """``values`` as a tuple of ``size`` SymPy expressions; :class:`ShapeError` for
+        another length, :class:`InputTypeError` for entries that are not expressions."""
+        from .._errors import InputTypeError, ShapeError
+
+        if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__len__"):
+            raise InputTypeError(f"{self.name}: {what} must be a sequence of {size} "
+                                 f"coordinates, got {type(values).__name__}")
+        values = tuple(values)
+        if len(values) != size:
+            raise ShapeError(f"{self.name}: {what} has {len(values)} coordinates, expected "
+                             f"{size}")
+        out = []
+        for i, v in enumerate(values):
+            try:
+                e = sp.sympify(v, strict=True)
+            except (sp.SympifyError, TypeError, ValueError) as exc:
+                raise InputTypeError(f"{self.name}: {what}[{i}] is {v!r}, not a number or "
+                                     f"expression") from exc
+            if not isinstance(e, sp.Expr):
+                raise InputTypeError(f"{self.name}: {what}[{i}] is {v!r}, not a number or "
+                                     f"expression")
+            out.append(e)
+        return tuple(out)
 
     def retraction_inverse(self, M: sp.Matrix) -> sp.Matrix:
         """τ⁻¹(M) symbolically, valid for M in the group."""
@@ -315,6 +341,12 @@ class MatrixLieGroup(Groupoid):
     def numeric_tau(self, x: Sequence) -> np.ndarray:
         """τ(x) of numeric coordinates x (NumPy; the symbolic retraction, lambdified once
         per group class and retraction)."""
+        from .._errors import DomainError
+
+        x = self._checked(x, "x", self.rank)
+        if not all(v.is_number and v.is_finite and v.is_extended_real for v in x):
+            raise DomainError(f"{self.name}: τ(x) needs finite real numbers x, got "
+                              f"{', '.join(map(str, x))}")
         return np.asarray(_numeric_tau(type(self), self.retraction)(*[float(v) for v in x]),
                           float).reshape(self.n, self.n)
 
@@ -420,9 +452,6 @@ def _instantiated(group: MatrixLieGroup, name: str, values: Sequence) -> tuple:
         template = (placeholders, tuple(sp.sympify(e) for e in direct(group, placeholders)))
         _MAP_TEMPLATES[key] = template
     placeholders, entries = template
-    if len(placeholders) != len(values):
-        raise ValueError(f"{group!r}.{name}: {len(values)} values for "
-                         f"{len(placeholders)} coordinates")
     sub = dict(zip(placeholders, (sp.sympify(v) for v in values)))
     return tuple(e.xreplace(sub) for e in entries)
 

@@ -123,14 +123,19 @@ def _compiler_identity() -> tuple[tuple[str, ...], str] | None:
     return command, key
 
 
+def _probe_identity() -> tuple[tuple[str, ...], str] | None:
+    """:func:`_compiler_identity`, or None when ``SYMGROUPOID_OPENMP=0`` (never probe)."""
+    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
+        return None
+    return _compiler_identity()
+
+
 def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
     """Whether kernels are built with OpenMP: the C compiler accepts ``-fopenmp`` and its
     runtime loads.  Probed once per compiler: the answer is kept in this process and in the
     cache (``probes/openmp-<compiler key>.json``, when the cache is writable), so a
     warm start compiles nothing.  ``SYMGROUPOID_OPENMP=0`` turns OpenMP off."""
-    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
-        return False
-    identity = _compiler_identity()
+    identity = _probe_identity()
     if identity is None:
         return False
     command, key = identity
@@ -172,9 +177,7 @@ def start_openmp_probe(cache_dir: str | os.PathLike | None = None) -> bool:
     answer is not known yet (neither in this process nor in the cache), so that it runs
     while the kernel's C is generated; True if a probe was started.  The answer is
     collected (and kept) by the next :func:`openmp_available`."""
-    if os.environ.get("SYMGROUPOID_OPENMP", "1").strip() == "0":
-        return False
-    identity = _compiler_identity()
+    identity = _probe_identity()
     if identity is None:
         return False
     command, key = identity
