@@ -5,7 +5,7 @@ PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 DOCS_STAMP := $(VENV)/.docs-installed
 
-.PHONY: demo test test-all docs generated bench lint clean
+.PHONY: demo test test-all docs generated closed-forms bench lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -33,6 +33,10 @@ docs: $(DOCS_STAMP)
 
 generated: $(STAMP)
 	$(PY) -m symgroupoid generate generated
+
+# the stored templates of the matrix groups (after a change of their maps or of SymPy)
+closed-forms: $(STAMP)
+	$(PY) -m symgroupoid.groupoids._closed_forms_build
 
 bench: $(STAMP)
 	$(PY) benchmarks/derive.py

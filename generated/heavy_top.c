@@ -296,17 +296,19 @@ void heavy_top_default_options(heavy_top_options *options)
     options->extrapolate = 1;
 }
 
-/* The bits of |x| as an integer: for x >= 0 the integers are ordered as the doubles, above
+/* The small helpers of the stepper are declared inline, so that a build at -O1 (a small
+ * step's default, see the runtime's optimisation_flags) inlines them as -O2 and -O3 do.
+ * The bits of |x| as an integer: for x >= 0 the integers are ordered as the doubles, above
  * every finite |x| come the infinities, then the NaNs (all >= HEAVY_TOP_INF_BITS) */
 #define HEAVY_TOP_INF_BITS UINT64_C(0x7ff0000000000000)
-static uint64_t heavy_top_abs_bits(double x)
+static inline uint64_t heavy_top_abs_bits(double x)
 {
     uint64_t bits;
     memcpy(&bits, &x, sizeof bits);
     return bits & UINT64_C(0x7fffffffffffffff);
 }
 
-static double heavy_top_from_bits(uint64_t bits)
+static inline double heavy_top_from_bits(uint64_t bits)
 {
     double x;
     memcpy(&x, &bits, sizeof x);
@@ -316,7 +318,7 @@ static double heavy_top_from_bits(uint64_t bits)
 /* max_i |v_i|; if an entry is not finite, the first such |v_i| (fmax would drop NaN).  One
  * integer pass over the bits of |v_i| (see heavy_top_abs_bits), and a second pass only when the
  * largest is not finite. */
-static double heavy_top_norm_inf(const double *v, int n)
+static inline double heavy_top_norm_inf(const double *v, int n)
 {
     uint64_t m = 0;
     int i;
@@ -334,7 +336,7 @@ static double heavy_top_norm_inf(const double *v, int n)
 
 /* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1), read from the bits of
  * an IEEE-754 double for normal x (no library call), from frexp for subnormal x. */
-static int heavy_top_binary_exponent(double x)
+static inline int heavy_top_binary_exponent(double x)
 {
     uint64_t bits;
     int biased;
@@ -349,7 +351,7 @@ static int heavy_top_binary_exponent(double x)
 }
 
 /* 2^k for -1022 <= k <= 1023, exactly (the bits of a normal double) */
-static double heavy_top_power_of_two(int k)
+static inline double heavy_top_power_of_two(int k)
 {
     const uint64_t bits = (uint64_t)(k + 1023) << 52;
     double x;
@@ -523,7 +525,7 @@ static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
 
 /* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
  * estimate of the condition of the row-equilibrated Jacobian */
-static double heavy_top_pivot_ratio(const double *inv)
+static inline double heavy_top_pivot_ratio(const double *inv)
 {
     double lo = fabs(inv[0]), hi = fabs(inv[0]);
     int k;
@@ -654,7 +656,7 @@ static int heavy_top_options_valid(const heavy_top_options *options)
 }
 
 /* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
-static double heavy_top_relative_norm(const double *d, const double *u)
+static inline double heavy_top_relative_norm(const double *d, const double *u)
 {
     double m = 0.0;
     int j;

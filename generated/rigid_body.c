@@ -288,17 +288,19 @@ void rigid_body_default_options(rigid_body_options *options)
     options->extrapolate = 1;
 }
 
-/* The bits of |x| as an integer: for x >= 0 the integers are ordered as the doubles, above
+/* The small helpers of the stepper are declared inline, so that a build at -O1 (a small
+ * step's default, see the runtime's optimisation_flags) inlines them as -O2 and -O3 do.
+ * The bits of |x| as an integer: for x >= 0 the integers are ordered as the doubles, above
  * every finite |x| come the infinities, then the NaNs (all >= RIGID_BODY_INF_BITS) */
 #define RIGID_BODY_INF_BITS UINT64_C(0x7ff0000000000000)
-static uint64_t rigid_body_abs_bits(double x)
+static inline uint64_t rigid_body_abs_bits(double x)
 {
     uint64_t bits;
     memcpy(&bits, &x, sizeof bits);
     return bits & UINT64_C(0x7fffffffffffffff);
 }
 
-static double rigid_body_from_bits(uint64_t bits)
+static inline double rigid_body_from_bits(uint64_t bits)
 {
     double x;
     memcpy(&x, &bits, sizeof x);
@@ -308,7 +310,7 @@ static double rigid_body_from_bits(uint64_t bits)
 /* max_i |v_i|; if an entry is not finite, the first such |v_i| (fmax would drop NaN).  One
  * integer pass over the bits of |v_i| (see rigid_body_abs_bits), and a second pass only when the
  * largest is not finite. */
-static double rigid_body_norm_inf(const double *v, int n)
+static inline double rigid_body_norm_inf(const double *v, int n)
 {
     uint64_t m = 0;
     int i;
@@ -326,7 +328,7 @@ static double rigid_body_norm_inf(const double *v, int n)
 
 /* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1), read from the bits of
  * an IEEE-754 double for normal x (no library call), from frexp for subnormal x. */
-static int rigid_body_binary_exponent(double x)
+static inline int rigid_body_binary_exponent(double x)
 {
     uint64_t bits;
     int biased;
@@ -341,7 +343,7 @@ static int rigid_body_binary_exponent(double x)
 }
 
 /* 2^k for -1022 <= k <= 1023, exactly (the bits of a normal double) */
-static double rigid_body_power_of_two(int k)
+static inline double rigid_body_power_of_two(int k)
 {
     const uint64_t bits = (uint64_t)(k + 1023) << 52;
     double x;
@@ -515,7 +517,7 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
 
 /* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
  * estimate of the condition of the row-equilibrated Jacobian */
-static double rigid_body_pivot_ratio(const double *inv)
+static inline double rigid_body_pivot_ratio(const double *inv)
 {
     double lo = fabs(inv[0]), hi = fabs(inv[0]);
     int k;
@@ -646,7 +648,7 @@ static int rigid_body_options_valid(const rigid_body_options *options)
 }
 
 /* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
-static double rigid_body_relative_norm(const double *d, const double *u)
+static inline double rigid_body_relative_norm(const double *d, const double *u)
 {
     double m = 0.0;
     int j;

@@ -89,6 +89,21 @@ def test_a_cold_unit_is_lowered_only_from_the_optimising_levels():
         assert _build.unit_flags(kept, cold=True) == kept
 
 
+def test_the_optimisation_level_follows_the_kind_and_size_of_a_kernel():
+    small, mid, large = _build.SMALL_STEP, _build.SMALL_STEP + 1, _build.LARGE_PROGRAM + 1
+    contract = _build.DEFAULT_FLAGS[1:]
+    assert _build.optimisation_flags(small, step=True) == (*_build.SMALL_STEP_LEVEL, *contract)
+    assert _build.optimisation_flags(mid, step=True) == _build.DEFAULT_FLAGS
+    assert _build.optimisation_flags(large, step=True) == ("-O2", *contract)
+    for operations in (0, small, mid):  # window programs and other kernels: -O3 up to large
+        assert _build.optimisation_flags(operations) == _build.DEFAULT_FLAGS
+    assert _build.optimisation_flags(large) == ("-O2", *contract)
+    step = planar_chain(2).euler_lagrange()
+    assert _compile._step_flags(step, None)[:3] == (*_build.SMALL_STEP_LEVEL, *contract)
+    assert _build.unit_flags(_build.optimisation_flags(small, step=True), cold=True) == (
+        *_build.SMALL_STEP_LEVEL, *contract)  # -O1 already: the cold unit keeps it
+
+
 def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatch):
     step = planar_chain(2).euler_lagrange()
     one, three = generate_c(step, latex=False), generate_c(step, latex=False, units=2)
@@ -115,7 +130,7 @@ def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatc
     cold_runs = [c for c in commands if f"{prefix}_cold.c" in c]
     assert len(commands) == 4 and len(cold_runs) == 1, commands  # 3 units, 1 link
     assert level(cold_runs[0]) == _build.COLD_LEVEL
-    assert all(level(c) == "-O3" for c in commands if c not in cold_runs)
+    assert all(level(c) == "-O3" for c in commands if c not in cold_runs)  # explicit flags
     state = chain_state(2)
     numpy = step.compile(backend="numpy")
     whole = _compile.load_kernel_source(one, _compile.default_flags(), step.name,
@@ -215,7 +230,7 @@ def test_the_type_table_agrees_with_the_compiled_header(tmp_path):
 
 def test_a_damaged_type_table_is_detected_and_rebuilt():
     step = planar_chain(1).euler_lagrange()
-    flags = _compile.default_flags()
+    flags = _compile._step_flags(step, None)
     cache = _cache.KernelCache(_cache.cache_root())
     key = _compile.input_key(step, flags)
     source_key, manifest = _compile._build(step, flags, cache, key)

@@ -134,7 +134,7 @@ def _entry_and_manifest(cache: Path) -> tuple[Path, dict]:
 def test_damaged_cache_entry_is_detected_and_rebuilt(damage):
     """Built here without loading (a library loaded by this process is never damaged)."""
     step = oscillator()
-    flags = _compile.default_flags()  # what compile_step builds by default
+    flags = _compile._step_flags(step, None)  # what compile_step builds by default
     cache = sg.runtime._cache.KernelCache(cache_root())
     _compile._build(step, flags, cache, _compile.input_key(step, flags))
     reference = step.compile(backend="numpy").simulate({"q": (1.0, 0.999)}, 100,

@@ -203,7 +203,7 @@ def test_threads_building_kernels_at_once(cache_dir):
 
 def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):
     step = oscillator()
-    key = _compile.source_key_of(_compile.step_kernel(step), _compile.default_flags())
+    key = _compile.source_key_of(_compile.step_kernel(step), _compile._step_flags(step, None))
     _cache.writable_root(cache_dir)
     tmp = cache_dir / "tmp"
     live = tmp / f"build-{key}-live"
@@ -238,7 +238,7 @@ def test_warm_use_removes_a_dead_builders_directory(cache_dir):
 
 def test_waiting_for_a_hung_builder_times_out_clearly(monkeypatch, cache_dir):
     step = oscillator("oscillator_lock")
-    key = _compile.source_key_of(_compile.step_kernel(step), _compile.default_flags())
+    key = _compile.source_key_of(_compile.step_kernel(step), _compile._step_flags(step, None))
     lock = cache_dir / "locks" / f"{key}.lock"
     lock.parent.mkdir(parents=True)
     fd = os.open(lock, os.O_RDWR | os.O_CREAT)
@@ -329,7 +329,7 @@ def test_layout_directory_that_is_a_file_is_replaced(cache_dir, name):
 
 def _build_without_loading(step, cache_root: Path) -> tuple[Path, dict]:
     cache = _cache.KernelCache(cache_root)
-    flags = _compile.default_flags()  # what compile_step builds by default
+    flags = _compile._step_flags(step, None)  # what compile_step builds by default
     _compile._build(step, flags, cache, _compile.input_key(step, flags))
     (entry,) = (cache_root / "kernels").iterdir()
     return entry, json.loads((entry / "manifest.json").read_text())
@@ -428,7 +428,7 @@ def _has_debug_info(library: Path) -> bool:
 
 def test_builds_carry_debug_information_only_when_asked(cache_dir):
     plain = sg.compile_step(oscillator(), backend="c")
-    flags = _compile.default_flags()
+    flags = _compile._step_flags(oscillator(), None)
     debug = sg.compile_step(oscillator(), backend="c", flags=[*flags, "-g"])
     manifests = [json.loads((sim.cache_entry / "manifest.json").read_text())
                  for sim in (plain, debug)]

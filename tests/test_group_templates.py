@@ -5,6 +5,8 @@ arrow equal SymPy's evaluation of the symbolic maps."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -135,3 +137,53 @@ def test_pair_groupoid_fields_in_closed_form(index, side):
         assert len(a) == len(b) == G.arrow_dim
         assert np.allclose(_at(to_sympy(g, a), values), _at(to_sympy(g, b), values),
                            rtol=0, atol=1e-20)
+
+
+# -- stored templates (groupoids/_closed_forms.py) ----------------------------------------------
+
+def test_stored_templates_are_the_derived_trees_and_the_file_is_current():
+    """Every template a new process reads from groupoids/_closed_forms.py is, node for node,
+    the tree its derivation gives (so the equations, the LaTeX and the C are those of the
+    derivation), and the file is what the builder writes today (``make closed-forms``)."""
+    from symgroupoid.groupoids import _closed_forms, _closed_forms_build
+    from symgroupoid.groupoids._matrix_groups import _stored_form
+
+    derived = _closed_forms_build.derived_templates()
+    assert sorted(key for key, _, _ in derived) == sorted(_closed_forms.FORMS)
+    for key, template, placeholders in derived:
+        stored = _stored_form(key, placeholders)
+        assert type(stored) is type(template), key
+        assert stored == template and sp.srepr(stored) == sp.srepr(template), key
+        if isinstance(template, sp.MatrixBase):
+            pairs = zip(stored, template)
+        else:
+            pairs = zip(stored, template, strict=True)
+        assert all(a.args == b.args and a.func == b.func for a, b in pairs), key
+    assert _closed_forms_build.source() == Path(_closed_forms.__file__).read_text("utf-8")
+
+
+def test_stored_templates_are_used_only_for_the_groups_they_were_derived_for():
+    """A subclass (here one with another basis order) derives its own templates."""
+    from symgroupoid.groupoids._matrix_groups import _builtin, _cayley_template
+
+    class Reordered(sg.SO3):
+        @classmethod
+        def _basis(cls):
+            return list(reversed(sg.SO3._basis()))
+
+    assert _builtin(sg.SO3) and not _builtin(Reordered)
+    x = sp.symbols("x0:3", real=True)
+    cay = Reordered("R").cayley(x)
+    want = sg.SO3("S").cayley(list(reversed(x)))
+    assert all(sp.simplify(a - b) == 0 for a, b in zip(cay, want))
+    assert _cayley_template(Reordered) != _cayley_template(sg.SO3)
+
+
+def test_a_stored_template_that_names_a_foreign_symbol_is_refused():
+    from symgroupoid.groupoids._closed_forms_build import _PlaceholderPrinter
+
+    a, b = sp.Dummy("a"), sp.Dummy("b")
+    assert _PlaceholderPrinter([a]).doprint(a + sp.Symbol("c")) in (
+        "Add(P[0], Symbol('c'))", "Add(Symbol('c'), P[0])")
+    with pytest.raises(ValueError, match="foreign placeholder"):
+        _PlaceholderPrinter([a]).doprint(a + b)

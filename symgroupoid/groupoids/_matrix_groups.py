@@ -428,8 +428,43 @@ def _renormalised_template(m: int) -> tuple[dict, sp.Matrix]:
     """Q(3I − QᵀQ)/2 on an m×m matrix of placeholders (substituted, not multiplied out
     again, for each matrix: SymPy's matrix product of large entries is slow)."""
     entries = {(i, j): sp.Dummy(f"q{i}{j}") for i in range(m) for j in range(m)}
+    stored = _stored_form(f"renormalised.{m}", list(entries.values()))
+    return entries, stored if stored is not None else _direct_renormalised(entries, m)
+
+
+def _direct_renormalised(entries: dict, m: int) -> sp.Matrix:
     Q = sp.Matrix(m, m, lambda i, j: entries[(i, j)])
-    return entries, Q * (3 * sp.eye(m) - Q.T * Q) / 2
+    return Q * (3 * sp.eye(m) - Q.T * Q) / 2
+
+
+def _builtin(cls) -> bool:
+    """True for the groups defined here (whose templates may be stored)."""
+    return cls.__module__ == __name__ and "." not in cls.__qualname__
+
+
+def _stored_form(key: str, placeholders: Sequence[sp.Symbol]):
+    """The template ``key`` as stored in ``groupoids/_closed_forms.py`` (a matrix or a tuple
+    of expressions), built on ``placeholders``; None when it is not stored.
+
+    The stored text is the exact tree of the derivation (SymPy's ``srepr`` with the
+    placeholders as ``P[i]``, evaluated without SymPy's automatic simplification, so that
+    every node is rebuilt as written), written by ``groupoids/_closed_forms_build.py`` and checked
+    against the derivation by the tests: evaluating it gives the same expressions as the
+    derivation (about 5 ms instead of 20–50 ms per template in every new process: the
+    Cayley map's ``factor``, the products of symbolic matrices)."""
+    from ._closed_forms import FORMS
+
+    text = FORMS.get(key)
+    if text is None:
+        return None
+    with sp.evaluate(False):  # the tree as written, node for node (factor's forms included)
+        return eval(text, {**_stored_namespace(), "P": tuple(placeholders)})  # noqa: S307
+
+
+@functools.cache
+def _stored_namespace() -> dict:
+    """The SymPy names a stored template's text refers to."""
+    return {name: getattr(sp, name) for name in dir(sp) if not name.startswith("_")}
 
 
 #: (group class, retraction, map) → (placeholders, entries): the maps of
@@ -446,14 +481,22 @@ def _instantiated(group: MatrixLieGroup, name: str, values: Sequence) -> tuple:
     key = (type(group), group.retraction, name)
     template = _MAP_TEMPLATES.get(key)
     if template is None:
-        direct = {"translated_retraction": _direct_translated_retraction,
-                  "increment_coordinates": _direct_increment_coordinates}[name]
         placeholders = tuple(sp.Dummy(f"a{i}") for i in range(len(values)))
-        template = (placeholders, tuple(sp.sympify(e) for e in direct(group, placeholders)))
+        stored = (_stored_form(f"{type(group).__name__}.{group.retraction}.{name}",
+                               placeholders) if _builtin(type(group)) else None)
+        entries = stored if stored is not None else _direct_map(group, name, placeholders)
+        template = (placeholders, entries)
         _MAP_TEMPLATES[key] = template
     placeholders, entries = template
     sub = dict(zip(placeholders, (sp.sympify(v) for v in values)))
     return tuple(e.xreplace(sub) for e in entries)
+
+
+def _direct_map(group: MatrixLieGroup, name: str, placeholders: Sequence) -> tuple:
+    """The map ``name`` of :func:`_instantiated` derived on ``placeholders``."""
+    direct = {"translated_retraction": _direct_translated_retraction,
+              "increment_coordinates": _direct_increment_coordinates}[name]
+    return tuple(sp.sympify(e) for e in direct(group, placeholders))
 
 
 def _direct_translated_retraction(group: MatrixLieGroup, values: Sequence) -> tuple:
@@ -475,6 +518,11 @@ def _dtau_dummies(cls) -> tuple:
 @functools.cache
 def _cayley_template(cls) -> sp.Matrix:
     x = _dtau_dummies(cls)
+    stored = _stored_form(f"{cls.__name__}.cayley", x) if _builtin(cls) else None
+    return stored if stored is not None else _direct_cayley(cls, x)
+
+
+def _direct_cayley(cls, x: Sequence) -> sp.Matrix:
     closed = cls._cayley_closed_form(x)
     if closed is not None:  # the same canonical form as below, without the symbolic solve
         return closed.applyfunc(lambda e: sp.factor(sp.together(e)))

@@ -195,14 +195,15 @@ def start_openmp_probe(cache_dir: str | os.PathLike | None = None) -> bool:
 
 
 def default_flags(cache_dir: str | os.PathLike | None = None,
-                  operations: int = 0) -> tuple[str, ...]:
+                  operations: int = 0, *, step: bool = False) -> tuple[str, ...]:
     """The compiler flags of a kernel of ``operations`` operations built without explicit
-    ``flags``: :func:`optimisation_flags` (``DEFAULT_FLAGS``, at -O2 for large programs), and
+    ``flags``: :func:`optimisation_flags` (``DEFAULT_FLAGS``, at -O2 for large programs, at
+    -O1 for a small Newton step's kernel when ``step``), and
     ``-fopenmp`` when :func:`openmp_available` (the batched entry point
     ``<prefix>_simulate_batch`` then shares trajectories among threads; nothing else in the
     kernel changes).  Flags are part of the cache key, so both builds can be cached side by
     side."""
-    flags = optimisation_flags(operations)
+    flags = optimisation_flags(operations, step=step)
     if openmp_available(cache_dir):
         return (*flags, OPENMP_FLAG)
     return tuple(flags)
@@ -211,9 +212,9 @@ def default_flags(cache_dir: str | os.PathLike | None = None,
 def _step_flags(step, cache_dir) -> tuple[str, ...]:
     """:func:`default_flags`; without a compiler, the default build of ``step`` that is in
     the cache (with OpenMP or without), which needs no compiler to load."""
-    base = optimisation_flags(step.program.size())
+    base = optimisation_flags(step.program.size(), step=True)
     if _compiler_identity() is not None:
-        return default_flags(cache_dir, step.program.size())
+        return default_flags(cache_dir, step.program.size(), step=True)
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     for flags in ((*base, OPENMP_FLAG), tuple(base)):
         source_key = cache.lookup(input_key(step, flags))
@@ -485,8 +486,9 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         or ``"numpy"``.  The environment variable ``SYMGROUPOID_BACKEND`` overrides
         ``"auto"``.
     flags : compiler flags, a list of strings (default :func:`default_flags`:
-        ``DEFAULT_FLAGS``, at -O2 above ``LARGE_PROGRAM`` operations, which compile faster
-        and run as fast, plus ``-fopenmp`` when the compiler supports it); part of the cache
+        ``DEFAULT_FLAGS``, at -O2 above ``LARGE_PROGRAM`` operations and at -O1 up to
+        ``SMALL_STEP``, which compile faster and step as fast, plus ``-fopenmp`` when the
+        compiler supports it); part of the cache
         key.  Builds carry no debug information unless ``flags`` ask for it (``-g``).
     cache_dir : cache root, a path (default ``$SYMGROUPOID_CACHE``,
         ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``); a relative path is
