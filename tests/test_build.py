@@ -302,3 +302,36 @@ def test_the_openmp_probe_runs_while_the_c_is_generated(monkeypatch, tmp_path):
     monkeypatch.setattr(_compile, "_OPENMP", {})
     assert not _compile.start_openmp_probe(tmp_path / "other")
     assert len(calls) <= 2
+
+
+@needs_cc
+def test_the_templates_compiled_code_is_kept_in_the_cache_and_never_changes_the_c(tmp_path):
+    """A build keeps the templates' compiled code in the cache's templates/ (adopted as cache
+    content); a later process loads it instead of compiling; a damaged or unwritable entry
+    only costs a compilation: the C is the same in every case."""
+    step = planar_chain(2).euler_lagrange()
+    sg.compile_step(step, backend="c", cache_dir=tmp_path)
+    kept = sorted((tmp_path / "templates").glob("__jinja2_*.cache"))
+    assert kept and not _cache._foreign_entries(tmp_path)
+    plain = generate_c(step, latex=False, units=2)
+    probe = ("import sys, jinja2; from symgroupoid.codegen import _emit; "
+             "compiled = []; real = jinja2.Environment.compile; "
+             "jinja2.Environment.compile = lambda self, *a, **k: compiled.append(1) or "
+             "real(self, *a, **k); "
+             "from symgroupoid.systems import planar_chain; "
+             "step = planar_chain(2).euler_lagrange(); "
+             "k = _emit.generate_c(step, latex=False, units=2, template_cache=sys.argv[1]); "
+             "sys.stdout.write(str(len(compiled)) + '\\n' + k.source)")
+    run = subprocess.run([sys.executable, "-c", probe, str(tmp_path / "templates")],
+                         capture_output=True, text=True, check=True, cwd=REPO)
+    count, source = run.stdout.split("\n", 1)
+    assert count == "0" and source == plain.source  # loaded, not compiled
+    for path in kept:
+        path.write_bytes(b"not a compiled template")
+    run = subprocess.run([sys.executable, "-c", probe, str(tmp_path / "templates")],
+                         capture_output=True, text=True, check=True, cwd=REPO)
+    count, source = run.stdout.split("\n", 1)
+    assert int(count) > 0 and source == plain.source  # compiled again
+    missing = tmp_path / "no" / "such" / "directory"
+    assert generate_c(step, latex=False, units=2, template_cache=missing).source == plain.source
+    assert not missing.exists()

@@ -347,7 +347,12 @@ class MatrixLieGroup(Groupoid):
         if not all(v.is_number and v.is_finite and v.is_extended_real for v in x):
             raise DomainError(f"{self.name}: τ(x) needs finite real numbers x, got "
                               f"{', '.join(map(str, x))}")
-        return np.asarray(_numeric_tau(type(self), self.retraction)(*[float(v) for v in x]),
+        values = [float(v) for v in x]
+        if self.retraction == "cayley":  # (I − ξ/2)⁻¹(I + ξ/2), ξ = Σ x_a E_a: no lambdify
+            xi = np.tensordot(values, _numeric_basis(type(self)), axes=1)
+            eye = np.eye(self.n)
+            return np.linalg.solve(eye - xi / 2, eye + xi / 2)
+        return np.asarray(_numeric_tau(type(self), self.retraction)(*values),
                           float).reshape(self.n, self.n)
 
     def _numeric_vee(self, xi: np.ndarray) -> np.ndarray:
@@ -569,6 +574,12 @@ def _tidy(retraction: str):
     if retraction == "cayley":
         return lambda e: sp.factor(sp.cancel(e))
     return lambda e: e
+
+
+@functools.cache
+def _numeric_basis(cls) -> np.ndarray:
+    """The Lie algebra basis E_a as a (rank, n, n) array."""
+    return np.array([np.array(E.tolist(), dtype=float) for E in cls._basis()])
 
 
 @functools.cache

@@ -96,8 +96,8 @@ class Graph:
         terms: dict = {}  # term without its coefficient -> [coefficient, node, count]
         for i in ids:
             o = op[i]
-            if o == CONST:
-                total = total + data[i]
+            if o == CONST:  # (identity tests first: SymPy arithmetic is slow)
+                total = data[i] if total is _ZERO else total + data[i]
                 continue
             if o == MUL and op[args_of[i][0]] == CONST:
                 key, c = args_of[i][1:], data[args_of[i][0]]
@@ -116,7 +116,7 @@ class Graph:
                     continue
                 node = self.mul(self.const(c), *key) if c != 1 or len(key) > 1 else key[0]
             rest.append(node)
-        if total != 0:
+        if total is not _ZERO and total != 0:
             rest.append(self.const(total))
         if not rest:
             return self.zero
@@ -133,21 +133,24 @@ class Graph:
         rest = []
         for i in ids:
             o = op[i]
-            if o == CONST:
-                coeff = coeff * data[i]
+            if o == CONST:  # (identity tests first: SymPy arithmetic is slow)
+                coeff = data[i] if coeff is _ONE else coeff * data[i]
             elif o == MUL and op[args_of[i][0]] == CONST:
-                coeff = coeff * data[args_of[i][0]]
+                c = data[args_of[i][0]]
+                coeff = c if coeff is _ONE else coeff * c
                 rest.extend(args_of[i][1:])
             else:
                 rest.append(i)
-        if coeff == 0:
+        unit = coeff is _ONE
+        if not unit and coeff == 0:
             return self.zero
         if not rest:
             return self.const(coeff)
-        if coeff == 1 and len(rest) == 1:
+        unit = unit or coeff == 1
+        if unit and len(rest) == 1:
             return rest[0]
         rest.sort()
-        if coeff != 1:
+        if not unit:
             rest.insert(0, self.const(coeff))
         args = tuple(rest)
         return self._node(MUL, args, None, (MUL, args))

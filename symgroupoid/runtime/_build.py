@@ -34,15 +34,20 @@ LARGE_PROGRAM = 15_000
 
 
 #: a step kernel (Newton stepper and its functions) of at most this many operations is
-#: compiled at :data:`SMALL_STEP_LEVEL` instead of -O3: as fast to step and compiled in about
-#: half the compiler's time.  Measured per build (CPU seconds of the stepper unit, -O3 ->
-#: small-step level; machine instructions per step from a Newton loop in C):
-#: plate-ball 0.85 -> 0.43 s, 4635 -> 4610; planar chain of 8 links 0.36 -> 0.18 s,
-#: 27950 -> 27799; 16 links 0.79 -> 0.33 s, 95570 -> 102165 (and 4 % faster per step); 3D
-#: chain of 2 bodies 0.26 -> 0.16 s, 7647 -> 7551; of 4 bodies 0.47 -> 0.26 s, 11 % faster
-#: per step.  From the 3D chain of 6 bodies (5822 operations) on, the small-step level is
-#: 5-8 % slower per step, and -O3 is kept (-O2 above LARGE_PROGRAM).
-SMALL_STEP = 4_000
+#: compiled at :data:`SMALL_STEP_LEVEL` instead of -O3: in half to three quarters of the
+#: compiler's time, and up to 4000 operations as fast to step.  Measured per build (CPU
+#: seconds of the stepper unit, -O3 -> small-step level; machine instructions per step from
+#: a Newton loop in C): plate-ball 0.85 -> 0.43 s, 4635 -> 4610; planar chain of 8 links
+#: 0.36 -> 0.18 s, 27950 -> 27799; 16 links 0.79 -> 0.33 s, 95570 -> 102165 (and 4 % faster
+#: per step); 3D chain of 2 bodies 0.26 -> 0.16 s, 7647 -> 7551; of 4 bodies 0.47 -> 0.26 s,
+#: 11 % faster per step.  Above 4000 operations the level trades step time for build time
+#: (wall seconds of the whole compile, µs per step): 3D chain of 6 bodies (5822 operations)
+#: 0.75 -> 0.54 s, 3.75 -> 4.05 µs (+8 %); of 8 bodies (8331) 1.10 -> 0.81 s, 5.95 -> 6.75 µs
+#: (+13 %), still under half of CasADi's generated step (``benchmarks/scaling.py``).  For a
+#: long simulation, ``compile(flags=["-O3", "-ffp-contract=off"])`` builds at -O3.  The
+#: planar chain of 32 links (12337 operations) and larger keep -O3 (-O2 above
+#: LARGE_PROGRAM).
+SMALL_STEP = 9_000
 #: -O1 with complete peeling of loops of a few constant iterations (the stepper's loops over
 #: the unknowns, which -O3 unrolls): the level of a small step's kernel
 SMALL_STEP_LEVEL: tuple[str, ...] = ("-O1", "-fpeel-loops")

@@ -10,6 +10,8 @@ else ``~/.cache/symgroupoid``)::
     locks/<source key>.lock    held (``flock``) by the one process building that kernel
     tmp/                       build directories ``build-<source key>-*``, renamed into
                                kernels/ when complete
+    probes/                    the compiler's OpenMP support, once per compiler
+    templates/                 the kernel templates' compiled code (jinja2 bytecode)
 
 The *source key* hashes the generated C, the compiler flags and the Python/cffi ABI; the
 *input key* hashes the symbolic step (SymPy ``srepr``), the code generator and the same ABI
@@ -74,7 +76,7 @@ _SIGNATURE = "Signature: 8a477f597d28d172789f06886806bc55"
 _MARKER_TEXT = (f"{_SIGNATURE}\n# This directory is a symgroupoid kernel cache: compiled "
                 f"kernels, rebuilt on demand.\n# It can be removed at any time.\n")
 #: what a cache root holds besides the marker (a root holding only these is adopted)
-_CACHE_NAMES = frozenset(SUBDIRS) | {"probes"}
+_CACHE_NAMES = frozenset(SUBDIRS) | {"probes", "templates"}
 #: seconds a process waits for another one building the same kernel
 LOCK_TIMEOUT = 600.0
 #: age (seconds) after which leftovers that name no kernel (``build-*`` of older versions,
@@ -300,6 +302,7 @@ _CACHE_CONTENT = {
     "locks": re.compile(r"[0-9a-f]{32}\.lock"),
     "tmp": re.compile(r"(build|trash|probe)-.*"),
     "probes": re.compile(r"\.?openmp-[0-9a-f]{32}\.json.*"),
+    "templates": re.compile(r"__jinja2_[0-9a-f]{40}\.cache.*"),
 }
 
 
