@@ -669,6 +669,19 @@ static inline double heavy_top_relative_norm(const double *d, const double *u)
     return m;
 }
 
+/* 1 when some error factor |d_j| exceeds the rounding of u_j (DBL_EPSILON |u_j|): after an
+ * update d with contraction rho (factor = rho/(1 - rho)), whether the estimated remaining
+ * error is still above the rounding of u */
+static inline int heavy_top_above_rounding(const double *d, const double *u, double factor)
+{
+    int j, above = 0;
+    HEAVY_TOP_UNROLL
+    for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+        above |= factor * fabs(d[j]) > DBL_EPSILON * fabs(u[j]);
+    }
+    return above;
+}
+
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
  * The Jacobian at the guess is factored before any convergence test, so every call checks
  * it at least once: a degenerate step is reported as HEAVY_TOP_SINGULAR_JACOBIAN, never returned
@@ -684,6 +697,12 @@ static inline double heavy_top_relative_norm(const double *d, const double *u)
  *    reported), and the iterate is accepted only if a rounding-level update explains that
  *    residual (heavy_top_explained_by_rounding), or failing that heavy_top_at_floor; otherwise
  *    Newton goes on (a small relative update at a runaway iterate is not convergence);
+ *    after a stop on the estimate, when the estimated error is above the rounding of u
+ *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update), the
+ *    accepted iterate takes one more chord update from that residual, which costs no
+ *    evaluation (a "polishing" update, counted in *iterations, applied only when smaller
+ *    than the last update): the remaining error, though within tol_step, is systematic, and
+ *    a conserved quantity would drift by it at every step;
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
  *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
  *    move of the unknowns (heavy_top_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
@@ -697,14 +716,14 @@ static inline double heavy_top_relative_norm(const double *d, const double *u)
  * that rounding noise but the residual is not explained by it: Newton cannot improve the
  * iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
- * iterate. */
+ * iterate (before its polishing update). */
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
     double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], uJ[HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, done = 0;
+    int it, i, status, slow, done = 0, polish = 0;
     for (it = 0;; ++it) {
         double rnorm, step;
         if (it == 0) {
@@ -719,53 +738,67 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             return HEAVY_TOP_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (heavy_top_explained_by_rounding(F, J, u, uJ, &lu)) {
+            if (heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
+                || (heavy_top_coordinate_floor(J, uJ, C),
+                    heavy_top_at_floor(u, known, p, F, C, options->floor_factor))) {
+                if (done == 1) {
+                    return HEAVY_TOP_OK;
+                }
+                polish = 1; /* accepted; one more chord update from this residual (below) */
+            } else {
+                done = 0; /* a small update, a residual above the floor: iterate on */
+            }
+        }
+        if (!polish) { /* (a polishing update skips the tests: u is accepted) */
+            if (it == 0) {
+                memcpy(uJ, u, sizeof uJ);
+                status = heavy_top_lu_factor(J, &lu);
+                if (status != HEAVY_TOP_OK) {
+                    return status;
+                }
+            }
+            if (rnorm <= options->tol_residual) {
                 return HEAVY_TOP_OK;
             }
-            heavy_top_coordinate_floor(J, uJ, C);
-            if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
-                return HEAVY_TOP_OK;
+            slow = it > 0 && !(rnorm <= 0.1 * previous);
+            if (slow) {
+                heavy_top_coordinate_floor(J, uJ, C);
+                if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
+                    return HEAVY_TOP_OK;
+                }
+                if (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv)) {
+                    /* the update is rounding noise: accepted if it explains the residual */
+                    return heavy_top_explained_by_rounding(F, J, u, uJ, &lu) ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
+                }
             }
-            done = 0; /* a small update, a residual above the floor: iterate on */
-        }
-        if (it == 0) {
-            memcpy(uJ, u, sizeof uJ);
-            status = heavy_top_lu_factor(J, &lu);
-            if (status != HEAVY_TOP_OK) {
-                return status;
+            if (it >= options->max_iterations) {
+                return HEAVY_TOP_NOT_CONVERGED;
             }
-        }
-        if (rnorm <= options->tol_residual) {
-            return HEAVY_TOP_OK;
-        }
-        slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow) {
-            heavy_top_coordinate_floor(J, uJ, C);
-            if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
-                return HEAVY_TOP_OK;
-            }
-            if (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv)) {
-                /* the update is rounding noise: accepted if it explains the residual */
-                return heavy_top_explained_by_rounding(F, J, u, uJ, &lu) ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
-            }
-        }
-        if (it >= options->max_iterations) {
-            return HEAVY_TOP_NOT_CONVERGED;
-        }
-        if (slow) {
-            heavy_top_residual_jacobian(u, known, p, F, J);
-            memcpy(uJ, u, sizeof uJ);
-            status = heavy_top_lu_factor(J, &lu);
-            if (status != HEAVY_TOP_OK) {
-                return status;
+            if (slow) {
+                heavy_top_residual_jacobian(u, known, p, F, J);
+                memcpy(uJ, u, sizeof uJ);
+                status = heavy_top_lu_factor(J, &lu);
+                if (status != HEAVY_TOP_OK) {
+                    return status;
+                }
             }
         }
         previous = rnorm;
         status = heavy_top_lu_apply(&lu, F);
         if (status != HEAVY_TOP_OK) {
-            return status;
+            return polish ? HEAVY_TOP_OK : status;
         }
         step = heavy_top_relative_norm(F, u);
+        if (polish) { /* applied and counted when smaller than the last update */
+            if (step < last_step) {
+                HEAVY_TOP_UNROLL
+                for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+                    u[i] -= F[i];
+                }
+                *iterations = it + 1;
+            }
+            return HEAVY_TOP_OK;
+        }
         HEAVY_TOP_UNROLL
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
@@ -774,7 +807,10 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             done = 1;
         } else if (it > 0 && step < last_step) {
             const double rho = step / last_step;
-            done = rho / (1.0 - rho) * step <= options->tol_step;
+            if (rho / (1.0 - rho) * step <= options->tol_step) {
+                /* to be polished, unless the remaining error is below the rounding of u */
+                done = heavy_top_above_rounding(F, u, rho / (1.0 - rho)) ? 2 : 1;
+            }
         }
         last_step = step;
     }

@@ -661,6 +661,19 @@ static inline double rigid_body_relative_norm(const double *d, const double *u)
     return m;
 }
 
+/* 1 when some error factor |d_j| exceeds the rounding of u_j (DBL_EPSILON |u_j|): after an
+ * update d with contraction rho (factor = rho/(1 - rho)), whether the estimated remaining
+ * error is still above the rounding of u */
+static inline int rigid_body_above_rounding(const double *d, const double *u, double factor)
+{
+    int j, above = 0;
+    RIGID_BODY_UNROLL
+    for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
+        above |= factor * fabs(d[j]) > DBL_EPSILON * fabs(u[j]);
+    }
+    return above;
+}
+
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
  * The Jacobian at the guess is factored before any convergence test, so every call checks
  * it at least once: a degenerate step is reported as RIGID_BODY_SINGULAR_JACOBIAN, never returned
@@ -676,6 +689,12 @@ static inline double rigid_body_relative_norm(const double *d, const double *u)
  *    reported), and the iterate is accepted only if a rounding-level update explains that
  *    residual (rigid_body_explained_by_rounding), or failing that rigid_body_at_floor; otherwise
  *    Newton goes on (a small relative update at a runaway iterate is not convergence);
+ *    after a stop on the estimate, when the estimated error is above the rounding of u
+ *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update), the
+ *    accepted iterate takes one more chord update from that residual, which costs no
+ *    evaluation (a "polishing" update, counted in *iterations, applied only when smaller
+ *    than the last update): the remaining error, though within tol_step, is systematic, and
+ *    a conserved quantity would drift by it at every step;
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
  *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
  *    move of the unknowns (rigid_body_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
@@ -689,14 +708,14 @@ static inline double rigid_body_relative_norm(const double *d, const double *u)
  * that rounding noise but the residual is not explained by it: Newton cannot improve the
  * iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
- * iterate. */
+ * iterate (before its polishing update). */
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
     double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], uJ[RIGID_BODY_N_UNKNOWNS];
     rigid_body_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, done = 0;
+    int it, i, status, slow, done = 0, polish = 0;
     for (it = 0;; ++it) {
         double rnorm, step;
         if (it == 0) {
@@ -711,53 +730,67 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
             return RIGID_BODY_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (rigid_body_explained_by_rounding(F, J, u, uJ, &lu)) {
+            if (rigid_body_explained_by_rounding(F, J, u, uJ, &lu)
+                || (rigid_body_coordinate_floor(J, uJ, C),
+                    rigid_body_at_floor(u, known, p, F, C, options->floor_factor))) {
+                if (done == 1) {
+                    return RIGID_BODY_OK;
+                }
+                polish = 1; /* accepted; one more chord update from this residual (below) */
+            } else {
+                done = 0; /* a small update, a residual above the floor: iterate on */
+            }
+        }
+        if (!polish) { /* (a polishing update skips the tests: u is accepted) */
+            if (it == 0) {
+                memcpy(uJ, u, sizeof uJ);
+                status = rigid_body_lu_factor(J, &lu);
+                if (status != RIGID_BODY_OK) {
+                    return status;
+                }
+            }
+            if (rnorm <= options->tol_residual) {
                 return RIGID_BODY_OK;
             }
-            rigid_body_coordinate_floor(J, uJ, C);
-            if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
-                return RIGID_BODY_OK;
+            slow = it > 0 && !(rnorm <= 0.1 * previous);
+            if (slow) {
+                rigid_body_coordinate_floor(J, uJ, C);
+                if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
+                    return RIGID_BODY_OK;
+                }
+                if (last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv)) {
+                    /* the update is rounding noise: accepted if it explains the residual */
+                    return rigid_body_explained_by_rounding(F, J, u, uJ, &lu) ? RIGID_BODY_OK : RIGID_BODY_NOT_CONVERGED;
+                }
             }
-            done = 0; /* a small update, a residual above the floor: iterate on */
-        }
-        if (it == 0) {
-            memcpy(uJ, u, sizeof uJ);
-            status = rigid_body_lu_factor(J, &lu);
-            if (status != RIGID_BODY_OK) {
-                return status;
+            if (it >= options->max_iterations) {
+                return RIGID_BODY_NOT_CONVERGED;
             }
-        }
-        if (rnorm <= options->tol_residual) {
-            return RIGID_BODY_OK;
-        }
-        slow = it > 0 && !(rnorm <= 0.1 * previous);
-        if (slow) {
-            rigid_body_coordinate_floor(J, uJ, C);
-            if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
-                return RIGID_BODY_OK;
-            }
-            if (last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv)) {
-                /* the update is rounding noise: accepted if it explains the residual */
-                return rigid_body_explained_by_rounding(F, J, u, uJ, &lu) ? RIGID_BODY_OK : RIGID_BODY_NOT_CONVERGED;
-            }
-        }
-        if (it >= options->max_iterations) {
-            return RIGID_BODY_NOT_CONVERGED;
-        }
-        if (slow) {
-            rigid_body_residual_jacobian(u, known, p, F, J);
-            memcpy(uJ, u, sizeof uJ);
-            status = rigid_body_lu_factor(J, &lu);
-            if (status != RIGID_BODY_OK) {
-                return status;
+            if (slow) {
+                rigid_body_residual_jacobian(u, known, p, F, J);
+                memcpy(uJ, u, sizeof uJ);
+                status = rigid_body_lu_factor(J, &lu);
+                if (status != RIGID_BODY_OK) {
+                    return status;
+                }
             }
         }
         previous = rnorm;
         status = rigid_body_lu_apply(&lu, F);
         if (status != RIGID_BODY_OK) {
-            return status;
+            return polish ? RIGID_BODY_OK : status;
         }
         step = rigid_body_relative_norm(F, u);
+        if (polish) { /* applied and counted when smaller than the last update */
+            if (step < last_step) {
+                RIGID_BODY_UNROLL
+                for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+                    u[i] -= F[i];
+                }
+                *iterations = it + 1;
+            }
+            return RIGID_BODY_OK;
+        }
         RIGID_BODY_UNROLL
         for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
@@ -766,7 +799,10 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
             done = 1;
         } else if (it > 0 && step < last_step) {
             const double rho = step / last_step;
-            done = rho / (1.0 - rho) * step <= options->tol_step;
+            if (rho / (1.0 - rho) * step <= options->tol_step) {
+                /* to be polished, unless the remaining error is below the rounding of u */
+                done = rigid_body_above_rounding(F, u, rho / (1.0 - rho)) ? 2 : 1;
+            }
         }
         last_step = step;
     }

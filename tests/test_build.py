@@ -99,7 +99,7 @@ def test_the_optimisation_level_follows_the_kind_and_size_of_a_kernel():
         assert _build.optimisation_flags(operations) == _build.DEFAULT_FLAGS
     assert _build.optimisation_flags(large) == ("-O2", *contract)
     step = planar_chain(2).euler_lagrange()
-    assert _compile._step_flags(step, None)[:3] == (*_build.SMALL_STEP_LEVEL, *contract)
+    assert _compile._step_flags(step, None)[:4] == (*_build.SMALL_STEP_LEVEL, *contract)
     assert _build.unit_flags(_build.optimisation_flags(small, step=True), cold=True) == (
         *_build.SMALL_STEP_LEVEL, *contract)  # -O1 already: the cold unit keeps it
 

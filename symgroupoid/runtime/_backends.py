@@ -66,7 +66,12 @@ class NewtonOptions:
       residual evaluated there (reported), and the iterate is accepted only when that
       residual is at the rounding floor: every |F_i| ≤ ``floor_factor``·ε·Σ_j |J_ij|·
       min(|u_j|, |u_J,j|), or failing that the floor test below; otherwise Newton goes on (a
-      small relative update at a runaway iterate, |u| ~ 10⁹⁰, is not convergence);
+      small relative update at a runaway iterate, |u| ~ 10⁹⁰, is not convergence).  After a
+      stop on the estimate whose error is above the rounding of u (ρ/(1 − ρ)·|d_j| > ε·|u_j|
+      for some j), the accepted iterate takes one more chord update from that
+      residual (no evaluation; counted as an update) when it is smaller than the last one:
+      the remaining error, though within ``tol_step``, is systematic and above the rounding
+      of u, and a conserved quantity would drift by it at every step;
     - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and
       every |F_i| is at most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_J,j| (J the
       last factored Jacobian, evaluated at u_J) and N_i its change under a move of every
@@ -709,6 +714,21 @@ def pivot_ratio(factors: LUFactors) -> float:
     return float(np.max(np.abs(factors.inv)) / np.min(np.abs(factors.inv)))
 
 
+def polish(factors, F: np.ndarray, u: np.ndarray, last_step: float, it: int
+           ) -> tuple[np.ndarray, int]:
+    """As ``<prefix>_polish``: one more chord update of an accepted iterate u from its
+    residual F (no evaluation), when smaller than the last update; (u, updates made)."""
+    status, du = lu_apply(factors, F)
+    if status == OK and relative_norm(du, u) < last_step:
+        return u - du, it + 1
+    return u, it
+
+
+def above_rounding(d: np.ndarray, u: np.ndarray, factor: float) -> bool:
+    """As ``<prefix>_above_rounding``: some factor·|d_j| > ε·|u_j|."""
+    return bool(np.any(factor * np.abs(d) > EPSILON * np.abs(u)))
+
+
 def relative_norm(d: np.ndarray, u: np.ndarray) -> float:
     """max_j |d_j| / (1 + |u_j|), as ``<prefix>_relative_norm``."""
     with np.errstate(all="ignore"):
@@ -785,7 +805,7 @@ class NumpyKernel(_Kernel):
         """As ``<prefix>_newton`` (see :class:`NewtonOptions`)."""
         previous = last_step = 0.0
         factors = uJ = None
-        done = False
+        done = 0  # 1: stopped on a rounding-noise update, 2: on the estimated error
         it = 0
         while True:
             if it == 0:
@@ -798,8 +818,10 @@ class NumpyKernel(_Kernel):
             if done:  # after the final update: accepted only at the rounding floor
                 if explained_by_rounding(F, J, u, uJ, pivot_ratio(factors)) or self._at_floor(
                         u, known, p, F, coordinate_floor(J, uJ), options.floor_factor):
+                    if done == 2:
+                        u, it = polish(factors, F, u, last_step, it)
                     return OK, u, it, rnorm
-                done = False  # a small update, a residual above the floor: iterate on
+                done = 0  # a small update, a residual above the floor: iterate on
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
                 uJ = u
                 status, factors = lu_factor(J)
@@ -830,10 +852,11 @@ class NumpyKernel(_Kernel):
             step = relative_norm(du, u)
             u = u - du
             if step <= 4.0 * EPSILON:  # the update is rounding noise of u
-                done = True
+                done = 1
             elif it > 0 and step < last_step:
                 rho = step / last_step
-                done = rho / (1.0 - rho) * step <= options.tol_step
+                if rho / (1.0 - rho) * step <= options.tol_step:  # polished unless below
+                    done = 2 if above_rounding(du, u, rho / (1.0 - rho)) else 1
             last_step = step
             it += 1
 
