@@ -68,6 +68,9 @@ def _output(path, owner: str):
     if path.suffix.lstrip(".").lower() not in formats:
         raise DomainError(f"{owner}: path {str(path)!r} must end in the suffix of a figure "
                           f"format ({', '.join('.' + f for f in sorted(formats))})")
+    if not path.parent.is_dir():  # refused before any drawing
+        raise OutputError(f"{owner}: the figure cannot be written to path {str(path)!r}: "
+                          f"the directory {str(path.parent)!r} does not exist")
     return path
 
 
@@ -77,7 +80,7 @@ def _finish(fig, path: str | PathLike | None, owner: str):
         try:
             fig.savefig(path, dpi=120)
         except OSError as exc:
-            raise OutputError(f"{owner}: the figure cannot be written to {str(path)!r}: "
+            raise OutputError(f"{owner}: the figure cannot be written to path {str(path)!r}: "
                               f"{exc.strerror or exc}") from exc
     return fig
 

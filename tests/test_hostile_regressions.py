@@ -187,8 +187,12 @@ def test_figures_check_parts_and_paths_before_drawing(tmp_path):
     with pytest.raises(sg.ShapeError, match=r"path 'f.xyz' must end in the suffix of a "
                                             r"figure format"):
         sg.plot_trajectory(traj, ["x"], path="f.xyz")
-    with pytest.raises(sg.OutputError, match="cannot be written to"):
+    import matplotlib.pyplot as plt
+
+    figures = plt.get_fignums()
+    with pytest.raises(sg.OutputError, match="cannot be written to path .*does not exist"):
         sg.plot_trajectory(traj, ["x"], path=str(tmp_path / "missing" / "f.png"))
+    assert plt.get_fignums() == figures  # refused before drawing
     with pytest.raises(sg.ShapeError, match="constraints must be True or False"):
         sg.plot_conservation(traj, constraints="yes")
 

@@ -311,8 +311,9 @@ def test_verify_stationary(name, run):
         names = [which]
         if which == "trajectory":
             args["trajectory"] = data.draw(junk())
-            # raw arrows carry no parameters: with params=None that is the error to name
-            names = ["trajectory", "arrows", "parameters"]
+            # raw arrows carry no parameters, nor multipliers (for a constrained system): with
+            # params=None and multipliers=None either is the error to name
+            names = ["trajectory", "arrows", "parameters", "multipliers"]
         elif which == "arrows":
             args["trajectory"] = data.draw(near(arrows))
             args["multipliers"], args["params"] = lam, case.params
