@@ -899,7 +899,8 @@ static inline int plate_ball_above_rounding(const double *d, const double *u, do
  *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update), the
  *    accepted iterate takes one more chord update from that residual, which costs no
  *    evaluation (a "polishing" update, counted in *iterations, applied only when smaller
- *    than the last update): the remaining error, though within tol_step, is systematic, and
+ *    than the last update and within max_iterations): the remaining error, though within
+ *    tol_step, is systematic, and
  *    a conserved quantity would drift by it at every step;
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
  *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
@@ -939,7 +940,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
             if (plate_ball_explained_by_rounding(F, J, u, uJ, &lu)
                 || (plate_ball_coordinate_floor(J, uJ, C),
                     plate_ball_at_floor(u, known, p, F, C, options->floor_factor))) {
-                if (done == 1) {
+                if (done == 1 || it >= options->max_iterations) {
                     return PLATE_BALL_OK;
                 }
                 polish = 1; /* accepted; one more chord update from this residual (below) */

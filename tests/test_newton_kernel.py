@@ -13,6 +13,7 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
     needs_cc,
 )
 
+from symgroupoid import NewtonOptions
 from symgroupoid.runtime._backends import (
     NON_FINITE,
     OK,
@@ -276,3 +277,12 @@ def test_the_polishing_update_is_made_alike_by_both_steppers():
     assert np.array_equal(a.newton_iterations, b.newton_iterations)
     assert np.array_equal(a.residual_norms, b.residual_norms)
     assert np.count_nonzero(np.asarray(a.newton_iterations) == 3) >= 20
+    # from a guess 3e-6 off the root: two updates, then the polishing one -- unless the
+    # iteration cap is two
+    known, p = a.states[10], np.array([params["h"], params["g"]])
+    root = c_sim.kernel.solve_step(known, p, np.zeros(3), NewtonOptions())[1]
+    for cap, updates in ((50, 3), (2, 2)):
+        runs = [sim.kernel.solve_step(known, p, root + 3e-6, NewtonOptions(max_iterations=cap))
+                for sim in (c_sim, np_sim)]
+        assert [r[0] for r in runs] == [0, 0] and [r[2] for r in runs] == [updates] * 2
+        assert np.array_equal(runs[0][1], runs[1][1])

@@ -69,7 +69,8 @@ class NewtonOptions:
       small relative update at a runaway iterate, |u| ~ 10⁹⁰, is not convergence).  After a
       stop on the estimate whose error is above the rounding of u (ρ/(1 − ρ)·|d_j| > ε·|u_j|
       for some j), the accepted iterate takes one more chord update from that
-      residual (no evaluation; counted as an update) when it is smaller than the last one:
+      residual (no evaluation; counted as an update) when it is smaller than the last one
+      and ``max_iterations`` allows one more:
       the remaining error, though within ``tol_step``, is systematic and above the rounding
       of u, and a conserved quantity would drift by it at every step;
     - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and
@@ -818,7 +819,7 @@ class NumpyKernel(_Kernel):
             if done:  # after the final update: accepted only at the rounding floor
                 if explained_by_rounding(F, J, u, uJ, pivot_ratio(factors)) or self._at_floor(
                         u, known, p, F, coordinate_floor(J, uJ), options.floor_factor):
-                    if done == 2:
+                    if done == 2 and it < options.max_iterations:
                         u, it = polish(factors, F, u, last_step, it)
                     return OK, u, it, rnorm
                 done = 0  # a small update, a residual above the floor: iterate on
