@@ -162,6 +162,23 @@ def test_stored_templates_are_the_derived_trees_and_the_file_is_current():
     assert _closed_forms_build.source() == Path(_closed_forms.__file__).read_text("utf-8")
 
 
+def test_the_stored_file_is_what_a_derivation_without_it_writes():
+    """In a process where no stored template is ever read (every one derived, the Cayley map
+    under q·τ(x) and τ⁻¹(q⁻¹p) included), the builder writes the stored file exactly."""
+    import subprocess
+    import sys
+
+    probe = ("import sys; from symgroupoid.groupoids import _matrix_groups as mg; "
+             "mg._stored_form = lambda key, placeholders: None; "
+             "from symgroupoid.groupoids import _closed_forms_build as b; "
+             "sys.stdout.write(b.source())")
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                         check=True, cwd=Path(__file__).resolve().parents[1])
+    from symgroupoid.groupoids import _closed_forms
+
+    assert run.stdout == Path(_closed_forms.__file__).read_text("utf-8")
+
+
 def test_stored_templates_are_used_only_for_the_groups_they_were_derived_for():
     """A subclass (here one with another basis order) derives its own templates."""
     from symgroupoid.groupoids._matrix_groups import _builtin, _cayley_template
