@@ -900,8 +900,7 @@ static inline int plate_ball_above_rounding(const double *d, const double *u, do
  *    accepted iterate takes one more chord update from that residual, which costs no
  *    evaluation (a "polishing" update, counted in *iterations, applied only when smaller
  *    than the last update and within max_iterations): the remaining error, though within
- *    tol_step, is systematic, and
- *    a conserved quantity would drift by it at every step;
+ *    tol_step, is systematic, and a conserved quantity would drift by it at every step;
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
  *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
  *    move of the unknowns (plate_ball_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):

@@ -717,8 +717,9 @@ def pivot_ratio(factors: LUFactors) -> float:
 
 def polish(factors, F: np.ndarray, u: np.ndarray, last_step: float, it: int
            ) -> tuple[np.ndarray, int]:
-    """As ``<prefix>_polish``: one more chord update of an accepted iterate u from its
-    residual F (no evaluation), when smaller than the last update; (u, updates made)."""
+    """The polishing update of ``<prefix>_newton``: one more chord update of an accepted
+    iterate u from its residual F (no evaluation), when smaller than the last update;
+    (u, updates made)."""
     status, du = lu_apply(factors, F)
     if status == OK and relative_norm(du, u) < last_step:
         return u - du, it + 1
