@@ -335,3 +335,9 @@ def test_the_templates_compiled_code_is_kept_in_the_cache_and_never_changes_the_
     missing = tmp_path / "no" / "such" / "directory"
     assert generate_c(step, latex=False, units=2, template_cache=missing).source == plain.source
     assert not missing.exists()
+    blocked = tmp_path / "blocked"  # templates/ found as a file: nothing kept, nothing fails
+    (blocked / "templates").parent.mkdir()
+    (blocked / "templates").write_text("not a directory")
+    assert _compile.compiled_templates(_cache.KernelCache(blocked)) is None
+    sg.compile_step(step, backend="c", cache_dir=blocked)
+    assert (blocked / "templates").read_text() == "not a directory"
