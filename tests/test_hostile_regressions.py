@@ -239,6 +239,32 @@ def test_emit_c_checks_step_path_and_prefix(tmp_path):
         sg.emit_c(step, tmp_path / "file" / "k")
 
 
+def test_generate_c_checks_its_template_cache():
+    """(A template cache that is not a path was a TypeError from os.fspath.)"""
+    step = oscillator().euler_lagrange()
+    for value, error, message in ((3, sg.InputTypeError, "template_cache must be a path"),
+                                  (b"dir", sg.InputTypeError, "template_cache must be a path"),
+                                  ("", sg.ShapeError, "template_cache must not be empty"),
+                                  ("a\0b", sg.ShapeError, "NUL")):
+        with pytest.raises(error, match=message):
+            sg.codegen.generate_c(step, template_cache=value)
+
+
+def test_numeric_cayley_refuses_a_singular_point():
+    """A group whose basis lets I − ξ/2 be singular (here ξ = x·I) has no cay(x) at x = 2:
+    a DomainError naming x (the solve raised LinAlgError)."""
+
+    class Stretch(sg.SO2):
+        @classmethod
+        def _basis(cls):
+            return [sp.eye(2)]
+
+    G = Stretch("s")
+    np.testing.assert_allclose(G.numeric_tau([0.5]), np.eye(2) * 1.25 / 0.75)
+    with pytest.raises(sg.DomainError, match=r"cay\(x\) is undefined at x = 2\.0"):
+        G.numeric_tau([2.0])
+
+
 def test_a_batch_is_indexed_by_run_number():
     """(A string or an out-of-range run in ``batch.error(b)`` was a raw NumPy error.)"""
     S, params = _rows()

@@ -71,7 +71,7 @@ class CompiledTemplates(jinja2.FileSystemBytecodeCache):
             super().dump_bytecode(bucket)
 
 
-@functools.cache
+@functools.lru_cache(maxsize=8)  # (one per cache directory in use: a few)
 def _environment(directory: str, compiled: str | None = None) -> jinja2.Environment:
     """The templates of ``directory``; their compiled code kept in ``compiled`` if given
     (:class:`CompiledTemplates`)."""
@@ -207,8 +207,9 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     if len(step) != len(step.unknowns):
         raise ValueError(f"{step.name}: {len(step)} equations in "
                          f"{len(step.unknowns)} unknowns; a Newton kernel needs a square system")
-    env = _environment(str(template_dir()),
-                       None if template_cache is None else os.fspath(template_cache))
+    if template_cache is not None:
+        template_cache = str(path_argument(template_cache, "template_cache", owner=prefix))
+    env = _environment(str(template_dir()), template_cache)
     header_name = header_name or f"{prefix}.h"
     ctx = _context(step, prefix, header_name, latex, units)
     unit_template = env.get_template("unit.c.j2")

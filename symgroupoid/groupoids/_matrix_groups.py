@@ -351,7 +351,14 @@ class MatrixLieGroup(Groupoid):
         if self.retraction == "cayley":  # (I − ξ/2)⁻¹(I + ξ/2), ξ = Σ x_a E_a: no lambdify
             xi = np.tensordot(values, _numeric_basis(type(self)), axes=1)
             eye = np.eye(self.n)
-            return np.linalg.solve(eye - xi / 2, eye + xi / 2)
+            try:
+                M = np.linalg.solve(eye - xi / 2, eye + xi / 2)
+            except np.linalg.LinAlgError:
+                M = None
+            if M is None or not np.isfinite(M).all():
+                raise DomainError(f"{self.name}: cay(x) is undefined at x = "
+                                  f"{', '.join(map(str, values))} (I − ξ/2 is singular)")
+            return M
         return np.asarray(_numeric_tau(type(self), self.retraction)(*values),
                           float).reshape(self.n, self.n)
 
