@@ -206,3 +206,20 @@ def test_fingerprint_distinguishes_and_is_stable():
     step = oscillator()
     assert _compile.input_key(step, ["-O2"]) == _compile.input_key(oscillator(), ["-O2"])
     assert _compile.input_key(step, ["-O2"]) != _compile.input_key(step, ["-O3"])
+
+
+def test_codegen_digest_covers_the_build_rules(monkeypatch, tmp_path):
+    """The kernel cache's code digest hashes the code generator, the expression graph and
+    runtime/_build.py (whose per-unit flags a cache key's flags do not all name), by
+    content."""
+    package = Path(_compile.__file__).resolve().parents[1]
+    sources = _compile.codegen_sources()
+    assert package / "runtime" / "_build.py" in sources
+    for folder in ("codegen", "ir"):
+        assert set((package / folder).glob("*.py")) <= set(sources)
+    rules = tmp_path / "_build.py"
+    rules.write_text("COLD_LEVEL = '-O1'\n", encoding="ascii")
+    monkeypatch.setattr(_compile, "codegen_sources", lambda: [rules])
+    before = _compile.codegen_digest.__wrapped__()
+    rules.write_text("COLD_LEVEL = '-O0'\n", encoding="ascii")
+    assert _compile.codegen_digest.__wrapped__() != before

@@ -63,15 +63,23 @@ _RECIPES: dict[str, tuple[KernelSource, tuple[str, ...], str]] = {}
 STATS = {"codegen": 0, "builds": 0, "loads": 0}
 
 
+def codegen_sources() -> list[Path]:
+    """The package sources that decide a kernel's C and how it is built: the code generator,
+    the expression graph, and ``runtime/_build.py`` (the per-unit flags, e.g. the cold
+    unit's level, are not all part of a cache key's flags)."""
+    package = Path(__file__).resolve().parents[1]
+    return sorted([*(package / "codegen").glob("*.py"), *(package / "ir").glob("*.py"),
+                   package / "runtime" / "_build.py"])
+
+
 @functools.cache
 def codegen_digest() -> str:
-    """Hash of everything that turns a step into C: templates, the expression graph and the
-    code generator sources."""
+    """Hash of everything that turns a step into a built kernel: templates and
+    :func:`codegen_sources`."""
     from .. import __version__
 
-    package = Path(__file__).resolve().parents[1]
-    files = sorted([*(package / "codegen").glob("*.py"), *(package / "ir").glob("*.py")])
-    return sha256_of([__version__, templates_digest(), *(f.read_bytes() for f in files)])
+    return sha256_of([__version__, templates_digest(),
+                      *(f.read_bytes() for f in codegen_sources())])
 
 
 #: the flag that compiles (and links) a kernel's batched entry point with OpenMP threads
