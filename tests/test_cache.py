@@ -209,12 +209,13 @@ def test_fingerprint_distinguishes_and_is_stable():
 
 
 def test_codegen_digest_covers_the_build_rules(monkeypatch, tmp_path):
-    """The kernel cache's code digest hashes the code generator, the expression graph and
-    runtime/_build.py (whose per-unit flags a cache key's flags do not all name), by
-    content."""
+    """The kernel cache's code digest hashes the code generator, the expression graph,
+    runtime/_compile.py (step_kernel) and runtime/_build.py (whose per-unit flags a cache
+    key's flags do not all name), by content."""
     package = Path(_compile.__file__).resolve().parents[1]
     sources = _compile.codegen_sources()
     assert package / "runtime" / "_build.py" in sources
+    assert package / "runtime" / "_compile.py" in sources
     for folder in ("codegen", "ir"):
         assert set((package / folder).glob("*.py")) <= set(sources)
     rules = tmp_path / "_build.py"

@@ -65,11 +65,12 @@ STATS = {"codegen": 0, "builds": 0, "loads": 0}
 
 def codegen_sources() -> list[Path]:
     """The package sources that decide a kernel's C and how it is built: the code generator,
-    the expression graph, and ``runtime/_build.py`` (the per-unit flags, e.g. the cold
-    unit's level, are not all part of a cache key's flags)."""
+    the expression graph, this module (:func:`step_kernel`'s options) and
+    ``runtime/_build.py`` (the translation units; the per-unit flags, e.g. the cold unit's
+    level, are not all part of a cache key's flags)."""
     package = Path(__file__).resolve().parents[1]
     return sorted([*(package / "codegen").glob("*.py"), *(package / "ir").glob("*.py"),
-                   package / "runtime" / "_build.py"])
+                   package / "runtime" / "_build.py", Path(__file__).resolve()])
 
 
 @functools.cache
