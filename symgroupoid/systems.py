@@ -12,8 +12,10 @@ and code generation scale (``benchmarks/scaling.py``):
 - ``planar_chain(n)``: the planar n-link pendulum in angle coordinates on the pair groupoid
   of Rⁿ, midpoint discrete Lagrangian;
 - ``spherical_chain(n)``: n rigid bodies joined by spherical joints, the first pinned, under
-  gravity — the Lie group variational integrator of Lee, Leok and McClamroch, written on a
-  product of action groupoids R⁹ × SO(3) ⇉ R⁹.
+  gravity — the Lie group variational integrator of Lee, Leok and McClamroch, written on
+  the pair groupoid of SO(3)ⁿ; ``spherical_chain_increments(n)`` is the same system in
+  increment coordinates (:class:`TrivialisedPairGroupoid`), whose state keeps each body's
+  increment F_i − I, so that its Noether momenta stay at the rounding floor over long runs.
 
 Systems with holonomic constraints ψ(q) = 0 on the configuration space
 (docs/conventions.md §15): ``spherical_pendulum()``, ``link_chain(n)`` (a planar chain in
@@ -43,6 +45,7 @@ from .groupoids import (
     NamedMatrix,
     PairGroupoid,
     ProductGroupoid,
+    TrivialisedPairGroupoid,
 )
 from .runtime._validate import integer_argument
 
@@ -230,6 +233,46 @@ def spherical_chain(n: int) -> DiscreteSystem:
         return (rotational + kinetic) / h - h * potential
 
     return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_{n}")
+
+
+def spherical_chain_increments(n: int) -> DiscreteSystem:
+    """:func:`spherical_chain` (n) in increment coordinates; parameters ``h, g``.
+
+    The groupoid is the product of :class:`TrivialisedPairGroupoid` (``SO3("R_i")``,
+    increment ``"F_i"``): an arrow carries every body's attitude R_{i,k} and the offset
+    F_{i,k} − I of its increment F_{i,k} = R_{i,k}ᵀR_{i,k+1}, and a step solves for the
+    Cayley coordinates of F_{i,k+1}, as :func:`spherical_chain` does.  The same discrete
+    Lagrangian, written through the increments so that nothing cancels:
+
+        L_d = Σᵢ [ (1/h) tr((I₃ − F_i) J_{d,i}) + (1/(2h)) |Δc_i|²
+                   − (h/2) g e₃·(2 c_i(R_k) + Δc_i) ],
+        Δc_i = c_i(R_{k+1}) − c_i(R_k) = Σ_{j<i} R_j (F_j − I) ℓ + R_i (F_i − I) ρ.
+
+    A state is given as ``{"R1": R_{1,0}, "F1": R_{1,0}ᵀR_{1,1}, …}`` (docs/conventions.md
+    §18).
+    """
+    n = integer_argument(n, "n", minimum=1, maximum=MAX_DIMENSION,
+                         owner="spherical_chain_increments")
+    h, grav = sp.symbols("h g", positive=True)
+    factors = [TrivialisedPairGroupoid(SO3(f"R{i}"), f"F{i}") for i in range(1, n + 1)]
+    G = factors[0] if n == 1 else ProductGroupoid(*factors)
+    up, link, centre = sp.Matrix([0, 0, 1]), sp.Matrix(CHAIN_LINK), sp.Matrix(CHAIN_CENTRE)
+    Jd = [chain_inertia(i).trace() / 2 * sp.eye(3) - chain_inertia(i) for i in range(1, n + 1)]
+
+    def L(g):
+        arrows = [g] if n == 1 else list(g)
+        rotational = kinetic = potential = sp.S.Zero
+        joint, moved = sp.zeros(3, 1), sp.zeros(3, 1)  # Σ_{j<i} R_j ℓ and Σ_{j<i} R_j D_j ℓ
+        for a, J in zip(arrows, Jd):
+            R, D = a.source, a.increment - sp.eye(3)
+            rotational += ((sp.eye(3) - a.increment) * J).trace()
+            dc = moved + R * (D * centre)
+            kinetic += (dc.T * dc)[0, 0] / 2
+            potential += (up.T * (2 * (joint + R * centre) + dc))[0, 0] / 2
+            joint, moved = joint + R * link, moved + R * (D * link)
+        return (rotational + kinetic) / h - h * grav * potential
+
+    return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_increments_{n}")
 
 
 # --- holonomic constraints on the configuration space (docs/conventions.md §15) -------------

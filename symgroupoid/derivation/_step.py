@@ -342,7 +342,7 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
     known_fibres = [f for o in offsets[1:-1] for f in G.named_fibre(o)]
     knowns = list(arrows[first]) + known_fibres + [x for s in starts[:-1] for x in lam[s]]
     shifted_fibres = [f for o in offsets[2:] for f in G.named_fibre(o)]
-    next_knowns = (list(arrows[first + 1]) + shifted_fibres
+    next_knowns = (list(G.renormalised_arrow(arrows[first + 1])) + shifted_fibres
                    + [x for s in starts[1:] for x in lam[s]])
     successor = next_map(G, fibre, cmap)
     next_knowns = [sp.sympify(e).xreplace(successor) for e in next_knowns]

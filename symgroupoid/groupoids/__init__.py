@@ -10,6 +10,7 @@ from ._morphism import GroupoidMorphism, check_morphism
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
 from ._product import ProductArrow, ProductGroupoid
 from ._time import TimeArrow, TimeGroupoid
+from ._trivialised import TrivialisedArrow, TrivialisedPairGroupoid
 from ._user import DefinedGroupoid
 
 __all__ = [
@@ -17,6 +18,7 @@ __all__ = [
     "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",
     "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow", "PairGroupoid",
     "ProductArrow", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid",
+    "TrivialisedArrow", "TrivialisedPairGroupoid",
     "check_axioms", "check_morphism", "derivation", "hat3", "left_derivative",
     "right_derivative",
 ]

@@ -143,6 +143,13 @@ class Groupoid(ABC):
         retraction of the step's own unknowns, never a product of stored values)."""
         return tuple(f)
 
+    def renormalised_arrow(self, a: Sequence) -> tuple:
+        """A known arrow a step stores (its source computed as the target of the arrow
+        before) pulled back onto the groupoid where its coordinates over-parametrise it —
+        the identity on the groupoid.  :class:`TrivialisedPairGroupoid` renormalises the
+        configuration q_{k+1} = q_k(I + D_k).  Default: a."""
+        return tuple(a)
+
     @functools.cached_property
     def _numeric_fibre_chart(self):
         x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(self.rank))
@@ -377,6 +384,12 @@ class Groupoid(ABC):
     # --- matrix form (matrix-valued parts kept as matrices) ---------------------------------
     def matrix_parts(self) -> list[tuple[int, Any]]:
         """(offset in the arrow coordinates, MatrixLieGroup) of each matrix-valued part."""
+        return []
+
+    def offset_parts(self) -> list[tuple[int, Any]]:
+        """(offset in the arrow coordinates, MatrixLieGroup) of each part stored as the
+        offset M − I of a group element M (:class:`TrivialisedPairGroupoid`); every entry
+        of the n×n offset is a coordinate."""
         return []
 
     def in_matrix_form(self, coords: Sequence, name_of: Callable[[Any], str]) -> tuple:

@@ -118,6 +118,9 @@ class ProductGroupoid(Groupoid):
     def renormalised_fibre(self, f):
         return self._map("renormalised_fibre", (f, self._fibre_slices))
 
+    def renormalised_arrow(self, a):
+        return self._map("renormalised_arrow", (a, self._arrow_slices))
+
     def named_groups(self):
         out: dict = {}
         for f in self.factors:
@@ -145,6 +148,10 @@ class ProductGroupoid(Groupoid):
     def matrix_parts(self):
         return [(lo + o, g) for f, (lo, _) in zip(self.factors, self._arrow_slices)
                 for o, g in f.matrix_parts()]
+
+    def offset_parts(self):
+        return [(lo + o, g) for f, (lo, _) in zip(self.factors, self._arrow_slices)
+                for o, g in f.offset_parts()]
 
     def _named(self, name, offset):
         return sum((tuple(getattr(f, name)(offset)) for f in self.factors), ())

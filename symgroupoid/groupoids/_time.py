@@ -126,6 +126,12 @@ class TimeGroupoid(Groupoid):
     def matrix_parts(self):
         return [(2 + o, g) for o, g in self.inner.matrix_parts()]
 
+    def renormalised_arrow(self, a):
+        return tuple(a[:2]) + tuple(self.inner.renormalised_arrow(a[2:]))
+
+    def offset_parts(self):
+        return [(2 + o, g) for o, g in self.inner.offset_parts()]
+
     def _time(self, offset):
         return (StepSymbol(subscripted(self.time_latex, offset)),)
 

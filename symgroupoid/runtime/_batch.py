@@ -283,6 +283,10 @@ def _screened_states(sim, S: np.ndarray) -> np.ndarray:
         for start, group in groupoid.matrix_parts():
             coords = safe[:, index[start:start + group.arrow_dim]]
             flagged |= _group_screen(group, _group_matrices(group, coords))
+        for start, group in groupoid.offset_parts():  # increments stored as F − I
+            offsets = safe[:, index[start:start + group.n ** 2]]
+            flagged |= _group_screen(group, np.eye(group.n)
+                                     + offsets.reshape(-1, group.n, group.n))
     for i in np.flatnonzero(flagged):
         try:
             sim.state(S[i])

@@ -25,7 +25,12 @@ import sympy as sp
 
 from .._errors import DomainError, InputNameError, ShapeError
 from .._symbols import multiplier_symbols, step_label
-from ..groupoids import ActionGroupoid, MatrixLieGroup, ProductGroupoid
+from ..groupoids import (
+    ActionGroupoid,
+    MatrixLieGroup,
+    ProductGroupoid,
+    TrivialisedPairGroupoid,
+)
 from ._validate import GROUP_TOLERANCE, arrow, check_group_matrix, real_array
 
 __all__ = ["GROUP_TOLERANCE", "MULTIPLIER_KEYS", "Part", "StateLayout"]
@@ -39,7 +44,9 @@ class Part:
     """One named part: ``index[o]`` are the positions of its entries at ``offsets[o]``.
 
     An index of -1 marks a fixed entry with value ``fixed`` (e.g. the last row of an SE(n)
-    matrix).  ``shape`` is the shape of one value ((), (n,) or (n, n)).
+    matrix); elsewhere ``fixed`` is the constant an entry adds to its coordinate (the 1 on
+    the diagonal of an increment F stored as F − I: value = state + fixed).  ``shape`` is
+    the shape of one value ((), (n,) or (n, n)).
     """
 
     name: str
@@ -58,8 +65,8 @@ class Part:
 
 
 def _group_parts(groupoid) -> dict[str, MatrixLieGroup]:
-    if isinstance(groupoid, MatrixLieGroup):
-        return {groupoid.symbol_name: groupoid}
+    if isinstance(groupoid, (MatrixLieGroup, TrivialisedPairGroupoid)):
+        return groupoid.named_groups()
     if isinstance(groupoid, ActionGroupoid):
         return _group_parts(groupoid.group)
     if isinstance(groupoid, ProductGroupoid):
@@ -71,7 +78,8 @@ def _group_parts(groupoid) -> dict[str, MatrixLieGroup]:
 
 
 def _indices(value, position: dict) -> tuple[np.ndarray, np.ndarray] | None:
-    """Index and fixed-value arrays of a symbol, list or matrix; None unless it is known."""
+    """Index and fixed-value arrays of a symbol, list or matrix; None unless it is known.
+    An entry is a known coordinate, a number, or a known coordinate plus a number."""
     if isinstance(value, sp.MatrixBase):
         entries = value
     elif isinstance(value, (list, tuple)):
@@ -82,10 +90,11 @@ def _indices(value, position: dict) -> tuple[np.ndarray, np.ndarray] | None:
     fixed = np.zeros(entries.shape)
     for i, j in np.ndindex(*entries.shape):
         e = sp.sympify(entries[i, j])
+        shift, e = e.as_coeff_Add() if e.is_Add else (sp.S.Zero, e)
         if e in position:
-            idx[i, j] = position[e]
+            idx[i, j], fixed[i, j] = position[e], float(shift)
         elif e.is_number:
-            fixed[i, j] = float(e)
+            fixed[i, j] = float(e + shift)
         else:
             return None
     if (idx < 0).all():
@@ -183,7 +192,8 @@ class StateLayout:
         if given[idx].any():
             raise InputNameError(f"{self.step_name}: state part {part.name!r} given twice (it "
                              f"overlaps another part given)")
-        state[idx], given[idx] = arr[mask], True
+        state[idx] = (arr - part.fixed)[mask]
+        given[idx] = True
 
     def _as_array(self, part: Part, value) -> np.ndarray:
         """Values of ``part`` as an array of shape (len(offsets),) + part.shape."""
@@ -247,7 +257,7 @@ class StateLayout:
         if part is None:
             return np.zeros((len(states), 0))
         idx = np.where(part.index >= 0, part.index, 0)
-        values = np.where(part.index >= 0, states[:, idx], part.fixed)  # (N+1, n_off, …)
+        values = np.where(part.index >= 0, states[:, idx] + part.fixed, part.fixed)
         return np.concatenate([values[0, :-1], values[:, -1]], axis=0)
 
     def describe(self, index: int) -> str:

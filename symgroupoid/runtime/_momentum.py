@@ -129,7 +129,7 @@ class MomentumInitializer:
                 raise ShapeError(f"{self.name}: configuration part {key!r} has shape "
                                  f"{arr.shape}, expected {part.shape}")
             idx = part.index[o]
-            state[idx[idx >= 0]] = arr[idx >= 0]
+            state[idx[idx >= 0]] = arr[idx >= 0] - part.fixed[idx >= 0]
         values = state[self.source_pos]
         if np.isnan(values).any():
             raise InputNameError(f"{self.name}: the configuration needs {names}")

@@ -90,9 +90,13 @@ class PlainGroupoid:
     name: str
     arrow_dim: int
     parts: tuple = ()
+    offsets: tuple = ()
 
     def matrix_parts(self) -> list:
         return list(self.parts)
+
+    def offset_parts(self) -> list:
+        return list(self.offsets)
 
 
 def plain_layout(layout: StateLayout) -> StateLayout:
@@ -108,7 +112,8 @@ def plain_layout(layout: StateLayout) -> StateLayout:
 
     G = layout.groupoid
     plain = G if isinstance(G, PlainGroupoid) else PlainGroupoid(
-        str(G.name), int(G.arrow_dim), tuple((int(s), spec(g)) for s, g in G.matrix_parts()))
+        str(G.name), int(G.arrow_dim), tuple((int(s), spec(g)) for s, g in G.matrix_parts()),
+        tuple((int(s), spec(g)) for s, g in G.offset_parts()))
     out = StateLayout.__new__(StateLayout)
     out.__dict__.update(layout.__dict__)
     out.groupoid = plain

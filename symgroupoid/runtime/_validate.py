@@ -280,6 +280,9 @@ def arrow(groupoid: Groupoid, value, name: str, *, owner: str = "") -> np.ndarra
     for start, group in groupoid.matrix_parts():
         M = group.numeric_matrix(a[start:start + group.arrow_dim])
         check_group_matrix(group, M, f"{name} (its {group.symbol_name!r} part)", owner=owner)
+    for start, group in groupoid.offset_parts():
+        M = np.eye(group.n) + a[start:start + group.n ** 2].reshape(group.n, group.n)
+        check_group_matrix(group, M, f"{name} (its increment, stored as F − I)", owner=owner)
     return a
 
 

@@ -1,0 +1,243 @@
+"""The pair groupoid G × G ⇉ G of a rotation group in left-trivialised (increment) coordinates.
+
+The map (q₀, q₁) ↦ (q₀, q₀⁻¹q₁) identifies the pair groupoid of a Lie group G with the action
+groupoid G ⋉ G (seed 001 §2.1.1: G acting on itself by right multiplication).  An arrow is
+stored as the configuration q₀ and the *offset* D = F − I of the increment F = q₀⁻¹q₁:
+
+    α(q, D) = q,   β(q, D) = q(I + D),   (q, D)(q(I + D), D') = (q, D + D' + DD'),
+    ε(q) = (q, 0),   (q, D)⁻¹ = (q(I + D), Dᵀ),
+
+and a step solves for the retraction coordinates x of the newest increment,
+D = τ(x) − I (docs/conventions.md §18).
+
+Why the offset: the equations of a Lie group variational integrator depend on the increment
+(tr(F J_d)/h, R(F − I)ℓ/h), which is I + O(h).  Stored as q_{k+1} = q_k·τ(x) (the
+:class:`PairGroupoid` of the group), every step re-forms F_k = q_kᵀq_{k+1} from rounded
+entries of size 1, an error of ~1e-16 relative to the entries of F − I ~ h, which the 1/h of
+the Lagrangian turns into a random kick of ~1e-14 to the Noether momenta per step.  Stored
+as D, the increment a step solved for is the increment the next step reads, bit for bit.
+The configuration q_{k+1} = q_k(I + D_k) a step stores is renormalised
+(:meth:`renormalised_arrow`), so that it stays on the group over any number of steps.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import sympy as sp
+
+from .._arguments import instance_argument, name_argument
+from .._errors import InputTypeError
+from .._symbols import StepSymbol, latex_name, step_label, subscripted
+from ._base import Arrow, Groupoid
+from ._matrix_groups import SO3, MatrixLieGroup
+
+
+class TrivialisedArrow(Arrow):
+    """An arrow (q, F − I): ``.source`` = q, ``.increment`` = F = q⁻¹·target, ``.target`` =
+    q·F (matrices).  Write a Lagrangian through ``.increment`` (F − I then cancels exactly
+    to the stored offset) rather than through ``.source.T * .target``."""
+
+    @property
+    def source(self) -> sp.Matrix:
+        G = self.groupoid
+        return G.group.matrix(self.coords[: G.base_dim])
+
+    @property
+    def increment(self) -> sp.Matrix:
+        G = self.groupoid
+        return sp.eye(G.group.n) + G.offset_matrix(self.coords[G.base_dim:])
+
+    @property
+    def target(self) -> sp.Matrix:
+        return self.source * self.increment
+
+
+class TrivialisedPairGroupoid(Groupoid):
+    """G × G ⇉ G in coordinates (q₀, q₀⁻¹q₁ − I) for a rotation group G (``SO3("R")``,
+    ``SO2("r")``); see the module docstring.
+
+    ``increment``: the name of the increment F = q₀⁻¹q₁ in states and LaTeX (default "F"
+    followed by what follows a leading "R" in the group's name: ``SO3("R2")`` → "F2").
+    The state of a step holds q_{k−1} (named as the group) and F_{k−1} (named
+    ``increment``); states give F as a matrix, stored as F − I.
+    """
+
+    def __init__(self, group: MatrixLieGroup, increment: str | None = None):
+        owner = "TrivialisedPairGroupoid"
+        instance_argument(group, MatrixLieGroup, "group", "a rotation group (SO3('R'), …)",
+                          owner=owner)
+        if group.affine or group.rotation_block != group.n:
+            raise InputTypeError(f"{owner}: {group.name} is not a rotation group; increment "
+                                 f"coordinates are implemented for SO(2) and SO(3) (use "
+                                 f"PairGroupoid for {group.name})")
+        if increment is None:
+            name = group.symbol_name
+            increment = "F" + (name[1:] if name.startswith("R") else name)
+        self.increment_name = name_argument(increment, "the increment's name", owner=owner)
+        if self.increment_name == group.symbol_name:
+            raise InputTypeError(f"{owner}: the increment needs a name other than the "
+                                 f"group's ({group.symbol_name!r})")
+        self.group = group
+        self.increment_latex = latex_name(self.increment_name)
+        self.name = f"pair groupoid of {group.name}, in increments {self.increment_name}"
+
+    # --- sizes ------------------------------------------------------------------------------
+    @property
+    def arrow_dim(self) -> int:
+        return 2 * self.group.arrow_dim
+
+    @property
+    def base_dim(self) -> int:
+        return self.group.arrow_dim
+
+    @property
+    def rank(self) -> int:
+        return self.group.rank
+
+    # --- matrices of coordinates ------------------------------------------------------------
+    def offset_matrix(self, d: Sequence) -> sp.Matrix:
+        """The n×n matrix D = F − I of offset coordinates (every entry is free)."""
+        n = self.group.n
+        return sp.Matrix(n, n, list(d))
+
+    def _offset(self, D: sp.Matrix) -> tuple:
+        return tuple(D[i, j] for i, j in self.group._free)
+
+    def _split(self, a: Sequence) -> tuple[tuple, tuple]:
+        n = self.base_dim
+        return tuple(a[:n]), tuple(a[n:])
+
+    # --- structure maps -----------------------------------------------------------------------
+    def source(self, a):
+        return self._split(a)[0]
+
+    def target(self, a):
+        """q(I + D) = q + qD."""
+        q, d = self._split(a)
+        G = self.group
+        Q = G.matrix(q)
+        return G.entries(Q + Q * self.offset_matrix(d))
+
+    def renormalised_arrow(self, a):
+        """The arrow with its configuration q renormalised (:meth:`renormalised_matrix`:
+        the identity on the group): a step stores q_{k+1} = q_k(I + D_k) so."""
+        q, d = self._split(a)
+        G = self.group
+        return G.entries(G.renormalised_matrix(G.matrix(q))) + d
+
+    def multiply(self, a, b):
+        q, d = self._split(a)
+        D, E = self.offset_matrix(d), self.offset_matrix(self._split(b)[1])
+        return q + self._offset(D + E + D * E)
+
+    def identity(self, q):
+        return tuple(q) + (sp.S.Zero,) * self.base_dim
+
+    def inverse(self, a):
+        """(q(I + D), Dᵀ): F⁻¹ = Fᵀ on a rotation group, so F⁻¹ − I = Dᵀ exactly."""
+        return tuple(self.target(a)) + self._offset(self.offset_matrix(self._split(a)[1]).T)
+
+    def section_curves(self, q, t):
+        return [tuple(q) + self.fibre_chart([t if b == a else 0 for b in range(self.rank)])
+                for a in range(self.rank)]
+
+    def arrow_from(self, q, f):
+        return tuple(q) + tuple(f)
+
+    def fibre_of(self, a):
+        return self._split(a)[1]
+
+    # --- the chart of an α-fibre: D = τ(x) − I -------------------------------------------------
+    def fibre_chart(self, x, source=None):
+        """τ(x) − I.  Cayley: c(ξ + ξ²/2) with c = 4/(4 + |x|²), as written (ξ³ = −|x|²ξ in
+        so(2) and so(3)): a product of the common factor c and a polynomial, not a sum of
+        rational terms over a common denominator, so that no entry cancels (a factored
+        closed form biases the step's rounding: docs/conventions.md §18)."""
+        G = self.group
+        x = G._checked(x, "x", G.rank)
+        if G.retraction == "cayley":
+            xi = G.hat(x)
+            c = 4 / (4 + sum(v ** 2 for v in x))
+            return self._offset(c * (xi + xi * xi / 2))
+        return self._offset(G.exp(list(x)) - sp.eye(G.n))
+
+    def chart_of_fibre(self, f, source=None):
+        """τ⁻¹(I + D) symbolically; on SO(3) with the Cayley map 2 vee(D − Dᵀ)/(4 + tr D)."""
+        G = self.group
+        D = self.offset_matrix(f)
+        if G.retraction == "cayley" and isinstance(G, SO3):
+            skew = D - D.T
+            return tuple(2 * v / (4 + D.trace()) for v in (skew[2, 1], skew[0, 2], skew[1, 0]))
+        return tuple(G.retraction_inverse(sp.eye(G.n) + D))
+
+    def fibre_chart_inverse(self, f, source=None):
+        """τ⁻¹(I + D) of numeric offsets (Cayley: vee(2D(2I + D)⁻¹))."""
+        G = self.group
+        D = np.asarray([float(v) for v in f], float).reshape(G.n, G.n)
+        eye = np.eye(G.n)
+        if G.retraction == "cayley":
+            return tuple(float(v) for v in G._numeric_vee(2.0 * D @ np.linalg.inv(2 * eye + D)))
+        return tuple(float(v) for v in G._numeric_log(eye + D))
+
+    # --- names -------------------------------------------------------------------------------
+    def _named_offset(self, offset: int) -> sp.Matrix:
+        """D_{k+offset} = F_{k+offset} − I as a matrix of named entries (F_{k} − I)_{ij}."""
+        base = subscripted(self.increment_latex, offset)
+        n = self.group.n
+        return sp.Matrix(n, n, lambda i, j: StepSymbol(f"({base} - I)_{{{i + 1}{j + 1}}}"))
+
+    def named_fibre(self, offset):
+        """The arrow g_{k+o} = (q_{k+o−1}, F_{k+o−1} − I)."""
+        return self._offset(self._named_offset(offset - 1))
+
+    def named_source(self, offset):
+        return self.group.named_fibre(offset - 1)
+
+    def named_chart(self, offset):
+        label = step_label(offset - 1)
+        return tuple(StepSymbol(f"(\\tau^{{-1}} {self.increment_latex}_{{{label}}})_{{{a + 1}}}")
+                     for a in range(self.rank))
+
+    def symbols_by_name(self, offset):
+        return {self.group.symbol_name: self.group.named_matrix(offset),
+                self.increment_name: sp.eye(self.group.n) + self._named_offset(offset)}
+
+    def named_groups(self):
+        return {self.group.symbol_name: self.group, self.increment_name: self.group}
+
+    def matrix_parts(self):
+        return [(0, self.group)]
+
+    def offset_parts(self):
+        return [(self.base_dim, self.group)]
+
+    # --- numerics ---------------------------------------------------------------------------
+    def random_base_point(self, rng):
+        G = self.group
+        M = G.numeric_tau(G.random_chart(rng, scale=1.0))
+        return tuple(float(M[i, j]) for i, j in G._free)
+
+    def arrow_between(self, c0, c1):
+        """(q₀, q₀⁻¹(q₁ − q₀)) for configurations q₀, q₁ (matrices)."""
+        G = self.group
+        M0, M1 = G._numeric_matrix(c0), G._numeric_matrix(c1)
+        D = np.linalg.solve(M0, M1 - M0)
+        return (tuple(float(M0[i, j]) for i, j in G._free)
+                + tuple(float(D[i, j]) for i, j in G._free))
+
+    def configuration_after(self, c0, a):
+        G = self.group
+        q, d = self._split(a)
+        M = G.numeric_matrix([float(v) for v in q])
+        return M + M @ np.asarray([float(v) for v in d], float).reshape(G.n, G.n)
+
+    def view(self, coords):
+        return TrivialisedArrow(self, coords)
+
+    def base_view(self, coords):
+        return self.group.matrix(tuple(coords))
+
+    def __repr__(self) -> str:
+        return f"TrivialisedPairGroupoid({self.group!r}, increment={self.increment_name!r})"
