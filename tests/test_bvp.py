@@ -197,3 +197,23 @@ def test_junction_blocks_are_the_derivatives_along_the_fields(so3_control, which
                     moved.append(kernel.junction(w, lams, params)[0][0])
                 fd = (moved[0] - moved[1]) / (2 * t) * (1 if side == "left" else -1)
                 assert np.allclose(blocks[:, c], fd, rtol=1e-6, atol=1e-7), (o, side, c)
+
+
+def test_pair_groupoid_of_attitudes_takes_matrices_at_the_ends() -> None:
+    """On the pair groupoid of SO(3)² the end configurations are tuples of rotation
+    matrices, checked as group elements (a point of R⁹ is refused, as the arrows need the
+    matrices), and the solution reaches them."""
+    from symgroupoid import systems
+
+    step = systems.spherical_chain(2).euler_lagrange()
+    start = (_cay([0.1, 0.2, 0.3]), _cay([0.2, -0.1, 0.1]))
+    end = (_cay([0.15, 0.25, 0.32]), _cay([0.22, -0.05, 0.12]))
+    sol = sg.solve_boundary_value(step, start, end, 6, params={"h": 0.01, "g": 9.81})
+    last = sol.arrows[-1]
+    np.testing.assert_allclose(last[18:27].reshape(3, 3), end[0], atol=1e-12)
+    np.testing.assert_allclose(last[27:].reshape(3, 3), end[1], atol=1e-12)
+    with pytest.raises(sg.ShapeError, match="one per factor"):
+        sg.solve_boundary_value(step, start[0], end, 6, params={"h": 0.01, "g": 9.81})
+    off = (end[0] + 1e-3, end[1])
+    with pytest.raises(sg.DomainError, match=r"end\[0\]"):
+        sg.solve_boundary_value(step, start, off, 6, params={"h": 0.01, "g": 9.81})

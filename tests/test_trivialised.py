@@ -259,3 +259,22 @@ def test_noether_quantity_of_the_vertical_rotation() -> None:
     R, F = sim.layout.view(traj.states, "R1"), sim.layout.view(traj.states, "F1")
     expected = [vertical_momentum([r], [f - np.eye(3)], _inertias(1)) for r, f in zip(R, F)]
     np.testing.assert_allclose(vertical.along(traj)[::20], expected[::20], rtol=1e-9)
+
+
+def test_boundary_value_problem_matches_the_pair_groupoids() -> None:
+    """A two-point problem between two attitudes: the increments system and the pair
+    groupoid's give the same attitudes at every node (the same discrete equations)."""
+    R0, RN = cayley([0.1, 0.2, 0.3]), cayley([0.3, -0.1, 0.5])
+    ours = sg.solve_boundary_value(chain_step(1, True), R0, RN, 12, params=PARAMS)
+    pair = sg.solve_boundary_value(chain_step(1, False), R0, RN, 12, params=PARAMS)
+    nodes = [np.reshape(a[:9], (3, 3)) for a in ours.arrows]
+    last = ours.arrows[-1]
+    nodes.append(np.reshape(last[:9], (3, 3)) @ (np.eye(3) + np.reshape(last[9:], (3, 3))))
+    expected = [np.reshape(a[:9], (3, 3)) for a in pair.arrows] + [
+        np.reshape(pair.arrows[-1][9:], (3, 3))]
+    np.testing.assert_allclose(nodes, expected, atol=1e-11)
+    np.testing.assert_allclose(nodes[-1], RN, atol=1e-12)
+    off = RN.copy()
+    off[0, 1] += 1e-3
+    with pytest.raises(sg.DomainError, match="end"):
+        sg.solve_boundary_value(chain_step(1, True), R0, off, 12, params=PARAMS)

@@ -40,6 +40,7 @@ from ..groupoids import (
     PairGroupoid,
     ProductGroupoid,
     TimeGroupoid,
+    TrivialisedPairGroupoid,
 )
 
 #: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
@@ -240,16 +241,19 @@ def _pieces(value, count: int, name: str, what: str, owner: str) -> tuple:
 def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
     """A boundary configuration of ``groupoid``, checked as states are checked, per factor.
 
-    Pair groupoid: a point (shape, finiteness); matrix Lie group: a group element
-    (:func:`group_element`); action groupoid: ``(p, R)``; time groupoid: ``(t, c)``;
-    product: one configuration per factor.  Pieces are named ``name[i]``.  Groupoids without
-    a configuration space raise :class:`ShapeError`; other user groupoids are passed on to
-    their own ``arrow_between``.
+    Pair groupoid: a point of its manifold (Rⁿ: shape, finiteness; a matrix Lie group: a
+    group element, :func:`group_element`; a product: one per factor); matrix Lie group and
+    the pair groupoid of one in increment coordinates: a group element; action groupoid:
+    ``(p, R)``; time groupoid: ``(t, c)``; product: one configuration per factor.  Pieces
+    are named ``name[i]``.  Groupoids without a configuration space raise
+    :class:`ShapeError`; other user groupoids are passed on to their own ``arrow_between``.
     """
     if isinstance(groupoid, MatrixLieGroup):
         return group_element(groupoid, value, name, owner=owner)
+    if isinstance(groupoid, TrivialisedPairGroupoid):
+        return group_element(groupoid.group, value, name, owner=owner)
     if isinstance(groupoid, PairGroupoid):
-        return point(value, groupoid.base_dim, name, owner=owner)
+        return _point_of(groupoid.space, value, name, owner)
     if isinstance(groupoid, ActionGroupoid):
         p, R = _pieces(value, 2, name, f"a configuration (p, R) of {groupoid.name}", owner)
         return (point(p, groupoid.base_dim, f"{name}[0]", owner=owner),
@@ -267,6 +271,21 @@ def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
         raise ShapeError(f"{_where(owner)}{groupoid.name} has no configuration space "
                          f"(arrow_between), so {name} cannot be given as a configuration")
     return value
+
+
+def _point_of(space, value, name: str, owner: str):
+    """A point of a pair groupoid's configuration manifold: a point of Rⁿ, a group element
+    (a matrix), or one point per factor of a product."""
+    from ..groupoids._manifold import GroupManifold, ProductManifold
+
+    if isinstance(space, GroupManifold):
+        return group_element(space.group, value, name, owner=owner)
+    if isinstance(space, ProductManifold):
+        parts = _pieces(value, len(space.factors), name,
+                        f"a configuration of {space!r}, one per factor", owner)
+        return tuple(_point_of(f, c, f"{name}[{i}]", owner)
+                     for i, (f, c) in enumerate(zip(space.factors, parts)))
+    return point(value, space.coords_dim, name, owner=owner)
 
 
 def arrow(groupoid: Groupoid, value, name: str, *, owner: str = "") -> np.ndarray:
