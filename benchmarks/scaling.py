@@ -1,7 +1,8 @@
 """How derivation and code generation scale with the number of bodies, against CasADi.
 
     python benchmarks/scaling.py [--systems planar,3d] [--sizes 2,4,8] [--quick]
-                                 [--budget SECONDS] [--output results.json] [--no-skip]
+                                 [--budget SECONDS] [--repeat K] [--output results.json]
+                                 [--no-skip]
     python benchmarks/scaling.py --report results.json
 
 Two model systems of ``symgroupoid.systems``, sized by the number of bodies n:
@@ -22,7 +23,10 @@ For each n, through the public API only, in a subprocess with a time budget (``-
 - emit, after it: ``symgroupoid.codegen.generate_c(step)`` (the C size is that of its
   source, with the LaTeX comments of small kernels); compile − emit is also printed (an
   estimate of the C compiler's share);
-  build = derive + compile (what a user waits for to get a simulator);
+  build = derive + compile (what a user waits for to get a simulator); ``--repeat`` cold
+  builds (default 3, each in a new process with a fresh cache; not repeated beyond 10 s),
+  interleaved with as many cold CasADi builds, and the build ratio compares the medians
+  (single builds vary by ±30 % on a small machine);
 - µs/step: ``sim.simulate(state, N, params)`` with N chosen so that one run takes ≥ 0.5 s,
   best of 5 (the CasADi stepper is timed the same way); Newton iterations from
   ``traj.newton_iterations``;
@@ -78,6 +82,10 @@ CHECK_TOLERANCE = 1e-10
 CHECK_POINTS = 5
 #: one timing run lasts at least this long
 MIN_RUN_SECONDS = 0.5
+#: cold builds per side and n (``--repeat``): the build ratio is the ratio of the medians
+BUILD_REPEATS = 3
+#: builds slower than this (seconds, first sample) are not repeated
+REPEAT_LIMIT = 10.0
 #: timing runs per measurement (the best is kept: the machine may be shared)
 TIMING_REPEATS = 5
 #: largest state history a timing run may hold (bytes)
@@ -144,8 +152,9 @@ def code_bytes(source: str) -> int:
     return len(re.sub(r"/\*.*?\*/|//[^\n]*", "", source, flags=re.S).encode())
 
 
-def library_build(kind: str, n: int, cache: str) -> None:
-    """derive → emit → compile → simulate → evaluate, one JSON line per finished phase."""
+def library_build(kind: str, n: int, cache: str, only: bool = False) -> None:
+    """derive → emit → compile → simulate → evaluate, one JSON line per finished phase
+    (``only``: derive → compile, a further sample of the build time)."""
     import symgroupoid.codegen
     from symgroupoid import systems
 
@@ -161,6 +170,8 @@ def library_build(kind: str, n: int, cache: str) -> None:
     sim = step.compile(backend="c", cache_dir=cache)
     t2 = time.perf_counter()
     emit({"phase": "compile", "seconds": t2 - t1})
+    if only:
+        return
     kernel = symgroupoid.codegen.generate_c(step)
     t3 = time.perf_counter()
     emit({"phase": "emit", "seconds": t3 - t2, "c_bytes": len(kernel.source.encode()),
@@ -301,6 +312,40 @@ def casadi_side(kind: str, n: int, workdir: Path) -> dict:
             "steps": calls * CASADI_CHUNK, "states": states[: COMPARE_STEPS + 1], "model": model}
 
 
+def casadi_build_seconds(kind: str, n: int, workdir: Path) -> float:
+    """One more cold CasADi build (model graph with AD, stepper, C, cc, load)."""
+    import _casadi_models as cm
+
+    return cm.compile_stepper(cm.MODELS[kind](n), CASADI_CHUNK, workdir).build_seconds
+
+
+def library_build_seconds(kind: str, n: int, budget: float, tmp: Path, i: int) -> float | None:
+    """One more cold library build (derive + compile, fresh cache) in a new process."""
+    cache = tmp / f"cache-{kind}-{n}-{i}"
+    work = run_worker("buildonly", kind, n, budget, str(cache))
+    shutil.rmtree(cache, ignore_errors=True)
+    if work.status != "ok":
+        return None
+    return work.phases["derive"]["seconds"] + work.phases["compile"]["seconds"]
+
+
+def repeat_builds(row: dict, budget: float, tmp: Path, repeats: int) -> None:
+    """Further cold builds of both sides, interleaved, when the first library build took
+    under REPEAT_LIMIT; each side's build time becomes the median of its samples."""
+    kind, n, lib, cas = row["system"], row["n"], row["library"], row["casadi"]
+    lib_samples = [lib["build_seconds"]] if "build_seconds" in lib else []
+    cas_samples = [cas["build_seconds"]]
+    if lib_samples and lib_samples[0] < REPEAT_LIMIT:
+        for i in range(1, repeats):
+            sample = library_build_seconds(kind, n, budget, tmp, i)
+            if sample is not None:
+                lib_samples.append(sample)
+            cas_samples.append(casadi_build_seconds(kind, n, tmp / f"casadi-{kind}-{n}-{i}"))
+    if lib_samples:
+        lib["build_samples"], lib["build_seconds"] = lib_samples, float(np.median(lib_samples))
+    cas["build_samples"], cas["build_seconds"] = cas_samples, float(np.median(cas_samples))
+
+
 def residual_check(model, points: list[dict]) -> dict:
     """Max relative differences of the residuals and Jacobians at the library's points."""
     worst_F = worst_J = 0.0
@@ -318,7 +363,8 @@ def residual_check(model, points: list[dict]) -> dict:
 # --- one size ----------------------------------------------------------------------------------
 
 
-def run_size(kind: str, n: int, budget: float, skip_reason: str | None, tmp: Path) -> dict:
+def run_size(kind: str, n: int, budget: float, skip_reason: str | None, tmp: Path,
+             repeats: int = BUILD_REPEATS) -> dict:
     row: dict = {"system": kind, "n": n}
     if skip_reason is None:
         cache = tmp / f"cache-{kind}-{n}"
@@ -344,6 +390,8 @@ def run_size(kind: str, n: int, budget: float, skip_reason: str | None, tmp: Pat
         row["max_deviation_100_steps"] = float(np.abs(lib_states - cas_states).max())
     if "derive" in lib and "compile" in lib:
         lib["build_seconds"] = lib["derive"]["seconds"] + lib["compile"]["seconds"]
+    repeat_builds(row, budget, tmp, repeats)
+    if "build_seconds" in lib:
         row["build_ratio"] = lib["build_seconds"] / cas["build_seconds"]
     if "simulate" in lib:
         row["step_ratio"] = lib["simulate"]["us_per_step"] / cas["us_per_step"]
@@ -399,6 +447,11 @@ def print_row(row: dict) -> None:
     print(f"  CasADi:  build {cas['build_seconds']:.2f} s (graph+AD {ph['model'] + ph['graph']:.2f}"
           f", generate {ph['generate']:.2f}, cc -O3 {ph['cc']:.2f}, load {ph['load']:.3f}); "
           f"C {cas['c_bytes'] / 1e3:.0f} kB; {cas['us_per_step']:.2f} us/step")
+    samples = lib.get("build_samples", []), cas.get("build_samples", [])
+    if max(len(samples[0]), len(samples[1])) > 1:
+        print("  cold builds: " + "; ".join(
+            f"{side} {', '.join(f'{v:.2f}' for v in values)} s (median {np.median(values):.2f})"
+            for side, values in zip(("library", "CasADi"), samples) if values))
     check = row.get("residual_check")
     if check:
         verdict = "ok" if check["passed"] else "MISMATCH: the comparison below is not fair"
@@ -556,6 +609,10 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument("--output", type=Path, default=None, help="write the results as JSON")
     parser.add_argument("--report", type=Path, default=None, metavar="JSON",
                         help="print the tables and targets of an earlier --output file")
+    parser.add_argument("--repeat", type=int, default=BUILD_REPEATS,
+                        help=f"cold builds per side and n; the build ratio compares the "
+                             f"medians (default {BUILD_REPEATS}; builds over "
+                             f"{REPEAT_LIMIT:.0f} s are not repeated)")
     parser.add_argument("--no-skip", action="store_true",
                         help="run the library at every n even after a timeout")
     parser.add_argument("--worker", nargs=4, metavar=("MODE", "SYSTEM", "N", "CACHE"),
@@ -577,6 +634,8 @@ def parse_args(argv=None) -> argparse.Namespace:
         args.size_list = None
     if not args.budget > 0:
         parser.error("--budget must be positive")
+    if args.repeat < 1:
+        parser.error("--repeat must be at least 1")
     return args
 
 
@@ -613,8 +672,8 @@ def main(argv=None) -> None:
     args = parse_args(argv)
     if args.worker:
         mode, kind, n, cache = args.worker
-        if mode == "build":
-            library_build(kind, int(n), cache)
+        if mode in ("build", "buildonly"):
+            library_build(kind, int(n), cache, only=mode == "buildonly")
         else:
             library_check_only(kind, int(n))
         return
@@ -641,7 +700,7 @@ def main(argv=None) -> None:
             skip = None
             if kind in timed_out and not args.no_skip:
                 skip = f"skipped (timeout at n = {timed_out[kind]}; --no-skip runs it)"
-            row = run_size(kind, n, args.budget, skip, Path(tmp))
+            row = run_size(kind, n, args.budget, skip, Path(tmp), args.repeat)
             if row["library"]["status"] == "timeout":
                 timed_out.setdefault(kind, n)
             rows.append(row)

@@ -7,6 +7,7 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 from .._arguments import choice_argument, instance_argument, name_argument, sequence_argument
+from .._collector import collector_paused
 from .._errors import CallableError, InputTypeError, ShapeError, UnsupportedFeatureError
 from .._progress import reported
 from ..derivation._callables import call_user, check_values
@@ -105,6 +106,7 @@ class DiscreteSystem:
         of ψ on the arrow g_k sits at its source α(g_k).
     """
 
+    @collector_paused
     def __init__(self, groupoid: Groupoid, lagrangian: Callable,
                  constraints: Callable | None = None, parameters: Sequence[sp.Symbol] = (),
                  name: str = "system", *, holonomic: Callable | None = None):
@@ -127,6 +129,7 @@ class DiscreteSystem:
         return self._fs.n_holonomic
 
     @reported(lambda self: f"{self.name}: deriving the equations")
+    @collector_paused
     def euler_lagrange(self) -> StepEquations:
         """The step (g_k, λ_k) → (g_{k+1}, λ_{k+1}) (seed 000 §3.3; docs/conventions.md §4).
 
@@ -232,6 +235,7 @@ class NonholonomicSystem:
     or a callable of the base point) and no M_c (``constraints=None``).
     """
 
+    @collector_paused
     def __init__(self, groupoid: Groupoid, lagrangian: Callable,
                  constraints: Callable | None = None, distribution: Sequence = (),
                  parameters: Sequence[sp.Symbol] = (), name: str = "nonholonomic", *,
@@ -252,6 +256,7 @@ class NonholonomicSystem:
                                           len(self._fs.constraints))
 
     @reported(lambda self: f"{self.name}: deriving the equations")
+    @collector_paused
     def euler_lagrange(self) -> StepEquations:
         """The step g_k → g_{k+1}: the DEL along D_c and g_{k+1} ∈ M_c (``method="holder"``),
         or the energy–momentum equations on D ⊕ D⊥ (docs/conventions.md §14).  ``progress``

@@ -24,6 +24,7 @@ from .._arguments import (
     path_argument,
     sequence_argument,
 )
+from .._collector import collector_paused
 from .._errors import CacheError, InputTypeError
 from .._progress import reported
 from ..codegen import generate_c, templates_digest
@@ -492,6 +493,7 @@ def load_kernel_source(kernel: KernelSource, flags: Sequence[str], label: str,
 
 
 @reported(lambda step, **options: f"{step.name}: building the kernel")
+@collector_paused
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
                  cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
                  tol_step: float | None = None, max_iterations: int | None = None,
