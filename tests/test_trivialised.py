@@ -278,3 +278,13 @@ def test_boundary_value_problem_matches_the_pair_groupoids() -> None:
     off[0, 1] += 1e-3
     with pytest.raises(sg.DomainError, match="end"):
         sg.solve_boundary_value(chain_step(1, True), R0, off, 12, params=PARAMS)
+
+
+def test_unknowns_of_indexed_groups_are_well_formed_latex() -> None:
+    """A group or increment named with an index (R1, F1) is parenthesised before the step
+    subscript in the unknowns' names, as in the knowns': (τ⁻¹ (F_{1})_{k})_a, not F_{1}_{k}."""
+    names = [str(u) for u in chain_step(1, True).unknowns]
+    names += [str(u) for u in chain_step(1, False).unknowns]
+    names += [str(c) for c in sg.SO3("R1").named_chart(1)]
+    assert names[0] == r"(\tau^{-1} (F_{1})_{k})_{1}"
+    assert all("}_{k" not in n.replace(")_{k", "") for n in names), names

@@ -144,12 +144,12 @@ class GroupManifold(Manifold):
 
     def named_chart(self, offset):
         """Retraction coordinates of the increment, (τ⁻¹(R_{k+o−1}⁻¹R_{k+o}))_a."""
-        from .._symbols import StepSymbol, step_label
+        from .._symbols import StepSymbol, subscripted
 
         G = self.group
-        before, now = step_label(offset - 1), step_label(offset)
-        return tuple(StepSymbol(f"(\\tau^{{-1}}({G.latex}_{{{before}}}^{{-1}} "
-                                f"{G.latex}_{{{now}}}))_{{{a + 1}}}") for a in range(self.dim))
+        before, now = subscripted(G.latex, offset - 1), subscripted(G.latex, offset)
+        return tuple(StepSymbol(f"(\\tau^{{-1}}({before}^{{-1}} {now}))_{{{a + 1}}}")
+                     for a in range(self.dim))
 
     def symbols_by_name(self, offset):
         return self.group.symbols_by_name(offset)

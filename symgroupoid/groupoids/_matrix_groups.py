@@ -24,7 +24,7 @@ import sympy as sp
 
 from .._arguments import choice_argument, name_argument
 from .._lambdify import NUMPY_MODULES
-from .._symbols import StepSymbol, indexed_symbol, latex_name, step_label
+from .._symbols import StepSymbol, indexed_symbol, latex_name, subscripted
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
 from ._smooth import (
@@ -415,9 +415,8 @@ class MatrixLieGroup(Groupoid):
         return ()
 
     def named_chart(self, offset):
-        label = step_label(offset)
-        return tuple(StepSymbol(f"(\\tau^{{-1}} {self.latex}_{{{label}}})_{{{a + 1}}}")
-                     for a in range(self.rank))
+        name = subscripted(self.latex, offset)
+        return tuple(StepSymbol(f"(\\tau^{{-1}} {name})_{{{a + 1}}}") for a in range(self.rank))
 
     def symbols_by_name(self, offset):
         return {self.symbol_name: self.named_matrix(offset)}

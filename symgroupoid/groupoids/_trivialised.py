@@ -29,7 +29,7 @@ import sympy as sp
 
 from .._arguments import instance_argument, name_argument
 from .._errors import InputTypeError
-from .._symbols import StepSymbol, latex_name, step_label, subscripted
+from .._symbols import StepSymbol, latex_name, subscripted
 from ._base import Arrow, Groupoid
 from ._matrix_groups import SO3, MatrixLieGroup
 
@@ -196,9 +196,8 @@ class TrivialisedPairGroupoid(Groupoid):
         return self.group.named_fibre(offset - 1)
 
     def named_chart(self, offset):
-        label = step_label(offset - 1)
-        return tuple(StepSymbol(f"(\\tau^{{-1}} {self.increment_latex}_{{{label}}})_{{{a + 1}}}")
-                     for a in range(self.rank))
+        name = subscripted(self.increment_latex, offset - 1)
+        return tuple(StepSymbol(f"(\\tau^{{-1}} {name})_{{{a + 1}}}") for a in range(self.rank))
 
     def symbols_by_name(self, offset):
         return {self.group.symbol_name: self.group.named_matrix(offset),
