@@ -386,3 +386,17 @@ def test_conservation_summary_refuses_a_0d_array_of_noether_quantities():
     traj = sim.simulate({"q": (0.0, 0.1)}, 3, {})
     with pytest.raises(sg.SymgroupoidError, match="noether must be a list"):
         traj.conservation_summary(noether=np.array(0.0))
+
+
+def test_a_progress_callback_that_raises_gives_a_callable_error() -> None:
+    """``sweep(..., progress=type)``: ``type`` is callable but ``type(done, total)`` raises;
+    the sweep reports it as a CallableError naming the progress callback (found by the
+    thorough hostile sweep profile)."""
+    from symgroupoid import systems
+
+    sim = systems.rigid_body().euler_lagrange().compile(backend="numpy")
+    W = sg.SO3("W").numeric_tau([0.01, 0.02, -0.01])
+    state = sim.state({"W": W})
+    params = {str(p): 0.1 for p in sim.equations.parameters}
+    with pytest.raises(sg.CallableError, match="progress"):
+        sg.sweep(sim, np.vstack([state, state]), params, steps=2, progress=type)

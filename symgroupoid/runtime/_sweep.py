@@ -48,6 +48,7 @@ from .._arguments import (
     instance_argument,
 )
 from .._errors import (
+    CallableError,
     CutLocusError,
     DomainError,
     InputTypeError,
@@ -316,7 +317,11 @@ class _Progress:
     def update(self, n: int) -> None:
         self.done += n
         if self.callback is not None:
-            self.callback(self.done, self.total)
+            try:
+                self.callback(self.done, self.total)
+            except Exception as exc:  # noqa: BLE001 - the user's callback, any failure
+                raise CallableError(f"{self.label}: the progress callback progress(done, "
+                                    f"total) raised {exc!r}") from exc
             return
         now = time.perf_counter()
         if self.enabled and (now - self.last > 0.2 or self.done == self.total):
