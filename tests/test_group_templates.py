@@ -139,6 +139,41 @@ def test_pair_groupoid_fields_in_closed_form(index, side):
                            rtol=0, atol=1e-20)
 
 
+def _closed_form_groupoids():
+    """Groupoids whose fields have a closed form of their own: increment coordinates, and
+    products (each factor's fields, zero elsewhere)."""
+    inc = sg.TrivialisedPairGroupoid
+    return [
+        inc(sg.SO3("R")),
+        inc(sg.SO2("r", retraction="exp")),
+        inc(sg.SO3("R1")) * inc(sg.SO3("R2", retraction="exp")),
+        sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("W"),
+        sg.SE2("g") * sg.PairGroupoid(sg.SO3("R")),
+    ]
+
+
+@pytest.mark.parametrize("index", range(5))
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_increment_and_product_fields_in_closed_form(index, side):
+    """Their closed-form fields equal the generic derivation on the graph at a random
+    arrow, as the pair groupoid's do."""
+    from symgroupoid.ir import Graph, to_sympy
+
+    G = _closed_form_groupoids()[index]
+    g = Graph()
+    symbols = sp.symbols(f"a0:{G.arrow_dim}", real=True)
+    coords = [g.input(s) for s in symbols]
+    closed = G.field_nodes(g, side, coords)
+    generic = Groupoid.field_nodes(G, g, side, coords)
+    assert len(closed) == len(generic) == G.rank
+    arrow = G.random_arrow(np.random.default_rng(17))
+    values = {s: sp.Float(v, 30) for s, v in zip(symbols, arrow)}
+    for a, b in zip(closed, generic):
+        assert len(a) == len(b) == G.arrow_dim
+        assert np.allclose(_at(to_sympy(g, a), values), _at(to_sympy(g, b), values),
+                           rtol=0, atol=1e-20)
+
+
 # -- stored templates (groupoids/_closed_forms.py) ----------------------------------------------
 
 def test_stored_templates_are_the_derived_trees_and_the_file_is_current():

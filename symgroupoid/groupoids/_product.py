@@ -145,6 +145,18 @@ class ProductGroupoid(Groupoid):
                                    for j in range(len(self.factors))), ()))
         return curves
 
+    def field_nodes(self, g, side, coords, parameters=None):
+        """Each factor's fields at its part of the arrow, zero on the other factors: the
+        product's section h_b(t) moves one factor and holds the others at ε, so
+        m(a, h_b(t)) and m(h_b(t)⁻¹, a) move only that factor's part."""
+        parts = self._parts(list(coords), self._arrow_slices)
+        out = []
+        for i, f in enumerate(self.factors):
+            for v in f.field_nodes(g, side, parts[i], parameters):
+                out.append([c for j, part in enumerate(parts)
+                            for c in (v if j == i else [g.zero] * len(part))])
+        return out
+
     def matrix_parts(self):
         return [(lo + o, g) for f, (lo, _) in zip(self.factors, self._arrow_slices)
                 for o, g in f.matrix_parts()]

@@ -146,6 +146,40 @@ class TrivialisedPairGroupoid(Groupoid):
     def arrow_from(self, q, f):
         return tuple(q) + tuple(f)
 
+    def field_nodes(self, g, side, coords, parameters=None):
+        """Closed form of the fields at (q, D), on the expression graph ``g``: with
+        h_b(t) = (·, τ(tE_b) − I), m(a, h_b(t)) = (q, D + T + DT), T = τ(tE_b) − I, so
+        X⃖_b = (0, (I + D)E_b); m(h_b(t)⁻¹, a) = (qτ(tE_b), τ(tE_b)⁻¹(I + D) − I), so
+        X⃗_b = (−qE_b, E_b(I + D)) (τ(tE) = I + tE + O(t²) for the Cayley map and exp)."""
+        G, n = self.group, self.group.n
+        coords = list(coords)
+        q = [[coords[n * i + j] for j in range(n)] for i in range(n)]
+        W = [[g.add(coords[self.base_dim + n * i + j], g.one) if i == j
+              else coords[self.base_dim + n * i + j] for j in range(n)] for i in range(n)]
+
+        def product(A, B, negate: bool = False) -> list[int]:
+            out = []
+            for i in range(n):
+                for j in range(n):
+                    terms = [g.mul(a, b) for a, b in ((A(i, k), B(k, j)) for k in range(n))
+                             if a is not None and b is not None]
+                    total = g.add(*terms) if terms else g.zero
+                    out.append(g.neg(total) if negate else total)
+            return out
+
+        zeros = [g.zero] * self.base_dim
+        fields = []
+        for E in G._basis():
+            def basis(i, k, E=E):
+                return g.const(E[i, k]) if E[i, k] != 0 else None
+
+            if side == "left":
+                fields.append(zeros + product(lambda i, k: W[i][k], basis))
+            else:
+                fields.append(product(lambda i, k: q[i][k], basis, negate=True)
+                              + product(basis, lambda i, k: W[i][k]))
+        return fields
+
     def fibre_of(self, a):
         return self._split(a)[1]
 
