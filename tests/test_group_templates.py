@@ -149,10 +149,12 @@ def _closed_form_groupoids():
         inc(sg.SO3("R1")) * inc(sg.SO3("R2", retraction="exp")),
         sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("W"),
         sg.SE2("g") * sg.PairGroupoid(sg.SO3("R")),
+        inc(sg.SE3("g")),
+        inc(sg.SE2("g", retraction="exp")),
     ]
 
 
-@pytest.mark.parametrize("index", range(5))
+@pytest.mark.parametrize("index", range(7))
 @pytest.mark.parametrize("side", ["left", "right"])
 def test_increment_and_product_fields_in_closed_form(index, side):
     """Their closed-form fields equal the generic derivation on the graph at a random

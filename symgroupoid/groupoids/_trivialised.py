@@ -1,11 +1,11 @@
-"""The pair groupoid G × G ⇉ G of a rotation group in left-trivialised (increment) coordinates.
+"""The pair groupoid G × G ⇉ G of SO(n) or SE(n) in left-trivialised (increment) coordinates.
 
 The map (q₀, q₁) ↦ (q₀, q₀⁻¹q₁) identifies the pair groupoid of a Lie group G with the action
 groupoid G ⋉ G (seed 001 §2.1.1: G acting on itself by right multiplication).  An arrow is
 stored as the configuration q₀ and the *offset* D = F − I of the increment F = q₀⁻¹q₁:
 
     α(q, D) = q,   β(q, D) = q(I + D),   (q, D)(q(I + D), D') = (q, D + D' + DD'),
-    ε(q) = (q, 0),   (q, D)⁻¹ = (q(I + D), Dᵀ),
+    ε(q) = (q, 0),   (q, D)⁻¹ = (q(I + D), F⁻¹ − I)   (Dᵀ on SO(n)),
 
 and a step solves for the retraction coordinates x of the newest increment,
 D = τ(x) − I (docs/conventions.md §18).
@@ -31,7 +31,7 @@ from .._arguments import instance_argument, name_argument
 from .._errors import InputTypeError
 from .._symbols import StepSymbol, latex_name, subscripted
 from ._base import Arrow, Groupoid
-from ._matrix_groups import SO3, MatrixLieGroup
+from ._matrix_groups import SO2, SO3, MatrixLieGroup
 
 
 class TrivialisedArrow(Arrow):
@@ -55,8 +55,8 @@ class TrivialisedArrow(Arrow):
 
 
 class TrivialisedPairGroupoid(Groupoid):
-    """G × G ⇉ G in coordinates (q₀, q₀⁻¹q₁ − I) for a rotation group G (``SO3("R")``,
-    ``SO2("r")``); see the module docstring.
+    """G × G ⇉ G in coordinates (q₀, q₀⁻¹q₁ − I) for G = SO(2), SO(3), SE(2) or SE(3)
+    (``SO3("R")``, ``SE3("g")``); see the module docstring.
 
     ``increment``: the name of the increment F = q₀⁻¹q₁ in states and LaTeX (default "F"
     followed by what follows a leading "R" in the group's name: ``SO3("R2")`` → "F2").
@@ -66,12 +66,14 @@ class TrivialisedPairGroupoid(Groupoid):
 
     def __init__(self, group: MatrixLieGroup, increment: str | None = None):
         owner = "TrivialisedPairGroupoid"
-        instance_argument(group, MatrixLieGroup, "group", "a rotation group (SO3('R'), …)",
-                          owner=owner)
-        if group.affine or group.rotation_block != group.n:
-            raise InputTypeError(f"{owner}: {group.name} is not a rotation group; increment "
-                                 f"coordinates are implemented for SO(2) and SO(3) (use "
-                                 f"PairGroupoid for {group.name})")
+        instance_argument(group, MatrixLieGroup, "group",
+                          "a matrix Lie group (SO3('R'), SE3('g'), …)", owner=owner)
+        linear = group.n - 1 if group.affine else group.n
+        if not group.rotation_block or group.rotation_block < linear:
+            raise InputTypeError(f"{owner}: {group.name} has no rotation block over its whole "
+                                 f"linear part; increment coordinates are implemented for "
+                                 f"SO(2), SO(3), SE(2) and SE(3) (use PairGroupoid for "
+                                 f"{group.name})")
         if increment is None:
             name = group.symbol_name
             increment = "F" + (name[1:] if name.startswith("R") else name)
@@ -98,9 +100,13 @@ class TrivialisedPairGroupoid(Groupoid):
 
     # --- matrices of coordinates ------------------------------------------------------------
     def offset_matrix(self, d: Sequence) -> sp.Matrix:
-        """The n×n matrix D = F − I of offset coordinates (every entry is free)."""
+        """The n×n matrix D = F − I of offset coordinates: the group's free entries (all
+        of them on SO(n); SE(n)'s last row is zero)."""
         n = self.group.n
-        return sp.Matrix(n, n, list(d))
+        D = sp.zeros(n, n)
+        for (i, j), v in zip(self.group._free, d):
+            D[i, j] = v
+        return D
 
     def _offset(self, D: sp.Matrix) -> tuple:
         return tuple(D[i, j] for i, j in self.group._free)
@@ -136,8 +142,15 @@ class TrivialisedPairGroupoid(Groupoid):
         return tuple(q) + (sp.S.Zero,) * self.base_dim
 
     def inverse(self, a):
-        """(q(I + D), Dᵀ): F⁻¹ = Fᵀ on a rotation group, so F⁻¹ − I = Dᵀ exactly."""
-        return tuple(self.target(a)) + self._offset(self.offset_matrix(self._split(a)[1]).T)
+        """(q(I + D), F⁻¹ − I): on a rotation group F⁻¹ − I = Dᵀ exactly; on SE(n), with
+        F = [[I + D_R, p], [0, 1]], F⁻¹ − I = [[D_Rᵀ, −(I + D_R)ᵀp], [0, 0]]."""
+        D = self.offset_matrix(self._split(a)[1])
+        m = self.group.rotation_block
+        out = sp.zeros(*D.shape)
+        out[:m, :m] = D[:m, :m].T
+        if self.group.affine:
+            out[:m, m] = -(sp.eye(m) + D[:m, :m]).T * D[:m, m]
+        return tuple(self.target(a)) + self._offset(out)
 
     def section_curves(self, q, t):
         return [tuple(q) + self.fibre_chart([t if b == a else 0 for b in range(self.rank)])
@@ -153,18 +166,21 @@ class TrivialisedPairGroupoid(Groupoid):
         X⃗_b = (−qE_b, E_b(I + D)) (τ(tE) = I + tE + O(t²) for the Cayley map and exp)."""
         G, n = self.group, self.group.n
         coords = list(coords)
-        q = [[coords[n * i + j] for j in range(n)] for i in range(n)]
-        W = [[g.add(coords[self.base_dim + n * i + j], g.one) if i == j
-              else coords[self.base_dim + n * i + j] for j in range(n)] for i in range(n)]
+        eye = sp.eye(n)
+        q = [[g.const(eye[i, j]) for j in range(n)] for i in range(n)]
+        W = [[g.const(eye[i, j]) for j in range(n)] for i in range(n)]
+        for k, (i, j) in enumerate(G._free):
+            q[i][j] = coords[k]
+            d = coords[self.base_dim + k]
+            W[i][j] = g.add(d, g.one) if i == j else d
 
         def product(A, B, negate: bool = False) -> list[int]:
             out = []
-            for i in range(n):
-                for j in range(n):
-                    terms = [g.mul(a, b) for a, b in ((A(i, k), B(k, j)) for k in range(n))
-                             if a is not None and b is not None]
-                    total = g.add(*terms) if terms else g.zero
-                    out.append(g.neg(total) if negate else total)
+            for i, j in G._free:
+                terms = [g.mul(a, b) for a, b in ((A(i, k), B(k, j)) for k in range(n))
+                         if a is not None and b is not None]
+                total = g.add(*terms) if terms else g.zero
+                out.append(g.neg(total) if negate else total)
             return out
 
         zeros = [g.zero] * self.base_dim
@@ -185,31 +201,49 @@ class TrivialisedPairGroupoid(Groupoid):
 
     # --- the chart of an α-fibre: D = τ(x) − I -------------------------------------------------
     def fibre_chart(self, x, source=None):
-        """τ(x) − I.  Cayley: c(ξ + ξ²/2) with c = 4/(4 + |x|²), as written (ξ³ = −|x|²ξ in
-        so(2) and so(3)): a product of the common factor c and a polynomial, not a sum of
-        rational terms over a common denominator, so that no entry cancels (a factored
-        closed form biases the step's rounding: docs/conventions.md §18)."""
+        """τ(x) − I.  Cayley: the rotation block c(ω̂ + ω̂²/2) with c = 4/(4 + |ω|²), as
+        written (ω̂³ = −|ω|²ω̂ in so(2) and so(3)): a product of the common factor c and a
+        polynomial, not a sum of rational terms over a common denominator, so that no entry
+        cancels (a factored closed form biases the step's rounding: docs/conventions.md
+        §18); on SE(n) the translation column (I − ω̂/2)⁻¹v, written out the same way."""
         G = self.group
         x = G._checked(x, "x", G.rank)
-        if G.retraction == "cayley":
-            xi = G.hat(x)
-            c = 4 / (4 + sum(v ** 2 for v in x))
-            return self._offset(c * (xi + xi * xi / 2))
-        return self._offset(G.exp(list(x)) - sp.eye(G.n))
+        if G.retraction != "cayley":
+            return self._offset(G.exp(list(x)) - sp.eye(G.n))
+        m, xi = G.rotation_block, G.hat(x)
+        omega = xi[:m, :m]
+        c = 4 / (4 - (omega * omega).trace() / 2)  # |ω|² = −tr(ω̂²)/2
+        D = sp.zeros(G.n, G.n)
+        D[:m, :m] = c * (omega + omega * omega / 2)
+        if G.affine:  # (I − ω̂/2)⁻¹v = v + (c/2)(ω̂v + ω̂(ω̂v)/2)
+            v = xi[:m, m]
+            turned = omega * v
+            D[:m, m] = v + c / 2 * (turned + omega * turned / 2)
+        return self._offset(D)
 
     def chart_of_fibre(self, f, source=None):
         """τ⁻¹(I + D) symbolically; on SO(3) with the Cayley map 2 vee(D − Dᵀ)/(4 + tr D)."""
         G = self.group
         D = self.offset_matrix(f)
-        if G.retraction == "cayley" and isinstance(G, SO3):
-            skew = D - D.T
-            return tuple(2 * v / (4 + D.trace()) for v in (skew[2, 1], skew[0, 2], skew[1, 0]))
-        return tuple(G.retraction_inverse(sp.eye(G.n) + D))
+        if G.retraction != "cayley":
+            return tuple(G.retraction_inverse(sp.eye(G.n) + D))
+        m = G.rotation_block
+        rotation = D[:m, :m]
+        skew = rotation - rotation.T
+        entries = (skew[2, 1], skew[0, 2], skew[1, 0]) if m == 3 else (skew[1, 0],)
+        omega = [2 * v / (4 + rotation.trace()) for v in entries]
+        if not G.affine:
+            return tuple(omega)
+        rot = SO3 if m == 3 else SO2
+        v = (sp.eye(m) - rot.hat(omega) / 2) * D[:m, m]
+        return tuple(omega) + tuple(v)
 
     def fibre_chart_inverse(self, f, source=None):
         """τ⁻¹(I + D) of numeric offsets (Cayley: vee(2D(2I + D)⁻¹))."""
         G = self.group
-        D = np.asarray([float(v) for v in f], float).reshape(G.n, G.n)
+        D = np.zeros((G.n, G.n))
+        for (i, j), v in zip(G._free, f):
+            D[i, j] = float(v)
         eye = np.eye(G.n)
         if G.retraction == "cayley":
             return tuple(float(v) for v in G._numeric_vee(2.0 * D @ np.linalg.inv(2 * eye + D)))
@@ -219,8 +253,8 @@ class TrivialisedPairGroupoid(Groupoid):
     def _named_offset(self, offset: int) -> sp.Matrix:
         """D_{k+offset} = F_{k+offset} − I as a matrix of named entries (F_{k} − I)_{ij}."""
         base = subscripted(self.increment_latex, offset)
-        n = self.group.n
-        return sp.Matrix(n, n, lambda i, j: StepSymbol(f"({base} - I)_{{{i + 1}{j + 1}}}"))
+        return self.offset_matrix([StepSymbol(f"({base} - I)_{{{i + 1}{j + 1}}}")
+                                   for i, j in self.group._free])
 
     def named_fibre(self, offset):
         """The arrow g_{k+o} = (q_{k+o−1}, F_{k+o−1} − I)."""
@@ -264,7 +298,10 @@ class TrivialisedPairGroupoid(Groupoid):
         G = self.group
         q, d = self._split(a)
         M = G.numeric_matrix([float(v) for v in q])
-        return M + M @ np.asarray([float(v) for v in d], float).reshape(G.n, G.n)
+        D = np.zeros((G.n, G.n))
+        for (i, j), v in zip(G._free, d):
+            D[i, j] = float(v)
+        return M + M @ D
 
     def view(self, coords):
         return TrivialisedArrow(self, coords)

@@ -44,6 +44,7 @@ from ._validate import (
     _declared,
     constraint_check,
     integer_argument,
+    offset_element,
     real_array,
 )
 
@@ -284,9 +285,8 @@ def _screened_states(sim, S: np.ndarray) -> np.ndarray:
             coords = safe[:, index[start:start + group.arrow_dim]]
             flagged |= _group_screen(group, _group_matrices(group, coords))
         for start, group in groupoid.offset_parts():  # increments stored as F − I
-            offsets = safe[:, index[start:start + group.n ** 2]]
-            flagged |= _group_screen(group, np.eye(group.n)
-                                     + offsets.reshape(-1, group.n, group.n))
+            offsets = safe[:, index[start:start + group.arrow_dim]]
+            flagged |= _group_screen(group, offset_element(group, offsets))
     for i in np.flatnonzero(flagged):
         try:
             sim.state(S[i])

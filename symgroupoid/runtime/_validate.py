@@ -288,6 +288,16 @@ def _point_of(space, value, name: str, owner: str):
     return point(value, space.coords_dim, name, owner=owner)
 
 
+def offset_element(group, offsets: np.ndarray) -> np.ndarray:
+    """The group element I + D of offsets D on the group's free entries (the last row of
+    SE(n) is (0, …, 0, 1)); ``offsets`` of shape (arrow_dim,) or (B, arrow_dim)."""
+    offsets = np.asarray(offsets, float)
+    M = np.broadcast_to(np.eye(group.n), offsets.shape[:-1] + (group.n, group.n)).copy()
+    for k, (i, j) in enumerate(group._free):
+        M[..., i, j] += offsets[..., k]
+    return M
+
+
 def arrow(groupoid: Groupoid, value, name: str, *, owner: str = "") -> np.ndarray:
     """Flat arrow coordinates: shape (arrow_dim,), finite, and every matrix part of the
     arrow (``groupoid.matrix_parts()``) in its group (:func:`check_group_matrix`)."""
@@ -300,7 +310,7 @@ def arrow(groupoid: Groupoid, value, name: str, *, owner: str = "") -> np.ndarra
         M = group.numeric_matrix(a[start:start + group.arrow_dim])
         check_group_matrix(group, M, f"{name} (its {group.symbol_name!r} part)", owner=owner)
     for start, group in groupoid.offset_parts():
-        M = np.eye(group.n) + a[start:start + group.n ** 2].reshape(group.n, group.n)
+        M = offset_element(group, a[start:start + group.arrow_dim])
         check_group_matrix(group, M, f"{name} (its increment, stored as F − I)", owner=owner)
     return a
 
