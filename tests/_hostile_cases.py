@@ -92,12 +92,30 @@ def seed_case(name: str) -> Case:
     return Case(sim, named_state(sim, flat), flat, dict(params), (config, momentum))
 
 
+@functools.cache
+def increments_case() -> Case:
+    """One body of the 3D chain in increment coordinates (TrivialisedPairGroupoid): a
+    configuration R1 and an increment F1 stored as F1 − I."""
+    from kernel_support import SESSION_CACHE
+
+    from symgroupoid import systems
+
+    sim = systems.spherical_chain_increments(1).euler_lagrange().compile(
+        backend="c", cache_dir=SESSION_CACHE)
+    params = {"h": 0.01, "g": 9.81}
+    R = sg.SO3("R").numeric_tau([0.4, 0.3, 0.2])
+    flat = sim.from_momentum({"R1": R}, [0.2, -0.1, 0.3], params)
+    return Case(sim, named_state(sim, flat), flat, params, ({"R1": R}, (0.2, -0.1, 0.3)))
+
+
 CASES = ["oscillator", "diagonal", "accel",
          *(pytest.param(n, marks=pytest.mark.skipif(not HAVE_CC, reason="no C compiler"))
-           for n in ("rigid_body", "plate_ball", "heavy_top"))]
+           for n in ("rigid_body", "plate_ball", "heavy_top", "increments"))]
 
 
 def case_of(name: str) -> Case:
+    if name == "increments":
+        return increments_case()
     return tiny_case(name) if name in ("oscillator", "diagonal", "accel") else seed_case(name)
 
 

@@ -121,17 +121,21 @@ def test_pair_groupoid_fields_in_closed_form(index, side):
     """The pair groupoid's closed-form fields (the space's tangent basis q·E_b padded with
     zeros) equal the generic derivation d/dt m(a, h_b(t)) (left), −d/dt m(h_b(t)⁻¹, a)
     (right) at t = 0 on the graph, at a random arrow."""
+    _check_closed_form_fields(_pair_groupoids()[index], side, seed=13)
+
+
+def _check_closed_form_fields(G, side: str, seed: int) -> None:
+    """G's own ``field_nodes`` against the generic derivation of the base class on the
+    graph, at a random arrow (30 digits)."""
     from symgroupoid.ir import Graph, to_sympy
 
-    G = _pair_groupoids()[index]
     g = Graph()
     symbols = sp.symbols(f"a0:{G.arrow_dim}", real=True)
     coords = [g.input(s) for s in symbols]
     closed = G.field_nodes(g, side, coords)
     generic = Groupoid.field_nodes(G, g, side, coords)
     assert len(closed) == len(generic) == G.rank
-    rng = np.random.default_rng(13)
-    arrow = G.random_arrow(rng)
+    arrow = G.random_arrow(np.random.default_rng(seed))
     values = {s: sp.Float(v, 30) for s, v in zip(symbols, arrow)}
     for a, b in zip(closed, generic):
         assert len(a) == len(b) == G.arrow_dim
@@ -159,21 +163,7 @@ def _closed_form_groupoids():
 def test_increment_and_product_fields_in_closed_form(index, side):
     """Their closed-form fields equal the generic derivation on the graph at a random
     arrow, as the pair groupoid's do."""
-    from symgroupoid.ir import Graph, to_sympy
-
-    G = _closed_form_groupoids()[index]
-    g = Graph()
-    symbols = sp.symbols(f"a0:{G.arrow_dim}", real=True)
-    coords = [g.input(s) for s in symbols]
-    closed = G.field_nodes(g, side, coords)
-    generic = Groupoid.field_nodes(G, g, side, coords)
-    assert len(closed) == len(generic) == G.rank
-    arrow = G.random_arrow(np.random.default_rng(17))
-    values = {s: sp.Float(v, 30) for s, v in zip(symbols, arrow)}
-    for a, b in zip(closed, generic):
-        assert len(a) == len(b) == G.arrow_dim
-        assert np.allclose(_at(to_sympy(g, a), values), _at(to_sympy(g, b), values),
-                           rtol=0, atol=1e-20)
+    _check_closed_form_fields(_closed_form_groupoids()[index], side, seed=17)
 
 
 # -- stored templates (groupoids/_closed_forms.py) ----------------------------------------------

@@ -180,6 +180,18 @@ def test_se3_states_and_trajectory() -> None:
         ours.simulate(flat, 2, PARAMS)
 
 
+def test_bad_arguments_are_refused() -> None:
+    with pytest.raises(sg.InputTypeError, match="other than the group"):
+        sg.TrivialisedPairGroupoid(sg.SO3("R"), increment="R")
+    with pytest.raises(sg.InputTypeError):
+        sg.TrivialisedPairGroupoid(sg.EuclideanSpace("x y"))
+    for junk in (3, "", "F\0", sp.Symbol("F")):
+        with pytest.raises(sg.SymgroupoidError, match="increment"):
+            sg.TrivialisedPairGroupoid(sg.SO3("R"), increment=junk)
+    assert sg.TrivialisedPairGroupoid(sg.SO3("R7")).increment_name == "F7"
+    assert sg.TrivialisedPairGroupoid(sg.SO3("g")).increment_name == "Fg"
+
+
 # --- the same equations as the pair groupoid --------------------------------------------------
 
 @pytest.mark.parametrize("n", [1, 2])

@@ -417,7 +417,8 @@ def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution:
     return DerivedStep(
         name=name, groupoid=G, order=1, knowns=list(g0),
         fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap, multipliers_next=[],
-        next_knowns=[sp.sympify(c).xreplace(next_map(G, fibre, cmap)) for c in g1],
+        next_knowns=[sp.sympify(c).xreplace(next_map(G, fibre, cmap))
+                     for c in G.renormalised_arrow(g1)],
         parameters=list(parameters), n_constraints=0, offsets=(0, 1), arrows=arrows,
         prediction=list(G.predict_chart(g0)), symbolic=symbolic, graph=graph,
         n_equations=len(distribution) + len(fs.constraints))

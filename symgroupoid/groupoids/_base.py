@@ -388,8 +388,8 @@ class Groupoid(ABC):
 
     def offset_parts(self) -> list[tuple[int, Any]]:
         """(offset in the arrow coordinates, MatrixLieGroup) of each part stored as the
-        offset M − I of a group element M (:class:`TrivialisedPairGroupoid`); every entry
-        of the n×n offset is a coordinate."""
+        offset M − I of a group element M (:class:`TrivialisedPairGroupoid`), on the group's
+        free entries (``_free``, as its own coordinates)."""
         return []
 
     def in_matrix_form(self, coords: Sequence, name_of: Callable[[Any], str]) -> tuple:

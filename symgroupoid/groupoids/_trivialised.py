@@ -31,7 +31,7 @@ from .._arguments import instance_argument, name_argument
 from .._errors import InputTypeError
 from .._symbols import StepSymbol, latex_name, subscripted
 from ._base import Arrow, Groupoid
-from ._matrix_groups import SO2, SO3, MatrixLieGroup
+from ._matrix_groups import MatrixLieGroup
 
 
 class TrivialisedArrow(Arrow):
@@ -110,6 +110,13 @@ class TrivialisedPairGroupoid(Groupoid):
 
     def _offset(self, D: sp.Matrix) -> tuple:
         return tuple(D[i, j] for i, j in self.group._free)
+
+    def _numeric_offset(self, d: Sequence) -> np.ndarray:
+        """:meth:`offset_matrix` of numeric offsets (NumPy)."""
+        D = np.zeros((self.group.n, self.group.n))
+        for (i, j), v in zip(self.group._free, d):
+            D[i, j] = float(v)
+        return D
 
     def _split(self, a: Sequence) -> tuple[tuple, tuple]:
         n = self.base_dim
@@ -222,7 +229,9 @@ class TrivialisedPairGroupoid(Groupoid):
         return self._offset(D)
 
     def chart_of_fibre(self, f, source=None):
-        """τ⁻¹(I + D) symbolically; on SO(3) with the Cayley map 2 vee(D − Dᵀ)/(4 + tr D)."""
+        """τ⁻¹(I + D) symbolically.  Cayley: ω = 2 vee(D_R − D_Rᵀ)/(4 + tr D_R) on SO(2) and
+        SO(3) alike (1 + tr cay(ω) = 4c on SO(3), 2 + tr cay(ω) = 4c on SO(2)), and on SE(n)
+        v = (I − ω̂/2)p; the exponential: the group's logarithm."""
         G = self.group
         D = self.offset_matrix(f)
         if G.retraction != "cayley":
@@ -234,16 +243,13 @@ class TrivialisedPairGroupoid(Groupoid):
         omega = [2 * v / (4 + rotation.trace()) for v in entries]
         if not G.affine:
             return tuple(omega)
-        rot = SO3 if m == 3 else SO2
-        v = (sp.eye(m) - rot.hat(omega) / 2) * D[:m, m]
+        v = (sp.eye(m) - G.rot.hat(omega) / 2) * D[:m, m]
         return tuple(omega) + tuple(v)
 
     def fibre_chart_inverse(self, f, source=None):
         """τ⁻¹(I + D) of numeric offsets (Cayley: vee(2D(2I + D)⁻¹))."""
         G = self.group
-        D = np.zeros((G.n, G.n))
-        for (i, j), v in zip(G._free, f):
-            D[i, j] = float(v)
+        D = self._numeric_offset(f)
         eye = np.eye(G.n)
         if G.retraction == "cayley":
             return tuple(float(v) for v in G._numeric_vee(2.0 * D @ np.linalg.inv(2 * eye + D)))
@@ -298,10 +304,7 @@ class TrivialisedPairGroupoid(Groupoid):
         G = self.group
         q, d = self._split(a)
         M = G.numeric_matrix([float(v) for v in q])
-        D = np.zeros((G.n, G.n))
-        for (i, j), v in zip(G._free, d):
-            D[i, j] = float(v)
-        return M + M @ D
+        return M + M @ self._numeric_offset(d)
 
     def view(self, coords):
         return TrivialisedArrow(self, coords)

@@ -42,6 +42,7 @@ from ..groupoids import (
     TimeGroupoid,
     TrivialisedPairGroupoid,
 )
+from ..groupoids._manifold import GroupManifold, ProductManifold
 
 #: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
 #: last row of SE(n)): far above the rounding of a product of many rotations, far below any
@@ -276,8 +277,6 @@ def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
 def _point_of(space, value, name: str, owner: str):
     """A point of a pair groupoid's configuration manifold: a point of Rⁿ, a group element
     (a matrix), or one point per factor of a product."""
-    from ..groupoids._manifold import GroupManifold, ProductManifold
-
     if isinstance(space, GroupManifold):
         return group_element(space.group, value, name, owner=owner)
     if isinstance(space, ProductManifold):
