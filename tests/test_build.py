@@ -82,11 +82,72 @@ def test_the_stepper_cost_grows_with_its_unrolled_size():
 
 
 def test_a_cold_unit_is_lowered_only_from_the_optimising_levels():
-    assert _build.unit_flags(("-O3", "-ffp-contract=off"), cold=True) == (
+    assert _build.unit_flags(("-O3", "-ffp-contract=off"), "cold") == (
         "-O3", "-ffp-contract=off", _build.COLD_LEVEL)
-    assert _build.unit_flags(("-O3", "-fopenmp"), cold=False) == ("-O3", "-fopenmp")
+    assert _build.unit_flags(("-O3", "-fopenmp"), "step") == ("-O3", "-fopenmp")
     for kept in (("-O0",), ("-O2", "-Og"), ("-Os",), ("-march=native",), ()):
-        assert _build.unit_flags(kept, cold=True) == kept
+        assert _build.unit_flags(kept, "cold") == kept
+    with pytest.raises(ValueError, match="role"):
+        _build.unit_flags(("-O3",), "hot")
+
+
+def test_block_units_are_lowered_from_the_optimising_levels():
+    """A block unit is built at BLOCK_LEVEL after the optimising levels (and balanced for
+    it); at -O0, -Os or -Og it keeps the build's flags (weight 1)."""
+    for operations in (10, _build.SMALL_STEP + 1, _build.LARGE_PROGRAM + 1):
+        for default in (_build.optimisation_flags(operations, step=True),
+                        (*_build.optimisation_flags(operations, step=True), "-fopenmp")):
+            assert _build.unit_flags(default, "blocks") == (*default, _build.BLOCK_LEVEL)
+            assert _build.unit_flags(default, "step") == default
+            level = [f for f in default if f.startswith("-O")][-1]
+            assert _build.block_weight(default) == _build.BLOCK_WEIGHTS[level] < 1
+    for kept in (("-O0",), ("-Os", "-g"), ("-O3", "-Og"), ("-march=native",), ()):
+        assert _build.unit_flags(kept, "blocks") == kept
+        assert _build.block_weight(kept) == 1.0
+
+
+def test_only_a_kernel_without_library_calls_has_block_units():
+    """The 3D chain's program is arithmetic (its further unit is a block unit); the planar
+    chain calls sin and cos (-Og would not pair them into sincos): no block units, and
+    units balanced at weight 1 whatever ``block_weight`` says."""
+    from symgroupoid.codegen._emit import arithmetic_only
+    from symgroupoid.systems import spherical_chain
+
+    arithmetic = spherical_chain(2).euler_lagrange()
+    assert arithmetic_only(arithmetic.program)
+    kernel = generate_c(arithmetic, latex=False, units=2, block_weight=0.5)
+    assert kernel.blocks == (f"{kernel.prefix}_unit1.c",)
+    assert generate_c(arithmetic, latex=False).blocks == ()  # one file
+    assert generate_c(arithmetic, latex=False, units=2).blocks == ()  # not asked for
+    trig = planar_chain(16).euler_lagrange()
+    assert not arithmetic_only(trig.program)
+    half = generate_c(trig, latex=False, units=2, block_weight=0.5)
+    assert half.blocks == ()
+    assert half == generate_c(trig, latex=False, units=2)
+    for bad in (-0.5, float("nan"), "1", [0.5]):
+        with pytest.raises(sg.SymgroupoidError, match="block_weight"):
+            generate_c(arithmetic, latex=False, units=2, block_weight=bad)
+    for bad in (0, 65, 1.5, "2"):
+        with pytest.raises(sg.SymgroupoidError, match="units"):
+            generate_c(arithmetic, latex=False, units=bad)
+
+
+def test_weighted_units_finish_together():
+    """With block units at half the cost, unit 0 (stepper and the blocks placed there)
+    and unit 1 take about as long: within the weighted size of the largest part."""
+    sizes = (700, 650, 600, 500, 400, 300, 120, 80)
+    blocks = [_block(size) for size in sizes]
+    assert assign_units(blocks, 2, 12, block_weight=0.5) == 2
+    loads = [float(stepper_statements(12)), 0.0]
+    for b in blocks:
+        loads[b.parts[0].unit] += b.parts[0].statements * (1.0 if b.parts[0].unit == 0
+                                                            else 0.5)
+    assert abs(loads[0] - loads[1]) <= max(sizes), loads
+    assert sum(b.parts[0].unit for b in blocks) > len(sizes) // 2  # more code in unit 1
+    even = [_block(size) for size in sizes]
+    assign_units(even, 2, 12)  # weight 1: the least loaded unit, as before
+    assign_units(again := [_block(size) for size in sizes], 2, 12, block_weight=1.0)
+    assert [b.parts[0].unit for b in even] == [b.parts[0].unit for b in again]
 
 
 def test_the_optimisation_level_follows_the_kind_and_size_of_a_kernel():
@@ -100,7 +161,7 @@ def test_the_optimisation_level_follows_the_kind_and_size_of_a_kernel():
     assert _build.optimisation_flags(large) == ("-O2", *contract)
     step = planar_chain(2).euler_lagrange()
     assert _compile._step_flags(step, None)[:4] == (*_build.SMALL_STEP_LEVEL, *contract)
-    assert _build.unit_flags(_build.optimisation_flags(small, step=True), cold=True) == (
+    assert _build.unit_flags(_build.optimisation_flags(small, step=True), "cold") == (
         *_build.SMALL_STEP_LEVEL, *contract)  # -O1 already: the cold unit keeps it
 
 
@@ -149,6 +210,63 @@ def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatc
         assert f"{prefix}_residual_jacobian" in symbols.stdout
         assert f"{prefix}_simulate_batch" in symbols.stdout
         assert "_part" not in symbols.stdout, "parts are not exported"
+
+
+def _cayley(x) -> np.ndarray:
+    X = np.array([[0, -x[2], x[1]], [x[2], 0, -x[0]], [-x[1], x[0], 0]], float)
+    return np.eye(3) + 4 / (4 + x @ x) * (X + X @ X / 2)
+
+
+def test_block_units_at_their_level_compute_what_every_other_build_computes(monkeypatch):
+    """The 3D chain of 2 bodies at the default flags: its block unit is compiled at
+    BLOCK_LEVEL, the source at the step level.  Explicit flags, even the default ones,
+    apply to every unit (another cache entry).  40 steps of either equal, bit for bit, those
+    of the one-file kernel and of NumPy."""
+    from symgroupoid.systems import spherical_chain
+
+    step = spherical_chain(2).euler_lagrange()
+    commands: list = []
+    run = _build._run
+    monkeypatch.setattr(_build, "_run", lambda kernel, cmds, *a, **k: (
+        commands.extend(cmds), run(kernel, cmds, *a, **k))[1])
+
+    def levels():
+        prefix = step.name
+        out = {}
+        for c in commands:
+            for unit in (f"{prefix}.c", f"{prefix}_unit1.c"):
+                if unit in c:
+                    out[unit] = [w for w in c if w.startswith("-O")][-1]
+        commands.clear()
+        return out
+
+    lowered = step.compile(backend="c")
+    assert lowered.kernel.block_units
+    assert levels() == {f"{step.name}.c": _build.SMALL_STEP_LEVEL[0],
+                        f"{step.name}_unit1.c": _build.BLOCK_LEVEL}
+    explicit = step.compile(backend="c", flags=list(lowered.kernel.flags))
+    assert not explicit.kernel.block_units
+    assert explicit.kernel.source_key != lowered.kernel.source_key
+    assert levels() == {f"{step.name}.c": _build.SMALL_STEP_LEVEL[0],
+                        f"{step.name}_unit1.c": _build.SMALL_STEP_LEVEL[0]}
+    one = generate_c(step, latex=False)
+    whole = _compile.load_kernel_source(one, ["-O3", "-ffp-contract=off"], step.name,
+                                        len(step.unknowns), len(step.knowns))[0]
+    h = PARAMS["h"]
+    R = [_cayley(np.array([0.3, 0.2 * i, 0.1])) for i in (1, 2)]
+    R1 = [r @ _cayley(h * np.array([0.6, -0.4 * i, 0.8])) for i, r in zip((1, 2), R)]
+    state = np.concatenate([r.ravel() for r in R] + [r.ravel() for r in R1])
+    states = lowered.simulate(state, 40, PARAMS).states
+    assert np.isfinite(states).all()
+    assert np.array_equal(states, explicit.simulate(state, 40, PARAMS).states)
+    assert np.array_equal(states, Simulator(step, whole, lowered.options).simulate(
+        state, 40, PARAMS).states)
+    assert np.array_equal(states, step.compile(backend="numpy").simulate(
+        state, 40, PARAMS).states)
+    for sim in (lowered, explicit):  # generated again alike (source key checked)
+        _compile._RECIPES.pop(sim.kernel.source_key)
+        assert bool(_compile.kernel_source_of(sim.kernel, step).blocks) == \
+            sim.kernel.block_units
 
 
 def test_a_large_kernel_splits_its_functions_over_units_too(monkeypatch):
@@ -305,16 +423,22 @@ def test_the_openmp_probe_runs_while_the_c_is_generated(monkeypatch, tmp_path):
 
 
 @needs_cc
-def test_the_templates_compiled_code_is_kept_in_the_cache_and_never_changes_the_c(tmp_path):
-    """A build keeps the templates' compiled code in the cache's templates/ (adopted as cache
-    content); a later process loads it instead of compiling; a damaged or unwritable entry
-    only costs a compilation: the C is the same in every case."""
+def test_the_templates_compiled_code_is_kept_in_the_cache_and_never_changes_the_c(
+        tmp_path, monkeypatch):
+    """Without the package's compiled templates, a build keeps the templates' compiled code
+    in the cache's templates/ (adopted as cache content); a later process loads it instead
+    of compiling; a damaged or unwritable entry only costs a compilation: the C is the same
+    in every case."""
+    from symgroupoid.codegen import _emit
+
+    monkeypatch.setattr(_emit, "package_template_cache", lambda write=False: None)
     step = planar_chain(2).euler_lagrange()
     sg.compile_step(step, backend="c", cache_dir=tmp_path)
     kept = sorted((tmp_path / "templates").glob("__jinja2_*.cache"))
     assert kept and not _cache._foreign_entries(tmp_path)
     plain = generate_c(step, latex=False, units=2)
     probe = ("import sys, jinja2; from symgroupoid.codegen import _emit; "
+             "_emit.package_template_cache = lambda write=False: None; "
              "compiled = []; real = jinja2.Environment.compile; "
              "jinja2.Environment.compile = lambda self, *a, **k: compiled.append(1) or "
              "real(self, *a, **k); "
@@ -341,3 +465,65 @@ def test_the_templates_compiled_code_is_kept_in_the_cache_and_never_changes_the_
     assert _compile.compiled_templates(_cache.KernelCache(blocked)) is None
     sg.compile_step(step, backend="c", cache_dir=blocked)
     assert (blocked / "templates").read_text() == "not a directory"
+
+
+_COUNTING_PROBE = (
+    "import sys, jinja2; from symgroupoid.codegen import _emit; "
+    "compiled = []; real = jinja2.Environment.compile; "
+    "jinja2.Environment.compile = lambda self, *a, **k: compiled.append(1) or "
+    "real(self, *a, **k); "
+    "from symgroupoid.systems import planar_chain; "
+    "step = planar_chain(2).euler_lagrange(); "
+    "k = _emit.generate_c(step, latex=False, units=2, template_cache=sys.argv[1]); "
+    "sys.stdout.write(str(len(compiled)))")
+
+
+def test_the_templates_compiled_beside_them_serve_every_process_and_cache(tmp_path):
+    """``cache templates`` (make's setup) compiles every template into the templates'
+    __pycache__/: a process with a new, empty kernel cache compiles none, even where Python
+    writes no bytecode; nothing goes into that kernel cache."""
+    from symgroupoid.codegen import _emit
+
+    run = subprocess.run([sys.executable, "-m", "symgroupoid", "cache", "templates"],
+                         capture_output=True, text=True, check=True, cwd=REPO)
+    directory = _emit.template_dir() / "__pycache__"
+    assert f"{len(_emit.TEMPLATE_NAMES)} in {directory}" in run.stdout
+    assert len(list(directory.glob("__jinja2_*.cache"))) >= len(_emit.TEMPLATE_NAMES)
+    assert _emit.package_template_cache() == str(directory)
+    for env in ({"PYTHONDONTWRITEBYTECODE": "1"}, {}):
+        fresh = tmp_path / f"cache{len(env)}"
+        fresh.mkdir()
+        count = subprocess.run([sys.executable, "-c", _COUNTING_PROBE, str(fresh)],
+                               capture_output=True, text=True, check=True, cwd=REPO,
+                               env={**os.environ, **env}).stdout
+        assert count == "0" and not list(fresh.iterdir())
+
+
+def test_a_changed_template_is_compiled_again(tmp_path, monkeypatch):
+    """An entry of the package's compiled templates whose template changed since is stale:
+    jinja2 compares the source, compiles the template again, and the C follows the new
+    template; a process that may write bytecode replaces the entry."""
+    import shutil
+
+    from symgroupoid.codegen import _emit
+
+    copy = tmp_path / "templates"
+    shutil.copytree(_emit.template_dir(), copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(_emit, "template_dir", lambda: copy)
+    _emit._environment.cache_clear()
+    directory, kept = _emit.precompile_templates()
+    assert directory == str(copy / "__pycache__") and kept == len(_emit.TEMPLATE_NAMES)
+    step = planar_chain(1).euler_lagrange()
+    before = generate_c(step, latex=False).source
+    header = copy / "kernel.c.j2"
+    header.write_text("/* a changed template */\n" + header.read_text())
+    entries = {p: p.read_bytes() for p in (copy / "__pycache__").glob("__jinja2_*.cache")}
+    monkeypatch.setattr(sys, "dont_write_bytecode", False)
+    _emit._environment.cache_clear()
+    after = generate_c(step, latex=False).source
+    assert after == "/* a changed template */\n" + before
+    changed = [p for p, data in entries.items() if p.read_bytes() != data]
+    assert len(changed) == 1  # kernel.c.j2's entry, rewritten
+    monkeypatch.setattr(sys, "dont_write_bytecode", True)
+    assert _emit.package_template_cache(write=True) is None
+    _emit._environment.cache_clear()

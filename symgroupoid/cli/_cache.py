@@ -1,4 +1,5 @@
-"""``cache info`` and ``cache clear``: the kernel cache of this user (``SYMGROUPOID_CACHE``)."""
+"""``cache info`` and ``cache clear``: the kernel cache of this user (``SYMGROUPOID_CACHE``);
+``cache templates``: the kernel templates compiled once, beside them."""
 
 from __future__ import annotations
 
@@ -6,6 +7,7 @@ import argparse
 import time
 from collections import defaultdict
 
+from ..codegen import precompile_templates
 from ..runtime._maintenance import cache_info, clear_cache
 from ._common import say
 
@@ -52,4 +54,10 @@ def run_clear(args: argparse.Namespace) -> int:
     if result.busy:
         say(f"  left {len(result.busy)} being built by another process: "
             f"{', '.join(result.busy)}")
+    return 0
+
+
+def run_templates(args: argparse.Namespace) -> int:
+    directory, kept = precompile_templates()
+    say(f"kernel templates compiled: {kept} in {directory}")
     return 0

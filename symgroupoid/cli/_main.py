@@ -17,7 +17,7 @@ from .. import __version__
 from .._errors import SymgroupoidError
 from .._progress import set_default
 from ._boundary import run_bvp
-from ._cache import run_clear, run_info
+from ._cache import run_clear, run_info, run_templates
 from ._common import BACKENDS
 from ._derive import run_derive, run_emit
 from ._seeds import run_demo, run_generate
@@ -154,6 +154,8 @@ def build_parser() -> argparse.ArgumentParser:
     actions = cache.add_subparsers(dest="action", required=True, metavar="ACTION")
     _command(actions, "info", run_info, "where the cache is and what it holds")
     _command(actions, "clear", run_clear, "remove the cached kernels")
+    _command(actions, "templates", run_templates,
+             "compile the kernel templates once, beside them (done by make's setup)")
 
     demo = _command(commands, "demo", run_demo, "a short tour of the library")
     del demo

@@ -1,8 +1,15 @@
 """Layer 4: C99 code generation for step equations (residual, Jacobian, chart, Newton)."""
 
-from ._emit import KernelSource, emit_c, generate_c, template_dir, templates_digest
+from ._emit import (
+    KernelSource,
+    emit_c,
+    generate_c,
+    precompile_templates,
+    template_dir,
+    templates_digest,
+)
 from ._kernel import c_identifier
 from ._printer import KernelCPrinter, print_c
 
 __all__ = ["KernelCPrinter", "KernelSource", "c_identifier", "emit_c", "generate_c",
-           "print_c", "template_dir", "templates_digest"]
+           "precompile_templates", "print_c", "template_dir", "templates_digest"]

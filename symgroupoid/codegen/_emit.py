@@ -13,17 +13,25 @@ import functools
 import hashlib
 import os
 import re
+import sys
 import tempfile
 import threading
+from collections.abc import Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 
 import jinja2
 
-from .._arguments import instance_argument, name_argument, path_argument
+from .._arguments import (
+    instance_argument,
+    integer_argument,
+    name_argument,
+    path_argument,
+    real_argument,
+)
 from .._errors import OutputError, ShapeError
-from ._kernel import assign_units, c_identifier, kernel_blocks
+from ._kernel import assign_units, c_identifier, kernel_blocks, program_functions
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
                   "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.j2",
@@ -53,32 +61,94 @@ def template_dir() -> Path:
                             "symgroupoid.templates or a templates/ directory in the source tree)")
 
 
-class CompiledTemplates(jinja2.FileSystemBytecodeCache):
-    """The templates' compiled Python code kept in a directory across processes (jinja2's
-    bytecode cache: one file per template, keyed by its path and checked against its source),
-    so that a process's first kernel compiles no template (about 0.02 s of CPU).  An entry
-    that cannot be read is compiled again, one that cannot be written is not kept: the
-    generated C never depends on it."""
+class CompiledTemplates(jinja2.BytecodeCache):
+    """The templates' compiled Python code kept in directories across processes (jinja2's
+    bytecode cache: one file per template, keyed by its path and checked against its
+    source), so that a process's first kernel compiles no template (about 0.045 s).
+    ``directories``: where to look, in order; ``write_to``: where a template compiled here
+    is kept (None: nowhere).  An entry that cannot be read is compiled again, one that
+    cannot be written is not kept: the generated C never depends on it."""
+
+    def __init__(self, directories: Sequence[str], write_to: str | None = None):
+        self.caches = [jinja2.FileSystemBytecodeCache(d) for d in directories]
+        self.writer = None if write_to is None else jinja2.FileSystemBytecodeCache(write_to)
 
     def load_bytecode(self, bucket: jinja2.bccache.Bucket) -> None:
-        try:
-            super().load_bytecode(bucket)
-        except Exception:  # a damaged or foreign file: compile the template again
-            bucket.reset()
+        for cache in self.caches:
+            try:
+                cache.load_bytecode(bucket)
+            except Exception:  # a damaged or foreign file: compile the template again
+                bucket.reset()
+            if bucket.code is not None:
+                return
 
     def dump_bytecode(self, bucket: jinja2.bccache.Bucket) -> None:
-        with contextlib.suppress(OSError):
-            super().dump_bytecode(bucket)
+        if self.writer is not None:
+            with contextlib.suppress(OSError):
+                self.writer.dump_bytecode(bucket)
+
+
+def package_template_cache(write: bool = False) -> str | None:
+    """``__pycache__/`` of the templates' directory, where Python keeps the bytecode of a
+    package's modules: the templates' compiled code for every process and kernel cache
+    (:class:`CompiledTemplates`), filled when the package is set up
+    (:func:`precompile_templates`).  For reading: when it exists.  For writing (``write``):
+    when Python writes bytecode (not under ``python -B`` or ``PYTHONDONTWRITEBYTECODE``)
+    and it is a writable directory (made if missing).  Else None."""
+    directory = template_dir() / "__pycache__"
+    if not write:
+        return str(directory) if directory.is_dir() else None
+    if sys.dont_write_bytecode:
+        return None
+    try:
+        directory.mkdir(exist_ok=True)
+    except OSError:
+        return None
+    return str(directory) if os.access(directory, os.W_OK | os.X_OK) else None
 
 
 @functools.lru_cache(maxsize=8)  # (one per cache directory in use: a few)
-def _environment(directory: str, compiled: str | None = None) -> jinja2.Environment:
-    """The templates of ``directory``; their compiled code kept in ``compiled`` if given
-    (:class:`CompiledTemplates`)."""
+def _environment(directory: str, compiled: tuple[str, ...] = (),
+                 write_to: str | None = None) -> jinja2.Environment:
+    """The templates of ``directory``; their compiled code looked for in the directories
+    ``compiled`` and kept in ``write_to`` (:class:`CompiledTemplates`)."""
+    cache = CompiledTemplates(compiled, write_to) if compiled or write_to else None
     return jinja2.Environment(
         loader=jinja2.FileSystemLoader(directory), undefined=jinja2.StrictUndefined,
         trim_blocks=True, lstrip_blocks=True, keep_trailing_newline=True, autoescape=False,
-        bytecode_cache=CompiledTemplates(compiled) if compiled is not None else None)
+        bytecode_cache=cache)
+
+
+def environment(template_cache: str | None = None) -> jinja2.Environment:
+    """The kernel templates; their compiled code looked for in
+    :func:`package_template_cache`, then in ``template_cache``, and a template compiled
+    here kept in the first of the two that can be written."""
+    package = package_template_cache()
+    compiled = tuple(d for d in (package, template_cache) if d is not None)
+    write_to = package_template_cache(write=True) or template_cache
+    return _environment(str(template_dir()), compiled, write_to)
+
+
+def precompile_templates() -> tuple[str, int]:
+    """Compile the kernel templates into :func:`package_template_cache` (made if missing,
+    whatever ``PYTHONDONTWRITEBYTECODE`` says: as an installer compiles a package's
+    modules), so that no process compiles them again; returns the directory and how many
+    compiled templates it holds.  An entry of a template changed since is stale (jinja2 checks the
+    source) and is compiled again when used.  :class:`~symgroupoid.OutputError` when the
+    directory cannot be written."""
+    directory = template_dir() / "__pycache__"
+    try:
+        directory.mkdir(exist_ok=True)
+        if not os.access(directory, os.W_OK | os.X_OK):
+            raise PermissionError(f"{directory} is not writable")
+    except OSError as exc:
+        raise OutputError(f"cannot keep the compiled kernel templates in {directory}: "
+                          f"{exc}") from exc
+    env = _environment.__wrapped__(str(template_dir()), (str(directory),), str(directory))
+    for name in TEMPLATE_NAMES:
+        env.get_template(name)
+    kept = len(list(directory.glob("__jinja2_*.cache")))
+    return str(directory), kept
 
 
 def templates_digest() -> str:
@@ -97,7 +167,9 @@ class KernelSource:
     ``units``: further translation units (file name, C source) compiled with the source
     into the same library (none for a kernel in one file); ``cold``: the file names among
     ``units`` of code that does no arithmetic of a step, built at a lower optimisation
-    level (``symgroupoid.runtime._build.unit_flags``)."""
+    level (``symgroupoid.runtime._build.unit_flags``); ``blocks``: the file names among
+    ``units`` of straight-line arithmetic that calls no library function (see
+    :func:`arithmetic_only`), which a build may compile at a cheaper level."""
 
     prefix: str
     header_name: str
@@ -106,6 +178,7 @@ class KernelSource:
     cdef: str
     units: tuple[tuple[str, str], ...] = ()
     cold: tuple[str, ...] = ()
+    blocks: tuple[str, ...] = ()
 
 
 def _ascii(text: str) -> str:
@@ -153,12 +226,20 @@ def residual_comments(step, latex: bool = True) -> list[str]:
     return out
 
 
-def _context(step, prefix: str, header_name: str, latex: bool, units: int) -> dict:
+def arithmetic_only(program) -> bool:
+    """Whether ``program`` calls no library function (every elementary function it uses
+    is written inline, as ``fabs``; ``FunctionSpec.calls``)."""
+    return not any(spec.calls for spec in program_functions(program, list(program.outputs)))
+
+
+def _context(step, prefix: str, header_name: str, latex: bool, units: int,
+             block_weight: float = 1.0) -> dict:
     from .. import __version__
 
     blocks = kernel_blocks(step)
     n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
-                            blocks.predict, blocks.next_knowns], units, len(step.unknowns))
+                            blocks.predict, blocks.next_knowns], units, len(step.unknowns),
+                           block_weight)
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
     return {
         "p": prefix, "P": prefix.upper(), "header_name": header_name,
@@ -184,8 +265,12 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int) -> di
     }
 
 
+#: the most translation units ``generate_c`` spreads a kernel over
+MAX_UNITS = 64
+
+
 def generate_c(step, prefix: str | None = None, header_name: str | None = None, *,
-               latex: bool = True, units: int = 1,
+               latex: bool = True, units: int = 1, block_weight: float | None = None,
                template_cache: str | os.PathLike | None = None) -> KernelSource:
     """Generate (without writing) the C kernel of ``step``.
 
@@ -199,29 +284,39 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     the code that does no arithmetic of a step (``templates/cold.j2``: the batched entry
     point, the status messages; ``KernelSource.cold``), so that they can all be compiled at
     the same time.  ``units=1`` (the default) is one self-contained file.
+    ``block_weight``: None (the default), or the further units of a program that calls no
+    library function (:func:`arithmetic_only`) are block units (``KernelSource.blocks``),
+    which a build compiles at a cheaper level, and a statement there costs the compiler
+    ``block_weight`` times one in the source (:func:`assign_units`); the units of other
+    kernels are balanced at 1.
     ``template_cache``: a directory that keeps the templates' compiled code across processes
     (:class:`CompiledTemplates`; the kernel cache passes its ``templates/``); the C is the
     same with or without it.
     """
     prefix = c_identifier(step.name if prefix is None else prefix)
+    units = integer_argument(units, "units", minimum=1, maximum=MAX_UNITS, owner=prefix)
+    if block_weight is not None:
+        block_weight = real_argument(block_weight, "block_weight", minimum=0.0, owner=prefix)
     if len(step) != len(step.unknowns):
         raise ValueError(f"{step.name}: {len(step)} equations in "
                          f"{len(step.unknowns)} unknowns; a Newton kernel needs a square system")
     if template_cache is not None:
         template_cache = str(path_argument(template_cache, "template_cache", owner=prefix))
-    env = _environment(str(template_dir()), template_cache)
+    env = environment(template_cache)
     header_name = header_name or f"{prefix}.h"
-    ctx = _context(step, prefix, header_name, latex, units)
+    lowered = block_weight is not None and units > 1 and arithmetic_only(step.program)
+    ctx = _context(step, prefix, header_name, latex, units, block_weight if lowered else 1.0)
     unit_template = env.get_template("unit.c.j2")
     further = [(f"{prefix}_unit{k}.c", unit_template.render(ctx, unit=k))
                for k in range(1, ctx["n_units"])]
+    blocks = tuple(name for name, _ in further) if lowered else ()
     cold = (f"{prefix}_cold.c",) if ctx["cold_unit"] else ()
     further += [(name, env.get_template("cold.c.j2").render(ctx)) for name in cold]
     return KernelSource(prefix=prefix, header_name=header_name,
                         header=env.get_template("kernel.h.j2").render(ctx),
                         source=env.get_template("kernel.c.j2").render(ctx),
                         cdef=env.get_template("cdef.j2").render(ctx),
-                        units=tuple(further), cold=cold)
+                        units=tuple(further), cold=cold, blocks=blocks)
 
 
 _UMASK_LOCK = threading.Lock()
@@ -265,7 +360,7 @@ def generate_program_c(label: str, program, inputs: str, outputs: str) -> Kernel
            "header_name": f"{prefix}.h", "n_in": len(program.inputs[inputs]),
            "n_out": len(program.outputs[outputs]), "block": block,
            "helpers": program_helpers(program, [outputs])}
-    env = _environment(str(template_dir()))
+    env = environment()
     signature = f"void {prefix}_eval(int n, int n_in, int n_out, const double *in, double *out);"
     return KernelSource(prefix=prefix, header_name=f"{prefix}.h",
                         header=env.get_template("program.h.j2").render(ctx),

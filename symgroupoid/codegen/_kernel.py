@@ -240,20 +240,23 @@ UNIT_MIN_STATEMENTS = 600
 CLOSE_UNKNOWNS = 7
 
 
-def assign_units(blocks: Sequence[Block], units: int, n_unknowns: int) -> int:
+def assign_units(blocks: Sequence[Block], units: int, n_unknowns: int,
+                 block_weight: float = 1.0) -> int:
     """Distribute the code of ``blocks`` over at most ``units`` translation units so that
     each takes the C compiler about as long (deterministic); the number of units used.
 
     Unit 0, the kernel's source, holds the hot fixed code (:func:`stepper_statements`
     of ``n_unknowns``), which for small kernels takes the compiler longer than all the
     blocks: they then go to unit 1 and both compile at the same time (planar 2-link chain:
-    0.27 s in one unit; 0.14 s for the stepper beside 0.06 s for the blocks).  Blocks of
+    0.27 s in one unit; 0.14 s for the stepper beside 0.06 s for the blocks).  A statement
+    in a unit other than 0 (a block unit) costs ``block_weight`` times one in unit 0 (block
+    units may be compiled at a cheaper level, ``runtime._build.unit_flags``).  Blocks of
     fewer than :data:`UNIT_MIN_STATEMENTS` statements of a kernel of
     :data:`CLOSE_UNKNOWNS` to :data:`UNROLLED_UNKNOWNS` unknowns stay in unit 0 (see there).
     The items moved are whole functions of one part and the parts of split functions
-    (empty ones stay).  Items are placed largest first on the least loaded unit (ties: the
-    lower unit, then the earlier item), and the units are then numbered in order of their
-    first item (unit 0 first).
+    (empty ones stay).  Items are placed largest first on the unit where they would finish
+    first (ties: the lower unit, then the earlier item), and the units are then numbered
+    in order of their first item (unit 0 first).
     """
     items = list({id(part): part for block in blocks for part in block.parts}.values())
     for part in items:
@@ -262,13 +265,15 @@ def assign_units(blocks: Sequence[Block], units: int, n_unknowns: int) -> int:
     close = CLOSE_UNKNOWNS <= n_unknowns <= UNROLLED_UNKNOWNS and total < UNIT_MIN_STATEMENTS
     if units <= 1 or close:
         return 1
-    loads = [stepper_statements(n_unknowns)] + [0] * (units - 1)
+    weights = [1.0] + [block_weight] * (units - 1)
+    loads = [float(stepper_statements(n_unknowns))] + [0.0] * (units - 1)
     order = sorted((i for i in range(len(items)) if items[i].statements),
                    key=lambda i: (-items[i].statements, i))
     for i in order:
-        unit = min(range(units), key=lambda u: (loads[u], u))
+        size = items[i].statements
+        unit = min(range(units), key=lambda u: (loads[u] + weights[u] * size, u))
         items[i].unit = unit
-        loads[unit] += items[i].statements
+        loads[unit] += weights[unit] * size
     first: dict[int, int] = {0: -1}
     for i, part in enumerate(items):
         first.setdefault(part.unit, i)
@@ -278,11 +283,15 @@ def assign_units(blocks: Sequence[Block], units: int, n_unknowns: int) -> int:
     return len(number)
 
 
+def program_functions(program, outputs: Sequence[str]) -> list:
+    """The function specs the named outputs need, in first-use order."""
+    return functions_used(program.graph, [n for name in outputs for n in program.outputs[name]])
+
+
 def program_helpers(program, outputs: Sequence[str]) -> list[str]:
     """The C helper functions (smooth special functions) the named outputs need."""
     helpers: dict = {}
-    nodes = [n for name in outputs for n in program.outputs[name]]
-    for spec in functions_used(program.graph, nodes):
+    for spec in program_functions(program, outputs):
         helpers.update(spec.c_helpers())
     return list(helpers.values())
 
@@ -303,5 +312,5 @@ def kernel_blocks(step) -> KernelBlocks:
 
 
 __all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "build_block",
-           "c_identifier", "kernel_blocks", "program_helpers", "residual_blocks",
-           "stepper_statements"]
+           "c_identifier", "kernel_blocks", "program_functions", "program_helpers",
+           "residual_blocks", "stepper_statements"]

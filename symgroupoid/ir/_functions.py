@@ -32,6 +32,10 @@ class FunctionSpec:
     #: the same as deterministic text (cache keys)
     key_text: str = ""
     nargs: int = 1
+    #: whether its C calls a library function (``sin``, a helper): the C compiler's level
+    #: then matters beyond arithmetic (at -O1, gcc pairs ``sin(x)`` and ``cos(x)`` into one
+    #: ``sincos`` call; at -Og it does not)
+    calls: bool = True
 
     def fold(self, values: Sequence[sp.Expr]) -> sp.Expr | None:
         """The exact value on constant arguments, or None when it is not a plain number."""
@@ -146,12 +150,16 @@ _register(Elementary("atan2", sp.atan2, "atan2", "np.arctan2", _d_atan2, nargs=2
 
 
 class _Abs(Elementary):
+    calls = False  # fabs: one instruction
+
     def __init__(self):
         super().__init__("fabs", sp.Abs, "fabs", "np.abs",
                          lambda g, a, n: [g.func(SIGN, a[0])])
 
 
 class _Sign(Elementary):
+    calls = False  # comparisons
+
     def __init__(self):
         super().__init__("sign", sp.sign, "", "np.sign", lambda g, a, n: [g.zero])
 

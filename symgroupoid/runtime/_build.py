@@ -74,17 +74,63 @@ def optimisation_flags(operations: int, *, step: bool = False) -> tuple[str, ...
 COLD_LEVEL = "-O1"
 #: the levels a cold unit is lowered from (a build at -O0, -O1, -Og or -Os keeps its own)
 LOWERED_LEVELS = frozenset({"-O", "-O2", "-O3"})
+#: the optimisation level of a kernel's block units (``KernelSource.blocks``: straight-line
+#: arithmetic that calls no library function -- parts of the residual and its Jacobian, the
+#: chart, the prediction, the state update), which a build at the library's default flags
+#: has.  -Og is -O1 without the passes that matter for loops, branches and library calls
+#: (if-conversion, loop invariant motion, scalar replacement of aggregates, pairing sin and
+#: cos into sincos ...), which such code does not have.  Measured (gcc 12, CPU seconds of a
+#: block unit, -O1 -> -Og): 3D chain of 4 bodies 0.35 -> 0.18, of 8 bodies 0.69 -> 0.45;
+#: at -O3 -> -Og, of 8 bodies 1.04 -> 0.45.  Steps take as long (µs per step, at the
+#: default flags without -> with, in one run): 3D chain of 3 bodies 1.38 -> 1.37, of 4
+#: bodies 2.13 -> 2.17, of 6 bodies 4.42 -> 4.40, of 8 bodies 7.40 -> 7.37, of 16 bodies
+#: 28.3 -> 27.3 (``benchmarks/scaling.py`` for whole builds).  The planar chains' blocks
+#: call sin and cos: at -Og they step up to 30 % slower and build no faster, so they are
+#: not block units.
+BLOCK_LEVEL = "-Og"
+#: the compiler's time on a block unit at :data:`BLOCK_LEVEL` relative to the same code at
+#: the build's level (the weight ``codegen.assign_units`` balances the units by), from the
+#: measurements above; at other levels a block unit keeps the build's flags
+BLOCK_WEIGHTS = {"-O": 0.6, "-O1": 0.6, "-O2": 0.45, "-O3": 0.45}
 
 
-def unit_flags(flags: Sequence[str], cold: bool) -> tuple[str, ...]:
-    """The flags of one translation unit of a build at ``flags``: ``flags`` themselves, and
-    for a cold unit :data:`COLD_LEVEL` after them when their last ``-O`` option is one of
-    :data:`LOWERED_LEVELS` (deterministic).  A cold unit does no floating-point arithmetic
-    of a step, so its level changes no result."""
-    flags = tuple(flags)
+def _level(flags: Sequence[str]) -> str | None:
+    """The last ``-O`` option of ``flags`` (the one the compiler obeys), or None."""
     levels = [f for f in flags if f.startswith("-O")]
-    if cold and levels and levels[-1] in LOWERED_LEVELS:
+    return levels[-1] if levels else None
+
+
+def block_weight(flags: Sequence[str]) -> float:
+    """The compiler's time on a block unit of a build at ``flags`` relative to the same
+    code at ``flags``: :data:`BLOCK_WEIGHTS` where the unit is lowered to
+    :data:`BLOCK_LEVEL` (:func:`unit_flags`), else 1."""
+    return BLOCK_WEIGHTS.get(_level(flags), 1.0)
+
+
+#: the roles of a translation unit (see :func:`unit_flags`)
+UNIT_ROLES = ("step", "blocks", "cold")
+
+
+def unit_flags(flags: Sequence[str], role: str = "step") -> tuple[str, ...]:
+    """The flags of one translation unit of a build at ``flags`` (deterministic).
+
+    ``role``: ``"cold"`` (``KernelSource.cold``) gets :data:`COLD_LEVEL` after ``flags``
+    when their last ``-O`` option is one of :data:`LOWERED_LEVELS`; ``"blocks"``
+    (``KernelSource.blocks``, which only a kernel generated for the library's default
+    flags has) gets :data:`BLOCK_LEVEL` after them when their last ``-O`` option is one of
+    :data:`BLOCK_WEIGHTS`; ``"step"`` (the kernel's source, and any other unit) keeps
+    them.  Neither level changes a result: a cold unit does no floating-point arithmetic
+    of a step, and no level reorders a block's floating-point operations (no -ffast-math;
+    -ffp-contract=off keeps every rounding).
+    """
+    flags = tuple(flags)
+    if role not in UNIT_ROLES:
+        raise ValueError(f"unknown translation unit role {role!r}")
+    level = _level(flags)
+    if role == "cold" and level in LOWERED_LEVELS:
         return (*flags, COLD_LEVEL)
+    if role == "blocks" and level in BLOCK_WEIGHTS:
+        return (*flags, BLOCK_LEVEL)
     return flags
 
 #: how to do without a compiler (appended to every compiler error)
@@ -275,8 +321,8 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     :func:`load_extension`).
 
     The header and sources are written next to the library (and stay there); a kernel in
-    several units is compiled by one compiler run per unit, all at the same time (a cold
-    unit with :func:`unit_flags`), then linked by one more; the type table is made while
+    several units is compiled by one compiler run per unit, all at the same time (each with
+    :func:`unit_flags` of its role), then linked by one more; the type table is made while
     the compiler runs.  Compiler output is captured and shown in
     :class:`CompilationError` on failure.
     """
@@ -295,7 +341,7 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
              type_table)
     else:  # the units at the same time, then one link
         objects = [f"{Path(file_name).stem}.o" for file_name, _ in sources]
-        _run(kernel, [[*compiler_flags_of(unit_flags(flags, file_name in kernel.cold)),
+        _run(kernel, [[*compiler_flags_of(unit_flags(flags, _role(kernel, file_name))),
                        "-c", file_name, "-o", obj]
                       for (file_name, _), obj in zip(sources, objects)], build_dir,
              type_table)
@@ -306,6 +352,13 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
     if not library.is_file():
         raise _failure(kernel, "the compiler wrote no library", "")
     return library, ffi[0]
+
+
+def _role(kernel: KernelSource, file_name: str) -> str:
+    """The role of a translation unit of ``kernel`` (see :func:`unit_flags`)."""
+    if file_name in kernel.cold:
+        return "cold"
+    return "blocks" if file_name in kernel.blocks else "step"
 
 
 def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path,

@@ -33,6 +33,7 @@ from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
     NUMPY_HINT,
     CompilerNotFoundError,
+    block_weight,
     build_extension,
     compile_args,
     compiler_command,
@@ -265,22 +266,32 @@ def fingerprint(exprs, symbols: dict | None = None) -> str:
     return " ".join(out)
 
 
-def input_key(step, flags: Sequence[str]) -> str:
-    """Cache key of the step (cheap: the exact text of its program, no C generation)."""
+def input_key(step, flags: Sequence[str], block_units: bool = True) -> str:
+    """Cache key of the step (cheap: the exact text of its program, no C generation) built
+    at ``flags``, with block units or without (:func:`step_kernel`)."""
     symbols: dict = {}
     parts = [step.name, str(step.n_constraints), step.program.fingerprint()]
     for seq in (step.unknowns, step.knowns, step.parameters):
         parts.append(fingerprint(list(seq), symbols))
-    return sha256_of([*parts, codegen_digest(), abi_tag(), *flags])[:32]
+    units = "block units" if block_units else "no block units"
+    return sha256_of([*parts, codegen_digest(), abi_tag(), units, *flags])[:32]
 
 
-def step_kernel(step, cache: KernelCache | None = None) -> KernelSource:
-    """The C that :func:`compile_step` builds for ``step``: :func:`generate_c` without the
-    residuals' LaTeX in its opening comment (which needs the SymPy residuals; a compiled
-    kernel never shows it, and :func:`emit_c` writes it); a large kernel's functions in
-    :func:`~._build.translation_units` files compiled at the same time; the templates'
-    compiled code kept in ``cache`` (:func:`compiled_templates`)."""
+def step_kernel(step, cache: KernelCache | None = None, flags: Sequence[str] | None = None,
+                block_units: bool = True) -> KernelSource:
+    """The C that :func:`compile_step` builds for ``step`` at ``flags`` (default: the
+    step's :func:`~._build.optimisation_flags`): :func:`generate_c` without the residuals'
+    LaTeX in its opening comment (which needs the SymPy residuals; a compiled kernel never
+    shows it, and :func:`emit_c` writes it); a large kernel's functions in
+    :func:`~._build.translation_units` files compiled at the same time; with
+    ``block_units`` (a build at the library's default flags), the units of straight-line
+    arithmetic are block units (``KernelSource.blocks``), balanced for their level
+    (:func:`~._build.block_weight`); the templates' compiled code kept in ``cache``
+    (:func:`compiled_templates`)."""
+    if flags is None:
+        flags = optimisation_flags(step.program.size(), step=True)
     return generate_c(step, latex=False, units=translation_units(),
+                      block_weight=block_weight(flags) if block_units else None,
                       template_cache=None if cache is None else compiled_templates(cache))
 
 
@@ -298,11 +309,11 @@ def compiled_templates(cache: KernelCache) -> Path | None:
 
 def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
     """Cache key of a generated kernel: its header, source, further translation units (and
-    which are cold) and cdef, the ABI and the flags."""
+    which are cold and which block units) and cdef, the ABI and the flags."""
     units = [part for unit in kernel.units for part in unit]
     return sha256_of([kernel.header, kernel.source, str(len(units)), *units,
-                      str(len(kernel.cold)), *kernel.cold, kernel.cdef, abi_tag(),
-                      *flags])[:32]
+                      str(len(kernel.cold)), *kernel.cold, str(len(kernel.blocks)),
+                      *kernel.blocks, kernel.cdef, abi_tag(), *flags])[:32]
 
 
 def _same_entry(manifest: dict, stale: dict | None) -> bool:
@@ -404,10 +415,10 @@ def load_cached(source_key: str, manifest: dict, cache: KernelCache):
 
 
 def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
-           discard: dict | None = None, kernel: KernelSource | None = None
-           ) -> tuple[str, dict]:
+           discard: dict | None = None, kernel: KernelSource | None = None,
+           block_units: bool = True) -> tuple[str, dict]:
     if kernel is None:
-        kernel = step_kernel(step, cache)
+        kernel = step_kernel(step, cache, flags, block_units)
         STATS["codegen"] += 1
     source_key, manifest = build_cached(kernel, flags, cache, step.name, discard=discard)
     cache.record(key, source_key, manifest["prefix"])
@@ -416,27 +427,36 @@ def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
 
 def load_c_kernel(step, flags: Sequence[str] | None = None,
                   cache_dir: str | os.PathLike | None = None, *,
-                  source: KernelSource | None = None) -> tuple[CKernel, Path]:
+                  source: KernelSource | None = None,
+                  block_units: bool | None = None) -> tuple[CKernel, Path]:
     """The compiled kernel of ``step`` from the cache, building it on a miss (from
     ``source``, the step's :func:`step_kernel` when already generated).
 
-    Raises :class:`CompilerNotFoundError` when a build is needed and no compiler exists,
-    :class:`CompilationError` when the compiler fails (the cache is left unchanged),
-    :class:`CacheError` when the cache cannot serve the kernel (see :mod:`._cache`).
+    ``block_units`` (default: whether ``flags`` is None, the library's default flags): the
+    kernel's straight-line arithmetic in block units, compiled at a cheaper level
+    (:func:`~._build.unit_flags`); without, every unit but the cold one is compiled at
+    ``flags``.  Raises :class:`CompilerNotFoundError` when a build is needed and no
+    compiler exists, :class:`CompilationError` when the compiler fails (the cache is left
+    unchanged), :class:`CacheError` when the cache cannot serve the kernel (see
+    :mod:`._cache`).
     """
+    if block_units is None:
+        block_units = flags is None
     flags = tuple(_step_flags(step, cache_dir) if flags is None else flags)
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
-    key = input_key(step, flags)
+    key = input_key(step, flags, block_units)
     source_key = cache.lookup(key)
     manifest = cache.verified_manifest(source_key) if source_key else None
     if manifest is None:
-        source_key, manifest = _build(step, flags, cache, key, kernel=source)
+        source_key, manifest = _build(step, flags, cache, key, kernel=source,
+                                      block_units=block_units)
     try:
         module = load_cached(source_key, manifest, cache)
     except CacheError as error:
         if source_key in _RECIPES:  # built here: load_cached has already rebuilt it once
             raise
-        source_key, manifest = _build(step, flags, cache, key, discard=manifest)
+        source_key, manifest = _build(step, flags, cache, key, discard=manifest,
+                                      block_units=block_units)
         try:
             module = _load_entry(source_key, manifest, cache)
         except CacheError as again:
@@ -444,7 +464,7 @@ def load_c_kernel(step, flags: Sequence[str] | None = None,
         _LOADED[source_key] = module
     entry = cache.entry(source_key)
     kernel = CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns))
-    kernel.source_key, kernel.flags = source_key, flags
+    kernel.source_key, kernel.flags, kernel.block_units = source_key, flags, block_units
     return kernel, entry
 
 
@@ -468,7 +488,8 @@ def kernel_source_of(kernel: CKernel, step) -> KernelSource:
     recipe = _RECIPES.get(kernel.source_key)
     if recipe is not None:
         return recipe[0]
-    source = step_kernel(step)
+    source = step_kernel(step, flags=kernel.flags,
+                         block_units=getattr(kernel, "block_units", True))
     STATS["codegen"] += 1
     if source_key_of(source, kernel.flags) != kernel.source_key:
         raise CacheError(f"{step.name}: the kernel in the cache ({kernel.source_key}) is not "
@@ -489,6 +510,7 @@ def load_kernel_source(kernel: KernelSource, flags: Sequence[str], label: str,
     module = load_cached(source_key, manifest, cache)
     loaded = CKernel(module, manifest["prefix"], n_unknowns, n_knowns)
     loaded.source_key, loaded.flags = source_key, flags
+    loaded.block_units = bool(kernel.blocks)
     return loaded, cache.entry(source_key)
 
 
@@ -513,8 +535,11 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     flags : compiler flags, a list of strings (default :func:`default_flags`:
         ``DEFAULT_FLAGS``, at -O2 above ``LARGE_PROGRAM`` operations and at -O1 up to
         ``SMALL_STEP``, which compile in half to three quarters of the time and step at
-        most 13 % slower, plus ``-fopenmp`` when the compiler supports it); part of the cache
-        key.  Builds carry no debug information unless ``flags`` ask for it (``-g``).
+        most 13 % slower, plus ``-fopenmp`` when the compiler supports it; the straight-line
+        functions of a kernel that calls no library function at -Og,
+        ``runtime._build.BLOCK_LEVEL``); part of the cache key.  Explicit ``flags`` apply to
+        every unit but the cold one.  Builds carry no debug information unless ``flags``
+        ask for it (``-g``).
     cache_dir : cache root, a path (default ``$SYMGROUPOID_CACHE``,
         ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``); a relative path is
         taken relative to the working directory of this call.  If it cannot be written,
@@ -551,7 +576,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
                 Path(cache_dir) if cache_dir is not None else None))
             STATS["codegen"] += 1
         chosen = _step_flags(step, cache_dir) if flags is None else flags
-        kernel, entry = load_c_kernel(step, chosen, cache_dir, source=source)
+        kernel, entry = load_c_kernel(step, chosen, cache_dir, source=source,
+                                      block_units=flags is None)
     except CompilerNotFoundError as exc:
         if backend == "c":
             raise
