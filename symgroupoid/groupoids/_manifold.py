@@ -171,7 +171,7 @@ class GroupManifold(Manifold):
         for (i, j), c in zip(G._free, q):
             M[i][j] = c
         out = []
-        for E in G._basis():
+        for E in G.basis_matrices():
             entries = []
             for i, j in G._free:
                 terms = [g.mul(g.const(E[k, j]), M[i][k]) for k in range(G.n) if E[k, j] != 0]

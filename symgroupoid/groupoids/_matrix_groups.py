@@ -98,7 +98,7 @@ class MatrixLieGroup(Groupoid):
     @classmethod
     def basis_matrices(cls) -> list[sp.ImmutableMatrix]:
         """The Lie algebra basis E_1, …, E_r used for sections and coordinates."""
-        return [sp.ImmutableMatrix(E) for E in cls._basis()]
+        return list(_basis_of(cls))
 
     @classmethod
     def _basis(cls) -> list[sp.Matrix]:
@@ -116,27 +116,27 @@ class MatrixLieGroup(Groupoid):
     def hat(cls, x: Sequence) -> sp.Matrix:
         """Σ x_a E_a."""
         out = sp.zeros(cls.n, cls.n)
-        for xa, E in zip(x, cls._basis()):
+        for xa, E in zip(x, _basis_of(cls)):
             out += xa * E
-        return out
+        return sp.Matrix(out)
 
     @classmethod
     @functools.cache
     def _gram_inverse(cls) -> sp.Matrix:
-        B = cls._basis()
+        B = _basis_of(cls)
         gram = sp.Matrix(len(B), len(B), lambda i, j: (B[i].T * B[j]).trace())
         return gram.inv()
 
     @classmethod
     def vee(cls, M: sp.Matrix) -> sp.Matrix:
         """Coordinates of a Lie-algebra matrix in the basis (Frobenius projection)."""
-        B = cls._basis()
+        B = _basis_of(cls)
         rhs = sp.Matrix([(E.T * M).trace() for E in B])
         return cls._gram_inverse() * rhs
 
     @property
     def rank(self) -> int:
-        return len(self._basis())
+        return len(_basis_of(type(self)))
 
     @property
     def _free(self) -> list[tuple[int, int]]:
@@ -304,7 +304,7 @@ class MatrixLieGroup(Groupoid):
     def Ad(self, M: sp.Matrix) -> sp.Matrix:
         """Ad_g as a matrix on Lie-algebra coordinates: columns vee(g E_a g⁻¹)."""
         Minv = self._inverse_matrix(M)
-        cols = [self.vee(M * E * Minv) for E in self._basis()]
+        cols = [self.vee(M * E * Minv) for E in _basis_of(type(self))]
         return sp.Matrix.hstack(*cols)
 
     def Ad_star(self, M: sp.Matrix) -> sp.Matrix:
@@ -363,7 +363,7 @@ class MatrixLieGroup(Groupoid):
                           float).reshape(self.n, self.n)
 
     def _numeric_vee(self, xi: np.ndarray) -> np.ndarray:
-        B = [np.array(E.tolist(), dtype=float) for E in self._basis()]
+        B = [np.array(E.tolist(), dtype=float) for E in _basis_of(type(self))]
         rhs = np.array([np.trace(E.T @ xi) for E in B])
         gram_inv = np.array(self._gram_inverse().tolist(), dtype=float)
         return gram_inv @ rhs
@@ -478,6 +478,12 @@ def _stored_namespace() -> dict:
     return {name: getattr(sp, name) for name in dir(sp) if not name.startswith("_")}
 
 
+@functools.cache
+def _basis_of(cls) -> tuple[sp.ImmutableMatrix, ...]:
+    """The Lie-algebra basis of a group class (``_basis``), made once and immutable."""
+    return tuple(sp.ImmutableMatrix(E) for E in cls._basis())
+
+
 #: (group class, retraction, map) → (placeholders, entries): the maps of
 #: :func:`_instantiated`, derived once per kind of group
 _MAP_TEMPLATES: dict[tuple, tuple[tuple, tuple]] = {}
@@ -523,7 +529,7 @@ def _direct_increment_coordinates(group: MatrixLieGroup, values: Sequence) -> tu
 
 @functools.cache
 def _dtau_dummies(cls) -> tuple:
-    return tuple(sp.Dummy(f"y{a}", real=True) for a in range(len(cls._basis())))
+    return tuple(sp.Dummy(f"y{a}", real=True) for a in range(len(_basis_of(cls))))
 
 
 @functools.cache
@@ -585,7 +591,7 @@ def _tidy(retraction: str):
 @functools.cache
 def _numeric_basis(cls) -> np.ndarray:
     """The Lie algebra basis E_a as a (rank, n, n) array."""
-    return np.array([np.array(E.tolist(), dtype=float) for E in cls._basis()])
+    return np.array([np.array(E.tolist(), dtype=float) for E in _basis_of(cls)])
 
 
 @functools.cache
@@ -685,7 +691,7 @@ class _SpecialEuclidean(MatrixLieGroup):
 
     @classmethod
     def _split(cls, x):
-        r = len(cls.rot._basis())
+        r = len(_basis_of(cls.rot))
         return x[:r], x[r:]
 
     @classmethod

@@ -192,7 +192,7 @@ class TrivialisedPairGroupoid(Groupoid):
 
         zeros = [g.zero] * self.base_dim
         fields = []
-        for E in G._basis():
+        for E in G.basis_matrices():
             def basis(i, k, E=E):
                 return g.const(E[i, k]) if E[i, k] != 0 else None
 

@@ -31,7 +31,7 @@ from collections.abc import Sequence
 
 import sympy as sp
 
-from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW, Graph
+from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW, Graph, is_negative, is_one
 
 _ONE = sp.Integer(1)
 
@@ -63,7 +63,7 @@ def _signed_add(g: Graph, terms: Sequence[int]) -> int:
         return s
     parts = [_term_parts(g, t) for t in g.args[s]]
     coefficient = min(parts, key=lambda p: p[1])[0]
-    if not coefficient < 0:
+    if not is_negative(coefficient):
         return s
     return g.neg(g.add(*[g.neg(t) for t in g.args[s]]))
 
@@ -126,10 +126,10 @@ def _factors(g: Graph, i: int) -> tuple[bool, list[int]]:
     if g.op[a[0]] != CONST:
         return False, a
     c = g.data[a[0]]
-    negative = bool(c < 0)
+    negative = is_negative(c)
     magnitude = -c if negative else c
     rest = a[1:]
-    if magnitude == 1:
+    if is_one(magnitude):
         return negative, rest
     return negative, [g.const(magnitude), *rest]
 

@@ -23,6 +23,7 @@ from.
 
 from __future__ import annotations
 
+import operator
 from collections.abc import Iterable, Sequence
 
 import sympy as sp
@@ -31,6 +32,22 @@ CONST, INPUT, ADD, MUL, POW, FUNC = range(6)
 OP_NAMES = ("const", "input", "add", "mul", "pow", "func")
 
 _ZERO, _ONE = sp.Integer(0), sp.Integer(1)
+
+
+def is_zero(c: sp.Expr) -> bool:
+    """``c == 0`` for a SymPy number, by identity for rationals (SymPy keeps one zero)."""
+    return c is _ZERO if c.is_Rational else bool(c == 0)
+
+
+def is_one(c: sp.Expr) -> bool:
+    """``c == 1`` for a SymPy number, by identity for rationals (SymPy keeps one one)."""
+    return c is _ONE if c.is_Rational else bool(c == 1)
+
+
+def is_negative(c: sp.Expr) -> bool:
+    """``c < 0`` for a SymPy number (its cached sign when SymPy knows it)."""
+    sign = c.is_negative
+    return bool(c < 0) if sign is None else sign
 
 
 def _number_key(value: sp.Expr) -> tuple:
@@ -47,6 +64,8 @@ class Graph:
         self.data: list = []
         self._table: dict = {}
         self._partials: dict = {}
+        self._sums: dict = {}  # (constant node, constant node) -> their sum's node
+        self._products: dict = {}  # ... -> their product's node
         self.inputs: dict = {}  # symbol -> node id
         self.zero = self.const(_ZERO)
         self.one = self.const(_ONE)
@@ -88,36 +107,51 @@ class Graph:
         """The SymPy value of a constant node (None for other nodes)."""
         return self.data[i] if self.op[i] == CONST else None
 
+    def _folded(self, memo: dict, a: int, b: int, combine) -> int:
+        """The constant node ``combine(a, b)`` of two constant nodes, computed once per
+        graph (SymPy's arithmetic on numbers is slow; a graph uses few constants)."""
+        key = (a, b) if a <= b else (b, a)
+        hit = memo.get(key)
+        if hit is None:
+            hit = memo[key] = self.const(combine(self.data[a], self.data[b]))
+        return hit
+
+    def _plus(self, a: int, b: int) -> int:
+        return self._folded(self._sums, a, b, operator.add)
+
+    def _times(self, a: int, b: int) -> int:
+        return self._folded(self._products, a, b, operator.mul)
+
     def add(self, *ids: int) -> int:
         """Σ ids: constants folded, like terms c₁·t + c₂·t combined (exactly), zeros dropped,
         arguments in canonical order."""
         op, data, args_of = self.op, self.data, self.args
-        total = _ZERO
-        terms: dict = {}  # term without its coefficient -> [coefficient, node, count]
+        total = None  # the constant node of the folded constants
+        terms: dict = {}  # term without its coefficient -> [coefficient node, node, count]
         for i in ids:
             o = op[i]
-            if o == CONST:  # (identity tests first: SymPy arithmetic is slow)
-                total = data[i] if total is _ZERO else total + data[i]
+            if o == CONST:
+                total = i if total is None else self._plus(total, i)
                 continue
             if o == MUL and op[args_of[i][0]] == CONST:
-                key, c = args_of[i][1:], data[args_of[i][0]]
+                key, c = args_of[i][1:], args_of[i][0]
             else:
-                key, c = (i,), _ONE
+                key, c = (i,), self.one
             hit = terms.get(key)
             if hit is None:
                 terms[key] = [c, i, 1]
             else:
-                hit[0] += c
+                hit[0] = self._plus(hit[0], c)
                 hit[2] += 1
         rest = []
         for key, (c, node, count) in terms.items():
             if count > 1:
-                if c == 0:
+                if is_zero(data[c]):
                     continue
-                node = self.mul(self.const(c), *key) if c != 1 or len(key) > 1 else key[0]
+                node = self.mul(c, *key) if not is_one(data[c]) or len(key) > 1 else key[0]
             rest.append(node)
-        if total is not _ZERO and total != 0:
-            rest.append(self.const(total))
+        if total is not None and not is_zero(data[total]):
+            rest.append(total)
         if not rest:
             return self.zero
         if len(rest) == 1:
@@ -129,29 +163,29 @@ class Graph:
     def mul(self, *ids: int) -> int:
         """Π ids, constants folded into one factor, ones dropped, zero absorbing."""
         op, data, args_of = self.op, self.data, self.args
-        coeff = _ONE
+        c = None  # the constant node of the folded constants
         rest = []
         for i in ids:
             o = op[i]
-            if o == CONST:  # (identity tests first: SymPy arithmetic is slow)
-                coeff = data[i] if coeff is _ONE else coeff * data[i]
+            if o == CONST:
+                c = i if c is None else self._times(c, i)
             elif o == MUL and op[args_of[i][0]] == CONST:
-                c = data[args_of[i][0]]
-                coeff = c if coeff is _ONE else coeff * c
+                k = args_of[i][0]
+                c = k if c is None else self._times(c, k)
                 rest.extend(args_of[i][1:])
             else:
                 rest.append(i)
-        unit = coeff is _ONE
-        if not unit and coeff == 0:
+        unit = c is None or c == self.one
+        if not unit and is_zero(data[c]):
             return self.zero
         if not rest:
-            return self.const(coeff)
-        unit = unit or coeff == 1
+            return self.one if c is None else c
+        unit = unit or is_one(data[c])
         if unit and len(rest) == 1:
             return rest[0]
         rest.sort()
         if not unit:
-            rest.insert(0, self.const(coeff))
+            rest.insert(0, c)
         args = tuple(rest)
         return self._node(MUL, args, None, (MUL, args))
 
