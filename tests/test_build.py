@@ -132,6 +132,27 @@ def test_only_a_kernel_without_library_calls_has_block_units():
             generate_c(arithmetic, latex=False, units=bad)
 
 
+def test_a_kernel_in_units_has_smaller_parts_unless_it_may_stay_in_one():
+    from symgroupoid.codegen._kernel import (
+        CLOSE_UNKNOWNS,
+        PART_SIZE,
+        UNIT_PART_SIZE,
+        UNROLLED_UNKNOWNS,
+        unit_part_size,
+    )
+
+    assert UNIT_PART_SIZE < PART_SIZE
+    for n in (1, 6, 9, 48):
+        assert unit_part_size(n, 2) == UNIT_PART_SIZE
+        assert unit_part_size(n, 1) == PART_SIZE
+    for n in range(CLOSE_UNKNOWNS, UNROLLED_UNKNOWNS + 1):  # the plate-ball's kind
+        assert unit_part_size(n, 2) == PART_SIZE
+    step = planar_chain(6).euler_lagrange()
+    one, two = generate_c(step, latex=False), generate_c(step, latex=False, units=2)
+    assert "_part0(" not in one.source  # one function per block
+    assert "_residual_part0(" in two.source  # the residual's parts, called twice
+
+
 def test_weighted_units_finish_together():
     """With block units at half the cost, unit 0 (stepper and the blocks placed there)
     and unit 1 take about as long: within the weighted size of the largest part."""
@@ -162,7 +183,7 @@ def test_the_optimisation_level_follows_the_kind_and_size_of_a_kernel():
     step = planar_chain(2).euler_lagrange()
     assert _compile._step_flags(step, None)[:4] == (*_build.SMALL_STEP_LEVEL, *contract)
     assert _build.unit_flags(_build.optimisation_flags(small, step=True), "cold") == (
-        *_build.SMALL_STEP_LEVEL, *contract)  # -O1 already: the cold unit keeps it
+        *_build.SMALL_STEP_LEVEL, *contract, _build.COLD_LEVEL)
 
 
 def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatch):
@@ -271,6 +292,7 @@ def test_block_units_at_their_level_compute_what_every_other_build_computes(monk
 
 def test_a_large_kernel_splits_its_functions_over_units_too(monkeypatch):
     monkeypatch.setattr(_kernel, "PART_SIZE", 100)  # parts to spread over both units
+    monkeypatch.setattr(_kernel, "UNIT_PART_SIZE", 100)
     monkeypatch.setattr(_kernel, "stepper_statements", lambda n: 0)
     step = planar_chain(4).euler_lagrange()
     two = generate_c(step, latex=False, units=2)

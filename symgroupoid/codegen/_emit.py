@@ -31,7 +31,13 @@ from .._arguments import (
     real_argument,
 )
 from .._errors import OutputError, ShapeError
-from ._kernel import assign_units, c_identifier, kernel_blocks, program_functions
+from ._kernel import (
+    assign_units,
+    c_identifier,
+    kernel_blocks,
+    program_functions,
+    unit_part_size,
+)
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
                   "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.j2",
@@ -236,7 +242,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
              block_weight: float = 1.0) -> dict:
     from .. import __version__
 
-    blocks = kernel_blocks(step)
+    blocks = kernel_blocks(step, unit_part_size(len(step.unknowns), units))
     n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
                             blocks.predict, blocks.next_knowns], units, len(step.unknowns),
                            block_weight)

@@ -69,11 +69,12 @@ def optimisation_flags(operations: int, *, step: bool = False) -> tuple[str, ...
     return DEFAULT_FLAGS
 
 #: the optimisation level of a kernel's cold unit (``KernelSource.cold``: the batched entry
-#: point with its OpenMP region, the status messages): 0.05 s of the compiler at -O1
-#: against 0.11 s at -O3 (CPU time, any system), run beside the other units
-COLD_LEVEL = "-O1"
-#: the levels a cold unit is lowered from (a build at -O0, -O1, -Og or -Os keeps its own)
-LOWERED_LEVELS = frozenset({"-O", "-O2", "-O3"})
+#: point with its OpenMP region, the status messages): 0.036 s of the compiler at -Og,
+#: against 0.047 s at -O1 and 0.11 s at -O3 (CPU time, any system; 0.015 s of it starts
+#: the compiler), run beside the other units
+COLD_LEVEL = "-Og"
+#: the levels a cold unit is lowered from (a build at -O0, -Og or -Os keeps its own)
+LOWERED_LEVELS = frozenset({"-O", "-O1", "-O2", "-O3"})
 #: the optimisation level of a kernel's block units (``KernelSource.blocks``: straight-line
 #: arithmetic that calls no library function -- parts of the residual and its Jacobian, the
 #: chart, the prediction, the state update), which a build at the library's default flags
