@@ -11,7 +11,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
-	$(PY) -m symgroupoid cache templates
+	$(PY) -m symgroupoid cache templates || echo 'kernel templates not precompiled: each process compiles them once'
 	touch $(STAMP)
 
 $(DOCS_STAMP): $(STAMP)

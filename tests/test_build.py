@@ -549,3 +549,29 @@ def test_a_changed_template_is_compiled_again(tmp_path, monkeypatch):
     monkeypatch.setattr(sys, "dont_write_bytecode", True)
     assert _emit.package_template_cache(write=True) is None
     _emit._environment.cache_clear()
+
+
+def test_templates_that_cannot_be_kept_beside_them_are_an_output_error(tmp_path, monkeypatch):
+    """``cache templates`` where templates/__pycache__ is in the way (a file): an
+    OutputError naming the directory, from the library and from the command line (exit
+    status 1, one line); kernels are still generated, their templates compiled per
+    process."""
+    import shutil
+
+    from symgroupoid.codegen import _emit
+
+    copy = tmp_path / "templates"
+    shutil.copytree(_emit.template_dir(), copy, ignore=shutil.ignore_patterns("__pycache__"))
+    (copy / "__pycache__").write_text("in the way")
+    monkeypatch.setattr(_emit, "template_dir", lambda: copy)
+    with pytest.raises(sg.OutputError, match="__pycache__"):
+        _emit.precompile_templates()
+    assert _emit.package_template_cache() is None
+    monkeypatch.setattr(sys, "dont_write_bytecode", False)
+    assert _emit.package_template_cache(write=True) is None
+    _emit._environment.cache_clear()
+    assert generate_c(planar_chain(1).euler_lagrange(), latex=False).source
+    from symgroupoid.cli import main
+
+    assert main(["cache", "templates"]) == 1
+    _emit._environment.cache_clear()
