@@ -175,8 +175,10 @@ def test_the_optimisation_level_follows_the_kind_and_size_of_a_kernel():
     small, mid, large = _build.SMALL_STEP, _build.SMALL_STEP + 1, _build.LARGE_PROGRAM + 1
     contract = _build.DEFAULT_FLAGS[1:]
     assert _build.optimisation_flags(small, step=True) == (*_build.SMALL_STEP_LEVEL, *contract)
-    assert _build.optimisation_flags(mid, step=True) == _build.DEFAULT_FLAGS
-    assert _build.optimisation_flags(large, step=True) == ("-O2", *contract)
+    assert _build.optimisation_flags(mid, step=True) == (*_build.DEFAULT_FLAGS,
+                                                         *_build.LARGE_STEP_FLAGS)
+    assert _build.optimisation_flags(large, step=True) == ("-O2", *contract,
+                                                           *_build.LARGE_STEP_FLAGS)
     for operations in (0, small, mid):  # window programs and other kernels: -O3 up to large
         assert _build.optimisation_flags(operations) == _build.DEFAULT_FLAGS
     assert _build.optimisation_flags(large) == ("-O2", *contract)

@@ -58,15 +58,24 @@ SMALL_STEP = 9_000
 SMALL_STEP_LEVEL: tuple[str, ...] = ("-O1", "-fpeel-loops", "-falign-loops=32")
 
 
+#: what a larger step kernel (more than :data:`SMALL_STEP` operations) adds to its level:
+#: no superword-level (SLP) vectorisation of straight-line code, whose cost grows faster
+#: than the code.  Measured (wall seconds of the whole compile, µs per step, in one run):
+#: planar chain of 32 links (-O3) 2.09 -> 1.42 s, 24.9 -> 26.0 µs; of 64 links (-O2)
+#: 17.8 -> 6.0 s, 122 -> 129 µs (one of its units: 17.0 -> 4.6 s of CPU, of which SLP
+#: vectorisation itself was 5.1 s and the passes after it most of the rest); 3D chain of 16
+#: bodies (-O2) 1.86 -> 1.45 s, 27.7 -> 27.4 µs.
+LARGE_STEP_FLAGS: tuple[str, ...] = ("-fno-tree-slp-vectorize",)
+
+
 def optimisation_flags(operations: int, *, step: bool = False) -> tuple[str, ...]:
     """The compiler flags of a kernel of ``operations`` operations (deterministic); a Newton
     step's kernel (``step``) of at most :data:`SMALL_STEP` operations at
-    :data:`SMALL_STEP_LEVEL`."""
+    :data:`SMALL_STEP_LEVEL`, a larger one with :data:`LARGE_STEP_FLAGS`."""
     if step and operations <= SMALL_STEP:
         return SMALL_STEP_LEVEL + DEFAULT_FLAGS[1:]
-    if operations > LARGE_PROGRAM:
-        return ("-O2",) + DEFAULT_FLAGS[1:]
-    return DEFAULT_FLAGS
+    level = ("-O2",) + DEFAULT_FLAGS[1:] if operations > LARGE_PROGRAM else DEFAULT_FLAGS
+    return level + LARGE_STEP_FLAGS if step else level
 
 #: the optimisation level of a kernel's cold unit (``KernelSource.cold``: the batched entry
 #: point with its OpenMP region, the status messages): 0.036 s of the compiler at -Og,

@@ -535,7 +535,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     flags : compiler flags, a list of strings (default :func:`default_flags`:
         ``DEFAULT_FLAGS``, at -O2 above ``LARGE_PROGRAM`` operations and at -O1 up to
         ``SMALL_STEP``, which compile in half to three quarters of the time and step at
-        most 13 % slower, plus ``-fopenmp`` when the compiler supports it; the straight-line
+        most 13 % slower, above it without SLP vectorisation (``LARGE_STEP_FLAGS``), plus
+        ``-fopenmp`` when the compiler supports it; the straight-line
         functions of a kernel that calls no library function at -Og,
         ``runtime._build.BLOCK_LEVEL``); part of the cache key.  Explicit ``flags`` apply to
         every unit but the cold one.  Builds carry no debug information unless ``flags``
