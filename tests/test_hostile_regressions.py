@@ -400,3 +400,17 @@ def test_a_progress_callback_that_raises_gives_a_callable_error() -> None:
     params = {str(p): 0.1 for p in sim.equations.parameters}
     with pytest.raises(sg.CallableError, match="progress"):
         sg.sweep(sim, np.vstack([state, state]), params, steps=2, progress=type)
+
+
+def test_a_section_returning_an_unprintable_array_is_a_shape_error():
+    """A Noether section whose entry is an empty 0-dimensional SymPy array (whose repr
+    raises IndexError): a ShapeError naming the section, not the IndexError (found by the
+    thorough hostile profile, NoetherQuantity on the accel system)."""
+    from symgroupoid.derivation._callables import as_scalar
+
+    class Unprintable:
+        def __repr__(self):
+            raise IndexError("list index out of range")
+
+    with pytest.raises(sg.ShapeError, match="section .*Unprintable that cannot be printed"):
+        as_scalar("sys", "section (entry 0)", Unprintable())
