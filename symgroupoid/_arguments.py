@@ -45,7 +45,12 @@ def where(owner: str) -> str:
 
 
 def _shown(value) -> str:
-    text = repr(value)
+    """``repr(value)`` shortened, or its type where the repr itself fails (a user object
+    that cannot print itself)."""
+    try:
+        text = repr(value)
+    except Exception:  # noqa: BLE001 - any failure of a user object's repr
+        return f"a {type(value).__name__} that cannot be printed"
     return text if len(text) <= 80 else text[:77] + "..."
 
 

@@ -461,15 +461,7 @@ def test_the_templates_compiled_code_is_kept_in_the_cache_and_never_changes_the_
     kept = sorted((tmp_path / "templates").glob("__jinja2_*.cache"))
     assert kept and not _cache._foreign_entries(tmp_path)
     plain = generate_c(step, latex=False, units=2)
-    probe = ("import sys, jinja2; from symgroupoid.codegen import _emit; "
-             "_emit.package_template_cache = lambda write=False: None; "
-             "compiled = []; real = jinja2.Environment.compile; "
-             "jinja2.Environment.compile = lambda self, *a, **k: compiled.append(1) or "
-             "real(self, *a, **k); "
-             "from symgroupoid.systems import planar_chain; "
-             "step = planar_chain(2).euler_lagrange(); "
-             "k = _emit.generate_c(step, latex=False, units=2, template_cache=sys.argv[1]); "
-             "sys.stdout.write(str(len(compiled)) + '\\n' + k.source)")
+    probe = _template_probe(package=False)
     run = subprocess.run([sys.executable, "-c", probe, str(tmp_path / "templates")],
                          capture_output=True, text=True, check=True, cwd=REPO)
     count, source = run.stdout.split("\n", 1)
@@ -491,15 +483,32 @@ def test_the_templates_compiled_code_is_kept_in_the_cache_and_never_changes_the_
     assert (blocked / "templates").read_text() == "not a directory"
 
 
-_COUNTING_PROBE = (
-    "import sys, jinja2; from symgroupoid.codegen import _emit; "
-    "compiled = []; real = jinja2.Environment.compile; "
-    "jinja2.Environment.compile = lambda self, *a, **k: compiled.append(1) or "
-    "real(self, *a, **k); "
-    "from symgroupoid.systems import planar_chain; "
-    "step = planar_chain(2).euler_lagrange(); "
-    "k = _emit.generate_c(step, latex=False, units=2, template_cache=sys.argv[1]); "
-    "sys.stdout.write(str(len(compiled)))")
+def _template_probe(package: bool = True) -> str:
+    """A Python program generating the planar 2-link chain's kernel in units, with the
+    templates' compiled code in the directory argv[1] (and, unless ``package`` is False,
+    in the package's): prints how many templates it compiled, a newline, the C source."""
+    return ("import sys, jinja2; from symgroupoid.codegen import _emit; "
+            + ("" if package else "_emit.package_template_cache = lambda write=False: None; ")
+            + "compiled = []; real = jinja2.Environment.compile; "
+            "jinja2.Environment.compile = lambda self, *a, **k: compiled.append(1) or "
+            "real(self, *a, **k); "
+            "from symgroupoid.systems import planar_chain; "
+            "step = planar_chain(2).euler_lagrange(); "
+            "k = _emit.generate_c(step, latex=False, units=2, template_cache=sys.argv[1]); "
+            "sys.stdout.write(str(len(compiled)) + '\\n' + k.source)")
+
+
+def _templates_copy(tmp_path, monkeypatch):
+    """A copy of the templates (without compiled code) that ``template_dir`` names."""
+    import shutil
+
+    from symgroupoid.codegen import _emit
+
+    copy = tmp_path / "templates"
+    shutil.copytree(_emit.template_dir(), copy, ignore=shutil.ignore_patterns("__pycache__"))
+    monkeypatch.setattr(_emit, "template_dir", lambda: copy)
+    _emit._environment.cache_clear()
+    return copy
 
 
 def test_the_templates_compiled_beside_them_serve_every_process_and_cache(tmp_path):
@@ -517,9 +526,9 @@ def test_the_templates_compiled_beside_them_serve_every_process_and_cache(tmp_pa
     for env in ({"PYTHONDONTWRITEBYTECODE": "1"}, {}):
         fresh = tmp_path / f"cache{len(env)}"
         fresh.mkdir()
-        count = subprocess.run([sys.executable, "-c", _COUNTING_PROBE, str(fresh)],
+        count = subprocess.run([sys.executable, "-c", _template_probe(), str(fresh)],
                                capture_output=True, text=True, check=True, cwd=REPO,
-                               env={**os.environ, **env}).stdout
+                               env={**os.environ, **env}).stdout.split("\n", 1)[0]
         assert count == "0" and not list(fresh.iterdir())
 
 
@@ -527,14 +536,9 @@ def test_a_changed_template_is_compiled_again(tmp_path, monkeypatch):
     """An entry of the package's compiled templates whose template changed since is stale:
     jinja2 compares the source, compiles the template again, and the C follows the new
     template; a process that may write bytecode replaces the entry."""
-    import shutil
-
     from symgroupoid.codegen import _emit
 
-    copy = tmp_path / "templates"
-    shutil.copytree(_emit.template_dir(), copy, ignore=shutil.ignore_patterns("__pycache__"))
-    monkeypatch.setattr(_emit, "template_dir", lambda: copy)
-    _emit._environment.cache_clear()
+    copy = _templates_copy(tmp_path, monkeypatch)
     directory, kept = _emit.precompile_templates()
     assert directory == str(copy / "__pycache__") and kept == len(_emit.TEMPLATE_NAMES)
     step = planar_chain(1).euler_lagrange()
@@ -558,14 +562,10 @@ def test_templates_that_cannot_be_kept_beside_them_are_an_output_error(tmp_path,
     OutputError naming the directory, from the library and from the command line (exit
     status 1, one line); kernels are still generated, their templates compiled per
     process."""
-    import shutil
-
     from symgroupoid.codegen import _emit
 
-    copy = tmp_path / "templates"
-    shutil.copytree(_emit.template_dir(), copy, ignore=shutil.ignore_patterns("__pycache__"))
+    copy = _templates_copy(tmp_path, monkeypatch)
     (copy / "__pycache__").write_text("in the way")
-    monkeypatch.setattr(_emit, "template_dir", lambda: copy)
     with pytest.raises(sg.OutputError, match="__pycache__"):
         _emit.precompile_templates()
     assert _emit.package_template_cache() is None

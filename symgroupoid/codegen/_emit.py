@@ -107,10 +107,17 @@ def package_template_cache(write: bool = False) -> str | None:
     if sys.dont_write_bytecode:
         return None
     try:
-        directory.mkdir(exist_ok=True)
+        return str(_writable(directory))
     except OSError:
         return None
-    return str(directory) if os.access(directory, os.W_OK | os.X_OK) else None
+
+
+def _writable(directory: Path) -> Path:
+    """``directory``, made if missing; ``OSError`` when it cannot be made or written."""
+    directory.mkdir(exist_ok=True)
+    if not os.access(directory, os.W_OK | os.X_OK):
+        raise PermissionError(f"{directory} is not writable")
+    return directory
 
 
 @functools.lru_cache(maxsize=8)  # (one per cache directory in use: a few)
@@ -139,14 +146,12 @@ def precompile_templates() -> tuple[str, int]:
     """Compile the kernel templates into :func:`package_template_cache` (made if missing,
     whatever ``PYTHONDONTWRITEBYTECODE`` says: as an installer compiles a package's
     modules), so that no process compiles them again; returns the directory and how many
-    compiled templates it holds.  An entry of a template changed since is stale (jinja2 checks the
-    source) and is compiled again when used.  :class:`~symgroupoid.OutputError` when the
+    compiled templates it holds.  An entry of a template changed since is stale (jinja2
+    checks the source) and is compiled again when used.  :class:`~symgroupoid.OutputError` when the
     directory cannot be written."""
     directory = template_dir() / "__pycache__"
     try:
-        directory.mkdir(exist_ok=True)
-        if not os.access(directory, os.W_OK | os.X_OK):
-            raise PermissionError(f"{directory} is not writable")
+        _writable(directory)
     except OSError as exc:
         raise OutputError(f"cannot keep the compiled kernel templates in {directory}: "
                           f"{exc}") from exc

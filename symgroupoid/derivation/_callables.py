@@ -8,6 +8,7 @@ from collections.abc import Callable, Iterable, Sequence
 
 import sympy as sp
 
+from .._arguments import _shown as shown_value
 from .._errors import (
     CallableError,
     InvalidExpressionError,
@@ -83,22 +84,12 @@ def as_scalar(system_name: str, what: str, value) -> sp.Expr:
     try:
         expr = sp.sympify(value)
     except (sp.SympifyError, TypeError) as exc:
-        raise ShapeError(f"{system_name}: the {what} returned {_described(value)}, not a "
+        raise ShapeError(f"{system_name}: the {what} returned {shown_value(value)}, not a "
                          f"scalar") from exc
     if not isinstance(expr, sp.Expr):
-        raise ShapeError(f"{system_name}: the {what} returned {_described(expr)}, not a "
+        raise ShapeError(f"{system_name}: the {what} returned {shown_value(expr)}, not a "
                          f"scalar")
     return expr
-
-
-def _described(value) -> str:
-    """``repr(value)`` shortened, or its type where the repr itself fails (an empty
-    0-dimensional SymPy array cannot print itself)."""
-    try:
-        text = repr(value)
-    except Exception:  # noqa: BLE001 - any failure of a user object's repr
-        return f"a {type(value).__name__} that cannot be printed"
-    return text if len(text) <= 80 else text[:77] + "..."
 
 
 def check_finite_real(system_name: str, what: str, expr: sp.Expr,
