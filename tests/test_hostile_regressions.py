@@ -414,3 +414,24 @@ def test_a_section_returning_an_unprintable_array_is_a_shape_error():
 
     with pytest.raises(sg.ShapeError, match="section .*Unprintable that cannot be printed"):
         as_scalar("sys", "section (entry 0)", Unprintable())
+
+
+# --- boundary values ------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("steps", [4, 6])
+def test_constraints_made_dependent_by_the_ends(monkeypatch, steps):
+    """(The fast path's Newton raised SingularJacobianError on the diagonal particle between
+    (0, 0) and (1, 1): Σ φ_k = Δx − Δy over all arrows is fixed by the ends, so the KKT
+    matrix is singular and the multipliers are unique only up to a constant.  The fast path
+    now hands over to the inertia-corrected iteration, which regularises them.)"""
+    monkeypatch.setenv("SYMGROUPOID_BACKEND", "numpy")
+    system = diagonal()
+    params = {"h": 0.1, "k": 1.0}
+    solution = sg.solve_boundary_value(system.euler_lagrange(), (0.0, 0.0), (1.0, 1.0), steps,
+                                       params=params)
+    nodes = np.asarray(solution.configurations, float)
+    assert np.allclose(nodes[[0, -1]], [[0.0, 0.0], [1.0, 1.0]], atol=1e-12, rtol=0)
+    assert np.max(np.abs(nodes[:, 0] - nodes[:, 1])) <= 1e-12
+    assert solution.residual_norm <= 1e-12
+    assert np.isfinite(solution.multipliers).all()
+    assert sg.verify_stationary(solution, system, params)

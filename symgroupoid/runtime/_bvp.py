@@ -1247,8 +1247,9 @@ def _newton_direction(ctx: _Context, state: _Assembled, run: _Run, arrows,
 def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
     """Structured Newton on the necessary conditions, backtracking on |F|₂²: quadratic
     convergence from a good guess.  Raises :class:`_Handover` when the line search finds no
-    decrease or MAX_DAMPED consecutive steps were damped (far from a solution, where the
-    globalised iteration does better)."""
+    decrease, MAX_DAMPED consecutive steps were damped (far from a solution, where the
+    globalised iteration does better) or the Jacobian is singular (constraints that the
+    boundary data make dependent, whose multipliers the globalised iteration regularises)."""
     run.methods.append("Newton")
     damped = 0
     recent = collections.deque(maxlen=RESTART_CANDIDATES)
@@ -1259,7 +1260,10 @@ def _fast_newton(ctx: _Context, arrows, lam, state: _Assembled, run: _Run):
         if excess <= 1.0:
             return arrows, lam, state
         _check_budget(ctx, run, state, excess, arrows)
-        dz = _newton_direction(ctx, state, run, arrows)
+        try:
+            dz = _newton_direction(ctx, state, run, arrows)
+        except SingularJacobianError as exc:  # e.g. constraints made dependent by the ends
+            raise _Handover(f"a singular Jacobian ({exc})", recent) from exc
         step = _line_search(ctx.kernel, ctx.lay, ctx.maps, arrows, lam, dz, state, ctx.p)
         if step is None:
             raise _Handover("found no decrease of |F| along the Newton direction (line search)",
