@@ -61,8 +61,10 @@ class StepModel:
     """One DEL step as CasADi functions of (u, known, p).
 
     ``chart(known)`` is the chart of the current arrow (the unknowns that would repeat it) and
-    ``prediction(known)`` the first guess; the stepper guesses 2·chart − memory, with memory the
-    chart of the previous arrow (the extrapolated guess u_k ≈ 2u_{k−1} − u_{k−2}).
+    ``prediction(known)`` the first guess; the stepper extrapolates the charts of the last
+    arrows as the library's stepper does (``<prefix>_extrapolate``): linearly,
+    u_k ≈ 2u_{k−1} − u_{k−2}, or quadratically, 3(u_{k−1} − u_{k−2}) + u_{k−3}, whichever
+    would have guessed the last solution more closely.
     """
 
     name: str
@@ -220,9 +222,11 @@ class CompiledStepper:
         return self.model.build_seconds + sum(self.seconds.values())
 
     def initial(self, known0: np.ndarray) -> ca.DM:
-        """The accumulated state (known, memory) with memory = 2·chart − prediction."""
+        """The accumulated state (known, before, earlier, steps, quadratic) with before =
+        2·chart − prediction (so that the first guess is the prediction), no hindsight yet."""
         k = ca.DM(np.asarray(known0, float))
-        return ca.vertcat(k, 2 * self.model.chart(k) - self.model.prediction(k))
+        return ca.vertcat(k, 2 * self.model.chart(k) - self.model.prediction(k),
+                          ca.DM.zeros(self.model.n_unknown), 0, 0)
 
     def trajectory(self, known0: np.ndarray, params: np.ndarray) -> np.ndarray:
         """The ``steps + 1`` known states from ``known0`` (rows)."""
@@ -243,11 +247,20 @@ def compile_stepper(model: StepModel, steps: int, workdir: Path, *,
     newton = ca.rootfinder("newton", "fast_newton", G,
                            {"abstol": tol_residual, "abstolStep": tol_step,
                             "max_iter": max_iterations})
-    state, pp = ca.MX.sym("state", nk + nu), ca.MX.sym("p", npar)
-    k, m = state[:nk], state[nk:]
+    state, pp = ca.MX.sym("state", nk + 2 * nu + 2), ca.MX.sym("p", npar)
+    k, before, earlier = state[:nk], state[nk:nk + nu], state[nk + nu:nk + 2 * nu]
+    steps_done, quadratic = state[nk + 2 * nu], state[nk + 2 * nu + 1]
     current = model.chart(k)
-    solved = newton(2 * current - m, ca.vertcat(k, pp))
-    one = ca.Function("one", [state, pp], [ca.vertcat(model.advance(solved, k), current)])
+    linear_guess = 2 * current - before
+    quadratic_guess = 3 * (current - before) + earlier
+    solved = newton(ca.if_else(quadratic, quadratic_guess, linear_guess), ca.vertcat(k, pp))
+
+    def miss(guess):  # max_j |u_j − guess_j| / (1 + |u_j|)
+        return ca.mmax(ca.fabs(solved - guess) / (1 + ca.fabs(solved)))
+
+    hindsight = ca.if_else(steps_done >= 2, miss(quadratic_guess) < miss(linear_guess), 0)
+    one = ca.Function("one", [state, pp], [ca.vertcat(
+        model.advance(solved, k), current, before, ca.fmin(steps_done + 1, 2), hindsight)])
     name = f"casadi_{model.name}"
     accumulated = one.mapaccum(name, steps)
     t1 = time.perf_counter()

@@ -698,7 +698,8 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
  *    residual (heavy_top_explained_by_rounding), or failing that heavy_top_at_floor; otherwise
  *    Newton goes on (a small relative update at a runaway iterate is not convergence);
  *    after a stop on the estimate, when the estimated error is above the rounding of u
- *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update), the
+ *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update) or rho is the
+ *    ratio of the first two updates (which may overstate the contraction), the
  *    accepted iterate takes one more chord update from that residual, which costs no
  *    evaluation (a "polishing" update, counted in *iterations, applied only when smaller
  *    than the last update and within max_iterations): the remaining error, though within
@@ -808,8 +809,11 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         } else if (it > 0 && step < last_step) {
             const double rho = step / last_step;
             if (rho / (1.0 - rho) * step <= options->tol_step) {
-                /* to be polished, unless the remaining error is below the rounding of u */
-                done = heavy_top_above_rounding(F, u, rho / (1.0 - rho)) ? 2 : 1;
+                /* to be polished, unless the remaining error is below the rounding of u;
+                 * always after two updates (it == 1), where rho is a single ratio and the
+                 * first update also removed the guess's error in the unknowns that enter
+                 * linearly (multipliers), so that rho underestimates the contraction */
+                done = (it == 1 || heavy_top_above_rounding(F, u, rho / (1.0 - rho))) ? 2 : 1;
             }
         }
         last_step = step;
@@ -837,14 +841,59 @@ int heavy_top_solve_step(const double *known, const double *p, const heavy_top_o
     return heavy_top_newton(known, p, options, u, iterations, residual_norm);
 }
 
-/* 1 when a warm start is usable: count in 0..2 and its count solutions finite */
+/* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
+ * finite */
 static int heavy_top_warm_start_valid(const heavy_top_warm_start *warm)
 {
-    if (warm->count < 0 || warm->count > 2) {
+    if (warm->count < 0 || warm->count > 3 || (warm->quadratic != 0 && warm->quadratic != 1)) {
         return 0;
     }
     return (warm->count < 1 || isfinite(heavy_top_norm_inf(warm->u_last, HEAVY_TOP_N_UNKNOWNS)))
-           && (warm->count < 2 || isfinite(heavy_top_norm_inf(warm->u_before, HEAVY_TOP_N_UNKNOWNS)));
+           && (warm->count < 2 || isfinite(heavy_top_norm_inf(warm->u_before, HEAVY_TOP_N_UNKNOWNS)))
+           && (warm->count < 3 || isfinite(heavy_top_norm_inf(warm->u_earlier, HEAVY_TOP_N_UNKNOWNS)));
+}
+
+/* The Newton guess extrapolated from the warm start (count >= 2): the quadratic
+ * 3 (u_last - u_before) + u_earlier when it holds three solutions and warm->quadratic, else
+ * the linear 2 u_last - u_before */
+static void heavy_top_extrapolate(const heavy_top_warm_start *warm, double *u)
+{
+    int i;
+    if (warm->count == 3 && warm->quadratic) {
+        for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+            u[i] = 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
+        }
+    } else {
+        for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+            u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
+        }
+    }
+}
+
+/* Adds the solution u of a step to the warm start.  When it held three solutions, the next
+ * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
+ * guessed u more closely than the linear one (heavy_top_relative_norm of the errors).  Smooth
+ * motion favours the quadratic (its error is O(h^3) against O(h^2)); an oscillation with
+ * fewer than about six steps per period, where higher order extrapolates worse, the linear. */
+static void heavy_top_remember(const double *u, heavy_top_warm_start *warm)
+{
+    if (warm->count == 3) {
+        double linear[HEAVY_TOP_N_UNKNOWNS], quadratic[HEAVY_TOP_N_UNKNOWNS];
+        int i;
+        for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+            linear[i] = u[i] - (2.0 * warm->u_last[i] - warm->u_before[i]);
+            quadratic[i] = u[i] - (3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i]);
+        }
+        warm->quadratic = heavy_top_relative_norm(quadratic, u) < heavy_top_relative_norm(linear, u);
+    } else {
+        warm->quadratic = 0; /* (a run restarted with count = 0 forgets the old choice) */
+    }
+    memcpy(warm->u_earlier, warm->u_before, sizeof warm->u_earlier);
+    memcpy(warm->u_before, warm->u_last, sizeof warm->u_before);
+    memcpy(warm->u_last, u, sizeof warm->u_last);
+    if (warm->count < 3) {
+        ++warm->count;
+    }
 }
 
 /* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
@@ -853,9 +902,10 @@ static int heavy_top_warm_start_valid(const heavy_top_warm_start *warm)
  * iterations and residual_norms hold at least capacity - 1 entries), else nothing is written
  * and HEAVY_TOP_INVALID_ARGUMENT is returned.
  * The Newton guess of a step is heavy_top_predict, or, when options->extrapolate is set and the
- * warm start holds the solutions of the last two steps, their linear extrapolation
- * u ~ 2 u_last - u_before (chart coordinates and multipliers of consecutive steps), falling
- * back to heavy_top_predict if Newton fails from there (iterations[k] counts both tries).
+ * warm start holds the solutions of at least the last two steps, their extrapolation
+ * (heavy_top_extrapolate: linear, u ~ 2 u_last - u_before, or quadratic, chosen by hindsight in
+ * heavy_top_remember; chart coordinates and multipliers of consecutive steps), falling back to
+ * heavy_top_predict if Newton fails from there (iterations[k] counts both tries).
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -869,7 +919,6 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
     heavy_top_options defaults;
     heavy_top_warm_start fresh;
     long k;
-    int i;
     if (failed_step != NULL) {
         *failed_step = -1;
     }
@@ -894,12 +943,10 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
         const double *current = states + (size_t)k * HEAVY_TOP_N_KNOWNS;
         double next[HEAVY_TOP_N_KNOWNS];
         double u[HEAVY_TOP_N_UNKNOWNS];
-        const int extrapolated = options->extrapolate && warm->count == 2;
+        const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
         if (extrapolated) {
-            for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
-                u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
-            }
+            heavy_top_extrapolate(warm, u);
         } else {
             heavy_top_predict(current, p, u);
         }
@@ -927,11 +974,7 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
             return status;
         }
         memcpy(states + (size_t)(k + 1) * HEAVY_TOP_N_KNOWNS, next, sizeof next);
-        memcpy(warm->u_before, warm->u_last, sizeof u);
-        memcpy(warm->u_last, u, sizeof u);
-        if (warm->count < 2) {
-            ++warm->count;
-        }
+        heavy_top_remember(u, warm);
     }
     return HEAVY_TOP_OK;
 }

@@ -40,11 +40,13 @@
  *   first failing step (its index in *failed_step, its last Newton iterate in last_iterate)
  *   and never writes a non-finite state.  options and warm may be NULL (defaults; a fresh
  *   start).
- * heavy_top_warm_start carries the Newton warm start from one call to the next: count (0, 1
- *   or 2) solutions, u_last the unknowns of the latest solved step and u_before those of the
- *   step before.  Zero it to start a run; to continue, call again from the last state of the
- *   previous call with the same struct: a run split into calls of any lengths gives bitwise
- *   the states of one call, with a buffer of fixed size.
+ * heavy_top_warm_start carries the Newton warm start from one call to the next: count (0 to
+ *   3) solutions, u_last the unknowns of the latest solved step, u_before and u_earlier those
+ *   of the two steps before, and quadratic (0 or 1), whether the next guess extrapolates
+ *   them quadratically rather than linearly.  Zero it (or set count = 0) to start a run; to
+ *   continue, call again from the last state of the previous call with the same struct: a
+ *   run split into calls of any lengths gives bitwise the states of one call, with a buffer
+ *   of fixed size.
  * heavy_top_simulate_batch(n_batch, known0, p, p_stride, n_steps, every, options, states,
  *                        rows, iterations, residual_norms, kept, status, failed_step,
  *                        failed_iterations, failed_residual_norm, last_iterate, n_threads)
@@ -93,8 +95,10 @@ typedef struct {
 
 typedef struct {
     int count;
+    int quadratic;
     double u_last[3];
     double u_before[3];
+    double u_earlier[3];
 } heavy_top_warm_start;
 
 void heavy_top_default_options(heavy_top_options *options);

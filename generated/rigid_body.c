@@ -690,7 +690,8 @@ static inline int rigid_body_above_rounding(const double *d, const double *u, do
  *    residual (rigid_body_explained_by_rounding), or failing that rigid_body_at_floor; otherwise
  *    Newton goes on (a small relative update at a runaway iterate is not convergence);
  *    after a stop on the estimate, when the estimated error is above the rounding of u
- *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update), the
+ *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update) or rho is the
+ *    ratio of the first two updates (which may overstate the contraction), the
  *    accepted iterate takes one more chord update from that residual, which costs no
  *    evaluation (a "polishing" update, counted in *iterations, applied only when smaller
  *    than the last update and within max_iterations): the remaining error, though within
@@ -800,8 +801,11 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
         } else if (it > 0 && step < last_step) {
             const double rho = step / last_step;
             if (rho / (1.0 - rho) * step <= options->tol_step) {
-                /* to be polished, unless the remaining error is below the rounding of u */
-                done = rigid_body_above_rounding(F, u, rho / (1.0 - rho)) ? 2 : 1;
+                /* to be polished, unless the remaining error is below the rounding of u;
+                 * always after two updates (it == 1), where rho is a single ratio and the
+                 * first update also removed the guess's error in the unknowns that enter
+                 * linearly (multipliers), so that rho underestimates the contraction */
+                done = (it == 1 || rigid_body_above_rounding(F, u, rho / (1.0 - rho))) ? 2 : 1;
             }
         }
         last_step = step;
@@ -829,14 +833,59 @@ int rigid_body_solve_step(const double *known, const double *p, const rigid_body
     return rigid_body_newton(known, p, options, u, iterations, residual_norm);
 }
 
-/* 1 when a warm start is usable: count in 0..2 and its count solutions finite */
+/* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
+ * finite */
 static int rigid_body_warm_start_valid(const rigid_body_warm_start *warm)
 {
-    if (warm->count < 0 || warm->count > 2) {
+    if (warm->count < 0 || warm->count > 3 || (warm->quadratic != 0 && warm->quadratic != 1)) {
         return 0;
     }
     return (warm->count < 1 || isfinite(rigid_body_norm_inf(warm->u_last, RIGID_BODY_N_UNKNOWNS)))
-           && (warm->count < 2 || isfinite(rigid_body_norm_inf(warm->u_before, RIGID_BODY_N_UNKNOWNS)));
+           && (warm->count < 2 || isfinite(rigid_body_norm_inf(warm->u_before, RIGID_BODY_N_UNKNOWNS)))
+           && (warm->count < 3 || isfinite(rigid_body_norm_inf(warm->u_earlier, RIGID_BODY_N_UNKNOWNS)));
+}
+
+/* The Newton guess extrapolated from the warm start (count >= 2): the quadratic
+ * 3 (u_last - u_before) + u_earlier when it holds three solutions and warm->quadratic, else
+ * the linear 2 u_last - u_before */
+static void rigid_body_extrapolate(const rigid_body_warm_start *warm, double *u)
+{
+    int i;
+    if (warm->count == 3 && warm->quadratic) {
+        for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+            u[i] = 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
+        }
+    } else {
+        for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+            u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
+        }
+    }
+}
+
+/* Adds the solution u of a step to the warm start.  When it held three solutions, the next
+ * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
+ * guessed u more closely than the linear one (rigid_body_relative_norm of the errors).  Smooth
+ * motion favours the quadratic (its error is O(h^3) against O(h^2)); an oscillation with
+ * fewer than about six steps per period, where higher order extrapolates worse, the linear. */
+static void rigid_body_remember(const double *u, rigid_body_warm_start *warm)
+{
+    if (warm->count == 3) {
+        double linear[RIGID_BODY_N_UNKNOWNS], quadratic[RIGID_BODY_N_UNKNOWNS];
+        int i;
+        for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+            linear[i] = u[i] - (2.0 * warm->u_last[i] - warm->u_before[i]);
+            quadratic[i] = u[i] - (3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i]);
+        }
+        warm->quadratic = rigid_body_relative_norm(quadratic, u) < rigid_body_relative_norm(linear, u);
+    } else {
+        warm->quadratic = 0; /* (a run restarted with count = 0 forgets the old choice) */
+    }
+    memcpy(warm->u_earlier, warm->u_before, sizeof warm->u_earlier);
+    memcpy(warm->u_before, warm->u_last, sizeof warm->u_before);
+    memcpy(warm->u_last, u, sizeof warm->u_last);
+    if (warm->count < 3) {
+        ++warm->count;
+    }
 }
 
 /* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
@@ -845,9 +894,10 @@ static int rigid_body_warm_start_valid(const rigid_body_warm_start *warm)
  * iterations and residual_norms hold at least capacity - 1 entries), else nothing is written
  * and RIGID_BODY_INVALID_ARGUMENT is returned.
  * The Newton guess of a step is rigid_body_predict, or, when options->extrapolate is set and the
- * warm start holds the solutions of the last two steps, their linear extrapolation
- * u ~ 2 u_last - u_before (chart coordinates and multipliers of consecutive steps), falling
- * back to rigid_body_predict if Newton fails from there (iterations[k] counts both tries).
+ * warm start holds the solutions of at least the last two steps, their extrapolation
+ * (rigid_body_extrapolate: linear, u ~ 2 u_last - u_before, or quadratic, chosen by hindsight in
+ * rigid_body_remember; chart coordinates and multipliers of consecutive steps), falling back to
+ * rigid_body_predict if Newton fails from there (iterations[k] counts both tries).
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -861,7 +911,6 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
     rigid_body_options defaults;
     rigid_body_warm_start fresh;
     long k;
-    int i;
     if (failed_step != NULL) {
         *failed_step = -1;
     }
@@ -886,12 +935,10 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
         const double *current = states + (size_t)k * RIGID_BODY_N_KNOWNS;
         double next[RIGID_BODY_N_KNOWNS];
         double u[RIGID_BODY_N_UNKNOWNS];
-        const int extrapolated = options->extrapolate && warm->count == 2;
+        const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
         if (extrapolated) {
-            for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
-                u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
-            }
+            rigid_body_extrapolate(warm, u);
         } else {
             rigid_body_predict(current, p, u);
         }
@@ -919,11 +966,7 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
             return status;
         }
         memcpy(states + (size_t)(k + 1) * RIGID_BODY_N_KNOWNS, next, sizeof next);
-        memcpy(warm->u_before, warm->u_last, sizeof u);
-        memcpy(warm->u_last, u, sizeof u);
-        if (warm->count < 2) {
-            ++warm->count;
-        }
+        rigid_body_remember(u, warm);
     }
     return RIGID_BODY_OK;
 }

@@ -341,10 +341,12 @@ _LAYOUT = r"""
 #include "{header}"
 int main(void)
 {{
-    printf("%zu %zu %zu %zu %zu %zu %zu %zu\n", sizeof({p}_options), sizeof({p}_warm_start),
-           offsetof({p}_options, tol_step), offsetof({p}_options, max_iterations),
-           offsetof({p}_options, extrapolate), offsetof({p}_warm_start, u_last),
-           offsetof({p}_warm_start, u_before), (size_t){P}_N_KNOWNS);
+    printf("%zu %zu %zu %zu %zu %zu %zu %zu %zu %zu\n", sizeof({p}_options),
+           sizeof({p}_warm_start), offsetof({p}_options, tol_step),
+           offsetof({p}_options, max_iterations), offsetof({p}_options, extrapolate),
+           offsetof({p}_warm_start, quadratic), offsetof({p}_warm_start, u_last),
+           offsetof({p}_warm_start, u_before), offsetof({p}_warm_start, u_earlier),
+           (size_t){P}_N_KNOWNS);
     return 0;
 }}
 """
@@ -365,8 +367,10 @@ def test_the_type_table_agrees_with_the_compiled_header(tmp_path):
                    ffi.offsetof(f"{p}_options", "tol_step"),
                    ffi.offsetof(f"{p}_options", "max_iterations"),
                    ffi.offsetof(f"{p}_options", "extrapolate"),
+                   ffi.offsetof(f"{p}_warm_start", "quadratic"),
                    ffi.offsetof(f"{p}_warm_start", "u_last"),
                    ffi.offsetof(f"{p}_warm_start", "u_before"),
+                   ffi.offsetof(f"{p}_warm_start", "u_earlier"),
                    int(getattr(sim.kernel.lib, f"{p.upper()}_N_KNOWNS"))]
 
 

@@ -232,12 +232,17 @@ def test_c_warm_start_is_checked():
     kernel = sim.kernel
     state = initial_state(sim, "rigid_body")
     p = sim.parameters(SEED_DATA["rigid_body"][0])
-    for count, value in [(3, 0.0), (-1, 0.0), (1, np.nan), (2, np.inf)]:
+    for count, quadratic, value in [(4, 0, 0.0), (-1, 0, 0.0), (3, 2, 0.0), (3, -1, 0.0),
+                                    (1, 0, np.nan), (2, 0, np.inf), (3, 1, np.nan)]:
         warm = kernel.warm_start()
-        warm.count = count
-        warm.u_last[0] = value
-        warm.u_before[0] = value
+        warm.count, warm.quadratic = count, quadratic
+        warm.u_last[0] = 0.0 if count == 3 else value
+        warm.u_before[0] = 0.0 if count == 3 else value
+        warm.u_earlier[0] = value
         assert kernel.simulate(state, p, 2, sim.options, warm).status == INVALID_ARGUMENT
+    warm = kernel.warm_start()  # a complete, finite warm start is accepted
+    warm.count, warm.quadratic = 3, 1
+    assert kernel.simulate(state, p, 2, sim.options, warm).status == OK
     with pytest.raises(sg.ShapeError, match="warm start"):
         kernel.simulate(state, p, 2, sim.options, kernel.ffi.new("int *"))
 

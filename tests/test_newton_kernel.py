@@ -262,16 +262,17 @@ def _cayley(x) -> np.ndarray:
 
 @needs_cc
 def test_the_polishing_update_is_made_alike_by_both_steppers():
-    """The 3D pendulum's Cayley coordinates (~1e-2) stop on the estimated error above their
-    rounding, so most steps end with a polishing update from the accepted residual (a third
-    update without a third evaluation): the same in C and NumPy, bit for bit."""
+    """The 3D pendulum's Cayley coordinates (~4e-2 at h = 0.02) stop on the estimated error
+    above their rounding, so most steps end with a polishing update from the accepted
+    residual (a third update without a third evaluation): the same in C and NumPy, bit for
+    bit.  (At h = 0.01 the quadratic guess is so close that two updates reach the rounding.)"""
     from symgroupoid.systems import spherical_chain
 
     step = spherical_chain(1).euler_lagrange()
     c_sim, np_sim = step.compile(backend="c"), step.compile(backend="numpy")
     R = _cayley(np.array([0.5, 0.4, 0.3]))
-    params = {"h": 0.01, "g": 9.81}
-    state = c_sim.state({"R1": (R, R @ _cayley(0.02 * np.array([0.8, -0.6, 1.5])))}, params)
+    params = {"h": 0.02, "g": 9.81}
+    state = c_sim.state({"R1": (R, R @ _cayley(0.04 * np.array([0.8, -0.6, 1.5])))}, params)
     a, b = c_sim.simulate(state, 40, params), np_sim.simulate(state, 40, params)
     assert np.array_equal(a.states, b.states)
     assert np.array_equal(a.newton_iterations, b.newton_iterations)
