@@ -853,20 +853,26 @@ static int heavy_top_warm_start_valid(const heavy_top_warm_start *warm)
            && (warm->count < 3 || isfinite(heavy_top_norm_inf(warm->u_earlier, HEAVY_TOP_N_UNKNOWNS)));
 }
 
-/* The Newton guess extrapolated from the warm start (count >= 2): the quadratic
- * 3 (u_last - u_before) + u_earlier when it holds three solutions and warm->quadratic, else
- * the linear 2 u_last - u_before */
+/* The two extrapolations of unknown i from the warm start: linear, 2 u_last - u_before, and
+ * quadratic, 3 (u_last - u_before) + u_earlier */
+static inline double heavy_top_linear_guess(const heavy_top_warm_start *warm, int i)
+{
+    return 2.0 * warm->u_last[i] - warm->u_before[i];
+}
+
+static inline double heavy_top_quadratic_guess(const heavy_top_warm_start *warm, int i)
+{
+    return 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
+}
+
+/* The Newton guess extrapolated from the warm start (count >= 2): quadratic when it holds
+ * three solutions and warm->quadratic, else linear */
 static void heavy_top_extrapolate(const heavy_top_warm_start *warm, double *u)
 {
+    const int quadratic = warm->count == 3 && warm->quadratic;
     int i;
-    if (warm->count == 3 && warm->quadratic) {
-        for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
-            u[i] = 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
-        }
-    } else {
-        for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
-            u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
-        }
+    for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+        u[i] = quadratic ? heavy_top_quadratic_guess(warm, i) : heavy_top_linear_guess(warm, i);
     }
 }
 
@@ -881,8 +887,8 @@ static void heavy_top_remember(const double *u, heavy_top_warm_start *warm)
         double linear[HEAVY_TOP_N_UNKNOWNS], quadratic[HEAVY_TOP_N_UNKNOWNS];
         int i;
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
-            linear[i] = u[i] - (2.0 * warm->u_last[i] - warm->u_before[i]);
-            quadratic[i] = u[i] - (3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i]);
+            linear[i] = u[i] - heavy_top_linear_guess(warm, i);
+            quadratic[i] = u[i] - heavy_top_quadratic_guess(warm, i);
         }
         warm->quadratic = heavy_top_relative_norm(quadratic, u) < heavy_top_relative_norm(linear, u);
     } else {

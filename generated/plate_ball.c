@@ -1051,20 +1051,26 @@ static int plate_ball_warm_start_valid(const plate_ball_warm_start *warm)
            && (warm->count < 3 || isfinite(plate_ball_norm_inf(warm->u_earlier, PLATE_BALL_N_UNKNOWNS)));
 }
 
-/* The Newton guess extrapolated from the warm start (count >= 2): the quadratic
- * 3 (u_last - u_before) + u_earlier when it holds three solutions and warm->quadratic, else
- * the linear 2 u_last - u_before */
+/* The two extrapolations of unknown i from the warm start: linear, 2 u_last - u_before, and
+ * quadratic, 3 (u_last - u_before) + u_earlier */
+static inline double plate_ball_linear_guess(const plate_ball_warm_start *warm, int i)
+{
+    return 2.0 * warm->u_last[i] - warm->u_before[i];
+}
+
+static inline double plate_ball_quadratic_guess(const plate_ball_warm_start *warm, int i)
+{
+    return 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
+}
+
+/* The Newton guess extrapolated from the warm start (count >= 2): quadratic when it holds
+ * three solutions and warm->quadratic, else linear */
 static void plate_ball_extrapolate(const plate_ball_warm_start *warm, double *u)
 {
+    const int quadratic = warm->count == 3 && warm->quadratic;
     int i;
-    if (warm->count == 3 && warm->quadratic) {
-        for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
-            u[i] = 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
-        }
-    } else {
-        for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
-            u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
-        }
+    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
+        u[i] = quadratic ? plate_ball_quadratic_guess(warm, i) : plate_ball_linear_guess(warm, i);
     }
 }
 
@@ -1079,8 +1085,8 @@ static void plate_ball_remember(const double *u, plate_ball_warm_start *warm)
         double linear[PLATE_BALL_N_UNKNOWNS], quadratic[PLATE_BALL_N_UNKNOWNS];
         int i;
         for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
-            linear[i] = u[i] - (2.0 * warm->u_last[i] - warm->u_before[i]);
-            quadratic[i] = u[i] - (3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i]);
+            linear[i] = u[i] - plate_ball_linear_guess(warm, i);
+            quadratic[i] = u[i] - plate_ball_quadratic_guess(warm, i);
         }
         warm->quadratic = plate_ball_relative_norm(quadratic, u) < plate_ball_relative_norm(linear, u);
     } else {

@@ -845,20 +845,26 @@ static int rigid_body_warm_start_valid(const rigid_body_warm_start *warm)
            && (warm->count < 3 || isfinite(rigid_body_norm_inf(warm->u_earlier, RIGID_BODY_N_UNKNOWNS)));
 }
 
-/* The Newton guess extrapolated from the warm start (count >= 2): the quadratic
- * 3 (u_last - u_before) + u_earlier when it holds three solutions and warm->quadratic, else
- * the linear 2 u_last - u_before */
+/* The two extrapolations of unknown i from the warm start: linear, 2 u_last - u_before, and
+ * quadratic, 3 (u_last - u_before) + u_earlier */
+static inline double rigid_body_linear_guess(const rigid_body_warm_start *warm, int i)
+{
+    return 2.0 * warm->u_last[i] - warm->u_before[i];
+}
+
+static inline double rigid_body_quadratic_guess(const rigid_body_warm_start *warm, int i)
+{
+    return 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
+}
+
+/* The Newton guess extrapolated from the warm start (count >= 2): quadratic when it holds
+ * three solutions and warm->quadratic, else linear */
 static void rigid_body_extrapolate(const rigid_body_warm_start *warm, double *u)
 {
+    const int quadratic = warm->count == 3 && warm->quadratic;
     int i;
-    if (warm->count == 3 && warm->quadratic) {
-        for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
-            u[i] = 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
-        }
-    } else {
-        for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
-            u[i] = 2.0 * warm->u_last[i] - warm->u_before[i];
-        }
+    for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+        u[i] = quadratic ? rigid_body_quadratic_guess(warm, i) : rigid_body_linear_guess(warm, i);
     }
 }
 
@@ -873,8 +879,8 @@ static void rigid_body_remember(const double *u, rigid_body_warm_start *warm)
         double linear[RIGID_BODY_N_UNKNOWNS], quadratic[RIGID_BODY_N_UNKNOWNS];
         int i;
         for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
-            linear[i] = u[i] - (2.0 * warm->u_last[i] - warm->u_before[i]);
-            quadratic[i] = u[i] - (3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i]);
+            linear[i] = u[i] - rigid_body_linear_guess(warm, i);
+            quadratic[i] = u[i] - rigid_body_quadratic_guess(warm, i);
         }
         warm->quadratic = rigid_body_relative_norm(quadratic, u) < rigid_body_relative_norm(linear, u);
     } else {

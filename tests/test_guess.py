@@ -112,3 +112,15 @@ def test_newton_options_still_turn_extrapolation_off():
                      options=sg.NewtonOptions(extrapolate=False))
     assert np.max(np.abs(a.states - b.states)) <= 1e-13
     assert np.mean(b.newton_iterations) > np.mean(a.newton_iterations)
+
+
+@pytest.mark.parametrize("field, value", [("count", 4), ("count", -1), ("quadratic", 2),
+                                          ("quadratic", "yes")])
+def test_numpy_refuses_a_damaged_warm_start(field, value):
+    """As the C kernel's INVALID_ARGUMENT: a count outside 0…3 or a choice other than
+    True/False is refused by name before any step."""
+    sim = planar_chain(2).euler_lagrange().compile(backend="numpy")
+    warm = sim.kernel.warm_start()
+    setattr(warm, field, value)
+    with pytest.raises(sg.ShapeError, match="warm start"):
+        sim.kernel.simulate(chain_state(2), sim.parameters(CHAIN_PARAMS), 3, sim.options, warm)

@@ -763,13 +763,17 @@ class NumpyWarmStart:
     u_earlier: np.ndarray = field(default_factory=lambda: np.zeros(0))
     quadratic: bool = False
 
+    def _linear(self) -> np.ndarray:
+        return 2.0 * self.u_last - self.u_before
+
+    def _quadratic(self) -> np.ndarray:
+        return 3.0 * (self.u_last - self.u_before) + self.u_earlier
+
     def extrapolate(self) -> np.ndarray:
         """As ``<prefix>_extrapolate`` (count ≥ 2): the quadratic guess
         3(u_last − u_before) + u_earlier when three solutions are held and ``quadratic``,
         else the linear 2u_last − u_before."""
-        if self.count == 3 and self.quadratic:
-            return 3.0 * (self.u_last - self.u_before) + self.u_earlier
-        return 2.0 * self.u_last - self.u_before
+        return self._quadratic() if self.count == 3 and self.quadratic else self._linear()
 
     def remember(self, u: np.ndarray) -> None:
         """As ``<prefix>_remember``: adds the solution ``u``; with three solutions held,
@@ -777,9 +781,8 @@ class NumpyWarmStart:
         more closely than the linear one (relative norm): O(h³) against O(h²) on smooth
         motion, worse on an oscillation of fewer than about six steps per period."""
         if self.count == 3:
-            linear = u - (2.0 * self.u_last - self.u_before)
-            quadratic = u - (3.0 * (self.u_last - self.u_before) + self.u_earlier)
-            self.quadratic = bool(relative_norm(quadratic, u) < relative_norm(linear, u))
+            self.quadratic = bool(relative_norm(u - self._quadratic(), u)
+                                  < relative_norm(u - self._linear(), u))
         else:
             self.quadratic = False
         self.u_earlier, self.u_before = self.u_before, self.u_last
@@ -903,7 +906,8 @@ class NumpyKernel(_Kernel):
         """As ``<prefix>_simulate``: extrapolate from the warm start when it holds at least
         two solutions (and ``options.extrapolate``), else predict; retry from the prediction
         when Newton fails from an extrapolated guess."""
-        if not isinstance(warm, NumpyWarmStart) or warm.count not in (0, 1, 2, 3):
+        if not isinstance(warm, NumpyWarmStart) or warm.count not in (0, 1, 2, 3) \
+                or warm.quadratic not in (False, True):
             raise ShapeError(f"{self.step.name}: the warm start must come from "
                              f"warm_start(), got {warm!r}")
         states = np.empty((n_steps + 1, self.n_k))
