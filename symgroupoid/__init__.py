@@ -42,6 +42,7 @@ from .equations import (
     StepEquations,
     latex,
 )
+from .equations._printing import UnusedAbbreviationWarning
 from .equations._reduced import ReducedSystem, check_system_morphism
 from .groupoids import (
     SE2,
@@ -102,6 +103,7 @@ __all__ = [
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
     "UnsupportedFeatureError", "BoundaryValueDivergenceError", "CutLocusError", "DomainError",
     "InputNameError",
+    "UnusedAbbreviationWarning",
     "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "diagnostics",
     "emit_c", "hat3", "latex", "left_derivative", "plot_conservation", "plot_trajectory",
     "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",

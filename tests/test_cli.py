@@ -146,8 +146,9 @@ def test_derive_document_and_pdf(files, tmp_path, capsys, monkeypatch):
 
     tools = tmp_path / "tools"
     tools.mkdir()
-    fake = tools / "pdflatex"  # writes NAME.pdf for its last argument NAME.tex
-    fake.write_text('#!/bin/sh\nfor last; do :; done\nprintf %%PDF > "${last%.tex}.pdf"\n')
+    fake = tools / "pdflatex"  # writes NAME.pdf and an empty NAME.log for its last argument
+    fake.write_text('#!/bin/sh\nfor last; do :; done\nprintf %%PDF > "${last%.tex}.pdf"\n'
+                    ': > "${last%.tex}.log"\n')
     fake.chmod(0o755)
     monkeypatch.setenv("PATH", str(tools))
     code, out, _ = run(capsys, "derive", files / "ring.py", "--document", tex, "--pdf")

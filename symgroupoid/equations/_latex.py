@@ -188,7 +188,8 @@ class GroupoidLatexPrinter(LatexPrinter):
         texts = []
         for i, factor in enumerate(factors):
             tex = self._print(factor)
-            if self._needs_mul_brackets(factor, first=i == 0, last=i == len(factors) - 1):
+            if len(factors) > 1 and self._needs_mul_brackets(factor, first=i == 0,
+                                                             last=i == len(factors) - 1):
                 tex = f"\\left({tex}\\right)"
             texts.append(tex)
         return self._settings["mul_symbol_latex"].join(texts)
@@ -289,8 +290,9 @@ def step_latex(step, document: bool = False, abbreviations=None,
 
     The equations are printed in their most readable verified form (:mod:`._printing`):
     named pieces and ``abbreviations`` where they shorten it, terms collected by
-    multipliers and parameters, rows broken to ``width`` pt (default 450), and a "where"
-    list of what was named.
+    multipliers and parameters, rows broken to a page of text width ``width`` pt (default
+    450), and a "where" list of what was named; a document (:func:`latex_document`) sets a
+    line too wide to break smaller.
     """
     from ._layout import render_align
     from ._printing import printed_step

@@ -13,17 +13,21 @@ in q̄_{k∓1/2} and Δq_{k∓1/2} (the rule, and which parameter divides the di
 chosen as the one in which L and the constraints are shortest).  A second form names the
 partial derivatives of L(q̄, Δq) themselves: the step reads ½(∂_q̄L_{k−1/2} + ∂_q̄L_{k+1/2})
 − (∂_ΔqL_{k+1/2} − ∂_ΔqL_{k−1/2})/h = 0 and the "where" list gives each partial once.
-Matrix parts (tr(g_k E_i E_j), W_kᵀΓ_k) and Ad*_{g_k} keep their names.  User abbreviations
+Matrix parts (tr(g_k E_i E_j), W_kᵀΓ_k) and Ad*_{g_k} keep their names; what would print
+with the numbers of a constant matrix (an entry (E_a)_{ij}, an entry of a product with one, a
+trace with an explicit matrix) is evaluated, and a matrix form with no matrix left to name is
+not offered (the explicit residuals print alike).  User abbreviations
 (``abbreviations={name: expression or callable of an arrow}``) are recognised next, then the
 terms are collected by multipliers and parameters, and the rows broken to the page width
 (:mod:`._layout`).
 
 Every printed equation — the pieces and abbreviations written out, matrices and named
 operators by their values — is checked to equal the explicit residual (the expanded
-difference is 0), and so is every "where" row; a form that fails is not printed.  The form
-as derived always passes; of the verified forms the shortest in total (equations and "where"
-list) is printed, and remembered for the step.  Breaking a row into lines is checked too
-(:func:`._layout.same_sum`).
+difference is 0), and so is every "where" row; a form that fails is not printed.  The
+explicit residuals always pass.  Of the verified forms, the shortest one that keeps a matrix
+by name is printed when it is not longer than ``sympy.latex`` of the residuals, else the
+shortest in total (equations and "where" list); the choice is remembered for the step.
+Breaking a row into lines is checked too (:func:`._layout.same_sum`).
 
 Nothing here runs unless LaTeX is asked for.
 """
@@ -736,7 +740,17 @@ def _per_arrow(step, tex: str, fn: Callable, rule: PieceRule | None, unindexed: 
 
 def replace_occurrences(expr: sp.Expr, value: sp.Expr, symbol: sp.Expr) -> sp.Expr:
     """``expr`` with ``value`` replaced by ``symbol``: exact subexpressions, and sums that
-    contain a multiple c·value of a sum (c any common factor of those terms)."""
+    contain a multiple c·value of a sum (c any common factor of those terms) — of the value
+    as given and of its expanded form (a value (a − b)/(2h) is found in terms a/(2h) −
+    b/(2h) of an expanded equation)."""
+    expr = _replaced(expr, value, symbol)
+    expanded = sp.expand(value)
+    if expanded != value and isinstance(expanded, sp.Add):
+        expr = _replaced(expr, expanded, symbol)
+    return expr
+
+
+def _replaced(expr: sp.Expr, value: sp.Expr, symbol: sp.Expr) -> sp.Expr:
     if expr == value:
         return symbol
     if not expr.args or isinstance(expr, sp.MatrixExpr):
@@ -744,8 +758,8 @@ def replace_occurrences(expr: sp.Expr, value: sp.Expr, symbol: sp.Expr) -> sp.Ex
     if isinstance(expr, sp.Add) and isinstance(value, sp.Add):
         matched = _match_sum(expr, value, symbol)
         if matched is not None:
-            return replace_occurrences(matched, value, symbol)
-    args = [replace_occurrences(a, value, symbol) for a in expr.args]
+            return _replaced(matched, value, symbol)
+    args = [_replaced(a, value, symbol) for a in expr.args]
     if all(a is b for a, b in zip(args, expr.args)):
         return expr
     return expr.func(*args)
@@ -1169,7 +1183,21 @@ def printed_step(step, abbreviations: Mapping | None = None,
     :class:`UnusedAbbreviationWarning`."""
     width = _check_width(width)
     checked = abbreviations_of(abbreviations, step)
-    key = tuple(checked)
+    printed = chosen_printed(step, abbreviations)
+    unused = unused_abbreviations(printed, checked)
+    if unused:
+        which = (f"abbreviation {unused[0]} does" if len(unused) == 1 else
+                 f"abbreviations {', '.join(unused)} do")
+        warnings.warn(UnusedAbbreviationWarning(
+            f"{step.name}: the {which} not occur in the printed equations (not a part of "
+            f"them, or only of longer forms) and {'is' if len(unused) == 1 else 'are'} left "
+            f"out of the \"where\" list", unused), stacklevel=4)
+    return printed_rows(printed, width, MemoLatexPrinter())
+
+
+def chosen_printed(step, abbreviations: Mapping | None = None) -> Printed:
+    """The step's :func:`chosen_form`, remembered for the step and its abbreviations."""
+    key = tuple(abbreviations_of(abbreviations, step))
     try:
         known = _PRINTED.setdefault(step, {})
         hash(key)
@@ -1177,16 +1205,7 @@ def printed_step(step, abbreviations: Mapping | None = None,
         known = {}
     if key not in known:
         known[key] = chosen_form(step, abbreviations, MemoLatexPrinter())
-    printed = known[key]
-    unused = unused_abbreviations(printed, checked)
-    if unused:
-        which = (f"abbreviation {unused[0]} does" if len(unused) == 1 else
-                 f"abbreviations {', '.join(unused)} do")
-        warnings.warn(UnusedAbbreviationWarning(
-            f"{step.name}: the {which} not occur in the printed equations (its value is not "
-            f"a part of them); it is not defined in the \"where\" list", unused),
-            stacklevel=4)
-    return printed_rows(printed, width, MemoLatexPrinter())
+    return known[key]
 
 
 def unused_abbreviations(printed: Printed, abbreviations: Sequence[Abbreviation]) -> list[str]:
