@@ -6,12 +6,12 @@
  * Residuals, 0 = F_i:
  *   F[0]: 0 = - \frac{\Omega h (\lambda_{k+1})_{1}}{2} - (\lambda_{k+1})_{2} - \frac{\Omega h (\lambda_{k})_{1}}{2} + (\lambda_{k})_{2} - \frac{x_{k+1}}{h} - \frac{x_{k-1}}{h} + \frac{2 x_{k}}{h}
  *   F[1]: 0 = - (\lambda_{k+1})_{1} + \frac{\Omega h (\lambda_{k+1})_{2}}{2} + (\lambda_{k})_{1} + \frac{\Omega h (\lambda_{k})_{2}}{2} - \frac{y_{k+1}}{h} - \frac{y_{k-1}}{h} + \frac{2 y_{k}}{h}
- *   F[2]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}\left(E_{1} g_{k+1} E_{1}\right) - r (\lambda_{k+1})_{2} \operatorname{tr}\left(E_{1} g_{k+1} E_{2}\right) - (\lambda_{k+1})_{3} \operatorname{tr}\left(E_{1} g_{k+1} E_{3}\right) - r (\lambda_{k})_{1} \operatorname{tr}\left(g_{k} E_{1}^{2}\right) + r (\lambda_{k})_{2} \operatorname{tr}\left(g_{k} E_{1} E_{2}\right) + (\lambda_{k})_{3} \operatorname{tr}\left(g_{k} E_{1} E_{3}\right)}{2}
- *   F[3]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}\left(E_{2} g_{k+1} E_{1}\right) - r (\lambda_{k+1})_{2} \operatorname{tr}\left(E_{2} g_{k+1} E_{2}\right) - (\lambda_{k+1})_{3} \operatorname{tr}\left(E_{2} g_{k+1} E_{3}\right) - r (\lambda_{k})_{1} \operatorname{tr}\left(g_{k} E_{2} E_{1}\right) + r (\lambda_{k})_{2} \operatorname{tr}\left(g_{k} E_{2}^{2}\right) + (\lambda_{k})_{3} \operatorname{tr}\left(g_{k} E_{2} E_{3}\right)}{2}
- *   F[4]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}\left(E_{3} g_{k+1} E_{1}\right) - r (\lambda_{k+1})_{2} \operatorname{tr}\left(E_{3} g_{k+1} E_{2}\right) - (\lambda_{k+1})_{3} \operatorname{tr}\left(E_{3} g_{k+1} E_{3}\right) - r (\lambda_{k})_{1} \operatorname{tr}\left(g_{k} E_{3} E_{1}\right) + r (\lambda_{k})_{2} \operatorname{tr}\left(g_{k} E_{3} E_{2}\right) + (\lambda_{k})_{3} \operatorname{tr}\left(g_{k} E_{3}^{2}\right)}{2}
- *   F[5]: 0 = - \frac{\Omega h x_{k+1}}{2} - \frac{\Omega h x_{k}}{2} + y_{k+1} - y_{k} - \frac{r \operatorname{tr}\left(g_{k+1} E_{1}\right)}{2}
- *   F[6]: 0 = x_{k+1} - x_{k} + \frac{\Omega h y_{k+1}}{2} + \frac{\Omega h y_{k}}{2} + \frac{r \operatorname{tr}\left(g_{k+1} E_{2}\right)}{2}
- *   F[7]: 0 = c h + \frac{\operatorname{tr}\left(g_{k+1} E_{3}\right)}{2}
+ *   F[2]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}(E_{1} g_{k+1} E_{1}) - r (\lambda_{k+1})_{2} \operatorname{tr}(E_{1} g_{k+1} E_{2}) - (\lambda_{k+1})_{3} \operatorname{tr}(E_{1} g_{k+1} E_{3}) - r (\lambda_{k})_{1} \operatorname{tr}(g_{k} E_{1}^{2}) + r (\lambda_{k})_{2} \operatorname{tr}(g_{k} E_{1} E_{2}) + (\lambda_{k})_{3} \operatorname{tr}(g_{k} E_{1} E_{3})}{2}
+ *   F[3]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}(E_{2} g_{k+1} E_{1}) - r (\lambda_{k+1})_{2} \operatorname{tr}(E_{2} g_{k+1} E_{2}) - (\lambda_{k+1})_{3} \operatorname{tr}(E_{2} g_{k+1} E_{3}) - r (\lambda_{k})_{1} \operatorname{tr}(g_{k} E_{2} E_{1}) + r (\lambda_{k})_{2} \operatorname{tr}(g_{k} E_{2}^{2}) + (\lambda_{k})_{3} \operatorname{tr}(g_{k} E_{2} E_{3})}{2}
+ *   F[4]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}(E_{3} g_{k+1} E_{1}) - r (\lambda_{k+1})_{2} \operatorname{tr}(E_{3} g_{k+1} E_{2}) - (\lambda_{k+1})_{3} \operatorname{tr}(E_{3} g_{k+1} E_{3}) - r (\lambda_{k})_{1} \operatorname{tr}(g_{k} E_{3} E_{1}) + r (\lambda_{k})_{2} \operatorname{tr}(g_{k} E_{3} E_{2}) + (\lambda_{k})_{3} \operatorname{tr}(g_{k} E_{3}^{2})}{2}
+ *   F[5]: 0 = - \frac{\Omega h x_{k+1}}{2} - \frac{\Omega h x_{k}}{2} + y_{k+1} - y_{k} - \frac{r \operatorname{tr}(g_{k+1} E_{1})}{2}
+ *   F[6]: 0 = x_{k+1} - x_{k} + \frac{\Omega h y_{k+1}}{2} + \frac{\Omega h y_{k}}{2} + \frac{r \operatorname{tr}(g_{k+1} E_{2})}{2}
+ *   F[7]: 0 = c h + \frac{\operatorname{tr}(g_{k+1} E_{3})}{2}
  */
 #include "plate_ball.h"
 

@@ -335,10 +335,20 @@ def _matrix_form_keeps(step) -> bool:
                for e in [fs.lagrangian, *fs.constraints] for t in sp.sympify(e).atoms(sp.Trace))
 
 
+#: each step's :func:`kept_matrix_form` (None too), built once
+_KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
 def kept_matrix_form(step) -> list | None:
     """The step's matrix form (:attr:`StepEquations.structured`) with its constant parts
     evaluated (:func:`evaluated_constants`), if it still keeps a matrix by name; else None
     (the explicit residuals are as short, and print alike)."""
+    if step not in _KEPT:
+        _KEPT[step] = _kept_matrix_form(step)
+    return _KEPT[step]
+
+
+def _kept_matrix_form(step) -> list | None:
     if not step.groupoid.matrix_parts() or not _matrix_form_keeps(step):
         return None
     structured = step.structured
