@@ -342,3 +342,10 @@ ABBREVIATIONS = {"G": 2 * g, r"\\vartheta": lambda a: (a.source[0] + a.target[0]
     out = capsys.readouterr().out
     assert "% abbreviations not used (not a part of the printed equations): G\n" in out
     assert "\\sin(\\vartheta_{" in out
+
+
+def test_derive_names_malformed_abbreviations(tmp_path, capsys):
+    path = _file(tmp_path, "wide", WIDE + 'ABBREVIATIONS = [("M", 1)]\n')
+    assert main(["derive", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "wide.py:system: ABBREVIATIONS: latex: abbreviations must be a mapping" in err

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._progress import Task
-from ..equations._printing import UnusedAbbreviationWarning
+from ..equations._printing import LatexOptionError, UnusedAbbreviationWarning
 from ._common import Derived, derive, file_stem, say
 from ._errors import ExternalToolError, InputError, LostContentError
 
@@ -47,7 +47,7 @@ def sizes(derived: Derived) -> list[str]:
 
 
 @dataclass
-class Printed:
+class PrintedLatex:
     """The LaTeX of a step, the seconds it took and the abbreviations it did not use."""
 
     text: str
@@ -62,7 +62,7 @@ class Printed:
         return out
 
 
-def _latex(derived: Derived, document: bool) -> Printed:
+def _latex(derived: Derived, document: bool) -> PrintedLatex:
     """The equations as printed for a paper (``StepEquations.latex``: named pieces, terms
     collected, lines broken to the page, a "where" list; every printed form checked against
     the residuals) with the file's ``ABBREVIATIONS``, the seconds it took and the
@@ -72,13 +72,16 @@ def _latex(derived: Derived, document: bool) -> Printed:
     with Task(f"{derived.step.name}: writing the equations as LaTeX"), \
             warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", UnusedAbbreviationWarning)
-        text = derived.step.latex(document=document, abbreviations=abbreviations)
+        try:
+            text = derived.step.latex(document=document, abbreviations=abbreviations)
+        except LatexOptionError as err:
+            raise LatexOptionError(f"{derived.source.label}: ABBREVIATIONS: {err}") from None
     unused = [name for w in caught if isinstance(w.message, UnusedAbbreviationWarning)
               for name in w.message.names]
     for w in caught:  # other warnings as Python would show them
         if not isinstance(w.message, UnusedAbbreviationWarning):
             warnings.showwarning(w.message, w.category, w.filename, w.lineno)
-    return Printed(text, time.perf_counter() - t0, unused)
+    return PrintedLatex(text, time.perf_counter() - t0, unused)
 
 
 def _pdflatex(tex: Path) -> Path:
