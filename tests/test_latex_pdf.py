@@ -203,6 +203,8 @@ def test_derive_pdf_of_the_plate_ball_has_every_equation(tmp_path, capsys):
     text = subprocess.run(["pdftotext", "-layout", str(tex.with_suffix(".pdf")), "-"],
                           capture_output=True, text=True, check=True).stdout
     assert equation_numbers(text) == list(range(1, 9))
+    log = tex.with_suffix(".log").read_text(errors="replace")
+    assert lost_content(log, tolerance=1.0) == []
 
 
 # --- lost content ---------------------------------------------------------------------------------
