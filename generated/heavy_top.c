@@ -226,6 +226,50 @@ void heavy_top_residual_jacobian(const double *u, const double *known, const dou
     J[8] = t67;
 }
 
+/* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
+ * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
+ * rounding noise of F_i, the floor below which Newton cannot bring it */
+
+void heavy_top_residual_scale(const double *u, const double *known, const double *p, double *S)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    const double t0 = 4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0];
+    const double t1 = 0.5*p[4];
+    const double t2 = 0.5*p[3];
+    const double t3 = 0.5*p[2];
+    const double t4 = t3 - t1;
+    const double t5 = t4 - t2;
+    const double t6 = t3 - t2 + t1;
+    const double t7 = t4 + t2;
+    const double t8 = 1.0/p[0];
+    const double t9 = t8*t7;
+    const double t10 = t8*t5;
+    const double t11 = t8*t6;
+    const double t12 = p[0]*p[1];
+    const double t13 = fabs(u[0]);
+    const double t14 = fabs(u[1]);
+    const double t15 = fabs(u[2]);
+    const double t16 = (t14*t14 + t13*t13 + (4.0 + t15*t15))*fabs(-1.0/(t0*t0));
+    const double t17 = t16 + fabs(1.0/t0);
+    const double t18 = t13*t14 + 2.0*t15;
+    const double t19 = t13*t15 + 2.0*t14;
+    const double t20 = t14*t15 + 2.0*t13;
+    const double t21 = fabs(t5);
+    const double t22 = fabs(t6);
+    const double t23 = fabs(t7);
+    const double t24 = fabs(t8);
+    const double t25 = fabs(t12*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4])) + 2.0*t17*t20*t22*t24 + 2.0*t17*t20*t23*t24;
+    const double t26 = fabs(t12*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3])) + 2.0*t17*t19*t21*t24 + 2.0*t17*t19*t23*t24;
+    const double t27 = fabs(t11*known[8] - t9*known[10]) + t25;
+    const double t28 = fabs(t10*known[5] + t9*known[9]) + t26;
+    const double t29 = fabs(t10*known[4] + t11*known[6]) + (2.0*t17*t18*t21*t24 + 2.0*t17*t18*t22*t24);
+    S[0] = t27;
+    S[1] = t28;
+    S[2] = t29;
+}
+
 /* first Newton guess for u from the known state */
 
 void heavy_top_predict(const double *known, const double *p, double *u)
@@ -294,6 +338,7 @@ void heavy_top_default_options(heavy_top_options *options)
     options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
+    options->trust_factor = 10.0;
 }
 
 /* The small helpers of the stepper are declared inline, so that a build at -O1 (a small
@@ -648,11 +693,30 @@ static int heavy_top_at_floor(const double *u, const double *known, const double
     return 1;
 }
 
-/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0 */
+/* 1 when every |F_i| <= factor DBL_EPSILON S_i, S_i the size of the terms F_i is computed
+ * from (heavy_top_residual_scale): F is within the rounding noise of its own evaluation, as
+ * when a residual written in increments (x_{k+1} - x_k)/h is evaluated at positions far
+ * from the origin, whose rounding no move of the (small) unknowns can undo */
+static int heavy_top_within_scale(const double *u, const double *known, const double *p, const double *F, double factor)
+{
+    double S[HEAVY_TOP_N_EQUATIONS];
+    int i;
+    heavy_top_residual_scale(u, known, p, S);
+    for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * DBL_EPSILON * S[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0, a finite
+ * trust_factor >= 0 */
 static int heavy_top_options_valid(const heavy_top_options *options)
 {
     return options->max_iterations >= 0 && options->tol_residual >= 0.0
-           && options->floor_factor >= 0.0 && options->tol_step >= 0.0;
+           && options->floor_factor >= 0.0 && options->tol_step >= 0.0
+           && options->trust_factor >= 0.0 && options->trust_factor < INFINITY;
 }
 
 /* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
@@ -708,14 +772,19 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
  *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
  *    move of the unknowns (heavy_top_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
  *    Newton has stalled on rounding noise;
+ *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
+ *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
+ *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
+ *    (heavy_top_within_scale): the residual is within the rounding of its own evaluation, which
+ *    the unknowns cannot undo (large knowns: positions far from the origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (heavy_top_explained_by_rounding).
- * Not converged (HEAVY_TOP_NOT_CONVERGED): after max_iterations updates, or when the update is
- * that rounding noise but the residual is not explained by it: Newton cannot improve the
- * iterate.
+ * Not converged: HEAVY_TOP_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * HEAVY_TOP_STALLED when the update is that rounding noise but the residual is above every
+ * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
@@ -724,9 +793,11 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
     double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], uJ[HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, done = 0, polish = 0;
+    int it, i, status, slow, noise, done = 0, polish = 0;
+    int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
+        int here = 0; /* J factored at this iterate */
         if (it == 0) {
             heavy_top_residual_jacobian(u, known, p, F, J);
         } else {
@@ -757,6 +828,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
                 if (status != HEAVY_TOP_OK) {
                     return status;
                 }
+                here = 1;
             }
             if (rnorm <= options->tol_residual) {
                 return HEAVY_TOP_OK;
@@ -767,9 +839,13 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
                 if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
                     return HEAVY_TOP_OK;
                 }
-                if (last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv)) {
+                noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv);
+                if ((fresh || noise) && heavy_top_within_scale(u, known, p, F, options->floor_factor)) {
+                    return HEAVY_TOP_OK; /* at the rounding of the residual's own terms */
+                }
+                if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */
-                    return heavy_top_explained_by_rounding(F, J, u, uJ, &lu) ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
+                    return heavy_top_explained_by_rounding(F, J, u, uJ, &lu) ? HEAVY_TOP_OK : HEAVY_TOP_STALLED;
                 }
             }
             if (it >= options->max_iterations) {
@@ -782,9 +858,11 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
                 if (status != HEAVY_TOP_OK) {
                     return status;
                 }
+                here = 1;
             }
         }
         previous = rnorm;
+        fresh = here;
         status = heavy_top_lu_apply(&lu, F);
         if (status != HEAVY_TOP_OK) {
             return polish ? HEAVY_TOP_OK : status;
@@ -876,6 +954,42 @@ static void heavy_top_extrapolate(const heavy_top_warm_start *warm, double *u)
     }
 }
 
+/* The least motion the trust region of a step allows for (relative to each unknown; see
+ * heavy_top_trusted): a run at rest may still be set moving */
+#define HEAVY_TOP_TRUST_FLOOR 1e-2
+
+/* 1 when the solution u of a step lies in the trust region of its extrapolated guess (or
+ * the check is off, factor = 0, or the warm start holds fewer than three solutions):
+ * |u - guess| <= factor (m + HEAVY_TOP_TRUST_FLOOR), |d| = max_j |d_j| / (1 + |u_last,j|)
+ * (heavy_top_relative_norm at the last solution) and m the larger of the last two steps'
+ * motions |u_last - u_before| and |u_before - u_earlier| (checked from the fourth step of a
+ * run on: one motion alone can be a small one of an oscillation).  Extrapolation from smooth
+ * motion misses the next solution by a fraction of a step's motion (at most twice the larger
+ * of two motions for an oscillation of two to six steps a period); a solution much farther
+ * away belongs to another branch
+ * of the step equations, reached when the nearby root has disappeared (a fold of the step
+ * map: the step h no longer resolves the motion). */
+static int heavy_top_trusted(const heavy_top_warm_start *warm, const double *guess, const double *u, double factor)
+{
+    double d[HEAVY_TOP_N_UNKNOWNS], m, m2;
+    int i;
+    if (!(factor > 0.0) || warm->count < 3) {
+        return 1;
+    }
+    for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+        d[i] = warm->u_last[i] - warm->u_before[i];
+    }
+    m = heavy_top_relative_norm(d, warm->u_last);
+    for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+        d[i] = warm->u_before[i] - warm->u_earlier[i];
+    }
+    m2 = heavy_top_relative_norm(d, warm->u_last);
+    for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+        d[i] = u[i] - guess[i];
+    }
+    return heavy_top_relative_norm(d, warm->u_last) <= factor * ((m > m2 ? m : m2) + HEAVY_TOP_TRUST_FLOOR);
+}
+
 /* Adds the solution u of a step to the warm start.  When it held three solutions, the next
  * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
  * guessed u more closely than the linear one (heavy_top_relative_norm of the errors).  Smooth
@@ -911,7 +1025,9 @@ static void heavy_top_remember(const double *u, heavy_top_warm_start *warm)
  * warm start holds the solutions of at least the last two steps, their extrapolation
  * (heavy_top_extrapolate: linear, u ~ 2 u_last - u_before, or quadratic, chosen by hindsight in
  * heavy_top_remember; chart coordinates and multipliers of consecutive steps), falling back to
- * heavy_top_predict if Newton fails from there (iterations[k] counts both tries).
+ * heavy_top_predict if Newton fails from there or its solution lies outside the guess's trust
+ * region (heavy_top_trusted; iterations[k] counts both tries): a solution from either try
+ * outside that region ends the run with HEAVY_TOP_BRANCH_JUMP.
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -948,21 +1064,36 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
     for (k = 0; k < n_steps; ++k) {
         const double *current = states + (size_t)k * HEAVY_TOP_N_KNOWNS;
         double next[HEAVY_TOP_N_KNOWNS];
-        double u[HEAVY_TOP_N_UNKNOWNS];
+        double u[HEAVY_TOP_N_UNKNOWNS], guess[HEAVY_TOP_N_UNKNOWNS];
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
         if (extrapolated) {
-            heavy_top_extrapolate(warm, u);
+            heavy_top_extrapolate(warm, guess);
+            memcpy(u, guess, sizeof u);
         } else {
             heavy_top_predict(current, p, u);
         }
         status = heavy_top_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
-        if (status != HEAVY_TOP_OK && extrapolated) {
-            /* the extrapolated guess failed: retry from the prediction */
-            int more = 0;
-            heavy_top_predict(current, p, u);
-            status = heavy_top_newton(current, p, options, u, &more, &residual_norms[k]);
-            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+        if (extrapolated) {
+            /* a solution far outside the trust region of the guess: another branch */
+            const int jumped = status == HEAVY_TOP_OK && !heavy_top_trusted(warm, guess, u, options->trust_factor);
+            if (status != HEAVY_TOP_OK || jumped) {
+                /* the extrapolated guess failed or led far away: retry from the prediction */
+                double far[HEAVY_TOP_N_UNKNOWNS];
+                const double far_norm = residual_norms[k];
+                int more = 0;
+                memcpy(far, u, sizeof far);
+                heavy_top_predict(current, p, u);
+                status = heavy_top_newton(current, p, options, u, &more, &residual_norms[k]);
+                iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+                if (status != HEAVY_TOP_OK && jumped) { /* report the far solution */
+                    memcpy(u, far, sizeof far);
+                    residual_norms[k] = far_norm;
+                }
+                if (status == HEAVY_TOP_OK ? !heavy_top_trusted(warm, guess, u, options->trust_factor) : jumped) {
+                    status = HEAVY_TOP_BRANCH_JUMP;
+                }
+            }
         }
         if (status == HEAVY_TOP_OK) {
             heavy_top_next_knowns(u, current, p, next);
@@ -1139,11 +1270,15 @@ const char *heavy_top_status_message(int status)
     case HEAVY_TOP_SINGULAR_JACOBIAN:
         return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
     case HEAVY_TOP_NOT_CONVERGED:
-        return "Newton's method reached the iteration cap without converging";
+        return "Newton's method reached its iteration cap (max_iterations updates) without converging";
     case HEAVY_TOP_NON_FINITE:
         return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case HEAVY_TOP_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
+    case HEAVY_TOP_STALLED:
+        return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
+    case HEAVY_TOP_BRANCH_JUMP:
+        return "branch jump: the step's solution lies far outside the region the last steps predict (the nearby root of the step equations has disappeared; reduce the step)";
     default:
         return "unknown status";
     }

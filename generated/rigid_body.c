@@ -224,6 +224,47 @@ void rigid_body_residual_jacobian(const double *u, const double *known, const do
     J[8] = t66;
 }
 
+/* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
+ * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
+ * rounding noise of F_i, the floor below which Newton cannot bring it */
+
+void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    const double t0 = 4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0];
+    const double t1 = 0.5*p[3];
+    const double t2 = 0.5*p[2];
+    const double t3 = 0.5*p[1];
+    const double t4 = t3 - t1;
+    const double t5 = t4 - t2;
+    const double t6 = t3 - t2 + t1;
+    const double t7 = t4 + t2;
+    const double t8 = 1.0/p[0];
+    const double t9 = t8*t7;
+    const double t10 = t8*t5;
+    const double t11 = t8*t6;
+    const double t12 = fabs(u[0]);
+    const double t13 = fabs(u[1]);
+    const double t14 = fabs(u[2]);
+    const double t15 = (t13*t13 + t12*t12 + (4.0 + t14*t14))*fabs(-1.0/(t0*t0));
+    const double t16 = t15 + fabs(1.0/t0);
+    const double t17 = t12*t13 + 2.0*t14;
+    const double t18 = t12*t14 + 2.0*t13;
+    const double t19 = t13*t14 + 2.0*t12;
+    const double t20 = fabs(t5);
+    const double t21 = fabs(t6);
+    const double t22 = fabs(t7);
+    const double t23 = fabs(t8);
+    const double t24 = fabs(t11*known[5] - t9*known[7]) + (2.0*t16*t19*t21*t23 + 2.0*t16*t19*t22*t23);
+    const double t25 = fabs(t10*known[2] + t9*known[6]) + (2.0*t16*t18*t20*t23 + 2.0*t16*t18*t22*t23);
+    const double t26 = fabs(t10*known[1] + t11*known[3]) + (2.0*t16*t17*t20*t23 + 2.0*t16*t17*t21*t23);
+    S[0] = t24;
+    S[1] = t25;
+    S[2] = t26;
+}
+
 /* first Newton guess for u from the known state */
 
 void rigid_body_predict(const double *known, const double *p, double *u)
@@ -286,6 +327,7 @@ void rigid_body_default_options(rigid_body_options *options)
     options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
+    options->trust_factor = 10.0;
 }
 
 /* The small helpers of the stepper are declared inline, so that a build at -O1 (a small
@@ -640,11 +682,30 @@ static int rigid_body_at_floor(const double *u, const double *known, const doubl
     return 1;
 }
 
-/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0 */
+/* 1 when every |F_i| <= factor DBL_EPSILON S_i, S_i the size of the terms F_i is computed
+ * from (rigid_body_residual_scale): F is within the rounding noise of its own evaluation, as
+ * when a residual written in increments (x_{k+1} - x_k)/h is evaluated at positions far
+ * from the origin, whose rounding no move of the (small) unknowns can undo */
+static int rigid_body_within_scale(const double *u, const double *known, const double *p, const double *F, double factor)
+{
+    double S[RIGID_BODY_N_EQUATIONS];
+    int i;
+    rigid_body_residual_scale(u, known, p, S);
+    for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * DBL_EPSILON * S[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0, a finite
+ * trust_factor >= 0 */
 static int rigid_body_options_valid(const rigid_body_options *options)
 {
     return options->max_iterations >= 0 && options->tol_residual >= 0.0
-           && options->floor_factor >= 0.0 && options->tol_step >= 0.0;
+           && options->floor_factor >= 0.0 && options->tol_step >= 0.0
+           && options->trust_factor >= 0.0 && options->trust_factor < INFINITY;
 }
 
 /* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
@@ -700,14 +761,19 @@ static inline int rigid_body_above_rounding(const double *d, const double *u, do
  *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
  *    move of the unknowns (rigid_body_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
  *    Newton has stalled on rounding noise;
+ *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
+ *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
+ *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
+ *    (rigid_body_within_scale): the residual is within the rounding of its own evaluation, which
+ *    the unknowns cannot undo (large knowns: positions far from the origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (rigid_body_explained_by_rounding).
- * Not converged (RIGID_BODY_NOT_CONVERGED): after max_iterations updates, or when the update is
- * that rounding noise but the residual is not explained by it: Newton cannot improve the
- * iterate.
+ * Not converged: RIGID_BODY_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * RIGID_BODY_STALLED when the update is that rounding noise but the residual is above every
+ * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
@@ -716,9 +782,11 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
     double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], uJ[RIGID_BODY_N_UNKNOWNS];
     rigid_body_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, done = 0, polish = 0;
+    int it, i, status, slow, noise, done = 0, polish = 0;
+    int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
+        int here = 0; /* J factored at this iterate */
         if (it == 0) {
             rigid_body_residual_jacobian(u, known, p, F, J);
         } else {
@@ -749,6 +817,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
                 if (status != RIGID_BODY_OK) {
                     return status;
                 }
+                here = 1;
             }
             if (rnorm <= options->tol_residual) {
                 return RIGID_BODY_OK;
@@ -759,9 +828,13 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
                 if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
                     return RIGID_BODY_OK;
                 }
-                if (last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv)) {
+                noise = last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv);
+                if ((fresh || noise) && rigid_body_within_scale(u, known, p, F, options->floor_factor)) {
+                    return RIGID_BODY_OK; /* at the rounding of the residual's own terms */
+                }
+                if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */
-                    return rigid_body_explained_by_rounding(F, J, u, uJ, &lu) ? RIGID_BODY_OK : RIGID_BODY_NOT_CONVERGED;
+                    return rigid_body_explained_by_rounding(F, J, u, uJ, &lu) ? RIGID_BODY_OK : RIGID_BODY_STALLED;
                 }
             }
             if (it >= options->max_iterations) {
@@ -774,9 +847,11 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
                 if (status != RIGID_BODY_OK) {
                     return status;
                 }
+                here = 1;
             }
         }
         previous = rnorm;
+        fresh = here;
         status = rigid_body_lu_apply(&lu, F);
         if (status != RIGID_BODY_OK) {
             return polish ? RIGID_BODY_OK : status;
@@ -868,6 +943,42 @@ static void rigid_body_extrapolate(const rigid_body_warm_start *warm, double *u)
     }
 }
 
+/* The least motion the trust region of a step allows for (relative to each unknown; see
+ * rigid_body_trusted): a run at rest may still be set moving */
+#define RIGID_BODY_TRUST_FLOOR 1e-2
+
+/* 1 when the solution u of a step lies in the trust region of its extrapolated guess (or
+ * the check is off, factor = 0, or the warm start holds fewer than three solutions):
+ * |u - guess| <= factor (m + RIGID_BODY_TRUST_FLOOR), |d| = max_j |d_j| / (1 + |u_last,j|)
+ * (rigid_body_relative_norm at the last solution) and m the larger of the last two steps'
+ * motions |u_last - u_before| and |u_before - u_earlier| (checked from the fourth step of a
+ * run on: one motion alone can be a small one of an oscillation).  Extrapolation from smooth
+ * motion misses the next solution by a fraction of a step's motion (at most twice the larger
+ * of two motions for an oscillation of two to six steps a period); a solution much farther
+ * away belongs to another branch
+ * of the step equations, reached when the nearby root has disappeared (a fold of the step
+ * map: the step h no longer resolves the motion). */
+static int rigid_body_trusted(const rigid_body_warm_start *warm, const double *guess, const double *u, double factor)
+{
+    double d[RIGID_BODY_N_UNKNOWNS], m, m2;
+    int i;
+    if (!(factor > 0.0) || warm->count < 3) {
+        return 1;
+    }
+    for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+        d[i] = warm->u_last[i] - warm->u_before[i];
+    }
+    m = rigid_body_relative_norm(d, warm->u_last);
+    for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+        d[i] = warm->u_before[i] - warm->u_earlier[i];
+    }
+    m2 = rigid_body_relative_norm(d, warm->u_last);
+    for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
+        d[i] = u[i] - guess[i];
+    }
+    return rigid_body_relative_norm(d, warm->u_last) <= factor * ((m > m2 ? m : m2) + RIGID_BODY_TRUST_FLOOR);
+}
+
 /* Adds the solution u of a step to the warm start.  When it held three solutions, the next
  * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
  * guessed u more closely than the linear one (rigid_body_relative_norm of the errors).  Smooth
@@ -903,7 +1014,9 @@ static void rigid_body_remember(const double *u, rigid_body_warm_start *warm)
  * warm start holds the solutions of at least the last two steps, their extrapolation
  * (rigid_body_extrapolate: linear, u ~ 2 u_last - u_before, or quadratic, chosen by hindsight in
  * rigid_body_remember; chart coordinates and multipliers of consecutive steps), falling back to
- * rigid_body_predict if Newton fails from there (iterations[k] counts both tries).
+ * rigid_body_predict if Newton fails from there or its solution lies outside the guess's trust
+ * region (rigid_body_trusted; iterations[k] counts both tries): a solution from either try
+ * outside that region ends the run with RIGID_BODY_BRANCH_JUMP.
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -940,21 +1053,36 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
     for (k = 0; k < n_steps; ++k) {
         const double *current = states + (size_t)k * RIGID_BODY_N_KNOWNS;
         double next[RIGID_BODY_N_KNOWNS];
-        double u[RIGID_BODY_N_UNKNOWNS];
+        double u[RIGID_BODY_N_UNKNOWNS], guess[RIGID_BODY_N_UNKNOWNS];
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
         if (extrapolated) {
-            rigid_body_extrapolate(warm, u);
+            rigid_body_extrapolate(warm, guess);
+            memcpy(u, guess, sizeof u);
         } else {
             rigid_body_predict(current, p, u);
         }
         status = rigid_body_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
-        if (status != RIGID_BODY_OK && extrapolated) {
-            /* the extrapolated guess failed: retry from the prediction */
-            int more = 0;
-            rigid_body_predict(current, p, u);
-            status = rigid_body_newton(current, p, options, u, &more, &residual_norms[k]);
-            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+        if (extrapolated) {
+            /* a solution far outside the trust region of the guess: another branch */
+            const int jumped = status == RIGID_BODY_OK && !rigid_body_trusted(warm, guess, u, options->trust_factor);
+            if (status != RIGID_BODY_OK || jumped) {
+                /* the extrapolated guess failed or led far away: retry from the prediction */
+                double far[RIGID_BODY_N_UNKNOWNS];
+                const double far_norm = residual_norms[k];
+                int more = 0;
+                memcpy(far, u, sizeof far);
+                rigid_body_predict(current, p, u);
+                status = rigid_body_newton(current, p, options, u, &more, &residual_norms[k]);
+                iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+                if (status != RIGID_BODY_OK && jumped) { /* report the far solution */
+                    memcpy(u, far, sizeof far);
+                    residual_norms[k] = far_norm;
+                }
+                if (status == RIGID_BODY_OK ? !rigid_body_trusted(warm, guess, u, options->trust_factor) : jumped) {
+                    status = RIGID_BODY_BRANCH_JUMP;
+                }
+            }
         }
         if (status == RIGID_BODY_OK) {
             rigid_body_next_knowns(u, current, p, next);
@@ -1131,11 +1259,15 @@ const char *rigid_body_status_message(int status)
     case RIGID_BODY_SINGULAR_JACOBIAN:
         return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
     case RIGID_BODY_NOT_CONVERGED:
-        return "Newton's method reached the iteration cap without converging";
+        return "Newton's method reached its iteration cap (max_iterations updates) without converging";
     case RIGID_BODY_NON_FINITE:
         return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case RIGID_BODY_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
+    case RIGID_BODY_STALLED:
+        return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
+    case RIGID_BODY_BRANCH_JUMP:
+        return "branch jump: the step's solution lies far outside the region the last steps predict (the nearby root of the step equations has disappeared; reduce the step)";
     default:
         return "unknown status";
     }
