@@ -12,12 +12,17 @@
 
 /* The Newton stepper turns an overflow or a NaN into HEAVY_TOP_NON_FINITE through isfinite()
  * checks.  -ffast-math and -ffinite-math-only let the compiler assume that no value is ever
- * NaN or infinite and delete those checks (a NaN input then comes back "converged"), so this
- * kernel refuses to be compiled under them. */
+ * NaN or infinite and delete those checks (a NaN input then comes back "converged"), and the
+ * rest of the unsafe-math family (-funsafe-math-optimizations, -fassociative-math,
+ * -freciprocal-math, -fno-signed-zeros) lets it rewrite the arithmetic (other bits than the
+ * NumPy backend's), so this kernel refuses to be compiled under them (by the macros the
+ * compiler defines for them). */
 #if defined(__FAST_MATH__)
 #error "this symgroupoid kernel must not be compiled with -ffast-math (or -Ofast): it deletes the NaN and overflow checks of the Newton stepper"
 #elif defined(__FINITE_MATH_ONLY__) && __FINITE_MATH_ONLY__
 #error "this symgroupoid kernel must not be compiled with -ffinite-math-only: it deletes the NaN and overflow checks of the Newton stepper"
+#elif defined(__ASSOCIATIVE_MATH__) || defined(__RECIPROCAL_MATH__) || defined(__NO_SIGNED_ZEROS__)
+#error "this symgroupoid kernel must not be compiled with -funsafe-math-optimizations, -fassociative-math, -freciprocal-math or -fno-signed-zeros: they change its arithmetic"
 #endif
 
 #include <float.h>

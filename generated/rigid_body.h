@@ -58,7 +58,9 @@
  *   more than n_batch or RIGID_BODY_MAX_THREADS), with the same results; otherwise they run one
  *   after the other.
  * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
- *   #error): they delete its NaN and overflow checks.
+ *   #error): they delete its NaN and overflow checks; nor with the other unsafe-math options
+ *   (-funsafe-math-optimizations, -fassociative-math, -freciprocal-math, -fno-signed-zeros),
+ *   which change its arithmetic.
  */
 #ifndef RIGID_BODY_KERNEL_H
 #define RIGID_BODY_KERNEL_H

@@ -165,7 +165,7 @@ def test_compiler_error_shows_the_message_and_leaves_the_cache_clean():
     assert contents["kernels"] == [] and contents["index"] == [] and contents["tmp"] == []
 
 
-def test_missing_compiler_falls_back_to_numpy(monkeypatch):
+def test_missing_compiler_falls_back_to_numpy(monkeypatch, tmp_path):
     monkeypatch.setenv("CC", "/nonexistent/bin/cc-symgroupoid")
     step = oscillator()
     with pytest.warns(RuntimeWarning, match="not found.*NumPy backend"):
@@ -174,10 +174,14 @@ def test_missing_compiler_falls_back_to_numpy(monkeypatch):
     with pytest.raises(CompilerNotFoundError, match="cc-symgroupoid"):
         sg.compile_step(step, backend="c")
     assert cache_contents(cache_root())["kernels"] == []
-    # a kernel already in the cache needs no compiler
+    # a kernel already in the cache needs no compiler (the compiler command, CC, is part of
+    # the build environment in its key: here the default one, absent from PATH)
     monkeypatch.delenv("CC")
     sg.compile_step(step, backend="c")
-    monkeypatch.setenv("CC", "/nonexistent/bin/cc-symgroupoid")
+    (tmp_path / "no-compiler").mkdir()
+    monkeypatch.setenv("PATH", str(tmp_path / "no-compiler"))
+    with pytest.raises(CompilerNotFoundError):
+        _compile.find_compiler()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert sg.compile_step(step).backend == "c"

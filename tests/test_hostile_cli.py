@@ -189,7 +189,8 @@ def command_lines(draw) -> list[str]:
         if draw(st.booleans()):
             argv += ["--prefix", draw(st.sampled_from(["", "int", "1x", "a b", "é"]))]
     elif command == "cache":
-        argv = ["cache", draw(st.sampled_from(["info", "clear", "purge", ""]))]
+        argv = ["cache", *draw(st.sampled_from([["info"], ["clear"], ["clear", "--bad"],
+                                                 ["purge"], [""], ["info", "--bad"]]))]
     else:
         argv = draw(st.lists(st.text(max_size=6), max_size=4))
     return argv

@@ -11,14 +11,19 @@ ordinary file gets, whose identifiers are valid C, and which the C compiler acce
 
 The cache: after a kernel is built, one of its files or directories is damaged (garbage or
 a list as manifest, a truncated or missing module, a directory or file in the way of any
-part, an index pointing outside the cache, a symlink loop, a stale build directory) and
-the kernel is asked for again: the answer must be a kernel that steps exactly as the NumPy
-backend does, or a CacheError naming the cache.  Environment variables get junk values.
+part, an index pointing outside the cache, a symlink loop, a stale build directory, a
+truncated module with a matching manifest, Python planted in the manifest, a directory or
+lock file that is a link to someone else's files, a cache others can write) and the kernel
+is asked for again: the answer must be a kernel that steps exactly as the NumPy backend
+does, or a CacheError naming the cache; planted code never runs and the files a link
+points to are never changed.  Environment variables get junk values.
 Every build here uses ``-O0`` and its own flag, so each example builds a new kernel.
 """
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
 import itertools
 import json
 import os
@@ -26,6 +31,7 @@ import re
 import shutil
 import stat
 import subprocess
+import time
 import warnings
 from pathlib import Path
 
@@ -47,7 +53,7 @@ from kernel_support import HAVE_CC, isolated_cache, needs_cc  # noqa: F401  (aut
 import symgroupoid as sg
 from symgroupoid.codegen import generate_c
 from symgroupoid.codegen._kernel import _C_KEYWORDS
-from symgroupoid.runtime import _programs
+from symgroupoid.runtime import _cache, _programs
 from symgroupoid.runtime._cache import KernelCache, cache_root
 from symgroupoid.runtime._maintenance import cache_info, clear_cache
 
@@ -140,10 +146,56 @@ def _in_the_way(path: Path, kind: str) -> None:
         path.mkdir()
 
 
-def damage(root: Path, how: str) -> None:
+def _victim(root: Path) -> Path:
+    """Someone else's directory next to the cache: old dot-files and dot-directories."""
+    victim = root.parent / f"{root.name}-victim"
+    (victim / ".ssh").mkdir(parents=True)
+    (victim / ".ssh" / "id").write_text("key")
+    (victim / ".bashrc").write_text("rc")
+    (victim / "0123456789abcdef0123456789abcdef").mkdir()
+    then = time.time() - 7200
+    for path in (*victim.rglob("*"), victim):
+        os.utime(path, (then, then))
+    return victim
+
+
+def _files(folder: Path) -> dict:
+    return {str(p): p.read_bytes() if p.is_file() else None for p in sorted(folder.rglob("*"))}
+
+
+def damage(root: Path, how: str) -> Path | None:
+    """Damage the cache ``root`` as ``how`` says; the directory or file a planted link
+    points to (which must stay unchanged), if any."""
     entry = _entry(root)
     module = next(entry.glob("*.so"))
-    if how == "manifest garbage":
+    manifest = json.loads((entry / "manifest.json").read_text())
+    if how == "module truncated, hash matching":
+        _replace(module, module.read_bytes()[: module.stat().st_size // 2])
+        data = {**manifest, "sha256": hashlib.sha256(module.read_bytes()).hexdigest()}
+        _replace(entry / "manifest.json", json.dumps(data).encode())
+    elif how == "manifest python":
+        code = f"open({str(root.parent / 'planted-marker')!r}, 'w')\n"
+        table = {**manifest["types"], "_types": code}
+        data = {**manifest, "ffi": code, "types": table, "types_sha256": _cache.table_sha256(
+            table), "ffi_sha256": _cache.sha256_of([code])}
+        _replace(entry / "manifest.json", json.dumps(data).encode())
+    elif how.endswith(" link"):
+        victim = _victim(root)
+        name = how.split()[0]
+        if name == "lock":
+            shutil.rmtree(entry)  # a build is needed: it takes the lock
+            for lock in (root / "locks").iterdir():
+                lock.unlink()
+                lock.symlink_to(victim / ".bashrc")
+        else:
+            shutil.rmtree(root / name)
+            (root / name).symlink_to(victim)
+        return victim
+    elif how == "root writable":
+        root.chmod(0o777)
+    elif how == "entry writable":
+        module.chmod(0o777)
+    elif how == "manifest garbage":
         _replace(entry / "manifest.json", b"{not json")
     elif how == "manifest list":
         _replace(entry / "manifest.json", b"[1, 2, 3]")
@@ -175,12 +227,15 @@ def damage(root: Path, how: str) -> None:
     elif how == "root file":
         shutil.rmtree(root)
         root.write_text("in the way")
+    return None
 
 
 DAMAGE = ["manifest garbage", "manifest list", "manifest wrong hash", "module truncated",
           "module missing", "module directory", "kernels", "index", "tmp", "locks",
           "entry file", "entry symlink loop", "index garbage", "index outside", "stale build",
-          "root file"]
+          "root file", "module truncated, hash matching", "manifest python", "kernels link",
+          "tmp link", "index link", "locks link", "lock link", "root writable",
+          "entry writable"]
 
 
 def check_kernel(sim) -> None:
@@ -199,12 +254,19 @@ def test_damaged_cache(tmp_path, run):
         flags = fresh_flags()
         cache_dir = os.path.relpath(root) if relative else root
         check_kernel(STEP.compile(backend="c", cache_dir=cache_dir, flags=flags))
-        damage(root, how)
+        victim = damage(root, how)
+        before = _files(victim) if victim is not None else None
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # an unwritable root falls back
             judge("compile_step (damaged cache)",
                   lambda: STEP.compile(backend="c", cache_dir=cache_dir, flags=flags),
                   ["cache", "kernel cache", str(root)], owner=STEP.name, verify=check_kernel)
+            with contextlib.suppress(sg.SymgroupoidError):
+                cache_info(root)
+                clear_cache(root)
+        assert not (root.parent / "planted-marker").exists()
+        if victim is not None:
+            assert _files(victim) == before
 
     prop()
 
@@ -216,6 +278,7 @@ ENVIRONMENT = {
     "SYMGROUPOID_BACKEND": ["", "numpy", "NumPy", "c ", "fortran", "auto"],
     "SYMGROUPOID_LOCK_TIMEOUT": ["", "0", "-1", "nan", "inf", "ten", "1e999", "5"],
     "SYMGROUPOID_OPENMP": ["", "0", "1", "no", "yes"],
+    "SYMGROUPOID_SHARED_CACHE": ["", "relative", "~", "file", " ", "/"],
     "XDG_CACHE_HOME": ["", "relative", "file"],
 }
 
@@ -240,15 +303,16 @@ def test_environment_and_maintenance(tmp_path, monkeypatch, run):
             if key == "XDG_CACHE_HOME":
                 m.delenv("SYMGROUPOID_CACHE", raising=False)
             m.setenv(key, value)
-            action = data.draw(st.sampled_from(["compile", "info", "clear", "root"]))
+            action = data.draw(st.sampled_from(["compile", "info", "clear", "clear bad",
+                                                "root"]))
 
             def call():
                 if action == "compile":
                     return STEP.compile(backend="numpy")
                 if action == "info":
                     return cache_info()
-                if action == "clear":
-                    return clear_cache()
+                if action.startswith("clear"):
+                    return clear_cache(bad_only=action == "clear bad")
                 return KernelCache().root
 
             def verify(result):

@@ -26,6 +26,9 @@ def run_info(args: argparse.Namespace) -> int:
     if not info.exists:
         say("  (empty: not created yet)")
         return 0
+    if info.refused is not None:
+        say(f"  NOT USED: {info.refused}")
+        return 1
     say(f"  {len(info.kernels)} kernels, {size_text(info.size)}; {info.index_entries} index "
         f"entries; {info.leftovers} items in tmp/")
     by_system: dict[str, list] = defaultdict(list)
@@ -40,17 +43,20 @@ def run_info(args: argparse.Namespace) -> int:
                                    time.localtime(max(k.modified for k in kernels)))
             size = size_text(sum(k.size for k in kernels))
             say(f"  {system:<{width}}  {len(kernels):>7}  {size:<10}  {newest}")
-    damaged = [k.key for k in info.kernels if not k.complete]
-    if damaged:
-        say(f"  {len(damaged)} incomplete or damaged (rebuilt on use): {', '.join(damaged)}")
+    if info.bad:
+        say(f"  {len(info.bad)} bad (never loaded, rebuilt on use; 'symgroupoid cache clear "
+            f"--bad' removes them):")
+        for kernel in info.bad:
+            say(f"    {kernel.key} ({kernel.system}): {kernel.problem}")
     return 0
 
 
 def run_clear(args: argparse.Namespace) -> int:
-    result = clear_cache()
+    bad = bool(getattr(args, "bad", False))
+    result = clear_cache(bad_only=bad)
     say(f"kernel cache: {result.root}")
-    say(f"  removed {result.removed} kernels ({size_text(result.freed)}) and "
-        f"{result.index_entries} index entries")
+    say(f"  removed {result.removed} {'bad ' if bad else ''}kernels "
+        f"({size_text(result.freed)}) and {result.index_entries} index entries")
     if result.busy:
         say(f"  left {len(result.busy)} being built by another process: "
             f"{', '.join(result.busy)}")

@@ -155,7 +155,9 @@ def build_parser() -> argparse.ArgumentParser:
     cache = _command(commands, "cache", None, "the kernel cache ($SYMGROUPOID_CACHE)")
     actions = cache.add_subparsers(dest="action", required=True, metavar="ACTION")
     _command(actions, "info", run_info, "where the cache is and what it holds")
-    _command(actions, "clear", run_clear, "remove the cached kernels")
+    clear = _command(actions, "clear", run_clear, "remove the cached kernels")
+    clear.add_argument("--bad", action="store_true",
+                       help="remove only the bad entries (damaged, truncated, untrusted)")
     _command(actions, "templates", run_templates,
              "compile the kernel templates once, beside them (done by make's setup)")
 

@@ -308,8 +308,8 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     ``block_weight`` times one in the source (:func:`assign_units`); the units of other
     kernels are balanced at 1.
     ``template_cache``: a directory that keeps the templates' compiled code across processes
-    (:class:`CompiledTemplates`; the kernel cache passes its ``templates/``); the C is the
-    same with or without it.
+    (:class:`CompiledTemplates`: Python, so only a directory as trusted as the package; the
+    kernel cache keeps none); the C is the same with or without it.
     """
     prefix = c_identifier(step.name if prefix is None else prefix)
     units = integer_argument(units, "units", minimum=1, maximum=MAX_UNITS, owner=prefix)

@@ -2,8 +2,13 @@
 
 A kernel is plain C99 without Python headers: it is compiled and linked by one run of the C
 compiler into ``<module>.so`` and loaded with ``ffi.dlopen``.  Its cffi type table (the
-declarations of ``cdef.j2``, parsed once when the kernel is built) is kept as the source of a
-small Python module (cffi's out-of-line ABI mode), so loading a built kernel parses no C.
+declarations of ``cdef.j2``, parsed once when the kernel is built) is kept as data: the
+literal arguments of cffi's out-of-line ABI constructor ``_cffi_backend.FFI`` (bytes,
+integers and tuples of them, :func:`type_table`), checked and passed to it on load
+(:func:`ffi_of`), so loading a built kernel parses no C and runs no code from the cache.
+A library is checked before it is installed or loaded (:func:`library_defect`: a complete
+ELF shared object whose segments and sections lie inside the file), so a truncated one is
+never mapped (which would end the process with SIGBUS).
 Compared with a Python extension (API mode), a build needs no Python headers, no setuptools
 and no wrapper translation unit (about 0.5 s less at small kernels); a call costs about 1 µs
 more, which no entry point notices (each call does at least a Newton step).
@@ -11,10 +16,15 @@ more, which no entry point notices (each call does at least a Newton step).
 
 from __future__ import annotations
 
+import ast
+import base64
+import json
 import os
 import shlex
 import shutil
+import struct
 import subprocess
+import sys
 import sysconfig
 import tempfile
 import types
@@ -23,6 +33,7 @@ from pathlib import Path
 
 from .._errors import SymgroupoidError
 from ..codegen import KernelSource
+from ._cache import file_mode
 
 #: flags appended to the compiler command line (after Python's own CFLAGS, so they decide the
 #: optimisation level).  -ffp-contract=off keeps a*b+c as two roundings, as in the NumPy backend.
@@ -294,6 +305,21 @@ def link_tail(flags: Sequence[str]) -> list[str]:
     return [*_words(os.environ.get("LDFLAGS")), *link_args(flags), "-lm"]
 
 
+def build_environment() -> tuple[str, ...]:
+    """What reaches every compiler run of a build besides a kernel's own flags, one labelled
+    part each (part of every cache key): the words of ``$CC`` (else Python's configured
+    ``CC``), Python's ``CFLAGS`` and ``CCSHARED``, and ``$CPPFLAGS``, ``$CFLAGS`` and
+    ``$LDFLAGS``.  Any of them can change a kernel's bits (``-m32``, ``-mfpmath=387``,
+    ``-fexcess-precision=fast``, ...), so a kernel built under one environment is never
+    served to another.  Never raises: an unparsable variable counts by its words."""
+    config = sysconfig.get_config_var
+    command = os.environ.get("CC") or config("CC") or "cc"
+    parts = {"CC": command, "PY_CFLAGS": config("CFLAGS"), "PY_CCSHARED": config("CCSHARED"),
+             "CPPFLAGS": os.environ.get("CPPFLAGS"), "CFLAGS": os.environ.get("CFLAGS"),
+             "LDFLAGS": os.environ.get("LDFLAGS")}
+    return tuple(f"{name}={json.dumps(_words(value))}" for name, value in parts.items())
+
+
 def build_command(source: str, library: str, flags: Sequence[str]) -> list[str]:
     """The one compiler run that compiles ``source`` and links it into the shared library
     ``library`` (:func:`compiler_flags_of`, then :func:`link_tail`)."""
@@ -303,6 +329,7 @@ def build_command(source: str, library: str, flags: Sequence[str]) -> list[str]:
 def ffi_module_source(kernel: KernelSource, name: str, directory: Path) -> str:
     """The source of cffi's out-of-line ABI module of ``kernel``'s declarations (``cdef``):
     Python that builds the ``ffi`` object (types, functions, constants) without parsing C.
+    Only read, by :func:`type_table`; never run.
 
     Written through a scratch file in ``directory``, removed again.  A malformed ``cdef``
     raises :class:`CompilationError`.
@@ -324,44 +351,160 @@ def ffi_module_source(kernel: KernelSource, name: str, directory: Path) -> str:
         path.unlink(missing_ok=True)
 
 
+#: the keyword arguments of ``_cffi_backend.FFI`` a kernel's type table may hold (cffi's
+#: out-of-line ABI module; never ``_includes``, which would name other modules)
+TYPE_TABLE_KEYWORDS = frozenset({"_version", "_types", "_globals", "_struct_unions",
+                                 "_enums", "_typenames"})
+#: how deeply the values of a type table nest (cffi's: a tuple of tuples of fields)
+_TABLE_DEPTH = 4
+
+
+def type_table(kernel: KernelSource, name: str, directory: Path) -> dict:
+    """The cffi type table of ``kernel`` as JSON data: ``{"name": name, "<keyword>":
+    value, ...}``, the literal arguments of the ``_cffi_backend.FFI(...)`` call of its
+    out-of-line ABI module (:func:`ffi_module_source`), read with :func:`ast.literal_eval`
+    (which evaluates literals only), bytes as ``{"b64": ...}``, tuples as lists."""
+    source = ffi_module_source(kernel, name, directory)
+    try:
+        call = _ffi_call(ast.parse(source))
+        arguments = {kw.arg: ast.literal_eval(kw.value) for kw in call.keywords}
+        module = ast.literal_eval(call.args[0])
+        if len(call.args) != 1 or module != name or set(arguments) - TYPE_TABLE_KEYWORDS:
+            raise ValueError("unexpected arguments")
+        table = {"name": module, **{k: _encoded(v, 0) for k, v in sorted(arguments.items())}}
+        checked_table(table, name)
+    except (SyntaxError, ValueError, TypeError, IndexError) as exc:
+        raise CompilationError(f"{kernel.prefix}: cffi's type table of the kernel is not in "
+                               f"the form this version reads ({exc}); cffi "
+                               f"{_cffi_version()} may be too new", output=source) from exc
+    return table
+
+
+def _cffi_version() -> str:
+    import cffi
+
+    return cffi.__version__
+
+
+def _ffi_call(tree: ast.Module) -> ast.Call:
+    """The ``ffi = _cffi_backend.FFI(...)`` call of an out-of-line ABI module."""
+    for node in tree.body:
+        if (isinstance(node, ast.Assign) and len(node.targets) == 1
+                and isinstance(node.targets[0], ast.Name) and node.targets[0].id == "ffi"
+                and isinstance(node.value, ast.Call)):
+            func = node.value.func
+            if (isinstance(func, ast.Attribute) and func.attr == "FFI"
+                    and isinstance(func.value, ast.Name) and func.value.id == "_cffi_backend"):
+                return node.value
+        elif not isinstance(node, ast.Import | ast.Expr):
+            break
+    raise ValueError("no ffi = _cffi_backend.FFI(...) call")
+
+
+def _encoded(value, depth: int):
+    """A literal of a type table as JSON data (see :func:`type_table`)."""
+    if depth > _TABLE_DEPTH:
+        raise ValueError("nested too deeply")
+    if isinstance(value, bytes):
+        return {"b64": base64.b64encode(value).decode("ascii")}
+    if isinstance(value, tuple):
+        return [_encoded(v, depth + 1) for v in value]
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    raise ValueError(f"a value of type {type(value).__name__}")
+
+
+def _decoded(value, depth: int):
+    """The inverse of :func:`_encoded`, accepting nothing else (``ValueError``)."""
+    if depth > _TABLE_DEPTH:
+        raise ValueError("nested too deeply")
+    if isinstance(value, list):
+        return tuple(_decoded(v, depth + 1) for v in value)
+    if isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if isinstance(value, dict) and set(value) == {"b64"} and isinstance(value["b64"], str):
+        return base64.b64decode(value["b64"].encode("ascii"), validate=True)
+    raise ValueError(f"a value of type {type(value).__name__}")
+
+
+def checked_table(table, name: str) -> dict:
+    """The keyword arguments of ``_cffi_backend.FFI`` in a type table (data only, checked:
+    ``ValueError`` for anything else)."""
+    if not isinstance(table, dict) or table.get("name") != name:
+        raise ValueError(f"not the type table of {name}")
+    keywords = {k: _decoded(v, 0) for k, v in table.items() if k != "name"}
+    if set(keywords) - TYPE_TABLE_KEYWORDS or "_types" not in keywords:
+        raise ValueError(f"unexpected entries {sorted(set(keywords) - TYPE_TABLE_KEYWORDS)}")
+    if not isinstance(keywords["_types"], bytes) or not isinstance(keywords.get("_version"), int):
+        raise ValueError("_types must be bytes and _version an integer")
+    return keywords
+
+
+def ffi_of(table, name: str):
+    """cffi's ``ffi`` object of a type table (:func:`type_table`), made by
+    ``_cffi_backend.FFI`` from its checked data; ``ImportError`` when malformed."""
+    import _cffi_backend
+
+    try:
+        return _cffi_backend.FFI(name, **checked_table(table, name))
+    except Exception as exc:  # noqa: BLE001 - anything wrong in the type table
+        raise ImportError(f"the cffi type table of {name} does not load: {exc}") from exc
+
+
+def create_file(path: Path, text: str) -> None:
+    """Write ASCII ``text`` to the new file ``path`` (``O_EXCL``: never through a link or
+    into a file that exists), with the mode an ordinary file gets less group and other
+    write permission."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+    fd = os.open(path, flags | getattr(os, "O_CLOEXEC", 0), file_mode())
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(text.encode("ascii"))
+
+
 def build_extension(kernel: KernelSource, build_dir: Path, name: str,
-                    flags: Sequence[str]) -> tuple[Path, str]:
+                    flags: Sequence[str]) -> tuple[Path, dict]:
     """Compile ``kernel`` into ``build_dir`` as the shared library ``<name>.so``; return its
-    path and the source of its cffi module (:func:`ffi_module_source`, for
-    :func:`load_extension`).
+    path and its cffi type table (:func:`type_table`, for :func:`load_extension`).
 
     The header and sources are written next to the library (and stay there); a kernel in
     several units is compiled by one compiler run per unit, all at the same time (each with
     :func:`unit_flags` of its role), then linked by one more; the type table is made while
     the compiler runs.  Compiler output is captured and shown in
-    :class:`CompilationError` on failure.
+    :class:`CompilationError` on failure, which is also raised when the compiler reports
+    success but the library is damaged (:func:`library_defect`).
     """
-    (build_dir / kernel.header_name).write_text(kernel.header, encoding="ascii")
+    create_file(build_dir / kernel.header_name, kernel.header)
     sources = [(f"{kernel.prefix}.c", kernel.source), *kernel.units]
     for file_name, text in sources:
-        (build_dir / file_name).write_text(text, encoding="ascii")
+        create_file(build_dir / file_name, text)
     library = build_dir / f"{name}.so"
-    ffi: list[str] = []
+    table: list[dict] = []
 
-    def type_table() -> None:  # Python work done while the compiler runs
-        ffi.append(ffi_module_source(kernel, name, build_dir))
+    def make_table() -> None:  # Python work done while the compiler runs
+        table.append(type_table(kernel, name, build_dir))
 
     if len(sources) == 1:
         _run(kernel, [build_command(sources[0][0], library.name, flags)], build_dir,
-             type_table)
+             make_table)
     else:  # the units at the same time, then one link
         objects = [f"{Path(file_name).stem}.o" for file_name, _ in sources]
         _run(kernel, [[*compiler_flags_of(unit_flags(flags, _role(kernel, file_name))),
                        "-c", file_name, "-o", obj]
                       for (file_name, _), obj in zip(sources, objects)], build_dir,
-             type_table)
+             make_table)
         _run(kernel, [[*compiler_flags_of(flags), "-shared", *objects, "-o", library.name,
                        *link_tail(flags)]], build_dir)
         for obj in objects:
             (build_dir / obj).unlink(missing_ok=True)
-    if not library.is_file():
+    if not library.is_file() or library.is_symlink():
         raise _failure(kernel, "the compiler wrote no library", "")
-    return library, ffi[0]
+    defect = library_defect(library.read_bytes())
+    if defect is not None:
+        raise CompilationError(
+            f"{kernel.prefix}: the C compiler reported success but wrote a damaged library "
+            f"({defect}); it was not installed. Check the compiler ({' '.join(compiler_command())}"
+            f") and the free space of {build_dir.parent}.\n{NUMPY_HINT}", output=defect)
+    return library, table[0]
 
 
 def _role(kernel: KernelSource, file_name: str) -> str:
@@ -407,36 +550,97 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path,
                        "\n".join(output for _, _, output in failures))
 
 
-def load_extension(path: Path, name: str, ffi_source: str | None = None
+# -- checking a library before it is mapped ---------------------------------------------------
+
+_ELF_MAGIC = b"\x7fELF"
+#: (ELF header after e_ident, program header, section header) of ELFCLASS32 and ELFCLASS64
+_ELF_LAYOUTS = {1: ("HHIIIIIHHHHHH", "IIIIIIII", "IIIIIIIIII"),
+                2: ("HHIQQQIHHHHHH", "IIQQQQQQ", "IIQQQQIIQQ")}
+_ET_DYN, _PT_LOAD, _SHT_NOBITS = 3, 1, 8
+
+
+def library_defect(data: bytes) -> str | None:
+    """What makes ``data`` (a kernel library's bytes) unfit to load, or None.
+
+    On ELF systems: it must be an ELF shared object (``ET_DYN``) whose program header
+    table, loaded segments (``PT_LOAD``: what ``dlopen`` maps), section header table and
+    sections lie inside the file.  Mapping a segment that extends past the end of a
+    truncated file kills the process with SIGBUS on first access, so this is checked
+    before a library is installed or loaded.  Elsewhere (macOS, Windows): only that it is
+    not empty.  About 20 µs.
+    """
+    if sys.platform == "darwin" or os.name == "nt":
+        return None if data else "the file is empty"
+    size = len(data)
+    if size < 52 or data[:4] != _ELF_MAGIC:
+        return f"not an ELF shared object ({size} bytes)"
+    layout, order = _ELF_LAYOUTS.get(data[4]), {1: "<", 2: ">"}.get(data[5])
+    if layout is None or order is None:
+        return "an ELF file of unknown class or byte order"
+    header, program, section = (struct.Struct(order + f) for f in layout)
+    if size < 16 + header.size:
+        return f"the ELF header is cut off ({size} bytes)"
+    (e_type, _, _, _, phoff, shoff, _, _, phentsize, phnum, shentsize, shnum,
+     _) = header.unpack_from(data, 16)
+    if e_type != _ET_DYN:
+        return f"an ELF file of type {e_type}, not a shared object"
+    if phnum == 0 or phentsize < program.size or phoff + phnum * phentsize > size:
+        return f"its program header table lies outside the file ({size} bytes)"
+    for i in range(phnum):
+        entry = program.unpack_from(data, phoff + i * phentsize)
+        p_type, p_offset, p_filesz = ((entry[0], entry[1], entry[4]) if data[4] == 1
+                                      else (entry[0], entry[2], entry[5]))
+        if p_type == _PT_LOAD and p_offset + p_filesz > size:
+            return (f"a loaded segment ends at byte {p_offset + p_filesz}, past the end of "
+                    f"the file ({size} bytes): it is truncated")
+    if shnum and (shentsize < section.size or shoff + shnum * shentsize > size):
+        return (f"its section header table ends at byte {shoff + shnum * shentsize}, past "
+                f"the end of the file ({size} bytes): it is truncated")
+    for i in range(shnum):
+        entry = section.unpack_from(data, shoff + i * shentsize)
+        sh_type, sh_offset, sh_size = entry[1], entry[4], entry[5]
+        if sh_type != _SHT_NOBITS and sh_offset + sh_size > size:
+            return (f"a section ends at byte {sh_offset + sh_size}, past the end of the file "
+                    f"({size} bytes): it is truncated")
+    return None
+
+
+def load_extension(path: Path, name: str, table: dict | None = None
                    ) -> types.SimpleNamespace:
     """Load the kernel library ``path``: a namespace with its ``ffi`` and ``lib`` (the
     entry points and constants of ``cdef.j2``).
 
-    ``ffi_source``: the source :func:`build_extension` returned; default: the ``ffi`` of
-    the manifest of the cache entry holding ``path``.  Raises ``ImportError`` or
-    ``OSError`` when the library or its type table cannot be loaded.
+    ``table``: the type table :func:`build_extension` returned; default: the ``types`` of
+    the manifest of the cache entry holding ``path``.  The library is checked
+    (:func:`library_defect`) before it is mapped.  Raises ``ImportError`` or ``OSError``
+    when the library or its type table cannot be loaded.
     """
-    if ffi_source is None:
-        ffi_source = _manifest_ffi(Path(path))
-    namespace: dict = {}
+    if table is None:
+        table = _manifest_types(Path(path))
+    ffi = ffi_of(table, name)
     try:
-        exec(compile(ffi_source, f"<cffi types of {name}>", "exec"), namespace)  # noqa: S102
-        ffi = namespace["ffi"]
-    except Exception as exc:  # noqa: BLE001 - anything wrong in the type table
-        raise ImportError(f"the cffi type table of {name} does not load: {exc}") from exc
+        with open(path, "rb", opener=_nofollow) as fh:
+            defect = library_defect(fh.read())
+    except OSError as exc:
+        raise ImportError(f"cannot read the kernel library {path}: {exc}") from exc
+    if defect is not None:
+        raise ImportError(f"the kernel library {path} is damaged: {defect}")
     lib = ffi.dlopen(str(path))
     return types.SimpleNamespace(__name__=name, __file__=str(path), ffi=ffi, lib=lib)
 
 
-def _manifest_ffi(path: Path) -> str:
-    """The ``ffi`` source recorded in the manifest next to the library ``path``."""
-    import json
+def _nofollow(path: str, flags: int) -> int:
+    """``open``'s opener that never follows a link at the last component."""
+    return os.open(path, flags | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_CLOEXEC", 0))
 
+
+def _manifest_types(path: Path) -> dict:
+    """The type table recorded in the manifest next to the library ``path``."""
     try:
-        data = json.loads((path.parent / "manifest.json").read_text(encoding="utf-8"))
-        ffi = data["ffi"]
+        with open(path.parent / "manifest.json", encoding="utf-8", opener=_nofollow) as fh:
+            table = json.load(fh)["types"]
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ImportError(f"no cffi type table for {path} in its manifest: {exc}") from exc
-    if not isinstance(ffi, str):
+    if not isinstance(table, dict):
         raise ImportError(f"no cffi type table for {path} in its manifest")
-    return ffi
+    return table

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import errno
 import functools
 import os
 import shutil
@@ -32,8 +33,10 @@ from ..codegen._emit import KernelSource
 from ._backends import CKernel, NewtonOptions, NumpyKernel
 from ._build import (
     NUMPY_HINT,
+    CompilationError,
     CompilerNotFoundError,
     block_weight,
+    build_environment,
     build_extension,
     compile_args,
     compiler_command,
@@ -48,10 +51,12 @@ from ._cache import (
     KernelCache,
     abi_tag,
     absolute_root,
+    dir_mode,
     file_sha256,
     prepared,
     read_json,
     sha256_of,
+    table_sha256,
     write_json_atomic,
 )
 from ._simulator import Simulator
@@ -169,15 +174,15 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
     # kept only in a writable kernel cache (never in a foreign or read-only directory)
     with contextlib.suppress(OSError):
         if prepared(cache.root):
-            probes.mkdir(exist_ok=True)
+            probes.mkdir(mode=dir_mode(), exist_ok=True)
             write_json_atomic(probes / name, {"openmp": result, "compiler": list(command)})
     return result
 
 
 def _cached_probe(cache: KernelCache, name: str) -> bool | None:
     """The OpenMP answer kept in the cache (``probes/<name>``), or None."""
-    for root in cache.read_roots():
-        data = read_json(root / "probes" / name)
+    for root, owners in cache.trusted_roots():
+        data = read_json(root / "probes" / name, owners)
         if data is not None and isinstance(data.get("openmp"), bool):
             return data["openmp"]
     return None
@@ -276,13 +281,15 @@ def fingerprint(exprs, symbols: dict | None = None) -> str:
 
 def input_key(step, flags: Sequence[str], block_units: bool = True) -> str:
     """Cache key of the step (cheap: the exact text of its program, no C generation) built
-    at ``flags``, with block units or without (:func:`step_kernel`)."""
+    at ``flags`` in this build environment (:func:`~._build.build_environment`), with block
+    units or without (:func:`step_kernel`)."""
     symbols: dict = {}
     parts = [step.name, str(step.n_constraints), step.program.fingerprint()]
     for seq in (step.unknowns, step.knowns, step.parameters):
         parts.append(fingerprint(list(seq), symbols))
     units = "block units" if block_units else "no block units"
-    return sha256_of([*parts, codegen_digest(), abi_tag(), units, *flags])[:32]
+    return sha256_of([*parts, codegen_digest(), abi_tag(), units, *build_environment(),
+                      "flags", *flags])[:32]
 
 
 def step_kernel(step, cache: KernelCache | None = None, flags: Sequence[str] | None = None,
@@ -294,34 +301,27 @@ def step_kernel(step, cache: KernelCache | None = None, flags: Sequence[str] | N
     :func:`~._build.translation_units` files compiled at the same time; with
     ``block_units`` (a build at the library's default flags), the units of straight-line
     arithmetic are block units (``KernelSource.blocks``), balanced for their level
-    (:func:`~._build.block_weight`); the templates' compiled code kept in ``cache``
-    (:func:`compiled_templates`)."""
+    (:func:`~._build.block_weight`).  The templates' compiled code (Python) comes from the
+    package (``templates/__pycache__``, ``symgroupoid cache templates``), never from the
+    kernel cache (which holds no Python): where the package has none, the templates are
+    compiled in this process (0.045 s, once); ``cache`` is not used."""
+    del cache
     if flags is None:
         flags = optimisation_flags(step_operations(step), step=True)
     return generate_c(step, latex=False, units=translation_units(),
-                      block_weight=block_weight(flags) if block_units else None,
-                      template_cache=None if cache is None else compiled_templates(cache))
-
-
-def compiled_templates(cache: KernelCache) -> Path | None:
-    """The cache's ``templates/`` directory, which keeps the kernel templates' compiled code
-    across processes (``codegen.CompiledTemplates``), when the cache is writable; else
-    None (the templates are compiled in this process)."""
-    directory = cache.root / "templates"
-    with contextlib.suppress(OSError):
-        if prepared(cache.root):
-            directory.mkdir(exist_ok=True)
-            return directory
-    return None
+                      block_weight=block_weight(flags) if block_units else None)
 
 
 def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
     """Cache key of a generated kernel: its header, source, further translation units (and
-    which are cold and which block units) and cdef, the ABI and the flags."""
+    which are cold and which block units) and cdef, the ABI, the build environment
+    (:func:`~._build.build_environment`: ``$CC``, ``$CPPFLAGS``, ``$CFLAGS``,
+    ``$LDFLAGS``) and the flags."""
     units = [part for unit in kernel.units for part in unit]
     return sha256_of([kernel.header, kernel.source, str(len(units)), *units,
                       str(len(kernel.cold)), *kernel.cold, str(len(kernel.blocks)),
-                      *kernel.blocks, kernel.cdef, abi_tag(), *flags])[:32]
+                      *kernel.blocks, kernel.cdef, abi_tag(), *build_environment(),
+                      "flags", *flags])[:32]
 
 
 def _same_entry(manifest: dict, stale: dict | None) -> bool:
@@ -345,32 +345,67 @@ def build_cached(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCach
     manifest = cache.verified_manifest(source_key)
     if manifest is None or _same_entry(manifest, stale):
         find_compiler()
-        with cache.build_lock(source_key, label):
+        with _writing(cache, label), cache.build_lock(source_key, label):
             manifest = cache.verified_manifest(source_key)  # built while this one waited?
             if manifest is None or _same_entry(manifest, stale):
-                manifest = _build_entry(kernel, flags, cache, label, source_key)
+                manifest = _build_entry(kernel, flags, cache, label, source_key,
+                                        stale.get("sha256") if stale else None)
     return source_key, manifest
 
 
+#: what the C compiler says when it cannot write its output (a full disk)
+_DISK_FULL = (os.strerror(errno.ENOSPC), "No space left on device", "Disk quota exceeded")
+#: the errors of a write to a full disk or beyond a quota
+_FULL = frozenset({errno.ENOSPC, getattr(errno, "EDQUOT", errno.ENOSPC)})
+
+
+@contextlib.contextmanager
+def _writing(cache: KernelCache, label: str):
+    """Writing into the kernel cache: an ``OSError`` (a full disk, an I/O error) or a
+    compiler that could not write its output becomes a :class:`CacheError` naming the
+    cache directory and what to do."""
+    try:
+        yield
+    except CompilationError as exc:
+        if not any(text in exc.output for text in _DISK_FULL):
+            raise
+        raise CacheError(f"{label}: the kernel cache {cache.written_root()} has no space "
+                         f"left for the kernel (the C compiler could not write its output); "
+                         f"free space there, or set SYMGROUPOID_CACHE to a directory on "
+                         f"another file system") from exc
+    except OSError as exc:
+        where = f" ({exc.filename})" if exc.filename else ""
+        if exc.errno in _FULL:
+            what = f"has no space left for the kernel{where}: {exc.strerror}"
+            fix = "free space there, or set SYMGROUPOID_CACHE to a directory on another file "
+            fix += "system"
+        else:
+            what = f"cannot be written{where}: {exc.strerror or exc}"
+            fix = "check it, or set SYMGROUPOID_CACHE to another directory"
+        raise CacheError(f"{label}: the kernel cache {cache.written_root()} {what}; {fix}"
+                         ) from exc
+
+
 def _build_entry(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCache, label: str,
-                 source_key: str) -> dict:
-    """Compile into a fresh build directory and install it (the key's lock is held)."""
-    cache.discard(source_key)  # absent, damaged or unloadable: rebuild from scratch
+                 source_key: str, stale: str | None = None) -> dict:
+    """Compile into a fresh build directory of this process and publish it (by one
+    ``rename``, :meth:`KernelCache.install`: an entry another process published meanwhile
+    is kept, unless its library's SHA-256 is ``stale``)."""
     build_dir = cache.new_build_dir(source_key)
     try:
         name = module_name(source_key)
         STATS["builds"] += 1
-        library, ffi_source = build_extension(kernel, build_dir, name, flags)
+        library, table = build_extension(kernel, build_dir, name, flags)
         write_json_atomic(build_dir / MANIFEST, {
             "source_key": source_key, "module": name, "library": library.name,
             "sha256": file_sha256(library), "prefix": kernel.prefix,
-            "ffi": ffi_source, "ffi_sha256": sha256_of([ffi_source]),
+            "types": table, "types_sha256": table_sha256(table),
             "flags": list(flags), "compile_args": compile_args(flags), "abi": abi_tag(),
             "system": label})
     except BaseException:
         shutil.rmtree(build_dir, ignore_errors=True)
         raise
-    entry = cache.install(build_dir, source_key)
+    entry = cache.install(build_dir, source_key, stale)
     manifest = cache.verified_manifest(source_key)
     if manifest is None or cache.entry(source_key) != entry:
         raise CacheError(f"{label}: the kernel cache entry {entry} could not be installed "
@@ -382,7 +417,7 @@ def _build_entry(kernel: KernelSource, flags: tuple[str, ...], cache: KernelCach
 def _load_entry(source_key: str, manifest: dict, cache: KernelCache):
     path = cache.entry(source_key) / str(manifest.get("library", ""))
     try:
-        module = load_extension(path, str(manifest.get("module", "")), manifest["ffi"])
+        module = load_extension(path, str(manifest.get("module", "")), manifest["types"])
     except (ImportError, OSError) as exc:
         raise CacheError(f"cannot load the cached kernel module {path}: {exc}") from exc
     STATS["loads"] += 1
@@ -429,7 +464,8 @@ def _build(step, flags: tuple[str, ...], cache: KernelCache, key: str, *,
         kernel = step_kernel(step, cache, flags, block_units)
         STATS["codegen"] += 1
     source_key, manifest = build_cached(kernel, flags, cache, step.name, discard=discard)
-    cache.record(key, source_key, manifest["prefix"])
+    with _writing(cache, step.name):
+        cache.record(key, source_key, manifest["prefix"])
     return source_key, manifest
 
 

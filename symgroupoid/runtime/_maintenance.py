@@ -5,12 +5,20 @@ is being built or rebuilt right now) is left alone and reported; every other ker
 directory is removed the way the cache removes a damaged one (renamed away first, so no
 process ever sees half a kernel), its index entries with it.  A process that has already
 loaded a removed kernel keeps using it; the next one to ask for it builds it again.
+
+Only what the cache itself names is removed (kernel directories named by a 32-hex key,
+index files ``<key>.json``, the kernel templates' compiled code an older version kept in
+``templates/``, and the leftovers :func:`~._cache.sweep` removes), never through a link: a
+cache whose directories are links, or belong to another user, is refused
+(:class:`CacheError`).  ``bad_only``: only the entries that would not be loaded (damaged,
+truncated, untrusted: ``CachedKernel.problem``).
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,27 +27,36 @@ from ._cache import (
     MANIFEST,
     MARKER,
     _foreign_entries,
-    _held_if_free,
-    _verified,
+    _remove,
+    _untrusted_reason,
     absolute_root,
     cache_root,
+    entry_defect,
     is_cache_root,
+    key_busy,
     read_json,
     remove_tree,
     sweep,
+    trusted,
 )
+
+_KEY = re.compile(r"[0-9a-f]{32}")
+_INDEX = re.compile(r"[0-9a-f]{32}\.json")
+_TEMPLATE = re.compile(r"__jinja2_[0-9a-f]{40}\.cache")
 
 
 @dataclass
 class CachedKernel:
     """One kernel directory: its source key, the system it was built for, bytes on disk,
-    modification time, and whether its manifest verifies (module present, hash matching)."""
+    modification time, whether its manifest verifies (library present, hashes matching,
+    a complete ELF library, trusted), and if not, why (``problem``)."""
 
     key: str
     system: str
     size: int
     modified: float
     complete: bool
+    problem: str | None = None
 
 
 @dataclass
@@ -49,10 +66,18 @@ class CacheInfo:
     kernels: list[CachedKernel] = field(default_factory=list)
     index_entries: int = 0
     leftovers: int = 0
+    #: why the cache is not used (a link, another user's directory, writable by others)
+    refused: str | None = None
 
     @property
     def size(self) -> int:
         return sum(k.size for k in self.kernels)
+
+    @property
+    def bad(self) -> list[CachedKernel]:
+        """The entries that would not be loaded (rebuilt on use, removed by
+        ``clear_cache(bad_only=True)``)."""
+        return [k for k in self.kernels if not k.complete]
 
 
 @dataclass
@@ -66,45 +91,57 @@ class ClearedCache:
 
 def _tree_size(path: Path) -> int:
     total = 0
-    for folder, _, files in os.walk(path):
+    for folder, _, files in os.walk(path):  # never follows links
         for name in files:
             with contextlib.suppress(OSError):
                 total += (Path(folder) / name).stat(follow_symlinks=False).st_size
     return total
 
 
-def _entries(folder: Path) -> list[Path]:
+def _entries(folder: Path, pattern: re.Pattern | None = None) -> list[Path]:
+    """The entries of ``folder`` (not followed if it is a link), those whose name matches
+    ``pattern`` when given."""
+    if folder.is_symlink():
+        return []
     try:
-        return sorted(folder.iterdir())
+        names = sorted(os.listdir(folder))
     except OSError:
         return []
+    return [folder / n for n in names if pattern is None or pattern.fullmatch(n)]
 
 
 def _kernel(entry: Path) -> CachedKernel:
-    manifest = read_json(entry / MANIFEST) or {}
+    manifest, problem = entry_defect(entry, entry.name)
+    if manifest is None:
+        manifest = read_json(entry / MANIFEST) or {}
     try:
-        modified = entry.stat().st_mtime
+        modified = entry.lstat().st_mtime
     except OSError:
         modified = 0.0
     return CachedKernel(entry.name, str(manifest.get("system", "?")), _tree_size(entry),
-                        modified, _verified(entry, entry.name) is not None)
+                        modified, problem is None, problem)
 
 
 def cache_info(root: Path | None = None) -> CacheInfo:
-    """What the cache at ``root`` (default: the configured cache) holds."""
+    """What the cache at ``root`` (default: the configured cache) holds; a cache that is
+    not used (:func:`~._cache.trusted`) says why in ``refused`` and lists nothing."""
     root = absolute_root(root) if root is not None else cache_root()
     info = CacheInfo(root, root.is_dir())
     if not info.exists:
         return info
-    info.kernels = [_kernel(e) for e in _entries(root / "kernels") if e.is_dir()]
-    info.index_entries = sum(1 for e in _entries(root / "index") if e.suffix == ".json")
+    info.refused = _untrusted_reason(root)
+    if info.refused is not None:
+        return info
+    info.kernels = [_kernel(e) for e in _entries(root / "kernels", _KEY)]
+    info.index_entries = len(_entries(root / "index", _INDEX))
     info.leftovers = len(_entries(root / "tmp"))
     return info
 
 
-def clear_cache(root: Path | None = None) -> ClearedCache:
+def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedCache:
     """Remove every kernel not being built right now, and the index (see the module
-    docstring)."""
+    docstring); ``bad_only``: only the kernels that would not be loaded, and the index
+    entries pointing nowhere."""
     root = absolute_root(root) if root is not None else cache_root()
     result = ClearedCache(root)
     if not root.is_dir():
@@ -116,20 +153,30 @@ def clear_cache(root: Path | None = None) -> ClearedCache:
                              f"holds {', '.join(foreign[:3])}{', …' if len(foreign) > 3 else ''}"
                              f"): nothing was removed")
         return result  # empty, or only an unmarked cache layout: nothing of ours to remove
-    for entry in _entries(root / "kernels"):
-        with _held_if_free(root / "locks" / f"{entry.name}.lock") as free:
-            if not free:
+    trusted(root, modes=False)  # links, other users' directories: CacheError
+    for entry in _entries(root / "kernels", _KEY):
+        if bad_only and entry_defect(entry, entry.name)[0] is not None:
+            continue
+        with key_busy(root, entry.name) as busy:
+            if busy:
                 result.busy.append(entry.name)
                 continue
             size = _tree_size(entry)
             remove_tree(entry)
-            if not (entry.exists() or entry.is_symlink()):
+            if not os.path.lexists(entry):
                 result.removed += 1
                 result.freed += size
-    for entry in _entries(root / "index"):
-        if entry.suffix == ".json":
-            with contextlib.suppress(OSError):
-                entry.unlink()
-                result.index_entries += 1
+    for entry in _entries(root / "index", _INDEX):
+        if bad_only:
+            data = read_json(entry) or {}
+            key = data.get("source_key")
+            if isinstance(key, str) and _KEY.fullmatch(key) and (root / "kernels" / key).is_dir():
+                continue
+        _remove(entry)
+        if not os.path.lexists(entry):
+            result.index_entries += 1
+    if not bad_only:
+        for entry in _entries(root / "templates", _TEMPLATE):  # Python, of older versions
+            _remove(entry)
     sweep(root)
     return result
