@@ -22,7 +22,7 @@ from itertools import accumulate
 import numpy as np
 import sympy as sp
 
-from .._errors import InputTypeError
+from .._errors import CoordinateNameError, InputTypeError
 
 
 class Manifold(ABC):
@@ -239,6 +239,12 @@ class ProductManifold(Manifold):
         self._coords = _slices([f.coords_dim for f in self.factors])
         self._charts = _slices([f.dim for f in self.factors])
         self.names = tuple(n for f in self.factors for n in f.names)
+        repeated = sorted({n for n in self.names if self.names.count(n) > 1})
+        if repeated:
+            raise CoordinateNameError(
+                f"{' × '.join(map(repr, self.factors))}: two factors name a coordinate "
+                f"{repeated[0]!r}; the factors of a product need distinct names (e.g. "
+                f"SO3(\"R1\") * SO3(\"R2\"))")
 
     @property
     def dim(self):
