@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -272,8 +273,49 @@ class Simulator:
                 f"on the fly with Simulator.stream(...) or a callback")
 
     def step(self, state, params, *, options: NewtonOptions | None = None) -> np.ndarray:
-        """One step: the next flat state from a state (named or flat)."""
-        return self.simulate(state, 1, params, options=options).states[1].copy()
+        """One step: the next flat state from a state (named or flat), the same bits as
+        ``simulate(state, 1, params, options=options).states[1]``.
+
+        Made for a control loop, ``state = sim.step(state, p)``: the inputs are checked as
+        :meth:`simulate` checks them, but a flat float64 state that this simulator
+        produced (or checked) before, under the same values of the parameters its
+        constraints use, is not checked again — it is on the constraints and in the group
+        already, as the states inside a run are — and parameters given as a float64 vector
+        in ``step.parameters`` order (``p = sim.parameters({...})``) or as a dict of
+        Python numbers by name are screened without parsing.  The step itself is one call
+        of the kernel; the Python around it costs about a microsecond (plate-ball:
+        ``benchmarks/step.py``).  Any other input, and every failure, goes through the
+        checks and errors of :meth:`simulate`.
+        """
+        after = self._fast_call(state, params, options)
+        if after is not None:
+            return after
+        return self._checked_step(state, params, options)
+
+    def _checked_step(self, state, params, options) -> np.ndarray:
+        """:meth:`step` with every check of :meth:`simulate` (the first call of a loop, or
+        an input the fast path does not know); a failed step raises as :meth:`simulate`
+        does, with ``err.trajectory``."""
+        options = NewtonOptions.of(options, self.options, owner=self.name)
+        p = self.parameters(params)
+        known = self.state(state, p)
+        fast = self._fast_step
+        fast.trust(known, p)
+        status, after = fast.run(known, p, options)
+        if status != OK:  # the run of one step raises the error, with its trajectory
+            return self.simulate(known, 1, p, options=options).states[1].copy()
+        fast.trust(after, p)
+        return after
+
+    @functools.cached_property
+    def _fast_step(self):
+        from ._fast_step import FastStep
+
+        return FastStep(self)
+
+    @functools.cached_property
+    def _fast_call(self):
+        return self._fast_step.call
 
     def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None):
         """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure.
