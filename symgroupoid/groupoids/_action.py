@@ -191,6 +191,9 @@ class ActionGroupoid(Groupoid):
                 f"p₀·(R₀⁻¹R₁) = {np.round(reached, 9).tolist()} ≠ p₁ = {list(p1)}")
         return tuple(float(x) for x in p0) + tuple(w)
 
+    def increments(self, a):
+        return self.group.increments(a[self.base_dim:])
+
     def configuration_after(self, c0, a):
         p0, R0 = c0
         return (tuple(float(v) for v in self.target(a)),

@@ -330,6 +330,15 @@ class Groupoid(ABC):
         """The configuration reached from ``c0`` along the arrow ``a`` (numeric)."""
         raise NotImplementedError(f"{self.name}: no configuration space")
 
+    def increments(self, a: Sequence) -> list[tuple[str, Any, np.ndarray]]:
+        """(part name, MatrixLieGroup, numeric matrix) of each group element at the numeric
+        arrow ``a`` whose retraction coordinates τ⁻¹ the α-fibre chart of a step takes: a
+        Lie group's element itself, the increment R₀⁻¹R₁ of a pair groupoid of a group, the
+        increment F of :class:`TrivialisedPairGroupoid`.  Where one is a half-turn (the cut
+        locus of the Cayley map and of the logarithm) the step's prediction and unknowns are
+        not defined.  None for groupoids without group parts (the default)."""
+        return []
+
     # --- products -------------------------------------------------------------------------
     def __mul__(self, other: Groupoid) -> Groupoid:
         from ._product import ProductGroupoid

@@ -94,6 +94,12 @@ class Manifold(ABC):
         """Chart coordinates (around q1) of the configuration after q0, q1 at constant
         velocity: the first Newton guess of a step."""
 
+    def increments(self, q0: Sequence, q1: Sequence) -> list:
+        """(part name, group, numeric matrix) of each group increment q0⁻¹q1 whose
+        retraction coordinates the chart takes (none on Rⁿ); see
+        :meth:`~symgroupoid.groupoids.Groupoid.increments`."""
+        return []
+
     @abstractmethod
     def view_point(self, coords: Sequence):
         """The user-facing value of a point (a tuple, a Matrix, or a tuple of parts)."""
@@ -198,6 +204,12 @@ class GroupManifold(Manifold):
     def predict(self, q0, q1):
         """The increment repeats: q_{k+1} = q_k q_{k−1}⁻¹ q_k, i.e. x = τ⁻¹(q_{k−1}⁻¹q_k)."""
         return self.chart_inverse(q0, q1)
+
+    def increments(self, q0, q1):
+        G = self.group
+        M0, M1 = G.numeric_matrix([float(v) for v in q0]), G.numeric_matrix(
+            [float(v) for v in q1])
+        return [(G.symbol_name, G, np.linalg.solve(M0, M1))]
 
     def view_point(self, coords):
         return self.group.matrix(coords)
@@ -314,6 +326,10 @@ class ProductManifold(Manifold):
 
     def predict(self, q0, q1):
         return self._pointwise("predict", q0, q1, self._coords)
+
+    def increments(self, q0, q1):
+        parts = zip(self.factors, self._split(q0, self._coords), self._split(q1, self._coords))
+        return [i for f, a, b in parts for i in f.increments(a, b)]
 
     def view_point(self, coords):
         return tuple(f.view_point(c) for f, c in zip(self.factors,

@@ -400,6 +400,33 @@ class MatrixLieGroup(Groupoid):
     def configuration_after(self, c0, a):
         return self._numeric_matrix(c0) @ self.numeric_matrix(a)
 
+    def nearest_element(self, M) -> np.ndarray:
+        """The element of the group nearest to the numeric n×n matrix ``M`` (a rotation, or
+        a rigid motion, typed or stored to a few digits): its rotation block replaced by the
+        orthogonal factor of its polar decomposition, U Vᵀ from the SVD U Σ Vᵀ (the nearest
+        rotation in the Frobenius norm, det +1), and for SE(n) the last row set to
+        (0, …, 0, 1); the translation is kept."""
+        from .._arguments import real_array
+        from .._errors import DomainError, ShapeError
+
+        M = real_array(M, "M", owner=self.name)
+        if M.shape != (self.n, self.n) or not np.isfinite(M).all():
+            raise ShapeError(f"{self.name}: nearest_element needs a finite {self.n}×{self.n} "
+                             f"matrix, got shape {M.shape}")
+        n = self.n - 1 if self.affine else self.n
+        U, _, Vt = np.linalg.svd(M[:n, :n])
+        if np.linalg.det(U @ Vt) < 0:
+            raise DomainError(f"{self.name}: the rotation block has det < 0 (a reflection); "
+                              f"no nearby element of {self.name}")
+        out = M.copy()
+        out[:n, :n] = U @ Vt
+        if self.affine:
+            out[-1] = np.eye(self.n)[-1]
+        return out
+
+    def increments(self, a):
+        return [(self.symbol_name, self, self.numeric_matrix([float(v) for v in a]))]
+
     # --- naming -----------------------------------------------------------------------------
     def named_matrix(self, offset: int) -> sp.Matrix:
         """g_{k+offset} as a matrix of named entries (g_{k})_{ij}."""

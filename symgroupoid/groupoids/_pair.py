@@ -238,6 +238,9 @@ class PairGroupoid(Groupoid):
         """(q₀, q₁) for configurations q₀, q₁ (points; matrices on a group)."""
         return tuple(self.space.numeric_point(c0)) + tuple(self.space.numeric_point(c1))
 
+    def increments(self, a):
+        return self.space.increments(self.source(a), self.target(a))
+
     def configuration_after(self, c0, a):
         target = tuple(float(v) for v in self.target(a))
         if isinstance(self.space, EuclideanSpace):

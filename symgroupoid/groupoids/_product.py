@@ -149,6 +149,10 @@ class ProductGroupoid(Groupoid):
         """Configurations are tuples with one configuration per factor."""
         return sum((tuple(f.arrow_between(a, b)) for f, a, b in zip(self.factors, c0, c1)), ())
 
+    def increments(self, a):
+        parts = self._parts(a, self._arrow_slices)
+        return [i for f, p in zip(self.factors, parts) for i in f.increments(p)]
+
     def configuration_after(self, c0, a):
         parts = self._parts(a, self._arrow_slices)
         return tuple(f.configuration_after(c, p) for f, c, p in zip(self.factors, c0, parts))

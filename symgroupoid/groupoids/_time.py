@@ -91,6 +91,9 @@ class TimeGroupoid(Groupoid):
     def configuration_after(self, c0, a):
         return (float(a[1]), self.inner.configuration_after(c0[1], a[2:]))
 
+    def increments(self, a):
+        return self.inner.increments(a[2:])
+
     def section_curves(self, q, t):
         unit = tuple(self.inner.identity(q[1:]))
         curves = [(q[0], q[0] + t) + unit]

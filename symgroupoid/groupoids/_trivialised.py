@@ -300,6 +300,11 @@ class TrivialisedPairGroupoid(Groupoid):
         return (tuple(float(M0[i, j]) for i, j in G._free)
                 + tuple(float(D[i, j]) for i, j in G._free))
 
+    def increments(self, a):
+        _, d = self._split(a)
+        return [(self.increment_name, self.group, np.eye(self.group.n)
+                 + self._numeric_offset(d))]
+
     def configuration_after(self, c0, a):
         G = self.group
         q, d = self._split(a)

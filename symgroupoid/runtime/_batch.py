@@ -424,10 +424,13 @@ class TrajectoryBatch:
         if self.status[b] == OK:
             return None
         raw = self._raw
+        run = self[b]
         err = self._sim._failure(int(self.status[b]), int(self.failed_step[b]),
                                  int(raw.failed_iterations[b]),
-                                 float(raw.failed_residual_norms[b]), raw.last_iterate[b])
-        err.trajectory = self[b]
+                                 float(raw.failed_residual_norms[b]), raw.last_iterate[b],
+                                 known=run.states[-1] if len(run.states) else None,
+                                 p=self.parameters[b])
+        err.trajectory = run
         return err
 
     def __repr__(self) -> str:

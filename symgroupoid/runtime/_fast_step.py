@@ -28,6 +28,7 @@ from collections.abc import Callable
 import numpy as np
 
 from ._backends import OK, NewtonOptions
+from ._singular import zero_divisors
 from ._validate import assumptions_test, constraint_check, parameter_names
 
 #: at most this many trusted states and accepted parameter vectors are kept (a full table
@@ -52,7 +53,8 @@ class FastStep:
         kernel = sim.kernel
         self.run = kernel.stepper() if hasattr(kernel, "stepper") else kernel.step_once
         self.parameters = _parameter_screen(parameter_names(parameters),
-                                            assumptions_test(parameters), self.used)
+                                            assumptions_test(parameters), self.used,
+                                            lambda: tuple(zero_divisors(sim.equations)))
         self.call = _fast_call(sim, self)
 
     def used_bytes(self, p: np.ndarray) -> bytes:
@@ -70,23 +72,34 @@ def _remember(table: dict, key, value=None) -> None:
     table[key] = value
 
 
-def _parameter_screen(names: tuple, test: Callable | None, used: np.ndarray | None):
+def _parameter_screen(names: tuple, test: Callable | None, used: np.ndarray | None,
+                      divisors: Callable[[], tuple]):
     """The function params → (p, the bytes of the parameters the constraints use), or None
     unless ``params`` is a float64 vector of the right length or a dict of Python numbers
-    naming every parameter, whose values pass ``test``.  Values tested before are not
-    tested again: a vector by its bytes; a dict by its values, whose vector is then kept and
-    given again (the same array, so the kernel's caller keeps its C view too; a zero, whose
-    sign an equality test cannot see, is never looked up).  Finiteness is left to the
-    kernel, which refuses non-finite parameters (then the checked path reports them)."""
+    naming every parameter, whose values pass ``test`` and are not a zero the equations
+    divide by (``divisors()``: their indices, asked for at the first zero).
+
+    Values tested before are not tested again: a vector by its bytes; a dict by its values,
+    whose vector is then kept and given again (the same array, so the kernel's caller keeps
+    its C view too; a zero, whose sign an equality test cannot see, is never looked up).
+    Finiteness is left to the kernel, which refuses non-finite parameters (then the checked
+    path reports them)."""
     shape, n = (len(names),), len(names)
     accepted: dict[bytes, None] = {}
     by_values: dict[tuple, tuple] = {}
+    zeros: list = []  # [the indices of divisors()], once asked for
 
     def vector(p):
         whole = p.tobytes()
         if whole not in accepted:
-            if test is not None and not test(p.tolist()):
+            values = p.tolist()
+            if test is not None and not test(values):
                 return None
+            if 0 in values:
+                if not zeros:
+                    zeros.append(divisors())
+                if any(values[i] == 0 for i in zeros[0]):
+                    return None
             _remember(accepted, whole)
         return p, (whole if used is None else p[used].tobytes())
 

@@ -79,9 +79,16 @@ class Simulator:
 
         One rule for every entry point (:func:`~symgroupoid.runtime._validate.parameter_vector`):
         every parameter named exactly once (unknown names are rejected), finite real values
-        satisfying the assumptions the symbols are declared with (``positive=True``, …).
+        satisfying the assumptions the symbols are declared with (``positive=True``, …); a
+        :class:`ParameterError` also for a zero the Lagrangian or the constraints divide by
+        (a time step h = 0 not declared positive; :mod:`~symgroupoid.runtime._singular`).
         """
-        return parameter_vector(self.equations.parameters, params, owner=self.name)[0]
+        p = parameter_vector(self.equations.parameters, params, owner=self.name)[0]
+        if not p.all():  # a zero: refused where the equations divide by it (h = 0)
+            from ._singular import check_zero_divisors
+
+            check_zero_divisors(self.equations, p, self.name)
+        return p
 
     def state(self, initial: Mapping | Sequence | np.ndarray, params=None) -> np.ndarray:
         """The flat known state (g_k, λ_k) from named parts or a flat vector.
@@ -111,8 +118,8 @@ class Simulator:
                                  f"(the knowns {', '.join(s.name for s in self.equations.knowns)}"
                                  f"); got shape {arr.shape}")
             self.layout.check_finite(arr)
-            self.layout.check_arrows(arr)
-            state = arr.copy()
+            state = self.layout.rounded(arr).copy()
+            self.layout.check_arrows(state)
         if params is not None:
             p = self.parameters(params)
             constraint_check(self.equations)(state, p, atol=INITIAL_CONSTRAINT_TOLERANCE,
@@ -237,21 +244,25 @@ class Simulator:
             if run.status != OK:
                 k = run.failed_step
                 err = self._failure(run.status, start + k, run.iterations[k],
-                                    run.residual_norms[k], run.last_iterate)
+                                    run.residual_norms[k], run.last_iterate,
+                                    known=run.states[k], p=p)
                 err.trajectory = piece
                 raise err
             if len(segment.states):
                 yield piece
 
     def _chunk_failure(self, chunk, start: int, iterations: np.ndarray,
-                       norms: np.ndarray) -> Exception:
+                       norms: np.ndarray, states: np.ndarray | None = None,
+                       p: np.ndarray | None = None) -> Exception:
         """The error of a :class:`~symgroupoid.runtime._backends.ChunkRun` that failed
-        (its failed step's data at entry start + k of the run's buffers)."""
+        (its failed step's data at entry start + k of the run's buffers, its known state
+        at row start + k of ``states``)."""
         k = chunk.failed_step
         if k < 0:  # nothing was solved: the kernel refused its arguments
             return self._failure(chunk.status, start, 0, float("nan"), chunk.last_iterate)
+        known = None if states is None else states[start + k]
         return self._failure(chunk.status, start + k, iterations[start + k],
-                             norms[start + k], chunk.last_iterate)
+                             norms[start + k], chunk.last_iterate, known=known, p=p)
 
     def _trajectory(self, states, iterations, norms, p, indices, every) -> Trajectory:
         values = dict(zip(self.parameter_names, p.tolist()))
@@ -330,13 +341,13 @@ class Simulator:
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
-                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0)
+                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0, known=known, p=p)
         else:
             u0 = real_vector(guess, len(self.equations.unknowns), "guess", owner=self.name,
                              finite=True)
         status, u, it, rn = self.kernel.solve_step(known, p, u0, options)
         if status != OK:
-            raise self._failure(status, 0, it, rn, u)
+            raise self._failure(status, 0, it, rn, u, known=known, p=p)
         return u, it, rn
 
     def from_momentum(self, configuration, momentum: Sequence, params) -> np.ndarray:
@@ -379,7 +390,11 @@ class Simulator:
         α-fibre of its source to a nearby zero of φ: Gauss–Newton with minimum-norm steps in
         the fibre chart, x ← x − J⁺φ, with the exact constraint Jacobian J from the
         expression graph (to first order the orthogonal projection in the chart).  On a
-        pair groupoid, (q₀, q₁) keeps q₀ and corrects q₁.  λ_k is kept as given.
+        pair groupoid, (q₀, q₁) keeps q₀ and corrects q₁.  With holonomic constraints ψ(q) = 0
+        the configuration α(g_k) is first moved onto M = {ψ = 0} (the nearest point in the
+        chart, the target kept), so that configurations typed to a few digits can be given;
+        group parts given to a few digits are replaced by the nearest group element (a
+        :class:`~symgroupoid.GroupRoundingWarning` says so).  λ_k is kept as given.
 
         Returns the flat state, checked like any initial state (:meth:`state` with
         ``params``).  First-order steps only; a :class:`~symgroupoid.runtime._projection.
@@ -399,7 +414,16 @@ class Simulator:
         return self.state(moved, p)
 
     def _failure(self, status: int, step: int, iterations: int, residual_norm: float,
-                 iterate: np.ndarray) -> Exception:
+                 iterate: np.ndarray, *, known: np.ndarray | None = None,
+                 p: np.ndarray | None = None) -> Exception:
+        if status == NON_FINITE and known is not None:  # a half-turn, h = 0: say which
+            from ._singular import non_finite_cause
+
+            found = non_finite_cause(self, step, iterations, residual_norm, iterate, known,
+                                     p, f"{self.name}: step {step} failed")
+            if found is not None:
+                found.trajectory = None
+                return found
         text = (f"{self.name}: step {step} failed: {STATUS_MESSAGES[status]} (after "
                 f"{int(iterations)} Newton iterations, |F|_inf = {residual_norm:.3e})")
         if status == INVALID_ARGUMENT:  # the checks above let nothing invalid through
@@ -443,7 +467,8 @@ class _WholeRun:
             self.filled = done + chunk.completed + 1
             task.update(done + chunk.completed)
             if chunk.status != OK:
-                err = self.sim._chunk_failure(chunk, done, self.iterations, self.norms)
+                err = self.sim._chunk_failure(chunk, done, self.iterations, self.norms,
+                                              self.states, self.p)
                 err.trajectory = self.so_far()
                 raise err
             if callback is not None:
