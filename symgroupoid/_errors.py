@@ -169,6 +169,11 @@ class CutLocusStepError(CutLocusError, NewtonDivergenceError):
         self.parts = tuple(parts)
 
 
+class TrajectoryFileError(SymgroupoidError, ValueError):
+    """A trajectory file cannot be read (missing, damaged, not written by symgroupoid), or
+    holds the trajectory of another system (its state columns are not this system's)."""
+
+
 class GroupRoundingWarning(UserWarning):
     """A group element given to a few digits (``np.round(R, 8)``: off its group by more than
     rounding, by at most :data:`~symgroupoid.runtime._validate.ROUNDED_TOLERANCE`) was

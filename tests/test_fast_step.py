@@ -94,6 +94,8 @@ def test_the_loop_keeps_every_check():
         sim.step(state, {**PARAMS, "r": float("inf")})
     with pytest.raises(sg.ParameterError, match="h is declared positive"):
         sim.step(state, {**PARAMS, "h": 0})
+    with pytest.raises(sg.ParameterError, match="parameter h must be a real number"):
+        sim.step(state, {**PARAMS, "h": [0.01]})  # unhashable: no lookup, the checked path
     other = vector.copy()
     other[1] = 2.0  # r: the constraints use it, so the state is checked again, and fails
     with pytest.raises(sg.DomainError, match="violates the constraints"):

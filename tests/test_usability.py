@@ -247,3 +247,211 @@ def test_configurations_of_a_pair_groupoid_of_rotations_are_checked_for_the_grou
         state = sim.state({"R1": (np.round(R, 8), R)})
     R0 = state[:9].reshape(3, 3)
     assert np.abs(R0.T @ R0 - np.eye(3)).max() < 1e-15
+
+
+# --- Lie-group states a user can read -----------------------------------------------------------
+
+def _rigid_run(steps: int = 400, every: int = 1):
+    from symgroupoid import systems
+
+    sim = systems.rigid_body().euler_lagrange().compile(backend="numpy")
+    W0 = np.array(sg.SO3("W").cayley([0.02, 0.05, -0.03]).tolist(), float)
+    return sim, sim.simulate({"W": W0}, steps, RIGID, every=every)
+
+
+def test_configurations_multiply_the_increments_out_and_spatial_momenta_are_conserved():
+    sim, traj = _rigid_run()
+    R0 = np.array(sg.SO3("R").numeric_tau([0.3, 0.1, -0.2]))
+    R = traj.configurations(R0)
+    W = traj["W"]
+    assert R.shape == (len(traj) + 1, 3, 3) and np.array_equal(R[0], R0)
+    G = sim.equations.groupoid
+    c = R0
+    for k in range(len(W)):  # the groupoid's own multiplication, step by step
+        c = G.configuration_after(c, traj.states[k, :9])
+        assert np.allclose(R[k + 1], c, rtol=0, atol=1e-14)
+    assert np.allclose(R[1:], np.einsum("kij,kjl->kil", R[:-1], W), rtol=0, atol=1e-14)
+    assert np.abs(np.einsum("kji,kjl->kil", R, R) - np.eye(3)).max() < 1e-13
+    assert np.array_equal(traj.configurations()[0], np.eye(3))
+    pi = traj.spatial_momenta(R0)  # R_k μ_k: Noether's quantity of rotations of space
+    assert pi.shape == (len(traj), 3)
+    assert np.abs(pi - pi[0]).max() < 1e-12 * np.abs(pi[0]).max()
+    body = traj.momenta().minus
+    assert np.allclose(pi, np.einsum("kij,kj->ki", R[:-1], body), rtol=0, atol=1e-12)
+    with pytest.raises(sg.DomainError, match=r"start.*not in SO3"):
+        traj.configurations(2 * R0)
+    _, sampled = _rigid_run(10, every=3)
+    with pytest.raises(sg.DomainError, match="every=1"):
+        sampled.configurations()
+
+
+@pytest.mark.skipif(__import__("shutil").which("cc") is None, reason="no C compiler")
+def test_configurations_of_pair_action_and_product_groupoids():
+    from kernel_support import SEED_DATA, compiled, initial_state
+
+    from symgroupoid import systems
+
+    sim = compiled("plate_ball")
+    traj = sim.simulate(initial_state(sim, "plate_ball"), 50, SEED_DATA["plate_ball"][0])
+    points, rotations = traj.configurations((None, np.eye(3)))
+    assert np.array_equal(points[:, 0], traj["x"]) and np.array_equal(points[:, 1], traj["y"])
+    assert rotations.shape == (len(traj) + 1, 3, 3)
+    assert np.array_equal(traj.configurations()[1], rotations)
+    with pytest.raises(sg.DomainError, match="leave start out"):
+        traj.configurations(((1.0, 2.0), None))
+    # a pair groupoid of rotations holds its configurations; gravity along e₃ leaves the
+    # spatial angular momentum about e₃ conserved
+    chain = systems.spherical_chain(1).euler_lagrange().compile(backend="numpy")
+    params = {"h": 0.01, "g": 9.81}
+    R = np.array(sg.SO3("R").numeric_tau([0.4, 0.3, 0.2]))
+    state = chain.from_momentum({"R1": R}, [0.2, -0.1, 0.3], params)
+    run = chain.simulate(state, 30, params)
+    assert np.array_equal(run.configurations(), run["R1"])
+    pi = run.spatial_momenta()
+    assert np.abs(pi[:, 2] - pi[0, 2]).max() < 1e-12
+    # the same body in increment coordinates: the same configurations and momenta
+    inc = systems.spherical_chain_increments(1).euler_lagrange().compile(backend="numpy")
+    run2 = inc.simulate(inc.from_momentum({"R1": R}, [0.2, -0.1, 0.3], params), 30, params)
+    assert np.allclose(run2.configurations(), run["R1"], rtol=0, atol=1e-12)
+    assert np.allclose(run2.spatial_momenta(), pi, rtol=0, atol=1e-10)
+
+
+def test_plot_legends_are_readable_and_time_is_on_the_axis():
+    pytest.importorskip("matplotlib")
+    _, traj = _rigid_run(20)
+    fig = traj.plot(["W"], time_step="h")
+    ax = fig.axes[0]
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert labels[:2] == ["W[0, 0]", "W[0, 1]"] and "np." not in " ".join(labels)
+    assert ax.get_xlabel() == "time t = k·h (h = 0.01)"
+    assert np.isclose(ax.get_lines()[0].get_xdata()[-1], 20 * 0.01)  # W_k at t = k·h
+    assert traj.plot(["W"], time_step=False).axes[0].get_xlabel() == "step k"
+    with pytest.raises(sg.InputNameError, match="time_step must name a parameter"):
+        traj.plot(["W"], time_step="dt")
+
+
+# --- saving and loading trajectories ------------------------------------------------------------
+
+def _ring(name: str, coordinates: str = "x y") -> sg.DiscreteSystem:
+    h = sp.Symbol("h", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace(coordinates))
+
+    def L(g):
+        return sum((b - a) ** 2 for a, b in zip(g.source, g.target)) / (2 * h)
+
+    def phi(g):
+        return [sum(b ** 2 - a ** 2 for a, b in zip(g.source, g.target)) / 2]
+
+    return sg.DiscreteSystem(G, L, constraints=phi, parameters=[h], name=name)
+
+
+RING0 = {"x": (1.0, math.cos(0.01)), "y": (0.0, math.sin(0.01)), "lambda": [0.0]}
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_a_trajectory_saved_from_python_loads_back_exactly(tmp_path, suffix):
+    sim = _ring("ring").euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate(RING0, 7, {"h": 0.01}, every=2)
+    path = tmp_path / f"ring{suffix}"
+    traj.save(path)
+    params = {"h": 0.01} if suffix == ".csv" else None
+    back = sg.Trajectory.load(path, sim, params=params)
+    for name in ("states", "step_indices", "newton_iterations", "residual_norms"):
+        assert np.array_equal(getattr(back, name), getattr(traj, name)), name
+    assert back.every == 2 and back.parameters == {"h": 0.01}
+    assert np.array_equal(back["x"], traj["x"])
+    assert np.array_equal(sg.Trajectory.load(path, sim.equations, params={"h": 0.01}).states,
+                          traj.states)
+    if suffix == ".csv":
+        with pytest.raises(sg.TrajectoryFileError, match="holds no parameter values"):
+            sg.Trajectory.load(path, sim)
+    with pytest.raises(sg.DomainError, match="must end in .npz or .csv"):
+        traj.save(tmp_path / "ring.txt")
+    with pytest.raises(sg.OutputError, match="does not exist"):
+        traj.save(tmp_path / "missing" / f"ring{suffix}")
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_another_systems_trajectory_of_the_same_width_is_refused(tmp_path, suffix):
+    sim = _ring("ring").euler_lagrange().compile(backend="numpy")
+    other = _ring("circle", "u v").euler_lagrange().compile(backend="numpy")
+    assert other.layout.n_known == sim.layout.n_known
+    path = tmp_path / f"circle{suffix}"
+    other.simulate({"u": RING0["x"], "v": RING0["y"], "lambda": [0.0]}, 3,
+                   {"h": 0.01}).save(path)
+    with pytest.raises(sg.TrajectoryFileError,
+                       match=r"another system's trajectory: state column 0 is 'u \(step "
+                             r"k-1\)' where this system has 'x \(step k-1\)'"):
+        sg.Trajectory.load(path, sim, params={"h": 0.01})
+
+
+def test_loading_never_runs_code_and_refuses_damaged_files(tmp_path):
+    sim = _ring("ring").euler_lagrange().compile(backend="numpy")
+    good = tmp_path / "good.npz"
+    sim.simulate(RING0, 3, {"h": 0.01}).save(good)
+    with np.load(good) as archive:
+        arrays = dict(archive)
+    evil = tmp_path / "evil.npz"
+    np.savez(evil, **{**arrays, "states": np.array([object()] * 5, dtype=object)})
+    with pytest.raises(sg.TrajectoryFileError, match="cannot be read"):
+        sg.Trajectory.load(evil, sim)
+    for name, change in {"short": {"step_indices": arrays["step_indices"][:-1]},
+                         "nan": {"states": arrays["states"] * np.nan},
+                         "columns": {"columns": np.array([1, 2, 3, 4, 5])},
+                         "parameters": {"parameter_names": np.array(["k"])}}.items():
+        bad = tmp_path / f"{name}.npz"
+        np.savez(bad, **{**arrays, **change})
+        with pytest.raises(sg.TrajectoryFileError, match="bad|disagree|non-finite|strings|"
+                                                        "another system"):
+            sg.Trajectory.load(bad, sim)
+    (tmp_path / "junk.npz").write_bytes(b"not a zip")
+    with pytest.raises(sg.TrajectoryFileError, match="cannot be read as .npz"):
+        sg.Trajectory.load(tmp_path / "junk.npz", sim)
+    with pytest.raises(sg.TrajectoryFileError, match="no such file"):
+        sg.Trajectory.load(tmp_path / "absent.npz", sim)
+    with pytest.raises(sg.InputTypeError, match="Simulator or the step equations"):
+        sg.Trajectory.load(good, "ring")
+
+
+def test_simulate_initial_refuses_another_systems_trajectory(tmp_path, capsys):
+    from symgroupoid.cli import main
+
+    ring = tmp_path / "ring.py"
+    ring.write_text("import math\nimport sympy as sp\nimport symgroupoid as sg\n"
+                    "h = sp.Symbol('h', positive=True)\n"
+                    "def system(names='x y', name='ring'):\n"
+                    "    G = sg.PairGroupoid(sg.EuclideanSpace(names))\n"
+                    "    L = lambda g: sum((b - a) ** 2 for a, b in zip(g.source, g.target))"
+                    " / (2 * h)\n"
+                    "    phi = lambda g: [sum(b ** 2 - a ** 2 for a, b in zip(g.source, "
+                    "g.target)) / 2]\n"
+                    "    return sg.DiscreteSystem(G, L, constraints=phi, parameters=[h], "
+                    "name=name)\n"
+                    "SYSTEM = system()\nPARAMS = {'h': 0.01}\n"
+                    "INITIAL = {'x': [1.0, math.cos(0.01)], 'y': [0.0, math.sin(0.01)], "
+                    "'lambda': [0.0]}\n")
+    circle = tmp_path / "circle.py"
+    circle.write_text(ring.read_text().replace("SYSTEM = system()", "SYSTEM = system('u v', "
+                                                                    "'circle')")
+                      .replace("'x':", "'u':").replace("'y':", "'v':"))
+    out = tmp_path / "circle.npz"
+    assert main(["simulate", str(circle), "--steps", "3", "--backend", "numpy", "-o",
+                 str(out)]) == 0
+    capsys.readouterr()
+    code = main(["simulate", str(ring), "--steps", "3", "--backend", "numpy", "--initial",
+                 str(out)])
+    err = capsys.readouterr().err
+    assert code == 1 and "another system's trajectory" in err and "--initial" in err
+    mine = tmp_path / "ring.npz"
+    assert main(["simulate", str(ring), "--steps", "3", "--backend", "numpy", "-o",
+                 str(mine)]) == 0
+    assert main(["simulate", str(ring), "--steps", "3", "--backend", "numpy", "--initial",
+                 str(mine)]) == 0
+
+
+def test_a_zero_dimensional_array_is_not_a_configuration_of_a_product():
+    from symgroupoid.runtime._validate import configuration
+
+    G = sg.PairGroupoid(sg.EuclideanSpace("x")) * sg.SO3("g")
+    with pytest.raises(sg.ShapeError, match="start must be a configuration .* got ndarray"):
+        configuration(G, np.array(2.0), "start")

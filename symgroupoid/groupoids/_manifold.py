@@ -94,6 +94,16 @@ class Manifold(ABC):
         """Chart coordinates (around q1) of the configuration after q0, q1 at constant
         velocity: the first Newton guess of a step."""
 
+    def stacked_points(self, coords: np.ndarray):
+        """The points with the coordinates of the rows of ``coords`` (N, coords_dim), as
+        arrays: Rⁿ (N, n); a matrix group (N, n, n); a product a tuple per factor."""
+        return np.asarray(coords, float)
+
+    def body_to_spatial(self, momenta: np.ndarray, coords: np.ndarray) -> np.ndarray:
+        """Momenta (N, dim) in the dual of the basis of :meth:`curves` at the points
+        ``coords`` (N, coords_dim), in the spatial frame (Rⁿ: as they are)."""
+        return np.asarray(momenta, float)
+
     def increments(self, q0: Sequence, q1: Sequence) -> list:
         """(part name, group, numeric matrix) of each group increment q0⁻¹q1 whose
         retraction coordinates the chart takes (none on Rⁿ); see
@@ -204,6 +214,13 @@ class GroupManifold(Manifold):
     def predict(self, q0, q1):
         """The increment repeats: q_{k+1} = q_k q_{k−1}⁻¹ q_k, i.e. x = τ⁻¹(q_{k−1}⁻¹q_k)."""
         return self.chart_inverse(q0, q1)
+
+    def stacked_points(self, coords):
+        return self.group.numeric_matrices(coords)
+
+    def body_to_spatial(self, momenta, coords):
+        """The basis curves q·τ(tE_a) move q on the right: body momenta, Ad*_{q⁻¹}μ."""
+        return self.group.body_to_spatial(momenta, self.group.numeric_matrices(coords))
 
     def increments(self, q0, q1):
         G = self.group
@@ -326,6 +343,17 @@ class ProductManifold(Manifold):
 
     def predict(self, q0, q1):
         return self._pointwise("predict", q0, q1, self._coords)
+
+    def stacked_points(self, coords):
+        coords = np.asarray(coords, float)
+        return tuple(f.stacked_points(coords[:, lo:hi])
+                     for f, (lo, hi) in zip(self.factors, self._coords))
+
+    def body_to_spatial(self, momenta, coords):
+        momenta, coords = np.asarray(momenta, float), np.asarray(coords, float)
+        return np.hstack([f.body_to_spatial(momenta[:, a:b], coords[:, lo:hi])
+                          for f, (lo, hi), (a, b) in zip(self.factors, self._coords,
+                                                         self._charts)])
 
     def increments(self, q0, q1):
         parts = zip(self.factors, self._split(q0, self._coords), self._split(q1, self._coords))

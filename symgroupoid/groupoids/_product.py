@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from itertools import accumulate
 
+import numpy as np
+
 from .._arguments import instance_argument
 from .._errors import CoordinateNameError, ShapeError
 from ._base import Arrow, Groupoid
@@ -148,6 +150,21 @@ class ProductGroupoid(Groupoid):
     def arrow_between(self, c0, c1):
         """Configurations are tuples with one configuration per factor."""
         return sum((tuple(f.arrow_between(a, b)) for f, a, b in zip(self.factors, c0, c1)), ())
+
+    def configurations_along(self, arrows, start=None):
+        """One entry per factor (``start``: None, or one entry per factor, None where the
+        factor's arrows determine it)."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        starts = [None] * len(self.factors) if start is None else list(start)
+        return tuple(f.configurations_along(arrows[:, lo:hi], s)
+                     for f, (lo, hi), s in zip(self.factors, self._arrow_slices, starts))
+
+    def spatial_momenta(self, momenta, arrows, start=None):
+        arrows, momenta = np.asarray(arrows, float), np.asarray(momenta, float)
+        starts = [None] * len(self.factors) if start is None else list(start)
+        return np.hstack([f.spatial_momenta(momenta[:, a:b], arrows[:, lo:hi], s)
+                          for f, (lo, hi), (a, b), s in zip(self.factors, self._arrow_slices,
+                                                            self._chart_slices, starts)])
 
     def increments(self, a):
         parts = self._parts(a, self._arrow_slices)

@@ -119,12 +119,12 @@ def _parameter_screen(names: tuple, test: Callable | None, used: np.ndarray | No
                 values = tuple([params[name] for name in names])
             except KeyError:
                 return None
+            for v in values:  # Python numbers only (hashable; anything else: checked path)
+                if type(v) is not float and type(v) is not int:
+                    return None
             known = by_values.get(values)
             if known is not None:
                 return known
-            for v in values:
-                if type(v) is not float and type(v) is not int:
-                    return None
             try:
                 p = np.array(values, dtype=float)
             except OverflowError:

@@ -342,7 +342,8 @@ def point(value, dim: int, name: str, *, owner: str = "") -> tuple:
 def _pieces(value, count: int, name: str, what: str, owner: str) -> tuple:
     """``value`` as a tuple of ``count`` pieces (a configuration of a composite groupoid)."""
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence,
-                                                                          np.ndarray)):
+                                                                          np.ndarray)) \
+            or (isinstance(value, np.ndarray) and value.ndim == 0):
         raise ShapeError(f"{_where(owner)}{name} must be {what}, got {type(value).__name__}")
     if len(value) != count:
         raise ShapeError(f"{_where(owner)}{name} must be {what}: {count} parts, got "
@@ -383,6 +384,30 @@ def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
         raise ShapeError(f"{_where(owner)}{groupoid.name} has no configuration space "
                          f"(arrow_between), so {name} cannot be given as a configuration")
     return value
+
+
+def partial_configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
+    """A first configuration for :meth:`Groupoid.configurations_along`, checked as
+    :func:`configuration` checks one, where None stands for a part the arrows determine
+    (or that defaults to the identity): None, or for a product one entry per factor, for an
+    action groupoid (p, R), for a time groupoid (t, c), each entry None or a configuration."""
+    if value is None:
+        return None
+    if isinstance(groupoid, ProductGroupoid):
+        parts = _pieces(value, len(groupoid.factors), name,
+                        f"a configuration of {groupoid.name}, one per factor (None for a "
+                        f"part the state determines)", owner)
+        return tuple(partial_configuration(f, c, f"{name}[{i}]", owner=owner)
+                     for i, (f, c) in enumerate(zip(groupoid.factors, parts)))
+    if isinstance(groupoid, ActionGroupoid):
+        p, R = _pieces(value, 2, name, f"a configuration (p, R) of {groupoid.name}", owner)
+        return (None if p is None else point(p, groupoid.base_dim, f"{name}[0]", owner=owner),
+                None if R is None else group_element(groupoid.group, R, f"{name}[1]",
+                                                     owner=owner))
+    if isinstance(groupoid, TimeGroupoid):
+        t, c = _pieces(value, 2, name, f"a configuration (t, c) of {groupoid.name}", owner)
+        return (None, partial_configuration(groupoid.inner, c, f"{name}[1]", owner=owner))
+    return configuration(groupoid, value, name, owner=owner)
 
 
 def _point_of(space, value, name: str, owner: str):
