@@ -455,3 +455,23 @@ def test_a_zero_dimensional_array_is_not_a_configuration_of_a_product():
     G = sg.PairGroupoid(sg.EuclideanSpace("x")) * sg.SO3("g")
     with pytest.raises(sg.ShapeError, match="start must be a configuration .* got ndarray"):
         configuration(G, np.array(2.0), "start")
+
+
+def test_a_batch_checks_and_rounds_group_parts_as_simulate_does():
+    from symgroupoid import systems
+
+    sim = systems.spherical_chain(1).euler_lagrange().compile(backend="numpy")
+    params = {"h": 0.01, "g": 9.81}
+    R = np.array(sg.SO3("R").numeric_tau([0.4, 0.3, 0.2]))
+    state = sim.from_momentum({"R1": R}, [0.2, -0.1, 0.3], params)
+    off = state.copy()
+    off[:9] *= 1.01  # R_{k-1} off SO(3): not a matrix part of the arrow, a group part still
+    with pytest.raises(sg.DomainError, match=r"initial state 1.*'R1'"):
+        sim.simulate_batch(np.array([state, off]), 2, params)
+    rounded = state.copy()
+    rounded[:18] = np.round(rounded[:18], 8)
+    with pytest.warns(sg.GroupRoundingWarning):
+        batch = sim.simulate_batch(np.array([state, rounded]), 2, params)
+    with pytest.warns(sg.GroupRoundingWarning):
+        alone = sim.simulate(rounded, 2, params)
+    assert np.array_equal(batch[1].states, alone.states)

@@ -171,8 +171,8 @@ class StateLayout:
     def rounded(self, state: np.ndarray) -> np.ndarray:
         """A flat state whose group parts are given to a few digits, with each replaced by
         the nearest element of its group (a warning says so; :func:`rounded_group_matrix`),
-        as named parts are; a part farther from its group is left to :meth:`check_arrows`
-        and :meth:`check_groups`."""
+        as named parts are; a part farther from its group is left to :meth:`check_arrows`,
+        which reports it."""
         out = state
         for part in self.parts.values():
             if part.group is None:
