@@ -86,6 +86,8 @@ extern "C" {
 #define HEAVY_TOP_NOT_CONVERGED 2
 #define HEAVY_TOP_NON_FINITE 3
 #define HEAVY_TOP_INVALID_ARGUMENT 4
+#define HEAVY_TOP_STALLED 5
+#define HEAVY_TOP_BRANCH_JUMP 6
 
 typedef struct {
     double tol_residual;
@@ -93,6 +95,7 @@ typedef struct {
     double tol_step;
     int max_iterations;
     int extrapolate;
+    double trust_factor;
 } heavy_top_options;
 
 typedef struct {
@@ -107,6 +110,7 @@ void heavy_top_default_options(heavy_top_options *options);
 void heavy_top_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F);
 void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
+void heavy_top_residual_scale(const double *u, const double *known, const double *p, double *S);
 void heavy_top_predict(const double *known, const double *p, double *u);
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int heavy_top_solve_step(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm);

@@ -6,12 +6,12 @@
  * Residuals, 0 = F_i:
  *   F[0]: 0 = - \frac{\Omega h (\lambda_{k+1})_{1}}{2} - (\lambda_{k+1})_{2} - \frac{\Omega h (\lambda_{k})_{1}}{2} + (\lambda_{k})_{2} - \frac{x_{k+1}}{h} - \frac{x_{k-1}}{h} + \frac{2 x_{k}}{h}
  *   F[1]: 0 = - (\lambda_{k+1})_{1} + \frac{\Omega h (\lambda_{k+1})_{2}}{2} + (\lambda_{k})_{1} + \frac{\Omega h (\lambda_{k})_{2}}{2} - \frac{y_{k+1}}{h} - \frac{y_{k-1}}{h} + \frac{2 y_{k}}{h}
- *   F[2]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}\left(E_{1} g_{k+1} E_{1}\right) - r (\lambda_{k+1})_{2} \operatorname{tr}\left(E_{1} g_{k+1} E_{2}\right) - (\lambda_{k+1})_{3} \operatorname{tr}\left(E_{1} g_{k+1} E_{3}\right) - r (\lambda_{k})_{1} \operatorname{tr}\left(g_{k} E_{1}^{2}\right) + r (\lambda_{k})_{2} \operatorname{tr}\left(g_{k} E_{1} E_{2}\right) + (\lambda_{k})_{3} \operatorname{tr}\left(g_{k} E_{1} E_{3}\right)}{2}
- *   F[3]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}\left(E_{2} g_{k+1} E_{1}\right) - r (\lambda_{k+1})_{2} \operatorname{tr}\left(E_{2} g_{k+1} E_{2}\right) - (\lambda_{k+1})_{3} \operatorname{tr}\left(E_{2} g_{k+1} E_{3}\right) - r (\lambda_{k})_{1} \operatorname{tr}\left(g_{k} E_{2} E_{1}\right) + r (\lambda_{k})_{2} \operatorname{tr}\left(g_{k} E_{2}^{2}\right) + (\lambda_{k})_{3} \operatorname{tr}\left(g_{k} E_{2} E_{3}\right)}{2}
- *   F[4]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}\left(E_{3} g_{k+1} E_{1}\right) - r (\lambda_{k+1})_{2} \operatorname{tr}\left(E_{3} g_{k+1} E_{2}\right) - (\lambda_{k+1})_{3} \operatorname{tr}\left(E_{3} g_{k+1} E_{3}\right) - r (\lambda_{k})_{1} \operatorname{tr}\left(g_{k} E_{3} E_{1}\right) + r (\lambda_{k})_{2} \operatorname{tr}\left(g_{k} E_{3} E_{2}\right) + (\lambda_{k})_{3} \operatorname{tr}\left(g_{k} E_{3}^{2}\right)}{2}
- *   F[5]: 0 = - \frac{\Omega h x_{k+1}}{2} - \frac{\Omega h x_{k}}{2} + y_{k+1} - y_{k} - \frac{r \operatorname{tr}\left(g_{k+1} E_{1}\right)}{2}
- *   F[6]: 0 = x_{k+1} - x_{k} + \frac{\Omega h y_{k+1}}{2} + \frac{\Omega h y_{k}}{2} + \frac{r \operatorname{tr}\left(g_{k+1} E_{2}\right)}{2}
- *   F[7]: 0 = c h + \frac{\operatorname{tr}\left(g_{k+1} E_{3}\right)}{2}
+ *   F[2]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}(E_{1} g_{k+1} E_{1}) - r (\lambda_{k+1})_{2} \operatorname{tr}(E_{1} g_{k+1} E_{2}) - (\lambda_{k+1})_{3} \operatorname{tr}(E_{1} g_{k+1} E_{3}) - r (\lambda_{k})_{1} \operatorname{tr}(g_{k} E_{1}^{2}) + r (\lambda_{k})_{2} \operatorname{tr}(g_{k} E_{1} E_{2}) + (\lambda_{k})_{3} \operatorname{tr}(g_{k} E_{1} E_{3})}{2}
+ *   F[3]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}(E_{2} g_{k+1} E_{1}) - r (\lambda_{k+1})_{2} \operatorname{tr}(E_{2} g_{k+1} E_{2}) - (\lambda_{k+1})_{3} \operatorname{tr}(E_{2} g_{k+1} E_{3}) - r (\lambda_{k})_{1} \operatorname{tr}(g_{k} E_{2} E_{1}) + r (\lambda_{k})_{2} \operatorname{tr}(g_{k} E_{2}^{2}) + (\lambda_{k})_{3} \operatorname{tr}(g_{k} E_{2} E_{3})}{2}
+ *   F[4]: 0 = \frac{r (\lambda_{k+1})_{1} \operatorname{tr}(E_{3} g_{k+1} E_{1}) - r (\lambda_{k+1})_{2} \operatorname{tr}(E_{3} g_{k+1} E_{2}) - (\lambda_{k+1})_{3} \operatorname{tr}(E_{3} g_{k+1} E_{3}) - r (\lambda_{k})_{1} \operatorname{tr}(g_{k} E_{3} E_{1}) + r (\lambda_{k})_{2} \operatorname{tr}(g_{k} E_{3} E_{2}) + (\lambda_{k})_{3} \operatorname{tr}(g_{k} E_{3}^{2})}{2}
+ *   F[5]: 0 = - \frac{\Omega h x_{k+1}}{2} - \frac{\Omega h x_{k}}{2} + y_{k+1} - y_{k} - \frac{r \operatorname{tr}(g_{k+1} E_{1})}{2}
+ *   F[6]: 0 = x_{k+1} - x_{k} + \frac{\Omega h y_{k+1}}{2} + \frac{\Omega h y_{k}}{2} + \frac{r \operatorname{tr}(g_{k+1} E_{2})}{2}
+ *   F[7]: 0 = c h + \frac{\operatorname{tr}(g_{k+1} E_{3})}{2}
  */
 #include "plate_ball.h"
 
@@ -416,6 +416,79 @@ void plate_ball_residual_jacobian(const double *u, const double *known, const do
     J[63] = 0.0;
 }
 
+/* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
+ * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
+ * rounding noise of F_i, the floor below which Newton cannot bring it */
+
+void plate_ball_residual_scale(const double *u, const double *known, const double *p, double *S)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    const double t0 = 4.0 + u[4]*u[4] + u[3]*u[3] + u[2]*u[2];
+    const double t1 = 1.0/p[0];
+    const double t2 = -known[3];
+    const double t3 = -known[2];
+    const double t4 = p[0]*known[14];
+    const double t5 = 0.5*p[2];
+    const double t6 = p[0]*known[13];
+    const double t7 = p[0]*1.0/(p[0]*p[0]);
+    const double t8 = t5*t4 - (-t1*t6 + t7*(known[1] + t2));
+    const double t9 = -t1*t4 + t7*(known[0] + t3) + t5*t6;
+    const double t10 = t1*0.5;
+    const double t11 = t10*p[0]*known[15];
+    const double t12 = t10*p[1];
+    const double t13 = t12*t4;
+    const double t14 = t12*t6;
+    const double t15 = fabs(p[0]);
+    const double t16 = fabs(p[2]);
+    const double t17 = fabs(u[0]);
+    const double t18 = fabs(u[1]);
+    const double t19 = fabs(u[2]);
+    const double t20 = fabs(u[3]);
+    const double t21 = fabs(u[4]);
+    const double t22 = t20*t20 + t19*t19 + (4.0 + t21*t21);
+    const double t23 = t22*fabs(-1.0/(t0*t0)) + fabs(1.0/t0);
+    const double t24 = t22*t23;
+    const double t25 = t19*t20 + 2.0*t21;
+    const double t26 = t19*t21 + 2.0*t20;
+    const double t27 = t20*t21 + 2.0*t19;
+    const double t28 = fabs(t1);
+    const double t29 = fabs(t5);
+    const double t30 = fabs(t7);
+    const double t31 = fabs(t10);
+    const double t32 = fabs(t12);
+    const double t33 = t18 + fabs(t2);
+    const double t34 = t17 + fabs(t3);
+    const double t35 = t15*fabs(u[7]);
+    const double t36 = t15*fabs(u[6]);
+    const double t37 = t15*fabs(u[5]);
+    const double t38 = t23*t28;
+    const double t39 = t23*t32;
+    const double t40 = fabs(p[1])*t23*t28;
+    const double t41 = t36*t40;
+    const double t42 = t37*t40;
+    const double t43 = fabs(t13*known[4] - t11*known[9] + t14*known[7] + t13*known[12]);
+    const double t44 = fabs(t11*known[4] + t11*known[8] - t13*known[11] + t14*known[10]);
+    const double t45 = t22*t35*t23*t31 + t27*t41 + t24*t31*t35 + t26*t42;
+    const double t46 = t15*(4.0*t23*t27*t32 + t29*(t17 + fabs(known[2])) + t28*t33);
+    const double t47 = t15*(t28*t34 + 4.0*t23*t26*t32 + t29*(t18 + fabs(known[3])));
+    const double t48 = t15*(fabs(p[3]) + 4.0*t23*t25*t31);
+    const double t49 = fabs(t9) + (t28*t36 + t30*t34 + 0.5*t16*t37);
+    const double t50 = fabs(t8) + (0.5*t16*t36 + (t28*t37 + t30*t33));
+    const double t51 = fabs(t11*known[6] + t13*known[5] + t14*known[8] + t14*known[12]) + (t26*t35*t38 + t25*t41 + 2.0*t22*t37*t39);
+    const double t52 = t43 + (t27*t35*t38 + t25*t42 + t22*t36*t39 + t24*t32*t36);
+    const double t53 = t44 + t45;
+    S[0] = t49;
+    S[1] = t50;
+    S[2] = t51;
+    S[3] = t52;
+    S[4] = t53;
+    S[5] = t46;
+    S[6] = t47;
+    S[7] = t48;
+}
+
 /* first Newton guess for u from the known state */
 
 void plate_ball_predict(const double *known, const double *p, double *u)
@@ -492,6 +565,7 @@ void plate_ball_default_options(plate_ball_options *options)
     options->tol_step = 1e-16;
     options->max_iterations = 50;
     options->extrapolate = 1;
+    options->trust_factor = 10.0;
 }
 
 /* The small helpers of the stepper are declared inline, so that a build at -O1 (a small
@@ -846,11 +920,30 @@ static int plate_ball_at_floor(const double *u, const double *known, const doubl
     return 1;
 }
 
-/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0 */
+/* 1 when every |F_i| <= factor DBL_EPSILON S_i, S_i the size of the terms F_i is computed
+ * from (plate_ball_residual_scale): F is within the rounding noise of its own evaluation, as
+ * when a residual written in increments (x_{k+1} - x_k)/h is evaluated at positions far
+ * from the origin, whose rounding no move of the (small) unknowns can undo */
+static int plate_ball_within_scale(const double *u, const double *known, const double *p, const double *F, double factor)
+{
+    double S[PLATE_BALL_N_EQUATIONS];
+    int i;
+    plate_ball_residual_scale(u, known, p, S);
+    for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * DBL_EPSILON * S[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* 1 when the options are usable: tolerances >= 0 (not NaN), max_iterations >= 0, a finite
+ * trust_factor >= 0 */
 static int plate_ball_options_valid(const plate_ball_options *options)
 {
     return options->max_iterations >= 0 && options->tol_residual >= 0.0
-           && options->floor_factor >= 0.0 && options->tol_step >= 0.0;
+           && options->floor_factor >= 0.0 && options->tol_step >= 0.0
+           && options->trust_factor >= 0.0 && options->trust_factor < INFINITY;
 }
 
 /* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
@@ -906,14 +999,19 @@ static inline int plate_ball_above_rounding(const double *d, const double *u, do
  *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
  *    move of the unknowns (plate_ball_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
  *    Newton has stalled on rounding noise;
+ *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
+ *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
+ *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
+ *    (plate_ball_within_scale): the residual is within the rounding of its own evaluation, which
+ *    the unknowns cannot undo (large knowns: positions far from the origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (plate_ball_explained_by_rounding).
- * Not converged (PLATE_BALL_NOT_CONVERGED): after max_iterations updates, or when the update is
- * that rounding noise but the residual is not explained by it: Newton cannot improve the
- * iterate.
+ * Not converged: PLATE_BALL_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * PLATE_BALL_STALLED when the update is that rounding noise but the residual is above every
+ * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
 static int plate_ball_newton(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
@@ -922,9 +1020,11 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
     double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], uJ[PLATE_BALL_N_UNKNOWNS];
     plate_ball_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, done = 0, polish = 0;
+    int it, i, status, slow, noise, done = 0, polish = 0;
+    int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
+        int here = 0; /* J factored at this iterate */
         if (it == 0) {
             plate_ball_residual_jacobian(u, known, p, F, J);
         } else {
@@ -955,6 +1055,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
                 if (status != PLATE_BALL_OK) {
                     return status;
                 }
+                here = 1;
             }
             if (rnorm <= options->tol_residual) {
                 return PLATE_BALL_OK;
@@ -965,9 +1066,13 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
                 if (plate_ball_at_floor(u, known, p, F, C, options->floor_factor)) {
                     return PLATE_BALL_OK;
                 }
-                if (last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(lu.inv)) {
+                noise = last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(lu.inv);
+                if ((fresh || noise) && plate_ball_within_scale(u, known, p, F, options->floor_factor)) {
+                    return PLATE_BALL_OK; /* at the rounding of the residual's own terms */
+                }
+                if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */
-                    return plate_ball_explained_by_rounding(F, J, u, uJ, &lu) ? PLATE_BALL_OK : PLATE_BALL_NOT_CONVERGED;
+                    return plate_ball_explained_by_rounding(F, J, u, uJ, &lu) ? PLATE_BALL_OK : PLATE_BALL_STALLED;
                 }
             }
             if (it >= options->max_iterations) {
@@ -980,9 +1085,11 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
                 if (status != PLATE_BALL_OK) {
                     return status;
                 }
+                here = 1;
             }
         }
         previous = rnorm;
+        fresh = here;
         status = plate_ball_lu_apply(&lu, F);
         if (status != PLATE_BALL_OK) {
             return polish ? PLATE_BALL_OK : status;
@@ -1074,6 +1181,42 @@ static void plate_ball_extrapolate(const plate_ball_warm_start *warm, double *u)
     }
 }
 
+/* The least motion the trust region of a step allows for (relative to each unknown; see
+ * plate_ball_trusted): a run at rest may still be set moving */
+#define PLATE_BALL_TRUST_FLOOR 1e-2
+
+/* 1 when the solution u of a step lies in the trust region of its extrapolated guess (or
+ * the check is off, factor = 0, or the warm start holds fewer than three solutions):
+ * |u - guess| <= factor (m + PLATE_BALL_TRUST_FLOOR), |d| = max_j |d_j| / (1 + |u_last,j|)
+ * (plate_ball_relative_norm at the last solution) and m the larger of the last two steps'
+ * motions |u_last - u_before| and |u_before - u_earlier| (checked from the fourth step of a
+ * run on: one motion alone can be a small one of an oscillation).  Extrapolation from smooth
+ * motion misses the next solution by a fraction of a step's motion (at most twice the larger
+ * of two motions for an oscillation of two to six steps a period); a solution much farther
+ * away belongs to another branch
+ * of the step equations, reached when the nearby root has disappeared (a fold of the step
+ * map: the step h no longer resolves the motion). */
+static int plate_ball_trusted(const plate_ball_warm_start *warm, const double *guess, const double *u, double factor)
+{
+    double d[PLATE_BALL_N_UNKNOWNS], m, m2;
+    int i;
+    if (!(factor > 0.0) || warm->count < 3) {
+        return 1;
+    }
+    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
+        d[i] = warm->u_last[i] - warm->u_before[i];
+    }
+    m = plate_ball_relative_norm(d, warm->u_last);
+    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
+        d[i] = warm->u_before[i] - warm->u_earlier[i];
+    }
+    m2 = plate_ball_relative_norm(d, warm->u_last);
+    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
+        d[i] = u[i] - guess[i];
+    }
+    return plate_ball_relative_norm(d, warm->u_last) <= factor * ((m > m2 ? m : m2) + PLATE_BALL_TRUST_FLOOR);
+}
+
 /* Adds the solution u of a step to the warm start.  When it held three solutions, the next
  * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
  * guessed u more closely than the linear one (plate_ball_relative_norm of the errors).  Smooth
@@ -1109,7 +1252,9 @@ static void plate_ball_remember(const double *u, plate_ball_warm_start *warm)
  * warm start holds the solutions of at least the last two steps, their extrapolation
  * (plate_ball_extrapolate: linear, u ~ 2 u_last - u_before, or quadratic, chosen by hindsight in
  * plate_ball_remember; chart coordinates and multipliers of consecutive steps), falling back to
- * plate_ball_predict if Newton fails from there (iterations[k] counts both tries).
+ * plate_ball_predict if Newton fails from there or its solution lies outside the guess's trust
+ * region (plate_ball_trusted; iterations[k] counts both tries): a solution from either try
+ * outside that region ends the run with PLATE_BALL_BRANCH_JUMP.
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -1146,21 +1291,36 @@ int plate_ball_simulate(const double *known0, const double *p, long n_steps, con
     for (k = 0; k < n_steps; ++k) {
         const double *current = states + (size_t)k * PLATE_BALL_N_KNOWNS;
         double next[PLATE_BALL_N_KNOWNS];
-        double u[PLATE_BALL_N_UNKNOWNS];
+        double u[PLATE_BALL_N_UNKNOWNS], guess[PLATE_BALL_N_UNKNOWNS];
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
         if (extrapolated) {
-            plate_ball_extrapolate(warm, u);
+            plate_ball_extrapolate(warm, guess);
+            memcpy(u, guess, sizeof u);
         } else {
             plate_ball_predict(current, p, u);
         }
         status = plate_ball_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
-        if (status != PLATE_BALL_OK && extrapolated) {
-            /* the extrapolated guess failed: retry from the prediction */
-            int more = 0;
-            plate_ball_predict(current, p, u);
-            status = plate_ball_newton(current, p, options, u, &more, &residual_norms[k]);
-            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+        if (extrapolated) {
+            /* a solution far outside the trust region of the guess: another branch */
+            const int jumped = status == PLATE_BALL_OK && !plate_ball_trusted(warm, guess, u, options->trust_factor);
+            if (status != PLATE_BALL_OK || jumped) {
+                /* the extrapolated guess failed or led far away: retry from the prediction */
+                double far[PLATE_BALL_N_UNKNOWNS];
+                const double far_norm = residual_norms[k];
+                int more = 0;
+                memcpy(far, u, sizeof far);
+                plate_ball_predict(current, p, u);
+                status = plate_ball_newton(current, p, options, u, &more, &residual_norms[k]);
+                iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+                if (status != PLATE_BALL_OK && jumped) { /* report the far solution */
+                    memcpy(u, far, sizeof far);
+                    residual_norms[k] = far_norm;
+                }
+                if (status == PLATE_BALL_OK ? !plate_ball_trusted(warm, guess, u, options->trust_factor) : jumped) {
+                    status = PLATE_BALL_BRANCH_JUMP;
+                }
+            }
         }
         if (status == PLATE_BALL_OK) {
             plate_ball_next_knowns(u, current, p, next);
@@ -1358,11 +1518,15 @@ const char *plate_ball_status_message(int status)
     case PLATE_BALL_SINGULAR_JACOBIAN:
         return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
     case PLATE_BALL_NOT_CONVERGED:
-        return "Newton's method reached the iteration cap without converging";
+        return "Newton's method reached its iteration cap (max_iterations updates) without converging";
     case PLATE_BALL_NON_FINITE:
         return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case PLATE_BALL_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
+    case PLATE_BALL_STALLED:
+        return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
+    case PLATE_BALL_BRANCH_JUMP:
+        return "branch jump: the step's solution lies far outside the region the last steps predict (the nearby root of the step equations has disappeared; reduce the step)";
     default:
         return "unknown status";
     }

@@ -94,6 +94,8 @@ extern "C" {
 #define PLATE_BALL_NOT_CONVERGED 2
 #define PLATE_BALL_NON_FINITE 3
 #define PLATE_BALL_INVALID_ARGUMENT 4
+#define PLATE_BALL_STALLED 5
+#define PLATE_BALL_BRANCH_JUMP 6
 
 typedef struct {
     double tol_residual;
@@ -101,6 +103,7 @@ typedef struct {
     double tol_step;
     int max_iterations;
     int extrapolate;
+    double trust_factor;
 } plate_ball_options;
 
 typedef struct {
@@ -115,6 +118,7 @@ void plate_ball_default_options(plate_ball_options *options);
 void plate_ball_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void plate_ball_residual(const double *u, const double *known, const double *p, double *F);
 void plate_ball_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
+void plate_ball_residual_scale(const double *u, const double *known, const double *p, double *S);
 void plate_ball_predict(const double *known, const double *p, double *u);
 void plate_ball_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int plate_ball_solve_step(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm);

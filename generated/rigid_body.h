@@ -82,6 +82,8 @@ extern "C" {
 #define RIGID_BODY_NOT_CONVERGED 2
 #define RIGID_BODY_NON_FINITE 3
 #define RIGID_BODY_INVALID_ARGUMENT 4
+#define RIGID_BODY_STALLED 5
+#define RIGID_BODY_BRANCH_JUMP 6
 
 typedef struct {
     double tol_residual;
@@ -89,6 +91,7 @@ typedef struct {
     double tol_step;
     int max_iterations;
     int extrapolate;
+    double trust_factor;
 } rigid_body_options;
 
 typedef struct {
@@ -103,6 +106,7 @@ void rigid_body_default_options(rigid_body_options *options);
 void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F);
 void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
+void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S);
 void rigid_body_predict(const double *known, const double *p, double *u);
 void rigid_body_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int rigid_body_solve_step(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm);

@@ -8,6 +8,7 @@ their Lie–Poisson form, exact Jacobians, LaTeX and C kernels.
 from ._errors import (
     AxiomError,
     BoundaryValueDivergenceError,
+    BranchJumpError,
     CacheError,
     CallableError,
     CoordinateNameError,
@@ -45,6 +46,7 @@ from .equations import (
     StepEquations,
     latex,
 )
+from .equations._printing import UnusedAbbreviationWarning
 from .equations._reduced import ReducedSystem, check_system_morphism
 from .groupoids import (
     SE2,
@@ -95,7 +97,8 @@ __all__ = [
     "CacheError", "CallableError", "CompilationError", "CoordinateNameError", "DefinedGroupoid",
     "DegenerateSystemError", "DiscreteSystem", "EuclideanSpace", "Groupoid", "GroupoidMorphism",
     "InputTypeError", "InvalidExpressionError", "LegendreTransforms", "LiePoissonEquations",
-    "MatrixLieGroup", "MorphismError", "NamedMatrix", "NewtonDivergenceError", "NewtonOptions",
+    "MatrixLieGroup", "MorphismError", "NamedMatrix", "NewtonDivergenceError",
+    "BranchJumpError", "NewtonOptions",
     "NoetherQuantity", "NonholonomicSystem", "NotComposableError", "OutputError", "PairGroupoid",
     "TrivialisedPairGroupoid",
     "ParameterDeclarationError", "ParameterError", "ProductGroupoid", "ReconstructionError",
@@ -105,6 +108,7 @@ __all__ = [
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
     "UnsupportedFeatureError", "BoundaryValueDivergenceError", "CutLocusError", "DomainError",
     "InputNameError", "CutLocusStepError", "GroupRoundingWarning", "TrajectoryFileError",
+    "UnusedAbbreviationWarning",
     "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "diagnostics",
     "emit_c", "hat3", "latex", "left_derivative", "plot_conservation", "plot_trajectory",
     "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",

@@ -49,6 +49,14 @@ class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
         self.iterate = iterate
 
 
+class BranchJumpError(NewtonDivergenceError):
+    """A step's solution lies far outside the trust region of its guess, which the last
+    steps' motion sets (``NewtonOptions.trust_factor``): the root of the step equations near
+    the motion so far has disappeared (a fold of the step map: the step size no longer
+    resolves the motion) and Newton converged to a root on another branch.  The run stops
+    there, with ``err.trajectory`` up to the step before."""
+
+
 class CacheError(SymgroupoidError, RuntimeError):
     """The kernel cache cannot be used: a lock timed out, or a kernel stays unloadable.
 

@@ -188,7 +188,8 @@ def parameter_sets(draw, case: Case):
     return draw(junk()), ["parameter", "parameters"]
 
 
-OPTION_FIELDS = ["tol_residual", "tol_step", "max_iterations", "floor_factor", "extrapolate"]
+OPTION_FIELDS = ["tol_residual", "tol_step", "max_iterations", "floor_factor", "extrapolate",
+                 "trust_factor"]
 
 
 @st.composite

@@ -146,8 +146,9 @@ def test_derive_document_and_pdf(files, tmp_path, capsys, monkeypatch):
 
     tools = tmp_path / "tools"
     tools.mkdir()
-    fake = tools / "pdflatex"  # writes NAME.pdf for its last argument NAME.tex
-    fake.write_text('#!/bin/sh\nfor last; do :; done\nprintf %%PDF > "${last%.tex}.pdf"\n')
+    fake = tools / "pdflatex"  # writes NAME.pdf and an empty NAME.log for its last argument
+    fake.write_text('#!/bin/sh\nfor last; do :; done\nprintf %%PDF > "${last%.tex}.pdf"\n'
+                    ': > "${last%.tex}.log"\n')
     fake.chmod(0o755)
     monkeypatch.setenv("PATH", str(tools))
     code, out, _ = run(capsys, "derive", files / "ring.py", "--document", tex, "--pdf")
@@ -276,6 +277,33 @@ def test_counts_and_parameters_follow_the_library_rules(files, tmp_path, cached,
     # --params overrides the file's PARAMS by name: a larger step, the same circle
     code, out, _ = run(capsys, "simulate", ring, "--steps", 5, "--params", "h=0.02")
     assert code == 0 and "within rounding" in out
+
+
+@needs_cc
+def test_simulate_takes_the_newton_options(files, tmp_path, cached, capsys):
+    """--tol, --tol-residual, --max-iterations, --floor-factor, --trust-factor and
+    --no-extrapolate reach NewtonOptions; bad values are one-line errors naming the option,
+    refused before any work."""
+    ring = files / "ring.py"
+    for args, message in ((["--tol", "-1"], "--tol must be at least 0.0, got -1.0"),
+                          (["--trust-factor", "nan"], "--trust-factor must be finite"),
+                          (["--floor-factor", "x"], "--floor-factor: 'x' is not a number"),
+                          (["--max-iterations", "2.5"],
+                           "--max-iterations must be an integer, got 2.5")):
+        code, out, err = run(capsys, "simulate", ring, "--steps", 5, *args)
+        assert code == 1 and message in one_line_error(err), args
+        assert out == ""
+    code, out, err = run(capsys, "simulate", ring, "--steps", 50, "--max-iterations", 1)
+    assert code == 1 and "max_iterations=1)" in one_line_error(err)
+    code, out, _ = run(capsys, "simulate", ring, "--steps", 50, "--no-extrapolate",
+                       "--tol", "1e-12", "--tol-residual", "1e-10", "--trust-factor", "0",
+                       "--floor-factor", "4", "--max-iterations", "20",
+                       "-o", tmp_path / "t.npz")
+    assert code == 0 and "Newton iterations" in out  # (the loose tolerances show in |φ|)
+    plain = run(capsys, "simulate", ring, "--steps", 50, "-o", tmp_path / "u.npz")[1]
+    assert "Newton iterations" in plain
+    a, b = np.load(tmp_path / "t.npz"), np.load(tmp_path / "u.npz")
+    assert a["newton_iterations"].sum() != b["newton_iterations"].sum()  # the options applied
 
 
 def test_conservation_lines_report_nothing_without_diagnostics():

@@ -62,7 +62,7 @@ def test_emit_c_writes_header_and_source_with_name_count_and_latex(tmp_path):
     assert step.structured is not None  # the comments show the matrix form, as printed
     for i, r in enumerate(step.structured):
         assert f" *   F[{i}]: 0 = {sg.latex(r)}\n" in source
-    assert "\\operatorname{tr}\\left(g_{k} E_{1} E_{2}\\right)" in source
+    assert "\\operatorname{tr}(g_{k} E_{1} E_{2})" in source
     assert source.isascii() and header.isascii()
 
 

@@ -101,9 +101,11 @@ def test_the_kernel_of_three_linked_rigid_bodies_stays_small():
     """spherical_chain(3): 6728 operations before compaction and the shared residual parts,
     3503 with them (the C compiler's time is about proportional to both the operations and
     the statements); the bound leaves 15 % for legitimate changes and fails on a return to
-    the old size."""
+    the old size.  The cold unit is not counted: it holds the residual's scale (evaluated
+    only when a rounding floor is tested, compiled at a low level beside the others)."""
     kernel = _compile.step_kernel(systems.spherical_chain(3).euler_lagrange())
-    text = kernel.source + "".join(unit for _, unit in kernel.units)
+    text = kernel.source + "".join(unit for name, unit in kernel.units
+                                   if name not in kernel.cold)
     assert kernel_operations(text) <= 4000
 
 

@@ -362,7 +362,8 @@ def test_compile_step_arguments(run):
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["backend", "flags", "cache_dir", "tol_residual",
-                                           "tol_step", "max_iterations", "floor_factor"]))
+                                           "tol_step", "max_iterations", "floor_factor",
+                                           "trust_factor"]))
         value = data.draw(st.one_of(scalars, junk(), st.sampled_from(
             ["numpy", "c", "auto", "C", " numpy", "-O2", ["-O2"], [3], ["-O2", None],
              ["a\0b"], "a\0b"])))

@@ -86,15 +86,15 @@ def test_plate_ball_rotational_rows_read_as_in_seed(plate_ball_step):
     """Seed 000 §6.2 prints the rotational equations with tr(g_k E_i E_j), tr(E_i g_{k+1} E_j)."""
     tex = plate_ball_step.latex()
     assert tex.startswith("\\begin{align}") and tex.rstrip().endswith("\\end{align}")
-    lines = _formulas(tex)
-    assert len(lines) == 8
+    equations = _equations(tex)
+    assert len(equations) == 8
     for i in (1, 2, 3):
-        row = lines[1 + i]
-        assert f"\\operatorname{{tr}}\\left(g_{{k}} E_{{{i}}} E_{{{i % 3 + 1}}}\\right)" in row
+        row = equations[1 + i]
+        assert f"\\operatorname{{tr}}(g_{{k}} E_{{{i}}} E_{{{i % 3 + 1}}})" in row
         for j in (1, 2, 3):
-            assert f"\\operatorname{{tr}}\\left(E_{{{i}}} g_{{k+1}} E_{{{j}}}\\right)" in row
+            assert f"\\operatorname{{tr}}(E_{{{i}}} g_{{k+1}} E_{{{j}}})" in row
         assert "(g_{k})_{" not in row, "matrix part printed entrywise"
-    assert "\\operatorname{tr}\\left(g_{k+1} E_{3}\\right)" in lines[7]
+    assert "\\operatorname{tr}(g_{k+1} E_{3})" in equations[7]
 
 
 def test_matrix_form_equals_explicit_residuals(plate_ball_step, heavy_top_step):
@@ -108,7 +108,7 @@ def test_matrix_form_equals_explicit_residuals(plate_ball_step, heavy_top_step):
 
 def test_named_constant_matrix_prints_by_name(heavy_top_step):
     tex = heavy_top_step.latex()
-    assert "\\operatorname{tr}\\left(J_{d} W_{k} E_{1}\\right)" in tex
+    assert "\\operatorname{tr}(J_{d} W_{k} E_{1})" in tex
     assert "\\begin{matrix}" not in tex
 
 

@@ -150,11 +150,12 @@ def test_plate_ball_prints_as_in_seed_and_fits(plate_ball_latex):
     tex = plate_ball_latex
     assert "\\frac{x_{k+1} + x_{k-1} - 2 x_{k}}{h}" in tex
     assert "\\frac{\\Omega h}{2} \\left((\\lambda_{k+1})_{1} + (\\lambda_{k})_{1}\\right)" in tex
-    assert "r (\\lambda_{k})_{2} \\operatorname{tr}\\left(g_{k} E_{1} E_{2}\\right)" in tex
-    assert "r (\\lambda_{k+1})_{1} \\operatorname{tr}\\left(E_{2} g_{k+1} E_{1}\\right)" in tex
-    assert "c h + \\frac{\\operatorname{tr}\\left(g_{k+1} E_{3}\\right)}{2}" in tex
+    assert "r (\\lambda_{k})_{2} \\operatorname{tr}(g_{k} E_{1} E_{2})" in tex
+    assert "r (\\lambda_{k+1})_{1} \\operatorname{tr}(E_{2} g_{k+1} E_{1})" in tex
+    assert "c h + \\frac{\\operatorname{tr}(g_{k+1} E_{3})}{2}" in tex
     assert "\\intertext" not in tex and "(g_{k})_{" not in tex
-    assert tex.count("\\notag") == 0 and len(_lines(tex)) == 8
+    # the three rotational rows take two lines each on the page (seed 000 writes them so)
+    assert tex.count("\\notag") == 3 and len(_lines(tex)) == 11
     assert max(_line_widths(tex)) <= PAGE
 
 
@@ -234,7 +235,8 @@ def test_abbreviations_name_pieces_and_are_listed(pendulum_step):
         return (q0 + q1) / 2
 
     g = sp.Symbol("g", positive=True)
-    tex = pendulum_step.latex(abbreviations={"\\vartheta": mean, "G": 2 * g})
+    with pytest.warns(_printing.UnusedAbbreviationWarning, match="abbreviation G does not"):
+        tex = pendulum_step.latex(abbreviations={"\\vartheta": mean, "G": 2 * g})
     assert "\\vartheta_{j-1/2} &= \\bar{q}_{j-1/2}" in tex or \
         "\\vartheta_{j-1/2} = \\bar{q}_{j-1/2}" in tex
     assert "\\sin(\\vartheta_{j-1/2})" in tex or "\\sin(\\vartheta_{k" in tex

@@ -3,17 +3,27 @@
 from __future__ import annotations
 
 import argparse
+import re
 import shutil
 import subprocess
 import time
+import warnings
+from dataclasses import dataclass
 from pathlib import Path
 
 from .._progress import Task
+from ..equations._printing import LatexOptionError, UnusedAbbreviationWarning
 from ._common import Derived, derive, file_stem, say
-from ._errors import ExternalToolError, InputError
+from ._errors import ExternalToolError, InputError, LostContentError
 
 #: seconds pdflatex may run on one document
 PDFLATEX_TIMEOUT = 300
+#: pt a box may overflow the page before ``--pdf`` reports lost content (TeX's own
+#: \\hfuzz is 0.1 pt; a few points disappear in the margin)
+OVERFULL_TOLERANCE = 3.0
+
+_OVERFULL = re.compile(r"^Overfull \\([hv])box \(([0-9.]+)pt too (?:wide|high)\)(.*)$")
+_MISSING = re.compile(r"^Missing character: There is no (.+?) in font (.+?)!?$")
 
 
 def sizes(derived: Derived) -> list[str]:
@@ -36,18 +46,42 @@ def sizes(derived: Derived) -> list[str]:
         f"derived in {derived.seconds:.2f} s, program built in {seconds:.2f} s"]
 
 
-def _latex(derived: Derived, document: bool) -> tuple[str, float]:
+@dataclass
+class PrintedLatex:
+    """The LaTeX of a step, the seconds it took and the abbreviations it did not use."""
+
+    text: str
+    seconds: float
+    unused: list[str]
+
+    def lines(self) -> list[str]:
+        out = [f"LaTeX written in {self.seconds:.2f} s ({len(self.text)} characters)"]
+        if self.unused:
+            out.append(f"abbreviations not used (not a part of the printed equations): "
+                       f"{', '.join(self.unused)}")
+        return out
+
+
+def _latex(derived: Derived, document: bool) -> PrintedLatex:
     """The equations as printed for a paper (``StepEquations.latex``: named pieces, terms
-    collected, lines broken to 450 pt, a "where" list; every printed form checked against
-    the residuals), and the seconds it took."""
+    collected, lines broken to the page, a "where" list; every printed form checked against
+    the residuals) with the file's ``ABBREVIATIONS``, the seconds it took and the
+    abbreviations that do not occur in it."""
+    abbreviations = derived.source.convention("ABBREVIATIONS")
     t0 = time.perf_counter()
-    with Task(f"{derived.step.name}: writing the equations as LaTeX"):
-        text = derived.step.latex(document=document)
-    return text, time.perf_counter() - t0
-
-
-def _latex_line(text: str, seconds: float) -> str:
-    return f"LaTeX written in {seconds:.2f} s ({len(text)} characters)"
+    with Task(f"{derived.step.name}: writing the equations as LaTeX"), \
+            warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UnusedAbbreviationWarning)
+        try:
+            text = derived.step.latex(document=document, abbreviations=abbreviations)
+        except LatexOptionError as err:
+            raise LatexOptionError(f"{derived.source.label}: ABBREVIATIONS: {err}") from None
+    unused = [name for w in caught if isinstance(w.message, UnusedAbbreviationWarning)
+              for name in w.message.names]
+    for w in caught:  # other warnings as Python would show them
+        if not isinstance(w.message, UnusedAbbreviationWarning):
+            warnings.showwarning(w.message, w.category, w.filename, w.lineno)
+    return PrintedLatex(text, time.perf_counter() - t0, unused)
 
 
 def _pdflatex(tex: Path) -> Path:
@@ -71,7 +105,44 @@ def _pdflatex(tex: Path) -> Path:
         reason = errors[0] if errors else f"exit status {result.returncode}"
         raise ExternalToolError(f"pdflatex failed on {tex} ({reason}); see "
                                 f"{tex.with_suffix('.log')}")
+    check_log(tex)
     return pdf
+
+
+def lost_content(log: str, tolerance: float = OVERFULL_TOLERANCE) -> list[str]:
+    """What a pdflatex log reports as not placed on the page: overfull boxes beyond
+    ``tolerance`` pt (a line wider than the text, a display taller than the page) and
+    characters missing from the fonts, one short description each."""
+    out = []
+    for line in log.splitlines():
+        over = _OVERFULL.match(line)
+        if over and float(over.group(2)) > tolerance:
+            kind, size = over.group(1), float(over.group(2))
+            where = over.group(3).strip()
+            what = "a line" if kind == "h" else "a page"
+            out.append(f"{what} {size:.1f} pt too {'wide' if kind == 'h' else 'high'}"
+                       + (f" ({where})" if where.startswith("detected at line")
+                          or where.startswith("in ") else ""))
+        missing = _MISSING.match(line)
+        if missing:
+            out.append(f"character {missing.group(1)} missing from font {missing.group(2)}")
+    return out
+
+
+def check_log(tex: Path) -> None:
+    """Raise :class:`LostContentError` when the log of ``tex``'s run reports lost content."""
+    log_path = tex.with_suffix(".log")
+    try:
+        log = log_path.read_text(encoding="utf-8", errors="replace")
+    except OSError as exc:
+        raise ExternalToolError(f"pdflatex left no readable log {log_path}: {exc}") from None
+    lost = lost_content(log)
+    if lost:
+        more = f" and {len(lost) - 3} more" if len(lost) > 3 else ""
+        raise LostContentError(
+            f"pdflatex could not fit all of {tex} on its pages: {'; '.join(lost[:3])}{more} "
+            f"(see {log_path}); the PDF is incomplete: name the long parts with "
+            f"ABBREVIATIONS in the system file (docs/cli.md)")
 
 
 def run_derive(args: argparse.Namespace) -> int:
@@ -79,19 +150,19 @@ def run_derive(args: argparse.Namespace) -> int:
     lines = sizes(derived)
     document = args.document or args.pdf
     if not document:
-        text, seconds = _latex(derived, document=False)
-        for line in [*lines, _latex_line(text, seconds)]:
+        printed = _latex(derived, document=False)
+        for line in [*lines, *printed.lines()]:
             say(f"% {line}")
-        say(text)
+        say(printed.text)
         return 0
     tex = Path(args.document) if args.document else Path(f"{file_stem(derived.step.name)}.tex")
     if tex.suffix != ".tex":
         raise InputError(f"--document {tex}: the file name must end in .tex")
     if not tex.parent.is_dir():
         raise InputError(f"--document {tex}: the directory {tex.parent} does not exist")
-    text, seconds = _latex(derived, document=True)
-    tex.write_text(text, encoding="utf-8")
-    for line in [*lines, _latex_line(text, seconds)]:
+    printed = _latex(derived, document=True)
+    tex.write_text(printed.text, encoding="utf-8")
+    for line in [*lines, *printed.lines()]:
         say(line)
     say(f"wrote {tex}")
     if args.pdf:

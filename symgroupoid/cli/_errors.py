@@ -21,3 +21,9 @@ class InputError(SymgroupoidError, ValueError):
 
 class ExternalToolError(SymgroupoidError, RuntimeError):
     """A program the command needs (``pdflatex``) is missing or failed."""
+
+
+class LostContentError(ExternalToolError):
+    """pdflatex wrote the PDF but reported content it could not place: a line wider than the
+    page or a display taller than it beyond :data:`~symgroupoid.cli._derive.OVERFULL_TOLERANCE`,
+    or characters missing from the fonts.  The PDF does not show all the equations."""

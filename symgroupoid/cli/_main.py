@@ -20,6 +20,7 @@ from ._boundary import run_bvp
 from ._cache import run_clear, run_info, run_templates
 from ._common import BACKENDS
 from ._derive import run_derive, run_emit
+from ._newton import add_newton_options
 from ._seeds import run_demo, run_generate
 from ._simulate import INTERRUPTED, run_simulate
 from ._verify import run_verify
@@ -126,6 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
     _runtime_options(simulate)
     simulate.add_argument("-o", "--output", metavar="TRAJ.npz|TRAJ.csv", type=path_text,
                           help="write the kept states")
+    add_newton_options(simulate)
 
     bvp = _command(commands, "bvp", run_bvp,
                    "solve a discrete two-point (optimal control) problem", epilog=True)

@@ -11,6 +11,7 @@ from .._errors import NewtonDivergenceError, SingularJacobianError
 from ..runtime._validate import constraint_check
 from ._common import derive, say, stepper, warn
 from ._inputs import initial_data, initial_state, parameters, parse_count
+from ._newton import newton_options
 from ._output import check_format, write_trajectory
 
 #: exit status after Ctrl-C (128 + SIGINT, as shells report it)
@@ -78,6 +79,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     out = check_format(args.output)
     steps = parse_count(args.steps, "steps")
     every = parse_count(args.every, "every", minimum=1)
+    options = newton_options(args)
     derived = derive(args.system)
     built = stepper(derived, args.backend)
     sim = built.sim
@@ -87,7 +89,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     state = initial_state(sim, data, params)
     t0 = time.perf_counter()
     try:
-        traj = sim.simulate(state, steps, params, every=every)
+        traj = sim.simulate(state, steps, params, every=every, options=options)
     except (SingularJacobianError, NewtonDivergenceError) as err:
         note = _save_partial(out, sim, getattr(err, "trajectory", None))
         if note:

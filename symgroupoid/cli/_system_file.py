@@ -19,7 +19,9 @@ take precedence):
 - ``NOETHER``: the Noether quantities ``verify`` checks — a list whose entries are a
   section (a basis index, a list of coefficients, or a function of the base point
   returning them) or a dict ``{"name": ..., "section": ..., "f": ...}`` (``f``: the
-  quasi-invariance function of seed 000 Def. 4.8, default 0).
+  quasi-invariance function of seed 000 Def. 4.8, default 0);
+- ``ABBREVIATIONS``: names ``derive`` prints for parts of the equations, as
+  ``StepEquations.latex(abbreviations=...)`` takes them (docs/latex.md).
 """
 
 from __future__ import annotations
@@ -53,7 +55,8 @@ class SystemFile:
     system: object
 
     def convention(self, key: str, default=None):
-        """A top-level default of the file (``PARAMS``, ``INITIAL``, ``NOETHER``)."""
+        """A top-level default of the file (``PARAMS``, ``INITIAL``, ``NOETHER``,
+        ``ABBREVIATIONS``)."""
         return getattr(self.module, key, default)
 
     @property

@@ -32,10 +32,12 @@ from .._arguments import (
 )
 from .._errors import OutputError, ShapeError
 from ._kernel import (
+    COLD_UNIT,
     assign_units,
     c_identifier,
     kernel_blocks,
     program_functions,
+    program_helpers,
     unit_part_size,
 )
 
@@ -49,7 +51,7 @@ MAX_THREADS = 1024
 
 #: default Newton options compiled into ``<prefix>_default_options``
 DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
-                   "floor_factor": 8.0}
+                   "floor_factor": 8.0, "trust_factor": 10.0}
 
 
 def template_dir() -> Path:
@@ -251,6 +253,8 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
     n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
                             blocks.predict, blocks.next_knowns], units, len(step.unknowns),
                            block_weight)
+    if units > 1:  # evaluated only when a rounding floor is tested: beside the cold code
+        blocks.residual_scale.move_to(COLD_UNIT)
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
     return {
         "p": prefix, "P": prefix.upper(), "header_name": header_name,
@@ -264,14 +268,17 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
         "parameter_names": [_ascii(s.name) for s in step.parameters],
         "fibre_names": [_ascii(s.name) for s in fibre],
         "residual_latex": residual_comments(step, latex), "helpers": blocks.helpers,
+        "scale_helpers": program_helpers(step.program, ["F_scale"]),
         "reconstruct": blocks.reconstruct, "residual": blocks.residual,
         "residual_jacobian": blocks.residual_jacobian,
+        "residual_scale": blocks.residual_scale,
         "predict": blocks.predict,
         "next_knowns": blocks.next_knowns,
         "tol_residual": _c_double(DEFAULT_OPTIONS["tol_residual"]),
         "floor_factor": _c_double(DEFAULT_OPTIONS["floor_factor"]),
         "tol_step": _c_double(DEFAULT_OPTIONS["tol_step"]),
         "max_iterations": DEFAULT_OPTIONS["max_iterations"],
+        "trust_factor": _c_double(DEFAULT_OPTIONS["trust_factor"]),
         "max_threads": MAX_THREADS, "n_units": n_units, "cold_unit": units > 1,
     }
 

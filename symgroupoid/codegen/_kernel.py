@@ -24,6 +24,10 @@ _C_KEYWORDS = frozenset(
     "if inline int long register restrict return short signed sizeof static struct switch "
     "typedef union unsigned void volatile while _Bool _Complex _Imaginary".split())
 
+#: the translation unit number of the kernel's cold unit (``<prefix>_cold.c``, the code that
+#: runs rarely: the batched entry point, the status messages, the residual's scale)
+COLD_UNIT = -1
+
 #: statements per function (part) of a split kernel: small functions keep the C compiler's
 #: time linear in the kernel's size, and run faster too (measured: the planar 32-link chain's
 #: step at -O2 takes 3.16e5 instructions with parts of 500 statements, 3.68e5 with 2000)
@@ -66,6 +70,7 @@ class Block:
     parts: list[Part] = field(default_factory=list)
     work: int = 0  # doubles in the work array shared by the parts (0: not split)
     borrowed: int = 0
+    home: int = 0  # the unit of a split block's function (which only calls its parts)
 
     @property
     def split(self) -> bool:
@@ -85,9 +90,16 @@ class Block:
 
     @property
     def unit(self) -> int:
-        """The translation unit defining the function of a block in one part (a split
-        block's function, which only calls its parts, stays in the kernel's source)."""
-        return self.parts[0].unit if not self.split else 0
+        """The translation unit defining the function of a block: its part's for a block
+        in one part; ``home`` for a split block's function, which only calls its parts (the
+        kernel's source, unless the whole block was moved to the cold unit)."""
+        return self.parts[0].unit if not self.split else self.home
+
+    def move_to(self, unit: int) -> None:
+        """Place the whole block (function and parts) in translation unit ``unit``."""
+        for part in self.parts:
+            part.unit = unit
+        self.home = unit
 
     def units(self) -> set[int]:
         """The translation units defining some of this block's code."""
@@ -199,6 +211,7 @@ class KernelBlocks:
     reconstruct: Block
     residual: Block
     residual_jacobian: Block
+    residual_scale: Block
     predict: Block
     next_knowns: Block
     n_fibre: int
@@ -328,6 +341,7 @@ def kernel_blocks(step, part_size: int | None = None) -> KernelBlocks:
         reconstruct=build_block(program, [("fibre", "fibre")], part_size),
         residual=residual,
         residual_jacobian=residual_jacobian,
+        residual_scale=build_block(program, [("S", "F_scale")], part_size),
         predict=build_block(program, [("u", "predict")], part_size),
         next_knowns=build_block(program, [("known_next", "next_knowns")], part_size),
         n_fibre=len(program.outputs["fibre"]),

@@ -76,8 +76,15 @@ class NamedConstant(StepSymbol):
 class GroupoidLatexPrinter(LatexPrinter):
     """SymPy's LaTeX printer, extended for step-indexed symbols and matrix parts."""
 
+    #: the fraction command (:class:`DisplayLatexPrinter`: ``\\dfrac``, as a display sets it)
+    fraction = "\\frac"
+
     def __init__(self, settings=None):
         super().__init__({"mul_symbol": None, **(settings or {})})
+
+    def _frac(self, numerator: str, denominator: str) -> str:
+        """A fraction of two printed parts."""
+        return f"{self.fraction}{{{numerator}}}{{{denominator}}}"
 
     def _print_StepSymbol(self, expr) -> str:
         return expr.name
@@ -97,7 +104,13 @@ class GroupoidLatexPrinter(LatexPrinter):
         return f"{parent}_{{{expr.i + 1}{expr.j + 1}}}"
 
     def _print_Trace(self, expr) -> str:
-        return f"\\operatorname{{tr}}\\left({self._print(expr.arg)}\\right)"
+        """tr(g_{k} E_{1} E_{2}): plain parentheses unless the argument is tall (a fraction,
+        an explicit matrix)."""
+        arg = self._print(expr.arg)
+        if _has_fraction(expr.arg) or any(isinstance(a, sp.MatrixBase)
+                                          for a in sp.preorder_traversal(expr.arg)):
+            return f"\\operatorname{{tr}}\\left({arg}\\right)"
+        return f"\\operatorname{{tr}}({arg})"
 
     def _print_ImmutableDenseMatrix(self, expr) -> str:
         rows, cols = expr.shape
@@ -128,7 +141,7 @@ class GroupoidLatexPrinter(LatexPrinter):
         if denominator == 1 or self.order in ("old", "none"):
             return super()._print_Add(expr, order)
         numerator = sp.Add(*[t * denominator for t in expr.args])
-        return f"\\frac{{{super()._print_Add(numerator, order)}}}{{{denominator}}}"
+        return self._frac(super()._print_Add(numerator, order), str(denominator))
 
     def _print_Mul(self, expr) -> str:
         """Products in the papers' order: numbers, parameters (plain symbols) and sums of
@@ -136,10 +149,14 @@ class GroupoidLatexPrinter(LatexPrinter):
         rest: ``g h l_{1} \\left(m_{1} + m_{2}\\right) \\Delta x_{k} \\sin(\\bar{x}_{k})``.
         Settings that fold fractions, and non-commutative or unevaluated products, print
         as SymPy prints them."""
+        if (isinstance(expr, sp.Pow) and expr.is_commutative and expr.exp.is_negative
+                and expr.exp.is_Rational and expr.base != 1):
+            return self._frac("1", self._print(1 / expr))  # 1/h, \\frac{1}{h^{2}}
         if (not isinstance(expr, sp.Mul) or not expr.is_commutative
-                or self._settings["fold_short_frac"] or self._settings["long_frac_ratio"]
-                or self.order in ("old", "none") or _unevaluated(expr)):
+                or self._settings["fold_short_frac"] or self._settings["long_frac_ratio"]):
             return super()._print_Mul(expr)
+        if self.order in ("old", "none") or _unevaluated(expr):
+            return self._print_as_given(expr)
         if expr.could_extract_minus_sign():
             positive = -expr
             if not isinstance(positive, sp.Mul):
@@ -148,8 +165,17 @@ class GroupoidLatexPrinter(LatexPrinter):
         numerator, denominator = sp.fraction(expr, exact=True)
         if denominator == 1:
             return self._print_factors(expr)
-        return (f"\\frac{{{self._print_factors(numerator)}}}"
-                f"{{{self._print_factors(denominator)}}}")
+        return self._frac(self._print_factors(numerator), self._print_factors(denominator))
+
+    def _print_as_given(self, expr: sp.Mul) -> str:
+        """A product in the order given (``order="none"``, unevaluated products): a
+        fraction of the factors with negative powers, as SymPy prints it; SymPy's own
+        printing otherwise."""
+        numerator, denominator = sp.fraction(expr, exact=True)
+        if denominator == 1 or any(isinstance(a, sp.Number) for a in sp.Mul.make_args(
+                numerator)) and len(sp.Mul.make_args(numerator)) > 1:
+            return super()._print_Mul(expr)
+        return self._frac(self._print(numerator), self._print(denominator))
 
     def _print_factors(self, expr) -> str:
         """The factors of a product side by side, in :func:`factor_rank` order, each
@@ -162,7 +188,8 @@ class GroupoidLatexPrinter(LatexPrinter):
         texts = []
         for i, factor in enumerate(factors):
             tex = self._print(factor)
-            if self._needs_mul_brackets(factor, first=i == 0, last=i == len(factors) - 1):
+            if len(factors) > 1 and self._needs_mul_brackets(factor, first=i == 0,
+                                                             last=i == len(factors) - 1):
                 tex = f"\\left({tex}\\right)"
             texts.append(tex)
         return self._settings["mul_symbol_latex"].join(texts)
@@ -174,10 +201,10 @@ class GroupoidLatexPrinter(LatexPrinter):
             product = self._print_factors([*sp.Mul.make_args(numerator), expr.total])
             if denominator == 1:
                 return product
-            return f"\\frac{{{product}}}{{{self._print(denominator)}}}"
+            return self._frac(product, self._print(denominator))
         total = self._print(expr.total)
         if numerator == 1 and denominator != 1:
-            return f"\\frac{{{total}}}{{{self._print(denominator)}}}"
+            return self._frac(total, self._print(denominator))
         factor = "" if expr.factor == 1 else self._print(expr.factor) + " "
         return f"{factor}\\left({total}\\right)"
 
@@ -194,6 +221,14 @@ class MemoLatexPrinter(GroupoidLatexPrinter):
         if expr not in self._printed:
             self._printed[expr] = super().doprint(expr)
         return self._printed[expr]
+
+
+class DisplayLatexPrinter(MemoLatexPrinter):
+    """The printer as a display (``align``) sets it, for measuring widths: fractions at
+    display size (``\\dfrac``), as TeX sets a fraction in a display; what matplotlib's
+    mathtext measures with ``\\frac`` is the smaller inline fraction."""
+
+    fraction = "\\dfrac"
 
 
 def _common_denominator(expr: sp.Add) -> int:
@@ -255,17 +290,32 @@ def step_latex(step, document: bool = False, abbreviations=None,
 
     The equations are printed in their most readable verified form (:mod:`._printing`):
     named pieces and ``abbreviations`` where they shorten it, terms collected by
-    multipliers and parameters, rows broken to ``width`` pt (default 450), and a "where"
-    list of what was named.
+    multipliers and parameters, rows broken to a page of text width ``width`` pt (default
+    450), and a "where" list of what was named; a document (:func:`latex_document`) sets a
+    line too wide to break smaller.
     """
     from ._layout import render_align
     from ._printing import printed_step
 
-    body = render_align(printed_step(step, abbreviations=abbreviations, width=width))
+    rows = printed_step(step, abbreviations=abbreviations, width=width)
+    body = render_align(rows, document=document)
     if not document:
         return body
-    return ("\\documentclass{article}\n\\usepackage{amsmath,amssymb}\n\\begin{document}\n"
-            f"% {step.name}: {len(step)} equations in {len(step.unknowns)} unknowns\n"
+    return latex_document(body, rows.width,
+                          f"{step.name}: {len(step)} equations in {len(step.unknowns)} unknowns")
+
+
+def latex_document(body: str, width: float, comment: str) -> str:
+    """A standalone article around ``body`` whose text is ``width`` pt wide (the width the
+    lines were broken to), displays breaking across pages (``\\allowdisplaybreaks``);
+    amsmath, amssymb, graphicx (lines set smaller) and geometry: all in TeX Live's
+    ``texlive-latex-base``."""
+    return ("\\documentclass[10pt]{article}\n"
+            f"\\usepackage[a4paper,textwidth={width:g}pt,vmargin=2.5cm]{{geometry}}\n"
+            "\\usepackage{amsmath,amssymb,graphicx}\n"
+            "\\allowdisplaybreaks\n"
+            "\\begin{document}\n"
+            f"% {comment}\n"
             f"{body}\n\\end{{document}}\n")
 
 

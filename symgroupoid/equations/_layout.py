@@ -1,14 +1,22 @@
 """Rows of printed equations, broken to a page width, as ``align`` or ``aligned``.
 
 An equation ``lhs = t₁ ± t₂ ± …`` is printed term by term: terms are packed greedily onto
-lines whose rendered width stays within the page width (default 450 pt); continuation
-lines start at the alignment point with ``\\quad`` and the operator.  A term wider than a
-line that is a :class:`~._latex.Collected` sum is split into several collected sums with the
-same factor; any other term stays whole.
+lines whose width, as TeX sets them in a display, stays within the room a page of text
+width ``width`` (default :data:`PAGE_WIDTH`, the text width of the documents) leaves them;
+continuation lines start at the alignment point with ``\\quad`` and the operator.  A term
+wider than a line that is a :class:`~._latex.Collected` sum is split into several collected
+sums with the same factor; any other term stays whole (a standalone document sets such a
+line smaller, :func:`render_align`).
+
+The room: ``align`` centres its block of lines and needs, for an equation number on the same
+line, the number and :data:`TAG_SEPARATION` free on both sides of the block; so each line gets
+``width − 2 (number + separation)`` (numbers up to two digits), divided by
+:data:`TEX_PER_MATHTEXT`.
 
 Widths are those of matplotlib's mathtext at 10 pt (DejaVu fonts), measured on the line as
-it renders: with the widest left-hand side of the block in front (the alignment column) and
-``=`` (continuation lines also ``\\quad``), so the bound holds for every line of the block.
+a display sets it (:class:`~._latex.DisplayLatexPrinter`: fractions at display size): with
+the widest left-hand side of the block in front (the alignment column) and ``=``
+(continuation lines also ``\\quad``), so the bound holds for every line of the block.
 Without matplotlib an estimate from the length of the LaTeX (2.5 pt per character) is used.
 """
 
@@ -19,9 +27,22 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from ._latex import Collected, GroupoidLatexPrinter, LatexVerificationError
+from ._latex import (
+    Collected,
+    DisplayLatexPrinter,
+    GroupoidLatexPrinter,
+    LatexVerificationError,
+    MemoLatexPrinter,
+)
 
-PAGE_WIDTH = 450.0  # pt
+#: pt: the text width of the standalone documents (their geometry), and the default width
+PAGE_WIDTH = 450.0
+#: pt: the least space amsmath leaves between an equation and its number (0.5 em at 10 pt)
+TAG_SEPARATION = 5.0
+#: TeX's width of a display line (Computer Modern, 10 pt) per mathtext's (DejaVu Sans,
+#: fractions at display size): 0.94–1.032 on the lines of the seed systems and of a
+#: satellite with a reaction wheel (pdflatex's box widths)
+TEX_PER_MATHTEXT = 1.04
 _FONT_SIZE = 10.0  # pt, matplotlib's default
 _PT_PER_CHAR = 2.5  # mathtext width per LaTeX character, without matplotlib (lines of the
 # seed systems render at 0.7–2.4 pt per character; single letters at up to 10)
@@ -54,10 +75,11 @@ class Row:
 
 @dataclass
 class Definitions:
-    """"Where" definitions printed whole, ``(lhs, rhs)`` pairs packed ``a = x, \\quad b = y``
-    as many to a line as the width allows (by :func:`lay_out`)."""
+    """"Where" definitions printed whole, ``(lhs, rhs, as_written)`` pairs of expressions
+    packed ``a = x, \\quad b = y`` as many to a line as the width allows (by
+    :func:`lay_out`); ``as_written``: the right-hand side's terms in the order given."""
 
-    pairs: list[tuple[str, str]]
+    pairs: list[tuple]
 
 
 @dataclass
@@ -70,11 +92,41 @@ class Text:
 @dataclass
 class PrintedRows:
     """What a whole printed block holds: equation rows, then text and definition rows, the
-    page width in pt and the printer of the terms."""
+    page's text width in pt and the printer of the terms."""
 
     items: list  # Row | Definitions | Text
-    width: float = 450.0
-    printer: GroupoidLatexPrinter = field(default_factory=GroupoidLatexPrinter)
+    width: float = PAGE_WIDTH
+    printer: GroupoidLatexPrinter = field(default_factory=MemoLatexPrinter)
+
+
+@dataclass
+class Line:
+    """A laid-out line: its LaTeX, and its measured width in pt when it is wider than its
+    room (a single term that cannot be split; None otherwise) with that room."""
+
+    tex: str
+    over: float | None = None
+    room: float | None = None
+
+
+def display_twin(printer: GroupoidLatexPrinter, **settings) -> DisplayLatexPrinter:
+    """A :class:`~._latex.DisplayLatexPrinter` with ``printer``'s settings (to measure what
+    ``printer`` prints)."""
+    given = {k: v for k, v in printer._settings.items() if k in printer._default_settings}
+    return DisplayLatexPrinter({**given, **settings})
+
+
+def number_room(numbered: bool) -> float:
+    """pt an ``align`` needs beside its centred block for equation numbers of up to two
+    digits: the number and :data:`TAG_SEPARATION`, on both sides."""
+    if not numbered:
+        return 0.0
+    return 2 * (formula_width("(99)") + TAG_SEPARATION)
+
+
+def line_room(width: float, numbered: bool) -> float:
+    """The mathtext width a line may have on a page of text width ``width``."""
+    return (width - number_room(numbered)) / TEX_PER_MATHTEXT
 
 
 @functools.lru_cache(maxsize=1)
@@ -128,17 +180,17 @@ def _metrics() -> dict:
     return {
         "op": w("a + b") - w("a") - w("b"),
         "unary": w("-a") - w("a"),
-        "frac_scale": (w("\\frac{aaaaaaaa}{b}") - w("\\frac{a}{b}")) / (w("aaaaaaaa") - w("a")),
+        "frac_scale": (w("\\dfrac{aaaaaaaa}{b}") - w("\\dfrac{a}{b}")) / (w("aaaaaaaa") - w("a")),
         "parens": max(w("\\left(a\\right)") - w("a"),
-                      w("\\left(\\frac{a}{b}\\right)") - w("\\frac{a}{b}")),
+                      w("\\left(\\dfrac{a}{b}\\right)") - w("\\dfrac{a}{b}")),
         "script": max((w("a^{bbbb}") - w("a")) / w("bbbb"), 0.75),
     }
 
 
 def _fraction(numerator: float, denominator: float) -> float:
-    """Width of \\frac{n}{d}: the wider part at the fraction's (smaller) size, plus padding."""
+    """Width of a display fraction n/d: the wider part, plus padding."""
     m = _metrics()
-    pad = formula_width("\\frac{a}{b}") - m["frac_scale"] * formula_width("a")
+    pad = formula_width("\\dfrac{a}{b}") - m["frac_scale"] * formula_width("a")
     return m["frac_scale"] * max(numerator, denominator) + pad
 
 
@@ -237,9 +289,11 @@ def _split(term: Term, room: float, model: WidthModel) -> list[Term]:
     def close():
         if len(chunk) == 1:
             pieces.append(_product(term.sign * chunk[0].sign, factor, chunk[0].expr))
-        elif chunk:
-            total = sp.Add(*[t.sign * t.expr for t in chunk])
-            pieces.append(Term(term.sign, Collected(factor, total)))
+        elif chunk:  # its sum printed with a leading plus: − f (a − b), not + f (−a + b)
+            total, sign = sp.Add(*[t.sign * t.expr for t in chunk]), term.sign
+            if signed_terms(total, model.printer)[0].sign < 0:
+                total, sign = -total, -sign
+            pieces.append(Term(sign, Collected(factor, total)))
         chunk.clear()
 
     for t in inner:
@@ -269,27 +323,28 @@ _CHECK = 0.97  # lines estimated above this fraction of the room are measured wh
 
 def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
                 printer: GroupoidLatexPrinter | None = None,
-                model: WidthModel | None = None, column: str | None = None) -> list[str]:
-    """The right-hand side ``Σ terms`` as lines of at most ``width`` pt (rendered with
-    ``column = `` in front: the widest left-hand side of the block, ``lhs`` by default);
-    returns the LaTeX of each line.
+                model: WidthModel | None = None, column: str | None = None) -> list[Line]:
+    """The right-hand side ``Σ terms`` as lines of at most ``width`` pt of mathtext (rendered
+    with ``column = `` in front: the widest left-hand side of the block, ``lhs`` by
+    default, and measured as the ``model``'s printer prints them: as a display).
 
     Lines are packed by the :class:`WidthModel`'s estimates; a line estimated above 97 % of
     the room is measured whole and gives back terms (or splits a collected sum) until it
-    fits.  A single term wider than the page that cannot be split stays whole."""
-    printer = printer or GroupoidLatexPrinter()
-    model = model or WidthModel(printer)
+    fits.  A single term wider than the page that cannot be split stays whole (its
+    :class:`Line` says how wide it is)."""
+    printer = printer or MemoLatexPrinter()
+    model = model or WidthModel(display_twin(printer))
     column = lhs if column is None else column
     pending = list(terms)
-    lines: list[list[str]] = []
+    lines: list[Line] = []
     laid: list[Term] = []  # the terms as laid out (collected sums may have been split)
     current: list[Term] = []
 
     def room(continuation: bool) -> float:
         return width - formula_width(_prefix(column, continuation))
 
-    def texts(line: list[Term], continuation: bool) -> list[str]:
-        return [term_text(t, i == 0 and not continuation, printer) for i, t in enumerate(line)]
+    def texts(line: list[Term], continuation: bool, how: GroupoidLatexPrinter) -> list[str]:
+        return [term_text(t, i == 0 and not continuation, how) for i, t in enumerate(line)]
 
     def estimate(line: list[Term], continuation: bool) -> float:
         return sum(model.term(t, i == 0 and not continuation) for i, t in enumerate(line))
@@ -297,7 +352,8 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
     def excess(line: list[Term], continuation: bool) -> float:
         if estimate(line, continuation) <= _CHECK * room(continuation):
             return 0.0
-        return _line_width(column, texts(line, continuation), continuation) - width
+        return _line_width(column, texts(line, continuation, model.printer),
+                           continuation) - width
 
     def close() -> None:
         """Emit ``current``, giving back trailing terms while the whole line is too wide
@@ -312,7 +368,8 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
                 pending[:0] = parts
                 current.clear()
                 return
-        lines.append(texts(current, continuation))
+        lines.append(Line(_join(texts(current, continuation, printer)),
+                          width + over if over > 0 else None, width if over > 0 else None))
         laid.extend(current)
         current.clear()
 
@@ -336,7 +393,7 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
     if current:
         close()
     same_sum(laid, terms, f"the broken lines of {lhs} = …")
-    return [_join(line) for line in lines]
+    return lines
 
 
 def same_sum(laid: list[Term], terms: list[Term], what: str) -> None:
@@ -351,22 +408,35 @@ def same_sum(laid: list[Term], terms: list[Term], what: str) -> None:
                                      f"{difference}")
 
 
-def lay_out(rows: PrintedRows) -> list:
-    """The items with every :class:`Row` broken to the page width and the
-    :class:`Definitions` packed into rows, all measured against the widest left-hand side
-    of the block (where ``align`` puts the alignment point)."""
+def lay_out(rows: PrintedRows, numbered: bool = True) -> list:
+    """The items with every :class:`Row` broken to the room a page of text width
+    ``rows.width`` leaves a line (:func:`line_room`; ``numbered``: beside equation numbers)
+    and the :class:`Definitions` packed into rows, all measured against the widest
+    left-hand side of the block (where ``align`` puts the alignment point)."""
+    measure = display_twin(rows.printer)
+    literal, literal_measure = (GroupoidLatexPrinter({"order": "none"}),
+                                DisplayLatexPrinter({"order": "none"}))
+
+    def pair_texts(how, as_written_how) -> list[list[tuple[str, str]]]:
+        return [[((as_written_how if w else how).doprint(a), (as_written_how if w else how)
+                  .doprint(b)) for a, b, w in item.pairs]
+                for item in rows.items if isinstance(item, Definitions)]
+
+    shown, measured = pair_texts(rows.printer, literal), pair_texts(measure, literal_measure)
     heads = [item.lhs for item in rows.items if isinstance(item, Row)]
-    heads += [lhs for item in rows.items if isinstance(item, Definitions)
-              for lhs, _ in item.pairs]
+    heads += [lhs for pairs in measured for lhs, _ in pairs]
     column = max(heads, key=formula_width, default="")
-    model = WidthModel(rows.printer)
+    width = line_room(rows.width, numbered and any(
+        isinstance(item, Row) and item.numbered for item in rows.items))
+    model = WidthModel(measure)
     out: list = []
+    definitions = iter(zip(shown, measured))
     for item in rows.items:
         if isinstance(item, Row):
-            lines = break_terms(item.lhs, item.terms, rows.width, rows.printer, model, column)
+            lines = break_terms(item.lhs, item.terms, width, rows.printer, model, column)
             out.append(Row(item.lhs, item.terms, item.numbered, lines))
         elif isinstance(item, Definitions):
-            out += _packed_rows(item.pairs, rows.width, column)
+            out += _packed_rows(*next(definitions), width, column)
         else:
             out.append(item)
     return out
@@ -378,34 +448,60 @@ def _packed(pairs: list[tuple[str, str]]) -> str:
     return ", \\quad ".join([rhs, *(f"{a} = {b}" for a, b in rest)])
 
 
-def _packed_rows(pairs: list[tuple[str, str]], width: float, column: str) -> list[Row]:
+def _packed_rows(shown: list[tuple[str, str]], measured: list[tuple[str, str]], width: float,
+                 column: str) -> list[Row]:
     """Definitions several to a row while the row fits in ``width`` (estimated as the sum of
-    its definitions' widths; measured whole above 97 % of the width)."""
+    its definitions' widths, as ``measured`` prints them; measured whole above 97 % of the
+    width)."""
     separator = formula_width("a, \\quad b") - 2 * formula_width("a")
     room = width - formula_width(column)  # the first definition's lhs sits in the column
 
-    def fits(line: list[tuple[str, str]]) -> bool:
-        estimate = sum(formula_width(f"{a} = {b}") for a, b in line) \
-            + separator * (len(line) - 1) - formula_width(line[0][0])
+    def fits(line: list[int]) -> bool:
+        pairs = [measured[i] for i in line]
+        estimate = sum(formula_width(f"{a} = {b}") for a, b in pairs) \
+            + separator * (len(pairs) - 1) - formula_width(pairs[0][0])
         if estimate <= _CHECK * room:
             return True
-        return _line_width(column, [_packed(line)], False) <= width
+        return _line_width(column, [_packed(pairs)], False) <= width
 
     rows: list[Row] = []
-    line: list[tuple[str, str]] = []
-    for pair in pairs:
-        if line and not fits([*line, pair]):
-            rows.append(Row(line[0][0], [], False, [_packed(line)]))
+    line: list[int] = []
+
+    def close() -> None:
+        pairs = [shown[i] for i in line]
+        over = _line_width(column, [_packed([measured[i] for i in line])], False)
+        rows.append(Row(pairs[0][0], [], False, [Line(_packed(pairs), over, width)
+                                                 if over > width else Line(_packed(pairs))]))
+
+    for i in range(len(shown)):
+        if line and not fits([*line, i]):
+            close()
             line = []
-        line.append(pair)
+        line.append(i)
     if line:
-        rows.append(Row(line[0][0], [], False, [_packed(line)]))
+        close()
     return rows
 
 
-def render_align(rows: PrintedRows) -> str:
+#: the least factor a line too wide for its room is set at in a document (below it, the
+#: line stays at this size and runs into the margin: a term this wide needs a narrower
+#: form, e.g. an abbreviation)
+SMALLEST_SCALE = 0.5
+
+
+def _scaled(line: Line, document: bool) -> str:
+    """A line as printed: in a document, a line wider than its room (a term that cannot be
+    broken) is set smaller to fit (``\\scalebox``, graphicx)."""
+    if not document or line.over is None:
+        return line.tex
+    factor = max(SMALLEST_SCALE, int(100 * line.room / line.over) / 100)
+    return f"\\scalebox{{{factor:.2f}}}{{$\\displaystyle {line.tex}$}}"
+
+
+def render_align(rows: PrintedRows, document: bool = False) -> str:
     """An amsmath ``align`` environment: one numbered row per equation, continuation lines
-    and "where" rows unnumbered (``\\notag``), words as ``\\intertext``."""
+    and "where" rows unnumbered (``\\notag``), words as ``\\intertext``; in a
+    ``document``, lines too wide for the page are set smaller (:func:`_scaled`)."""
     out: list[str] = []
     intro = ""
     for item in lay_out(rows):
@@ -416,7 +512,7 @@ def render_align(rows: PrintedRows) -> str:
             last = i == len(item.lines) - 1
             head = f"{item.lhs} &= " if i == 0 else "&\\quad "
             tag = "" if (last and item.numbered) else " \\notag"
-            out.append(f"{intro}{head}{line}{tag}")
+            out.append(f"{intro}{head}{_scaled(line, document)}{tag}")
             intro = ""
     return "\\begin{align}\n" + " \\\\\n".join(out) + "\n\\end{align}"
 
@@ -424,11 +520,11 @@ def render_align(rows: PrintedRows) -> str:
 def render_aligned(rows: PrintedRows) -> str:
     """The same rows in an ``aligned`` block (no numbers; words as ``\\text``)."""
     out: list[str] = []
-    for item in lay_out(rows):
+    for item in lay_out(rows, numbered=False):
         if isinstance(item, Text):
             out.append(f"&\\text{{{item.words}}}")
             continue
         for i, line in enumerate(item.lines):
             head = f"{item.lhs} &= " if i == 0 else "&\\quad "
-            out.append(f"{head}{line}")
+            out.append(f"{head}{line.tex}")
     return "\\begin{aligned}" + " \\\\ ".join(out) + "\\end{aligned}"

@@ -13,23 +13,29 @@ in q̄_{k∓1/2} and Δq_{k∓1/2} (the rule, and which parameter divides the di
 chosen as the one in which L and the constraints are shortest).  A second form names the
 partial derivatives of L(q̄, Δq) themselves: the step reads ½(∂_q̄L_{k−1/2} + ∂_q̄L_{k+1/2})
 − (∂_ΔqL_{k+1/2} − ∂_ΔqL_{k−1/2})/h = 0 and the "where" list gives each partial once.
-Matrix parts (tr(g_k E_i E_j), W_kᵀΓ_k) and Ad*_{g_k} keep their names.  User abbreviations
+Matrix parts (tr(g_k E_i E_j), W_kᵀΓ_k) and Ad*_{g_k} keep their names; what would print
+with the numbers of a constant matrix (an entry (E_a)_{ij}, an entry of a product with one, a
+trace with an explicit matrix) is evaluated, and a matrix form with no matrix left to name is
+not offered (the explicit residuals print alike).  User abbreviations
 (``abbreviations={name: expression or callable of an arrow}``) are recognised next, then the
 terms are collected by multipliers and parameters, and the rows broken to the page width
 (:mod:`._layout`).
 
 Every printed equation — the pieces and abbreviations written out, matrices and named
 operators by their values — is checked to equal the explicit residual (the expanded
-difference is 0), and so is every "where" row; a form that fails is not printed.  The form
-as derived always passes; of the verified forms the shortest in total (equations and "where"
-list) is printed, and remembered for the step.  Breaking a row into lines is checked too
-(:func:`._layout.same_sum`).
+difference is 0), and so is every "where" row; a form that fails is not printed.  The
+explicit residuals always pass.  Of the verified forms, the shortest one that keeps a matrix
+by name is printed when it is not longer than ``sympy.latex`` of the residuals, else the
+shortest in total (equations and "where" list); the choice is remembered for the step.
+Breaking a row into lines is checked too (:func:`._layout.same_sum`).
 
 Nothing here runs unless LaTeX is asked for.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import warnings
 import weakref
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -208,6 +214,7 @@ class Definition:
     literal: bool = True  # printed whole, several to a line (else collected and broken)
     as_written: bool = False  # terms in the order given (the pieces' definitions)
     intro: int = 0  # which of the form's intros (words before a group of rows) it follows
+    abbreviation: str | None = None  # the user's abbreviation it defines (its LaTeX)
 
 
 @dataclass
@@ -263,11 +270,102 @@ def matrix_values(step) -> dict:
     return matrix_form_values(step.groupoid, window(step.order)[0])
 
 
-def base_form(step) -> Form:
-    """The residuals as derived: the matrix form when there is one, else explicit."""
-    if step.structured is not None:
-        return Form(list(step.structured), [matrix_values(step)])
-    return Form(list(step.residuals))
+# --- constant matrix parts evaluated ------------------------------------------------------------
+
+
+def constant_matrices(G) -> set:
+    """The MatrixSymbols of G's matrix form that stand for constant matrices: the Lie-algebra
+    basis E_a of each matrix part and the named constants (J_d)."""
+    from ..groupoids._matrix_form import named_constants
+
+    out = set(named_constants())
+    for _, group in G.matrix_parts():
+        out.update(group.named_basis().values())
+    return out
+
+
+def kept_by_name(atom, constants: set) -> bool:
+    """Whether a matrix atom of the matrix form prints as the papers write it: an entry of a
+    group matrix ((g_{k})_{12}), or the trace of a product of named matrices at least one of
+    which is a group matrix (tr(g_k E_1 E_2), tr(J_d W_k E_1)).  Entries of constant matrices
+    and of products ((E_1)_{23}, (W_k E_1)_{21}) and traces with an explicit matrix or of
+    constants only are not: they are numbers, or sums of entries, when written out."""
+    if isinstance(atom, MatrixElement):
+        return isinstance(atom.parent, sp.MatrixSymbol) and atom.parent not in constants
+    symbols = atom.arg.atoms(sp.MatrixSymbol)
+    explicit = any(isinstance(a, sp.MatrixBase) for a in sp.preorder_traversal(atom.arg))
+    return not explicit and bool(symbols - constants)
+
+
+def evaluated_constants(expr: sp.Expr, values: Mapping, constants: set) -> sp.Expr:
+    """``expr`` (in the matrix form) with every matrix atom that is not
+    :func:`kept_by_name` written out through ``values`` and expanded, and the entries of
+    group matrices as the step's symbols (they print alike): (E_1)_{11} (W_{k+1})_{12} is
+    0, (W_k E_1)_{21} is −(W_k)_{31}, tr(E_1ᵀ W_k) is (W_k)_{32} − (W_k)_{23}."""
+    from ..groupoids._matrix_form import to_explicit
+
+    sub: dict = {}
+    for atom in expr.atoms(MatrixElement, sp.Trace):
+        if isinstance(atom, MatrixElement) and atom.parent in values and kept_by_name(
+                atom, constants):
+            sub[atom] = values[atom.parent][atom.i, atom.j]
+        elif not kept_by_name(atom, constants):
+            sub[atom] = to_explicit(atom, values)
+    return sp.expand(expr.xreplace(sub)) if sub else expr
+
+
+def keeps_matrices(equations: Sequence[sp.Expr]) -> bool:
+    """Whether any of ``equations`` has a matrix by name (a trace, an operator)."""
+    return any(sp.sympify(e).atoms(sp.MatrixSymbol) for e in equations)
+
+
+def _matrix_form_keeps(step) -> bool:
+    """Whether L or the constraints, evaluated in matrix form, keep a matrix by name (a
+    trace :func:`kept_by_name`); if not, no derivative of them does (an entry varied along
+    g E_a is an entry of a product), and the matrix form is not built for printing."""
+    system = _junction_system(step)
+    if system is None:
+        return True
+    try:
+        fs = _system_functions(system, True)
+    except _NOT_IN_PIECES:
+        return False
+    constants = constant_matrices(step.groupoid)
+    return any(kept_by_name(t, constants)
+               for e in [fs.lagrangian, *fs.constraints] for t in sp.sympify(e).atoms(sp.Trace))
+
+
+#: each step's :func:`kept_matrix_form` (None too), built once
+_KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def kept_matrix_form(step) -> list | None:
+    """The step's matrix form (:attr:`StepEquations.structured`) with its constant parts
+    evaluated (:func:`evaluated_constants`), if it still keeps a matrix by name; else None
+    (the explicit residuals are as short, and print alike)."""
+    if step not in _KEPT:
+        _KEPT[step] = _kept_matrix_form(step)
+    return _KEPT[step]
+
+
+def _kept_matrix_form(step) -> list | None:
+    if not step.groupoid.matrix_parts() or not _matrix_form_keeps(step):
+        return None
+    structured = step.structured
+    if structured is None:
+        return None
+    values, constants = matrix_values(step), constant_matrices(step.groupoid)
+    equations = [evaluated_constants(e, values, constants) for e in structured]
+    return equations if keeps_matrices(equations) else None
+
+
+def base_form(step, matrix_form: bool = False) -> Form | None:
+    """The residuals as derived: in matrix form, when it keeps a matrix by name (else None),
+    or explicit."""
+    if not matrix_form:
+        return Form(list(step.residuals))
+    structured = kept_matrix_form(step)
+    return None if structured is None else Form(structured, [matrix_values(step)])
 
 
 def _system_functions(system, matrix_form: bool):
@@ -330,16 +428,20 @@ def _index_range(offsets: Sequence[int]) -> str:
     return "$j = " + ", ".join(step_label(o) for o in offsets) + "$"
 
 
-def piece_form(step, rule: PieceRule) -> Form | None:
+def piece_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | None:
     """The residuals with every pair arrow of the window written in the pieces of ``rule``
-    before the variation meets the named arrows (so L's derivative comes out in them)."""
+    before the variation meets the named arrows (so L's derivative comes out in them); in
+    matrix form (constant parts evaluated) or explicitly."""
     from ..derivation._step import tidy
 
     system = _junction_system(step)
-    fs = _system_functions(system, step.structured is not None)
-    w = window_in_pieces(step, rule, fs, step.structured is not None)
+    fs = _system_functions(system, matrix_form)
+    w = window_in_pieces(step, rule, fs, matrix_form)
     equations = [tidy(r) for r in w.rows + w.constraints]
-    return Form(equations, [w.values, matrix_values(step)],
+    if matrix_form:
+        values, constants = matrix_values(step), constant_matrices(step.groupoid)
+        equations = [evaluated_constants(e, values, constants) for e in equations]
+    return Form(equations, [w.values, matrix_values(step) if matrix_form else {}],
                 _piece_definitions(pair_coordinates(step.groupoid), rule),
                 [f"where, for {_index_range(w.offsets)},"], _generic_pieces(step.groupoid))
 
@@ -359,7 +461,7 @@ def partial_symbol(root: str, label: str | None) -> StepSymbol:
     return StepSymbol(name if label is None else indexed_name(name, label))
 
 
-def derivative_form(step, rule: PieceRule) -> Form | None:
+def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | None:
     """The first-order residual on a pair groupoid of Rⁿ, D₂L(q_{k−1}, q_k) + D₁L(q_k, q_{k+1})
     (+ the multiplier terms), through the partial derivatives of L in the midpoint pieces:
     with L(q₀, q₁) = L(q̄, Δq),
@@ -375,7 +477,8 @@ def derivative_form(step, rule: PieceRule) -> Form | None:
 
     system = _junction_system(step)
     G, coords = step.groupoid, pair_coordinates(step.groupoid)
-    if rule.kind != "midpoint" or system._arity != 1 or 2 * len(coords) != G.arrow_dim:
+    if (matrix_form or rule.kind != "midpoint" or system._arity != 1
+            or 2 * len(coords) != G.arrow_dim):
         return None
     fs = system._fs
     w = window_in_pieces(step, rule, fs, False, lagrangian=False)
@@ -564,19 +667,20 @@ def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
     for a in abbreviations:
         if callable(a.value):
             pairs, (g_symbol, g_value) = _per_arrow(step, a.tex, a.value, rule, form.unindexed)
-            definitions.append(Definition(g_symbol, g_value, frozenset(p for p, _ in pairs)))
+            definitions.append(Definition(g_symbol, g_value, frozenset(p for p, _ in pairs),
+                                          abbreviation=a.tex))
             generic[g_symbol] = pairs[0][0]
         else:
             symbol = a.symbol if a.symbol is not None else StepSymbol(a.tex)
             g_symbol, g_value = symbol, a.value
             pairs = [(symbol, g_value)]
-            definitions.append(Definition(symbol, g_value, frozenset([symbol])))
+            definitions.append(Definition(symbol, g_value, frozenset([symbol]),
+                                          abbreviation=a.tex))
         for s, v in pairs:
             layer[s] = v
             equations = [replace_occurrences(e, v, s) for e in equations]
-        rows = [d if d.literal else Definition(
-            d.lhs, replace_occurrences(d.rhs, g_value, g_symbol), d.names, d.literal)
-            for d in rows]
+        rows = [d if d.literal else dataclasses.replace(
+            d, rhs=replace_occurrences(d.rhs, g_value, g_symbol)) for d in rows]
     # the rows defining the equations' names, then the abbreviations they use, then the rest
     ordered = ([d for d in rows if not d.literal] + definitions
                + [d for d in rows if d.literal])
@@ -646,7 +750,17 @@ def _per_arrow(step, tex: str, fn: Callable, rule: PieceRule | None, unindexed: 
 
 def replace_occurrences(expr: sp.Expr, value: sp.Expr, symbol: sp.Expr) -> sp.Expr:
     """``expr`` with ``value`` replaced by ``symbol``: exact subexpressions, and sums that
-    contain a multiple c·value of a sum (c any common factor of those terms)."""
+    contain a multiple c·value of a sum (c any common factor of those terms) — of the value
+    as given and of its expanded form (a value (a − b)/(2h) is found in terms a/(2h) −
+    b/(2h) of an expanded equation)."""
+    expr = _replaced(expr, value, symbol)
+    expanded = sp.expand(value)
+    if expanded != value and isinstance(expanded, sp.Add):
+        expr = _replaced(expr, expanded, symbol)
+    return expr
+
+
+def _replaced(expr: sp.Expr, value: sp.Expr, symbol: sp.Expr) -> sp.Expr:
     if expr == value:
         return symbol
     if not expr.args or isinstance(expr, sp.MatrixExpr):
@@ -654,8 +768,8 @@ def replace_occurrences(expr: sp.Expr, value: sp.Expr, symbol: sp.Expr) -> sp.Ex
     if isinstance(expr, sp.Add) and isinstance(value, sp.Add):
         matched = _match_sum(expr, value, symbol)
         if matched is not None:
-            return replace_occurrences(matched, value, symbol)
-    args = [replace_occurrences(a, value, symbol) for a in expr.args]
+            return _replaced(matched, value, symbol)
+    args = [_replaced(a, value, symbol) for a in expr.args]
     if all(a is b for a, b in zip(args, expr.args)):
         return expr
     return expr.func(*args)
@@ -905,6 +1019,8 @@ class Printed:
     parameters: list = field(default_factory=list)
     layers: list = field(default_factory=list)  # what writes the printed names out (Form)
     generic: dict = field(default_factory=dict)  # "where" names at j → the same at k (Form)
+    keeps: bool = False  # a matrix by name (tr(g_k E_1 E_2)): the papers' notation
+    form: Form | None = None  # what the terms were collected from
 
 
 def _multipliers(step) -> list:
@@ -914,21 +1030,15 @@ def _multipliers(step) -> list:
     return [s for s in [*step.knowns, *step.unknowns] if s in lam]
 
 
-def printed_form(form: Form, step, printer: GroupoidLatexPrinter,
-                 explicit: Sequence) -> Printed | None:
-    """The collected terms of a form, or None when a printed equation is not the explicit
-    residual (collected or not)."""
+def collected_form(form: Form, step, printer: GroupoidLatexPrinter) -> Printed:
+    """The collected terms of a form and the "where" rows they use, with the length of their
+    printing; not yet checked (:func:`checked_form`)."""
     multipliers = _multipliers(step)
     equations: list = []
     used: set = set()
     length = 0
-    for equation, residual in zip(form.equations, explicit):
+    for equation in form.equations:
         terms = collect_terms(equation, multipliers, step.parameters, printer)
-        if not equals_explicit(sp.Add(*[t.value() for t in terms]), residual, form.layers):
-            terms = collect_terms(equation, (), (), printer)
-            if not equals_explicit(sp.Add(*[t.value() for t in terms]), residual,
-                                   form.layers):
-                return None
         used |= set().union(*[uncollected(t.expr).free_symbols for t in terms])
         length += sum(len(printer.doprint(t.expr)) + 3 for t in terms)
         equations.append(terms)
@@ -937,11 +1047,34 @@ def printed_form(form: Form, step, printer: GroupoidLatexPrinter,
             if name in layer:
                 used |= sp.sympify(layer[name]).free_symbols
     definitions = used_definitions(form.definitions, used)
-    if not all(_definition_holds(d, form) for d in definitions):
-        return None
     length += sum(_definition_length(d, step.parameters, printer) for d in definitions)
     return Printed(equations, definitions, form.intros, length, list(step.parameters),
-                   list(form.layers), dict(form.generic))
+                   list(form.layers), dict(form.generic), keeps_matrices(form.equations), form)
+
+
+def checked_form(printed: Printed, step, printer: GroupoidLatexPrinter,
+                 explicit: Sequence) -> Printed | None:
+    """``printed`` if each of its equations, written out, is the explicit residual (an
+    equation whose collected terms are not is printed uncollected, if that one is) and each
+    "where" row holds; else None."""
+    form = printed.form
+    for i, (terms, residual) in enumerate(zip(printed.equations, explicit)):
+        if not equals_explicit(sp.Add(*[t.value() for t in terms]), residual, form.layers):
+            terms = collect_terms(form.equations[i], (), (), printer)
+            if not equals_explicit(sp.Add(*[t.value() for t in terms]), residual,
+                                   form.layers):
+                return None
+            printed.equations[i] = terms
+    if not all(_definition_holds(d, form) for d in printed.definitions):
+        return None
+    return printed
+
+
+def printed_form(form: Form, step, printer: GroupoidLatexPrinter,
+                 explicit: Sequence) -> Printed | None:
+    """The collected terms of a form, or None when a printed equation is not the explicit
+    residual (collected or not)."""
+    return checked_form(collected_form(form, step, printer), step, printer, explicit)
 
 
 def used_definitions(definitions: Sequence[Definition], used: set) -> list[Definition]:
@@ -981,7 +1114,6 @@ def definition_rows(definitions: Sequence[Definition], parameters: Sequence,
     """The "where" rows: literal ones as :class:`~._layout.Definitions` (packed several to a
     line), the others collected by variables and parameters, checked, and broken like
     equations."""
-    literal = GroupoidLatexPrinter({"order": "none"})
     rows: list = []
     for d in definitions:
         if not d.literal:
@@ -989,8 +1121,7 @@ def definition_rows(definitions: Sequence[Definition], parameters: Sequence,
             terms = verified_terms(d.rhs, (), parameters, printer, lhs)
             rows.append(Row(lhs, terms, numbered=False))
             continue
-        chosen = literal if d.as_written else printer
-        pair = (chosen.doprint(d.lhs), chosen.doprint(d.rhs))
+        pair = (d.lhs, d.rhs, d.as_written)
         if rows and isinstance(rows[-1], Definitions):
             rows[-1].pairs.append(pair)
         else:
@@ -1041,47 +1172,124 @@ def _check_width(width) -> float:
     return value
 
 
-#: the shortest verified form of each printed step, by its abbreviations (a step printed
+class UnusedAbbreviationWarning(UserWarning):
+    """Abbreviations given to the printing that do not occur in the printed equations (their
+    value is not a part of the printed form); ``names``: their LaTeX names."""
+
+    def __init__(self, message: str, names: Sequence[str] = ()):
+        super().__init__(message)
+        self.names = list(names)
+
+
+#: the chosen verified form of each printed step, by its abbreviations (a step printed
 #: again — as LaTeX, as a document, in Jupyter — is not derived and checked again)
 _PRINTED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def printed_step(step, abbreviations: Mapping | None = None,
                  width: float | None = None) -> PrintedRows:
-    """The rows of the step's equations in their shortest verified printed form (by the
-    length of its unbroken printing)."""
+    """The rows of the step's equations in their chosen verified printed form
+    (:func:`chosen_form`); abbreviations that do not occur in it are reported with an
+    :class:`UnusedAbbreviationWarning`."""
     width = _check_width(width)
-    checked = tuple(abbreviations_of(abbreviations, step))
+    checked = abbreviations_of(abbreviations, step)
+    printed = chosen_printed(step, abbreviations)
+    unused = unused_abbreviations(printed, checked)
+    if unused:
+        which = (f"abbreviation {unused[0]} does" if len(unused) == 1 else
+                 f"abbreviations {', '.join(unused)} do")
+        warnings.warn(UnusedAbbreviationWarning(
+            f"{step.name}: the {which} not occur in the printed equations (not a part of "
+            f"them, or only of longer forms) and {'is' if len(unused) == 1 else 'are'} left "
+            f"out of the \"where\" list", unused), stacklevel=4)
+    return printed_rows(printed, width, MemoLatexPrinter())
+
+
+def chosen_printed(step, abbreviations: Mapping | None = None) -> Printed:
+    """The step's :func:`chosen_form`, remembered for the step and its abbreviations."""
+    key = tuple(abbreviations_of(abbreviations, step))
     try:
         known = _PRINTED.setdefault(step, {})
-        hash(checked)
+        hash(key)
     except TypeError:  # unhashable abbreviations: printed afresh
         known = {}
-    if checked not in known:
-        printed = verified_forms(step, abbreviations, MemoLatexPrinter())
-        known[checked] = min(printed, key=lambda p: p.length)
-    return printed_rows(known[checked], width, MemoLatexPrinter())
+    if key not in known:
+        known[key] = chosen_form(step, abbreviations, MemoLatexPrinter())
+    return known[key]
 
 
-def verified_forms(step, abbreviations: Mapping | None = None,
-                   printer: GroupoidLatexPrinter | None = None) -> list[Printed]:
-    """Every printed form of the step that equals its residuals: the derived form (matrix
-    or explicit), the window in named pieces, the partial derivatives of L in them, each
-    with recognised matrix pieces (W_kᵀΓ_k) and the ``abbreviations``."""
-    abbreviations = abbreviations_of(abbreviations, step)
+def unused_abbreviations(printed: Printed, abbreviations: Sequence[Abbreviation]) -> list[str]:
+    """The LaTeX names of ``abbreviations`` that no "where" row of ``printed`` defines."""
+    used = {d.abbreviation for d in printed.definitions}
+    return [a.tex for a in abbreviations if a.tex not in used]
+
+
+def plain_length(step) -> int:
+    """Characters of ``sympy.latex`` of the step's residuals, one after the other."""
+    return sum(len(sp.latex(r)) for r in step.residuals)
+
+
+def chosen_form(step, abbreviations: Mapping | None = None,
+                printer: GroupoidLatexPrinter | None = None) -> Printed:
+    """The printed form of the step: of the forms that keep a matrix by name (the papers'
+    tr(g_k E_i E_j); :func:`candidate_forms` in matrix form), the shortest, when it is not
+    longer than SymPy's plain printing of the residuals (:func:`plain_length`); otherwise
+    the shortest form of all.  Forms are collected first and checked
+    (:func:`checked_form`) in that order until one passes (the explicit residuals always
+    do); the explicit forms are built only when no matrix form is chosen."""
     printer = printer or MemoLatexPrinter()
     explicit = step.residuals
-    forms = [(base_form(step), None)]
-    for pieces, rule in _piece_forms(step):
+    kept = [collected_form(form, step, printer)
+            for form, _ in candidate_forms(step, abbreviations, matrix_form=True)]
+    if kept:
+        plain = plain_length(step)
+        for candidate in sorted((c for c in kept if c.length <= plain),
+                                key=lambda c: c.length):
+            printed = checked_form(candidate, step, printer, explicit)
+            if printed is not None:
+                return printed
+    rest = [c for c in kept if c.length > plain] if kept else []
+    rest += [collected_form(form, step, printer)
+             for form, _ in candidate_forms(step, abbreviations, matrix_form=False)]
+    for candidate in sorted(rest, key=lambda c: c.length):
+        printed = checked_form(candidate, step, printer, explicit)
+        if printed is not None:
+            return printed
+    raise LatexVerificationError(f"{step.name}: the printed equations differ from the "
+                                 f"residuals")
+
+
+def candidate_forms(step, abbreviations: Mapping | None = None,
+                    matrix_form: bool = False) -> list[tuple[Form, object]]:
+    """The forms of the step, each with the rule of its pieces (None: no pieces), in matrix
+    form (none when the matrix form keeps no matrix by name) or explicit: the derived form
+    (:func:`base_form`), the window in named pieces, the partial derivatives of L in them,
+    each with recognised matrix pieces (W_kᵀΓ_k) and the ``abbreviations``."""
+    abbreviations = abbreviations_of(abbreviations, step)
+    base = base_form(step, matrix_form)
+    if base is None:
+        return []
+    forms: list = [(base, None)]
+    for pieces, rule in _piece_forms(step, matrix_form):
         if _no_clash(pieces, step):
             forms.append((pieces, rule))
     recognised = action_pieces(step)
     if recognised:
         forms += [(with_recognised(form, recognised), rule) for form, rule in forms]
+    if abbreviations:
+        forms = [(abbreviate(form, step, abbreviations, rule), rule) for form, rule in forms]
+    return forms
+
+
+def verified_forms(step, abbreviations: Mapping | None = None,
+                   printer: GroupoidLatexPrinter | None = None) -> list[Printed]:
+    """Every printed form of the step (:func:`candidate_forms`) that equals its residuals."""
+    printer = printer or MemoLatexPrinter()
+    explicit = step.residuals
     printed = []
-    for form, rule in forms:
-        if abbreviations:
-            form = abbreviate(form, step, abbreviations, rule)
+    forms = [*candidate_forms(step, abbreviations, matrix_form=True),
+             *candidate_forms(step, abbreviations, matrix_form=False)]
+    for form, _ in forms:
         result = printed_form(form, step, printer, explicit)
         if result is not None:
             printed.append(result)
@@ -1096,9 +1304,10 @@ def verified_forms(step, abbreviations: Mapping | None = None,
 _NOT_IN_PIECES = (SymgroupoidError, AttributeError, TypeError, ValueError, NotImplementedError)
 
 
-def _piece_forms(step) -> list[tuple[Form, PieceRule]]:
+def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]]:
     """The forms of the step in the named pieces of the rule L is shortest in (none when L
-    is not written in pieces or the step is not a junction variation of L)."""
+    is not written in pieces or the step is not a junction variation of L), in matrix form
+    or explicit."""
     system = _junction_system(step)
     if system is None:
         return []
@@ -1109,7 +1318,7 @@ def _piece_forms(step) -> list[tuple[Form, PieceRule]]:
     out = []
     for build in (piece_form, derivative_form):
         try:
-            form = build(step, rule) if rule is not None else None
+            form = build(step, rule, matrix_form) if rule is not None else None
         except _NOT_IN_PIECES:
             form = None
         if form is not None:

@@ -7,12 +7,15 @@ Either way the Jacobian ∂F/∂(x, λ) is forward-mode differentiation through 
 f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded trees.  The
 finished program is compacted (:func:`symgroupoid.ir.compact`): the same values in fewer
 floating-point operations, the form the C kernels and the NumPy backend both evaluate.
+Beside the residual it carries ``F_scale``, the size of the terms each residual is computed
+from (:func:`symgroupoid.ir.term_magnitude`, on the compacted graph): Newton's rounding-floor
+tests read it (docs/conventions.md, "Newton's stopping rule").
 """
 
 from __future__ import annotations
 
 from ..derivation._window import step_jacobian
-from ..ir import Graph, Program, from_sympy
+from ..ir import Graph, Program, from_sympy, term_magnitude
 
 
 def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:
@@ -55,4 +58,13 @@ def step_program(step, compacted: bool = True) -> Program:
               "p": list(step.parameters)}
     program = Program(graph=g, inputs=inputs, outputs=outputs)
     program.check_inputs()
-    return program.compacted() if compacted else program
+    return with_residual_scale(program.compacted() if compacted else program)
+
+
+def with_residual_scale(program: Program) -> Program:
+    """``program`` with the output ``F_scale``: S_i, the size of the terms F_i is built from
+    (the unknowns ``u`` varying; :func:`symgroupoid.ir.term_magnitude`)."""
+    g = program.graph
+    varying = [g.inputs[s] for s in program.inputs["u"] if s in g.inputs]
+    scale = term_magnitude(g, program.outputs["F"], varying)
+    return Program(graph=g, inputs=program.inputs, outputs={**program.outputs, "F_scale": scale})

@@ -185,8 +185,12 @@ class StepEquations:
         Printed in the papers' style (``equations/_printing.py``): named pieces (midpoints,
         difference quotients) where L is written with them, ``abbreviations``
         (``{name: expression or callable of an arrow}``) where they occur, terms collected by
-        multipliers and parameters, rows broken to ``width`` pt (default 450), then a
-        "where" list; every printed equation is verified to be the residual.
+        multipliers and parameters, rows broken to a page whose text is ``width`` pt wide
+        (default 450, room left for the equation numbers), then a "where" list; every
+        printed equation is verified to be the residual.  ``document``: a standalone
+        article with that text width, displays breaking across pages, a line too wide to
+        break set smaller.  Abbreviations that do not occur are reported with an
+        :class:`~symgroupoid.UnusedAbbreviationWarning`.
         """
         from ._latex import step_latex
 

@@ -14,12 +14,12 @@ from ._compact import compact
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
 from ._program import Program, interpret
-from ._rounding import rounding_error
+from ._rounding import rounding_error, term_magnitude
 from ._sympy import from_sympy, to_sympy
 
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "compact", "forward",
     "from_sympy", "gradient", "interpret", "jacobian", "partial", "rounding_error",
-    "smooth_spec", "to_sympy",
+    "smooth_spec", "term_magnitude", "to_sympy",
 ]

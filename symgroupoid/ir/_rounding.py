@@ -19,6 +19,12 @@ error (x₁ − x₀ of nearby numbers is exact), so it stays tight when a resid
 increments of coordinates far from zero.  Newton's method compares |F_i| with
 ε·(E_i + Σ_j |J_ij||u_j|) — the second term is the residual's change when the unknowns are
 rounded — to stop at the floor, whatever the scale of the equations.
+
+The step kernels' Newton iteration needs a floor that costs no more code than the residual
+itself: :func:`term_magnitude` S, the size of the terms each residual is built from, with
+ε·S as the scale of the noise of its evaluation (|F_i| cannot be brought below the rounding
+of the largest intermediate value it is computed from, e.g. a position x_{k+1} = x_k + Δ far
+from the origin in (x_{k+1} − x_k)/h).
 """
 
 from __future__ import annotations
@@ -82,3 +88,48 @@ def rounding_error(g: Graph, outputs: Sequence[int], perturbed: Sequence[int] = 
             err[n] = g.add(*propagated, g.mul(g.const(roundings), abs_(n)))
     return [err[o] for o in outputs]
 
+
+
+def term_magnitude(g: Graph, outputs: Sequence[int], varying: Sequence[int]) -> list[int]:
+    """Nodes computing S(o) for every output, the size of the terms it is built from.
+
+    A node that does not depend on the ``varying`` inputs (the unknowns of a Newton solve)
+    has S = |value|: its rounding is the same at every iterate, so it shifts the computed
+    root but adds no noise to the residual.  The others propagate the magnitudes of their
+    arguments:
+
+    - a sum a₁ + … + a_n: S = Σ S(a_k) (every partial sum is at most that large);
+    - a product a₁ ⋯ a_n: S = Π S(a_k);
+    - a positive integer power a^m: S = S(a)^m;
+    - any other power or elementary function f(x): S = |f| + Σ_k |∂f/∂x_k|·S(x_k) (the
+      function's value and its first-order sensitivity to its arguments' magnitudes).
+
+    ε·S(o) is, up to a factor of the order of the depth of the program, the rounding noise
+    of the computed o as the varying inputs move (a first-order estimate, like
+    :func:`rounding_error`, but one node per node of the program rather than several: the
+    step kernels evaluate it beside the residual).  It counts the knowns and parameters
+    through every term they enter with the unknowns.
+    """
+    absolute = ELEMENTARY[sp.Abs]
+    order = g.reachable(outputs)
+    depends = g.dependents(varying, order)
+    size: dict = {}
+    op, args, data = g.op, g.args, g.data
+    for n in order:
+        o = op[n]
+        a = args[n]
+        if n not in depends:
+            size[n] = g.func(absolute, n) if o != CONST else g.const(abs(data[n]))
+        elif o == INPUT:
+            size[n] = g.func(absolute, n)
+        elif o == ADD:
+            size[n] = g.add(*[size[x] for x in a])
+        elif o == MUL:
+            size[n] = g.mul(*[size[x] for x in a])
+        elif o == POW and data[n].is_Integer and data[n] > 0:
+            size[n] = g.pow(size[a[0]], data[n])
+        else:
+            sensitivities = [g.mul(g.func(absolute, partial(g, n, k)), size[x])
+                             for k, x in enumerate(a)]
+            size[n] = g.add(g.func(absolute, n), *sensitivities)
+    return [size[o] for o in outputs]

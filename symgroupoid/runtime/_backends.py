@@ -30,7 +30,7 @@ from .._arguments import (
 from .._errors import ShapeError
 from ..codegen._emit import DEFAULT_OPTIONS, MAX_THREADS
 
-OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT = range(5)
+OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT, STALLED, BRANCH_JUMP = range(7)
 
 #: the texts of ``<prefix>_status_message`` (the generated C returns the same strings)
 STATUS_MESSAGES = {
@@ -38,12 +38,21 @@ STATUS_MESSAGES = {
     SINGULAR_JACOBIAN: "singular Jacobian: a pivot vanished relative to its equation, so the "
                        "step equations do not determine the next state (the discrete "
                        "Lagrangian is not regular here)",
-    NOT_CONVERGED: "Newton's method reached the iteration cap without converging",
+    NOT_CONVERGED: "Newton's method reached its iteration cap (max_iterations updates) without "
+                   "converging",
     NON_FINITE: "non-finite value (overflow to infinity, or NaN) in the residual, the "
                 "Jacobian, the Newton step or the next state",
     INVALID_ARGUMENT: "invalid argument (null buffer, negative step count, capacity below "
                       "n_steps + 1, bad option or warm start, or non-finite input)",
+    STALLED: "Newton's method stalled: its update is at the rounding noise of the solve while "
+             "the residual stays above its rounding floor",
+    BRANCH_JUMP: "branch jump: the step's solution lies far outside the region the last steps "
+                 "predict (the nearby root of the step equations has disappeared; reduce the "
+                 "step)",
 }
+
+#: the least motion the trust region of a step allows for (``<P>_TRUST_FLOOR``)
+TRUST_FLOOR = 1e-2
 
 #: largest value of a C ``int`` (Newton iteration caps and counts are ints in the kernel)
 C_INT_MAX = 2**31 - 1
@@ -81,12 +90,31 @@ class NewtonOptions:
       last factored Jacobian, evaluated at u_J) and N_i its change under a move of every
       unknown by 4 ulps: stalled at the rounding floor of the unknowns and of F's own
       operations;
+    - when an update that reduced |F|_∞ less than tenfold was a Newton update (its Jacobian
+      factored at the iterate it started from) or rounding noise (below), and every
+      |F_i| ≤ ``floor_factor``·ε·S_i, S_i the size of the terms F_i is computed from
+      (:func:`symgroupoid.ir.term_magnitude`, the program's ``F_scale``): the residual is
+      within the rounding of its own evaluation — a residual written in increments of
+      positions far from the origin, (x_{k+1} − x_k)/h at |x| ~ 10⁴, cannot go below
+      ε·|x|/h whatever the (small) unknowns;
     - when |F|_∞ ≤ ``tol_residual`` (absolute; 0, i.e. off, by default).
 
-    Not converged: after ``max_iterations`` updates, or when an update that did not reduce
-    |F|_∞ tenfold was at most 64ε times the ratio of the largest to the smallest pivot
-    (rounding noise of an update solved with that factorisation) while |F| is above its
-    floor — Newton cannot improve the iterate.
+    Not converged: after ``max_iterations`` updates (status ``NOT_CONVERGED``, the iteration
+    cap), or when an update that did not reduce |F|_∞ tenfold was at most 64ε times the ratio
+    of the largest to the smallest pivot (rounding noise of an update solved with that
+    factorisation) while |F| is above every floor — Newton cannot improve the iterate
+    (``STALLED``).
+
+    ``trust_factor`` (10 by default; 0 turns the check off): a step solved from an
+    extrapolated guess is accepted only within the guess's trust region,
+    |u − guess| ≤ trust_factor·(m + 0.01), |·| relative to each unknown (max_j |d_j|/(1 +
+    |u_j|) at the last solution) and m the larger motion of the last two steps (from a run's
+    fourth step on); otherwise
+    the step is retried from ``step.prediction`` and, if that solution lies outside too, the
+    run stops with ``BRANCH_JUMP`` (:class:`~symgroupoid.BranchJumpError`): when the root
+    near the last steps disappears (a fold of the step map, the step no longer resolving the
+    motion), Newton can converge to a far root of another branch, and the run would go on
+    there with converged residuals.
 
     At most ``max_iterations`` updates (an integer in 0 … 2³¹ − 1, the range of a C ``int``;
     integral floats such as ``1e3`` are accepted).  With ``extrapolate`` the guess of step
@@ -104,10 +132,11 @@ class NewtonOptions:
     max_iterations: int = DEFAULT_OPTIONS["max_iterations"]
     extrapolate: bool = True
     floor_factor: float = DEFAULT_OPTIONS["floor_factor"]
+    trust_factor: float = DEFAULT_OPTIONS["trust_factor"]
 
     def __post_init__(self):
         owner = "NewtonOptions"
-        for name in ("tol_residual", "tol_step", "floor_factor"):
+        for name in ("tol_residual", "tol_step", "floor_factor", "trust_factor"):
             object.__setattr__(self, name, real_argument(getattr(self, name), name,
                                                          minimum=0.0, owner=owner))
         object.__setattr__(self, "max_iterations", integer_argument(
@@ -543,6 +572,7 @@ class CKernel(_Kernel):
         opts.tol_step = options.tol_step
         opts.max_iterations = int(options.max_iterations)
         opts.extrapolate = int(bool(options.extrapolate))
+        opts.trust_factor = options.trust_factor
         return opts
 
     def _buf(self, array, length, name, ctype="double"):
@@ -859,6 +889,18 @@ class NumpyWarmStart:
         else the linear 2u_last − u_before."""
         return self._quadratic() if self.count == 3 and self.quadratic else self._linear()
 
+    def trusts(self, guess: np.ndarray, u: np.ndarray, factor: float) -> bool:
+        """As ``<prefix>_trusted``: whether the solution ``u`` of a step lies in the trust
+        region of its extrapolated ``guess``, |u − guess| ≤ factor·(m + TRUST_FLOOR) (|·|
+        relative to each unknown at ``u_last``; m the larger motion of the last two steps),
+        or the check is off (factor 0, fewer than three solutions held: one motion alone can
+        be the small one of an oscillation)."""
+        if not factor > 0.0 or self.count < 3:
+            return True
+        m = relative_norm(self.u_last - self.u_before, self.u_last)
+        m2 = relative_norm(self.u_before - self.u_earlier, self.u_last)
+        return relative_norm(u - guess, self.u_last) <= factor * (max(m, m2) + TRUST_FLOOR)
+
     def remember(self, u: np.ndarray) -> None:
         """As ``<prefix>_remember``: adds the solution ``u``; with three solutions held,
         ``quadratic`` becomes whether the quadratic extrapolation would have guessed ``u``
@@ -887,6 +929,7 @@ class NumpyKernel(_Kernel):
         program = step.program
         args = ["u", "known", "p"]
         self._F = program.numpy_function(["F"], args)
+        self._S = program.numpy_function(["F_scale"], args)
         self._FJ = program.numpy_function(["F", "J"], args)
         self._next = program.numpy_function(["next_knowns"], args)
         self._pred = program.numpy_function(["predict"], ["known", "p"])
@@ -923,13 +966,21 @@ class NumpyKernel(_Kernel):
             N = np.maximum(N, np.abs(G - F))
         return bool(np.all(np.abs(F) <= factor * (C + N)))
 
+    def _within_scale(self, u, known, p, F, factor: float) -> bool:
+        """As ``<prefix>_within_scale``: every |F_i| ≤ factor·ε·S_i, S the program's
+        ``F_scale`` (the size of the terms F_i is computed from)."""
+        S = self._S(u, known, p)[0].reshape(self.n_u)
+        return bool(np.all(np.abs(F) <= factor * EPSILON * S))
+
     def _newton(self, known, p, u, options: NewtonOptions):
         """As ``<prefix>_newton`` (see :class:`NewtonOptions`)."""
         previous = last_step = 0.0
         factors = uJ = None
         done = 0  # 1: stopped on a rounding-noise update, 2: on the estimated error
+        fresh = False  # the last update was a Newton update (J factored where it started)
         it = 0
         while True:
+            here = False  # J factored at this iterate
             if it == 0:
                 F, J = self._residual_jacobian(u, known, p)
             else:
@@ -945,7 +996,7 @@ class NumpyKernel(_Kernel):
                     return OK, u, it, rnorm
                 done = 0  # a small update, a residual above the floor: iterate on
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
-                uJ = u
+                uJ, here = u, True
                 status, factors = lu_factor(J)
                 if status != OK:
                     return status, u, it, rnorm
@@ -956,18 +1007,22 @@ class NumpyKernel(_Kernel):
             if slow and self._at_floor(u, known, p, F, coordinate_floor(J, uJ),
                                        options.floor_factor):
                 return OK, u, it, rnorm
-            if slow and last_step <= 64.0 * EPSILON * ratio:  # the update is rounding noise
-                return (OK if explained_by_rounding(F, J, u, uJ, ratio) else NOT_CONVERGED,
+            noise = slow and last_step <= 64.0 * EPSILON * ratio  # rounding noise of a solve
+            if slow and (fresh or noise) and self._within_scale(u, known, p, F,
+                                                                options.floor_factor):
+                return OK, u, it, rnorm  # at the rounding of the residual's own terms
+            if noise:
+                return (OK if explained_by_rounding(F, J, u, uJ, ratio) else STALLED,
                         u, it, rnorm)
             if it >= options.max_iterations:
                 return NOT_CONVERGED, u, it, rnorm
             if slow:
                 F, J = self._residual_jacobian(u, known, p)
-                uJ = u
+                uJ, here = u, True
                 status, factors = lu_factor(J)
                 if status != OK:
                     return status, u, it, rnorm
-            previous = rnorm
+            previous, fresh = rnorm, here
             status, du = lu_apply(factors, F)
             if status != OK:
                 return status, u, it, rnorm
@@ -989,7 +1044,9 @@ class NumpyKernel(_Kernel):
                   warm: NumpyWarmStart) -> RawRun:
         """As ``<prefix>_simulate``: extrapolate from the warm start when it holds at least
         two solutions (and ``options.extrapolate``), else predict; retry from the prediction
-        when Newton fails from an extrapolated guess."""
+        when Newton fails from an extrapolated guess or its solution lies outside the
+        guess's trust region (:meth:`NumpyWarmStart.trusts`), and stop with ``BRANCH_JUMP``
+        when the retry's does too."""
         if not isinstance(warm, NumpyWarmStart) or warm.count not in (0, 1, 2, 3) \
                 or warm.quadratic not in (False, True):
             raise ShapeError(f"{self.step.name}: the warm start must come from "
@@ -1002,13 +1059,21 @@ class NumpyKernel(_Kernel):
             current = states[k]
             extrapolated = bool(options.extrapolate) and warm.count >= 2
             with np.errstate(all="ignore"):
-                u0 = warm.extrapolate() if extrapolated else self._predict(current, p)
-            status, u, iterations[k], norms[k] = self._solve_step(current, p, u0, options)
-            if status != OK and extrapolated:  # retry from the prediction
+                guess = warm.extrapolate() if extrapolated else self._predict(current, p)
+            status, u, iterations[k], norms[k] = self._solve_step(current, p, guess, options)
+            jumped = (extrapolated and status == OK
+                      and not warm.trusts(guess, u, options.trust_factor))
+            if extrapolated and (status != OK or jumped):  # retry from the prediction
+                far, far_norm = u, norms[k]
                 with np.errstate(all="ignore"):
                     u0 = self._predict(current, p)
                 status, u, more, norms[k] = self._solve_step(current, p, u0, options)
                 iterations[k] = min(iterations[k] + more, C_INT_MAX)
+                if status != OK and jumped:  # report the far solution
+                    u, norms[k] = far, far_norm
+                if (not warm.trusts(guess, u, options.trust_factor) if status == OK
+                        else jumped):
+                    status = BRANCH_JUMP
             if status == OK:
                 with np.errstate(all="ignore"):
                     following = self._next_knowns(u, current, p)

@@ -351,7 +351,8 @@ class TrajectoryBatch:
     - ``batch.newton_iterations``, ``batch.residual_norms`` (B, R − 1): per interval between
       kept states, as in :class:`Trajectory`;
     - ``batch.status`` (B,): 0 for a completed run, else the kernel's status
-      (1 singular Jacobian, 2 Newton not converged, 3 non-finite value); ``batch.ok``;
+      (1 singular Jacobian, 2 Newton's iteration cap, 3 non-finite value, 5 Newton stalled
+      above the rounding floor, 6 a branch jump; ``STATUS_MESSAGES``); ``batch.ok``;
       ``batch.failed_step`` (B,): the failing step s, −1 for a completed run;
     - ``batch[b]``: run b as a :class:`Trajectory` (a failed run: up to state s, as
       ``err.trajectory`` of the error ``simulate`` raises); ``batch.error(b)``: that error;
@@ -359,8 +360,10 @@ class TrajectoryBatch:
     - ``batch.parameters`` (B, n_params): the parameters of each run.
     """
 
-    def __init__(self, sim, raw: BatchRun, parameters: np.ndarray, steps: int, every: int):
+    def __init__(self, sim, raw: BatchRun, parameters: np.ndarray, steps: int, every: int,
+                 options: NewtonOptions | None = None):
         self._sim = sim
+        self._options = sim.options if options is None else options
         self._raw = raw
         self.steps, self.every = int(steps), int(every)
         self.parameters = np.broadcast_to(parameters, (len(raw.kept), parameters.shape[-1]))
@@ -436,6 +439,7 @@ class TrajectoryBatch:
         err = self._sim._failure(int(self.status[b]), int(self.failed_step[b]),
                                  int(raw.failed_iterations[b]),
                                  float(raw.failed_residual_norms[b]), raw.last_iterate[b],
+                                 self._options,
                                  known=run.states[-1] if len(run.states) else None,
                                  p=self.parameters[b])
         err.trajectory = run
@@ -504,4 +508,4 @@ def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
     check_constraints(sim, S, P, INITIAL_CONSTRAINT_TOLERANCE)
     _check_memory(sim, len(S), batch_rows(steps, every), steps, every)
     raw = run_batch(sim, S, P, steps, every, options, threads)
-    return TrajectoryBatch(sim, raw, P, steps, every)
+    return TrajectoryBatch(sim, raw, P, steps, every, options)

@@ -220,12 +220,20 @@ def default_flags(cache_dir: str | os.PathLike | None = None,
     return tuple(flags)
 
 
+def step_operations(step) -> int:
+    """The operations of a step's hot code, which decide its optimisation level: the
+    program's outputs but the residual's scale (``F_scale``, evaluated only when a rounding
+    floor is tested, and compiled in the cold unit)."""
+    program = step.program
+    return program.size([name for name in program.outputs if name != "F_scale"])
+
+
 def _step_flags(step, cache_dir) -> tuple[str, ...]:
     """:func:`default_flags`; without a compiler, the default build of ``step`` that is in
     the cache (with OpenMP or without), which needs no compiler to load."""
-    base = optimisation_flags(step.program.size(), step=True)
+    base = optimisation_flags(step_operations(step), step=True)
     if _compiler_identity() is not None:
-        return default_flags(cache_dir, step.program.size(), step=True)
+        return default_flags(cache_dir, step_operations(step), step=True)
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     for flags in ((*base, OPENMP_FLAG), tuple(base)):
         source_key = cache.lookup(input_key(step, flags))
@@ -289,7 +297,7 @@ def step_kernel(step, cache: KernelCache | None = None, flags: Sequence[str] | N
     (:func:`~._build.block_weight`); the templates' compiled code kept in ``cache``
     (:func:`compiled_templates`)."""
     if flags is None:
-        flags = optimisation_flags(step.program.size(), step=True)
+        flags = optimisation_flags(step_operations(step), step=True)
     return generate_c(step, latex=False, units=translation_units(),
                       block_weight=block_weight(flags) if block_units else None,
                       template_cache=None if cache is None else compiled_templates(cache))
@@ -519,7 +527,8 @@ def load_kernel_source(kernel: KernelSource, flags: Sequence[str], label: str,
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
                  cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
                  tol_step: float | None = None, max_iterations: int | None = None,
-                 floor_factor: float | None = None) -> Simulator:
+                 floor_factor: float | None = None,
+                 trust_factor: float | None = None) -> Simulator:
     """A :class:`Simulator` for ``step``: its C kernel (cffi, cached) or the NumPy backend.
 
     Every argument is checked before anything is built, whichever backend is used
@@ -546,7 +555,7 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         taken relative to the working directory of this call.  If it cannot be written,
         kernels are built in a private temporary directory for this process (with a
         ``RuntimeWarning``).
-    tol_residual, tol_step, max_iterations, floor_factor : Newton options (see
+    tol_residual, tol_step, max_iterations, floor_factor, trust_factor : Newton options (see
         :class:`NewtonOptions`).
     progress : report code generation and compilation taking longer than 2 s (see
         :mod:`symgroupoid._progress`; a cached kernel loads in milliseconds).
@@ -564,7 +573,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     if cache_dir is not None:  # resolved now: a later chdir cannot move the cache
         cache_dir = absolute_root(path_argument(cache_dir, "cache_dir", owner=owner))
     given = {"tol_residual": tol_residual, "tol_step": tol_step,
-             "max_iterations": max_iterations, "floor_factor": floor_factor}
+             "max_iterations": max_iterations, "floor_factor": floor_factor,
+             "trust_factor": trust_factor}
     options = NewtonOptions(**{k: v for k, v in given.items() if v is not None})
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)

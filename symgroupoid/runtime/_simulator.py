@@ -11,6 +11,7 @@ import numpy as np
 
 from .._arguments import callable_argument
 from .._errors import (
+    BranchJumpError,
     DomainError,
     NewtonDivergenceError,
     ShapeError,
@@ -19,8 +20,10 @@ from .._errors import (
 )
 from .._progress import Task
 from ._backends import (
+    BRANCH_JUMP,
     INVALID_ARGUMENT,
     NON_FINITE,
+    NOT_CONVERGED,
     OK,
     SINGULAR_JACOBIAN,
     STATUS_MESSAGES,
@@ -244,7 +247,7 @@ class Simulator:
             if run.status != OK:
                 k = run.failed_step
                 err = self._failure(run.status, start + k, run.iterations[k],
-                                    run.residual_norms[k], run.last_iterate,
+                                    run.residual_norms[k], run.last_iterate, options,
                                     known=run.states[k], p=p)
                 err.trajectory = piece
                 raise err
@@ -252,17 +255,19 @@ class Simulator:
                 yield piece
 
     def _chunk_failure(self, chunk, start: int, iterations: np.ndarray,
-                       norms: np.ndarray, states: np.ndarray | None = None,
+                       norms: np.ndarray, options: NewtonOptions,
+                       states: np.ndarray | None = None,
                        p: np.ndarray | None = None) -> Exception:
         """The error of a :class:`~symgroupoid.runtime._backends.ChunkRun` that failed
         (its failed step's data at entry start + k of the run's buffers, its known state
         at row start + k of ``states``)."""
         k = chunk.failed_step
         if k < 0:  # nothing was solved: the kernel refused its arguments
-            return self._failure(chunk.status, start, 0, float("nan"), chunk.last_iterate)
+            return self._failure(chunk.status, start, 0, float("nan"), chunk.last_iterate,
+                                 options)
         known = None if states is None else states[start + k]
         return self._failure(chunk.status, start + k, iterations[start + k],
-                             norms[start + k], chunk.last_iterate, known=known, p=p)
+                             norms[start + k], chunk.last_iterate, options, known=known, p=p)
 
     def _trajectory(self, states, iterations, norms, p, indices, every) -> Trajectory:
         values = dict(zip(self.parameter_names, p.tolist()))
@@ -341,13 +346,14 @@ class Simulator:
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
-                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0, known=known, p=p)
+                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0, options, known=known,
+                                    p=p)
         else:
             u0 = real_vector(guess, len(self.equations.unknowns), "guess", owner=self.name,
                              finite=True)
         status, u, it, rn = self.kernel.solve_step(known, p, u0, options)
         if status != OK:
-            raise self._failure(status, 0, it, rn, u, known=known, p=p)
+            raise self._failure(status, 0, it, rn, u, options, known=known, p=p)
         return u, it, rn
 
     def from_momentum(self, configuration, momentum: Sequence, params) -> np.ndarray:
@@ -414,8 +420,13 @@ class Simulator:
         return self.state(moved, p)
 
     def _failure(self, status: int, step: int, iterations: int, residual_norm: float,
-                 iterate: np.ndarray, *, known: np.ndarray | None = None,
-                 p: np.ndarray | None = None) -> Exception:
+                 iterate: np.ndarray, options: NewtonOptions | None = None, *,
+                 known: np.ndarray | None = None, p: np.ndarray | None = None) -> Exception:
+        """The error of a failed step ``step`` (of the run: the warm start holds two
+        solutions from its step 2 on, so that a step of a run with ``extrapolate`` was tried
+        twice, from the extrapolated guess and from the prediction).  A step that gave
+        non-finite values at the known state ``known`` is explained where a cause is found
+        (a half-turn, a zero parameter; :mod:`~symgroupoid.runtime._singular`)."""
         if status == NON_FINITE and known is not None:  # a half-turn, h = 0: say which
             from ._singular import non_finite_cause
 
@@ -424,11 +435,22 @@ class Simulator:
             if found is not None:
                 found.trajectory = None
                 return found
+        options = self.options if options is None else options
+        tries = ("" if not options.extrapolate or step < 2 else
+                 f" in two tries of at most {options.max_iterations} each, from the "
+                 f"extrapolated guess and from the step's prediction")
         text = (f"{self.name}: step {step} failed: {STATUS_MESSAGES[status]} (after "
-                f"{int(iterations)} Newton iterations, |F|_inf = {residual_norm:.3e})")
+                f"{int(iterations)} Newton iterations{tries}, |F|_inf = {residual_norm:.3e})")
         if status == INVALID_ARGUMENT:  # the checks above let nothing invalid through
             return DomainError(text)
-        cls = SingularJacobianError if status == SINGULAR_JACOBIAN else NewtonDivergenceError
+        if status == NOT_CONVERGED:
+            text += (f"; the cap is NewtonOptions(max_iterations={options.max_iterations}) "
+                     f"per try")
+        if status == BRANCH_JUMP:
+            text += (f"; NewtonOptions(trust_factor={options.trust_factor:g}) sets the "
+                     f"trust region, trust_factor=0 turns the check off")
+        cls = {SINGULAR_JACOBIAN: SingularJacobianError,
+               BRANCH_JUMP: BranchJumpError}.get(status, NewtonDivergenceError)
         err = cls(text, step=int(step), residual_norm=float(residual_norm),
                   iterate=np.array(iterate, dtype=float))
         err.trajectory = None
@@ -468,7 +490,7 @@ class _WholeRun:
             task.update(done + chunk.completed)
             if chunk.status != OK:
                 err = self.sim._chunk_failure(chunk, done, self.iterations, self.norms,
-                                              self.states, self.p)
+                                              options, self.states, self.p)
                 err.trajectory = self.so_far()
                 raise err
             if callback is not None:

@@ -1,0 +1,353 @@
+"""Documents that typeset whole, and SO(3) systems printed without their basis entries.
+
+Targets: a document breaks its lines at the width of its own page (geometry), its displays
+break across pages, a term too wide for a line is set smaller, and pdflatex places every
+equation — ``pdftotext`` shows each equation number and the log no overfull box beyond 1 pt —
+for the seed systems (``symgroupoid/systems.py``) and a satellite with a reaction wheel;
+``derive --pdf`` fails with :class:`LostContentError` when LaTeX reports lost content.  The
+satellite, written with Ω = vee(W − Wᵀ)/(2h) or with the entries of W, prints no entry of a
+basis matrix (E_a)_{ij}, is never longer than ``sympy.latex`` of its residuals, and uses the
+abbreviations it is given (warning about those it does not).
+
+The tests that typeset skip when pdflatex or pdftotext is missing (``.ci/run`` installs
+them: TeX Live's texlive-latex-base and poppler-utils).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import warnings
+from pathlib import Path
+
+import pytest
+import sympy as sp
+from kernel_support import REPO
+
+import symgroupoid as sg
+from symgroupoid import systems
+from symgroupoid.cli import main
+from symgroupoid.cli._derive import OVERFULL_TOLERANCE, lost_content
+from symgroupoid.cli._system_file import load_system
+from symgroupoid.equations import _layout, _printing
+
+needs_tex = pytest.mark.skipif(
+    shutil.which("pdflatex") is None or shutil.which("pdftotext") is None,
+    reason="pdflatex or pdftotext is not installed (TeX Live's texlive-latex-base and "
+           "poppler-utils; .ci/run installs them)")
+
+SATELLITE = REPO / "examples" / "cli" / "satellite.py"
+
+#: the satellite as first written: Ω from the entries of W (what printed 324 entries
+#: (E_i)_{jk} of the basis matrices, in 19 792 characters)
+SATELLITE_ENTRIES = '''
+import sympy as sp
+import symgroupoid as sg
+
+h, I1, I2, I3, Jw = sp.symbols("h I1 I2 I3 J_w", positive=True)
+
+
+def satellite() -> sg.DiscreteSystem:
+    G = sg.SO3("W") * sg.PairGroupoid(sg.EuclideanSpace("theta"))
+
+    def L(g):
+        W = g[0].matrix
+        (th0,), (th1,) = g[1].source, g[1].target
+        A = W - W.T
+        w = sp.Matrix([A[2, 1], A[0, 2], A[1, 0]]) / (2 * h)
+        return h * ((w.T * sp.diag(I1, I2, I3) * w)[0, 0] / 2
+                    + Jw * (w[2] + (th1 - th0) / h) ** 2 / 2)
+
+    return sg.DiscreteSystem(G, L, parameters=[h, I1, I2, I3, Jw], name="satellite")
+'''
+
+#: one equation whose last term, h sin(q_k + p_1 + … + p_24), is wider than any page
+WIDE = '''
+import sympy as sp
+import symgroupoid as sg
+
+h = sp.Symbol("h", positive=True)
+p = sp.symbols("p_1:25", positive=True)
+
+
+def L(arrow):
+    (q0,), (q1,) = arrow.source, arrow.target
+    return h * (((q1 - q0) / h) ** 2 / 2 + sp.cos(q0 + sum(p)))
+
+
+system = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, *p],
+                           name="wide")
+'''
+
+
+def _file(tmp_path: Path, name: str, source: str) -> Path:
+    path = tmp_path / f"{name}.py"
+    path.write_text(source)
+    return path
+
+
+@pytest.fixture(scope="module")
+def satellite():
+    """The satellite of examples/cli/satellite.py (Ω = vee(W − Wᵀ)/(2h)) and its file."""
+    return load_system(str(SATELLITE))
+
+
+@pytest.fixture(scope="module")
+def satellite_step(satellite):
+    return satellite.system.euler_lagrange()
+
+
+@pytest.fixture(scope="module")
+def entries_step(tmp_path_factory):
+    path = _file(tmp_path_factory.mktemp("satellite"), "satellite", SATELLITE_ENTRIES)
+    return load_system(str(path)).system.euler_lagrange()
+
+
+def typeset(document: str, folder: Path) -> tuple[str, str]:
+    """pdflatex's log and pdftotext's text (``-layout``) of ``document``."""
+    tex = folder / "doc.tex"
+    tex.write_text(document)
+    run = subprocess.run(["pdflatex", "-interaction=nonstopmode", "-halt-on-error", tex.name],
+                         cwd=folder, capture_output=True, text=True, errors="replace",
+                         timeout=300)
+    assert run.returncode == 0, run.stdout[-3000:]
+    text = subprocess.run(["pdftotext", "-layout", "doc.pdf", "-"], cwd=folder,
+                          capture_output=True, text=True, check=True, timeout=60).stdout
+    return (folder / "doc.log").read_text(errors="replace"), text
+
+
+def equation_numbers(text: str) -> list[int]:
+    """The equation numbers at the ends of the lines of a PDF's text."""
+    return [int(n) for n in re.findall(r"\((\d+)\)\s*$", text, re.M)]
+
+
+def assert_typesets_whole(step, folder: Path, **options) -> str:
+    """The document of ``step`` typesets with every equation number, in order, and no box
+    beyond 1 pt past its page; its LaTeX."""
+    document = step.latex(document=True, **options)
+    log, text = typeset(document, folder)
+    assert equation_numbers(text) == list(range(1, len(step) + 1)), text[-3000:]
+    assert lost_content(log, tolerance=1.0) == [], step.name
+    return document
+
+
+# --- the page -------------------------------------------------------------------------------------
+
+def test_documents_are_as_wide_as_their_lines_and_break_across_pages():
+    step = systems.rigid_body().euler_lagrange()
+    doc = step.latex(document=True, width=300)
+    assert "\\usepackage[a4paper,textwidth=300pt,vmargin=2.5cm]{geometry}" in doc
+    assert "\\allowdisplaybreaks" in doc
+    assert f"textwidth={_layout.PAGE_WIDTH:g}pt" in step.latex(document=True)
+
+
+def test_lines_leave_room_for_the_equation_numbers():
+    """align centres its block: a number stays on its line only with the number and
+    0.5 em free on both sides of the block (measured with pdflatex: a 308 pt row keeps "(6)"
+    on a 345 pt page, a 318 pt row does not)."""
+    room = _layout.line_room(345.0, numbered=True)
+    assert 345.0 - 2 * (18 + _layout.TAG_SEPARATION) >= room * _layout.TEX_PER_MATHTEXT
+    assert _layout.line_room(345.0, numbered=False) == pytest.approx(
+        345.0 / _layout.TEX_PER_MATHTEXT)
+
+
+@needs_tex
+def test_a_small_document_typesets_whole(tmp_path):
+    """The rigid body's three equations, each number on the page, nothing past its margins."""
+    assert_typesets_whole(systems.rigid_body().euler_lagrange(), tmp_path)
+
+
+@needs_tex
+def test_a_term_wider_than_the_page_is_set_smaller(tmp_path):
+    step = _system(WIDE).euler_lagrange()
+    plain = step.latex()
+    assert "\\scalebox" not in plain  # the align alone: for any page, left whole
+    document = assert_typesets_whole(step, tmp_path)
+    assert re.search(r"\\scalebox\{0\.\d\d\}\{\$\\displaystyle - h \\sin\(q_\{k\}", document)
+
+
+def _system(source: str):
+    namespace: dict = {}
+    exec(compile(source, "<system>", "exec"), namespace)
+    return namespace["system"]
+
+
+@needs_tex
+@pytest.mark.slow
+@pytest.mark.parametrize("name", ["plate_ball", "heavy_top", "rigid_body"])
+def test_seed_documents_typeset_whole(name, tmp_path):
+    assert_typesets_whole(getattr(systems, name)().euler_lagrange(), tmp_path)
+
+
+@needs_tex
+@pytest.mark.slow
+def test_satellite_documents_typeset_whole(satellite, satellite_step, entries_step, tmp_path):
+    for i, (step, options) in enumerate([
+            (satellite_step, {}), (entries_step, {}),
+            (satellite_step, {"abbreviations": satellite.convention("ABBREVIATIONS")}),
+            (satellite_step, {"width": 300})]):
+        folder = tmp_path / str(i)
+        folder.mkdir()
+        assert_typesets_whole(step, folder, **options)
+
+
+@needs_tex
+def test_derive_pdf_of_the_plate_ball_has_every_equation(tmp_path, capsys):
+    """The command line's PDF of seed 000 §6.2 (259 pt past the margin before)."""
+    path = _file(tmp_path, "plate", "from symgroupoid import systems\n"
+                                     "plate_ball = systems.plate_ball\n")
+    tex = tmp_path / "plate.tex"
+    assert main(["derive", f"{path}:plate_ball", "--document", str(tex), "--pdf"]) == 0
+    text = subprocess.run(["pdftotext", "-layout", str(tex.with_suffix(".pdf")), "-"],
+                          capture_output=True, text=True, check=True).stdout
+    assert equation_numbers(text) == list(range(1, 9))
+    log = tex.with_suffix(".log").read_text(errors="replace")
+    assert lost_content(log, tolerance=1.0) == []
+
+
+# --- lost content ---------------------------------------------------------------------------------
+
+LOG = """\
+Overfull \\hbox (69.63286pt too wide) detected at line 132
+[]
+Overfull \\hbox (2.5pt too wide) detected at line 140
+Overfull \\vbox (2523.39365pt too high) has occurred while \\output is active []
+Missing character: There is no ^^A in font cmr10!
+"""
+
+
+def test_the_log_tells_lost_content():
+    assert lost_content(LOG) == [
+        "a line 69.6 pt too wide (detected at line 132)", "a page 2523.4 pt too high",
+        "character ^^A missing from font cmr10"]
+    assert 2.5 < OVERFULL_TOLERANCE
+    assert lost_content(LOG, tolerance=1.0)[1] == "a line 2.5 pt too wide (detected at line 140)"
+    assert lost_content("Overfull \\hbox (0.4pt too wide) in paragraph at lines 3--4\n") == []
+
+
+def _fake_pdflatex(folder: Path, log: str) -> Path:
+    """A pdflatex (first on PATH) that writes NAME.pdf and NAME.log (``log``) for its last
+    argument NAME.tex."""
+    tools = folder / "tools"
+    tools.mkdir()
+    (folder / "fake.log").write_text(log)
+    fake = tools / "pdflatex"
+    fake.write_text('#!/bin/sh\nfor last; do :; done\nprintf %%PDF > "${last%.tex}.pdf"\n'
+                    f'cp {folder / "fake.log"} "${{last%.tex}}.log"\n')
+    fake.chmod(0o755)
+    return tools
+
+
+def test_derive_pdf_fails_on_lost_content(tmp_path, capsys, monkeypatch):
+    path = _file(tmp_path, "wide", WIDE)
+    monkeypatch.setenv("PATH", f"{_fake_pdflatex(tmp_path, LOG)}{os.pathsep}/usr/bin:/bin")
+    code = main(["derive", str(path), "--document", str(tmp_path / "wide.tex"), "--pdf"])
+    err = capsys.readouterr().err
+    errors = [line for line in err.splitlines() if line.startswith("symgroupoid: error:")]
+    assert code == 1 and len(errors) == 1 and "Traceback" not in err
+    err = errors[0]
+    assert err.startswith("symgroupoid: error: pdflatex could not fit all of ")
+    assert "a line 69.6 pt too wide (detected at line 132); a page 2523.4 pt too high" in err
+    assert "ABBREVIATIONS" in err
+
+
+@needs_tex
+def test_derive_pdf_fails_when_a_line_runs_past_the_page(tmp_path, capsys, monkeypatch):
+    """With the wide term left at full size, pdflatex's overfull box is an error."""
+    monkeypatch.setattr(_layout, "SMALLEST_SCALE", 1.0)
+    path = _file(tmp_path, "wide", WIDE)
+    code = main(["derive", str(path), "--document", str(tmp_path / "wide.tex"), "--pdf"])
+    err = capsys.readouterr().err
+    assert code == 1 and "pdflatex could not fit all of" in err and "pt too wide" in err
+
+
+# --- SO(3) systems written with matrix entries ----------------------------------------------------
+
+def test_satellite_prints_no_basis_entries_and_is_shorter_than_sympy(satellite_step,
+                                                                      entries_step):
+    """19 792 characters with 324 entries (E_i)_{jk} before; sympy.latex: 4 029."""
+    for step in (satellite_step, entries_step):
+        tex = step.latex()
+        plain = sum(len(sp.latex(r)) for r in step.residuals)
+        assert "E_{" not in tex and "matrix" not in tex
+        assert len(tex) <= plain, (len(tex), plain)
+        assert _printing.chosen_printed(step).length <= _printing.plain_length(step)
+
+
+@pytest.mark.parametrize("name", ["plate_ball", "heavy_top", "rigid_body"])
+def test_printed_forms_are_never_longer_than_sympy(name, plate_ball_step):
+    """The papers' tr(g_k E_i E_j) where it is not longer than the plain printing."""
+    step = plate_ball_step if name == "plate_ball" else getattr(systems, name)()\
+        .euler_lagrange()
+    printed = _printing.chosen_printed(step)
+    assert printed.keeps and printed.length <= _printing.plain_length(step)
+
+
+def test_constant_entries_are_evaluated():
+    """(E_1)_{11} (W)_{12} is 0, (W E_1)_{32} is (W)_{33}, tr(E_1ᵀ W) is W_{32} − W_{23};
+    tr(W E_1 E_2) keeps its name."""
+    G = sg.SO3("W")
+    E1, E2 = sp.MatrixSymbol("E_{1}", 3, 3), sp.MatrixSymbol("E_{2}", 3, 3)
+    W = sp.MatrixSymbol("W_{k}", 3, 3)
+    basis = G.basis_matrices()
+    entries = sp.ImmutableMatrix(G.named_matrix(0))
+    values = {E1: sp.ImmutableMatrix(basis[0]), E2: sp.ImmutableMatrix(basis[1]), W: entries}
+    constants = {E1, E2}
+
+    def evaluated(expr):
+        return _printing.evaluated_constants(expr, values, constants)
+
+    assert evaluated(E1[0, 0] * W[0, 1] + E1[2, 1] * W[0, 1]) == entries[0, 1]
+    assert evaluated((W * E1)[2, 1]) == entries[2, 2]
+    explicit_transpose = sp.ImmutableMatrix(basis[0]).T
+    assert evaluated(sp.Trace(sp.MatMul(explicit_transpose, W))) == entries[2, 1] - entries[1, 2]
+    kept = sp.Trace(sp.MatMul(W, E1, E2))
+    assert evaluated(kept) == kept and evaluated(sp.Trace(sp.MatMul(E1, E2))) == 0
+
+
+def test_satellite_uses_its_abbreviations_and_names_the_unused(satellite, satellite_step):
+    abbreviations = dict(satellite.convention("ABBREVIATIONS"))
+    abbreviations["M"] = sp.Symbol("I1", positive=True) + sp.Symbol("I2", positive=True)
+    with pytest.warns(_printing.UnusedAbbreviationWarning, match="abbreviation M does not") \
+            as caught:
+        tex = satellite_step.latex(abbreviations=abbreviations)
+    assert [w.message.names for w in caught] == [["M"]]
+    for a in (1, 2, 3):
+        assert f"(\\Omega_{{{a}}})_{{k+1/2}}" in tex
+        assert f"(\\Omega_{{{a}}})_{{j-1/2}} &= " in tex or \
+            f"(\\Omega_{{{a}}})_{{j-1/2}} = " in tex
+    assert "M = " not in tex and len(tex) < len(satellite_step.latex())
+
+
+def test_derive_prints_the_abbreviations_it_did_not_use(tmp_path, capsys):
+    path = _file(tmp_path, "pendulum", '''
+import sympy as sp
+import symgroupoid as sg
+
+h, g = sp.symbols("h g", positive=True)
+
+
+def L(arrow):
+    (q0,), (q1,) = arrow.source, arrow.target
+    return h * (((q1 - q0) / h) ** 2 / 2 + g * sp.cos((q0 + q1) / 2))
+
+
+system = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, g],
+                           name="pendulum")
+ABBREVIATIONS = {"G": 2 * g, r"\\vartheta": lambda a: (a.source[0] + a.target[0]) / 2}
+''')
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # reported as a line, not as a Python warning
+        assert main(["derive", str(path)]) == 0
+    out = capsys.readouterr().out
+    assert "% abbreviations not used (not a part of the printed equations): G\n" in out
+    assert "\\sin(\\vartheta_{" in out
+
+
+def test_derive_names_malformed_abbreviations(tmp_path, capsys):
+    path = _file(tmp_path, "wide", WIDE + 'ABBREVIATIONS = [("M", 1)]\n')
+    assert main(["derive", str(path)]) == 1
+    err = capsys.readouterr().err
+    assert "wide.py:system: ABBREVIATIONS: latex: abbreviations must be a mapping" in err

@@ -1,0 +1,246 @@
+"""Newton's rounding floors at large coordinates, its distinct failures, and branch jumps.
+
+A residual written in increments of positions far from the origin, (x_{k+1} − x_k)/h at
+|x| ~ 10³, cannot go below ε·|x|/h whatever the (small) unknowns: the floor must count the
+size of the terms the residual is computed from (the program's ``F_scale``), not only the
+unknowns.  Free and falling bodies on the pair groupoids of SE(2) and SE(3) (and their
+increment coordinates) run 10⁵ steps, their increments constant to rounding.  The iteration
+cap and a stalled update are different failures with their own messages, and a step whose
+solution jumps far outside the trust region of its guess (q̈ = q³ past the fold of its
+midpoint step) stops with :class:`~symgroupoid.BranchJumpError`, in C and NumPy alike.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from kernel_support import BACKENDS, SESSION_CACHE, isolated_cache, needs_cc  # noqa: F401
+
+import symgroupoid as sg
+from symgroupoid.runtime._backends import (
+    BRANCH_JUMP,
+    NOT_CONVERGED,
+    STALLED,
+    STATUS_MESSAGES,
+)
+
+h, m, J, grav = sp.symbols("h m J g", positive=True)
+PARAMS = {"h": 0.01, "m": 1.0, "J": 0.1, "g": 9.81}
+EPS = np.finfo(float).eps
+#: the Cayley coordinates of the first increment: 2 rad/s and 1 m/s at h = 0.01
+INCREMENT = [0.02, 0.01, 0.0]
+
+
+def body_se2(groupoid_kind: str, falling: bool) -> sg.DiscreteSystem:
+    """L = h(m|Δp/h|²/2 + J(ΔR₁₀/h)²/2) (− h m g (y₀ + y₁)/2 when falling) on the pair
+    groupoid of SE(2), or in its increment coordinates (Δp = R₀ F_p, ΔR = F_R)."""
+    S = sg.SE2("q")
+
+    def lagrangian(q0, F):
+        dp = q0[:2, :2] * F[:2, 2]
+        L = h * (m * (dp.T * dp)[0, 0] / h**2 / 2 + J * (F[1, 0] / h) ** 2 / 2)
+        if falling:
+            L -= h * m * grav * (2 * q0[1, 2] + dp[1]) / 2
+        return L
+
+    if groupoid_kind == "pair":
+        G = sg.PairGroupoid(S)
+        def L(a):
+            return lagrangian(a.source, S._inverse_matrix(a.source) * a.target)
+    else:
+        G = sg.TrivialisedPairGroupoid(S)
+        def L(a):
+            return lagrangian(a.source, a.increment)
+    return sg.DiscreteSystem(G, L, parameters=[h, m, J, grav],
+                             name=f"{'falling' if falling else 'free'}_se2_{groupoid_kind}")
+
+
+def body_se3(groupoid_kind: str) -> sg.DiscreteSystem:
+    """A free rigid body on SE(3): L = (tr((I − F_R) J_d) + |R₀ F_p|²/2)/h."""
+    S = sg.SE3("g")
+    Jd = sp.diag(1, 2, 3)
+
+    def lagrangian(q0, F):
+        move = q0[:3, :3] * F[:3, 3]
+        return (((sp.eye(3) - F[:3, :3]) * Jd).trace() + (move.T * move)[0, 0] / 2) / h
+
+    if groupoid_kind == "pair":
+        G = sg.PairGroupoid(S)
+        def L(a):
+            return lagrangian(a.source, S._inverse_matrix(a.source) * a.target)
+    else:
+        G = sg.TrivialisedPairGroupoid(S)
+        def L(a):
+            return lagrangian(a.source, a.increment)
+    return sg.DiscreteSystem(G, L, parameters=[h], name=f"free_se3_{groupoid_kind}")
+
+
+def se2_state(groupoid_kind: str, start=(0.0, 0.0)) -> dict:
+    """Moving at 1 m/s along x and spinning at 2 rad/s (h = 0.01)."""
+    S = sg.SE2("q")
+    q0 = S.numeric_tau([0.0, 0.0, 0.0])
+    q0[:2, 2] = start
+    F = S.numeric_tau(INCREMENT)
+    return {"q": (q0, q0 @ F)} if groupoid_kind == "pair" else {"q": q0, "Fq": F}
+
+
+def positions(sim, traj, name="q", rows=slice(0, 2)) -> tuple[np.ndarray, np.ndarray]:
+    """(j, p_j): the translation of a configuration q_j of every kept state: its target
+    q_{k+1} on the pair groupoid (whose view lists q_0, then the targets of the kept arrows),
+    its q_k in increment coordinates (whose view lists the q_k)."""
+    q = np.asarray(sim.layout.view(traj.states, name))
+    k = traj.step_indices
+    if len(q) == len(k) + 1:
+        return k + 1, q[1:, rows, -1]
+    return k, q[:, rows, -1]
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["pair", "increments"])
+def test_free_planar_body_runs_far_with_constant_increments(kind):
+    """10⁵ steps to x ≈ 10³ m (the pair groupoid failed at x ≈ 128 m with a false 'iteration
+    cap'): the spatial increment q_{k+1} − q_k of the free body stays 0.01 m to the
+    rounding of |q_k|."""
+    system = body_se2(kind, falling=False)
+    sim = system.euler_lagrange().compile(cache_dir=SESSION_CACHE)
+    traj = sim.simulate(se2_state(kind), 10**5, PARAMS, every=100)
+    _, p = positions(sim, traj)
+    assert p[-1, 0] > 998.0
+    assert traj.newton_iterations.max() <= 100 * 6  # a handful of updates per step
+    step = np.diff(p, axis=0) / 100  # mean increment over each kept interval
+    assert np.abs(step - step[0]).max() <= 100 * EPS * np.abs(p).max()
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["pair", "increments"])
+def test_falling_planar_body_follows_its_discrete_parabola(kind):
+    """Under gravity the discrete trajectory is exactly y_k = y_0 + k·v_0·h − g h² k(k−1)/2
+    (the DEL m(y_{k+1} − 2y_k + y_{k−1})/h² = −m g); 10⁵ steps to |y| ≈ 5·10⁶ m (it
+    stopped at step 780 with 'iteration cap after 4 iterations')."""
+    sim = body_se2(kind, falling=True).euler_lagrange().compile(cache_dir=SESSION_CACHE)
+    traj = sim.simulate(se2_state(kind), 10**5, PARAMS, every=1000)
+    j, p = positions(sim, traj)
+    y, k = p[:, 1], j.astype(float)
+    hh, y1 = PARAMS["h"], sg.SE2("q").numeric_tau(INCREMENT)[1, 2]  # y_1
+    expected = k * y1 - PARAMS["g"] * hh**2 * k * (k - 1) / 2  # (y_0 = 0)
+    assert abs(y[-1]) > 4e6
+    np.testing.assert_allclose(y, expected, rtol=1e-9, atol=1e-12)
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["pair", "increments"])
+def test_free_se3_body_drifts_far(kind):
+    """A free SE(3) body drifting at 1 m/s (it stopped at step 7 899 on the pair
+    groupoid): 10⁵ steps, the spatial increment constant to the rounding of |p|."""
+    S = sg.SE3("g")
+    sim = body_se3(kind).euler_lagrange().compile(cache_dir=SESSION_CACHE)
+    M0 = S.numeric_tau([0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    F = S.numeric_tau([0.01, -0.02, 0.015, 0.01, 0.0, 0.0])
+    state = {"g": (M0, M0 @ F)} if kind == "pair" else {"g": M0, "Fg": F}
+    traj = sim.simulate(state, 10**5, {"h": 0.01}, every=100)
+    _, p = positions(sim, traj, "g", slice(0, 3))
+    assert np.linalg.norm(p[-1]) > 900.0
+    step = np.diff(p, axis=0) / 100
+    assert np.abs(step - step[0]).max() <= 100 * EPS * np.abs(p).max()
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["pair", "increments"])
+def test_c_and_numpy_accept_at_the_same_floor(kind):
+    """Far from the origin (x = 10⁴ m) from the first step on, the NumPy twin stops where C
+    stops, bit for bit."""
+    step = body_se2(kind, falling=True).euler_lagrange()
+    state = se2_state(kind, start=(1e4, -3e4))
+    c = step.compile(cache_dir=SESSION_CACHE).simulate(state, 200, PARAMS)
+    numpy = step.compile(backend="numpy").simulate(state, 200, PARAMS)
+    np.testing.assert_array_equal(c.states, numpy.states)
+    np.testing.assert_array_equal(c.newton_iterations, numpy.newton_iterations)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_iteration_cap_and_stall_are_told_apart(backend):
+    """Without the floors (floor_factor = 0) the falling body cannot be accepted once its
+    residual is at the rounding of its terms: its update reaches the rounding noise of the
+    solve (STALLED, at step 358 after a few iterations); a cap of 2 updates is reached at
+    once (NOT_CONVERGED).  Two statuses, two messages, each with the true iteration count
+    (two tries of a step past the second: from the extrapolated guess and the prediction)."""
+    sim = body_se2("pair", falling=True).euler_lagrange().compile(backend=backend,
+                                                                 cache_dir=SESSION_CACHE)
+    with pytest.raises(sg.NewtonDivergenceError) as stalled:
+        sim.simulate(se2_state("pair"), 1000, PARAMS,
+                     options=sg.NewtonOptions(floor_factor=0.0))
+    text = str(stalled.value)
+    assert stalled.value.step == 358 and STATUS_MESSAGES[STALLED] in text
+    run = stalled.value.trajectory
+    assert len(run) == 359
+    assert "two tries of at most 50 each" in text
+    with pytest.raises(sg.NewtonDivergenceError) as capped:
+        sim.simulate(se2_state("pair"), 1000, PARAMS, options=sg.NewtonOptions(max_iterations=2))
+    text = str(capped.value)
+    assert STATUS_MESSAGES[NOT_CONVERGED] in text and "max_iterations=2)" in text
+    k = capped.value.step
+    assert f"after {2 if k < 2 else 4} Newton iterations" in text
+    assert STATUS_MESSAGES[STALLED] != STATUS_MESSAGES[NOT_CONVERGED]
+
+
+def cubic_system() -> sg.DiscreteSystem:
+    """q̈ = q³ by the midpoint rule: L_d = h(((q₁ − q₀)/h)²/2 + ((q₀ + q₁)/2)⁴/4)."""
+    G = sg.PairGroupoid(sg.EuclideanSpace("q"))
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return h * (((q1 - q0) / h) ** 2 / 2 + ((q0 + q1) / 2) ** 4 / 4)
+
+    return sg.DiscreteSystem(G, L, parameters=[h], name="cubic_blowup")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_no_silent_branch_jump(backend):
+    """h = 0.05, q₀ = 1, q₁ = 1.025: the root near the motion disappears at step 27 (the
+    last step moved 4.2); the only real root lies ~118 away.  The run stops there with
+    BranchJumpError and the trajectory so far; with the check off it went on 99 more steps
+    on the spurious branch."""
+    sim = cubic_system().euler_lagrange().compile(backend=backend, cache_dir=SESSION_CACHE)
+    state, params = {"q": (1.0, 1.025)}, {"h": 0.05}
+    with pytest.raises(sg.BranchJumpError) as info:
+        sim.simulate(state, 200, params)
+    err = info.value
+    assert err.step == 27 and "branch jump" in str(err) and "trust_factor" in str(err)
+    q = err.trajectory.states
+    assert len(q) == 28 and np.isfinite(q).all()
+    assert abs(err.iterate[0] - q[-1, 1]) > 100  # the far root, reported
+    with pytest.raises(sg.NewtonDivergenceError) as off:
+        sim.simulate(state, 200, params, options=sg.NewtonOptions(trust_factor=0))
+    assert not isinstance(off.value, sg.BranchJumpError) and off.value.step > 100
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_trust_region_passes_fast_oscillations(backend):
+    """A harmonic oscillator at hω = 0.3, 1, 1.9, 4 and 20 (the last one two steps a period
+    and a bit, where the
+    guess misses by up to twice a step's motion) and one starting at rest run 2·10³ steps
+    without a branch jump."""
+    from _hostile import oscillator
+
+    sim = oscillator().euler_lagrange().compile(backend=backend, cache_dir=SESSION_CACHE)
+    for hw in (0.3, 1.0, 1.9, 4.0, 20.0):
+        sim.simulate({"q": (1.0, np.cos(hw))}, 2000, {"h": 0.1, "k": (hw / 0.1) ** 2})
+    sim.simulate({"q": (1.0, 1.0)}, 2000, {"h": 0.1, "k": 1e-6})
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_batches_report_the_new_statuses(backend):
+    """simulate_batch records BRANCH_JUMP per run, and its error is the BranchJumpError."""
+    sim = cubic_system().euler_lagrange().compile(backend=backend, cache_dir=SESSION_CACHE)
+    states = np.array([sim.state({"q": (1.0, 1.025)}), sim.state({"q": (0.1, 0.1001)})])
+    batch = sim.simulate_batch(states, 100, {"h": 0.05})
+    assert list(batch.status) == [BRANCH_JUMP, 0]
+    assert isinstance(batch.error(0), sg.BranchJumpError)
+    assert batch.failed_step[0] == 27
+
+
+@pytest.mark.parametrize("value", [-1.0, float("nan"), float("inf"), "10", None])
+def test_trust_factor_is_checked(value):
+    with pytest.raises(sg.SymgroupoidError, match="trust_factor"):
+        sg.NewtonOptions(trust_factor=value)
