@@ -9,6 +9,10 @@ from a position and a discrete momentum, so the rolling constraints hold):
   kernel in a new process (the ``compile_step`` call);
 - the compiled stepper (``Simulator.simulate``: N steps in one C call), with the default
   extrapolated Newton guess and with every step started from ``step.prediction``;
+- the Python overhead of a control loop, ``state = sim.step(state, p)`` with the
+  parameters as a vector (``sim.parameters(...)``) and as a dict: µs per call beyond the
+  kernel's step (``simulate`` from ``step.prediction``, the same Newton work: the loop's
+  states are bitwise those of that run);
 - (a) the same residuals and exact Jacobian lambdified with NumPy and solved by
   ``scipy.optimize.root`` (MINPACK ``hybr``) once per step;
 - (b) CasADi, if importable: the same residuals as a ``rootfinder('fast_newton')`` step from
@@ -90,6 +94,33 @@ def compiled_per_step(sim, state, steps: int, extrapolate: bool) -> tuple[float,
     traj = sim.simulate(state, steps, PARAMS, options=options)
     seconds = best_of(lambda: sim.simulate(state, steps, PARAMS, options=options), 10)
     return seconds / steps, traj
+
+
+def python_overhead(sim, state, steps: int = 200, repeat: int = 300) -> dict[str, float]:
+    """µs per ``sim.step`` call of a loop beyond the kernel's step, parameters given as a
+    vector and as a dict: the best of ``repeat`` bursts of ``steps`` calls (short bursts,
+    so that the best one ran undisturbed on a busy machine), against the kernel's own run of
+    as many steps from ``step.prediction`` (one C call), whose states the loop reproduces
+    bitwise."""
+    options = sg.NewtonOptions(extrapolate=False)
+    vector = sim.parameters(PARAMS)
+
+    def loop(params) -> np.ndarray:
+        s = state
+        for _ in range(steps):
+            s = sim.step(s, params)
+        return s
+
+    reference = sim.kernel.simulate(state, vector, steps, options)
+    if not np.array_equal(loop(vector), reference.states[-1]):
+        raise RuntimeError("sim.step in a loop differs from simulate (prediction guess)")
+    runs = {"kernel": lambda: sim.kernel.simulate(state, vector, steps, options),
+            "vector": lambda: loop(vector), "dict": lambda: loop(PARAMS)}
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeat):  # interleaved: each sees the same load
+        for what, run in runs.items():
+            best[what] = min(best[what], best_of(run, 1))
+    return {what: (best[what] - best["kernel"]) / steps * 1e6 for what in ("vector", "dict")}
 
 
 def scipy_per_step(step, state, steps: int) -> tuple[float, np.ndarray]:
@@ -197,6 +228,9 @@ def main() -> None:
               f"(Newton updates per step: {dict(enumerate(iters.tolist()))}; target <= 1 us)")
         print(f"compiled (prediction guess):    {plain * 1e6:8.3f} us/step  "
               f"(max deviation from the above {deviation(traj.states, traj_plain.states):.1e})")
+        overhead = python_overhead(sim, state)
+        print(f"Python overhead of sim.step:    {overhead['vector']:8.3f} us/call with a "
+              f"parameter vector, {overhead['dict']:.3f} with a dict (target <= 2 us)")
 
         n_scipy = min(args.scipy_steps, args.steps)
         sci, sci_states = scipy_per_step(step, state, n_scipy)

@@ -1267,6 +1267,27 @@ int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p
     return HEAVY_TOP_OK;
 }
 
+/* One step from a fresh start: next receives the state after known, the same bits as the
+ * second row heavy_top_simulate(known, p, 1, options, NULL, ...) writes; returns its status
+ * (next is written only on success; HEAVY_TOP_INVALID_ARGUMENT for a null next).  The entry
+ * point with the fewest arguments, for callers that advance one state at a time (a control
+ * loop in Python pays for every argument of a call). */
+int heavy_top_step(const double *known, const double *p, const heavy_top_options *options, double *next)
+{
+    double states[2 * HEAVY_TOP_N_KNOWNS];
+    int iterations = 0;
+    double residual_norm = 0.0;
+    int status;
+    if (next == NULL) {
+        return HEAVY_TOP_INVALID_ARGUMENT;
+    }
+    status = heavy_top_simulate(known, p, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
+    if (status == HEAVY_TOP_OK) {
+        memcpy(next, states + HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+    }
+    return status;
+}
+
 const char *heavy_top_status_message(int status)
 {
     switch (status) {

@@ -1494,6 +1494,27 @@ int plate_ball_simulate_batch(long n_batch, const double *known0, const double *
     return PLATE_BALL_OK;
 }
 
+/* One step from a fresh start: next receives the state after known, the same bits as the
+ * second row plate_ball_simulate(known, p, 1, options, NULL, ...) writes; returns its status
+ * (next is written only on success; PLATE_BALL_INVALID_ARGUMENT for a null next).  The entry
+ * point with the fewest arguments, for callers that advance one state at a time (a control
+ * loop in Python pays for every argument of a call). */
+int plate_ball_step(const double *known, const double *p, const plate_ball_options *options, double *next)
+{
+    double states[2 * PLATE_BALL_N_KNOWNS];
+    int iterations = 0;
+    double residual_norm = 0.0;
+    int status;
+    if (next == NULL) {
+        return PLATE_BALL_INVALID_ARGUMENT;
+    }
+    status = plate_ball_simulate(known, p, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
+    if (status == PLATE_BALL_OK) {
+        memcpy(next, states + PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
+    }
+    return status;
+}
+
 const char *plate_ball_status_message(int status)
 {
     switch (status) {

@@ -69,6 +69,8 @@
  *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default; never
  *   more than n_batch or PLATE_BALL_MAX_THREADS), with the same results; otherwise they run one
  *   after the other.
+ * plate_ball_step(known, p, options, next) advances one state from a fresh start: next receives
+ *   what plate_ball_simulate(known, p, 1, options, NULL, ...) writes in its second row.
  * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
  *   #error): they delete its NaN and overflow checks; nor with the other unsafe-math options
  *   (-funsafe-math-optimizations, -fassociative-math, -freciprocal-math, -fno-signed-zeros),
@@ -124,6 +126,7 @@ void plate_ball_next_knowns(const double *u, const double *known, const double *
 int plate_ball_solve_step(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm);
 int plate_ball_simulate(const double *known0, const double *p, long n_steps, const plate_ball_options *options, plate_ball_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int plate_ball_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
+int plate_ball_step(const double *known, const double *p, const plate_ball_options *options, double *next);
 const char *plate_ball_status_message(int status);
 
 #ifdef __cplusplus

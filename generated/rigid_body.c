@@ -1256,6 +1256,27 @@ int rigid_body_simulate_batch(long n_batch, const double *known0, const double *
     return RIGID_BODY_OK;
 }
 
+/* One step from a fresh start: next receives the state after known, the same bits as the
+ * second row rigid_body_simulate(known, p, 1, options, NULL, ...) writes; returns its status
+ * (next is written only on success; RIGID_BODY_INVALID_ARGUMENT for a null next).  The entry
+ * point with the fewest arguments, for callers that advance one state at a time (a control
+ * loop in Python pays for every argument of a call). */
+int rigid_body_step(const double *known, const double *p, const rigid_body_options *options, double *next)
+{
+    double states[2 * RIGID_BODY_N_KNOWNS];
+    int iterations = 0;
+    double residual_norm = 0.0;
+    int status;
+    if (next == NULL) {
+        return RIGID_BODY_INVALID_ARGUMENT;
+    }
+    status = rigid_body_simulate(known, p, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
+    if (status == RIGID_BODY_OK) {
+        memcpy(next, states + RIGID_BODY_N_KNOWNS, sizeof(double) * RIGID_BODY_N_KNOWNS);
+    }
+    return status;
+}
+
 const char *rigid_body_status_message(int status)
 {
     switch (status) {

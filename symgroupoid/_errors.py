@@ -160,6 +160,34 @@ class CutLocusError(SymgroupoidError, ArithmeticError):
         self.iterate = iterate
 
 
+class CutLocusStepError(CutLocusError, NewtonDivergenceError):
+    """A step failed (non-finite values) because an increment of its known arrow is a
+    half-turn: on the cut locus of the chart its unknowns are written in, where the
+    prediction and the step are not defined.  Both a :class:`CutLocusError` and a
+    :class:`NewtonDivergenceError` (with ``step``, ``residual_norm``, ``iterate``,
+    ``trajectory``); ``parts`` names the increments at the cut locus."""
+
+    def __init__(self, message: str, *, step: int | None = None,
+                 residual_norm: float | None = None, iterate=None, parts: tuple = ()):
+        SymgroupoidError.__init__(self, message)
+        self.step = step
+        self.residual_norm = residual_norm
+        self.iterate = iterate
+        self.arrows = () if step is None else (step,)
+        self.parts = tuple(parts)
+
+
+class TrajectoryFileError(SymgroupoidError, ValueError):
+    """A trajectory file cannot be read (missing, damaged, not written by symgroupoid), or
+    holds the trajectory of another system (its state columns are not this system's)."""
+
+
+class GroupRoundingWarning(UserWarning):
+    """A group element given to a few digits (``np.round(R, 8)``: off its group by more than
+    rounding, by at most :data:`~symgroupoid.runtime._validate.ROUNDED_TOLERANCE`) was
+    replaced by the nearest element of the group (``group.nearest_element``)."""
+
+
 class UnsupportedFeatureError(SymgroupoidError, NotImplementedError):
     """A valid request the library does not implement for this kind of system (the message
     says which combination), e.g. reduction of a system with holonomic constraints."""

@@ -101,14 +101,44 @@ def _part_positions(trajectory, name: str, n: int) -> np.ndarray:
     return np.concatenate([idx[0] + np.arange(older), idx + older])
 
 
+def _entry_label(name: str, shape: tuple, j: int) -> str:
+    """``W[0, 2]``: entry j of a part of the given shape, its indices as plain integers."""
+    return f"{name}[{', '.join(str(int(i)) for i in np.unravel_index(j, shape))}]"
+
+
+def _time_axis(trajectory, time_step, owner: str) -> tuple[float | None, str]:
+    """(h, its name) for a time axis t = k·h, or (None, "") for the step index: the
+    parameter named by ``time_step``, or (None) the time step the system declares
+    (``time_step=`` of the system); False: the step index."""
+    if time_step is False:
+        return None, ""
+    if time_step is None:
+        system = getattr(trajectory._layout.equations, "system", None)
+        declared = getattr(system, "time_step", None)
+        if declared is None:
+            return None, ""
+        time_step = str(declared)
+    if not isinstance(time_step, str) or time_step not in trajectory.parameters:
+        raise InputNameError(f"{owner}: time_step must name a parameter (one of "
+                             f"{', '.join(trajectory.parameters) or 'none'}) or be False, "
+                             f"got {time_step!r}")
+    return float(trajectory.parameters[time_step]), time_step
+
+
 def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
-                    path: str | PathLike | None = None, max_parts: int = 6):
+                    path: str | PathLike | None = None, max_parts: int = 6,
+                    time_step: str | bool | None = None):
     """One panel per named part (default: the first ``max_parts`` of ``trajectory.keys()``),
-    every entry of the part against its step position (a pair-groupoid coordinate at
-    q_0 … q_{N+1}, a matrix part entry by entry).  Returns the figure."""
+    every entry of the part against its position in time (a pair-groupoid coordinate at
+    q_0 … q_{N+1}, a matrix part entry by entry, labelled ``W[0, 2]``).
+
+    The horizontal axis is the time t = k·h when the time step h is known — named by
+    ``time_step`` (a parameter's name), or declared by the system — else the step index k
+    (``time_step=False`` forces it).  Returns the figure."""
     Figure = _figure_class()
     owner = _owner(trajectory)
     max_parts = integer_argument(max_parts, "max_parts", minimum=1, owner=owner)
+    h, h_name = _time_axis(trajectory, time_step, owner)
     names = (list(trajectory.keys())[:max_parts] if parts is None
              else list(names_argument([parts] if isinstance(parts, str) else parts, "parts",
                                       owner=owner)))
@@ -125,14 +155,15 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
         values = np.asarray(trajectory[name])
         flat = values.reshape(len(values), -1)
         x = _part_positions(trajectory, name, len(values))
+        if h is not None:
+            x = x * h
         for j in range(flat.shape[1]):
-            label = name if flat.shape[1] == 1 else (
-                f"{name}{list(np.unravel_index(j, values.shape[1:]))}")
+            label = name if flat.shape[1] == 1 else _entry_label(name, values.shape[1:], j)
             ax.plot(x, flat[:, j], lw=1, label=label)
         ax.set_ylabel(name)
         if 1 < flat.shape[1] <= 9:
             ax.legend(fontsize="x-small", ncols=min(flat.shape[1], 3), loc="best")
-    axes[-1].set_xlabel("step k")
+    axes[-1].set_xlabel("step k" if h is None else f"time t = k·{h_name} ({h_name} = {h:g})")
     axes[0].set_title(f"{trajectory._layout.step_name}: {trajectory.steps} steps")
     return _finish(fig, path, owner)
 

@@ -89,11 +89,21 @@ def initial_files(draw) -> str:
     if kind == "directory":
         return "."
     if kind == "npz":
-        name = draw(st.sampled_from(["junk.npz", "states.npz", "wide.npz"]))
+        name = draw(st.sampled_from(["junk.npz", "states.npz", "wide.npz", "other.npz",
+                                     "own.npz"]))
         if name == "junk.npz":
             Path(name).write_bytes(draw(st.binary(max_size=40)))
         elif name == "states.npz":
             np.savez(name, states=np.array([[0.1, 0.2]]))
+        elif name in ("other.npz", "own.npz"):  # a trajectory file of the same width: of
+            q = "p" if name == "other.npz" else "q"  # another system (p), or of this one
+            np.savez(name, states=np.array([[1.0, 0.999], [0.999, 0.997]]),
+                     step_indices=np.array([0, 1]), newton_iterations=np.array([2]),
+                     residual_norms=np.array([1e-16]),
+                     columns=np.array([f"{q} (step k-1)", q]),
+                     parameter_names=np.array(["h", "k"]),
+                     parameter_values=np.array([0.05, 4.0]), every=np.array(1),
+                     backend=np.array("c"))
         else:
             np.savez(name, states=np.zeros((2, 5)), other=np.ones(3))
         return name

@@ -106,6 +106,9 @@ def run_simulate(case: Case, args: dict, names: list, entry: str, how: str):
                 check(piece)
         else:
             assert_finite(result, "the next state")
+            options = built_options(args["options"])
+            run = sim.simulate(args["initial"], 1, args["params"], options=options)
+            assert np.array_equal(result, run.states[1]), "step differs from a run of one"
 
     judge(entry, call, names, owner=sim.name, verify=verify)
 
@@ -131,6 +134,57 @@ def test_simulate_with_one_malformed_argument(name, how, run):
         if how == "step":
             names = [n for n in names if n not in ("steps", "every", "callback")] or ["state"]
         run_simulate(case, args, names, f"Simulator.{how}", how)
+
+    prop()
+
+
+@pytest.mark.parametrize("run", PROFILES)
+@pytest.mark.parametrize("name", CASES)
+def test_step_in_a_loop_with_malformed_arguments(name, run):
+    """``state = sim.step(state, p)``: after a loop has made its states trusted (checked
+    once, symgroupoid/runtime/_fast_step.py), a state changed in place, a parameter vector
+    changed in place, or any other malformed argument is checked as ``simulate`` checks it;
+    an accepted call is bitwise the run of one step."""
+    case = case_of(name)
+    sim = case.sim
+    p = sim.parameters(case.params)
+
+    @profile(run, 6, 60)
+    @given(data=st.data())
+    def prop(data):
+        state, vector = case.flat, p.copy()
+        for _ in range(2):
+            state = sim.step(state, vector)
+        which = data.draw(st.sampled_from(["state in place", "vector in place", "state",
+                                           "params", "options"]))
+        params, options, names = vector, None, []
+        if which == "state in place":
+            i = data.draw(st.integers(0, len(state) - 1))
+            state[i] = data.draw(st.sampled_from([np.nan, np.inf, 1e300, state[i] + 1e-3,
+                                                  -state[i], state[i] * (1 + 1e-15)]))
+            names = ["state", "constraints", "known", "initial", "group"]
+        elif which == "vector in place":
+            i = data.draw(st.integers(0, len(vector) - 1))
+            vector[i] = data.draw(st.sampled_from([np.nan, -np.inf, 0.0, -vector[i], 1e300,
+                                                   vector[i] * 2]))
+            names = ["parameter", str(case.step.parameters[i]), "constraints"]
+        elif which == "state":
+            state, names = data.draw(st.one_of(initial_states(case).map(tuple),
+                                               near(state).map(lambda v: (v, ["state"]))))
+            names = list(names) + ["state", "known", "initial"]
+        elif which == "params":
+            params, names = data.draw(parameter_sets(case))
+        else:
+            options, names = data.draw(newton_options())
+
+        def verify(after):
+            assert_finite(after, "the next state")
+            one = sim.simulate(state, 1, params, options=built_options(options))
+            assert np.array_equal(after, one.states[1]), "step differs from a run of one"
+
+        judge("Simulator.step (loop)",
+              lambda: sim.step(state, params, options=built_options(options)), names,
+              owner=sim.name, verify=verify)
 
     prop()
 

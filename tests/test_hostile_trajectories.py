@@ -351,3 +351,136 @@ def test_verify_stationary(name, run):
               owner=system.name, verify=verify)
 
     prop()
+
+
+# --- configurations, spatial momenta, files ------------------------------------------------------
+
+#: a valid first configuration of each case's groupoid (None: the state determines it, or
+#: the identity)
+STARTS = {"rigid_body": np.eye(3), "plate_ball": (None, np.eye(3)),
+          "heavy_top": (None, np.eye(3))}
+
+
+def _entry(stacked, k: int):
+    """Configuration k of a stacked result (arrays indexed, tuples entry by entry)."""
+    if isinstance(stacked, tuple):
+        return tuple(_entry(s, k) for s in stacked)
+    return stacked[k]
+
+
+def _flat(c) -> np.ndarray:
+    if isinstance(c, tuple):
+        return np.concatenate([_flat(x) for x in c]) if c else np.zeros(0)
+    return np.asarray(c, float).ravel()
+
+
+def check_configurations(name: str, traj, result) -> None:
+    """Rebuilt independently: c_{k+1} = configuration_after(c_k, g_k), one arrow at a time,
+    from the first configuration of the result."""
+    G = case_of(name).step.groupoid
+    arrows = traj._layout.arrows(traj.states)
+    c = _entry(result, 0)
+    for k, a in enumerate(arrows):
+        c = G.configuration_after(c, tuple(a))
+        want, got = _flat(c), _flat(_entry(result, k + 1))
+        assert np.allclose(got, want, rtol=1e-12, atol=1e-12), (k, got, want)
+
+
+@st.composite
+def reconstruction_calls(draw, name: str, folder):
+    """(label, call, names, verify) of configurations / spatial_momenta / save / load /
+    plot(time_step=…) with hostile arguments."""
+    case = case_of(name)
+    traj = run_of(name)
+    valid = STARTS.get(name)
+    starts = st.one_of(st.just(valid), st.just(None), junk(max_leaves=3),
+                       near(np.eye(3)) if valid is not None else st.just(None))
+    kind = draw(st.sampled_from(["configurations", "spatial", "save", "load", "time"]))
+    if kind in ("configurations", "spatial"):
+        start = draw(starts)
+        names = ["start", "configuration", "configurations", "spatial", "every", "factor"]
+        if kind == "configurations":
+            return ("Trajectory.configurations", lambda: traj.configurations(start), names,
+                    lambda r: check_configurations(name, traj, r))
+
+        def verify(momenta):
+            assert momenta.shape == (len(traj), case.step.groupoid.rank)
+            assert_finite(momenta, "spatial momenta")
+            if name == "rigid_body":  # R_k μ_k: conserved
+                assert np.abs(momenta - momenta[0]).max() <= 1e-12 * np.abs(momenta).max()
+        return ("Trajectory.spatial_momenta", lambda: traj.spatial_momenta(start), names,
+                verify)
+    if kind == "save":
+        path = draw(st.one_of(st.sampled_from(["t.npz", "t.csv", "t.txt", "", "missing/t.npz",
+                                               ".", "a\0b.npz", 3, b"t.npz"]),
+                              junk(max_leaves=2)))
+
+        def verify(_):
+            back = sg.Trajectory.load(path, case.sim, params=case.params)
+            assert np.array_equal(back.states, traj.states)
+        return ("Trajectory.save", lambda: traj.save(path), ["path", "trajectory"], verify)
+    if kind == "load":
+        saved = folder / f"{name}.npz"
+        if not saved.exists():
+            traj.save(saved)
+        with np.load(saved) as archive:
+            arrays = dict(archive)
+        how = draw(st.sampled_from(["valid", "csv", "bytes", "pickle", "array", "path",
+                                    "simulator", "params", "other"]))
+        path, sim, params, extra = saved, case.sim, None, []
+        if how == "csv":
+            path, params = folder / f"{name}.csv", draw(st.one_of(st.none(),
+                                                                  st.just(case.params)))
+            if not path.exists():
+                traj.save(path)
+        elif how == "bytes":
+            path = folder / "junk.npz"
+            path.write_bytes(draw(st.binary(max_size=60)))
+        elif how in ("pickle", "array"):
+            key = draw(st.sampled_from(sorted(arrays)))
+            value = (np.array([object()], dtype=object) if how == "pickle"
+                     else draw(st.one_of(junk(max_leaves=2), near(np.ones(2)))))
+            path = folder / f"{how}.npz"
+            try:
+                np.savez(path, **{**arrays, key: value})
+            except Exception:  # noqa: BLE001 - a value NumPy cannot store: nothing to test
+                return ("Trajectory.load", lambda: None, [], lambda _: None)
+        elif how == "path":
+            path = draw(st.one_of(st.sampled_from(["absent.npz", ".", "", "x.txt"]),
+                                  junk(max_leaves=2)))
+        elif how == "simulator":
+            sim = draw(st.one_of(junk(max_leaves=2), st.just(case_of("oscillator").sim)))
+        elif how == "params":
+            params, extra = draw(parameter_sets(case))
+        else:
+            path = folder / "other.npz"
+            if not path.exists():
+                run_of("oscillator").save(path)
+
+        def verify(loaded):
+            if loaded is None:
+                return
+            assert np.array_equal(loaded.states, traj.states)
+            assert list(loaded.parameters) == [str(s) for s in case.step.parameters]
+        return ("Trajectory.load", lambda: sg.Trajectory.load(path, sim, params=params),
+                ["path", "file", "simulator", "parameter", "parameters", "params",
+                 "trajectory", "npz", "csv", "columns", "states", "another system",
+                 str(path), *extra], verify)
+    time_step = draw(st.one_of(st.sampled_from([None, False, "h", "k", "zz"]), scalars))
+    return ("plot_trajectory (time_step)",
+            lambda: sg.plot_trajectory(traj, time_step=time_step),
+            ["time_step"], lambda fig: None)
+
+
+@pytest.mark.parametrize("run", PROFILES)
+@pytest.mark.parametrize("name", CASES)
+def test_configurations_and_files(name, run, tmp_path):
+    case = case_of(name)
+
+    @profile(run, 16)
+    @given(call=reconstruction_calls(name, tmp_path))
+    def prop(call):
+        label, fn, names, verify = call
+        judge(label, fn, names, owner=case.sim.name, verify=verify)
+
+    prop()

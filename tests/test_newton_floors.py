@@ -46,10 +46,12 @@ def body_se2(groupoid_kind: str, falling: bool) -> sg.DiscreteSystem:
 
     if groupoid_kind == "pair":
         G = sg.PairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, S._inverse_matrix(a.source) * a.target))
+        def L(a):
+            return lagrangian(a.source, S._inverse_matrix(a.source) * a.target)
     else:
         G = sg.TrivialisedPairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, a.increment))
+        def L(a):
+            return lagrangian(a.source, a.increment)
     return sg.DiscreteSystem(G, L, parameters=[h, m, J, grav],
                              name=f"{'falling' if falling else 'free'}_se2_{groupoid_kind}")
 
@@ -65,10 +67,12 @@ def body_se3(groupoid_kind: str) -> sg.DiscreteSystem:
 
     if groupoid_kind == "pair":
         G = sg.PairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, S._inverse_matrix(a.source) * a.target))
+        def L(a):
+            return lagrangian(a.source, S._inverse_matrix(a.source) * a.target)
     else:
         G = sg.TrivialisedPairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, a.increment))
+        def L(a):
+            return lagrangian(a.source, a.increment)
     return sg.DiscreteSystem(G, L, parameters=[h], name=f"free_se3_{groupoid_kind}")
 
 

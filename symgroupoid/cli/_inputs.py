@@ -9,7 +9,6 @@ the same message on the command line as in Python.
 from __future__ import annotations
 
 import json
-import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -107,37 +106,28 @@ def _refuse_constant(name: str):
     raise ValueError(f"{name} is not a number JSON allows (values must be finite)")
 
 
-def _saved_state(path: Path, width: int):
-    """The last state of a trajectory written by ``simulate -o FILE.npz``."""
+def _saved_state(path: Path, sim):
+    """The last state of a trajectory written by ``simulate -o FILE.npz`` (or
+    ``Trajectory.save``) for this system: its state columns must be this system's, not
+    merely as many (:func:`~symgroupoid.runtime._files.read_trajectory`)."""
+    from .._errors import TrajectoryFileError
+    from ..runtime._files import read_trajectory
+
     try:
-        data = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
-        raise InputError(f"--initial {path}: no such file") from None
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
-        raise InputError(f"--initial {path}: cannot be read as .npz ({exc})") from None
-    if not isinstance(data, np.lib.npyio.NpzFile):
-        raise InputError(f"--initial {path}: not an .npz archive of arrays")
-    with data:
-        if "states" not in data.files:
-            raise InputError(f"--initial {path}: no 'states' array (not a trajectory "
-                             f"written by symgroupoid simulate)")
-        try:
-            states = np.asarray(data["states"], float)
-        except (OSError, ValueError, zipfile.BadZipFile) as exc:
-            raise InputError(f"--initial {path}: its states cannot be read ({exc})") from None
-    if states.ndim != 2 or states.shape[1] != width or not len(states):
-        raise InputError(f"--initial {path}: its states have shape {states.shape}; this "
-                         f"system's states have {width} entries")
-    return states[-1]
+        data = read_trajectory(path, sim.layout, list(sim.parameter_names), label=str(path))
+    except TrajectoryFileError as err:
+        raise InputError(f"--initial {err}") from None
+    return data.states[-1]
 
 
-def initial_data(source: SystemFile, path: str | None, width: int):
-    """The initial-state value: ``--initial`` (JSON, or a saved trajectory's last state)
-    else the file's ``INITIAL``; None when neither is given."""
+def initial_data(source: SystemFile, path: str | None, sim):
+    """The initial-state value: ``--initial`` (JSON, or a saved trajectory's last state,
+    which must be one of ``sim``'s) else the file's ``INITIAL``; None when neither is
+    given."""
     if path is None:
         return source.convention("INITIAL")
     if Path(path).suffix == ".npz":
-        return _saved_state(Path(path), width)
+        return _saved_state(Path(path), sim)
     return read_json(path, "--initial")
 
 

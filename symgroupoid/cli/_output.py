@@ -11,21 +11,18 @@ numbers written with 17 significant digits (they read back exactly).
 from __future__ import annotations
 
 import csv
-import io
-import os
-import tempfile
-from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
+from ..runtime._files import FORMATS, TRAJECTORY_KEYS, save_trajectory, state_columns
+from ..runtime._files import atomic_write as _atomic
+from ..runtime._files import number_text as _number
+from ..runtime._files import trajectory_arrays as _arrays
 from ._errors import InputError
 
-FORMATS = (".npz", ".csv")
-#: names of the fixed arrays of a trajectory file (a state part with one of these names is
-#: stored as ``part_<name>``)
-TRAJECTORY_KEYS = ("states", "step_indices", "newton_iterations", "residual_norms",
-                   "columns", "parameter_names", "parameter_values", "every", "backend")
+__all__ = ["FORMATS", "TRAJECTORY_KEYS", "check_format", "trajectory_arrays",
+           "trajectory_columns", "write_solution", "write_trajectory"]
 
 
 def check_format(path: str | None, option: str = "-o") -> Path | None:
@@ -41,71 +38,21 @@ def check_format(path: str | None, option: str = "-o") -> Path | None:
     return out
 
 
-def _atomic(path: Path, write: Callable[[io.IOBase], None], binary: bool) -> None:
-    fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb" if binary else "w", **({} if binary else
-                                                       {"newline": "", "encoding": "utf-8"})) as f:
-            write(f)
-        os.chmod(temporary, 0o666 & ~_umask())
-        os.replace(temporary, path)
-    except BaseException:
-        try:
-            os.unlink(temporary)
-        except FileNotFoundError:
-            pass
-        raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-def _number(x: float) -> str:
-    return format(float(x), ".17g")
-
-
-# --- trajectories -------------------------------------------------------------------------------
+# --- trajectories (the library's own format: symgroupoid/runtime/_files.py) ---------------------
 
 def trajectory_columns(sim) -> list[str]:
     """A name for every entry of the flat state (``x (step k-1)``, ``g[0, 2]``, …)."""
-    return [sim.layout.describe(i) for i in range(sim.layout.n_known)]
+    return state_columns(sim.layout)
 
 
 def trajectory_arrays(sim, traj) -> dict[str, np.ndarray]:
-    names = list(traj.parameters)
-    arrays = {
-        "states": traj.states, "step_indices": traj.step_indices,
-        "newton_iterations": traj.newton_iterations, "residual_norms": traj.residual_norms,
-        "columns": np.array(trajectory_columns(sim)),
-        "parameter_names": np.array(names, dtype=str),
-        "parameter_values": np.array([traj.parameters[n] for n in names], float),
-        "every": np.array(traj.every), "backend": np.array(traj.backend)}
-    for key in traj.keys():
-        label = "lambda" if key in ("λ", "multipliers") else key
-        arrays[f"part_{label}" if label in TRAJECTORY_KEYS else label] = traj[key]
-    return arrays
+    return _arrays(traj)
 
 
 def write_trajectory(path: Path, sim, traj) -> None:
-    """``traj`` to ``path`` (.npz: every array; .csv: step, state columns, Newton data)."""
-    if path.suffix == ".npz":
-        arrays = trajectory_arrays(sim, traj)
-        _atomic(path, lambda f: np.savez(f, **arrays), binary=True)
-        return
-    header = ["step", *trajectory_columns(sim), "newton_iterations", "residual_norm"]
-
-    def write(f) -> None:
-        out = csv.writer(f)
-        out.writerow(header)
-        for k, state in enumerate(traj.states):
-            tail = ["", ""] if k == 0 else [str(int(traj.newton_iterations[k - 1])),
-                                             _number(traj.residual_norms[k - 1])]
-            out.writerow([str(int(traj.step_indices[k])), *map(_number, state), *tail])
-
-    _atomic(path, write, binary=False)
+    """``traj`` to ``path`` (.npz: every array; .csv: step, state columns, Newton data), as
+    :meth:`Trajectory.save` writes it."""
+    save_trajectory(traj, path)
 
 
 # --- boundary-value solutions -------------------------------------------------------------------

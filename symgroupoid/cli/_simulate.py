@@ -85,7 +85,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     sim = built.sim
     say(f"{sim.name}: derived in {derived.seconds:.2f} s; {built.describe()}")
     params = parameters(derived.source, args.params)
-    data = initial_data(derived.source, args.initial, sim.layout.n_known)
+    data = initial_data(derived.source, args.initial, sim)
     state = initial_state(sim, data, params)
     t0 = time.perf_counter()
     try:

@@ -227,7 +227,7 @@ def run_verify(args: argparse.Namespace) -> int:
     step, system = derived.step, derived.system
     params = parameters(derived.source, args.params)
     p = sim.parameters(params)
-    data = initial_data(derived.source, args.initial, sim.layout.n_known)
+    data = initial_data(derived.source, args.initial, sim)
     state = initial_state(sim, data, params)
     declared = declared_noether(derived.source) if isinstance(system, DiscreteSystem) else []
     checks: list[Check] = []

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import linecache
 import math
+import re
 import sys
 from collections.abc import Callable, Iterable, Sequence
 
@@ -15,6 +17,7 @@ from .._errors import (
     ParameterDeclarationError,
     ShapeError,
     UndeclaredSymbolError,
+    UnsupportedExpressionError,
 )
 
 #: values that make an expression non-finite, with how messages describe them
@@ -22,8 +25,17 @@ _NON_FINITE = {sp.nan: "nan (not a number)", sp.zoo: "zoo (complex infinity)",
                sp.oo: "oo (infinity)", -sp.oo: "-oo (minus infinity)"}
 
 
-def call_user(system_name: str, what: str, func: Callable, *arrows):
-    """Call ``func(*arrows)``; wrap any exception with the system name and ``what``."""
+def call_user(system_name: str, what: str, func: Callable, *arrows, smooth: bool = False,
+              display: dict | None = None):
+    """Call ``func(*arrows)``; wrap any exception with the system name and ``what``.
+
+    A numeric function (``math.cos``, ``np.cos``) applied to a symbolic coordinate is
+    reported as such, with what to use instead (SymPy's functions).  With ``smooth`` (a
+    Lagrangian or constraints, whose derivatives define the step) a non-smooth function in
+    the value is an :class:`UnsupportedExpressionError` (:func:`check_smooth`).
+    ``display``: how messages name the symbols the arrows are made of (default: the named
+    coordinates of g_k, g_{k+1}, … for arrows of a groupoid).
+    """
     if not callable(func):
         raise CallableError(
             f"{system_name}: the {what} must be a function of the arrow (e.g. "
@@ -31,11 +43,95 @@ def call_user(system_name: str, what: str, func: Callable, *arrows):
     try:
         value = func(*arrows)
     except Exception as exc:  # noqa: BLE001 - re-raised with context
+        hint = _numeric_function_hint(exc)
+        if hint is not None:
+            raise CallableError(f"{system_name}: the {what} {hint}") from exc
         raise CallableError(
             f"{system_name}: evaluating the {what} on symbolic arrows raised "
             f"{type(exc).__name__}: {exc}") from exc
-    check_values(system_name, what, value, arrows)
+    check_values(system_name, what, value, arrows, display)
+    if smooth:
+        check_smooth(system_name, what, value, display if display is not None
+                     else _display(arrows))
     return value
+
+
+#: what TypeError says when a numeric function is given a SymPy symbol: math's functions
+#: cannot convert it to a float, NumPy's ufuncs look for a method of that name on it
+_MATH_FAILURE = re.compile(r"Cannot convert (expression|complex) to float|must be real "
+                           r"number, not")
+_UFUNC_FAILURE = re.compile(r"has no callable (\w+) method")
+#: a call of a numeric module's function in a line of source
+_NUMERIC_CALL = re.compile(r"\b(math|cmath|np|numpy|scipy(?:\.\w+)*)\.(\w+)\s*\(")
+
+
+def _numeric_function_hint(exc: BaseException) -> str | None:
+    """What to say when ``exc`` comes from a numeric function (``math.cos``, ``np.cos``)
+    given a SymPy coordinate; None for any other exception."""
+    if not isinstance(exc, (TypeError, AttributeError)):
+        return None
+    text = str(exc)
+    ufunc = _UFUNC_FAILURE.search(text)
+    if ufunc is None and not _MATH_FAILURE.search(text):
+        return None
+    line = _user_line(exc)
+    called = _NUMERIC_CALL.search(line or "")
+    if called is not None:
+        module, function = called.group(1), called.group(2)
+    else:
+        module, function = ("np", ufunc.group(1)) if ufunc else ("math", None)
+    shown = f"{module}.{function}" if function else f"a function of the {module} module"
+    instead = f"sp.{function}" if function else "sp.cos, sp.sin, sp.exp, sp.sqrt, …"
+    where = f" (in `{line}`)" if line else ""
+    return (f"calls {shown} on a symbolic coordinate{where}; the coordinates are SymPy "
+            f"symbols, so a Lagrangian or constraint must use SymPy's functions: write "
+            f"{instead} (import sympy as sp) instead of {shown}")
+
+
+def _user_line(exc: BaseException) -> str | None:
+    """The source line of the innermost frame of ``exc``'s traceback outside NumPy, SymPy
+    and this package (the user's call that failed), if it can be read."""
+    line = None
+    tb = exc.__traceback__
+    while tb is not None:
+        filename = tb.tb_frame.f_code.co_filename
+        if not re.search(r"[/\\](numpy|sympy|symgroupoid)[/\\]", filename):
+            text = linecache.getline(filename, tb.tb_lineno).strip()
+            line = text or line
+        tb = tb.tb_next
+    return line
+
+
+#: functions that are not differentiable everywhere (the step's Newton iteration needs the
+#: exact derivatives of L and φ, and the library differentiates them symbolically)
+NON_SMOOTH = (sp.Abs, sp.sign, sp.Max, sp.Min, sp.Piecewise, sp.floor, sp.ceiling,
+              sp.frac, sp.Heaviside, sp.DiracDelta, sp.Mod)
+
+
+def check_smooth(system_name: str, what: str, value, display: dict | None = None) -> None:
+    """An :class:`UnsupportedExpressionError` naming the first non-smooth function
+    (``Abs``, ``sign``, ``Max``, ``Min``, ``Piecewise``, ``floor``, …) in a Lagrangian or
+    constraint value, and the term that holds it, in the coordinates' names."""
+    entries = value if isinstance(value, (list, tuple, sp.MatrixBase)) else [value]
+    for entry in entries:
+        try:
+            expr = sp.sympify(entry)
+        except (sp.SympifyError, TypeError):
+            continue
+        if not isinstance(expr, sp.Basic):
+            continue
+        found = sorted(expr.atoms(*NON_SMOOTH), key=sp.default_sort_key)
+        if not found:
+            continue
+        bad = found[0]
+        name = type(bad).__name__
+        shown = bad.xreplace(display or {})
+        raise UnsupportedExpressionError(
+            f"{system_name}: {name} in the {what} ({shown}): non-smooth functions ("
+            f"{', '.join(f.__name__ for f in NON_SMOOTH[:7])}, …) are not supported, "
+            f"because the step is solved by Newton's method on the exact derivatives of L "
+            f"and the constraints; write a smooth expression instead (e.g. sqrt(u**2 + "
+            f"eps**2) for Abs(u))")
 
 
 def _display(arrows: Sequence) -> dict:
@@ -50,7 +146,8 @@ def _display(arrows: Sequence) -> dict:
     return out
 
 
-def check_values(system_name: str, what: str, value, arrows: Sequence = ()) -> None:
+def check_values(system_name: str, what: str, value, arrows: Sequence = (),
+                 display: dict | None = None) -> None:
     """:func:`check_finite_real` on a user return value: a scalar, or each entry of a list
     or matrix (entries that are not SymPy scalars are left to the shape checks)."""
     if isinstance(value, sp.MatrixBase):
@@ -59,7 +156,6 @@ def check_values(system_name: str, what: str, value, arrows: Sequence = ()) -> N
         items = [(f"{what} (entry {i})", v) for i, v in enumerate(value)]
     else:
         items = [(what, value)]
-    display = None
     for label, item in items:
         try:
             expr = sp.sympify(item)

@@ -145,13 +145,14 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
     """
     slots = tuple(slot(groupoid, f"s{i}_", matrix_form) for i in range(arity))
     views = [groupoid.view(s) for s in slots]
-    L = as_scalar(name, "Lagrangian", call_user(name, "Lagrangian", lagrangian, *views))
+    L = as_scalar(name, "Lagrangian", call_user(name, "Lagrangian", lagrangian, *views,
+                                                smooth=True))
     coords = [c for s in slots for c in s]
     if not matrix_form:
         check_symbols(name, "Lagrangian", [L], coords, parameters)
     phis: list = []
     if constraints is not None:
-        raw = call_user(name, "constraints", constraints, *views)
+        raw = call_user(name, "constraints", constraints, *views, smooth=True)
         phis = as_scalar_list(name, "constraints", raw)
         if not matrix_form:
             check_symbols(name, "constraints", phis, coords, parameters)
@@ -182,7 +183,9 @@ def holonomic_functions(name: str, groupoid: Groupoid, holonomic: Callable, base
     if not callable(holonomic):
         raise CallableError(f"{name}: the holonomic constraints must be a function of the base "
                             f"point (e.g. lambda q: [...]), got a {type(holonomic).__name__}")
-    raw = call_user(name, what, holonomic, groupoid.base_view(base))
+    display = dict(zip(base, groupoid.named_source(1)))  # q_k, by the coordinates' names
+    raw = call_user(name, what, holonomic, groupoid.base_view(base), smooth=True,
+                    display=display)
     psis = as_scalar_list(name, what, raw)
     check_symbols(name, what, psis, base, parameters)
     for a, psi in enumerate(psis):

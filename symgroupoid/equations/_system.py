@@ -88,8 +88,30 @@ def _coefficients(name: str, what: str, value, rank: int) -> None:
 
 
 class DiscreteSystem:
-    _arity = 1  # L: G -> R
     """A discrete constrained Lagrangian system (G, N, L) (seed 000 Def. 3.2).
+
+    On a Lie groupoid G ⇉ Q, with a discrete Lagrangian L: G → R and the constraints
+    N = {φ = 0} ⊂ G, a motion is a composable sequence of arrows g_1, g_2, …
+    (β(g_k) = α(g_{k+1})) in N that makes the action Σ_k L(g_k) stationary among such
+    sequences with the same product.  Its variations move one junction at a time,
+    g_k ↦ g_k·h_X(t), g_{k+1} ↦ h_X(t)⁻¹·g_{k+1}, along a curve h_X in the α-fibre through
+    the identity that represents a section X of the Lie algebroid, and give the discrete
+    Euler–Lagrange equations with multipliers λ (seed 000 §3.3, §5):
+
+        X⃖[L + λ_k·φ](g_k) = X⃗[L + λ_{k+1}·φ](g_{k+1}),   φ(g_{k+1}) = 0,
+
+    X⃖[f](g) = d/dt f(g·h_X(t))|₀ and X⃗[f](g) = −d/dt f(h_X(t)⁻¹·g)|₀ (seed 000 eqs.
+    (1)–(2)), one equation per section of the basis.  On the pair groupoid Q × Q, whose
+    arrows are consecutive configurations (q_{k−1}, q_k), they are the Marsden–West
+    D₂L(q_{k−1}, q_k) + D₁L(q_k, q_{k+1}) = 0; on a Lie group, whose arrows are the
+    increments W_k = R_k⁻¹R_{k+1} between consecutive configurations, the discrete
+    Euler–Poincaré equations (seed 000 §6.1; a run's configurations R_k are
+    ``Trajectory.configurations(R_0)``).  :meth:`euler_lagrange` derives the step
+    (g_k, λ_k) ↦ (g_{k+1}, λ_{k+1}) as :class:`StepEquations` (residuals, exact Jacobian,
+    LaTeX, ``compile()``)::
+
+        system = sg.DiscreteSystem(G, L, constraints=phi, parameters=[h], name="ball")
+        step = system.euler_lagrange()
 
     Parameters
     ----------
@@ -117,6 +139,8 @@ class DiscreteSystem:
         self.parameters = parameters
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters,
                                    arity=self._arity, holonomic=holonomic)
+
+    _arity = 1  # L: G -> R
 
     @property
     def n_constraints(self) -> int:

@@ -191,6 +191,32 @@ class ActionGroupoid(Groupoid):
                 f"p₀·(R₀⁻¹R₁) = {np.round(reached, 9).tolist()} ≠ p₁ = {list(p1)}")
         return tuple(float(x) for x in p0) + tuple(w)
 
+    def increments(self, a):
+        return self.group.increments(a[self.base_dim:])
+
+    def configurations_along(self, arrows, start=None):
+        """(the points p_k the arrows hold, stacked (N + 1, d); the group elements R_k from
+        R_0 = ``start[1]`` or the identity along the group parts); ``start[0]``, if given,
+        must be p_0."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        d = self.base_dim
+        p0, R0 = (None, None) if start is None else start
+        last = [float(v) for v in self.target(tuple(arrows[-1]))]
+        points = np.vstack([arrows[:, :d], np.reshape(last, (1, d))])  # β(g_k) = α(g_{k+1})
+        if p0 is not None and not np.allclose(np.asarray(p0, float), points[0], rtol=1e-12,
+                                              atol=1e-12):
+            from .._errors import DomainError
+
+            raise DomainError(f"{self.name}: start[0] is not the point p_0 the first arrow "
+                              f"holds (leave it None)")
+        return points, self.group.configurations_along(arrows[:, d:], R0)
+
+    def spatial_momenta(self, momenta, arrows, start=None):
+        """The sections move the group part on the right: its momenta Ad*_{R⁻¹}μ."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        R = self.configurations_along(arrows, start)[1][:-1]
+        return self.group.body_to_spatial(momenta, R)
+
     def configuration_after(self, c0, a):
         p0, R0 = c0
         return (tuple(float(v) for v in self.target(a)),

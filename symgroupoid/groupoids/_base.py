@@ -330,6 +330,46 @@ class Groupoid(ABC):
         """The configuration reached from ``c0`` along the arrow ``a`` (numeric)."""
         raise NotImplementedError(f"{self.name}: no configuration space")
 
+    def increments(self, a: Sequence) -> list[tuple[str, Any, np.ndarray]]:
+        """(part name, MatrixLieGroup, numeric matrix) of each group element at the numeric
+        arrow ``a`` whose retraction coordinates τ⁻¹ the α-fibre chart of a step takes: a
+        Lie group's element itself, the increment R₀⁻¹R₁ of a pair groupoid of a group, the
+        increment F of :class:`TrivialisedPairGroupoid`.  Where one is a half-turn (the cut
+        locus of the Cayley map and of the logarithm) the step's prediction and unknowns are
+        not defined.  None for groupoids without group parts (the default)."""
+        return []
+
+    def configurations_along(self, arrows: np.ndarray, start=None):
+        """The configurations c_0, …, c_N that the composable numeric arrows g_0, …, g_{N−1}
+        (the rows of ``arrows``) pass through: c_{k+1} = c_k·g_k (:meth:`configuration_after`,
+        the groupoid's multiplication), c_0 = ``start``.  The library's groupoids stack them
+        (a Lie group: an (N + 1, n, n) array of R_k, from R_0 = ``start`` or the identity; a
+        pair groupoid: its points, which the arrows hold, ``start`` only checked; products
+        and action and time groupoids: a tuple with one entry per part, ``start`` with None
+        for a part the arrows determine); this default, for a groupoid that defines
+        :meth:`configuration_after`, returns the list."""
+        if start is None:
+            raise ShapeError(f"{self.name}: give the first configuration (start=...): the "
+                             f"arrows do not determine it")
+        out = [start]
+        for a in np.asarray(arrows, float):
+            out.append(self.configuration_after(out[-1], tuple(a)))
+        return out
+
+    def spatial_momenta(self, momenta: np.ndarray, arrows: np.ndarray, start=None):
+        """The momenta F⁻L(g_k) (rows of ``momenta``, in the dual of the section basis, at
+        the sources α(g_k) of the rows of ``arrows``) in the spatial frame: a Lie group's
+        components μ ↦ Ad*_{c⁻¹} μ = (Ad_{c⁻¹})ᵀ μ, c the configuration α(g_k)
+        (reconstructed from ``start`` as in :meth:`configurations_along`; for a left-invariant
+        Lagrangian the Noether quantity of left translations, seed 000 Thm 4.9), other
+        components as they are (a pair groupoid of Rⁿ: already spatial).  Not defined for
+        groupoids the library does not know."""
+        from .._errors import UnsupportedFeatureError
+
+        raise UnsupportedFeatureError(f"{self.name}: spatial momenta are defined for the "
+                                      f"library's groupoids of Lie groups, pair, action, "
+                                      f"time and product groupoids")
+
     # --- products -------------------------------------------------------------------------
     def __mul__(self, other: Groupoid) -> Groupoid:
         from ._product import ProductGroupoid

@@ -22,7 +22,7 @@ from itertools import accumulate
 import numpy as np
 import sympy as sp
 
-from .._errors import InputTypeError
+from .._errors import CoordinateNameError, InputTypeError
 
 
 class Manifold(ABC):
@@ -93,6 +93,22 @@ class Manifold(ABC):
     def predict(self, q0: Sequence, q1: Sequence) -> tuple:
         """Chart coordinates (around q1) of the configuration after q0, q1 at constant
         velocity: the first Newton guess of a step."""
+
+    def stacked_points(self, coords: np.ndarray):
+        """The points with the coordinates of the rows of ``coords`` (N, coords_dim), as
+        arrays: Rⁿ (N, n); a matrix group (N, n, n); a product a tuple per factor."""
+        return np.asarray(coords, float)
+
+    def body_to_spatial(self, momenta: np.ndarray, coords: np.ndarray) -> np.ndarray:
+        """Momenta (N, dim) in the dual of the basis of :meth:`curves` at the points
+        ``coords`` (N, coords_dim), in the spatial frame (Rⁿ: as they are)."""
+        return np.asarray(momenta, float)
+
+    def increments(self, q0: Sequence, q1: Sequence) -> list:
+        """(part name, group, numeric matrix) of each group increment q0⁻¹q1 whose
+        retraction coordinates the chart takes (none on Rⁿ); see
+        :meth:`~symgroupoid.groupoids.Groupoid.increments`."""
+        return []
 
     @abstractmethod
     def view_point(self, coords: Sequence):
@@ -199,6 +215,19 @@ class GroupManifold(Manifold):
         """The increment repeats: q_{k+1} = q_k q_{k−1}⁻¹ q_k, i.e. x = τ⁻¹(q_{k−1}⁻¹q_k)."""
         return self.chart_inverse(q0, q1)
 
+    def stacked_points(self, coords):
+        return self.group.numeric_matrices(coords)
+
+    def body_to_spatial(self, momenta, coords):
+        """The basis curves q·τ(tE_a) move q on the right: body momenta, Ad*_{q⁻¹}μ."""
+        return self.group.body_to_spatial(momenta, self.group.numeric_matrices(coords))
+
+    def increments(self, q0, q1):
+        G = self.group
+        M0, M1 = G.numeric_matrix([float(v) for v in q0]), G.numeric_matrix(
+            [float(v) for v in q1])
+        return [(G.symbol_name, G, np.linalg.solve(M0, M1))]
+
     def view_point(self, coords):
         return self.group.matrix(coords)
 
@@ -239,6 +268,12 @@ class ProductManifold(Manifold):
         self._coords = _slices([f.coords_dim for f in self.factors])
         self._charts = _slices([f.dim for f in self.factors])
         self.names = tuple(n for f in self.factors for n in f.names)
+        repeated = sorted({n for n in self.names if self.names.count(n) > 1})
+        if repeated:
+            raise CoordinateNameError(
+                f"{' × '.join(map(repr, self.factors))}: two factors name a coordinate "
+                f"{repeated[0]!r}; the factors of a product need distinct names (e.g. "
+                f"SO3(\"R1\") * SO3(\"R2\"))")
 
     @property
     def dim(self):
@@ -308,6 +343,21 @@ class ProductManifold(Manifold):
 
     def predict(self, q0, q1):
         return self._pointwise("predict", q0, q1, self._coords)
+
+    def stacked_points(self, coords):
+        coords = np.asarray(coords, float)
+        return tuple(f.stacked_points(coords[:, lo:hi])
+                     for f, (lo, hi) in zip(self.factors, self._coords))
+
+    def body_to_spatial(self, momenta, coords):
+        momenta, coords = np.asarray(momenta, float), np.asarray(coords, float)
+        return np.hstack([f.body_to_spatial(momenta[:, a:b], coords[:, lo:hi])
+                          for f, (lo, hi), (a, b) in zip(self.factors, self._coords,
+                                                         self._charts)])
+
+    def increments(self, q0, q1):
+        parts = zip(self.factors, self._split(q0, self._coords), self._split(q1, self._coords))
+        return [i for f, a, b in parts for i in f.increments(a, b)]
 
     def view_point(self, coords):
         return tuple(f.view_point(c) for f, c in zip(self.factors,

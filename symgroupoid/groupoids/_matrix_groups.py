@@ -400,6 +400,75 @@ class MatrixLieGroup(Groupoid):
     def configuration_after(self, c0, a):
         return self._numeric_matrix(c0) @ self.numeric_matrix(a)
 
+    def nearest_element(self, M) -> np.ndarray:
+        """The element of the group nearest to the numeric n×n matrix ``M`` (a rotation, or
+        a rigid motion, typed or stored to a few digits): its rotation block replaced by the
+        orthogonal factor of its polar decomposition, U Vᵀ from the SVD U Σ Vᵀ (the nearest
+        rotation in the Frobenius norm, det +1), and for SE(n) the last row set to
+        (0, …, 0, 1); the translation is kept."""
+        from .._arguments import real_array
+        from .._errors import DomainError, ShapeError
+
+        M = real_array(M, "M", owner=self.name)
+        if M.shape != (self.n, self.n) or not np.isfinite(M).all():
+            raise ShapeError(f"{self.name}: nearest_element needs a finite {self.n}×{self.n} "
+                             f"matrix, got shape {M.shape}")
+        n = self.n - 1 if self.affine else self.n
+        U, _, Vt = np.linalg.svd(M[:n, :n])
+        if np.linalg.det(U @ Vt) < 0:
+            raise DomainError(f"{self.name}: the rotation block has det < 0 (a reflection); "
+                              f"no nearby element of {self.name}")
+        out = M.copy()
+        out[:n, :n] = U @ Vt
+        if self.affine:
+            out[-1] = np.eye(self.n)[-1]
+        return out
+
+    def increments(self, a):
+        return [(self.symbol_name, self, self.numeric_matrix([float(v) for v in a]))]
+
+    def numeric_matrices(self, arrows: np.ndarray) -> np.ndarray:
+        """:meth:`numeric_matrix` of every row of ``arrows``: (N, n, n)."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        M = np.broadcast_to(np.eye(self.n), (len(arrows), self.n, self.n)).copy()
+        for c, (i, j) in enumerate(self._free):
+            M[:, i, j] = arrows[:, c]
+        return M
+
+    def products(self, start, increments: np.ndarray) -> np.ndarray:
+        """R_0 = ``start`` (None: the identity), R_{k+1} = R_k W_k for the matrices W_k of
+        ``increments`` (N, n, n): the (N + 1, n, n) partial products."""
+        out = np.empty((len(increments) + 1, self.n, self.n))
+        out[0] = np.eye(self.n) if start is None else self._numeric_matrix(start)
+        for k, W in enumerate(increments):
+            np.matmul(out[k], W, out=out[k + 1])
+        return out
+
+    def configurations_along(self, arrows, start=None):
+        """R_0 = ``start`` (default the identity), R_{k+1} = R_k W_k: the configurations
+        whose increments W_k = R_k⁻¹R_{k+1} are the arrows (a Lie group's state)."""
+        return self.products(start, self.numeric_matrices(arrows))
+
+    def numeric_Ad(self, M: np.ndarray) -> np.ndarray:
+        """Ad_g on Lie-algebra coordinates (columns vee(g E_a g⁻¹)) for each matrix of the
+        stack ``M`` (N, n, n): (N, rank, rank)."""
+        M = np.asarray(M, float)
+        E = _numeric_basis(type(self))
+        moved = np.einsum("kij,ajl,klm->akim", M, E, np.linalg.inv(M))
+        gram = np.array(self._gram_inverse().tolist(), dtype=float)
+        traces = np.einsum("bji,akji->kba", E, moved)  # tr(E_bᵀ g E_a g⁻¹)
+        return np.einsum("cb,kba->kca", gram, traces)
+
+    def body_to_spatial(self, momenta: np.ndarray, configurations: np.ndarray) -> np.ndarray:
+        """Ad*_{c⁻¹} μ = (Ad_{c⁻¹})ᵀ μ for each row μ of ``momenta`` (N, rank) at the
+        configuration c of the same row of ``configurations`` (N, n, n); SO(3): c μ."""
+        Ad_inverse = self.numeric_Ad(np.linalg.inv(configurations))
+        return np.einsum("kab,ka->kb", Ad_inverse, np.asarray(momenta, float))
+
+    def spatial_momenta(self, momenta, arrows, start=None):
+        sources = self.configurations_along(arrows, start)[:-1]
+        return self.body_to_spatial(momenta, sources)
+
     # --- naming -----------------------------------------------------------------------------
     def named_matrix(self, offset: int) -> sp.Matrix:
         """g_{k+offset} as a matrix of named entries (g_{k})_{ij}."""

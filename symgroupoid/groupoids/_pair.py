@@ -238,6 +238,23 @@ class PairGroupoid(Groupoid):
         """(q₀, q₁) for configurations q₀, q₁ (points; matrices on a group)."""
         return tuple(self.space.numeric_point(c0)) + tuple(self.space.numeric_point(c1))
 
+    def increments(self, a):
+        return self.space.increments(self.source(a), self.target(a))
+
+    def configurations_along(self, arrows, start=None):
+        """The points q_0, q_1, …, q_N the arrows (q_k, q_{k+1}) hold (``start``, if given,
+        must be q_0), stacked by :meth:`Manifold.stacked_points`."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        d = self.base_dim
+        coords = np.vstack([arrows[:1, :d], arrows[:, d:]])
+        _check_start(self, start, coords[0])
+        return self.space.stacked_points(coords)
+
+    def spatial_momenta(self, momenta, arrows, start=None):
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        _check_start(self, start, arrows[0, :self.base_dim])
+        return self.space.body_to_spatial(momenta, arrows[:, :self.base_dim])
+
     def configuration_after(self, c0, a):
         target = tuple(float(v) for v in self.target(a))
         if isinstance(self.space, EuclideanSpace):
@@ -270,6 +287,21 @@ class PairGroupoid(Groupoid):
 
     def __repr__(self) -> str:
         return f"PairGroupoid({self.space!r})"
+
+
+def _check_start(groupoid, start, first: np.ndarray) -> None:
+    """A given first configuration must be the one the arrows hold (to rounding)."""
+    from .._errors import DomainError
+
+    if start is None:
+        return
+    given = np.asarray(groupoid.space.numeric_point(start) if hasattr(groupoid, "space")
+                       else start, float).ravel()
+    if given.shape != first.shape or not np.allclose(given, first, rtol=1e-12, atol=1e-12):
+        raise DomainError(f"{groupoid.name}: start {np.round(given, 12).tolist()} is not the "
+                          f"first configuration the arrows hold, {first.tolist()} (leave "
+                          f"start out: the arrows of a pair groupoid hold their "
+                          f"configurations)")
 
 
 def _numeric_view(space, coords):

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from itertools import accumulate
 
+import numpy as np
+
 from .._arguments import instance_argument
-from .._errors import ShapeError
+from .._errors import CoordinateNameError, ShapeError
 from ._base import Arrow, Groupoid
 
 
@@ -23,6 +25,23 @@ class ProductArrow(Arrow):
 
     def __iter__(self):
         return (self[i] for i in range(len(self)))
+
+
+def _refuse_shared_names(name: str, parts: list[tuple[str, dict]]) -> None:
+    """A :class:`CoordinateNameError` when two factors of a product name a part alike
+    (``SO3("R") * SO3("R")``, also within nested products, which are flattened first): the
+    state, the initial data and the Lagrangian address parts by name, so a shared name
+    would make two parts one symbol and the Lagrangian degenerate."""
+    owner: dict[str, int] = {}
+    for i, (factor, names) in enumerate(parts):
+        for part in names:
+            if part in owner:
+                j = owner[part]
+                raise CoordinateNameError(
+                    f"{name}: factor {j} ({parts[j][0]}) and factor {i} ({factor}) both have "
+                    f"a part named {part!r}; the parts of a product need distinct names "
+                    f"(e.g. SO3(\"R1\") * SO3(\"R2\"))")
+        owner.update(dict.fromkeys(names, i))
 
 
 def _slices(sizes):
@@ -44,6 +63,7 @@ class ProductGroupoid(Groupoid):
             flat.extend(f.factors if isinstance(f, ProductGroupoid) else [f])
         self.factors = tuple(flat)
         self.name = " × ".join(f.name for f in self.factors)
+        _refuse_shared_names(self.name, [(f.name, f.symbols_by_name(0)) for f in self.factors])
         self._arrow_slices = _slices([f.arrow_dim for f in self.factors])
         self._base_slices = _slices([f.base_dim for f in self.factors])
         self._fibre_slices = _slices([f.fibre_dim for f in self.factors])
@@ -130,6 +150,25 @@ class ProductGroupoid(Groupoid):
     def arrow_between(self, c0, c1):
         """Configurations are tuples with one configuration per factor."""
         return sum((tuple(f.arrow_between(a, b)) for f, a, b in zip(self.factors, c0, c1)), ())
+
+    def configurations_along(self, arrows, start=None):
+        """One entry per factor (``start``: None, or one entry per factor, None where the
+        factor's arrows determine it)."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        starts = [None] * len(self.factors) if start is None else list(start)
+        return tuple(f.configurations_along(arrows[:, lo:hi], s)
+                     for f, (lo, hi), s in zip(self.factors, self._arrow_slices, starts))
+
+    def spatial_momenta(self, momenta, arrows, start=None):
+        arrows, momenta = np.asarray(arrows, float), np.asarray(momenta, float)
+        starts = [None] * len(self.factors) if start is None else list(start)
+        return np.hstack([f.spatial_momenta(momenta[:, a:b], arrows[:, lo:hi], s)
+                          for f, (lo, hi), (a, b), s in zip(self.factors, self._arrow_slices,
+                                                            self._chart_slices, starts)])
+
+    def increments(self, a):
+        parts = self._parts(a, self._arrow_slices)
+        return [i for f, p in zip(self.factors, parts) for i in f.increments(p)]
 
     def configuration_after(self, c0, a):
         parts = self._parts(a, self._arrow_slices)

@@ -8,6 +8,8 @@ t_{k+1} and the fibre chart of G.
 
 from __future__ import annotations
 
+import numpy as np
+
 from .._arguments import instance_argument, name_argument
 from .._symbols import StepSymbol, subscripted
 from ._base import Arrow, Groupoid
@@ -90,6 +92,24 @@ class TimeGroupoid(Groupoid):
 
     def configuration_after(self, c0, a):
         return (float(a[1]), self.inner.configuration_after(c0[1], a[2:]))
+
+    def increments(self, a):
+        return self.inner.increments(a[2:])
+
+    def configurations_along(self, arrows, start=None):
+        """(the times t_0, …, t_N the arrows hold, the inner configurations from
+        ``start[1]``)."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        inner = None if start is None else start[1]
+        times = np.concatenate([arrows[:1, 0], arrows[:, 1]])
+        return times, self.inner.configurations_along(arrows[:, 2:], inner)
+
+    def spatial_momenta(self, momenta, arrows, start=None):
+        """The time component as it is, the inner groupoid's in its spatial frame."""
+        arrows, momenta = np.asarray(arrows, float), np.asarray(momenta, float)
+        inner = None if start is None else start[1]
+        return np.hstack([momenta[:, :1], self.inner.spatial_momenta(momenta[:, 1:],
+                                                                     arrows[:, 2:], inner)])
 
     def section_curves(self, q, t):
         unit = tuple(self.inner.identity(q[1:]))

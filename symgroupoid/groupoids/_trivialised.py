@@ -300,6 +300,33 @@ class TrivialisedPairGroupoid(Groupoid):
         return (tuple(float(M0[i, j]) for i, j in G._free)
                 + tuple(float(D[i, j]) for i, j in G._free))
 
+    def configurations_along(self, arrows, start=None):
+        """q_0, …, q_N: each arrow's q_k, then q_{N−1}(I + D_{N−1}) (``start``, if given,
+        must be q_0)."""
+        G = self.group
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        n = self.base_dim
+        q = G.numeric_matrices(arrows[:, :n])
+        if start is not None and not np.allclose(G._numeric_matrix(start), q[0], rtol=1e-12,
+                                                 atol=1e-12):
+            from .._errors import DomainError
+
+            raise DomainError(f"{self.name}: start is not the configuration q_0 the first "
+                              f"arrow holds (leave it out: the arrows hold their "
+                              f"configurations)")
+        last = q[-1] + q[-1] @ self._numeric_offset(arrows[-1, n:])
+        return np.concatenate([q, last[None]])
+
+    def spatial_momenta(self, momenta, arrows, start=None):
+        """The sections move q_k on the right (q τ(tE_a)): body momenta, Ad*_{q⁻¹}μ."""
+        sources = self.configurations_along(arrows, start)[:-1]
+        return self.group.body_to_spatial(momenta, sources)
+
+    def increments(self, a):
+        _, d = self._split(a)
+        return [(self.increment_name, self.group, np.eye(self.group.n)
+                 + self._numeric_offset(d))]
+
     def configuration_after(self, c0, a):
         G = self.group
         q, d = self._split(a)

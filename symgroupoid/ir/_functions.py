@@ -280,9 +280,24 @@ def _closed_form_elementwise(cls, point: float):
     except Exception:  # noqa: BLE001 - not Python: NumPy's own forms
         return sp.lambdify([s], cls.closed_form, NUMPY_MODULES)
     ufunc = np.frompyfunc(scalar, 1, 1)
+    special = sp.lambdify([s], cls.closed_form, NUMPY_MODULES)
+
+    def ieee(v):
+        """An element where Python's float arithmetic raises (x/0, an overflow) gets C's
+        IEEE value (±inf, NaN) from NumPy's doubles; the others keep Python's bits."""
+        try:
+            return scalar(v)
+        except (ZeroDivisionError, OverflowError):
+            with np.errstate(all="ignore"):
+                return float(special(np.float64(v)))
+
+    elementwise = np.frompyfunc(ieee, 1, 1)
 
     def closed(x):
-        return np.asarray(ufunc(x), dtype=float)
+        try:
+            return np.asarray(ufunc(x), dtype=float)
+        except (ZeroDivisionError, OverflowError):
+            return np.asarray(elementwise(x), dtype=float)
 
     return closed
 

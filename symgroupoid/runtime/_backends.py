@@ -14,6 +14,7 @@ outside a buffer.
 from __future__ import annotations
 
 import ctypes
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 
@@ -380,6 +381,15 @@ class _Kernel:
         return self._simulate_into(states, iterations, residual_norms, start, n_steps, p,
                                    options, self.warm_start() if warm is None else warm)
 
+    def step_once(self, known: np.ndarray, p: np.ndarray, options: NewtonOptions
+                  ) -> tuple[int, np.ndarray]:
+        """One step from a fresh warm start, as ``simulate(known, p, 1, options)`` computes
+        it (the same bits): (status, the next state).  For callers that have checked their
+        inputs already (:meth:`Simulator.step`): ``known`` and ``p`` are C-contiguous
+        float64 vectors of the right lengths; a non-finite one gives INVALID_ARGUMENT."""
+        run = self.simulate(known, p, 1, options)
+        return run.status, run.states[1]
+
     def _simulate_into(self, states, iterations, residual_norms, start: int, n_steps: int,
                        p, options: NewtonOptions, warm) -> ChunkRun:
         """:meth:`simulate_into` through :meth:`_simulate` (its states copied in)."""
@@ -473,6 +483,7 @@ class CKernel(_Kernel):
             "residual", "residual_jacobian", "predict", "next_knowns", "solve_step",
             "simulate", "reconstruct")}
         self._warm_type = self.ffi.typeof(f"{prefix}_warm_start *")
+        self._stepper = None  # stepper(), made on first use
         self.max_steps = min(2**53, 2 ** (8 * self.ffi.sizeof("long") - 1) - 2)
         sizes = {"UNKNOWNS": n_unknowns, "KNOWNS": n_knowns, "EQUATIONS": n_unknowns,
                  "PARAMETERS": self.n_p}
@@ -535,6 +546,24 @@ class CKernel(_Kernel):
         out.failed_step[...] = failed
         out.failed_iterations[...] = failed_it
         return out
+
+    def step_once(self, known: np.ndarray, p: np.ndarray, options: NewtonOptions
+                  ) -> tuple[int, np.ndarray]:
+        """:meth:`_Kernel.step_once` by :meth:`stepper`'s function."""
+        return self.stepper()(known, p, options)
+
+    def stepper(self):
+        """A function (known, p, options) → (status, next state) making one
+        ``<prefix>_simulate`` call of one step with the least Python around it (the
+        per-call cost of a control loop): the caller's arrays are passed as they are
+        (C-contiguous float64 vectors of the kernel's lengths, checked by the caller), a
+        fresh start is a NULL warm start, the last options' C struct and the last parameter
+        vector's C view are kept, the iteration count and residual norm (not read: a
+        failed step is run again by the caller to report it) go to a block of the calling
+        thread, and the failed step and last iterate are not asked for (NULL)."""
+        if self._stepper is None:
+            self._stepper = _one_step_caller(self)
+        return self._stepper
 
     def _options(self, options: NewtonOptions):
         opts = self.ffi.new(f"{self.prefix}_options *")
@@ -629,6 +658,61 @@ class CKernel(_Kernel):
             self._buf(last, self.n_u, "last_iterate"))
         return RawRun(states, iterations[:n_steps].astype(np.int64), norms[:n_steps],
                       int(status), int(failed[0]), last)
+
+
+def _one_step_caller(kernel: CKernel):
+    """:meth:`CKernel.stepper`'s function (its state in closure cells, the fastest Python
+    has): one call of ``<prefix>_step`` (four arguments), or, in a module built before that
+    entry point existed, of ``<prefix>_simulate`` for one step."""
+    ffi, n_k = kernel.ffi, kernel.n_k
+    from_buffer, empty = ffi.from_buffer, np.empty
+    #: (options, their C struct, p, its C view) of the last call, and (the last state
+    #: returned, its C view), each replaced as a whole (tuples: another thread never sees
+    #: half of one); a C view keeps its array alive, so `is` identifies it surely
+    last = [(None, None, None, None)]
+    returned = [(None, None)]
+    step_function = getattr(kernel.lib, f"{kernel.prefix}_step", None)
+
+    def views(known, p, options):
+        held = last[0]
+        if held[0] is not options or held[2] is not p:
+            held = last[0] = (options, kernel._options(options) if held[0] is not options
+                              else held[1], p, from_buffer("double[]", p))
+        previous = returned[0]
+        return held, (previous[1] if previous[0] is known else from_buffer("double[]", known))
+
+    if step_function is not None:
+        def step(known: np.ndarray, p: np.ndarray, options: NewtonOptions):
+            held = last[0]  # views(), inline
+            if held[0] is not options or held[2] is not p:
+                held = views(known, p, options)[0]
+            previous = returned[0]
+            at = previous[1] if previous[0] is known else from_buffer("double[]", known)
+            after = empty(n_k)
+            view = from_buffer("double[]", after)
+            status = step_function(at, held[3], held[1], view)
+            returned[0] = (after, view)
+            return status, after
+
+        return step
+
+    simulate, null, get_ident = kernel._f["simulate"], ffi.NULL, threading.get_ident
+    blocks: dict = {}  # thread id → (iterations, residual norm) outputs of that thread
+
+    def step_by_simulate(known: np.ndarray, p: np.ndarray, options: NewtonOptions):
+        block = blocks.get(get_ident())
+        if block is None:
+            block = blocks[get_ident()] = (ffi.new("int[1]"), ffi.new("double[1]"))
+        held, at = views(known, p, options)
+        out = empty((2, n_k))
+        view = from_buffer("double[]", out)
+        status = simulate(at, held[3], 1, held[1], null, view, 2, block[0], block[1], null,
+                          null)
+        after = out[1]
+        returned[0] = (after, view + n_k)
+        return status, after
+
+    return step_by_simulate
 
 
 def norm_inf(v: np.ndarray) -> float:

@@ -287,9 +287,17 @@ def _screened_states(sim, S: np.ndarray) -> np.ndarray:
         for start, group in groupoid.offset_parts():  # increments stored as F − I
             offsets = safe[:, index[start:start + group.arrow_dim]]
             flagged |= _group_screen(group, offset_element(group, offsets))
+    for part in sim.layout.parts.values():  # every group part (a pair groupoid's R_k too)
+        if part.group is not None:
+            index = np.where(part.index >= 0, part.index, 0)
+            values = np.where(part.index >= 0, safe[:, index] + part.fixed, part.fixed)
+            for o in range(values.shape[1]):
+                flagged |= _group_screen(part.group, values[:, o])
+    if flagged.any():
+        S = np.array(S, dtype=float)  # flagged rows become what simulate starts from
     for i in np.flatnonzero(flagged):
         try:
-            sim.state(S[i])
+            S[i] = sim.state(S[i])  # a group part given to a few digits: its nearest element
         except SymgroupoidError as err:
             raise _at_row(err, "initial state", int(i)) from err
     return S
@@ -427,11 +435,14 @@ class TrajectoryBatch:
         if self.status[b] == OK:
             return None
         raw = self._raw
+        run = self[b]
         err = self._sim._failure(int(self.status[b]), int(self.failed_step[b]),
                                  int(raw.failed_iterations[b]),
                                  float(raw.failed_residual_norms[b]), raw.last_iterate[b],
-                                 self._options)
-        err.trajectory = self[b]
+                                 self._options,
+                                 known=run.states[-1] if len(run.states) else None,
+                                 p=self.parameters[b])
+        err.trajectory = run
         return err
 
     def __repr__(self) -> str:

@@ -25,13 +25,8 @@ import sympy as sp
 
 from .._errors import DomainError, InputNameError, ShapeError
 from .._symbols import multiplier_symbols, step_label
-from ..groupoids import (
-    ActionGroupoid,
-    MatrixLieGroup,
-    ProductGroupoid,
-    TrivialisedPairGroupoid,
-)
-from ._validate import GROUP_TOLERANCE, arrow, check_group_matrix, real_array
+from ..groupoids import MatrixLieGroup
+from ._validate import GROUP_TOLERANCE, arrow, real_array, rounded_group_matrix
 
 __all__ = ["GROUP_TOLERANCE", "MULTIPLIER_KEYS", "Part", "StateLayout"]
 
@@ -65,16 +60,13 @@ class Part:
 
 
 def _group_parts(groupoid) -> dict[str, MatrixLieGroup]:
-    if isinstance(groupoid, (MatrixLieGroup, TrivialisedPairGroupoid)):
-        return groupoid.named_groups()
-    if isinstance(groupoid, ActionGroupoid):
-        return _group_parts(groupoid.group)
-    if isinstance(groupoid, ProductGroupoid):
-        out: dict = {}
-        for f in groupoid.factors:
-            out |= _group_parts(f)
-        return out
-    return {}
+    """Part name → the matrix group its values lie in (every groupoid names its groups:
+    Lie groups, the configurations of a pair groupoid of groups, the increments of
+    :class:`TrivialisedPairGroupoid`, action and product groupoids)."""
+    try:
+        return dict(groupoid.named_groups())
+    except Exception:  # noqa: BLE001 - a user groupoid without named groups
+        return {}
 
 
 def _indices(value, position: dict) -> tuple[np.ndarray, np.ndarray] | None:
@@ -176,17 +168,43 @@ class StateLayout:
         if bad:
             raise DomainError(f"{self.step_name}: non-finite initial data in {', '.join(bad)}")
 
+    def rounded(self, state: np.ndarray) -> np.ndarray:
+        """A flat state whose group parts are given to a few digits, with each replaced by
+        the nearest element of its group (a warning says so; :func:`rounded_group_matrix`),
+        as named parts are; a part farther from its group is left to :meth:`check_arrows`,
+        which reports it."""
+        out = state
+        for part in self.parts.values():
+            if part.group is None:
+                continue
+            index = np.where(part.index >= 0, part.index, 0)
+            values = np.where(part.index >= 0, state[index] + part.fixed, part.fixed)
+            for o, value in enumerate(values):  # one value per offset the part is held at
+                near = rounded_group_matrix(part.group, value, repr(part.name),
+                                            owner=self.step_name, check=False)
+                if near is not value:
+                    out = out.copy() if out is state else out
+                    mask = part.index[o] >= 0
+                    out[part.index[o][mask]] = (near - part.fixed)[mask]
+        return out
+
     def check_arrows(self, state: np.ndarray) -> None:
         """Every known arrow of a flat state checked as named parts are (:func:`arrow`:
-        each matrix part in its group)."""
+        each matrix part in its group; then every group part, e.g. the configurations of
+        a pair groupoid of rotations, which are not matrix parts of the arrow)."""
         for o, index in self.arrow_index.items():
             arrow(self.groupoid, state[index], f"the arrow g_{step_label(o)} of the state",
                   owner=self.step_name)
+        for part in self.parts.values():
+            if part.group is not None:
+                index = np.where(part.index >= 0, part.index, 0)
+                for value in np.where(part.index >= 0, state[index] + part.fixed, part.fixed):
+                    rounded_group_matrix(part.group, value, f"the state's {part.name!r} part",
+                                         owner=self.step_name)
 
     def _assign(self, state, given, part: Part, value) -> None:
         arr = self._as_array(part, value)
-        for a in arr:
-            self._check_group(part, a)
+        arr = np.stack([self._check_group(part, a) for a in arr])
         mask = part.index >= 0
         idx = part.index[mask]
         if given[idx].any():
@@ -206,7 +224,9 @@ class StateLayout:
                              f"shape {arr.shape}")
         return arr if part.is_sequence else arr[None]
 
-    def _check_group(self, part: Part, arr: np.ndarray) -> None:
+    def _check_group(self, part: Part, arr: np.ndarray) -> np.ndarray:
+        """One value of a part: its fixed entries checked, and a group element (given to a
+        few digits: the nearest one, with a warning)."""
         mask = part.index[0] < 0
         if mask.any() and not np.allclose(arr[mask], part.fixed[mask], rtol=0,
                                           atol=GROUP_TOLERANCE):
@@ -214,8 +234,8 @@ class StateLayout:
                              f"{part.fixed[mask].tolist()}")
         group = part.group
         if group is None or not np.isfinite(arr).all():
-            return
-        check_group_matrix(group, arr, repr(part.name), owner=self.step_name)
+            return arr
+        return rounded_group_matrix(group, arr, repr(part.name), owner=self.step_name)
 
     def _pack_multipliers(self, state, given, multipliers) -> None:
         part = self.multiplier_part

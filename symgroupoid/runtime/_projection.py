@@ -9,9 +9,10 @@ arrow_from(α(g_k), τ(x)) and x₀ = τ⁻¹(g_k), Gauss–Newton with minimum-
 converges to a point of N = {φ = 0} near x₀ (to first order the orthogonal projection of x₀
 in the chart).  On a pair groupoid (q₀, q₁) this keeps q₀ and corrects q₁; on a Lie group it
 corrects the element; on a time groupoid with φ = t₁ − t₀ − h it sets t₁.  Holonomic
-constraints are projected at the target, ψ(β(g_k)) = 0; the source must already lie on M
-(the state check names ψ(α(g_k)) otherwise).  The multipliers λ_k are not changed (they
-enter the run only through F⁺L(g_k, λ_k)).
+constraints are projected at the target, ψ(β(g_k)) = 0, and first at the source: a
+configuration typed to a few digits is off M = {ψ = 0}, so the source is moved onto M
+first (:class:`SourceProjection`), keeping the target.  The multipliers λ_k are not changed
+(they enter the run only through F⁺L(g_k, λ_k)).
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import DomainError
+from .._lambdify import NUMPY_MODULES
 from ..derivation._window import step_jacobian
 from ..ir import Program, from_sympy
 from ._diagnostics import state_graph
@@ -49,6 +51,8 @@ class ConstraintProjection:
         self.has_constraints = bool(sgraph.phi)
         if not self.has_constraints:
             return
+        fs = getattr(getattr(step, "system", None), "_fs", None)
+        self.source = SourceProjection(step) if fs is not None and fs.n_holonomic else None
         G, g = step.groupoid, sgraph.graph
         self.groupoid = G
         self.chart = [sp.Dummy(f"x{i}", real=True) for i in range(G.rank)]
@@ -72,6 +76,9 @@ class ConstraintProjection:
             return state.copy()
         G = self.groupoid
         index = self.index
+        if self.source is not None:  # α(g_k) onto M first: a typed configuration is off it
+            state = state.copy()
+            state[index] = self.source(state[index], p, max_iterations)
         a0 = state[index]
         source = tuple(float(v) for v in G.source(tuple(a0)))
         x = np.array(G.fibre_chart_inverse(tuple(G.fibre_of(tuple(a0))), source), float)
@@ -101,6 +108,62 @@ class ConstraintProjection:
         out = state.copy()
         out[index] = best[1]
         return out
+
+
+class SourceProjection:
+    """The source q = α(g) of the known arrow moved onto M = {ψ = 0}, its target kept.
+
+    With e(x) = arrow_from(q, τ_q(x)) the arrow from q with fibre chart coordinates x (so
+    that e(x₀) = ε(q)), the new source is q′ = β(e(x)) and the new arrow e(x)⁻¹·g, the
+    groupoid's own multiplication: on a pair groupoid (q, q₁) ↦ (q′, q₁).  x solves ψ(β(e(x)))
+    = 0 by Gauss–Newton with minimum-norm steps from x₀ (to first order the orthogonal
+    projection of q onto M in the chart), the Jacobian exact (SymPy's derivatives of the
+    few holonomic constraints).
+    """
+
+    def __init__(self, step):
+        fs = step.system._fs
+        G = step.groupoid
+        self.name, self.groupoid = step.name, G
+        q = list(fs.base)
+        x = [sp.Dummy(f"x{i}", real=True) for i in range(G.rank)]
+        p = list(step.parameters)
+        e = G.arrow_from(tuple(q), G.fibre_chart(tuple(x), tuple(q)))
+        psi = [c.xreplace(dict(zip(q, G.target(e)))) for c in fs.holonomic]
+        jacobian = [[sp.diff(c, v) for v in x] for c in psi]
+        self.residual = sp.lambdify([x, q, p], [psi, jacobian], NUMPY_MODULES)
+        a = [sp.Dummy(f"a{i}", real=True) for i in range(G.arrow_dim)]
+        source = tuple(G.source(tuple(a)))
+        moved_e = G.arrow_from(source, G.fibre_chart(tuple(x), source))
+        moved = G.multiply(G.inverse(moved_e), tuple(a))
+        self.moved = sp.lambdify([x, a], [sp.sympify(c) for c in moved], NUMPY_MODULES)
+        self.m = len(psi)
+
+    def __call__(self, arrow: np.ndarray, p: np.ndarray, max_iterations: int) -> np.ndarray:
+        G = self.groupoid
+        q = tuple(float(v) for v in G.source(tuple(arrow)))
+        x = np.array(G.fibre_chart_inverse(tuple(G.fibre_of(G.identity(q))), q), float)
+        history: list[float] = []
+        for _ in range(max_iterations):
+            with np.errstate(all="ignore"):
+                psi, J = self.residual(x, q, p)
+            psi = np.asarray(psi, float).ravel()
+            J = np.asarray(J, float).reshape(self.m, len(x))
+            norm = float(np.max(np.abs(psi))) if len(psi) else 0.0
+            if not np.isfinite(norm) or not np.isfinite(J).all():
+                break
+            history.append(norm)
+            if norm == 0.0 or (len(history) > 2 and norm > 0.5 * min(history[:-1])
+                               and norm < 1e-8):
+                break
+            x = x - np.linalg.lstsq(J, psi, rcond=None)[0]
+        if not history or not min(history) < 1e-8:
+            shown = ", ".join(f"{v:.1e}" for v in history[-4:]) or "non-finite"
+            raise ProjectionError(
+                f"{self.name}: could not move the configuration α(g_k) onto the holonomic "
+                f"constraint set M = {{ψ = 0}}: Gauss–Newton reached |ψ|∞ = {shown}; no point "
+                f"of M near the given configuration (check the parameters, e.g. the lengths)")
+        return np.array([float(v) for v in self.moved(x, list(arrow))])
 
 
 _PROJECTIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

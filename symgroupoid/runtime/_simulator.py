@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
@@ -81,9 +82,16 @@ class Simulator:
 
         One rule for every entry point (:func:`~symgroupoid.runtime._validate.parameter_vector`):
         every parameter named exactly once (unknown names are rejected), finite real values
-        satisfying the assumptions the symbols are declared with (``positive=True``, …).
+        satisfying the assumptions the symbols are declared with (``positive=True``, …); a
+        :class:`ParameterError` also for a zero the Lagrangian or the constraints divide by
+        (a time step h = 0 not declared positive; :mod:`~symgroupoid.runtime._singular`).
         """
-        return parameter_vector(self.equations.parameters, params, owner=self.name)[0]
+        p = parameter_vector(self.equations.parameters, params, owner=self.name)[0]
+        if not p.all():  # a zero: refused where the equations divide by it (h = 0)
+            from ._singular import check_zero_divisors
+
+            check_zero_divisors(self.equations, p, self.name)
+        return p
 
     def state(self, initial: Mapping | Sequence | np.ndarray, params=None) -> np.ndarray:
         """The flat known state (g_k, λ_k) from named parts or a flat vector.
@@ -113,8 +121,8 @@ class Simulator:
                                  f"(the knowns {', '.join(s.name for s in self.equations.knowns)}"
                                  f"); got shape {arr.shape}")
             self.layout.check_finite(arr)
-            self.layout.check_arrows(arr)
-            state = arr.copy()
+            state = self.layout.rounded(arr).copy()
+            self.layout.check_arrows(state)
         if params is not None:
             p = self.parameters(params)
             constraint_check(self.equations)(state, p, atol=INITIAL_CONSTRAINT_TOLERANCE,
@@ -239,22 +247,27 @@ class Simulator:
             if run.status != OK:
                 k = run.failed_step
                 err = self._failure(run.status, start + k, run.iterations[k],
-                                    run.residual_norms[k], run.last_iterate, options)
+                                    run.residual_norms[k], run.last_iterate, options,
+                                    known=run.states[k], p=p)
                 err.trajectory = piece
                 raise err
             if len(segment.states):
                 yield piece
 
     def _chunk_failure(self, chunk, start: int, iterations: np.ndarray,
-                       norms: np.ndarray, options: NewtonOptions) -> Exception:
+                       norms: np.ndarray, options: NewtonOptions,
+                       states: np.ndarray | None = None,
+                       p: np.ndarray | None = None) -> Exception:
         """The error of a :class:`~symgroupoid.runtime._backends.ChunkRun` that failed
-        (its failed step's data at entry start + k of the run's buffers)."""
+        (its failed step's data at entry start + k of the run's buffers, its known state
+        at row start + k of ``states``)."""
         k = chunk.failed_step
         if k < 0:  # nothing was solved: the kernel refused its arguments
             return self._failure(chunk.status, start, 0, float("nan"), chunk.last_iterate,
                                  options)
+        known = None if states is None else states[start + k]
         return self._failure(chunk.status, start + k, iterations[start + k],
-                             norms[start + k], chunk.last_iterate, options)
+                             norms[start + k], chunk.last_iterate, options, known=known, p=p)
 
     def _trajectory(self, states, iterations, norms, p, indices, every) -> Trajectory:
         values = dict(zip(self.parameter_names, p.tolist()))
@@ -276,8 +289,49 @@ class Simulator:
                 f"on the fly with Simulator.stream(...) or a callback")
 
     def step(self, state, params, *, options: NewtonOptions | None = None) -> np.ndarray:
-        """One step: the next flat state from a state (named or flat)."""
-        return self.simulate(state, 1, params, options=options).states[1].copy()
+        """One step: the next flat state from a state (named or flat), the same bits as
+        ``simulate(state, 1, params, options=options).states[1]``.
+
+        Made for a control loop, ``state = sim.step(state, p)``: the inputs are checked as
+        :meth:`simulate` checks them, but a flat float64 state that this simulator
+        produced (or checked) before, under the same values of the parameters its
+        constraints use, is not checked again — it is on the constraints and in the group
+        already, as the states inside a run are — and parameters given as a float64 vector
+        in ``step.parameters`` order (``p = sim.parameters({...})``) or as a dict of
+        Python numbers by name are screened without parsing.  The step itself is one call
+        of the kernel; the Python around it costs about a microsecond (plate-ball:
+        ``benchmarks/step.py``).  Any other input, and every failure, goes through the
+        checks and errors of :meth:`simulate`.
+        """
+        after = self._fast_call(state, params, options)
+        if after is not None:
+            return after
+        return self._checked_step(state, params, options)
+
+    def _checked_step(self, state, params, options) -> np.ndarray:
+        """:meth:`step` with every check of :meth:`simulate` (the first call of a loop, or
+        an input the fast path does not know); a failed step raises as :meth:`simulate`
+        does, with ``err.trajectory``."""
+        options = NewtonOptions.of(options, self.options, owner=self.name)
+        p = self.parameters(params)
+        known = self.state(state, p)
+        fast = self._fast_step
+        fast.trust(known, p)
+        status, after = fast.run(known, p, options)
+        if status != OK:  # the run of one step raises the error, with its trajectory
+            return self.simulate(known, 1, p, options=options).states[1].copy()
+        fast.trust(after, p)
+        return after
+
+    @functools.cached_property
+    def _fast_step(self):
+        from ._fast_step import FastStep
+
+        return FastStep(self)
+
+    @functools.cached_property
+    def _fast_call(self):
+        return self._fast_step.call
 
     def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None):
         """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure.
@@ -292,13 +346,14 @@ class Simulator:
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
-                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0, options)
+                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0, options, known=known,
+                                    p=p)
         else:
             u0 = real_vector(guess, len(self.equations.unknowns), "guess", owner=self.name,
                              finite=True)
         status, u, it, rn = self.kernel.solve_step(known, p, u0, options)
         if status != OK:
-            raise self._failure(status, 0, it, rn, u, options)
+            raise self._failure(status, 0, it, rn, u, options, known=known, p=p)
         return u, it, rn
 
     def from_momentum(self, configuration, momentum: Sequence, params) -> np.ndarray:
@@ -341,7 +396,11 @@ class Simulator:
         α-fibre of its source to a nearby zero of φ: Gauss–Newton with minimum-norm steps in
         the fibre chart, x ← x − J⁺φ, with the exact constraint Jacobian J from the
         expression graph (to first order the orthogonal projection in the chart).  On a
-        pair groupoid, (q₀, q₁) keeps q₀ and corrects q₁.  λ_k is kept as given.
+        pair groupoid, (q₀, q₁) keeps q₀ and corrects q₁.  With holonomic constraints ψ(q) = 0
+        the configuration α(g_k) is first moved onto M = {ψ = 0} (the nearest point in the
+        chart, the target kept), so that configurations typed to a few digits can be given;
+        group parts given to a few digits are replaced by the nearest group element (a
+        :class:`~symgroupoid.GroupRoundingWarning` says so).  λ_k is kept as given.
 
         Returns the flat state, checked like any initial state (:meth:`state` with
         ``params``).  First-order steps only; a :class:`~symgroupoid.runtime._projection.
@@ -361,10 +420,21 @@ class Simulator:
         return self.state(moved, p)
 
     def _failure(self, status: int, step: int, iterations: int, residual_norm: float,
-                 iterate: np.ndarray, options: NewtonOptions | None = None) -> Exception:
+                 iterate: np.ndarray, options: NewtonOptions | None = None, *,
+                 known: np.ndarray | None = None, p: np.ndarray | None = None) -> Exception:
         """The error of a failed step ``step`` (of the run: the warm start holds two
         solutions from its step 2 on, so that a step of a run with ``extrapolate`` was tried
-        twice, from the extrapolated guess and from the prediction)."""
+        twice, from the extrapolated guess and from the prediction).  A step that gave
+        non-finite values at the known state ``known`` is explained where a cause is found
+        (a half-turn, a zero parameter; :mod:`~symgroupoid.runtime._singular`)."""
+        if status == NON_FINITE and known is not None:  # a half-turn, h = 0: say which
+            from ._singular import non_finite_cause
+
+            found = non_finite_cause(self, step, iterations, residual_norm, iterate, known,
+                                     p, f"{self.name}: step {step} failed")
+            if found is not None:
+                found.trajectory = None
+                return found
         options = self.options if options is None else options
         tries = ("" if not options.extrapolate or step < 2 else
                  f" in two tries of at most {options.max_iterations} each, from the "
@@ -420,7 +490,7 @@ class _WholeRun:
             task.update(done + chunk.completed)
             if chunk.status != OK:
                 err = self.sim._chunk_failure(chunk, done, self.iterations, self.norms,
-                                              options)
+                                              options, self.states, self.p)
                 err.trajectory = self.so_far()
                 raise err
             if callback is not None:

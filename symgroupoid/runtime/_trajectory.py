@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import InputNameError
+from .._errors import DomainError, InputNameError, InputTypeError, UnsupportedFeatureError
 from ._backends import OK, RawRun
 from ._layout import MULTIPLIER_KEYS, StateLayout
 
@@ -43,7 +43,12 @@ class Trajectory:
     Named views are computed on first access and cached (read-only arrays).  Diagnostics
     (:mod:`symgroupoid.diagnostics`): ``traj.energy()``, ``traj.momenta()``,
     ``traj.constraint_residuals()``, ``traj.conservation_summary()``; figures:
-    ``traj.plot()`` and :func:`symgroupoid.plot_conservation`.
+    ``traj.plot()`` and :func:`symgroupoid.plot_conservation`.  The configurations the run
+    passes through, ``traj.configurations(start)`` (a Lie group's state is the increment
+    W_k = R_k⁻¹R_{k+1}: the attitudes R_k are multiplied out from R_0), and the momenta in
+    the spatial frame, ``traj.spatial_momenta(start)``.  Files: ``traj.save(path)``
+    (``.npz`` or ``.csv``, as ``symgroupoid simulate -o`` writes) and
+    ``Trajectory.load(path, sim)``.
     """
 
     def __init__(self, layout: StateLayout, states: np.ndarray, iterations: np.ndarray,
@@ -108,6 +113,99 @@ class Trajectory:
         """The last flat state (a valid initial state for a continuation)."""
         return self.states[-1].copy()
 
+    # --- configurations -----------------------------------------------------------------------
+    def configurations(self, start=None):
+        """The configurations the run passes through, from the arrows of its states.
+
+        The state of a Lie-group system holds increments, not attitudes: W_k = R_k⁻¹R_{k+1}
+        (SO(3): R_kᵀR_{k+1}, the rotation from one attitude to the next, in the body frame).
+        The attitudes are R_{k+1} = R_k W_k from R_0 = ``start`` (default: the identity) —
+        the groupoid's own multiplication (:meth:`Groupoid.configurations_along`), so N
+        steps give N + 2 configurations R_0, …, R_{N+1}, as ``traj[name]`` gives the N + 2
+        positions of a pair-groupoid coordinate.  Each groupoid knows its configurations: a
+        Lie group an (N + 2, n, n) array; a pair groupoid the points its arrows hold
+        (``start`` left out, or equal to them); :class:`TrivialisedPairGroupoid` its q_k;
+        products a tuple with one entry per factor (``start``: None, or one entry per
+        factor, None for a part the state determines, e.g. ``(None, R0)`` for the
+        plate-ball); action groupoids (points, R_k); time groupoids (times, the inner
+        configurations).
+
+        Needs every state (``every`` = 1; a :class:`DomainError` otherwise); second-order
+        trajectories start at their oldest arrow g_{-1}.
+        """
+        from ._validate import partial_configuration
+
+        G = self._layout.groupoid
+        arrows = self._consecutive_arrows("configurations")
+        start = partial_configuration(G, start, "start", owner=self._layout.step_name)
+        return G.configurations_along(arrows, start)
+
+    def spatial_momenta(self, start=None) -> np.ndarray:
+        """The discrete momenta F⁻L(g_k) of every state (``momenta().minus``) in the spatial
+        frame, (R, rank): on a Lie group, whose sections move the configuration R_k on the
+        right, the body momentum μ_k becomes Ad*_{R_k⁻¹}μ_k (SO(3): R_k μ_k, the angular
+        momentum in space, constant for a left-invariant Lagrangian such as the free rigid
+        body: the Noether quantity of rotations of space, seed 000 Thm 4.9); components of a
+        pair groupoid of Rⁿ stay as they are.  R_k from ``start`` as in
+        :meth:`configurations`.  First-order trajectories with every state."""
+        from ._validate import partial_configuration
+
+        if getattr(self._layout.equations, "order", 1) != 1:
+            raise UnsupportedFeatureError(f"{self._layout.step_name}: spatial momenta are "
+                                          f"defined here for first-order systems")
+        G = self._layout.groupoid
+        arrows = self._consecutive_arrows("spatial momenta")
+        start = partial_configuration(G, start, "start", owner=self._layout.step_name)
+        return G.spatial_momenta(self.momenta().minus, arrows, start)
+
+    def _consecutive_arrows(self, what: str) -> np.ndarray:
+        if self.every != 1:
+            raise DomainError(f"{self._layout.step_name}: {what} are rebuilt from every "
+                              f"arrow of the run, but this trajectory keeps every "
+                              f"{self.every}-th state; simulate with every=1")
+        return self._layout.arrows(self.states)
+
+    # --- files -----------------------------------------------------------------------------------
+    def save(self, path) -> None:
+        """Write the trajectory to ``path``: ``.npz`` (every array, the state columns and
+        the parameters; read with ``numpy.load(path, allow_pickle=False)``) or ``.csv``
+        (one row per kept state) — the files ``symgroupoid simulate -o`` writes
+        (docs/cli.md).  Written beside the target and renamed into place."""
+        from ._files import output_path, save_trajectory
+
+        save_trajectory(self, output_path(path, self._layout.step_name))
+
+    @classmethod
+    def load(cls, path, simulator, params=None) -> Trajectory:
+        """The trajectory :meth:`save` (or ``simulate -o``) wrote to ``path``, for
+        ``simulator`` (a :class:`Simulator`, or the step equations).
+
+        The file's state columns must be this system's (names and order, not merely as
+        many; a :class:`~symgroupoid.TrajectoryFileError` otherwise), and so must its
+        parameter names.  ``params``: the parameter values, by name or in order — required
+        for a ``.csv`` file, which holds none; for an ``.npz`` they replace the file's.
+        Never runs code from the file (``allow_pickle=False``)."""
+        from ._files import read_trajectory
+
+        layout, names, backend = _layout_of(simulator)
+        data = read_trajectory(path, layout, names)
+        parameters = data.parameters
+        if params is not None:
+            from ._validate import parameter_vector
+
+            parameters = parameter_vector(layout.equations.parameters, params,
+                                          owner=layout.step_name)[1]
+        elif parameters is None:
+            from .._errors import TrajectoryFileError
+
+            raise TrajectoryFileError(f"{layout.step_name}: {str(path)!r} is a .csv "
+                                      f"trajectory, which holds no parameter values: pass "
+                                      f"params=...")
+        layout.check_arrows(data.states[0])
+        layout.check_arrows(data.states[-1])
+        return cls(layout, data.states, data.iterations, data.norms, parameters,
+                   data.backend or backend, step_indices=data.step_indices, every=data.every)
+
     # --- diagnostics (symgroupoid.diagnostics) -------------------------------------------------
     def energy(self, step_parameter: str | None = None) -> np.ndarray:
         """The discrete energy at every kept state, (R,): E_d = −∂L_d/∂h for the step
@@ -138,7 +236,7 @@ class Trajectory:
         return conservation_summary(self, **options)
 
     def plot(self, parts: Sequence[str] | None = None, *, path=None, **options):
-        """A matplotlib figure of the named parts against the step (see
+        """A matplotlib figure of the named parts against time (or the step; see
         :func:`symgroupoid.plotting.plot_trajectory`); saved to ``path`` if given."""
         from ..plotting import plot_trajectory
 
@@ -176,6 +274,20 @@ class Trajectory:
                        f"<td style='text-align:left'>{html.escape(v)}</td></tr>"
                        for k, v in self._summary())
         return f"<table><caption>Trajectory</caption>{rows}</table>"
+
+
+def _layout_of(simulator) -> tuple[StateLayout, list[str], str]:
+    """(state layout, parameter names, backend) of a simulator or step equations."""
+    from ..equations import StepEquations
+
+    layout = getattr(simulator, "layout", None)
+    if isinstance(layout, StateLayout):
+        return layout, list(simulator.parameter_names), simulator.backend
+    if isinstance(simulator, StepEquations):
+        return StateLayout(simulator), [str(p) for p in simulator.parameters], ""
+    raise InputTypeError(f"Trajectory.load: simulator must be a Simulator or the step "
+                         f"equations the trajectory belongs to, got "
+                         f"{type(simulator).__name__}")
 
 
 @dataclass

@@ -19,6 +19,7 @@ is given:
 from __future__ import annotations
 
 import functools
+import warnings
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -31,7 +32,7 @@ from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
     real_argument,
     real_array,
 )
-from .._errors import DomainError, ParameterError, ShapeError
+from .._errors import DomainError, GroupRoundingWarning, ParameterError, ShapeError
 from .._lambdify import NUMPY_MODULES
 from ..groupoids import (
     ActionGroupoid,
@@ -48,6 +49,11 @@ from ..groupoids._manifold import GroupManifold, ProductManifold
 #: last row of SE(n)): far above the rounding of a product of many rotations, far below any
 #: matrix that is not a rotation
 GROUP_TOLERANCE = 1e-9
+
+#: a group element off its group by more than GROUP_TOLERANCE but at most this (a rotation
+#: given to six digits or more, ``np.round(R, 8)``) is replaced by the nearest element of
+#: the group, with a :class:`~symgroupoid.GroupRoundingWarning`
+ROUNDED_TOLERANCE = 1e-6
 
 #: a constraint value counts as zero when |φ_i| ≤ max(atol, CONSTRAINT_ROUNDING·ε·M_i), M_i the
 #: magnitude of φ_i's terms (:func:`magnitude`): evaluating φ_i rounds each term by a few ε,
@@ -88,6 +94,7 @@ _CHECKED_ASSUMPTIONS = ("positive", "negative", "nonnegative", "nonpositive", "z
                         "composite")
 
 
+@functools.lru_cache(maxsize=1024)
 def _declared(symbol: sp.Symbol) -> list[tuple[str, bool]]:
     """The checkable assumptions a symbol was declared with (``extended_`` forms included)."""
     given = getattr(symbol, "_assumptions_orig", None)
@@ -101,10 +108,64 @@ def _declared(symbol: sp.Symbol) -> list[tuple[str, bool]]:
     return sorted(set(out), key=lambda kv: (_CHECKED_ASSUMPTIONS.index(kv[0]), kv[1]))
 
 
+#: the checkable assumptions as tests of a finite float ``{v}`` (Python source), exact for
+#: the rational number it is (SymPy's answer for ``sp.Rational(v)``); prime and composite
+#: are left to SymPy
+_FLOAT_SOURCE = {
+    "positive": "{v} > 0", "negative": "{v} < 0", "nonnegative": "{v} >= 0",
+    "nonpositive": "{v} <= 0", "zero": "{v} == 0", "nonzero": "{v} != 0",
+    "integer": "{v}.is_integer()", "noninteger": "not {v}.is_integer()",
+    "even": "({v}.is_integer() and {v} % 2 == 0)",
+    "odd": "({v}.is_integer() and {v} % 2 == 1)",
+}
+
+
+def _exact_assumption(key: str, v: float) -> bool:
+    """SymPy's answer for the rational number ``v`` (prime, composite)."""
+    return bool(getattr(sp.Rational(v), f"is_{key}"))
+
+
+@functools.lru_cache(maxsize=1024)
+def assumption_test(symbol: sp.Symbol):
+    """A function of a finite float that is True exactly when the value satisfies every
+    checkable assumption ``symbol`` is declared with (None when it is declared with none):
+    the screen of :func:`check_assumptions`, without SymPy arithmetic."""
+    return assumptions_test((symbol,), lambda i: "v")
+
+
+def assumptions_test(symbols: Sequence, entry=lambda i: f"v[{i}]"):
+    """One Python function testing every checkable assumption of ``symbols`` at once on
+    floats: of the list of their values (``entry(i)`` its i-th item), True exactly when
+    :func:`check_assumptions` accepts each value; None when no symbol declares one.  It is
+    compiled from the fixed table :data:`_FLOAT_SOURCE` (about 0.1 µs a call, for the
+    per-call checks of :meth:`Simulator.step`)."""
+    terms = []
+    for i, symbol in enumerate(symbols):
+        for key, expected in (_declared(symbol) if isinstance(symbol, sp.Symbol) else ()):
+            v = entry(i)
+            test = (_FLOAT_SOURCE[key].format(v=v) if key in _FLOAT_SOURCE
+                    else f"_exact({key!r}, {v})")
+            terms.append(test if expected else f"not ({test})")
+    if not terms:
+        return None
+    return eval(f"lambda v: {' and '.join(terms)}",  # noqa: S307 - built from the table
+                {"__builtins__": {}, "_exact": _exact_assumption})
+
+
+@functools.lru_cache(maxsize=256)
+def parameter_names(parameters: tuple) -> tuple[str, ...]:
+    """The names of a tuple of parameter symbols (``str`` of each; cached: SymPy's printer
+    is slow)."""
+    return tuple(str(s) for s in parameters)
+
+
 def check_assumptions(symbol: sp.Symbol, value: float, *, owner: str = "") -> None:
     """A :class:`ParameterError` naming the parameter and the assumption when ``value``
     violates an assumption ``symbol`` is declared with (``positive=True``, ``integer=True``,
     …; the value is taken exactly, as the rational number a float is)."""
+    test = assumption_test(symbol)
+    if test is None or test(float(value)):
+        return
     exact = sp.Rational(value)
     for key, expected in _declared(symbol):
         holds = getattr(exact, f"is_{key}")
@@ -126,7 +187,7 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
     missing or repeated ones, a wrong count, a non-number, NaN/inf, a violated assumption.
     """
     where = _where(owner)
-    names = [str(s) for s in parameters]
+    names = list(parameter_names(tuple(parameters)))
     listing = ", ".join(names) if names else "none"
     if params is None:
         params = {}
@@ -181,41 +242,91 @@ def _finite(arr: np.ndarray, name: str, owner: str) -> np.ndarray:
     return arr
 
 
+def group_deviation(group: MatrixLieGroup, M: np.ndarray) -> tuple[float, float, float]:
+    """How far the finite matrix ``M`` is from ``group``: (|RᵀR − I|_max, det R, the
+    largest deviation of SE(n)'s last row from (0, …, 0, 1)) of its rotation block R."""
+    n = group.n - 1 if group.affine else group.n
+    R = M[:n, :n]
+    row = 0.0
+    if group.affine:
+        row = float(np.abs(M[-1] - np.eye(group.n)[-1]).max())
+    return float(np.abs(R.T @ R - np.eye(n)).max()), float(np.linalg.det(R)), row
+
+
+def _caller_level() -> int:
+    """The ``stacklevel`` of a warning issued by the caller that points at the first frame
+    outside this package (the user's line)."""
+    import os
+    import sys
+
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
+    frame, level = sys._getframe(2), 2
+    while frame is not None and frame.f_code.co_filename.startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+_FIX = ("; if it is an element given to a few digits, give more digits or pass "
+        "{group}.nearest_element(M), the nearest element of the group (matrices off by at "
+        "most {rounded:g} are replaced by it, with a GroupRoundingWarning)")
+
+
 def check_group_matrix(group: MatrixLieGroup, M: np.ndarray, name: str, *,
                        owner: str = "") -> None:
     """A :class:`DomainError` unless the finite n×n matrix ``M`` lies in ``group``: its
     rotation block R orthonormal with det R = +1 (a reflection is not in SO(n)), and for
     SE(n) the last row (0, …, 0, 1) — each to :data:`GROUP_TOLERANCE`."""
     where = _where(owner)
-    n = group.n - 1 if group.affine else group.n
-    if group.affine:
-        last = np.zeros(group.n)
-        last[-1] = 1.0
-        if np.abs(M[-1] - last).max() > GROUP_TOLERANCE:
-            raise DomainError(f"{where}{name} is not in {group.name}: its last row is "
-                              f"{M[-1].tolist()}, not {last.tolist()}")
-    R = M[:n, :n]
-    off = float(np.abs(R.T @ R - np.eye(n)).max())
+    off, det, row = group_deviation(group, M)
+    fix = _FIX.format(group=f"sg.{type(group).__name__}({group.symbol_name!r})",
+                      rounded=ROUNDED_TOLERANCE)
+    if row > GROUP_TOLERANCE:
+        last = np.eye(group.n)[-1]
+        raise DomainError(f"{where}{name} is not in {group.name}: its last row is "
+                          f"{M[-1].tolist()}, not {last.tolist()}{fix}")
     if off > GROUP_TOLERANCE:
         raise DomainError(f"{where}{name} is not in {group.name}: its rotation block is off "
                           f"orthonormal by {off:.2e} (|RᵀR − I|, tolerance "
-                          f"{GROUP_TOLERANCE:g})")
-    det = float(np.linalg.det(R))
+                          f"{GROUP_TOLERANCE:g}){fix}")
     if abs(det - 1.0) > GROUP_TOLERANCE:
         kind = " (a reflection, not a rotation)" if det < 0 else ""
         raise DomainError(f"{where}{name} is not in {group.name}: det = {det:.6g}{kind}")
 
 
+def rounded_group_matrix(group: MatrixLieGroup, M: np.ndarray, name: str, *,
+                         owner: str = "", check: bool = True) -> np.ndarray:
+    """The finite n×n matrix ``M`` as an element of ``group``: itself when it lies in the
+    group to :data:`GROUP_TOLERANCE`; the nearest element (``group.nearest_element``) with
+    a :class:`~symgroupoid.GroupRoundingWarning` when it is off by at most
+    :data:`ROUNDED_TOLERANCE` with det R > 0 (a rotation given to a few digits); else the
+    :class:`DomainError` of :func:`check_group_matrix`, which says how to fix it (with
+    ``check=False``: ``M`` itself, for the caller's own check)."""
+    off, det, row = group_deviation(group, M)
+    if max(off, row, abs(det - 1.0)) <= GROUP_TOLERANCE:
+        return M
+    if max(off, row) <= ROUNDED_TOLERANCE and det > 0:
+        nearest = group.nearest_element(M)
+        warnings.warn(GroupRoundingWarning(
+            f"{_where(owner)}{name} is off {group.name} by {max(off, row):.1e} (given to a few "
+            f"digits?); it was replaced by the nearest element of the group (entries changed "
+            f"by up to {float(np.abs(nearest - M).max()):.1e})"), stacklevel=_caller_level())
+        return nearest
+    if check:
+        check_group_matrix(group, M, name, owner=owner)
+    return M
+
+
 def group_element(group: MatrixLieGroup, value, name: str, *, owner: str = "") -> np.ndarray:
     """``value`` as the n×n matrix of an element of ``group``: :class:`ShapeError` for a
-    wrong shape, :class:`DomainError` for non-finite entries or a matrix not in the group."""
+    wrong shape, :class:`DomainError` for non-finite entries or a matrix not in the group;
+    one given to a few digits is replaced by the nearest element, with a warning
+    (:func:`rounded_group_matrix`)."""
     M = _float_array(value, name, owner)
     if M.shape != (group.n, group.n):
         raise ShapeError(f"{_where(owner)}{name}: a configuration of {group.name} is a "
                          f"{group.n}×{group.n} matrix, got shape {M.shape}")
     _finite(M, name, owner)
-    check_group_matrix(group, M, name, owner=owner)
-    return M
+    return rounded_group_matrix(group, M, name, owner=owner)
 
 
 def point(value, dim: int, name: str, *, owner: str = "") -> tuple:
@@ -231,7 +342,8 @@ def point(value, dim: int, name: str, *, owner: str = "") -> tuple:
 def _pieces(value, count: int, name: str, what: str, owner: str) -> tuple:
     """``value`` as a tuple of ``count`` pieces (a configuration of a composite groupoid)."""
     if isinstance(value, (str, bytes, Mapping)) or not isinstance(value, (Sequence,
-                                                                          np.ndarray)):
+                                                                          np.ndarray)) \
+            or (isinstance(value, np.ndarray) and value.ndim == 0):
         raise ShapeError(f"{_where(owner)}{name} must be {what}, got {type(value).__name__}")
     if len(value) != count:
         raise ShapeError(f"{_where(owner)}{name} must be {what}: {count} parts, got "
@@ -272,6 +384,30 @@ def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
         raise ShapeError(f"{_where(owner)}{groupoid.name} has no configuration space "
                          f"(arrow_between), so {name} cannot be given as a configuration")
     return value
+
+
+def partial_configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
+    """A first configuration for :meth:`Groupoid.configurations_along`, checked as
+    :func:`configuration` checks one, where None stands for a part the arrows determine
+    (or that defaults to the identity): None, or for a product one entry per factor, for an
+    action groupoid (p, R), for a time groupoid (t, c), each entry None or a configuration."""
+    if value is None:
+        return None
+    if isinstance(groupoid, ProductGroupoid):
+        parts = _pieces(value, len(groupoid.factors), name,
+                        f"a configuration of {groupoid.name}, one per factor (None for a "
+                        f"part the state determines)", owner)
+        return tuple(partial_configuration(f, c, f"{name}[{i}]", owner=owner)
+                     for i, (f, c) in enumerate(zip(groupoid.factors, parts)))
+    if isinstance(groupoid, ActionGroupoid):
+        p, R = _pieces(value, 2, name, f"a configuration (p, R) of {groupoid.name}", owner)
+        return (None if p is None else point(p, groupoid.base_dim, f"{name}[0]", owner=owner),
+                None if R is None else group_element(groupoid.group, R, f"{name}[1]",
+                                                     owner=owner))
+    if isinstance(groupoid, TimeGroupoid):
+        t, c = _pieces(value, 2, name, f"a configuration (t, c) of {groupoid.name}", owner)
+        return (None, partial_configuration(groupoid.inner, c, f"{name}[1]", owner=owner))
+    return configuration(groupoid, value, name, owner=owner)
 
 
 def _point_of(space, value, name: str, owner: str):
@@ -450,7 +586,8 @@ class ConstraintCheck:
         given = (f" (with the parameters {', '.join(f'{n}={values[i]:.6g}' for i, n in self.used)})"
                  if self.used else "")
         error = DomainError(f"{_where(owner)}the initial state violates the constraints"
-                            f"{given}: {'; '.join(lines)}")
+                            f"{given}: {'; '.join(lines)}; Simulator.project_initial(state, "
+                            f"params) moves a nearby state onto them")
         error.violated = tuple(self._kinds[i] for _, i, _, _ in bad)
         raise error
 

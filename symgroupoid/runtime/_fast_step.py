@@ -1,0 +1,172 @@
+"""The per-call path of :meth:`Simulator.step`: one step of a control loop for about a
+microsecond of Python.
+
+``state = sim.step(state, p)`` in a loop used to parse its parameters (SymPy's printer on
+every symbol), check the state's group parts and evaluate its constraints on every call,
+some 350 µs per step around a kernel step of 1 µs (plate-ball).  Everything a call needs
+is prepared once per simulator here, as closure cells:
+
+- the parameter names, and one compiled test of the assumptions of every parameter
+  (:func:`~symgroupoid.runtime._validate.assumptions_test`); a parameter vector whose bytes
+  passed the test before is not tested again;
+- which parameters the constraints use, and the *trusted* states: the bytes of every state
+  this simulator produced or checked, with the values of those parameters.  A state of the
+  table is on the constraints and in the group (it was checked, or it is a step's output,
+  as the states inside a run are), so it is not checked again; any other state goes through
+  every check of :meth:`Simulator.state`;
+- the kernel's one-step caller (:meth:`~symgroupoid.runtime._backends.CKernel.stepper`).
+
+Whatever the fast path does not recognise — another kind of state or parameters, a value
+that fails a test, a state not in the table, a failed step — returns None, and the caller
+takes the checked path, which reports exactly what :meth:`Simulator.simulate` reports.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ._backends import OK, NewtonOptions
+from ._singular import zero_divisors
+from ._validate import assumptions_test, constraint_check, parameter_names
+
+#: at most this many trusted states and accepted parameter vectors are kept (a full table
+#: is emptied: the loop's next state is trusted again at once, other loops after one
+#: checked call)
+MAX_TRUSTED = 1024
+
+_FLOAT64 = np.dtype(np.float64)
+_CONTIGUOUS = (8,)  # the strides of a C-contiguous float64 vector
+
+
+class FastStep:
+    """The fast path of one simulator: :attr:`call` (state, params, options) → the next
+    state, or None when the checked path must decide; :meth:`trust` adds a state checked
+    by that path."""
+
+    def __init__(self, sim):
+        parameters = tuple(sim.equations.parameters)
+        used = [i for i, _ in constraint_check(sim.equations).used]
+        self.used = None if len(used) == len(parameters) else np.array(used, dtype=np.intp)
+        self.trusted: dict[bytes, None] = {}
+        kernel = sim.kernel
+        self.run = kernel.stepper() if hasattr(kernel, "stepper") else kernel.step_once
+        self.parameters = _parameter_screen(parameter_names(parameters),
+                                            assumptions_test(parameters), self.used,
+                                            lambda: tuple(zero_divisors(sim.equations)))
+        self.call = _fast_call(sim, self)
+
+    def used_bytes(self, p: np.ndarray) -> bytes:
+        """The bytes of the parameters the constraints use (the tail of a state's key)."""
+        return p.tobytes() if self.used is None else p[self.used].tobytes()
+
+    def trust(self, known: np.ndarray, p: np.ndarray) -> None:
+        """Trust a state checked under the parameters ``p``."""
+        _remember(self.trusted, known.tobytes() + self.used_bytes(p))
+
+
+def _remember(table: dict, key, value=None) -> None:
+    if len(table) >= MAX_TRUSTED:
+        table.clear()
+    table[key] = value
+
+
+def _parameter_screen(names: tuple, test: Callable | None, used: np.ndarray | None,
+                      divisors: Callable[[], tuple]):
+    """The function params → (p, the bytes of the parameters the constraints use), or None
+    unless ``params`` is a float64 vector of the right length or a dict of Python numbers
+    naming every parameter, whose values pass ``test`` and are not a zero the equations
+    divide by (``divisors()``: their indices, asked for at the first zero).
+
+    Values tested before are not tested again: a vector by its bytes; a dict by its values,
+    whose vector is then kept and given again (the same array, so the kernel's caller keeps
+    its C view too; a zero, whose sign an equality test cannot see, is never looked up).
+    Finiteness is left to the kernel, which refuses non-finite parameters (then the checked
+    path reports them)."""
+    shape, n = (len(names),), len(names)
+    accepted: dict[bytes, None] = {}
+    by_values: dict[tuple, tuple] = {}
+    zeros: list = []  # [the indices of divisors()], once asked for
+
+    def vector(p):
+        whole = p.tobytes()
+        if whole not in accepted:
+            values = p.tolist()
+            if test is not None and not test(values):
+                return None
+            if 0 in values:
+                if not zeros:
+                    zeros.append(divisors())
+                if any(values[i] == 0 for i in zeros[0]):
+                    return None
+            _remember(accepted, whole)
+        return p, (whole if used is None else p[used].tobytes())
+
+    ndarray, float64, contiguous = np.ndarray, _FLOAT64, _CONTIGUOUS
+
+    def screen(params):
+        if type(params) is ndarray:
+            if (params.dtype is not float64 or params.shape != shape
+                    or params.strides != contiguous):
+                return None
+            whole = params.tobytes()  # vector(params), inline
+            if whole not in accepted:
+                return vector(params)
+            return params, (whole if used is None else params[used].tobytes())
+        if type(params) is dict and len(params) == n:
+            try:
+                values = tuple([params[name] for name in names])
+            except KeyError:
+                return None
+            for v in values:  # Python numbers only (hashable; anything else: checked path)
+                if type(v) is not float and type(v) is not int:
+                    return None
+            known = by_values.get(values)
+            if known is not None:
+                return known
+            try:
+                p = np.array(values, dtype=float)
+            except OverflowError:
+                return None
+            found = vector(p)
+            if found is not None and 0 not in values:
+                _remember(by_values, values, found)
+            return found
+        if params is None and not names:
+            return vector(np.zeros(0))
+        return None
+
+    return screen
+
+
+def _fast_call(sim, fast: FastStep):
+    """:attr:`FastStep.call`."""
+    shape, trusted, screen, run = (sim.layout.n_known,), fast.trusted, fast.parameters, \
+        fast.run
+    ndarray, float64, contiguous, newton_options = np.ndarray, _FLOAT64, _CONTIGUOUS, \
+        NewtonOptions
+
+    def call(state, params, options):
+        if (type(state) is not ndarray or state.dtype is not float64
+                or state.shape != shape or state.strides != contiguous):
+            return None
+        if options is None:
+            options = sim.options
+        elif type(options) is not newton_options:
+            return None
+        screened = screen(params)
+        if screened is None:
+            return None
+        p, used = screened
+        if state.tobytes() + used not in trusted:
+            return None
+        status, after = run(state, p, options)
+        if status != OK:
+            return None
+        if len(trusted) >= MAX_TRUSTED:
+            trusted.clear()
+        trusted[after.tobytes() + used] = None
+        return after
+
+    return call

@@ -1,0 +1,167 @@
+"""``sim.step`` in a control loop: parsed once, checked as ``simulate`` checks, bitwise the
+same states (the per-call path of symgroupoid/runtime/_fast_step.py)."""
+
+from __future__ import annotations
+
+import pickle
+import threading
+
+import numpy as np
+import pytest
+from kernel_support import SEED_DATA, SESSION_CACHE, initial_state, needs_cc, seed_step
+
+import symgroupoid as sg
+from symgroupoid.runtime import _validate
+
+PARAMS = SEED_DATA["plate_ball"][0]
+
+pytestmark = needs_cc
+
+
+def _fresh(name: str = "plate_ball", backend: str = "c") -> sg.Simulator:
+    """A simulator of its own (an empty table of trusted states)."""
+    return seed_step(name).compile(backend=backend, cache_dir=SESSION_CACHE)
+
+
+def _loop(sim, state, params, steps: int, **options) -> np.ndarray:
+    for _ in range(steps):
+        state = sim.step(state, params, **options)
+    return state
+
+
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+@pytest.mark.parametrize("given", ["vector", "dict", "list"])
+def test_a_loop_of_steps_is_bitwise_a_run_from_the_prediction(backend, given):
+    sim = _fresh(backend=backend)
+    state = initial_state(sim, "plate_ball")
+    params = {"vector": sim.parameters(PARAMS), "dict": dict(PARAMS),
+              "list": [PARAMS[str(s)] for s in sim.equations.parameters]}[given]
+    steps = 30 if backend == "c" else 4
+    run = sim.simulate(state, steps, PARAMS, options=sg.NewtonOptions(extrapolate=False))
+    after = _loop(sim, state, params, steps)
+    assert np.array_equal(after, run.states[-1])
+    assert np.array_equal(sim.step(state, params), sim.simulate(state, 1, PARAMS).states[1])
+    assert after.flags.writeable and after.dtype == np.float64
+
+
+def test_parameters_and_states_are_parsed_and_checked_once_per_loop(monkeypatch):
+    """The cost of a loop was the parsing of the parameters (SymPy's printer on every
+    symbol) and the checks of the state on every call (350 µs a step): a loop now parses
+    and checks them once; each state it produces is trusted, not checked again."""
+    sim = _fresh()
+    state, vector = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
+    calls = {"parameter_vector": 0, "state": 0}
+    original_vector, original_state = _validate.parameter_vector, sg.Simulator.state
+
+    def counting_vector(*args, **kwargs):
+        calls["parameter_vector"] += 1
+        return original_vector(*args, **kwargs)
+
+    def counting_state(self, *args, **kwargs):
+        calls["state"] += 1
+        return original_state(self, *args, **kwargs)
+
+    monkeypatch.setattr("symgroupoid.runtime._simulator.parameter_vector", counting_vector)
+    monkeypatch.setattr(sg.Simulator, "state", counting_state)
+    sim.step(state, vector)
+    assert calls["parameter_vector"] >= 1 and calls["state"] == 1  # the first call: checked
+    calls.update(parameter_vector=0, state=0)
+    _loop(sim, state, vector, 50)
+    _loop(sim, state, dict(PARAMS), 50)
+    assert calls == {"parameter_vector": 0, "state": 0}
+
+
+def test_the_loop_keeps_every_check():
+    sim = _fresh()
+    state, vector = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
+    after = _loop(sim, state, vector, 5)
+    moved = after.copy()
+    moved[0] += 1e-3  # x moved: the rolling constraints no longer hold
+    with pytest.raises(sg.DomainError, match="violates the constraints"):
+        sim.step(moved, vector)
+    after[0] += 1e-3  # the same, in place, on a state the loop produced
+    with pytest.raises(sg.DomainError, match="violates the constraints"):
+        sim.step(after, vector)
+    state = _loop(sim, state, vector, 5)
+    bad = vector.copy()
+    bad[0] = -0.01
+    with pytest.raises(sg.ParameterError, match="h is declared positive"):
+        sim.step(state, bad)
+    bad[0] = np.nan
+    with pytest.raises(sg.ParameterError, match="non-finite parameter h"):
+        sim.step(state, bad)
+    with pytest.raises(sg.ParameterError, match="non-finite parameter r"):
+        sim.step(state, {**PARAMS, "r": float("inf")})
+    with pytest.raises(sg.ParameterError, match="h is declared positive"):
+        sim.step(state, {**PARAMS, "h": 0})
+    with pytest.raises(sg.ParameterError, match="parameter h must be a real number"):
+        sim.step(state, {**PARAMS, "h": [0.01]})  # unhashable: no lookup, the checked path
+    other = vector.copy()
+    other[1] = 2.0  # r: the constraints use it, so the state is checked again, and fails
+    with pytest.raises(sg.DomainError, match="violates the constraints"):
+        sim.step(state, other)
+    nan_state = state.copy()
+    nan_state[3] = np.nan
+    with pytest.raises(sg.DomainError, match="non-finite"):
+        sim.step(nan_state, vector)
+    with pytest.raises(sg.InputTypeError, match="options"):
+        sim.step(state, vector, options="fast")
+    assert np.array_equal(sim.step(state, vector), sim.simulate(state, 1, PARAMS).states[1])
+
+
+def test_a_failed_step_in_the_loop_raises_as_simulate_does():
+    sim = _fresh()
+    state = _loop(sim, initial_state(sim, "plate_ball"), sim.parameters(PARAMS), 3)
+    with pytest.raises(sg.NewtonDivergenceError, match="step 0 failed") as info:
+        sim.step(state, sim.parameters(PARAMS), options=sg.NewtonOptions(max_iterations=0))
+    assert np.array_equal(info.value.trajectory.states[0], state)
+
+
+def test_threads_stepping_one_simulator_get_their_own_states():
+    sim = _fresh()
+    p = sim.parameters(PARAMS)
+    starts = [sim.from_momentum({"x": 0.1 * i, "y": 0.0}, (0.1, 0.05 * i, 0.01, 0.02, 0.01),
+                                PARAMS) for i in range(4)]
+    expected = [_loop(_fresh(), s, p, 200) for s in starts]
+    got = [None] * 4
+
+    def work(i):
+        got[i] = _loop(sim, starts[i], dict(PARAMS) if i % 2 else p, 200)
+
+    threads = [threading.Thread(target=work, args=(i,)) for i in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for a, b in zip(got, expected):
+        assert np.array_equal(a, b)
+
+
+def test_a_restored_simulator_steps_as_the_original():
+    sim = _fresh()
+    restored = pickle.loads(pickle.dumps(sim))
+    state, p = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
+    assert np.array_equal(_loop(restored, state, p, 10), _loop(sim, state, p, 10))
+
+
+def test_parameter_screen_is_exact_for_every_assumption():
+    """The float tests of the declared assumptions give SymPy's answer on the exact
+    rational number a float is."""
+    import sympy as sp
+
+    keys = ["positive", "negative", "nonnegative", "nonpositive", "zero", "nonzero",
+            "integer", "noninteger", "even", "odd", "prime", "composite"]
+    values = [0.0, -0.0, 1.0, -1.0, 2.0, 3.0, -3.0, 4.0, 0.5, -2.5, 1e300, 7.0, 9.0, 5e-324]
+    for key in keys:
+        for expected in (True, False):
+            symbol = sp.Symbol("a", **{key: expected})
+            test = _validate.assumption_test(symbol)
+            for v in values:
+                try:
+                    _validate.check_assumptions(symbol, v)
+                    accepted = True
+                except sg.ParameterError:
+                    accepted = False
+                exact = all(getattr(sp.Rational(v), f"is_{k}") in (None, e)
+                            for k, e in _validate._declared(symbol))
+                assert test(v) == accepted == exact, (key, expected, v)
