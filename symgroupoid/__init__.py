@@ -12,6 +12,7 @@ from ._errors import (
     CallableError,
     CoordinateNameError,
     CutLocusError,
+    DegenerateLagrangianWarning,
     DegenerateSystemError,
     DomainError,
     InputNameError,
@@ -88,6 +89,7 @@ from .runtime import (  # noqa: E402  (layer 5)
     sweep,
     sweep_boundary_value,
 )
+from .runtime._diagnostics import TimeStepError  # noqa: E402  (layer 5)
 
 __all__ = [
     "ActionGroupoid", "Arrow", "AtiyahGroupoid", "AxiomError", "BoundaryValueSolution",
@@ -104,7 +106,7 @@ __all__ = [
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
     "UnsupportedFeatureError", "BoundaryValueDivergenceError", "CutLocusError", "DomainError",
     "InputNameError",
-    "UnusedAbbreviationWarning",
+    "UnusedAbbreviationWarning", "DegenerateLagrangianWarning", "TimeStepError",
     "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "diagnostics",
     "emit_c", "hat3", "latex", "left_derivative", "plot_conservation", "plot_trajectory",
     "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",
