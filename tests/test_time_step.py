@@ -198,6 +198,21 @@ def test_degenerate_kinetic_energy_is_refused(declared: bool) -> None:
     assert "only through the potential" in text and "docs/conventions.md §19" in text
 
 
+def test_degenerate_with_an_ambiguous_step_is_refused() -> None:
+    """The step dt·c is ambiguous (either parameter passes): the kinetic energy is checked
+    with each, and degenerate with both it is refused all the same."""
+    def L(a):
+        (x0, y0), (x1, y1) = a.source, a.target
+        s = dt * c
+        vx, vy, mx, my = (x1 - x0) / s, (y1 - y0) / s, (x0 + x1) / 2, (y0 + y1) / 2
+        return s * ((vx + vy) ** 2 / 2 - (mx**2 + my**2) / 2)
+
+    system = sg.DiscreteSystem(PLANE, L, parameters=[dt, c], name="both")
+    with pytest.raises(sg.DegenerateSystemError, match="singular along v_x − v_y"):
+        system.euler_lagrange()
+    assert identified_time_steps(system) == [dt, c]
+
+
 def test_the_refused_flow_is_the_parasitic_mode() -> None:
     """What the error prevents: the same L_d stepped (its step Jacobian is regular) has
     x − y alternating in sign and growing linearly while the energy looks conserved."""

@@ -44,7 +44,7 @@ milliseconds after the graph is built.
 from __future__ import annotations
 
 import functools
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,19 +173,17 @@ class ContinuousLimit:
 
     def points(self, count: int = POINTS, seed: int = 0) -> list[LimitPoint]:
         """:func:`limit_points` of the groupoid and the parameters."""
-        return limit_points(self.groupoid, self.parameters, count, seed)
+        return list(limit_points(self.groupoid, self.parameters, count, seed))
 
     def probes(self, points: Sequence[LimitPoint], step: sp.Symbol | None) -> Probes | None:
         """:class:`Probes` at ``points`` with the chart scale and the parameter ``step``
         (None: the chart scale alone) both at h = h_j; None when a value is not finite at
         some point (no evidence) or the graph cannot take L_d."""
-        from .._errors import UnsupportedExpressionError
-
         if not points:
             return None
         try:
             program = self.program
-        except UnsupportedExpressionError:
+        except Exception:  # noqa: BLE001 - a map the graph cannot take: no evidence
             return None
         columns = [(pt, h) for pt in points for h in SCALES]
         Q, X0, V, P = (np.stack([getattr(pt, k) for pt, _ in columns], axis=-1)
@@ -225,14 +223,13 @@ class ContinuousLimit:
 
 
 def limit_points(groupoid: Groupoid, parameters: Sequence[sp.Symbol], count: int = POINTS,
-                 seed: int = 0) -> list[LimitPoint]:
-    """``count`` random points (fewer when the groupoid cannot draw them): q from the
-    groupoid, x₀ the chart of ε(q), v uniform in (−1, 1) (time component 1); the parameters
-    by :func:`parameter_value`, the same at every point (a constant c/h in (1) depends on
-    them)."""
+                 seed: int = 0) -> Iterator[LimitPoint]:
+    """``count`` random points, drawn one at a time (fewer when the groupoid cannot draw
+    them): q from the groupoid, x₀ the chart of ε(q), v uniform in (−1, 1) (time component
+    1); the parameters by :func:`parameter_value`, the same at every point (a constant c/h
+    in (1) depends on them)."""
     rng = np.random.default_rng(seed)
     p = np.array([parameter_value(s, rng) for s in parameters])
-    out = []
     for _ in range(count):
         try:
             q = tuple(float(c) for c in groupoid.random_base_point(rng))
@@ -244,8 +241,7 @@ def limit_points(groupoid: Groupoid, parameters: Sequence[sp.Symbol], count: int
         if isinstance(groupoid, TimeGroupoid):
             v[0] = 1.0
         if x0.shape == (groupoid.rank,) and np.all(np.isfinite(x0)):
-            out.append(LimitPoint(np.array(q), x0, v, p))
-    return out
+            yield LimitPoint(np.array(q), x0, v, p)
 
 
 def identified_time_steps(system) -> list[sp.Symbol]:
@@ -260,12 +256,13 @@ def identified_time_steps(system) -> list[sp.Symbol]:
     return list(found)
 
 
-def system_time_step(system) -> sp.Symbol | None:
-    """The time step of a system: the one declared (``time_step=``), else the one parameter
-    the continuous limit identifies; None when there is none or several, and on a time
-    groupoid (whose step is each arrow's t₁ − t₀)."""
+def time_step_candidates(system) -> list:
+    """The time steps a system's derivation checks its continuous limit with: the declared
+    one, else those :func:`identified_time_steps` finds (none, one or several); [None] on a
+    time groupoid, whose step is each arrow's t₁ − t₀."""
     declared = getattr(system, "time_step", None)
-    if declared is not None or isinstance(system.groupoid, TimeGroupoid):
-        return declared
-    found = identified_time_steps(system)
-    return found[0] if len(found) == 1 else None
+    if declared is not None:
+        return [declared]
+    if isinstance(system.groupoid, TimeGroupoid):
+        return [None]
+    return identified_time_steps(system)

@@ -617,10 +617,10 @@ def check_coordinate_names(step) -> None:
 
 
 def check_step(step, *, distribution: int | None = None, lie_poisson: bool = False,
-               kinetic: bool = False, time_step: sp.Symbol | None = None) -> None:
+               time_steps: Sequence = ()) -> None:
     """The derivation-time checks of a system's step: coordinate names, then
-    :func:`diagnose` with the rows named for the kind of step, then (``kinetic``)
-    :func:`check_kinetic` with the step parameter ``time_step``.
+    :func:`diagnose` with the rows named for the kind of step, then :func:`check_kinetic`
+    with the candidate step parameters ``time_steps``.
 
     ``distribution``: dim D_c of a nonholonomic step (its first rows are the DEL along the
     basis of D_c, the rest the constraints ψ defining M_c, docs/conventions.md §10);
@@ -639,8 +639,7 @@ def check_step(step, *, distribution: int | None = None, lie_poisson: bool = Fal
     else:
         layout = default_layout(step)
     diagnose(step, layout)
-    if kinetic:
-        check_kinetic(step, layout, time_step)
+    check_kinetic(step, layout, time_steps)
 
 
 # --- the continuous limit: a degenerate kinetic energy (docs/conventions.md §19) -------------
@@ -683,12 +682,14 @@ class LeadingTerms:
         return bool(sv[-1] > _GYROSCOPIC * self.scale)
 
 
-def check_kinetic(step, layout: Layout, time_step: sp.Symbol | None) -> None:
+def check_kinetic(step, layout: Layout, time_steps: Sequence) -> None:
     """Refuse (or warn about) a degenerate kinetic energy (docs/conventions.md §19).
 
-    At three points (q, v) (:func:`~symgroupoid.derivation._limit.limit_points`) the step is
-    evaluated at the state g_k = g_h(q, v) with the step parameter ``time_step`` at h (on a
-    time groupoid the arrow's own time increment, with the time row and unknown left out),
+    ``time_steps``: the step parameter (the declared one, or those the continuous limit
+    identifies; None for a time groupoid's own t₁ − t₀); nothing is checked without one, and
+    with several the kinetic energy must be degenerate for each.  At three points (q, v)
+    (:func:`~symgroupoid.derivation._limit.limit_points`) the step is evaluated at the state
+    g_k = g_h(q, v) with the step at h (on a time groupoid the time row and unknown left out),
     for the scales h of :data:`~symgroupoid.derivation._limit.SCALES`, and h·∂F/∂x is
     extrapolated to its leading term R₀, restricted to the constraint directions.  R₀ is
     minus the velocity Hessian ∂²L/∂v² of the continuous limit: on Q×Q, ∂F/∂q_{k+1} =
@@ -697,19 +698,12 @@ def check_kinetic(step, layout: Layout, time_step: sp.Symbol | None) -> None:
     velocity-linear part of L) is invertible on the null directions, which is a
     :class:`DegenerateLagrangianWarning`.
     """
-    timed = _is_timed(step.groupoid)
-    if step.order != 1 or (time_step is None and not timed) or not numeric(step):
+    if step.order != 1 or not time_steps or not numeric(step):
         return
-    from ..derivation._limit import limit_points
-
-    terms = []
-    for point in limit_points(step.groupoid, step.parameters):
-        leading = _leading_terms(step, layout, point, time_step, timed)
-        if leading is None or leading.rank == leading.size:
-            return  # no evidence, or regular somewhere: regular
-        terms.append(leading)
-    if not terms:
-        return
+    found = [_degenerate_terms(step, layout, t) for t in time_steps]
+    if any(terms is None for terms in found):
+        return  # no evidence, or regular with some step
+    terms, time_step = found[0], time_steps[0]
     first = terms[0]
     null = first.Z @ first.right
     unknowns = [layout.unknowns[j] for j in first.chart]
@@ -726,7 +720,7 @@ def check_kinetic(step, layout: Layout, time_step: sp.Symbol | None) -> None:
             f"{step.name}: {head}; velocity-linear terms of L make the step regular along it "
             f"(the continuous equations are of first order there), and the two-step discrete "
             f"flow carries parasitic modes beside the motion (docs/conventions.md §19)"),
-            stacklevel=4)
+            stacklevel=6)  # the caller of euler_lagrange() (through its two decorators)
         return
     text = (f"The kinetic energy is degenerate: {head}. The step equations determine that "
             f"direction only through the potential, at order h, so along it the discrete flow "
@@ -738,6 +732,21 @@ def check_kinetic(step, layout: Layout, time_step: sp.Symbol | None) -> None:
     raise DegenerateSystemError(f"{step.name}: the discrete Lagrangian has no regular "
                                 f"continuous limit, so its steps approximate no motion. {text}",
                                 findings=(finding,))
+
+
+def _degenerate_terms(step, layout: Layout, time_step) -> list[LeadingTerms] | None:
+    """The leading terms at the sampled points when R₀ is rank deficient at each of them;
+    None when it is regular at one, or a point gives no evidence."""
+    from ..derivation._limit import limit_points
+
+    timed = _is_timed(step.groupoid)
+    terms = []
+    for point in limit_points(step.groupoid, step.parameters):
+        leading = _leading_terms(step, layout, point, time_step, timed)
+        if leading is None or leading.rank == leading.size:
+            return None
+        terms.append(leading)
+    return terms or None
 
 
 def _is_timed(groupoid) -> bool:

@@ -23,7 +23,7 @@ from ..derivation._energy_momentum import (
     conserved_quantities,
     energy_momentum_step,
 )
-from ..derivation._limit import may_be_step, system_time_step
+from ..derivation._limit import may_be_step, time_step_candidates
 from ..derivation._momenta import (
     legendre_forms,
     lie_poisson_forms,
@@ -181,7 +181,7 @@ class DiscreteSystem:
         step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
                                            self.parameters))
         step.system = self
-        check_step(step, kinetic=True, time_step=system_time_step(self))
+        check_step(step, time_steps=time_step_candidates(self))
         step.set_structured_source(self._matrix_form)
         return step
 
@@ -317,8 +317,8 @@ class NonholonomicSystem:
         step = StepEquations(derived)
         step.system = self
         holder = self.method == "holder"  # energy–momentum rows are not the DEL along D_c
-        check_step(step, distribution=len(self.distribution), kinetic=holder,
-                   time_step=system_time_step(self) if holder else None)
+        check_step(step, distribution=len(self.distribution),
+                   time_steps=time_step_candidates(self) if holder else ())
         return step
 
     def conserved_quantities(self, metric=None):
