@@ -75,6 +75,14 @@ def test_projectile_energy_differentiates_by_the_step_not_by_h(declared: bool) -
     np.testing.assert_allclose(traj.energy(step_parameter="h"), -9.81 * 0.01)  # by name
 
 
+def test_conservation_figure_plots_the_energy_of_the_step() -> None:
+    """plot_conservation(energy=True) draws E_d = −∂L_d/∂dt of the projectile."""
+    pytest.importorskip("matplotlib")
+    fig = sg.plot_conservation(thrown(projectile()), energy=True)
+    labels = [t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()]
+    assert any("E_d = −∂L_d/∂dt" in label for label in labels), labels
+
+
 def ambiguous() -> sg.DiscreteSystem:
     """L_d depends on dt and c only through dt·c: both behave as the step."""
     return sg.DiscreteSystem(
