@@ -299,3 +299,36 @@ def test_second_order_and_stepless_systems_are_not_probed() -> None:
                              + (a.target[0] - a.source[0]) ** 2 + a.source[0] ** 2,
                              name="stepless").euler_lagrange()
     assert len(step.unknowns) == 2
+
+
+def _example(name: str):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(f"example_{name}", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+SLOW_EXAMPLE_SYSTEMS = {
+    "elroys_beanie": lambda m: [s for s in m.systems() if hasattr(s, "euler_lagrange")],
+    "optimal_control_lie_groups": lambda m: [m.so3_problem(), m.se2_problem()],
+    "heavy_top_rotors": lambda m: [m.heavy_top_system()],
+}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param("elroys_beanie", marks=pytest.mark.slow),  # its reduction checks take 10 s
+    "heavy_top_rotors", "optimal_control_lie_groups"])
+def test_the_systems_of_the_long_examples_derive(name: str) -> None:
+    """The examples that run with the slow tests only (boundary-value solves) build systems
+    on Atiyah, SO(3), SE(2) and second-order groupoids with cost Lagrangians: each derives
+    without an error or a warning (the fast examples run whole in tests/test_examples.py)."""
+    systems_ = SLOW_EXAMPLE_SYSTEMS[name](_example(name))
+    assert systems_
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for system in systems_:
+            system.euler_lagrange()
