@@ -44,12 +44,12 @@ def body_se2(groupoid_kind: str, falling: bool) -> sg.DiscreteSystem:
             L -= h * m * grav * (2 * q0[1, 2] + dp[1]) / 2
         return L
 
-    if groupoid_kind == "pair":
-        G = sg.PairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, S._inverse_matrix(a.source) * a.target))
-    else:
-        G = sg.TrivialisedPairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, a.increment))
+    def L(a):
+        if groupoid_kind == "pair":
+            return lagrangian(a.source, S._inverse_matrix(a.source) * a.target)
+        return lagrangian(a.source, a.increment)
+
+    G = sg.PairGroupoid(S) if groupoid_kind == "pair" else sg.TrivialisedPairGroupoid(S)
     return sg.DiscreteSystem(G, L, parameters=[h, m, J, grav],
                              name=f"{'falling' if falling else 'free'}_se2_{groupoid_kind}")
 
@@ -63,12 +63,12 @@ def body_se3(groupoid_kind: str) -> sg.DiscreteSystem:
         move = q0[:3, :3] * F[:3, 3]
         return (((sp.eye(3) - F[:3, :3]) * Jd).trace() + (move.T * move)[0, 0] / 2) / h
 
-    if groupoid_kind == "pair":
-        G = sg.PairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, S._inverse_matrix(a.source) * a.target))
-    else:
-        G = sg.TrivialisedPairGroupoid(S)
-        L = (lambda a: lagrangian(a.source, a.increment))
+    def L(a):
+        if groupoid_kind == "pair":
+            return lagrangian(a.source, S._inverse_matrix(a.source) * a.target)
+        return lagrangian(a.source, a.increment)
+
+    G = sg.PairGroupoid(S) if groupoid_kind == "pair" else sg.TrivialisedPairGroupoid(S)
     return sg.DiscreteSystem(G, L, parameters=[h], name=f"free_se3_{groupoid_kind}")
 
 
