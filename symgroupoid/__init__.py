@@ -14,6 +14,7 @@ from ._errors import (
     CoordinateNameError,
     CutLocusError,
     CutLocusStepError,
+    DegenerateLagrangianWarning,
     DegenerateSystemError,
     DomainError,
     GroupRoundingWarning,
@@ -91,6 +92,7 @@ from .runtime import (  # noqa: E402  (layer 5)
     sweep,
     sweep_boundary_value,
 )
+from .runtime._diagnostics import TimeStepError  # noqa: E402  (layer 5)
 
 __all__ = [
     "ActionGroupoid", "Arrow", "AtiyahGroupoid", "AxiomError", "BoundaryValueSolution",
@@ -108,7 +110,7 @@ __all__ = [
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
     "UnsupportedFeatureError", "BoundaryValueDivergenceError", "CutLocusError", "DomainError",
     "InputNameError", "CutLocusStepError", "GroupRoundingWarning", "TrajectoryFileError",
-    "UnusedAbbreviationWarning",
+    "UnusedAbbreviationWarning", "DegenerateLagrangianWarning", "TimeStepError",
     "check_axioms", "check_morphism", "check_system_morphism", "compile_step", "diagnostics",
     "emit_c", "hat3", "latex", "left_derivative", "plot_conservation", "plot_trajectory",
     "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",

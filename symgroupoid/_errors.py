@@ -203,3 +203,12 @@ class BoundaryValueDivergenceError(NewtonDivergenceError):
         super().__init__(message, step=step, residual_norm=residual_norm, iterate=iterate)
         self.iterations = iterations
         self.history = list(history)
+
+
+class DegenerateLagrangianWarning(UserWarning):
+    """The velocity Hessian of the continuous limit of L_d is singular along some directions
+    (restricted to the constraint directions), while velocity-linear terms of L make the
+    step regular there: the continuous equations are of first order in those directions
+    (point vortices, a charge in a strong field) and the two-step discrete flow carries
+    parasitic modes beside them (docs/conventions.md §19).  A degenerate kinetic energy
+    that only the potential regularises is a :class:`DegenerateSystemError`."""

@@ -2,7 +2,9 @@
 
 For a trajectory of a system's step (``traj = step.compile().simulate(...)``):
 
-- :func:`energy` — the discrete energy E_d = −∂L_d/∂h (declared step parameter h), or on a
+- :func:`energy` — the discrete energy E_d = −∂L_d/∂h for the time step h (declared with
+  ``time_step=``, or the one parameter the continuous limit identifies as the step,
+  docs/conventions.md §19; else a :class:`TimeStepError`), or on a
   :class:`~symgroupoid.TimeGroupoid` the energy conjugate to time −∂L/∂t₁ (seed 000 §6.3);
 - :func:`momenta` — the discrete momenta F⁻L, F⁺L (seed 000 §3.3) at every state;
 - :meth:`NoetherQuantity.along <symgroupoid.NoetherQuantity.along>` — a Noether quantity
@@ -23,6 +25,7 @@ from .runtime._diagnostics import (
     DiagnosticsError,
     Drift,
     Momenta,
+    TimeStepError,
     conservation_summary,
     constraint_residuals,
     energy,
@@ -33,7 +36,7 @@ from .runtime._diagnostics import (
 )
 
 __all__ = [
-    "ConservationSummary", "DiagnosticsError", "Drift", "Momenta", "conservation_summary",
-    "constraint_residuals", "energy", "energy_label", "has_energy", "momenta",
-    "rounding_floor",
+    "ConservationSummary", "DiagnosticsError", "Drift", "Momenta", "TimeStepError",
+    "conservation_summary", "constraint_residuals", "energy", "energy_label", "has_energy",
+    "momenta", "rounding_floor",
 ]

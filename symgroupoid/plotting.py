@@ -219,8 +219,9 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
         raise DomainError(f"{ev.sg.name}: constraints=True, but the system has no "
                           f"constraints to plot")
     if not quantities and not show_phi:
-        raise DomainError(f"{ev.sg.name}: nothing to plot: no energy is defined (pass "
-                         f"step_parameter=...) and no Noether quantity was given (momenta=[...])")
+        raise DomainError(f"{ev.sg.name}: nothing to plot: no energy is defined (declare the "
+                          f"system's time_step=, or pass step_parameter=...) and no Noether "
+                          f"quantity was given (momenta=[...])")
     panels = int(bool(quantities)) + int(show_phi)
     fig = Figure(figsize=(7, 3 * panels + 0.6))
     axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])

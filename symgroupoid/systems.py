@@ -22,6 +22,9 @@ Systems with holonomic constraints ψ(q) = 0 on the configuration space
 Cartesian coordinates) and ``tilted_top()`` (the symmetric heavy top with its nutation held
 fixed, on S² × SO(3) ⇉ S²).
 
+Each system declares its time step (``time_step=h``), the parameter its discrete energy
+E_d = −∂L_d/∂h differentiates by (docs/conventions.md §19).
+
 The sign of the rigid-body Lagrangian is the one that makes its kinetic part positive:
 with W = cay(ξ), tr(J_d W) = tr J_d − ½ ξᵀ I ξ + O(|ξ|³), so −tr(J_d W)/h = ξᵀIξ/(2h) + const.
 The discrete Euler–Lagrange equations are linear in L, so the opposite sign gives the same
@@ -76,7 +79,7 @@ def plate_ball() -> DiscreteSystem:
                 h * (c + (W * E3).trace() / (2 * h))]
 
     return DiscreteSystem(G, L, constraints=phi, parameters=[h, r, omega, c],
-                          name="plate_ball")
+                          name="plate_ball", time_step=h)
 
 
 def inertia_symbols() -> tuple:
@@ -102,7 +105,8 @@ def heavy_top() -> DiscreteSystem:
         gamma = g.point
         return -(Jd * g.matrix).trace() / h - h * mgl * gamma[2]
 
-    return DiscreteSystem(G, L, parameters=[h, mgl, I1, I2, I3], name="heavy_top")
+    return DiscreteSystem(G, L, parameters=[h, mgl, I1, I2, I3], name="heavy_top",
+                          time_step=h)
 
 
 def rigid_body() -> DiscreteSystem:
@@ -114,7 +118,8 @@ def rigid_body() -> DiscreteSystem:
     def L(g):
         return -(Jd * g.matrix).trace() / h
 
-    return DiscreteSystem(SO3("W"), L, parameters=[h, I1, I2, I3], name="rigid_body")
+    return DiscreteSystem(SO3("W"), L, parameters=[h, I1, I2, I3], name="rigid_body",
+                          time_step=h)
 
 
 def planar_chain(n: int) -> DiscreteSystem:
@@ -150,7 +155,8 @@ def planar_chain(n: int) -> DiscreteSystem:
             potential += grav * y
         return h * (kinetic - potential)
 
-    return DiscreteSystem(G, L, parameters=[h, grav], name=f"planar_chain_{n}")
+    return DiscreteSystem(G, L, parameters=[h, grav], name=f"planar_chain_{n}",
+                          time_step=h)
 
 
 #: body-frame vectors of the spherical chain: joint i → joint i+1, and joint i → centre of
@@ -232,7 +238,8 @@ def spherical_chain(n: int) -> DiscreteSystem:
         potential = sum((up.T * (a + b))[0, 0] for a, b in zip(before, after)) * grav / 2
         return (rotational + kinetic) / h - h * potential
 
-    return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_{n}")
+    return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_{n}",
+                          time_step=h)
 
 
 def spherical_chain_increments(n: int) -> DiscreteSystem:
@@ -272,7 +279,8 @@ def spherical_chain_increments(n: int) -> DiscreteSystem:
             joint, moved = joint + R * link, moved + R * (D * link)
         return (rotational + kinetic) / h - h * grav * potential
 
-    return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_increments_{n}")
+    return DiscreteSystem(G, L, parameters=[h, grav],
+                          name=f"spherical_chain_increments_{n}", time_step=h)
 
 
 # --- holonomic constraints on the configuration space (docs/conventions.md §15) -------------
@@ -297,7 +305,8 @@ def spherical_pendulum() -> DiscreteSystem:
             - h * grav * (z0 + z1) / 2
 
     return DiscreteSystem(G, L, parameters=[h, ell, grav], name="spherical_pendulum",
-                          holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 + q[2] ** 2 - ell**2])
+                          holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 + q[2] ** 2 - ell**2],
+                          time_step=h)
 
 
 def link_chain(n: int) -> DiscreteSystem:
@@ -327,7 +336,7 @@ def link_chain(n: int) -> DiscreteSystem:
                 - lengths[i - 1] ** 2 for i in range(1, n + 1)]
 
     return DiscreteSystem(G, L, parameters=[h, grav, *lengths], name=f"link_chain_{n}",
-                          holonomic=psi)
+                          holonomic=psi, time_step=h)
 
 
 def tilted_top() -> DiscreteSystem:
@@ -350,7 +359,7 @@ def tilted_top() -> DiscreteSystem:
         return -(Jd * g.matrix).trace() / h - h * mgl * g.point[2]
 
     return DiscreteSystem(G, L, parameters=[h, mgl, I1, I2, I3, c], name="tilted_top",
-                          holonomic=lambda gamma: [gamma[2] - c])
+                          holonomic=lambda gamma: [gamma[2] - c], time_step=h)
 
 
 SEED_SYSTEMS: dict[str, Callable[[], DiscreteSystem]] = {

@@ -205,7 +205,10 @@ def test_diagnostics_of_a_second_order_system_match_with_lag_two():
         traj.energy()
 
 
-def test_energy_needs_a_step_parameter():
+def test_energy_differentiates_by_the_identified_step():
+    """A step named τ, not h: the continuous limit identifies τ as the step, so the energy is
+    −∂L/∂τ without being told (docs/conventions.md §19); step_parameter= still names the
+    parameter to differentiate by, and an unknown name is an error."""
     tau, k = sp.symbols("tau k", positive=True)
     system = sg.DiscreteSystem(
         sg.PairGroupoid(sg.EuclideanSpace("q")),
@@ -213,17 +216,16 @@ def test_energy_needs_a_step_parameter():
         parameters=[tau, k], name="osc")
     sim = system.euler_lagrange().compile(backend="numpy")
     traj = sim.simulate({"q": (1.0, 1.0)}, 50, {"tau": 0.1, "k": 1.0})
-    with pytest.raises(DiagnosticsError, match="step_parameter"):
-        traj.energy()
     with pytest.raises(DiagnosticsError, match="'dt' is not a parameter"):
         traj.energy(step_parameter="dt")
     E = traj.energy(step_parameter="tau")  # −∂L/∂τ = ½((q₁ − q₀)/τ)² + ½k q₁²
     q = traj["q"]
     np.testing.assert_allclose(E, 0.5 * (np.diff(q) / 0.1) ** 2 + 0.5 * q[1:] ** 2, rtol=1e-13)
-    summary = traj.conservation_summary()  # no energy without a step parameter: left out
-    assert summary.quantities == [] and summary.constraint_residual is None
-    with pytest.raises(DiagnosticsError):
-        traj.conservation_summary(energy=True)
+    np.testing.assert_array_equal(traj.energy(), E)
+    summary = traj.conservation_summary()
+    assert [d.name for d in summary.quantities] == ["E_d = −∂L_d/∂tau"]
+    assert summary.constraint_residual is None
+    np.testing.assert_allclose(traj.energy(step_parameter="k"), 0.1 * q[1:] ** 2 / 2)  # by name
 
 
 def test_conservation_summary():

@@ -46,7 +46,10 @@ class ReducedSystem(DiscreteSystem):
     def __init__(self, unreduced: DiscreteSystem, morphism: GroupoidMorphism,
                  lagrangian: Callable, constraints: Callable | None,
                  parameters: Sequence[sp.Symbol], name: str, checks: list):
-        super().__init__(morphism.target, lagrangian, constraints, parameters, name)
+        step = getattr(unreduced, "time_step", None)
+        kept = step is not None and str(step) in {str(p) for p in parameters}
+        super().__init__(morphism.target, lagrangian, constraints, parameters, name,
+                         time_step=step if kept else None)
         self.unreduced, self.morphism, self.checks = unreduced, morphism, checks
         self._transforms: tuple | None = None
 

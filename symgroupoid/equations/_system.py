@@ -8,7 +8,14 @@ import sympy as sp
 
 from .._arguments import choice_argument, instance_argument, name_argument, sequence_argument
 from .._collector import collector_paused
-from .._errors import CallableError, InputTypeError, ShapeError, UnsupportedFeatureError
+from .._errors import (
+    CallableError,
+    DomainError,
+    InputNameError,
+    InputTypeError,
+    ShapeError,
+    UnsupportedFeatureError,
+)
 from .._progress import reported
 from ..derivation._callables import call_user, check_values
 from ..derivation._energy_momentum import (
@@ -16,6 +23,7 @@ from ..derivation._energy_momentum import (
     conserved_quantities,
     energy_momentum_step,
 )
+from ..derivation._limit import may_be_step, time_step_candidates
 from ..derivation._momenta import (
     legendre_forms,
     lie_poisson_forms,
@@ -30,7 +38,7 @@ from ..derivation._step import (
     matrix_form_residuals,
     nonholonomic_step,
 )
-from ..groupoids import Groupoid
+from ..groupoids import Groupoid, TimeGroupoid
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._regularity import check_step
 from ._step import StepEquations
@@ -46,6 +54,34 @@ def system_arguments(name, groupoid, parameters) -> tuple[str, Groupoid, list]:
     if isinstance(parameters, sp.Symbol):
         parameters = [parameters]
     return name, groupoid, sequence_argument(parameters, "parameters", owner=name)
+
+
+def time_step_argument(name: str, groupoid: Groupoid, time_step, parameters: Sequence
+                       ) -> sp.Symbol | None:
+    """The declared time step: a parameter (its symbol or name) that may be a positive real
+    number; None when not declared.  A time groupoid has no step parameter (its step is each
+    arrow's t₁ − t₀, docs/conventions.md §7)."""
+    if time_step is None:
+        return None
+    if isinstance(groupoid, TimeGroupoid):
+        raise UnsupportedFeatureError(
+            f"{name}: on the time groupoid {groupoid.name} the time step is each arrow's "
+            f"t₁ − t₀ (g.step), an unknown of the step, not a parameter; leave time_step= "
+            f"out (its energy is −∂L/∂t₁, docs/conventions.md §7)")
+    if not isinstance(time_step, (str, sp.Symbol)):
+        raise InputTypeError(f"{name}: time_step must be the step parameter (a SymPy symbol of "
+                             f"the parameters, or its name), got {type(time_step).__name__} "
+                             f"{time_step!r}")
+    by_name = {str(p): p for p in parameters}
+    symbol = by_name.get(str(time_step))
+    if symbol is None:
+        raise InputNameError(f"{name}: time_step={str(time_step)!r} is not one of the "
+                             f"parameters ({', '.join(by_name) or 'none'}); declare it in "
+                             f"parameters=[...]")
+    if not may_be_step(symbol):
+        raise DomainError(f"{name}: time_step={symbol} is declared integer, zero or "
+                          f"negative; a time step is a positive real number")
+    return symbol
 
 
 def distribution_elements(name: str, groupoid: Groupoid, distribution) -> list:
@@ -126,17 +162,24 @@ class DiscreteSystem:
         configuration space, N = G|_M the restriction to M = {ψ = 0} (seed 000 §3.3,
         docs/conventions.md §15).  The multipliers of ψ follow those of φ; the multiplier
         of ψ on the arrow g_k sits at its source α(g_k).
+    time_step : optional, the parameter that is the time step h (its symbol or name).  The
+        discrete energy E_d = −∂L_d/∂h differentiates by it, and the derivation checks the
+        velocity Hessian of the continuous limit lim L_d(g_h(q, v))/h with it.  Undeclared,
+        the step is the one parameter for which that limit exists (docs/conventions.md §19);
+        on a :class:`TimeGroupoid` the step is each arrow's t₁ − t₀ and no parameter.
     """
 
     @collector_paused
     def __init__(self, groupoid: Groupoid, lagrangian: Callable,
                  constraints: Callable | None = None, parameters: Sequence[sp.Symbol] = (),
-                 name: str = "system", *, holonomic: Callable | None = None):
+                 name: str = "system", *, holonomic: Callable | None = None,
+                 time_step: sp.Symbol | str | None = None):
         name, groupoid, parameters = system_arguments(name, groupoid, parameters)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.holonomic = holonomic
         self.parameters = parameters
+        self.time_step = time_step_argument(name, groupoid, time_step, parameters)
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters,
                                    arity=self._arity, holonomic=holonomic)
 
@@ -162,7 +205,7 @@ class DiscreteSystem:
         step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
                                            self.parameters))
         step.system = self
-        check_step(step)
+        check_step(step, time_steps=time_step_candidates(self))
         step.set_structured_source(self._matrix_form)
         return step
 
@@ -257,19 +300,23 @@ class NonholonomicSystem:
     ``method="energy_momentum"``: the integrator of Ferraro, Iglesias and Martín de Diego
     with the bundle metric ``metric`` = G_c on AG (a rank × rank matrix in the section basis,
     or a callable of the base point) and no M_c (``constraints=None``).
+
+    ``time_step``: the step parameter, as for :class:`DiscreteSystem`.
     """
 
     @collector_paused
     def __init__(self, groupoid: Groupoid, lagrangian: Callable,
                  constraints: Callable | None = None, distribution: Sequence = (),
                  parameters: Sequence[sp.Symbol] = (), name: str = "nonholonomic", *,
-                 method: str = "holder", metric=None):
+                 method: str = "holder", metric=None,
+                 time_step: sp.Symbol | str | None = None):
         name, groupoid, parameters = system_arguments(name, groupoid, parameters)
         choice_argument(method, METHODS, "method", owner=name)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.distribution = distribution_elements(name, groupoid, distribution)
         self.parameters = parameters
+        self.time_step = time_step_argument(name, groupoid, time_step, parameters)
         self.method, self.metric = method, metric
         self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters)
         if method == "energy_momentum":
@@ -293,7 +340,9 @@ class NonholonomicSystem:
                                         self.parameters)
         step = StepEquations(derived)
         step.system = self
-        check_step(step, distribution=len(self.distribution))
+        holder = self.method == "holder"  # energy–momentum rows are not the DEL along D_c
+        check_step(step, distribution=len(self.distribution),
+                   time_steps=time_step_candidates(self) if holder else ())
         return step
 
     def conserved_quantities(self, metric=None):

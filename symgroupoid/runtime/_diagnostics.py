@@ -50,6 +50,13 @@ class DiagnosticsError(SymgroupoidError, ValueError):
     no step parameter for the energy, a second-order energy, …); the message says why."""
 
 
+class TimeStepError(DiagnosticsError):
+    """The discrete energy needs the time step, and the system neither declares it
+    (``time_step=``) nor has exactly one parameter that behaves as the step in the
+    continuous limit (docs/conventions.md §19); the message names the candidates and says
+    to pass ``time_step=`` (or ``step_parameter=``)."""
+
+
 @dataclass
 class Momenta:
     """F⁻L and F⁺L along a trajectory: arrays (R, rank) in the section basis."""
@@ -183,22 +190,42 @@ class StateGraph:
         return [g.neg(self.instantiate([dL], 0)[0])], f"E_d = −∂L_d/∂{h}"
 
     def _step_symbol(self, name: str | None) -> sp.Symbol:
+        """The parameter to differentiate by: ``name`` when given, else the system's time
+        step (declared, or identified by the continuous limit), else a :class:`TimeStepError`."""
         by_name = {str(p): p for p in self.parameters}
         if name is not None and not isinstance(name, (str, sp.Symbol)):
             raise DiagnosticsError(f"{self.name}: step_parameter must be the name of a "
                                    f"parameter (a string), got {type(name).__name__} "
                                    f"{name!r}")
         if name is None:
-            if "h" in by_name:
-                return by_name["h"]
-            raise DiagnosticsError(
-                f"{self.name}: the discrete energy E_d = −∂L_d/∂h needs the step parameter; "
-                f"no parameter is named 'h' (parameters: "
-                f"{', '.join(by_name) or 'none'}): pass step_parameter=...")
+            return self._time_step(by_name)
         if str(name) not in by_name:
             raise DiagnosticsError(f"{self.name}: step_parameter={name!r} is not a parameter "
                                    f"of the system (parameters: {', '.join(by_name) or 'none'})")
         return by_name[str(name)]
+
+    def _time_step(self, by_name: dict) -> sp.Symbol:
+        from ..derivation._limit import identified_time_steps
+
+        declared = getattr(self.system, "time_step", None)
+        if declared is not None:
+            return by_name.get(str(declared), declared)
+        found = identified_time_steps(self.system)
+        if len(found) == 1:
+            return by_name.get(str(found[0]), found[0])
+        listed = ", ".join(by_name) or "none"
+        if found:
+            why = (f"several parameters behave as the step in the continuous limit "
+                   f"({', '.join(map(str, found))}: L_d(g_h(q, v))/h has a limit with each "
+                   f"of them as h)")
+        else:
+            why = (f"no parameter behaves as the step in the continuous limit (for none of "
+                   f"{listed} as h does L_d(g_h(q, v))/h tend to a Lagrangian with a kinetic "
+                   f"term)")
+        raise TimeStepError(
+            f"{self.name}: the discrete energy E_d = −∂L_d/∂h needs the time step h, and {why} "
+            f"(docs/conventions.md §19); declare it: {type(self.system).__name__}(..., "
+            f"time_step=<the step parameter>), or pass step_parameter=... here")
 
     def program(self, outputs: dict) -> Program:
         return Program(self.graph, {"known": self.knowns, "p": self.parameters}, outputs)
@@ -270,8 +297,10 @@ def momenta(trajectory) -> Momenta:
 def energy(trajectory, step_parameter: str | None = None) -> np.ndarray:
     """The discrete energy at every kept state, (R,) (see the module docstring).
 
-    ``step_parameter``: the name of the step-size parameter h (default: a parameter named
-    "h"); on a :class:`TimeGroupoid` the default is the energy conjugate to time.
+    ``step_parameter``: the name of the parameter to differentiate by (default: the
+    system's time step, declared with ``time_step=`` or identified by the continuous limit,
+    else a :class:`TimeStepError`); on a :class:`TimeGroupoid` the default is the energy
+    conjugate to time.
     """
     ev, p = _setup(trajectory)
     key = f"energy:{step_parameter}"
@@ -290,6 +319,15 @@ def constraint_residuals(trajectory) -> np.ndarray:
     if not ev.sg.phi:
         return np.zeros((len(trajectory.states), 0))
     return ev("constraints", lambda: ev.sg.constraints, trajectory.states, p)
+
+
+def _energy_missing(trajectory, step_parameter) -> str:
+    """Why :func:`energy` is not defined for this trajectory (its error's message)."""
+    try:
+        energy_label(trajectory, step_parameter)
+    except DiagnosticsError as err:
+        return str(err)
+    return "it is defined"
 
 
 def has_energy(trajectory, step_parameter: str | None = None) -> bool:
@@ -409,7 +447,8 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     """The max drift of each conserved quantity along ``trajectory`` and its rounding floor.
 
     ``energy``: include the discrete energy (None: when it is defined — a step parameter
-    named ``step_parameter`` or "h", or a time groupoid; True: required, an error otherwise);
+    ``step_parameter``, the system's time step (declared or identified), or a time groupoid;
+    otherwise the summary notes why it is left out; True: required, an error otherwise);
     ``noether``: :class:`~symgroupoid.NoetherQuantity` objects, or sections (an index or
     coefficients) turned into them by ``system.noether(section)``.
     """
@@ -419,7 +458,11 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     quantities: list[Drift] = []
     notes: list[str] = []
     idx = trajectory.step_indices
-    want_energy = energy if energy is not None else has_energy(trajectory, step_parameter)
+    want_energy = energy
+    if energy is None:
+        want_energy = has_energy(trajectory, step_parameter)
+        if not want_energy and ev.sg.arity == 1:
+            notes.append(f"energy: not included ({_energy_missing(trajectory, step_parameter)})")
     if want_energy:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 globals()["energy"](trajectory, step_parameter), idx))

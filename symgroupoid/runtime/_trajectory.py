@@ -208,9 +208,11 @@ class Trajectory:
 
     # --- diagnostics (symgroupoid.diagnostics) -------------------------------------------------
     def energy(self, step_parameter: str | None = None) -> np.ndarray:
-        """The discrete energy at every kept state, (R,): E_d = −∂L_d/∂h for the step
-        parameter h (default: the parameter named "h"), or on a time groupoid the energy
-        conjugate to time, −∂L/∂t₁ (seed 000 §6.3).  See :mod:`symgroupoid.diagnostics`."""
+        """The discrete energy at every kept state, (R,): E_d = −∂L_d/∂h for the time step h
+        (``step_parameter`` names it; default: the system's ``time_step``, declared or
+        identified by the continuous limit, docs/conventions.md §19), or on a time groupoid
+        the energy conjugate to time, −∂L/∂t₁ (seed 000 §6.3).  See
+        :mod:`symgroupoid.diagnostics`."""
         from ._diagnostics import energy
 
         return energy(self, step_parameter)
