@@ -1203,23 +1203,33 @@ static void plate_ball_extrapolate(const plate_ball_warm_start *warm, double *u)
  * map: the step h no longer resolves the motion). */
 static int plate_ball_trusted(const plate_ball_warm_start *warm, const double *guess, const double *u, double factor)
 {
-    double d[PLATE_BALL_N_UNKNOWNS], m, m2;
-    int i;
+    double far = 0.0, m = 0.0, radius;
+    int i, inside = 1;
     if (!(factor > 0.0) || warm->count < 3) {
         return 1;
     }
+    PLATE_BALL_UNROLL
     for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
-        d[i] = warm->u_last[i] - warm->u_before[i];
+        const double e = fabs(u[i] - guess[i]);
+        far = e > far ? e : far;
     }
-    m = plate_ball_relative_norm(d, warm->u_last);
-    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
-        d[i] = warm->u_before[i] - warm->u_earlier[i];
+    if (far <= factor * PLATE_BALL_TRUST_FLOOR) {
+        return 1; /* within the smallest radius (every weight 1 + |u_last,i| >= 1): implies
+                   * the test below, which then needs no division */
     }
-    m2 = plate_ball_relative_norm(d, warm->u_last);
-    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
-        d[i] = u[i] - guess[i];
+    PLATE_BALL_UNROLL
+    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) { /* m, with one division per unknown */
+        const double a = fabs(warm->u_last[i] - warm->u_before[i]);
+        const double b = fabs(warm->u_before[i] - warm->u_earlier[i]);
+        const double r = (a > b ? a : b) / (1.0 + fabs(warm->u_last[i]));
+        m = r > m ? r : m;
     }
-    return plate_ball_relative_norm(d, warm->u_last) <= factor * ((m > m2 ? m : m2) + PLATE_BALL_TRUST_FLOOR);
+    radius = factor * (m + PLATE_BALL_TRUST_FLOOR);
+    PLATE_BALL_UNROLL
+    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) { /* |u_i - guess_i| <= radius (1 + |u_last,i|) */
+        inside &= fabs(u[i] - guess[i]) <= radius * (1.0 + fabs(warm->u_last[i]));
+    }
+    return inside;
 }
 
 /* Adds the solution u of a step to the warm start.  When it held three solutions, the next

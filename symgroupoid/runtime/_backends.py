@@ -897,9 +897,11 @@ class NumpyWarmStart:
         be the small one of an oscillation)."""
         if not factor > 0.0 or self.count < 3:
             return True
-        m = relative_norm(self.u_last - self.u_before, self.u_last)
-        m2 = relative_norm(self.u_before - self.u_earlier, self.u_last)
-        return relative_norm(u - guess, self.u_last) <= factor * (max(m, m2) + TRUST_FLOOR)
+        scale = 1.0 + np.abs(self.u_last)
+        motion = np.maximum(np.abs(self.u_last - self.u_before),
+                            np.abs(self.u_before - self.u_earlier))
+        radius = factor * (float(np.max(motion / scale, initial=0.0)) + TRUST_FLOOR)
+        return bool(np.all(np.abs(u - guess) <= radius * scale))
 
     def remember(self, u: np.ndarray) -> None:
         """As ``<prefix>_remember``: adds the solution ``u``; with three solutions held,
