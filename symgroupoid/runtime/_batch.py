@@ -369,7 +369,9 @@ class TrajectoryBatch:
     """
 
     def __init__(self, sim, raw: BatchRun, parameters: np.ndarray, steps: int, every: int,
-                 options: NewtonOptions | None = None):
+                 options: NewtonOptions | None = None, *, fill: bool = True):
+        """(``fill=False`` leaves the rows past each run's end as they are: for a caller
+        that hands out each run's own rows only, ``batch[b]``, as sweeps do.)"""
         self._sim = sim
         self._options = sim.options if options is None else options
         self._raw = raw
@@ -382,7 +384,8 @@ class TrajectoryBatch:
         self.status = raw.status.astype(np.int64)
         self.failed_step = raw.failed_step
         rows = self.states.shape[1]
-        short = np.flatnonzero(self.kept < rows) if self.states.flags.writeable else ()
+        short = np.flatnonzero(self.kept < rows) if fill and self.states.flags.writeable \
+            else ()
         for b in short:
             k = int(self.kept[b])
             self.states[b, k:] = np.nan
@@ -465,9 +468,9 @@ class TrajectoryBatch:
 
 
 def available_memory() -> int | None:
-    """Bytes this process may allocate at most: the machine's physical memory, lowered by
-    the address-space and data-segment limits (``ulimit -v``, ``ulimit -d``) when set;
-    None when unknown."""
+    """Bytes this process may still allocate at most: the machine's physical memory,
+    lowered by what the address-space and data-segment limits (``ulimit -v``,
+    ``ulimit -d``) leave beyond what is mapped already; None when unknown."""
     try:
         limit = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, ValueError, OSError):
@@ -476,11 +479,25 @@ def available_memory() -> int | None:
         import resource
     except ImportError:  # pragma: no cover - not POSIX
         return limit
-    for which in ("RLIMIT_AS", "RLIMIT_DATA"):
+    mapped = _mapped_bytes()
+    for which, used in (("RLIMIT_AS", mapped[0]), ("RLIMIT_DATA", mapped[1])):
         soft = resource.getrlimit(getattr(resource, which))[0]
         if soft not in (resource.RLIM_INFINITY, -1) and soft > 0:
-            limit = soft if limit is None else min(limit, soft)
-    return limit if limit and limit > 0 else None
+            room = max(soft - used, 0)
+            limit = room if limit is None else min(limit, room)
+    return limit if limit is None or limit > 0 else 0
+
+
+def _mapped_bytes() -> tuple[int, int]:
+    """(address space, data segment) this process has mapped, from /proc/self/statm
+    (zeros where it cannot be read)."""
+    try:
+        with open("/proc/self/statm") as f:
+            fields = f.read().split()
+        page = os.sysconf("SC_PAGE_SIZE")
+        return int(fields[0]) * page, int(fields[5]) * page
+    except (OSError, ValueError, IndexError):
+        return 0, 0
 
 
 def run_bytes(sim, rows: int) -> int:
@@ -489,25 +506,34 @@ def run_bytes(sim, rows: int) -> int:
     return rows * (8 * sim.layout.n_known + 16) + 8 * (len(sim.equations.unknowns) + 6)
 
 
+#: what to do when the kept states do not fit
+KEEP_FEWER = "keep fewer with every=k, or reduce each run on the fly with sweep(..., reduce=...)"
+
+
 def _too_large(sim, runs: int, rows: int, steps: int, every: int, limit: int | None,
-               held: str = "") -> Exception:
+               held: str = "", failed: Exception | None = None,
+               advice: str = KEEP_FEWER) -> Exception:
     from .._errors import TrajectoryTooLargeError
 
     needed = runs * run_bytes(sim, rows)
-    room = (f"more than this process may allocate ({limit / 2**30:.1f} GiB)" if limit
-            else "more than this process could allocate")
+    if failed is not None:
+        room = f"which could not be allocated ({type(failed).__name__}: {failed})"
+    elif limit is not None:
+        room = f"more than this process may allocate ({limit / 2**30:.1f} GiB)"
+    else:
+        room = "more than this process could allocate"
     return TrajectoryTooLargeError(
         f"{sim.name}: keeping {rows} states (steps={steps}, every={every}) of each of "
-        f"{runs} runs{held} needs {needed / 2**30:.1f} GiB, {room}; keep fewer with "
-        f"every=k, or reduce each run on the fly with sweep(..., reduce=...)")
+        f"{runs} runs{held} needs {needed / 2**30:.1f} GiB, {room}; {advice}")
 
 
-def _check_memory(sim, runs: int, rows: int, steps: int, every: int, held: str = "") -> None:
+def _check_memory(sim, runs: int, rows: int, steps: int, every: int, held: str = "",
+                  advice: str = KEEP_FEWER) -> None:
     """A :class:`TrajectoryTooLargeError` up front when ``runs`` runs of ``rows`` kept
     states would not fit in :func:`available_memory`."""
     limit = available_memory()
     if limit is not None and runs * run_bytes(sim, rows) > limit:
-        raise _too_large(sim, runs, rows, steps, every, limit, held)
+        raise _too_large(sim, runs, rows, steps, every, limit, held, advice=advice)
 
 
 def _view(raw: BatchRun, a: int, z: int) -> BatchRun:
@@ -541,8 +567,8 @@ class BatchProgress:
         rows = batch_rows(steps, every)
         try:
             self.out = self.kernel._batch_buffers(len(S), steps, every)
-        except MemoryError:
-            raise _too_large(sim, len(S), rows, steps, every, available_memory()) from None
+        except MemoryError as exc:
+            raise _too_large(sim, len(S), rows, steps, every, None, failed=exc) from None
         B = len(S)
         self.group_runs = max(1, min(GROUP_RUNS, -(-B // max(lanes, 1))))
         self.lanes = max(1, min(lanes, -(-B // self.group_runs)))
@@ -635,7 +661,7 @@ class BatchProgress:
     def so_far(self) -> BatchRun:
         """The partial batch: completed and failed runs as they are, a run being advanced
         with the state it reached appended (status ``INTERRUPTED``, ``failed_step`` that
-        step), a run not begun with state 0 (step 0)."""
+        step), a run not begun with state 0 (step 0); rows up to the furthest run's."""
         out = self.out
         kept, status, failed = out.kept.copy(), out.status.copy(), out.failed_step.copy()
         for a, z, cursors in list(self.active.values()):
@@ -657,8 +683,18 @@ class BatchProgress:
         fresh = np.flatnonzero((status == OK) & (kept == 0))
         out.states[fresh, 0] = self.S[fresh]
         kept[fresh], status[fresh], failed[fresh] = 1, INTERRUPTED, 0
-        return BatchRun(out.states, out.iterations, out.residual_norms, kept, status, failed,
+        rows = max(int(kept.max(initial=1)), 1)  # (no row past the furthest run)
+        return BatchRun(out.states[:, :rows], out.iterations[:, :rows - 1],
+                        out.residual_norms[:, :rows - 1], kept, status, failed,
                         out.failed_iterations, out.failed_residual_norms, out.last_iterate)
+
+
+def usable_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
 
 
 def batch_lanes(sim, threads: int | None) -> int:
@@ -666,12 +702,7 @@ def batch_lanes(sim, threads: int | None) -> int:
     the NumPy backend, which holds the GIL)."""
     if sim.backend != "c":
         return 1
-    if threads is not None:
-        return threads
-    try:
-        return len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):  # pragma: no cover - not Linux
-        return os.cpu_count() or 1
+    return usable_cores() if threads is None else threads
 
 
 def run_batch(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
