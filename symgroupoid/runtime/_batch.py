@@ -1,11 +1,13 @@
 """Many trajectories at once: checked input tables and :meth:`Simulator.simulate_batch`.
 
 A batch is B independent runs of the same step, from the rows of a state table with the rows
-of a parameter table (or one parameter set for all).  The compiled kernel advances them in
-one call of ``<prefix>_simulate_batch`` (see templates/kernel.c.j2): each run by the very
-function :meth:`Simulator.simulate` uses, so the states are bitwise those of B separate
-``simulate`` calls, and the runs are shared among OpenMP threads when the kernel was built
-with ``-fopenmp``.
+of a parameter table (or one parameter set for all).  The compiled kernel advances them by
+``<prefix>_simulate_batch_until`` (see templates/cold.j2): each run by the very function
+:meth:`Simulator.simulate` uses, in installments with the Newton warm start carried across
+them, so the states are bitwise those of B separate ``simulate`` calls (and of one
+``<prefix>_simulate_batch`` call).  :class:`BatchProgress` shares groups of runs among
+threads (the kernel releases the GIL) in calls of about :data:`CALL_SECONDS`, so Ctrl-C, or
+a sweep's stop, takes effect within a call, with the partial batch.
 
 Layout: the states of run b are one contiguous block (rows × n_known, row-major), the runs one
 after the other.  The Newton solve of a step is branchy (pivoting, chord or refactor, the

@@ -703,13 +703,13 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
 
     def receive(res: ChunkResult) -> None:
         n = len(res.status)
-        collected.place(res.first, n, res.status, res.failed_step, res.messages, res.values)
         if trajectories is not None and res.raw is not None:
             i, j = grid.rows(res.first, res.first + n)
             batch = TrajectoryBatch(sim, res.raw, P[j] if len(P) > 1 else P[:1], steps, every,
                                     options, fill=False)
             for b in range(n):
                 trajectories[res.first + b] = batch[b]
+        collected.place(res.first, n, res.status, res.failed_step, res.messages, res.values)
         collected.bar.update(n)
 
     def result(partial: bool) -> SweepResult:
@@ -740,15 +740,17 @@ class _Collected:
         self.t1: float | None = None
 
     def place(self, first: int, n: int, status, failed, messages, values) -> None:
+        """Runs first … first + n − 1, marked received last (a Ctrl-C in between leaves
+        them out of the partial result, never half in)."""
         where = slice(first, first + n)
         if self.filled[where].any():
             raise RuntimeError(f"internal error: runs {first}..{first + n - 1} received "
                                f"twice")
-        self.filled[where] = True
         self.status[where], self.failed[where] = status, failed
         self.messages[where] = messages
         if values is not None:
             self.values.append((first, values))
+        self.filled[where] = True
 
     def seconds(self) -> float:
         return (self.t1 or time.perf_counter()) - self.t0
@@ -1000,9 +1002,9 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
         from ._bvp import BoundaryValueSolution
 
         for r, st, message, value, data in results:
-            collected.place(r, 1, st, -1, [message], None if reduce is None else [value])
             if solutions is not None and data is not None:
                 solutions[r] = BoundaryValueSolution(system=system, **data)
+            collected.place(r, 1, st, -1, [message], None if reduce is None else [value])
         collected.bar.update(len(results))
 
     param_index = np.array([k for _, _, k in runs], dtype=np.int64)
