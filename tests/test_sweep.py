@@ -23,6 +23,7 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
     compiled,
     isolated_cache,
     needs_cc,
+    seed_step,
 )
 
 import symgroupoid as sg
@@ -498,14 +499,54 @@ def test_ctrl_c_stops_a_process_sweep_and_ends_its_workers(hang, tmp_path):
         out, err = child.communicate(timeout=30)
         latency = time.perf_counter() - t0
     finally:
-        if child.poll() is None:
-            os.killpg(child.pid, signal.SIGKILL)
-            child.wait()
+        _end_group(child)
     assert "INTERRUPTED" in out, err[-4000:]
     done, total = map(int, out.split("INTERRUPTED", 1)[1].split())
     assert total == 16 and done < 16
     assert latency < 2.0, f"the script took {latency:.2f} s to stop"  # (its exit included)
-    assert [pid for pid in workers if os.path.exists(f"/proc/{pid}")] == []
+    assert [pid for pid in workers if _alive(pid)] == []
+
+
+def _end_group(child: subprocess.Popen) -> None:
+    """(cleanup) SIGKILL to the child's process group, whatever is left of it."""
+    try:
+        os.killpg(child.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    child.wait()
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
+def test_worker_processes_end_when_their_script_is_killed(tmp_path):
+    """SIGKILL to a script sweeping on worker processes (no chance to clean up): its
+    workers notice that their parent is gone and end within about a second."""
+    child = subprocess.Popen([sys.executable, "-c", PROCESS_SWEEP, "hang"], cwd=tmp_path,
+                             env=_child_env(), stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        line = child.stdout.readline()
+        assert line.startswith("REDUCING"), child.stderr.read()[-4000:]
+        workers = _children(child.pid)
+        assert len(workers) == 2
+        child.kill()
+        child.wait()
+        deadline = time.monotonic() + 5.0
+        while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert [pid for pid in workers if _alive(pid)] == []
+    finally:
+        _end_group(child)
+        child.stdout.close()
+        child.stderr.close()
 
 
 def test_a_task_over_its_timeout_is_recorded_and_the_sweep_goes_on():
@@ -595,3 +636,20 @@ def test_a_hanging_reduce_on_a_process_is_stopped_by_the_timeout(monkeypatch):
                    executor="process", timeout=3.0)
     assert res.status.tolist() == [0, 0, sg.runtime._sweep.TIMED_OUT, 0]
     assert "timeout=3 s" in res.messages[2]
+
+
+def test_what_cannot_travel_to_worker_processes_is_refused_before_any_start():
+    sim = compiled("rigid_body")
+    S = states([0.1, 0.2])
+    lock = threading.Lock()
+    with pytest.raises(sg.runtime.NotPortableError, match="executor='thread'"):
+        sg.sweep(sim, S, RIGID, 10, reduce=lambda t: (lock, 1.0), workers=2,
+                 executor="process")
+    numpy_sim = seed_step("rigid_body").compile(backend="numpy")
+    with pytest.raises(sg.runtime.NotPortableError, match="backend='c'"):
+        sg.sweep(numpy_sim, S, RIGID, 10, workers=2, executor="process")
+    with pytest.raises(ValueError, match="executor must be one of"):
+        sg.sweep(sim, S, RIGID, 10, executor="processes")
+    # the NumPy backend holds the GIL: its sweeps run in the calling thread
+    res = sg.sweep(numpy_sim, S, RIGID, 5, reduce=lambda t: t.states[-1, 0], workers=2)
+    assert res.ok.all() and res.tasks >= 1

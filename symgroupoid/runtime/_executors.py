@@ -298,7 +298,17 @@ class _ProcessPool:
     """Jobs on worker processes, one job per worker at a time."""
 
     def __init__(self, task, workers: int, timeout: float | None):
-        self.payload = dumps(task)
+        try:
+            self.payload = dumps(task)
+        except (pickle.PicklingError, TypeError, AttributeError) as exc:
+            if isinstance(exc, SymgroupoidError):
+                raise
+            from ._pickle import NotPortableError
+
+            raise NotPortableError(
+                f"the sweep's task (its simulator or system, and reduce) cannot be sent to "
+                f"worker processes: {type(exc).__name__}: {exc}; use executor='thread' (nothing "
+                f"is sent), or make reduce a function of a module you import") from exc
         self.workers, self.timeout = workers, timeout
         self.pool: list[_Worker] = []
 
