@@ -112,8 +112,9 @@ class SweepResult:
     ``shape``: product: (number of initial states, number of parameter sets), zip: (number
     of runs,); an axis is absent when its input was a single state or set.  Per run:
 
-    - ``status``: 0 completed, else the reason it stopped (1 singular Jacobian, 2 Newton not
-      converged, 3 non-finite value; boundary-value runs: 5 the cut locus of the chart;
+    - ``status``: 0 completed, else the reason it stopped (1 singular Jacobian, 2 Newton's
+      iteration cap, 3 non-finite value, 5 Newton stalled, 6 a branch jump — the kernel's
+      ``STATUS_MESSAGES``; boundary-value runs: 2 not converged, 5 the cut locus of the chart;
       stopped from outside: 10 ``INTERRUPTED`` — not run to its end because the sweep was
       interrupted, in the partial result of a ``KeyboardInterrupt``, 11 ``TIMED_OUT`` — its
       task exceeded ``timeout``, 12 ``WORKER_DIED`` — its worker process died while running
