@@ -411,28 +411,31 @@ def _sweep_threads() -> list:
 
 @pytest.mark.parametrize("hang", [False, True], ids=["healthy", "hanging reduce"])
 def test_ctrl_c_stops_a_threaded_sweep_within_a_second_keeping_what_is_done(hang):
-    """SIGINT during a sweep of some 30 s of work (or while reduce hangs on run 20): a
-    KeyboardInterrupt within a second, carrying ``.result``: the runs done, bitwise
-    simulate's, and the others INTERRUPTED; no worker thread left."""
+    """SIGINT after 1 s of a sweep of several seconds of work (or while reduce hangs, on the
+    first run it gets): a KeyboardInterrupt within a second, carrying ``.result``: the runs
+    done, bitwise simulate's, and the others INTERRUPTED; no worker thread left."""
     sim = compiled("rigid_body")
     S = states(np.linspace(0.05, 0.6, 64))
+    hung: list = []
 
     def last(traj):
-        if hang and traj.states[0, 0] == S[20, 0]:
+        if hang:
+            hung.append(True)
             time.sleep(1000)
         return traj.states[-1, 0]
 
     timer, sent = _sigint_after(1.0)
     with pytest.raises(KeyboardInterrupt) as caught:
-        sg.sweep(sim, S, RIGID, 400_000, reduce=last, workers=2, chunk_size=2)
+        sg.sweep(sim, S, RIGID, 200_000, reduce=last, workers=2, chunk_size=2)
     latency = time.perf_counter() - sent[0]
     timer.join()
     res = caught.value.result
     assert isinstance(res, sg.SweepResult) and res.shape == (64,)
     stopped = res.status == sg.runtime._sweep.INTERRUPTED
-    assert stopped.sum() >= 60 - 20 * hang and (res.ok | stopped).all()
-    for r in np.flatnonzero(res.ok)[:2]:
-        assert res.values[r] == sim.simulate(S[r], 400_000, RIGID).states[-1, 0]
+    assert stopped.any() and (res.ok | stopped).all()
+    assert not hang or (hung and not res.ok.any())
+    for r in np.flatnonzero(res.ok)[:1]:
+        assert res.values[r] == sim.simulate(S[r], 200_000, RIGID).states[-1, 0]
     assert "interrupted" in res.messages[np.flatnonzero(stopped)[0]]
     assert latency < 1.0, f"Ctrl-C took {latency:.2f} s"
     time.sleep(0.2)
