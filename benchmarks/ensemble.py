@@ -7,10 +7,12 @@ hold) × N steps each, keeping every 10th state:
 
 1. a Python loop of ``Simulator.simulate``;
 2. ``Simulator.simulate_batch`` on one thread;
-3. ``simulate_batch`` with all cores (OpenMP threads);
-4. ``sg.sweep`` on a ``dask.distributed.LocalCluster`` (one single-threaded worker process
-   per core), with a scalar ``reduce``; the cluster start and the first (warm-up) sweep,
-   which brings the kernel to the workers, are timed separately.
+3. ``simulate_batch`` on all cores (one thread per core; the kernel releases the GIL);
+4. ``sg.sweep`` with a scalar ``reduce`` on its default executor, threads (the calling
+   thread reduces), and on worker processes (``executor="process"``, their start included);
+5. ``sg.sweep`` on a ``dask.distributed.LocalCluster`` (one single-threaded worker process
+   per core); the cluster start and the first (warm-up) sweep, which brings the kernel to
+   the workers, are timed separately.
 
 Prints each cost in µs per trajectory-step and the ratios, checks that the batched runs are
 bitwise those of the loop, and measures the peak memory of a sweep of M runs with a scalar
@@ -93,6 +95,15 @@ def main() -> None:
     same = all(np.array_equal(loop[b].states, one[b].states) for b in range(n_loop))
     same = same and np.array_equal(one.states, every_core.states)
 
+    t0 = time.perf_counter()
+    threaded = sg.sweep(sim, S, PARAMS, N, every=every, reduce=last_x)
+    t_threads = (time.perf_counter() - t0) / (B * N)
+    t0 = time.perf_counter()
+    processes = sg.sweep(sim, S, PARAMS, N, every=every, reduce=last_x, executor="process")
+    t_processes = (time.perf_counter() - t0) / (B * N)
+    same = same and np.array_equal(threaded.values, one.states[:, -1, 0])
+    same = same and np.array_equal(processes.values, one.states[:, -1, 0])
+
     from distributed import Client, LocalCluster
 
     t0 = time.perf_counter()
@@ -112,6 +123,11 @@ def main() -> None:
           f"({t_loop / t_one:.2f}x the loop)")
     print(f"  simulate_batch, all cores    {t_all * 1e6:7.3f} µs   "
           f"({t_one / t_all:.2f}x one thread)")
+    print(f"  sweep on threads (default)   {t_threads * 1e6:7.3f} µs   "
+          f"({t_threads / t_all:.2f}x simulate_batch on all cores; {threaded.tasks} tasks)")
+    print(f"  sweep on worker processes    {t_processes * 1e6:7.3f} µs   "
+          f"({t_processes / t_threads:.2f}x threads, their start included; "
+          f"{processes.tasks} tasks)")
     print(f"  sweep on a Dask LocalCluster {t_dask * 1e6:7.3f} µs   ({t_dask / t_all:.2f}x "
           f"simulate_batch on all cores; {swept.tasks} tasks)")
     print(f"    start-up: cluster {t_cluster:.2f} s, kernel to the workers (first sweep) "

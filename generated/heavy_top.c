@@ -1135,78 +1135,148 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
  * trajectory (HEAVY_TOP_BATCH_CHUNK + 1 states) stays within 32 KiB of stack per thread. */
 #define HEAVY_TOP_BATCH_CHUNK (HEAVY_TOP_N_KNOWNS >= 4096 ? 1 : (4096 / HEAVY_TOP_N_KNOWNS < 64 ? 4096 / HEAVY_TOP_N_KNOWNS : 64))
 
-/* One trajectory of heavy_top_simulate_batch: n_steps steps from known0 through
- * heavy_top_simulate in chunks of at most HEAVY_TOP_BATCH_CHUNK steps with one warm start (bitwise
- * the states of one heavy_top_simulate call), keeping state 0, every `every`-th state and the
- * last one.  Row r > 0 of iterations/residual_norms summarises the steps since the previous
- * kept state: their Newton iterations summed, the largest residual norm.  A failure at step
- * s keeps state s too (unless already kept) and records the failed step's own iterations,
- * residual norm and last iterate. */
-static void heavy_top_batch_one(const double *known0, const double *p, long n_steps, long every, const heavy_top_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+/* Advance one trajectory of heavy_top_simulate_batch / heavy_top_simulate_batch_until from its
+ * cursor to step `until` (at most n_steps) through heavy_top_simulate in chunks of at most
+ * HEAVY_TOP_BATCH_CHUNK steps with the cursor's warm start (bitwise the states of one
+ * heavy_top_simulate call, however the run is split into calls), keeping state 0, every
+ * `every`-th state and the last one.  *kept counts the rows written; 0 starts the run from
+ * known0 (the cursor is reset).  Row r > 0 of iterations/residual_norms summarises the steps
+ * since the previous kept state: their Newton iterations summed, the largest residual norm
+ * (carried in the cursor across calls).  A failure at step s keeps state s too (unless
+ * already kept) and records the failed step's own iterations, residual norm and last
+ * iterate. */
+static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double *known0, const double *p, long n_steps, long every, long until, const heavy_top_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
 {
     double buffer[(HEAVY_TOP_BATCH_CHUNK + 1) * HEAVY_TOP_N_KNOWNS];
     int its[HEAVY_TOP_BATCH_CHUNK];
     double norms[HEAVY_TOP_BATCH_CHUNK];
-    heavy_top_warm_start warm;
-    long done = 0, last_kept = 0, r = 1;
-    long long carry_iterations = 0;
-    double carry_norm = 0.0;
-    memset(&warm, 0, sizeof warm);
-    *failed_step = -1;
-    *failed_iterations = 0;
-    *failed_residual_norm = 0.0;
-    for (;;) {
-        const long n = n_steps - done < HEAVY_TOP_BATCH_CHUNK ? n_steps - done : HEAVY_TOP_BATCH_CHUNK;
-        long fail = -1, solved, j;
-        const int st = heavy_top_simulate(done == 0 ? known0 : buffer, p, n, options, &warm, buffer, HEAVY_TOP_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
-        if (st == HEAVY_TOP_INVALID_ARGUMENT) { /* a non-finite state or parameter row */
-            *kept = done == 0 ? 0 : r;
+    long r = *kept;
+    if (until > n_steps) {
+        until = n_steps;
+    }
+    if (r == 0) { /* a fresh start: state 0 (checked finite by heavy_top_simulate) */
+        int st;
+        memset(cursor, 0, sizeof *cursor);
+        *failed_step = -1;
+        *failed_iterations = 0;
+        *failed_residual_norm = 0.0;
+        st = heavy_top_simulate(known0, p, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
+        if (st != HEAVY_TOP_OK) { /* a non-finite state or parameter row */
             *status = st;
             return;
         }
-        if (done == 0) {
-            memcpy(states, buffer, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+        memcpy(states, buffer, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+        memcpy(cursor->known, buffer, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+        r = 1;
+    }
+    while (cursor->done < until) {
+        const long n = until - cursor->done < HEAVY_TOP_BATCH_CHUNK ? until - cursor->done : HEAVY_TOP_BATCH_CHUNK;
+        long fail = -1, solved, j;
+        const int st = heavy_top_simulate(cursor->known, p, n, options, &cursor->warm, buffer, HEAVY_TOP_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        if (st == HEAVY_TOP_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
+            *kept = r;
+            *status = st;
+            return;
         }
         solved = st == HEAVY_TOP_OK ? n : fail;
         for (j = 1; j <= solved; ++j) {
-            const long k = done + j;
-            carry_iterations += its[j - 1];
-            if (norms[j - 1] > carry_norm) {
-                carry_norm = norms[j - 1];
+            const long k = cursor->done + j;
+            cursor->carry_iterations += its[j - 1];
+            if (norms[j - 1] > cursor->carry_norm) {
+                cursor->carry_norm = norms[j - 1];
             }
             if (k % every == 0 || k == n_steps) {
                 memcpy(states + (size_t)r * HEAVY_TOP_N_KNOWNS, buffer + (size_t)j * HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
-                iterations[r - 1] = carry_iterations;
-                residual_norms[r - 1] = carry_norm;
-                carry_iterations = 0;
-                carry_norm = 0.0;
-                last_kept = k;
+                iterations[r - 1] = cursor->carry_iterations;
+                residual_norms[r - 1] = cursor->carry_norm;
+                cursor->carry_iterations = 0;
+                cursor->carry_norm = 0.0;
+                cursor->last_kept = k;
                 ++r;
             }
         }
         if (st != HEAVY_TOP_OK) {
-            if (done + fail != last_kept) { /* the last state reached ends the trajectory */
+            if (cursor->done + fail != cursor->last_kept) { /* the last state reached ends the trajectory */
                 memcpy(states + (size_t)r * HEAVY_TOP_N_KNOWNS, buffer + (size_t)fail * HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
-                iterations[r - 1] = carry_iterations;
-                residual_norms[r - 1] = carry_norm;
+                iterations[r - 1] = cursor->carry_iterations;
+                residual_norms[r - 1] = cursor->carry_norm;
                 ++r;
             }
-            *failed_step = done + fail;
+            *failed_step = cursor->done + fail;
             *failed_iterations = its[fail];
             *failed_residual_norm = norms[fail];
             *kept = r;
             *status = st;
             return;
         }
-        done += n;
-        if (done >= n_steps) {
-            break;
-        }
+        cursor->done += n;
         /* the next call starts from the last state of this one (row n of the buffer) */
-        memmove(buffer, buffer + (size_t)n * HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
+        memcpy(cursor->known, buffer + (size_t)n * HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
     }
     *kept = r;
     *status = HEAVY_TOP_OK;
+}
+
+/* 1 when every entry of v is finite */
+static int heavy_top_all_finite(const double *v, int n)
+{
+    int i;
+    for (i = 0; i < n; ++i) {
+        if (!isfinite(v[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* 1 when a cursor can continue: 0 <= last_kept <= done <= n_steps, last_kept a multiple of
+ * every (or n_steps), kept[b] the rows kept up to it (state 0, every `every`-th, the last),
+ * a finite state and carried norm */
+static int heavy_top_cursor_valid(const heavy_top_batch_cursor *cursor, long n_steps, long every, long kept)
+{
+    return cursor->done >= 0 && cursor->done <= n_steps && cursor->last_kept >= 0
+           && cursor->last_kept <= cursor->done
+           && (cursor->last_kept % every == 0 || cursor->last_kept == n_steps)
+           && kept == 1 + cursor->last_kept / every + (cursor->last_kept % every != 0)
+           && cursor->carry_iterations >= 0
+           && cursor->carry_norm >= 0.0
+           && heavy_top_all_finite(cursor->known, HEAVY_TOP_N_KNOWNS);
+}
+
+/* The checks of heavy_top_simulate_batch and heavy_top_simulate_batch_until: 1 when the
+ * arguments are usable */
+static int heavy_top_batch_valid(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const heavy_top_options *options, const double *states, long rows, const long long *iterations, const double *residual_norms, const long *kept, const int *status)
+{
+    (void)p;
+    return !(known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
+        || kept == NULL || status == NULL
+        || p == NULL
+        || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
+        || (p_stride != 0 && p_stride != HEAVY_TOP_N_PARAMETERS)
+        || n_steps / every + (n_steps % every != 0) > rows - 1
+        || (size_t)rows > ((size_t)-1 / sizeof(double)) / HEAVY_TOP_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
+        || !heavy_top_options_valid(options));
+}
+
+/* The OpenMP team of a batch: no more threads than trajectories, nor than
+ * HEAVY_TOP_MAX_THREADS (a team is created whole, and a huge n_threads would exhaust memory
+ * before any work is done) */
+static int heavy_top_batch_team(long n_batch, int n_threads)
+{
+#ifdef _OPENMP
+    long team = n_threads > 0 ? n_threads : omp_get_max_threads();
+    if (team > n_batch) {
+        team = n_batch;
+    }
+    if (team > HEAVY_TOP_MAX_THREADS) {
+        team = HEAVY_TOP_MAX_THREADS;
+    }
+    return team < 1 ? 1 : (int)team;
+#else
+    (void)n_batch;
+    (void)n_threads;
+    return 1;
+#endif
 }
 
 /* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
@@ -1230,49 +1300,84 @@ int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p
 {
     heavy_top_options defaults;
     long b;
+    int team;
     if (options == NULL) {
         heavy_top_default_options(&defaults);
         options = &defaults;
     }
-    if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
-        || kept == NULL || status == NULL
-        || p == NULL
-        || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
-        || (p_stride != 0 && p_stride != HEAVY_TOP_N_PARAMETERS)
-        || n_steps / every + (n_steps % every != 0) > rows - 1
-        || (size_t)rows > ((size_t)-1 / sizeof(double)) / HEAVY_TOP_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
-        || !heavy_top_options_valid(options)) {
+    if (!heavy_top_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
+    team = heavy_top_batch_team(n_batch, n_threads);
+    (void)team;
 #ifdef _OPENMP
-    /* no more threads than trajectories, nor than HEAVY_TOP_MAX_THREADS: a team is created
-     * whole, and a huge n_threads would exhaust memory before any work is done */
-    long team = n_threads > 0 ? n_threads : omp_get_max_threads();
-    if (team > n_batch) {
-        team = n_batch;
+#pragma omp parallel for schedule(dynamic, 1) num_threads(team) if (team > 1)
+#endif
+    for (b = 0; b < n_batch; ++b) {
+        heavy_top_batch_cursor cursor;
+        int unused_iterations;
+        long unused_step;
+        double unused_norm;
+        kept[b] = 0;
+        heavy_top_batch_advance(&cursor, known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, n_steps, options,
+                              states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
+                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                              kept + b, status + b,
+                              failed_step != NULL ? failed_step + b : &unused_step,
+                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                              last_iterate != NULL ? last_iterate + (size_t)b * HEAVY_TOP_N_UNKNOWNS : NULL);
     }
-    if (team > HEAVY_TOP_MAX_THREADS) {
-        team = HEAVY_TOP_MAX_THREADS;
+    return HEAVY_TOP_OK;
+}
+
+/* heavy_top_simulate_batch in installments: advance the trajectories to step `until` (at most
+ * n_steps), to be called again with a larger `until` and the same arrays to continue (see
+ * the header).  cursors[b] carries trajectory b from one call to the next; kept[b] = 0 (and
+ * status[b] = HEAVY_TOP_OK) starts it from row b of known0, a trajectory whose status is not
+ * HEAVY_TOP_OK has stopped and is left alone.  A call with until = n_steps after any sequence of
+ * smaller ones gives bitwise the arrays of one heavy_top_simulate_batch call; between calls,
+ * trajectory b has reached step min(until, n_steps) (unless it failed), with cursors[b].known
+ * that state.  Returns HEAVY_TOP_INVALID_ARGUMENT, writing nothing, for the arguments
+ * heavy_top_simulate_batch refuses, a null cursors or until < 0; a cursor that does not
+ * describe its trajectory's progress gives status[b] = HEAVY_TOP_INVALID_ARGUMENT. */
+int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+{
+    heavy_top_options defaults;
+    long b;
+    int team;
+    if (options == NULL) {
+        heavy_top_default_options(&defaults);
+        options = &defaults;
     }
-    if (team < 1) {
-        team = 1;
+    if (cursors == NULL || until < 0
+        || !heavy_top_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
+        return HEAVY_TOP_INVALID_ARGUMENT;
     }
-#pragma omp parallel for schedule(dynamic, 1) num_threads((int)team) if (team > 1)
-#else
-    (void)n_threads;
+    team = heavy_top_batch_team(n_batch, n_threads);
+    (void)team;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 1) num_threads(team) if (team > 1)
 #endif
     for (b = 0; b < n_batch; ++b) {
         int unused_iterations;
         long unused_step;
         double unused_norm;
-        heavy_top_batch_one(known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, options,
-                          states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
-                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
-                          kept + b, status + b,
-                          failed_step != NULL ? failed_step + b : &unused_step,
-                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
-                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
-                          last_iterate != NULL ? last_iterate + (size_t)b * HEAVY_TOP_N_UNKNOWNS : NULL);
+        if (status[b] != HEAVY_TOP_OK) {
+            continue;
+        }
+        if (kept[b] != 0 && !heavy_top_cursor_valid(cursors + b, n_steps, every, kept[b])) {
+            status[b] = HEAVY_TOP_INVALID_ARGUMENT;
+            continue;
+        }
+        heavy_top_batch_advance(cursors + b, known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
+                              states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
+                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                              kept + b, status + b,
+                              failed_step != NULL ? failed_step + b : &unused_step,
+                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                              last_iterate != NULL ? last_iterate + (size_t)b * HEAVY_TOP_N_UNKNOWNS : NULL);
     }
     return HEAVY_TOP_OK;
 }

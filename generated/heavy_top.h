@@ -63,6 +63,16 @@
  *   after the other.
  * heavy_top_step(known, p, options, next) advances one state from a fresh start: next receives
  *   what heavy_top_simulate(known, p, 1, options, NULL, ...) writes in its second row.
+ * heavy_top_simulate_batch_until(n_batch, cursors, known0, p, p_stride, n_steps, every, until,
+ *                              options, states, rows, iterations, ..., n_threads)
+ *   the same in installments: advances the trajectories to step `until` (at most n_steps)
+ *   and returns, to be called again with a larger `until` (a caller that must stay
+ *   responsive, or stop early, calls it in short pieces).  cursors[b] (heavy_top_batch_cursor:
+ *   the warm start, the steps done, the step last kept, the Newton summary carried since, and
+ *   the state reached, `known`) continues trajectory b from one call to the next; kept[b] = 0
+ *   and status[b] = HEAVY_TOP_OK start it from row b of known0, a trajectory whose status is not
+ *   HEAVY_TOP_OK is left alone.  Any sequence of calls ending with until = n_steps gives bitwise
+ *   the arrays of one heavy_top_simulate_batch call.
  * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
  *   #error): they delete its NaN and overflow checks; nor with the other unsafe-math options
  *   (-funsafe-math-optimizations, -fassociative-math, -freciprocal-math, -fno-signed-zeros),
@@ -108,6 +118,15 @@ typedef struct {
     double u_earlier[3];
 } heavy_top_warm_start;
 
+typedef struct {
+    heavy_top_warm_start warm;
+    long done;
+    long last_kept;
+    long long carry_iterations;
+    double carry_norm;
+    double known[12];
+} heavy_top_batch_cursor;
+
 void heavy_top_default_options(heavy_top_options *options);
 void heavy_top_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F);
@@ -119,6 +138,7 @@ int heavy_top_solve_step(const double *known, const double *p, const heavy_top_o
 int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 int heavy_top_step(const double *known, const double *p, const heavy_top_options *options, double *next);
+int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 const char *heavy_top_status_message(int status);
 
 #ifdef __cplusplus

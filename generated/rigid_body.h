@@ -59,6 +59,16 @@
  *   after the other.
  * rigid_body_step(known, p, options, next) advances one state from a fresh start: next receives
  *   what rigid_body_simulate(known, p, 1, options, NULL, ...) writes in its second row.
+ * rigid_body_simulate_batch_until(n_batch, cursors, known0, p, p_stride, n_steps, every, until,
+ *                              options, states, rows, iterations, ..., n_threads)
+ *   the same in installments: advances the trajectories to step `until` (at most n_steps)
+ *   and returns, to be called again with a larger `until` (a caller that must stay
+ *   responsive, or stop early, calls it in short pieces).  cursors[b] (rigid_body_batch_cursor:
+ *   the warm start, the steps done, the step last kept, the Newton summary carried since, and
+ *   the state reached, `known`) continues trajectory b from one call to the next; kept[b] = 0
+ *   and status[b] = RIGID_BODY_OK start it from row b of known0, a trajectory whose status is not
+ *   RIGID_BODY_OK is left alone.  Any sequence of calls ending with until = n_steps gives bitwise
+ *   the arrays of one rigid_body_simulate_batch call.
  * The kernel must not be compiled with -ffast-math or -ffinite-math-only (it stops with an
  *   #error): they delete its NaN and overflow checks; nor with the other unsafe-math options
  *   (-funsafe-math-optimizations, -fassociative-math, -freciprocal-math, -fno-signed-zeros),
@@ -104,6 +114,15 @@ typedef struct {
     double u_earlier[3];
 } rigid_body_warm_start;
 
+typedef struct {
+    rigid_body_warm_start warm;
+    long done;
+    long last_kept;
+    long long carry_iterations;
+    double carry_norm;
+    double known[9];
+} rigid_body_batch_cursor;
+
 void rigid_body_default_options(rigid_body_options *options);
 void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F);
@@ -115,6 +134,7 @@ int rigid_body_solve_step(const double *known, const double *p, const rigid_body
 int rigid_body_simulate(const double *known0, const double *p, long n_steps, const rigid_body_options *options, rigid_body_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int rigid_body_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 int rigid_body_step(const double *known, const double *p, const rigid_body_options *options, double *next);
+int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 const char *rigid_body_status_message(int status);
 
 #ifdef __cplusplus

@@ -10,8 +10,11 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import signal
 import subprocess
 import sys
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -282,3 +285,106 @@ def test_embedded_batch_program_reproduces_simulate_batch(tmp_path):
     assert np.array_equal(table[:, 1], batch.status) and np.array_equal(table[:, 3], batch.kept)
     assert np.abs(table[:, 4:] - batch.final_states).max() <= 1e-12 * max(
         1.0, np.abs(batch.final_states).max())
+
+
+# --- installments: long runs split across kernel calls; Ctrl-C ---------------------------------
+
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+@pytest.mark.parametrize("every", [1, 7])
+def test_a_batch_in_installments_is_bitwise_one_call(backend, every, monkeypatch):
+    """Calls of a single step each (the warm start crossing them), failing runs included,
+    give the arrays of one call; the partial batch after a few calls is, run by run, the
+    trajectory simulate gives for the steps reached."""
+    from symgroupoid.runtime import _batch
+
+    sim = compiled("rigid_body") if backend == "c" else seed_step("rigid_body").compile(
+        backend="numpy")
+    thetas = [0.1, 1.0, 1.5, 0.3] if backend == "c" else [0.1, 1.5]
+    S = np.array([sim.state({"W": rotation(t)}) for t in thetas])
+    P = sim.parameters(RIGID)[None]
+    steps = 40 if backend == "c" else 12
+    whole = sim.kernel.simulate_batch(S, P[0], steps, every, sim.options, 1)
+    assert not (whole.status == 0).all()
+    monkeypatch.setattr(_batch, "CALL_SECONDS", 1e-9)  # one step per call
+    calls: list = []
+
+    def stop_after(n):
+        return lambda: calls.append(1) or len(calls) >= n
+
+    progress = _batch.BatchProgress(sim, S, P, steps, every, None)
+    assert progress.work(0, stop_after(10**6))
+    assert len(calls) == steps - 1  # asked between calls
+    for name in whole.__dataclass_fields__:
+        if name != "states":  # (rows past a failure are not written)
+            assert np.array_equal(getattr(whole, name), getattr(progress.out, name)), name
+    for b in range(len(S)):
+        k = whole.kept[b]
+        assert np.array_equal(whole.states[b, :k], progress.out.states[b, :k])
+    calls.clear()
+    progress = _batch.BatchProgress(sim, S, P, steps, every, None)
+    assert not progress.work(0, stop_after(9))
+    partial = _batch.TrajectoryBatch(sim, progress.so_far(), P, steps, every)
+    for b in range(len(thetas)):
+        if partial.status[b] == _batch.INTERRUPTED:
+            reached = int(partial.failed_step[b])
+            assert reached == 9
+            assert_same_run(partial[b], sim.simulate(S[b], reached, RIGID, every=every))
+            assert isinstance(partial.error(b), KeyboardInterrupt)
+        else:
+            assert partial.status[b] == whole.status[b] != 0
+
+
+def test_the_installment_entry_point_checks_its_cursors():
+    sim = compiled("rigid_body")
+    kernel = sim.kernel
+    S = np.array([sim.state({"W": rotation(0.1)})] * 2)
+    p = sim.parameters(RIGID)
+    out = kernel._batch_buffers(2, 10, 2)
+    cursors = kernel.batch_cursors(2)
+    kernel.batch_until(cursors, S, p, 10, 2, 5, sim.options, out)
+    assert list(out.status) == [0, 0] and list(out.kept) == [3, 3]
+    assert cursors[0].done == 5 and cursors[0].last_kept == 4
+    cursors[1].last_kept = 3  # not a kept step: this cursor does not describe its run
+    kernel.batch_until(cursors, S, p, 10, 2, 10, sim.options, out)
+    assert list(out.status) == [0, 4] and out.kept[0] == 6
+    with pytest.raises(sg.ShapeError, match="batch_cursors"):
+        kernel.batch_until(kernel.batch_cursors(1), S, p, 10, 2, 10, sim.options, out)
+    fn = getattr(kernel.lib, f"{kernel.prefix}_simulate_batch_until")
+    assert fn(2, kernel.ffi.NULL, *[kernel.ffi.NULL] * 2, 0, 10, 2, 10,
+              *[kernel.ffi.NULL] * 2, 6, *[kernel.ffi.NULL] * 8, 1) == 4
+
+
+def _interrupt_after(seconds: float) -> tuple[threading.Thread, list]:
+    """SIGINT to this process after ``seconds`` (from a timer thread); the time it was sent."""
+    sent: list = []
+
+    def fire():
+        sent.append(time.perf_counter())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    timer = threading.Timer(seconds, fire)
+    timer.start()
+    return timer, sent
+
+
+def test_ctrl_c_stops_a_batch_within_a_kernel_call_with_the_partial_batch():
+    """A batch of some 20 s of work: SIGINT after 0.3 s raises KeyboardInterrupt within a
+    call of about 0.05 s, carrying ``.batch``: every run up to the step it reached,
+    bitwise what simulate gives for those steps."""
+    sim = compiled("plate_ball")
+    params = SEED_DATA["plate_ball"][0]
+    S = plate_ball_states(sim, 8)
+    timer, sent = _interrupt_after(0.3)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        sim.simulate_batch(S, 2_000_000, params, every=1000)
+    latency = time.perf_counter() - sent[0]
+    timer.join()
+    batch = caught.value.batch
+    assert (batch.status == sg.runtime._batch.INTERRUPTED).all()
+    reached = batch.failed_step
+    assert (reached > 0).all() and (reached < 2_000_000).all()
+    for b in (0, 7):
+        assert_same_run(batch[b], sim.simulate(S[b], int(reached[b]), params, every=1000))
+    # calls of about 0.05 s of work: typically 0.02–0.08 s; the bound leaves room for a
+    # machine shared with other jobs (before: the whole batch, here some 20 s)
+    assert latency < 0.5, f"Ctrl-C took {latency:.3f} s"

@@ -1,10 +1,13 @@
 """The documentation runs as written.
 
-Every fenced ```python block of README.md and docs/*.md is executed: the blocks of one file
-in order, in one fresh Python process, in an empty temporary directory (so files the
-examples write land there).  A block that is not meant to run is fenced ```python no-run
-(rare: each is counted).  Tracebacks name the Markdown file and its line.  The files run
-concurrently, one process each.
+Every fenced ```python block of README.md and docs/*.md is executed as a user would run it:
+all of them, in file order (README.md, then docs/*.md by name) and within a file in order,
+pasted into one script and run with ``python script.py`` in a fresh process, in an empty
+temporary directory (so files the examples write land there), with no
+``if __name__ == "__main__":`` guard added.  A failure names the Markdown file and line of
+the failing code.  Each documentation file also runs on its own (slow test), as a reader
+who pastes a single page would run it.  A block that is not meant to run is fenced
+```python no-run (rare: each is counted).
 
 The API reference (Sphinx, docs/api) is built with warnings as errors by ``make docs`` and
 by the slow test below; the fast tests check its configuration.
@@ -54,62 +57,116 @@ def runnable_source(path: Path) -> str:
 
 
 def _label(path: Path) -> str:
-    return str(path.relative_to(REPO))
+    try:
+        return str(path.relative_to(REPO))
+    except ValueError:  # (a file outside the project: the tests' own examples)
+        return path.name
 
 
 RUNNABLE = [p for p in DOC_FILES if any(info == RUN for info, _, _ in fenced_blocks(p))]
 
 
-@pytest.fixture(scope="module")
-def doc_runs(tmp_path_factory):
-    """One process per documentation file, started together; {path: (process, log path)}."""
+def docs_script(paths: list[Path]) -> tuple[str, list[tuple[int, Path, int]]]:
+    """The ```python blocks of ``paths``, in order, as one script, and where each block came
+    from: (first line of the block in the script, Markdown file, its first line there)."""
+    lines: list[str] = []
+    origins = []
+    for path in paths:
+        for info, first, code in fenced_blocks(path):
+            if info != RUN:
+                continue
+            lines.append(f"# --- {_label(path)}:{first}")
+            origins.append((len(lines) + 1, path, first))
+            lines.extend(code.splitlines())
+    return "\n".join(lines) + "\n", origins
+
+
+def markdown_location(line: int, origins) -> str:
+    """``file.md:line`` of a line of the script of :func:`docs_script`."""
+    for start, path, first in reversed(origins):
+        if line >= start:
+            return f"{_label(path)}:{first + line - start}"
+    return f"line {line} of the script"
+
+
+def run_script(source: str, origins, work: Path) -> subprocess.Popen:
+    """``python docs.py`` in ``work`` (the package found as installed or from this
+    checkout), output to ``work/output.txt``."""
     env = dict(os.environ, MPLBACKEND="Agg", SYMGROUPOID_CACHE=str(SESSION_CACHE),
-               PYTHONHASHSEED="0")
+               PYTHONHASHSEED="0", PYTHONPATH=os.pathsep.join(
+                   [str(REPO), *filter(None, [os.environ.get("PYTHONPATH")])]))
     env.pop("SYMGROUPOID_BACKEND", None)
-    runs = {}
-    for path in RUNNABLE:
-        if not HAVE_CC and '"cc"' in runnable_source(path):
-            continue
-        work = tmp_path_factory.mktemp(path.stem)
-        code = (f"import sys; sys.path.insert(0, {str(REPO)!r}); "
-                f"exec(compile(open({str(work / 'doc.py')!r}, encoding='utf-8').read(), "
-                f"{str(path)!r}, 'exec'), {{'__name__': '__main__'}})")
-        (work / "doc.py").write_text(runnable_source(path), encoding="utf-8")
-        log = work / "output.txt"
-        with open(log, "w") as out:
-            runs[path] = (subprocess.Popen([sys.executable, "-c", code], cwd=work, env=env,
-                                           stdout=out, stderr=subprocess.STDOUT), log, work)
-    yield runs
-    for process, _, _ in runs.values():
-        if process.poll() is None:
-            process.kill()
-            process.wait()
+    (work / "docs.py").write_text(source, encoding="utf-8")
+    with open(work / "output.txt", "w") as out:
+        return subprocess.Popen([sys.executable, "docs.py"], cwd=work, env=env, stdout=out,
+                                stderr=subprocess.STDOUT)
 
 
-@pytest.mark.parametrize("path", RUNNABLE, ids=_label)
-def test_documentation_runs_as_written(path, doc_runs):
-    if path not in doc_runs:
-        pytest.skip("the file compiles a C program and there is no C compiler (cc)")
-    process, log, _ = doc_runs[path]
+def finished(process: subprocess.Popen, work: Path, origins, what: str) -> str:
+    """Wait for a docs script; its output, or a failure that names the Markdown lines of
+    the traceback."""
     try:
-        process.wait(timeout=600)
+        process.wait(timeout=900)
     except subprocess.TimeoutExpired:
         process.kill()
-        pytest.fail(f"{_label(path)}: its code blocks did not finish in 10 minutes")
-    output = log.read_text(encoding="utf-8", errors="replace")
-    assert process.returncode == 0, f"{_label(path)} failed:\n{output[-6000:]}"
+        process.wait()
+        pytest.fail(f"{what}: the code blocks did not finish in 15 minutes")
+    output = (work / "output.txt").read_text(encoding="utf-8", errors="replace")
+    if process.returncode != 0:
+        where = [markdown_location(int(n), origins)
+                 for n in re.findall(r'File ".*docs\.py", line (\d+)', output)]
+        pytest.fail(f"{what} failed (exit code {process.returncode}) at "
+                    f"{' <- '.join(reversed(where)) or 'an unknown line'}:\n{output[-6000:]}")
+    return output
 
 
-def test_the_tutorial_writes_its_figures_and_c_program(doc_runs):
-    tutorial = REPO / "docs" / "first-system.md"
-    if tutorial not in doc_runs:
+@pytest.fixture(scope="module")
+def all_docs(tmp_path_factory):
+    """Every runnable block of the documentation as one script, started once."""
+    paths = [p for p in RUNNABLE if HAVE_CC or '"cc"' not in runnable_source(p)]
+    source, origins = docs_script(paths)
+    work = tmp_path_factory.mktemp("docs")
+    process = run_script(source, origins, work)
+    yield process, work, origins
+    if process.poll() is None:
+        process.kill()
+        process.wait()
+
+
+def test_the_documentation_runs_as_one_plain_script(all_docs):
+    """README.md and docs/*.md, every ```python block in order, pasted into one file and run
+    with ``python docs.py``: no ``__main__`` guard, so nothing of it may rely on one (the
+    sweeps' workers never import the script)."""
+    process, work, origins = all_docs
+    finished(process, work, origins, "README.md + docs/*.md as one script")
+
+
+def test_the_tutorial_writes_its_figures_and_c_program(all_docs):
+    if not HAVE_CC:
         pytest.skip("no C compiler (cc)")
-    process, log, work = doc_runs[tutorial]
-    process.wait(timeout=600)
-    assert process.returncode == 0, log.read_text(encoding="utf-8", errors="replace")[-6000:]
+    process, work, origins = all_docs
+    finished(process, work, origins, "README.md + docs/*.md as one script")
     for name in ("conservation.png", "pendulum.png", "spherical_pendulum.c",
                  "spherical_pendulum.h"):
         assert (work / name).stat().st_size > 0, name
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("path", RUNNABLE, ids=_label)
+def test_each_documentation_file_runs_on_its_own(path, tmp_path):
+    if not HAVE_CC and '"cc"' in runnable_source(path):
+        pytest.skip("the file compiles a C program and there is no C compiler (cc)")
+    source, origins = docs_script([path])
+    finished(run_script(source, origins, tmp_path), tmp_path, origins, _label(path))
+
+
+def test_a_failing_block_is_reported_at_its_markdown_line(tmp_path):
+    doc = tmp_path / "x.md"
+    doc.write_text("text\n```python\na = 1\n```\nmore\n```python\n\nraise ValueError(a)\n```\n")
+    source, origins = docs_script([doc])
+    process = run_script(source, origins, tmp_path)
+    with pytest.raises(pytest.fail.Exception, match=r"(?s)at x\.md:8:.*ValueError: 1"):
+        finished(process, tmp_path, origins, "x.md")
 
 
 def test_code_blocks_are_fenced_to_run():

@@ -54,6 +54,7 @@ from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid.runtime._batch import TrajectoryBatch
+from symgroupoid.runtime._executors import TIMED_OUT
 
 #: the systems on the NumPy backend (the others step through their C kernels)
 TINY = ("oscillator", "diagonal", "accel")
@@ -279,7 +280,8 @@ def sweep_calls(draw, name: str):
     case = case_of(name)
     which = draw(st.sampled_from(["sim", "states", "params", "steps", "combine", "reduce",
                                   "options", "reduce_failures", "workers", "chunk_size",
-                                  "client", "progress", "every", "none"]))
+                                  "client", "progress", "every", "executor", "timeout",
+                                  "none"]))
     sim, states, params = case.sim, valid_rows(name)[:2], dict(case.params)
     kwargs = {"steps": 3, "combine": "product", "reduce": None, "every": 1,
               "options": None, "reduce_failures": False, "workers": 1, "chunk_size": None,
@@ -312,6 +314,12 @@ def sweep_calls(draw, name: str):
         kwargs["client"] = draw(junk())
     elif which == "progress":
         kwargs["progress"] = draw(st.one_of(scalars, st.just(lambda done, total: None)))
+    elif which == "executor":  # (no worker processes here: "process" is not drawn)
+        kwargs["executor"] = draw(st.one_of(scalars, st.sampled_from(
+            ["thread", "Thread", "", "processes", None])))
+        names += ["thread", "process"]
+    elif which == "timeout":
+        kwargs["timeout"] = draw(st.one_of(scalars, st.just(None), st.just(1e6)))
     kwargs["steps"] = runnable(kwargs["steps"], kwargs["every"])
     if isinstance(kwargs["chunk_size"], int) and kwargs["chunk_size"] > 2**40:
         kwargs["chunk_size"] = 1
@@ -325,6 +333,8 @@ def check_sweep(case: Case, result, kwargs: dict) -> None:
     keys = [str(s) for s in case.step.parameters]
     status = result.status.reshape(-1)
     for r in range(min(len(result), 3)):
+        if kwargs.get("timeout") is not None and status[r] == TIMED_OUT:
+            continue  # (a valid timeout may stop a task: recorded, not a defect)
         i, j = result.index(r)
         state0 = np.asarray(result.initial)[i]
         named = dict(zip(keys, result.parameters[j].tolist()))

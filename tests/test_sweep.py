@@ -4,17 +4,26 @@ mid-sweep; the results equal the serial ones exactly."""
 
 from __future__ import annotations
 
+import json
 import os
 import signal
+import subprocess
+import sys
+import textwrap
 import threading
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 import sympy as sp
 from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    REPO,
+    SESSION_CACHE,
     compiled,
     isolated_cache,
     needs_cc,
+    seed_step,
 )
 
 import symgroupoid as sg
@@ -170,13 +179,15 @@ def test_dask_sweep_survives_a_killed_worker():
     assert np.array_equal(res.status, serial.status)
 
 
-@pytest.mark.slow
-def test_local_process_pool_equals_the_serial_sweep():
+@pytest.mark.parametrize("executor", ["thread", pytest.param("process",
+                                                               marks=pytest.mark.slow)])
+def test_local_workers_equal_the_serial_sweep(executor, monkeypatch):
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(SESSION_CACHE))  # (for worker processes)
     sim = compiled("rigid_body")
     S = states(THETAS)
     serial = sg.sweep(sim, S, TABLE, 500, reduce=lambda t: t.states[-1, 0], workers=1)
     pooled = sg.sweep(sim, S, TABLE, 500, reduce=lambda t: t.states[-1, 0], workers=2,
-                      chunk_size=3)
+                      chunk_size=3, executor=executor)
     assert pooled.tasks == 6
     assert np.array_equal(pooled.values, serial.values, equal_nan=True)
     assert np.array_equal(pooled.failed_step, serial.failed_step)
@@ -209,6 +220,11 @@ def test_boundary_value_sweep_with_continuation(monkeypatch):
         for k, p in enumerate(hs):
             direct = sg.solve_boundary_value(step, np.eye(3), end, 12, params=p)
             assert np.array_equal(res.solutions[0, j, k].arrows, direct.arrows)
+    threaded = sg.sweep_boundary_value(step, [np.eye(3)], ends, 12, params=hs,
+                                       combine="product", workers=2)
+    assert threaded.ok.all() and all(
+        np.array_equal(a.arrows, b.arrows) for a, b in zip(threaded.solutions.ravel(),
+                                                           res.solutions.ravel()))
     chained = sg.sweep_boundary_value(step, [np.eye(3)], ends, 12, params=hs,
                                       combine="product", continuation=True, workers=1,
                                       reduce=lambda s: s.iterations)
@@ -216,3 +232,427 @@ def test_boundary_value_sweep_with_continuation(monkeypatch):
     # each continuation step starts from its neighbour's solution: fewer Newton iterations
     assert chained.values[0, :, 1:].sum() <= np.vectorize(lambda s: s.iterations)(
         res.solutions[0, :, 1:]).sum()
+
+
+# --- plain scripts, bounded memory, Ctrl-C, timeouts, dying workers -------------------------------
+
+def _child_env() -> dict:
+    """A child process's environment: the session's kernels, this checkout importable."""
+    env = dict(os.environ, SYMGROUPOID_CACHE=str(SESSION_CACHE), PYTHONHASHSEED="0",
+               PYTHONPATH=os.pathsep.join([str(REPO), *filter(None, [os.environ.get(
+                   "PYTHONPATH")])]))
+    env.pop("SYMGROUPOID_BACKEND", None)
+    return env
+
+
+def _script(tmp_path, body: str) -> Path:
+    """A user's script: the rigid body, compiled, and ``body`` at module level (no
+    ``if __name__ == "__main__":`` guard)."""
+    path = tmp_path / "user_script.py"
+    path.write_text(textwrap.dedent("""\
+        import json, os, signal, sys, time
+        import numpy as np
+        import symgroupoid as sg
+        from symgroupoid.systems import SEED_SYSTEMS
+        sim = SEED_SYSTEMS["rigid_body"]().euler_lagrange().compile()
+        params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
+        R = [np.array(sg.SO3("W").cayley([0.02 * b, 0.05, -0.03]).tolist(), float)
+             for b in range(8)]
+        states = np.array([sim.state({"W": W}) for W in R])
+        """) + textwrap.dedent(body))
+    return path
+
+
+def test_a_plain_script_sweeps_on_threads_and_processes_without_a_main_guard(tmp_path):
+    """The README's sweep pasted into a script and run with ``python script.py``: the
+    workers (threads, and processes) never run the script again; a lambda and a function
+    of the script serve as reduce."""
+    script = _script(tmp_path, """\
+        def last(traj):
+            return traj.states[-1, 0]
+        table = {"h": [0.01] * 3, "I1": [1.0] * 3, "I2": [2.0] * 3, "I3": [3.0, 3.5, 4.0]}
+        out = {}
+        for executor in ("thread", "process"):
+            for reduce in (last, lambda traj: traj.states[-1, 0]):
+                res = sg.sweep(sim, states, table, steps=300, reduce=reduce, workers=2,
+                               chunk_size=5, executor=executor)
+                out.setdefault(executor, []).append(res.values.tolist())
+        print("RESULT", json.dumps(out))
+        """)
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=_child_env(),
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-4000:]
+    out = json.loads(done.stdout.split("RESULT", 1)[1])
+    sim = compiled("rigid_body")
+    S = states_of_script(sim)
+    expected = [[sim.simulate(S[i], 300, {**RIGID, "I3": I3}).states[-1, 0]
+                 for I3 in (3.0, 3.5, 4.0)] for i in range(8)]
+    for executor in ("thread", "process"):
+        assert out[executor] == [expected, expected], executor
+
+
+def states_of_script(sim) -> np.ndarray:
+    R = [np.array(sg.SO3("W").cayley([0.02 * b, 0.05, -0.03]).tolist(), float)
+         for b in range(8)]
+    return np.array([sim.state({"W": W}) for W in R])
+
+
+def test_processes_without_cloudpickle_refuse_a_function_of_the_script(tmp_path):
+    script = _script(tmp_path, """\
+        sys.modules["cloudpickle"] = None  # (as if not installed)
+        try:
+            sg.sweep(sim, states, params, 10, reduce=lambda t: 1.0, workers=2,
+                     executor="process")
+        except sg.SymgroupoidError as err:
+            print("ERROR", type(err).__name__, err)
+        """)
+    done = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=_child_env(),
+                          capture_output=True, text=True, timeout=600)
+    assert "ERROR NotPortableError" in done.stdout, done.stderr[-4000:]
+    assert "install cloudpickle" in done.stdout and "executor='thread'" in done.stdout
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_reduce_holds_the_states_of_one_part_of_a_task_at_a_time(workers, monkeypatch):
+    """200 runs × 5000 steps, every state kept, reduced to a view of the last state: the
+    sweep's traced memory peaks at a few parts (of at most BATCH_BYTES), not at the
+    states of all runs (before: all of a task's runs until the reduce, here 88 MB); the
+    values are copies."""
+    import tracemalloc
+
+    from symgroupoid.runtime import _sweep
+
+    monkeypatch.setattr(_sweep, "BATCH_BYTES", 1 << 20)
+    sim = compiled("rigid_body")
+    S = states(np.linspace(0.05, 0.6, 200))
+    total = 200 * 5001 * 8 * sim.layout.n_known
+    tracemalloc.start()
+    try:
+        res = sg.sweep(sim, S, RIGID, 5000, reduce=lambda t: {"last": t.states[-1]},
+                       workers=workers)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    held = 2 * workers + 1 if workers > 1 else 1  # parts simulated, waiting, being reduced
+    bound = (held + 1) * (1 << 20)  # (and 1 MiB for the rest of the sweep)
+    assert res.ok.all() and bound < total / 8
+    assert peak < bound, f"peak {peak / 2**20:.1f} MiB (all states: {total / 2**20:.0f} MiB)"
+    for r in (0, 117, 199):
+        last = res.values[r]["last"]
+        assert last.base is None and np.array_equal(last, sim.simulate(S[r], 5000,
+                                                                       RIGID).states[-1])
+
+
+MEMORY_LIMIT = """
+import resource
+import numpy as np
+import symgroupoid as sg
+from symgroupoid.systems import SEED_SYSTEMS
+from symgroupoid.runtime import _batch
+sim = SEED_SYSTEMS["rigid_body"]().euler_lagrange().compile()
+params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
+S = np.array([sim.state({"W": np.eye(3)})] * 2000)
+with open("/proc/self/statm") as f:
+    used = int(f.read().split()[0]) * resource.getpagesize()
+limit = used + (1 << 28)  # 256 MiB to spare
+resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
+def attempt(label, call):
+    try:
+        call()
+        print(label, "ran")
+    except MemoryError as err:
+        print(label, type(err).__name__, isinstance(err, sg.TrajectoryTooLargeError), err)
+# every trajectory back: 2000 x 20001 states (1.4 GB) are refused up front
+attempt("all", lambda: sg.sweep(sim, S, params, 20000, workers=1))
+# with reduce each run is reduced as it comes: the sweep fits
+attempt("reduced", lambda: sg.sweep(sim, S[:40], params, 20000,
+                                    reduce=lambda t: t.states[-1, 0], workers=2))
+# one run alone over the limit: refused up front, naming the run's states
+attempt("one_run", lambda: sg.sweep(sim, S[:2], params, 4_000_000,
+                                    reduce=lambda t: 0.0, workers=1))
+# within the limit by the count, but not in the address space left: no raw MemoryError
+_batch.available_memory = lambda: 1 << 40
+attempt("allocation", lambda: sim.simulate_batch(S[:1000], 20000, params))
+"""
+
+
+def test_a_memory_limit_gives_trajectory_too_large_not_memory_error(tmp_path):
+    """Under ``ulimit -v`` (RLIMIT_AS) a sweep's up-front check counts the states it
+    keeps (all of them without reduce, the parts in flight with it) against the limit,
+    and an allocation that fails all the same is a TrajectoryTooLargeError (before: a raw
+    MemoryError from NumPy)."""
+    done = subprocess.run([sys.executable, "-c", MEMORY_LIMIT], cwd=tmp_path,
+                          env=_child_env(), capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-4000:]
+    lines = dict(line.split(" ", 1) for line in done.stdout.splitlines())
+    assert lines["all"].startswith("TrajectoryTooLargeError True")
+    assert "more than this process may allocate" in lines["all"], lines["all"]
+    assert lines["reduced"] == "ran"
+    assert lines["one_run"].startswith("TrajectoryTooLargeError True")
+    assert "held at once" in lines["one_run"]
+    assert lines["allocation"].startswith("TrajectoryTooLargeError True"), lines["allocation"]
+
+
+def _sigint_after(seconds: float) -> tuple[threading.Timer, list]:
+    sent: list = []
+
+    def fire():
+        sent.append(time.perf_counter())
+        os.kill(os.getpid(), signal.SIGINT)
+
+    timer = threading.Timer(seconds, fire)
+    timer.start()
+    return timer, sent
+
+
+def _sweep_threads() -> list:
+    return [t for t in threading.enumerate() if t.name.startswith("symgroupoid-")]
+
+
+@pytest.mark.parametrize("hang", [False, True], ids=["healthy", "hanging reduce"])
+def test_ctrl_c_stops_a_threaded_sweep_within_a_second_keeping_what_is_done(hang):
+    """SIGINT after 1 s of a sweep of several seconds of work (or while reduce hangs, on the
+    first run it gets): a KeyboardInterrupt within a second, carrying ``.result``: the runs
+    done, bitwise simulate's, and the others INTERRUPTED; no worker thread left."""
+    sim = compiled("rigid_body")
+    S = states(np.linspace(0.05, 0.6, 64))
+    hung: list = []
+
+    def last(traj):
+        if hang:
+            hung.append(True)
+            time.sleep(1000)
+        return traj.states[-1, 0]
+
+    timer, sent = _sigint_after(1.0)
+    with pytest.raises(KeyboardInterrupt) as caught:
+        sg.sweep(sim, S, RIGID, 200_000, reduce=last, workers=2, chunk_size=2)
+    latency = time.perf_counter() - sent[0]
+    timer.join()
+    res = caught.value.result
+    assert isinstance(res, sg.SweepResult) and res.shape == (64,)
+    stopped = res.status == sg.runtime._sweep.INTERRUPTED
+    assert stopped.any() and (res.ok | stopped).all()
+    assert not hang or (hung and not res.ok.any())
+    for r in np.flatnonzero(res.ok)[:1]:
+        assert res.values[r] == sim.simulate(S[r], 200_000, RIGID).states[-1, 0]
+    assert "interrupted" in res.messages[np.flatnonzero(stopped)[0]]
+    assert latency < 1.0, f"Ctrl-C took {latency:.2f} s"
+    time.sleep(0.2)
+    assert _sweep_threads() == []
+
+
+PROCESS_SWEEP = """
+import os, sys, time
+import numpy as np
+import symgroupoid as sg
+from symgroupoid.systems import SEED_SYSTEMS
+sim = SEED_SYSTEMS["rigid_body"]().euler_lagrange().compile()
+params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
+S = np.array([sim.state({"W": np.eye(3)})] * 16)
+HANG = sys.argv[1] == "hang"
+def last(traj):
+    print("REDUCING", os.getpid(), flush=True)
+    if HANG:
+        time.sleep(1000)
+    return traj.states[-1, 0]
+try:
+    sg.sweep(sim, S, params, 300_000 if HANG else 3_000_000, reduce=last, workers=2,
+             chunk_size=1, executor="process")
+except KeyboardInterrupt as interrupt:
+    print("INTERRUPTED", int(interrupt.result.ok.sum()), len(interrupt.result), flush=True)
+"""
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    out = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                out.append(int(entry))
+    return out
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
+@pytest.mark.parametrize("hang", [pytest.param(False, marks=pytest.mark.slow), True],
+                         ids=["healthy", "hanging reduce"])
+def test_ctrl_c_stops_a_process_sweep_and_ends_its_workers(hang, tmp_path):
+    """A script sweeping on worker processes gets Ctrl-C as from a terminal (SIGINT to its
+    process group) while a reduce hangs (or the workers simulate): it stops within about a
+    second, keeps its partial result, and leaves no worker process behind."""
+    child = subprocess.Popen([sys.executable, "-c", PROCESS_SWEEP,
+                              "hang" if hang else "run"], cwd=tmp_path, env=_child_env(),
+                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                             start_new_session=True)
+    try:
+        line = child.stdout.readline()
+        assert line.startswith("REDUCING"), child.stderr.read()[-4000:]
+        if not hang:  # the first results are in: the workers simulate the next runs
+            time.sleep(1.0)
+        workers = _children(child.pid)
+        assert len(workers) == 2
+        t0 = time.perf_counter()
+        os.killpg(child.pid, signal.SIGINT)
+        out, err = child.communicate(timeout=30)
+        latency = time.perf_counter() - t0
+    finally:
+        _end_group(child)
+    assert "INTERRUPTED" in out, err[-4000:]
+    done, total = map(int, out.split("INTERRUPTED", 1)[1].split())
+    assert total == 16 and done < 16
+    assert latency < 2.0, f"the script took {latency:.2f} s to stop"  # (its exit included)
+    assert [pid for pid in workers if _alive(pid)] == []
+
+
+def _end_group(child: subprocess.Popen) -> None:
+    """(cleanup) SIGKILL to the child's process group, whatever is left of it."""
+    try:
+        os.killpg(child.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    child.wait()
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` exists and is not a zombie."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc"), reason="reads /proc")
+def test_worker_processes_end_when_their_script_is_killed(tmp_path):
+    """SIGKILL to a script sweeping on worker processes (no chance to clean up): its
+    workers notice that their parent is gone and end within about a second."""
+    child = subprocess.Popen([sys.executable, "-c", PROCESS_SWEEP, "hang"], cwd=tmp_path,
+                             env=_child_env(), stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        line = child.stdout.readline()
+        assert line.startswith("REDUCING"), child.stderr.read()[-4000:]
+        workers = _children(child.pid)
+        assert len(workers) == 2
+        child.kill()
+        child.wait()
+        deadline = time.monotonic() + 5.0
+        while any(_alive(pid) for pid in workers) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert [pid for pid in workers if _alive(pid)] == []
+    finally:
+        _end_group(child)
+        child.stdout.close()
+        child.stderr.close()
+
+
+def test_a_task_over_its_timeout_is_recorded_and_the_sweep_goes_on():
+    """timeout= on threads: the runs of a task still simulating are TIMED_OUT (with the
+    step they reached), the sweep returns."""
+    sim = compiled("rigid_body")
+    S = states([0.1, 0.2, 0.3, 0.4])
+    t0 = time.perf_counter()
+    res = sg.sweep(sim, S, RIGID, 10_000_000, reduce=lambda t: t.states[-1, 0], workers=2,
+                   chunk_size=1, timeout=0.3)
+    assert time.perf_counter() - t0 < 5.0
+    assert (res.status == sg.runtime._sweep.TIMED_OUT).all()
+    assert (res.failed_step > 0).all() and all(v is None for v in res.values)
+    assert "timeout" in res.messages[0]
+    with pytest.raises(sg.DomainError, match="timeout must be a positive"):
+        sg.sweep(sim, S, RIGID, 10, timeout=0)
+
+
+def test_a_run_that_ends_its_worker_process_is_recorded_the_others_returned(monkeypatch):
+    """executor='process': a reduce that calls os._exit on run 4 ends its worker; the task
+    (runs 3–5) is run again run by run on fresh workers, run 4 recorded WORKER_DIED, the
+    others returned (before: a raw BrokenProcessPool, no result)."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(SESSION_CACHE))
+    sim = compiled("rigid_body")
+    S = states(np.linspace(0.05, 0.6, 6))
+    fatal = S[4, 0]
+
+    def exits_on_4(traj):
+        if traj.states[0, 0] == fatal:
+            os._exit(3)
+        return traj.states[-1, 0]
+
+    res = sg.sweep(sim, S, RIGID, 50, reduce=exits_on_4, workers=2, chunk_size=3,
+                   executor="process")
+    assert res.status.tolist() == [0, 0, 0, 0, sg.runtime._sweep.WORKER_DIED, 0]
+    assert res.messages[4] == ("run 4: its worker process died while running it "
+                               "(exit code 3)")
+    for r in (0, 3, 5):
+        assert res.values[r] == sim.simulate(S[r], 50, RIGID).states[-1, 0]
+
+
+@pytest.mark.slow
+def test_a_worker_that_dies_on_one_run_costs_only_that_run(monkeypatch):
+    """executor='process': a reduce that ends its worker (os._exit on run 5, SIGKILL on
+    run 9): those runs are recorded (WORKER_DIED, with how the worker died), every other
+    run is returned, equal to the serial sweep (before: a raw BrokenProcessPool and no
+    result)."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(SESSION_CACHE))
+    sim = compiled("rigid_body")
+    S = states(np.linspace(0.05, 0.6, 12))
+    run_5, run_9 = S[5, 0], S[9, 0]
+
+    def dies_on_5_and_9(traj):  # (a closure: sent by value)
+        first = traj.states[0, 0]
+        if first == run_5:
+            os._exit(3)
+        if first == run_9:
+            os.kill(os.getpid(), signal.SIGKILL)
+        return traj.states[-1, 0]
+
+    res = sg.sweep(sim, S, RIGID, 200, reduce=dies_on_5_and_9, workers=2, chunk_size=4,
+                   executor="process")
+    serial = sg.sweep(sim, S, RIGID, 200, reduce=lambda t: t.states[-1, 0], workers=1)
+    died = sg.runtime._sweep.WORKER_DIED
+    assert res.status[5] == died and "exit code 3" in res.messages[5]
+    assert res.status[9] == died and "SIGKILL" in res.messages[9]
+    others = np.ones(12, bool)
+    others[[5, 9]] = False
+    assert res.ok[others].all() and np.array_equal(res.values[others], serial.values[others])
+
+
+@pytest.mark.slow
+def test_a_hanging_reduce_on_a_process_is_stopped_by_the_timeout(monkeypatch):
+    """executor='process' with timeout=: the task whose reduce hangs has its worker killed
+    and its run recorded TIMED_OUT; the others complete."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(SESSION_CACHE))
+    sim = compiled("rigid_body")
+    S = states([0.1, 0.2, 0.3, 0.4])
+    stuck = S[2, 0]
+
+    def hangs_on_2(traj):
+        if traj.states[0, 0] == stuck:
+            time.sleep(1000)
+        return traj.states[-1, 0]
+
+    res = sg.sweep(sim, S, RIGID, 100, reduce=hangs_on_2, workers=2, chunk_size=1,
+                   executor="process", timeout=3.0)
+    assert res.status.tolist() == [0, 0, sg.runtime._sweep.TIMED_OUT, 0]
+    assert "timeout=3 s" in res.messages[2]
+
+
+def test_what_cannot_travel_to_worker_processes_is_refused_before_any_start():
+    sim = compiled("rigid_body")
+    S = states([0.1, 0.2])
+    lock = threading.Lock()
+    with pytest.raises(sg.runtime.NotPortableError, match="executor='thread'"):
+        sg.sweep(sim, S, RIGID, 10, reduce=lambda t: (lock, 1.0), workers=2,
+                 executor="process")
+    numpy_sim = seed_step("rigid_body").compile(backend="numpy")
+    with pytest.raises(sg.runtime.NotPortableError, match="backend='c'"):
+        sg.sweep(numpy_sim, S, RIGID, 10, workers=2, executor="process")
+    with pytest.raises(ValueError, match="executor must be one of"):
+        sg.sweep(sim, S, RIGID, 10, executor="processes")
+    # the NumPy backend holds the GIL: its sweeps run in the calling thread
+    res = sg.sweep(numpy_sim, S, RIGID, 5, reduce=lambda t: t.states[-1, 0], workers=2)
+    assert res.ok.all() and res.tasks >= 1

@@ -14,6 +14,7 @@ outside a buffer.
 from __future__ import annotations
 
 import ctypes
+import dataclasses
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -201,16 +202,18 @@ class BatchRun:
     iterations summed, largest residual norm).  Rows past ``kept[b]`` hold no data (only a
     failed run has them).  ``status[b]`` is the run's status; a failed run stopped at step
     ``failed_step[b]``, whose own iterations, residual norm and last Newton iterate are
-    ``failed_iterations``, ``failed_residual_norms`` and ``last_iterate``.
+    ``failed_iterations``, ``failed_residual_norms`` and ``last_iterate``.  A run stopped
+    from outside (status :data:`INTERRUPTED`: the partial batch of an interrupted call) ends
+    with the state it reached, step ``failed_step[b]``.
     """
 
     states: np.ndarray  # (B, rows, n_known)
-    iterations: np.ndarray  # (B, rows - 1) int64
+    iterations: np.ndarray  # (B, rows - 1) C long long
     residual_norms: np.ndarray  # (B, rows - 1)
-    kept: np.ndarray  # (B,) int64
-    status: np.ndarray  # (B,) int
-    failed_step: np.ndarray  # (B,) int64, -1 when the run completed
-    failed_iterations: np.ndarray  # (B,) int64
+    kept: np.ndarray  # (B,) C long
+    status: np.ndarray  # (B,) C int
+    failed_step: np.ndarray  # (B,) C long, -1 when the run completed
+    failed_iterations: np.ndarray  # (B,) C int
     failed_residual_norms: np.ndarray  # (B,)
     last_iterate: np.ndarray  # (B, n_unknown)
 
@@ -218,6 +221,31 @@ class BatchRun:
 def batch_rows(steps: int, every: int) -> int:
     """Rows kept of a complete run: state 0, every ``every``-th state and the last."""
     return 1 + -(-steps // every)
+
+
+#: the status of a batch run stopped from outside before its last step (Ctrl-C, a sweep's
+#: timeout): not a kernel status (those are 0 … 9)
+INTERRUPTED = 10
+
+
+@dataclass
+class RunCursor:
+    """The Python twin of ``<prefix>_batch_cursor`` (one run of a batch advanced in
+    installments), with the run's kept rows, status and failure data, so that one
+    assignment of the cursor commits a run's progress."""
+
+    warm: object
+    known: np.ndarray
+    done: int = 0
+    last_kept: int = 0
+    carry_iterations: int = 0
+    carry_norm: float = 0.0
+    kept: int = 0
+    status: int = OK
+    failed_step: int = -1
+    failed_iterations: int = 0
+    failed_residual_norm: float = 0.0
+    last_iterate: np.ndarray | None = None
 
 
 # --- checks at the C boundary ----------------------------------------------------------------
@@ -412,9 +440,8 @@ class _Kernel:
         n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
         every = integer_argument(every, "every", minimum=1, maximum=self.max_steps)
         out = self._batch_buffers(len(known0), n_steps, every)
-        for b in range(len(known0)):
-            self._batch_one(known0[b], p[b] if p.ndim == 2 else p, n_steps, every, options,
-                            out, b)
+        cursors = self.batch_cursors(len(known0))
+        self.batch_until(cursors, known0, p, n_steps, every, n_steps, options, out, threads)
         return out
 
     def _batch_inputs(self, known0, p) -> tuple[np.ndarray, np.ndarray]:
@@ -428,44 +455,109 @@ class _Kernel:
         return known0, p
 
     def _batch_buffers(self, n_batch: int, n_steps: int, every: int) -> BatchRun:
+        """Zeroed arrays of a batch, of the C types ``<prefix>_simulate_batch`` writes."""
         rows = batch_rows(n_steps, every)
+        long = np.dtype(ctypes.c_long)
         return BatchRun(
-            np.empty((n_batch, rows, self.n_k)), np.zeros((n_batch, rows - 1), np.int64),
-            np.zeros((n_batch, rows - 1)), np.zeros(n_batch, np.int64),
-            np.zeros(n_batch, np.intc), np.full(n_batch, -1, np.int64),
-            np.zeros(n_batch, np.int64), np.zeros(n_batch), np.zeros((n_batch, self.n_u)))
+            np.empty((n_batch, rows, self.n_k)), np.zeros((n_batch, rows - 1), np.longlong),
+            np.zeros((n_batch, rows - 1)), np.zeros(n_batch, long),
+            np.zeros(n_batch, np.intc), np.full(n_batch, -1, long),
+            np.zeros(n_batch, np.intc), np.zeros(n_batch), np.zeros((n_batch, self.n_u)))
 
-    def _batch_one(self, known0, p, n_steps: int, every: int, options: NewtonOptions,
-                   out: BatchRun, b: int) -> None:
-        """Run b of :meth:`simulate_batch` through :func:`run_chunks` (the logic of
-        ``<prefix>_simulate_batch``)."""
-        out.states[b, 0] = known0
-        r, last_kept, carry_it, carry_norm = 1, 0, 0, 0.0
-        for start, run in run_chunks(self, known0, p, n_steps, options, 1 << 14):
+    # --- a batch in installments (the logic of <prefix>_simulate_batch_until) ---------------
+    def batch_cursors(self, n_batch: int) -> list:
+        """Fresh cursors of ``n_batch`` runs for :meth:`batch_until`."""
+        return [None] * n_batch
+
+    def batch_until(self, cursors, known0: np.ndarray, p: np.ndarray, n_steps: int,
+                    every: int, until: int, options: NewtonOptions, out: BatchRun,
+                    threads: int | None = None) -> None:
+        """Advance the runs of ``out`` (checked inputs, :meth:`_batch_buffers`) to step
+        min(until, n_steps) from their ``cursors``; called again with a larger ``until``
+        they continue, bitwise as one call of ``n_steps``.  Each run's progress is
+        committed by one assignment of its cursor (a KeyboardInterrupt between two runs
+        leaves every run at a consistent step)."""
+        for b in range(len(known0)):
+            c = cursors[b]
+            if c is not None and c.status != OK:
+                continue
+            c = self._run_until(c, known0[b], p[b] if p.ndim == 2 else p, n_steps, every,
+                                until, options, out, b)
+            cursors[b] = c
+        self.batch_sync(cursors, out)
+
+    def batch_sync(self, cursors, out: BatchRun) -> None:
+        """The kept rows, status and failure data of ``out`` from the cursors."""
+        for b, c in enumerate(cursors):
+            if c is None:
+                continue
+            out.kept[b], out.status[b], out.failed_step[b] = c.kept, c.status, c.failed_step
+            out.failed_iterations[b] = c.failed_iterations
+            out.failed_residual_norms[b] = c.failed_residual_norm
+            if c.last_iterate is not None:
+                out.last_iterate[b] = c.last_iterate
+
+    def batch_reached(self, cursors, out: BatchRun) -> dict:
+        """Per run (arrays over the batch): ``done`` (the step reached), ``last_kept``,
+        ``carry_iterations``, ``carry_norm`` and ``known`` (the state reached)."""
+        n = len(cursors)
+        fields = {"done": np.zeros(n, np.int64), "last_kept": np.zeros(n, np.int64),
+                  "carry_iterations": np.zeros(n, np.int64), "carry_norm": np.zeros(n),
+                  "known": np.zeros((n, self.n_k))}
+        for b, c in enumerate(cursors):
+            if c is not None:
+                for name, array in fields.items():
+                    array[b] = getattr(c, name)
+        return fields
+
+    def _run_until(self, c: RunCursor | None, known0, p, n_steps: int, every: int,
+                   until: int, options: NewtonOptions, out: BatchRun, b: int) -> RunCursor:
+        """Run b from its cursor (None: a fresh start) to min(until, n_steps), on a copy of
+        the cursor (returned); states are written at rows from ``c.kept`` on."""
+        if c is None:
+            if not (np.isfinite(known0).all() and np.isfinite(p).all()):
+                return RunCursor(None, known0.copy(), status=INVALID_ARGUMENT)
+            out.states[b, 0] = known0
+            c = RunCursor(self.warm_start(), known0.copy(), kept=1)
+        else:
+            c = dataclasses.replace(c, warm=self.copy_warm(c.warm))
+        until = min(until, n_steps)
+        while c.done < until:
+            n = min(until - c.done, 1 << 14)
+            run = self.simulate(c.known, p, n, options, c.warm)
             if run.status == INVALID_ARGUMENT:
-                out.kept[b], out.status[b] = 0, run.status
-                return
+                c.status = run.status
+                return c
             for j in range(1, run.completed + 1):
-                k = start + j
-                carry_it += int(run.iterations[j - 1])
-                carry_norm = max(carry_norm, float(run.residual_norms[j - 1]))
+                k = c.done + j
+                c.carry_iterations += int(run.iterations[j - 1])
+                c.carry_norm = max(c.carry_norm, float(run.residual_norms[j - 1]))
                 if k % every == 0 or k == n_steps:
+                    r = c.kept
                     out.states[b, r] = run.states[j]
-                    out.iterations[b, r - 1], out.residual_norms[b, r - 1] = carry_it, carry_norm
-                    r, last_kept, carry_it, carry_norm = r + 1, k, 0, 0.0
+                    out.iterations[b, r - 1] = c.carry_iterations
+                    out.residual_norms[b, r - 1] = c.carry_norm
+                    c.kept, c.last_kept, c.carry_iterations, c.carry_norm = r + 1, k, 0, 0.0
             if run.status != OK:
-                s = start + run.failed_step
-                if s != last_kept:
+                s = c.done + run.failed_step
+                if s != c.last_kept:
+                    r = c.kept
                     out.states[b, r] = run.states[run.failed_step]
-                    out.iterations[b, r - 1], out.residual_norms[b, r - 1] = carry_it, carry_norm
-                    r += 1
-                out.failed_step[b] = s
-                out.failed_iterations[b] = int(run.iterations[run.failed_step])
-                out.failed_residual_norms[b] = float(run.residual_norms[run.failed_step])
-                out.last_iterate[b] = run.last_iterate
-                out.kept[b], out.status[b] = r, run.status
-                return
-        out.kept[b], out.status[b] = r, OK
+                    out.iterations[b, r - 1] = c.carry_iterations
+                    out.residual_norms[b, r - 1] = c.carry_norm
+                    c.kept = r + 1
+                c.status, c.failed_step = run.status, s
+                c.failed_iterations = int(run.iterations[run.failed_step])
+                c.failed_residual_norm = float(run.residual_norms[run.failed_step])
+                c.last_iterate = run.last_iterate
+                return c
+            c.done += n
+            c.known = run.states[n].copy()
+        return c
+
+    def copy_warm(self, warm):
+        """An independent copy of a warm start."""
+        return dataclasses.replace(warm)
 
 
 class CKernel(_Kernel):
@@ -516,35 +608,21 @@ class CKernel(_Kernel):
         if B == 0:
             return out
         rows = out.states.shape[1]
-        kept = np.zeros(B, dtype=np.dtype(ctypes.c_long))
-        failed = np.zeros(B, dtype=np.dtype(ctypes.c_long))
-        failed_it = np.zeros(B, dtype=np.intc)
-        iterations = np.zeros((B, rows - 1), dtype=np.longlong)
         status = fn(
             B, self._buf(known0, B * self.n_k, "known0"),
             self._buf(p, p.size, "p"), 0 if p.ndim == 1 else self.n_p, n_steps, every,
-            self._options(options),
-            self._buf(out.states,
-                      B * rows * self.n_k, "states"), rows,
-            self._buf(iterations if rows > 1 else np.zeros(1, np.longlong),
+            self._options(options), self._buf(out.states, B * rows * self.n_k, "states"), rows,
+            self._buf(out.iterations if rows > 1 else np.zeros(1, np.longlong),
                       max(B * (rows - 1), 1), "iterations", "long long"),
             self._buf(out.residual_norms if rows > 1 else np.zeros(1),
                       max(B * (rows - 1), 1), "residual_norms"),
-            self._buf(kept, B, "kept", "long"),
-            self._buf(out.status, B, "status", "int"),
-            self._buf(failed, B, "failed_step", "long"),
-            self._buf(failed_it, B, "failed_iterations",
-                      "int"),
-            self._buf(out.failed_residual_norms, B,
-                      "failed_residual_norm"),
-            self._buf(out.last_iterate, B * self.n_u,
-                      "last_iterate"), threads)
+            self._buf(out.kept, B, "kept", "long"), self._buf(out.status, B, "status", "int"),
+            self._buf(out.failed_step, B, "failed_step", "long"),
+            self._buf(out.failed_iterations, B, "failed_iterations", "int"),
+            self._buf(out.failed_residual_norms, B, "failed_residual_norm"),
+            self._buf(out.last_iterate, B * self.n_u, "last_iterate"), threads)
         if status != OK:
             raise ValueError(f"{self.prefix}_simulate_batch: {STATUS_MESSAGES[int(status)]}")
-        out.iterations[...] = iterations
-        out.kept[...] = kept
-        out.failed_step[...] = failed
-        out.failed_iterations[...] = failed_it
         return out
 
     def step_once(self, known: np.ndarray, p: np.ndarray, options: NewtonOptions
@@ -564,6 +642,80 @@ class CKernel(_Kernel):
         if self._stepper is None:
             self._stepper = _one_step_caller(self)
         return self._stepper
+
+    def _until_entry(self):
+        """``<prefix>_simulate_batch_until``, or None in a module built before it existed
+        (then batches in installments run through :meth:`simulate` in Python)."""
+        return getattr(self.lib, f"{self.prefix}_simulate_batch_until", None)
+
+    def batch_cursors(self, n_batch: int):
+        """Fresh (zeroed) ``<prefix>_batch_cursor`` structs of ``n_batch`` runs."""
+        if self._until_entry() is None:
+            return super().batch_cursors(n_batch)
+        return self.ffi.new(f"{self.prefix}_batch_cursor[]", max(n_batch, 1))
+
+    def batch_until(self, cursors, known0: np.ndarray, p: np.ndarray, n_steps: int,
+                    every: int, until: int, options: NewtonOptions, out: BatchRun,
+                    threads: int | None = None) -> None:
+        """:meth:`_Kernel.batch_until` in one call of ``<prefix>_simulate_batch_until``
+        (which writes the kept rows, status and failure data of ``out`` itself; a
+        KeyboardInterrupt is seen only after the call returns)."""
+        fn = self._until_entry()
+        if fn is None:
+            return super().batch_until(cursors, known0, p, n_steps, every, until, options,
+                                       out, threads)
+        B = len(known0)
+        if B == 0:
+            return None
+        if not (isinstance(cursors, self.ffi.CData)
+                and self.ffi.typeof(cursors) is self.ffi.typeof(f"{self.prefix}_batch_cursor[]")
+                and len(cursors) >= B):
+            raise ShapeError(f"{self.prefix}: the cursors must come from batch_cursors({B})")
+        threads = 0 if threads is None else integer_argument(threads, "threads", minimum=1,
+                                                             maximum=MAX_THREADS)
+        rows = out.states.shape[1]
+        status = fn(
+            B, cursors, self._buf(known0, B * self.n_k, "known0"), self._buf(p, p.size, "p"),
+            0 if p.ndim == 1 else self.n_p, n_steps, every, until, self._options(options),
+            self._buf(out.states, B * rows * self.n_k, "states"), rows,
+            self._buf(out.iterations if rows > 1 else np.zeros(1, np.longlong),
+                      max(B * (rows - 1), 1), "iterations", "long long"),
+            self._buf(out.residual_norms if rows > 1 else np.zeros(1),
+                      max(B * (rows - 1), 1), "residual_norms"),
+            self._buf(out.kept, B, "kept", "long"), self._buf(out.status, B, "status", "int"),
+            self._buf(out.failed_step, B, "failed_step", "long"),
+            self._buf(out.failed_iterations, B, "failed_iterations", "int"),
+            self._buf(out.failed_residual_norms, B, "failed_residual_norm"),
+            self._buf(out.last_iterate, B * self.n_u, "last_iterate"), threads)
+        if status != OK:
+            raise ValueError(f"{self.prefix}_simulate_batch_until: "
+                             f"{STATUS_MESSAGES[int(status)]}")
+        return None
+
+    def batch_sync(self, cursors, out: BatchRun) -> None:
+        if not isinstance(cursors, self.ffi.CData):
+            super().batch_sync(cursors, out)
+
+    def batch_reached(self, cursors, out: BatchRun) -> dict:
+        """The cursors' fields as NumPy arrays over the runs (views of the structs)."""
+        if not isinstance(cursors, self.ffi.CData):
+            return super().batch_reached(cursors, out)
+        ctype = self.ffi.typeof(f"{self.prefix}_batch_cursor")
+        names = ("done", "last_kept", "carry_iterations", "carry_norm", "known")
+        formats = [np.dtype(ctypes.c_long), np.dtype(ctypes.c_long),
+                   np.dtype(ctypes.c_longlong), np.float64, (np.float64, (self.n_k,))]
+        dtype = np.dtype({"names": list(names), "formats": formats,
+                          "offsets": [self.ffi.offsetof(ctype, n) for n in names],
+                          "itemsize": self.ffi.sizeof(ctype)})
+        n = len(out.kept)
+        view = np.frombuffer(self.ffi.buffer(cursors, n * dtype.itemsize), dtype=dtype)
+        return {name: view[name].copy() for name in names}
+
+    def copy_warm(self, warm):
+        self._check_warm(warm)
+        copy = self.warm_start()
+        self.ffi.memmove(copy, warm, self.ffi.sizeof(self._warm_type.item))
+        return copy
 
     def _options(self, options: NewtonOptions):
         opts = self.ffi.new(f"{self.prefix}_options *")

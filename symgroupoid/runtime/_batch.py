@@ -1,11 +1,13 @@
 """Many trajectories at once: checked input tables and :meth:`Simulator.simulate_batch`.
 
 A batch is B independent runs of the same step, from the rows of a state table with the rows
-of a parameter table (or one parameter set for all).  The compiled kernel advances them in
-one call of ``<prefix>_simulate_batch`` (see templates/kernel.c.j2): each run by the very
-function :meth:`Simulator.simulate` uses, so the states are bitwise those of B separate
-``simulate`` calls, and the runs are shared among OpenMP threads when the kernel was built
-with ``-fopenmp``.
+of a parameter table (or one parameter set for all).  The compiled kernel advances them by
+``<prefix>_simulate_batch_until`` (see templates/cold.j2): each run by the very function
+:meth:`Simulator.simulate` uses, in installments with the Newton warm start carried across
+them, so the states are bitwise those of B separate ``simulate`` calls (and of one
+``<prefix>_simulate_batch`` call).  :class:`BatchProgress` shares groups of runs among
+threads (the kernel releases the GIL) in calls of about :data:`CALL_SECONDS`, so Ctrl-C, or
+a sweep's stop, takes effect within a call, with the partial batch.
 
 Layout: the states of run b are one contiguous block (rows × n_known, row-major), the runs one
 after the other.  The Newton solve of a step is branchy (pivoting, chord or refactor, the
@@ -23,6 +25,8 @@ passes are far inside the tolerances, so the outcome is the scalar check's for e
 from __future__ import annotations
 
 import os
+import threading
+import time
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -35,7 +39,7 @@ from .._errors import (
     ShapeError,
     SymgroupoidError,
 )
-from ._backends import MAX_THREADS, OK, BatchRun, NewtonOptions, batch_rows
+from ._backends import INTERRUPTED, MAX_THREADS, OK, BatchRun, NewtonOptions, batch_rows
 from ._trajectory import Trajectory
 from ._validate import (
     _CHECKED_ASSUMPTIONS,
@@ -50,9 +54,13 @@ from ._validate import (
 
 _EPS = float(np.finfo(float).eps)
 
-#: trajectory-steps per kernel call of a batch: bounds the delay of Ctrl-C (the runs are
-#: split between calls, never a run)
-CALL_WORK = 1 << 24
+#: seconds of work aimed at per kernel call of a batch: bounds the delay of Ctrl-C and of a
+#: sweep's cancel (long runs are split across calls, the warm start carried between them)
+CALL_SECONDS = 0.05
+#: runs per group of a batch: a thread advances a group of runs at a time (their cursors
+#: held), in pieces of many steps (few runs per call, long pieces: the runs' data stays in
+#: cache and the per-call cost is spread over many steps)
+GROUP_RUNS = 32
 
 
 class RunIndexError(ShapeError, IndexError):
@@ -352,8 +360,10 @@ class TrajectoryBatch:
       kept states, as in :class:`Trajectory`;
     - ``batch.status`` (B,): 0 for a completed run, else the kernel's status
       (1 singular Jacobian, 2 Newton's iteration cap, 3 non-finite value, 5 Newton stalled
-      above the rounding floor, 6 a branch jump; ``STATUS_MESSAGES``); ``batch.ok``;
-      ``batch.failed_step`` (B,): the failing step s, −1 for a completed run;
+      above the rounding floor, 6 a branch jump; ``STATUS_MESSAGES``), or ``INTERRUPTED``
+      (10) for a run that Ctrl-C stopped (in the partial batch of an interrupted call);
+      ``batch.ok``; ``batch.failed_step`` (B,): the failing step s (the step an interrupted
+      run reached), −1 for a completed run;
     - ``batch[b]``: run b as a :class:`Trajectory` (a failed run: up to state s, as
       ``err.trajectory`` of the error ``simulate`` raises); ``batch.error(b)``: that error;
     - ``batch.final_states`` (B, n_known): the last state each run reached;
@@ -361,7 +371,9 @@ class TrajectoryBatch:
     """
 
     def __init__(self, sim, raw: BatchRun, parameters: np.ndarray, steps: int, every: int,
-                 options: NewtonOptions | None = None):
+                 options: NewtonOptions | None = None, *, fill: bool = True):
+        """(``fill=False`` leaves the rows past each run's end as they are: for a caller
+        that hands out each run's own rows only, ``batch[b]``, as sweeps do.)"""
         self._sim = sim
         self._options = sim.options if options is None else options
         self._raw = raw
@@ -374,7 +386,8 @@ class TrajectoryBatch:
         self.status = raw.status.astype(np.int64)
         self.failed_step = raw.failed_step
         rows = self.states.shape[1]
-        short = np.flatnonzero(self.kept < rows) if self.states.flags.writeable else ()
+        short = np.flatnonzero(self.kept < rows) if fill and self.states.flags.writeable \
+            else ()
         for b in short:
             k = int(self.kept[b])
             self.states[b, k:] = np.nan
@@ -434,6 +447,11 @@ class TrajectoryBatch:
         b = self._run(b)
         if self.status[b] == OK:
             return None
+        if self.status[b] == INTERRUPTED:
+            err = KeyboardInterrupt(f"{self._sim.name}: run {b} was interrupted at step "
+                                    f"{int(self.failed_step[b])}")
+            err.trajectory = self[b]
+            return err
         raw = self._raw
         run = self[b]
         err = self._sim._failure(int(self.status[b]), int(self.failed_step[b]),
@@ -451,41 +469,257 @@ class TrajectoryBatch:
                 f"{f', every {self.every}' if self.every != 1 else ''}, {failed} failed>")
 
 
-def _check_memory(sim, runs: int, rows: int, steps: int, every: int) -> None:
+def available_memory() -> int | None:
+    """Bytes this process may still allocate at most: the machine's physical memory,
+    lowered by what the address-space and data-segment limits (``ulimit -v``,
+    ``ulimit -d``) leave beyond what is mapped already; None when unknown."""
     try:
-        physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+        limit = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, ValueError, OSError):
-        return
-    needed = runs * rows * (8 * sim.layout.n_known + 16)
-    if physical > 0 and needed > physical:
-        from .._errors import TrajectoryTooLargeError
+        limit = None
+    try:
+        import resource
+    except ImportError:  # pragma: no cover - not POSIX
+        return limit
+    mapped = _mapped_bytes()
+    for which, used in (("RLIMIT_AS", mapped[0]), ("RLIMIT_DATA", mapped[1])):
+        soft = resource.getrlimit(getattr(resource, which))[0]
+        if soft not in (resource.RLIM_INFINITY, -1) and soft > 0:
+            room = max(soft - used, 0)
+            limit = room if limit is None else min(limit, room)
+    return limit if limit is None or limit > 0 else 0
 
-        raise TrajectoryTooLargeError(
-            f"{sim.name}: keeping {rows} states (steps={steps}, every={every}) of each of "
-            f"{runs} runs needs "
-            f"{needed / 2**30:.1f} GiB, more than this machine's memory "
-            f"({physical / 2**30:.1f} GiB); keep fewer with every=k, or reduce each run on "
-            f"the fly with sweep(..., reduce=...)")
+
+def _mapped_bytes() -> tuple[int, int]:
+    """(address space, data segment) this process has mapped, from /proc/self/statm
+    (zeros where it cannot be read)."""
+    try:
+        with open("/proc/self/statm") as f:
+            fields = f.read().split()
+        page = os.sysconf("SC_PAGE_SIZE")
+        return int(fields[0]) * page, int(fields[5]) * page
+    except (OSError, ValueError, IndexError):
+        return 0, 0
+
+
+def run_bytes(sim, rows: int) -> int:
+    """Bytes a run of a batch holds with ``rows`` kept states (states, Newton summaries and
+    its share of the per-run arrays)."""
+    return rows * (8 * sim.layout.n_known + 16) + 8 * (len(sim.equations.unknowns) + 6)
+
+
+#: what to do when the kept states do not fit
+KEEP_FEWER = "keep fewer with every=k, or reduce each run on the fly with sweep(..., reduce=...)"
+
+
+def _too_large(sim, runs: int, rows: int, steps: int, every: int, limit: int | None,
+               held: str = "", failed: Exception | None = None,
+               advice: str = KEEP_FEWER) -> Exception:
+    from .._errors import TrajectoryTooLargeError
+
+    needed = runs * run_bytes(sim, rows)
+    if failed is not None:
+        room = f"which could not be allocated ({type(failed).__name__}: {failed})"
+    elif limit is not None:
+        room = f"more than this process may allocate ({limit / 2**30:.1f} GiB)"
+    else:
+        room = "more than this process could allocate"
+    return TrajectoryTooLargeError(
+        f"{sim.name}: keeping {rows} states (steps={steps}, every={every}) of each of "
+        f"{runs} runs{held} needs {needed / 2**30:.1f} GiB, {room}; {advice}")
+
+
+def _check_memory(sim, runs: int, rows: int, steps: int, every: int, held: str = "",
+                  advice: str = KEEP_FEWER) -> None:
+    """A :class:`TrajectoryTooLargeError` up front when ``runs`` runs of ``rows`` kept
+    states would not fit in :func:`available_memory`."""
+    limit = available_memory()
+    if limit is not None and runs * run_bytes(sim, rows) > limit:
+        raise _too_large(sim, runs, rows, steps, every, limit, held, advice=advice)
+
+
+def _view(raw: BatchRun, a: int, z: int) -> BatchRun:
+    """Runs a … z − 1 of a batch's arrays (views)."""
+    return BatchRun(*(getattr(raw, name)[a:z] for name in BatchRun.__dataclass_fields__))
+
+
+class BatchProgress:
+    """A batch advanced in kernel calls of about :data:`CALL_SECONDS` each, by one or more
+    threads (lanes).
+
+    The runs go in groups of at most :data:`GROUP_RUNS` (fewer when that leaves a lane
+    idle); a lane takes the next group and advances it with
+    ``<prefix>_simulate_batch_until`` (one thread per call) in pieces of steps sized so
+    that a call takes about :data:`CALL_SECONDS` (the first piece one step, then at most
+    four times the last), the Newton warm start of every run carried in its cursor from
+    piece to piece, so the result is bitwise that of one ``<prefix>_simulate_batch`` call.
+    The kernel releases the GIL, so lanes run in parallel; between calls a lane sees
+    ``stop()`` (and Ctrl-C takes effect on the main thread); :meth:`so_far` is then the
+    partial batch.  The arrays of all runs are allocated up front: a
+    :class:`TrajectoryTooLargeError` (not a ``MemoryError``) when they cannot be.
+    """
+
+    def __init__(self, sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
+                 options: NewtonOptions | None, lanes: int = 1):
+        self.sim, self.kernel = sim, sim.kernel
+        self.S = np.ascontiguousarray(S, dtype=np.float64)
+        self.P = np.ascontiguousarray(P if len(P) > 1 else P[0], dtype=np.float64)
+        self.steps, self.every = int(steps), int(every)
+        self.options = options or sim.options
+        rows = batch_rows(steps, every)
+        try:
+            self.out = self.kernel._batch_buffers(len(S), steps, every)
+        except MemoryError as exc:
+            raise _too_large(sim, len(S), rows, steps, every, None, failed=exc) from None
+        B = len(S)
+        self.group_runs = max(1, min(GROUP_RUNS, -(-B // max(lanes, 1))))
+        self.lanes = max(1, min(lanes, -(-B // self.group_runs)))
+        self.next_run = 0
+        self.active: dict = {}  # lane → (first run, end, cursors) of the group it advances
+        self._lock = threading.Lock()
+
+    def _take(self, lane: int):
+        with self._lock:
+            a = self.next_run
+            if a >= len(self.S):
+                return None
+            z = min(len(self.S), a + self.group_runs)
+            group = (a, z, self.kernel.batch_cursors(z - a))
+            self.next_run = z
+            self.active[lane] = group
+            return group
+
+    def work(self, lane: int = 0, stop=None) -> bool:
+        """Lane ``lane``: advance groups until none is left (True) or ``stop()`` (False)."""
+        cost = None  # wall seconds per run-step of this lane
+        while True:
+            group = self._take(lane)
+            if group is None:
+                return True
+            a, z, cursors = group
+            view = _view(self.out, a, z)
+            P = self.P[a:z] if self.P.ndim == 2 else self.P
+            until = 0
+            piece = 1 if cost is None else max(1, int(CALL_SECONDS / (cost * (z - a))))
+            while True:
+                target = min(self.steps, until + piece)
+                t0 = time.perf_counter()
+                self.kernel.batch_until(cursors, self.S[a:z], P, self.steps, self.every,
+                                        target, self.options, view, 1)
+                seconds = time.perf_counter() - t0
+                if target > until and seconds > 0:
+                    cost = seconds / ((z - a) * (target - until))
+                    piece = max(1, min(4 * piece, int(CALL_SECONDS / (cost * (z - a)))))
+                else:
+                    piece *= 4
+                until = target
+                if until >= self.steps:
+                    break
+                if stop is not None and stop():
+                    return False
+            self.kernel.batch_sync(cursors, view)
+            del self.active[lane]
+            if stop is not None and self.next_run < len(self.S) and stop():
+                return False
+
+    def run(self, stop=None) -> bool:
+        """Every lane (the first on this thread, the others on threads of their own) until
+        the batch is done (True) or ``stop()`` (False).  Ctrl-C: the other lanes are
+        stopped after their current call, then the ``KeyboardInterrupt`` propagates."""
+        if self.lanes == 1:
+            return self.work(0, stop)
+        halt = threading.Event()
+
+        def halted() -> bool:
+            return halt.is_set() or (stop is not None and stop())
+
+        errors: list = []
+
+        def lane_work(lane: int) -> None:
+            try:
+                self.work(lane, halted)
+            except BaseException as exc:  # noqa: BLE001 - re-raised on the calling thread
+                errors.append(exc)
+                halt.set()
+
+        threads = [threading.Thread(target=lane_work, args=(lane,), daemon=True,
+                                    name=f"symgroupoid-batch-{lane}")
+                   for lane in range(1, self.lanes)]
+        for thread in threads:
+            thread.start()
+        try:
+            self.work(0, halted)
+            for thread in threads:
+                while thread.is_alive():
+                    thread.join(0.1)
+        finally:
+            halt.set()
+            for thread in threads:
+                thread.join()
+        if errors:
+            raise errors[0]
+        return self.next_run >= len(self.S) and not self.active
+
+    def so_far(self) -> BatchRun:
+        """The partial batch: completed and failed runs as they are, a run being advanced
+        with the state it reached appended (status ``INTERRUPTED``, ``failed_step`` that
+        step), a run not begun with state 0 (step 0); rows up to the furthest run's."""
+        out = self.out
+        kept, status, failed = out.kept.copy(), out.status.copy(), out.failed_step.copy()
+        for a, z, cursors in list(self.active.values()):
+            view = _view(out, a, z)
+            self.kernel.batch_sync(cursors, view)
+            kept[a:z], status[a:z], failed[a:z] = view.kept, view.status, view.failed_step
+            reached = self.kernel.batch_reached(cursors, view)
+            for j in np.flatnonzero((view.status == OK) & (view.kept > 0)):
+                b = a + j
+                if reached["done"][j] >= self.steps:
+                    continue
+                if reached["done"][j] != reached["last_kept"][j]:  # the state reached
+                    r = int(kept[b])
+                    out.states[b, r] = reached["known"][j]
+                    out.iterations[b, r - 1] = reached["carry_iterations"][j]
+                    out.residual_norms[b, r - 1] = reached["carry_norm"][j]
+                    kept[b] = r + 1
+                status[b], failed[b] = INTERRUPTED, reached["done"][j]
+        fresh = np.flatnonzero((status == OK) & (kept == 0))
+        out.states[fresh, 0] = self.S[fresh]
+        kept[fresh], status[fresh], failed[fresh] = 1, INTERRUPTED, 0
+        rows = max(int(kept.max(initial=1)), 1)  # (no row past the furthest run)
+        return BatchRun(out.states[:, :rows], out.iterations[:, :rows - 1],
+                        out.residual_norms[:, :rows - 1], kept, status, failed,
+                        out.failed_iterations, out.failed_residual_norms, out.last_iterate)
+
+
+def usable_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):  # pragma: no cover - not Linux
+        return os.cpu_count() or 1
+
+
+def batch_lanes(sim, threads: int | None) -> int:
+    """Threads a batch runs on: ``threads``, or every core this process may use (one for
+    the NumPy backend, which holds the GIL)."""
+    if sim.backend != "c":
+        return 1
+    return usable_cores() if threads is None else threads
 
 
 def run_batch(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
-              options: NewtonOptions | None, threads: int | None) -> BatchRun:
-    """Checked tables in, raw batch out: kernel calls of at most :data:`CALL_WORK`
-    trajectory-steps each (whole runs; at least a few runs per thread)."""
-    options = options or sim.options
-    B = len(S)
-    per_call = max(8 * (threads or os.cpu_count() or 1), CALL_WORK // max(steps, 1))
-    if B <= per_call:
-        return sim.kernel.simulate_batch(S, P if len(P) > 1 else P[0], steps, every, options,
-                                         threads)
-    out = sim.kernel._batch_buffers(B, steps, every)
-    for a in range(0, B, per_call):
-        z = min(B, a + per_call)
-        part = sim.kernel.simulate_batch(S[a:z], P[a:z] if len(P) > 1 else P[0], steps, every,
-                                         options, threads)
-        for name in BatchRun.__dataclass_fields__:
-            getattr(out, name)[a:z] = getattr(part, name)
-    return out
+              options: NewtonOptions | None, threads: int | None, stop=None) -> BatchRun:
+    """Checked tables in, raw batch out (:class:`BatchProgress` on ``threads`` lanes):
+    Ctrl-C takes effect within a kernel call, the ``KeyboardInterrupt`` carrying
+    ``.raw_batch``, the partial batch; ``stop()`` (asked between calls) ends it early, with
+    the partial batch as the result."""
+    progress = BatchProgress(sim, S, P, steps, every, options, batch_lanes(sim, threads))
+    try:
+        complete = progress.run(stop)
+    except KeyboardInterrupt as interrupt:
+        interrupt.raw_batch = progress.so_far()
+        raise
+    return progress.out if complete else progress.so_far()
 
 
 def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
@@ -507,5 +741,9 @@ def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
 
     check_constraints(sim, S, P, INITIAL_CONSTRAINT_TOLERANCE)
     _check_memory(sim, len(S), batch_rows(steps, every), steps, every)
-    raw = run_batch(sim, S, P, steps, every, options, threads)
+    try:
+        raw = run_batch(sim, S, P, steps, every, options, threads)
+    except KeyboardInterrupt as interrupt:
+        interrupt.batch = TrajectoryBatch(sim, interrupt.raw_batch, P, steps, every, options)
+        raise
     return TrajectoryBatch(sim, raw, P, steps, every, options)

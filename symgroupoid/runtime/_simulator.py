@@ -192,14 +192,18 @@ class Simulator:
         an error names the row).  ``every`` keeps state 0, every e-th state and the last, as
         in :meth:`simulate`.
 
-        The compiled kernel advances all runs in one call of ``<prefix>_simulate_batch``,
-        each run by the same code as :meth:`simulate` (bitwise the same states, iterations
-        and residual norms), shared among ``threads`` OpenMP threads (None: all cores; an
-        integer 1 … ``MAX_THREADS`` = 1024, never more than one per run) when the kernel was
-        built with OpenMP.  A run that fails stops alone: its status, failing
-        step and the error :meth:`simulate` would raise are recorded, the others go on.
-        Returns a :class:`~symgroupoid.runtime._batch.TrajectoryBatch` (``batch[b]`` is run b
-        as a :class:`Trajectory`).
+        The compiled kernel advances the runs by ``<prefix>_simulate_batch_until``, each run
+        by the same code as :meth:`simulate` (bitwise the same states, iterations and
+        residual norms), in calls of about 0.05 s with the Newton warm start carried across
+        them, the runs shared among ``threads`` threads (None: all cores; an integer 1 …
+        ``MAX_THREADS`` = 1024, never more than the groups of runs; the kernel releases the
+        GIL).  A run that fails stops alone: its status, failing step and the error
+        :meth:`simulate` would raise are recorded, the others go on.  Ctrl-C takes effect
+        within a call: the ``KeyboardInterrupt`` carries ``.batch``, each run up to the step
+        it reached (status ``INTERRUPTED``).  A :class:`TrajectoryTooLargeError` when the
+        states to keep do not fit in memory.  Returns a
+        :class:`~symgroupoid.runtime._batch.TrajectoryBatch` (``batch[b]`` is run b as a
+        :class:`Trajectory`).
         """
         from ._batch import simulate_batch
 

@@ -2,29 +2,36 @@
 
 :func:`sweep` runs a compiled simulator over the product (or the zip) of a table of initial
 states and a table of parameter sets; :func:`sweep_boundary_value` solves a boundary-value
-problem for each combination of start, end and parameters.  Runs are grouped into chunks
-(tasks); a task advances its runs with :meth:`Simulator.simulate_batch` (one kernel call)
-and, with ``reduce``, returns only ``reduce(trajectory)`` of each run, so memory grows with
-what is kept, not with the trajectories.
+problem for each combination of start, end and parameters.  Runs are grouped into tasks; a
+task advances its runs with :meth:`Simulator.simulate_batch`'s machinery and, with
+``reduce``, keeps only ``reduce(trajectory)`` of each run: its runs are simulated in parts of
+at most about :data:`BATCH_BYTES` of kept states and reduced run by run, so memory grows
+with what is kept, not with the trajectories.
 
-Where the tasks run:
+Where the tasks run (see :mod:`._executors`):
 
+- ``executor="thread"`` (the default): ``workers`` threads (default: all cores) call the
+  compiled kernel, which releases the GIL, while the calling thread reduces the runs as
+  they come.  Nothing is pickled (``reduce`` may be any function, a lambda or a closure) and
+  nothing is imported again: a plain script runs as written, without a ``__main__`` guard.
+  With ``workers=1``, or one task, the calling thread does everything.
+- ``executor="process"``: worker processes that import symgroupoid, never the user's
+  script; ``reduce`` travels with cloudpickle when installed (lambdas, functions of the
+  script), else with pickle (then it must be importable from a module).  A reduce that may
+  crash or hang its process belongs here: a worker that dies is replaced and the runs of
+  its task are run again one by one to find and record the run that killed it
+  (status :data:`WORKER_DIED`); a task over ``timeout`` is stopped with its worker.
 - ``client=`` a ``dask.distributed.Client``: on its cluster.  The simulator travels as its
   generated C, flags and content hash (:mod:`._pickle`), once per worker: each worker builds
   the kernel into its own cache, or loads it from there, and reuses it for all its tasks.
   A worker lost mid-sweep is survived through Dask's rescheduling of its tasks; results are
   placed by run index, so no run is lost or counted twice.
-- otherwise a local process pool over ``workers`` processes (default: all cores), started
-  with ``spawn`` (scripts that call :func:`sweep` need the ``if __name__ == "__main__":``
-  guard); with ``workers=1``, or when the whole sweep is estimated to take under
-  ``IN_PROCESS_SECONDS``, the tasks run in this process (the kernel then shares runs among
-  OpenMP threads).
 
-``reduce`` and the simulator are sent to the workers with cloudpickle when it is installed
-(it comes with ``dask[distributed]``), so ``reduce`` may be a lambda or a closure; without
-cloudpickle it must be a module-level function.  A run that fails (a singular Jacobian,
-Newton not converging, a non-finite value) is a result: its status and failing step are
-recorded and the sweep goes on.  Errors in the inputs are raised before any run starts.
+A run that fails (a singular Jacobian, Newton not converging, a non-finite value) is a
+result: its status and failing step are recorded and the sweep goes on.  Errors in the
+inputs are raised before any run starts.  Ctrl-C stops a sweep within about a second: the
+``KeyboardInterrupt`` carries ``.result``, the :class:`SweepResult` of the runs completed so
+far (the others with status :data:`INTERRUPTED`).
 """
 
 from __future__ import annotations
@@ -32,10 +39,8 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import pickle
 import sys
 import time
-import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
@@ -46,6 +51,7 @@ from .._arguments import (
     choice_argument,
     flag_argument,
     instance_argument,
+    real_argument,
 )
 from .._errors import (
     CallableError,
@@ -57,7 +63,7 @@ from .._errors import (
     SingularJacobianError,
     SymgroupoidError,
 )
-from ._backends import OK, NewtonOptions, batch_rows
+from ._backends import INTERRUPTED, OK, BatchRun, NewtonOptions, batch_rows
 from ._batch import (
     TrajectoryBatch,
     _at_row,
@@ -65,23 +71,32 @@ from ._batch import (
     check_constraints,
     parameter_table,
     run_batch,
+    run_bytes,
     state_table,
+    usable_cores,
 )
+from ._executors import TIMED_OUT, WORKER_DIED, execute
 from ._validate import integer_argument, system_argument
 
 COMBINE = ("product", "zip")
+#: where the tasks of a local sweep run (see the module docstring)
+EXECUTORS = ("thread", "process")
 #: the options of :func:`solve_boundary_value` a boundary-value sweep passes on
 SOLVER_OPTIONS = ("tol", "tol_step", "max_iterations")
-#: a sweep estimated below this many seconds of work runs in this process
-IN_PROCESS_SECONDS = 2.0
-#: per-task overhead assumed when sizing chunks (seconds): a local pool, a Dask cluster
-TASK_OVERHEAD = {"local": 2e-3, "dask": 2e-2, "serial": 1e-4}
+#: per-task overhead assumed when sizing tasks (seconds)
+TASK_OVERHEAD = {"thread": 2e-4, "process": 2e-3, "dask": 2e-2, "serial": 1e-4}
 #: the overhead a task may cost, as a fraction of its work
 OVERHEAD_FRACTION = 0.05
-#: tasks per worker aimed at (load balance), and tasks in flight per worker at most
-TASKS_PER_WORKER, IN_FLIGHT_PER_WORKER = 4, 4
+#: tasks per worker aimed at (load balance)
+TASKS_PER_WORKER = 4
+#: kept states a part of a task holds at once with ``reduce`` (bytes; at least one run)
+BATCH_BYTES = 1 << 24
 #: status of a boundary-value run that met the cut locus of the chart
 CUT_LOCUS = 5
+#: the statuses of runs stopped from outside (not kernel statuses; see SweepResult)
+STOPPED = {INTERRUPTED: "the sweep was interrupted (Ctrl-C)",
+           TIMED_OUT: "its task exceeded the sweep's timeout",
+           WORKER_DIED: "its worker process died while running it"}
 
 
 class ReduceError(SymgroupoidError, RuntimeError):
@@ -97,9 +112,14 @@ class SweepResult:
     ``shape``: product: (number of initial states, number of parameter sets), zip: (number
     of runs,); an axis is absent when its input was a single state or set.  Per run:
 
-    - ``status``: 0 completed, else the reason it stopped (1 singular Jacobian, 2 Newton not
-      converged, 3 non-finite value; boundary-value runs: 5 the cut locus of the chart);
-      ``ok``: ``status == 0``; ``failed_step``: the failing step (−1 if none; simulations);
+    - ``status``: 0 completed, else the reason it stopped (1 singular Jacobian, 2 Newton's
+      iteration cap, 3 non-finite value, 5 Newton stalled, 6 a branch jump — the kernel's
+      ``STATUS_MESSAGES``; boundary-value runs: 2 not converged, 5 the cut locus of the chart;
+      stopped from outside: 10 ``INTERRUPTED`` — not run to its end because the sweep was
+      interrupted, in the partial result of a ``KeyboardInterrupt``, 11 ``TIMED_OUT`` — its
+      task exceeded ``timeout``, 12 ``WORKER_DIED`` — its worker process died while running
+      it, alone); ``ok``: ``status == 0``; ``failed_step``: the failing step (the step a
+      stopped run reached; −1 if none or unknown; simulations);
     - ``values`` (shape + the shape of one value): ``reduce``'s value of each run (a failed
       run, not reduced unless ``reduce_failures``, holds NaN for numeric values, None
       otherwise — check ``ok``); without ``reduce``: ``trajectories`` (simulations: each run's
@@ -221,21 +241,8 @@ def _grid(combine: str, n_states: int, n_params: int, one_state: bool,
 
 
 @dataclass
-class SimulationTask:
-    """What every task of a simulation sweep shares (sent once per worker)."""
-
-    simulator: object
-    steps: int
-    every: int
-    options: NewtonOptions | None
-    reduce: Callable | None
-    reduce_failures: bool
-    threads: int | None = 1
-
-
-@dataclass
 class ChunkResult:
-    """What a task returns: per run of the chunk its status, failure data, and its value or
+    """What a task returns: per run of the task its status, failure data, and its value or
     the raw arrays of its trajectory."""
 
     first: int
@@ -243,65 +250,122 @@ class ChunkResult:
     failed_step: np.ndarray
     messages: list
     values: list | None
-    raw: object = None
+    raw: BatchRun | None = None
 
 
-def run_simulation_chunk(task: SimulationTask, first: int, S: np.ndarray,
-                         P: np.ndarray) -> ChunkResult:
-    """Advance the runs ``first, first + 1, …`` (rows of S with the rows of P, or one P) in
-    one batch (single-threaded on a worker, which is one core), and reduce them."""
-    sim = task.simulator
-    raw = run_batch(sim, S, P, task.steps, task.every, task.options, task.threads)
-    batch = TrajectoryBatch(sim, raw, P, task.steps, task.every)
-    messages = [None if batch.status[b] == OK else str(batch.error(b))
-                for b in range(len(batch))]
-    values = None
-    if task.reduce is not None:
-        values = []
+@dataclass
+class SimulationJob:
+    """Runs ``first``, ``first + 1``, … of a simulation sweep: their initial states (rows
+    of S) and parameter sets (rows of P, or one row for all)."""
+
+    first: int
+    S: np.ndarray
+    P: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.S)
+
+    def parts(self, size: int) -> list[SimulationJob]:
+        """The job in consecutive parts of at most ``size`` runs."""
+        one = len(self.P) == 1
+        return [SimulationJob(self.first + a, self.S[a:a + size],
+                              self.P if one else self.P[a:a + size])
+                for a in range(0, len(self), max(size, 1))] or [self]
+
+    def split(self) -> list[SimulationJob]:
+        """Its runs one by one (none for a single run)."""
+        return self.parts(1) if len(self) > 1 else []
+
+    def lost(self, status: int, message: str) -> ChunkResult:
+        """The result of runs that have none (``status``, each run's ``message``)."""
+        n = len(self)
+        return ChunkResult(self.first, np.full(n, status, np.int64), np.full(n, -1, np.int64),
+                           [f"run {self.first + b}: {message}" for b in range(n)], [None] * n)
+
+
+def _detached(value):
+    """``value`` without references into a task's arrays: an array that is a view is
+    copied (also inside lists, tuples and dicts), so that a kept value does not keep the
+    states of a whole part of a task alive."""
+    if isinstance(value, np.ndarray):
+        return value.copy() if value.base is not None else value
+    if isinstance(value, (list, tuple)):
+        items = [_detached(v) for v in value]
+        if hasattr(value, "_fields"):  # a named tuple
+            return type(value)(*items)
+        return type(value)(items)
+    if isinstance(value, dict):
+        return type(value)((k, _detached(v)) for k, v in value.items())
+    return value
+
+
+@dataclass
+class SimulationTask:
+    """What every task of a simulation sweep shares (sent once per worker): the
+    simulator, the run's length and options, ``reduce``, and ``batch_runs``, the runs a
+    part of a task holds at once (see :func:`._executors.run_job`)."""
+
+    simulator: object
+    steps: int
+    every: int
+    options: NewtonOptions | None
+    reduce: Callable | None
+    reduce_failures: bool
+    batch_runs: int = 1 << 62
+
+    def simulate(self, job: SimulationJob, stop=None) -> BatchRun:
+        """The runs of ``job`` (one thread; ``stop()`` asked between kernel calls)."""
+        return run_batch(self.simulator, job.S, job.P, self.steps, self.every, self.options,
+                         1, stop)
+
+    def finish(self, job: SimulationJob, raw: BatchRun, cut: int | None = None
+               ) -> ChunkResult:
+        """Status, failing step and message of every run, and its reduced value (run by
+        run) or its raw arrays; runs stopped from outside get status ``cut`` (when
+        given)."""
+        sim = self.simulator
+        batch = TrajectoryBatch(sim, raw, job.P, self.steps, self.every, self.options,
+                                fill=False)
+        status = batch.status.copy()
+        messages = []
         for b in range(len(batch)):
-            if batch.status[b] != OK and not task.reduce_failures:
-                values.append(None)
-                continue
-            try:
-                values.append(task.reduce(batch[b]))
-            except Exception as exc:
-                raise ReduceError(f"{sim.name}: reduce raised on run {first + b}: "
-                                  f"{type(exc).__name__}: {exc}") from exc
+            if status[b] == INTERRUPTED:
+                status[b] = cut or INTERRUPTED
+                messages.append(f"{sim.name}: run {job.first + b}: not completed: "
+                                f"{STOPPED[int(status[b])]} (at step "
+                                f"{int(batch.failed_step[b])} of {self.steps})")
+            else:
+                messages.append(None if status[b] == OK else str(batch.error(b)))
+        values = None
+        if self.reduce is not None:
+            values = [self._reduced(batch, b, job.first + b, status[b])
+                      for b in range(len(batch))]
+            raw = None
+        return ChunkResult(job.first, status, batch.failed_step.copy(), messages, values, raw)
+
+    def _reduced(self, batch: TrajectoryBatch, b: int, run: int, status: int):
+        if status != OK and not self.reduce_failures:
+            return None
+        try:
+            return _detached(self.reduce(batch[b]))
+        except Exception as exc:
+            raise ReduceError(f"{self.simulator.name}: reduce raised on run {run}: "
+                              f"{type(exc).__name__}: {exc}") from exc
+
+    @staticmethod
+    def merge(results: list[ChunkResult]) -> ChunkResult:
+        """The results of consecutive parts of a job as one."""
+        if len(results) == 1:
+            return results[0]
+        raws = [r.raw for r in results]
         raw = None
-    return ChunkResult(first, batch.status.copy(), batch.failed_step.copy(), messages, values,
-                       raw)
-
-
-# --- executors ----------------------------------------------------------------------------------
-
-def _dumps(obj) -> bytes:
-    """``obj`` pickled for another process: cloudpickle when installed (lambdas, closures),
-    else pickle (module-level functions only)."""
-    try:
-        import cloudpickle
-    except ImportError:
-        cloudpickle = None
-    try:
-        return cloudpickle.dumps(obj) if cloudpickle else pickle.dumps(obj)
-    except (pickle.PicklingError, TypeError, AttributeError) as exc:
-        if isinstance(exc, SymgroupoidError):
-            raise
-        hint = "" if cloudpickle else (" (install cloudpickle to send lambdas and closures, "
-                                       "or use a module-level function)")
-        raise TypeError(f"the sweep's reduce function cannot be sent to the worker "
-                        f"processes: {exc}{hint}") from exc
-
-
-_WORKER_TASK = None
-
-
-def _init_worker(payload: bytes) -> None:
-    global _WORKER_TASK
-    _WORKER_TASK = pickle.loads(payload)
-
-
-def _pool_call(fn_name: str, *args):
-    return globals()[fn_name](_WORKER_TASK, *args)
+        if all(r is not None for r in raws):
+            raw = BatchRun(*(np.concatenate([getattr(r, f) for r in raws])
+                             for f in BatchRun.__dataclass_fields__))
+        values = None if results[0].values is None else [v for r in results for v in r.values]
+        return ChunkResult(results[0].first, np.concatenate([r.status for r in results]),
+                           np.concatenate([r.failed_step for r in results]),
+                           [m for r in results for m in r.messages], values, raw)
 
 
 class _Progress:
@@ -338,83 +402,7 @@ class _Progress:
             sys.stderr.flush()
 
 
-def _run_serial(fn, task, chunks, receive) -> None:
-    for args in chunks:
-        receive(fn(task, *args))
-
-
-def _run_pool(fn, task, chunks, receive, workers: int) -> None:
-    """The chunks on a spawned process pool; a pool that breaks (a worker killed) is started
-    again for the chunks without a result, up to three times."""
-    import multiprocessing
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-    from concurrent.futures.process import BrokenProcessPool
-
-    payload = _dumps(task)
-    pending = dict(enumerate(chunks))
-    workers = max(1, min(workers, len(pending)))  # no process without a task
-    for attempt in range(4):
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context,
-                                 initializer=_init_worker, initargs=(payload,)) as pool:
-            queue, flying = list(pending), {}
-            try:
-                while queue or flying:
-                    while queue and len(flying) < IN_FLIGHT_PER_WORKER * workers:
-                        k = queue.pop(0)
-                        flying[pool.submit(_pool_call, fn.__name__, *pending[k])] = k
-                    done, _ = wait(list(flying), return_when=FIRST_COMPLETED)
-                    for fut in done:
-                        k = flying.pop(fut)
-                        receive(fut.result())
-                        del pending[k]
-                return
-            except BrokenProcessPool:
-                if attempt == 3:
-                    raise
-
-
-def _run_dask(fn, task, chunks, receive, client) -> None:
-    """The chunks on a Dask cluster, at most a few tasks in flight per worker.  The shared
-    task is itself a task (recomputed if the workers holding it are lost)."""
-    from distributed import as_completed
-
-    token = uuid.uuid4().hex[:12]
-    held = client.submit(_hold, _dumps(task), key=f"symgroupoid-task-{token}", pure=False)
-    workers = max(1, len(client.nthreads()))
-    queue = list(enumerate(chunks))
-    limit = IN_FLIGHT_PER_WORKER * workers
-
-    def submit(item):
-        k, args = item
-        return client.submit(fn, held, *args, key=f"symgroupoid-chunk-{token}-{k}",
-                             pure=False)
-
-    flying = as_completed([submit(queue.pop(0)) for _ in range(min(limit, len(queue)))])
-    try:
-        for future in flying:
-            receive(future.result())
-            future.release()
-            if queue:
-                flying.add(submit(queue.pop(0)))
-    finally:
-        held.release()
-
-
-def _hold(payload: bytes):
-    return pickle.loads(payload)
-
-
-def _execute(fn, task, chunks: list, receive, *, client, workers: int, mode: str) -> None:
-    if mode == "dask":
-        _run_dask(fn, task, chunks, receive, client)
-    elif mode == "local":
-        _run_pool(fn, task, chunks, receive, workers)
-    else:
-        _run_serial(fn, task, chunks, receive)
-
-
-# --- chunk sizes --------------------------------------------------------------------------------
+# --- where, and in tasks of how many runs ------------------------------------------------------
 
 def chunk_runs(total: int, seconds_per_run: float, workers: int, mode: str,
                chunk_size: int | None = None) -> int:
@@ -440,38 +428,112 @@ def _seconds_per_run(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
     return (time.perf_counter() - t0) / n * (steps / k)
 
 
-#: the most worker processes of a local pool: four per core (at least 64)
+def _task_runs(sim, S, P, steps: int, every: int, options, total: int, workers: int,
+               mode: str, chunk_size: int | None, batch_runs: int) -> int:
+    """Runs per task: ``chunk_size``; on threads (no per-task cost to speak of) about
+    ``TASKS_PER_WORKER`` tasks per worker, each at most one part (``batch_runs``); on
+    processes and Dask, from a pilot run (:func:`chunk_runs`)."""
+    if chunk_size is not None:
+        return chunk_size
+    if mode in ("serial", "thread"):
+        balanced = math.ceil(total / (TASKS_PER_WORKER * max(workers, 1)))
+        return max(1, min(total, balanced, batch_runs))
+    return chunk_runs(total, _seconds_per_run(sim, S, P, steps, every, options), workers,
+                      mode)
+
+
+#: the most workers of a local sweep: four per core (at least 64)
 MAX_WORKERS = max(64, 4 * (os.cpu_count() or 1))
 
 
 def workers_argument(workers, owner: str) -> int:
-    """``workers``: an integer 1 … :data:`MAX_WORKERS` (a pool starts one process per
-    task up to this number, so a huge count would start thousands of processes)."""
+    """``workers``: an integer 1 … :data:`MAX_WORKERS` (a sweep starts one thread or process
+    per task up to this number, so a huge count would start thousands)."""
     return integer_argument(workers, "workers", minimum=1, maximum=MAX_WORKERS, owner=owner)
 
 
-def _mode(client, workers: int | None, estimate: float, portable: bool, owner: str
-          ) -> tuple[str, int]:
-    if client is not None:
-        if not portable:
-            from ._pickle import NotPortableError
+def timeout_argument(timeout, owner: str) -> float | None:
+    """``timeout``: None or a positive number of seconds (per task)."""
+    if timeout is None:
+        return None
+    value = real_argument(timeout, "timeout", minimum=0.0, owner=owner)
+    if not 0 < value < math.inf:
+        raise DomainError(f"{owner}: timeout must be a positive, finite number of seconds "
+                          f"(or None), got {timeout!r}")
+    return value
 
+
+def _placement(client, executor, workers, portable: bool, owner: str) -> tuple[str, int]:
+    """(where the tasks run — ``serial``, ``thread``, ``process`` or ``dask`` —, how many
+    workers)."""
+    from ._pickle import NotPortableError
+
+    if client is not None:
+        if executor is not None:
+            raise InputTypeError(f"{owner}: executor= chooses where a local sweep runs; with "
+                                 f"client= the tasks run on the Dask cluster (give one of "
+                                 f"them)")
+        if not portable:
             raise NotPortableError(f"{owner}: a NumPy-backend simulator cannot be sent to a "
                                    f"cluster; compile the step with backend='c'")
         return "dask", max(1, len(client.nthreads()))
-    explicit = workers is not None
-    workers = os.cpu_count() or 1 if workers is None else workers_argument(workers, owner)
-    if workers == 1 or (not explicit and estimate < IN_PROCESS_SECONDS):
-        return "serial", 1
-    if not portable:
-        if explicit:
-            from ._pickle import NotPortableError
-
+    executor = "thread" if executor is None else choice_argument(executor, EXECUTORS,
+                                                                 "executor", owner=owner)
+    n = usable_cores() if workers is None else workers_argument(workers, owner)
+    if executor == "process":
+        if not portable:
             raise NotPortableError(f"{owner}: a NumPy-backend simulator cannot be sent to "
                                    f"worker processes; compile the step with backend='c', "
-                                   f"or use workers=1")
+                                   f"or use executor='thread'")
+        if os.name != "posix":  # pragma: no cover - the workers' pipes are POSIX
+            raise InputTypeError(f"{owner}: executor='process' needs a POSIX system; use "
+                                 f"executor='thread'")
+        return "process", n
+    if not portable or n == 1:  # (NumPy kernels hold the GIL: threads would not help)
         return "serial", 1
-    return "local", workers
+    return "thread", n
+
+
+def _memory_plan(sim, steps: int, every: int, reduced: bool, total: int, mode: str,
+                 workers: int) -> int:
+    """Runs per part of a task (held at once by a worker), after checking that what the
+    sweep holds at once fits in memory (a :class:`TrajectoryTooLargeError` up front).
+
+    Without ``reduce`` every trajectory comes back: all of them must fit.  With it, a part
+    holds at most :data:`BATCH_BYTES` of kept states (at least one run); threads hold
+    ``2·workers + 1`` parts at once (being simulated, waiting, being reduced), each worker
+    process one."""
+    rows = batch_rows(steps, every)
+    if not reduced:
+        _check_memory(sim, total, rows, steps, every)
+        return 1 << 62
+    part = max(1, min(total, BATCH_BYTES // run_bytes(sim, rows)))
+    held = {"thread": 2 * workers + 1, "process": workers}.get(mode, 1)
+    runs = min(total, held * part)
+    advice = ("reduce receives each run's whole trajectory: keep fewer states with every=k "
+              "(or process a run this long on the fly with Simulator.stream)")
+    if runs > part:
+        advice += f", or use fewer workers (each holds a part of {part} run(s) at a time)"
+    _check_memory(sim, runs, rows, steps, every, held=" held at once", advice=advice)
+    return part
+
+
+def _check_sendable(reduce, owner: str) -> None:
+    """``reduce`` for worker processes: without cloudpickle, a function of the user's
+    script cannot travel (the workers never import the script)."""
+    if reduce is None or getattr(reduce, "__module__", None) != "__main__":
+        return
+    try:
+        import cloudpickle  # noqa: F401
+    except ImportError:
+        from ._pickle import NotPortableError
+
+        raise NotPortableError(
+            f"{owner}: executor='process' sends reduce to worker processes, which do not run "
+            f"your script; {getattr(reduce, '__qualname__', reduce)!r} is defined in it: "
+            f"install cloudpickle (pip install cloudpickle; it sends such functions by "
+            f"value), move reduce into a module you import, or use executor='thread'"
+        ) from None
 
 
 # --- simulation sweeps --------------------------------------------------------------------------
@@ -562,7 +624,8 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
           reduce: Callable | None = None, every: int = 1,
           options: NewtonOptions | None = None, reduce_failures: bool = False,
           client=None, workers: int | None = None, chunk_size: int | None = None,
-          progress=None) -> SweepResult:
+          progress=None, executor: str | None = None,
+          timeout: float | None = None) -> SweepResult:
     """Simulate every combination of initial states and parameter sets.
 
     Parameters
@@ -575,22 +638,34 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
     steps, every, options : as for :meth:`Simulator.simulate`.
     combine : ``"product"`` (every state with every set: shape (n, m)) or ``"zip"`` (the
         i-th state with the i-th set: shape (n,); a single state or set goes with all).
-    reduce : ``reduce(trajectory) -> value``, applied on the worker to each completed run
-        (and to the partial trajectory of a failed run with ``reduce_failures``); only its
-        value comes back.  Without it every :class:`Trajectory` comes back.
-    client : a ``dask.distributed.Client``: run on its cluster.  Otherwise a local process
-        pool of ``workers`` processes (default: all cores; see the module docstring for
-        when a sweep runs in this process instead).
-    chunk_size : runs per task (default: sized from a short pilot run so the per-task
-        overhead stays below 5 % of the work; see :func:`chunk_runs`).
+    reduce : ``reduce(trajectory) -> value``, applied to each completed run (and to the
+        partial trajectory of a failed or stopped run with ``reduce_failures``), run by run
+        as the runs come; only its value is kept (arrays that are views are copied).
+        Without it every :class:`Trajectory` comes back.
+    executor : where a local sweep runs: ``"thread"`` (default: ``workers`` threads run the
+        kernel, this thread reduces; nothing is pickled, a plain script needs no
+        ``__main__`` guard) or ``"process"`` (worker processes, for a reduce that may crash
+        or hang its process; see the module docstring).
+    client : a ``dask.distributed.Client``: run on its cluster.
+    workers : threads or processes (default: all cores; 1 runs everything in this thread).
+    chunk_size : runs per task (default: about four tasks per worker, each holding at most
+        about :data:`BATCH_BYTES` of kept states with ``reduce``; on processes and Dask
+        sized from a short pilot run so the per-task overhead stays below 5 % of the work,
+        see :func:`chunk_runs`).
+    timeout : seconds a task may take (default: no limit): the runs of a task still running
+        then are recorded with status ``TIMED_OUT`` (11) and the sweep goes on.  On threads
+        the simulation stops within a kernel call (a reduce is not stopped: use
+        ``executor="process"``, whose worker is killed); not with ``client``.
     progress : show a progress bar on stderr (default: when stderr is a terminal), or a
         callable ``progress(done, total)``.
 
     Every input is checked before any run starts (each state, each parameter set, and the
     constraints of every pair, as :meth:`Simulator.simulate` checks them; an error names
-    the row).  Returns a :class:`SweepResult`; a run that fails is recorded there, not
-    raised.  The results do not depend on where or in how many tasks the runs were made:
-    every run is computed as :meth:`Simulator.simulate` computes it.
+    the row); so is the memory the sweep will hold (a :class:`TrajectoryTooLargeError`).
+    Returns a :class:`SweepResult`; a run that fails is recorded there, not raised.  The
+    results do not depend on where or in how many tasks the runs were made: every run is
+    computed as :meth:`Simulator.simulate` computes it.  Ctrl-C stops the sweep within
+    about a second; the ``KeyboardInterrupt`` carries ``.result``, the runs done so far.
     """
     sim = _as_simulator(sim)
     owner = sim.name
@@ -604,6 +679,7 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
     reduce_failures = flag_argument(reduce_failures, "reduce_failures", owner=owner)
     client = client_argument(client, owner)
     progress = progress_argument(progress, owner)
+    timeout = _local_timeout(timeout, client, owner)
     if chunk_size is not None:
         chunk_size = integer_argument(chunk_size, "chunk_size", minimum=1, owner=owner)
     S, one_state = state_table(sim, initial)
@@ -611,57 +687,108 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
     grid = _grid(combine, len(S), len(P), one_state, one_param, sim.name)
     _validated_pairs(sim, S, P, grid)
     total = grid.size
-    # every trajectory comes back without reduce; with it, a task holds its runs' states
-    _check_memory(sim, total if reduce is None else 1, batch_rows(steps, every), steps,
-                  every)
-    per_run = _seconds_per_run(sim, S, P, steps, every, options)
-    mode, workers = _mode(client, workers, per_run * total, sim.backend == "c", sim.name)
-    size = chunk_runs(total, per_run, workers, mode, chunk_size)
-    chunks = []
+    mode, workers = _placement(client, executor, workers, sim.backend == "c", owner)
+    if mode == "process":
+        _check_sendable(reduce, owner)
+    batch_runs = _memory_plan(sim, steps, every, reduce is not None, total, mode, workers)
+    size = _task_runs(sim, S, P, steps, every, options, total, workers, mode, chunk_size,
+                      batch_runs)
+    jobs = []
     for a in range(0, total, size):
-        b = min(total, a + size)
-        i, j = grid.rows(a, b)
-        chunks.append((a, S[i], P[j] if len(P) > 1 else P[:1]))
-    task = SimulationTask(sim, steps, every, options, reduce, reduce_failures,
-                          None if mode == "serial" else 1)
-    status, failed, messages = _collect(grid.shape, total)
-    filled = np.zeros(total, dtype=bool)
-    value_parts: list = []
+        i, j = grid.rows(a, min(total, a + size))
+        jobs.append(SimulationJob(a, S[i], P[j] if len(P) > 1 else P[:1]))
+    task = SimulationTask(sim, steps, every, options, reduce, reduce_failures, batch_runs)
+    collected = _Collected(sim.name, grid.shape, total, _Progress(total, progress,
+                                                                   f"sweep {sim.name}"))
     trajectories = np.empty(total, dtype=object) if reduce is None else None
-    bar = _Progress(total, progress, f"sweep {sim.name}")
 
     def receive(res: ChunkResult) -> None:
         n = len(res.status)
-        where = slice(res.first, res.first + n)
-        if filled[where].any():
-            raise RuntimeError(f"internal error: runs {res.first}..{res.first + n - 1} "
-                               f"received twice")
-        filled[where] = True
-        status[where], failed[where] = res.status, res.failed_step
-        messages[where] = res.messages
-        if res.values is not None:
-            value_parts.append((res.first, res.values))
-        if trajectories is not None:
+        if trajectories is not None and res.raw is not None:
             i, j = grid.rows(res.first, res.first + n)
-            batch = TrajectoryBatch(sim, res.raw, P[j] if len(P) > 1 else P[:1], steps, every)
+            batch = TrajectoryBatch(sim, res.raw, P[j] if len(P) > 1 else P[:1], steps, every,
+                                    options, fill=False)
             for b in range(n):
                 trajectories[res.first + b] = batch[b]
-        bar.update(n)
+        collected.place(res.first, n, res.status, res.failed_step, res.messages, res.values)
+        collected.bar.update(n)
 
-    t0 = time.perf_counter()
-    try:
-        _execute(run_simulation_chunk, task, chunks, receive, client=client, workers=workers,
-                 mode=mode)
-    finally:
-        bar.close()
-    if not filled.all():
-        raise RuntimeError(f"internal error: {int((~filled).sum())} runs without a result")
-    shape = grid.shape
-    return SweepResult(
-        shape, combine, status.reshape(shape), failed.reshape(shape), messages.reshape(shape),
-        _stack_values(value_parts, status, shape) if reduce is not None else None,
-        trajectories.reshape(shape) if trajectories is not None else None, None,
-        S, P, list(sim.parameter_names), grid.index, time.perf_counter() - t0, len(chunks))
+    def result(partial: bool) -> SweepResult:
+        status, failed, messages = collected.arrays(partial)
+        shape = grid.shape
+        return SweepResult(
+            shape, combine, status, failed, messages,
+            _stack_values(collected.values, status.reshape(-1), shape)
+            if reduce is not None else None,
+            trajectories.reshape(shape) if trajectories is not None else None, None,
+            S, P, list(sim.parameter_names), grid.index, collected.seconds(), len(jobs))
+
+    collected.run(lambda: execute(mode, task, jobs, receive, workers=workers,
+                                  timeout=timeout, client=client), result)
+    return result(False)
+
+
+class _Collected:
+    """The results of a sweep as they come (placed by run index, each run once), and the
+    partial result of an interrupted sweep."""
+
+    def __init__(self, name: str, shape: tuple, total: int, bar: _Progress):
+        self.name, self.shape, self.bar = name, shape, bar
+        self.status, self.failed, self.messages = _collect(shape, total)
+        self.filled = np.zeros(total, dtype=bool)
+        self.values: list = []
+        self.t0 = time.perf_counter()
+        self.t1: float | None = None
+
+    def place(self, first: int, n: int, status, failed, messages, values) -> None:
+        """Runs first … first + n − 1, marked received last (a Ctrl-C in between leaves
+        them out of the partial result, never half in)."""
+        where = slice(first, first + n)
+        if self.filled[where].any():
+            raise RuntimeError(f"internal error: runs {first}..{first + n - 1} received "
+                               f"twice")
+        self.status[where], self.failed[where] = status, failed
+        self.messages[where] = messages
+        if values is not None:
+            self.values.append((first, values))
+        self.filled[where] = True
+
+    def seconds(self) -> float:
+        return (self.t1 or time.perf_counter()) - self.t0
+
+    def run(self, work, result) -> None:
+        """``work()``; a ``KeyboardInterrupt`` leaves with ``.result``, the partial
+        :class:`SweepResult`."""
+        try:
+            work()
+        except KeyboardInterrupt as interrupt:
+            self.t1 = time.perf_counter()
+            interrupt.result = result(True)
+            raise
+        finally:
+            self.t1 = self.t1 or time.perf_counter()
+            self.bar.close()
+
+    def arrays(self, partial: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """status, failed step and messages in the sweep's shape; in a partial result the
+        runs without a result are ``INTERRUPTED``."""
+        missing = np.flatnonzero(~self.filled)
+        if len(missing) and not partial:
+            raise RuntimeError(f"internal error: {len(missing)} runs without a result")
+        status, failed, messages = self.status.copy(), self.failed.copy(), self.messages.copy()
+        status[missing] = INTERRUPTED
+        for r in missing:
+            messages[r] = f"{self.name}: run {r}: not run: {STOPPED[INTERRUPTED]}"
+        return (status.reshape(self.shape), failed.reshape(self.shape),
+                messages.reshape(self.shape))
+
+
+def _local_timeout(timeout, client, owner: str) -> float | None:
+    timeout = timeout_argument(timeout, owner)
+    if timeout is not None and client is not None:
+        raise InputTypeError(f"{owner}: timeout= limits the tasks of a local sweep (threads "
+                             f"or processes); on a Dask cluster use Dask's own limits")
+    return timeout
 
 
 # --- boundary-value sweeps ----------------------------------------------------------------------
@@ -681,6 +808,29 @@ class _ParameterOwner:
 
 
 @dataclass
+class BoundaryValueJob:
+    """Chains of boundary-value runs (each a list of (run, start, end, parameters), solved
+    in order: a continuation passes each solution on to the next)."""
+
+    chains: list
+
+    def __len__(self) -> int:
+        return sum(len(chain) for chain in self.chains)
+
+    def parts(self, size: int) -> list[BoundaryValueJob]:
+        return [self]
+
+    def split(self) -> list[BoundaryValueJob]:
+        """Its chains one by one (none for a single chain, whose runs depend on each
+        other)."""
+        return [BoundaryValueJob([c]) for c in self.chains] if len(self.chains) > 1 else []
+
+    def lost(self, status: int, message: str) -> list:
+        return [(item[0], status, f"run {item[0]}: {message}", None, None)
+                for chain in self.chains for item in chain]
+
+
+@dataclass
 class BoundaryValueTask:
     """What every task of a boundary-value sweep shares (sent once per worker)."""
 
@@ -691,6 +841,70 @@ class BoundaryValueTask:
     reduce: Callable | None
     reduce_failures: bool
     continuation: bool
+    batch_runs: int = 1 << 62
+
+    def simulate(self, job: BoundaryValueJob, stop=None) -> list:
+        """Solve the runs of the job's chains; within a chain with continuation, each
+        solve starts from the previous converged solution (falling back to the default
+        initial path).  ``stop()`` is asked between solves (the runs left are returned as
+        stopped).  Returns (run, status, solution or error) per run."""
+        out = []
+        for chain in job.chains:
+            previous = None
+            for r, start, end, p in chain:
+                if stop is not None and stop():
+                    out.append((r, INTERRUPTED, None))
+                    continue
+                sol, err = self._solve(r, start, end, p, previous)
+                if sol is not None:
+                    previous = (sol.arrows, sol.multipliers)
+                out.append((r, OK, sol) if err is None else (r, _bvp_status(err), err))
+        return out
+
+    def _solve(self, r: int, start, end, p, previous):
+        from ._bvp import solve_boundary_value
+
+        if self.continuation and previous is not None:
+            try:
+                return solve_boundary_value(self.system, start, end, self.steps,
+                                            guess=previous, params=p,
+                                            **self.solver_options), None
+            except SymgroupoidError:
+                pass
+        try:
+            return solve_boundary_value(self.system, start, end, self.steps, guess=self.guess,
+                                        params=p, **self.solver_options), None
+        except (SingularJacobianError, NewtonDivergenceError, CutLocusError) as exc:
+            return None, exc
+        except SymgroupoidError as exc:
+            raise _at_row(exc, "boundary-value run", r) from exc
+
+    def finish(self, job: BoundaryValueJob, raw: list, cut: int | None = None) -> list:
+        """(run, status, message, value, solution data) per run: ``reduce`` of each
+        solution (and of a failure's error with ``reduce_failures``), or the solution's
+        data."""
+        out = []
+        for r, status, got in raw:
+            if status == INTERRUPTED:
+                status = cut or INTERRUPTED
+                out.append((r, status, f"run {r}: not completed: {STOPPED[status]}", None,
+                            None))
+                continue
+            value = data = None
+            if self.reduce is not None and (status == OK or self.reduce_failures):
+                try:
+                    value = _detached(self.reduce(got))
+                except Exception as exc:
+                    raise ReduceError(f"reduce raised on boundary-value run {r}: "
+                                      f"{type(exc).__name__}: {exc}") from exc
+            elif self.reduce is None and status == OK:
+                data = _solution_data(got)
+            out.append((r, status, None if status == OK else str(got), value, data))
+        return out
+
+    @staticmethod
+    def merge(results: list) -> list:
+        return [item for result in results for item in result]
 
 
 def _solution_data(sol) -> dict:
@@ -703,48 +917,6 @@ def _bvp_status(err: Exception) -> int:
     if isinstance(err, CutLocusError):
         return CUT_LOCUS
     return 2
-
-
-def run_boundary_value_chunk(task: BoundaryValueTask, chains: list) -> list:
-    """Solve the runs of ``chains`` (lists of (run, start, end, parameters)); within a chain
-    with continuation, each solve starts from the previous converged solution (falling
-    back to the default initial path).  Returns (run, status, message, value, data)."""
-    from ._bvp import solve_boundary_value
-
-    out = []
-    for chain in chains:
-        previous = None
-        for r, start, end, p in chain:
-            sol, err = None, None
-            if task.continuation and previous is not None:
-                try:
-                    sol = solve_boundary_value(task.system, start, end, task.steps,
-                                               guess=previous, params=p, **task.solver_options)
-                except SymgroupoidError:
-                    sol = None
-            if sol is None:
-                try:
-                    sol = solve_boundary_value(task.system, start, end, task.steps,
-                                               guess=task.guess, params=p,
-                                               **task.solver_options)
-                except (SingularJacobianError, NewtonDivergenceError, CutLocusError) as exc:
-                    err = exc
-                except SymgroupoidError as exc:
-                    raise _at_row(exc, "boundary-value run", r) from exc
-            if sol is not None:
-                previous = (sol.arrows, sol.multipliers)
-            value = data = None
-            if task.reduce is not None and (sol is not None or task.reduce_failures):
-                try:
-                    value = task.reduce(sol if sol is not None else err)
-                except Exception as exc:
-                    raise ReduceError(f"reduce raised on boundary-value run {r}: "
-                                      f"{type(exc).__name__}: {exc}") from exc
-            elif task.reduce is None and sol is not None:
-                data = _solution_data(sol)
-            out.append((r, OK if err is None else _bvp_status(err),
-                        None if err is None else str(err), value, data))
-    return out
 
 
 def _sequence(value, what: str, owner: str) -> list:
@@ -763,6 +935,7 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
                          reduce: Callable | None = None, reduce_failures: bool = False,
                          client=None, workers: int | None = None,
                          chunk_size: int | None = None, progress=None,
+                         executor: str | None = None, timeout: float | None = None,
                          **solver_options) -> SweepResult:
     """Solve :func:`solve_boundary_value` for many boundary data and parameter sets.
 
@@ -776,13 +949,16 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     task, each from the previous converged solution of the chain (its arrows and
     multipliers) — a continuation along a parameter — and, if that fails, from the default
     initial path (or ``guess``).  Chains run in parallel.  ``solver_options`` (``tol``,
-    ``tol_step``, ``max_iterations``) are passed on.
+    ``tol_step``, ``max_iterations``) are passed on.  ``executor``, ``workers``,
+    ``client``, ``chunk_size`` (chains per task), ``timeout`` and ``progress`` as for
+    :func:`sweep` (on threads a solve runs to its end: ``timeout`` and Ctrl-C take effect
+    between solves; with ``executor="process"`` the system travels with cloudpickle, its
+    window kernels then built into, or loaded from, each worker's kernel cache).
 
     A run that does not converge (singular Jacobian, divergence, cut locus) is recorded in
     ``status`` and ``messages``; errors in the inputs are raised.  Returns a
-    :class:`SweepResult` with ``solutions`` (or ``values`` with ``reduce``).  The system
-    travels to worker processes with cloudpickle (its symbolic definition; the window
-    kernels are then built into, or loaded from, each worker's kernel cache).
+    :class:`SweepResult` with ``solutions`` (or ``values`` with ``reduce``); Ctrl-C leaves
+    with ``.result`` on the ``KeyboardInterrupt``, the runs solved so far.
     """
     system = system_argument(step, "step", owner="sweep_boundary_value")
     owner = system.name
@@ -798,26 +974,13 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     reduce_failures = flag_argument(reduce_failures, "reduce_failures", owner=owner)
     client = client_argument(client, owner)
     progress = progress_argument(progress, owner)
+    timeout = _local_timeout(timeout, client, owner)
     if chunk_size is not None:
         chunk_size = integer_argument(chunk_size, "chunk_size", minimum=1, owner=owner)
     starts = _sequence(starts, "starts", owner)
     ends = _sequence(ends, "ends", owner)
     P, one_param = parameter_table(_ParameterOwner(system), params)
-    counts = [len(starts), len(ends), len(P)]
-    if combine == "product":
-        shape = (len(starts), len(ends)) + (() if one_param else (len(P),))
-        dims = (len(starts), len(ends), len(P))
-        runs = [tuple(int(v) for v in np.unravel_index(r, dims))
-                for r in range(int(np.prod(dims)))]
-    else:
-        n = max(counts)
-        if any(c not in (1, n) for c in counts):
-            raise ShapeError(f"{owner}: combine='zip' needs starts, ends and parameter sets "
-                             f"of one length (or 1); got {counts[0]}, {counts[1]}, "
-                             f"{counts[2]}")
-        shape = (n,)
-        runs = [(r if len(starts) > 1 else 0, r if len(ends) > 1 else 0,
-                 r if len(P) > 1 else 0) for r in range(n)]
+    shape, runs = _boundary_value_runs(combine, starts, ends, P, one_param, owner)
     total = len(runs)
     items = [(r, starts[i], ends[j], P[k]) for r, (i, j, k) in enumerate(runs)]
     if continuation:
@@ -825,48 +988,57 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
         chains = [items[a:a + length] for a in range(0, total, length)]
     else:
         chains = [[item] for item in items]
-    if client is not None:
-        mode, n_workers = "dask", max(1, len(client.nthreads()))
-    else:
-        n_workers = os.cpu_count() or 1 if workers is None else workers_argument(workers,
-                                                                                 owner)
-        mode = "serial" if n_workers == 1 else "local"
+    mode, n_workers = _placement(client, executor, workers, True, owner)
+    if mode == "process":
+        _check_sendable(reduce, owner)
     per_task = chunk_size or max(1, math.ceil(len(chains) / (TASKS_PER_WORKER * n_workers)))
-    tasks = [(chains[a:a + per_task],) for a in range(0, len(chains), per_task)]
+    jobs = [BoundaryValueJob(chains[a:a + per_task]) for a in range(0, len(chains), per_task)]
     task = BoundaryValueTask(system, steps, dict(solver_options), guess, reduce,
                              reduce_failures, continuation)
-    status, failed, messages = _collect(shape, total)
-    values: list = [None] * total
+    collected = _Collected(owner, shape, total, _Progress(total, progress,
+                                                          f"boundary values {owner}"))
     solutions = np.empty(total, dtype=object) if reduce is None else None
-    filled = np.zeros(total, dtype=bool)
-    bar = _Progress(total, progress, f"boundary values {owner}")
 
     def receive(results: list) -> None:
         from ._bvp import BoundaryValueSolution
 
         for r, st, message, value, data in results:
-            if filled[r]:
-                raise RuntimeError(f"internal error: run {r} received twice")
-            filled[r] = True
-            status[r], messages[r], values[r] = st, message, value
             if solutions is not None and data is not None:
                 solutions[r] = BoundaryValueSolution(system=system, **data)
-        bar.update(len(results))
+            collected.place(r, 1, st, -1, [message], None if reduce is None else [value])
+        collected.bar.update(len(results))
 
-    t0 = time.perf_counter()
-    try:
-        _execute(run_boundary_value_chunk, task, tasks, receive, client=client,
-                 workers=n_workers, mode=mode)
-    finally:
-        bar.close()
-    if not filled.all():
-        raise RuntimeError(f"internal error: {int((~filled).sum())} runs without a result")
     param_index = np.array([k for _, _, k in runs], dtype=np.int64)
-    stacked = None
-    if reduce is not None:
-        stacked = _stack_values([(0, values)], status, shape)
-    return SweepResult(
-        shape, combine, status.reshape(shape), failed.reshape(shape), messages.reshape(shape),
-        stacked, None, solutions.reshape(shape) if solutions is not None else None,
-        (starts, ends), P, [str(s) for s in system.parameters],
-        lambda r: (int(r), int(param_index[r])), time.perf_counter() - t0, len(tasks))
+
+    def result(partial: bool) -> SweepResult:
+        status, failed, messages = collected.arrays(partial)
+        stacked = None
+        if reduce is not None:
+            stacked = _stack_values(collected.values, status.reshape(-1), shape)
+        return SweepResult(
+            shape, combine, status, failed, messages, stacked, None,
+            solutions.reshape(shape) if solutions is not None else None,
+            (starts, ends), P, [str(s) for s in system.parameters],
+            lambda r: (int(r), int(param_index[r])), collected.seconds(), len(jobs))
+
+    collected.run(lambda: execute(mode, task, jobs, receive, workers=n_workers,
+                                  timeout=timeout, client=client), result)
+    return result(False)
+
+
+def _boundary_value_runs(combine: str, starts: list, ends: list, P: np.ndarray,
+                         one_param: bool, owner: str) -> tuple[tuple, list]:
+    """The result's shape and (start, end, parameter set) indices of each run."""
+    counts = [len(starts), len(ends), len(P)]
+    if combine == "product":
+        shape = (len(starts), len(ends)) + (() if one_param else (len(P),))
+        dims = (len(starts), len(ends), len(P))
+        return shape, [tuple(int(v) for v in np.unravel_index(r, dims))
+                       for r in range(int(np.prod(dims)))]
+    n = max(counts)
+    if any(c not in (1, n) for c in counts):
+        raise ShapeError(f"{owner}: combine='zip' needs starts, ends and parameter sets "
+                         f"of one length (or 1); got {counts[0]}, {counts[1]}, "
+                         f"{counts[2]}")
+    return (n,), [(r if len(starts) > 1 else 0, r if len(ends) > 1 else 0,
+                   r if len(P) > 1 else 0) for r in range(n)]
