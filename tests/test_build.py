@@ -140,7 +140,6 @@ def test_a_kernel_in_units_has_smaller_parts_unless_it_may_stay_in_one():
         UNROLLED_UNKNOWNS,
         unit_part_size,
     )
-
     from symgroupoid.stepper import library_source
 
     assert UNIT_PART_SIZE < PART_SIZE
