@@ -74,6 +74,15 @@ class CKernel(_Kernel):
             B, self._buf(known0, B * self.n_k, "known0"),
             self._buf(p, p.size, "p"), 0 if p.ndim == 1 else self.n_p, n_steps, every,
             self._options(options), self._buf(out.states, B * rows * self.n_k, "states"), rows,
+            *self._batch_outputs(out, B, rows), threads)
+        if status != OK:
+            raise ValueError(f"{self.prefix}_simulate_batch: {Status(int(status)).message}")
+        return out
+
+    def _batch_outputs(self, out, B: int, rows: int) -> tuple:
+        """The C views of a batch's per-step and per-run outputs, in the order of the
+        batched entry points' arguments after ``states, rows``."""
+        return (
             self._buf(out.iterations if rows > 1 else np.zeros(1, np.longlong),
                       max(B * (rows - 1), 1), "iterations", "long long"),
             self._buf(out.residual_norms if rows > 1 else np.zeros(1),
@@ -82,10 +91,7 @@ class CKernel(_Kernel):
             self._buf(out.failed_step, B, "failed_step", "long"),
             self._buf(out.failed_iterations, B, "failed_iterations", "int"),
             self._buf(out.failed_residual_norms, B, "failed_residual_norm"),
-            self._buf(out.last_iterate, B * self.n_u, "last_iterate"), threads)
-        if status != OK:
-            raise ValueError(f"{self.prefix}_simulate_batch: {Status(int(status)).message}")
-        return out
+            self._buf(out.last_iterate, B * self.n_u, "last_iterate"))
 
     def step_once(self, known: np.ndarray, p: np.ndarray, options: NewtonOptions
                   ) -> tuple[int, np.ndarray]:
@@ -140,15 +146,7 @@ class CKernel(_Kernel):
             B, cursors, self._buf(known0, B * self.n_k, "known0"), self._buf(p, p.size, "p"),
             0 if p.ndim == 1 else self.n_p, n_steps, every, until, self._options(options),
             self._buf(out.states, B * rows * self.n_k, "states"), rows,
-            self._buf(out.iterations if rows > 1 else np.zeros(1, np.longlong),
-                      max(B * (rows - 1), 1), "iterations", "long long"),
-            self._buf(out.residual_norms if rows > 1 else np.zeros(1),
-                      max(B * (rows - 1), 1), "residual_norms"),
-            self._buf(out.kept, B, "kept", "long"), self._buf(out.status, B, "status", "int"),
-            self._buf(out.failed_step, B, "failed_step", "long"),
-            self._buf(out.failed_iterations, B, "failed_iterations", "int"),
-            self._buf(out.failed_residual_norms, B, "failed_residual_norm"),
-            self._buf(out.last_iterate, B * self.n_u, "last_iterate"), threads)
+            *self._batch_outputs(out, B, rows), threads)
         if status != OK:
             raise ValueError(f"{self.prefix}_simulate_batch_until: "
                              f"{Status(int(status)).message}")
