@@ -137,7 +137,7 @@ class ContinuousLimit:
     @classmethod
     def of_system(cls, system) -> ContinuousLimit | None:
         """The limit of a first-order system's L_d, or None for a system of another order."""
-        fs = getattr(system, "_fs", None)
+        fs = getattr(system, "functions", None)
         if fs is None or len(fs.slots) != 1 or getattr(fs, "matrix_form", False):
             return None
         return cls(system.groupoid, fs.lagrangian, fs.slots[0], system.parameters,

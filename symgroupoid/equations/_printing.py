@@ -372,7 +372,7 @@ def _system_functions(system, matrix_form: bool):
     from ..derivation._step import evaluate_system
 
     if not matrix_form:
-        return system._fs
+        return system.functions
     return evaluate_system(system.name, system.groupoid, system.lagrangian, system.constraints,
                            system.parameters, arity=system._arity, matrix_form=True)
 
@@ -480,7 +480,7 @@ def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | 
     if (matrix_form or rule.kind != "midpoint" or system._arity != 1
             or 2 * len(coords) != G.arrow_dim):
         return None
-    fs = system._fs
+    fs = system.functions
     w = window_in_pieces(step, rule, fs, False, lagrangian=False)
     dummies = [(sp.Dummy(f"m{i}"), sp.Dummy(f"d{i}")) for i in range(len(coords))]
     on_slot = {}
@@ -1312,7 +1312,7 @@ def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]
     if system is None:
         return []
     try:
-        rule = best_rule(system._fs, pair_coordinates(step.groupoid), step.parameters)
+        rule = best_rule(system.functions, pair_coordinates(step.groupoid), step.parameters)
     except _NOT_IN_PIECES:
         return []
     out = []
