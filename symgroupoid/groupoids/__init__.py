@@ -4,6 +4,7 @@ from ._action import ActionArrow, ActionGroupoid
 from ._atiyah import AtiyahArrow, AtiyahGroupoid
 from ._axioms import check_axioms
 from ._base import Arrow, Groupoid, derivation, left_derivative, right_derivative
+from ._examples import examples
 from ._matrix_form import NamedMatrix, StructuredMatrix
 from ._matrix_groups import SE2, SE3, SO2, SO3, MatrixArrow, MatrixLieGroup, hat3
 from ._morphism import GroupoidMorphism, check_morphism
@@ -19,6 +20,6 @@ __all__ = [
     "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow", "PairGroupoid",
     "ProductArrow", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid",
     "TrivialisedArrow", "TrivialisedPairGroupoid",
-    "check_axioms", "check_morphism", "derivation", "hat3", "left_derivative",
+    "check_axioms", "check_morphism", "derivation", "examples", "hat3", "left_derivative",
     "right_derivative",
 ]
