@@ -164,3 +164,85 @@ def test_fibre_chart_round_trip(G: sg.Groupoid) -> None:
 @pytest.mark.parametrize("name", ["SO3 cayley", "pair R"])
 def test_registry_builds_fresh_groupoids(name: str) -> None:
     assert EXAMPLES[name]() is not EXAMPLES[name]()
+
+
+# --- 5. the numerics an evaluator asks a groupoid ---------------------------------------------
+
+@every_groupoid(slow=("SE3 exp", "increments SE3 exp"))
+def test_geodesic_runs_from_the_identity_to_the_arrow(G: sg.Groupoid) -> None:
+    """``geodesic(total, s)``: P(0) = ε(α(total)), P(1) = total, every P(s) in the α-fibre of
+    α(total) (its source is α(total))."""
+    rng = np.random.default_rng(6)
+    total = np.asarray(G.random_arrow(rng), float)
+    s = np.linspace(0.0, 1.0, 5)
+    P = G.geodesic(total, s)
+    q = np.asarray(G.source(total), float)
+    assert P.shape == (len(s), G.arrow_dim)
+    np.testing.assert_allclose(P[0], np.asarray(G.identity(tuple(q)), float), atol=1e-12)
+    np.testing.assert_allclose(P[-1], total, atol=1e-12)
+    for row in P:
+        np.testing.assert_allclose(np.asarray(G.source(row), float), q, atol=1e-12)
+
+
+@every_groupoid(where=lambda G: G.is_lie_group)
+def test_log_and_exp_are_inverse(G: sg.MatrixLieGroup) -> None:
+    """``exp_rows(log_coordinates(M))`` is M, on random elements and (SO(3), SE(3)) at a
+    half-turn, where the Cayley chart is not defined."""
+    rng = np.random.default_rng(7)
+    arrows = [np.asarray(G.random_arrow(rng), float) for _ in range(3)]
+    if G.n - G.affine == 3:  # SO(3), SE(3): a half-turn about the first axis
+        half = np.diag([1.0, -1.0, -1.0] + [1.0] * (G.n - 3))
+        arrows.append(np.array([half[i, j] for i, j in G.free_entries]))
+    for a in arrows:
+        x = G.log_coordinates(G.numeric_matrix(a))
+        assert x is not None and x.shape == (G.rank,)
+        np.testing.assert_allclose(G.exp_rows(x[None, :])[0], a, atol=1e-12)
+
+
+def _has_configurations(G: sg.Groupoid) -> bool:
+    return G.is_lie_group or (isinstance(G, sg.PairGroupoid) and G.pair_coordinates() != [])
+
+
+@every_groupoid(where=_has_configurations)
+def test_configurations_from_arrows(G: sg.Groupoid) -> None:
+    """c_{k+1} = c_k·g_k: the arrow between consecutive configurations is g_k."""
+    rng = np.random.default_rng(8)
+    a = G.random_arrow(rng)
+    arrows = [a]
+    for _ in range(3):
+        arrows.append(G.random_arrow(rng, G.target(arrows[-1])))
+    arrows = np.array(arrows, float)
+    start = G.numeric_matrix(G.random_arrow(rng)) if G.is_lie_group else tuple(G.source(a))
+    configurations = G.configurations_from(start, arrows)
+    assert len(configurations) == len(arrows) + 1
+    for c0, c1, g in zip(configurations, configurations[1:], arrows):
+        np.testing.assert_allclose(np.asarray(G.arrow_between(c0, c1), float), g, atol=1e-12)
+
+
+@every_groupoid()
+def test_pair_coordinates_sit_at_source_and_target(G: sg.Groupoid) -> None:
+    """At an identity arrow every pair coordinate has equal source and target values, and
+    at a random arrow they are the values of the source and the target points."""
+    coords = G.pair_coordinates()
+    assert len({c.name for c in coords}) == len(coords)
+    rng = np.random.default_rng(9)
+    q = G.random_base_point(rng)
+    identity = np.asarray(G.identity(tuple(q)), float)
+    for c in coords:
+        assert identity[c.source] == identity[c.target]
+    a = np.asarray(G.random_arrow(rng), float)
+    sources, targets = set(np.asarray(G.source(a), float)), set(np.asarray(G.target(a), float))
+    for c in coords:
+        assert a[c.source] in sources and a[c.target] in targets
+
+
+def test_pair_coordinates_are_found_through_products() -> None:
+    names = {n: [c.name for c in groupoid(n).pair_coordinates()]
+             for n in ("pair R3", "product SE2 x SO2 x pair R",
+                       "product pair R2 x SO3 (plate-ball)", "SO3 cayley", "pair SO3")}
+    assert names == {"pair R3": ["x", "y", "z"], "product SE2 x SO2 x pair R": ["q"],
+                     "product pair R2 x SO3 (plate-ball)": ["x", "y"], "SO3 cayley": [],
+                     "pair SO3": []}
+    G = groupoid("product SE2 x SO2 x pair R")
+    (c,) = G.pair_coordinates()
+    assert (c.source, c.target) == (G.arrow_dim - 2, G.arrow_dim - 1)

@@ -39,7 +39,7 @@ from ..derivation._step import (
     matrix_form_residuals,
     nonholonomic_step,
 )
-from ..groupoids import Groupoid, TimeGroupoid
+from ..groupoids import Groupoid
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._regularity import check_step
 from ._step import StepEquations
@@ -64,7 +64,7 @@ def time_step_argument(name: str, groupoid: Groupoid, time_step, parameters: Seq
     arrow's t₁ − t₀, docs/conventions.md §7)."""
     if time_step is None:
         return None
-    if isinstance(groupoid, TimeGroupoid):
+    if groupoid.timed:
         raise UnsupportedFeatureError(
             f"{name}: on the time groupoid {groupoid.name} the time step is each arrow's "
             f"t₁ − t₀ (g.step), an unknown of the step, not a parameter; leave time_step= "

@@ -8,6 +8,7 @@ from ._examples import examples
 from ._matrix_form import NamedMatrix, StructuredMatrix
 from ._matrix_groups import SE2, SE3, SO2, SO3, MatrixArrow, MatrixLieGroup, hat3
 from ._morphism import GroupoidMorphism, check_morphism
+from ._numerics import ConfigurationChecks, PairCoordinate
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
 from ._product import ProductArrow, ProductGroupoid
 from ._time import TimeArrow, TimeGroupoid
@@ -17,7 +18,8 @@ from ._user import DefinedGroupoid
 __all__ = [
     "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",
     "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",
-    "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow", "PairGroupoid",
+    "ConfigurationChecks", "MatrixLieGroup", "NamedMatrix", "PairCoordinate", "StructuredMatrix",
+    "PairArrow", "PairGroupoid",
     "ProductArrow", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid",
     "TrivialisedArrow", "TrivialisedPairGroupoid",
     "check_axioms", "check_morphism", "derivation", "examples", "hat3", "left_derivative",

@@ -144,6 +144,12 @@ class MatrixLieGroup(Groupoid):
         return [(i, j) for i in range(rows) for j in range(self.n)]
 
     @property
+    def free_entries(self) -> list[tuple[int, int]]:
+        """The matrix positions (i, j) the arrow coordinates hold, in order (row-major; SE(n)
+        without its fixed last row (0, …, 0, 1))."""
+        return self._free
+
+    @property
     def arrow_dim(self) -> int:
         return len(self._free)
 
@@ -449,6 +455,66 @@ class MatrixLieGroup(Groupoid):
         whose increments W_k = R_k⁻¹R_{k+1} are the arrows (a Lie group's state)."""
         return self.products(start, self.numeric_matrices(arrows))
 
+    # --- geodesics and configurations (numeric) ----------------------------------------------
+    is_lie_group = True
+
+    def configuration(self, value, name, check):
+        """A group element (its matrix)."""
+        return check.group_element(self, value, name)
+
+    def log_coordinates(self, M: np.ndarray) -> np.ndarray | None:
+        """Lie-algebra coordinates x with exp(Σ x_a E_a) = M for a numeric element M, or None
+        where they are not available (the closed-form logarithm, lambdified once; SO(3) and
+        SE(3) override it with forms accurate up to and including half-turns)."""
+        try:
+            with np.errstate(all="ignore"):
+                x = np.asarray(self._numeric_log(M), float)
+        except NotImplementedError:
+            return None
+        return x if np.isfinite(x).all() else None
+
+    @functools.cached_property
+    def exponential_group(self) -> MatrixLieGroup:
+        """The same group with the exponential retraction (its fibre chart is exp)."""
+        return type(self)(self.symbol_name, retraction="exp")
+
+    def fibre_charts(self, X: np.ndarray) -> np.ndarray:
+        """``numeric_fibre_chart(x)`` for every row x of X, in one vectorised call of the
+        lambdified chart when it broadcasts (checked on the first and last rows against the
+        single-row form), else row by row."""
+        q = np.zeros(self.base_dim)
+        single = [self.numeric_fibre_chart(x) for x in X[[0, -1]]]
+        try:
+            with np.errstate(all="ignore"):
+                values = self._numeric_fibre_chart(X.T, q)
+            rows = np.array([np.broadcast_to(np.asarray(v, float), (len(X),))
+                             for v in values]).T
+            if rows.shape == (len(X), len(single[0])) and np.isfinite(rows).all() and \
+                    np.allclose(rows[[0, -1]], single, rtol=1e-14, atol=1e-15):
+                return rows
+        except (TypeError, ValueError, AttributeError):
+            pass
+        return np.array([self.numeric_fibre_chart(x) for x in X])
+
+    def exp_rows(self, X: np.ndarray) -> np.ndarray:
+        """exp(Σ x_a E_a) for every row x of X, as arrows (one per row)."""
+        return self.exponential_group.fibre_charts(X)
+
+    def geodesic(self, total, s):
+        """exp(s·log g), g = ``total`` (defined up to and including half-turns, where the
+        Cayley chart is not); the chart path where the logarithm is not available."""
+        x = self.log_coordinates(self.numeric_matrix(total))
+        if x is None:
+            return self.chart_path(total, s)
+        return self.exp_rows(np.outer(s, x))
+
+    def configurations_from(self, start, arrows):
+        """[R₀, …, R_N]: R₀ = ``start``, R_{k+1} = R_k g_k (matrix products)."""
+        out = [start]
+        for M in self.numeric_matrices(arrows):
+            out.append(out[-1] @ M)
+        return out
+
     def numeric_Ad(self, M: np.ndarray) -> np.ndarray:
         """Ad_g on Lie-algebra coordinates (columns vee(g E_a g⁻¹)) for each matrix of the
         stack ``M`` (N, n, n): (N, rank, rank)."""
@@ -745,6 +811,14 @@ class SO3(MatrixLieGroup):
     def exp(self, x):
         return self._exp_closed_form(x)
 
+    def log_coordinates(self, M):
+        """ω with exp(ω̂) = R, θ = |ω| ∈ [0, π] (:func:`so3_log`)."""
+        return so3_log(M)
+
+    def exp_rows(self, X):
+        """Rodrigues' formula for every row (:func:`so3_exp_rows`)."""
+        return so3_exp_rows(X)
+
     def cayley_inverse(self, M):
         # on SO(3): cay⁻¹(R) = 2(R − Rᵀ)/(1 + tr R)   (from seed 001 eq. (63))
         return self.vee(2 * (M - M.T) / (1 + M.trace()))
@@ -864,6 +938,11 @@ class SE3(_SpecialEuclidean):
         out[0, 3], out[1, 3], out[2, 3] = x[3], x[4], x[5]
         return out
 
+    def log_coordinates(self, M):
+        """(ω, V(ω)⁻¹u) for M = [[R, u], [0, 1]], ω = log R (:func:`so3_log`)."""
+        w = so3_log(M[:3, :3])
+        return np.concatenate([w, np.asarray(_se3_v_inverse()(w), float) @ M[:3, 3]])
+
     @staticmethod
     def _V(w):
         """I + B(θ²) ω̂ + C(θ²) ω̂², C = (θ − sin θ)/θ³."""
@@ -878,3 +957,42 @@ class SE3(_SpecialEuclidean):
         th2 = w[0] ** 2 + w[1] ** 2 + w[2] ** 2
         W = hat3(w)
         return sp.eye(3) - W / 2 + SE3LogCoefficient(th2) * W * W
+
+
+def so3_log(R: np.ndarray) -> np.ndarray:
+    """ω with exp(ω̂) = R for a rotation R, θ = |ω| ∈ [0, π]; accurate at and near a
+    half-turn, where θ/(2 sin θ)·vee(R − Rᵀ) is 0·∞ (there the axis is read off the
+    symmetric part: (R + Rᵀ)/2 − cos θ·I = (1 − cos θ)·a aᵀ)."""
+    c = float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))
+    s_axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+    s = float(np.linalg.norm(s_axis))  # sin θ
+    theta = float(np.arctan2(s, c))
+    if c > -0.5:
+        return s_axis * (theta / s if s > 1e-12 else 1.0 + s * s / 6.0)
+    B = (R + R.T) / 2.0 - c * np.eye(3)
+    i = int(np.argmax(np.diag(B)))
+    axis = B[:, i] / np.sqrt(max(B[i, i], 1e-300) * (1.0 - c))
+    if axis @ s_axis < 0:
+        axis = -axis
+    return theta * axis / np.linalg.norm(axis)
+
+
+def so3_exp_rows(W: np.ndarray) -> np.ndarray:
+    """exp(ω̂) for every row ω of W (Rodrigues, sin θ/θ and (1 − cos θ)/θ² by their series
+    near θ = 0), as arrows of SO(3) (the nine entries, row-major)."""
+    theta = np.linalg.norm(W, axis=1)
+    small = theta < 1e-4
+    t = np.where(small, 1.0, theta)
+    a = np.where(small, 1 - theta ** 2 / 6, np.sin(t) / t)
+    b = np.where(small, 0.5 - theta ** 2 / 24, (1 - np.cos(t)) / t ** 2)
+    K = np.zeros((len(W), 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -W[:, 2], W[:, 1], -W[:, 0]
+    K -= np.swapaxes(K, 1, 2)
+    R = np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
+    return R.reshape(len(W), 9)
+
+
+@functools.cache
+def _se3_v_inverse():
+    w = sp.symbols("w1:4", real=True)
+    return sp.lambdify([w], SE3._V_inverse(w), NUMPY_MODULES)
