@@ -25,9 +25,7 @@ import sympy as sp
 from .._arguments import choice_argument, name_argument
 from .._lambdify import NUMPY_MODULES
 from .._symbols import StepSymbol, indexed_symbol, latex_name, subscripted
-from ._base import Arrow, Groupoid
-from ._matrix_form import StructuredMatrix, block_of, named_basis
-from ._smooth import (
+from ..ir import (
     HalfThetaCotHalfTheta,
     OneMinusCosOverTheta2,
     SE3LogCoefficient,
@@ -35,6 +33,8 @@ from ._smooth import (
     ThetaMinusSinOverTheta3,
     ThetaOverTwoSin,
 )
+from ._base import Arrow, Groupoid
+from ._matrix_form import StructuredMatrix, block_of, named_basis
 
 _named_basis = functools.cache(named_basis)
 
