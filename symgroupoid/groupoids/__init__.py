@@ -6,11 +6,15 @@ from ._axioms import check_axioms
 from ._base import Arrow, Groupoid, derivation, left_derivative, right_derivative
 from ._examples import examples
 from ._matrix_form import NamedMatrix, StructuredMatrix
-from ._matrix_groups import SE2, SE3, SO2, SO3, MatrixArrow, MatrixLieGroup, hat3
+from ._matrix_groups import MatrixArrow, MatrixLieGroup, hat3
 from ._morphism import GroupoidMorphism, check_morphism
 from ._numerics import ConfigurationChecks, PairCoordinate
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
 from ._product import ProductArrow, ProductGroupoid
+from ._se2 import SE2
+from ._se3 import SE3
+from ._so2 import SO2
+from ._so3 import SO3
 from ._time import TimeArrow, TimeGroupoid
 from ._trivialised import TrivialisedArrow, TrivialisedPairGroupoid
 from ._user import DefinedGroupoid

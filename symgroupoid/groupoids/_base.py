@@ -33,7 +33,7 @@ import sympy as sp
 
 from .._errors import CallableError, InputTypeError, ShapeError, SymgroupoidError
 from .._lambdify import NUMPY_MODULES
-from ._numerics import ConfigurationChecks, GroupoidNumerics
+from ._numerics import GroupoidNumerics
 
 Coords = tuple  # flat tuple of SymPy expressions (or numbers)
 
@@ -330,16 +330,6 @@ class Groupoid(GroupoidNumerics, ABC):
     def configuration_after(self, c0, a: Sequence):
         """The configuration reached from ``c0`` along the arrow ``a`` (numeric)."""
         raise NotImplementedError(f"{self.name}: no configuration space")
-
-    def configuration(self, value, name: str, check: ConfigurationChecks):
-        """``value`` as a configuration of this groupoid, each part passed through ``check``
-        (the library's groupoids: a point, a group element, a tuple of parts; see each).  By
-        default ``value`` itself, given to :meth:`arrow_between`; a groupoid without
-        :meth:`arrow_between` has no configuration space (``check.no_configuration_space``).
-        """
-        if type(self).arrow_between is Groupoid.arrow_between:
-            check.no_configuration_space(self, name)
-        return value
 
     def increments(self, a: Sequence) -> list[tuple[str, Any, np.ndarray]]:
         """(part name, MatrixLieGroup, numeric matrix) of each group element at the numeric

@@ -10,8 +10,11 @@ import sympy as sp
 from ._action import ActionGroupoid
 from ._atiyah import AtiyahGroupoid
 from ._base import Groupoid
-from ._matrix_groups import SE2, SE3, SO2, SO3
 from ._pair import EuclideanSpace, PairGroupoid
+from ._se2 import SE2
+from ._se3 import SE3
+from ._so2 import SO2
+from ._so3 import SO3
 from ._time import TimeGroupoid
 from ._trivialised import TrivialisedPairGroupoid
 from ._user import DefinedGroupoid

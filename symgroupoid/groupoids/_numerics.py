@@ -105,6 +105,18 @@ class GroupoidNumerics:
             out.append(self.configuration_after(out[-1], g))
         return out
 
+    def configuration(self, value, name: str, check: ConfigurationChecks):
+        """``value`` as a configuration of this groupoid, each part passed through ``check``
+        (the library's groupoids: a point, a group element, a tuple of parts; see each).  By
+        default ``value`` itself, given to :meth:`arrow_between`; a groupoid without
+        :meth:`arrow_between` has no configuration space (``check.no_configuration_space``).
+        """
+        from ._base import Groupoid
+
+        if type(self).arrow_between is Groupoid.arrow_between:
+            check.no_configuration_space(self, name)
+        return value
+
     def partial_configuration(self, value, name: str, check: ConfigurationChecks):
         """A first configuration for :meth:`configurations_along`, checked as
         :meth:`configuration` checks one, where None stands for a part the arrows determine:
