@@ -37,6 +37,7 @@ from ._errors import (
     UnsupportedExpressionError,
     UnsupportedFeatureError,
 )
+from .derivation import SystemFunctions
 from .equations import (
     DiscreteSystem,
     LegendreTransforms,
@@ -107,7 +108,7 @@ __all__ = [
     "ParameterDeclarationError", "ParameterError", "ProductGroupoid", "ReconstructionError",
     "ReducedSystem", "SE2", "SE3", "SO2", "SO3", "SecondOrderSystem", "ShapeError", "Simulator",
     "SingularJacobianError", "StationarityReport", "StepEquations", "SweepResult",
-    "SymgroupoidError", "TimeGroupoid", "Trajectory", "TrajectoryBatch",
+    "SymgroupoidError", "SystemFunctions", "TimeGroupoid", "Trajectory", "TrajectoryBatch",
     "TrajectoryTooLargeError", "UndeclaredSymbolError", "UnsupportedExpressionError",
     "UnsupportedFeatureError", "BoundaryValueDivergenceError", "CutLocusError", "DomainError",
     "InputNameError", "CutLocusStepError", "GroupRoundingWarning", "TrajectoryFileError",

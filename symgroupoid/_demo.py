@@ -17,7 +17,7 @@ from .verification import verify_stationary
 
 
 def _constraint_function(system):
-    fs = system._fs
+    fs = system.functions
     return sp.lambdify([list(fs.slots[0]), list(system.parameters)], fs.constraints, NUMPY_MODULES)
 
 

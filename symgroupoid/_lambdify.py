@@ -11,5 +11,5 @@ from __future__ import annotations
 import numpy as np
 
 #: ``sympy.lambdify(args, exprs, NUMPY_MODULES)``; the name ``numpy`` itself is bound too, for
-#: printers of the library's own functions that write ``numpy.…`` (groupoids/_smooth.py)
+#: printers of the library's own functions that write ``numpy.…`` (ir/_smooth.py)
 NUMPY_MODULES = [{"numpy": np}, np]

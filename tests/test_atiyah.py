@@ -47,9 +47,10 @@ def test_locked_frame_product_is_the_seeds_twisted_product():
             assert np.allclose(ab, expected, atol=1e-13)
 
 
-@pytest.mark.parametrize("action", ["left", "right"])
-@pytest.mark.parametrize("twisted", [False, True])
+@pytest.mark.parametrize("action,twisted", [("left", True), ("right", False)])
 def test_groupoid_axioms(action, twisted):
+    """The other two of (left, right) × (twisted, not): the registry's groupoids
+    (test_groupoid_properties.py) hold left untwisted and right twisted."""
     connection = (lambda s0, s1: (0.3 * (s1[0] - s0[0]) + 0.1 * (s1[1] ** 2 - s0[1] ** 2),
                                   0.2 * (s1[1] - s0[1]), 0)) if twisted else None
     A = sg.AtiyahGroupoid((sg.EuclideanSpace("x y"), sg.SO3("W")), sg.SO3, action=action,

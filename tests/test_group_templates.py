@@ -13,7 +13,7 @@ import sympy as sp
 
 import symgroupoid as sg
 from symgroupoid.groupoids._base import Groupoid
-from symgroupoid.groupoids._matrix_groups import (
+from symgroupoid.groupoids._matrix_templates import (
     _direct_increment_coordinates,
     _direct_translated_retraction,
 )
@@ -173,7 +173,7 @@ def test_stored_templates_are_the_derived_trees_and_the_file_is_current():
     the tree its derivation gives (so the equations, the LaTeX and the C are those of the
     derivation), and the file is what the builder writes today (``make closed-forms``)."""
     from symgroupoid.groupoids import _closed_forms, _closed_forms_build
-    from symgroupoid.groupoids._matrix_groups import _stored_form
+    from symgroupoid.groupoids._matrix_templates import _stored_form
 
     derived = _closed_forms_build.derived_templates()
     assert sorted(key for key, _, _ in derived) == sorted(_closed_forms.FORMS)
@@ -195,7 +195,7 @@ def test_the_stored_file_is_what_a_derivation_without_it_writes():
     import subprocess
     import sys
 
-    probe = ("import sys; from symgroupoid.groupoids import _matrix_groups as mg; "
+    probe = ("import sys; from symgroupoid.groupoids import _matrix_templates as mg; "
              "mg._stored_form = lambda key, placeholders: None; "
              "from symgroupoid.groupoids import _closed_forms_build as b; "
              "sys.stdout.write(b.source())")
@@ -208,7 +208,7 @@ def test_the_stored_file_is_what_a_derivation_without_it_writes():
 
 def test_stored_templates_are_used_only_for_the_groups_they_were_derived_for():
     """A subclass (here one with another basis order) derives its own templates."""
-    from symgroupoid.groupoids._matrix_groups import _builtin, _cayley_template
+    from symgroupoid.groupoids._matrix_templates import _builtin, _cayley_template
 
     class Reordered(sg.SO3):
         @classmethod

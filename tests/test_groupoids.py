@@ -1,5 +1,5 @@
-"""Groupoid structure: the axioms of seed 000 Definition 2.1 for every built-in groupoid and a
-user-defined one, failures reported with the failing arrows, and a user-defined pair groupoid
+"""Groupoid structure (the axioms of every groupoid: test_groupoid_properties.py): axiom
+failures reported with the failing arrows, and a user-defined pair groupoid
 giving the same discrete Euler–Lagrange equations as the built-in one (seed 000 §2.2)."""
 
 from __future__ import annotations
@@ -9,6 +9,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 import sympy as sp
+from _registry import EXAMPLES
 from _systems import heavy_top_groupoid
 
 import symgroupoid as sg
@@ -23,44 +24,6 @@ def line_groupoid(check: bool = True, **overrides) -> sg.DefinedGroupoid:
         inverse=lambda a: (a[1], a[0]), sections=lambda q, t: [(q[0], q[0] + t)])
     maps.update(overrides)
     return sg.DefinedGroupoid("line", base_names=["q"], fibre_names=["q"], **maps, check=check)
-
-
-def translation_groupoid() -> sg.DefinedGroupoid:
-    """R² ⇉ R as an action groupoid of (R, +) acting by translation, by hand:
-    arrows (p, s), α = p, β = p + s, (p, s)(p + s, s') = (p, s + s')."""
-    return sg.DefinedGroupoid(
-        "translations", base_names=["p"], fibre_names=["s"],
-        source=lambda a: (a[0],), target=lambda a: (a[0] + a[1],),
-        multiply=lambda a, b: (a[0], a[1] + b[1]), identity=lambda q: (q[0], 0),
-        inverse=lambda a: (a[0] + a[1], -a[1]), sections=lambda q, t: [(q[0], t)],
-        source_offset=0)
-
-
-BUILT_IN: dict[str, Callable[[], sg.Groupoid]] = {
-    "pair R": lambda: sg.PairGroupoid(sg.EuclideanSpace("q")),
-    "pair R3": lambda: sg.PairGroupoid(sg.EuclideanSpace("x y z")),
-    **{f"{cls.__name__} {ret}": (lambda cls=cls, ret=ret: cls("g", retraction=ret))
-       for cls in (sg.SO2, sg.SO3, sg.SE2, sg.SE3) for ret in ("cayley", "exp")},
-    "action S2 x SO3 (heavy top)": heavy_top_groupoid,
-    "action R2 x SO2": lambda: sg.ActionGroupoid(sg.EuclideanSpace("u v"), sg.SO2("R"),
-                                                 lambda p, R: tuple(R.T * sp.Matrix(p))),
-    "product pair R2 x SO3 (plate-ball)":
-        lambda: sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("g"),
-    "product SE2 x SO2 x pair R": lambda: sg.SE2("s") * sg.SO2("r") * sg.PairGroupoid(
-        sg.EuclideanSpace("q")),
-    "time R x R x SO3": lambda: sg.TimeGroupoid(sg.SO3("g")),
-    "time R x R x pair R2": lambda: sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("x y"))),
-    "defined line": line_groupoid,
-    "defined translations": translation_groupoid,
-}
-
-
-@pytest.mark.parametrize("name", sorted(BUILT_IN))
-def test_check_axioms_built_in(name: str) -> None:
-    """Seed 000 Definition 2.1 (α, β of products, associativity, identities, inverses) and
-    the section curves of docs/conventions.md §1, on random composable arrows."""
-    G = BUILT_IN[name]()
-    sg.check_axioms(G, samples=3)
 
 
 def test_product_flattens_and_counts() -> None:
@@ -185,7 +148,7 @@ def test_translation_groupoid_del() -> None:
     def lagrangian(p, s):
         return a * p**2 * s + b * s**3 + sp.exp(p) * s**2
 
-    step = sg.DiscreteSystem(translation_groupoid(), lambda g: lagrangian(*g.coords),
+    step = sg.DiscreteSystem(EXAMPLES["defined translations"](), lambda g: lagrangian(*g.coords),
                              parameters=[a, b]).euler_lagrange()
     u, v = sp.symbols("u v")
     Luv = lagrangian(u, v)
@@ -265,27 +228,3 @@ def test_action_groupoid_derivations_match_table() -> None:
             F, lambda t, E=E: (*((sp.eye(3) + t * E).T * p), *((sp.eye(3) - t * E) * W)))
         assert sp.expand(lv - exp_l) == 0
         assert sp.expand(rv - exp_r) == 0
-
-
-@pytest.mark.parametrize("name", sorted(BUILT_IN))
-def test_section_flow_on_the_graph_is_the_section_flow(name: str) -> None:
-    """``section_flow_nodes`` (the flow composed on the expression graph) evaluates to
-    ``section_flow`` (composed in SymPy) at random arrows and chart vectors."""
-    from symgroupoid.ir import Graph, Program
-
-    G = BUILT_IN[name]()
-    a = G._generic_arrow
-    d = tuple(sp.Dummy(f"d{i}", real=True) for i in range(G.rank))
-    g = Graph()
-    nodes = {x: g.input(x) for x in (*a, *d)}
-    flow = G.section_flow_nodes(g, [nodes[x] for x in a], [nodes[x] for x in d])
-    f = Program(g, {"a": list(a), "d": list(d)}, {"flow": flow}).numpy_function(
-        ["flow"], ["a", "d"])
-    rng = np.random.default_rng(3)
-    for _ in range(3):
-        arrow = G.random_arrow(rng)
-        delta = rng.uniform(-0.3, 0.3, G.rank)
-        target = G.target(arrow)
-        expected = [float(sp.N(c)) for c in G.section_flow(target, [sp.Float(v) for v in delta])]
-        np.testing.assert_allclose(f(np.array(arrow), delta)[0], expected, rtol=1e-12,
-                                   atol=1e-12)

@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from symgroupoid.groupoids import _smooth
-from symgroupoid.ir import Graph, Program, from_sympy
+from symgroupoid.ir import Graph, Program, _smooth, from_sympy
 from symgroupoid.ir._libm import LIBM, SCALAR
 from symgroupoid.runtime._programs import compile_program
 

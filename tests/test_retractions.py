@@ -41,8 +41,8 @@ def test_so3_cayley_closed_form_is_the_solved_one() -> None:
     same canonical expressions (srepr) as solving (I − x̂/2) M = I + x̂/2 and simplifying."""
     import sympy as sp
 
-    from symgroupoid.groupoids._matrix_groups import (
-        SO3,
+    from symgroupoid.groupoids import SO3
+    from symgroupoid.groupoids._matrix_templates import (
         _cayley_template,
         _dtau_dummies,
         _simplify_matrix,

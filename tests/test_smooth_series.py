@@ -1,4 +1,4 @@
-"""Closed-form Taylor coefficients of the retraction's smooth functions (groupoids/_smooth.py).
+"""Closed-form Taylor coefficients of the retraction's smooth functions (ir/_smooth.py).
 
 Each built-in smooth function carries its series in closed form (factorials, Bernoulli
 numbers, central binomial coefficients), and a derivative's series is its parent's
@@ -10,7 +10,7 @@ from __future__ import annotations
 import pytest
 import sympy as sp
 
-from symgroupoid.groupoids import _smooth
+from symgroupoid.ir import _smooth
 
 BUILT_IN = [_smooth.SinOverTheta, _smooth.OneMinusCosOverTheta2,
             _smooth.ThetaMinusSinOverTheta3, _smooth.HalfThetaCotHalfTheta,

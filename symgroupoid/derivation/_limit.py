@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from ..groupoids import Groupoid, TimeGroupoid
+from ..groupoids import Groupoid
 from ..ir import Graph, Program, forward, from_sympy, interpret
 
 #: chart scales h_j at which the probes are evaluated (then extrapolated to h = 0)
@@ -137,7 +137,7 @@ class ContinuousLimit:
     @classmethod
     def of_system(cls, system) -> ContinuousLimit | None:
         """The limit of a first-order system's L_d, or None for a system of another order."""
-        fs = getattr(system, "_fs", None)
+        fs = getattr(system, "functions", None)
         if fs is None or len(fs.slots) != 1 or getattr(fs, "matrix_form", False):
             return None
         return cls(system.groupoid, fs.lagrangian, fs.slots[0], system.parameters,
@@ -238,7 +238,7 @@ def limit_points(groupoid: Groupoid, parameters: Sequence[sp.Symbol], count: int
         except (ArithmeticError, ValueError, TypeError, NotImplementedError):
             continue
         v = rng.uniform(-1.0, 1.0, groupoid.rank)
-        if isinstance(groupoid, TimeGroupoid):
+        if groupoid.timed:  # its first section is ∂/∂t
             v[0] = 1.0
         if x0.shape == (groupoid.rank,) and np.all(np.isfinite(x0)):
             yield LimitPoint(np.array(q), x0, v, p)
@@ -263,6 +263,6 @@ def time_step_candidates(system) -> list:
     declared = getattr(system, "time_step", None)
     if declared is not None:
         return [declared]
-    if isinstance(system.groupoid, TimeGroupoid):
+    if system.groupoid.timed:
         return [None]
     return identified_time_steps(system)

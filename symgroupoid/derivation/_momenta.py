@@ -23,7 +23,7 @@ import sympy as sp
 from .._errors import DomainError, InputTypeError, ShapeError
 from .._lambdify import NUMPY_MODULES
 from .._symbols import indexed_symbol, multiplier_symbols
-from ..groupoids import Groupoid, MatrixLieGroup
+from ..groupoids import Groupoid
 from ._callables import (
     as_scalar,
     as_scalar_list,
@@ -312,7 +312,7 @@ class LiePoissonForms:
 def lie_poisson_forms(name: str, G: Groupoid, fs: SystemFunctions,
                       parameters: Sequence) -> LiePoissonForms:
     """Seed 000 §6.1 for a matrix Lie group G."""
-    if not isinstance(G, MatrixLieGroup):
+    if not G.is_lie_group:
         raise InputTypeError(f"{name}: the Lie–Poisson form needs a Lie group, not {G.name}")
     m, r = len(fs.constraints), G.rank
     now, nxt = legendre_forms(G, fs, 0), legendre_forms(G, fs, 1)

@@ -94,13 +94,21 @@ class DerivedStep:
 
 @dataclass
 class SystemFunctions:
-    """A Lagrangian and constraints evaluated on independent slot arrows.
+    """A system's Lagrangian and constraints evaluated on independent slot arrows.
 
-    ``constraints`` are the functions the multipliers of a term multiply in the action
-    (L + λ·φ): the user's constraints φ on the term's arrows, then the holonomic
-    constraints at the term's source node, ψ(α(A₀)) (docs/conventions.md §15).
-    ``holonomic`` holds ψ on the generic base point ``base``; ``rows`` are the conditions a
-    step imposes on its newest term: φ, then ψ at the target of the term's last arrow.
+    This is what a system is to everything built from it (``system.functions``): the
+    derivation, the printers, the programs the evaluators run.
+
+    ``slots`` are symbolic arrows s₀, …, s_{r−1} (r = 1 for L_d: G → ℝ, r = 2 for a
+    second-order L_d: G₂ → ℝ), each a tuple of the groupoid's arrow coordinates.
+    ``lagrangian`` is L_d(s₀, …, s_{r−1}).  ``constraints`` are the functions the
+    multipliers of a term multiply in the augmented action L_d + λ·Φ (seed 000 §3.3,
+    docs/conventions.md §15): the user's constraints φ on the term's arrows, then the
+    holonomic constraints at the term's source node, ψ(α(s₀)).  ``holonomic`` holds ψ on the
+    generic base point ``base`` (``at_base`` evaluates it at a base point); ``rows`` are
+    the conditions a step imposes on its newest term: φ, then ψ at the target β(s_{r−1})
+    of the term's last arrow (``rows_on`` gives them on other arrows).  With
+    ``matrix_form`` the matrix parts of the slots are matrix symbols (for printing).
     """
 
     slots: tuple  # tuple of slot coordinate tuples

@@ -46,6 +46,7 @@ from sympy.printing.conventions import split_super_sub
 
 from .._errors import SymgroupoidError
 from .._symbols import StepSymbol, latex_name, multiplier_symbols, step_label
+from ..groupoids import PairCoordinate
 from ._latex import (
     Collected,
     GroupoidLatexPrinter,
@@ -96,31 +97,10 @@ def accented(name: str, accent: str) -> str:
 # --- pair coordinates and the rules that name their pieces --------------------------------------
 
 
-@dataclass(frozen=True)
-class PairCoordinate:
-    """A coordinate of a pair groupoid of a Euclidean space inside an arrow: the positions of
-    its source and target values among the arrow's coordinates, and its name."""
-
-    source: int
-    target: int
-    name: str
-
-
 def pair_coordinates(G) -> list[PairCoordinate]:
-    """The pair-of-Euclidean-space coordinates of G's arrows (through products)."""
-    from ..groupoids import EuclideanSpace, PairGroupoid, ProductGroupoid
-
-    if isinstance(G, PairGroupoid) and isinstance(G.space, EuclideanSpace):
-        n = G.base_dim
-        return [PairCoordinate(i, n + i, G.space.names[i]) for i in range(n)]
-    if isinstance(G, ProductGroupoid):
-        out, start = [], 0
-        for factor in G.factors:
-            out += [PairCoordinate(start + c.source, start + c.target, c.name)
-                    for c in pair_coordinates(factor)]
-            start += factor.arrow_dim
-        return out
-    return []
+    """The pair-of-Euclidean-space coordinates of G's arrows (through products;
+    ``G.pair_coordinates()``)."""
+    return G.pair_coordinates()
 
 
 @dataclass(frozen=True)
@@ -388,7 +368,7 @@ def _system_functions(system, matrix_form: bool):
     from ..derivation._step import evaluate_system
 
     if not matrix_form:
-        return system._fs
+        return system.functions
     return evaluate_system(system.name, system.groupoid, system.lagrangian, system.constraints,
                            system.parameters, arity=system._arity, matrix_form=True)
 
@@ -496,7 +476,7 @@ def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | 
     if (matrix_form or rule.kind != "midpoint" or system._arity != 1
             or 2 * len(coords) != G.arrow_dim):
         return None
-    fs = system._fs
+    fs = system.functions
     w = window_in_pieces(step, rule, fs, False, lagrangian=False)
     dummies = [(sp.Dummy(f"m{i}"), sp.Dummy(f"d{i}")) for i in range(len(coords))]
     on_slot = {}
@@ -567,17 +547,17 @@ def action_pieces(step) -> list[tuple[sp.Expr, sp.Expr, dict]]:
     matrix group whose action is M p, Mᵀ p or M⁻¹ p (recognised by exact comparison, so
     the printing keeps g_kᵀ as such: (W_{k}^{T} Γ_{k})_{2})."""
     from ..derivation._step import window
-    from ..groupoids import ActionGroupoid
 
     G = step.groupoid
-    if not isinstance(G, ActionGroupoid) or G.space.vector_name is None:
+    action = G.named_vector_action()
+    if action is None:
         return []
+    vector_name, group = action
     offset = window(step.order)[0][0]
     arrow = tuple(G.named_arrow(offset))
     point = sp.Matrix(G.source(arrow))
     target = [sp.expand(t) for t in G.target(arrow)]
-    group = G.group
-    P = sp.MatrixSymbol(indexed_name(latex_name(G.space.vector_name), step_label(offset)),
+    P = sp.MatrixSymbol(indexed_name(latex_name(vector_name), step_label(offset)),
                         len(point), 1)
     M = sp.MatrixSymbol(indexed_name(group.latex, step_label(offset)), group.n, group.n)
     explicit = sp.ImmutableMatrix(group.matrix(arrow[G.base_dim:]))
@@ -1328,7 +1308,7 @@ def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]
     if system is None:
         return []
     try:
-        rule = best_rule(system._fs, pair_coordinates(step.groupoid), step.parameters)
+        rule = best_rule(system.functions, pair_coordinates(step.groupoid), step.parameters)
     except _NOT_IN_PIECES:
         return []
     out = []

@@ -9,7 +9,8 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import DomainError, InputTypeError, ShapeError, UnsupportedFeatureError
+from .._arguments import instance_argument
+from .._errors import DomainError, ShapeError, UnsupportedFeatureError
 from ..derivation._reduction import reduce_functions
 from ..groupoids._morphism import GroupoidMorphism, check_morphism
 from ._system import DiscreteSystem
@@ -142,9 +143,8 @@ def reduce_system(system: DiscreteSystem, morphism: GroupoidMorphism,
                   name: str | None = None, check: bool = True) -> ReducedSystem:
     """The reduced system (see :meth:`DiscreteSystem.reduce`)."""
     _no_holonomic(system)
-    if not isinstance(morphism, GroupoidMorphism):
-        raise InputTypeError(f"{system.name}: reduce needs a GroupoidMorphism, got "
-                             f"{type(morphism).__name__}")
+    instance_argument(morphism, GroupoidMorphism, "morphism", "a GroupoidMorphism (reduce "
+                      "needs one)", owner=system.name)
     if system._arity != 1:
         raise UnsupportedFeatureError(f"{system.name}: reduction is implemented for first-order "
                                   f"systems (L: G → R)")

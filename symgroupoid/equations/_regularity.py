@@ -739,7 +739,7 @@ def _degenerate_terms(step, layout: Layout, time_step) -> list[LeadingTerms] | N
     None when it is regular at one, or a point gives no evidence."""
     from ..derivation._limit import limit_points
 
-    timed = _is_timed(step.groupoid)
+    timed = step.groupoid.timed
     terms = []
     for point in limit_points(step.groupoid, step.parameters):
         leading = _leading_terms(step, layout, point, time_step, timed)
@@ -747,12 +747,6 @@ def _degenerate_terms(step, layout: Layout, time_step) -> list[LeadingTerms] | N
             return None
         terms.append(leading)
     return terms or None
-
-
-def _is_timed(groupoid) -> bool:
-    from ..groupoids import TimeGroupoid
-
-    return isinstance(groupoid, TimeGroupoid)
 
 
 def _small_step_state(step, point, h: float, time_step) -> tuple | None:

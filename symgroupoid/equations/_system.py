@@ -17,6 +17,7 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from .._progress import reported
+from ..derivation import SystemFunctions
 from ..derivation._callables import call_user, check_values
 from ..derivation._energy_momentum import (
     METHODS,
@@ -38,7 +39,7 @@ from ..derivation._step import (
     matrix_form_residuals,
     nonholonomic_step,
 )
-from ..groupoids import Groupoid, TimeGroupoid
+from ..groupoids import Groupoid
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._regularity import check_step
 from ._step import StepEquations
@@ -63,7 +64,7 @@ def time_step_argument(name: str, groupoid: Groupoid, time_step, parameters: Seq
     arrow's t₁ − t₀, docs/conventions.md §7)."""
     if time_step is None:
         return None
-    if isinstance(groupoid, TimeGroupoid):
+    if groupoid.timed:
         raise UnsupportedFeatureError(
             f"{name}: on the time groupoid {groupoid.name} the time step is each arrow's "
             f"t₁ − t₀ (g.step), an unknown of the step, not a parameter; leave time_step= "
@@ -123,7 +124,25 @@ def _coefficients(name: str, what: str, value, rank: int) -> None:
                          f"has rank {rank}")
 
 
-class DiscreteSystem:
+class _EvaluatedSystem:
+    """A system whose Lagrangian and constraints were evaluated on slot arrows."""
+
+    _functions: SystemFunctions
+
+    @property
+    def functions(self) -> SystemFunctions:
+        """L_d and the constraints Φ = (φ, ψ∘α) on the slot arrows, ψ at a base point and
+        the rows a step imposes (:class:`~symgroupoid.derivation.SystemFunctions`; seed 000
+        §3.3, docs/conventions.md §15)."""
+        return self._functions
+
+    @property
+    def _fs(self) -> SystemFunctions:
+        """Deprecated alias of :attr:`functions`, kept while readers move to it."""
+        return self._functions
+
+
+class DiscreteSystem(_EvaluatedSystem):
     """A discrete constrained Lagrangian system (G, N, L) (seed 000 Def. 3.2).
 
     On a Lie groupoid G ⇉ Q, with a discrete Lagrangian L: G → R and the constraints
@@ -180,20 +199,21 @@ class DiscreteSystem:
         self.holonomic = holonomic
         self.parameters = parameters
         self.time_step = time_step_argument(name, groupoid, time_step, parameters)
-        self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters,
-                                   arity=self._arity, holonomic=holonomic)
+        self._functions = evaluate_system(name, groupoid, lagrangian, constraints,
+                                          self.parameters, arity=self._arity,
+                                          holonomic=holonomic)
 
     _arity = 1  # L: G -> R
 
     @property
     def n_constraints(self) -> int:
         """Multipliers per arrow: the constraints φ, then the holonomic constraints ψ."""
-        return len(self._fs.constraints)
+        return len(self.functions.constraints)
 
     @property
     def n_holonomic(self) -> int:
         """The number of holonomic constraints ψ (the last ``n_holonomic`` multipliers)."""
-        return self._fs.n_holonomic
+        return self.functions.n_holonomic
 
     @reported(lambda self: f"{self.name}: deriving the equations")
     @collector_paused
@@ -202,7 +222,7 @@ class DiscreteSystem:
 
         ``progress`` (keyword): report a derivation that takes longer than 2 s (see
         :mod:`symgroupoid._progress`)."""
-        step = StepEquations(junction_step(self.name, self.groupoid, self._fs,
+        step = StepEquations(junction_step(self.name, self.groupoid, self.functions,
                                            self.parameters))
         step.system = self
         check_step(step, time_steps=time_step_candidates(self))
@@ -220,7 +240,8 @@ class DiscreteSystem:
 
     def legendre(self) -> LegendreTransforms:
         """F⁻L and F⁺L at (g_k, λ_k) in the section basis, multiplier terms included."""
-        return LegendreTransforms(legendre_forms(self.groupoid, self._fs), self.parameters)
+        return LegendreTransforms(legendre_forms(self.groupoid, self.functions),
+                                  self.parameters)
 
     def noether(self, section, f=None) -> NoetherQuantity:
         """The Noether quantity of a section (seed 000 Def. 4.8, Thm 4.9).
@@ -232,11 +253,11 @@ class DiscreteSystem:
         multiplier term −λ·dψ(α(g))(ρ(X)), and X is a symmetry when the defect vanishes on
         N = G|_M: X tangent to M = {ψ = 0} and L invariant there (docs/conventions.md §15).
         """
-        forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self._fs),
+        forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
                               section, f, self.parameters)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
-                                              self._fs):
+                                              self.functions):
             ok, how = True, "symbolic on N = G|_M (ideal membership)"
         quantity = NoetherQuantity(forms, ok, self.parameters)
         quantity.verification = how
@@ -244,7 +265,7 @@ class DiscreteSystem:
 
     def lie_poisson(self) -> LiePoissonEquations:
         """The discrete constrained Lie–Poisson equations (seed 000 §6.1), Lie groups only."""
-        equations = LiePoissonEquations(lie_poisson_forms(self.name, self.groupoid, self._fs,
+        equations = LiePoissonEquations(lie_poisson_forms(self.name, self.groupoid, self.functions,
                                                           self.parameters))
         check_step(equations.reconstruction, lie_poisson=True)
         return equations
@@ -287,7 +308,7 @@ class SecondOrderSystem(DiscreteSystem):
         raise UnsupportedFeatureError(f"{self.name}: the Lie–Poisson form is first order only")
 
 
-class NonholonomicSystem:
+class NonholonomicSystem(_EvaluatedSystem):
     """A discrete nonholonomic system (L_d, M_c, D_c) (seed 002; docs/conventions.md §10).
 
     ``constraints(g) -> [ψ…]`` define the discrete constraint submanifold M_c ⊂ G;
@@ -318,13 +339,14 @@ class NonholonomicSystem:
         self.parameters = parameters
         self.time_step = time_step_argument(name, groupoid, time_step, parameters)
         self.method, self.metric = method, metric
-        self._fs = evaluate_system(name, groupoid, lagrangian, constraints, self.parameters)
+        self._functions = evaluate_system(name, groupoid, lagrangian, constraints,
+                                          self.parameters)
         if method == "energy_momentum":
-            energy_momentum_step(name, groupoid, self._fs, self.distribution, metric,
+            energy_momentum_step(name, groupoid, self.functions, self.distribution, metric,
                                  self.parameters)  # checks G_c and D now
         else:
             check_nonholonomic_dimensions(name, groupoid, len(self.distribution),
-                                          len(self._fs.constraints))
+                                          len(self.functions.constraints))
 
     @reported(lambda self: f"{self.name}: deriving the equations")
     @collector_paused
@@ -333,10 +355,10 @@ class NonholonomicSystem:
         or the energy–momentum equations on D ⊕ D⊥ (docs/conventions.md §14).  ``progress``
         (keyword): as for :meth:`DiscreteSystem.euler_lagrange`."""
         if self.method == "energy_momentum":
-            derived = energy_momentum_step(self.name, self.groupoid, self._fs,
+            derived = energy_momentum_step(self.name, self.groupoid, self.functions,
                                            self.distribution, self.metric, self.parameters)
         else:
-            derived = nonholonomic_step(self.name, self.groupoid, self._fs, self.distribution,
+            derived = nonholonomic_step(self.name, self.groupoid, self.functions, self.distribution,
                                         self.parameters)
         step = StepEquations(derived)
         step.system = self
@@ -349,7 +371,7 @@ class NonholonomicSystem:
         """The energy ½‖F⁺L‖² (dual metric of G_c) and the momenta ⟨F⁺L, X_a⟩ of D's basis,
         with whether each is proven conserved by the energy–momentum method
         (docs/conventions.md §14).  ``metric`` defaults to the system's."""
-        return conserved_quantities(self.name, self.groupoid, self._fs, self.distribution,
+        return conserved_quantities(self.name, self.groupoid, self.functions, self.distribution,
                                     self.metric if metric is None else metric,
                                     self.parameters)
 

@@ -4,11 +4,17 @@ from ._action import ActionArrow, ActionGroupoid
 from ._atiyah import AtiyahArrow, AtiyahGroupoid
 from ._axioms import check_axioms
 from ._base import Arrow, Groupoid, derivation, left_derivative, right_derivative
+from ._examples import examples
 from ._matrix_form import NamedMatrix, StructuredMatrix
-from ._matrix_groups import SE2, SE3, SO2, SO3, MatrixArrow, MatrixLieGroup, hat3
+from ._matrix_groups import MatrixArrow, MatrixLieGroup, hat3
 from ._morphism import GroupoidMorphism, check_morphism
+from ._numerics import ConfigurationChecks, PairCoordinate
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
 from ._product import ProductArrow, ProductGroupoid
+from ._se2 import SE2
+from ._se3 import SE3
+from ._so2 import SO2
+from ._so3 import SO3
 from ._time import TimeArrow, TimeGroupoid
 from ._trivialised import TrivialisedArrow, TrivialisedPairGroupoid
 from ._user import DefinedGroupoid
@@ -16,9 +22,10 @@ from ._user import DefinedGroupoid
 __all__ = [
     "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",
     "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",
-    "MatrixLieGroup", "NamedMatrix", "StructuredMatrix", "PairArrow", "PairGroupoid",
+    "ConfigurationChecks", "MatrixLieGroup", "NamedMatrix", "PairCoordinate", "StructuredMatrix",
+    "PairArrow", "PairGroupoid",
     "ProductArrow", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid",
     "TrivialisedArrow", "TrivialisedPairGroupoid",
-    "check_axioms", "check_morphism", "derivation", "hat3", "left_derivative",
+    "check_axioms", "check_morphism", "derivation", "examples", "hat3", "left_derivative",
     "right_derivative",
 ]

@@ -172,6 +172,31 @@ class ActionGroupoid(Groupoid):
     def chart_of_fibre(self, f, source=None):
         return self.group.chart_of_fibre(f)
 
+    def configuration(self, value, name, check):
+        """``(p, R)``: a point of the space and an element of the group."""
+        p, R = check.pieces(value, 2, name, f"a configuration (p, R) of {self.name}")
+        return (check.point(p, self.base_dim, f"{name}[0]"),
+                check.group_element(self.group, R, f"{name}[1]"))
+
+    def partial_configuration(self, value, name, check):
+        """``(p, R)``, either part None (determined by the arrows, or the identity)."""
+        if value is None:
+            return None
+        p, R = check.pieces(value, 2, name, f"a configuration (p, R) of {self.name}")
+        return (None if p is None else check.point(p, self.base_dim, f"{name}[0]"),
+                None if R is None else check.group_element(self.group, R, f"{name}[1]"))
+
+    def geodesic(self, total, s):
+        """The point fixed at α(total), the group part along the group's geodesic."""
+        n = self.base_dim
+        return np.hstack([np.tile(total[:n], (len(s), 1)), self.group.geodesic(total[n:], s)])
+
+    def named_vector_action(self):
+        """(the vector's name, H) when the space is a named vector (``EuclideanSpace.vector``)."""
+        if self.space.vector_name is None:
+            return None
+        return self.space.vector_name, self.group
+
     def named_groups(self):
         return self.group.named_groups()
 

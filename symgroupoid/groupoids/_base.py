@@ -33,6 +33,7 @@ import sympy as sp
 
 from .._errors import CallableError, InputTypeError, ShapeError, SymgroupoidError
 from .._lambdify import NUMPY_MODULES
+from ._numerics import GroupoidNumerics
 
 Coords = tuple  # flat tuple of SymPy expressions (or numbers)
 
@@ -62,7 +63,7 @@ class Arrow:
         return f"<{type(self).__name__} of {self.groupoid.name}: {self.coords}>"
 
 
-class Groupoid(ABC):
+class Groupoid(GroupoidNumerics, ABC):
     """Abstract Lie groupoid ``G ⇉ Q`` given by structure maps on flat coordinates.
 
     A user-defined groupoid subclasses this and implements the structure maps, the section

@@ -1,5 +1,5 @@
 """Writes ``groupoids/_closed_forms.py``: the per-class templates of the matrix groups
-(``_matrix_groups``) with the Cayley retraction, as the exact trees their derivation gives.
+(``_matrix_templates``) with the Cayley retraction, as the exact trees their derivation gives.
 
 A new process then evaluates the stored text instead of deriving each template again (the
 Cayley map's ``factor``, SymPy's products of symbolic matrices: about 0.14 s of every first
@@ -16,11 +16,15 @@ from pathlib import Path
 import sympy as sp
 from sympy.printing.repr import ReprPrinter
 
-from . import _matrix_groups as mg
+from . import _matrix_templates as mg
+from ._se2 import SE2
+from ._se3 import SE3
+from ._so2 import SO2
+from ._so3 import SO3
 
 #: the groups whose templates are stored, in the order they are written
-GROUPS: tuple[type, ...] = (mg.SO2, mg.SO3, mg.SE2, mg.SE3)
-#: the maps of ``_matrix_groups._instantiated`` that are stored
+GROUPS: tuple[type, ...] = (SO2, SO3, SE2, SE3)
+#: the maps of ``_matrix_templates._instantiated`` that are stored
 MAPS: tuple[str, ...] = ("translated_retraction", "increment_coordinates")
 RETRACTION = "cayley"
 PATH = Path(__file__).with_name("_closed_forms.py")

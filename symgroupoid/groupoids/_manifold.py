@@ -28,6 +28,12 @@ from .._errors import CoordinateNameError, InputTypeError
 class Manifold(ABC):
     """The configuration manifold of a pair groupoid (see the module docstring)."""
 
+    def configuration(self, value, name: str, check):
+        """``value`` as a point of this manifold, checked by ``check``
+        (:class:`~symgroupoid.groupoids._numerics.ConfigurationChecks`): by default a
+        point of ℝⁿ, n = ``coords_dim``."""
+        return check.point(value, self.coords_dim, name)
+
     @property
     @abstractmethod
     def dim(self) -> int:
@@ -146,6 +152,10 @@ class GroupManifold(Manifold):
         self.group = group
         self.names = (group.symbol_name,)
         self.latex = (group.latex,)
+
+    def configuration(self, value, name, check):
+        """A group element (its matrix)."""
+        return check.group_element(self.group, value, name)
 
     @property
     def dim(self) -> int:
@@ -274,6 +284,13 @@ class ProductManifold(Manifold):
                 f"{' × '.join(map(repr, self.factors))}: two factors name a coordinate "
                 f"{repeated[0]!r}; the factors of a product need distinct names (e.g. "
                 f"SO3(\"R1\") * SO3(\"R2\"))")
+
+    def configuration(self, value, name, check):
+        """One point per factor, named ``name[i]``."""
+        parts = check.pieces(value, len(self.factors), name,
+                             f"a configuration of {self!r}, one per factor")
+        return tuple(f.configuration(c, f"{name}[{i}]", check)
+                     for i, (f, c) in enumerate(zip(self.factors, parts)))
 
     @property
     def dim(self):

@@ -1,4 +1,6 @@
-"""Matrix Lie groups as groupoids over a point: SO(2), SO(3), SE(2), SE(3).
+"""Matrix Lie groups as groupoids over a point: the shared base of SO(2), SO(3), SE(2), SE(3)
+(one module each: ``_so2``, ``_so3``, ``_se2``, ``_se3`` over ``_special_euclidean``; their
+symbolic templates in ``_matrix_templates``).
 
 A Lie group G ⇉ {e} has α = β = const, m = matrix product, ε = I, i = matrix inverse
 (seed 001 §2.1.1).  The basis sections are the Lie algebra basis E_a, as curves τ(t E_a).
@@ -23,17 +25,20 @@ import numpy as np
 import sympy as sp
 
 from .._arguments import choice_argument, name_argument
-from .._lambdify import NUMPY_MODULES
 from .._symbols import StepSymbol, indexed_symbol, latex_name, subscripted
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
-from ._smooth import (
-    HalfThetaCotHalfTheta,
-    OneMinusCosOverTheta2,
-    SE3LogCoefficient,
-    SinOverTheta,
-    ThetaMinusSinOverTheta3,
-    ThetaOverTwoSin,
+from ._matrix_templates import (
+    _basis_of,
+    _cayley_template,
+    _dtau_dummies,
+    _dtau_inverse_template,
+    _dtau_template,
+    _instantiated,
+    _numeric_basis,
+    _numeric_log,
+    _numeric_tau,
+    _renormalised_template,
 )
 
 _named_basis = functools.cache(named_basis)
@@ -142,6 +147,12 @@ class MatrixLieGroup(Groupoid):
     def _free(self) -> list[tuple[int, int]]:
         rows = self.n - 1 if self.affine else self.n
         return [(i, j) for i in range(rows) for j in range(self.n)]
+
+    @property
+    def free_entries(self) -> list[tuple[int, int]]:
+        """The matrix positions (i, j) the arrow coordinates hold, in order (row-major; SE(n)
+        without its fixed last row (0, …, 0, 1))."""
+        return self._free
 
     @property
     def arrow_dim(self) -> int:
@@ -449,6 +460,66 @@ class MatrixLieGroup(Groupoid):
         whose increments W_k = R_k⁻¹R_{k+1} are the arrows (a Lie group's state)."""
         return self.products(start, self.numeric_matrices(arrows))
 
+    # --- geodesics and configurations (numeric) ----------------------------------------------
+    is_lie_group = True
+
+    def configuration(self, value, name, check):
+        """A group element (its matrix)."""
+        return check.group_element(self, value, name)
+
+    def log_coordinates(self, M: np.ndarray) -> np.ndarray | None:
+        """Lie-algebra coordinates x with exp(Σ x_a E_a) = M for a numeric element M, or None
+        where they are not available (the closed-form logarithm, lambdified once; SO(3) and
+        SE(3) override it with forms accurate up to and including half-turns)."""
+        try:
+            with np.errstate(all="ignore"):
+                x = np.asarray(self._numeric_log(M), float)
+        except NotImplementedError:
+            return None
+        return x if np.isfinite(x).all() else None
+
+    @functools.cached_property
+    def exponential_group(self) -> MatrixLieGroup:
+        """The same group with the exponential retraction (its fibre chart is exp)."""
+        return type(self)(self.symbol_name, retraction="exp")
+
+    def fibre_charts(self, X: np.ndarray) -> np.ndarray:
+        """``numeric_fibre_chart(x)`` for every row x of X, in one vectorised call of the
+        lambdified chart when it broadcasts (checked on the first and last rows against the
+        single-row form), else row by row."""
+        q = np.zeros(self.base_dim)
+        single = [self.numeric_fibre_chart(x) for x in X[[0, -1]]]
+        try:
+            with np.errstate(all="ignore"):
+                values = self._numeric_fibre_chart(X.T, q)
+            rows = np.array([np.broadcast_to(np.asarray(v, float), (len(X),))
+                             for v in values]).T
+            if rows.shape == (len(X), len(single[0])) and np.isfinite(rows).all() and \
+                    np.allclose(rows[[0, -1]], single, rtol=1e-14, atol=1e-15):
+                return rows
+        except (TypeError, ValueError, AttributeError):
+            pass
+        return np.array([self.numeric_fibre_chart(x) for x in X])
+
+    def exp_rows(self, X: np.ndarray) -> np.ndarray:
+        """exp(Σ x_a E_a) for every row x of X, as arrows (one per row)."""
+        return self.exponential_group.fibre_charts(X)
+
+    def geodesic(self, total, s):
+        """exp(s·log g), g = ``total`` (defined up to and including half-turns, where the
+        Cayley chart is not); the chart path where the logarithm is not available."""
+        x = self.log_coordinates(self.numeric_matrix(total))
+        if x is None:
+            return self.chart_path(total, s)
+        return self.exp_rows(np.outer(s, x))
+
+    def configurations_from(self, start, arrows):
+        """[R₀, …, R_N]: R₀ = ``start``, R_{k+1} = R_k g_k (matrix products)."""
+        out = [start]
+        for M in self.numeric_matrices(arrows):
+            out.append(out[-1] @ M)
+        return out
+
     def numeric_Ad(self, M: np.ndarray) -> np.ndarray:
         """Ad_g on Lie-algebra coordinates (columns vee(g E_a g⁻¹)) for each matrix of the
         stack ``M`` (N, n, n): (N, rank, rank)."""
@@ -495,386 +566,3 @@ class MatrixLieGroup(Groupoid):
 
     def __repr__(self) -> str:
         return f"{type(self).__name__}({self.symbol_name!r}, retraction={self.retraction!r})"
-
-
-# --- cached symbolic templates (per group class) --------------------------------------------
-
-def _simplify_matrix(M: sp.Matrix) -> sp.Matrix:
-    return M.applyfunc(lambda e: sp.factor(sp.cancel(e)))
-
-
-@functools.cache
-def _renormalised_template(m: int) -> tuple[dict, sp.Matrix]:
-    """Q(3I − QᵀQ)/2 on an m×m matrix of placeholders (substituted, not multiplied out
-    again, for each matrix: SymPy's matrix product of large entries is slow)."""
-    entries = {(i, j): sp.Dummy(f"q{i}{j}") for i in range(m) for j in range(m)}
-    stored = _stored_form(f"renormalised.{m}", list(entries.values()))
-    return entries, stored if stored is not None else _direct_renormalised(entries, m)
-
-
-def _direct_renormalised(entries: dict, m: int) -> sp.Matrix:
-    Q = sp.Matrix(m, m, lambda i, j: entries[(i, j)])
-    return Q * (3 * sp.eye(m) - Q.T * Q) / 2
-
-
-def _builtin(cls) -> bool:
-    """True for the groups defined here (whose templates may be stored)."""
-    return cls.__module__ == __name__ and "." not in cls.__qualname__
-
-
-def _stored_form(key: str, placeholders: Sequence[sp.Symbol]):
-    """The template ``key`` as stored in ``groupoids/_closed_forms.py`` (a matrix or a tuple
-    of expressions), built on ``placeholders``; None when it is not stored.
-
-    The stored text is the exact tree of the derivation (SymPy's ``srepr`` with the
-    placeholders as ``P[i]``, evaluated without SymPy's automatic simplification, so that
-    every node is rebuilt as written), written by ``groupoids/_closed_forms_build.py`` and checked
-    against the derivation by the tests: evaluating it gives the same expressions as the
-    derivation (about 5 ms instead of 20–50 ms per template in every new process: the
-    Cayley map's ``factor``, the products of symbolic matrices)."""
-    from ._closed_forms import FORMS
-
-    text = FORMS.get(key)
-    if text is None:
-        return None
-    with sp.evaluate(False):  # the tree as written, node for node (factor's forms included)
-        return eval(text, {**_stored_namespace(), "P": tuple(placeholders)})  # noqa: S307
-
-
-@functools.cache
-def _stored_namespace() -> dict:
-    """The SymPy names a stored template's text refers to."""
-    return {name: getattr(sp, name) for name in dir(sp) if not name.startswith("_")}
-
-
-@functools.cache
-def _basis_of(cls) -> tuple[sp.ImmutableMatrix, ...]:
-    """The Lie-algebra basis of a group class (``_basis``), made once and immutable."""
-    return tuple(sp.ImmutableMatrix(E) for E in cls._basis())
-
-
-#: (group class, retraction, map) → (placeholders, entries): the maps of
-#: :func:`_instantiated`, derived once per kind of group
-_MAP_TEMPLATES: dict[tuple, tuple[tuple, tuple]] = {}
-
-
-def _instantiated(group: MatrixLieGroup, name: str, values: Sequence) -> tuple:
-    """``group.<name>(…)`` at ``values``: the map derived once on placeholders for every
-    group of the same class and retraction (the class fixes the basis, the free entries and
-    the structure maps), then substituted.  SymPy's products of symbolic matrices cost
-    about 10–20 ms per group element (3D chain of 8 bodies: 0.3 s of its derivation);
-    a substitution about 0.5 ms."""
-    key = (type(group), group.retraction, name)
-    template = _MAP_TEMPLATES.get(key)
-    if template is None:
-        placeholders = tuple(sp.Dummy(f"a{i}") for i in range(len(values)))
-        stored = (_stored_form(f"{type(group).__name__}.{group.retraction}.{name}",
-                               placeholders) if _builtin(type(group)) else None)
-        entries = stored if stored is not None else _direct_map(group, name, placeholders)
-        template = (placeholders, entries)
-        _MAP_TEMPLATES[key] = template
-    placeholders, entries = template
-    sub = dict(zip(placeholders, (sp.sympify(v) for v in values)))
-    return tuple(e.xreplace(sub) for e in entries)
-
-
-def _direct_map(group: MatrixLieGroup, name: str, placeholders: Sequence) -> tuple:
-    """The map ``name`` of :func:`_instantiated` derived on ``placeholders``."""
-    direct = {"translated_retraction": _direct_translated_retraction,
-              "increment_coordinates": _direct_increment_coordinates}[name]
-    return tuple(sp.sympify(e) for e in direct(group, placeholders))
-
-
-def _direct_translated_retraction(group: MatrixLieGroup, values: Sequence) -> tuple:
-    q, x = values[:group.arrow_dim], values[group.arrow_dim:]
-    return group.entries(group.matrix(q) * group.tau(list(x)))
-
-
-def _direct_increment_coordinates(group: MatrixLieGroup, values: Sequence) -> tuple:
-    q, p = values[:group.arrow_dim], values[group.arrow_dim:]
-    return tuple(group.retraction_inverse(group._inverse_matrix(group.matrix(q))
-                                          * group.matrix(p)))
-
-
-@functools.cache
-def _dtau_dummies(cls) -> tuple:
-    return tuple(sp.Dummy(f"y{a}", real=True) for a in range(len(_basis_of(cls))))
-
-
-@functools.cache
-def _cayley_template(cls) -> sp.Matrix:
-    x = _dtau_dummies(cls)
-    stored = _stored_form(f"{cls.__name__}.cayley", x) if _builtin(cls) else None
-    return stored if stored is not None else _direct_cayley(cls, x)
-
-
-def _direct_cayley(cls, x: Sequence) -> sp.Matrix:
-    closed = cls._cayley_closed_form(x)
-    if closed is not None:  # the same canonical form as below, without the symbolic solve
-        return closed.applyfunc(lambda e: sp.factor(sp.together(e)))
-    X = cls.hat(x)
-    eye = sp.eye(cls.n)
-    M = (eye - X / 2).LUsolve(eye + X / 2)
-    return _simplify_matrix(M)
-
-
-def _tau_template(cls, retraction: str) -> sp.Matrix:
-    x = _dtau_dummies(cls)
-    if retraction == "cayley":
-        return _cayley_template(cls)
-    return cls._exp_closed_form(x)
-
-
-@functools.cache
-def _dtau_template(cls, retraction: str, side: str) -> sp.Matrix:
-    x = _dtau_dummies(cls)
-    T = _tau_template(cls, retraction)
-    Tinv = cls._inverse_closed_form(T)
-    cols = []
-    for xa in x:
-        dT = T.diff(xa)
-        prod = Tinv * dT if side == "left" else dT * Tinv
-        cols.append(cls.vee(prod))
-    D = sp.Matrix.hstack(*cols)
-    return D.applyfunc(_tidy(retraction))
-
-
-@functools.cache
-def _dtau_inverse_template(cls, retraction: str, side: str) -> sp.Matrix:
-    D = _dtau_template(cls, retraction, side)
-    if retraction == "cayley":
-        return D.inv().applyfunc(_tidy(retraction))
-    # exp: the entries hold the smooth special functions; an LU inverse without zero-testing
-    # simplification stays fast (the result is exact, not simplified)
-    return D.inv(method="LU", iszerofunc=lambda e: e.is_zero is True)
-
-
-def _tidy(retraction: str):
-    """Cayley: rational entries, put in lowest terms.  exp: left as derived (simplifying
-    expressions in the smooth special functions gains little and costs much)."""
-    if retraction == "cayley":
-        return lambda e: sp.factor(sp.cancel(e))
-    return lambda e: e
-
-
-@functools.cache
-def _numeric_basis(cls) -> np.ndarray:
-    """The Lie algebra basis E_a as a (rank, n, n) array."""
-    return np.array([np.array(E.tolist(), dtype=float) for E in _basis_of(cls)])
-
-
-@functools.cache
-def _numeric_tau(cls, retraction: str):
-    return sp.lambdify(list(_dtau_dummies(cls)), list(_tau_template(cls, retraction)),
-                       NUMPY_MODULES)
-
-
-@functools.cache
-def _numeric_log(cls):
-    M = sp.MatrixSymbol("M", cls.n, cls.n)
-    return sp.lambdify([M], list(cls("log", retraction="exp").log(sp.Matrix(M))), NUMPY_MODULES)
-
-
-# --- the built-in groups --------------------------------------------------------------------
-
-class SO2(MatrixLieGroup):
-    """Rotations of the plane; so(2) basis E = [[0, −1], [1, 0]]."""
-
-    n = 2
-    group_name = "SO2"
-    rotation_block = 2
-
-    @classmethod
-    def _basis(cls):
-        return [sp.Matrix([[0, -1], [1, 0]])]
-
-    def _inverse_matrix(self, M):
-        return M.T
-
-    @staticmethod
-    def _inverse_closed_form(M):
-        return M.T
-
-    @classmethod
-    def _exp_closed_form(cls, x):
-        th = x[0]
-        return sp.Matrix([[sp.cos(th), -sp.sin(th)], [sp.sin(th), sp.cos(th)]])
-
-    def exp(self, x):
-        return self._exp_closed_form(x)
-
-    def cayley_inverse(self, M):
-        # on SO(2): cay⁻¹(R) = 2(R − Rᵀ)/(2 + tr R)
-        return self.vee(2 * (M - M.T) / (2 + M.trace())).applyfunc(sp.cancel)
-
-    def log(self, M):
-        return sp.Matrix([sp.atan2(M[1, 0], M[0, 0])])
-
-
-class SO3(MatrixLieGroup):
-    """Rotations of space; so(3) basis E₁, E₂, E₃ of seed 000 §6.2 (ω̂ = Σ ω_a E_a)."""
-
-    n = 3
-    group_name = "SO3"
-    rotation_block = 3
-
-    @classmethod
-    def _basis(cls):
-        return [hat3((1, 0, 0)), hat3((0, 1, 0)), hat3((0, 0, 1))]
-
-    @classmethod
-    def _cayley_closed_form(cls, x):
-        """cay(ξ) = I + 4/(4 + |x|²)(ξ + ξ²/2) (seed 000 §6.1), ξ = x̂."""
-        X = cls.hat(x)
-        return sp.eye(3) + 4 / (4 + sum(v**2 for v in x)) * (X + X * X / 2)
-
-    def _inverse_matrix(self, M):
-        return M.T
-
-    @staticmethod
-    def _inverse_closed_form(M):
-        return M.T
-
-    @classmethod
-    def _exp_closed_form(cls, x):
-        """Rodrigues: I + A(θ²) x̂ + B(θ²) x̂², A = sin θ/θ, B = (1 − cos θ)/θ² (smooth at 0)."""
-        th2 = x[0] ** 2 + x[1] ** 2 + x[2] ** 2
-        W = hat3(x)
-        return sp.eye(3) + SinOverTheta(th2) * W + OneMinusCosOverTheta2(th2) * W * W
-
-    def exp(self, x):
-        return self._exp_closed_form(x)
-
-    def cayley_inverse(self, M):
-        # on SO(3): cay⁻¹(R) = 2(R − Rᵀ)/(1 + tr R)   (from seed 001 eq. (63))
-        return self.vee(2 * (M - M.T) / (1 + M.trace()))
-
-    def log(self, M):
-        """θ/(2 sin θ)·vee(R − Rᵀ), the coefficient a smooth function of cos θ = (tr R − 1)/2."""
-        return self.vee(ThetaOverTwoSin((M.trace() - 1) / 2) * (M - M.T))
-
-
-class _SpecialEuclidean(MatrixLieGroup):
-    affine = True
-    rot: type[MatrixLieGroup]
-
-    @classmethod
-    def _split(cls, x):
-        r = len(_basis_of(cls.rot))
-        return x[:r], x[r:]
-
-    @classmethod
-    def hat(cls, x):
-        w, v = cls._split(list(x))
-        m = cls.n - 1
-        out = sp.zeros(cls.n, cls.n)
-        out[:m, :m] = cls.rot.hat(w)
-        out[:m, m] = sp.Matrix(v)
-        return out
-
-    def _inverse_matrix(self, M):
-        return self._inverse_closed_form(M)
-
-    @classmethod
-    def _inverse_closed_form(cls, M):
-        m = cls.n - 1
-        R, p = M[:m, :m], M[:m, m]
-        out = sp.eye(cls.n)
-        out[:m, :m] = R.T
-        out[:m, m] = -R.T * p
-        return out
-
-    def cayley_inverse(self, M):
-        # ω = cay⁻¹(R), v = (I − ω̂/2) p   (block form of 2(g − I)(g + I)⁻¹)
-        m = self.n - 1
-        R, p = M[:m, :m], M[:m, m]
-        w = self.rot("tmp").cayley_inverse(R)
-        v = (sp.eye(m) - self.rot.hat(list(w)) / 2) * p
-        return sp.Matrix(list(w) + list(v))
-
-    def log(self, M):
-        m = self.n - 1
-        R, p = M[:m, :m], M[:m, m]
-        w = list(self.rot("tmp", retraction="exp").log(R))
-        return sp.Matrix(w + list(self._V_inverse(w) * p))
-
-    @classmethod
-    def _exp_closed_form(cls, x):
-        w, v = cls._split(list(x))
-        m = cls.n - 1
-        out = sp.eye(cls.n)
-        out[:m, :m] = cls.rot._exp_closed_form(w)
-        out[:m, m] = cls._V(w) * sp.Matrix(v)
-        return out
-
-    def exp(self, x):
-        return self._exp_closed_form(x)
-
-
-class SE2(_SpecialEuclidean):
-    """Rigid motions of the plane; se(2) coordinates (ω, v₁, v₂)."""
-
-    n = 3
-    group_name = "SE2"
-    rotation_block = 2
-    rot = SO2
-
-    @classmethod
-    def _basis(cls):
-        return [cls.hat([1, 0, 0]), cls.hat([0, 1, 0]), cls.hat([0, 0, 1])]
-
-    @classmethod
-    def hat(cls, x):
-        out = sp.zeros(3, 3)
-        out[:2, :2] = SO2.hat([x[0]])
-        out[0, 2], out[1, 2] = x[1], x[2]
-        return out
-
-    @staticmethod
-    def _V(w):
-        """[[sin θ/θ, −(1 − cos θ)/θ], [(1 − cos θ)/θ, sin θ/θ]] with smooth coefficients."""
-        th = w[0]
-        A, B = SinOverTheta(th ** 2), th * OneMinusCosOverTheta2(th ** 2)
-        return sp.Matrix([[A, -B], [B, A]])
-
-    @staticmethod
-    def _V_inverse(w):
-        """V⁻¹ = [[a, θ/2], [−θ/2, a]], a = (θ/2) cot(θ/2)."""
-        th = w[0]
-        a = HalfThetaCotHalfTheta(th ** 2)
-        return sp.Matrix([[a, th / 2], [-th / 2, a]])
-
-
-class SE3(_SpecialEuclidean):
-    """Rigid motions of space; se(3) coordinates (ω₁, ω₂, ω₃, v₁, v₂, v₃)."""
-
-    n = 4
-    group_name = "SE3"
-    rotation_block = 3
-    rot = SO3
-
-    @classmethod
-    def _basis(cls):
-        return [cls.hat([1 if i == a else 0 for i in range(6)]) for a in range(6)]
-
-    @classmethod
-    def hat(cls, x):
-        out = sp.zeros(4, 4)
-        out[:3, :3] = hat3(x[:3])
-        out[0, 3], out[1, 3], out[2, 3] = x[3], x[4], x[5]
-        return out
-
-    @staticmethod
-    def _V(w):
-        """I + B(θ²) ω̂ + C(θ²) ω̂², C = (θ − sin θ)/θ³."""
-        th2 = w[0] ** 2 + w[1] ** 2 + w[2] ** 2
-        W = hat3(w)
-        return (sp.eye(3) + OneMinusCosOverTheta2(th2) * W
-                + ThetaMinusSinOverTheta3(th2) * W * W)
-
-    @staticmethod
-    def _V_inverse(w):
-        """I − ω̂/2 + D(θ²) ω̂², D = (1 − (θ/2) cot(θ/2))/θ²."""
-        th2 = w[0] ** 2 + w[1] ** 2 + w[2] ** 2
-        W = hat3(w)
-        return sp.eye(3) - W / 2 + SE3LogCoefficient(th2) * W * W

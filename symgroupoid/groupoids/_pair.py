@@ -19,6 +19,7 @@ from .._errors import CoordinateNameError, InputTypeError, ShapeError
 from .._symbols import latex_name, scalar_symbol
 from ._base import Arrow, Groupoid
 from ._manifold import Manifold, as_manifold
+from ._numerics import PairCoordinate
 
 
 class EuclideanSpace(Manifold):
@@ -272,6 +273,25 @@ class PairGroupoid(Groupoid):
 
     def symbols_by_name(self, offset):
         return self.space.symbols_by_name(offset)
+
+    def configuration(self, value, name, check):
+        """A point of the manifold (ℝⁿ: n numbers; a Lie group: a group element; a product:
+        one point per factor)."""
+        return self.space.configuration(value, name, check)
+
+    def geodesic(self, total, s):
+        """ℝⁿ: the straight segment (q₀, q₀ + s(q₁ − q₀)); other manifolds: the chart path."""
+        if not isinstance(self.space, EuclideanSpace):
+            return self.chart_path(total, s)
+        q0, q1 = total[:self.base_dim], total[self.base_dim:]
+        return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
+
+    def pair_coordinates(self):
+        """ℝⁿ: coordinate i at positions i (source) and n + i (target)."""
+        if not isinstance(self.space, EuclideanSpace):
+            return []
+        n = self.base_dim
+        return [PairCoordinate(i, n + i, self.space.names[i]) for i in range(n)]
 
     def named_groups(self):
         return {name: group for name, (_, group) in self.space.groups().items()}

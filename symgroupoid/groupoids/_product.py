@@ -10,6 +10,7 @@ import numpy as np
 from .._arguments import instance_argument
 from .._errors import CoordinateNameError, ShapeError
 from ._base import Arrow, Groupoid
+from ._numerics import PairCoordinate
 
 
 class ProductArrow(Arrow):
@@ -140,6 +141,36 @@ class ProductGroupoid(Groupoid):
 
     def renormalised_arrow(self, a):
         return self._map("renormalised_arrow", (a, self._arrow_slices))
+
+    def configuration(self, value, name, check):
+        """One configuration per factor, named ``name[i]``."""
+        parts = check.pieces(value, len(self.factors), name,
+                             f"a configuration of {self.name}, one per factor")
+        return tuple(f.configuration(c, f"{name}[{i}]", check)
+                     for i, (f, c) in enumerate(zip(self.factors, parts)))
+
+    def partial_configuration(self, value, name, check):
+        """One partial configuration per factor (None for a part the arrows determine)."""
+        if value is None:
+            return None
+        parts = check.pieces(value, len(self.factors), name,
+                             f"a configuration of {self.name}, one per factor (None for a "
+                             f"part the state determines)")
+        return tuple(f.partial_configuration(c, f"{name}[{i}]", check)
+                     for i, (f, c) in enumerate(zip(self.factors, parts)))
+
+    def geodesic(self, total, s):
+        """Each factor along its own geodesic."""
+        return np.hstack([f.geodesic(total[lo:hi], s)
+                          for f, (lo, hi) in zip(self.factors, self._arrow_slices)])
+
+    def pair_coordinates(self):
+        """The factors' pair coordinates, shifted to the factors' places in the arrow."""
+        out = []
+        for factor, (start, _) in zip(self.factors, self._arrow_slices):
+            out += [PairCoordinate(start + c.source, start + c.target, c.name)
+                    for c in factor.pair_coordinates()]
+        return out
 
     def named_groups(self):
         out: dict = {}

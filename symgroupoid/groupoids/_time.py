@@ -47,6 +47,8 @@ class TimeArrow(Arrow):
 class TimeGroupoid(Groupoid):
     """R × R × G ⇉ R × Q for a groupoid G."""
 
+    timed = True
+
     def __init__(self, inner: Groupoid, time_name: str = "t"):
         self.inner = instance_argument(inner, Groupoid, "the inner groupoid", "a Groupoid",
                                        owner="TimeGroupoid")
@@ -136,6 +138,26 @@ class TimeGroupoid(Groupoid):
 
     def chart_of_fibre(self, f, source=None):
         return (f[0],) + tuple(self.inner.chart_of_fibre(f[1:], self._inner_source(source)))
+
+    def configuration(self, value, name, check):
+        """``(t, c)``: a time and a configuration of the inner groupoid."""
+        t, c = check.pieces(value, 2, name, f"a configuration (t, c) of {self.name}")
+        return (check.time(t, f"{name}[0] (the time)"),
+                self.inner.configuration(c, f"{name}[1]", check))
+
+    def partial_configuration(self, value, name, check):
+        """``(t, c)``: the time comes from the arrows, c as the inner groupoid's partial one."""
+        if value is None:
+            return None
+        t, c = check.pieces(value, 2, name, f"a configuration (t, c) of {self.name}")
+        return (None, self.inner.partial_configuration(c, f"{name}[1]", check))
+
+    def geodesic(self, total, s):
+        """The time along the straight segment t₀ + s(t₁ − t₀), the inner arrow along its
+        geodesic."""
+        t0, t1 = total[0], total[1]
+        return np.column_stack([np.full(len(s), t0), t0 + s * (t1 - t0),
+                                self.inner.geodesic(total[2:], s)])
 
     def named_groups(self):
         return self.inner.named_groups()

@@ -277,6 +277,10 @@ class TrivialisedPairGroupoid(Groupoid):
         return {self.group.symbol_name: self.group.named_matrix(offset),
                 self.increment_name: sp.eye(self.group.n) + self._named_offset(offset)}
 
+    def configuration(self, value, name, check):
+        """An element of the group (a configuration q; the arrows hold increments)."""
+        return check.group_element(self.group, value, name)
+
     def named_groups(self):
         return {self.group.symbol_name: self.group, self.increment_name: self.group}
 

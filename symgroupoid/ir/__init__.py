@@ -15,6 +15,16 @@ from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
 from ._program import Program, interpret
 from ._rounding import rounding_error, term_magnitude
+from ._smooth import (
+    HalfThetaCotHalfTheta,
+    OneMinusCosOverTheta2,
+    SE3LogCoefficient,
+    SinOverTheta,
+    SmoothFunction,
+    ThetaMinusSinOverTheta3,
+    ThetaOverTwoSin,
+    smooth_function,
+)
 from ._sympy import from_sympy, to_sympy
 
 __all__ = [
@@ -22,4 +32,7 @@ __all__ = [
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "compact", "forward",
     "from_sympy", "gradient", "interpret", "jacobian", "partial", "rounding_error",
     "smooth_spec", "term_magnitude", "to_sympy",
+    # smooth functions of θ² (or cos θ) with their Taylor series near the removable point
+    "HalfThetaCotHalfTheta", "OneMinusCosOverTheta2", "SE3LogCoefficient", "SinOverTheta",
+    "SmoothFunction", "ThetaMinusSinOverTheta3", "ThetaOverTwoSin", "smooth_function",
 ]

@@ -6,7 +6,7 @@ expression and its NumPy expression.  Three kinds:
 
 - the elementary functions of ``math.h`` (sin, cos, exp, log, atan2, …);
 - the smooth special functions of the exponential retraction
-  (:mod:`symgroupoid.groupoids._smooth`), printed as small C helper functions;
+  (:mod:`symgroupoid.ir._smooth`), printed as small C helper functions;
 - any other SymPy function of the arguments (``Piecewise``, ``Max``, …): an *opaque* spec
   holding a SymPy expression in placeholder symbols, printed by SymPy's printers and
   differentiated by SymPy — exact, and rare in mechanics.
@@ -176,7 +176,7 @@ ELEMENTARY[sp.Abs] = _Abs()
 # --- smooth special functions (exponential retraction) ------------------------------------------
 
 class Smooth(FunctionSpec):
-    """A :class:`~symgroupoid.groupoids._smooth.SmoothFunction` f(s): Taylor polynomial near
+    """A :class:`~symgroupoid.ir._smooth.SmoothFunction` f(s): Taylor polynomial near
     its singular point, closed form elsewhere; a C helper ``sg_<name>``."""
 
     def __init__(self, cls):
@@ -190,7 +190,7 @@ class Smooth(FunctionSpec):
         return value if value.is_number and not isinstance(value, self.cls) else None
 
     def partial(self, g, node, k):
-        from ..groupoids._smooth import derivative_of
+        from ._smooth import derivative_of
 
         return g.func(smooth_spec(derivative_of(self.cls)), *g.args[node])
 
@@ -198,8 +198,8 @@ class Smooth(FunctionSpec):
         return f"{self.c_name}({args[0]})"
 
     def c_helpers(self):
-        from ..groupoids._smooth import THRESHOLD
         from ._c import c_of_sympy
+        from ._smooth import THRESHOLD
 
         s = sp.Symbol("s", real=True)
         d = sp.Symbol("d", real=True)
@@ -237,7 +237,7 @@ def _numpy_smooth(cls):
     so that both give the same bits."""
     import numpy as np
 
-    from ..groupoids._smooth import THRESHOLD
+    from ._smooth import THRESHOLD
 
     coeffs = [float(sp.Float(c, 17)) for c in cls.taylor()][::-1]  # the C helper's literals
     point = float(cls.point)

@@ -77,7 +77,7 @@ def _children(e, symbols, context) -> tuple:
 
 
 def _function_spec(e):
-    from ..groupoids._smooth import SmoothFunction
+    from ._smooth import SmoothFunction
 
     if isinstance(e, SmoothFunction):
         return smooth_spec(type(e))

@@ -65,21 +65,10 @@ from .._errors import (
     ShapeError,
     SingularJacobianError,
 )
-from .._lambdify import NUMPY_MODULES
 from .._progress import note as progress_note
 from .._progress import reported
 from ..derivation._step import window
 from ..derivation._window import _fields, junction_nodes
-from ..groupoids import (
-    SE3,
-    SO3,
-    ActionGroupoid,
-    EuclideanSpace,
-    MatrixLieGroup,
-    PairGroupoid,
-    ProductGroupoid,
-    TimeGroupoid,
-)
 from ..ir import Graph, Program, forward, from_sympy, gradient, rounding_error
 from . import _lapack
 from ._banded import Inertia, banded_inertia
@@ -399,7 +388,7 @@ class BoundaryValueSolution:
     @functools.cached_property
     def configurations(self) -> list:
         """The N + 1 configurations from :attr:`origin` along the arrows."""
-        return _configurations(self.system.groupoid, self.origin, self.arrows)
+        return self.system.groupoid.configurations_from(self.origin, self.arrows)
 
     @property
     def inertia(self) -> Inertia | None:
@@ -593,128 +582,13 @@ def _layout(n: int, arity: int, rank: int, m: int) -> _Layout:
 
 # --- the initial guess: geodesic interpolation -------------------------------------------------
 
-def _so3_log(R: np.ndarray) -> np.ndarray:
-    """ω with exp(ω̂) = R for a rotation R, θ = |ω| ∈ [0, π]; accurate at and near a
-    half-turn, where θ/(2 sin θ)·vee(R − Rᵀ) is 0·∞ (there the axis is read off the
-    symmetric part: (R + Rᵀ)/2 − cos θ·I = (1 − cos θ)·a aᵀ)."""
-    c = float(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))
-    s_axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
-    s = float(np.linalg.norm(s_axis))  # sin θ
-    theta = float(np.arctan2(s, c))
-    if c > -0.5:
-        return s_axis * (theta / s if s > 1e-12 else 1.0 + s * s / 6.0)
-    B = (R + R.T) / 2.0 - c * np.eye(3)
-    i = int(np.argmax(np.diag(B)))
-    axis = B[:, i] / np.sqrt(max(B[i, i], 1e-300) * (1.0 - c))
-    if axis @ s_axis < 0:
-        axis = -axis
-    return theta * axis / np.linalg.norm(axis)
-
-
-@functools.lru_cache(maxsize=16)
-def _exp_group(G):
-    """The same group with the exponential retraction (its fibre chart is exp)."""
-    return type(G)(G.symbol_name, retraction="exp")
-
-
-@functools.lru_cache(maxsize=4)
-def _se3_v_inverse():
-    w = sp.symbols("w1:4", real=True)
-    return sp.lambdify([w], SE3._V_inverse(w), NUMPY_MODULES)
-
-
-def _group_log(G, M: np.ndarray) -> np.ndarray | None:
-    """Lie-algebra coordinates x with exp(Σ x_a E_a) = M, or None when unavailable."""
-    if isinstance(G, SO3):
-        return _so3_log(M)
-    if isinstance(G, SE3):
-        w = _so3_log(M[:3, :3])
-        return np.concatenate([w, np.asarray(_se3_v_inverse()(w), float) @ M[:3, 3]])
-    try:
-        with np.errstate(all="ignore"):
-            x = np.asarray(G._numeric_log(M), float)
-    except NotImplementedError:
-        return None
-    return x if np.isfinite(x).all() else None
-
-
-def _chart_path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Arrows from ε(α(total)) to ``total`` interpolated in the fibre chart."""
-    q = tuple(G.source(total))
-    x_id = np.asarray(G.fibre_chart_inverse(G.fibre_of(G.identity(q)), q), float)
-    x_end = np.asarray(G.fibre_chart_inverse(G.fibre_of(tuple(total)), q), float)
-    return np.array([[float(v) for v in G.arrow_from(q, G.numeric_fibre_chart(
-        x_id + (x_end - x_id) * t, q))] for t in s])
-
-
-def _so3_exp_rows(W: np.ndarray) -> np.ndarray:
-    """exp(ω̂) for every row ω of W (Rodrigues, sin θ/θ and (1 − cos θ)/θ² by their series
-    near θ = 0), as arrows of SO(3) (the nine entries, row-major)."""
-    theta = np.linalg.norm(W, axis=1)
-    small = theta < 1e-4
-    t = np.where(small, 1.0, theta)
-    a = np.where(small, 1 - theta ** 2 / 6, np.sin(t) / t)
-    b = np.where(small, 0.5 - theta ** 2 / 24, (1 - np.cos(t)) / t ** 2)
-    K = np.zeros((len(W), 3, 3))
-    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -W[:, 2], W[:, 1], -W[:, 0]
-    K -= np.swapaxes(K, 1, 2)
-    R = np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
-    return R.reshape(len(W), 9)
-
-
-def _chart_rows(G, X: np.ndarray) -> np.ndarray:
-    """``G.numeric_fibre_chart(x)`` (at the identity's fibre) for every row x of X, in one
-    vectorised call of the lambdified chart when it broadcasts (checked on the first and
-    last rows against the single-row form), else row by row."""
-    q = np.zeros(G.base_dim)
-    single = [G.numeric_fibre_chart(x) for x in X[[0, -1]]]
-    try:
-        with np.errstate(all="ignore"):
-            values = G._numeric_fibre_chart(X.T, q)
-        rows = np.array([np.broadcast_to(np.asarray(v, float), (len(X),)) for v in values]).T
-        if rows.shape == (len(X), len(single[0])) and np.isfinite(rows).all() and \
-                np.allclose(rows[[0, -1]], single, rtol=1e-14, atol=1e-15):
-            return rows
-    except (TypeError, ValueError, AttributeError):
-        pass
-    return np.array([G.numeric_fibre_chart(x) for x in X])
-
-
-def _path(G, total: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Arrows P(s_i) ∈ α⁻¹(α(total)) from P(0) = ε to P(1) = total along a geodesic of each
-    factor: exp(s·log g) on a matrix Lie group (defined up to and including half-turns, where
-    the Cayley chart is not), a straight segment on a pair groupoid and in time, the group
-    part of an action groupoid; other groupoids: a straight line in the fibre chart."""
-    if isinstance(G, MatrixLieGroup):
-        x = _group_log(G, G.numeric_matrix(total))
-        if x is None:
-            return _chart_path(G, total, s)
-        if isinstance(G, SO3):
-            return _so3_exp_rows(np.outer(s, x))
-        return _chart_rows(_exp_group(G), np.outer(s, x))
-    if isinstance(G, PairGroupoid) and isinstance(G.space, EuclideanSpace):
-        q0, q1 = total[:G.base_dim], total[G.base_dim:]
-        return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
-    if isinstance(G, ActionGroupoid):
-        n = G.base_dim
-        return np.hstack([np.tile(total[:n], (len(s), 1)), _path(G.group, total[n:], s)])
-    if isinstance(G, TimeGroupoid):
-        t0, t1 = total[0], total[1]
-        return np.column_stack([np.full(len(s), t0), t0 + s * (t1 - t0),
-                                _path(G.inner, total[2:], s)])
-    if isinstance(G, ProductGroupoid):
-        return np.hstack([_path(f, total[lo:hi], s)
-                          for f, (lo, hi) in zip(G.factors, G._arrow_slices)])
-    return _chart_path(G, total, s)
-
-
 def interpolate_arrows(G, total: Sequence, steps: int) -> np.ndarray:
     """N arrows g_k = P_{k−1}⁻¹ P_k whose product is ``total``: P_k = P(k/N) on the geodesic
-    of :func:`_path` from the identity ε(α(total)) to ``total`` (on a Lie group
+    (``G.geodesic``) from the identity ε(α(total)) to ``total`` (on a Lie group
     g_k = exp(log(total)/N), so a half-turn is split into N turns by π/N and the guess stays
     off the cut locus of the Cayley chart)."""
     total = np.asarray(total, float)
-    P = _path(G, total, np.arange(steps + 1) / steps)
+    P = G.geodesic(total, np.arange(steps + 1) / steps)
     P[0] = np.asarray(G.identity(tuple(G.source(total))), float)
     P[-1] = total
     maps = _maps(G)
@@ -836,19 +710,11 @@ def _half_turns(G, arrows: np.ndarray) -> list[tuple[int, str, float]]:
     out = []
     for start, group in G.matrix_parts():
         n = group.n - 1 if group.affine else group.n
-        R = _numeric_matrices(group, arrows[:, start:start + group.arrow_dim])[:, :n, :n]
+        R = group.numeric_matrices(arrows[:, start:start + group.arrow_dim])[:, :n, :n]
         closeness = np.abs(np.linalg.det(np.eye(n) + R)) / 2.0 ** n
         out += [(int(k), group.symbol_name, float(closeness[k]))
                 for k in np.flatnonzero(closeness <= CUT_LOCUS_TOLERANCE)]
     return sorted(out)
-
-
-def _numeric_matrices(group, coords: np.ndarray) -> np.ndarray:
-    """:meth:`MatrixLieGroup.numeric_matrix` of every row of ``coords``: (n_rows, n, n)."""
-    M = np.broadcast_to(np.eye(group.n), (len(coords), group.n, group.n)).copy()
-    for c, (i, j) in enumerate(group._free):
-        M[:, i, j] = coords[:, c]
-    return M
 
 
 def _check_cut_locus(system, arrows: np.ndarray, what: str) -> None:
@@ -1543,19 +1409,6 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
         system, arrows, lam, data.configurations[0], named, run.iterations, run.history[-1],
         run.history, time.perf_counter() - t0, cost=ctx.cost(arrows, p),
         second_order=inertia, method=" → ".join(run.methods))
-
-
-def _configurations(G, start, arrows: np.ndarray) -> list:
-    """The N + 1 configurations from the first along the arrows (a matrix group: products of
-    the arrows' matrices)."""
-    out = [start]
-    if isinstance(G, MatrixLieGroup):
-        for M in _numeric_matrices(G, arrows):
-            out.append(out[-1] @ M)
-        return out
-    for g in arrows:
-        out.append(G.configuration_after(out[-1], g))
-    return out
 
 
 def _solve(ctx: _Context, arrows, lam, state: _Assembled, run: _Run, minimum: bool):

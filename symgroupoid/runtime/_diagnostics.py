@@ -39,7 +39,6 @@ from .._arguments import flag_argument
 from .._errors import SymgroupoidError
 from .._symbols import multiplier_symbols
 from ..derivation._window import _fields
-from ..groupoids import TimeGroupoid
 from ..ir import Graph, Program, from_sympy, gradient
 
 _EPS = float(np.finfo(float).eps)
@@ -181,7 +180,7 @@ class StateGraph:
             raise DiagnosticsError(f"{self.name}: the discrete energy is defined here for "
                                    f"first-order systems (L: G → R) only")
         g = self.graph
-        if step_parameter is None and isinstance(self.groupoid, TimeGroupoid):
+        if step_parameter is None and self.groupoid.timed:
             grad_L = gradient(g, self.L, self.slots)
             # the time section ∂/∂t is the first basis section of R×R×G
             return [g.neg(self.derivation("left", 0, [0], grad_L)[0])], "E = −∂L/∂t₁"

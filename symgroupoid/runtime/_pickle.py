@@ -70,6 +70,11 @@ class GroupSpec:
     def arrow_dim(self) -> int:
         return len(self._free)
 
+    @property
+    def free_entries(self) -> tuple:
+        """The matrix positions the arrow coordinates hold (``MatrixLieGroup.free_entries``)."""
+        return self._free
+
     def numeric_matrix(self, coords) -> np.ndarray:
         M = np.eye(self.n)
         for (i, j), c in zip(self._free, coords):
@@ -78,7 +83,7 @@ class GroupSpec:
 
     @classmethod
     def of(cls, group) -> GroupSpec:
-        free = tuple((int(i), int(j)) for i, j in group._free)
+        free = tuple((int(i), int(j)) for i, j in group.free_entries)
         return cls(str(group.name), str(group.symbol_name), int(group.n), bool(group.affine),
                    free)
 

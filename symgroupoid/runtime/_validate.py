@@ -34,16 +34,7 @@ from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
 )
 from .._errors import DomainError, GroupRoundingWarning, ParameterError, ShapeError
 from .._lambdify import NUMPY_MODULES
-from ..groupoids import (
-    ActionGroupoid,
-    Groupoid,
-    MatrixLieGroup,
-    PairGroupoid,
-    ProductGroupoid,
-    TimeGroupoid,
-    TrivialisedPairGroupoid,
-)
-from ..groupoids._manifold import GroupManifold, ProductManifold
+from ..groupoids import Groupoid, MatrixLieGroup
 
 #: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
 #: last row of SE(n)): far above the rounding of a product of many rotations, far below any
@@ -351,8 +342,33 @@ def _pieces(value, count: int, name: str, what: str, owner: str) -> tuple:
     return tuple(value)
 
 
+class _Checks:
+    """The checks of a configuration's parts (``groupoid.configuration`` says what the parts
+    are), with messages that name ``owner``."""
+
+    def __init__(self, owner: str):
+        self.owner = owner
+
+    def point(self, value, dim: int, name: str) -> tuple:
+        return point(value, dim, name, owner=self.owner)
+
+    def group_element(self, group, value, name: str) -> np.ndarray:
+        return group_element(group, value, name, owner=self.owner)
+
+    def time(self, value, name: str) -> float:
+        return real_argument(value, name, owner=self.owner)
+
+    def pieces(self, value, count: int, name: str, what: str) -> tuple:
+        return _pieces(value, count, name, what, self.owner)
+
+    def no_configuration_space(self, groupoid, name: str):
+        raise ShapeError(f"{_where(self.owner)}{groupoid.name} has no configuration space "
+                         f"(arrow_between), so {name} cannot be given as a configuration")
+
+
 def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
-    """A boundary configuration of ``groupoid``, checked as states are checked, per factor.
+    """A boundary configuration of ``groupoid``, checked as states are checked, per part
+    (``groupoid.configuration``).
 
     Pair groupoid: a point of its manifold (Rⁿ: shape, finiteness; a matrix Lie group: a
     group element, :func:`group_element`; a product: one per factor); matrix Lie group and
@@ -361,66 +377,16 @@ def configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
     are named ``name[i]``.  Groupoids without a configuration space raise
     :class:`ShapeError`; other user groupoids are passed on to their own ``arrow_between``.
     """
-    if isinstance(groupoid, MatrixLieGroup):
-        return group_element(groupoid, value, name, owner=owner)
-    if isinstance(groupoid, TrivialisedPairGroupoid):
-        return group_element(groupoid.group, value, name, owner=owner)
-    if isinstance(groupoid, PairGroupoid):
-        return _point_of(groupoid.space, value, name, owner)
-    if isinstance(groupoid, ActionGroupoid):
-        p, R = _pieces(value, 2, name, f"a configuration (p, R) of {groupoid.name}", owner)
-        return (point(p, groupoid.base_dim, f"{name}[0]", owner=owner),
-                group_element(groupoid.group, R, f"{name}[1]", owner=owner))
-    if isinstance(groupoid, TimeGroupoid):
-        t, c = _pieces(value, 2, name, f"a configuration (t, c) of {groupoid.name}", owner)
-        return (real_argument(t, f"{name}[0] (the time)", owner=owner),
-                configuration(groupoid.inner, c, f"{name}[1]", owner=owner))
-    if isinstance(groupoid, ProductGroupoid):
-        parts = _pieces(value, len(groupoid.factors), name,
-                        f"a configuration of {groupoid.name}, one per factor", owner)
-        return tuple(configuration(f, c, f"{name}[{i}]", owner=owner)
-                     for i, (f, c) in enumerate(zip(groupoid.factors, parts)))
-    if type(groupoid).arrow_between is Groupoid.arrow_between:
-        raise ShapeError(f"{_where(owner)}{groupoid.name} has no configuration space "
-                         f"(arrow_between), so {name} cannot be given as a configuration")
-    return value
+    return groupoid.configuration(value, name, _Checks(owner))
 
 
 def partial_configuration(groupoid: Groupoid, value, name: str, *, owner: str = ""):
     """A first configuration for :meth:`Groupoid.configurations_along`, checked as
     :func:`configuration` checks one, where None stands for a part the arrows determine
     (or that defaults to the identity): None, or for a product one entry per factor, for an
-    action groupoid (p, R), for a time groupoid (t, c), each entry None or a configuration."""
-    if value is None:
-        return None
-    if isinstance(groupoid, ProductGroupoid):
-        parts = _pieces(value, len(groupoid.factors), name,
-                        f"a configuration of {groupoid.name}, one per factor (None for a "
-                        f"part the state determines)", owner)
-        return tuple(partial_configuration(f, c, f"{name}[{i}]", owner=owner)
-                     for i, (f, c) in enumerate(zip(groupoid.factors, parts)))
-    if isinstance(groupoid, ActionGroupoid):
-        p, R = _pieces(value, 2, name, f"a configuration (p, R) of {groupoid.name}", owner)
-        return (None if p is None else point(p, groupoid.base_dim, f"{name}[0]", owner=owner),
-                None if R is None else group_element(groupoid.group, R, f"{name}[1]",
-                                                     owner=owner))
-    if isinstance(groupoid, TimeGroupoid):
-        t, c = _pieces(value, 2, name, f"a configuration (t, c) of {groupoid.name}", owner)
-        return (None, partial_configuration(groupoid.inner, c, f"{name}[1]", owner=owner))
-    return configuration(groupoid, value, name, owner=owner)
-
-
-def _point_of(space, value, name: str, owner: str):
-    """A point of a pair groupoid's configuration manifold: a point of Rⁿ, a group element
-    (a matrix), or one point per factor of a product."""
-    if isinstance(space, GroupManifold):
-        return group_element(space.group, value, name, owner=owner)
-    if isinstance(space, ProductManifold):
-        parts = _pieces(value, len(space.factors), name,
-                        f"a configuration of {space!r}, one per factor", owner)
-        return tuple(_point_of(f, c, f"{name}[{i}]", owner)
-                     for i, (f, c) in enumerate(zip(space.factors, parts)))
-    return point(value, space.coords_dim, name, owner=owner)
+    action groupoid (p, R), for a time groupoid (t, c), each entry None or a configuration
+    (``groupoid.partial_configuration``)."""
+    return groupoid.partial_configuration(value, name, _Checks(owner))
 
 
 def offset_element(group, offsets: np.ndarray) -> np.ndarray:
@@ -428,7 +394,7 @@ def offset_element(group, offsets: np.ndarray) -> np.ndarray:
     SE(n) is (0, …, 0, 1)); ``offsets`` of shape (arrow_dim,) or (B, arrow_dim)."""
     offsets = np.asarray(offsets, float)
     M = np.broadcast_to(np.eye(group.n), offsets.shape[:-1] + (group.n, group.n)).copy()
-    for k, (i, j) in enumerate(group._free):
+    for k, (i, j) in enumerate(group.free_entries):
         M[..., i, j] += offsets[..., k]
     return M
 
