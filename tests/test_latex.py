@@ -12,7 +12,7 @@ import sympy as sp
 
 import symgroupoid as sg
 from symgroupoid.derivation._step import matrix_form_values
-from symgroupoid.groupoids._matrix_form import to_explicit
+from symgroupoid.groupoids import to_explicit
 
 mathtext = pytest.importorskip("matplotlib.mathtext")
 from matplotlib.font_manager import FontProperties  # noqa: E402

@@ -460,7 +460,7 @@ def matrix_form_values(groupoid: Groupoid, offsets: Sequence[int]) -> dict:
 def verified_matrix_form(explicit: Sequence[sp.Expr], structured: Sequence[sp.Expr],
                          groupoid: Groupoid, offsets: Sequence[int]) -> list | None:
     """``structured`` if, with the matrices written out, it equals ``explicit`` exactly."""
-    from ..groupoids._matrix_form import to_explicit
+    from ..groupoids import to_explicit
 
     values = matrix_form_values(groupoid, offsets)
     for e, s in zip(explicit, structured):

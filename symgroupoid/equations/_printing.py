@@ -213,7 +213,7 @@ class Form:
 def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
     """``expr`` with every layer substituted in order, named constants (J_d) by their
     values, matrices evaluated, expanded."""
-    from ..groupoids._matrix_form import named_constants
+    from ..groupoids import named_constants
 
     out = uncollected(sp.sympify(expr))
     for layer in layers:
@@ -248,7 +248,7 @@ def matrix_values(step) -> dict:
     """MatrixSymbols of the step's matrix form → explicit matrices, its named constants (J_d)
     included (empty without one)."""
     from ..derivation._step import matrix_form_values, window
-    from ..groupoids._matrix_form import named_constants
+    from ..groupoids import named_constants
 
     if step.structured is None:
         return {}
@@ -274,9 +274,9 @@ def constant_matrices(G) -> set:
 def is_constant(symbol, constants: set) -> bool:
     """Whether a MatrixSymbol stands for a constant matrix: one of ``constants``
     (:func:`constant_matrices`) or a named constant (J_d)."""
-    from ..groupoids._matrix_form import NamedConstant
+    from ..groupoids import is_constant_matrix
 
-    return symbol in constants or isinstance(symbol, NamedConstant)
+    return symbol in constants or is_constant_matrix(symbol)
 
 
 def kept_by_name(atom, constants: set) -> bool:
@@ -298,7 +298,7 @@ def evaluated_constants(expr: sp.Expr, values: Mapping, constants: set) -> sp.Ex
     :func:`kept_by_name` written out through ``values`` and expanded, and the entries of
     group matrices as the step's symbols (they print alike): (E_1)_{11} (W_{k+1})_{12} is
     0, (W_k E_1)_{21} is −(W_k)_{31}, tr(E_1ᵀ W_k) is (W_k)_{32} − (W_k)_{23}."""
-    from ..groupoids._matrix_form import to_explicit
+    from ..groupoids import to_explicit
 
     sub: dict = {}
     for atom in expr.atoms(MatrixElement, sp.Trace):

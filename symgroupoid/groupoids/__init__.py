@@ -5,7 +5,13 @@ from ._atiyah import AtiyahArrow, AtiyahGroupoid
 from ._axioms import check_axioms
 from ._base import Arrow, Groupoid, derivation, left_derivative, right_derivative
 from ._examples import examples
-from ._matrix_form import NamedMatrix, StructuredMatrix
+from ._matrix_form import (
+    NamedMatrix,
+    StructuredMatrix,
+    is_constant_matrix,
+    named_constants,
+    to_explicit,
+)
 from ._matrix_groups import MatrixArrow, MatrixLieGroup, hat3
 from ._morphism import GroupoidMorphism, check_morphism
 from ._numerics import ConfigurationChecks, PairCoordinate
@@ -20,6 +26,7 @@ from ._trivialised import TrivialisedArrow, TrivialisedPairGroupoid
 from ._user import DefinedGroupoid
 
 __all__ = [
+    "is_constant_matrix", "named_constants", "to_explicit",
     "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",
     "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",
     "ConfigurationChecks", "MatrixLieGroup", "NamedMatrix", "PairCoordinate", "StructuredMatrix",

@@ -41,7 +41,7 @@ class NamedMatrix(sp.ImmutableDenseMatrix):
 _VALUES: dict = {}
 
 
-class NamedConstant(sp.MatrixSymbol):
+class ConstantMatrix(sp.MatrixSymbol):
     """A :class:`NamedMatrix` in a matrix-form expression: a MatrixSymbol that prints as its
     name (``J_d``) and holds, as a hidden argument, the digest of its value, so that two
     constants of one name but different values (two systems' ``J_d``) are different symbols,
@@ -67,8 +67,13 @@ class NamedConstant(sp.MatrixSymbol):
 
 
 def named_constants(expr) -> dict:
-    """NamedConstant → value for the named constant matrices in ``expr``."""
-    return {c: c.value for c in sp.sympify(expr).atoms(NamedConstant)}
+    """ConstantMatrix → value for the named constant matrices in ``expr``."""
+    return {c: c.value for c in sp.sympify(expr).atoms(ConstantMatrix)}
+
+
+def is_constant_matrix(symbol) -> bool:
+    """Whether a MatrixSymbol of a matrix form stands for a named constant matrix (J_d)."""
+    return isinstance(symbol, ConstantMatrix)
 
 
 class StructuredMatrix:
@@ -91,7 +96,7 @@ class StructuredMatrix:
             name = getattr(other, "latex_name", None)
             value = sp.ImmutableMatrix(other)
             if name is not None:
-                return NamedConstant(name, value)
+                return ConstantMatrix(name, value)
             return self.names.get(value, value)
         if isinstance(other, sp.MatrixExpr):
             return other
