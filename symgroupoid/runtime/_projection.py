@@ -24,11 +24,14 @@ import sympy as sp
 
 from .._errors import DomainError
 from .._lambdify import NUMPY_MODULES
-from ..derivation._window import step_jacobian
-from ..ir import Program, from_sympy
-from ._diagnostics import state_graph
+from ..equations import state_programs
 
 _EPS = float(np.finfo(float).eps)
+
+
+def _functions(system):
+    """The system's evaluated functions (L, φ on slot arrows), or None."""
+    return getattr(system, "_fs", None)
 
 
 class ProjectionError(DomainError):
@@ -47,28 +50,15 @@ class ConstraintProjection:
                 f"{step.name}: project_initial handles first-order steps; for a second-order "
                 f"step give consistent arrows, or start from a momentum "
                 f"(Simulator.from_momentum)")
-        sgraph = state_graph(step)
-        self.has_constraints = bool(sgraph.phi)
+        programs = state_programs(step)
+        self.has_constraints = programs.has_constraints
         if not self.has_constraints:
             return
-        fs = getattr(getattr(step, "system", None), "_fs", None)
+        fs = _functions(getattr(step, "system", None))
         self.source = SourceProjection(step) if fs is not None and fs.n_holonomic else None
-        G, g = step.groupoid, sgraph.graph
-        self.groupoid = G
-        self.chart = [sp.Dummy(f"x{i}", real=True) for i in range(G.rank)]
-        symbols = dict(sgraph.symbols)
-        symbols.update({x: g.input(x) for x in self.chart})
-        source = tuple(G.source(step.arrows[0]))
-        moved = tuple(G.arrow_from(source, G.fibre_chart(tuple(self.chart), source)))
-        arrow = [from_sympy(g, c, symbols, f"{step.name}: the fibre chart of the known arrow")
-                 for c in moved]
-        phi = g.substitute(sgraph.rows, dict(zip(sgraph.slots, arrow)))
-        J = step_jacobian(g, phi, [symbols[x] for x in self.chart])
-        self.program = Program(g, {"x": list(self.chart), "known": list(step.knowns),
-                                   "p": list(step.parameters)},
-                               {"phi": phi, "J": [c for row in J for c in row],
-                                "arrow": arrow})
-        self.m = len(phi)
+        self.groupoid = step.groupoid
+        self.program = programs.projection
+        self.m = len(self.program.outputs["phi"])
 
     def __call__(self, state: np.ndarray, p: np.ndarray, max_iterations: int = 50
                  ) -> np.ndarray:
@@ -122,7 +112,7 @@ class SourceProjection:
     """
 
     def __init__(self, step):
-        fs = step.system._fs
+        fs = _functions(step.system)
         G = step.groupoid
         self.name, self.groupoid = step.name, G
         q = list(fs.base)
