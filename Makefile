@@ -21,11 +21,15 @@ $(DOCS_STAMP): $(STAMP)
 demo: $(STAMP)
 	$(PY) -m symgroupoid demo
 
+# the tests on every core (pytest-xdist), a test file per worker at a time (their shared
+# systems are derived once per worker)
+XDIST := -n auto --dist loadfile
+
 test: $(STAMP)
-	$(PY) -m pytest -q -m "not slow"
+	$(PY) -m pytest -q -m "not slow" $(XDIST)
 
 test-all: $(STAMP) $(DOCS_STAMP)
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q $(XDIST)
 
 # the API reference from the docstrings (Sphinx, warnings are errors): build/docs/index.html
 docs: $(DOCS_STAMP)

@@ -125,6 +125,10 @@ def _time_axis(trajectory, time_step, owner: str) -> tuple[float | None, str]:
     return float(trajectory.parameters[time_step]), time_step
 
 
+def _axis_label(h: float | None, h_name: str) -> str:
+    return "step k" if h is None else f"time t = k·{h_name} ({h_name} = {h:g})"
+
+
 def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
                     path: str | PathLike | None = None, max_parts: int = 6,
                     time_step: str | bool | None = None):
@@ -163,16 +167,16 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
         ax.set_ylabel(name)
         if 1 < flat.shape[1] <= 9:
             ax.legend(fontsize="x-small", ncols=min(flat.shape[1], 3), loc="best")
-    axes[-1].set_xlabel("step k" if h is None else f"time t = k·{h_name} ({h_name} = {h:g})")
+    axes[-1].set_xlabel(_axis_label(h, h_name))
     axes[0].set_title(f"{trajectory._layout.step_name}: {trajectory.steps} steps")
     return _finish(fig, path, owner)
 
 
-def _drift_panel(ax, quantities: list[Drift]) -> None:
+def _drift_panel(ax, quantities: list[Drift], h: float | None) -> None:
     for i, q in enumerate(quantities):
         color = f"C{i}"
         drift = q.drift
-        k = np.asarray(q.step_indices)
+        k = np.asarray(q.step_indices, float) * (1.0 if h is None else h)
         ax.semilogy(k, np.where(drift > 0, drift, np.nan), color=color, lw=1,
                     label=f"{q.name} (max {q.max_drift:.1e})")
         floor = q.floor
@@ -189,7 +193,7 @@ def _drift_panel(ax, quantities: list[Drift]) -> None:
 
 def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence = (), *,
                       constraints: bool | None = None, step_parameter: str | None = None,
-                      path: str | PathLike | None = None):
+                      path: str | PathLike | None = None, time_step: str | bool | None = None):
     """The drift |Q_k − Q_0| of each conserved quantity on a log scale, each with its
     rounding floor ε·|Q|·√k dashed in the same colour, and (``constraints``) the constraint
     residual max_a |φ_a| of each state in a second panel.
@@ -198,7 +202,10 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     defined); ``momenta``: Noether quantities (:class:`~symgroupoid.NoetherQuantity`, or
     sections given to ``system.noether``; a mapping label → quantity names them);
     ``constraints``: None plots them when the system
-    has constraints.  Returns the figure (saved to ``path`` if given).
+    has constraints.  The horizontal axis is the time t = k·h when the time step h is known
+    (``time_step``: a parameter's name; None: ``step_parameter``, else the step the system
+    declares), else the step index k (``time_step=False`` forces it); the floors are functions
+    of k either way.  Returns the figure (saved to ``path`` if given).
     """
     Figure = _figure_class()
     ev, _ = _setup(trajectory)
@@ -207,6 +214,8 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     constraints = (None if constraints is None
                    else flag_argument(constraints, "constraints", owner=owner))
     path = _output(path, owner)
+    h, h_name = _time_axis(trajectory, step_parameter if time_step is None else time_step,
+                           owner)
     idx = trajectory.step_indices
     quantities = []
     if energy or (energy is None and has_energy(trajectory, step_parameter)):
@@ -226,15 +235,16 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     fig = Figure(figsize=(7, 3 * panels + 0.6))
     axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])
     if quantities:
-        _drift_panel(axes[0], quantities)
+        _drift_panel(axes[0], quantities, h)
     if show_phi:
         ax = axes[-1]
         phi = np.max(np.abs(constraint_residuals(trajectory)), axis=1)
-        ax.semilogy(idx, np.where(phi > 0, phi, np.nan), color="C7", lw=1,
+        x = np.asarray(idx, float) * (1.0 if h is None else h)
+        ax.semilogy(x, np.where(phi > 0, phi, np.nan), color="C7", lw=1,
                     label=f"max |φ| (max {phi.max():.1e})")
         ax.set_ylabel("constraints |φ|")
         ax.legend(fontsize="small", loc="best")
-    axes[-1].set_xlabel("step k")
+    axes[-1].set_xlabel(_axis_label(h, h_name))
     axes[0].set_title(f"{trajectory._layout.step_name}: conservation over "
                       f"{trajectory.steps} steps")
     return _finish(fig, path, owner)

@@ -24,10 +24,12 @@ VERIFYING = {
     "euler_poincare_so3.py": "verified against seed 001 §2.2.5 and seed 000 §6.1",
     "optimal_control_so3_se2.py": "verified against seed 000 §6.1 and seed 001 Appendix D",
 }
-# long-running demonstrations (boundary-value solves), run with the slow tests only
+# long-running demonstrations (boundary-value solves, long runs), run with the slow tests
+# only; their systems are checked in the fast tests (heavy top: tests/test_seed_heavy_top.py,
+# the 3D chain: tests/test_chains.py)
 SLOW = {"optimal_control_lie_groups.py", "elroys_beanie.py", "euler_poincare_so3.py",
         "holonomic_constraints.py", "optimal_control_so3_se2.py", "heavy_top_rotors.py",
-        "plate_ball_steering.py"}
+        "plate_ball_steering.py", "heavy_top.py", "pendulum_chain_3d.py"}
 TIMEOUT = 300
 
 

@@ -112,6 +112,7 @@ def test_named_constant_matrix_prints_by_name(heavy_top_step):
     assert "\\begin{matrix}" not in tex
 
 
+@pytest.mark.slow  # 9 s; the documents are typeset by LaTeX itself in tests/test_latex_pdf.py
 def test_every_formula_renders_with_mathtext(plate_ball, heavy_top, plate_ball_step,
                                             heavy_top_step):
     rigid = sg.DiscreteSystem(sg.SO3("W"), lambda g: (g.matrix * sp.diag(1, 2, 3)).trace(),

@@ -126,7 +126,8 @@ CASES = {
 }
 
 
-@pytest.mark.parametrize("case", sorted(CASES))
+@pytest.mark.parametrize("case", [  # SO(3) (10 s): with the slow tests
+    pytest.param(c, marks=pytest.mark.slow) if c == "SO3" else c for c in sorted(CASES)])
 def test_optimal_control_cayley(case: str) -> None:
     """Seed 000 §6.1 (final display), docs/conventions.md §5, with quadratic cost l(ξ) = ½ξᵀIξ and a
     linear plus a nonlinear control constraint ψ: after g_k = cay(hξ_k), g_{k+1} = cay(hξ_{k+1})

@@ -78,9 +78,21 @@ def test_projectile_energy_differentiates_by_the_step_not_by_h(declared: bool) -
 def test_conservation_figure_plots_the_energy_of_the_step() -> None:
     """plot_conservation(energy=True) draws E_d = −∂L_d/∂dt of the projectile."""
     pytest.importorskip("matplotlib")
-    fig = sg.plot_conservation(thrown(projectile()), energy=True)
+    traj = thrown(projectile())
+    fig = sg.plot_conservation(traj, energy=True)
     labels = [t.get_text() for ax in fig.axes for t in ax.get_legend().get_texts()]
     assert any("E_d = −∂L_d/∂dt" in label for label in labels), labels
+    # time on the axis: the step dt, named (the system here declares none), not the height h
+    fig = sg.plot_conservation(traj, energy=True, step_parameter="dt")
+    dt_value = traj.parameters["dt"]
+    assert fig.axes[-1].get_xlabel() == f"time t = k·dt (dt = {dt_value:g})"
+    x = fig.axes[0].get_lines()[0].get_xdata()
+    assert np.isclose(x[-1], traj.step_indices[-1] * dt_value)
+    declared = thrown(projectile(time_step=dt))
+    fig = sg.plot_conservation(declared, energy=True)
+    assert fig.axes[-1].get_xlabel().startswith("time t = k·dt")
+    fig = sg.plot_conservation(declared, energy=True, time_step=False)
+    assert fig.axes[-1].get_xlabel() == "step k"
 
 
 def ambiguous() -> sg.DiscreteSystem:
