@@ -10,9 +10,20 @@ the C kernels (:mod:`symgroupoid.codegen`) and the NumPy forms
   :func:`structure_program` — a boundary-value solve's window residuals and blocks, its
   cost, the action's terms and the structure maps it applies to rows of arrows;
 - :func:`state_programs` — the diagnostics of a step's known state (energy, momenta,
-  constraint residuals) and the projection of an initial state onto the constraints.
+  constraint residuals) and the projection of an initial state onto the constraints;
+- :func:`momentum_program`, :func:`second_order_momentum_program`,
+  :func:`source_projection_program` — the initial-state solves;
+- :func:`constraint_program`, :func:`holonomic_program` — the constraint checks of initial
+  states and boundary data (values and the size of their terms, :func:`magnitude`).
 """
 
+from ._checks import constraint_program, holonomic_program, magnitude
+from ._initial import (
+    MomentumProgram,
+    momentum_program,
+    second_order_momentum_program,
+    source_projection_program,
+)
 from ._state import StatePrograms, state_programs
 from ._step import step_program
 from ._window import (
@@ -23,5 +34,8 @@ from ._window import (
     window_programs,
 )
 
-__all__ = ["StatePrograms", "WindowPrograms", "action_program", "cost_program",
-           "state_programs", "step_program", "structure_program", "window_programs"]
+__all__ = ["MomentumProgram", "StatePrograms", "WindowPrograms", "action_program",
+           "constraint_program", "cost_program", "holonomic_program", "magnitude",
+           "momentum_program", "second_order_momentum_program",
+           "source_projection_program", "state_programs", "step_program",
+           "structure_program", "window_programs"]

@@ -191,7 +191,7 @@ class StatePrograms:
         """The (cached) program of one quantity, its output ``out``: ``"minus"`` (F⁻L),
         ``"plus"`` (F⁺L), ``"constraints"`` (φ on the newest term) or ``"energy"`` (by
         ``step_parameter``, see :meth:`energy`)."""
-        cache_key = (key, step_parameter if key == "energy" else None)
+        cache_key = f"energy:{step_parameter}" if key == "energy" else key
         hit = self._programs.get(cache_key)
         if hit is None:
             if key == "energy":
