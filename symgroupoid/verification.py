@@ -43,6 +43,11 @@ class StationarityReport:
         return f"<StationarityReport stationary={self.stationary} scale={self.scale:.3e} {ds}>"
 
 
+def _functions(system):
+    """The system's evaluated functions (L, φ on slot arrows)."""
+    return system._fs
+
+
 class _NumericGroupoid:
     """Structure maps of a groupoid, evaluated from its structure program
     (:func:`~symgroupoid.equations.structure_program`)."""
@@ -91,7 +96,7 @@ def _action_terms(system) -> tuple:
     of :func:`~symgroupoid.equations.action_program`, a term per batch column."""
     program = action_program(system)
     f = program.numpy_function(["L", "phi"], ["a", "p"])
-    fs = system._fs
+    fs = _functions(system)
     return f, len(fs.slots), len(fs.constraints)
 
 
@@ -229,7 +234,8 @@ def _unpack(trajectory, system, multipliers, params):
     if arrows.ndim != 2 or arrows.shape[1] != G.arrow_dim:
         raise ShapeError(f"{owner}: arrows must have shape (N, {G.arrow_dim}), got "
                          f"{arrows.shape}")
-    arity, m = len(system._fs.slots), len(system._fs.constraints)
+    fs = _functions(system)
+    arity, m = len(fs.slots), len(fs.constraints)
     terms = len(arrows) - arity + 1
     if terms < 1:
         raise ShapeError(f"{owner}: {len(arrows)} arrows hold no term of the action "
