@@ -47,8 +47,10 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import symgroupoid as sg  # noqa: E402
-from symgroupoid.runtime._backends import SINGULAR_JACOBIAN, lu_solve  # noqa: E402
+from symgroupoid.stepper import Status, lu_solve  # noqa: E402
 from symgroupoid.systems import plate_ball  # noqa: E402
+
+SINGULAR_JACOBIAN = Status.SINGULAR_JACOBIAN
 
 R, OMEGA, C = 1.0, 0.1, 0.02
 ORIGIN = (0.0, 0.0)

@@ -91,8 +91,11 @@ extern "C" {
 #define HEAVY_TOP_N_PARAMETERS 5
 #define HEAVY_TOP_N_FIBRE 9
 #define HEAVY_TOP_N_CONSTRAINTS 0
+
+/* the most OpenMP threads heavy_top_simulate_batch starts (a team is created whole) */
 #define HEAVY_TOP_MAX_THREADS 1024
 
+/* the statuses of the stepper (symgroupoid.stepper.Status, kernel=True) */
 #define HEAVY_TOP_OK 0
 #define HEAVY_TOP_SINGULAR_JACOBIAN 1
 #define HEAVY_TOP_NOT_CONVERGED 2
@@ -113,9 +116,9 @@ typedef struct {
 typedef struct {
     int count;
     int quadratic;
-    double u_last[3];
-    double u_before[3];
-    double u_earlier[3];
+    double u_last[HEAVY_TOP_N_UNKNOWNS];
+    double u_before[HEAVY_TOP_N_UNKNOWNS];
+    double u_earlier[HEAVY_TOP_N_UNKNOWNS];
 } heavy_top_warm_start;
 
 typedef struct {
@@ -124,9 +127,10 @@ typedef struct {
     long last_kept;
     long long carry_iterations;
     double carry_norm;
-    double known[12];
+    double known[HEAVY_TOP_N_KNOWNS];
 } heavy_top_batch_cursor;
 
+/* the library's entry points, and the functions a kernel generates for it */
 void heavy_top_default_options(heavy_top_options *options);
 void heavy_top_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F);

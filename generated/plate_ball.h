@@ -99,8 +99,11 @@ extern "C" {
 #define PLATE_BALL_N_PARAMETERS 4
 #define PLATE_BALL_N_FIBRE 9
 #define PLATE_BALL_N_CONSTRAINTS 3
+
+/* the most OpenMP threads plate_ball_simulate_batch starts (a team is created whole) */
 #define PLATE_BALL_MAX_THREADS 1024
 
+/* the statuses of the stepper (symgroupoid.stepper.Status, kernel=True) */
 #define PLATE_BALL_OK 0
 #define PLATE_BALL_SINGULAR_JACOBIAN 1
 #define PLATE_BALL_NOT_CONVERGED 2
@@ -121,9 +124,9 @@ typedef struct {
 typedef struct {
     int count;
     int quadratic;
-    double u_last[8];
-    double u_before[8];
-    double u_earlier[8];
+    double u_last[PLATE_BALL_N_UNKNOWNS];
+    double u_before[PLATE_BALL_N_UNKNOWNS];
+    double u_earlier[PLATE_BALL_N_UNKNOWNS];
 } plate_ball_warm_start;
 
 typedef struct {
@@ -132,9 +135,10 @@ typedef struct {
     long last_kept;
     long long carry_iterations;
     double carry_norm;
-    double known[16];
+    double known[PLATE_BALL_N_KNOWNS];
 } plate_ball_batch_cursor;
 
+/* the library's entry points, and the functions a kernel generates for it */
 void plate_ball_default_options(plate_ball_options *options);
 void plate_ball_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void plate_ball_residual(const double *u, const double *known, const double *p, double *F);

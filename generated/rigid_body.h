@@ -87,8 +87,11 @@ extern "C" {
 #define RIGID_BODY_N_PARAMETERS 4
 #define RIGID_BODY_N_FIBRE 9
 #define RIGID_BODY_N_CONSTRAINTS 0
+
+/* the most OpenMP threads rigid_body_simulate_batch starts (a team is created whole) */
 #define RIGID_BODY_MAX_THREADS 1024
 
+/* the statuses of the stepper (symgroupoid.stepper.Status, kernel=True) */
 #define RIGID_BODY_OK 0
 #define RIGID_BODY_SINGULAR_JACOBIAN 1
 #define RIGID_BODY_NOT_CONVERGED 2
@@ -109,9 +112,9 @@ typedef struct {
 typedef struct {
     int count;
     int quadratic;
-    double u_last[3];
-    double u_before[3];
-    double u_earlier[3];
+    double u_last[RIGID_BODY_N_UNKNOWNS];
+    double u_before[RIGID_BODY_N_UNKNOWNS];
+    double u_earlier[RIGID_BODY_N_UNKNOWNS];
 } rigid_body_warm_start;
 
 typedef struct {
@@ -120,9 +123,10 @@ typedef struct {
     long last_kept;
     long long carry_iterations;
     double carry_norm;
-    double known[9];
+    double known[RIGID_BODY_N_KNOWNS];
 } rigid_body_batch_cursor;
 
+/* the library's entry points, and the functions a kernel generates for it */
 void rigid_body_default_options(rigid_body_options *options);
 void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F);

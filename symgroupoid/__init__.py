@@ -93,6 +93,7 @@ from .runtime import (  # noqa: E402  (layer 5)
     sweep_boundary_value,
 )
 from .runtime._diagnostics import TimeStepError  # noqa: E402  (layer 5)
+from .stepper import Status  # noqa: E402  (the statuses of every run)
 
 __all__ = [
     "ActionGroupoid", "Arrow", "AtiyahGroupoid", "AxiomError", "BoundaryValueSolution",
@@ -115,4 +116,5 @@ __all__ = [
     "emit_c", "hat3", "latex", "left_derivative", "plot_conservation", "plot_trajectory",
     "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",
     "verify_stationary",
+    "Status",
 ]

@@ -140,8 +140,11 @@ def test_a_kernel_in_units_has_smaller_parts_unless_it_may_stay_in_one():
         UNROLLED_UNKNOWNS,
         unit_part_size,
     )
+    from symgroupoid.stepper import library_source
 
     assert UNIT_PART_SIZE < PART_SIZE
+    # the build's estimate unrolls where the library does
+    assert f"#if SG_N_UNKNOWNS <= {UNROLLED_UNKNOWNS} && " in library_source("stepper.c")
     for n in (1, 6, 9, 48):
         assert unit_part_size(n, 2) == UNIT_PART_SIZE
         assert unit_part_size(n, 1) == PART_SIZE
@@ -329,8 +332,9 @@ def test_compiling_builds_no_sympy_residuals_and_emitting_keeps_the_latex():
     source = (sim.cache_entry / f"{sim.kernel.prefix}.c").read_text()
     assert "print the equations with StepEquations.latex()" in source
     assert "\\theta" not in source
-    emitted = generate_c(step).source
-    assert "\\theta" in emitted  # what emit_c writes keeps the residuals in LaTeX
+    assert "\\theta" not in generate_c(step).source  # by default: numbered equations
+    emitted = generate_c(step, latex=True).source
+    assert "\\theta" in emitted  # emit_c(latex=True) lists the residuals in LaTeX
 
 
 # --- ABI mode ---------------------------------------------------------------------------------

@@ -25,6 +25,7 @@ import sympy as sp
 from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
+from symgroupoid import _progress
 from symgroupoid.cli import main
 from symgroupoid.runtime import CacheError, CompilationError, _build, _cache, _compile
 from symgroupoid.runtime._maintenance import cache_info, clear_cache
@@ -743,6 +744,7 @@ def test_a_full_disk_is_a_cache_error_naming_the_cache(monkeypatch, cache_dir, c
     text = str(info.value)
     assert str(cache_dir) in text and "no space left" in text and "SYMGROUPOID_CACHE" in text
     assert list((cache_dir / "tmp").iterdir()) == []
+    monkeypatch.setattr(_progress, "DELAY", 1e9)  # no progress line on a loaded machine
     status, _, err = cli("simulate", str(REPO / "examples" / "cli" / "spring.py"), "--steps",
                          "3", capsys=capsys)
     assert status == 1 and len(err.strip().splitlines()) == 1

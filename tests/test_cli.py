@@ -165,6 +165,11 @@ def test_emit_writes_source_and_header(files, tmp_path, capsys):
     assert f"wrote {source}" in out and f"wrote {header}" in out
     assert '#include "ring.h"' in source.read_text()
     assert "ring_simulate" in header.read_text()
+    assert "print the equations with StepEquations.latex()" in source.read_text()
+    code, _, _ = run(capsys, "emit", files / "ring.py", "-o", tmp_path / "tex", "--latex")
+    latex = (tmp_path / "tex" / "ring.c").read_text()
+    assert code == 0 and "print the equations with" not in latex
+    assert latex.count(" *   F[") == source.read_text().count(" *   F[") > 0
 
 
 # --- simulate -----------------------------------------------------------------------------------

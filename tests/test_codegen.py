@@ -51,9 +51,21 @@ def test_printer_maps_symbols_by_table_and_dispatches_on_type():
 
 # --- emitted files --------------------------------------------------------------------------
 
-def test_emit_c_writes_header_and_source_with_name_count_and_latex(tmp_path):
+def test_emit_c_writes_short_comments_by_default_and_latex_on_request(tmp_path):
+    """``emit_c`` numbers the equations in the source's comment and builds no SymPy
+    residuals; ``latex=True`` lists them in LaTeX (the matrix form, as printed)."""
+    from symgroupoid.systems import SEED_SYSTEMS
+
+    fresh = SEED_SYSTEMS["plate_ball"]().euler_lagrange()
+    c_path, _ = emit_c(fresh, tmp_path / "short")
+    assert fresh._d.residuals is None, "emit_c built the SymPy residuals"
+    short = c_path.read_text()
+    assert " *   F[0]: 0 = equation 0 of the step (print the equations with " in short
+    assert "\\operatorname" not in short and "\\frac" not in short
+    with pytest.raises(sg.InputTypeError, match="latex must be True or False"):
+        emit_c(fresh, tmp_path / "bad", latex="yes")
     step = seed_step("plate_ball")
-    c_path, h_path = emit_c(step, tmp_path / "pb")
+    c_path, h_path = emit_c(step, tmp_path / "pb", latex=True)
     assert (c_path.name, h_path.name) == ("pb.c", "pb.h")
     header, source = h_path.read_text(), c_path.read_text()
     assert '"plate_ball"' in header and '"plate_ball"' in source
@@ -123,6 +135,10 @@ def test_templates_are_packaged_with_every_subpackage():
     assert config["package-dir"]["symgroupoid.templates"] == "templates"
     assert config["package-data"]["symgroupoid.templates"] == ["*.j2"]
     assert {p.name for p in (REPO / "templates").glob("*.j2")} >= {"kernel.c.j2", "kernel.h.j2"}
+    from symgroupoid.stepper import SOURCES
+
+    assert config["package-data"]["symgroupoid.stepper"] == ["*.c", "*.h"]
+    assert {p.name for p in (REPO / "symgroupoid" / "stepper").glob("*.[ch]")} == set(SOURCES)
 
 
 @pytest.mark.slow
@@ -138,6 +154,8 @@ def test_built_wheel_contains_the_templates(tmp_path):
     names = zipfile.ZipFile(wheel).namelist()
     for t in ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2"):
         assert f"symgroupoid/templates/{t}" in names
+    for s in ("stepper.c", "stepper.h", "batch.c"):
+        assert f"symgroupoid/stepper/{s}" in names
 
 
 # --- the compiled kernels agree with SymPy --------------------------------------------------

@@ -15,7 +15,7 @@ from _hostile import oscillator
 from kernel_support import BACKENDS, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid.runtime._backends import NumpyWarmStart
+from symgroupoid.stepper import NumpyWarmStart
 from symgroupoid.systems import planar_chain
 
 CHAIN_PARAMS = {"h": 0.01, "g": 9.81}

@@ -97,6 +97,23 @@ def test_plate_ball_rotational_rows_read_as_in_seed(plate_ball_step):
     assert "\\operatorname{tr}(g_{k+1} E_{3})" in equations[7]
 
 
+def test_constants_of_one_name_keep_their_own_values(heavy_top_step):
+    """Two systems whose constant matrices share a name (the fixture's J_d in I_1, I_2, I_3
+    and the library's heavy top's J_d in I1, I2, I3): each system's matrix form, built
+    after the other's, is written out with its own J_d (the name alone once chose the
+    matrix seen last, process-wide)."""
+    other = sg.systems.heavy_top().euler_lagrange()
+    for step in (other, heavy_top_step, other):
+        values = matrix_form_values(step.groupoid, (0, 1))
+        assert step.structured is not None
+        for s, e in zip(step.structured, step.residuals):
+            assert sp.expand(to_explicit(s, values) - e) == 0
+        assert "J_{d}" in step.latex()
+    J1 = {c.name: c for s in heavy_top_step.structured for c in s.atoms(sp.MatrixSymbol)}
+    J2 = {c.name: c for s in other.structured for c in s.atoms(sp.MatrixSymbol)}
+    assert J1["J_d"] != J2["J_d"] and str(J1["J_d"]) == str(J2["J_d"]) == "J_d"
+
+
 def test_matrix_form_equals_explicit_residuals(plate_ball_step, heavy_top_step):
     """The printed (matrix) form is the same equation as the explicit one, exactly."""
     for step in (plate_ball_step, heavy_top_step):

@@ -23,7 +23,7 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid.runtime._backends import CKernel
+from symgroupoid.runtime._ckernel import CKernel
 
 
 @pytest.fixture(scope="module")

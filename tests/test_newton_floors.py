@@ -18,12 +18,9 @@ import sympy as sp
 from kernel_support import BACKENDS, SESSION_CACHE, isolated_cache, needs_cc  # noqa: F401
 
 import symgroupoid as sg
-from symgroupoid.runtime._backends import (
-    BRANCH_JUMP,
-    NOT_CONVERGED,
-    STALLED,
-    STATUS_MESSAGES,
-)
+from symgroupoid.stepper import STATUS_MESSAGES, Status
+
+BRANCH_JUMP, NOT_CONVERGED, STALLED = Status.BRANCH_JUMP, Status.NOT_CONVERGED, Status.STALLED
 
 h, m, J, grav = sp.symbols("h m J g", positive=True)
 PARAMS = {"h": 0.01, "m": 1.0, "J": 0.1, "g": 9.81}

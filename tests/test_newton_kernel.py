@@ -14,16 +14,16 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 from symgroupoid import NewtonOptions
-from symgroupoid.runtime._backends import (
-    NON_FINITE,
-    OK,
-    SINGULAR_JACOBIAN,
+from symgroupoid.stepper import (
+    Status,
     explained_by_rounding,
     lu_apply,
     lu_factor,
     norm_inf,
     pivot_ratio,
 )
+
+NON_FINITE, OK, SINGULAR_JACOBIAN = Status.NON_FINITE, Status.OK, Status.SINGULAR_JACOBIAN
 
 
 @needs_cc

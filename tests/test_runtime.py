@@ -369,7 +369,9 @@ def test_lu_solve_judges_pivots_per_equation_and_reports_overflow():
     """The NumPy twin of the kernel's LU: exact power-of-two row scaling (also for
     subnormal rows), singular only for a zero row or a pivot below n·ε of its equation,
     non-finite values reported as such."""
-    from symgroupoid.runtime._backends import NON_FINITE, OK, SINGULAR_JACOBIAN, lu_solve
+    from symgroupoid.stepper import Status, lu_solve
+
+    NON_FINITE, OK, SINGULAR_JACOBIAN = Status.NON_FINITE, Status.OK, Status.SINGULAR_JACOBIAN
 
     A = np.array([[1e-310, 0.0, 2e-310], [0.0, 1e300, 0.0], [1.0, 0.0, -3.0]])
     x = np.array([1.0, -2.0, 0.5])
@@ -390,7 +392,9 @@ def test_non_finite_input_is_never_converged(backend, fall_step):
     same check would vanish under -ffast-math, which the source therefore refuses)."""
     sim = fall_step.compile(backend=backend, cache_dir=SESSION_CACHE)
     p = sim.parameters({"h": 0.01, "a": 0.1, "m": 1.0})
-    from symgroupoid.runtime._backends import INVALID_ARGUMENT
+    from symgroupoid.stepper import Status
+
+    INVALID_ARGUMENT = Status.INVALID_ARGUMENT
 
     for known, guess in [([np.nan, 1.0], [1.0]), ([1.0, 0.99], [np.nan])]:
         status, *_ = sim.kernel.solve_step(np.array(known), p, np.array(guess), sim.options)

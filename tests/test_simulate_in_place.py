@@ -19,7 +19,9 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid.runtime._backends import INVALID_ARGUMENT, OK
+from symgroupoid.stepper import Status
+
+INVALID_ARGUMENT, OK = Status.INVALID_ARGUMENT, Status.OK
 
 
 @pytest.fixture(scope="module")

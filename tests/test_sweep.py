@@ -393,14 +393,20 @@ def test_a_memory_limit_gives_trajectory_too_large_not_memory_error(tmp_path):
     assert lines["allocation"].startswith("TrajectoryTooLargeError True"), lines["allocation"]
 
 
-def _sigint_after(seconds: float) -> tuple[threading.Timer, list]:
+def _sigint_after(seconds: float, event: threading.Event | None = None
+                  ) -> tuple[threading.Thread, list]:
+    """SIGINT to this process ``seconds`` after the start (or after ``event`` is set: the
+    moment a test waits for, whatever the machine's load)."""
     sent: list = []
 
     def fire():
+        if event is not None:
+            event.wait(120)
+        time.sleep(seconds)
         sent.append(time.perf_counter())
         os.kill(os.getpid(), signal.SIGINT)
 
-    timer = threading.Timer(seconds, fire)
+    timer = threading.Thread(target=fire, daemon=True)
     timer.start()
     return timer, sent
 
@@ -411,20 +417,22 @@ def _sweep_threads() -> list:
 
 @pytest.mark.parametrize("hang", [False, True], ids=["healthy", "hanging reduce"])
 def test_ctrl_c_stops_a_threaded_sweep_within_a_second_keeping_what_is_done(hang):
-    """SIGINT after 1 s of a sweep of several seconds of work (or while reduce hangs, on the
-    first run it gets): a KeyboardInterrupt within a second, carrying ``.result``: the runs
-    done, bitwise simulate's, and the others INTERRUPTED; no worker thread left."""
+    """SIGINT after 1 s of a sweep of several seconds of work (or 0.2 s after reduce hangs,
+    on the first run it gets): a KeyboardInterrupt within a second, carrying ``.result``:
+    the runs done, bitwise simulate's, and the others INTERRUPTED; no worker thread left."""
     sim = compiled("rigid_body")
     S = states(np.linspace(0.05, 0.6, 64))
     hung: list = []
+    hanging = threading.Event()
 
     def last(traj):
         if hang:
             hung.append(True)
+            hanging.set()
             time.sleep(1000)
         return traj.states[-1, 0]
 
-    timer, sent = _sigint_after(1.0)
+    timer, sent = _sigint_after(0.2, hanging) if hang else _sigint_after(1.0)
     with pytest.raises(KeyboardInterrupt) as caught:
         sg.sweep(sim, S, RIGID, 200_000, reduce=last, workers=2, chunk_size=2)
     latency = time.perf_counter() - sent[0]

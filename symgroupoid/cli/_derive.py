@@ -179,7 +179,7 @@ def run_emit(args: argparse.Namespace) -> int:
     base = out / file_stem(args.name or derived.step.name)
     t0 = time.perf_counter()
     with Task(f"{derived.step.name}: generating C"):
-        paths = derived.step.emit_c(base, prefix=args.prefix)
+        paths = derived.step.emit_c(base, prefix=args.prefix, latex=args.latex)
     seconds = time.perf_counter() - t0
     say(f"{derived.step.name}: {len(derived.step)} equations, derived in "
         f"{derived.seconds:.2f} s, C generated in {seconds:.2f} s")

@@ -117,6 +117,9 @@ def build_parser() -> argparse.ArgumentParser:
     emit.add_argument("--name", help="file name stem (default: the system's name)")
     emit.add_argument("--prefix", help="prefix of the C identifiers (default: the system's "
                                        "name)")
+    emit.add_argument("--latex", action="store_true",
+                      help="list each residual in LaTeX in the source's opening comment (small "
+                           "systems; builds the SymPy residuals, as long as the derivation)")
 
     simulate = _command(commands, "simulate", run_simulate,
                         "run the compiled stepper and summarise the run", epilog=True)

@@ -30,7 +30,8 @@ from .._arguments import (
     path_argument,
     real_argument,
 )
-from .._errors import OutputError, ShapeError
+from .._errors import InputTypeError, OutputError, ShapeError
+from ..stepper import Inliner, library_digest
 from ._kernel import (
     COLD_UNIT,
     assign_units,
@@ -42,16 +43,7 @@ from ._kernel import (
 )
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
-                  "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.j2",
-                  "cold.c.j2")
-
-#: the most OpenMP threads ``<prefix>_simulate_batch`` starts (a team is created whole:
-#: thousands of threads exhaust memory before any work is done)
-MAX_THREADS = 1024
-
-#: default Newton options compiled into ``<prefix>_default_options``
-DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
-                   "floor_factor": 8.0, "trust_factor": 10.0}
+                  "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.c.j2")
 
 
 def template_dir() -> Path:
@@ -158,19 +150,23 @@ def precompile_templates() -> tuple[str, int]:
         raise OutputError(f"cannot keep the compiled kernel templates in {directory}: "
                           f"{exc}") from exc
     env = _environment.__wrapped__(str(template_dir()), (str(directory),), str(directory))
+    kept = 0  # the entries of today's templates (not those of templates since removed)
     for name in TEMPLATE_NAMES:
-        env.get_template(name)
-    kept = len(list(directory.glob("__jinja2_*.cache")))
+        key = env.bytecode_cache.get_cache_key(name, env.get_template(name).filename)
+        kept += (directory / f"__jinja2_{key}.cache").is_file()
     return str(directory), kept
 
 
 def templates_digest() -> str:
-    """SHA-256 over the template files (part of every cache key)."""
+    """SHA-256 over the template files and the Newton stepper's C library
+    (:func:`symgroupoid.stepper.library_digest`), which make a kernel's C (part of every
+    cache key)."""
     directory = template_dir()
     digest = hashlib.sha256()
     for name in TEMPLATE_NAMES:
         digest.update(name.encode())
         digest.update((directory / name).read_bytes())
+    digest.update(library_digest().encode())
     return digest.hexdigest()
 
 
@@ -198,11 +194,6 @@ def _ascii(text: str) -> str:
     """Text safe inside a C comment: ASCII only, no comment terminator."""
     out = text.replace("×", "x").replace("⋊", "|x").replace("*/", "* /")
     return out.encode("ascii", "backslashreplace").decode("ascii")
-
-
-def _c_double(value: float) -> str:
-    text = repr(float(value))
-    return text if any(c in text for c in ".en") else text + ".0"
 
 
 #: residual programs up to this many operations get their LaTeX in the kernel's comment
@@ -245,6 +236,20 @@ def arithmetic_only(program) -> bool:
     return not any(spec.calls for spec in program_functions(program, list(program.outputs)))
 
 
+def library_texts(prefix: str) -> dict[str, str]:
+    """The Newton stepper's C library (:mod:`symgroupoid.stepper`) with the names of the
+    kernel ``prefix``, as the templates place it: ``interface`` (``stepper.h``, in the
+    header after the sizes), ``prologue`` and ``stepper`` (``prologue.h``, ``stepper.c``: the
+    kernel's source, around its generated functions), ``cold`` (``batch.c`` after them, for a
+    kernel in one file), ``cold_prologue`` and ``cold_unit`` (the same in the cold unit of a
+    kernel spread over several)."""
+    source, cold = Inliner(prefix), Inliner(prefix)
+    return {"interface": Inliner(prefix, provided=()).text("stepper.h"),
+            "prologue": source.text("prologue.h"), "stepper": source.text("stepper.c"),
+            "cold": source.text("batch.c"),
+            "cold_prologue": cold.text("prologue.h"), "cold_unit": cold.text("batch.c")}
+
+
 def _context(step, prefix: str, header_name: str, latex: bool, units: int,
              block_weight: float = 1.0) -> dict:
     from .. import __version__
@@ -273,13 +278,8 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
         "residual_jacobian": blocks.residual_jacobian,
         "residual_scale": blocks.residual_scale,
         "predict": blocks.predict,
-        "next_knowns": blocks.next_knowns,
-        "tol_residual": _c_double(DEFAULT_OPTIONS["tol_residual"]),
-        "floor_factor": _c_double(DEFAULT_OPTIONS["floor_factor"]),
-        "tol_step": _c_double(DEFAULT_OPTIONS["tol_step"]),
-        "max_iterations": DEFAULT_OPTIONS["max_iterations"],
-        "trust_factor": _c_double(DEFAULT_OPTIONS["trust_factor"]),
-        "max_threads": MAX_THREADS, "n_units": n_units, "cold_unit": units > 1,
+        "next_knowns": blocks.next_knowns, "library": library_texts(prefix),
+        "n_units": n_units, "cold_unit": units > 1,
     }
 
 
@@ -288,18 +288,18 @@ MAX_UNITS = 64
 
 
 def generate_c(step, prefix: str | None = None, header_name: str | None = None, *,
-               latex: bool = True, units: int = 1, block_weight: float | None = None,
+               latex: bool = False, units: int = 1, block_weight: float | None = None,
                template_cache: str | os.PathLike | None = None) -> KernelSource:
     """Generate (without writing) the C kernel of ``step``.
 
     ``prefix`` (default: sanitised ``step.name``) prefixes every C identifier;
     ``header_name`` (default ``<prefix>.h``) is the header the source includes; ``latex``:
     whether the opening comment lists the residuals in LaTeX (for small systems, see
-    :func:`residual_comments`; it costs the SymPy residuals, so the kernels that
-    ``compile_step`` builds go without); ``units``: at most this many translation units
+    :func:`residual_comments`; it costs the SymPy residuals, so by default the comment
+    only numbers the equations); ``units``: at most this many translation units
     for the stepper and the straight-line functions, spread over them by the compiler's
     time (:func:`assign_units`), and for ``units > 1`` one more, ``<prefix>_cold.c``, of
-    the code that does no arithmetic of a step (``templates/cold.j2``: the batched entry
+    the code that does no arithmetic of a step (``symgroupoid/stepper/batch.c``: the batched entry
     point, the status messages; ``KernelSource.cold``), so that they can all be compiled at
     the same time.  ``units=1`` (the default) is one self-contained file.
     ``block_weight``: None (the default), or the further units of a program that calls no
@@ -409,7 +409,8 @@ def write_atomic(path: Path, text: str) -> None:
 _PORTABLE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
 
 
-def emit_c(step, path: str | os.PathLike, prefix: str | None = None) -> tuple[Path, Path]:
+def emit_c(step, path: str | os.PathLike, prefix: str | None = None, *,
+           latex: bool = False) -> tuple[Path, Path]:
     """Write ``path.c`` and ``path.h`` for ``step``; return their paths.
 
     C identifiers are prefixed by the sanitised ``prefix`` (default: ``step.name``), e.g.
@@ -418,7 +419,9 @@ def emit_c(step, path: str | os.PathLike, prefix: str | None = None) -> tuple[Pa
     :class:`~symgroupoid.StepEquations` of a system; ``path``: a ``str`` or ``os.PathLike``
     naming a file (not a directory such as ``/`` or ``.``) whose name is portable (ASCII
     letters, digits, ``._+-``: the source includes the header by it); ``prefix``: None or a
-    string.
+    string; ``latex``: whether the source's opening comment lists each residual in LaTeX
+    (for small systems: :func:`residual_comments`; this builds the step's SymPy residuals,
+    which takes as long as the derivation); by default it numbers the equations only.
     A file that cannot be written is an :class:`~symgroupoid.OutputError` naming it.
     """
     from ..equations import StepEquations
@@ -438,7 +441,10 @@ def emit_c(step, path: str | os.PathLike, prefix: str | None = None) -> tuple[Pa
                          f"ASCII letters, digits, '.', '_', '+' and '-' (the source includes "
                          f"the header by this name)")
     c_path, h_path = base.with_name(base.name + ".c"), base.with_name(base.name + ".h")
-    kernel = generate_c(step, prefix, header_name=h_path.name)
+    if not isinstance(latex, bool):
+        raise InputTypeError(f"{step.name}: emit_c: latex must be True or False, got "
+                             f"{type(latex).__name__}")
+    kernel = generate_c(step, prefix, header_name=h_path.name, latex=latex)
     for target, text in ((h_path, kernel.header), (c_path, kernel.source)):
         try:
             write_atomic(target, text)

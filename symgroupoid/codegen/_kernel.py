@@ -219,13 +219,13 @@ class KernelBlocks:
 
 
 #: the Newton stepper's loops are unrolled completely up to this many unknowns (the
-#: ``<P>_UNROLL`` macro of kernel.c.j2)
+#: ``SG_UNROLL`` macro of symgroupoid/stepper/stepper.c)
 UNROLLED_UNKNOWNS = 8
 
 
 def stepper_statements(n_unknowns: int) -> int:
     """The C compiler's time on a kernel's hot fixed code (Newton stepper, LU, simulate; not
-    the batched entry point, see ``templates/cold.j2``) for ``n_unknowns`` unknowns, in
+    the batched entry point, see ``symgroupoid/stepper/batch.c``) for ``n_unknowns`` unknowns, in
     statements of the straight-line blocks that take it as long to compile.
 
     Measured at -O3 (gcc 12, CPU seconds): the straight-line blocks take 0.3 to 0.5 ms a

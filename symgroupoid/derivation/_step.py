@@ -396,10 +396,9 @@ def _node(wg, expr, name: str) -> int:
 
 
 def matrix_form_values(groupoid: Groupoid, offsets: Sequence[int]) -> dict:
-    """MatrixSymbol g_{k+o} → explicit named matrix, and E_a → its value (for checking)."""
-    from ..groupoids._matrix_form import named_constants
-
-    values: dict = named_constants()
+    """MatrixSymbol g_{k+o} → explicit named matrix, and E_a → its value (for checking;
+    named constants such as J_d carry their own values)."""
+    values: dict = {}
     for _, group in groupoid.matrix_parts():
         for o in offsets:
             M = sp.MatrixSymbol(subscripted(group.latex, o), group.n, group.n)

@@ -231,12 +231,15 @@ class Form:
 
 
 def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
-    """``expr`` with every layer substituted in order, matrices evaluated, expanded."""
+    """``expr`` with every layer substituted in order, named constants (J_d) by their
+    values, matrices evaluated, expanded."""
+    from ..groupoids._matrix_form import named_constants
+
     out = uncollected(sp.sympify(expr))
     for layer in layers:
         if layer:
             out = out.xreplace(dict(layer))
-    return sp.expand(out.doit())
+    return sp.expand(out.xreplace(named_constants(out)).doit())
 
 
 def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mapping]) -> bool:
@@ -262,12 +265,17 @@ def _junction_system(step):
 
 
 def matrix_values(step) -> dict:
-    """MatrixSymbols of the step's matrix form → explicit matrices (empty without one)."""
+    """MatrixSymbols of the step's matrix form → explicit matrices, its named constants (J_d)
+    included (empty without one)."""
     from ..derivation._step import matrix_form_values, window
+    from ..groupoids._matrix_form import named_constants
 
     if step.structured is None:
         return {}
-    return matrix_form_values(step.groupoid, window(step.order)[0])
+    values = matrix_form_values(step.groupoid, window(step.order)[0])
+    for e in step.structured:
+        values.update(named_constants(e))
+    return values
 
 
 # --- constant matrix parts evaluated ------------------------------------------------------------
@@ -275,13 +283,20 @@ def matrix_values(step) -> dict:
 
 def constant_matrices(G) -> set:
     """The MatrixSymbols of G's matrix form that stand for constant matrices: the Lie-algebra
-    basis E_a of each matrix part and the named constants (J_d)."""
-    from ..groupoids._matrix_form import named_constants
-
-    out = set(named_constants())
+    basis E_a of each matrix part (the named constants, J_d, are known by their type,
+    :func:`is_constant`)."""
+    out: set = set()
     for _, group in G.matrix_parts():
         out.update(group.named_basis().values())
     return out
+
+
+def is_constant(symbol, constants: set) -> bool:
+    """Whether a MatrixSymbol stands for a constant matrix: one of ``constants``
+    (:func:`constant_matrices`) or a named constant (J_d)."""
+    from ..groupoids._matrix_form import NamedConstant
+
+    return symbol in constants or isinstance(symbol, NamedConstant)
 
 
 def kept_by_name(atom, constants: set) -> bool:
@@ -291,10 +306,11 @@ def kept_by_name(atom, constants: set) -> bool:
     and of products ((E_1)_{23}, (W_k E_1)_{21}) and traces with an explicit matrix or of
     constants only are not: they are numbers, or sums of entries, when written out."""
     if isinstance(atom, MatrixElement):
-        return isinstance(atom.parent, sp.MatrixSymbol) and atom.parent not in constants
+        return isinstance(atom.parent, sp.MatrixSymbol) and not is_constant(atom.parent,
+                                                                             constants)
     symbols = atom.arg.atoms(sp.MatrixSymbol)
     explicit = any(isinstance(a, sp.MatrixBase) for a in sp.preorder_traversal(atom.arg))
-    return not explicit and bool(symbols - constants)
+    return not explicit and any(not is_constant(s, constants) for s in symbols)
 
 
 def evaluated_constants(expr: sp.Expr, values: Mapping, constants: set) -> sp.Expr:

@@ -13,12 +13,12 @@ along a matrix direction V: d/dt f(M + tV)|_{t=0}, by the product rule on matrix
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Sequence
 
 import sympy as sp
+from sympy.core.symbol import Str
 from sympy.matrices.expressions.matexpr import MatrixElement
-
-_NAMED_CONSTANTS: dict = {}  # MatrixSymbol -> value, for every NamedMatrix used in matrix form
 
 
 class NamedMatrix(sp.ImmutableDenseMatrix):
@@ -37,9 +37,38 @@ class NamedMatrix(sp.ImmutableDenseMatrix):
         return obj
 
 
-def named_constants() -> dict:
-    """MatrixSymbol → value of the named constant matrices seen so far."""
-    return dict(_NAMED_CONSTANTS)
+#: digest of a constant's value → the value (content-addressed: a digest names one value)
+_VALUES: dict = {}
+
+
+class NamedConstant(sp.MatrixSymbol):
+    """A :class:`NamedMatrix` in a matrix-form expression: a MatrixSymbol that prints as its
+    name (``J_d``) and holds, as a hidden argument, the digest of its value, so that two
+    constants of one name but different values (two systems' ``J_d``) are different symbols,
+    and writing an expression out needs nothing but the expression (:func:`to_explicit`)."""
+
+    def __new__(cls, name, *shape_and_value):
+        last = shape_and_value[-1]
+        if isinstance(last, Str):  # rebuilt from its arguments
+            digest = last
+            n, m = shape_and_value[:2]
+        else:
+            value = sp.ImmutableMatrix(last)
+            digest = Str(hashlib.sha256(sp.srepr(value).encode()).hexdigest()[:20])
+            _VALUES.setdefault(digest.name, value)
+            n, m = value.shape
+        name = Str(name) if isinstance(name, str) else name
+        return sp.Basic.__new__(cls, name, sp.Integer(n), sp.Integer(m), digest)
+
+    @property
+    def value(self) -> sp.ImmutableMatrix:
+        """The matrix the name stands for."""
+        return _VALUES[self.args[3].name]
+
+
+def named_constants(expr) -> dict:
+    """NamedConstant → value for the named constant matrices in ``expr``."""
+    return {c: c.value for c in sp.sympify(expr).atoms(NamedConstant)}
 
 
 class StructuredMatrix:
@@ -62,9 +91,7 @@ class StructuredMatrix:
             name = getattr(other, "latex_name", None)
             value = sp.ImmutableMatrix(other)
             if name is not None:
-                symbol = sp.MatrixSymbol(name, *value.shape)
-                _NAMED_CONSTANTS[symbol] = value
-                return symbol
+                return NamedConstant(name, value)
             return self.names.get(value, value)
         if isinstance(other, sp.MatrixExpr):
             return other
@@ -232,5 +259,6 @@ def directional_derivative(f: sp.Expr, M: sp.MatrixSymbol, V: sp.MatrixExpr) -> 
 
 
 def to_explicit(expr, values: dict):
-    """Replace MatrixSymbols by explicit matrices and evaluate traces/products/entries."""
-    return sp.expand(expr.xreplace(values).doit())
+    """Replace MatrixSymbols by explicit matrices (``values``; named constants by their
+    own values) and evaluate traces/products/entries."""
+    return sp.expand(expr.xreplace({**named_constants(expr), **values}).doit())

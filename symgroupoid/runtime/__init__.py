@@ -1,11 +1,11 @@
 """Layer 5: compiled (cffi) or NumPy kernels, simulation and trajectories."""
 
 from .._errors import CacheError
-from ._backends import NewtonOptions
 from ._batch import TrajectoryBatch
 from ._build import CompilationError, CompilerNotFoundError
 from ._cache import cache_root
 from ._compile import compile_step
+from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
 from ._simulator import Simulator
 from ._sweep import ReduceError, SweepResult, sweep, sweep_boundary_value

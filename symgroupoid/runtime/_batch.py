@@ -2,7 +2,7 @@
 
 A batch is B independent runs of the same step, from the rows of a state table with the rows
 of a parameter table (or one parameter set for all).  The compiled kernel advances them by
-``<prefix>_simulate_batch_until`` (see templates/cold.j2): each run by the very function
+``<prefix>_simulate_batch_until`` (see symgroupoid/stepper/batch.c): each run by the very function
 :meth:`Simulator.simulate` uses, in installments with the Newton warm start carried across
 them, so the states are bitwise those of B separate ``simulate`` calls (and of one
 ``<prefix>_simulate_batch`` call).  :class:`BatchProgress` shares groups of runs among
@@ -39,7 +39,9 @@ from .._errors import (
     ShapeError,
     SymgroupoidError,
 )
-from ._backends import INTERRUPTED, MAX_THREADS, OK, BatchRun, NewtonOptions, batch_rows
+from ..stepper import MAX_THREADS
+from ._options import NewtonOptions
+from ._runs import INTERRUPTED, OK, BatchRun, batch_rows
 from ._trajectory import Trajectory
 from ._validate import (
     _CHECKED_ASSUMPTIONS,
@@ -360,10 +362,10 @@ class TrajectoryBatch:
       kept states, as in :class:`Trajectory`;
     - ``batch.status`` (B,): 0 for a completed run, else the kernel's status
       (1 singular Jacobian, 2 Newton's iteration cap, 3 non-finite value, 5 Newton stalled
-      above the rounding floor, 6 a branch jump; ``STATUS_MESSAGES``), or ``INTERRUPTED``
-      (10) for a run that Ctrl-C stopped (in the partial batch of an interrupted call);
-      ``batch.ok``; ``batch.failed_step`` (B,): the failing step s (the step an interrupted
-      run reached), −1 for a completed run;
+      above the rounding floor, 6 a branch jump: :class:`~symgroupoid.Status`, with its
+      ``message``), or ``INTERRUPTED`` (10) for a run that Ctrl-C stopped (in the partial
+      batch of an interrupted call); ``batch.ok``; ``batch.failed_step`` (B,): the failing
+      step s (the step an interrupted run reached), −1 for a completed run;
     - ``batch[b]``: run b as a :class:`Trajectory` (a failed run: up to state s, as
       ``err.trajectory`` of the error ``simulate`` raises); ``batch.error(b)``: that error;
     - ``batch.final_states`` (B, n_known): the last state each run reached;

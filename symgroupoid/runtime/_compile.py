@@ -30,7 +30,7 @@ from .._errors import CacheError, InputTypeError
 from .._progress import reported
 from ..codegen import generate_c, templates_digest
 from ..codegen._emit import KernelSource
-from ._backends import CKernel, NewtonOptions, NumpyKernel
+from ._backends import NumpyKernel
 from ._build import (
     NUMPY_HINT,
     CompilationError,
@@ -59,6 +59,8 @@ from ._cache import (
     table_sha256,
     write_json_atomic,
 )
+from ._ckernel import CKernel
+from ._options import NewtonOptions
 from ._simulator import Simulator
 
 BACKENDS = ("auto", "c", "numpy")

@@ -41,12 +41,11 @@ import traceback
 import uuid
 
 from .._errors import SymgroupoidError
-from ._backends import INTERRUPTED
+from ..stepper import Status
 
-#: the status of a run whose task exceeded the sweep's ``timeout`` (not a kernel status)
-TIMED_OUT = 11
-#: the status of a run whose worker process died while running it, also alone
-WORKER_DIED = 12
+#: the statuses of runs stopped from outside (not kernel statuses): Ctrl-C, a task that
+#: exceeded the sweep's ``timeout``, a worker process that died while running it (also alone)
+INTERRUPTED, TIMED_OUT, WORKER_DIED = Status.INTERRUPTED, Status.TIMED_OUT, Status.WORKER_DIED
 #: how often a waiting executor looks at its workers (seconds)
 POLL = 0.1
 #: how long Ctrl-C waits for the worker threads to finish their kernel call (seconds)

@@ -27,7 +27,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from ._backends import OK, NewtonOptions
+from ._options import NewtonOptions
+from ._runs import OK
 from ._singular import zero_divisors
 from ._validate import assumptions_test, constraint_check, parameter_names
 

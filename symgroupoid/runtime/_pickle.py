@@ -31,8 +31,8 @@ import sympy as sp
 
 from .._errors import CacheError, SymgroupoidError
 from ..codegen._emit import KernelSource
-from ._backends import NewtonOptions
 from ._layout import Part, StateLayout
+from ._options import NewtonOptions
 
 
 class NotPortableError(SymgroupoidError, TypeError):

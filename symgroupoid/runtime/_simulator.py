@@ -19,19 +19,11 @@ from .._errors import (
     TrajectoryTooLargeError,
 )
 from .._progress import Task
-from ._backends import (
-    BRANCH_JUMP,
-    INVALID_ARGUMENT,
-    NON_FINITE,
-    NOT_CONVERGED,
-    OK,
-    SINGULAR_JACOBIAN,
-    STATUS_MESSAGES,
-    NewtonOptions,
-    real_vector,
-    run_chunks,
-)
+from ..stepper import Status
+from ._backends import real_vector
 from ._layout import StateLayout
+from ._options import NewtonOptions
+from ._runs import OK, run_chunks
 from ._trajectory import Sampler, Trajectory, kept_rows
 from ._validate import constraint_check, integer_argument, parameter_vector, real_array
 
@@ -350,7 +342,7 @@ class Simulator:
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
-                raise self._failure(NON_FINITE, 0, 0, float("nan"), u0, options, known=known,
+                raise self._failure(Status.NON_FINITE, 0, 0, float("nan"), u0, options, known=known,
                                     p=p)
         else:
             u0 = real_vector(guess, len(self.equations.unknowns), "guess", owner=self.name,
@@ -431,7 +423,7 @@ class Simulator:
         twice, from the extrapolated guess and from the prediction).  A step that gave
         non-finite values at the known state ``known`` is explained where a cause is found
         (a half-turn, a zero parameter; :mod:`~symgroupoid.runtime._singular`)."""
-        if status == NON_FINITE and known is not None:  # a half-turn, h = 0: say which
+        if status == Status.NON_FINITE and known is not None:  # a half-turn, h = 0: say which
             from ._singular import non_finite_cause
 
             found = non_finite_cause(self, step, iterations, residual_norm, iterate, known,
@@ -443,18 +435,18 @@ class Simulator:
         tries = ("" if not options.extrapolate or step < 2 else
                  f" in two tries of at most {options.max_iterations} each, from the "
                  f"extrapolated guess and from the step's prediction")
-        text = (f"{self.name}: step {step} failed: {STATUS_MESSAGES[status]} (after "
+        text = (f"{self.name}: step {step} failed: {Status(status).message} (after "
                 f"{int(iterations)} Newton iterations{tries}, |F|_inf = {residual_norm:.3e})")
-        if status == INVALID_ARGUMENT:  # the checks above let nothing invalid through
+        if status == Status.INVALID_ARGUMENT:  # the checks above let nothing invalid through
             return DomainError(text)
-        if status == NOT_CONVERGED:
+        if status == Status.NOT_CONVERGED:
             text += (f"; the cap is NewtonOptions(max_iterations={options.max_iterations}) "
                      f"per try")
-        if status == BRANCH_JUMP:
+        if status == Status.BRANCH_JUMP:
             text += (f"; NewtonOptions(trust_factor={options.trust_factor:g}) sets the "
                      f"trust region, trust_factor=0 turns the check off")
-        cls = {SINGULAR_JACOBIAN: SingularJacobianError,
-               BRANCH_JUMP: BranchJumpError}.get(status, NewtonDivergenceError)
+        cls = {Status.SINGULAR_JACOBIAN: SingularJacobianError,
+               Status.BRANCH_JUMP: BranchJumpError}.get(status, NewtonDivergenceError)
         err = cls(text, step=int(step), residual_norm=float(residual_norm),
                   iterate=np.array(iterate, dtype=float))
         err.trajectory = None

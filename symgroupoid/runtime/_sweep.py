@@ -63,7 +63,7 @@ from .._errors import (
     SingularJacobianError,
     SymgroupoidError,
 )
-from ._backends import INTERRUPTED, OK, BatchRun, NewtonOptions, batch_rows
+from ..stepper import Status
 from ._batch import (
     TrajectoryBatch,
     _at_row,
@@ -76,6 +76,8 @@ from ._batch import (
     usable_cores,
 )
 from ._executors import TIMED_OUT, WORKER_DIED, execute
+from ._options import NewtonOptions
+from ._runs import INTERRUPTED, OK, BatchRun, batch_rows
 from ._validate import integer_argument, system_argument
 
 COMBINE = ("product", "zip")
@@ -92,11 +94,10 @@ TASKS_PER_WORKER = 4
 #: kept states a part of a task holds at once with ``reduce`` (bytes; at least one run)
 BATCH_BYTES = 1 << 24
 #: status of a boundary-value run that met the cut locus of the chart
-CUT_LOCUS = 5
-#: the statuses of runs stopped from outside (not kernel statuses; see SweepResult)
-STOPPED = {INTERRUPTED: "the sweep was interrupted (Ctrl-C)",
-           TIMED_OUT: "its task exceeded the sweep's timeout",
-           WORKER_DIED: "its worker process died while running it"}
+CUT_LOCUS = Status.CUT_LOCUS
+#: the statuses of runs stopped from outside (not kernel statuses; see SweepResult) and
+#: their texts
+STOPPED = {s: s.message for s in (INTERRUPTED, TIMED_OUT, WORKER_DIED)}
 
 
 class ReduceError(SymgroupoidError, RuntimeError):
@@ -112,13 +113,14 @@ class SweepResult:
     ``shape``: product: (number of initial states, number of parameter sets), zip: (number
     of runs,); an axis is absent when its input was a single state or set.  Per run:
 
-    - ``status``: 0 completed, else the reason it stopped (1 singular Jacobian, 2 Newton's
-      iteration cap, 3 non-finite value, 5 Newton stalled, 6 a branch jump — the kernel's
-      ``STATUS_MESSAGES``; boundary-value runs: 2 not converged, 5 the cut locus of the chart;
-      stopped from outside: 10 ``INTERRUPTED`` — not run to its end because the sweep was
-      interrupted, in the partial result of a ``KeyboardInterrupt``, 11 ``TIMED_OUT`` — its
-      task exceeded ``timeout``, 12 ``WORKER_DIED`` — its worker process died while running
-      it, alone); ``ok``: ``status == 0``; ``failed_step``: the failing step (the step a
+    - ``status``: 0 completed, else the reason it stopped, a :class:`~symgroupoid.Status`
+      (``Status(code).message``; 1 singular Jacobian, 2 Newton's iteration cap, 3 non-finite
+      value, 5 Newton stalled, 6 a branch jump — the kernel's statuses; boundary-value runs:
+      1 singular Jacobian, 2 not converged, 7 the cut locus of the chart; stopped from
+      outside: 10 ``INTERRUPTED`` — not run to its end because the sweep was interrupted, in
+      the partial result of a ``KeyboardInterrupt``, 11 ``TIMED_OUT`` — its task exceeded
+      ``timeout``, 12 ``WORKER_DIED`` — its worker process died while running it, alone);
+      ``ok``: ``status == 0``; ``failed_step``: the failing step (the step a
       stopped run reached; −1 if none or unknown; simulations);
     - ``values`` (shape + the shape of one value): ``reduce``'s value of each run (a failed
       run, not reduced unless ``reduce_failures``, holds NaN for numeric values, None
@@ -912,11 +914,7 @@ def _solution_data(sol) -> dict:
 
 
 def _bvp_status(err: Exception) -> int:
-    if isinstance(err, SingularJacobianError):
-        return 1
-    if isinstance(err, CutLocusError):
-        return CUT_LOCUS
-    return 2
+    return Status.of_boundary_value_error(err)
 
 
 def _sequence(value, what: str, owner: str) -> list:

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import DomainError, InputNameError, InputTypeError, UnsupportedFeatureError
-from ._backends import OK, RawRun
 from ._layout import MULTIPLIER_KEYS, StateLayout
+from ._runs import OK, RawRun
 
 
 class Trajectory:

@@ -1,0 +1,417 @@
+"""The NumPy twin of the C library beside it (``stepper.c``): the same Newton stepper,
+operation for operation, so that a kernel evaluated with NumPy gives the bits of its C.
+
+Each function names its C counterpart (``<prefix>_lu_factor`` is ``SG_NAME(lu_factor)`` in
+``stepper.c``): the same row scaling by powers of two, LU with partial pivoting and the
+singularity threshold, the same summation orders of the rounding floors, the same
+convergence tests, warm start, extrapolation and trust region, and the same statuses
+(:class:`~._status.Status`).  :class:`NumpyStepper` runs Newton and ``simulate`` over a
+kernel's functions evaluated in NumPy (the step's program: ``runtime.NumpyKernel``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._status import Status
+
+OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT, STALLED, BRANCH_JUMP = (
+    int(s) for s in Status if s.kernel)
+
+#: default Newton options, as ``SG_NAME(default_options)`` sets them (a test checks it)
+DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
+                   "floor_factor": 8.0, "trust_factor": 10.0}
+
+#: the most OpenMP threads ``<prefix>_simulate_batch`` starts (``SG_MAX_THREADS``: a team is
+#: created whole, and thousands of threads exhaust memory before any work is done)
+MAX_THREADS = 1024
+
+#: the least motion the trust region of a step allows for (``SG_TRUST_FLOOR``)
+TRUST_FLOOR = 1e-2
+
+#: largest value of a C ``int`` (Newton iteration caps and counts are ints in the kernel)
+C_INT_MAX = 2**31 - 1
+
+#: the unit roundoff of double precision (C's DBL_EPSILON)
+EPSILON = float(np.finfo(float).eps)
+
+
+def norm_inf(v: np.ndarray) -> float:
+    """max |v_i|, or a non-finite value if any entry is NaN or infinite (as the C kernel)."""
+    a = np.abs(np.asarray(v, dtype=float))
+    if a.size == 0:
+        return 0.0
+    bad = ~np.isfinite(a)
+    if bad.any():
+        return float(a[np.argmax(bad)])
+    return float(a.max())
+
+
+@dataclass
+class LUFactors:
+    """The factors of :func:`lu_factor`: scaled, permuted and eliminated A (L below the
+    diagonal, U on and above), row exponents, pivot rows and reciprocal pivots."""
+
+    A: np.ndarray
+    e: np.ndarray
+    perm: np.ndarray
+    inv: np.ndarray
+
+
+def lu_factor(A: np.ndarray) -> tuple[int, LUFactors | None]:
+    """(status, factors) exactly as ``<prefix>_lu_factor`` in the C kernel.
+
+    Every row of A is scaled by the power of two 2^-e bringing the row's largest |entry|
+    into [1/2, 1) (exact), so singularity is judged relative to each equation; then LU with
+    partial pivoting (reciprocal pivots, zero multipliers skipped).  The status is
+    ``SINGULAR_JACOBIAN`` for a zero row or a pivot not above n·ε, ``NON_FINITE`` when a
+    value is infinite or NaN (overflow), else ``OK``.
+    """
+    A = np.array(A, dtype=float)
+    n = len(A)
+    tiny = n * EPSILON
+    e = np.zeros(n, dtype=np.int64)
+    with np.errstate(all="ignore"):
+        for i in range(n):
+            m = norm_inf(A[i])
+            if not np.isfinite(m):
+                return NON_FINITE, None
+            if m == 0.0:
+                return SINGULAR_JACOBIAN, None
+            e[i] = int(np.frexp(m)[1])
+            A[i] = A[i] * np.ldexp(1.0, -e[i]) if -1000 < e[i] < 1000 else np.ldexp(A[i],
+                                                                                  -e[i])
+        # entries now lie in [-1, 1]; partial pivoting grows them at most 2^(n-1): no overflow
+        perm = np.zeros(n, dtype=np.int64)
+        inv = np.empty(n)
+        for k in range(n):
+            column = np.abs(A[k:, k])
+            piv = k + int(np.argmax(column))
+            if not column[piv - k] > tiny:
+                return SINGULAR_JACOBIAN, None
+            perm[k] = piv
+            if piv != k:
+                A[[k, piv]] = A[[piv, k]]
+            inv[k] = 1.0 / A[k, k]
+            for i in range(k + 1, n):
+                lik = A[i, k] * inv[k]
+                A[i, k] = lik
+                if lik != 0.0:
+                    A[i, k + 1:] -= lik * A[k, k + 1:]
+    return OK, LUFactors(A, e, perm, inv)
+
+
+def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """(status, x) solving A x = b with the factors, exactly as ``<prefix>_lu_apply``;
+    ``NON_FINITE`` when x is not finite (in particular when b or its scaling is not)."""
+    A, n = factors.A, len(factors.A)
+    with np.errstate(all="ignore"):
+        b = np.array(b, dtype=float)
+        for i in range(n):
+            e = int(factors.e[i])
+            b[i] = b[i] * np.ldexp(1.0, -e) if -1000 < e < 1000 else np.ldexp(b[i], -e)
+        # a non-finite entry of the scaled b stays non-finite through the substitutions
+        # (finite multipliers, zero ones applied too, and pivots): one test of x covers it
+        for k in range(n):  # the row swaps, in order (L's rows were swapped with them)
+            piv = int(factors.perm[k])
+            if piv != k:
+                b[[k, piv]] = b[[piv, k]]
+        for k in range(n):
+            for i in range(k + 1, n):
+                b[i] -= A[i, k] * b[k]
+        for i in range(n - 1, -1, -1):
+            t = b[i]
+            for j in range(i + 1, n):
+                t -= A[i, j] * b[j]
+            b[i] = t * factors.inv[i]
+    return (OK if np.isfinite(norm_inf(b)) else NON_FINITE), b
+
+
+def coordinate_floor(J: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """C_i = ε·Σ_j |J_ij|·|u_j|, as ``<prefix>_coordinate_floor`` (the same summation order)."""
+    C = np.zeros(len(J))
+    for j in range(J.shape[1]):
+        C = C + np.abs(J[:, j]) * abs(u[j])
+    return EPSILON * C
+
+
+def explained_by_rounding(F: np.ndarray, J: np.ndarray, u: np.ndarray, uJ: np.ndarray,
+                          ratio: float) -> bool:
+    """As ``<prefix>_explained_by_rounding``: every |F_i| ≤ 64ε·κ·Σ_j |J_ij|·(1 + m_j),
+    m_j = min(|u_j|, |u_J,j|), κ the pivot ratio — the residual a rounding-level update of a
+    solve with J (evaluated at u_J) would leave; the weights never exceed those at u_J, so a
+    runaway iterate is not accepted for its small relative update (the same summation
+    order).  The C kernel first compares |F_i| with the bound times max_j |J_ij| when every
+    weight is finite (S_i is at least that as computed, rounding being monotone), and sums
+    only when that does not decide: the answer is always this one."""
+    bound = 64.0 * EPSILON * ratio
+    m = 1.0 + np.minimum(np.abs(u), np.abs(uJ))
+    S = np.zeros(len(J))
+    for j in range(J.shape[1]):
+        S = S + np.abs(J[:, j]) * m[j]
+    return bool(np.all(np.abs(F) <= bound * S))
+
+
+def pivot_ratio(factors: LUFactors) -> float:
+    """max |pivot| / min |pivot| (from the reciprocal pivots), as ``<prefix>_pivot_ratio``."""
+    return float(np.max(np.abs(factors.inv)) / np.min(np.abs(factors.inv)))
+
+
+def polish(factors, F: np.ndarray, u: np.ndarray, last_step: float, it: int
+           ) -> tuple[np.ndarray, int]:
+    """The polishing update of ``<prefix>_newton``: one more chord update of an accepted
+    iterate u from its residual F (no evaluation), when smaller than the last update;
+    (u, updates made)."""
+    status, du = lu_apply(factors, F)
+    if status == OK and relative_norm(du, u) < last_step:
+        return u - du, it + 1
+    return u, it
+
+
+def above_rounding(d: np.ndarray, u: np.ndarray, factor: float) -> bool:
+    """As ``<prefix>_above_rounding``: some factor·|d_j| > ε·|u_j|."""
+    return bool(np.any(factor * np.abs(d) > EPSILON * np.abs(u)))
+
+
+def relative_norm(d: np.ndarray, u: np.ndarray) -> float:
+    """max_j |d_j| / (1 + |u_j|), as ``<prefix>_relative_norm``."""
+    with np.errstate(all="ignore"):
+        return float(np.max(np.abs(d) / (1.0 + np.abs(u)), initial=0.0))
+
+
+def lu_solve(A: np.ndarray, b: np.ndarray) -> tuple[int, np.ndarray]:
+    """(status, x) of A x = b: :func:`lu_factor` then :func:`lu_apply`."""
+    status, factors = lu_factor(A)
+    if status != OK:
+        return status, np.array(b, dtype=float)
+    return lu_apply(factors, b)
+
+
+@dataclass
+class NumpyWarmStart:
+    """The NumPy twin of ``<prefix>_warm_start``: the last three solved unknowns and whether
+    the next guess extrapolates them quadratically (see :meth:`extrapolate`)."""
+
+    count: int = 0
+    u_last: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    u_before: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    u_earlier: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    quadratic: bool = False
+
+    def _linear(self) -> np.ndarray:
+        return 2.0 * self.u_last - self.u_before
+
+    def _quadratic(self) -> np.ndarray:
+        return 3.0 * (self.u_last - self.u_before) + self.u_earlier
+
+    def extrapolate(self) -> np.ndarray:
+        """As ``<prefix>_extrapolate`` (count ≥ 2): the quadratic guess
+        3(u_last − u_before) + u_earlier when three solutions are held and ``quadratic``,
+        else the linear 2u_last − u_before."""
+        return self._quadratic() if self.count == 3 and self.quadratic else self._linear()
+
+    def trusts(self, guess: np.ndarray, u: np.ndarray, factor: float) -> bool:
+        """As ``<prefix>_trusted``: whether the solution ``u`` of a step lies in the trust
+        region of its extrapolated ``guess``, |u − guess| ≤ factor·(m + TRUST_FLOOR) (|·|
+        relative to each unknown at ``u_last``; m the larger motion of the last two steps),
+        or the check is off (factor 0, fewer than three solutions held: one motion alone can
+        be the small one of an oscillation)."""
+        if not factor > 0.0 or self.count < 3:
+            return True
+        scale = 1.0 + np.abs(self.u_last)
+        motion = np.maximum(np.abs(self.u_last - self.u_before),
+                            np.abs(self.u_before - self.u_earlier))
+        radius = factor * (float(np.max(motion / scale, initial=0.0)) + TRUST_FLOOR)
+        return bool(np.all(np.abs(u - guess) <= radius * scale))
+
+    def remember(self, u: np.ndarray) -> None:
+        """As ``<prefix>_remember``: adds the solution ``u``; with three solutions held,
+        ``quadratic`` becomes whether the quadratic extrapolation would have guessed ``u``
+        more closely than the linear one (relative norm): O(h³) against O(h²) on smooth
+        motion, worse on an oscillation of fewer than about six steps per period."""
+        if self.count == 3:
+            self.quadratic = bool(relative_norm(u - self._quadratic(), u)
+                                  < relative_norm(u - self._linear(), u))
+        else:
+            self.quadratic = False
+        self.u_earlier, self.u_before = self.u_before, self.u_last
+        self.u_last = np.array(u, dtype=float)
+        self.count = min(self.count + 1, 3)
+
+
+#: a kernel's functions of (u, known, p) or (known, p), evaluated in NumPy
+StepFunction = Callable[..., np.ndarray]
+
+
+@dataclass(frozen=True)
+class StepFunctions:
+    """The functions a kernel generates, as the stepper calls them (flat float arrays):
+    F(u; known, p), (F, J) with J[i, j] = ∂F_i/∂u_j, the scale S of F's terms, the
+    prediction u(known, p) and the next known state from a solved step."""
+
+    residual: StepFunction
+    residual_jacobian: Callable[..., tuple[np.ndarray, np.ndarray]]
+    residual_scale: StepFunction
+    predict: StepFunction
+    next_knowns: StepFunction
+
+
+class NumpyStepper:
+    """``SG_NAME(newton)`` and ``SG_NAME(simulate)`` of ``stepper.c`` over the
+    :class:`StepFunctions` of a kernel of ``n_unknowns`` unknowns.  ``options``: anything
+    with the fields of ``runtime.NewtonOptions``."""
+
+    def __init__(self, functions: StepFunctions, n_unknowns: int):
+        self.f = functions
+        self.n_u = n_unknowns
+
+    def warm_start(self) -> NumpyWarmStart:
+        """A fresh warm start (no solution held)."""
+        return NumpyWarmStart(0, np.zeros(self.n_u), np.zeros(self.n_u), np.zeros(self.n_u))
+
+    def solve_step(self, known, p, u0, options):
+        """Newton's method exactly as ``<prefix>_newton`` in the C kernel: (status, last
+        iterate, updates, |F|_inf of the last iterate)."""
+        with np.errstate(all="ignore"):
+            return self.newton(known, p, np.array(u0, dtype=float), options)
+
+    def at_floor(self, u, known, p, F, C, factor: float) -> bool:
+        """As ``<prefix>_at_floor``: every |F_i| ≤ factor·(C_i + N_i), N_i the larger change
+        of F_i when every unknown moves by 4 ulps (alternating signs, both ways)."""
+        move = 4.0 * EPSILON * np.where(np.abs(u) > np.finfo(float).tiny, np.abs(u), 1.0)
+        signs = np.where(np.arange(len(u)) % 2 == 0, 1.0, -1.0)
+        N = np.zeros(len(F))
+        for sign in (-1.0, 1.0):
+            G = self.f.residual(u + sign * signs * move, known, p)
+            N = np.maximum(N, np.abs(G - F))
+        return bool(np.all(np.abs(F) <= factor * (C + N)))
+
+    def within_scale(self, u, known, p, F, factor: float) -> bool:
+        """As ``<prefix>_within_scale``: every |F_i| ≤ factor·ε·S_i, S the program's
+        ``F_scale`` (the size of the terms F_i is computed from)."""
+        S = self.f.residual_scale(u, known, p)
+        return bool(np.all(np.abs(F) <= factor * EPSILON * S))
+
+    def newton(self, known, p, u, options):
+        """As ``<prefix>_newton`` (see ``runtime.NewtonOptions``): (status, last iterate,
+        updates made, |F|_inf of the last iterate)."""
+        previous = last_step = 0.0
+        factors = uJ = None
+        done = 0  # 1: stopped on a rounding-noise update, 2: on the estimated error
+        fresh = False  # the last update was a Newton update (J factored where it started)
+        it = 0
+        while True:
+            here = False  # J factored at this iterate
+            if it == 0:
+                F, J = self.f.residual_jacobian(u, known, p)
+            else:
+                F = self.f.residual(u, known, p)
+            rnorm = norm_inf(F)
+            if not np.isfinite(rnorm):
+                return NON_FINITE, u, it, rnorm
+            if done:  # after the final update: accepted only at the rounding floor
+                if explained_by_rounding(F, J, u, uJ, pivot_ratio(factors)) or self.at_floor(
+                        u, known, p, F, coordinate_floor(J, uJ), options.floor_factor):
+                    if done == 2 and it < options.max_iterations:
+                        u, it = polish(factors, F, u, last_step, it)
+                    return OK, u, it, rnorm
+                done = 0  # a small update, a residual above the floor: iterate on
+            if it == 0:  # factor J before any convergence test (a degenerate step fails)
+                uJ, here = u, True
+                status, factors = lu_factor(J)
+                if status != OK:
+                    return status, u, it, rnorm
+            if rnorm <= options.tol_residual:
+                return OK, u, it, rnorm
+            slow = it > 0 and not rnorm <= 0.1 * previous
+            ratio = pivot_ratio(factors)
+            if slow and self.at_floor(u, known, p, F, coordinate_floor(J, uJ),
+                                       options.floor_factor):
+                return OK, u, it, rnorm
+            noise = slow and last_step <= 64.0 * EPSILON * ratio  # rounding noise of a solve
+            if slow and (fresh or noise) and self.within_scale(u, known, p, F,
+                                                                options.floor_factor):
+                return OK, u, it, rnorm  # at the rounding of the residual's own terms
+            if noise:
+                return (OK if explained_by_rounding(F, J, u, uJ, ratio) else STALLED,
+                        u, it, rnorm)
+            if it >= options.max_iterations:
+                return NOT_CONVERGED, u, it, rnorm
+            if slow:
+                F, J = self.f.residual_jacobian(u, known, p)
+                uJ, here = u, True
+                status, factors = lu_factor(J)
+                if status != OK:
+                    return status, u, it, rnorm
+            previous, fresh = rnorm, here
+            status, du = lu_apply(factors, F)
+            if status != OK:
+                return status, u, it, rnorm
+            step = relative_norm(du, u)
+            u = u - du
+            if step <= 4.0 * EPSILON:  # the update is rounding noise of u
+                done = 1
+            elif it > 0 and step < last_step:
+                rho = step / last_step
+                if rho / (1.0 - rho) * step <= options.tol_step:  # polished unless below
+                    # rounding; always after the first two updates (rho, a single ratio,
+                    # overstates the contraction when the first update also fixed the
+                    # unknowns that enter linearly, such as multipliers)
+                    done = 2 if it == 1 or above_rounding(du, u, rho / (1.0 - rho)) else 1
+            last_step = step
+            it += 1
+
+    def simulate(self, known0, p, n_steps: int, options, warm: NumpyWarmStart
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int, int, np.ndarray]:
+        """As ``<prefix>_simulate``: extrapolate from the warm start when it holds at least
+        two solutions (and ``options.extrapolate``), else predict; retry from the prediction
+        when Newton fails from an extrapolated guess or its solution lies outside the
+        guess's trust region (:meth:`NumpyWarmStart.trusts`), and stop with ``BRANCH_JUMP``
+        when the retry's does too.  ``warm`` (from :meth:`warm_start`) is continued and
+        updated.  Returns (states (n_steps + 1, n_known), iterations (n_steps,) int64,
+        residual norms (n_steps,), status, failed step (−1 on success), last iterate); after
+        a failure at step k only rows 0 … k of the states are valid."""
+        states = np.empty((n_steps + 1, len(known0)))
+        states[0] = known0
+        iterations = np.zeros(n_steps, dtype=np.int64)
+        norms = np.zeros(n_steps)
+        for k in range(n_steps):
+            current = states[k]
+            extrapolated = bool(options.extrapolate) and warm.count >= 2
+            with np.errstate(all="ignore"):
+                guess = warm.extrapolate() if extrapolated else self.f.predict(current, p)
+            status, u, iterations[k], norms[k] = self.solve_step(current, p, guess, options)
+            jumped = (extrapolated and status == OK
+                      and not warm.trusts(guess, u, options.trust_factor))
+            if extrapolated and (status != OK or jumped):  # retry from the prediction
+                far, far_norm = u, norms[k]
+                with np.errstate(all="ignore"):
+                    u0 = self.f.predict(current, p)
+                status, u, more, norms[k] = self.solve_step(current, p, u0, options)
+                iterations[k] = min(iterations[k] + more, C_INT_MAX)
+                if status != OK and jumped:  # report the far solution
+                    u, norms[k] = far, far_norm
+                if (not warm.trusts(guess, u, options.trust_factor) if status == OK
+                        else jumped):
+                    status = BRANCH_JUMP
+            if status == OK:
+                with np.errstate(all="ignore"):
+                    following = self.f.next_knowns(u, current, p)
+                if not np.isfinite(norm_inf(following)):
+                    status = NON_FINITE
+            if status != OK:
+                return states, iterations, norms, status, k, u
+            states[k + 1] = following
+            warm.remember(u)
+        return states, iterations, norms, OK, -1, np.zeros(self.n_u)
+
+
+__all__ = ["BRANCH_JUMP", "C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON", "INVALID_ARGUMENT",
+           "LUFactors", "MAX_THREADS", "NON_FINITE", "NOT_CONVERGED", "NumpyStepper",
+           "NumpyWarmStart", "OK", "SINGULAR_JACOBIAN", "STALLED", "StepFunctions",
+           "TRUST_FLOOR", "above_rounding", "coordinate_floor", "explained_by_rounding",
+           "lu_apply", "lu_factor", "lu_solve", "norm_inf", "pivot_ratio", "polish",
+           "relative_norm"]

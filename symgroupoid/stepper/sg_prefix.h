@@ -1,0 +1,30 @@
+/*
+ * The name prefix of the Newton stepper library (symgroupoid.stepper): every function and
+ * type of a kernel is named SG_NAME(x), i.e. <prefix>_x, and every macro SG_X stands for the
+ * kernel's <PREFIX>_X.  The library compiled on its own (a kernel "toy"):
+ *
+ *     cc -std=c99 -DSG_PREFIX=toy -DSG_PREFIX_UPPER=TOY -include toy_sizes.h -c stepper.c
+ *
+ * with TOY_N_EQUATIONS, TOY_N_UNKNOWNS, TOY_N_KNOWNS and TOY_N_PARAMETERS defined in
+ * toy_sizes.h (or before stepper.h is included), beside the kernel's own functions (see
+ * stepper.h).  The code generator writes the library into a kernel with these names spelt
+ * out (plate_ball_simulate, PLATE_BALL_OK, ...); this file is never part of a kernel.
+ */
+#ifndef SG_PREFIX_H
+#define SG_PREFIX_H
+
+#if !defined(SG_PREFIX) || !defined(SG_PREFIX_UPPER)
+#error "define SG_PREFIX and SG_PREFIX_UPPER (the kernel's name prefix, e.g. toy and TOY)"
+#endif
+
+#define SG_CAT_(a, b) a##_##b
+#define SG_CAT(a, b) SG_CAT_(a, b)
+/* <prefix>_x: the kernel's functions and types */
+#define SG_NAME(x) SG_CAT(SG_PREFIX, x)
+/* the kernel's sizes, defined by the kernel */
+#define SG_N_EQUATIONS SG_CAT(SG_PREFIX_UPPER, N_EQUATIONS)
+#define SG_N_UNKNOWNS SG_CAT(SG_PREFIX_UPPER, N_UNKNOWNS)
+#define SG_N_KNOWNS SG_CAT(SG_PREFIX_UPPER, N_KNOWNS)
+#define SG_N_PARAMETERS SG_CAT(SG_PREFIX_UPPER, N_PARAMETERS)
+
+#endif /* SG_PREFIX_H */

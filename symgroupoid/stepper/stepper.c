@@ -1,0 +1,810 @@
+/*
+ * The Newton stepper of a step kernel: LU with row scaling and partial pivoting, the
+ * rounding floors, Newton with chord updates and polishing, the warm start and its
+ * extrapolation, the trust region, and simulate (symgroupoid.stepper; its NumPy twin is
+ * _numpy.py beside this file).  The functions a kernel generates (residual, Jacobian,
+ * scale, prediction, state update) are declared in stepper.h; see there for how to compile
+ * the library on its own.
+ */
+#include "stepper.h"
+#include "prologue.h"
+
+/* The Newton stepper's loops run over the (compile-time) number of unknowns; for a few
+ * unknowns they are unrolled completely (no loop overhead, constant offsets).  Up to 8: at
+ * 16 the unrolled LU doubles the compiler's time (planar chain of 16 links: 1.1 s -> 2.4 s
+ * at -O3) for a step dominated by F and J. */
+#if SG_N_UNKNOWNS <= 8 && defined(__clang__)
+#define SG_UNROLL _Pragma("clang loop unroll(full)")
+#elif SG_N_UNKNOWNS <= 8 && defined(__GNUC__)
+#define SG_UNROLL _Pragma("GCC unroll 8")
+#else
+#define SG_UNROLL
+#endif
+
+void SG_NAME(default_options)(SG_NAME(options) *options)
+{
+    options->tol_residual = 0.0;
+    options->floor_factor = 8.0;
+    options->tol_step = 1e-16;
+    options->max_iterations = 50;
+    options->extrapolate = 1;
+    options->trust_factor = 10.0;
+}
+
+/* The small helpers of the stepper are declared inline, so that a build at -O1 (a small
+ * step's default, see the runtime's optimisation_flags) inlines them as -O2 and -O3 do.
+ * The bits of |x| as an integer: for x >= 0 the integers are ordered as the doubles, above
+ * every finite |x| come the infinities, then the NaNs (all >= SG_INF_BITS) */
+#define SG_INF_BITS UINT64_C(0x7ff0000000000000)
+static inline uint64_t SG_NAME(abs_bits)(double x)
+{
+    uint64_t bits;
+    memcpy(&bits, &x, sizeof bits);
+    return bits & UINT64_C(0x7fffffffffffffff);
+}
+
+static inline double SG_NAME(from_bits)(uint64_t bits)
+{
+    double x;
+    memcpy(&x, &bits, sizeof x);
+    return x;
+}
+
+/* max_i |v_i|; if an entry is not finite, the first such |v_i| (fmax would drop NaN).  One
+ * integer pass over the bits of |v_i| (see SG_NAME(abs_bits)), and a second pass only when the
+ * largest is not finite. */
+static inline double SG_NAME(norm_inf)(const double *v, int n)
+{
+    uint64_t m = 0;
+    int i;
+    for (i = 0; i < n; ++i) {
+        const uint64_t a = SG_NAME(abs_bits)(v[i]);
+        m = a > m ? a : m;
+    }
+    if (m < SG_INF_BITS) {
+        return SG_NAME(from_bits)(m);
+    }
+    for (i = 0; SG_NAME(abs_bits)(v[i]) < SG_INF_BITS; ++i) {
+    }
+    return fabs(v[i]);
+}
+
+/* frexp's exponent of a positive finite x (x = m 2^e, 0.5 <= m < 1), read from the bits of
+ * an IEEE-754 double for normal x (no library call), from frexp for subnormal x. */
+static inline int SG_NAME(binary_exponent)(double x)
+{
+    uint64_t bits;
+    int biased;
+    memcpy(&bits, &x, sizeof bits);
+    biased = (int)((bits >> 52) & 0x7ff);
+    if (biased == 0) {
+        int e;
+        (void)frexp(x, &e);
+        return e;
+    }
+    return biased - 1022;
+}
+
+/* 2^k for -1022 <= k <= 1023, exactly (the bits of a normal double) */
+static inline double SG_NAME(power_of_two)(int k)
+{
+    const uint64_t bits = (uint64_t)(k + 1023) << 52;
+    double x;
+    memcpy(&x, &bits, sizeof x);
+    return x;
+}
+
+/* The factors of a Jacobian (SG_NAME(lu_factor)): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * SG_NAME(explained_by_rounding)). */
+typedef struct {
+    double A[SG_N_UNKNOWNS * SG_N_UNKNOWNS];
+    double s[SG_N_UNKNOWNS];
+    double inv[SG_N_UNKNOWNS];
+    double row_max[SG_N_UNKNOWNS];
+    int e[SG_N_UNKNOWNS];
+    int perm[SG_N_UNKNOWNS];
+    int normal;
+} SG_NAME(lu);
+
+/* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
+ * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
+ * rounding), so the singularity test is relative to the size of each equation, not to the
+ * largest entry of J: equations of very different magnitudes are not mistaken for a singular
+ * system.  Partial pivoting (perm[k]: the row swapped into place k; the first largest |entry|
+ * of the column), one division per column (inv: reciprocal pivots), zero multipliers skipped.
+ * Returns SG_OK; SG_SINGULAR_JACOBIAN when a row is zero or a pivot is not above
+ * n * DBL_EPSILON (numerically singular); SG_NON_FINITE when an entry is not finite
+ * (overflow or NaN); the first failing row decides. */
+static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
+{
+    const int n = SG_N_UNKNOWNS;
+    const double tiny = n * DBL_EPSILON;
+    double *A = f->A;
+    uint64_t rmax[SG_N_UNKNOWNS];
+    int i, j, k;
+    SG_UNROLL
+    for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (SG_NAME(abs_bits)), its sum */
+        uint64_t m = 0;
+        SG_UNROLL
+        for (j = 0; j < n; ++j) {
+            const uint64_t a = SG_NAME(abs_bits)(J[i * n + j]);
+            m = a > m ? a : m;
+        }
+        rmax[i] = m;
+    }
+    for (i = 0; i < n; ++i) { /* the first failing row decides the status */
+        if (rmax[i] >= SG_INF_BITS) {
+            return SG_NON_FINITE;
+        }
+        if (rmax[i] == 0) {
+            return SG_SINGULAR_JACOBIAN;
+        }
+    }
+    f->normal = 1;
+    SG_UNROLL
+    for (i = 0; i < n; ++i) {
+        f->row_max[i] = SG_NAME(from_bits)(rmax[i]);
+        f->e[i] = SG_NAME(binary_exponent)(SG_NAME(from_bits)(rmax[i]));
+        if (f->e[i] > -1000 && f->e[i] < 1000) {
+            f->s[i] = SG_NAME(power_of_two)(-f->e[i]);
+        } else { /* 2^-e[i] is not a normal double: scale with ldexp (still exact) */
+            f->s[i] = 0.0;
+            f->normal = 0;
+        }
+    }
+    if (f->normal) {
+        SG_UNROLL
+        for (i = 0; i < n; ++i) {
+            SG_UNROLL
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] = J[i * n + j] * f->s[i];
+            }
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            for (j = 0; j < n; ++j) {
+                A[i * n + j] = f->s[i] != 0.0 ? J[i * n + j] * f->s[i] : ldexp(J[i * n + j], -f->e[i]);
+            }
+        }
+    }
+    /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
+     * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+    SG_UNROLL
+    for (k = 0; k < n; ++k) {
+        int piv = k;
+        double amax = fabs(A[k * n + k]);
+        SG_UNROLL
+        for (i = k + 1; i < n; ++i) {
+            const double a = fabs(A[i * n + k]);
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
+        }
+        if (!(amax > tiny)) {
+            return SG_SINGULAR_JACOBIAN;
+        }
+        f->perm[k] = piv;
+        if (piv != k) {
+            SG_UNROLL
+            for (j = 0; j < n; ++j) {
+                const double t = A[k * n + j];
+                A[k * n + j] = A[piv * n + j];
+                A[piv * n + j] = t;
+            }
+        }
+        f->inv[k] = 1.0 / A[k * n + k];
+        SG_UNROLL
+        for (i = k + 1; i < n; ++i) {
+            const double l = A[i * n + k] * f->inv[k];
+            A[i * n + k] = l;
+            if (l != 0.0) {
+                SG_UNROLL
+                for (j = k + 1; j < n; ++j) {
+                    A[i * n + j] -= l * A[k * n + j];
+                }
+            }
+        }
+    }
+    return SG_OK;
+}
+
+/* Solve J x = b with the factors of SG_NAME(lu_factor) (x returned in b): the same row
+ * scaling, the row swaps, forward and back substitution.  Returns SG_OK, or
+ * SG_NON_FINITE when x is not finite -- in particular whenever b or its scaling is not
+ * finite: a non-finite entry of the scaled b stays non-finite through the substitutions (it
+ * is only multiplied by finite multipliers and reciprocal pivots -- a zero one gives NaN --
+ * and added to other entries), so one test of x covers both.  Every multiplier is applied,
+ * zero ones too (a test per multiplier costs more than the multiplication it would skip). */
+static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
+{
+    const int n = SG_N_UNKNOWNS;
+    const double *A = f->A;
+    int i, j, k;
+    if (f->normal) {
+        SG_UNROLL
+        for (i = 0; i < n; ++i) {
+            b[i] *= f->s[i];
+        }
+    } else {
+        for (i = 0; i < n; ++i) {
+            b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
+        }
+    }
+    SG_UNROLL
+    for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
+        const double t = b[k];
+        b[k] = b[f->perm[k]];
+        b[f->perm[k]] = t;
+    }
+    SG_UNROLL
+    for (k = 0; k < n; ++k) {
+        SG_UNROLL
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= A[i * n + k] * b[k];
+        }
+    }
+    SG_UNROLL
+    for (i = n - 1; i >= 0; --i) {
+        double t = b[i];
+        SG_UNROLL
+        for (j = i + 1; j < n; ++j) {
+            t -= A[i * n + j] * b[j];
+        }
+        b[i] = t * f->inv[i];
+    }
+    return SG_NAME(norm_inf)(b, n) < INFINITY ? SG_OK : SG_NON_FINITE;
+}
+
+/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
+ * estimate of the condition of the row-equilibrated Jacobian */
+static inline double SG_NAME(pivot_ratio)(const double *inv)
+{
+    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    int k;
+    for (k = 1; k < SG_N_UNKNOWNS; ++k) {
+        const double a = fabs(inv[k]);
+        if (a < lo) {
+            lo = a;
+        }
+        if (a > hi) {
+            hi = a;
+        }
+    }
+    return hi / lo;
+}
+
+/* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded
+ * (each sum from j = 0 up; the loop over i innermost) */
+static void SG_NAME(coordinate_floor)(const double *J, const double *u, double *C)
+{
+    int i, j;
+    SG_UNROLL
+    for (i = 0; i < SG_N_EQUATIONS; ++i) {
+        C[i] = 0.0;
+    }
+    SG_UNROLL
+    for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+        const double a = fabs(u[j]);
+        SG_UNROLL
+        for (i = 0; i < SG_N_EQUATIONS; ++i) {
+            C[i] += fabs(J[i * SG_N_UNKNOWNS + j]) * a;
+        }
+    }
+    SG_UNROLL
+    for (i = 0; i < SG_N_EQUATIONS; ++i) {
+        C[i] *= DBL_EPSILON;
+    }
+}
+
+/* 1 when every |F_i| <= 64 DBL_EPSILON kappa S_i, S_i = sum_j |J_ij| (1 + min(|u_j|, |u_J,j|))
+ * (each sum from j = 0 up), kappa the pivot ratio of J's factorisation f: the residual is one
+ * that an update at the rounding noise of a solve with that factorisation would leave
+ * (F ~ J d).  J is the Jacobian evaluated at u_J, and the weights never exceed those at u_J,
+ * so an iterate u that ran away from the solution (|u| ~ 1e90, where relative updates are
+ * tiny and J vanishes) is not accepted for its small relative update.
+ * The row sums R_i = sum_j |J_ij| of the factorisation decide first when every weight
+ * a_j = 1 + min(...) is finite: then S_i >= R_i as computed (each rounded term |J_ij| a_j
+ * >= |J_ij| since a_j >= 1, and rounding is monotone), so |F_i| <= bound R_i for every i
+ * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
+static int SG_NAME(explained_by_rounding)(const double *F, const double *J, const double *u, const double *uJ, const SG_NAME(lu) *f)
+{
+    const double bound = 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(f->inv);
+    double a[SG_N_UNKNOWNS], S[SG_N_EQUATIONS];
+    uint64_t amax = 0;
+    int i, j, below = 1;
+    SG_UNROLL
+    for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+        const uint64_t bits = SG_NAME(abs_bits)(a[j] = 1.0 + (fabs(u[j]) < fabs(uJ[j]) ? fabs(u[j]) : fabs(uJ[j])));
+        amax = bits > amax ? bits : amax;
+    }
+    if (amax < SG_INF_BITS) {
+        SG_UNROLL
+        for (i = 0; i < SG_N_EQUATIONS; ++i) {
+            below &= fabs(F[i]) <= bound * f->row_max[i];
+        }
+        if (below) {
+            return 1;
+        }
+    }
+    SG_UNROLL
+    for (i = 0; i < SG_N_EQUATIONS; ++i) {
+        S[i] = 0.0;
+    }
+    SG_UNROLL
+    for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+        SG_UNROLL
+        for (i = 0; i < SG_N_EQUATIONS; ++i) {
+            S[i] += fabs(J[i * SG_N_UNKNOWNS + j]) * a[j];
+        }
+    }
+    SG_UNROLL
+    for (i = 0; i < SG_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= bound * S[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* 1 when every |F_i| <= factor * (C_i + N_i): C_i the change of F_i when the unknowns are
+ * rounded (SG_NAME(coordinate_floor), with the last factored Jacobian at the point where it
+ * was evaluated) and N_i the larger
+ * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
+ * also measures the rounding of F's own operations: the residual is as small as rounding
+ * lets it be -- an empirical floor, measured at the iterate rather than bounded */
+static int SG_NAME(at_floor)(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
+{
+    double v[SG_N_UNKNOWNS], G[SG_N_EQUATIONS], N[SG_N_EQUATIONS];
+    int i, j, sign;
+    for (i = 0; i < SG_N_EQUATIONS; ++i) {
+        N[i] = C[i];
+    }
+    for (sign = -1; sign <= 1; sign += 2) {
+        for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+            const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
+            v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
+        }
+        SG_NAME(residual)(v, known, p, G);
+        for (i = 0; i < SG_N_EQUATIONS; ++i) {
+            const double d = fabs(G[i] - F[i]);
+            if (d > N[i] - C[i]) {
+                N[i] = C[i] + d;
+            }
+        }
+    }
+    for (i = 0; i < SG_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * N[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* 1 when every |F_i| <= factor DBL_EPSILON S_i, S_i the size of the terms F_i is computed
+ * from (SG_NAME(residual_scale)): F is within the rounding noise of its own evaluation, as
+ * when a residual written in increments (x_{k+1} - x_k)/h is evaluated at positions far
+ * from the origin, whose rounding no move of the (small) unknowns can undo */
+static int SG_NAME(within_scale)(const double *u, const double *known, const double *p, const double *F, double factor)
+{
+    double S[SG_N_EQUATIONS];
+    int i;
+    SG_NAME(residual_scale)(u, known, p, S);
+    for (i = 0; i < SG_N_EQUATIONS; ++i) {
+        if (!(fabs(F[i]) <= factor * DBL_EPSILON * S[i])) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+#include "options.h"
+
+/* max_j |d_j| / (1 + |u_j|): the size of an update relative to each unknown */
+static inline double SG_NAME(relative_norm)(const double *d, const double *u)
+{
+    double m = 0.0;
+    int j;
+    for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+        const double a = fabs(d[j]) / (1.0 + fabs(u[j]));
+        if (a > m) {
+            m = a;
+        }
+    }
+    return m;
+}
+
+/* 1 when some error factor |d_j| exceeds the rounding of u_j (DBL_EPSILON |u_j|): after an
+ * update d with contraction rho (factor = rho/(1 - rho)), whether the estimated remaining
+ * error is still above the rounding of u */
+static inline int SG_NAME(above_rounding)(const double *d, const double *u, double factor)
+{
+    int j, above = 0;
+    SG_UNROLL
+    for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+        above |= factor * fabs(d[j]) > DBL_EPSILON * fabs(u[j]);
+    }
+    return above;
+}
+
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
+ * The Jacobian at the guess is factored before any convergence test, so every call checks
+ * it at least once: a degenerate step is reported as SG_SINGULAR_JACOBIAN, never returned
+ * as solved.  An update reuses the last factorisation (a chord step) while the previous update
+ * reduced |F|_inf at least tenfold -- near the solution, where Newton's first update has
+ * already brought the error to the square of the guess's -- and refactors otherwise.
+ * The last factored Jacobian J is kept unfactored beside its factors, with the point u_J where
+ * it was evaluated.  Converged:
+ *  - after an update d_k (k >= 1) whose estimated remaining error rho/(1 - rho) |d_k| is at
+ *    most tol_step, with rho = |d_k| / |d_{k-1}| the observed contraction and |.| relative to
+ *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
+ *    noise of u): the update is applied and the residual evaluated there (it is the residual
+ *    reported), and the iterate is accepted only if a rounding-level update explains that
+ *    residual (SG_NAME(explained_by_rounding)), or failing that SG_NAME(at_floor); otherwise
+ *    Newton goes on (a small relative update at a runaway iterate is not convergence);
+ *    after a stop on the estimate, when the estimated error is above the rounding of u
+ *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update) or rho is the
+ *    ratio of the first two updates (which may overstate the contraction), the
+ *    accepted iterate takes one more chord update from that residual, which costs no
+ *    evaluation (a "polishing" update, counted in *iterations, applied only when smaller
+ *    than the last update and within max_iterations): the remaining error, though within
+ *    tol_step, is systematic, and a conserved quantity would drift by it at every step;
+ *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
+ *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
+ *    move of the unknowns (SG_NAME(at_floor), with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
+ *    Newton has stalled on rounding noise;
+ *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
+ *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
+ *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
+ *    (SG_NAME(within_scale)): the residual is within the rounding of its own evaluation, which
+ *    the unknowns cannot undo (large knowns: positions far from the origin);
+ *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
+ *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
+ *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
+ *    that factorisation), and a rounding-level update explains the residual
+ *    (SG_NAME(explained_by_rounding)).
+ * Not converged: SG_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * SG_STALLED when the update is that rounding noise but the residual is above every
+ * floor: Newton cannot improve the iterate.
+ * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
+ * iterate (before its polishing update). */
+static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
+{
+    double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
+    double J[SG_N_EQUATIONS * SG_N_UNKNOWNS], uJ[SG_N_UNKNOWNS];
+    SG_NAME(lu) lu;
+    double previous = 0.0, last_step = 0.0;
+    int it, i, status, slow, noise, done = 0, polish = 0;
+    int fresh = 0; /* the last update was a Newton update (J factored where it started) */
+    for (it = 0;; ++it) {
+        double rnorm, step;
+        int here = 0; /* J factored at this iterate */
+        if (it == 0) {
+            SG_NAME(residual_jacobian)(u, known, p, F, J);
+        } else {
+            SG_NAME(residual)(u, known, p, F);
+        }
+        rnorm = SG_NAME(norm_inf)(F, SG_N_EQUATIONS);
+        *iterations = it;
+        *residual_norm = rnorm;
+        if (!(rnorm < INFINITY)) {
+            return SG_NON_FINITE;
+        }
+        if (done) { /* after the final update: accepted only at the rounding floor */
+            if (SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
+                || (SG_NAME(coordinate_floor)(J, uJ, C),
+                    SG_NAME(at_floor)(u, known, p, F, C, options->floor_factor))) {
+                if (done == 1 || it >= options->max_iterations) {
+                    return SG_OK;
+                }
+                polish = 1; /* accepted; one more chord update from this residual (below) */
+            } else {
+                done = 0; /* a small update, a residual above the floor: iterate on */
+            }
+        }
+        if (!polish) { /* (a polishing update skips the tests: u is accepted) */
+            if (it == 0) {
+                memcpy(uJ, u, sizeof uJ);
+                status = SG_NAME(lu_factor)(J, &lu);
+                if (status != SG_OK) {
+                    return status;
+                }
+                here = 1;
+            }
+            if (rnorm <= options->tol_residual) {
+                return SG_OK;
+            }
+            slow = it > 0 && !(rnorm <= 0.1 * previous);
+            if (slow) {
+                SG_NAME(coordinate_floor)(J, uJ, C);
+                if (SG_NAME(at_floor)(u, known, p, F, C, options->floor_factor)) {
+                    return SG_OK;
+                }
+                noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv);
+                if ((fresh || noise) && SG_NAME(within_scale)(u, known, p, F, options->floor_factor)) {
+                    return SG_OK; /* at the rounding of the residual's own terms */
+                }
+                if (noise) {
+                    /* the update is rounding noise: accepted if it explains the residual */
+                    return SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu) ? SG_OK : SG_STALLED;
+                }
+            }
+            if (it >= options->max_iterations) {
+                return SG_NOT_CONVERGED;
+            }
+            if (slow) {
+                SG_NAME(residual_jacobian)(u, known, p, F, J);
+                memcpy(uJ, u, sizeof uJ);
+                status = SG_NAME(lu_factor)(J, &lu);
+                if (status != SG_OK) {
+                    return status;
+                }
+                here = 1;
+            }
+        }
+        previous = rnorm;
+        fresh = here;
+        status = SG_NAME(lu_apply)(&lu, F);
+        if (status != SG_OK) {
+            return polish ? SG_OK : status;
+        }
+        step = SG_NAME(relative_norm)(F, u);
+        if (polish) { /* applied and counted when smaller than the last update */
+            if (step < last_step) {
+                SG_UNROLL
+                for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+                    u[i] -= F[i];
+                }
+                *iterations = it + 1;
+            }
+            return SG_OK;
+        }
+        SG_UNROLL
+        for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+            u[i] -= F[i];
+        }
+        if (step <= 4.0 * DBL_EPSILON) { /* the update is rounding noise of u */
+            done = 1;
+        } else if (it > 0 && step < last_step) {
+            const double rho = step / last_step;
+            if (rho / (1.0 - rho) * step <= options->tol_step) {
+                /* to be polished, unless the remaining error is below the rounding of u;
+                 * always after two updates (it == 1), where rho is a single ratio and the
+                 * first update also removed the guess's error in the unknowns that enter
+                 * linearly (multipliers), so that rho underestimates the contraction */
+                done = (it == 1 || SG_NAME(above_rounding)(F, u, rho / (1.0 - rho))) ? 2 : 1;
+            }
+        }
+        last_step = step;
+    }
+}
+
+/* One Newton solve from the guess in u (see SG_NAME(newton)).  Returns
+ * SG_INVALID_ARGUMENT, writing nothing, for a null pointer, invalid options, or a
+ * non-finite entry of known, p or the guess. */
+int SG_NAME(solve_step)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
+{
+    SG_NAME(options) defaults;
+    if (options == NULL) {
+        SG_NAME(default_options)(&defaults);
+        options = &defaults;
+    }
+    if (known == NULL || u == NULL || iterations == NULL || residual_norm == NULL
+        || (SG_N_PARAMETERS > 0 && p == NULL)
+        || !SG_NAME(options_valid)(options)
+        || !isfinite(SG_NAME(norm_inf)(known, SG_N_KNOWNS))
+        || !isfinite(SG_NAME(norm_inf)(p, SG_N_PARAMETERS))
+        || !isfinite(SG_NAME(norm_inf)(u, SG_N_UNKNOWNS))) {
+        return SG_INVALID_ARGUMENT;
+    }
+    return SG_NAME(newton)(known, p, options, u, iterations, residual_norm);
+}
+
+/* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
+ * finite */
+static int SG_NAME(warm_start_valid)(const SG_NAME(warm_start) *warm)
+{
+    if (warm->count < 0 || warm->count > 3 || (warm->quadratic != 0 && warm->quadratic != 1)) {
+        return 0;
+    }
+    return (warm->count < 1 || isfinite(SG_NAME(norm_inf)(warm->u_last, SG_N_UNKNOWNS)))
+           && (warm->count < 2 || isfinite(SG_NAME(norm_inf)(warm->u_before, SG_N_UNKNOWNS)))
+           && (warm->count < 3 || isfinite(SG_NAME(norm_inf)(warm->u_earlier, SG_N_UNKNOWNS)));
+}
+
+/* The two extrapolations of unknown i from the warm start: linear, 2 u_last - u_before, and
+ * quadratic, 3 (u_last - u_before) + u_earlier */
+static inline double SG_NAME(linear_guess)(const SG_NAME(warm_start) *warm, int i)
+{
+    return 2.0 * warm->u_last[i] - warm->u_before[i];
+}
+
+static inline double SG_NAME(quadratic_guess)(const SG_NAME(warm_start) *warm, int i)
+{
+    return 3.0 * (warm->u_last[i] - warm->u_before[i]) + warm->u_earlier[i];
+}
+
+/* The Newton guess extrapolated from the warm start (count >= 2): quadratic when it holds
+ * three solutions and warm->quadratic, else linear */
+static void SG_NAME(extrapolate)(const SG_NAME(warm_start) *warm, double *u)
+{
+    const int quadratic = warm->count == 3 && warm->quadratic;
+    int i;
+    for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+        u[i] = quadratic ? SG_NAME(quadratic_guess)(warm, i) : SG_NAME(linear_guess)(warm, i);
+    }
+}
+
+/* The least motion the trust region of a step allows for (relative to each unknown; see
+ * SG_NAME(trusted)): a run at rest may still be set moving */
+#define SG_TRUST_FLOOR 1e-2
+
+/* 1 when the solution u of a step lies in the trust region of its extrapolated guess (or
+ * the check is off, factor = 0, or the warm start holds fewer than three solutions):
+ * |u - guess| <= factor (m + SG_TRUST_FLOOR), |d| = max_j |d_j| / (1 + |u_last,j|)
+ * (SG_NAME(relative_norm) at the last solution) and m the larger of the last two steps'
+ * motions |u_last - u_before| and |u_before - u_earlier| (checked from the fourth step of a
+ * run on: one motion alone can be a small one of an oscillation).  Extrapolation from smooth
+ * motion misses the next solution by a fraction of a step's motion (at most twice the larger
+ * of two motions for an oscillation of two to six steps a period); a solution much farther
+ * away belongs to another branch
+ * of the step equations, reached when the nearby root has disappeared (a fold of the step
+ * map: the step h no longer resolves the motion). */
+static int SG_NAME(trusted)(const SG_NAME(warm_start) *warm, const double *guess, const double *u, double factor)
+{
+    double far = 0.0, m = 0.0, radius;
+    int i, inside = 1;
+    if (!(factor > 0.0) || warm->count < 3) {
+        return 1;
+    }
+    SG_UNROLL
+    for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+        const double e = fabs(u[i] - guess[i]);
+        far = e > far ? e : far;
+    }
+    if (far <= factor * SG_TRUST_FLOOR) {
+        return 1; /* within the smallest radius (every weight 1 + |u_last,i| >= 1): implies
+                   * the test below, which then needs no division */
+    }
+    SG_UNROLL
+    for (i = 0; i < SG_N_UNKNOWNS; ++i) { /* m, with one division per unknown */
+        const double a = fabs(warm->u_last[i] - warm->u_before[i]);
+        const double b = fabs(warm->u_before[i] - warm->u_earlier[i]);
+        const double r = (a > b ? a : b) / (1.0 + fabs(warm->u_last[i]));
+        m = r > m ? r : m;
+    }
+    radius = factor * (m + SG_TRUST_FLOOR);
+    SG_UNROLL
+    for (i = 0; i < SG_N_UNKNOWNS; ++i) { /* |u_i - guess_i| <= radius (1 + |u_last,i|) */
+        inside &= fabs(u[i] - guess[i]) <= radius * (1.0 + fabs(warm->u_last[i]));
+    }
+    return inside;
+}
+
+/* Adds the solution u of a step to the warm start.  When it held three solutions, the next
+ * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
+ * guessed u more closely than the linear one (SG_NAME(relative_norm) of the errors).  Smooth
+ * motion favours the quadratic (its error is O(h^3) against O(h^2)); an oscillation with
+ * fewer than about six steps per period, where higher order extrapolates worse, the linear. */
+static void SG_NAME(remember)(const double *u, SG_NAME(warm_start) *warm)
+{
+    if (warm->count == 3) {
+        double linear[SG_N_UNKNOWNS], quadratic[SG_N_UNKNOWNS];
+        int i;
+        for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+            linear[i] = u[i] - SG_NAME(linear_guess)(warm, i);
+            quadratic[i] = u[i] - SG_NAME(quadratic_guess)(warm, i);
+        }
+        warm->quadratic = SG_NAME(relative_norm)(quadratic, u) < SG_NAME(relative_norm)(linear, u);
+    } else {
+        warm->quadratic = 0; /* (a run restarted with count = 0 forgets the old choice) */
+    }
+    memcpy(warm->u_earlier, warm->u_before, sizeof warm->u_earlier);
+    memcpy(warm->u_before, warm->u_last, sizeof warm->u_before);
+    memcpy(warm->u_last, u, sizeof warm->u_last);
+    if (warm->count < 3) {
+        ++warm->count;
+    }
+}
+
+/* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
+ * Writes states[0 .. n_steps] (row k at states + k * SG_N_KNOWNS), and iterations[k],
+ * residual_norms[k] for k < n_steps; needs capacity >= n_steps + 1 (rows of states;
+ * iterations and residual_norms hold at least capacity - 1 entries), else nothing is written
+ * and SG_INVALID_ARGUMENT is returned.
+ * The Newton guess of a step is SG_NAME(predict), or, when options->extrapolate is set and the
+ * warm start holds the solutions of at least the last two steps, their extrapolation
+ * (SG_NAME(extrapolate): linear, u ~ 2 u_last - u_before, or quadratic, chosen by hindsight in
+ * SG_NAME(remember); chart coordinates and multipliers of consecutive steps), falling back to
+ * SG_NAME(predict) if Newton fails from there or its solution lies outside the guess's trust
+ * region (SG_NAME(trusted); iterations[k] counts both tries): a solution from either try
+ * outside that region ends the run with SG_BRANCH_JUMP.
+ * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
+ * call from the last state of this one with the same warm start continues the run exactly:
+ * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
+ * a new run.
+ * On failure returns the status, sets *failed_step = k (else -1; failed_step may be NULL)
+ * and copies the last Newton iterate of that step to last_iterate (SG_N_UNKNOWNS
+ * doubles; may be NULL); iterations[k] and residual_norms[k] describe the failed step,
+ * states[k + 1 ..] are not written and warm still ends at step k - 1. */
+int SG_NAME(simulate)(const double *known0, const double *p, long n_steps, const SG_NAME(options) *options, SG_NAME(warm_start) *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+{
+    SG_NAME(options) defaults;
+    SG_NAME(warm_start) fresh;
+    long k;
+    if (failed_step != NULL) {
+        *failed_step = -1;
+    }
+    if (options == NULL) {
+        SG_NAME(default_options)(&defaults);
+        options = &defaults;
+    }
+    if (warm == NULL) {
+        memset(&fresh, 0, sizeof fresh);
+        warm = &fresh;
+    }
+    if (known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
+        || (SG_N_PARAMETERS > 0 && p == NULL)
+        || n_steps < 0 || capacity < 1 || n_steps > capacity - 1
+        || !SG_NAME(options_valid)(options) || !SG_NAME(warm_start_valid)(warm)
+        || !isfinite(SG_NAME(norm_inf)(known0, SG_N_KNOWNS))
+        || !isfinite(SG_NAME(norm_inf)(p, SG_N_PARAMETERS))) {
+        return SG_INVALID_ARGUMENT;
+    }
+    memmove(states, known0, sizeof(double) * SG_N_KNOWNS);
+    for (k = 0; k < n_steps; ++k) {
+        const double *current = states + (size_t)k * SG_N_KNOWNS;
+        double next[SG_N_KNOWNS];
+        double u[SG_N_UNKNOWNS], guess[SG_N_UNKNOWNS];
+        const int extrapolated = options->extrapolate && warm->count >= 2;
+        int status;
+        if (extrapolated) {
+            SG_NAME(extrapolate)(warm, guess);
+            memcpy(u, guess, sizeof u);
+        } else {
+            SG_NAME(predict)(current, p, u);
+        }
+        status = SG_NAME(newton)(current, p, options, u, &iterations[k], &residual_norms[k]);
+        if (extrapolated) {
+            /* a solution far outside the trust region of the guess: another branch */
+            const int jumped = status == SG_OK && !SG_NAME(trusted)(warm, guess, u, options->trust_factor);
+            if (status != SG_OK || jumped) {
+                /* the extrapolated guess failed or led far away: retry from the prediction */
+                double far[SG_N_UNKNOWNS];
+                const double far_norm = residual_norms[k];
+                int more = 0;
+                memcpy(far, u, sizeof far);
+                SG_NAME(predict)(current, p, u);
+                status = SG_NAME(newton)(current, p, options, u, &more, &residual_norms[k]);
+                iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+                if (status != SG_OK && jumped) { /* report the far solution */
+                    memcpy(u, far, sizeof far);
+                    residual_norms[k] = far_norm;
+                }
+                if (status == SG_OK ? !SG_NAME(trusted)(warm, guess, u, options->trust_factor) : jumped) {
+                    status = SG_BRANCH_JUMP;
+                }
+            }
+        }
+        if (status == SG_OK) {
+            SG_NAME(next_knowns)(u, current, p, next);
+            if (!isfinite(SG_NAME(norm_inf)(next, SG_N_KNOWNS))) {
+                status = SG_NON_FINITE;
+            }
+        }
+        if (status != SG_OK) {
+            if (failed_step != NULL) {
+                *failed_step = k;
+            }
+            if (last_iterate != NULL) {
+                memcpy(last_iterate, u, sizeof u);
+            }
+            return status;
+        }
+        memcpy(states + (size_t)(k + 1) * SG_N_KNOWNS, next, sizeof next);
+        SG_NAME(remember)(u, warm);
+    }
+    return SG_OK;
+}
