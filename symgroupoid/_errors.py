@@ -212,3 +212,15 @@ class DegenerateLagrangianWarning(UserWarning):
     (point vortices, a charge in a strong field) and the two-step discrete flow carries
     parasitic modes beside them (docs/conventions.md §19).  A degenerate kinetic energy
     that only the potential regularises is a :class:`DegenerateSystemError`."""
+
+
+class DiagnosticsError(SymgroupoidError, ValueError):
+    """A diagnostic is not defined for this trajectory (no system attached to its equations,
+    no step parameter for the energy, a second-order energy, …); the message says why."""
+
+
+class TimeStepError(DiagnosticsError):
+    """The discrete energy needs the time step, and the system neither declares it
+    (``time_step=``) nor has exactly one parameter that behaves as the step in the
+    continuous limit (docs/conventions.md §19); the message names the candidates and says
+    to pass ``time_step=`` (or ``step_parameter=``)."""

@@ -223,8 +223,8 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
                                 _energy(trajectory, step_parameter), idx))
     for label, nq in _noether_quantities(ev.sg, momenta):
         quantities.append(Drift(label, nq.along(trajectory), idx))
-    show_phi = bool(ev.sg.phi) if constraints is None else constraints
-    if show_phi and not ev.sg.phi:
+    show_phi = ev.sg.has_constraints if constraints is None else constraints
+    if show_phi and not ev.sg.has_constraints:
         raise DomainError(f"{ev.sg.name}: constraints=True, but the system has no "
                           f"constraints to plot")
     if not quantities and not show_phi:

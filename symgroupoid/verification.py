@@ -19,11 +19,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import sympy as sp
 
 from ._arguments import integer_argument
 from ._errors import DomainError
-from ._lambdify import NUMPY_MODULES
+from .equations import action_program, structure_program
 from .groupoids import Groupoid
 
 
@@ -44,30 +43,36 @@ class StationarityReport:
         return f"<StationarityReport stationary={self.stationary} scale={self.scale:.3e} {ds}>"
 
 
+def _functions(system):
+    """The system's evaluated functions (L, φ on slot arrows)."""
+    return system._fs
+
+
 class _NumericGroupoid:
-    """Structure maps of a groupoid lambdified once (generic symbolic arrows)."""
+    """Structure maps of a groupoid, evaluated from its structure program
+    (:func:`~symgroupoid.equations.structure_program`)."""
 
     def __init__(self, G: Groupoid):
         self.G = G
-        a = G._generic_arrow
-        b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
-        q = tuple(sp.Dummy(f"q{i}") for i in range(G.base_dim))
-        t = sp.Dummy("t")
-        self.multiply = sp.lambdify([a, b], list(G.multiply(a, b)), NUMPY_MODULES)
-        self.inverse = sp.lambdify([a], list(G.inverse(a)), NUMPY_MODULES)
-        self.target = sp.lambdify([a], list(G.target(a)), NUMPY_MODULES)
-        self.curves = [sp.lambdify([q, t], list(h), NUMPY_MODULES) for h in G._curves(q, t)]
+        program = structure_program(G)
+        self._multiply = program.numpy_function(["multiply"], ["a", "b"])
+        self._inverse = program.numpy_function(["inverse"], ["a"])
+        self._target = program.numpy_function(["target"], ["a"])
+        self._flow = program.numpy_function(["flow_from"], ["q", "d"])
+
+    def multiply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        return self._multiply(a, b)[0]
+
+    def inverse(self, a: np.ndarray) -> np.ndarray:
+        return self._inverse(a)[0]
+
+    def target(self, a: np.ndarray) -> np.ndarray:
+        return self._target(a)[0]
 
     def flow(self, q: np.ndarray, coeffs: np.ndarray, t: float) -> np.ndarray:
         """h(t) ⊂ α⁻¹(q): the product of section curves h_a(c_a t), each at the target of the
         previous one, so h'(0) = Σ c_a X_a(q)."""
-        h = None
-        point = np.asarray(q, float)
-        for curve, c in zip(self.curves, coeffs):
-            piece = np.asarray(curve(point, c * t), float)
-            h = piece if h is None else np.asarray(self.multiply(h, piece), float)
-            point = np.asarray(self.target(h), float)
-        return h
+        return self._flow(np.asarray(q, float), np.asarray(coeffs, float) * t)[0]
 
 
 def _section_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.ndarray:
@@ -87,13 +92,12 @@ def _section_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.nd
 
 
 def _action_terms(system) -> tuple:
-    """Lambdified L and φ on the system's own slot coordinates (independent of the DEL)."""
-    fs = system._fs
-    coords = [c for s in fs.slots for c in s]
-    args = [coords, list(system.parameters)]
-    L = sp.lambdify(args, fs.lagrangian, NUMPY_MODULES)
-    phi = sp.lambdify(args, fs.constraints, NUMPY_MODULES) if fs.constraints else None
-    return L, phi, len(fs.slots), len(fs.constraints)
+    """L and φ on the system's own slot coordinates (independent of the DEL): the program
+    of :func:`~symgroupoid.equations.action_program`, a term per batch column."""
+    program = action_program(system)
+    f = program.numpy_function(["L", "phi"], ["a", "p"])
+    fs = _functions(system)
+    return f, len(fs.slots), len(fs.constraints)
 
 
 @functools.lru_cache(maxsize=16)
@@ -104,16 +108,17 @@ def _cached_terms(system):
 def action_terms(system, arrows: np.ndarray, multipliers: np.ndarray | None,
                  params: Sequence) -> np.ndarray:
     """[L + λ_j·φ](g_j, …, g_{j+arity−1}) for every window of the arrow sequence."""
-    L, phi, arity, m = _cached_terms(system)
+    f, arity, m = _cached_terms(system)
     p = np.asarray(params, float)
-    terms = []
-    for j in range(len(arrows) - arity + 1):
-        window = np.concatenate(arrows[j:j + arity])
-        value = float(L(window, p))
-        if m:
-            value += float(np.dot(multipliers[j], np.asarray(phi(window, p), float)))
-        terms.append(value)
-    return np.array(terms)
+    arrows = np.asarray(arrows, float)
+    T = len(arrows) - arity + 1
+    windows = np.hstack([arrows[o:o + T] for o in range(arity)])  # (T, arity·arrow_dim)
+    L, phi = f(windows.T, p[:, None])
+    terms = np.broadcast_to(L[0], (T,)).astype(float)
+    if m:
+        lam = np.asarray(multipliers, float)[:T]
+        terms = terms + np.einsum("ta,at->t", lam, np.broadcast_to(phi, (m, T)))
+    return terms
 
 
 def action(system, arrows: np.ndarray, multipliers: np.ndarray | None, params: Sequence) -> float:
@@ -149,7 +154,7 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
         raise DomainError(f"{system.name}: eps must be in [1e-300, 1] (the size of the "
                           f"variations), got {eps!r}")
     arrows, lam, params = _unpack(trajectory, system, multipliers, params)
-    L, phi, arity, m = _cached_terms(system)
+    _, arity, m = _cached_terms(system)
     ng = _NumericGroupoid(G)
     rng = np.random.default_rng(seed)
     n = len(arrows)
@@ -229,7 +234,8 @@ def _unpack(trajectory, system, multipliers, params):
     if arrows.ndim != 2 or arrows.shape[1] != G.arrow_dim:
         raise ShapeError(f"{owner}: arrows must have shape (N, {G.arrow_dim}), got "
                          f"{arrows.shape}")
-    arity, m = len(system._fs.slots), len(system._fs.constraints)
+    fs = _functions(system)
+    arity, m = len(fs.slots), len(fs.constraints)
     terms = len(arrows) - arity + 1
     if terms < 1:
         raise ShapeError(f"{owner}: {len(arrows)} arrows hold no term of the action "

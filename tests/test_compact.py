@@ -20,7 +20,7 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 
 from symgroupoid import systems
 from symgroupoid.codegen import _kernel, generate_c
-from symgroupoid.equations._program import step_program
+from symgroupoid.equations import step_program
 from symgroupoid.ir import ADD, MUL, Graph, compact, to_sympy
 from symgroupoid.runtime import _compile
 

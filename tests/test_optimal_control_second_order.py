@@ -10,7 +10,7 @@ import sympy as sp
 from conftest import load_example
 
 import symgroupoid as sg
-from symgroupoid.derivation._step import window_functions
+from symgroupoid.derivation import WindowAction
 from symgroupoid.runtime import _bvp
 from symgroupoid.verification import action
 
@@ -232,22 +232,24 @@ def test_window_kernel_matches_symbolic_derivatives():
 
     system = sg.SecondOrderSystem(G, L, constraints=phi, parameters=[h], name="kernel_check")
     kernel = _bvp.WindowKernel(system)
-    wf = window_functions(G, system._fs)
+    action = WindowAction(G, system._fs)
+    slots = action.slots("v")
+    multipliers = {s: action.multipliers(s) for s in action.starts}
     rng = np.random.default_rng(3)
     windows = np.array([[np.concatenate([rng.normal(size=2), G.factors[1].numeric_fibre_chart(
         rng.normal(scale=0.5, size=3))]) for _ in range(4)] for _ in range(3)])
     lams = rng.normal(size=(3, 3, 2))
     res, left, right, dlam = kernel.junction(windows, lams, np.array([0.2]))
-    r = wf.variation
-    blocks = {o: ([G.apply_left(e, wf.slots[o]) for e in r],
-                  [G.apply_right(e, wf.slots[o]) for e in r]) for o in kernel.offsets}
-    dl = {s: [[sp.diff(e, x) for x in wf.multipliers[s]] for e in r] for s in kernel.starts}
+    r = action.variation(slots)
+    blocks = {o: ([G.apply_left(e, slots[o]) for e in r],
+                  [G.apply_right(e, slots[o]) for e in r]) for o in kernel.offsets}
+    dl = {s: [[sp.diff(e, x) for x in multipliers[s]] for e in r] for s in kernel.starts}
     for w in range(3):
         sub = {h: 0.2}
         for o in kernel.offsets:
-            sub.update(zip(wf.slots[o], windows[w, o - kernel.offsets[0]]))
+            sub.update(zip(slots[o], windows[w, o - kernel.offsets[0]]))
         for s in kernel.starts:
-            sub.update(zip(wf.multipliers[s], lams[w, s - kernel.starts[0]]))
+            sub.update(zip(multipliers[s], lams[w, s - kernel.starts[0]]))
         value = np.vectorize(lambda e, sub=sub: float(sp.sympify(e).xreplace(sub)))
         assert np.allclose(res[w], value(r), rtol=1e-10, atol=1e-10)
         for o in kernel.offsets:
@@ -255,14 +257,14 @@ def test_window_kernel_matches_symbolic_derivatives():
             assert np.allclose(right[o][w], value(blocks[o][1]), rtol=1e-9, atol=1e-9)
         for s in kernel.starts:
             assert np.allclose(dlam[s][w], value(dl[s]), atol=1e-10)
-    c = wf.constraints
-    cblocks = [([G.apply_left(e, wf.slots[o]) for e in c], [G.apply_right(e, wf.slots[o])
+    c = action.constraints_on(slots, 0)
+    cblocks = [([G.apply_left(e, slots[o]) for e in c], [G.apply_right(e, slots[o])
                                                              for e in c]) for o in range(2)]
     cres, cleft, cright = kernel.term(windows[:, :2], np.array([0.2]))
     for w in range(3):
         sub = {h: 0.2}
         for o in range(2):
-            sub.update(zip(wf.slots[o], windows[w, o]))
+            sub.update(zip(slots[o], windows[w, o]))
         value = np.vectorize(lambda e, sub=sub: float(sp.sympify(e).xreplace(sub)))
         assert np.allclose(cres[w], value(c))
         for o in range(2):

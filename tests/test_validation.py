@@ -18,13 +18,13 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid._errors import DomainError, InputNameError, ParameterError
+from symgroupoid.equations import magnitude
 from symgroupoid.runtime._validate import (
     ConstraintCheck,
     check_assumptions,
     configuration,
     group_element,
     integer_argument,
-    magnitude,
     parameter_vector,
     real_argument,
 )

@@ -32,8 +32,8 @@ from .._errors import DomainError, ShapeError
 from .._lambdify import NUMPY_MODULES
 from ..groupoids import Groupoid
 from ..groupoids._morphism import ParameterValues
+from ._assembly import WindowAction
 from ._callables import as_matrix, call_user, check_values
-from ._junction import junction_halves, slot, slot_substitution
 from ._momenta import legendre_forms
 from ._step import (
     DerivedStep,
@@ -42,7 +42,6 @@ from ._step import (
     _node,
     chart_of,
     next_map,
-    shifted,
     tidy,
     window,
     window_arrows,
@@ -119,15 +118,12 @@ def _show(sub: dict) -> str:
 
 
 def window_halves(G: Groupoid, fs: SystemFunctions) -> tuple[list, list]:
-    """X⃖_b[L](g_k) and X⃗_b[L](g_{k+1}) in the step's named coordinates (SymPy)."""
-    offsets, starts = window(1)
-    A = {o: slot(G, f"w{o + 2}_") for o in offsets}
-    S = sum((shifted(fs, [A[s]], []) for s in starts), sp.S.Zero)
-    lhs, rhs = junction_halves(G, S, A[0], A[1])
-    arrows = window_arrows(G, offsets)
-    sub: dict = {}
-    for o in offsets:
-        sub.update(slot_substitution(A[o], arrows[o]))
+    """X⃖_b[L](g_k) and X⃗_b[L](g_{k+1}) in the step's named coordinates (SymPy): the halves
+    of :class:`~symgroupoid.derivation.WindowAction` without multipliers."""
+    action = WindowAction(G, fs)
+    A = action.slots("w")
+    lhs, rhs = action.halves(A, multipliers=False)
+    sub = action.naming(A, action.named_arrows())
     return [tidy(e.xreplace(sub)) for e in lhs], [tidy(e.xreplace(sub)) for e in rhs]
 
 

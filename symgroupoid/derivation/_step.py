@@ -31,7 +31,7 @@ from .._errors import CallableError, ShapeError
 from .._symbols import multiplier_symbols, subscripted
 from ..groupoids import Groupoid
 from ._callables import as_scalar, as_scalar_list, call_user, check_symbols
-from ._junction import junction_variation, slot, slot_substitution
+from ._junction import slot, slot_substitution
 
 
 @dataclass
@@ -287,53 +287,11 @@ def window_residuals(G: Groupoid, fs: SystemFunctions,
                      multipliers: bool = True) -> tuple[list, dict]:
     """Residuals of the junction variation between g_k and g_{k+1}, then the constraints on
     the newest term; returns them with the named arrows by offset.  With
-    ``multipliers=False`` the constraints are not added to the action (nonholonomic)."""
-    arity, m, mf = len(fs.slots), len(fs.constraints), fs.matrix_form
-    offsets, starts = window(arity)
-    A = {o: slot(G, f"w{o + 2}_", mf) for o in offsets}
-    S = sum((shifted(fs, [A[s + i] for i in range(arity)],
-                     multiplier_symbols(m, s) if multipliers else [])
-             for s in starts), sp.S.Zero)
-    variations = junction_variation(G, S, A[0], A[1])
-    arrows = {offsets[0]: named(G, offsets[0], mf)}
-    for o in offsets[1:]:
-        arrows[o] = next_arrow(G, arrows[o - 1], o, mf)
-    sub: dict = {}
-    for o in offsets:
-        sub.update(slot_substitution(A[o], arrows[o]))
-    residuals = [tidy(d.xreplace(sub)) for d in variations]
-    newest = [arrows[starts[-1] + i] for i in range(arity)]
-    residuals += [tidy(c) for c in fs.rows_on(G, newest)]
-    return residuals, arrows
+    ``multipliers=False`` the constraints are not added to the action (nonholonomic).  The
+    SymPy form of :class:`~symgroupoid.derivation.WindowAction`."""
+    from ._assembly import WindowAction
 
-
-@dataclass
-class WindowFunctions:
-    """The junction residuals and constraints in independent slot arrows (not yet named).
-
-    ``slots[o]``: coordinates of the arrow at offset o from the junction's left arrow;
-    ``multipliers[s]``: λ of the term starting at offset s; ``variation``: one expression per
-    basis section; ``constraints``: Φ on the term starting at offset 0, in ``slots``.
-    """
-
-    slots: dict
-    multipliers: dict
-    variation: list
-    constraints: list
-
-
-def window_functions(G: Groupoid, fs: SystemFunctions) -> WindowFunctions:
-    """The junction variation of the window action with every arrow an independent slot —
-    the form a boundary-value solver differentiates slot by slot."""
-    arity, m = len(fs.slots), len(fs.constraints)
-    offsets, starts = window(arity)
-    A = {o: slot(G, f"v{o + 2}_") for o in offsets}
-    lam = {s: multiplier_symbols(m, s) for s in starts}
-    S = sum((shifted(fs, [A[s + i] for i in range(arity)], lam[s]) for s in starts), sp.S.Zero)
-    variation = junction_variation(G, S, A[0], A[1])
-    term0 = [A[i] for i in range(arity)]
-    constraints = shifted(fs, term0, [1] * m, lagrangian=False, separate=True)
-    return WindowFunctions(A, lam, variation, constraints)
+    return WindowAction(G, fs).residuals(multipliers)
 
 
 def junction_step(name: str, G: Groupoid, fs: SystemFunctions,

@@ -2,10 +2,31 @@
 
 from ._latex import GroupoidLatexPrinter, latex
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
+from ._programs import (
+    MomentumProgram,
+    StatePrograms,
+    WindowPrograms,
+    action_program,
+    constraint_program,
+    cost_program,
+    holonomic_program,
+    magnitude,
+    momentum_program,
+    second_order_momentum_program,
+    source_projection_program,
+    state_programs,
+    step_program,
+    structure_program,
+    window_programs,
+)
 from ._step import StepEquations
 from ._system import DiscreteSystem, NonholonomicSystem, SecondOrderSystem
 
 __all__ = [
     "DiscreteSystem", "GroupoidLatexPrinter", "LegendreTransforms", "LiePoissonEquations",
-    "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem", "StepEquations", "latex",
+    "MomentumProgram", "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem",
+    "StatePrograms", "StepEquations", "WindowPrograms", "action_program", "constraint_program",
+    "cost_program", "holonomic_program", "latex", "magnitude", "momentum_program",
+    "second_order_momentum_program", "source_projection_program", "state_programs",
+    "step_program", "structure_program", "window_programs",
 ]

@@ -391,33 +391,26 @@ def window_in_pieces(step, rule: PieceRule, fs, matrix_form: bool,
                      lagrangian: bool = True) -> WindowPieces:
     """The junction variation of Σ_s [L + λ_s·φ](g_{k+s}) (``lagrangian=False``: of
     Σ_s λ_s·φ only) with each pair arrow written in the pieces of ``rule`` before the
-    slots become the named arrows g_k, g_{k+1}, …"""
-    from ..derivation._junction import junction_variation, slot, slot_substitution
-    from ..derivation._step import named, next_arrow, shifted, window
+    slots become the named arrows g_k, g_{k+1}, … (the window action of
+    :class:`~symgroupoid.derivation.WindowAction`)."""
+    from ..derivation import WindowAction
 
     G = step.groupoid
-    arity, m = len(fs.slots), len(fs.constraints)
-    offsets, starts = window(arity)
-    A = {o: slot(G, f"p{o + 2}_", matrix_form) for o in offsets}
-    S = sum((shifted(fs, [A[s + i] for i in range(arity)], multiplier_symbols(m, s),
-                     lagrangian=lagrangian) for s in starts), sp.S.Zero)
-    variations = junction_variation(G, S, A[0], A[1])
-    arrows = {offsets[0]: named(G, offsets[0], matrix_form)}
-    for o in offsets[1:]:
-        arrows[o] = next_arrow(G, arrows[o - 1], o, matrix_form)
-    sub: dict = {}
+    action = WindowAction(G, fs)
+    A = action.slots("p", matrix_form)
+    variations = action.variation(A, lagrangian=lagrangian)
+    arrows = action.named_arrows(matrix_form)
+    sub = action.naming(A, arrows)
     values: dict = {}
-    for o in offsets:
-        sub.update(slot_substitution(A[o], arrows[o]))
+    for o in action.offsets:
         for c in pair_coordinates(G):
             q0, q1 = arrows[o][c.source], arrows[o][c.target]
             mid, diff = piece_symbols(c, half_label("k", o))
             sub[A[o][c.source]], sub[A[o][c.target]] = rule.coordinates(q0, q1, mid, diff)
             values.update({p: v.doit() for p, v in rule.definitions(q0, q1, mid, diff)})
-    newest = [A[starts[-1] + i] for i in range(arity)]
-    constraints = shifted(fs, newest, [1] * m, lagrangian=False, separate=True)
+    constraints = action.constraints_on(A)
     return WindowPieces([v.xreplace(sub) for v in variations],
-                        [c.xreplace(sub) for c in constraints], A, sub, values, offsets)
+                        [c.xreplace(sub) for c in constraints], A, sub, values, action.offsets)
 
 
 def _index_range(offsets: Sequence[int]) -> str:

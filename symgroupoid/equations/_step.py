@@ -82,7 +82,7 @@ class StepEquations:
         """The step as a program over the expression graph: inputs ``u`` (unknowns),
         ``known``, ``p``; outputs ``F`` (residuals), ``J`` (exact Jacobian, row-major),
         ``fibre`` (the chart), ``predict`` and ``next_knowns``."""
-        from ._program import step_program
+        from ._programs import step_program
 
         return step_program(self)
 

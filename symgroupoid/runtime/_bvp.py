@@ -18,10 +18,10 @@ banded solver through SciPy when installed, a block-tridiagonal elimination in N
 otherwise).
 
 The derivatives are exact but never expanded into expression trees: the window's junction
-residual is built on the expression graph by the derivation's own junction variation
-(:func:`symgroupoid.derivation._window.junction_nodes`, the same code as a step's), and its slot
-derivatives by forward-mode differentiation along the section fields — one algorithmic
-differentiation in the library, for steps and windows alike.
+residual is built on the expression graph from the window action the steps are derived from
+(:class:`symgroupoid.derivation.WindowAction`), and its slot derivatives by algorithmic
+differentiation along the section fields — one differentiation in the library, for steps and
+windows alike; the programs come from :func:`symgroupoid.equations.window_programs`.
 
 The solver never returns a non-solution.  Inputs are checked before anything is assembled
 (runtime/_validate.py, the path the simulator's inputs take too).  The default initial path
@@ -67,9 +67,8 @@ from .._errors import (
 )
 from .._progress import note as progress_note
 from .._progress import reported
-from ..derivation._step import window
-from ..derivation._window import _fields, junction_nodes
-from ..ir import Graph, Program, forward, from_sympy, gradient, rounding_error
+from ..equations import cost_program, structure_program, window_programs
+from ..ir import Program
 from . import _lapack
 from ._banded import Inertia, banded_inertia
 from ._programs import ProgramEvaluator
@@ -82,7 +81,12 @@ from ._validate import (
     real_argument,
 )
 
-# --- symbolic window kernel --------------------------------------------------------------
+# --- window kernels ----------------------------------------------------------------------
+
+def _functions(system):
+    """The system's evaluated functions (L, φ on slot arrows)."""
+    return system._fs
+
 
 def _vectorised(label: str, program: Program, inputs: str, outputs: str) -> ProgramEvaluator:
     """Evaluate ``program``'s output for W windows: (W, n_in) → (W, n_out).
@@ -97,35 +101,6 @@ def _vectorised(label: str, program: Program, inputs: str, outputs: str) -> Prog
     return ProgramEvaluator(label, program, inputs, outputs, backend)
 
 
-def _field_derivatives(g: Graph, values: list, arrows: dict, fields: dict) -> dict:
-    """d[o][side][c][i] = the derivative of values[i] along field c of ``side`` on slot o.
-
-    Reverse mode: one backward sweep per value gives its gradient with respect to every
-    arrow coordinate of the window, then each field derivative is the gradient contracted
-    with the field, Σ_j ∂v/∂a_{o,j}·X_c(a_o)_j.  Forward mode would sweep the values once per
-    field (slots × 2 sides × rank sweeps); the residuals are few (the rank), so reverse
-    costs a third as many operations for a second-order window."""
-    coords = [c for o in arrows for c in arrows[o]]
-    grads = [dict(zip(coords, gradient(g, v, coords))) for v in values]
-    out: dict = {}
-    for o, a in arrows.items():
-        out[o] = [[[_contract(g, grad, a, field) for grad in grads] for field in fields[o][side]]
-                  for side in (0, 1)]
-    return out
-
-
-def _contract(g: Graph, grad: dict, coords: list, field: list) -> int:
-    terms = [g.mul(grad[c], v) for c, v in zip(coords, field)
-             if v != g.zero and grad[c] != g.zero]
-    return g.add(*terms) if terms else g.zero
-
-
-def _slot_derivatives(g: Graph, values: list, coords: list, fields: list, order) -> list:
-    """d/dt values along each field (a tangent vector on ``coords``), forward mode."""
-    return [forward(g, values, {c: v for c, v in zip(coords, field) if v != g.zero}, order)
-            for field in fields]
-
-
 class WindowKernel:
     """Residuals of one junction and of one term, with their slot derivatives.
 
@@ -133,67 +108,23 @@ class WindowKernel:
     ``left[o]`` = X⃖_b[r_i] on slot o and ``right[o]`` = X⃗_b[r_i] on slot o (rank × rank),
     and ``dlam[s]`` = ∂r/∂λ_s; likewise for the constraints of the term starting at 0.
 
-    The window action S = Σ_s [L + λ_s·Φ](terms starting at s) (seed 001 eq. (17)) is built on
-    the expression graph; the junction residual r_b = X⃖_b[S](g_j) − X⃗_b[S](g_{j+1}) is its
-    derivative along the left field of section b on slot 0 and minus the right field on slot
-    1 (the junction variation, docs/conventions.md §2), and each block a derivative of r along one
-    section field on one slot.
+    The programs are those of :func:`~symgroupoid.equations.window_programs`: the window
+    action S = Σ_s [L + λ_s·Φ](terms starting at s) (seed 001 eq. (17)), its junction
+    residual r_b = X⃖_b[S](g_j) − X⃗_b[S](g_{j+1}) (docs/conventions.md §2) and each block a
+    derivative of r along one section field on one slot; evaluated here in C or NumPy.
     """
 
     def __init__(self, system):
-        G, fs = system.groupoid, system._fs
-        self.groupoid, self.rank, self.m = G, G.rank, len(fs.constraints)
-        self.held = fs.n_holonomic  # the last ``held`` multipliers are holonomic (§15)
-        self.arity = len(fs.slots)
-        self.offsets, self.starts = window(self.arity)
-        self.parameters = list(system.parameters)
-        r, m, arity = self.rank, self.m, self.arity
-        g = Graph()
-        # plain, position-named inputs: the generated code depends on nothing else
-        A = {o: [sp.Symbol(f"a{o + 2}_{i}", real=True) for i in range(G.arrow_dim)]
-             for o in self.offsets}
-        lam = {s: [sp.Symbol(f"l{s + 2}_{a}", real=True) for a in range(m)]
-               for s in self.starts}
-        nodes = {x: g.input(x) for o in self.offsets for x in A[o]}
-        nodes.update({x: g.input(x) for s in self.starts for x in lam[s]})
-        pnodes = {p: g.input(p) for p in self.parameters}
-        arrows = {o: [nodes[x] for x in A[o]] for o in self.offsets}
-        jn = junction_nodes(g, G, fs, pnodes, arrows,
-                            {s: [nodes[x] for x in lam[s]] for s in self.starts})
-        fields = {o: (_fields(g, G, "left", arrows[o], pnodes),
-                      _fields(g, G, "right", arrows[o], pnodes)) for o in self.offsets}
-        res = jn.residuals
-        order = g.reachable(res)
-        blocks = list(res)
-        along = _field_derivatives(g, res, arrows, fields)
-        for o in self.offsets:
-            for b in range(r):
-                blocks += [along[o][side][c][b] for side in (0, 1) for c in range(r)]
-        for s in self.starts:
-            d = [forward(g, res, {nodes[x]: g.one}, order) for x in lam[s]]
-            blocks += [d[a][b] for b in range(r) for a in range(m)]
-        coords = [x for o in self.offsets for x in A[o]]
-        lams = [x for s in self.starts for x in lam[s]]
-        # the rounding bound of each junction residual, the coordinates and multipliers
-        # counted as rounded values (see _rounding_floor)
-        blocks += rounding_error(g, res, [nodes[x] for x in coords + lams])
-        program = Program(g, {"a": coords + lams + self.parameters}, {"junction": blocks})
-        self._junction = _vectorised(f"{system.name}_junction", program, "a", "junction")
-
+        programs = window_programs(system)
+        self.groupoid = system.groupoid
+        self.rank, self.m, self.held = programs.rank, programs.m, programs.held
+        self.arity, self.offsets, self.starts = programs.arity, programs.offsets, programs.starts
+        self.parameters = programs.parameters
+        self._junction = _vectorised(f"{system.name}_junction", programs.junction, "a",
+                                     "junction")
         self._term = None
-        if m:
-            values = jn.constraints[0]
-            corder = g.reachable(values)
-            cblocks = list(values)
-            for o in range(arity):
-                d = [_slot_derivatives(g, values, arrows[o], fields[o][side], corder)
-                     for side in (0, 1)]
-                for e in range(m):
-                    cblocks += [d[side][c][e] for side in (0, 1) for c in range(r)]
-            ccoords = [x for o in range(arity) for x in A[o]]
-            cblocks += rounding_error(g, values, [nodes[x] for x in ccoords])
-            program = Program(g, {"a": ccoords + self.parameters}, {"term": cblocks})
-            self._term = _vectorised(f"{system.name}_term", program, "a", "term")
+        if programs.term is not None:
+            self._term = _vectorised(f"{system.name}_term", programs.term, "a", "term")
 
     def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
         """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
@@ -268,15 +199,8 @@ class CostKernel:
     (no compiler: it is a single value per term)."""
 
     def __init__(self, system):
-        fs = system._fs
-        g = Graph()
-        coords = [c for slot in fs.slots for c in slot]
-        symbols = {c: g.input(c) for c in coords}
-        symbols.update({q: g.input(q) for q in system.parameters})
-        lagrangian = from_sympy(g, fs.lagrangian, symbols, f"{system.name}: the Lagrangian")
-        program = Program(g, {"a": coords + list(system.parameters)}, {"cost": [lagrangian]})
-        self.arity = len(fs.slots)
-        self._f = program.numpy_function(["cost"], ["a"])
+        self.arity = len(_functions(system).slots)
+        self._f = cost_program(system).numpy_function(["cost"], ["a"])
 
     def terms(self, arrows: np.ndarray, params: np.ndarray) -> np.ndarray:
         """L on every window of ``arity`` consecutive arrows."""
@@ -306,11 +230,8 @@ def _maps(G) -> _Maps:
 
 class _Maps:
     def __init__(self, G):
-        a = G._generic_arrow
-        b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
-        d = tuple(sp.Dummy(f"d{i}") for i in range(G.rank))
         self.G = G
-        program = _structure_program(G, a, b, d)
+        program = structure_program(G)
         self._mul = program.numpy_function(["multiply"], ["a", "b"])
         self._inv = program.numpy_function(["inverse"], ["a"])
         self._flow = program.numpy_function(["flow"], ["a", "d"])
@@ -324,22 +245,6 @@ class _Maps:
     def flow_at_target(self, A, D):
         """h(δ) ⊂ α⁻¹(β(A)) for each row."""
         return self._flow(A.T, D.T)[0].T
-
-
-def _structure_program(G, a: tuple, b: tuple, d: tuple) -> Program:
-    """The structure maps a solve applies to rows of arrows, on the expression graph: the
-    product m(a, b), the inverse of a, and the section flow h(δ) ⊂ α⁻¹(β(a))."""
-    g = Graph()
-    nodes = {x: g.input(x) for x in (*a, *b, *d)}
-    memo: dict = {}
-
-    def build(exprs, what: str) -> list[int]:
-        return [from_sympy(g, sp.sympify(e), nodes, f"{G.name}: {what}", memo) for e in exprs]
-
-    outputs = {"multiply": build(G.multiply(a, b), "the multiplication"),
-               "inverse": build(G.inverse(a), "the inverse"),
-               "flow": G.section_flow_nodes(g, [nodes[x] for x in a], [nodes[x] for x in d])}
-    return Program(g, {"a": list(a), "b": list(b), "d": list(d)}, outputs)
 
 
 # --- the solution --------------------------------------------------------------------------
@@ -1373,7 +1278,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     system = _boundary_system(step_equations)
     owner = system.name
     G = system.groupoid
-    a = len(system._fs.slots)
+    a = len(_functions(system).slots)
     steps = integer_argument(steps, "steps", owner=owner)
     if steps < 2 * a:
         raise ShapeError(f"{owner}: a problem of order {a} needs at least {2 * a} "
@@ -1384,7 +1289,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     if not isinstance(minimum, (bool, np.bool_)):
         raise ShapeError(f"{owner}: minimum must be True or False, got {minimum!r}")
     p, named = parameter_vector(system.parameters, params, owner=owner)
-    m = len(system._fs.constraints)
+    m = len(_functions(system).constraints)
     data = _boundary(system, a, start, end)
     check_holonomic_nodes(system, [data.total] if a == 1 else [data.first, data.last],
                           [("start", "end")] if a == 1 else

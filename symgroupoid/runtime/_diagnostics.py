@@ -2,10 +2,11 @@
 
 Every quantity is a small :class:`~symgroupoid.ir.Program` over the flat known state of the
 step (inputs ``known`` and ``p``), built from the system's own Lagrangian L and constraints
-φ by the same mechanism as the step itself (:mod:`symgroupoid.derivation._window`): the term
-T = L + λ·φ is captured once on generic slot arrows, differentiated by reverse mode, and
-instantiated at the arrows the state holds; the invariant vector fields X⃖_b, X⃗_b come from
-the structure maps (seed 000 eqs. (1)–(2)).  A whole trajectory is one vectorised evaluation
+φ by the window action the step itself comes from (:class:`symgroupoid.derivation.WindowAction`;
+the programs are :func:`symgroupoid.equations.state_programs`): the term T = L + λ·φ is
+captured once on generic slot arrows, differentiated by reverse mode, and instantiated at
+the arrows the state holds; the invariant vector fields X⃖_b, X⃗_b come from the structure
+maps (seed 000 eqs. (1)–(2)).  A whole trajectory is one vectorised evaluation
 (the states are the batch axis); the SymPy residuals of the step are never needed.
 
 Quantities (docs/conventions.md §3, §7):
@@ -14,7 +15,7 @@ Quantities (docs/conventions.md §3, §7):
   ⟨F⁻L(g_k, λ_k), X_b⟩ = X⃗_b[L + λ_k·φ](g_k),  ⟨F⁺L(g_k, λ_k), X_b⟩ = X⃖_b[L + λ_k·φ](g_k);
   along a solution F⁺L(g_k, λ_k) = F⁻L(g_{k+1}, λ_{k+1}) (the DEL).  Second order (seed 001
   §4): the momenta of the window (g_{k-1}, g_k, g_{k+1}) of
-  :func:`~symgroupoid.derivation._momenta.second_order_legendre_forms`, with
+  :func:`~symgroupoid.derivation.second_order_legendre_forms`, with
   F⁺L(state k) = F⁻L(state k+2);
 - the discrete energy: E_d = −∂L_d/∂h(g_k) for a declared step parameter h (the energy a
   fixed-step variational integrator keeps to O(h²) without drift), or, on a
@@ -27,33 +28,17 @@ Quantities (docs/conventions.md §3, §7):
 
 from __future__ import annotations
 
-import functools
 import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-import sympy as sp
 
 from .._arguments import flag_argument
-from .._errors import SymgroupoidError
-from .._symbols import multiplier_symbols
-from ..derivation._window import _fields
-from ..ir import Graph, Program, from_sympy, gradient
+from .._errors import DiagnosticsError, SymgroupoidError, TimeStepError  # noqa: F401 (re-exported)
+from ..equations import StatePrograms, state_programs
 
 _EPS = float(np.finfo(float).eps)
-
-
-class DiagnosticsError(SymgroupoidError, ValueError):
-    """A diagnostic is not defined for this trajectory (no system attached to its equations,
-    no step parameter for the energy, a second-order energy, …); the message says why."""
-
-
-class TimeStepError(DiagnosticsError):
-    """The discrete energy needs the time step, and the system neither declares it
-    (``time_step=``) nor has exactly one parameter that behaves as the step in the
-    continuous limit (docs/conventions.md §19); the message names the candidates and says
-    to pass ``time_step=`` (or ``step_parameter=``)."""
 
 
 @dataclass
@@ -69,176 +54,10 @@ class Momenta:
         return self.plus[:-lag] - self.minus[lag:]
 
 
-class StateGraph:
-    """The graph of the diagnostics of one step's known state (see the module docstring)."""
-
-    def __init__(self, step):
-        system = getattr(step, "system", None)
-        fs = getattr(system, "_fs", None)
-        if fs is None:
-            raise DiagnosticsError(
-                f"{step.name}: diagnostics need the system's Lagrangian and constraints, and "
-                f"these equations have no system attached (equations from "
-                f"DiscreteSystem.euler_lagrange() carry one)")
-        # no reference to the step itself: graphs are cached per step in a weak mapping
-        self.name, self.system, self.fs = step.name, system, fs
-        self.knowns, self.parameters = list(step.knowns), list(step.parameters)
-        self.groupoid = step.groupoid
-        self.arity = len(fs.slots)
-        self.m = step.n_constraints  # multipliers in the action (0 for nonholonomic steps)
-        g = self.graph = Graph()
-        self.symbols = {s: g.input(s) for s in (*step.knowns, *step.parameters)}
-        self.pnodes = {p: self.symbols[p] for p in step.parameters}
-        self.memo: dict = {}
-        available = set(step.knowns) | set(step.parameters)
-        self.offsets = [o for o in sorted(step.arrows)
-                        if all(sp.sympify(c).free_symbols <= available
-                               for c in step.arrows[o])]
-        self.arrows = {o: [from_sympy(g, c, self.symbols, f"{self.name}: the arrows of the "
-                                      f"state", self.memo) for c in step.arrows[o]]
-                       for o in self.offsets}
-        self.starts = [s for s in self.offsets
-                       if all(s + i in self.arrows for i in range(self.arity))]
-        if not self.starts:
-            raise DiagnosticsError(f"{self.name}: the state holds no complete term of the "
-                                   f"action")
-        self.lam = {s: [self.symbols[x] for x in multiplier_symbols(self.m, s)]
-                    for s in self.starts}
-        self._generic()
-
-    # --- the term L + λ·φ on generic slots ----------------------------------------------------
-    def _generic(self) -> None:
-        g, fs = self.graph, self.fs
-        smap = {c: g.input(c) for s in fs.slots for c in s}
-        smap.update(self.pnodes)
-        memo: dict = {}
-        self.L = from_sympy(g, fs.lagrangian, smap, f"{self.name}: the Lagrangian", memo)
-        self.phi = [from_sympy(g, c, smap, f"{self.name}: constraint {a + 1}", memo)
-                    for a, c in enumerate(fs.constraints)]
-        plain = len(fs.constraints) - fs.n_holonomic
-        #: a step's conditions on a term: φ, then ψ at the target of its last arrow
-        self.rows = self.phi[:plain] + [
-            from_sympy(g, c, smap, f"{self.name}: holonomic constraint {a + 1}", memo)
-            for a, c in enumerate(fs.rows[plain:])]
-        self.generic_lam = [g.input(sp.Dummy(f"lam{a}", real=True)) for a in range(self.m)]
-        T = g.add(self.L, *[g.mul(lam, c) for lam, c in zip(self.generic_lam, self.phi)])
-        self.slots = [smap[c] for s in fs.slots for c in s]
-        self.grad_T = gradient(g, T, self.slots)
-
-    def instantiate(self, nodes: Sequence[int], s: int) -> list[int]:
-        """Generic-slot nodes at the term starting at offset s (its arrows and λ_{k+s})."""
-        arrows = [c for i in range(self.arity) for c in self.arrows[s + i]]
-        mapping = dict(zip(self.slots, arrows))
-        mapping.update(zip(self.generic_lam, self.lam[s]))
-        return self.graph.substitute(list(nodes), mapping)
-
-    @functools.cache  # noqa: B019 - one StateGraph per step, kept with it
-    def fields(self, side: str, o: int) -> list[list[int]]:
-        """X⃖_b (side "left") or X⃗_b ("right") at the state's arrow g_{k+o}."""
-        return _fields(self.graph, self.groupoid, side, self.arrows[o], self.pnodes)
-
-    def derivation(self, side: str, o: int, terms: Sequence[int], grad=None) -> list[int]:
-        """Σ over the terms T_s of X_b[T_s] at the arrow g_{k+o} (one node per section b)."""
-        g, dim = self.graph, self.groupoid.arrow_dim
-        grad = self.grad_T if grad is None else grad
-        fields = self.fields(side, o)
-        rows = [[] for _ in range(self.groupoid.rank)]
-        for s in terms:
-            i = o - s
-            inst = self.instantiate(grad[i * dim:(i + 1) * dim], s)
-            for b in range(self.groupoid.rank):
-                rows[b].extend(g.mul(d, v) for d, v in zip(inst, fields[b])
-                               if d != g.zero and v != g.zero)
-        return [g.add(*r) for r in rows]
-
-    # --- the quantities ------------------------------------------------------------------------
-    @functools.cached_property
-    def momenta(self) -> tuple[list[int], list[int]]:
-        """(F⁻L, F⁺L) nodes of the state (see the module docstring)."""
-        d = self.derivation
-        if self.arity == 1:
-            return d("right", 0, [0]), d("left", 0, [0])
-        a0, a1, a2 = self.offsets[:3]
-        t0, t1 = self.starts[:2]
-        g = self.graph
-        plus = ([g.sub(x, y) for x, y in zip(d("left", a1, [t0, t1]), d("right", a2, [t1]))]
-                + d("left", a2, [t1]))
-        minus = (d("right", a0, [t0])
-                 + [g.sub(y, x) for x, y in zip(d("left", a0, [t0]),
-                                                d("right", a1, [t0, t1]))])
-        return minus, plus
-
-    @functools.cached_property
-    def constraints(self) -> list[int]:
-        """φ on the newest term of the state (holonomic constraints: ψ at the target of its
-        last arrow, the newest node)."""
-        return self.instantiate(self.rows, self.starts[-1])
-
-    def energy(self, step_parameter: str | None) -> tuple[list[int], str]:
-        """The energy node and its description (see the module docstring)."""
-        if self.arity != 1:
-            raise DiagnosticsError(f"{self.name}: the discrete energy is defined here for "
-                                   f"first-order systems (L: G → R) only")
-        g = self.graph
-        if step_parameter is None and self.groupoid.timed:
-            grad_L = gradient(g, self.L, self.slots)
-            # the time section ∂/∂t is the first basis section of R×R×G
-            return [g.neg(self.derivation("left", 0, [0], grad_L)[0])], "E = −∂L/∂t₁"
-        h = self._step_symbol(step_parameter)
-        (dL,) = gradient(g, self.L, [self.pnodes[h]])
-        return [g.neg(self.instantiate([dL], 0)[0])], f"E_d = −∂L_d/∂{h}"
-
-    def _step_symbol(self, name: str | None) -> sp.Symbol:
-        """The parameter to differentiate by: ``name`` when given, else the system's time
-        step (declared, or identified by the continuous limit), else a :class:`TimeStepError`."""
-        by_name = {str(p): p for p in self.parameters}
-        if name is not None and not isinstance(name, (str, sp.Symbol)):
-            raise DiagnosticsError(f"{self.name}: step_parameter must be the name of a "
-                                   f"parameter (a string), got {type(name).__name__} "
-                                   f"{name!r}")
-        if name is None:
-            return self._time_step(by_name)
-        if str(name) not in by_name:
-            raise DiagnosticsError(f"{self.name}: step_parameter={name!r} is not a parameter "
-                                   f"of the system (parameters: {', '.join(by_name) or 'none'})")
-        return by_name[str(name)]
-
-    def _time_step(self, by_name: dict) -> sp.Symbol:
-        from ..derivation._limit import identified_time_steps
-
-        declared = getattr(self.system, "time_step", None)
-        if declared is not None:
-            return by_name.get(str(declared), declared)
-        found = identified_time_steps(self.system)
-        if len(found) == 1:
-            return by_name.get(str(found[0]), found[0])
-        listed = ", ".join(by_name) or "none"
-        if found:
-            why = (f"several parameters behave as the step in the continuous limit "
-                   f"({', '.join(map(str, found))}: L_d(g_h(q, v))/h has a limit with each "
-                   f"of them as h)")
-        else:
-            why = (f"no parameter behaves as the step in the continuous limit (for none of "
-                   f"{listed} as h does L_d(g_h(q, v))/h tend to a Lagrangian with a kinetic "
-                   f"term)")
-        raise TimeStepError(
-            f"{self.name}: the discrete energy E_d = −∂L_d/∂h needs the time step h, and {why} "
-            f"(docs/conventions.md §19); declare it: {type(self.system).__name__}(..., "
-            f"time_step=<the step parameter>), or pass step_parameter=... here")
-
-    def program(self, outputs: dict) -> Program:
-        return Program(self.graph, {"known": self.knowns, "p": self.parameters}, outputs)
-
-
-_GRAPHS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-def state_graph(step) -> StateGraph:
-    """The (cached) :class:`StateGraph` of a step."""
-    hit = _GRAPHS.get(step)
-    if hit is None:
-        hit = _GRAPHS[step] = StateGraph(step)
-    return hit
+def state_graph(step) -> StatePrograms:
+    """The (cached) programs of a step's known state
+    (:func:`~symgroupoid.equations.state_programs`)."""
+    return state_programs(step)
 
 
 # --- evaluation along trajectories ------------------------------------------------------------
@@ -247,20 +66,23 @@ def state_graph(step) -> StateGraph:
 class _Evaluator:
     """Programs of one step, compiled for NumPy once per output set."""
 
-    sg: StateGraph
-    programs: dict = field(default_factory=dict)
+    sg: StatePrograms
+    functions: dict = field(default_factory=dict)
 
-    def __call__(self, key: str, make, states: np.ndarray, p: np.ndarray) -> np.ndarray:
-        program = self.programs.get(key)
-        if program is None:
-            program = self.programs[key] = self.sg.program({"out": make()})
-        f = program.numpy_function(["out"], ["known", "p"])
+    def __call__(self, key: str, states: np.ndarray, p: np.ndarray,
+                 step_parameter: str | None = None) -> np.ndarray:
+        """The quantity ``key`` (:meth:`StatePrograms.quantity`) at every state, (R, n)."""
+        label = key if key != "energy" else f"energy:{step_parameter}"
+        f = self.functions.get(label)
+        if f is None:
+            program = self.sg.quantity(key, step_parameter)
+            f = self.functions[label] = program.numpy_function(["out"], ["known", "p"])
         with np.errstate(all="ignore"):
             (out,) = f(np.ascontiguousarray(np.asarray(states, float).T), p)
         out = np.asarray(out, float).T  # (R, n)
         if not np.isfinite(out).all():
             row = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
-            raise DiagnosticsError(f"{self.sg.name}: {key} is not finite at kept state {row} "
+            raise DiagnosticsError(f"{self.sg.name}: {label} is not finite at kept state {row} "
                                    f"({out[row].tolist()}): it overflows there or is not "
                                    f"defined (check the parameters)")
         return out
@@ -288,8 +110,8 @@ def _setup(trajectory) -> tuple[_Evaluator, np.ndarray]:
 def momenta(trajectory) -> Momenta:
     """The discrete momenta F⁻L, F⁺L at every kept state (see the module docstring)."""
     ev, p = _setup(trajectory)
-    minus = ev("minus", lambda: ev.sg.momenta[0], trajectory.states, p)
-    plus = ev("plus", lambda: ev.sg.momenta[1], trajectory.states, p)
+    minus = ev("minus", trajectory.states, p)
+    plus = ev("plus", trajectory.states, p)
     return Momenta(minus, plus)
 
 
@@ -302,22 +124,21 @@ def energy(trajectory, step_parameter: str | None = None) -> np.ndarray:
     conjugate to time.
     """
     ev, p = _setup(trajectory)
-    key = f"energy:{step_parameter}"
-    return ev(key, lambda: ev.sg.energy(step_parameter)[0], trajectory.states, p)[:, 0]
+    return ev("energy", trajectory.states, p, step_parameter)[:, 0]
 
 
 def energy_label(trajectory, step_parameter: str | None = None) -> str:
     """What :func:`energy` computes for this trajectory, e.g. ``"E_d = −∂L_d/∂h"``."""
     ev, _ = _setup(trajectory)
-    return ev.sg.energy(step_parameter)[1]
+    return ev.sg.energy_label(step_parameter)
 
 
 def constraint_residuals(trajectory) -> np.ndarray:
     """φ at every kept state, (R, m) (see the module docstring); (R, 0) without constraints."""
     ev, p = _setup(trajectory)
-    if not ev.sg.phi:
+    if not ev.sg.has_constraints:
         return np.zeros((len(trajectory.states), 0))
-    return ev("constraints", lambda: ev.sg.constraints, trajectory.states, p)
+    return ev("constraints", trajectory.states, p)
 
 
 def _energy_missing(trajectory, step_parameter) -> str:
@@ -468,7 +289,7 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     for label, nq in _noether_quantities(ev.sg, noether):
         quantities.append(Drift(label, nq.along(trajectory), idx))
     residual = None
-    if ev.sg.phi:
+    if ev.sg.has_constraints:
         residual = float(np.max(np.abs(constraint_residuals(trajectory))))
     matching = scale = None
     if _variational(ev.sg.system) and len(idx) > ev.sg.arity and np.all(np.diff(idx) == 1):
@@ -491,7 +312,7 @@ def _variational(system) -> bool:
     return not isinstance(system, NonholonomicSystem)
 
 
-def _noether_quantities(sgraph: StateGraph, items) -> list[tuple[str, object]]:
+def _noether_quantities(sgraph: StatePrograms, items) -> list[tuple[str, object]]:
     """(label, NoetherQuantity) pairs from NoetherQuantity objects or sections, or from a
     mapping label → either."""
     from ..equations import NoetherQuantity

@@ -18,34 +18,23 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-import sympy as sp
 
 from .._errors import (
     DomainError,
     InputNameError,
     InputTypeError,
-    NewtonDivergenceError,
     ShapeError,
-    SingularJacobianError,
     UnsupportedFeatureError,
 )
-from .._lambdify import NUMPY_MODULES
+from ..equations import momentum_program, second_order_momentum_program
 from ._layout import StateLayout
+from ._newton import ROUNDING_UPDATE, converged, newton  # noqa: F401 (re-exported)
 from ._validate import arrow as checked_arrow
 from ._validate import real_array
 
-#: a Newton update at most this size (relative to the iterate) that is not 10 times smaller
-#: than the one before it is rounding: quadratic convergence has ended at a solution
-ROUNDING_UPDATE = 1e-9
-
-
-def converged(dz: np.ndarray, before: float, z: np.ndarray, tol: float) -> bool:
-    """Whether Newton has converged after the update ``dz`` (the one before it had size
-    ``before``): the update is below ``tol`` relative to the iterate, or it is rounding —
-    below ROUNDING_UPDATE relative and no longer shrinking (a badly scaled system, e.g.
-    rows of size 1/h³ next to constraint rows of size 1, stalls above ``tol``)."""
-    size, scale = float(np.abs(dz).max()), 1.0 + float(np.abs(z).max())
-    return size <= tol * scale or (size <= ROUNDING_UPDATE * scale and size > 0.1 * before)
+#: what a from-momentum solve reports when it fails
+_SOLVING = "solving for the initial state from the momentum"
+_NOT_FOUND = "no initial state found for this momentum"
 
 
 def _numeric(value, label: str, owner: str) -> np.ndarray:
@@ -66,35 +55,20 @@ class MomentumInitializer:
             raise UnsupportedFeatureError(f"{step.name}: momentum initial data are implemented for "
                                       f"first-order systems; give consecutive configurations")
         self.name, self.layout = step.name, layout
-        G = step.groupoid
-        forms = system.legendre()
-        arrow, lam = tuple(forms.arrow), list(forms.multipliers)
+        mp = momentum_program(step)
         position = {s: i for i, s in enumerate(step.knowns)}
-        missing = [s for s in (*arrow, *lam) if s not in position]
+        missing = [s for s in (*mp.arrow, *mp.multipliers) if s not in position]
         if missing:
             raise RuntimeError(f"{step.name}: Legendre transform symbols {missing} are not "
                                f"in the step's known state")
-        self.rank, self.m = G.rank, len(lam)
-        self.source = tuple(G.source(arrow))
-        self.source_pos = np.array([position[s] for s in self.source], dtype=np.int64)
-        self.arrow_pos = np.array([position[s] for s in arrow], dtype=np.int64)
-        self.lam_pos = np.array([position[s] for s in lam], dtype=np.int64)
-        x = [sp.Dummy(f"x{a}", real=True) for a in range(self.rank)]
-        p = [sp.Dummy(f"p{a}", real=True) for a in range(self.rank)]
-        on_fibre = tuple(G.arrow_from(self.source, G.fibre_chart(x, self.source)))
-        sub = dict(zip(arrow, on_fibre))
-        phis = system._fs.rows_on(G, [arrow]) if self.m else []
-        eqs = sp.Matrix([mi.xreplace(sub) - pi for mi, pi in zip(forms.minus, p)]
-                        + [sp.sympify(f).xreplace(sub) for f in phis])
-        unknowns = x + lam
-        args = [unknowns, list(self.source), p, list(step.parameters)]
-        self._F = sp.lambdify(args, eqs, NUMPY_MODULES, cse=True)
-        self._J = sp.lambdify(args, eqs.jacobian(unknowns), NUMPY_MODULES, cse=True)
-        self._arrow = sp.lambdify([x, list(self.source)], list(on_fibre), NUMPY_MODULES)
-        identity = G.identity(self.source)
-        self._guess = sp.lambdify([list(self.source)],
-                                  list(G.chart_of_fibre(G.fibre_of(identity), self.source)),
-                                  NUMPY_MODULES)
+        self.rank, self.m = mp.rank, mp.m
+        self.source_pos = np.array([position[s] for s in mp.source], dtype=np.int64)
+        self.arrow_pos = np.array([position[s] for s in mp.arrow], dtype=np.int64)
+        self.lam_pos = np.array([position[s] for s in mp.multipliers], dtype=np.int64)
+        program = mp.program
+        self._FJ = program.numpy_function(["F", "J"], ["z", "q", "p", "params"])
+        self._arrow = program.numpy_function(["arrow"], ["z", "q"])
+        self._guess = program.numpy_function(["guess"], ["q"])
         self._configuration = self._configuration_parts()
 
     def _configuration_parts(self) -> dict:
@@ -146,32 +120,18 @@ class MomentumInitializer:
         for label, values in (("configuration", q), ("momentum", p)):
             if not np.isfinite(values).all():
                 raise DomainError(f"{self.name}: non-finite {label} {values.tolist()}")
-        z = np.concatenate([np.asarray(self._guess(q), float).ravel(), np.zeros(self.m)])
-        previous = np.inf
-        for _ in range(max_iterations):
-            F = np.asarray(self._F(z, q, p, params), float).ravel()
-            J = np.asarray(self._J(z, q, p, params), float).reshape(len(z), len(z))
-            if not (np.isfinite(F).all() and np.isfinite(J).all()):
-                raise NewtonDivergenceError(f"{self.name}: non-finite values solving for the "
-                                            f"initial state from the momentum", step=0,
-                                            residual_norm=float(np.abs(F).max()), iterate=z)
-            try:
-                dz = np.linalg.solve(J, F)
-            except np.linalg.LinAlgError:
-                raise SingularJacobianError(
-                    f"{self.name}: F⁻L is not invertible at this configuration (singular "
-                    f"Jacobian)", step=0, residual_norm=float(np.abs(F).max()),
-                    iterate=z) from None
-            z = z - dz
-            if converged(dz, previous, z, tol):
-                break
-            previous = float(np.abs(dz).max())
-        else:
-            raise NewtonDivergenceError(f"{self.name}: no initial state found for this momentum "
-                                        f"in {max_iterations} Newton iterations", step=0,
-                                        residual_norm=float(np.abs(F).max()), iterate=z)
+        z = np.concatenate([np.asarray(self._guess(q)[0], float).ravel(), np.zeros(self.m)])
+        n = len(z)
+
+        def residual(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            F, J = self._FJ(z, q, p, params)
+            return np.asarray(F, float).ravel(), np.asarray(J, float).reshape(n, n)
+
+        z = newton(residual, z, tol, max_iterations, self.name, _SOLVING,
+                   "F⁻L is not invertible at this configuration (singular Jacobian)",
+                   _NOT_FOUND)
         state = np.empty(self.layout.n_known)
-        state[self.arrow_pos] = np.asarray(self._arrow(z[:self.rank], q), float).ravel()
+        state[self.arrow_pos] = np.asarray(self._arrow(z, q)[0], float).ravel()
         state[self.lam_pos] = z[self.rank:]
         return state
 
@@ -189,49 +149,18 @@ class SecondOrderMomentumInitializer:
     """
 
     def __init__(self, step, layout: StateLayout):
-        from ..derivation._momenta import second_order_legendre_forms
-        from ..derivation._step import chart_of, named, next_arrow
-
-        system = step.system
-        G, fs = step.groupoid, system._fs
+        G = step.groupoid
+        mp = second_order_momentum_program(step)
         self.name, self.layout, self.rank = step.name, layout, G.rank
         self.groupoid = G
-        self.m = len(fs.constraints)
-        forms = second_order_legendre_forms(G, fs, offset=-1)
-        g0 = named(G, -1, False)
-        g1 = next_arrow(G, g0, 0, False)
-        g2 = next_arrow(G, g1, 1, False)
-        fib1, chart1, cmap1 = chart_of(G, 0, G.target(g0))
-        fib2, chart2, cmap2 = chart_of(G, 1, G.target(g1))
-        lam = list(forms.multipliers)
-        p = [sp.Dummy(f"p{a}") for a in range(2 * self.rank)]
-        eqs = [e - pi for e, pi in zip(forms.minus, p)]
-        for a, b in ((g0, g1), (g1, g2)):
-            eqs += fs.rows_on(G, [a, b])
-        # differentiate through the charts, keeping the fibre variables as intermediates
-        fibres, charts = list(fib1) + list(fib2), list(chart1) + list(chart2)
-        sub = {**cmap1, **cmap2}
-        E = sp.Matrix(eqs)
-        args = [fibres + lam, list(g0), p, list(step.parameters)]
-        self._F = sp.lambdify(args, E, NUMPY_MODULES, cse=True)
-        self._J = sp.lambdify(args, E.jacobian(fibres + lam), NUMPY_MODULES, cse=True)
-        values = sp.Matrix([sub.get(f, f) for f in fibres])
-        self._fibres = sp.lambdify([charts], values, NUMPY_MODULES)
-        self._dfibres = sp.lambdify([charts], values.jacobian(charts), NUMPY_MODULES)
-        self.n_fibre, self.n_chart = len(fibres), len(charts)
-        if [str(s) for s in step.knowns] != [str(s) for s in (*g0, *fib1, *fib2, *lam)]:
-            raise RuntimeError(f"{step.name}: second-order state layout mismatch")
-        self._guess = sp.lambdify([list(g0)], list(G.predict_chart(g0)), NUMPY_MODULES)
+        self.m, self.n_chart = mp.m, mp.n_chart
+        program = mp.program
+        self._FJ = program.numpy_function(["F", "J", "fibres"], ["z", "q", "p", "params"])
+        self._guess = program.numpy_function(["guess"], ["q"])
 
     def _residual(self, z, g0, p, params):
-        x, lam = z[:self.n_chart], z[self.n_chart:]
-        f = np.asarray(self._fibres(x), float).ravel()
-        w = np.concatenate([f, lam])
-        F = np.asarray(self._F(w, g0, p, params), float).ravel()
-        Jw = np.asarray(self._J(w, g0, p, params), float).reshape(len(F), len(w))
-        C = np.asarray(self._dfibres(x), float).reshape(self.n_fibre, self.n_chart)
-        J = np.hstack([Jw[:, :self.n_fibre] @ C, Jw[:, self.n_fibre:]])
-        return F, J, np.concatenate([g0, f, lam])
+        F, J, f = (np.asarray(v, float).ravel() for v in self._FJ(z, g0, p, params))
+        return F, J.reshape(len(F), len(z)), np.concatenate([g0, f, z[self.n_chart:]])
 
     def solve(self, arrow, momentum: Sequence, params: np.ndarray, tol: float = 1e-14,
               max_iterations: int = 50) -> np.ndarray:
@@ -246,24 +175,8 @@ class SecondOrderMomentumInitializer:
                              f"components (two per basis section), got {p.size}")
         if not np.isfinite(p).all():
             raise DomainError(f"{self.name}: non-finite momentum {p.tolist()}")
-        guess = np.asarray(self._guess(g0), float).ravel()
+        guess = np.asarray(self._guess(g0)[0], float).ravel()
         z = np.concatenate([guess, guess, np.zeros(2 * self.m)])
-        previous = np.inf
-        for _ in range(max_iterations):
-            F, J, state = self._residual(z, g0, p, params)
-            if not (np.isfinite(F).all() and np.isfinite(J).all()):
-                raise NewtonDivergenceError(f"{self.name}: non-finite values solving for the "
-                                            "initial state from the momentum", step=0,
-                                            residual_norm=float(np.abs(F).max()), iterate=z)
-            try:
-                dz = np.linalg.solve(J, F)
-            except np.linalg.LinAlgError:
-                raise SingularJacobianError(f"{self.name}: F⁻L is not invertible here",
-                                            step=0, residual_norm=float(np.abs(F).max()),
-                                            iterate=z) from None
-            z = z - dz
-            if converged(dz, previous, z, tol):
-                return self._residual(z, g0, p, params)[2]
-            previous = float(np.abs(dz).max())
-        raise NewtonDivergenceError(f"{self.name}: no initial state found for this momentum",
-                                    step=0, residual_norm=float(np.abs(F).max()), iterate=z)
+        z = newton(lambda z: self._residual(z, g0, p, params)[:2], z, tol, max_iterations,
+                   self.name, _SOLVING, "F⁻L is not invertible here", _NOT_FOUND)
+        return self._residual(z, g0, p, params)[2]

@@ -6,13 +6,14 @@ arrow_from(α(g_k), τ(x)) and x₀ = τ⁻¹(g_k), Gauss–Newton with minimum-
 
     x ← x − J⁺ φ(g(x)),   J = ∂φ(g(x))/∂x  (m × rank, forward mode on the graph),
 
-converges to a point of N = {φ = 0} near x₀ (to first order the orthogonal projection of x₀
-in the chart).  On a pair groupoid (q₀, q₁) this keeps q₀ and corrects q₁; on a Lie group it
-corrects the element; on a time groupoid with φ = t₁ − t₀ − h it sets t₁.  Holonomic
-constraints are projected at the target, ψ(β(g_k)) = 0, and first at the source: a
-configuration typed to a few digits is off M = {ψ = 0}, so the source is moved onto M
-first (:class:`SourceProjection`), keeping the target.  The multipliers λ_k are not changed
-(they enter the run only through F⁺L(g_k, λ_k)).
+(the Gauss–Newton of runtime/_newton.py) converges to a point of N = {φ = 0} near x₀ (to
+first order the orthogonal projection of x₀ in the chart).  On a pair groupoid (q₀, q₁) this
+keeps q₀ and corrects q₁; on a Lie group it corrects the element; on a time groupoid with
+φ = t₁ − t₀ − h it sets t₁.  Holonomic constraints are projected at the target,
+ψ(β(g_k)) = 0, and first at the source: a configuration typed to a few digits is off
+M = {ψ = 0}, so the source is moved onto M first (:class:`SourceProjection`), keeping the
+target.  The multipliers λ_k are not changed (they enter the run only through
+F⁺L(g_k, λ_k)).
 """
 
 from __future__ import annotations
@@ -20,15 +21,17 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-import sympy as sp
 
 from .._errors import DomainError
-from .._lambdify import NUMPY_MODULES
-from ..derivation._window import step_jacobian
-from ..ir import Program, from_sympy
-from ._diagnostics import state_graph
+from ..equations import source_projection_program, state_programs
+from ._newton import PROJECTED, gauss_newton
 
 _EPS = float(np.finfo(float).eps)
+
+
+def _functions(system):
+    """The system's evaluated functions (L, φ on slot arrows), or None."""
+    return getattr(system, "_fs", None)
 
 
 class ProjectionError(DomainError):
@@ -47,28 +50,15 @@ class ConstraintProjection:
                 f"{step.name}: project_initial handles first-order steps; for a second-order "
                 f"step give consistent arrows, or start from a momentum "
                 f"(Simulator.from_momentum)")
-        sgraph = state_graph(step)
-        self.has_constraints = bool(sgraph.phi)
+        programs = state_programs(step)
+        self.has_constraints = programs.has_constraints
         if not self.has_constraints:
             return
-        fs = getattr(getattr(step, "system", None), "_fs", None)
+        fs = _functions(getattr(step, "system", None))
         self.source = SourceProjection(step) if fs is not None and fs.n_holonomic else None
-        G, g = step.groupoid, sgraph.graph
-        self.groupoid = G
-        self.chart = [sp.Dummy(f"x{i}", real=True) for i in range(G.rank)]
-        symbols = dict(sgraph.symbols)
-        symbols.update({x: g.input(x) for x in self.chart})
-        source = tuple(G.source(step.arrows[0]))
-        moved = tuple(G.arrow_from(source, G.fibre_chart(tuple(self.chart), source)))
-        arrow = [from_sympy(g, c, symbols, f"{step.name}: the fibre chart of the known arrow")
-                 for c in moved]
-        phi = g.substitute(sgraph.rows, dict(zip(sgraph.slots, arrow)))
-        J = step_jacobian(g, phi, [symbols[x] for x in self.chart])
-        self.program = Program(g, {"x": list(self.chart), "known": list(step.knowns),
-                                   "p": list(step.parameters)},
-                               {"phi": phi, "J": [c for row in J for c in row],
-                                "arrow": arrow})
-        self.m = len(phi)
+        self.groupoid = step.groupoid
+        self.program = programs.projection
+        self.m = len(self.program.outputs["phi"])
 
     def __call__(self, state: np.ndarray, p: np.ndarray, max_iterations: int = 50
                  ) -> np.ndarray:
@@ -83,30 +73,15 @@ class ConstraintProjection:
         source = tuple(float(v) for v in G.source(tuple(a0)))
         x = np.array(G.fibre_chart_inverse(tuple(G.fibre_of(tuple(a0))), source), float)
         f = self.program.numpy_function(["phi", "J", "arrow"], ["x", "known", "p"])
-        best, history = None, []
-        for _ in range(max_iterations):
-            phi, J, arrow = f(x, state, p)
-            norm = float(np.max(np.abs(phi))) if len(phi) else 0.0
-            if not np.isfinite(norm) or not np.isfinite(J).all():
-                break
-            history.append(norm)
-            if best is None or norm < best[0]:
-                best = (norm, arrow)
-            # stop at the rounding floor: no further halving of the residual
-            if len(history) > 2 and history[-1] > 0.5 * min(history[:-1]) and norm < 1e-8:
-                break
-            if norm == 0.0:
-                break
-            dx = np.linalg.lstsq(J.reshape(self.m, len(x)), phi, rcond=None)[0]
-            x = x - dx
-        if best is None or not best[0] < 1e-8:
+        best, history, _ = gauss_newton(lambda x: f(x, state, p), x, max_iterations)
+        if best is None or not best[0] < PROJECTED:
             shown = ", ".join(f"{v:.1e}" for v in history[-4:]) or "non-finite"
             raise ProjectionError(
                 f"{self.name}: could not project the initial state onto the constraints: "
                 f"Gauss–Newton in the fibre of α(g_k) reached |φ|∞ = {shown}; no zero of the "
                 f"constraints near the given arrow (check the parameters, or start closer)")
         out = state.copy()
-        out[index] = best[1]
+        out[index] = best[2]
         return out
 
 
@@ -117,53 +92,28 @@ class SourceProjection:
     that e(x₀) = ε(q)), the new source is q′ = β(e(x)) and the new arrow e(x)⁻¹·g, the
     groupoid's own multiplication: on a pair groupoid (q, q₁) ↦ (q′, q₁).  x solves ψ(β(e(x)))
     = 0 by Gauss–Newton with minimum-norm steps from x₀ (to first order the orthogonal
-    projection of q onto M in the chart), the Jacobian exact (SymPy's derivatives of the
-    few holonomic constraints).
+    projection of q onto M in the chart), the Jacobian exact (forward mode on the graph of
+    :func:`~symgroupoid.equations.source_projection_program`).
     """
 
     def __init__(self, step):
-        fs = step.system._fs
-        G = step.groupoid
-        self.name, self.groupoid = step.name, G
-        q = list(fs.base)
-        x = [sp.Dummy(f"x{i}", real=True) for i in range(G.rank)]
-        p = list(step.parameters)
-        e = G.arrow_from(tuple(q), G.fibre_chart(tuple(x), tuple(q)))
-        psi = [c.xreplace(dict(zip(q, G.target(e)))) for c in fs.holonomic]
-        jacobian = [[sp.diff(c, v) for v in x] for c in psi]
-        self.residual = sp.lambdify([x, q, p], [psi, jacobian], NUMPY_MODULES)
-        a = [sp.Dummy(f"a{i}", real=True) for i in range(G.arrow_dim)]
-        source = tuple(G.source(tuple(a)))
-        moved_e = G.arrow_from(source, G.fibre_chart(tuple(x), source))
-        moved = G.multiply(G.inverse(moved_e), tuple(a))
-        self.moved = sp.lambdify([x, a], [sp.sympify(c) for c in moved], NUMPY_MODULES)
-        self.m = len(psi)
+        self.name, self.groupoid = step.name, step.groupoid
+        program = source_projection_program(step)
+        self.residual = program.numpy_function(["psi", "J"], ["x", "q", "p"])
+        self.moved = program.numpy_function(["moved"], ["x", "a"])
 
     def __call__(self, arrow: np.ndarray, p: np.ndarray, max_iterations: int) -> np.ndarray:
         G = self.groupoid
         q = tuple(float(v) for v in G.source(tuple(arrow)))
         x = np.array(G.fibre_chart_inverse(tuple(G.fibre_of(G.identity(q))), q), float)
-        history: list[float] = []
-        for _ in range(max_iterations):
-            with np.errstate(all="ignore"):
-                psi, J = self.residual(x, q, p)
-            psi = np.asarray(psi, float).ravel()
-            J = np.asarray(J, float).reshape(self.m, len(x))
-            norm = float(np.max(np.abs(psi))) if len(psi) else 0.0
-            if not np.isfinite(norm) or not np.isfinite(J).all():
-                break
-            history.append(norm)
-            if norm == 0.0 or (len(history) > 2 and norm > 0.5 * min(history[:-1])
-                               and norm < 1e-8):
-                break
-            x = x - np.linalg.lstsq(J, psi, rcond=None)[0]
-        if not history or not min(history) < 1e-8:
+        _, history, x = gauss_newton(lambda x: self.residual(x, q, p), x, max_iterations)
+        if not history or not min(history) < PROJECTED:
             shown = ", ".join(f"{v:.1e}" for v in history[-4:]) or "non-finite"
             raise ProjectionError(
                 f"{self.name}: could not move the configuration α(g_k) onto the holonomic "
                 f"constraint set M = {{ψ = 0}}: Gauss–Newton reached |ψ|∞ = {shown}; no point "
                 f"of M near the given configuration (check the parameters, e.g. the lengths)")
-        return np.array([float(v) for v in self.moved(x, list(arrow))])
+        return np.array([float(v) for v in self.moved(x, list(arrow))[0]])
 
 
 _PROJECTIONS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -33,7 +33,7 @@ from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
     real_array,
 )
 from .._errors import DomainError, GroupRoundingWarning, ParameterError, ShapeError
-from .._lambdify import NUMPY_MODULES
+from ..equations import constraint_program, holonomic_program
 from ..groupoids import Groupoid, MatrixLieGroup
 
 #: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
@@ -47,9 +47,10 @@ GROUP_TOLERANCE = 1e-9
 ROUNDED_TOLERANCE = 1e-6
 
 #: a constraint value counts as zero when |φ_i| ≤ max(atol, CONSTRAINT_ROUNDING·ε·M_i), M_i the
-#: magnitude of φ_i's terms (:func:`magnitude`): evaluating φ_i rounds each term by a few ε,
-#: so a consistent state computed in floating point (by hand, from a momentum, or as the last
-#: state of a run) is never rejected, while a violation above that is reported
+#: magnitude of φ_i's terms (:func:`symgroupoid.equations.magnitude`): evaluating φ_i rounds
+#: each term by a few ε, so a consistent state computed in floating point (by hand, from a
+#: momentum, or as the last state of a run) is never rejected, while a violation above that
+#: is reported
 CONSTRAINT_ROUNDING = 1e3
 
 _EPS = float(np.finfo(float).eps)
@@ -418,41 +419,6 @@ def arrow(groupoid: Groupoid, value, name: str, *, owner: str = "") -> np.ndarra
 
 # --- constraints on a known state ---------------------------------------------------------------
 
-def magnitude(expr: sp.Expr) -> sp.Expr:
-    """An expression for the size of the terms that cancel in ``expr``: every sum replaced
-    by the sum of the magnitudes of its terms, recursively through products and positive
-    integer powers; a function f(u) or another power contributes |f(u)| + |f′(u)|·M(u) (the
-    rounding of its argument, carried through).  ε·M(expr) estimates the rounding error of
-    evaluating ``expr`` in floating point (up to a modest factor)."""
-    memo: dict = {}
-
-    def size(e: sp.Expr) -> sp.Expr:
-        hit = memo.get(e)
-        if hit is None:
-            hit = memo[e] = _size(e, size)
-        return hit
-
-    return size(sp.sympify(expr))
-
-
-def _size(e: sp.Expr, size) -> sp.Expr:
-    if e.is_Number:
-        return abs(e)
-    if e.is_Symbol:
-        return sp.Abs(e)
-    if e.is_Add or e.is_Mul:
-        return e.func(*[size(a) for a in e.args])
-    if e.is_Pow and e.exp.is_Integer and e.exp > 0:
-        return size(e.base) ** e.exp
-    if e.is_Pow:  # b^n, n not a positive integer: |b^n| + |n b^(n−1)|·M(b)
-        return sp.Abs(e) + sp.Abs(e.exp * e.base ** (e.exp - 1)) * size(e.base)
-    if isinstance(e, sp.Function) and len(e.args) == 1 and not isinstance(e, sp.Piecewise):
-        u = sp.Dummy("u", real=True)  # f(u): |f(u)| + |f′(u)|·M(u)
-        slope = sp.diff(e.func(u), u).xreplace({u: e.args[0]})
-        return sp.Abs(e) + sp.Abs(slope) * size(e.args[0])
-    return sp.Abs(e)
-
-
 class ConstraintCheck:
     """The system's own constraints on the known arrows of a step's state.
 
@@ -481,8 +447,6 @@ class ConstraintCheck:
                 continue
             index = np.array([position[c] for o in offsets for c in step.arrows[o]])
             self.windows.append((offsets, index))
-        coords = [c for s in fs.slots for c in s]
-        args = [coords, list(step.parameters)]
         held = fs.n_holonomic
         plain = len(fs.constraints) - held
         functions = list(fs.constraints) + list(fs.rows[plain:])
@@ -495,8 +459,9 @@ class ConstraintCheck:
         #: (position, name) of the parameters the constraints depend on (named in messages)
         self.used = [(i, str(p)) for i, p in enumerate(step.parameters)
                      if any(sp.sympify(c).has(p) for c in functions)]
-        self._phi = sp.lambdify(args, functions, NUMPY_MODULES)
-        self._size = sp.lambdify(args, [magnitude(c) for c in functions], NUMPY_MODULES)
+        program = constraint_program(step)
+        self._phi = program.numpy_function(["values"], ["a", "p"])
+        self._size = program.numpy_function(["sizes"], ["a", "p"])
 
     def label(self, offsets: tuple[int, ...], i: int) -> str:
         """How a message names constraint ``i`` on the window of arrows at ``offsets``:
@@ -515,8 +480,8 @@ class ConstraintCheck:
         for offsets, index in self.windows:
             x = np.asarray(known, float)[index]
             with np.errstate(all="ignore"):
-                values = np.asarray(self._phi(x, params), float).ravel()
-                sizes = np.asarray(self._size(x, params), float).ravel()
+                values = np.asarray(self._phi(x, params)[0], float).ravel()
+                sizes = np.asarray(self._size(x, params)[0], float).ravel()
             tol = np.maximum(atol, CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(sizes))
             for i, (v, t) in enumerate(zip(values, tol)):
                 if not abs(v) <= t:
@@ -532,9 +497,10 @@ class ConstraintCheck:
         for _, index in self.windows:
             x = states[:, index].T
             with np.errstate(all="ignore"):
-                phi = [np.broadcast_to(np.asarray(v, float), (rows,)) for v in self._phi(x, params)]
+                phi = [np.broadcast_to(np.asarray(v, float), (rows,))
+                       for v in self._phi(x, params)[0]]
                 size = [np.broadcast_to(np.asarray(v, float), (rows,))
-                        for v in self._size(x, params)]
+                        for v in self._size(x, params)[0]]
             values.append(np.abs(np.stack(phi, axis=1)))
             levels.append(CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(np.stack(size, axis=1)))
         return np.hstack(values), np.hstack(levels)
@@ -576,21 +542,20 @@ def check_holonomic_nodes(system, arrows: Sequence, labels: Sequence[tuple[str, 
     (numeric flat coordinates; ``labels``: how to name the source and the target of each):
     boundary data of a problem with holonomic constraints must lie on M = {ψ = 0}
     (docs/conventions.md §15).  Nothing to check without holonomic constraints."""
-    fs = getattr(system, "_fs", None)
-    if fs is None or not fs.n_holonomic:
+    program = holonomic_program(system)
+    if program is None:
         return
     G = system.groupoid
-    args = [list(fs.base), list(system.parameters)]
-    psi = sp.lambdify(args, list(fs.holonomic), NUMPY_MODULES)
-    size = sp.lambdify(args, [magnitude(c) for c in fs.holonomic], NUMPY_MODULES)
+    psi = program.numpy_function(["values"], ["q", "p"])
+    size = program.numpy_function(["sizes"], ["q", "p"])
     p = np.asarray(params, float)
     bad = []
     for a, names in zip(arrows, labels):
         a = tuple(float(v) for v in a)
         for end, q in zip(names, (G.source(a), G.target(a))):
             with np.errstate(all="ignore"):
-                values = np.asarray(psi(np.asarray(q, float), p), float).ravel()
-                sizes = np.asarray(size(np.asarray(q, float), p), float).ravel()
+                values = np.asarray(psi(np.asarray(q, float), p)[0], float).ravel()
+                sizes = np.asarray(size(np.asarray(q, float), p)[0], float).ravel()
             tol = np.maximum(atol, CONSTRAINT_ROUNDING * _EPS * np.nan_to_num(sizes))
             bad += [f"ψ_{i + 1}({end}) = {v:.3e} (tolerance {t:.1e})"
                     for i, (v, t) in enumerate(zip(values, tol)) if not abs(v) <= t]

@@ -14,8 +14,8 @@ tests read it (docs/conventions.md, "Newton's stopping rule").
 
 from __future__ import annotations
 
-from ..derivation._window import step_jacobian
-from ..ir import Graph, Program, from_sympy, term_magnitude
+from ...derivation import step_jacobian
+from ...ir import Graph, Program, from_sympy, term_magnitude
 
 
 def _symbol_table(g: Graph, step, symbols: dict, memo: dict) -> dict:

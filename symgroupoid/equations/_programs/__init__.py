@@ -1,0 +1,41 @@
+"""Every program the evaluators run, built in one place from the derivation.
+
+A :class:`~symgroupoid.ir.Program` (named input arrays, named output arrays over one
+expression graph) is the only thing that passes from the symbolic side to an evaluator:
+the C kernels (:mod:`symgroupoid.codegen`) and the NumPy forms
+(:meth:`~symgroupoid.ir.Program.numpy_function`) run programs and derive nothing.
+
+- :func:`step_program` — a step's residual, exact Jacobian, chart, prediction, update;
+- :func:`window_programs`, :func:`cost_program`, :func:`action_program`,
+  :func:`structure_program` — a boundary-value solve's window residuals and blocks, its
+  cost, the action's terms and the structure maps it applies to rows of arrows;
+- :func:`state_programs` — the diagnostics of a step's known state (energy, momenta,
+  constraint residuals) and the projection of an initial state onto the constraints;
+- :func:`momentum_program`, :func:`second_order_momentum_program`,
+  :func:`source_projection_program` — the initial-state solves;
+- :func:`constraint_program`, :func:`holonomic_program` — the constraint checks of initial
+  states and boundary data (values and the size of their terms, :func:`magnitude`).
+"""
+
+from ._checks import constraint_program, holonomic_program, magnitude
+from ._initial import (
+    MomentumProgram,
+    momentum_program,
+    second_order_momentum_program,
+    source_projection_program,
+)
+from ._state import StatePrograms, state_programs
+from ._step import step_program
+from ._window import (
+    WindowPrograms,
+    action_program,
+    cost_program,
+    structure_program,
+    window_programs,
+)
+
+__all__ = ["MomentumProgram", "StatePrograms", "WindowPrograms", "action_program",
+           "constraint_program", "cost_program", "holonomic_program", "magnitude",
+           "momentum_program", "second_order_momentum_program",
+           "source_projection_program", "state_programs", "step_program",
+           "structure_program", "window_programs"]

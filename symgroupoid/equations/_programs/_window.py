@@ -1,0 +1,170 @@
+"""The programs of a boundary-value solve: window residuals and blocks, the cost, and the
+structure maps a solve applies to rows of arrows.
+
+A discrete two-point problem (seed 000 §6.1–6.2, seed 001 §3.3) moves every free junction j
+by a variation δ_j ∈ R^rank, g_j ↦ g_j · h(δ_j), g_{j+1} ↦ h(δ_j)⁻¹ · g_{j+1}.  Its equations
+are the junction residuals and the constraints of every term; its Jacobian's blocks are the
+derivatives of a window's residuals along the section fields on each of its arrows.  All
+come from the window action of :class:`~symgroupoid.derivation.WindowAction` — the same
+junction variation as a step's — on the expression graph:
+
+- the *junction* program: for one window (arrows A_o, multipliers λ_s), the junction residual
+  r_b = X⃖_b[S](A_0) − X⃗_b[S](A_1) (docs/conventions.md §2), then for each slot o the blocks
+  X⃖_c[r_b] and X⃗_c[r_b] on A_o, then ∂r/∂λ_s, then the running-error bound of each r_b
+  (:func:`symgroupoid.ir.rounding_error`, the coordinates and multipliers counted as rounded
+  values);
+- the *term* program (with constraints): φ on one term, its blocks along the fields on each
+  of its arrows, and its rounding bounds;
+- the *cost* program: L on one term (the discrete cost Σ_k L);
+- the *structure* program: the product m(a, b), the inverse of a, the target β(a), the section
+  flow h(δ) ⊂ α⁻¹(β(a)) and the flow from a base point q.
+
+The inputs are plain, position-named symbols, so the generated code depends on nothing else.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass
+
+import sympy as sp
+
+from ...derivation import WindowAction, field_derivatives, slot_derivatives
+from ...ir import Graph, Program, forward, from_sympy, rounding_error
+
+
+def _functions(system):
+    """The system's evaluated functions (L, φ on slot arrows)."""
+    return system._fs
+
+
+@dataclass
+class WindowPrograms:
+    """The junction and term programs of a system's window (see the module docstring) and
+    the shape of their outputs.
+
+    ``junction``: input ``a`` = the window's arrow coordinates (offset by offset), its
+    multipliers (term by term), the parameters; output ``junction`` = [r (rank), per offset o:
+    (rank × 2 × rank) blocks X⃖_c[r_b], X⃗_c[r_b] (row b, side, section c), per start s:
+    ∂r_b/∂λ_s (rank × m), rounding bounds (rank)].  ``term`` (None without constraints):
+    input ``a`` = the arrows of one term, the parameters; output ``term`` = [φ (m), per slot o:
+    (m × 2 × rank) blocks, rounding bounds (m)].
+    """
+
+    name: str
+    rank: int
+    m: int
+    held: int  # the last ``held`` multipliers are holonomic (docs/conventions.md §15)
+    arity: int
+    offsets: list
+    starts: list
+    parameters: list
+    junction: Program
+    term: Program | None
+
+
+def window_programs(system) -> WindowPrograms:
+    """The :class:`WindowPrograms` of a system (see the module docstring)."""
+    G, fs = system.groupoid, _functions(system)
+    action = WindowAction(G, fs)
+    r, m, arity = G.rank, action.m, action.arity
+    offsets, starts = action.offsets, action.starts
+    parameters = list(system.parameters)
+    g = Graph()
+    A = {o: [sp.Symbol(f"a{o + 2}_{i}", real=True) for i in range(G.arrow_dim)] for o in offsets}
+    lam = {s: [sp.Symbol(f"l{s + 2}_{a}", real=True) for a in range(m)] for s in starts}
+    nodes = {x: g.input(x) for o in offsets for x in A[o]}
+    nodes.update({x: g.input(x) for s in starts for x in lam[s]})
+    pnodes = {p: g.input(p) for p in parameters}
+    arrows = {o: [nodes[x] for x in A[o]] for o in offsets}
+    jn = action.junction_nodes(g, pnodes, arrows, {s: [nodes[x] for x in lam[s]] for s in starts})
+    fields = {o: (action.fields(g, "left", arrows[o], pnodes),
+                  action.fields(g, "right", arrows[o], pnodes)) for o in offsets}
+    res = jn.residuals
+    order = g.reachable(res)
+    blocks = list(res)
+    along = field_derivatives(g, res, arrows, fields)
+    for o in offsets:
+        for b in range(r):
+            blocks += [along[o][side][c][b] for side in (0, 1) for c in range(r)]
+    for s in starts:
+        d = [forward(g, res, {nodes[x]: g.one}, order) for x in lam[s]]
+        blocks += [d[a][b] for b in range(r) for a in range(m)]
+    coords = [x for o in offsets for x in A[o]]
+    lams = [x for s in starts for x in lam[s]]
+    # the rounding bound of each junction residual, the coordinates and multipliers counted
+    # as rounded values
+    blocks += rounding_error(g, res, [nodes[x] for x in coords + lams])
+    junction = Program(g, {"a": coords + lams + parameters}, {"junction": blocks})
+    term = None
+    if m:
+        values = jn.constraints[0]
+        corder = g.reachable(values)
+        cblocks = list(values)
+        for o in range(arity):
+            d = [slot_derivatives(g, values, arrows[o], fields[o][side], corder)
+                 for side in (0, 1)]
+            for e in range(m):
+                cblocks += [d[side][c][e] for side in (0, 1) for c in range(r)]
+        ccoords = [x for o in range(arity) for x in A[o]]
+        cblocks += rounding_error(g, values, [nodes[x] for x in ccoords])
+        term = Program(g, {"a": ccoords + parameters}, {"term": cblocks})
+    return WindowPrograms(system.name, r, m, fs.n_holonomic, arity, offsets, starts,
+                          parameters, junction, term)
+
+
+def cost_program(system) -> Program:
+    """L on one term of ``arity`` consecutive arrows: input ``a`` (the term's arrow
+    coordinates, then the parameters), output ``cost`` (one value): the discrete cost
+    S = Σ_k L(g_k, …, g_{k+arity−1}) of an arrow sequence is its sum over the terms."""
+    fs = _functions(system)
+    g = Graph()
+    coords = [c for slot in fs.slots for c in slot]
+    symbols = {c: g.input(c) for c in coords}
+    symbols.update({q: g.input(q) for q in system.parameters})
+    lagrangian = from_sympy(g, fs.lagrangian, symbols, f"{system.name}: the Lagrangian")
+    return Program(g, {"a": coords + list(system.parameters)}, {"cost": [lagrangian]})
+
+
+def action_program(system) -> Program:
+    """L and φ (as in the action: holonomic ones as ψ at the term's source node,
+    docs/conventions.md §15) on one term: input ``a`` (the term's arrow coordinates),
+    ``p`` (the parameters); outputs ``L`` (one value) and ``phi`` (m values)."""
+    fs = _functions(system)
+    g = Graph()
+    coords = [c for slot in fs.slots for c in slot]
+    symbols = {c: g.input(c) for c in (*coords, *system.parameters)}
+    memo: dict = {}
+    L = from_sympy(g, fs.lagrangian, symbols, f"{system.name}: the Lagrangian", memo)
+    phi = [from_sympy(g, c, symbols, f"{system.name}: constraint {a + 1}", memo)
+           for a, c in enumerate(fs.constraints)]
+    return Program(g, {"a": coords, "p": list(system.parameters)}, {"L": [L], "phi": phi})
+
+
+@functools.lru_cache(maxsize=16)
+def structure_program(G) -> Program:
+    """The structure maps a solve applies to rows of arrows, on the expression graph:
+    inputs ``a``, ``b`` (arrows), ``d`` (section coordinates, rank), ``q`` (a base point);
+    outputs ``multiply`` = m(a, b), ``inverse`` = a⁻¹, ``target`` = β(a), ``flow`` = the
+    section flow h(δ) ⊂ α⁻¹(β(a)) (:meth:`~symgroupoid.groupoids.Groupoid.section_flow_nodes`:
+    the section curves h_c(δ_c) composed, each at the target of the product so far) and
+    ``flow_from`` = the same flow from the base point q (at the identity ε(q))."""
+    a = tuple(sp.Dummy(f"a{i}", real=True) for i in range(G.arrow_dim))
+    b = tuple(sp.Dummy(f"b{i}") for i in range(G.arrow_dim))
+    d = tuple(sp.Dummy(f"d{i}") for i in range(G.rank))
+    q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
+    g = Graph()
+    nodes = {x: g.input(x) for x in (*a, *b, *d)}
+    memo: dict = {}
+
+    def build(exprs, what: str) -> list[int]:
+        return [from_sympy(g, sp.sympify(e), nodes, f"{G.name}: {what}", memo) for e in exprs]
+
+    outputs = {"multiply": build(G.multiply(a, b), "the multiplication"),
+               "inverse": build(G.inverse(a), "the inverse"),
+               "flow": G.section_flow_nodes(g, [nodes[x] for x in a], [nodes[x] for x in d])}
+    outputs["target"] = build(G.target(a), "the target")
+    nodes.update({x: g.input(x) for x in q})
+    identity = build(G.identity(q), "the identity")
+    outputs["flow_from"] = G.section_flow_nodes(g, identity, [nodes[x] for x in d])
+    return Program(g, {"a": list(a), "b": list(b), "d": list(d), "q": list(q)}, outputs)
