@@ -90,3 +90,24 @@ def test_from_momentum_program_solves_the_momentum_equations():
     Fp, _ = FJ(z + e, q, p, params)
     Fm, _ = FJ(z - e, q, p, params)
     assert np.allclose(J, (Fp - Fm) / (2 * e), rtol=1e-7)
+
+
+def test_an_opaque_function_evaluates_on_batches_in_numpy():
+    """A function NumPy lacks (erf, gamma: SymPy prints them as the math module's, which
+    takes scalars) in a program evaluated on a batch of points, as the NumPy form of a
+    boundary-value window is: element by element, the values of C's erf and tgamma (the
+    kernels'); it raised "only 0-dimensional arrays can be converted" before."""
+    import math
+
+    from symgroupoid.ir import Graph, Program, from_sympy
+
+    x = sp.Symbol("x", real=True)
+    g = Graph()
+    node = from_sympy(g, x * sp.erf(x) + sp.gamma(1 + x**2), {x: g.input(x)}, "test")
+    f = Program(g, {"x": [x]}, {"y": [node]}).numpy_function(["y"], ["x"])
+    xs = np.linspace(-2.0, 2.0, 9)
+    (batch,) = f(xs[None, :])
+    assert batch.shape == (1, 9)
+    expected = [v * math.erf(v) + math.gamma(1 + v * v) for v in xs]
+    assert batch[0].tolist() == expected
+    assert f(xs[:1])[0].tolist() == expected[:1]

@@ -17,6 +17,7 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Sequence
 
+import numpy as np
 import sympy as sp
 
 from .._lambdify import NUMPY_MODULES
@@ -338,7 +339,18 @@ class Opaque(FunctionSpec):
         return "sg_opaque_" + hashlib.sha256(self.key_text.encode()).hexdigest()[:12]
 
     def numpy_namespace(self):
-        return {self._name: sp.lambdify(list(self.placeholders), self.expr, NUMPY_MODULES)}
+        """The function, element by element on arrays: SymPy prints functions NumPy lacks
+        (``erf``, ``gamma``, …) as the :mod:`math` module's, which take scalars only (and call
+        the C library, as the kernels do)."""
+        scalar = sp.lambdify(list(self.placeholders), self.expr, NUMPY_MODULES)
+        elementwise = np.frompyfunc(scalar, self.nargs, 1)
+
+        def call(*args):
+            if all(np.ndim(a) == 0 for a in args):
+                return scalar(*args)
+            return np.asarray(elementwise(*args), dtype=float)
+
+        return {self._name: call}
 
     def sympy(self, args):
         return self.expr.xreplace(dict(zip(self.placeholders, args)))
