@@ -5,6 +5,7 @@ with SymPy, and derive the discrete Euler–Lagrange equations (seed 000 Thm 2.1
 their Lie–Poisson form, exact Jacobians, LaTeX and C kernels.
 """
 
+from . import diagnostics  # noqa: E402  (layer 6)
 from ._errors import (
     AxiomError,
     BoundaryValueDivergenceError,
@@ -37,6 +38,8 @@ from ._errors import (
     UnsupportedExpressionError,
     UnsupportedFeatureError,
 )
+from ._version import __version__ as __version__
+from .codegen import emit_c  # noqa: E402  (layer 4)
 from .derivation import SystemFunctions
 from .equations import (
     DiscreteSystem,
@@ -74,13 +77,6 @@ from .groupoids import (
     left_derivative,
     right_derivative,
 )
-from .runtime._bvp import BoundaryValueSolution, solve_boundary_value
-from .verification import StationarityReport, verify_stationary
-
-__version__ = "0.1.0"
-
-from . import diagnostics  # noqa: E402  (layer 6)
-from .codegen import emit_c  # noqa: E402  (layer 4)
 from .plotting import plot_conservation, plot_trajectory  # noqa: E402
 from .runtime import (  # noqa: E402  (layer 5)
     CompilationError,
@@ -93,8 +89,10 @@ from .runtime import (  # noqa: E402  (layer 5)
     sweep,
     sweep_boundary_value,
 )
+from .runtime._bvp import BoundaryValueSolution, solve_boundary_value
 from .runtime._diagnostics import TimeStepError  # noqa: E402  (layer 5)
 from .stepper import Status  # noqa: E402  (the statuses of every run)
+from .verification import StationarityReport, verify_stationary
 
 __all__ = [
     "ActionGroupoid", "Arrow", "AtiyahGroupoid", "AxiomError", "BoundaryValueSolution",

@@ -130,7 +130,8 @@ def test_templates_are_packaged_with_every_subpackage():
 
     config = tomllib.loads((REPO / "pyproject.toml").read_text())["tool"]["setuptools"]
     listed = set(config["packages"])
-    on_disk = {"symgroupoid." + p.parent.name for p in (REPO / "symgroupoid").glob("*/__init__.py")}
+    on_disk = {".".join(p.parent.relative_to(REPO).parts)  # subpackages at any depth
+               for p in (REPO / "symgroupoid").glob("*/**/__init__.py")}
     assert on_disk | {"symgroupoid", "symgroupoid.templates"} == listed
     assert config["package-dir"]["symgroupoid.templates"] == "templates"
     assert config["package-data"]["symgroupoid.templates"] == ["*.j2"]

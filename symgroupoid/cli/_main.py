@@ -13,9 +13,9 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from .. import __version__
 from .._errors import SymgroupoidError
 from .._progress import set_default
+from .._version import __version__
 from ._boundary import run_bvp
 from ._cache import run_clear, run_info, run_templates
 from ._common import BACKENDS

@@ -252,7 +252,7 @@ def library_texts(prefix: str) -> dict[str, str]:
 
 def _context(step, prefix: str, header_name: str, latex: bool, units: int,
              block_weight: float = 1.0) -> dict:
-    from .. import __version__
+    from .._version import __version__
 
     blocks = kernel_blocks(step, unit_part_size(len(step.unknowns), units))
     n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
@@ -369,7 +369,7 @@ def generate_program_c(label: str, program, inputs: str, outputs: str) -> Kernel
     program's output ``outputs`` to n items, each the input array ``inputs`` (row k of
     ``in``).  Used for the boundary-value solver's window kernels; deterministic for equal
     programs."""
-    from .. import __version__
+    from .._version import __version__
     from ._kernel import build_block, program_helpers
 
     prefix = "sgw_" + c_identifier(label)

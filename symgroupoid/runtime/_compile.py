@@ -86,7 +86,7 @@ def codegen_sources() -> list[Path]:
 def codegen_digest() -> str:
     """Hash of everything that turns a step into a built kernel: templates and
     :func:`codegen_sources`."""
-    from .. import __version__
+    from .._version import __version__
 
     return sha256_of([__version__, templates_digest(),
                       *(f.read_bytes() for f in codegen_sources())])
