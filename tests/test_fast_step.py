@@ -165,3 +165,20 @@ def test_parameter_screen_is_exact_for_every_assumption():
                 exact = all(getattr(sp.Rational(v), f"is_{k}") in (None, e)
                             for k, e in _validate._declared(symbol))
                 assert test(v) == accepted == exact, (key, expected, v)
+
+
+def test_the_parameters_the_constraints_use_are_taken_cheaply_and_exactly():
+    """The tail of a trusted state's key: all parameters (None), none (b""), a contiguous
+    run (a slice: no fancy indexing per call), else an index array; each gives the bytes of
+    exactly the parameters the constraints use."""
+    from symgroupoid.runtime._fast_step import _used_index
+
+    p = np.array([0.01, 2.0, 3.0, 4.0])
+    for used, kind in (([0, 1, 2, 3], type(None)), ([], bytes), ([1, 2], slice),
+                       ([0, 2], np.ndarray)):
+        index = _used_index(used, 4)
+        assert isinstance(index, kind)
+        if index is None:
+            continue
+        key = index if type(index) is bytes else p[index].tobytes()
+        assert key == p[used].tobytes()

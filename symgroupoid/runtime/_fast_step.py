@@ -48,8 +48,8 @@ class FastStep:
 
     def __init__(self, sim):
         parameters = tuple(sim.equations.parameters)
-        used = [i for i, _ in constraint_check(sim.equations).used]
-        self.used = None if len(used) == len(parameters) else np.array(used, dtype=np.intp)
+        self.used = _used_index([i for i, _ in constraint_check(sim.equations).used],
+                                len(parameters))
         self.trusted: dict[bytes, None] = {}
         kernel = sim.kernel
         self.run = kernel.stepper() if hasattr(kernel, "stepper") else kernel.step_once
@@ -60,11 +60,26 @@ class FastStep:
 
     def used_bytes(self, p: np.ndarray) -> bytes:
         """The bytes of the parameters the constraints use (the tail of a state's key)."""
-        return p.tobytes() if self.used is None else p[self.used].tobytes()
+        used = self.used
+        return p.tobytes() if used is None else used if type(used) is bytes else \
+            p[used].tobytes()
 
     def trust(self, known: np.ndarray, p: np.ndarray) -> None:
         """Trust a state checked under the parameters ``p``."""
         _remember(self.trusted, known.tobytes() + self.used_bytes(p))
+
+
+def _used_index(used: list, n: int):
+    """How to take the parameters the constraints use from a parameter vector, cheapest
+    first: None (all of them: the whole vector's bytes), b"" (none: the key's tail is
+    empty), a slice (a contiguous run), else an index array."""
+    if len(used) == n:
+        return None
+    if not used:
+        return b""
+    if used == list(range(used[0], used[-1] + 1)):
+        return slice(used[0], used[-1] + 1)
+    return np.array(used, dtype=np.intp)
 
 
 def _remember(table: dict, key, value=None) -> None:
@@ -73,7 +88,7 @@ def _remember(table: dict, key, value=None) -> None:
     table[key] = value
 
 
-def _parameter_screen(names: tuple, test: Callable | None, used: np.ndarray | None,
+def _parameter_screen(names: tuple, test: Callable | None, used,
                       divisors: Callable[[], tuple]):
     """The function params → (p, the bytes of the parameters the constraints use), or None
     unless ``params`` is a float64 vector of the right length or a dict of Python numbers
@@ -102,7 +117,8 @@ def _parameter_screen(names: tuple, test: Callable | None, used: np.ndarray | No
                 if any(values[i] == 0 for i in zeros[0]):
                     return None
             _remember(accepted, whole)
-        return p, (whole if used is None else p[used].tobytes())
+        return p, (whole if used is None else used if type(used) is bytes else
+                   p[used].tobytes())
 
     ndarray, float64, contiguous = np.ndarray, _FLOAT64, _CONTIGUOUS
 
@@ -114,7 +130,8 @@ def _parameter_screen(names: tuple, test: Callable | None, used: np.ndarray | No
             whole = params.tobytes()  # vector(params), inline
             if whole not in accepted:
                 return vector(params)
-            return params, (whole if used is None else params[used].tobytes())
+            return params, (whole if used is None else used if type(used) is bytes else
+                            params[used].tobytes())
         if type(params) is dict and len(params) == n:
             try:
                 values = tuple([params[name] for name in names])
