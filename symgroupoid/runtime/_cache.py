@@ -15,8 +15,9 @@ else ``~/.cache/symgroupoid``)::
 
 The *source key* hashes the generated C, the compiler flags, the build environment
 (``$CC`` and the file it runs, ``$CPPFLAGS``, ``$CFLAGS``, ``$LDFLAGS``) and the Python/cffi
-ABI; the *input key* hashes the symbolic step (SymPy ``srepr``), the code generator and the
-same ABI, flags and environment.  A kernel directory appears atomically (``rename`` of a finished directory)
+ABI; the *input key*
+hashes the symbolic step (SymPy ``srepr``), the code generator and the same ABI, flags and
+environment.  A kernel directory appears atomically (``rename`` of a finished directory)
 and is verified against its manifest before loading; a damaged one is removed and rebuilt.
 
 What is trusted (the cache holds code this process runs, so it is checked as ssh checks
