@@ -568,24 +568,6 @@ def test_the_build_environment_is_in_both_keys(monkeypatch, variable, value):
     assert keys[0] != other[0] and keys[1] != other[1]
 
 
-def test_an_upgraded_compiler_changes_both_keys(monkeypatch, tmp_path):
-    """The compiler counts by the file it runs: the same ``$CC`` name, once it is a newer
-    file (an upgrade, or ``cc`` switched to another version), gives other keys."""
-    step = oscillator()
-    flags = _compile._step_flags(step, None)
-    kernel = _compile.step_kernel(step)
-    wrapper = tmp_path / "cc-wrapper"
-    wrapper.write_text('#!/bin/sh\nexec cc "$@"\n')
-    wrapper.chmod(0o755)
-    monkeypatch.setenv("CC", str(wrapper))
-    keys = (_compile.input_key(step, flags), _compile.source_key_of(kernel, flags))
-    assert keys == (_compile.input_key(step, flags), _compile.source_key_of(kernel, flags))
-    os.utime(wrapper, ns=(1_000_000_000, 1_000_000_000))  # another file of that name
-    other = (_compile.input_key(step, flags), _compile.source_key_of(kernel, flags))
-    assert keys[0] != other[0] and keys[1] != other[1]
-    assert _build.compiler_identity(["no-such-compiler-here"]) == "none"
-
-
 def test_a_kernel_built_under_other_cflags_is_never_served(monkeypatch, cache_dir):
     """A kernel built under ``CFLAGS=-fno-math-errno`` (bits may differ) was served to a
     process that never set it."""

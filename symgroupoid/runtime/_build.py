@@ -311,32 +311,13 @@ def build_environment() -> tuple[str, ...]:
     ``CC``), Python's ``CFLAGS`` and ``CCSHARED``, and ``$CPPFLAGS``, ``$CFLAGS`` and
     ``$LDFLAGS``.  Any of them can change a kernel's bits (``-m32``, ``-mfpmath=387``,
     ``-fexcess-precision=fast``, ...), so a kernel built under one environment is never
-    served to another.  The compiler itself counts by the file its command runs (resolved
-    path, size, modification time: :func:`compiler_identity`), so an upgraded compiler
-    builds afresh.  Never raises: an unparsable variable counts by its words."""
+    served to another.  Never raises: an unparsable variable counts by its words."""
     config = sysconfig.get_config_var
     command = os.environ.get("CC") or config("CC") or "cc"
     parts = {"CC": command, "PY_CFLAGS": config("CFLAGS"), "PY_CCSHARED": config("CCSHARED"),
              "CPPFLAGS": os.environ.get("CPPFLAGS"), "CFLAGS": os.environ.get("CFLAGS"),
              "LDFLAGS": os.environ.get("LDFLAGS")}
-    return (*(f"{name}={json.dumps(_words(value))}" for name, value in parts.items()),
-            f"CC_FILE={compiler_identity(_words(command))}")
-
-
-def compiler_identity(words: Sequence[str]) -> str:
-    """The file the compiler command's first word runs, as ``path:size:mtime`` (links
-    resolved), or ``none`` when it is not found: a stat, no compiler run (about 20 µs).
-    A compiler that is upgraded or switched (``cc`` pointing at another version) changes
-    it."""
-    found = shutil.which(words[0]) if words else None
-    if found is None:
-        return "none"
-    try:
-        path = os.path.realpath(found)
-        info = os.stat(path)
-    except OSError:
-        return "none"
-    return f"{path}:{info.st_size}:{info.st_mtime_ns}"
+    return tuple(f"{name}={json.dumps(_words(value))}" for name, value in parts.items())
 
 
 def build_command(source: str, library: str, flags: Sequence[str]) -> list[str]:

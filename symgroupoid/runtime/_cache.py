@@ -14,8 +14,7 @@ else ``~/.cache/symgroupoid``)::
     probes/                    the compiler's OpenMP support, once per compiler
 
 The *source key* hashes the generated C, the compiler flags, the build environment
-(``$CC`` and the file it runs, ``$CPPFLAGS``, ``$CFLAGS``, ``$LDFLAGS``) and the Python/cffi
-ABI; the *input key*
+(``$CC``, ``$CPPFLAGS``, ``$CFLAGS``, ``$LDFLAGS``) and the Python/cffi ABI; the *input key*
 hashes the symbolic step (SymPy ``srepr``), the code generator and the same ABI, flags and
 environment.  A kernel directory appears atomically (``rename`` of a finished directory)
 and is verified against its manifest before loading; a damaged one is removed and rebuilt.
