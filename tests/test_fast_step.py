@@ -109,6 +109,58 @@ def test_the_loop_keeps_every_check():
     assert np.array_equal(sim.step(state, vector), sim.simulate(state, 1, PARAMS).states[1])
 
 
+def test_a_link_of_the_chain_sees_every_change_made_in_place():
+    """A call that passes back the array the last call returned, with the same parameters
+    object and options, is the kernel's entry and a few comparisons; whatever was changed
+    in place since (the parameter vector, the dict, the simulator's options) is seen: here
+    Omega, which the rolling constraints use, so the state fails them under the new value."""
+    sim = _fresh()
+    state, vector = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
+    expected = _loop(_fresh(), state, vector.copy(), 5)
+    for params in (vector, dict(PARAMS)):
+        looped = _loop(sim, state, params, 3)
+        key = 2 if params is vector else "Omega"
+        params[key] *= 1.5
+        with pytest.raises(sg.DomainError, match="violates the constraints"):
+            sim.step(looped, params)
+        params[key] = PARAMS["Omega"]
+        assert np.array_equal(_loop(sim, looped, params, 2), expected)
+    looped = _loop(sim, state, vector, 2)
+    sim.options = sg.NewtonOptions(max_iterations=0)  # replaced between two links
+    with pytest.raises(sg.NewtonDivergenceError, match="step 0 failed"):
+        sim.step(looped, vector)
+
+
+def test_interleaved_loops_and_a_return_to_an_earlier_state_stay_exact(monkeypatch):
+    """Two loops on one simulator break each other's chain at every call: the state a
+    chain ends with joins the table, so neither is checked again; a state from inside a
+    chain is checked once, and every state is bitwise the lone loop's."""
+    sim = _fresh()
+    p = sim.parameters(PARAMS)
+    starts = [sim.from_momentum({"x": 0.1 * i, "y": 0.0}, (0.1, 0.05 * i, 0.01, 0.02, 0.01),
+                                PARAMS) for i in range(2)]
+    expected = [_loop(_fresh(), s, p, 20) for s in starts]
+    a, b = sim.step(starts[0], p), sim.step(starts[1], p)
+    checks = {"state": 0}
+    original_state = sg.Simulator.state
+
+    def counting_state(self, *args, **kwargs):
+        checks["state"] += 1
+        return original_state(self, *args, **kwargs)
+
+    monkeypatch.setattr(sg.Simulator, "state", counting_state)
+    for _ in range(14):
+        a, b = sim.step(a, p), sim.step(b, p)
+    chain = [a]
+    for _ in range(5):  # a lone loop: one chain
+        chain.append(sim.step(chain[-1], p))
+    assert np.array_equal(chain[-1], expected[0]) and np.array_equal(_loop(sim, b, p, 5),
+                                                                     expected[1])
+    assert checks["state"] == 0
+    again = _loop(sim, chain[2], p, 3)  # from inside the chain: checked once
+    assert np.array_equal(again, expected[0]) and checks["state"] == 1
+
+
 def test_a_failed_step_in_the_loop_raises_as_simulate_does():
     sim = _fresh()
     state = _loop(sim, initial_state(sim, "plate_ball"), sim.parameters(PARAMS), 3)

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import ctypes
 import dataclasses
+from collections.abc import Callable
 
 import numpy as np
 
@@ -228,6 +229,20 @@ class _Kernel:
         run = self.simulate(known, p, 1, options)
         return run.status, run.states[1]
 
+    def step_entry(self) -> tuple[Callable, Callable, Callable]:
+        """What a control loop calls per step with the least Python around it (see
+        :mod:`~symgroupoid.runtime._fast_step`): (``entry(known, p, options, out)`` → status,
+        writing the next state into ``out``; ``view_of(array)``, what ``entry`` takes for a
+        vector; ``options_of(options)``, what it takes for :class:`NewtonOptions`).  Here
+        the vectors and options themselves, through :meth:`step_once`."""
+        def entry(known, p, options, out) -> int:
+            status, after = self.step_once(known, p, options)
+            if status == OK:
+                out[:] = after
+            return status
+
+        return entry, _itself, _itself
+
     def _simulate_into(self, states, iterations, residual_norms, start: int, n_steps: int,
                        p, options: NewtonOptions, warm) -> ChunkRun:
         """:meth:`simulate_into` through :meth:`_simulate` (its states copied in)."""
@@ -428,6 +443,11 @@ class NumpyKernel(_Kernel):
 
 #: the kernels' faces, and the names of the NumPy twin, the statuses and the run records that
 #: runtime modules read from here
+def _itself(value):
+    """The value itself (:meth:`_Kernel.step_entry`'s views)."""
+    return value
+
+
 __all__ = ["BRANCH_JUMP", "C_INT_MAX", "EPSILON", "INTERRUPTED", "INVALID_ARGUMENT",
            "MAX_THREADS", "NON_FINITE", "NOT_CONVERGED", "OK", "SINGULAR_JACOBIAN", "STALLED",
            "STATUS_MESSAGES", "TRUST_FLOOR", "BatchRun", "ChunkRun", "LUFactors",

@@ -10,6 +10,7 @@ make it read or write outside a buffer.
 from __future__ import annotations
 
 import ctypes
+import functools
 import threading
 
 import numpy as np
@@ -110,6 +111,16 @@ class CKernel(_Kernel):
         if self._stepper is None:
             self._stepper = _one_step_caller(self)
         return self._stepper
+
+    def step_entry(self):
+        """:meth:`_Kernel.step_entry` in C: ``<prefix>_step`` (four arguments: the state,
+        the parameters, the options, the next state), ``ffi.from_buffer`` for the vectors
+        and the options' C struct; in a module built before ``<prefix>_step`` existed, the
+        base class's (through :meth:`stepper`)."""
+        entry = getattr(self.lib, f"{self.prefix}_step", None)
+        if entry is None:
+            return super().step_entry()
+        return entry, functools.partial(self.ffi.from_buffer, "double[]"), self._options
 
     def _until_entry(self):
         """``<prefix>_simulate_batch_until``, or None in a module built before it existed

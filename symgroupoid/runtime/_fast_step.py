@@ -1,5 +1,5 @@
-"""The per-call path of :meth:`Simulator.step`: one step of a control loop for about a
-microsecond of Python.
+"""The per-call path of :meth:`Simulator.step`: one step of a control loop for under two
+microseconds of Python.
 
 ``state = sim.step(state, p)`` in a loop used to parse its parameters (SymPy's printer on
 every symbol), check the state's group parts and evaluate its constraints on every call,
@@ -9,12 +9,18 @@ is prepared once per simulator here, as closure cells:
 - the parameter names, and one compiled test of the assumptions of every parameter
   (:func:`~symgroupoid.runtime._validate.assumptions_test`); a parameter vector whose bytes
   passed the test before is not tested again;
-- which parameters the constraints use, and the *trusted* states: the bytes of every state
-  this simulator produced or checked, with the values of those parameters.  A state of the
-  table is on the constraints and in the group (it was checked, or it is a step's output,
-  as the states inside a run are), so it is not checked again; any other state goes through
-  every check of :meth:`Simulator.state`;
-- the kernel's one-step caller (:meth:`~symgroupoid.runtime._backends.CKernel.stepper`).
+- which parameters the constraints use, and the *trusted* states: the bytes of states this
+  simulator produced or checked, with the values of those parameters.  A state of the table
+  is on the constraints and in the group (it was checked, or it is a step's output, as the
+  states inside a run are), so it is not checked again; any other state goes through every
+  check of :meth:`Simulator.state`;
+- the *chain*: a loop that passes back the very array the last call returned, unchanged,
+  with the same parameters object holding the same values and the same options, makes a
+  link: its state is a step's output and its parameters were screened, so the call is the
+  kernel's entry (:meth:`~symgroupoid.runtime._backends._Kernel.step_entry`) on the views
+  kept from the last call, after a few comparisons.  The state a chain ends with (when
+  another call breaks it) joins the table; a state from inside a chain is checked once if
+  it is given again.
 
 Whatever the fast path does not recognise — another kind of state or parameters, a value
 that fails a test, a state not in the table, a failed step — returns None, and the caller
@@ -58,7 +64,7 @@ class FastStep:
                                             lambda: tuple(zero_divisors(sim.equations)))
         self.call = _fast_call(sim, self)
 
-    def used_bytes(self, p: np.ndarray) -> bytes:
+    def key_tail(self, p: np.ndarray) -> bytes:
         """The bytes of the parameters the constraints use (the tail of a state's key)."""
         used = self.used
         return p.tobytes() if used is None else used if type(used) is bytes else \
@@ -66,7 +72,7 @@ class FastStep:
 
     def trust(self, known: np.ndarray, p: np.ndarray) -> None:
         """Trust a state checked under the parameters ``p``."""
-        _remember(self.trusted, known.tobytes() + self.used_bytes(p))
+        _remember(self.trusted, known.tobytes() + self.key_tail(p))
 
 
 def _used_index(used: list, n: int):
@@ -159,32 +165,85 @@ def _parameter_screen(names: tuple, test: Callable | None, used,
 
 
 def _fast_call(sim, fast: FastStep):
-    """:attr:`FastStep.call`."""
-    shape, trusted, screen, run = (sim.layout.n_known,), fast.trusted, fast.parameters, \
-        fast.run
+    """:attr:`FastStep.call`.
+
+    A loop's call is a *link* of the chain when it passes back the very array the last call
+    returned, unchanged (its bytes), with the same parameters object holding the same values
+    and the same options: that state is trusted (it is a step's output), its parameters were
+    screened, and the C views of all three are at hand, so the call is the kernel's entry
+    and a few comparisons.  Any other call looks its state up in the table."""
+    shape, trusted, screen = (sim.layout.n_known,), fast.trusted, fast.parameters
+    entry, view_of, options_of = sim.kernel.step_entry()
     ndarray, float64, contiguous, newton_options = np.ndarray, _FLOAT64, _CONTIGUOUS, \
         NewtonOptions
+    empty, n_known = np.empty, sim.layout.n_known
+    #: the last link: (the state returned, its bytes, its view, the call's setting: (the
+    #: params object, their bytes or a copy of a dict (None: never the same), the parameter
+    #: vector, its view, the options, what the entry takes for them, the tail of a state's
+    #: key)), replaced as a whole (another thread sees one link or the other, never half of
+    #: one).  Its state joins the table when the chain breaks.
+    chain = [(None, None, None, (None,) * 7)]
 
     def call(state, params, options):
-        if (type(state) is not ndarray or state.dtype is not float64
-                or state.shape != shape or state.strides != contiguous):
-            return None
+        link = chain[0]
+        setting = link[3]
+        if (state is link[0] and params is setting[0]
+                and (sim.options if options is None else options) is setting[4]
+                and state.dtype is float64 and state.shape == shape
+                and state.tobytes() == link[1]):
+            same = setting[1]
+            if type(same) is bytes:
+                if (params.tobytes() != same or params.dtype is not float64
+                        or params.shape != setting[2].shape):
+                    same = None
+            elif same is not None and params != same:
+                same = None
+            if same is not None:
+                after = empty(n_known)
+                view = view_of(after)
+                if entry(link[2], setting[3], setting[5], view) != OK:
+                    return None
+                chain[0] = (after, after.tobytes(), view, setting)
+                return after
+        return table_call(state, params, options, link)
+
+    def table_call(state, params, options, link):
+        """:func:`call` for a state of the table under screened parameters, else None."""
+        if link[0] is not None:  # the chain broke: its last state joins the table
+            _remember(trusted, link[1] + link[3][6])
         if options is None:
             options = sim.options
-        elif type(options) is not newton_options:
+        if (type(state) is not ndarray or state.dtype is not float64
+                or state.shape != shape or state.strides != contiguous
+                or type(options) is not newton_options):
             return None
         screened = screen(params)
         if screened is None:
             return None
-        p, used = screened
-        if state.tobytes() + used not in trusted:
+        p, tail = screened
+        if state.tobytes() + tail not in trusted:
             return None
-        status, after = run(state, p, options)
-        if status != OK:
+        setting = link[3]
+        p_view = setting[3] if p is setting[2] else view_of(p)
+        c_options = setting[5] if options is setting[4] else options_of(options)
+        after = empty(n_known)
+        view = view_of(after)
+        if entry(view_of(state), p_view, c_options, view) != OK:
             return None
-        if len(trusted) >= MAX_TRUSTED:
-            trusted.clear()
-        trusted[after.tobytes() + used] = None
+        chain[0] = (after, after.tobytes(), view,
+                    (params, _fingerprint(params, p), p, p_view, options, c_options, tail))
         return after
 
     return call
+
+
+def _fingerprint(params, p: np.ndarray):
+    """What tells that ``params`` still holds the values it had when it gave ``p``: a
+    vector's bytes (with its dtype and shape, checked beside them), a copy of a dict of Python
+    numbers with no zero (a zero's sign escapes an equality test), or None (never the
+    same)."""
+    if params is p:
+        return p.tobytes()
+    if type(params) is dict and 0 not in p:
+        return params.copy()
+    return None
