@@ -1220,6 +1220,25 @@ static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double
     *status = HEAVY_TOP_OK;
 }
 
+/* heavy_top_batch_advance for trajectory b of a batch's arrays: its rows of known0, p (none
+ * when p is NULL, the same row for all when p_stride is 0), states, iterations and
+ * residual_norms, its entries of kept and status, and of the failure outputs that were
+ * given (a NULL one is written to a local and dropped). */
+static void heavy_top_batch_run(long b, heavy_top_batch_cursor *cursor, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+{
+    int unused_iterations;
+    long unused_step;
+    double unused_norm;
+    heavy_top_batch_advance(cursor, known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
+                          states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
+                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                          kept + b, status + b,
+                          failed_step != NULL ? failed_step + b : &unused_step,
+                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                          last_iterate != NULL ? last_iterate + (size_t)b * HEAVY_TOP_N_UNKNOWNS : NULL);
+}
+
 /* 1 when every entry of v is finite */
 static int heavy_top_all_finite(const double *v, int n)
 {
@@ -1318,18 +1337,8 @@ int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p
 #endif
     for (b = 0; b < n_batch; ++b) {
         heavy_top_batch_cursor cursor;
-        int unused_iterations;
-        long unused_step;
-        double unused_norm;
         kept[b] = 0;
-        heavy_top_batch_advance(&cursor, known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, n_steps, options,
-                              states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
-                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
-                              kept + b, status + b,
-                              failed_step != NULL ? failed_step + b : &unused_step,
-                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
-                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
-                              last_iterate != NULL ? last_iterate + (size_t)b * HEAVY_TOP_N_UNKNOWNS : NULL);
+        heavy_top_batch_run(b, &cursor, known0, p, p_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return HEAVY_TOP_OK;
 }
@@ -1363,9 +1372,6 @@ int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors
 #pragma omp parallel for schedule(dynamic, 1) num_threads(team) if (team > 1)
 #endif
     for (b = 0; b < n_batch; ++b) {
-        int unused_iterations;
-        long unused_step;
-        double unused_norm;
         if (status[b] != HEAVY_TOP_OK) {
             continue;
         }
@@ -1373,14 +1379,7 @@ int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors
             status[b] = HEAVY_TOP_INVALID_ARGUMENT;
             continue;
         }
-        heavy_top_batch_advance(cursors + b, known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
-                              states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
-                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
-                              kept + b, status + b,
-                              failed_step != NULL ? failed_step + b : &unused_step,
-                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
-                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
-                              last_iterate != NULL ? last_iterate + (size_t)b * HEAVY_TOP_N_UNKNOWNS : NULL);
+        heavy_top_batch_run(b, cursors + b, known0, p, p_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return HEAVY_TOP_OK;
 }

@@ -1447,6 +1447,25 @@ static void plate_ball_batch_advance(plate_ball_batch_cursor *cursor, const doub
     *status = PLATE_BALL_OK;
 }
 
+/* plate_ball_batch_advance for trajectory b of a batch's arrays: its rows of known0, p (none
+ * when p is NULL, the same row for all when p_stride is 0), states, iterations and
+ * residual_norms, its entries of kept and status, and of the failure outputs that were
+ * given (a NULL one is written to a local and dropped). */
+static void plate_ball_batch_run(long b, plate_ball_batch_cursor *cursor, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+{
+    int unused_iterations;
+    long unused_step;
+    double unused_norm;
+    plate_ball_batch_advance(cursor, known0 + (size_t)b * PLATE_BALL_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
+                          states + (size_t)b * (size_t)rows * PLATE_BALL_N_KNOWNS,
+                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                          kept + b, status + b,
+                          failed_step != NULL ? failed_step + b : &unused_step,
+                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                          last_iterate != NULL ? last_iterate + (size_t)b * PLATE_BALL_N_UNKNOWNS : NULL);
+}
+
 /* 1 when every entry of v is finite */
 static int plate_ball_all_finite(const double *v, int n)
 {
@@ -1545,18 +1564,8 @@ int plate_ball_simulate_batch(long n_batch, const double *known0, const double *
 #endif
     for (b = 0; b < n_batch; ++b) {
         plate_ball_batch_cursor cursor;
-        int unused_iterations;
-        long unused_step;
-        double unused_norm;
         kept[b] = 0;
-        plate_ball_batch_advance(&cursor, known0 + (size_t)b * PLATE_BALL_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, n_steps, options,
-                              states + (size_t)b * (size_t)rows * PLATE_BALL_N_KNOWNS,
-                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
-                              kept + b, status + b,
-                              failed_step != NULL ? failed_step + b : &unused_step,
-                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
-                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
-                              last_iterate != NULL ? last_iterate + (size_t)b * PLATE_BALL_N_UNKNOWNS : NULL);
+        plate_ball_batch_run(b, &cursor, known0, p, p_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return PLATE_BALL_OK;
 }
@@ -1590,9 +1599,6 @@ int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *curso
 #pragma omp parallel for schedule(dynamic, 1) num_threads(team) if (team > 1)
 #endif
     for (b = 0; b < n_batch; ++b) {
-        int unused_iterations;
-        long unused_step;
-        double unused_norm;
         if (status[b] != PLATE_BALL_OK) {
             continue;
         }
@@ -1600,14 +1606,7 @@ int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *curso
             status[b] = PLATE_BALL_INVALID_ARGUMENT;
             continue;
         }
-        plate_ball_batch_advance(cursors + b, known0 + (size_t)b * PLATE_BALL_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
-                              states + (size_t)b * (size_t)rows * PLATE_BALL_N_KNOWNS,
-                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
-                              kept + b, status + b,
-                              failed_step != NULL ? failed_step + b : &unused_step,
-                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
-                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
-                              last_iterate != NULL ? last_iterate + (size_t)b * PLATE_BALL_N_UNKNOWNS : NULL);
+        plate_ball_batch_run(b, cursors + b, known0, p, p_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return PLATE_BALL_OK;
 }

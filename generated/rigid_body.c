@@ -1209,6 +1209,25 @@ static void rigid_body_batch_advance(rigid_body_batch_cursor *cursor, const doub
     *status = RIGID_BODY_OK;
 }
 
+/* rigid_body_batch_advance for trajectory b of a batch's arrays: its rows of known0, p (none
+ * when p is NULL, the same row for all when p_stride is 0), states, iterations and
+ * residual_norms, its entries of kept and status, and of the failure outputs that were
+ * given (a NULL one is written to a local and dropped). */
+static void rigid_body_batch_run(long b, rigid_body_batch_cursor *cursor, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+{
+    int unused_iterations;
+    long unused_step;
+    double unused_norm;
+    rigid_body_batch_advance(cursor, known0 + (size_t)b * RIGID_BODY_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
+                          states + (size_t)b * (size_t)rows * RIGID_BODY_N_KNOWNS,
+                          iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
+                          kept + b, status + b,
+                          failed_step != NULL ? failed_step + b : &unused_step,
+                          failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
+                          failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
+                          last_iterate != NULL ? last_iterate + (size_t)b * RIGID_BODY_N_UNKNOWNS : NULL);
+}
+
 /* 1 when every entry of v is finite */
 static int rigid_body_all_finite(const double *v, int n)
 {
@@ -1307,18 +1326,8 @@ int rigid_body_simulate_batch(long n_batch, const double *known0, const double *
 #endif
     for (b = 0; b < n_batch; ++b) {
         rigid_body_batch_cursor cursor;
-        int unused_iterations;
-        long unused_step;
-        double unused_norm;
         kept[b] = 0;
-        rigid_body_batch_advance(&cursor, known0 + (size_t)b * RIGID_BODY_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, n_steps, options,
-                              states + (size_t)b * (size_t)rows * RIGID_BODY_N_KNOWNS,
-                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
-                              kept + b, status + b,
-                              failed_step != NULL ? failed_step + b : &unused_step,
-                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
-                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
-                              last_iterate != NULL ? last_iterate + (size_t)b * RIGID_BODY_N_UNKNOWNS : NULL);
+        rigid_body_batch_run(b, &cursor, known0, p, p_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return RIGID_BODY_OK;
 }
@@ -1352,9 +1361,6 @@ int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *curso
 #pragma omp parallel for schedule(dynamic, 1) num_threads(team) if (team > 1)
 #endif
     for (b = 0; b < n_batch; ++b) {
-        int unused_iterations;
-        long unused_step;
-        double unused_norm;
         if (status[b] != RIGID_BODY_OK) {
             continue;
         }
@@ -1362,14 +1368,7 @@ int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *curso
             status[b] = RIGID_BODY_INVALID_ARGUMENT;
             continue;
         }
-        rigid_body_batch_advance(cursors + b, known0 + (size_t)b * RIGID_BODY_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
-                              states + (size_t)b * (size_t)rows * RIGID_BODY_N_KNOWNS,
-                              iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
-                              kept + b, status + b,
-                              failed_step != NULL ? failed_step + b : &unused_step,
-                              failed_iterations != NULL ? failed_iterations + b : &unused_iterations,
-                              failed_residual_norm != NULL ? failed_residual_norm + b : &unused_norm,
-                              last_iterate != NULL ? last_iterate + (size_t)b * RIGID_BODY_N_UNKNOWNS : NULL);
+        rigid_body_batch_run(b, cursors + b, known0, p, p_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return RIGID_BODY_OK;
 }

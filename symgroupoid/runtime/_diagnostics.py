@@ -1,29 +1,9 @@
-"""Structure-preservation diagnostics along a trajectory, evaluated on the expression graph.
-
-Every quantity is a small :class:`~symgroupoid.ir.Program` over the flat known state of the
-step (inputs ``known`` and ``p``), built from the system's own Lagrangian L and constraints
-φ by the window action the step itself comes from (:class:`symgroupoid.derivation.WindowAction`;
-the programs are :func:`symgroupoid.equations.state_programs`): the term T = L + λ·φ is
-captured once on generic slot arrows, differentiated by reverse mode, and instantiated at
-the arrows the state holds; the invariant vector fields X⃖_b, X⃗_b come from the structure
-maps (seed 000 eqs. (1)–(2)).  A whole trajectory is one vectorised evaluation
-(the states are the batch axis); the SymPy residuals of the step are never needed.
-
-Quantities (docs/conventions.md §3, §7):
-
-- discrete momenta (seed 000 §3.3), per state (g_k, λ_k) of a first-order step:
-  ⟨F⁻L(g_k, λ_k), X_b⟩ = X⃗_b[L + λ_k·φ](g_k),  ⟨F⁺L(g_k, λ_k), X_b⟩ = X⃖_b[L + λ_k·φ](g_k);
-  along a solution F⁺L(g_k, λ_k) = F⁻L(g_{k+1}, λ_{k+1}) (the DEL).  Second order (seed 001
-  §4): the momenta of the window (g_{k-1}, g_k, g_{k+1}) of
-  :func:`~symgroupoid.derivation.second_order_legendre_forms`, with
-  F⁺L(state k) = F⁻L(state k+2);
-- the discrete energy: E_d = −∂L_d/∂h(g_k) for a declared step parameter h (the energy a
-  fixed-step variational integrator keeps to O(h²) without drift), or, on a
-  :class:`~symgroupoid.groupoids.TimeGroupoid`, the energy conjugate to time
-  E(g_k) = −X⃖_t[L](g_k) = −∂L/∂t₁(g_k) (seed 000 §6.3), which the adaptive
-  (unconstrained-time) step conserves exactly;
-- constraint residuals: φ on the newest known arrows of each state (first order φ(g_k),
-  second order Φ(g_k, g_{k+1}), nonholonomic ψ(g_k)).
+"""Structure-preservation diagnostics along a trajectory: the programs of
+:func:`symgroupoid.equations.state_programs` (discrete momenta, the discrete energy,
+constraint residuals and Noether quantities of a step's known state; their mathematics and
+seed references are in that module and docs/conventions.md §3, §7) evaluated on all the
+states of a trajectory at once (the states are the batch axis), with the summaries, drifts
+and rounding floors a user reads.
 """
 
 from __future__ import annotations
