@@ -224,3 +224,8 @@ class TimeStepError(DiagnosticsError):
     (``time_step=``) nor has exactly one parameter that behaves as the step in the
     continuous limit (docs/conventions.md §19); the message names the candidates and says
     to pass ``time_step=`` (or ``step_parameter=``)."""
+
+
+class StatusCodeError(SymgroupoidError, ValueError):
+    """``sg.Status(code)`` of a code that is no status of a run (the codes and their
+    meanings: ``list(sg.Status)``, docs/reference/errors.md)."""

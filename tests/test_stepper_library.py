@@ -256,5 +256,14 @@ def test_status_of_boundary_value_errors_and_stopped_runs():
     assert all(s.message and not s.message.endswith(".") for s in Status)
 
 
+@pytest.mark.parametrize("code", [99, -1, 8, "OK", None])
+def test_a_code_that_is_no_status_is_refused_by_name(code):
+    import symgroupoid as sg
+
+    with pytest.raises(sg.StatusCodeError, match="not the code of a run's status.*6 BRANCH_JUMP"):
+        Status(code)
+    assert Status(6) is Status.BRANCH_JUMP and Status(Status.OK) is Status.OK
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(pytest.main([__file__, "-q"]))

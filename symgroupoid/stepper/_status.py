@@ -64,6 +64,15 @@ class Status(enum.IntEnum):
     TIMED_OUT = 11, "its task exceeded the sweep's timeout"
     WORKER_DIED = 12, "its worker process died while running it"
 
+    @classmethod
+    def _missing_(cls, value) -> Status:
+        """A :class:`~symgroupoid.StatusCodeError` naming the codes there are."""
+        from .._errors import StatusCodeError
+
+        codes = ", ".join(f"{int(s)} {s.name}" for s in cls)
+        raise StatusCodeError(f"{value!r} is not the code of a run's status; the codes are "
+                              f"{codes}")
+
     @property
     def kernel(self) -> bool:
         """Whether the C library (and its NumPy twin) returns this status."""
