@@ -121,7 +121,7 @@ def test_batch_inputs_are_checked_and_the_bad_row_named():
     S = np.array([sim.state({"W": rotation(t)}) for t in (0.1, 0.2, 0.3, 0.4)])
     bad = S.copy()
     bad[2, :9] = (2 * rotation(0.3)).ravel()  # not a rotation
-    with pytest.raises(sg.runtime._batch.DomainError, match="initial state 2: .*not in SO"):
+    with pytest.raises(sg.DomainError, match="initial state 2: .*not in SO"):
         sim.simulate_batch(bad, 10, RIGID)
     bad = S.copy()
     bad[3, 4] = np.nan
@@ -147,7 +147,7 @@ def test_constraints_of_each_row_are_checked():
     params = SEED_DATA["plate_ball"][0]
     S = plate_ball_states(sim, 5)
     S[4, 0] += 1e-3  # x_{k-1} moved: the rolling constraints no longer hold
-    with pytest.raises(sg.runtime._batch.DomainError,
+    with pytest.raises(sg.DomainError,
                        match="initial state 4: .*violates the constraints"):
         sim.simulate_batch(S, 10, params)
 
@@ -252,7 +252,7 @@ def test_an_unpickled_simulator_checks_states_and_parameters_as_the_original():
     sim = compiled("rigid_body")
     copy = pickle.loads(pickle.dumps(sim))
     assert type(copy.equations).__name__ == "DetachedStep"
-    with pytest.raises(sg.runtime._batch.DomainError, match="not in SO"):
+    with pytest.raises(sg.DomainError, match="not in SO"):
         copy.simulate({"W": 2 * np.eye(3)}, 2, RIGID)
     with pytest.raises(sg.ParameterError, match="declared positive"):
         copy.simulate({"W": rotation(0.1)}, 2, {**RIGID, "h": -0.1})
@@ -295,7 +295,7 @@ def test_a_batch_in_installments_is_bitwise_one_call(backend, every, monkeypatch
     """Calls of a single step each (the warm start crossing them), failing runs included,
     give the arrays of one call; the partial batch after a few calls is, run by run, the
     trajectory simulate gives for the steps reached."""
-    from symgroupoid.runtime import _batch
+    from symgroupoid.runtime import _batch_progress
 
     sim = compiled("rigid_body") if backend == "c" else seed_step("rigid_body").compile(
         backend="numpy")
@@ -305,13 +305,13 @@ def test_a_batch_in_installments_is_bitwise_one_call(backend, every, monkeypatch
     steps = 40 if backend == "c" else 12
     whole = sim.kernel.simulate_batch(S, P[0], steps, every, sim.options, 1)
     assert not (whole.status == 0).all()
-    monkeypatch.setattr(_batch, "CALL_SECONDS", 1e-9)  # one step per call
+    monkeypatch.setattr(_batch_progress, "CALL_SECONDS", 1e-9)  # one step per call
     calls: list = []
 
     def stop_after(n):
         return lambda: calls.append(1) or len(calls) >= n
 
-    progress = _batch.BatchProgress(sim, S, P, steps, every, None)
+    progress = _batch_progress.BatchProgress(sim, S, P, steps, every, None)
     assert progress.work(0, stop_after(10**6))
     assert len(calls) == steps - 1  # asked between calls
     for name in whole.__dataclass_fields__:
@@ -321,11 +321,11 @@ def test_a_batch_in_installments_is_bitwise_one_call(backend, every, monkeypatch
         k = whole.kept[b]
         assert np.array_equal(whole.states[b, :k], progress.out.states[b, :k])
     calls.clear()
-    progress = _batch.BatchProgress(sim, S, P, steps, every, None)
+    progress = _batch_progress.BatchProgress(sim, S, P, steps, every, None)
     assert not progress.work(0, stop_after(9))
-    partial = _batch.TrajectoryBatch(sim, progress.so_far(), P, steps, every)
+    partial = sg.TrajectoryBatch(sim, progress.so_far(), P, steps, every)
     for b in range(len(thetas)):
-        if partial.status[b] == _batch.INTERRUPTED:
+        if partial.status[b] == sg.Status.INTERRUPTED:
             reached = int(partial.failed_step[b])
             assert reached == 9
             assert_same_run(partial[b], sim.simulate(S[b], reached, RIGID, every=every))
@@ -380,7 +380,7 @@ def test_ctrl_c_stops_a_batch_within_a_kernel_call_with_the_partial_batch():
     latency = time.perf_counter() - sent[0]
     timer.join()
     batch = caught.value.batch
-    assert (batch.status == sg.runtime._batch.INTERRUPTED).all()
+    assert (batch.status == sg.Status.INTERRUPTED).all()
     reached = batch.failed_step
     assert (reached > 0).all() and (reached < 2_000_000).all()
     for b in (0, 7):

@@ -15,7 +15,7 @@ import sympy as sp
 import symgroupoid as sg
 from symgroupoid._errors import BoundaryValueDivergenceError
 from symgroupoid.runtime import _bvp
-from symgroupoid.runtime._sweep import _solution_data
+from symgroupoid.runtime._sweep_boundary import _solution_data
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
 h = sp.Symbol("h", positive=True)

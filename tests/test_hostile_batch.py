@@ -53,7 +53,7 @@ from hypothesis import strategies as st
 from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid.runtime._batch import TrajectoryBatch
+from symgroupoid.runtime import TrajectoryBatch
 from symgroupoid.runtime._executors import TIMED_OUT
 
 #: the systems on the NumPy backend (the others step through their C kernels)

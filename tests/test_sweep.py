@@ -320,9 +320,9 @@ def test_reduce_holds_the_states_of_one_part_of_a_task_at_a_time(workers, monkey
     values are copies."""
     import tracemalloc
 
-    from symgroupoid.runtime import _sweep
+    from symgroupoid.runtime import _memory
 
-    monkeypatch.setattr(_sweep, "BATCH_BYTES", 1 << 20)
+    monkeypatch.setattr(_memory, "BATCH_BYTES", 1 << 20)
     sim = compiled("rigid_body")
     S = states(np.linspace(0.05, 0.6, 200))
     total = 200 * 5001 * 8 * sim.layout.n_known
@@ -348,7 +348,7 @@ import resource
 import numpy as np
 import symgroupoid as sg
 from symgroupoid.systems import SEED_SYSTEMS
-from symgroupoid.runtime import _batch
+from symgroupoid.runtime import _memory
 sim = SEED_SYSTEMS["rigid_body"]().euler_lagrange().compile()
 params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
 S = np.array([sim.state({"W": np.eye(3)})] * 2000)
@@ -371,7 +371,7 @@ attempt("reduced", lambda: sg.sweep(sim, S[:40], params, 20000,
 attempt("one_run", lambda: sg.sweep(sim, S[:2], params, 4_000_000,
                                     reduce=lambda t: 0.0, workers=1))
 # within the limit by the count, but not in the address space left: no raw MemoryError
-_batch.available_memory = lambda: 1 << 40
+_memory.available_memory = lambda: 1 << 40
 attempt("allocation", lambda: sim.simulate_batch(S[:1000], 20000, params))
 """
 
@@ -439,7 +439,7 @@ def test_ctrl_c_stops_a_threaded_sweep_within_a_second_keeping_what_is_done(hang
     timer.join()
     res = caught.value.result
     assert isinstance(res, sg.SweepResult) and res.shape == (64,)
-    stopped = res.status == sg.runtime._sweep.INTERRUPTED
+    stopped = res.status == sg.Status.INTERRUPTED
     assert stopped.any() and (res.ok | stopped).all()
     assert not hang or (hung and not res.ok.any())
     for r in np.flatnonzero(res.ok)[:1]:
@@ -569,7 +569,7 @@ def test_a_task_over_its_timeout_is_recorded_and_the_sweep_goes_on():
     res = sg.sweep(sim, S, RIGID, 10_000_000, reduce=lambda t: t.states[-1, 0], workers=2,
                    chunk_size=1, timeout=0.3)
     assert time.perf_counter() - t0 < 5.0
-    assert (res.status == sg.runtime._sweep.TIMED_OUT).all()
+    assert (res.status == sg.Status.TIMED_OUT).all()
     assert (res.failed_step > 0).all() and all(v is None for v in res.values)
     assert "timeout" in res.messages[0]
     with pytest.raises(sg.DomainError, match="timeout must be a positive"):
@@ -592,7 +592,7 @@ def test_a_run_that_ends_its_worker_process_is_recorded_the_others_returned(monk
 
     res = sg.sweep(sim, S, RIGID, 50, reduce=exits_on_4, workers=2, chunk_size=3,
                    executor="process")
-    assert res.status.tolist() == [0, 0, 0, 0, sg.runtime._sweep.WORKER_DIED, 0]
+    assert res.status.tolist() == [0, 0, 0, 0, sg.Status.WORKER_DIED, 0]
     assert res.messages[4] == ("run 4: its worker process died while running it "
                                "(exit code 3)")
     for r in (0, 3, 5):
@@ -621,7 +621,7 @@ def test_a_worker_that_dies_on_one_run_costs_only_that_run(monkeypatch):
     res = sg.sweep(sim, S, RIGID, 200, reduce=dies_on_5_and_9, workers=2, chunk_size=4,
                    executor="process")
     serial = sg.sweep(sim, S, RIGID, 200, reduce=lambda t: t.states[-1, 0], workers=1)
-    died = sg.runtime._sweep.WORKER_DIED
+    died = sg.Status.WORKER_DIED
     assert res.status[5] == died and "exit code 3" in res.messages[5]
     assert res.status[9] == died and "SIGKILL" in res.messages[9]
     others = np.ones(12, bool)
@@ -645,7 +645,7 @@ def test_a_hanging_reduce_on_a_process_is_stopped_by_the_timeout(monkeypatch):
 
     res = sg.sweep(sim, S, RIGID, 100, reduce=hangs_on_2, workers=2, chunk_size=1,
                    executor="process", timeout=3.0)
-    assert res.status.tolist() == [0, 0, sg.runtime._sweep.TIMED_OUT, 0]
+    assert res.status.tolist() == [0, 0, sg.Status.TIMED_OUT, 0]
     assert "timeout=3 s" in res.messages[2]
 
 

@@ -8,7 +8,10 @@ from ._compile import compile_step
 from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
 from ._simulator import Simulator
-from ._sweep import ReduceError, SweepResult, sweep, sweep_boundary_value
+from ._sweep import sweep
+from ._sweep_boundary import sweep_boundary_value
+from ._sweep_result import SweepResult
+from ._sweep_tasks import ReduceError
 from ._trajectory import Trajectory
 
 __all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "DetachedStepError",
