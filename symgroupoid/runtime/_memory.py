@@ -63,7 +63,7 @@ KEEP_FEWER = "keep fewer with every=k, or reduce each run on the fly with sweep(
 
 
 def too_large(sim, runs: int, rows: int, steps: int, every: int, limit: int | None,
-               held: str = "", failed: Exception | None = None,
+              held: str = "", failed: Exception | None = None,
                advice: str = KEEP_FEWER) -> Exception:
     from .._errors import TrajectoryTooLargeError
 
@@ -80,7 +80,7 @@ def too_large(sim, runs: int, rows: int, steps: int, every: int, limit: int | No
 
 
 def check_memory(sim, runs: int, rows: int, steps: int, every: int, held: str = "",
-                  advice: str = KEEP_FEWER) -> None:
+                 advice: str = KEEP_FEWER) -> None:
     """A :class:`TrajectoryTooLargeError` up front when ``runs`` runs of ``rows`` kept
     states would not fit in :func:`available_memory`."""
     limit = available_memory()
@@ -89,7 +89,7 @@ def check_memory(sim, runs: int, rows: int, steps: int, every: int, held: str = 
 
 
 def memory_plan(sim, steps: int, every: int, reduced: bool, total: int, mode: str,
-                 workers: int) -> int:
+                workers: int) -> int:
     """Runs per part of a task (held at once by a worker), after checking that what the
     sweep holds at once fits in memory (a :class:`TrajectoryTooLargeError` up front).
 

@@ -57,7 +57,7 @@ def _seconds_per_run(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
 
 
 def task_runs(sim, S, P, steps: int, every: int, options, total: int, workers: int,
-               mode: str, chunk_size: int | None, batch_runs: int) -> int:
+              mode: str, chunk_size: int | None, batch_runs: int) -> int:
     """Runs per task: ``chunk_size``; on threads (no per-task cost to speak of) about
     ``TASKS_PER_WORKER`` tasks per worker, each at most one part (``batch_runs``); on
     processes and Dask, from a pilot run (:func:`chunk_runs`)."""

@@ -82,7 +82,6 @@ def _validated_pairs(sim, S, P, grid: Grid) -> None:
                           labels=lambda k, a=a: grid.index(a + k))
 
 
-
 def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str = "product",
           reduce: Callable | None = None, every: int = 1,
           options: NewtonOptions | None = None, reduce_failures: bool = False,
@@ -150,14 +149,14 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
         check_sendable(reduce, owner)
     batch_runs = memory_plan(sim, steps, every, reduce is not None, total, mode, workers)
     size = task_runs(sim, S, P, steps, every, options, total, workers, mode, chunk_size,
-                      batch_runs)
+                     batch_runs)
     jobs = []
     for a in range(0, total, size):
         i, j = grid.rows(a, min(total, a + size))
         jobs.append(SimulationJob(a, S[i], P[j] if len(P) > 1 else P[:1]))
     task = SimulationTask(sim, steps, every, options, reduce, reduce_failures, batch_runs)
     collected = Collected(sim.name, grid.shape, total, Progress(total, progress,
-                                                                   f"sweep {sim.name}"))
+                                                                f"sweep {sim.name}"))
     trajectories = np.empty(total, dtype=object) if reduce is None else None
 
     def receive(res: ChunkResult) -> None:

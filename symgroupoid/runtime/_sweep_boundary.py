@@ -233,7 +233,7 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     task = BoundaryValueTask(system, steps, dict(solver_options), guess, reduce,
                              reduce_failures, continuation)
     collected = Collected(owner, shape, total, Progress(total, progress,
-                                                          f"boundary values {owner}"))
+                                                       f"boundary values {owner}"))
     solutions = np.empty(total, dtype=object) if reduce is None else None
 
     def receive(results: list) -> None:

@@ -161,7 +161,7 @@ def _collect(shape: tuple, n: int):
 
 
 def stack_values(parts: list[tuple[int, list]], status: np.ndarray, shape: tuple
-                  ) -> np.ndarray:
+                 ) -> np.ndarray:
     """The reduced values as one array (numeric: shape + value shape, NaN where a run has
     no value; otherwise an object array)."""
     n = len(status)

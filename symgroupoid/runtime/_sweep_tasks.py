@@ -90,7 +90,9 @@ class Grid:
 
 
 def sweep_grid(combine: str, n_states: int, n_params: int, one_state: bool,
-          one_param: bool, owner: str) -> Grid:
+               one_param: bool, owner: str) -> Grid:
+    """The :class:`Grid` of a sweep's runs (``zip`` pairs tables of one length, or a single
+    state or set with all)."""
     if combine == "zip" and not (one_state or one_param) and n_states != n_params:
         raise ShapeError(f"{owner}: combine='zip' pairs the i-th initial state with the i-th "
                          f"parameter set; got {n_states} states and {n_params} sets")
