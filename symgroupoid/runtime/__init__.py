@@ -2,14 +2,13 @@
 
 from .._errors import CacheError
 from ._batch import TrajectoryBatch
-from ._build import CompilationError, CompilerNotFoundError
-from ._cache import cache_root
 from ._compile import compile_step
 from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
 from ._simulator import Simulator
 from ._sweep import ReduceError, SweepResult, sweep, sweep_boundary_value
 from ._trajectory import Trajectory
+from .toolchain import CompilationError, CompilerNotFoundError, cache_root
 
 __all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "DetachedStepError",
            "NewtonOptions", "NotPortableError", "ReduceError", "Simulator", "SweepResult",
