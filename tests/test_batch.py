@@ -29,9 +29,9 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid.runtime import _compile
-from symgroupoid.runtime._build import DEFAULT_FLAGS
+from symgroupoid.runtime import toolchain
 from symgroupoid.runtime._pickle import DetachedStepError, NotPortableError
+from symgroupoid.runtime.toolchain import DEFAULT_FLAGS
 
 pytestmark = needs_cc
 
@@ -153,7 +153,7 @@ def test_constraints_of_each_row_are_checked():
 
 
 def test_openmp_and_serial_builds_agree_bitwise():
-    if not _compile.openmp_available():
+    if not toolchain.openmp_available():
         pytest.skip("the C compiler does not support OpenMP")
     threaded = compiled("rigid_body")
     serial = seed_step("rigid_body").compile(backend="c", flags=DEFAULT_FLAGS)

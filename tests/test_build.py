@@ -22,8 +22,9 @@ from symgroupoid.codegen._kernel import (
     assign_units,
     stepper_statements,
 )
-from symgroupoid.runtime import CompilationError, _build, _cache, _compile
+from symgroupoid.runtime import CompilationError, _compile, toolchain
 from symgroupoid.runtime._simulator import Simulator
+from symgroupoid.runtime.toolchain import _cffi_build, _flags, _kernels, _openmp
 from symgroupoid.systems import planar_chain
 
 pytestmark = needs_cc
@@ -82,28 +83,28 @@ def test_the_stepper_cost_grows_with_its_unrolled_size():
 
 
 def test_a_cold_unit_is_lowered_only_from_the_optimising_levels():
-    assert _build.unit_flags(("-O3", "-ffp-contract=off"), "cold") == (
-        "-O3", "-ffp-contract=off", _build.COLD_LEVEL)
-    assert _build.unit_flags(("-O3", "-fopenmp"), "step") == ("-O3", "-fopenmp")
+    assert toolchain.unit_flags(("-O3", "-ffp-contract=off"), "cold") == (
+        "-O3", "-ffp-contract=off", toolchain.COLD_LEVEL)
+    assert toolchain.unit_flags(("-O3", "-fopenmp"), "step") == ("-O3", "-fopenmp")
     for kept in (("-O0",), ("-O2", "-Og"), ("-Os",), ("-march=native",), ()):
-        assert _build.unit_flags(kept, "cold") == kept
+        assert toolchain.unit_flags(kept, "cold") == kept
     with pytest.raises(ValueError, match="role"):
-        _build.unit_flags(("-O3",), "hot")
+        toolchain.unit_flags(("-O3",), "hot")
 
 
 def test_block_units_are_lowered_from_the_optimising_levels():
     """A block unit is built at BLOCK_LEVEL after the optimising levels (and balanced for
     it); at -O0, -Os or -Og it keeps the build's flags (weight 1)."""
-    for operations in (10, _build.SMALL_STEP + 1, _build.LARGE_PROGRAM + 1):
-        for default in (_build.optimisation_flags(operations, step=True),
-                        (*_build.optimisation_flags(operations, step=True), "-fopenmp")):
-            assert _build.unit_flags(default, "blocks") == (*default, _build.BLOCK_LEVEL)
-            assert _build.unit_flags(default, "step") == default
+    for operations in (10, toolchain.SMALL_STEP + 1, toolchain.LARGE_PROGRAM + 1):
+        for default in (toolchain.optimisation_flags(operations, step=True),
+                        (*toolchain.optimisation_flags(operations, step=True), "-fopenmp")):
+            assert toolchain.unit_flags(default, "blocks") == (*default, toolchain.BLOCK_LEVEL)
+            assert toolchain.unit_flags(default, "step") == default
             level = [f for f in default if f.startswith("-O")][-1]
-            assert _build.block_weight(default) == _build.BLOCK_WEIGHTS[level] < 1
+            assert toolchain.block_weight(default) == _flags.BLOCK_WEIGHTS[level] < 1
     for kept in (("-O0",), ("-Os", "-g"), ("-O3", "-Og"), ("-march=native",), ()):
-        assert _build.unit_flags(kept, "blocks") == kept
-        assert _build.block_weight(kept) == 1.0
+        assert toolchain.unit_flags(kept, "blocks") == kept
+        assert toolchain.block_weight(kept) == 1.0
 
 
 def test_only_a_kernel_without_library_calls_has_block_units():
@@ -175,20 +176,20 @@ def test_weighted_units_finish_together():
 
 
 def test_the_optimisation_level_follows_the_kind_and_size_of_a_kernel():
-    small, mid, large = _build.SMALL_STEP, _build.SMALL_STEP + 1, _build.LARGE_PROGRAM + 1
-    contract = _build.DEFAULT_FLAGS[1:]
-    assert _build.optimisation_flags(small, step=True) == (*_build.SMALL_STEP_LEVEL, *contract)
-    assert _build.optimisation_flags(mid, step=True) == (*_build.DEFAULT_FLAGS,
-                                                         *_build.LARGE_STEP_FLAGS)
-    assert _build.optimisation_flags(large, step=True) == ("-O2", *contract,
-                                                           *_build.LARGE_STEP_FLAGS)
+    small, mid, large = toolchain.SMALL_STEP, toolchain.SMALL_STEP + 1, toolchain.LARGE_PROGRAM + 1
+    contract = toolchain.DEFAULT_FLAGS[1:]
+    assert toolchain.optimisation_flags(small, step=True) == (*_flags.SMALL_STEP_LEVEL, *contract)
+    assert toolchain.optimisation_flags(mid, step=True) == (*toolchain.DEFAULT_FLAGS,
+                                                         *_flags.LARGE_STEP_FLAGS)
+    assert toolchain.optimisation_flags(large, step=True) == ("-O2", *contract,
+                                                           *_flags.LARGE_STEP_FLAGS)
     for operations in (0, small, mid):  # window programs and other kernels: -O3 up to large
-        assert _build.optimisation_flags(operations) == _build.DEFAULT_FLAGS
-    assert _build.optimisation_flags(large) == ("-O2", *contract)
+        assert toolchain.optimisation_flags(operations) == toolchain.DEFAULT_FLAGS
+    assert toolchain.optimisation_flags(large) == ("-O2", *contract)
     step = planar_chain(2).euler_lagrange()
-    assert _compile._step_flags(step, None)[:4] == (*_build.SMALL_STEP_LEVEL, *contract)
-    assert _build.unit_flags(_build.optimisation_flags(small, step=True), "cold") == (
-        *_build.SMALL_STEP_LEVEL, *contract, _build.COLD_LEVEL)
+    assert toolchain.step_flags(step, None)[:4] == (*_flags.SMALL_STEP_LEVEL, *contract)
+    assert toolchain.unit_flags(toolchain.optimisation_flags(small, step=True), "cold") == (
+        *_flags.SMALL_STEP_LEVEL, *contract, toolchain.COLD_LEVEL)
 
 
 def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatch):
@@ -203,10 +204,10 @@ def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatc
     assert f"int {prefix}_simulate(" not in three.units[0][1]
     assert f"{prefix}_residual_jacobian(" not in three.source.split(f"{prefix}_newton(")[0]
     commands: list = []
-    run = _build._run
-    monkeypatch.setattr(_build, "_run", lambda kernel, cmds, *a, **k: (
+    run = _cffi_build._run
+    monkeypatch.setattr(_cffi_build, "_run", lambda kernel, cmds, *a, **k: (
         commands.extend(cmds), run(kernel, cmds, *a, **k))[1])
-    kernel, entry = _compile.load_kernel_source(three, _compile.default_flags(), step.name,
+    kernel, entry = _compile.load_kernel_source(three, toolchain.default_flags(), step.name,
                                                 len(step.unknowns), len(step.knowns))
     assert sorted(p.name for p in entry.iterdir() if p.suffix == ".c") == sorted(
         [f"{prefix}.c", f"{prefix}_cold.c", f"{prefix}_unit1.c"])
@@ -216,11 +217,11 @@ def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatc
 
     cold_runs = [c for c in commands if f"{prefix}_cold.c" in c]
     assert len(commands) == 4 and len(cold_runs) == 1, commands  # 3 units, 1 link
-    assert level(cold_runs[0]) == _build.COLD_LEVEL
+    assert level(cold_runs[0]) == toolchain.COLD_LEVEL
     assert all(level(c) == "-O3" for c in commands if c not in cold_runs)  # explicit flags
     state = chain_state(2)
     numpy = step.compile(backend="numpy")
-    whole = _compile.load_kernel_source(one, _compile.default_flags(), step.name,
+    whole = _compile.load_kernel_source(one, toolchain.default_flags(), step.name,
                                         len(step.unknowns), len(step.knowns))[0]
     split = Simulator(step, kernel, numpy.options)
     c = split.simulate(state, 40, PARAMS).states
@@ -252,8 +253,8 @@ def test_block_units_at_their_level_compute_what_every_other_build_computes(monk
 
     step = spherical_chain(2).euler_lagrange()
     commands: list = []
-    run = _build._run
-    monkeypatch.setattr(_build, "_run", lambda kernel, cmds, *a, **k: (
+    run = _cffi_build._run
+    monkeypatch.setattr(_cffi_build, "_run", lambda kernel, cmds, *a, **k: (
         commands.extend(cmds), run(kernel, cmds, *a, **k))[1])
 
     def levels():
@@ -268,13 +269,13 @@ def test_block_units_at_their_level_compute_what_every_other_build_computes(monk
 
     lowered = step.compile(backend="c")
     assert lowered.kernel.block_units
-    assert levels() == {f"{step.name}.c": _build.SMALL_STEP_LEVEL[0],
-                        f"{step.name}_unit1.c": _build.BLOCK_LEVEL}
+    assert levels() == {f"{step.name}.c": _flags.SMALL_STEP_LEVEL[0],
+                        f"{step.name}_unit1.c": toolchain.BLOCK_LEVEL}
     explicit = step.compile(backend="c", flags=list(lowered.kernel.flags))
     assert not explicit.kernel.block_units
     assert explicit.kernel.source_key != lowered.kernel.source_key
-    assert levels() == {f"{step.name}.c": _build.SMALL_STEP_LEVEL[0],
-                        f"{step.name}_unit1.c": _build.SMALL_STEP_LEVEL[0]}
+    assert levels() == {f"{step.name}.c": _flags.SMALL_STEP_LEVEL[0],
+                        f"{step.name}_unit1.c": _flags.SMALL_STEP_LEVEL[0]}
     one = generate_c(step, latex=False)
     whole = _compile.load_kernel_source(one, ["-O3", "-ffp-contract=off"], step.name,
                                         len(step.unknowns), len(step.knowns))[0]
@@ -290,8 +291,8 @@ def test_block_units_at_their_level_compute_what_every_other_build_computes(monk
     assert np.array_equal(states, step.compile(backend="numpy").simulate(
         state, 40, PARAMS).states)
     for sim in (lowered, explicit):  # generated again alike (source key checked)
-        _compile._RECIPES.pop(sim.kernel.source_key)
-        assert bool(_compile.kernel_source_of(sim.kernel, step).blocks) == \
+        _kernels._RECIPES.pop(sim.kernel.source_key)
+        assert bool(toolchain.kernel_source_of(sim.kernel, step).blocks) == \
             sim.kernel.block_units
 
 
@@ -304,7 +305,7 @@ def test_a_large_kernel_splits_its_functions_over_units_too(monkeypatch):
     assert [name for name, _ in two.units] == [f"{two.prefix}_unit1.c", f"{two.prefix}_cold.c"]
     assert re.search(r"static void \w+_part\d+\(", two.source)
     assert re.search(r"_UNIT_LOCAL void \w+_part\d+\(", two.units[0][1])
-    kernel, _ = _compile.load_kernel_source(two, _compile.default_flags(), step.name,
+    kernel, _ = _compile.load_kernel_source(two, toolchain.default_flags(), step.name,
                                             len(step.unknowns), len(step.knowns))
     numpy = step.compile(backend="numpy")
     state = chain_state(4)
@@ -320,7 +321,7 @@ def test_a_unit_the_compiler_rejects_is_a_compilation_error():
         _compile.load_kernel_source(two, ["-fno-such-option-for-symgroupoid"], step.name,
                                     len(step.unknowns), len(step.knowns))
     assert "-fno-such-option-for-symgroupoid" in info.value.output
-    assert not list((_cache.cache_root() / "kernels").glob("*"))
+    assert not list((toolchain.cache_root() / "kernels").glob("*"))
 
 
 # --- the compile path -------------------------------------------------------------------------
@@ -380,18 +381,18 @@ def test_the_type_table_agrees_with_the_compiled_header(tmp_path):
 
 def test_a_damaged_type_table_is_detected_and_rebuilt():
     step = planar_chain(1).euler_lagrange()
-    flags = _compile._step_flags(step, None)
-    cache = _cache.KernelCache(_cache.cache_root())
-    key = _compile.input_key(step, flags)
-    source_key, manifest = _compile._build(step, flags, cache, key)
-    path = cache.entry(source_key) / _cache.MANIFEST
+    flags = toolchain.step_flags(step, None)
+    cache = toolchain.KernelCache(toolchain.cache_root())
+    key = toolchain.input_key(step, flags)
+    source_key, manifest = toolchain.build_step(step, flags, cache, key)
+    path = cache.entry(source_key) / toolchain.MANIFEST
     table = manifest["types"]
     damaged = {**manifest, "types": {**table, "_version": table["_version"] + 1}}
     path.write_text(json.dumps(damaged))
     assert cache.verified_manifest(source_key) is None
-    builds = _compile.STATS["builds"]
+    builds = toolchain.STATS["builds"]
     sim = sg.compile_step(step, backend="c")
-    assert _compile.STATS["builds"] == builds + 1
+    assert toolchain.STATS["builds"] == builds + 1
     assert sim.simulate(chain_state(1), 5, PARAMS).states.shape == (6, 2)
 
 
@@ -408,7 +409,7 @@ print(sim.backend)
 def test_building_needs_neither_setuptools_nor_python_headers(tmp_path):
     import sysconfig
 
-    from symgroupoid.runtime._build import build_command
+    from symgroupoid.runtime.toolchain import build_command
 
     include = sysconfig.get_paths()["include"]
     assert not any(include in word for word in build_command("k.c", "k.so", ["-O2"]))
@@ -425,32 +426,32 @@ def test_the_openmp_probe_runs_while_the_c_is_generated(monkeypatch, tmp_path):
     probe in the background (start_openmp_probe), generates the C meanwhile and builds from
     that C; the answer is the probe's, kept in the process and in the cache; a known answer
     starts nothing, and SYMGROUPOID_OPENMP=0 never probes."""
-    monkeypatch.setattr(_compile, "_OPENMP", {})
-    monkeypatch.setattr(_compile, "_PENDING", {})
+    monkeypatch.setattr(_openmp, "_OPENMP", {})
+    monkeypatch.setattr(_openmp, "_PENDING", {})
     calls = []
-    real = _compile._openmp_probe.__wrapped__
+    real = _openmp._openmp_probe.__wrapped__
 
     def probe(command):
         calls.append(tuple(command))
         return real(command)
 
-    monkeypatch.setattr(_compile, "_openmp_probe", probe)
+    monkeypatch.setattr(_openmp, "_openmp_probe", probe)
     step = planar_chain(2).euler_lagrange()
-    before = _compile.STATS["codegen"]
+    before = toolchain.STATS["codegen"]
     sim = sg.compile_step(step, backend="c", cache_dir=tmp_path)
-    assert len(calls) == 1 and _compile.STATS["codegen"] == before + 1  # C generated once
+    assert len(calls) == 1 and toolchain.STATS["codegen"] == before + 1  # C generated once
     answer = real(calls[0])
-    assert _compile.openmp_available(tmp_path) is answer
+    assert toolchain.openmp_available(tmp_path) is answer
     assert ("-fopenmp" in sim.kernel.flags) is answer
     assert list((tmp_path / "probes").glob("openmp-*.json"))
-    assert not _compile.start_openmp_probe(tmp_path)  # known in this process
-    monkeypatch.setattr(_compile, "_OPENMP", {})
-    assert not _compile.start_openmp_probe(tmp_path)  # known in the cache
-    assert not _compile.start_openmp_probe(tmp_path / "fresh") or _compile.openmp_available(
+    assert not toolchain.start_openmp_probe(tmp_path)  # known in this process
+    monkeypatch.setattr(_openmp, "_OPENMP", {})
+    assert not toolchain.start_openmp_probe(tmp_path)  # known in the cache
+    assert not toolchain.start_openmp_probe(tmp_path / "fresh") or toolchain.openmp_available(
         tmp_path / "fresh") is answer
     monkeypatch.setenv("SYMGROUPOID_OPENMP", "0")
-    monkeypatch.setattr(_compile, "_OPENMP", {})
-    assert not _compile.start_openmp_probe(tmp_path / "other")
+    monkeypatch.setattr(_openmp, "_OPENMP", {})
+    assert not toolchain.start_openmp_probe(tmp_path / "other")
     assert len(calls) <= 2
 
 

@@ -16,8 +16,8 @@ import sympy as sp
 from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid.runtime import CompilationError, CompilerNotFoundError, _compile, cache_root
-from symgroupoid.runtime._build import translation_units
+from symgroupoid.runtime import CompilationError, CompilerNotFoundError, cache_root, toolchain
+from symgroupoid.runtime.toolchain import _step_kernel, translation_units
 
 pytestmark = needs_cc
 
@@ -26,7 +26,7 @@ import json, os, sys, time
 from pathlib import Path
 import sympy as sp
 import symgroupoid as sg
-from symgroupoid.runtime import _compile
+from symgroupoid.runtime import toolchain
 
 h, k = sp.symbols("h k", positive=True)
 def L(g):
@@ -43,7 +43,7 @@ t0 = time.process_time()  # CPU time: a busy machine does not inflate it
 sim = sg.compile_step(step, backend="c")
 seconds = time.process_time() - t0
 traj = sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0})
-print(json.dumps({"seconds": seconds, "entry": str(sim.cache_entry), **_compile.STATS,
+print(json.dumps({"seconds": seconds, "entry": str(sim.cache_entry), **toolchain.STATS,
                   "final": traj.states[-1].tolist()}))
 """
 
@@ -134,9 +134,9 @@ def _entry_and_manifest(cache: Path) -> tuple[Path, dict]:
 def test_damaged_cache_entry_is_detected_and_rebuilt(damage):
     """Built here without loading (a library loaded by this process is never damaged)."""
     step = oscillator()
-    flags = _compile._step_flags(step, None)  # what compile_step builds by default
-    cache = sg.runtime._cache.KernelCache(cache_root())
-    _compile._build(step, flags, cache, _compile.input_key(step, flags))
+    flags = toolchain.step_flags(step, None)  # what compile_step builds by default
+    cache = sg.runtime.toolchain.KernelCache(cache_root())
+    toolchain.build_step(step, flags, cache, toolchain.input_key(step, flags))
     reference = step.compile(backend="numpy").simulate({"q": (1.0, 0.999)}, 100,
                                                       {"h": 0.01, "k": 1.0}).states[-1]
     entry, manifest = _entry_and_manifest(cache_root())
@@ -152,7 +152,7 @@ def test_damaged_cache_entry_is_detected_and_rebuilt(damage):
     assert (again["codegen"], again["builds"]) == (1, 1)
     assert np.abs(np.array(again["final"]) - reference).max() <= 1e-12
     entry, manifest = _entry_and_manifest(cache_root())
-    assert sg.runtime._cache.file_sha256(entry / manifest["library"]) == manifest["sha256"]
+    assert sg.runtime.toolchain.file_sha256(entry / manifest["library"]) == manifest["sha256"]
     assert cache_contents(cache_root())["tmp"] == []
 
 
@@ -181,7 +181,7 @@ def test_missing_compiler_falls_back_to_numpy(monkeypatch, tmp_path):
     (tmp_path / "no-compiler").mkdir()
     monkeypatch.setenv("PATH", str(tmp_path / "no-compiler"))
     with pytest.raises(CompilerNotFoundError):
-        _compile.find_compiler()
+        toolchain.find_compiler()
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert sg.compile_step(step).backend == "c"
@@ -201,30 +201,30 @@ def test_backend_selection(monkeypatch):
 
 def test_fingerprint_distinguishes_and_is_stable():
     x, y = sp.symbols("x y", real=True)
-    fp = _compile.fingerprint
+    fp = toolchain.fingerprint
     assert fp([x + 2 * y]) == fp([2 * y + x])
     assert fp([x + 2 * y]) != fp([x + 3 * y])
     assert fp([x * y, x]) != fp([x, x * y])
     assert fp([sp.Float("0.1") * x]) != fp([sp.Rational(1, 10) * x])
     assert fp([sp.Symbol("x", real=True)]) != fp([sp.Symbol("x", positive=True)])
     step = oscillator()
-    assert _compile.input_key(step, ["-O2"]) == _compile.input_key(oscillator(), ["-O2"])
-    assert _compile.input_key(step, ["-O2"]) != _compile.input_key(step, ["-O3"])
+    assert toolchain.input_key(step, ["-O2"]) == toolchain.input_key(oscillator(), ["-O2"])
+    assert toolchain.input_key(step, ["-O2"]) != toolchain.input_key(step, ["-O3"])
 
 
 def test_codegen_digest_covers_the_build_rules(monkeypatch, tmp_path):
-    """The kernel cache's code digest hashes the code generator, the expression graph,
-    runtime/_compile.py (step_kernel) and runtime/_build.py (whose per-unit flags a cache
-    key's flags do not all name), by content."""
-    package = Path(_compile.__file__).resolve().parents[1]
-    sources = _compile.codegen_sources()
-    assert package / "runtime" / "_build.py" in sources
-    assert package / "runtime" / "_compile.py" in sources
+    """The kernel cache's code digest hashes the code generator, the expression graph and
+    the toolchain's build rules (step_kernel, the per-unit flags a cache key's flags do not
+    all name, the compiler's command lines and the build of the units), by content."""
+    package = Path(toolchain.__file__).resolve().parents[2]
+    sources = toolchain.codegen_sources()
+    for name in ("_step_kernel.py", "_flags.py", "_compiler.py", "_cffi_build.py"):
+        assert package / "runtime" / "toolchain" / name in sources
     for folder in ("codegen", "ir"):
         assert set((package / folder).glob("*.py")) <= set(sources)
-    rules = tmp_path / "_build.py"
+    rules = tmp_path / "_flags.py"
     rules.write_text("COLD_LEVEL = '-O1'\n", encoding="ascii")
-    monkeypatch.setattr(_compile, "codegen_sources", lambda: [rules])
-    before = _compile.codegen_digest.__wrapped__()
+    monkeypatch.setattr(_step_kernel, "codegen_sources", lambda: [rules])
+    before = toolchain.codegen_digest.__wrapped__()
     rules.write_text("COLD_LEVEL = '-O0'\n", encoding="ascii")
-    assert _compile.codegen_digest.__wrapped__() != before
+    assert toolchain.codegen_digest.__wrapped__() != before

@@ -26,9 +26,9 @@ import symgroupoid as sg
 from symgroupoid.codegen import emit_c
 from symgroupoid.codegen._emit import generate_program_c
 from symgroupoid.ir import Graph, Program, from_sympy
-from symgroupoid.runtime import CacheError, CompilationError, _cache, _compile
-from symgroupoid.runtime._build import optimisation_flags
+from symgroupoid.runtime import CacheError, CompilationError, toolchain
 from symgroupoid.runtime._programs import compile_program
+from symgroupoid.runtime.toolchain import _kernels, _roots, optimisation_flags
 
 pytestmark = needs_cc
 
@@ -54,14 +54,14 @@ oscillator = _namespace["oscillator"]
 
 SCRIPT = OSCILLATOR + '''
 import json, sys, warnings
-from symgroupoid.runtime import _compile
+from symgroupoid.runtime import toolchain
 
 with warnings.catch_warnings(record=True) as caught:
     warnings.simplefilter("always")
     sim = sg.compile_step(oscillator(), backend="c")
     final = sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1]
 print(json.dumps({"warnings": [str(w.message) for w in caught], "entry": str(sim.cache_entry),
-                  "backend": sim.backend, "final": final.tolist(), **_compile.STATS}))
+                  "backend": sim.backend, "final": final.tolist(), **toolchain.STATS}))
 '''
 
 CC_WRAPPER = """#!/bin/sh
@@ -74,7 +74,7 @@ exec cc "$@"
 @pytest.fixture
 def cache_dir() -> Path:
     """This test's (empty, not yet created) cache root, set up by ``isolated_cache``."""
-    return _cache.cache_root()
+    return toolchain.cache_root()
 
 
 def reference_final() -> np.ndarray:
@@ -189,22 +189,22 @@ def test_threads_building_kernels_at_once(cache_dir):
         except BaseException as exc:  # noqa: BLE001 - reported below
             errors.append(exc)
 
-    builds = _compile.STATS["builds"]
+    builds = toolchain.STATS["builds"]
     threads = [threading.Thread(target=run, args=(i,)) for i in range(len(names))]
     for thread in threads:
         thread.start()
     for thread in threads:
         thread.join(timeout=300)
     assert errors == [] and len(results) == len(names)
-    assert _compile.STATS["builds"] == builds + 3
+    assert toolchain.STATS["builds"] == builds + 3
     assert all(np.abs(r - reference_final()).max() <= 1e-12 for r in results.values())
     assert len(list((cache_dir / "kernels").iterdir())) == 3
 
 
 def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):
     step = oscillator()
-    key = _compile.source_key_of(_compile.step_kernel(step), _compile._step_flags(step, None))
-    _cache.writable_root(cache_dir)
+    key = toolchain.source_key_of(toolchain.step_kernel(step), toolchain.step_flags(step, None))
+    toolchain.writable_root(cache_dir)
     tmp = cache_dir / "tmp"
     live = tmp / f"build-{key}-live"
     dead = tmp / f"build-{'0' * 32}-dead"
@@ -212,15 +212,15 @@ def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):
     for path in (live, dead, old_unkeyed, new_unkeyed):
         path.mkdir()
         (path / "x.o").write_bytes(b"partial")
-    os.utime(old_unkeyed, (time.time() - 2 * _cache.GRACE,) * 2)
+    os.utime(old_unkeyed, (time.time() - 2 * toolchain.GRACE,) * 2)
     fd = os.open(cache_dir / "locks" / f"{key}.lock", os.O_RDWR | os.O_CREAT)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX)  # as a live builder of this kernel holds it
-        _cache.sweep(cache_dir)
+        toolchain.sweep(cache_dir)
         assert sorted(p.name for p in tmp.iterdir()) == sorted([live.name, new_unkeyed.name])
     finally:
         os.close(fd)
-    _cache.sweep(cache_dir)
+    toolchain.sweep(cache_dir)
     assert [p.name for p in tmp.iterdir()] == [new_unkeyed.name]
 
 
@@ -238,7 +238,7 @@ def test_warm_use_removes_a_dead_builders_directory(cache_dir):
 
 def test_waiting_for_a_hung_builder_times_out_clearly(monkeypatch, cache_dir):
     step = oscillator("oscillator_lock")
-    key = _compile.source_key_of(_compile.step_kernel(step), _compile._step_flags(step, None))
+    key = toolchain.source_key_of(toolchain.step_kernel(step), toolchain.step_flags(step, None))
     lock = cache_dir / "locks" / f"{key}.lock"
     lock.parent.mkdir(parents=True)
     fd = os.open(lock, os.O_RDWR | os.O_CREAT)
@@ -324,13 +324,13 @@ def test_layout_directory_that_is_a_file_is_replaced(cache_dir, name):
         warnings.simplefilter("error")
         sim = sg.compile_step(oscillator(), backend="c")
     assert sim.backend == "c" and sim.cache_entry.is_relative_to(cache_dir)
-    assert all((cache_dir / d).is_dir() for d in _cache.SUBDIRS)
+    assert all((cache_dir / d).is_dir() for d in _roots.SUBDIRS)
 
 
 def _build_without_loading(step, cache_root: Path) -> tuple[Path, dict]:
-    cache = _cache.KernelCache(cache_root)
-    flags = _compile._step_flags(step, None)  # what compile_step builds by default
-    _compile._build(step, flags, cache, _compile.input_key(step, flags))
+    cache = toolchain.KernelCache(cache_root)
+    flags = toolchain.step_flags(step, None)  # what compile_step builds by default
+    toolchain.build_step(step, flags, cache, toolchain.input_key(step, flags))
     (entry,) = (cache_root / "kernels").iterdir()
     return entry, json.loads((entry / "manifest.json").read_text())
 
@@ -342,7 +342,7 @@ def _replace_library_consistently(entry: Path, manifest: dict, data: bytes) -> N
     replacement = entry / "replacement"
     replacement.write_bytes(data)
     os.replace(replacement, library)
-    manifest = {**manifest, "sha256": _cache.file_sha256(library)}
+    manifest = {**manifest, "sha256": toolchain.file_sha256(library)}
     (entry / "manifest.json").write_text(json.dumps(manifest))
 
 
@@ -359,7 +359,7 @@ def test_garbage_module_with_matching_manifest_is_rebuilt(cache_dir):
 
 def test_kernel_directory_replaced_by_a_file_is_rebuilt(cache_dir):
     entry, _ = _build_without_loading(oscillator(), cache_dir)
-    _cache.remove_tree(entry)
+    toolchain.remove_tree(entry)
     entry.write_text("in the way")
     again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
     assert (again["builds"], again["loads"]) == (1, 1) and entry.is_dir()
@@ -375,14 +375,14 @@ def test_window_program_with_garbage_module_is_rebuilt(cache_dir):
     program = Program(g, {"a": [x, y]}, {"out": [from_sympy(g, e, nodes)
                                                   for e in (x * y + sp.sin(x), x - y)]})
     kernel = generate_program_c("garbage window", program, "a", "out")
-    _compile.build_cached(kernel, optimisation_flags(program.size()), _cache.KernelCache(),
+    toolchain.build_cached(kernel, optimisation_flags(program.size()), toolchain.KernelCache(),
                           "garbage window")
     (entry,) = (cache_dir / "kernels").iterdir()
     manifest = json.loads((entry / "manifest.json").read_text())
     _replace_library_consistently(entry, manifest, b"garbage" * 64)
-    builds = _compile.STATS["builds"]
+    builds = toolchain.STATS["builds"]
     evaluate = compile_program("garbage window", program, "a", "out")
-    assert _compile.STATS["builds"] == builds + 1
+    assert toolchain.STATS["builds"] == builds + 1
     values = np.array([[0.5, 2.0], [1.0, -1.0]])
     expected = np.stack([values[:, 0] * values[:, 1] + np.sin(values[:, 0]),
                          values[:, 0] - values[:, 1]], axis=1)
@@ -393,11 +393,11 @@ def test_module_that_never_loads_gives_cache_error(monkeypatch, cache_dir):
     def refuse(path, name, *types):
         raise ImportError(f"{path}: failed to map segment from shared object")
 
-    monkeypatch.setattr(_compile, "load_extension", refuse)
-    builds = _compile.STATS["builds"]
+    monkeypatch.setattr(_kernels, "load_extension", refuse)
+    builds = toolchain.STATS["builds"]
     with pytest.raises(CacheError) as info:
         sg.compile_step(oscillator("oscillator_noexec"), backend="c")
-    assert _compile.STATS["builds"] == builds + 2, "built, then rebuilt once"
+    assert toolchain.STATS["builds"] == builds + 2, "built, then rebuilt once"
     text = str(info.value)
     assert str(cache_dir / "kernels") in text and "SYMGROUPOID_CACHE" in text
     assert 'backend="numpy"' in text
@@ -428,7 +428,7 @@ def _has_debug_info(library: Path) -> bool:
 
 def test_builds_carry_debug_information_only_when_asked(cache_dir):
     plain = sg.compile_step(oscillator(), backend="c")
-    flags = _compile._step_flags(oscillator(), None)
+    flags = toolchain.step_flags(oscillator(), None)
     debug = sg.compile_step(oscillator(), backend="c", flags=[*flags, "-g"])
     manifests = [json.loads((sim.cache_entry / "manifest.json").read_text())
                  for sim in (plain, debug)]

@@ -27,8 +27,16 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 import symgroupoid as sg
 from symgroupoid import _progress
 from symgroupoid.cli import main
-from symgroupoid.runtime import CacheError, CompilationError, _build, _cache, _compile
-from symgroupoid.runtime._maintenance import cache_info, clear_cache
+from symgroupoid.runtime import CacheError, CompilationError, toolchain
+from symgroupoid.runtime.toolchain import (
+    _atomic,
+    _kernels,
+    _locks,
+    _processes,
+    _sweep,
+    cache_info,
+    clear_cache,
+)
 
 pytestmark = needs_cc
 
@@ -62,7 +70,7 @@ if os.environ.get("NO_FLOCK"):
     def flock(fd, operation):
         raise OSError(errno.ENOLCK, "No locks available")
     fcntl.flock = flock
-from symgroupoid.runtime import _compile
+from symgroupoid.runtime import toolchain
 
 barrier = os.environ.get("BARRIER")
 if barrier:
@@ -71,7 +79,7 @@ if barrier:
         time.sleep(0.005)
 sim = sg.compile_step(oscillator(), backend="c")
 final = sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1]
-print(json.dumps({"entry": str(sim.cache_entry), "final": final.tolist(), **_compile.STATS}))
+print(json.dumps({"entry": str(sim.cache_entry), "final": final.tolist(), **toolchain.STATS}))
 '''
 
 
@@ -98,32 +106,32 @@ def reference_final() -> np.ndarray:
 @pytest.fixture
 def cache_dir() -> Path:
     """This test's (empty, not yet created) cache root, set up by ``isolated_cache``."""
-    return _cache.cache_root()
+    return toolchain.cache_root()
 
 
 def built(cache_dir: Path, name: str = "oscillator") -> tuple[sg.Simulator, Path, dict]:
     """A kernel compiled into ``cache_dir``: the simulator, its entry and manifest."""
     sim = sg.compile_step(oscillator(name), backend="c")
-    manifest = json.loads((sim.cache_entry / _cache.MANIFEST).read_text())
+    manifest = json.loads((sim.cache_entry / toolchain.MANIFEST).read_text())
     return sim, sim.cache_entry, manifest
 
 
 def compile_anew(name: str = "oscillator", **options) -> tuple[sg.Simulator, int]:
     """``compile_step`` as a new process would run it (nothing loaded or built here
     before): the simulator and how many kernels it built."""
-    _compile._LOADED.clear()
-    _compile._RECIPES.clear()
-    builds = _compile.STATS["builds"]
+    _kernels._LOADED.clear()
+    _kernels._RECIPES.clear()
+    builds = toolchain.STATS["builds"]
     sim = sg.compile_step(oscillator(name), backend="c", **options)
-    return sim, _compile.STATS["builds"] - builds
+    return sim, toolchain.STATS["builds"] - builds
 
 
 def step_key(name: str = "oscillator") -> str:
     step = oscillator(name)
-    return _compile.source_key_of(_compile.step_kernel(step), _compile._step_flags(step, None))
+    return toolchain.source_key_of(toolchain.step_kernel(step), toolchain.step_flags(step, None))
 
 
-def aged(*paths: Path, seconds: float = 2 * _cache.GRACE) -> None:
+def aged(*paths: Path, seconds: float = 2 * toolchain.GRACE) -> None:
     """Make ``paths`` look ``seconds`` old (without following links)."""
     then = time.time() - seconds
     for path in paths:
@@ -176,7 +184,7 @@ def test_a_lock_file_that_is_a_link_is_refused_and_its_target_untouched(tmp_path
     text = str(info.value)
     assert f"{key}.lock" in text and "symbolic link" in text and "rm " in text
     assert target.read_text() == "precious data\n"
-    _cache.sweep(cache_dir)  # the sweep's lock probe never follows it either
+    toolchain.sweep(cache_dir)  # the sweep's lock probe never follows it either
     clear_cache(cache_dir)
     assert target.read_text() == "precious data\n"
     assert (cache_dir / "locks" / f"{key}.lock").is_symlink()
@@ -191,7 +199,7 @@ def test_cache_clear_with_kernels_a_link_leaves_the_other_directory_alone(
     (other / ("ab" * 16)).mkdir()  # even a name like a kernel's
     (other / ("ab" * 16) / "data").write_text("results")
     before = snapshot(other)
-    _cache.remove_tree(cache_dir / "kernels")
+    toolchain.remove_tree(cache_dir / "kernels")
     (cache_dir / "kernels").symlink_to(other)
     with pytest.raises(CacheError, match="kernels is a symbolic link|kernels cannot be trusted"):
         clear_cache()
@@ -216,20 +224,20 @@ def test_first_use_sweep_never_follows_a_linked_directory(tmp_path, cache_dir, n
     before = snapshot(victim)
     shutil.rmtree(cache_dir / name)
     (cache_dir / name).symlink_to(victim)
-    _cache._SWEPT.discard(cache_dir)
+    _sweep._SWEPT.discard(cache_dir)
     with pytest.raises(CacheError) as info:
         sg.compile_step(oscillator("other"), backend="c")
     text = str(info.value)
     assert str(cache_dir / name) in text and "symbolic link" in text
     assert f"rm {cache_dir / name}" in text and "SYMGROUPOID_CACHE" in text
-    _cache.sweep(cache_dir)
+    toolchain.sweep(cache_dir)
     if name == "tmp":  # a new process
         result = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
         assert result.returncode != 0 and "CacheError" in result.stderr
     assert snapshot(victim) == before
 
 
-@pytest.mark.parametrize("name", _cache.INTERNAL)
+@pytest.mark.parametrize("name", toolchain.INTERNAL)
 def test_a_cache_whose_directory_is_a_link_is_refused(tmp_path, cache_dir, name):
     elsewhere = tmp_path / "elsewhere"
     elsewhere.mkdir()
@@ -271,7 +279,7 @@ def test_removing_a_link_never_touches_its_target(tmp_path):
     (target / "sub" / "f").write_text("x")
     link = tmp_path / "link"
     link.symlink_to(target)
-    _cache._remove(link)
+    _atomic._remove(link)
     assert not os.path.lexists(link) and (target / "sub" / "f").read_text() == "x"
 
 
@@ -288,8 +296,8 @@ def test_a_planted_manifest_never_runs_python(tmp_path, cache_dir):
     _, entry, manifest = built(cache_dir)
     marker = tmp_path / "marker"
     code = PLANTED.format(marker=str(marker))
-    planted = {**manifest, "ffi": code, "ffi_sha256": _cache.sha256_of([code])}
-    (entry / _cache.MANIFEST).write_text(json.dumps(planted))
+    planted = {**manifest, "ffi": code, "ffi_sha256": toolchain.sha256_of([code])}
+    (entry / toolchain.MANIFEST).write_text(json.dumps(planted))
     result = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
     assert result.returncode == 0, result.stderr
     assert json.loads(result.stdout.splitlines()[-1])["builds"] == 0  # ignored, still valid
@@ -297,15 +305,15 @@ def test_a_planted_manifest_never_runs_python(tmp_path, cache_dir):
                   {**manifest["types"], "_includes": [{"b64": ""}]},
                   {**manifest["types"], "_types": code}):
         planted = {**manifest, "types": table}
-        planted["types_sha256"] = (_cache.table_sha256(table) if isinstance(table, dict)
+        planted["types_sha256"] = (toolchain.table_sha256(table) if isinstance(table, dict)
                                    else "0" * 64)
-        (entry / _cache.MANIFEST).write_text(json.dumps(planted))
-        assert _cache.entry_defect(entry, entry.name)[0] is None
+        (entry / toolchain.MANIFEST).write_text(json.dumps(planted))
+        assert toolchain.entry_defect(entry, entry.name)[0] is None
         sim, builds = compile_anew()
         assert builds == 1 and sim.cache_entry == entry  # rebuilt
     assert not marker.exists()
     with pytest.raises(ImportError):
-        _build.load_extension(entry / manifest["library"], manifest["module"], {"name": code})
+        toolchain.load_extension(entry / manifest["library"], manifest["module"], {"name": code})
     assert not marker.exists()
 
 
@@ -315,7 +323,7 @@ def test_the_type_table_is_plain_data_checked_before_use(cache_dir):
 
     def kinds(value):
         if isinstance(value, dict):
-            assert set(value) <= {"b64"} | _build.TYPE_TABLE_KEYWORDS | {"name"}
+            assert set(value) <= {"b64"} | toolchain.TYPE_TABLE_KEYWORDS | {"name"}
             return set().union(*(kinds(v) for v in value.values()))
         if isinstance(value, list):
             return set().union(set(), *(kinds(v) for v in value))
@@ -323,7 +331,7 @@ def test_the_type_table_is_plain_data_checked_before_use(cache_dir):
 
     assert kinds(table) <= {"int", "str"}
     assert table["name"] == manifest["module"]
-    ffi = _build.ffi_of(table, manifest["module"])
+    ffi = toolchain.ffi_of(table, manifest["module"])
     assert ffi.sizeof(f"{sim.kernel.prefix}_options") == sim.kernel.ffi.sizeof(
         f"{sim.kernel.prefix}_options")
     for bad in ({**table, "name": "other"}, {**table, "_version": True},
@@ -331,7 +339,7 @@ def test_the_type_table_is_plain_data_checked_before_use(cache_dir):
                 {**table, "_types": {"b64": "not base64!"}}, {**table, "extra": 1},
                 {k: v for k, v in table.items() if k != "_types"}, ["a list"]):
         with pytest.raises(ImportError, match="type table"):
-            _build.ffi_of(bad, manifest["module"])
+            toolchain.ffi_of(bad, manifest["module"])
     assert base64.b64decode(table["_types"]["b64"])  # bytes, as cffi wrote them
 
 
@@ -381,14 +389,14 @@ def _refused(cache_dir: Path, path: Path, why: str) -> None:
 @pytest.mark.parametrize("mode", [0o777, 0o775, 0o757, 0o1777])
 @pytest.mark.parametrize("where", ["root", "kernels"])
 def test_a_cache_others_can_write_is_refused(cache_dir, mode, where):
-    _cache.writable_root(cache_dir)
+    toolchain.writable_root(cache_dir)
     path = cache_dir if where == "root" else cache_dir / where
     path.chmod(mode)
     _refused(cache_dir, path, "writable by")
     with pytest.raises(CacheError, match=r"chmod go-w"):
         sg.compile_step(oscillator(), backend="c")
     path.chmod(0o755)
-    assert _cache.trusted(cache_dir) and cache_info(cache_dir).refused is None
+    assert toolchain.trusted(cache_dir) and cache_info(cache_dir).refused is None
 
 
 as_root = pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0,
@@ -399,7 +407,7 @@ NOBODY = 65534
 @as_root
 @pytest.mark.parametrize("where", ["root", "kernels", "index", "tmp"])
 def test_a_cache_of_another_user_is_refused(cache_dir, where):
-    _cache.writable_root(cache_dir)
+    toolchain.writable_root(cache_dir)
     path = cache_dir if where == "root" else cache_dir / where
     os.chown(path, NOBODY, NOBODY)
     _refused(cache_dir, path, f"another user (uid {NOBODY})")
@@ -410,17 +418,17 @@ def test_a_cache_of_another_user_is_refused(cache_dir, where):
 def test_an_entry_of_another_user_or_writable_by_others_is_rebuilt_not_loaded(
         tmp_path, cache_dir, part):
     _, entry, manifest = built(cache_dir)
-    path = {"entry": entry, "manifest": entry / _cache.MANIFEST,
+    path = {"entry": entry, "manifest": entry / toolchain.MANIFEST,
             "library": entry / manifest["library"]}[part]
     os.chown(path, NOBODY, NOBODY)
-    assert "another user" in _cache.entry_defect(entry, entry.name)[1]
+    assert "another user" in toolchain.entry_defect(entry, entry.name)[1]
     (bad,) = cache_info(cache_dir).bad
     assert "another user" in bad.problem
     assert compile_anew()[1] == 1
     assert os.lstat(entry).st_uid == os.geteuid()
     path = entry / manifest["library"]
     path.chmod(0o777)
-    assert "writable by" in _cache.entry_defect(entry, entry.name)[1]
+    assert "writable by" in toolchain.entry_defect(entry, entry.name)[1]
     assert compile_anew()[1] == 1
 
 
@@ -509,8 +517,8 @@ def _truncate_consistently(entry: Path, manifest: dict, keep: float = 0.5) -> No
     cut = entry / "cut"
     cut.write_bytes(data[: int(len(data) * keep)])
     os.replace(cut, library)
-    manifest = {**manifest, "sha256": _cache.file_sha256(library)}
-    (entry / _cache.MANIFEST).write_text(json.dumps(manifest))
+    manifest = {**manifest, "sha256": toolchain.file_sha256(library)}
+    (entry / toolchain.MANIFEST).write_text(json.dumps(manifest))
 
 
 def test_a_truncated_library_in_the_cache_is_found_before_dlopen_and_rebuilt(
@@ -523,14 +531,14 @@ def test_a_truncated_library_in_the_cache_is_found_before_dlopen_and_rebuilt(
     status, out, _ = cli("cache", "info", capsys=capsys)
     assert status == 0 and "1 bad" in out and entry.name in out and "--bad" in out
     with pytest.raises(ImportError, match="damaged"):
-        _build.load_extension(entry / manifest["library"], manifest["module"])
+        toolchain.load_extension(entry / manifest["library"], manifest["module"])
     result = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))  # SIGBUS before
     assert result.returncode == 0, (result.returncode, result.stderr)
     out = json.loads(result.stdout.splitlines()[-1])
     assert out["builds"] == 1 and cache_info(cache_dir).bad == []
     assert np.abs(np.array(out["final"]) - reference_final()).max() <= 1e-12
     assert compile_anew()[1] == 0  # and every later process loads the new one
-    _truncate_consistently(entry, json.loads((entry / _cache.MANIFEST).read_text()), 0.9)
+    _truncate_consistently(entry, json.loads((entry / toolchain.MANIFEST).read_text()), 0.9)
     status, out, _ = cli("cache", "clear", "--bad", capsys=capsys)
     assert status == 0 and "removed 1 bad kernels" in out
     assert not entry.exists() and other.is_dir()
@@ -539,16 +547,16 @@ def test_a_truncated_library_in_the_cache_is_found_before_dlopen_and_rebuilt(
 def test_library_defects_are_found_from_the_elf_headers(cache_dir):
     _, entry, manifest = built(cache_dir)
     data = (entry / manifest["library"]).read_bytes()
-    assert _build.library_defect(data) is None
+    assert toolchain.library_defect(data) is None
     for size in (0, 3, 40, 63, 64, 200, len(data) // 3, len(data) // 2, len(data) - 1):
-        assert _build.library_defect(data[:size]) is not None, size
-    assert "not an ELF" in _build.library_defect(b"#!/bin/sh\n" * 100)
+        assert toolchain.library_defect(data[:size]) is not None, size
+    assert "not an ELF" in toolchain.library_defect(b"#!/bin/sh\n" * 100)
     relocatable = bytearray(data)
     relocatable[16] = 1  # ET_REL
-    assert "not a shared object" in _build.library_defect(bytes(relocatable))
+    assert "not a shared object" in toolchain.library_defect(bytes(relocatable))
     t0 = time.perf_counter()
     for _ in range(100):
-        _build.library_defect(data)
+        toolchain.library_defect(data)
     assert (time.perf_counter() - t0) / 100 < 0.002  # about 20 µs
 
 
@@ -559,12 +567,12 @@ def test_library_defects_are_found_from_the_elf_headers(cache_dir):
     ("LDFLAGS", "-Wl,-O1"), ("CC", "cc -m64"), ("CC", "cc")])
 def test_the_build_environment_is_in_both_keys(monkeypatch, variable, value):
     step = oscillator()
-    flags = _compile._step_flags(step, None)
-    kernel = _compile.step_kernel(step)
+    flags = toolchain.step_flags(step, None)
+    kernel = toolchain.step_kernel(step)
     monkeypatch.delenv(variable, raising=False)
-    keys = (_compile.input_key(step, flags), _compile.source_key_of(kernel, flags))
+    keys = (toolchain.input_key(step, flags), toolchain.source_key_of(kernel, flags))
     monkeypatch.setenv(variable, value)
-    other = (_compile.input_key(step, flags), _compile.source_key_of(kernel, flags))
+    other = (toolchain.input_key(step, flags), toolchain.source_key_of(kernel, flags))
     assert keys[0] != other[0] and keys[1] != other[1]
 
 
@@ -574,12 +582,12 @@ def test_a_kernel_built_under_other_cflags_is_never_served(monkeypatch, cache_di
     monkeypatch.setenv("CFLAGS", "-fno-math-errno")
     first = sg.compile_step(oscillator(), backend="c")
     monkeypatch.delenv("CFLAGS")
-    builds = _compile.STATS["builds"]
-    _compile._LOADED.clear()
+    builds = toolchain.STATS["builds"]
+    _kernels._LOADED.clear()
     second = sg.compile_step(oscillator(), backend="c")
-    assert _compile.STATS["builds"] == builds + 1
+    assert toolchain.STATS["builds"] == builds + 1
     assert first.cache_entry != second.cache_entry
-    manifest = json.loads((second.cache_entry / _cache.MANIFEST).read_text())
+    manifest = json.loads((second.cache_entry / toolchain.MANIFEST).read_text())
     assert manifest["source_key"] == second.cache_entry.name
 
 
@@ -590,7 +598,7 @@ def test_the_unsafe_math_family_is_refused_by_every_unit(monkeypatch, flags):
     monkeypatch.setenv("CFLAGS", flags)
     with pytest.raises(CompilationError, match="must not be compiled with") as info:
         sg.compile_step(planar_step(), backend="c")
-    units = 3 if _build.translation_units() > 1 else 1  # the stepper, a unit, the cold one
+    units = 3 if toolchain.translation_units() > 1 else 1  # the stepper, a unit, the cold one
     assert info.value.output.count("#error") >= units
 
 
@@ -605,7 +613,7 @@ def test_window_programs_refuse_the_unsafe_math_family(monkeypatch):
     kernel = generate_program_c("unsafe window", program, "a", "out")
     monkeypatch.setenv("CFLAGS", "-funsafe-math-optimizations")
     with pytest.raises(CompilationError, match="program must not be compiled with"):
-        _compile.build_cached(kernel, ("-O2",), _cache.KernelCache(), "unsafe window")
+        toolchain.build_cached(kernel, ("-O2",), toolchain.KernelCache(), "unsafe window")
 
 
 # -- 5. file systems without flock -----------------------------------------------------------------
@@ -625,21 +633,21 @@ def test_a_flock_that_fails_is_never_taken_for_acquired(tmp_path, monkeypatch, c
     _no_flock(monkeypatch, code)
     fd = os.open(tmp_path / "x.lock", os.O_RDWR | os.O_CREAT)
     try:
-        assert _cache._try_flock(fd) is None
+        assert _locks._try_flock(fd) is None
     finally:
         os.close(fd)
 
 
 def test_without_flock_the_sweep_spares_builds_that_may_be_alive(monkeypatch, cache_dir):
     _no_flock(monkeypatch)
-    _cache.writable_root(cache_dir)
+    toolchain.writable_root(cache_dir)
     tmp, key = cache_dir / "tmp", "1" * 32
     sleeper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
     dead = subprocess.Popen([sys.executable, "-c", "pass"])
     dead.wait()
     try:
-        live = tmp / f"build-{key}-{sleeper.pid}-{_cache.HOST_TAG}-abcdefgh"
-        gone = tmp / f"build-{key}-{dead.pid}-{_cache.HOST_TAG}-abcdefgh"
+        live = tmp / f"build-{key}-{sleeper.pid}-{_processes.HOST_TAG}-abcdefgh"
+        gone = tmp / f"build-{key}-{dead.pid}-{_processes.HOST_TAG}-abcdefgh"
         remote_young = tmp / f"build-{key}-12-{'f' * 12}-abcdefgh"
         remote_old = tmp / f"build-{key}-13-{'f' * 12}-abcdefgh"
         legacy_young = tmp / f"build-{key}-abcdefgh"
@@ -647,7 +655,7 @@ def test_without_flock_the_sweep_spares_builds_that_may_be_alive(monkeypatch, ca
             path.mkdir()
             (path / "unit.o").write_bytes(b"partial")
         aged(live, remote_old)
-        _cache.sweep(cache_dir)
+        toolchain.sweep(cache_dir)
         assert sorted(p.name for p in tmp.iterdir()) == sorted(
             p.name for p in (live, remote_young, legacy_young))
     finally:
@@ -662,8 +670,8 @@ def test_without_flock_threads_building_one_kernel_all_succeed(monkeypatch, cach
     _no_flock(monkeypatch)
     results: list = []
     errors: list = []
-    builds = _compile.STATS["builds"]
-    _compile._LOADED.clear()
+    builds = toolchain.STATS["builds"]
+    _kernels._LOADED.clear()
 
     def run() -> None:
         try:
@@ -679,7 +687,7 @@ def test_without_flock_threads_building_one_kernel_all_succeed(monkeypatch, cach
     for thread in threads:
         thread.join(timeout=300)
     assert errors == [] and len(results) == 6
-    assert _compile.STATS["builds"] == builds + 1
+    assert toolchain.STATS["builds"] == builds + 1
     assert all(np.abs(r - reference_final()).max() <= 1e-12 for r in results)
     assert list((cache_dir / "tmp").iterdir()) == []
     assert not list((cache_dir / "locks").glob("*.lease"))
@@ -721,7 +729,7 @@ def test_a_lease_of_a_dead_builder_blocks_nobody(monkeypatch, cache_dir):
     key = step_key()
     (cache_dir / "locks").mkdir(parents=True, exist_ok=True)
     lease = cache_dir / "locks" / f"{key}.lease"
-    lease.write_text(f"pid {dead.pid} host {_cache.HOST_TAG}\n")
+    lease.write_text(f"pid {dead.pid} host {_processes.HOST_TAG}\n")
     monkeypatch.setenv("SYMGROUPOID_LOCK_TIMEOUT", "30")
     t0 = time.monotonic()
     assert sg.compile_step(oscillator(), backend="c").backend == "c"
@@ -738,7 +746,7 @@ def _disk_full(*args, **kwargs):
 def test_a_full_disk_is_a_cache_error_naming_the_cache(monkeypatch, cache_dir, capsys, where):
     """A full disk during a build was a raw OSError (the command line said only "No space
     left on device")."""
-    monkeypatch.setattr(_compile, where, _disk_full)
+    monkeypatch.setattr(_kernels, where, _disk_full)
     with pytest.raises(CacheError) as info:
         sg.compile_step(oscillator(), backend="c")
     text = str(info.value)

@@ -27,7 +27,7 @@ from symgroupoid.cli._errors import InputError, SystemFileError
 from symgroupoid.cli._inputs import parse_count, parse_params
 from symgroupoid.cli._system_file import load_system
 from symgroupoid.cli._verify import JACOBIAN_TOLERANCE
-from symgroupoid.runtime._maintenance import cache_info, clear_cache
+from symgroupoid.runtime.toolchain import cache_info, clear_cache
 
 EXAMPLES = REPO / "examples" / "cli"
 #: a particle on a circle (pair groupoid of R², one constraint; rotations are a symmetry,

@@ -22,7 +22,7 @@ from symgroupoid import systems
 from symgroupoid.codegen import _kernel, generate_c
 from symgroupoid.equations import step_program
 from symgroupoid.ir import ADD, MUL, Graph, compact, to_sympy
-from symgroupoid.runtime import _compile
+from symgroupoid.runtime import _compile, toolchain
 
 
 def _inputs(step, rng):
@@ -103,7 +103,7 @@ def test_the_kernel_of_three_linked_rigid_bodies_stays_small():
     the statements); the bound leaves 15 % for legitimate changes and fails on a return to
     the old size.  The cold unit is not counted: it holds the residual's scale (evaluated
     only when a rounding floor is tested, compiled at a low level beside the others)."""
-    kernel = _compile.step_kernel(systems.spherical_chain(3).euler_lagrange())
+    kernel = toolchain.step_kernel(systems.spherical_chain(3).euler_lagrange())
     text = kernel.source + "".join(unit for name, unit in kernel.units
                                    if name not in kernel.cold)
     assert kernel_operations(text) <= 4000
@@ -121,7 +121,7 @@ def test_a_kernel_whose_residual_parts_are_shared_computes_what_numpy_computes(m
     assert len(definitions) == len(set(definitions)), "every part is defined once"
     assert f"{p}_residual_part0" in definitions
     assert f"{p}_residual_jacobian_part0" not in definitions, "F's parts are the residual's"
-    c_kernel, _ = _compile.load_kernel_source(kernel, _compile.default_flags(), step.name,
+    c_kernel, _ = _compile.load_kernel_source(kernel, toolchain.default_flags(), step.name,
                                               len(step.unknowns), len(step.knowns))
     numpy = step.compile(backend="numpy").kernel
     rng = np.random.default_rng(5)
@@ -137,7 +137,7 @@ def test_a_kernel_whose_residual_parts_are_shared_computes_what_numpy_computes(m
 _DIGEST = """
 import hashlib
 from symgroupoid.codegen import _kernel
-from symgroupoid.runtime._compile import step_kernel
+from symgroupoid.runtime.toolchain import step_kernel
 from symgroupoid.systems import spherical_chain
 _kernel.PART_SIZE = 60
 k = step_kernel(spherical_chain(2).euler_lagrange())

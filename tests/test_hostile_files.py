@@ -53,9 +53,8 @@ from kernel_support import HAVE_CC, isolated_cache, needs_cc  # noqa: F401  (aut
 import symgroupoid as sg
 from symgroupoid.codegen import generate_c
 from symgroupoid.codegen._kernel import _C_KEYWORDS
-from symgroupoid.runtime import _cache, _programs
-from symgroupoid.runtime._cache import KernelCache, cache_root
-from symgroupoid.runtime._maintenance import cache_info, clear_cache
+from symgroupoid.runtime import _programs, toolchain
+from symgroupoid.runtime.toolchain import KernelCache, cache_info, cache_root, clear_cache
 
 STEP = oscillator().euler_lagrange()
 PARAMS = {"h": 0.1, "k": 1.0}
@@ -176,8 +175,8 @@ def damage(root: Path, how: str) -> Path | None:
     elif how == "manifest python":
         code = f"open({str(root.parent / 'planted-marker')!r}, 'w')\n"
         table = {**manifest["types"], "_types": code}
-        data = {**manifest, "ffi": code, "types": table, "types_sha256": _cache.table_sha256(
-            table), "ffi_sha256": _cache.sha256_of([code])}
+        data = {**manifest, "ffi": code, "types": table, "types_sha256": toolchain.table_sha256(
+            table), "ffi_sha256": toolchain.sha256_of([code])}
         _replace(entry / "manifest.json", json.dumps(data).encode())
     elif how.endswith(" link"):
         victim = _victim(root)

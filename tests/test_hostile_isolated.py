@@ -21,7 +21,7 @@ from kernel_support import SEED_DATA, compiled, initial_state, needs_cc
 CHILD = r"""
 import json, sys
 import numpy as np
-from symgroupoid.runtime._build import load_extension
+from symgroupoid.runtime.toolchain import load_extension
 
 path, name, prefix, known_file = sys.argv[1:5]
 module = load_extension(path, name)

@@ -15,7 +15,7 @@ from kernel_support import isolated_cache, needs_cc  # noqa: F401  (autouse fixt
 
 import symgroupoid as sg
 from symgroupoid.ir import Graph, Program, from_sympy
-from symgroupoid.runtime import CompilationError, _bvp, _compile
+from symgroupoid.runtime import CompilationError, _bvp, _programs, toolchain
 from symgroupoid.runtime._programs import ProgramEvaluator, wait_for_kernels
 
 x, y = sp.symbols("x y", real=True)
@@ -34,25 +34,25 @@ VALUES = np.random.default_rng(5).uniform(0.1, 2.0, (64, 2))
 
 @needs_cc
 def test_cold_evaluator_answers_at_once_and_switches_to_the_kernel():
-    builds = _compile.STATS["builds"]
+    builds = toolchain.STATS["builds"]
     evaluator = ProgramEvaluator("evaluator cold", _program(), "a", "out")
     first = evaluator(VALUES)  # before the build ends, or after: the same bits
     assert evaluator.wait(120) and evaluator.backend == "c"
-    assert _compile.STATS["builds"] == builds + 1
+    assert toolchain.STATS["builds"] == builds + 1
     assert np.array_equal(evaluator(VALUES), first)
     again = ProgramEvaluator("evaluator cold", _program(), "a", "out")
     assert again.backend == "c", "a cached kernel is loaded at once"
-    assert _compile.STATS["builds"] == builds + 1
+    assert toolchain.STATS["builds"] == builds + 1
 
 
 @needs_cc
 def test_two_evaluators_of_one_kernel_build_it_once():
-    builds = _compile.STATS["builds"]
+    builds = toolchain.STATS["builds"]
     a = ProgramEvaluator("evaluator twice", _program(2), "a", "out")
     b = ProgramEvaluator("evaluator twice", _program(2), "a", "out")
     assert wait_for_kernels(120)
     assert a.backend == b.backend == "c"
-    assert _compile.STATS["builds"] == builds + 1
+    assert toolchain.STATS["builds"] == builds + 1
     assert np.array_equal(a(VALUES), b(VALUES))
 
 
@@ -60,7 +60,7 @@ def test_failed_background_build_warns_and_stays_in_numpy(monkeypatch):
     def fail(*args, **kwargs):
         raise CompilationError("the compiler said no")
 
-    monkeypatch.setattr(_compile, "build_cached", fail)
+    monkeypatch.setattr(_programs, "build_cached", fail)
     evaluator = ProgramEvaluator("evaluator failing", _program(3), "a", "out")
     assert not evaluator.wait(120) and evaluator.backend == "numpy"
     with pytest.warns(RuntimeWarning, match="the compiler said no"):

@@ -42,14 +42,14 @@ import json
 import numpy as np
 import symgroupoid as sg
 from symgroupoid import systems
-from symgroupoid.runtime import _compile
+from symgroupoid.runtime import toolchain
 system = systems.rigid_body()
 end = np.array(sg.SO3("W").cayley([0.3, -0.2, 0.5]).tolist(), float)
 sol = sg.solve_boundary_value(system.euler_lagrange(), np.eye(3), end, 40,
                               params={"h": 0.02, "I1": 1.0, "I2": 2.0, "I3": 3.0})
 traj = system.euler_lagrange().compile(backend="c").simulate(
     {"W": sol.arrows[0].reshape(3, 3)}, 10, {"h": 0.02, "I1": 1.0, "I2": 2.0, "I3": 3.0})
-print(json.dumps({**_compile.STATS, "arrows": sol.arrows.tolist(),
+print(json.dumps({**toolchain.STATS, "arrows": sol.arrows.tolist(),
                   "states": traj.states.tolist(), "iterations": sol.iterations}))
 """
 

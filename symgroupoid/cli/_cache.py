@@ -8,7 +8,7 @@ import time
 from collections import defaultdict
 
 from ..codegen import precompile_templates
-from ..runtime._maintenance import cache_info, clear_cache
+from ..runtime.toolchain import cache_info, clear_cache
 from ._common import say
 
 

@@ -7,7 +7,7 @@ import sys
 import time
 from dataclasses import dataclass
 
-from ..runtime import _compile
+from ..runtime.toolchain import STATS
 from ._system_file import SystemFile, load_system
 
 BACKENDS = ("auto", "c", "numpy")
@@ -66,7 +66,7 @@ class Stepper:
 
 def stepper(derived: Derived, backend: str) -> Stepper:
     """The simulator of the derived step (C kernel from the cache, building it on a miss)."""
-    builds = _compile.STATS["builds"]
+    builds = STATS["builds"]
     t0 = time.perf_counter()
     sim = derived.step.compile(backend=backend)
-    return Stepper(sim, time.perf_counter() - t0, _compile.STATS["builds"] > builds)
+    return Stepper(sim, time.perf_counter() - t0, STATS["builds"] > builds)

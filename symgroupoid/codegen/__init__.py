@@ -2,6 +2,7 @@
 
 from ._emit import (
     KernelSource,
+    current_umask,
     emit_c,
     generate_c,
     precompile_templates,
@@ -11,5 +12,5 @@ from ._emit import (
 from ._kernel import c_identifier
 from ._printer import KernelCPrinter, print_c
 
-__all__ = ["KernelCPrinter", "KernelSource", "c_identifier", "emit_c", "generate_c",
-           "precompile_templates", "print_c", "template_dir", "templates_digest"]
+__all__ = ["KernelCPrinter", "KernelSource", "c_identifier", "current_umask", "emit_c",
+           "generate_c", "precompile_templates", "print_c", "template_dir", "templates_digest"]

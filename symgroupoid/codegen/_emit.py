@@ -176,7 +176,7 @@ class KernelSource:
     ``units``: further translation units (file name, C source) compiled with the source
     into the same library (none for a kernel in one file); ``cold``: the file names among
     ``units`` of code that does no arithmetic of a step, built at a lower optimisation
-    level (``symgroupoid.runtime._build.unit_flags``); ``blocks``: the file names among
+    level (``symgroupoid.runtime.toolchain.unit_flags``); ``blocks``: the file names among
     ``units`` of straight-line arithmetic that calls no library function (see
     :func:`arithmetic_only`), which a build may compile at a cheaper level."""
 

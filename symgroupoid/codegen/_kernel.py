@@ -286,7 +286,7 @@ def assign_units(blocks: Sequence[Block], units: int, n_unknowns: int,
     blocks: they then go to unit 1 and both compile at the same time (planar 2-link chain:
     0.27 s in one unit; 0.14 s for the stepper beside 0.06 s for the blocks).  A statement
     in a unit other than 0 (a block unit) costs ``block_weight`` times one in unit 0 (block
-    units may be compiled at a cheaper level, ``runtime._build.unit_flags``).  Blocks of
+    units may be compiled at a cheaper level, ``runtime.toolchain.unit_flags``).  Blocks of
     fewer than :data:`UNIT_MIN_STATEMENTS` statements of a kernel of
     :data:`CLOSE_UNKNOWNS` to :data:`UNROLLED_UNKNOWNS` unknowns stay in unit 0 (see there).
     The items moved are whole functions of one part and the parts of split functions

@@ -2,8 +2,6 @@
 
 from .._errors import CacheError
 from ._batch import TrajectoryBatch
-from ._build import CompilationError, CompilerNotFoundError
-from ._cache import cache_root
 from ._compile import compile_step
 from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
@@ -13,6 +11,7 @@ from ._sweep_boundary import sweep_boundary_value
 from ._sweep_result import SweepResult
 from ._sweep_tasks import ReduceError
 from ._trajectory import Trajectory
+from .toolchain import CompilationError, CompilerNotFoundError, cache_root
 
 __all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "DetachedStepError",
            "NewtonOptions", "NotPortableError", "ReduceError", "Simulator", "SweepResult",

@@ -187,7 +187,7 @@ class SimulatorRecipe:
 def recipe_of(sim) -> SimulatorRecipe:
     """The recipe of a compiled simulator (its kernel source is regenerated from the step
     when this process did not build it; the result is kept on the simulator)."""
-    from ._compile import kernel_source_of
+    from .toolchain import kernel_source_of
 
     if sim.backend != "c":
         raise NotPortableError(

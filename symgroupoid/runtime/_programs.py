@@ -28,8 +28,15 @@ import numpy as np
 from .._errors import ShapeError
 from ..codegen._emit import generate_program_c
 from ._backends import C_INT_MAX, c_buffer
-from ._build import CompilationError, CompilerNotFoundError, optimisation_flags
-from ._cache import KernelCache
+from .toolchain import (
+    CompilationError,
+    CompilerNotFoundError,
+    KernelCache,
+    build_cached,
+    load_cached,
+    optimisation_flags,
+    source_key_of,
+)
 
 #: rows (windows) per NumPy evaluation: the NumPy form holds one array per named node of the
 #: program at once (the rigid body's window program: about 3000), so the memory of a call is
@@ -48,7 +55,6 @@ def compile_program(label: str, program, inputs: str, outputs: str
     """``program``'s output ``outputs`` as a compiled ``f(values (W, n_in)) -> (W, n_out)``
     (each row the input array ``inputs``), or None (no compiler, or the backend forced to
     NumPy with ``SYMGROUPOID_BACKEND=numpy``)."""
-    from ._compile import build_cached, load_cached
 
     if os.environ.get("SYMGROUPOID_BACKEND", "auto") == "numpy":
         return None
@@ -153,7 +159,6 @@ class ProgramEvaluator:
 
     # --- the background build -------------------------------------------------------------
     def _start(self) -> None:
-        from ._compile import load_cached, source_key_of
 
         kernel, flags = _source(self.label, self.program, self.inputs, self.outputs)
         cache = KernelCache()
@@ -174,7 +179,6 @@ class ProgramEvaluator:
         self._thread.start()
 
     def _build(self, kernel, flags, cache) -> None:
-        from ._compile import build_cached, load_cached
 
         try:
             key, manifest = build_cached(kernel, flags, cache, self.label)

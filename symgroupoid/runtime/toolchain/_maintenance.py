@@ -8,7 +8,7 @@ loaded a removed kernel keeps using it; the next one to ask for it builds it aga
 
 Only what the cache itself names is removed (kernel directories named by a 32-hex key,
 index files ``<key>.json``, the kernel templates' compiled code an older version kept in
-``templates/``, and the leftovers :func:`~._cache.sweep` removes), never through a link: a
+``templates/``, and the leftovers :func:`~._sweep.sweep` removes), never through a link: a
 cache whose directories are links, or belong to another user, is refused
 (:class:`CacheError`).  ``bad_only``: only the entries that would not be loaded (damaged,
 truncated, untrusted: ``CachedKernel.problem``).
@@ -22,23 +22,13 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .._errors import CacheError
-from ._cache import (
-    MANIFEST,
-    MARKER,
-    _foreign_entries,
-    _remove,
-    _untrusted_reason,
-    absolute_root,
-    cache_root,
-    entry_defect,
-    is_cache_root,
-    key_busy,
-    read_json,
-    remove_tree,
-    sweep,
-    trusted,
-)
+from ..._errors import CacheError
+from ._atomic import _remove, read_json, remove_tree
+from ._entries import entry_defect
+from ._locks import key_busy
+from ._roots import MANIFEST, MARKER, _foreign_entries, absolute_root, cache_root, is_cache_root
+from ._sweep import sweep
+from ._trust import _untrusted_reason, trusted
 
 _KEY = re.compile(r"[0-9a-f]{32}")
 _INDEX = re.compile(r"[0-9a-f]{32}\.json")
@@ -124,7 +114,7 @@ def _kernel(entry: Path) -> CachedKernel:
 
 def cache_info(root: Path | None = None) -> CacheInfo:
     """What the cache at ``root`` (default: the configured cache) holds; a cache that is
-    not used (:func:`~._cache.trusted`) says why in ``refused`` and lists nothing."""
+    not used (:func:`~._trust.trusted`) says why in ``refused`` and lists nothing."""
     root = absolute_root(root) if root is not None else cache_root()
     info = CacheInfo(root, root.is_dir())
     if not info.exists:

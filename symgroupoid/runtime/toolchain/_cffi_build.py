@@ -1,0 +1,127 @@
+"""Building a kernel into a shared library: its files written, its translation units compiled
+at the same time, linked, and checked."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from ...codegen import KernelSource
+from ._compiler import (
+    NUMPY_HINT,
+    CompilationError,
+    _failure,
+    build_command,
+    compiler_command,
+    compiler_flags_of,
+    link_tail,
+)
+from ._flags import unit_flags
+from ._library import library_defect
+from ._trust import file_mode
+from ._type_table import type_table
+
+
+def module_name(source_key: str) -> str:
+    return f"_sgk_{source_key[:24]}"
+
+
+def create_file(path: Path, text: str) -> None:
+    """Write ASCII ``text`` to the new file ``path`` (``O_EXCL``: never through a link or
+    into a file that exists), with the mode an ordinary file gets less group and other
+    write permission."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_NOFOLLOW", 0)
+    fd = os.open(path, flags | getattr(os, "O_CLOEXEC", 0), file_mode())
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(text.encode("ascii"))
+
+
+def build_extension(kernel: KernelSource, build_dir: Path, name: str,
+                    flags: Sequence[str]) -> tuple[Path, dict]:
+    """Compile ``kernel`` into ``build_dir`` as the shared library ``<name>.so``; return its
+    path and its cffi type table (:func:`type_table`, for :func:`load_extension`).
+
+    The header and sources are written next to the library (and stay there); a kernel in
+    several units is compiled by one compiler run per unit, all at the same time (each with
+    :func:`unit_flags` of its role), then linked by one more; the type table is made while
+    the compiler runs.  Compiler output is captured and shown in
+    :class:`CompilationError` on failure, which is also raised when the compiler reports
+    success but the library is damaged (:func:`library_defect`).
+    """
+    create_file(build_dir / kernel.header_name, kernel.header)
+    sources = [(f"{kernel.prefix}.c", kernel.source), *kernel.units]
+    for file_name, text in sources:
+        create_file(build_dir / file_name, text)
+    library = build_dir / f"{name}.so"
+    table: list[dict] = []
+
+    def make_table() -> None:  # Python work done while the compiler runs
+        table.append(type_table(kernel, name, build_dir))
+
+    if len(sources) == 1:
+        _run(kernel, [build_command(sources[0][0], library.name, flags)], build_dir,
+             make_table)
+    else:  # the units at the same time, then one link
+        objects = [f"{Path(file_name).stem}.o" for file_name, _ in sources]
+        _run(kernel, [[*compiler_flags_of(unit_flags(flags, _role(kernel, file_name))),
+                       "-c", file_name, "-o", obj]
+                      for (file_name, _), obj in zip(sources, objects)], build_dir,
+             make_table)
+        _run(kernel, [[*compiler_flags_of(flags), "-shared", *objects, "-o", library.name,
+                       *link_tail(flags)]], build_dir)
+        for obj in objects:
+            (build_dir / obj).unlink(missing_ok=True)
+    if not library.is_file() or library.is_symlink():
+        raise _failure(kernel, "the compiler wrote no library", "")
+    defect = library_defect(library.read_bytes())
+    if defect is not None:
+        raise CompilationError(
+            f"{kernel.prefix}: the C compiler reported success but wrote a damaged library "
+            f"({defect}); it was not installed. Check the compiler ({' '.join(compiler_command())}"
+            f") and the free space of {build_dir.parent}.\n{NUMPY_HINT}", output=defect)
+    return library, table[0]
+
+
+def _role(kernel: KernelSource, file_name: str) -> str:
+    """The role of a translation unit of ``kernel`` (see :func:`unit_flags`)."""
+    if file_name in kernel.cold:
+        return "cold"
+    return "blocks" if file_name in kernel.blocks else "step"
+
+
+def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path,
+         meanwhile: Callable[[], None] | None = None) -> None:
+    """Run compiler ``commands`` at the same time in ``cwd`` (and ``meanwhile()`` while they
+    run); :class:`CompilationError` with the output of every failed one."""
+    processes: list = []
+
+    def stop() -> None:
+        for _, process in processes:
+            process.kill()
+            process.communicate()
+
+    try:
+        for command in commands:
+            processes.append((command, subprocess.Popen(
+                command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT, text=True, errors="replace")))
+    except OSError as exc:
+        stop()
+        raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc)) from exc
+    try:
+        if meanwhile is not None:
+            meanwhile()
+    except BaseException:
+        stop()
+        raise
+    failures = []
+    for command, process in processes:
+        output, _ = process.communicate()
+        if process.returncode != 0:
+            failures.append((command, process.returncode, output.strip()))
+    if failures:
+        command, status, _ = failures[0]
+        raise _failure(kernel, f"command {command[0]!r} failed with exit status {status}",
+                       "\n".join(output for _, _, output in failures))

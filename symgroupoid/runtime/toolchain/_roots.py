@@ -1,0 +1,129 @@
+"""Where the kernel cache is (its roots) and what a cache root holds (its layout, its marker)."""
+
+from __future__ import annotations
+
+import os
+import re
+from pathlib import Path
+
+from ..._errors import CacheError
+
+MANIFEST = "manifest.json"
+
+
+SUBDIRS = ("index", "kernels", "locks", "tmp")
+
+
+#: every directory of a cache root (checked for links and owners before any use)
+INTERNAL = (*SUBDIRS, "probes", "templates")
+
+
+#: the file that marks a directory as a kernel cache (the Cache Directory Tagging
+#: convention, so backup tools skip it); only a marked root is ever cleaned or swept
+MARKER = "CACHEDIR.TAG"
+
+
+_SIGNATURE = "Signature: 8a477f597d28d172789f06886806bc55"
+
+
+_MARKER_TEXT = (f"{_SIGNATURE}\n# This directory is a symgroupoid kernel cache: compiled "
+                f"kernels, rebuilt on demand.\n# It can be removed at any time.\n")
+
+
+#: what a cache root holds besides the marker (a root holding only these is adopted)
+_CACHE_NAMES = frozenset(INTERNAL)
+
+
+_KEY = re.compile(r"[0-9a-f]{32}")
+
+
+_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+
+
+_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+
+
+def cache_root() -> Path:
+    """The configured cache directory (not created; see :class:`KernelCache` for fallback)."""
+    override = os.environ.get("SYMGROUPOID_CACHE")
+    if override:
+        return absolute_root(_expanded(override))
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    if xdg:
+        return absolute_root(_expanded(xdg) / "symgroupoid")
+    try:
+        home = Path.home()
+    except (RuntimeError, KeyError, OSError) as exc:
+        raise CacheError(f"no kernel cache directory: the home directory cannot be "
+                         f"determined ({exc}); set SYMGROUPOID_CACHE to a directory") from exc
+    return home / ".cache" / "symgroupoid"
+
+
+def shared_root() -> Path | None:
+    """The read-only shared cache (``$SYMGROUPOID_SHARED_CACHE``), or None."""
+    text = os.environ.get("SYMGROUPOID_SHARED_CACHE")
+    return absolute_root(text) if text and text.strip() else None
+
+
+def absolute_root(path: str | os.PathLike) -> Path:
+    """A cache root as an absolute, normalised path (``~`` expanded): a relative one is
+    resolved against the working directory once, when it is given, so a later change of
+    directory cannot move the cache (or scatter entries over several directories)."""
+    return Path(os.path.abspath(_expanded(os.fspath(path))))
+
+
+def _expanded(text: str) -> Path:
+    """``text`` with a leading ``~`` or ``~user`` expanded; kept as written (as a shell
+    does) when that user or the home directory is unknown."""
+    try:
+        return Path(text).expanduser()
+    except (RuntimeError, KeyError, OSError):
+        return Path(text)
+
+
+def is_cache_root(root: Path) -> bool:
+    """Whether ``root`` carries the cache marker (see :data:`MARKER`)."""
+    try:
+        fd = os.open(root / MARKER, os.O_RDONLY | _NOFOLLOW | _CLOEXEC)
+    except OSError:
+        return False
+    with os.fdopen(fd, "rb") as fh:
+        try:
+            return fh.read(len(_SIGNATURE)) == _SIGNATURE.encode()
+        except OSError:
+            return False
+
+
+#: what each directory of a cache holds (an unmarked root is adopted only if its
+#: directories hold nothing else: a cache layout written before roots were marked)
+_CACHE_CONTENT = {
+    "index": re.compile(r"\.?[0-9a-f]{32}\.json.*"),
+    "kernels": re.compile(r"[0-9a-f]{32}"),
+    "locks": re.compile(r"[0-9a-f]{32}\.(lock|lease)"),
+    "tmp": re.compile(r"(build|trash|probe)-.*"),
+    "probes": re.compile(r"\.?openmp-[0-9a-f]{32}\.json.*"),
+    "templates": re.compile(r"__jinja2_[0-9a-f]{40}\.cache.*"),
+}
+
+
+def _foreign_entries(root: Path) -> list[str]:
+    """What in ``root`` a kernel cache does not hold (empty: the root is, or can become, a
+    cache): names other than the cache's, and entries of its directories that no cache
+    writes."""
+    try:
+        entries = list(os.scandir(root))
+    except FileNotFoundError:
+        return []
+    out = []
+    for e in entries:
+        if e.name == MARKER:
+            continue
+        if e.name not in _CACHE_NAMES:
+            out.append(e.name)
+        elif e.is_dir(follow_symlinks=False):
+            try:
+                names = os.listdir(e.path)
+            except OSError:
+                names = []
+            out += [f"{e.name}/{n}" for n in names if not _CACHE_CONTENT[e.name].fullmatch(n)]
+    return sorted(out)
