@@ -50,9 +50,9 @@ from .equations import (
     NonholonomicSystem,
     SecondOrderSystem,
     StepEquations,
+    UnusedAbbreviationWarning,
     latex,
 )
-from .equations._printing import UnusedAbbreviationWarning
 from .equations._reduced import ReducedSystem, check_system_morphism
 from .groupoids import (
     SE2,

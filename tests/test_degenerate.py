@@ -17,7 +17,8 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid.equations import _regularity as reg
+from symgroupoid.equations import _findings as reg
+from symgroupoid.equations import _sampling
 from symgroupoid.systems import discrete_inertia, heavy_top, plate_ball, rigid_body
 
 h, a, ell = sp.symbols("h a ell", positive=True)
@@ -294,7 +295,7 @@ def test_numerically_zero_equations(system: str) -> None:
 def test_seed_systems_pass(make) -> None:
     """The seed systems derive: the diagnosis finds nothing."""
     step = make().euler_lagrange()
-    assert reg.numeric_findings(step, reg.default_layout(step)) == []
+    assert _sampling.numeric_findings(step, reg.default_layout(step)) == []
 
 
 def test_badly_scaled_valid_system_passes() -> None:
@@ -321,7 +322,7 @@ def test_points_where_the_step_is_not_finite_are_no_evidence() -> None:
     and the (valid, for q > 5) system derives; a degenerate one is still caught
     structurally."""
     step = line(lambda g: kinetic(g) + sp.sqrt(g.target[0] - 5)).euler_lagrange()
-    assert reg.sample(step, 3, 0) == []
+    assert _sampling.sample(step, 3, 0) == []
     with pytest.raises(sg.DegenerateSystemError):
         line(lambda g: sp.sqrt(g.target[0] - 5) - sp.sqrt(g.source[0] - 5)).euler_lagrange()
 
@@ -331,7 +332,7 @@ def test_abstract_lagrangian_is_not_evaluated() -> None:
     checks apply."""
     F = sp.Function("L_d")
     step = sg.DiscreteSystem(pair(), lambda g: F(*g.coords)).euler_lagrange()
-    assert not reg.numeric(step)
+    assert not _sampling.numeric(step)
 
 
 def test_diagnosis_is_deterministic() -> None:

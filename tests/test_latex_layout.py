@@ -17,9 +17,15 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid.equations import _latex, _layout, _printing
+from symgroupoid.derivation import PieceRule
+from symgroupoid.equations import (
+    LatexOptionError,
+    UnusedAbbreviationWarning,
+    _latex,
+    _layout,
+    _printing,
+)
 from symgroupoid.equations._latex import LatexVerificationError, equation_lines
-from symgroupoid.equations._printing import LatexOptionError
 
 mathtext = pytest.importorskip("matplotlib.mathtext")
 from test_latex import _line_widths, _lines  # noqa: E402
@@ -206,9 +212,7 @@ def test_every_verified_form_equals_the_residual_at_random_points(pendulum_step,
 def test_a_form_that_is_not_the_residual_is_not_printed(pendulum_step, monkeypatch):
     """A piece whose definition is wrong (q̄ = (q₀ + q₁)/3) makes every form written in the
     pieces fail the check: only the form as derived is left to print."""
-    rule = _printing.PieceRule
-
-    class Wrong(rule):
+    class Wrong(PieceRule):
         def definitions(self, q0, q1, mid, diff):
             return [(mid, (q0 + q1) / 3) if p == mid else (p, v)
                     for p, v in super().definitions(q0, q1, mid, diff)]
@@ -235,7 +239,7 @@ def test_abbreviations_name_pieces_and_are_listed(pendulum_step):
         return (q0 + q1) / 2
 
     g = sp.Symbol("g", positive=True)
-    with pytest.warns(_printing.UnusedAbbreviationWarning, match="abbreviation G does not"):
+    with pytest.warns(UnusedAbbreviationWarning, match="abbreviation G does not"):
         tex = pendulum_step.latex(abbreviations={"\\vartheta": mean, "G": 2 * g})
     assert "\\vartheta_{j-1/2} &= \\bar{q}_{j-1/2}" in tex or \
         "\\vartheta_{j-1/2} = \\bar{q}_{j-1/2}" in tex

@@ -31,7 +31,7 @@ from symgroupoid import systems
 from symgroupoid.cli import main
 from symgroupoid.cli._derive import OVERFULL_TOLERANCE, lost_content
 from symgroupoid.cli._system_file import load_system
-from symgroupoid.equations import _layout, _printing
+from symgroupoid.equations import UnusedAbbreviationWarning, _layout, _matrix_parts, _printing
 
 needs_tex = pytest.mark.skipif(
     shutil.which("pdflatex") is None or shutil.which("pdftotext") is None,
@@ -297,7 +297,7 @@ def test_constant_entries_are_evaluated():
     constants = {E1, E2}
 
     def evaluated(expr):
-        return _printing.evaluated_constants(expr, values, constants)
+        return _matrix_parts.evaluated_constants(expr, values, constants)
 
     assert evaluated(E1[0, 0] * W[0, 1] + E1[2, 1] * W[0, 1]) == entries[0, 1]
     assert evaluated((W * E1)[2, 1]) == entries[2, 2]
@@ -310,7 +310,7 @@ def test_constant_entries_are_evaluated():
 def test_satellite_uses_its_abbreviations_and_names_the_unused(satellite, satellite_step):
     abbreviations = dict(satellite.convention("ABBREVIATIONS"))
     abbreviations["M"] = sp.Symbol("I1", positive=True) + sp.Symbol("I2", positive=True)
-    with pytest.warns(_printing.UnusedAbbreviationWarning, match="abbreviation M does not") \
+    with pytest.warns(UnusedAbbreviationWarning, match="abbreviation M does not") \
             as caught:
         tex = satellite_step.latex(abbreviations=abbreviations)
     assert [w.message.names for w in caught] == [["M"]]

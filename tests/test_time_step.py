@@ -23,7 +23,7 @@ import sympy as sp
 import symgroupoid as sg
 from symgroupoid import systems
 from symgroupoid.derivation._limit import ContinuousLimit, identified_time_steps
-from symgroupoid.equations import _regularity as reg
+from symgroupoid.equations import _kinetic
 
 EPS = float(np.finfo(float).eps)
 dt, grav, h, c = sp.symbols("dt g h c", positive=True)
@@ -210,7 +210,7 @@ def test_degenerate_kinetic_energy_is_refused(declared: bool) -> None:
     with pytest.raises(sg.DegenerateSystemError) as info:
         degenerate(**({"time_step": h} if declared else {})).euler_lagrange()
     err = info.value
-    assert err.causes == (reg.DEGENERATE_KINETIC,)
+    assert err.causes == (_kinetic.DEGENERATE_KINETIC,)
     assert err.findings[0].unknowns == ("x_{k+1}", "y_{k+1}")
     text = str(err)
     assert text.startswith("degenerate: the discrete Lagrangian has no regular continuous limit")

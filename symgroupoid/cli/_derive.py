@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .._progress import Task
-from ..equations._printing import LatexOptionError, UnusedAbbreviationWarning
+from ..equations import LatexOptionError, UnusedAbbreviationWarning
 from ._common import Derived, derive, file_stem, say
 from ._errors import ExternalToolError, InputError, LostContentError
 

@@ -18,7 +18,8 @@ on the newest term: φ, then ψ at the target of its last arrow (docs/convention
 
 - in SymPy (printing and checking): :meth:`WindowAction.action`, :meth:`~WindowAction.halves`
   on independent slot arrows, :meth:`~WindowAction.residuals` at the named arrows — the
-  step's residuals, its LaTeX forms (equations/_printing.py) and the energy–momentum halves;
+  step's residuals, its forms in named pieces (:mod:`._pieces`, for LaTeX) and the
+  energy–momentum halves;
 - on the expression graph (every evaluator): :meth:`~WindowAction.term_nodes` — one term on
   generic slots and its gradient by reverse mode, taken once —, :meth:`~WindowAction.instantiate`
   at the arrows of a term, :meth:`~WindowAction.junction_nodes` (the step kernel and the

@@ -1,5 +1,6 @@
 """Layer 3: step equations (residuals, unknowns, knowns, Jacobian, LaTeX) and systems."""
 
+from ._abbreviations import LatexOptionError, UnusedAbbreviationWarning
 from ._latex import GroupoidLatexPrinter, latex
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._programs import (
@@ -29,4 +30,5 @@ __all__ = [
     "cost_program", "holonomic_program", "latex", "magnitude", "momentum_program",
     "second_order_momentum_program", "source_projection_program", "state_programs",
     "step_program", "structure_program", "window_programs",
+    "LatexOptionError", "UnusedAbbreviationWarning",
 ]

@@ -60,7 +60,7 @@ class LegendreTransforms:
         variables and parameters (checked to be the transforms), rows broken to ``width``
         pt (default 450)."""
         from ._layout import render_align
-        from ._printing import legendre_rows
+        from ._momentum_rows import legendre_rows
 
         return render_align(legendre_rows(self, width))
 
@@ -102,7 +102,7 @@ class NoetherQuantity:
     def latex(self) -> str:
         """F_X, its terms collected by multipliers, variables and parameters (checked to be
         F_X), on one line."""
-        from ._printing import inline_latex
+        from ._momentum_rows import inline_latex
 
         return inline_latex(self.expr, self.multipliers, self.parameters)
 
@@ -177,7 +177,7 @@ class LiePoissonEquations:
         """μ_{k+1} = Ad*_{g_k} μ_k, then 0 = 𝔽⁻L_{k+1} − Ad*_{g_k} 𝔽⁻L_k and the constraints
         (seed 000 §6.1), Ad* printed by name; rows broken to ``width`` pt (default 450)."""
         from ._layout import render_align
-        from ._printing import lie_poisson_rows
+        from ._momentum_rows import lie_poisson_rows
 
         return render_align(lie_poisson_rows(self, width))
 

@@ -23,9 +23,10 @@ from ._so2 import SO2
 from ._so3 import SO3
 from ._time import TimeArrow, TimeGroupoid
 from ._trivialised import TrivialisedArrow, TrivialisedPairGroupoid
-from ._user import DefinedGroupoid
+from ._user import RESERVED_NAMES, DefinedGroupoid
 
 __all__ = [
+    "RESERVED_NAMES",
     "is_constant_matrix", "named_constants", "to_explicit",
     "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",
     "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",

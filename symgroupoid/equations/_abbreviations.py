@@ -1,0 +1,176 @@
+"""User abbreviations of the printed equations, and the errors of the printing's options.
+
+``abbreviations={name: expression or callable of an arrow}`` names pieces of the printed
+equations: an expression is recognised wherever it occurs (also inside sums with a common
+factor, :func:`replace_occurrences`), a callable is evaluated, like the Lagrangian, on each
+arrow of the window (in the named pieces, when the form has them) and named with the arrow's
+index.  Every abbreviation becomes a "where" row, and a layer of what verification writes
+out (:class:`~._forms.Form`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .._errors import SymgroupoidError
+from .._symbols import StepSymbol
+from ..derivation import PieceRule, as_scalar, call_user, window
+from ._collect import replace_occurrences
+from ._forms import Definition, Form
+from ._latex import NamedConstant, latex
+from ._pieces import (
+    arrow_label,
+    generic_arrow,
+    half_label,
+    indexed_name,
+    pair_coordinates,
+    piece_symbols,
+)
+
+
+class LatexOptionError(SymgroupoidError, ValueError):
+    """An option of the LaTeX printing is invalid: a page width that is not a positive
+    number of points, abbreviations that are not a mapping of names to expressions or
+    callables, or an abbreviation name that is not a string or a SymPy Symbol."""
+
+
+class UnusedAbbreviationWarning(UserWarning):
+    """Abbreviations given to the printing that do not occur in the printed equations (their
+    value is not a part of the printed form); ``names``: their LaTeX names."""
+
+    def __init__(self, message: str, names: Sequence[str] = ()):
+        super().__init__(message)
+        self.names = list(names)
+
+
+
+@dataclass(frozen=True)
+class Abbreviation:
+    """A user-named piece: its LaTeX name, the symbol it prints as (a :class:`NamedConstant`
+    when its value is in the parameters only, so it is ordered with them), and its value:
+    an expression, or a callable of an arrow evaluated on each arrow of the window."""
+
+    tex: str
+    symbol: sp.Symbol | None
+    value: object
+
+
+def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
+    """The checked ``abbreviations`` option: a mapping name → expression or callable; a name
+    is a non-empty string (its LaTeX) or a SymPy Symbol, and prints unlike every symbol of
+    the step; an expression is a SymPy expression in symbols (not a number, not a string)."""
+    if abbreviations is None:
+        return []
+    if not isinstance(abbreviations, Mapping):
+        raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
+                               f"callable, got {type(abbreviations).__name__}")
+    taken = {latex(s) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
+                                *step.parameters]}
+    out = []
+    for name, value in abbreviations.items():
+        if isinstance(name, sp.Symbol):
+            tex, symbol = latex(name), name
+        elif isinstance(name, str) and name.strip():
+            tex, symbol = name, None
+        else:
+            raise LatexOptionError(f"latex: an abbreviation's name must be a non-empty string "
+                                   f"(its LaTeX) or a SymPy Symbol, got {name!r}")
+        if tex in taken:
+            raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like a symbol of "
+                                   f"{step.name}; choose another name")
+        taken.add(tex)
+        if not callable(value):
+            value = _abbreviation_value(tex, value)
+            if symbol is None and value.free_symbols <= set(step.parameters):
+                symbol = NamedConstant(tex)
+        out.append(Abbreviation(tex, symbol, value))
+    return out
+
+
+def _abbreviation_value(tex: str, value) -> sp.Expr:
+    try:
+        expr = sp.sympify(value, strict=True)
+    except sp.SympifyError:
+        expr = None
+    if not isinstance(expr, sp.Expr) or not expr.free_symbols:
+        raise LatexOptionError(f"latex: the abbreviation {tex!r} must stand for a SymPy "
+                               f"expression in the step's symbols, or a callable of an arrow; "
+                               f"got {value!r}")
+    return expr
+
+
+def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
+               rule: PieceRule | None) -> Form:
+    """``form`` with each abbreviation recognised in the equations and the "where" rows.
+
+    ``name → expression``: the expression (in the step's symbols or the printed pieces) is
+    replaced by the name wherever it occurs, also inside sums with a common factor.
+    ``name → callable``: the callable is evaluated, like the Lagrangian, on each arrow of the
+    window (written in the pieces) and named with the arrow's index.
+    """
+    layer: dict = {}
+    definitions: list[Definition] = []
+    equations = list(form.equations)
+    generic = dict(form.generic)
+    rows = list(form.definitions)
+    for a in abbreviations:
+        if callable(a.value):
+            pairs, (g_symbol, g_value) = _per_arrow(step, a.tex, a.value, rule, form.unindexed)
+            definitions.append(Definition(g_symbol, g_value, frozenset(p for p, _ in pairs),
+                                          abbreviation=a.tex))
+            generic[g_symbol] = pairs[0][0]
+        else:
+            symbol = a.symbol if a.symbol is not None else StepSymbol(a.tex)
+            g_symbol, g_value = symbol, a.value
+            pairs = [(symbol, g_value)]
+            definitions.append(Definition(symbol, g_value, frozenset([symbol]),
+                                          abbreviation=a.tex))
+        for s, v in pairs:
+            layer[s] = v
+            equations = [replace_occurrences(e, v, s) for e in equations]
+        rows = [d if d.literal else dataclasses.replace(
+            d, rhs=replace_occurrences(d.rhs, g_value, g_symbol)) for d in rows]
+    # the rows defining the equations' names, then the abbreviations they use, then the rest
+    ordered = ([d for d in rows if not d.literal] + definitions
+               + [d for d in rows if d.literal])
+    return Form(equations, [layer, *form.layers], ordered, form.intros, generic, form.unindexed)
+
+
+def _arrow_in_pieces(step, offset: int, index: str, rule: PieceRule | None,
+                     unindexed: bool = False) -> tuple:
+    """The coordinates of g_{index+offset} with its pair coordinates written in the pieces
+    (``unindexed``: in the pieces without index)."""
+    G = step.groupoid
+    coords = list(G.named_arrow(offset)) if index == "k" else list(generic_arrow(G))
+    if rule is None:
+        return tuple(coords)
+    for c in pair_coordinates(G):
+        mid, diff = piece_symbols(c, None if unindexed else half_label(index, offset))
+        coords[c.source], coords[c.target] = rule.coordinates(coords[c.source],
+                                                              coords[c.target], mid, diff)
+    return tuple(coords)
+
+
+def _per_arrow(step, tex: str, fn: Callable, rule: PieceRule | None, unindexed: bool = False):
+    """(symbol, value) at each window arrow, and the generic (symbol, value) at g_j (with
+    ``unindexed``, in the pieces without index, named without index)."""
+    G = step.groupoid
+    label = half_label if pair_coordinates(G) else arrow_label
+
+    def at(index: str, offset: int):
+        arrow = G.view(_arrow_in_pieces(step, offset, index, rule))
+        value = as_scalar(step.name, f"abbreviation {tex}", call_user(
+            step.name, f"abbreviation {tex}", fn, arrow))
+        return StepSymbol(indexed_name(tex, label(index, offset))), value
+
+    pairs = [at("k", o) for o in window(step.order)[0]]
+    if unindexed:
+        arrow = G.view(_arrow_in_pieces(step, 0, "j", rule, unindexed=True))
+        value = as_scalar(step.name, f"abbreviation {tex}", call_user(
+            step.name, f"abbreviation {tex}", fn, arrow))
+        return pairs, (StepSymbol(tex), value)
+    return pairs, at("j", 0)

@@ -1,0 +1,229 @@
+"""The printed forms of a step's residuals, each with the "where" rows it needs.
+
+The residual of a step is the junction variation of the window action (seed 000 Thm 2.13;
+docs/conventions.md §2): on the pair groupoid Q × Q, D₂L(q_{k−1}, q_k) + D₁L(q_k, q_{k+1}).
+The derivation gives it in three ways (:mod:`symgroupoid.derivation`): as derived (explicit,
+or in matrix form), with the window's pair arrows in named pieces
+(:func:`~symgroupoid.derivation.piece_residuals`), and through the named partial
+derivatives of L(q̄, Δq) (:func:`~symgroupoid.derivation.partial_residuals`): the step reads
+½(∂_q̄L_{k−1/2} + ∂_q̄L_{k+1/2}) − (∂_ΔqL_{k+1/2} − ∂_ΔqL_{k−1/2})/h = 0 and the "where"
+list gives each partial once.  A :class:`Form` holds one of them with what its printed names
+stand for, layer by layer, so that every printed equation can be checked to equal the
+explicit residual (:func:`equals_explicit`).  On action groupoids β(g_k) = W_kᵀΓ_k is
+recognised and kept by name (:func:`action_pieces`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import sympy as sp
+from sympy.matrices.expressions.matexpr import MatrixElement
+
+from .._symbols import StepSymbol, latex_name, step_label
+from ..derivation import PieceRule, partial_residuals, piece_residuals, window
+from ..groupoids import PairCoordinate
+from ._collect import replace_occurrences
+from ._latex import uncollected
+from ._matrix_parts import (
+    constant_matrices,
+    evaluated_constants,
+    junction_system,
+    kept_matrix_form,
+    matrix_values,
+    system_functions,
+)
+from ._pieces import (
+    generic_renaming,
+    half_label,
+    indexed_name,
+    pair_coordinates,
+    partial_symbol,
+    piece_roots,
+    piece_symbols,
+    window_partial_symbol,
+    window_piece_symbols,
+)
+
+
+@dataclass
+class Definition:
+    """A row of the "where" list: ``lhs`` (printed at a generic index j) = ``rhs``;
+    ``names``: the symbols in the equations it defines."""
+
+    lhs: sp.Expr
+    rhs: sp.Expr
+    names: frozenset
+    literal: bool = True  # printed whole, several to a line (else collected and broken)
+    as_written: bool = False  # terms in the order given (the pieces' definitions)
+    intro: int = 0  # which of the form's intros (words before a group of rows) it follows
+    abbreviation: str | None = None  # the user's abbreviation it defines (its LaTeX)
+
+
+@dataclass
+class Form:
+    """The equations in named pieces, with what verification substitutes, layer by layer
+    (abbreviations, then pieces, then matrices and operators), and the "where" list."""
+
+    equations: list
+    layers: list = field(default_factory=list)  # list of {symbol: value}
+    definitions: list = field(default_factory=list)  # list of Definition
+    intros: list = field(default_factory=lambda: ["where"])  # words before each group of rows
+    generic: dict = field(default_factory=dict)  # symbol at index j → the same at k (checks)
+    unindexed: bool = False  # "where" rows in pieces without index (L's partial derivatives)
+
+
+def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
+    """``expr`` with every layer substituted in order, named constants (J_d) by their
+    values, matrices evaluated, expanded."""
+    from ..groupoids import named_constants
+
+    out = uncollected(sp.sympify(expr))
+    for layer in layers:
+        if layer:
+            out = out.xreplace(dict(layer))
+    return sp.expand(out.xreplace(named_constants(out)).doit())
+
+
+def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mapping]) -> bool:
+    """Whether the printed equation, written out, is exactly the explicit residual."""
+    difference = sp.expand(explicit_value(printed, layers) - sp.expand(explicit))
+    if difference == 0:
+        return True
+    return sp.cancel(sp.together(difference)) == 0
+
+
+def base_form(step, matrix_form: bool = False) -> Form | None:
+    """The residuals as derived: in matrix form, when it keeps a matrix by name (else None),
+    or explicit."""
+    if not matrix_form:
+        return Form(list(step.residuals))
+    structured = kept_matrix_form(step)
+    return None if structured is None else Form(structured, [matrix_values(step)])
+
+
+def _index_range(offsets: Sequence[int]) -> str:
+    return "$j = " + ", ".join(step_label(o) for o in offsets) + "$"
+
+
+def piece_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | None:
+    """The residuals with every pair arrow of the window written in the pieces of ``rule``
+    before the variation meets the named arrows (so L's derivative comes out in them;
+    :func:`~symgroupoid.derivation.piece_residuals`); in matrix form (constant parts
+    evaluated) or explicitly."""
+    system = junction_system(step)
+    fs = system_functions(system, matrix_form)
+    equations, w = piece_residuals(step.groupoid, fs, rule, window_piece_symbols, matrix_form)
+    if matrix_form:
+        values, constants = matrix_values(step), constant_matrices(step.groupoid)
+        equations = [evaluated_constants(e, values, constants) for e in equations]
+    return Form(equations, [w.values, matrix_values(step) if matrix_form else {}],
+                _piece_definitions(pair_coordinates(step.groupoid), rule),
+                [f"where, for {_index_range(w.offsets)},"], _generic_pieces(step.groupoid))
+
+
+def _generic_pieces(G) -> dict:
+    """Coordinates and pieces at j (j−1/2) → the same at k (k−1/2)."""
+    out = {v: k for k, v in generic_renaming(G).items()}
+    for c in pair_coordinates(G):
+        out.update(zip(piece_symbols(c, half_label("j", 0)), piece_symbols(c, half_label("k", 0))))
+    return out
+
+
+def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | None:
+    """The first-order residual on a pair groupoid of Rⁿ, D₂L(q_{k−1}, q_k) + D₁L(q_k, q_{k+1})
+    (+ the multiplier terms), through the partial derivatives of L in the midpoint pieces
+    (:func:`~symgroupoid.derivation.partial_residuals`), each partial named and evaluated at
+    q̄_{k∓1/2}, Δq_{k∓1/2}; the "where" list gives each partial once, as a function of the
+    pieces (q̄, Δq), then the pieces at j − 1/2."""
+    system = junction_system(step)
+    G, coords = step.groupoid, pair_coordinates(step.groupoid)
+    if (matrix_form or rule.kind != "midpoint" or system._arity != 1
+            or 2 * len(coords) != G.arrow_dim):
+        return None
+    equations, partials, w = partial_residuals(G, system.functions, rule,
+                                               window_piece_symbols, window_partial_symbol)
+    layer: dict = {}
+    definitions: list[Definition] = []
+    instances = _generic_pieces(G)
+    for p in partials:
+        layer.update(p.values)
+        generic = partial_symbol(piece_roots(p.coordinate)[p.which], None)
+        definitions.append(Definition(generic, p.value, frozenset(p.at.values()),
+                                      literal=False))
+        instances[generic] = p.at[0]
+    for c in coords:
+        instances.update(zip(piece_symbols(c, None), piece_symbols(c, half_label("k", 0))))
+    intros = [f"where, for {_index_range(w.offsets)}, $(\\cdot)_{{j-1/2}}$ is taken at the "
+              f"pieces of index $j - 1/2$:", "with"]
+    return Form(equations, [layer, w.values],
+                definitions + _piece_definitions(coords, rule, intro=1), intros, instances,
+                unindexed=True)
+
+
+def _piece_definitions(coords: Sequence[PairCoordinate], rule: PieceRule,
+                       intro: int = 0) -> list[Definition]:
+    """The "where" rows of the pieces at the generic arrow g_j = (q_{j−1}, q_j); each
+    defines the pieces of that name at every index (k−3/2 … k+3/2)."""
+    out = []
+    for c in coords:
+        q0 = StepSymbol(indexed_name(latex_name(c.name), "j-1"))
+        q1 = StepSymbol(indexed_name(latex_name(c.name), "j"))
+        generic = piece_symbols(c, half_label("j", 0))
+        at_k = [piece_symbols(c, half_label("k", o)) for o in range(-1, 3)]
+        for piece, value in rule.definitions(q0, q1, *generic):
+            which = generic.index(piece)
+            out.append(Definition(piece, value, frozenset(p[which] for p in at_k),
+                                  as_written=True, intro=intro))
+    return out
+
+
+# --- recognised matrix pieces: β(g_k) = W_kᵀΓ_k on action groupoids ----------------------------
+
+
+def action_pieces(step) -> list[tuple[sp.Expr, sp.Expr, dict]]:
+    """(printed entry, explicit value, values of its symbols) for the target β(g_k) of the
+    first arrow of the window when G is an action groupoid of a named vector space by a
+    matrix group whose action is M p, Mᵀ p or M⁻¹ p (recognised by exact comparison, so
+    the printing keeps g_kᵀ as such: (W_{k}^{T} Γ_{k})_{2})."""
+    G = step.groupoid
+    action = G.named_vector_action()
+    if action is None:
+        return []
+    vector_name, group = action
+    offset = window(step.order)[0][0]
+    arrow = tuple(G.named_arrow(offset))
+    point = sp.Matrix(G.source(arrow))
+    target = [sp.expand(t) for t in G.target(arrow)]
+    P = sp.MatrixSymbol(indexed_name(latex_name(vector_name), step_label(offset)),
+                        len(point), 1)
+    M = sp.MatrixSymbol(indexed_name(group.latex, step_label(offset)), group.n, group.n)
+    explicit = sp.ImmutableMatrix(group.matrix(arrow[G.base_dim:]))
+    values = {P: sp.ImmutableMatrix(point), M: explicit}
+    for candidate in (sp.MatMul(M, P), sp.MatMul(sp.Transpose(M), P),
+                      sp.MatMul(sp.Inverse(M), P)):
+        try:
+            entries = sp.Matrix(candidate.xreplace(values).doit())
+        except (ValueError, TypeError, NotImplementedError):
+            continue
+        if all(sp.expand(e - t) == 0 for e, t in zip(entries, target)):
+            # as the explicit residuals write it, and as the matrix form does (entries of M)
+            in_entries = sp.Matrix(candidate.xreplace({P: values[P]}).doit())
+            return [(MatrixElement(candidate, a, 0), value, values)
+                    for a in range(len(target))
+                    for value in (target[a], sp.expand(in_entries[a]))]
+    return []
+
+
+def with_recognised(form: Form, pieces: Sequence) -> Form:
+    """``form`` with each recognised piece's value replaced by its printed entry."""
+    equations = list(form.equations)
+    layer: dict = {}
+    for symbol, value, values in pieces:
+        layer.update(values)
+        equations = [replace_occurrences(sp.expand(e), value, symbol) for e in equations]
+    return Form(equations, [*form.layers, layer], form.definitions, form.intros, form.generic,
+                form.unindexed)
+
+
