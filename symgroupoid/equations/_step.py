@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 
 from .._symbols import multiplier_symbols, parse_step
-from ..derivation._step import DerivedStep
+from ..derivation import DerivedStep
 
 
 class StepEquations:
