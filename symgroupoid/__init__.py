@@ -33,6 +33,7 @@ from ._errors import (
     SingularJacobianError,
     StatusCodeError,
     SymgroupoidError,
+    TimeStepError,
     TrajectoryFileError,
     TrajectoryTooLargeError,
     UndeclaredSymbolError,
@@ -48,12 +49,13 @@ from .equations import (
     LiePoissonEquations,
     NoetherQuantity,
     NonholonomicSystem,
+    ReducedSystem,
     SecondOrderSystem,
     StepEquations,
     UnusedAbbreviationWarning,
+    check_system_morphism,
     latex,
 )
-from .equations._reduced import ReducedSystem, check_system_morphism
 from .groupoids import (
     SE2,
     SE3,
@@ -91,7 +93,6 @@ from .runtime import (  # noqa: E402  (layer 5)
     sweep_boundary_value,
 )
 from .runtime._bvp import BoundaryValueSolution, solve_boundary_value
-from .runtime._diagnostics import TimeStepError  # noqa: E402  (layer 5)
 from .stepper import Status  # noqa: E402  (the statuses of every run)
 from .verification import StationarityReport, verify_stationary
 

@@ -44,7 +44,7 @@ def where(owner: str) -> str:
     return f"{owner}: " if owner else ""
 
 
-def _shown(value) -> str:
+def shown_value(value) -> str:
     """``repr(value)`` shortened, or its type where the repr itself fails (a user object
     that cannot print itself)."""
     try:
@@ -79,7 +79,7 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
         raise ShapeError(f"{at}{name} must be an integer, got the boolean {value!r}")
     if isinstance(value, _TIMES):  # NumPy durations are integers to `numbers`, not counts
         raise ShapeError(f"{at}{name} must be an integer, got {type(value).__name__} "
-                         f"{_shown(value)}")
+                         f"{shown_value(value)}")
     if isinstance(value, numbers.Integral):
         number = int(value)
     elif isinstance(value, numbers.Real):
@@ -91,7 +91,7 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
         number = int(real)
     else:
         raise ShapeError(f"{at}{name} must be an integer, got {type(value).__name__} "
-                         f"{_shown(value)}")
+                         f"{shown_value(value)}")
     if number < minimum:
         raise ShapeError(f"{at}{name} must be at least {minimum}, got {number}")
     if number > maximum:
@@ -110,7 +110,7 @@ def real_argument(value, name: str, *, minimum: float | None = None, owner: str 
     at = where(owner)
 
     def bad() -> str:  # built only on failure: repr of a large array is not free
-        return f"{at}{name} must be a real number, got {type(value).__name__} {_shown(value)}"
+        return f"{at}{name} must be a real number, got {type(value).__name__} {shown_value(value)}"
 
     if isinstance(value, (bool, np.bool_, str, bytes, complex, np.complexfloating,
                           np.datetime64, np.timedelta64, Sequence, Mapping)):
@@ -123,7 +123,7 @@ def real_argument(value, name: str, *, minimum: float | None = None, owner: str 
         raise error(bad()) from None
     except OverflowError:
         raise error(f"{at}{name} is beyond the range of a double, got "
-                    f"{_shown(value)}") from None
+                    f"{shown_value(value)}") from None
     if not finite:
         return real
     if not np.isfinite(real):
@@ -142,7 +142,7 @@ def flag_argument(value, name: str, *, owner: str = "") -> bool:
             and int(value) in (0, 1):
         return bool(value)
     raise ShapeError(f"{where(owner)}{name} must be True or False, got "
-                     f"{type(value).__name__} {_shown(value)}")
+                     f"{type(value).__name__} {shown_value(value)}")
 
 
 #: NumPy dtype kinds holding real numbers (integers, unsigned integers, floats)
@@ -162,7 +162,7 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
     at = where(owner)
 
     def kind() -> str:  # built only on failure: repr of a large array is not free
-        return f"an array of real numbers, got {type(value).__name__} {_shown(value)}"
+        return f"an array of real numbers, got {type(value).__name__} {shown_value(value)}"
 
     if isinstance(value, (str, bytes, Mapping, set, frozenset)) or value is None:
         raise ShapeError(f"{at}{name} must be {kind()}")
@@ -175,14 +175,14 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
             _check_real_item(item, name, at)
     elif raw.dtype.kind not in _REAL_KINDS:
         raise ShapeError(f"{at}{name} must hold real numbers, got dtype {raw.dtype} "
-                         f"({_shown(value)})")
+                         f"({shown_value(value)})")
     try:
         return np.array(raw, dtype=np.float64)
     except (TypeError, ValueError):
         raise ShapeError(f"{at}{name} must be {kind()}") from None
     except OverflowError:
         raise ShapeError(f"{at}{name} has an entry beyond the range of a double: "
-                         f"{_shown(value)}") from None
+                         f"{shown_value(value)}") from None
 
 
 def _check_real_item(item, name: str, at: str) -> None:
@@ -190,15 +190,15 @@ def _check_real_item(item, name: str, at: str) -> None:
     if isinstance(item, (bool, np.bool_, str, bytes, complex, np.complexfloating)) \
             or not isinstance(item, numbers.Real) and not _is_real_number(item):
         raise ShapeError(f"{at}{name} must hold real numbers, got the entry "
-                         f"{type(item).__name__} {_shown(item)}")
+                         f"{type(item).__name__} {shown_value(item)}")
     try:
         float(item)
     except OverflowError:
         raise ShapeError(f"{at}{name} has an entry beyond the range of a double: "
-                         f"{_shown(item)}") from None
+                         f"{shown_value(item)}") from None
     except (TypeError, ValueError):
         raise ShapeError(f"{at}{name} must hold real numbers, got the entry "
-                         f"{_shown(item)}") from None
+                         f"{shown_value(item)}") from None
 
 
 def _is_real_number(item) -> bool:
@@ -214,7 +214,7 @@ def name_argument(value, name: str, *, owner: str = "", empty: bool = False) -> 
     an :class:`InputTypeError` or :class:`ShapeError` naming ``name`` otherwise."""
     if not isinstance(value, str):
         raise InputTypeError(f"{where(owner)}{name} must be a string, got "
-                             f"{type(value).__name__} {_shown(value)}")
+                             f"{type(value).__name__} {shown_value(value)}")
     if not value.strip() and not empty:
         raise ShapeError(f"{where(owner)}{name} must not be empty, got {value!r}")
     if "\0" in value:
@@ -228,7 +228,7 @@ def names_argument(value, name: str, *, owner: str = "") -> tuple[str, ...]:
     would be read letter by letter)."""
     if isinstance(value, (str, bytes, Mapping)) or not _is_sequence(value):
         raise InputTypeError(f"{where(owner)}{name} must be a list of strings, got "
-                             f"{type(value).__name__} {_shown(value)}")
+                             f"{type(value).__name__} {shown_value(value)}")
     return tuple(name_argument(v, f"{name}[{i}]", owner=owner) for i, v in enumerate(value))
 
 
@@ -238,7 +238,7 @@ def callable_argument(value, name: str, *, owner: str = "", none: bool = False):
         return None
     if not callable(value):
         raise InputTypeError(f"{where(owner)}{name} must be a function, got "
-                             f"{type(value).__name__} {_shown(value)}")
+                             f"{type(value).__name__} {shown_value(value)}")
     return value
 
 
@@ -247,7 +247,7 @@ def instance_argument(value, kinds, name: str, what: str, *, owner: str = ""):
     ``what`` is expected."""
     if not isinstance(value, kinds):
         raise InputTypeError(f"{where(owner)}{name} must be {what}, got "
-                             f"{type(value).__name__} {_shown(value)}")
+                             f"{type(value).__name__} {shown_value(value)}")
     return value
 
 
@@ -256,7 +256,7 @@ def choice_argument(value, choices: Sequence, name: str, *, owner: str = ""):
     a :class:`DomainError` listing them."""
     if not isinstance(value, str) or value not in choices:
         raise DomainError(f"{where(owner)}{name} must be one of "
-                          f"{', '.join(map(repr, choices))}, got {_shown(value)}")
+                          f"{', '.join(map(repr, choices))}, got {shown_value(value)}")
     return value
 
 
@@ -265,7 +265,7 @@ def path_argument(value, name: str, *, owner: str = "") -> Path:
     non-empty and without NUL characters."""
     if isinstance(value, (bytes, bytearray)) or not isinstance(value, (str, os.PathLike)):
         raise InputTypeError(f"{where(owner)}{name} must be a path (str or os.PathLike), got "
-                             f"{type(value).__name__} {_shown(value)}")
+                             f"{type(value).__name__} {shown_value(value)}")
     text = os.fspath(value)
     if not isinstance(text, str):
         raise InputTypeError(f"{where(owner)}{name} must be a path giving a str, got "
@@ -284,7 +284,7 @@ def sequence_argument(value, name: str, *, owner: str = "") -> list:
     otherwise."""
     if isinstance(value, (str, bytes, Mapping, set, frozenset)) or not _is_sequence(value):
         raise InputTypeError(f"{where(owner)}{name} must be a list or tuple, got "
-                             f"{type(value).__name__} {_shown(value)}")
+                             f"{type(value).__name__} {shown_value(value)}")
     return list(value)
 
 
@@ -298,5 +298,6 @@ def _is_sequence(value) -> bool:
 
 __all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "choice_argument", "flag_argument",
            "instance_argument", "integer_argument", "name_argument", "names_argument",
-           "path_argument", "real_argument", "real_array", "sequence_argument", "where"]
+           "path_argument", "real_argument", "real_array", "sequence_argument", "shown_value",
+           "where"]
 

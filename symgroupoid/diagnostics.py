@@ -20,12 +20,11 @@ and φ and evaluated for all states at once; the same functions are methods of
 :mod:`symgroupoid.plotting`.
 """
 
-from .runtime._diagnostics import (
+from ._errors import DiagnosticsError, TimeStepError
+from .runtime import (
     ConservationSummary,
-    DiagnosticsError,
     Drift,
     Momenta,
-    TimeStepError,
     conservation_summary,
     constraint_residuals,
     energy,

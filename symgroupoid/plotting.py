@@ -29,15 +29,15 @@ from ._errors import (
     OutputError,
     SymgroupoidError,
 )
-from .runtime._diagnostics import (
+from .runtime import (
     Drift,
-    _noether_quantities,
-    _setup,
     constraint_residuals,
     energy_label,
     has_energy,
+    noether_quantities,
+    trajectory_programs,
 )
-from .runtime._diagnostics import energy as _energy
+from .runtime import energy as _energy
 
 __all__ = ["MissingDependencyError", "plot_conservation", "plot_trajectory"]
 
@@ -208,8 +208,8 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     of k either way.  Returns the figure (saved to ``path`` if given).
     """
     Figure = _figure_class()
-    ev, _ = _setup(trajectory)
-    owner = ev.sg.name
+    programs = trajectory_programs(trajectory)
+    owner = programs.name
     energy = None if energy is None else flag_argument(energy, "energy", owner=owner)
     constraints = (None if constraints is None
                    else flag_argument(constraints, "constraints", owner=owner))
@@ -221,14 +221,14 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     if energy or (energy is None and has_energy(trajectory, step_parameter)):
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 _energy(trajectory, step_parameter), idx))
-    for label, nq in _noether_quantities(ev.sg, momenta):
+    for label, nq in noether_quantities(programs, momenta):
         quantities.append(Drift(label, nq.along(trajectory), idx))
-    show_phi = ev.sg.has_constraints if constraints is None else constraints
-    if show_phi and not ev.sg.has_constraints:
-        raise DomainError(f"{ev.sg.name}: constraints=True, but the system has no "
+    show_phi = programs.has_constraints if constraints is None else constraints
+    if show_phi and not programs.has_constraints:
+        raise DomainError(f"{programs.name}: constraints=True, but the system has no "
                           f"constraints to plot")
     if not quantities and not show_phi:
-        raise DomainError(f"{ev.sg.name}: nothing to plot: no energy is defined (declare the "
+        raise DomainError(f"{programs.name}: nothing to plot: no energy is defined (declare the "
                           f"system's time_step=, or pass step_parameter=...) and no Noether "
                           f"quantity was given (momenta=[...])")
     panels = int(bool(quantities)) + int(show_phi)

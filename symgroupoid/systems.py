@@ -37,7 +37,7 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
-from ._arguments import MAX_DIMENSION
+from ._arguments import MAX_DIMENSION, integer_argument
 from .equations import DiscreteSystem
 from .groupoids import (
     SO3,
@@ -50,7 +50,6 @@ from .groupoids import (
     ProductGroupoid,
     TrivialisedPairGroupoid,
 )
-from .runtime._validate import integer_argument
 
 
 def plate_ball() -> DiscreteSystem:

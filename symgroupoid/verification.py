@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._arguments import integer_argument
-from ._errors import DomainError
+from ._arguments import integer_argument, real_argument, real_array
+from ._errors import DomainError, ShapeError
 from .equations import action_program, structure_program
 from .groupoids import Groupoid
+from .runtime import parameter_vector, system_argument
 
 
 @dataclass
@@ -144,8 +145,6 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     ε relative to the largest coordinate and multiplier (at least 1).  An action that is not
     finite on the trajectory is a :class:`~symgroupoid.DomainError`.
     """
-    from .runtime._validate import real_argument, system_argument
-
     system = system_argument(system, "system", owner="verify_stationary")
     G = system.groupoid
     seed = integer_argument(seed, "seed", maximum=2**63 - 1, owner=system.name)
@@ -210,9 +209,6 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
 def _unpack(trajectory, system, multipliers, params):
     """Arrows (N, arrow_dim), multipliers (one row per action term) and the parameter vector
     of a :class:`BoundaryValueSolution`, a :class:`Trajectory` or an array of arrows."""
-    from ._errors import ShapeError
-    from .runtime._validate import parameter_vector, real_array
-
     G, owner = system.groupoid, system.name
     layout = getattr(trajectory, "_layout", None)
     if hasattr(trajectory, "arrows"):  # a BoundaryValueSolution, or any object with arrows

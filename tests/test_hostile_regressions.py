@@ -361,7 +361,7 @@ def test_argument_checks_build_their_messages_only_on_failure(monkeypatch):
     def never(value):
         raise AssertionError("a message was built for a valid argument")
 
-    monkeypatch.setattr(_arguments, "_shown", never)
+    monkeypatch.setattr(_arguments, "shown_value", never)
     table = np.arange(12.0).reshape(4, 3)
     assert _arguments.real_array(table, "states").shape == (4, 3)
     assert _arguments.real_argument(np.float64(0.5), "h") == 0.5

@@ -109,9 +109,9 @@ def _refuse_constant(name: str):
 def _saved_state(path: Path, sim):
     """The last state of a trajectory written by ``simulate -o FILE.npz`` (or
     ``Trajectory.save``) for this system: its state columns must be this system's, not
-    merely as many (:func:`~symgroupoid.runtime._files.read_trajectory`)."""
+    merely as many (:func:`~symgroupoid.runtime.read_trajectory`)."""
     from .._errors import TrajectoryFileError
-    from ..runtime._files import read_trajectory
+    from ..runtime import read_trajectory
 
     try:
         data = read_trajectory(path, sim.layout, list(sim.parameter_names), label=str(path))

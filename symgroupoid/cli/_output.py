@@ -15,14 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime._files import FORMATS, TRAJECTORY_KEYS, save_trajectory, state_columns
-from ..runtime._files import atomic_write as _atomic
-from ..runtime._files import number_text as _number
-from ..runtime._files import trajectory_arrays as _arrays
+from ..runtime import TRAJECTORY_FORMATS, save_trajectory
+from ..runtime import atomic_write as _atomic
+from ..runtime import number_text as _number
 from ._errors import InputError
 
-__all__ = ["FORMATS", "TRAJECTORY_KEYS", "check_format", "trajectory_arrays",
-           "trajectory_columns", "write_solution", "write_trajectory"]
+__all__ = ["check_format", "write_solution", "write_trajectory"]
 
 
 def check_format(path: str | None, option: str = "-o") -> Path | None:
@@ -31,7 +29,7 @@ def check_format(path: str | None, option: str = "-o") -> Path | None:
     if path is None:
         return None
     out = Path(path)
-    if out.suffix not in FORMATS:
+    if out.suffix not in TRAJECTORY_FORMATS:
         raise InputError(f"{option} {path}: the file name must end in .npz or .csv")
     if not out.parent.is_dir():
         raise InputError(f"{option} {path}: the directory {out.parent} does not exist")
@@ -39,15 +37,6 @@ def check_format(path: str | None, option: str = "-o") -> Path | None:
 
 
 # --- trajectories (the library's own format: symgroupoid/runtime/_files.py) ---------------------
-
-def trajectory_columns(sim) -> list[str]:
-    """A name for every entry of the flat state (``x (step k-1)``, ``g[0, 2]``, …)."""
-    return state_columns(sim.layout)
-
-
-def trajectory_arrays(sim, traj) -> dict[str, np.ndarray]:
-    return _arrays(traj)
-
 
 def write_trajectory(path: Path, sim, traj) -> None:
     """``traj`` to ``path`` (.npz: every array; .csv: step, state columns, Newton data), as

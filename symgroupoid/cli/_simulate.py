@@ -8,7 +8,7 @@ import time
 import numpy as np
 
 from .._errors import NewtonDivergenceError, SingularJacobianError
-from ..runtime._validate import constraint_check
+from ..runtime import constraint_check
 from ._common import derive, say, stepper, warn
 from ._inputs import initial_data, initial_state, parameters, parse_count
 from ._newton import newton_options

@@ -5,6 +5,7 @@ from ._emit import (
     current_umask,
     emit_c,
     generate_c,
+    generate_program_c,
     precompile_templates,
     template_dir,
     templates_digest,
@@ -13,4 +14,5 @@ from ._kernel import c_identifier
 from ._printer import KernelCPrinter, print_c
 
 __all__ = ["KernelCPrinter", "KernelSource", "c_identifier", "current_umask", "emit_c",
-           "generate_c", "precompile_templates", "print_c", "template_dir", "templates_digest"]
+           "generate_c", "generate_program_c", "precompile_templates", "print_c",
+           "template_dir", "templates_digest"]

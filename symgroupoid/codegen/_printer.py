@@ -2,6 +2,6 @@
 :mod:`symgroupoid.ir._c`, where the printer lives so that the expression graph's opaque and
 special functions print with it too)."""
 
-from ..ir._c import KernelCPrinter, UnmappedSymbolError, print_c
+from ..ir import KernelCPrinter, UnmappedSymbolError, print_c
 
 __all__ = ["KernelCPrinter", "UnmappedSymbolError", "print_c"]

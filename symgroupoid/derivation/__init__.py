@@ -7,10 +7,34 @@ from ._assembly import (
     field_derivatives,
     slot_derivatives,
 )
-from ._callables import as_scalar, call_user
+from ._callables import as_scalar, call_user, check_values
+from ._energy_momentum import (
+    NONHOLONOMIC_METHODS,
+    conserved_quantities,
+    energy_momentum_step,
+)
 from ._junction import junction_variation
-from ._limit import SCALES, extrapolate, identified_time_steps, limit_points, parameter_value
-from ._momenta import momentum_symbols, second_order_legendre_forms
+from ._limit import (
+    SCALES,
+    extrapolate,
+    identified_time_steps,
+    limit_points,
+    may_be_step,
+    parameter_value,
+    time_step_candidates,
+)
+from ._momenta import (
+    LegendreForms,
+    LiePoissonForms,
+    NoetherForms,
+    legendre_forms,
+    lie_poisson_forms,
+    momentum_symbols,
+    noether_forms,
+    second_order_legendre_forms,
+    vanishes_on_restriction,
+    vanishing_check,
+)
 from ._pieces import (
     Partial,
     PieceRule,
@@ -19,23 +43,32 @@ from ._pieces import (
     piece_residuals,
     window_in_pieces,
 )
+from ._reduction import reduce_functions
 from ._step import (
     DerivedStep,
     SystemFunctions,
     chart_of,
+    check_nonholonomic_dimensions,
     evaluate_system,
     junction_step,
+    matrix_form_residuals,
     matrix_form_values,
     named,
     next_arrow,
+    nonholonomic_step,
     window,
 )
 from ._window import step_jacobian
 
-__all__ = ["SCALES", "DerivedStep", "JunctionNodes", "Partial", "PieceRule", "SystemFunctions",
+__all__ = ["NONHOLONOMIC_METHODS", "SCALES", "DerivedStep", "JunctionNodes", "LegendreForms",
+           "LiePoissonForms", "NoetherForms", "Partial", "PieceRule", "SystemFunctions",
            "TermNodes", "WindowAction", "WindowPieces", "as_scalar", "call_user", "chart_of",
-           "evaluate_system", "extrapolate", "field_derivatives", "identified_time_steps",
-           "junction_step", "junction_variation", "limit_points", "matrix_form_values",
-           "momentum_symbols", "named", "next_arrow", "parameter_value", "partial_residuals",
-           "piece_residuals", "second_order_legendre_forms", "slot_derivatives",
-           "step_jacobian", "window", "window_in_pieces"]
+           "check_nonholonomic_dimensions", "check_values", "conserved_quantities",
+           "energy_momentum_step", "evaluate_system", "extrapolate", "field_derivatives",
+           "identified_time_steps", "junction_step", "junction_variation", "legendre_forms",
+           "lie_poisson_forms", "limit_points", "matrix_form_residuals", "matrix_form_values",
+           "may_be_step", "momentum_symbols", "named", "next_arrow", "noether_forms",
+           "nonholonomic_step", "parameter_value", "partial_residuals", "piece_residuals",
+           "reduce_functions", "second_order_legendre_forms", "slot_derivatives",
+           "step_jacobian", "time_step_candidates", "vanishes_on_restriction",
+           "vanishing_check", "window", "window_in_pieces"]

@@ -10,7 +10,7 @@ from collections.abc import Callable, Iterable, Sequence
 
 import sympy as sp
 
-from .._arguments import _shown as shown_value
+from .._arguments import shown_value
 from .._errors import (
     CallableError,
     InvalidExpressionError,

@@ -30,8 +30,7 @@ import sympy as sp
 
 from .._errors import DomainError, ShapeError
 from .._lambdify import NUMPY_MODULES
-from ..groupoids import Groupoid
-from ..groupoids._morphism import ParameterValues
+from ..groupoids import Groupoid, ParameterValues
 from ._assembly import WindowAction
 from ._callables import as_matrix, call_user, check_values
 from ._momenta import legendre_forms
@@ -47,7 +46,8 @@ from ._step import (
     window_arrows,
 )
 
-METHODS = ("holder", "energy_momentum")
+#: the methods of a nonholonomic step: Hölder's, or the energy–momentum correction
+NONHOLONOMIC_METHODS = ("holder", "energy_momentum")
 
 
 def metric_at(name: str, G: Groupoid, metric, q: Sequence) -> sp.Matrix:

@@ -24,7 +24,7 @@ import sympy as sp
 
 from .._errors import DomainError, MorphismError, ShapeError
 from .._lambdify import NUMPY_MODULES
-from ..groupoids._morphism import GroupoidMorphism, ParameterValues
+from ..groupoids import GroupoidMorphism, ParameterValues
 from ._callables import as_scalar, as_scalar_list, call_user
 from ._junction import slot
 

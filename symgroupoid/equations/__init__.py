@@ -20,13 +20,15 @@ from ._programs import (
     structure_program,
     window_programs,
 )
+from ._reduced import ReducedSystem, check_system_morphism
 from ._step import StepEquations
 from ._system import DiscreteSystem, NonholonomicSystem, SecondOrderSystem
 
 __all__ = [
     "DiscreteSystem", "GroupoidLatexPrinter", "LegendreTransforms", "LiePoissonEquations",
-    "MomentumProgram", "NoetherQuantity", "NonholonomicSystem", "SecondOrderSystem",
-    "StatePrograms", "StepEquations", "WindowPrograms", "action_program", "constraint_program",
+    "MomentumProgram", "NoetherQuantity", "NonholonomicSystem", "ReducedSystem",
+    "SecondOrderSystem", "StatePrograms", "StepEquations", "WindowPrograms", "action_program",
+    "check_system_morphism", "constraint_program",
     "cost_program", "holonomic_program", "latex", "magnitude", "momentum_program",
     "second_order_momentum_program", "source_projection_program", "state_programs",
     "step_program", "structure_program", "window_programs",

@@ -10,11 +10,7 @@ import sympy as sp
 
 from .._errors import DomainError, InputTypeError, ParameterError, ShapeError
 from .._lambdify import NUMPY_MODULES
-from ..derivation._momenta import (
-    LegendreForms,
-    LiePoissonForms,
-    NoetherForms,
-)
+from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
 from ..ir import Graph, Program, from_sympy
 from ._step import StepEquations
 

@@ -11,8 +11,8 @@ import sympy as sp
 
 from .._arguments import instance_argument
 from .._errors import DomainError, ShapeError, UnsupportedFeatureError
-from ..derivation._reduction import reduce_functions
-from ..groupoids._morphism import GroupoidMorphism, check_morphism
+from ..derivation import reduce_functions
+from ..groupoids import GroupoidMorphism, check_morphism
 from ._system import DiscreteSystem
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import sympy as sp
 
 from .._symbols import multiplier_symbols, parse_step
-from ..derivation._step import DerivedStep
+from ..derivation import DerivedStep
 
 
 class StepEquations:
@@ -168,15 +168,15 @@ class StepEquations:
     # --- code generation and runtime (layers 4 and 5) ----------------------------------------
     def emit_c(self, path, **options):
         """Write ``path.c`` and ``path.h``: residual, Jacobian, chart and Newton stepper in C99."""
-        from ..codegen import emit_c
+        from .. import codegen  # a convenience that looks up (docs/architecture.md)
 
-        return emit_c(self, path, **options)
+        return codegen.emit_c(self, path, **options)
 
     def compile(self, **options):
         """Compile the C kernels with cffi (cached) and return a :class:`Simulator`."""
-        from ..runtime import compile_step
+        from .. import runtime  # a convenience that looks up (docs/architecture.md)
 
-        return compile_step(self, **options)
+        return runtime.compile_step(self, **options)
 
     # --- LaTeX --------------------------------------------------------------------------------
     def latex(self, document: bool = False, abbreviations=None, width=None) -> str:

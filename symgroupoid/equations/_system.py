@@ -17,27 +17,25 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from .._progress import reported
-from ..derivation import SystemFunctions
-from ..derivation._callables import call_user, check_values
-from ..derivation._energy_momentum import (
-    METHODS,
+from ..derivation import (
+    NONHOLONOMIC_METHODS,
+    SystemFunctions,
+    call_user,
+    check_nonholonomic_dimensions,
+    check_values,
     conserved_quantities,
     energy_momentum_step,
-)
-from ..derivation._limit import may_be_step, time_step_candidates
-from ..derivation._momenta import (
-    legendre_forms,
-    lie_poisson_forms,
-    noether_forms,
-    vanishes_on_restriction,
-    vanishing_check,
-)
-from ..derivation._step import (
-    check_nonholonomic_dimensions,
     evaluate_system,
     junction_step,
+    legendre_forms,
+    lie_poisson_forms,
     matrix_form_residuals,
+    may_be_step,
+    noether_forms,
     nonholonomic_step,
+    time_step_candidates,
+    vanishes_on_restriction,
+    vanishing_check,
 )
 from ..groupoids import Groupoid
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
@@ -332,7 +330,7 @@ class NonholonomicSystem(_EvaluatedSystem):
                  method: str = "holder", metric=None,
                  time_step: sp.Symbol | str | None = None):
         name, groupoid, parameters = system_arguments(name, groupoid, parameters)
-        choice_argument(method, METHODS, "method", owner=name)
+        choice_argument(method, NONHOLONOMIC_METHODS, "method", owner=name)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.distribution = distribution_elements(name, groupoid, distribution)

@@ -13,7 +13,7 @@ from ._matrix_form import (
     to_explicit,
 )
 from ._matrix_groups import MatrixArrow, MatrixLieGroup, hat3
-from ._morphism import GroupoidMorphism, check_morphism
+from ._morphism import GroupoidMorphism, ParameterValues, check_morphism
 from ._numerics import ConfigurationChecks, PairCoordinate
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
 from ._product import ProductArrow, ProductGroupoid
@@ -31,7 +31,7 @@ __all__ = [
     "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",
     "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",
     "ConfigurationChecks", "MatrixLieGroup", "NamedMatrix", "PairCoordinate", "StructuredMatrix",
-    "PairArrow", "PairGroupoid",
+    "PairArrow", "PairGroupoid", "ParameterValues",
     "ProductArrow", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid",
     "TrivialisedArrow", "TrivialisedPairGroupoid",
     "check_axioms", "check_morphism", "derivation", "examples", "hat3", "left_derivative",

@@ -9,8 +9,9 @@ the graph only on demand (:func:`to_sympy`).
 """
 
 from ._ad import forward, gradient, jacobian, partial
-from ._c import KernelCPrinter, c_of_sympy
+from ._c import KernelCPrinter, UnmappedSymbolError, c_of_sympy, print_c
 from ._compact import compact
+from ._format import C, functions_used, plan, write
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
 from ._program import Program, interpret
@@ -29,9 +30,11 @@ from ._sympy import from_sympy, to_sympy
 
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
-    "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "c_of_sympy", "compact", "forward",
-    "from_sympy", "gradient", "interpret", "jacobian", "partial", "rounding_error",
-    "smooth_spec", "term_magnitude", "to_sympy",
+    "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "UnmappedSymbolError",
+    "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret", "jacobian",
+    "partial", "print_c", "rounding_error", "smooth_spec", "term_magnitude", "to_sympy",
+    # straight-line code of a graph: the C dialect, the plan of its nodes, the writer
+    "C", "functions_used", "plan", "write",
     # smooth functions of θ² (or cos θ) with their Taylor series near the removable point
     "HalfThetaCotHalfTheta", "OneMinusCosOverTheta2", "SE3LogCoefficient", "SinOverTheta",
     "SmoothFunction", "ThetaMinusSinOverTheta3", "ThetaOverTwoSin", "smooth_function",

@@ -1,8 +1,27 @@
-"""Layer 5: compiled (cffi) or NumPy kernels, simulation and trajectories."""
+"""Layer 5: compiled (cffi) or NumPy kernels, simulation and trajectories.
+
+The trajectory files (:mod:`._files`: ``read_trajectory``, ``save_trajectory``, ...) load on
+first use, so that ``import symgroupoid`` does not import what only writing and reading files
+needs (csv, zipfile, tempfile).
+"""
 
 from .._errors import CacheError
 from ._batch import TrajectoryBatch
 from ._compile import compile_step
+from ._diagnostics import (
+    ConservationSummary,
+    Drift,
+    Momenta,
+    conservation_summary,
+    constraint_residuals,
+    energy,
+    energy_label,
+    has_energy,
+    momenta,
+    noether_quantities,
+    rounding_floor,
+    trajectory_programs,
+)
 from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
 from ._simulator import Simulator
@@ -11,9 +30,27 @@ from ._sweep_boundary import sweep_boundary_value
 from ._sweep_result import SweepResult
 from ._sweep_tasks import ReduceError
 from ._trajectory import Trajectory
+from ._validate import constraint_check, parameter_vector, system_argument
 from .toolchain import CompilationError, CompilerNotFoundError, cache_root
 
-__all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "DetachedStepError",
-           "NewtonOptions", "NotPortableError", "ReduceError", "Simulator", "SweepResult",
-           "Trajectory", "TrajectoryBatch", "cache_root", "compile_step", "sweep",
-           "sweep_boundary_value"]
+#: names of :mod:`._files`, imported when first asked for (:func:`__getattr__`)
+_FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "read_trajectory",
+                         "save_trajectory"})
+
+__all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "ConservationSummary",
+           "DetachedStepError", "Drift", "Momenta", "NewtonOptions", "NotPortableError",
+           "ReduceError", "Simulator", "SweepResult", "TRAJECTORY_FORMATS", "Trajectory",
+           "TrajectoryBatch", "atomic_write", "cache_root", "compile_step",
+           "conservation_summary", "constraint_check", "constraint_residuals", "energy",
+           "energy_label", "has_energy", "momenta", "noether_quantities", "number_text",
+           "parameter_vector", "read_trajectory", "rounding_floor", "save_trajectory", "sweep",
+           "sweep_boundary_value", "system_argument", "trajectory_programs"]
+
+
+def __getattr__(name: str):
+    """The trajectory-file names, imported on first use (PEP 562)."""
+    if name in _FILE_NAMES:
+        from . import _files
+
+        return getattr(_files, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -87,6 +87,13 @@ def _setup(trajectory) -> tuple[_Evaluator, np.ndarray]:
     return ev, p
 
 
+def trajectory_programs(trajectory) -> StatePrograms:
+    """The programs of the known state of the step ``trajectory`` solves
+    (:func:`~symgroupoid.equations.state_programs`); a :class:`DiagnosticsError` unless it
+    is a :class:`~symgroupoid.Trajectory` that knows its equations."""
+    return _setup(trajectory)[0].sg
+
+
 def momenta(trajectory) -> Momenta:
     """The discrete momenta F⁻L, F⁺L at every kept state (see the module docstring)."""
     ev, p = _setup(trajectory)
@@ -266,7 +273,7 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     if want_energy:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 globals()["energy"](trajectory, step_parameter), idx))
-    for label, nq in _noether_quantities(ev.sg, noether):
+    for label, nq in noether_quantities(ev.sg, noether):
         quantities.append(Drift(label, nq.along(trajectory), idx))
     residual = None
     if ev.sg.has_constraints:
@@ -292,7 +299,7 @@ def _variational(system) -> bool:
     return not isinstance(system, NonholonomicSystem)
 
 
-def _noether_quantities(sgraph: StatePrograms, items) -> list[tuple[str, object]]:
+def noether_quantities(sgraph: StatePrograms, items) -> list[tuple[str, object]]:
     """(label, NoetherQuantity) pairs from NoetherQuantity objects or sections, or from a
     mapping label → either."""
     from ..equations import NoetherQuantity

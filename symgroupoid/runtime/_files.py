@@ -34,7 +34,8 @@ import numpy as np
 from .._arguments import path_argument
 from .._errors import DomainError, OutputError, TrajectoryFileError
 
-FORMATS = (".npz", ".csv")
+#: the suffixes of trajectory files
+TRAJECTORY_FORMATS = (".npz", ".csv")
 #: names of the fixed arrays of a trajectory file (a state part with one of these names is
 #: stored as ``part_<name>``)
 TRAJECTORY_KEYS = ("states", "step_indices", "newton_iterations", "residual_norms",
@@ -98,7 +99,7 @@ def output_path(path, owner: str) -> Path:
     """``path`` checked before anything is written: a path ending in .npz or .csv whose
     directory exists."""
     out = path_argument(path, "path", owner=owner)
-    if out.suffix not in FORMATS:
+    if out.suffix not in TRAJECTORY_FORMATS:
         raise DomainError(f"{owner}: path {str(out)!r} must end in .npz or .csv")
     if not out.parent.is_dir():
         raise OutputError(f"{owner}: the trajectory cannot be written to {str(out)!r}: the "
@@ -145,7 +146,7 @@ def read_trajectory(path, layout, parameter_names: list[str], *,
     (``label``: how; default the system's name and the path)."""
     path = path_argument(path, "path", owner=layout.step_name)
     label = f"{layout.step_name}: {str(path)!r}" if label is None else label
-    if path.suffix not in FORMATS:
+    if path.suffix not in TRAJECTORY_FORMATS:
         raise TrajectoryFileError(f"{label}: a trajectory file ends in .npz or .csv")
     if not path.is_file():
         raise TrajectoryFileError(f"{label}: no such file")

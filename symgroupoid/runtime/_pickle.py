@@ -30,7 +30,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import CacheError, SymgroupoidError
-from ..codegen._emit import KernelSource
+from ..codegen import KernelSource
 from ._layout import Part, StateLayout
 from ._options import NewtonOptions
 

@@ -26,7 +26,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .._errors import ShapeError
-from ..codegen._emit import generate_program_c
+from ..codegen import generate_program_c
 from ._backends import C_INT_MAX, c_buffer
 from .toolchain import (
     CompilationError,

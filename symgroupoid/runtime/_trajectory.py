@@ -240,9 +240,9 @@ class Trajectory:
     def plot(self, parts: Sequence[str] | None = None, *, path=None, **options):
         """A matplotlib figure of the named parts against time (or the step; see
         :func:`symgroupoid.plotting.plot_trajectory`); saved to ``path`` if given."""
-        from ..plotting import plot_trajectory
+        from .. import plotting  # a convenience that looks up (docs/architecture.md)
 
-        return plot_trajectory(self, parts, path=path, **options)
+        return plotting.plot_trajectory(self, parts, path=path, **options)
 
     # --- display --------------------------------------------------------------------------------
     def _summary(self) -> list[tuple[str, str]]:
