@@ -23,6 +23,7 @@ import numpy as np
 
 from ._arguments import flag_argument, integer_argument, names_argument, path_argument
 from ._errors import (
+    DiagnosticsError,
     DomainError,
     InputNameError,
     InputTypeError,
@@ -108,16 +109,19 @@ def _entry_label(name: str, shape: tuple, j: int) -> str:
 
 def _time_axis(trajectory, time_step, owner: str) -> tuple[float | None, str]:
     """(h, its name) for a time axis t = k·h, or (None, "") for the step index: the
-    parameter named by ``time_step``, or (None) the time step the system declares
-    (``time_step=`` of the system); False: the step index."""
+    parameter named by ``time_step``, or (None) the system's time step — declared
+    (``time_step=`` of the system) or identified by the continuous limit, as the energy
+    finds it — when it can be told; False: the step index."""
     if time_step is False:
         return None, ""
     if time_step is None:
-        system = getattr(trajectory._layout.equations, "system", None)
-        declared = getattr(system, "time_step", None)
-        if declared is None:
+        try:
+            found = trajectory_programs(trajectory).time_step()
+        except DiagnosticsError:  # a trajectory that does not know its equations
+            found = None
+        if found is None or str(found) not in trajectory.parameters:
             return None, ""
-        time_step = str(declared)
+        time_step = str(found)
     if not isinstance(time_step, str) or time_step not in trajectory.parameters:
         raise InputNameError(f"{owner}: time_step must name a parameter (one of "
                              f"{', '.join(trajectory.parameters) or 'none'}) or be False, "
@@ -137,7 +141,8 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
     q_0 … q_{N+1}, a matrix part entry by entry, labelled ``W[0, 2]``).
 
     The horizontal axis is the time t = k·h when the time step h is known — named by
-    ``time_step`` (a parameter's name), or declared by the system — else the step index k
+    ``time_step`` (a parameter's name), or declared by the system, or the one parameter that
+    behaves as the step in the continuous limit — else the step index k
     (``time_step=False`` forces it).  Returns the figure."""
     Figure = _figure_class()
     owner = _owner(trajectory)
@@ -204,8 +209,9 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     ``constraints``: None plots them when the system
     has constraints.  The horizontal axis is the time t = k·h when the time step h is known
     (``time_step``: a parameter's name; None: ``step_parameter``, else the step the system
-    declares), else the step index k (``time_step=False`` forces it); the floors are functions
-    of k either way.  Returns the figure (saved to ``path`` if given).
+    declares or the one its continuous limit identifies), else the step index k
+    (``time_step=False`` forces it); the floors are functions of k either way.  Returns the
+    figure (saved to ``path`` if given).
     """
     Figure = _figure_class()
     programs = trajectory_programs(trajectory)

@@ -93,6 +93,19 @@ def test_conservation_figure_plots_the_energy_of_the_step() -> None:
     assert fig.axes[-1].get_xlabel().startswith("time t = k·dt")
     fig = sg.plot_conservation(declared, energy=True, time_step=False)
     assert fig.axes[-1].get_xlabel() == "step k"
+    # undeclared, but identified by the continuous limit (as the energy finds it)
+    fig = sg.plot_conservation(traj, energy=True)
+    assert fig.axes[-1].get_xlabel() == f"time t = k·dt (dt = {dt_value:g})"
+    assert sg.plot_trajectory(traj).axes[-1].get_xlabel().startswith("time t = k·dt")
+
+
+def test_the_time_axis_falls_back_to_the_step_index_when_the_step_cannot_be_told() -> None:
+    """Two parameters behave as the step: the figures plot against k, and say so."""
+    pytest.importorskip("matplotlib")
+    system = ambiguous()
+    traj = system.euler_lagrange().compile(backend="numpy").simulate(
+        {"q": (1.0, 0.99)}, 20, {"dt": 0.01, "c": 1.0})
+    assert sg.plot_trajectory(traj).axes[-1].get_xlabel() == "step k"
 
 
 def ambiguous() -> sg.DiscreteSystem:

@@ -160,6 +160,15 @@ class StatePrograms:
                                    f"of the system (parameters: {', '.join(by_name) or 'none'})")
         return by_name[str(name)]
 
+    def time_step(self) -> sp.Symbol | None:
+        """The system's time step h — declared (``time_step=``), else the one parameter that
+        behaves as the step in the continuous limit (docs/conventions.md §19) — or None
+        when it cannot be told (a time groupoid's step is each arrow's t₁ − t₀)."""
+        try:
+            return self._time_step({str(p): p for p in self.parameters})
+        except TimeStepError:
+            return None
+
     def _time_step(self, by_name: dict) -> sp.Symbol:
         declared = getattr(self.system, "time_step", None)
         if declared is not None:
