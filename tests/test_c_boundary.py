@@ -31,10 +31,10 @@ from symgroupoid.codegen import emit_c
 from symgroupoid.runtime._backends import (
     INVALID_ARGUMENT,
     OK,
-    STATUS_MESSAGES,
     c_buffer,
     real_vector,
 )
+from symgroupoid.stepper import STATUS_MESSAGES
 
 BAD_GUESSES = {
     "length 1": [0.0],

@@ -25,34 +25,18 @@ import numpy as np
 from .._arguments import integer_argument, real_array
 from .._errors import ShapeError
 from ..stepper import (
-    C_INT_MAX,
-    EPSILON,
-    MAX_THREADS,
-    STATUS_MESSAGES,
-    TRUST_FLOOR,
-    LUFactors,
     NumpyStepper,
     NumpyWarmStart,
     Status,
     StepFunctions,
-    coordinate_floor,
-    explained_by_rounding,
-    lu_apply,
-    lu_factor,
-    lu_solve,
-    norm_inf,
-    pivot_ratio,
-    relative_norm,
 )
 from ._options import NewtonOptions
 from ._runs import (
-    INTERRUPTED,
     BatchRun,
     ChunkRun,
     RawRun,
     RunCursor,
     batch_rows,
-    run_chunks,
 )
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT, STALLED, BRANCH_JUMP = (
@@ -448,10 +432,5 @@ def _itself(value):
     return value
 
 
-__all__ = ["BRANCH_JUMP", "C_INT_MAX", "EPSILON", "INTERRUPTED", "INVALID_ARGUMENT",
-           "MAX_THREADS", "NON_FINITE", "NOT_CONVERGED", "OK", "SINGULAR_JACOBIAN", "STALLED",
-           "STATUS_MESSAGES", "TRUST_FLOOR", "BatchRun", "ChunkRun", "LUFactors",
-           "NewtonOptions", "NumpyKernel", "NumpyStepper", "NumpyWarmStart", "RawRun",
-           "RunCursor", "Status", "StepFunctions", "batch_rows", "c_buffer",
-           "coordinate_floor", "explained_by_rounding", "lu_apply", "lu_factor", "lu_solve",
-           "norm_inf", "pivot_ratio", "real_vector", "relative_norm", "run_chunks"]
+__all__ = ["BRANCH_JUMP", "INVALID_ARGUMENT", "NON_FINITE", "NOT_CONVERGED", "OK",
+           "SINGULAR_JACOBIAN", "STALLED", "NumpyKernel", "c_buffer", "real_vector"]

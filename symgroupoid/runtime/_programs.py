@@ -27,7 +27,8 @@ import numpy as np
 
 from .._errors import ShapeError
 from ..codegen import generate_program_c
-from ._backends import C_INT_MAX, c_buffer
+from ..stepper import C_INT_MAX
+from ._backends import c_buffer
 from .toolchain import (
     CompilationError,
     CompilerNotFoundError,
