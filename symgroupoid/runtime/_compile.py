@@ -21,7 +21,7 @@ from .._progress import reported
 from ..codegen import KernelSource
 from ._backends import NumpyKernel
 from ._ckernel import CKernel
-from ._options import NewtonOptions
+from ._options import BACKENDS, NewtonOptions, environment_backend
 from ._simulator import Simulator
 from .toolchain import (
     STATS,
@@ -35,8 +35,6 @@ from .toolchain import (
     step_flags,
     step_kernel,
 )
-
-BACKENDS = ("auto", "c", "numpy")
 
 
 def load_c_kernel(step, flags: Sequence[str] | None = None,
@@ -141,8 +139,7 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
     owner = step.name
     backend = choice_argument(backend, BACKENDS, "backend", owner=owner)
     if backend == "auto":
-        backend = os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto"
-        choice_argument(backend, BACKENDS, "SYMGROUPOID_BACKEND", owner=owner)
+        backend = environment_backend(owner)
     flags = compiler_flags(flags, owner)
     if cache_dir is not None:  # resolved now: a later chdir cannot move the cache
         cache_dir = absolute_root(path_argument(cache_dir, "cache_dir", owner=owner))

@@ -2,9 +2,16 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
-from .._arguments import flag_argument, instance_argument, integer_argument, real_argument
+from .._arguments import (
+    choice_argument,
+    flag_argument,
+    instance_argument,
+    integer_argument,
+    real_argument,
+)
 from ..stepper import C_INT_MAX, DEFAULT_OPTIONS
 
 
@@ -101,3 +108,16 @@ class NewtonOptions:
 
 
 __all__ = ["NewtonOptions"]
+
+
+#: the backends a kernel or program evaluator can be asked for
+BACKENDS = ("auto", "c", "numpy")
+
+
+def environment_backend(owner: str) -> str:
+    """The backend ``SYMGROUPOID_BACKEND`` asks for: ``"auto"`` (unset or empty), ``"c"`` or
+    ``"numpy"``; any other value is a :class:`~symgroupoid.DomainError` naming them.  The
+    one reading of the variable: the step kernels, the boundary-value windows and the
+    program evaluators all ask here."""
+    return choice_argument(os.environ.get("SYMGROUPOID_BACKEND", "") or "auto", BACKENDS,
+                           "SYMGROUPOID_BACKEND", owner=owner)

@@ -18,7 +18,6 @@ never shows in a result.
 
 from __future__ import annotations
 
-import os
 import threading
 import warnings
 from collections.abc import Callable
@@ -29,6 +28,7 @@ from .._errors import ShapeError
 from ..codegen import generate_program_c
 from ..stepper import C_INT_MAX
 from ._backends import c_buffer
+from ._options import environment_backend
 from .toolchain import (
     CompilationError,
     CompilerNotFoundError,
@@ -57,7 +57,7 @@ def compile_program(label: str, program, inputs: str, outputs: str
     (each row the input array ``inputs``), or None (no compiler, or the backend forced to
     NumPy with ``SYMGROUPOID_BACKEND=numpy``)."""
 
-    if os.environ.get("SYMGROUPOID_BACKEND", "auto") == "numpy":
+    if environment_backend(label) == "numpy":
         return None
     kernel, flags = _source(label, program, inputs, outputs)
     cache = KernelCache()
