@@ -29,8 +29,7 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid.runtime import toolchain
-from symgroupoid.runtime._pickle import DetachedStepError, NotPortableError
+from symgroupoid.runtime import DetachedStepError, NotPortableError, toolchain
 from symgroupoid.runtime.toolchain import DEFAULT_FLAGS
 
 pytestmark = needs_cc

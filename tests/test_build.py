@@ -14,6 +14,7 @@ import pytest
 from kernel_support import REPO, compiled, isolated_cache, needs_cc  # noqa: F401  (autouse)
 
 import symgroupoid as sg
+from symgroupoid import Simulator
 from symgroupoid.codegen import _kernel, generate_c
 from symgroupoid.codegen._kernel import (
     UNIT_MIN_STATEMENTS,
@@ -23,7 +24,6 @@ from symgroupoid.codegen._kernel import (
     stepper_statements,
 )
 from symgroupoid.runtime import CompilationError, _compile, toolchain
-from symgroupoid.runtime._simulator import Simulator
 from symgroupoid.runtime.toolchain import _cffi_build, _flags, _kernels, _openmp
 from symgroupoid.systems import planar_chain
 

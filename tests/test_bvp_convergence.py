@@ -14,7 +14,7 @@ import sympy as sp
 from conftest import load_example
 
 import symgroupoid as sg
-from symgroupoid._errors import BoundaryValueDivergenceError
+from symgroupoid import BoundaryValueDivergenceError
 from symgroupoid.ir import Graph, rounding_error
 from symgroupoid.runtime import _bvp
 from symgroupoid.runtime._banded import banded_inertia

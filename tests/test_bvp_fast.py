@@ -13,7 +13,7 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid._errors import BoundaryValueDivergenceError
+from symgroupoid import BoundaryValueDivergenceError
 from symgroupoid.runtime import _bvp
 from symgroupoid.runtime._sweep_boundary import _solution_data
 

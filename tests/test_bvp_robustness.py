@@ -17,7 +17,7 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid._errors import (
+from symgroupoid import (
     BoundaryValueDivergenceError,
     CutLocusError,
     DomainError,

@@ -23,8 +23,7 @@ import sympy as sp
 from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid.codegen import emit_c
-from symgroupoid.codegen._emit import generate_program_c
+from symgroupoid.codegen import emit_c, generate_program_c
 from symgroupoid.ir import Graph, Program, from_sympy
 from symgroupoid.runtime import CacheError, CompilationError, toolchain
 from symgroupoid.runtime._programs import compile_program

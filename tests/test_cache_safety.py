@@ -603,7 +603,7 @@ def test_the_unsafe_math_family_is_refused_by_every_unit(monkeypatch, flags):
 
 
 def test_window_programs_refuse_the_unsafe_math_family(monkeypatch):
-    from symgroupoid.codegen._emit import generate_program_c
+    from symgroupoid.codegen import generate_program_c
     from symgroupoid.ir import Graph, Program, from_sympy
 
     x, y = sp.symbols("x y")

@@ -20,7 +20,7 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid.codegen import KernelCPrinter, c_identifier, emit_c, generate_c
-from symgroupoid.codegen._printer import UnmappedSymbolError
+from symgroupoid.ir import UnmappedSymbolError
 
 SEEDS = ("plate_ball", "heavy_top", "rigid_body")
 IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")

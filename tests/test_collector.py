@@ -1,5 +1,5 @@
 """The garbage collector is paused during symbolic work and restored after it
-(symgroupoid/_collector.py)."""
+(symgroupoid/_collector.py), seen through the public API."""
 
 from __future__ import annotations
 
@@ -9,28 +9,31 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid._collector import collector_paused
 
 
 def test_paused_inside_restored_after_even_on_error() -> None:
+    """DiscreteSystem(...) calls the Lagrangian with the collector paused; a nested derivation
+    inside it does not resume it, and it is restored also when the Lagrangian raises."""
     seen = []
+    line = sg.PairGroupoid(sg.EuclideanSpace("x"))
 
-    @collector_paused
-    def inner():
-        seen.append(gc.isenabled())
+    def kinetic(g):
+        return (g.target[0] - g.source[0]) ** 2
 
-    @collector_paused
-    def outer(fail: bool):
-        inner()
-        seen.append(gc.isenabled())  # the nested call must not resume it
-        if fail:
-            raise ValueError("boom")
+    def lagrangian(fail: bool):
+        def L(g):
+            sg.DiscreteSystem(line, kinetic)  # the nested call must not resume it
+            seen.append(gc.isenabled())
+            if fail:
+                raise ValueError("boom")
+            return kinetic(g)
+        return L
 
     assert gc.isenabled()
-    outer(False)
-    assert seen == [False, False] and gc.isenabled()
-    with pytest.raises(ValueError):
-        outer(True)
+    sg.DiscreteSystem(line, lagrangian(False))
+    assert seen and not any(seen) and gc.isenabled()
+    with pytest.raises((ValueError, sg.CallableError), match="boom"):
+        sg.DiscreteSystem(line, lagrangian(True))
     assert gc.isenabled()
 
 
@@ -48,9 +51,7 @@ def test_a_collector_disabled_by_the_user_stays_disabled() -> None:
 def test_derivation_runs_with_the_collector_paused(monkeypatch) -> None:
     """DiscreteSystem(...), euler_lagrange() and compile() pause it; it runs after."""
     states = []
-    from symgroupoid.derivation import _step
-
-    original = _step.junction_step
+    from symgroupoid.derivation import junction_step as original
 
     def spy(*args, **kwargs):
         states.append(gc.isenabled())

@@ -13,7 +13,7 @@ from kernel_support import compiled, constraint_function, initial_state, seed_sy
 
 import symgroupoid as sg
 from symgroupoid.diagnostics import ConservationSummary, DiagnosticsError, rounding_floor
-from symgroupoid.runtime._projection import ProjectionError
+from symgroupoid.runtime import ProjectionError
 
 h = sp.Symbol("h", positive=True)
 EPS = float(np.finfo(float).eps)

@@ -11,7 +11,7 @@ from conftest import load_example
 from kernel_support import isolated_cache, needs_cc  # noqa: F401  (isolated_cache: autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid.derivation._energy_momentum import window_halves
+from symgroupoid.derivation import WindowAction
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +24,11 @@ def test_equations_are_the_d_and_d_perp_blocks(example):
     em, _ = example.systems()
     step = em.euler_lagrange()
     G = em.groupoid
-    left, right = window_halves(G, em._fs)
+    action = WindowAction(G, em.functions)  # X⃖_b[L](g_k), X⃗_b[L](g_{k+1}), no multipliers
+    slots = action.slots("w")
+    named = action.naming(slots, action.named_arrows())
+    left, right = ([e.xreplace(named) for e in half]
+                   for half in action.halves(slots, multipliers=False))
     q = G.target(step.arrows[0])
     sin_y = q[2]
     on_d = [[1, sin_y, 0], [0, 0, 1]]

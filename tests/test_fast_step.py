@@ -11,7 +11,7 @@ import pytest
 from kernel_support import SEED_DATA, SESSION_CACHE, initial_state, needs_cc, seed_step
 
 import symgroupoid as sg
-from symgroupoid.runtime import _validate
+from symgroupoid.runtime import parameter_vector
 
 PARAMS = SEED_DATA["plate_ball"][0]
 
@@ -51,7 +51,7 @@ def test_parameters_and_states_are_parsed_and_checked_once_per_loop(monkeypatch)
     sim = _fresh()
     state, vector = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
     calls = {"parameter_vector": 0, "state": 0}
-    original_vector, original_state = _validate.parameter_vector, sg.Simulator.state
+    original_vector, original_state = parameter_vector, sg.Simulator.state
 
     def counting_vector(*args, **kwargs):
         calls["parameter_vector"] += 1
@@ -194,29 +194,6 @@ def test_a_restored_simulator_steps_as_the_original():
     restored = pickle.loads(pickle.dumps(sim))
     state, p = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
     assert np.array_equal(_loop(restored, state, p, 10), _loop(sim, state, p, 10))
-
-
-def test_parameter_screen_is_exact_for_every_assumption():
-    """The float tests of the declared assumptions give SymPy's answer on the exact
-    rational number a float is."""
-    import sympy as sp
-
-    keys = ["positive", "negative", "nonnegative", "nonpositive", "zero", "nonzero",
-            "integer", "noninteger", "even", "odd", "prime", "composite"]
-    values = [0.0, -0.0, 1.0, -1.0, 2.0, 3.0, -3.0, 4.0, 0.5, -2.5, 1e300, 7.0, 9.0, 5e-324]
-    for key in keys:
-        for expected in (True, False):
-            symbol = sp.Symbol("a", **{key: expected})
-            test = _validate.assumption_test(symbol)
-            for v in values:
-                try:
-                    _validate.check_assumptions(symbol, v)
-                    accepted = True
-                except sg.ParameterError:
-                    accepted = False
-                exact = all(getattr(sp.Rational(v), f"is_{k}") in (None, e)
-                            for k, e in _validate._declared(symbol))
-                assert test(v) == accepted == exact, (key, expected, v)
 
 
 def test_the_parameters_the_constraints_use_are_taken_cheaply_and_exactly():

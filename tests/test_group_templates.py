@@ -12,7 +12,7 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid.groupoids._base import Groupoid
+from symgroupoid.groupoids import Groupoid
 from symgroupoid.groupoids._matrix_templates import (
     _direct_increment_coordinates,
     _direct_translated_retraction,

@@ -54,7 +54,6 @@ from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid.runtime import TrajectoryBatch
-from symgroupoid.runtime._executors import TIMED_OUT
 
 #: the systems on the NumPy backend (the others step through their C kernels)
 TINY = ("oscillator", "diagonal", "accel")
@@ -333,7 +332,7 @@ def check_sweep(case: Case, result, kwargs: dict) -> None:
     keys = [str(s) for s in case.step.parameters]
     status = result.status.reshape(-1)
     for r in range(min(len(result), 3)):
-        if kwargs.get("timeout") is not None and status[r] == TIMED_OUT:
+        if kwargs.get("timeout") is not None and status[r] == sg.Status.TIMED_OUT:
             continue  # (a valid timeout may stop a task: recorded, not a defect)
         i, j = result.index(r)
         state0 = np.asarray(result.initial)[i]

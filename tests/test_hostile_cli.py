@@ -35,7 +35,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from kernel_support import REPO, isolated_cache  # noqa: F401  (autouse fixture)
 
-from symgroupoid.cli import _main, main
+from symgroupoid.cli import main
 
 SPRING = REPO / "examples" / "cli" / "spring.py"
 
@@ -279,7 +279,7 @@ def test_an_unexpected_exception_is_one_line_not_a_traceback(system_files, monke
     def broken(args):
         raise TypeError("an internal mistake")
 
-    monkeypatch.setattr(_main, "run_simulate", broken)
+    monkeypatch.setattr("symgroupoid.cli._main.run_simulate", broken)
     status, out, err = run_cli(["simulate", "spring.py", "--steps", "3"])
     assert status == 1 and "Traceback" not in err
     assert err.strip().splitlines() == ["symgroupoid: error: internal error (TypeError: an "

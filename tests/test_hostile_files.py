@@ -52,8 +52,7 @@ from kernel_support import HAVE_CC, isolated_cache, needs_cc  # noqa: F401  (aut
 
 import symgroupoid as sg
 from symgroupoid.codegen import generate_c
-from symgroupoid.codegen._kernel import _C_KEYWORDS
-from symgroupoid.runtime import _programs, toolchain
+from symgroupoid.runtime import toolchain, wait_for_kernels
 from symgroupoid.runtime.toolchain import KernelCache, cache_info, cache_root, clear_cache
 
 STEP = oscillator().euler_lagrange()
@@ -71,6 +70,12 @@ def fresh_flags() -> list[str]:
 # --- emit_c ---------------------------------------------------------------------------------------
 
 IDENTIFIER = re.compile(r"^[a-z_][a-z0-9_]*$")
+#: the keywords of C99 (ISO/IEC 9899:1999 §6.4.1), which no prefix may be
+C99_KEYWORDS = frozenset((
+    "auto", "break", "case", "char", "const", "continue", "default", "do", "double", "else",
+    "enum", "extern", "float", "for", "goto", "if", "inline", "int", "long", "register",
+    "restrict", "return", "short", "signed", "sizeof", "static", "struct", "switch", "typedef",
+    "union", "unsigned", "void", "volatile", "while", "_Bool", "_Complex", "_Imaginary"))
 
 
 def check_emitted(prefix):
@@ -78,7 +83,7 @@ def check_emitted(prefix):
         c_path, h_path = (Path(p) for p in paths)
         kernel = generate_c(STEP, prefix, header_name=h_path.name)
         assert c_path.read_text() == kernel.source and h_path.read_text() == kernel.header
-        assert IDENTIFIER.match(kernel.prefix) and kernel.prefix not in _C_KEYWORDS
+        assert IDENTIFIER.match(kernel.prefix) and kernel.prefix not in C99_KEYWORDS
         umask = os.umask(0)
         os.umask(umask)
         for p in paths:
@@ -338,7 +343,7 @@ def test_environment_of_a_boundary_value_solve(tmp_path, monkeypatch, run):
 
     def solve():
         sol = sg.solve_boundary_value(oscillator(), (0.1,), (0.3,), 6, params=PARAMS)
-        _programs.wait_for_kernels(120)
+        wait_for_kernels(120)
         return sol
 
     with monkeypatch.context() as m:

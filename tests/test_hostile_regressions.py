@@ -17,20 +17,9 @@ from _hostile_cases import case_of
 from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid._arguments import flag_argument, integer_argument
-from symgroupoid.runtime._validate import system_argument
+from symgroupoid.runtime import system_argument
 
 # --- one rule for arguments -----------------------------------------------------------------------
-
-
-@pytest.mark.parametrize("value", [np.timedelta64(3, "D"), np.timedelta64(1),
-                                   np.datetime64("2020-01-01")])
-def test_numpy_durations_are_not_counts_or_flags(value):
-    """(``np.timedelta64`` is a ``numbers.Integral``: ``int()`` of it raised TypeError.)"""
-    with pytest.raises(sg.ShapeError, match="steps must be an integer"):
-        integer_argument(value, "steps")
-    with pytest.raises(sg.ShapeError, match="progress must be True or False"):
-        flag_argument(value, "progress")
 
 
 def test_progress_must_be_a_switch():
@@ -353,22 +342,6 @@ def test_a_noether_quantity_that_overflows_is_an_error_not_a_nan():
         quantity.along(traj)
 
 
-def test_argument_checks_build_their_messages_only_on_failure(monkeypatch):
-    """A valid argument is accepted without formatting it: the repr of a 10⁴-row state
-    table once cost a sweep 12 % of its run time."""
-    from symgroupoid import _arguments
-
-    def never(value):
-        raise AssertionError("a message was built for a valid argument")
-
-    monkeypatch.setattr(_arguments, "shown_value", never)
-    table = np.arange(12.0).reshape(4, 3)
-    assert _arguments.real_array(table, "states").shape == (4, 3)
-    assert _arguments.real_argument(np.float64(0.5), "h") == 0.5
-    monkeypatch.undo()
-    with pytest.raises(sg.ShapeError, match="states must be an array of real numbers"):
-        _arguments.real_array("x", "states")
-
 
 def test_verify_stationary_refuses_a_subnormal_eps():
     """ε/4 of a subnormal ε is 0: refused up front, not a ZeroDivisionError."""
@@ -406,7 +379,7 @@ def test_a_section_returning_an_unprintable_array_is_a_shape_error():
     """A Noether section whose entry is an empty 0-dimensional SymPy array (whose repr
     raises IndexError): a ShapeError naming the section, not the IndexError (found by the
     thorough hostile profile, NoetherQuantity on the accel system)."""
-    from symgroupoid.derivation._callables import as_scalar
+    from symgroupoid.derivation import as_scalar
 
     class Unprintable:
         def __repr__(self):

@@ -11,7 +11,7 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid.derivation._step import matrix_form_values
+from symgroupoid.derivation import matrix_form_values
 from symgroupoid.groupoids import to_explicit
 
 mathtext = pytest.importorskip("matplotlib.mathtext")

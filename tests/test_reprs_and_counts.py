@@ -8,10 +8,8 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid import _arguments
-from symgroupoid._errors import ShapeError
-from symgroupoid.derivation._energy_momentum import ConservedQuantities
-from symgroupoid.runtime import _validate
+from symgroupoid import ShapeError
+from symgroupoid.derivation import ConservedQuantities
 
 h = sp.Symbol("h", positive=True)
 
@@ -53,7 +51,6 @@ def test_reprs_are_short_and_informative():
 
 
 def test_one_rule_for_counts():
-    assert _validate.integer_argument is _arguments.integer_argument
     G = sg.PairGroupoid(sg.EuclideanSpace("q"))
     sg.check_axioms(G, samples=2.0, seed=np.int64(3))  # integral values are counts
     for samples, message in ((-5, "samples must be at least 1, got -5"),

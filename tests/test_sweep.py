@@ -320,9 +320,7 @@ def test_reduce_holds_the_states_of_one_part_of_a_task_at_a_time(workers, monkey
     values are copies."""
     import tracemalloc
 
-    from symgroupoid.runtime import _memory
-
-    monkeypatch.setattr(_memory, "BATCH_BYTES", 1 << 20)
+    monkeypatch.setattr("symgroupoid.runtime._memory.BATCH_BYTES", 1 << 20)
     sim = compiled("rigid_body")
     S = states(np.linspace(0.05, 0.6, 200))
     total = 200 * 5001 * 8 * sim.layout.n_known
@@ -348,7 +346,7 @@ import resource
 import numpy as np
 import symgroupoid as sg
 from symgroupoid.systems import SEED_SYSTEMS
-from symgroupoid.runtime import _memory
+from unittest import mock
 sim = SEED_SYSTEMS["rigid_body"]().euler_lagrange().compile()
 params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
 S = np.array([sim.state({"W": np.eye(3)})] * 2000)
@@ -371,7 +369,7 @@ attempt("reduced", lambda: sg.sweep(sim, S[:40], params, 20000,
 attempt("one_run", lambda: sg.sweep(sim, S[:2], params, 4_000_000,
                                     reduce=lambda t: 0.0, workers=1))
 # within the limit by the count, but not in the address space left: no raw MemoryError
-_memory.available_memory = lambda: 1 << 40
+mock.patch("symgroupoid.runtime._memory.available_memory", lambda: 1 << 40).start()
 attempt("allocation", lambda: sim.simulate_batch(S[:1000], 20000, params))
 """
 

@@ -16,7 +16,7 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid._errors import CoordinateNameError, UnsupportedExpressionError
+from symgroupoid import CoordinateNameError, UnsupportedExpressionError
 
 H = sp.Symbol("h", positive=True)
 
@@ -447,14 +447,6 @@ def test_simulate_initial_refuses_another_systems_trajectory(tmp_path, capsys):
                  str(mine)]) == 0
     assert main(["simulate", str(ring), "--steps", "3", "--backend", "numpy", "--initial",
                  str(mine)]) == 0
-
-
-def test_a_zero_dimensional_array_is_not_a_configuration_of_a_product():
-    from symgroupoid.runtime._validate import configuration
-
-    G = sg.PairGroupoid(sg.EuclideanSpace("x")) * sg.SO3("g")
-    with pytest.raises(sg.ShapeError, match="start must be a configuration .* got ndarray"):
-        configuration(G, np.array(2.0), "start")
 
 
 def test_a_batch_checks_and_rounds_group_parts_as_simulate_does():

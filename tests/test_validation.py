@@ -17,15 +17,17 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid._errors import DomainError, InputNameError, ParameterError
+from symgroupoid import DomainError, InputNameError, ParameterError, _arguments
 from symgroupoid.equations import magnitude
+from symgroupoid.runtime import _validate, parameter_vector
+
+# unit tests of the one validation path: they reach inside it (runtime/_validate.py)
 from symgroupoid.runtime._validate import (
     ConstraintCheck,
     check_assumptions,
     configuration,
     group_element,
     integer_argument,
-    parameter_vector,
     real_argument,
 )
 
@@ -239,3 +241,62 @@ def test_from_momentum_names_its_bad_inputs():
         sim.from_momentum({"z": 0.0}, momentum, params)
     with pytest.raises(sg.ShapeError, match="the momentum must hold real numbers"):
         sim.from_momentum(config, ["a", 0, 0, 0, 0], params)
+
+
+# --- one rule for arguments, wherever they are given ----------------------------------------------
+
+def test_a_zero_dimensional_array_is_not_a_configuration_of_a_product():
+    G = sg.PairGroupoid(sg.EuclideanSpace("x")) * sg.SO3("g")
+    with pytest.raises(sg.ShapeError, match="start must be a configuration .* got ndarray"):
+        configuration(G, np.array(2.0), "start")
+
+
+@pytest.mark.parametrize("value", [np.timedelta64(3, "D"), np.timedelta64(1),
+                                   np.datetime64("2020-01-01")])
+def test_numpy_durations_are_not_counts_or_flags(value):
+    """(``np.timedelta64`` is a ``numbers.Integral``: ``int()`` of it raised TypeError.)"""
+    with pytest.raises(sg.ShapeError, match="steps must be an integer"):
+        integer_argument(value, "steps")
+    with pytest.raises(sg.ShapeError, match="progress must be True or False"):
+        _arguments.flag_argument(value, "progress")
+
+
+def test_argument_checks_build_their_messages_only_on_failure(monkeypatch):
+    """A valid argument is accepted without formatting it: the repr of a 10⁴-row state
+    table once cost a sweep 12 % of its run time."""
+    def never(value):
+        raise AssertionError("a message was built for a valid argument")
+
+    monkeypatch.setattr(_arguments, "shown_value", never)
+    table = np.arange(12.0).reshape(4, 3)
+    assert _arguments.real_array(table, "states").shape == (4, 3)
+    assert _arguments.real_argument(np.float64(0.5), "h") == 0.5
+    monkeypatch.undo()
+    with pytest.raises(sg.ShapeError, match="states must be an array of real numbers"):
+        _arguments.real_array("x", "states")
+
+
+def test_parameter_screen_is_exact_for_every_assumption():
+    """The float tests of the declared assumptions give SymPy's answer on the exact
+    rational number a float is."""
+    keys = ["positive", "negative", "nonnegative", "nonpositive", "zero", "nonzero",
+            "integer", "noninteger", "even", "odd", "prime", "composite"]
+    values = [0.0, -0.0, 1.0, -1.0, 2.0, 3.0, -3.0, 4.0, 0.5, -2.5, 1e300, 7.0, 9.0, 5e-324]
+    for key in keys:
+        for expected in (True, False):
+            symbol = sp.Symbol("a", **{key: expected})
+            test = _validate.assumption_test(symbol)
+            for v in values:
+                try:
+                    _validate.check_assumptions(symbol, v)
+                    accepted = True
+                except sg.ParameterError:
+                    accepted = False
+                exact = all(getattr(sp.Rational(v), f"is_{k}") in (None, e)
+                            for k, e in _validate._declared(symbol))
+                assert test(v) == accepted == exact, (key, expected, v)
+
+
+def test_one_rule_for_counts_everywhere():
+    """The runtime's count rule is the library's one rule (symgroupoid/_arguments.py)."""
+    assert _validate.integer_argument is _arguments.integer_argument

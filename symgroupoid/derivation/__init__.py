@@ -10,6 +10,7 @@ from ._assembly import (
 from ._callables import as_scalar, call_user, check_values
 from ._energy_momentum import (
     NONHOLONOMIC_METHODS,
+    ConservedQuantities,
     conserved_quantities,
     energy_momentum_step,
 )
@@ -60,7 +61,8 @@ from ._step import (
 )
 from ._window import step_jacobian
 
-__all__ = ["NONHOLONOMIC_METHODS", "SCALES", "DerivedStep", "JunctionNodes", "LegendreForms",
+__all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities",
+           "DerivedStep", "JunctionNodes", "LegendreForms",
            "LiePoissonForms", "NoetherForms", "Partial", "PieceRule", "SystemFunctions",
            "TermNodes", "WindowAction", "WindowPieces", "as_scalar", "call_user", "chart_of",
            "check_nonholonomic_dimensions", "check_values", "conserved_quantities",

@@ -24,6 +24,8 @@ from ._diagnostics import (
 )
 from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
+from ._programs import wait_for_kernels
+from ._projection import ProjectionError
 from ._simulator import Simulator
 from ._sweep import sweep
 from ._sweep_boundary import sweep_boundary_value
@@ -39,12 +41,14 @@ _FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "r
 
 __all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "ConservationSummary",
            "DetachedStepError", "Drift", "Momenta", "NewtonOptions", "NotPortableError",
-           "ReduceError", "Simulator", "SweepResult", "TRAJECTORY_FORMATS", "Trajectory",
+           "ProjectionError", "ReduceError", "Simulator", "SweepResult", "TRAJECTORY_FORMATS",
+           "Trajectory",
            "TrajectoryBatch", "atomic_write", "cache_root", "compile_step",
            "conservation_summary", "constraint_check", "constraint_residuals", "energy",
            "energy_label", "has_energy", "momenta", "noether_quantities", "number_text",
            "parameter_vector", "read_trajectory", "rounding_floor", "save_trajectory", "sweep",
-           "sweep_boundary_value", "system_argument", "trajectory_programs"]
+           "sweep_boundary_value", "system_argument", "trajectory_programs",
+           "wait_for_kernels"]
 
 
 def __getattr__(name: str):
