@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import atexit
 import functools
+import os
 import shutil
 import tempfile
 from pathlib import Path
@@ -88,3 +89,38 @@ def discrete_inertia(I1: float, I2: float, I3: float) -> np.ndarray:
 def body_momentum(W: np.ndarray, Jd: np.ndarray) -> np.ndarray:
     """Π = axial(W J_d − J_d Wᵀ) (docs/conventions.md §9), for one or a stack of matrices."""
     return axial(W @ Jd - Jd @ np.swapaxes(W, -1, -2))
+
+
+#: a one-unknown system as source text, for the scripts of the cache tests' subprocesses
+OSCILLATOR = '''
+import sympy as sp
+import symgroupoid as sg
+
+
+def oscillator(name="oscillator"):
+    """A harmonic oscillator on the pair groupoid of the line (one unknown)."""
+    h, k = sp.symbols("h k", positive=True)
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return h * (((q1 - q0) / h) ** 2 / 2 - k * ((q0 + q1) / 2) ** 2 / 2)
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
+                             name=name).euler_lagrange()
+'''
+_namespace: dict = {}
+exec(OSCILLATOR, _namespace)
+#: the same system in this process
+oscillator = _namespace["oscillator"]
+
+
+def subprocess_env(lock_timeout: int, **env: str | None) -> dict[str, str]:
+    """The test environment for a child process: this checkout on its path, cache locks given
+    up after ``lock_timeout`` seconds, and ``env`` applied (None removes a variable)."""
+    out = {**os.environ, "PYTHONPATH": str(REPO), "SYMGROUPOID_LOCK_TIMEOUT": str(lock_timeout)}
+    for name, value in env.items():
+        if value is None:
+            out.pop(name, None)
+        else:
+            out[name] = value
+    return out

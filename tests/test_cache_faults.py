@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import fcntl
+import functools
 import json
 import os
 import signal
@@ -20,7 +21,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sympy as sp
-from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
+from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    OSCILLATOR,
+    isolated_cache,
+    needs_cc,
+    oscillator,
+    subprocess_env,
+)
 
 import symgroupoid as sg
 from symgroupoid.codegen import emit_c, generate_program_c
@@ -30,26 +37,6 @@ from symgroupoid.runtime._programs import compile_program
 from symgroupoid.runtime.toolchain import _kernels, _roots, optimisation_flags
 
 pytestmark = needs_cc
-
-OSCILLATOR = '''
-import sympy as sp
-import symgroupoid as sg
-
-
-def oscillator(name="oscillator"):
-    """A harmonic oscillator on the pair groupoid of the line (one unknown)."""
-    h, k = sp.symbols("h k", positive=True)
-
-    def L(g):
-        (q0,), (q1,) = g.source, g.target
-        return h * (((q1 - q0) / h) ** 2 / 2 - k * ((q0 + q1) / 2) ** 2 / 2)
-
-    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
-                             name=name).euler_lagrange()
-'''
-_namespace: dict = {}
-exec(OSCILLATOR, _namespace)
-oscillator = _namespace["oscillator"]
 
 SCRIPT = OSCILLATOR + '''
 import json, sys, warnings
@@ -90,15 +77,8 @@ def _drop_file_permission_override() -> None:
             raise OSError(ctypes.get_errno(), "prctl(PR_CAPBSET_DROP) failed")
 
 
-def script_env(**env: str | None) -> dict[str, str]:
-    """The test environment with ``env`` applied (None removes a variable)."""
-    out = {**os.environ, "PYTHONPATH": str(REPO), "SYMGROUPOID_LOCK_TIMEOUT": "60"}
-    for name, value in env.items():
-        if value is None:
-            out.pop(name, None)
-        else:
-            out[name] = value
-    return out
+#: the environment of a child process (its cache locks given up after 60 s)
+script_env = functools.partial(subprocess_env, 60)
 
 
 def run_script(env: dict[str, str], unprivileged: bool = False) -> dict:

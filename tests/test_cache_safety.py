@@ -9,6 +9,7 @@ from __future__ import annotations
 import base64
 import contextlib
 import errno
+import functools
 import json
 import os
 import shutil
@@ -22,7 +23,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 import sympy as sp
-from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
+from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    OSCILLATOR,
+    REPO,
+    isolated_cache,
+    needs_cc,
+    oscillator,
+    subprocess_env,
+)
 
 import symgroupoid as sg
 from symgroupoid import _progress
@@ -39,26 +47,6 @@ from symgroupoid.runtime.toolchain import (
 )
 
 pytestmark = needs_cc
-
-OSCILLATOR = '''
-import sympy as sp
-import symgroupoid as sg
-
-
-def oscillator(name="oscillator"):
-    """A harmonic oscillator on the pair groupoid of the line (one unknown)."""
-    h, k = sp.symbols("h k", positive=True)
-
-    def L(g):
-        (q0,), (q1,) = g.source, g.target
-        return h * (((q1 - q0) / h) ** 2 / 2 - k * ((q0 + q1) / 2) ** 2 / 2)
-
-    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
-                             name=name).euler_lagrange()
-'''
-_namespace: dict = {}
-exec(OSCILLATOR, _namespace)
-oscillator = _namespace["oscillator"]
 
 #: a process compiling the oscillator (``NO_FLOCK=1``: with ``flock`` failing as on NFS
 #: mounted nolock, ENOLCK; ``BARRIER``: after waiting for a start signal)
@@ -83,14 +71,8 @@ print(json.dumps({"entry": str(sim.cache_entry), "final": final.tolist(), **tool
 '''
 
 
-def script_env(**env: str | None) -> dict[str, str]:
-    out = {**os.environ, "PYTHONPATH": str(REPO), "SYMGROUPOID_LOCK_TIMEOUT": "120"}
-    for name, value in env.items():
-        if value is None:
-            out.pop(name, None)
-        else:
-            out[name] = value
-    return out
+#: the environment of a child process (its cache locks given up after 120 s)
+script_env = functools.partial(subprocess_env, 120)
 
 
 def run_script(env: dict[str, str]) -> subprocess.CompletedProcess:

@@ -345,6 +345,22 @@ def free_plane(g):
     return sum((b - a) ** 2 for a, b in zip(g.source, g.target)) / (2 * H)
 
 
+def plane_declaration(**changes) -> dict:
+    """The keyword arguments of a free particle on the plane's pair groupoid, with
+    ``changes``: what a property then makes hostile."""
+    return dict(groupoid=sg.PairGroupoid(sg.EuclideanSpace("x y")), lagrangian=free_plane,
+                parameters=[H], name="hostile", **changes)
+
+
+def derived(kind, kwargs: dict):
+    """What ``judge`` builds: the ``kind`` system of ``kwargs``, its equations derived."""
+    def build():
+        system = kind(**kwargs)
+        system.euler_lagrange()
+        return system
+    return build
+
+
 def verify_system(system) -> None:
     """A derived system: its simulated steps solve the derived equations and are stationary
     points of the system's own action (``verify_stationary``)."""
@@ -395,17 +411,13 @@ def test_systems_with_malformed_lagrangians(run):
 
 @pytest.mark.parametrize("run", PROFILES)
 def test_systems_with_malformed_constraints_and_declarations(run):
-    plane = sg.PairGroupoid(sg.EuclideanSpace("x y"))
-
     @profile(run, 14, 120)
     @given(data=st.data())
     def prop(data):
+        constraints, expected = CONSTRAINTS[data.draw(st.sampled_from(sorted(CONSTRAINTS)))]
         which = data.draw(st.sampled_from(["constraints", "parameters", "name", "groupoid",
                                            "lagrangian"]))
-        key = data.draw(st.sampled_from(sorted(CONSTRAINTS)))
-        constraints, expected = CONSTRAINTS[key]
-        kwargs = dict(groupoid=plane, lagrangian=free_plane, constraints=constraints,
-                      parameters=[H], name="hostile")
+        kwargs = plane_declaration(constraints=constraints)
         if which == "parameters":
             kwargs["constraints"] = CONSTRAINTS["valid"][0]
             kwargs["parameters"] = data.draw(st.one_of(junk(), st.sampled_from(
@@ -423,13 +435,8 @@ def test_systems_with_malformed_constraints_and_declarations(run):
             kwargs["lagrangian"] = data.draw(junk())
             expected = ["Lagrangian"]
 
-        def build():
-            system = sg.DiscreteSystem(**kwargs)
-            system.euler_lagrange()
-            return system
-
-        judge("DiscreteSystem (constraints)", build, expected + ["hostile"],
-              owner="hostile", verify=verify_system)
+        judge("DiscreteSystem (constraints)", derived(sg.DiscreteSystem, kwargs),
+              expected + ["hostile"], owner="hostile", verify=verify_system)
 
     prop()
 
@@ -479,16 +486,14 @@ def test_second_order_systems(run):
 
 @pytest.mark.parametrize("run", PROFILES)
 def test_nonholonomic_systems(run):
-    plane = sg.PairGroupoid(sg.EuclideanSpace("x y"))
-
     @profile(run, 10, 80)
     @given(data=st.data())
     def prop(data):
         which = data.draw(st.sampled_from(["distribution", "method", "metric", "groupoid",
                                            "constraints"]))
-        kwargs = dict(groupoid=plane, lagrangian=free_plane, constraints=lambda g: [
-            g.target[0] - g.source[0] - (g.target[1] - g.source[1])],
-            distribution=[[1, 1]], parameters=[H], name="hostile_nh")
+        kwargs = plane_declaration(constraints=lambda g: [
+            g.target[0] - g.source[0] - (g.target[1] - g.source[1])], distribution=[[1, 1]])
+        kwargs["name"] = "hostile_nh"
         expected = [which]
         if which == "distribution":
             kwargs["distribution"] = data.draw(st.one_of(junk(), st.sampled_from(
@@ -513,10 +518,6 @@ def test_nonholonomic_systems(run):
                 sorted(CONSTRAINTS)))][0]
             expected = ["constraints", "constraint", "φ_1", "D_c"]
 
-        def build():
-            system = sg.NonholonomicSystem(**kwargs)
-            system.euler_lagrange()
-            return system
 
         def verify(system):
             step = system.euler_lagrange()
@@ -528,7 +529,7 @@ def test_nonholonomic_systems(run):
                 return  # this state is off the system's constraints, or cannot be stepped
             verify_trajectory(step, traj, sim.parameters({"h": 0.1}))
 
-        judge("NonholonomicSystem", build, expected + ["hostile_nh"], owner="hostile_nh",
-              verify=verify)
+        judge("NonholonomicSystem", derived(sg.NonholonomicSystem, kwargs),
+              expected + ["hostile_nh"], owner="hostile_nh", verify=verify)
 
     prop()
