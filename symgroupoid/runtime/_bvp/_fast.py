@@ -16,9 +16,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from ..._errors import SingularJacobianError
-from ._assembly import _within_floor
 from ._layout import _multiplier_rows
-from ._state import MAX_HALVINGS, _Iterate, _SolverState, _Step
+from ._state import _Iterate, _SolverState, _Step
 
 #: the fast path hands over to the globalised iteration after this many consecutive damped
 #: Newton steps (line-search length at most DAMPED_LENGTH)
@@ -86,17 +85,7 @@ def _line_search(state: _SolverState, dz: np.ndarray) -> _Step | None:
     """
     F = state.assembled.F
     f0 = float(F @ F)
-    length = 1.0
-    for _ in range(MAX_HALVINGS):
-        new_arrows, new_lam, trial = state.trial(length * dz)
-        if trial.finite():
-            f = float(trial.F @ trial.F)
-            if f <= (1 - 1e-4 * length) * f0:
-                return _Step(new_arrows, new_lam, trial, length, dz)
-            if _within_floor(trial, f):
-                return _Step(new_arrows, new_lam, trial, length, dz, at_floor=True)
-        length /= 2
-    return None
+    return state.backtrack(dz, lambda length, arrows, trial, f: f <= (1 - 1e-4 * length) * f0)
 
 
 def _restart_points(state: _SolverState, initial: _Iterate, iterates: Sequence) -> list:

@@ -15,11 +15,11 @@ import numpy as np
 
 from ..._errors import BoundaryValueDivergenceError, SingularJacobianError
 from .._banded import banded_inertia
-from ._assembly import _Assembled, _within_floor
+from ._assembly import _Assembled
 from ._inertia import _bordering
 from ._layout import _multiplier_rows, _variation_rows
 from ._linear import _apply
-from ._state import MAX_HALVINGS, _Problem, _SolverState, _Step
+from ._state import _Problem, _SolverState, _Step
 
 #: at most this many trial regularisations μ per globalised iteration
 MAX_CORRECTIONS = 40
@@ -158,18 +158,12 @@ def _merit_search(state: _SolverState, dz, nu: float, slope: float, newton: bool
     phi0 = _merit(problem, state.arrows, state.assembled, nu)
     F = state.assembled.F
     f0 = float(F @ F)
-    length = 1.0
-    for _ in range(MAX_HALVINGS):
-        new_arrows, new_lam, trial = state.trial(length * dz)
-        if trial.finite():
-            f = float(trial.F @ trial.F)
-            accept = slope < 0 and \
-                _merit(problem, new_arrows, trial, nu) <= phi0 + 1e-4 * length * slope
-            if newton and length == 1.0:
-                accept = accept or f <= (1 - 1e-4) * f0
-            if accept:
-                return _Step(new_arrows, new_lam, trial, length, dz)
-            if _within_floor(trial, f):
-                return _Step(new_arrows, new_lam, trial, length, dz, at_floor=True)
-        length /= 2
-    return None
+
+    def accept(length: float, arrows, trial: _Assembled, f: float) -> bool:
+        accepted = slope < 0 and \
+            _merit(problem, arrows, trial, nu) <= phi0 + 1e-4 * length * slope
+        if newton and length == 1.0:
+            accepted = accepted or f <= (1 - 1e-4) * f0
+        return accepted
+
+    return state.backtrack(dz, accept)

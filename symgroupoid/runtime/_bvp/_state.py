@@ -28,7 +28,14 @@ import numpy as np
 
 from ..._errors import BoundaryValueDivergenceError, SingularJacobianError
 from ..._progress import note as progress_note
-from ._assembly import ROUNDING_FACTOR, _assemble, _Assembled, _excess, _rounding_floor
+from ._assembly import (
+    ROUNDING_FACTOR,
+    _assemble,
+    _Assembled,
+    _excess,
+    _rounding_floor,
+    _within_floor,
+)
 from ._kernels import CostKernel, WindowKernel, _Maps, _maps, cost_kernel, window_kernel
 from ._layout import _Layout, _layout
 from ._linear import _solve_banded
@@ -152,6 +159,23 @@ class _SolverState:
         """The iterate moved by dz and the system assembled there."""
         arrows, lam = self.update(dz)
         return _Iterate(arrows, lam, self.assemble(arrows, lam))
+
+    def backtrack(self, dz: np.ndarray, accept) -> _Step | None:
+        """The step along dz from length t = 1, halved at most MAX_HALVINGS times, until
+        ``accept(t, arrows, assembled, f)`` holds at a finite trial (f = |F|₂² there) or the
+        trial is within the rounding floor (taken at once, ``at_floor``: comparing two
+        residuals there is comparing noise); None when neither happens."""
+        length = 1.0
+        for _ in range(MAX_HALVINGS):
+            arrows, lam, trial = self.trial(length * dz)
+            if trial.finite():
+                f = float(trial.F @ trial.F)
+                if accept(length, arrows, trial, f):
+                    return _Step(arrows, lam, trial, length, dz)
+                if _within_floor(trial, f):
+                    return _Step(arrows, lam, trial, length, dz, at_floor=True)
+            length /= 2
+        return None
 
     def excess(self) -> float:
         """The iterate's residual in units of the accepted one (:func:`_excess`): at most 1
