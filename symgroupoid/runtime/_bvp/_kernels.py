@@ -11,13 +11,12 @@ multiplication, inversion and the junction flow h(δ) ⊂ α⁻¹(β(g)) of the 
 from __future__ import annotations
 
 import functools
-import os
 
 import numpy as np
 
-from ..._arguments import choice_argument
 from ...equations import cost_program, structure_program, window_programs
 from ...ir import Program
+from .._options import environment_backend
 from .._programs import ProgramEvaluator
 
 
@@ -34,9 +33,7 @@ def _vectorised(label: str, program: Program, inputs: str, outputs: str) -> Prog
     solve never waits for the compiler — and without a compiler, the program's NumPy form
     (vectorised over windows), which computes the same bits (:class:`ProgramEvaluator`).
     ``SYMGROUPOID_BACKEND`` = ``numpy`` or ``c`` forces one of the two (``c``: build first)."""
-    backend = choice_argument(os.environ.get("SYMGROUPOID_BACKEND", "auto") or "auto",
-                              ("auto", "c", "numpy"), "SYMGROUPOID_BACKEND", owner=label)
-    return ProgramEvaluator(label, program, inputs, outputs, backend)
+    return ProgramEvaluator(label, program, inputs, outputs, environment_backend(label))
 
 
 class WindowKernel:
