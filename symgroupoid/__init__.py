@@ -82,6 +82,7 @@ from .groupoids import (
 )
 from .plotting import plot_conservation, plot_trajectory  # noqa: E402
 from .runtime import (  # noqa: E402  (layer 5)
+    BoundaryValueSolution,
     CompilationError,
     NewtonOptions,
     Simulator,
@@ -89,10 +90,10 @@ from .runtime import (  # noqa: E402  (layer 5)
     Trajectory,
     TrajectoryBatch,
     compile_step,
+    solve_boundary_value,
     sweep,
     sweep_boundary_value,
 )
-from .runtime._bvp import BoundaryValueSolution, solve_boundary_value
 from .stepper import Status  # noqa: E402  (the statuses of every run)
 from .verification import StationarityReport, verify_stationary
 

@@ -10,7 +10,7 @@ import sympy as sp
 
 from ._lambdify import NUMPY_MODULES
 from .groupoids import SO3
-from .runtime._bvp import solve_boundary_value
+from .runtime import solve_boundary_value
 from .runtime.toolchain import STATS
 from .systems import heavy_top, plate_ball
 from .verification import verify_stationary

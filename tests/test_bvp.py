@@ -7,7 +7,12 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid.runtime import _bvp
+from symgroupoid.runtime._bvp import WindowKernel, interpolate_arrows, window_kernel
+from symgroupoid.runtime._bvp._assembly import _assemble
+from symgroupoid.runtime._bvp._kernels import _maps
+from symgroupoid.runtime._bvp._layout import _layout
+from symgroupoid.runtime._bvp._linear import _block_tridiagonal, _solve_banded
+from symgroupoid.runtime._bvp._state import _Problem
 
 h = sp.Symbol("h", positive=True)
 
@@ -67,16 +72,16 @@ def test_banded_fallback_matches_lapack(so3_control):
     """The NumPy block-tridiagonal elimination (used without SciPy) gives the same step."""
     sol = sg.solve_boundary_value(so3_control, np.eye(3), _cay([0.2, 0.1, -0.4]), 12,
                                   params=[1 / 12], max_iterations=0, tol=1e9)
-    kernel = _bvp.window_kernel(so3_control)
-    lay = _bvp._layout(12, 1, 3, 0)
-    F, rows, cols, vals, *_ = _bvp._assemble(kernel, lay, sol.arrows * 1.0, sol.multipliers,
-                                            np.array([1 / 12]))
+    problem = _Problem.of(so3_control, 12, np.array([1 / 12]))
+    lay = problem.lay
+    assert lay is _layout(12, 1, 3, 0)
+    F, rows, cols, vals, *_ = _assemble(problem, sol.arrows * 1.0, sol.multipliers)
     A = np.zeros((lay.size, lay.size))
     np.add.at(A, (rows, cols), vals)
     F = F + 0.01 * np.arange(lay.size)  # a generic right-hand side
-    x1 = _bvp._solve_banded(rows, cols, vals, lay.size, F)
-    x2 = _bvp._block_tridiagonal(rows, cols, vals, lay.size, F,
-                                 int(max(np.max(rows - cols), np.max(cols - rows))))
+    x1 = _solve_banded(rows, cols, vals, lay.size, F)
+    x2 = _block_tridiagonal(rows, cols, vals, lay.size, F,
+                            int(max(np.max(rows - cols), np.max(cols - rows))))
     assert np.allclose(A @ x1, F) and np.allclose(x1, x2, atol=1e-10)
 
 
@@ -148,14 +153,13 @@ def test_window_kernels_compiled_and_numpy_agree(so3_control, monkeypatch, tmp_p
     """The window programs run compiled through the kernel cache once built (in the
     background); forcing the NumPy backend gives the same residual and blocks, bit for bit."""
     monkeypatch.setenv("SYMGROUPOID_CACHE", str(tmp_path))
-    compiled = _bvp.WindowKernel(so3_control)
+    compiled = WindowKernel(so3_control)
     monkeypatch.setenv("SYMGROUPOID_BACKEND", "numpy")
-    plain = _bvp.WindowKernel(so3_control)
+    plain = WindowKernel(so3_control)
     assert compiled._junction.wait(120) and compiled._junction.backend == "c"
     assert plain._junction.backend == "numpy" and not plain._junction.wait(0)
-    arrows = _bvp.interpolate_arrows(so3_control.groupoid,
-                                     np.array(sg.SO3("g").numeric_fibre_chart([0.4, -0.2, 0.7])),
-                                     12)
+    arrows = interpolate_arrows(so3_control.groupoid,
+                                np.array(sg.SO3("g").numeric_fibre_chart([0.4, -0.2, 0.7])), 12)
     windows = np.stack([arrows[:-1], arrows[1:]], axis=1)
     lams = np.zeros((11, 2, 0))
     (r1, left1, right1, _), (r2, left2, right2, _) = (
@@ -175,8 +179,8 @@ def test_junction_blocks_are_the_derivatives_along_the_fields(so3_control, which
         W, lambda a, b: sp.Rational(1, 2) * sum(
             (i + 1) * (b.coordinates[i] - a.coordinates[i]) ** 2 for i in range(3)),
         name="so2_blocks")
-    kernel, G = _bvp.window_kernel(system), system.groupoid
-    maps = _bvp._maps(G)
+    kernel, G = window_kernel(system), system.groupoid
+    maps = _maps(G)
     rng = np.random.default_rng(11)
     arrows = np.array([np.array(W.cayley(list(rng.uniform(-0.4, 0.4, 3))).tolist(),
                                 float).ravel() for _ in range(len(kernel.offsets))])

@@ -16,8 +16,10 @@ from conftest import load_example
 import symgroupoid as sg
 from symgroupoid import BoundaryValueDivergenceError
 from symgroupoid.ir import Graph, rounding_error
-from symgroupoid.runtime import _bvp
 from symgroupoid.runtime._banded import banded_inertia
+from symgroupoid.runtime._bvp import _fast, _solve, _state, interpolate_arrows
+from symgroupoid.runtime._bvp._assembly import _assemble, _excess, _rounding_floor
+from symgroupoid.runtime._bvp._layout import _layout, _multiplier_rows, _variation_rows
 from symgroupoid.verification import action
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
@@ -136,7 +138,7 @@ def test_cayley_problem_at_n1000_agrees_with_an_independent_solution(so3_control
     n = 1000
     end = _cay(np.array([0.9, -0.6, 1.4]))
     sol = sg.solve_boundary_value(so3_control, np.eye(3), end, n, params=[1 / n])
-    first = _bvp.interpolate_arrows(so3_control.groupoid, end.ravel(), n)[0]  # the geodesic
+    first = interpolate_arrows(so3_control.groupoid, end.ravel(), n)[0]  # the geodesic
     reference = _shooting_solution(end, n, np.array(so3_control.groupoid.fibre_chart_inverse(
         first)))
     assert np.abs(sol.controls - reference).max() * n < 1e-12
@@ -170,14 +172,13 @@ def test_line_search_at_the_rounding_floor_takes_the_step_at_once(so3_control, m
     the Armijo test always fails — is taken with one evaluation, not halved 30 times."""
     end = _cay(np.array([0.4, 0.2, -0.5]))
     sol = sg.solve_boundary_value(so3_control, np.eye(3), end, 40, params=[1 / 40])
-    kernel, lay = _bvp.window_kernel(so3_control), _bvp._layout(40, 1, 3, 0)
-    p = np.array([1 / 40])
-    state = _bvp._assemble(kernel, lay, sol.arrows, sol.multipliers, p)
+    problem = _state._Problem.of(so3_control, 40, np.array([1 / 40]))
+    assert problem.lay is _layout(40, 1, 3, 0)
+    state = _state._SolverState.at(problem, sol.arrows, sol.multipliers)
     calls = []
-    assemble = _bvp._assemble
-    monkeypatch.setattr(_bvp, "_assemble", lambda *a: calls.append(1) or assemble(*a))
-    step = _bvp._line_search(kernel, lay, _bvp._maps(so3_control.groupoid), sol.arrows,
-                             sol.multipliers, np.zeros(lay.size), state, p)
+    assemble = _state._assemble
+    monkeypatch.setattr(_state, "_assemble", lambda *a: calls.append(1) or assemble(*a))
+    step = _fast._line_search(state, np.zeros(problem.lay.size))
     assert step is not None and step.length == 1.0 and step.at_floor and len(calls) == 1
 
 
@@ -186,8 +187,8 @@ def test_rigid_body_line_search_never_backtracks(monkeypatch):
     with one assembly per iteration, up to the floor."""
     rb = load_example("rigid_body_attitude")
     calls = []
-    assemble = _bvp._assemble
-    monkeypatch.setattr(_bvp, "_assemble", lambda *a: calls.append(1) or assemble(*a))
+    assemble = _state._assemble
+    monkeypatch.setattr(_state, "_assemble", lambda *a: calls.append(1) or assemble(*a))
     sol = rb.solve(1000)
     assert sol.iterations <= 5 and len(calls) == sol.iterations + 1
     assert sol.method == "Newton" and sol.is_local_minimum
@@ -200,14 +201,14 @@ def test_a_constraint_of_small_chart_coordinates_converges_to_its_floor(problems
     the last update needed is ~1e-22 (the constraint v₂ = x₃ of arrows near the identity, a
     difference of products of matrix entries); the former absolute criterion tol_step = 1e-9
     called that a stall, the floor-relative one does not."""
-    monkeypatch.setattr(_bvp, "_restart_points", lambda ctx, initial, iterates: [initial[:2]])
+    monkeypatch.setattr(_solve, "_restart_points", lambda state, initial, iterates: [initial[:2]])
     p = problems.random_problems(20, seed=1, steps=(60, 200))[10]
     assert p.kind == "se2" and p.steps == 151
     sol = p.solve()
-    kernel, lay = _bvp.window_kernel(p.system), _bvp._layout(p.steps, 1, 3, 1)
-    state = _bvp._assemble(kernel, lay, sol.arrows, sol.multipliers, np.array(p.params))
-    floor = _bvp._rounding_floor(None, lay, sol.arrows, sol.multipliers, state)
-    assert _bvp._excess(state.F, floor, 0.0) <= 1.0
+    problem = _state._Problem.of(p.system, p.steps, np.array(p.params))
+    assert problem.lay is _layout(p.steps, 1, 3, 1)
+    state = _assemble(problem, sol.arrows, sol.multipliers)
+    assert _excess(state.F, _rounding_floor(state), 0.0) <= 1.0
     with pytest.raises(BoundaryValueDivergenceError, match="tol_step"):
         p.solve(tol_step=1e-9)
 
@@ -228,12 +229,13 @@ def _reduced_hessian_eigenvalues(system, sol, params) -> np.ndarray:
 
     G = system.groupoid
     a, m = len(system._fs.slots), len(system._fs.constraints)
-    lay = _bvp._layout(sol.steps, a, G.rank, m)
-    state = _bvp._assemble(_bvp.window_kernel(system), lay, sol.arrows, sol.multipliers,
-                           np.asarray(params, float))
+    problem = _state._Problem.of(system, sol.steps, np.asarray(params, float))
+    lay = problem.lay
+    assert lay is _layout(sol.steps, a, G.rank, m)
+    state = _assemble(problem, sol.arrows, sol.multipliers)
     K = _dense(state, lay.size)
     K = (K + K.T) / 2
-    d, c = _bvp._variation_rows(lay, G.rank), _bvp._multiplier_rows(lay, m)
+    d, c = _variation_rows(lay, G.rank), _multiplier_rows(lay, m)
     H = K[np.ix_(d, d)]
     Z = null_space(K[np.ix_(c, d)]) if len(c) else np.eye(len(d))
     return np.linalg.eigvalsh(Z.T @ H @ Z)
@@ -256,11 +258,11 @@ def test_globalised_iteration_converges_where_newton_crawls(problems, monkeypatc
     assert sol.inertia.positive == len(eigenvalues)
     assert sol.cost == pytest.approx(p.cost(sol.arrows), rel=1e-12)
 
-    def refuse(ctx, initial, run, why):
-        raise BoundaryValueDivergenceError(why, iterations=run.iterations)
+    def refuse(state, starts, why):
+        raise BoundaryValueDivergenceError(why, iterations=state.iterations)
 
-    monkeypatch.setattr(_bvp, "MAX_DAMPED", 10**9)
-    monkeypatch.setattr(_bvp, "_globalised_after", refuse)
+    monkeypatch.setattr(_fast, "MAX_DAMPED", 10**9)
+    monkeypatch.setattr(_solve, "_globalised_after", refuse)
     with pytest.raises(BoundaryValueDivergenceError, match="30 iterations"):
         p.solve(max_iterations=30)
 

@@ -14,7 +14,10 @@ import sympy as sp
 
 import symgroupoid as sg
 from symgroupoid import BoundaryValueDivergenceError
-from symgroupoid.runtime import _bvp
+from symgroupoid.runtime._bvp import _fast, _globalised, _solve, interpolate_arrows
+from symgroupoid.runtime._bvp._assembly import _add, _assemble
+from symgroupoid.runtime._bvp._linear import _solve_banded
+from symgroupoid.runtime._bvp._state import _Problem
 from symgroupoid.runtime._sweep_boundary import _solution_data
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
@@ -50,18 +53,18 @@ def _scattered(kernel, lay, arrows, lam, p):
     eq = lay.delta_at[J]
     F[eq[:, None] + np.arange(r)], cancel[eq[:, None] + np.arange(r)] = res, sizes
     for o in kernel.offsets:
-        _bvp._add(rows, cols, vals, lay.delta_at, eq, J + o, left[o], r)
-        _bvp._add(rows, cols, vals, lay.delta_at, eq, J + o - 1, -right[o], r)
+        _add(rows, cols, vals, lay.delta_at, eq, J + o, left[o], r)
+        _add(rows, cols, vals, lay.delta_at, eq, J + o - 1, -right[o], r)
     for s in kernel.starts:
-        _bvp._add(rows, cols, vals, lay.lam_at, eq, J + s, dlam[s], m)
+        _add(rows, cols, vals, lay.lam_at, eq, J + s, dlam[s], m)
     if m:
         res, left, right, sizes = kernel.term_terms(
             np.stack([arrows[T + o] for o in range(a)], axis=1), p)
         eq = lay.lam_at[T]
         F[eq[:, None] + np.arange(m)], cancel[eq[:, None] + np.arange(m)] = res, sizes
         for o in range(a):
-            _bvp._add(rows, cols, vals, lay.delta_at, eq, T + o, left[o], r, m)
-            _bvp._add(rows, cols, vals, lay.delta_at, eq, T + o - 1, -right[o], r, m)
+            _add(rows, cols, vals, lay.delta_at, eq, T + o, left[o], r, m)
+            _add(rows, cols, vals, lay.delta_at, eq, T + o - 1, -right[o], r, m)
     A = np.zeros((lay.size, lay.size))
     np.add.at(A, (np.concatenate(rows), np.concatenate(cols)), np.concatenate(vals))
     return F, cancel, A
@@ -88,19 +91,19 @@ def test_gathered_assembly_matches_the_block_scatter(problems):
     W = _second_order_so3()
     cases.append((W, problems.rotation((0.3, -0.2, 0.5)), 10, [0.1]))
     for system, end, n, params in cases:
-        kernel, G = _bvp.window_kernel(system), system.groupoid
-        a, m = kernel.arity, kernel.m
-        lay = _bvp._layout(n, a, kernel.rank, m)
-        arrows = _bvp.interpolate_arrows(G, G.arrow_between(np.eye(3), end), n)
-        lam = rng.normal(size=(n - a + 1, m))
         p = np.array(params, float)
-        state = _bvp._assemble(kernel, lay, arrows, lam, p)
+        problem, G = _Problem.of(system, n, p), system.groupoid
+        kernel, lay = problem.kernel, problem.lay
+        a, m = kernel.arity, kernel.m
+        arrows = interpolate_arrows(G, G.arrow_between(np.eye(3), end), n)
+        lam = rng.normal(size=(n - a + 1, m))
+        state = _assemble(problem, arrows, lam)
         F, cancel, A = _scattered(kernel, lay, arrows, lam, p)
         dense = np.zeros_like(A)
         np.add.at(dense, (state.rows, state.cols), state.vals)
         assert np.array_equal(state.F, F) and np.array_equal(state.cancel, cancel)
         assert np.array_equal(dense, A), system.name
-        x = _bvp._solve_banded(state.rows, state.cols, state.vals, lay.size, F, state.band)
+        x = _solve_banded(state.rows, state.cols, state.vals, lay.size, F, state.band)
         assert np.allclose(A @ x, F, rtol=1e-9, atol=1e-9 * np.abs(F).max())
 
 
@@ -142,19 +145,19 @@ def test_the_globalised_iteration_restarts_from_the_best_fast_path_iterate(probl
     path, in fewer iterations."""
     p = _handing_over(problems)
     chosen = []
-    restart = _bvp._restart_points
+    restart = _fast._restart_points
 
-    def spy(ctx, initial, iterates):
-        starts = restart(ctx, initial, iterates)
+    def spy(state, initial, iterates):
+        starts = restart(state, initial, iterates)
         chosen.append((starts, initial))
         return starts
 
-    monkeypatch.setattr(_bvp, "_restart_points", spy)
+    monkeypatch.setattr(_solve, "_restart_points", spy)
     sol = p.solve()
     (starts, initial), = chosen
     assert len(starts) == 2 and starts[1][0] is initial[0]
     assert not np.array_equal(starts[0][0], initial[0])
-    monkeypatch.setattr(_bvp, "_restart_points", lambda ctx, initial, iterates: [initial[:2]])
+    monkeypatch.setattr(_solve, "_restart_points", lambda state, initial, iterates: [initial[:2]])
     from_initial = p.solve()
     assert "inertia-corrected" in sol.method and sol.is_local_minimum
     assert sol.iterations < from_initial.iterations
@@ -166,27 +169,27 @@ def test_the_initial_path_is_the_fallback_of_the_restart(problems, monkeypatch):
     """When the globalised iteration from the best iterate finds no decrease, it starts again
     from the initial path and converges there; when that fails too, the error names both."""
     p = _handing_over(problems)
-    globalised, calls = _bvp._globalised, []
+    globalised, calls = _globalised._globalised, []
 
-    def first_fails(ctx, arrows, lam, run):
+    def first_fails(state, arrows, lam):
         calls.append(arrows)
         if len(calls) == 1:
             raise BoundaryValueDivergenceError("x: boundary-value iteration found no decrease "
                                                "(line search); after 0 iterations", iterations=0)
-        return globalised(ctx, arrows, lam, run)
+        return globalised(state, arrows, lam)
 
-    monkeypatch.setattr(_bvp, "_globalised", first_fails)
+    monkeypatch.setattr(_globalised, "_globalised", first_fails)
     sol = p.solve()
     assert len(calls) == 2 and sol.is_local_minimum
     G = p.system.groupoid
-    initial = _bvp.interpolate_arrows(G, G.arrow_between(p.start, p.end), p.steps)
+    initial = interpolate_arrows(G, G.arrow_between(p.start, p.end), p.steps)
     assert np.array_equal(calls[1], initial)
 
-    def always_fails(ctx, arrows, lam, run):
+    def always_fails(state, arrows, lam):
         raise BoundaryValueDivergenceError("x: boundary-value iteration found no decrease "
                                            "(line search); after 0 iterations", iterations=0)
 
-    monkeypatch.setattr(_bvp, "_globalised", always_fails)
+    monkeypatch.setattr(_globalised, "_globalised", always_fails)
     with pytest.raises(BoundaryValueDivergenceError,
                        match="from its best iterate, the globalised iteration"):
         p.solve()
@@ -199,13 +202,13 @@ def test_a_stall_is_not_retried_from_the_initial_path(problems, monkeypatch):
     p = _handing_over(problems)
     calls = []
 
-    def stalls(ctx, arrows, lam, run):
+    def stalls(state, arrows, lam):
         calls.append(arrows)
-        run.stalled = f"the update fell below tol_step = {ctx.tol_step:g}"
+        state.stalled = f"the update fell below tol_step = {state.problem.tol_step:g}"
         raise BoundaryValueDivergenceError("x: boundary-value iteration stalled: "
-                                           f"{run.stalled}", iterations=run.iterations)
+                                           f"{state.stalled}", iterations=state.iterations)
 
-    monkeypatch.setattr(_bvp, "_globalised", stalls)
+    monkeypatch.setattr(_globalised, "_globalised", stalls)
     with pytest.raises(BoundaryValueDivergenceError, match="stalled"):
         p.solve()
     assert len(calls) == 1

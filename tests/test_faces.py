@@ -18,20 +18,8 @@ LAYERS = {"ir": 0, "groupoids": 1, "derivation": 2, "equations": 3, "codegen": 4
 #: shared leaves every layer may use (errors, argument checks, symbols, ...)
 LEAVES = {"_arguments", "_collector", "_errors", "_lambdify", "_progress", "_symbols",
           "_version", "stepper"}
-#: imports still to be moved to a face, by importer → target modules (being reorganised)
-PENDING = {
-    "symgroupoid": {"equations._printing", "runtime._bvp"},
-    "_demo": {"runtime._bvp", "runtime._compile"},
-    "cli._boundary": {"runtime._bvp"},
-    "cli._cache": {"runtime._maintenance"},
-    "cli._common": {"runtime._compile"},
-    "cli._derive": {"equations._printing"},
-    "equations._printing": {"derivation._step", "derivation._junction", "derivation._callables",
-                            "derivation._momenta"},
-    "equations._regularity": {"derivation._limit", "groupoids._user"},
-    "runtime._cache": {"codegen._emit"},
-    "runtime._compile": {"codegen._emit"},
-}
+#: private imports across packages still allowed, by importer → target modules (none)
+PENDING: dict[str, set[str]] = {}
 #: the conveniences that look up (docs/architecture.md): importer → the package it calls
 CONVENIENCES = {("equations._step", "codegen"), ("equations._step", "runtime"),
                 ("runtime._trajectory", "plotting")}

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from symgroupoid.runtime import _bvp, _lapack
+from symgroupoid.runtime import _lapack
+from symgroupoid.runtime._bvp._linear import _solve_banded
 
 pytestmark = pytest.mark.skipif(not _lapack.available(),
                                 reason="this NumPy has no LAPACK of its own")
@@ -45,7 +46,7 @@ def test_singular_matrix_reports_its_zero_pivot():
     rows, cols = np.nonzero(A)
     keep = cols != 2
     with pytest.raises(np.linalg.LinAlgError, match="singular"):
-        _bvp._solve_banded(rows[keep], cols[keep], A[rows[keep], cols[keep]], 5, np.ones(5))
+        _solve_banded(rows[keep], cols[keep], A[rows[keep], cols[keep]], 5, np.ones(5))
 
 
 def test_storage_that_does_not_fit_the_bandwidths_is_refused():
@@ -62,7 +63,7 @@ def test_solver_falls_back_when_numpy_has_no_lapack(monkeypatch):
     calls = []
     monkeypatch.setattr(_lapack, "dgbsv", lambda *args: calls.append(args))  # returns None
     pytest.importorskip("scipy.linalg")
-    x = _bvp._solve_banded(rows, cols, A[rows, cols], 30, b)
+    x = _solve_banded(rows, cols, A[rows, cols], 30, b)
     assert calls, "NumPy's LAPACK was asked first"
     # SciPy's gbsv (another LAPACK build: equal to rounding, not necessarily bit for bit)
     np.testing.assert_allclose(A @ x, b, rtol=0, atol=1e-13 * np.abs(b).max())

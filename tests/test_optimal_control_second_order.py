@@ -11,7 +11,10 @@ from conftest import load_example
 
 import symgroupoid as sg
 from symgroupoid.derivation import WindowAction
-from symgroupoid.runtime import _bvp
+from symgroupoid.runtime._bvp import WindowKernel
+from symgroupoid.runtime._bvp._assembly import _assemble
+from symgroupoid.runtime._bvp._layout import _layout
+from symgroupoid.runtime._bvp._state import _Problem
 from symgroupoid.verification import action
 
 
@@ -193,12 +196,12 @@ def test_heavy_top_at_rest_the_linearised_problem_is_singular(ht):
     """Why a rest-to-rest maneuver is ill-posed for Newton: at rest the boundary-value Jacobian
     has exactly the null vectors λ₃,k = a + bk (multipliers of Φ³ only)."""
     system = ht.heavy_top_system()
-    kernel = _bvp.window_kernel(system)
     n = 12
     arrows = np.array([ht.arrow(ht.E3, np.eye(3), (0.3, 0.1), (0.3, 0.1))] * n)
-    lay = _bvp._layout(n, 2, 5, 3)
-    F, rows, cols, vals, *_ = _bvp._assemble(kernel, lay, arrows, np.zeros((n - 1, 3)),
-                                             np.array(ht.parameter_values(0.1)))
+    problem = _Problem.of(system, n, np.array(ht.parameter_values(0.1)))
+    lay = problem.lay
+    assert lay is _layout(n, 2, 5, 3)
+    F, rows, cols, vals, *_ = _assemble(problem, arrows, np.zeros((n - 1, 3)))
     A = np.zeros((lay.size, lay.size))
     np.add.at(A, (rows, cols), vals)
     s = np.linalg.svd(A, compute_uv=False)
@@ -231,7 +234,7 @@ def test_window_kernel_matches_symbolic_derivatives():
                 sp.exp(b[0].target[0]) - a[1].coordinates[0]]
 
     system = sg.SecondOrderSystem(G, L, constraints=phi, parameters=[h], name="kernel_check")
-    kernel = _bvp.WindowKernel(system)
+    kernel = WindowKernel(system)
     action = WindowAction(G, system._fs)
     slots = action.slots("v")
     multipliers = {s: action.multipliers(s) for s in action.starts}

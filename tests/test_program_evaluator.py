@@ -15,7 +15,8 @@ from kernel_support import isolated_cache, needs_cc  # noqa: F401  (autouse fixt
 
 import symgroupoid as sg
 from symgroupoid.ir import Graph, Program, from_sympy
-from symgroupoid.runtime import CompilationError, _bvp, _programs, toolchain
+from symgroupoid.runtime import CompilationError, _programs, toolchain
+from symgroupoid.runtime._bvp import _kernels
 from symgroupoid.runtime._programs import ProgramEvaluator, wait_for_kernels
 
 x, y = sp.symbols("x y", real=True)
@@ -87,7 +88,7 @@ def test_malformed_values_are_refused_by_either_form():
 def test_unknown_backend_in_the_environment_is_refused(monkeypatch):
     monkeypatch.setenv("SYMGROUPOID_BACKEND", "fortran")
     with pytest.raises(sg.DomainError, match="SYMGROUPOID_BACKEND"):
-        _bvp._vectorised("bad backend", _program(), "a", "out")
+        _kernels._vectorised("bad backend", _program(), "a", "out")
 
 
 def test_wait_for_kernels_with_nothing_building_returns_at_once():

@@ -18,7 +18,7 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 
 SOURCES = """
 import hashlib, json
-import symgroupoid.runtime._bvp as bvp
+import symgroupoid.runtime._bvp._kernels as bvp
 from symgroupoid.codegen import generate_c
 from symgroupoid.codegen._emit import generate_program_c
 from symgroupoid.systems import plate_ball, rigid_body, spherical_chain

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..runtime._bvp import solve_boundary_value
+from ..runtime import solve_boundary_value
 from ..verification import verify_stationary
 from ._common import derive, say
 from ._inputs import boundary_problem, parameters, parse_count

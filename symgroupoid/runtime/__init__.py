@@ -7,6 +7,7 @@ needs (csv, zipfile, tempfile).
 
 from .._errors import CacheError
 from ._batch import TrajectoryBatch
+from ._bvp import BoundaryValueSolution, solve_boundary_value
 from ._compile import compile_step
 from ._diagnostics import (
     ConservationSummary,
@@ -39,16 +40,15 @@ from .toolchain import CompilationError, CompilerNotFoundError, cache_root
 _FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "read_trajectory",
                          "save_trajectory"})
 
-__all__ = ["CacheError", "CompilationError", "CompilerNotFoundError", "ConservationSummary",
-           "DetachedStepError", "Drift", "Momenta", "NewtonOptions", "NotPortableError",
-           "ProjectionError", "ReduceError", "Simulator", "SweepResult", "TRAJECTORY_FORMATS",
-           "Trajectory",
-           "TrajectoryBatch", "atomic_write", "cache_root", "compile_step",
-           "conservation_summary", "constraint_check", "constraint_residuals", "energy",
-           "energy_label", "has_energy", "momenta", "noether_quantities", "number_text",
-           "parameter_vector", "read_trajectory", "rounding_floor", "save_trajectory", "sweep",
-           "sweep_boundary_value", "system_argument", "trajectory_programs",
-           "wait_for_kernels"]
+__all__ = ["BoundaryValueSolution", "CacheError", "CompilationError", "CompilerNotFoundError",
+           "ConservationSummary", "DetachedStepError", "Drift", "Momenta", "NewtonOptions",
+           "NotPortableError", "ProjectionError", "ReduceError", "Simulator", "SweepResult",
+           "TRAJECTORY_FORMATS", "Trajectory", "TrajectoryBatch", "atomic_write", "cache_root",
+           "compile_step", "conservation_summary", "constraint_check", "constraint_residuals",
+           "energy", "energy_label", "has_energy", "momenta", "noether_quantities",
+           "number_text", "parameter_vector", "read_trajectory", "rounding_floor",
+           "save_trajectory", "solve_boundary_value", "sweep", "sweep_boundary_value",
+           "system_argument", "trajectory_programs", "wait_for_kernels"]
 
 
 def __getattr__(name: str):

@@ -1,0 +1,184 @@
+"""The window and cost kernels of a system, and its numeric structure maps.
+
+The window kernel evaluates the programs of :func:`~symgroupoid.equations.window_programs`
+— the junction residual of the window action and its slot derivatives, and the constraints
+of a term with theirs — for all windows of a trajectory in one call, compiled to C through
+the same cffi build cache as the step kernels, or in NumPy (the same bits) without a
+compiler.  The cost kernel evaluates the discrete cost Σ_k L_d; the structure maps evaluate
+multiplication, inversion and the junction flow h(δ) ⊂ α⁻¹(β(g)) of the groupoid.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from ...equations import cost_program, structure_program, window_programs
+from ...ir import Program
+from .._options import environment_backend
+from .._programs import ProgramEvaluator
+
+
+def _functions(system):
+    """The system's evaluated functions (L, φ on slot arrows)."""
+    return system._fs
+
+
+def _vectorised(label: str, program: Program, inputs: str, outputs: str) -> ProgramEvaluator:
+    """Evaluate ``program``'s output for W windows: (W, n_in) → (W, n_out).
+
+    Compiled to C through the kernel cache (the same build path as the step kernels) when a
+    compiler is available; until the kernel is built — in the background, so that a first
+    solve never waits for the compiler — and without a compiler, the program's NumPy form
+    (vectorised over windows), which computes the same bits (:class:`ProgramEvaluator`).
+    ``SYMGROUPOID_BACKEND`` = ``numpy`` or ``c`` forces one of the two (``c``: build first)."""
+    return ProgramEvaluator(label, program, inputs, outputs, environment_backend(label))
+
+
+class WindowKernel:
+    """Residuals of one junction and of one term, with their slot derivatives.
+
+    For the junction residual r (rank rows) and each slot o of the window:
+    ``left[o]`` = X⃖_b[r_i] on slot o and ``right[o]`` = X⃗_b[r_i] on slot o (rank × rank),
+    and ``dlam[s]`` = ∂r/∂λ_s; likewise for the constraints of the term starting at 0.
+
+    The programs are those of :func:`~symgroupoid.equations.window_programs`: the window
+    action S = Σ_s [L + λ_s·Φ](terms starting at s) (seed 001 eq. (17)), its junction
+    residual r_b = X⃖_b[S](g_j) − X⃗_b[S](g_{j+1}) (docs/conventions.md §2) and each block a
+    derivative of r along one section field on one slot; evaluated here in C or NumPy.
+    """
+
+    def __init__(self, system):
+        programs = window_programs(system)
+        self.groupoid = system.groupoid
+        self.rank, self.m, self.held = programs.rank, programs.m, programs.held
+        self.arity, self.offsets, self.starts = programs.arity, programs.offsets, programs.starts
+        self.parameters = programs.parameters
+        self._junction = _vectorised(f"{system.name}_junction", programs.junction, "a",
+                                     "junction")
+        self._term = None
+        if programs.term is not None:
+            self._term = _vectorised(f"{system.name}_term", programs.term, "a", "term")
+
+    def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
+        """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
+        return self.junction_terms(windows, lams, params)[:4]
+
+    def junction_terms(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
+        """:meth:`junction`'s blocks and the rounding bound E of each residual (W, rank): its
+        rounding error is at most about ε·E (:func:`symgroupoid.ir.rounding_error`)."""
+        return self.split_junction(self.junction_values(windows, lams, params))
+
+    def junction_values(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray
+                        ) -> np.ndarray:
+        """The junction program's outputs for W windows, one row each (see
+        :meth:`split_junction`)."""
+        W = len(windows)
+        vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1),
+                          np.broadcast_to(params, (W, len(params)))])
+        return self._junction(vals)  # (W, total)
+
+    def split_junction(self, out: np.ndarray):
+        """(residuals, left, right, dlam, rounding bounds) as views of the outputs ``out``."""
+        W, r, k = len(out), self.rank, 0
+        res = out[:, k:k + r]
+        k += r
+        left, right = {}, {}
+        for o in self.offsets:
+            blk = out[:, k:k + 2 * r * r].reshape(W, r, 2, r)
+            left[o], right[o] = blk[:, :, 0, :], blk[:, :, 1, :]
+            k += 2 * r * r
+        dlam = {}
+        for s in self.starts:
+            dlam[s] = out[:, k:k + r * self.m].reshape(W, r, self.m)
+            k += r * self.m
+        return res, left, right, dlam, out[:, k:k + r]
+
+    def term(self, windows: np.ndarray, params: np.ndarray):
+        """Constraint values and slot derivatives for T terms: windows (T, arity, arrow_dim)."""
+        return self.term_terms(windows, params)[:3]
+
+    def term_terms(self, windows: np.ndarray, params: np.ndarray):
+        """:meth:`term`'s values and blocks and the rounding bound of each constraint value
+        (T, m)."""
+        return self.split_term(self.term_values(windows, params))
+
+    def term_values(self, windows: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """The term program's outputs for T windows, one row each (see :meth:`split_term`)."""
+        T = len(windows)
+        return self._term(np.hstack([windows.reshape(T, -1),
+                                     np.broadcast_to(params, (T, len(params)))]))
+
+    def split_term(self, out: np.ndarray):
+        """(constraint values, left, right, rounding bounds) as views of the outputs ``out``."""
+        T, m, r = len(out), self.m, self.rank
+        res = out[:, :m]
+        left, right, k = {}, {}, m
+        for o in range(self.arity):
+            blk = out[:, k:k + 2 * m * r].reshape(T, m, 2, r)
+            left[o], right[o] = blk[:, :, 0, :], blk[:, :, 1, :]
+            k += 2 * m * r
+        return res, left, right, out[:, k:k + m]
+
+
+@functools.lru_cache(maxsize=8)
+def window_kernel(system) -> WindowKernel:
+    """The (cached) window kernel of a system."""
+    return WindowKernel(system)
+
+
+class CostKernel:
+    """The discrete cost S = Σ_k L(g_k, …, g_{k+arity−1}) of an arrow sequence: the
+    system's Lagrangian on the expression graph, evaluated with NumPy for all terms at once
+    (no compiler: it is a single value per term)."""
+
+    def __init__(self, system):
+        self.arity = len(_functions(system).slots)
+        self._f = cost_program(system).numpy_function(["cost"], ["a"])
+
+    def terms(self, arrows: np.ndarray, params: np.ndarray) -> np.ndarray:
+        """L on every window of ``arity`` consecutive arrows."""
+        T = len(arrows) - self.arity + 1
+        windows = np.hstack([arrows[o:o + T] for o in range(self.arity)])
+        values = np.hstack([windows, np.broadcast_to(params, (T, len(params)))])
+        with np.errstate(all="ignore"):
+            out = self._f(values.T)[0]
+        return np.broadcast_to(np.asarray(out, float).reshape(-1), (T,))
+
+    def __call__(self, arrows: np.ndarray, params: np.ndarray) -> float:
+        return float(np.sum(self.terms(arrows, params)))
+
+
+@functools.lru_cache(maxsize=8)
+def cost_kernel(system) -> CostKernel:
+    """The (cached) cost kernel of a system."""
+    return CostKernel(system)
+
+
+@functools.lru_cache(maxsize=16)
+def _maps(G) -> _Maps:
+    """The (cached) numeric structure maps of the groupoid ``G``."""
+    return _Maps(G)
+
+
+class _Maps:
+    """Multiplication, inversion and the junction flow of a groupoid, on rows of arrows: the
+    NumPy forms of its :func:`~symgroupoid.equations.structure_program`."""
+
+    def __init__(self, G):
+        self.G = G
+        program = structure_program(G)
+        self._mul = program.numpy_function(["multiply"], ["a", "b"])
+        self._inv = program.numpy_function(["inverse"], ["a"])
+        self._flow = program.numpy_function(["flow"], ["a", "d"])
+
+    def multiply(self, A, B):
+        return self._mul(A.T, B.T)[0].T
+
+    def inverse(self, A):
+        return self._inv(A.T)[0].T
+
+    def flow_at_target(self, A, D):
+        """h(δ) ⊂ α⁻¹(β(A)) for each row."""
+        return self._flow(A.T, D.T)[0].T

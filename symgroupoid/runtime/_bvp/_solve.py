@@ -1,0 +1,145 @@
+"""The solve: inputs checked, the initial path, then the one loop over the phases.
+
+:func:`solve_boundary_value` checks every input before anything is assembled, builds the
+initial path and the solver state (:class:`~._state._SolverState`) and runs :func:`_solve`:
+the fast path (:mod:`._fast`), then on its handover — or, for ``minimum``, at a stationary
+point that is not a local minimum — the globalised path (:mod:`._globalised`), the
+second-order condition deciding (:mod:`._inertia`).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..._errors import NewtonDivergenceError, ShapeError
+from ..._progress import reported
+from .._validate import check_holonomic_nodes, integer_argument, parameter_vector, real_argument
+from ._fast import _fast_newton, _Handover, _restart_points
+from ._globalised import _globalised_after
+from ._guess import _boundary, _boundary_system, _check_cut_locus, _initial
+from ._inertia import _describe, _is_minimum, _reduced_inertia
+from ._kernels import _functions
+from ._solution import BoundaryValueSolution
+from ._state import _Problem, _SolverState
+
+
+@reported(lambda step_equations, *args, **kwargs:
+          f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
+def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
+                         tol: float = 0.0, tol_step: float = 0.0,
+                         max_iterations: int = 100,
+                         minimum: bool = False) -> BoundaryValueSolution:
+    """Solve a discrete two-point problem for the system behind ``step_equations``.
+
+    First order: ``start`` and ``end`` are the end configurations (pair groupoid: points;
+    Lie group: matrices; products: tuples).  Second order: ``start = (c₀, c₁)`` and
+    ``end = (c_{N−1}, c_N)``, fixing the first and last arrows too.  ``guess``: N arrows
+    (N, arrow_dim), optionally with multipliers as ``(arrows, multipliers)``; default: the
+    geodesic interpolation of :func:`interpolate_arrows` (it avoids the Cayley chart's cut
+    locus, so a half-turn between the ends is solved) and zero multipliers.
+
+    Every input is checked before any solve, as :meth:`Simulator.simulate` checks its own
+    (runtime/_validate.py): the counts, the parameters (by name, with their declared
+    assumptions), the configurations (points: shape and finiteness; group parts: in the
+    group, det +1), the guess.
+
+    The iteration.  Structured Newton on the necessary conditions (junction residuals and
+    constraints; block-banded Jacobian, solved in time linear in N), each update backtracked
+    until |F|₂ decreases (:func:`_line_search`), is the fast path.  When it finds no decrease
+    or takes MAX_DAMPED damped steps in a row, the solve restarts with the globalised
+    iteration (:func:`_globalised`) from the fast path's iterate of least ℓ₁ merit when it
+    is below the initial path's, from the initial path otherwise and when the first restart
+    finds no decrease (:func:`_restart_points`, :func:`_globalised_after`): Newton steps
+    on the same banded system regularised until the Hessian of the Lagrangian is positive
+    definite on the tangent space of the constraints (its inertia from a banded LDLᵀ), with
+    a line search on the ℓ₁ merit function Σ L + ν‖Φ‖₁ — a descent method for the action,
+    as an interior-point NLP solver is.  ``max_iterations`` bounds the iterations of all
+    phases together.
+    ``minimum=True`` asks for a local minimum: a stationary point that is not one (see
+    :attr:`BoundaryValueSolution.is_local_minimum`) sends the solve to the globalised
+    iteration from the initial path, and if that finds none either the solve raises.
+
+    Converged only when the residual criterion holds: every equation's |F_i| is at most
+    ROUNDING_FACTOR·floor_i, floor_i its rounding floor (ε times the terms that cancel in it
+    and its sensitivity to the rounding of the coordinates; it grows like N² for a residual
+    scaled like 1/h², which a fixed tolerance would miss).  ``tol`` is a relative tolerance
+    on the same scale: above ROUNDING_FACTOR·ε it accepts |F_i| ≤ (tol/ε)·floor_i, the
+    residual that a relative change ``tol`` of the terms and coordinates would leave.  It is
+    invariant under a rescaling of the Lagrangian or of h, so it never accepts the initial
+    path of equations that are merely small.  The iteration has stalled when an update changes no
+    stored value, two steps in a row were taken at the floor without meeting the criterion,
+    or (``tol_step`` > 0) an update falls below ``tol_step``·(1 + |λ|∞).
+    Raises :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
+    iterations and the residual history) when the iteration cap is reached, the iteration
+    stalls or both phases' line searches find no decrease; :class:`SingularJacobianError`
+    for a singular Jacobian; :class:`CutLocusError` when an arrow of the initial path is a
+    half-turn.
+
+    ``progress`` (keyword): report a solve taking longer than 2 s, with |F|∞ per iteration
+    (see :mod:`symgroupoid._progress`).
+    """
+    system = _boundary_system(step_equations)
+    owner = system.name
+    a = len(_functions(system).slots)
+    steps = integer_argument(steps, "steps", owner=owner)
+    if steps < 2 * a:
+        raise ShapeError(f"{owner}: a problem of order {a} needs at least {2 * a} "
+                         f"steps, got {steps}")
+    max_iterations = integer_argument(max_iterations, "max_iterations", owner=owner)
+    tol = real_argument(tol, "tol", minimum=0.0, owner=owner)
+    tol_step = real_argument(tol_step, "tol_step", minimum=0.0, owner=owner)
+    if not isinstance(minimum, (bool, np.bool_)):
+        raise ShapeError(f"{owner}: minimum must be True or False, got {minimum!r}")
+    p, named = parameter_vector(system.parameters, params, owner=owner)
+    m = len(_functions(system).constraints)
+    data = _boundary(system, a, start, end)
+    check_holonomic_nodes(system, [data.total] if a == 1 else [data.first, data.last],
+                          [("start", "end")] if a == 1 else
+                          [("start[0]", "start[1]"), ("end[0]", "end[1]")], p, owner=owner)
+    arrows, lam = _initial(system, a, m, data, steps, guess)
+    _check_cut_locus(system, arrows, "the initial path has" if guess is None
+                     else "the guess has")
+    problem = _Problem.of(system, steps, p, tol, tol_step, max_iterations)
+    t0 = time.perf_counter()
+    state = _SolverState.at(problem, arrows, lam)
+    if not state.assembled.finite():
+        worst = state.assembled.worst
+        raise NewtonDivergenceError(
+            f"{owner}: non-finite residual or Jacobian at the initial "
+            f"{'path' if guess is None else 'guess'}, at configuration {worst}: the "
+            f"Lagrangian or the constraints are not defined there", step=worst,
+            residual_norm=float(np.nanmax(np.abs(state.assembled.F), initial=0.0)),
+            iterate=arrows)
+    inertia = _solve(state, minimum)
+    return BoundaryValueSolution(
+        system, state.arrows, state.lam, data.configurations[0], named, state.iterations,
+        state.history[-1], state.history, time.perf_counter() - t0,
+        cost=problem.cost(state.arrows, p), second_order=inertia,
+        method=" → ".join(state.methods))
+
+
+def _solve(state: _SolverState, minimum: bool) -> tuple:
+    """The fast path, then (on its failure, or for ``minimum`` at a non-minimum) the
+    globalised iteration, leaving ``state`` at the solution; returns the second-order
+    condition: ``(inertia,)`` when it was computed, ``()`` when it is left for the solution
+    to compute on request."""
+    initial = state.iterate
+    try:
+        _fast_newton(state)
+    except _Handover as why:
+        _globalised_after(state, _restart_points(state, initial, why.iterates), str(why))
+        return (_reduced_inertia(state),)
+    if not minimum:
+        return ()
+    inertia = _reduced_inertia(state)
+    if not _is_minimum(inertia):
+        _globalised_after(state, [initial[:2]], "it reached a stationary point "
+                          f"that is not a local minimum ({_describe(inertia)})")
+        inertia = _reduced_inertia(state)
+        if not _is_minimum(inertia):
+            raise state.divergence("found no local minimum: the globalised iteration "
+                                   f"reached a stationary point that is not one "
+                                   f"({_describe(inertia)})", 0.0)
+    return (inertia,)

@@ -1,0 +1,262 @@
+"""The solver state: the problem of one boundary-value solve, its iterate and its run.
+
+:class:`_SolverState` is what the assembly, the fast path, the globalised path and the
+inertia work on.  It holds
+
+- the problem (:class:`_Problem`, fixed during the solve): the window and cost kernels, the
+  layout of the unknowns and equations, the numeric structure maps, the parameter values
+  and the options (``tol``, ``tol_step``, ``max_iterations``);
+- the iterate: the arrows g_1 … g_N, the multipliers λ of every term, and the residual F
+  and its Jacobian assembled there (:class:`~._assembly._Assembled`);
+- the run: |F|∞ before each update, the iterations counted against ``max_iterations``
+  (across all phases), whether the iteration has stalled, and the phases used.
+
+An update moves the iterate along the junction variations of the derivation,
+
+    g_j ↦ g_j · h(δ_j),   g_{j+1} ↦ h(δ_j)⁻¹ · g_{j+1},    h(δ) ⊂ α⁻¹(β(g_j)),
+
+and the multipliers by their increments, so every iterate stays composable with the end
+points fixed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from ..._errors import BoundaryValueDivergenceError, SingularJacobianError
+from ..._progress import note as progress_note
+from ._assembly import (
+    ROUNDING_FACTOR,
+    _assemble,
+    _Assembled,
+    _excess,
+    _rounding_floor,
+    _within_floor,
+)
+from ._kernels import CostKernel, WindowKernel, _Maps, _maps, cost_kernel, window_kernel
+from ._layout import _Layout, _layout
+from ._linear import _solve_banded
+
+#: at most this many halvings of a Newton step in the line search
+MAX_HALVINGS = 30
+
+
+@dataclass(frozen=True, eq=False)
+class _Problem:
+    """What stays fixed during one solve: the kernels, the layout of N steps, the structure
+    maps, the parameter vector ``p`` and the options."""
+
+    owner: str
+    kernel: WindowKernel
+    cost: CostKernel
+    lay: _Layout
+    maps: _Maps
+    p: np.ndarray
+    tol: float = 0.0
+    tol_step: float = 0.0
+    max_iterations: int = 0
+
+    @classmethod
+    def of(cls, system, steps: int, p: np.ndarray, tol: float = 0.0, tol_step: float = 0.0,
+           max_iterations: int = 0) -> _Problem:
+        """The problem of ``steps`` steps of ``system`` (its kernels and maps cached)."""
+        kernel = window_kernel(system)
+        return cls(system.name, kernel, cost_kernel(system),
+                   _layout(steps, kernel.arity, kernel.rank, kernel.m), _maps(system.groupoid),
+                   p, tol, tol_step, max_iterations)
+
+    @property
+    def r(self) -> int:
+        return self.kernel.rank
+
+    @property
+    def m(self) -> int:
+        return self.kernel.m
+
+
+class _Iterate(NamedTuple):
+    """A point of the iteration: the arrows, the multipliers and the system assembled there."""
+
+    arrows: np.ndarray
+    lam: np.ndarray
+    assembled: _Assembled
+
+
+class _Step(NamedTuple):
+    """An accepted step: the new iterate, its assembled system, the step length along dz,
+    and whether it was taken only because |F| was at the rounding floor."""
+
+    arrows: np.ndarray
+    lam: np.ndarray
+    assembled: _Assembled
+    length: float
+    dz: np.ndarray
+    at_floor: bool = False
+
+
+def _assembled_at(problem: _Problem, arrows, lam) -> _Assembled:
+    """:func:`_assemble` with floating-point warnings silenced (non-finite values are
+    checked by the caller)."""
+    with np.errstate(all="ignore"):
+        return _assemble(problem, arrows, lam)
+
+
+@dataclass(eq=False)
+class _SolverState:
+    """The problem, the current iterate and the run of one solve (see the module docstring)."""
+
+    problem: _Problem
+    arrows: np.ndarray
+    lam: np.ndarray
+    assembled: _Assembled
+    history: list = field(default_factory=list)
+    iterations: int = 0
+    stalled: str = ""
+    methods: list = field(default_factory=list)
+    at_floor: int = 0  # consecutive steps taken only because |F| was at the rounding floor
+
+    @classmethod
+    def at(cls, problem: _Problem, arrows, lam) -> _SolverState:
+        """The state of ``problem`` at (arrows, λ), assembled there, before any iteration."""
+        return cls(problem, arrows, lam, _assembled_at(problem, arrows, lam))
+
+    # --- the iterate ---------------------------------------------------------------------
+
+    @property
+    def iterate(self) -> _Iterate:
+        return _Iterate(self.arrows, self.lam, self.assembled)
+
+    def move_to(self, arrows, lam, assembled: _Assembled | None = None) -> None:
+        """Make (arrows, λ) the iterate, assembled there unless ``assembled`` is given."""
+        if assembled is None:
+            assembled = self.assemble(arrows, lam)
+        self.arrows, self.lam, self.assembled = arrows, lam, assembled
+
+    def assemble(self, arrows, lam) -> _Assembled:
+        """F and its Jacobian at (arrows, λ) (not made the iterate)."""
+        return _assembled_at(self.problem, arrows, lam)
+
+    def update(self, dz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The iterate moved by dz = (δ, dλ): new arrays g_j·h(δ_j), h(δ_j)⁻¹·g_{j+1}, λ + dλ."""
+        lay, maps, r, m = self.problem.lay, self.problem.maps, self.problem.r, self.problem.m
+        arrows = self.arrows.copy()
+        moved = lay.moved
+        if len(moved):
+            D = dz[lay.delta_at[moved][:, None] + np.arange(r)]
+            H = maps.flow_at_target(arrows[moved], D)
+            arrows[moved] = maps.multiply(arrows[moved], H)  # g_j · h(δ_j)
+            arrows[moved + 1] = maps.multiply(maps.inverse(H), arrows[moved + 1])  # h⁻¹ · g_{j+1}
+        lam = self.lam.copy()
+        terms = lay.multiplied
+        if m and len(terms):
+            lam[terms] += dz[lay.lam_at[terms][:, None] + np.arange(m)]
+        return arrows, lam
+
+    def trial(self, dz: np.ndarray) -> _Iterate:
+        """The iterate moved by dz and the system assembled there."""
+        arrows, lam = self.update(dz)
+        return _Iterate(arrows, lam, self.assemble(arrows, lam))
+
+    def backtrack(self, dz: np.ndarray, accept) -> _Step | None:
+        """The step along dz from length t = 1, halved at most MAX_HALVINGS times, until
+        ``accept(t, arrows, assembled, f)`` holds at a finite trial (f = |F|₂² there) or the
+        trial is within the rounding floor (taken at once, ``at_floor``: comparing two
+        residuals there is comparing noise); None when neither happens."""
+        length = 1.0
+        for _ in range(MAX_HALVINGS):
+            arrows, lam, trial = self.trial(length * dz)
+            if trial.finite():
+                f = float(trial.F @ trial.F)
+                if accept(length, arrows, trial, f):
+                    return _Step(arrows, lam, trial, length, dz)
+                if _within_floor(trial, f):
+                    return _Step(arrows, lam, trial, length, dz, at_floor=True)
+            length /= 2
+        return None
+
+    def excess(self) -> float:
+        """The iterate's residual in units of the accepted one (:func:`_excess`): at most 1
+        when converged."""
+        return _excess(self.assembled.F, _rounding_floor(self.assembled), self.problem.tol)
+
+    def newton_direction(self, rows=None, cols=None, vals=None) -> np.ndarray:
+        """The solution dz of J·dz = −F at the iterate (J given as COO triplets, default the
+        Jacobian), or a :class:`SingularJacobianError`."""
+        state = self.assembled
+        rows = state.rows if rows is None else rows
+        cols = state.cols if cols is None else cols
+        vals = state.vals if vals is None else vals
+        try:
+            with np.errstate(all="ignore"):
+                dz = _solve_banded(rows, cols, vals, self.problem.lay.size, -state.F,
+                                   state.band if vals is state.vals else None)
+        except np.linalg.LinAlgError as exc:
+            raise self.singular() from exc
+        if not np.isfinite(dz).all():
+            raise self.singular()
+        return dz
+
+    # --- the run -------------------------------------------------------------------------
+
+    def record(self) -> float:
+        """Note |F|∞ of the iterate in the history (and in the progress report)."""
+        norm = float(np.max(np.abs(self.assembled.F), initial=0.0))
+        self.history.append(norm)
+        progress_note(f"iteration {self.iterations}, |F|∞ = {norm:.2e}")
+        return norm
+
+    def take(self, step: _Step) -> None:
+        """Count the step, decide whether the iteration has stalled, and move to it.
+
+        Stalled: an update below ``tol_step``·(1 + |λ|∞), one that changed no stored value,
+        or a second step in a row that did not decrease |F| but was taken because |F| is at
+        the rounding floor (where the comparison of residuals is noise) without meeting the
+        criterion."""
+        tol_step = self.problem.tol_step
+        self.iterations += 1
+        self.at_floor = self.at_floor + 1 if step.at_floor else 0
+        scale = 1.0 + float(np.max(np.abs(step.lam), initial=0.0))
+        size = step.length * float(np.max(np.abs(step.dz), initial=0.0))
+        if size <= tol_step * scale:
+            self.stalled = f"the update fell below tol_step = {tol_step:g}"
+        elif np.array_equal(self.arrows, step.arrows) and np.array_equal(self.lam, step.lam):
+            self.stalled = "the update changed no stored value"
+        elif self.at_floor >= 2:
+            self.stalled = ("|F| stopped decreasing at the rounding floor: the floor estimate is "
+                            "below the residual's actual noise there")
+        self.move_to(step.arrows, step.lam, step.assembled)
+
+    def check_budget(self, excess: float) -> None:
+        """Raise when the iteration has stalled or used ``max_iterations``."""
+        if self.stalled:
+            raise self.divergence(f"stalled: {self.stalled}", excess)
+        if self.iterations >= self.problem.max_iterations:
+            raise self.divergence(
+                f"did not converge in {self.problem.max_iterations} iterations", excess)
+
+    # --- the errors ----------------------------------------------------------------------
+
+    def divergence(self, why: str, excess: float) -> BoundaryValueDivergenceError:
+        """The error of an iteration that ends without a solution at the iterate."""
+        state = self.assembled
+        norm = float(np.max(np.abs(state.F), initial=0.0))
+        return BoundaryValueDivergenceError(
+            f"{self.problem.owner}: boundary-value iteration {why}; after {self.iterations} "
+            f"iterations |F|∞ = {norm:.3e}, worst at configuration {state.worst}, "
+            f"{excess:.1e} times the accepted residual max(tol/ε, {ROUNDING_FACTOR:g})·"
+            f"rounding floor: not a solution",
+            iterations=self.iterations, history=self.history, step=state.worst,
+            residual_norm=norm, iterate=self.arrows)
+
+    def singular(self) -> SingularJacobianError:
+        """The error of a singular Jacobian at the iterate."""
+        state = self.assembled
+        norm = float(np.max(np.abs(state.F), initial=0.0))
+        return SingularJacobianError(
+            f"{self.problem.owner}: singular boundary-value Jacobian at iteration "
+            f"{self.iterations} (|F|∞ = {norm:.3e}, worst at configuration {state.worst}); "
+            "the boundary data may violate the constraints or the Lagrangian is not regular "
+            "there", step=state.worst, residual_norm=norm, iterate=self.arrows)
