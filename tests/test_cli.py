@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _hostile_cases import case_of
 from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
@@ -26,7 +27,7 @@ from symgroupoid.cli import conservation_lines, main
 from symgroupoid.cli._errors import InputError, SystemFileError
 from symgroupoid.cli._inputs import parse_count, parse_params
 from symgroupoid.cli._system_file import load_system
-from symgroupoid.cli._verify import JACOBIAN_TOLERANCE
+from symgroupoid.cli._verify import JACOBIAN_TOLERANCE, sample_points
 from symgroupoid.runtime.toolchain import cache_info, clear_cache
 
 EXAMPLES = REPO / "examples" / "cli"
@@ -502,3 +503,12 @@ def test_simulate_keeps_the_states_before_a_failure_or_an_interruption(
     monkeypatch.setattr(sg.Simulator, "simulate", interrupted)
     code, _, err = run(capsys, "simulate", files / "ring.py", "--steps", 100, "-o", out)
     assert code == 130 and f"interrupted; the 4 states up to step 3 are in {out}" in err
+
+
+def test_verify_samples_at_most_every_state():
+    """(``symgroupoid verify --points 1e9`` allocated 10⁹ sample positions.)"""
+    case = case_of("oscillator")
+    states = case.sim.simulate(case.flat, 4, case.params).states
+    points = sample_points(case.sim, states, case.sim.parameters(case.params), 10**12,
+                           np.random.default_rng(0))
+    assert len(points) == len(states)

@@ -194,20 +194,3 @@ def test_a_restored_simulator_steps_as_the_original():
     restored = pickle.loads(pickle.dumps(sim))
     state, p = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
     assert np.array_equal(_loop(restored, state, p, 10), _loop(sim, state, p, 10))
-
-
-def test_the_parameters_the_constraints_use_are_taken_cheaply_and_exactly():
-    """The tail of a trusted state's key: all parameters (None), none (b""), a contiguous
-    run (a slice: no fancy indexing per call), else an index array; each gives the bytes of
-    exactly the parameters the constraints use."""
-    from symgroupoid.runtime._fast_step import _used_index
-
-    p = np.array([0.01, 2.0, 3.0, 4.0])
-    for used, kind in (([0, 1, 2, 3], type(None)), ([], bytes), ([1, 2], slice),
-                       ([0, 2], np.ndarray)):
-        index = _used_index(used, 4)
-        assert isinstance(index, kind)
-        if index is None:
-            continue
-        key = index if type(index) is bytes else p[index].tobytes()
-        assert key == p[used].tobytes()

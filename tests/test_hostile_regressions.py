@@ -296,17 +296,6 @@ def test_counts_that_size_an_allocation_are_bounded():
         sg.sweep(case_of("diagonal").sim, S, params, 2, workers=10**6)
 
 
-def test_verify_samples_at_most_every_state():
-    """(``symgroupoid verify --points 1e9`` allocated 10⁹ sample positions.)"""
-    from symgroupoid.cli._verify import sample_points
-
-    case = case_of("oscillator")
-    states = case.sim.simulate(case.flat, 4, case.params).states
-    points = sample_points(case.sim, states, case.sim.parameters(case.params), 10**12,
-                           np.random.default_rng(0))
-    assert len(points) == len(states)
-
-
 @pytest.mark.parametrize("metric", [[[], None], [[1, 0], [0]], "ab", [[1, "a"], [0, 1]],
                                     [[[1]]], []])
 def test_a_metric_that_is_not_a_matrix_is_named(metric):

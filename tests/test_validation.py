@@ -19,9 +19,11 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 import symgroupoid as sg
 from symgroupoid import DomainError, InputNameError, ParameterError, _arguments
 from symgroupoid.equations import magnitude
-from symgroupoid.runtime import _validate, parameter_vector
 
-# unit tests of the one validation path: they reach inside it (runtime/_validate.py)
+# unit tests of the one validation path (runtime/_validate.py, _arguments.py) and of a trusted
+# state's key (runtime/_fast_step.py): their subjects are these modules' own functions
+from symgroupoid.runtime import _validate, parameter_vector
+from symgroupoid.runtime._fast_step import _used_index
 from symgroupoid.runtime._validate import (
     ConstraintCheck,
     check_assumptions,
@@ -300,3 +302,20 @@ def test_parameter_screen_is_exact_for_every_assumption():
 def test_one_rule_for_counts_everywhere():
     """The runtime's count rule is the library's one rule (symgroupoid/_arguments.py)."""
     assert _validate.integer_argument is _arguments.integer_argument
+
+
+# --- trusted states: the constraints' parameters in their key -----------------------------------
+
+def test_the_parameters_the_constraints_use_are_taken_cheaply_and_exactly():
+    """The tail of a trusted state's key: all parameters (None), none (b""), a contiguous
+    run (a slice: no fancy indexing per call), else an index array; each gives the bytes of
+    exactly the parameters the constraints use."""
+    p = np.array([0.01, 2.0, 3.0, 4.0])
+    for used, kind in (([0, 1, 2, 3], type(None)), ([], bytes), ([1, 2], slice),
+                       ([0, 2], np.ndarray)):
+        index = _used_index(used, 4)
+        assert isinstance(index, kind)
+        if index is None:
+            continue
+        key = index if type(index) is bytes else p[index].tobytes()
+        assert key == p[used].tobytes()
