@@ -294,6 +294,7 @@ def test_a_batch_in_installments_is_bitwise_one_call(backend, every, monkeypatch
     """Calls of a single step each (the warm start crossing them), failing runs included,
     give the arrays of one call; the partial batch after a few calls is, run by run, the
     trajectory simulate gives for the steps reached."""
+    # the installments' driver is the subject: one call per step, stopped between calls
     from symgroupoid.runtime import _batch_progress
 
     sim = compiled("rigid_body") if backend == "c" else seed_step("rigid_body").compile(

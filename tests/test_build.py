@@ -15,6 +15,8 @@ from kernel_support import REPO, compiled, isolated_cache, needs_cc  # noqa: F40
 
 import symgroupoid as sg
 from symgroupoid import Simulator
+
+# the kernel's split into parts and units, flags and the cffi build are checked inside
 from symgroupoid.codegen import _kernel, generate_c
 from symgroupoid.codegen._kernel import (
     UNIT_MIN_STATEMENTS,

@@ -7,6 +7,8 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
+
+# the solver's window kernel, assembly, layout and banded solve are checked one by one
 from symgroupoid.runtime._bvp import WindowKernel, interpolate_arrows, window_kernel
 from symgroupoid.runtime._bvp._assembly import _assemble
 from symgroupoid.runtime._bvp._kernels import _maps
@@ -31,6 +33,16 @@ def so3_control():
         return h * (xi.T * inertia * xi)[0, 0] / 2
 
     return sg.DiscreteSystem(sg.SO3("g"), L, parameters=[h], name="so3_control")
+
+
+def test_the_guess_splits_a_half_turn_into_equal_turns(so3_control):
+    """The geodesic guess splits a half-turn about a generic axis into N turns by π/N (the
+    Cayley-chart guess was singular there: |F| = 6e17 after 1 iteration)."""
+    axis = np.array([1.0, 2.0, 3.0]) / np.sqrt(14.0)
+    end = 2 * np.outer(axis, axis) - np.eye(3)  # the rotation by π about the axis
+    guess = interpolate_arrows(so3_control.groupoid, end.ravel(), 20)
+    angles = [np.arccos((np.trace(a.reshape(3, 3)) - 1) / 2) for a in guess]
+    assert np.allclose(angles, np.pi / 20, atol=1e-12)
 
 
 def test_so3_attitude_problem_converges_and_is_stationary(so3_control):

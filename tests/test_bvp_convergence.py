@@ -16,6 +16,8 @@ from conftest import load_example
 import symgroupoid as sg
 from symgroupoid import BoundaryValueDivergenceError
 from symgroupoid.ir import Graph, rounding_error
+
+# the solver's floors, excess, inertia and globalised path are checked one by one
 from symgroupoid.runtime._banded import banded_inertia
 from symgroupoid.runtime._bvp import _fast, _solve, _state, interpolate_arrows
 from symgroupoid.runtime._bvp._assembly import _assemble, _excess, _rounding_floor

@@ -14,6 +14,8 @@ import sympy as sp
 
 import symgroupoid as sg
 from symgroupoid import BoundaryValueDivergenceError
+
+# the solver's fast path and its fixed-pattern assembly are checked against the general one
 from symgroupoid.runtime._bvp import _fast, _globalised, _solve, interpolate_arrows
 from symgroupoid.runtime._bvp._assembly import _add, _assemble
 from symgroupoid.runtime._bvp._linear import _solve_banded

@@ -28,6 +28,8 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid.codegen import emit_c
+
+# the Python → C boundary's own buffer checks and status codes are the subject
 from symgroupoid.runtime._backends import (
     INVALID_ARGUMENT,
     OK,

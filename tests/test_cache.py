@@ -17,7 +17,7 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 
 import symgroupoid as sg
 from symgroupoid.runtime import CompilationError, CompilerNotFoundError, cache_root, toolchain
-from symgroupoid.runtime.toolchain import _step_kernel, translation_units
+from symgroupoid.runtime.toolchain import translation_units
 
 pytestmark = needs_cc
 
@@ -224,7 +224,8 @@ def test_codegen_digest_covers_the_build_rules(monkeypatch, tmp_path):
         assert set((package / folder).glob("*.py")) <= set(sources)
     rules = tmp_path / "_flags.py"
     rules.write_text("COLD_LEVEL = '-O1'\n", encoding="ascii")
-    monkeypatch.setattr(_step_kernel, "codegen_sources", lambda: [rules])
+    monkeypatch.setattr("symgroupoid.runtime.toolchain._step_kernel.codegen_sources",
+                        lambda: [rules])
     before = toolchain.codegen_digest.__wrapped__()
     rules.write_text("COLD_LEVEL = '-O0'\n", encoding="ascii")
     assert toolchain.codegen_digest.__wrapped__() != before

@@ -33,9 +33,10 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid import _progress
 from symgroupoid.cli import main
 from symgroupoid.runtime import CacheError, CompilationError, toolchain
+
+# the cache's own state (loaded modules, swept roots, flock, host tag) is reset and read here
 from symgroupoid.runtime.toolchain import (
     _atomic,
     _kernels,
@@ -332,21 +333,23 @@ def test_the_kernel_cache_keeps_no_compiled_templates(tmp_path, monkeypatch):
     that would write a marker) is never loaded."""
     import jinja2
 
-    from symgroupoid.codegen import _emit
+    from symgroupoid.codegen import template_dir
 
-    monkeypatch.setattr(_emit, "package_template_cache", lambda write=False: None)
+    monkeypatch.setattr("symgroupoid.codegen._emit.package_template_cache",
+                        lambda write=False: None)
+    names = sorted(p.name for p in Path(template_dir()).glob("*.j2"))  # every template
     root = tmp_path / "cache"
     (root / "templates").mkdir(parents=True)
     marker = tmp_path / "marker"
-    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(_emit.template_dir())))
+    env = jinja2.Environment(loader=jinja2.FileSystemLoader(str(template_dir())))
     planter = jinja2.FileSystemBytecodeCache(str(root / "templates"))
-    for name in _emit.TEMPLATE_NAMES:
+    for name in names:
         source, filename, _ = env.loader.get_source(env, name)
         bucket = planter.get_bucket(env, name, filename, source)
         bucket.code = compile(PLANTED.format(marker=str(marker)), filename, "exec")
         planter.set_bucket(bucket)
     planted = sorted(p.name for p in (root / "templates").iterdir())
-    assert len(planted) == len(_emit.TEMPLATE_NAMES)
+    assert len(planted) == len(names)
     sim = sg.compile_step(planar_step(), backend="c", cache_dir=root)
     assert sim.backend == "c" and not marker.exists()
     assert sorted(p.name for p in (root / "templates").iterdir()) == planted
@@ -734,7 +737,7 @@ def test_a_full_disk_is_a_cache_error_naming_the_cache(monkeypatch, cache_dir, c
     text = str(info.value)
     assert str(cache_dir) in text and "no space left" in text and "SYMGROUPOID_CACHE" in text
     assert list((cache_dir / "tmp").iterdir()) == []
-    monkeypatch.setattr(_progress, "DELAY", 1e9)  # no progress line on a loaded machine
+    monkeypatch.setattr("symgroupoid._progress.DELAY", 1e9)  # no progress line on a loaded machine
     status, _, err = cli("simulate", str(REPO / "examples" / "cli" / "spring.py"), "--steps",
                          "3", capsys=capsys)
     assert status == 1 and len(err.strip().splitlines()) == 1

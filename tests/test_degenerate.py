@@ -17,6 +17,8 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
+
+# the causes' constants and the numeric sampling of the diagnosis are checked directly
 from symgroupoid.equations import _findings as reg
 from symgroupoid.equations import _sampling
 from symgroupoid.systems import discrete_inertia, heavy_top, plate_ball, rigid_body

@@ -13,6 +13,8 @@ import sympy as sp
 
 import symgroupoid as sg
 from symgroupoid.groupoids import Groupoid
+
+# the closed-form builder and the stored templates of the matrix groups are the subject
 from symgroupoid.groupoids._matrix_templates import (
     _direct_increment_coordinates,
     _direct_translated_retraction,

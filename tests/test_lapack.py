@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+# the banded LU through NumPy's LAPACK and its fallback are the subject
 from symgroupoid.runtime import _lapack
 from symgroupoid.runtime._bvp._linear import _solve_banded
 

@@ -25,6 +25,8 @@ from symgroupoid.equations import (
     _layout,
     _printing,
 )
+
+# the line breaking, collection and verification of the LaTeX forms are checked inside
 from symgroupoid.equations._latex import LatexVerificationError, equation_lines
 
 mathtext = pytest.importorskip("matplotlib.mathtext")

@@ -13,6 +13,8 @@ import pytest
 import sympy as sp
 
 from symgroupoid.ir import Graph, Program, _smooth, from_sympy
+
+# the libm mirror and the compiled program it must match bit for bit are the subject
 from symgroupoid.ir._libm import LIBM, SCALAR
 from symgroupoid.runtime._programs import compile_program
 

@@ -11,6 +11,8 @@ from conftest import load_example
 
 import symgroupoid as sg
 from symgroupoid.derivation import WindowAction
+
+# the Jacobian's null space at rest and the window kernel's blocks are checked inside
 from symgroupoid.runtime._bvp import WindowKernel
 from symgroupoid.runtime._bvp._assembly import _assemble
 from symgroupoid.runtime._bvp._layout import _layout

@@ -15,9 +15,11 @@ from kernel_support import isolated_cache, needs_cc  # noqa: F401  (autouse fixt
 
 import symgroupoid as sg
 from symgroupoid.ir import Graph, Program, from_sympy
-from symgroupoid.runtime import CompilationError, _programs, toolchain
+from symgroupoid.runtime import CompilationError, toolchain, wait_for_kernels
+
+# the window programs' evaluator (background builds, chunks) has no public constructor
 from symgroupoid.runtime._bvp import _kernels
-from symgroupoid.runtime._programs import ProgramEvaluator, wait_for_kernels
+from symgroupoid.runtime._programs import ProgramEvaluator
 
 x, y = sp.symbols("x y", real=True)
 
@@ -61,7 +63,7 @@ def test_failed_background_build_warns_and_stays_in_numpy(monkeypatch):
     def fail(*args, **kwargs):
         raise CompilationError("the compiler said no")
 
-    monkeypatch.setattr(_programs, "build_cached", fail)
+    monkeypatch.setattr("symgroupoid.runtime._programs.build_cached", fail)
     evaluator = ProgramEvaluator("evaluator failing", _program(3), "a", "out")
     assert not evaluator.wait(120) and evaluator.backend == "numpy"
     with pytest.warns(RuntimeWarning, match="the compiler said no"):
@@ -97,12 +99,10 @@ def test_wait_for_kernels_with_nothing_building_returns_at_once():
 
 def test_numpy_form_is_evaluated_in_bounded_chunks(monkeypatch):
     """Rows are evaluated a bounded number at a time (memory), with the same bits."""
-    from symgroupoid.runtime import _programs
-
     program = _program(5)
     whole = program.numpy_function(["out"], ["a"])(VALUES.T)[0].T
     seen = []
-    monkeypatch.setattr(_programs, "NUMPY_ROWS", 10)
+    monkeypatch.setattr("symgroupoid.runtime._programs.NUMPY_ROWS", 10)
     evaluator = ProgramEvaluator("evaluator chunks", program, "a", "out", backend="numpy")
     raw = program.numpy_function(["out"], ["a"])
 

@@ -16,6 +16,8 @@ import sympy as sp
 from kernel_support import REPO, isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
+
+# unit tests of the progress reporter and of the demo's note
 from symgroupoid import _progress
 from symgroupoid._demo import build_note
 from symgroupoid._progress import Task, reported

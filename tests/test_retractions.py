@@ -42,6 +42,8 @@ def test_so3_cayley_closed_form_is_the_solved_one() -> None:
     import sympy as sp
 
     from symgroupoid.groupoids import SO3
+
+    # the stored Cayley template itself is compared with solving the Cayley equation
     from symgroupoid.groupoids._matrix_templates import (
         _cayley_template,
         _dtau_dummies,

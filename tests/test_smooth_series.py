@@ -10,6 +10,7 @@ from __future__ import annotations
 import pytest
 import sympy as sp
 
+# the Taylor coefficients and derivatives of the smooth functions are the subject
 from symgroupoid.ir import _smooth
 
 BUILT_IN = [_smooth.SinOverTheta, _smooth.OneMinusCosOverTheta2,
