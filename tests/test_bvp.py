@@ -1,14 +1,18 @@
-"""Two-point boundary-value problems (seed 000 §6.1–§6.2, seed 001 §3.3)."""
+"""Two-point boundary-value problems (seed 000 §6.1–§6.2, seed 001 §3.3), and the solver's
+parts one by one: the window kernel, the assembly, the layout and the banded LU solve."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import sympy as sp
+from conftest import load_example
 
 import symgroupoid as sg
+from symgroupoid.derivation import WindowAction
 
 # the solver's window kernel, assembly, layout and banded solve are checked one by one
+from symgroupoid.runtime import _lapack
 from symgroupoid.runtime._bvp import WindowKernel, interpolate_arrows, window_kernel
 from symgroupoid.runtime._bvp._assembly import _assemble
 from symgroupoid.runtime._bvp._kernels import _maps
@@ -233,3 +237,162 @@ def test_pair_groupoid_of_attitudes_takes_matrices_at_the_ends() -> None:
     off = (end[0] + 1e-3, end[1])
     with pytest.raises(sg.DomainError, match=r"end\[0\]"):
         sg.solve_boundary_value(step, start, off, 6, params={"h": 0.01, "g": 9.81})
+
+
+# --- the boundary-value Jacobian at rest ---------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def heavy_top_rotors():
+    """The underactuated heavy top with two rotors (seed 001 §3.3.5; examples/)."""
+    return load_example("heavy_top_rotors")
+
+
+def test_heavy_top_at_rest_the_linearised_problem_is_singular(heavy_top_rotors):
+    """Why a rest-to-rest maneuver is ill-posed for Newton: at rest the boundary-value Jacobian
+    has exactly the null vectors λ₃,k = a + bk (multipliers of Φ³ only)."""
+    ht = heavy_top_rotors
+    system = ht.heavy_top_system()
+    n = 12
+    arrows = np.array([ht.arrow(ht.E3, np.eye(3), (0.3, 0.1), (0.3, 0.1))] * n)
+    problem = _Problem.of(system, n, np.array(ht.parameter_values(0.1)))
+    lay = problem.lay
+    assert lay is _layout(n, 2, 5, 3)
+    F, rows, cols, vals, *_ = _assemble(problem, arrows, np.zeros((n - 1, 3)))
+    A = np.zeros((lay.size, lay.size))
+    np.add.at(A, (rows, cols), vals)
+    s = np.linalg.svd(A, compute_uv=False)
+    assert np.abs(F).max() < 1e-12
+    assert s[-2] < 1e-14 * s[0] and s[-3] > 1e-10 * s[0]
+    null = np.zeros((2, lay.size))
+    for t, k in lay.lam_index.items():
+        null[0, k + 2], null[1, k + 2] = 1.0, t
+    assert np.abs(A @ null.T).max() < 1e-12 * s[0]
+
+
+# --- the forward-mode window kernel -----------------------------------------------------------
+
+@pytest.mark.slow
+def test_window_kernel_matches_symbolic_derivatives():
+    """The kernel's residual and blocks equal the X⃖/X⃗ derivatives of the window residual
+    differentiated as expression trees, on a constrained second-order system on a product
+    groupoid with functions and an opaque one (erf)."""
+    h = sp.Symbol("h", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("q")) * sg.SO3("W")
+
+    def L(a, b):
+        xa, xb = a[1].coordinates, b[1].coordinates
+        q0, q1, q2 = a[0].source[0], a[0].target[0], b[0].target[0]
+        return ((xb - xa).dot(xb - xa) / h ** 3 + sp.sin(q1) * xa[0]
+                + (q2 - 2 * q1 + q0) ** 2 / h + xb[2] * sp.erf(xb[2]))
+
+    def phi(a, b):
+        return [b[1].coordinates[2] - a[1].coordinates[1] * a[0].target[0] - h,
+                sp.exp(b[0].target[0]) - a[1].coordinates[0]]
+
+    system = sg.SecondOrderSystem(G, L, constraints=phi, parameters=[h], name="kernel_check")
+    kernel = WindowKernel(system)
+    action = WindowAction(G, system.functions)
+    slots = action.slots("v")
+    multipliers = {s: action.multipliers(s) for s in action.starts}
+    rng = np.random.default_rng(3)
+    windows = np.array([[np.concatenate([rng.normal(size=2), G.factors[1].numeric_fibre_chart(
+        rng.normal(scale=0.5, size=3))]) for _ in range(4)] for _ in range(3)])
+    lams = rng.normal(size=(3, 3, 2))
+    res, left, right, dlam = kernel.junction(windows, lams, np.array([0.2]))
+    r = action.variation(slots)
+    blocks = {o: ([G.apply_left(e, slots[o]) for e in r],
+                  [G.apply_right(e, slots[o]) for e in r]) for o in kernel.offsets}
+    dl = {s: [[sp.diff(e, x) for x in multipliers[s]] for e in r] for s in kernel.starts}
+    for w in range(3):
+        sub = {h: 0.2}
+        for o in kernel.offsets:
+            sub.update(zip(slots[o], windows[w, o - kernel.offsets[0]]))
+        for s in kernel.starts:
+            sub.update(zip(multipliers[s], lams[w, s - kernel.starts[0]]))
+        value = np.vectorize(lambda e, sub=sub: float(sp.sympify(e).xreplace(sub)))
+        assert np.allclose(res[w], value(r), rtol=1e-10, atol=1e-10)
+        for o in kernel.offsets:
+            assert np.allclose(left[o][w], value(blocks[o][0]), rtol=1e-9, atol=1e-9)
+            assert np.allclose(right[o][w], value(blocks[o][1]), rtol=1e-9, atol=1e-9)
+        for s in kernel.starts:
+            assert np.allclose(dlam[s][w], value(dl[s]), atol=1e-10)
+    c = action.constraints_on(slots, 0)
+    cblocks = [([G.apply_left(e, slots[o]) for e in c], [G.apply_right(e, slots[o])
+                                                             for e in c]) for o in range(2)]
+    cres, cleft, cright = kernel.term(windows[:, :2], np.array([0.2]))
+    for w in range(3):
+        sub = {h: 0.2}
+        for o in range(2):
+            sub.update(zip(slots[o], windows[w, o]))
+        value = np.vectorize(lambda e, sub=sub: float(sp.sympify(e).xreplace(sub)))
+        assert np.allclose(cres[w], value(c))
+        for o in range(2):
+            assert np.allclose(cleft[o][w], value(cblocks[o][0]))
+            assert np.allclose(cright[o][w], value(cblocks[o][1]))
+
+
+# --- the banded LU solve through NumPy's own LAPACK (runtime/_lapack.py) -------------------------
+
+needs_lapack = pytest.mark.skipif(not _lapack.available(),
+                                  reason="this NumPy has no LAPACK of its own")
+
+
+def _banded(n: int, kl: int, ku: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    A = np.zeros((n, n))
+    ab = np.zeros((2 * kl + ku + 1, n))
+    for i in range(n):
+        for j in range(max(0, i - kl), min(n, i + ku + 1)):
+            A[i, j] = ab[kl + ku + i - j, j] = rng.normal()
+    return A, ab
+
+
+@needs_lapack
+@pytest.mark.parametrize("n,kl,ku", [(1, 0, 0), (7, 2, 1), (200, 5, 9), (64, 0, 3)])
+def test_solves_banded_systems(n, kl, ku):
+    rng = np.random.default_rng(n + kl + ku)
+    A, ab = _banded(n, kl, ku, rng)
+    A += np.eye(n) * 4
+    ab[kl + ku] += 4
+    b = rng.normal(size=n)
+    before = ab.copy()
+    x, info = _lapack.dgbsv(kl, ku, ab, b)
+    assert info == 0
+    np.testing.assert_allclose(A @ x, b, rtol=0, atol=1e-12 * np.abs(b).max())
+    assert np.array_equal(ab, before), "the caller's storage is not modified"
+    scipy_lapack = pytest.importorskip("scipy.linalg.lapack")
+    _, _, y, _ = scipy_lapack.dgbsv(kl, ku, ab.copy(), b.copy())
+    np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-15)
+
+
+@needs_lapack
+def test_singular_matrix_reports_its_zero_pivot():
+    A, ab = _banded(5, 1, 1, np.random.default_rng(0))
+    ab[:, 2] = 0.0  # column 2 is zero
+    _, info = _lapack.dgbsv(1, 1, ab, np.ones(5))
+    assert info == 3
+    rows, cols = np.nonzero(A)
+    keep = cols != 2
+    with pytest.raises(np.linalg.LinAlgError, match="singular"):
+        _solve_banded(rows[keep], cols[keep], A[rows[keep], cols[keep]], 5, np.ones(5))
+
+
+@needs_lapack
+def test_storage_that_does_not_fit_the_bandwidths_is_refused():
+    with pytest.raises(ValueError, match="do not fit"):
+        _lapack.dgbsv(1, 1, np.zeros((3, 4)), np.zeros(4))
+
+
+@needs_lapack
+def test_solver_falls_back_when_numpy_has_no_lapack(monkeypatch):
+    rng = np.random.default_rng(3)
+    A, _ = _banded(30, 2, 2, rng)
+    A += np.eye(30) * 4
+    rows, cols = np.nonzero(A)
+    b = rng.normal(size=30)
+    calls = []
+    monkeypatch.setattr(_lapack, "dgbsv", lambda *args: calls.append(args))  # returns None
+    pytest.importorskip("scipy.linalg")
+    x = _solve_banded(rows, cols, A[rows, cols], 30, b)
+    assert calls, "NumPy's LAPACK was asked first"
+    # SciPy's gbsv (another LAPACK build: equal to rounding, not necessarily bit for bit)
+    np.testing.assert_allclose(A @ x, b, rtol=0, atol=1e-13 * np.abs(b).max())

@@ -18,8 +18,6 @@ LAYERS = {"ir": 0, "groupoids": 1, "derivation": 2, "equations": 3, "codegen": 4
 #: shared leaves every layer may use (errors, argument checks, symbols, ...)
 LEAVES = {"_arguments", "_collector", "_errors", "_lambdify", "_progress", "_symbols",
           "_version", "stepper"}
-#: private imports across packages still allowed, by importer → target modules (none)
-PENDING: dict[str, set[str]] = {}
 #: the conveniences that look up (docs/architecture.md): importer → the package it calls
 CONVENIENCES = {("equations._step", "codegen"), ("equations._step", "runtime"),
                 ("runtime._trajectory", "plotting")}
@@ -56,9 +54,7 @@ def test_no_module_imports_another_package_s_private_module():
         for target in targets:
             private = [p for p in target[1:] if p.startswith("_") and not p.startswith("__")]
             if private and _package(target) != home:
-                module = ".".join(target[:target.index(private[0]) + 1])
-                if module not in PENDING.get(importer, ()):
-                    found.add(f"{importer} imports {'.'.join(target)}")
+                found.add(f"{importer} imports {'.'.join(target)}")
     assert not found, sorted(found)
 
 

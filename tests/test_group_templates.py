@@ -16,8 +16,11 @@ from symgroupoid.groupoids import Groupoid
 
 # the closed-form builder and the stored templates of the matrix groups are the subject
 from symgroupoid.groupoids._matrix_templates import (
+    _cayley_template,
     _direct_increment_coordinates,
     _direct_translated_retraction,
+    _dtau_dummies,
+    _simplify_matrix,
 )
 
 CASES = [(sg.SO2, "cayley"), (sg.SO2, "exp"), (sg.SO3, "cayley"), (sg.SO3, "exp"),
@@ -233,3 +236,13 @@ def test_a_stored_template_that_names_a_foreign_symbol_is_refused():
         "Add(P[0], Symbol('c'))", "Add(Symbol('c'), P[0])")
     with pytest.raises(ValueError, match="foreign placeholder"):
         _PlaceholderPrinter([a]).doprint(a + b)
+
+
+def test_so3_cayley_closed_form_is_the_solved_one() -> None:
+    """SO(3)'s Cayley template comes from the closed form I + 4/(4 + |x|²)(x̂ + x̂²/2): the
+    same canonical expressions (srepr) as solving (I − x̂/2) M = I + x̂/2 and simplifying."""
+    from symgroupoid.groupoids import SO3
+
+    X = SO3.hat(_dtau_dummies(SO3))
+    solved = _simplify_matrix((sp.eye(3) - X / 2).LUsolve(sp.eye(3) + X / 2))
+    assert [sp.srepr(e) for e in _cayley_template(SO3)] == [sp.srepr(e) for e in solved]

@@ -1,6 +1,6 @@
 """Second-order optimal control (seed 001 §3.3): rigid-body attitude control on SO(3)
 (eqs. (25)–(28)) and the underactuated heavy top with two rotors (§3.3.5), as two-point
-problems; plus the forward-mode window kernel of the boundary-value solver."""
+problems (the solver's Jacobian at rest and its window kernel: tests/test_bvp.py)."""
 
 from __future__ import annotations
 
@@ -10,13 +10,6 @@ import sympy as sp
 from conftest import load_example
 
 import symgroupoid as sg
-from symgroupoid.derivation import WindowAction
-
-# the Jacobian's null space at rest and the window kernel's blocks are checked inside
-from symgroupoid.runtime._bvp import WindowKernel
-from symgroupoid.runtime._bvp._assembly import _assemble
-from symgroupoid.runtime._bvp._layout import _layout
-from symgroupoid.runtime._bvp._state import _Problem
 from symgroupoid.verification import action
 
 
@@ -192,86 +185,3 @@ def test_heavy_top_steering_bvp(ht):
     assert np.allclose(sol.configurations[-1][1], theta_end, atol=1e-10)
     assert ht.cost(sol) < 0.9 * problem["reference_cost"]
     assert sg.verify_stationary(sol, ht.heavy_top_system()).stationary
-
-
-def test_heavy_top_at_rest_the_linearised_problem_is_singular(ht):
-    """Why a rest-to-rest maneuver is ill-posed for Newton: at rest the boundary-value Jacobian
-    has exactly the null vectors λ₃,k = a + bk (multipliers of Φ³ only)."""
-    system = ht.heavy_top_system()
-    n = 12
-    arrows = np.array([ht.arrow(ht.E3, np.eye(3), (0.3, 0.1), (0.3, 0.1))] * n)
-    problem = _Problem.of(system, n, np.array(ht.parameter_values(0.1)))
-    lay = problem.lay
-    assert lay is _layout(n, 2, 5, 3)
-    F, rows, cols, vals, *_ = _assemble(problem, arrows, np.zeros((n - 1, 3)))
-    A = np.zeros((lay.size, lay.size))
-    np.add.at(A, (rows, cols), vals)
-    s = np.linalg.svd(A, compute_uv=False)
-    assert np.abs(F).max() < 1e-12
-    assert s[-2] < 1e-14 * s[0] and s[-3] > 1e-10 * s[0]
-    null = np.zeros((2, lay.size))
-    for t, k in lay.lam_index.items():
-        null[0, k + 2], null[1, k + 2] = 1.0, t
-    assert np.abs(A @ null.T).max() < 1e-12 * s[0]
-
-
-# --- the forward-mode window kernel -----------------------------------------------------------
-
-@pytest.mark.slow
-def test_window_kernel_matches_symbolic_derivatives():
-    """The kernel's residual and blocks equal the X⃖/X⃗ derivatives of the window residual
-    differentiated as expression trees, on a constrained second-order system on a product
-    groupoid with functions and an opaque one (erf)."""
-    h = sp.Symbol("h", positive=True)
-    G = sg.PairGroupoid(sg.EuclideanSpace("q")) * sg.SO3("W")
-
-    def L(a, b):
-        xa, xb = a[1].coordinates, b[1].coordinates
-        q0, q1, q2 = a[0].source[0], a[0].target[0], b[0].target[0]
-        return ((xb - xa).dot(xb - xa) / h ** 3 + sp.sin(q1) * xa[0]
-                + (q2 - 2 * q1 + q0) ** 2 / h + xb[2] * sp.erf(xb[2]))
-
-    def phi(a, b):
-        return [b[1].coordinates[2] - a[1].coordinates[1] * a[0].target[0] - h,
-                sp.exp(b[0].target[0]) - a[1].coordinates[0]]
-
-    system = sg.SecondOrderSystem(G, L, constraints=phi, parameters=[h], name="kernel_check")
-    kernel = WindowKernel(system)
-    action = WindowAction(G, system._fs)
-    slots = action.slots("v")
-    multipliers = {s: action.multipliers(s) for s in action.starts}
-    rng = np.random.default_rng(3)
-    windows = np.array([[np.concatenate([rng.normal(size=2), G.factors[1].numeric_fibre_chart(
-        rng.normal(scale=0.5, size=3))]) for _ in range(4)] for _ in range(3)])
-    lams = rng.normal(size=(3, 3, 2))
-    res, left, right, dlam = kernel.junction(windows, lams, np.array([0.2]))
-    r = action.variation(slots)
-    blocks = {o: ([G.apply_left(e, slots[o]) for e in r],
-                  [G.apply_right(e, slots[o]) for e in r]) for o in kernel.offsets}
-    dl = {s: [[sp.diff(e, x) for x in multipliers[s]] for e in r] for s in kernel.starts}
-    for w in range(3):
-        sub = {h: 0.2}
-        for o in kernel.offsets:
-            sub.update(zip(slots[o], windows[w, o - kernel.offsets[0]]))
-        for s in kernel.starts:
-            sub.update(zip(multipliers[s], lams[w, s - kernel.starts[0]]))
-        value = np.vectorize(lambda e, sub=sub: float(sp.sympify(e).xreplace(sub)))
-        assert np.allclose(res[w], value(r), rtol=1e-10, atol=1e-10)
-        for o in kernel.offsets:
-            assert np.allclose(left[o][w], value(blocks[o][0]), rtol=1e-9, atol=1e-9)
-            assert np.allclose(right[o][w], value(blocks[o][1]), rtol=1e-9, atol=1e-9)
-        for s in kernel.starts:
-            assert np.allclose(dlam[s][w], value(dl[s]), atol=1e-10)
-    c = action.constraints_on(slots, 0)
-    cblocks = [([G.apply_left(e, slots[o]) for e in c], [G.apply_right(e, slots[o])
-                                                             for e in c]) for o in range(2)]
-    cres, cleft, cright = kernel.term(windows[:, :2], np.array([0.2]))
-    for w in range(3):
-        sub = {h: 0.2}
-        for o in range(2):
-            sub.update(zip(slots[o], windows[w, o]))
-        value = np.vectorize(lambda e, sub=sub: float(sp.sympify(e).xreplace(sub)))
-        assert np.allclose(cres[w], value(c))
-        for o in range(2):
-            assert np.allclose(cleft[o][w], value(cblocks[o][0]))
-            assert np.allclose(cright[o][w], value(cblocks[o][1]))

@@ -34,22 +34,3 @@ def test_dtau_is_the_trivialised_tangent(group, retraction):
         assert np.allclose(np.asarray(Dinv(x0), float) @ np.asarray(D(x0), float),
                            np.eye(G.rank), atol=1e-12)
         assert np.allclose(np.asarray(Dinv(np.zeros(G.rank)), float), np.eye(G.rank))
-
-
-def test_so3_cayley_closed_form_is_the_solved_one() -> None:
-    """SO(3)'s Cayley template comes from the closed form I + 4/(4 + |x|²)(x̂ + x̂²/2): the
-    same canonical expressions (srepr) as solving (I − x̂/2) M = I + x̂/2 and simplifying."""
-    import sympy as sp
-
-    from symgroupoid.groupoids import SO3
-
-    # the stored Cayley template itself is compared with solving the Cayley equation
-    from symgroupoid.groupoids._matrix_templates import (
-        _cayley_template,
-        _dtau_dummies,
-        _simplify_matrix,
-    )
-
-    X = SO3.hat(_dtau_dummies(SO3))
-    solved = _simplify_matrix((sp.eye(3) - X / 2).LUsolve(sp.eye(3) + X / 2))
-    assert [sp.srepr(e) for e in _cayley_template(SO3)] == [sp.srepr(e) for e in solved]
