@@ -124,3 +124,11 @@ def subprocess_env(lock_timeout: int, **env: str | None) -> dict[str, str]:
         else:
             out[name] = value
     return out
+
+
+def step_inputs(step, rng) -> dict[str, np.ndarray]:
+    """Four random points (columns) of a step's unknowns, knowns and parameters."""
+    u = rng.uniform(-0.4, 0.4, (len(step.unknowns), 4))
+    known = rng.normal(size=(len(step.knowns), 4))
+    p = rng.uniform(0.5, 2.0, (len(step.parameters), 4))
+    return {"u": u, "known": known, "p": p}

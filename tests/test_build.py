@@ -11,7 +11,13 @@ import sys
 
 import numpy as np
 import pytest
-from kernel_support import REPO, compiled, isolated_cache, needs_cc  # noqa: F401  (autouse)
+from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    REPO,
+    compiled,
+    isolated_cache,
+    needs_cc,
+    step_inputs,
+)
 
 import symgroupoid as sg
 from symgroupoid import Simulator
@@ -27,7 +33,7 @@ from symgroupoid.codegen._kernel import (
 )
 from symgroupoid.runtime import CompilationError, _compile, toolchain
 from symgroupoid.runtime.toolchain import _cffi_build, _flags, _kernels, _openmp
-from symgroupoid.systems import planar_chain
+from symgroupoid.systems import planar_chain, spherical_chain
 
 pytestmark = needs_cc
 
@@ -585,3 +591,28 @@ def test_templates_that_cannot_be_kept_beside_them_are_an_output_error(tmp_path,
 
     assert main(["cache", "templates"]) == 1
     _emit._environment.cache_clear()
+
+
+@needs_cc
+def test_a_kernel_whose_residual_parts_are_shared_computes_what_numpy_computes(monkeypatch):
+    monkeypatch.setattr("symgroupoid.codegen._kernel.PART_SIZE", 60)
+    step = spherical_chain(2).euler_lagrange()
+    kernel = generate_c(step, latex=False, units=2)
+    p = kernel.prefix
+    text = kernel.source + "".join(unit for _, unit in kernel.units)
+    assert f"{p}_residual_part0(u, known, p, F, w);" in text
+    definitions = re.findall(rf"void ({p}_residual\w*_part\d+)\([^)]*\)\n{{", text)
+    assert len(definitions) == len(set(definitions)), "every part is defined once"
+    assert f"{p}_residual_part0" in definitions
+    assert f"{p}_residual_jacobian_part0" not in definitions, "F's parts are the residual's"
+    c_kernel, _ = _compile.load_kernel_source(kernel, toolchain.default_flags(), step.name,
+                                              len(step.unknowns), len(step.knowns))
+    numpy = step.compile(backend="numpy").kernel
+    rng = np.random.default_rng(5)
+    for _ in range(3):
+        x = step_inputs(step, rng)
+        u, known, par = x["u"][:, 0], x["known"][:, 0], x["p"][:, 0]
+        F, J = c_kernel.residual_jacobian(u, known, par)
+        F0, J0 = numpy.residual_jacobian(u, known, par)
+        assert np.array_equal(F, F0) and np.array_equal(J, J0)
+        assert np.array_equal(c_kernel.residual(u, known, par), F0)

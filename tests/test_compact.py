@@ -16,23 +16,17 @@ import sys
 import numpy as np
 import pytest
 import sympy as sp
-from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
+from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    REPO,
+    isolated_cache,
+    needs_cc,
+    step_inputs,
+)
 
 from symgroupoid import systems
-from symgroupoid.codegen import generate_c
 from symgroupoid.equations import step_program
 from symgroupoid.ir import ADD, MUL, Graph, compact, to_sympy
 from symgroupoid.runtime import toolchain
-
-# a kernel generated with shared parts is loaded as the simulator loads its own
-from symgroupoid.runtime._compile import load_kernel_source
-
-
-def _inputs(step, rng):
-    u = rng.uniform(-0.4, 0.4, (len(step.unknowns), 4))
-    known = rng.normal(size=(len(step.knowns), 4))
-    p = rng.uniform(0.5, 2.0, (len(step.parameters), 4))
-    return {"u": u, "known": known, "p": p}
 
 
 @pytest.mark.parametrize("make", [lambda: systems.spherical_chain(2), systems.plate_ball,
@@ -42,7 +36,7 @@ def test_the_compacted_program_computes_what_the_program_computes(make):
     step = make().euler_lagrange()
     plain, compacted = step_program(step, compacted=False), step.program
     rng = np.random.default_rng(3)
-    x = _inputs(step, rng)
+    x = step_inputs(step, rng)
     for outputs, inputs in ((["F", "J"], ["u", "known", "p"]),
                             (["fibre", "next_knowns"], ["u", "known", "p"]),
                             (["predict"], ["known", "p"])):
@@ -110,31 +104,6 @@ def test_the_kernel_of_three_linked_rigid_bodies_stays_small():
     text = kernel.source + "".join(unit for name, unit in kernel.units
                                    if name not in kernel.cold)
     assert kernel_operations(text) <= 4000
-
-
-@needs_cc
-def test_a_kernel_whose_residual_parts_are_shared_computes_what_numpy_computes(monkeypatch):
-    monkeypatch.setattr("symgroupoid.codegen._kernel.PART_SIZE", 60)
-    step = systems.spherical_chain(2).euler_lagrange()
-    kernel = generate_c(step, latex=False, units=2)
-    p = kernel.prefix
-    text = kernel.source + "".join(unit for _, unit in kernel.units)
-    assert f"{p}_residual_part0(u, known, p, F, w);" in text
-    definitions = re.findall(rf"void ({p}_residual\w*_part\d+)\([^)]*\)\n{{", text)
-    assert len(definitions) == len(set(definitions)), "every part is defined once"
-    assert f"{p}_residual_part0" in definitions
-    assert f"{p}_residual_jacobian_part0" not in definitions, "F's parts are the residual's"
-    c_kernel, _ = load_kernel_source(kernel, toolchain.default_flags(), step.name,
-                                     len(step.unknowns), len(step.knowns))
-    numpy = step.compile(backend="numpy").kernel
-    rng = np.random.default_rng(5)
-    for _ in range(3):
-        x = _inputs(step, rng)
-        u, known, par = x["u"][:, 0], x["known"][:, 0], x["p"][:, 0]
-        F, J = c_kernel.residual_jacobian(u, known, par)
-        F0, J0 = numpy.residual_jacobian(u, known, par)
-        assert np.array_equal(F, F0) and np.array_equal(J, J0)
-        assert np.array_equal(c_kernel.residual(u, known, par), F0)
 
 
 _DIGEST = """
