@@ -138,7 +138,7 @@ def test_window_programs_check_their_input_array():
     import sympy as sp
 
     from symgroupoid.ir import Graph, Program, from_sympy
-    from symgroupoid.runtime._programs import compile_program
+    from symgroupoid.runtime import compile_program
 
     a, b = sp.symbols("a b")
     g = Graph()

@@ -32,10 +32,9 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 import symgroupoid as sg
 from symgroupoid.codegen import emit_c, generate_program_c
 from symgroupoid.ir import Graph, Program, from_sympy
-from symgroupoid.runtime import CacheError, CompilationError, toolchain
 
 # a window program's evaluator has no public constructor: its cache path is reached here
-from symgroupoid.runtime._programs import compile_program
+from symgroupoid.runtime import CacheError, CompilationError, compile_program, toolchain
 from symgroupoid.runtime.toolchain import optimisation_flags
 
 pytestmark = needs_cc

@@ -23,12 +23,17 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 
 import symgroupoid as sg
 from symgroupoid import ParameterError, ShapeError
-from symgroupoid.cli import conservation_lines, main
 
 # unit tests of the command line's parsing, system files and sampling
-from symgroupoid.cli._errors import InputError, SystemFileError
-from symgroupoid.cli._inputs import parse_count, parse_params
-from symgroupoid.cli._system_file import load_system
+from symgroupoid.cli import (
+    InputError,
+    SystemFileError,
+    conservation_lines,
+    load_system,
+    main,
+    parse_count,
+    parse_params,
+)
 from symgroupoid.cli._verify import JACOBIAN_TOLERANCE, sample_points
 from symgroupoid.runtime.toolchain import cache_info, clear_cache
 

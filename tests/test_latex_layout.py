@@ -18,16 +18,17 @@ import sympy as sp
 
 import symgroupoid as sg
 from symgroupoid.derivation import PieceRule
+
+# the line breaking, collection and verification of the LaTeX forms are checked inside
 from symgroupoid.equations import (
     LatexOptionError,
+    LatexVerificationError,
     UnusedAbbreviationWarning,
     _latex,
     _layout,
     _printing,
+    equation_lines,
 )
-
-# the line breaking, collection and verification of the LaTeX forms are checked inside
-from symgroupoid.equations._latex import LatexVerificationError, equation_lines
 
 mathtext = pytest.importorskip("matplotlib.mathtext")
 from test_latex import _line_widths, _lines  # noqa: E402

@@ -28,11 +28,9 @@ from kernel_support import REPO
 
 import symgroupoid as sg
 from symgroupoid import systems
-from symgroupoid.cli import main
 
 # the TeX log reader and the page measures are checked against real typesetting
-from symgroupoid.cli._derive import OVERFULL_TOLERANCE, lost_content
-from symgroupoid.cli._system_file import load_system
+from symgroupoid.cli import OVERFULL_TOLERANCE, load_system, lost_content, main
 from symgroupoid.equations import UnusedAbbreviationWarning, _layout, _matrix_parts, _printing
 
 needs_tex = pytest.mark.skipif(

@@ -16,7 +16,7 @@ from symgroupoid.ir import Graph, Program, _smooth, from_sympy
 
 # the libm mirror, the smooth functions' series and the compiled program are the subject
 from symgroupoid.ir._libm import LIBM, SCALAR
-from symgroupoid.runtime._programs import compile_program
+from symgroupoid.runtime import compile_program
 
 x, y = sp.symbols("x y", real=True)
 r = sp.sqrt(x ** 2 + y ** 2 + 1)  # > 1

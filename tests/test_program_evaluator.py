@@ -15,11 +15,10 @@ from kernel_support import isolated_cache, needs_cc  # noqa: F401  (autouse fixt
 
 import symgroupoid as sg
 from symgroupoid.ir import Graph, Program, from_sympy
-from symgroupoid.runtime import CompilationError, toolchain, wait_for_kernels
+from symgroupoid.runtime import CompilationError, ProgramEvaluator, toolchain, wait_for_kernels
 
 # the window programs' evaluator (background builds, chunks) has no public constructor
 from symgroupoid.runtime._bvp import _kernels
-from symgroupoid.runtime._programs import ProgramEvaluator
 
 x, y = sp.symbols("x y", real=True)
 

@@ -14,8 +14,14 @@ command group; the formats and exit statuses are documented in docs/cli.md and
 :mod:`._main`.
 """
 
+from ._derive import OVERFULL_TOLERANCE, lost_content
+from ._errors import InputError, SystemFileError
+from ._inputs import parse_count, parse_params
 from ._main import build_parser, main
 from ._seeds import generate_seed_kernels
 from ._simulate import conservation_lines
+from ._system_file import load_system
 
-__all__ = ["build_parser", "conservation_lines", "generate_seed_kernels", "main"]
+__all__ = ["OVERFULL_TOLERANCE", "InputError", "SystemFileError", "build_parser",
+           "conservation_lines", "generate_seed_kernels", "load_system", "lost_content", "main",
+           "parse_count", "parse_params"]

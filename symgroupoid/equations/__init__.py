@@ -1,7 +1,7 @@
 """Layer 3: step equations (residuals, unknowns, knowns, Jacobian, LaTeX) and systems."""
 
 from ._abbreviations import LatexOptionError, UnusedAbbreviationWarning
-from ._latex import GroupoidLatexPrinter, latex
+from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines, latex
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._programs import (
     MomentumProgram,
@@ -32,5 +32,6 @@ __all__ = [
     "cost_program", "holonomic_program", "latex", "magnitude", "momentum_program",
     "second_order_momentum_program", "source_projection_program", "state_programs",
     "step_program", "structure_program", "window_programs",
-    "LatexOptionError", "UnusedAbbreviationWarning",
+    "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
+    "equation_lines",
 ]

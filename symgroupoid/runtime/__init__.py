@@ -25,7 +25,7 @@ from ._diagnostics import (
 )
 from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
-from ._programs import wait_for_kernels
+from ._programs import ProgramEvaluator, compile_program, wait_for_kernels
 from ._projection import ProjectionError
 from ._simulator import Simulator
 from ._sweep import sweep
@@ -40,15 +40,15 @@ from .toolchain import CompilationError, CompilerNotFoundError, cache_root
 _FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "read_trajectory",
                          "save_trajectory"})
 
-__all__ = ["BoundaryValueSolution", "CacheError", "CompilationError", "CompilerNotFoundError",
-           "ConservationSummary", "DetachedStepError", "Drift", "Momenta", "NewtonOptions",
-           "NotPortableError", "ProjectionError", "ReduceError", "Simulator", "SweepResult",
-           "TRAJECTORY_FORMATS", "Trajectory", "TrajectoryBatch", "atomic_write", "cache_root",
-           "compile_step", "conservation_summary", "constraint_check", "constraint_residuals",
-           "energy", "energy_label", "has_energy", "momenta", "noether_quantities",
-           "number_text", "parameter_vector", "read_trajectory", "rounding_floor",
-           "save_trajectory", "solve_boundary_value", "sweep", "sweep_boundary_value",
-           "system_argument", "trajectory_programs", "wait_for_kernels"]
+__all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "CompilationError",
+           "CompilerNotFoundError", "ConservationSummary", "DetachedStepError", "Drift", "Momenta",
+           "NewtonOptions", "NotPortableError", "ProgramEvaluator", "ProjectionError",
+           "ReduceError", "Simulator", "SweepResult", "Trajectory", "TrajectoryBatch",
+           "atomic_write", "cache_root", "compile_program", "compile_step", "conservation_summary",
+           "constraint_check", "constraint_residuals", "energy", "energy_label", "has_energy",
+           "momenta", "noether_quantities", "number_text", "parameter_vector", "read_trajectory",
+           "rounding_floor", "save_trajectory", "solve_boundary_value", "sweep",
+           "sweep_boundary_value", "system_argument", "trajectory_programs", "wait_for_kernels"]
 
 
 def __getattr__(name: str):
