@@ -125,6 +125,11 @@ def test_a_link_of_the_chain_sees_every_change_made_in_place():
             sim.step(looped, params)
         params[key] = PARAMS["Omega"]
         assert np.array_equal(_loop(sim, looped, params, 2), expected)
+    params = dict(PARAMS)
+    looped = _loop(sim, state, params, 2)
+    params["h"] = np.array([0.01, 0.01])  # in place: no single truth value when compared
+    with pytest.raises(sg.ParameterError, match="parameter h must be a real number"):
+        sim.step(looped, params)
     looped = _loop(sim, state, vector, 2)
     sim.options = sg.NewtonOptions(max_iterations=0)  # replaced between two links
     with pytest.raises(sg.NewtonDivergenceError, match="step 0 failed"):

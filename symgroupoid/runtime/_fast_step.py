@@ -196,7 +196,7 @@ def _fast_call(sim, fast: FastStep):
                 if (params.tobytes() != same or params.dtype is not float64
                         or params.shape != setting[2].shape):
                     same = None
-            elif same is not None and params != same:
+            elif same is not None and not _same_dict(params, same):
                 same = None
             if same is not None:
                 after = empty(n_known)
@@ -247,3 +247,13 @@ def _fingerprint(params, p: np.ndarray):
     if type(params) is dict and 0 not in p:
         return params.copy()
     return None
+
+
+def _same_dict(params: dict, copy: dict) -> bool:
+    """Whether a dict still equals the copy :func:`_fingerprint` kept; a value whose
+    comparison does not give one truth value (an array put in by the caller) counts as a
+    change (the table's path then reports it)."""
+    try:
+        return params == copy
+    except (TypeError, ValueError):
+        return False
