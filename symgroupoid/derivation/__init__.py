@@ -14,6 +14,13 @@ from ._energy_momentum import (
     conserved_quantities,
     energy_momentum_step,
 )
+from ._forces import (
+    ForceFunctions,
+    force_functions,
+    impulse_form,
+    input_arguments,
+    input_symbols,
+)
 from ._junction import junction_variation
 from ._limit import (
     SCALES,
@@ -61,16 +68,16 @@ from ._step import (
 )
 from ._window import step_jacobian
 
-__all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities",
-           "DerivedStep", "JunctionNodes", "LegendreForms",
-           "LiePoissonForms", "NoetherForms", "Partial", "PieceRule", "SystemFunctions",
-           "TermNodes", "WindowAction", "WindowPieces", "as_scalar", "call_user", "chart_of",
-           "check_nonholonomic_dimensions", "check_values", "conserved_quantities",
-           "energy_momentum_step", "evaluate_system", "extrapolate", "field_derivatives",
-           "identified_time_steps", "junction_step", "junction_variation", "legendre_forms",
-           "lie_poisson_forms", "limit_points", "matrix_form_residuals", "matrix_form_values",
-           "may_be_step", "momentum_symbols", "named", "next_arrow", "noether_forms",
-           "nonholonomic_step", "parameter_value", "partial_residuals", "piece_residuals",
-           "reduce_functions", "second_order_legendre_forms", "slot_derivatives",
-           "step_jacobian", "time_step_candidates", "vanishes_on_restriction",
+__all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep",
+           "ForceFunctions", "JunctionNodes", "LegendreForms", "LiePoissonForms", "NoetherForms",
+           "Partial", "PieceRule", "SystemFunctions", "TermNodes", "WindowAction", "WindowPieces",
+           "as_scalar", "call_user", "chart_of", "check_nonholonomic_dimensions", "check_values",
+           "conserved_quantities", "energy_momentum_step", "evaluate_system", "extrapolate",
+           "field_derivatives", "force_functions", "identified_time_steps", "impulse_form",
+           "input_arguments", "input_symbols", "junction_step", "junction_variation",
+           "legendre_forms", "lie_poisson_forms", "limit_points", "matrix_form_residuals",
+           "matrix_form_values", "may_be_step", "momentum_symbols", "named", "next_arrow",
+           "noether_forms", "nonholonomic_step", "parameter_value", "partial_residuals",
+           "piece_residuals", "reduce_functions", "second_order_legendre_forms",
+           "slot_derivatives", "step_jacobian", "time_step_candidates", "vanishes_on_restriction",
            "vanishing_check", "window", "window_in_pieces"]

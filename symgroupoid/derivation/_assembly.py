@@ -37,6 +37,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from .._errors import UnsupportedFeatureError
 from .._symbols import multiplier_symbols
 from ..groupoids import Groupoid
 from ..ir import Graph, forward, from_sympy, gradient
@@ -138,7 +139,11 @@ class WindowAction:
         variation = self.variation(slots, multipliers)
         arrows = self.named_arrows(mf)
         sub = self.naming(slots, arrows)
-        residuals = [tidy(d.xreplace(sub)) for d in variation]
+        residuals = [d.xreplace(sub) for d in variation]
+        if fs.forces is not None:
+            residuals = [r + f for r, f in zip(residuals,
+                                                fs.forces.junction_terms(arrows[0], arrows[1]))]
+        residuals = [tidy(r) for r in residuals]
         residuals += [tidy(c) for c in fs.rows_on(self.groupoid, self.newest(arrows))]
         return residuals, arrows
 
@@ -192,7 +197,8 @@ class WindowAction:
         return self.groupoid.field_nodes(g, side, coords, parameters)
 
     def junction_nodes(self, g: Graph, parameters: dict, arrows: dict,
-                       multipliers: dict | None) -> JunctionNodes:
+                       multipliers: dict | None, inputs: dict | None = None
+                       ) -> JunctionNodes:
         """The junction variation between the window's arrows at offsets 0 and 1, at arrows
         given as graph nodes (``arrows[o]``: the coordinate nodes of the arrow at offset o;
         any nodes — named knowns and a chart of the unknown for a step, independent inputs
@@ -202,7 +208,9 @@ class WindowAction:
         rows a step imposes on each term: φ, then the holonomic constraints at the target
         of the term's last arrow (their action terms, ψ at each term's source node, are
         among the φ: the junction residual gets λ·dψ(β(g_0))(ρ(X)) from X⃗[ψ∘α](g_1),
-        docs/conventions.md §15)."""
+        docs/conventions.md §15).  A forced system's residuals add f⁺(g_0) + f⁻(g_1)
+        (:meth:`force_nodes`), with ``inputs[o]`` the nodes of the inputs of the arrow at
+        offset o."""
         G, arity, dim = self.groupoid, self.arity, self.groupoid.arrow_dim
         term = self.term_nodes(g, list(parameters), multipliers is not None)
         pmap = {g.inputs[p]: n for p, n in parameters.items() if p in g.inputs and
@@ -232,8 +240,32 @@ class WindowAction:
                        for s in self.starts}
         rows = {s: instantiate(term.rows, s) if self.functions.n_holonomic else constraints[s]
                 for s in self.starts}
-        return JunctionNodes(lefts, rights, [g.sub(a, b) for a, b in zip(lefts, rights)],
-                             constraints, rows)
+        residuals = [g.sub(a, b) for a, b in zip(lefts, rights)]
+        if self.functions.forces is not None:
+            forced = self.force_nodes(g, parameters, arrows, inputs)
+            residuals = [g.add(r, f) for r, f in zip(residuals, forced)]
+        return JunctionNodes(lefts, rights, residuals, constraints, rows)
+
+    def force_nodes(self, g: Graph, parameters: dict, arrows: dict, inputs: dict | None
+                    ) -> list[int]:
+        """f⁺_b(g_0) + f⁻_b(g_1) for every basis section b (docs/conventions.md §20): the
+        discrete forces on the arrows at offsets 0 and 1, whose inputs are ``inputs[0]`` and
+        ``inputs[1]`` (nodes)."""
+        forces = self.functions.forces
+        if inputs is None:
+            raise UnsupportedFeatureError(
+                "this evaluation of the junction has no inputs for the forces of a forced "
+                "system (boundary-value problems of forced systems are not supported yet)")
+
+        def side(exprs: list, o: int) -> list[int]:
+            symbols = dict(parameters)
+            symbols.update(zip(forces.slot, arrows[o]))
+            symbols.update(zip(forces.inputs, inputs[o]))
+            memo: dict = {}
+            return [from_sympy(g, e, symbols, f"the forces (component {b + 1})", memo)
+                    for b, e in enumerate(exprs)]
+
+        return [g.add(a, b) for a, b in zip(side(forces.plus, 0), side(forces.minus, 1))]
 
     def derivation_nodes(self, g: Graph, term: TermNodes, fields: Sequence, o: int,
                          terms: Sequence[int], arrows: dict, multipliers: dict,

@@ -31,6 +31,7 @@ from .._errors import CallableError, ShapeError
 from .._symbols import multiplier_symbols, subscripted
 from ..groupoids import Groupoid
 from ._callables import as_scalar, as_scalar_list, call_user, check_symbols
+from ._forces import force_functions, input_symbols
 from ._junction import slot, slot_substitution
 
 
@@ -62,6 +63,7 @@ class DerivedStep:
     graph: Callable[[], Any] | None = None  # the residuals as graph nodes, on demand
     n_equations: int = 0
     n_holonomic: int = 0  # the last n_holonomic multipliers belong to holonomic constraints
+    inputs: list = field(default_factory=list)  # input symbols: knowns end with u_k, u_{k+1}
     _window: Any = None
 
     @property
@@ -109,6 +111,8 @@ class SystemFunctions:
     the conditions a step imposes on its newest term: φ, then ψ at the target β(s_{r−1})
     of the term's last arrow (``rows_on`` gives them on other arrows).  With
     ``matrix_form`` the matrix parts of the slots are matrix symbols (for printing).
+    ``forces`` holds the discrete forces f⁻, f⁺ of a forced system on an arrow of their own
+    (:class:`~symgroupoid.derivation.ForceFunctions`), with the inputs they read.
     """
 
     slots: tuple  # tuple of slot coordinate tuples
@@ -118,6 +122,12 @@ class SystemFunctions:
     base: tuple = ()  # generic base-point coordinates ψ is written in
     holonomic: list = field(default_factory=list)  # ψ_a on ``base``
     rows: list = field(default_factory=list)  # rows_on(the slots), set by evaluate_system
+    forces: Any = None  # ForceFunctions: f⁻, f⁺ on one arrow (docs/conventions.md §20)
+
+    @property
+    def inputs(self) -> list:
+        """The input symbols the forces read (empty without forces)."""
+        return [] if self.forces is None else list(self.forces.inputs)
 
     @property
     def n_holonomic(self) -> int:
@@ -143,13 +153,16 @@ class SystemFunctions:
 def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
                     constraints: Callable | None, parameters: Sequence,
                     arity: int = 1, matrix_form: bool = False,
-                    holonomic: Callable | None = None) -> SystemFunctions:
+                    holonomic: Callable | None = None, forces: Callable | None = None,
+                    inputs: Sequence = ()) -> SystemFunctions:
     """Evaluate L and φ on ``arity`` independent symbolic arrows, with all input checks.
 
     ``holonomic``: ψ(q) on a base point (``groupoid.base_view``); its components are added
     to the constraints of every term at the term's source node, ψ(α(A₀))
     (docs/conventions.md §15).  With ``matrix_form`` the matrix parts of the arrows are
-    MatrixSymbols (for printing).
+    MatrixSymbols (for printing).  ``forces(g) -> (f_minus, f_plus)`` with ``inputs``: the
+    discrete forces (:func:`~symgroupoid.derivation.force_functions`, docs/conventions.md
+    §20).
     """
     slots = tuple(slot(groupoid, f"s{i}_", matrix_form) for i in range(arity))
     views = [groupoid.view(s) for s in slots]
@@ -173,6 +186,8 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
             f"{name}: {len(phis)} constraints{held} but only {groupoid.rank} unknown fibre "
             f"coordinates per step on {groupoid.name}; more constraints than unknowns")
     fs = SystemFunctions(slots, L, phis, matrix_form, base, psis)
+    if forces is not None and not matrix_form:
+        fs.forces = force_functions(name, groupoid, forces, inputs, parameters)
     fs.constraints = phis + fs.at_base(groupoid.source(slots[0]))
     fs.rows = fs.rows_on(groupoid, slots)
     return fs
@@ -275,6 +290,17 @@ def window(arity: int) -> tuple[list[int], list[int]]:
     return list(range(1 - arity, arity + 1)), list(range(1 - arity, 2))
 
 
+def with_inputs(fs: SystemFunctions, knowns: list, next_knowns: list) -> tuple[list, list]:
+    """The knowns and next knowns of a forced first-order step: the state (g_k, λ_k) gains
+    the input u_k of its arrow, and the step reads the new arrow's input u_{k+1} after it;
+    the next state carries u_{k+1}, and its slot for the input to come holds u_{k+1} until
+    the caller writes the next one (docs/conventions.md §20)."""
+    if not fs.inputs:
+        return knowns, next_knowns
+    now, new = input_symbols(fs.inputs, 0), input_symbols(fs.inputs, 1)
+    return knowns + now + new, next_knowns + new + new
+
+
 def window_arrows(G: Groupoid, offsets: Sequence[int]) -> dict:
     """The named arrows g_{k+o} of a window, each composable after the previous one."""
     arrows = {offsets[0]: named(G, offsets[0], False)}
@@ -316,8 +342,9 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
     successor = next_map(G, fibre, cmap)
     next_knowns = [sp.sympify(e).xreplace(successor) for e in next_knowns]
     prediction = list(G.predict_chart(arrows[newest - 1])) + lam[starts[-2]]
+    knowns, next_knowns = with_inputs(fs, knowns, next_knowns)
     return DerivedStep(
-        name=name, groupoid=G, order=arity, knowns=knowns,
+        name=name, groupoid=G, order=arity, knowns=knowns, inputs=fs.inputs,
         fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap,
         multipliers_next=lam[starts[-1]], next_knowns=next_knowns,
         parameters=list(parameters), n_constraints=m, offsets=(first, newest),
@@ -383,11 +410,13 @@ def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution:
 
     fibre, chart, cmap = chart_of(G, 1, G.target(arrows[0]))
     g0, g1 = arrows[0], arrows[1]
+    knowns, next_knowns = with_inputs(
+        fs, list(g0), [sp.sympify(c).xreplace(next_map(G, fibre, cmap))
+                       for c in G.renormalised_arrow(g1)])
     return DerivedStep(
-        name=name, groupoid=G, order=1, knowns=list(g0),
+        name=name, groupoid=G, order=1, knowns=knowns, inputs=fs.inputs,
         fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap, multipliers_next=[],
-        next_knowns=[sp.sympify(c).xreplace(next_map(G, fibre, cmap))
-                     for c in G.renormalised_arrow(g1)],
+        next_knowns=next_knowns,
         parameters=list(parameters), n_constraints=0, offsets=(0, 1), arrows=arrows,
         prediction=list(G.predict_chart(g0)), symbolic=symbolic, graph=graph,
         n_equations=len(distribution) + len(fs.constraints))

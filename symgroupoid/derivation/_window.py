@@ -30,6 +30,7 @@ from .._symbols import multiplier_symbols
 from ..groupoids import Groupoid
 from ..ir import Graph, forward, from_sympy
 from ._assembly import WindowAction
+from ._forces import input_symbols
 from ._step import SystemFunctions, chart_of, window_arrows
 
 
@@ -79,8 +80,9 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
 
     arrow_nodes = {o: [node_of(c) for c in arrows[o]] for o in offsets}
     lam_nodes = {s: [symbols[x] for x in lam[s]] for s in starts} if multipliers else None
+    inputs = {o: [node_of(u) for u in input_symbols(fs.inputs, o)] for o in (0, 1)}
     jn = action.junction_nodes(g, {p: symbols[p] for p in parameters}, arrow_nodes,
-                               lam_nodes)
+                               lam_nodes, inputs)
     dels = jn.residuals
     constraint_rows = jn.rows[starts[-1]]
     return WindowGraph(g, dels + constraint_rows, dels, jn.left, jn.right, constraint_rows,

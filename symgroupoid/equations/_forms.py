@@ -113,6 +113,8 @@ def piece_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | None:
     :func:`~symgroupoid.derivation.piece_residuals`); in matrix form (constant parts
     evaluated) or explicitly."""
     system = junction_system(step)
+    if system is not None and system.functions.forces is not None:
+        return None  # the pieces are those of L alone (a forced step adds f⁺ + f⁻)
     fs = system_functions(system, matrix_form)
     equations, w = piece_residuals(step.groupoid, fs, rule, window_piece_symbols, matrix_form)
     if matrix_form:
@@ -140,7 +142,7 @@ def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | 
     system = junction_system(step)
     G, coords = step.groupoid, pair_coordinates(step.groupoid)
     if (matrix_form or rule.kind != "midpoint" or system._arity != 1
-            or 2 * len(coords) != G.arrow_dim):
+            or 2 * len(coords) != G.arrow_dim or system.functions.forces is not None):
         return None
     equations, partials, w = partial_residuals(G, system.functions, rule,
                                                window_piece_symbols, window_partial_symbol)

@@ -66,6 +66,11 @@ class LegendreTransforms:
                 f"{len(self.multipliers)} multipliers>")
 
 
+def _inputs(trajectory) -> int:
+    """Inputs per arrow of a trajectory's system (its states end with u_k, u_{k+1})."""
+    return int(getattr(getattr(trajectory, "_layout", None), "n_inputs", 0))
+
+
 class NoetherQuantity:
     """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
 
@@ -126,6 +131,8 @@ class NoetherQuantity:
                                  f"{type(trajectory).__name__}")
         states = np.asarray(trajectory.states, float)
         n = len(self.arrow) + len(self.multipliers)
+        states = states[:, :n] if states.ndim == 2 and states.shape[1] == n + 2 * _inputs(
+            trajectory) else states
         if states.ndim != 2 or states.shape[1] != n:
             raise ShapeError(f"NoetherQuantity.along: the quantity is written in {n} state "
                              f"entries (arrow and multipliers), the trajectory's states have "
@@ -146,6 +153,46 @@ class NoetherQuantity:
                               f"is not finite at state {k} ({out[k]}): it overflows there "
                               f"(check the section's coefficients and the parameters)")
         return out.copy()
+
+    def impulse(self, trajectory) -> np.ndarray:
+        """The forces' impulse along the section over each step of a forced system's
+        ``trajectory`` (kept every step), shape (R − 1,): I_k = Σ_b X^b(β(g_k))·(f⁺_b(g_k)
+        + f⁻_b(g_{k+1})) with the inputs of both arrows (docs/conventions.md §20).  For a
+        symmetry X of L, ``np.diff(nq.along(traj))`` equals it to rounding (the forced
+        Noether theorem); internal forces that cancel along X give zeros."""
+        if self.impulse_form is None:
+            raise InputTypeError("NoetherQuantity.impulse: the system has no forces; its "
+                                 "Noether quantity is conserved (use along())")
+        if getattr(trajectory, "every", 1) != 1:
+            raise ShapeError("NoetherQuantity.impulse: the impulse of each step needs every "
+                             "state; simulate with every=1")
+        states = np.asarray(trajectory.states, float)
+        dim, m = len(self.arrow), _inputs(trajectory)
+        n = dim + len(self.multipliers)
+        if states.ndim != 2 or states.shape[1] != n + 2 * m:
+            raise ShapeError(f"NoetherQuantity.impulse: the states have shape "
+                             f"{states.shape}; use a trajectory of this system's step")
+        values = getattr(trajectory, "parameters", {})
+        p = np.array([float(values[str(s)]) for s in self.parameters])
+        columns = np.r_[0:dim, n:n + m]
+        a, b = states[:-1, columns], states[1:, columns]
+        f = self._impulse_program.numpy_function(["I"], ["a", "b", "p"])
+        with np.errstate(all="ignore"):
+            out = np.broadcast_to(np.asarray(f(np.ascontiguousarray(a.T),
+                                               np.ascontiguousarray(b.T), p)[0][0], float),
+                                  (len(a),))
+        return out.copy()
+
+    impulse_form = None  # (I, a, b, inputs at a, inputs at b), set for a forced system
+
+    @functools.cached_property
+    def _impulse_program(self) -> Program:
+        expr, a, b, ua, ub = self.impulse_form
+        g = Graph()
+        names = {"a": [*a, *ua], "b": [*b, *ub], "p": list(self.parameters)}
+        symbols = {s: g.input(s) for group in names.values() for s in group}
+        node = from_sympy(g, expr, symbols, "the forces' impulse")
+        return Program(g, names, {"I": [node]})
 
     def __repr__(self) -> str:
         verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"

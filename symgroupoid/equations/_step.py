@@ -26,6 +26,8 @@ class StepEquations:
     knowns : coordinates of the known arrows (g_k; second order g_{k-1}, g_k, g_{k+1}),
         then the known multipliers.
     parameters : the declared parameters (step size, masses, …).
+    inputs : the input symbols of a forced system (docs/conventions.md §20); its knowns end
+        with the inputs u_k of the known arrow, then the inputs u_{k+1} of the new arrow.
     """
 
     def __init__(self, derived: DerivedStep):
@@ -38,6 +40,7 @@ class StepEquations:
             derived.multipliers_next)
         self.knowns: list[sp.Symbol] = list(derived.knowns)
         self.parameters: list[sp.Symbol] = list(derived.parameters)
+        self.inputs: list[sp.Symbol] = list(derived.inputs)
         self.reconstruction: dict = dict(derived.chart_map)
         self.next_knowns: list[sp.Expr] = list(derived.next_knowns)
         self.n_constraints: int = derived.n_constraints

@@ -26,6 +26,9 @@ from ..derivation import (
     conserved_quantities,
     energy_momentum_step,
     evaluate_system,
+    impulse_form,
+    input_arguments,
+    input_symbols,
     junction_step,
     legendre_forms,
     lie_poisson_forms,
@@ -122,6 +125,21 @@ def _coefficients(name: str, what: str, value, rank: int) -> None:
                          f"has rank {rank}")
 
 
+def forces_argument(name: str, forces, arity: int = 1):
+    """The discrete forces ``f(g) -> (f_minus, f_plus)`` of a first-order system, or None."""
+    if forces is None:
+        return None
+    if arity != 1:
+        raise UnsupportedFeatureError(
+            f"{name}: forces on second-order systems are not supported yet; write the system "
+            f"on the pair groupoid of first order with forces=, or without forces")
+    if not callable(forces):
+        raise CallableError(f"{name}: forces must be a function of the arrow returning "
+                            f"(f_minus, f_plus), e.g. lambda g: ([...], [...]); got a "
+                            f"{type(forces).__name__}")
+    return forces
+
+
 class _EvaluatedSystem:
     """A system whose Lagrangian and constraints were evaluated on slot arrows."""
 
@@ -184,22 +202,35 @@ class DiscreteSystem(_EvaluatedSystem):
         velocity Hessian of the continuous limit lim L_d(g_h(q, v))/h with it.  Undeclared,
         the step is the one parameter for which that limit exists (docs/conventions.md §19);
         on a :class:`TimeGroupoid` the step is each arrow's t₁ − t₀ and no parameter.
+    forces : optional callable ``f(g) -> (f_minus, f_plus)``: the discrete forces f⁻, f⁺:
+        G → A*G, each a list of rank(AG) components in the basis sections' order (the order
+        of the step's residuals).  The discrete Lagrange–d'Alembert principle adds
+        f⁺(g_k) + f⁻(g_{k+1}) to the junction residuals (Marsden–West eq. (3.2.3) on Q × Q;
+        docs/conventions.md §20).
+    inputs : symbols the forces may use whose values change from arrow to arrow (controls):
+        the value u_k belongs to the arrow g_k.  The state of a forced system carries the
+        input of its arrow (the part named after the input), and each step reads the input
+        of the new arrow.
     """
 
     @collector_paused
     def __init__(self, groupoid: Groupoid, lagrangian: Callable,
                  constraints: Callable | None = None, parameters: Sequence[sp.Symbol] = (),
                  name: str = "system", *, holonomic: Callable | None = None,
-                 time_step: sp.Symbol | str | None = None):
+                 time_step: sp.Symbol | str | None = None, forces: Callable | None = None,
+                 inputs: Sequence[sp.Symbol] = ()):
         name, groupoid, parameters = system_arguments(name, groupoid, parameters)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.holonomic = holonomic
         self.parameters = parameters
         self.time_step = time_step_argument(name, groupoid, time_step, parameters)
+        self.forces = forces_argument(name, forces, self._arity)
+        self.inputs = input_arguments(name, inputs, parameters, forces)
         self._functions = evaluate_system(name, groupoid, lagrangian, constraints,
                                           self.parameters, arity=self._arity,
-                                          holonomic=holonomic)
+                                          holonomic=holonomic, forces=forces,
+                                          inputs=self.inputs)
 
     _arity = 1  # L: G -> R
 
@@ -259,6 +290,11 @@ class DiscreteSystem(_EvaluatedSystem):
             ok, how = True, "symbolic on N = G|_M (ideal membership)"
         quantity = NoetherQuantity(forms, ok, self.parameters)
         quantity.verification = how
+        forces = self.functions.forces
+        if forces is not None:
+            expr, a, b = impulse_form(self.groupoid, forces, section, self.parameters)
+            quantity.impulse_form = (expr, a, b, input_symbols(forces.inputs, 0),
+                                     input_symbols(forces.inputs, 1))
         return quantity
 
     def lie_poisson(self) -> LiePoissonEquations:
@@ -321,6 +357,8 @@ class NonholonomicSystem(_EvaluatedSystem):
     or a callable of the base point) and no M_c (``constraints=None``).
 
     ``time_step``: the step parameter, as for :class:`DiscreteSystem`.
+    ``forces``, ``inputs``: discrete forces and their inputs, as for :class:`DiscreteSystem`
+    (``method="holder"``): the rows along D_c gain f⁺(g_k) + f⁻(g_{k+1}) along each element.
     """
 
     @collector_paused
@@ -328,9 +366,16 @@ class NonholonomicSystem(_EvaluatedSystem):
                  constraints: Callable | None = None, distribution: Sequence = (),
                  parameters: Sequence[sp.Symbol] = (), name: str = "nonholonomic", *,
                  method: str = "holder", metric=None,
-                 time_step: sp.Symbol | str | None = None):
+                 time_step: sp.Symbol | str | None = None, forces: Callable | None = None,
+                 inputs: Sequence[sp.Symbol] = ()):
         name, groupoid, parameters = system_arguments(name, groupoid, parameters)
         choice_argument(method, NONHOLONOMIC_METHODS, "method", owner=name)
+        self.forces = forces_argument(name, forces)
+        self.inputs = input_arguments(name, inputs, parameters, forces)
+        if forces is not None and method != "holder":
+            raise UnsupportedFeatureError(
+                f"{name}: forces are supported with method='holder' (the discrete "
+                f"Lagrange–d'Alembert–Hölder principle), not with {method!r}")
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.distribution = distribution_elements(name, groupoid, distribution)
@@ -338,7 +383,7 @@ class NonholonomicSystem(_EvaluatedSystem):
         self.time_step = time_step_argument(name, groupoid, time_step, parameters)
         self.method, self.metric = method, metric
         self._functions = evaluate_system(name, groupoid, lagrangian, constraints,
-                                          self.parameters)
+                                          self.parameters, forces=forces, inputs=self.inputs)
         if method == "energy_momentum":
             energy_momentum_step(name, groupoid, self.functions, self.distribution, metric,
                                  self.parameters)  # checks G_c and D now

@@ -137,6 +137,35 @@ class StateLayout:
         if self.n_multipliers:
             values = {o: multiplier_symbols(self.n_multipliers, o) for o in _OFFSETS}
             self.multiplier_part = _part("lambda", values, position, None)
+        self._input_layout(step)
+
+    def _input_layout(self, step) -> None:
+        """A forced system's inputs (docs/conventions.md §20): the part named after each
+        input holds u_k, the input of the state's arrow (``input_index``); after it the
+        state holds the input of the arrow the next step computes (``upcoming_index``),
+        which a run writes before each step."""
+        inputs = [str(u) for u in getattr(step, "inputs", [])]
+        self.input_names = inputs
+        m, n = len(inputs), self.n_known  # the knowns end with u_k, then u_{k+1}
+        now, new = list(range(n - 2 * m, n - m)), list(range(n - m, n))
+        self.input_index = np.array(now, dtype=np.int64)
+        self.upcoming_index = np.array(new, dtype=np.int64)
+        for name, i in zip(inputs, now):
+            self.parts[name] = Part(name, (0,), np.array([i], dtype=np.int64),
+                                    np.zeros(1), None)
+        self.names = list(self.parts)
+
+    @property
+    def n_inputs(self) -> int:
+        """Inputs per arrow (0 for a system without inputs)."""
+        return len(getattr(self, "input_index", ()))
+
+    def with_upcoming(self, state: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+        """A copy of the flat ``state`` whose slot for the next arrow's inputs holds
+        ``inputs``."""
+        out = np.array(state, dtype=float)
+        out[self.upcoming_index] = inputs
+        return out
 
     # --- user input → flat state --------------------------------------------------------------
     def pack(self, initial: Mapping) -> np.ndarray:
@@ -153,8 +182,12 @@ class StateLayout:
                 raise InputNameError(f"{self.step_name}: unknown state part {key!r}; the parts are "
                                f"{', '.join(self.names)}"
                                + (" and 'lambda'" if self.n_multipliers else ""))
+            if key in self.input_names and np.size(value) == 1:
+                value = np.reshape(np.asarray(value, dtype=object), ())[()]  # u or [u]
             self._assign(state, given, self.parts[key], value)
         self._pack_multipliers(state, given, multipliers)
+        if self.n_inputs:  # until a run writes the next arrow's input: the state's own
+            state[self.upcoming_index] = state[self.input_index]
         missing = [p.name for p in self.parts.values()
                    if not given[p.index[p.index >= 0]].all()]
         if missing:

@@ -21,6 +21,7 @@ from .._errors import (
 from .._progress import Task
 from ..stepper import Status
 from ._backends import real_vector
+from ._inputs import input_chunks, input_sequence, refuse_inputs
 from ._layout import StateLayout
 from ._options import NewtonOptions
 from ._runs import OK, run_chunks
@@ -124,8 +125,14 @@ class Simulator:
     # --- running --------------------------------------------------------------------------------
     def simulate(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
                  every: int = 1, callback: Callable[[Trajectory], None] | None = None,
-                 progress: bool | None = None) -> Trajectory:
+                 progress: bool | None = None, inputs=None) -> Trajectory:
         """Advance ``steps`` steps from ``initial`` (see :meth:`state`).
+
+        A forced system with inputs (docs/conventions.md §20) takes ``inputs`` of shape
+        (steps, m): row j the inputs of the arrow step j computes (or (m,) for inputs held
+        constant); the state carries the inputs of its own arrow (the part named after each
+        input) and, after them, those of the next arrow (row j is written there before
+        step j).  The inputs are checked (shape, finite) before any step runs.
 
         The run is computed in chunks of at most ``CHUNK_STEPS`` steps (bitwise the states
         of one uninterrupted run); with ``every`` = 1 the kernel writes every chunk straight
@@ -153,10 +160,16 @@ class Simulator:
         callback = callable_argument(callback, "callback", owner=self.name, none=True)
         p = self.parameters(params)
         known0 = self.state(initial, p)
+        U = input_sequence(self.layout, inputs, steps, owner=self.name)
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
-        run = (_WholeRun(self, known0, p, rows) if every == 1
-               else _SampledRun(self, known0, p, rows, every))
+        if self.layout.n_inputs:
+            if steps:
+                known0 = self.layout.with_upcoming(known0, U[0])
+            run = _SampledRun(self, known0, p, rows, every, U)
+        else:
+            run = (_WholeRun(self, known0, p, rows) if every == 1
+                   else _SampledRun(self, known0, p, rows, every))
         task = Task(f"{self.name}: simulating", total=steps, unit="steps",
                     progress=progress).start()
         try:
@@ -199,6 +212,7 @@ class Simulator:
         """
         from ._batch import simulate_batch
 
+        refuse_inputs(self.layout, "simulate_batch", owner=self.name)
         return simulate_batch(self, states, steps, params, every=every, options=options,
                               threads=threads)
 
@@ -225,13 +239,18 @@ class Simulator:
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
         options = NewtonOptions.of(options, self.options, owner=self.name)
+        refuse_inputs(self.layout, "stream", owner=self.name)
         p = self.parameters(params)
         return self._pieces(self.state(initial, p), p, steps, every, options)
 
     def _pieces(self, known0: np.ndarray, p: np.ndarray, steps: int, every: int,
-                options: NewtonOptions, task: Task | None = None) -> Iterator[Trajectory]:
+                options: NewtonOptions, task: Task | None = None,
+                inputs: np.ndarray | None = None) -> Iterator[Trajectory]:
         sampler = Sampler(every, steps, known0)
-        for start, run in run_chunks(self.kernel, known0, p, steps, options, CHUNK_STEPS):
+        chunks = (run_chunks(self.kernel, known0, p, steps, options, CHUNK_STEPS)
+                  if inputs is None else
+                  input_chunks(self.kernel, self.layout, known0, p, inputs, options))
+        for start, run in chunks:
             before_index, before_state = sampler.last_index, sampler.last_state
             segment = sampler.take(start, run)
             if task is not None:
@@ -284,7 +303,8 @@ class Simulator:
                 f"({physical / 2**30:.1f} GiB); keep fewer with every=k, or process the run "
                 f"on the fly with Simulator.stream(...) or a callback")
 
-    def step(self, state, params, *, options: NewtonOptions | None = None) -> np.ndarray:
+    def step(self, state, params, *, options: NewtonOptions | None = None, inputs=None
+             ) -> np.ndarray:
         """One step: the next flat state from a state (named or flat), the same bits as
         ``simulate(state, 1, params, options=options).states[1]``.
 
@@ -299,7 +319,15 @@ class Simulator:
         ``benchmarks/step.py``), least when the state passed is the array the last call
         returned.  Any other input, and every failure, goes through the checks and errors
         of :meth:`simulate`; a state changed in place is checked again.
+
+        A forced system with inputs takes ``inputs``: the m inputs of the arrow this step
+        computes (the state carries those of its own arrow), the same bits as
+        ``simulate(state, 1, params, inputs=[inputs]).states[1]``.
         """
+        if self.layout.n_inputs or inputs is not None:
+            U = input_sequence(self.layout, None if inputs is None else [inputs], 1,
+                               owner=self.name)
+            return self.simulate(state, 1, params, options=options, inputs=U).states[1].copy()
         after = self._fast_call(state, params, options)
         if after is not None:
             return after
@@ -512,8 +540,8 @@ class _SampledRun:
     kept states (a :class:`Sampler` piece, see :meth:`Simulator.stream`) are copied in."""
 
     def __init__(self, sim: Simulator, known0: np.ndarray, p: np.ndarray, rows: int,
-                 every: int):
-        self.sim, self.p, self.every = sim, p, every
+                 every: int, inputs: np.ndarray | None = None):
+        self.sim, self.p, self.every, self.inputs = sim, p, every, inputs
         self.known0 = known0
         self.states = np.empty((rows, sim.layout.n_known))
         self.indices = np.zeros(rows, dtype=np.int64)
@@ -523,7 +551,8 @@ class _SampledRun:
         self.filled = 1
 
     def advance(self, steps: int, options: NewtonOptions, task: Task, callback) -> None:
-        for piece in self.sim._pieces(self.known0, self.p, steps, self.every, options, task):
+        for piece in self.sim._pieces(self.known0, self.p, steps, self.every, options, task,
+                                      self.inputs):
             self.add_tail(piece)
             if callback is not None:
                 callback(piece)

@@ -44,6 +44,7 @@ from .._arguments import choice_argument, instance_argument
 from .._errors import InputTypeError
 from ._batch import TrajectoryBatch
 from ._executors import execute
+from ._inputs import refuse_inputs
 from ._memory import memory_plan
 from ._options import NewtonOptions
 from ._placement import placement, task_runs
@@ -60,11 +61,12 @@ def _as_simulator(sim):
     from ..equations import StepEquations
     from ._simulator import Simulator
 
-    if isinstance(sim, Simulator):
-        return sim
-    instance_argument(sim, StepEquations, "sim", "a Simulator (step.compile()) or step "
-                      "equations", owner="sweep")
-    return sim.compile()
+    if not isinstance(sim, Simulator):
+        instance_argument(sim, StepEquations, "sim", "a Simulator (step.compile()) or step "
+                          "equations", owner="sweep")
+        sim = sim.compile()
+    refuse_inputs(sim.layout, "sweep", owner=sim.name)
+    return sim
 
 
 def _validated_pairs(sim, S, P, grid: Grid) -> None:

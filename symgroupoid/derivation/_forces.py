@@ -1,0 +1,147 @@
+"""Discrete forces and control inputs: the Lagrange–d'Alembert terms of a junction.
+
+Discrete forces are two maps f⁻, f⁺: G → A*G, a covector on the algebroid at the source and
+at the target of an arrow (on Q × Q the f_d^± of Marsden–West §3.2).  The discrete
+Lagrange–d'Alembert principle
+
+    δ Σ_k L(g_k) + Σ_k [f⁻(g_k)·δ⁻g_k + f⁺(g_k)·δ⁺g_k] = 0,
+
+varied at the junction between g_k and g_{k+1} along the section X (g_k ↦ g_k·h_X(t),
+g_{k+1} ↦ h_X(t)⁻¹·g_{k+1}; seed 000 §5), moves the target of g_k and the source of g_{k+1}
+by X, so the junction residual of every basis section X_b gains
+
+    f⁺_b(g_k) + f⁻_b(g_{k+1})
+
+(docs/conventions.md §20; on Q × Q: D₂L(q_{k−1}, q_k) + f⁺(q_{k−1}, q_k) + D₁L(q_k, q_{k+1})
++ f⁻(q_k, q_{k+1}) = 0, Marsden–West eq. (3.2.3)).  The forces are not the variation of a
+function, so they are added after the junction variation, never differentiated as an action.
+
+Inputs are symbols like parameters whose values change from arrow to arrow: the value u_k
+belongs to the arrow g_k, so a step g_k → g_{k+1} reads u_k (in f⁺(g_k)) and u_{k+1} (in
+f⁻(g_{k+1})).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .._errors import InputNameError, InputTypeError, ShapeError, UnsupportedFeatureError
+from .._symbols import scalar_symbol
+from ..groupoids import Groupoid
+from ._callables import as_scalar_list, call_user, check_symbols
+from ._junction import slot, slot_substitution
+
+
+@dataclass
+class ForceFunctions:
+    """f⁻ and f⁺ on one independent slot arrow, in the basis sections' order.
+
+    ``slot`` holds the arrow's coordinates; ``inputs`` the user's input symbols; ``minus``
+    and ``plus`` are rank(AG) expressions each, in the slot coordinates, the parameters and
+    the inputs (of that arrow)."""
+
+    slot: tuple
+    inputs: list
+    minus: list
+    plus: list
+
+    def at(self, arrow: Sequence, offset: int) -> tuple[list, list]:
+        """(f⁻, f⁺) on the arrow with coordinates ``arrow`` whose inputs are u_{k+offset}."""
+        sub = slot_substitution(self.slot, tuple(arrow))
+        sub.update(zip(self.inputs, input_symbols(self.inputs, offset)))
+        return ([f.xreplace(sub) for f in self.minus], [f.xreplace(sub) for f in self.plus])
+
+    def junction_terms(self, left: Sequence, right: Sequence) -> list:
+        """f⁺_b(g_k) + f⁻_b(g_{k+1}) for every basis section b, at the named arrows ``left``
+        (g_k, inputs u_k) and ``right`` (g_{k+1}, inputs u_{k+1})."""
+        _, plus = self.at(left, 0)
+        minus, _ = self.at(right, 1)
+        return [a + b for a, b in zip(plus, minus)]
+
+
+def impulse_form(groupoid: Groupoid, forces: ForceFunctions, section, parameters: Sequence
+                 ) -> tuple[sp.Expr, tuple, tuple]:
+    """The impulse of the forces along a section X over one junction (docs/conventions.md
+    §20): I = Σ_b X^b(β(a))·(f⁺_b(a) + f⁻_b(b)) for consecutive arrows a = g_k (inputs
+    u_k) and b = g_{k+1} (inputs u_{k+1}), so that a Noether quantity of a symmetry X of L
+    changes by it, J(g_{k+1}) − J(g_k) = I.  Returns (I, a, b): the expression and the two
+    independent arrows (slot coordinates) it is written in."""
+    from ._momenta import section_coefficients
+
+    a, b = slot(groupoid, "a_"), slot(groupoid, "b_")
+    X = section_coefficients(groupoid, section, groupoid.target(a), parameters)
+    _, plus = forces.at(a, 0)
+    minus, _ = forces.at(b, 1)
+    return sum((x * (fp + fm) for x, fp, fm in zip(X, plus, minus)), sp.S.Zero), a, b
+
+
+def input_symbols(inputs: Sequence[sp.Symbol], offset: int) -> list:
+    """The inputs of the arrow g_{k+offset}: u ↦ u_{k+offset} (named in LaTeX)."""
+    return [scalar_symbol(sp.latex(u), offset) for u in inputs]
+
+
+def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:
+    """The declared inputs: distinct SymPy symbols, none a parameter, and only with forces."""
+    if isinstance(inputs, sp.Symbol):
+        inputs = [inputs]
+    if isinstance(inputs, (str, bytes)) or not isinstance(inputs, Sequence):
+        raise InputTypeError(f"{name}: inputs must be a list of SymPy symbols, got "
+                             f"{type(inputs).__name__} {inputs!r}")
+    inputs = list(inputs)
+    if inputs and forces is None:
+        raise UnsupportedFeatureError(
+            f"{name}: inputs {', '.join(map(str, inputs))} are declared but the system has "
+            f"no forces to use them; pass forces=f with f(g) -> (f_minus, f_plus) in the inputs")
+    seen: set = set()
+    names = {str(p) for p in parameters}
+    for u in inputs:
+        if not isinstance(u, sp.Symbol):
+            raise InputTypeError(f"{name}: each input must be a SymPy symbol, got "
+                                 f"{type(u).__name__} {u!r}")
+        if str(u) in names:
+            raise InputNameError(f"{name}: {u} is declared both as an input and as a "
+                                 f"parameter; a parameter is fixed for a run, an input changes "
+                                 f"from step to step: declare it once")
+        if str(u) in seen:
+            raise InputNameError(f"{name}: input {u} is declared twice")
+        seen.add(str(u))
+    return inputs
+
+
+def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Sequence,
+                    parameters: Sequence) -> ForceFunctions:
+    """f⁻, f⁺ from the user's ``forces(g) -> (f_minus, f_plus)`` on a symbolic arrow, checked:
+    two lists of rank(AG) scalars in the arrow's coordinates, the parameters and the inputs;
+    an input must not be a coordinate of the arrow."""
+    what = "forces"
+    arrow = slot(groupoid, "f_")
+    taken = {*groupoid.symbols_by_name(0), *groupoid.symbols_by_name(1), "lambda", "λ",
+             "multipliers"}
+    for u in inputs:
+        if str(u) in taken:
+            raise InputNameError(f"{name}: input {u} has the name of a coordinate (or the "
+                                 f"multipliers) of {groupoid.name}, which names a part of the "
+                                 f"state; give the input another name")
+    value = call_user(name, what, forces, groupoid.view(arrow), smooth=True)
+    if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) \
+            or len(value) != 2:
+        raise ShapeError(f"{name}: the forces must return a pair (f_minus, f_plus), each a "
+                         f"list of {groupoid.rank} components in the basis sections' order; "
+                         f"got {type(value).__name__}")
+    parts = []
+    for side, part in zip(("f_minus", "f_plus"), value):
+        components = as_scalar_list(name, f"forces ({side})", part)
+        if len(components) != groupoid.rank:
+            raise ShapeError(f"{name}: the forces' {side} has {len(components)} components; "
+                             f"the algebroid of {groupoid.name} has rank {groupoid.rank} (one "
+                             f"per basis section, in the order of the step's residuals)")
+        parts.append(components)
+    check_symbols(name, what, parts[0] + parts[1], arrow, [*parameters, *inputs])
+    return ForceFunctions(arrow, list(inputs), parts[0], parts[1])
+
+
+__all__ = ["ForceFunctions", "force_functions", "impulse_form", "input_arguments",
+           "input_symbols"]

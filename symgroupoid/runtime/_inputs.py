@@ -1,0 +1,90 @@
+"""Per-step inputs of a forced system at run time (docs/conventions.md §20).
+
+The state of a forced system holds the inputs u_k of its arrow g_k and, after them, a slot
+for the inputs u_{k+1} of the arrow the next step computes (the step's residual reads both:
+f⁺(g_k) + f⁻(g_{k+1})).  A run writes row j of the input sequence into that slot of state j
+before step j, so each kept state is the full record (g_j, λ_j, u_j, u_{j+1}); the last
+state's slot repeats its own inputs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import numpy as np
+
+from .._errors import DomainError, ShapeError, UnsupportedFeatureError
+from ._options import NewtonOptions
+from ._runs import OK, RawRun
+from ._validate import real_array
+
+
+def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
+    """The inputs of a run as an array (steps, m): ``inputs`` of shape (steps, m), (m,)
+    for inputs held constant, or (steps,) when m = 1; finite real numbers.  A system
+    without inputs takes none."""
+    m = layout.n_inputs
+    if m == 0:
+        if inputs is not None:
+            raise ShapeError(f"{owner}: the system has no inputs; leave inputs= out (declare "
+                             f"inputs=[...] with forces=... on the system to drive it)")
+        return np.zeros((steps, 0))
+    names = ", ".join(layout.input_names)
+    if inputs is None:
+        raise ShapeError(f"{owner}: the system has inputs ({names}); pass inputs= with one "
+                         f"row of {m} values per step (row j: the input of the arrow step j "
+                         f"computes), or {m} values held for every step")
+    arr = real_array(inputs, "inputs", owner=owner)
+    if arr.shape == (m,) or (m == 1 and arr.ndim == 0):
+        arr = np.broadcast_to(arr.reshape(1, m), (steps, m))
+    elif m == 1 and arr.shape == (steps,):
+        arr = arr.reshape(steps, 1)
+    if arr.ndim != 2 or arr.shape[1] != m or arr.shape[0] < steps:
+        raise ShapeError(f"{owner}: inputs need shape ({steps}, {m}) (one row of the inputs "
+                         f"{names} per step) or ({m},) for inputs held constant; got shape "
+                         f"{np.shape(inputs)}")
+    arr = arr[:steps]
+    bad = np.argwhere(~np.isfinite(arr))
+    if len(bad):
+        j, i = (int(v) for v in bad[0])
+        raise DomainError(f"{owner}: input {layout.input_names[i]} of step {j} is "
+                          f"{arr[j, i]}; inputs must be finite")
+    return np.ascontiguousarray(arr, dtype=float)
+
+
+def refuse_inputs(layout, what: str, *, owner: str) -> None:
+    """An :class:`UnsupportedFeatureError` for an entry point that does not take per-step
+    inputs yet, when the system has them (it would hold them constant silently)."""
+    if layout.n_inputs:
+        raise UnsupportedFeatureError(
+            f"{owner}: {what} does not take per-step inputs yet, and this system has inputs "
+            f"({', '.join(layout.input_names)}); run it with Simulator.simulate(..., "
+            f"inputs=U) or a Simulator.step(..., inputs=u) loop")
+
+
+def input_chunks(kernel, layout, known0: np.ndarray, p: np.ndarray, inputs: np.ndarray,
+                 options: NewtonOptions) -> Iterator[tuple[int, RawRun]]:
+    """The run of ``len(inputs)`` steps as one :class:`RawRun` (the shape of
+    :func:`~symgroupoid.runtime._runs.run_chunks`): before step j the inputs of row j go
+    into state j, then the kernel advances one step with the Newton warm start carried from
+    step to step, as within one kernel call."""
+    steps = len(inputs)
+    warm = kernel.warm_start()
+    states = np.empty((steps + 1, layout.n_known))
+    states[0] = known0
+    iterations = np.zeros(steps, dtype=np.int64)
+    norms = np.zeros(steps)
+    upcoming = layout.upcoming_index
+    for k in range(steps):
+        states[k, upcoming] = inputs[k]
+        run = kernel.simulate(states[k], p, 1, options, warm)
+        iterations[k], norms[k] = run.iterations[0], run.residual_norms[0]
+        if run.status != OK:
+            yield 0, RawRun(states[:k + 1], iterations[:k + 1], norms[:k + 1], run.status,
+                            k, run.last_iterate)
+            return
+        states[k + 1] = run.states[1]
+    yield 0, RawRun(states, iterations, norms, OK, -1, np.zeros(0))
+
+
+__all__ = ["input_chunks", "input_sequence", "refuse_inputs"]
