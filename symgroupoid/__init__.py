@@ -53,8 +53,13 @@ from .equations import (
     SecondOrderSystem,
     StepEquations,
     UnusedAbbreviationWarning,
+    body_torque,
     check_system_morphism,
+    joint_torque,
     latex,
+    midpoint_forces,
+    rayleigh_damping,
+    trapezoid_forces,
 )
 from .groupoids import (
     SE2,
@@ -120,4 +125,5 @@ __all__ = [
     "right_derivative", "solve_boundary_value", "sweep", "sweep_boundary_value",
     "verify_stationary",
     "Status",
+    "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping", "trapezoid_forces",
 ]

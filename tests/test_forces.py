@@ -373,3 +373,66 @@ def test_the_driven_damped_double_pendulum_converges_at_order_two():
         errors.append(np.abs(np.c_[traj["a"][-1], traj["b"][-1]] - exact(T)[:2]).max())
     rates = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
     assert (rates > 1.9).all() and (rates < 2.2).all(), (errors, rates)
+
+
+# --- ∂F/∂u and the helpers ------------------------------------------------------------------
+
+def test_the_input_jacobian_agrees_with_finite_differences():
+    step = _plane_system(_torque_and_damping, [u]).euler_lagrange()
+    rng = np.random.default_rng(11)
+    x, known = rng.normal(size=len(step.unknowns)), rng.normal(size=len(step.knowns))
+    p = rng.uniform(0.5, 2, size=len(step.parameters))
+    J = step.input_jacobian(x, known, p)
+    assert J.shape == (2, 2)
+    eps = 1e-6
+    for j, i in enumerate(range(len(known) - 2, len(known))):
+        d = np.zeros_like(known)
+        d[i] = eps
+        fd = (step.evaluate(x, known + d, p)[0] - step.evaluate(x, known - d, p)[0]) / (2 * eps)
+        np.testing.assert_allclose(J[:, j], fd, rtol=1e-7, atol=1e-9)
+    assert np.abs(J).max() > 1e-3  # the inputs do enter
+    with pytest.raises(UnsupportedFeatureError):
+        _plane_system().euler_lagrange().input_jacobian(x, known[:-2], p)
+
+
+def _residuals(forces, inputs=(u,)):
+    return _plane_system(forces, list(inputs)).euler_lagrange().residuals
+
+
+def test_the_midpoint_helper_and_rayleigh_damping_are_the_hand_written_forces():
+    def F(q, v):
+        r2 = q[0] ** 2 + q[1] ** 2 + 1
+        return [-c * v[0] - u * q[1] / r2, -c * v[1] + u * q[0] / r2]
+
+    by_hand = _residuals(_torque_and_damping)
+    assert [sp.simplify(a - b) for a, b in zip(_residuals(sg.midpoint_forces(F, h)),
+                                               by_hand)] == [0, 0]
+    damped = _residuals(sg.rayleigh_damping(lambda q, v: c * (v[0] ** 2 + v[1] ** 2) / 2, h),
+                        ())
+    plain = _residuals(sg.midpoint_forces(lambda q, v: [-c * v[0], -c * v[1]], h), ())
+    assert [sp.simplify(a - b) for a, b in zip(damped, plain)] == [0, 0]
+
+
+def test_the_trapezoid_helper_evaluates_the_force_at_the_ends():
+    f = sg.trapezoid_forces(lambda q, v: [q[0] * v[1], u * q[1]], h)
+    G = sg.PairGroupoid(sg.EuclideanSpace(["x", "y"]))
+    x0, y0, x1, y1 = sp.symbols("x0 y0 x1 y1")
+    minus, plus = f(G.view((x0, y0, x1, y1)))
+    assert sp.simplify(minus[0] - h / 2 * x0 * (y1 - y0) / h) == 0
+    assert sp.simplify(plus[1] - h / 2 * u * y1) == 0
+
+
+def test_joint_torques_are_internal():
+    f = sg.joint_torque(6, [2], [5], [u], h)
+    minus, plus = f(None)
+    assert sum(minus) == 0 and minus[2] == h * u / 2 and plus[5] == -h * u / 2
+    with pytest.raises(ShapeError):
+        sg.joint_torque(6, [2], [6], [u], h)
+
+
+def test_the_helpers_refuse_what_they_cannot_discretise():
+    with pytest.raises(CallableError, match="no consecutive configurations"):
+        sg.DiscreteSystem(sg.SO3("W"), lambda g: g.matrix[0, 0], parameters=[h],
+                          forces=sg.midpoint_forces(lambda q, v: [0, 0, 0], h))
+    with pytest.raises((ShapeError, CallableError)):
+        _plane_system(sg.midpoint_forces(lambda q, v: [0], h))

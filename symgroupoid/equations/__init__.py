@@ -1,6 +1,13 @@
 """Layer 3: step equations (residuals, unknowns, knowns, Jacobian, LaTeX) and systems."""
 
 from ._abbreviations import LatexOptionError, UnusedAbbreviationWarning
+from ._forcing import (
+    body_torque,
+    joint_torque,
+    midpoint_forces,
+    rayleigh_damping,
+    trapezoid_forces,
+)
 from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines, latex
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._programs import (
@@ -33,5 +40,6 @@ __all__ = [
     "second_order_momentum_program", "source_projection_program", "state_programs",
     "step_program", "structure_program", "window_programs",
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
-    "equation_lines",
+    "equation_lines", "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
+    "trapezoid_forces",
 ]

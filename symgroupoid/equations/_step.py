@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from .._errors import UnsupportedFeatureError
 from .._symbols import multiplier_symbols, parse_step
 from ..derivation import DerivedStep
 
@@ -88,6 +89,20 @@ class StepEquations:
         from ._programs import step_program
 
         return step_program(self)
+
+    def input_jacobian(self, unknowns: Sequence, knowns: Sequence,
+                       params: Sequence | dict = ()) -> np.ndarray:
+        """∂F/∂(u_k, u_{k+1}) of a forced step at a point: (len(self), 2m), the columns of
+        the inputs of the known arrow, then of the new arrow (docs/conventions.md §20)."""
+        from ._programs import input_jacobian_program
+
+        m = len(self.inputs)
+        if not m:
+            raise UnsupportedFeatureError(f"{self.name}: the system has no inputs")
+        f = input_jacobian_program(self).numpy_function(["J_inputs"], ["u", "known", "p"])
+        (J,) = f(np.asarray(unknowns, float), np.asarray(knowns, float),
+                 self._param_vector(params))
+        return np.asarray(J, float).reshape(len(self), 2 * m)
 
     @property
     def fibre_unknowns(self) -> tuple:

@@ -25,7 +25,7 @@ from ._initial import (
     source_projection_program,
 )
 from ._state import StatePrograms, state_programs
-from ._step import step_program
+from ._step import input_jacobian_program, step_program
 from ._window import (
     WindowPrograms,
     action_program,
@@ -37,5 +37,5 @@ from ._window import (
 __all__ = ["MomentumProgram", "StatePrograms", "WindowPrograms", "action_program",
            "constraint_program", "cost_program", "holonomic_program", "magnitude",
            "momentum_program", "second_order_momentum_program",
-           "source_projection_program", "state_programs", "step_program",
-           "structure_program", "window_programs"]
+           "source_projection_program", "state_programs", "input_jacobian_program",
+           "step_program", "structure_program", "window_programs"]

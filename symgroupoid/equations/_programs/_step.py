@@ -61,6 +61,21 @@ def step_program(step, compacted: bool = True) -> Program:
     return with_residual_scale(program.compacted() if compacted else program)
 
 
+def input_jacobian_program(step) -> Program:
+    """∂F/∂(u_k, u_{k+1}) of a forced step (docs/conventions.md §20): the residual's exact
+    derivative with respect to the inputs of both arrows (the last 2m knowns), by forward
+    mode on the step's graph — what a controller or an optimiser linearises.  Inputs ``u``
+    (unknowns), ``known``, ``p``; outputs ``F`` and ``J_inputs`` (row-major, n × 2m)."""
+    program = step.program
+    g = program.graph
+    m = len(step.inputs)
+    columns = [g.inputs[s] for s in step.knowns[len(step.knowns) - 2 * m:]]
+    F = list(program.outputs["F"])
+    J = step_jacobian(g, F, columns)
+    return Program(graph=g, inputs=program.inputs,
+                   outputs={"F": F, "J_inputs": [c for row in J for c in row]})
+
+
 def with_residual_scale(program: Program) -> Program:
     """``program`` with the output ``F_scale``: S_i, the size of the terms F_i is built from
     (the unknowns ``u`` varying; :func:`symgroupoid.ir.term_magnitude`)."""

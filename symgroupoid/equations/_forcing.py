@@ -1,0 +1,143 @@
+"""The discrete forces people write, from a continuous force (docs/conventions.md §20).
+
+Each helper returns the callable ``f(g) -> (f_minus, f_plus)`` that
+``DiscreteSystem(..., forces=f)`` takes.  On the pair groupoid of a Euclidean space, whose
+arrows are consecutive configurations (q_k, q_{k+1}) a step h apart, the velocity of an
+arrow is Δq/h and a continuous generalised force F(q, v) (which may use inputs) gives
+(Marsden–West §3.2):
+
+- :func:`midpoint_forces`: f⁻ = f⁺ = (h/2)·F(q̄, Δq/h), q̄ the midpoint — the forces of the
+  midpoint rule L_d = h·L(q̄, Δq/h);
+- :func:`trapezoid_forces`: f⁻ = (h/2)·F(q_k, Δq/h), f⁺ = (h/2)·F(q_{k+1}, Δq/h);
+- :func:`rayleigh_damping`: F = −∂D/∂v for a dissipation function D(q, v) (Rayleigh), with
+  either rule.
+
+On a matrix Lie group, whose arrow is the increment W_k between consecutive attitudes,
+:func:`body_torque` applies a body-frame torque τ (one component per basis section, i.e.
+per direction of the Lie algebra's basis) held over the step: f⁻ = f⁺ = (h/2)·τ.
+:func:`joint_torque` applies equal and opposite torques to two factors of a product (a
+torque at the joint between two bodies), which are internal: they cancel along a symmetry
+that moves both bodies alike.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+
+import sympy as sp
+
+from .._errors import CallableError, InputTypeError, ShapeError
+
+_RULES = ("midpoint", "trapezoid")
+
+
+def _points(g, what: str) -> tuple[list, list]:
+    """(q_k, q_{k+1}) of an arrow of a pair groupoid of a Euclidean space."""
+    try:
+        q0, q1 = list(g.source), list(g.target)
+    except (AttributeError, TypeError) as exc:
+        raise InputTypeError(f"{what}: the arrow has no consecutive configurations "
+                             f"(.source, .target as coordinate tuples): write the forces "
+                             f"on a pair groupoid of a EuclideanSpace, or by hand") from exc
+    if any(isinstance(q, sp.MatrixBase) for q in (*q0, *q1)):
+        raise InputTypeError(f"{what}: the configurations are matrices; on a Lie group use "
+                             f"body_torque, or write the forces by hand")
+    return q0, q1
+
+
+def _force(F: Callable, q: list, v: list, what: str) -> list:
+    if not callable(F):
+        raise CallableError(f"{what}: F must be a function F(q, v) -> [forces], got a "
+                            f"{type(F).__name__}")
+    value = list(F(q, v))
+    if len(value) != len(q):
+        raise ShapeError(f"{what}: F returned {len(value)} components for {len(q)} "
+                         f"coordinates; one generalised force per coordinate")
+    return [sp.sympify(f) for f in value]
+
+
+def midpoint_forces(F: Callable, h: sp.Symbol) -> Callable:
+    """f⁻ = f⁺ = (h/2)·F(q̄, Δq/h): the discrete forces of the midpoint rule for the
+    generalised force ``F(q, v)`` (lists of coordinates and velocities in, one force per
+    coordinate out; it may use inputs and parameters)."""
+
+    def forces(g):
+        q0, q1 = _points(g, "midpoint_forces")
+        q = [(a + b) / 2 for a, b in zip(q0, q1)]
+        v = [(b - a) / h for a, b in zip(q0, q1)]
+        half = [h / 2 * f for f in _force(F, q, v, "midpoint_forces")]
+        return half, list(half)
+
+    return forces
+
+
+def trapezoid_forces(F: Callable, h: sp.Symbol) -> Callable:
+    """f⁻ = (h/2)·F(q_k, Δq/h), f⁺ = (h/2)·F(q_{k+1}, Δq/h): the discrete forces of the
+    trapezoidal rule for the generalised force ``F(q, v)``."""
+
+    def forces(g):
+        q0, q1 = _points(g, "trapezoid_forces")
+        v = [(b - a) / h for a, b in zip(q0, q1)]
+        return ([h / 2 * f for f in _force(F, q0, v, "trapezoid_forces")],
+                [h / 2 * f for f in _force(F, q1, v, "trapezoid_forces")])
+
+    return forces
+
+
+def rayleigh_damping(D: Callable, h: sp.Symbol, rule: str = "midpoint") -> Callable:
+    """The damping force F = −∂D/∂v of a dissipation function ``D(q, v)`` (Rayleigh; e.g.
+    D = c·|v|²/2 gives F = −c·v), discretised by ``rule`` ("midpoint" or "trapezoid")."""
+    if rule not in _RULES:
+        raise InputTypeError(f"rayleigh_damping: rule must be one of {_RULES}, got {rule!r}")
+
+    def F(q, v):
+        dummies = [sp.Dummy(f"v{i}", real=True) for i in range(len(v))]
+        value = sp.sympify(D(q, dummies))
+        return [-sp.diff(value, d).xreplace(dict(zip(dummies, v))) for d in dummies]
+
+    return (midpoint_forces if rule == "midpoint" else trapezoid_forces)(F, h)
+
+
+def body_torque(tau: Callable | Sequence, h: sp.Symbol) -> Callable:
+    """f⁻ = f⁺ = (h/2)·τ on a matrix Lie group: the body-frame torque ``tau`` (a list of
+    one component per basis section, or a function of the arrow returning one) held over
+    the step, split equally between its ends."""
+
+    def forces(g):
+        value = list(tau(g) if callable(tau) else tau)
+        half = [h / 2 * sp.sympify(t) for t in value]
+        return half, list(half)
+
+    return forces
+
+
+def joint_torque(rank: int, first: Sequence[int], second: Sequence[int],
+                 tau: Callable | Sequence, h: sp.Symbol) -> Callable:
+    """Equal and opposite body torques at a joint: +τ on the sections ``first`` and −τ on
+    the sections ``second`` (the indices, in the product's basis of ``rank`` sections, of
+    the two bodies' directions the joint acts along), held over the step as
+    :func:`body_torque`.  Such forces are internal: they cancel along a symmetry that moves
+    both bodies alike, whose Noether quantity they leave conserved."""
+    first, second = list(first), list(second)
+    if len(first) != len(second):
+        raise ShapeError(f"joint_torque: {len(first)} directions on the first body but "
+                         f"{len(second)} on the second")
+    if any(not 0 <= i < rank for i in (*first, *second)):
+        raise ShapeError(f"joint_torque: section indices must lie in 0 … {rank - 1}")
+
+    def forces(g):
+        value = [sp.sympify(t) for t in (tau(g) if callable(tau) else tau)]
+        if len(value) != len(first):
+            raise ShapeError(f"joint_torque: {len(value)} torque components for "
+                             f"{len(first)} directions")
+        half = [sp.S.Zero] * rank
+        for i, j, t in zip(first, second, value):
+            half[i] += h / 2 * t
+            half[j] -= h / 2 * t
+        return half, list(half)
+
+    return forces
+
+
+__all__ = ["body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
+           "trapezoid_forces"]
