@@ -436,3 +436,19 @@ def test_the_helpers_refuse_what_they_cannot_discretise():
                           forces=sg.midpoint_forces(lambda q, v: [0, 0, 0], h))
     with pytest.raises((ShapeError, CallableError)):
         _plane_system(sg.midpoint_forces(lambda q, v: [0], h))
+
+
+def test_a_failing_step_keeps_the_run_up_to_it(plane):
+    """An input that overflows the residual at step 5: the error names the step and carries
+    the states before it, bitwise those of the run without that input."""
+    U = np.zeros((10, 1))
+    U[5] = 1e308
+    start = {"x": (1.0, 1.0), "y": (0.0, 0.012), "u": 0.0}
+    with pytest.raises(sg.SymgroupoidError) as info:
+        plane.simulate(start, 10, PLANE_PARAMS, inputs=U)
+    err = info.value
+    assert err.step == 5
+    kept = err.trajectory.states
+    good = plane.simulate(start, 5, PLANE_PARAMS, inputs=U[:5])
+    assert len(kept) == 6 and np.array_equal(kept[:5], good.states[:5])
+    assert np.isfinite(kept).all()

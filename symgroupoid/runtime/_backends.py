@@ -204,6 +204,22 @@ class _Kernel:
         return self._simulate_into(states, iterations, residual_norms, start, n_steps, p,
                                    options, self.warm_start() if warm is None else warm)
 
+    def simulate_inputs(self, states: np.ndarray, iterations: np.ndarray,
+                        residual_norms: np.ndarray, p, inputs: np.ndarray,
+                        upcoming: np.ndarray, options: NewtonOptions, warm) -> ChunkRun:
+        """A run of a forced system in the buffers of :meth:`simulate_into` (R = steps + 1
+        rows): before step k, row k of ``inputs`` is written into the entries ``upcoming`` of
+        state k (the slot of the next arrow's inputs, docs/conventions.md §20), then the
+        step runs in place with the warm start carried, as one :meth:`simulate_into` call
+        per step.  Returns after the first failing step (``failed_step`` its index)."""
+        for k in range(len(inputs)):
+            states[k, upcoming] = inputs[k]
+            chunk = self.simulate_into(states, iterations, residual_norms, k, 1, p, options,
+                                       warm)
+            if chunk.status != OK:
+                return ChunkRun(chunk.status, k, k, chunk.last_iterate)
+        return ChunkRun(OK, len(inputs), -1, np.zeros(self.n_u))
+
     def step_once(self, known: np.ndarray, p: np.ndarray, options: NewtonOptions
                   ) -> tuple[int, np.ndarray]:
         """One step from a fresh warm start, as ``simulate(known, p, 1, options)`` computes

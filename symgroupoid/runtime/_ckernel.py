@@ -18,7 +18,7 @@ import numpy as np
 from .._arguments import integer_argument
 from .._errors import ShapeError
 from ..stepper import MAX_THREADS, Status
-from ._backends import _Kernel, c_buffer
+from ._backends import INVALID_ARGUMENT, _Kernel, _run_buffers, c_buffer, real_vector
 from ._options import NewtonOptions
 from ._runs import OK, BatchRun, ChunkRun, RawRun
 
@@ -230,6 +230,34 @@ class CKernel(_Kernel):
             self._buf(last, self.n_u, "last_iterate")))
         k = int(failed[0])
         return ChunkRun(status, n_steps if status == OK else max(k, 0), k, last)
+
+    def simulate_inputs(self, states, iterations, residual_norms, p, inputs, upcoming,
+                        options: NewtonOptions, warm) -> ChunkRun:
+        """:meth:`_Kernel.simulate_inputs` with the C views of the buffers made once: one
+        ``<prefix>_simulate`` call of one step per input row, at pointers into them."""
+        rows = _run_buffers(states, iterations, residual_norms, self.n_k)
+        p = real_vector(p, self.n_p, "p")
+        inputs = np.ascontiguousarray(inputs, dtype=float)
+        if len(inputs) > rows - 1 or not (np.isfinite(states[0]).all()
+                                          and np.isfinite(p).all()):
+            return ChunkRun(INVALID_ARGUMENT, 0, -1, np.zeros(self.n_u))
+        self._check_warm(warm)
+        n = self.n_k
+        base = self._buf(states, rows * n, "states")
+        its = self._buf(iterations, rows - 1, "iterations", "int")
+        norms = self._buf(residual_norms, rows - 1, "residual_norms")
+        pb, opts = self._buf(p, self.n_p, "p"), self._options(options)
+        last = np.zeros(self.n_u)
+        lastb, failed = self._buf(last, self.n_u, "last_iterate"), self.ffi.new("long *")
+        simulate = self._f["simulate"]
+        for k in range(len(inputs)):
+            states[k, upcoming] = inputs[k]
+            at = base + k * n
+            status = int(simulate(at, pb, 1, opts, warm, at, 2, its + k, norms + k, failed,
+                                  lastb))
+            if status != OK:
+                return ChunkRun(status, k, k, last)
+        return ChunkRun(OK, len(inputs), -1, last)
 
     def _residual(self, u, known, p) -> np.ndarray:
         F = np.empty(self.n_u)

@@ -66,24 +66,22 @@ def input_chunks(kernel, layout, known0: np.ndarray, p: np.ndarray, inputs: np.n
                  options: NewtonOptions) -> Iterator[tuple[int, RawRun]]:
     """The run of ``len(inputs)`` steps as one :class:`RawRun` (the shape of
     :func:`~symgroupoid.runtime._runs.run_chunks`): before step j the inputs of row j go
-    into state j, then the kernel advances one step with the Newton warm start carried from
-    step to step, as within one kernel call."""
+    into state j, then the kernel advances that one step in place
+    (:meth:`~symgroupoid.runtime._backends._Kernel.simulate_inputs`) with the Newton warm
+    start carried from step to step, as within one kernel call."""
     steps = len(inputs)
     warm = kernel.warm_start()
     states = np.empty((steps + 1, layout.n_known))
     states[0] = known0
-    iterations = np.zeros(steps, dtype=np.int64)
+    iterations = np.zeros(steps, dtype=np.intc)
     norms = np.zeros(steps)
-    upcoming = layout.upcoming_index
-    for k in range(steps):
-        states[k, upcoming] = inputs[k]
-        run = kernel.simulate(states[k], p, 1, options, warm)
-        iterations[k], norms[k] = run.iterations[0], run.residual_norms[0]
-        if run.status != OK:
-            yield 0, RawRun(states[:k + 1], iterations[:k + 1], norms[:k + 1], run.status,
-                            k, run.last_iterate)
-            return
-        states[k + 1] = run.states[1]
+    chunk = kernel.simulate_inputs(states, iterations, norms, p, inputs,
+                                   layout.upcoming_index, options, warm)
+    if chunk.status != OK:
+        k = max(chunk.failed_step, 0)
+        yield 0, RawRun(states[:k + 1], iterations[:k + 1], norms[:k + 1], chunk.status, k,
+                        chunk.last_iterate)
+        return
     yield 0, RawRun(states, iterations, norms, OK, -1, np.zeros(0))
 
 
