@@ -452,3 +452,12 @@ def test_a_failing_step_keeps_the_run_up_to_it(plane):
     good = plane.simulate(start, 5, PLANE_PARAMS, inputs=U[:5])
     assert len(kept) == 6 and np.array_equal(kept[:5], good.states[:5])
     assert np.isfinite(kept).all()
+
+
+def test_the_latex_names_the_forces():
+    """The printed equations read X⃖[L](g_k) − X⃗[L](g_{k+1}) + f⁺(g_k) + f⁻(g_{k+1}), the
+    forces defined in the "where" list (each printed form is verified to be the residual)."""
+    tex = _plane_system(_torque_and_damping, [u]).euler_lagrange().latex()
+    for b in (1, 2):
+        assert f"f^{{+}}_{{{b}}}(g_{{k}})" in tex and f"f^{{-}}_{{{b}}}(g_{{k+1}})" in tex
+    assert r"\intertext{where}" in tex and "u_{k+1}" in tex.split("where")[1]

@@ -16,13 +16,13 @@ recognised and kept by name (:func:`action_pieces`).
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._symbols import StepSymbol, latex_name, step_label
-from ..derivation import PieceRule, partial_residuals, piece_residuals, window
+from ..derivation import PieceRule, WindowAction, partial_residuals, piece_residuals, window
 from ..groupoids import PairCoordinate
 from ._collect import replace_occurrences
 from ._latex import uncollected
@@ -101,6 +101,25 @@ def base_form(step, matrix_form: bool = False) -> Form | None:
         return Form(list(step.residuals))
     structured = kept_matrix_form(step)
     return None if structured is None else Form(structured, [matrix_values(step)])
+
+
+def forced_form(step, matrix_form: bool = False) -> Form | None:
+    """A forced step with its forces named (docs/conventions.md §20): the junction residual
+    of L (+ λ·φ) followed by f⁺_b(g_k) + f⁻_b(g_{k+1}), the discrete forces given in the
+    "where" list; None for a step without forces (or in matrix form)."""
+    system = junction_system(step)
+    if matrix_form or system is None or system.functions.forces is None:
+        return None
+    fs, rank = system.functions, step.groupoid.rank
+    unforced, arrows = WindowAction(step.groupoid, replace(fs, forces=None)).residuals()
+    plus, _ = fs.forces.at(arrows[0], 0)
+    minus, _ = fs.forces.at(arrows[1], 1)
+    named_plus = [StepSymbol(f"f^{{+}}_{{{b + 1}}}(g_{{k}})") for b in range(rank)]
+    named_minus = [StepSymbol(f"f^{{-}}_{{{b + 1}}}(g_{{k+1}})") for b in range(rank)]
+    equations = [unforced[b] + named_plus[b] + named_minus[b] for b in range(rank)]
+    layer = {**dict(zip(named_plus, plus)), **dict(zip(named_minus, minus))}
+    definitions = [Definition(name, value, frozenset({name})) for name, value in layer.items()]
+    return Form(equations + list(unforced[rank:]), [layer], definitions)
 
 
 def _index_range(offsets: Sequence[int]) -> str:

@@ -33,7 +33,15 @@ from ._abbreviations import (
     abbreviate,
     abbreviations_of,
 )
-from ._forms import Form, action_pieces, base_form, derivative_form, piece_form, with_recognised
+from ._forms import (
+    Form,
+    action_pieces,
+    base_form,
+    derivative_form,
+    forced_form,
+    piece_form,
+    with_recognised,
+)
 from ._latex import GroupoidLatexPrinter, LatexVerificationError, MemoLatexPrinter
 from ._layout import PrintedRows
 from ._matrix_parts import NOT_IN_PIECES, junction_system
@@ -128,7 +136,8 @@ def candidate_forms(step, abbreviations: Mapping | None = None,
     base = base_form(step, matrix_form)
     if base is None:
         return []
-    forms: list = [(base, None)]
+    forced = forced_form(step, matrix_form)  # a forced step: its forces named, always
+    forms: list = [(base if forced is None else forced, None)]
     for pieces, rule in _piece_forms(step, matrix_form):
         if _no_clash(pieces, step):
             forms.append((pieces, rule))
