@@ -1034,6 +1034,28 @@ static void heavy_top_remember(const double *u, heavy_top_warm_start *warm)
     }
 }
 
+/* 1 when the inputs of n_steps steps are given and finite: u[k * HEAVY_TOP_N_INPUTS + j], the
+ * inputs of the arrow step k computes (a kernel without inputs ignores u, which may be
+ * NULL) */
+static int heavy_top_inputs_valid(const double *u, long n_steps)
+{
+#if HEAVY_TOP_N_INPUTS > 0
+    long k;
+    if (n_steps > 0 && u == NULL) {
+        return 0;
+    }
+    for (k = 0; k < n_steps; ++k) {
+        if (!isfinite(heavy_top_norm_inf(u + (size_t)k * HEAVY_TOP_N_INPUTS, HEAVY_TOP_N_INPUTS))) {
+            return 0;
+        }
+    }
+#else
+    (void)u;
+    (void)n_steps;
+#endif
+    return 1;
+}
+
 /* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
  * Writes states[0 .. n_steps] (row k at states + k * HEAVY_TOP_N_KNOWNS), and iterations[k],
  * residual_norms[k] for k < n_steps; needs capacity >= n_steps + 1 (rows of states;
@@ -1050,11 +1072,14 @@ static void heavy_top_remember(const double *u, heavy_top_warm_start *warm)
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
  * a new run.
+ * A forced kernel (HEAVY_TOP_N_INPUTS > 0) reads u[k * HEAVY_TOP_N_INPUTS + j], the inputs of the arrow step
+ * k computes, into the last HEAVY_TOP_N_INPUTS entries of its known state (docs/conventions.md,
+ * section 20); the states written keep their own inputs there.  u may be NULL without inputs.
  * On failure returns the status, sets *failed_step = k (else -1; failed_step may be NULL)
  * and copies the last Newton iterate of that step to last_iterate (HEAVY_TOP_N_UNKNOWNS
  * doubles; may be NULL); iterations[k] and residual_norms[k] describe the failed step,
  * states[k + 1 ..] are not written and warm still ends at step k - 1. */
-int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+int heavy_top_simulate(const double *known0, const double *p, const double *u, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
 {
     heavy_top_options defaults;
     heavy_top_warm_start fresh;
@@ -1075,46 +1100,57 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
         || n_steps < 0 || capacity < 1 || n_steps > capacity - 1
         || !heavy_top_options_valid(options) || !heavy_top_warm_start_valid(warm)
         || !isfinite(heavy_top_norm_inf(known0, HEAVY_TOP_N_KNOWNS))
-        || !isfinite(heavy_top_norm_inf(p, HEAVY_TOP_N_PARAMETERS))) {
+        || !isfinite(heavy_top_norm_inf(p, HEAVY_TOP_N_PARAMETERS))
+        || !heavy_top_inputs_valid(u, n_steps)) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
     memmove(states, known0, sizeof(double) * HEAVY_TOP_N_KNOWNS);
     for (k = 0; k < n_steps; ++k) {
+#if HEAVY_TOP_N_INPUTS > 0
+        /* the state with the inputs of the arrow this step computes in its last slot (the
+         * stored state keeps its own inputs there) */
+        double current[HEAVY_TOP_N_KNOWNS];
+#else
         const double *current = states + (size_t)k * HEAVY_TOP_N_KNOWNS;
+#endif
         double next[HEAVY_TOP_N_KNOWNS];
-        double u[HEAVY_TOP_N_UNKNOWNS], guess[HEAVY_TOP_N_UNKNOWNS];
+        double x[HEAVY_TOP_N_UNKNOWNS], guess[HEAVY_TOP_N_UNKNOWNS];
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
+#if HEAVY_TOP_N_INPUTS > 0
+        memcpy(current, states + (size_t)k * HEAVY_TOP_N_KNOWNS, sizeof current);
+        memcpy(current + HEAVY_TOP_N_KNOWNS - HEAVY_TOP_N_INPUTS, u + (size_t)k * HEAVY_TOP_N_INPUTS, sizeof(double) * HEAVY_TOP_N_INPUTS);
+#endif
         if (extrapolated) {
             heavy_top_extrapolate(warm, guess);
-            memcpy(u, guess, sizeof u);
+            memcpy(x, guess, sizeof x);
         } else {
-            heavy_top_predict(current, p, u);
+            heavy_top_predict(current, p, x);
         }
-        status = heavy_top_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
+        status = heavy_top_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
         if (extrapolated) {
             /* a solution far outside the trust region of the guess: another branch */
-            const int jumped = status == HEAVY_TOP_OK && !heavy_top_trusted(warm, guess, u, options->trust_factor);
+            const int jumped = status == HEAVY_TOP_OK && !heavy_top_trusted(warm, guess, x, options->trust_factor);
             if (status != HEAVY_TOP_OK || jumped) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */
                 double far[HEAVY_TOP_N_UNKNOWNS];
                 const double far_norm = residual_norms[k];
                 int more = 0;
-                memcpy(far, u, sizeof far);
-                heavy_top_predict(current, p, u);
-                status = heavy_top_newton(current, p, options, u, &more, &residual_norms[k]);
+                memcpy(far, x, sizeof far);
+                heavy_top_predict(current, p, x);
+                status = heavy_top_newton(current, p, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != HEAVY_TOP_OK && jumped) { /* report the far solution */
-                    memcpy(u, far, sizeof far);
+                    memcpy(x, far, sizeof far);
                     residual_norms[k] = far_norm;
                 }
-                if (status == HEAVY_TOP_OK ? !heavy_top_trusted(warm, guess, u, options->trust_factor) : jumped) {
+                if (status == HEAVY_TOP_OK ? !heavy_top_trusted(warm, guess, x, options->trust_factor) : jumped) {
                     status = HEAVY_TOP_BRANCH_JUMP;
                 }
             }
         }
         if (status == HEAVY_TOP_OK) {
-            heavy_top_next_knowns(u, current, p, next);
+            heavy_top_next_knowns(x, current, p, next);
             if (!isfinite(heavy_top_norm_inf(next, HEAVY_TOP_N_KNOWNS))) {
                 status = HEAVY_TOP_NON_FINITE;
             }
@@ -1124,12 +1160,12 @@ int heavy_top_simulate(const double *known0, const double *p, long n_steps, cons
                 *failed_step = k;
             }
             if (last_iterate != NULL) {
-                memcpy(last_iterate, u, sizeof u);
+                memcpy(last_iterate, x, sizeof x);
             }
             return status;
         }
         memcpy(states + (size_t)(k + 1) * HEAVY_TOP_N_KNOWNS, next, sizeof next);
-        heavy_top_remember(u, warm);
+        heavy_top_remember(x, warm);
     }
     return HEAVY_TOP_OK;
 }
@@ -1163,7 +1199,7 @@ static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double
         *failed_step = -1;
         *failed_iterations = 0;
         *failed_residual_norm = 0.0;
-        st = heavy_top_simulate(known0, p, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
+        st = heavy_top_simulate(known0, p, NULL, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
         if (st != HEAVY_TOP_OK) { /* a non-finite state or parameter row */
             *status = st;
             return;
@@ -1175,7 +1211,7 @@ static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double
     while (cursor->done < until) {
         const long n = until - cursor->done < HEAVY_TOP_BATCH_CHUNK ? until - cursor->done : HEAVY_TOP_BATCH_CHUNK;
         long fail = -1, solved, j;
-        const int st = heavy_top_simulate(cursor->known, p, n, options, &cursor->warm, buffer, HEAVY_TOP_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        const int st = heavy_top_simulate(cursor->known, p, NULL, n, options, &cursor->warm, buffer, HEAVY_TOP_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
         if (st == HEAVY_TOP_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
             *kept = r;
             *status = st;
@@ -1275,6 +1311,7 @@ static int heavy_top_batch_valid(long n_batch, const double *known0, const doubl
         || (HEAVY_TOP_N_PARAMETERS > 0 && p == NULL)
         || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
         || (p_stride != 0 && p_stride != HEAVY_TOP_N_PARAMETERS)
+        || HEAVY_TOP_N_INPUTS > 0 /* (the batched entry points take no inputs yet) */
         || n_steps / every + (n_steps % every != 0) > rows - 1
         || (size_t)rows > ((size_t)-1 / sizeof(double)) / HEAVY_TOP_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
         || !heavy_top_options_valid(options));
@@ -1385,11 +1422,11 @@ int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors
 }
 
 /* One step from a fresh start: next receives the state after known, the same bits as the
- * second row heavy_top_simulate(known, p, 1, options, NULL, ...) writes; returns its status
+ * second row heavy_top_simulate(known, p, u, 1, options, NULL, ...) writes; returns its status
  * (next is written only on success; HEAVY_TOP_INVALID_ARGUMENT for a null next).  The entry
  * point with the fewest arguments, for callers that advance one state at a time (a control
  * loop in Python pays for every argument of a call). */
-int heavy_top_step(const double *known, const double *p, const heavy_top_options *options, double *next)
+int heavy_top_step(const double *known, const double *p, const double *u, const heavy_top_options *options, double *next)
 {
     double states[2 * HEAVY_TOP_N_KNOWNS];
     int iterations = 0;
@@ -1398,7 +1435,7 @@ int heavy_top_step(const double *known, const double *p, const heavy_top_options
     if (next == NULL) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
-    status = heavy_top_simulate(known, p, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
+    status = heavy_top_simulate(known, p, u, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
     if (status == HEAVY_TOP_OK) {
         memcpy(next, states + HEAVY_TOP_N_KNOWNS, sizeof(double) * HEAVY_TOP_N_KNOWNS);
     }

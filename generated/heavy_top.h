@@ -32,8 +32,9 @@
  * Arrays are row-major C arrays of double; the Jacobian J is 3 x 3,
  * J[i * 3 + j] = dF_i/du_j.
  *
- * heavy_top_simulate(known0, p, n_steps, options, warm, states, capacity, iterations,
+ * heavy_top_simulate(known0, p, u, n_steps, options, warm, states, capacity, iterations,
  *                  residual_norms, failed_step, last_iterate)
+ *   (u: the inputs of a forced system; none here, pass NULL)
  *   writes the states states[k * HEAVY_TOP_N_KNOWNS + i], k = 0..n_steps, into a buffer of
  *   `capacity` rows (iterations and residual_norms: capacity - 1 entries each); returns
  *   HEAVY_TOP_INVALID_ARGUMENT and writes nothing when capacity < n_steps + 1.  It stops at the
@@ -61,9 +62,9 @@
  *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default; never
  *   more than n_batch or HEAVY_TOP_MAX_THREADS), with the same results; otherwise they run one
  *   after the other.
- * heavy_top_step(known, p, options, next) advances one state from a fresh start: next receives
- *   what heavy_top_simulate(known, p, 1, options, NULL, ...) writes in its second row.
- * heavy_top_simulate_batch_until(n_batch, cursors, known0, p, p_stride, n_steps, every, until,
+ * heavy_top_step(known, p, u, options, next) advances one state from a fresh start: next
+ *   receives what heavy_top_simulate(known, p, u, 1, options, NULL, ...) writes in its second
+ *   row. * heavy_top_simulate_batch_until(n_batch, cursors, known0, p, p_stride, n_steps, every, until,
  *                              options, states, rows, iterations, ..., n_threads)
  *   the same in installments: advances the trajectories to step `until` (at most n_steps)
  *   and returns, to be called again with a larger `until` (a caller that must stay
@@ -91,6 +92,7 @@ extern "C" {
 #define HEAVY_TOP_N_PARAMETERS 5
 #define HEAVY_TOP_N_FIBRE 9
 #define HEAVY_TOP_N_CONSTRAINTS 0
+#define HEAVY_TOP_N_INPUTS 0
 
 /* the most OpenMP threads heavy_top_simulate_batch starts (a team is created whole) */
 #define HEAVY_TOP_MAX_THREADS 1024
@@ -139,9 +141,9 @@ void heavy_top_residual_scale(const double *u, const double *known, const double
 void heavy_top_predict(const double *known, const double *p, double *u);
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int heavy_top_solve_step(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm);
-int heavy_top_simulate(const double *known0, const double *p, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
+int heavy_top_simulate(const double *known0, const double *p, const double *u, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
-int heavy_top_step(const double *known, const double *p, const heavy_top_options *options, double *next);
+int heavy_top_step(const double *known, const double *p, const double *u, const heavy_top_options *options, double *next);
 int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 const char *heavy_top_status_message(int status);
 

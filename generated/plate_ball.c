@@ -1261,6 +1261,28 @@ static void plate_ball_remember(const double *u, plate_ball_warm_start *warm)
     }
 }
 
+/* 1 when the inputs of n_steps steps are given and finite: u[k * PLATE_BALL_N_INPUTS + j], the
+ * inputs of the arrow step k computes (a kernel without inputs ignores u, which may be
+ * NULL) */
+static int plate_ball_inputs_valid(const double *u, long n_steps)
+{
+#if PLATE_BALL_N_INPUTS > 0
+    long k;
+    if (n_steps > 0 && u == NULL) {
+        return 0;
+    }
+    for (k = 0; k < n_steps; ++k) {
+        if (!isfinite(plate_ball_norm_inf(u + (size_t)k * PLATE_BALL_N_INPUTS, PLATE_BALL_N_INPUTS))) {
+            return 0;
+        }
+    }
+#else
+    (void)u;
+    (void)n_steps;
+#endif
+    return 1;
+}
+
 /* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
  * Writes states[0 .. n_steps] (row k at states + k * PLATE_BALL_N_KNOWNS), and iterations[k],
  * residual_norms[k] for k < n_steps; needs capacity >= n_steps + 1 (rows of states;
@@ -1277,11 +1299,14 @@ static void plate_ball_remember(const double *u, plate_ball_warm_start *warm)
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
  * a new run.
+ * A forced kernel (PLATE_BALL_N_INPUTS > 0) reads u[k * PLATE_BALL_N_INPUTS + j], the inputs of the arrow step
+ * k computes, into the last PLATE_BALL_N_INPUTS entries of its known state (docs/conventions.md,
+ * section 20); the states written keep their own inputs there.  u may be NULL without inputs.
  * On failure returns the status, sets *failed_step = k (else -1; failed_step may be NULL)
  * and copies the last Newton iterate of that step to last_iterate (PLATE_BALL_N_UNKNOWNS
  * doubles; may be NULL); iterations[k] and residual_norms[k] describe the failed step,
  * states[k + 1 ..] are not written and warm still ends at step k - 1. */
-int plate_ball_simulate(const double *known0, const double *p, long n_steps, const plate_ball_options *options, plate_ball_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+int plate_ball_simulate(const double *known0, const double *p, const double *u, long n_steps, const plate_ball_options *options, plate_ball_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
 {
     plate_ball_options defaults;
     plate_ball_warm_start fresh;
@@ -1302,46 +1327,57 @@ int plate_ball_simulate(const double *known0, const double *p, long n_steps, con
         || n_steps < 0 || capacity < 1 || n_steps > capacity - 1
         || !plate_ball_options_valid(options) || !plate_ball_warm_start_valid(warm)
         || !isfinite(plate_ball_norm_inf(known0, PLATE_BALL_N_KNOWNS))
-        || !isfinite(plate_ball_norm_inf(p, PLATE_BALL_N_PARAMETERS))) {
+        || !isfinite(plate_ball_norm_inf(p, PLATE_BALL_N_PARAMETERS))
+        || !plate_ball_inputs_valid(u, n_steps)) {
         return PLATE_BALL_INVALID_ARGUMENT;
     }
     memmove(states, known0, sizeof(double) * PLATE_BALL_N_KNOWNS);
     for (k = 0; k < n_steps; ++k) {
+#if PLATE_BALL_N_INPUTS > 0
+        /* the state with the inputs of the arrow this step computes in its last slot (the
+         * stored state keeps its own inputs there) */
+        double current[PLATE_BALL_N_KNOWNS];
+#else
         const double *current = states + (size_t)k * PLATE_BALL_N_KNOWNS;
+#endif
         double next[PLATE_BALL_N_KNOWNS];
-        double u[PLATE_BALL_N_UNKNOWNS], guess[PLATE_BALL_N_UNKNOWNS];
+        double x[PLATE_BALL_N_UNKNOWNS], guess[PLATE_BALL_N_UNKNOWNS];
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
+#if PLATE_BALL_N_INPUTS > 0
+        memcpy(current, states + (size_t)k * PLATE_BALL_N_KNOWNS, sizeof current);
+        memcpy(current + PLATE_BALL_N_KNOWNS - PLATE_BALL_N_INPUTS, u + (size_t)k * PLATE_BALL_N_INPUTS, sizeof(double) * PLATE_BALL_N_INPUTS);
+#endif
         if (extrapolated) {
             plate_ball_extrapolate(warm, guess);
-            memcpy(u, guess, sizeof u);
+            memcpy(x, guess, sizeof x);
         } else {
-            plate_ball_predict(current, p, u);
+            plate_ball_predict(current, p, x);
         }
-        status = plate_ball_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
+        status = plate_ball_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
         if (extrapolated) {
             /* a solution far outside the trust region of the guess: another branch */
-            const int jumped = status == PLATE_BALL_OK && !plate_ball_trusted(warm, guess, u, options->trust_factor);
+            const int jumped = status == PLATE_BALL_OK && !plate_ball_trusted(warm, guess, x, options->trust_factor);
             if (status != PLATE_BALL_OK || jumped) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */
                 double far[PLATE_BALL_N_UNKNOWNS];
                 const double far_norm = residual_norms[k];
                 int more = 0;
-                memcpy(far, u, sizeof far);
-                plate_ball_predict(current, p, u);
-                status = plate_ball_newton(current, p, options, u, &more, &residual_norms[k]);
+                memcpy(far, x, sizeof far);
+                plate_ball_predict(current, p, x);
+                status = plate_ball_newton(current, p, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != PLATE_BALL_OK && jumped) { /* report the far solution */
-                    memcpy(u, far, sizeof far);
+                    memcpy(x, far, sizeof far);
                     residual_norms[k] = far_norm;
                 }
-                if (status == PLATE_BALL_OK ? !plate_ball_trusted(warm, guess, u, options->trust_factor) : jumped) {
+                if (status == PLATE_BALL_OK ? !plate_ball_trusted(warm, guess, x, options->trust_factor) : jumped) {
                     status = PLATE_BALL_BRANCH_JUMP;
                 }
             }
         }
         if (status == PLATE_BALL_OK) {
-            plate_ball_next_knowns(u, current, p, next);
+            plate_ball_next_knowns(x, current, p, next);
             if (!isfinite(plate_ball_norm_inf(next, PLATE_BALL_N_KNOWNS))) {
                 status = PLATE_BALL_NON_FINITE;
             }
@@ -1351,12 +1387,12 @@ int plate_ball_simulate(const double *known0, const double *p, long n_steps, con
                 *failed_step = k;
             }
             if (last_iterate != NULL) {
-                memcpy(last_iterate, u, sizeof u);
+                memcpy(last_iterate, x, sizeof x);
             }
             return status;
         }
         memcpy(states + (size_t)(k + 1) * PLATE_BALL_N_KNOWNS, next, sizeof next);
-        plate_ball_remember(u, warm);
+        plate_ball_remember(x, warm);
     }
     return PLATE_BALL_OK;
 }
@@ -1390,7 +1426,7 @@ static void plate_ball_batch_advance(plate_ball_batch_cursor *cursor, const doub
         *failed_step = -1;
         *failed_iterations = 0;
         *failed_residual_norm = 0.0;
-        st = plate_ball_simulate(known0, p, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
+        st = plate_ball_simulate(known0, p, NULL, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
         if (st != PLATE_BALL_OK) { /* a non-finite state or parameter row */
             *status = st;
             return;
@@ -1402,7 +1438,7 @@ static void plate_ball_batch_advance(plate_ball_batch_cursor *cursor, const doub
     while (cursor->done < until) {
         const long n = until - cursor->done < PLATE_BALL_BATCH_CHUNK ? until - cursor->done : PLATE_BALL_BATCH_CHUNK;
         long fail = -1, solved, j;
-        const int st = plate_ball_simulate(cursor->known, p, n, options, &cursor->warm, buffer, PLATE_BALL_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        const int st = plate_ball_simulate(cursor->known, p, NULL, n, options, &cursor->warm, buffer, PLATE_BALL_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
         if (st == PLATE_BALL_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
             *kept = r;
             *status = st;
@@ -1502,6 +1538,7 @@ static int plate_ball_batch_valid(long n_batch, const double *known0, const doub
         || (PLATE_BALL_N_PARAMETERS > 0 && p == NULL)
         || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
         || (p_stride != 0 && p_stride != PLATE_BALL_N_PARAMETERS)
+        || PLATE_BALL_N_INPUTS > 0 /* (the batched entry points take no inputs yet) */
         || n_steps / every + (n_steps % every != 0) > rows - 1
         || (size_t)rows > ((size_t)-1 / sizeof(double)) / PLATE_BALL_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
         || !plate_ball_options_valid(options));
@@ -1612,11 +1649,11 @@ int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *curso
 }
 
 /* One step from a fresh start: next receives the state after known, the same bits as the
- * second row plate_ball_simulate(known, p, 1, options, NULL, ...) writes; returns its status
+ * second row plate_ball_simulate(known, p, u, 1, options, NULL, ...) writes; returns its status
  * (next is written only on success; PLATE_BALL_INVALID_ARGUMENT for a null next).  The entry
  * point with the fewest arguments, for callers that advance one state at a time (a control
  * loop in Python pays for every argument of a call). */
-int plate_ball_step(const double *known, const double *p, const plate_ball_options *options, double *next)
+int plate_ball_step(const double *known, const double *p, const double *u, const plate_ball_options *options, double *next)
 {
     double states[2 * PLATE_BALL_N_KNOWNS];
     int iterations = 0;
@@ -1625,7 +1662,7 @@ int plate_ball_step(const double *known, const double *p, const plate_ball_optio
     if (next == NULL) {
         return PLATE_BALL_INVALID_ARGUMENT;
     }
-    status = plate_ball_simulate(known, p, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
+    status = plate_ball_simulate(known, p, u, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
     if (status == PLATE_BALL_OK) {
         memcpy(next, states + PLATE_BALL_N_KNOWNS, sizeof(double) * PLATE_BALL_N_KNOWNS);
     }

@@ -40,8 +40,9 @@
  * Arrays are row-major C arrays of double; the Jacobian J is 8 x 8,
  * J[i * 8 + j] = dF_i/du_j.
  *
- * plate_ball_simulate(known0, p, n_steps, options, warm, states, capacity, iterations,
+ * plate_ball_simulate(known0, p, u, n_steps, options, warm, states, capacity, iterations,
  *                  residual_norms, failed_step, last_iterate)
+ *   (u: the inputs of a forced system; none here, pass NULL)
  *   writes the states states[k * PLATE_BALL_N_KNOWNS + i], k = 0..n_steps, into a buffer of
  *   `capacity` rows (iterations and residual_norms: capacity - 1 entries each); returns
  *   PLATE_BALL_INVALID_ARGUMENT and writes nothing when capacity < n_steps + 1.  It stops at the
@@ -69,9 +70,9 @@
  *   trajectories are shared among n_threads OpenMP threads (<= 0: the OpenMP default; never
  *   more than n_batch or PLATE_BALL_MAX_THREADS), with the same results; otherwise they run one
  *   after the other.
- * plate_ball_step(known, p, options, next) advances one state from a fresh start: next receives
- *   what plate_ball_simulate(known, p, 1, options, NULL, ...) writes in its second row.
- * plate_ball_simulate_batch_until(n_batch, cursors, known0, p, p_stride, n_steps, every, until,
+ * plate_ball_step(known, p, u, options, next) advances one state from a fresh start: next
+ *   receives what plate_ball_simulate(known, p, u, 1, options, NULL, ...) writes in its second
+ *   row. * plate_ball_simulate_batch_until(n_batch, cursors, known0, p, p_stride, n_steps, every, until,
  *                              options, states, rows, iterations, ..., n_threads)
  *   the same in installments: advances the trajectories to step `until` (at most n_steps)
  *   and returns, to be called again with a larger `until` (a caller that must stay
@@ -99,6 +100,7 @@ extern "C" {
 #define PLATE_BALL_N_PARAMETERS 4
 #define PLATE_BALL_N_FIBRE 9
 #define PLATE_BALL_N_CONSTRAINTS 3
+#define PLATE_BALL_N_INPUTS 0
 
 /* the most OpenMP threads plate_ball_simulate_batch starts (a team is created whole) */
 #define PLATE_BALL_MAX_THREADS 1024
@@ -147,9 +149,9 @@ void plate_ball_residual_scale(const double *u, const double *known, const doubl
 void plate_ball_predict(const double *known, const double *p, double *u);
 void plate_ball_next_knowns(const double *u, const double *known, const double *p, double *known_next);
 int plate_ball_solve_step(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm);
-int plate_ball_simulate(const double *known0, const double *p, long n_steps, const plate_ball_options *options, plate_ball_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
+int plate_ball_simulate(const double *known0, const double *p, const double *u, long n_steps, const plate_ball_options *options, plate_ball_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int plate_ball_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
-int plate_ball_step(const double *known, const double *p, const plate_ball_options *options, double *next);
+int plate_ball_step(const double *known, const double *p, const double *u, const plate_ball_options *options, double *next);
 int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 const char *plate_ball_status_message(int status);
 

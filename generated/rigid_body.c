@@ -1023,6 +1023,28 @@ static void rigid_body_remember(const double *u, rigid_body_warm_start *warm)
     }
 }
 
+/* 1 when the inputs of n_steps steps are given and finite: u[k * RIGID_BODY_N_INPUTS + j], the
+ * inputs of the arrow step k computes (a kernel without inputs ignores u, which may be
+ * NULL) */
+static int rigid_body_inputs_valid(const double *u, long n_steps)
+{
+#if RIGID_BODY_N_INPUTS > 0
+    long k;
+    if (n_steps > 0 && u == NULL) {
+        return 0;
+    }
+    for (k = 0; k < n_steps; ++k) {
+        if (!isfinite(rigid_body_norm_inf(u + (size_t)k * RIGID_BODY_N_INPUTS, RIGID_BODY_N_INPUTS))) {
+            return 0;
+        }
+    }
+#else
+    (void)u;
+    (void)n_steps;
+#endif
+    return 1;
+}
+
 /* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
  * Writes states[0 .. n_steps] (row k at states + k * RIGID_BODY_N_KNOWNS), and iterations[k],
  * residual_norms[k] for k < n_steps; needs capacity >= n_steps + 1 (rows of states;
@@ -1039,11 +1061,14 @@ static void rigid_body_remember(const double *u, rigid_body_warm_start *warm)
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
  * a new run.
+ * A forced kernel (RIGID_BODY_N_INPUTS > 0) reads u[k * RIGID_BODY_N_INPUTS + j], the inputs of the arrow step
+ * k computes, into the last RIGID_BODY_N_INPUTS entries of its known state (docs/conventions.md,
+ * section 20); the states written keep their own inputs there.  u may be NULL without inputs.
  * On failure returns the status, sets *failed_step = k (else -1; failed_step may be NULL)
  * and copies the last Newton iterate of that step to last_iterate (RIGID_BODY_N_UNKNOWNS
  * doubles; may be NULL); iterations[k] and residual_norms[k] describe the failed step,
  * states[k + 1 ..] are not written and warm still ends at step k - 1. */
-int rigid_body_simulate(const double *known0, const double *p, long n_steps, const rigid_body_options *options, rigid_body_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+int rigid_body_simulate(const double *known0, const double *p, const double *u, long n_steps, const rigid_body_options *options, rigid_body_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
 {
     rigid_body_options defaults;
     rigid_body_warm_start fresh;
@@ -1064,46 +1089,57 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
         || n_steps < 0 || capacity < 1 || n_steps > capacity - 1
         || !rigid_body_options_valid(options) || !rigid_body_warm_start_valid(warm)
         || !isfinite(rigid_body_norm_inf(known0, RIGID_BODY_N_KNOWNS))
-        || !isfinite(rigid_body_norm_inf(p, RIGID_BODY_N_PARAMETERS))) {
+        || !isfinite(rigid_body_norm_inf(p, RIGID_BODY_N_PARAMETERS))
+        || !rigid_body_inputs_valid(u, n_steps)) {
         return RIGID_BODY_INVALID_ARGUMENT;
     }
     memmove(states, known0, sizeof(double) * RIGID_BODY_N_KNOWNS);
     for (k = 0; k < n_steps; ++k) {
+#if RIGID_BODY_N_INPUTS > 0
+        /* the state with the inputs of the arrow this step computes in its last slot (the
+         * stored state keeps its own inputs there) */
+        double current[RIGID_BODY_N_KNOWNS];
+#else
         const double *current = states + (size_t)k * RIGID_BODY_N_KNOWNS;
+#endif
         double next[RIGID_BODY_N_KNOWNS];
-        double u[RIGID_BODY_N_UNKNOWNS], guess[RIGID_BODY_N_UNKNOWNS];
+        double x[RIGID_BODY_N_UNKNOWNS], guess[RIGID_BODY_N_UNKNOWNS];
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
+#if RIGID_BODY_N_INPUTS > 0
+        memcpy(current, states + (size_t)k * RIGID_BODY_N_KNOWNS, sizeof current);
+        memcpy(current + RIGID_BODY_N_KNOWNS - RIGID_BODY_N_INPUTS, u + (size_t)k * RIGID_BODY_N_INPUTS, sizeof(double) * RIGID_BODY_N_INPUTS);
+#endif
         if (extrapolated) {
             rigid_body_extrapolate(warm, guess);
-            memcpy(u, guess, sizeof u);
+            memcpy(x, guess, sizeof x);
         } else {
-            rigid_body_predict(current, p, u);
+            rigid_body_predict(current, p, x);
         }
-        status = rigid_body_newton(current, p, options, u, &iterations[k], &residual_norms[k]);
+        status = rigid_body_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
         if (extrapolated) {
             /* a solution far outside the trust region of the guess: another branch */
-            const int jumped = status == RIGID_BODY_OK && !rigid_body_trusted(warm, guess, u, options->trust_factor);
+            const int jumped = status == RIGID_BODY_OK && !rigid_body_trusted(warm, guess, x, options->trust_factor);
             if (status != RIGID_BODY_OK || jumped) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */
                 double far[RIGID_BODY_N_UNKNOWNS];
                 const double far_norm = residual_norms[k];
                 int more = 0;
-                memcpy(far, u, sizeof far);
-                rigid_body_predict(current, p, u);
-                status = rigid_body_newton(current, p, options, u, &more, &residual_norms[k]);
+                memcpy(far, x, sizeof far);
+                rigid_body_predict(current, p, x);
+                status = rigid_body_newton(current, p, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != RIGID_BODY_OK && jumped) { /* report the far solution */
-                    memcpy(u, far, sizeof far);
+                    memcpy(x, far, sizeof far);
                     residual_norms[k] = far_norm;
                 }
-                if (status == RIGID_BODY_OK ? !rigid_body_trusted(warm, guess, u, options->trust_factor) : jumped) {
+                if (status == RIGID_BODY_OK ? !rigid_body_trusted(warm, guess, x, options->trust_factor) : jumped) {
                     status = RIGID_BODY_BRANCH_JUMP;
                 }
             }
         }
         if (status == RIGID_BODY_OK) {
-            rigid_body_next_knowns(u, current, p, next);
+            rigid_body_next_knowns(x, current, p, next);
             if (!isfinite(rigid_body_norm_inf(next, RIGID_BODY_N_KNOWNS))) {
                 status = RIGID_BODY_NON_FINITE;
             }
@@ -1113,12 +1149,12 @@ int rigid_body_simulate(const double *known0, const double *p, long n_steps, con
                 *failed_step = k;
             }
             if (last_iterate != NULL) {
-                memcpy(last_iterate, u, sizeof u);
+                memcpy(last_iterate, x, sizeof x);
             }
             return status;
         }
         memcpy(states + (size_t)(k + 1) * RIGID_BODY_N_KNOWNS, next, sizeof next);
-        rigid_body_remember(u, warm);
+        rigid_body_remember(x, warm);
     }
     return RIGID_BODY_OK;
 }
@@ -1152,7 +1188,7 @@ static void rigid_body_batch_advance(rigid_body_batch_cursor *cursor, const doub
         *failed_step = -1;
         *failed_iterations = 0;
         *failed_residual_norm = 0.0;
-        st = rigid_body_simulate(known0, p, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
+        st = rigid_body_simulate(known0, p, NULL, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
         if (st != RIGID_BODY_OK) { /* a non-finite state or parameter row */
             *status = st;
             return;
@@ -1164,7 +1200,7 @@ static void rigid_body_batch_advance(rigid_body_batch_cursor *cursor, const doub
     while (cursor->done < until) {
         const long n = until - cursor->done < RIGID_BODY_BATCH_CHUNK ? until - cursor->done : RIGID_BODY_BATCH_CHUNK;
         long fail = -1, solved, j;
-        const int st = rigid_body_simulate(cursor->known, p, n, options, &cursor->warm, buffer, RIGID_BODY_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        const int st = rigid_body_simulate(cursor->known, p, NULL, n, options, &cursor->warm, buffer, RIGID_BODY_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
         if (st == RIGID_BODY_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
             *kept = r;
             *status = st;
@@ -1264,6 +1300,7 @@ static int rigid_body_batch_valid(long n_batch, const double *known0, const doub
         || (RIGID_BODY_N_PARAMETERS > 0 && p == NULL)
         || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
         || (p_stride != 0 && p_stride != RIGID_BODY_N_PARAMETERS)
+        || RIGID_BODY_N_INPUTS > 0 /* (the batched entry points take no inputs yet) */
         || n_steps / every + (n_steps % every != 0) > rows - 1
         || (size_t)rows > ((size_t)-1 / sizeof(double)) / RIGID_BODY_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
         || !rigid_body_options_valid(options));
@@ -1374,11 +1411,11 @@ int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *curso
 }
 
 /* One step from a fresh start: next receives the state after known, the same bits as the
- * second row rigid_body_simulate(known, p, 1, options, NULL, ...) writes; returns its status
+ * second row rigid_body_simulate(known, p, u, 1, options, NULL, ...) writes; returns its status
  * (next is written only on success; RIGID_BODY_INVALID_ARGUMENT for a null next).  The entry
  * point with the fewest arguments, for callers that advance one state at a time (a control
  * loop in Python pays for every argument of a call). */
-int rigid_body_step(const double *known, const double *p, const rigid_body_options *options, double *next)
+int rigid_body_step(const double *known, const double *p, const double *u, const rigid_body_options *options, double *next)
 {
     double states[2 * RIGID_BODY_N_KNOWNS];
     int iterations = 0;
@@ -1387,7 +1424,7 @@ int rigid_body_step(const double *known, const double *p, const rigid_body_optio
     if (next == NULL) {
         return RIGID_BODY_INVALID_ARGUMENT;
     }
-    status = rigid_body_simulate(known, p, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
+    status = rigid_body_simulate(known, p, u, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
     if (status == RIGID_BODY_OK) {
         memcpy(next, states + RIGID_BODY_N_KNOWNS, sizeof(double) * RIGID_BODY_N_KNOWNS);
     }

@@ -41,6 +41,7 @@ TOY_C = r"""
 #define TOY_N_UNKNOWNS 2
 #define TOY_N_KNOWNS 2
 #define TOY_N_PARAMETERS 1
+#define TOY_N_INPUTS 0
 #include <math.h>
 #include "stepper.h"
 
@@ -139,7 +140,8 @@ def toy(tmp_path_factory):
     (where / "toy.c").write_text(TOY_C)
     sizes = where / "toy_sizes.h"
     sizes.write_text("#define TOY_N_EQUATIONS 2\n#define TOY_N_UNKNOWNS 2\n"
-                     "#define TOY_N_KNOWNS 2\n#define TOY_N_PARAMETERS 1\n")
+                     "#define TOY_N_KNOWNS 2\n#define TOY_N_PARAMETERS 1\n"
+                     "#define TOY_N_INPUTS 0\n")
     objects = []
     for source in (library_dir() / "stepper.c", library_dir() / "batch.c", where / "toy.c"):
         obj = where / (source.stem + ".o")
@@ -171,7 +173,7 @@ def _c_simulate(lib, known0, p, n_steps: int, options: NewtonOptions):
     warm = _WarmStart()
     status = lib.toy_simulate(
         _double_p(np.array(known0, dtype=float)), _double_p(np.array(p, dtype=float)),
-        ctypes.c_long(n_steps), ctypes.byref(_c_options(lib, options)), ctypes.byref(warm),
+        None, ctypes.c_long(n_steps), ctypes.byref(_c_options(lib, options)), ctypes.byref(warm),
         _double_p(states), ctypes.c_long(n_steps + 1),
         iterations.ctypes.data_as(ctypes.POINTER(ctypes.c_int)), _double_p(norms),
         ctypes.byref(failed), _double_p(last))
@@ -225,11 +227,11 @@ def test_c_library_and_numpy_twin_agree_bit_for_bit(toy, known0, expected, extra
 def test_one_step_entry_point_and_invalid_arguments(toy):
     options = _c_options(toy, NewtonOptions())
     nxt = np.zeros(2)
-    status = toy.toy_step(_double_p(np.array([4.0, 1.5])), _double_p(np.array([0.5])),
+    status = toy.toy_step(_double_p(np.array([4.0, 1.5])), _double_p(np.array([0.5])), None,
                           ctypes.byref(options), _double_p(nxt))
     assert status == Status.OK and nxt.tolist() == [4.5, 2.0]
     options.max_iterations = -1
-    assert toy.toy_step(_double_p(np.array([4.0, 1.5])), _double_p(np.array([0.5])),
+    assert toy.toy_step(_double_p(np.array([4.0, 1.5])), _double_p(np.array([0.5])), None,
                         ctypes.byref(options), _double_p(nxt)) == Status.INVALID_ARGUMENT
 
 

@@ -57,7 +57,7 @@ int main(int argc, char **argv)
     {   /* the starts: states 0 .. runs - 1 of one trajectory */
         int *its = malloc(sizeof(int) * (size_t)runs);
         double *res = malloc(sizeof(double) * (size_t)runs);
-        code = its && res ? plate_ball_simulate(state0, params, runs - 1, NULL, NULL, starts,
+        code = its && res ? plate_ball_simulate(state0, params, NULL, runs - 1, NULL, NULL, starts,
                                                 runs, its, res, NULL, NULL)
                           : PLATE_BALL_INVALID_ARGUMENT;
         free(its);

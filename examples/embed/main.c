@@ -88,7 +88,7 @@ int main(int argc, char **argv)
     plate_ball_default_options(&options);
     memset(&warm, 0, sizeof warm);
     /* zero steps: still validate the input (and echo the state) */
-    status = plate_ball_simulate(states, params, 0, &options, &warm, states, CHUNK + 1,
+    status = plate_ball_simulate(states, params, NULL, 0, &options, &warm, states, CHUNK + 1,
                                  iterations, norms, &failed, last);
     if (status != PLATE_BALL_OK) {
         fprintf(stderr, "plate_ball_simulate: %s\n", plate_ball_status_message(status));
@@ -97,7 +97,7 @@ int main(int argc, char **argv)
     print_state(0, 0, 0.0, states);
     for (done = 0; done < steps; done += n) {
         n = steps - done < CHUNK ? steps - done : CHUNK;
-        status = plate_ball_simulate(states, params, n, &options, &warm, states, CHUNK + 1,
+        status = plate_ball_simulate(states, params, NULL, n, &options, &warm, states, CHUNK + 1,
                                      iterations, norms, &failed, last);
         if (status != PLATE_BALL_OK) {
             fprintf(stderr, "step %ld failed: %s\n", done + failed,

@@ -208,16 +208,18 @@ class _Kernel:
                         residual_norms: np.ndarray, p, inputs: np.ndarray,
                         upcoming: np.ndarray, options: NewtonOptions, warm) -> ChunkRun:
         """A run of a forced system in the buffers of :meth:`simulate_into` (R = steps + 1
-        rows): before step k, row k of ``inputs`` is written into the entries ``upcoming`` of
-        state k (the slot of the next arrow's inputs, docs/conventions.md §20), then the
-        step runs in place with the warm start carried, as one :meth:`simulate_into` call
-        per step.  Returns after the first failing step (``failed_step`` its index)."""
+        rows), as ``<prefix>_simulate`` runs it with inputs: step k starts from state k with
+        row k of ``inputs`` in its entries ``upcoming`` (the slot of the next arrow's inputs,
+        docs/conventions.md §20), the stored state keeping its own; the warm start is
+        carried.  Returns after the first failing step (``failed_step`` its index)."""
         for k in range(len(inputs)):
-            states[k, upcoming] = inputs[k]
-            chunk = self.simulate_into(states, iterations, residual_norms, k, 1, p, options,
-                                       warm)
-            if chunk.status != OK:
-                return ChunkRun(chunk.status, k, k, chunk.last_iterate)
+            current = states[k].copy()
+            current[upcoming] = inputs[k]
+            run = self.simulate(current, p, 1, options, warm)
+            iterations[k], residual_norms[k] = run.iterations[0], run.residual_norms[0]
+            if run.status != OK:
+                return ChunkRun(run.status, k, k, run.last_iterate)
+            states[k + 1] = run.states[1]
         return ChunkRun(OK, len(inputs), -1, np.zeros(self.n_u))
 
     def step_once(self, known: np.ndarray, p: np.ndarray, options: NewtonOptions
@@ -229,19 +231,23 @@ class _Kernel:
         run = self.simulate(known, p, 1, options)
         return run.status, run.states[1]
 
-    def step_entry(self) -> tuple[Callable, Callable, Callable]:
+    def step_entry(self) -> tuple[Callable, Callable, Callable, object]:
         """What a control loop calls per step with the least Python around it (see
-        :mod:`~symgroupoid.runtime._fast_step`): (``entry(known, p, options, out)`` → status,
-        writing the next state into ``out``; ``view_of(array)``, what ``entry`` takes for a
-        vector; ``options_of(options)``, what it takes for :class:`NewtonOptions`).  Here
-        the vectors and options themselves, through :meth:`step_once`."""
-        def entry(known, p, options, out) -> int:
+        :mod:`~symgroupoid.runtime._fast_step`): (``entry(known, p, u, options, out)`` →
+        status, writing the next state into ``out``; ``view_of(array)``, what ``entry``
+        takes for a vector; ``options_of(options)``, what it takes for
+        :class:`NewtonOptions`; what it takes for "no inputs" as ``u``).  Here the vectors
+        and options themselves, through :meth:`step_once`."""
+        def entry(known, p, u, options, out) -> int:
+            if u is not None:  # the inputs of the new arrow in the state's last slot
+                known = known.copy()
+                known[len(known) - len(u):] = u
             status, after = self.step_once(known, p, options)
             if status == OK:
                 out[:] = after
             return status
 
-        return entry, _itself, _itself
+        return entry, _itself, _itself, None
 
     def _simulate_into(self, states, iterations, residual_norms, start: int, n_steps: int,
                        p, options: NewtonOptions, warm) -> ChunkRun:

@@ -113,14 +113,15 @@ class CKernel(_Kernel):
         return self._stepper
 
     def step_entry(self):
-        """:meth:`_Kernel.step_entry` in C: ``<prefix>_step`` (four arguments: the state,
-        the parameters, the options, the next state), ``ffi.from_buffer`` for the vectors
-        and the options' C struct; in a module built before ``<prefix>_step`` existed, the
-        base class's (through :meth:`stepper`)."""
+        """:meth:`_Kernel.step_entry` in C: ``<prefix>_step`` (five arguments: the state,
+        the parameters, the inputs (NULL), the options, the next state), ``ffi.from_buffer``
+        for the vectors and the options' C struct; in a module built before
+        ``<prefix>_step`` existed, the base class's (through :meth:`stepper`)."""
         entry = getattr(self.lib, f"{self.prefix}_step", None)
         if entry is None:
             return super().step_entry()
-        return entry, functools.partial(self.ffi.from_buffer, "double[]"), self._options
+        return (entry, functools.partial(self.ffi.from_buffer, "double[]"), self._options,
+                self.ffi.NULL)
 
     def _until_entry(self):
         """``<prefix>_simulate_batch_until``, or None in a module built before it existed
@@ -224,7 +225,8 @@ class CKernel(_Kernel):
         last = np.zeros(self.n_u)
         failed = self.ffi.new("long *")
         status = int(self._f["simulate"](
-            base, self._buf(p, self.n_p, "p"), n_steps, self._options(options), warm, base,
+            base, self._buf(p, self.n_p, "p"), self.ffi.NULL, n_steps, self._options(options),
+            warm, base,
             rows - start, self._buf(iterations, rows - 1, "iterations", "int") + start,
             self._buf(residual_norms, rows - 1, "residual_norms") + start, failed,
             self._buf(last, self.n_u, "last_iterate")))
@@ -233,8 +235,8 @@ class CKernel(_Kernel):
 
     def simulate_inputs(self, states, iterations, residual_norms, p, inputs, upcoming,
                         options: NewtonOptions, warm) -> ChunkRun:
-        """:meth:`_Kernel.simulate_inputs` with the C views of the buffers made once: one
-        ``<prefix>_simulate`` call of one step per input row, at pointers into them."""
+        """:meth:`_Kernel.simulate_inputs` in one ``<prefix>_simulate`` call, which reads
+        the inputs of step k from row k of ``inputs`` (docs/conventions.md §20)."""
         rows = _run_buffers(states, iterations, residual_norms, self.n_k)
         p = real_vector(p, self.n_p, "p")
         inputs = np.ascontiguousarray(inputs, dtype=float)
@@ -249,14 +251,12 @@ class CKernel(_Kernel):
         pb, opts = self._buf(p, self.n_p, "p"), self._options(options)
         last = np.zeros(self.n_u)
         lastb, failed = self._buf(last, self.n_u, "last_iterate"), self.ffi.new("long *")
-        simulate = self._f["simulate"]
-        for k in range(len(inputs)):
-            states[k, upcoming] = inputs[k]
-            at = base + k * n
-            status = int(simulate(at, pb, 1, opts, warm, at, 2, its + k, norms + k, failed,
-                                  lastb))
-            if status != OK:
-                return ChunkRun(status, k, k, last)
+        ub = self._buf(inputs, inputs.size, "inputs")
+        status = int(self._f["simulate"](base, pb, ub, len(inputs), opts, warm, base, rows, its,
+                                         norms, failed, lastb))
+        if status != OK:
+            k = max(int(failed[0]), 0)
+            return ChunkRun(status, k, k, last)
         return ChunkRun(OK, len(inputs), -1, last)
 
     def _residual(self, u, known, p) -> np.ndarray:
@@ -302,7 +302,8 @@ class CKernel(_Kernel):
         last = np.zeros(self.n_u)
         failed = self.ffi.new("long *")
         status = self._f["simulate"](
-            self._buf(known0, self.n_k, "known0"), self._buf(p, self.n_p, "p"), n_steps,
+            self._buf(known0, self.n_k, "known0"), self._buf(p, self.n_p, "p"), self.ffi.NULL,
+            n_steps,
             self._options(options), warm, self._buf(states, rows * self.n_k, "states"), rows,
             self._buf(iterations, max(n_steps, 1), "iterations", "int"),
             self._buf(norms, max(n_steps, 1), "residual_norms"), failed,
@@ -341,7 +342,7 @@ def _one_step_caller(kernel: CKernel):
             at = previous[1] if previous[0] is known else from_buffer("double[]", known)
             after = empty(n_k)
             view = from_buffer("double[]", after)
-            status = step_function(at, held[3], held[1], view)
+            status = step_function(at, held[3], ffi.NULL, held[1], view)
             returned[0] = (after, view)
             return status, after
 
@@ -357,7 +358,7 @@ def _one_step_caller(kernel: CKernel):
         held, at = views(known, p, options)
         out = empty((2, n_k))
         view = from_buffer("double[]", out)
-        status = simulate(at, held[3], 1, held[1], null, view, 2, block[0], block[1], null,
+        status = simulate(at, held[3], null, 1, held[1], null, view, 2, block[0], block[1], null,
                           null)
         after = out[1]
         returned[0] = (after, view + n_k)

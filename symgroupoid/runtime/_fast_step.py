@@ -173,7 +173,7 @@ def _fast_call(sim, fast: FastStep):
     screened, and the C views of all three are at hand, so the call is the kernel's entry
     and a few comparisons.  Any other call looks its state up in the table."""
     shape, trusted, screen = (sim.layout.n_known,), fast.trusted, fast.parameters
-    entry, view_of, options_of = sim.kernel.step_entry()
+    entry, view_of, options_of, no_inputs = sim.kernel.step_entry()
     ndarray, float64, contiguous, newton_options = np.ndarray, _FLOAT64, _CONTIGUOUS, \
         NewtonOptions
     empty, n_known = np.empty, sim.layout.n_known
@@ -184,7 +184,7 @@ def _fast_call(sim, fast: FastStep):
     #: one).  Its state joins the table when the chain breaks.
     chain = [(None, None, None, (None,) * 7)]
 
-    def call(state, params, options):
+    def call(state, params, options, u=None):
         link = chain[0]
         setting = link[3]
         if (state is link[0] and params is setting[0]
@@ -201,13 +201,14 @@ def _fast_call(sim, fast: FastStep):
             if same is not None:
                 after = empty(n_known)
                 view = view_of(after)
-                if entry(link[2], setting[3], setting[5], view) != OK:
+                if entry(link[2], setting[3], no_inputs if u is None else view_of(u),
+                         setting[5], view) != OK:
                     return None
                 chain[0] = (after, after.tobytes(), view, setting)
                 return after
-        return table_call(state, params, options, link)
+        return table_call(state, params, options, link, u)
 
-    def table_call(state, params, options, link):
+    def table_call(state, params, options, link, u=None):
         """:func:`call` for a state of the table under screened parameters, else None."""
         if link[0] is not None:  # the chain broke: its last state joins the table
             _remember(trusted, link[1] + link[3][6])
@@ -228,7 +229,8 @@ def _fast_call(sim, fast: FastStep):
         c_options = setting[5] if options is setting[4] else options_of(options)
         after = empty(n_known)
         view = view_of(after)
-        if entry(view_of(state), p_view, c_options, view) != OK:
+        if entry(view_of(state), p_view, no_inputs if u is None else view_of(u), c_options,
+                 view) != OK:
             return None
         chain[0] = (after, after.tobytes(), view,
                     (params, _fingerprint(params, p), p, p_view, options, c_options, tail))

@@ -2,13 +2,14 @@
 
 The state of a forced system holds the inputs u_k of its arrow g_k and, after them, a slot
 for the inputs u_{k+1} of the arrow the next step computes (the step's residual reads both:
-f⁺(g_k) + f⁻(g_{k+1})).  A run writes row j of the input sequence into that slot of state j
-before step j, so each kept state is the full record (g_j, λ_j, u_j, u_{j+1}); the last
-state's slot repeats its own inputs.
+f⁺(g_k) + f⁻(g_{k+1})).  Step j of a run reads row j of the input sequence into that slot
+of the state it starts from (in C, ``<prefix>_simulate`` reads u[j·m + i]); the states kept
+hold their own inputs in the slot.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 
 import numpy as np
@@ -52,6 +53,19 @@ def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=float)
 
 
+def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
+    """The inputs of one step (:meth:`Simulator.step`): None for a system without inputs
+    (and none given); a C-contiguous float64 vector of the m inputs, finite, passes as it
+    is; anything else goes through :func:`input_sequence`."""
+    m = layout.n_inputs
+    if m == 0 and inputs is None:
+        return None
+    if (type(inputs) is np.ndarray and inputs.dtype == np.float64 and inputs.shape == (m,)
+            and inputs.flags.c_contiguous and m and all(map(math.isfinite, inputs.tolist()))):
+        return inputs
+    return input_sequence(layout, None if inputs is None else [inputs], 1, owner=owner)[0]
+
+
 def refuse_inputs(layout, what: str, *, owner: str) -> None:
     """An :class:`UnsupportedFeatureError` for an entry point that does not take per-step
     inputs yet, when the system has them (it would hold them constant silently)."""
@@ -65,10 +79,8 @@ def refuse_inputs(layout, what: str, *, owner: str) -> None:
 def input_chunks(kernel, layout, known0: np.ndarray, p: np.ndarray, inputs: np.ndarray,
                  options: NewtonOptions) -> Iterator[tuple[int, RawRun]]:
     """The run of ``len(inputs)`` steps as one :class:`RawRun` (the shape of
-    :func:`~symgroupoid.runtime._runs.run_chunks`): before step j the inputs of row j go
-    into state j, then the kernel advances that one step in place
-    (:meth:`~symgroupoid.runtime._backends._Kernel.simulate_inputs`) with the Newton warm
-    start carried from step to step, as within one kernel call."""
+    :func:`~symgroupoid.runtime._runs.run_chunks`): step j reads row j of the inputs
+    (:meth:`~symgroupoid.runtime._backends._Kernel.simulate_inputs`, one kernel call)."""
     steps = len(inputs)
     warm = kernel.warm_start()
     states = np.empty((steps + 1, layout.n_known))
@@ -85,4 +97,4 @@ def input_chunks(kernel, layout, known0: np.ndarray, p: np.ndarray, inputs: np.n
     yield 0, RawRun(states, iterations, norms, OK, -1, np.zeros(0))
 
 
-__all__ = ["input_chunks", "input_sequence", "refuse_inputs"]
+__all__ = ["input_chunks", "input_sequence", "refuse_inputs", "step_inputs"]

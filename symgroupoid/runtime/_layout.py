@@ -160,13 +160,6 @@ class StateLayout:
         """Inputs per arrow (0 for a system without inputs)."""
         return len(getattr(self, "input_index", ()))
 
-    def with_upcoming(self, state: np.ndarray, inputs: np.ndarray) -> np.ndarray:
-        """A copy of the flat ``state`` whose slot for the next arrow's inputs holds
-        ``inputs``."""
-        out = np.array(state, dtype=float)
-        out[self.upcoming_index] = inputs
-        return out
-
     # --- user input → flat state --------------------------------------------------------------
     def pack(self, initial: Mapping) -> np.ndarray:
         """The flat known vector from named parts (see the module docstring)."""

@@ -21,7 +21,7 @@ from .._errors import (
 from .._progress import Task
 from ..stepper import Status
 from ._backends import real_vector
-from ._inputs import input_chunks, input_sequence, refuse_inputs
+from ._inputs import input_chunks, input_sequence, refuse_inputs, step_inputs
 from ._layout import StateLayout
 from ._options import NewtonOptions
 from ._runs import OK, run_chunks
@@ -164,8 +164,6 @@ class Simulator:
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
         if self.layout.n_inputs:
-            if steps:
-                known0 = self.layout.with_upcoming(known0, U[0])
             run = _SampledRun(self, known0, p, rows, every, U)
         else:
             run = (_WholeRun(self, known0, p, rows) if every == 1
@@ -324,16 +322,13 @@ class Simulator:
         computes (the state carries those of its own arrow), the same bits as
         ``simulate(state, 1, params, inputs=[inputs]).states[1]``.
         """
-        if self.layout.n_inputs or inputs is not None:
-            U = input_sequence(self.layout, None if inputs is None else [inputs], 1,
-                               owner=self.name)
-            return self.simulate(state, 1, params, options=options, inputs=U).states[1].copy()
-        after = self._fast_call(state, params, options)
+        u = step_inputs(self.layout, inputs, owner=self.name)
+        after = self._fast_call(state, params, options, u)
         if after is not None:
             return after
-        return self._checked_step(state, params, options)
+        return self._checked_step(state, params, options, u)
 
-    def _checked_step(self, state, params, options) -> np.ndarray:
+    def _checked_step(self, state, params, options, u=None) -> np.ndarray:
         """:meth:`step` with every check of :meth:`simulate` (the first call of a loop, or
         an input the fast path does not know); a failed step raises as :meth:`simulate`
         does, with ``err.trajectory``."""
@@ -342,9 +337,16 @@ class Simulator:
         known = self.state(state, p)
         fast = self._fast_step
         fast.trust(known, p)
-        status, after = fast.run(known, p, options)
+        if u is None:
+            status, after = fast.run(known, p, options)
+        else:  # the kernel's entry with the new arrow's inputs
+            entry, view_of, options_of, _ = self.kernel.step_entry()
+            after = np.empty(self.layout.n_known)
+            status = entry(view_of(known), view_of(p), view_of(u), options_of(options),
+                           view_of(after))
         if status != OK:  # the run of one step raises the error, with its trajectory
-            return self.simulate(known, 1, p, options=options).states[1].copy()
+            return self.simulate(known, 1, p, options=options,
+                                 inputs=None if u is None else u[None]).states[1].copy()
         fast.trust(after, p)
         return after
 

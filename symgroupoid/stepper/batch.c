@@ -2,7 +2,7 @@
  * The code of a step kernel that runs rarely or once per call: the batched entry points
  * (OpenMP), the one-step entry point and the status messages (symgroupoid.stepper; see
  * stepper.h).  In one file with the stepper (stepper.c), or in a translation unit of its own
- * compiled at -Og beside the others (see ``symgroupoid.runtime._build.unit_flags``):
+ * compiled at -Og beside the others (see ``symgroupoid.runtime.toolchain``):
  * nothing here is floating-point arithmetic of a step, so the optimisation level changes no
  * result.
  */
@@ -39,7 +39,7 @@ static void SG_NAME(batch_advance)(SG_NAME(batch_cursor) *cursor, const double *
         *failed_step = -1;
         *failed_iterations = 0;
         *failed_residual_norm = 0.0;
-        st = SG_NAME(simulate)(known0, p, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
+        st = SG_NAME(simulate)(known0, p, NULL, 0, options, &cursor->warm, buffer, 1, its, norms, NULL, NULL);
         if (st != SG_OK) { /* a non-finite state or parameter row */
             *status = st;
             return;
@@ -51,7 +51,7 @@ static void SG_NAME(batch_advance)(SG_NAME(batch_cursor) *cursor, const double *
     while (cursor->done < until) {
         const long n = until - cursor->done < SG_BATCH_CHUNK ? until - cursor->done : SG_BATCH_CHUNK;
         long fail = -1, solved, j;
-        const int st = SG_NAME(simulate)(cursor->known, p, n, options, &cursor->warm, buffer, SG_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        const int st = SG_NAME(simulate)(cursor->known, p, NULL, n, options, &cursor->warm, buffer, SG_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
         if (st == SG_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
             *kept = r;
             *status = st;
@@ -151,6 +151,7 @@ static int SG_NAME(batch_valid)(long n_batch, const double *known0, const double
         || (SG_N_PARAMETERS > 0 && p == NULL)
         || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
         || (p_stride != 0 && p_stride != SG_N_PARAMETERS)
+        || SG_N_INPUTS > 0 /* (the batched entry points take no inputs yet) */
         || n_steps / every + (n_steps % every != 0) > rows - 1
         || (size_t)rows > ((size_t)-1 / sizeof(double)) / SG_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
         || !SG_NAME(options_valid)(options));
@@ -261,11 +262,11 @@ int SG_NAME(simulate_batch_until)(long n_batch, SG_NAME(batch_cursor) *cursors, 
 }
 
 /* One step from a fresh start: next receives the state after known, the same bits as the
- * second row SG_NAME(simulate)(known, p, 1, options, NULL, ...) writes; returns its status
+ * second row SG_NAME(simulate)(known, p, u, 1, options, NULL, ...) writes; returns its status
  * (next is written only on success; SG_INVALID_ARGUMENT for a null next).  The entry
  * point with the fewest arguments, for callers that advance one state at a time (a control
  * loop in Python pays for every argument of a call). */
-int SG_NAME(step)(const double *known, const double *p, const SG_NAME(options) *options, double *next)
+int SG_NAME(step)(const double *known, const double *p, const double *u, const SG_NAME(options) *options, double *next)
 {
     double states[2 * SG_N_KNOWNS];
     int iterations = 0;
@@ -274,7 +275,7 @@ int SG_NAME(step)(const double *known, const double *p, const SG_NAME(options) *
     if (next == NULL) {
         return SG_INVALID_ARGUMENT;
     }
-    status = SG_NAME(simulate)(known, p, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
+    status = SG_NAME(simulate)(known, p, u, 1, options, NULL, states, 2, &iterations, &residual_norm, NULL, NULL);
     if (status == SG_OK) {
         memcpy(next, states + SG_N_KNOWNS, sizeof(double) * SG_N_KNOWNS);
     }

@@ -709,6 +709,28 @@ static void SG_NAME(remember)(const double *u, SG_NAME(warm_start) *warm)
     }
 }
 
+/* 1 when the inputs of n_steps steps are given and finite: u[k * SG_N_INPUTS + j], the
+ * inputs of the arrow step k computes (a kernel without inputs ignores u, which may be
+ * NULL) */
+static int SG_NAME(inputs_valid)(const double *u, long n_steps)
+{
+#if SG_N_INPUTS > 0
+    long k;
+    if (n_steps > 0 && u == NULL) {
+        return 0;
+    }
+    for (k = 0; k < n_steps; ++k) {
+        if (!isfinite(SG_NAME(norm_inf)(u + (size_t)k * SG_N_INPUTS, SG_N_INPUTS))) {
+            return 0;
+        }
+    }
+#else
+    (void)u;
+    (void)n_steps;
+#endif
+    return 1;
+}
+
 /* Advance n_steps steps from known0 into a caller buffer of `capacity` rows.
  * Writes states[0 .. n_steps] (row k at states + k * SG_N_KNOWNS), and iterations[k],
  * residual_norms[k] for k < n_steps; needs capacity >= n_steps + 1 (rows of states;
@@ -725,11 +747,14 @@ static void SG_NAME(remember)(const double *u, SG_NAME(warm_start) *warm)
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
  * a new run.
+ * A forced kernel (SG_N_INPUTS > 0) reads u[k * SG_N_INPUTS + j], the inputs of the arrow step
+ * k computes, into the last SG_N_INPUTS entries of its known state (docs/conventions.md,
+ * section 20); the states written keep their own inputs there.  u may be NULL without inputs.
  * On failure returns the status, sets *failed_step = k (else -1; failed_step may be NULL)
  * and copies the last Newton iterate of that step to last_iterate (SG_N_UNKNOWNS
  * doubles; may be NULL); iterations[k] and residual_norms[k] describe the failed step,
  * states[k + 1 ..] are not written and warm still ends at step k - 1. */
-int SG_NAME(simulate)(const double *known0, const double *p, long n_steps, const SG_NAME(options) *options, SG_NAME(warm_start) *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
+int SG_NAME(simulate)(const double *known0, const double *p, const double *u, long n_steps, const SG_NAME(options) *options, SG_NAME(warm_start) *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate)
 {
     SG_NAME(options) defaults;
     SG_NAME(warm_start) fresh;
@@ -750,46 +775,57 @@ int SG_NAME(simulate)(const double *known0, const double *p, long n_steps, const
         || n_steps < 0 || capacity < 1 || n_steps > capacity - 1
         || !SG_NAME(options_valid)(options) || !SG_NAME(warm_start_valid)(warm)
         || !isfinite(SG_NAME(norm_inf)(known0, SG_N_KNOWNS))
-        || !isfinite(SG_NAME(norm_inf)(p, SG_N_PARAMETERS))) {
+        || !isfinite(SG_NAME(norm_inf)(p, SG_N_PARAMETERS))
+        || !SG_NAME(inputs_valid)(u, n_steps)) {
         return SG_INVALID_ARGUMENT;
     }
     memmove(states, known0, sizeof(double) * SG_N_KNOWNS);
     for (k = 0; k < n_steps; ++k) {
+#if SG_N_INPUTS > 0
+        /* the state with the inputs of the arrow this step computes in its last slot (the
+         * stored state keeps its own inputs there) */
+        double current[SG_N_KNOWNS];
+#else
         const double *current = states + (size_t)k * SG_N_KNOWNS;
+#endif
         double next[SG_N_KNOWNS];
-        double u[SG_N_UNKNOWNS], guess[SG_N_UNKNOWNS];
+        double x[SG_N_UNKNOWNS], guess[SG_N_UNKNOWNS];
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
+#if SG_N_INPUTS > 0
+        memcpy(current, states + (size_t)k * SG_N_KNOWNS, sizeof current);
+        memcpy(current + SG_N_KNOWNS - SG_N_INPUTS, u + (size_t)k * SG_N_INPUTS, sizeof(double) * SG_N_INPUTS);
+#endif
         if (extrapolated) {
             SG_NAME(extrapolate)(warm, guess);
-            memcpy(u, guess, sizeof u);
+            memcpy(x, guess, sizeof x);
         } else {
-            SG_NAME(predict)(current, p, u);
+            SG_NAME(predict)(current, p, x);
         }
-        status = SG_NAME(newton)(current, p, options, u, &iterations[k], &residual_norms[k]);
+        status = SG_NAME(newton)(current, p, options, x, &iterations[k], &residual_norms[k]);
         if (extrapolated) {
             /* a solution far outside the trust region of the guess: another branch */
-            const int jumped = status == SG_OK && !SG_NAME(trusted)(warm, guess, u, options->trust_factor);
+            const int jumped = status == SG_OK && !SG_NAME(trusted)(warm, guess, x, options->trust_factor);
             if (status != SG_OK || jumped) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */
                 double far[SG_N_UNKNOWNS];
                 const double far_norm = residual_norms[k];
                 int more = 0;
-                memcpy(far, u, sizeof far);
-                SG_NAME(predict)(current, p, u);
-                status = SG_NAME(newton)(current, p, options, u, &more, &residual_norms[k]);
+                memcpy(far, x, sizeof far);
+                SG_NAME(predict)(current, p, x);
+                status = SG_NAME(newton)(current, p, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != SG_OK && jumped) { /* report the far solution */
-                    memcpy(u, far, sizeof far);
+                    memcpy(x, far, sizeof far);
                     residual_norms[k] = far_norm;
                 }
-                if (status == SG_OK ? !SG_NAME(trusted)(warm, guess, u, options->trust_factor) : jumped) {
+                if (status == SG_OK ? !SG_NAME(trusted)(warm, guess, x, options->trust_factor) : jumped) {
                     status = SG_BRANCH_JUMP;
                 }
             }
         }
         if (status == SG_OK) {
-            SG_NAME(next_knowns)(u, current, p, next);
+            SG_NAME(next_knowns)(x, current, p, next);
             if (!isfinite(SG_NAME(norm_inf)(next, SG_N_KNOWNS))) {
                 status = SG_NON_FINITE;
             }
@@ -799,12 +835,12 @@ int SG_NAME(simulate)(const double *known0, const double *p, long n_steps, const
                 *failed_step = k;
             }
             if (last_iterate != NULL) {
-                memcpy(last_iterate, u, sizeof u);
+                memcpy(last_iterate, x, sizeof x);
             }
             return status;
         }
         memcpy(states + (size_t)(k + 1) * SG_N_KNOWNS, next, sizeof next);
-        SG_NAME(remember)(u, warm);
+        SG_NAME(remember)(x, warm);
     }
     return SG_OK;
 }

@@ -5,7 +5,7 @@
  * residual, residual_jacobian, residual_scale, predict, next_knowns).  Every name goes
  * through the prefix macros of sg_prefix.h; a kernel's header holds this text with its
  * prefix spelt out, after its sizes <PREFIX>_N_EQUATIONS, _N_UNKNOWNS, _N_KNOWNS,
- * _N_PARAMETERS.  The library's sources: stepper.c (the stepper: LU, rounding floors,
+ * _N_PARAMETERS, _N_INPUTS.  The library's sources: stepper.c (the stepper: LU, rounding floors,
  * Newton, warm start, simulate), batch.c (the batched and one-step entry points and the
  * status messages), options.h and prologue.h (shared by both).
  */
@@ -61,9 +61,9 @@ void SG_NAME(residual_scale)(const double *u, const double *known, const double 
 void SG_NAME(predict)(const double *known, const double *p, double *u);
 void SG_NAME(next_knowns)(const double *u, const double *known, const double *p, double *known_next);
 int SG_NAME(solve_step)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm);
-int SG_NAME(simulate)(const double *known0, const double *p, long n_steps, const SG_NAME(options) *options, SG_NAME(warm_start) *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
+int SG_NAME(simulate)(const double *known0, const double *p, const double *u, long n_steps, const SG_NAME(options) *options, SG_NAME(warm_start) *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int SG_NAME(simulate_batch)(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const SG_NAME(options) *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
-int SG_NAME(step)(const double *known, const double *p, const SG_NAME(options) *options, double *next);
+int SG_NAME(step)(const double *known, const double *p, const double *u, const SG_NAME(options) *options, double *next);
 int SG_NAME(simulate_batch_until)(long n_batch, SG_NAME(batch_cursor) *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const SG_NAME(options) *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);
 const char *SG_NAME(status_message)(int status);
 
