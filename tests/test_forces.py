@@ -461,3 +461,55 @@ def test_the_latex_names_the_forces():
     for b in (1, 2):
         assert f"f^{{+}}_{{{b}}}(g_{{k}})" in tex and f"f^{{-}}_{{{b}}}(g_{{k+1}})" in tex
     assert r"\intertext{where}" in tex and "u_{k+1}" in tex.split("where")[1]
+
+
+EMBED_MAIN = r"""
+#include <stdio.h>
+#include "plane.h"
+/* reads p (4 numbers), the state (6) and n rows of inputs; prints the n + 1 states */
+int main(int argc, char **argv)
+{
+    enum { N = 60 };
+    double p[4], known[PLANE_N_KNOWNS], u[N * PLANE_N_INPUTS], states[(N + 1) * PLANE_N_KNOWNS];
+    int iterations[N], i;
+    double norms[N];
+    long failed = -1;
+    (void)argc;
+    (void)argv;
+    for (i = 0; i < 4; ++i) if (scanf("%lf", &p[i]) != 1) return 2;
+    for (i = 0; i < PLANE_N_KNOWNS; ++i) if (scanf("%lf", &known[i]) != 1) return 2;
+    for (i = 0; i < N * PLANE_N_INPUTS; ++i) if (scanf("%lf", &u[i]) != 1) return 2;
+    if (plane_simulate(known, p, u, N, NULL, NULL, states, N + 1, iterations, norms, &failed,
+                       NULL) != PLANE_OK) return 1;
+    for (i = 0; i < (N + 1) * PLANE_N_KNOWNS; ++i) printf("%.17g\n", states[i]);
+    /* a kernel with inputs refuses to run without them */
+    return plane_simulate(known, p, NULL, N, NULL, NULL, states, N + 1, iterations, norms,
+                          &failed, NULL) == PLANE_INVALID_ARGUMENT ? 0 : 3;
+}
+"""
+
+
+def test_the_emitted_c_reads_the_inputs_and_agrees_bitwise(plane, tmp_path):
+    import shutil
+    import subprocess
+
+    if shutil.which("cc") is None:
+        pytest.skip("no C compiler (cc) on PATH")
+    sg.emit_c(plane.equations, tmp_path / "plane", prefix="plane")
+    (tmp_path / "main.c").write_text(EMBED_MAIN)
+    exe = tmp_path / "plane_demo"
+    build = subprocess.run(["cc", "-std=c99", "-O2", "-Wall", "-Wextra", "-Werror",
+                            "-ffp-contract=off", f"-I{tmp_path}", str(tmp_path / "main.c"),
+                            str(tmp_path / "plane.c"), "-lm", "-o", str(exe)],
+                           capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    U = np.cos(0.3 * np.arange(60))[:, None]
+    start = plane.state({"x": (1.0, 1.0), "y": (0.0, 0.012), "u": 0.2}, PLANE_PARAMS)
+    data = [*plane.parameters(PLANE_PARAMS), *start, *U[:, 0]]
+    run = subprocess.run([str(exe)], input=" ".join(repr(float(v)) for v in data),
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, (run.returncode, run.stderr)
+    states = np.array([float(v) for v in run.stdout.split()]).reshape(61, -1)
+    traj = plane.simulate(start, 60, PLANE_PARAMS, inputs=U)
+    assert np.array_equal(states, traj.states)  # without contraction: the same bits (§17)
+    assert np.array_equal(states[:, 4], np.r_[0.2, U[:, 0]])
