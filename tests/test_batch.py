@@ -288,52 +288,6 @@ def test_embedded_batch_program_reproduces_simulate_batch(tmp_path):
 
 # --- installments: long runs split across kernel calls; Ctrl-C ---------------------------------
 
-@pytest.mark.parametrize("backend", ["c", "numpy"])
-@pytest.mark.parametrize("every", [1, 7])
-def test_a_batch_in_installments_is_bitwise_one_call(backend, every, monkeypatch):
-    """Calls of a single step each (the warm start crossing them), failing runs included,
-    give the arrays of one call; the partial batch after a few calls is, run by run, the
-    trajectory simulate gives for the steps reached."""
-    # the installments' driver is the subject: one call per step, stopped between calls
-    from symgroupoid.runtime import _batch_progress
-
-    sim = compiled("rigid_body") if backend == "c" else seed_step("rigid_body").compile(
-        backend="numpy")
-    thetas = [0.1, 1.0, 1.5, 0.3] if backend == "c" else [0.1, 1.5]
-    S = np.array([sim.state({"W": rotation(t)}) for t in thetas])
-    P = sim.parameters(RIGID)[None]
-    steps = 40 if backend == "c" else 12
-    whole = sim.kernel.simulate_batch(S, P[0], steps, every, sim.options, 1)
-    assert not (whole.status == 0).all()
-    monkeypatch.setattr(_batch_progress, "CALL_SECONDS", 1e-9)  # one step per call
-    calls: list = []
-
-    def stop_after(n):
-        return lambda: calls.append(1) or len(calls) >= n
-
-    progress = _batch_progress.BatchProgress(sim, S, P, steps, every, None)
-    assert progress.work(0, stop_after(10**6))
-    assert len(calls) == steps - 1  # asked between calls
-    for name in whole.__dataclass_fields__:
-        if name != "states":  # (rows past a failure are not written)
-            assert np.array_equal(getattr(whole, name), getattr(progress.out, name)), name
-    for b in range(len(S)):
-        k = whole.kept[b]
-        assert np.array_equal(whole.states[b, :k], progress.out.states[b, :k])
-    calls.clear()
-    progress = _batch_progress.BatchProgress(sim, S, P, steps, every, None)
-    assert not progress.work(0, stop_after(9))
-    partial = sg.TrajectoryBatch(sim, progress.so_far(), P, steps, every)
-    for b in range(len(thetas)):
-        if partial.status[b] == sg.Status.INTERRUPTED:
-            reached = int(partial.failed_step[b])
-            assert reached == 9
-            assert_same_run(partial[b], sim.simulate(S[b], reached, RIGID, every=every))
-            assert isinstance(partial.error(b), KeyboardInterrupt)
-        else:
-            assert partial.status[b] == whole.status[b] != 0
-
-
 def test_the_installment_entry_point_checks_its_cursors():
     sim = compiled("rigid_body")
     kernel = sim.kernel

@@ -28,15 +28,10 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid.codegen import emit_c
+from symgroupoid.runtime import c_buffer, real_vector
+from symgroupoid.stepper import STATUS_MESSAGES, Status
 
-# the Python → C boundary's own buffer checks and status codes are the subject
-from symgroupoid.runtime._backends import (
-    INVALID_ARGUMENT,
-    OK,
-    c_buffer,
-    real_vector,
-)
-from symgroupoid.stepper import STATUS_MESSAGES
+OK, INVALID_ARGUMENT = Status.OK, Status.INVALID_ARGUMENT
 
 BAD_GUESSES = {
     "length 1": [0.0],

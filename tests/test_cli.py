@@ -23,9 +23,8 @@ from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autous
 
 import symgroupoid as sg
 from symgroupoid import ParameterError, ShapeError
-
-# unit tests of the command line's parsing, system files and sampling
 from symgroupoid.cli import (
+    JACOBIAN_TOLERANCE,
     InputError,
     SystemFileError,
     conservation_lines,
@@ -33,8 +32,8 @@ from symgroupoid.cli import (
     main,
     parse_count,
     parse_params,
+    sample_points,
 )
-from symgroupoid.cli._verify import JACOBIAN_TOLERANCE, sample_points
 from symgroupoid.runtime.toolchain import cache_info, clear_cache
 
 EXAMPLES = REPO / "examples" / "cli"

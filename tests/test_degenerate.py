@@ -18,9 +18,19 @@ import sympy as sp
 
 import symgroupoid as sg
 
-# the causes' constants and the numeric sampling of the diagnosis are checked directly
-from symgroupoid.equations import _findings as reg
-from symgroupoid.equations import _sampling
+# the causes are public; _sampling and default_layout are not: the diagnosis's numeric
+# sampling (its points, what counts as evidence) is checked directly, below what
+# euler_lagrange() shows, and has no public face
+from symgroupoid.equations import (
+    DEPENDENT_CONSTRAINTS,
+    IDENTICALLY_ZERO,
+    NO_UNKNOWN,
+    NOT_REGULAR,
+    UNDETERMINED_MULTIPLIER,
+    UNUSED_UNKNOWN,
+    _sampling,
+)
+from symgroupoid.equations._findings import default_layout
 from symgroupoid.systems import discrete_inertia, heavy_top, plate_ball, rigid_body
 
 h, a, ell = sp.symbols("h a ell", positive=True)
@@ -66,7 +76,7 @@ def test_null_lagrangian_is_rejected(case: str) -> None:
     """A null Lagrangian (constant or a difference f(β(g)) − f(α(g))) has DEL 0 = 0: the
     error says so, names the equation and the cause, and lists the finding."""
     err = degenerate(lambda: line(NULL_LAGRANGIANS[case]))
-    assert err.causes == (reg.IDENTICALLY_ZERO,)
+    assert err.causes == (IDENTICALLY_ZERO,)
     assert str(err).startswith("line: the step equations cannot determine the step")
     assert f"{DEL1} reads 0 = 0" in str(err)
     assert "null Lagrangian" in str(err)
@@ -80,12 +90,12 @@ def test_rigid_body_with_zero_inertia() -> None:
     system = sg.DiscreteSystem(sg.SO3("W"), lambda g: -(Jd * g.matrix).trace() / h,
                                parameters=[h], name="rigid_body")
     err = degenerate(lambda: system)
-    assert err.causes == (reg.IDENTICALLY_ZERO,)
+    assert err.causes == (IDENTICALLY_ZERO,)
     assert "equation 3 (the DEL along X_3)" in str(err) and "zero inertia" in str(err)
     with pytest.raises(sg.DegenerateSystemError,
                        match="^rigid_body_reconstruction: .*enter no equation") as lp:
         system.lie_poisson()
-    assert reg.UNUSED_UNKNOWN in lp.value.causes
+    assert UNUSED_UNKNOWN in lp.value.causes
     assert len(lp.value.findings[-1].unknowns) == 3
 
 
@@ -99,7 +109,7 @@ def test_heavy_top_with_zero_inertia() -> None:
     err = degenerate(lambda: sg.DiscreteSystem(
         G, lambda g: -(Jd * g.matrix).trace() / h - h * mgl * g.point[2],
         parameters=[h, mgl], name="top"))
-    assert reg.UNUSED_UNKNOWN in err.causes
+    assert UNUSED_UNKNOWN in err.causes
     assert all(f"(\\tau^{{-1}} W_{{k+1}})_{{{i}}}" in str(err) for i in (1, 2, 3))
 
 
@@ -159,7 +169,7 @@ def test_identically_zero_constraint(zero) -> None:
     """A constraint that is identically 0 constrains nothing and leaves its multiplier
     undetermined; the error names the constraint and the multiplier."""
     err = degenerate(lambda: plane(lambda g: [g.target[0] - g.source[0] - h, zero(g)]))
-    assert err.causes == (reg.IDENTICALLY_ZERO,)
+    assert err.causes == (IDENTICALLY_ZERO,)
     assert "The constraint φ_2 is identically zero" in str(err)
     assert err.findings[0].equations == ("equation 4 (φ_2 = 0)",)
     assert err.findings[0].unknowns == ("(\\lambda_{k+1})_{2}",)
@@ -172,7 +182,7 @@ def test_duplicate_constraints_are_dependent(factor) -> None:
     err = degenerate(lambda: plane(
         lambda g: [g.target[0] - g.source[0] - h, factor * (g.target[0] - g.source[0] - h)],
         names="x y z"))
-    assert err.causes == (reg.DEPENDENT_CONSTRAINTS,)
+    assert err.causes == (DEPENDENT_CONSTRAINTS,)
     assert "constraints φ_1 and φ_2 are dependent" in str(err)
     assert "not regular" not in str(err)
     assert set(err.findings[0].unknowns) == {"(\\lambda_{k+1})_{1}", "(\\lambda_{k+1})_{2}"}
@@ -187,7 +197,7 @@ def test_one_constraint_the_sum_of_two_others() -> None:
 
     err = degenerate(lambda: sg.DiscreteSystem(pair("x y z w"), kinetic, constraints=phi,
                                                parameters=[h], name="four"))
-    assert err.causes == (reg.DEPENDENT_CONSTRAINTS,)
+    assert err.causes == (DEPENDENT_CONSTRAINTS,)
     assert "constraints φ_1, φ_2 and φ_3 are dependent" in str(err)
 
 
@@ -195,7 +205,7 @@ def test_target_only_constraint_leaves_its_multiplier_undetermined() -> None:
     """φ = |q₁|² − ℓ² depends only on β(g): X⃗[φ] = 0, so λ_{k+1} enters no equation.  The
     message names the multiplier and points to the holonomic= argument."""
     err = degenerate(lambda: plane(lambda g: [g.target[0] ** 2 + g.target[1] ** 2 - ell**2]))
-    assert err.causes == (reg.UNDETERMINED_MULTIPLIER,)
+    assert err.causes == (UNDETERMINED_MULTIPLIER,)
     assert err.findings[0].unknowns == ("(\\lambda_{k+1})_{1}",)
     text = str(err)
     assert "(\\lambda_{k+1})_{1} of φ_1 enters no equation" in text
@@ -211,7 +221,7 @@ def test_target_only_combination_of_constraints() -> None:
     err = degenerate(lambda: plane(lambda g: [
         g.target[0] ** 2 + g.target[1] ** 2 - 1 + (g.target[0] - g.source[0]),
         g.target[0] - g.source[0]]))
-    assert err.causes == (reg.UNDETERMINED_MULTIPLIER,)
+    assert err.causes == (UNDETERMINED_MULTIPLIER,)
     assert "multipliers (\\lambda_{k+1})_{1} and (\\lambda_{k+1})_{2} of φ_1 and φ_2" in str(err)
 
 
@@ -241,7 +251,7 @@ def test_lagrangian_of_the_source_only() -> None:
     """L(q₀): the DEL 2q_k = 0 involves no unknown and q_{k+1} enters no equation; the message
     says exactly that (it is not blamed on regularity)."""
     err = degenerate(lambda: line(lambda g: g.source[0] ** 2))
-    assert err.causes == (reg.NO_UNKNOWN, reg.UNUSED_UNKNOWN)
+    assert err.causes == (NO_UNKNOWN, UNUSED_UNKNOWN)
     text = str(err)
     assert "(1) Equation 1 (the DEL along X_1) involves none of the unknowns (2*q_{k} = 0)" in text
     assert "(2) The unknown q_{k+1} enters no equation" in text
@@ -253,7 +263,7 @@ def test_coordinate_missing_from_the_lagrangian() -> None:
     and the unknown y_{k+1} in no equation."""
     err = degenerate(lambda: sg.DiscreteSystem(
         pair("x y"), lambda g: (g.target[0] - g.source[0]) ** 2 / (2 * h), parameters=[h]))
-    assert err.findings[0].cause == reg.IDENTICALLY_ZERO
+    assert err.findings[0].cause == IDENTICALLY_ZERO
     assert "(1) Equation 2 (the DEL along X_2) reads 0 = 0" in str(err)
     assert "y_{k+1} enters no equation" in str(err)
 
@@ -266,7 +276,7 @@ def test_lagrangian_that_is_not_regular() -> None:
     err = degenerate(lambda: sg.DiscreteSystem(
         pair("x y"), lambda g: (sum(g.target) - sum(g.source)) ** 2 / (2 * h), parameters=[h],
         name="sheared"))
-    assert err.causes == (reg.NOT_REGULAR,)
+    assert err.causes == (NOT_REGULAR,)
     f = err.findings[0]
     assert f.equations == (DEL1, "equation 2 (the DEL along X_2)")
     assert f.unknowns == ("x_{k+1}", "y_{k+1}")
@@ -288,7 +298,7 @@ def test_numerically_zero_equations(system: str) -> None:
     step_residuals = make()._fs.lagrangian
     assert step_residuals != 0
     err = degenerate(make)
-    assert err.causes == (reg.IDENTICALLY_ZERO,)
+    assert err.causes == (IDENTICALLY_ZERO,)
 
 
 # --- valid systems are not rejected --------------------------------------------------------------
@@ -297,7 +307,7 @@ def test_numerically_zero_equations(system: str) -> None:
 def test_seed_systems_pass(make) -> None:
     """The seed systems derive: the diagnosis finds nothing."""
     step = make().euler_lagrange()
-    assert _sampling.numeric_findings(step, reg.default_layout(step)) == []
+    assert _sampling.numeric_findings(step, default_layout(step)) == []
 
 
 def test_badly_scaled_valid_system_passes() -> None:
@@ -361,14 +371,14 @@ def acceleration(g1, g2) -> sp.Expr:
 def test_second_order_null_lagrangian() -> None:
     """L(g₁, g₂) = f(q₂) − f(q₀) is null on G₂."""
     err = degenerate(lambda: second(lambda g1, g2: g2.target[0] ** 3 - g1.source[0] ** 3))
-    assert err.causes[0] == reg.IDENTICALLY_ZERO
+    assert err.causes[0] == IDENTICALLY_ZERO
     assert "the DEL along X_1" in str(err)
 
 
 def test_first_order_lagrangian_as_second_order() -> None:
     """L(g₁, g₂) = L₁(g₁) does not involve g_{k+2}: its coordinates enter no equation."""
     err = degenerate(lambda: second(lambda g1, g2: kinetic(g1)))
-    assert reg.UNUSED_UNKNOWN in err.causes
+    assert UNUSED_UNKNOWN in err.causes
     assert "x_{k+2} and y_{k+2} enter no equation" in str(err)
 
 
@@ -377,7 +387,7 @@ def test_second_order_target_only_constraint() -> None:
     eq. (18)); the holonomic form is named, the first-order workaround is not."""
     err = degenerate(lambda: second(
         acceleration, lambda g1, g2: [g2.target[0] ** 2 + g2.target[1] ** 2 - ell**2]))
-    assert err.causes == (reg.UNDETERMINED_MULTIPLIER,)
+    assert err.causes == (UNDETERMINED_MULTIPLIER,)
     assert "(\\lambda_{k+1})_{1} of Φ_1 enters no equation" in str(err)
     assert "holonomic=lambda q" in str(err) and "ψ(β(g)) − ψ(α(g))" not in str(err)
 
@@ -389,7 +399,7 @@ def test_second_order_dependent_constraints() -> None:
         return [f, 2 * f]
 
     err = degenerate(lambda: second(acceleration, phi, names="x y z"))
-    assert err.causes == (reg.DEPENDENT_CONSTRAINTS,)
+    assert err.causes == (DEPENDENT_CONSTRAINTS,)
     assert "constraints Φ_1 and Φ_2 are dependent" in str(err)
 
 
@@ -412,7 +422,7 @@ def test_nonholonomic_dependent_constraints() -> None:
         return [f, 3 * f]
 
     err = degenerate(lambda: nonholonomic(kinetic, psi, [[0, 1, 0]]))
-    assert err.causes == (reg.DEPENDENT_CONSTRAINTS,)
+    assert err.causes == (DEPENDENT_CONSTRAINTS,)
     assert "constraints ψ_1 and ψ_2 are dependent" in str(err)
     assert "equation 2 (ψ_1 = 0)" in err.findings[0].equations
 
@@ -423,7 +433,7 @@ def test_nonholonomic_null_lagrangian() -> None:
         lambda g: sum(b - c for c, b in zip(g.source, g.target)),
         lambda g: [g.target[2] - g.source[2] - h * (g.target[0] - g.source[0])],
         [[1, 0, 0], [0, 1, 0]]))
-    assert err.causes[0] == reg.IDENTICALLY_ZERO
+    assert err.causes[0] == IDENTICALLY_ZERO
     assert ("equation 1 (the DEL along the D_c basis element 1) and equation 2 (the DEL along "
             "the D_c basis element 2) read 0 = 0") in str(err)
 
@@ -450,10 +460,10 @@ def test_rigid_body_blind_to_one_axis() -> None:
     system = sg.DiscreteSystem(sg.SO3("W"), lambda g: -(Jd * g.matrix).trace() / h,
                                parameters=[h], name="flat")
     err = degenerate(lambda: system)
-    assert err.causes == (reg.IDENTICALLY_ZERO,)
+    assert err.causes == (IDENTICALLY_ZERO,)
     assert "Equation 3 (the DEL along X_3) reads 0 = 0" in str(err)
     with pytest.raises(sg.DegenerateSystemError, match=r"^flat_reconstruction: ") as info:
         system.lie_poisson()
-    assert info.value.causes == (reg.NO_UNKNOWN,)
+    assert info.value.causes == (NO_UNKNOWN,)
     assert "Equation 3 (μ + λ·Φ = m_{k+1} along E_3) involves none of the unknowns" in str(
         info.value)

@@ -12,10 +12,23 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from symgroupoid.ir import Graph, Program, _smooth, from_sympy
-
-# the libm mirror, the smooth functions' series and the compiled program are the subject
-from symgroupoid.ir._libm import LIBM, SCALAR
+from symgroupoid.ir import (
+    LIBM,
+    SCALAR,
+    SMOOTH_ARGUMENT,
+    Graph,
+    HalfThetaCotHalfTheta,
+    OneMinusCosOverTheta2,
+    Program,
+    SE3LogCoefficient,
+    SinOverTheta,
+    ThetaMinusSinOverTheta3,
+    ThetaOverTwoSin,
+    derivative_of,
+    from_sympy,
+    smooth_function,
+    taylor_coefficients,
+)
 from symgroupoid.runtime import compile_program
 
 x, y = sp.symbols("x y", real=True)
@@ -26,18 +39,18 @@ ELEMENTARY = [sp.sin(x), sp.cos(x), sp.tan(x), sp.exp(x), sp.log(r), sp.asin(u),
               sp.atan(x), sp.sinh(x), sp.cosh(x), sp.tanh(x), sp.atan2(y, x),
               r ** sp.Rational(3, 2), x ** 7, r ** -sp.Rational(5, 3), sp.exp(sp.sin(x) * y) / r]
 
-SMOOTH = [_smooth.SinOverTheta, _smooth.OneMinusCosOverTheta2, _smooth.ThetaMinusSinOverTheta3,
-          _smooth.HalfThetaCotHalfTheta, _smooth.SE3LogCoefficient]
+SMOOTH = [SinOverTheta, OneMinusCosOverTheta2, ThetaMinusSinOverTheta3, HalfThetaCotHalfTheta,
+          SE3LogCoefficient]
 
 
 def _smooth_expressions() -> list[sp.Expr]:
     out = []
     for cls in SMOOTH:
-        d1 = _smooth.derivative_of(cls)
-        for f in (cls, d1, _smooth.derivative_of(d1)):
+        d1 = derivative_of(cls)
+        for f in (cls, d1, derivative_of(d1)):
             out += [f(x ** 2 * sp.Rational(1, 50)), f(y ** 2 * 3)]  # near and far from 0
     c = u * sp.Rational(1, 2) + sp.Rational(1, 2)  # cos θ in (0, 1), near 1 for large x
-    out += [_smooth.ThetaOverTwoSin(c), _smooth.derivative_of(_smooth.ThetaOverTwoSin)(c)]
+    out += [ThetaOverTwoSin(c), derivative_of(ThetaOverTwoSin)(c)]
     return out
 
 
@@ -101,13 +114,14 @@ def test_libm_agrees_with_numpy_to_rounding():
 # numbers, central binomial coefficients), and a derivative's series is its parent's
 # differentiated term by term.  Both must be exactly what SymPy's ``series`` expands.
 
-BUILT_IN = [_smooth.SinOverTheta, _smooth.OneMinusCosOverTheta2,
-            _smooth.ThetaMinusSinOverTheta3, _smooth.HalfThetaCotHalfTheta,
-            _smooth.SE3LogCoefficient, _smooth.ThetaOverTwoSin]
+BUILT_IN = [SinOverTheta, OneMinusCosOverTheta2, ThetaMinusSinOverTheta3, HalfThetaCotHalfTheta,
+            SE3LogCoefficient, ThetaOverTwoSin]
+#: the degree of the Taylor polynomials the smooth functions evaluate near their point
+DEGREE = len(SinOverTheta.taylor()) - 1
 
 
 def _series(closed: sp.Expr, point, degree: int) -> tuple:
-    s = _smooth._S
+    s = SMOOTH_ARGUMENT
     series = sp.series(closed, s, point, degree + 1).removeO()
     poly = sp.Poly(sp.expand(series.subs(s, s + point)), s)
     return tuple(poly.coeff_monomial(s ** k) for k in range(degree + 1))
@@ -116,21 +130,21 @@ def _series(closed: sp.Expr, point, degree: int) -> tuple:
 @pytest.mark.parametrize("cls", BUILT_IN, ids=lambda c: c.__name__)
 def test_closed_form_coefficients_are_the_series(cls):
     assert cls.coefficient is not None
-    assert _smooth.taylor_coefficients(cls, _smooth.DEGREE + 2) == \
-        _series(cls.closed_form, cls.point, _smooth.DEGREE + 2)
+    assert taylor_coefficients(cls, DEGREE + 2) == \
+        _series(cls.closed_form, cls.point, DEGREE + 2)
 
 
-@pytest.mark.parametrize("cls", [_smooth.SinOverTheta, _smooth.ThetaOverTwoSin],
+@pytest.mark.parametrize("cls", [SinOverTheta, ThetaOverTwoSin],
                          ids=lambda c: c.__name__)
 def test_derivative_series_is_the_series_of_the_derivative(cls):
-    second = _smooth.derivative_of(_smooth.derivative_of(cls))
-    assert second.parent is _smooth.derivative_of(cls)
-    assert second.taylor() == _series(second.closed_form, cls.point, _smooth.DEGREE)
+    second = derivative_of(derivative_of(cls))
+    assert second.parent is derivative_of(cls)
+    assert second.taylor() == _series(second.closed_form, cls.point, DEGREE)
 
 
 def test_a_function_without_closed_form_coefficients_is_expanded_by_sympy():
-    s = _smooth._S
-    cls = _smooth.smooth_function("ExpMinusOneOverS", (sp.exp(s) - 1) / s)
+    s = SMOOTH_ARGUMENT
+    cls = smooth_function("ExpMinusOneOverS", (sp.exp(s) - 1) / s)
     assert cls.coefficient is None and cls.parent is None
     assert cls.taylor() == tuple(sp.Rational(1, sp.factorial(k + 1))
-                                 for k in range(_smooth.DEGREE + 1))
+                                 for k in range(DEGREE + 1))

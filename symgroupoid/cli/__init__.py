@@ -21,7 +21,8 @@ from ._main import build_parser, main
 from ._seeds import generate_seed_kernels
 from ._simulate import conservation_lines
 from ._system_file import load_system
+from ._verify import JACOBIAN_TOLERANCE, sample_points
 
-__all__ = ["OVERFULL_TOLERANCE", "InputError", "SystemFileError", "build_parser",
-           "conservation_lines", "generate_seed_kernels", "load_system", "lost_content", "main",
-           "parse_count", "parse_params"]
+__all__ = ["JACOBIAN_TOLERANCE", "OVERFULL_TOLERANCE", "InputError", "SystemFileError",
+           "build_parser", "conservation_lines", "generate_seed_kernels", "load_system",
+           "lost_content", "main", "parse_count", "parse_params", "sample_points"]

@@ -1,6 +1,14 @@
 """Layer 3: step equations (residuals, unknowns, knowns, Jacobian, LaTeX) and systems."""
 
 from ._abbreviations import LatexOptionError, UnusedAbbreviationWarning
+from ._findings import (
+    DEPENDENT_CONSTRAINTS,
+    IDENTICALLY_ZERO,
+    NO_UNKNOWN,
+    NOT_REGULAR,
+    UNDETERMINED_MULTIPLIER,
+    UNUSED_UNKNOWN,
+)
 from ._forcing import (
     body_torque,
     joint_torque,
@@ -8,7 +16,9 @@ from ._forcing import (
     rayleigh_damping,
     trapezoid_forces,
 )
+from ._kinetic import DEGENERATE_KINETIC
 from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines, latex
+from ._layout import PAGE_WIDTH
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._programs import (
     MomentumProgram,
@@ -42,4 +52,9 @@ __all__ = [
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
     "equation_lines", "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
     "trapezoid_forces",
+    # pt: the text width of a LaTeX document, and the default width of the printed lines
+    "PAGE_WIDTH",
+    # the causes a DegenerateSystemError names (its ``causes``, each finding's ``cause``)
+    "DEGENERATE_KINETIC", "DEPENDENT_CONSTRAINTS", "IDENTICALLY_ZERO", "NOT_REGULAR",
+    "NO_UNKNOWN", "UNDETERMINED_MULTIPLIER", "UNUSED_UNKNOWN",
 ]

@@ -14,8 +14,10 @@ from ._compact import compact
 from ._format import C, functions_used, plan, write
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
+from ._libm import LIBM, SCALAR
 from ._program import Program, interpret
 from ._rounding import rounding_error, term_magnitude
+from ._smooth import _S as SMOOTH_ARGUMENT  # s, of the closed forms smooth_function takes
 from ._smooth import (
     HalfThetaCotHalfTheta,
     OneMinusCosOverTheta2,
@@ -24,7 +26,9 @@ from ._smooth import (
     SmoothFunction,
     ThetaMinusSinOverTheta3,
     ThetaOverTwoSin,
+    derivative_of,
     smooth_function,
+    taylor_coefficients,
 )
 from ._sympy import from_sympy, to_sympy
 
@@ -38,4 +42,7 @@ __all__ = [
     # smooth functions of θ² (or cos θ) with their Taylor series near the removable point
     "HalfThetaCotHalfTheta", "OneMinusCosOverTheta2", "SE3LogCoefficient", "SinOverTheta",
     "SmoothFunction", "ThetaMinusSinOverTheta3", "ThetaOverTwoSin", "smooth_function",
+    "SMOOTH_ARGUMENT", "derivative_of", "taylor_coefficients",
+    # the C library's functions on NumPy arrays (LIBM) and on floats (SCALAR): the same bits
+    "LIBM", "SCALAR",
 ]

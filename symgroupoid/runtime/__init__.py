@@ -6,8 +6,9 @@ needs (csv, zipfile, tempfile).
 """
 
 from .._errors import CacheError
+from ._backends import c_buffer, real_vector
 from ._batch import TrajectoryBatch
-from ._bvp import BoundaryValueSolution, solve_boundary_value
+from ._bvp import BoundaryValueSolution, interpolate_arrows, solve_boundary_value
 from ._compile import compile_step
 from ._diagnostics import (
     ConservationSummary,
@@ -48,7 +49,11 @@ __all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "Compila
            "constraint_check", "constraint_residuals", "energy", "energy_label", "has_energy",
            "momenta", "noether_quantities", "number_text", "parameter_vector", "read_trajectory",
            "rounding_floor", "save_trajectory", "solve_boundary_value", "sweep",
-           "sweep_boundary_value", "system_argument", "trajectory_programs", "wait_for_kernels"]
+           "sweep_boundary_value", "system_argument", "trajectory_programs", "wait_for_kernels",
+           # the checks of every buffer handed to C (for code that calls a kernel's C itself)
+           "c_buffer", "real_vector",
+           # the default initial path of a boundary-value solve (to start a guess from)
+           "interpolate_arrows"]
 
 
 def __getattr__(name: str):
