@@ -4,7 +4,10 @@ Targets: every line of the double pendulum's equations renders (matplotlib matht
 within 450 pt; its whole LaTeX is at most a third of the plain, fully expanded printing; the
 plate-ball still prints as in seed 000 §6.2.  Every printed form is the explicit residual:
 checked here again numerically at random points, and the printing is shown to refuse forms
-that are not.
+that are not.  Lines leave room for the equation numbers; the chosen form is never longer
+than ``sympy.latex`` of the residuals (the seed systems, and the satellite of
+tests/test_latex_pdf.py, which prints no entry of a basis matrix); constant matrix parts are
+evaluated.
 """
 
 from __future__ import annotations
@@ -17,21 +20,27 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
+from symgroupoid import systems
+from symgroupoid.cli import load_system
 from symgroupoid.derivation import PieceRule
 
-# the line breaking, collection and verification of the LaTeX forms are checked inside
+# white-box: the line breaking and its page measures, the collection, the choice and the
+# verification of the printed forms, and the constant matrix parts are checked inside
+# (equations/_latex.py, _layout.py, _printing.py, _matrix_parts.py), below what latex() shows
 from symgroupoid.equations import (
     LatexOptionError,
     LatexVerificationError,
     UnusedAbbreviationWarning,
     _latex,
     _layout,
+    _matrix_parts,
     _printing,
     equation_lines,
 )
 
 mathtext = pytest.importorskip("matplotlib.mathtext")
 from test_latex import _line_widths, _lines  # noqa: E402
+from test_latex_pdf import SATELLITE, SATELLITE_ENTRIES, _file  # noqa: E402
 
 PAGE = 450.0  # pt
 
@@ -104,6 +113,19 @@ def pendulum_step():
 @pytest.fixture(scope="module")
 def plate_ball_latex(plate_ball_step) -> str:
     return plate_ball_step.latex()
+
+
+@pytest.fixture(scope="module")
+def satellite_step():
+    """The satellite of examples/cli/satellite.py (Ω = vee(W − Wᵀ)/(2h))."""
+    return load_system(str(SATELLITE)).system.euler_lagrange()
+
+
+@pytest.fixture(scope="module")
+def entries_step(tmp_path_factory):
+    """The satellite as first written: Ω from the entries of W."""
+    path = _file(tmp_path_factory.mktemp("satellite"), "satellite", SATELLITE_ENTRIES)
+    return load_system(str(path)).system.euler_lagrange()
 
 
 def _plain(step) -> str:
@@ -309,3 +331,57 @@ def test_derive_on_the_command_line_prints_the_readable_form(pendulum_step, tmp_
     assert pendulum_step.latex() in out
     assert "\\frac{q_{k+1} + q_{k-1} - 2 q_{k}}{h}" in out  # collected, over one denominator
     assert re.search(r"% LaTeX written in [0-9.]+ s \([0-9]+ characters\)", out)
+
+
+# --- page measures, the chosen form, constant matrix parts -------------------------------------
+
+def test_lines_leave_room_for_the_equation_numbers():
+    """align centres its block: a number stays on its line only with the number and
+    0.5 em free on both sides of the block (measured with pdflatex: a 308 pt row keeps "(6)"
+    on a 345 pt page, a 318 pt row does not)."""
+    room = _layout.line_room(345.0, numbered=True)
+    assert 345.0 - 2 * (18 + _layout.TAG_SEPARATION) >= room * _layout.TEX_PER_MATHTEXT
+    assert _layout.line_room(345.0, numbered=False) == pytest.approx(
+        345.0 / _layout.TEX_PER_MATHTEXT)
+
+
+def test_satellite_prints_no_basis_entries_and_is_shorter_than_sympy(satellite_step,
+                                                                      entries_step):
+    """19 792 characters with 324 entries (E_i)_{jk} before; sympy.latex: 4 029."""
+    for step in (satellite_step, entries_step):
+        tex = step.latex()
+        plain = sum(len(sp.latex(r)) for r in step.residuals)
+        assert "E_{" not in tex and "matrix" not in tex
+        assert len(tex) <= plain, (len(tex), plain)
+        assert _printing.chosen_printed(step).length <= _printing.plain_length(step)
+
+
+@pytest.mark.parametrize("name", ["plate_ball", "heavy_top", "rigid_body"])
+def test_printed_forms_are_never_longer_than_sympy(name, plate_ball_step):
+    """The papers' tr(g_k E_i E_j) where it is not longer than the plain printing."""
+    step = plate_ball_step if name == "plate_ball" else getattr(systems, name)()\
+        .euler_lagrange()
+    printed = _printing.chosen_printed(step)
+    assert printed.keeps and printed.length <= _printing.plain_length(step)
+
+
+def test_constant_entries_are_evaluated():
+    """(E_1)_{11} (W)_{12} is 0, (W E_1)_{32} is (W)_{33}, tr(E_1ᵀ W) is W_{32} − W_{23};
+    tr(W E_1 E_2) keeps its name."""
+    G = sg.SO3("W")
+    E1, E2 = sp.MatrixSymbol("E_{1}", 3, 3), sp.MatrixSymbol("E_{2}", 3, 3)
+    W = sp.MatrixSymbol("W_{k}", 3, 3)
+    basis = G.basis_matrices()
+    entries = sp.ImmutableMatrix(G.named_matrix(0))
+    values = {E1: sp.ImmutableMatrix(basis[0]), E2: sp.ImmutableMatrix(basis[1]), W: entries}
+    constants = {E1, E2}
+
+    def evaluated(expr):
+        return _matrix_parts.evaluated_constants(expr, values, constants)
+
+    assert evaluated(E1[0, 0] * W[0, 1] + E1[2, 1] * W[0, 1]) == entries[0, 1]
+    assert evaluated((W * E1)[2, 1]) == entries[2, 2]
+    explicit_transpose = sp.ImmutableMatrix(basis[0]).T
+    assert evaluated(sp.Trace(sp.MatMul(explicit_transpose, W))) == entries[2, 1] - entries[1, 2]
+    kept = sp.Trace(sp.MatMul(W, E1, E2))
+    assert evaluated(kept) == kept and evaluated(sp.Trace(sp.MatMul(E1, E2))) == 0

@@ -5,9 +5,10 @@ break across pages, a term too wide for a line is set smaller, and pdflatex plac
 equation — ``pdftotext`` shows each equation number and the log no overfull box beyond 1 pt —
 for the seed systems (``symgroupoid/systems.py``) and a satellite with a reaction wheel;
 ``derive --pdf`` fails with :class:`LostContentError` when LaTeX reports lost content.  The
-satellite, written with Ω = vee(W − Wᵀ)/(2h) or with the entries of W, prints no entry of a
-basis matrix (E_a)_{ij}, is never longer than ``sympy.latex`` of its residuals, and uses the
-abbreviations it is given (warning about those it does not).
+satellite uses the abbreviations it is given (warning about those it does not); that,
+written with Ω = vee(W − Wᵀ)/(2h) or with the entries of W, it prints no entry of a basis
+matrix (E_a)_{ij} and is never longer than ``sympy.latex`` of its residuals is checked with
+the printer's own measures in tests/test_latex_layout.py.
 
 The tests that typeset skip when pdflatex or pdftotext is missing (``.ci/run`` installs
 them: TeX Live's texlive-latex-base and poppler-utils).
@@ -26,12 +27,9 @@ import pytest
 import sympy as sp
 from kernel_support import REPO
 
-import symgroupoid as sg
 from symgroupoid import systems
-
-# the TeX log reader and the page measures are checked against real typesetting
 from symgroupoid.cli import OVERFULL_TOLERANCE, load_system, lost_content, main
-from symgroupoid.equations import UnusedAbbreviationWarning, _layout, _matrix_parts, _printing
+from symgroupoid.equations import PAGE_WIDTH, UnusedAbbreviationWarning
 
 needs_tex = pytest.mark.skipif(
     shutil.which("pdflatex") is None or shutil.which("pdftotext") is None,
@@ -140,17 +138,7 @@ def test_documents_are_as_wide_as_their_lines_and_break_across_pages():
     doc = step.latex(document=True, width=300)
     assert "\\usepackage[a4paper,textwidth=300pt,vmargin=2.5cm]{geometry}" in doc
     assert "\\allowdisplaybreaks" in doc
-    assert f"textwidth={_layout.PAGE_WIDTH:g}pt" in step.latex(document=True)
-
-
-def test_lines_leave_room_for_the_equation_numbers():
-    """align centres its block: a number stays on its line only with the number and
-    0.5 em free on both sides of the block (measured with pdflatex: a 308 pt row keeps "(6)"
-    on a 345 pt page, a 318 pt row does not)."""
-    room = _layout.line_room(345.0, numbered=True)
-    assert 345.0 - 2 * (18 + _layout.TAG_SEPARATION) >= room * _layout.TEX_PER_MATHTEXT
-    assert _layout.line_room(345.0, numbered=False) == pytest.approx(
-        345.0 / _layout.TEX_PER_MATHTEXT)
+    assert f"textwidth={PAGE_WIDTH:g}pt" in step.latex(document=True)
 
 
 @needs_tex
@@ -256,7 +244,7 @@ def test_derive_pdf_fails_on_lost_content(tmp_path, capsys, monkeypatch):
 @needs_tex
 def test_derive_pdf_fails_when_a_line_runs_past_the_page(tmp_path, capsys, monkeypatch):
     """With the wide term left at full size, pdflatex's overfull box is an error."""
-    monkeypatch.setattr(_layout, "SMALLEST_SCALE", 1.0)
+    monkeypatch.setattr("symgroupoid.equations._layout.SMALLEST_SCALE", 1.0)  # the fault
     path = _file(tmp_path, "wide", WIDE)
     code = main(["derive", str(path), "--document", str(tmp_path / "wide.tex"), "--pdf"])
     err = capsys.readouterr().err
@@ -264,48 +252,6 @@ def test_derive_pdf_fails_when_a_line_runs_past_the_page(tmp_path, capsys, monke
 
 
 # --- SO(3) systems written with matrix entries ----------------------------------------------------
-
-def test_satellite_prints_no_basis_entries_and_is_shorter_than_sympy(satellite_step,
-                                                                      entries_step):
-    """19 792 characters with 324 entries (E_i)_{jk} before; sympy.latex: 4 029."""
-    for step in (satellite_step, entries_step):
-        tex = step.latex()
-        plain = sum(len(sp.latex(r)) for r in step.residuals)
-        assert "E_{" not in tex and "matrix" not in tex
-        assert len(tex) <= plain, (len(tex), plain)
-        assert _printing.chosen_printed(step).length <= _printing.plain_length(step)
-
-
-@pytest.mark.parametrize("name", ["plate_ball", "heavy_top", "rigid_body"])
-def test_printed_forms_are_never_longer_than_sympy(name, plate_ball_step):
-    """The papers' tr(g_k E_i E_j) where it is not longer than the plain printing."""
-    step = plate_ball_step if name == "plate_ball" else getattr(systems, name)()\
-        .euler_lagrange()
-    printed = _printing.chosen_printed(step)
-    assert printed.keeps and printed.length <= _printing.plain_length(step)
-
-
-def test_constant_entries_are_evaluated():
-    """(E_1)_{11} (W)_{12} is 0, (W E_1)_{32} is (W)_{33}, tr(E_1ᵀ W) is W_{32} − W_{23};
-    tr(W E_1 E_2) keeps its name."""
-    G = sg.SO3("W")
-    E1, E2 = sp.MatrixSymbol("E_{1}", 3, 3), sp.MatrixSymbol("E_{2}", 3, 3)
-    W = sp.MatrixSymbol("W_{k}", 3, 3)
-    basis = G.basis_matrices()
-    entries = sp.ImmutableMatrix(G.named_matrix(0))
-    values = {E1: sp.ImmutableMatrix(basis[0]), E2: sp.ImmutableMatrix(basis[1]), W: entries}
-    constants = {E1, E2}
-
-    def evaluated(expr):
-        return _matrix_parts.evaluated_constants(expr, values, constants)
-
-    assert evaluated(E1[0, 0] * W[0, 1] + E1[2, 1] * W[0, 1]) == entries[0, 1]
-    assert evaluated((W * E1)[2, 1]) == entries[2, 2]
-    explicit_transpose = sp.ImmutableMatrix(basis[0]).T
-    assert evaluated(sp.Trace(sp.MatMul(explicit_transpose, W))) == entries[2, 1] - entries[1, 2]
-    kept = sp.Trace(sp.MatMul(W, E1, E2))
-    assert evaluated(kept) == kept and evaluated(sp.Trace(sp.MatMul(E1, E2))) == 0
-
 
 def test_satellite_uses_its_abbreviations_and_names_the_unused(satellite, satellite_step):
     abbreviations = dict(satellite.convention("ABBREVIATIONS"))
