@@ -1,25 +1,52 @@
 """Two-point boundary-value problems (seed 000 §6.1–§6.2, seed 001 §3.3), and the solver's
-parts one by one: the window kernel, the assembly, the layout and the banded LU solve."""
+parts one by one: the window kernel and its evaluator, the assembly (by the layout's fixed
+pattern, against the block scatter), the layout, the banded LU solve, the line search at the
+rounding floor, the globalised iteration and its restart from the fast path's best iterate
+(the initial path as fallback), and the second-order condition — computed on request, its
+banded inertia against dense linear algebra."""
 
 from __future__ import annotations
+
+import dataclasses
+import importlib.util
+import pathlib
+import pickle
+import sys
 
 import numpy as np
 import pytest
 import sympy as sp
 from conftest import load_example
+from test_program_evaluator import VALUES, _program
 
 import symgroupoid as sg
+from symgroupoid import BoundaryValueDivergenceError
 from symgroupoid.derivation import WindowAction
 
-# the solver's window kernel, assembly, layout and banded solve are checked one by one
-from symgroupoid.runtime import _lapack
-from symgroupoid.runtime._bvp import WindowKernel, interpolate_arrows, window_kernel
-from symgroupoid.runtime._bvp._assembly import _assemble
+# white-box: the solver's parts (runtime/_bvp: window kernels, assembly, layout, linear solves,
+# solver state, fast and globalised paths), the banded LAPACK and LDLᵀ beside it
+# (runtime/_lapack.py, _banded.py), the window programs' evaluator (runtime/_programs.py) and
+# a sweep's solution data are checked one by one; none of them has a public constructor
+from symgroupoid.runtime import ProgramEvaluator, _lapack, _programs, interpolate_arrows
+from symgroupoid.runtime._banded import banded_inertia
+from symgroupoid.runtime._bvp import (
+    WindowKernel,
+    _fast,
+    _globalised,
+    _kernels,
+    _solve,
+    _state,
+    window_kernel,
+)
+from symgroupoid.runtime._bvp._assembly import _add, _assemble, _excess, _rounding_floor
 from symgroupoid.runtime._bvp._kernels import _maps
-from symgroupoid.runtime._bvp._layout import _layout
+from symgroupoid.runtime._bvp._layout import _layout, _multiplier_rows, _variation_rows
 from symgroupoid.runtime._bvp._linear import _block_tridiagonal, _solve_banded
 from symgroupoid.runtime._bvp._state import _Problem
+from symgroupoid.runtime._sweep_boundary import _solution_data
+from symgroupoid.verification import action
 
+BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
 h = sp.Symbol("h", positive=True)
 
 
@@ -37,6 +64,33 @@ def so3_control():
         return h * (xi.T * inertia * xi)[0, 0] / 2
 
     return sg.DiscreteSystem(sg.SO3("g"), L, parameters=[h], name="so3_control")
+
+
+def _cayley(x) -> np.ndarray:
+    """cay(x̂) = I + 4/(4 + |x|²)(x̂ + x̂²/2) in floating point (seed 001 eq. (63))."""
+    X = np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
+    return np.eye(3) + 4.0 / (4.0 + float(np.dot(x, x))) * (X + X @ X / 2)
+
+
+@pytest.fixture
+def numpy_windows(monkeypatch):
+    """Window programs evaluated with NumPy: small problems need no C build."""
+    monkeypatch.setenv("SYMGROUPOID_BACKEND", "numpy")
+
+
+@pytest.fixture(scope="module")
+def problems():
+    """``benchmarks/_bvp_problems.py`` (the problem families shared with the benchmark)."""
+    if str(BENCHMARKS) not in sys.path:
+        sys.path.insert(0, str(BENCHMARKS))
+    name = "_bvp_problems"
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module
 
 
 def test_the_guess_splits_a_half_turn_into_equal_turns(so3_control):
@@ -396,3 +450,392 @@ def test_solver_falls_back_when_numpy_has_no_lapack(monkeypatch):
     assert calls, "NumPy's LAPACK was asked first"
     # SciPy's gbsv (another LAPACK build: equal to rounding, not necessarily bit for bit)
     np.testing.assert_allclose(A @ x, b, rtol=0, atol=1e-13 * np.abs(b).max())
+
+
+# --- the window programs' evaluator (runtime/_programs.py) -------------------------------------
+
+def test_unknown_backend_in_the_environment_is_refused(monkeypatch):
+    monkeypatch.setenv("SYMGROUPOID_BACKEND", "fortran")
+    with pytest.raises(sg.DomainError, match="SYMGROUPOID_BACKEND"):
+        _kernels._vectorised("bad backend", _program(), "a", "out")
+
+
+def test_numpy_form_is_evaluated_in_bounded_chunks(monkeypatch):
+    """Rows are evaluated a bounded number at a time (memory), with the same bits."""
+    program = _program(5)
+    whole = program.numpy_function(["out"], ["a"])(VALUES.T)[0].T
+    seen = []
+    monkeypatch.setattr(_programs, "NUMPY_ROWS", 10)
+    evaluator = ProgramEvaluator("evaluator chunks", program, "a", "out", backend="numpy")
+    raw = program.numpy_function(["out"], ["a"])
+
+    def spy(values):
+        seen.append(values.shape[1])
+        return raw(values)
+
+    evaluator._numpy = spy
+    assert np.array_equal(evaluator(VALUES), whole)
+    assert max(seen) == 10 and sum(seen) == len(VALUES)
+
+
+# --- the assembly by the layout's fixed pattern; the second-order condition on request ------
+
+def _scattered(kernel, lay, arrows, lam, p):
+    """F, the cancelling magnitudes and the dense Jacobian scattered block by block from the
+    window programs' split outputs (the assembly before the pattern)."""
+    r, m, a = kernel.rank, kernel.m, kernel.arity
+    F, cancel = np.zeros(lay.size), np.zeros(lay.size)
+    rows, cols, vals = [], [], []
+    J, T = lay.junctions, lay.terms
+    windows = np.stack([arrows[J + o] for o in kernel.offsets], axis=1)
+    lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
+            else np.zeros((len(J), len(kernel.starts), 0)))
+    res, left, right, dlam, sizes = kernel.junction_terms(windows, lams, p)
+    eq = lay.delta_at[J]
+    F[eq[:, None] + np.arange(r)], cancel[eq[:, None] + np.arange(r)] = res, sizes
+    for o in kernel.offsets:
+        _add(rows, cols, vals, lay.delta_at, eq, J + o, left[o], r)
+        _add(rows, cols, vals, lay.delta_at, eq, J + o - 1, -right[o], r)
+    for s in kernel.starts:
+        _add(rows, cols, vals, lay.lam_at, eq, J + s, dlam[s], m)
+    if m:
+        res, left, right, sizes = kernel.term_terms(
+            np.stack([arrows[T + o] for o in range(a)], axis=1), p)
+        eq = lay.lam_at[T]
+        F[eq[:, None] + np.arange(m)], cancel[eq[:, None] + np.arange(m)] = res, sizes
+        for o in range(a):
+            _add(rows, cols, vals, lay.delta_at, eq, T + o, left[o], r, m)
+            _add(rows, cols, vals, lay.delta_at, eq, T + o - 1, -right[o], r, m)
+    A = np.zeros((lay.size, lay.size))
+    np.add.at(A, (np.concatenate(rows), np.concatenate(cols)), np.concatenate(vals))
+    return F, cancel, A
+
+
+def _second_order_so3():
+    W = sg.SO3("W")
+
+    def L(a, b):
+        xa, xb = a.coordinates / h, b.coordinates / h
+        return h * sum((xb[i] - xa[i]) ** 2 for i in range(3)) / (2 * h ** 2)
+
+    return sg.SecondOrderSystem(W, L, parameters=[h], name="so3_jerk")
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_gathered_assembly_matches_the_block_scatter(problems):
+    """The pattern's gather gives F, the cancelling magnitudes and the Jacobian of the
+    block-by-block scatter, for a constrained first-order and a second-order system, at an
+    iterate with non-zero multipliers; the banded solve through the pattern's storage
+    solves the dense system."""
+    rng = np.random.default_rng(7)
+    se2 = problems.se2_system()
+    cases = [(se2, problems.pose(0.8, 0.6, 1.0), 9, [1 / 9, 1.0, 2.0])]
+    W = _second_order_so3()
+    cases.append((W, problems.rotation((0.3, -0.2, 0.5)), 10, [0.1]))
+    for system, end, n, params in cases:
+        p = np.array(params, float)
+        problem, G = _Problem.of(system, n, p), system.groupoid
+        kernel, lay = problem.kernel, problem.lay
+        a, m = kernel.arity, kernel.m
+        arrows = interpolate_arrows(G, G.arrow_between(np.eye(3), end), n)
+        lam = rng.normal(size=(n - a + 1, m))
+        state = _assemble(problem, arrows, lam)
+        F, cancel, A = _scattered(kernel, lay, arrows, lam, p)
+        dense = np.zeros_like(A)
+        np.add.at(dense, (state.rows, state.cols), state.vals)
+        assert np.array_equal(state.F, F) and np.array_equal(state.cancel, cancel)
+        assert np.array_equal(dense, A), system.name
+        x = _solve_banded(state.rows, state.cols, state.vals, lay.size, F, state.band)
+        assert np.allclose(A @ x, F, rtol=1e-9, atol=1e-9 * np.abs(F).max())
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_inertia_and_configurations_are_computed_on_request(problems):
+    """A solve leaves the second-order condition to the solution, which computes it at the
+    solution's KKT matrix when asked — the same inertia as computed in the solve (minimum
+    =True), and also after the solution was pickled (as sweeps send it between processes);
+    the configurations are the products of the arrows from the first."""
+    system = problems.se2_system()
+    end = problems.pose(0.5, 0.4, 0.7)
+    sol = sg.solve_boundary_value(system, np.eye(3), end, 40, params=[1 / 40, 1.0, 1.0])
+    assert sol.second_order == ()
+    data = pickle.loads(pickle.dumps(_solution_data(sol)))  # as a sweep's worker sends it
+    copy = sg.BoundaryValueSolution(system=system, **data)
+    eager = sg.solve_boundary_value(system, np.eye(3), end, 40, params=[1 / 40, 1.0, 1.0],
+                                    minimum=True)
+    assert len(eager.second_order) == 1 and eager.inertia is not None
+    assert sol.inertia == eager.inertia == copy.inertia and sol.is_local_minimum
+    assert sol.second_order == (sol.inertia,)
+    expected = [np.eye(3)]
+    for g in sol.arrows:
+        expected.append(expected[-1] @ system.groupoid.numeric_matrix(g))
+    assert np.allclose(np.array(sol.configurations), np.array(expected), atol=1e-13)
+    assert np.allclose(sol.configurations[-1], end, atol=1e-12)
+
+
+def _handing_over(problems):
+    """SE(2), N = 151 (``random_problems(20, seed=1, steps=(60, 200))[10]``): the fast path
+    hands over to the globalised iteration."""
+    p = problems.random_problems(20, seed=1, steps=(60, 200))[10]
+    assert p.kind == "se2" and p.steps == 151
+    return p
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_the_globalised_iteration_restarts_from_the_best_fast_path_iterate(problems,
+                                                                            monkeypatch):
+    """After the handover the globalised iteration starts at the fast path's iterate of least
+    merit (not the initial path) and reaches the same local minimum as from the initial
+    path, in fewer iterations."""
+    p = _handing_over(problems)
+    chosen = []
+    restart = _fast._restart_points
+
+    def spy(state, initial, iterates):
+        starts = restart(state, initial, iterates)
+        chosen.append((starts, initial))
+        return starts
+
+    monkeypatch.setattr(_solve, "_restart_points", spy)
+    sol = p.solve()
+    (starts, initial), = chosen
+    assert len(starts) == 2 and starts[1][0] is initial[0]
+    assert not np.array_equal(starts[0][0], initial[0])
+    monkeypatch.setattr(_solve, "_restart_points", lambda state, initial, iterates: [initial[:2]])
+    from_initial = p.solve()
+    assert "inertia-corrected" in sol.method and sol.is_local_minimum
+    assert sol.iterations < from_initial.iterations
+    assert np.abs(sol.controls - from_initial.controls).max() / p.params[0] < 1e-8
+    assert sol.cost == pytest.approx(from_initial.cost, rel=1e-12)
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_the_initial_path_is_the_fallback_of_the_restart(problems, monkeypatch):
+    """When the globalised iteration from the best iterate finds no decrease, it starts again
+    from the initial path and converges there; when that fails too, the error names both."""
+    p = _handing_over(problems)
+    globalised, calls = _globalised._globalised, []
+
+    def first_fails(state, arrows, lam):
+        calls.append(arrows)
+        if len(calls) == 1:
+            raise BoundaryValueDivergenceError("x: boundary-value iteration found no decrease "
+                                               "(line search); after 0 iterations", iterations=0)
+        return globalised(state, arrows, lam)
+
+    monkeypatch.setattr(_globalised, "_globalised", first_fails)
+    sol = p.solve()
+    assert len(calls) == 2 and sol.is_local_minimum
+    G = p.system.groupoid
+    initial = interpolate_arrows(G, G.arrow_between(p.start, p.end), p.steps)
+    assert np.array_equal(calls[1], initial)
+
+    def always_fails(state, arrows, lam):
+        raise BoundaryValueDivergenceError("x: boundary-value iteration found no decrease "
+                                           "(line search); after 0 iterations", iterations=0)
+
+    monkeypatch.setattr(_globalised, "_globalised", always_fails)
+    with pytest.raises(BoundaryValueDivergenceError,
+                       match="from its best iterate, the globalised iteration"):
+        p.solve()
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_a_stall_is_not_retried_from_the_initial_path(problems, monkeypatch):
+    """A stall (an update below tol_step, or one that changes nothing) is the caller's
+    criterion or the rounding floor: the solve stops there instead of starting over from
+    the initial path."""
+    p = _handing_over(problems)
+    calls = []
+
+    def stalls(state, arrows, lam):
+        calls.append(arrows)
+        state.stalled = f"the update fell below tol_step = {state.problem.tol_step:g}"
+        raise BoundaryValueDivergenceError("x: boundary-value iteration stalled: "
+                                           f"{state.stalled}", iterations=state.iterations)
+
+    monkeypatch.setattr(_globalised, "_globalised", stalls)
+    with pytest.raises(BoundaryValueDivergenceError, match="stalled"):
+        p.solve()
+    assert len(calls) == 1
+
+
+# --- the line search at the rounding floor ---------------------------------------------------
+
+def test_line_search_at_the_rounding_floor_takes_the_step_at_once(so3_control, monkeypatch):
+    """At a solution (|F| at its floor) a step that cannot decrease |F| — here dz = 0, where
+    the Armijo test always fails — is taken with one evaluation, not halved 30 times."""
+    end = _cayley(np.array([0.4, 0.2, -0.5]))
+    sol = sg.solve_boundary_value(so3_control, np.eye(3), end, 40, params=[1 / 40])
+    problem = _state._Problem.of(so3_control, 40, np.array([1 / 40]))
+    assert problem.lay is _layout(40, 1, 3, 0)
+    state = _state._SolverState.at(problem, sol.arrows, sol.multipliers)
+    calls = []
+    assemble = _state._assemble
+    monkeypatch.setattr(_state, "_assemble", lambda *a: calls.append(1) or assemble(*a))
+    step = _fast._line_search(state, np.zeros(problem.lay.size))
+    assert step is not None and step.length == 1.0 and step.at_floor and len(calls) == 1
+
+
+def test_rigid_body_line_search_never_backtracks(monkeypatch):
+    """The N = 1000 attitude maneuver (seed 001 §3.3.4): every update is a full Newton step,
+    with one assembly per iteration, up to the floor."""
+    rb = load_example("rigid_body_attitude")
+    calls = []
+    assemble = _state._assemble
+    monkeypatch.setattr(_state, "_assemble", lambda *a: calls.append(1) or assemble(*a))
+    sol = rb.solve(1000)
+    assert sol.iterations <= 5 and len(calls) == sol.iterations + 1
+    assert sol.method == "Newton" and sol.is_local_minimum
+    assert sol.cost == pytest.approx(rb.cost(sol), rel=1e-12)
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_a_constraint_of_small_chart_coordinates_converges_to_its_floor(problems, monkeypatch):
+    """SE(2) unicycle, N = 151, the globalised iteration restarted from the initial path:
+    the last update needed is ~1e-22 (the constraint v₂ = x₃ of arrows near the identity, a
+    difference of products of matrix entries); the former absolute criterion tol_step = 1e-9
+    called that a stall, the floor-relative one does not."""
+    monkeypatch.setattr(_solve, "_restart_points", lambda state, initial, iterates: [initial[:2]])
+    p = problems.random_problems(20, seed=1, steps=(60, 200))[10]
+    assert p.kind == "se2" and p.steps == 151
+    sol = p.solve()
+    problem = _state._Problem.of(p.system, p.steps, np.array(p.params))
+    assert problem.lay is _layout(p.steps, 1, 3, 1)
+    state = _assemble(problem, sol.arrows, sol.multipliers)
+    assert _excess(state.F, _rounding_floor(state), 0.0) <= 1.0
+    with pytest.raises(BoundaryValueDivergenceError, match="tol_step"):
+        p.solve(tol_step=1e-9)
+
+
+# --- globalisation -------------------------------------------------------------------------------
+
+def _dense(state, n: int) -> np.ndarray:
+    A = np.zeros((n, n))
+    np.add.at(A, (state.rows, state.cols), state.vals)
+    return A
+
+
+def _reduced_hessian_eigenvalues(system, sol, params) -> np.ndarray:
+    """Eigenvalues of ZᵀHZ from dense linear algebra: H the δ-block of the symmetrised
+    Jacobian at the solution, Z an orthonormal basis of the null space of the constraint
+    gradients (independent of the banded LDLᵀ)."""
+    from scipy.linalg import null_space
+
+    G = system.groupoid
+    a, m = len(system._fs.slots), len(system._fs.constraints)
+    problem = _state._Problem.of(system, sol.steps, np.asarray(params, float))
+    lay = problem.lay
+    assert lay is _layout(sol.steps, a, G.rank, m)
+    state = _assemble(problem, sol.arrows, sol.multipliers)
+    K = _dense(state, lay.size)
+    K = (K + K.T) / 2
+    d, c = _variation_rows(lay, G.rank), _multiplier_rows(lay, m)
+    H = K[np.ix_(d, d)]
+    Z = null_space(K[np.ix_(c, d)]) if len(c) else np.eye(len(d))
+    return np.linalg.eigvalsh(Z.T @ H @ Z)
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_globalised_iteration_converges_where_newton_crawls(problems, monkeypatch):
+    """SO(3) steering with ψ = ξ₃ − uξ₁ (13° turn, N = 150): Newton alone from the geodesic
+    guess crawls with damped steps (it fails the former cap of 30 iterations); the solver
+    hands over to the inertia-corrected iteration and converges in half of that, to a
+    stationary point (checked on the action) that is a strict local minimum (checked by dense
+    linear algebra)."""
+    base = problems.random_problems()[11]
+    p = dataclasses.replace(base, steps=150, params=(1 / 150,) + base.params[1:])
+    sol = p.solve()
+    assert "inertia-corrected" in sol.method and sol.iterations <= 15
+    assert sg.verify_stationary(sol, p.system).stationary
+    eigenvalues = _reduced_hessian_eigenvalues(p.system, sol, p.params)
+    assert eigenvalues.min() > 0 and sol.is_local_minimum
+    assert sol.inertia.positive == len(eigenvalues)
+    assert sol.cost == pytest.approx(p.cost(sol.arrows), rel=1e-12)
+
+    def refuse(state, starts, why):
+        raise BoundaryValueDivergenceError(why, iterations=state.iterations)
+
+    monkeypatch.setattr(_fast, "MAX_DAMPED", 10**9)
+    monkeypatch.setattr(_solve, "_globalised_after", refuse)
+    with pytest.raises(BoundaryValueDivergenceError, match="30 iterations"):
+        p.solve(max_iterations=30)
+
+
+# --- the second-order condition: banded inertia (runtime/_banded.py), dense checks --------------
+
+def test_banded_inertia_matches_dense_eigenvalues():
+    """Random symmetric banded matrices: definite, indefinite, saddle-point (zero blocks, as
+    KKT matrices have) and singular ones."""
+    rng = np.random.default_rng(7)
+    for trial in range(120):
+        n, w = int(rng.integers(1, 50)), int(rng.integers(0, 6))
+        A = rng.normal(size=(n, n)) * (np.abs(np.subtract.outer(range(n), range(n))) <= w)
+        if trial % 3 == 0:
+            idx = rng.choice(n, size=n // 3, replace=False)
+            A[np.ix_(idx, idx)] = 0.0
+        if trial % 5 == 0:
+            A = A @ A.T * (np.abs(np.subtract.outer(range(n), range(n))) <= w)
+        if trial % 7 == 0 and n > 2:
+            A[:, 1] = A[1, :] = 0.0
+        ev = np.linalg.eigvalsh((A + A.T) / 2)
+        tiny = 1e-9 * max(np.abs(ev).max(), 1e-300)
+        expected = ((ev > tiny).sum(), (ev < -tiny).sum(), (np.abs(ev) <= tiny).sum())
+        r, c = np.nonzero(A)
+        assert tuple(banded_inertia(r, c, A[r, c], n)) == expected, (n, w, trial)
+
+
+@pytest.fixture(scope="module")
+def spring():
+    """L = (q₁ − q₀)²/(2h) − h k (q₀² + q₁²)/4 on the pair groupoid of R (a harmonic
+    oscillator, ω = √k): the action is minimal only up to the first conjugate point, ωT = π."""
+    k = sp.Symbol("k", positive=True)
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return (q1 - q0) ** 2 / (2 * h) - h * k * (q0 ** 2 + q1 ** 2) / 4
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
+                             name="spring")
+
+
+@pytest.mark.usefixtures("numpy_windows")
+@pytest.mark.parametrize("k, descent", [(4.0, 0), (16.0, 1), (60.0, 2)])
+def test_a_stationary_point_past_conjugate_points_is_flagged(spring, k, descent):
+    """T = 1, ω = √k: ωT = 2, 4, 7.7 passes 0, 1, 2 conjugate points (multiples of π), so
+    the Hessian of the action has that many negative eigenvalues (dense check), the flag
+    and the repr say so, and ``minimum=True`` refuses the saddle."""
+    sol = sg.solve_boundary_value(spring, 0.0, 1.0, 40, params=[1 / 40, k])
+    eigenvalues = _reduced_hessian_eigenvalues(spring, sol, [1 / 40, k])
+    assert (eigenvalues < 0).sum() == descent
+    assert sol.inertia.negative == descent and sol.is_local_minimum == (descent == 0)
+    assert repr(sol).endswith(", local minimum>") == (descent == 0)
+    assert ("NOT a local minimum" in repr(sol)) == (descent > 0)
+    assert sol.cost == pytest.approx(action(spring, sol.arrows, None, [1 / 40, k]), rel=1e-12)
+    if descent:
+        with pytest.raises(BoundaryValueDivergenceError):
+            sg.solve_boundary_value(spring, 0.0, 1.0, 40, params=[1 / 40, k], minimum=True,
+                                    max_iterations=20)
+
+
+@pytest.mark.usefixtures("numpy_windows")
+def test_a_turn_past_two_pi_is_a_saddle():
+    """Isotropic inertia (a bi-invariant metric): the uniform rotation by 2.5π about an axis is
+    a discrete geodesic past its conjugate point at 2π, of multiplicity two (the directions
+    normal to the axis), so the reduced Hessian has two negative eigenvalues."""
+
+    def L(g):
+        xi = g.coordinates / h
+        return h * (xi.T * xi)[0, 0] / 2
+
+    system = sg.DiscreteSystem(sg.SO3("g"), L, parameters=[h], name="so3_isotropic")
+    n, axis = 60, np.array([1.0, 2.0, 2.0]) / 3
+    arrow = sg.SO3("g").numeric_fibre_chart(2 * np.tan(2.5 * np.pi / (2 * n)) * axis)
+    guess = np.tile(arrow, (n, 1))
+    end = np.linalg.matrix_power(arrow.reshape(3, 3), n)
+    sol = sg.solve_boundary_value(system, np.eye(3), end, n, params=[1 / n], guess=guess)
+    assert np.abs(sol.arrows - guess).max() < 1e-12
+    assert sol.inertia.negative == 2 and sol.is_local_minimum is False
+    assert (_reduced_hessian_eigenvalues(system, sol, [1 / n]) < 0).sum() == 2
+    default = sg.solve_boundary_value(system, np.eye(3), end, n, params=[1 / n])
+    assert default.is_local_minimum and default.cost < sol.cost

@@ -1,9 +1,10 @@
-"""The boundary-value solver to the rounding floor, its globalised iteration, and what it says
-about the point it found: the cost Σ L_d and the second-order condition."""
+"""The boundary-value solver to the rounding floor, and what it says about the point it found:
+the cost Σ L_d and the second-order condition (its parts one by one — the line search at the
+floor, the globalised iteration, the inertia against dense linear algebra —
+tests/test_bvp.py)."""
 
 from __future__ import annotations
 
-import dataclasses
 import importlib.util
 import pathlib
 import sys
@@ -14,14 +15,8 @@ import sympy as sp
 from conftest import load_example
 
 import symgroupoid as sg
-from symgroupoid import BoundaryValueDivergenceError
 from symgroupoid.ir import Graph, rounding_error
-
-# the solver's floors, excess, inertia and globalised path are checked one by one
-from symgroupoid.runtime._banded import banded_inertia
-from symgroupoid.runtime._bvp import _fast, _solve, _state, interpolate_arrows
-from symgroupoid.runtime._bvp._assembly import _assemble, _excess, _rounding_floor
-from symgroupoid.runtime._bvp._layout import _layout, _multiplier_rows, _variation_rows
+from symgroupoid.runtime import interpolate_arrows
 from symgroupoid.verification import action
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
@@ -169,185 +164,6 @@ def test_rounding_error_counts_the_rounding_of_perturbed_inputs():
     assert E[2] == pytest.approx(E[0] + abs(values["z"]), rel=1e-12)
 
 
-def test_line_search_at_the_rounding_floor_takes_the_step_at_once(so3_control, monkeypatch):
-    """At a solution (|F| at its floor) a step that cannot decrease |F| — here dz = 0, where
-    the Armijo test always fails — is taken with one evaluation, not halved 30 times."""
-    end = _cay(np.array([0.4, 0.2, -0.5]))
-    sol = sg.solve_boundary_value(so3_control, np.eye(3), end, 40, params=[1 / 40])
-    problem = _state._Problem.of(so3_control, 40, np.array([1 / 40]))
-    assert problem.lay is _layout(40, 1, 3, 0)
-    state = _state._SolverState.at(problem, sol.arrows, sol.multipliers)
-    calls = []
-    assemble = _state._assemble
-    monkeypatch.setattr(_state, "_assemble", lambda *a: calls.append(1) or assemble(*a))
-    step = _fast._line_search(state, np.zeros(problem.lay.size))
-    assert step is not None and step.length == 1.0 and step.at_floor and len(calls) == 1
-
-
-def test_rigid_body_line_search_never_backtracks(monkeypatch):
-    """The N = 1000 attitude maneuver (seed 001 §3.3.4): every update is a full Newton step,
-    with one assembly per iteration, up to the floor."""
-    rb = load_example("rigid_body_attitude")
-    calls = []
-    assemble = _state._assemble
-    monkeypatch.setattr(_state, "_assemble", lambda *a: calls.append(1) or assemble(*a))
-    sol = rb.solve(1000)
-    assert sol.iterations <= 5 and len(calls) == sol.iterations + 1
-    assert sol.method == "Newton" and sol.is_local_minimum
-    assert sol.cost == pytest.approx(rb.cost(sol), rel=1e-12)
-
-
-@pytest.mark.usefixtures("numpy_windows")
-def test_a_constraint_of_small_chart_coordinates_converges_to_its_floor(problems, monkeypatch):
-    """SE(2) unicycle, N = 151, the globalised iteration restarted from the initial path:
-    the last update needed is ~1e-22 (the constraint v₂ = x₃ of arrows near the identity, a
-    difference of products of matrix entries); the former absolute criterion tol_step = 1e-9
-    called that a stall, the floor-relative one does not."""
-    monkeypatch.setattr(_solve, "_restart_points", lambda state, initial, iterates: [initial[:2]])
-    p = problems.random_problems(20, seed=1, steps=(60, 200))[10]
-    assert p.kind == "se2" and p.steps == 151
-    sol = p.solve()
-    problem = _state._Problem.of(p.system, p.steps, np.array(p.params))
-    assert problem.lay is _layout(p.steps, 1, 3, 1)
-    state = _assemble(problem, sol.arrows, sol.multipliers)
-    assert _excess(state.F, _rounding_floor(state), 0.0) <= 1.0
-    with pytest.raises(BoundaryValueDivergenceError, match="tol_step"):
-        p.solve(tol_step=1e-9)
-
-
-# --- globalisation -------------------------------------------------------------------------------
-
-def _dense(state, n: int) -> np.ndarray:
-    A = np.zeros((n, n))
-    np.add.at(A, (state.rows, state.cols), state.vals)
-    return A
-
-
-def _reduced_hessian_eigenvalues(system, sol, params) -> np.ndarray:
-    """Eigenvalues of ZᵀHZ from dense linear algebra: H the δ-block of the symmetrised
-    Jacobian at the solution, Z an orthonormal basis of the null space of the constraint
-    gradients (independent of the banded LDLᵀ)."""
-    from scipy.linalg import null_space
-
-    G = system.groupoid
-    a, m = len(system._fs.slots), len(system._fs.constraints)
-    problem = _state._Problem.of(system, sol.steps, np.asarray(params, float))
-    lay = problem.lay
-    assert lay is _layout(sol.steps, a, G.rank, m)
-    state = _assemble(problem, sol.arrows, sol.multipliers)
-    K = _dense(state, lay.size)
-    K = (K + K.T) / 2
-    d, c = _variation_rows(lay, G.rank), _multiplier_rows(lay, m)
-    H = K[np.ix_(d, d)]
-    Z = null_space(K[np.ix_(c, d)]) if len(c) else np.eye(len(d))
-    return np.linalg.eigvalsh(Z.T @ H @ Z)
-
-
-@pytest.mark.usefixtures("numpy_windows")
-def test_globalised_iteration_converges_where_newton_crawls(problems, monkeypatch):
-    """SO(3) steering with ψ = ξ₃ − uξ₁ (13° turn, N = 150): Newton alone from the geodesic
-    guess crawls with damped steps (it fails the former cap of 30 iterations); the solver
-    hands over to the inertia-corrected iteration and converges in half of that, to a
-    stationary point (checked on the action) that is a strict local minimum (checked by dense
-    linear algebra)."""
-    base = problems.random_problems()[11]
-    p = dataclasses.replace(base, steps=150, params=(1 / 150,) + base.params[1:])
-    sol = p.solve()
-    assert "inertia-corrected" in sol.method and sol.iterations <= 15
-    assert sg.verify_stationary(sol, p.system).stationary
-    eigenvalues = _reduced_hessian_eigenvalues(p.system, sol, p.params)
-    assert eigenvalues.min() > 0 and sol.is_local_minimum
-    assert sol.inertia.positive == len(eigenvalues)
-    assert sol.cost == pytest.approx(p.cost(sol.arrows), rel=1e-12)
-
-    def refuse(state, starts, why):
-        raise BoundaryValueDivergenceError(why, iterations=state.iterations)
-
-    monkeypatch.setattr(_fast, "MAX_DAMPED", 10**9)
-    monkeypatch.setattr(_solve, "_globalised_after", refuse)
-    with pytest.raises(BoundaryValueDivergenceError, match="30 iterations"):
-        p.solve(max_iterations=30)
-
-
-# --- the second-order condition ------------------------------------------------------------------
-
-def test_banded_inertia_matches_dense_eigenvalues():
-    """Random symmetric banded matrices: definite, indefinite, saddle-point (zero blocks, as
-    KKT matrices have) and singular ones."""
-    rng = np.random.default_rng(7)
-    for trial in range(120):
-        n, w = int(rng.integers(1, 50)), int(rng.integers(0, 6))
-        A = rng.normal(size=(n, n)) * (np.abs(np.subtract.outer(range(n), range(n))) <= w)
-        if trial % 3 == 0:
-            idx = rng.choice(n, size=n // 3, replace=False)
-            A[np.ix_(idx, idx)] = 0.0
-        if trial % 5 == 0:
-            A = A @ A.T * (np.abs(np.subtract.outer(range(n), range(n))) <= w)
-        if trial % 7 == 0 and n > 2:
-            A[:, 1] = A[1, :] = 0.0
-        ev = np.linalg.eigvalsh((A + A.T) / 2)
-        tiny = 1e-9 * max(np.abs(ev).max(), 1e-300)
-        expected = ((ev > tiny).sum(), (ev < -tiny).sum(), (np.abs(ev) <= tiny).sum())
-        r, c = np.nonzero(A)
-        assert tuple(banded_inertia(r, c, A[r, c], n)) == expected, (n, w, trial)
-
-
-@pytest.fixture(scope="module")
-def spring():
-    """L = (q₁ − q₀)²/(2h) − h k (q₀² + q₁²)/4 on the pair groupoid of R (a harmonic
-    oscillator, ω = √k): the action is minimal only up to the first conjugate point, ωT = π."""
-    k = sp.Symbol("k", positive=True)
-
-    def L(g):
-        (q0,), (q1,) = g.source, g.target
-        return (q1 - q0) ** 2 / (2 * h) - h * k * (q0 ** 2 + q1 ** 2) / 4
-
-    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
-                             name="spring")
-
-
-@pytest.mark.usefixtures("numpy_windows")
-@pytest.mark.parametrize("k, descent", [(4.0, 0), (16.0, 1), (60.0, 2)])
-def test_a_stationary_point_past_conjugate_points_is_flagged(spring, k, descent):
-    """T = 1, ω = √k: ωT = 2, 4, 7.7 passes 0, 1, 2 conjugate points (multiples of π), so
-    the Hessian of the action has that many negative eigenvalues (dense check), the flag
-    and the repr say so, and ``minimum=True`` refuses the saddle."""
-    sol = sg.solve_boundary_value(spring, 0.0, 1.0, 40, params=[1 / 40, k])
-    eigenvalues = _reduced_hessian_eigenvalues(spring, sol, [1 / 40, k])
-    assert (eigenvalues < 0).sum() == descent
-    assert sol.inertia.negative == descent and sol.is_local_minimum == (descent == 0)
-    assert repr(sol).endswith(", local minimum>") == (descent == 0)
-    assert ("NOT a local minimum" in repr(sol)) == (descent > 0)
-    assert sol.cost == pytest.approx(action(spring, sol.arrows, None, [1 / 40, k]), rel=1e-12)
-    if descent:
-        with pytest.raises(BoundaryValueDivergenceError):
-            sg.solve_boundary_value(spring, 0.0, 1.0, 40, params=[1 / 40, k], minimum=True,
-                                    max_iterations=20)
-
-
-@pytest.mark.usefixtures("numpy_windows")
-def test_a_turn_past_two_pi_is_a_saddle():
-    """Isotropic inertia (a bi-invariant metric): the uniform rotation by 2.5π about an axis is
-    a discrete geodesic past its conjugate point at 2π, of multiplicity two (the directions
-    normal to the axis), so the reduced Hessian has two negative eigenvalues."""
-
-    def L(g):
-        xi = g.coordinates / h
-        return h * (xi.T * xi)[0, 0] / 2
-
-    system = sg.DiscreteSystem(sg.SO3("g"), L, parameters=[h], name="so3_isotropic")
-    n, axis = 60, np.array([1.0, 2.0, 2.0]) / 3
-    arrow = sg.SO3("g").numeric_fibre_chart(2 * np.tan(2.5 * np.pi / (2 * n)) * axis)
-    guess = np.tile(arrow, (n, 1))
-    end = np.linalg.matrix_power(arrow.reshape(3, 3), n)
-    sol = sg.solve_boundary_value(system, np.eye(3), end, n, params=[1 / n], guess=guess)
-    assert np.abs(sol.arrows - guess).max() < 1e-12
-    assert sol.inertia.negative == 2 and sol.is_local_minimum is False
-    assert (_reduced_hessian_eigenvalues(system, sol, [1 / n]) < 0).sum() == 2
-    default = sg.solve_boundary_value(system, np.eye(3), end, n, params=[1 / n])
-    assert default.is_local_minimum and default.cost < sol.cost
-
-
 @pytest.mark.usefixtures("numpy_windows")
 def test_cli_prints_the_cost_and_the_second_order_condition(tmp_path, capsys):
     import json
@@ -390,8 +206,6 @@ def test_twenty_random_problems_against_ipopt(problems):
     iterations) solves, the library solves too, at the same stationary point or at a lower
     cost; and every solution is a strict local minimum."""
     casadi_models = pytest.importorskip("casadi") and _benchmark_module("_bvp_casadi")
-    from symgroupoid.runtime._bvp import interpolate_arrows
-
     for p in problems.random_problems():
         G = p.system.groupoid
         guess = interpolate_arrows(G, G.arrow_between(p.start, p.end), p.steps)

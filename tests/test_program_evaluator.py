@@ -3,7 +3,8 @@
 A program whose kernel is not cached is evaluated in NumPy while the kernel is built in a
 background thread, then by the kernel; the two compute the same bits, so a result never
 shows which evaluated it.  A background build that fails leaves NumPy in use, with a
-warning; a cached kernel is used from the first call.
+warning; a cached kernel is used from the first call.  (The evaluator's choice from
+``SYMGROUPOID_BACKEND`` and its chunks of rows: tests/test_bvp.py.)
 """
 
 from __future__ import annotations
@@ -16,9 +17,6 @@ from kernel_support import isolated_cache, needs_cc  # noqa: F401  (autouse fixt
 import symgroupoid as sg
 from symgroupoid.ir import Graph, Program, from_sympy
 from symgroupoid.runtime import CompilationError, ProgramEvaluator, toolchain, wait_for_kernels
-
-# the window programs' evaluator (background builds, chunks) has no public constructor
-from symgroupoid.runtime._bvp import _kernels
 
 x, y = sp.symbols("x y", real=True)
 
@@ -86,29 +84,5 @@ def test_malformed_values_are_refused_by_either_form():
         evaluator(np.zeros(2))
 
 
-def test_unknown_backend_in_the_environment_is_refused(monkeypatch):
-    monkeypatch.setenv("SYMGROUPOID_BACKEND", "fortran")
-    with pytest.raises(sg.DomainError, match="SYMGROUPOID_BACKEND"):
-        _kernels._vectorised("bad backend", _program(), "a", "out")
-
-
 def test_wait_for_kernels_with_nothing_building_returns_at_once():
     assert wait_for_kernels(0) is True
-
-
-def test_numpy_form_is_evaluated_in_bounded_chunks(monkeypatch):
-    """Rows are evaluated a bounded number at a time (memory), with the same bits."""
-    program = _program(5)
-    whole = program.numpy_function(["out"], ["a"])(VALUES.T)[0].T
-    seen = []
-    monkeypatch.setattr("symgroupoid.runtime._programs.NUMPY_ROWS", 10)
-    evaluator = ProgramEvaluator("evaluator chunks", program, "a", "out", backend="numpy")
-    raw = program.numpy_function(["out"], ["a"])
-
-    def spy(values):
-        seen.append(values.shape[1])
-        return raw(values)
-
-    evaluator._numpy = spy
-    assert np.array_equal(evaluator(VALUES), whole)
-    assert max(seen) == 10 and sum(seen) == len(VALUES)
