@@ -22,14 +22,24 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 import symgroupoid as sg
 from symgroupoid import Simulator
 
-# the kernel's split into parts and units, flags and the cffi build are checked inside
-from symgroupoid.codegen import _kernel, generate_c
+# white-box: how a kernel is built is checked inside — its split into parts and translation
+# units and the templates' compiled code (codegen/_kernel.py, _emit.py), the optimisation
+# levels (toolchain/_flags.py), the compiler runs of one build (_cffi_build.py), the kernel
+# loaded from its source (runtime/_compile.py), the recipes kept per kernel (_kernels.py) and
+# the OpenMP probe (_openmp.py); a user sees only the built kernel, bit for bit the same
+from symgroupoid.codegen import _emit, _kernel, generate_c
+from symgroupoid.codegen._emit import arithmetic_only
 from symgroupoid.codegen._kernel import (
+    CLOSE_UNKNOWNS,
+    PART_SIZE,
     UNIT_MIN_STATEMENTS,
+    UNIT_PART_SIZE,
+    UNROLLED_UNKNOWNS,
     Block,
     Part,
     assign_units,
     stepper_statements,
+    unit_part_size,
 )
 from symgroupoid.runtime import CompilationError, _compile, toolchain
 from symgroupoid.runtime.toolchain import _cffi_build, _flags, _kernels, _openmp
@@ -119,7 +129,6 @@ def test_only_a_kernel_without_library_calls_has_block_units():
     """The 3D chain's program is arithmetic (its further unit is a block unit); the planar
     chain calls sin and cos (-Og would not pair them into sincos): no block units, and
     units balanced at weight 1 whatever ``block_weight`` says."""
-    from symgroupoid.codegen._emit import arithmetic_only
     from symgroupoid.systems import spherical_chain
 
     arithmetic = spherical_chain(2).euler_lagrange()
@@ -142,13 +151,6 @@ def test_only_a_kernel_without_library_calls_has_block_units():
 
 
 def test_a_kernel_in_units_has_smaller_parts_unless_it_may_stay_in_one():
-    from symgroupoid.codegen._kernel import (
-        CLOSE_UNKNOWNS,
-        PART_SIZE,
-        UNIT_PART_SIZE,
-        UNROLLED_UNKNOWNS,
-        unit_part_size,
-    )
     from symgroupoid.stepper import library_source
 
     assert UNIT_PART_SIZE < PART_SIZE
@@ -470,8 +472,6 @@ def test_the_templates_compiled_code_never_changes_the_c(tmp_path, monkeypatch):
     ``test_cache_safety``), is loaded by a later process instead of compiling; a damaged
     entry or a missing directory only costs a compilation: the C is the same in every
     case."""
-    from symgroupoid.codegen import _emit
-
     monkeypatch.setattr(_emit, "package_template_cache", lambda write=False: None)
     step = planar_chain(2).euler_lagrange()
     kept_in = tmp_path / "compiled"
@@ -516,8 +516,6 @@ def _templates_copy(tmp_path, monkeypatch):
     """A copy of the templates (without compiled code) that ``template_dir`` names."""
     import shutil
 
-    from symgroupoid.codegen import _emit
-
     copy = tmp_path / "templates"
     shutil.copytree(_emit.template_dir(), copy, ignore=shutil.ignore_patterns("__pycache__"))
     monkeypatch.setattr(_emit, "template_dir", lambda: copy)
@@ -529,8 +527,6 @@ def test_the_templates_compiled_beside_them_serve_every_process_and_cache(tmp_pa
     """``cache templates`` (make's setup) compiles every template into the templates'
     __pycache__/: a process with a new, empty kernel cache compiles none, even where Python
     writes no bytecode; nothing goes into that kernel cache."""
-    from symgroupoid.codegen import _emit
-
     run = subprocess.run([sys.executable, "-m", "symgroupoid", "cache", "templates"],
                          capture_output=True, text=True, check=True, cwd=REPO)
     directory = _emit.template_dir() / "__pycache__"
@@ -550,8 +546,6 @@ def test_a_changed_template_is_compiled_again(tmp_path, monkeypatch):
     """An entry of the package's compiled templates whose template changed since is stale:
     jinja2 compares the source, compiles the template again, and the C follows the new
     template; a process that may write bytecode replaces the entry."""
-    from symgroupoid.codegen import _emit
-
     copy = _templates_copy(tmp_path, monkeypatch)
     directory, kept = _emit.precompile_templates()
     assert directory == str(copy / "__pycache__") and kept == len(_emit.TEMPLATE_NAMES)
@@ -576,8 +570,6 @@ def test_templates_that_cannot_be_kept_beside_them_are_an_output_error(tmp_path,
     OutputError naming the directory, from the library and from the command line (exit
     status 1, one line); kernels are still generated, their templates compiled per
     process."""
-    from symgroupoid.codegen import _emit
-
     copy = _templates_copy(tmp_path, monkeypatch)
     (copy / "__pycache__").write_text("in the way")
     with pytest.raises(sg.OutputError, match="__pycache__"):

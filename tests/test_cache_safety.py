@@ -36,7 +36,10 @@ import symgroupoid as sg
 from symgroupoid.cli import main
 from symgroupoid.runtime import CacheError, CompilationError, toolchain
 
-# the cache's own state (loaded modules, swept roots, flock, host tag) is reset and read here
+# white-box: a new process is imitated by clearing the cache's in-process state (the kernels
+# loaded and their recipes, toolchain/_kernels.py; the roots swept, _sweep.py), and the flock
+# test (_locks.py), the build directories' host tag (_processes.py) and the removal of a link
+# (_atomic.py) are checked directly; no public name resets or shows them
 from symgroupoid.runtime.toolchain import (
     _atomic,
     _kernels,

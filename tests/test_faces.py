@@ -92,3 +92,41 @@ def test_the_runtime_face_gives_the_trajectory_files_on_first_use(tmp_path):
     assert set(runtime.__all__) >= {"read_trajectory", "save_trajectory", "atomic_write"}
     with pytest.raises(AttributeError, match="no attribute 'not_a_name'"):
         runtime.not_a_name  # noqa: B018
+
+
+# --- the tests reach the package through its faces too -----------------------------------------
+
+TESTS = Path(__file__).resolve().parent
+
+
+def _private_import_lines(path: Path) -> list[int]:
+    """Lines of ``path``'s imports of the package that reach inside: a module path with a
+    part starting with ``_``, or a ``_name`` taken from a public module."""
+    lines = []
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("symgroupoid"):
+            parts = node.module.split(".")[1:]
+            names = [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            parts = [p for a in node.names if a.name.startswith("symgroupoid.")
+                     for p in a.name.split(".")[1:]]
+            names = []
+        else:
+            continue
+        if any(p.startswith("_") and not p.startswith("__") for p in [*parts, *names]):
+            lines.append(node.lineno)
+    return lines
+
+
+def test_at_most_one_test_file_in_ten_reaches_inside_and_says_why():
+    """White-box tests of one unit live in one file for that unit, which says at its first
+    private import, in a comment just above it, why it reaches inside; every other test file
+    uses the names of the faces."""
+    files = sorted(TESTS.glob("test_*.py"))
+    inside = {path.name: lines for path in files if (lines := _private_import_lines(path))}
+    assert 10 * len(inside) <= len(files), sorted(inside)
+    for name, lines in inside.items():
+        source = (TESTS / name).read_text(encoding="utf-8").splitlines()
+        assert source[min(lines) - 2].lstrip().startswith("#"), (
+            f"tests/{name}:{min(lines)}: say why the test reaches inside, in a comment above "
+            "its first private import")

@@ -12,15 +12,22 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
-from symgroupoid.groupoids import Groupoid
 
-# the closed-form builder and the stored templates of the matrix groups are the subject
+# white-box: the subject is how the matrix groups' closed forms are made — the templates
+# derived once per class against the direct products (groupoids/_matrix_templates.py), the
+# stored file and its builder (_closed_forms.py, _closed_forms_build.py), and pair groupoids
+# of products of group manifolds built directly (_manifold.py); none of it is public
+from symgroupoid.groupoids import Groupoid, _closed_forms, _closed_forms_build
+from symgroupoid.groupoids._closed_forms_build import _PlaceholderPrinter
+from symgroupoid.groupoids._manifold import GroupManifold, ProductManifold
 from symgroupoid.groupoids._matrix_templates import (
+    _builtin,
     _cayley_template,
     _direct_increment_coordinates,
     _direct_translated_retraction,
     _dtau_dummies,
     _simplify_matrix,
+    _stored_form,
 )
 
 CASES = [(sg.SO2, "cayley"), (sg.SO2, "exp"), (sg.SO3, "cayley"), (sg.SO3, "exp"),
@@ -80,8 +87,6 @@ def test_numeric_tau_is_the_symbolic_retraction(group, retraction):
 def test_pair_groupoid_numeric_fibre_arrow_is_the_symbolic_one():
     """The pair groupoid of SO(3) × SE(2) × R draws its arrows (q, q·τ(x)) numerically; the
     generic route (the symbolic fibre chart, compiled) gives the same arrow."""
-    from symgroupoid.groupoids._manifold import GroupManifold, ProductManifold
-
     P = sg.PairGroupoid(ProductManifold(GroupManifold(sg.SO3("R")),
                                         GroupManifold(sg.SE2("g", retraction="exp")),
                                         sg.EuclideanSpace("z")))
@@ -107,8 +112,6 @@ def test_matrix_form_keeps_the_structured_product():
 
 
 def _pair_groupoids():
-    from symgroupoid.groupoids._manifold import GroupManifold, ProductManifold
-
     return [
         sg.PairGroupoid(sg.EuclideanSpace("x y")),
         sg.PairGroupoid(sg.SO3("R")),
@@ -177,9 +180,6 @@ def test_stored_templates_are_the_derived_trees_and_the_file_is_current():
     """Every template a new process reads from groupoids/_closed_forms.py is, node for node,
     the tree its derivation gives (so the equations, the LaTeX and the C are those of the
     derivation), and the file is what the builder writes today (``make closed-forms``)."""
-    from symgroupoid.groupoids import _closed_forms, _closed_forms_build
-    from symgroupoid.groupoids._matrix_templates import _stored_form
-
     derived = _closed_forms_build.derived_templates()
     assert sorted(key for key, _, _ in derived) == sorted(_closed_forms.FORMS)
     for key, template, placeholders in derived:
@@ -206,15 +206,11 @@ def test_the_stored_file_is_what_a_derivation_without_it_writes():
              "sys.stdout.write(b.source())")
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
                          check=True, cwd=Path(__file__).resolve().parents[1])
-    from symgroupoid.groupoids import _closed_forms
-
     assert run.stdout == Path(_closed_forms.__file__).read_text("utf-8")
 
 
 def test_stored_templates_are_used_only_for_the_groups_they_were_derived_for():
     """A subclass (here one with another basis order) derives its own templates."""
-    from symgroupoid.groupoids._matrix_templates import _builtin, _cayley_template
-
     class Reordered(sg.SO3):
         @classmethod
         def _basis(cls):
@@ -229,8 +225,6 @@ def test_stored_templates_are_used_only_for_the_groups_they_were_derived_for():
 
 
 def test_a_stored_template_that_names_a_foreign_symbol_is_refused():
-    from symgroupoid.groupoids._closed_forms_build import _PlaceholderPrinter
-
     a, b = sp.Dummy("a"), sp.Dummy("b")
     assert _PlaceholderPrinter([a]).doprint(a + sp.Symbol("c")) in (
         "Add(P[0], Symbol('c'))", "Add(Symbol('c'), P[0])")
