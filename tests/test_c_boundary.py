@@ -168,8 +168,8 @@ def test_c_simulate_refuses_a_buffer_below_n_steps_plus_one_rows():
         norms = np.full(20, 7.0)
         failed = ffi.new("long *")
         status = lib.rigid_body_simulate(
-            ffi.from_buffer("double[]", state), ffi.from_buffer("double[]", p), n_steps,
-            ffi.NULL, ffi.NULL, ffi.from_buffer("double[]", states), capacity,
+            ffi.from_buffer("double[]", state), ffi.from_buffer("double[]", p), ffi.NULL,
+            n_steps, ffi.NULL, ffi.NULL, ffi.from_buffer("double[]", states), capacity,
             ffi.from_buffer("int[]", iterations), ffi.from_buffer("double[]", norms), failed,
             ffi.NULL)
         return status, states, iterations, norms
