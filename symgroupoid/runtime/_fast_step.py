@@ -62,7 +62,11 @@ class FastStep:
         self.parameters = _parameter_screen(parameter_names(parameters),
                                             assumptions_test(parameters), self.used,
                                             lambda: tuple(zero_divisors(sim.equations)))
-        self.call = _fast_call(sim, self)
+        call = _fast_call(sim, self)
+        if sim.layout.n_inputs:  # a step of a system with inputs needs them
+            def call(state, params, options, u=None, chain=call):  # noqa: F811
+                return None if u is None else chain(state, params, options, u)
+        self.call = call
 
     def key_tail(self, p: np.ndarray) -> bytes:
         """The bytes of the parameters the constraints use (the tail of a state's key)."""
