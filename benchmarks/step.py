@@ -123,6 +123,43 @@ def python_overhead(sim, state, steps: int = 200, repeat: int = 300) -> dict[str
     return {what: (best[what] - best["kernel"]) / steps * 1e6 for what in ("vector", "dict")}
 
 
+def input_overhead(step, sim, state, steps: int = 200, repeat: int = 300) -> float:
+    """µs per ``sim.step(state, p, inputs=u)`` call of a loop beyond the kernel's step, on
+    the plate-ball driven by two inputs (a force on the ball's first two sections,
+    ``sg.body_torque``, docs/conventions.md §20).  The inputs are held at zero, so the
+    loop's arrows are bitwise those of the plate-ball's own kernel run, the reference."""
+    base = step.system
+    u = sp.symbols("u1 u2", real=True)
+    rank = base.groupoid.rank
+    driven = sg.DiscreteSystem(
+        base.groupoid, base.lagrangian, base.constraints, base.parameters,
+        name="plate_ball_driven", time_step=base.time_step, inputs=list(u),
+        forces=sg.body_torque([u[0], u[1]] + [0] * (rank - 2), base.time_step))
+    forced = driven.euler_lagrange().compile()
+    vector = sim.parameters(PARAMS)
+    start = forced.state(np.r_[state, 0.0, 0.0, 0.0, 0.0], PARAMS)
+    zero = np.zeros(2)
+    options = sg.NewtonOptions(extrapolate=False)
+
+    def loop() -> np.ndarray:
+        s = start
+        for _ in range(steps):
+            s = forced.step(s, vector, inputs=zero)
+        return s
+
+    reference = sim.kernel.simulate(state, vector, steps, options)
+    n = len(state)
+    if not np.array_equal(loop()[:n], reference.states[-1]):
+        raise RuntimeError("the driven plate-ball's step loop differs from the plate-ball's run")
+    runs = {"kernel": lambda: sim.kernel.simulate(state, vector, steps, options),
+            "inputs": loop}
+    best = dict.fromkeys(runs, float("inf"))
+    for _ in range(repeat):
+        for what, run in runs.items():
+            best[what] = min(best[what], best_of(run, 1))
+    return (best["inputs"] - best["kernel"]) / steps * 1e6
+
+
 def scipy_per_step(step, state, steps: int) -> tuple[float, np.ndarray]:
     from scipy.optimize import root
 
@@ -231,6 +268,9 @@ def main() -> None:
         overhead = python_overhead(sim, state)
         print(f"Python overhead of sim.step:    {overhead['vector']:8.3f} us/call with a "
               f"parameter vector, {overhead['dict']:.3f} with a dict (target <= 2 us)")
+        driven = input_overhead(step, sim, state)
+        print(f"  ... with inputs, sim.step(s, p, inputs=u): {driven:.3f} us/call "
+              f"(plate-ball driven by 2 inputs; target <= 2 us)")
 
         n_scipy = min(args.scipy_steps, args.steps)
         sci, sci_states = scipy_per_step(step, state, n_scipy)

@@ -187,6 +187,17 @@ def _fast_call(sim, fast: FastStep):
     #: key)), replaced as a whole (another thread sees one link or the other, never half of
     #: one).  Its state joins the table when the chain breaks.
     chain = [(None, None, None, (None,) * 7)]
+    #: the last inputs array and its view (the view points at the array's buffer, so it
+    #: stays right when the caller refills the same array between calls)
+    held_inputs = [(None, no_inputs)]
+
+    def inputs_view(u):
+        if u is None:
+            return no_inputs
+        held = held_inputs[0]
+        if held[0] is not u:
+            held = held_inputs[0] = (u, view_of(u))
+        return held[1]
 
     def call(state, params, options, u=None):
         link = chain[0]
@@ -205,8 +216,7 @@ def _fast_call(sim, fast: FastStep):
             if same is not None:
                 after = empty(n_known)
                 view = view_of(after)
-                if entry(link[2], setting[3], no_inputs if u is None else view_of(u),
-                         setting[5], view) != OK:
+                if entry(link[2], setting[3], inputs_view(u), setting[5], view) != OK:
                     return None
                 chain[0] = (after, after.tobytes(), view, setting)
                 return after
@@ -233,8 +243,7 @@ def _fast_call(sim, fast: FastStep):
         c_options = setting[5] if options is setting[4] else options_of(options)
         after = empty(n_known)
         view = view_of(after)
-        if entry(view_of(state), p_view, no_inputs if u is None else view_of(u), c_options,
-                 view) != OK:
+        if entry(view_of(state), p_view, inputs_view(u), c_options, view) != OK:
             return None
         chain[0] = (after, after.tobytes(), view,
                     (params, _fingerprint(params, p), p, p_view, options, c_options, tail))

@@ -19,6 +19,9 @@ from ._options import NewtonOptions
 from ._runs import OK, RawRun
 from ._validate import real_array
 
+_FLOAT64 = np.dtype(np.float64)
+_STEP = (8,)  # the strides of a C-contiguous float64 vector
+
 
 def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
     """The inputs of a run as an array (steps, m): ``inputs`` of shape (steps, m), (m,)
@@ -57,12 +60,12 @@ def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
     """The inputs of one step (:meth:`Simulator.step`): None for a system without inputs
     (and none given); a C-contiguous float64 vector of the m inputs, finite, passes as it
     is; anything else goes through :func:`input_sequence`."""
-    m = layout.n_inputs
-    if m == 0 and inputs is None:
-        return None
-    if (type(inputs) is np.ndarray and inputs.dtype == np.float64 and inputs.shape == (m,)
-            and inputs.flags.c_contiguous and m and all(map(math.isfinite, inputs.tolist()))):
+    if (type(inputs) is np.ndarray and inputs.dtype is _FLOAT64 and inputs.strides == _STEP
+            and all(map(math.isfinite, inputs.tolist()))
+            and inputs.shape == (layout.n_inputs,) and inputs.shape != (0,)):
         return inputs
+    if inputs is None and layout.n_inputs == 0:
+        return None
     return input_sequence(layout, None if inputs is None else [inputs], 1, owner=owner)[0]
 
 
