@@ -10,8 +10,10 @@ from __future__ import annotations
 
 import atexit
 import functools
+import importlib.util
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -132,3 +134,18 @@ def step_inputs(step, rng) -> dict[str, np.ndarray]:
     known = rng.normal(size=(len(step.knowns), 4))
     p = rng.uniform(0.5, 2.0, (len(step.parameters), 4))
     return {"u": u, "known": known, "p": p}
+
+
+def benchmark_module(name: str):
+    """``benchmarks/<name>.py`` as a module (the problem families the tests share with the
+    benchmarks), loaded once per process."""
+    benchmarks = Path(__file__).resolve().parent.parent / "benchmarks"
+    if str(benchmarks) not in sys.path:
+        sys.path.insert(0, str(benchmarks))
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, benchmarks / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module  # dataclasses look their module up
+    spec.loader.exec_module(module)
+    return module

@@ -8,15 +8,13 @@ banded inertia against dense linear algebra."""
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
-import pathlib
 import pickle
-import sys
 
 import numpy as np
 import pytest
 import sympy as sp
 from conftest import load_example
+from kernel_support import benchmark_module
 from test_program_evaluator import VALUES, _program
 
 import symgroupoid as sg
@@ -46,7 +44,6 @@ from symgroupoid.runtime._bvp._state import _Problem
 from symgroupoid.runtime._sweep_boundary import _solution_data
 from symgroupoid.verification import action
 
-BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
 h = sp.Symbol("h", positive=True)
 
 
@@ -81,16 +78,7 @@ def numpy_windows(monkeypatch):
 @pytest.fixture(scope="module")
 def problems():
     """``benchmarks/_bvp_problems.py`` (the problem families shared with the benchmark)."""
-    if str(BENCHMARKS) not in sys.path:
-        sys.path.insert(0, str(BENCHMARKS))
-    name = "_bvp_problems"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
+    return benchmark_module("_bvp_problems")
 
 
 def test_the_guess_splits_a_half_turn_into_equal_turns(so3_control):

@@ -5,35 +5,20 @@ tests/test_bvp.py)."""
 
 from __future__ import annotations
 
-import importlib.util
 import pathlib
-import sys
 
 import numpy as np
 import pytest
 import sympy as sp
 from conftest import load_example
+from kernel_support import benchmark_module
 
 import symgroupoid as sg
 from symgroupoid.ir import Graph, rounding_error
 from symgroupoid.runtime import interpolate_arrows
 from symgroupoid.verification import action
 
-BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent / "benchmarks"
 h = sp.Symbol("h", positive=True)
-
-
-def _benchmark_module(name: str):
-    """``benchmarks/<name>.py`` as a module (the problem families shared with the benchmark)."""
-    if str(BENCHMARKS) not in sys.path:
-        sys.path.insert(0, str(BENCHMARKS))
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module  # dataclasses look their module up
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture
@@ -44,7 +29,7 @@ def numpy_windows(monkeypatch):
 
 @pytest.fixture(scope="module")
 def problems():
-    return _benchmark_module("_bvp_problems")
+    return benchmark_module("_bvp_problems")
 
 
 # --- an independent solution of the SO(3) Cayley problem: shooting on seed 000 §6.1 -------------
@@ -205,7 +190,7 @@ def test_twenty_random_problems_against_ipopt(problems):
     default guess: every problem Ipopt (on the CasADi Opti transcription, at most 500
     iterations) solves, the library solves too, at the same stationary point or at a lower
     cost; and every solution is a strict local minimum."""
-    casadi_models = pytest.importorskip("casadi") and _benchmark_module("_bvp_casadi")
+    casadi_models = pytest.importorskip("casadi") and benchmark_module("_bvp_casadi")
     for p in problems.random_problems():
         G = p.system.groupoid
         guess = interpolate_arrows(G, G.arrow_between(p.start, p.end), p.steps)

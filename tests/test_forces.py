@@ -513,3 +513,20 @@ def test_the_emitted_c_reads_the_inputs_and_agrees_bitwise(plane, tmp_path):
     traj = plane.simulate(start, 60, PLANE_PARAMS, inputs=U)
     assert np.array_equal(states, traj.states)  # without contraction: the same bits (§17)
     assert np.array_equal(states[:, 4], np.r_[0.2, U[:, 0]])
+
+
+@pytest.mark.parametrize("bad, error", [
+    ([np.nan], DomainError), ([0.0, 1.0], ShapeError), (np.array([np.inf]), DomainError),
+    ("u", sg.SymgroupoidError), (np.zeros((1, 1)), ShapeError),
+])
+def test_a_step_refuses_bad_inputs(plane, bad, error):
+    state = plane.state({"x": (1.0, 1.0), "y": (0.0, 0.0), "u": 0.0}, PLANE_PARAMS)
+    with pytest.raises(error):
+        plane.step(state, PLANE_PARAMS, inputs=bad)
+
+
+def test_the_helpers_refuse_a_bad_rule_or_force():
+    with pytest.raises(InputTypeError):
+        sg.rayleigh_damping(lambda q, v: 0, h, rule="euler")
+    with pytest.raises(CallableError):
+        _plane_system(sg.midpoint_forces("not a function", h))
