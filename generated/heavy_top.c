@@ -1183,8 +1183,9 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
  * since the previous kept state: their Newton iterations summed, the largest residual norm
  * (carried in the cursor across calls).  A failure at step s keeps state s too (unless
  * already kept) and records the failed step's own iterations, residual norm and last
- * iterate. */
-static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double *known0, const double *p, long n_steps, long every, long until, const heavy_top_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+ * iterate.  A forced kernel reads the inputs of step k from u + k * HEAVY_TOP_N_INPUTS (u: the run's
+ * inputs, n_steps rows; NULL without inputs). */
+static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double *known0, const double *p, const double *u, long n_steps, long every, long until, const heavy_top_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
 {
     double buffer[(HEAVY_TOP_BATCH_CHUNK + 1) * HEAVY_TOP_N_KNOWNS];
     int its[HEAVY_TOP_BATCH_CHUNK];
@@ -1211,7 +1212,8 @@ static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double
     while (cursor->done < until) {
         const long n = until - cursor->done < HEAVY_TOP_BATCH_CHUNK ? until - cursor->done : HEAVY_TOP_BATCH_CHUNK;
         long fail = -1, solved, j;
-        const int st = heavy_top_simulate(cursor->known, p, NULL, n, options, &cursor->warm, buffer, HEAVY_TOP_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        const double *u_piece = u != NULL ? u + (size_t)cursor->done * HEAVY_TOP_N_INPUTS : NULL;
+        const int st = heavy_top_simulate(cursor->known, p, u_piece, n, options, &cursor->warm, buffer, HEAVY_TOP_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
         if (st == HEAVY_TOP_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
             *kept = r;
             *status = st;
@@ -1257,15 +1259,16 @@ static void heavy_top_batch_advance(heavy_top_batch_cursor *cursor, const double
 }
 
 /* heavy_top_batch_advance for trajectory b of a batch's arrays: its rows of known0, p (none
- * when p is NULL, the same row for all when p_stride is 0), states, iterations and
+ * when p is NULL, the same row for all when p_stride is 0), u (likewise with u_stride), states, iterations and
  * residual_norms, its entries of kept and status, and of the failure outputs that were
  * given (a NULL one is written to a local and dropped). */
-static void heavy_top_batch_run(long b, heavy_top_batch_cursor *cursor, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+static void heavy_top_batch_run(long b, heavy_top_batch_cursor *cursor, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
 {
     int unused_iterations;
     long unused_step;
     double unused_norm;
-    heavy_top_batch_advance(cursor, known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
+    heavy_top_batch_advance(cursor, known0 + (size_t)b * HEAVY_TOP_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL,
+                          HEAVY_TOP_N_INPUTS > 0 && u != NULL ? u + (size_t)b * (size_t)u_stride : NULL, n_steps, every, until, options,
                           states + (size_t)b * (size_t)rows * HEAVY_TOP_N_KNOWNS,
                           iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
                           kept + b, status + b,
@@ -1303,15 +1306,19 @@ static int heavy_top_cursor_valid(const heavy_top_batch_cursor *cursor, long n_s
 
 /* The checks of heavy_top_simulate_batch and heavy_top_simulate_batch_until: 1 when the
  * arguments are usable */
-static int heavy_top_batch_valid(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const heavy_top_options *options, const double *states, long rows, const long long *iterations, const double *residual_norms, const long *kept, const int *status)
+static int heavy_top_batch_valid(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const heavy_top_options *options, const double *states, long rows, const long long *iterations, const double *residual_norms, const long *kept, const int *status)
 {
     (void)p;
+    (void)u;
+    (void)u_stride;
     return !(known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
         || kept == NULL || status == NULL
         || (HEAVY_TOP_N_PARAMETERS > 0 && p == NULL)
         || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
         || (p_stride != 0 && p_stride != HEAVY_TOP_N_PARAMETERS)
-        || HEAVY_TOP_N_INPUTS > 0 /* (the batched entry points take no inputs yet) */
+        || (HEAVY_TOP_N_INPUTS > 0 && n_steps > 0 && u == NULL)
+        || (HEAVY_TOP_N_INPUTS > 0 && n_steps > LONG_MAX / (HEAVY_TOP_N_INPUTS > 0 ? HEAVY_TOP_N_INPUTS : 1))
+        || (HEAVY_TOP_N_INPUTS > 0 && u_stride != 0 && u_stride != n_steps * HEAVY_TOP_N_INPUTS)
         || n_steps / every + (n_steps % every != 0) > rows - 1
         || (size_t)rows > ((size_t)-1 / sizeof(double)) / HEAVY_TOP_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
         || !heavy_top_options_valid(options));
@@ -1340,7 +1347,10 @@ static int heavy_top_batch_team(long n_batch, int n_threads)
 
 /* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
  * starts from known0 + b * HEAVY_TOP_N_KNOWNS with the parameters p + b * p_stride (p_stride 0:
- * one parameter vector for all, or HEAVY_TOP_N_PARAMETERS) and is computed exactly as
+ * one parameter vector for all, or HEAVY_TOP_N_PARAMETERS) and, for a forced kernel
+ * (HEAVY_TOP_N_INPUTS > 0), the inputs u + b * u_stride (u_stride 0: one input sequence for all, or
+ * n_steps * HEAVY_TOP_N_INPUTS; row k of a run's sequence, u[k * HEAVY_TOP_N_INPUTS + j], is read by its step
+ * k as heavy_top_simulate reads it; u may be NULL without inputs), and is computed exactly as
  * heavy_top_simulate computes it (bitwise: the same function, called in chunks with one warm
  * start).  Its kept states go to states + b * rows * HEAVY_TOP_N_KNOWNS (rows >= 1 +
  * ceil(n_steps / every)), the Newton summaries of the intervals between them to iterations and
@@ -1352,10 +1362,11 @@ static int heavy_top_batch_team(long n_batch, int n_threads)
  * OpenMP default; at most n_batch and HEAVY_TOP_MAX_THREADS) without changing any result;
  * without OpenMP they run one after the other.
  * Returns HEAVY_TOP_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
- * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or HEAVY_TOP_N_PARAMETERS, or
- * invalid options; otherwise HEAVY_TOP_OK (a non-finite row of known0 or p is reported as
- * status[b] = HEAVY_TOP_INVALID_ARGUMENT, kept[b] = 0). */
-int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+ * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or HEAVY_TOP_N_PARAMETERS, a forced
+ * kernel's NULL u or u_stride other than 0 or n_steps * HEAVY_TOP_N_INPUTS, or invalid options; otherwise HEAVY_TOP_OK (a non-finite row of known0 or p is reported as
+ * status[b] = HEAVY_TOP_INVALID_ARGUMENT, kept[b] = 0; a non-finite input of a piece of steps stops
+ * that run with status[b] = HEAVY_TOP_INVALID_ARGUMENT at the state before the piece). */
+int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
 {
     heavy_top_options defaults;
     long b;
@@ -1364,7 +1375,7 @@ int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p
         heavy_top_default_options(&defaults);
         options = &defaults;
     }
-    if (!heavy_top_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
+    if (!heavy_top_batch_valid(n_batch, known0, p, p_stride, u, u_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
     team = heavy_top_batch_team(n_batch, n_threads);
@@ -1375,7 +1386,7 @@ int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p
     for (b = 0; b < n_batch; ++b) {
         heavy_top_batch_cursor cursor;
         kept[b] = 0;
-        heavy_top_batch_run(b, &cursor, known0, p, p_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
+        heavy_top_batch_run(b, &cursor, known0, p, p_stride, u, u_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return HEAVY_TOP_OK;
 }
@@ -1390,7 +1401,7 @@ int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p
  * that state.  Returns HEAVY_TOP_INVALID_ARGUMENT, writing nothing, for the arguments
  * heavy_top_simulate_batch refuses, a null cursors or until < 0; a cursor that does not
  * describe its trajectory's progress gives status[b] = HEAVY_TOP_INVALID_ARGUMENT. */
-int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, long until, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
 {
     heavy_top_options defaults;
     long b;
@@ -1400,7 +1411,7 @@ int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors
         options = &defaults;
     }
     if (cursors == NULL || until < 0
-        || !heavy_top_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
+        || !heavy_top_batch_valid(n_batch, known0, p, p_stride, u, u_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
     team = heavy_top_batch_team(n_batch, n_threads);
@@ -1416,7 +1427,7 @@ int heavy_top_simulate_batch_until(long n_batch, heavy_top_batch_cursor *cursors
             status[b] = HEAVY_TOP_INVALID_ARGUMENT;
             continue;
         }
-        heavy_top_batch_run(b, cursors + b, known0, p, p_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
+        heavy_top_batch_run(b, cursors + b, known0, p, p_stride, u, u_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return HEAVY_TOP_OK;
 }

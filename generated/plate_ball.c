@@ -1410,8 +1410,9 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
  * since the previous kept state: their Newton iterations summed, the largest residual norm
  * (carried in the cursor across calls).  A failure at step s keeps state s too (unless
  * already kept) and records the failed step's own iterations, residual norm and last
- * iterate. */
-static void plate_ball_batch_advance(plate_ball_batch_cursor *cursor, const double *known0, const double *p, long n_steps, long every, long until, const plate_ball_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+ * iterate.  A forced kernel reads the inputs of step k from u + k * PLATE_BALL_N_INPUTS (u: the run's
+ * inputs, n_steps rows; NULL without inputs). */
+static void plate_ball_batch_advance(plate_ball_batch_cursor *cursor, const double *known0, const double *p, const double *u, long n_steps, long every, long until, const plate_ball_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
 {
     double buffer[(PLATE_BALL_BATCH_CHUNK + 1) * PLATE_BALL_N_KNOWNS];
     int its[PLATE_BALL_BATCH_CHUNK];
@@ -1438,7 +1439,8 @@ static void plate_ball_batch_advance(plate_ball_batch_cursor *cursor, const doub
     while (cursor->done < until) {
         const long n = until - cursor->done < PLATE_BALL_BATCH_CHUNK ? until - cursor->done : PLATE_BALL_BATCH_CHUNK;
         long fail = -1, solved, j;
-        const int st = plate_ball_simulate(cursor->known, p, NULL, n, options, &cursor->warm, buffer, PLATE_BALL_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        const double *u_piece = u != NULL ? u + (size_t)cursor->done * PLATE_BALL_N_INPUTS : NULL;
+        const int st = plate_ball_simulate(cursor->known, p, u_piece, n, options, &cursor->warm, buffer, PLATE_BALL_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
         if (st == PLATE_BALL_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
             *kept = r;
             *status = st;
@@ -1484,15 +1486,16 @@ static void plate_ball_batch_advance(plate_ball_batch_cursor *cursor, const doub
 }
 
 /* plate_ball_batch_advance for trajectory b of a batch's arrays: its rows of known0, p (none
- * when p is NULL, the same row for all when p_stride is 0), states, iterations and
+ * when p is NULL, the same row for all when p_stride is 0), u (likewise with u_stride), states, iterations and
  * residual_norms, its entries of kept and status, and of the failure outputs that were
  * given (a NULL one is written to a local and dropped). */
-static void plate_ball_batch_run(long b, plate_ball_batch_cursor *cursor, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+static void plate_ball_batch_run(long b, plate_ball_batch_cursor *cursor, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, long until, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
 {
     int unused_iterations;
     long unused_step;
     double unused_norm;
-    plate_ball_batch_advance(cursor, known0 + (size_t)b * PLATE_BALL_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
+    plate_ball_batch_advance(cursor, known0 + (size_t)b * PLATE_BALL_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL,
+                          PLATE_BALL_N_INPUTS > 0 && u != NULL ? u + (size_t)b * (size_t)u_stride : NULL, n_steps, every, until, options,
                           states + (size_t)b * (size_t)rows * PLATE_BALL_N_KNOWNS,
                           iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
                           kept + b, status + b,
@@ -1530,15 +1533,19 @@ static int plate_ball_cursor_valid(const plate_ball_batch_cursor *cursor, long n
 
 /* The checks of plate_ball_simulate_batch and plate_ball_simulate_batch_until: 1 when the
  * arguments are usable */
-static int plate_ball_batch_valid(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const plate_ball_options *options, const double *states, long rows, const long long *iterations, const double *residual_norms, const long *kept, const int *status)
+static int plate_ball_batch_valid(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const plate_ball_options *options, const double *states, long rows, const long long *iterations, const double *residual_norms, const long *kept, const int *status)
 {
     (void)p;
+    (void)u;
+    (void)u_stride;
     return !(known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
         || kept == NULL || status == NULL
         || (PLATE_BALL_N_PARAMETERS > 0 && p == NULL)
         || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
         || (p_stride != 0 && p_stride != PLATE_BALL_N_PARAMETERS)
-        || PLATE_BALL_N_INPUTS > 0 /* (the batched entry points take no inputs yet) */
+        || (PLATE_BALL_N_INPUTS > 0 && n_steps > 0 && u == NULL)
+        || (PLATE_BALL_N_INPUTS > 0 && n_steps > LONG_MAX / (PLATE_BALL_N_INPUTS > 0 ? PLATE_BALL_N_INPUTS : 1))
+        || (PLATE_BALL_N_INPUTS > 0 && u_stride != 0 && u_stride != n_steps * PLATE_BALL_N_INPUTS)
         || n_steps / every + (n_steps % every != 0) > rows - 1
         || (size_t)rows > ((size_t)-1 / sizeof(double)) / PLATE_BALL_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
         || !plate_ball_options_valid(options));
@@ -1567,7 +1574,10 @@ static int plate_ball_batch_team(long n_batch, int n_threads)
 
 /* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
  * starts from known0 + b * PLATE_BALL_N_KNOWNS with the parameters p + b * p_stride (p_stride 0:
- * one parameter vector for all, or PLATE_BALL_N_PARAMETERS) and is computed exactly as
+ * one parameter vector for all, or PLATE_BALL_N_PARAMETERS) and, for a forced kernel
+ * (PLATE_BALL_N_INPUTS > 0), the inputs u + b * u_stride (u_stride 0: one input sequence for all, or
+ * n_steps * PLATE_BALL_N_INPUTS; row k of a run's sequence, u[k * PLATE_BALL_N_INPUTS + j], is read by its step
+ * k as plate_ball_simulate reads it; u may be NULL without inputs), and is computed exactly as
  * plate_ball_simulate computes it (bitwise: the same function, called in chunks with one warm
  * start).  Its kept states go to states + b * rows * PLATE_BALL_N_KNOWNS (rows >= 1 +
  * ceil(n_steps / every)), the Newton summaries of the intervals between them to iterations and
@@ -1579,10 +1589,11 @@ static int plate_ball_batch_team(long n_batch, int n_threads)
  * OpenMP default; at most n_batch and PLATE_BALL_MAX_THREADS) without changing any result;
  * without OpenMP they run one after the other.
  * Returns PLATE_BALL_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
- * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or PLATE_BALL_N_PARAMETERS, or
- * invalid options; otherwise PLATE_BALL_OK (a non-finite row of known0 or p is reported as
- * status[b] = PLATE_BALL_INVALID_ARGUMENT, kept[b] = 0). */
-int plate_ball_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+ * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or PLATE_BALL_N_PARAMETERS, a forced
+ * kernel's NULL u or u_stride other than 0 or n_steps * PLATE_BALL_N_INPUTS, or invalid options; otherwise PLATE_BALL_OK (a non-finite row of known0 or p is reported as
+ * status[b] = PLATE_BALL_INVALID_ARGUMENT, kept[b] = 0; a non-finite input of a piece of steps stops
+ * that run with status[b] = PLATE_BALL_INVALID_ARGUMENT at the state before the piece). */
+int plate_ball_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
 {
     plate_ball_options defaults;
     long b;
@@ -1591,7 +1602,7 @@ int plate_ball_simulate_batch(long n_batch, const double *known0, const double *
         plate_ball_default_options(&defaults);
         options = &defaults;
     }
-    if (!plate_ball_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
+    if (!plate_ball_batch_valid(n_batch, known0, p, p_stride, u, u_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
         return PLATE_BALL_INVALID_ARGUMENT;
     }
     team = plate_ball_batch_team(n_batch, n_threads);
@@ -1602,7 +1613,7 @@ int plate_ball_simulate_batch(long n_batch, const double *known0, const double *
     for (b = 0; b < n_batch; ++b) {
         plate_ball_batch_cursor cursor;
         kept[b] = 0;
-        plate_ball_batch_run(b, &cursor, known0, p, p_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
+        plate_ball_batch_run(b, &cursor, known0, p, p_stride, u, u_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return PLATE_BALL_OK;
 }
@@ -1617,7 +1628,7 @@ int plate_ball_simulate_batch(long n_batch, const double *known0, const double *
  * that state.  Returns PLATE_BALL_INVALID_ARGUMENT, writing nothing, for the arguments
  * plate_ball_simulate_batch refuses, a null cursors or until < 0; a cursor that does not
  * describe its trajectory's progress gives status[b] = PLATE_BALL_INVALID_ARGUMENT. */
-int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *cursors, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, long until, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
 {
     plate_ball_options defaults;
     long b;
@@ -1627,7 +1638,7 @@ int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *curso
         options = &defaults;
     }
     if (cursors == NULL || until < 0
-        || !plate_ball_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
+        || !plate_ball_batch_valid(n_batch, known0, p, p_stride, u, u_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
         return PLATE_BALL_INVALID_ARGUMENT;
     }
     team = plate_ball_batch_team(n_batch, n_threads);
@@ -1643,7 +1654,7 @@ int plate_ball_simulate_batch_until(long n_batch, plate_ball_batch_cursor *curso
             status[b] = PLATE_BALL_INVALID_ARGUMENT;
             continue;
         }
-        plate_ball_batch_run(b, cursors + b, known0, p, p_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
+        plate_ball_batch_run(b, cursors + b, known0, p, p_stride, u, u_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return PLATE_BALL_OK;
 }

@@ -1172,8 +1172,9 @@ int rigid_body_simulate(const double *known0, const double *p, const double *u, 
  * since the previous kept state: their Newton iterations summed, the largest residual norm
  * (carried in the cursor across calls).  A failure at step s keeps state s too (unless
  * already kept) and records the failed step's own iterations, residual norm and last
- * iterate. */
-static void rigid_body_batch_advance(rigid_body_batch_cursor *cursor, const double *known0, const double *p, long n_steps, long every, long until, const rigid_body_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+ * iterate.  A forced kernel reads the inputs of step k from u + k * RIGID_BODY_N_INPUTS (u: the run's
+ * inputs, n_steps rows; NULL without inputs). */
+static void rigid_body_batch_advance(rigid_body_batch_cursor *cursor, const double *known0, const double *p, const double *u, long n_steps, long every, long until, const rigid_body_options *options, double *states, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
 {
     double buffer[(RIGID_BODY_BATCH_CHUNK + 1) * RIGID_BODY_N_KNOWNS];
     int its[RIGID_BODY_BATCH_CHUNK];
@@ -1200,7 +1201,8 @@ static void rigid_body_batch_advance(rigid_body_batch_cursor *cursor, const doub
     while (cursor->done < until) {
         const long n = until - cursor->done < RIGID_BODY_BATCH_CHUNK ? until - cursor->done : RIGID_BODY_BATCH_CHUNK;
         long fail = -1, solved, j;
-        const int st = rigid_body_simulate(cursor->known, p, NULL, n, options, &cursor->warm, buffer, RIGID_BODY_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
+        const double *u_piece = u != NULL ? u + (size_t)cursor->done * RIGID_BODY_N_INPUTS : NULL;
+        const int st = rigid_body_simulate(cursor->known, p, u_piece, n, options, &cursor->warm, buffer, RIGID_BODY_BATCH_CHUNK + 1, its, norms, &fail, last_iterate);
         if (st == RIGID_BODY_INVALID_ARGUMENT) { /* (a cursor that was not this run's) */
             *kept = r;
             *status = st;
@@ -1246,15 +1248,16 @@ static void rigid_body_batch_advance(rigid_body_batch_cursor *cursor, const doub
 }
 
 /* rigid_body_batch_advance for trajectory b of a batch's arrays: its rows of known0, p (none
- * when p is NULL, the same row for all when p_stride is 0), states, iterations and
+ * when p is NULL, the same row for all when p_stride is 0), u (likewise with u_stride), states, iterations and
  * residual_norms, its entries of kept and status, and of the failure outputs that were
  * given (a NULL one is written to a local and dropped). */
-static void rigid_body_batch_run(long b, rigid_body_batch_cursor *cursor, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
+static void rigid_body_batch_run(long b, rigid_body_batch_cursor *cursor, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, long until, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate)
 {
     int unused_iterations;
     long unused_step;
     double unused_norm;
-    rigid_body_batch_advance(cursor, known0 + (size_t)b * RIGID_BODY_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL, n_steps, every, until, options,
+    rigid_body_batch_advance(cursor, known0 + (size_t)b * RIGID_BODY_N_KNOWNS, p != NULL ? p + (size_t)b * (size_t)p_stride : NULL,
+                          RIGID_BODY_N_INPUTS > 0 && u != NULL ? u + (size_t)b * (size_t)u_stride : NULL, n_steps, every, until, options,
                           states + (size_t)b * (size_t)rows * RIGID_BODY_N_KNOWNS,
                           iterations + (size_t)b * (size_t)(rows - 1), residual_norms + (size_t)b * (size_t)(rows - 1),
                           kept + b, status + b,
@@ -1292,15 +1295,19 @@ static int rigid_body_cursor_valid(const rigid_body_batch_cursor *cursor, long n
 
 /* The checks of rigid_body_simulate_batch and rigid_body_simulate_batch_until: 1 when the
  * arguments are usable */
-static int rigid_body_batch_valid(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const rigid_body_options *options, const double *states, long rows, const long long *iterations, const double *residual_norms, const long *kept, const int *status)
+static int rigid_body_batch_valid(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const rigid_body_options *options, const double *states, long rows, const long long *iterations, const double *residual_norms, const long *kept, const int *status)
 {
     (void)p;
+    (void)u;
+    (void)u_stride;
     return !(known0 == NULL || states == NULL || iterations == NULL || residual_norms == NULL
         || kept == NULL || status == NULL
         || (RIGID_BODY_N_PARAMETERS > 0 && p == NULL)
         || n_batch < 0 || n_steps < 0 || every < 1 || rows < 1
         || (p_stride != 0 && p_stride != RIGID_BODY_N_PARAMETERS)
-        || RIGID_BODY_N_INPUTS > 0 /* (the batched entry points take no inputs yet) */
+        || (RIGID_BODY_N_INPUTS > 0 && n_steps > 0 && u == NULL)
+        || (RIGID_BODY_N_INPUTS > 0 && n_steps > LONG_MAX / (RIGID_BODY_N_INPUTS > 0 ? RIGID_BODY_N_INPUTS : 1))
+        || (RIGID_BODY_N_INPUTS > 0 && u_stride != 0 && u_stride != n_steps * RIGID_BODY_N_INPUTS)
         || n_steps / every + (n_steps % every != 0) > rows - 1
         || (size_t)rows > ((size_t)-1 / sizeof(double)) / RIGID_BODY_N_KNOWNS / (n_batch > 0 ? (size_t)n_batch : 1)
         || !rigid_body_options_valid(options));
@@ -1329,7 +1336,10 @@ static int rigid_body_batch_team(long n_batch, int n_threads)
 
 /* Advance n_batch independent trajectories n_steps steps each (see the header).  Trajectory b
  * starts from known0 + b * RIGID_BODY_N_KNOWNS with the parameters p + b * p_stride (p_stride 0:
- * one parameter vector for all, or RIGID_BODY_N_PARAMETERS) and is computed exactly as
+ * one parameter vector for all, or RIGID_BODY_N_PARAMETERS) and, for a forced kernel
+ * (RIGID_BODY_N_INPUTS > 0), the inputs u + b * u_stride (u_stride 0: one input sequence for all, or
+ * n_steps * RIGID_BODY_N_INPUTS; row k of a run's sequence, u[k * RIGID_BODY_N_INPUTS + j], is read by its step
+ * k as rigid_body_simulate reads it; u may be NULL without inputs), and is computed exactly as
  * rigid_body_simulate computes it (bitwise: the same function, called in chunks with one warm
  * start).  Its kept states go to states + b * rows * RIGID_BODY_N_KNOWNS (rows >= 1 +
  * ceil(n_steps / every)), the Newton summaries of the intervals between them to iterations and
@@ -1341,10 +1351,11 @@ static int rigid_body_batch_team(long n_batch, int n_threads)
  * OpenMP default; at most n_batch and RIGID_BODY_MAX_THREADS) without changing any result;
  * without OpenMP they run one after the other.
  * Returns RIGID_BODY_INVALID_ARGUMENT, writing nothing, for a null buffer, n_batch < 0,
- * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or RIGID_BODY_N_PARAMETERS, or
- * invalid options; otherwise RIGID_BODY_OK (a non-finite row of known0 or p is reported as
- * status[b] = RIGID_BODY_INVALID_ARGUMENT, kept[b] = 0). */
-int rigid_body_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, long n_steps, long every, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+ * n_steps < 0, every < 1, too few rows, a p_stride other than 0 or RIGID_BODY_N_PARAMETERS, a forced
+ * kernel's NULL u or u_stride other than 0 or n_steps * RIGID_BODY_N_INPUTS, or invalid options; otherwise RIGID_BODY_OK (a non-finite row of known0 or p is reported as
+ * status[b] = RIGID_BODY_INVALID_ARGUMENT, kept[b] = 0; a non-finite input of a piece of steps stops
+ * that run with status[b] = RIGID_BODY_INVALID_ARGUMENT at the state before the piece). */
+int rigid_body_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
 {
     rigid_body_options defaults;
     long b;
@@ -1353,7 +1364,7 @@ int rigid_body_simulate_batch(long n_batch, const double *known0, const double *
         rigid_body_default_options(&defaults);
         options = &defaults;
     }
-    if (!rigid_body_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
+    if (!rigid_body_batch_valid(n_batch, known0, p, p_stride, u, u_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
         return RIGID_BODY_INVALID_ARGUMENT;
     }
     team = rigid_body_batch_team(n_batch, n_threads);
@@ -1364,7 +1375,7 @@ int rigid_body_simulate_batch(long n_batch, const double *known0, const double *
     for (b = 0; b < n_batch; ++b) {
         rigid_body_batch_cursor cursor;
         kept[b] = 0;
-        rigid_body_batch_run(b, &cursor, known0, p, p_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
+        rigid_body_batch_run(b, &cursor, known0, p, p_stride, u, u_stride, n_steps, every, n_steps, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return RIGID_BODY_OK;
 }
@@ -1379,7 +1390,7 @@ int rigid_body_simulate_batch(long n_batch, const double *known0, const double *
  * that state.  Returns RIGID_BODY_INVALID_ARGUMENT, writing nothing, for the arguments
  * rigid_body_simulate_batch refuses, a null cursors or until < 0; a cursor that does not
  * describe its trajectory's progress gives status[b] = RIGID_BODY_INVALID_ARGUMENT. */
-int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *cursors, const double *known0, const double *p, long p_stride, long n_steps, long every, long until, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
+int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *cursors, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, long until, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads)
 {
     rigid_body_options defaults;
     long b;
@@ -1389,7 +1400,7 @@ int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *curso
         options = &defaults;
     }
     if (cursors == NULL || until < 0
-        || !rigid_body_batch_valid(n_batch, known0, p, p_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
+        || !rigid_body_batch_valid(n_batch, known0, p, p_stride, u, u_stride, n_steps, every, options, states, rows, iterations, residual_norms, kept, status)) {
         return RIGID_BODY_INVALID_ARGUMENT;
     }
     team = rigid_body_batch_team(n_batch, n_threads);
@@ -1405,7 +1416,7 @@ int rigid_body_simulate_batch_until(long n_batch, rigid_body_batch_cursor *curso
             status[b] = RIGID_BODY_INVALID_ARGUMENT;
             continue;
         }
-        rigid_body_batch_run(b, cursors + b, known0, p, p_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
+        rigid_body_batch_run(b, cursors + b, known0, p, p_stride, u, u_stride, n_steps, every, until, options, states, rows, iterations, residual_norms, kept, status, failed_step, failed_iterations, failed_residual_norm, last_iterate);
     }
     return RIGID_BODY_OK;
 }

@@ -190,7 +190,8 @@ def test_c_entry_point_checks_its_arguments():
 
     def call(n_steps=4, every=2, rows=3, p_stride=0):
         return fn(2, ffi.from_buffer("double[]", known), ffi.from_buffer("double[]", p),
-                  p_stride, n_steps, every, ffi.NULL, ffi.from_buffer("double[]", states), rows,
+                  p_stride, ffi.NULL, 0, n_steps, every, ffi.NULL,
+                  ffi.from_buffer("double[]", states), rows,
                   ffi.from_buffer("long long[]", its), ffi.from_buffer("double[]", norms),
                   ffi.from_buffer("long[]", kept), ffi.from_buffer("int[]", status),
                   ffi.NULL, ffi.NULL, ffi.NULL, ffi.NULL, 1)
@@ -304,7 +305,7 @@ def test_the_installment_entry_point_checks_its_cursors():
     with pytest.raises(sg.ShapeError, match="batch_cursors"):
         kernel.batch_until(kernel.batch_cursors(1), S, p, 10, 2, 10, sim.options, out)
     fn = getattr(kernel.lib, f"{kernel.prefix}_simulate_batch_until")
-    assert fn(2, kernel.ffi.NULL, *[kernel.ffi.NULL] * 2, 0, 10, 2, 10,
+    assert fn(2, kernel.ffi.NULL, *[kernel.ffi.NULL] * 2, 0, kernel.ffi.NULL, 0, 10, 2, 10,
               *[kernel.ffi.NULL] * 2, 6, *[kernel.ffi.NULL] * 8, 1) == 4
 
 

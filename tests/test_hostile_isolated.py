@@ -38,7 +38,8 @@ for label, threads, rows in (("huge", 100000, 3), ("int max", 2**31 - 1, 3),
     norms = np.zeros(B * (rows - 1))
     kept = np.zeros(B, np.dtype("l"))
     status = np.zeros(B, np.intc)
-    rc = fn(B, ffi.from_buffer("double[]", known), ffi.from_buffer("double[]", p), 0, 4, 2,
+    rc = fn(B, ffi.from_buffer("double[]", known), ffi.from_buffer("double[]", p), 0,
+            ffi.NULL, 0, 4, 2,
             ffi.NULL, ffi.from_buffer("double[]", states), rows,
             ffi.from_buffer("long long[]", its), ffi.from_buffer("double[]", norms),
             ffi.from_buffer("long[]", kept), ffi.from_buffer("int[]", status),

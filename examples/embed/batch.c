@@ -67,9 +67,9 @@ int main(int argc, char **argv)
             return 1;
         }
     }
-    code = plate_ball_simulate_batch(runs, starts, params, 0, steps, every, NULL, states, rows,
-                                     iterations, norms, kept, status, failed, NULL, NULL, NULL,
-                                     0);
+    code = plate_ball_simulate_batch(runs, starts, params, 0, NULL, 0, steps, every, NULL,
+                                     states, rows, iterations, norms, kept, status, failed,
+                                     NULL, NULL, NULL, 0);
     if (code != PLATE_BALL_OK) {
         fprintf(stderr, "%s\n", plate_ball_status_message(code));
         return 1;

@@ -155,6 +155,52 @@ def initial_state(sim, data, params, *, origin: str = "--initial") -> np.ndarray
     return sim.state(data, params)
 
 
+def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
+    """The input sequence of a forced system's run from ``--inputs`` (docs/cli.md): a
+    ``.npy`` array (read without pickles) or a ``.csv`` table of numbers, one row per step
+    (row j: the inputs of the arrow step j computes) and one column per input, with an
+    optional first row naming the columns, which must then be the system's inputs in
+    order (``names``).  Its shape and values are checked by the library
+    (:meth:`Simulator.simulate`'s ``inputs=``); None without the option."""
+    if path is None:
+        return None
+    file = Path(path)
+    if file.suffix not in (".npy", ".csv"):
+        raise InputError(f"--inputs {file}: the file name must end in .npy or .csv")
+    try:
+        if file.suffix == ".npy":
+            return np.load(file, allow_pickle=False)
+        lines = [line for line in file.read_text(encoding="utf-8").splitlines()
+                 if line.strip() and not line.lstrip().startswith("#")]
+    except FileNotFoundError:
+        raise InputError(f"--inputs {file}: no such file") from None
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
+        raise InputError(f"--inputs {file}: cannot be read ({exc})") from None
+    if lines and not _numeric(lines[0].split(",")[0]):
+        header = [cell.strip() for cell in lines.pop(0).split(",")]
+        if header != names:
+            raise InputError(f"--inputs {file}: the header names the columns "
+                             f"{', '.join(header)}; the system's inputs are "
+                             f"{', '.join(names) or 'none'} (in that order)")
+    rows = [[cell.strip() for cell in line.split(",")] for line in lines]
+    for j, row in enumerate(rows):
+        for cell in row:
+            if not _numeric(cell):
+                raise InputError(f"--inputs {file}: row {j} (step {j}): {cell!r} is not a "
+                                 f"number")
+    if len({len(row) for row in rows}) > 1:
+        raise InputError(f"--inputs {file}: the rows have different numbers of columns")
+    return np.array([[float(cell) for cell in row] for row in rows], dtype=float)
+
+
+def _numeric(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def boundary_problem(path: str) -> dict:
     """The boundary-value problem in a JSON file: ``start``, ``end``, ``steps`` (required),
     ``params`` and ``guess`` (optional)."""

@@ -130,6 +130,9 @@ def build_parser() -> argparse.ArgumentParser:
     _runtime_options(simulate)
     simulate.add_argument("-o", "--output", metavar="TRAJ.npz|TRAJ.csv", type=path_text,
                           help="write the kept states")
+    simulate.add_argument("--inputs", metavar="U.npy|U.csv", type=path_text,
+                          help="a forced system's inputs: one row per step (row j: the "
+                               "inputs of the arrow step j computes), one column per input")
     add_newton_options(simulate)
 
     bvp = _command(commands, "bvp", run_bvp,

@@ -261,19 +261,36 @@ class _Kernel:
         return ChunkRun(run.status, m, run.failed_step, run.last_iterate)
 
     def simulate_batch(self, known0: np.ndarray, p: np.ndarray, n_steps: int, every: int,
-                       options: NewtonOptions, threads: int | None = None) -> BatchRun:
+                       options: NewtonOptions, threads: int | None = None,
+                       inputs: np.ndarray | None = None) -> BatchRun:
         """B runs of ``n_steps`` steps from the rows of ``known0`` (B, n_known) with the
         rows of ``p`` (B, n_params), or one parameter vector ``p`` (n_params,) for all;
         every ``every``-th state kept (see :class:`BatchRun`).  Each run is computed
         exactly as :meth:`simulate` computes it.  ``threads``: ignored here (one run after
-        the other); the compiled kernel shares runs among OpenMP threads."""
+        the other); the compiled kernel shares runs among OpenMP threads.  ``inputs``
+        (a forced kernel's, docs/conventions.md §20): (B, n_steps, m), or (n_steps, m)
+        for all runs, row k of a run read by its step k (:meth:`simulate_inputs`)."""
         known0, p = self._batch_inputs(known0, p)
         n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
         every = integer_argument(every, "every", minimum=1, maximum=self.max_steps)
+        inputs = self._batch_sequence(inputs, len(known0), n_steps)
         out = self._batch_buffers(len(known0), n_steps, every)
         cursors = self.batch_cursors(len(known0))
-        self.batch_until(cursors, known0, p, n_steps, every, n_steps, options, out, threads)
+        self.batch_until(cursors, known0, p, n_steps, every, n_steps, options, out, threads,
+                         inputs)
         return out
+
+    def _batch_sequence(self, inputs, n_batch: int, n_steps: int) -> np.ndarray | None:
+        """The inputs of a batch as a C-contiguous float64 array (n_steps, m) shared by
+        every run, or (B, n_steps, m); None without inputs."""
+        if inputs is None:
+            return None
+        u = np.ascontiguousarray(inputs, dtype=np.float64)
+        if u.ndim not in (2, 3) or u.shape[-2] != n_steps or (u.ndim == 3
+                                                               and len(u) != n_batch):
+            raise ShapeError(f"inputs must have shape ({n_batch}, {n_steps}, m) or "
+                             f"({n_steps}, m), got {u.shape}")
+        return u
 
     def _batch_inputs(self, known0, p) -> tuple[np.ndarray, np.ndarray]:
         known0 = np.ascontiguousarray(known0, dtype=np.float64)
@@ -302,18 +319,19 @@ class _Kernel:
 
     def batch_until(self, cursors, known0: np.ndarray, p: np.ndarray, n_steps: int,
                     every: int, until: int, options: NewtonOptions, out: BatchRun,
-                    threads: int | None = None) -> None:
+                    threads: int | None = None, inputs: np.ndarray | None = None) -> None:
         """Advance the runs of ``out`` (checked inputs, :meth:`_batch_buffers`) to step
         min(until, n_steps) from their ``cursors``; called again with a larger ``until``
         they continue, bitwise as one call of ``n_steps``.  Each run's progress is
         committed by one assignment of its cursor (a KeyboardInterrupt between two runs
-        leaves every run at a consistent step)."""
+        leaves every run at a consistent step).  ``inputs``: see :meth:`simulate_batch`."""
         for b in range(len(known0)):
             c = cursors[b]
             if c is not None and c.status != OK:
                 continue
+            u = None if inputs is None else inputs[b] if inputs.ndim == 3 else inputs
             c = self._run_until(c, known0[b], p[b] if p.ndim == 2 else p, n_steps, every,
-                                until, options, out, b)
+                                until, options, out, b, u)
             cursors[b] = c
         self.batch_sync(cursors, out)
 
@@ -342,9 +360,11 @@ class _Kernel:
         return fields
 
     def _run_until(self, c: RunCursor | None, known0, p, n_steps: int, every: int,
-                   until: int, options: NewtonOptions, out: BatchRun, b: int) -> RunCursor:
+                   until: int, options: NewtonOptions, out: BatchRun, b: int,
+                   u: np.ndarray | None = None) -> RunCursor:
         """Run b from its cursor (None: a fresh start) to min(until, n_steps), on a copy of
-        the cursor (returned); states are written at rows from ``c.kept`` on."""
+        the cursor (returned); states are written at rows from ``c.kept`` on; ``u``: the
+        run's inputs (n_steps, m), or None."""
         if c is None:
             if not (np.isfinite(known0).all() and np.isfinite(p).all()):
                 return RunCursor(None, known0.copy(), status=INVALID_ARGUMENT)
@@ -355,7 +375,8 @@ class _Kernel:
         until = min(until, n_steps)
         while c.done < until:
             n = min(until - c.done, 1 << 14)
-            run = self.simulate(c.known, p, n, options, c.warm)
+            run = self._piece(c.known, p, n, options, c.warm,
+                              None if u is None else u[c.done:c.done + n])
             if run.status == INVALID_ARGUMENT:
                 c.status = run.status
                 return c
@@ -385,6 +406,20 @@ class _Kernel:
             c.done += n
             c.known = run.states[n].copy()
         return c
+
+    def _piece(self, known, p, n: int, options: NewtonOptions, warm,
+               u: np.ndarray | None) -> RawRun:
+        """:meth:`simulate` of ``n`` steps, or with inputs ``u`` (n, m) read into the last
+        m entries of the state each step starts from (:meth:`simulate_inputs`)."""
+        if u is None:
+            return self.simulate(known, p, n, options, warm)
+        states = np.empty((n + 1, self.n_k))
+        states[0] = known
+        iterations, norms = np.zeros(n, np.intc), np.zeros(n)
+        chunk = self.simulate_inputs(states, iterations, norms, p, u,
+                                     slice(self.n_k - u.shape[1], self.n_k), options, warm)
+        return RawRun(states, iterations, norms, chunk.status,
+                      chunk.failed_step if chunk.status != OK else -1, chunk.last_iterate)
 
     def copy_warm(self, warm):
         """An independent copy of a warm start."""

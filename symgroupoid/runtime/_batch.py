@@ -21,6 +21,7 @@ import numpy as np
 from .._errors import InputTypeError, ShapeError
 from ..stepper import MAX_THREADS
 from ._batch_progress import run_batch
+from ._inputs import batch_inputs
 from ._memory import check_memory
 from ._options import NewtonOptions
 from ._runs import INTERRUPTED, OK, BatchRun, batch_rows
@@ -156,8 +157,8 @@ class TrajectoryBatch:
 
 
 def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
-                   options: NewtonOptions | None = None,
-                   threads: int | None = None) -> TrajectoryBatch:
+                   options: NewtonOptions | None = None, threads: int | None = None,
+                   inputs=None) -> TrajectoryBatch:
     """See :meth:`Simulator.simulate_batch`."""
     steps = integer_argument(steps, "steps", owner=sim.name)
     every = integer_argument(every, "every", minimum=1, owner=sim.name)
@@ -172,10 +173,11 @@ def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
                          f"give one set for all, or one per state")
     from ._simulator import INITIAL_CONSTRAINT_TOLERANCE
 
+    U = batch_inputs(sim.layout, inputs, len(S), steps, owner=sim.name)
     check_constraints(sim, S, P, INITIAL_CONSTRAINT_TOLERANCE)
     check_memory(sim, len(S), batch_rows(steps, every), steps, every)
     try:
-        raw = run_batch(sim, S, P, steps, every, options, threads)
+        raw = run_batch(sim, S, P, steps, every, options, threads, U=U)
     except KeyboardInterrupt as interrupt:
         interrupt.batch = TrajectoryBatch(sim, interrupt.raw_batch, P, steps, every, options)
         raise

@@ -49,13 +49,16 @@ class BatchProgress:
     ``stop()`` (and Ctrl-C takes effect on the main thread); :meth:`so_far` is then the
     partial batch.  The arrays of all runs are allocated up front: a
     :class:`TrajectoryTooLargeError` (not a ``MemoryError``) when they cannot be.
+    ``U``: the inputs of a forced system's runs (B, steps, m), or (steps, m) for all, or
+    None (docs/conventions.md §20).
     """
 
     def __init__(self, sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
-                 options: NewtonOptions | None, lanes: int = 1):
+                 options: NewtonOptions | None, lanes: int = 1, U: np.ndarray | None = None):
         self.sim, self.kernel = sim, sim.kernel
         self.S = np.ascontiguousarray(S, dtype=np.float64)
         self.P = np.ascontiguousarray(P if len(P) > 1 else P[0], dtype=np.float64)
+        self.U = None if U is None else np.ascontiguousarray(U, dtype=np.float64)
         self.steps, self.every = int(steps), int(every)
         self.options = options or sim.options
         rows = batch_rows(steps, every)
@@ -91,13 +94,14 @@ class BatchProgress:
             a, z, cursors = group
             view = _view(self.out, a, z)
             P = self.P[a:z] if self.P.ndim == 2 else self.P
+            U = self.U[a:z] if self.U is not None and self.U.ndim == 3 else self.U
             until = 0
             piece = 1 if cost is None else max(1, int(CALL_SECONDS / (cost * (z - a))))
             while True:
                 target = min(self.steps, until + piece)
                 t0 = time.perf_counter()
                 self.kernel.batch_until(cursors, self.S[a:z], P, self.steps, self.every,
-                                        target, self.options, view, 1)
+                                        target, self.options, view, 1, U)
                 seconds = time.perf_counter() - t0
                 if target > until and seconds > 0:
                     cost = seconds / ((z - a) * (target - until))
@@ -200,12 +204,14 @@ def batch_lanes(sim, threads: int | None) -> int:
 
 
 def run_batch(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
-              options: NewtonOptions | None, threads: int | None, stop=None) -> BatchRun:
-    """Checked tables in, raw batch out (:class:`BatchProgress` on ``threads`` lanes):
+              options: NewtonOptions | None, threads: int | None, stop=None,
+              U: np.ndarray | None = None) -> BatchRun:
+    """Checked tables in (``U``: the checked inputs, or None), raw batch out
+    (:class:`BatchProgress` on ``threads`` lanes):
     Ctrl-C takes effect within a kernel call, the ``KeyboardInterrupt`` carrying
     ``.raw_batch``, the partial batch; ``stop()`` (asked between calls) ends it early, with
     the partial batch as the result."""
-    progress = BatchProgress(sim, S, P, steps, every, options, batch_lanes(sim, threads))
+    progress = BatchProgress(sim, S, P, steps, every, options, batch_lanes(sim, threads), U)
     try:
         complete = progress.run(stop)
     except KeyboardInterrupt as interrupt:

@@ -34,6 +34,7 @@ class CKernel(_Kernel):
         self.prefix, self.n_u, self.n_k = prefix, n_unknowns, n_knowns
         self.n_p = int(getattr(self.lib, f"{prefix.upper()}_N_PARAMETERS")) \
             if n_parameters is None else n_parameters
+        self.n_in = int(getattr(self.lib, f"{prefix.upper()}_N_INPUTS", 0))
         self._f = {n: getattr(self.lib, f"{prefix}_{n}") for n in (
             "residual", "residual_jacobian", "predict", "next_knowns", "solve_step",
             "simulate", "reconstruct")}
@@ -54,16 +55,19 @@ class CKernel(_Kernel):
         return "-fopenmp" in getattr(self, "flags", ())
 
     def simulate_batch(self, known0: np.ndarray, p: np.ndarray, n_steps: int, every: int,
-                       options: NewtonOptions, threads: int | None = None) -> BatchRun:
+                       options: NewtonOptions, threads: int | None = None,
+                       inputs: np.ndarray | None = None) -> BatchRun:
         """:meth:`_Kernel.simulate_batch` in one call of ``<prefix>_simulate_batch``, the
         runs shared among ``threads`` OpenMP threads (None: the OpenMP default, all cores)
         when the module was built with ``-fopenmp``."""
         fn = getattr(self.lib, f"{self.prefix}_simulate_batch", None)
         if fn is None:  # a module built before the batched entry point existed
-            return super().simulate_batch(known0, p, n_steps, every, options, threads)
+            return super().simulate_batch(known0, p, n_steps, every, options, threads,
+                                          inputs)
         known0, p = self._batch_inputs(known0, p)
         n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
         every = integer_argument(every, "every", minimum=1, maximum=self.max_steps)
+        inputs = self._batch_sequence(inputs, len(known0), n_steps)
         threads = 0 if threads is None else integer_argument(threads, "threads", minimum=1,
                                                              maximum=MAX_THREADS)
         B = len(known0)
@@ -73,12 +77,30 @@ class CKernel(_Kernel):
         rows = out.states.shape[1]
         status = fn(
             B, self._buf(known0, B * self.n_k, "known0"),
-            self._buf(p, p.size, "p"), 0 if p.ndim == 1 else self.n_p, n_steps, every,
-            self._options(options), self._buf(out.states, B * rows * self.n_k, "states"), rows,
+            self._buf(p, p.size, "p"), 0 if p.ndim == 1 else self.n_p,
+            *self._input_buffer(inputs, n_steps), n_steps, every, self._options(options),
+            self._buf(out.states, B * rows * self.n_k, "states"), rows,
             *self._batch_outputs(out, B, rows), threads)
         if status != OK:
             raise ValueError(f"{self.prefix}_simulate_batch: {Status(int(status)).message}")
         return out
+
+    def _input_buffer(self, inputs: np.ndarray | None, n_steps: int) -> tuple:
+        """The C arguments ``u, u_stride`` of the batched entry points: NULL, 0 without
+        inputs; else the inputs (n_steps, m) of every run (stride 0) or (B, n_steps, m)
+        (stride n_steps·m), m the kernel's ``N_INPUTS``."""
+        if inputs is None:
+            if self.n_in and n_steps:
+                raise ShapeError(f"{self.prefix}: the kernel has {self.n_in} inputs; pass "
+                                 f"inputs of shape (B, {n_steps}, {self.n_in})")
+            return self.ffi.NULL, 0
+        if inputs.shape[-1] != self.n_in:
+            raise ShapeError(f"{self.prefix}: the kernel has {self.n_in} inputs, the batch's "
+                             f"inputs {inputs.shape[-1]} per step")
+        if inputs.size == 0:
+            return self.ffi.NULL, 0
+        return (self._buf(inputs, inputs.size, "inputs"),
+                0 if inputs.ndim == 2 else n_steps * self.n_in)
 
     def _batch_outputs(self, out, B: int, rows: int) -> tuple:
         """The C views of a batch's per-step and per-run outputs, in the order of the
@@ -136,17 +158,18 @@ class CKernel(_Kernel):
 
     def batch_until(self, cursors, known0: np.ndarray, p: np.ndarray, n_steps: int,
                     every: int, until: int, options: NewtonOptions, out: BatchRun,
-                    threads: int | None = None) -> None:
+                    threads: int | None = None, inputs: np.ndarray | None = None) -> None:
         """:meth:`_Kernel.batch_until` in one call of ``<prefix>_simulate_batch_until``
         (which writes the kept rows, status and failure data of ``out`` itself; a
         KeyboardInterrupt is seen only after the call returns)."""
         fn = self._until_entry()
         if fn is None:
             return super().batch_until(cursors, known0, p, n_steps, every, until, options,
-                                       out, threads)
+                                       out, threads, inputs)
         B = len(known0)
         if B == 0:
             return None
+        inputs = self._batch_sequence(inputs, B, n_steps)
         if not (isinstance(cursors, self.ffi.CData)
                 and self.ffi.typeof(cursors) is self.ffi.typeof(f"{self.prefix}_batch_cursor[]")
                 and len(cursors) >= B):
@@ -156,7 +179,8 @@ class CKernel(_Kernel):
         rows = out.states.shape[1]
         status = fn(
             B, cursors, self._buf(known0, B * self.n_k, "known0"), self._buf(p, p.size, "p"),
-            0 if p.ndim == 1 else self.n_p, n_steps, every, until, self._options(options),
+            0 if p.ndim == 1 else self.n_p, *self._input_buffer(inputs, n_steps), n_steps,
+            every, until, self._options(options),
             self._buf(out.states, B * rows * self.n_k, "states"), rows,
             *self._batch_outputs(out, B, rows), threads)
         if status != OK:

@@ -56,6 +56,31 @@ def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
     return np.ascontiguousarray(arr, dtype=float)
 
 
+def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
+                 ) -> np.ndarray | None:
+    """The inputs of a batch of ``n_batch`` runs: an array (B, steps, m), row j of run b
+    the input of the arrow its step j computes; or what :func:`input_sequence` takes, the
+    same for every run, kept as (steps, m).  None for a system without inputs (and none
+    given)."""
+    if inputs is None and layout.n_inputs == 0:
+        return None
+    if inputs is None or np.ndim(inputs) != 3:
+        return input_sequence(layout, inputs, steps, owner=owner)
+    arr = real_array(inputs, "inputs", owner=owner)
+    m = layout.n_inputs
+    if arr.shape[0] != n_batch or arr.shape[2] != m or arr.shape[1] < steps:
+        raise ShapeError(f"{owner}: per-run inputs need shape ({n_batch}, {steps}, {m}) (a "
+                         f"row of the inputs {', '.join(layout.input_names)} per step of each "
+                         f"of the {n_batch} runs); got shape {arr.shape}")
+    arr = arr[:, :steps]
+    bad = np.argwhere(~np.isfinite(arr))
+    if len(bad):
+        b, j, i = (int(v) for v in bad[0])
+        raise DomainError(f"{owner}: input {layout.input_names[i]} of run {b}, step {j} is "
+                          f"{arr[b, j, i]}; inputs must be finite")
+    return np.ascontiguousarray(arr, dtype=float)
+
+
 def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
     """The inputs of one step (:meth:`Simulator.step`): None for a system without inputs
     (and none given); a C-contiguous float64 vector of the m inputs, finite, passes as it
@@ -100,4 +125,5 @@ def input_chunks(kernel, layout, known0: np.ndarray, p: np.ndarray, inputs: np.n
     yield 0, RawRun(states, iterations, norms, OK, -1, np.zeros(0))
 
 
-__all__ = ["input_chunks", "input_sequence", "refuse_inputs", "step_inputs"]
+__all__ = ["batch_inputs", "input_chunks", "input_sequence", "refuse_inputs",
+           "step_inputs"]

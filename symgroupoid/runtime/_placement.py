@@ -46,18 +46,22 @@ def chunk_runs(total: int, seconds_per_run: float, workers: int, mode: str,
 
 
 def _seconds_per_run(sim, S: np.ndarray, P: np.ndarray, steps: int, every: int,
-                     options) -> float:
-    """The cost of one run, from a short pilot batch (a few runs, at most 200 steps)."""
+                     options, U: np.ndarray | None = None) -> float:
+    """The cost of one run, from a short pilot batch (a few runs, at most 200 steps; the
+    first runs' inputs ``U`` (runs, steps, m), or the inputs (steps, m) of every run)."""
     n, k = min(len(S), 4), min(steps, 200)
     if n == 0 or k == 0:
         return 1e-6
+    if U is not None:
+        U = U[:n, :k] if U.ndim == 3 else U[:k]
     t0 = time.perf_counter()
-    run_batch(sim, S[:n], P[np.arange(n) % len(P)], k, min(every, k), options, 1)
+    run_batch(sim, S[:n], P[np.arange(n) % len(P)], k, min(every, k), options, 1, U=U)
     return (time.perf_counter() - t0) / n * (steps / k)
 
 
 def task_runs(sim, S, P, steps: int, every: int, options, total: int, workers: int,
-              mode: str, chunk_size: int | None, batch_runs: int) -> int:
+              mode: str, chunk_size: int | None, batch_runs: int,
+              U: np.ndarray | None = None) -> int:
     """Runs per task: ``chunk_size``; on threads (no per-task cost to speak of) about
     ``TASKS_PER_WORKER`` tasks per worker, each at most one part (``batch_runs``); on
     processes and Dask, from a pilot run (:func:`chunk_runs`)."""
@@ -66,7 +70,7 @@ def task_runs(sim, S, P, steps: int, every: int, options, total: int, workers: i
     if mode in ("serial", "thread"):
         balanced = math.ceil(total / (TASKS_PER_WORKER * max(workers, 1)))
         return max(1, min(total, balanced, batch_runs))
-    return chunk_runs(total, _seconds_per_run(sim, S, P, steps, every, options), workers,
+    return chunk_runs(total, _seconds_per_run(sim, S, P, steps, every, options, U), workers,
                       mode)
 
 

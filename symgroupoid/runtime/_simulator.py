@@ -184,7 +184,8 @@ class Simulator:
         return run.so_far()
 
     def simulate_batch(self, states, steps: int, params, *, every: int = 1,
-                       options: NewtonOptions | None = None, threads: int | None = None):
+                       options: NewtonOptions | None = None, threads: int | None = None,
+                       inputs=None):
         """Advance B runs at once: one run from each row of ``states``.
 
         ``states``: a table of initial states (a 2-D array (B, n_known) of flat states, or a
@@ -207,12 +208,16 @@ class Simulator:
         states to keep do not fit in memory.  Returns a
         :class:`~symgroupoid.runtime._batch.TrajectoryBatch` (``batch[b]`` is run b as a
         :class:`Trajectory`).
+
+        A forced system (docs/conventions.md §20) takes ``inputs``: an array (B, steps, m),
+        row j of run b the input of the arrow its step j computes, or the inputs of one run
+        as :meth:`simulate` takes them ((steps, m), or (m,) held constant) for every run;
+        each run is bitwise ``simulate(states[b], steps, params, inputs=inputs[b])``.
         """
         from ._batch import simulate_batch
 
-        refuse_inputs(self.layout, "simulate_batch", owner=self.name)
         return simulate_batch(self, states, steps, params, every=every, options=options,
-                              threads=threads)
+                              threads=threads, inputs=inputs)
 
     def __reduce__(self):
         """Pickled as its generated C, flags and content hash, options and the names and

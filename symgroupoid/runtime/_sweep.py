@@ -41,10 +41,10 @@ from collections.abc import Callable
 import numpy as np
 
 from .._arguments import choice_argument, instance_argument
-from .._errors import InputTypeError
+from .._errors import InputTypeError, ShapeError
 from ._batch import TrajectoryBatch
 from ._executors import execute
-from ._inputs import refuse_inputs
+from ._inputs import batch_inputs
 from ._memory import memory_plan
 from ._options import NewtonOptions
 from ._placement import placement, task_runs
@@ -65,8 +65,23 @@ def _as_simulator(sim):
         instance_argument(sim, StepEquations, "sim", "a Simulator (step.compile()) or step "
                           "equations", owner="sweep")
         sim = sim.compile()
-    refuse_inputs(sim.layout, "sweep", owner=sim.name)
     return sim
+
+
+def _input_table(sim, inputs, grid: Grid, steps: int) -> np.ndarray | None:
+    """The inputs of a sweep's runs: (runs, steps, m) from one sequence per cell of the
+    result (shape result shape + (steps, m)), or one sequence (steps, m) for every run
+    (what :meth:`Simulator.simulate` takes); None for a system without inputs."""
+    shape = grid.shape
+    if inputs is not None and np.ndim(inputs) == len(shape) + 2 and shape:
+        arr = np.asarray(inputs)
+        if arr.shape[:len(shape)] != shape:
+            want = shape + (steps, sim.layout.n_inputs)
+            raise ShapeError(f"{sim.name}: per-run inputs need shape {want} (a sequence for "
+                             f"each run of the sweep's result); got {arr.shape}")
+        return batch_inputs(sim.layout, arr.reshape((grid.size,) + arr.shape[len(shape):]),
+                            grid.size, steps, owner=sim.name)
+    return batch_inputs(sim.layout, inputs, grid.size, steps, owner=sim.name)
 
 
 def _validated_pairs(sim, S, P, grid: Grid) -> None:
@@ -89,7 +104,7 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
           options: NewtonOptions | None = None, reduce_failures: bool = False,
           client=None, workers: int | None = None, chunk_size: int | None = None,
           progress=None, executor: str | None = None,
-          timeout: float | None = None) -> SweepResult:
+          timeout: float | None = None, inputs=None) -> SweepResult:
     """Simulate every combination of initial states and parameter sets.
 
     Parameters
@@ -100,6 +115,11 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
     params : one parameter set, or a table of sets (a sequence of sets, a 2-D array
         (m, n_params), a mapping name → column of m values, a pandas DataFrame).
     steps, every, options : as for :meth:`Simulator.simulate`.
+    inputs : a forced system's inputs (docs/conventions.md §20): one sequence for every
+        run, as :meth:`Simulator.simulate` takes it ((steps, m), or (m,) held constant), or
+        one sequence per run of the result: an array of shape result shape + (steps, m)
+        (``combine="product"``: (n, m_sets, steps, m)); each run is bitwise
+        ``simulate(state, steps, params, inputs=its sequence)``.
     combine : ``"product"`` (every state with every set: shape (n, m)) or ``"zip"`` (the
         i-th state with the i-th set: shape (n,); a single state or set goes with all).
     reduce : ``reduce(trajectory) -> value``, applied to each completed run (and to the
@@ -144,6 +164,7 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
     S, one_state = state_table(sim, initial)
     P, one_param = parameter_table(sim, params)
     grid = sweep_grid(combine, len(S), len(P), one_state, one_param, sim.name)
+    U = _input_table(sim, inputs, grid, steps)
     _validated_pairs(sim, S, P, grid)
     total = grid.size
     mode, workers = placement(client, executor, workers, sim.backend == "c", owner)
@@ -151,11 +172,12 @@ def sweep(sim, initial, params=None, steps: int | None = None, *, combine: str =
         check_sendable(reduce, owner)
     batch_runs = memory_plan(sim, steps, every, reduce is not None, total, mode, workers)
     size = task_runs(sim, S, P, steps, every, options, total, workers, mode, chunk_size,
-                     batch_runs)
+                     batch_runs, None if U is None else U[:4] if U.ndim == 3 else U)
     jobs = []
     for a in range(0, total, size):
         i, j = grid.rows(a, min(total, a + size))
-        jobs.append(SimulationJob(a, S[i], P[j] if len(P) > 1 else P[:1]))
+        jobs.append(SimulationJob(a, S[i], P[j] if len(P) > 1 else P[:1],
+                                  U[a:a + len(i)] if U is not None and U.ndim == 3 else U))
     task = SimulationTask(sim, steps, every, options, reduce, reduce_failures, batch_runs)
     collected = Collected(sim.name, grid.shape, total, Progress(total, progress,
                                                                 f"sweep {sim.name}"))

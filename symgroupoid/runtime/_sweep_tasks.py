@@ -115,11 +115,13 @@ class ChunkResult:
 @dataclass
 class SimulationJob:
     """Runs ``first``, ``first + 1``, … of a simulation sweep: their initial states (rows
-    of S) and parameter sets (rows of P, or one row for all)."""
+    of S), parameter sets (rows of P, or one row for all) and, for a forced system, input
+    sequences (U: (runs, steps, m), or (steps, m) for all; docs/conventions.md §20)."""
 
     first: int
     S: np.ndarray
     P: np.ndarray
+    U: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.S)
@@ -127,8 +129,10 @@ class SimulationJob:
     def parts(self, size: int) -> list[SimulationJob]:
         """The job in consecutive parts of at most ``size`` runs."""
         one = len(self.P) == 1
+        shared = self.U is None or self.U.ndim == 2
         return [SimulationJob(self.first + a, self.S[a:a + size],
-                              self.P if one else self.P[a:a + size])
+                              self.P if one else self.P[a:a + size],
+                              self.U if shared else self.U[a:a + size])
                 for a in range(0, len(self), max(size, 1))] or [self]
 
     def split(self) -> list[SimulationJob]:
@@ -159,7 +163,7 @@ class SimulationTask:
     def simulate(self, job: SimulationJob, stop=None) -> BatchRun:
         """The runs of ``job`` (one thread; ``stop()`` asked between kernel calls)."""
         return run_batch(self.simulator, job.S, job.P, self.steps, self.every, self.options,
-                         1, stop)
+                         1, stop, U=job.U)
 
     def finish(self, job: SimulationJob, raw: BatchRun, cut: int | None = None
                ) -> ChunkResult:

@@ -1,0 +1,237 @@
+"""Per-step inputs of a forced system through the entry points that run many steps or many
+runs (docs/conventions.md §20): ``simulate_batch`` (per-run and shared inputs, in C and with
+NumPy, in installments), ``sweep`` and the CLI's ``--inputs``; each bitwise the runs of
+``simulate(..., inputs=U)``, and bad input tables refused before any step."""
+
+import numpy as np
+import pytest
+import sympy as sp
+from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (fixture)
+
+import symgroupoid as sg
+from symgroupoid import DomainError, ShapeError
+from symgroupoid.cli import load_system, main
+
+h, k, c = sp.symbols("h k c", positive=True)
+u = sp.Symbol("u", real=True)
+PARAMS = {"h": 0.05, "k": 2.0, "c": 0.3}
+STEPS = 25
+
+
+def _oscillator() -> sg.DiscreteSystem:
+    """A damped oscillator on R driven by u: the midpoint rule's discrete forces
+    f⁻ = f⁺ = (h/2)·(u − c·v) (``sg.midpoint_forces``)."""
+    G = sg.PairGroupoid(sg.EuclideanSpace(["x"]))
+
+    def L(g):
+        (x0,), (x1,) = g.source, g.target
+        return h * (((x1 - x0) / h) ** 2 / 2 - k / 2 * ((x0 + x1) / 2) ** 2)
+
+    def forces(g):
+        (x0,), (x1,) = g.source, g.target
+        half = h / 2 * (u - c * (x1 - x0) / h)
+        return [half], [half]
+
+    return sg.DiscreteSystem(G, L, parameters=[h, k, c], forces=forces, inputs=[u],
+                             time_step=h, name="driven_oscillator")
+
+
+@pytest.fixture(scope="module")
+def oscillator():
+    return _oscillator().euler_lagrange().compile()
+
+
+def _starts(n: int) -> list:
+    return [{"x": (0.1 * b, 0.1 * b + 0.01), "u": 0.05 * b} for b in range(n)]
+
+
+def _table(n: int) -> np.ndarray:
+    rng = np.random.default_rng(7)
+    return rng.uniform(-1, 1, (n, STEPS, 1))
+
+
+@pytest.mark.parametrize("every", [1, 4])
+def test_a_batch_with_per_run_inputs_is_bitwise_the_runs(oscillator, every):
+    starts, U = _starts(5), _table(5)
+    batch = oscillator.simulate_batch(starts, STEPS, PARAMS, inputs=U, every=every,
+                                      threads=2)
+    assert batch.ok.all()
+    for b, start in enumerate(starts):
+        run = oscillator.simulate(start, STEPS, PARAMS, inputs=U[b], every=every)
+        assert np.array_equal(batch[b].states, run.states)
+        assert np.array_equal(batch[b].newton_iterations, run.newton_iterations)
+
+
+def test_inputs_shared_by_every_run_and_held_constant(oscillator):
+    starts = _starts(3)
+    U = _table(1)[0]
+    shared = oscillator.simulate_batch(starts, STEPS, PARAMS, inputs=U)
+    held = oscillator.simulate_batch(starts, STEPS, PARAMS, inputs=[0.4])
+    for b, start in enumerate(starts):
+        assert np.array_equal(shared[b].states,
+                              oscillator.simulate(start, STEPS, PARAMS, inputs=U).states)
+        assert np.array_equal(held[b].states,
+                              oscillator.simulate(start, STEPS, PARAMS, inputs=[0.4]).states)
+
+
+def test_the_numpy_kernel_and_installments_give_the_same_bits(oscillator, monkeypatch):
+    starts, U = _starts(4), _table(4)
+    batch = oscillator.simulate_batch(starts, STEPS, PARAMS, inputs=U, every=3)
+    twin = oscillator.equations.compile(backend="numpy")
+    other = twin.simulate_batch(starts, STEPS, PARAMS, inputs=U, every=3)
+    assert np.array_equal(other.states, batch.states)
+    # one step per kernel call: the runs are advanced in 25 installments each
+    monkeypatch.setattr("symgroupoid.runtime._batch_progress.CALL_SECONDS", 0.0)
+    pieces = oscillator.simulate_batch(starts, STEPS, PARAMS, inputs=U, every=3, threads=1)
+    assert np.array_equal(pieces.states, batch.states)
+
+
+def test_a_run_that_fails_stops_alone_with_its_inputs(oscillator):
+    """Run 1's input overflows the residual at step 6: it stops there, bitwise the run
+    before it; the others complete."""
+    starts, U = _starts(3), _table(3)
+    U[1, 6, 0] = 1e308
+    batch = oscillator.simulate_batch(starts, STEPS, PARAMS, inputs=U)
+    assert list(batch.ok) == [True, False, True]
+    assert batch.failed_step[1] == 6
+    good = oscillator.simulate(starts[1], 6, PARAMS, inputs=U[1, :6])
+    assert np.array_equal(batch[1].states, good.states)
+
+
+@pytest.mark.parametrize("bad, error", [
+    (None, ShapeError),  # a forced system needs its inputs
+    (np.zeros((2, STEPS, 1)), ShapeError),  # 2 runs' inputs for 3 runs
+    (np.zeros((3, STEPS - 1, 1)), ShapeError),  # fewer rows than steps
+    (np.zeros((3, STEPS, 2)), ShapeError),  # two inputs per step for one input
+    (np.full((3, STEPS, 1), np.nan), DomainError),
+    (np.array([[["a"]] * STEPS] * 3), sg.SymgroupoidError),
+])
+def test_bad_batch_inputs_are_refused_before_any_step(oscillator, bad, error):
+    with pytest.raises(error):
+        oscillator.simulate_batch(_starts(3), STEPS, PARAMS, inputs=bad)
+
+
+def test_the_nan_names_the_run_and_the_step(oscillator):
+    U = _table(3)
+    U[2, 11, 0] = np.inf
+    with pytest.raises(DomainError, match="run 2, step 11"):
+        oscillator.simulate_batch(_starts(3), STEPS, PARAMS, inputs=U)
+
+
+def test_the_c_batch_entry_point_checks_its_inputs(oscillator):
+    """``<prefix>_simulate_batch`` of a forced kernel refuses a NULL u and a u_stride other
+    than 0 or n_steps·m, writing nothing (INVALID_ARGUMENT = 4)."""
+    kernel = oscillator.kernel
+    lib, ffi, P = kernel.lib, kernel.ffi, kernel.prefix
+    assert getattr(lib, f"{P.upper()}_N_INPUTS") == 1
+    fn = getattr(lib, f"{P}_simulate_batch")
+    known = np.array([oscillator.state(s, PARAMS) for s in _starts(2)])
+    p = oscillator.parameters(PARAMS)
+    U = _table(2)
+    states = np.full(2 * (STEPS + 1) * known.shape[1], -7.0)
+    its = np.zeros(2 * STEPS, np.longlong)
+    norms = np.zeros(2 * STEPS)
+    kept = np.zeros(2, np.dtype("l"))
+    status = np.zeros(2, np.intc)
+
+    def call(u, stride):
+        return fn(2, ffi.from_buffer("double[]", known), ffi.from_buffer("double[]", p), 0,
+                  u, stride, STEPS, 1, ffi.NULL, ffi.from_buffer("double[]", states),
+                  STEPS + 1, ffi.from_buffer("long long[]", its),
+                  ffi.from_buffer("double[]", norms), ffi.from_buffer("long[]", kept),
+                  ffi.from_buffer("int[]", status), ffi.NULL, ffi.NULL, ffi.NULL, ffi.NULL, 1)
+
+    ub = ffi.from_buffer("double[]", U)
+    assert call(ffi.NULL, 0) == 4 and call(ub, STEPS + 1) == 4 and call(ub, 1) == 4
+    assert np.all(states == -7.0)
+    assert call(ub, STEPS) == 0 and list(status) == [0, 0]
+    batch = oscillator.simulate_batch(_starts(2), STEPS, PARAMS, inputs=U)
+    assert np.array_equal(states.reshape(batch.states.shape), batch.states)
+
+
+@pytest.mark.parametrize("executor", ["thread", "process"])
+def test_a_sweep_takes_one_input_sequence_per_run(oscillator, executor):
+    """A product sweep of 3 states × 2 damping values, with a sequence per cell (and one
+    sequence for all): each run bitwise ``simulate`` with its sequence."""
+    starts = _starts(3)
+    sets = [dict(PARAMS, c=0.3), dict(PARAMS, c=0.6)]
+    U = _table(6).reshape(3, 2, STEPS, 1)
+    result = sg.sweep(oscillator, starts, sets, STEPS, inputs=U, executor=executor,
+                      workers=2, chunk_size=2)
+    shared = sg.sweep(oscillator, starts, sets, STEPS, inputs=U[0, 0], workers=1)
+    for i, start in enumerate(starts):
+        for j, params in enumerate(sets):
+            run = oscillator.simulate(start, STEPS, params, inputs=U[i, j])
+            assert np.array_equal(result.trajectories[i, j].states, run.states)
+            same = oscillator.simulate(start, STEPS, params, inputs=U[0, 0])
+            assert np.array_equal(shared.trajectories[i, j].states, same.states)
+
+
+def test_a_sweep_refuses_input_tables_of_the_wrong_shape(oscillator):
+    with pytest.raises(ShapeError, match="per-run inputs"):
+        sg.sweep(oscillator, _starts(3), [PARAMS, PARAMS], STEPS,
+                 inputs=np.zeros((2, 3, STEPS, 1)))
+    with pytest.raises(ShapeError, match="inputs"):
+        sg.sweep(oscillator, _starts(3), PARAMS, STEPS)
+
+
+# --- the command line ---------------------------------------------------------------------------
+
+DRIVEN = REPO / "examples" / "cli" / "driven_spring.py"
+
+
+def _cli(capsys, *args) -> tuple[int, str, str]:
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+@needs_cc
+@pytest.mark.usefixtures("isolated_cache")
+def test_the_cli_runs_a_forced_system_from_an_input_file(tmp_path, capsys):
+    """``simulate --inputs U.npy`` and ``U.csv`` (with and without a header): bitwise the
+    library's ``simulate(..., inputs=U)``."""
+    U = np.sin(np.arange(40) / 5)[:, None]
+    np.save(tmp_path / "u.npy", U)
+    np.savetxt(tmp_path / "u.csv", U, delimiter=",", fmt="%.17g")
+    np.savetxt(tmp_path / "named.csv", U, delimiter=",", fmt="%.17g", header="u", comments="")
+    sim = load_system(str(DRIVEN)).system.euler_lagrange().compile()
+    expected = sim.simulate({"q": [1.0, 0.999], "u": [0.0]}, 40,
+                            {"h": 0.05, "k": 1.0, "c": 0.2}, inputs=U)
+    for name in ("u.npy", "u.csv", "named.csv"):
+        out = tmp_path / f"{name}.npz"
+        code, text, err = _cli(capsys, "simulate", DRIVEN, "--steps", "40", "--inputs",
+                               tmp_path / name, "-o", out)
+        assert code == 0, err
+        with np.load(out) as data:
+            assert np.array_equal(data["states"], expected.states), name
+
+
+@pytest.mark.parametrize("content, message", [
+    (None, "no such file"),
+    ("0.1\nabc\n", "not a number"),
+    ("v\n0.1\n", "the system's inputs are u"),
+    ("0.1,0.2\n0.3\n", "different numbers of columns"),
+])
+@pytest.mark.usefixtures("isolated_cache")
+def test_the_cli_refuses_bad_input_files(tmp_path, capsys, content, message):
+    path = tmp_path / "u.csv"
+    if content is not None:
+        path.write_text(content)
+    code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "2", "--inputs", path)
+    assert code != 0 and message in err and "Traceback" not in err
+
+
+@pytest.mark.usefixtures("isolated_cache")
+def test_the_cli_refuses_a_pickled_or_misnamed_input_file(tmp_path, capsys):
+    np.save(tmp_path / "u.npy", np.array([{"u": 1}], dtype=object), allow_pickle=True)
+    code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "1", "--inputs",
+                        tmp_path / "u.npy")
+    assert code != 0 and "cannot be read" in err
+    code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "1", "--inputs",
+                        tmp_path / "u.txt")
+    assert code != 0 and ".npy or .csv" in err
+    np.save(tmp_path / "short.npy", np.zeros((3, 1)))
+    code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "5", "--inputs",
+                        tmp_path / "short.npy")
+    assert code != 0 and "inputs need shape (5, 1)" in err
