@@ -235,3 +235,25 @@ def test_the_cli_refuses_a_pickled_or_misnamed_input_file(tmp_path, capsys):
     code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "5", "--inputs",
                         tmp_path / "short.npy")
     assert code != 0 and "inputs need shape (5, 1)" in err
+
+
+def test_a_control_loop_refilling_one_input_array(oscillator):
+    """``sim.step(state, p, inputs=u)`` with the same array refilled in place each call (the
+    fast path keeps its C view): bitwise ``simulate``; a NaN put into it inside the loop, and
+    an integer array, still go through the checks."""
+    U = _table(1)[0]
+    start = _starts(2)[1]
+    p = oscillator.parameters(PARAMS)
+    options = sg.NewtonOptions(extrapolate=False)
+    run = oscillator.simulate(start, STEPS, p, inputs=U, options=options)
+    state, u_k = oscillator.state(start, p), np.empty(1)
+    n = oscillator.layout.n_known - 1  # (the last entry: the slot of the input to come)
+    for j in range(STEPS):
+        u_k[:] = U[j]
+        state = oscillator.step(state, p, inputs=u_k, options=options)
+        assert np.array_equal(state[:n], run.states[j + 1, :n])
+    u_k[0] = np.nan
+    with pytest.raises(DomainError, match="finite"):
+        oscillator.step(state, p, inputs=u_k, options=options)
+    whole = oscillator.step(state, p, inputs=np.array([2]), options=options)
+    assert np.array_equal(whole, oscillator.step(state, p, inputs=[2.0], options=options))

@@ -43,14 +43,16 @@ from ._validate import assumptions_test, constraint_check, parameter_names
 #: checked call)
 MAX_TRUSTED = 1024
 
+#: what the fast path's inputs screen returns for inputs it does not take
+_REFUSED = object()
 _FLOAT64 = np.dtype(np.float64)
 _CONTIGUOUS = (8,)  # the strides of a C-contiguous float64 vector
 
 
 class FastStep:
-    """The fast path of one simulator: :attr:`call` (state, params, options) → the next
-    state, or None when the checked path must decide; :meth:`trust` adds a state checked
-    by that path."""
+    """The fast path of one simulator: :attr:`call` (state, params, options, inputs) → the
+    next state, or None when the checked path must decide; :meth:`trust` adds a state
+    checked by that path."""
 
     def __init__(self, sim):
         parameters = tuple(sim.equations.parameters)
@@ -62,11 +64,7 @@ class FastStep:
         self.parameters = _parameter_screen(parameter_names(parameters),
                                             assumptions_test(parameters), self.used,
                                             lambda: tuple(zero_divisors(sim.equations)))
-        call = _fast_call(sim, self)
-        if sim.layout.n_inputs:  # a step of a system with inputs needs them
-            def call(state, params, options, u=None, chain=call):  # noqa: F811
-                return None if u is None else chain(state, params, options, u)
-        self.call = call
+        self.call = _fast_call(sim, self)
 
     def key_tail(self, p: np.ndarray) -> bytes:
         """The bytes of the parameters the constraints use (the tail of a state's key)."""
@@ -190,10 +188,19 @@ def _fast_call(sim, fast: FastStep):
     #: the last inputs array and its view (the view points at the array's buffer, so it
     #: stays right when the caller refills the same array between calls)
     held_inputs = [(None, no_inputs)]
+    m = sim.layout.n_inputs
+    inputs_shape = (m,)
 
     def inputs_view(u):
+        """What the entry takes for the inputs ``u``: ``no_inputs`` for a system without
+        inputs and none given; for one with inputs, the view of a C-contiguous float64
+        vector of its m inputs (whose finiteness the kernel checks: a non-finite input
+        fails the step, and the checked path reports it); else :data:`_REFUSED`."""
         if u is None:
-            return no_inputs
+            return _REFUSED if m else no_inputs
+        if (not m or type(u) is not ndarray or u.dtype is not float64
+                or u.shape != inputs_shape or u.strides != contiguous):
+            return _REFUSED
         held = held_inputs[0]
         if held[0] is not u:
             held = held_inputs[0] = (u, view_of(u))
@@ -214,9 +221,12 @@ def _fast_call(sim, fast: FastStep):
             elif same is not None and not _same_dict(params, same):
                 same = None
             if same is not None:
+                u_view = inputs_view(u)
+                if u_view is _REFUSED:
+                    return None
                 after = empty(n_known)
                 view = view_of(after)
-                if entry(link[2], setting[3], inputs_view(u), setting[5], view) != OK:
+                if entry(link[2], setting[3], u_view, setting[5], view) != OK:
                     return None
                 chain[0] = (after, after.tobytes(), view, setting)
                 return after
@@ -238,12 +248,15 @@ def _fast_call(sim, fast: FastStep):
         p, tail = screened
         if state.tobytes() + tail not in trusted:
             return None
+        u_view = inputs_view(u)
+        if u_view is _REFUSED:
+            return None
         setting = link[3]
         p_view = setting[3] if p is setting[2] else view_of(p)
         c_options = setting[5] if options is setting[4] else options_of(options)
         after = empty(n_known)
         view = view_of(after)
-        if entry(view_of(state), p_view, inputs_view(u), c_options, view) != OK:
+        if entry(view_of(state), p_view, u_view, c_options, view) != OK:
             return None
         chain[0] = (after, after.tobytes(), view,
                     (params, _fingerprint(params, p), p, p_view, options, c_options, tail))

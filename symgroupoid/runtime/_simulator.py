@@ -327,17 +327,11 @@ class Simulator:
         computes (the state carries those of its own arrow), the same bits as
         ``simulate(state, 1, params, inputs=[inputs]).states[1]``.
         """
-        if inputs is None:  # (the fast chain of a system with inputs never runs without)
-            after = self._fast_call(state, params, options)
-            if after is not None:
-                return after
-            return self._checked_step(state, params, options,
-                                      step_inputs(self.layout, None, owner=self.name))
-        u = step_inputs(self.layout, inputs, owner=self.name)
-        after = self._fast_call(state, params, options, u)
+        after = self._fast_call(state, params, options, inputs)
         if after is not None:
             return after
-        return self._checked_step(state, params, options, u)
+        return self._checked_step(state, params, options,
+                                  step_inputs(self.layout, inputs, owner=self.name))
 
     def _checked_step(self, state, params, options, u=None) -> np.ndarray:
         """:meth:`step` with every check of :meth:`simulate` (the first call of a loop, or
