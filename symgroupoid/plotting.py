@@ -177,7 +177,15 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
     return _finish(fig, path, owner)
 
 
-def _drift_panel(ax, quantities: list[Drift], h: float | None) -> None:
+def _drift_panel(ax, quantities: list[Drift], h: float | None,
+                 changes: Sequence[Drift] = ()) -> None:
+    """Each quantity's drift |Q_k − Q_0| with its floors; ``changes``: quantities that are
+    not conserved (a forced system's Noether quantity), their |Q_k − Q_0| thin and grey, for
+    comparison with the balance that is."""
+    for q in changes:
+        k = np.asarray(q.step_indices, float) * (1.0 if h is None else h)
+        ax.semilogy(k, np.where(q.drift > 0, q.drift, np.nan), color="0.55", lw=0.8,
+                    label=f"{q.name} (max {q.max_drift:.1e})")
     for i, q in enumerate(quantities):
         color = f"C{i}"
         drift = q.drift
@@ -196,6 +204,21 @@ def _drift_panel(ax, quantities: list[Drift], h: float | None) -> None:
     ax.legend(fontsize="small", loc="best")
 
 
+def _impulse_balance(trajectory, nq, label: str, values: np.ndarray) -> tuple[Drift, Drift]:
+    """A forced system's Noether quantity J: (the balance J_k − Σ_{j<k} I_j, conserved to
+    rounding by the forced Noether theorem, docs/conventions.md §20; J itself, which changes
+    by the impulses I_j, :meth:`NoetherQuantity.impulse`)."""
+    if getattr(trajectory, "every", 1) != 1:
+        raise DomainError(f"{_owner(trajectory)}: {label} belongs to a forced system: its "
+                          f"balance with the forces' impulse needs every state (simulate "
+                          f"with every=1)")
+    impulse = nq.impulse(trajectory)
+    idx = trajectory.step_indices
+    balance = values - np.concatenate([[0.0], np.cumsum(impulse)])
+    return (Drift(f"{label} − Σ impulse", balance, idx),
+            Drift(f"{label} (changed by the forces)", values, idx))
+
+
 def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence = (), *,
                       constraints: bool | None = None, step_parameter: str | None = None,
                       path: str | PathLike | None = None, time_step: str | bool | None = None):
@@ -205,7 +228,11 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
 
     ``energy``: the discrete energy (see :func:`symgroupoid.diagnostics.energy`; None: when
     defined); ``momenta``: Noether quantities (:class:`~symgroupoid.NoetherQuantity`, or
-    sections given to ``system.noether``; a mapping label → quantity names them);
+    sections given to ``system.noether``; a mapping label → quantity names them).  The
+    Noether quantity J of a forced system is not conserved: it changes by the forces'
+    impulse (docs/conventions.md §20), so its balance J_k − Σ_{j<k} I_j is plotted with its
+    floors, and |J_k − J_0| thin and grey beside it (the trajectory kept every step); nor is
+    its energy, which is plotted only when asked for (``energy=True``);
     ``constraints``: None plots them when the system
     has constraints.  The horizontal axis is the time t = k·h when the time step h is known
     (``time_step``: a parameter's name; None: ``step_parameter``, else the step the system
@@ -224,11 +251,19 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
                            owner)
     idx = trajectory.step_indices
     quantities = []
-    if energy or (energy is None and has_energy(trajectory, step_parameter)):
+    forced = getattr(programs.system, "forces", None) is not None
+    if energy or (energy is None and not forced and has_energy(trajectory, step_parameter)):
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 _energy(trajectory, step_parameter), idx))
+    changes = []
     for label, nq in noether_quantities(programs, momenta):
-        quantities.append(Drift(label, nq.along(trajectory), idx))
+        values = nq.along(trajectory)
+        if nq.impulse_form is None:
+            quantities.append(Drift(label, values, idx))
+            continue
+        balance, change = _impulse_balance(trajectory, nq, label, values)
+        quantities.append(balance)
+        changes.append(change)
     show_phi = programs.has_constraints if constraints is None else constraints
     if show_phi and not programs.has_constraints:
         raise DomainError(f"{programs.name}: constraints=True, but the system has no "
@@ -241,7 +276,7 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     fig = Figure(figsize=(7, 3 * panels + 0.6))
     axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])
     if quantities:
-        _drift_panel(axes[0], quantities, h)
+        _drift_panel(axes[0], quantities, h, changes)
     if show_phi:
         ax = axes[-1]
         phi = np.max(np.abs(constraint_residuals(trajectory)), axis=1)

@@ -257,3 +257,44 @@ def test_a_control_loop_refilling_one_input_array(oscillator):
         oscillator.step(state, p, inputs=u_k, options=options)
     whole = oscillator.step(state, p, inputs=np.array([2]), options=options)
     assert np.array_equal(whole, oscillator.step(state, p, inputs=[2.0], options=options))
+
+
+def test_plot_conservation_shows_the_forced_noether_balance(tmp_path):
+    """A point in the plane turned by a torque input about the origin: its angular momentum
+    changes by the torque's impulse, so the figure plots the balance J_k − Σ I_j (at
+    rounding) and J's own change (grey, far above it); the energy is not plotted."""
+    pytest.importorskip("matplotlib")
+    x, y, tau = sp.symbols("x y tau", real=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace(["x", "y"]))
+
+    def L(g):
+        (x0, y0), (x1, y1) = g.source, g.target
+        xm, ym = (x0 + x1) / 2, (y0 + y1) / 2
+        return h * ((((x1 - x0) / h) ** 2 + ((y1 - y0) / h) ** 2) / 2
+                    - k / 2 * (xm ** 2 + ym ** 2))
+
+    def torque(g):
+        (x0, y0), (x1, y1) = g.source, g.target
+        xm, ym = (x0 + x1) / 2, (y0 + y1) / 2
+        half = [-h / 2 * tau * ym, h / 2 * tau * xm]
+        return half, half
+
+    system = sg.DiscreteSystem(G, L, parameters=[h, k], forces=torque, inputs=[tau],
+                               time_step=h, name="turned")
+    sim = system.euler_lagrange().compile()
+    J = system.noether(lambda q: [-q[1], q[0]])
+    U = 0.5 * np.cos(np.arange(200) / 20)[:, None]
+    traj = sim.simulate({"x": (1.0, 1.0), "y": (0.0, 0.01), "tau": 0.5}, 200,
+                        {"h": 0.01, "k": 1.0}, inputs=U)
+    fig = sg.plot_conservation(traj, momenta={"L_z": J}, path=tmp_path / "c.png")
+    ax = fig.axes[0]
+    lines = {line.get_label(): line.get_ydata() for line in ax.get_lines()}
+    balance = np.nan_to_num(lines[next(k for k in lines if "Σ impulse" in k)])
+    change = np.nan_to_num(lines[next(k for k in lines if "changed by" in k)])
+    assert balance.max() < 1e-13 < 1e-3 < change.max()
+    labels = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert not any("energy" in s.lower() for s in labels)
+    with pytest.raises(DomainError, match="every=1"):
+        sg.plot_conservation(sim.simulate({"x": (1.0, 1.0), "y": (0.0, 0.01), "tau": 0.5},
+                                          200, {"h": 0.01, "k": 1.0}, inputs=U, every=10),
+                             momenta=[J])
