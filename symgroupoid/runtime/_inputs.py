@@ -64,9 +64,9 @@ def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
     given)."""
     if inputs is None and layout.n_inputs == 0:
         return None
-    if inputs is None or np.ndim(inputs) != 3:
-        return input_sequence(layout, inputs, steps, owner=owner)
-    arr = real_array(inputs, "inputs", owner=owner)
+    arr = None if inputs is None else real_array(inputs, "inputs", owner=owner)
+    if arr is None or arr.ndim != 3:
+        return input_sequence(layout, arr, steps, owner=owner)
     m = layout.n_inputs
     if arr.shape[0] != n_batch or arr.shape[2] != m or arr.shape[1] < steps:
         raise ShapeError(f"{owner}: per-run inputs need shape ({n_batch}, {steps}, {m}) (a "

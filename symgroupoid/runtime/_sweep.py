@@ -52,7 +52,7 @@ from ._sweep_arguments import check_sendable, sweep_controls
 from ._sweep_result import Collected, Progress, SweepResult, stack_values
 from ._sweep_tasks import COMBINE, ChunkResult, Grid, SimulationJob, SimulationTask, sweep_grid
 from ._tables import check_constraints, parameter_table, state_table
-from ._validate import integer_argument
+from ._validate import integer_argument, real_array
 
 
 def _as_simulator(sim):
@@ -73,8 +73,10 @@ def _input_table(sim, inputs, grid: Grid, steps: int) -> np.ndarray | None:
     result (shape result shape + (steps, m)), or one sequence (steps, m) for every run
     (what :meth:`Simulator.simulate` takes); None for a system without inputs."""
     shape = grid.shape
-    if inputs is not None and np.ndim(inputs) == len(shape) + 2 and shape:
-        arr = np.asarray(inputs)
+    if inputs is not None:
+        inputs = real_array(inputs, "inputs", owner=sim.name)
+    if inputs is not None and inputs.ndim == len(shape) + 2 and shape:
+        arr = inputs
         if arr.shape[:len(shape)] != shape:
             want = shape + (steps, sim.layout.n_inputs)
             raise ShapeError(f"{sim.name}: per-run inputs need shape {want} (a sequence for "

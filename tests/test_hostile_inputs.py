@@ -1,0 +1,138 @@
+"""Hostile input sequences at every entry point of a forced system (docs/conventions.md
+§20): ``Simulator.simulate(..., inputs=)``, ``Simulator.step(..., inputs=)``,
+``Simulator.simulate_batch(..., inputs=)`` and ``sg.sweep(..., inputs=)``.
+
+Each example takes a valid input sequence of a damped oscillator driven by an input u and
+makes it malformed (tests/_hostile.py: an entry non-finite, huge, complex, a string or None;
+an entry dropped or added; the shape or dtype changed; nested; scaled to overflow; or one of
+the spellings that must be accepted), or is anything at all.  The invariant
+(:func:`_hostile.judge`): a SymgroupoidError naming the inputs (or, for a numerical failure,
+the system), or a run whose inputs are the values given and whose every step solves the
+forced step equations.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+import sympy as sp
+from _hostile import PROFILES, judge, junk, near, profile, step_residual_ok
+from hypothesis import given
+from hypothesis import strategies as st
+from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
+
+import symgroupoid as sg
+
+h, k, c = sp.symbols("h k c", positive=True)
+u = sp.Symbol("u", real=True)
+PARAMS = {"h": 0.05, "k": 2.0, "c": 0.3}
+START = {"x": (0.2, 0.21), "u": 0.1}
+STEPS = 6
+NAMES = ("inputs", "input", "u")
+
+
+@functools.cache
+def driven():
+    """The damped oscillator on R driven by u (midpoint forces), on the NumPy backend (a
+    hostile example is one derivation and no C build)."""
+    G = sg.PairGroupoid(sg.EuclideanSpace(["x"]))
+
+    def L(g):
+        (x0,), (x1,) = g.source, g.target
+        return h * (((x1 - x0) / h) ** 2 / 2 - k / 2 * ((x0 + x1) / 2) ** 2)
+
+    def forces(g):
+        (x0,), (x1,) = g.source, g.target
+        half = h / 2 * (u - c * (x1 - x0) / h)
+        return [half], [half]
+
+    system = sg.DiscreteSystem(G, L, parameters=[h, k, c], forces=forces, inputs=[u],
+                               time_step=h, name="driven")
+    return system.euler_lagrange().compile(backend="numpy")
+
+
+def _meant(value, steps: int) -> np.ndarray:
+    """The inputs a value that was accepted stands for: one value for every step, or the
+    first ``steps`` of a sequence."""
+    arr = np.asarray(value, dtype=float).reshape(-1)
+    return np.full(steps, arr[0]) if arr.size == 1 else arr[:steps]
+
+
+def _check_run(traj, inputs: np.ndarray) -> None:
+    """The run took ``inputs`` and every step solves the forced step equations (the known
+    state of step j carries the inputs of the arrow it computes in its last slot)."""
+    sim = driven()
+    assert np.array_equal(traj["u"][1:], inputs)
+    p = sim.parameters(PARAMS)
+    for j in range(len(traj.states) - 1):
+        known = traj.states[j].copy()
+        known[-1] = inputs[j]
+        x1_next = traj.states[j + 1][1]
+        step_residual_ok(sim.equations, np.array([x1_next]), known, p)
+
+
+def _valid_sequence() -> np.ndarray:
+    return np.linspace(-0.5, 0.5, STEPS)[:, None]
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_simulate_inputs(run):
+    sim = driven()
+
+    @profile(run, 25)
+    @given(st.one_of(near(_valid_sequence()), near([0.3]), junk()))
+    def check(value):
+        traj = judge("simulate(inputs=)",
+                     lambda: sim.simulate(START, STEPS, PARAMS, inputs=value), NAMES,
+                     owner=sim.name)
+        if traj is not None:
+            _check_run(traj, _meant(value, STEPS))
+
+    check()
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_step_inputs(run):
+    sim = driven()
+    state = sim.state(START, PARAMS)
+
+    @profile(run, 25)
+    @given(st.one_of(near([0.3]), junk()))
+    def check(value):
+        after = judge("step(inputs=)", lambda: sim.step(state, PARAMS, inputs=value), NAMES,
+                      owner=sim.name)
+        if after is not None:
+            meant = _meant(value, 1)
+            expected = sim.simulate(START, 1, PARAMS, inputs=meant[:, None]).states[1]
+            assert np.array_equal(after[:-1], expected[:-1])
+
+    check()
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_batch_and_sweep_inputs(run):
+    sim = driven()
+    starts = [START, {"x": (0.1, 0.12), "u": 0.0}]
+    valid = np.stack([_valid_sequence(), -_valid_sequence()])
+
+    @profile(run, 20)
+    @given(st.one_of(near(valid), near(_valid_sequence()), junk()),
+           st.sampled_from(["batch", "sweep"]))
+    def check(value, entry):
+        if entry == "batch":
+            call = lambda: sim.simulate_batch(starts, STEPS, PARAMS, inputs=value)  # noqa: E731
+        else:
+            call = lambda: sg.sweep(sim, starts, PARAMS, STEPS, inputs=value,  # noqa: E731
+                                    workers=1, progress=False)
+        result = judge(f"{entry}(inputs=)", call, NAMES, owner=sim.name)
+        if result is None:
+            return
+        runs = list(result) if entry == "batch" else list(result.trajectories)
+        arr = np.asarray(value, dtype=float)
+        for b, traj in enumerate(runs):  # (a failed run: the steps before its failure)
+            meant = _meant(arr[b] if arr.ndim == 3 else arr, STEPS)
+            _check_run(traj, meant[:len(traj.states) - 1])
+
+    check()
