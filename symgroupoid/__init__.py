@@ -42,11 +42,15 @@ from ._errors import (
 )
 from ._version import __version__ as __version__
 from .codegen import emit_c  # noqa: E402  (layer 4)
+from .convergence import ConvergenceReport, convergence_order  # noqa: E402  (layer 6)
 from .derivation import SystemFunctions
 from .equations import (
+    ContinuousSystem,
     DiscreteSystem,
+    GaussLegendre,
     LegendreTransforms,
     LiePoissonEquations,
+    LobattoIIIAB,
     NoetherQuantity,
     NonholonomicSystem,
     ReducedSystem,
@@ -126,4 +130,6 @@ __all__ = [
     "verify_stationary",
     "Status",
     "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping", "trapezoid_forces",
+    "ContinuousSystem", "GaussLegendre", "LobattoIIIAB", "ConvergenceReport",
+    "convergence_order",
 ]

@@ -1,6 +1,7 @@
 """Layer 3: step equations (residuals, unknowns, knowns, Jacobian, LaTeX) and systems."""
 
 from ._abbreviations import LatexOptionError, UnusedAbbreviationWarning
+from ._continuous import ContinuousSystem, GaussLegendre, LobattoIIIAB
 from ._findings import (
     DEPENDENT_CONSTRAINTS,
     IDENTICALLY_ZERO,
@@ -51,7 +52,7 @@ __all__ = [
     "step_program", "structure_program", "window_programs",
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
     "equation_lines", "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
-    "trapezoid_forces",
+    "trapezoid_forces", "ContinuousSystem", "GaussLegendre", "LobattoIIIAB",
     # pt: the text width of a LaTeX document, and the default width of the printed lines
     "PAGE_WIDTH",
     # the causes a DegenerateSystemError names (its ``causes``, each finding's ``cause``)

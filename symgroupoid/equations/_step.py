@@ -90,6 +90,18 @@ class StepEquations:
 
         return step_program(self)
 
+    @functools.cached_property
+    def velocity_momentum(self):
+        """For a system discretised from a :class:`ContinuousSystem`: the program of its
+        continuous Legendre transform p = ∂L/∂v (inputs ``q``, ``v``, ``p``; output
+        ``momentum``), which starts a trajectory from a configuration and a velocity
+        (:meth:`Simulator.from_velocity`); None for other systems."""
+        if getattr(self.system, "continuous", None) is None:
+            return None
+        from ._continuous import velocity_momentum_program
+
+        return velocity_momentum_program(self.system)
+
     def input_jacobian(self, unknowns: Sequence, knowns: Sequence,
                        params: Sequence | dict = ()) -> np.ndarray:
         """∂F/∂(u_k, u_{k+1}) of a forced step at a point: (len(self), 2m), the columns of

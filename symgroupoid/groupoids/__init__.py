@@ -4,6 +4,7 @@ from ._action import ActionArrow, ActionGroupoid
 from ._atiyah import AtiyahArrow, AtiyahGroupoid
 from ._axioms import check_axioms
 from ._base import Arrow, Groupoid, derivation, left_derivative, right_derivative
+from ._configuration_spaces import ConfigurationFactor, configuration_factors, pair_groupoid_of
 from ._examples import examples
 from ._matrix_form import (
     NamedMatrix,
@@ -26,6 +27,7 @@ from ._trivialised import TrivialisedArrow, TrivialisedPairGroupoid
 from ._user import RESERVED_NAMES, DefinedGroupoid
 
 __all__ = [
+    "ConfigurationFactor", "configuration_factors", "pair_groupoid_of",
     "RESERVED_NAMES",
     "is_constant_matrix", "named_constants", "to_explicit",
     "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",

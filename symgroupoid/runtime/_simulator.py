@@ -17,6 +17,7 @@ from .._errors import (
     ShapeError,
     SingularJacobianError,
     TrajectoryTooLargeError,
+    UnsupportedFeatureError,
 )
 from .._progress import Task
 from ..stepper import Status
@@ -401,14 +402,8 @@ class Simulator:
         coordinates) and ``momentum`` has two components per section (F⁻L of the window
         g₀, g₁, g₂); the result is the state (g₀, g₁, g₂, λ₀, λ₁).
         """
-        if self._momentum is None:
-            from ._momentum import MomentumInitializer, SecondOrderMomentumInitializer
-
-            kind = (SecondOrderMomentumInitializer if self.equations.order == 2
-                    else MomentumInitializer)
-            self._momentum = kind(self.equations, self.layout)
         p = self.parameters(params)
-        state = self._momentum.solve(configuration, momentum, p)
+        state = self._momentum_initializer().solve(configuration, momentum, p)
         try:
             return self.state(state, p)
         except DomainError as err:  # Newton stopped at its step test, not on φ = 0
@@ -419,6 +414,36 @@ class Simulator:
                 f"{np.asarray(momentum, dtype=object).ravel().tolist()}: the state solved from "
                 f"it does not satisfy the constraints (the momentum may be too large for "
                 f"double precision); {err}", step=0, iterate=state) from err
+
+    def _momentum_initializer(self):
+        """The solver of :meth:`from_momentum` (made on first use)."""
+        if self._momentum is None:
+            from ._momentum import MomentumInitializer, SecondOrderMomentumInitializer
+
+            kind = (SecondOrderMomentumInitializer if self.equations.order == 2
+                    else MomentumInitializer)
+            self._momentum = kind(self.equations, self.layout)
+        return self._momentum
+
+    def from_velocity(self, configuration, velocity: Sequence, params) -> np.ndarray:
+        """The initial state from a configuration q₀ and a velocity v₀ (on a group the body
+        velocity ξ₀; on a product the components factor after factor), for a system
+        discretised from a :class:`~symgroupoid.ContinuousSystem`: the continuous Legendre
+        transform p₀ = ∂L/∂v(q₀, v₀) (the step's ``velocity_momentum`` program), then
+        :meth:`from_momentum` (the discrete one), so that the discrete trajectory is the
+        integrator's from the initial data (q₀, p₀) (docs/conventions.md §21).
+        ``configuration`` as :meth:`from_momentum` takes it."""
+        program = self.equations.velocity_momentum
+        if program is None:
+            raise UnsupportedFeatureError(
+                f"{self.name}: from_velocity needs a system discretised from a "
+                f"ContinuousSystem (system.discretize(...)); use from_momentum")
+        p = self.parameters(params)
+        q = self._momentum_initializer()._source_values(configuration)
+        v = real_vector(velocity, len(program.inputs["v"]), "velocity", owner=self.name,
+                        finite=True)
+        momentum = program.numpy_function(["momentum"], ["q", "v", "p"])(q, v, p)[0]
+        return self.from_momentum(configuration, np.asarray(momentum, float).ravel(), params)
 
     def project_initial(self, initial, params, *, max_iterations: int = 50) -> np.ndarray:
         """A consistent initial state from one that violates the constraints.

@@ -1,0 +1,260 @@
+"""Continuous systems and their variational discretisations (docs/conventions.md §21).
+
+A :class:`ContinuousSystem` is a configuration space Q — a Euclidean space, a matrix Lie
+group, or a product of them — with a Lagrangian L(q, v): v is the velocity on a Euclidean
+space and the body velocity ξ (g⁻¹ġ in the basis of the group's Lie algebra, ``G.hat``) on
+a group.  :meth:`ContinuousSystem.discretize` writes its discrete Lagrangian on the pair
+groupoid Q × Q ⇉ Q for a quadrature rule (Marsden–West §2.6; on groups through the group's
+retraction τ, Bou-Rabee–Marsden's Hamilton–Pontryagin integrators): from an arrow
+(q₀, q₁) a step h apart,
+
+- on a Euclidean factor: v = (q₁ − q₀)/h, the midpoint q̄ = (q₀ + q₁)/2;
+- on a group factor: ξ = τ⁻¹(g₀⁻¹g₁)/h, the midpoint ḡ = g₀·τ(hξ/2);
+
+``"midpoint"``: L_d = h·L(q̄, v); ``"trapezoid"``: L_d = (h/2)·(L(q₀, v) + L(q₁, v)).  Both
+are of order 2 (Marsden–West Thm 2.3.1 with the variational order of the quadrature).
+:class:`GaussLegendre` (s) and :class:`LobattoIIIAB` (s) name the Galerkin families; their
+one- and two-stage members are these two rules (Gauss–Legendre with one stage is the
+midpoint rule, Lobatto IIIA–IIIB with two stages the trapezoid rule, i.e. Störmer–Verlet);
+the members with internal stages are not implemented yet and are refused.
+
+Continuous forces F(q, v, u) (a generalised force on a Euclidean space) give the discrete
+forces of the same rule (docs/conventions.md §20, :mod:`._forcing`): f⁻ = f⁺ = (h/2)·F(q̄, v)
+(midpoint), f⁻ = (h/2)·F(q₀, v), f⁺ = (h/2)·F(q₁, v) (trapezoid).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+import sympy as sp
+
+from .._arguments import integer_argument
+from .._errors import InputTypeError, ShapeError, UnsupportedFeatureError
+from ..derivation import call_user
+from ..groupoids import configuration_factors, pair_groupoid_of
+from ..ir import Graph, Program, from_sympy
+from ._system import DiscreteSystem
+
+#: the rules written directly (order 2), by name
+RULES = ("midpoint", "trapezoid")
+
+
+@dataclass(frozen=True)
+class GaussLegendre:
+    """The Galerkin variational integrator with s Gauss–Legendre nodes (order 2s;
+    Marsden–West §2.6.6, Hairer–Lubich–Wanner VI.6).  s = 1 is the midpoint rule."""
+
+    stages: int
+
+    def __post_init__(self):
+        object.__setattr__(self, "stages", integer_argument(self.stages, "stages", minimum=1,
+                                                            owner="GaussLegendre"))
+
+    @property
+    def order(self) -> int:
+        return 2 * self.stages
+
+    @property
+    def rule(self) -> str | None:
+        """The rule written without internal stages, or None."""
+        return "midpoint" if self.stages == 1 else None
+
+
+@dataclass(frozen=True)
+class LobattoIIIAB:
+    """The Lobatto IIIA–IIIB partitioned Runge–Kutta method with s nodes (order 2s − 2;
+    Marsden–West §2.6.6).  s = 2 is the trapezoid rule (Störmer–Verlet)."""
+
+    stages: int
+
+    def __post_init__(self):
+        object.__setattr__(self, "stages", integer_argument(self.stages, "stages", minimum=2,
+                                                            owner="LobattoIIIAB"))
+
+    @property
+    def order(self) -> int:
+        return 2 * self.stages - 2
+
+    @property
+    def rule(self) -> str | None:
+        return "trapezoid" if self.stages == 2 else None
+
+
+def scheme_rule(scheme) -> str:
+    """The rule of a scheme: ``"midpoint"`` or ``"trapezoid"``, named or as the Galerkin
+    member it is; an :class:`UnsupportedFeatureError` for members with internal stages."""
+    if isinstance(scheme, str):
+        if scheme not in RULES:
+            raise InputTypeError(f"discretize: scheme must be one of {', '.join(RULES)}, "
+                                 f"GaussLegendre(s) or LobattoIIIAB(s); got {scheme!r}")
+        return scheme
+    if isinstance(scheme, (GaussLegendre, LobattoIIIAB)):
+        if scheme.rule is None:
+            raise UnsupportedFeatureError(
+                f"discretize: {scheme} (order {scheme.order}) has internal stages, which are "
+                f"not implemented yet; GaussLegendre(1) (midpoint) and LobattoIIIAB(2) "
+                f"(trapezoid) are")
+        return scheme.rule
+    raise InputTypeError(f"discretize: scheme must be one of {', '.join(RULES)}, "
+                         f"GaussLegendre(s) or LobattoIIIAB(s); got {type(scheme).__name__} "
+                         f"{scheme!r}")
+
+
+# --- the system ---------------------------------------------------------------------------------
+
+class ContinuousSystem:
+    """A Lagrangian system on Q with L(q, v) (see the module docstring); discretised by
+    :meth:`discretize` into a :class:`DiscreteSystem` on the pair groupoid Q × Q.
+
+    ``L(q, v)``: q a configuration (a point as a column matrix, a group element as its
+    matrix, a tuple of them on a product), v a velocity (a column matrix; on a group the
+    body velocity ξ in the basis of ``G.hat``; a tuple on a product).  ``forces=F(q, v)``
+    (a generalised force, one component per coordinate; on Euclidean spaces only, for now)
+    may use the ``inputs``.  ``holonomic``: passed on to the discrete system (a function of
+    its base point, docs/conventions.md §7).
+    """
+
+    def __init__(self, Q, L: Callable, parameters: Sequence[sp.Symbol] = (), *,
+                 holonomic: Callable | None = None, forces: Callable | None = None,
+                 inputs: Sequence[sp.Symbol] = (), name: str = "continuous"):
+        self.name = name
+        self.factors, self.product = configuration_factors(Q)
+        self.Q = Q
+        if not callable(L):
+            raise InputTypeError(f"{name}: L must be a function L(q, v), got "
+                                 f"{type(L).__name__}")
+        self.lagrangian = L
+        self.parameters = list(parameters)
+        self.holonomic = holonomic
+        if forces is not None and any(f.is_group for f in self.factors):
+            raise UnsupportedFeatureError(
+                f"{name}: continuous forces on a Lie group factor are not supported yet; "
+                f"discretize without forces= and pass the discrete forces (sg.body_torque) "
+                f"to a DiscreteSystem written by hand")
+        self.forces = forces
+        self.inputs = list(inputs)
+
+    def _values(self, parts: list):
+        return tuple(parts) if self.product else parts[0]
+
+    def discretize(self, step, scheme="midpoint") -> DiscreteSystem:
+        """The discrete system of ``scheme`` (``"midpoint"``, ``"trapezoid"``,
+        ``GaussLegendre(1)``, ``LobattoIIIAB(2)``) with time step ``step`` (a declared
+        parameter, which becomes the system's ``time_step``)."""
+        rule = scheme_rule(scheme)
+        h = _step_symbol(self, step)
+        G, read = pair_groupoid_of(self.Q, self.factors, self.product)
+
+        def pieces(g):
+            pairs = read(g)
+            v = [f.velocity(a, b, h) for f, (a, b) in zip(self.factors, pairs)]
+            ends = ([f.point(a) for f, (a, _) in zip(self.factors, pairs)],
+                    [f.point(b) for f, (_, b) in zip(self.factors, pairs)])
+            mid = [f.midpoint(a, b, vi, h) for f, (a, b), vi in zip(self.factors, pairs, v)]
+            return v, ends, mid
+
+        def L_d(g):
+            v, (q0, q1), mid = pieces(g)
+            V = self._values(v)
+            if rule == "midpoint":
+                return h * self._lagrangian(self._values(mid), V)
+            return h / 2 * (self._lagrangian(self._values(q0), V)
+                            + self._lagrangian(self._values(q1), V))
+
+        forces = None
+        if self.forces is not None:
+            def forces(g):
+                v, (q0, q1), mid = pieces(g)
+                V = self._values(v)
+                if rule == "midpoint":
+                    half = [h / 2 * f for f in self._force(self._values(mid), V)]
+                    return half, list(half)
+                return ([h / 2 * f for f in self._force(self._values(q0), V)],
+                        [h / 2 * f for f in self._force(self._values(q1), V)])
+
+        system = DiscreteSystem(G, L_d, parameters=self.parameters,
+                                name=f"{self.name}_{rule}", holonomic=self.holonomic,
+                                time_step=h, forces=forces, inputs=self.inputs)
+        system.continuous = Discretization(self, h, rule)
+        return system
+
+    def _lagrangian(self, q, v) -> sp.Expr:
+        value = call_user(self.name, "L(q, v)", self.lagrangian, q, v, smooth=True,
+                          display={})
+        if isinstance(value, sp.MatrixBase) and value.shape == (1, 1):
+            value = value[0, 0]
+        return sp.sympify(value)
+
+    def _force(self, q, v) -> list:
+        value = call_user(self.name, "F(q, v)", self.forces, q, v, display={})
+        value = list(value)
+        n = sum(f.dim for f in self.factors)
+        if len(value) != n:
+            raise ShapeError(f"{self.name}: F(q, v) returned {len(value)} components; one "
+                             f"generalised force per coordinate ({n})")
+        return [sp.sympify(c) for c in value]
+
+    def momentum(self, q, v: Sequence[sp.Symbol]) -> list:
+        """p = ∂L/∂v (the continuous Legendre transform) at the configuration ``q`` (as L
+        takes it) for velocity symbols ``v`` (all components, factor after factor), one
+        component per velocity component (on a group: the body momentum in the basis of
+        ``G.hat``)."""
+        parts, at = [], 0
+        for f in self.factors:
+            parts.append(sp.Matrix(list(v[at:at + f.dim])))
+            at += f.dim
+        L = self._lagrangian(q, self._values(parts))
+        return [sp.diff(L, s) for s in v]
+
+    def __repr__(self) -> str:
+        return f"<ContinuousSystem {self.name!r} on {self.Q!r}>"
+
+
+@dataclass(frozen=True)
+class Discretization:
+    """What a discretised system keeps of its continuous origin: the system, the step
+    symbol and the rule (for initial states from a velocity, :func:`velocity_momentum`)."""
+
+    system: ContinuousSystem
+    step: sp.Symbol
+    rule: str
+
+
+def velocity_momentum_program(system: DiscreteSystem) -> Program:
+    """The continuous Legendre transform of a discretised system as a program: inputs
+    ``q`` (the base point, in the coordinates of the discrete groupoid's source), ``v``
+    (the velocity, factor after factor; body velocities on groups), ``p`` (parameters);
+    output ``momentum`` = ∂L/∂v.  Its value is the discrete momentum F⁻L_d that starts the
+    discrete trajectory of the same initial data (q₀, p₀) (Marsden–West §1.5, 2.6)."""
+    origin: Discretization = system.continuous
+    continuous = origin.system
+    G = system.groupoid
+    q = [sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim)]
+    v = [sp.Dummy(f"v{i}", real=True) for i in range(sum(f.dim for f in continuous.factors))]
+    _, read = pair_groupoid_of(continuous.Q, continuous.factors, continuous.product)
+    pairs = read(G.view(G.identity(q)))
+    configuration = continuous._values([f.point(a) for f, (a, _) in zip(continuous.factors,
+                                                                        pairs)])
+    momentum = continuous.momentum(configuration, v)
+    graph, symbols, memo = Graph(), {}, {}
+    for s in (*q, *v, *system.parameters):
+        symbols[s] = graph.input(s)
+    nodes = [from_sympy(graph, e, symbols, f"{system.name}: ∂L/∂v", memo) for e in momentum]
+    program = Program(graph=graph, inputs={"q": q, "v": v, "p": list(system.parameters)},
+                      outputs={"momentum": nodes})
+    program.check_inputs()
+    return program
+
+
+def _step_symbol(system: ContinuousSystem, step) -> sp.Symbol:
+    by_name = {str(p): p for p in system.parameters}
+    if not isinstance(step, (str, sp.Symbol)) or str(step) not in by_name:
+        raise InputTypeError(f"{system.name}: discretize(step=...) must be one of the "
+                             f"parameters ({', '.join(by_name) or 'none'}), its symbol or "
+                             f"name; got {step!r}")
+    return by_name[str(step)]
+
+
+__all__ = ["ContinuousSystem", "GaussLegendre", "LobattoIIIAB"]
