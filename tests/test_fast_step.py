@@ -199,3 +199,48 @@ def test_a_restored_simulator_steps_as_the_original():
     restored = pickle.loads(pickle.dumps(sim))
     state, p = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
     assert np.array_equal(_loop(restored, state, p, 10), _loop(sim, state, p, 10))
+
+
+def test_simulate_checks_a_state_once_and_keeps_every_check():
+    """``simulate`` shares the table: a state it checked or ended with starts the next run
+    unchecked (a run continued from its last state is bitwise one run), and a state changed
+    in place, or one under other values of the parameters its constraints use, or other
+    parameters that fail their checks, is checked again."""
+    sim = _fresh()
+    state, vector = initial_state(sim, "plate_ball"), sim.parameters(PARAMS)
+    whole = sim.simulate(state, 40, PARAMS)
+    half = sim.simulate(state, 20, vector)
+    calls = {"state": 0}
+    original_state = sg.Simulator.state
+
+    def counting_state(self, *args, **kwargs):
+        calls["state"] += 1
+        return original_state(self, *args, **kwargs)
+
+    sg_state = pytest.MonkeyPatch()
+    sg_state.setattr(sg.Simulator, "state", counting_state)
+    try:
+        end = half.states[-1]
+        rest = sim.simulate(end, 20, vector, options=sg.NewtonOptions(extrapolate=False))
+        assert calls["state"] == 0
+        again = sim.simulate(end, 20, dict(PARAMS))
+        assert calls["state"] == 0 and np.array_equal(again.states[0], end)
+    finally:
+        sg_state.undo()
+    assert np.array_equal(whole.states[:21], half.states)
+    assert np.array_equal(rest.states[0], whole.states[20])
+    moved = half.states[-1].copy()
+    sim.simulate(moved, 5, vector)  # (trusted: the bytes of a state the table holds)
+    moved[0] += 1e-3  # in place: the rolling constraints no longer hold
+    with pytest.raises(sg.DomainError, match="violates the constraints"):
+        sim.simulate(moved, 5, vector)
+    other = vector.copy()
+    other[1] = 2.0  # r, which the constraints use
+    with pytest.raises(sg.DomainError, match="violates the constraints"):
+        sim.simulate(whole.states[-1], 5, other)
+    with pytest.raises(sg.ParameterError, match="non-finite parameter r"):
+        sim.simulate(whole.states[-1], 5, {**PARAMS, "r": float("inf")})
+    bad = vector.copy()
+    bad[0] = np.nan
+    with pytest.raises(sg.ParameterError, match="non-finite parameter h"):
+        sim.simulate(whole.states[-1], 5, bad)

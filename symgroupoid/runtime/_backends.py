@@ -65,6 +65,11 @@ def real_vector(value, length: int, name: str, *, owner: str = "",
     return out
 
 
+#: the NumPy dtype of each C type a buffer may hold
+_C_DTYPES = {"double": np.dtype(np.float64), "int": np.dtype(np.intc),
+             "long": np.dtype(ctypes.c_long), "long long": np.dtype(np.longlong)}
+
+
 def c_buffer(ffi, array: np.ndarray, length: int, name: str, ctype: str = "double"):
     """A cffi pointer to ``array`` after checking it is exactly what C will access.
 
@@ -73,8 +78,7 @@ def c_buffer(ffi, array: np.ndarray, length: int, name: str, ctype: str = "doubl
     ``length`` elements; any other buffer is a :class:`ShapeError` (the C side would read or
     write past it).
     """
-    dtype = {"double": np.dtype(np.float64), "int": np.dtype(np.intc),
-             "long": np.dtype(ctypes.c_long), "long long": np.dtype(np.longlong)}[ctype]
+    dtype = _C_DTYPES[ctype]
     if not isinstance(array, np.ndarray):
         raise ShapeError(f"{name}: the C buffer must be a NumPy array, got "
                          f"{type(array).__name__}")

@@ -118,10 +118,38 @@ class Simulator:
             state = self.layout.rounded(arr).copy()
             self.layout.check_arrows(state)
         if params is not None:
-            p = self.parameters(params)
-            constraint_check(self.equations)(state, p, atol=INITIAL_CONSTRAINT_TOLERANCE,
-                                             owner=self.name)
+            self._check_constraints(state, self.parameters(params))
         return state
+
+    def _check_constraints(self, state: np.ndarray, p: np.ndarray) -> None:
+        constraint_check(self.equations)(state, p, atol=INITIAL_CONSTRAINT_TOLERANCE,
+                                         owner=self.name)
+
+    def _run_parameters(self, params) -> np.ndarray:
+        """:meth:`parameters`, through :meth:`step`'s screen first: a float64 vector or a
+        dict of Python numbers whose values passed every check before is not parsed
+        again (anything else, and every failure, takes :meth:`parameters`, which reports
+        it)."""
+        screened = self._fast_step.parameters(params)
+        if screened is not None and np.isfinite(screened[0]).all():
+            return screened[0]
+        return self.parameters(params)
+
+    def _initial_state(self, initial, p: np.ndarray) -> np.ndarray:
+        """:meth:`state` (``initial``, the checked parameter vector ``p``), except that a
+        flat float64 state this simulator checked or produced before, under the same values
+        of the parameters its constraints use, is copied without checking it again (the
+        table of :meth:`step`'s fast path: such a state is in its groups and on its
+        constraints, and :meth:`state` would return it unchanged)."""
+        fast = self._fast_step
+        if (type(initial) is np.ndarray and initial.dtype == np.float64
+                and initial.shape == (self.layout.n_known,)
+                and initial.tobytes() + fast.key_tail(p) in fast.trusted):
+            return initial.copy()
+        known = self.state(initial)
+        self._check_constraints(known, p)
+        fast.trust(known, p)
+        return known
 
     # --- running --------------------------------------------------------------------------------
     def simulate(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
@@ -159,8 +187,8 @@ class Simulator:
         every = integer_argument(every, "every", minimum=1, owner=self.name)
         options = NewtonOptions.of(options, self.options, owner=self.name)
         callback = callable_argument(callback, "callback", owner=self.name, none=True)
-        p = self.parameters(params)
-        known0 = self.state(initial, p)
+        p = self._run_parameters(params)
+        known0 = self._initial_state(initial, p)
         U = input_sequence(self.layout, inputs, steps, owner=self.name)
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
@@ -182,7 +210,9 @@ class Simulator:
             raise
         finally:
             task.close(failed=run.filled < rows)
-        return run.so_far()
+        traj = run.so_far()
+        self._fast_step.trust(traj.states[-1], p)  # (a continuation starts from it)
+        return traj
 
     def simulate_batch(self, states, steps: int, params, *, every: int = 1,
                        options: NewtonOptions | None = None, threads: int | None = None,
