@@ -23,14 +23,17 @@ def groupoid(name: str) -> sg.Groupoid:
 
 
 def every_groupoid(where: Callable[[sg.Groupoid], bool] | None = None,
-                   slow: Collection[str] = ()):
-    """Parametrise a test over every registered groupoid (those ``where`` accepts), passed
-    as the argument ``G`` and named in the test id; the groupoids named in ``slow`` run
-    with the slow tests only (where the property is costly on them)."""
-    unknown = set(slow) - set(EXAMPLES)
+                   slow: Collection[str] = (), exclude: Collection[str] = ()):
+    """Parametrise a test over every registered groupoid (those ``where`` accepts and
+    ``exclude`` does not name), passed as the argument ``G`` and named in the test id; the
+    groupoids named in ``slow`` run with the slow tests only (where the property is costly
+    on them).  ``exclude`` names groupoids a property does not apply to where deciding it
+    is costly (the predicate runs when the tests are collected, in every test process)."""
+    unknown = (set(slow) | set(exclude)) - set(EXAMPLES)
     if unknown:
         raise ValueError(f"every_groupoid: no registered groupoid {sorted(unknown)}")
-    names = [n for n in sorted(EXAMPLES) if where is None or where(groupoid(n))]
+    names = [n for n in sorted(EXAMPLES)
+             if n not in exclude and (where is None or where(groupoid(n)))]
     if not names:
         raise ValueError("every_groupoid: the predicate accepts no registered groupoid")
     return pytest.mark.parametrize("G", [
