@@ -15,7 +15,10 @@ and code generation scale (``benchmarks/scaling.py``):
   gravity — the Lie group variational integrator of Lee, Leok and McClamroch, written on
   the pair groupoid of SO(3)ⁿ; ``spherical_chain_increments(n)`` is the same system in
   increment coordinates (:class:`TrivialisedPairGroupoid`), whose state keeps each body's
-  increment F_i − I, so that its Noether momenta stay at the rounding floor over long runs.
+  increment F_i − I, so that its Noether momenta stay at the rounding floor over long runs;
+- ``planar_chain(n, forced=True)``, ``spherical_chain(n, forced=True)``: the same chains
+  driven by a torque input at every joint and damped in every joint (docs/conventions.md
+  §20).
 
 Systems with holonomic constraints ψ(q) = 0 on the configuration space
 (docs/conventions.md §15): ``spherical_pendulum()``, ``link_chain(n)`` (a planar chain in
