@@ -223,3 +223,19 @@ def test_forced_spherical_chain_at_rest_inputs_is_the_chain() -> None:
         np.concatenate([spherical_initial(n), np.zeros(6 * n)]), steps,
         {"h": H, "g": G, "c": 0.0}, inputs=np.zeros(3 * n))
     assert np.abs(b.states[:, :18 * n] - a.states).max() < 1e-12
+
+
+@needs_cc
+def test_forced_run_across_chunks_is_one_run() -> None:
+    """A forced run that keeps every state is filled in place chunk by chunk (CHUNK_STEPS =
+    2¹⁴ steps each); its states are bitwise those of the same run kept every 5th state (one
+    kernel call), across the chunk boundary too."""
+    n, steps = 2, (1 << 14) + 300
+    sim = forced_step("planar", n).compile(backend="c", cache_dir=SESSION_CACHE)
+    start = np.concatenate([planar_initial(n), np.zeros(2 * n)])
+    U = 0.2 * np.random.default_rng(5).standard_normal((steps, n))
+    params = {"h": H, "g": G, "c": C}
+    whole = sim.simulate(start, steps, params, inputs=U)
+    sampled = sim.simulate(start, steps, params, inputs=U, every=5)
+    np.testing.assert_array_equal(sampled.states, whole.states[sampled.step_indices])
+    assert np.array_equal(whole["u1"][1:], U[:, 0]) and len(whole.newton_iterations) == steps
