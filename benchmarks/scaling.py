@@ -332,28 +332,41 @@ def library_simulate_forced(sim, kind: str, n: int, twin_cache: Path) -> None:
     twin = build_system(base_kind(kind), n).euler_lagrange().compile(
         backend="c", cache_dir=str(twin_cache))
     twin_state = initial_state(base_kind(kind), n)
-    twin_runs: list = []
-    twin_best = rest_best = math.inf
-    rest_params, rest_inputs = {**params, "c": 0.0}, np.zeros(n_inputs(kind, n))
-    for _ in range(TIMING_REPEATS):
-        t0 = time.perf_counter()
-        run(steps)
-        best = min(best, time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        twin_runs[:] = [twin.simulate(twin_state, steps, PARAMS)]
-        twin_best = min(twin_best, time.perf_counter() - t0)
-        t0 = time.perf_counter()
-        twin_runs[1:] = [sim.simulate(state, steps, rest_params, inputs=rest_inputs)]
-        rest_best = min(rest_best, time.perf_counter() - t0)
-    twin_iterations = np.asarray(twin_runs[0].newton_iterations)
+    newton: dict = {}  # Newton updates per step of the last run of each (no history kept)
+    try:  # the unforced motion may whip where the forced one does not: time what it solves
+        twin_steps = len(twin.simulate(twin_state, steps, PARAMS).newton_iterations)
+    except NewtonDivergenceError as exc:
+        twin_steps = max(1, len(exc.trajectory.states) - 1)
+    rest_params = {**params, "c": 0.0}
+    rest_inputs = np.zeros((twin_steps, n_inputs(kind, n)))  # a table, as the forced run's
+
+    def unforced() -> None:
+        newton["unforced"] = twin.simulate(twin_state, twin_steps, PARAMS).newton_iterations
+
+    def at_rest() -> None:
+        newton["at_rest"] = sim.simulate(state, twin_steps, rest_params,
+                                         inputs=rest_inputs).newton_iterations
+
+    runs = {"forced": lambda: run(steps), "unforced": unforced, "at_rest": at_rest}
+    wall = {"forced": best, "unforced": math.inf, "at_rest": math.inf}
+    cpu = dict.fromkeys(runs, math.inf)
+    for _ in range(TIMING_REPEATS):  # alternating rounds, wall and CPU time of each run
+        for name, go in runs.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            go()
+            wall[name] = min(wall[name], time.perf_counter() - t0)
+            cpu[name] = min(cpu[name], time.process_time() - c0)
+    sizes = {"forced": steps, "unforced": twin_steps, "at_rest": twin_steps}
+    best, twin_best, rest_best = wall["forced"], wall["unforced"], wall["at_rest"]
     emit({"phase": "simulate", "us_per_step": best / steps * 1e6, "steps": steps,
           "run_seconds": best, "newton_mean": float(iterations.mean()),
           "newton_max": int(iterations.max()), "states": first.states.tolist(),
           "unsolvable_step": None if solvable is None else exc_step,
-          "unforced_us_per_step": twin_best / steps * 1e6,
-          "unforced_newton_mean": float(twin_iterations.mean()),
-          "at_rest_us_per_step": rest_best / steps * 1e6,
-          "at_rest_newton_mean": float(np.mean(twin_runs[1].newton_iterations))})
+          "unforced_us_per_step": twin_best / twin_steps * 1e6, "unforced_steps": twin_steps,
+          "unforced_newton_mean": float(np.mean(newton["unforced"])),
+          "at_rest_us_per_step": rest_best / twin_steps * 1e6,
+          "at_rest_newton_mean": float(np.mean(newton["at_rest"])),
+          "cpu_us_per_step": {k: v / sizes[k] * 1e6 for k, v in cpu.items()}})
 
 
 def library_check(step, kind: str, n: int) -> None:
@@ -530,6 +543,10 @@ def run_size(kind: str, n: int, budget: float, skip_reason: str | None, tmp: Pat
             row["forced_overhead"] = sim["us_per_step"] / sim["unforced_us_per_step"]
             if "at_rest_us_per_step" in sim:
                 row["at_rest_overhead"] = sim["at_rest_us_per_step"] / sim["unforced_us_per_step"]
+            if "cpu_us_per_step" in sim:
+                cpu = sim["cpu_us_per_step"]
+                row["cpu_overhead"] = cpu["forced"] / cpu["unforced"]
+                row["cpu_at_rest_overhead"] = cpu["at_rest"] / cpu["unforced"]
     return row
 
 
@@ -614,6 +631,12 @@ def print_row(row: dict) -> None:
                   f"{sim['at_rest_us_per_step']:.2f} / {sim['unforced_us_per_step']:.2f} "
                   f"us/step = {row['at_rest_overhead']:.2f}x; Newton mean "
                   f"{sim['at_rest_newton_mean']:.2f}")
+        if "cpu_overhead" in row:
+            cpu = sim["cpu_us_per_step"]
+            print(f"  CPU time (the same rounds): forced {cpu['forced']:.2f}, unforced "
+                  f"{cpu['unforced']:.2f}, at rest {cpu['at_rest']:.2f} us/step; forced / "
+                  f"unforced {row['cpu_overhead']:.2f}x, at rest / unforced "
+                  f"{row['cpu_at_rest_overhead']:.2f}x")
 
 
 HEADER_LIB = (f"{'system':<14}{'n':>4}{'eqs':>5} | {'derive':>8}{'emit':>8}{'C kB (code)':>15}"
@@ -649,7 +672,7 @@ def print_tables(rows: list[dict]) -> None:
 
 HEADER_FORCED = (f"{'system':<14}{'n':>4} | {'unforced':>9}{'forced':>9}{'ratio':>7}"
                  f"{'at rest':>9}{'ratio':>7} | {'CasADi':>9}{'step x':>8} | "
-                 f"{'Newton f/u/rest':>16}")
+                 f"{'CPU ratios':>11} | {'Newton f/u/rest':>16}")
 
 
 def print_forced_table(rows: list[dict]) -> None:
@@ -660,8 +683,9 @@ def print_forced_table(rows: list[dict]) -> None:
           f"forced worker, alternating rounds; ratio = forced / unforced, target <= "
           f"{FORCED_OVERHEAD_TARGET:.2f}; CasADi: the same forced equations, step x = "
           f"forced / CasADi, target <= {FORCED_STEP_RATIO_TARGET}; at rest: the forced "
-          f"chain with u = 0 and c = 0, the unforced motion, and its ratio to the unforced) "
-          f"===")
+          f"chain with u = 0 and c = 0, the unforced motion, and its ratio to the unforced; "
+          f"CPU ratios: forced and at rest / unforced in CPU time, less sensitive to a "
+          f"loaded machine) ===")
     print(HEADER_FORCED)
     for row in forced:
         sim = row["library"].get("simulate", {})
@@ -672,6 +696,7 @@ def print_forced_table(rows: list[dict]) -> None:
               f"{fmt(sim.get('us_per_step')):>9}{fmt(row.get('forced_overhead')):>7}"
               f"{fmt(sim.get('at_rest_us_per_step')):>9}{fmt(row.get('at_rest_overhead')):>7} | "
               f"{row['casadi']['us_per_step']:>9.2f}{fmt(row.get('step_ratio')):>8} | "
+              f"{fmt(row.get('cpu_overhead')):>5}/{fmt(row.get('cpu_at_rest_overhead')):<5} | "
               f"{newton:>16}")
 
 
