@@ -192,6 +192,7 @@ class Simulator:
         U = input_sequence(self.layout, inputs, steps, owner=self.name)
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
+        U = U if self.layout.n_inputs else None  # (a system without inputs: none)
         run = (_WholeRun(self, known0, p, rows, U) if every == 1
                else _SampledRun(self, known0, p, rows, every, U))
         task = Task(f"{self.name}: simulating", total=steps, unit="steps",
