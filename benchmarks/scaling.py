@@ -1,6 +1,7 @@
 """How derivation and code generation scale with the number of bodies, against CasADi.
 
-    python benchmarks/scaling.py [--systems planar,3d] [--sizes 2,4,8] [--quick]
+    python benchmarks/scaling.py [--systems planar,3d,planar-forced,3d-forced]
+                                 [--sizes 2,4,8] [--quick]
                                  [--budget SECONDS] [--repeat K] [--output results.json]
                                  [--no-skip]
     python benchmarks/scaling.py --report results.json
@@ -11,7 +12,19 @@ Two model systems of ``symgroupoid.systems``, sized by the number of bodies n:
   (pair groupoid of Rⁿ, midpoint discrete Lagrangian), n = 2, 4, 8, 16, 32, 64;
 - ``3d``: ``spherical_chain(n)``, n rigid bodies joined by spherical joints under gravity
   (Lee–Leok–McClamroch Lie group variational integrator on the pair groupoid of SO(3)ⁿ),
-  n = 1, 2, 3, 4, 6, 8.
+  n = 1, 2, 3, 4, 6, 8;
+- ``planar-forced``, ``3d-forced``: the same chains with ``forced=True``: a torque input at
+  every joint (one per joint for the planar chain, a body-frame vector per joint for the 3D
+  chain) and joint damping c = 0.1 (docs/conventions.md §20).  The library runs
+  ``sim.simulate(state, N, params, inputs=U)`` with a random but fixed U (normal, scale
+  0.2, the same rows for CasADi, whose ``mapaccum`` takes them as per-step parameters).
+  The worker also times the unforced chain of the same n in the same process, alternating
+  rounds with the forced runs, and prints forced / unforced (target ≤ 1.10) next to
+  forced / CasADi-forced (target ≤ 0.6).  The forces change the motion, and with it the
+  Newton updates per step; the worker also times the forced chain with u = 0 and c = 0
+  (the unforced motion), whose ratio to the unforced chain is the cost of the forces'
+  terms and the inputs alone.  List a forced system after its unforced one
+  (``--systems planar,planar-forced``): the sizes then alternate between the two.
 
 For each n, through the public API only, in a subprocess with a time budget (``--budget``,
 "timeout" is printed when it runs out):
@@ -71,9 +84,17 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 SIZES = {"planar": (2, 4, 8, 16, 32, 64), "3d": (1, 2, 3, 4, 6, 8)}
+SIZES.update({f"{kind}-forced": sizes for kind, sizes in list(SIZES.items())})
 CONSTRUCTORS = {"planar": "planar_chain", "3d": "spherical_chain"}
-TITLES = {"planar": "planar n-link pendulum", "3d": "3D chain of n rigid bodies"}
+TITLES = {"planar": "planar n-link pendulum", "3d": "3D chain of n rigid bodies",
+          "planar-forced": "planar n-link pendulum, joint torques and damping",
+          "3d-forced": "3D chain of n rigid bodies, joint torques and damping"}
 PARAMS = {"h": 0.01, "g": 9.81}
+#: parameters of the forced chains: PARAMS and the joint damping c
+FORCED_PARAMS = {**PARAMS, "c": 0.1}
+#: the forced chains' inputs: normal, this scale, from this seed (+ n)
+INPUT_SCALE = 0.2
+INPUT_SEED = 20261126
 #: first steps compared between the library and CasADi
 COMPARE_STEPS = 100
 #: steps per call of the CasADi mapaccum stepper
@@ -95,8 +116,48 @@ MAX_HISTORY_BYTES = 200e6
 #: the issue's absolute build-time targets, seconds
 BUILD_TARGETS = {("planar", 16): 2.0, ("3d", 3): 10.0, ("3d", 8): 60.0, ("planar", 64): 60.0}
 STEP_RATIO_TARGET = 0.8
+#: the forced chains' targets: step time against the unforced chain's and against CasADi's
+FORCED_OVERHEAD_TARGET = 1.10
+FORCED_STEP_RATIO_TARGET = 0.6
 GROWTH_TARGET = 2.0
 GROWTH_SLACK = 0.2
+
+
+# --- kinds -------------------------------------------------------------------------------------
+
+
+def base_kind(kind: str) -> str:
+    """The unforced chain of a kind: ``planar-forced`` -> ``planar``."""
+    return kind.removesuffix("-forced")
+
+
+def is_forced(kind: str) -> bool:
+    return kind.endswith("-forced")
+
+
+def params_of(kind: str) -> dict:
+    return FORCED_PARAMS if is_forced(kind) else PARAMS
+
+
+def n_inputs(kind: str, n: int) -> int:
+    """m: one torque per joint (planar), a body-frame torque vector per joint (3D)."""
+    if not is_forced(kind):
+        return 0
+    return n if base_kind(kind) == "planar" else 3 * n
+
+
+def bench_inputs(kind: str, n: int, steps: int) -> np.ndarray:
+    """The forced chain's inputs, shape (steps, m): random but fixed (each prefix the same
+    whatever ``steps``)."""
+    rng = np.random.default_rng(INPUT_SEED + n)
+    return INPUT_SCALE * rng.standard_normal((steps, n_inputs(kind, n)))
+
+
+def build_system(kind: str, n: int):
+    from symgroupoid import systems
+
+    constructor = getattr(systems, CONSTRUCTORS[base_kind(kind)])
+    return constructor(n, forced=True) if is_forced(kind) else constructor(n)
 
 
 # --- states -----------------------------------------------------------------------------------
@@ -113,8 +174,12 @@ def initial_state(kind: str, n: int) -> np.ndarray:
 
     planar: (θ_{−1}, θ_0) with θ_0,j = 0.6 cos(0.9 j), θ̇_0,j = 0.4 sin(1.3 j);
     3d: every body's R_{i,0} = cay(a_i) (a tilted chain), then every body's
-    R_{i,1} = R_{i,0} cay(h ω_i), row-major (the arrow of the pair groupoid of SO(3)ⁿ).
+    R_{i,1} = R_{i,0} cay(h ω_i), row-major (the arrow of the pair groupoid of SO(3)ⁿ);
+    forced: then zero inputs u_0 and an empty slot for u_1 (2m zeros).
     """
+    if is_forced(kind):
+        return np.concatenate([initial_state(base_kind(kind), n),
+                               np.zeros(2 * n_inputs(kind, n))])
     h = PARAMS["h"]
     j = np.arange(1, n + 1)
     if kind == "planar":
@@ -126,7 +191,12 @@ def initial_state(kind: str, n: int) -> np.ndarray:
 
 
 def random_point(kind: str, n: int, rng: np.random.Generator):
-    """(u, known, params) at which the two residuals are compared: not on a trajectory."""
+    """(u, known, params) at which the two residuals are compared: not on a trajectory
+    (forced: random inputs of both arrows and a random damping c too)."""
+    if is_forced(kind):
+        u, known, params = random_point(base_kind(kind), n, rng)
+        inputs = rng.normal(size=2 * n_inputs(kind, n))
+        return u, np.concatenate([known, inputs]), np.append(params, rng.uniform(0.0, 1.0))
     params = np.array([rng.uniform(0.005, 0.1), rng.uniform(1.0, 10.0)])
     if kind == "planar":
         return rng.uniform(-1.5, 1.5, n), rng.uniform(-1.5, 1.5, 2 * n), params
@@ -137,8 +207,9 @@ def random_point(kind: str, n: int, rng: np.random.Generator):
 
 
 def sizes_of_state(kind: str, n: int) -> tuple[int, int]:
-    """(unknowns, knowns) of one step."""
-    return (n, 2 * n) if kind == "planar" else (3 * n, 18 * n)
+    """(unknowns, knowns) of one step (forced: the knowns end with u_k, u_{k+1})."""
+    m = n_inputs(kind, n)
+    return (n, 2 * n + 2 * m) if base_kind(kind) == "planar" else (3 * n, 18 * n + 2 * m)
 
 
 # --- the library side (runs in a subprocess) --------------------------------------------------
@@ -157,10 +228,9 @@ def library_build(kind: str, n: int, cache: str, only: bool = False) -> None:
     """derive → emit → compile → simulate → evaluate, one JSON line per finished phase
     (``only``: derive → compile, a further sample of the build time)."""
     import symgroupoid.codegen
-    from symgroupoid import systems
 
     t0 = time.perf_counter()
-    step = getattr(systems, CONSTRUCTORS[kind])(n).euler_lagrange()
+    step = build_system(kind, n).euler_lagrange()
     t1 = time.perf_counter()
     emit({"phase": "derive", "seconds": t1 - t0, "equations": len(step),
           "unknowns": len(step.unknowns), "knowns": len(step.knowns)})
@@ -177,7 +247,10 @@ def library_build(kind: str, n: int, cache: str, only: bool = False) -> None:
     t3 = time.perf_counter()
     emit({"phase": "emit", "seconds": t3 - t2, "c_bytes": len(kernel.source.encode()),
           "c_code_bytes": code_bytes(kernel.source), "c_lines": kernel.source.count("\n")})
-    library_simulate(sim, kind, n)
+    if is_forced(kind):
+        library_simulate_forced(sim, kind, n, Path(cache).parent / f"twin-{kind}-{n}")
+    else:
+        library_simulate(sim, kind, n)
     library_check(step, kind, n)
 
 
@@ -226,6 +299,76 @@ def library_simulate(sim, kind: str, n: int) -> None:
           "unsolvable_step": None if solvable is None else exc_step})
 
 
+def library_simulate_forced(sim, kind: str, n: int, twin_cache: Path) -> None:
+    """The forced chain's ``simulate(..., inputs=U)`` timed as :func:`library_simulate`
+    times the unforced one, then TIMING_REPEATS further rounds alternating a forced run, a
+    run of the unforced chain of the same n (compiled here, ``twin_cache``) and a forced run
+    with the inputs held at zero and c = 0 (the unforced chain's motion, so its Newton
+    updates), all of as many steps.  Forced / unforced compares the runs as the benchmark
+    drives them (the forces change the motion and the Newton updates it takes); at rest /
+    unforced is the cost of the forces' terms and the inputs alone."""
+    from symgroupoid import NewtonDivergenceError
+
+    state, params = initial_state(kind, n), params_of(kind)
+    first = sim.simulate(state, COMPARE_STEPS, params,
+                         inputs=bench_inputs(kind, n, COMPARE_STEPS))
+    tables: dict = {}
+    last: list = []
+
+    def run(steps: int) -> None:
+        if steps not in tables:
+            tables.clear()  # one table of inputs in memory
+            tables[steps] = bench_inputs(kind, n, steps)
+        last[:] = [sim.simulate(state, steps, params, inputs=tables[steps])]
+
+    limit = max(COMPARE_STEPS, int(MAX_HISTORY_BYTES / (8 * len(state))))
+    solvable = exc_step = None
+    try:
+        best, steps = timed_runs(run, COMPARE_STEPS, limit)
+    except NewtonDivergenceError as exc:
+        solvable, exc_step = len(exc.trajectory.states) - 1, exc.step
+        best, steps = timed_runs(run, COMPARE_STEPS, max(COMPARE_STEPS, solvable))
+    iterations = np.asarray(last[0].newton_iterations)
+    twin = build_system(base_kind(kind), n).euler_lagrange().compile(
+        backend="c", cache_dir=str(twin_cache))
+    twin_state = initial_state(base_kind(kind), n)
+    newton: dict = {}  # Newton updates per step of the last run of each (no history kept)
+    try:  # the unforced motion may whip where the forced one does not: time what it solves
+        twin_steps = len(twin.simulate(twin_state, steps, PARAMS).newton_iterations)
+    except NewtonDivergenceError as exc:
+        twin_steps = max(1, len(exc.trajectory.states) - 1)
+    rest_params = {**params, "c": 0.0}
+    rest_inputs = np.zeros((twin_steps, n_inputs(kind, n)))  # a table, as the forced run's
+
+    def unforced() -> None:
+        newton["unforced"] = twin.simulate(twin_state, twin_steps, PARAMS).newton_iterations
+
+    def at_rest() -> None:
+        newton["at_rest"] = sim.simulate(state, twin_steps, rest_params,
+                                         inputs=rest_inputs).newton_iterations
+
+    runs = {"forced": lambda: run(steps), "unforced": unforced, "at_rest": at_rest}
+    wall = {"forced": best, "unforced": math.inf, "at_rest": math.inf}
+    cpu = dict.fromkeys(runs, math.inf)
+    for _ in range(TIMING_REPEATS):  # alternating rounds, wall and CPU time of each run
+        for name, go in runs.items():
+            t0, c0 = time.perf_counter(), time.process_time()
+            go()
+            wall[name] = min(wall[name], time.perf_counter() - t0)
+            cpu[name] = min(cpu[name], time.process_time() - c0)
+    sizes = {"forced": steps, "unforced": twin_steps, "at_rest": twin_steps}
+    best, twin_best, rest_best = wall["forced"], wall["unforced"], wall["at_rest"]
+    emit({"phase": "simulate", "us_per_step": best / steps * 1e6, "steps": steps,
+          "run_seconds": best, "newton_mean": float(iterations.mean()),
+          "newton_max": int(iterations.max()), "states": first.states.tolist(),
+          "unsolvable_step": None if solvable is None else exc_step,
+          "unforced_us_per_step": twin_best / twin_steps * 1e6, "unforced_steps": twin_steps,
+          "unforced_newton_mean": float(np.mean(newton["unforced"])),
+          "at_rest_us_per_step": rest_best / twin_steps * 1e6,
+          "at_rest_newton_mean": float(np.mean(newton["at_rest"])),
+          "cpu_us_per_step": {k: v / sizes[k] * 1e6 for k, v in cpu.items()}})
+
+
 def library_check(step, kind: str, n: int) -> None:
     rng = np.random.default_rng(20261122 + n)
     points = []
@@ -238,10 +381,8 @@ def library_check(step, kind: str, n: int) -> None:
 
 
 def library_check_only(kind: str, n: int) -> None:
-    from symgroupoid import systems
-
     t0 = time.perf_counter()
-    step = getattr(systems, CONSTRUCTORS[kind])(n).euler_lagrange()
+    step = build_system(kind, n).euler_lagrange()
     emit({"phase": "derive", "seconds": time.perf_counter() - t0, "equations": len(step),
           "unknowns": len(step.unknowns), "knowns": len(step.knowns)})
     library_check(step, kind, n)
@@ -298,13 +439,14 @@ def casadi_side(kind: str, n: int, workdir: Path) -> dict:
     model = cm.MODELS[kind](n)
     stepper = cm.compile_stepper(model, CASADI_CHUNK, workdir)
     state = initial_state(kind, n)
-    params = np.array([PARAMS["h"], PARAMS["g"]])
-    states = stepper.trajectory(state, params)
-    z0 = stepper.initial(state)
+    params = np.array(list(params_of(kind).values()))
+    inputs = bench_inputs(kind, n, CASADI_CHUNK) if is_forced(kind) else None
+    states = stepper.trajectory(state, params, inputs)
+    z0, columns = stepper.initial(state), stepper.step_parameters(params, inputs)
 
     def run(calls: int) -> None:
         for _ in range(calls):
-            stepper.run(z0, params)
+            stepper.run(z0, columns)
 
     best, calls = timed_runs(run, 1, 10**6)
     return {"build_seconds": stepper.build_seconds,
@@ -396,6 +538,15 @@ def run_size(kind: str, n: int, budget: float, skip_reason: str | None, tmp: Pat
         row["build_ratio"] = lib["build_seconds"] / cas["build_seconds"]
     if "simulate" in lib:
         row["step_ratio"] = lib["simulate"]["us_per_step"] / cas["us_per_step"]
+        if "unforced_us_per_step" in lib["simulate"]:
+            sim = lib["simulate"]
+            row["forced_overhead"] = sim["us_per_step"] / sim["unforced_us_per_step"]
+            if "at_rest_us_per_step" in sim:
+                row["at_rest_overhead"] = sim["at_rest_us_per_step"] / sim["unforced_us_per_step"]
+            if "cpu_us_per_step" in sim:
+                cpu = sim["cpu_us_per_step"]
+                row["cpu_overhead"] = cpu["forced"] / cpu["unforced"]
+                row["cpu_at_rest_overhead"] = cpu["at_rest"] / cpu["unforced"]
     return row
 
 
@@ -468,11 +619,29 @@ def print_row(row: dict) -> None:
               f"step {row['step_ratio']:.2f}x" if "step_ratio" in row else None]
     if any(ratios):
         print("  library / CasADi: " + ", ".join(r for r in ratios if r))
+    if "forced_overhead" in row:
+        sim = lib["simulate"]
+        print(f"  forced / unforced chain (same process, alternating rounds): "
+              f"{sim['us_per_step']:.2f} / {sim['unforced_us_per_step']:.2f} us/step = "
+              f"{row['forced_overhead']:.2f}x (target <= {FORCED_OVERHEAD_TARGET:.2f}); "
+              f"Newton mean {sim['newton_mean']:.2f} forced, "
+              f"{sim['unforced_newton_mean']:.2f} unforced")
+        if "at_rest_overhead" in row:
+            print(f"  forced with u = 0, c = 0 (the unforced motion) / unforced: "
+                  f"{sim['at_rest_us_per_step']:.2f} / {sim['unforced_us_per_step']:.2f} "
+                  f"us/step = {row['at_rest_overhead']:.2f}x; Newton mean "
+                  f"{sim['at_rest_newton_mean']:.2f}")
+        if "cpu_overhead" in row:
+            cpu = sim["cpu_us_per_step"]
+            print(f"  CPU time (the same rounds): forced {cpu['forced']:.2f}, unforced "
+                  f"{cpu['unforced']:.2f}, at rest {cpu['at_rest']:.2f} us/step; forced / "
+                  f"unforced {row['cpu_overhead']:.2f}x, at rest / unforced "
+                  f"{row['cpu_at_rest_overhead']:.2f}x")
 
 
-HEADER_LIB = (f"{'system':<7}{'n':>4}{'eqs':>5} | {'derive':>8}{'emit':>8}{'C kB (code)':>15}"
+HEADER_LIB = (f"{'system':<14}{'n':>4}{'eqs':>5} | {'derive':>8}{'emit':>8}{'C kB (code)':>15}"
               f"{'compile':>9}{'cc est':>8}{'build':>9} | {'us/step':>9}{'Newton':>9}")
-HEADER_CAS = (f"{'system':<7}{'n':>4} | {'build':>8}{'C kB':>8}{'us/step':>9} | "
+HEADER_CAS = (f"{'system':<14}{'n':>4} | {'build':>8}{'C kB':>8}{'us/step':>9} | "
               f"{'build x':>8}{'step x':>8} | {'dev 100':>8}{'check F':>9}{'check J':>9}")
 
 
@@ -486,7 +655,7 @@ def print_tables(rows: list[dict]) -> None:
         eqs = phase(row["library"], "derive", "equations")
         c = library_cells(row)
         note = "" if row["library"]["status"] == "ok" else f"  [{row['library']['status']}]"
-        print(f"{row['system']:<7}{row['n']:>4}{fmt(eqs, 'd'):>5} | {c[0]:>8}{c[1]:>8}{c[2]:>15}"
+        print(f"{row['system']:<14}{row['n']:>4}{fmt(eqs, 'd'):>5} | {c[0]:>8}{c[1]:>8}{c[2]:>15}"
               f"{c[3]:>9}{c[4]:>8}{c[5]:>9} | {c[6]:>9}{c[7]:>9}{note}")
     print("\n=== CasADi (build = SX graph + AD + C generation + cc -O3 + load) and comparison "
           "(x = library / CasADi; dev 100 = max state difference over the first 100 steps; "
@@ -494,11 +663,41 @@ def print_tables(rows: list[dict]) -> None:
     print(HEADER_CAS)
     for row in rows:
         cas, check = row["casadi"], row.get("residual_check", {})
-        print(f"{row['system']:<7}{row['n']:>4} | {cas['build_seconds']:>8.2f}"
+        print(f"{row['system']:<14}{row['n']:>4} | {cas['build_seconds']:>8.2f}"
               f"{cas['c_bytes'] / 1e3:>8.0f}{cas['us_per_step']:>9.2f} | "
               f"{fmt(row.get('build_ratio')):>8}{fmt(row.get('step_ratio')):>8} | "
               f"{fmt(row.get('max_deviation_100_steps'), '.1e'):>8}"
               f"{fmt(check.get('residual'), '.1e'):>9}{fmt(check.get('jacobian'), '.1e'):>9}")
+
+
+HEADER_FORCED = (f"{'system':<14}{'n':>4} | {'unforced':>9}{'forced':>9}{'ratio':>7}"
+                 f"{'at rest':>9}{'ratio':>7} | {'CasADi':>9}{'step x':>8} | "
+                 f"{'CPU ratios':>11} | {'Newton f/u/rest':>16}")
+
+
+def print_forced_table(rows: list[dict]) -> None:
+    forced = [r for r in rows if is_forced(r["system"])]
+    if not forced:
+        return
+    print(f"\n=== forced chains (us/step; unforced: the same n's unforced chain timed in the "
+          f"forced worker, alternating rounds; ratio = forced / unforced, target <= "
+          f"{FORCED_OVERHEAD_TARGET:.2f}; CasADi: the same forced equations, step x = "
+          f"forced / CasADi, target <= {FORCED_STEP_RATIO_TARGET}; at rest: the forced "
+          f"chain with u = 0 and c = 0, the unforced motion, and its ratio to the unforced; "
+          f"CPU ratios: forced and at rest / unforced in CPU time, less sensitive to a "
+          f"loaded machine) ===")
+    print(HEADER_FORCED)
+    for row in forced:
+        sim = row["library"].get("simulate", {})
+        newton = ("-" if not sim else
+                  f"{sim['newton_mean']:.2f}/{sim.get('unforced_newton_mean', math.nan):.2f}"
+                  f"/{sim.get('at_rest_newton_mean', math.nan):.2f}")
+        print(f"{row['system']:<14}{row['n']:>4} | {fmt(sim.get('unforced_us_per_step')):>9}"
+              f"{fmt(sim.get('us_per_step')):>9}{fmt(row.get('forced_overhead')):>7}"
+              f"{fmt(sim.get('at_rest_us_per_step')):>9}{fmt(row.get('at_rest_overhead')):>7} | "
+              f"{row['casadi']['us_per_step']:>9.2f}{fmt(row.get('step_ratio')):>8} | "
+              f"{fmt(row.get('cpu_overhead')):>5}/{fmt(row.get('cpu_at_rest_overhead')):<5} | "
+              f"{newton:>16}")
 
 
 def growth_exponent(ns: list[int], values: list[float]) -> float | None:
@@ -539,14 +738,34 @@ def targets(rows: list[dict], budget: float) -> list[dict]:
         out.append({"target": f"{kind} n = {n}: build <= {limit:.0f} s",
                     "met": b is not None and b <= limit,
                     "value": f"{b:.2f} s" if b is not None else unmet_reason(row)})
-    steps = [(r, r.get("step_ratio")) for r in rows]
-    ran = [(r, s) for r, s in steps if s is not None]
-    out.append({"target": f"step <= {STEP_RATIO_TARGET}x CasADi's us/step at every n",
-                "met": bool(rows) and len(ran) == len(rows)
-                and all(s <= STEP_RATIO_TARGET for _, s in ran),
-                "value": ", ".join(f"{r['system']} {r['n']}: "
-                                   + (f"{s:.2f}x" if s is not None else unmet_reason(r))
-                                   for r, s in steps)})
+    for forced, limit in ((False, STEP_RATIO_TARGET), (True, FORCED_STEP_RATIO_TARGET)):
+        mine = [r for r in rows if is_forced(r["system"]) == forced]
+        if not mine:
+            continue
+        steps = [(r, r.get("step_ratio")) for r in mine]
+        ran = [(r, s) for r, s in steps if s is not None]
+        out.append({"target": f"{'forced ' if forced else ''}step <= {limit}x CasADi's "
+                              f"us/step at every n",
+                    "met": len(ran) == len(mine) and all(s <= limit for _, s in ran),
+                    "value": ", ".join(f"{r['system']} {r['n']}: "
+                                       + (f"{s:.2f}x" if s is not None else unmet_reason(r))
+                                       for r, s in steps)})
+    forced_rows = [r for r in rows if is_forced(r["system"])]
+    if forced_rows:
+        ratios = [(r, r.get("forced_overhead")) for r in forced_rows]
+        out.append({"target": f"forced step <= {FORCED_OVERHEAD_TARGET:.2f}x the unforced "
+                              f"chain's at every n",
+                    "met": all(x is not None and x <= FORCED_OVERHEAD_TARGET for _, x in ratios),
+                    "value": ", ".join(f"{r['system']} {r['n']}: "
+                                       + (f"{x:.2f}x" if x is not None else unmet_reason(r))
+                                       for r, x in ratios)})
+        rest = [(r, r.get("at_rest_overhead")) for r in forced_rows]
+        out.append({"target": f"forced step with u = 0, c = 0 (the unforced motion) <= "
+                              f"{FORCED_OVERHEAD_TARGET:.2f}x the unforced chain's at every n",
+                    "met": all(x is not None and x <= FORCED_OVERHEAD_TARGET for _, x in rest),
+                    "value": ", ".join(f"{r['system']} {r['n']}: "
+                                       + (f"{x:.2f}x" if x is not None else unmet_reason(r))
+                                       for r, x in rest)})
     for kind in SIZES:
         mine = [r for r in rows if r["system"] == kind]
         if mine:
@@ -601,7 +820,8 @@ def print_targets(items: list[dict]) -> None:
 def parse_args(argv=None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--systems", default="planar,3d",
-                        help="comma-separated: planar, 3d (default both)")
+                        help="comma-separated: planar, 3d, planar-forced, 3d-forced "
+                             "(default planar,3d)")
     parser.add_argument("--sizes", default=None,
                         help="comma-separated n (default: planar 2..64, 3d 1..8)")
     parser.add_argument("--quick", action="store_true", help="only n <= 4")
@@ -622,7 +842,8 @@ def parse_args(argv=None) -> argparse.Namespace:
     kinds = [k.strip() for k in args.systems.split(",") if k.strip()]
     unknown = [k for k in kinds if k not in SIZES]
     if unknown:
-        parser.error(f"unknown system(s) {', '.join(unknown)}; choose from planar, 3d")
+        parser.error(f"unknown system(s) {', '.join(unknown)}; choose from "
+                     f"{', '.join(SIZES)}")
     args.kinds = kinds
     if args.sizes is not None:
         try:
@@ -641,10 +862,13 @@ def parse_args(argv=None) -> argparse.Namespace:
 
 
 def plan(args) -> list[tuple[str, int]]:
+    """(kind, n) in order: each chain's sizes, its forced variant's (if listed) alternating
+    with them (n, then n forced), so that both see the machine's load alike."""
     out = []
-    for kind in args.kinds:
-        sizes = args.size_list if args.size_list is not None else SIZES[kind]
-        out += [(kind, n) for n in sizes if not (args.quick and n > 4)]
+    for base in dict.fromkeys(base_kind(k) for k in args.kinds):
+        kinds = [k for k in (base, f"{base}-forced") if k in args.kinds]
+        sizes = args.size_list if args.size_list is not None else SIZES[base]
+        out += [(kind, n) for n in sizes if not (args.quick and n > 4) for kind in kinds]
     return out
 
 
@@ -683,6 +907,7 @@ def main(argv=None) -> None:
         print(f"results of {args.report} ({saved['meta'].get('date')}, load average "
               f"{saved['meta'].get('load_average')})")
         print_tables(saved["results"])
+        print_forced_table(saved["results"])
         print_targets(targets(saved["results"], saved["meta"]["budget_seconds"]))
         return
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -708,6 +933,7 @@ def main(argv=None) -> None:
             print_row(row)
     meta["load_average_end"] = load_average()
     print_tables(rows)
+    print_forced_table(rows)
     print(f"\nload average at the start {meta['load_average']}, at the end "
           f"{meta['load_average_end']} ({meta['cpus']} CPUs): timings on a loaded machine are "
           "inflated; compare ratios from the same run")

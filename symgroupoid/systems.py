@@ -15,7 +15,10 @@ and code generation scale (``benchmarks/scaling.py``):
   gravity — the Lie group variational integrator of Lee, Leok and McClamroch, written on
   the pair groupoid of SO(3)ⁿ; ``spherical_chain_increments(n)`` is the same system in
   increment coordinates (:class:`TrivialisedPairGroupoid`), whose state keeps each body's
-  increment F_i − I, so that its Noether momenta stay at the rounding floor over long runs.
+  increment F_i − I, so that its Noether momenta stay at the rounding floor over long runs;
+- ``planar_chain(n, forced=True)``, ``spherical_chain(n, forced=True)``: the same chains
+  driven by a torque input at every joint and damped in every joint (docs/conventions.md
+  §20).
 
 Systems with holonomic constraints ψ(q) = 0 on the configuration space
 (docs/conventions.md §15): ``spherical_pendulum()``, ``link_chain(n)`` (a planar chain in
@@ -37,8 +40,8 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
-from ._arguments import MAX_DIMENSION, integer_argument
-from .equations import DiscreteSystem
+from ._arguments import MAX_DIMENSION, flag_argument, integer_argument
+from .equations import DiscreteSystem, body_torque, joint_torque, rayleigh_damping
 from .groupoids import (
     SO3,
     ActionGroupoid,
@@ -121,7 +124,7 @@ def rigid_body() -> DiscreteSystem:
                           time_step=h)
 
 
-def planar_chain(n: int) -> DiscreteSystem:
+def planar_chain(n: int, forced: bool = False) -> DiscreteSystem:
     """The planar n-link pendulum in angle coordinates θ₁, …, θₙ; parameters ``h, g``.
 
     Unit point masses at the tips of unit massless links; θ_j is the angle of link j from
@@ -137,8 +140,23 @@ def planar_chain(n: int) -> DiscreteSystem:
 
     The step solves D₂L_d(θ_{k−1}, θ_k) + D₁L_d(θ_k, θ_{k+1}) = 0 for θ_{k+1}
     (docs/conventions.md §2).
+
+    ``forced=True``: the chain driven by a torque u_j at every joint j (joint 1 between the
+    pivot and link 1, joint j between links j − 1 and j; inputs ``u1, …, un``) and damped in
+    every joint (parameters ``h, g, c``).  The joint torque u_j turns link j by +u_j and
+    link j − 1 by −u_j (equal and opposite: internal to the chain, except at the pivot); the
+    dissipation function D = (c/2) Σⱼ (θ̇_j − θ̇_{j−1})², θ̇₀ = 0, damps the relative rates.
+    The generalised force is
+
+        Q_j(θ, θ̇, u) = u_j − u_{j+1} − ∂D/∂θ̇_j        (u_{n+1} = 0),
+
+    discretised by the midpoint rule, f⁻ = f⁺ = (h/2)·Q((θ⁰ + θ¹)/2, (θ¹ − θ⁰)/h, u), with
+    :func:`~symgroupoid.body_torque` at the pivot, :func:`~symgroupoid.joint_torque` at the
+    other joints and :func:`~symgroupoid.rayleigh_damping` (docs/conventions.md §20).  With
+    u = 0 and c = 0 the steps are bitwise those of the unforced chain.
     """
     n = integer_argument(n, "n", minimum=1, maximum=MAX_DIMENSION, owner="planar_chain")
+    forced = flag_argument(forced, "forced", owner="planar_chain")
     h, grav = sp.symbols("h g", positive=True)
     G = PairGroupoid(EuclideanSpace([f"theta{j}" for j in range(1, n + 1)]))
 
@@ -154,8 +172,32 @@ def planar_chain(n: int) -> DiscreteSystem:
             potential += grav * y
         return h * (kinetic - potential)
 
-    return DiscreteSystem(G, L, parameters=[h, grav], name=f"planar_chain_{n}",
-                          time_step=h)
+    if not forced:
+        return DiscreteSystem(G, L, parameters=[h, grav], name=f"planar_chain_{n}",
+                              time_step=h)
+    c = sp.Symbol("c", nonnegative=True)
+    u = sp.symbols(f"u1:{n + 1}", real=True)
+
+    def dissipation(q, v):
+        return c / 2 * sum((b - a) ** 2 for a, b in zip([0, *v[:-1]], v))
+
+    parts = [body_torque([u[0]] + [0] * (n - 1), h),
+             *(joint_torque(n, [j], [j - 1], [u[j]], h) for j in range(1, n)),
+             rayleigh_damping(dissipation, h)]
+    return DiscreteSystem(G, L, parameters=[h, grav, c], forces=summed_forces(parts),
+                          inputs=list(u), name=f"forced_planar_chain_{n}", time_step=h)
+
+
+def summed_forces(parts: Sequence[Callable]) -> Callable:
+    """The forces ``g -> (f_minus, f_plus)`` that add those of ``parts`` component by
+    component (the Lagrange–d'Alembert terms are linear in the forces)."""
+
+    def forces(g):
+        pairs = [part(g) for part in parts]
+        return ([sum(c, sp.S.Zero) for c in zip(*(m for m, _ in pairs))],
+                [sum(c, sp.S.Zero) for c in zip(*(p for _, p in pairs))])
+
+    return forces
 
 
 #: body-frame vectors of the spherical chain: joint i → joint i+1, and joint i → centre of
@@ -199,7 +241,7 @@ def centres_of_mass(R: Sequence[sp.Matrix]) -> list[sp.Matrix]:
     return out
 
 
-def spherical_chain(n: int) -> DiscreteSystem:
+def spherical_chain(n: int, forced: bool = False) -> DiscreteSystem:
     """n rigid bodies in a chain joined by spherical joints under gravity; parameters ``h, g``.
 
     Body 1 is pinned at the origin; body i has unit mass, attitude R_i ∈ SO(3), principal
@@ -220,8 +262,32 @@ def spherical_chain(n: int) -> DiscreteSystem:
     The groupoid is :func:`attitude_groupoid` (n), the pair groupoid of SO(3)ⁿ; the unknowns
     of a step are the Cayley coordinates of F_{i,k+1} = R_{i,k}ᵀR_{i,k+1}
     (docs/conventions.md §1–§2).
+
+    ``forced=True``: the chain driven by a torque at every joint (inputs ``uj_1, uj_2,
+    uj_3``: the torque u_j that joint j applies to body j, in body j's frame along E₁, E₂,
+    E₃; joint 1 is the pivot) and damped in every joint (parameters ``h, g, c``).  Joint j
+    applies the spatial torque T_j = R_j u_j − c (ω_j − ω_{j−1}) to body j and −T_j to
+    body j − 1 (equal and opposite: internal to the chain, except at the pivot, where
+    ω₀ = 0); ω_i = vee(R_{i,k+1}R_{i,k}ᵀ − R_{i,k}R_{i,k+1}ᵀ)/(2h) is body i's spatial
+    angular velocity over the step.  The discrete forces are the body-frame torques at the
+    two ends of the arrow, held over the step as :func:`~symgroupoid.body_torque` holds
+    them (docs/conventions.md §20):
+
+        f⁻_i = (h/2) R_{i,k}ᵀ (T_i − T_{i+1})|_{R_k},
+        f⁺_i = (h/2) R_{i,k+1}ᵀ (T_i − T_{i+1})|_{R_{k+1}},   T_{n+1} = 0,
+
+    where R_j u_j is taken at the same attitudes as the frame.  f⁺(g_k) and f⁻(g_{k+1})
+    both map the spatial torques into the frames of the junction's attitudes R_{k+1}, so the
+    joints j ≥ 2 cancel along any rotation of the whole chain: about the vertical (a
+    symmetry of L_d) only the pivot's torque T₁ changes the angular momentum, by
+    (h/2) e₃·(T₁(g_k) + T₁(g_{k+1})) at R_{k+1} per step.  The bodies' frames differ, so
+    :func:`~symgroupoid.joint_torque` (equal components on both bodies) does not apply.
+    With u = 0 and c = 0 the steps are those of the unforced chain to rounding (not
+    bitwise: the compacted program factors the damping's monomials together with the
+    Lagrangian's, and rounds those sums in another order).
     """
     n = integer_argument(n, "n", minimum=1, maximum=MAX_DIMENSION, owner="spherical_chain")
+    forced = flag_argument(forced, "forced", owner="spherical_chain")
     h, grav = sp.symbols("h g", positive=True)
     G, read = attitude_groupoid(n)
     up = sp.Matrix([0, 0, 1])
@@ -237,8 +303,40 @@ def spherical_chain(n: int) -> DiscreteSystem:
         potential = sum((up.T * (a + b))[0, 0] for a, b in zip(before, after)) * grav / 2
         return (rotational + kinetic) / h - h * potential
 
-    return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_{n}",
-                          time_step=h)
+    if not forced:
+        return DiscreteSystem(G, L, parameters=[h, grav], name=f"spherical_chain_{n}",
+                              time_step=h)
+    c = sp.Symbol("c", nonnegative=True)
+    u = [sp.Matrix(sp.symbols(f"u{j}_1:4", real=True)) for j in range(1, n + 1)]
+
+    def forces(g):
+        bodies = read(g)
+        spin = [vee(Rb * Ra.T - Ra * Rb.T) / (2 * h) for Ra, Rb in bodies]
+        return tuple(chain_torques(R, u, spin, c, h) for R in zip(*bodies))
+
+    return DiscreteSystem(G, L, parameters=[h, grav, c], forces=forces,
+                          inputs=[x for uj in u for x in uj], time_step=h,
+                          name=f"forced_spherical_chain_{n}")
+
+
+def vee(M: sp.Matrix) -> sp.Matrix:
+    """(M₃₂, M₁₃, M₂₁): the vector of a skew-symmetric 3×3 matrix, vee(x̂) = x."""
+    return sp.Matrix([M[2, 1], M[0, 2], M[1, 0]])
+
+
+def chain_torques(R: Sequence[sp.Matrix], u: Sequence[sp.Matrix], spin: Sequence[sp.Matrix],
+                  c: sp.Symbol, h: sp.Symbol) -> list:
+    """(h/2) R_iᵀ(T_i − T_{i+1}) for every body i, one component per E_a, at attitudes R:
+    the joint torques T_j = R_j u_j − c (ω_j − ω_{j−1}) of :func:`spherical_chain` (forced),
+    with R_iᵀR_i u_i written u_i."""
+    damping = [-c * (wj - wp) for wj, wp in zip(spin, [sp.zeros(3, 1), *spin[:-1]])]
+    out: list = []
+    for i, Ri in enumerate(R):
+        net = u[i] + Ri.T * damping[i]
+        if i + 1 < len(R):
+            net -= Ri.T * (R[i + 1] * u[i + 1] + damping[i + 1])
+        out += list(h / 2 * net)
+    return out
 
 
 def spherical_chain_increments(n: int) -> DiscreteSystem:

@@ -192,11 +192,9 @@ class Simulator:
         U = input_sequence(self.layout, inputs, steps, owner=self.name)
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
-        if self.layout.n_inputs:
-            run = _SampledRun(self, known0, p, rows, every, U)
-        else:
-            run = (_WholeRun(self, known0, p, rows) if every == 1
-                   else _SampledRun(self, known0, p, rows, every))
+        U = U if self.layout.n_inputs else None  # (a system without inputs: none)
+        run = (_WholeRun(self, known0, p, rows, U) if every == 1
+               else _SampledRun(self, known0, p, rows, every, U))
         task = Task(f"{self.name}: simulating", total=steps, unit="steps",
                     progress=progress).start()
         try:
@@ -553,13 +551,15 @@ class _WholeRun:
 
     The kernel writes each chunk's states, Newton iterations and residual norms straight
     into the arrays of the result (:meth:`~symgroupoid.runtime._backends._Kernel.
-    simulate_into`, its first state the last row written), so a state is written once and
-    never copied; a chunk only marks where progress is reported, Ctrl-C is seen and a
-    callback is called.
+    simulate_into`, its first state the last row written; a forced system's chunk
+    :meth:`~symgroupoid.runtime._backends._Kernel.simulate_inputs` at the chunk's rows and
+    inputs), so a state is written once and never copied; a chunk only marks where progress
+    is reported, Ctrl-C is seen and a callback is called.
     """
 
-    def __init__(self, sim: Simulator, known0: np.ndarray, p: np.ndarray, rows: int):
-        self.sim, self.p = sim, p
+    def __init__(self, sim: Simulator, known0: np.ndarray, p: np.ndarray, rows: int,
+                 inputs: np.ndarray | None = None):
+        self.sim, self.p, self.inputs = sim, p, inputs
         self.states = np.empty((rows, sim.layout.n_known))
         self.states[0] = known0
         self.iterations = np.zeros(rows - 1, dtype=np.intc)
@@ -571,8 +571,14 @@ class _WholeRun:
         done = 0
         while done < steps:
             n = min(CHUNK_STEPS, steps - done)
-            chunk = kernel.simulate_into(self.states, self.iterations, self.norms, done, n,
-                                         self.p, options, warm)
+            if self.inputs is None:
+                chunk = kernel.simulate_into(self.states, self.iterations, self.norms, done,
+                                             n, self.p, options, warm)
+            else:  # the chunk's rows of the result, which the kernel fills in place
+                chunk = kernel.simulate_inputs(
+                    self.states[done:done + n + 1], self.iterations[done:done + n],
+                    self.norms[done:done + n], self.p, self.inputs[done:done + n],
+                    self.sim.layout.upcoming_index, options, warm)
             self.filled = done + chunk.completed + 1
             task.update(done + chunk.completed)
             if chunk.status != OK:
