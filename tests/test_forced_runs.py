@@ -298,3 +298,18 @@ def test_plot_conservation_shows_the_forced_noether_balance(tmp_path):
         sg.plot_conservation(sim.simulate({"x": (1.0, 1.0), "y": (0.0, 0.01), "tau": 0.5},
                                           200, {"h": 0.01, "k": 1.0}, inputs=U, every=10),
                              momenta=[J])
+
+
+def test_stream_takes_the_inputs_and_its_pieces_join_to_the_run(oscillator, monkeypatch):
+    """In pieces of 7 steps (CHUNK_STEPS patched; the warm start carried): the joined pieces
+    are bitwise ``simulate``'s run, every state and every third."""
+    monkeypatch.setattr("symgroupoid.runtime._simulator.CHUNK_STEPS", 7)
+    U, start = _table(1)[0], _starts(2)[1]
+    for every in (1, 3):
+        run = oscillator.simulate(start, STEPS, PARAMS, inputs=U, every=every)
+        pieces = list(oscillator.stream(start, STEPS, PARAMS, inputs=U, every=every))
+        assert len(pieces) > 2
+        joined = np.concatenate([pieces[0].states] + [q.states[1:] for q in pieces[1:]])
+        assert np.array_equal(joined, run.states)
+    with pytest.raises(ShapeError, match="inputs"):
+        oscillator.stream(start, STEPS, PARAMS, inputs=U[:3])

@@ -252,7 +252,7 @@ def test_entry_points_without_inputs_refuse_a_system_with_inputs(plane):
     start = {"x": (1.0, 1.0), "y": (0.0, 0.0), "u": 0.0}
     with pytest.raises(ShapeError, match="inputs"):
         plane.simulate_batch([start, start], 5, PLANE_PARAMS)
-    with pytest.raises(UnsupportedFeatureError, match="inputs"):
+    with pytest.raises(ShapeError, match="inputs"):
         plane.stream(start, 5, PLANE_PARAMS)
     with pytest.raises(ShapeError, match="inputs"):
         sg.sweep(plane, start, PLANE_PARAMS, 5)

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from .._errors import DomainError, ShapeError, UnsupportedFeatureError
+from .._errors import DomainError, ShapeError
 from ._options import NewtonOptions
 from ._runs import OK, RawRun
 from ._validate import real_array
@@ -94,36 +94,31 @@ def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
     return input_sequence(layout, None if inputs is None else [inputs], 1, owner=owner)[0]
 
 
-def refuse_inputs(layout, what: str, *, owner: str) -> None:
-    """An :class:`UnsupportedFeatureError` for an entry point that does not take per-step
-    inputs yet, when the system has them (it would hold them constant silently)."""
-    if layout.n_inputs:
-        raise UnsupportedFeatureError(
-            f"{owner}: {what} does not take per-step inputs yet, and this system has inputs "
-            f"({', '.join(layout.input_names)}); run it with Simulator.simulate(..., "
-            f"inputs=U) or a Simulator.step(..., inputs=u) loop")
-
-
 def input_chunks(kernel, layout, known0: np.ndarray, p: np.ndarray, inputs: np.ndarray,
-                 options: NewtonOptions) -> Iterator[tuple[int, RawRun]]:
-    """The run of ``len(inputs)`` steps as one :class:`RawRun` (the shape of
-    :func:`~symgroupoid.runtime._runs.run_chunks`): step j reads row j of the inputs
-    (:meth:`~symgroupoid.runtime._backends._Kernel.simulate_inputs`, one kernel call)."""
+                 options: NewtonOptions, chunk_steps: int) -> Iterator[tuple[int, RawRun]]:
+    """The run of ``len(inputs)`` steps in kernel calls of at most ``chunk_steps`` steps
+    (the shape of :func:`~symgroupoid.runtime._runs.run_chunks`: (index of the call's first
+    state, its :class:`RawRun`), stopping after a failed call): step j reads row j of the
+    inputs (:meth:`~symgroupoid.runtime._backends._Kernel.simulate_inputs`), the Newton warm
+    start carried from call to call, so the states are bitwise those of one call."""
     steps = len(inputs)
     warm = kernel.warm_start()
-    states = np.empty((steps + 1, layout.n_known))
-    states[0] = known0
-    iterations = np.zeros(steps, dtype=np.intc)
-    norms = np.zeros(steps)
-    chunk = kernel.simulate_inputs(states, iterations, norms, p, inputs,
-                                   layout.upcoming_index, options, warm)
-    if chunk.status != OK:
-        k = max(chunk.failed_step, 0)
-        yield 0, RawRun(states[:k + 1], iterations[:k + 1], norms[:k + 1], chunk.status, k,
-                        chunk.last_iterate)
-        return
-    yield 0, RawRun(states, iterations, norms, OK, -1, np.zeros(0))
+    known, done = known0, 0
+    while done < steps:
+        n = min(chunk_steps, steps - done)
+        states = np.empty((n + 1, layout.n_known))
+        states[0] = known
+        iterations = np.zeros(n, dtype=np.intc)
+        norms = np.zeros(n)
+        chunk = kernel.simulate_inputs(states, iterations, norms, p, inputs[done:done + n],
+                                       layout.upcoming_index, options, warm)
+        if chunk.status != OK:
+            k = max(chunk.failed_step, 0)
+            yield done, RawRun(states[:k + 1], iterations[:k + 1], norms[:k + 1],
+                               chunk.status, k, chunk.last_iterate)
+            return
+        yield done, RawRun(states, iterations, norms, OK, -1, np.zeros(0))
+        known, done = states[-1], done + n
 
 
-__all__ = ["batch_inputs", "input_chunks", "input_sequence", "refuse_inputs",
-           "step_inputs"]
+__all__ = ["batch_inputs", "input_chunks", "input_sequence", "step_inputs"]

@@ -22,7 +22,7 @@ from .._errors import (
 from .._progress import Task
 from ..stepper import Status
 from ._backends import real_vector
-from ._inputs import input_chunks, input_sequence, refuse_inputs, step_inputs
+from ._inputs import input_chunks, input_sequence, step_inputs
 from ._layout import StateLayout
 from ._options import NewtonOptions
 from ._runs import OK, run_chunks
@@ -257,7 +257,7 @@ class Simulator:
         return restore_simulator, (recipe_of(self),)
 
     def stream(self, initial, steps: int, params, *, options: NewtonOptions | None = None,
-               every: int = 1) -> Iterator[Trajectory]:
+               every: int = 1, inputs=None) -> Iterator[Trajectory]:
         """:meth:`simulate` as an iterator: one :class:`Trajectory` per chunk, for processing
         a long run on the fly without keeping it.
 
@@ -266,14 +266,17 @@ class Simulator:
         without a new kept state are skipped.  Joining the pieces (dropping the first row
         of every piece after the first) gives ``simulate(..., every=every)``.  A failure at
         step s raises as in :meth:`simulate`, with ``err.trajectory`` the piece from the
-        last state yielded to state s.
+        last state yielded to state s.  A forced system takes ``inputs`` as
+        :meth:`simulate` does (checked before the first piece).
         """
         steps = integer_argument(steps, "steps", owner=self.name)
         every = integer_argument(every, "every", minimum=1, owner=self.name)
         options = NewtonOptions.of(options, self.options, owner=self.name)
-        refuse_inputs(self.layout, "stream", owner=self.name)
         p = self.parameters(params)
-        return self._pieces(self.state(initial, p), p, steps, every, options)
+        known0 = self.state(initial, p)
+        U = input_sequence(self.layout, inputs, steps, owner=self.name)
+        return self._pieces(known0, p, steps, every, options,
+                            inputs=U if self.layout.n_inputs else None)
 
     def _pieces(self, known0: np.ndarray, p: np.ndarray, steps: int, every: int,
                 options: NewtonOptions, task: Task | None = None,
@@ -281,7 +284,8 @@ class Simulator:
         sampler = Sampler(every, steps, known0)
         chunks = (run_chunks(self.kernel, known0, p, steps, options, CHUNK_STEPS)
                   if inputs is None else
-                  input_chunks(self.kernel, self.layout, known0, p, inputs, options))
+                  input_chunks(self.kernel, self.layout, known0, p, inputs, options,
+                               CHUNK_STEPS))
         for start, run in chunks:
             before_index, before_state = sampler.last_index, sampler.last_state
             segment = sampler.take(start, run)
