@@ -23,7 +23,15 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from ...derivation import chart_of, named, next_arrow, second_order_legendre_forms, step_jacobian
+from ..._symbols import multiplier_symbols
+from ...derivation import (
+    WindowAction,
+    chart_of,
+    named,
+    next_arrow,
+    second_order_legendre_forms,
+    step_jacobian,
+)
 from ...ir import Graph, Program, from_sympy
 
 
@@ -58,28 +66,37 @@ class MomentumProgram:
 
 
 def momentum_program(step) -> MomentumProgram:
-    """The from-momentum program of a first-order step (see the module docstring)."""
+    """The from-momentum program of a first-order step (see the module docstring), built on
+    the expression graph: one term T = L + λ·φ on generic slots and its gradient (reverse
+    mode, once), instantiated at the arrow g₁ = arrow_from(q, τ(x)) and contracted with the
+    fields X⃗_b there (:meth:`WindowAction.derivation_nodes`, as the momenta of a state are);
+    no SymPy derivative of L is taken."""
     system, G = step.system, step.groupoid
-    forms = system.legendre()
-    arrow, lam = tuple(forms.arrow), list(forms.multipliers)
-    rank, m = G.rank, len(lam)
+    fs = _functions(system)
+    action = WindowAction(G, fs)
+    rank, m = G.rank, len(fs.constraints)
+    arrow = tuple(named(G, 0, False))
+    lam = list(multiplier_symbols(m, 0))
     source = tuple(G.source(arrow))
     x = [sp.Dummy(f"x{a}", real=True) for a in range(rank)]
     p = [sp.Dummy(f"p{a}", real=True) for a in range(rank)]
     params = list(step.parameters)
     on_fibre = tuple(G.arrow_from(source, G.fibre_chart(x, source)))
-    sub = dict(zip(arrow, on_fibre))
-    phis = _functions(system).rows_on(G, [arrow]) if m else []
-    eqs = ([mi.xreplace(sub) - pi for mi, pi in zip(forms.minus, p)]
-           + [sp.sympify(f).xreplace(sub) for f in phis])
     g = Graph()
     symbols = {s: g.input(s) for s in (*x, *lam, *source, *p, *params)}
     memo: dict = {}
-    F = _nodes(g, eqs, symbols, f"{step.name}: the momentum equations", memo)
+    pnodes = {q: symbols[q] for q in params}
+    arrow_nodes = _nodes(g, on_fibre, symbols, f"{step.name}: the fibre chart", memo)
+    term = action.term_nodes(g, params, bool(m), step.name)
+    lam_nodes = [symbols[a] for a in lam]
+    minus = action.derivation_nodes(g, term, action.fields(g, "right", arrow_nodes, pnodes),
+                                    0, [0], {0: arrow_nodes}, {0: lam_nodes})
+    rows = action.instantiate(g, term, term.rows, [arrow_nodes], lam_nodes) if m else []
+    F = [g.sub(mi, symbols[pi]) for mi, pi in zip(minus, p)] + list(rows)
     J = step_jacobian(g, F, [symbols[s] for s in (*x, *lam)])
     identity = G.identity(source)
     outputs = {"F": F, "J": [c for row in J for c in row],
-               "arrow": _nodes(g, on_fibre, symbols, f"{step.name}: the fibre chart", memo),
+               "arrow": arrow_nodes,
                "guess": _nodes(g, G.chart_of_fibre(G.fibre_of(identity), source), symbols,
                                f"{step.name}: the chart of the identity", memo)}
     program = Program(g, {"z": x + lam, "q": list(source), "p": p, "params": params}, outputs)
