@@ -57,13 +57,15 @@ def test_the_targets_interpolate_on_log_scales():
     """time_at: the cost of an error level along a method's front (log–log); step_at: the h
     of an error level; None outside the points."""
     P = wp.Point
-    points = [P("a", "", 100, 1e-4, 0.1, 0.05), P("a", "", 1000, 1e-6, 1.0, 0.5),
-              P("a", "", 200, 1e-3, 5.0, 2.5)]  # (a dominated point: not on the front)
+    points = [P("a", "", 100, 1e-4, 0.1, 0.05, 0.04), P("a", "", 1000, 1e-6, 1.0, 0.5, 0.4),
+              P("a", "", 200, 1e-3, 5.0, 2.5, 2.0)]  # (a dominated point: not on the front)
     assert math.isclose(wp.time_at(points, "a", 1e-5), math.sqrt(0.05 * 0.5))
     assert wp.time_at(points, "a", 1e-7) is None
     assert math.isclose(wp.time_at(points, "a", 1e-2), 0.05)
+    assert math.isclose(wp.time_at(points, "a", 1e-5, "cpu_per_second"), math.sqrt(0.04 * 0.4))
     assert math.isclose(wp.step_at(points[:2], "a", 1e-5), wp.T_FINAL / math.sqrt(1e5))
     assert wp.step_at(points, "a", 1e-9) is None
+    assert not wp.past_floor(points[:2], "a") and wp.past_floor(points, "a")
 
 
 def test_schemes_the_library_refuses_are_reported_not_implemented(monkeypatch):
