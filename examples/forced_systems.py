@@ -7,11 +7,12 @@ carries the inputs of its own arrow, and each step reads those of the arrow it c
 
 - The damped, driven double pendulum (the midpoint rule of L and of the joint torques
   F = −c·θ̇ + u(t)): its energy balance.  The energy changes by the work of the forces.
-- A satellite with a reaction wheel, on SO(3) × SO(2): the body's attitude increment W and
-  the wheel's angle relative to the body V.  The motor torque τ acts on the wheel's relative
-  angle, and the body reacts.  The total angular momentum about the wheel's axis stays
-  constant to rounding.  The wheel's momentum changes by exactly the motor's impulse
-  (the forced Noether theorem, ``NoetherQuantity.impulse``).
+- A satellite with a reaction wheel (``systems.satellite_with_wheel()``), on SO(3) × SO(2):
+  the body's attitude increment W and the wheel's angle relative to the body V.  The motor
+  torque τ acts on the wheel's relative angle, and the body reacts.  The total angular
+  momentum about the wheel's axis stays constant to rounding.  The wheel's momentum changes
+  by exactly the motor's impulse (the forced Noether theorem, ``NoetherQuantity.impulse``).
+  ``examples/embed/closed_loop.c`` steers its attitude with a PD controller in C.
 
 Run:  python examples/forced_systems.py [--steps 2000] [--latex]
 Exits with status 1 when a check fails.
@@ -52,24 +53,6 @@ def double_pendulum() -> sg.DiscreteSystem:
                              time_step=h, name="driven_double_pendulum")
 
 
-def satellite() -> sg.DiscreteSystem:
-    """An axisymmetric body (I, I, I3) with a wheel (inertia Iw) spinning about its third
-    axis; τ: the motor torque between them."""
-    I12, I3, Iw = sp.symbols("I I3 Iw", positive=True)
-    tau = sp.Symbol("tau", real=True)
-    Jd = systems.discrete_inertia(I12, I12, I3)
-    G = sg.ProductGroupoid(sg.SO3("W"), sg.SO2("V"))
-
-    def L(g):
-        W, V = g[0].matrix, g[1].matrix
-        spin = (W[1, 0] - W[0, 1]) / 2 + V[1, 0]  # the wheel's absolute turn over a step
-        return -(Jd * W).trace() / h + Iw / (2 * h) * spin**2
-
-    return sg.DiscreteSystem(G, L, parameters=[h, I12, I3, Iw], inputs=[tau],
-                             forces=sg.body_torque([0, 0, 0, tau], h), time_step=h,
-                             name="satellite")
-
-
 def check(name: str, ok: bool, detail: str) -> bool:
     print(f"  {'ok  ' if ok else 'FAIL'} {name}: {detail}")
     return ok
@@ -98,7 +81,7 @@ def run_pendulum(steps: int, latex: bool) -> bool:
 
 
 def run_satellite(steps: int, latex: bool) -> bool:
-    system = satellite()
+    system = systems.satellite_with_wheel()
     if latex:
         print(system.euler_lagrange().latex())
     total, wheel = system.noether(2), system.noether(3)

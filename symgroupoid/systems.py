@@ -4,7 +4,10 @@
   constraints (seed 000 §6.2, docs/conventions.md §6);
 - ``heavy_top``: the heavy top on the action groupoid S²×SO(3) ⇉ S², Γ·W = WᵀΓ,
   L(Γ, W) = −(1/h) tr(J_d W) − h m g l Γ·e, J_d = ½ tr(I) I₃ − I (docs/conventions.md §9);
-- ``rigid_body``: the Moser–Veselov rigid body on SO(3), L(W) = −(1/h) tr(J_d W).
+- ``rigid_body``: the Moser–Veselov rigid body on SO(3), L(W) = −(1/h) tr(J_d W);
+- ``satellite_wheel`` (``satellite_with_wheel()``): an axisymmetric body with a reaction
+  wheel on SO(3) × SO(2), the wheel's motor torque an input (docs/conventions.md §20), the
+  kernel of the closed-loop C program ``examples/embed/closed_loop.c``.
 
 Two families of multibody systems, sized by the number of bodies n, measure how derivation
 and code generation scale (``benchmarks/scaling.py``):
@@ -43,6 +46,7 @@ import sympy as sp
 from ._arguments import MAX_DIMENSION, flag_argument, integer_argument
 from .equations import DiscreteSystem, body_torque, joint_torque, rayleigh_damping
 from .groupoids import (
+    SO2,
     SO3,
     ActionGroupoid,
     Arrow,
@@ -122,6 +126,35 @@ def rigid_body() -> DiscreteSystem:
 
     return DiscreteSystem(SO3("W"), L, parameters=[h, I1, I2, I3], name="rigid_body",
                           time_step=h)
+
+
+def satellite_with_wheel() -> DiscreteSystem:
+    """An axisymmetric body (inertia I, I, I3) with a reaction wheel (inertia Iw) spinning
+    about its third axis, driven by the motor torque ``tau`` between them, an input
+    (docs/conventions.md §20); parameters ``h, I, I3, Iw``.
+
+    On SO(3) × SO(2): W is the body's attitude increment over a step (R_{k+1} = R_k W_k, as
+    for ``rigid_body``) and V the wheel's turn relative to the body.  L_d is the rigid body's
+    −tr(J_d W)/h plus the wheel's Iw s²/(2h), s = (W₂₁ − W₁₂)/2 + V₂₁ its absolute turn about
+    the axis.  The motor torque acts on the relative angle, f⁻ = f⁺ = (h/2)·τ on the fourth
+    basis section (``body_torque``), and the body reacts: the total angular momentum about the
+    axis is conserved, the wheel's changes by the motor's impulse (the forced Noether
+    theorem).  The wheel controls the body's rotation about the axis only.
+    """
+    h = sp.Symbol("h", positive=True)
+    I12, I3, Iw = sp.symbols("I I3 Iw", positive=True)
+    tau = sp.Symbol("tau", real=True)
+    Jd = discrete_inertia(I12, I12, I3)
+    G = ProductGroupoid(SO3("W"), SO2("V"))
+
+    def L(g):
+        W, V = g[0].matrix, g[1].matrix
+        spin = (W[1, 0] - W[0, 1]) / 2 + V[1, 0]  # the wheel's absolute turn over a step
+        return -(Jd * W).trace() / h + Iw / (2 * h) * spin**2
+
+    return DiscreteSystem(G, L, parameters=[h, I12, I3, Iw], inputs=[tau],
+                          forces=body_torque([0, 0, 0, tau], h), time_step=h,
+                          name="satellite_wheel")
 
 
 def planar_chain(n: int, forced: bool = False) -> DiscreteSystem:
@@ -459,5 +492,7 @@ def tilted_top() -> DiscreteSystem:
                           holonomic=lambda gamma: [gamma[2] - c], time_step=h)
 
 
+#: the systems whose kernels are shipped in ``generated/`` (``python -m symgroupoid generate``)
 SEED_SYSTEMS: dict[str, Callable[[], DiscreteSystem]] = {
-    "plate_ball": plate_ball, "heavy_top": heavy_top, "rigid_body": rigid_body}
+    "plate_ball": plate_ball, "heavy_top": heavy_top, "rigid_body": rigid_body,
+    "satellite_wheel": satellite_with_wheel}

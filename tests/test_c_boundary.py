@@ -337,3 +337,25 @@ def test_embedding_runs_clean_under_address_and_undefined_sanitizers(tmp_path):
                          env=_sanitizer_env(), timeout=60)
     assert bad.returncode == 1 and "invalid argument" in bad.stderr
     assert "Sanitizer" not in bad.stderr and "runtime error" not in bad.stderr
+
+
+def test_the_closed_loop_runs_clean_under_address_and_undefined_sanitizers(tmp_path):
+    """examples/embed/closed_loop.c with the shipped forced kernel generated/satellite_wheel.c,
+    built with -fsanitize=address,undefined: 750 controlled steps writing the trajectory, and
+    a run too short to reach the target, with no sanitizer report."""
+    reason = _sanitizers_unavailable(tmp_path)
+    if reason:
+        pytest.skip(reason)
+    exe = tmp_path / "closed_loop_asan"
+    build = subprocess.run(["cc", "-std=c99", "-O1", "-g", *SANITIZE, "-ffp-contract=off",
+                            f"-I{REPO / 'generated'}",
+                            str(REPO / "examples" / "embed" / "closed_loop.c"),
+                            str(REPO / "generated" / "satellite_wheel.c"), "-lm", "-o", str(exe)],
+                           capture_output=True, text=True)
+    assert build.returncode == 0, build.stderr
+    for steps, code in ((750, 0), (20, 1)):
+        run = subprocess.run([str(exe), str(steps), str(tmp_path / "trajectory.txt")],
+                             capture_output=True, text=True, env=_sanitizer_env(), timeout=120)
+        assert run.returncode == code, run.stderr[-2000:]
+        assert "Sanitizer" not in run.stderr and "runtime error" not in run.stderr
+        assert len((tmp_path / "trajectory.txt").read_text().splitlines()) == steps + 1

@@ -258,8 +258,12 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
     n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
                             blocks.predict, blocks.next_knowns], units, len(step.unknowns),
                            block_weight)
+    cold_helpers = program_helpers(step.program, ["F_scale"])
     if units > 1:  # evaluated only when a rounding floor is tested: beside the cold code
         blocks.residual_scale.move_to(COLD_UNIT)
+        if blocks.input_jacobian is not None:  # never called by the stepper
+            blocks.input_jacobian.move_to(COLD_UNIT)
+            cold_helpers = list(dict.fromkeys(cold_helpers + blocks.input_jacobian_helpers))
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
     return {
         "p": prefix, "P": prefix.upper(), "header_name": header_name,
@@ -275,7 +279,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
         "parameter_names": [_ascii(s.name) for s in step.parameters],
         "fibre_names": [_ascii(s.name) for s in fibre],
         "residual_latex": residual_comments(step, latex), "helpers": blocks.helpers,
-        "scale_helpers": program_helpers(step.program, ["F_scale"]),
+        "cold_helpers": cold_helpers, "input_jacobian": blocks.input_jacobian,
         "reconstruct": blocks.reconstruct, "residual": blocks.residual,
         "residual_jacobian": blocks.residual_jacobian,
         "residual_scale": blocks.residual_scale,

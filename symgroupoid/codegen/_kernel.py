@@ -216,6 +216,9 @@ class KernelBlocks:
     next_knowns: Block
     n_fibre: int
     helpers: list[str] = field(default_factory=list)  # C helper functions (smooth maps)
+    #: ∂F/∂(u_k, u_{k+1}) of a step with inputs (docs/conventions.md §20); None without
+    input_jacobian: Block | None = None
+    input_jacobian_helpers: list[str] = field(default_factory=list)  # the helpers it calls
 
 
 #: the Newton stepper's loops are unrolled completely up to this many unknowns (the
@@ -337,6 +340,13 @@ def kernel_blocks(step, part_size: int | None = None) -> KernelBlocks:
     parts of at most ``part_size`` statements (default :data:`PART_SIZE`)."""
     program = step.program
     residual, residual_jacobian = residual_blocks(program, part_size)
+    helpers = program_helpers(program, list(program.outputs))
+    input_jacobian, input_helpers = None, []
+    if getattr(step, "inputs", ()):
+        inputs = input_jacobian_program(step)
+        input_jacobian = build_block(inputs, [("J_inputs", "J_inputs")], part_size)
+        input_helpers = program_helpers(inputs, ["J_inputs"])
+        helpers = list(dict.fromkeys(helpers + input_helpers))
     return KernelBlocks(
         reconstruct=build_block(program, [("fibre", "fibre")], part_size),
         residual=residual,
@@ -345,8 +355,17 @@ def kernel_blocks(step, part_size: int | None = None) -> KernelBlocks:
         predict=build_block(program, [("u", "predict")], part_size),
         next_knowns=build_block(program, [("known_next", "next_knowns")], part_size),
         n_fibre=len(program.outputs["fibre"]),
-        helpers=program_helpers(program, list(program.outputs)),
+        helpers=helpers, input_jacobian=input_jacobian, input_jacobian_helpers=input_helpers,
     )
+
+
+def input_jacobian_program(step):
+    """The program of ∂F/∂(u_k, u_{k+1}) of a step with inputs, the one
+    :meth:`StepEquations.input_jacobian` evaluates (the same graph, the same operations: the
+    C and NumPy forms give the same bits, docs/conventions.md §17)."""
+    from ..equations import input_jacobian_program as program_of
+
+    return program_of(step)
 
 
 __all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "build_block",
