@@ -419,7 +419,8 @@ class Simulator:
             raise self._failure(status, 0, it, rn, u, options, known=known, p=p)
         return u, it, rn
 
-    def from_momentum(self, configuration, momentum: Sequence, params) -> np.ndarray:
+    def from_momentum(self, configuration, momentum: Sequence, params, *, inputs=None
+                      ) -> np.ndarray:
         """The initial state (g_1, λ_1) from a base point q_0 and a discrete momentum p_0.
 
         Solves F⁻[L + λ_1·φ](g_1) = p_0 and φ(g_1) = 0 for g_1 ∈ α⁻¹(q_0) and λ_1 (so the
@@ -431,9 +432,17 @@ class Simulator:
         Second-order systems: ``configuration`` is the velocity-like first arrow g₀ (flat
         coordinates) and ``momentum`` has two components per section (F⁻L of the window
         g₀, g₁, g₂); the result is the state (g₀, g₁, g₂, λ₀, λ₁).
+
+        A forced system with inputs takes ``inputs``: the m inputs u_1 of the arrow g_1,
+        which the state carries (docs/conventions.md §20).  The momentum is F⁻L, which the
+        forces do not enter, so they do not change g_1 and λ_1.
         """
         p = self.parameters(params)
+        u = step_inputs(self.layout, inputs, owner=self.name)
         state = self._momentum_initializer().solve(configuration, momentum, p)
+        if u is not None:  # the state's own inputs, and the slot of the next arrow's
+            state[self.layout.input_index] = u
+            state[self.layout.upcoming_index] = u
         try:
             return self.state(state, p)
         except DomainError as err:  # Newton stopped at its step test, not on φ = 0
@@ -455,14 +464,16 @@ class Simulator:
             self._momentum = kind(self.equations, self.layout)
         return self._momentum
 
-    def from_velocity(self, configuration, velocity: Sequence, params) -> np.ndarray:
+    def from_velocity(self, configuration, velocity: Sequence, params, *, inputs=None
+                      ) -> np.ndarray:
         """The initial state from a configuration q₀ and a velocity v₀ (on a group the body
         velocity ξ₀; on a product the components factor after factor), for a system
         discretised from a :class:`~symgroupoid.ContinuousSystem`: the continuous Legendre
         transform p₀ = ∂L/∂v(q₀, v₀) (the step's ``velocity_momentum`` program), then
         :meth:`from_momentum` (the discrete one), so that the discrete trajectory is the
         integrator's from the initial data (q₀, p₀) (docs/conventions.md §21).
-        ``configuration`` as :meth:`from_momentum` takes it."""
+        ``configuration`` as :meth:`from_momentum` takes it, and ``inputs`` (the inputs of
+        the first arrow of a system with inputs) too."""
         program = self.equations.velocity_momentum
         if program is None:
             raise UnsupportedFeatureError(
@@ -473,7 +484,8 @@ class Simulator:
         v = real_vector(velocity, len(program.inputs["v"]), "velocity", owner=self.name,
                         finite=True)
         momentum = program.numpy_function(["momentum"], ["q", "v", "p"])(q, v, p)[0]
-        return self.from_momentum(configuration, np.asarray(momentum, float).ravel(), params)
+        return self.from_momentum(configuration, np.asarray(momentum, float).ravel(), params,
+                                  inputs=inputs)
 
     def project_initial(self, initial, params, *, max_iterations: int = 50) -> np.ndarray:
         """A consistent initial state from one that violates the constraints.

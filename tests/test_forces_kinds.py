@@ -1,0 +1,503 @@
+"""Forces on every kind of first-order system (docs/conventions.md §20): constrained
+(``constraints=``), holonomic (``holonomic=``), on a time groupoid, and nonholonomic (the
+Hölder step).  For each kind:
+
+(a) the forced residual is the unforced residual plus f⁺_b(g_k) + f⁻_b(g_{k+1}) in the rows
+    of the basis sections (combined along D_c for the Hölder step), with f⁻ ≠ f⁺ so that
+    their places are tested, and the constraint rows unchanged;
+(b) the compiled C step agrees with SymPy at a random point, and its Jacobian with central
+    differences;
+(c) ``simulate(inputs=U)`` is bitwise a loop of ``sim.step(state, p, inputs=u)``;
+(d) a physical check: the constraints hold along a forced run, the forced Noether balance
+    with holonomic constraints, the forced energy balance on a time groupoid, and the
+    torque balance of the heading of a forced knife edge.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+import sympy as sp
+from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    SESSION_CACHE,
+    isolated_cache,
+    needs_cc,
+)
+
+import symgroupoid as sg
+from symgroupoid import systems
+
+u, w = sp.symbols("u w", real=True)
+h, m, c, ell, kappa, inertia = sp.symbols("h m c ell kappa I", positive=True)
+NO_EXTRAPOLATION = sg.NewtonOptions(extrapolate=False)
+
+
+@dataclass
+class Kind:
+    """A forced system of one kind, its unforced twin and the data of a short run."""
+
+    forced: object
+    plain: object
+    forces: object  # the user's f(g) -> (f_minus, f_plus)
+    params: dict
+    start: object  # a state of the forced system (named parts or flat)
+    rows: object = None  # the rows of D_c at a base point (Hölder), or None: the identity
+    extra: dict = field(default_factory=dict)
+
+
+# --- constrained: the plate-ball (seed 000 §6.2) pushed and twisted ----------------------------
+
+def _plate_ball() -> Kind:
+    seed = systems.plate_ball()
+    hh, r, omega, cc = seed.parameters
+
+    def forces(g):
+        """A push u along x and a twist w about E₁, unequal at the two ends; damping of y."""
+        (x0, y0), (_, y1) = g[0].source, g[0].target
+        W = g[1].matrix
+        return ([hh / 2 * u, -cc * (y1 - y0), 0, hh * w * (1 + x0 ** 2) / 2, 0],
+                [hh / 2 * u * (1 + y1), -cc * (y1 - y0) / 2, hh * w / 2, 0, W[0, 1] * hh])
+
+    def build(f, inputs):
+        return sg.DiscreteSystem(seed.groupoid, seed.lagrangian, constraints=seed.constraints,
+                                 parameters=seed.parameters, forces=f, inputs=inputs,
+                                 name="pushed_plate_ball" if f else "plate_ball_twin",
+                                 time_step=hh)
+
+    params = {"h": 0.01, "r": 1.0, "Omega": 0.1, "c": 0.02}
+    return Kind(build(forces, [u, w]), build(None, []), forces, params,
+                start=("momentum", {"x": 0.0, "y": 0.0}, (0.1, 0.05, 0.01, 0.02, 0.01)))
+
+
+# --- holonomic: a bead on a circle, driven about the centre and damped ------------------------
+
+def _circle_lagrangian(g):
+    (x0, y0), (x1, y1) = g.source, g.target
+    return m / (2 * h) * ((x1 - x0) ** 2 + (y1 - y0) ** 2)
+
+
+def _torque_about_the_centre(q, v):
+    """F = −c·v + u·(−y, x)/ℓ²: damping and a torque u about the origin."""
+    return [-c * v[0] - u * q[1] / ell ** 2, -c * v[1] + u * q[0] / ell ** 2]
+
+
+def _bead() -> Kind:
+    forces = sg.trapezoid_forces(_torque_about_the_centre, h)  # F at either end: f⁻ ≠ f⁺
+
+    def build(f, inputs):
+        return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x y")), _circle_lagrangian,
+                                 parameters=[h, m, c, ell], name="bead" if f else "bead_twin",
+                                 holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - ell ** 2],
+                                 forces=f, inputs=inputs, time_step=h)
+
+    a0, a1 = 0.3, 0.3 + 0.02
+    start = {"x": (np.cos(a0), np.cos(a1)), "y": (np.sin(a0), np.sin(a1)), "lambda": [0.0],
+             "u": 0.4}
+    return Kind(build(forces, [u]), build(None, []), forces,
+                {"h": 0.01, "m": 1.3, "c": 0.3, "ell": 1.0}, start)
+
+
+# --- a time groupoid: the adaptive pendulum of seed 000 §6.3, driven in time ------------------
+
+def _pendulum_lagrangian(g):
+    dt = g.t1 - g.t0
+    (q0,), (q1,) = g.source, g.target
+    return dt * (((q1 - q0) / dt) ** 2 / 2 + kappa * sp.cos((q0 + q1) / 2))
+
+
+def _pendulum_energy(t0, t1, q0, q1):
+    """E = ⟨dl(ξ), ξ⟩ − l(ξ) = ½v² − κ cos q̄ (docs/conventions.md §7): −∂L/∂t₁."""
+    v = (q1 - q0) / (t1 - t0)
+    return v ** 2 / 2 - kappa * sp.cos((q0 + q1) / 2)
+
+
+def _space_force(t, v):
+    """The generalised force −c·v + u·cos t at time t (an input modulated in time)."""
+    return -c * v + u * sp.cos(t)
+
+
+def _time_forces(g):
+    """f_q⁻ = (Δt/2)·F(t₀), f_q⁺ = (Δt/2)·F(t₁), and on the time section f_t± = −f_q±·v:
+    the virtual work F·(δq − q̇ δt) of a force in the time-extended space, so that the time
+    row is the energy balance E(g_{k+1}) − E(g_k) = the forces' work."""
+    dt = g.t1 - g.t0
+    (q0,), (q1,) = g.source, g.target
+    v = (q1 - q0) / dt
+    minus, plus = dt / 2 * _space_force(g.t0, v), dt / 2 * _space_force(g.t1, v)
+    return [-minus * v, minus], [-plus * v, plus]
+
+
+def _adaptive_rigid_body() -> Kind:
+    """Seed 000 Example 6.1 on SO(3), L = (t₁−t₀)·l(cay⁻¹(W)/(t₁−t₀)), l(ξ) = ½ξᵀIξ,
+    with a torque input about the first body axis, modulated in time, and damping."""
+    moments = sp.diag(1, 2, 3)
+
+    def velocity(g):
+        return g.coordinates / (g.t1 - g.t0)
+
+    def L(g):
+        xi = velocity(g)
+        return (g.t1 - g.t0) * (xi.T * moments * xi)[0, 0] / 2
+
+    def torque(t, xi):
+        return [-c * xi[0] + u * sp.cos(t), -c * xi[1], -c * xi[2]]
+
+    def forces(g):
+        """f_W⁻ = (Δt/2)·τ(t₀), f_W⁺ = (Δt/2)·τ(t₁), and f_t± = −f_W±·ξ (the virtual work
+        τ·(δθ − ξ δt) of a torque in the time-extended space): the time row is then the
+        energy balance E(g_{k+1}) − E(g_k) = the torques' work."""
+        xi, dt = velocity(g), g.t1 - g.t0
+        minus = [dt / 2 * f for f in torque(g.t0, xi)]
+        plus = [dt / 2 * f for f in torque(g.t1, xi)]
+        return ([-sum(f * x for f, x in zip(minus, xi)), *minus],
+                [-sum(f * x for f, x in zip(plus, xi)), *plus])
+
+    def build(f, inputs):
+        return sg.DiscreteSystem(sg.TimeGroupoid(sg.SO3("W")), L, parameters=[c], forces=f,
+                                 inputs=inputs, name="driven_in_time" if f else "timed_twin")
+
+    W = np.array(sg.SO3("W").cayley([0.02, 0.05, -0.03]).tolist(), float)
+    start = {"t": (0.0, 0.05), "W": W, "u": 0.5}
+    return Kind(build(forces, [u]), build(None, []), forces, {"c": 0.2}, start,
+                extra={"torque": torque})
+
+
+def _adaptive_pendulum() -> Kind:
+    """The adaptive pendulum of seed 000 Example 6.1 on R×R×(R×R), driven in time (its
+    equations; in one dimension the energy row makes the step jump branches within a few
+    steps, so the runs are those of the rigid body)."""
+    def build(f, inputs):
+        return sg.DiscreteSystem(sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q"))),
+                                 _pendulum_lagrangian, parameters=[kappa, c], forces=f,
+                                 inputs=inputs, name="driven_pendulum" if f else "pendulum")
+
+    start = {"t": (0.0, 0.05), "q": (0.4, 0.43), "u": 0.5}
+    return Kind(build(_time_forces, [u]), build(None, []), _time_forces,
+                {"kappa": 4.0, "c": 0.2}, start)
+
+
+# --- nonholonomic: the knife edge (the Hölder step), thrust and steering ---------------------
+
+def _knife_lagrangian(g):
+    (x0, y0, a0), (x1, y1, a1) = g.source, g.target
+    return (m * ((x1 - x0) ** 2 + (y1 - y0) ** 2) + inertia * (a1 - a0) ** 2) / (2 * h)
+
+
+def _knife_forces(g):
+    """Thrust u along the blade at either end and a steering torque w; damping of Δx."""
+    (x0, _, a0), (x1, _, a1) = g.source, g.target
+    drag = -c * (x1 - x0) / 2
+    return ([h / 2 * u * sp.cos(a0) + drag, h / 2 * u * sp.sin(a0), h / 2 * w],
+            [h / 2 * u * sp.cos(a1) + drag, h / 2 * u * sp.sin(a1), h / 2 * w])
+
+
+def _blade(q):
+    """D_c at q: the direction of the blade and the turning."""
+    return [[sp.cos(q[2]), sp.sin(q[2]), 0], [0, 0, 1]]
+
+
+def _knife_edge() -> Kind:
+    def Mc(g):
+        (x0, y0, a0), (x1, y1, a1) = g.source, g.target
+        mid = (a0 + a1) / 2
+        return [(x1 - x0) * sp.sin(mid) - (y1 - y0) * sp.cos(mid)]
+
+    def build(f, inputs):
+        return sg.NonholonomicSystem(
+            sg.PairGroupoid(sg.EuclideanSpace("x y a")), _knife_lagrangian, Mc,
+            [lambda q: _blade(q)[0], lambda q: _blade(q)[1]], parameters=[h, m, inertia, c],
+            name="knife" if f else "knife_twin", forces=f, inputs=inputs, time_step=h)
+
+    a0, a1, s = 0.2, 0.23, 0.015  # the first arrow on M_c: along the mean heading
+    mid = (a0 + a1) / 2
+    start = {"x": (0.0, s * np.cos(mid)), "y": (0.0, s * np.sin(mid)), "a": (a0, a1),
+             "u": 0.3, "w": -0.1}
+    return Kind(build(_knife_forces, [u, w]), build(None, []), _knife_forces,
+                {"h": 0.01, "m": 1.5, "I": 0.2, "c": 0.1}, start, rows=_blade)
+
+
+KINDS = {"constrained": _plate_ball, "holonomic": _bead, "time": _adaptive_pendulum,
+         "time_rigid_body": _adaptive_rigid_body, "nonholonomic": _knife_edge}
+#: the kinds whose equations are checked (the rigid body's SymPy residuals take ~8 s: slow)
+EQUATIONS = ["constrained", "holonomic", "time", "nonholonomic",
+             pytest.param("time_rigid_body", marks=pytest.mark.slow)]
+#: the kinds that run (the time groupoid's: the rigid body)
+RUNS = ["constrained", "holonomic", "time_rigid_body", "nonholonomic"]
+
+
+@functools.cache
+def kind(name: str) -> Kind:
+    return KINDS[name]()
+
+
+@functools.cache
+def steps_of(name: str):
+    k = kind(name)
+    return k.forced.euler_lagrange(), k.plain.euler_lagrange()
+
+
+@functools.cache
+def simulator(name: str):
+    return steps_of(name)[0].compile(backend="c", cache_dir=SESSION_CACHE)
+
+
+def initial(name: str) -> np.ndarray:
+    k, sim = kind(name), simulator(name)
+    if isinstance(k.start, tuple):
+        _, configuration, momentum = k.start
+        return sim.from_momentum(configuration, momentum, k.params, inputs=[0.3, -0.2])
+    return sim.state(k.start, k.params)
+
+
+def _plain(expr):
+    """The expression with every symbol replaced by a real symbol of the same name (the
+    library's and the test's symbols may differ in their assumptions only)."""
+    expr = sp.sympify(expr)
+    return expr.xreplace({s: sp.Symbol(str(s), real=True) for s in expr.free_symbols})
+
+
+def _vanishes(expr) -> bool:
+    expr = sp.expand(_plain(expr))
+    return expr == 0 or sp.simplify(expr) == 0
+
+
+# --- (a) the forced residual, symbolically -----------------------------------------------------
+
+@pytest.mark.parametrize("name", EQUATIONS)
+def test_the_forced_residual_adds_the_forces_in_the_section_rows(name):
+    """F_forced − F_plain = f⁺_b(g_k) + f⁻_b(g_{k+1}) in row b (along D_c: row a gets
+    Σ_b c_a^b(β(g_k))·(f⁺_b + f⁻_b)); the constraint rows are unchanged.  The forces are
+    the user's function called here on the step's named arrows, with u ↦ u_k on g_k and
+    u ↦ u_{k+1} on g_{k+1}."""
+    k = kind(name)
+    forced, plain = steps_of(name)
+    G, mi = k.forced.groupoid, len(k.forced.inputs)
+    now, new = forced.knowns[-2 * mi:-mi], forced.knowns[-mi:]
+    assert [str(s) for s in now] == [f"{v}_{{k}}" for v in k.forced.inputs]
+    assert [str(s) for s in new] == [f"{v}_{{k+1}}" for v in k.forced.inputs]
+    assert forced.knowns[:-2 * mi] == plain.knowns and forced.unknowns == plain.unknowns
+    g_k, g_next = G.view(forced.arrows[0]), G.view(forced.arrows[1])
+    plus = [sp.sympify(f).xreplace(dict(zip(k.forced.inputs, now)))
+            for f in k.forces(g_k)[1]]
+    minus = [sp.sympify(f).xreplace(dict(zip(k.forced.inputs, new)))
+             for f in k.forces(g_next)[0]]
+    junction = [a + b for a, b in zip(plus, minus)]
+    assert any(not _vanishes(a - b) for a, b in zip(k.forces(g_k)[0], k.forces(g_k)[1]))
+    if k.rows is None:
+        expected = junction
+    else:  # the Hölder step's rows: the junction residuals along D_c at β(g_k)
+        q = G.target(forced.arrows[0])
+        expected = [sum((sp.sympify(a) * f for a, f in zip(row, junction)), sp.S.Zero)
+                    for row in k.rows(q)]
+    assert len(forced.residuals) == len(plain.residuals)
+    for i, (F, F0) in enumerate(zip(forced.residuals, plain.residuals)):
+        want = expected[i] if i < len(expected) else 0
+        assert _vanishes(F - F0 - want), (name, i)
+
+
+def test_the_time_row_is_the_forced_energy_balance():
+    """On the time groupoid (docs/conventions.md §7) the time row is
+    E(g_{k+1}) − E(g_k) + f_t⁺(g_k) + f_t⁻(g_{k+1}); with f_t± = −f_q±·v it reads
+    E(g_{k+1}) − E(g_k) = f_q⁺(g_k)·v_k + f_q⁻(g_{k+1})·v_{k+1}, the work of the forces —
+    written here by hand from the energy of seed 000 Example 6.1."""
+    forced, _ = steps_of("time")
+    t = {o: forced.symbol("t", o) for o in (-1, 0, 1)}
+    q = {o: forced.symbol("q", o) for o in (-1, 0, 1)}
+    u_k, u_next = forced.knowns[-2:]
+    E = {o: _pendulum_energy(t[o - 1], t[o], q[o - 1], q[o]) for o in (0, 1)}
+    v = {o: (q[o] - q[o - 1]) / (t[o] - t[o - 1]) for o in (0, 1)}
+    work = ((t[0] - t[-1]) / 2 * _space_force(t[0], v[0]).subs(u, u_k) * v[0]
+            + (t[1] - t[0]) / 2 * _space_force(t[0], v[1]).subs(u, u_next) * v[1])
+    assert _vanishes(forced.residuals[0] - (E[1] - E[0] - work))
+
+
+# --- (b) C against SymPy, the Jacobian against differences ------------------------------------
+
+def _random_point(name: str, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Random parameters, a random perturbation of the run's first state (its arrows near
+    their group, so that the differences are well conditioned) with random inputs, and a
+    random perturbation of the step's prediction there."""
+    forced, _ = steps_of(name)
+    p = rng.uniform(0.5, 2, size=len(forced.parameters))
+    known = initial(name) + 0.05 * rng.normal(size=len(forced.knowns))
+    mi = len(forced.inputs)
+    known[-2 * mi:] = rng.normal(size=2 * mi)
+    x = simulator(name).kernel.predict(known, p) + 0.05 * rng.normal(size=len(forced.unknowns))
+    return x, known, p
+
+
+@needs_cc
+@pytest.mark.parametrize("name", EQUATIONS)
+def test_the_compiled_step_agrees_with_sympy_and_differences(name):
+    forced, _ = steps_of(name)
+    kernel = simulator(name).kernel
+    assert simulator(name).backend == "c"
+    rng = np.random.default_rng(sum(map(ord, name)))
+    x, known, p = _random_point(name, rng)
+    F, J = kernel.residual_jacobian(x, known, p)
+    values = {**dict(zip(forced.unknowns, x)), **dict(zip(forced.knowns, known)),
+              **dict(zip(forced.parameters, p))}
+    values.update({f: sp.sympify(e).xreplace(values)  # the new arrow from its chart
+                   for f, e in forced.reconstruction.items()})
+    want = np.array([float(r.xreplace(values)) for r in forced.residuals])
+    np.testing.assert_allclose(F, want, rtol=1e-12, atol=1e-12 * np.abs(want).max())
+    assert np.abs(F).max() > 1e-3
+    eps = 1e-6
+    J = np.asarray(J).reshape(len(F), len(x))
+    for j in range(len(x)):
+        d = np.zeros_like(x)
+        d[j] = eps
+        fd = (kernel.residual(x + d, known, p) - kernel.residual(x - d, known, p)) / (2 * eps)
+        np.testing.assert_allclose(J[:, j], fd, rtol=1e-6, atol=1e-7 * (1 + np.abs(J).max()))
+    Ju = forced.input_jacobian(x, known, p)  # ∂F/∂(u_k, u_{k+1}) exactly, and by differences
+    mi = len(forced.inputs)
+    for j, i in enumerate(range(len(known) - 2 * mi, len(known))):
+        d = np.zeros_like(known)
+        d[i] = eps
+        fd = (kernel.residual(x, known + d, p) - kernel.residual(x, known - d, p)) / (2 * eps)
+        np.testing.assert_allclose(Ju[:, j], fd, rtol=1e-6, atol=1e-8)
+    assert np.abs(Ju).max() > 1e-3
+
+
+# --- (c) simulate with inputs is a loop of steps, bitwise ------------------------------------
+
+STEPS = 25
+
+
+def _inputs(name: str) -> np.ndarray:
+    rng = np.random.default_rng(7)
+    return 0.5 * rng.normal(size=(STEPS, len(kind(name).forced.inputs)))
+
+
+@functools.cache
+def forced_run(name: str):
+    return simulator(name).simulate(initial(name), STEPS, kind(name).params,
+                                    inputs=_inputs(name), options=NO_EXTRAPOLATION)
+
+
+@needs_cc
+@pytest.mark.parametrize("name", RUNS)
+def test_simulate_with_inputs_is_a_loop_of_steps_bitwise(name):
+    sim, params, U = simulator(name), kind(name).params, _inputs(name)
+    traj = forced_run(name)
+    assert len(traj.states) == STEPS + 1
+    state = initial(name)
+    for j in range(STEPS):
+        state = sim.step(state, params, inputs=U[j], options=NO_EXTRAPOLATION)
+        assert np.array_equal(state, traj.states[j + 1]), (name, j)
+    for i, input_name in enumerate(kind(name).forced.inputs):
+        assert np.array_equal(traj[str(input_name)][1:], U[:, i])
+
+
+# --- (d) physics ------------------------------------------------------------------------------
+
+def _on_the_states(step, exprs):
+    """A NumPy function of (states, parameters) evaluating ``exprs`` in the step's knowns."""
+    return sp.lambdify([step.knowns, step.parameters], exprs, "numpy")
+
+
+@needs_cc
+def test_the_rolling_constraints_hold_along_a_forced_plate_ball_run():
+    k, (forced, _) = kind("constrained"), steps_of("constrained")
+    traj = forced_run("constrained")
+    G = k.forced.groupoid
+    phi = _on_the_states(forced, k.forced.constraints(G.view(forced.arrows[0])))
+    p = simulator("constrained").parameters(k.params)
+    values = np.array([phi(s, p) for s in traj.states], float)
+    assert np.abs(values).max() < 1e-13
+    unforced = simulator("constrained").simulate(traj.states[0], STEPS, k.params,
+                                                 inputs=np.zeros((STEPS, 2)))
+    assert np.abs(unforced["x"][-1] - traj["x"][-1]).max() > 1e-6  # the forces act
+
+
+@needs_cc
+def test_the_forced_bead_stays_on_its_circle_and_balances_its_angular_momentum():
+    """ψ(q_k) = 0 along the run, and the angular momentum J of the rotation X = (−y, x)
+    (tangent to the circle: a symmetry on N = G|_M) changes by exactly the forces' impulse
+    along X (the forced Noether theorem with holonomic constraints)."""
+    k = kind("holonomic")
+    traj = forced_run("holonomic")
+    radius = np.hypot(traj["x"], traj["y"])
+    np.testing.assert_allclose(radius, 1.0, rtol=0, atol=4e-16)
+    nq = k.forced.noether(lambda q: [-q[1], q[0]])
+    assert nq.is_symmetry
+    J, impulse = nq.along(traj), nq.impulse(traj)
+    assert np.ptp(J) > 1e-3  # the torque and the damping do change J
+    np.testing.assert_allclose(np.diff(J), impulse, rtol=0, atol=1e-13 * np.abs(J).max())
+
+
+def _body_velocity(states: np.ndarray) -> np.ndarray:
+    """ξ = cay⁻¹(W)/(t₁ − t₀) of each state's arrow (t₀, t₁, W, …), shape (R, 3)."""
+    dt, W = states[:, 1] - states[:, 0], states[:, 2:11].reshape(-1, 3, 3)
+    X = 2 * (W - W.transpose(0, 2, 1)) / (1 + np.trace(W, axis1=1, axis2=2))[:, None, None]
+    return np.stack([X[:, 2, 1], X[:, 0, 2], X[:, 1, 0]], axis=1) / dt[:, None]
+
+
+@needs_cc
+def test_the_adaptive_rigid_body_balances_energy_and_work():
+    """E(g_{k+1}) − E(g_k) = f_W⁺(g_k)·ξ_k + f_W⁻(g_{k+1})·ξ_{k+1} along a run of the
+    time-adaptive rigid body (E = ½ξᵀIξ, docs/conventions.md §7), computed here from the
+    states; every step is forward in time, the step varies and the energy changes."""
+    traj, k = forced_run("time_rigid_body"), kind("time_rigid_body")
+    states = traj.states
+    xi = _body_velocity(states)
+    E = 0.5 * np.einsum("ri,i,ri->r", xi, [1.0, 2.0, 3.0], xi)
+    t0, t1, U = states[:, 0], states[:, 1], traj["u"]
+    cc, dt = k.params["c"], t1 - t0
+
+    def torque(t, v, inp):
+        return np.stack([-cc * v[:, 0] + inp * np.cos(t), -cc * v[:, 1], -cc * v[:, 2]], 1)
+
+    plus = dt[:-1, None] / 2 * torque(t1[:-1], xi[:-1], U[:-1])  # f⁺(g_k), input u_k
+    minus = dt[1:, None] / 2 * torque(t0[1:], xi[1:], U[1:])  # f⁻(g_{k+1}), input u_{k+1}
+    work = np.einsum("ri,ri->r", plus, xi[:-1]) + np.einsum("ri,ri->r", minus, xi[1:])
+    np.testing.assert_allclose(np.diff(E), work, rtol=0, atol=1e-12 * np.abs(E).max())
+    assert dt.min() > 0 and np.ptp(dt) > 1e-3 * dt.mean() and np.ptp(E) > 1e-3
+
+
+@needs_cc
+def test_the_forced_knife_edge_keeps_to_its_blade_and_turns_by_the_torque_impulse():
+    """M_c holds along the run, and the row of the turning section ∂_a ∈ D_c reads
+    I·(Δa_{k+1} − Δa_k)/h = (h/2)·(w_k + w_{k+1}): the heading's angular momentum changes
+    by the steering torque's impulse (the Hölder step's rows are the forced junction
+    residuals along D_c, docs/conventions.md §10, §20)."""
+    traj, k = forced_run("nonholonomic"), kind("nonholonomic")
+    x, y, a, W = traj["x"], traj["y"], traj["a"], traj["w"]
+    mid = (a[:-1] + a[1:]) / 2
+    np.testing.assert_allclose(np.diff(x) * np.sin(mid), np.diff(y) * np.cos(mid), rtol=0,
+                               atol=1e-16)
+    hh, moment = k.params["h"], k.params["I"]
+    momentum = moment * np.diff(a) / hh
+    np.testing.assert_allclose(np.diff(momentum), hh / 2 * (W[:-1] + W[1:]), rtol=0,
+                               atol=1e-13)
+    assert np.ptp(momentum) > 1e-3 and np.ptp(mid) > 1e-2
+
+
+# --- regressions ------------------------------------------------------------------------------
+
+@needs_cc
+def test_a_forced_state_from_a_momentum_takes_the_inputs_of_its_arrow():
+    """``from_momentum`` of a system with inputs: it left the input slots of the state
+    unset (np.empty), so the state carried garbage inputs or was refused with a misleading
+    "no consistent initial state" error.  The inputs u_1 of the arrow g_1 are now given as
+    ``inputs=``, required, and the forces do not change (g_1, λ_1): F⁻L has no forces."""
+    k, sim = kind("constrained"), simulator("constrained")
+    _, configuration, momentum = k.start
+    one = sim.from_momentum(configuration, momentum, k.params, inputs=[0.3, -0.2])
+    two = sim.from_momentum(configuration, momentum, k.params, inputs=np.array([1.5, 2.5]))
+    n = sim.layout.n_known - 4
+    assert np.array_equal(one[:n], two[:n]) and np.isfinite(one).all()
+    assert np.array_equal(one[n:], [0.3, -0.2, 0.3, -0.2])
+    assert np.array_equal(two[n:], [1.5, 2.5, 1.5, 2.5])
+    for bad, error in [(None, sg.ShapeError), ([1.0], sg.ShapeError),
+                       ([np.nan, 0.0], sg.DomainError)]:
+        with pytest.raises(error, match="input"):
+            sim.from_momentum(configuration, momentum, k.params, inputs=bad)
+    plain = kind("holonomic").plain.euler_lagrange().compile(backend="c",
+                                                             cache_dir=SESSION_CACHE)
+    with pytest.raises(sg.ShapeError, match="no inputs"):  # a system without inputs
+        plain.from_momentum({"x": 1.0, "y": 0.0}, (0.0, 0.1), kind("holonomic").params,
+                            inputs=[0.1])
