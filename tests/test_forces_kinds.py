@@ -314,6 +314,22 @@ def test_the_time_row_is_the_forced_energy_balance():
     assert _vanishes(forced.residuals[0] - (E[1] - E[0] - work))
 
 
+@pytest.mark.parametrize("name", [
+    "holonomic", "nonholonomic", pytest.param("constrained", marks=pytest.mark.slow),
+    pytest.param("time", marks=pytest.mark.slow)])
+def test_the_latex_names_the_forces_of_every_kind(name):
+    """The printed equations name f⁺_b(g_k) and f⁻_b(g_{k+1}) and define them after
+    "where" (each printed equation is checked by the printer to be the residual).  With
+    f⁻ ≠ f⁺ the printer named f⁻(g_k) as f⁺(g_k), and its check refused the form: the
+    forced equations could not be printed (LatexVerificationError); the Hölder step printed
+    no names."""
+    forced, _ = steps_of(name)
+    tex = forced.latex()
+    assert r"\intertext{where}" in tex
+    for b in range(1, forced.groupoid.rank + 1):
+        assert f"f^{{+}}_{{{b}}}(g_{{k}})" in tex and f"f^{{-}}_{{{b}}}(g_{{k+1}})" in tex
+
+
 # --- (b) C against SymPy, the Jacobian against differences ------------------------------------
 
 def _random_point(name: str, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -375,6 +375,14 @@ def _distribution_coefficients(name: str, G: Groupoid, distribution: Sequence,
     return rows
 
 
+def distribution_coefficients(name: str, G: Groupoid, distribution: Sequence,
+                              q: Sequence) -> list[list]:
+    """c_a^b(q) for each element X_a = Σ_b c_a^b E_b of D_c at the base point q: the rows of
+    the Hölder step are Σ_b c_a^b(β(g_k))·(the junction residual of E_b) (seed 002,
+    docs/conventions.md §10)."""
+    return _distribution_coefficients(name, G, distribution, q)
+
+
 def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution: Sequence,
                       parameters: Sequence) -> DerivedStep:
     """Discrete nonholonomic step (seed 002, discrete Hölder principle;
