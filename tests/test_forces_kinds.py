@@ -517,3 +517,25 @@ def test_a_forced_state_from_a_momentum_takes_the_inputs_of_its_arrow():
     with pytest.raises(sg.ShapeError, match="no inputs"):  # a system without inputs
         plain.from_momentum({"x": 1.0, "y": 0.0}, (0.0, 0.1), kind("holonomic").params,
                             inputs=[0.1])
+
+
+@needs_cc
+def test_solve_takes_the_inputs_of_the_new_arrow():
+    """``Simulator.solve`` of a system with inputs solved with whatever the state's slot for
+    the new arrow's inputs held (its own inputs, for a state from ``sim.state`` or a run):
+    the inputs silently held constant.  It takes ``inputs=`` now, required as for
+    :meth:`step`, and its solution is the step's."""
+    k, sim = kind("holonomic"), simulator("holonomic")
+    state = sim.state(k.start, k.params)
+    with pytest.raises(sg.ShapeError, match="inputs"):
+        sim.solve(state, k.params)
+    x, _, _ = sim.solve(state, k.params, inputs=[-2.0], options=NO_EXTRAPOLATION)
+    known = state.copy()
+    known[sim.layout.upcoming_index] = -2.0
+    p = sim.parameters(k.params)
+    assert np.abs(sim.kernel.residual(x, known, p)).max() < 1e-13
+    after = sim.step(state, k.params, inputs=[-2.0], options=NO_EXTRAPOLATION)
+    np.testing.assert_allclose(sim.kernel.next_knowns(x, known, p), after, rtol=0,
+                               atol=1e-15)
+    held, _, _ = sim.solve(state, k.params, inputs=[0.4])  # the state's own input, 0.4
+    assert np.abs(held - x).max() > 1e-6

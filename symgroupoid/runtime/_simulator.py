@@ -396,16 +396,22 @@ class Simulator:
     def _fast_call(self):
         return self._fast_step.call
 
-    def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None):
+    def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None,
+              inputs=None):
         """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure.
 
         ``guess`` (default: the step's prediction) must hold ``len(step.unknowns)`` finite
         numbers (a :class:`ShapeError` otherwise).  ``options``: None (the simulator's) or a
-        :class:`NewtonOptions`, as for :meth:`simulate`.
+        :class:`NewtonOptions`, as for :meth:`simulate`.  A forced system with inputs takes
+        ``inputs``: the m inputs of the arrow the step computes, as for :meth:`step`.
         """
         options = NewtonOptions.of(options, self.options, owner=self.name)
         p = self.parameters(params)
         known = self.state(state, p)
+        u_next = step_inputs(self.layout, inputs, owner=self.name)
+        if u_next is not None:  # the slot of the new arrow's inputs (docs/conventions.md §20)
+            known = known.copy()
+            known[self.layout.upcoming_index] = u_next
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
