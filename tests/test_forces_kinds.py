@@ -219,13 +219,47 @@ def _knife_edge() -> Kind:
                 {"h": 0.01, "m": 1.5, "I": 0.2, "c": 0.1}, start, rows=_blade)
 
 
+# --- second order: a pair groupoid of the plane, forces on composable pairs ------------------
+
+def _second_lagrangian(g1, g2):
+    """L(q₀, q₁, q₂) = h·(|Δ²q/h²|²/2 + κ·cos(x₁)·|q₂ − q₀|²/(8h²)) (seed 001 §3)."""
+    (x0, y0), (x1, y1) = g1.source, g1.target
+    (x2, y2) = g2.target
+    return h * (((x2 - 2 * x1 + x0) ** 2 + (y2 - 2 * y1 + y0) ** 2) / (2 * h ** 4)
+                + kappa * sp.cos(x1) * ((x2 - x0) ** 2 + (y2 - y0) ** 2) / (8 * h ** 2))
+
+
+def _pair_forces(g1, g2):
+    """f⁰, f¹, f² at the pair's three base points, all different (their places are tested):
+    a drive u and a turning w at the middle point, damping and couplings at the ends."""
+    (x0, y0), (x1, y1) = g1.source, g1.target
+    (x2, y2) = g2.target
+    return ([c * x0 * y2 + u, -c * (y1 - y0)],
+            [h * u * sp.cos(y1), h * w * x1],
+            [c * (x2 - x0) * y1 ** 2, w - c * (y2 - y1)])
+
+
+def _second_order() -> Kind:
+    def build(f, inputs):
+        return sg.SecondOrderSystem(sg.PairGroupoid(sg.EuclideanSpace("x y")),
+                                    _second_lagrangian, parameters=[h, kappa, c], forces=f,
+                                    inputs=inputs, name="pair_forced" if f else "pair_twin")
+
+    start = {"x": (0.0, 0.1, 0.21, 0.33), "y": (1.0, 0.98, 0.95, 0.91), "u": (0.2, -0.1),
+             "w": (0.0, 0.1)}
+    return Kind(build(_pair_forces, [u, w]), build(None, []), _pair_forces,
+                {"h": 0.1, "kappa": 0.5, "c": 0.3}, start)
+
+
 KINDS = {"constrained": _plate_ball, "holonomic": _bead, "time": _adaptive_pendulum,
-         "time_rigid_body": _adaptive_rigid_body, "nonholonomic": _knife_edge}
+         "time_rigid_body": _adaptive_rigid_body, "nonholonomic": _knife_edge,
+         "second_order": _second_order}
 #: the kinds whose equations are checked (the rigid body's SymPy residuals take ~8 s: slow)
-EQUATIONS = ["constrained", "holonomic", "time", "nonholonomic",
+EQUATIONS = ["constrained", "holonomic", "time", "nonholonomic", "second_order",
              pytest.param("time_rigid_body", marks=pytest.mark.slow)]
 #: the kinds that run (the time groupoid's: the rigid body)
-RUNS = ["constrained", "holonomic", "time_rigid_body", "nonholonomic"]
+RUNS = ["constrained", "holonomic", "time_rigid_body", "nonholonomic", "second_order"]
+FIRST_ORDER = [e for e in EQUATIONS if e != "second_order"]
 
 
 @functools.cache
@@ -266,7 +300,7 @@ def _vanishes(expr) -> bool:
 
 # --- (a) the forced residual, symbolically -----------------------------------------------------
 
-@pytest.mark.parametrize("name", EQUATIONS)
+@pytest.mark.parametrize("name", FIRST_ORDER)
 def test_the_forced_residual_adds_the_forces_in_the_section_rows(name):
     """F_forced − F_plain = f⁺_b(g_k) + f⁻_b(g_{k+1}) in row b (along D_c: row a gets
     Σ_b c_a^b(β(g_k))·(f⁺_b + f⁻_b)); the constraint rows are unchanged.  The forces are
@@ -315,7 +349,8 @@ def test_the_time_row_is_the_forced_energy_balance():
 
 
 @pytest.mark.parametrize("name", [
-    "holonomic", "nonholonomic", pytest.param("constrained", marks=pytest.mark.slow),
+    "holonomic", "second_order", pytest.param("nonholonomic", marks=pytest.mark.slow),
+    pytest.param("constrained", marks=pytest.mark.slow),
     pytest.param("time", marks=pytest.mark.slow)])
 def test_the_latex_names_the_forces_of_every_kind(name):
     """The printed equations name f⁺_b(g_k) and f⁻_b(g_{k+1}) and define them after
@@ -326,8 +361,11 @@ def test_the_latex_names_the_forces_of_every_kind(name):
     forced, _ = steps_of(name)
     tex = forced.latex()
     assert r"\intertext{where}" in tex
+    names = (["f^{+}_{%d}(g_{k})", "f^{-}_{%d}(g_{k+1})"] if forced.order == 1 else
+             ["f^{2}_{%d}(g_{k-1}, g_{k})", "f^{1}_{%d}(g_{k}, g_{k+1})",
+              "f^{0}_{%d}(g_{k+1}, g_{k+2})"])
     for b in range(1, forced.groupoid.rank + 1):
-        assert f"f^{{+}}_{{{b}}}(g_{{k}})" in tex and f"f^{{-}}_{{{b}}}(g_{{k+1}})" in tex
+        assert all(n % b in tex for n in names), (name, b)
 
 
 # --- (b) C against SymPy, the Jacobian against differences ------------------------------------
@@ -339,8 +377,8 @@ def _random_point(name: str, rng) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     forced, _ = steps_of(name)
     p = rng.uniform(0.5, 2, size=len(forced.parameters))
     known = initial(name) + 0.05 * rng.normal(size=len(forced.knowns))
-    mi = len(forced.inputs)
-    known[-2 * mi:] = rng.normal(size=2 * mi)
+    columns = (forced.order + 1) * len(forced.inputs)
+    known[-columns:] = rng.normal(size=columns)
     x = simulator(name).kernel.predict(known, p) + 0.05 * rng.normal(size=len(forced.unknowns))
     return x, known, p
 
@@ -368,9 +406,10 @@ def test_the_compiled_step_agrees_with_sympy_and_differences(name):
         d[j] = eps
         fd = (kernel.residual(x + d, known, p) - kernel.residual(x - d, known, p)) / (2 * eps)
         np.testing.assert_allclose(J[:, j], fd, rtol=1e-6, atol=1e-7 * (1 + np.abs(J).max()))
-    Ju = forced.input_jacobian(x, known, p)  # ∂F/∂(u_k, u_{k+1}) exactly, and by differences
-    mi = len(forced.inputs)
-    for j, i in enumerate(range(len(known) - 2 * mi, len(known))):
+    Ju = forced.input_jacobian(x, known, p)  # ∂F/∂(inputs) exactly, and by differences
+    columns = (forced.order + 1) * len(forced.inputs)  # (u_{k-1},) u_k, u_{k+1}
+    assert Ju.shape == (len(F), columns)
+    for j, i in enumerate(range(len(known) - columns, len(known))):
         d = np.zeros_like(known)
         d[i] = eps
         fd = (kernel.residual(x, known + d, p) - kernel.residual(x, known - d, p)) / (2 * eps)
@@ -404,8 +443,9 @@ def test_simulate_with_inputs_is_a_loop_of_steps_bitwise(name):
     for j in range(STEPS):
         state = sim.step(state, params, inputs=U[j], options=NO_EXTRAPOLATION)
         assert np.array_equal(state, traj.states[j + 1]), (name, j)
+    first = sim.equations.order  # the state's own inputs come first (second order: two)
     for i, input_name in enumerate(kind(name).forced.inputs):
-        assert np.array_equal(traj[str(input_name)][1:], U[:, i])
+        assert np.array_equal(traj[str(input_name)][first:], U[:, i])
 
 
 # --- (d) physics ------------------------------------------------------------------------------
@@ -539,3 +579,79 @@ def test_solve_takes_the_inputs_of_the_new_arrow():
                                atol=1e-15)
     held, _, _ = sim.solve(state, k.params, inputs=[0.4])  # the state's own input, 0.4
     assert np.abs(held - x).max() > 1e-6
+
+
+# --- second order (docs/conventions.md §20) ------------------------------------------------------
+
+def test_the_forced_second_order_step_is_the_direct_variation_of_the_forced_sum():
+    """On the pair groupoid of the plane, the forced sum Σ_j L(q_{j−1}, q_j, q_{j+1}) with
+    the virtual work Σ_j Σ_i f^i(q_{j−1}, q_j, q_{j+1}; u_j)·δq_{j−1+i} of the pair forces,
+    varied by hand in q_k: the step's residual b is ∂/∂(q_k)_b of the sum plus the
+    coefficient of δ(q_k)_b in the work — D₃L + D₂L + D₁L + f² + f¹ + f⁰, the pair
+    centred at q_j carrying the input u_j."""
+    forced, plain = steps_of("second_order")
+    G = sg.PairGroupoid(sg.EuclideanSpace("x y"))
+    q = {o: [forced.symbol(n, o) for n in ("x", "y")] for o in range(-2, 3)}
+    inputs = {o: sp.symbols(f"u_{{k{o:+d}}} w_{{k{o:+d}}}".replace("k+0", "k"), real=True)
+              for o in (-1, 0, 1)}
+    dq = {o: sp.symbols(f"dx{o + 2} dy{o + 2}", real=True) for o in range(-2, 3)}
+    action, work = sp.S.Zero, sp.S.Zero
+    for j in (-1, 0, 1):  # the pairs whose points include q_k
+        g1, g2 = G.view((*q[j - 1], *q[j])), G.view((*q[j], *q[j + 1]))
+        action += _second_lagrangian(g1, g2)
+        for i, covector in enumerate(_pair_forces(g1, g2)):
+            work += sum(sp.sympify(f).subs({u: inputs[j][0], w: inputs[j][1]}) * d
+                        for f, d in zip(covector, dq[j - 1 + i]))
+    for b in range(2):
+        by_hand = sp.diff(action, q[0][b]) + sp.diff(work, dq[0][b])
+        assert _vanishes(forced.residuals[b] - by_hand), b
+    assert [str(s) for s in forced.knowns[-6:]] == [
+        "u_{k-1}", "w_{k-1}", "u_{k}", "w_{k}", "u_{k+1}", "w_{k+1}"]
+    assert all(_vanishes(a - b) for a, b in zip(forced.residuals[2:], plain.residuals[2:]))
+
+
+def _spline(forces=None, inputs=()):
+    """L = h·(Δ²q/h²)²/2 on the pair groupoid of R, the discrete ∫q̈²/2 dt."""
+    def L(g1, g2):
+        (q0,), (q1,) = g1.source, g1.target
+        return (g2.target[0] - 2 * q1 + q0) ** 2 / (2 * h ** 3)
+
+    return sg.SecondOrderSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h],
+                                forces=forces, inputs=inputs, name="spline")
+
+
+@needs_cc
+def test_a_driven_spline_follows_the_quartic_of_its_euler_lagrange_equation():
+    """The force F = u at each pair's middle point (f¹ = h·u) on the spline L: the step is
+    Δ⁴q_k = −h⁴·u_k, whose solutions with u held are the quartics of q'''' = −u (the forced
+    Euler–Lagrange equation of ∫q̈²/2 dt) exactly; with inputs varying each fourth
+    difference is −h⁴ times the input of the pair centred there."""
+    system = _spline(lambda g1, g2: ([0], [h * u], [0]), [u])
+    sim = system.euler_lagrange().compile(backend="c", cache_dir=SESSION_CACHE)
+    hh, uu, steps = 0.05, 3.0, 60
+
+    def quartic(t):
+        return -uu * t ** 4 / 24 + t ** 3 / 6 - t / 2 + 0.3
+
+    t = hh * np.arange(steps + 4)
+    traj = sim.simulate({"q": quartic(t[:4]), "u": (uu, uu)}, steps, {"h": hh}, inputs=[uu])
+    # the recurrence has the fourfold root 1: a rounding ε·|q| of one step grows like n³
+    bound = np.finfo(float).eps * np.abs(quartic(t)).max() * steps ** 3
+    np.testing.assert_allclose(traj["q"], quartic(t), rtol=0, atol=bound)
+    assert np.ptp(traj["q"]) > 1
+    U = np.sin(np.arange(steps))
+    run = sim.simulate({"q": quartic(t[:4]), "u": (0.5, -0.5)}, steps, {"h": hh}, inputs=U)
+    q, centred = run["q"], run["u"]  # the input of the pair centred at q_j is centred[j − 1]
+    fourth = q[4:] - 4 * q[3:-1] + 6 * q[2:-2] - 4 * q[1:-3] + q[:-4]  # centred at q_2, …
+    np.testing.assert_allclose(fourth, -hh ** 4 * centred[1:-1], rtol=1e-9, atol=1e-15)
+
+
+def test_second_order_forces_are_checked():
+    G = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    for bad in (lambda g1, g2: ([0], [0]), lambda g1, g2: ([0], [0], [0, 1]),
+                lambda g1, g2: ([0], [u], [0])):
+        with pytest.raises((sg.ShapeError, sg.UndeclaredSymbolError)):
+            _spline(bad)
+    with pytest.raises(sg.UnsupportedFeatureError, match="second-order"):
+        _spline(lambda g1, g2: ([0], [h * u], [0]), [u]).noether([1]).impulse(None)
+    assert G.rank == 1

@@ -439,15 +439,18 @@ class Simulator:
         coordinates) and ``momentum`` has two components per section (F⁻L of the window
         g₀, g₁, g₂); the result is the state (g₀, g₁, g₂, λ₀, λ₁).
 
-        A forced system with inputs takes ``inputs``: the m inputs u_1 of the arrow g_1,
-        which the state carries (docs/conventions.md §20).  The momentum is F⁻L, which the
-        forces do not enter, so they do not change g_1 and λ_1.
+        A forced system with inputs takes ``inputs``: the m inputs u_1 of the arrow g_1
+        (second order: held for both known pairs), which the state carries
+        (docs/conventions.md §20).  The momentum is F⁻L, which the forces do not enter,
+        so they do not change g_1 and λ_1.
         """
         p = self.parameters(params)
         u = step_inputs(self.layout, inputs, owner=self.name)
         state = self._momentum_initializer().solve(configuration, momentum, p)
-        if u is not None:  # the state's own inputs, and the slot of the next arrow's
-            state[self.layout.input_index] = u
+        if u is not None:  # the state's own inputs, and the slot of the next term's
+            state = np.concatenate([state, np.zeros(self.layout.n_known - len(state))])
+            for name, value in zip(self.layout.input_names, u):
+                state[self.layout.parts[name].index] = value
             state[self.layout.upcoming_index] = u
         try:
             return self.state(state, p)
