@@ -655,3 +655,19 @@ def test_second_order_forces_are_checked():
     with pytest.raises(sg.UnsupportedFeatureError, match="second-order"):
         _spline(lambda g1, g2: ([0], [h * u], [0]), [u]).noether([1]).impulse(None)
     assert G.rank == 1
+
+
+@needs_cc
+def test_a_forced_second_order_state_from_a_momentum():
+    """``from_momentum`` of a second-order system with inputs: the momentum program
+    compared the step's knowns with the window's and stopped at the inputs after them
+    (RuntimeError "layout mismatch").  The state holds the given inputs for both known
+    pairs, and the window is the unforced one's (F⁻L has no forces)."""
+    k, sim = kind("second_order"), simulator("second_order")
+    g0, momentum = [0.0, 1.0, 0.1, 0.98], [0.1, 0.2, 0.0, 0.1]
+    state = sim.from_momentum(g0, momentum, k.params, inputs=[0.3, 0.4])
+    assert np.array_equal(state[-6:], [0.3, 0.4, 0.3, 0.4, 0.3, 0.4])
+    other = sim.from_momentum(g0, momentum, k.params, inputs=[-1.0, 2.0])
+    assert np.array_equal(state[:-6], other[:-6]) and np.isfinite(state).all()
+    run = sim.simulate(state, 3, k.params, inputs=[0.3, 0.4])
+    assert np.array_equal(run["u"], np.full(5, 0.3))
