@@ -337,6 +337,12 @@ class SecondOrderSystem(DiscreteSystem):
     :meth:`euler_lagrange` gives the step (g_{k-1}, g_k, g_{k+1}, λ_{k-1}, λ_k) →
     (g_{k+2}, λ_{k+1}) of seed 001 eqs. (13)/(15) and (18), from the same junction variation
     as the first-order equations.
+
+    ``forces(g1, g2) -> (f0, f1, f2)``: the covectors at the pair's three base points
+    α(g1), β(g1), β(g2), each a list of rank(AG) components; the residuals gain
+    f²(g_{k-1}, g_k) + f¹(g_k, g_{k+1}) + f⁰(g_{k+1}, g_{k+2}) (docs/conventions.md §20).
+    An input's value u_j belongs to the pair (g_j, g_{j+1}): the state carries u_{k-1},
+    u_k and each step reads u_{k+1}.
     """
 
     _arity = 2
