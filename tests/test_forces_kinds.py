@@ -251,15 +251,41 @@ def _second_order() -> Kind:
                 {"h": 0.1, "kappa": 0.5, "c": 0.3}, start)
 
 
+def _second_order_attitude() -> Kind:
+    """Seed 001 §3.3.4's shape on SO(3) (Cayley): L = h·|Δξ|²/2, ξ = cay⁻¹(W)/h, with body
+    torques τ at each pair's middle and damping and coupling at its ends."""
+    taus = sp.symbols("tau1:4", real=True)
+
+    def L(a, b):
+        xa, xb = a.coordinates / h, b.coordinates / h
+        return h * sum((xb[i] - xa[i]) ** 2 for i in range(3)) / (2 * h ** 2)
+
+    def forces(a, b):
+        xa, xb = a.coordinates / h, b.coordinates / h
+        return ([-c * h * xa[i] for i in range(3)], [h * t for t in taus],
+                [c * h * xb[i] * b.matrix[0, 1] for i in range(3)])
+
+    def build(f, inputs):
+        return sg.SecondOrderSystem(sg.SO3("W"), L, parameters=[h, c], forces=f,
+                                    inputs=inputs, name="attitude" if f else "attitude_twin")
+
+    R = [np.array(sg.SO3("W").cayley(x).tolist(), float)
+         for x in ([0.02, 0.05, -0.03], [0.025, 0.04, -0.02], [0.03, 0.03, -0.01])]
+    start = {"W": np.stack(R), **{str(t): (0.1, -0.1) for t in taus}}
+    return Kind(build(forces, list(taus)), build(None, []), forces, {"h": 0.1, "c": 0.2},
+                start)
+
+
 KINDS = {"constrained": _plate_ball, "holonomic": _bead, "time": _adaptive_pendulum,
          "time_rigid_body": _adaptive_rigid_body, "nonholonomic": _knife_edge,
-         "second_order": _second_order}
+         "second_order": _second_order, "second_order_so3": _second_order_attitude}
 #: the kinds whose equations are checked (the rigid body's SymPy residuals take ~8 s: slow)
 EQUATIONS = ["constrained", "holonomic", "time", "nonholonomic", "second_order",
-             pytest.param("time_rigid_body", marks=pytest.mark.slow)]
+             pytest.param("time_rigid_body", marks=pytest.mark.slow),
+             pytest.param("second_order_so3", marks=pytest.mark.slow)]
 #: the kinds that run (the time groupoid's: the rigid body)
-RUNS = ["constrained", "holonomic", "time_rigid_body", "nonholonomic", "second_order"]
-FIRST_ORDER = [e for e in EQUATIONS if e != "second_order"]
+RUNS = ["constrained", "holonomic", "time_rigid_body", "nonholonomic", "second_order",
+        pytest.param("second_order_so3", marks=pytest.mark.slow)]
 
 
 @functools.cache
@@ -300,26 +326,32 @@ def _vanishes(expr) -> bool:
 
 # --- (a) the forced residual, symbolically -----------------------------------------------------
 
-@pytest.mark.parametrize("name", FIRST_ORDER)
+@pytest.mark.parametrize("name", EQUATIONS)
 def test_the_forced_residual_adds_the_forces_in_the_section_rows(name):
-    """F_forced − F_plain = f⁺_b(g_k) + f⁻_b(g_{k+1}) in row b (along D_c: row a gets
+    """F_forced − F_plain = f⁺_b(g_k) + f⁻_b(g_{k+1}) in row b (second order: f²_b(g_{k−1},
+    g_k) + f¹_b(g_k, g_{k+1}) + f⁰_b(g_{k+1}, g_{k+2}); along D_c: row a gets
     Σ_b c_a^b(β(g_k))·(f⁺_b + f⁻_b)); the constraint rows are unchanged.  The forces are
-    the user's function called here on the step's named arrows, with u ↦ u_k on g_k and
-    u ↦ u_{k+1} on g_{k+1}."""
+    the user's function called here on the step's named arrows, with u ↦ u_{k+s} on the
+    term starting at g_{k+s}."""
     k = kind(name)
     forced, plain = steps_of(name)
-    G, mi = k.forced.groupoid, len(k.forced.inputs)
-    now, new = forced.knowns[-2 * mi:-mi], forced.knowns[-mi:]
-    assert [str(s) for s in now] == [f"{v}_{{k}}" for v in k.forced.inputs]
-    assert [str(s) for s in new] == [f"{v}_{{k+1}}" for v in k.forced.inputs]
-    assert forced.knowns[:-2 * mi] == plain.knowns and forced.unknowns == plain.unknowns
-    g_k, g_next = G.view(forced.arrows[0]), G.view(forced.arrows[1])
-    plus = [sp.sympify(f).xreplace(dict(zip(k.forced.inputs, now)))
-            for f in k.forces(g_k)[1]]
-    minus = [sp.sympify(f).xreplace(dict(zip(k.forced.inputs, new)))
-             for f in k.forces(g_next)[0]]
-    junction = [a + b for a, b in zip(plus, minus)]
-    assert any(not _vanishes(a - b) for a, b in zip(k.forces(g_k)[0], k.forces(g_k)[1]))
+    G, mi, order = k.forced.groupoid, len(k.forced.inputs), forced.order
+    starts = range(1 - order, 2)  # the terms of the window, by the offset of their start
+    n = len(forced.knowns) - len(starts) * mi
+    inputs = {s: forced.knowns[n + i * mi:n + (i + 1) * mi] for i, s in enumerate(starts)}
+    for s in starts:
+        if all(len(str(v)) == 1 for v in k.forced.inputs):
+            label = "k" if s == 0 else f"k{s:+d}"
+            assert [str(x) for x in inputs[s]] == [f"{v}_{{{label}}}" for v in k.forced.inputs]
+    assert forced.knowns[:n] == plain.knowns and forced.unknowns == plain.unknowns
+    junction = [sp.S.Zero] * G.rank
+    for s in starts:  # the term starting at s meets the junction node at its point 1 − s
+        covectors = k.forces(*[G.view(forced.arrows[s + i]) for i in range(order)])
+        sub = dict(zip(k.forced.inputs, inputs[s]))
+        junction = [a + sp.sympify(f).xreplace(sub) for a, f in zip(junction, covectors[1 - s])]
+    covectors = k.forces(*[G.view(forced.arrows[i]) for i in range(order)])
+    assert all(any(not _vanishes(a - b) for a, b in zip(covectors[i], covectors[j]))
+               for i in range(order + 1) for j in range(i))  # f⁻ ≠ f⁺ (f⁰, f¹, f² apart)
     if k.rows is None:
         expected = junction
     else:  # the Hölder step's rows: the junction residuals along D_c at β(g_k)
