@@ -478,6 +478,11 @@ def test_simulate_with_inputs_is_a_loop_of_steps_bitwise(name):
     first = sim.equations.order  # the state's own inputs come first (second order: two)
     for i, input_name in enumerate(kind(name).forced.inputs):
         assert np.array_equal(traj[str(input_name)][first:], U[:, i])
+    start = initial(name)  # simulate_batch: each run bitwise its own simulate
+    runs = sim.simulate_batch([start, start], STEPS, params, inputs=np.stack([U, U[::-1]]))
+    for run, inputs in zip(runs, (U, U[::-1])):
+        alone = sim.simulate(start, STEPS, params, inputs=inputs)
+        assert np.array_equal(run.states, alone.states), name
 
 
 # --- (d) physics ------------------------------------------------------------------------------
