@@ -708,3 +708,23 @@ def test_a_forced_second_order_state_from_a_momentum():
     assert np.array_equal(state[:-6], other[:-6]) and np.isfinite(state).all()
     run = sim.simulate(state, 3, k.params, inputs=[0.3, 0.4])
     assert np.array_equal(run["u"], np.full(5, 0.3))
+
+
+@needs_cc
+def test_a_driven_continuous_system_starts_from_a_velocity_with_its_inputs():
+    """``from_velocity`` of a discretised ContinuousSystem with inputs went through
+    ``from_momentum``, which left the state's input slots unset (np.empty); it takes the
+    inputs of the first arrow now, required as for ``from_momentum``."""
+    g0 = sp.Symbol("g", positive=True)
+    pendulum = sg.ContinuousSystem(
+        sg.EuclideanSpace("theta"), lambda q, v: v[0] ** 2 / 2 + g0 * sp.cos(q[0]),
+        parameters=[h, g0, c], forces=lambda q, v: [-c * v[0] + u], inputs=[u],
+        name="driven_pendulum")
+    sim = pendulum.discretize(step=h, scheme="midpoint").euler_lagrange().compile(
+        backend="c", cache_dir=SESSION_CACHE)
+    p = {"h": 0.01, "g": 9.81, "c": 0.1}
+    with pytest.raises(sg.ShapeError, match="inputs"):
+        sim.from_velocity({"theta": 0.3}, [0.5], p)
+    state = sim.from_velocity({"theta": 0.3}, [0.5], p, inputs=[0.25])
+    assert np.array_equal(sim.layout.view(state[None], "u"), [0.25])
+    assert state[-1] == 0.25 and np.isfinite(state).all()
