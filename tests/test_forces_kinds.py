@@ -728,3 +728,41 @@ def test_a_driven_continuous_system_starts_from_a_velocity_with_its_inputs():
     state = sim.from_velocity({"theta": 0.3}, [0.5], p, inputs=[0.25])
     assert np.array_equal(sim.layout.view(state[None], "u"), [0.25])
     assert state[-1] == 0.25 and np.isfinite(state).all()
+
+
+def test_reduction_refuses_a_forced_system():
+    """``reduce`` and ``check_system_morphism`` relate the Lagrangians and the constraints
+    only: the reduced system of a forced one lost its forces and derived the unforced
+    equations, silently.  Both refuse a forced system now."""
+    from _lie_pairs import LieGroupPair
+
+    rb = systems.rigid_body()
+    hh, (I1, I2, I3) = rb.parameters[0], rb.parameters[1:]
+    Jd = sp.Matrix(systems.discrete_inertia(I1, I2, I3))
+    P = LieGroupPair(sg.SO3)
+
+    def ends(coords):
+        return P.group.matrix(P.source(coords)), P.group.matrix(P.target(coords))
+
+    def L(g):
+        g0, g1 = ends(g.coords)
+        return -(Jd * g0.T * g1).trace() / hh
+
+    def to_group(g):
+        g0, g1 = ends(g.coords)
+        return g0.T * g1
+
+    unit = P.group.entries(sp.eye(3))
+    phi = sg.GroupoidMorphism(P, rb.groupoid, to_group,
+                              section=lambda w: P.arrow_from(unit, w.coords))
+    torque = sg.body_torque([u, 0, 0], hh)
+    forced = sg.DiscreteSystem(P, L, parameters=rb.parameters, forces=torque, inputs=[u])
+    with pytest.raises(sg.UnsupportedFeatureError, match="forced"):
+        forced.reduce(phi)
+    with pytest.raises(sg.UnsupportedFeatureError, match="forced"):
+        sg.check_system_morphism(phi, forced, rb)
+    driven = sg.DiscreteSystem(rb.groupoid, rb.lagrangian, parameters=rb.parameters,
+                               forces=torque, inputs=[u])
+    plain = sg.DiscreteSystem(P, L, parameters=rb.parameters)
+    with pytest.raises(sg.UnsupportedFeatureError, match="forced"):
+        sg.check_system_morphism(phi, plain, driven)
