@@ -766,3 +766,14 @@ def test_reduction_refuses_a_forced_system():
     plain = sg.DiscreteSystem(P, L, parameters=rb.parameters)
     with pytest.raises(sg.UnsupportedFeatureError, match="forced"):
         sg.check_system_morphism(phi, plain, driven)
+
+
+@needs_cc
+def test_verify_stationary_refuses_a_forced_system():
+    """A forced trajectory is a critical point of the Lagrange–d'Alembert principle, not of
+    the action: ``verify_stationary`` checked the action alone and reported a correct forced
+    run "not stationary".  It refuses a forced system now."""
+    from symgroupoid.verification import verify_stationary
+
+    with pytest.raises(sg.UnsupportedFeatureError, match="Lagrange–d'Alembert"):
+        verify_stationary(forced_run("holonomic"), kind("holonomic").forced)
