@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._arguments import integer_argument, real_argument, real_array
-from ._errors import DomainError, ShapeError
+from ._errors import DomainError, ShapeError, UnsupportedFeatureError
 from .equations import action_program, structure_program
 from .groupoids import Groupoid
 from .runtime import parameter_vector, system_argument
@@ -143,9 +143,17 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     trivial solution (all arrows identities: every term's first-order change vanishes) the
     differences are pure O(ε²), which the extrapolation removes.  The variations have size
     ε relative to the largest coordinate and multiplier (at least 1).  An action that is not
-    finite on the trajectory is a :class:`~symgroupoid.DomainError`.
+    finite on the trajectory is a :class:`~symgroupoid.DomainError`.  A forced system is
+    refused (:class:`~symgroupoid.UnsupportedFeatureError`): its trajectories are not
+    critical points of the action (docs/conventions.md §20).
     """
     system = system_argument(system, "system", owner="verify_stationary")
+    if getattr(system, "forces", None) is not None:  # not a critical point of the action
+        raise UnsupportedFeatureError(
+            f"{system.name}: a forced system's trajectory is not a critical point of the "
+            f"action but of the Lagrange–d'Alembert principle, whose check with the forces' "
+            f"virtual work is not implemented (docs/conventions.md §20); verify_stationary "
+            f"would report it not stationary")
     G = system.groupoid
     seed = integer_argument(seed, "seed", maximum=2**63 - 1, owner=system.name)
     eps = real_argument(eps, "eps", owner=system.name)

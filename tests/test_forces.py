@@ -285,11 +285,16 @@ def test_bad_forces_are_refused_at_construction(forces, inputs, error):
         _plane_system(forces, inputs)
 
 
-def test_forces_on_a_second_order_system_are_refused_for_now():
+def test_forces_on_a_second_order_system_take_the_pair():
+    """A second-order system's forces are f(g1, g2) -> (f0, f1, f2), the covectors at the
+    pair's three base points (docs/conventions.md §20; tests/test_forces_kinds.py)."""
     G = sg.PairGroupoid(sg.EuclideanSpace("q"))
-    with pytest.raises(UnsupportedFeatureError, match="second-order"):
+    with pytest.raises(CallableError):  # a function of one arrow
         sg.SecondOrderSystem(G, lambda g1, g2: g1.target[0] ** 2, parameters=[],
                              forces=lambda g: ([0], [0]))
+    with pytest.raises(ShapeError, match="3 covectors"):  # two covectors of first order
+        sg.SecondOrderSystem(G, lambda g1, g2: g1.target[0] ** 2, parameters=[],
+                             forces=lambda g1, g2: ([0], [0]))
 
 
 # --- the continuous limit ----------------------------------------------------------------------

@@ -142,7 +142,7 @@ class WindowAction:
         residuals = [d.xreplace(sub) for d in variation]
         if fs.forces is not None:
             residuals = [r + f for r, f in zip(residuals,
-                                                fs.forces.junction_terms(arrows[0], arrows[1]))]
+                                                fs.forces.window_terms(arrows, self.starts))]
         residuals = [tidy(r) for r in residuals]
         residuals += [tidy(c) for c in fs.rows_on(self.groupoid, self.newest(arrows))]
         return residuals, arrows
@@ -248,24 +248,28 @@ class WindowAction:
 
     def force_nodes(self, g: Graph, parameters: dict, arrows: dict, inputs: dict | None
                     ) -> list[int]:
-        """f⁺_b(g_0) + f⁻_b(g_1) for every basis section b (docs/conventions.md §20): the
-        discrete forces on the arrows at offsets 0 and 1, whose inputs are ``inputs[0]`` and
-        ``inputs[1]`` (nodes)."""
+        """Σ_s f^{(1−s)}_b(term s) for every basis section b (docs/conventions.md §20): the
+        forces of each term of the window at the junction node β(g_0), base point 1 − s of
+        the term starting at offset s, whose inputs are ``inputs[s]`` (nodes).  First order:
+        f⁺_b(g_0) + f⁻_b(g_1); second order: f²_b(g_{−1}, g_0) + f¹_b(g_0, g_1) +
+        f⁰_b(g_1, g_2)."""
         forces = self.functions.forces
         if inputs is None:
             raise UnsupportedFeatureError(
                 "this evaluation of the junction has no inputs for the forces of a forced "
                 "system (boundary-value problems of forced systems are not supported yet)")
 
-        def side(exprs: list, o: int) -> list[int]:
+        def term(s: int) -> list[int]:
             symbols = dict(parameters)
-            symbols.update(zip(forces.slot, arrows[o]))
-            symbols.update(zip(forces.inputs, inputs[o]))
+            for i, slot_arrow in enumerate(forces.slots):
+                symbols.update(zip(slot_arrow, arrows[s + i]))
+            symbols.update(zip(forces.inputs, inputs[s]))
             memo: dict = {}
             return [from_sympy(g, e, symbols, f"the forces (component {b + 1})", memo)
-                    for b, e in enumerate(exprs)]
+                    for b, e in enumerate(forces.nodes[1 - s])]
 
-        return [g.add(a, b) for a, b in zip(side(forces.plus, 0), side(forces.minus, 1))]
+        parts = [term(s) for s in self.starts]
+        return [g.add(*column) for column in zip(*parts)]
 
     def derivation_nodes(self, g: Graph, term: TermNodes, fields: Sequence, o: int,
                          terms: Sequence[int], arrows: dict, multipliers: dict,

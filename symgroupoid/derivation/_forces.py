@@ -37,29 +37,63 @@ from ._junction import slot, slot_substitution
 
 @dataclass
 class ForceFunctions:
-    """f⁻ and f⁺ on one independent slot arrow, in the basis sections' order.
+    """The discrete forces of one term of the action, in the basis sections' order.
 
-    ``slot`` holds the arrow's coordinates; ``inputs`` the user's input symbols; ``minus``
-    and ``plus`` are rank(AG) expressions each, in the slot coordinates, the parameters and
-    the inputs (of that arrow)."""
+    First order (one arrow A): f⁻ and f⁺, covectors at α(A) and β(A).  Second order (a
+    composable pair (A₁, A₂), docs/conventions.md §20): f⁰, f¹, f², covectors at the pair's
+    three base points α(A₁), β(A₁) = α(A₂), β(A₂).  ``slots`` hold the term's arrows
+    (coordinates); ``inputs`` the user's input symbols; ``nodes[i]`` the rank(AG)
+    expressions of the covector at the term's base point i, in the slot coordinates, the
+    parameters and the inputs (of that term)."""
 
-    slot: tuple
+    slots: tuple
     inputs: list
-    minus: list
-    plus: list
+    nodes: list
+
+    @property
+    def slot(self) -> tuple:
+        """The arrow of a first-order term."""
+        return self.slots[0]
+
+    @property
+    def minus(self) -> list:
+        """f⁻: the covector at the source of the term (f⁰ of a pair)."""
+        return self.nodes[0]
+
+    @property
+    def plus(self) -> list:
+        """f⁺: the covector at the target of the term (f² of a pair)."""
+        return self.nodes[-1]
+
+    def on(self, arrows: Sequence[Sequence], offset: int) -> list[list]:
+        """The covectors at every base point of the term with arrows ``arrows`` (coordinate
+        tuples) whose inputs are u_{k+offset}."""
+        sub: dict = {}
+        for s, a in zip(self.slots, arrows):
+            sub.update(slot_substitution(s, tuple(a)))
+        sub.update(zip(self.inputs, input_symbols(self.inputs, offset)))
+        return [[f.xreplace(sub) for f in node] for node in self.nodes]
 
     def at(self, arrow: Sequence, offset: int) -> tuple[list, list]:
-        """(f⁻, f⁺) on the arrow with coordinates ``arrow`` whose inputs are u_{k+offset}."""
-        sub = slot_substitution(self.slot, tuple(arrow))
-        sub.update(zip(self.inputs, input_symbols(self.inputs, offset)))
-        return ([f.xreplace(sub) for f in self.minus], [f.xreplace(sub) for f in self.plus])
+        """(f⁻, f⁺) on the arrow with coordinates ``arrow`` whose inputs are u_{k+offset}
+        (first order)."""
+        nodes = self.on([arrow], offset)
+        return nodes[0], nodes[-1]
+
+    def window_terms(self, arrows: dict, starts: Sequence[int]) -> list:
+        """Σ_s f^{(1−s)}_b(term s) for every basis section b: the forces of every term of the
+        window at the junction node β(g_k), which is base point 1 − s of the term starting at
+        offset s (whose arrows are ``arrows[s]``, …, and whose inputs are u_{k+s}).  First
+        order: f⁺_b(g_k) + f⁻_b(g_{k+1}); second order: f²_b(g_{k−1}, g_k) + f¹_b(g_k,
+        g_{k+1}) + f⁰_b(g_{k+1}, g_{k+2})."""
+        arity = len(self.slots)
+        parts = [self.on([arrows[s + i] for i in range(arity)], s)[1 - s] for s in starts]
+        return [sum(column[1:], column[0]) for column in zip(*parts)]
 
     def junction_terms(self, left: Sequence, right: Sequence) -> list:
         """f⁺_b(g_k) + f⁻_b(g_{k+1}) for every basis section b, at the named arrows ``left``
         (g_k, inputs u_k) and ``right`` (g_{k+1}, inputs u_{k+1})."""
-        _, plus = self.at(left, 0)
-        minus, _ = self.at(right, 1)
-        return [a + b for a, b in zip(plus, minus)]
+        return self.window_terms({0: left, 1: right}, [0, 1])
 
 
 def impulse_form(groupoid: Groupoid, forces: ForceFunctions, section, parameters: Sequence
@@ -112,12 +146,14 @@ def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:
 
 
 def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Sequence,
-                    parameters: Sequence) -> ForceFunctions:
-    """f⁻, f⁺ from the user's ``forces(g) -> (f_minus, f_plus)`` on a symbolic arrow, checked:
-    two lists of rank(AG) scalars in the arrow's coordinates, the parameters and the inputs;
-    an input must not be a coordinate of the arrow."""
+                    parameters: Sequence, arity: int = 1) -> ForceFunctions:
+    """The forces from the user's callable on symbolic arrows, checked: first order
+    ``forces(g) -> (f_minus, f_plus)``; second order ``forces(g1, g2) -> (f0, f1, f2)``, the
+    covectors at the pair's three base points (docs/conventions.md §20).  Each is a list of
+    rank(AG) scalars in the arrows' coordinates, the parameters and the inputs; an input
+    must not be a coordinate of the arrow."""
     what = "forces"
-    arrow = slot(groupoid, "f_")
+    arrows = tuple(slot(groupoid, f"f{i}_") for i in range(arity))
     taken = {*groupoid.symbols_by_name(0), *groupoid.symbols_by_name(1), "lambda", "λ",
              "multipliers"}
     for u in inputs:
@@ -125,22 +161,26 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
             raise InputNameError(f"{name}: input {u} has the name of a coordinate (or the "
                                  f"multipliers) of {groupoid.name}, which names a part of the "
                                  f"state; give the input another name")
-    value = call_user(name, what, forces, groupoid.view(arrow), smooth=True)
+    value = call_user(name, what, forces, *[groupoid.view(a) for a in arrows], smooth=True)
+    sides = ("f_minus", "f_plus") if arity == 1 else tuple(f"f{i}" for i in range(arity + 1))
+    shape = ("a pair (f_minus, f_plus)" if arity == 1 else
+             f"{arity + 1} covectors ({', '.join(sides)}) at the pair's base points")
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) \
-            or len(value) != 2:
-        raise ShapeError(f"{name}: the forces must return a pair (f_minus, f_plus), each a "
-                         f"list of {groupoid.rank} components in the basis sections' order; "
-                         f"got {type(value).__name__}")
+            or len(value) != len(sides):
+        raise ShapeError(f"{name}: the forces must return {shape}, each a list of "
+                         f"{groupoid.rank} components in the basis sections' order; got "
+                         f"{type(value).__name__}")
     parts = []
-    for side, part in zip(("f_minus", "f_plus"), value):
+    for side, part in zip(sides, value):
         components = as_scalar_list(name, f"forces ({side})", part)
         if len(components) != groupoid.rank:
             raise ShapeError(f"{name}: the forces' {side} has {len(components)} components; "
                              f"the algebroid of {groupoid.name} has rank {groupoid.rank} (one "
                              f"per basis section, in the order of the step's residuals)")
         parts.append(components)
-    check_symbols(name, what, parts[0] + parts[1], arrow, [*parameters, *inputs])
-    return ForceFunctions(arrow, list(inputs), parts[0], parts[1])
+    check_symbols(name, what, [f for part in parts for f in part],
+                  [c for a in arrows for c in a], [*parameters, *inputs])
+    return ForceFunctions(arrows, list(inputs), parts)
 
 
 __all__ = ["ForceFunctions", "force_functions", "impulse_form", "input_arguments",

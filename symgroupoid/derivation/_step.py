@@ -187,7 +187,7 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
             f"coordinates per step on {groupoid.name}; more constraints than unknowns")
     fs = SystemFunctions(slots, L, phis, matrix_form, base, psis)
     if forces is not None and not matrix_form:
-        fs.forces = force_functions(name, groupoid, forces, inputs, parameters)
+        fs.forces = force_functions(name, groupoid, forces, inputs, parameters, arity)
     fs.constraints = phis + fs.at_base(groupoid.source(slots[0]))
     fs.rows = fs.rows_on(groupoid, slots)
     return fs
@@ -291,14 +291,19 @@ def window(arity: int) -> tuple[list[int], list[int]]:
 
 
 def with_inputs(fs: SystemFunctions, knowns: list, next_knowns: list) -> tuple[list, list]:
-    """The knowns and next knowns of a forced first-order step: the state (g_k, λ_k) gains
-    the input u_k of its arrow, and the step reads the new arrow's input u_{k+1} after it;
-    the next state carries u_{k+1}, and its slot for the input to come holds u_{k+1} until
-    the caller writes the next one (docs/conventions.md §20)."""
+    """The knowns and next knowns of a forced step (docs/conventions.md §20).  The input u_j
+    belongs to the term of the action starting at g_j (first order: the arrow g_j; second
+    order: the pair (g_j, g_{j+1})).  The state gains the inputs of its known terms (first
+    order u_k; second order u_{k−1}, u_k), and the step reads the new term's inputs after
+    them (u_{k+1}); the next state carries the inputs of its known terms, and its slot for
+    the inputs to come holds u_{k+1} until the caller writes the next ones."""
     if not fs.inputs:
         return knowns, next_knowns
-    now, new = input_symbols(fs.inputs, 0), input_symbols(fs.inputs, 1)
-    return knowns + now + new, next_knowns + new + new
+    _, starts = window(len(fs.slots))
+    own = [u for s in starts[:-1] for u in input_symbols(fs.inputs, s)]
+    new = input_symbols(fs.inputs, starts[-1])
+    shifted_own = [u for s in starts[1:] for u in input_symbols(fs.inputs, s)]
+    return knowns + own + new, next_knowns + shifted_own + new
 
 
 def window_arrows(G: Groupoid, offsets: Sequence[int]) -> dict:
@@ -373,6 +378,14 @@ def _distribution_coefficients(name: str, G: Groupoid, distribution: Sequence,
                              f"coefficients; the algebroid has rank {G.rank}")
         rows.append(coeffs)
     return rows
+
+
+def distribution_coefficients(name: str, G: Groupoid, distribution: Sequence,
+                              q: Sequence) -> list[list]:
+    """c_a^b(q) for each element X_a = Σ_b c_a^b E_b of D_c at the base point q: the rows of
+    the Hölder step are Σ_b c_a^b(β(g_k))·(the junction residual of E_b) (seed 002,
+    docs/conventions.md §10)."""
+    return _distribution_coefficients(name, G, distribution, q)
 
 
 def nonholonomic_step(name: str, G: Groupoid, fs: SystemFunctions, distribution: Sequence,

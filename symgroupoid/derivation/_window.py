@@ -80,7 +80,7 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
 
     arrow_nodes = {o: [node_of(c) for c in arrows[o]] for o in offsets}
     lam_nodes = {s: [symbols[x] for x in lam[s]] for s in starts} if multipliers else None
-    inputs = {o: [node_of(u) for u in input_symbols(fs.inputs, o)] for o in (0, 1)}
+    inputs = {s: [node_of(u) for u in input_symbols(fs.inputs, s)] for s in starts}
     jn = action.junction_nodes(g, {p: symbols[p] for p in parameters}, arrow_nodes,
                                lam_nodes, inputs)
     dels = jn.residuals

@@ -22,7 +22,14 @@ import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._symbols import StepSymbol, latex_name, step_label
-from ..derivation import PieceRule, WindowAction, partial_residuals, piece_residuals, window
+from ..derivation import (
+    PieceRule,
+    WindowAction,
+    distribution_coefficients,
+    partial_residuals,
+    piece_residuals,
+    window,
+)
 from ..groupoids import PairCoordinate
 from ._collect import replace_occurrences
 from ._latex import uncollected
@@ -105,21 +112,44 @@ def base_form(step, matrix_form: bool = False) -> Form | None:
 
 def forced_form(step, matrix_form: bool = False) -> Form | None:
     """A forced step with its forces named (docs/conventions.md §20): the junction residual
-    of L (+ λ·φ) followed by f⁺_b(g_k) + f⁻_b(g_{k+1}), the discrete forces given in the
-    "where" list; None for a step without forces (or in matrix form)."""
-    system = junction_system(step)
-    if matrix_form or system is None or system.functions.forces is None:
+    of L (+ λ·φ) followed by f⁺_b(g_k) + f⁻_b(g_{k+1}) (second order: f²_b(g_{k−1}, g_k) +
+    f¹_b(g_k, g_{k+1}) + f⁰_b(g_{k+1}, g_{k+2})), the discrete forces given in the "where"
+    list; for the nonholonomic Hölder step, those rows combined along D_c,
+    Σ_b c_a^b(β(g_k))·(…) (docs/conventions.md §10).  None for a step without forces (or in
+    matrix form)."""
+    system, holder = junction_system(step), _holder_system(step)
+    if matrix_form or (system or holder) is None:
         return None
-    fs, rank = system.functions, step.groupoid.rank
-    unforced, arrows = WindowAction(step.groupoid, replace(fs, forces=None)).residuals()
-    plus, _ = fs.forces.at(arrows[0], 0)
-    minus, _ = fs.forces.at(arrows[1], 1)
-    named_plus = [StepSymbol(f"f^{{+}}_{{{b + 1}}}(g_{{k}})") for b in range(rank)]
-    named_minus = [StepSymbol(f"f^{{-}}_{{{b + 1}}}(g_{{k+1}})") for b in range(rank)]
-    equations = [unforced[b] + named_plus[b] + named_minus[b] for b in range(rank)]
-    layer = {**dict(zip(named_plus, plus)), **dict(zip(named_minus, minus))}
+    fs, rank = (system or holder).functions, step.groupoid.rank
+    if fs.forces is None:
+        return None
+    action = WindowAction(step.groupoid, replace(fs, forces=None))
+    unforced, arrows = action.residuals(multipliers=holder is None)
+    arity, layer = len(fs.slots), {}
+    for s in action.starts:  # the term starting at s meets the junction at its point 1 − s
+        values = fs.forces.on([arrows[s + i] for i in range(arity)], s)[1 - s]
+        mark = ("+" if s == 0 else "-") if arity == 1 else str(1 - s)
+        where = ", ".join(f"g_{{{step_label(s + i)}}}" for i in range(arity))
+        layer.update({StepSymbol(f"f^{{{mark}}}_{{{b + 1}}}({where})"): values[b]
+                      for b in range(rank)})
+    names = list(layer)
+    equations = [unforced[b] + sum(names[b::rank], sp.S.Zero) for b in range(rank)]
+    if holder is not None:
+        rows = distribution_coefficients(step.name, step.groupoid, holder.distribution,
+                                         step.groupoid.target(arrows[0]))
+        equations = [sum((c * e for c, e in zip(row, equations)), sp.S.Zero) for row in rows]
     definitions = [Definition(name, value, frozenset({name})) for name, value in layer.items()]
     return Form(equations + list(unforced[rank:]), [layer], definitions)
+
+
+def _holder_system(step):
+    """The nonholonomic system of a Hölder step (docs/conventions.md §10), else None."""
+    from ._system import NonholonomicSystem
+
+    system = step.system
+    if isinstance(system, NonholonomicSystem) and system.method == "holder":
+        return system
+    return None
 
 
 def _index_range(offsets: Sequence[int]) -> str:

@@ -8,7 +8,13 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._errors import DomainError, InputTypeError, ParameterError, ShapeError
+from .._errors import (
+    DomainError,
+    InputTypeError,
+    ParameterError,
+    ShapeError,
+    UnsupportedFeatureError,
+)
 from .._lambdify import NUMPY_MODULES
 from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
 from ..ir import Graph, Program, from_sympy
@@ -160,6 +166,8 @@ class NoetherQuantity:
         + f⁻_b(g_{k+1})) with the inputs of both arrows (docs/conventions.md §20).  For a
         symmetry X of L, ``np.diff(nq.along(traj))`` equals it to rounding (the forced
         Noether theorem); internal forces that cancel along X give zeros."""
+        if self.impulse_refused:
+            raise UnsupportedFeatureError(f"NoetherQuantity.impulse: {self.impulse_refused}")
         if self.impulse_form is None:
             raise InputTypeError("NoetherQuantity.impulse: the system has no forces; its "
                                  "Noether quantity is conserved (use along())")
@@ -184,6 +192,7 @@ class NoetherQuantity:
         return out.copy()
 
     impulse_form = None  # (I, a, b, inputs at a, inputs at b), set for a forced system
+    impulse_refused = ""  # why a forced system has no impulse form (second order)
 
     @functools.cached_property
     def _impulse_program(self) -> Program:

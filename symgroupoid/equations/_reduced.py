@@ -138,11 +138,22 @@ def _no_holonomic(system: DiscreteSystem) -> None:
             f"implemented (it would need ψ = ψ′∘Φ₀ on the bases, docs/conventions.md §15)")
 
 
+def _no_forces(system: DiscreteSystem) -> None:
+    """Reduction relates the Lagrangians and the constraints (Def. 4.2), not the forces: the
+    reduced system of a forced one would lose its forces (docs/conventions.md §20)."""
+    if getattr(system, "forces", None) is not None:
+        raise UnsupportedFeatureError(
+            f"{system.name}: reduction of forced systems is not implemented (the forces "
+            f"would have to be related by the morphism too, docs/conventions.md §20); "
+            f"reduce the system without forces=, or write the reduced forced system by hand")
+
+
 def reduce_system(system: DiscreteSystem, morphism: GroupoidMorphism,
                   lagrangian: Callable | None = None, constraints: Callable | None = None,
                   name: str | None = None, check: bool = True) -> ReducedSystem:
     """The reduced system (see :meth:`DiscreteSystem.reduce`)."""
     _no_holonomic(system)
+    _no_forces(system)
     instance_argument(morphism, GroupoidMorphism, "morphism", "a GroupoidMorphism (reduce "
                       "needs one)", owner=system.name)
     if system._arity != 1:
@@ -172,6 +183,8 @@ def check_system_morphism(morphism: GroupoidMorphism, system: DiscreteSystem,
                           f"{other.groupoid.name}")
     _no_holonomic(system)
     _no_holonomic(other)
+    _no_forces(system)
+    _no_forces(other)
     check_morphism(morphism)
     if (system.constraints is None) != (other.constraints is None):
         raise ShapeError(f"{system.name} and {other.name}: one has constraints, the other "

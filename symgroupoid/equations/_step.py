@@ -105,7 +105,9 @@ class StepEquations:
     def input_jacobian(self, unknowns: Sequence, knowns: Sequence,
                        params: Sequence | dict = ()) -> np.ndarray:
         """∂F/∂(u_k, u_{k+1}) of a forced step at a point: (len(self), 2m), the columns of
-        the inputs of the known arrow, then of the new arrow (docs/conventions.md §20)."""
+        the inputs of the known arrow, then of the new arrow (docs/conventions.md §20); a
+        second-order step's: (len(self), 3m), the inputs u_{k−1}, u_k of the known pairs,
+        then u_{k+1} of the new pair."""
         from ._programs import input_jacobian_program
 
         m = len(self.inputs)
@@ -114,7 +116,7 @@ class StepEquations:
         f = input_jacobian_program(self).numpy_function(["J_inputs"], ["u", "known", "p"])
         (J,) = f(np.asarray(unknowns, float), np.asarray(knowns, float),
                  self._param_vector(params))
-        return np.asarray(J, float).reshape(len(self), 2 * m)
+        return np.asarray(J, float).reshape(len(self), (self.order + 1) * m)
 
     @property
     def fibre_unknowns(self) -> tuple:

@@ -126,16 +126,16 @@ def _coefficients(name: str, what: str, value, rank: int) -> None:
 
 
 def forces_argument(name: str, forces, arity: int = 1):
-    """The discrete forces ``f(g) -> (f_minus, f_plus)`` of a first-order system, or None."""
+    """The discrete forces of a system, or None: first order ``f(g) -> (f_minus, f_plus)``,
+    second order ``f(g1, g2) -> (f0, f1, f2)`` (docs/conventions.md §20)."""
     if forces is None:
         return None
-    if arity != 1:
-        raise UnsupportedFeatureError(
-            f"{name}: forces on second-order systems are not supported yet; write the system "
-            f"on the pair groupoid of first order with forces=, or without forces")
     if not callable(forces):
-        raise CallableError(f"{name}: forces must be a function of the arrow returning "
-                            f"(f_minus, f_plus), e.g. lambda g: ([...], [...]); got a "
+        example = ("a function of the arrow returning (f_minus, f_plus), e.g. lambda g: "
+                   "([...], [...])" if arity == 1 else
+                   "a function of the pair returning (f0, f1, f2), e.g. lambda g1, g2: "
+                   "([...], [...], [...])")
+        raise CallableError(f"{name}: forces must be {example}; got a "
                             f"{type(forces).__name__}")
     return forces
 
@@ -291,10 +291,13 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity = NoetherQuantity(forms, ok, self.parameters)
         quantity.verification = how
         forces = self.functions.forces
-        if forces is not None:
+        if forces is not None and self._arity == 1:
             expr, a, b = impulse_form(self.groupoid, forces, section, self.parameters)
             quantity.impulse_form = (expr, a, b, input_symbols(forces.inputs, 0),
                                      input_symbols(forces.inputs, 1))
+        elif forces is not None:
+            quantity.impulse_refused = (f"{self.name}: the forces' impulse of a second-order "
+                                        f"system is not supported yet")
         return quantity
 
     def lie_poisson(self) -> LiePoissonEquations:
@@ -334,6 +337,12 @@ class SecondOrderSystem(DiscreteSystem):
     :meth:`euler_lagrange` gives the step (g_{k-1}, g_k, g_{k+1}, λ_{k-1}, λ_k) →
     (g_{k+2}, λ_{k+1}) of seed 001 eqs. (13)/(15) and (18), from the same junction variation
     as the first-order equations.
+
+    ``forces(g1, g2) -> (f0, f1, f2)``: the covectors at the pair's three base points
+    α(g1), β(g1), β(g2), each a list of rank(AG) components; the residuals gain
+    f²(g_{k-1}, g_k) + f¹(g_k, g_{k+1}) + f⁰(g_{k+1}, g_{k+2}) (docs/conventions.md §20).
+    An input's value u_j belongs to the pair (g_j, g_{j+1}): the state carries u_{k-1},
+    u_k and each step reads u_{k+1}.
     """
 
     _arity = 2

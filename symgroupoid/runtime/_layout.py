@@ -146,13 +146,17 @@ class StateLayout:
         which a run writes before each step."""
         inputs = [str(u) for u in getattr(step, "inputs", [])]
         self.input_names = inputs
-        m, n = len(inputs), self.n_known  # the knowns end with u_k, then u_{k+1}
+        # the knowns end with the inputs of the known terms (first order u_k; second order
+        # u_{k-1}, u_k), then u_{k+1}
+        m, n, order = len(inputs), self.n_known, getattr(step, "order", 1)
         now, new = list(range(n - 2 * m, n - m)), list(range(n - m, n))
         self.input_index = np.array(now, dtype=np.int64)
         self.upcoming_index = np.array(new, dtype=np.int64)
-        for name, i in zip(inputs, now):
-            self.parts[name] = Part(name, (0,), np.array([i], dtype=np.int64),
-                                    np.zeros(1), None)
+        offsets = tuple(range(1 - order, 1))
+        for i, name in enumerate(inputs):
+            index = [n - m * (2 - o) + i for o in offsets]
+            self.parts[name] = Part(name, offsets, np.array(index, dtype=np.int64),
+                                    np.zeros(()), None)
         self.names = list(self.parts)
 
     @property

@@ -398,16 +398,22 @@ class Simulator:
     def _fast_call(self):
         return self._fast_step.call
 
-    def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None):
+    def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None,
+              inputs=None):
         """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure.
 
         ``guess`` (default: the step's prediction) must hold ``len(step.unknowns)`` finite
         numbers (a :class:`ShapeError` otherwise).  ``options``: None (the simulator's) or a
-        :class:`NewtonOptions`, as for :meth:`simulate`.
+        :class:`NewtonOptions`, as for :meth:`simulate`.  A forced system with inputs takes
+        ``inputs``: the m inputs of the arrow the step computes, as for :meth:`step`.
         """
         options = NewtonOptions.of(options, self.options, owner=self.name)
         p = self.parameters(params)
         known = self.state(state, p)
+        u_next = step_inputs(self.layout, inputs, owner=self.name)
+        if u_next is not None:  # the slot of the new arrow's inputs (docs/conventions.md §20)
+            known = known.copy()
+            known[self.layout.upcoming_index] = u_next
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
@@ -421,7 +427,8 @@ class Simulator:
             raise self._failure(status, 0, it, rn, u, options, known=known, p=p)
         return u, it, rn
 
-    def from_momentum(self, configuration, momentum: Sequence, params) -> np.ndarray:
+    def from_momentum(self, configuration, momentum: Sequence, params, *, inputs=None
+                      ) -> np.ndarray:
         """The initial state (g_1, λ_1) from a base point q_0 and a discrete momentum p_0.
 
         Solves F⁻[L + λ_1·φ](g_1) = p_0 and φ(g_1) = 0 for g_1 ∈ α⁻¹(q_0) and λ_1 (so the
@@ -433,9 +440,20 @@ class Simulator:
         Second-order systems: ``configuration`` is the velocity-like first arrow g₀ (flat
         coordinates) and ``momentum`` has two components per section (F⁻L of the window
         g₀, g₁, g₂); the result is the state (g₀, g₁, g₂, λ₀, λ₁).
+
+        A forced system with inputs takes ``inputs``: the m inputs u_1 of the arrow g_1
+        (second order: held for both known pairs), which the state carries
+        (docs/conventions.md §20).  The momentum is F⁻L, which the forces do not enter,
+        so they do not change g_1 and λ_1.
         """
         p = self.parameters(params)
+        u = step_inputs(self.layout, inputs, owner=self.name)
         state = self._momentum_initializer().solve(configuration, momentum, p)
+        if u is not None:  # the state's own inputs, and the slot of the next term's
+            state = np.concatenate([state, np.zeros(self.layout.n_known - len(state))])
+            for name, value in zip(self.layout.input_names, u):
+                state[self.layout.parts[name].index] = value
+            state[self.layout.upcoming_index] = u
         try:
             return self.state(state, p)
         except DomainError as err:  # Newton stopped at its step test, not on φ = 0
@@ -457,14 +475,16 @@ class Simulator:
             self._momentum = kind(self.equations, self.layout)
         return self._momentum
 
-    def from_velocity(self, configuration, velocity: Sequence, params) -> np.ndarray:
+    def from_velocity(self, configuration, velocity: Sequence, params, *, inputs=None
+                      ) -> np.ndarray:
         """The initial state from a configuration q₀ and a velocity v₀ (on a group the body
         velocity ξ₀; on a product the components factor after factor), for a system
         discretised from a :class:`~symgroupoid.ContinuousSystem`: the continuous Legendre
         transform p₀ = ∂L/∂v(q₀, v₀) (the step's ``velocity_momentum`` program), then
         :meth:`from_momentum` (the discrete one), so that the discrete trajectory is the
         integrator's from the initial data (q₀, p₀) (docs/conventions.md §21).
-        ``configuration`` as :meth:`from_momentum` takes it."""
+        ``configuration`` as :meth:`from_momentum` takes it, and ``inputs`` (the inputs of
+        the first arrow of a system with inputs) too."""
         program = self.equations.velocity_momentum
         if program is None:
             raise UnsupportedFeatureError(
@@ -475,7 +495,8 @@ class Simulator:
         v = real_vector(velocity, len(program.inputs["v"]), "velocity", owner=self.name,
                         finite=True)
         momentum = program.numpy_function(["momentum"], ["q", "v", "p"])(q, v, p)[0]
-        return self.from_momentum(configuration, np.asarray(momentum, float).ravel(), params)
+        return self.from_momentum(configuration, np.asarray(momentum, float).ravel(), params,
+                                  inputs=inputs)
 
     def project_initial(self, initial, params, *, max_iterations: int = 50) -> np.ndarray:
         """A consistent initial state from one that violates the constraints.

@@ -122,7 +122,9 @@ def second_order_momentum_program(step) -> MomentumProgram:
         eqs += fs.rows_on(G, [a, b])
     fibres, charts = list(fib1) + list(fib2), list(chart1) + list(chart2)
     sub = {**cmap1, **cmap2}
-    if [str(s) for s in step.knowns] != [str(s) for s in (*g0, *fibres, *lam)]:
+    n_inputs = 3 * len(getattr(step, "inputs", ()))  # u_{k-1}, u_k, u_{k+1} after them
+    knowns = step.knowns[:len(step.knowns) - n_inputs]
+    if [str(s) for s in knowns] != [str(s) for s in (*g0, *fibres, *lam)]:
         raise RuntimeError(f"{step.name}: second-order state layout mismatch")
     g = Graph()
     symbols = {s: g.input(s) for s in (*charts, *lam, *g0, *p, *params)}

@@ -63,13 +63,15 @@ def step_program(step, compacted: bool = True) -> Program:
 
 def input_jacobian_program(step) -> Program:
     """∂F/∂(u_k, u_{k+1}) of a forced step (docs/conventions.md §20): the residual's exact
-    derivative with respect to the inputs of both arrows (the last 2m knowns), by forward
-    mode on the step's graph — what a controller or an optimiser linearises.  Inputs ``u``
-    (unknowns), ``known``, ``p``; outputs ``F`` and ``J_inputs`` (row-major, n × 2m)."""
+    derivative with respect to the inputs of the window's terms (the last (r + 1)·m
+    knowns, r the order: u_k, u_{k+1}; second order u_{k−1}, u_k, u_{k+1}), by forward mode
+    on the step's graph — what a controller or an optimiser linearises.  Inputs ``u``
+    (unknowns), ``known``, ``p``; outputs ``F`` and ``J_inputs`` (row-major,
+    n × (r + 1)·m)."""
     program = step.program
     g = program.graph
-    m = len(step.inputs)
-    columns = [g.inputs[s] for s in step.knowns[len(step.knowns) - 2 * m:]]
+    m = (step.order + 1) * len(step.inputs)
+    columns = [g.inputs[s] for s in step.knowns[len(step.knowns) - m:]]
     F = list(program.outputs["F"])
     J = step_jacobian(g, F, columns)
     return Program(graph=g, inputs=program.inputs,
