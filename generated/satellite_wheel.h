@@ -44,7 +44,8 @@
  *
  * satellite_wheel_simulate(known0, p, u, n_steps, options, warm, states, capacity, iterations,
  *                  residual_norms, failed_step, last_iterate)
- *   reads the inputs u[k * SATELLITE_WHEEL_N_INPUTS + j] of the arrow step k computes (k = 0 ..
+ *   reads the inputs u[k * SATELLITE_WHEEL_N_INPUTS + j] of the newest term of step k (first
+ *   order: the arrow the step computes; second order: the pair it completes; k = 0 ..
  *   n_steps - 1, j = 0 .. 0: tau) into the last
  *   SATELLITE_WHEEL_N_INPUTS entries of its known state (the states written keep their own inputs
  *   there; non-finite inputs are an invalid argument), and
