@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import importlib.util
 import pathlib
+import signal
+import threading
 
 import numpy as np
 import pytest
@@ -13,6 +15,21 @@ import symgroupoid as sg
 from symgroupoid import systems
 
 EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
+
+
+@pytest.fixture(autouse=True, scope="session")
+def sigint_raises():
+    """SIGINT raises KeyboardInterrupt, as in an interactive session.  A process started in
+    the background by a non-interactive shell (``make test &`` in a script, some CI runners)
+    inherits SIGINT ignored, and Python leaves it ignored: the tests that send themselves
+    SIGINT to check Ctrl-C would then wait forever (a reduce that sleeps 1000 s, or a long
+    sweep, is what they interrupt)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    before = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, before)
 
 
 def load_example(name: str):
