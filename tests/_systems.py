@@ -130,3 +130,28 @@ def falling(name: str = "fall"):
 FALL_PARAMS = {"h": 0.01, "a": 0.1}
 FALL_START = {"q": (1.0, 0.99)}
 
+
+# --- a driven, damped oscillator (docs/conventions.md §20) ------------------------------------
+
+DRIVEN_H, DRIVEN_K, DRIVEN_C = sp.symbols("h k c", positive=True)
+DRIVEN_U = sp.Symbol("u", real=True)
+
+
+def driven_oscillator(name: str = "driven_oscillator") -> sg.DiscreteSystem:
+    """A damped oscillator on R driven by an input u: the midpoint rule's L_d and discrete
+    forces f⁻ = f⁺ = (h/2)·(u − c·v); parameters h, k, c."""
+    h, k, c, u = DRIVEN_H, DRIVEN_K, DRIVEN_C, DRIVEN_U
+    G = sg.PairGroupoid(sg.EuclideanSpace(["x"]))
+
+    def L(g):
+        (x0,), (x1,) = g.source, g.target
+        return h * (((x1 - x0) / h) ** 2 / 2 - k / 2 * ((x0 + x1) / 2) ** 2)
+
+    def forces(g):
+        (x0,), (x1,) = g.source, g.target
+        half = h / 2 * (u - c * (x1 - x0) / h)
+        return [half], [half]
+
+    return sg.DiscreteSystem(G, L, parameters=[h, k, c], forces=forces, inputs=[u],
+                             time_step=h, name=name)
+

@@ -6,39 +6,21 @@ NumPy, in installments), ``sweep`` and the CLI's ``--inputs``; each bitwise the 
 import numpy as np
 import pytest
 import sympy as sp
+from _systems import driven_oscillator
 from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (fixture)
 
 import symgroupoid as sg
 from symgroupoid import DomainError, ShapeError
 from symgroupoid.cli import load_system, main
 
-h, k, c = sp.symbols("h k c", positive=True)
-u = sp.Symbol("u", real=True)
+h, k = sp.symbols("h k", positive=True)
 PARAMS = {"h": 0.05, "k": 2.0, "c": 0.3}
 STEPS = 25
 
 
-def _oscillator() -> sg.DiscreteSystem:
-    """A damped oscillator on R driven by u: the midpoint rule's discrete forces
-    f⁻ = f⁺ = (h/2)·(u − c·v) (``sg.midpoint_forces``)."""
-    G = sg.PairGroupoid(sg.EuclideanSpace(["x"]))
-
-    def L(g):
-        (x0,), (x1,) = g.source, g.target
-        return h * (((x1 - x0) / h) ** 2 / 2 - k / 2 * ((x0 + x1) / 2) ** 2)
-
-    def forces(g):
-        (x0,), (x1,) = g.source, g.target
-        half = h / 2 * (u - c * (x1 - x0) / h)
-        return [half], [half]
-
-    return sg.DiscreteSystem(G, L, parameters=[h, k, c], forces=forces, inputs=[u],
-                             time_step=h, name="driven_oscillator")
-
-
 @pytest.fixture(scope="module")
 def oscillator():
-    return _oscillator().euler_lagrange().compile()
+    return driven_oscillator().euler_lagrange().compile()
 
 
 def _starts(n: int) -> list:

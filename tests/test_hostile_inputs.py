@@ -17,16 +17,14 @@ import functools
 
 import numpy as np
 import pytest
-import sympy as sp
 from _hostile import PROFILES, judge, junk, near, profile, step_residual_ok
+from _systems import driven_oscillator
 from hypothesis import given
 from hypothesis import strategies as st
 from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
 
-h, k, c = sp.symbols("h k c", positive=True)
-u = sp.Symbol("u", real=True)
 PARAMS = {"h": 0.05, "k": 2.0, "c": 0.3}
 START = {"x": (0.2, 0.21), "u": 0.1}
 STEPS = 6
@@ -37,20 +35,7 @@ NAMES = ("inputs", "input", "u")
 def driven():
     """The damped oscillator on R driven by u (midpoint forces), on the NumPy backend (a
     hostile example is one derivation and no C build)."""
-    G = sg.PairGroupoid(sg.EuclideanSpace(["x"]))
-
-    def L(g):
-        (x0,), (x1,) = g.source, g.target
-        return h * (((x1 - x0) / h) ** 2 / 2 - k / 2 * ((x0 + x1) / 2) ** 2)
-
-    def forces(g):
-        (x0,), (x1,) = g.source, g.target
-        half = h / 2 * (u - c * (x1 - x0) / h)
-        return [half], [half]
-
-    system = sg.DiscreteSystem(G, L, parameters=[h, k, c], forces=forces, inputs=[u],
-                               time_step=h, name="driven")
-    return system.euler_lagrange().compile(backend="numpy")
+    return driven_oscillator("driven").euler_lagrange().compile(backend="numpy")
 
 
 def _meant(value, steps: int) -> np.ndarray:
