@@ -65,6 +65,12 @@ def indexed_symbol(base_latex: str, offset: int, index: str) -> StepSymbol:
     return StepSymbol(f"({subscripted(base_latex, offset)})_{{{index}}}")
 
 
+def stage_symbols(count: int, offset: int) -> list[StepSymbol]:
+    """Internal stages ``(\\zeta_{k+offset})_a``, a = 1..count, of the arrow g_{k+offset}
+    (docs/conventions.md §22)."""
+    return [indexed_symbol(r"\zeta", offset, str(a + 1)) for a in range(count)]
+
+
 def multiplier_symbols(count: int, offset: int) -> list[StepSymbol]:
     """Lagrange multipliers ``(\\lambda_{k+offset})_a``, a = 1..count."""
     return [indexed_symbol(r"\lambda", offset, str(a + 1)) for a in range(count)]

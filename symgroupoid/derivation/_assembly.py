@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from .._errors import UnsupportedFeatureError
-from .._symbols import multiplier_symbols
+from .._symbols import multiplier_symbols, stage_symbols
 from ..groupoids import Groupoid
 from ..ir import Graph, forward, from_sympy, gradient
 from ._junction import junction_halves, slot, slot_substitution
@@ -55,6 +55,8 @@ class TermNodes:
     gradient: list  # ∂T/∂(slot coordinates), slot by slot
     constraints: list  # φ (as in the action: the user's φ, then ψ at the source node)
     rows: list  # a step's rows on the term: φ, then ψ at the target of its last arrow
+    stages: list  # the generic internal stage nodes ζ (docs/conventions.md §22)
+    stage_gradient: list  # ∂T/∂ζ: the term's stage rows
 
     @property
     def flat_slots(self) -> list:
@@ -70,6 +72,7 @@ class JunctionNodes:
     residuals: list  # left − right: the junction residuals (docs/conventions.md §2)
     constraints: dict  # start offset s -> φ on the term starting at s (as in the action)
     rows: dict  # start offset s -> a step's rows on that term: φ, then ψ(β(its last arrow))
+    stage_rows: dict  # start offset s -> ∂T_s/∂ζ_s (empty without internal stages)
 
 
 class WindowAction:
@@ -83,6 +86,10 @@ class WindowAction:
     def multipliers(self, s: int) -> list:
         """λ_{k+s}, the multipliers of the term starting at offset s."""
         return multiplier_symbols(self.m, s)
+
+    def stages(self, s: int) -> list:
+        """ζ_{k+s}, the internal stages of the term starting at offset s."""
+        return stage_symbols(len(self.functions.stages), s)
 
     def newest(self, arrows: dict) -> list:
         """The arrows of the newest term (the one a step solves for)."""
@@ -99,7 +106,8 @@ class WindowAction:
         Σ_s λ_s·φ)."""
         fs, arity = self.functions, self.arity
         return sum((shifted(fs, [slots[s + i] for i in range(arity)],
-                            self.multipliers(s) if multipliers else [], lagrangian=lagrangian)
+                            self.multipliers(s) if multipliers else [], lagrangian=lagrangian,
+                            stages=self.stages(s))
                     for s in self.starts), sp.S.Zero)
 
     def halves(self, slots: dict, multipliers: bool = True, lagrangian: bool = True
@@ -132,8 +140,9 @@ class WindowAction:
 
     def residuals(self, multipliers: bool = True) -> tuple[list, dict]:
         """The step's residuals in SymPy — the junction variation at the named arrows, then
-        the rows on the newest term — and the named arrows by offset.  With
-        ``multipliers=False`` the constraints are not in the action (nonholonomic)."""
+        the stage rows ∂S/∂ζ_{k+s} of every term (docs/conventions.md §22), the rows on the
+        newest term — and the named arrows by offset.  With ``multipliers=False`` the
+        constraints are not in the action (nonholonomic)."""
         fs, mf = self.functions, self.functions.matrix_form
         slots = self.slots("w", mf)
         variation = self.variation(slots, multipliers)
@@ -143,6 +152,10 @@ class WindowAction:
         if fs.forces is not None:
             residuals = [r + f for r, f in zip(residuals,
                                                 fs.forces.window_terms(arrows, self.starts))]
+        if fs.stages:
+            action = self.action(slots, multipliers)
+            residuals += [sp.diff(action, z).xreplace(sub) for s in self.starts
+                          for z in self.stages(s)]
         residuals = [tidy(r) for r in residuals]
         residuals += [tidy(c) for c in fs.rows_on(self.groupoid, self.newest(arrows))]
         return residuals, arrows
@@ -163,6 +176,7 @@ class WindowAction:
         fs, m = self.functions, self.m
         where = f"{name}: " if name else ""
         smap = {c: g.input(c) for s in fs.slots for c in s}
+        smap.update({z: g.input(z) for z in fs.stages})
         smap.update({p: g.input(p) for p in parameters})
         memo: dict = {}
         L = from_sympy(g, fs.lagrangian, smap, f"{where}the Lagrangian", memo)
@@ -176,18 +190,30 @@ class WindowAction:
         if with_multipliers and m:
             T = g.add(L, *[g.mul(x, phi) for x, phi in zip(lam, phis)])
         slot_nodes = [[smap[c] for c in s] for s in fs.slots]
-        grad = gradient(g, T, [n for s in slot_nodes for n in s])
-        return TermNodes(slot_nodes, lam, L, grad, phis, rows)
+        zeta = [smap[z] for z in fs.stages]
+        flat = [n for s in slot_nodes for n in s]
+        grad = gradient(g, T, flat + zeta)
+        return TermNodes(slot_nodes, lam, L, grad[:len(flat)], phis, rows, zeta,
+                         grad[len(flat):])
 
     def instantiate(self, g: Graph, term: TermNodes, nodes: Sequence[int], arrows: Sequence,
-                    multipliers: Sequence | None = None, extra: dict | None = None
-                    ) -> list[int]:
-        """Generic-slot ``nodes`` of ``term`` at a term's arrows (one node list per slot) and
-        multipliers (None: the generic λ stay)."""
+                    multipliers: Sequence | None = None, extra: dict | None = None,
+                    stages: Sequence | None = None) -> list[int]:
+        """Generic-slot ``nodes`` of ``term`` at a term's arrows (one node list per slot),
+        multipliers (None: the generic λ stay) and internal stages.  Nodes that depend on the
+        internal stages need ``stages`` (an :class:`UnsupportedFeatureError` otherwise: the
+        evaluation has no values for them)."""
         mapping = dict(zip(term.flat_slots, [c for a in arrows for c in a]))
         mapping.update(extra or {})
         if multipliers is not None:
             mapping.update(dict(zip(term.multipliers, multipliers)))
+        if stages is not None:
+            mapping.update(dict(zip(term.stages, stages)))
+        elif term.stages and set(term.stages) & set(g.reachable(list(nodes))):
+            raise UnsupportedFeatureError(
+                "this evaluation needs the internal stages of a discrete Lagrangian with "
+                "internal stages (a Galerkin discretisation), which it does not solve for; "
+                "see docs/conventions.md §22 for what such systems support")
         return g.substitute(list(nodes), mapping)
 
     def fields(self, g: Graph, side: str, coords: Sequence[int], parameters: dict
@@ -197,8 +223,8 @@ class WindowAction:
         return self.groupoid.field_nodes(g, side, coords, parameters)
 
     def junction_nodes(self, g: Graph, parameters: dict, arrows: dict,
-                       multipliers: dict | None, inputs: dict | None = None
-                       ) -> JunctionNodes:
+                       multipliers: dict | None, inputs: dict | None = None,
+                       stages: dict | None = None) -> JunctionNodes:
         """The junction variation between the window's arrows at offsets 0 and 1, at arrows
         given as graph nodes (``arrows[o]``: the coordinate nodes of the arrow at offset o;
         any nodes — named knowns and a chart of the unknown for a step, independent inputs
@@ -210,7 +236,8 @@ class WindowAction:
         among the φ: the junction residual gets λ·dψ(β(g_0))(ρ(X)) from X⃗[ψ∘α](g_1),
         docs/conventions.md §15).  A forced system's residuals add f⁺(g_0) + f⁻(g_1)
         (:meth:`force_nodes`), with ``inputs[o]`` the nodes of the inputs of the arrow at
-        offset o."""
+        offset o.  With internal stages, ``stages[s]`` are the nodes of ζ_s of the term
+        starting at s, and ``stage_rows[s]`` its rows ∂T_s/∂ζ_s (docs/conventions.md §22)."""
         G, arity, dim = self.groupoid, self.arity, self.groupoid.arrow_dim
         term = self.term_nodes(g, list(parameters), multipliers is not None)
         pmap = {g.inputs[p]: n for p, n in parameters.items() if p in g.inputs and
@@ -218,7 +245,8 @@ class WindowAction:
 
         def instantiate(nodes: Sequence[int], s: int) -> list[int]:
             return self.instantiate(g, term, nodes, [arrows[s + i] for i in range(arity)],
-                                    None if multipliers is None else multipliers[s], pmap)
+                                    None if multipliers is None else multipliers[s], pmap,
+                                    None if stages is None else stages[s])
 
         left = self.fields(g, "left", arrows[0], parameters)
         right = self.fields(g, "right", arrows[1], parameters)
@@ -244,7 +272,9 @@ class WindowAction:
         if self.functions.forces is not None:
             forced = self.force_nodes(g, parameters, arrows, inputs)
             residuals = [g.add(r, f) for r, f in zip(residuals, forced)]
-        return JunctionNodes(lefts, rights, residuals, constraints, rows)
+        stage_rows = {s: instantiate(term.stage_gradient, s) if term.stages else []
+                      for s in self.starts}
+        return JunctionNodes(lefts, rights, residuals, constraints, rows, stage_rows)
 
     def force_nodes(self, g: Graph, parameters: dict, arrows: dict, inputs: dict | None
                     ) -> list[int]:
@@ -273,17 +303,20 @@ class WindowAction:
 
     def derivation_nodes(self, g: Graph, term: TermNodes, fields: Sequence, o: int,
                          terms: Sequence[int], arrows: dict, multipliers: dict,
-                         gradient_nodes: Sequence[int] | None = None) -> list[int]:
+                         gradient_nodes: Sequence[int] | None = None,
+                         stages: dict | None = None) -> list[int]:
         """Σ over the terms T_s (s in ``terms``, each containing the arrow at offset o) of
         X_b[T_s] at that arrow, one node per section b; ``fields``: X_b at the arrow
-        (:meth:`fields`), ``gradient_nodes``: the generic gradient to use (default T's)."""
+        (:meth:`fields`), ``gradient_nodes``: the generic gradient to use (default T's),
+        ``stages[s]``: the internal stages of term s (docs/conventions.md §22)."""
         G, dim = self.groupoid, self.groupoid.arrow_dim
         grad = term.gradient if gradient_nodes is None else gradient_nodes
         rows = [[] for _ in range(G.rank)]
         for s in terms:
             i = o - s
             at = [arrows[s + j] for j in range(self.arity)]
-            inst = self.instantiate(g, term, grad[i * dim:(i + 1) * dim], at, multipliers[s])
+            inst = self.instantiate(g, term, grad[i * dim:(i + 1) * dim], at, multipliers[s],
+                                    stages=None if stages is None else stages[s])
             for b in range(G.rank):
                 rows[b].extend(g.mul(d, v) for d, v in zip(inst, fields[b])
                                if d != g.zero and v != g.zero)

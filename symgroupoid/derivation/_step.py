@@ -27,8 +27,8 @@ from typing import Any
 
 import sympy as sp
 
-from .._errors import CallableError, ShapeError
-from .._symbols import multiplier_symbols, subscripted
+from .._errors import CallableError, ShapeError, UnsupportedFeatureError
+from .._symbols import multiplier_symbols, stage_symbols, subscripted
 from ..groupoids import Groupoid
 from ._callables import as_scalar, as_scalar_list, call_user, check_symbols
 from ._forces import force_functions, input_symbols
@@ -64,6 +64,7 @@ class DerivedStep:
     n_equations: int = 0
     n_holonomic: int = 0  # the last n_holonomic multipliers belong to holonomic constraints
     inputs: list = field(default_factory=list)  # input symbols: knowns end with u_k, u_{k+1}
+    stage_unknowns: list = field(default_factory=list)  # ζ_k, ζ_{k+1} (after the chart)
     _window: Any = None
 
     @property
@@ -113,6 +114,8 @@ class SystemFunctions:
     ``matrix_form`` the matrix parts of the slots are matrix symbols (for printing).
     ``forces`` holds the discrete forces f⁻, f⁺ of a forced system on an arrow of their own
     (:class:`~symgroupoid.derivation.ForceFunctions`), with the inputs they read.
+    ``stages`` are the internal variables ζ of a term (first order only): L_d(s₀, ζ), whose
+    discrete Lagrangian is the stationary value over ζ (docs/conventions.md §22).
     """
 
     slots: tuple  # tuple of slot coordinate tuples
@@ -123,6 +126,7 @@ class SystemFunctions:
     holonomic: list = field(default_factory=list)  # ψ_a on ``base``
     rows: list = field(default_factory=list)  # rows_on(the slots), set by evaluate_system
     forces: Any = None  # ForceFunctions: f⁻, f⁺ on one arrow (docs/conventions.md §20)
+    stages: list = field(default_factory=list)  # internal variables ζ of the slot term
 
     @property
     def inputs(self) -> list:
@@ -154,7 +158,7 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
                     constraints: Callable | None, parameters: Sequence,
                     arity: int = 1, matrix_form: bool = False,
                     holonomic: Callable | None = None, forces: Callable | None = None,
-                    inputs: Sequence = ()) -> SystemFunctions:
+                    inputs: Sequence = (), stages: int = 0) -> SystemFunctions:
     """Evaluate L and φ on ``arity`` independent symbolic arrows, with all input checks.
 
     ``holonomic``: ψ(q) on a base point (``groupoid.base_view``); its components are added
@@ -162,13 +166,15 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
     (docs/conventions.md §15).  With ``matrix_form`` the matrix parts of the arrows are
     MatrixSymbols (for printing).  ``forces(g) -> (f_minus, f_plus)`` with ``inputs``: the
     discrete forces (:func:`~symgroupoid.derivation.force_functions`, docs/conventions.md
-    §20).
+    §20).  ``stages``: the number of internal variables ζ of each arrow; L is then called
+    ``L(g, zeta)`` with ζ a list of symbols (docs/conventions.md §22).
     """
     slots = tuple(slot(groupoid, f"s{i}_", matrix_form) for i in range(arity))
     views = [groupoid.view(s) for s in slots]
+    zeta = internal_stages(name, stages, arity)
     L = as_scalar(name, "Lagrangian", call_user(name, "Lagrangian", lagrangian, *views,
-                                                smooth=True))
-    coords = [c for s in slots for c in s]
+                                                *([list(zeta)] if zeta else []), smooth=True))
+    coords = [c for s in slots for c in s] + list(zeta)
     if not matrix_form:
         check_symbols(name, "Lagrangian", [L], coords, parameters)
     phis: list = []
@@ -185,12 +191,22 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
         raise ShapeError(
             f"{name}: {len(phis)} constraints{held} but only {groupoid.rank} unknown fibre "
             f"coordinates per step on {groupoid.name}; more constraints than unknowns")
-    fs = SystemFunctions(slots, L, phis, matrix_form, base, psis)
+    fs = SystemFunctions(slots, L, phis, matrix_form, base, psis, stages=list(zeta))
     if forces is not None and not matrix_form:
         fs.forces = force_functions(name, groupoid, forces, inputs, parameters, arity)
     fs.constraints = phis + fs.at_base(groupoid.source(slots[0]))
     fs.rows = fs.rows_on(groupoid, slots)
     return fs
+
+
+def internal_stages(name: str, stages: int, arity: int) -> tuple:
+    """The generic internal variables ζ of a term: ``stages`` real symbols (first order)."""
+    if not stages:
+        return ()
+    if arity != 1:
+        raise UnsupportedFeatureError(f"{name}: internal stages are supported on first-order "
+                                      f"systems only")
+    return tuple(sp.Dummy(f"zeta{i}", real=True) for i in range(stages))
 
 
 def holonomic_functions(name: str, groupoid: Groupoid, holonomic: Callable, base: tuple,
@@ -219,10 +235,11 @@ def holonomic_functions(name: str, groupoid: Groupoid, holonomic: Callable, base
 
 
 def shifted(fs: SystemFunctions, slots: Sequence[tuple], multipliers: Sequence,
-            lagrangian: bool = True, separate: bool = False):
-    """L + λ·φ with the slot arrows replaced by ``slots`` (independent copies);
-    ``separate=True`` returns the list of λ_a·φᵃ terms instead."""
-    sub: dict = {}
+            lagrangian: bool = True, separate: bool = False, stages: Sequence = ()):
+    """L + λ·φ with the slot arrows replaced by ``slots`` (independent copies) and the
+    internal stages by ``stages``; ``separate=True`` returns the list of λ_a·φᵃ terms
+    instead."""
+    sub: dict = dict(zip(fs.stages, stages))
     for s_old, s_new in zip(fs.slots, slots):
         sub.update(slot_substitution(s_old, s_new))
     terms = [lam * phi.xreplace(sub) for lam, phi in zip(multipliers, fs.constraints)]
@@ -346,16 +363,20 @@ def junction_step(name: str, G: Groupoid, fs: SystemFunctions,
                    + [x for s in starts[1:] for x in lam[s]])
     successor = next_map(G, fibre, cmap)
     next_knowns = [sp.sympify(e).xreplace(successor) for e in next_knowns]
-    prediction = list(G.predict_chart(arrows[newest - 1])) + lam[starts[-2]]
+    stages = [z for s in starts for z in stage_symbols(len(fs.stages), s)]
+    prediction = (list(G.predict_chart(arrows[newest - 1])) + [sp.S.Zero] * len(stages)
+                  + lam[starts[-2]])
     knowns, next_knowns = with_inputs(fs, knowns, next_knowns)
     return DerivedStep(
         name=name, groupoid=G, order=arity, knowns=knowns, inputs=fs.inputs,
+        stage_unknowns=stages,
         fibre_unknowns=fibre, chart_unknowns=chart, chart_map=cmap,
         multipliers_next=lam[starts[-1]], next_knowns=next_knowns,
         parameters=list(parameters), n_constraints=m, offsets=(first, newest),
         arrows=arrows, prediction=prediction,
         symbolic=lambda: window_residuals(G, fs)[0],
-        graph=lambda: window_graph(name, G, fs, parameters), n_equations=G.rank + m,
+        graph=lambda: window_graph(name, G, fs, parameters),
+        n_equations=G.rank + len(stages) + m,
         n_holonomic=fs.n_holonomic)
 
 

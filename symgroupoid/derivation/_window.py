@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .._symbols import multiplier_symbols
+from .._symbols import multiplier_symbols, stage_symbols
 from ..groupoids import Groupoid
 from ..ir import Graph, forward, from_sympy
 from ._assembly import WindowAction
@@ -39,7 +39,7 @@ class WindowGraph:
     """The graph of one step's residuals and what its program needs."""
 
     graph: Graph
-    residuals: list  # node ids: one per basis section, then the constraints
+    residuals: list  # node ids: one per basis section, the stage rows, then the constraints
     del_rows: list  # node ids of the junction residuals alone (before constraints)
     left_rows: list  # X⃖_b[S](g_k) (the g_k half of each junction residual)
     right_rows: list  # X⃗_b[S](g_{k+1}) (the g_{k+1} half: del = left − right)
@@ -81,12 +81,15 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
     arrow_nodes = {o: [node_of(c) for c in arrows[o]] for o in offsets}
     lam_nodes = {s: [symbols[x] for x in lam[s]] for s in starts} if multipliers else None
     inputs = {s: [node_of(u) for u in input_symbols(fs.inputs, s)] for s in starts}
+    stages = ({s: [node_of(z) for z in stage_symbols(len(fs.stages), s)] for s in starts}
+              if fs.stages else None)
     jn = action.junction_nodes(g, {p: symbols[p] for p in parameters}, arrow_nodes,
-                               lam_nodes, inputs)
+                               lam_nodes, inputs, stages)
     dels = jn.residuals
+    stage_rows = [r for s in starts for r in jn.stage_rows[s]]
     constraint_rows = jn.rows[starts[-1]]
-    return WindowGraph(g, dels + constraint_rows, dels, jn.left, jn.right, constraint_rows,
-                       symbols, arrows, memo)
+    return WindowGraph(g, dels + stage_rows + constraint_rows, dels, jn.left, jn.right,
+                       constraint_rows, symbols, arrows, memo)
 
 
 def step_jacobian(g: Graph, residuals: Sequence[int], unknowns: Sequence[int]

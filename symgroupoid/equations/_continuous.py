@@ -15,8 +15,10 @@ retraction τ, Bou-Rabee–Marsden's Hamilton–Pontryagin integrators): from an
 are of order 2 (Marsden–West Thm 2.3.1 with the variational order of the quadrature).
 :class:`GaussLegendre` (s) and :class:`LobattoIIIAB` (s) name the Galerkin families; their
 one- and two-stage members are these two rules (Gauss–Legendre with one stage is the
-midpoint rule, Lobatto IIIA–IIIB with two stages the trapezoid rule, i.e. Störmer–Verlet);
-the members with internal stages are not implemented yet and are refused.
+midpoint rule, Lobatto IIIA–IIIB with two stages the trapezoid rule, i.e. Störmer–Verlet).
+The members with internal stages are Galerkin discrete Lagrangians (:mod:`._galerkin`,
+docs/conventions.md §22): the discrete system has internal stages ζ, unknowns of every step
+and never part of the state.
 
 Continuous forces F(q, v, u) (a generalised force on a Euclidean space) give the discrete
 forces of the same rule (docs/conventions.md §20, :mod:`._forcing`): f⁻ = f⁺ = (h/2)·F(q̄, v)
@@ -35,6 +37,7 @@ from .._errors import InputTypeError, ShapeError, UnsupportedFeatureError
 from ..derivation import call_user
 from ..groupoids import configuration_factors, pair_groupoid_of
 from ..ir import Graph, Program, from_sympy
+from ._galerkin import GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._system import DiscreteSystem
 
 #: the rules written directly (order 2), by name
@@ -61,6 +64,13 @@ class GaussLegendre:
         """The rule written without internal stages, or None."""
         return "midpoint" if self.stages == 1 else None
 
+    @property
+    def label(self) -> str:
+        return f"gauss{self.stages}"
+
+    def tableau(self) -> GalerkinTableau:
+        return gauss_legendre_tableau(self.stages)
+
 
 @dataclass(frozen=True)
 class LobattoIIIAB:
@@ -81,22 +91,24 @@ class LobattoIIIAB:
     def rule(self) -> str | None:
         return "trapezoid" if self.stages == 2 else None
 
+    @property
+    def label(self) -> str:
+        return f"lobatto{self.stages}"
 
-def scheme_rule(scheme) -> str:
+    def tableau(self) -> GalerkinTableau:
+        return lobatto_tableau(self.stages)
+
+
+def scheme_rule(scheme) -> str | GaussLegendre | LobattoIIIAB:
     """The rule of a scheme: ``"midpoint"`` or ``"trapezoid"``, named or as the Galerkin
-    member it is; an :class:`UnsupportedFeatureError` for members with internal stages."""
+    member it is; the Galerkin scheme itself for members with internal stages."""
     if isinstance(scheme, str):
         if scheme not in RULES:
             raise InputTypeError(f"discretize: scheme must be one of {', '.join(RULES)}, "
                                  f"GaussLegendre(s) or LobattoIIIAB(s); got {scheme!r}")
         return scheme
     if isinstance(scheme, (GaussLegendre, LobattoIIIAB)):
-        if scheme.rule is None:
-            raise UnsupportedFeatureError(
-                f"discretize: {scheme} (order {scheme.order}) has internal stages, which are "
-                f"not implemented yet; GaussLegendre(1) (midpoint) and LobattoIIIAB(2) "
-                f"(trapezoid) are")
-        return scheme.rule
+        return scheme if scheme.rule is None else scheme.rule
     raise InputTypeError(f"discretize: scheme must be one of {', '.join(RULES)}, "
                          f"GaussLegendre(s) or LobattoIIIAB(s); got {type(scheme).__name__} "
                          f"{scheme!r}")
@@ -141,11 +153,14 @@ class ContinuousSystem:
 
     def discretize(self, step, scheme="midpoint") -> DiscreteSystem:
         """The discrete system of ``scheme`` (``"midpoint"``, ``"trapezoid"``,
-        ``GaussLegendre(1)``, ``LobattoIIIAB(2)``) with time step ``step`` (a declared
-        parameter, which becomes the system's ``time_step``)."""
+        ``GaussLegendre(s)``, ``LobattoIIIAB(s)``) with time step ``step`` (a declared
+        parameter, which becomes the system's ``time_step``).  Galerkin members with
+        internal stages give a system with ``stages`` (docs/conventions.md §22)."""
         rule = scheme_rule(scheme)
         h = _step_symbol(self, step)
         G, read = pair_groupoid_of(self.Q, self.factors, self.product)
+        if not isinstance(rule, str):
+            return self._galerkin(rule, h, G, read)
 
         def pieces(g):
             pairs = read(g)
@@ -179,6 +194,80 @@ class ContinuousSystem:
                                 time_step=h, forces=forces, inputs=self.inputs)
         system.continuous = Discretization(self, h, rule)
         return system
+
+    def _galerkin(self, scheme, h: sp.Symbol, G, read) -> DiscreteSystem:
+        """The Galerkin discrete system of ``scheme`` (see :mod:`._galerkin`)."""
+        self._check_galerkin(scheme, G)
+        tableau = scheme.tableau()
+        n_psi = len(self._holonomic_at(G, [sp.Dummy() for _ in range(G.base_dim)]))
+        inner = tableau.interior
+        n_stage = inner * (sum(f.dim for f in self.factors) + n_psi)
+
+        def L_d(g, zeta):
+            return self._galerkin_action(tableau, h, G, read(g), list(zeta), n_psi)
+
+        system = DiscreteSystem(G, L_d, parameters=self.parameters,
+                                name=f"{self.name}_{scheme.label}", holonomic=self.holonomic,
+                                time_step=h, stages=n_stage)
+        system.continuous = Discretization(self, h, scheme.label)
+        return system
+
+    def _check_galerkin(self, scheme, G) -> None:
+        label = f"{type(scheme).__name__}({scheme.stages})"
+        if self.forces is not None:
+            raise UnsupportedFeatureError(
+                f"{self.name}: continuous forces with {label} (internal stages) are not "
+                f"supported yet; the midpoint and trapezoid rules take forces")
+        if any(f.is_group and f.space.retraction != "cayley" for f in self.factors):
+            raise UnsupportedFeatureError(
+                f"{self.name}: {label} on a group needs the Cayley retraction (the closed "
+                f"form of dexp is singular at 0 in floating point); build the group with "
+                f"retraction='cayley' (the default)")
+        if self.holonomic is not None:
+            if isinstance(scheme, GaussLegendre):
+                raise UnsupportedFeatureError(
+                    f"{self.name}: holonomic constraints are supported with LobattoIIIAB(s) "
+                    f"(constraints at every node, docs/conventions.md §22), not with {label}")
+            if any(f.is_group for f in self.factors):
+                raise UnsupportedFeatureError(
+                    f"{self.name}: holonomic constraints with {label} are supported on "
+                    f"Euclidean spaces only")
+
+    def _holonomic_at(self, G, coords: list) -> list:
+        if self.holonomic is None:
+            return []
+        raw = call_user(self.name, "holonomic", self.holonomic, G.base_view(tuple(coords)),
+                        smooth=True, display={})
+        return [sp.sympify(c) for c in (raw if isinstance(raw, (list, tuple, sp.MatrixBase))
+                                        else [raw])]
+
+    def _galerkin_action(self, tableau: GalerkinTableau, h, G, pairs: list, zeta: list,
+                         n_psi: int) -> sp.Expr:
+        """h Σ_i b_i L(q(c_i h), q̇(c_i h)) + Σ_interior Λ_i·ψ(q(c_i h)) on the Galerkin
+        curve through the arrow's ends and the control values d_j Δ + ζ_j."""
+        M, it = len(tableau.control) - 1, iter(zeta)
+        controls = []
+        for f, (a, b) in zip(self.factors, pairs):
+            delta = f.increment(a, b)
+            controls.append([sp.zeros(f.dim, 1)] + [None] * (M - 1) + [delta])
+        for j in range(1, M):
+            for f, X in zip(self.factors, controls):
+                X[j] = tableau.control[j] * X[-1] + sp.Matrix([next(it) for _ in range(f.dim)])
+        total, at_nodes = sp.S.Zero, []
+        for b_i, values, slopes in zip(tableau.weights, tableau.values, tableau.slopes):
+            q, v = [], []
+            for f, (a, _), X in zip(self.factors, pairs, controls):
+                x = sum((c * Xj for c, Xj in zip(values, X)), sp.zeros(f.dim, 1))
+                xdot = sum((c * Xj for c, Xj in zip(slopes, X)), sp.zeros(f.dim, 1)) / h
+                q.append(f.along(a, x))
+                v.append(f.chart_velocity(x, xdot))
+            at_nodes.append(q)
+            total += b_i * self._lagrangian(self._values(q), self._values(v))
+        action = h * total
+        for q in at_nodes[1:-1] if n_psi else []:  # Lobatto: the interior nodes
+            psi = self._holonomic_at(G, [c for part in q for c in part])
+            action += sum((next(it) * c for c in psi), sp.S.Zero)
+        return action
 
     def _lagrangian(self, q, v) -> sp.Expr:
         value = call_user(self.name, "L(q, v)", self.lagrangian, q, v, smooth=True,
@@ -219,7 +308,7 @@ class Discretization:
 
     system: ContinuousSystem
     step: sp.Symbol
-    rule: str
+    rule: str  # "midpoint", "trapezoid", or a Galerkin label ("gauss2", "lobatto3")
 
 
 def velocity_momentum_program(system: DiscreteSystem) -> Program:

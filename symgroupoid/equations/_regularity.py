@@ -73,14 +73,16 @@ def check_coordinatelisted(step) -> None:
 
 
 def check_step(step, *, distribution: int | None = None, lie_poisson: bool = False,
-               time_steps: Sequence = ()) -> None:
+               time_steps: Sequence = (), stages: int = 0) -> None:
     """The derivation-time checks of a system's step: coordinate names, then
     :func:`diagnose` with the rows named for the kind of step, then :func:`check_kinetic`
     with the candidate step parameters ``time_steps``.
 
     ``distribution``: dim D_c of a nonholonomic step (its first rows are the DEL along the
     basis of D_c, the rest the constraints ψ defining M_c, docs/conventions.md §10);
-    ``lie_poisson``: the reconstruction step of the Lie–Poisson form (seed 000 §6.1).
+    ``lie_poisson``: the reconstruction step of the Lie–Poisson form (seed 000 §6.1);
+    ``stages``: the number of stage rows (∂L/∂ζ of both arrows) after the junction rows
+    (docs/conventions.md §22).
     """
     check_coordinatelisted(step)
     if distribution is not None:
@@ -92,6 +94,13 @@ def check_step(step, *, distribution: int | None = None, lie_poisson: bool = Fal
         rank = len(step) - step.n_constraints
         layout = default_layout(
             step, [f"μ + λ·Φ = m_{{k+1}} along E_{a + 1}" for a in range(rank)])
+    elif stages:
+        rank = len(step) - step.n_constraints - stages
+        half = stages // 2
+        layout = default_layout(
+            step, [f"the DEL along X_{a + 1}" for a in range(rank)]
+            + [f"∂L/∂ζ_{a % half + 1} of g_{{k{'' if a < half else '+1'}}}"
+               for a in range(stages)])
     else:
         layout = default_layout(step)
     diagnose(step, layout)

@@ -19,11 +19,13 @@ class StepEquations:
     Attributes
     ----------
     residuals : list of SymPy expressions, one per equation: the DEL for each basis section
-        (X⃖[L + λ_k·φ](g_k) − X⃗[L + λ_{k+1}·φ](g_{k+1})) then the constraints φ(g_{k+1})
-        and the holonomic constraints ψ(β(g_{k+1})).
+        (X⃖[L + λ_k·φ](g_k) − X⃗[L + λ_{k+1}·φ](g_{k+1})), the stage rows ∂L/∂ζ of a
+        Lagrangian with internal stages (docs/conventions.md §22), then the constraints
+        φ(g_{k+1}) and the holonomic constraints ψ(β(g_{k+1})).
         They are written in the named fibre variables of the unknown arrow (e.g. the matrix
         entries of g_{k+1}), which :attr:`reconstruction` expresses in the unknowns.
-    unknowns : chart coordinates of the unknown arrow, then the multipliers λ_{k+1}.
+    unknowns : chart coordinates of the unknown arrow, the internal stages ζ_k, ζ_{k+1}
+        (if any), then the multipliers λ_{k+1}.
     knowns : coordinates of the known arrows (g_k; second order g_{k-1}, g_k, g_{k+1}),
         then the known multipliers.
     parameters : the declared parameters (step size, masses, …).
@@ -37,8 +39,12 @@ class StepEquations:
         self.name: str = derived.name
         self.groupoid = derived.groupoid
         self.order: int = derived.order
-        self.unknowns: list[sp.Symbol] = list(derived.chart_unknowns) + list(
-            derived.multipliers_next)
+        self.unknowns: list[sp.Symbol] = (list(derived.chart_unknowns)
+                                          + list(derived.stage_unknowns)
+                                          + list(derived.multipliers_next))
+        #: the internal stages ζ_k, ζ_{k+1} of a discrete Lagrangian with internal stages
+        #: (unknowns of the step, never part of the state; docs/conventions.md §22)
+        self.stages: list[sp.Symbol] = list(derived.stage_unknowns)
         self.knowns: list[sp.Symbol] = list(derived.knowns)
         self.parameters: list[sp.Symbol] = list(derived.parameters)
         self.inputs: list[sp.Symbol] = list(derived.inputs)
@@ -153,11 +159,11 @@ class StepEquations:
     def _jacobian(self) -> sp.Matrix:
         fibre = list(self.fibre_unknowns)
         chart = list(self._d.chart_unknowns)
-        lam = list(self._d.multipliers_next)
+        rest = list(self.stages) + list(self._d.multipliers_next)
         R = sp.Matrix(self.residuals)
         C = sp.Matrix([self.reconstruction.get(f, f) for f in fibre])
         Jx = R.jacobian(fibre) * C.jacobian(chart) if chart else sp.zeros(len(R), 0)
-        Jl = R.jacobian(lam) if lam else sp.zeros(len(R), 0)
+        Jl = R.jacobian(rest) if rest else sp.zeros(len(R), 0)
         return sp.Matrix.hstack(Jx, Jl)
 
     def jacobian(self, substitute: bool = False) -> sp.Matrix:

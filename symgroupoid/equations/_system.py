@@ -6,7 +6,13 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
-from .._arguments import choice_argument, instance_argument, name_argument, sequence_argument
+from .._arguments import (
+    choice_argument,
+    instance_argument,
+    integer_argument,
+    name_argument,
+    sequence_argument,
+)
 from .._collector import collector_paused
 from .._errors import (
     CallableError,
@@ -211,6 +217,12 @@ class DiscreteSystem(_EvaluatedSystem):
         the value u_k belongs to the arrow g_k.  The state of a forced system carries the
         input of its arrow (the part named after the input), and each step reads the input
         of the new arrow.
+    stages : the number of internal variables ζ of each arrow (default 0).  With stages the
+        Lagrangian is ``L(g, zeta)`` (ζ a list of symbols) and the discrete Lagrangian is its
+        stationary value over ζ, L_d(g) = ext_ζ L(g, ζ) (the Galerkin discrete Lagrangians
+        of Marsden–West §2.6; docs/conventions.md §22).  The step solves ζ_k and ζ_{k+1}
+        with g_{k+1} (the rows ∂L/∂ζ = 0 of both arrows); they are never part of the state.
+        Its first guess for ζ is 0: write ζ as a deviation from a nearby value.
     """
 
     @collector_paused
@@ -218,8 +230,9 @@ class DiscreteSystem(_EvaluatedSystem):
                  constraints: Callable | None = None, parameters: Sequence[sp.Symbol] = (),
                  name: str = "system", *, holonomic: Callable | None = None,
                  time_step: sp.Symbol | str | None = None, forces: Callable | None = None,
-                 inputs: Sequence[sp.Symbol] = ()):
+                 inputs: Sequence[sp.Symbol] = (), stages: int = 0):
         name, groupoid, parameters = system_arguments(name, groupoid, parameters)
+        self.stages = integer_argument(stages, "stages", minimum=0, owner=name)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.holonomic = holonomic
@@ -230,9 +243,18 @@ class DiscreteSystem(_EvaluatedSystem):
         self._functions = evaluate_system(name, groupoid, lagrangian, constraints,
                                           self.parameters, arity=self._arity,
                                           holonomic=holonomic, forces=forces,
-                                          inputs=self.inputs)
+                                          inputs=self.inputs, stages=self.stages)
 
     _arity = 1  # L: G -> R
+
+    def _refuse_stages(self, what: str) -> None:
+        """An :class:`UnsupportedFeatureError` for what a system with internal stages does
+        not support yet (docs/conventions.md §22)."""
+        if self.stages:
+            raise UnsupportedFeatureError(
+                f"{self.name}: {what} of a discrete Lagrangian with internal stages (a "
+                f"Galerkin discretisation) is not supported yet; docs/conventions.md §22 "
+                f"lists what is")
 
     @property
     def n_constraints(self) -> int:
@@ -254,6 +276,9 @@ class DiscreteSystem(_EvaluatedSystem):
         step = StepEquations(junction_step(self.name, self.groupoid, self.functions,
                                            self.parameters))
         step.system = self
+        if self.stages:  # the stage rows are not junction rows; the limit needs ζ
+            check_step(step, stages=len(step.stages))
+            return step
         check_step(step, time_steps=time_step_candidates(self))
         step.set_structured_source(self._matrix_form)
         return step
@@ -269,6 +294,7 @@ class DiscreteSystem(_EvaluatedSystem):
 
     def legendre(self) -> LegendreTransforms:
         """F⁻L and F⁺L at (g_k, λ_k) in the section basis, multiplier terms included."""
+        self._refuse_stages("the Legendre transforms in closed form")
         return LegendreTransforms(legendre_forms(self.groupoid, self.functions),
                                   self.parameters)
 
@@ -282,6 +308,7 @@ class DiscreteSystem(_EvaluatedSystem):
         multiplier term −λ·dψ(α(g))(ρ(X)), and X is a symmetry when the defect vanishes on
         N = G|_M: X tangent to M = {ψ = 0} and L invariant there (docs/conventions.md §15).
         """
+        self._refuse_stages("the Noether quantity")
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
                               section, f, self.parameters)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow)
@@ -302,6 +329,7 @@ class DiscreteSystem(_EvaluatedSystem):
 
     def lie_poisson(self) -> LiePoissonEquations:
         """The discrete constrained Lie–Poisson equations (seed 000 §6.1), Lie groups only."""
+        self._refuse_stages("the Lie–Poisson form")
         equations = LiePoissonEquations(lie_poisson_forms(self.name, self.groupoid, self.functions,
                                                           self.parameters))
         check_step(equations.reconstruction, lie_poisson=True)
@@ -327,6 +355,7 @@ class DiscreteSystem(_EvaluatedSystem):
         """
         from ._reduced import reduce_system
 
+        self._refuse_stages("reduction")
         return reduce_system(self, morphism, lagrangian, constraints, name, check)
 
 

@@ -42,6 +42,27 @@ class ConfigurationFactor:
     def point(self, a):
         return a if self.is_group else sp.Matrix(list(a))
 
+    def increment(self, a, b) -> sp.Matrix:
+        """The chart value of b seen from a: b − a, or τ⁻¹(a⁻¹b) on a group (the
+        coordinates the Galerkin curve of docs/conventions.md §22 is a polynomial in)."""
+        if not self.is_group:
+            return sp.Matrix(list(b)) - sp.Matrix(list(a))
+        G = self.space
+        return sp.Matrix(G.retraction_inverse(G.matrix(G.inverse(G.entries(a))) * b))
+
+    def along(self, a, x: sp.Matrix):
+        """The configuration at chart value x from a: a + x, or a·τ(x) on a group."""
+        if not self.is_group:
+            return sp.Matrix(list(a)) + x
+        return a * self.space.tau(list(x))
+
+    def chart_velocity(self, x: sp.Matrix, xdot: sp.Matrix) -> sp.Matrix:
+        """The velocity of a curve in the chart at x with chart velocity ẋ: ẋ, or the body
+        velocity dτ_x(ẋ) on a group (the left-trivialised tangent of the retraction)."""
+        if not self.is_group:
+            return xdot
+        return self.space.dtau(list(x), "left") * xdot
+
     def midpoint(self, a, b, v, h):
         """(a + b)/2, or a·τ(hξ/2) on a group."""
         if not self.is_group:

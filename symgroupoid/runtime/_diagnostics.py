@@ -49,16 +49,23 @@ class _Evaluator:
     sg: StatePrograms
     functions: dict = field(default_factory=dict)
 
-    def __call__(self, key: str, states: np.ndarray, p: np.ndarray,
-                 step_parameter: str | None = None) -> np.ndarray:
-        """The quantity ``key`` (:meth:`StatePrograms.quantity`) at every state, (R, n)."""
+    def _function(self, key: str, step_parameter: str | None, outputs=("out",)):
         label = key if key != "energy" else f"energy:{step_parameter}"
         f = self.functions.get(label)
         if f is None:
             program = self.sg.quantity(key, step_parameter)
-            f = self.functions[label] = program.numpy_function(["out"], ["known", "p"])
+            names = ["known", "zeta", "p"] if self.sg.n_stages else ["known", "p"]
+            f = self.functions[label] = program.numpy_function(list(outputs), names)
+        return f, label
+
+    def __call__(self, key: str, states: np.ndarray, p: np.ndarray,
+                 step_parameter: str | None = None) -> np.ndarray:
+        """The quantity ``key`` (:meth:`StatePrograms.quantity`) at every state, (R, n)."""
+        f, label = self._function(key, step_parameter)
+        known = np.ascontiguousarray(np.asarray(states, float).T)
+        args = (known, self.stages(known, p), p) if self.sg.n_stages else (known, p)
         with np.errstate(all="ignore"):
-            (out,) = f(np.ascontiguousarray(np.asarray(states, float).T), p)
+            (out,) = f(*args)
         out = np.asarray(out, float).T  # (R, n)
         if not np.isfinite(out).all():
             row = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
@@ -66,6 +73,32 @@ class _Evaluator:
                                    f"({out[row].tolist()}): it overflows there or is not "
                                    f"defined (check the parameters)")
         return out
+
+
+    def stages(self, known: np.ndarray, p: np.ndarray, max_iterations: int = 50
+               ) -> np.ndarray:
+        """ζ* at every state (nz, R): Newton on the stage rows ∂L/∂ζ = 0 from ζ = 0, all
+        states at once (docs/conventions.md §22); a :class:`DiagnosticsError` where it does
+        not converge to the rounding level."""
+        f, _ = self._function("stages", None, ("out", "J"))
+        nz, R = self.sg.n_stages, known.shape[1]
+        zeta = np.zeros((nz, R))
+        for _ in range(max_iterations):
+            with np.errstate(all="ignore"):
+                F, J = f(known, zeta, p)
+            F = np.broadcast_to(np.asarray(F, float), (nz, R))
+            J = np.broadcast_to(np.asarray(J, float), (nz * nz, R)).reshape(nz, nz, R)
+            try:
+                delta = np.linalg.solve(J.transpose(2, 0, 1), F.T[..., None])[..., 0].T
+            except np.linalg.LinAlgError:
+                break
+            zeta = zeta - delta
+            if not np.isfinite(zeta).all():
+                break
+            if (np.abs(delta) <= 8 * _EPS * np.maximum(1.0, np.abs(zeta))).all():
+                return zeta
+        raise DiagnosticsError(f"{self.sg.name}: the internal stages of some state could not "
+                               f"be solved (∂L/∂ζ = 0 has no nearby root from ζ = 0 there)")
 
 
 _EVALUATORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

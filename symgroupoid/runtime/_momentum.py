@@ -61,7 +61,7 @@ class MomentumInitializer:
         if missing:
             raise RuntimeError(f"{step.name}: Legendre transform symbols {missing} are not "
                                f"in the step's known state")
-        self.rank, self.m = mp.rank, mp.m
+        self.rank, self.m, self.n_stages = mp.rank, mp.m, mp.n_stages
         self.source_pos = np.array([position[s] for s in mp.source], dtype=np.int64)
         self.arrow_pos = np.array([position[s] for s in mp.arrow], dtype=np.int64)
         self.lam_pos = np.array([position[s] for s in mp.multipliers], dtype=np.int64)
@@ -120,7 +120,8 @@ class MomentumInitializer:
         for label, values in (("configuration", q), ("momentum", p)):
             if not np.isfinite(values).all():
                 raise DomainError(f"{self.name}: non-finite {label} {values.tolist()}")
-        z = np.concatenate([np.asarray(self._guess(q)[0], float).ravel(), np.zeros(self.m)])
+        z = np.concatenate([np.asarray(self._guess(q)[0], float).ravel(),
+                            np.zeros(self.n_stages + self.m)])
         n = len(z)
 
         def residual(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -132,7 +133,7 @@ class MomentumInitializer:
                    _NOT_FOUND)
         state = np.empty(self.layout.n_known)
         state[self.arrow_pos] = np.asarray(self._arrow(z, q)[0], float).ravel()
-        state[self.lam_pos] = z[self.rank:]
+        state[self.lam_pos] = z[self.rank + self.n_stages:]
         return state
 
 

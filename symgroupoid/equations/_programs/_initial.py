@@ -8,7 +8,8 @@ the dual of the section basis, the first arrow g₁ ∈ α⁻¹(q₀) and its mu
 
 (holonomic constraints ψ: the condition is ψ(β(g₁)) = 0, docs/conventions.md §15), with
 ⟨F⁻[L + λ·φ](g), X⟩ = X⃗[L + λ·φ](g) (``system.legendre().minus``), in the α-fibre chart
-g₁ = arrow_from(q₀, τ(x)).  Second order (seed 001 §4): on the window (g₀, g₁, g₂), the
+g₁ = arrow_from(q₀, τ(x)); with internal stages ζ (docs/conventions.md §22) the unknowns are
+(x, ζ, λ₁) and the rows ∂L/∂ζ(g₁, ζ) = 0 follow F⁻.  Second order (seed 001 §4): on the window (g₀, g₁, g₂), the
 2·rank components of F⁻[L + λ·Φ](g₀, g₁, g₂) = p₀ and Φ on both terms, in the fibre charts
 of g₁ and g₂.  The Jacobian ∂F/∂(x, λ) is forward-mode differentiation on the graph, through
 the fibre chart as for a step (docs/conventions.md §2).
@@ -63,6 +64,7 @@ class MomentumProgram:
     arrow: list  # first order: the symbols of g₁ in the step's known state
     multipliers: list  # the symbols of λ in the step's known state
     n_chart: int = 0  # second order: chart coordinates of g₁, g₂
+    n_stages: int = 0  # internal stages ζ of g₁ among the unknowns z (after the chart)
 
 
 def momentum_program(step) -> MomentumProgram:
@@ -79,28 +81,34 @@ def momentum_program(step) -> MomentumProgram:
     lam = list(multiplier_symbols(m, 0))
     source = tuple(G.source(arrow))
     x = [sp.Dummy(f"x{a}", real=True) for a in range(rank)]
+    zeta = [sp.Dummy(f"zeta{a}", real=True) for a in range(len(fs.stages))]
     p = [sp.Dummy(f"p{a}", real=True) for a in range(rank)]
     params = list(step.parameters)
     on_fibre = tuple(G.arrow_from(source, G.fibre_chart(x, source)))
     g = Graph()
-    symbols = {s: g.input(s) for s in (*x, *lam, *source, *p, *params)}
+    symbols = {s: g.input(s) for s in (*x, *zeta, *lam, *source, *p, *params)}
     memo: dict = {}
     pnodes = {q: symbols[q] for q in params}
     arrow_nodes = _nodes(g, on_fibre, symbols, f"{step.name}: the fibre chart", memo)
     term = action.term_nodes(g, params, bool(m), step.name)
     lam_nodes = [symbols[a] for a in lam]
+    stages = {0: [symbols[z] for z in zeta]}
     minus = action.derivation_nodes(g, term, action.fields(g, "right", arrow_nodes, pnodes),
-                                    0, [0], {0: arrow_nodes}, {0: lam_nodes})
+                                    0, [0], {0: arrow_nodes}, {0: lam_nodes}, stages=stages)
+    stage_rows = (action.instantiate(g, term, term.stage_gradient, [arrow_nodes], lam_nodes,
+                                     stages=stages[0]) if zeta else [])
     rows = action.instantiate(g, term, term.rows, [arrow_nodes], lam_nodes) if m else []
-    F = [g.sub(mi, symbols[pi]) for mi, pi in zip(minus, p)] + list(rows)
-    J = step_jacobian(g, F, [symbols[s] for s in (*x, *lam)])
+    F = [g.sub(mi, symbols[pi]) for mi, pi in zip(minus, p)] + stage_rows + list(rows)
+    J = step_jacobian(g, F, [symbols[s] for s in (*x, *zeta, *lam)])
     identity = G.identity(source)
     outputs = {"F": F, "J": [c for row in J for c in row],
                "arrow": arrow_nodes,
                "guess": _nodes(g, G.chart_of_fibre(G.fibre_of(identity), source), symbols,
                                f"{step.name}: the chart of the identity", memo)}
-    program = Program(g, {"z": x + lam, "q": list(source), "p": p, "params": params}, outputs)
-    return MomentumProgram(program, rank, m, list(source), list(arrow), lam)
+    program = Program(g, {"z": x + zeta + lam, "q": list(source), "p": p, "params": params},
+                      outputs)
+    return MomentumProgram(program, rank, m, list(source), list(arrow), lam,
+                           n_stages=len(zeta))
 
 
 def second_order_momentum_program(step) -> MomentumProgram:

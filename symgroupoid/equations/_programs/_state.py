@@ -23,6 +23,12 @@ Quantities (docs/conventions.md §3, §7):
   (unconstrained-time) step conserves exactly;
 - constraint residuals: φ on the newest known arrows of each state (first order φ(g_k),
   second order Φ(g_k, g_{k+1}), nonholonomic ψ(g_k)).
+
+A discrete Lagrangian with internal stages ζ (docs/conventions.md §22) is L_d(g) =
+L(g, ζ*(g)) with ∂L/∂ζ(g, ζ*) = 0; by the envelope theorem its momenta and its energy are
+those of L(g, ζ) at ζ = ζ*.  The programs of such a system take the stages as a further input
+``zeta``, and :meth:`StatePrograms.quantity` ``"stages"`` gives the rows ∂L/∂ζ and their
+Jacobian for the evaluator to solve ζ* at every state.
 """
 
 from __future__ import annotations
@@ -81,6 +87,11 @@ class StatePrograms:
         self.lam = {s: [self.symbols[x] for x in multiplier_symbols(self.m, s)]
                     for s in self.starts}
         self.term = self.action.term_nodes(g, list(self.parameters), self.m > 0, self.name)
+        self.stage_symbols = [sp.Dummy(f"zeta{a}", real=True) for a in range(len(fs.stages))]
+        if self.stage_symbols and self.arity != 1:
+            raise DiagnosticsError(f"{self.name}: internal stages are first order only")
+        self.zeta = ({0: [g.input(z) for z in self.stage_symbols]} if self.stage_symbols
+                     else None)
         self._arrow_expressions = dict(step.arrows)
         self._fields: dict = {}
         self._programs: dict = {}
@@ -93,7 +104,8 @@ class StatePrograms:
     def instantiate(self, nodes: Sequence[int], s: int) -> list[int]:
         """Generic-slot nodes at the term starting at offset s (its arrows and λ_{k+s})."""
         arrows = [self.arrows[s + i] for i in range(self.arity)]
-        return self.action.instantiate(self.graph, self.term, nodes, arrows, self.lam[s])
+        return self.action.instantiate(self.graph, self.term, nodes, arrows, self.lam[s],
+                                       stages=None if self.zeta is None else self.zeta[s])
 
     def fields(self, side: str, o: int) -> list[list[int]]:
         """X⃖_b (side "left") or X⃗_b ("right") at the state's arrow g_{k+o}."""
@@ -106,7 +118,7 @@ class StatePrograms:
     def derivation(self, side: str, o: int, terms: Sequence[int], grad=None) -> list[int]:
         """Σ over the terms T_s of X_b[T_s] at the arrow g_{k+o} (one node per section b)."""
         return self.action.derivation_nodes(self.graph, self.term, self.fields(side, o), o,
-                                            terms, self.arrows, self.lam, grad)
+                                            terms, self.arrows, self.lam, grad, self.zeta)
 
     # --- the quantities ------------------------------------------------------------------------
     @functools.cached_property
@@ -190,15 +202,33 @@ class StatePrograms:
             f"(docs/conventions.md §19); declare it: {type(self.system).__name__}(..., "
             f"time_step=<the step parameter>), or pass step_parameter=... here")
 
+    @property
+    def n_stages(self) -> int:
+        """The number of internal stages ζ of the state's arrow (an input ``zeta`` of every
+        quantity's program when positive)."""
+        return len(self.stage_symbols)
+
     def program(self, outputs: dict) -> Program:
-        """The program of ``outputs`` (name → nodes of this graph) over the known state."""
-        return Program(self.graph, {"known": self.knowns, "p": self.parameters}, outputs)
+        """The program of ``outputs`` (name → nodes of this graph) over the known state (and
+        the stages ``zeta`` of a system with internal stages)."""
+        inputs = {"known": self.knowns, "p": self.parameters}
+        if self.stage_symbols:
+            inputs["zeta"] = list(self.stage_symbols)
+        return Program(self.graph, inputs, outputs)
+
+    def stages(self) -> tuple[list[int], list[int]]:
+        """The stage rows ∂L/∂ζ(g_k, ζ) of the state's arrow and their Jacobian ∂/∂ζ
+        (row-major), whose root ζ* the evaluator solves."""
+        rows = self.instantiate(self.term.stage_gradient, 0)
+        J = step_jacobian(self.graph, rows, self.zeta[0])
+        return rows, [c for row in J for c in row]
 
     # --- the programs an evaluator runs ------------------------------------------------------
     def quantity(self, key: str, step_parameter: str | None = None) -> Program:
         """The (cached) program of one quantity, its output ``out``: ``"minus"`` (F⁻L),
-        ``"plus"`` (F⁺L), ``"constraints"`` (φ on the newest term) or ``"energy"`` (by
-        ``step_parameter``, see :meth:`energy`)."""
+        ``"plus"`` (F⁺L), ``"constraints"`` (φ on the newest term), ``"energy"`` (by
+        ``step_parameter``, see :meth:`energy`) or ``"stages"`` (outputs ``out``, the stage
+        rows, and ``J``, their Jacobian, see :meth:`stages`)."""
         cache_key = f"energy:{step_parameter}" if key == "energy" else key
         hit = self._programs.get(cache_key)
         if hit is None:
@@ -208,6 +238,10 @@ class StatePrograms:
                 nodes = self.momenta[key == "plus"]
             elif key == "constraints":
                 nodes = self.constraints
+            elif key == "stages" and self.zeta is not None:
+                nodes, J = self.stages()
+                hit = self._programs[cache_key] = self.program({"out": nodes, "J": J})
+                return hit
             else:
                 raise ValueError(f"unknown quantity {key!r}")
             hit = self._programs[cache_key] = self.program({"out": nodes})
