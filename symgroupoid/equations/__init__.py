@@ -2,6 +2,7 @@
 
 from ._abbreviations import LatexOptionError, UnusedAbbreviationWarning
 from ._continuous import ContinuousSystem, GaussLegendre, LobattoIIIAB
+from ._galerkin import GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._findings import (
     DEPENDENT_CONSTRAINTS,
     IDENTICALLY_ZERO,
@@ -55,6 +56,7 @@ __all__ = [
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
     "equation_lines", "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
     "trapezoid_forces", "ContinuousSystem", "GaussLegendre", "LobattoIIIAB",
+    "GalerkinTableau", "gauss_legendre_tableau", "lobatto_tableau",
     # pt: the text width of a LaTeX document, and the default width of the printed lines
     "PAGE_WIDTH",
     # the causes a DegenerateSystemError names (its ``causes``, each finding's ``cause``)

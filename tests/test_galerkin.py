@@ -1,0 +1,291 @@
+"""Galerkin discretisations with internal stages (docs/conventions.md §22): the quadrature
+tables, the equivalence of the Gauss–Legendre schemes with Gauss collocation (an independent
+Runge–Kutta implementation here), the observed orders against DOP853 on R, on R² with a
+holonomic constraint and on SO(3), symplecticity of the one-step map, conservation of
+momentum maps to rounding, bounded energy error, and refusals."""
+
+import numpy as np
+import pytest
+import sympy as sp
+from scipy.integrate import solve_ivp
+
+import symgroupoid as sg
+from symgroupoid import ShapeError, UnsupportedFeatureError
+from symgroupoid.diagnostics import DiagnosticsError
+from symgroupoid.equations import gauss_legendre_tableau, lobatto_tableau
+
+h, grav = sp.symbols("h g", positive=True)
+J = sp.diag(*sp.symbols("J1:4", positive=True))
+RIGID = {"J1": 1.0, "J2": 2.0, "J3": 3.0}
+PEND = {"g": 9.81}
+
+
+def _pendulum() -> sg.ContinuousSystem:
+    return sg.ContinuousSystem(sg.EuclideanSpace("theta"),
+                               lambda q, v: v[0] ** 2 / 2 + grav * sp.cos(q[0]),
+                               parameters=[h, grav], name="pendulum")
+
+
+def _rigid_body() -> sg.ContinuousSystem:
+    return sg.ContinuousSystem(sg.SO3("R"), lambda R, xi: (xi.T * J * xi)[0, 0] / 2,
+                               parameters=[h, *J.diagonal()], name="rigid_body")
+
+
+def _pendulum_rhs(t, y):
+    return [y[1], -9.81 * np.sin(y[0])]
+
+
+def _pendulum_reference(T: float) -> float:
+    sol = solve_ivp(_pendulum_rhs, (0, T), [0.3, 0.5], method="DOP853", rtol=1e-13,
+                    atol=1e-13)
+    return sol.y[0, -1]
+
+
+# --- the quadrature tables ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("s", [1, 2, 3, 4, 5])
+def test_gauss_legendre_nodes_integrate_to_degree_2s_minus_1(s):
+    T = gauss_legendre_tableau(s)
+    c, b = np.array(T.nodes, float), np.array(T.weights, float)
+    for k in range(2 * s):
+        assert abs(b @ c ** k - 1 / (k + 1)) < 1e-15
+    assert abs(b @ c ** (2 * s) - 1 / (2 * s + 1)) > 1e-6  # and not beyond
+    assert T.interior == s - 1
+
+
+@pytest.mark.parametrize("s", [2, 3, 4, 5, 6])
+def test_lobatto_nodes_integrate_to_degree_2s_minus_3(s):
+    T = lobatto_tableau(s)
+    c, b = np.array(T.nodes, float), np.array(T.weights, float)
+    assert c[0] == 0 and c[-1] == 1 and T.control == T.nodes
+    for k in range(2 * s - 2):
+        assert abs(b @ c ** k - 1 / (k + 1)) < 1e-15
+    assert T.interior == s - 2
+
+
+def test_the_low_tables_are_exact():
+    T = gauss_legendre_tableau(2)
+    assert T.nodes == (sp.Rational(1, 2) - sp.sqrt(3) / 6, sp.Rational(1, 2) + sp.sqrt(3) / 6)
+    assert T.weights == (sp.Rational(1, 2), sp.Rational(1, 2))
+    assert lobatto_tableau(3).weights == (sp.Rational(1, 6), sp.Rational(2, 3),
+                                          sp.Rational(1, 6))
+    # the Lagrange basis at the nodes sums to one, its slopes to zero
+    for row, slope in zip(T.values, T.slopes):
+        assert sp.simplify(sum(row) - 1) == 0 and sp.simplify(sum(slope)) == 0
+
+
+# --- Gauss–Legendre is Gauss collocation ------------------------------------------------------
+
+GAUSS_RK = {  # Butcher tables of the Gauss methods (Hairer–Nørsett–Wanner II.7, Table 7.4)
+    2: (np.array([[1 / 4, 1 / 4 - np.sqrt(3) / 6], [1 / 4 + np.sqrt(3) / 6, 1 / 4]]),
+        np.array([1 / 2, 1 / 2])),
+    3: (np.array([[5 / 36, 2 / 9 - np.sqrt(15) / 15, 5 / 36 - np.sqrt(15) / 30],
+                  [5 / 36 + np.sqrt(15) / 24, 2 / 9, 5 / 36 - np.sqrt(15) / 24],
+                  [5 / 36 + np.sqrt(15) / 30, 2 / 9 + np.sqrt(15) / 15, 5 / 36]]),
+        np.array([5 / 18, 4 / 9, 5 / 18])),
+}
+
+
+def _gauss_rk(y0: np.ndarray, H: float, steps: int, s: int) -> np.ndarray:
+    """The s-stage Gauss collocation method on the pendulum (fixed-point stages)."""
+    A, b = GAUSS_RK[s]
+    ys, y = [y0], np.array(y0, float)
+    for _ in range(steps):
+        K = np.tile(np.array(_pendulum_rhs(0, y)), (s, 1))
+        for _ in range(200):
+            new = np.array([_pendulum_rhs(0, y + H * A[i] @ K) for i in range(s)])
+            if np.abs(new - K).max() == 0:
+                break
+            K = new
+        y = y + H * b @ K
+        ys.append(y)
+    return np.array(ys)
+
+
+@pytest.mark.parametrize("s", [2, 3])
+def test_gauss_legendre_is_gauss_collocation(s):
+    """Hairer–Lubich–Wanner VI Thm 6.4: with s Gauss nodes and polynomials of degree s the
+    Galerkin variational integrator is the s-stage Gauss collocation method; the positions
+    agree with an independent Runge–Kutta implementation to rounding."""
+    sim = _pendulum().discretize(h, sg.GaussLegendre(s)).euler_lagrange().compile()
+    params = {"h": 0.05, **PEND}
+    state = sim.from_velocity({"theta": 0.3}, [0.5], params)
+    q = np.asarray(sim.simulate(state, 40, params).configurations()).ravel()
+    reference = _gauss_rk(np.array([0.3, 0.5]), 0.05, 41, s)[:, 0]
+    assert np.abs(q - reference).max() < 1e-13
+
+
+# --- the observed orders ---------------------------------------------------------------------
+
+@pytest.mark.parametrize("scheme, steps", [
+    (sg.GaussLegendre(2), [10, 20, 40]), (sg.LobattoIIIAB(3), [10, 20, 40]),
+    (sg.GaussLegendre(3), [8, 16, 32]), (sg.LobattoIIIAB(4), [8, 16, 32]),
+])
+def test_the_observed_order_on_r(scheme, steps):
+    report = sg.convergence_order(_pendulum(), scheme, ({"theta": 0.3}, [0.5]), PEND, 1.0,
+                                  steps, reference=[_pendulum_reference(1.0)])
+    assert report.expected == scheme.order
+    assert abs(report.order - scheme.order) < 0.1, report
+
+
+def _rigid_reference(T: float) -> np.ndarray:
+    Jn, xi0 = np.diag([1.0, 2.0, 3.0]), np.array([0.3, 1.0, 0.4])
+
+    def rhs(t, y):
+        R, w = y[:9].reshape(3, 3), y[9:]
+        hat = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+        return np.r_[(R @ hat).ravel(), np.linalg.solve(Jn, np.cross(Jn @ w, w))]
+
+    sol = solve_ivp(rhs, (0, T), np.r_[np.eye(3).ravel(), xi0], method="DOP853",
+                    rtol=1e-13, atol=1e-13)
+    return sol.y[:9, -1]
+
+
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(3)])
+def test_the_observed_order_on_so3_is_four(scheme):
+    """The free rigid body J = diag(1, 2, 3) on SO(3), through the Cayley retraction."""
+    report = sg.convergence_order(_rigid_body(), scheme,
+                                  ({"R": np.eye(3)}, [0.3, 1.0, 0.4]), RIGID, 2.0,
+                                  [20, 40, 80], reference=_rigid_reference(2.0))
+    assert abs(report.order - 4) < 0.1, report
+
+
+@pytest.mark.slow
+def test_the_observed_order_on_so3_is_six():
+    report = sg.convergence_order(_rigid_body(), sg.GaussLegendre(3),
+                                  ({"R": np.eye(3)}, [0.3, 1.0, 0.4]), RIGID, 2.0,
+                                  [10, 20, 40], reference=_rigid_reference(2.0))
+    assert abs(report.order - 6) < 0.1, report
+
+
+def test_holonomic_constraints_with_lobatto_at_order_four():
+    """The pendulum in Cartesian coordinates, x² + y² = 1, with Lobatto IIIA–IIIB (3): the
+    constraint at every node (docs/conventions.md §22); its angle against DOP853."""
+    system = sg.ContinuousSystem(
+        sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - grav * q[1],
+        parameters=[h, grav], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1],
+        name="cartesian")
+    theta0, omega0 = 0.3, 0.5
+    q0 = {"x": np.sin(theta0), "y": -np.cos(theta0)}
+    v0 = [omega0 * np.cos(theta0), omega0 * np.sin(theta0)]
+    angle = _pendulum_reference(1.0)
+    reference = [np.sin(angle), -np.cos(angle)]
+    report = sg.convergence_order(system, sg.LobattoIIIAB(3), (q0, v0), PEND, 1.0,
+                                  [10, 20, 40], reference=reference)
+    assert abs(report.order - 4) < 0.1, report
+    with pytest.raises(UnsupportedFeatureError, match="LobattoIIIAB"):
+        system.discretize(h, sg.GaussLegendre(2))
+
+
+# --- structure ---------------------------------------------------------------------------------
+
+def test_the_one_step_map_is_symplectic():
+    """Coupled oscillators on R² with GaussLegendre(2): the step is linear, so its map
+    (q_{k−1}, q_k) ↦ (q_k, q_{k+1}) and the momenta p_k = F⁺L are read exactly from runs of
+    one step from basis states; in (q, p) the map M satisfies MᵀΩM = Ω to rounding."""
+    k1, k2, c = 1.0, 2.0, 0.5
+    system = sg.ContinuousSystem(
+        sg.EuclideanSpace("a b"),
+        lambda q, v: (v[0] ** 2 + 2 * v[1] ** 2) / 2
+        - (k1 * q[0] ** 2 + k2 * q[1] ** 2 + 2 * c * q[0] * q[1]) / 2,
+        parameters=[h], name="coupled")
+    sim = system.discretize(h, sg.GaussLegendre(2)).euler_lagrange().compile()
+    params = {"h": 0.3}
+    basis = np.eye(4)
+    Phi = np.column_stack([sim.simulate(e, 1, params).states[1] for e in basis])
+    P = np.column_stack([sg.diagnostics.momenta(sim.simulate(e, 0, params)).plus[0]
+                         for e in basis])
+    to_qp = np.vstack([basis[2:], P])  # (q_k, p_k) from (q_{k−1}, q_k)
+    M = to_qp @ Phi @ np.linalg.inv(to_qp)
+    Omega = np.block([[np.zeros((2, 2)), np.eye(2)], [-np.eye(2), np.zeros((2, 2))]])
+    assert np.abs(M.T @ Omega @ M - Omega).max() < 1e-13
+    assert np.abs(M - np.eye(4)).max() > 0.1  # a real step
+
+
+def test_momentum_maps_are_conserved_to_rounding():
+    """A particle in a central field on R² (angular momentum q × p) and the free rigid body
+    on SO(3) (spatial angular momentum R_k·Π_k), GaussLegendre(2), 2 000 steps."""
+    kepler = sg.ContinuousSystem(
+        sg.EuclideanSpace("x y"),
+        lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 + 1 / sp.sqrt(q[0] ** 2 + q[1] ** 2),
+        parameters=[h], name="kepler")
+    sim = kepler.discretize(h, sg.GaussLegendre(2)).euler_lagrange().compile()
+    params = {"h": 0.01}
+    traj = sim.simulate(sim.from_velocity({"x": 1.0, "y": 0.0}, [0.0, 1.2], params), 2000,
+                        params)
+    q, p = traj.states[:, 2:], sg.diagnostics.momenta(traj).plus
+    L = q[:, 0] * p[:, 1] - q[:, 1] * p[:, 0]
+    # the rounding floor: each step's residual at rounding, amplified by 1/h in p (the
+    # midpoint rule's run of the same orbit drifts by 6·10⁻¹³)
+    assert abs(L[0] - 1.2) < 1e-12 and np.abs(L - L[0]).max() < 2e-12
+    rigid = _rigid_body().discretize(h, sg.GaussLegendre(2)).euler_lagrange().compile()
+    params = {"h": 0.05, **RIGID}
+    traj = rigid.simulate(rigid.from_velocity({"R": np.eye(3)}, [0.3, 1.0, 0.4], params),
+                          2000, params)
+    R = np.asarray(traj.configurations())[1:]
+    Pi = sg.diagnostics.momenta(traj).plus
+    spatial = np.einsum("kij,kj->ki", R, Pi)
+    assert np.abs(spatial - spatial[0]).max() < 1e-12
+    assert np.abs(spatial[0] - [0.3, 2.0, 1.2]).max() < 1e-12  # J ξ₀ at R₀ = I
+
+
+def test_the_energy_error_is_bounded():
+    """10⁵ steps of the pendulum from 2 rad with GaussLegendre(2) at h = 0.1: the discrete
+    energy oscillates within O(h⁴) (7.7·10⁻⁴; the midpoint rule's: 0.26) and does not
+    drift."""
+    sim = _pendulum().discretize(h, sg.GaussLegendre(2)).euler_lagrange().compile()
+    params = {"h": 0.1, **PEND}
+    state = sim.from_velocity({"theta": 2.0}, [0.0], params)
+    traj = sim.simulate(state, 100_000, params, every=10)
+    E = sg.diagnostics.energy(traj)
+    exact = -9.81 * np.cos(2.0)
+    error = np.abs(E - exact)
+    assert error.max() < 1e-3
+    first, last = error[:1000].max(), error[-1000:].max()
+    assert last < 1.01 * first
+
+
+# --- refusals ----------------------------------------------------------------------------------
+
+def test_what_is_not_supported_is_refused():
+    forced = sg.ContinuousSystem(sg.EuclideanSpace("q"), lambda q, v: v[0] ** 2 / 2,
+                                 parameters=[h], forces=lambda q, v: [-v[0]], name="damped")
+    with pytest.raises(UnsupportedFeatureError, match="forces"):
+        forced.discretize(h, sg.GaussLegendre(2))
+    exp = sg.ContinuousSystem(sg.SO3("R", retraction="exp"),
+                              lambda R, xi: (xi.T * xi)[0, 0] / 2, parameters=[h], name="e")
+    with pytest.raises(UnsupportedFeatureError, match="Cayley"):
+        exp.discretize(h, sg.LobattoIIIAB(3))
+    system = _pendulum().discretize(h, sg.GaussLegendre(2))
+    assert system.stages == 1
+    for call in (system.legendre, lambda: system.noether(0), system.lie_poisson):
+        with pytest.raises(UnsupportedFeatureError, match="internal stages"):
+            call()
+    step = system.euler_lagrange()
+    with pytest.raises(UnsupportedFeatureError, match="internal stages"):
+        sg.solve_boundary_value(step, [0.3], [0.5], 10, params={"h": 0.1, "g": 9.81})
+
+
+def test_stages_on_discrete_systems_are_checked():
+    G = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    with pytest.raises(ShapeError, match="stages"):
+        sg.DiscreteSystem(G, lambda g, z: z[0] ** 2, parameters=[h], stages=-1)
+    with pytest.raises(UnsupportedFeatureError, match="first-order"):
+        sg.SecondOrderSystem(G, lambda g1, g2, z: z[0] ** 2, parameters=[h], stages=1)
+    # a Lagrangian that ignores its stages cannot determine them
+    with pytest.raises(sg.DegenerateSystemError):
+        sg.DiscreteSystem(G, lambda g, z: (g.target[0] - g.source[0]) ** 2 / h,
+                          parameters=[h], stages=1).euler_lagrange()
+
+
+def test_stages_that_do_not_converge_are_reported_not_returned():
+    """A Lagrangian whose stage equation has no root (∂L/∂ζ = 1 + ζ² > 0): the energy is
+    refused with a DiagnosticsError rather than computed at a non-solution."""
+    G = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    system = sg.DiscreteSystem(
+        G, lambda g, z: (g.target[0] - g.source[0]) ** 2 / (2 * h) + z[0] + z[0] ** 3 / 3
+        + (g.target[0] - g.source[0]) * z[0] ** 2, parameters=[h], time_step=h, stages=1)
+    sim = system.euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate(np.array([0.0, 0.1]), 0, {"h": 0.1})
+    with pytest.raises(DiagnosticsError, match="internal stages"):
+        sg.diagnostics.energy(traj)
