@@ -289,3 +289,13 @@ def test_stages_that_do_not_converge_are_reported_not_returned():
     traj = sim.simulate(np.array([0.0, 0.1]), 0, {"h": 0.1})
     with pytest.raises(DiagnosticsError, match="internal stages"):
         sg.diagnostics.energy(traj)
+
+
+def test_the_latex_prints_every_stage_equation():
+    """The printed step has the junction row and both stage rows (a form in named pieces of
+    the junction alone is not the step), and the document compiles elsewhere
+    (tests/test_latex_pdf.py runs LaTeX)."""
+    step = _pendulum().discretize(h, sg.LobattoIIIAB(3)).euler_lagrange()
+    text = step.latex()
+    assert text.count("0 &=") == len(step) == 3
+    assert r"(\zeta_{k})_{1}" in text and r"(\zeta_{k+1})_{1}" in text

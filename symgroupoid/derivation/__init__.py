@@ -7,7 +7,7 @@ from ._assembly import (
     field_derivatives,
     slot_derivatives,
 )
-from ._callables import as_scalar, call_user, check_values
+from ._callables import as_scalar, call_user, check_values, checked_callable
 from ._energy_momentum import (
     NONHOLONOMIC_METHODS,
     ConservedQuantities,
@@ -72,7 +72,8 @@ from ._window import step_jacobian
 __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep",
            "ForceFunctions", "JunctionNodes", "LegendreForms", "LiePoissonForms", "NoetherForms",
            "Partial", "PieceRule", "SystemFunctions", "TermNodes", "WindowAction", "WindowPieces",
-           "as_scalar", "call_user", "chart_of", "check_nonholonomic_dimensions", "check_values",
+           "as_scalar", "call_user", "checked_callable", "chart_of",
+           "check_nonholonomic_dimensions", "check_values",
            "conserved_quantities", "distribution_coefficients", "energy_momentum_step",
            "evaluate_system", "extrapolate",
            "field_derivatives", "force_functions", "identified_time_steps", "impulse_form",

@@ -25,6 +25,15 @@ _NON_FINITE = {sp.nan: "nan (not a number)", sp.zoo: "zoo (complex infinity)",
                sp.oo: "oo (infinity)", -sp.oo: "-oo (minus infinity)"}
 
 
+def checked_callable(func: Callable) -> Callable:
+    """Mark ``func`` as built by the library from expressions already checked by
+    :func:`call_user` (e.g. a Galerkin discrete Lagrangian made of the user's L evaluated
+    once on generic symbols, docs/conventions.md §22): its values are not traversed again,
+    which on large shared expression trees costs more than everything else."""
+    func.symgroupoid_checked = True
+    return func
+
+
 def call_user(system_name: str, what: str, func: Callable, *arrows, smooth: bool = False,
               display: dict | None = None):
     """Call ``func(*arrows)``; wrap any exception with the system name and ``what``.
@@ -49,6 +58,8 @@ def call_user(system_name: str, what: str, func: Callable, *arrows, smooth: bool
         raise CallableError(
             f"{system_name}: evaluating the {what} on symbolic arrows raised "
             f"{type(exc).__name__}: {exc}") from exc
+    if getattr(func, "symgroupoid_checked", False):
+        return value
     check_values(system_name, what, value, arrows, display)
     if smooth:
         check_smooth(system_name, what, value, display if display is not None

@@ -2,7 +2,6 @@
 
 from ._abbreviations import LatexOptionError, UnusedAbbreviationWarning
 from ._continuous import ContinuousSystem, GaussLegendre, LobattoIIIAB
-from ._galerkin import GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._findings import (
     DEPENDENT_CONSTRAINTS,
     IDENTICALLY_ZERO,
@@ -18,6 +17,7 @@ from ._forcing import (
     rayleigh_damping,
     trapezoid_forces,
 )
+from ._galerkin import GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._kinetic import DEGENERATE_KINETIC
 from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines, latex
 from ._layout import PAGE_WIDTH

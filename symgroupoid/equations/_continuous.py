@@ -34,7 +34,7 @@ import sympy as sp
 
 from .._arguments import integer_argument
 from .._errors import InputTypeError, ShapeError, UnsupportedFeatureError
-from ..derivation import call_user
+from ..derivation import call_user, checked_callable
 from ..groupoids import configuration_factors, pair_groupoid_of
 from ..ir import Graph, Program, from_sympy
 from ._galerkin import GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
@@ -203,6 +203,7 @@ class ContinuousSystem:
         inner = tableau.interior
         n_stage = inner * (sum(f.dim for f in self.factors) + n_psi)
 
+        @checked_callable  # made of the generic L, checked once (_generic_lagrangian)
         def L_d(g, zeta):
             return self._galerkin_action(tableau, h, G, read(g), list(zeta), n_psi)
 
@@ -262,12 +263,44 @@ class ContinuousSystem:
                 q.append(f.along(a, x))
                 v.append(f.chart_velocity(x, xdot))
             at_nodes.append(q)
-            total += b_i * self._lagrangian(self._values(q), self._values(v))
+            total += b_i * self._lagrangian_at(q, v)
         action = h * total
         for q in at_nodes[1:-1] if n_psi else []:  # Lobatto: the interior nodes
             psi = self._holonomic_at(G, [c for part in q for c in part])
             action += sum((next(it) * c for c in psi), sp.S.Zero)
         return action
+
+    def _generic_lagrangian(self) -> tuple[sp.Expr, list, list]:
+        """L on generic symbols, called (and checked) once: the expression, and per factor
+        the symbols of its configuration (the coordinates of a group element's matrix) and
+        velocity."""
+        if getattr(self, "_generic", None) is None:
+            qs, vs, q, v = [], [], [], []
+            for i, f in enumerate(self.factors):
+                if f.is_group:
+                    G = f.space
+                    coords = [sp.Dummy(f"g{i}_{a}", real=True) for a in range(G.arrow_dim)]
+                    q.append(G.matrix(coords))
+                else:
+                    coords = [sp.Dummy(f"q{i}_{a}", real=True) for a in range(f.dim)]
+                    q.append(sp.Matrix(coords))
+                velocity = [sp.Dummy(f"v{i}_{a}", real=True) for a in range(f.dim)]
+                v.append(sp.Matrix(velocity))
+                qs.append(coords)
+                vs.append(velocity)
+            self._generic = (self._lagrangian(self._values(q), self._values(v)), qs, vs)
+        return self._generic
+
+    def _lagrangian_at(self, q: list, v: list) -> sp.Expr:
+        """L at configurations ``q`` and velocities ``v`` (lists per factor), by substitution
+        into :meth:`_generic_lagrangian`."""
+        L, qs, vs = self._generic_lagrangian()
+        sub = {}
+        for f, coords, velocity, qi, vi in zip(self.factors, qs, vs, q, v):
+            values = f.space.entries(qi) if f.is_group else list(qi)
+            sub.update(zip(coords, values))
+            sub.update(zip(velocity, list(vi)))
+        return L.xreplace(sub)
 
     def _lagrangian(self, q, v) -> sp.Expr:
         value = call_user(self.name, "L(q, v)", self.lagrangian, q, v, smooth=True,

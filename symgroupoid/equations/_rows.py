@@ -71,8 +71,12 @@ def checked_form(printed: Printed, step, printer: GroupoidLatexPrinter,
                  explicit: Sequence) -> Printed | None:
     """``printed`` if each of its equations, written out, is the explicit residual (an
     equation whose collected terms are not is printed uncollected, if that one is) and each
-    "where" row holds; else None."""
+    "where" row holds; else None.  A form that prints fewer or more equations than there
+    are residuals (e.g. pieces of the junction rows alone, without the stage rows of
+    docs/conventions.md §22) is not the step."""
     form = printed.form
+    if len(printed.equations) != len(explicit):
+        return None
     for i, (terms, residual) in enumerate(zip(printed.equations, explicit)):
         if not equals_explicit(sp.Add(*[t.value() for t in terms]), residual, form.layers):
             terms = collect_terms(form.equations[i], (), (), printer)
