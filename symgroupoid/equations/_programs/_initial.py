@@ -10,8 +10,8 @@ the dual of the section basis, the first arrow g₁ ∈ α⁻¹(q₀) and its mu
 ⟨F⁻[L + λ·φ](g), X⟩ = X⃗[L + λ·φ](g) (``system.legendre().minus``), in the α-fibre chart
 g₁ = arrow_from(q₀, τ(x)); with internal stages ζ (docs/conventions.md §22) the unknowns are
 (x, ζ, λ₁) and the rows ∂L/∂ζ(g₁, ζ) = 0 follow F⁻.  Second order (seed 001 §4): on the
-window (g₀, g₁, g₂), the 2·rank components of F⁻[L + λ·Φ](g₀, g₁, g₂) = p₀ and Φ on both terms, in the fibre charts
-of g₁ and g₂.  The Jacobian ∂F/∂(x, λ) is forward-mode differentiation on the graph, through
+window (g₀, g₁, g₂), the 2·rank components of F⁻[L + λ·Φ](g₀, g₁, g₂) = p₀ and Φ on both
+terms, in the fibre charts of g₁ and g₂.  The Jacobian ∂F/∂(x, λ) is forward-mode differentiation on the graph, through
 the fibre chart as for a step (docs/conventions.md §2).
 
 Onto M = {ψ = 0}: with e(x) = arrow_from(q, τ_q(x)), ψ(β(e(x))) and its Jacobian in x, and
