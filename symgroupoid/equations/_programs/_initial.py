@@ -11,8 +11,9 @@ the dual of the section basis, the first arrow g₁ ∈ α⁻¹(q₀) and its mu
 g₁ = arrow_from(q₀, τ(x)); with internal stages ζ (docs/conventions.md §22) the unknowns are
 (x, ζ, λ₁) and the rows ∂L/∂ζ(g₁, ζ) = 0 follow F⁻.  Second order (seed 001 §4): on the
 window (g₀, g₁, g₂), the 2·rank components of F⁻[L + λ·Φ](g₀, g₁, g₂) = p₀ and Φ on both
-terms, in the fibre charts of g₁ and g₂.  The Jacobian ∂F/∂(x, λ) is forward-mode differentiation on the graph, through
-the fibre chart as for a step (docs/conventions.md §2).
+terms, in the fibre charts of g₁ and g₂.  The Jacobian ∂F/∂(x, λ) is forward-mode
+differentiation on the graph, through the fibre chart as for a step (docs/conventions.md
+§2).
 
 Onto M = {ψ = 0}: with e(x) = arrow_from(q, τ_q(x)), ψ(β(e(x))) and its Jacobian in x, and
 the arrow e(x)⁻¹·a (the groupoid's own multiplication: on a pair groupoid (q, q₁) ↦ (q′, q₁)).
