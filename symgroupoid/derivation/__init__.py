@@ -40,6 +40,7 @@ from ._momenta import (
     momentum_symbols,
     noether_forms,
     second_order_legendre_forms,
+    stage_rows,
     vanishes_on_restriction,
     vanishing_check,
 )
@@ -80,7 +81,8 @@ __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep
            "input_arguments", "input_symbols", "junction_step", "junction_variation",
            "legendre_forms", "lie_poisson_forms", "limit_points", "matrix_form_residuals",
            "matrix_form_values", "may_be_step", "momentum_symbols", "named", "next_arrow",
-           "noether_forms", "nonholonomic_step", "parameter_value", "partial_residuals",
+           "noether_forms", "stage_rows", "nonholonomic_step", "parameter_value",
+           "partial_residuals",
            "piece_residuals", "reduce_functions", "second_order_legendre_forms",
            "slot_derivatives", "step_jacobian", "time_step_candidates", "vanishes_on_restriction",
            "vanishing_check", "window", "window_in_pieces"]

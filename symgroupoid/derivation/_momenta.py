@@ -164,6 +164,13 @@ def _base_function(f, q: Sequence, name: str = "", parameters: Sequence = ()) ->
     return expr
 
 
+def stage_rows(fs: SystemFunctions, arrow: Sequence) -> list:
+    """∂L/∂ζ(g, ζ) at the arrow with coordinates ``arrow``, in the generic stages
+    ``fs.stages`` (docs/conventions.md §22)."""
+    sub = slot_substitution(fs.slots[0], tuple(arrow))
+    return [sp.diff(fs.lagrangian, z).xreplace(sub) for z in fs.stages]
+
+
 @dataclass
 class NoetherForms:
     """F_X = ⟨F⁺L, X(β(g))⟩ + f(β(g)) and the symmetry defect (zero for a symmetry)."""

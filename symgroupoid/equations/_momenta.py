@@ -18,6 +18,7 @@ from .._errors import (
 from .._lambdify import NUMPY_MODULES
 from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
 from ..ir import Graph, Program, from_sympy
+from ._programs import solve_stages
 from ._step import StepEquations
 
 #: characters of an expression shown in a repr before it is cut
@@ -113,14 +114,70 @@ class NoetherQuantity:
 
         return inline_latex(self.expr, self.multipliers, self.parameters)
 
+    #: a system with internal stages (docs/conventions.md §22): the generic stages ζ the
+    #: quantity and the defect are written in, and the stage rows ∂L/∂ζ(g, ζ) whose root ζ*
+    #: they are evaluated at (the envelope theorem: F^±L_d(g) = F^±L(g, ζ*))
+    stages: tuple = ()
+    stage_rows: tuple = ()
+
     @functools.cached_property
     def _program(self) -> Program:
         g = Graph()
         names = [*self.arrow, *self.multipliers]
-        symbols = {s: g.input(s) for s in (*names, *self.parameters)
+        symbols = {s: g.input(s) for s in (*names, *self.stages, *self.parameters)
                    if isinstance(s, sp.Symbol)}
-        node = from_sympy(g, self.expr, symbols, "the Noether quantity")
-        return Program(g, {"known": names, "p": list(self.parameters)}, {"F": [node]})
+        memo: dict = {}
+        node = from_sympy(g, self.expr, symbols, "the Noether quantity", memo)
+        inputs = {"known": names, "p": list(self.parameters)}
+        outputs = {"F": [node]}
+        if self.stages:
+            from ..derivation import step_jacobian
+
+            inputs["zeta"] = list(self.stages)
+            rows = [from_sympy(g, r, symbols, "the stage rows", memo) for r in self.stage_rows]
+            J = step_jacobian(g, rows, [symbols[z] for z in self.stages])
+            outputs.update({"rows": rows, "J": [c for row in J for c in row],
+                            "defect": [from_sympy(g, self.defect, symbols,
+                                                  "the symmetry defect", memo)]})
+        return Program(g, inputs, outputs)
+
+    def _at_stages(self, outputs: list, known: np.ndarray, p: np.ndarray) -> list:
+        """``outputs`` of the program at arrows ``known`` (n, R), at their stages ζ* for a
+        system with internal stages."""
+        names = ["known", "zeta", "p"] if self.stages else ["known", "p"]
+        f = self._program.numpy_function(outputs, names)
+        if not self.stages:
+            return f(known, p)
+        rows = self._program.numpy_function(["rows", "J"], names)
+        zeta = solve_stages(rows, known, p, len(self.stages), "the Noether quantity")
+        return f(known, zeta, p)
+
+    def check_with_stages(self, groupoid) -> tuple[bool, str]:
+        """Whether the defect vanishes at ζ* at random arrows of ``groupoid`` (with random
+        multipliers and parameters in [0.5, 1.5]), for a system with internal stages; and
+        how that was decided."""
+        from .._errors import DiagnosticsError
+
+        rng = np.random.default_rng(20260)
+        usable = 0
+        for _ in range(8):
+            known = np.r_[np.asarray(groupoid.random_arrow(rng), float),
+                          rng.uniform(0.5, 1.5, len(self.multipliers))][:, None]
+            p = rng.uniform(0.5, 1.5, len(self.parameters))
+            try:
+                with np.errstate(all="ignore"):
+                    F, defect = self._at_stages(["F", "defect"], known, p)
+            except DiagnosticsError:
+                continue
+            F, defect = float(np.ravel(F)[0]), float(np.ravel(defect)[0])
+            if not (np.isfinite(F) and np.isfinite(defect)):
+                continue
+            usable += 1
+            if abs(defect) > 1e-9 * max(abs(F), 1.0):
+                return False, "numeric at the stages ζ* of random arrows"
+        if usable < 3:
+            return False, "undecided: the stages could not be solved at random arrows"
+        return True, "numeric at the stages ζ* of random arrows"
 
     def along(self, trajectory) -> np.ndarray:
         """F_X at every kept state of ``trajectory``, shape (R,): one vectorised evaluation.
@@ -149,10 +206,9 @@ class NoetherQuantity:
             raise ParameterError(f"NoetherQuantity.along: the trajectory gives no value for "
                                  f"{', '.join(missing)}")
         p = np.array([float(values[str(s)]) for s in self.parameters])
-        f = self._program.numpy_function(["F"], ["known", "p"])
         with np.errstate(all="ignore"):
-            out = np.broadcast_to(np.asarray(f(np.ascontiguousarray(states.T), p)[0][0],
-                                             float), (len(states),))
+            (F,) = self._at_stages(["F"], np.ascontiguousarray(states.T), p)
+            out = np.broadcast_to(np.asarray(F[0], float), (len(states),))
         if not np.isfinite(out).all():
             k = int(np.flatnonzero(~np.isfinite(out))[0])
             raise DomainError(f"NoetherQuantity.along: the quantity F_X = {_short(self.expr)} "

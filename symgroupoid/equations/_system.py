@@ -42,6 +42,7 @@ from ..derivation import (
     may_be_step,
     noether_forms,
     nonholonomic_step,
+    stage_rows,
     time_step_candidates,
     vanishes_on_restriction,
     vanishing_check,
@@ -308,9 +309,10 @@ class DiscreteSystem(_EvaluatedSystem):
         multiplier term −λ·dψ(α(g))(ρ(X)), and X is a symmetry when the defect vanishes on
         N = G|_M: X tangent to M = {ψ = 0} and L invariant there (docs/conventions.md §15).
         """
-        self._refuse_stages("the Noether quantity")
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
                               section, f, self.parameters)
+        if self.stages:
+            return self._noether_with_stages(forms)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
                                               self.functions):
@@ -325,6 +327,19 @@ class DiscreteSystem(_EvaluatedSystem):
         elif forces is not None:
             quantity.impulse_refused = (f"{self.name}: the forces' impulse of a second-order "
                                         f"system is not supported yet")
+        return quantity
+
+    def _noether_with_stages(self, forms) -> NoetherQuantity:
+        """The Noether quantity of a system with internal stages: F_X and the defect at the
+        stages ζ* of the arrow (docs/conventions.md §22), the symmetry checked there at
+        random arrows."""
+        if self.functions.forces is not None or self.n_holonomic:
+            self._refuse_stages("the Noether quantity with forces or holonomic constraints")
+        quantity = NoetherQuantity(forms, False, self.parameters)
+        quantity.stages = tuple(self.functions.stages)
+        quantity.stage_rows = tuple(stage_rows(self.functions, forms.arrow))
+        quantity.is_symmetry, quantity.verification = quantity.check_with_stages(
+            self.groupoid)
         return quantity
 
     def lie_poisson(self) -> LiePoissonEquations:

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._arguments import flag_argument
 from .._errors import DiagnosticsError, SymgroupoidError, TimeStepError  # noqa: F401 (re-exported)
-from ..equations import StatePrograms, state_programs
+from ..equations import StatePrograms, solve_stages, state_programs
 
 _EPS = float(np.finfo(float).eps)
 
@@ -75,30 +75,11 @@ class _Evaluator:
         return out
 
 
-    def stages(self, known: np.ndarray, p: np.ndarray, max_iterations: int = 50
-               ) -> np.ndarray:
-        """ζ* at every state (nz, R): Newton on the stage rows ∂L/∂ζ = 0 from ζ = 0, all
-        states at once (docs/conventions.md §22); a :class:`DiagnosticsError` where it does
-        not converge to the rounding level."""
+    def stages(self, known: np.ndarray, p: np.ndarray) -> np.ndarray:
+        """ζ* at every state (nz, R) (:func:`~symgroupoid.equations.solve_stages`,
+        docs/conventions.md §22)."""
         f, _ = self._function("stages", None, ("out", "J"))
-        nz, R = self.sg.n_stages, known.shape[1]
-        zeta = np.zeros((nz, R))
-        for _ in range(max_iterations):
-            with np.errstate(all="ignore"):
-                F, J = f(known, zeta, p)
-            F = np.broadcast_to(np.asarray(F, float), (nz, R))
-            J = np.broadcast_to(np.asarray(J, float), (nz * nz, R)).reshape(nz, nz, R)
-            try:
-                delta = np.linalg.solve(J.transpose(2, 0, 1), F.T[..., None])[..., 0].T
-            except np.linalg.LinAlgError:
-                break
-            zeta = zeta - delta
-            if not np.isfinite(zeta).all():
-                break
-            if (np.abs(delta) <= 8 * _EPS * np.maximum(1.0, np.abs(zeta))).all():
-                return zeta
-        raise DiagnosticsError(f"{self.sg.name}: the internal stages of some state could not "
-                               f"be solved (∂L/∂ζ = 0 has no nearby root from ζ = 0 there)")
+        return solve_stages(f, known, p, self.sg.n_stages, self.sg.name)
 
 
 _EVALUATORS: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()

@@ -24,6 +24,7 @@ from ._initial import (
     second_order_momentum_program,
     source_projection_program,
 )
+from ._stages import solve_stages
 from ._state import StatePrograms, state_programs
 from ._step import input_jacobian_program, step_program
 from ._window import (
@@ -37,5 +38,5 @@ from ._window import (
 __all__ = ["MomentumProgram", "StatePrograms", "WindowPrograms", "action_program",
            "constraint_program", "cost_program", "holonomic_program", "magnitude",
            "momentum_program", "second_order_momentum_program",
-           "source_projection_program", "state_programs", "input_jacobian_program",
+           "source_projection_program", "state_programs", "solve_stages", "input_jacobian_program",
            "step_program", "structure_program", "window_programs"]

@@ -1,0 +1,47 @@
+"""The internal stages ζ* of arrows, solved from their rows ∂L/∂ζ = 0 (docs/conventions.md
+§22): one vectorised Newton iteration over many arrows at once, for every evaluation of a
+quantity of a discrete Lagrangian with internal stages (momenta, energy, Noether
+quantities), whose value is that of L(g, ζ) at ζ = ζ*(g) by the envelope theorem."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from ..._errors import DiagnosticsError
+
+_EPS = float(np.finfo(float).eps)
+
+
+def solve_stages(rows: Callable, known: np.ndarray, p: np.ndarray, n_stages: int,
+                 name: str, max_iterations: int = 50) -> np.ndarray:
+    """ζ* at every arrow, shape (n_stages, R): Newton from ζ = 0 on ``rows(known, zeta, p)
+    -> (F, J)`` (F the stage rows (n_stages, R), J their Jacobian ∂F/∂ζ row-major
+    (n_stages², R)), all arrows at once (``known`` (n, R)).  It stops when every update is at
+    the rounding level of ζ; a :class:`DiagnosticsError` where it does not converge (a
+    singular Jacobian, a non-finite iterate, or no convergence in ``max_iterations``): never
+    values at a non-solution."""
+    R = known.shape[1]
+    zeta = np.zeros((n_stages, R))
+    for _ in range(max_iterations):
+        with np.errstate(all="ignore"):
+            F, J = rows(known, zeta, p)
+        F = np.broadcast_to(np.asarray(F, float), (n_stages, R))
+        J = np.broadcast_to(np.asarray(J, float), (n_stages * n_stages, R))
+        try:
+            delta = np.linalg.solve(J.reshape(n_stages, n_stages, R).transpose(2, 0, 1),
+                                    F.T[..., None])[..., 0].T
+        except np.linalg.LinAlgError:
+            break
+        zeta = zeta - delta
+        if not np.isfinite(zeta).all():
+            break
+        if (np.abs(delta) <= 8 * _EPS * np.maximum(1.0, np.abs(zeta))).all():
+            return zeta
+    raise DiagnosticsError(f"{name}: the internal stages of some arrow could not be solved "
+                           f"(∂L/∂ζ = 0 has no root near ζ = 0 there, docs/conventions.md "
+                           f"§22)")
+
+
+__all__ = ["solve_stages"]
