@@ -69,7 +69,12 @@ def test_the_targets_interpolate_on_log_scales():
 
 
 def test_schemes_the_library_refuses_are_reported_not_implemented(monkeypatch):
+    """A scheme whose discretisation is refused is reported, not a crash of the run."""
+    def refused(scheme):
+        raise sg.UnsupportedFeatureError(f"{scheme} is refused here")
+
     monkeypatch.setattr(wp, "SCHEMES", (("GaussLegendre(3)", sg.GaussLegendre(3), 6),))
+    monkeypatch.setattr(wp, "build_scheme", refused)
     results = wp.Results("here", "now")
     assert wp.library_points(results, None, quick=True) == {}
     assert results.status == {"GaussLegendre(3)": "not implemented"} and results.points == []
