@@ -114,15 +114,21 @@ class StepEquations:
         the inputs of the known arrow, then of the new arrow (docs/conventions.md §20); a
         second-order step's: (len(self), 3m), the inputs u_{k−1}, u_k of the known pairs,
         then u_{k+1} of the new pair."""
-        from ._programs import input_jacobian_program
-
         m = len(self.inputs)
         if not m:
             raise UnsupportedFeatureError(f"{self.name}: the system has no inputs")
-        f = input_jacobian_program(self).numpy_function(["J_inputs"], ["u", "known", "p"])
-        (J,) = f(np.asarray(unknowns, float), np.asarray(knowns, float),
-                 self._param_vector(params))
+        (J,) = self._input_jacobian_function(np.asarray(unknowns, float),
+                                             np.asarray(knowns, float),
+                                             self._param_vector(params))
         return np.asarray(J, float).reshape(len(self), (self.order + 1) * m)
+
+    @functools.cached_property
+    def _input_jacobian_function(self):
+        """The NumPy function of ∂F/∂(inputs), built once (a controller linearises every
+        step)."""
+        from ._programs import input_jacobian_program
+
+        return input_jacobian_program(self).numpy_function(["J_inputs"], ["u", "known", "p"])
 
     @property
     def fibre_unknowns(self) -> tuple:
