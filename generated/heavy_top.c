@@ -1008,6 +1008,78 @@ static int heavy_top_trusted(const heavy_top_warm_start *warm, const double *gue
     return inside;
 }
 
+/* The time of a step on a time groupoid R x R x G (seed 000 section 6.3; HEAVY_TOP_TIME_UNKNOWN >= 0:
+ * t_{k+1} is unknown HEAVY_TOP_TIME_UNKNOWN, t_k and t_{k-1} are knowns HEAVY_TOP_TIME_KNOWN and
+ * HEAVY_TOP_TIME_BEFORE, and HEAVY_TOP_TIME_ROW >= 0 is the equation of the time section; see
+ * symgroupoid.stepper._time).  On such a step with an energy-preserving (unconstrained) time
+ * step both the energy equation and the others fix mainly the velocity, so the Jacobian is
+ * nearly singular along the step length: a guess O(h^2) off in G sends Newton's first update
+ * across the pole t_{k+1} = t_k to the time-reversed root g_{k+1} = g_k^-1 (an exact solution
+ * for every L_d with L_d(g^-1) = -L_d(g)).
+ * heavy_top_hold_time first moves the guess onto the fixed-step equations (seed 000 Example
+ * 6.2): Newton with t_{k+1} held at its guess, the time row replaced by t_{k+1} = guess, at
+ * most HEAVY_TOP_HOLD_ITERATIONS updates until one is at most HEAVY_TOP_HOLD_TOLERANCE (relative; they
+ * are not counted in the step's iterations); the guess is kept as it was when that fails (a
+ * singular or non-finite system, or no convergence).  Only for a step without constraints
+ * (HEAVY_TOP_TIME_ROW = -1 otherwise: a constraint t_{k+1} - t_k = h(g) fixes the step itself). */
+#define HEAVY_TOP_HOLD_ITERATIONS 8
+#define HEAVY_TOP_HOLD_TOLERANCE 1e-8
+/* the most a time step may grow or shrink in one step (heavy_top_time_step_kept) */
+#define HEAVY_TOP_STEP_RATIO 2.0
+
+static void heavy_top_hold_time(const double *known, const double *p, double *u)
+{
+#if HEAVY_TOP_TIME_ROW >= 0 && HEAVY_TOP_TIME_UNKNOWN >= 0
+    double F[HEAVY_TOP_N_EQUATIONS], J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], x[HEAVY_TOP_N_UNKNOWNS];
+    heavy_top_lu lu;
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < HEAVY_TOP_HOLD_ITERATIONS; ++it) {
+        double step;
+        heavy_top_residual_jacobian(x, known, p, F, J);
+        F[HEAVY_TOP_TIME_ROW] = 0.0;
+        for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+            J[HEAVY_TOP_TIME_ROW * HEAVY_TOP_N_UNKNOWNS + i] = 0.0;
+        }
+        J[HEAVY_TOP_TIME_ROW * HEAVY_TOP_N_UNKNOWNS + HEAVY_TOP_TIME_UNKNOWN] = 1.0;
+        if (heavy_top_lu_factor(J, &lu) != HEAVY_TOP_OK || heavy_top_lu_apply(&lu, F) != HEAVY_TOP_OK) {
+            return; /* singular or not finite: the guess as it was */
+        }
+        step = heavy_top_relative_norm(F, x);
+        for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+            x[i] -= F[i];
+        }
+        if (step <= HEAVY_TOP_HOLD_TOLERANCE) {
+            memcpy(u, x, sizeof x);
+            return;
+        }
+    }
+#else
+    (void)known;
+    (void)p;
+    (void)u;
+#endif
+}
+
+/* 1 when the solution u keeps the time step of a step on a time groupoid on its branch: its
+ * step h_{k+1} = t_{k+1} - t_k has the sign of the last step h_k = t_k - t_{k-1} and
+ * 1/HEAVY_TOP_STEP_RATIO <= h_{k+1}/h_k <= HEAVY_TOP_STEP_RATIO (or the check is off, factor = 0, or
+ * the step has no time).  A step halving or doubling at once resolves nothing; the reversed
+ * root has h_{k+1} = -h_k. */
+static int heavy_top_time_step_kept(const double *known, const double *u, double factor)
+{
+#if HEAVY_TOP_TIME_UNKNOWN >= 0
+    const double ratio = (u[HEAVY_TOP_TIME_UNKNOWN] - known[HEAVY_TOP_TIME_KNOWN])
+                         / (known[HEAVY_TOP_TIME_KNOWN] - known[HEAVY_TOP_TIME_BEFORE]);
+    return !(factor > 0.0) || (ratio >= 1.0 / HEAVY_TOP_STEP_RATIO && ratio <= HEAVY_TOP_STEP_RATIO);
+#else
+    (void)known;
+    (void)u;
+    (void)factor;
+    return 1;
+#endif
+}
+
 /* Adds the solution u of a step to the warm start.  When it held three solutions, the next
  * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
  * guessed u more closely than the linear one (heavy_top_relative_norm of the errors).  Smooth
@@ -1067,7 +1139,10 @@ static int heavy_top_inputs_valid(const double *u, long n_steps)
  * heavy_top_remember; chart coordinates and multipliers of consecutive steps), falling back to
  * heavy_top_predict if Newton fails from there or its solution lies outside the guess's trust
  * region (heavy_top_trusted; iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with HEAVY_TOP_BRANCH_JUMP.
+ * outside that region ends the run with HEAVY_TOP_BRANCH_JUMP.  On a time groupoid every guess is
+ * first solved onto the fixed-step equations (heavy_top_hold_time), and a solution whose time
+ * step leaves [1/HEAVY_TOP_STEP_RATIO, HEAVY_TOP_STEP_RATIO] times the last (heavy_top_time_step_kept, from
+ * the first step on) is outside in the same way.
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -1127,26 +1202,35 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
         } else {
             heavy_top_predict(current, p, x);
         }
+        heavy_top_hold_time(current, p, x);
         status = heavy_top_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
-        if (extrapolated) {
-            /* a solution far outside the trust region of the guess: another branch */
-            const int jumped = status == HEAVY_TOP_OK && !heavy_top_trusted(warm, guess, x, options->trust_factor);
-            if (status != HEAVY_TOP_OK || jumped) {
+        {
+            /* a solution far outside the trust region of the guess, or with its time step
+             * reversed or far from the last: another branch */
+            const int jumped = status == HEAVY_TOP_OK
+                               && ((extrapolated && !heavy_top_trusted(warm, guess, x, options->trust_factor))
+                                   || !heavy_top_time_step_kept(current, x, options->trust_factor));
+            if (extrapolated && (status != HEAVY_TOP_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */
                 double far[HEAVY_TOP_N_UNKNOWNS];
                 const double far_norm = residual_norms[k];
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 heavy_top_predict(current, p, x);
+                heavy_top_hold_time(current, p, x);
                 status = heavy_top_newton(current, p, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != HEAVY_TOP_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);
                     residual_norms[k] = far_norm;
                 }
-                if (status == HEAVY_TOP_OK ? !heavy_top_trusted(warm, guess, x, options->trust_factor) : jumped) {
+                if (status == HEAVY_TOP_OK ? !heavy_top_trusted(warm, guess, x, options->trust_factor)
+                                          || !heavy_top_time_step_kept(current, x, options->trust_factor)
+                                    : jumped) {
                     status = HEAVY_TOP_BRANCH_JUMP;
                 }
+            } else if (jumped) { /* from the prediction: no other guess to try */
+                status = HEAVY_TOP_BRANCH_JUMP;
             }
         }
         if (status == HEAVY_TOP_OK) {
@@ -1469,7 +1553,7 @@ const char *heavy_top_status_message(int status)
     case HEAVY_TOP_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case HEAVY_TOP_BRANCH_JUMP:
-        return "branch jump: the step's solution lies far outside the region the last steps predict (the nearby root of the step equations has disappeared; reduce the step)";
+        return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared; reduce the step)";
     default:
         return "unknown status";
     }

@@ -93,6 +93,10 @@ extern "C" {
 #define HEAVY_TOP_N_FIBRE 9
 #define HEAVY_TOP_N_CONSTRAINTS 0
 #define HEAVY_TOP_N_INPUTS 0
+#define HEAVY_TOP_TIME_ROW -1
+#define HEAVY_TOP_TIME_UNKNOWN -1
+#define HEAVY_TOP_TIME_KNOWN -1
+#define HEAVY_TOP_TIME_BEFORE -1
 
 /* the most OpenMP threads heavy_top_simulate_batch starts (a team is created whole) */
 #define HEAVY_TOP_MAX_THREADS 1024

@@ -101,6 +101,10 @@ extern "C" {
 #define PLATE_BALL_N_FIBRE 9
 #define PLATE_BALL_N_CONSTRAINTS 3
 #define PLATE_BALL_N_INPUTS 0
+#define PLATE_BALL_TIME_ROW -1
+#define PLATE_BALL_TIME_UNKNOWN -1
+#define PLATE_BALL_TIME_KNOWN -1
+#define PLATE_BALL_TIME_BEFORE -1
 
 /* the most OpenMP threads plate_ball_simulate_batch starts (a team is created whole) */
 #define PLATE_BALL_MAX_THREADS 1024

@@ -89,6 +89,10 @@ extern "C" {
 #define RIGID_BODY_N_FIBRE 9
 #define RIGID_BODY_N_CONSTRAINTS 0
 #define RIGID_BODY_N_INPUTS 0
+#define RIGID_BODY_TIME_ROW -1
+#define RIGID_BODY_TIME_UNKNOWN -1
+#define RIGID_BODY_TIME_KNOWN -1
+#define RIGID_BODY_TIME_BEFORE -1
 
 /* the most OpenMP threads rigid_body_simulate_batch starts (a team is created whole) */
 #define RIGID_BODY_MAX_THREADS 1024

@@ -1114,6 +1114,78 @@ static int satellite_wheel_trusted(const satellite_wheel_warm_start *warm, const
     return inside;
 }
 
+/* The time of a step on a time groupoid R x R x G (seed 000 section 6.3; SATELLITE_WHEEL_TIME_UNKNOWN >= 0:
+ * t_{k+1} is unknown SATELLITE_WHEEL_TIME_UNKNOWN, t_k and t_{k-1} are knowns SATELLITE_WHEEL_TIME_KNOWN and
+ * SATELLITE_WHEEL_TIME_BEFORE, and SATELLITE_WHEEL_TIME_ROW >= 0 is the equation of the time section; see
+ * symgroupoid.stepper._time).  On such a step with an energy-preserving (unconstrained) time
+ * step both the energy equation and the others fix mainly the velocity, so the Jacobian is
+ * nearly singular along the step length: a guess O(h^2) off in G sends Newton's first update
+ * across the pole t_{k+1} = t_k to the time-reversed root g_{k+1} = g_k^-1 (an exact solution
+ * for every L_d with L_d(g^-1) = -L_d(g)).
+ * satellite_wheel_hold_time first moves the guess onto the fixed-step equations (seed 000 Example
+ * 6.2): Newton with t_{k+1} held at its guess, the time row replaced by t_{k+1} = guess, at
+ * most SATELLITE_WHEEL_HOLD_ITERATIONS updates until one is at most SATELLITE_WHEEL_HOLD_TOLERANCE (relative; they
+ * are not counted in the step's iterations); the guess is kept as it was when that fails (a
+ * singular or non-finite system, or no convergence).  Only for a step without constraints
+ * (SATELLITE_WHEEL_TIME_ROW = -1 otherwise: a constraint t_{k+1} - t_k = h(g) fixes the step itself). */
+#define SATELLITE_WHEEL_HOLD_ITERATIONS 8
+#define SATELLITE_WHEEL_HOLD_TOLERANCE 1e-8
+/* the most a time step may grow or shrink in one step (satellite_wheel_time_step_kept) */
+#define SATELLITE_WHEEL_STEP_RATIO 2.0
+
+static void satellite_wheel_hold_time(const double *known, const double *p, double *u)
+{
+#if SATELLITE_WHEEL_TIME_ROW >= 0 && SATELLITE_WHEEL_TIME_UNKNOWN >= 0
+    double F[SATELLITE_WHEEL_N_EQUATIONS], J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS], x[SATELLITE_WHEEL_N_UNKNOWNS];
+    satellite_wheel_lu lu;
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < SATELLITE_WHEEL_HOLD_ITERATIONS; ++it) {
+        double step;
+        satellite_wheel_residual_jacobian(x, known, p, F, J);
+        F[SATELLITE_WHEEL_TIME_ROW] = 0.0;
+        for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
+            J[SATELLITE_WHEEL_TIME_ROW * SATELLITE_WHEEL_N_UNKNOWNS + i] = 0.0;
+        }
+        J[SATELLITE_WHEEL_TIME_ROW * SATELLITE_WHEEL_N_UNKNOWNS + SATELLITE_WHEEL_TIME_UNKNOWN] = 1.0;
+        if (satellite_wheel_lu_factor(J, &lu) != SATELLITE_WHEEL_OK || satellite_wheel_lu_apply(&lu, F) != SATELLITE_WHEEL_OK) {
+            return; /* singular or not finite: the guess as it was */
+        }
+        step = satellite_wheel_relative_norm(F, x);
+        for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
+            x[i] -= F[i];
+        }
+        if (step <= SATELLITE_WHEEL_HOLD_TOLERANCE) {
+            memcpy(u, x, sizeof x);
+            return;
+        }
+    }
+#else
+    (void)known;
+    (void)p;
+    (void)u;
+#endif
+}
+
+/* 1 when the solution u keeps the time step of a step on a time groupoid on its branch: its
+ * step h_{k+1} = t_{k+1} - t_k has the sign of the last step h_k = t_k - t_{k-1} and
+ * 1/SATELLITE_WHEEL_STEP_RATIO <= h_{k+1}/h_k <= SATELLITE_WHEEL_STEP_RATIO (or the check is off, factor = 0, or
+ * the step has no time).  A step halving or doubling at once resolves nothing; the reversed
+ * root has h_{k+1} = -h_k. */
+static int satellite_wheel_time_step_kept(const double *known, const double *u, double factor)
+{
+#if SATELLITE_WHEEL_TIME_UNKNOWN >= 0
+    const double ratio = (u[SATELLITE_WHEEL_TIME_UNKNOWN] - known[SATELLITE_WHEEL_TIME_KNOWN])
+                         / (known[SATELLITE_WHEEL_TIME_KNOWN] - known[SATELLITE_WHEEL_TIME_BEFORE]);
+    return !(factor > 0.0) || (ratio >= 1.0 / SATELLITE_WHEEL_STEP_RATIO && ratio <= SATELLITE_WHEEL_STEP_RATIO);
+#else
+    (void)known;
+    (void)u;
+    (void)factor;
+    return 1;
+#endif
+}
+
 /* Adds the solution u of a step to the warm start.  When it held three solutions, the next
  * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
  * guessed u more closely than the linear one (satellite_wheel_relative_norm of the errors).  Smooth
@@ -1173,7 +1245,10 @@ static int satellite_wheel_inputs_valid(const double *u, long n_steps)
  * satellite_wheel_remember; chart coordinates and multipliers of consecutive steps), falling back to
  * satellite_wheel_predict if Newton fails from there or its solution lies outside the guess's trust
  * region (satellite_wheel_trusted; iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with SATELLITE_WHEEL_BRANCH_JUMP.
+ * outside that region ends the run with SATELLITE_WHEEL_BRANCH_JUMP.  On a time groupoid every guess is
+ * first solved onto the fixed-step equations (satellite_wheel_hold_time), and a solution whose time
+ * step leaves [1/SATELLITE_WHEEL_STEP_RATIO, SATELLITE_WHEEL_STEP_RATIO] times the last (satellite_wheel_time_step_kept, from
+ * the first step on) is outside in the same way.
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -1233,26 +1308,35 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
         } else {
             satellite_wheel_predict(current, p, x);
         }
+        satellite_wheel_hold_time(current, p, x);
         status = satellite_wheel_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
-        if (extrapolated) {
-            /* a solution far outside the trust region of the guess: another branch */
-            const int jumped = status == SATELLITE_WHEEL_OK && !satellite_wheel_trusted(warm, guess, x, options->trust_factor);
-            if (status != SATELLITE_WHEEL_OK || jumped) {
+        {
+            /* a solution far outside the trust region of the guess, or with its time step
+             * reversed or far from the last: another branch */
+            const int jumped = status == SATELLITE_WHEEL_OK
+                               && ((extrapolated && !satellite_wheel_trusted(warm, guess, x, options->trust_factor))
+                                   || !satellite_wheel_time_step_kept(current, x, options->trust_factor));
+            if (extrapolated && (status != SATELLITE_WHEEL_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */
                 double far[SATELLITE_WHEEL_N_UNKNOWNS];
                 const double far_norm = residual_norms[k];
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 satellite_wheel_predict(current, p, x);
+                satellite_wheel_hold_time(current, p, x);
                 status = satellite_wheel_newton(current, p, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != SATELLITE_WHEEL_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);
                     residual_norms[k] = far_norm;
                 }
-                if (status == SATELLITE_WHEEL_OK ? !satellite_wheel_trusted(warm, guess, x, options->trust_factor) : jumped) {
+                if (status == SATELLITE_WHEEL_OK ? !satellite_wheel_trusted(warm, guess, x, options->trust_factor)
+                                          || !satellite_wheel_time_step_kept(current, x, options->trust_factor)
+                                    : jumped) {
                     status = SATELLITE_WHEEL_BRANCH_JUMP;
                 }
+            } else if (jumped) { /* from the prediction: no other guess to try */
+                status = SATELLITE_WHEEL_BRANCH_JUMP;
             }
         }
         if (status == SATELLITE_WHEEL_OK) {
@@ -1575,7 +1659,7 @@ const char *satellite_wheel_status_message(int status)
     case SATELLITE_WHEEL_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case SATELLITE_WHEEL_BRANCH_JUMP:
-        return "branch jump: the step's solution lies far outside the region the last steps predict (the nearby root of the step equations has disappeared; reduce the step)";
+        return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared; reduce the step)";
     default:
         return "unknown status";
     }

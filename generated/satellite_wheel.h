@@ -108,6 +108,10 @@ extern "C" {
 #define SATELLITE_WHEEL_N_FIBRE 13
 #define SATELLITE_WHEEL_N_CONSTRAINTS 0
 #define SATELLITE_WHEEL_N_INPUTS 1
+#define SATELLITE_WHEEL_TIME_ROW -1
+#define SATELLITE_WHEEL_TIME_UNKNOWN -1
+#define SATELLITE_WHEEL_TIME_KNOWN -1
+#define SATELLITE_WHEEL_TIME_BEFORE -1
 
 /* the most OpenMP threads satellite_wheel_simulate_batch starts (a team is created whole) */
 #define SATELLITE_WHEEL_MAX_THREADS 1024

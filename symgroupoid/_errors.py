@@ -53,8 +53,10 @@ class BranchJumpError(NewtonDivergenceError):
     """A step's solution lies far outside the trust region of its guess, which the last
     steps' motion sets (``NewtonOptions.trust_factor``): the root of the step equations near
     the motion so far has disappeared (a fold of the step map: the step size no longer
-    resolves the motion) and Newton converged to a root on another branch.  The run stops
-    there, with ``err.trajectory`` up to the step before."""
+    resolves the motion) and Newton converged to a root on another branch.  On a time
+    groupoid also a solution whose time step reverses or changes by more than a factor 2
+    (docs/conventions.md §7).  The run stops there, with ``err.trajectory`` up to the step
+    before."""
 
 
 class CacheError(SymgroupoidError, RuntimeError):

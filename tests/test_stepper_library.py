@@ -42,6 +42,10 @@ TOY_C = r"""
 #define TOY_N_KNOWNS 2
 #define TOY_N_PARAMETERS 1
 #define TOY_N_INPUTS 0
+#define TOY_TIME_ROW -1
+#define TOY_TIME_UNKNOWN -1
+#define TOY_TIME_KNOWN -1
+#define TOY_TIME_BEFORE -1
 #include <math.h>
 #include "stepper.h"
 
@@ -141,7 +145,9 @@ def toy(tmp_path_factory):
     sizes = where / "toy_sizes.h"
     sizes.write_text("#define TOY_N_EQUATIONS 2\n#define TOY_N_UNKNOWNS 2\n"
                      "#define TOY_N_KNOWNS 2\n#define TOY_N_PARAMETERS 1\n"
-                     "#define TOY_N_INPUTS 0\n")
+                     "#define TOY_N_INPUTS 0\n#define TOY_TIME_ROW -1\n"
+                     "#define TOY_TIME_UNKNOWN -1\n#define TOY_TIME_KNOWN -1\n"
+                     "#define TOY_TIME_BEFORE -1\n")
     objects = []
     for source in (library_dir() / "stepper.c", library_dir() / "batch.c", where / "toy.c"):
         obj = where / (source.stem + ".o")

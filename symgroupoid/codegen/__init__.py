@@ -12,7 +12,8 @@ from ._emit import (
 )
 from ._kernel import c_identifier
 from ._printer import KernelCPrinter, print_c
+from ._time import time_layout
 
 __all__ = ["KernelCPrinter", "KernelSource", "c_identifier", "current_umask", "emit_c",
            "generate_c", "generate_program_c", "precompile_templates", "print_c",
-           "template_dir", "templates_digest"]
+           "template_dir", "templates_digest", "time_layout"]

@@ -41,6 +41,7 @@ from ._kernel import (
     program_helpers,
     unit_part_size,
 )
+from ._time import time_layout
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
                   "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.c.j2")
@@ -273,6 +274,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
         "n_knowns": len(step.knowns), "n_parameters": len(step.parameters),
         "n_fibre": blocks.n_fibre, "n_constraints": step.n_constraints,
         "n_inputs": len(getattr(step, "inputs", ())),
+        "time_defines": time_layout(step).defines(),
         "input_names": [_ascii(str(u)) for u in getattr(step, "inputs", ())],
         "unknown_names": [_ascii(s.name) for s in step.unknowns],
         "known_names": [_ascii(s.name) for s in step.knowns],

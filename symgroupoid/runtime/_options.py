@@ -67,7 +67,11 @@ class NewtonOptions:
     run stops with ``BRANCH_JUMP`` (:class:`~symgroupoid.BranchJumpError`): when the root
     near the last steps disappears (a fold of the step map, the step no longer resolving the
     motion), Newton can converge to a far root of another branch, and the run would go on
-    there with converged residuals.
+    there with converged residuals.  On a time groupoid a solved step must also keep the
+    sign of its time step t_{k+1} − t_k and change it by at most a factor 2
+    (``stepper.STEP_RATIO``), from the first step on (the time-reversed root g_k⁻¹ solves
+    an adaptive step exactly; docs/conventions.md §7); ``trust_factor`` 0 turns this check
+    off too.
 
     At most ``max_iterations`` updates (an integer in 0 … 2³¹ − 1, the range of a C ``int``;
     integral floats such as ``1e3`` are accepted).  With ``extrapolate`` the guess of step

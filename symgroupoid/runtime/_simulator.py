@@ -20,7 +20,8 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from .._progress import Task
-from ..stepper import Status
+from ..codegen import time_layout
+from ..stepper import STEP_RATIO, Status, hold_time, time_step_kept
 from ._backends import real_vector
 from ._inputs import input_chunks, input_sequence, step_inputs
 from ._layout import StateLayout
@@ -402,8 +403,11 @@ class Simulator:
               inputs=None):
         """Solve one step: (unknowns u, Newton iterations, residual norm); raises on failure.
 
-        ``guess`` (default: the step's prediction) must hold ``len(step.unknowns)`` finite
-        numbers (a :class:`ShapeError` otherwise).  ``options``: None (the simulator's) or a
+        ``guess`` (default: the step's prediction, on a time groupoid solved onto the
+        fixed-step equations as :meth:`simulate` does) must hold ``len(step.unknowns)``
+        finite numbers (a :class:`ShapeError` otherwise).  On a time groupoid a solution
+        whose time step reverses or changes by more than a factor 2 is a
+        :class:`BranchJumpError` (docs/conventions.md §7).  ``options``: None (the simulator's) or a
         :class:`NewtonOptions`, as for :meth:`simulate`.  A forced system with inputs takes
         ``inputs``: the m inputs of the arrow the step computes, as for :meth:`step`.
         """
@@ -414,15 +418,19 @@ class Simulator:
         if u_next is not None:  # the slot of the new arrow's inputs (docs/conventions.md §20)
             known = known.copy()
             known[self.layout.upcoming_index] = u_next
+        time = time_layout(self.equations)
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
                 raise self._failure(Status.NON_FINITE, 0, 0, float("nan"), u0, options, known=known,
                                     p=p)
+            u0 = hold_time(self.kernel.residual_jacobian, time, known, p, u0)
         else:
             u0 = real_vector(guess, len(self.equations.unknowns), "guess", owner=self.name,
                              finite=True)
         status, u, it, rn = self.kernel.solve_step(known, p, u0, options)
+        if status == OK and not time_step_kept(time, known, u, options.trust_factor):
+            status = Status.BRANCH_JUMP
         if status != OK:
             raise self._failure(status, 0, it, rn, u, options, known=known, p=p)
         return u, it, rn
@@ -557,14 +565,35 @@ class Simulator:
             text += (f"; the cap is NewtonOptions(max_iterations={options.max_iterations}) "
                      f"per try")
         if status == Status.BRANCH_JUMP:
-            text += (f"; NewtonOptions(trust_factor={options.trust_factor:g}) sets the "
-                     f"trust region, trust_factor=0 turns the check off")
+            text += (self._time_step_jump(iterate, known)
+                     or f"; NewtonOptions(trust_factor={options.trust_factor:g}) sets the "
+                        f"trust region, trust_factor=0 turns the check off")
         cls = {Status.SINGULAR_JACOBIAN: SingularJacobianError,
                Status.BRANCH_JUMP: BranchJumpError}.get(status, NewtonDivergenceError)
         err = cls(text, step=int(step), residual_norm=float(residual_norm),
                   iterate=np.array(iterate, dtype=float))
         err.trajectory = None
         return err
+
+    def _time_step_jump(self, iterate: np.ndarray, known: np.ndarray | None) -> str:
+        """The sentence naming the time step check of a step on a time groupoid when the
+        solution ``iterate`` from ``known`` fails it (docs/conventions.md §7), else ""."""
+        t = time_layout(self.equations)
+        if t.unknown < 0 or known is None or len(iterate) <= t.unknown:
+            return ""
+        last = float(known[t.known] - known[t.before])
+        new = float(iterate[t.unknown] - known[t.known])
+        with np.errstate(all="ignore"):
+            ratio = new / last
+        if 1.0 / STEP_RATIO <= ratio <= STEP_RATIO:
+            return ""
+        return (f"; the time step check failed: the solution's step t_{{k+1}} - t_k = "
+                f"{new:.6g} is {ratio:.3g} times the last step t_k - t_{{k-1}} = {last:.6g}"
+                f" (a step on a time groupoid keeps its sign and changes by at most a factor "
+                f"{STEP_RATIO:g}; docs/conventions.md §7): Newton found no root with a step "
+                f"of that sign and size (the energy equation of an energy-preserving step "
+                f"can lose it: the discrete energy cannot be kept by any step near the last "
+                f"one); NewtonOptions(trust_factor=0) turns the branch checks off")
 
     def __repr__(self) -> str:
         return (f"<Simulator {self.name!r}: {len(self.equations.unknowns)} unknowns, "

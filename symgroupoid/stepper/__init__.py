@@ -24,18 +24,22 @@ from ._numpy import (
     above_rounding,
     coordinate_floor,
     explained_by_rounding,
+    hold_time,
     lu_apply,
     lu_factor,
     lu_solve,
     norm_inf,
     pivot_ratio,
     relative_norm,
+    time_step_kept,
 )
 from ._status import STATUS_MESSAGES, Status, c_defines, c_status_message
+from ._time import HOLD_ITERATIONS, HOLD_TOLERANCE, NO_TIME, STEP_RATIO, TimeLayout
 
-__all__ = ["C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON", "Inliner", "LUFactors", "MAX_THREADS",
-           "NumpyStepper", "NumpyWarmStart", "SOURCES", "STATUS_MESSAGES", "Status",
-           "StepFunctions", "TRUST_FLOOR", "above_rounding", "c_defines", "c_status_message",
-           "coordinate_floor", "explained_by_rounding", "library_digest", "library_dir",
-           "library_source", "lu_apply", "lu_factor", "lu_solve", "norm_inf", "pivot_ratio",
-           "relative_norm", "spelt"]
+__all__ = ["C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON", "HOLD_ITERATIONS", "HOLD_TOLERANCE",
+           "Inliner", "LUFactors", "MAX_THREADS", "NO_TIME", "NumpyStepper", "NumpyWarmStart",
+           "SOURCES", "STATUS_MESSAGES", "STEP_RATIO", "Status", "StepFunctions", "TRUST_FLOOR",
+           "TimeLayout", "above_rounding", "c_defines", "c_status_message", "coordinate_floor",
+           "explained_by_rounding", "hold_time", "library_digest", "library_dir", "library_source",
+           "lu_apply", "lu_factor", "lu_solve", "norm_inf", "pivot_ratio", "relative_norm",
+           "spelt", "time_step_kept"]

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._status import Status
+from ._time import HOLD_ITERATIONS, HOLD_TOLERANCE, NO_TIME, STEP_RATIO, TimeLayout
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT, STALLED, BRANCH_JUMP = (
     int(s) for s in Status if s.kernel)
@@ -242,6 +243,48 @@ class NumpyWarmStart:
         self.count = min(self.count + 1, 3)
 
 
+def hold_time(residual_jacobian: Callable, time: TimeLayout, known, p, u) -> np.ndarray:
+    """As ``<prefix>_hold_time``: the guess ``u`` of a step on a time groupoid moved onto
+    its fixed-step equations (seed 000 Example 6.2): Newton with t_{k+1} held, its row
+    replaced by t_{k+1} = guess, at most ``HOLD_ITERATIONS`` updates until one is at most
+    ``HOLD_TOLERANCE`` (relative); ``u`` itself when that fails (a singular or non-finite
+    system) or the step has no time row (docs/conventions.md §7).  ``residual_jacobian``:
+    (u, known, p) → (F, J)."""
+    if time.row < 0 or time.unknown < 0:
+        return u
+    x = np.array(u, dtype=float)
+    with np.errstate(all="ignore"):
+        for _ in range(HOLD_ITERATIONS):
+            F, J = residual_jacobian(x, known, p)
+            F, J = np.array(F, dtype=float), np.array(J, dtype=float).reshape(len(x), len(x))
+            F[time.row] = 0.0
+            J[time.row, :] = 0.0
+            J[time.row, time.unknown] = 1.0
+            status, factors = lu_factor(J)
+            if status != OK:
+                return u
+            status, d = lu_apply(factors, F)
+            if status != OK:
+                return u
+            step = relative_norm(d, x)
+            x = x - d
+            if step <= HOLD_TOLERANCE:
+                return x
+    return u
+
+
+def time_step_kept(time: TimeLayout, known, u, factor: float) -> bool:
+    """As ``<prefix>_time_step_kept``: the time step h_{k+1} = t_{k+1} − t_k of the solution
+    ``u`` has the sign of h_k = t_k − t_{k−1} and 1/STEP_RATIO ≤ h_{k+1}/h_k ≤ STEP_RATIO,
+    or the check is off (``factor`` 0) or the step has no time."""
+    if time.unknown < 0:
+        return True
+    with np.errstate(all="ignore"):
+        ratio = ((np.float64(u[time.unknown]) - np.float64(known[time.known]))
+                 / (np.float64(known[time.known]) - np.float64(known[time.before])))
+    return bool(not factor > 0.0 or (1.0 / STEP_RATIO <= ratio <= STEP_RATIO))
+
+
 #: a kernel's functions of (u, known, p) or (known, p), evaluated in NumPy
 StepFunction = Callable[..., np.ndarray]
 
@@ -262,11 +305,14 @@ class StepFunctions:
 class NumpyStepper:
     """``SG_NAME(newton)`` and ``SG_NAME(simulate)`` of ``stepper.c`` over the
     :class:`StepFunctions` of a kernel of ``n_unknowns`` unknowns.  ``options``: anything
-    with the fields of ``runtime.NewtonOptions``."""
+    with the fields of ``runtime.NewtonOptions``; ``time``: the kernel's time indices
+    (``<PREFIX>_TIME_ROW``, ...; :data:`~._time.NO_TIME` without a time groupoid)."""
 
-    def __init__(self, functions: StepFunctions, n_unknowns: int):
+    def __init__(self, functions: StepFunctions, n_unknowns: int,
+                 time: TimeLayout = NO_TIME):
         self.f = functions
         self.n_u = n_unknowns
+        self.time = time
 
     def warm_start(self) -> NumpyWarmStart:
         """A fresh warm start (no solution held)."""
@@ -294,6 +340,15 @@ class NumpyStepper:
         ``F_scale`` (the size of the terms F_i is computed from)."""
         S = self.f.residual_scale(u, known, p)
         return bool(np.all(np.abs(F) <= factor * EPSILON * S))
+
+    def hold_time(self, known, p, u) -> np.ndarray:
+        """As ``<prefix>_hold_time`` (:func:`hold_time` with this kernel's functions)."""
+        return hold_time(self.f.residual_jacobian, self.time, known, p, u)
+
+    def time_step_kept(self, known, u, factor: float) -> bool:
+        """As ``<prefix>_time_step_kept`` (:func:`time_step_kept` with this kernel's
+        indices)."""
+        return time_step_kept(self.time, known, u, factor)
 
     def newton(self, known, p, u, options):
         """As ``<prefix>_newton`` (see ``runtime.NewtonOptions``): (status, last iterate,
@@ -381,22 +436,28 @@ class NumpyStepper:
         for k in range(n_steps):
             current = states[k]
             extrapolated = bool(options.extrapolate) and warm.count >= 2
+            factor = options.trust_factor
             with np.errstate(all="ignore"):
                 guess = warm.extrapolate() if extrapolated else self.f.predict(current, p)
-            status, u, iterations[k], norms[k] = self.solve_step(current, p, guess, options)
-            jumped = (extrapolated and status == OK
-                      and not warm.trusts(guess, u, options.trust_factor))
+            status, u, iterations[k], norms[k] = self.solve_step(
+                current, p, self.hold_time(current, p, guess), options)
+            jumped = status == OK and (
+                (extrapolated and not warm.trusts(guess, u, factor))
+                or not self.time_step_kept(current, u, factor))
             if extrapolated and (status != OK or jumped):  # retry from the prediction
                 far, far_norm = u, norms[k]
                 with np.errstate(all="ignore"):
-                    u0 = self.f.predict(current, p)
+                    u0 = self.hold_time(current, p, self.f.predict(current, p))
                 status, u, more, norms[k] = self.solve_step(current, p, u0, options)
                 iterations[k] = min(iterations[k] + more, C_INT_MAX)
                 if status != OK and jumped:  # report the far solution
                     u, norms[k] = far, far_norm
-                if (not warm.trusts(guess, u, options.trust_factor) if status == OK
-                        else jumped):
+                if (not warm.trusts(guess, u, factor) or not self.time_step_kept(current, u,
+                                                                                  factor)
+                        if status == OK else jumped):
                     status = BRANCH_JUMP
+            elif jumped:  # from the prediction: no other guess to try
+                status = BRANCH_JUMP
             if status == OK:
                 with np.errstate(all="ignore"):
                     following = self.f.next_knowns(u, current, p)
@@ -413,5 +474,5 @@ __all__ = ["BRANCH_JUMP", "C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON", "INVALID_AR
            "LUFactors", "MAX_THREADS", "NON_FINITE", "NOT_CONVERGED", "NumpyStepper",
            "NumpyWarmStart", "OK", "SINGULAR_JACOBIAN", "STALLED", "StepFunctions",
            "TRUST_FLOOR", "above_rounding", "coordinate_floor", "explained_by_rounding",
-           "lu_apply", "lu_factor", "lu_solve", "norm_inf", "pivot_ratio", "polish",
-           "relative_norm"]
+           "hold_time", "lu_apply", "lu_factor", "lu_solve", "norm_inf", "pivot_ratio",
+           "polish", "relative_norm", "time_step_kept"]

@@ -55,7 +55,8 @@ class Status(enum.IntEnum):
         "Newton's method stalled: its update is at the rounding noise of the solve while the "
         "residual stays above its rounding floor")
     BRANCH_JUMP = 6, (
-        "branch jump: the step's solution lies far outside the region the last steps predict "
+        "branch jump: the step's solution lies far outside the region the last steps predict, "
+        "or on a time groupoid its time step reverses or changes by more than a factor 2 "
         "(the nearby root of the step equations has disappeared; reduce the step)")
     CUT_LOCUS = 7, (
         "the boundary-value path met the cut locus of its chart (a half-turn, where the chart "

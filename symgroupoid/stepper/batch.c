@@ -309,7 +309,7 @@ const char *SG_NAME(status_message)(int status)
     case SG_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case SG_BRANCH_JUMP:
-        return "branch jump: the step's solution lies far outside the region the last steps predict (the nearby root of the step equations has disappeared; reduce the step)";
+        return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared; reduce the step)";
     default:
         return "unknown status";
     }

@@ -5,9 +5,10 @@
  *
  *     cc -std=c99 -DSG_PREFIX=toy -DSG_PREFIX_UPPER=TOY -include toy_sizes.h -c stepper.c
  *
- * with TOY_N_EQUATIONS, TOY_N_UNKNOWNS, TOY_N_KNOWNS and TOY_N_PARAMETERS defined in
- * toy_sizes.h (or before stepper.h is included), beside the kernel's own functions (see
- * stepper.h).  The code generator writes the library into a kernel with these names spelt
+ * with TOY_N_EQUATIONS, TOY_N_UNKNOWNS, TOY_N_KNOWNS, TOY_N_PARAMETERS, TOY_N_INPUTS and
+ * the time indices TOY_TIME_ROW, TOY_TIME_UNKNOWN, TOY_TIME_KNOWN, TOY_TIME_BEFORE (-1
+ * without a time groupoid) defined in toy_sizes.h (or before stepper.h is included),
+ * beside the kernel's own functions (see stepper.h).  The code generator writes the library into a kernel with these names spelt
  * out (plate_ball_simulate, PLATE_BALL_OK, ...); this file is never part of a kernel.
  */
 #ifndef SG_PREFIX_H
@@ -27,5 +28,10 @@
 #define SG_N_KNOWNS SG_CAT(SG_PREFIX_UPPER, N_KNOWNS)
 #define SG_N_PARAMETERS SG_CAT(SG_PREFIX_UPPER, N_PARAMETERS)
 #define SG_N_INPUTS SG_CAT(SG_PREFIX_UPPER, N_INPUTS)
+/* the time of a step on a time groupoid (-1: none; symgroupoid.stepper._time) */
+#define SG_TIME_ROW SG_CAT(SG_PREFIX_UPPER, TIME_ROW)
+#define SG_TIME_UNKNOWN SG_CAT(SG_PREFIX_UPPER, TIME_UNKNOWN)
+#define SG_TIME_KNOWN SG_CAT(SG_PREFIX_UPPER, TIME_KNOWN)
+#define SG_TIME_BEFORE SG_CAT(SG_PREFIX_UPPER, TIME_BEFORE)
 
 #endif /* SG_PREFIX_H */

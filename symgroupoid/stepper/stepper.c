@@ -683,6 +683,78 @@ static int SG_NAME(trusted)(const SG_NAME(warm_start) *warm, const double *guess
     return inside;
 }
 
+/* The time of a step on a time groupoid R x R x G (seed 000 section 6.3; SG_TIME_UNKNOWN >= 0:
+ * t_{k+1} is unknown SG_TIME_UNKNOWN, t_k and t_{k-1} are knowns SG_TIME_KNOWN and
+ * SG_TIME_BEFORE, and SG_TIME_ROW >= 0 is the equation of the time section; see
+ * symgroupoid.stepper._time).  On such a step with an energy-preserving (unconstrained) time
+ * step both the energy equation and the others fix mainly the velocity, so the Jacobian is
+ * nearly singular along the step length: a guess O(h^2) off in G sends Newton's first update
+ * across the pole t_{k+1} = t_k to the time-reversed root g_{k+1} = g_k^-1 (an exact solution
+ * for every L_d with L_d(g^-1) = -L_d(g)).
+ * SG_NAME(hold_time) first moves the guess onto the fixed-step equations (seed 000 Example
+ * 6.2): Newton with t_{k+1} held at its guess, the time row replaced by t_{k+1} = guess, at
+ * most SG_HOLD_ITERATIONS updates until one is at most SG_HOLD_TOLERANCE (relative; they
+ * are not counted in the step's iterations); the guess is kept as it was when that fails (a
+ * singular or non-finite system, or no convergence).  Only for a step without constraints
+ * (SG_TIME_ROW = -1 otherwise: a constraint t_{k+1} - t_k = h(g) fixes the step itself). */
+#define SG_HOLD_ITERATIONS 8
+#define SG_HOLD_TOLERANCE 1e-8
+/* the most a time step may grow or shrink in one step (SG_NAME(time_step_kept)) */
+#define SG_STEP_RATIO 2.0
+
+static void SG_NAME(hold_time)(const double *known, const double *p, double *u)
+{
+#if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
+    double F[SG_N_EQUATIONS], J[SG_N_EQUATIONS * SG_N_UNKNOWNS], x[SG_N_UNKNOWNS];
+    SG_NAME(lu) lu;
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < SG_HOLD_ITERATIONS; ++it) {
+        double step;
+        SG_NAME(residual_jacobian)(x, known, p, F, J);
+        F[SG_TIME_ROW] = 0.0;
+        for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+            J[SG_TIME_ROW * SG_N_UNKNOWNS + i] = 0.0;
+        }
+        J[SG_TIME_ROW * SG_N_UNKNOWNS + SG_TIME_UNKNOWN] = 1.0;
+        if (SG_NAME(lu_factor)(J, &lu) != SG_OK || SG_NAME(lu_apply)(&lu, F) != SG_OK) {
+            return; /* singular or not finite: the guess as it was */
+        }
+        step = SG_NAME(relative_norm)(F, x);
+        for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+            x[i] -= F[i];
+        }
+        if (step <= SG_HOLD_TOLERANCE) {
+            memcpy(u, x, sizeof x);
+            return;
+        }
+    }
+#else
+    (void)known;
+    (void)p;
+    (void)u;
+#endif
+}
+
+/* 1 when the solution u keeps the time step of a step on a time groupoid on its branch: its
+ * step h_{k+1} = t_{k+1} - t_k has the sign of the last step h_k = t_k - t_{k-1} and
+ * 1/SG_STEP_RATIO <= h_{k+1}/h_k <= SG_STEP_RATIO (or the check is off, factor = 0, or
+ * the step has no time).  A step halving or doubling at once resolves nothing; the reversed
+ * root has h_{k+1} = -h_k. */
+static int SG_NAME(time_step_kept)(const double *known, const double *u, double factor)
+{
+#if SG_TIME_UNKNOWN >= 0
+    const double ratio = (u[SG_TIME_UNKNOWN] - known[SG_TIME_KNOWN])
+                         / (known[SG_TIME_KNOWN] - known[SG_TIME_BEFORE]);
+    return !(factor > 0.0) || (ratio >= 1.0 / SG_STEP_RATIO && ratio <= SG_STEP_RATIO);
+#else
+    (void)known;
+    (void)u;
+    (void)factor;
+    return 1;
+#endif
+}
+
 /* Adds the solution u of a step to the warm start.  When it held three solutions, the next
  * guess is chosen by hindsight: quadratic = 1 when the quadratic extrapolation would have
  * guessed u more closely than the linear one (SG_NAME(relative_norm) of the errors).  Smooth
@@ -742,7 +814,10 @@ static int SG_NAME(inputs_valid)(const double *u, long n_steps)
  * SG_NAME(remember); chart coordinates and multipliers of consecutive steps), falling back to
  * SG_NAME(predict) if Newton fails from there or its solution lies outside the guess's trust
  * region (SG_NAME(trusted); iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with SG_BRANCH_JUMP.
+ * outside that region ends the run with SG_BRANCH_JUMP.  On a time groupoid every guess is
+ * first solved onto the fixed-step equations (SG_NAME(hold_time)), and a solution whose time
+ * step leaves [1/SG_STEP_RATIO, SG_STEP_RATIO] times the last (SG_NAME(time_step_kept), from
+ * the first step on) is outside in the same way.
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -802,26 +877,35 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
         } else {
             SG_NAME(predict)(current, p, x);
         }
+        SG_NAME(hold_time)(current, p, x);
         status = SG_NAME(newton)(current, p, options, x, &iterations[k], &residual_norms[k]);
-        if (extrapolated) {
-            /* a solution far outside the trust region of the guess: another branch */
-            const int jumped = status == SG_OK && !SG_NAME(trusted)(warm, guess, x, options->trust_factor);
-            if (status != SG_OK || jumped) {
+        {
+            /* a solution far outside the trust region of the guess, or with its time step
+             * reversed or far from the last: another branch */
+            const int jumped = status == SG_OK
+                               && ((extrapolated && !SG_NAME(trusted)(warm, guess, x, options->trust_factor))
+                                   || !SG_NAME(time_step_kept)(current, x, options->trust_factor));
+            if (extrapolated && (status != SG_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */
                 double far[SG_N_UNKNOWNS];
                 const double far_norm = residual_norms[k];
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 SG_NAME(predict)(current, p, x);
+                SG_NAME(hold_time)(current, p, x);
                 status = SG_NAME(newton)(current, p, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != SG_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);
                     residual_norms[k] = far_norm;
                 }
-                if (status == SG_OK ? !SG_NAME(trusted)(warm, guess, x, options->trust_factor) : jumped) {
+                if (status == SG_OK ? !SG_NAME(trusted)(warm, guess, x, options->trust_factor)
+                                          || !SG_NAME(time_step_kept)(current, x, options->trust_factor)
+                                    : jumped) {
                     status = SG_BRANCH_JUMP;
                 }
+            } else if (jumped) { /* from the prediction: no other guess to try */
+                status = SG_BRANCH_JUMP;
             }
         }
         if (status == SG_OK) {
