@@ -15,7 +15,8 @@ def time_layout(step) -> TimeLayout:
     for the steps of a :class:`~symgroupoid.DiscreteSystem` (and second-order ones); the
     fixed-step phase is for those without constraints (the energy-preserving step of seed
     000 Example 6.1): a constraint φ = t₁ − t₀ − h(g) fixes the step itself, and holding
-    t_{k+1} would make φ solve for g instead (``row`` −1: the time step check only)."""
+    t_{k+1} would make φ solve for g instead; nor those with internal stages, whose stage
+    rows follow the junction's (``row`` −1: the time step check only)."""
     from ..equations import DiscreteSystem
 
     if not getattr(step.groupoid, "timed", False):
@@ -29,7 +30,9 @@ def time_layout(step) -> TimeLayout:
     unknowns, knowns = list(step.unknowns), list(step.knowns)
     if t_next not in unknowns or t_now not in knowns or t_before not in knowns:
         return NO_TIME
-    free = isinstance(getattr(step, "system", None), DiscreteSystem) and not step.n_constraints
+    system = getattr(step, "system", None)
+    free = (isinstance(system, DiscreteSystem) and not step.n_constraints
+            and not getattr(system, "stages", 0))
     row = 0 if free else -1
     return TimeLayout(row, unknowns.index(t_next), knowns.index(t_now),
                       knowns.index(t_before))
