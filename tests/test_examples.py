@@ -1,6 +1,7 @@
 """Every example script under examples/ runs to completion (as a subprocess); the seed
 verification scripts also report what they verified against (seed 000 §2.2, §6.1, §6.2;
-seed 001 §2.2.5, App. D; seed 002 heavy top).
+seed 001 §2.2.5, App. D; seed 002 heavy top); the scripts that measure the order of a
+variational integrator print observed orders that the tests read back.
 
 The scripts are started together when the first test needs them, so the two cores run them in
 parallel; each test then waits for its own script."""
@@ -8,6 +9,7 @@ parallel; each test then waits for its own script."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -29,7 +31,11 @@ VERIFYING = {
 # the 3D chain: tests/test_chains.py)
 SLOW = {"optimal_control_lie_groups.py", "elroys_beanie.py", "euler_poincare_so3.py",
         "holonomic_constraints.py", "optimal_control_so3_se2.py", "heavy_top_rotors.py",
-        "plate_ball_steering.py", "heavy_top.py", "pendulum_chain_3d.py"}
+        "plate_ball_steering.py", "heavy_top.py", "pendulum_chain_3d.py", "chain_order4.py"}
+# scripts that measure observed orders against an accurate reference: the theoretical order
+# of each report they print ("observed order p (theoretical q)", docs/conventions.md §22)
+ORDERS = {"heavy_top_order4.py": [4], "double_pendulum_order6.py": [6, 6],
+          "chain_order4.py": [4]}
 TIMEOUT = 300
 
 
@@ -55,8 +61,8 @@ def _finish(proc: subprocess.Popen) -> tuple[int, str, str]:
 
 
 def test_verifying_examples_exist() -> None:
-    """Each seed verification has its runnable script."""
-    assert set(VERIFYING) <= set(EXAMPLES)
+    """Each seed verification and each order measurement has its runnable script."""
+    assert set(VERIFYING) <= set(EXAMPLES) and set(ORDERS) <= set(EXAMPLES)
 
 
 @pytest.mark.parametrize("name", [
@@ -69,3 +75,26 @@ def test_example_runs(name: str, request: pytest.FixtureRequest) -> None:
     assert code == 0, f"{name} exited with {code}:\n{err[-3000:]}"
     if name in VERIFYING:
         assert VERIFYING[name] in out.strip().splitlines()[-1], out[-2000:]
+    if name in ORDERS:
+        _check_orders(name, out)
+
+
+ORDER_LINE = re.compile(r"observed order (\S+) \(theoretical (\d+)\)")
+NUMBER = r"([-+0-9.e]+)"
+
+
+def _check_orders(name: str, out: str) -> None:
+    """Every order the script reports is within 0.1 of its scheme's, and the script's
+    structure figures are at their floors (heavy top: a bounded energy error, the vertical
+    angular momentum to rounding)."""
+    found = [(float(p), int(q)) for p, q in ORDER_LINE.findall(out)]
+    assert [q for _, q in found] == ORDERS[name], out
+    for observed, theoretical in found:
+        assert abs(observed - theoretical) < 0.1, out
+    if name == "heavy_top_order4.py":
+        energy = re.search(rf"energy error {NUMBER} \(last tenth / first tenth {NUMBER}\)",
+                           out)
+        momentum = re.search(rf"vertical angular momentum drift {NUMBER}", out)
+        assert energy and momentum, out
+        assert float(energy[1]) < 1e-3 and float(energy[2]) < 1.5, out
+        assert float(momentum[1]) < 1e-12, out
