@@ -16,11 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._arguments import integer_argument
-from ._errors import InputTypeError, ShapeError
+from ._arguments import integer_argument, real_argument, real_array, sequence_argument
+from ._errors import InputTypeError, ShapeError, UnsupportedFeatureError
 
 #: the reference run's step count, in multiples of the largest one measured
 REFERENCE_FACTOR = 8
+#: the most steps of one measured run (the reference run has up to 8× as many)
+MAX_STEPS = 10**7
+#: runs are simulated in chunks of this many steps (the memory of a run stays bounded)
+CHUNK = 2**16
 
 
 @dataclass(frozen=True)
@@ -36,6 +40,7 @@ class ConvergenceReport:
     order: float
     expected: int | None
     reference: str
+    reference_norm: float = 1.0  # |q(T)| of the reference, for the size of the errors
 
     def __str__(self) -> str:
         lines = [f"observed order {self.order:.3f}"
@@ -49,13 +54,67 @@ class ConvergenceReport:
 
 
 def _final_configuration(sim, initial, params: dict, steps: int) -> np.ndarray:
-    """The configuration at step ``steps`` (time T) of the run from (q₀, v₀), flat."""
+    """The configuration at step ``steps`` (time T) of the run from (q₀, v₀), flat; the
+    run is simulated in chunks of :data:`CHUNK` steps, each from the last state of the
+    previous one."""
     configuration, velocity = initial
     state = sim.from_velocity(configuration, velocity, params)
-    traj = sim.simulate(state, steps, params)
+    left = steps
+    while True:
+        n = min(CHUNK, left)
+        traj = sim.simulate(state, n, params)
+        left -= n
+        if not left:
+            break
+        state = traj.states[-1]
     found = traj.configurations()
     parts = found if isinstance(found, tuple) else (found,)
-    return np.concatenate([np.ravel(np.asarray(part, float)[steps]) for part in parts])
+    return np.concatenate([np.ravel(np.asarray(part, float)[n]) for part in parts])
+
+
+def configuration_size(system) -> int:
+    """The entries of a configuration of a ContinuousSystem as the reference gives it: a
+    Euclidean factor's coordinates, a group factor's matrix entries."""
+    return sum(f.space.n ** 2 if f.is_group else f.dim for f in system.factors)
+
+
+def _counts_and_time(steps: Sequence[int], T: float) -> tuple[list[int], float]:
+    """The step counts, sorted and distinct (at least two, each at most
+    :data:`MAX_STEPS`), and the final time T > 0."""
+    owner = "convergence_order"
+    counts = sorted({integer_argument(n, "steps", minimum=1, maximum=MAX_STEPS, owner=owner)
+                     for n in sequence_argument(steps, "steps", owner=owner)})
+    if len(counts) < 2:
+        raise ShapeError(f"convergence_order: steps must hold at least two different step "
+                         f"counts, got {counts}")
+    T = real_argument(T, "T", owner=owner)
+    if T <= 0:
+        raise ShapeError(f"convergence_order: T must be a positive time, got {T}")
+    return counts, T
+
+
+def _common_arguments(initial, params) -> tuple[tuple, dict]:
+    """``initial`` as (configuration, velocity) and ``params`` as a dict."""
+    if isinstance(initial, (str, bytes, Mapping)) or not isinstance(initial, Sequence) \
+            or len(initial) != 2:
+        raise InputTypeError(f"convergence_order: initial must be a pair (configuration, "
+                             f"velocity), got {type(initial).__name__} {initial!r:.80}")
+    if not isinstance(params, Mapping):
+        raise InputTypeError(f"convergence_order: params must be a mapping of parameter "
+                             f"values by name, got {type(params).__name__}")
+    return tuple(initial), dict(params)
+
+
+def _reference(reference, size: int | None) -> np.ndarray:
+    """The reference configuration at T, flat and finite, with ``size`` entries (when
+    known)."""
+    target = real_array(reference, "reference", owner="convergence_order").ravel()
+    if not np.all(np.isfinite(target)):
+        raise ShapeError("convergence_order: the reference configuration must be finite")
+    if size is not None and target.size != size:
+        raise ShapeError(f"convergence_order: the reference has {target.size} entries, "
+                         f"the configuration {size}")
+    return target
 
 
 def convergence_order(system, scheme, initial, params: Mapping, T: float,
@@ -75,17 +134,34 @@ def convergence_order(system, scheme, initial, params: Mapping, T: float,
     if not isinstance(system, ContinuousSystem):
         raise InputTypeError(f"convergence_order: system must be a ContinuousSystem, got "
                              f"{type(system).__name__}")
-    counts = sorted({integer_argument(n, "steps", minimum=1, owner="convergence_order")
-                     for n in steps})
-    if len(counts) < 2:
-        raise ShapeError("convergence_order: give at least two different step counts")
-    T = float(T)
-    if not np.isfinite(T) or T <= 0:
-        raise ShapeError(f"convergence_order: T must be a positive time, got {T}")
+    counts, T = _counts_and_time(steps, T)
+    initial, params = _common_arguments(initial, params)
+    if reference is not None:
+        reference = _reference(reference, configuration_size(system))
     step = "h" if step is None else step
     discrete = system.discretize(step, scheme)
     sim = discrete.euler_lagrange().compile(backend=backend)
-    name = str(discrete.time_step)
+    expected = getattr(scheme, "order", 2 if isinstance(scheme, str) else None)
+    return measure_order(sim, initial, params, T, counts, reference=reference,
+                         expected=expected)
+
+
+def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int], *,
+                  reference=None, expected: int | None = None) -> ConvergenceReport:
+    """The observed order of the compiled simulator ``sim`` of a discretised system (as
+    :func:`convergence_order`, which derives and compiles it): runs of ``steps`` (at least
+    two different counts) to T with the step parameter ``sim``'s time step set to T/N,
+    the other parameters from ``params``."""
+    counts, T = _counts_and_time(steps, T)
+    initial, params = _common_arguments(initial, params)
+    origin = getattr(getattr(sim.equations, "system", None), "continuous", None)
+    if origin is None:
+        raise UnsupportedFeatureError(f"{sim.name}: the observed order is measured for a "
+                                      f"system discretised from a ContinuousSystem "
+                                      f"(system.discretize(h, scheme))")
+    name = str(origin.step)
+    if reference is not None:
+        reference = _reference(reference, configuration_size(origin.system))
 
     def final(n: int) -> np.ndarray:
         return _final_configuration(sim, initial, {**params, name: T / n}, n)
@@ -94,22 +170,18 @@ def convergence_order(system, scheme, initial, params: Mapping, T: float,
         target, against = final(REFERENCE_FACTOR * counts[-1]), (
             f"the same scheme with N = {REFERENCE_FACTOR * counts[-1]}")
     else:
-        target, against = np.asarray(reference, float).ravel(), "the reference given"
+        target, against = reference, "the reference given"
     errors = []
     for n in counts:
         value = final(n)
-        if value.shape != target.shape:
-            raise ShapeError(f"convergence_order: the reference has {target.size} entries, "
-                             f"the configuration {value.size}")
         errors.append(float(np.linalg.norm(value - target)))
     h = np.array([T / n for n in counts])
     e = np.array(errors)
     logs = np.log(np.where(e > 0, e, np.finfo(float).tiny))
     orders = tuple(float(v) for v in np.diff(logs) / np.diff(np.log(h)))
     order = float(np.polyfit(np.log(h), logs, 1)[0])
-    expected = getattr(scheme, "order", 2 if isinstance(scheme, str) else None)
     return ConvergenceReport(tuple(counts), tuple(h.tolist()), tuple(errors), orders, order,
-                             expected, against)
+                             expected, against, float(np.linalg.norm(target)))
 
 
-__all__ = ["ConvergenceReport", "convergence_order"]
+__all__ = ["ConvergenceReport", "convergence_order", "measure_order"]

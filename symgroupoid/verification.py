@@ -145,9 +145,12 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     ε relative to the largest coordinate and multiplier (at least 1).  An action that is not
     finite on the trajectory is a :class:`~symgroupoid.DomainError`.  A forced system is
     refused (:class:`~symgroupoid.UnsupportedFeatureError`): its trajectories are not
-    critical points of the action (docs/conventions.md §20).
+    critical points of the action (docs/conventions.md §20); so is a discrete Lagrangian
+    with internal stages (its action needs the stages solved at every arrow, §22).
     """
     system = system_argument(system, "system", owner="verify_stationary")
+    if getattr(system, "stages", 0):
+        system._refuse_stages("verify_stationary (the discrete action along a trajectory)")
     if getattr(system, "forces", None) is not None:  # not a critical point of the action
         raise UnsupportedFeatureError(
             f"{system.name}: a forced system's trajectory is not a critical point of the "

@@ -20,6 +20,9 @@ from ._system_file import SystemFile
 
 #: keys of an initial state given by a configuration and a discrete momentum
 MOMENTUM_KEYS = ("configuration", "momentum")
+#: keys of an initial state given by a configuration and a velocity (a discretised
+#: ContinuousSystem: Simulator.from_velocity)
+VELOCITY_KEYS = ("configuration", "velocity")
 #: keys of a boundary-value problem file
 BOUNDARY_KEYS = ("start", "end", "steps", "params", "guess")
 
@@ -137,11 +140,16 @@ def initial_state(sim, data, params, *, origin: str = "--initial") -> np.ndarray
     - a mapping of named state parts (``{"x": [0, 0.01], "g": [[…]], "lambda": […]}``),
       as :meth:`Simulator.state` reads them;
     - ``{"configuration": …, "momentum": […]}``: :meth:`Simulator.from_momentum`;
+    - ``{"configuration": …, "velocity": […]}``: :meth:`Simulator.from_velocity` (a system
+      discretised from a ContinuousSystem);
     - a list: the flat state, ordered as ``step.knowns``.
     """
     if data is None:
         raise InputError(f"{sim.name}: no initial state: give --initial FILE.json, or "
                          f"define INITIAL in the system file")
+    if isinstance(data, Mapping) and "velocity" in data:
+        configuration, velocity = velocity_data(data, origin)
+        return sim.from_velocity(configuration, velocity, params)
     if isinstance(data, Mapping) and "momentum" in data:
         extra = sorted(set(map(str, data)) - set(MOMENTUM_KEYS))
         if extra:
@@ -153,6 +161,16 @@ def initial_state(sim, data, params, *, origin: str = "--initial") -> np.ndarray
                          f"{{\"configuration\": …, \"momentum\": […]}}, or a list; got "
                          f"{type(data).__name__} {data!r}")
     return sim.state(data, params)
+
+
+def velocity_data(data: Mapping, origin: str = "--initial") -> tuple:
+    """(configuration, velocity) of an initial state ``{"configuration": …, "velocity":
+    […]}``; the configuration may be omitted when the base is a point."""
+    extra = sorted(set(map(str, data)) - set(VELOCITY_KEYS))
+    if extra:
+        raise InputError(f"{origin}: a state from a velocity has only the keys "
+                         f"'configuration' and 'velocity'; got also {', '.join(extra)}")
+    return data.get("configuration"), data["velocity"]
 
 
 def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:

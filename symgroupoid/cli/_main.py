@@ -30,8 +30,9 @@ SYSTEM_HELP = ("FILE.py[:NAME]: a Python file defining a DiscreteSystem, SecondO
                "file defines several")
 
 EPILOG = """\
-A system file may also define PARAMS (parameter values by name), INITIAL (an initial state)
-and NOETHER (the Noether quantities verify checks); options given here take precedence.
+A system file may also define PARAMS (parameter values by name), INITIAL (an initial state),
+NOETHER (the Noether quantities verify checks) and HORIZON (the final time of verify's order
+measurement of a discretised ContinuousSystem); options given here take precedence.
 
 Initial states (--initial FILE.json, or INITIAL):
   {"x": [0.0, 0.01], "g": [[1,0,0],[0,1,0],[0,0,1]], "lambda": [0, 0, 0]}
@@ -39,6 +40,9 @@ Initial states (--initial FILE.json, or INITIAL):
       consecutive values, a group part as its matrix, the multipliers as "lambda"
   {"configuration": {"x": 0, "y": 0}, "momentum": [0.1, 0.05, 0.0, 0.0, 0.0]}
       a base point and a discrete momentum (Simulator.from_momentum)
+  {"configuration": {"theta": 0.3}, "velocity": [0.5]}
+      a configuration and a velocity (body velocity on a group) of a discretised
+      ContinuousSystem (Simulator.from_velocity)
   [0.0, 0.01, ...]          the flat state, ordered as the step's knowns
   traj.npz                  the last state of a run written by simulate -o traj.npz
 
@@ -154,6 +158,9 @@ def build_parser() -> argparse.ArgumentParser:
     _runtime_options(verify)
     verify.add_argument("--steps", default="20", help="length of the short run (default 20)")
     verify.add_argument("--points", default="5", help="random points of the kernel checks")
+    verify.add_argument("--horizon", metavar="T",
+                        help="final time of the order measurement of a discretised "
+                             "ContinuousSystem (default: the file's HORIZON, else steps·h)")
     verify.add_argument("--seed", default="0", help="seed of the random points")
     verify.add_argument("--no-sympy", action="store_true",
                         help="skip the comparison with the SymPy residuals (large systems)")

@@ -7,6 +7,11 @@
 5. Each Noether quantity the system file declares (``NOETHER``): the section verified to be
    a symmetry (seed 000 Def. 4.8) and the quantity conserved along the short run
    (Thm 4.9).
+6. For a system discretised from a :class:`~symgroupoid.ContinuousSystem`: the observed
+   order of its scheme next to the theoretical one (docs/conventions.md §21, §22), from
+   the initial configuration and velocity the file names (``INITIAL = {"configuration":
+   …, "velocity": […]}``) over the horizon ``HORIZON`` (default: the short run's, N·h),
+   with N, 2N and 4N steps against the same scheme with 32N.
 
 Points for 1–3 are the states of the short run with the unknowns drawn at random around the
 step's prediction, so every chart is evaluated where it is defined.  Each comparison is
@@ -24,11 +29,19 @@ import sympy as sp
 
 from .._errors import SymgroupoidError
 from .._lambdify import NUMPY_MODULES
+from ..convergence import REFERENCE_FACTOR, measure_order
 from ..equations import DiscreteSystem
 from ..verification import verify_stationary
 from ._common import derive, say, stepper
 from ._errors import InputError
-from ._inputs import initial_data, initial_state, parameters, parse_count
+from ._inputs import (
+    initial_data,
+    initial_state,
+    parameters,
+    parse_count,
+    parse_number,
+    velocity_data,
+)
 
 #: relative tolerance of the Jacobian against central differences (their truncation and
 #: rounding errors are ~1e-10 of the row's size; a wrong entry is of the order of the entry)
@@ -41,6 +54,12 @@ SYMPY_TOLERANCE = 1e-8
 NOETHER_TOLERANCE = 1e-8
 #: relative spread of the random unknowns around the prediction
 SPREAD = 0.1
+#: an observed order passes within this of the scheme's (the criterion of the issue's tests)
+ORDER_TOLERANCE = 0.1
+#: the step counts of the order measurement, in multiples of --steps
+ORDER_MULTIPLES = (1, 2, 4)
+#: final-time errors below this × max(1, |q(T)|) are at the rounding floor and not fitted
+ORDER_FLOOR = 1e-11
 
 
 @dataclass
@@ -139,6 +158,9 @@ def stationarity_check(system, traj) -> Check:
     if not isinstance(system, DiscreteSystem):
         return Check(name, None, "nonholonomic equations are not the critical points of an "
                                  "action")
+    if system.stages:
+        return Check(name, None, "not yet for a discrete Lagrangian with internal stages "
+                                 "(docs/conventions.md §22)")
     report = verify_stationary(traj, system)
     return Check(name, bool(report), f"dS/dt along a random variation {report.extrapolated:.1e} "
                                      f"(terms {report.scale:.1e})")
@@ -190,6 +212,9 @@ def noether_check(system, step, declared: Declared, traj, p) -> Check:
     name = f"Noether: {declared.name}"
     if step.order != 1:
         return Check(name, None, "Noether quantities are checked for first-order systems only")
+    if system.stages:
+        return Check(name, None, "not yet for a discrete Lagrangian with internal stages "
+                                 "(docs/conventions.md §22)")
     try:
         quantity = system.noether(declared.section, declared.f)
     except SymgroupoidError:
@@ -211,6 +236,78 @@ def noether_check(system, step, declared: Declared, traj, p) -> Check:
                            f"{len(values)} states (tolerance {tolerance:.0e})")
 
 
+def _scheme_name(scheme) -> str:
+    return scheme if isinstance(scheme, str) else f"{type(scheme).__name__}({scheme.stages})"
+
+
+def horizon(source, text: str | None, default: float) -> float:
+    """The final time of the order measurement: ``--horizon``, else the file's ``HORIZON``,
+    else ``default``; a finite positive number."""
+    if text is not None:
+        value, what = parse_number(text, "--horizon"), "--horizon"
+    else:
+        raw, what = source.convention("HORIZON"), f"{source.path.name}: HORIZON"
+        if raw is None:
+            return default
+        if isinstance(raw, bool) or not isinstance(raw, (int, float, np.integer, np.floating)):
+            raise InputError(f"{what} must be a number (the final time of the order "
+                             f"measurement), got {type(raw).__name__} {raw!r}")
+        value = float(raw)
+    if not np.isfinite(value) or value <= 0:
+        raise InputError(f"{what} must be a finite positive time, got {value!r}")
+    return value
+
+
+def order_horizon(source, params: dict, steps: int, text: str | None) -> float | None:
+    """The horizon T of the order measurement of a discretised ContinuousSystem (checked
+    before any run), None for other systems."""
+    origin = getattr(source.system, "continuous", None)
+    if origin is None:
+        if text is not None:
+            raise InputError(f"--horizon: {source.label} is not discretised from a "
+                             f"ContinuousSystem; there is no order to measure")
+        return None
+    return horizon(source, text, steps * float(params[str(origin.step)]))
+
+
+def order_check(source, sim, data, params: dict, steps: int, T: float | None
+                ) -> Check | None:
+    """The observed order of a discretised ContinuousSystem's scheme against its
+    theoretical order over the horizon T (None for other systems); see the module
+    docstring."""
+    origin = getattr(source.system, "continuous", None)
+    if origin is None or T is None:
+        return None
+    name = f"order of {_scheme_name(origin.scheme or origin.rule)}"
+    if not (isinstance(data, Mapping) and "velocity" in data):
+        return Check(name, None, "needs an initial configuration and velocity: set INITIAL "
+                                 "= {\"configuration\": ..., \"velocity\": [...]} in the "
+                                 "file (or give it with --initial)")
+    step = str(origin.step)
+    counts = [steps * m for m in ORDER_MULTIPLES]
+    try:
+        report = measure_order(sim, velocity_data(data), params, T, counts,
+                               expected=origin.order)
+    except SymgroupoidError as err:
+        return Check(name, False, f"the runs failed: {err}")
+    floor = ORDER_FLOOR * max(1.0, report.reference_norm)
+    used = [(h, e) for h, e in zip(report.step_sizes, report.errors) if e > floor]
+    where = (f"{step} = T/N, N = {', '.join(map(str, counts))}, T = {T:g}, errors "
+             f"{', '.join(f'{e:.1e}' for e in report.errors)} against N = "
+             f"{REFERENCE_FACTOR * counts[-1]}")
+    if len(used) < 2:
+        return Check(name, None, f"theoretical {origin.order}; the errors are at the "
+                                 f"rounding floor ({where}): set a longer HORIZON or a "
+                                 f"larger {step}")
+    logs = np.log([[h, e] for h, e in used])
+    observed = float(np.polyfit(logs[:, 0], logs[:, 1], 1)[0])
+    passed = abs(observed - origin.order) <= ORDER_TOLERANCE
+    hint = "" if passed else (f" (tolerance {ORDER_TOLERANCE:g}; if {step} is too large for "
+                              f"the asymptotic range, a shorter HORIZON or more --steps)")
+    return Check(name, passed, f"observed {observed:.2f}, theoretical {origin.order}; "
+                               f"{where}{hint}")
+
+
 def table(checks: list[Check]) -> list[str]:
     width = max(len("check"), *(len(c.name) for c in checks))
     lines = [f"{'check':<{width}}  result  detail"]
@@ -227,6 +324,7 @@ def run_verify(args: argparse.Namespace) -> int:
     step, system = derived.step, derived.system
     params = parameters(derived.source, args.params)
     p = sim.parameters(params)
+    T = order_horizon(derived.source, params, steps, args.horizon)
     data = initial_data(derived.source, args.initial, sim)
     state = initial_state(sim, data, params)
     declared = declared_noether(derived.source) if isinstance(system, DiscreteSystem) else []
@@ -248,6 +346,9 @@ def run_verify(args: argparse.Namespace) -> int:
     if traj is not None:
         checks.append(stationarity_check(system, traj))
         checks += [noether_check(system, step, d, traj, p) for d in declared]
+    order = order_check(derived.source, sim, data, params, steps, T)
+    if order is not None:
+        checks.append(order)
     failed = sum(c.passed is False for c in checks)
     for line in table(checks):
         say(line)

@@ -192,7 +192,7 @@ class ContinuousSystem:
         system = DiscreteSystem(G, L_d, parameters=self.parameters,
                                 name=f"{self.name}_{rule}", holonomic=self.holonomic,
                                 time_step=h, forces=forces, inputs=self.inputs)
-        system.continuous = Discretization(self, h, rule)
+        system.continuous = Discretization(self, h, rule, scheme)
         return system
 
     def _galerkin(self, scheme, h: sp.Symbol, G, read) -> DiscreteSystem:
@@ -210,7 +210,7 @@ class ContinuousSystem:
         system = DiscreteSystem(G, L_d, parameters=self.parameters,
                                 name=f"{self.name}_{scheme.label}", holonomic=self.holonomic,
                                 time_step=h, stages=n_stage)
-        system.continuous = Discretization(self, h, scheme.label)
+        system.continuous = Discretization(self, h, scheme.label, scheme)
         return system
 
     def _check_galerkin(self, scheme, G) -> None:
@@ -342,6 +342,13 @@ class Discretization:
     system: ContinuousSystem
     step: sp.Symbol
     rule: str  # "midpoint", "trapezoid", or a Galerkin label ("gauss2", "lobatto3")
+    scheme: object = None  # the scheme as discretize took it
+
+    @property
+    def order(self) -> int:
+        """The theoretical order of the scheme (docs/conventions.md §21, §22)."""
+        return self.scheme.order if isinstance(self.scheme, (GaussLegendre, LobattoIIIAB)) \
+            else 2
 
 
 def velocity_momentum_program(system: DiscreteSystem) -> Program:

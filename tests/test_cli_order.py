@@ -1,0 +1,168 @@
+"""``symgroupoid verify`` on a system discretised from a ContinuousSystem: the observed order
+of its scheme next to the theoretical one (docs/cli.md, docs/conventions.md §21–§22), from
+the file's ``INITIAL = {"configuration": …, "velocity": […]}`` over its ``HORIZON``; the
+velocity form of an initial state for ``simulate``; what is refused, and how."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import sympy as sp
+from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
+
+import symgroupoid as sg
+from symgroupoid import UnsupportedFeatureError
+from symgroupoid.cli import load_system, main
+
+PENDULUM = (REPO / "examples" / "cli" / "pendulum_order4.py").read_text()
+MIDPOINT = PENDULUM.replace("sg.GaussLegendre(2)", '"midpoint"')
+#: the same system with its initial state as an arrow (the two first positions)
+ARROW = PENDULUM.replace('INITIAL = {"configuration": {"theta": 0.3}, "velocity": [0.5]}',
+                         'INITIAL = {"theta": [0.3, 0.325]}')
+
+
+@pytest.fixture(scope="module")
+def kernels(tmp_path_factory) -> Path:
+    """One kernel cache for the module: each system is compiled once."""
+    return tmp_path_factory.mktemp("kernels")
+
+
+@pytest.fixture
+def cached(isolated_cache, kernels, monkeypatch):  # noqa: F811
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(kernels))
+    return kernels
+
+
+def write(folder: Path, name: str, text: str) -> Path:
+    path = folder / name
+    path.write_text(text)
+    return path
+
+
+def run(capsys, *args) -> tuple[int, str, str]:
+    code = main([str(a) for a in args])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def rows(out: str) -> dict[str, str]:
+    return {line.split("  ")[0]: line for line in out.splitlines()}
+
+
+def error_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.startswith("symgroupoid: error:")]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@needs_cc
+def test_verify_reports_the_observed_order(cached, capsys):
+    """The example file: GaussLegendre(2) observed at 4.00 (N = 20, 40, 80 over T = 1,
+    against N = 640); the variational-principle check is skipped for internal stages."""
+    code, out, _ = run(capsys, "verify", REPO / "examples" / "cli" / "pendulum_order4.py")
+    assert code == 0, out
+    row = rows(out)["order of GaussLegendre(2)"]
+    assert " pass " in row and "theoretical 4" in row, row
+    observed = float(row.split("observed ")[1].split(",")[0])
+    assert abs(observed - 4) <= 0.1, row
+    assert "N = 20, 40, 80, T = 1," in row and "against N = 640" in row, row
+    assert " skip " in rows(out)["variational principle (20 steps)"]
+    assert out.splitlines()[-1] == "pendulum_gauss2: 4 of 4 checks passed, 1 skipped"
+
+
+@needs_cc
+def test_the_midpoint_rule_and_the_options(tmp_path, cached, capsys):
+    """Order 2 for the midpoint rule (where the variational principle is checked too);
+    ``--horizon`` and ``--steps`` set the measurement."""
+    path = write(tmp_path, "midpoint.py", MIDPOINT)
+    code, out, _ = run(capsys, "verify", path, "--horizon", "0.5", "--steps", "10")
+    assert code == 0, out
+    row = rows(out)["order of midpoint"]
+    assert " pass " in row and "theoretical 2" in row and "N = 10, 20, 40, T = 0.5," in row
+    assert " pass " in rows(out)["variational principle (10 steps)"]
+
+
+@needs_cc
+def test_a_wrong_order_fails(tmp_path, cached, capsys, monkeypatch):
+    """The check can fail: a scheme claimed to be of order 6 is measured at 4."""
+    path = REPO / "examples" / "cli" / "pendulum_order4.py"
+    origin = load_system(str(path)).system.continuous
+    monkeypatch.setattr(type(origin), "order", property(lambda self: 6))
+    code, out, _ = run(capsys, "verify", path)
+    assert code == 1
+    row = rows(out)["order of GaussLegendre(2)"]
+    assert " FAIL " in row and "theoretical 6" in row and "more --steps" in row, row
+
+
+@needs_cc
+def test_what_the_measurement_needs_is_named(tmp_path, cached, capsys):
+    """Without a configuration and velocity the order is skipped with what to add; errors
+    at the rounding floor are not fitted (a skip saying so)."""
+    code, out, _ = run(capsys, "verify", write(tmp_path, "arrow.py", ARROW))
+    assert code == 0, out
+    row = rows(out)["order of GaussLegendre(2)"]
+    assert " skip " in row and 'INITIAL = {"configuration": ..., "velocity": [...]}' in row
+    code, out, _ = run(capsys, "verify", REPO / "examples" / "cli" / "pendulum_order4.py",
+                       "--horizon", "1e-4")
+    row = rows(out)["order of GaussLegendre(2)"]
+    assert code == 0 and " skip " in row and "rounding floor" in row, row
+
+
+@pytest.mark.parametrize("value, message", [
+    ('"1.0"', "HORIZON must be a number"), ("True", "HORIZON must be a number"),
+    ("-1.0", "finite positive"), ("float('nan')", "finite positive"),
+    ("0", "finite positive"), ("[1.0]", "HORIZON must be a number"),
+])
+def test_a_bad_horizon_is_refused(tmp_path, cached, capsys, value, message):
+    path = write(tmp_path, "bad.py", PENDULUM.replace("HORIZON = 1.0", f"HORIZON = {value}"))
+    code, _, err = run(capsys, "verify", path)
+    assert code == 1 and message in error_line(err)
+
+
+@pytest.mark.parametrize("value, message", [
+    ("abc", "--horizon: 'abc' is not a number"), ("inf", "finite positive"),
+    ("-2", "finite positive")])
+def test_a_bad_horizon_option_is_refused(cached, capsys, value, message):
+    code, _, err = run(capsys, "verify", REPO / "examples" / "cli" / "pendulum_order4.py",
+                       "--horizon", value)
+    assert code == 1 and message in error_line(err)
+
+
+def test_a_horizon_without_a_continuous_system_is_refused(cached, capsys):
+    code, _, err = run(capsys, "verify", REPO / "examples" / "cli" / "spring.py",
+                       "--horizon", "1")
+    assert code == 1 and "not discretised from a ContinuousSystem" in error_line(err)
+
+
+@needs_cc
+def test_simulate_starts_from_a_velocity(tmp_path, cached, capsys):
+    """The velocity form of an initial state, from the file or ``--initial``; extra keys and
+    a system without a continuous origin are refused in one line."""
+    path = REPO / "examples" / "cli" / "pendulum_order4.py"
+    code, out, _ = run(capsys, "simulate", path, "--steps", "10")
+    assert code == 0 and "10 steps" in out, out
+    bad = write(tmp_path, "bad.json", json.dumps(
+        {"configuration": {"theta": 0.3}, "velocity": [0.5], "momentum": [1.0]}))
+    code, _, err = run(capsys, "simulate", path, "--steps", "10", "--initial", bad)
+    assert code == 1 and "only the keys 'configuration' and 'velocity'" in error_line(err)
+    spring = REPO / "examples" / "cli" / "spring.py"
+    velocity = write(tmp_path, "v.json", json.dumps({"configuration": {"q": 0.1},
+                                                     "velocity": [0.0]}))
+    code, _, err = run(capsys, "simulate", spring, "--steps", "10", "--initial", velocity)
+    assert code == 1 and "from_velocity needs a system discretised" in error_line(err)
+
+
+def test_verify_stationary_refuses_internal_stages():
+    """(verify_stationary on a Galerkin system raised UnsupportedExpressionError about the
+    symbol ζ, which ``symgroupoid verify`` reported for every such file.)"""
+    h, g = sp.symbols("h g", positive=True)
+    system = sg.ContinuousSystem(sg.EuclideanSpace("theta"),
+                                 lambda q, v: v[0] ** 2 / 2 + g * sp.cos(q[0]),
+                                 parameters=[h, g], name="p").discretize(h, sg.GaussLegendre(2))
+    sim = system.euler_lagrange().compile(backend="numpy")
+    params = {"h": 0.1, "g": 9.81}
+    traj = sim.simulate(sim.from_velocity({"theta": 0.3}, [0.5], params), 5, params)
+    with pytest.raises(UnsupportedFeatureError, match="internal stages"):
+        sg.verify_stationary(traj, system)
