@@ -17,7 +17,7 @@ from ._forcing import (
     rayleigh_damping,
     trapezoid_forces,
 )
-from ._galerkin import GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
+from ._galerkin import MAX_NODES, GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._kinetic import DEGENERATE_KINETIC
 from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines, latex
 from ._layout import PAGE_WIDTH
@@ -57,7 +57,7 @@ __all__ = [
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
     "equation_lines", "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
     "trapezoid_forces", "ContinuousSystem", "GaussLegendre", "LobattoIIIAB",
-    "GalerkinTableau", "gauss_legendre_tableau", "lobatto_tableau",
+    "GalerkinTableau", "MAX_NODES", "gauss_legendre_tableau", "lobatto_tableau",
     # pt: the text width of a LaTeX document, and the default width of the printed lines
     "PAGE_WIDTH",
     # the causes a DegenerateSystemError names (its ``causes``, each finding's ``cause``)

@@ -32,12 +32,12 @@ from dataclasses import dataclass
 
 import sympy as sp
 
-from .._arguments import integer_argument
-from .._errors import InputTypeError, ShapeError, UnsupportedFeatureError
+from .._arguments import integer_argument, name_argument, sequence_argument
+from .._errors import CallableError, InputTypeError, ShapeError, UnsupportedFeatureError
 from ..derivation import call_user, checked_callable
 from ..groupoids import configuration_factors, pair_groupoid_of
 from ..ir import Graph, Program, from_sympy
-from ._galerkin import GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
+from ._galerkin import MAX_NODES, GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._system import DiscreteSystem
 
 #: the rules written directly (order 2), by name
@@ -52,8 +52,8 @@ class GaussLegendre:
     stages: int
 
     def __post_init__(self):
-        object.__setattr__(self, "stages", integer_argument(self.stages, "stages", minimum=1,
-                                                            owner="GaussLegendre"))
+        object.__setattr__(self, "stages", integer_argument(
+            self.stages, "stages", minimum=1, maximum=MAX_NODES, owner="GaussLegendre"))
 
     @property
     def order(self) -> int:
@@ -80,8 +80,8 @@ class LobattoIIIAB:
     stages: int
 
     def __post_init__(self):
-        object.__setattr__(self, "stages", integer_argument(self.stages, "stages", minimum=2,
-                                                            owner="LobattoIIIAB"))
+        object.__setattr__(self, "stages", integer_argument(
+            self.stages, "stages", minimum=2, maximum=MAX_NODES, owner="LobattoIIIAB"))
 
     @property
     def order(self) -> int:
@@ -131,6 +131,7 @@ class ContinuousSystem:
     def __init__(self, Q, L: Callable, parameters: Sequence[sp.Symbol] = (), *,
                  holonomic: Callable | None = None, forces: Callable | None = None,
                  inputs: Sequence[sp.Symbol] = (), name: str = "continuous"):
+        name = name_argument(name, "the system's name", owner="ContinuousSystem")
         self.name = name
         self.factors, self.product = configuration_factors(Q)
         self.Q = Q
@@ -138,7 +139,15 @@ class ContinuousSystem:
             raise InputTypeError(f"{name}: L must be a function L(q, v), got "
                                  f"{type(L).__name__}")
         self.lagrangian = L
-        self.parameters = list(parameters)
+        for what, f, form in (("holonomic", holonomic, "lambda q: [...]"),
+                              ("forces", forces, "lambda q, v: [...]")):
+            if f is not None and not callable(f):
+                raise CallableError(f"{name}: {what} must be a function of the configuration"
+                                    f"{' and velocity' if what == 'forces' else ''} "
+                                    f"({form}), got {type(f).__name__}")
+        self.parameters = sequence_argument(
+            [parameters] if isinstance(parameters, sp.Symbol) else parameters, "parameters",
+            owner=name)
         self.holonomic = holonomic
         if forces is not None and any(f.is_group for f in self.factors):
             raise UnsupportedFeatureError(
@@ -146,7 +155,8 @@ class ContinuousSystem:
                 f"discretize without forces= and pass the discrete forces (sg.body_torque) "
                 f"to a DiscreteSystem written by hand")
         self.forces = forces
-        self.inputs = list(inputs)
+        self.inputs = sequence_argument([inputs] if isinstance(inputs, sp.Symbol) else inputs,
+                                        "inputs", owner=name)
 
     def _values(self, parts: list):
         return tuple(parts) if self.product else parts[0]

@@ -22,7 +22,8 @@ the retraction's chart).
   Lobatto IIIA–IIIB, order 2s − 2.
 
 The nodes are exact (square roots) for up to three roots of a node polynomial, else numbers
-with 40 significant digits (beyond double precision).
+with 40 significant digits (beyond double precision).  A scheme has at most
+:data:`MAX_NODES` nodes.
 """
 
 from __future__ import annotations
@@ -32,9 +33,15 @@ from dataclasses import dataclass
 
 import sympy as sp
 
+from .._arguments import integer_argument
+
 _tau = sp.Symbol("tau", real=True)
 DIGITS = 40
 EXACT = 3  # nodes written exactly up to this many roots (beyond: nested radicals)
+#: the most nodes of a scheme: GaussLegendre(10) is of order 20 and LobattoIIIAB(10) of order
+#: 18, whose errors are below double precision's rounding at any step h where the step's
+#: Newton converges; the tables of more nodes take minutes to build (s = 12: ~1 min)
+MAX_NODES = 10
 
 
 @dataclass(frozen=True)
@@ -93,20 +100,32 @@ def _tableau(control: list, nodes: list) -> GalerkinTableau:
     return GalerkinTableau(tuple(control), tuple(nodes), weights, values, slopes)
 
 
-@functools.cache
 def gauss_legendre_tableau(s: int) -> GalerkinTableau:
-    """Degree-s polynomials at the control times j/s, s Gauss–Legendre nodes (order 2s)."""
+    """Degree-s polynomials at the control times j/s, s Gauss–Legendre nodes (order 2s);
+    1 ≤ s ≤ :data:`MAX_NODES`."""
+    return _gauss_legendre(integer_argument(s, "stages", minimum=1, maximum=MAX_NODES,
+                                            owner="GaussLegendre"))
+
+
+def lobatto_tableau(s: int) -> GalerkinTableau:
+    """Degree-(s − 1) polynomials through the s Lobatto nodes 0, the roots of
+    P′_{s−1}(2τ − 1), 1, with the Lobatto weights (order 2s − 2); 2 ≤ s ≤
+    :data:`MAX_NODES`."""
+    return _lobatto(integer_argument(s, "stages", minimum=2, maximum=MAX_NODES,
+                                     owner="LobattoIIIAB"))
+
+
+@functools.cache
+def _gauss_legendre(s: int) -> GalerkinTableau:
     nodes = _roots(sp.legendre(s, 2 * _tau - 1), s)
     return _tableau([sp.Rational(j, s) for j in range(s + 1)], nodes)
 
 
 @functools.cache
-def lobatto_tableau(s: int) -> GalerkinTableau:
-    """Degree-(s − 1) polynomials through the s Lobatto nodes 0, the roots of
-    P′_{s−1}(2τ − 1), 1, with the Lobatto weights (order 2s − 2)."""
+def _lobatto(s: int) -> GalerkinTableau:
     inner = _roots(sp.diff(sp.legendre(s - 1, 2 * _tau - 1), _tau), s - 2) if s > 2 else []
     nodes = [sp.S.Zero, *inner, sp.S.One]
     return _tableau(nodes, nodes)
 
 
-__all__ = ["GalerkinTableau", "gauss_legendre_tableau", "lobatto_tableau"]
+__all__ = ["MAX_NODES", "GalerkinTableau", "gauss_legendre_tableau", "lobatto_tableau"]

@@ -7,6 +7,7 @@ from collections.abc import Callable, Sequence
 import sympy as sp
 
 from .._arguments import (
+    MAX_DIMENSION,
     choice_argument,
     instance_argument,
     integer_argument,
@@ -233,7 +234,8 @@ class DiscreteSystem(_EvaluatedSystem):
                  time_step: sp.Symbol | str | None = None, forces: Callable | None = None,
                  inputs: Sequence[sp.Symbol] = (), stages: int = 0):
         name, groupoid, parameters = system_arguments(name, groupoid, parameters)
-        self.stages = integer_argument(stages, "stages", minimum=0, owner=name)
+        self.stages = integer_argument(stages, "stages", minimum=0, maximum=MAX_DIMENSION,
+                                       owner=name)
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
         self.holonomic = holonomic
