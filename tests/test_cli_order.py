@@ -166,3 +166,35 @@ def test_verify_stationary_refuses_internal_stages():
     traj = sim.simulate(sim.from_velocity({"theta": 0.3}, [0.5], params), 5, params)
     with pytest.raises(UnsupportedFeatureError, match="internal stages"):
         sg.verify_stationary(traj, system)
+
+
+CENTRAL = '''
+import sympy as sp
+import symgroupoid as sg
+
+h = sp.symbols("h", positive=True)
+
+def central() -> sg.DiscreteSystem:
+    L = lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - (q[0] ** 2 + q[1] ** 2) ** 2 / 4
+    return sg.ContinuousSystem(sg.EuclideanSpace("x y"), L, parameters=[h],
+                               name="central").discretize(h, sg.GaussLegendre(2))
+
+PARAMS = {"h": 0.05}
+INITIAL = {"configuration": {"x": 1.0, "y": 0.0}, "velocity": [0.0, 0.8]}
+NOETHER = [{"name": "angular momentum", "section": lambda q: [-q[1], q[0]]},
+           {"name": "x-momentum", "section": [1, 0]}]
+'''
+
+
+@needs_cc
+def test_noether_quantities_of_a_galerkin_system(tmp_path, cached, capsys):
+    """A central force on R² with GaussLegendre(2): rotations are a symmetry, verified at the
+    stages of random arrows, and the angular momentum is conserved along the run;
+    translations are not a symmetry (the check fails)."""
+    code, out, _ = run(capsys, "verify", write(tmp_path, "central.py", CENTRAL))
+    found = rows(out)
+    assert " pass " in found["Noether: angular momentum"], out
+    assert "symmetry verified at the stages of random arrows" in found[
+        "Noether: angular momentum"]
+    assert " FAIL " in found["Noether: x-momentum"] and code == 1, out
+    assert " pass " in found["order of GaussLegendre(2)"], out
