@@ -473,7 +473,7 @@ def test_readme_commands_run(tmp_path, cached, capsys, monkeypatch):
     section = readme.split("## Command line", 1)[1].split("\n## ", 1)[0]
     block = section.split("```sh\n", 1)[1].split("```", 1)[0]
     commands = [shlex.split(line.split("  #", 1)[0]) for line in block.splitlines()]
-    assert len(commands) == 6 and all(c[0] == "symgroupoid" for c in commands)
+    assert len(commands) == 7 and all(c[0] == "symgroupoid" for c in commands)
     (tmp_path / "examples").symlink_to(REPO / "examples")
     monkeypatch.chdir(tmp_path)
     for command in commands:
