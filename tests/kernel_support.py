@@ -59,6 +59,22 @@ def isolated_cache(tmp_path, monkeypatch):
     return tmp_path / "sg-cache"
 
 
+@pytest.fixture(scope="module")
+def module_cache_root(tmp_path_factory) -> Path:
+    """A fresh kernel cache shared by the tests of one module (see :func:`module_cache`)."""
+    return tmp_path_factory.mktemp("sg-module-cache") / "sg-cache"
+
+
+@pytest.fixture(name="isolated_cache", autouse=True)
+def module_cache(module_cache_root, monkeypatch):
+    """In place of :func:`isolated_cache` for a module none of whose tests is about the cache:
+    its tests share one fresh kernel cache, so a kernel several of them compile is built once
+    (still never the user's cache)."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(module_cache_root))
+    monkeypatch.delenv("SYMGROUPOID_BACKEND", raising=False)
+    return module_cache_root
+
+
 @functools.cache
 def compiled(name: str, backend: str = "c"):
     """The simulator of a seed system (built once per test process)."""

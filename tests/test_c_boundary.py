@@ -274,8 +274,11 @@ SANITIZE = ["-fsanitize=address,undefined", "-fno-omit-frame-pointer",
             "-fno-sanitize-recover=all"]
 
 
-def _sanitizers_unavailable(tmp_path) -> str | None:
-    """Why the compiler cannot build and run a sanitized program here (None if it can)."""
+@pytest.fixture(scope="module")
+def sanitizers_unavailable(tmp_path_factory) -> str | None:
+    """Why the compiler cannot build and run a sanitized program here (None if it can);
+    probed once for the module's sanitizer tests."""
+    tmp_path = tmp_path_factory.mktemp("sanitizer-probe")
     if shutil.which("cc") is None:
         return "no C compiler (cc) on PATH"
     src = tmp_path / "probe.c"
@@ -299,13 +302,13 @@ def _sanitizer_env() -> dict:
     return env
 
 
-def test_embedding_runs_clean_under_address_and_undefined_sanitizers(tmp_path):
+def test_embedding_runs_clean_under_address_and_undefined_sanitizers(tmp_path,
+                                                                    sanitizers_unavailable):
     """A freshly emitted plate-ball kernel and examples/embed/main.c, built with
     -fsanitize=address,undefined, run 2500 steps (three calls of the chunked loop, the
     warm start carried across) and bad input with no sanitizer report."""
-    reason = _sanitizers_unavailable(tmp_path)
-    if reason:
-        pytest.skip(reason)
+    if sanitizers_unavailable:
+        pytest.skip(sanitizers_unavailable)
     c_path, _ = emit_c(seed_step("plate_ball"), tmp_path / "plate_ball")
     exe = tmp_path / "embed_asan"
     build = subprocess.run(["cc", "-std=c99", "-O1", "-g", *SANITIZE, f"-I{tmp_path}",
@@ -339,13 +342,13 @@ def test_embedding_runs_clean_under_address_and_undefined_sanitizers(tmp_path):
     assert "Sanitizer" not in bad.stderr and "runtime error" not in bad.stderr
 
 
-def test_the_closed_loop_runs_clean_under_address_and_undefined_sanitizers(tmp_path):
+def test_the_closed_loop_runs_clean_under_address_and_undefined_sanitizers(
+        tmp_path, sanitizers_unavailable):
     """examples/embed/closed_loop.c with the shipped forced kernel generated/satellite_wheel.c,
     built with -fsanitize=address,undefined: 750 controlled steps writing the trajectory, and
     a run too short to reach the target, with no sanitizer report."""
-    reason = _sanitizers_unavailable(tmp_path)
-    if reason:
-        pytest.skip(reason)
+    if sanitizers_unavailable:
+        pytest.skip(sanitizers_unavailable)
     exe = tmp_path / "closed_loop_asan"
     build = subprocess.run(["cc", "-std=c99", "-O1", "-g", *SANITIZE, "-ffp-contract=off",
                             f"-I{REPO / 'generated'}",

@@ -8,7 +8,11 @@ import numpy as np
 import pytest
 import sympy as sp
 from conftest import load_example
-from kernel_support import isolated_cache, needs_cc  # noqa: F401  (isolated_cache: autouse fixture)
+from kernel_support import (  # noqa: F401  (module_cache: autouse fixture)
+    module_cache,
+    module_cache_root,
+    needs_cc,
+)
 
 import symgroupoid as sg
 from symgroupoid.derivation import WindowAction
