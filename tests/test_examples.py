@@ -28,10 +28,11 @@ VERIFYING = {
 }
 # long-running demonstrations (boundary-value solves, long runs), run with the slow tests
 # only; their systems are checked in the fast tests (heavy top: tests/test_seed_heavy_top.py,
-# the 3D chain: tests/test_chains.py)
+# the 3D chain: tests/test_chains.py; the orders of the Galerkin schemes: tests/test_galerkin.py)
 SLOW = {"optimal_control_lie_groups.py", "elroys_beanie.py", "euler_poincare_so3.py",
         "holonomic_constraints.py", "optimal_control_so3_se2.py", "heavy_top_rotors.py",
-        "plate_ball_steering.py", "heavy_top.py", "pendulum_chain_3d.py", "chain_order4.py"}
+        "plate_ball_steering.py", "heavy_top.py", "pendulum_chain_3d.py", "chain_order4.py",
+        "double_pendulum_order6.py"}
 # scripts that measure observed orders against an accurate reference: the theoretical order
 # of each report they print ("observed order p (theoretical q)", docs/conventions.md §22)
 ORDERS = {"heavy_top_order4.py": [4], "double_pendulum_order6.py": [6, 6],

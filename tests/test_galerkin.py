@@ -141,7 +141,8 @@ def _rigid_reference(T: float) -> np.ndarray:
     return sol.y[:9, -1]
 
 
-@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(3)])
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2),
+                                    pytest.param(sg.LobattoIIIAB(3), marks=pytest.mark.slow)])
 def test_the_observed_order_on_so3_is_four(scheme):
     """The free rigid body J = diag(1, 2, 3) on SO(3), through the Cayley retraction."""
     report = sg.convergence_order(_rigid_body(), scheme,
