@@ -87,8 +87,11 @@ def _lagrange(points: list) -> list:
 
 
 def _clean(value: sp.Expr) -> sp.Expr:
-    value = sp.nsimplify(sp.radsimp(sp.expand(value))) if not value.has(sp.Float) else value
-    return sp.radsimp(value) if not value.has(sp.Float) else sp.Float(value, DIGITS)
+    """An exact value in expanded radical form (no numeric identification, which could
+    change it); a numeric one to :data:`DIGITS` digits."""
+    if value.has(sp.Float):
+        return sp.Float(value, DIGITS)
+    return sp.radsimp(sp.expand(value))
 
 
 def _tableau(control: list, nodes: list) -> GalerkinTableau:
