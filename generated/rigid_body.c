@@ -417,6 +417,154 @@ typedef struct {
     int normal;
 } rigid_body_lu;
 
+/* Gaussian elimination with partial pivoting of the row-scaled n x n matrix A (row-major,
+ * overwritten by L's multipliers below the diagonal and U on and above it): perm[k] the row
+ * swapped into place k (the first largest |entry| of column k), inv[k] the reciprocal pivot.
+ * Returns RIGID_BODY_SINGULAR_JACOBIAN at the first pivot not above n * DBL_EPSILON, else RIGID_BODY_OK.
+ *
+ * Entry (i, j) receives the updates A_ij -= l_ik u_kj of k = 0, 1, ... in that order, each
+ * rounded (no fused multiply-add: kernels are compiled with -ffp-contract=off), and a zero
+ * multiplier l_ik is skipped; the NumPy twin (_numpy.py, lu_factor) performs the same
+ * operations.  Up to RIGID_BODY_LU_PANEL_FROM unknowns the updates are applied column by column (the
+ * textbook right-looking order); from there on a panel of RIGID_BODY_LU_PANEL columns is eliminated
+ * first and the rest of its rows and the rows below receive the panel's updates together,
+ * every entry once per panel instead of once per column (fewer passes over a matrix that
+ * no longer fits in the first-level cache; the loops over a row vectorise).  The order of
+ * the updates of every entry, and so every bit of the result, is the same either way. */
+#define RIGID_BODY_LU_PANEL 8
+#define RIGID_BODY_LU_PANEL_FROM 24
+
+/* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
+ * the updates of the panel's own columns only (the columns from k1 on are left to
+ * rigid_body_panel_rows and rigid_body_panel_update). */
+static inline int rigid_body_eliminate_columns(double *A, double *inv, int *perm, int k0, int k1)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    const double tiny = n * DBL_EPSILON;
+    int i, j, k;
+    RIGID_BODY_UNROLL
+    for (k = k0; k < k1; ++k) {
+        int piv = k;
+        double amax = fabs(A[k * n + k]);
+        RIGID_BODY_UNROLL
+        for (i = k + 1; i < n; ++i) {
+            const double a = fabs(A[i * n + k]);
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
+        }
+        if (!(amax > tiny)) {
+            return RIGID_BODY_SINGULAR_JACOBIAN;
+        }
+        perm[k] = piv;
+        if (piv != k) {
+            RIGID_BODY_UNROLL
+            for (j = 0; j < n; ++j) {
+                const double t = A[k * n + j];
+                A[k * n + j] = A[piv * n + j];
+                A[piv * n + j] = t;
+            }
+        }
+        inv[k] = 1.0 / A[k * n + k];
+        RIGID_BODY_UNROLL
+        for (i = k + 1; i < n; ++i) {
+            const double l = A[i * n + k] * inv[k];
+            A[i * n + k] = l;
+            if (l != 0.0) {
+                RIGID_BODY_UNROLL
+                for (j = k + 1; j < k1; ++j) {
+                    A[i * n + j] -= l * A[k * n + j];
+                }
+            }
+        }
+    }
+    return RIGID_BODY_OK;
+}
+
+#if RIGID_BODY_N_UNKNOWNS < RIGID_BODY_LU_PANEL_FROM
+static int rigid_body_eliminate(double *A, double *inv, int *perm)
+{
+    return rigid_body_eliminate_columns(A, inv, perm, 0, RIGID_BODY_N_UNKNOWNS);
+}
+#else
+/* row r (from column k1 on) minus its multipliers l[0..RIGID_BODY_LU_PANEL) times the panel's rows
+ * u, u + n, ...: the RIGID_BODY_LU_PANEL updates of each entry in order, none skipped (every l is
+ * nonzero) */
+static inline void rigid_body_panel_row_update(double *restrict r, const double *restrict u, const double *l, int k1)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    const double l0 = l[0], l1 = l[1], l2 = l[2], l3 = l[3], l4 = l[4], l5 = l[5], l6 = l[6], l7 = l[7];
+    const double *restrict u0 = u, *restrict u1 = u + n, *restrict u2 = u + 2 * n, *restrict u3 = u + 3 * n;
+    const double *restrict u4 = u + 4 * n, *restrict u5 = u + 5 * n, *restrict u6 = u + 6 * n, *restrict u7 = u + 7 * n;
+    int j;
+    for (j = k1; j < n; ++j) {
+        double t = r[j];
+        t -= l0 * u0[j];
+        t -= l1 * u1[j];
+        t -= l2 * u2[j];
+        t -= l3 * u3[j];
+        t -= l4 * u4[j];
+        t -= l5 * u5[j];
+        t -= l6 * u6[j];
+        t -= l7 * u7[j];
+        r[j] = t;
+    }
+}
+
+/* row i from column k1 on: the updates of the panel rows kk in [k0, k) in order, a zero
+ * multiplier skipped */
+static inline void rigid_body_row_updates(double *A, int i, int k0, int k, int k1)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    int kk, j;
+    for (kk = k0; kk < k; ++kk) {
+        const double l = A[i * n + kk];
+        if (l != 0.0) {
+            for (j = k1; j < n; ++j) {
+                A[i * n + j] -= l * A[kk * n + j];
+            }
+        }
+    }
+}
+
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__)
+/* the panel updates also in AVX2 instructions, chosen when the processor has them: the same
+ * multiplications and subtractions, so the same bits */
+#define RIGID_BODY_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define RIGID_BODY_VECTOR_CLONES
+#endif
+
+RIGID_BODY_VECTOR_CLONES
+static int rigid_body_eliminate(double *A, double *inv, int *perm)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    int k0, k, i;
+    for (k0 = 0; k0 < n; k0 += RIGID_BODY_LU_PANEL) {
+        const int k1 = k0 + RIGID_BODY_LU_PANEL < n ? k0 + RIGID_BODY_LU_PANEL : n;
+        const int status = rigid_body_eliminate_columns(A, inv, perm, k0, k1);
+        if (status != RIGID_BODY_OK) {
+            return status;
+        }
+        for (k = k0 + 1; k < k1; ++k) { /* the panel's rows of U */
+            rigid_body_row_updates(A, k, k0, k, k1);
+        }
+        for (i = k1; i < n; ++i) { /* the rows below */
+            const double *l = A + i * n + k0;
+            int nonzero = k1 - k0 == RIGID_BODY_LU_PANEL;
+            for (k = k0; k < k1; ++k) {
+                nonzero &= l[k - k0] != 0.0;
+            }
+            if (nonzero) {
+                rigid_body_panel_row_update(A + i * n, A + k0 * n, l, k1);
+            } else {
+                rigid_body_row_updates(A, i, k0, k1, k1);
+            }
+        }
+    }
+    return RIGID_BODY_OK;
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -429,10 +577,9 @@ typedef struct {
 static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
 {
     const int n = RIGID_BODY_N_UNKNOWNS;
-    const double tiny = n * DBL_EPSILON;
     double *A = f->A;
     uint64_t rmax[RIGID_BODY_N_UNKNOWNS];
-    int i, j, k;
+    int i, j;
     RIGID_BODY_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (rigid_body_abs_bits), its sum */
         uint64_t m = 0;
@@ -480,42 +627,7 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
-    RIGID_BODY_UNROLL
-    for (k = 0; k < n; ++k) {
-        int piv = k;
-        double amax = fabs(A[k * n + k]);
-        RIGID_BODY_UNROLL
-        for (i = k + 1; i < n; ++i) {
-            const double a = fabs(A[i * n + k]);
-            piv = a > amax ? i : piv;
-            amax = a > amax ? a : amax;
-        }
-        if (!(amax > tiny)) {
-            return RIGID_BODY_SINGULAR_JACOBIAN;
-        }
-        f->perm[k] = piv;
-        if (piv != k) {
-            RIGID_BODY_UNROLL
-            for (j = 0; j < n; ++j) {
-                const double t = A[k * n + j];
-                A[k * n + j] = A[piv * n + j];
-                A[piv * n + j] = t;
-            }
-        }
-        f->inv[k] = 1.0 / A[k * n + k];
-        RIGID_BODY_UNROLL
-        for (i = k + 1; i < n; ++i) {
-            const double l = A[i * n + k] * f->inv[k];
-            A[i * n + k] = l;
-            if (l != 0.0) {
-                RIGID_BODY_UNROLL
-                for (j = k + 1; j < n; ++j) {
-                    A[i * n + j] -= l * A[k * n + j];
-                }
-            }
-        }
-    }
-    return RIGID_BODY_OK;
+    return rigid_body_eliminate(A, f->inv, f->perm);
 }
 
 /* Solve J x = b with the factors of rigid_body_lu_factor (x returned in b): the same row
@@ -553,8 +665,9 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
+#if RIGID_BODY_N_UNKNOWNS < RIGID_BODY_LU_PANEL_FROM
     RIGID_BODY_UNROLL
-    for (i = n - 1; i >= 0; --i) {
+    for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
         RIGID_BODY_UNROLL
         for (j = i + 1; j < n; ++j) {
@@ -562,6 +675,18 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
         }
         b[i] = t * f->inv[i];
     }
+#else
+    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
+     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
+    (void)j;
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * f->inv[i];
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= A[k * n + i] * x;
+        }
+    }
+#endif
     return rigid_body_norm_inf(b, n) < INFINITY ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
 }
 

@@ -74,6 +74,8 @@ def integer_argument(value, name: str, *, minimum: int = 0, maximum: int = MAX_C
     infinities, non-integral values, values below ``minimum`` or above ``maximum``, and
     anything that is not a real number.
     """
+    if type(value) is int and minimum <= value <= maximum:  # the common case, at once
+        return value
     at = where(owner)
     if isinstance(value, (bool, np.bool_)):
         raise ShapeError(f"{at}{name} must be an integer, got the boolean {value!r}")

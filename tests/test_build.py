@@ -608,3 +608,59 @@ def test_a_kernel_whose_residual_parts_are_shared_computes_what_numpy_computes(m
         F0, J0 = numpy.residual_jacobian(u, known, par)
         assert np.array_equal(F, F0) and np.array_equal(J, J0)
         assert np.array_equal(c_kernel.residual(u, known, par), F0)
+
+
+def test_a_stepper_unit_is_raised_only_from_the_large_kernels_level():
+    large = toolchain.optimisation_flags(toolchain.LARGE_PROGRAM + 1, step=True)
+    assert toolchain.unit_flags(large, "stepper") == ("-O2", *toolchain.DEFAULT_FLAGS[1:],
+                                                      _flags.STEPPER_LEVEL)
+    assert toolchain.unit_flags((*large, "-fopenmp"), "stepper")[-2:] == ("-fopenmp", "-O3")
+    for kept in (toolchain.DEFAULT_FLAGS, ("-O0",), ("-Os",), ("-O1",), ()):
+        assert toolchain.unit_flags(kept, "stepper") == kept
+    assert _flags.stepper_unit(large, _flags.STEPPER_UNIT_FROM)
+    assert not _flags.stepper_unit(large, _flags.STEPPER_UNIT_FROM - 1)
+    mid = toolchain.optimisation_flags(toolchain.SMALL_STEP + 1, step=True)
+    assert not _flags.stepper_unit(mid, 100)  # already -O3
+    from symgroupoid.stepper import LU_PANEL_FROM
+
+    assert _flags.STEPPER_UNIT_FROM == LU_PANEL_FROM
+
+
+def test_a_stepper_unit_at_its_level_computes_what_numpy_computes(monkeypatch):
+    """The 3D chain of 8 bodies (24 unknowns: the LU in panels) with its stepper in a unit
+    of its own, built at the flags of a large kernel: the stepper unit at -O3 without
+    LARGE_STEP_FLAGS, the others at -O2; 20 steps and a batch equal, bit for bit, the NumPy
+    backend's."""
+    step = spherical_chain(8).euler_lagrange()
+    kernel = generate_c(step, latex=False, units=2, stepper_unit=True)
+    prefix = kernel.prefix
+    assert kernel.stepper == (f"{prefix}_stepper.c",)
+    stepper_text = dict(kernel.units)[f"{prefix}_stepper.c"]
+    assert f"int {prefix}_simulate(" in stepper_text and f"{prefix}_eliminate(" in stepper_text
+    assert f"{prefix}_newton(" not in kernel.source
+    assert f"{prefix}_residual_jacobian(" in kernel.source
+    commands: list = []
+    run = _cffi_build._run
+    monkeypatch.setattr(_cffi_build, "_run", lambda kernel, cmds, *a, **k: (
+        commands.extend(cmds), run(kernel, cmds, *a, **k))[1])
+    flags = toolchain.optimisation_flags(toolchain.LARGE_PROGRAM + 1, step=True)
+    loaded, _ = _compile.load_kernel_source(kernel, flags, step.name, len(step.unknowns),
+                                            len(step.knowns))
+
+    def level(command):
+        return [word for word in command if word.startswith("-O")][-1]
+
+    compiled = {c[c.index("-c") + 1]: c for c in commands if "-c" in c}
+    assert level(compiled[f"{prefix}_stepper.c"]) == "-O3"
+    assert "-fno-tree-slp-vectorize" not in compiled[f"{prefix}_stepper.c"]
+    assert level(compiled[f"{prefix}.c"]) == "-O2"
+    numpy = step.compile(backend="numpy")
+    h, bodies = PARAMS["h"], range(1, 9)
+    R = [_cayley(np.array([0.3, 0.2 * i, 0.1])) for i in bodies]
+    R1 = [r @ _cayley(h * np.array([0.6, -0.4 * i, 0.8])) for i, r in zip(bodies, R)]
+    state = np.concatenate([r.ravel() for r in R] + [r.ravel() for r in R1])
+    split = Simulator(step, loaded, numpy.options)
+    c = split.simulate(state, 20, PARAMS)
+    assert np.array_equal(c.states, numpy.simulate(state, 20, PARAMS).states)
+    assert np.array_equal(split.simulate_batch(np.stack([state, state]), 20, PARAMS).states[0],
+                          c.states)

@@ -179,7 +179,9 @@ class KernelSource:
     ``units`` of code that does no arithmetic of a step, built at a lower optimisation
     level (``symgroupoid.runtime.toolchain.unit_flags``); ``blocks``: the file names among
     ``units`` of straight-line arithmetic that calls no library function (see
-    :func:`arithmetic_only`), which a build may compile at a cheaper level."""
+    :func:`arithmetic_only`), which a build may compile at a cheaper level; ``stepper``: the
+    file name among ``units`` of the Newton stepper compiled on its own (empty when the
+    stepper is in the source)."""
 
     prefix: str
     header_name: str
@@ -189,6 +191,7 @@ class KernelSource:
     units: tuple[tuple[str, str], ...] = ()
     cold: tuple[str, ...] = ()
     blocks: tuple[str, ...] = ()
+    stepper: tuple[str, ...] = ()
 
 
 def _ascii(text: str) -> str:
@@ -237,22 +240,28 @@ def arithmetic_only(program) -> bool:
     return not any(spec.calls for spec in program_functions(program, list(program.outputs)))
 
 
-def library_texts(prefix: str) -> dict[str, str]:
+def library_texts(prefix: str, stepper_unit: bool = False) -> dict[str, str]:
     """The Newton stepper's C library (:mod:`symgroupoid.stepper`) with the names of the
     kernel ``prefix``, as the templates place it: ``interface`` (``stepper.h``, in the
     header after the sizes), ``prologue`` and ``stepper`` (``prologue.h``, ``stepper.c``: the
     kernel's source, around its generated functions), ``cold`` (``batch.c`` after them, for a
     kernel in one file), ``cold_prologue`` and ``cold_unit`` (the same in the cold unit of a
-    kernel spread over several)."""
-    source, cold = Inliner(prefix), Inliner(prefix)
-    return {"interface": Inliner(prefix, provided=()).text("stepper.h"),
-            "prologue": source.text("prologue.h"), "stepper": source.text("stepper.c"),
-            "cold": source.text("batch.c"),
-            "cold_prologue": cold.text("prologue.h"), "cold_unit": cold.text("batch.c")}
+    kernel spread over several).  ``stepper_unit``: ``stepper.c`` goes instead into a unit
+    of its own (``stepper_prologue``, ``stepper_unit``; ``stepper`` is then empty)."""
+    source, cold, stepper = Inliner(prefix), Inliner(prefix), Inliner(prefix)
+    texts = {"interface": Inliner(prefix, provided=()).text("stepper.h"),
+             "prologue": source.text("prologue.h")}
+    texts["stepper"] = "" if stepper_unit else source.text("stepper.c")
+    texts["cold"] = source.text("batch.c")
+    texts["cold_prologue"], texts["cold_unit"] = cold.text("prologue.h"), cold.text("batch.c")
+    if stepper_unit:
+        texts["stepper_prologue"] = stepper.text("prologue.h")
+        texts["stepper_unit"] = stepper.text("stepper.c")
+    return texts
 
 
 def _context(step, prefix: str, header_name: str, latex: bool, units: int,
-             block_weight: float = 1.0) -> dict:
+             block_weight: float = 1.0, stepper_unit: bool = False) -> dict:
     from .._version import __version__
 
     blocks = kernel_blocks(step, unit_part_size(len(step.unknowns), units))
@@ -286,7 +295,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
         "residual_jacobian": blocks.residual_jacobian,
         "residual_scale": blocks.residual_scale,
         "predict": blocks.predict,
-        "next_knowns": blocks.next_knowns, "library": library_texts(prefix),
+        "next_knowns": blocks.next_knowns, "library": library_texts(prefix, stepper_unit),
         "n_units": n_units, "cold_unit": units > 1,
     }
 
@@ -297,6 +306,7 @@ MAX_UNITS = 64
 
 def generate_c(step, prefix: str | None = None, header_name: str | None = None, *,
                latex: bool = False, units: int = 1, block_weight: float | None = None,
+               stepper_unit: bool = False,
                template_cache: str | os.PathLike | None = None) -> KernelSource:
     """Generate (without writing) the C kernel of ``step``.
 
@@ -315,6 +325,10 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     which a build compiles at a cheaper level, and a statement there costs the compiler
     ``block_weight`` times one in the source (:func:`assign_units`); the units of other
     kernels are balanced at 1.
+    ``stepper_unit``: the Newton stepper (``symgroupoid/stepper/stepper.c``) in a unit of
+    its own, ``<prefix>_stepper.c`` (``KernelSource.stepper``), which a build compiles at
+    the level of the stepper's loops (``runtime.toolchain.unit_flags``) whatever the level
+    of the straight-line functions.
     ``template_cache``: a directory that keeps the templates' compiled code across processes
     (:class:`CompiledTemplates`: Python, so only a directory as trusted as the package; the
     kernel cache keeps none); the C is the same with or without it.
@@ -331,18 +345,21 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     env = environment(template_cache)
     header_name = header_name or f"{prefix}.h"
     lowered = block_weight is not None and units > 1 and arithmetic_only(step.program)
-    ctx = _context(step, prefix, header_name, latex, units, block_weight if lowered else 1.0)
+    ctx = _context(step, prefix, header_name, latex, units, block_weight if lowered else 1.0,
+                   bool(stepper_unit))
     unit_template = env.get_template("unit.c.j2")
     further = [(f"{prefix}_unit{k}.c", unit_template.render(ctx, unit=k))
                for k in range(1, ctx["n_units"])]
     blocks = tuple(name for name, _ in further) if lowered else ()
     cold = (f"{prefix}_cold.c",) if ctx["cold_unit"] else ()
     further += [(name, env.get_template("cold.c.j2").render(ctx)) for name in cold]
+    stepper = (f"{prefix}_stepper.c",) if stepper_unit else ()
+    further += [(name, env.get_template("stepper.c.j2").render(ctx)) for name in stepper]
     return KernelSource(prefix=prefix, header_name=header_name,
                         header=env.get_template("kernel.h.j2").render(ctx),
                         source=env.get_template("kernel.c.j2").render(ctx),
                         cdef=env.get_template("cdef.j2").render(ctx),
-                        units=tuple(further), cold=cold, blocks=blocks)
+                        units=tuple(further), cold=cold, blocks=blocks, stepper=stepper)
 
 
 _UMASK_LOCK = threading.Lock()

@@ -36,6 +36,11 @@ TRUST_FLOOR = 1e-2
 #: largest value of a C ``int`` (Newton iteration caps and counts are ints in the kernel)
 C_INT_MAX = 2**31 - 1
 
+#: from this many unknowns the back substitution goes column by column
+#: (``SG_LU_PANEL_FROM`` in ``stepper.c``, which also switches the factorisation to panels of
+#: the same bits; a test checks the two values agree)
+LU_PANEL_FROM = 24
+
 #: the unit roundoff of double precision (C's DBL_EPSILON)
 EPSILON = float(np.finfo(float).eps)
 
@@ -120,14 +125,18 @@ def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
             piv = int(factors.perm[k])
             if piv != k:
                 b[[k, piv]] = b[[piv, k]]
-        for k in range(n):
-            for i in range(k + 1, n):
-                b[i] -= A[i, k] * b[k]
-        for i in range(n - 1, -1, -1):
-            t = b[i]
-            for j in range(i + 1, n):
-                t -= A[i, j] * b[j]
-            b[i] = t * factors.inv[i]
+        for k in range(n):  # every b_i, i > k, takes one update (elementwise: the same bits)
+            b[k + 1:] -= A[k + 1:, k] * b[k]
+        if n < LU_PANEL_FROM:  # row by row, each sum in the order j = i+1, i+2, ...
+            for i in range(n - 1, -1, -1):
+                t = b[i]
+                for j in range(i + 1, n):
+                    t -= A[i, j] * b[j]
+                b[i] = t * factors.inv[i]
+        else:  # column by column: b_i's updates in the order j = n-1, n-2, ...
+            for i in range(n - 1, -1, -1):
+                b[i] = b[i] * factors.inv[i]
+                b[:i] -= A[:i, i] * b[i]
     return (OK if np.isfinite(norm_inf(b)) else NON_FINITE), b
 
 

@@ -88,6 +88,8 @@ def _role(kernel: KernelSource, file_name: str) -> str:
     """The role of a translation unit of ``kernel`` (see :func:`unit_flags`)."""
     if file_name in kernel.cold:
         return "cold"
+    if file_name in kernel.stepper:
+        return "stepper"
     return "blocks" if file_name in kernel.blocks else "step"
 
 

@@ -12,7 +12,7 @@ import sympy as sp
 from ...codegen import KernelSource, generate_c, templates_digest
 from ._compiler import build_environment
 from ._digests import abi_tag, sha256_of
-from ._flags import block_weight, optimisation_flags, translation_units
+from ._flags import block_weight, optimisation_flags, stepper_unit, translation_units
 from ._kernel_cache import KernelCache
 from ._openmp import OPENMP_FLAG, _compiler_identity, default_flags
 
@@ -118,7 +118,8 @@ def step_kernel(step, cache: KernelCache | None = None, flags: Sequence[str] | N
     :func:`~._flags.translation_units` files compiled at the same time; with
     ``block_units`` (a build at the library's default flags), the units of straight-line
     arithmetic are block units (``KernelSource.blocks``), balanced for their level
-    (:func:`~._flags.block_weight`).  The templates' compiled code (Python) comes from the
+    (:func:`~._flags.block_weight`), and a large kernel's stepper is a unit of its own
+    (:func:`~._flags.stepper_unit`).  The templates' compiled code (Python) comes from the
     package (``templates/__pycache__``, ``symgroupoid cache templates``), never from the
     kernel cache (which holds no Python): where the package has none, the templates are
     compiled in this process (0.045 s, once); ``cache`` is not used."""
@@ -126,7 +127,8 @@ def step_kernel(step, cache: KernelCache | None = None, flags: Sequence[str] | N
     if flags is None:
         flags = optimisation_flags(step_operations(step), step=True)
     return generate_c(step, latex=False, units=translation_units(),
-                      block_weight=block_weight(flags) if block_units else None)
+                      block_weight=block_weight(flags) if block_units else None,
+                      stepper_unit=block_units and stepper_unit(flags, len(step.unknowns)))
 
 
 def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
@@ -137,5 +139,6 @@ def source_key_of(kernel: KernelSource, flags: Sequence[str]) -> str:
     units = [part for unit in kernel.units for part in unit]
     return sha256_of([kernel.header, kernel.source, str(len(units)), *units,
                       str(len(kernel.cold)), *kernel.cold, str(len(kernel.blocks)),
-                      *kernel.blocks, kernel.cdef, abi_tag(), *build_environment(),
+                      *kernel.blocks, str(len(kernel.stepper)), *kernel.stepper,
+                      kernel.cdef, abi_tag(), *build_environment(),
                       "flags", *flags])[:32]

@@ -1,0 +1,243 @@
+"""The stepper's LU (``stepper.c``: ``lu_factor``, ``eliminate``, ``lu_apply``) against its
+NumPy twin, bit for bit, on both sides of ``SG_LU_PANEL_FROM``: below it the elimination
+goes column by column, from it on in panels of ``SG_LU_PANEL`` columns and the back
+substitution column by column (the same operations in the same order for every entry).
+
+The kernel is linear, F(u) = A u − b (A in the parameters, b the known state, each sum in
+the order j = 0, 1, …; the next state is the solution u), so a step is one solve A u = b
+refined by Newton's updates: every update goes through ``lu_factor`` and ``lu_apply``.
+The matrices are random, or random with many exact zeros (skipped multipliers: the panel's
+fused update is not taken), or block banded as a chain's Jacobian is, or singular (two
+equal rows: both sides must say ``SINGULAR_JACOBIAN`` at the same step).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import re
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from kernel_support import needs_cc
+
+from symgroupoid.runtime import NewtonOptions
+from symgroupoid.stepper import (
+    LU_PANEL_FROM,
+    NumpyStepper,
+    Status,
+    StepFunctions,
+    library_dir,
+)
+
+#: the linear kernel's functions; N_UNKNOWNS etc. come from the sizes header
+LINEAR_C = r"""
+#include <math.h>
+#include "stepper.h"
+
+void lin_reconstruct(const double *u, const double *known, const double *p, double *fibre)
+{
+    int i;
+    (void)known;
+    (void)p;
+    for (i = 0; i < LIN_N_UNKNOWNS; ++i) {
+        fibre[i] = u[i];
+    }
+}
+
+void lin_residual(const double *u, const double *known, const double *p, double *F)
+{
+    int i, j;
+    for (i = 0; i < LIN_N_UNKNOWNS; ++i) {
+        double t = 0.0;
+        for (j = 0; j < LIN_N_UNKNOWNS; ++j) {
+            t += p[i * LIN_N_UNKNOWNS + j] * u[j];
+        }
+        F[i] = t - known[i];
+    }
+}
+
+void lin_residual_jacobian(const double *u, const double *known, const double *p, double *F,
+                           double *J)
+{
+    int i;
+    lin_residual(u, known, p, F);
+    for (i = 0; i < LIN_N_UNKNOWNS * LIN_N_UNKNOWNS; ++i) {
+        J[i] = p[i];
+    }
+}
+
+void lin_residual_scale(const double *u, const double *known, const double *p, double *S)
+{
+    int i, j;
+    for (i = 0; i < LIN_N_UNKNOWNS; ++i) {
+        double t = 0.0;
+        for (j = 0; j < LIN_N_UNKNOWNS; ++j) {
+            t += fabs(p[i * LIN_N_UNKNOWNS + j] * u[j]);
+        }
+        S[i] = t + fabs(known[i]);
+    }
+}
+
+void lin_predict(const double *known, const double *p, double *u)
+{
+    int i;
+    (void)known;
+    (void)p;
+    for (i = 0; i < LIN_N_UNKNOWNS; ++i) {
+        u[i] = 0.0;
+    }
+}
+
+void lin_next_knowns(const double *u, const double *known, const double *p,
+                     double *known_next)
+{
+    int i;
+    (void)known;
+    (void)p;
+    for (i = 0; i < LIN_N_UNKNOWNS; ++i) {
+        known_next[i] = u[i];
+    }
+}
+"""
+
+FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", "-fPIC",
+         "-DSG_PREFIX=lin", "-DSG_PREFIX_UPPER=LIN"]
+
+#: sizes on both sides of the panel threshold, with and without a last partial panel
+SIZES = (5, 23, 24, 25, 40, 61, 100)
+
+
+def _sizes_header(n: int) -> str:
+    defines = {"N_EQUATIONS": n, "N_UNKNOWNS": n, "N_KNOWNS": n, "N_PARAMETERS": n * n,
+               "N_INPUTS": 0, "TIME_ROW": -1, "TIME_UNKNOWN": -1, "TIME_KNOWN": -1,
+               "TIME_BEFORE": -1}
+    return "".join(f"#define LIN_{k} {v}\n" for k, v in defines.items())
+
+
+@pytest.fixture(scope="module")
+def linear_kernels(tmp_path_factory):
+    """The library compiled with the linear kernel at every size of :data:`SIZES`."""
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler (cc) on PATH")
+    libs = {}
+    for n in SIZES:
+        where = tmp_path_factory.mktemp(f"lu{n}")
+        (where / "sizes.h").write_text(_sizes_header(n))
+        (where / "lin.c").write_text(LINEAR_C)
+        objects = []
+        for source in (library_dir() / "stepper.c", library_dir() / "batch.c", where / "lin.c"):
+            obj = where / (source.stem + ".o")
+            subprocess.run([cc, *FLAGS, f"-I{library_dir()}", "-include",
+                            str(where / "sizes.h"), "-c", str(source), "-o", str(obj)],
+                           check=True, capture_output=True, text=True)
+            objects.append(str(obj))
+        library = where / "liblin.so"
+        subprocess.run([cc, "-shared", *objects, "-lm", "-o", str(library)], check=True)
+        libs[n] = ctypes.CDLL(str(library))
+    return libs
+
+
+class _Options(ctypes.Structure):
+    _fields_ = [("tol_residual", ctypes.c_double), ("floor_factor", ctypes.c_double),
+                ("tol_step", ctypes.c_double), ("max_iterations", ctypes.c_int),
+                ("extrapolate", ctypes.c_int), ("trust_factor", ctypes.c_double)]
+
+
+def _twin_functions(n: int) -> StepFunctions:
+    """The linear kernel in NumPy, each sum in the C's order (a Python loop)."""
+
+    def residual(u, known, p):
+        A = p.reshape(n, n)
+        F = np.empty(n)
+        for i in range(n):
+            t = 0.0
+            for j in range(n):
+                t += A[i, j] * u[j]
+            F[i] = t - known[i]
+        return F
+
+    def scale(u, known, p):
+        A = p.reshape(n, n)
+        S = np.empty(n)
+        for i in range(n):
+            t = 0.0
+            for j in range(n):
+                t += abs(A[i, j] * u[j])
+            S[i] = t + abs(known[i])
+        return S
+
+    return StepFunctions(
+        residual=residual,
+        residual_jacobian=lambda u, known, p: (residual(u, known, p), p.reshape(n, n).copy()),
+        residual_scale=scale, predict=lambda known, p: np.zeros(n),
+        next_knowns=lambda u, known, p: np.array(u, dtype=float))
+
+
+def _c_step(lib, n: int, A: np.ndarray, b: np.ndarray):
+    """(status, u) of the library's one-step entry point from the prediction u = 0."""
+    options = _Options()
+    lib.lin_default_options(ctypes.byref(options))
+    states = np.zeros((2, n))
+    iterations = np.zeros(1, dtype=np.intc)
+    norms = np.zeros(1)
+    failed = ctypes.c_long(-2)
+    last = np.zeros(n)
+    warm = (ctypes.c_byte * (8 + 3 * 8 * n + 64))()
+    p, known = np.ascontiguousarray(A.ravel()), np.ascontiguousarray(b)
+    as_double = ctypes.POINTER(ctypes.c_double)
+    status = lib.lin_simulate(
+        known.ctypes.data_as(as_double), p.ctypes.data_as(as_double), None, ctypes.c_long(1),
+        ctypes.byref(options), ctypes.byref(warm), states.ctypes.data_as(as_double),
+        ctypes.c_long(2), iterations.ctypes.data_as(ctypes.POINTER(ctypes.c_int)),
+        norms.ctypes.data_as(as_double), ctypes.byref(failed), last.ctypes.data_as(as_double))
+    return status, (states[1] if status == Status.OK else last), int(iterations[0]), norms[0]
+
+
+def _matrix(kind: str, n: int, rng: np.random.Generator) -> np.ndarray:
+    A = rng.normal(size=(n, n)) * np.exp(rng.uniform(-3, 3, size=(n, 1)))
+    if kind == "zeros":  # many exact zeros: multipliers are skipped, panels not fused
+        A[rng.uniform(size=(n, n)) < 0.4] = 0.0
+        A += np.diag(rng.uniform(0.5, 1.0, n))
+    elif kind == "banded":  # a chain's Jacobian: blocks of 3 coupled to their neighbours
+        blocks = np.arange(n) // 3
+        A[np.abs(blocks[:, None] - blocks[None, :]) > 1] = 0.0
+        A += np.diag(rng.uniform(0.1, 0.2, n))
+    elif kind == "singular":
+        A[n - 2] = A[1]
+    return A
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["dense", "zeros", "banded", "singular"])
+@pytest.mark.parametrize("n", SIZES)
+def test_lu_and_its_numpy_twin_agree_bit_for_bit(linear_kernels, n, kind):
+    rng = np.random.default_rng(1000 * n + len(kind))
+    A = _matrix(kind, n, rng)
+    b = rng.normal(size=n)
+    status, u, iterations, norm = _c_step(linear_kernels[n], n, A, b)
+    twin = NumpyStepper(_twin_functions(n), n)
+    t_states, t_iterations, t_norms, t_status, _, t_last = twin.simulate(
+        b, A.ravel(), 1, NewtonOptions(), twin.warm_start())
+    assert status == t_status
+    t_u = t_states[1] if t_status == Status.OK else np.asarray(t_last, dtype=float)
+    assert u.tobytes() == t_u.tobytes()
+    assert (iterations, norm) == (int(t_iterations[0]), t_norms[0])
+    if kind == "singular":
+        assert status == Status.SINGULAR_JACOBIAN
+    else:
+        assert status == Status.OK
+        np.testing.assert_allclose(A @ u, b, atol=1e-12 * np.abs(A).sum(axis=1).max())
+
+
+def test_the_panel_threshold_is_the_twins():
+    """``SG_LU_PANEL_FROM`` of ``stepper.c`` is :data:`LU_PANEL_FROM` of the NumPy twin, and
+    the fused panel update spells out ``SG_LU_PANEL`` multipliers."""
+    text = (library_dir() / "stepper.c").read_text(encoding="ascii")
+    threshold = int(re.search(r"#define SG_LU_PANEL_FROM (\d+)", text).group(1))
+    panel = int(re.search(r"#define SG_LU_PANEL (\d+)", text).group(1))
+    assert threshold == LU_PANEL_FROM
+    fused = re.search(r"SG_NAME\(panel_row_update\).*?\n}\n", text, re.S).group(0)
+    assert len(re.findall(r"t -= l\d \* u\d\[j\];", fused)) == panel
