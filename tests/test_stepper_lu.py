@@ -102,8 +102,8 @@ void lin_next_knowns(const double *u, const double *known, const double *p,
 }
 """
 
-FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-Werror", "-fPIC",
-         "-DSG_PREFIX=lin", "-DSG_PREFIX_UPPER=LIN"]
+FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-pedantic", "-Werror",
+         "-fPIC", "-DSG_PREFIX=lin", "-DSG_PREFIX_UPPER=LIN"]
 
 #: sizes on both sides of the panel threshold, with and without a last partial panel
 SIZES = (5, 23, 24, 25, 40, 61, 100)

@@ -40,6 +40,7 @@ class CKernel(_Kernel):
             "simulate", "reconstruct")}
         self._warm_type = self.ffi.typeof(f"{prefix}_warm_start *")
         self._stepper = None  # stepper(), made on first use
+        self._held_options: dict = {}  # NewtonOptions -> its C struct (see _options)
         self.max_steps = min(2**53, 2 ** (8 * self.ffi.sizeof("long") - 1) - 2)
         sizes = {"UNKNOWNS": n_unknowns, "KNOWNS": n_knowns, "EQUATIONS": n_unknowns,
                  "PARAMETERS": self.n_p}
@@ -214,6 +215,16 @@ class CKernel(_Kernel):
         return copy
 
     def _options(self, options: NewtonOptions):
+        """The ``<prefix>_options`` of ``options`` (read-only to C: the kernel takes a const
+        pointer), made once per value of the options and kept (a few at most)."""
+        held = self._held_options.get(options)
+        if held is None:
+            if len(self._held_options) >= 8:
+                self._held_options.clear()
+            held = self._held_options[options] = self._new_options(options)
+        return held
+
+    def _new_options(self, options: NewtonOptions):
         opts = self.ffi.new(f"{self.prefix}_options *")
         opts.tol_residual = options.tol_residual
         opts.floor_factor = options.floor_factor
@@ -245,15 +256,15 @@ class CKernel(_Kernel):
         the arrays hold from there on; row ``start`` is the call's initial state."""
         self._check_warm(warm)
         rows = len(states)
-        base = self._buf(states, rows * self.n_k, "states") + start * self.n_k
+        # the buffers were checked by simulate_into (_run_buffers, real_vector): views at once
+        view = self.ffi.from_buffer
+        base = view("double[]", states) + start * self.n_k
         last = np.zeros(self.n_u)
         failed = self.ffi.new("long *")
         status = int(self._f["simulate"](
-            base, self._buf(p, self.n_p, "p"), self.ffi.NULL, n_steps, self._options(options),
-            warm, base,
-            rows - start, self._buf(iterations, rows - 1, "iterations", "int") + start,
-            self._buf(residual_norms, rows - 1, "residual_norms") + start, failed,
-            self._buf(last, self.n_u, "last_iterate")))
+            base, view("double[]", p), self.ffi.NULL, n_steps, self._options(options),
+            warm, base, rows - start, view("int[]", iterations) + start,
+            view("double[]", residual_norms) + start, failed, view("double[]", last)))
         k = int(failed[0])
         return ChunkRun(status, n_steps if status == OK else max(k, 0), k, last)
 
