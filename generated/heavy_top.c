@@ -221,7 +221,6 @@ void heavy_top_residual_jacobian(const double *u, const double *known, const dou
     J[7] = t60;
     J[8] = t67;
 }
-
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
  * rounding noise of F_i, the floor below which Newton cannot bring it */
@@ -418,8 +417,67 @@ static inline double heavy_top_power_of_two(int k)
  * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
  * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
  * heavy_top_explained_by_rounding). */
+#if HEAVY_TOP_BANDED
+/* A kernel whose Jacobian is banded (HEAVY_TOP_BANDED) once its unknowns (and equations) are taken in the order
+ * HEAVY_TOP_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
+ * unless -HEAVY_TOP_BAND_KL <= j - i <= HEAVY_TOP_BAND_KU, as the code generator found from the program's
+ * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+ * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
+ * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
+#define HEAVY_TOP_BAND_WIDTH (2 * HEAVY_TOP_BAND_KL + HEAVY_TOP_BAND_KU + 1)
+#define HEAVY_TOP_LU_ENTRIES (HEAVY_TOP_N_UNKNOWNS * HEAVY_TOP_BAND_WIDTH)
+static const int heavy_top_band_order[HEAVY_TOP_N_UNKNOWNS] = HEAVY_TOP_BAND_ORDER;
+/* entry (i, j) of the band storage A (valid for i - KL <= j <= i + KL + KU) */
+#define HEAVY_TOP_BAND_AT(A, i, j) (A)[(i) * HEAVY_TOP_BAND_WIDTH + (j) - (i) + HEAVY_TOP_BAND_KL]
+/* The kernel writes its Jacobian in band form too (heavy_top_residual_jacobian_band): entry
+ * (i, j) of B, i - KL <= j <= i + KU, at HEAVY_TOP_JACOBIAN_AT(J, i, j); the entries outside the
+ * band are zero and never stored, so nothing the stepper does per step touches n^2 memory.
+ * The kernel's heavy_top_residual_jacobian gives the whole matrix from it. */
+#define HEAVY_TOP_JACOBIAN_WIDTH (HEAVY_TOP_BAND_KL + HEAVY_TOP_BAND_KU + 1)
+#define HEAVY_TOP_JACOBIAN_ENTRIES (HEAVY_TOP_N_UNKNOWNS * HEAVY_TOP_JACOBIAN_WIDTH)
+#define HEAVY_TOP_JACOBIAN_AT(J, i, j) (J)[(i) * HEAVY_TOP_JACOBIAN_WIDTH + (j) - (i) + HEAVY_TOP_BAND_KL]
+#define HEAVY_TOP_JACOBIAN heavy_top_residual_jacobian_band
+#if HEAVY_TOP_TIME_ROW >= 0
+#error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
+#endif
+void heavy_top_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+
+/* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
+ * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
+ * (nothing) for a finite a_j and NaN otherwise, as the dense sum would */
+static void heavy_top_column_sums(const double *J, const double *a, double *S)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    const int *order = heavy_top_band_order;
+    int position[HEAVY_TOP_N_UNKNOWNS];
+    int j, r;
+    for (r = 0; r < n; ++r) {
+        position[order[r]] = r;
+    }
+    for (j = 0; j < n; ++j) {
+        const int c = position[j];
+        const int lo = c - HEAVY_TOP_BAND_KU > 0 ? c - HEAVY_TOP_BAND_KU : 0;
+        const int hi = c + HEAVY_TOP_BAND_KL < n - 1 ? c + HEAVY_TOP_BAND_KL : n - 1;
+        for (r = lo; r <= hi; ++r) {
+            S[order[r]] += fabs(HEAVY_TOP_JACOBIAN_AT(J, r, c)) * a[j];
+        }
+        if (!(a[j] < INFINITY)) {
+            for (r = 0; r < n; ++r) {
+                if (r < lo || r > hi) {
+                    S[order[r]] += 0.0 * a[j];
+                }
+            }
+        }
+    }
+}
+#else
+#define HEAVY_TOP_LU_ENTRIES (HEAVY_TOP_N_UNKNOWNS * HEAVY_TOP_N_UNKNOWNS)
+#define HEAVY_TOP_JACOBIAN_ENTRIES (HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS)
+#define HEAVY_TOP_JACOBIAN heavy_top_residual_jacobian
+#endif
+
 typedef struct {
-    double A[HEAVY_TOP_N_UNKNOWNS * HEAVY_TOP_N_UNKNOWNS];
+    double A[HEAVY_TOP_LU_ENTRIES];
     double s[HEAVY_TOP_N_UNKNOWNS];
     double inv[HEAVY_TOP_N_UNKNOWNS];
     double row_max[HEAVY_TOP_N_UNKNOWNS];
@@ -445,6 +503,7 @@ typedef struct {
 #define HEAVY_TOP_LU_PANEL 8
 #define HEAVY_TOP_LU_PANEL_FROM 24
 
+#if !HEAVY_TOP_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
  * heavy_top_panel_rows and heavy_top_panel_update). */
@@ -575,6 +634,77 @@ static int heavy_top_eliminate(double *A, double *inv, int *perm)
     return HEAVY_TOP_OK;
 }
 #endif
+#endif /* !HEAVY_TOP_BANDED */
+
+#if HEAVY_TOP_BANDED
+/* The reordered, row-scaled Jacobian in the LU's band storage (zero outside its band) from
+ * the kernel's band form J: entry (i, j) is B_ij scaled by the power of two of row order[i] */
+static void heavy_top_band_fill(const double *J, const double *s, const int *e, double *A)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    const int *order = heavy_top_band_order;
+    int i, j;
+    for (i = 0; i < HEAVY_TOP_LU_ENTRIES; ++i) {
+        A[i] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        const int r = order[i];
+        const int lo = i - HEAVY_TOP_BAND_KL > 0 ? i - HEAVY_TOP_BAND_KL : 0;
+        const int hi = i + HEAVY_TOP_BAND_KU < n - 1 ? i + HEAVY_TOP_BAND_KU : n - 1;
+        for (j = lo; j <= hi; ++j) {
+            const double a = HEAVY_TOP_JACOBIAN_AT(J, i, j);
+            HEAVY_TOP_BAND_AT(A, i, j) = s[r] != 0.0 ? a * s[r] : ldexp(a, -e[r]);
+        }
+    }
+}
+
+/* Gaussian elimination with partial pivoting in band storage (LAPACK's dgbtf2 order): at
+ * column k the pivot is the first largest |entry| of rows k ... k + KL; rows k and perm[k]
+ * are swapped from column k on (the multipliers already stored stay where they are: the
+ * solve applies the swap of step k before the multipliers of column k, as LAPACK's dgbtrs
+ * does); the multipliers of rows k + 1 ... k + KL are stored in column k and the rows updated
+ * over the columns row k's U can reach (k + KL + KU), a zero multiplier skipped.  Returns
+ * HEAVY_TOP_SINGULAR_JACOBIAN at the first pivot not above n * DBL_EPSILON, else HEAVY_TOP_OK. */
+static int heavy_top_band_eliminate(double *A, double *inv, int *perm)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    const double tiny = n * DBL_EPSILON;
+    int i, j, k;
+    for (k = 0; k < n; ++k) {
+        const int last = k + HEAVY_TOP_BAND_KL < n - 1 ? k + HEAVY_TOP_BAND_KL : n - 1;
+        const int end = k + HEAVY_TOP_BAND_KL + HEAVY_TOP_BAND_KU < n - 1 ? k + HEAVY_TOP_BAND_KL + HEAVY_TOP_BAND_KU : n - 1;
+        int piv = k;
+        double amax = fabs(HEAVY_TOP_BAND_AT(A, k, k));
+        for (i = k + 1; i <= last; ++i) {
+            const double a = fabs(HEAVY_TOP_BAND_AT(A, i, k));
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
+        }
+        if (!(amax > tiny)) {
+            return HEAVY_TOP_SINGULAR_JACOBIAN;
+        }
+        perm[k] = piv;
+        if (piv != k) {
+            for (j = k; j <= end; ++j) {
+                const double t = HEAVY_TOP_BAND_AT(A, k, j);
+                HEAVY_TOP_BAND_AT(A, k, j) = HEAVY_TOP_BAND_AT(A, piv, j);
+                HEAVY_TOP_BAND_AT(A, piv, j) = t;
+            }
+        }
+        inv[k] = 1.0 / HEAVY_TOP_BAND_AT(A, k, k);
+        for (i = k + 1; i <= last; ++i) {
+            const double l = HEAVY_TOP_BAND_AT(A, i, k) * inv[k];
+            HEAVY_TOP_BAND_AT(A, i, k) = l;
+            if (l != 0.0) {
+                for (j = k + 1; j <= end; ++j) {
+                    HEAVY_TOP_BAND_AT(A, i, j) -= l * HEAVY_TOP_BAND_AT(A, k, j);
+                }
+            }
+        }
+    }
+    return HEAVY_TOP_OK;
+}
+#endif
 
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
@@ -591,6 +721,19 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
     double *A = f->A;
     uint64_t rmax[HEAVY_TOP_N_UNKNOWNS];
     int i, j;
+#if HEAVY_TOP_BANDED
+    for (i = 0; i < n; ++i) { /* the same largest |entry| from the band's entries only */
+        const int r = heavy_top_band_order[i];
+        const int lo = i - HEAVY_TOP_BAND_KL > 0 ? i - HEAVY_TOP_BAND_KL : 0;
+        const int hi = i + HEAVY_TOP_BAND_KU < n - 1 ? i + HEAVY_TOP_BAND_KU : n - 1;
+        uint64_t m = 0;
+        for (j = lo; j <= hi; ++j) {
+            const uint64_t a = heavy_top_abs_bits(HEAVY_TOP_JACOBIAN_AT(J, i, j));
+            m = a > m ? a : m;
+        }
+        rmax[r] = m;
+    }
+#else
     HEAVY_TOP_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (heavy_top_abs_bits), its sum */
         uint64_t m = 0;
@@ -601,6 +744,7 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
         }
         rmax[i] = m;
     }
+#endif
     for (i = 0; i < n; ++i) { /* the first failing row decides the status */
         if (rmax[i] >= HEAVY_TOP_INF_BITS) {
             return HEAVY_TOP_NON_FINITE;
@@ -621,6 +765,11 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
             f->normal = 0;
         }
     }
+#if HEAVY_TOP_BANDED
+    (void)j;
+    heavy_top_band_fill(J, f->s, f->e, A);
+    return heavy_top_band_eliminate(A, f->inv, f->perm);
+#else
     if (f->normal) {
         HEAVY_TOP_UNROLL
         for (i = 0; i < n; ++i) {
@@ -639,6 +788,7 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
     return heavy_top_eliminate(A, f->inv, f->perm);
+#endif
 }
 
 /* Solve J x = b with the factors of heavy_top_lu_factor (x returned in b): the same row
@@ -663,6 +813,36 @@ static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
             b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
         }
     }
+#if HEAVY_TOP_BANDED
+    (void)j;
+    {
+        const int *order = heavy_top_band_order;
+        double y[HEAVY_TOP_N_UNKNOWNS];
+        for (i = 0; i < n; ++i) { /* the reordered right-hand side */
+            y[i] = b[order[i]];
+        }
+        for (k = 0; k < n; ++k) { /* step k's row swap, then its multipliers */
+            const int last = k + HEAVY_TOP_BAND_KL < n - 1 ? k + HEAVY_TOP_BAND_KL : n - 1;
+            const double t = y[k];
+            y[k] = y[f->perm[k]];
+            y[f->perm[k]] = t;
+            for (i = k + 1; i <= last; ++i) {
+                y[i] -= HEAVY_TOP_BAND_AT(A, i, k) * y[k];
+            }
+        }
+        for (i = n - 1; i >= 0; --i) { /* column by column, as the large dense factors */
+            const double x = y[i] * f->inv[i];
+            const int first = i - HEAVY_TOP_BAND_KL - HEAVY_TOP_BAND_KU > 0 ? i - HEAVY_TOP_BAND_KL - HEAVY_TOP_BAND_KU : 0;
+            y[i] = x;
+            for (k = first; k < i; ++k) {
+                y[k] -= HEAVY_TOP_BAND_AT(A, k, i) * x;
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            b[order[i]] = y[i];
+        }
+    }
+#else
     HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
@@ -698,6 +878,7 @@ static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
         }
     }
 #endif
+#endif /* HEAVY_TOP_BANDED */
     return heavy_top_norm_inf(b, n) < INFINITY ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
 }
 
@@ -728,6 +909,15 @@ static void heavy_top_coordinate_floor(const double *J, const double *u, double 
     for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
         C[i] = 0.0;
     }
+#if HEAVY_TOP_BANDED
+    {
+        double a[HEAVY_TOP_N_UNKNOWNS];
+        for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+            a[j] = fabs(u[j]);
+        }
+        heavy_top_column_sums(J, a, C);
+    }
+#else
     HEAVY_TOP_UNROLL
     for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
         const double a = fabs(u[j]);
@@ -736,6 +926,7 @@ static void heavy_top_coordinate_floor(const double *J, const double *u, double 
             C[i] += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * a;
         }
     }
+#endif
     HEAVY_TOP_UNROLL
     for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
         C[i] *= DBL_EPSILON;
@@ -776,6 +967,9 @@ static int heavy_top_explained_by_rounding(const double *F, const double *J, con
     for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
+#if HEAVY_TOP_BANDED
+    heavy_top_column_sums(J, a, S);
+#else
     HEAVY_TOP_UNROLL
     for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
         HEAVY_TOP_UNROLL
@@ -783,6 +977,7 @@ static int heavy_top_explained_by_rounding(const double *F, const double *J, con
             S[i] += fabs(J[i * HEAVY_TOP_N_UNKNOWNS + j]) * a[j];
         }
     }
+#endif
     HEAVY_TOP_UNROLL
     for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
         if (!(fabs(F[i]) <= bound * S[i])) {
@@ -923,7 +1118,7 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
-    double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], uJ[HEAVY_TOP_N_UNKNOWNS];
+    double J[HEAVY_TOP_JACOBIAN_ENTRIES], uJ[HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
@@ -932,7 +1127,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            heavy_top_residual_jacobian(u, known, p, F, J);
+            HEAVY_TOP_JACOBIAN(u, known, p, F, J);
         } else {
             heavy_top_residual(u, known, p, F);
         }
@@ -985,7 +1180,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
                 return HEAVY_TOP_NOT_CONVERGED;
             }
             if (slow) {
-                heavy_top_residual_jacobian(u, known, p, F, J);
+                HEAVY_TOP_JACOBIAN(u, known, p, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = heavy_top_lu_factor(J, &lu);
                 if (status != HEAVY_TOP_OK) {

@@ -411,7 +411,6 @@ void plate_ball_residual_jacobian(const double *u, const double *known, const do
     J[62] = 0.0;
     J[63] = 0.0;
 }
-
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
  * rounding noise of F_i, the floor below which Newton cannot bring it */
@@ -645,8 +644,67 @@ static inline double plate_ball_power_of_two(int k)
  * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
  * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
  * plate_ball_explained_by_rounding). */
+#if PLATE_BALL_BANDED
+/* A kernel whose Jacobian is banded (PLATE_BALL_BANDED) once its unknowns (and equations) are taken in the order
+ * PLATE_BALL_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
+ * unless -PLATE_BALL_BAND_KL <= j - i <= PLATE_BALL_BAND_KU, as the code generator found from the program's
+ * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+ * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
+ * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
+#define PLATE_BALL_BAND_WIDTH (2 * PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU + 1)
+#define PLATE_BALL_LU_ENTRIES (PLATE_BALL_N_UNKNOWNS * PLATE_BALL_BAND_WIDTH)
+static const int plate_ball_band_order[PLATE_BALL_N_UNKNOWNS] = PLATE_BALL_BAND_ORDER;
+/* entry (i, j) of the band storage A (valid for i - KL <= j <= i + KL + KU) */
+#define PLATE_BALL_BAND_AT(A, i, j) (A)[(i) * PLATE_BALL_BAND_WIDTH + (j) - (i) + PLATE_BALL_BAND_KL]
+/* The kernel writes its Jacobian in band form too (plate_ball_residual_jacobian_band): entry
+ * (i, j) of B, i - KL <= j <= i + KU, at PLATE_BALL_JACOBIAN_AT(J, i, j); the entries outside the
+ * band are zero and never stored, so nothing the stepper does per step touches n^2 memory.
+ * The kernel's plate_ball_residual_jacobian gives the whole matrix from it. */
+#define PLATE_BALL_JACOBIAN_WIDTH (PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU + 1)
+#define PLATE_BALL_JACOBIAN_ENTRIES (PLATE_BALL_N_UNKNOWNS * PLATE_BALL_JACOBIAN_WIDTH)
+#define PLATE_BALL_JACOBIAN_AT(J, i, j) (J)[(i) * PLATE_BALL_JACOBIAN_WIDTH + (j) - (i) + PLATE_BALL_BAND_KL]
+#define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian_band
+#if PLATE_BALL_TIME_ROW >= 0
+#error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
+#endif
+void plate_ball_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+
+/* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
+ * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
+ * (nothing) for a finite a_j and NaN otherwise, as the dense sum would */
+static void plate_ball_column_sums(const double *J, const double *a, double *S)
+{
+    const int n = PLATE_BALL_N_UNKNOWNS;
+    const int *order = plate_ball_band_order;
+    int position[PLATE_BALL_N_UNKNOWNS];
+    int j, r;
+    for (r = 0; r < n; ++r) {
+        position[order[r]] = r;
+    }
+    for (j = 0; j < n; ++j) {
+        const int c = position[j];
+        const int lo = c - PLATE_BALL_BAND_KU > 0 ? c - PLATE_BALL_BAND_KU : 0;
+        const int hi = c + PLATE_BALL_BAND_KL < n - 1 ? c + PLATE_BALL_BAND_KL : n - 1;
+        for (r = lo; r <= hi; ++r) {
+            S[order[r]] += fabs(PLATE_BALL_JACOBIAN_AT(J, r, c)) * a[j];
+        }
+        if (!(a[j] < INFINITY)) {
+            for (r = 0; r < n; ++r) {
+                if (r < lo || r > hi) {
+                    S[order[r]] += 0.0 * a[j];
+                }
+            }
+        }
+    }
+}
+#else
+#define PLATE_BALL_LU_ENTRIES (PLATE_BALL_N_UNKNOWNS * PLATE_BALL_N_UNKNOWNS)
+#define PLATE_BALL_JACOBIAN_ENTRIES (PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS)
+#define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian
+#endif
+
 typedef struct {
-    double A[PLATE_BALL_N_UNKNOWNS * PLATE_BALL_N_UNKNOWNS];
+    double A[PLATE_BALL_LU_ENTRIES];
     double s[PLATE_BALL_N_UNKNOWNS];
     double inv[PLATE_BALL_N_UNKNOWNS];
     double row_max[PLATE_BALL_N_UNKNOWNS];
@@ -672,6 +730,7 @@ typedef struct {
 #define PLATE_BALL_LU_PANEL 8
 #define PLATE_BALL_LU_PANEL_FROM 24
 
+#if !PLATE_BALL_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
  * plate_ball_panel_rows and plate_ball_panel_update). */
@@ -802,6 +861,77 @@ static int plate_ball_eliminate(double *A, double *inv, int *perm)
     return PLATE_BALL_OK;
 }
 #endif
+#endif /* !PLATE_BALL_BANDED */
+
+#if PLATE_BALL_BANDED
+/* The reordered, row-scaled Jacobian in the LU's band storage (zero outside its band) from
+ * the kernel's band form J: entry (i, j) is B_ij scaled by the power of two of row order[i] */
+static void plate_ball_band_fill(const double *J, const double *s, const int *e, double *A)
+{
+    const int n = PLATE_BALL_N_UNKNOWNS;
+    const int *order = plate_ball_band_order;
+    int i, j;
+    for (i = 0; i < PLATE_BALL_LU_ENTRIES; ++i) {
+        A[i] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        const int r = order[i];
+        const int lo = i - PLATE_BALL_BAND_KL > 0 ? i - PLATE_BALL_BAND_KL : 0;
+        const int hi = i + PLATE_BALL_BAND_KU < n - 1 ? i + PLATE_BALL_BAND_KU : n - 1;
+        for (j = lo; j <= hi; ++j) {
+            const double a = PLATE_BALL_JACOBIAN_AT(J, i, j);
+            PLATE_BALL_BAND_AT(A, i, j) = s[r] != 0.0 ? a * s[r] : ldexp(a, -e[r]);
+        }
+    }
+}
+
+/* Gaussian elimination with partial pivoting in band storage (LAPACK's dgbtf2 order): at
+ * column k the pivot is the first largest |entry| of rows k ... k + KL; rows k and perm[k]
+ * are swapped from column k on (the multipliers already stored stay where they are: the
+ * solve applies the swap of step k before the multipliers of column k, as LAPACK's dgbtrs
+ * does); the multipliers of rows k + 1 ... k + KL are stored in column k and the rows updated
+ * over the columns row k's U can reach (k + KL + KU), a zero multiplier skipped.  Returns
+ * PLATE_BALL_SINGULAR_JACOBIAN at the first pivot not above n * DBL_EPSILON, else PLATE_BALL_OK. */
+static int plate_ball_band_eliminate(double *A, double *inv, int *perm)
+{
+    const int n = PLATE_BALL_N_UNKNOWNS;
+    const double tiny = n * DBL_EPSILON;
+    int i, j, k;
+    for (k = 0; k < n; ++k) {
+        const int last = k + PLATE_BALL_BAND_KL < n - 1 ? k + PLATE_BALL_BAND_KL : n - 1;
+        const int end = k + PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU < n - 1 ? k + PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU : n - 1;
+        int piv = k;
+        double amax = fabs(PLATE_BALL_BAND_AT(A, k, k));
+        for (i = k + 1; i <= last; ++i) {
+            const double a = fabs(PLATE_BALL_BAND_AT(A, i, k));
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
+        }
+        if (!(amax > tiny)) {
+            return PLATE_BALL_SINGULAR_JACOBIAN;
+        }
+        perm[k] = piv;
+        if (piv != k) {
+            for (j = k; j <= end; ++j) {
+                const double t = PLATE_BALL_BAND_AT(A, k, j);
+                PLATE_BALL_BAND_AT(A, k, j) = PLATE_BALL_BAND_AT(A, piv, j);
+                PLATE_BALL_BAND_AT(A, piv, j) = t;
+            }
+        }
+        inv[k] = 1.0 / PLATE_BALL_BAND_AT(A, k, k);
+        for (i = k + 1; i <= last; ++i) {
+            const double l = PLATE_BALL_BAND_AT(A, i, k) * inv[k];
+            PLATE_BALL_BAND_AT(A, i, k) = l;
+            if (l != 0.0) {
+                for (j = k + 1; j <= end; ++j) {
+                    PLATE_BALL_BAND_AT(A, i, j) -= l * PLATE_BALL_BAND_AT(A, k, j);
+                }
+            }
+        }
+    }
+    return PLATE_BALL_OK;
+}
+#endif
 
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
@@ -818,6 +948,19 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
     double *A = f->A;
     uint64_t rmax[PLATE_BALL_N_UNKNOWNS];
     int i, j;
+#if PLATE_BALL_BANDED
+    for (i = 0; i < n; ++i) { /* the same largest |entry| from the band's entries only */
+        const int r = plate_ball_band_order[i];
+        const int lo = i - PLATE_BALL_BAND_KL > 0 ? i - PLATE_BALL_BAND_KL : 0;
+        const int hi = i + PLATE_BALL_BAND_KU < n - 1 ? i + PLATE_BALL_BAND_KU : n - 1;
+        uint64_t m = 0;
+        for (j = lo; j <= hi; ++j) {
+            const uint64_t a = plate_ball_abs_bits(PLATE_BALL_JACOBIAN_AT(J, i, j));
+            m = a > m ? a : m;
+        }
+        rmax[r] = m;
+    }
+#else
     PLATE_BALL_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (plate_ball_abs_bits), its sum */
         uint64_t m = 0;
@@ -828,6 +971,7 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
         }
         rmax[i] = m;
     }
+#endif
     for (i = 0; i < n; ++i) { /* the first failing row decides the status */
         if (rmax[i] >= PLATE_BALL_INF_BITS) {
             return PLATE_BALL_NON_FINITE;
@@ -848,6 +992,11 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
             f->normal = 0;
         }
     }
+#if PLATE_BALL_BANDED
+    (void)j;
+    plate_ball_band_fill(J, f->s, f->e, A);
+    return plate_ball_band_eliminate(A, f->inv, f->perm);
+#else
     if (f->normal) {
         PLATE_BALL_UNROLL
         for (i = 0; i < n; ++i) {
@@ -866,6 +1015,7 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
     return plate_ball_eliminate(A, f->inv, f->perm);
+#endif
 }
 
 /* Solve J x = b with the factors of plate_ball_lu_factor (x returned in b): the same row
@@ -890,6 +1040,36 @@ static int plate_ball_lu_apply(const plate_ball_lu *f, double *b)
             b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
         }
     }
+#if PLATE_BALL_BANDED
+    (void)j;
+    {
+        const int *order = plate_ball_band_order;
+        double y[PLATE_BALL_N_UNKNOWNS];
+        for (i = 0; i < n; ++i) { /* the reordered right-hand side */
+            y[i] = b[order[i]];
+        }
+        for (k = 0; k < n; ++k) { /* step k's row swap, then its multipliers */
+            const int last = k + PLATE_BALL_BAND_KL < n - 1 ? k + PLATE_BALL_BAND_KL : n - 1;
+            const double t = y[k];
+            y[k] = y[f->perm[k]];
+            y[f->perm[k]] = t;
+            for (i = k + 1; i <= last; ++i) {
+                y[i] -= PLATE_BALL_BAND_AT(A, i, k) * y[k];
+            }
+        }
+        for (i = n - 1; i >= 0; --i) { /* column by column, as the large dense factors */
+            const double x = y[i] * f->inv[i];
+            const int first = i - PLATE_BALL_BAND_KL - PLATE_BALL_BAND_KU > 0 ? i - PLATE_BALL_BAND_KL - PLATE_BALL_BAND_KU : 0;
+            y[i] = x;
+            for (k = first; k < i; ++k) {
+                y[k] -= PLATE_BALL_BAND_AT(A, k, i) * x;
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            b[order[i]] = y[i];
+        }
+    }
+#else
     PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
@@ -925,6 +1105,7 @@ static int plate_ball_lu_apply(const plate_ball_lu *f, double *b)
         }
     }
 #endif
+#endif /* PLATE_BALL_BANDED */
     return plate_ball_norm_inf(b, n) < INFINITY ? PLATE_BALL_OK : PLATE_BALL_NON_FINITE;
 }
 
@@ -955,6 +1136,15 @@ static void plate_ball_coordinate_floor(const double *J, const double *u, double
     for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
         C[i] = 0.0;
     }
+#if PLATE_BALL_BANDED
+    {
+        double a[PLATE_BALL_N_UNKNOWNS];
+        for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
+            a[j] = fabs(u[j]);
+        }
+        plate_ball_column_sums(J, a, C);
+    }
+#else
     PLATE_BALL_UNROLL
     for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
         const double a = fabs(u[j]);
@@ -963,6 +1153,7 @@ static void plate_ball_coordinate_floor(const double *J, const double *u, double
             C[i] += fabs(J[i * PLATE_BALL_N_UNKNOWNS + j]) * a;
         }
     }
+#endif
     PLATE_BALL_UNROLL
     for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
         C[i] *= DBL_EPSILON;
@@ -1003,6 +1194,9 @@ static int plate_ball_explained_by_rounding(const double *F, const double *J, co
     for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
+#if PLATE_BALL_BANDED
+    plate_ball_column_sums(J, a, S);
+#else
     PLATE_BALL_UNROLL
     for (j = 0; j < PLATE_BALL_N_UNKNOWNS; ++j) {
         PLATE_BALL_UNROLL
@@ -1010,6 +1204,7 @@ static int plate_ball_explained_by_rounding(const double *F, const double *J, co
             S[i] += fabs(J[i * PLATE_BALL_N_UNKNOWNS + j]) * a[j];
         }
     }
+#endif
     PLATE_BALL_UNROLL
     for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
         if (!(fabs(F[i]) <= bound * S[i])) {
@@ -1150,7 +1345,7 @@ static inline int plate_ball_above_rounding(const double *d, const double *u, do
 static int plate_ball_newton(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
-    double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], uJ[PLATE_BALL_N_UNKNOWNS];
+    double J[PLATE_BALL_JACOBIAN_ENTRIES], uJ[PLATE_BALL_N_UNKNOWNS];
     plate_ball_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
@@ -1159,7 +1354,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            plate_ball_residual_jacobian(u, known, p, F, J);
+            PLATE_BALL_JACOBIAN(u, known, p, F, J);
         } else {
             plate_ball_residual(u, known, p, F);
         }
@@ -1212,7 +1407,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
                 return PLATE_BALL_NOT_CONVERGED;
             }
             if (slow) {
-                plate_ball_residual_jacobian(u, known, p, F, J);
+                PLATE_BALL_JACOBIAN(u, known, p, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = plate_ball_lu_factor(J, &lu);
                 if (status != PLATE_BALL_OK) {

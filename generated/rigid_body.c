@@ -219,7 +219,6 @@ void rigid_body_residual_jacobian(const double *u, const double *known, const do
     J[7] = t59;
     J[8] = t66;
 }
-
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
  * rounding noise of F_i, the floor below which Newton cannot bring it */
@@ -407,8 +406,67 @@ static inline double rigid_body_power_of_two(int k)
  * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
  * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
  * rigid_body_explained_by_rounding). */
+#if RIGID_BODY_BANDED
+/* A kernel whose Jacobian is banded (RIGID_BODY_BANDED) once its unknowns (and equations) are taken in the order
+ * RIGID_BODY_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
+ * unless -RIGID_BODY_BAND_KL <= j - i <= RIGID_BODY_BAND_KU, as the code generator found from the program's
+ * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+ * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
+ * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
+#define RIGID_BODY_BAND_WIDTH (2 * RIGID_BODY_BAND_KL + RIGID_BODY_BAND_KU + 1)
+#define RIGID_BODY_LU_ENTRIES (RIGID_BODY_N_UNKNOWNS * RIGID_BODY_BAND_WIDTH)
+static const int rigid_body_band_order[RIGID_BODY_N_UNKNOWNS] = RIGID_BODY_BAND_ORDER;
+/* entry (i, j) of the band storage A (valid for i - KL <= j <= i + KL + KU) */
+#define RIGID_BODY_BAND_AT(A, i, j) (A)[(i) * RIGID_BODY_BAND_WIDTH + (j) - (i) + RIGID_BODY_BAND_KL]
+/* The kernel writes its Jacobian in band form too (rigid_body_residual_jacobian_band): entry
+ * (i, j) of B, i - KL <= j <= i + KU, at RIGID_BODY_JACOBIAN_AT(J, i, j); the entries outside the
+ * band are zero and never stored, so nothing the stepper does per step touches n^2 memory.
+ * The kernel's rigid_body_residual_jacobian gives the whole matrix from it. */
+#define RIGID_BODY_JACOBIAN_WIDTH (RIGID_BODY_BAND_KL + RIGID_BODY_BAND_KU + 1)
+#define RIGID_BODY_JACOBIAN_ENTRIES (RIGID_BODY_N_UNKNOWNS * RIGID_BODY_JACOBIAN_WIDTH)
+#define RIGID_BODY_JACOBIAN_AT(J, i, j) (J)[(i) * RIGID_BODY_JACOBIAN_WIDTH + (j) - (i) + RIGID_BODY_BAND_KL]
+#define RIGID_BODY_JACOBIAN rigid_body_residual_jacobian_band
+#if RIGID_BODY_TIME_ROW >= 0
+#error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
+#endif
+void rigid_body_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+
+/* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
+ * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
+ * (nothing) for a finite a_j and NaN otherwise, as the dense sum would */
+static void rigid_body_column_sums(const double *J, const double *a, double *S)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    const int *order = rigid_body_band_order;
+    int position[RIGID_BODY_N_UNKNOWNS];
+    int j, r;
+    for (r = 0; r < n; ++r) {
+        position[order[r]] = r;
+    }
+    for (j = 0; j < n; ++j) {
+        const int c = position[j];
+        const int lo = c - RIGID_BODY_BAND_KU > 0 ? c - RIGID_BODY_BAND_KU : 0;
+        const int hi = c + RIGID_BODY_BAND_KL < n - 1 ? c + RIGID_BODY_BAND_KL : n - 1;
+        for (r = lo; r <= hi; ++r) {
+            S[order[r]] += fabs(RIGID_BODY_JACOBIAN_AT(J, r, c)) * a[j];
+        }
+        if (!(a[j] < INFINITY)) {
+            for (r = 0; r < n; ++r) {
+                if (r < lo || r > hi) {
+                    S[order[r]] += 0.0 * a[j];
+                }
+            }
+        }
+    }
+}
+#else
+#define RIGID_BODY_LU_ENTRIES (RIGID_BODY_N_UNKNOWNS * RIGID_BODY_N_UNKNOWNS)
+#define RIGID_BODY_JACOBIAN_ENTRIES (RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS)
+#define RIGID_BODY_JACOBIAN rigid_body_residual_jacobian
+#endif
+
 typedef struct {
-    double A[RIGID_BODY_N_UNKNOWNS * RIGID_BODY_N_UNKNOWNS];
+    double A[RIGID_BODY_LU_ENTRIES];
     double s[RIGID_BODY_N_UNKNOWNS];
     double inv[RIGID_BODY_N_UNKNOWNS];
     double row_max[RIGID_BODY_N_UNKNOWNS];
@@ -434,6 +492,7 @@ typedef struct {
 #define RIGID_BODY_LU_PANEL 8
 #define RIGID_BODY_LU_PANEL_FROM 24
 
+#if !RIGID_BODY_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
  * rigid_body_panel_rows and rigid_body_panel_update). */
@@ -564,6 +623,77 @@ static int rigid_body_eliminate(double *A, double *inv, int *perm)
     return RIGID_BODY_OK;
 }
 #endif
+#endif /* !RIGID_BODY_BANDED */
+
+#if RIGID_BODY_BANDED
+/* The reordered, row-scaled Jacobian in the LU's band storage (zero outside its band) from
+ * the kernel's band form J: entry (i, j) is B_ij scaled by the power of two of row order[i] */
+static void rigid_body_band_fill(const double *J, const double *s, const int *e, double *A)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    const int *order = rigid_body_band_order;
+    int i, j;
+    for (i = 0; i < RIGID_BODY_LU_ENTRIES; ++i) {
+        A[i] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        const int r = order[i];
+        const int lo = i - RIGID_BODY_BAND_KL > 0 ? i - RIGID_BODY_BAND_KL : 0;
+        const int hi = i + RIGID_BODY_BAND_KU < n - 1 ? i + RIGID_BODY_BAND_KU : n - 1;
+        for (j = lo; j <= hi; ++j) {
+            const double a = RIGID_BODY_JACOBIAN_AT(J, i, j);
+            RIGID_BODY_BAND_AT(A, i, j) = s[r] != 0.0 ? a * s[r] : ldexp(a, -e[r]);
+        }
+    }
+}
+
+/* Gaussian elimination with partial pivoting in band storage (LAPACK's dgbtf2 order): at
+ * column k the pivot is the first largest |entry| of rows k ... k + KL; rows k and perm[k]
+ * are swapped from column k on (the multipliers already stored stay where they are: the
+ * solve applies the swap of step k before the multipliers of column k, as LAPACK's dgbtrs
+ * does); the multipliers of rows k + 1 ... k + KL are stored in column k and the rows updated
+ * over the columns row k's U can reach (k + KL + KU), a zero multiplier skipped.  Returns
+ * RIGID_BODY_SINGULAR_JACOBIAN at the first pivot not above n * DBL_EPSILON, else RIGID_BODY_OK. */
+static int rigid_body_band_eliminate(double *A, double *inv, int *perm)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    const double tiny = n * DBL_EPSILON;
+    int i, j, k;
+    for (k = 0; k < n; ++k) {
+        const int last = k + RIGID_BODY_BAND_KL < n - 1 ? k + RIGID_BODY_BAND_KL : n - 1;
+        const int end = k + RIGID_BODY_BAND_KL + RIGID_BODY_BAND_KU < n - 1 ? k + RIGID_BODY_BAND_KL + RIGID_BODY_BAND_KU : n - 1;
+        int piv = k;
+        double amax = fabs(RIGID_BODY_BAND_AT(A, k, k));
+        for (i = k + 1; i <= last; ++i) {
+            const double a = fabs(RIGID_BODY_BAND_AT(A, i, k));
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
+        }
+        if (!(amax > tiny)) {
+            return RIGID_BODY_SINGULAR_JACOBIAN;
+        }
+        perm[k] = piv;
+        if (piv != k) {
+            for (j = k; j <= end; ++j) {
+                const double t = RIGID_BODY_BAND_AT(A, k, j);
+                RIGID_BODY_BAND_AT(A, k, j) = RIGID_BODY_BAND_AT(A, piv, j);
+                RIGID_BODY_BAND_AT(A, piv, j) = t;
+            }
+        }
+        inv[k] = 1.0 / RIGID_BODY_BAND_AT(A, k, k);
+        for (i = k + 1; i <= last; ++i) {
+            const double l = RIGID_BODY_BAND_AT(A, i, k) * inv[k];
+            RIGID_BODY_BAND_AT(A, i, k) = l;
+            if (l != 0.0) {
+                for (j = k + 1; j <= end; ++j) {
+                    RIGID_BODY_BAND_AT(A, i, j) -= l * RIGID_BODY_BAND_AT(A, k, j);
+                }
+            }
+        }
+    }
+    return RIGID_BODY_OK;
+}
+#endif
 
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
@@ -580,6 +710,19 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
     double *A = f->A;
     uint64_t rmax[RIGID_BODY_N_UNKNOWNS];
     int i, j;
+#if RIGID_BODY_BANDED
+    for (i = 0; i < n; ++i) { /* the same largest |entry| from the band's entries only */
+        const int r = rigid_body_band_order[i];
+        const int lo = i - RIGID_BODY_BAND_KL > 0 ? i - RIGID_BODY_BAND_KL : 0;
+        const int hi = i + RIGID_BODY_BAND_KU < n - 1 ? i + RIGID_BODY_BAND_KU : n - 1;
+        uint64_t m = 0;
+        for (j = lo; j <= hi; ++j) {
+            const uint64_t a = rigid_body_abs_bits(RIGID_BODY_JACOBIAN_AT(J, i, j));
+            m = a > m ? a : m;
+        }
+        rmax[r] = m;
+    }
+#else
     RIGID_BODY_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (rigid_body_abs_bits), its sum */
         uint64_t m = 0;
@@ -590,6 +733,7 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
         }
         rmax[i] = m;
     }
+#endif
     for (i = 0; i < n; ++i) { /* the first failing row decides the status */
         if (rmax[i] >= RIGID_BODY_INF_BITS) {
             return RIGID_BODY_NON_FINITE;
@@ -610,6 +754,11 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
             f->normal = 0;
         }
     }
+#if RIGID_BODY_BANDED
+    (void)j;
+    rigid_body_band_fill(J, f->s, f->e, A);
+    return rigid_body_band_eliminate(A, f->inv, f->perm);
+#else
     if (f->normal) {
         RIGID_BODY_UNROLL
         for (i = 0; i < n; ++i) {
@@ -628,6 +777,7 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
     return rigid_body_eliminate(A, f->inv, f->perm);
+#endif
 }
 
 /* Solve J x = b with the factors of rigid_body_lu_factor (x returned in b): the same row
@@ -652,6 +802,36 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
             b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
         }
     }
+#if RIGID_BODY_BANDED
+    (void)j;
+    {
+        const int *order = rigid_body_band_order;
+        double y[RIGID_BODY_N_UNKNOWNS];
+        for (i = 0; i < n; ++i) { /* the reordered right-hand side */
+            y[i] = b[order[i]];
+        }
+        for (k = 0; k < n; ++k) { /* step k's row swap, then its multipliers */
+            const int last = k + RIGID_BODY_BAND_KL < n - 1 ? k + RIGID_BODY_BAND_KL : n - 1;
+            const double t = y[k];
+            y[k] = y[f->perm[k]];
+            y[f->perm[k]] = t;
+            for (i = k + 1; i <= last; ++i) {
+                y[i] -= RIGID_BODY_BAND_AT(A, i, k) * y[k];
+            }
+        }
+        for (i = n - 1; i >= 0; --i) { /* column by column, as the large dense factors */
+            const double x = y[i] * f->inv[i];
+            const int first = i - RIGID_BODY_BAND_KL - RIGID_BODY_BAND_KU > 0 ? i - RIGID_BODY_BAND_KL - RIGID_BODY_BAND_KU : 0;
+            y[i] = x;
+            for (k = first; k < i; ++k) {
+                y[k] -= RIGID_BODY_BAND_AT(A, k, i) * x;
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            b[order[i]] = y[i];
+        }
+    }
+#else
     RIGID_BODY_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
@@ -687,6 +867,7 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
         }
     }
 #endif
+#endif /* RIGID_BODY_BANDED */
     return rigid_body_norm_inf(b, n) < INFINITY ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
 }
 
@@ -717,6 +898,15 @@ static void rigid_body_coordinate_floor(const double *J, const double *u, double
     for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
         C[i] = 0.0;
     }
+#if RIGID_BODY_BANDED
+    {
+        double a[RIGID_BODY_N_UNKNOWNS];
+        for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
+            a[j] = fabs(u[j]);
+        }
+        rigid_body_column_sums(J, a, C);
+    }
+#else
     RIGID_BODY_UNROLL
     for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
         const double a = fabs(u[j]);
@@ -725,6 +915,7 @@ static void rigid_body_coordinate_floor(const double *J, const double *u, double
             C[i] += fabs(J[i * RIGID_BODY_N_UNKNOWNS + j]) * a;
         }
     }
+#endif
     RIGID_BODY_UNROLL
     for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
         C[i] *= DBL_EPSILON;
@@ -765,6 +956,9 @@ static int rigid_body_explained_by_rounding(const double *F, const double *J, co
     for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
+#if RIGID_BODY_BANDED
+    rigid_body_column_sums(J, a, S);
+#else
     RIGID_BODY_UNROLL
     for (j = 0; j < RIGID_BODY_N_UNKNOWNS; ++j) {
         RIGID_BODY_UNROLL
@@ -772,6 +966,7 @@ static int rigid_body_explained_by_rounding(const double *F, const double *J, co
             S[i] += fabs(J[i * RIGID_BODY_N_UNKNOWNS + j]) * a[j];
         }
     }
+#endif
     RIGID_BODY_UNROLL
     for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
         if (!(fabs(F[i]) <= bound * S[i])) {
@@ -912,7 +1107,7 @@ static inline int rigid_body_above_rounding(const double *d, const double *u, do
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
-    double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], uJ[RIGID_BODY_N_UNKNOWNS];
+    double J[RIGID_BODY_JACOBIAN_ENTRIES], uJ[RIGID_BODY_N_UNKNOWNS];
     rigid_body_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
@@ -921,7 +1116,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            rigid_body_residual_jacobian(u, known, p, F, J);
+            RIGID_BODY_JACOBIAN(u, known, p, F, J);
         } else {
             rigid_body_residual(u, known, p, F);
         }
@@ -974,7 +1169,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
                 return RIGID_BODY_NOT_CONVERGED;
             }
             if (slow) {
-                rigid_body_residual_jacobian(u, known, p, F, J);
+                RIGID_BODY_JACOBIAN(u, known, p, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = rigid_body_lu_factor(J, &lu);
                 if (status != RIGID_BODY_OK) {

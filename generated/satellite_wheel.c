@@ -296,7 +296,6 @@ void satellite_wheel_residual_jacobian(const double *u, const double *known, con
     J[14] = t104;
     J[15] = t110;
 }
-
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
  * rounding noise of F_i, the floor below which Newton cannot bring it */
@@ -524,8 +523,67 @@ static inline double satellite_wheel_power_of_two(int k)
  * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
  * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
  * satellite_wheel_explained_by_rounding). */
+#if SATELLITE_WHEEL_BANDED
+/* A kernel whose Jacobian is banded (SATELLITE_WHEEL_BANDED) once its unknowns (and equations) are taken in the order
+ * SATELLITE_WHEEL_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
+ * unless -SATELLITE_WHEEL_BAND_KL <= j - i <= SATELLITE_WHEEL_BAND_KU, as the code generator found from the program's
+ * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+ * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
+ * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
+#define SATELLITE_WHEEL_BAND_WIDTH (2 * SATELLITE_WHEEL_BAND_KL + SATELLITE_WHEEL_BAND_KU + 1)
+#define SATELLITE_WHEEL_LU_ENTRIES (SATELLITE_WHEEL_N_UNKNOWNS * SATELLITE_WHEEL_BAND_WIDTH)
+static const int satellite_wheel_band_order[SATELLITE_WHEEL_N_UNKNOWNS] = SATELLITE_WHEEL_BAND_ORDER;
+/* entry (i, j) of the band storage A (valid for i - KL <= j <= i + KL + KU) */
+#define SATELLITE_WHEEL_BAND_AT(A, i, j) (A)[(i) * SATELLITE_WHEEL_BAND_WIDTH + (j) - (i) + SATELLITE_WHEEL_BAND_KL]
+/* The kernel writes its Jacobian in band form too (satellite_wheel_residual_jacobian_band): entry
+ * (i, j) of B, i - KL <= j <= i + KU, at SATELLITE_WHEEL_JACOBIAN_AT(J, i, j); the entries outside the
+ * band are zero and never stored, so nothing the stepper does per step touches n^2 memory.
+ * The kernel's satellite_wheel_residual_jacobian gives the whole matrix from it. */
+#define SATELLITE_WHEEL_JACOBIAN_WIDTH (SATELLITE_WHEEL_BAND_KL + SATELLITE_WHEEL_BAND_KU + 1)
+#define SATELLITE_WHEEL_JACOBIAN_ENTRIES (SATELLITE_WHEEL_N_UNKNOWNS * SATELLITE_WHEEL_JACOBIAN_WIDTH)
+#define SATELLITE_WHEEL_JACOBIAN_AT(J, i, j) (J)[(i) * SATELLITE_WHEEL_JACOBIAN_WIDTH + (j) - (i) + SATELLITE_WHEEL_BAND_KL]
+#define SATELLITE_WHEEL_JACOBIAN satellite_wheel_residual_jacobian_band
+#if SATELLITE_WHEEL_TIME_ROW >= 0
+#error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
+#endif
+void satellite_wheel_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+
+/* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
+ * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
+ * (nothing) for a finite a_j and NaN otherwise, as the dense sum would */
+static void satellite_wheel_column_sums(const double *J, const double *a, double *S)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    const int *order = satellite_wheel_band_order;
+    int position[SATELLITE_WHEEL_N_UNKNOWNS];
+    int j, r;
+    for (r = 0; r < n; ++r) {
+        position[order[r]] = r;
+    }
+    for (j = 0; j < n; ++j) {
+        const int c = position[j];
+        const int lo = c - SATELLITE_WHEEL_BAND_KU > 0 ? c - SATELLITE_WHEEL_BAND_KU : 0;
+        const int hi = c + SATELLITE_WHEEL_BAND_KL < n - 1 ? c + SATELLITE_WHEEL_BAND_KL : n - 1;
+        for (r = lo; r <= hi; ++r) {
+            S[order[r]] += fabs(SATELLITE_WHEEL_JACOBIAN_AT(J, r, c)) * a[j];
+        }
+        if (!(a[j] < INFINITY)) {
+            for (r = 0; r < n; ++r) {
+                if (r < lo || r > hi) {
+                    S[order[r]] += 0.0 * a[j];
+                }
+            }
+        }
+    }
+}
+#else
+#define SATELLITE_WHEEL_LU_ENTRIES (SATELLITE_WHEEL_N_UNKNOWNS * SATELLITE_WHEEL_N_UNKNOWNS)
+#define SATELLITE_WHEEL_JACOBIAN_ENTRIES (SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS)
+#define SATELLITE_WHEEL_JACOBIAN satellite_wheel_residual_jacobian
+#endif
+
 typedef struct {
-    double A[SATELLITE_WHEEL_N_UNKNOWNS * SATELLITE_WHEEL_N_UNKNOWNS];
+    double A[SATELLITE_WHEEL_LU_ENTRIES];
     double s[SATELLITE_WHEEL_N_UNKNOWNS];
     double inv[SATELLITE_WHEEL_N_UNKNOWNS];
     double row_max[SATELLITE_WHEEL_N_UNKNOWNS];
@@ -551,6 +609,7 @@ typedef struct {
 #define SATELLITE_WHEEL_LU_PANEL 8
 #define SATELLITE_WHEEL_LU_PANEL_FROM 24
 
+#if !SATELLITE_WHEEL_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
  * satellite_wheel_panel_rows and satellite_wheel_panel_update). */
@@ -681,6 +740,77 @@ static int satellite_wheel_eliminate(double *A, double *inv, int *perm)
     return SATELLITE_WHEEL_OK;
 }
 #endif
+#endif /* !SATELLITE_WHEEL_BANDED */
+
+#if SATELLITE_WHEEL_BANDED
+/* The reordered, row-scaled Jacobian in the LU's band storage (zero outside its band) from
+ * the kernel's band form J: entry (i, j) is B_ij scaled by the power of two of row order[i] */
+static void satellite_wheel_band_fill(const double *J, const double *s, const int *e, double *A)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    const int *order = satellite_wheel_band_order;
+    int i, j;
+    for (i = 0; i < SATELLITE_WHEEL_LU_ENTRIES; ++i) {
+        A[i] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        const int r = order[i];
+        const int lo = i - SATELLITE_WHEEL_BAND_KL > 0 ? i - SATELLITE_WHEEL_BAND_KL : 0;
+        const int hi = i + SATELLITE_WHEEL_BAND_KU < n - 1 ? i + SATELLITE_WHEEL_BAND_KU : n - 1;
+        for (j = lo; j <= hi; ++j) {
+            const double a = SATELLITE_WHEEL_JACOBIAN_AT(J, i, j);
+            SATELLITE_WHEEL_BAND_AT(A, i, j) = s[r] != 0.0 ? a * s[r] : ldexp(a, -e[r]);
+        }
+    }
+}
+
+/* Gaussian elimination with partial pivoting in band storage (LAPACK's dgbtf2 order): at
+ * column k the pivot is the first largest |entry| of rows k ... k + KL; rows k and perm[k]
+ * are swapped from column k on (the multipliers already stored stay where they are: the
+ * solve applies the swap of step k before the multipliers of column k, as LAPACK's dgbtrs
+ * does); the multipliers of rows k + 1 ... k + KL are stored in column k and the rows updated
+ * over the columns row k's U can reach (k + KL + KU), a zero multiplier skipped.  Returns
+ * SATELLITE_WHEEL_SINGULAR_JACOBIAN at the first pivot not above n * DBL_EPSILON, else SATELLITE_WHEEL_OK. */
+static int satellite_wheel_band_eliminate(double *A, double *inv, int *perm)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    const double tiny = n * DBL_EPSILON;
+    int i, j, k;
+    for (k = 0; k < n; ++k) {
+        const int last = k + SATELLITE_WHEEL_BAND_KL < n - 1 ? k + SATELLITE_WHEEL_BAND_KL : n - 1;
+        const int end = k + SATELLITE_WHEEL_BAND_KL + SATELLITE_WHEEL_BAND_KU < n - 1 ? k + SATELLITE_WHEEL_BAND_KL + SATELLITE_WHEEL_BAND_KU : n - 1;
+        int piv = k;
+        double amax = fabs(SATELLITE_WHEEL_BAND_AT(A, k, k));
+        for (i = k + 1; i <= last; ++i) {
+            const double a = fabs(SATELLITE_WHEEL_BAND_AT(A, i, k));
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
+        }
+        if (!(amax > tiny)) {
+            return SATELLITE_WHEEL_SINGULAR_JACOBIAN;
+        }
+        perm[k] = piv;
+        if (piv != k) {
+            for (j = k; j <= end; ++j) {
+                const double t = SATELLITE_WHEEL_BAND_AT(A, k, j);
+                SATELLITE_WHEEL_BAND_AT(A, k, j) = SATELLITE_WHEEL_BAND_AT(A, piv, j);
+                SATELLITE_WHEEL_BAND_AT(A, piv, j) = t;
+            }
+        }
+        inv[k] = 1.0 / SATELLITE_WHEEL_BAND_AT(A, k, k);
+        for (i = k + 1; i <= last; ++i) {
+            const double l = SATELLITE_WHEEL_BAND_AT(A, i, k) * inv[k];
+            SATELLITE_WHEEL_BAND_AT(A, i, k) = l;
+            if (l != 0.0) {
+                for (j = k + 1; j <= end; ++j) {
+                    SATELLITE_WHEEL_BAND_AT(A, i, j) -= l * SATELLITE_WHEEL_BAND_AT(A, k, j);
+                }
+            }
+        }
+    }
+    return SATELLITE_WHEEL_OK;
+}
+#endif
 
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
@@ -697,6 +827,19 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
     double *A = f->A;
     uint64_t rmax[SATELLITE_WHEEL_N_UNKNOWNS];
     int i, j;
+#if SATELLITE_WHEEL_BANDED
+    for (i = 0; i < n; ++i) { /* the same largest |entry| from the band's entries only */
+        const int r = satellite_wheel_band_order[i];
+        const int lo = i - SATELLITE_WHEEL_BAND_KL > 0 ? i - SATELLITE_WHEEL_BAND_KL : 0;
+        const int hi = i + SATELLITE_WHEEL_BAND_KU < n - 1 ? i + SATELLITE_WHEEL_BAND_KU : n - 1;
+        uint64_t m = 0;
+        for (j = lo; j <= hi; ++j) {
+            const uint64_t a = satellite_wheel_abs_bits(SATELLITE_WHEEL_JACOBIAN_AT(J, i, j));
+            m = a > m ? a : m;
+        }
+        rmax[r] = m;
+    }
+#else
     SATELLITE_WHEEL_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (satellite_wheel_abs_bits), its sum */
         uint64_t m = 0;
@@ -707,6 +850,7 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
         }
         rmax[i] = m;
     }
+#endif
     for (i = 0; i < n; ++i) { /* the first failing row decides the status */
         if (rmax[i] >= SATELLITE_WHEEL_INF_BITS) {
             return SATELLITE_WHEEL_NON_FINITE;
@@ -727,6 +871,11 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
             f->normal = 0;
         }
     }
+#if SATELLITE_WHEEL_BANDED
+    (void)j;
+    satellite_wheel_band_fill(J, f->s, f->e, A);
+    return satellite_wheel_band_eliminate(A, f->inv, f->perm);
+#else
     if (f->normal) {
         SATELLITE_WHEEL_UNROLL
         for (i = 0; i < n; ++i) {
@@ -745,6 +894,7 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
     return satellite_wheel_eliminate(A, f->inv, f->perm);
+#endif
 }
 
 /* Solve J x = b with the factors of satellite_wheel_lu_factor (x returned in b): the same row
@@ -769,6 +919,36 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
             b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
         }
     }
+#if SATELLITE_WHEEL_BANDED
+    (void)j;
+    {
+        const int *order = satellite_wheel_band_order;
+        double y[SATELLITE_WHEEL_N_UNKNOWNS];
+        for (i = 0; i < n; ++i) { /* the reordered right-hand side */
+            y[i] = b[order[i]];
+        }
+        for (k = 0; k < n; ++k) { /* step k's row swap, then its multipliers */
+            const int last = k + SATELLITE_WHEEL_BAND_KL < n - 1 ? k + SATELLITE_WHEEL_BAND_KL : n - 1;
+            const double t = y[k];
+            y[k] = y[f->perm[k]];
+            y[f->perm[k]] = t;
+            for (i = k + 1; i <= last; ++i) {
+                y[i] -= SATELLITE_WHEEL_BAND_AT(A, i, k) * y[k];
+            }
+        }
+        for (i = n - 1; i >= 0; --i) { /* column by column, as the large dense factors */
+            const double x = y[i] * f->inv[i];
+            const int first = i - SATELLITE_WHEEL_BAND_KL - SATELLITE_WHEEL_BAND_KU > 0 ? i - SATELLITE_WHEEL_BAND_KL - SATELLITE_WHEEL_BAND_KU : 0;
+            y[i] = x;
+            for (k = first; k < i; ++k) {
+                y[k] -= SATELLITE_WHEEL_BAND_AT(A, k, i) * x;
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            b[order[i]] = y[i];
+        }
+    }
+#else
     SATELLITE_WHEEL_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
@@ -804,6 +984,7 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
         }
     }
 #endif
+#endif /* SATELLITE_WHEEL_BANDED */
     return satellite_wheel_norm_inf(b, n) < INFINITY ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_NON_FINITE;
 }
 
@@ -834,6 +1015,15 @@ static void satellite_wheel_coordinate_floor(const double *J, const double *u, d
     for (i = 0; i < SATELLITE_WHEEL_N_EQUATIONS; ++i) {
         C[i] = 0.0;
     }
+#if SATELLITE_WHEEL_BANDED
+    {
+        double a[SATELLITE_WHEEL_N_UNKNOWNS];
+        for (j = 0; j < SATELLITE_WHEEL_N_UNKNOWNS; ++j) {
+            a[j] = fabs(u[j]);
+        }
+        satellite_wheel_column_sums(J, a, C);
+    }
+#else
     SATELLITE_WHEEL_UNROLL
     for (j = 0; j < SATELLITE_WHEEL_N_UNKNOWNS; ++j) {
         const double a = fabs(u[j]);
@@ -842,6 +1032,7 @@ static void satellite_wheel_coordinate_floor(const double *J, const double *u, d
             C[i] += fabs(J[i * SATELLITE_WHEEL_N_UNKNOWNS + j]) * a;
         }
     }
+#endif
     SATELLITE_WHEEL_UNROLL
     for (i = 0; i < SATELLITE_WHEEL_N_EQUATIONS; ++i) {
         C[i] *= DBL_EPSILON;
@@ -882,6 +1073,9 @@ static int satellite_wheel_explained_by_rounding(const double *F, const double *
     for (i = 0; i < SATELLITE_WHEEL_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
+#if SATELLITE_WHEEL_BANDED
+    satellite_wheel_column_sums(J, a, S);
+#else
     SATELLITE_WHEEL_UNROLL
     for (j = 0; j < SATELLITE_WHEEL_N_UNKNOWNS; ++j) {
         SATELLITE_WHEEL_UNROLL
@@ -889,6 +1083,7 @@ static int satellite_wheel_explained_by_rounding(const double *F, const double *
             S[i] += fabs(J[i * SATELLITE_WHEEL_N_UNKNOWNS + j]) * a[j];
         }
     }
+#endif
     SATELLITE_WHEEL_UNROLL
     for (i = 0; i < SATELLITE_WHEEL_N_EQUATIONS; ++i) {
         if (!(fabs(F[i]) <= bound * S[i])) {
@@ -1029,7 +1224,7 @@ static inline int satellite_wheel_above_rounding(const double *d, const double *
 static int satellite_wheel_newton(const double *known, const double *p, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[SATELLITE_WHEEL_N_EQUATIONS], C[SATELLITE_WHEEL_N_EQUATIONS];
-    double J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS], uJ[SATELLITE_WHEEL_N_UNKNOWNS];
+    double J[SATELLITE_WHEEL_JACOBIAN_ENTRIES], uJ[SATELLITE_WHEEL_N_UNKNOWNS];
     satellite_wheel_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
@@ -1038,7 +1233,7 @@ static int satellite_wheel_newton(const double *known, const double *p, const sa
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            satellite_wheel_residual_jacobian(u, known, p, F, J);
+            SATELLITE_WHEEL_JACOBIAN(u, known, p, F, J);
         } else {
             satellite_wheel_residual(u, known, p, F);
         }
@@ -1091,7 +1286,7 @@ static int satellite_wheel_newton(const double *known, const double *p, const sa
                 return SATELLITE_WHEEL_NOT_CONVERGED;
             }
             if (slow) {
-                satellite_wheel_residual_jacobian(u, known, p, F, J);
+                SATELLITE_WHEEL_JACOBIAN(u, known, p, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = satellite_wheel_lu_factor(J, &lu);
                 if (status != SATELLITE_WHEEL_OK) {

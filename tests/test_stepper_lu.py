@@ -25,6 +25,7 @@ from kernel_support import needs_cc
 from symgroupoid.runtime import NewtonOptions
 from symgroupoid.stepper import (
     LU_PANEL_FROM,
+    BandOrder,
     NumpyStepper,
     Status,
     StepFunctions,
@@ -58,6 +59,24 @@ void lin_residual(const double *u, const double *known, const double *p, double 
     }
 }
 
+#if LIN_BANDED
+/* the band form the stepper reads: entry (i, j) of B = A[order[i]][order[j]] */
+void lin_residual_jacobian_band(const double *u, const double *known, const double *p,
+                                double *F, double *J)
+{
+    static const int order[LIN_N_UNKNOWNS] = LIN_BAND_ORDER;
+    const int n = LIN_N_UNKNOWNS, width = LIN_BAND_KL + LIN_BAND_KU + 1;
+    int i, j;
+    lin_residual(u, known, p, F);
+    for (i = 0; i < n; ++i) {
+        for (j = i - LIN_BAND_KL; j <= i + LIN_BAND_KU; ++j) {
+            if (j >= 0 && j < n) {
+                J[i * width + j - i + LIN_BAND_KL] = p[order[i] * n + order[j]];
+            }
+        }
+    }
+}
+#else
 void lin_residual_jacobian(const double *u, const double *known, const double *p, double *F,
                            double *J)
 {
@@ -67,6 +86,7 @@ void lin_residual_jacobian(const double *u, const double *known, const double *p
         J[i] = p[i];
     }
 }
+#endif
 
 void lin_residual_scale(const double *u, const double *known, const double *p, double *S)
 {
@@ -109,11 +129,38 @@ FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-pedantic"
 SIZES = (5, 23, 24, 25, 40, 61, 100)
 
 
-def _sizes_header(n: int) -> str:
+#: band kernels: (n, kl, ku), their order a fixed random permutation
+BANDS = ((7, 1, 1), (30, 2, 3), (61, 4, 2), (90, 5, 5))
+
+
+def _band(n: int, kl: int, ku: int) -> BandOrder:
+    order = np.random.default_rng(n).permutation(n)
+    return BandOrder(kl, ku, tuple(int(i) for i in order))
+
+
+def _sizes_header(n: int, band: BandOrder | None = None) -> str:
     defines = {"N_EQUATIONS": n, "N_UNKNOWNS": n, "N_KNOWNS": n, "N_PARAMETERS": n * n,
                "N_INPUTS": 0, "TIME_ROW": -1, "TIME_UNKNOWN": -1, "TIME_KNOWN": -1,
                "TIME_BEFORE": -1}
+    if band is not None:
+        defines.update(BANDED=1, BAND_KL=band.kl, BAND_KU=band.ku,
+                       BAND_ORDER="{" + ", ".join(map(str, band.order)) + "}")
     return "".join(f"#define LIN_{k} {v}\n" for k, v in defines.items())
+
+
+def _build(cc: str, where, n: int, band: BandOrder | None = None):
+    (where / "sizes.h").write_text(_sizes_header(n, band))
+    (where / "lin.c").write_text(LINEAR_C)
+    objects = []
+    for source in (library_dir() / "stepper.c", library_dir() / "batch.c", where / "lin.c"):
+        obj = where / (source.stem + ".o")
+        subprocess.run([cc, *FLAGS, f"-I{library_dir()}", "-include",
+                        str(where / "sizes.h"), "-c", str(source), "-o", str(obj)],
+                       check=True, capture_output=True, text=True)
+        objects.append(str(obj))
+    library = where / "liblin.so"
+    subprocess.run([cc, "-shared", *objects, "-lm", "-o", str(library)], check=True)
+    return ctypes.CDLL(str(library))
 
 
 @pytest.fixture(scope="module")
@@ -122,22 +169,17 @@ def linear_kernels(tmp_path_factory):
     cc = shutil.which("cc")
     if cc is None:
         pytest.skip("no C compiler (cc) on PATH")
-    libs = {}
-    for n in SIZES:
-        where = tmp_path_factory.mktemp(f"lu{n}")
-        (where / "sizes.h").write_text(_sizes_header(n))
-        (where / "lin.c").write_text(LINEAR_C)
-        objects = []
-        for source in (library_dir() / "stepper.c", library_dir() / "batch.c", where / "lin.c"):
-            obj = where / (source.stem + ".o")
-            subprocess.run([cc, *FLAGS, f"-I{library_dir()}", "-include",
-                            str(where / "sizes.h"), "-c", str(source), "-o", str(obj)],
-                           check=True, capture_output=True, text=True)
-            objects.append(str(obj))
-        library = where / "liblin.so"
-        subprocess.run([cc, "-shared", *objects, "-lm", "-o", str(library)], check=True)
-        libs[n] = ctypes.CDLL(str(library))
-    return libs
+    return {n: _build(cc, tmp_path_factory.mktemp(f"lu{n}"), n) for n in SIZES}
+
+
+@pytest.fixture(scope="module")
+def band_kernels(tmp_path_factory):
+    """The library compiled with the linear kernel in band form for every case of BANDS."""
+    cc = shutil.which("cc")
+    if cc is None:
+        pytest.skip("no C compiler (cc) on PATH")
+    return {case: _build(cc, tmp_path_factory.mktemp(f"band{case[0]}"), case[0], _band(*case))
+            for case in BANDS}
 
 
 class _Options(ctypes.Structure):
@@ -241,3 +283,52 @@ def test_the_panel_threshold_is_the_twins():
     assert threshold == LU_PANEL_FROM
     fused = re.search(r"SG_NAME\(panel_row_update\).*?\n}\n", text, re.S).group(0)
     assert len(re.findall(r"t -= l\d \* u\d\[j\];", fused)) == panel
+
+
+def _banded_matrix(band: BandOrder, kind: str, rng: np.random.Generator) -> np.ndarray:
+    """A random J whose reordering by ``band.order`` is banded (kl, ku); "zeros": a third
+    of the band's entries exactly zero; "singular": two rows equal (both in the band)."""
+    n = len(band.order)
+    B = rng.normal(size=(n, n)) * np.exp(rng.uniform(-3, 3, size=(n, 1)))
+    i, j = np.indices((n, n))
+    B[(j - i < -band.kl) | (j - i > band.ku)] = 0.0
+    if kind == "zeros":
+        B[rng.uniform(size=(n, n)) < 0.33] = 0.0
+        B += np.diag(rng.uniform(0.5, 1.0, n))
+    if kind == "singular":  # rows m and m + 1 equal, inside the band (kl, ku >= 1)
+        m = n // 2
+        B[m:m + 2] = 0.0
+        B[m, m:m + 2] = B[m + 1, m:m + 2] = [1.0, 2.0]
+    order = np.asarray(band.order)
+    J = np.empty((n, n))
+    J[np.ix_(order, order)] = B
+    return J
+
+
+@needs_cc
+@pytest.mark.parametrize("kind", ["dense", "zeros", "singular"])
+@pytest.mark.parametrize("case", BANDS)
+def test_band_lu_and_its_numpy_twin_agree_bit_for_bit(band_kernels, case, kind):
+    """The band factors (``SG_BANDED``) against the twin's band_factor: the same
+    bits, the same status; the solution solves J u = b."""
+    n = case[0]
+    band = _band(*case)
+    rng = np.random.default_rng(7 * n + len(kind))
+    A = _banded_matrix(band, kind, rng)
+    b = rng.normal(size=n)
+    status, u, iterations, norm = _c_step(band_kernels[case], n, A, b)
+    twin = NumpyStepper(_twin_functions(n), n, band=band)
+    t_states, t_iterations, t_norms, t_status, _, t_last = twin.simulate(
+        b, A.ravel(), 1, NewtonOptions(), twin.warm_start())
+    assert status == t_status
+    t_u = t_states[1] if t_status == Status.OK else np.asarray(t_last, dtype=float)
+    assert u.tobytes() == t_u.tobytes()
+    assert (iterations, norm) == (int(t_iterations[0]), t_norms[0])
+    if kind == "singular":
+        assert status == Status.SINGULAR_JACOBIAN
+    else:
+        assert status == Status.OK
+        np.testing.assert_allclose(A @ u, b, atol=1e-12 * np.abs(A).sum(axis=1).max())
+        dense = NumpyStepper(_twin_functions(n), n)  # the dense factors: the same solution
+        d_states = dense.simulate(b, A.ravel(), 1, NewtonOptions(), dense.warm_start())[0]
+        np.testing.assert_allclose(u, d_states[1], rtol=1e-12, atol=1e-14)

@@ -1,5 +1,6 @@
 """Layer 4: C99 code generation for step equations (residual, Jacobian, chart, Newton)."""
 
+from ._band import band_order, jacobian_pattern
 from ._emit import (
     KernelSource,
     current_umask,
@@ -14,6 +15,6 @@ from ._kernel import c_identifier
 from ._printer import KernelCPrinter, print_c
 from ._time import time_layout
 
-__all__ = ["KernelCPrinter", "KernelSource", "c_identifier", "current_umask", "emit_c",
-           "generate_c", "generate_program_c", "precompile_templates", "print_c",
-           "template_dir", "templates_digest", "time_layout"]
+__all__ = ["KernelCPrinter", "KernelSource", "band_order", "c_identifier", "current_umask",
+           "emit_c", "generate_c", "generate_program_c", "jacobian_pattern",
+           "precompile_templates", "print_c", "template_dir", "templates_digest", "time_layout"]

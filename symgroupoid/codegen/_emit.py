@@ -32,6 +32,7 @@ from .._arguments import (
 )
 from .._errors import InputTypeError, OutputError, ShapeError
 from ..stepper import Inliner, library_digest
+from ._band import band_defines
 from ._kernel import (
     COLD_UNIT,
     assign_units,
@@ -44,7 +45,8 @@ from ._kernel import (
 from ._time import time_layout
 
 TEMPLATE_NAMES = ("kernel.c.j2", "kernel.h.j2", "declarations.j2", "cdef.j2", "program.c.j2",
-                  "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.c.j2")
+                  "program.h.j2", "functions.j2", "unit.c.j2", "unit_local.j2", "cold.c.j2",
+                  "stepper.c.j2")
 
 
 def template_dir() -> Path:
@@ -275,7 +277,9 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
             blocks.input_jacobian.move_to(COLD_UNIT)
             cold_helpers = list(dict.fromkeys(cold_helpers + blocks.input_jacobian_helpers))
     fibre = [f for f in step.fibre_unknowns if f in step.reconstruction]
+    band, band_order_initialiser = band_defines(step)
     return {
+        "band_defines": band, "band_order": band_order_initialiser,
         "p": prefix, "P": prefix.upper(), "header_name": header_name,
         "name": _ascii(step.name), "version": __version__,
         "groupoid": _ascii(step.groupoid.name),

@@ -18,6 +18,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from ..ir import C, functions_used, plan, write
+from ._band import band_order
 
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto "
@@ -166,8 +167,13 @@ def build_block(program, outputs: Sequence[tuple[str, str]], part_size: int | No
     ``outputs``: (C array name, program output name) pairs, e.g. ``("F", "F")``;
     ``input_names``: C array names of the program's input arrays (default: their own names).
     """
+    return _targets_block(program, _targets(program, outputs), part_size, input_names)
+
+
+def _targets_block(program, targets: list[tuple[str, int]], part_size: int | None = None,
+                   input_names: dict | None = None) -> Block:
+    """:func:`build_block` of the stores ``targets`` ((C lvalue, node) pairs)."""
     g = program.graph
-    targets = _targets(program, outputs)
     p = plan(g, [n for _, n in targets])
     chunks = _chunks(p.named, PART_SIZE if part_size is None else part_size)
     last = len(chunks) - 1
@@ -176,8 +182,22 @@ def build_block(program, outputs: Sequence[tuple[str, str]], part_size: int | No
     return Block(parts=parts, work=work if len(chunks) > 1 else 0)
 
 
-def residual_blocks(program, part_size: int | None = None) -> tuple[Block, Block]:
-    """The residual block and the residual-and-Jacobian block of a step's program.
+def band_targets(program, band) -> list[tuple[str, int]]:
+    """(C lvalue, node) of the Jacobian in the band form of ``band`` (a
+    :class:`~symgroupoid.stepper.BandOrder`): entry (i, j) of the reordered Jacobian
+    B = J[order[i]][order[j]], −kl ≤ j − i ≤ ku, at ``J[i·(kl + ku + 1) + j − i + kl]``
+    (the stepper's ``SG_JACOBIAN_AT``); the entries outside the band are structurally zero
+    and not stored."""
+    n, order, width = len(band.order), band.order, band.kl + band.ku + 1
+    nodes = program.outputs["J"]
+    return [(f"J[{i * width + j - i + band.kl}]", nodes[order[i] * n + order[j]])
+            for i in range(n) for j in range(max(0, i - band.kl), min(n, i + band.ku + 1))]
+
+
+def residual_blocks(program, part_size: int | None = None,
+                    band=None) -> tuple[Block, Block]:
+    """The residual block and the residual-and-Jacobian block of a step's program (the
+    Jacobian in the band form of ``band``, when given: :func:`band_targets`).
 
     When F and J together need more than one part, one plan computes both: first the parts
     of the nodes F needs, which store F, then the Jacobian's, which read the residual's
@@ -189,11 +209,12 @@ def residual_blocks(program, part_size: int | None = None) -> tuple[Block, Block
     part_size = PART_SIZE if part_size is None else part_size
     g = program.graph
     f_targets = _targets(program, [("F", "F")])
-    j_targets = _targets(program, [("J", "J")])
+    j_targets = (_targets(program, [("J", "J")]) if band is None
+                 else band_targets(program, band))
     p = plan(g, [n for _, n in f_targets + j_targets])
     if len(p.named) + len(f_targets) + len(j_targets) <= part_size:
         return (build_block(program, [("F", "F")], part_size),
-                build_block(program, [("F", "F"), ("J", "J")], part_size))
+                _targets_block(program, f_targets + j_targets))
     in_f = dict.fromkeys(g.reachable([n for _, n in f_targets]))
     f_chunks = _chunks([n for n in p.named if n in in_f], part_size)
     j_chunks = _chunks([n for n in p.named if n not in in_f], part_size)
@@ -339,7 +360,7 @@ def kernel_blocks(step, part_size: int | None = None) -> KernelBlocks:
     """All function bodies of the kernel of ``step`` (deterministic for equal input), in
     parts of at most ``part_size`` statements (default :data:`PART_SIZE`)."""
     program = step.program
-    residual, residual_jacobian = residual_blocks(program, part_size)
+    residual, residual_jacobian = residual_blocks(program, part_size, band_order(step))
     helpers = program_helpers(program, list(program.outputs))
     input_jacobian, input_helpers = None, []
     if getattr(step, "inputs", ()):
@@ -368,6 +389,6 @@ def input_jacobian_program(step):
     return program_of(step)
 
 
-__all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "build_block",
-           "c_identifier", "kernel_blocks", "program_functions", "program_helpers",
+__all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "band_targets",
+           "build_block", "c_identifier", "kernel_blocks", "program_functions", "program_helpers",
            "residual_blocks", "stepper_statements", "unit_part_size"]

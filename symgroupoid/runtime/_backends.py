@@ -24,7 +24,7 @@ import numpy as np
 
 from .._arguments import integer_argument, real_array
 from .._errors import ShapeError
-from ..codegen import time_layout
+from ..codegen import band_order, time_layout
 from ..stepper import (
     NumpyStepper,
     NumpyWarmStart,
@@ -451,7 +451,7 @@ class NumpyKernel(_Kernel):
         self._pred = program.numpy_function(["predict"], ["known", "p"])
         self._stepper = NumpyStepper(StepFunctions(
             self._residual, self._residual_jacobian, self._residual_scale, self._predict,
-            self._next_knowns), self.n_u, time_layout(step))
+            self._next_knowns), self.n_u, time_layout(step), band_order(step))
 
     def warm_start(self) -> NumpyWarmStart:
         return self._stepper.warm_start()

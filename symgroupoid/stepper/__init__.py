@@ -19,11 +19,13 @@ from ._numpy import (
     LU_PANEL_FROM,
     MAX_THREADS,
     TRUST_FLOOR,
+    BandOrder,
     LUFactors,
     NumpyStepper,
     NumpyWarmStart,
     StepFunctions,
     above_rounding,
+    band_factor,
     coordinate_floor,
     explained_by_rounding,
     hold_time,
@@ -38,11 +40,10 @@ from ._numpy import (
 from ._status import STATUS_MESSAGES, Status, c_defines, c_status_message
 from ._time import HOLD_ITERATIONS, HOLD_TOLERANCE, NO_TIME, STEP_RATIO, TimeLayout
 
-__all__ = ["C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON", "HOLD_ITERATIONS", "HOLD_TOLERANCE",
-           "Inliner", "LU_PANEL_FROM", "LUFactors", "MAX_THREADS", "NO_TIME", "NumpyStepper",
-           "NumpyWarmStart",
-           "SOURCES", "STATUS_MESSAGES", "STEP_RATIO", "Status", "StepFunctions", "TRUST_FLOOR",
-           "TimeLayout", "above_rounding", "c_defines", "c_status_message", "coordinate_floor",
-           "explained_by_rounding", "hold_time", "library_digest", "library_dir", "library_source",
-           "lu_apply", "lu_factor", "lu_solve", "norm_inf", "pivot_ratio", "relative_norm",
-           "spelt", "time_step_kept"]
+__all__ = ["BandOrder", "C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON", "HOLD_ITERATIONS",
+           "HOLD_TOLERANCE", "Inliner", "LU_PANEL_FROM", "LUFactors", "MAX_THREADS", "NO_TIME",
+           "NumpyStepper", "NumpyWarmStart", "SOURCES", "STATUS_MESSAGES", "STEP_RATIO", "Status",
+           "StepFunctions", "TRUST_FLOOR", "TimeLayout", "above_rounding", "band_factor",
+           "c_defines", "c_status_message", "coordinate_floor", "explained_by_rounding",
+           "hold_time", "library_digest", "library_dir", "library_source", "lu_apply", "lu_factor",
+           "lu_solve", "norm_inf", "pivot_ratio", "relative_norm", "spelt", "time_step_kept"]

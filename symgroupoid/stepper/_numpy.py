@@ -59,16 +59,36 @@ def norm_inf(v: np.ndarray) -> float:
 @dataclass
 class LUFactors:
     """The factors of :func:`lu_factor`: scaled, permuted and eliminated A (L below the
-    diagonal, U on and above), row exponents, pivot rows and reciprocal pivots."""
+    diagonal, U on and above; in band storage with ``band``), row exponents, pivot rows and
+    reciprocal pivots."""
 
     A: np.ndarray
     e: np.ndarray
     perm: np.ndarray
     inv: np.ndarray
+    band: BandOrder | None = None
 
 
-def lu_factor(A: np.ndarray) -> tuple[int, LUFactors | None]:
-    """(status, factors) exactly as ``<prefix>_lu_factor`` in the C kernel.
+@dataclass(frozen=True)
+class BandOrder:
+    """A Jacobian banded in a reordering of its unknowns and equations (``SG_BAND_KL``,
+    ``SG_BAND_KU``, ``SG_BAND_ORDER`` of a kernel): entry (i, j) of
+    B = J[order[i]][order[j]] is zero unless −kl ≤ j − i ≤ ku."""
+
+    kl: int
+    ku: int
+    order: tuple[int, ...]
+
+    @property
+    def width(self) -> int:
+        """The columns of a row of the band storage (``SG_BAND_WIDTH``): kl + 1 + kl + ku."""
+        return 2 * self.kl + self.ku + 1
+
+
+def lu_factor(A: np.ndarray, band: BandOrder | None = None
+              ) -> tuple[int, LUFactors | None]:
+    """(status, factors) exactly as ``<prefix>_lu_factor`` in the C kernel (of a kernel
+    with the band ``band``: :func:`band_factor`).
 
     Every row of A is scaled by the power of two 2^-e bringing the row's largest |entry|
     into [1/2, 1) (exact), so singularity is judged relative to each equation; then LU with
@@ -90,6 +110,8 @@ def lu_factor(A: np.ndarray) -> tuple[int, LUFactors | None]:
             e[i] = int(np.frexp(m)[1])
             A[i] = A[i] * np.ldexp(1.0, -e[i]) if -1000 < e[i] < 1000 else np.ldexp(A[i],
                                                                                   -e[i])
+        if band is not None:
+            return band_factor(A, e, band)
         # entries now lie in [-1, 1]; partial pivoting grows them at most 2^(n-1): no overflow
         perm = np.zeros(n, dtype=np.int64)
         inv = np.empty(n)
@@ -110,6 +132,62 @@ def lu_factor(A: np.ndarray) -> tuple[int, LUFactors | None]:
     return OK, LUFactors(A, e, perm, inv)
 
 
+def band_factor(scaled: np.ndarray, e: np.ndarray, band: BandOrder
+                ) -> tuple[int, LUFactors | None]:
+    """``<prefix>_band_fill`` and ``<prefix>_band_eliminate``: the row-scaled ``scaled``
+    reordered into band storage (row i holds columns i − kl … i + kl + ku, entry (i, j) at
+    column j − i + kl), then partial pivoting over rows k … k + kl, rows swapped from column
+    k on, multipliers stored in place, zero ones skipped (LAPACK's dgbtf2 order)."""
+    n, kl, ku, w = len(scaled), band.kl, band.ku, band.width
+    order = np.asarray(band.order, dtype=np.int64)
+    tiny = n * EPSILON
+    B = np.zeros((n, w))
+    for i in range(n):
+        lo, hi = max(0, i - kl), min(n - 1, i + ku)
+        B[i, lo - i + kl:hi - i + kl + 1] = scaled[order[i], order[lo:hi + 1]]
+    perm = np.zeros(n, dtype=np.int64)
+    inv = np.empty(n)
+    for k in range(n):
+        last, end = min(k + kl, n - 1), min(k + kl + ku, n - 1)
+        column = np.abs(np.array([B[i, k - i + kl] for i in range(k, last + 1)]))
+        piv = k + int(np.argmax(column))
+        if not column[piv - k] > tiny:
+            return SINGULAR_JACOBIAN, None
+        perm[k] = piv
+        if piv != k:
+            row_k = B[k, kl:end - k + kl + 1].copy()
+            B[k, kl:end - k + kl + 1] = B[piv, k - piv + kl:end - piv + kl + 1]
+            B[piv, k - piv + kl:end - piv + kl + 1] = row_k
+        inv[k] = 1.0 / B[k, kl]
+        for i in range(k + 1, last + 1):
+            lik = B[i, k - i + kl] * inv[k]
+            B[i, k - i + kl] = lik
+            if lik != 0.0:
+                B[i, k + 1 - i + kl:end - i + kl + 1] -= lik * B[k, kl + 1:end - k + kl + 1]
+    return OK, LUFactors(B, e, perm, inv, band)
+
+
+def _band_apply(factors: LUFactors, b: np.ndarray) -> np.ndarray:
+    """The substitutions of ``<prefix>_lu_apply`` with band factors (``b`` scaled)."""
+    B, band = factors.A, factors.band
+    n, kl, reach = len(b), band.kl, band.kl + band.ku
+    order = np.asarray(band.order, dtype=np.int64)
+    y = b[order]
+    for k in range(n):  # step k's row swap, then its multipliers
+        piv = int(factors.perm[k])
+        y[k], y[piv] = y[piv], y[k]
+        last = min(k + kl, n - 1)
+        rows = np.arange(k + 1, last + 1)
+        y[k + 1:last + 1] -= B[rows, k - rows + kl] * y[k]
+    for i in range(n - 1, -1, -1):  # column by column
+        y[i] = y[i] * factors.inv[i]
+        rows = np.arange(max(0, i - reach), i)
+        y[rows] -= B[rows, i - rows + kl] * y[i]
+    x = np.empty(n)
+    x[order] = y
+    return x
+
+
 def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
     """(status, x) solving A x = b with the factors, exactly as ``<prefix>_lu_apply``;
     ``NON_FINITE`` when x is not finite (in particular when b or its scaling is not)."""
@@ -121,6 +199,9 @@ def lu_apply(factors: LUFactors, b: np.ndarray) -> tuple[int, np.ndarray]:
             b[i] = b[i] * np.ldexp(1.0, -e) if -1000 < e < 1000 else np.ldexp(b[i], -e)
         # a non-finite entry of the scaled b stays non-finite through the substitutions
         # (finite multipliers, zero ones applied too, and pivots): one test of x covers it
+        if factors.band is not None:
+            b = _band_apply(factors, b)
+            return (OK if np.isfinite(norm_inf(b)) else NON_FINITE), b
         for k in range(n):  # the row swaps, in order (L's rows were swapped with them)
             piv = int(factors.perm[k])
             if piv != k:
@@ -315,13 +396,15 @@ class NumpyStepper:
     """``SG_NAME(newton)`` and ``SG_NAME(simulate)`` of ``stepper.c`` over the
     :class:`StepFunctions` of a kernel of ``n_unknowns`` unknowns.  ``options``: anything
     with the fields of ``runtime.NewtonOptions``; ``time``: the kernel's time indices
-    (``<PREFIX>_TIME_ROW``, ...; :data:`~._time.NO_TIME` without a time groupoid)."""
+    (``<PREFIX>_TIME_ROW``, ...; :data:`~._time.NO_TIME` without a time groupoid);
+    ``band``: the kernel's :class:`BandOrder` (``<PREFIX>_BAND_*``), None for dense factors."""
 
     def __init__(self, functions: StepFunctions, n_unknowns: int,
-                 time: TimeLayout = NO_TIME):
+                 time: TimeLayout = NO_TIME, band: BandOrder | None = None):
         self.f = functions
         self.n_u = n_unknowns
         self.time = time
+        self.band = band  # the kernel's band order (SG_BAND_*), None for dense factors
 
     def warm_start(self) -> NumpyWarmStart:
         """A fresh warm start (no solution held)."""
@@ -385,7 +468,7 @@ class NumpyStepper:
                 done = 0  # a small update, a residual above the floor: iterate on
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
                 uJ, here = u, True
-                status, factors = lu_factor(J)
+                status, factors = lu_factor(J, self.band)
                 if status != OK:
                     return status, u, it, rnorm
             if rnorm <= options.tol_residual:
@@ -407,7 +490,7 @@ class NumpyStepper:
             if slow:
                 F, J = self.f.residual_jacobian(u, known, p)
                 uJ, here = u, True
-                status, factors = lu_factor(J)
+                status, factors = lu_factor(J, self.band)
                 if status != OK:
                     return status, u, it, rnorm
             previous, fresh = rnorm, here
@@ -479,9 +562,9 @@ class NumpyStepper:
         return states, iterations, norms, OK, -1, np.zeros(self.n_u)
 
 
-__all__ = ["BRANCH_JUMP", "C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON", "INVALID_ARGUMENT",
-           "LUFactors", "MAX_THREADS", "NON_FINITE", "NOT_CONVERGED", "NumpyStepper",
-           "NumpyWarmStart", "OK", "SINGULAR_JACOBIAN", "STALLED", "StepFunctions",
-           "TRUST_FLOOR", "above_rounding", "coordinate_floor", "explained_by_rounding",
-           "hold_time", "lu_apply", "lu_factor", "lu_solve", "norm_inf", "pivot_ratio",
-           "polish", "relative_norm", "time_step_kept"]
+__all__ = ["BRANCH_JUMP", "BandOrder", "C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON",
+           "INVALID_ARGUMENT", "LUFactors", "MAX_THREADS", "NON_FINITE", "NOT_CONVERGED",
+           "NumpyStepper", "NumpyWarmStart", "OK", "SINGULAR_JACOBIAN", "STALLED",
+           "StepFunctions", "TRUST_FLOOR", "above_rounding", "band_factor", "coordinate_floor",
+           "explained_by_rounding", "hold_time", "lu_apply", "lu_factor", "lu_solve",
+           "norm_inf", "pivot_ratio", "polish", "relative_norm", "time_step_kept"]

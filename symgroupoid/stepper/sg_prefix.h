@@ -8,8 +8,11 @@
  * with TOY_N_EQUATIONS, TOY_N_UNKNOWNS, TOY_N_KNOWNS, TOY_N_PARAMETERS, TOY_N_INPUTS and
  * the time indices TOY_TIME_ROW, TOY_TIME_UNKNOWN, TOY_TIME_KNOWN, TOY_TIME_BEFORE (-1
  * without a time groupoid) defined in toy_sizes.h (or before stepper.h is included),
- * beside the kernel's own functions (see stepper.h).  The code generator writes the library into a kernel with these names spelt
- * out (plate_ball_simulate, PLATE_BALL_OK, ...); this file is never part of a kernel.
+ * beside the kernel's own functions (see stepper.h); a kernel whose Jacobian is banded in a
+ * reordering of its unknowns also defines TOY_BANDED 1, TOY_BAND_KL, TOY_BAND_KU and
+ * TOY_BAND_ORDER (see stepper.c; without TOY_BANDED the factors are dense).  The code
+ * generator writes the library into a kernel with these names spelt out
+ * (plate_ball_simulate, PLATE_BALL_OK, ...); this file is never part of a kernel.
  */
 #ifndef SG_PREFIX_H
 #define SG_PREFIX_H
@@ -33,5 +36,10 @@
 #define SG_TIME_UNKNOWN SG_CAT(SG_PREFIX_UPPER, TIME_UNKNOWN)
 #define SG_TIME_KNOWN SG_CAT(SG_PREFIX_UPPER, TIME_KNOWN)
 #define SG_TIME_BEFORE SG_CAT(SG_PREFIX_UPPER, TIME_BEFORE)
+/* a Jacobian banded in the order SG_BAND_ORDER (SG_BANDED undefined or 0: dense factors) */
+#define SG_BANDED SG_CAT(SG_PREFIX_UPPER, BANDED)
+#define SG_BAND_KL SG_CAT(SG_PREFIX_UPPER, BAND_KL)
+#define SG_BAND_KU SG_CAT(SG_PREFIX_UPPER, BAND_KU)
+#define SG_BAND_ORDER SG_CAT(SG_PREFIX_UPPER, BAND_ORDER)
 
 #endif /* SG_PREFIX_H */

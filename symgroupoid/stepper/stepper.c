@@ -100,8 +100,68 @@ static inline double SG_NAME(power_of_two)(int k)
  * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
  * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
  * SG_NAME(explained_by_rounding)). */
+#if SG_BANDED
+/* A kernel whose Jacobian is banded (SG_BANDED) once its unknowns (and equations) are taken in the order
+ * SG_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
+ * unless -SG_BAND_KL <= j - i <= SG_BAND_KU, as the code generator found from the program's
+ * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+ * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
+ * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
+#define SG_BAND_WIDTH (2 * SG_BAND_KL + SG_BAND_KU + 1)
+#define SG_LU_ENTRIES (SG_N_UNKNOWNS * SG_BAND_WIDTH)
+static const int SG_NAME(band_order)[SG_N_UNKNOWNS] = SG_BAND_ORDER;
+/* entry (i, j) of the band storage A (valid for i - KL <= j <= i + KL + KU) */
+#define SG_BAND_AT(A, i, j) (A)[(i) * SG_BAND_WIDTH + (j) - (i) + SG_BAND_KL]
+/* The kernel writes its Jacobian in band form too (SG_NAME(residual_jacobian_band)): entry
+ * (i, j) of B, i - KL <= j <= i + KU, at SG_JACOBIAN_AT(J, i, j); the entries outside the
+ * band are zero and never stored, so nothing the stepper does per step touches n^2 memory.
+ * The kernel's SG_NAME(residual_jacobian) gives the whole matrix from it. */
+#define SG_JACOBIAN_WIDTH (SG_BAND_KL + SG_BAND_KU + 1)
+#define SG_JACOBIAN_ENTRIES (SG_N_UNKNOWNS * SG_JACOBIAN_WIDTH)
+#define SG_JACOBIAN_AT(J, i, j) (J)[(i) * SG_JACOBIAN_WIDTH + (j) - (i) + SG_BAND_KL]
+#define SG_JACOBIAN SG_NAME(residual_jacobian_band)
+#if SG_TIME_ROW >= 0
+#error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
+#endif
+void SG_NAME(residual_jacobian_band)(const double *u, const double *known, const double *p, double *F, double *J);
+
+/* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
+ * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
+ * (nothing) for a finite a_j and NaN otherwise, as the dense sum would */
+static void SG_NAME(column_sums)(const double *J, const double *a, double *S)
+{
+    const int n = SG_N_UNKNOWNS;
+    const int *order = SG_NAME(band_order);
+    int position[SG_N_UNKNOWNS];
+    int j, r;
+    for (r = 0; r < n; ++r) {
+        position[order[r]] = r;
+    }
+    for (j = 0; j < n; ++j) {
+        const int c = position[j];
+        const int lo = c - SG_BAND_KU > 0 ? c - SG_BAND_KU : 0;
+        const int hi = c + SG_BAND_KL < n - 1 ? c + SG_BAND_KL : n - 1;
+        for (r = lo; r <= hi; ++r) {
+            S[order[r]] += fabs(SG_JACOBIAN_AT(J, r, c)) * a[j];
+        }
+        if (!(a[j] < INFINITY)) {
+            for (r = 0; r < n; ++r) {
+                if (r < lo || r > hi) {
+                    S[order[r]] += 0.0 * a[j];
+                }
+            }
+        }
+    }
+}
+#else
+#define SG_LU_ENTRIES (SG_N_UNKNOWNS * SG_N_UNKNOWNS)
+#define SG_JACOBIAN_ENTRIES (SG_N_EQUATIONS * SG_N_UNKNOWNS)
+#define SG_JACOBIAN SG_NAME(residual_jacobian)
+#endif
+
+
 typedef struct {
-    double A[SG_N_UNKNOWNS * SG_N_UNKNOWNS];
+    double A[SG_LU_ENTRIES];
     double s[SG_N_UNKNOWNS];
     double inv[SG_N_UNKNOWNS];
     double row_max[SG_N_UNKNOWNS];
@@ -127,6 +187,7 @@ typedef struct {
 #define SG_LU_PANEL 8
 #define SG_LU_PANEL_FROM 24
 
+#if !SG_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
  * SG_NAME(panel_rows) and SG_NAME(panel_update)). */
@@ -257,6 +318,77 @@ static int SG_NAME(eliminate)(double *A, double *inv, int *perm)
     return SG_OK;
 }
 #endif
+#endif /* !SG_BANDED */
+
+#if SG_BANDED
+/* The reordered, row-scaled Jacobian in the LU's band storage (zero outside its band) from
+ * the kernel's band form J: entry (i, j) is B_ij scaled by the power of two of row order[i] */
+static void SG_NAME(band_fill)(const double *J, const double *s, const int *e, double *A)
+{
+    const int n = SG_N_UNKNOWNS;
+    const int *order = SG_NAME(band_order);
+    int i, j;
+    for (i = 0; i < SG_LU_ENTRIES; ++i) {
+        A[i] = 0.0;
+    }
+    for (i = 0; i < n; ++i) {
+        const int r = order[i];
+        const int lo = i - SG_BAND_KL > 0 ? i - SG_BAND_KL : 0;
+        const int hi = i + SG_BAND_KU < n - 1 ? i + SG_BAND_KU : n - 1;
+        for (j = lo; j <= hi; ++j) {
+            const double a = SG_JACOBIAN_AT(J, i, j);
+            SG_BAND_AT(A, i, j) = s[r] != 0.0 ? a * s[r] : ldexp(a, -e[r]);
+        }
+    }
+}
+
+/* Gaussian elimination with partial pivoting in band storage (LAPACK's dgbtf2 order): at
+ * column k the pivot is the first largest |entry| of rows k ... k + KL; rows k and perm[k]
+ * are swapped from column k on (the multipliers already stored stay where they are: the
+ * solve applies the swap of step k before the multipliers of column k, as LAPACK's dgbtrs
+ * does); the multipliers of rows k + 1 ... k + KL are stored in column k and the rows updated
+ * over the columns row k's U can reach (k + KL + KU), a zero multiplier skipped.  Returns
+ * SG_SINGULAR_JACOBIAN at the first pivot not above n * DBL_EPSILON, else SG_OK. */
+static int SG_NAME(band_eliminate)(double *A, double *inv, int *perm)
+{
+    const int n = SG_N_UNKNOWNS;
+    const double tiny = n * DBL_EPSILON;
+    int i, j, k;
+    for (k = 0; k < n; ++k) {
+        const int last = k + SG_BAND_KL < n - 1 ? k + SG_BAND_KL : n - 1;
+        const int end = k + SG_BAND_KL + SG_BAND_KU < n - 1 ? k + SG_BAND_KL + SG_BAND_KU : n - 1;
+        int piv = k;
+        double amax = fabs(SG_BAND_AT(A, k, k));
+        for (i = k + 1; i <= last; ++i) {
+            const double a = fabs(SG_BAND_AT(A, i, k));
+            piv = a > amax ? i : piv;
+            amax = a > amax ? a : amax;
+        }
+        if (!(amax > tiny)) {
+            return SG_SINGULAR_JACOBIAN;
+        }
+        perm[k] = piv;
+        if (piv != k) {
+            for (j = k; j <= end; ++j) {
+                const double t = SG_BAND_AT(A, k, j);
+                SG_BAND_AT(A, k, j) = SG_BAND_AT(A, piv, j);
+                SG_BAND_AT(A, piv, j) = t;
+            }
+        }
+        inv[k] = 1.0 / SG_BAND_AT(A, k, k);
+        for (i = k + 1; i <= last; ++i) {
+            const double l = SG_BAND_AT(A, i, k) * inv[k];
+            SG_BAND_AT(A, i, k) = l;
+            if (l != 0.0) {
+                for (j = k + 1; j <= end; ++j) {
+                    SG_BAND_AT(A, i, j) -= l * SG_BAND_AT(A, k, j);
+                }
+            }
+        }
+    }
+    return SG_OK;
+}
+#endif
 
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
@@ -273,6 +405,19 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
     double *A = f->A;
     uint64_t rmax[SG_N_UNKNOWNS];
     int i, j;
+#if SG_BANDED
+    for (i = 0; i < n; ++i) { /* the same largest |entry| from the band's entries only */
+        const int r = SG_NAME(band_order)[i];
+        const int lo = i - SG_BAND_KL > 0 ? i - SG_BAND_KL : 0;
+        const int hi = i + SG_BAND_KU < n - 1 ? i + SG_BAND_KU : n - 1;
+        uint64_t m = 0;
+        for (j = lo; j <= hi; ++j) {
+            const uint64_t a = SG_NAME(abs_bits)(SG_JACOBIAN_AT(J, i, j));
+            m = a > m ? a : m;
+        }
+        rmax[r] = m;
+    }
+#else
     SG_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (SG_NAME(abs_bits)), its sum */
         uint64_t m = 0;
@@ -283,6 +428,7 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
         }
         rmax[i] = m;
     }
+#endif
     for (i = 0; i < n; ++i) { /* the first failing row decides the status */
         if (rmax[i] >= SG_INF_BITS) {
             return SG_NON_FINITE;
@@ -303,6 +449,11 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
             f->normal = 0;
         }
     }
+#if SG_BANDED
+    (void)j;
+    SG_NAME(band_fill)(J, f->s, f->e, A);
+    return SG_NAME(band_eliminate)(A, f->inv, f->perm);
+#else
     if (f->normal) {
         SG_UNROLL
         for (i = 0; i < n; ++i) {
@@ -321,6 +472,7 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
     return SG_NAME(eliminate)(A, f->inv, f->perm);
+#endif
 }
 
 /* Solve J x = b with the factors of SG_NAME(lu_factor) (x returned in b): the same row
@@ -345,6 +497,36 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
             b[i] = f->s[i] != 0.0 ? b[i] * f->s[i] : ldexp(b[i], -f->e[i]);
         }
     }
+#if SG_BANDED
+    (void)j;
+    {
+        const int *order = SG_NAME(band_order);
+        double y[SG_N_UNKNOWNS];
+        for (i = 0; i < n; ++i) { /* the reordered right-hand side */
+            y[i] = b[order[i]];
+        }
+        for (k = 0; k < n; ++k) { /* step k's row swap, then its multipliers */
+            const int last = k + SG_BAND_KL < n - 1 ? k + SG_BAND_KL : n - 1;
+            const double t = y[k];
+            y[k] = y[f->perm[k]];
+            y[f->perm[k]] = t;
+            for (i = k + 1; i <= last; ++i) {
+                y[i] -= SG_BAND_AT(A, i, k) * y[k];
+            }
+        }
+        for (i = n - 1; i >= 0; --i) { /* column by column, as the large dense factors */
+            const double x = y[i] * f->inv[i];
+            const int first = i - SG_BAND_KL - SG_BAND_KU > 0 ? i - SG_BAND_KL - SG_BAND_KU : 0;
+            y[i] = x;
+            for (k = first; k < i; ++k) {
+                y[k] -= SG_BAND_AT(A, k, i) * x;
+            }
+        }
+        for (i = 0; i < n; ++i) {
+            b[order[i]] = y[i];
+        }
+    }
+#else
     SG_UNROLL
     for (k = 0; k < n; ++k) { /* the row swaps, in order (L's rows were swapped with them) */
         const double t = b[k];
@@ -380,6 +562,7 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
         }
     }
 #endif
+#endif /* SG_BANDED */
     return SG_NAME(norm_inf)(b, n) < INFINITY ? SG_OK : SG_NON_FINITE;
 }
 
@@ -410,6 +593,15 @@ static void SG_NAME(coordinate_floor)(const double *J, const double *u, double *
     for (i = 0; i < SG_N_EQUATIONS; ++i) {
         C[i] = 0.0;
     }
+#if SG_BANDED
+    {
+        double a[SG_N_UNKNOWNS];
+        for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+            a[j] = fabs(u[j]);
+        }
+        SG_NAME(column_sums)(J, a, C);
+    }
+#else
     SG_UNROLL
     for (j = 0; j < SG_N_UNKNOWNS; ++j) {
         const double a = fabs(u[j]);
@@ -418,6 +610,7 @@ static void SG_NAME(coordinate_floor)(const double *J, const double *u, double *
             C[i] += fabs(J[i * SG_N_UNKNOWNS + j]) * a;
         }
     }
+#endif
     SG_UNROLL
     for (i = 0; i < SG_N_EQUATIONS; ++i) {
         C[i] *= DBL_EPSILON;
@@ -458,6 +651,9 @@ static int SG_NAME(explained_by_rounding)(const double *F, const double *J, cons
     for (i = 0; i < SG_N_EQUATIONS; ++i) {
         S[i] = 0.0;
     }
+#if SG_BANDED
+    SG_NAME(column_sums)(J, a, S);
+#else
     SG_UNROLL
     for (j = 0; j < SG_N_UNKNOWNS; ++j) {
         SG_UNROLL
@@ -465,6 +661,7 @@ static int SG_NAME(explained_by_rounding)(const double *F, const double *J, cons
             S[i] += fabs(J[i * SG_N_UNKNOWNS + j]) * a[j];
         }
     }
+#endif
     SG_UNROLL
     for (i = 0; i < SG_N_EQUATIONS; ++i) {
         if (!(fabs(F[i]) <= bound * S[i])) {
@@ -598,7 +795,7 @@ static inline int SG_NAME(above_rounding)(const double *d, const double *u, doub
 static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
     double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
-    double J[SG_N_EQUATIONS * SG_N_UNKNOWNS], uJ[SG_N_UNKNOWNS];
+    double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
@@ -607,7 +804,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            SG_NAME(residual_jacobian)(u, known, p, F, J);
+            SG_JACOBIAN(u, known, p, F, J);
         } else {
             SG_NAME(residual)(u, known, p, F);
         }
@@ -660,7 +857,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
                 return SG_NOT_CONVERGED;
             }
             if (slow) {
-                SG_NAME(residual_jacobian)(u, known, p, F, J);
+                SG_JACOBIAN(u, known, p, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = SG_NAME(lu_factor)(J, &lu);
                 if (status != SG_OK) {
