@@ -181,10 +181,12 @@ class ChainODE:
 
 # --- MuJoCo ------------------------------------------------------------------------------------
 
-def mjcf_chain(n: int = 3, timestep: float = 0.01, grav: float = GRAVITY) -> str:
+def mjcf_chain(n: int = 3, timestep: float = 0.01, grav: float = GRAVITY,
+               integrator: str = "RK4") -> str:
     """The chain as an MJCF model: body i's frame at its joint with the body-frame axes of Rᵢ
     (nested bodies at ℓ from their parent), a ball joint at its origin, the centre of mass at
-    ρ, unit mass, the principal inertia Jᵢ; no geometry (so no contact), RK4."""
+    ρ, unit mass, the principal inertia Jᵢ; no geometry (so no contact); ``integrator``:
+    MuJoCo's integrator ("RK4", "Euler", "implicit" or "implicitfast")."""
     def inertial(i: int) -> str:
         J = [float(chain_inertia(i)[k, k]) for k in range(3)]
         return (f'<inertial pos="{float(CENTRE[0])} {float(CENTRE[1])} {float(CENTRE[2])}" '
@@ -195,8 +197,9 @@ def mjcf_chain(n: int = 3, timestep: float = 0.01, grav: float = GRAVITY) -> str
         pos = "0 0 0" if i == 1 else f"{LINK[0]} {LINK[1]} {LINK[2]}"
         body = (f'<body name="b{i}" pos="{pos}"><joint name="j{i}" type="ball" '
                 f'damping="0" armature="0"/>{inertial(i)}{body}</body>')
-    return (f'<mujoco model="chain_{n}"><option timestep="{timestep!r}" integrator="RK4" '
-            f'gravity="0 0 {-grav!r}"><flag contact="disable" energy="enable"/></option>'
+    return (f'<mujoco model="chain_{n}"><option timestep="{timestep!r}" '
+            f'integrator="{integrator}" gravity="0 0 {-grav!r}">'
+            f'<flag contact="disable" energy="enable"/></option>'
             f'<worldbody>{body}</worldbody></mujoco>')
 
 
