@@ -10,7 +10,7 @@ joints under gravity, body 1 pinned at the origin, unit masses, inertias
 ``systems.chain_inertia(i)``; h = 0.01, g = 9.81) and the same chain as a MuJoCo model
 (``_chain_models.mjcf_chain``: ball joints, no contact, the same masses, inertias and
 geometry; MuJoCo's energy computation off, its default) stepped by ``mujoco.rollout`` with
-the integrators implicitfast (MuJoCo's recommended default), Euler (semi-implicit) and RK4,
+the integrators implicitfast (the one MuJoCo recommends for new models), Euler and RK4,
 single-threaded, as is the library's ``simulate``.
 
 Both sides start from the same state: the library from ``scaling.initial_state("3d", n)``
@@ -42,7 +42,7 @@ For each n (``--sizes``, default 8 16 32 64; ``--quick``: 4 8 and fewer rounds):
   (``rollout(model, data, start, nstep=N)``) for the same N steps from the same start;
   ``--rounds`` rounds (default 100) alternate the sides, and each side's minimum, divided
   by N, is its µs/step (the median is kept in ``--output``).  N is chosen so that a library
-  round lasts about ``--round-seconds`` (default 0.02 s, at least 20 steps), or set with
+  round lasts about ``--round-seconds`` (default 0.02 s, at least 50 steps), or set with
   ``--steps``; the same rounds time a one-step call of the library and of MuJoCo
   implicitfast (the fixed cost of a call and a first step, the library's from a guess
   without extrapolation: 390 µs and 170 µs for 8 bodies on a loaded machine, 2 % and 1 % of
@@ -123,7 +123,7 @@ ROUNDS, QUICK_ROUNDS = 100, 10
 #: a library round lasts about this long (seconds) ...
 ROUND_SECONDS = 0.02
 #: ... within these numbers of steps
-MIN_ROUND_STEPS, MAX_ROUND_STEPS = 20, 5000
+MIN_ROUND_STEPS, MAX_ROUND_STEPS = 50, 5000
 #: the largest n CasADi is built for unless --casadi-max says otherwise
 CASADI_MAX = 32
 #: the issue's targets: the library's µs/step at most this times MuJoCo implicitfast's
