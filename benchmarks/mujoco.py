@@ -29,7 +29,7 @@ For each n (``--sizes``, default 8 16 32 64; ``--quick``: 4 8 and fewer rounds):
 - build: ``step = spherical_chain(n).euler_lagrange()`` and
   ``sim = step.compile(backend="c", cache_dir=...)`` (a fresh cache unless ``--cache-dir``
   names one), both timed and printed; on the 2-core reference machine a 32-body build took
-  31 s and a 64-body one 129 s (derivation 30 s, C compiler 99 s);
+  22 s and a 64-body one 90 s (derivation 23 s, C compiler 67 s);
 - check: the first 100 steps of the library and of each MuJoCo integrator, the largest
   attitude difference max_{k,i} ‖R_i^lib(t_k) − R_i^MuJoCo(t_k)‖_F: a sanity check that the
   two simulate the same chain, not a pass/fail (the integrators differ: RK4 is of order 4
@@ -273,7 +273,7 @@ def run_size(n: int, mujoco, args, cache_root: Path, tmp: Path) -> dict:
     """Build (kernel cache under ``cache_root``), check and time one n (CasADi's files
     under ``tmp``); the row of the table, also printed as it goes."""
     row: dict = {"n": n}
-    slow = " (a kernel this large takes minutes)" if n >= 48 else ""
+    slow = " (a kernel this large takes a minute or more)" if n >= 48 else ""
     print(f"\nn = {n}: deriving and compiling the library's kernel{slow} ...", flush=True)
     step, sim, derive_s, compile_s = build_library(n, cache_root / f"chain-{n}")
     row.update(derive_seconds=derive_s, compile_seconds=compile_s,
