@@ -99,3 +99,16 @@ def _check_orders(name: str, out: str) -> None:
         assert energy and momentum, out
         assert float(energy[1]) < 1e-3 and float(energy[2]) < 1.5, out
         assert float(momentum[1]) < 1e-12, out
+
+
+@pytest.mark.slow
+def test_the_three_body_chain_is_order_four() -> None:
+    """``chain_order4.py --bodies 3``: the 3D three-body chain (pair groupoid of SO(3)³) at
+    order 4 against its continuous equations (the script exits non-zero when the observed
+    order misses 4 by more than 0.1)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    run = subprocess.run([sys.executable, str(ROOT / "examples" / "chain_order4.py"),
+                          "--bodies", "3"], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=TIMEOUT)
+    assert run.returncode == 0, run.stderr
+    assert "3D 3-body pendulum" in run.stdout and "(theoretical 4)" in run.stdout
