@@ -586,9 +586,10 @@ static inline void rigid_body_row_updates(double *A, int i, int k0, int k, int k
 }
 
 #if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__)
-/* the panel updates also in AVX2 instructions, chosen when the processor has them: the same
- * multiplications and subtractions, so the same bits */
-#define RIGID_BODY_VECTOR_CLONES __attribute__((target_clones("avx2", "default")))
+/* the panel updates also in AVX-512 and AVX2 instructions, the widest the processor has
+ * chosen when the kernel is loaded: the same multiplications and subtractions, so the same
+ * bits */
+#define RIGID_BODY_VECTOR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define RIGID_BODY_VECTOR_CLONES
 #endif
