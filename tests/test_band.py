@@ -92,3 +92,26 @@ def test_the_whole_jacobian_of_a_band_kernel_is_the_programs(chain10):
     nF, nJ = numpy.residual_jacobian(u, known, p)
     assert F.tobytes() == nF.tobytes() and J.tobytes() == nJ.tobytes()
     assert np.count_nonzero(J) == np.count_nonzero(codegen.jacobian_pattern(chain10))
+
+
+@needs_cc
+@pytest.mark.parametrize("backend", ["c", "numpy"])
+def test_a_band_kernel_refuses_bad_input_by_name(chain10, backend):
+    """Hostile input to a band kernel's simulator gets the named errors before any step: a
+    non-finite parameter, a link of length 0 (declared positive: the constraint's gradient
+    would vanish), a state off the constraints, a state of the wrong length."""
+    import symgroupoid as sg
+
+    sim = chain10.compile(backend=backend)
+    params, state = chain_params(10), chain_state(10)
+    with pytest.raises(sg.SymgroupoidError, match="finite"):
+        sim.simulate(state, 5, {**params, "g": float("nan")})
+    with pytest.raises(sg.ParameterError, match="l2"):
+        sim.simulate(state, 5, {**params, "l2": 0.0})
+    off = state.copy()
+    off[22] += 0.1  # point 2 at q_k moves off its link
+    with pytest.raises(sg.SymgroupoidError, match="constraint"):
+        sim.simulate(off, 5, params)
+    with pytest.raises(sg.ShapeError):
+        sim.simulate(state[:-1], 5, params)
+    assert np.isfinite(sim.simulate(state, 5, params).states).all()

@@ -126,11 +126,11 @@ FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-pedantic"
          "-fPIC", "-DSG_PREFIX=lin", "-DSG_PREFIX_UPPER=LIN"]
 
 #: sizes on both sides of the panel threshold, with and without a last partial panel
-SIZES = (5, 23, 24, 25, 40, 61, 100)
+SIZES = (5, 23, 24, 61, 100)
 
 
 #: band kernels: (n, kl, ku), their order a fixed random permutation
-BANDS = ((7, 1, 1), (30, 2, 3), (61, 4, 2), (90, 5, 5))
+BANDS = ((7, 1, 1), (30, 2, 3), (61, 4, 2))
 
 
 def _band(n: int, kl: int, ku: int) -> BandOrder:
