@@ -411,17 +411,11 @@ static inline double heavy_top_power_of_two(int k)
     return x;
 }
 
-/* The factors of a Jacobian (heavy_top_lu_factor): the scaled, permuted and eliminated matrix
- * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
- * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
- * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
- * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
- * heavy_top_explained_by_rounding). */
 #if HEAVY_TOP_BANDED
-/* A kernel whose Jacobian is banded (HEAVY_TOP_BANDED) once its unknowns (and equations) are taken in the order
- * HEAVY_TOP_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
- * unless -HEAVY_TOP_BAND_KL <= j - i <= HEAVY_TOP_BAND_KU, as the code generator found from the program's
- * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+/* A kernel whose Jacobian is banded (HEAVY_TOP_BANDED) once its unknowns (and equations) are
+ * taken in the order HEAVY_TOP_BAND_ORDER -- entry (i, j) of the reordered matrix
+ * B = J[order[i]][order[j]] is zero unless -HEAVY_TOP_BAND_KL <= j - i <= HEAVY_TOP_BAND_KU, as the code
+ * generator found from the program's sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
  * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
  * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
 #define HEAVY_TOP_BAND_WIDTH (2 * HEAVY_TOP_BAND_KL + HEAVY_TOP_BAND_KU + 1)
@@ -476,6 +470,12 @@ static void heavy_top_column_sums(const double *J, const double *a, double *S)
 #define HEAVY_TOP_JACOBIAN heavy_top_residual_jacobian
 #endif
 
+/* The factors of a Jacobian (heavy_top_lu_factor): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * heavy_top_explained_by_rounding).  A band kernel's A is in band storage (HEAVY_TOP_BAND_AT). */
 typedef struct {
     double A[HEAVY_TOP_LU_ENTRIES];
     double s[HEAVY_TOP_N_UNKNOWNS];
@@ -506,7 +506,7 @@ typedef struct {
 #if !HEAVY_TOP_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
- * heavy_top_panel_rows and heavy_top_panel_update). */
+ * heavy_top_row_updates and heavy_top_panel_row_update). */
 static inline int heavy_top_eliminate_columns(double *A, double *inv, int *perm, int k0, int k1)
 {
     const int n = HEAVY_TOP_N_UNKNOWNS;

@@ -638,17 +638,11 @@ static inline double plate_ball_power_of_two(int k)
     return x;
 }
 
-/* The factors of a Jacobian (plate_ball_lu_factor): the scaled, permuted and eliminated matrix
- * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
- * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
- * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
- * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
- * plate_ball_explained_by_rounding). */
 #if PLATE_BALL_BANDED
-/* A kernel whose Jacobian is banded (PLATE_BALL_BANDED) once its unknowns (and equations) are taken in the order
- * PLATE_BALL_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
- * unless -PLATE_BALL_BAND_KL <= j - i <= PLATE_BALL_BAND_KU, as the code generator found from the program's
- * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+/* A kernel whose Jacobian is banded (PLATE_BALL_BANDED) once its unknowns (and equations) are
+ * taken in the order PLATE_BALL_BAND_ORDER -- entry (i, j) of the reordered matrix
+ * B = J[order[i]][order[j]] is zero unless -PLATE_BALL_BAND_KL <= j - i <= PLATE_BALL_BAND_KU, as the code
+ * generator found from the program's sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
  * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
  * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
 #define PLATE_BALL_BAND_WIDTH (2 * PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU + 1)
@@ -703,6 +697,12 @@ static void plate_ball_column_sums(const double *J, const double *a, double *S)
 #define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian
 #endif
 
+/* The factors of a Jacobian (plate_ball_lu_factor): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * plate_ball_explained_by_rounding).  A band kernel's A is in band storage (PLATE_BALL_BAND_AT). */
 typedef struct {
     double A[PLATE_BALL_LU_ENTRIES];
     double s[PLATE_BALL_N_UNKNOWNS];
@@ -733,7 +733,7 @@ typedef struct {
 #if !PLATE_BALL_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
- * plate_ball_panel_rows and plate_ball_panel_update). */
+ * plate_ball_row_updates and plate_ball_panel_row_update). */
 static inline int plate_ball_eliminate_columns(double *A, double *inv, int *perm, int k0, int k1)
 {
     const int n = PLATE_BALL_N_UNKNOWNS;

@@ -400,17 +400,11 @@ static inline double rigid_body_power_of_two(int k)
     return x;
 }
 
-/* The factors of a Jacobian (rigid_body_lu_factor): the scaled, permuted and eliminated matrix
- * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
- * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
- * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
- * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
- * rigid_body_explained_by_rounding). */
 #if RIGID_BODY_BANDED
-/* A kernel whose Jacobian is banded (RIGID_BODY_BANDED) once its unknowns (and equations) are taken in the order
- * RIGID_BODY_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
- * unless -RIGID_BODY_BAND_KL <= j - i <= RIGID_BODY_BAND_KU, as the code generator found from the program's
- * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+/* A kernel whose Jacobian is banded (RIGID_BODY_BANDED) once its unknowns (and equations) are
+ * taken in the order RIGID_BODY_BAND_ORDER -- entry (i, j) of the reordered matrix
+ * B = J[order[i]][order[j]] is zero unless -RIGID_BODY_BAND_KL <= j - i <= RIGID_BODY_BAND_KU, as the code
+ * generator found from the program's sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
  * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
  * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
 #define RIGID_BODY_BAND_WIDTH (2 * RIGID_BODY_BAND_KL + RIGID_BODY_BAND_KU + 1)
@@ -465,6 +459,12 @@ static void rigid_body_column_sums(const double *J, const double *a, double *S)
 #define RIGID_BODY_JACOBIAN rigid_body_residual_jacobian
 #endif
 
+/* The factors of a Jacobian (rigid_body_lu_factor): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * rigid_body_explained_by_rounding).  A band kernel's A is in band storage (RIGID_BODY_BAND_AT). */
 typedef struct {
     double A[RIGID_BODY_LU_ENTRIES];
     double s[RIGID_BODY_N_UNKNOWNS];
@@ -495,7 +495,7 @@ typedef struct {
 #if !RIGID_BODY_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
- * rigid_body_panel_rows and rigid_body_panel_update). */
+ * rigid_body_row_updates and rigid_body_panel_row_update). */
 static inline int rigid_body_eliminate_columns(double *A, double *inv, int *perm, int k0, int k1)
 {
     const int n = RIGID_BODY_N_UNKNOWNS;

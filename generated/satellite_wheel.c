@@ -517,17 +517,11 @@ static inline double satellite_wheel_power_of_two(int k)
     return x;
 }
 
-/* The factors of a Jacobian (satellite_wheel_lu_factor): the scaled, permuted and eliminated matrix
- * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
- * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
- * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
- * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
- * satellite_wheel_explained_by_rounding). */
 #if SATELLITE_WHEEL_BANDED
-/* A kernel whose Jacobian is banded (SATELLITE_WHEEL_BANDED) once its unknowns (and equations) are taken in the order
- * SATELLITE_WHEEL_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
- * unless -SATELLITE_WHEEL_BAND_KL <= j - i <= SATELLITE_WHEEL_BAND_KU, as the code generator found from the program's
- * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+/* A kernel whose Jacobian is banded (SATELLITE_WHEEL_BANDED) once its unknowns (and equations) are
+ * taken in the order SATELLITE_WHEEL_BAND_ORDER -- entry (i, j) of the reordered matrix
+ * B = J[order[i]][order[j]] is zero unless -SATELLITE_WHEEL_BAND_KL <= j - i <= SATELLITE_WHEEL_BAND_KU, as the code
+ * generator found from the program's sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
  * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
  * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
 #define SATELLITE_WHEEL_BAND_WIDTH (2 * SATELLITE_WHEEL_BAND_KL + SATELLITE_WHEEL_BAND_KU + 1)
@@ -582,6 +576,12 @@ static void satellite_wheel_column_sums(const double *J, const double *a, double
 #define SATELLITE_WHEEL_JACOBIAN satellite_wheel_residual_jacobian
 #endif
 
+/* The factors of a Jacobian (satellite_wheel_lu_factor): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * satellite_wheel_explained_by_rounding).  A band kernel's A is in band storage (SATELLITE_WHEEL_BAND_AT). */
 typedef struct {
     double A[SATELLITE_WHEEL_LU_ENTRIES];
     double s[SATELLITE_WHEEL_N_UNKNOWNS];
@@ -612,7 +612,7 @@ typedef struct {
 #if !SATELLITE_WHEEL_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
- * satellite_wheel_panel_rows and satellite_wheel_panel_update). */
+ * satellite_wheel_row_updates and satellite_wheel_panel_row_update). */
 static inline int satellite_wheel_eliminate_columns(double *A, double *inv, int *perm, int k0, int k1)
 {
     const int n = SATELLITE_WHEEL_N_UNKNOWNS;

@@ -42,7 +42,7 @@ def test_the_band_order_of_a_link_chain_is_narrow_and_a_permutation(chain10):
     assert codegen.band_order(chain10) == band  # deterministic
 
 
-def test_dense_jacobians_small_steps_and_time_steps_keep_dense_factors():
+def test_dense_jacobians_and_small_steps_keep_dense_factors():
     assert codegen.band_order(systems.spherical_chain(8).euler_lagrange()) is None  # dense
     small = systems.link_chain(LU_PANEL_FROM // 3 - 1).euler_lagrange()
     assert len(small.unknowns) < LU_PANEL_FROM and codegen.band_order(small) is None
@@ -115,3 +115,34 @@ def test_a_band_kernel_refuses_bad_input_by_name(chain10, backend):
     with pytest.raises(sg.ShapeError):
         sim.simulate(state[:-1], 5, params)
     assert np.isfinite(sim.simulate(state, 5, params).states).all()
+
+
+def test_a_step_on_a_time_groupoid_keeps_dense_factors(monkeypatch):
+    """Its fixed-step phase replaces a row of the Jacobian, which a band form cannot hold:
+    even with every band accepted, the time step gets no band order, the same chain of
+    springs without time does (the stepper's C refuses the combination too, #error)."""
+    import sympy as sp
+
+    import symgroupoid as sg
+
+    names = " ".join(f"q{i}" for i in range(1, 25))
+    kappa = sp.Symbol("kappa", positive=True)
+
+    def springs(source, target, dt):
+        mid = [(a + b) / 2 for a, b in zip(source, target)]
+        kinetic = sum((b - a) ** 2 for a, b in zip(source, target)) / (2 * dt)
+        return kinetic - dt * kappa * sum((y - x) ** 2 for x, y in zip(mid, mid[1:])) / 2
+
+    timed = sg.DiscreteSystem(sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace(names))),
+                              lambda a: springs(a.source, a.target, a.t1 - a.t0),
+                              parameters=[kappa], name="timed_springs").euler_lagrange()
+    h = sp.Symbol("h", positive=True)
+    plain = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace(names)),
+                              lambda a: springs(a.source, a.target, h),
+                              parameters=[kappa, h], name="springs").euler_lagrange()
+    # every band accepted (the test's only reason to reach inside): the time is the reason
+    from symgroupoid.codegen import _band
+
+    monkeypatch.setattr(_band, "BAND_WIDTH_FRACTION", 10.0)
+    assert codegen.band_order(plain) is not None
+    assert codegen.band_order(timed) is None

@@ -288,7 +288,7 @@ def test_the_panel_threshold_is_the_twins():
     threshold = int(re.search(r"#define SG_LU_PANEL_FROM (\d+)", text).group(1))
     panel = int(re.search(r"#define SG_LU_PANEL (\d+)", text).group(1))
     assert threshold == LU_PANEL_FROM
-    fused = re.search(r"SG_NAME\(panel_row_update\).*?\n}\n", text, re.S).group(0)
+    fused = re.search(r"void SG_NAME\(panel_row_update\)\(.*?\n}\n", text, re.S).group(0)
     assert len(re.findall(r"t -= l\d \* u\d\[j\];", fused)) == panel
 
 
@@ -328,3 +328,21 @@ def test_band_lu_and_its_numpy_twin_agree_bit_for_bit(band_kernels, case, kind):
         dense = NumpyStepper(_twin_functions(n), n)  # the dense factors: the same solution
         d_states = dense.simulate(b, A.ravel(), 1, NewtonOptions(), dense.warm_start())[0]
         np.testing.assert_allclose(u, d_states[1], rtol=1e-12, atol=1e-14)
+
+
+@pytest.mark.parametrize(("kl", "ku", "order"), [
+    (-1, 1, (0, 1, 2)), (1, 1.5, (0, 1, 2)), (True, 1, (0, 1, 2)), (1, 1, (0, 0, 2)),
+    (1, 1, (0, 1, 3)), (1, 1, (0.0, 1, 2))])
+def test_a_malformed_band_order_is_refused_by_name(kl, ku, order):
+    import symgroupoid as sg
+
+    with pytest.raises(sg.ShapeError, match="BandOrder"):
+        BandOrder(kl, ku, order)
+
+
+def test_a_band_order_of_another_size_is_refused_by_name():
+    import symgroupoid as sg
+    from symgroupoid.stepper import lu_factor
+
+    with pytest.raises(sg.ShapeError, match="band order of 3 unknowns for a matrix of 4"):
+        lu_factor(np.eye(4), BandOrder(1, 1, (0, 1, 2)))

@@ -4,12 +4,17 @@ simulator's pieces (:class:`SampledRun`)."""
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .._progress import Task
 from ._options import NewtonOptions
 from ._runs import OK
 from ._trajectory import Trajectory
+
+if TYPE_CHECKING:
+    from ._simulator import Simulator
 
 
 class WholeRun:
@@ -23,7 +28,7 @@ class WholeRun:
     is reported, Ctrl-C is seen and a callback is called.
     """
 
-    def __init__(self, sim, known0: np.ndarray, p: np.ndarray, rows: int,
+    def __init__(self, sim: Simulator, known0: np.ndarray, p: np.ndarray, rows: int,
                  inputs: np.ndarray | None = None):
         self.sim, self.p, self.inputs = sim, p, inputs
         self.states = np.empty((rows, sim.layout.n_known))
@@ -74,7 +79,7 @@ class SampledRun:
     """The buffers of a run that keeps state 0, every e-th state and the last: each chunk's
     kept states (a :class:`Sampler` piece, see :meth:`Simulator.stream`) are copied in."""
 
-    def __init__(self, sim, known0: np.ndarray, p: np.ndarray, rows: int,
+    def __init__(self, sim: Simulator, known0: np.ndarray, p: np.ndarray, rows: int,
                  every: int, inputs: np.ndarray | None = None):
         self.sim, self.p, self.every, self.inputs = sim, p, every, inputs
         self.known0 = known0

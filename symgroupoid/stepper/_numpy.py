@@ -79,6 +79,19 @@ class BandOrder:
     ku: int
     order: tuple[int, ...]
 
+    def __post_init__(self) -> None:
+        """A :class:`~symgroupoid.ShapeError` unless kl and ku are integers ≥ 0 and the order
+        is a permutation of 0 … n − 1 (else the factors would read outside their rows)."""
+        from .._errors import ShapeError
+
+        if not all(type(v) is int and v >= 0 for v in (self.kl, self.ku)):
+            raise ShapeError(f"BandOrder: kl and ku must be integers >= 0, got kl = "
+                             f"{self.kl!r}, ku = {self.ku!r}")
+        if sorted(self.order) != list(range(len(self.order))) or not all(
+                type(i) is int for i in self.order):
+            raise ShapeError("BandOrder: the order must be a permutation of 0 ... n - 1 "
+                             "(Python ints)")
+
     @property
     def width(self) -> int:
         """The columns of a row of the band storage (``SG_BAND_WIDTH``): kl + 1 + kl + ku."""
@@ -139,6 +152,11 @@ def band_factor(scaled: np.ndarray, e: np.ndarray, band: BandOrder
     column j − i + kl), then partial pivoting over rows k … k + kl, rows swapped from column
     k on, multipliers stored in place, zero ones skipped (LAPACK's dgbtf2 order)."""
     n, kl, ku, w = len(scaled), band.kl, band.ku, band.width
+    if len(band.order) != n:
+        from .._errors import ShapeError
+
+        raise ShapeError(f"band_factor: a band order of {len(band.order)} unknowns for a "
+                         f"matrix of {n}")
     order = np.asarray(band.order, dtype=np.int64)
     tiny = n * EPSILON
     B = np.zeros((n, w))

@@ -94,17 +94,11 @@ static inline double SG_NAME(power_of_two)(int k)
     return x;
 }
 
-/* The factors of a Jacobian (SG_NAME(lu_factor)): the scaled, permuted and eliminated matrix
- * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
- * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
- * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
- * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
- * SG_NAME(explained_by_rounding)). */
 #if SG_BANDED
-/* A kernel whose Jacobian is banded (SG_BANDED) once its unknowns (and equations) are taken in the order
- * SG_BAND_ORDER -- entry (i, j) of the reordered matrix B = J[order[i]][order[j]] is zero
- * unless -SG_BAND_KL <= j - i <= SG_BAND_KU, as the code generator found from the program's
- * sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
+/* A kernel whose Jacobian is banded (SG_BANDED) once its unknowns (and equations) are
+ * taken in the order SG_BAND_ORDER -- entry (i, j) of the reordered matrix
+ * B = J[order[i]][order[j]] is zero unless -SG_BAND_KL <= j - i <= SG_BAND_KU, as the code
+ * generator found from the program's sparsity (a chain in maximal coordinates, whose joints couple neighbours only) -- factors
  * B in band storage: row i holds columns i - KL ... i + KL + KU (the KL more on the right
  * take the fill of the row swaps), so the LU costs O(n KL (KL + KU)) instead of O(n^3). */
 #define SG_BAND_WIDTH (2 * SG_BAND_KL + SG_BAND_KU + 1)
@@ -159,7 +153,12 @@ static void SG_NAME(column_sums)(const double *J, const double *a, double *S)
 #define SG_JACOBIAN SG_NAME(residual_jacobian)
 #endif
 
-
+/* The factors of a Jacobian (SG_NAME(lu_factor)): the scaled, permuted and eliminated matrix
+ * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
+ * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
+ * scaled with ldexp), normal = 1 when no row needs ldexp, the pivot rows perm, the
+ * reciprocal pivots inv, and the row sums sum_j |J_ij| of J (from j = 0 up; see
+ * SG_NAME(explained_by_rounding)).  A band kernel's A is in band storage (SG_BAND_AT). */
 typedef struct {
     double A[SG_LU_ENTRIES];
     double s[SG_N_UNKNOWNS];
@@ -190,7 +189,7 @@ typedef struct {
 #if !SG_BANDED
 /* Columns [k0, k1) of the elimination: pivot search, swap of whole rows, multipliers, and
  * the updates of the panel's own columns only (the columns from k1 on are left to
- * SG_NAME(panel_rows) and SG_NAME(panel_update)). */
+ * SG_NAME(row_updates) and SG_NAME(panel_row_update)). */
 static inline int SG_NAME(eliminate_columns)(double *A, double *inv, int *perm, int k0, int k1)
 {
     const int n = SG_N_UNKNOWNS;
