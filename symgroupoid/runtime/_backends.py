@@ -254,6 +254,16 @@ class _Kernel:
 
         return entry, _itself, _itself, None
 
+    def result_rows(self, n: int) -> Callable[[], tuple[np.ndarray, object]]:
+        """A source of fresh states for :meth:`step_entry`'s ``out``: each call gives a new
+        float64 vector of ``n`` entries (never handed out before) and what ``entry`` takes
+        for it.  Here a new array, itself."""
+        def row() -> tuple[np.ndarray, object]:
+            out = np.empty(n)
+            return out, out
+
+        return row
+
     def _simulate_into(self, states, iterations, residual_norms, start: int, n_steps: int,
                        p, options: NewtonOptions, warm) -> ChunkRun:
         """:meth:`simulate_into` through :meth:`_simulate` (its states copied in)."""

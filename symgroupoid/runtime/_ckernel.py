@@ -22,6 +22,9 @@ from ._backends import INVALID_ARGUMENT, _Kernel, _run_buffers, c_buffer, real_v
 from ._options import NewtonOptions
 from ._runs import OK, BatchRun, ChunkRun, RawRun
 
+#: states per block of :meth:`CKernel.result_rows` (a control loop's states, 64 at a time)
+RESULT_BLOCK = 64
+
 
 class CKernel(_Kernel):
     """The compiled kernel of a step (a cffi extension module)."""
@@ -145,6 +148,28 @@ class CKernel(_Kernel):
             return super().step_entry()
         return (entry, functools.partial(self.ffi.from_buffer, "double[]"), self._options,
                 self.ffi.NULL)
+
+    def result_rows(self, n: int):
+        """:meth:`_Kernel.result_rows` in C: the rows of blocks of :data:`RESULT_BLOCK`
+        states, one C view per block and a pointer into it per row (``ffi.from_buffer``
+        costs more than the step of a small kernel).  Each row is a view of its block, which
+        it keeps alive with the memory its pointer points at; a row is handed out once."""
+        pending: list = []
+        view_of = functools.partial(self.ffi.from_buffer, "double[]")
+
+        def row():
+            try:
+                return pending.pop()
+            except IndexError:  # a new block (list.pop is atomic: no row is given twice)
+                block = np.empty((RESULT_BLOCK, n))
+                view = view_of(block)
+                rows = [(r, view + i * n) for i, r in enumerate(block)]
+                rows.reverse()
+                first = rows.pop()
+                pending.extend(rows)
+                return first
+
+        return row
 
     def _until_entry(self):
         """``<prefix>_simulate_batch_until``, or None in a module built before it existed

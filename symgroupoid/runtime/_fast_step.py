@@ -23,8 +23,9 @@ is prepared once per simulator here, as closure cells:
   it is given again.
 
 Whatever the fast path does not recognise — another kind of state or parameters, a value
-that fails a test, a state not in the table, a failed step — returns None, and the caller
-takes the checked path, which reports exactly what :meth:`Simulator.simulate` reports.
+that fails a test, a state not in the table, a failed step — takes the checked path
+(``Simulator._checked_call``), which reports exactly what :meth:`Simulator.simulate`
+reports.
 """
 
 from __future__ import annotations
@@ -45,14 +46,17 @@ MAX_TRUSTED = 1024
 
 #: what the fast path's inputs screen returns for inputs it does not take
 _REFUSED = object()
+#: native float64, compared by identity first, then by equality: an array unpickled, or
+#: received from another process, has a dtype object of its own (without the second test,
+#: every call of a loop with such parameters would take the checked path, some 600 µs)
 _FLOAT64 = np.dtype(np.float64)
 _CONTIGUOUS = (8,)  # the strides of a C-contiguous float64 vector
 
 
 class FastStep:
-    """The fast path of one simulator: :attr:`call` (state, params, options, inputs) → the
-    next state, or None when the checked path must decide; :meth:`trust` adds a state
-    checked by that path."""
+    """The fast path of one simulator: :attr:`call` (state, params, options=, inputs=) → the
+    next state, through the checked path when the fast one cannot decide; :meth:`trust`
+    adds a state checked by that path."""
 
     def __init__(self, sim):
         parameters = tuple(sim.equations.parameters)
@@ -132,7 +136,8 @@ def _parameter_screen(names: tuple, test: Callable | None, used,
 
     def screen(params):
         if type(params) is ndarray:
-            if (params.dtype is not float64 or params.shape != shape
+            if ((params.dtype is not float64 and params.dtype != float64)
+                    or params.shape != shape
                     or params.strides != contiguous):
                 return None
             whole = params.tobytes()  # vector(params), inline
@@ -167,29 +172,37 @@ def _parameter_screen(names: tuple, test: Callable | None, used,
 
 
 def _fast_call(sim, fast: FastStep):
-    """:attr:`FastStep.call`.
+    """:attr:`FastStep.call`: :meth:`Simulator.step` itself (``call(state, params, *,
+    options=None, inputs=None)``), which the simulator makes its own ``step`` at the first
+    call, so that a loop's call is one Python call.
 
     A loop's call is a *link* of the chain when it passes back the very array the last call
-    returned, unchanged (its bytes), with the same parameters object holding the same values
-    and the same options: that state is trusted (it is a step's output), its parameters were
+    returned, unchanged (its bytes, as float64 in one dimension: with the bytes, their
+    number fixes the shape), with the same parameters object holding the same values and
+    the same options: that state is trusted (it is a step's output), its parameters were
     screened, and the C views of all three are at hand, so the call is the kernel's entry
-    and a few comparisons.  Any other call looks its state up in the table."""
+    and a few comparisons, in this one function (each Python call and each array attribute
+    read costs about a tenth of a microsecond).  Any other call looks its state up in the
+    table."""
     shape, trusted, screen = (sim.layout.n_known,), fast.trusted, fast.parameters
     entry, view_of, options_of, no_inputs = sim.kernel.step_entry()
     ndarray, float64, contiguous, newton_options = np.ndarray, _FLOAT64, _CONTIGUOUS, \
         NewtonOptions
-    empty, n_known = np.empty, sim.layout.n_known
+    next_row = sim.kernel.result_rows(sim.layout.n_known)
     #: the last link: (the state returned, its bytes, its view, the call's setting: (the
     #: params object, their bytes or a copy of a dict (None: never the same), the parameter
     #: vector, its view, the options, what the entry takes for them, the tail of a state's
     #: key)), replaced as a whole (another thread sees one link or the other, never half of
-    #: one).  Its state joins the table when the chain breaks.
+    #: one).  Its state joins the table when the chain breaks.  The held inputs are the
+    #: array of the last call, whose shape (m,) an in-place change of shape keeps while it
+    #: stays one-dimensional (its size is fixed).
     chain = [(None, None, None, (None,) * 7)]
     #: the last inputs array and its view (the view points at the array's buffer, so it
     #: stays right when the caller refills the same array between calls)
-    held_inputs = [(None, no_inputs)]
     m = sim.layout.n_inputs
+    held_inputs = [(None, _REFUSED if m else no_inputs)]
     inputs_shape = (m,)
+    checked = sim._checked_call
 
     def inputs_view(u):
         """What the entry takes for the inputs ``u``: ``no_inputs`` for a system without
@@ -198,7 +211,8 @@ def _fast_call(sim, fast: FastStep):
         fails the step, and the checked path reports it); else :data:`_REFUSED`."""
         if u is None:
             return _REFUSED if m else no_inputs
-        if (not m or type(u) is not ndarray or u.dtype is not float64
+        if (not m or type(u) is not ndarray
+                or (u.dtype is not float64 and u.dtype != float64)
                 or u.shape != inputs_shape or u.strides != contiguous):
             return _REFUSED
         held = held_inputs[0]
@@ -206,31 +220,37 @@ def _fast_call(sim, fast: FastStep):
             held = held_inputs[0] = (u, view_of(u))
         return held[1]
 
-    def call(state, params, options, u=None):
+    def call(state, params, *, options=None, inputs=None):
         link = chain[0]
         setting = link[3]
-        if (state is link[0] and params is setting[0]
-                and (sim.options if options is None else options) is setting[4]
-                and state.dtype is float64 and state.shape == shape
-                and state.tobytes() == link[1]):
-            same = setting[1]
-            if type(same) is bytes:
-                if (params.tobytes() != same or params.dtype is not float64
-                        or params.shape != setting[2].shape):
-                    same = None
-            elif same is not None and not _same_dict(params, same):
-                same = None
-            if same is not None:
-                u_view = inputs_view(u)
-                if u_view is _REFUSED:
-                    return None
-                after = empty(n_known)
-                view = view_of(after)
-                if entry(link[2], setting[3], u_view, setting[5], view) != OK:
-                    return None
-                chain[0] = (after, after.tobytes(), view, setting)
-                return after
-        return table_call(state, params, options, link, u)
+        if state is link[0] and params is setting[0]:
+            if options is None:
+                options = sim.options
+            if (options is setting[4] and state.dtype is float64 and state.ndim == 1
+                    and state.tobytes() == link[1]):  # (the state is an array of ours)
+                same = setting[1]
+                if type(same) is bytes:
+                    dtype = params.dtype
+                    same = (params.tobytes() == same and params.ndim == 1
+                            and (dtype is float64 or dtype == float64))
+                else:
+                    same = same is not None and _same_dict(params, same)
+                if same:
+                    held = held_inputs[0]  # the inputs of the last call, inline
+                    if inputs is held[0] and (inputs is None or (
+                            inputs.dtype is float64 and inputs.ndim == 1
+                            and inputs.strides == contiguous)):
+                        u_view = held[1]
+                    else:
+                        u_view = inputs_view(inputs)
+                    if u_view is not _REFUSED:
+                        after, view = next_row()
+                        if entry(link[2], setting[3], u_view, setting[5], view) == OK:
+                            chain[0] = (after, after.tobytes(), view, setting)
+                            return after
+                    return checked(state, params, options, inputs)
+        after = table_call(state, params, options, link, inputs)
+        return checked(state, params, options, inputs) if after is None else after
 
     def table_call(state, params, options, link, u=None):
         """:func:`call` for a state of the table under screened parameters, else None."""
@@ -238,7 +258,7 @@ def _fast_call(sim, fast: FastStep):
             _remember(trusted, link[1] + link[3][6])
         if options is None:
             options = sim.options
-        if (type(state) is not ndarray or state.dtype is not float64
+        if (type(state) is not ndarray or (state.dtype is not float64 and state.dtype != float64)
                 or state.shape != shape or state.strides != contiguous
                 or type(options) is not newton_options):
             return None
@@ -254,8 +274,7 @@ def _fast_call(sim, fast: FastStep):
         setting = link[3]
         p_view = setting[3] if p is setting[2] else view_of(p)
         c_options = setting[5] if options is setting[4] else options_of(options)
-        after = empty(n_known)
-        view = view_of(after)
+        after, view = next_row()
         if entry(view_of(state), p_view, u_view, c_options, view) != OK:
             return None
         chain[0] = (after, after.tobytes(), view,

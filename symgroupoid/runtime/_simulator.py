@@ -362,9 +362,11 @@ class Simulator:
         computes (the state carries those of its own arrow), the same bits as
         ``simulate(state, 1, params, inputs=[inputs]).states[1]``.
         """
-        after = self._fast_call(state, params, options, inputs)
-        if after is not None:
-            return after
+        fast = self.__dict__["step"] = self._fast_step.call  # this instance's step from now
+        return fast(state, params, options=options, inputs=inputs)
+
+    def _checked_call(self, state, params, options, inputs) -> np.ndarray:
+        """:meth:`step` through every check (what its fast path does not take)."""
         return self._checked_step(state, params, options,
                                   step_inputs(self.layout, inputs, owner=self.name))
 
@@ -395,10 +397,6 @@ class Simulator:
         from ._fast_step import FastStep
 
         return FastStep(self)
-
-    @functools.cached_property
-    def _fast_call(self):
-        return self._fast_step.call
 
     def solve(self, state, params, *, guess=None, options: NewtonOptions | None = None,
               inputs=None):
