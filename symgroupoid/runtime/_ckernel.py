@@ -22,8 +22,9 @@ from ._backends import INVALID_ARGUMENT, _Kernel, _run_buffers, c_buffer, real_v
 from ._options import NewtonOptions
 from ._runs import OK, BatchRun, ChunkRun, RawRun
 
-#: states per block of :meth:`CKernel.result_rows` (a control loop's states, 64 at a time)
-RESULT_BLOCK = 64
+#: the most states, and doubles, per block of :meth:`CKernel.result_rows` (a control
+#: loop's states, up to 64 at a time: a state kept keeps its block, at most 32 KiB)
+RESULT_BLOCK, RESULT_BLOCK_DOUBLES = 64, 4096
 
 
 class CKernel(_Kernel):
@@ -150,18 +151,20 @@ class CKernel(_Kernel):
                 self.ffi.NULL)
 
     def result_rows(self, n: int):
-        """:meth:`_Kernel.result_rows` in C: the rows of blocks of :data:`RESULT_BLOCK`
-        states, one C view per block and a pointer into it per row (``ffi.from_buffer``
-        costs more than the step of a small kernel).  Each row is a view of its block, which
+        """:meth:`_Kernel.result_rows` in C: the rows of blocks of up to :data:`RESULT_BLOCK`
+        states (and :data:`RESULT_BLOCK_DOUBLES` doubles), one C view per block and a
+        pointer into it per row (``ffi.from_buffer`` costs more than the step of a small
+        kernel).  Each row is a view of its block, which
         it keeps alive with the memory its pointer points at; a row is handed out once."""
         pending: list = []
         view_of = functools.partial(self.ffi.from_buffer, "double[]")
+        rows_per_block = max(1, min(RESULT_BLOCK, RESULT_BLOCK_DOUBLES // max(n, 1)))
 
         def row():
             try:
                 return pending.pop()
             except IndexError:  # a new block (list.pop is atomic: no row is given twice)
-                block = np.empty((RESULT_BLOCK, n))
+                block = np.empty((rows_per_block, n))
                 view = view_of(block)
                 rows = [(r, view + i * n) for i, r in enumerate(block)]
                 rows.reverse()

@@ -356,7 +356,9 @@ class Simulator:
         of the kernel; the Python around it costs under 2 µs (plate-ball:
         ``benchmarks/step.py``), least when the state passed is the array the last call
         returned.  Any other input, and every failure, goes through the checks and errors
-        of :meth:`simulate`; a state changed in place is checked again.
+        of :meth:`simulate`; a state changed in place is checked again.  The states
+        returned are rows of blocks of up to 64 states (32 KiB), and a state kept keeps its
+        block: to keep every k-th state of a long loop, keep copies (``s.copy()``).
 
         A forced system with inputs takes ``inputs``: the m inputs of the arrow this step
         computes (the state carries those of its own arrow), the same bits as
