@@ -36,10 +36,9 @@
  * J[i * 4 + j] = dF_i/du_j.
  * satellite_wheel_input_jacobian(u, known, p, J_inputs) writes the exact derivative of F with
  *   respect to the inputs of the step (docs/conventions.md section 20), row-major,
- *   4 x 2: the columns of the inputs of the known arrow (u_k, from
- *   known[13]), then those of the new arrow (u_{k+1}, from known[14]),
- *   J_inputs[i * 2 + j] = dF_i/du_k[j],
- *   J_inputs[i * 2 + 1 + j] = dF_i/du_{k+1}[j].
+ *   4 x 2: the columns of the inputs in the last 2 entries of
+ *   known, in their order, J_inputs[i * 2 + j] = dF_i/d known[13 + j]:
+ *   those of the known arrow (u_k), then those of the new arrow (u_{k+1}).
  *   With J it linearises the step in its unknowns and its inputs.
  *
  * satellite_wheel_simulate(known0, p, u, n_steps, options, warm, states, capacity, iterations,

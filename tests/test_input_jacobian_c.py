@@ -108,3 +108,56 @@ def test_only_a_kernel_with_inputs_has_the_input_jacobian():
     kernel = generate_c(seed_step("rigid_body"), "rigid_body", units=3)
     for text in (kernel.header, kernel.source, kernel.cdef, *dict(kernel.units).values()):
         assert "input_jacobian" not in text
+
+
+def test_the_simulator_s_input_jacobian_is_the_kernel_s_on_both_backends(pushed):
+    """``Simulator.input_jacobian`` evaluates the compiled ``<prefix>_input_jacobian`` (the
+    NumPy backend the same program: the same bits) at the step's solution, and with the
+    step's Jacobian gives the derivative of the solution in the new arrow's inputs."""
+    params = {"h": 0.05, "m": 1.0, "k": 2.0, "c": 0.3}
+    sims = [pushed.compile(backend=b) for b in ("c", "numpy")]
+    state = np.array([1.0, 0.2, 0.98, 0.25, 0.4, -0.3, 0.0, 0.0])
+    u_next = np.array([0.5, 0.1])
+    x = sims[0].solve(state, params, inputs=u_next)[0]
+    Ju = [sim.input_jacobian(state, params, inputs=u_next) for sim in sims]
+    assert Ju[0].shape == (2, 4) and np.array_equal(Ju[0], Ju[1])
+    known = np.r_[state[:6], u_next]
+    p = sims[0].parameters(params)
+    assert np.array_equal(Ju[0], pushed.input_jacobian(x, known, p))
+    assert np.array_equal(Ju[0], sims[0].input_jacobian(state, params, inputs=u_next,
+                                                        unknowns=x))
+    _, J = sims[0].kernel.residual_jacobian(x, known, p)
+    sensitivity = np.linalg.solve(J, -Ju[0][:, 2:])  # d(solution)/d(u_{k+1})
+    eps = 1e-6
+    for j in range(2):
+        moved = [sims[0].solve(state, params, inputs=u_next + s * eps * np.eye(2)[j])[0]
+                 for s in (1, -1)]
+        np.testing.assert_allclose(sensitivity[:, j], (moved[0] - moved[1]) / (2 * eps),
+                                   rtol=1e-6, atol=1e-9)
+    with pytest.raises(sg.ShapeError):
+        sims[0].input_jacobian(state, params, inputs=u_next, unknowns=x[:1])
+    plain = seed_step("rigid_body").compile()
+    with pytest.raises(sg.UnsupportedFeatureError, match="no inputs"):
+        plain.input_jacobian(np.zeros(3), {})
+
+
+def test_a_second_order_kernel_documents_three_input_columns(tmp_path):
+    """A second-order step's ∂F/∂u has the columns of u_{k−1}, u_k, u_{k+1} (3m): the
+    header says so, and the C writes what ``StepEquations.input_jacobian`` gives."""
+    def L(g1, g2):
+        (q0,), (q1,) = g1.source, g1.target
+        return (g2.target[0] - 2 * q1 + q0) ** 2 / (2 * h ** 3) + k * q1 ** 2
+
+    step = sg.SecondOrderSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
+                                forces=lambda g1, g2: ([u * g1.source[0]], [h * u], [w]),
+                                inputs=[u, w], name="spline").euler_lagrange()
+    kernel = generate_c(step, "spline", units=1)
+    assert "1 x 6: the columns of the inputs in the last 6 entries" in kernel.header
+    assert "those of the known pairs (u_{k-1}, u_k)" in kernel.header
+    lib = _library(tmp_path, kernel, "spline")
+    rng = np.random.default_rng(7)
+    x, known = rng.normal(size=1), rng.normal(size=len(step.knowns))
+    p = np.array([0.1, 0.5])
+    J = np.empty((1, 6))
+    _call(lib.spline_input_jacobian, x, known, p, J)
+    assert np.array_equal(J, step.input_jacobian(x, known, p)) and np.abs(J).max() > 0

@@ -149,6 +149,13 @@ class _Kernel:
         known, p, u = self._inputs(known, p, u)
         return self._residual_jacobian(u, known, p)
 
+    def input_jacobian(self, u, known, p, columns: int) -> np.ndarray:
+        """∂F/∂(the inputs in the last ``columns`` entries of ``known``), exact, shape
+        (n_unknowns, columns): what the kernel's ``<prefix>_input_jacobian`` writes
+        (docs/conventions.md §20)."""
+        known, p, u = self._inputs(known, p, u)
+        return self._input_jacobian(u, known, p, columns)
+
     def predict(self, known, p) -> np.ndarray:
         """The first Newton guess of a step."""
         known, p = self._inputs(known, p)
@@ -468,6 +475,9 @@ class NumpyKernel(_Kernel):
 
     def _residual(self, u, known, p) -> np.ndarray:
         return self._F(u, known, p)[0].reshape(self.n_u)
+
+    def _input_jacobian(self, u, known, p, columns: int) -> np.ndarray:
+        return self.step.input_jacobian(u, known, p).reshape(self.n_u, columns)
 
     def _residual_jacobian(self, u, known, p):
         F, J = self._FJ(u, known, p)

@@ -336,6 +336,13 @@ class CKernel(_Kernel):
             self._buf(J, self.n_u * self.n_u, "J"))
         return F, J
 
+    def _input_jacobian(self, u, known, p, columns: int) -> np.ndarray:
+        J = np.empty((self.n_u, columns))
+        getattr(self.lib, f"{self.prefix}_input_jacobian")(
+            self._buf(u, self.n_u, "u"), self._buf(known, self.n_k, "known"),
+            self._buf(p, self.n_p, "p"), self._buf(J, self.n_u * columns, "J_inputs"))
+        return J
+
     def _predict(self, known, p) -> np.ndarray:
         u = np.empty(self.n_u)
         self._f["predict"](self._buf(known, self.n_k, "known"), self._buf(p, self.n_p, "p"),

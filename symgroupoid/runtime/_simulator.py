@@ -436,6 +436,29 @@ class Simulator:
             raise self._failure(status, 0, it, rn, u, options, known=known, p=p)
         return u, it, rn
 
+    def input_jacobian(self, state, params, *, inputs=None, unknowns=None) -> np.ndarray:
+        """∂F/∂(inputs) of the step from ``state`` with the new arrow's ``inputs``, exact,
+        evaluated by the kernel (the compiled ``<prefix>_input_jacobian``; the NumPy
+        backend's program gives the same bits), shape (len(step.unknowns), (r + 1)·m) for
+        order r: the columns of u_k, then of u_{k+1} (second order: u_{k−1}, u_k, u_{k+1};
+        docs/conventions.md §20).  At ``unknowns``, else at the step's solution
+        (:meth:`solve`, which raises if the step fails).  With the step's Jacobian J
+        (``kernel.residual_jacobian``) it gives the implicit derivative of the solution in
+        the inputs, −J⁻¹ ∂F/∂u, which a controller or an optimiser linearises with."""
+        m = len(getattr(self.equations, "inputs", ()))
+        if not m:
+            raise UnsupportedFeatureError(f"{self.name}: the system has no inputs")
+        p = self.parameters(params)
+        known = self.state(state, p)
+        u_next = step_inputs(self.layout, inputs, owner=self.name)
+        if unknowns is None:
+            unknowns = self.solve(known, p, inputs=inputs)[0]
+        x = real_vector(unknowns, len(self.equations.unknowns), "unknowns", owner=self.name,
+                        finite=True)
+        known = known.copy()
+        known[self.layout.upcoming_index] = u_next
+        return self.kernel.input_jacobian(x, known, p, (self.equations.order + 1) * m)
+
     def from_momentum(self, configuration, momentum: Sequence, params, *, inputs=None
                       ) -> np.ndarray:
         """The initial state (g_1, λ_1) from a base point q_0 and a discrete momentum p_0.
