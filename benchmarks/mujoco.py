@@ -2,7 +2,7 @@
 process and one run.
 
     python benchmarks/mujoco.py [--sizes 8 16 32 64] [--quick] [--rounds R]
-                                [--round-seconds S] [--steps N] [--casadi]
+                                [--round-seconds S] [--steps N] [--maximal] [--casadi]
                                 [--casadi-max N] [--cache-dir DIR] [--output results.json]
 
 The system is ``symgroupoid.systems.spherical_chain(n)`` (n rigid bodies joined by spherical
@@ -52,6 +52,13 @@ For each n (``--sizes``, default 8 16 32 64; ``--quick``: 4 8 and fewer rounds):
   are timed, and the failing step is reported;
 - Newton updates per step (their mean over a timed run), and the growth exponent of µs/step
   between successive sizes, p = log(t_b/t_a)/log(n_b/n_a), for the library and for MuJoCo;
+- ``--maximal``: also ``systems.spherical_chain_maximal(n)``, the same chain in maximal
+  coordinates (each body's attitude and centre of mass, ball-joint constraints; the same
+  discrete Lagrangian on the constraint set, so the same trajectory), built beside the
+  minimal one, started from the same arrow and timed in the same rounds as the others
+  ("maximal"); its largest attitude difference from the minimal chain's first steps (at
+  Newton's tolerance) is printed, and the targets are also judged on it (from 16 bodies
+  its step is factored in band form and grows like n, docs/notes/performance.md);
 - ``--casadi``: CasADi's generated C on the same discrete equations, through
   ``scaling.casadi_side`` (built at -O3 and timed there: the best of five runs of at least
   0.5 s, not in the rounds above), for n ≤ ``--casadi-max`` (default 32: its build at
@@ -219,15 +226,40 @@ class MujocoChain:
 # --- the library -------------------------------------------------------------------------------
 
 
-def build_library(n: int, cache_dir: Path):
-    """(step, simulator, derive seconds, compile seconds) of ``spherical_chain(n)``."""
-    from symgroupoid.systems import spherical_chain
+def build_library(n: int, cache_dir: Path, maximal: bool = False):
+    """(step, simulator, derive seconds, compile seconds) of ``spherical_chain(n)``, or of
+    ``spherical_chain_maximal(n)``."""
+    from symgroupoid.systems import spherical_chain, spherical_chain_maximal
 
     t0 = time.perf_counter()
-    step = spherical_chain(n).euler_lagrange()
+    step = (spherical_chain_maximal if maximal else spherical_chain)(n).euler_lagrange()
     t1 = time.perf_counter()
     sim = step.compile(backend="c", cache_dir=str(cache_dir))
     return step, sim, t1 - t0, time.perf_counter() - t1
+
+
+def maximal_state(state: np.ndarray, n: int) -> dict:
+    """The maximal chain's named start from the minimal chain's flat one: every body's
+    attitudes (R_{i,0}, R_{i,1}) and the centres of mass they put it at."""
+    link, centre = np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, -0.5])
+    before, after = attitudes_of(state, n), attitudes_of(state[9 * n:], n)
+    named: dict = {}
+    for which, attitudes in enumerate((before, after)):
+        joint = np.zeros(3)
+        for i, R in enumerate(attitudes):
+            c = joint + R @ centre
+            joint = joint + R @ link
+            for a, axis in enumerate("xyz"):
+                named.setdefault(f"{axis}{i + 1}", [0.0, 0.0])[which] = float(c[a])
+            named.setdefault(f"R{i + 1}", [None, None])[which] = R
+    return {k: tuple(v) for k, v in named.items()}
+
+
+def maximal_attitudes(states: np.ndarray, n: int) -> np.ndarray:
+    """Every state's source attitudes, as :func:`attitudes_of` (body i's 24 entries: the
+    arrow's R_i at its source and its target, then c_i at both)."""
+    return np.array([[s[24 * i:24 * i + 9].reshape(3, 3) for i in range(n)]
+                     for s in states])
 
 
 def solvable_run(sim, state: np.ndarray, steps: int):
@@ -297,11 +329,33 @@ def run_size(n: int, mujoco, args, cache_root: Path, tmp: Path) -> dict:
                                 start_velocities(first.states, n, PARAMS["h"]))
               for name in INTEGRATORS}
     row.update(check(first, checked, chains, n))
-    row.update(timings(sim, state, steps, chains, args.rounds))
+    extra = {}
+    if args.maximal:
+        extra["maximal"] = maximal_side(n, first, checked, steps, state, cache_root, row)
+    row.update(timings(sim, state, steps, chains, args.rounds, extra))
     if args.casadi and n <= args.casadi_max:
         row["casadi"] = casadi_row(n, first, tmp)
     print_progress(row)
     return row
+
+
+def maximal_side(n: int, first, checked: int, steps: int, state: np.ndarray,
+                 cache_root: Path, row: dict):
+    """Build ``spherical_chain_maximal(n)``, check it against the minimal chain's first
+    ``checked`` steps (recorded in ``row``) and return its timed run of ``steps`` steps."""
+    step, sim, derive_s, compile_s = build_library(n, cache_root / f"maximal-{n}", True)
+    start = sim.state(maximal_state(state, n), PARAMS)
+    run = sim.simulate(start, max(checked, steps), PARAMS)
+    lib_R = np.array([attitudes_of(s, n) for s in first.states[1:checked + 1]])
+    row["maximal"] = {
+        "build_seconds": derive_s + compile_s, "unknowns": len(step.unknowns),
+        "newton_mean": float(np.mean(run.newton_iterations[:steps])),
+        "difference": attitude_difference(maximal_attitudes(run.states[1:checked + 1], n),
+                                          lib_R)}
+    print(f"  maximal coordinates: build {derive_s + compile_s:.1f} s, "
+          f"{len(step.unknowns)} unknowns, largest attitude difference from the minimal "
+          f"chain {row['maximal']['difference']:.1e}", flush=True)
+    return lambda: sim.simulate(start, steps, PARAMS)
 
 
 def warm_seconds_per_step(sim, state: np.ndarray, steps: int) -> float:
@@ -325,11 +379,14 @@ def check(first, checked: int, chains: dict, n: int) -> dict:
                            for name, chain in chains.items()}}
 
 
-def timings(sim, state: np.ndarray, steps: int, chains: dict, rounds: int) -> dict:
+def timings(sim, state: np.ndarray, steps: int, chains: dict, rounds: int,
+            extra: dict | None = None) -> dict:
     """µs/step of every side (the minimum over the rounds, and the median), the library's
     ratios to MuJoCo's, and the time of a one-step call of the library and of MuJoCo
-    implicitfast (the fixed cost of a call and a first step), timed in the same rounds."""
-    runs = {"library": lambda: sim.simulate(state, steps, PARAMS)}
+    implicitfast (the fixed cost of a call and a first step), timed in the same rounds;
+    ``extra`` runs (the maximal chain) in the same rounds, with their ratio to MuJoCo
+    implicitfast."""
+    runs = {"library": lambda: sim.simulate(state, steps, PARAMS), **(extra or {})}
     runs.update({name: (lambda c=chain: c.run(steps)) for name, chain in chains.items()})
     calls = {"library": lambda: sim.simulate(state, 1, PARAMS),
              TARGET_PEER: lambda: chains[TARGET_PEER].run(1)}
@@ -338,7 +395,8 @@ def timings(sim, state: np.ndarray, steps: int, chains: dict, rounds: int) -> di
     return {"rounds": rounds, "us_per_step": us,
             "median_us_per_step": {k: float(np.median(times[k])) / steps * 1e6 for k in runs},
             "one_step_call_us": {k: min(times[f"{k} call"]) * 1e6 for k in calls},
-            "ratio": {name: us["library"] / us[name] for name in INTEGRATORS}}
+            "ratio": {name: us["library"] / us[name] for name in INTEGRATORS},
+            "extra_ratio": {k: us[k] / us[TARGET_PEER] for k in extra or {}}}
 
 
 def casadi_row(n: int, first, tmp: Path) -> dict:
@@ -381,6 +439,9 @@ def print_progress(row: dict) -> None:
           + ", ".join(f"{k} {fmt_us(us[k])}" for k in INTEGRATORS)
           + "; a one-step call: " + ", ".join(f"{k} {fmt_us(v)} us" for k, v in
                                              row["one_step_call_us"].items()), flush=True)
+    if "maximal" in us:
+        print(f"  maximal coordinates: {fmt_us(us['maximal'])} us/step, "
+              f"{row['extra_ratio']['maximal']:.2f} x MuJoCo {TARGET_PEER}'s", flush=True)
 
 
 def add_growth(rows: list[dict]) -> None:
@@ -435,19 +496,21 @@ def print_table(rows: list[dict]) -> None:
             print(f"  CasADi n = {row['n']}: {cas['status']}")
 
 
-def targets(rows: list[dict]) -> list[dict]:
-    """The issue's targets: at each n of TARGETS, library µs/step ≤ factor × implicitfast's."""
+def targets(rows: list[dict], side: str = "library") -> list[dict]:
+    """The issue's targets: at each n of TARGETS, µs/step of ``side`` (the library's minimal
+    chain, or ``"maximal"``) ≤ factor × implicitfast's."""
     by_n = {r["n"]: r for r in rows}
     out = []
+    label = "library" if side == "library" else f"library ({side} coordinates)"
     for n, factor in TARGETS.items():
-        name = (f"n = {n}: library us/step <= "
+        name = (f"n = {n}: {label} us/step <= "
                 f"{'' if factor == 1 else f'{factor:g} x '}MuJoCo {TARGET_PEER}'s")
         row = by_n.get(n)
-        if row is None or "us_per_step" not in row:
+        if row is None or side not in row.get("us_per_step", {}):
             out.append({"target": name, "met": None,
                         "value": "not run" if row is None else row.get("error", "no timing")})
             continue
-        lib, peer = row["us_per_step"]["library"], row["us_per_step"][TARGET_PEER]
+        lib, peer = row["us_per_step"][side], row["us_per_step"][TARGET_PEER]
         out.append({"target": name, "met": lib <= factor * peer,
                     "value": f"{fmt_us(lib)} vs {fmt_us(peer)} us (ratio {lib / peer:.2f})"})
     return out
@@ -477,6 +540,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                         help=f"about how long a library round lasts (default {ROUND_SECONDS})")
     parser.add_argument("--steps", type=int, default=None,
                         help="steps per round (default: from --round-seconds)")
+    parser.add_argument("--maximal", action="store_true",
+                        help="also the chain in maximal coordinates "
+                             "(systems.spherical_chain_maximal), in the same rounds")
     parser.add_argument("--casadi", action="store_true",
                         help="also CasADi's generated C (scaling.casadi_side)")
     parser.add_argument("--casadi-max", type=int, default=CASADI_MAX,
@@ -532,7 +598,7 @@ def main(argv=None) -> list[dict]:
     print_table(rows)
     print(f"\nload average at the start {meta['load_average']}, at the end "
           f"{meta['load_average_end']} ({meta['cpus']} CPUs): compare ratios from the same run")
-    items = targets(rows)
+    items = targets(rows) + (targets(rows, "maximal") if args.maximal else [])
     print_targets(items)
     if args.output is not None:
         args.output.write_text(json.dumps({"meta": meta, "results": rows, "targets": items},

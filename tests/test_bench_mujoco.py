@@ -154,6 +154,31 @@ def test_the_targets_and_the_growth_exponents():
     assert math.isclose(rows[2]["growth"]["implicitfast"], 2.0)
 
 
+def test_the_maximal_chain_starts_where_the_minimal_chain_does():
+    """--maximal: the maximal chain's start holds the minimal state's attitudes and the
+    centres of mass they put the bodies at (on the joint constraints), and its attitudes
+    are read back as the minimal chain's; its targets are judged on its own timing."""
+    n = 3
+    state = scaling.initial_state("3d", n)
+    named = mb.maximal_state(state, n)
+    assert sorted(named) == sorted([f"R{i}" for i in range(1, 4)]
+                                   + [f"{a}{i}" for i in range(1, 4) for a in "xyz"])
+    for which, R in enumerate((mb.attitudes_of(state, n), mb.attitudes_of(state[9 * n:], n))):
+        joint = np.zeros(3)
+        for i in range(n):
+            assert np.array_equal(named[f"R{i + 1}"][which], R[i])
+            c = np.array([named[f"{a}{i + 1}"][which] for a in "xyz"])
+            assert np.allclose(c - R[i] @ [0, 0, -0.5], joint, atol=1e-15)
+            joint = c + R[i] @ [0, 0, -0.5]
+    flat = np.concatenate([np.r_[named[f"R{i}"][0].ravel(), named[f"R{i}"][1].ravel(),
+                                 [named[f"{a}{i}"][0] for a in "xyz"],
+                                 [named[f"{a}{i}"][1] for a in "xyz"]] for i in range(1, 4)])
+    assert np.array_equal(mb.maximal_attitudes(flat[None], n)[0], mb.attitudes_of(state, n))
+    row = _row(16, 80.0, 100.0)
+    row["us_per_step"]["maximal"] = 40.0
+    assert [t["met"] for t in mb.targets([row], "maximal")] == [True, None, None]
+
+
 def test_importing_mujoco_with_the_benchmarks_on_the_path():
     """With benchmarks/ first on sys.path (as for a script there, or work_precision.py),
     ``import mujoco`` gives MuJoCo's own package (or, without it, ModuleNotFoundError), not
