@@ -20,6 +20,10 @@ emits and compiles the C kernel through the kernel cache, simulates, and checks:
   a base that is not Rⁿ, where the anchor ρ(E_a)(Γ) = Γ × e_a enters the equations; Γ₃
   stays fixed, the energy is bounded, and for a symmetric top the spin about the symmetry
   axis (E₃ is tangent to the circle) is conserved;
+- the 3D chain of two rigid bodies in maximal coordinates (each body's attitude on the pair
+  groupoid of SO(3) and its centre of mass on that of R³, ψ: the ball joints, three rows
+  each): the same trajectory as the chain in relative attitudes (``spherical_chain(2)``,
+  the same discrete Lagrangian on the constraint set), the joints held to rounding;
 - with ``--plate-ball``: the plate-ball of seed 000 §6.2 (R² × R² × SO(3) ⇉ R²) with the ball
   kept on the circle |x| = R, three rolling constraints and one holonomic constraint.
 
@@ -154,6 +158,44 @@ def tilted_top(steps: int, latex: bool) -> None:
                   float(np.max(np.abs(S - S[0])) / abs(S[0])), 1e-12)
 
 
+def rotation(w: np.ndarray) -> np.ndarray:
+    """exp(ŵ) (Rodrigues' formula)."""
+    angle = np.linalg.norm(w)
+    K = np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]]) / angle
+    return np.eye(3) + np.sin(angle) * K + (1 - np.cos(angle)) * K @ K
+
+
+def maximal_chain(steps: int, latex: bool) -> None:
+    n, params = 2, {"h": 0.01, "g": 9.81}
+    _, sim = derive(systems.spherical_chain_maximal(n), latex)
+    minimal = systems.spherical_chain(n).euler_lagrange().compile(backend="c")
+    link, centre = np.array([0.0, 0.0, -1.0]), np.array([0.0, 0.0, -0.5])
+    R0 = [rotation(np.array([0.4, -0.2, 0.1])), rotation(np.array([-0.3, 0.5, 0.2]))]
+    R1 = [R @ rotation(np.array([0.01, 0.02, -0.01])) for R in R0]
+    start = {f"R{i + 1}": (R0[i], R1[i]) for i in range(n)}
+    named = dict(start)
+    for which, attitudes in enumerate((R0, R1)):
+        joint = np.zeros(3)
+        for i, R in enumerate(attitudes):
+            c = joint + R @ centre
+            joint = joint + R @ link
+            for a, axis in enumerate("xyz"):
+                named.setdefault(f"{axis}{i + 1}", [0.0, 0.0])[which] = c[a]
+    traj = sim.simulate(named, steps=steps, params=params)
+    reference = minimal.simulate(start, steps=steps, params=params)
+    difference = max(float(np.max(np.abs(traj[f"R{i + 1}"] - reference[f"R{i + 1}"])))
+                     for i in range(n))
+    check("attitudes against the chain in relative attitudes, max difference", difference,
+          1e-9)
+    joint, error = np.zeros((len(traj["R1"]), 3)), 0.0
+    for i in range(n):
+        R = traj[f"R{i + 1}"].reshape(-1, 3, 3)
+        c = np.stack([traj[f"{a}{i + 1}"] for a in "xyz"], axis=1)
+        error = max(error, float(np.max(np.abs(c - R @ centre - joint))))
+        joint = c + R @ (link - centre)
+    check("max ball-joint error", error, 64 * EPS)
+
+
 def plate_ball_on_a_circle(steps: int, latex: bool) -> None:
     """Seed 000 §6.2 with ψ(x, y) = x² + y² − R² on the base R² (the SO(3) factor's base is a
     point: the base point of the product is ((x, y), ()))."""
@@ -182,6 +224,7 @@ def main() -> int:
     spherical_pendulum(args.steps, args.latex)
     link_chain(args.steps, args.latex)
     tilted_top(args.steps, args.latex)
+    maximal_chain(args.steps, args.latex)
     if args.plate_ball:
         plate_ball_on_a_circle(args.steps, args.latex)
     if FAILURES:
