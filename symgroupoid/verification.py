@@ -10,6 +10,12 @@ it numerically along random admissible variations (seed 000 §5.1, seed 001 eq. 
 which keep the sequence composable and its product (so its end points) fixed; second-order
 problems also keep the first and last arrows fixed (seed 001 §3.1).  On a solution
 the derivative vanishes, so the central difference (S(ε) − S(−ε))/2ε is O(ε²).
+
+A forced system's trajectory satisfies the discrete Lagrange–d'Alembert principle instead
+(docs/conventions.md §20): dS/dt + W = 0, where W is the forces' virtual work along the same
+variation, the exact pairing of each term's covectors with the variation at its base points
+(first order: Σ_j h′_j(0)·(f⁺(g_j) + f⁻(g_{j+1})), h′_j(0) = Σ_a c_ja X_a(β(g_j))).  A
+nonholonomic system (the Hölder principle, seed 002; §10) is varied along D_c only.
 """
 
 from __future__ import annotations
@@ -19,11 +25,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import sympy as sp
 
 from ._arguments import integer_argument, real_argument, real_array
 from ._errors import DomainError, ShapeError, UnsupportedFeatureError
 from .equations import action_program, structure_program
 from .groupoids import Groupoid
+from .ir import Graph, Program, from_sympy
 from .runtime import parameter_vector, system_argument
 
 
@@ -35,13 +43,16 @@ class StationarityReport:
     scale: float = 0.0  # Σ |first-order changes of the terms| (normalisation)
     stationary: bool = False
     extrapolated: float = 0.0  # dS/dt at t = 0 from the three differences (Richardson)
+    work: float = 0.0  # the forces' virtual work along the variation (0 without forces)
 
     def __bool__(self) -> bool:
         return self.stationary
 
     def __repr__(self) -> str:
         ds = ", ".join(f"ε={e:.1e}: {d:.3e}" for e, d in self.derivatives.items())
-        return f"<StationarityReport stationary={self.stationary} scale={self.scale:.3e} {ds}>"
+        work = f" work={self.work:.3e}" if self.work else ""
+        return (f"<StationarityReport stationary={self.stationary} scale={self.scale:.3e}"
+                f"{work} {ds}>")
 
 
 def _functions(system):
@@ -127,15 +138,70 @@ def action(system, arrows: np.ndarray, multipliers: np.ndarray | None, params: S
     return float(action_terms(system, arrows, multipliers, params).sum())
 
 
+def _force_program(system) -> Program | None:
+    """The discrete forces of one term on the expression graph (docs/conventions.md §20):
+    inputs ``a`` (the term's arrow coordinates), ``u`` (its inputs), ``p`` (the parameters);
+    output ``f``: the covectors at the term's base points 0 … arity (first order f⁻, f⁺;
+    second order f⁰, f¹, f²), rank components each.  None for a system without forces."""
+    forces = _functions(system).forces
+    if forces is None:
+        return None
+    g = Graph()
+    coords = [c for arrow in forces.slots for c in arrow]
+    symbols = {x: g.input(x) for x in (*coords, *forces.inputs, *system.parameters)}
+    memo: dict = {}
+    nodes = [from_sympy(g, sp.sympify(f), symbols, f"{system.name}: the forces", memo)
+             for node in forces.nodes for f in node]
+    return Program(g, {"a": coords, "u": list(forces.inputs), "p": list(system.parameters)},
+                   {"f": nodes})
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_forces(system):
+    program = _force_program(system)
+    return None if program is None else program.numpy_function(["f"], ["a", "u", "p"])
+
+
+def force_terms(system, arrows: np.ndarray, inputs: np.ndarray, params: Sequence
+                ) -> np.ndarray:
+    """The discrete forces of every term of the arrow sequence, shape (T, arity + 1, rank):
+    [j, i] is the covector at base point i of the term starting at g_j (whose inputs are
+    row j of ``inputs``, shape (T, m)), in the basis sections' order."""
+    f = _cached_forces(system)
+    _, arity, _ = _cached_terms(system)
+    rank = system.groupoid.rank
+    arrows = np.asarray(arrows, float)
+    T = len(arrows) - arity + 1
+    windows = np.hstack([arrows[o:o + T] for o in range(arity)])
+    (values,) = f(windows.T, np.asarray(inputs, float).reshape(T, -1).T,
+                  np.asarray(params, float)[:, None])  # ((arity + 1)·rank, T)
+    return values.T.reshape(T, arity + 1, rank)
+
+
+def virtual_work(forces: np.ndarray, coeffs: np.ndarray) -> np.ndarray:
+    """The pairings of the forces (:func:`force_terms`, (T, arity + 1, rank)) with the
+    variation h′_j(0) = Σ_a coeffs[j, a] X_a(β(g_j)) at each junction j = 0 … n − 2, shape
+    (T, arity + 1): base point i of the term starting at g_j is the node β(g_{j−1+i}), the
+    junction j − 1 + i (the nodes α(g_0) and β(g_{n−1}) are not varied)."""
+    T, points, rank = forces.shape
+    padded = np.vstack([np.zeros((1, rank)), coeffs, np.zeros((1, rank))])  # row j + 1: j
+    at = np.stack([padded[i:i + T] for i in range(points)], axis=1)  # (T, points, rank)
+    return np.einsum("tia,tia->ti", forces, at)
+
+
 def verify_stationary(trajectory, system, params: Sequence | dict | None = None, *,
-                      multipliers: np.ndarray | None = None, eps: float = 1e-3,
+                      multipliers: np.ndarray | None = None,
+                      inputs: np.ndarray | None = None, eps: float = 1e-3,
                       seed: int = 0) -> StationarityReport:
-    """Check that a trajectory is a critical point of the discrete action.
+    """Check that a trajectory is a critical point of the discrete action — of the discrete
+    Lagrange–d'Alembert principle for a forced system.
 
     ``trajectory`` is a :class:`~symgroupoid.runtime.Trajectory` (from
-    :meth:`Simulator.simulate`: its arrows g_0 … g_N and multipliers λ_0 … λ_N), a
+    :meth:`Simulator.simulate` with every state kept: its arrows g_0 … g_N, multipliers
+    λ_0 … λ_N and, for a forced system, the inputs u_0 … u_N its states hold), a
     :class:`BoundaryValueSolution` (or any object with ``arrows`` and ``multipliers``), or an
-    array of arrows (N, arrow_dim) with ``multipliers`` (one row per action term) passed
+    array of arrows (N, arrow_dim) with ``multipliers`` (one row per action term) and
+    ``inputs`` (one row per action term: u_j belongs to the term starting at g_j) passed
     separately.  ``params`` default to the trajectory's own.  Returns a
     :class:`StationarityReport`; it is truthy when the central differences shrink like ε²
     (or sit at rounding level) and their extrapolation to ε = 0 is negligible against the
@@ -143,40 +209,47 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     trivial solution (all arrows identities: every term's first-order change vanishes) the
     differences are pure O(ε²), which the extrapolation removes.  The variations have size
     ε relative to the largest coordinate and multiplier (at least 1).  An action that is not
-    finite on the trajectory is a :class:`~symgroupoid.DomainError`.  A forced system is
-    refused (:class:`~symgroupoid.UnsupportedFeatureError`): its trajectories are not
-    critical points of the action (docs/conventions.md §20); so is a discrete Lagrangian
-    with internal stages (its action needs the stages solved at every arrow, §22).
+    finite on the trajectory is a :class:`~symgroupoid.DomainError`.
+
+    A forced system (docs/conventions.md §20): each difference quotient gains the forces'
+    virtual work W along the same variation (``report.work``), so the check is
+    dS/dt + W = 0, δΣ L(g_k) + Σ [f⁻(g_k)·δ⁻g_k + f⁺(g_k)·δ⁺g_k] = 0 (second order: the
+    covectors f⁰, f¹, f² of each pair at its three base points).  A nonholonomic system
+    with the Hölder step (seed 002, §10) is varied along D_c only (its constraints M_c are
+    not in the action; that the arrows lie in M_c is ``traj.constraint_residuals()``); the
+    energy–momentum method (§14) is refused (:class:`~symgroupoid.UnsupportedFeatureError`):
+    its rows on D⊥ are not a variational principle; so is a discrete Lagrangian with
+    internal stages (its action needs the stages solved at every arrow, §22).
     """
     system = system_argument(system, "system", owner="verify_stationary")
     if getattr(system, "stages", 0):
         system._refuse_stages("verify_stationary (the discrete action along a trajectory)")
-    if getattr(system, "forces", None) is not None:  # not a critical point of the action
-        raise UnsupportedFeatureError(
-            f"{system.name}: a forced system's trajectory is not a critical point of the "
-            f"action but of the Lagrange–d'Alembert principle, whose check with the forces' "
-            f"virtual work is not implemented (docs/conventions.md §20); verify_stationary "
-            f"would report it not stationary")
+    holder = _holder(system)
     G = system.groupoid
     seed = integer_argument(seed, "seed", maximum=2**63 - 1, owner=system.name)
     eps = real_argument(eps, "eps", owner=system.name)
     if not 1e-300 <= eps <= 1:  # ε/4 is used too: it must stay a normal, nonzero double
         raise DomainError(f"{system.name}: eps must be in [1e-300, 1] (the size of the "
                           f"variations), got {eps!r}")
-    arrows, lam, params = _unpack(trajectory, system, multipliers, params)
+    arrows, lam, U, params = _unpack(trajectory, system, multipliers, inputs, params,
+                                     holder is not None)
     _, arity, m = _cached_terms(system)
     ng = _NumericGroupoid(G)
     rng = np.random.default_rng(seed)
     n = len(arrows)
-    coeffs = rng.normal(size=(n - 1, G.rank))
+    sizes = _section_sizes(ng, arrows, G.rank)
+    if holder is None:
+        coeffs = rng.normal(size=(n - 1, G.rank)) * sizes
+    else:  # along D_c at each junction node β(g_j) (the Hölder principle)
+        coeffs = _distribution_variation(holder, ng, arrows, sizes, params, rng)
     # order-a problems fix the first and last a arrows (seed 001: g₀, g₁, g_{N−1}, g_N):
     # only junctions with a − 1 arrows before and after them stay free
     coeffs[:arity - 1] = 0.0
     coeffs[n - arity:] = 0.0
-    mus = rng.normal(size=lam.shape) if m else None
+    varies_lambda = bool(m) and holder is None  # M_c is not in a nonholonomic action
+    mus = rng.normal(size=lam.shape) if varies_lambda else None
     # variations relative to the size of what they move: an absolute ε would vanish in the
     # rounding of coordinates of size 1e150 and report any path as stationary
-    coeffs = coeffs * _section_sizes(ng, arrows, G.rank)
     size_l = max(1.0, float(np.abs(lam).max(initial=0.0)))
 
     def varied(t: float) -> tuple[np.ndarray, np.ndarray | None]:
@@ -189,45 +262,120 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
             if j < n - 1:
                 g = np.asarray(ng.multiply(g, hs[j]), float)
             out.append(g)
-        return np.array(out), (lam + t * size_l * mus if m else None)
+        return np.array(out), (lam + t * size_l * mus if varies_lambda else lam)
 
     T0 = action_terms(system, arrows, lam, params)
-    if not np.isfinite(T0).all():
-        k = int(np.flatnonzero(~np.isfinite(T0))[0])
-        given = ", ".join(f"{s}={v:.6g}" for s, v in zip(system.parameters, params))
-        raise DomainError(f"{system.name}: the discrete action is not finite on this "
-                          f"trajectory (term {k} = {T0[k]}: the Lagrangian or the constraints "
-                          f"overflow or are undefined there"
-                          f"{f', with the parameters {given}' if given else ''}), so its "
-                          f"stationarity cannot be checked")
+    _check_finite(system, "the discrete action", T0, params)
     report = StationarityReport()
+    pairings = np.zeros((len(T0), 1))
+    if _cached_forces(system) is not None:
+        forces = force_terms(system, arrows, U, params)
+        _check_finite(system, "the discrete forces", forces.reshape(len(T0), -1), params)
+        pairings = virtual_work(forces, coeffs)
+        report.work = float(pairings.sum())
     for e in (eps, eps / 2, eps / 4):
         Tp = action_terms(system, *varied(e), params)
         Tm = action_terms(system, *varied(-e), params)
-        report.derivatives[e] = float(Tp.sum() - Tm.sum()) / (2 * e)
+        report.derivatives[e] = float(Tp.sum() - Tm.sum()) / (2 * e) + report.work
         if e == eps:  # how large the first-order changes of the single terms are
-            report.scale = float(np.abs(Tp - Tm).sum()) / (2 * e) + 1e-300
+            report.scale = (float(np.abs(Tp - Tm).sum()) / (2 * e)
+                            + float(np.abs(pairings).sum()) + 1e-300)
     d = list(report.derivatives.values())
-    # d(ε) = S′(0) + c₂ε² + c₄ε⁴ + …: eliminating the ε² and ε⁴ terms (Richardson) leaves S′(0)
+    # d(ε) = S′(0) + W + c₂ε² + c₄ε⁴ + …: eliminating the ε² and ε⁴ terms (Richardson)
+    # leaves S′(0) + W
     report.extrapolated = (64 * d[2] - 20 * d[1] + d[0]) / 45
-    noise = 1e-13 * float(np.abs(T0).sum()) / (eps / 4)
+    noise = 1e-13 * float(np.abs(T0).sum()) / (eps / 4) + 1e-15 * float(
+        np.abs(pairings).sum())
     shrinking = abs(d[2]) <= 0.35 * abs(d[1]) + noise and abs(d[1]) <= 0.35 * abs(d[0]) + noise
     report.stationary = bool(shrinking and abs(report.extrapolated) <= 1e-4 * report.scale
                              + noise)
     return report
 
 
-def _unpack(trajectory, system, multipliers, params):
-    """Arrows (N, arrow_dim), multipliers (one row per action term) and the parameter vector
-    of a :class:`BoundaryValueSolution`, a :class:`Trajectory` or an array of arrows."""
+def _holder(system):
+    """The nonholonomic system of a Hölder step (varied along D_c), None for a
+    DiscreteSystem; the energy–momentum method refused."""
+    from .equations import NonholonomicSystem
+
+    if not isinstance(system, NonholonomicSystem):
+        return None
+    if system.method != "holder":
+        raise UnsupportedFeatureError(
+            f"{system.name}: verify_stationary checks a variational principle; the "
+            f"energy–momentum method's rows on D⊥ are not one (docs/conventions.md §14): "
+            f"check its conserved quantities instead (conserved_quantities())")
+    return system
+
+
+def _distribution_variation(system, ng: _NumericGroupoid, arrows: np.ndarray,
+                            sizes: np.ndarray, params: Sequence,
+                            rng: np.random.Generator) -> np.ndarray:
+    """Random variations in D_c at each junction node β(g_j): Σ_a r_a c_a(β(g_j)) with
+    c_a the coefficients of D_c's basis (seed 002; docs/conventions.md §10), each element
+    scaled by the largest size of the sections it moves."""
+    f, r = _cached_distribution(system)
+    targets = np.array([ng.target(a) for a in arrows[:-1]], float)  # (n − 1, base_dim)
+    (C,) = f(targets.T, np.asarray(params, float)[:, None])  # (r·rank, n − 1)
+    C = C.T.reshape(-1, r, ng.G.rank)
+    _check_finite(system, "the distribution D_c", C.reshape(len(C), -1), params)
+    element = np.array([sizes[np.abs(C[:, a]).max(axis=0, initial=0.0) > 0].max(initial=1.0)
+                        for a in range(r)])
+    weights = rng.normal(size=(len(targets), r)) * element
+    return np.einsum("ja,jab->jb", weights, C)
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_distribution(system):
+    """c_a^b(q) of D_c's basis at a base point ``q`` (input ``q``, ``p``), rows a."""
+    from .derivation import distribution_coefficients
+
+    G = system.groupoid
+    q = [sp.Symbol(f"q{i}", real=True) for i in range(G.base_dim)]
+    rows = distribution_coefficients(system.name, G, system.distribution, q)
+    g = Graph()
+    symbols = {x: g.input(x) for x in (*q, *system.parameters)}
+    memo: dict = {}
+    nodes = [from_sympy(g, sp.sympify(c), symbols, f"{system.name}: the distribution", memo)
+             for row in rows for c in row]
+    program = Program(g, {"q": q, "p": list(system.parameters)}, {"C": nodes})
+    return program.numpy_function(["C"], ["q", "p"]), len(rows)
+
+
+def _check_finite(system, what: str, values: np.ndarray, params: Sequence) -> None:
+    """A :class:`DomainError` naming the first term whose ``what`` is not finite."""
+    bad = ~np.isfinite(values)
+    if not bad.any():
+        return
+    k = int(np.flatnonzero(bad.reshape(len(values), -1).any(axis=1))[0])
+    given = ", ".join(f"{s}={v:.6g}" for s, v in zip(system.parameters, params))
+    raise DomainError(f"{system.name}: {what} is not finite on this trajectory (term {k}: "
+                      f"{np.ravel(values[k]).tolist()}: it overflows or is undefined there"
+                      f"{f', with the parameters {given}' if given else ''}), so the "
+                      f"variational principle cannot be checked")
+
+
+def _unpack(trajectory, system, multipliers, inputs, params, nonholonomic: bool = False):
+    """Arrows (N, arrow_dim), multipliers (one row per action term), inputs (one row per
+    action term) and the parameter vector of a :class:`BoundaryValueSolution`, a
+    :class:`Trajectory` or an array of arrows."""
     G, owner = system.groupoid, system.name
     layout = getattr(trajectory, "_layout", None)
+    U = inputs
     if hasattr(trajectory, "arrows"):  # a BoundaryValueSolution, or any object with arrows
         arrows = trajectory.arrows() if callable(trajectory.arrows) else trajectory.arrows
         lam = trajectory.multipliers if multipliers is None else multipliers
+        held = getattr(trajectory, "inputs", None)
+        U = held if U is None and not callable(held) else U
     elif layout is not None and hasattr(trajectory, "states"):  # a Trajectory
+        if getattr(trajectory, "every", 1) != 1:
+            raise DomainError(f"{owner}: the variations move consecutive arrows, but this "
+                              f"trajectory keeps every {trajectory.every}-th state; simulate "
+                              f"with every=1")
         arrows = layout.arrows(trajectory.states)
         lam = trajectory.multipliers if multipliers is None else multipliers
+        if U is None and layout.n_inputs:  # the input of each term, as the states hold it
+            U = np.stack([layout.view(np.asarray(trajectory.states), name)
+                          for name in layout.input_names], axis=1)
     else:
         arrows, lam = trajectory, multipliers
     if params is None:
@@ -247,6 +395,11 @@ def _unpack(trajectory, system, multipliers, params):
     if terms < 1:
         raise ShapeError(f"{owner}: {len(arrows)} arrows hold no term of the action "
                          f"(arity {arity})")
+    if nonholonomic:  # M_c is not in the action: no multipliers (zeros for the program)
+        if multipliers is not None and np.size(multipliers):
+            raise ShapeError(f"{owner}: a nonholonomic system has no multipliers; leave "
+                             f"multipliers= out")
+        lam = np.zeros((terms, m))
     lam = np.zeros((terms, 0)) if lam is None and not m else lam
     if lam is None:
         raise ShapeError(f"{owner}: the system has {m} constraints; give the multipliers "
@@ -257,10 +410,35 @@ def _unpack(trajectory, system, multipliers, params):
     if lam.shape != (terms, m):
         raise ShapeError(f"{owner}: multipliers must have shape ({terms}, {m}) (one row per "
                          f"action term), got {lam.shape}")
-    for what, values in (("arrows", arrows), ("multipliers", lam)):
+    U = _inputs(system, U, terms)
+    for what, values in (("arrows", arrows), ("multipliers", lam), ("inputs", U)):
         if not np.isfinite(values).all():
             row = int(np.flatnonzero(~np.isfinite(values).all(axis=1))[0])
             raise DomainError(f"{owner}: the trajectory's {what} have non-finite values "
                               f"(row {row}: {values[row].tolist()})")
     values, _ = parameter_vector(system.parameters, params, owner=owner)
-    return arrows, lam, list(values)
+    return arrows, lam, U, list(values)
+
+
+def _inputs(system, inputs, terms: int) -> np.ndarray:
+    """The inputs of every action term (terms, m): u_j belongs to the term starting at g_j
+    (docs/conventions.md §20); none for a system without inputs."""
+    forces = _functions(system).forces
+    names = [str(u) for u in forces.inputs] if forces is not None else []
+    owner, m = system.name, len(names)
+    if not m:
+        if inputs is not None and np.size(inputs):
+            raise ShapeError(f"{owner}: the system has no inputs; leave inputs= out")
+        return np.zeros((terms, 0))
+    if inputs is None:
+        raise ShapeError(f"{owner}: the system has inputs ({', '.join(names)}); give them "
+                         f"with inputs= ({terms}, {m}), one row per action term (row j: the "
+                         f"inputs of the term starting at g_j), or pass a Trajectory, whose "
+                         f"states hold them")
+    U = real_array(inputs, "the inputs", owner=owner)
+    if m == 1 and U.shape == (terms,):
+        U = U.reshape(terms, 1)
+    if U.shape != (terms, m):
+        raise ShapeError(f"{owner}: inputs must have shape ({terms}, {m}) (one row of "
+                         f"{', '.join(names)} per action term), got {U.shape}")
+    return U

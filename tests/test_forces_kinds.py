@@ -769,11 +769,12 @@ def test_reduction_refuses_a_forced_system():
 
 
 @needs_cc
-def test_verify_stationary_refuses_a_forced_system():
+def test_verify_stationary_checks_a_forced_run_with_the_forces_work():
     """A forced trajectory is a critical point of the Lagrange–d'Alembert principle, not of
     the action: ``verify_stationary`` checked the action alone and reported a correct forced
-    run "not stationary".  It refuses a forced system now."""
+    run "not stationary" (then refused forced systems).  It adds the forces' virtual work
+    along the variation now (tests/test_forced_verify.py checks every kind)."""
     from symgroupoid.verification import verify_stationary
 
-    with pytest.raises(sg.UnsupportedFeatureError, match="Lagrange–d'Alembert"):
-        verify_stationary(forced_run("holonomic"), kind("holonomic").forced)
+    report = verify_stationary(forced_run("holonomic"), kind("holonomic").forced)
+    assert report.stationary and report.work != 0.0

@@ -157,6 +157,9 @@ def build_parser() -> argparse.ArgumentParser:
     _system_options(verify)
     _runtime_options(verify)
     verify.add_argument("--steps", default="20", help="length of the short run (default 20)")
+    verify.add_argument("--inputs", metavar="U.npy|U.csv", type=path_text,
+                        help="a forced system's inputs for the short run: one row per step, "
+                             "one column per input (as for simulate)")
     verify.add_argument("--points", default="5", help="random points of the kernel checks")
     verify.add_argument("--horizon", metavar="T",
                         help="final time of the order measurement of a discretised "

@@ -40,6 +40,7 @@ from ._inputs import (
     parameters,
     parse_count,
     parse_number,
+    read_inputs,
     velocity_data,
 )
 
@@ -154,14 +155,21 @@ def sympy_check(sim, points, p) -> Check:
 
 
 def stationarity_check(system, traj) -> Check:
+    """verify_stationary on the short run: the discrete action's critical point, or for a
+    forced system the discrete Lagrange–d'Alembert principle (docs/conventions.md §20), for
+    a nonholonomic (Hölder) system along D_c (§10)."""
     name = f"variational principle ({traj.steps} steps)"
-    if not isinstance(system, DiscreteSystem):
-        return Check(name, None, "nonholonomic equations are not the critical points of an "
-                                 "action")
+    if not isinstance(system, DiscreteSystem) and getattr(system, "method", "") != "holder":
+        return Check(name, None, "the energy–momentum equations are not the critical points "
+                                 "of an action")
     if system.stages:
         return Check(name, None, "not yet for a discrete Lagrangian with internal stages "
                                  "(docs/conventions.md §22)")
     report = verify_stationary(traj, system)
+    if system.functions.forces is not None:
+        return Check(name, bool(report), f"Lagrange–d'Alembert: dS/dt + W along a random "
+                                         f"variation {report.extrapolated:.1e} (forces' work "
+                                         f"W {report.work:.1e}, terms {report.scale:.1e})")
     return Check(name, bool(report), f"dS/dt along a random variation {report.extrapolated:.1e} "
                                      f"(terms {report.scale:.1e})")
 
@@ -227,11 +235,16 @@ def noether_check(system, step, declared: Declared, traj, p) -> Check:
     else:
         values = np.array([quantity.evaluate(x[:a], x[a:a + m], p)
                            for x in np.asarray(traj.states)[:, index]])
-    drift = float(np.max(np.abs(values - values[0])))
     tolerance = NOETHER_TOLERANCE * max(1.0, float(np.max(np.abs(values))))
     how = "at the stages of random arrows" if system.stages else "symbolically"
     symmetry = f"symmetry verified {how}" if quantity.is_symmetry else \
         "NOT verified to be a symmetry"
+    if quantity.impulse_form is not None:  # forced: J changes by the forces' impulse (§20)
+        gap = float(np.max(np.abs(np.diff(values) - quantity.impulse(traj)), initial=0.0))
+        ok = quantity.is_symmetry and gap <= tolerance
+        return Check(name, ok, f"{symmetry}; J_(k+1) - J_k = impulse to {gap:.1e} over "
+                               f"{len(values) - 1} steps (tolerance {tolerance:.0e})")
+    drift = float(np.max(np.abs(values - values[0])))
     ok = quantity.is_symmetry and drift <= tolerance
     return Check(name, ok, f"{symmetry}; value {values[0]:.6g}, drift {drift:.1e} over "
                            f"{len(values)} states (tolerance {tolerance:.0e})")
@@ -316,6 +329,18 @@ def table(checks: list[Check]) -> list[str]:
     return lines
 
 
+def run_inputs(sim, path: str | None, steps: int):
+    """The short run's inputs from ``--inputs`` (docs/cli.md), required for a system with
+    inputs: the run is not driven by inputs it was not given."""
+    inputs = read_inputs(path, list(sim.layout.input_names))
+    if inputs is None and sim.layout.n_inputs:
+        raise InputError(f"{sim.name} has inputs ({', '.join(sim.layout.input_names)}): give "
+                         f"their sequence with --inputs U.npy|U.csv, one row per step of the "
+                         f"short run (at least --steps {steps} rows; row j: the inputs of the "
+                         f"arrow step j computes)")
+    return inputs
+
+
 def run_verify(args: argparse.Namespace) -> int:
     steps = parse_count(args.steps, "steps", minimum=2)
     count = parse_count(args.points, "points", minimum=1)
@@ -328,11 +353,12 @@ def run_verify(args: argparse.Namespace) -> int:
     T = order_horizon(derived.source, params, steps, args.horizon)
     data = initial_data(derived.source, args.initial, sim)
     state = initial_state(sim, data, params)
+    inputs = run_inputs(sim, args.inputs, steps)
     declared = declared_noether(derived.source) if isinstance(system, DiscreteSystem) else []
     checks: list[Check] = []
     traj = None
     try:
-        traj = sim.simulate(state, steps, params)
+        traj = sim.simulate(state, steps, params, inputs=inputs)
         states = traj.states
     except SymgroupoidError as err:
         checks.append(Check(f"short run ({steps} steps)", False, str(err)))
