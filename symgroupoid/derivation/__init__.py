@@ -20,6 +20,7 @@ from ._forces import (
     impulse_form,
     input_arguments,
     input_symbols,
+    pair_impulse_form,
 )
 from ._junction import junction_variation
 from ._limit import (
@@ -82,7 +83,7 @@ __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep
            "legendre_forms", "lie_poisson_forms", "limit_points", "matrix_form_residuals",
            "matrix_form_values", "may_be_step", "momentum_symbols", "named", "next_arrow",
            "noether_forms", "stage_rows", "nonholonomic_step", "parameter_value",
-           "partial_residuals",
+           "pair_impulse_form", "partial_residuals",
            "piece_residuals", "reduce_functions", "second_order_legendre_forms",
            "slot_derivatives", "step_jacobian", "time_step_candidates", "vanishes_on_restriction",
            "vanishing_check", "window", "window_in_pieces"]

@@ -112,6 +112,32 @@ def impulse_form(groupoid: Groupoid, forces: ForceFunctions, section, parameters
     return sum((x * (fp + fm) for x, fp, fm in zip(X, plus, minus)), sp.S.Zero), a, b
 
 
+def pair_impulse_form(groupoid: Groupoid, forces: ForceFunctions, section,
+                      parameters: Sequence) -> tuple[sp.Expr, tuple, tuple]:
+    """The impulse of the forces of a second-order system along a section X over one step
+    (docs/conventions.md §20): at the node β(g_k) of the junction between g_k and g_{k+1},
+
+        I_k = Σ_b X^b(β(g_k))·(f²_b(g_{k−1}, g_k) + f¹_b(g_k, g_{k+1}) + f⁰_b(g_{k+1}, g_{k+2})),
+
+    the pair starting at g_j with the inputs u_j, so that the Noether quantity of a
+    symmetry X of L on the window (g_{k−1}, g_k, g_{k+1}) changes by it from that window to
+    the next, J_{k+1} − J_k = I_k.  Returns (I, window, new): the expression, the window's
+    coordinates (the first arrow's, then the fibre variables of the two after it, as the
+    second-order Noether quantity is written) and the fibre variables of g_{k+2}."""
+    from ._momenta import section_coefficients
+    from ._step import named, next_arrow
+
+    arrows = [named(groupoid, 0, False)]
+    for o in (1, 2, 3):
+        arrows.append(next_arrow(groupoid, arrows[-1], o, False))
+    fibres = [tuple(groupoid.fibre_of(named(groupoid, o, False))) for o in (1, 2, 3)]
+    X = section_coefficients(groupoid, section, groupoid.target(arrows[1]), parameters)
+    # the window's pairs start at g_{k−1}, g_k, g_{k+1}: offsets −1, 0, 1 of arrows[1] = g_k
+    work = forces.window_terms({s - 1: a for s, a in enumerate(arrows)}, [-1, 0, 1])
+    expr = sum((x * w for x, w in zip(X, work)), sp.S.Zero)
+    return expr, tuple(arrows[0]) + fibres[0] + fibres[1], fibres[2]
+
+
 def input_symbols(inputs: Sequence[sp.Symbol], offset: int) -> list:
     """The inputs of the arrow g_{k+offset}: u ↦ u_{k+offset} (named in LaTeX)."""
     return [scalar_symbol(sp.latex(u), offset) for u in inputs]
@@ -184,4 +210,4 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
 
 
 __all__ = ["ForceFunctions", "force_functions", "impulse_form", "input_arguments",
-           "input_symbols"]
+           "input_symbols", "pair_impulse_form"]

@@ -45,12 +45,20 @@ from ._step import (
 
 @dataclass
 class LegendreForms:
-    """F⁻L and F⁺L at the named arrow g_{k+offset} with multipliers λ_{k+offset}."""
+    """F⁻L and F⁺L at the named arrow g_{k+offset} with multipliers λ_{k+offset}.
+
+    ``minus_nodes``, ``plus_nodes``: the base points each block of rank components sits
+    at, in ``arrow``'s coordinates (None: α(g) and β(g) of a first-order arrow; second
+    order: α(A₀), β(A₀) and β(A₁), β(A₂) of the window, :func:`second_order_legendre_forms`);
+    ``window``: the number of arrows ``arrow`` holds (1, or 3 for a second-order window)."""
 
     minus: list
     plus: list
     arrow: tuple
     multipliers: list
+    minus_nodes: list | None = None
+    plus_nodes: list | None = None
+    window: int = 1
 
 
 def legendre_forms(G: Groupoid, fs: SystemFunctions, offset: int = 0) -> LegendreForms:
@@ -102,8 +110,11 @@ def second_order_legendre_forms(G: Groupoid, fs: SystemFunctions,
     flat = tuple(arrows[0]) + tuple(G.named_fibre(offset + 1)) + tuple(
         G.named_fibre(offset + 2))
     lam = multiplier_symbols(m, offset) + multiplier_symbols(m, offset + 1)
+    # F⁻'s blocks sit at α(A₀), β(A₀); F⁺'s at β(A₁), β(A₂) (the window's four nodes)
+    nodes = [tuple(G.source(arrows[0]))] + [tuple(G.target(a)) for a in arrows]
     return LegendreForms([tidy(e.xreplace(sub)) for e in minus],
-                         [tidy(e.xreplace(sub)) for e in plus], flat, lam)
+                         [tidy(e.xreplace(sub)) for e in plus], flat, lam,
+                         nodes[:2], nodes[2:], 3)
 
 
 def section_coefficients(G: Groupoid, section, q: Sequence, parameters: Sequence = ()
@@ -173,26 +184,46 @@ def stage_rows(fs: SystemFunctions, arrow: Sequence) -> list:
 
 @dataclass
 class NoetherForms:
-    """F_X = ⟨F⁺L, X(β(g))⟩ + f(β(g)) and the symmetry defect (zero for a symmetry)."""
+    """F_X = ⟨F⁺L, X(β(g))⟩ + f(β(g)) and the symmetry defect (zero for a symmetry);
+    ``window``: the arrows ``arrow`` holds (3 for a second-order window)."""
 
     quantity: sp.Expr
     defect: sp.Expr
     arrow: tuple
     multipliers: list
+    window: int = 1
+
+
+def _paired(G: Groupoid, section, nodes: Sequence, values: Sequence,
+            parameters: Sequence) -> sp.Expr:
+    """Σ_i ⟨block i of ``values``, X(nodes[i])⟩: each block of rank components paired with
+    the section at the base point it sits at."""
+    out = sp.S.Zero
+    for i, q in enumerate(nodes):
+        X = section_coefficients(G, section, q, parameters)
+        out += sum((c * v for c, v in zip(X, values[i * G.rank:(i + 1) * G.rank])), sp.S.Zero)
+    return out
 
 
 def noether_forms(G: Groupoid, forms: LegendreForms, section, f=None,
                   parameters: Sequence = ()) -> NoetherForms:
     """The Noether quantity of ``section`` (seed 000 Thm 4.9) and its symmetry defect;
-    ``parameters``: the symbols the section and ``f`` may use besides the base point."""
+    ``parameters``: the symbols the section and ``f`` may use besides the base point.
+
+    First order: F_X = ⟨F⁺L, X(β(g))⟩ + f(β(g)), defect ⟨F⁻L, X(α(g))⟩ + f(α(g)) − F_X.
+    Second order (docs/conventions.md §20), on the window (A₀, A₁, A₂) with nodes
+    n₀ = α(A₀), n₁ = β(A₀), n₂ = β(A₁), n₃ = β(A₂): F_X = ⟨F⁺L, (X(n₂), X(n₃))⟩ + f(n₂) —
+    the change of the terms before the cut after (A₁, A₂) when the nodes n₂, n₃ they share
+    with the terms after it move along X — and the defect ⟨F⁻L, (X(n₀), X(n₁))⟩ + f(n₀) −
+    F_X, which is the change of L(A₀, A₁) + L(A₁, A₂) when every node moves along X (minus
+    f(n₀) − f(n₂)): zero for all windows iff each pair term is invariant."""
     g = forms.arrow
-    qa, qb = G.source(g), G.target(g)
-    Xa = section_coefficients(G, section, qa, parameters)
-    Xb = section_coefficients(G, section, qb, parameters)
-    fa, fb = (_base_function(f, q, G.name, parameters) for q in (qa, qb))
-    lhs = sum((c * m for c, m in zip(Xa, forms.minus)), sp.S.Zero) + fa
-    rhs = sum((c * p for c, p in zip(Xb, forms.plus)), sp.S.Zero) + fb
-    return NoetherForms(rhs, lhs - rhs, g, forms.multipliers)
+    before = forms.minus_nodes or [G.source(g)]
+    after = forms.plus_nodes or [G.target(g)]
+    fa, fb = (_base_function(f, q, G.name, parameters) for q in (before[0], after[0]))
+    lhs = _paired(G, section, before, forms.minus, parameters) + fa
+    rhs = _paired(G, section, after, forms.plus, parameters) + fb
+    return NoetherForms(rhs, lhs - rhs, g, forms.multipliers, forms.window)
 
 
 #: random arrows at which a symmetry defect is evaluated; relative size of a defect that
@@ -210,8 +241,11 @@ def is_identically_zero(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool:
     return vanishing_check(expr, G, arrow)[0]
 
 
-def vanishing_check(expr: sp.Expr, G: Groupoid, arrow: tuple) -> tuple[bool, str]:
-    """Whether ``expr`` vanishes on G, and how that was decided.
+def vanishing_check(expr: sp.Expr, G: Groupoid, arrow: tuple, window: int = 1
+                    ) -> tuple[bool, str]:
+    """Whether ``expr`` vanishes on G (``window`` > 1: on the composable sequences of that
+    many arrows, ``arrow`` holding the first arrow's coordinates and each later arrow's
+    fibre variables, as a second-order window does), and how that was decided.
 
     First at :data:`NOETHER_SAMPLES` random arrows of G itself (``G.random_arrow``: on a
     matrix-group base the base points are rotations, not arbitrary 3×3 arrays), with random
@@ -225,13 +259,18 @@ def vanishing_check(expr: sp.Expr, G: Groupoid, arrow: tuple) -> tuple[bool, str
     expr = sp.sympify(expr)
     if expr == 0:
         return True, "identically zero"
-    sampled = _sampled_defect(expr, G, arrow)
+    sampled = _sampled_defect(expr, G, arrow, window)
     if sampled is False:
         return False, "nonzero at a random arrow"
     if sp.count_ops(expr) <= SYMBOLIC_CHECK_OPS:
         q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
         x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
-        on_group = G.arrow_from(q, G.fibre_chart(x, q))
+        on_group = last = tuple(G.arrow_from(q, G.fibre_chart(x, q)))
+        for j in range(1, window):  # each later arrow from the target of the one before
+            y = tuple(sp.Dummy(f"x{j}_{i}", real=True) for i in range(G.rank))
+            fibre = tuple(G.fibre_chart(y, G.target(last)))
+            last = tuple(G.arrow_from(G.target(last), fibre))
+            on_group += fibre
         e = expr.xreplace(dict(zip(arrow, on_group)))
         if sp.simplify(sp.cancel(sp.together(e))) == 0:
             return True, "symbolic"
@@ -241,9 +280,22 @@ def vanishing_check(expr: sp.Expr, G: Groupoid, arrow: tuple) -> tuple[bool, str
                   f"{NOETHER_SAMPLES} random arrows of {G.name}")
 
 
-def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool | None:
-    """True: |expr| is at rounding level at every usable random arrow; False: it is not at
-    one of them; None: no random arrow gave a finite real value."""
+def _random_window(G: Groupoid, rng: np.random.Generator, window: int) -> list:
+    """A random arrow's coordinates, then the fibre variables of ``window`` − 1 random
+    arrows each composable after the one before."""
+    last = tuple(G.random_arrow(rng))
+    out = list(last)
+    for _ in range(1, window):
+        last = tuple(G.random_arrow(rng, source=[float(c) for c in G.target(last)]))
+        out += [float(c) for c in G.fibre_of(last)]
+    return out
+
+
+def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple, window: int = 1
+                    ) -> bool | None:
+    """True: |expr| is at rounding level at every usable random arrow (window of
+    ``window`` composable arrows); False: it is not at one of them; None: no random arrow
+    gave a finite real value."""
     others = sorted(expr.free_symbols - set(arrow), key=sp.default_sort_key)
     terms = sp.Add.make_args(expr)
     f = sp.lambdify([list(arrow), others], [expr, sp.Add(*[sp.Abs(t) for t in terms])],
@@ -251,7 +303,7 @@ def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple) -> bool | None:
     rng = np.random.default_rng(20260)
     usable = 0
     for _ in range(NOETHER_SAMPLES):
-        g = G.random_arrow(rng)
+        g = _random_window(G, rng, window)
         values = rng.uniform(0.5, 1.5, len(others))
         with np.errstate(all="ignore"):
             try:

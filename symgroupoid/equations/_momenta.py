@@ -97,6 +97,15 @@ class NoetherQuantity:
         self.is_symmetry: bool = is_symmetry
         self.verification: str = "symbolic"
         self.parameters = list(parameters)
+        #: arrows of the window the quantity is written on: 1, or 3 for a second-order
+        #: system (its state's (g_{k−1}, g_k, g_{k+1}), whose terms carry u_{k−1}, u_k)
+        self.window: int = getattr(forms, "window", 1)
+
+    @property
+    def _known_inputs(self) -> int:
+        """Input sets a state holds for its known terms (1, or 2 for second order), before
+        the slot of the input to come."""
+        return 2 if self.window == 3 else 1
 
     @functools.cached_property
     def _numeric(self):
@@ -194,8 +203,9 @@ class NoetherQuantity:
                                  f"{type(trajectory).__name__}")
         states = np.asarray(trajectory.states, float)
         n = len(self.arrow) + len(self.multipliers)
-        states = states[:, :n] if states.ndim == 2 and states.shape[1] == n + 2 * _inputs(
-            trajectory) else states
+        m = _inputs(trajectory)  # a forced state ends with its terms' inputs and the slot
+        states = states[:, :n] if states.ndim == 2 and m and states.shape[1] == n + (
+            self._known_inputs + 1) * m else states
         if states.ndim != 2 or states.shape[1] != n:
             raise ShapeError(f"NoetherQuantity.along: the quantity is written in {n} state "
                              f"entries (arrow and multipliers), the trajectory's states have "
@@ -219,9 +229,12 @@ class NoetherQuantity:
     def impulse(self, trajectory) -> np.ndarray:
         """The forces' impulse along the section over each step of a forced system's
         ``trajectory`` (kept every step), shape (R − 1,): I_k = Σ_b X^b(β(g_k))·(f⁺_b(g_k)
-        + f⁻_b(g_{k+1})) with the inputs of both arrows (docs/conventions.md §20).  For a
-        symmetry X of L, ``np.diff(nq.along(traj))`` equals it to rounding (the forced
-        Noether theorem); internal forces that cancel along X give zeros."""
+        + f⁻_b(g_{k+1})) with the inputs of both arrows (docs/conventions.md §20); second
+        order I_k = Σ_b X^b(β(g_k))·(f²_b(g_{k−1}, g_k) + f¹_b(g_k, g_{k+1}) +
+        f⁰_b(g_{k+1}, g_{k+2})), each pair with its inputs, from state k (g_{k−1}, g_k,
+        g_{k+1}) to state k + 1.  For a symmetry X of L, ``np.diff(nq.along(traj))`` equals
+        it to rounding (the forced Noether theorem); internal forces that cancel along X
+        give zeros."""
         if self.impulse_refused:
             raise UnsupportedFeatureError(f"NoetherQuantity.impulse: {self.impulse_refused}")
         if self.impulse_form is None:
@@ -231,15 +244,22 @@ class NoetherQuantity:
             raise ShapeError("NoetherQuantity.impulse: the impulse of each step needs every "
                              "state; simulate with every=1")
         states = np.asarray(trajectory.states, float)
-        dim, m = len(self.arrow), _inputs(trajectory)
+        dim, m, held = len(self.arrow), _inputs(trajectory), self._known_inputs
         n = dim + len(self.multipliers)
-        if states.ndim != 2 or states.shape[1] != n + 2 * m:
+        if states.ndim != 2 or states.shape[1] != n + (held + 1) * m:
             raise ShapeError(f"NoetherQuantity.impulse: the states have shape "
                              f"{states.shape}; use a trajectory of this system's step")
         values = getattr(trajectory, "parameters", {})
+        missing = [str(s) for s in self.parameters if str(s) not in values]
+        if missing:
+            raise ParameterError(f"NoetherQuantity.impulse: the trajectory gives no value "
+                                 f"for {', '.join(missing)}")
         p = np.array([float(values[str(s)]) for s in self.parameters])
-        columns = np.r_[0:dim, n:n + m]
-        a, b = states[:-1, columns], states[1:, columns]
+        new = len(self.impulse_form[2])  # coordinates of the next state's newest arrow
+        # state k gives its window and its terms' inputs; state k + 1 its newest arrow and
+        # the input of its newest term (first order: its arrow g_{k+1} and u_{k+1})
+        a = states[:-1, np.r_[0:dim, n:n + held * m]]
+        b = states[1:, np.r_[dim - new:dim, n + (held - 1) * m:n + held * m]]
         f = self._impulse_program.numpy_function(["I"], ["a", "b", "p"])
         with np.errstate(all="ignore"):
             out = np.broadcast_to(np.asarray(f(np.ascontiguousarray(a.T),
@@ -248,7 +268,7 @@ class NoetherQuantity:
         return out.copy()
 
     impulse_form = None  # (I, a, b, inputs at a, inputs at b), set for a forced system
-    impulse_refused = ""  # why a forced system has no impulse form (second order)
+    impulse_refused = ""  # why a forced system has no impulse form
 
     @functools.cached_property
     def _impulse_program(self) -> Program:

@@ -43,6 +43,7 @@ from ..derivation import (
     may_be_step,
     noether_forms,
     nonholonomic_step,
+    pair_impulse_form,
     stage_rows,
     time_step_candidates,
     vanishes_on_restriction,
@@ -315,7 +316,7 @@ class DiscreteSystem(_EvaluatedSystem):
                               section, f, self.parameters)
         if self.stages:
             return self._noether_with_stages(forms)
-        ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow)
+        ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow, forms.window)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
                                               self.functions):
             ok, how = True, "symbolic on N = G|_M (ideal membership)"
@@ -326,9 +327,11 @@ class DiscreteSystem(_EvaluatedSystem):
             expr, a, b = impulse_form(self.groupoid, forces, section, self.parameters)
             quantity.impulse_form = (expr, a, b, input_symbols(forces.inputs, 0),
                                      input_symbols(forces.inputs, 1))
-        elif forces is not None:
-            quantity.impulse_refused = (f"{self.name}: the forces' impulse of a second-order "
-                                        f"system is not supported yet")
+        elif forces is not None:  # second order: the window's inputs u_{k−1}, u_k; u_{k+1}
+            expr, a, b = pair_impulse_form(self.groupoid, forces, section, self.parameters)
+            quantity.impulse_form = (expr, a, b, input_symbols(forces.inputs, -1)
+                                     + input_symbols(forces.inputs, 0),
+                                     input_symbols(forces.inputs, 1))
         return quantity
 
     def _noether_with_stages(self, forms) -> NoetherQuantity:
