@@ -15,17 +15,21 @@ recognised and kept by name (:func:`action_pieces`).
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
 import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
+from .._errors import CallableError
 from .._symbols import StepSymbol, latex_name, step_label
 from ..derivation import (
     PieceRule,
     WindowAction,
     distribution_coefficients,
+    matrix_form_residuals,
+    matrix_form_values,
     partial_residuals,
     piece_residuals,
     window,
@@ -34,9 +38,11 @@ from ..groupoids import PairCoordinate
 from ._collect import replace_occurrences
 from ._latex import uncollected
 from ._matrix_parts import (
+    _matrix_form_keeps,
     constant_matrices,
     evaluated_constants,
     junction_system,
+    keeps_matrices,
     kept_matrix_form,
     matrix_values,
     system_functions,
@@ -103,11 +109,14 @@ def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mappin
 
 def base_form(step, matrix_form: bool = False) -> Form | None:
     """The residuals as derived: in matrix form, when it keeps a matrix by name (else None),
-    or explicit."""
+    or explicit.  A forced step's matrix form is the unforced one with its forces named
+    (:func:`forced_form`)."""
     if not matrix_form:
         return Form(list(step.residuals))
     structured = kept_matrix_form(step)
-    return None if structured is None else Form(structured, [matrix_values(step)])
+    if structured is None:
+        return forced_form(step, matrix_form=True)
+    return Form(structured, [matrix_values(step)])
 
 
 def forced_form(step, matrix_form: bool = False) -> Form | None:
@@ -115,16 +124,24 @@ def forced_form(step, matrix_form: bool = False) -> Form | None:
     of L (+ λ·φ) followed by f⁺_b(g_k) + f⁻_b(g_{k+1}) (second order: f²_b(g_{k−1}, g_k) +
     f¹_b(g_k, g_{k+1}) + f⁰_b(g_{k+1}, g_{k+2})), the discrete forces given in the "where"
     list; for the nonholonomic Hölder step, those rows combined along D_c,
-    Σ_b c_a^b(β(g_k))·(…) (docs/conventions.md §10).  None for a step without forces (or in
-    matrix form)."""
+    Σ_b c_a^b(β(g_k))·(…) (docs/conventions.md §10).  With ``matrix_form`` the residual of
+    L is its matrix form (tr(J_d W_k E_a), as the unforced step prints it:
+    :func:`unforced_matrix_form`).  None for a step without forces, and in matrix form for
+    a step whose L keeps no matrix by name (or a Hölder step, which has no matrix form)."""
     system, holder = junction_system(step), _holder_system(step)
-    if matrix_form or (system or holder) is None:
+    if (system or holder) is None or (matrix_form and system is None):
         return None
     fs, rank = (system or holder).functions, step.groupoid.rank
     if fs.forces is None:
         return None
     action = WindowAction(step.groupoid, replace(fs, forces=None))
     unforced, arrows = action.residuals(multipliers=holder is None)
+    matrices: dict = {}
+    if matrix_form:
+        kept = unforced_matrix_form(step, unforced)
+        if kept is None:
+            return None
+        unforced, matrices = kept
     arity, layer = len(fs.slots), {}
     for s in action.starts:  # the term starting at s meets the junction at its point 1 − s
         values = fs.forces.on([arrows[s + i] for i in range(arity)], s)[1 - s]
@@ -139,7 +156,45 @@ def forced_form(step, matrix_form: bool = False) -> Form | None:
                                          step.groupoid.target(arrows[0]))
         equations = [sum((c * e for c, e in zip(row, equations)), sp.S.Zero) for row in rows]
     definitions = [Definition(name, value, frozenset({name})) for name, value in layer.items()]
-    return Form(equations + list(unforced[rank:]), [layer], definitions)
+    layers = [layer, matrices] if matrix_form else [layer]
+    return Form(equations + list(unforced[rank:]), layers, definitions)
+
+
+#: each forced step's :func:`unforced_matrix_form` (None too), built once
+_UNFORCED_KEPT: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def unforced_matrix_form(step, unforced: Sequence[sp.Expr]) -> tuple[list, dict] | None:
+    """The matrix form of a forced step's residuals of L (+ λ·φ) alone — ``unforced``, the
+    explicit rows the forces are added to — with its constant parts evaluated, as
+    :func:`~symgroupoid.equations._matrix_parts.kept_matrix_form` gives an unforced step's;
+    and the values of its matrix symbols.  None when it keeps no matrix by name (or has no
+    matrix form)."""
+    if step not in _UNFORCED_KEPT:
+        _UNFORCED_KEPT[step] = _unforced_matrix_form(step, unforced)
+    return _UNFORCED_KEPT[step]
+
+
+def _unforced_matrix_form(step, unforced: Sequence[sp.Expr]) -> tuple[list, dict] | None:
+    from ..groupoids import named_constants
+
+    system, G = junction_system(step), step.groupoid
+    if not G.matrix_parts() or not _matrix_form_keeps(step):
+        return None
+    try:
+        structured = matrix_form_residuals(
+            system.name, G, system.lagrangian, system.constraints, system.parameters,
+            unforced, arity=system._arity, holonomic=system.holonomic)
+    except CallableError:
+        return None  # user code needs explicit matrices: print entries
+    if structured is None:
+        return None
+    values = matrix_form_values(G, window(step.order)[0])
+    for e in structured:
+        values.update(named_constants(e))
+    constants = constant_matrices(G)
+    equations = [evaluated_constants(e, values, constants) for e in structured]
+    return (equations, values) if keeps_matrices(equations) else None
 
 
 def _holder_system(step):

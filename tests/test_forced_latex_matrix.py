@@ -1,0 +1,81 @@
+"""The matrix (trace) form of forced steps on matrix groups (docs/conventions.md §20,
+docs/latex.md): the unforced step's matrix form (tr(J_d W_k E_a)) with the named discrete
+forces f^±_b added, their values in the "where" list — built from the existing forms and
+checked against the explicit residuals as every printed form is.  The forced rigid body
+printed only its component form (entries (W_k)_{23}, …) before: ``forced_form`` returned
+None in matrix form, and the step's own matrix form, verified against the forced
+residuals, did not exist."""
+
+from __future__ import annotations
+
+import re
+
+import sympy as sp
+from test_forces import _plane_system, _torque_and_damping, u
+from test_latex_pdf import assert_typesets_whole, needs_tex
+
+import symgroupoid as sg
+from symgroupoid import systems
+from symgroupoid.equations._forms import forced_form
+from symgroupoid.equations._printing import verified_forms
+
+h = sp.Symbol("h", positive=True)
+TAUS = sp.symbols("tau1:4", real=True)
+
+
+def _driven_rigid_body() -> sg.StepEquations:
+    """The Moser–Veselov rigid body (``systems.rigid_body``) driven by body torques τ held
+    over the step (``body_torque``: f⁻ = f⁺ = (h/2)·τ)."""
+    I1, I2, I3 = systems.inertia_symbols()
+    Jd = systems.discrete_inertia(I1, I2, I3)
+
+    def L(g):
+        return -(Jd * g.matrix).trace() / h
+
+    return sg.DiscreteSystem(sg.SO3("W"), L, parameters=[h, I1, I2, I3],
+                             forces=sg.body_torque(list(TAUS), h), inputs=list(TAUS),
+                             name="driven_body", time_step=h).euler_lagrange()
+
+
+DRIVEN = _driven_rigid_body()
+
+
+def test_the_forced_rigid_body_prints_the_trace_form_and_its_forces():
+    text = DRIVEN.latex()
+    free = systems.rigid_body().euler_lagrange().latex()
+    for a in (1, 2, 3):
+        trace = (rf"\frac{{\operatorname{{tr}}(J_{{d}} E_{{{a}}} W_{{k+1}}) - "
+                 rf"\operatorname{{tr}}(J_{{d}} W_{{k}} E_{{{a}}})}}{{h}}")
+        assert trace in text and trace in free, text
+        assert rf"f^{{+}}_{{{a}}}(g_{{k}}) + f^{{-}}_{{{a}}}(g_{{k+1}})" in text
+        name = re.escape(rf"f^{{-}}_{{{a}}}(g_{{k+1}})")
+        value = re.escape(rf"\frac{{h (\tau_{{{a}}})_{{k+1}}}}{{2}}")
+        assert re.search(rf"{name} &?= {value}", text), text
+    assert r"\intertext{where}" in text
+    assert "(W_{k})_{23}" not in text  # no entries: the component form is not the one chosen
+
+
+def test_the_forced_matrix_form_is_a_verified_form():
+    """``forced_form`` in matrix form keeps the unforced traces and adds the named forces;
+    the printer verifies it against the forced residuals (with the forces' values and the
+    matrices written out), beside the component form."""
+    form = forced_form(DRIVEN, matrix_form=True)
+    assert form is not None
+    assert all(e.atoms(sp.MatrixSymbol) for e in form.equations)
+    printed = verified_forms(DRIVEN)
+    kept = [p for p in printed if p.keeps]
+    assert kept and all(p.form.layers[0] for p in kept)  # the forces named in each
+    assert any(not p.keeps for p in printed)  # the component form is still offered
+
+
+def test_a_forced_step_without_matrices_keeps_its_component_form():
+    step = _plane_system(_torque_and_damping, [u]).euler_lagrange()
+    assert forced_form(step, matrix_form=True) is None
+    assert "f^{+}_{1}(g_{k})" in step.latex()
+
+
+@needs_tex
+def test_the_forced_rigid_body_document_typesets_whole(tmp_path):
+    document = assert_typesets_whole(DRIVEN, tmp_path)
+    assert r"\operatorname{tr}(J_{d} E_{1} W_{k+1})" in document
+    assert (tmp_path / "doc.pdf").stat().st_size > 0
