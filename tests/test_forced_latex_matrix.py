@@ -16,8 +16,6 @@ from test_latex_pdf import assert_typesets_whole, needs_tex
 
 import symgroupoid as sg
 from symgroupoid import systems
-from symgroupoid.equations._forms import forced_form
-from symgroupoid.equations._printing import verified_forms
 
 h = sp.Symbol("h", positive=True)
 TAUS = sp.symbols("tau1:4", real=True)
@@ -55,23 +53,9 @@ def test_the_forced_rigid_body_prints_the_trace_form_and_its_forces():
     assert "(W_{k})_{23}" not in text  # no entries: the component form is not the one chosen
 
 
-def test_the_forced_matrix_form_is_a_verified_form():
-    """``forced_form`` in matrix form keeps the unforced traces and adds the named forces;
-    the printer verifies it against the forced residuals (with the forces' values and the
-    matrices written out), beside the component form."""
-    form = forced_form(DRIVEN, matrix_form=True)
-    assert form is not None
-    assert all(e.atoms(sp.MatrixSymbol) for e in form.equations)
-    printed = verified_forms(DRIVEN)
-    kept = [p for p in printed if p.keeps]
-    assert kept and all(p.form.layers[0] for p in kept)  # the forces named in each
-    assert any(not p.keeps for p in printed)  # the component form is still offered
-
-
 def test_a_forced_step_without_matrices_keeps_its_component_form():
-    step = _plane_system(_torque_and_damping, [u]).euler_lagrange()
-    assert forced_form(step, matrix_form=True) is None
-    assert "f^{+}_{1}(g_{k})" in step.latex()
+    text = _plane_system(_torque_and_damping, [u]).euler_lagrange().latex()
+    assert "f^{+}_{1}(g_{k})" in text and r"\operatorname{tr}" not in text
 
 
 @needs_tex
