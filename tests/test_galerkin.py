@@ -284,10 +284,6 @@ def test_the_energy_error_is_bounded():
 # --- refusals ----------------------------------------------------------------------------------
 
 def test_what_is_not_supported_is_refused():
-    forced = sg.ContinuousSystem(sg.EuclideanSpace("q"), lambda q, v: v[0] ** 2 / 2,
-                                 parameters=[h], forces=lambda q, v: [-v[0]], name="damped")
-    with pytest.raises(UnsupportedFeatureError, match="forces"):
-        forced.discretize(h, sg.GaussLegendre(2))
     exp = sg.ContinuousSystem(sg.SO3("R", retraction="exp"),
                               lambda R, xi: (xi.T * xi)[0, 0] / 2, parameters=[h], name="e")
     with pytest.raises(UnsupportedFeatureError, match="Cayley"):

@@ -149,16 +149,24 @@ class WindowAction:
         arrows = self.named_arrows(mf)
         sub = self.naming(slots, arrows)
         residuals = [d.xreplace(sub) for d in variation]
+        stages = {s: self.stages(s) for s in self.starts}
         if fs.forces is not None:
-            residuals = [r + f for r, f in zip(residuals,
-                                                fs.forces.window_terms(arrows, self.starts))]
+            residuals = [r + f for r, f in zip(residuals, fs.forces.window_terms(
+                arrows, self.starts, stages if fs.stages else None))]
         if fs.stages:
             action = self.action(slots, multipliers)
-            residuals += [sp.diff(action, z).xreplace(sub) for s in self.starts
-                          for z in self.stages(s)]
+            residuals += [sp.diff(action, z).xreplace(sub) + f for s in self.starts
+                          for z, f in zip(stages[s], self._stage_forces(arrows, s, stages))]
         residuals = [tidy(r) for r in residuals]
         residuals += [tidy(c) for c in fs.rows_on(self.groupoid, self.newest(arrows))]
         return residuals, arrows
+
+    def _stage_forces(self, arrows: dict, s: int, stages: dict) -> list:
+        """f_ζ of the term starting at s (zeros without forces; docs/conventions.md §22)."""
+        forces = self.functions.forces
+        if forces is None or not forces.stages:
+            return [sp.S.Zero] * len(stages[s])
+        return forces.stage_terms(arrows[s], s, stages[s])
 
     def constraints_on(self, slots: dict, s: int | None = None) -> list:
         """φ on the term starting at offset s (default: the newest), in the slot
@@ -269,37 +277,51 @@ class WindowAction:
         rows = {s: instantiate(term.rows, s) if self.functions.n_holonomic else constraints[s]
                 for s in self.starts}
         residuals = [g.sub(a, b) for a, b in zip(lefts, rights)]
-        if self.functions.forces is not None:
-            forced = self.force_nodes(g, parameters, arrows, inputs)
-            residuals = [g.add(r, f) for r, f in zip(residuals, forced)]
         stage_rows = {s: instantiate(term.stage_gradient, s) if term.stages else []
                       for s in self.starts}
+        if self.functions.forces is not None:
+            forced, staged = self.force_nodes(g, parameters, arrows, inputs, stages)
+            residuals = [g.add(r, f) for r, f in zip(residuals, forced)]
+            stage_rows = {s: [g.add(r, f) for r, f in zip(stage_rows[s], staged[s])]
+                          if staged[s] else stage_rows[s] for s in self.starts}
         return JunctionNodes(lefts, rights, residuals, constraints, rows, stage_rows)
 
-    def force_nodes(self, g: Graph, parameters: dict, arrows: dict, inputs: dict | None
-                    ) -> list[int]:
+    def force_nodes(self, g: Graph, parameters: dict, arrows: dict, inputs: dict | None,
+                    stages: dict | None = None) -> tuple[list[int], dict]:
         """Σ_s f^{(1−s)}_b(term s) for every basis section b (docs/conventions.md §20): the
         forces of each term of the window at the junction node β(g_0), base point 1 − s of
         the term starting at offset s, whose inputs are ``inputs[s]`` (nodes).  First order:
         f⁺_b(g_0) + f⁻_b(g_1); second order: f²_b(g_{−1}, g_0) + f¹_b(g_0, g_1) +
-        f⁰_b(g_1, g_2)."""
+        f⁰_b(g_1, g_2); and by start offset s, f_ζ of term s, the stage forces (empty
+        without internal stages), with ``stages[s]`` the nodes of ζ_s (docs/conventions.md
+        §22)."""
         forces = self.functions.forces
         if inputs is None:
             raise UnsupportedFeatureError(
                 "this evaluation of the junction has no inputs for the forces of a forced "
                 "system (boundary-value problems of forced systems are not supported yet)")
+        if forces.stages and stages is None:
+            raise UnsupportedFeatureError(
+                "this evaluation needs the internal stages of a forced discrete Lagrangian "
+                "with internal stages, which it does not solve for (docs/conventions.md §22)")
 
-        def term(s: int) -> list[int]:
+        def term(s: int) -> tuple[list[int], list[int]]:
             symbols = dict(parameters)
             for i, slot_arrow in enumerate(forces.slots):
                 symbols.update(zip(slot_arrow, arrows[s + i]))
             symbols.update(zip(forces.inputs, inputs[s]))
+            if forces.stages:
+                symbols.update(zip(forces.stages, stages[s]))
             memo: dict = {}
-            return [from_sympy(g, e, symbols, f"the forces (component {b + 1})", memo)
+            node = [from_sympy(g, e, symbols, f"the forces (component {b + 1})", memo)
                     for b, e in enumerate(forces.nodes[1 - s])]
+            staged = [from_sympy(g, e, symbols, f"the stage forces (component {a + 1})",
+                                 memo) for a, e in enumerate(forces.stage_forces)]
+            return node, staged
 
-        parts = [term(s) for s in self.starts]
-        return [g.add(*column) for column in zip(*parts)]
+        parts = {s: term(s) for s in self.starts}
+        total = [g.add(*column) for column in zip(*(parts[s][0] for s in self.starts))]
+        return total, {s: parts[s][1] for s in self.starts}
 
     def derivation_nodes(self, g: Graph, term: TermNodes, fields: Sequence, o: int,
                          terms: Sequence[int], arrows: dict, multipliers: dict,

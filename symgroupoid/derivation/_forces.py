@@ -24,7 +24,7 @@ f⁻(g_{k+1})).
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import sympy as sp
 
@@ -44,11 +44,21 @@ class ForceFunctions:
     three base points α(A₁), β(A₁) = α(A₂), β(A₂).  ``slots`` hold the term's arrows
     (coordinates); ``inputs`` the user's input symbols; ``nodes[i]`` the rank(AG)
     expressions of the covector at the term's base point i, in the slot coordinates, the
-    parameters and the inputs (of that term)."""
+    parameters and the inputs (of that term).  With internal stages ζ (first order,
+    docs/conventions.md §22) the covectors may depend on the generic ``stages`` too, and
+    ``stage_forces`` holds f_ζ, the virtual work's coefficients of the stages' variations,
+    which the stage rows ∂L/∂ζ gain."""
 
     slots: tuple
     inputs: list
     nodes: list
+    stages: tuple = ()  # the generic internal stages ζ the forces are written in
+    stage_forces: list = field(default_factory=list)  # f_ζ, one per stage
+
+    def _stage_substitution(self, stages: Sequence | None) -> dict:
+        if not self.stages or stages is None:
+            return {}
+        return dict(zip(self.stages, stages))
 
     @property
     def slot(self) -> tuple:
@@ -65,14 +75,28 @@ class ForceFunctions:
         """f⁺: the covector at the target of the term (f² of a pair)."""
         return self.nodes[-1]
 
-    def on(self, arrows: Sequence[Sequence], offset: int) -> list[list]:
+    def on(self, arrows: Sequence[Sequence], offset: int,
+           stages: Sequence | None = None) -> list[list]:
         """The covectors at every base point of the term with arrows ``arrows`` (coordinate
-        tuples) whose inputs are u_{k+offset}."""
+        tuples) whose inputs are u_{k+offset} and internal stages ``stages`` (None: the
+        generic ζ stay)."""
+        sub = self._substitution(arrows, offset, stages)
+        return [[f.xreplace(sub) for f in node] for node in self.nodes]
+
+    def _substitution(self, arrows: Sequence[Sequence], offset: int,
+                      stages: Sequence | None) -> dict:
         sub: dict = {}
         for s, a in zip(self.slots, arrows):
             sub.update(slot_substitution(s, tuple(a)))
         sub.update(zip(self.inputs, input_symbols(self.inputs, offset)))
-        return [[f.xreplace(sub) for f in node] for node in self.nodes]
+        sub.update(self._stage_substitution(stages))
+        return sub
+
+    def stage_terms(self, arrow: Sequence, offset: int, stages: Sequence) -> list:
+        """f_ζ on the arrow ``arrow`` with inputs u_{k+offset} and stages ``stages``: what
+        the term's stage rows ∂L/∂ζ gain (docs/conventions.md §22)."""
+        sub = self._substitution([arrow], offset, stages)
+        return [f.xreplace(sub) for f in self.stage_forces]
 
     def at(self, arrow: Sequence, offset: int) -> tuple[list, list]:
         """(f⁻, f⁺) on the arrow with coordinates ``arrow`` whose inputs are u_{k+offset}
@@ -80,14 +104,16 @@ class ForceFunctions:
         nodes = self.on([arrow], offset)
         return nodes[0], nodes[-1]
 
-    def window_terms(self, arrows: dict, starts: Sequence[int]) -> list:
+    def window_terms(self, arrows: dict, starts: Sequence[int],
+                     stages: dict | None = None) -> list:
         """Σ_s f^{(1−s)}_b(term s) for every basis section b: the forces of every term of the
         window at the junction node β(g_k), which is base point 1 − s of the term starting at
         offset s (whose arrows are ``arrows[s]``, …, and whose inputs are u_{k+s}).  First
         order: f⁺_b(g_k) + f⁻_b(g_{k+1}); second order: f²_b(g_{k−1}, g_k) + f¹_b(g_k,
-        g_{k+1}) + f⁰_b(g_{k+1}, g_{k+2})."""
+        g_{k+1}) + f⁰_b(g_{k+1}, g_{k+2}).  ``stages[s]``: the internal stages of term s."""
         arity = len(self.slots)
-        parts = [self.on([arrows[s + i] for i in range(arity)], s)[1 - s] for s in starts]
+        parts = [self.on([arrows[s + i] for i in range(arity)], s,
+                         None if stages is None else stages[s])[1 - s] for s in starts]
         return [sum(column[1:], column[0]) for column in zip(*parts)]
 
     def junction_terms(self, left: Sequence, right: Sequence) -> list:
@@ -172,12 +198,15 @@ def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:
 
 
 def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Sequence,
-                    parameters: Sequence, arity: int = 1) -> ForceFunctions:
+                    parameters: Sequence, arity: int = 1,
+                    stages: Sequence = ()) -> ForceFunctions:
     """The forces from the user's callable on symbolic arrows, checked: first order
     ``forces(g) -> (f_minus, f_plus)``; second order ``forces(g1, g2) -> (f0, f1, f2)``, the
     covectors at the pair's three base points (docs/conventions.md §20).  Each is a list of
     rank(AG) scalars in the arrows' coordinates, the parameters and the inputs; an input
-    must not be a coordinate of the arrow."""
+    must not be a coordinate of the arrow.  With internal stages ζ (first order,
+    docs/conventions.md §22): ``forces(g, zeta) -> (f_minus, f_plus, f_stages)``, the
+    covectors in the arrow's coordinates and ζ, and f_ζ, one scalar per stage."""
     what = "forces"
     arrows = tuple(slot(groupoid, f"f{i}_") for i in range(arity))
     taken = {*groupoid.symbols_by_name(0), *groupoid.symbols_by_name(1), "lambda", "λ",
@@ -187,10 +216,15 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
             raise InputNameError(f"{name}: input {u} has the name of a coordinate (or the "
                                  f"multipliers) of {groupoid.name}, which names a part of the "
                                  f"state; give the input another name")
-    value = call_user(name, what, forces, *[groupoid.view(a) for a in arrows], smooth=True)
+    stages = tuple(stages)
+    value = call_user(name, what, forces, *[groupoid.view(a) for a in arrows],
+                      *([list(stages)] if stages else []), smooth=True)
     sides = ("f_minus", "f_plus") if arity == 1 else tuple(f"f{i}" for i in range(arity + 1))
     shape = ("a pair (f_minus, f_plus)" if arity == 1 else
              f"{arity + 1} covectors ({', '.join(sides)}) at the pair's base points")
+    if stages:
+        sides, shape = (*sides, "f_stages"), ("a triple (f_minus, f_plus, f_stages) (with "
+                                              "internal stages)")
     if isinstance(value, (str, bytes)) or not isinstance(value, (list, tuple)) \
             or len(value) != len(sides):
         raise ShapeError(f"{name}: the forces must return {shape}, each a list of "
@@ -199,13 +233,19 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     parts = []
     for side, part in zip(sides, value):
         components = as_scalar_list(name, f"forces ({side})", part)
-        if len(components) != groupoid.rank:
+        if side == "f_stages":
+            if len(components) != len(stages):
+                raise ShapeError(f"{name}: the forces' f_stages has {len(components)} "
+                                 f"components; one per internal stage ({len(stages)})")
+        elif len(components) != groupoid.rank:
             raise ShapeError(f"{name}: the forces' {side} has {len(components)} components; "
                              f"the algebroid of {groupoid.name} has rank {groupoid.rank} (one "
                              f"per basis section, in the order of the step's residuals)")
         parts.append(components)
     check_symbols(name, what, [f for part in parts for f in part],
-                  [c for a in arrows for c in a], [*parameters, *inputs])
+                  [c for a in arrows for c in a] + list(stages), [*parameters, *inputs])
+    if stages:
+        return ForceFunctions(arrows, list(inputs), parts[:-1], stages, parts[-1])
     return ForceFunctions(arrows, list(inputs), parts)
 
 

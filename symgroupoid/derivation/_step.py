@@ -167,7 +167,8 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
     MatrixSymbols (for printing).  ``forces(g) -> (f_minus, f_plus)`` with ``inputs``: the
     discrete forces (:func:`~symgroupoid.derivation.force_functions`, docs/conventions.md
     §20).  ``stages``: the number of internal variables ζ of each arrow; L is then called
-    ``L(g, zeta)`` with ζ a list of symbols (docs/conventions.md §22).
+    ``L(g, zeta)`` with ζ a list of symbols, and the forces ``forces(g, zeta) -> (f_minus,
+    f_plus, f_stages)`` (docs/conventions.md §22).
     """
     slots = tuple(slot(groupoid, f"s{i}_", matrix_form) for i in range(arity))
     views = [groupoid.view(s) for s in slots]
@@ -193,7 +194,8 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
             f"coordinates per step on {groupoid.name}; more constraints than unknowns")
     fs = SystemFunctions(slots, L, phis, matrix_form, base, psis, stages=list(zeta))
     if forces is not None and not matrix_form:
-        fs.forces = force_functions(name, groupoid, forces, inputs, parameters, arity)
+        fs.forces = force_functions(name, groupoid, forces, inputs, parameters, arity,
+                                    stages=zeta)
     fs.constraints = phis + fs.at_base(groupoid.source(slots[0]))
     fs.rows = fs.rows_on(groupoid, slots)
     return fs

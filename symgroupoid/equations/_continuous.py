@@ -20,9 +20,12 @@ The members with internal stages are Galerkin discrete Lagrangians (:mod:`._gale
 docs/conventions.md §22): the discrete system has internal stages ζ, unknowns of every step
 and never part of the state.
 
-Continuous forces F(q, v, u) (a generalised force on a Euclidean space) give the discrete
-forces of the same rule (docs/conventions.md §20, :mod:`._forcing`): f⁻ = f⁺ = (h/2)·F(q̄, v)
-(midpoint), f⁻ = (h/2)·F(q₀, v), f⁺ = (h/2)·F(q₁, v) (trapezoid).
+Continuous forces F(q, v) (which may read the ``inputs``) give the discrete forces of the
+same scheme (docs/conventions.md §20, :mod:`._forcing`): f⁻ = f⁺ = (h/2)·F(q̄, v) (midpoint),
+f⁻ = (h/2)·F(q₀, v), f⁺ = (h/2)·F(q₁, v) (trapezoid), both on Euclidean factors; with
+internal stages the quadrature of the virtual work h Σ_i b_i F(q_i, v_i)·δq_i, on Euclidean
+and group factors (a body-frame torque paired with the nodes' body variations; the forced
+Galerkin scheme of docs/conventions.md §22).  An input is held over each arrow.
 """
 
 from __future__ import annotations
@@ -123,9 +126,10 @@ class ContinuousSystem:
     ``L(q, v)``: q a configuration (a point as a column matrix, a group element as its
     matrix, a tuple of them on a product), v a velocity (a column matrix; on a group the
     body velocity ξ in the basis of ``G.hat``; a tuple on a product).  ``forces=F(q, v)``
-    (a generalised force, one component per coordinate; on Euclidean spaces only, for now)
-    may use the ``inputs``.  ``holonomic``: passed on to the discrete system (a function of
-    its base point, docs/conventions.md §7).
+    (a generalised force, one component per coordinate; on a group factor a body-frame
+    torque, one component per direction of ``G.hat``'s basis, taken by the Galerkin schemes
+    with internal stages only) may use the ``inputs``.  ``holonomic``: passed on to the
+    discrete system (a function of its base point, docs/conventions.md §7).
     """
 
     def __init__(self, Q, L: Callable, parameters: Sequence[sp.Symbol] = (), *,
@@ -149,11 +153,6 @@ class ContinuousSystem:
             [parameters] if isinstance(parameters, sp.Symbol) else parameters, "parameters",
             owner=name)
         self.holonomic = holonomic
-        if forces is not None and any(f.is_group for f in self.factors):
-            raise UnsupportedFeatureError(
-                f"{name}: continuous forces on a Lie group factor are not supported yet; "
-                f"discretize without forces= and pass the discrete forces (sg.body_torque) "
-                f"to a DiscreteSystem written by hand")
         self.forces = forces
         self.inputs = sequence_argument([inputs] if isinstance(inputs, sp.Symbol) else inputs,
                                         "inputs", owner=name)
@@ -171,6 +170,13 @@ class ContinuousSystem:
         G, read = pair_groupoid_of(self.Q, self.factors, self.product)
         if not isinstance(rule, str):
             return self._galerkin(rule, h, G, read)
+        if self.forces is not None and any(f.is_group for f in self.factors):
+            raise UnsupportedFeatureError(
+                f"{self.name}: continuous forces on a Lie group factor are supported with the "
+                f"Galerkin schemes with internal stages (GaussLegendre(s), s ≥ 2, "
+                f"LobattoIIIAB(s), s ≥ 3; docs/conventions.md §22), not with the {rule} rule; "
+                f"choose one of those, or pass the discrete forces (sg.body_torque) to a "
+                f"DiscreteSystem written by hand")
 
         def pieces(g):
             pairs = read(g)
@@ -217,18 +223,20 @@ class ContinuousSystem:
         def L_d(g, zeta):
             return self._galerkin_action(tableau, h, G, read(g), list(zeta), n_psi)
 
+        forces = None
+        if self.forces is not None:
+            def forces(g, zeta):
+                return self._galerkin_forces(tableau, h, G, g, read(g), list(zeta))
+
         system = DiscreteSystem(G, L_d, parameters=self.parameters,
                                 name=f"{self.name}_{scheme.label}", holonomic=self.holonomic,
-                                time_step=h, stages=n_stage)
+                                time_step=h, stages=n_stage, forces=forces,
+                                inputs=self.inputs)
         system.continuous = Discretization(self, h, scheme.label, scheme)
         return system
 
     def _check_galerkin(self, scheme, G) -> None:
         label = f"{type(scheme).__name__}({scheme.stages})"
-        if self.forces is not None:
-            raise UnsupportedFeatureError(
-                f"{self.name}: continuous forces with {label} (internal stages) are not "
-                f"supported yet; the midpoint and trapezoid rules take forces")
         if any(f.is_group and f.space.retraction != "cayley" for f in self.factors):
             raise UnsupportedFeatureError(
                 f"{self.name}: {label} on a group needs the Cayley retraction (the closed "
@@ -252,10 +260,10 @@ class ContinuousSystem:
         return [sp.sympify(c) for c in (raw if isinstance(raw, (list, tuple, sp.MatrixBase))
                                         else [raw])]
 
-    def _galerkin_action(self, tableau: GalerkinTableau, h, G, pairs: list, zeta: list,
-                         n_psi: int) -> sp.Expr:
-        """h Σ_i b_i L(q(c_i h), q̇(c_i h)) + Σ_interior Λ_i·ψ(q(c_i h)) on the Galerkin
-        curve through the arrow's ends and the control values d_j Δ + ζ_j."""
+    def _galerkin_controls(self, tableau: GalerkinTableau, pairs: list, zeta: list
+                           ) -> list:
+        """The control values of the Galerkin curve, per factor: X₀ = 0, X_j = d_j Δ + ζ_j,
+        X_M = Δ (Δ the increment of the arrow, in the chart of its source)."""
         M, it = len(tableau.control) - 1, iter(zeta)
         controls = []
         for f, (a, b) in zip(self.factors, pairs):
@@ -264,21 +272,90 @@ class ContinuousSystem:
         for j in range(1, M):
             for f, X in zip(self.factors, controls):
                 X[j] = tableau.control[j] * X[-1] + sp.Matrix([next(it) for _ in range(f.dim)])
-        total, at_nodes = sp.S.Zero, []
-        for b_i, values, slopes in zip(tableau.weights, tableau.values, tableau.slopes):
-            q, v = [], []
+        return controls
+
+    def _galerkin_nodes(self, tableau: GalerkinTableau, h, pairs: list, controls: list):
+        """Per quadrature node i: the chart values x_i, configurations q(c_i h) and
+        velocities q̇(c_i h) (body velocities dτ_{x_i}(ẋ_i)/h on a group), per factor."""
+        for values, slopes in zip(tableau.values, tableau.slopes):
+            x, q, v = [], [], []
             for f, (a, _), X in zip(self.factors, pairs, controls):
-                x = sum((c * Xj for c, Xj in zip(values, X)), sp.zeros(f.dim, 1))
+                xi = sum((c * Xj for c, Xj in zip(values, X)), sp.zeros(f.dim, 1))
                 xdot = sum((c * Xj for c, Xj in zip(slopes, X)), sp.zeros(f.dim, 1)) / h
-                q.append(f.along(a, x))
-                v.append(f.chart_velocity(x, xdot))
+                x.append(xi)
+                q.append(f.along(a, xi))
+                v.append(f.chart_velocity(xi, xdot))
+            yield x, q, v
+
+    def _galerkin_action(self, tableau: GalerkinTableau, h, G, pairs: list, zeta: list,
+                         n_psi: int) -> sp.Expr:
+        """h Σ_i b_i L(q(c_i h), q̇(c_i h)) + Σ_interior Λ_i·ψ(q(c_i h)) on the Galerkin
+        curve through the arrow's ends and the control values d_j Δ + ζ_j."""
+        controls = self._galerkin_controls(tableau, pairs, zeta)
+        total, at_nodes = sp.S.Zero, []
+        for b_i, (_, q, v) in zip(tableau.weights,
+                                  self._galerkin_nodes(tableau, h, pairs, controls)):
             at_nodes.append(q)
             total += b_i * self._lagrangian_at(q, v)
         action = h * total
+        interior = iter(zeta[tableau.interior * sum(f.dim for f in self.factors):])
         for q in at_nodes[1:-1] if n_psi else []:  # Lobatto: the interior nodes
             psi = self._holonomic_at(G, [c for part in q for c in part])
-            action += sum((next(it) * c for c in psi), sp.S.Zero)
+            action += sum((next(interior) * c for c in psi), sp.S.Zero)
         return action
+
+    def _galerkin_forces(self, tableau: GalerkinTableau, h, G, g, pairs: list,
+                         zeta: list) -> tuple[list, list, list]:
+        """The discrete forces of the forced Galerkin scheme (docs/conventions.md §22): the
+        quadrature of the continuous virtual work, W = h Σ_i b_i F(q_i, v_i)·δq_i, varied
+        along the arrow's sections and the stages; (f⁻, f⁺, f_ζ): f⁺_b is the coefficient of
+        the variation X⃖_b (the target moves), f⁻_b that of −X⃗_b (the source moves), f_ζ that
+        of δζ (zero for the multipliers' stages).
+
+        With q_i = a + x_i (Euclidean) or a·τ(x_i) (group), x_i = Σ_j ℓ_j(c_i) X_j and
+        X_j = d_j Δ + ζ_j, the body variation is δq_i = Ad_{τ(x_i)⁻¹}η_a + dτ_{x_i}(δx_i)
+        (η_a = a⁻¹δa; on a Euclidean factor δa + δx_i), and δΔ = dτ_Δ⁻¹(η_b − Ad_{W⁻¹}η_a),
+        W = a⁻¹b = τ(Δ) (Euclidean: δb − δa).  So W = κ_a·η_a + κ_b·η_b + Σ_j σ_j·δζ_j with
+        the covectors σ_j = h Σ_i b_i ℓ_j(c_i) dτ_{x_i}ᵀF_i, κ_b = dτ_Δ⁻ᵀ Σ_j d_j σ_j and
+        κ_a = h Σ_i b_i Ad_{τ(x_i)⁻¹}ᵀF_i − Ad_{W⁻¹}ᵀκ_b, paired with η_a, η_b along each
+        section."""
+        controls = self._galerkin_controls(tableau, pairs, zeta)
+        M = len(tableau.control) - 1
+        sigma = [[sp.zeros(f.dim, 1) for _ in range(M + 1)] for f in self.factors]
+        source = [sp.zeros(f.dim, 1) for f in self.factors]
+        nodes = self._galerkin_nodes(tableau, h, pairs, controls)
+        for b_i, values, (x, q, v) in zip(tableau.weights, tableau.values, nodes):
+            F, at = self._force(self._values(q), self._values(v)), 0
+            for k, (f, xi) in enumerate(zip(self.factors, x)):
+                Fi = sp.Matrix(F[at:at + f.dim])
+                at += f.dim
+                mu = f.space.dtau(list(xi), "left").T * Fi if f.is_group else Fi
+                source[k] += h * b_i * (_adjoint_inverse(f.space, xi).T * Fi if f.is_group
+                                        else Fi)
+                for j in range(M + 1):
+                    sigma[k][j] += h * b_i * values[j] * mu
+        plus = [sp.S.Zero] * G.rank
+        minus = [sp.S.Zero] * G.rank
+        coords = tuple(g.coords)
+        for k, (f, (a, b), X) in enumerate(zip(self.factors, pairs, controls)):
+            P = sum((tableau.control[j] * sigma[k][j] for j in range(1, M + 1)),
+                    sp.zeros(f.dim, 1))
+            if f.is_group:
+                Gk = f.space
+                kappa_b = Gk.dtau_inverse(list(X[-1]), "left").T * P
+                W = Gk.matrix(Gk.inverse(Gk.entries(a))) * b
+                kappa_a = source[k] - _adjoint_inverse_of(Gk, W).T * kappa_b
+            else:
+                kappa_b, kappa_a = P, source[k] - P
+            for point, kappa in ((a, kappa_a), (b, kappa_b)):
+                left = _body_variations(f, point, coords, G.apply_left)
+                right = _body_variations(f, point, coords, G.apply_right)
+                for d in range(G.rank):
+                    plus[d] += sum((c * e for c, e in zip(kappa, left[d])), sp.S.Zero)
+                    minus[d] -= sum((c * e for c, e in zip(kappa, right[d])), sp.S.Zero)
+        staged = [c for j in range(1, M) for k in range(len(self.factors)) for c in sigma[k][j]]
+        staged += [sp.S.Zero] * (len(zeta) - len(staged))  # the multipliers' stages
+        return minus, plus, staged
 
     def _generic_lagrangian(self) -> tuple[sp.Expr, list, list]:
         """L on generic symbols, called (and checked) once: the expression, and per factor
@@ -385,6 +462,39 @@ def velocity_momentum_program(system: DiscreteSystem) -> Program:
                       outputs={"momentum": nodes})
     program.check_inputs()
     return program
+
+
+def _adjoint_inverse(G, x: sp.Matrix) -> sp.Matrix:
+    """Ad_{τ(x)⁻¹} on Lie-algebra coordinates: columns vee(τ(−x) E_c τ(x)) (τ(x)⁻¹ = τ(−x)
+    for the Cayley retraction)."""
+    forward, backward = G.tau(list(x)), G.tau([-c for c in x])
+    return sp.Matrix.hstack(*[G.vee(backward * E * forward) for E in G.basis_matrices()])
+
+
+def _adjoint_inverse_of(G, W: sp.Matrix) -> sp.Matrix:
+    """Ad_{W⁻¹} on Lie-algebra coordinates: columns vee(W⁻¹ E_c W)."""
+    inverse = G.matrix(G.inverse(G.entries(W)))
+    return sp.Matrix.hstack(*[G.vee(inverse * E * W) for E in G.basis_matrices()])
+
+
+def _body_variations(f, point, coords: tuple, apply) -> list:
+    """The variation of one end of the arrow along every section (``apply``: the groupoid's
+    apply_left or apply_right), per section: δp on a Euclidean factor, the body variation
+    p⁻¹δp on a group factor."""
+    if not f.is_group:
+        moved = [apply(e, coords) for e in point]
+        return [[row[d] for row in moved] for d in range(len(moved[0]))]
+    G = f.space
+    entries = G.entries(point)
+    moved = [apply(e, coords) for e in entries]
+    fixed = G.matrix([0] * len(entries))  # the entries a variation does not move
+    inverse = G.matrix(G.inverse(entries))
+    out = []
+    for d in range(len(moved[0])):
+        column = [row[d] for row in moved]
+        out.append(list(G.vee(inverse * (G.matrix(column) - fixed)))
+                   if any(c != 0 for c in column) else [sp.S.Zero] * G.rank)
+    return out
 
 
 def _step_symbol(system: ContinuousSystem, step) -> sp.Symbol:
