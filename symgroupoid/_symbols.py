@@ -65,6 +65,21 @@ def indexed_symbol(base_latex: str, offset: int, index: str) -> StepSymbol:
     return StepSymbol(f"({subscripted(base_latex, offset)})_{{{index}}}")
 
 
+class StageSymbol(StepSymbol):
+    """A value of the Galerkin curve of the arrow g_{k+offset} at a quadrature node, in the
+    papers' stage notation: the configuration Q_{k,i} or the velocity V_{k,i}
+    (docs/conventions.md §22); printed by name, like every step symbol."""
+
+
+def node_symbol(kind: str, offset: int, node: int, coordinate: str | None = None
+                ) -> StageSymbol:
+    """``Q_{k+offset,node}`` (``kind`` "Q") or ``V_{k+offset,node}`` of the arrow
+    g_{k+offset}; with several coordinates, component ``coordinate`` (its LaTeX):
+    ``(Q_{k,1})_{x}``."""
+    name = f"{kind}_{{{step_label(offset)},{node}}}"
+    return StageSymbol(name if coordinate is None else f"({name})_{{{coordinate}}}")
+
+
 def stage_symbols(count: int, offset: int) -> list[StepSymbol]:
     """Internal stages ``(\\zeta_{k+offset})_a``, a = 1..count, of the arrow g_{k+offset}
     (docs/conventions.md §22)."""

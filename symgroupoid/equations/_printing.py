@@ -47,6 +47,7 @@ from ._layout import PrintedRows
 from ._matrix_parts import NOT_IN_PIECES, junction_system
 from ._pieces import best_rule, pair_coordinates
 from ._rows import Printed, check_width, checked_form, collected_form, printed_form, printed_rows
+from ._stage_forms import stage_form
 
 #: the chosen verified form of each printed step, by its abbreviations (a step printed
 #: again — as LaTeX, as a document, in Jupyter — is not derived and checked again)
@@ -103,9 +104,16 @@ def chosen_form(step, abbreviations: Mapping | None = None,
     longer than SymPy's plain printing of the residuals (:func:`plain_length`); otherwise
     the shortest form of all.  Forms are collected first and checked
     (:func:`checked_form`) in that order until one passes (the explicit residuals always
-    do); the explicit forms are built only when no matrix form is chosen."""
+    do); the explicit forms are built only when no matrix form is chosen.  A Galerkin step
+    with internal stages prints in the papers' stage notation when that form holds
+    (:func:`~._stage_forms.stage_form`, docs/conventions.md §22)."""
     printer = printer or MemoLatexPrinter()
     explicit = step.residuals
+    staged = stage_form(step)  # a Galerkin step: the papers' stage notation, when it holds
+    if staged is not None and not abbreviations:
+        printed = printed_form(staged, step, printer, explicit)
+        if printed is not None:
+            return printed
     kept = [collected_form(form, step, printer)
             for form, _ in candidate_forms(step, abbreviations, matrix_form=True)]
     if kept:

@@ -1,0 +1,152 @@
+"""A Galerkin step printed in the papers' stage notation (docs/conventions.md §22).
+
+Marsden–West §2.6 and Hairer–Lubich–Wanner VI.6 write a Galerkin (variational partitioned
+Runge–Kutta) step through the values of the curve of each arrow at the quadrature nodes: for
+the arrow g_k = (q_{k−1}, q_k) the configurations Q_{k,i} = q(c_i h) and velocities
+V_{k,i} = q̇(c_i h), related by the stage equations
+
+    Q_{k,i} = q_{k−1} + h Σ_j a_ij V_{k,j},   a_ij = ∫₀^{c_i} ℓ̃_j(τ) dτ
+
+(ℓ̃_j the Lagrange basis on the nodes; exact, since V is a polynomial of degree M − 1 ≤ s − 1
+interpolated at the s nodes: the Gauss and the Lobatto IIIA coefficients).  With them the
+junction row of a Euclidean factor's coordinate is
+
+    h Σ_i b_i [∂L/∂q(Q_{k,i}, V_{k,i}) c_i + ∂L/∂v(Q_{k,i}, V_{k,i})/h + c_i F_{k,i}]
+      + h Σ_i b_i [∂L/∂q(Q_{k+1,i}, V_{k+1,i}) (1 − c_i) − ∂L/∂v(Q_{k+1,i}, V_{k+1,i})/h
+      + (1 − c_i) F_{k+1,i}] = 0,
+
+and the stage row of the internal stage ζ_j of an arrow h Σ_i b_i [∂L/∂q ℓ_j(c_i) +
+∂L/∂v ℓ_j′(c_i)/h + ℓ_j(c_i) F_i] = 0 (the chain rule through q(c_i h) = q_{k−1} +
+Σ_j ℓ_j(c_i) X_j, X_j = d_j Δ + ζ_j).  The velocities are given in the "where" list in the
+step's unknowns, V_{k,i} = (Δ + Σ_j ℓ_j′(c_i) ζ_j)/h, and the configurations by the stage
+equations; every printed row is checked against the step's residual, as every printed form
+is (:mod:`._printing`).
+
+This form is offered for Galerkin discretisations (with internal stages) on Euclidean
+factors without holonomic constraints; other steps print as before.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+from .._symbols import latex_name, node_symbol, stage_symbols
+from ..derivation import WindowAction, input_symbols
+from ._forms import Definition, Form
+from ._latex import Collected
+
+_tau = sp.Symbol("tau", real=True)
+
+
+def stage_form(step) -> Form | None:
+    """The step in the stage notation (see the module docstring), or None when it does not
+    apply."""
+    from ._continuous import GaussLegendre, LobattoIIIAB
+
+    system = getattr(step, "system", None)
+    origin = getattr(system, "continuous", None)
+    if origin is None or not isinstance(origin.scheme, (GaussLegendre, LobattoIIIAB)) \
+            or origin.scheme.rule is not None:
+        return None
+    continuous = origin.system
+    if continuous.holonomic is not None or any(f.is_group for f in continuous.factors):
+        return None
+    tableau, h = origin.scheme.tableau(), origin.step
+    fs = system.functions
+    action = WindowAction(step.groupoid, fs)
+    arrows = action.named_arrows()
+    from ..groupoids import pair_groupoid_of
+
+    _, read = pair_groupoid_of(continuous.Q, continuous.factors, continuous.product)
+    names = [latex_name(n) for f in continuous.factors for n in f.space.names]
+    junction = [sp.S.Zero] * len(names)
+    stage_rows, layer, definitions = [], {}, []
+    for s in action.starts:
+        pairs = read(step.groupoid.view(arrows[s]))
+        rows = _arrow_rows(continuous, tableau, h, s, pairs, names, layer, definitions)
+        towards, stages = rows
+        junction = [a + b for a, b in zip(junction, towards)]
+        stage_rows += stages
+    return Form(junction + stage_rows, [layer], definitions)
+
+
+def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer: dict,
+                definitions: list) -> tuple[list, list]:
+    """The arrow g_{k+s}'s part of the junction rows (its target moves for s = 0, its
+    source for s = 1) and its stage rows, in the node symbols; fills ``layer`` (the
+    symbols' values in the step's coordinates) and ``definitions`` (the "where" rows)."""
+    M = len(tableau.control) - 1
+    n = len(names)
+    zeta = iter(stage_symbols((M - 1) * n, s))
+    source = sp.Matrix([c for a, _ in pairs for c in a])
+    delta = sp.Matrix([c for a, b in pairs for c in (sp.Matrix(b) - sp.Matrix(a))])
+    interior = [sp.Matrix([next(zeta) for _ in range(n)]) for _ in range(1, M)]
+    a_matrix = _stage_coefficients(tableau.nodes)
+    Q = [[node_symbol("Q", s, i + 1, None if n == 1 else x) for x in names]
+         for i in range(len(tableau.nodes))]
+    V = [[node_symbol("V", s, i + 1, None if n == 1 else x) for x in names]
+         for i in range(len(tableau.nodes))]
+    towards = [sp.S.Zero] * n
+    stages = [[sp.S.Zero] * n for _ in range(M - 1)]
+    u = dict(zip(continuous.inputs, input_symbols(continuous.inputs, s)))
+    for i, (b_i, values, slopes) in enumerate(zip(tableau.weights, tableau.values,
+                                                  tableau.slopes)):
+        c_i = _exact(sum((v * d for v, d in zip(values, tableau.control)), sp.S.Zero))
+        q_value = source + c_i * delta + sum((v * z for v, z in zip(values[1:M], interior)),
+                                             sp.zeros(n, 1))
+        v_value = (_exact(sum((d * t for d, t in zip(slopes, tableau.control)), sp.S.Zero))
+                   * delta + sum((t * z for t, z in zip(slopes[1:M], interior)),
+                                 sp.zeros(n, 1))) / h
+        for r in range(n):
+            layer[Q[i][r]], layer[V[i][r]] = q_value[r], v_value[r]
+            definitions.append(Definition(V[i][r], v_value[r], frozenset({V[i][r]})))
+        L, F = _at_node(continuous, Q[i], V[i], u)
+        weight_q, weight_v = (c_i, 1 / h) if s == 0 else (1 - c_i, -1 / h)
+        for r in range(n):
+            dq, dv = sp.diff(L, Q[i][r]), sp.diff(L, V[i][r])
+            towards[r] += h * b_i * (weight_q * (dq + F[r]) + weight_v * dv)
+            for j in range(1, M):
+                stages[j - 1][r] += h * b_i * (values[j] * (dq + F[r]) + slopes[j] * dv / h)
+    for i, row in enumerate(a_matrix):  # the stage equations, after the velocities
+        for r in range(n):
+            terms = [a * V[j][r] for j, a in enumerate(row) if a != 0]
+            rhs = (sp.Add(source[r], Collected(h, sp.Add(*terms, evaluate=False)),
+                          evaluate=False) if terms else source[r])
+            definitions.append(Definition(Q[i][r], rhs, frozenset({Q[i][r]}),
+                                          as_written=True))
+    return towards, [e for row in stages for e in row]
+
+
+def _at_node(continuous, Q: list, V: list, u: dict) -> tuple[sp.Expr, list]:
+    """L and the force F at the node symbols (per factor, as L takes them), the inputs of
+    the arrow substituted."""
+    q, v, at = [], [], 0
+    for f in continuous.factors:
+        q.append(sp.Matrix(Q[at:at + f.dim]))
+        v.append(sp.Matrix(V[at:at + f.dim]))
+        at += f.dim
+    L = continuous._lagrangian_at(q, v)
+    if continuous.forces is None:
+        return L, [sp.S.Zero] * len(Q)
+    F = continuous._force(continuous._values(q), continuous._values(v))
+    return L, [e.xreplace(u) for e in F]
+
+
+def _stage_coefficients(nodes: tuple) -> list:
+    """a_ij = ∫₀^{c_i} ℓ̃_j(τ) dτ, ℓ̃_j the Lagrange basis on the nodes (the collocation
+    coefficients: Gauss, Lobatto IIIA)."""
+    basis = []
+    for j, cj in enumerate(nodes):
+        ell = sp.S.One
+        for m, cm in enumerate(nodes):
+            if m != j:
+                ell *= (_tau - cm) / (cj - cm)
+        basis.append(sp.expand(ell))
+    return [[_exact(sp.integrate(e, (_tau, 0, ci))) for e in basis] for ci in nodes]
+
+
+def _exact(value: sp.Expr) -> sp.Expr:
+    return value if value.has(sp.Float) else sp.radsimp(sp.expand(value))
+
+
+__all__ = ["stage_form"]

@@ -1,0 +1,72 @@
+"""A Galerkin step printed in the papers' stage notation (docs/conventions.md §22;
+Marsden–West §2.6, Hairer–Lubich–Wanner VI.6): the rows in the node values Q_{k,i}, V_{k,i}
+of each arrow's curve, the velocities in the step's unknowns and the stage equations
+Q_{k,i} = q_{k−1} + h Σ_j a_ij V_{k,j} in the "where" list, every row checked against the
+residuals; the document typesets whole with pdflatex (tests/test_latex_pdf.py's helper)."""
+
+import pytest
+import sympy as sp
+from test_latex_pdf import assert_typesets_whole, needs_tex
+
+import symgroupoid as sg
+from symgroupoid._symbols import StageSymbol
+from symgroupoid.equations._printing import chosen_printed
+from symgroupoid.equations._stage_forms import stage_form
+
+h, grav = sp.symbols("h g", positive=True)
+c, u = sp.Symbol("c", real=True), sp.Symbol("u", real=True)
+
+
+def _pendulum(**forcing) -> sg.ContinuousSystem:
+    return sg.ContinuousSystem(sg.EuclideanSpace("theta"),
+                               lambda q, v: v[0] ** 2 / 2 + grav * sp.cos(q[0]),
+                               parameters=[h, grav, *([c] if forcing else [])],
+                               name="pendulum", **forcing)
+
+
+def test_lobatto_prints_the_stage_notation():
+    """Lobatto IIIA–IIIB (3): the interior node is the internal stage; the rows read
+    sin(Q_{k,2}) and the stage equation Q_{k,2} = θ_{k−1} + h(5V_{k,1}/24 + V_{k,2}/3 −
+    V_{k,3}/24) (the Lobatto IIIA coefficients)."""
+    step = _pendulum().discretize(h, sg.LobattoIIIAB(3)).euler_lagrange()
+    text = step.latex()
+    assert text.count("0 &=") == 3
+    assert r"\sin(Q_{k,2})" in text and r"\sin(Q_{k+1,2})" in text
+    assert r"Q_{k,2} &= \theta_{k-1} + h \left(\frac{5 V_{k,1}}{24} + \frac{V_{k,2}}{3} - " \
+           r"\frac{V_{k,3}}{24}\right)" in text
+    assert r"V_{k,1} &= \frac{4 (\zeta_{k})_{1} - \theta_{k-1} + \theta_{k}}{h}" in text
+    printed = chosen_printed(step)
+    assert any(isinstance(s, StageSymbol) for d in printed.definitions for s in {d.lhs})
+
+
+def test_gauss_with_forces_prints_the_stage_notation():
+    """GaussLegendre(2) of a damped, driven pendulum: the Gauss coefficients a_ij
+    (1/4, 1/4 ∓ √3/6), and the force at the nodes, c·V_{k,i} and the inputs u_k, u_{k+1}."""
+    step = _pendulum(forces=lambda q, v: [-c * v[0] + u], inputs=[u]).discretize(
+        h, sg.GaussLegendre(2)).euler_lagrange()
+    text = step.latex()
+    assert text.count("0 &=") == 3
+    assert r"\left(\frac{1}{4} - \frac{\sqrt{3}}{6}\right) V_{k,2}" in text
+    assert "Q_{k,1} &= \\theta_{k-1} + h" in text and "Q_{k+1,2}" in text
+    assert "u_{k+1}" in text and "c" in text
+    form = stage_form(step)
+    assert len(form.equations) == len(step) and form.layers
+
+
+def test_steps_outside_the_stage_notation_print_as_before():
+    """The rules without stages, a group factor and holonomic constraints have no stage
+    form; their LaTeX is unchanged."""
+    assert stage_form(_pendulum().discretize(h, "midpoint").euler_lagrange()) is None
+    cartesian = sg.ContinuousSystem(
+        sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - grav * q[1],
+        parameters=[h, grav], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1], name="cart")
+    assert stage_form(cartesian.discretize(h, sg.LobattoIIIAB(3)).euler_lagrange()) is None
+
+
+@needs_tex
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(3)])
+def test_the_stage_notation_typesets_whole(scheme, tmp_path):
+    step = _pendulum(forces=lambda q, v: [-c * v[0] + u], inputs=[u]).discretize(
+        h, scheme).euler_lagrange()
+    document = assert_typesets_whole(step, tmp_path)
+    assert "Q_{k,2} &= " in document and "V_{k+1,2}" in document
