@@ -156,6 +156,40 @@ def test_the_inputs_are_held_over_each_arrow():
     assert abs(_order(steps, errors) - 4) < 0.1, errors
 
 
+# --- from a velocity: the forced discrete Legendre transform ---------------------------------
+
+@pytest.mark.parametrize("scheme, order", [("midpoint", 2), (sg.GaussLegendre(2), 4),
+                                           (sg.LobattoIIIAB(3), 4)])
+def test_the_order_from_a_velocity_is_the_schemes(scheme, order):
+    """convergence_order starts from (q₀, v₀) through from_velocity: with the forced
+    discrete Legendre transform F⁻L − f⁻ = p₀ the observed order is the scheme's (without
+    f⁻ it was 1.0 for every scheme: the start O(h) away)."""
+    exact = _duffing_solution(lambda t: 0.0, 1.0)
+    report = sg.convergence_order(_duffing(inputs=False), scheme, ({"q": 0.5}, [0.3]),
+                                  {"c": C}, 1.0, [10, 20, 40], reference=[exact(1.0)[0]],
+                                  backend="numpy")
+    assert abs(report.order - order) < 0.1, report
+
+
+def test_from_velocity_reads_the_inputs_of_the_first_arrow():
+    """The inputs u₁ of g₁ enter f⁻(g₁) and the forced stage rows of the start."""
+    sim = _duffing().discretize(h, sg.GaussLegendre(2)).euler_lagrange().compile(
+        backend="numpy")
+    exact = _duffing_solution(lambda t: U, 2.0)
+    errors, steps = [], [10, 20, 40]
+    for n in steps:
+        params = {"h": 2.0 / n, "c": C}
+        start = sim.from_velocity({"q": 0.5}, [0.3], params, inputs=[U])
+        traj = sim.simulate(start, n - 1, params, inputs=np.full((n - 1, 1), U))
+        errors.append(abs(traj.states[-1][1] - exact(2.0)[0]))
+    assert abs(_order(steps, errors) - 4) < 0.1, errors
+    # from_momentum keeps its meaning, F⁻L(g₁) = p₀: another first arrow
+    params = {"h": 0.1, "c": C}
+    forced = sim.from_velocity({"q": 0.5}, [0.3], params, inputs=[U])
+    plain = sim.from_momentum({"q": 0.5}, [0.3], params, inputs=[U])
+    assert abs(forced[1] - plain[1]) > 1e-4
+
+
 # --- the forced Noether balance ----------------------------------------------------------------
 
 @pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(3)])

@@ -46,7 +46,7 @@ def _numeric(value, label: str, owner: str) -> np.ndarray:
 class MomentumInitializer:
     """Solves F⁻L(g₁, λ₁) = p₀, φ(g₁) = 0 for a first-order step's initial state."""
 
-    def __init__(self, step, layout: StateLayout):
+    def __init__(self, step, layout: StateLayout, forced: bool = False):
         system = step.system
         if system is None or not hasattr(system, "legendre"):
             raise TypeError(f"{step.name}: starting from a momentum needs the DiscreteSystem "
@@ -55,18 +55,21 @@ class MomentumInitializer:
             raise UnsupportedFeatureError(f"{step.name}: momentum initial data are implemented for "
                                       f"first-order systems; give consecutive configurations")
         self.name, self.layout = step.name, layout
-        mp = momentum_program(step)
+        mp = momentum_program(step, forced)
+        self.forced = "u" in mp.program.inputs
         position = {s: i for i, s in enumerate(step.knowns)}
         missing = [s for s in (*mp.arrow, *mp.multipliers) if s not in position]
         if missing:
             raise RuntimeError(f"{step.name}: Legendre transform symbols {missing} are not "
                                f"in the step's known state")
         self.rank, self.m, self.n_stages = mp.rank, mp.m, mp.n_stages
+        self._inputs_symbols = list(mp.program.inputs.get("u", []))
         self.source_pos = np.array([position[s] for s in mp.source], dtype=np.int64)
         self.arrow_pos = np.array([position[s] for s in mp.arrow], dtype=np.int64)
         self.lam_pos = np.array([position[s] for s in mp.multipliers], dtype=np.int64)
         program = mp.program
-        self._FJ = program.numpy_function(["F", "J"], ["z", "q", "p", "params"])
+        self._FJ = program.numpy_function(
+            ["F", "J"], ["z", "q", "p", "params", *(["u"] if self.forced else [])])
         self._arrow = program.numpy_function(["arrow"], ["z", "q"])
         self._guess = program.numpy_function(["guess"], ["q"])
         self._configuration = self._configuration_parts()
@@ -110,8 +113,11 @@ class MomentumInitializer:
         return values
 
     def solve(self, configuration, momentum: Sequence, params: np.ndarray,
-              tol: float = 1e-14, max_iterations: int = 50) -> np.ndarray:
-        """The flat initial state (g₁, λ₁) for base point ``configuration`` and ``momentum``."""
+              tol: float = 1e-14, max_iterations: int = 50,
+              inputs: np.ndarray | None = None) -> np.ndarray:
+        """The flat initial state (g₁, λ₁) for base point ``configuration`` and ``momentum``
+        (a forced initializer: the forced momentum, with the ``inputs`` of g₁, zero when
+        None)."""
         q = self._source_values(configuration)
         p = _numeric(momentum, "the momentum", self.name).ravel()
         if p.size != self.rank:
@@ -124,8 +130,13 @@ class MomentumInitializer:
                             np.zeros(self.n_stages + self.m)])
         n = len(z)
 
+        extra = ()
+        if self.forced:
+            m = len(self._inputs_symbols)
+            extra = (np.zeros(m) if inputs is None else np.asarray(inputs, float).ravel(),)
+
         def residual(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            F, J = self._FJ(z, q, p, params)
+            F, J = self._FJ(z, q, p, params, *extra)
             return np.asarray(F, float).ravel(), np.asarray(J, float).reshape(n, n)
 
         z = newton(residual, z, tol, max_iterations, self.name, _SOLVING,

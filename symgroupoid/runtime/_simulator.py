@@ -62,6 +62,7 @@ class Simulator:
         self.layout = StateLayout(step)
         self.parameter_names = [str(s) for s in step.parameters]
         self._momentum = None
+        self._forced_momentum = None
 
     @property
     def backend(self) -> str:
@@ -478,9 +479,19 @@ class Simulator:
         (docs/conventions.md §20).  The momentum is F⁻L, which the forces do not enter,
         so they do not change g_1 and λ_1.
         """
+        return self._from_momentum(configuration, momentum, params, inputs, forced=False)
+
+    def _from_momentum(self, configuration, momentum: Sequence, params, inputs,
+                       forced: bool) -> np.ndarray:
+        """:meth:`from_momentum`; ``forced``: through the forced discrete Legendre transform
+        F⁻L − f⁻ (first order; :meth:`from_velocity`)."""
         p = self.parameters(params)
         u = step_inputs(self.layout, inputs, owner=self.name)
-        state = self._momentum_initializer().solve(configuration, momentum, p)
+        initializer = (self._forced_momentum_initializer() if forced
+                       else self._momentum_initializer())
+        state = (initializer.solve(configuration, momentum, p, inputs=u)
+                 if getattr(initializer, "forced", False)
+                 else initializer.solve(configuration, momentum, p))
         if u is not None:  # the state's own inputs, and the slot of the next term's
             state = np.concatenate([state, np.zeros(self.layout.n_known - len(state))])
             for name, value in zip(self.layout.input_names, u):
@@ -507,6 +518,19 @@ class Simulator:
             self._momentum = kind(self.equations, self.layout)
         return self._momentum
 
+    def _forced_momentum_initializer(self):
+        """The solver of the forced discrete Legendre transform (made on first use): that
+        of :meth:`from_momentum` for systems without forces or of second order."""
+        forces = getattr(getattr(self.equations, "system", None), "functions", None)
+        if self.equations.order == 2 or forces is None or forces.forces is None:
+            return self._momentum_initializer()
+        if getattr(self, "_forced_momentum", None) is None:
+            from ._momentum import MomentumInitializer
+
+            self._forced_momentum = MomentumInitializer(self.equations, self.layout,
+                                                        forced=True)
+        return self._forced_momentum
+
     def from_velocity(self, configuration, velocity: Sequence, params, *, inputs=None
                       ) -> np.ndarray:
         """The initial state from a configuration q₀ and a velocity v₀ (on a group the body
@@ -514,7 +538,10 @@ class Simulator:
         discretised from a :class:`~symgroupoid.ContinuousSystem`: the continuous Legendre
         transform p₀ = ∂L/∂v(q₀, v₀) (the step's ``velocity_momentum`` program), then
         :meth:`from_momentum` (the discrete one), so that the discrete trajectory is the
-        integrator's from the initial data (q₀, p₀) (docs/conventions.md §21).
+        integrator's from the initial data (q₀, p₀) (docs/conventions.md §21).  A forced
+        system starts through the forced discrete Legendre transform, F⁻L(g₁) − f⁻(g₁) = p₀
+        (Marsden–West eq. (3.2.4)), with its stages solving the forced stage rows: without
+        f⁻ the start is O(h) away and a run's order drops to 1.
         ``configuration`` as :meth:`from_momentum` takes it, and ``inputs`` (the inputs of
         the first arrow of a system with inputs) too."""
         program = self.equations.velocity_momentum
@@ -527,8 +554,8 @@ class Simulator:
         v = real_vector(velocity, len(program.inputs["v"]), "velocity", owner=self.name,
                         finite=True)
         momentum = program.numpy_function(["momentum"], ["q", "v", "p"])(q, v, p)[0]
-        return self.from_momentum(configuration, np.asarray(momentum, float).ravel(), params,
-                                  inputs=inputs)
+        return self._from_momentum(configuration, np.asarray(momentum, float).ravel(), params,
+                                   inputs, forced=True)
 
     def project_initial(self, initial, params, *, max_iterations: int = 50) -> np.ndarray:
         """A consistent initial state from one that violates the constraints.

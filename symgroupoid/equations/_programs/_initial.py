@@ -68,12 +68,15 @@ class MomentumProgram:
     n_stages: int = 0  # internal stages ζ of g₁ among the unknowns z (after the chart)
 
 
-def momentum_program(step) -> MomentumProgram:
+def momentum_program(step, forced: bool = False) -> MomentumProgram:
     """The from-momentum program of a first-order step (see the module docstring), built on
     the expression graph: one term T = L + λ·φ on generic slots and its gradient (reverse
     mode, once), instantiated at the arrow g₁ = arrow_from(q, τ(x)) and contracted with the
     fields X⃗_b there (:meth:`WindowAction.derivation_nodes`, as the momenta of a state are);
-    no SymPy derivative of L is taken."""
+    no SymPy derivative of L is taken.  ``forced`` (a forced system): the forced discrete
+    Legendre transform X⃗[L](g₁) − f⁻(g₁) = p₀ (Marsden–West eq. (3.2.4); the junction row of
+    docs/conventions.md §20 read at g₁) and the forced stage rows ∂L/∂ζ + f_ζ (§22), with a
+    further input ``u``, the inputs of g₁."""
     system, G = step.system, step.groupoid
     fs = _functions(system)
     action = WindowAction(G, fs)
@@ -99,6 +102,13 @@ def momentum_program(step) -> MomentumProgram:
     stage_rows = (action.instantiate(g, term, term.stage_gradient, [arrow_nodes], lam_nodes,
                                      stages=stages[0]) if zeta else [])
     rows = action.instantiate(g, term, term.rows, [arrow_nodes], lam_nodes) if m else []
+    u: list = []
+    if forced and fs.forces is not None:
+        u = [sp.Dummy(f"u{a}", real=True) for a in range(len(fs.forces.inputs))]
+        symbols.update({s: g.input(s) for s in u})
+        f_minus, f_stages = _force_nodes(g, fs.forces, arrow_nodes, zeta, u, symbols, memo)
+        minus = [g.sub(mi, fi) for mi, fi in zip(minus, f_minus)]
+        stage_rows = [g.add(r, fz) for r, fz in zip(stage_rows, f_stages)]
     F = [g.sub(mi, symbols[pi]) for mi, pi in zip(minus, p)] + stage_rows + list(rows)
     J = step_jacobian(g, F, [symbols[s] for s in (*x, *zeta, *lam)])
     identity = G.identity(source)
@@ -106,10 +116,25 @@ def momentum_program(step) -> MomentumProgram:
                "arrow": arrow_nodes,
                "guess": _nodes(g, G.chart_of_fibre(G.fibre_of(identity), source), symbols,
                                f"{step.name}: the chart of the identity", memo)}
-    program = Program(g, {"z": x + zeta + lam, "q": list(source), "p": p, "params": params},
-                      outputs)
+    inputs = {"z": x + zeta + lam, "q": list(source), "p": p, "params": params}
+    if forced:
+        inputs["u"] = u
+    program = Program(g, inputs, outputs)
     return MomentumProgram(program, rank, m, list(source), list(arrow), lam,
                            n_stages=len(zeta))
+
+
+def _force_nodes(g: Graph, forces, arrow_nodes: list, zeta: list, u: list, symbols: dict,
+                 memo: dict) -> tuple[list[int], list[int]]:
+    """f⁻ and f_ζ of the arrow whose coordinates are ``arrow_nodes``, with stages ``zeta``
+    and inputs ``u`` (symbols with nodes in ``symbols``)."""
+    mapping = dict(symbols)
+    mapping.update(zip(forces.slot, arrow_nodes))
+    mapping.update({s: symbols[z] for s, z in zip(forces.stages, zeta)})
+    mapping.update({s: symbols[v] for s, v in zip(forces.inputs, u)})
+    minus = [from_sympy(g, e, mapping, "the forces (f⁻)", memo) for e in forces.minus]
+    staged = [from_sympy(g, e, mapping, "the stage forces", memo) for e in forces.stage_forces]
+    return minus, staged
 
 
 def second_order_momentum_program(step) -> MomentumProgram:
