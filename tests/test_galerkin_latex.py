@@ -63,6 +63,20 @@ def test_steps_outside_the_stage_notation_print_as_before():
     assert stage_form(cartesian.discretize(h, sg.LobattoIIIAB(3)).euler_lagrange()) is None
 
 
+def test_a_forced_step_outside_the_stage_notation_prints_as_derived():
+    """Lobatto with a holonomic constraint and a damping force: no stage form, and the
+    forced form (which names f± of the junction rows only, not f_ζ of the stage rows) is
+    not the step; it prints as derived (this raised LatexVerificationError)."""
+    cartesian = sg.ContinuousSystem(
+        sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - grav * q[1],
+        parameters=[h, grav, c], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1],
+        forces=lambda q, v: [-c * v[0], -c * v[1]], name="cart")
+    step = cartesian.discretize(h, sg.LobattoIIIAB(3)).euler_lagrange()
+    text = step.latex()
+    assert text.count("0 &=") == len(step) == 9
+    assert r"(\zeta_{k+1})_{3}" in text
+
+
 @needs_tex
 @pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(3)])
 def test_the_stage_notation_typesets_whole(scheme, tmp_path):

@@ -144,7 +144,10 @@ def candidate_forms(step, abbreviations: Mapping | None = None,
     base = base_form(step, matrix_form)
     if base is None:
         return []
-    forced = forced_form(step, matrix_form)  # a forced step: its forces named, always
+    # a forced step: its forces named, always (with internal stages the forces also enter
+    # the stage rows, which that form does not name: such a step prints as derived, or in
+    # the stage notation)
+    forced = None if step.stages else forced_form(step, matrix_form)
     forms: list = [(base if forced is None else forced, None)]
     for pieces, rule in _piece_forms(step, matrix_form):
         if _no_clash(pieces, step):
