@@ -225,7 +225,10 @@ class DiscreteSystem(_EvaluatedSystem):
         stationary value over ζ, L_d(g) = ext_ζ L(g, ζ) (the Galerkin discrete Lagrangians
         of Marsden–West §2.6; docs/conventions.md §22).  The step solves ζ_k and ζ_{k+1}
         with g_{k+1} (the rows ∂L/∂ζ = 0 of both arrows); they are never part of the state.
-        Its first guess for ζ is 0: write ζ as a deviation from a nearby value.
+        Its first guess for ζ is 0: write ζ as a deviation from a nearby value.  With
+        stages the forces are ``f(g, zeta) -> (f_minus, f_plus, f_stages)``: f_ζ, one
+        component per stage, is added to the stage rows (∂L/∂ζ + f_ζ = 0; the forced
+        Galerkin scheme of docs/conventions.md §22).
     """
 
     @collector_paused
