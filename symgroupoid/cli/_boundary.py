@@ -1,4 +1,5 @@
-"""``bvp``: a discrete two-point problem from a JSON file of boundary data."""
+"""``bvp``: a discrete two-point problem from a JSON file of boundary data (a forced
+system's inputs from ``--inputs``, one row per term of the action: docs/conventions.md §20)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import argparse
 from ..runtime import solve_boundary_value
 from ..verification import verify_stationary
 from ._common import derive, say
-from ._inputs import boundary_problem, parameters, parse_count
+from ._inputs import boundary_problem, parameters, parse_count, read_inputs
 from ._output import check_format, write_solution
 
 
@@ -17,10 +18,12 @@ def run_bvp(args: argparse.Namespace) -> int:
     max_iterations = parse_count(args.max_iterations, "max-iterations")
     derived = derive(args.system)
     params = parameters(derived.source, args.params, extra=problem["params"])
+    inputs = read_inputs(getattr(args, "inputs", None),
+                         [str(u) for u in getattr(derived.system, "inputs", ())])
     say(f"{derived.step.name}: derived in {derived.seconds:.2f} s")
     solution = solve_boundary_value(derived.step, problem["start"], problem["end"],
                                     problem["steps"], guess=problem["guess"], params=params,
-                                    max_iterations=max_iterations)
+                                    inputs=inputs, max_iterations=max_iterations)
     say(f"{derived.step.name}: {solution.steps} steps, converged in {solution.iterations} "
         f"iterations ({solution.method}) to |F|∞ = {solution.residual_norm:.1e} "
         f"({solution.seconds:.2f} s)")

@@ -150,6 +150,10 @@ def build_parser() -> argparse.ArgumentParser:
                      help="check the solution against the discrete action (verify_stationary)")
     bvp.add_argument("-o", "--output", metavar="SOLUTION.npz|SOLUTION.csv", type=path_text,
                      help="write the arrows, multipliers and named parts")
+    bvp.add_argument("--inputs", metavar="U.npy|U.csv", type=path_text,
+                     help="a forced system's inputs: one row per term of the action (first "
+                          "order: row k the inputs of the arrow g_k, k = 0 … N-1), one column "
+                          "per input")
 
     verify = _command(commands, "verify", run_verify,
                       "check Jacobian, kernel, variational principle and Noether quantities",

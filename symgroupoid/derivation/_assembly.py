@@ -299,7 +299,8 @@ class WindowAction:
         if inputs is None:
             raise UnsupportedFeatureError(
                 "this evaluation of the junction has no inputs for the forces of a forced "
-                "system (boundary-value problems of forced systems are not supported yet)")
+                "system: it needs the inputs of every term of the window (an empty list for "
+                "forces without inputs)")
         if forces.stages and stages is None:
             raise UnsupportedFeatureError(
                 "this evaluation needs the internal stages of a forced discrete Lagrangian "

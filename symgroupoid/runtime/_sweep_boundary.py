@@ -92,6 +92,7 @@ class BoundaryValueTask:
     reduce_failures: bool
     continuation: bool
     batch_runs: int = 1 << 62
+    inputs: list | None = None  # a forced system's input table per run (None: no inputs)
 
     def simulate(self, job: BoundaryValueJob, stop=None) -> list:
         """Solve the runs of the job's chains; within a chain with continuation, each
@@ -114,16 +115,17 @@ class BoundaryValueTask:
     def _solve(self, r: int, start, end, p, previous):
         from ._bvp import solve_boundary_value
 
+        inputs = None if self.inputs is None else self.inputs[r]
         if self.continuation and previous is not None:
             try:
                 return solve_boundary_value(self.system, start, end, self.steps,
-                                            guess=previous, params=p,
+                                            guess=previous, params=p, inputs=inputs,
                                             **self.solver_options), None
             except SymgroupoidError:
                 pass
         try:
             return solve_boundary_value(self.system, start, end, self.steps, guess=self.guess,
-                                        params=p, **self.solver_options), None
+                                        params=p, inputs=inputs, **self.solver_options), None
         except (SingularJacobianError, NewtonDivergenceError, CutLocusError) as exc:
             return None, exc
         except SymgroupoidError as exc:
@@ -173,7 +175,8 @@ def _sequence(value, what: str, owner: str) -> list:
 
 
 def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
-                         combine: str = "zip", guess=None, continuation: bool = False,
+                         combine: str = "zip", guess=None, inputs=None,
+                         continuation: bool = False,
                          reduce: Callable | None = None, reduce_failures: bool = False,
                          client=None, workers: int | None = None,
                          chunk_size: int | None = None, progress=None,
@@ -190,7 +193,10 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     ``continuation=True``: runs along the last axis form a chain solved in order in one
     task, each from the previous converged solution of the chain (its arrows and
     multipliers) — a continuation along a parameter — and, if that fails, from the default
-    initial path (or ``guess``).  Chains run in parallel.  ``solver_options`` (``tol``,
+    initial path (or ``guess``).  Chains run in parallel.  ``inputs`` (a forced system,
+    docs/conventions.md §20): one input table for every run, as :func:`solve_boundary_value`
+    takes it, or an array (runs, terms, m), one table per run in the order of the runs
+    (row-major over ``shape``); all are checked before any solve.  ``solver_options`` (``tol``,
     ``tol_step``, ``max_iterations``) are passed on.  ``executor``, ``workers``,
     ``client``, ``chunk_size`` (chains per task), ``timeout`` and ``progress`` as for
     :func:`sweep` (on threads a solve runs to its end: ``timeout`` and Ctrl-C take effect
@@ -219,6 +225,7 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     P, one_param = parameter_table(_ParameterOwner(system), params)
     shape, runs = _boundary_value_runs(combine, starts, ends, P, one_param, owner)
     total = len(runs)
+    tables = _run_inputs(system, inputs, steps, total, owner)
     items = [(r, starts[i], ends[j], P[k]) for r, (i, j, k) in enumerate(runs)]
     if continuation:
         length = shape[-1]
@@ -231,7 +238,7 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
     per_task = chunk_size or max(1, math.ceil(len(chains) / (TASKS_PER_WORKER * n_workers)))
     jobs = [BoundaryValueJob(chains[a:a + per_task]) for a in range(0, len(chains), per_task)]
     task = BoundaryValueTask(system, steps, dict(solver_options), guess, reduce,
-                             reduce_failures, continuation)
+                             reduce_failures, continuation, inputs=tables)
     collected = Collected(owner, shape, total, Progress(total, progress,
                                                        f"boundary values {owner}"))
     solutions = np.empty(total, dtype=object) if reduce is None else None
@@ -279,3 +286,16 @@ def _boundary_value_runs(combine: str, starts: list, ends: list, P: np.ndarray,
                          f"{counts[2]}")
     return (n,), [(r if len(starts) > 1 else 0, r if len(ends) > 1 else 0,
                    r if len(P) > 1 else 0) for r in range(n)]
+
+
+def _run_inputs(system, inputs, steps: int, total: int, owner: str) -> list | None:
+    """The checked input table of every run (:func:`~._bvp._inputs.run_inputs`), None for a
+    system without inputs given none."""
+    from ._bvp._inputs import input_names, run_inputs
+
+    if inputs is None and not input_names(system):
+        return None
+    arity = len(system._fs.slots)
+    if steps < 2 * arity:  # the solves refuse it, each naming the count
+        return None
+    return run_inputs(system, inputs, steps - arity + 1, total, owner=owner)

@@ -8,8 +8,11 @@ derivatives of a window's residuals along the section fields on each of its arro
 come from the window action of :class:`~symgroupoid.derivation.WindowAction` — the same
 junction variation as a step's — on the expression graph:
 
-- the *junction* program: for one window (arrows A_o, multipliers λ_s), the junction residual
-  r_b = X⃖_b[S](A_0) − X⃗_b[S](A_1) (docs/conventions.md §2), then for each slot o the blocks
+- the *junction* program: for one window (arrows A_o, multipliers λ_s, and for a forced
+  system the inputs u_s of each term), the junction residual
+  r_b = X⃖_b[S](A_0) − X⃗_b[S](A_1) (docs/conventions.md §2) — with the forces of the
+  window's terms at the junction node, f⁺_b(A_0) + f⁻_b(A_1) for a forced system of first
+  order (the discrete Lagrange–d'Alembert principle, §20) —, then for each slot o the blocks
   X⃖_c[r_b] and X⃗_c[r_b] on A_o, then ∂r/∂λ_s, then the running-error bound of each r_b
   (:func:`symgroupoid.ir.rounding_error`, the coordinates and multipliers counted as rounded
   values);
@@ -44,11 +47,14 @@ class WindowPrograms:
     the shape of their outputs.
 
     ``junction``: input ``a`` = the window's arrow coordinates (offset by offset), its
-    multipliers (term by term), the parameters; output ``junction`` = [r (rank), per offset o:
+    multipliers (term by term), the inputs of a forced system (term by term: ``n_inputs``
+    values u_s of the term starting at offset s, docs/conventions.md §20), the parameters;
+    output ``junction`` = [r (rank), per offset o:
     (rank × 2 × rank) blocks X⃖_c[r_b], X⃗_c[r_b] (row b, side, section c), per start s:
     ∂r_b/∂λ_s (rank × m), rounding bounds (rank)].  ``term`` (None without constraints):
     input ``a`` = the arrows of one term, the parameters; output ``term`` = [φ (m), per slot o:
-    (m × 2 × rank) blocks, rounding bounds (m)].
+    (m × 2 × rank) blocks, rounding bounds (m)].  ``forced``: the junction residual carries
+    the forces (``n_inputs`` may be 0: forces without inputs, such as damping).
     """
 
     name: str
@@ -61,6 +67,8 @@ class WindowPrograms:
     parameters: list
     junction: Program
     term: Program | None
+    forced: bool = False
+    n_inputs: int = 0
 
 
 def window_programs(system) -> WindowPrograms:
@@ -75,9 +83,15 @@ def window_programs(system) -> WindowPrograms:
     lam = {s: [sp.Symbol(f"l{s + 2}_{a}", real=True) for a in range(m)] for s in starts}
     nodes = {x: g.input(x) for o in offsets for x in A[o]}
     nodes.update({x: g.input(x) for s in starts for x in lam[s]})
+    forced = fs.forces is not None
+    n_inputs = len(fs.forces.inputs) if forced else 0
+    U = {s: [sp.Symbol(f"u{s + 2}_{j}", real=True) for j in range(n_inputs)] for s in starts}
+    nodes.update({x: g.input(x) for s in starts for x in U[s]})
     pnodes = {p: g.input(p) for p in parameters}
     arrows = {o: [nodes[x] for x in A[o]] for o in offsets}
-    jn = action.junction_nodes(g, pnodes, arrows, {s: [nodes[x] for x in lam[s]] for s in starts})
+    inputs = {s: [nodes[x] for x in U[s]] for s in starts} if forced else None
+    jn = action.junction_nodes(g, pnodes, arrows, {s: [nodes[x] for x in lam[s]] for s in starts},
+                               inputs)
     fields = {o: (action.fields(g, "left", arrows[o], pnodes),
                   action.fields(g, "right", arrows[o], pnodes)) for o in offsets}
     res = jn.residuals
@@ -95,7 +109,9 @@ def window_programs(system) -> WindowPrograms:
     # the rounding bound of each junction residual, the coordinates and multipliers counted
     # as rounded values
     blocks += rounding_error(g, res, [nodes[x] for x in coords + lams])
-    junction = Program(g, {"a": coords + lams + parameters}, {"junction": blocks})
+    # the inputs are data of the problem, exact as given: not counted as rounded values
+    us = [x for s in starts for x in U[s]]
+    junction = Program(g, {"a": coords + lams + us + parameters}, {"junction": blocks})
     term = None
     if m:
         values = jn.constraints[0]
@@ -110,7 +126,7 @@ def window_programs(system) -> WindowPrograms:
         cblocks += rounding_error(g, values, [nodes[x] for x in ccoords])
         term = Program(g, {"a": ccoords + parameters}, {"term": cblocks})
     return WindowPrograms(system.name, r, m, fs.n_holonomic, arity, offsets, starts,
-                          parameters, junction, term)
+                          parameters, junction, term, forced, n_inputs)
 
 
 def cost_program(system) -> Program:

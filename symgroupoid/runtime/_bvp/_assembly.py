@@ -166,7 +166,8 @@ def _assemble(problem: _Problem, arrows, lam) -> _Assembled:
         windows = np.stack([arrows[J + o] for o in kernel.offsets], axis=1)
         lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
                 else np.zeros((len(J), len(kernel.starts), 0)))
-        out = kernel.junction_values(windows, lams, p)
+        inputs = np.stack([problem.inputs[J + s] for s in kernel.starts], axis=1)
+        out = kernel.junction_values(windows, lams, p, inputs)
         parts.append(out.ravel())
         bad = np.max(np.abs(out[:, :kernel.rank]), axis=1)
         worst_val, worst = bad.max(), int(J[np.argmax(bad)]) + 1

@@ -77,7 +77,9 @@ def _boundary(system, a: int, start, end) -> _Boundary:
 def _boundary_system(step_equations):
     """The system behind the first argument of :func:`solve_boundary_value` (a system, or
     its step equations), or an :class:`InputTypeError` naming what was given."""
-    system = getattr(step_equations, "system", step_equations)
+    # a system, its step equations, or a simulator of them (its ``equations``)
+    system = getattr(step_equations, "equations", step_equations)
+    system = getattr(system, "system", system)
     if not all(hasattr(system, a) for a in ("_fs", "groupoid", "name", "parameters")):
         raise InputTypeError(
             f"solve_boundary_value: the first argument must be a system (DiscreteSystem, "

@@ -14,6 +14,7 @@ import functools
 
 import numpy as np
 
+from ..._errors import ShapeError
 from ...equations import cost_program, structure_program, window_programs
 from ...ir import Program
 from .._options import environment_backend
@@ -55,27 +56,38 @@ class WindowKernel:
         self.rank, self.m, self.held = programs.rank, programs.m, programs.held
         self.arity, self.offsets, self.starts = programs.arity, programs.offsets, programs.starts
         self.parameters = programs.parameters
+        self.forced, self.n_inputs = programs.forced, programs.n_inputs
         self._junction = _vectorised(f"{system.name}_junction", programs.junction, "a",
                                      "junction")
         self._term = None
         if programs.term is not None:
             self._term = _vectorised(f"{system.name}_term", programs.term, "a", "term")
 
-    def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
-        """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m)."""
-        return self.junction_terms(windows, lams, params)[:4]
+    def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray,
+                 inputs: np.ndarray | None = None):
+        """All junction blocks for W windows: windows (W, slots, arrow_dim), lams (W, starts, m),
+        inputs (W, starts, n_inputs) for a system with inputs (docs/conventions.md §20)."""
+        return self.junction_terms(windows, lams, params, inputs)[:4]
 
-    def junction_terms(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray):
+    def junction_terms(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray,
+                       inputs: np.ndarray | None = None):
         """:meth:`junction`'s blocks and the rounding bound E of each residual (W, rank): its
         rounding error is at most about ε·E (:func:`symgroupoid.ir.rounding_error`)."""
-        return self.split_junction(self.junction_values(windows, lams, params))
+        return self.split_junction(self.junction_values(windows, lams, params, inputs))
 
-    def junction_values(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray
-                        ) -> np.ndarray:
+    def junction_values(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray,
+                        inputs: np.ndarray | None = None) -> np.ndarray:
         """The junction program's outputs for W windows, one row each (see
-        :meth:`split_junction`)."""
+        :meth:`split_junction`); ``inputs`` (W, starts, n_inputs): the inputs of each term of
+        each window (None: none, for a system without inputs)."""
         W = len(windows)
-        vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1),
+        if inputs is None:
+            inputs = np.zeros((W, len(self.starts), 0))
+        if inputs.shape != (W, len(self.starts), self.n_inputs):
+            raise ShapeError(f"{self.groupoid.name}: the window program takes the inputs of "
+                             f"{len(self.starts)} terms of {self.n_inputs} values per window; "
+                             f"got shape {inputs.shape} for {W} windows")
+        vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1), inputs.reshape(W, -1),
                           np.broadcast_to(params, (W, len(params)))])
         return self._junction(vals)  # (W, total)
 

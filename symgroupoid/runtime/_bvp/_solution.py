@@ -31,6 +31,12 @@ class BoundaryValueSolution:
     space of the constraints (see :func:`_reduced_inertia`), or None when it is singular to
     rounding; ``is_local_minimum``; ``method`` — the iterations used.
 
+    A forced system (docs/conventions.md §20): ``inputs`` — the inputs of every term the
+    solve used (None without inputs); ``forced`` — True, and then there is no second-order
+    condition (``inertia`` and ``is_local_minimum`` are None): the solution is a critical
+    point of the Lagrange–d'Alembert principle, not of the action, and ``cost`` is Σ_k L_d
+    along it, which it does not extremise.
+
     The configurations and the second-order condition are computed when first asked for
     (the inertia from the KKT matrix re-assembled at the solution, the same matrix the
     solve ended with), so a solve whose caller needs neither does not pay for them.
@@ -49,6 +55,8 @@ class BoundaryValueSolution:
     #: (the inertia,) once known, () until then (see :attr:`inertia`)
     second_order: tuple = ()
     method: str = "Newton"
+    inputs: np.ndarray | None = None
+    forced: bool = False
 
     @property
     def steps(self) -> int:
@@ -63,6 +71,8 @@ class BoundaryValueSolution:
     def inertia(self) -> Inertia | None:
         """(positive, negative, zero) eigenvalue counts of the reduced Hessian (see the class
         docstring), or None when it is singular to rounding."""
+        if self.forced:
+            return None
         if not self.second_order:
             p = np.array([self.parameters[str(q)] for q in self.system.parameters], float)
             self.second_order = (_inertia_at(self.system, self.arrows, self.multipliers, p),)
@@ -103,6 +113,9 @@ class BoundaryValueSolution:
     @property
     def kind(self) -> str:
         """What the second-order condition says, in words (see :attr:`is_local_minimum`)."""
+        if self.forced:
+            return ("no second-order condition (forced: a critical point of the "
+                    "Lagrange–d'Alembert principle, not of the action)")
         if self.inertia is None:
             return "undetermined (the reduced Hessian is singular to rounding)"
         k = self.inertia.negative

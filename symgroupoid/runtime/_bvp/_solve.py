@@ -13,13 +13,19 @@ import time
 
 import numpy as np
 
-from ..._errors import NewtonDivergenceError, ShapeError
+from ..._errors import (
+    NewtonDivergenceError,
+    ShapeError,
+    SingularJacobianError,
+    UnsupportedFeatureError,
+)
 from ..._progress import reported
 from .._validate import check_holonomic_nodes, integer_argument, parameter_vector, real_argument
 from ._fast import _fast_newton, _Handover, _restart_points
 from ._globalised import _globalised_after
 from ._guess import _boundary, _boundary_system, _check_cut_locus, _initial
 from ._inertia import _describe, _is_minimum, _reduced_inertia
+from ._inputs import input_table
 from ._kernels import _functions
 from ._solution import BoundaryValueSolution
 from ._state import _Problem, _SolverState
@@ -28,7 +34,7 @@ from ._state import _Problem, _SolverState
 @reported(lambda step_equations, *args, **kwargs:
           f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
-                         tol: float = 0.0, tol_step: float = 0.0,
+                         inputs=None, tol: float = 0.0, tol_step: float = 0.0,
                          max_iterations: int = 100,
                          minimum: bool = False) -> BoundaryValueSolution:
     """Solve a discrete two-point problem for the system behind ``step_equations``.
@@ -43,7 +49,18 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     Every input is checked before any solve, as :meth:`Simulator.simulate` checks its own
     (runtime/_validate.py): the counts, the parameters (by name, with their declared
     assumptions), the configurations (points: shape and finiteness; group parts: in the
-    group, det +1), the guess.
+    group, det +1), the guess, the inputs.
+
+    Forced systems (docs/conventions.md §20).  The equations are the junction residuals of
+    the discrete Lagrange–d'Alembert principle, X⃖_b[L](g_j) − X⃗_b[L](g_{j+1}) + f⁺_b(g_j)
+    + f⁻_b(g_{j+1}) (first order), with the constraints.  ``inputs``: the inputs of every
+    term of the action — (N, m) for first order, row k the input u_k of the arrow g_k,
+    k = 0 … N − 1, as at run time; (N − 1, m) for second order, row t the input of the pair
+    starting at g_t —, or (m,) for inputs held constant; none for a system without inputs
+    (unforced, or forces without inputs such as damping).  A forced system's solutions are
+    not critical points of the action, so there is no descent method on it: the solve is the
+    fast path alone (its failure raises), ``minimum=True`` is refused, and the solution has
+    no second-order condition.
 
     The iteration.  Structured Newton on the necessary conditions (junction residuals and
     constraints; block-banded Jacobian, solved in time linear in N), each update backtracked
@@ -93,6 +110,13 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     if not isinstance(minimum, (bool, np.bool_)):
         raise ShapeError(f"{owner}: minimum must be True or False, got {minimum!r}")
     p, named = parameter_vector(system.parameters, params, owner=owner)
+    table = input_table(system, inputs, steps - a + 1, owner=owner)
+    forced = _functions(system).forces is not None
+    if forced and minimum:
+        raise UnsupportedFeatureError(
+            f"{owner}: minimum=True asks for a local minimum of the action, but a forced "
+            f"system's solutions are critical points of the Lagrange–d'Alembert principle, "
+            f"not of the action (docs/conventions.md §20); leave minimum out")
     m = len(_functions(system).constraints)
     data = _boundary(system, a, start, end)
     check_holonomic_nodes(system, [data.total] if a == 1 else [data.first, data.last],
@@ -101,7 +125,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     arrows, lam = _initial(system, a, m, data, steps, guess)
     _check_cut_locus(system, arrows, "the initial path has" if guess is None
                      else "the guess has")
-    problem = _Problem.of(system, steps, p, tol, tol_step, max_iterations)
+    problem = _Problem.of(system, steps, p, tol, tol_step, max_iterations, table)
     t0 = time.perf_counter()
     state = _SolverState.at(problem, arrows, lam)
     if not state.assembled.finite():
@@ -117,7 +141,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
         system, state.arrows, state.lam, data.configurations[0], named, state.iterations,
         state.history[-1], state.history, time.perf_counter() - t0,
         cost=problem.cost(state.arrows, p), second_order=inertia,
-        method=" → ".join(state.methods))
+        method=" → ".join(state.methods), inputs=table if table.shape[1] else None,
+        forced=forced)
 
 
 def _solve(state: _SolverState, minimum: bool) -> tuple:
@@ -129,8 +154,12 @@ def _solve(state: _SolverState, minimum: bool) -> tuple:
     try:
         _fast_newton(state)
     except _Handover as why:
+        if state.problem.forced:
+            _no_globalisation(state, why)
         _globalised_after(state, _restart_points(state, initial, why.iterates), str(why))
         return (_reduced_inertia(state),)
+    if state.problem.forced:
+        return ()
     if not minimum:
         return ()
     inertia = _reduced_inertia(state)
@@ -143,3 +172,17 @@ def _solve(state: _SolverState, minimum: bool) -> tuple:
                                    f"reached a stationary point that is not one "
                                    f"({_describe(inertia)})", 0.0)
     return (inertia,)
+
+
+def _no_globalisation(state: _SolverState, why: _Handover) -> None:
+    """The end of a forced system's solve whose fast path gave up: the globalised iteration
+    descends the action, and a forced system's solutions are not critical points of it
+    (docs/conventions.md §20).  Raises the singular Jacobian that ended the fast path, or a
+    divergence error."""
+    if isinstance(why.__cause__, SingularJacobianError):
+        raise why.__cause__
+    raise state.divergence(
+        f"(Newton) {why}; a forced system has no action to descend (its solutions are "
+        f"critical points of the Lagrange–d'Alembert principle, docs/conventions.md §20), so "
+        f"there is no globalised iteration: give a guess closer to the solution (e.g. a "
+        f"simulated trajectory) or solve with more steps", state.excess())

@@ -26,7 +26,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..._errors import BoundaryValueDivergenceError, SingularJacobianError
+from ..._errors import BoundaryValueDivergenceError, ShapeError, SingularJacobianError
 from ..._progress import note as progress_note
 from ._assembly import (
     ROUNDING_FACTOR,
@@ -47,7 +47,9 @@ MAX_HALVINGS = 30
 @dataclass(frozen=True, eq=False)
 class _Problem:
     """What stays fixed during one solve: the kernels, the layout of N steps, the structure
-    maps, the parameter vector ``p`` and the options."""
+    maps, the parameter vector ``p``, the options, and a forced system's ``inputs``
+    (terms, n_inputs): row t the inputs of the term starting at g_t (docs/conventions.md
+    §20; (terms, 0) without inputs)."""
 
     owner: str
     kernel: WindowKernel
@@ -58,15 +60,29 @@ class _Problem:
     tol: float = 0.0
     tol_step: float = 0.0
     max_iterations: int = 0
+    inputs: np.ndarray | None = None
 
     @classmethod
     def of(cls, system, steps: int, p: np.ndarray, tol: float = 0.0, tol_step: float = 0.0,
-           max_iterations: int = 0) -> _Problem:
-        """The problem of ``steps`` steps of ``system`` (its kernels and maps cached)."""
+           max_iterations: int = 0, inputs: np.ndarray | None = None) -> _Problem:
+        """The problem of ``steps`` steps of ``system`` (its kernels and maps cached);
+        ``inputs``: the checked input table (:func:`~._inputs.input_table`), None for a
+        system without inputs."""
         kernel = window_kernel(system)
-        return cls(system.name, kernel, cost_kernel(system),
-                   _layout(steps, kernel.arity, kernel.rank, kernel.m), _maps(system.groupoid),
-                   p, tol, tol_step, max_iterations)
+        lay = _layout(steps, kernel.arity, kernel.rank, kernel.m)
+        if inputs is None:
+            inputs = np.zeros((len(lay.terms), kernel.n_inputs))
+            if kernel.n_inputs:
+                raise ShapeError(f"{system.name}: a problem of a system with inputs needs "
+                                 f"them (inputs=)")
+        return cls(system.name, kernel, cost_kernel(system), lay, _maps(system.groupoid),
+                   p, tol, tol_step, max_iterations, inputs)
+
+    @property
+    def forced(self) -> bool:
+        """Whether the system is forced: its solutions are critical points of the
+        Lagrange–d'Alembert principle, not of the action (docs/conventions.md §20)."""
+        return self.kernel.forced
 
     @property
     def r(self) -> int:
