@@ -29,6 +29,7 @@ import sympy as sp
 from _hostile import (
     PROFILES,
     H,
+    K,
     diagonal,
     judge,
     junk,
@@ -297,6 +298,120 @@ def test_sweep_boundary_value(name, run):
               lambda: sg.sweep_boundary_value(args["step"], args["starts"], args["ends"],
                                               args["steps"], **kwargs),
               names, owner=system.name, verify=verify)
+
+    prop()
+
+
+# --- forced systems: inputs (docs/conventions.md §20) -------------------------------------------
+
+C_DAMP, U_IN = sp.Symbol("c", positive=True), sp.Symbol("u", real=True)
+FORCED_PARAMS = {"h": 0.1, "k": 1.0, "c": 0.5}
+FORCED_STEPS = 6
+
+
+@functools.cache
+def driven_oscillator() -> sg.DiscreteSystem:
+    """The oscillator with the midpoint forces (h/2)·(−c·v + u): damping and a drive u."""
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return H * (((q1 - q0) / H) ** 2 / 2 - K * ((q0 + q1) / 2) ** 2 / 2)
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L,
+                             parameters=[H, K, C_DAMP],
+                             forces=sg.midpoint_forces(lambda q, v: [-C_DAMP * v[0] + U_IN], H),
+                             inputs=[U_IN], name="driven_oscillator")
+
+
+def forced_residuals(q: np.ndarray, u: np.ndarray, p: dict) -> tuple[np.ndarray, float]:
+    """The forced DEL of the driven oscillator written by hand (Marsden–West (3.2.3)),
+    D₂L(q_{j−1}, q_j) + D₁L(q_j, q_{j+1}) + f⁺(q_{j−1}, q_j) + f⁻(q_j, q_{j+1}), at every
+    interior node, and the size of its terms."""
+    h, k, c = p["h"], p["k"], p["c"]
+    d = np.diff(q) / h
+    force = h / 2 * (-c * d + u)
+    r = d[:-1] - d[1:] - h * k * (q[:-2] + 2 * q[1:-1] + q[2:]) / 4 + force[:-1] + force[1:]
+    size = max(1.0, float(np.abs(d).max()) * max(1.0, h * c),
+               h * k * float(np.abs(q).max()), h * float(np.abs(u).max(initial=0.0)))
+    return r, size
+
+
+def check_forced_solution(start, end, inputs, params):
+    def verify(solution):
+        assert isinstance(solution, sg.BoundaryValueSolution) and solution.forced
+        q = np.array(solution.configurations, float).ravel()
+        assert np.isfinite(q).all()
+        assert q[0] == pytest.approx(float(np.ravel(start)[0]), abs=1e-8)
+        assert q[-1] == pytest.approx(float(np.ravel(end)[0]), abs=1e-8)
+        u = np.broadcast_to(np.asarray(inputs, float).reshape(-1), (FORCED_STEPS,))
+        r, size = forced_residuals(q, u, params)
+        assert np.abs(r).max() <= 1e-10 * size, (r, size)
+    return verify
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_solve_boundary_value_of_a_forced_system(run):
+    """Hostile inputs (and the other arguments) of a forced system's solve: a clear error, or
+    a solution of the forced DEL written by hand."""
+    system = driven_oscillator()
+    valid = np.linspace(-1.0, 1.0, FORCED_STEPS)[:, None]
+
+    @profile(run, 12, 200)
+    @given(data=st.data())
+    def prop(data):
+        which = data.draw(st.sampled_from(["inputs", "inputs", "inputs", "start", "end",
+                                           "steps", "params", "minimum", "none"]))
+        args = {"start": 0.0, "end": 1.0, "steps": FORCED_STEPS}
+        kwargs = {"params": dict(FORCED_PARAMS), "inputs": valid, "max_iterations": 30}
+        names = [which]
+        if which == "inputs":
+            kwargs["inputs"] = data.draw(st.one_of(near(valid), near(valid[:, 0]), near([0.3]),
+                                                   junk(), st.none()))
+            names = ["inputs", "input", "u"]
+        elif which in ("start", "end"):
+            args[which] = data.draw(st.one_of(near(args[which]), junk()))
+            names = [which]
+        elif which == "steps":
+            args["steps"] = runnable(data.draw(counts), memory_checked=False)
+            names = ["steps", "inputs"]
+        elif which == "params":
+            kwargs["params"] = data.draw(st.fixed_dictionaries(
+                {k: st.one_of(scalars, st.floats(-1, 1)) for k in FORCED_PARAMS}))
+            names = ["params", "parameter", "parameters", *FORCED_PARAMS]
+        elif which == "minimum":
+            kwargs["minimum"] = data.draw(st.one_of(st.just(True), scalars))
+            names = ["minimum"]
+        judge("solve_boundary_value (forced)",
+              lambda: sg.solve_boundary_value(system, args["start"], args["end"],
+                                              args["steps"], **kwargs),
+              names, owner=system.name,
+              verify=check_forced_solution(args["start"], args["end"], kwargs["inputs"],
+                                           kwargs["params"]))
+
+    prop()
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_sweep_boundary_value_of_a_forced_system(run):
+    """Hostile inputs of a forced system's sweep (one table for all runs or one per run)."""
+    system = driven_oscillator()
+    valid = np.linspace(-1.0, 1.0, FORCED_STEPS)[:, None]
+
+    @profile(run, 6, 100)
+    @given(inputs=st.one_of(near(valid), near(np.stack([valid, valid])), junk(), st.none()))
+    def prop(inputs):
+        def verify(result):
+            assert isinstance(result, sg.SweepResult)
+            arr = np.asarray(inputs, float)
+            for r in range(2):
+                if result.status[r] == 0:
+                    table = arr[r] if arr.ndim == 3 else arr
+                    check_forced_solution(0.0, [1.0, 0.5][r], table,
+                                          FORCED_PARAMS)(result.solutions[r])
+
+        judge("sweep_boundary_value (forced)",
+              lambda: sg.sweep_boundary_value(system, [0.0], [1.0, 0.5], FORCED_STEPS,
+                                              FORCED_PARAMS, inputs=inputs, workers=1),
+              ["inputs", "input", "u"], owner=system.name, verify=verify)
 
     prop()
 

@@ -17,6 +17,12 @@ windows, without a compiler); the banded system is solved in time linear in N (L
 banded solver through SciPy when installed, a block-tridiagonal elimination in NumPy
 otherwise).
 
+A forced system (docs/conventions.md §20) adds f⁺(g_j) + f⁻(g_{j+1}) to every junction
+residual (the discrete Lagrange–d'Alembert principle), with the inputs of every term given
+(``inputs=``, checked in ``_inputs``) as named inputs of the window programs.  Its equations
+are not the critical points of the action, so its solve is the fast path alone, without the
+globalised iteration or the second-order condition below.
+
 The derivatives are exact but never expanded into expression trees: the window's junction
 residual is built on the expression graph from the window action the steps are derived from
 (:class:`symgroupoid.derivation.WindowAction`), and its slot derivatives by algorithmic
@@ -47,6 +53,7 @@ the assembled residual and Jacobian — and the run's counters), which the modul
 - ``_kernels``: the window and cost kernels over the programs, the numeric structure maps;
 - ``_layout``: where the unknowns δ_j, λ_t and the equations sit in the banded system;
 - ``_linear``: the banded and block-tridiagonal solves;
+- ``_inputs``: the input table of a forced system's problem, checked;
 - ``_guess``: boundary data, the geodesic initial path, the checks of a guess and of the
   cut locus;
 - ``_assembly``: F, its Jacobian (a gather through a fixed sparsity pattern), the rounding
