@@ -728,10 +728,12 @@ def test_a_driven_continuous_system_starts_from_a_velocity_with_its_inputs():
     assert state[-1] == 0.25 and np.isfinite(state).all()
 
 
-def test_reduction_refuses_a_forced_system():
-    """``reduce`` and ``check_system_morphism`` relate the Lagrangians and the constraints
+def test_reduction_never_drops_the_forces():
+    """``reduce`` and ``check_system_morphism`` related the Lagrangians and the constraints
     only: the reduced system of a forced one lost its forces and derived the unforced
-    equations, silently.  Both refuse a forced system now."""
+    equations, silently.  A forced system reduces with its reduced forces given (their
+    relation checked: tests/test_forced_reduction.py); without them, or against a system
+    without forces, it is refused."""
     from _lie_pairs import LieGroupPair
 
     rb = systems.rigid_body()
@@ -755,14 +757,14 @@ def test_reduction_refuses_a_forced_system():
                               section=lambda w: P.arrow_from(unit, w.coords))
     torque = sg.body_torque([u, 0, 0], hh)
     forced = sg.DiscreteSystem(P, L, parameters=rb.parameters, forces=torque, inputs=[u])
-    with pytest.raises(sg.UnsupportedFeatureError, match="forced"):
+    with pytest.raises(sg.ShapeError, match="forced; give its reduced forces"):
         forced.reduce(phi)
-    with pytest.raises(sg.UnsupportedFeatureError, match="forced"):
+    with pytest.raises(sg.ShapeError, match="one has forces, the other not"):
         sg.check_system_morphism(phi, forced, rb)
     driven = sg.DiscreteSystem(rb.groupoid, rb.lagrangian, parameters=rb.parameters,
                                forces=torque, inputs=[u])
     plain = sg.DiscreteSystem(P, L, parameters=rb.parameters)
-    with pytest.raises(sg.UnsupportedFeatureError, match="forced"):
+    with pytest.raises(sg.ShapeError, match="one has forces, the other not"):
         sg.check_system_morphism(phi, plain, driven)
 
 

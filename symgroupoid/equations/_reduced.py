@@ -10,10 +10,13 @@ import numpy as np
 import sympy as sp
 
 from .._arguments import instance_argument
-from .._errors import DomainError, ShapeError, UnsupportedFeatureError
+from .._errors import DomainError, MorphismError, ShapeError, UnsupportedFeatureError
+from .._lambdify import NUMPY_MODULES
 from ..derivation import reduce_functions
-from ..groupoids import GroupoidMorphism, check_morphism
-from ._system import DiscreteSystem
+from ..derivation._forces import ForceFunctions, force_functions
+from ..derivation._reduction import SAMPLES, TOLERANCE, IdentityCheck
+from ..groupoids import GroupoidMorphism, ParameterValues, check_morphism
+from ._system import DiscreteSystem, forces_argument
 
 
 @dataclass
@@ -39,18 +42,23 @@ class ReducedSystem(DiscreteSystem):
     :meth:`DiscreteSystem.reduce`).
 
     ``unreduced`` is (G, N, L); ``morphism`` is Φ; ``checks`` records how L = L′∘Φ and
-    φ = φ′∘Φ were verified.  :meth:`project` maps unreduced states to reduced ones (a
-    solution to a solution, Cor. 4.6), :meth:`reconstruct` lifts a reduced trajectory from one
-    unreduced arrow (Remark 4.7), :meth:`related_momenta` evaluates Theorem 4.5.
+    φ = φ′∘Φ (and, for a forced system, the A*Φ-relation of the forces, docs/conventions.md
+    §13) were verified.  A reduced forced system has the reduced forces f′ and the inputs of
+    the unreduced one; its states carry the inputs as the unreduced states do.
+    :meth:`project` maps unreduced states to reduced ones (a solution to a solution,
+    Cor. 4.6), :meth:`reconstruct` lifts a reduced trajectory from one unreduced arrow
+    (Remark 4.7), :meth:`related_momenta` evaluates Theorem 4.5.
     """
 
     def __init__(self, unreduced: DiscreteSystem, morphism: GroupoidMorphism,
                  lagrangian: Callable, constraints: Callable | None,
-                 parameters: Sequence[sp.Symbol], name: str, checks: list):
+                 parameters: Sequence[sp.Symbol], name: str, checks: list,
+                 forces: Callable | None = None):
         step = getattr(unreduced, "time_step", None)
         kept = step is not None and str(step) in {str(p) for p in parameters}
         super().__init__(morphism.target, lagrangian, constraints, parameters, name,
-                         time_step=step if kept else None)
+                         time_step=step if kept else None, forces=forces,
+                         inputs=list(unreduced.inputs) if forces is not None else ())
         self.unreduced, self.morphism, self.checks = unreduced, morphism, checks
         self._transforms: tuple | None = None
 
@@ -72,17 +80,23 @@ class ReducedSystem(DiscreteSystem):
         return dict(zip(names, values))
 
     def _split_states(self, states, groupoid, what: str) -> tuple[np.ndarray, np.ndarray]:
+        """(arrows, the rest): the rest is the multipliers, then for a system with inputs
+        the inputs u_k of the arrow and the slot of u_{k+1} (docs/conventions.md §20), which
+        reduction keeps as they are."""
         arr = np.atleast_2d(np.asarray(getattr(states, "states", states), float))
-        n = groupoid.arrow_dim + self.n_constraints
+        m = len(self.inputs)
+        n = groupoid.arrow_dim + self.n_constraints + 2 * m
         if arr.shape[1] != n:
+            inputs = f", {m} inputs and the slot of the next ones" if m else ""
             raise ShapeError(f"{self.name}: {what} states have {n} entries (an arrow of "
-                             f"{groupoid.name} and {self.n_constraints} multipliers); got "
-                             f"shape {arr.shape}")
+                             f"{groupoid.name}, {self.n_constraints} multipliers{inputs}); "
+                             f"got shape {arr.shape}")
         return arr[:, :groupoid.arrow_dim], arr[:, groupoid.arrow_dim:]
 
     def project(self, states, params: Mapping | Sequence) -> np.ndarray:
         """Reduced states (Φ(g_k), λ_k) of unreduced states (g_k, λ_k) — rows of a flat
-        state array or a :class:`~symgroupoid.Trajectory`."""
+        state array or a :class:`~symgroupoid.Trajectory`; a forced system's inputs are
+        kept."""
         arrows, lam = self._split_states(states, self.unreduced.groupoid, "unreduced")
         reduced = self.morphism.project(arrows, self.parameter_values(params))
         return np.hstack([reduced, lam])
@@ -95,11 +109,11 @@ class ReducedSystem(DiscreteSystem):
         arrows, lam = self._split_states(states, self.groupoid, "reduced")
         g0 = np.asarray(initial, float).ravel()
         n = self.unreduced.groupoid.arrow_dim
-        if self.n_constraints and g0.size == n + self.n_constraints:
+        if lam.shape[1] and g0.size == n + lam.shape[1]:
             if not np.allclose(g0[n:], lam[0], rtol=1e-12, atol=1e-12):
-                raise ShapeError(f"{self.name}: the initial state's multipliers "
+                raise ShapeError(f"{self.name}: the initial state's multipliers (and inputs) "
                                  f"{g0[n:].tolist()} differ from the reduced ones "
-                                 f"{lam[0].tolist()} (the multipliers are shared)")
+                                 f"{lam[0].tolist()} (they are shared)")
             g0 = g0[:n]
         full = self.morphism.reconstruct(arrows, g0, self.parameter_values(params))
         return np.hstack([full, lam])
@@ -138,22 +152,102 @@ def _no_holonomic(system: DiscreteSystem) -> None:
             f"implemented (it would need ψ = ψ′∘Φ₀ on the bases, docs/conventions.md §15)")
 
 
-def _no_forces(system: DiscreteSystem) -> None:
-    """Reduction relates the Lagrangians and the constraints (Def. 4.2), not the forces: the
-    reduced system of a forced one would lose its forces (docs/conventions.md §20)."""
-    if getattr(system, "forces", None) is not None:
-        raise UnsupportedFeatureError(
-            f"{system.name}: reduction of forced systems is not implemented (the forces "
-            f"would have to be related by the morphism too, docs/conventions.md §20); "
-            f"reduce the system without forces=, or write the reduced forced system by hand")
+def _forced_arity(system: DiscreteSystem) -> None:
+    """Forced reduction is derived for first-order systems (f(g) -> (f⁻, f⁺))."""
+    if getattr(system, "forces", None) is not None and system._arity != 1:
+        raise UnsupportedFeatureError(f"{system.name}: reduction is implemented for "
+                                      f"first-order systems (L: G → R)")
+
+
+def check_forces(name: str, morphism: GroupoidMorphism, forces: ForceFunctions,
+                 reduced: ForceFunctions, samples: int = SAMPLES, seed: int = 0
+                 ) -> IdentityCheck:
+    """Verify that the forces f± of G and f′± of G′ are A*Φ-related (seed 000 Def. 4.4):
+    f⁻(g) = M(α(g))·f′⁻(Φ(g)) and f⁺(g) = M(β(g))·f′⁺(Φ(g)), M the algebroid matrix of Φ
+    (AΦ(X_a) = Σ_b M_ab X′_b, docs/conventions.md §13), i.e. f±(g)(X) = f′±(Φ(g))(AΦ(X))
+    for every basis section X.  M is numeric, so the check is numeric: on ``samples`` random
+    arrows with random parameter and input values, relative tolerance TOLERANCE; a
+    :class:`MorphismError` with the arrow, the side and the values when it fails."""
+    G = morphism.source
+    a, b = forces.slot, reduced.slot
+    inputs = list(forces.inputs)
+    symbols = sorted({s for side in (*forces.nodes, *reduced.nodes) for e in side
+                      for s in sp.sympify(e).free_symbols} - set(a) - set(b) - set(inputs)
+                     | set(morphism.parameters), key=lambda s: s.name)
+    full = sp.lambdify([a, inputs, symbols], [list(forces.minus), list(forces.plus)],
+                       NUMPY_MODULES)
+    image = sp.lambdify([b, inputs, symbols], [list(reduced.minus), list(reduced.plus)],
+                        NUMPY_MODULES)
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    for _ in range(samples):
+        values = ParameterValues(rng=rng)
+        p = values.vector(symbols)
+        u = rng.normal(size=len(inputs))
+        g = np.asarray(G.random_arrow(rng), float)
+        gr = morphism.project(g[None], values)[0]
+        minus, plus = (np.asarray(v, float).ravel() for v in full(g, u, p))
+        rminus, rplus = (np.asarray(v, float).ravel() for v in image(gr, u, p))
+        ends = (np.asarray(G.source(tuple(g)), float), np.asarray(G.target(tuple(g)), float))
+        for side, f, fr, q in (("f⁻", minus, rminus, ends[0]), ("f⁺", plus, rplus, ends[1])):
+            pulled = morphism.algebroid_matrix(q, values) @ fr
+            defect = float(np.abs(f - pulled).max(initial=0.0)) / (
+                1.0 + float(np.abs(f).max(initial=0.0)))
+            worst = max(worst, defect)
+            if not (np.isfinite(f).all() and np.isfinite(pulled).all()) or defect > TOLERANCE:
+                shown = ", ".join(f"{v:.6g}" for v in g)
+                inputs_shown = ", ".join(f"{s}={v:.6g}" for s, v in zip(inputs, u))
+                err = MorphismError(
+                    f"{name}: the forces are not A*Φ-related to the reduced forces: {side}(g) "
+                    f"= {np.round(f, 12).tolist()} but A*Φ {side}′(Φ(g)) = "
+                    f"{np.round(pulled, 12).tolist()} at the arrow ({shown})"
+                    f"{values.describe()}{f' with inputs {inputs_shown}' if inputs else ''}; "
+                    f"give reduced forces f′ with f±(g) = M·f′±(Φ(g)), M the algebroid matrix "
+                    f"of the morphism (docs/conventions.md §13)")
+                err.axiom = f"{side} = A*Φ {side}′∘Φ"
+                err.arrows = {"g": tuple(float(v) for v in g)}
+                err.parameters = {s.name: v for s, v in values.values.items()}
+                raise err
+    return IdentityCheck("f± = A*Φ f′±∘Φ (the forces are A*Φ-related)", "numeric", samples,
+                         worst)
+
+
+def _forces_given(system: DiscreteSystem, morphism: GroupoidMorphism, forces) -> None:
+    """Reduced forces are given exactly when the system is forced (a forced system reduced
+    without them would lose its forces)."""
+    if getattr(system, "forces", None) is None:
+        if forces is not None:
+            raise ShapeError(f"{system.name}: the system has no forces; reduced forces were "
+                             f"given")
+        return
+    if forces is None:
+        raise ShapeError(
+            f"{system.name}: the system is forced; give its reduced forces, "
+            f"reduce(Φ, forces=f′) with f′(g′) -> (f′_minus, f′_plus) on "
+            f"{morphism.target.name} and f±(g) = M·f′±(Φ(g)), M the algebroid matrix of Φ "
+            f"(docs/conventions.md §13)")
+
+
+def _reduced_forces(system: DiscreteSystem, morphism: GroupoidMorphism, forces,
+                    parameters: Sequence, name: str) -> tuple:
+    """The reduced forces f′ (the user's callable on arrows of G′) and how their relation to
+    the system's was verified; (None, []) for a system without forces."""
+    _forces_given(system, morphism, forces)
+    if forces is None:
+        return None, []
+    reduced = force_functions(name, morphism.target, forces_argument(name, forces), system.inputs,
+                              parameters)
+    return forces, [check_forces(system.name, morphism, system.functions.forces, reduced)]
 
 
 def reduce_system(system: DiscreteSystem, morphism: GroupoidMorphism,
                   lagrangian: Callable | None = None, constraints: Callable | None = None,
-                  name: str | None = None, check: bool = True) -> ReducedSystem:
-    """The reduced system (see :meth:`DiscreteSystem.reduce`)."""
+                  name: str | None = None, check: bool = True,
+                  forces: Callable | None = None) -> ReducedSystem:
+    """The reduced system (see :meth:`DiscreteSystem.reduce`); a forced system's reduced
+    forces ``forces`` = f′ are checked to be A*Φ-related to its own (:func:`check_forces`)."""
     _no_holonomic(system)
-    _no_forces(system)
+    _forced_arity(system)
     instance_argument(morphism, GroupoidMorphism, "morphism", "a GroupoidMorphism (reduce "
                       "needs one)", owner=system.name)
     if system._arity != 1:
@@ -163,13 +257,16 @@ def reduce_system(system: DiscreteSystem, morphism: GroupoidMorphism,
         raise DomainError(f"{system.name}: the morphism {morphism.name} starts at "
                           f"{morphism.source.name}, not at the system's groupoid "
                           f"{system.groupoid.name}")
+    _forces_given(system, morphism, forces)
     name = name or f"{system.name}_reduced"
     if check:
         check_morphism(morphism, samples=3)
     red = reduce_functions(name, morphism, system.lagrangian, system.constraints,
                            system.parameters, lagrangian, constraints)
+    reduced_forces, force_checks = _reduced_forces(system, morphism, forces, red.parameters,
+                                                   name)
     return ReducedSystem(system, morphism, red.lagrangian, red.constraints, red.parameters,
-                         name, red.checks)
+                         name, red.checks + force_checks, reduced_forces)
 
 
 def check_system_morphism(morphism: GroupoidMorphism, system: DiscreteSystem,
@@ -183,12 +280,26 @@ def check_system_morphism(morphism: GroupoidMorphism, system: DiscreteSystem,
                           f"{other.groupoid.name}")
     _no_holonomic(system)
     _no_holonomic(other)
-    _no_forces(system)
-    _no_forces(other)
+    _forced_arity(system)
+    _forced_arity(other)
+    forced = [getattr(s, "forces", None) is not None for s in (system, other)]
+    if forced[0] != forced[1]:
+        raise ShapeError(f"{system.name} and {other.name}: one has forces, the other not; "
+                         f"a morphism of forced systems relates both systems' forces "
+                         f"(docs/conventions.md §13)")
+    if forced[0] and [str(u) for u in system.inputs] != [str(u) for u in other.inputs]:
+        raise ShapeError(f"{system.name} and {other.name}: the inputs differ "
+                         f"({', '.join(map(str, system.inputs)) or 'none'} against "
+                         f"{', '.join(map(str, other.inputs)) or 'none'}); related forces "
+                         f"read the same inputs")
     check_morphism(morphism)
     if (system.constraints is None) != (other.constraints is None):
         raise ShapeError(f"{system.name} and {other.name}: one has constraints, the other "
                          f"not; N = Φ⁻¹(N′) needs both")
     red = reduce_functions(system.name, morphism, system.lagrangian, system.constraints,
                            system.parameters, other.lagrangian, other.constraints)
-    return red.checks
+    checks = red.checks
+    if forced[0]:
+        checks = checks + [check_forces(system.name, morphism, system.functions.forces,
+                                        other.functions.forces)]
+    return checks

@@ -366,7 +366,7 @@ class DiscreteSystem(_EvaluatedSystem):
 
     def reduce(self, morphism, lagrangian: Callable | None = None,
                constraints: Callable | None = None, name: str | None = None,
-               check: bool = True):
+               check: bool = True, forces: Callable | None = None):
         """The reduced system (G′, N′, L′) along a groupoid morphism Φ: G → G′ (seed 000
         Def. 4.2, Thm 4.5, Cor. 4.6; docs/conventions.md §13).
 
@@ -374,12 +374,14 @@ class DiscreteSystem(_EvaluatedSystem):
         L = L′∘Φ and φ = φ′∘Φ are verified (symbolically, else numerically on random arrows),
         and, with ``check``, Φ's morphism axioms (:func:`check_morphism`).  The result is a
         :class:`ReducedSystem`: its ``euler_lagrange()`` are the reduced equations, and it
-        projects and reconstructs trajectories.
+        projects and reconstructs trajectories.  A forced system needs its reduced forces
+        ``forces`` = f′ (``f′(g′) -> (f′_minus, f′_plus)`` on G′, the same inputs), A*Φ-related
+        to its own, f±(g) = M·f′±(Φ(g)) (verified numerically; docs/conventions.md §13).
         """
         from ._reduced import reduce_system
 
         self._refuse_stages("reduction")
-        return reduce_system(self, morphism, lagrangian, constraints, name, check)
+        return reduce_system(self, morphism, lagrangian, constraints, name, check, forces)
 
 
 class SecondOrderSystem(DiscreteSystem):
