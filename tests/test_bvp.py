@@ -827,3 +827,57 @@ def test_a_turn_past_two_pi_is_a_saddle():
     assert (_reduced_hessian_eigenvalues(system, sol, [1 / n]) < 0).sum() == 2
     default = sg.solve_boundary_value(system, np.eye(3), end, n, params=[1 / n])
     assert default.is_local_minimum and default.cost < sol.cost
+
+
+# --- forced systems (docs/conventions.md §20) --------------------------------------------------
+
+def test_a_forced_solve_has_no_globalised_iteration(numpy_windows, monkeypatch):
+    """A forced system's solutions are not critical points of the action: when the fast path
+    gives up, the solve raises instead of descending the action (a singular Jacobian that
+    ended it is raised as it is)."""
+    from test_forced_bvp import PENDULUM, driven_double_pendulum
+
+    called = []
+
+    def gives_up(why):
+        def fast(state):
+            state.record()
+            if why == "singular":
+                raise _fast._Handover("a singular Jacobian", []) from state.singular()
+            raise _fast._Handover("found no decrease (test)", [])
+        return fast
+
+    monkeypatch.setattr(_solve, "_globalised_after", lambda *a: called.append(a))
+    for why, error, match in (("decrease", BoundaryValueDivergenceError, "no action to descend"),
+                              ("singular", sg.SingularJacobianError, "singular")):
+        monkeypatch.setattr(_solve, "_fast_newton", gives_up(why))
+        with pytest.raises(error, match=match):
+            sg.solve_boundary_value(driven_double_pendulum(), (0.3, -0.2), (0.5, 0.1), 8,
+                                    params=PENDULUM, inputs=[0.0, 0.0])
+    assert not called
+
+
+def test_a_forced_window_kernel_takes_the_inputs_of_its_terms(numpy_windows):
+    """The kernel places the inputs of each term of each window after the multipliers; a
+    forced system's kernel without them is refused."""
+    from test_forced_bvp import (
+        PENDULUM,
+        driven_double_pendulum,
+        forced_step_residuals,
+        pendulum_run,
+    )
+
+    system = driven_double_pendulum()
+    kernel = window_kernel(system)
+    assert kernel.forced and kernel.n_inputs == 2
+    U = np.random.default_rng(6).normal(size=(6, 2))
+    arrows = pendulum_run(system, 6, U)
+    windows = np.stack([arrows[:-1], arrows[1:]], axis=1)
+    inputs = np.stack([U[:-1], U[1:]], axis=1)
+    res = kernel.junction(windows, np.zeros((5, 2, 0)), np.array([0.05, 0.3]), inputs)[0]
+    np.testing.assert_allclose(res, forced_step_residuals(system, arrows, U, PENDULUM),
+                               rtol=1e-12, atol=1e-12)
+    with pytest.raises(sg.ShapeError, match="inputs"):
+        kernel.junction(windows, np.zeros((5, 2, 0)), np.array([0.05, 0.3]))
+    with pytest.raises(sg.ShapeError, match="needs them"):
+        _Problem.of(system, 6, np.array([0.05, 0.3]))

@@ -53,7 +53,7 @@ from ._pieces import (
     piece_residuals,
     window_in_pieces,
 )
-from ._reduction import reduce_functions
+from ._reduction import check_forces, reduce_functions
 from ._step import (
     DerivedStep,
     SystemFunctions,
@@ -84,6 +84,6 @@ __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep
            "matrix_form_values", "may_be_step", "momentum_symbols", "named", "next_arrow",
            "noether_forms", "stage_rows", "nonholonomic_step", "parameter_value",
            "pair_impulse_form", "partial_residuals",
-           "piece_residuals", "reduce_functions", "second_order_legendre_forms",
+           "piece_residuals", "check_forces", "reduce_functions", "second_order_legendre_forms",
            "slot_derivatives", "step_jacobian", "time_step_candidates", "vanishes_on_restriction",
            "vanishing_check", "window", "window_in_pieces"]

@@ -11,6 +11,8 @@ The reduced Lagrangian is given, or found by substitution, L′ = L∘σ, when �
 (Φ∘σ = id).  Every identity is checked symbolically when SymPy proves it (expansion, then
 cancellation of small rational differences) and otherwise numerically on random arrows with random
 parameter values — e.g. identities that hold only because the arrows' matrices are rotations.
+A forced system reduces when its forces are A*Φ-related to the reduced ones,
+f±(g) = M·f′±(Φ(g)) (:func:`check_forces`, numeric: M is).
 Conventions: docs/conventions.md §13.
 """
 
@@ -26,6 +28,7 @@ from .._errors import DomainError, MorphismError, ShapeError
 from .._lambdify import NUMPY_MODULES
 from ..groupoids import GroupoidMorphism, ParameterValues
 from ._callables import as_scalar, as_scalar_list, call_user
+from ._forces import ForceFunctions
 from ._junction import slot
 
 #: differences with more operations than this are not put over a common denominator
@@ -106,6 +109,59 @@ def _is_zero(e: sp.Expr) -> bool:
     if sp.count_ops(e) > SIMPLIFY_LIMIT or e.has(sp.Function):
         return False
     return sp.cancel(sp.together(e)) == 0
+
+
+def check_forces(name: str, morphism: GroupoidMorphism, forces: ForceFunctions,
+                 reduced: ForceFunctions, samples: int = SAMPLES, seed: int = 0
+                 ) -> IdentityCheck:
+    """Verify that the forces f± of G and f′± of G′ are A*Φ-related (seed 000 Def. 4.4):
+    f⁻(g) = M(α(g))·f′⁻(Φ(g)) and f⁺(g) = M(β(g))·f′⁺(Φ(g)), M the algebroid matrix of Φ
+    (AΦ(X_a) = Σ_b M_ab X′_b, docs/conventions.md §13), i.e. f±(g)(X) = f′±(Φ(g))(AΦ(X))
+    for every basis section X.  M is numeric, so the check is numeric: on ``samples`` random
+    arrows with random parameter and input values, relative tolerance TOLERANCE; a
+    :class:`MorphismError` with the arrow, the side and the values when it fails."""
+    G = morphism.source
+    a, b = forces.slot, reduced.slot
+    inputs = list(forces.inputs)
+    symbols = sorted({s for side in (*forces.nodes, *reduced.nodes) for e in side
+                      for s in sp.sympify(e).free_symbols} - set(a) - set(b) - set(inputs)
+                     | set(morphism.parameters), key=lambda s: s.name)
+    full = sp.lambdify([a, inputs, symbols], [list(forces.minus), list(forces.plus)],
+                       NUMPY_MODULES)
+    image = sp.lambdify([b, inputs, symbols], [list(reduced.minus), list(reduced.plus)],
+                        NUMPY_MODULES)
+    rng = np.random.default_rng(seed)
+    worst = 0.0
+    for _ in range(samples):
+        values = ParameterValues(rng=rng)
+        p = values.vector(symbols)
+        u = rng.normal(size=len(inputs))
+        g = np.asarray(G.random_arrow(rng), float)
+        gr = morphism.project(g[None], values)[0]
+        minus, plus = (np.asarray(v, float).ravel() for v in full(g, u, p))
+        rminus, rplus = (np.asarray(v, float).ravel() for v in image(gr, u, p))
+        ends = (np.asarray(G.source(tuple(g)), float), np.asarray(G.target(tuple(g)), float))
+        for side, f, fr, q in (("f⁻", minus, rminus, ends[0]), ("f⁺", plus, rplus, ends[1])):
+            pulled = morphism.algebroid_matrix(q, values) @ fr
+            defect = float(np.abs(f - pulled).max(initial=0.0)) / (
+                1.0 + float(np.abs(f).max(initial=0.0)))
+            worst = max(worst, defect)
+            if not (np.isfinite(f).all() and np.isfinite(pulled).all()) or defect > TOLERANCE:
+                shown = ", ".join(f"{v:.6g}" for v in g)
+                inputs_shown = ", ".join(f"{s}={v:.6g}" for s, v in zip(inputs, u))
+                err = MorphismError(
+                    f"{name}: the forces are not A*Φ-related to the reduced forces: {side}(g) "
+                    f"= {np.round(f, 12).tolist()} but A*Φ {side}′(Φ(g)) = "
+                    f"{np.round(pulled, 12).tolist()} at the arrow ({shown})"
+                    f"{values.describe()}{f' with inputs {inputs_shown}' if inputs else ''}; "
+                    f"give reduced forces f′ with f±(g) = M·f′±(Φ(g)), M the algebroid matrix "
+                    f"of the morphism (docs/conventions.md §13)")
+                err.axiom = f"{side} = A*Φ {side}′∘Φ"
+                err.arrows = {"g": tuple(float(v) for v in g)}
+                err.parameters = {s.name: v for s, v in values.values.items()}
+                raise err
+    return IdentityCheck("f± = A*Φ f′±∘Φ (the forces are A*Φ-related)", "numeric", samples,
+                         worst)
 
 
 @dataclass

@@ -10,12 +10,9 @@ import numpy as np
 import sympy as sp
 
 from .._arguments import instance_argument
-from .._errors import DomainError, MorphismError, ShapeError, UnsupportedFeatureError
-from .._lambdify import NUMPY_MODULES
-from ..derivation import reduce_functions
-from ..derivation._forces import ForceFunctions, force_functions
-from ..derivation._reduction import SAMPLES, TOLERANCE, IdentityCheck
-from ..groupoids import GroupoidMorphism, ParameterValues, check_morphism
+from .._errors import DomainError, ShapeError, UnsupportedFeatureError
+from ..derivation import check_forces, force_functions, reduce_functions
+from ..groupoids import GroupoidMorphism, check_morphism
 from ._system import DiscreteSystem, forces_argument
 
 
@@ -157,59 +154,6 @@ def _forced_arity(system: DiscreteSystem) -> None:
     if getattr(system, "forces", None) is not None and system._arity != 1:
         raise UnsupportedFeatureError(f"{system.name}: reduction is implemented for "
                                       f"first-order systems (L: G → R)")
-
-
-def check_forces(name: str, morphism: GroupoidMorphism, forces: ForceFunctions,
-                 reduced: ForceFunctions, samples: int = SAMPLES, seed: int = 0
-                 ) -> IdentityCheck:
-    """Verify that the forces f± of G and f′± of G′ are A*Φ-related (seed 000 Def. 4.4):
-    f⁻(g) = M(α(g))·f′⁻(Φ(g)) and f⁺(g) = M(β(g))·f′⁺(Φ(g)), M the algebroid matrix of Φ
-    (AΦ(X_a) = Σ_b M_ab X′_b, docs/conventions.md §13), i.e. f±(g)(X) = f′±(Φ(g))(AΦ(X))
-    for every basis section X.  M is numeric, so the check is numeric: on ``samples`` random
-    arrows with random parameter and input values, relative tolerance TOLERANCE; a
-    :class:`MorphismError` with the arrow, the side and the values when it fails."""
-    G = morphism.source
-    a, b = forces.slot, reduced.slot
-    inputs = list(forces.inputs)
-    symbols = sorted({s for side in (*forces.nodes, *reduced.nodes) for e in side
-                      for s in sp.sympify(e).free_symbols} - set(a) - set(b) - set(inputs)
-                     | set(morphism.parameters), key=lambda s: s.name)
-    full = sp.lambdify([a, inputs, symbols], [list(forces.minus), list(forces.plus)],
-                       NUMPY_MODULES)
-    image = sp.lambdify([b, inputs, symbols], [list(reduced.minus), list(reduced.plus)],
-                        NUMPY_MODULES)
-    rng = np.random.default_rng(seed)
-    worst = 0.0
-    for _ in range(samples):
-        values = ParameterValues(rng=rng)
-        p = values.vector(symbols)
-        u = rng.normal(size=len(inputs))
-        g = np.asarray(G.random_arrow(rng), float)
-        gr = morphism.project(g[None], values)[0]
-        minus, plus = (np.asarray(v, float).ravel() for v in full(g, u, p))
-        rminus, rplus = (np.asarray(v, float).ravel() for v in image(gr, u, p))
-        ends = (np.asarray(G.source(tuple(g)), float), np.asarray(G.target(tuple(g)), float))
-        for side, f, fr, q in (("f⁻", minus, rminus, ends[0]), ("f⁺", plus, rplus, ends[1])):
-            pulled = morphism.algebroid_matrix(q, values) @ fr
-            defect = float(np.abs(f - pulled).max(initial=0.0)) / (
-                1.0 + float(np.abs(f).max(initial=0.0)))
-            worst = max(worst, defect)
-            if not (np.isfinite(f).all() and np.isfinite(pulled).all()) or defect > TOLERANCE:
-                shown = ", ".join(f"{v:.6g}" for v in g)
-                inputs_shown = ", ".join(f"{s}={v:.6g}" for s, v in zip(inputs, u))
-                err = MorphismError(
-                    f"{name}: the forces are not A*Φ-related to the reduced forces: {side}(g) "
-                    f"= {np.round(f, 12).tolist()} but A*Φ {side}′(Φ(g)) = "
-                    f"{np.round(pulled, 12).tolist()} at the arrow ({shown})"
-                    f"{values.describe()}{f' with inputs {inputs_shown}' if inputs else ''}; "
-                    f"give reduced forces f′ with f±(g) = M·f′±(Φ(g)), M the algebroid matrix "
-                    f"of the morphism (docs/conventions.md §13)")
-                err.axiom = f"{side} = A*Φ {side}′∘Φ"
-                err.arrows = {"g": tuple(float(v) for v in g)}
-                err.parameters = {s.name: v for s, v in values.values.items()}
-                raise err
-    return IdentityCheck("f± = A*Φ f′±∘Φ (the forces are A*Φ-related)", "numeric", samples,
-                         worst)
 
 
 def _forces_given(system: DiscreteSystem, morphism: GroupoidMorphism, forces) -> None:
