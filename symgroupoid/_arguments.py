@@ -187,6 +187,20 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
                          f"{shown_value(value)}") from None
 
 
+def input_rows(inputs, m: int, rows: int, *, owner: str = "", name: str = "inputs"
+               ) -> np.ndarray:
+    """A forced system's inputs (docs/conventions.md §20) as real numbers in rows of ``m``:
+    (m,) — or a number when m = 1 — held for all ``rows`` rows, (rows,) read as one column
+    when m = 1, anything else as given (its shape is the caller's to check); not a real
+    array: a :class:`ShapeError` naming ``name``."""
+    arr = real_array(inputs, name, owner=owner)
+    if arr.shape == (m,) or (m == 1 and arr.ndim == 0):
+        return np.broadcast_to(arr.reshape(1, m), (rows, m))
+    if m == 1 and arr.shape == (rows,):
+        return arr.reshape(rows, 1)
+    return arr
+
+
 def _check_real_item(item, name: str, at: str) -> None:
     """An entry of an object array: a real number (not a bool, string, complex, …)."""
     if isinstance(item, (bool, np.bool_, str, bytes, complex, np.complexfloating)) \
@@ -299,7 +313,7 @@ def _is_sequence(value) -> bool:
 
 
 __all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "choice_argument", "flag_argument",
-           "instance_argument", "integer_argument", "name_argument", "names_argument",
+           "input_rows", "instance_argument", "integer_argument", "name_argument", "names_argument",
            "path_argument", "real_argument", "real_array", "sequence_argument", "shown_value",
            "where"]
 

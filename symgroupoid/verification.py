@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from ._arguments import integer_argument, real_argument, real_array
+from ._arguments import input_rows, integer_argument, real_argument, real_array
 from ._errors import DomainError, ShapeError, UnsupportedFeatureError
 from .equations import action_program, structure_program
 from .groupoids import Groupoid
@@ -201,8 +201,8 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     λ_0 … λ_N and, for a forced system, the inputs u_0 … u_N its states hold), a
     :class:`BoundaryValueSolution` (or any object with ``arrows`` and ``multipliers``), or an
     array of arrows (N, arrow_dim) with ``multipliers`` (one row per action term) and
-    ``inputs`` (one row per action term: u_j belongs to the term starting at g_j) passed
-    separately.  ``params`` default to the trajectory's own.  Returns a
+    ``inputs`` (one row per action term: u_j belongs to the term starting at g_j; (m,), or
+    a number for one input, held for every term) passed separately.  ``params`` default to the trajectory's own.  Returns a
     :class:`StationarityReport`; it is truthy when the central differences shrink like ε²
     (or sit at rounding level) and their extrapolation to ε = 0 is negligible against the
     first-order changes of the single terms — a non-solution gives an O(1) derivative.  At a
@@ -435,9 +435,7 @@ def _inputs(system, inputs, terms: int) -> np.ndarray:
                          f"with inputs= ({terms}, {m}), one row per action term (row j: the "
                          f"inputs of the term starting at g_j), or pass a Trajectory, whose "
                          f"states hold them")
-    U = real_array(inputs, "the inputs", owner=owner)
-    if m == 1 and U.shape == (terms,):
-        U = U.reshape(terms, 1)
+    U = input_rows(inputs, m, terms, owner=owner, name="the inputs")
     if U.shape != (terms, m):
         raise ShapeError(f"{owner}: inputs must have shape ({terms}, {m}) (one row of "
                          f"{', '.join(names)} per action term), got {U.shape}")

@@ -237,9 +237,21 @@ def test_the_command_line_verifies_a_forced_file(tmp_path, capsys):
 
 @pytest.mark.parametrize("junk", [
     "u", b"u", object(), {"u": 1.0}, [["a"]], 1 + 2j, np.full((31, 1), 1j), np.zeros((31, 1, 1)),
-    np.full((31, 1), np.inf), np.zeros((0, 1)), [[True]] * 31, 2.0, [1.0, 2.0]])
+    np.full((31, 1), np.inf), np.zeros((0, 1)), [[True]] * 31, [1.0, 2.0]])
 def test_hostile_inputs_get_named_errors(plane_run, junk):
     """Whatever ``inputs=`` holds, a named error (never a raw exception, never a report)."""
     system, traj = plane_run
     with pytest.raises(sg.SymgroupoidError, match="driven|plane|inputs"):
         sg.verify_stationary(_arrows(traj), system, PLANE_PARAMS, inputs=junk)
+
+
+def test_inputs_held_constant_are_the_table_of_that_value(plane_run):
+    """A number (one input) or (m,) is held for every term, as simulate and
+    solve_boundary_value take it: the same report as the whole table."""
+    system, traj = plane_run
+    arrows = _arrows(traj)
+    table = sg.verify_stationary(arrows, system, PLANE_PARAMS,
+                                 inputs=np.full((len(arrows), 1), 2.0))
+    for held in (2.0, [2.0]):
+        report = sg.verify_stationary(arrows, system, PLANE_PARAMS, inputs=held)
+        assert report.derivatives == table.derivatives and not report.stationary

@@ -33,9 +33,8 @@ import sympy as sp
 from .._symbols import latex_name, node_symbol, stage_symbols
 from ..derivation import WindowAction, input_symbols
 from ._forms import Definition, Form
+from ._galerkin import _lagrange, _tau
 from ._latex import Collected
-
-_tau = sp.Symbol("tau", real=True)
 
 
 def stage_form(step) -> Form | None:
@@ -135,13 +134,7 @@ def _at_node(continuous, Q: list, V: list, u: dict) -> tuple[sp.Expr, list]:
 def _stage_coefficients(nodes: tuple) -> list:
     """a_ij = ∫₀^{c_i} ℓ̃_j(τ) dτ, ℓ̃_j the Lagrange basis on the nodes (the collocation
     coefficients: Gauss, Lobatto IIIA)."""
-    basis = []
-    for j, cj in enumerate(nodes):
-        ell = sp.S.One
-        for m, cm in enumerate(nodes):
-            if m != j:
-                ell *= (_tau - cm) / (cj - cm)
-        basis.append(sp.expand(ell))
+    basis = _lagrange(list(nodes))
     return [[_exact(sp.integrate(e, (_tau, 0, ci))) for e in basis] for ci in nodes]
 
 

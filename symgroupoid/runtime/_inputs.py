@@ -14,6 +14,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
+from .._arguments import input_rows
 from .._errors import DomainError, ShapeError
 from ._options import NewtonOptions
 from ._runs import OK, RawRun
@@ -38,11 +39,7 @@ def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
         raise ShapeError(f"{owner}: the system has inputs ({names}); pass inputs= with one "
                          f"row of {m} values per step (row j: the input of the arrow step j "
                          f"computes), or {m} values held for every step")
-    arr = real_array(inputs, "inputs", owner=owner)
-    if arr.shape == (m,) or (m == 1 and arr.ndim == 0):
-        arr = np.broadcast_to(arr.reshape(1, m), (steps, m))
-    elif m == 1 and arr.shape == (steps,):
-        arr = arr.reshape(steps, 1)
+    arr = input_rows(inputs, m, steps, owner=owner)
     if arr.ndim != 2 or arr.shape[1] != m or arr.shape[0] < steps:
         raise ShapeError(f"{owner}: inputs need shape ({steps}, {m}) (one row of the inputs "
                          f"{names} per step) or ({m},) for inputs held constant; got shape "

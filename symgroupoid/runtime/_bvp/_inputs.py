@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..._arguments import real_array
+from ..._arguments import input_rows, real_array
 from ..._errors import DomainError, ShapeError
 
 
@@ -53,11 +53,7 @@ def input_table(system, inputs, n_terms: int, *, owner: str) -> np.ndarray:
                          f"row of {m} values per term of the action ({n_terms} rows: row t "
                          f"the inputs of the term starting at arrow t), or {m} values held "
                          f"for every term")
-    arr = real_array(inputs, "inputs", owner=owner)
-    if arr.shape == (m,) or (m == 1 and arr.ndim == 0):
-        arr = np.broadcast_to(arr.reshape(1, m), (n_terms, m))
-    elif m == 1 and arr.shape == (n_terms,):
-        arr = arr.reshape(n_terms, 1)
+    arr = input_rows(inputs, m, n_terms, owner=owner)
     if arr.shape != (n_terms, m):
         raise ShapeError(f"{owner}: inputs need shape ({n_terms}, {m}) (one row of the inputs "
                          f"{listed} per term of the action, row t for the term starting at "
