@@ -202,7 +202,8 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     :class:`BoundaryValueSolution` (or any object with ``arrows`` and ``multipliers``), or an
     array of arrows (N, arrow_dim) with ``multipliers`` (one row per action term) and
     ``inputs`` (one row per action term: u_j belongs to the term starting at g_j; (m,), or
-    a number for one input, held for every term) passed separately.  ``params`` default to the trajectory's own.  Returns a
+    a number for one input, held for every term) passed separately.  ``params`` default to
+    the trajectory's own.  Returns a
     :class:`StationarityReport`; it is truthy when the central differences shrink like ε²
     (or sit at rounding level) and their extrapolation to ε = 0 is negligible against the
     first-order changes of the single terms — a non-solution gives an O(1) derivative.  At a
