@@ -697,6 +697,32 @@ static void plate_ball_column_sums(const double *J, const double *a, double *S)
 #define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian
 #endif
 
+/* The pivot of a column: the offset of the first largest |entry| among count entries
+ * a[0], a[stride], ... (the partial pivoting of the dense and the band LU), *amax its size */
+static inline int plate_ball_pivot(const double *a, int stride, int count, double *amax)
+{
+    int i, piv = 0;
+    double m = fabs(a[0]);
+    for (i = 1; i < count; ++i) {
+        const double v = fabs(a[(size_t)i * stride]);
+        piv = v > m ? i : piv;
+        m = v > m ? v : m;
+    }
+    *amax = m;
+    return piv;
+}
+
+/* Exchange count entries of two rows */
+static inline void plate_ball_swap(double *x, double *y, int count)
+{
+    int j;
+    for (j = 0; j < count; ++j) {
+        const double t = x[j];
+        x[j] = y[j];
+        y[j] = t;
+    }
+}
+
 /* The factors of a Jacobian (plate_ball_lu_factor): the scaled, permuted and eliminated matrix
  * A (row-major; L's multipliers below the diagonal, U on and above it), the row exponents e
  * with their scales s[i] = 2^-e[i] (0 where 2^-e[i] is not a normal double: that row is
@@ -741,25 +767,14 @@ static inline int plate_ball_eliminate_columns(double *A, double *inv, int *perm
     int i, j, k;
     PLATE_BALL_UNROLL
     for (k = k0; k < k1; ++k) {
-        int piv = k;
-        double amax = fabs(A[k * n + k]);
-        PLATE_BALL_UNROLL
-        for (i = k + 1; i < n; ++i) {
-            const double a = fabs(A[i * n + k]);
-            piv = a > amax ? i : piv;
-            amax = a > amax ? a : amax;
-        }
+        double amax;
+        const int piv = k + plate_ball_pivot(&A[k * n + k], n, n - k, &amax);
         if (!(amax > tiny)) {
             return PLATE_BALL_SINGULAR_JACOBIAN;
         }
         perm[k] = piv;
         if (piv != k) {
-            PLATE_BALL_UNROLL
-            for (j = 0; j < n; ++j) {
-                const double t = A[k * n + j];
-                A[k * n + j] = A[piv * n + j];
-                A[piv * n + j] = t;
-            }
+            plate_ball_swap(&A[k * n], &A[piv * n], n);
         }
         inv[k] = 1.0 / A[k * n + k];
         PLATE_BALL_UNROLL
@@ -901,23 +916,15 @@ static int plate_ball_band_eliminate(double *A, double *inv, int *perm)
     for (k = 0; k < n; ++k) {
         const int last = k + PLATE_BALL_BAND_KL < n - 1 ? k + PLATE_BALL_BAND_KL : n - 1;
         const int end = k + PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU < n - 1 ? k + PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU : n - 1;
-        int piv = k;
-        double amax = fabs(PLATE_BALL_BAND_AT(A, k, k));
-        for (i = k + 1; i <= last; ++i) {
-            const double a = fabs(PLATE_BALL_BAND_AT(A, i, k));
-            piv = a > amax ? i : piv;
-            amax = a > amax ? a : amax;
-        }
+        double amax; /* column k of rows k ... last: PLATE_BALL_BAND_WIDTH - 1 apart in storage */
+        const int piv = k + plate_ball_pivot(&PLATE_BALL_BAND_AT(A, k, k), PLATE_BALL_BAND_WIDTH - 1, last - k + 1,
+                                           &amax);
         if (!(amax > tiny)) {
             return PLATE_BALL_SINGULAR_JACOBIAN;
         }
         perm[k] = piv;
-        if (piv != k) {
-            for (j = k; j <= end; ++j) {
-                const double t = PLATE_BALL_BAND_AT(A, k, j);
-                PLATE_BALL_BAND_AT(A, k, j) = PLATE_BALL_BAND_AT(A, piv, j);
-                PLATE_BALL_BAND_AT(A, piv, j) = t;
-            }
+        if (piv != k) { /* columns k ... end of both rows (each contiguous in storage) */
+            plate_ball_swap(&PLATE_BALL_BAND_AT(A, k, k), &PLATE_BALL_BAND_AT(A, piv, k), end - k + 1);
         }
         inv[k] = 1.0 / PLATE_BALL_BAND_AT(A, k, k);
         for (i = k + 1; i <= last; ++i) {
