@@ -15,7 +15,9 @@ A forced system's trajectory satisfies the discrete Lagrange–d'Alembert princi
 (docs/conventions.md §20): dS/dt + W = 0, where W is the forces' virtual work along the same
 variation, the exact pairing of each term's covectors with the variation at its base points
 (first order: Σ_j h′_j(0)·(f⁺(g_j) + f⁻(g_{j+1})), h′_j(0) = Σ_a c_ja X_a(β(g_j))).  A
-nonholonomic system (the Hölder principle, seed 002; §10) is varied along D_c only.
+nonholonomic system (the Hölder principle, seed 002; §10) is varied along D_c only.  A
+discrete Lagrangian with internal stages L(g, ζ) (§22) has the stages of every arrow solved
+from its own stage rows first, then held while the arrows vary (the envelope theorem).
 """
 
 from __future__ import annotations
