@@ -202,8 +202,8 @@ def test_a_forced_run_with_inputs_on_r2():
 
 @pytest.mark.slow
 def test_a_forced_run_with_inputs_on_so3():
-    """The rigid body with damping and torque inputs (about 30 s to derive): the solution
-    with the inputs is the run from its first arrow, to 1e-12."""
+    """The rigid body with damping and torque inputs (its derivation takes about 20 s of
+    CPU): the solution with the inputs is the run from its first arrow, to 1e-12."""
     system, steps = rigid_body(forced=True), 12
     U = np.random.default_rng(2).normal(size=(steps, 3))
     end = Rotation.from_rotvec([0.3, 1.0, 0.4]).as_matrix()

@@ -104,8 +104,9 @@ def test_a_run_on_so3_passes_and_a_turned_attitude_fails():
 
 @pytest.mark.slow
 def test_a_forced_run_on_so3():
-    """Damping and torque inputs on the pair groupoid of SO(3) (about 30 s to derive): the
-    run passes, the unforced body's check of its arrows and shifted inputs fail."""
+    """Damping and torque inputs on the pair groupoid of SO(3) (its derivation takes about
+    20 s of CPU): the run passes, the unforced body's check of its arrows and shifted inputs
+    fail."""
     system, steps = rigid_body(forced=True), 12
     U = np.random.default_rng(5).normal(size=(steps, len(taus)))
     traj = _body_run(system, steps, U)
