@@ -15,7 +15,9 @@ A forced system's trajectory satisfies the discrete Lagrange–d'Alembert princi
 (docs/conventions.md §20): dS/dt + W = 0, where W is the forces' virtual work along the same
 variation, the exact pairing of each term's covectors with the variation at its base points
 (first order: Σ_j h′_j(0)·(f⁺(g_j) + f⁻(g_{j+1})), h′_j(0) = Σ_a c_ja X_a(β(g_j))).  A
-nonholonomic system (the Hölder principle, seed 002; §10) is varied along D_c only.
+nonholonomic system (the Hölder principle, seed 002; §10) is varied along D_c only.  A
+discrete Lagrangian with internal stages L(g, ζ) (§22) has the stages of every arrow solved
+from its own stage rows first, then held while the arrows vary (the envelope theorem).
 """
 
 from __future__ import annotations
@@ -29,9 +31,9 @@ import sympy as sp
 
 from ._arguments import input_rows, integer_argument, real_argument, real_array
 from ._errors import DomainError, ShapeError, UnsupportedFeatureError
-from .equations import action_program, structure_program
+from .equations import action_program, solve_stages, structure_program
 from .groupoids import Groupoid
-from .ir import Graph, Program, from_sympy
+from .ir import Graph, Program, forward, from_sympy, gradient
 from .runtime import parameter_vector, system_argument
 
 
@@ -105,10 +107,11 @@ def _section_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.nd
 
 def _action_terms(system) -> tuple:
     """L and φ on the system's own slot coordinates (independent of the DEL): the program
-    of :func:`~symgroupoid.equations.action_program`, a term per batch column."""
+    of :func:`~symgroupoid.equations.action_program`, a term per batch column (with internal
+    stages, L(g, ζ): inputs a, z, p)."""
     program = action_program(system)
-    f = program.numpy_function(["L", "phi"], ["a", "p"])
     fs = _functions(system)
+    f = program.numpy_function(["L", "phi"], ["a", "z", "p"] if fs.stages else ["a", "p"])
     return f, len(fs.slots), len(fs.constraints)
 
 
@@ -118,14 +121,19 @@ def _cached_terms(system):
 
 
 def action_terms(system, arrows: np.ndarray, multipliers: np.ndarray | None,
-                 params: Sequence) -> np.ndarray:
-    """[L + λ_j·φ](g_j, …, g_{j+arity−1}) for every window of the arrow sequence."""
+                 params: Sequence, stages: np.ndarray | None = None) -> np.ndarray:
+    """[L + λ_j·φ](g_j, …, g_{j+arity−1}) for every window of the arrow sequence; with
+    internal stages (docs/conventions.md §22) L(g_j, ζ_j), ``stages`` (T, n_stages) the
+    stages of every term (:func:`stage_values`)."""
     f, arity, m = _cached_terms(system)
     p = np.asarray(params, float)
     arrows = np.asarray(arrows, float)
     T = len(arrows) - arity + 1
     windows = np.hstack([arrows[o:o + T] for o in range(arity)])  # (T, arity·arrow_dim)
-    L, phi = f(windows.T, p[:, None])
+    if _functions(system).stages:
+        L, phi = f(windows.T, np.asarray(stages, float).reshape(T, -1).T, p[:, None])
+    else:
+        L, phi = f(windows.T, p[:, None])
     terms = np.broadcast_to(L[0], (T,)).astype(float)
     if m:
         lam = np.asarray(multipliers, float)[:T]
@@ -133,47 +141,103 @@ def action_terms(system, arrows: np.ndarray, multipliers: np.ndarray | None,
     return terms
 
 
-def action(system, arrows: np.ndarray, multipliers: np.ndarray | None, params: Sequence) -> float:
-    """The discrete action Σ_j [L + λ_j·φ](window j)."""
-    return float(action_terms(system, arrows, multipliers, params).sum())
+def action(system, arrows: np.ndarray, multipliers: np.ndarray | None, params: Sequence,
+           stages: np.ndarray | None = None) -> float:
+    """The discrete action Σ_j [L + λ_j·φ](window j) (with internal stages at ``stages``)."""
+    return float(action_terms(system, arrows, multipliers, params, stages).sum())
+
+
+def _stage_program(system) -> Program:
+    """The stage rows of one term from the system's own L(g, ζ) and forces
+    (docs/conventions.md §22), independent of the derived equations: ∂L/∂ζ + f_ζ (reverse
+    mode) and their Jacobian ∂/∂ζ (forward mode, row-major); inputs ``a`` (the arrow's
+    coordinates), ``z`` (ζ), ``u`` (the term's inputs), ``p`` (the parameters)."""
+    fs = _functions(system)
+    forces = fs.forces
+    g = Graph()
+    coords = list(fs.slots[0])
+    nodes = {x: g.input(x) for x in (*coords, *fs.stages, *system.parameters)}
+    inputs = list(forces.inputs) if forces is not None else []
+    nodes.update({x: g.input(x) for x in inputs})
+    memo: dict = {}
+    L = from_sympy(g, fs.lagrangian, nodes, f"{system.name}: the Lagrangian", memo)
+    zeta = [nodes[z] for z in fs.stages]
+    rows = gradient(g, L, zeta)
+    if forces is not None and forces.stage_forces:
+        symbols = dict(nodes)
+        symbols.update(zip(forces.slots[0], [nodes[c] for c in coords]))
+        symbols.update(zip(forces.stages, zeta))
+        rows = [g.add(r, from_sympy(g, sp.sympify(f), symbols,
+                                    f"{system.name}: the stage forces", memo))
+                for r, f in zip(rows, forces.stage_forces)]
+    order = g.reachable(rows)
+    columns = [forward(g, rows, {z: g.one}, order) for z in zeta]
+    jac = [columns[b][a] for a in range(len(rows)) for b in range(len(zeta))]
+    return Program(g, {"a": coords, "z": list(fs.stages), "u": inputs,
+                       "p": list(system.parameters)}, {"F": rows, "J": jac})
+
+
+@functools.lru_cache(maxsize=16)
+def _cached_stage_rows(system):
+    return _stage_program(system).numpy_function(["F", "J"], ["a", "z", "u", "p"])
+
+
+def stage_values(system, arrows: np.ndarray, inputs: np.ndarray, params: Sequence
+                 ) -> np.ndarray:
+    """The internal stages ζ of every arrow (T, n_stages), solving its stage rows
+    ∂L/∂ζ(g_j, ζ_j) + f_ζ(g_j, ζ_j, u_j) = 0 near ζ = 0 (docs/conventions.md §22; f_ζ with
+    the inputs u_j of the arrow, row j of ``inputs``), by Newton's method on all arrows at
+    once; a :class:`~symgroupoid.DiagnosticsError` where it does not converge."""
+    f = _cached_stage_rows(system)
+    arrows = np.asarray(arrows, float)
+    U = np.asarray(inputs, float).reshape(len(arrows), -1).T
+    p = np.asarray(params, float)[:, None]
+    n_stages = len(_functions(system).stages)
+    zeta = solve_stages(lambda known, z, p_: f(known, z, U, p_), arrows.T, p, n_stages,
+                        system.name)
+    return zeta.T
 
 
 def _force_program(system) -> Program | None:
     """The discrete forces of one term on the expression graph (docs/conventions.md §20):
-    inputs ``a`` (the term's arrow coordinates), ``u`` (its inputs), ``p`` (the parameters);
-    output ``f``: the covectors at the term's base points 0 … arity (first order f⁻, f⁺;
-    second order f⁰, f¹, f²), rank components each.  None for a system without forces."""
+    inputs ``a`` (the term's arrow coordinates), ``u`` (its inputs), ``p`` (the parameters),
+    ``z`` (its internal stages, §22; empty without); output ``f``: the covectors at the
+    term's base points 0 … arity (first order f⁻, f⁺; second order f⁰, f¹, f²), rank
+    components each.  None for a system without forces."""
     forces = _functions(system).forces
     if forces is None:
         return None
     g = Graph()
     coords = [c for arrow in forces.slots for c in arrow]
-    symbols = {x: g.input(x) for x in (*coords, *forces.inputs, *system.parameters)}
+    symbols = {x: g.input(x) for x in (*coords, *forces.inputs, *forces.stages,
+                                       *system.parameters)}
     memo: dict = {}
     nodes = [from_sympy(g, sp.sympify(f), symbols, f"{system.name}: the forces", memo)
              for node in forces.nodes for f in node]
-    return Program(g, {"a": coords, "u": list(forces.inputs), "p": list(system.parameters)},
-                   {"f": nodes})
+    return Program(g, {"a": coords, "u": list(forces.inputs), "p": list(system.parameters),
+                       "z": list(forces.stages)}, {"f": nodes})
 
 
 @functools.lru_cache(maxsize=16)
 def _cached_forces(system):
     program = _force_program(system)
-    return None if program is None else program.numpy_function(["f"], ["a", "u", "p"])
+    return None if program is None else program.numpy_function(["f"], ["a", "u", "z", "p"])
 
 
-def force_terms(system, arrows: np.ndarray, inputs: np.ndarray, params: Sequence
-                ) -> np.ndarray:
+def force_terms(system, arrows: np.ndarray, inputs: np.ndarray, params: Sequence,
+                stages: np.ndarray | None = None) -> np.ndarray:
     """The discrete forces of every term of the arrow sequence, shape (T, arity + 1, rank):
     [j, i] is the covector at base point i of the term starting at g_j (whose inputs are
-    row j of ``inputs``, shape (T, m)), in the basis sections' order."""
+    row j of ``inputs``, shape (T, m), and with internal stages its stages row j of
+    ``stages``), in the basis sections' order."""
     f = _cached_forces(system)
     _, arity, _ = _cached_terms(system)
     rank = system.groupoid.rank
     arrows = np.asarray(arrows, float)
     T = len(arrows) - arity + 1
     windows = np.hstack([arrows[o:o + T] for o in range(arity)])
-    (values,) = f(windows.T, np.asarray(inputs, float).reshape(T, -1).T,
+    zeta = np.zeros((T, 0)) if stages is None else np.asarray(stages, float).reshape(T, -1)
+    (values,) = f(windows.T, np.asarray(inputs, float).reshape(T, -1).T, zeta.T,
                   np.asarray(params, float)[:, None])  # ((arity + 1)·rank, T)
     return values.T.reshape(T, arity + 1, rank)
 
@@ -219,12 +283,15 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     with the Hölder step (seed 002, §10) is varied along D_c only (its constraints M_c are
     not in the action; that the arrows lie in M_c is ``traj.constraint_residuals()``); the
     energy–momentum method (§14) is refused (:class:`~symgroupoid.UnsupportedFeatureError`):
-    its rows on D⊥ are not a variational principle; so is a discrete Lagrangian with
-    internal stages (its action needs the stages solved at every arrow, §22).
+    its rows on D⊥ are not a variational principle.
+
+    A discrete Lagrangian with internal stages L(g, ζ) (docs/conventions.md §22): the
+    stages of every arrow are solved first from the system's own stage rows,
+    ∂L/∂ζ(g_j, ζ_j) + f_ζ(g_j, ζ_j, u_j) = 0 (:func:`stage_values`), and held while the arrows
+    vary: by the envelope theorem the derivative of L_d(g) = L(g, ζ*(g)) along a variation
+    of g is that of L(·, ζ*) at fixed ζ*, so the check is the (forced) principle of L_d.
     """
     system = system_argument(system, "system", owner="verify_stationary")
-    if getattr(system, "stages", 0):
-        system._refuse_stages("verify_stationary (the discrete action along a trajectory)")
     holder = _holder(system)
     G = system.groupoid
     seed = integer_argument(seed, "seed", maximum=2**63 - 1, owner=system.name)
@@ -265,18 +332,22 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
             out.append(g)
         return np.array(out), (lam + t * size_l * mus if varies_lambda else lam)
 
-    T0 = action_terms(system, arrows, lam, params)
+    # internal stages (§22): solved at every arrow of the trajectory, then held while the
+    # arrows vary (at ζ*, d/dt L(g(t), ζ*(g(t))) = ∂L/∂g·g′ by the envelope theorem; forced,
+    # the stages solve the forced stage rows, which the principle makes stationary in ζ)
+    zeta = stage_values(system, arrows, U, params) if _functions(system).stages else None
+    T0 = action_terms(system, arrows, lam, params, zeta)
     _check_finite(system, "the discrete action", T0, params)
     report = StationarityReport()
     pairings = np.zeros((len(T0), 1))
     if _cached_forces(system) is not None:
-        forces = force_terms(system, arrows, U, params)
+        forces = force_terms(system, arrows, U, params, zeta)
         _check_finite(system, "the discrete forces", forces.reshape(len(T0), -1), params)
         pairings = virtual_work(forces, coeffs)
         report.work = float(pairings.sum())
     for e in (eps, eps / 2, eps / 4):
-        Tp = action_terms(system, *varied(e), params)
-        Tm = action_terms(system, *varied(-e), params)
+        Tp = action_terms(system, *varied(e), params, zeta)
+        Tm = action_terms(system, *varied(-e), params, zeta)
         report.derivatives[e] = float(Tp.sum() - Tm.sum()) / (2 * e) + report.work
         if e == eps:  # how large the first-order changes of the single terms are
             report.scale = (float(np.abs(Tp - Tm).sum()) / (2 * e)

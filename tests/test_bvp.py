@@ -881,3 +881,69 @@ def test_a_forced_window_kernel_takes_the_inputs_of_its_terms(numpy_windows):
         kernel.junction(windows, np.zeros((5, 2, 0)), np.array([0.05, 0.3]))
     with pytest.raises(sg.ShapeError, match="needs them"):
         _Problem.of(system, 6, np.array([0.05, 0.3]))
+
+
+def _stage_systems(which: str):
+    """Discretised systems with internal stages (docs/conventions.md §22), their parameters,
+    inputs and two end configurations (tests/test_stage_bvp.py)."""
+    from test_stage_bvp import BODY, PEND, double_pendulum, rigid_body
+
+    if which == "forced_gauss2":
+        return (double_pendulum(sg.GaussLegendre(2), forced=True), PEND, np.zeros((7, 1)),
+                ([0.4, -0.2], [0.5, 0.3]))
+    if which == "lobatto3_constrained":
+        continuous = sg.ContinuousSystem(
+            sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - 9 * q[1],
+            parameters=[h], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1], name="cartesian")
+        return (continuous.discretize(h, sg.LobattoIIIAB(3)), {"h": 0.05}, None,
+                ([np.sin(0.3), -np.cos(0.3)], [np.sin(0.8), -np.cos(0.8)]))
+    return (rigid_body(forced=True), BODY, np.zeros((7, 3)),
+            (np.eye(3), _cayley(np.array([0.4, 0.2, -0.3]))))
+
+
+@pytest.mark.parametrize("which", ["forced_gauss2", "lobatto3_constrained",
+                                   pytest.param("forced_body", marks=pytest.mark.slow)])
+def test_the_jacobian_with_internal_stages_is_the_derivative_of_the_residual(numpy_windows,
+                                                                             which):
+    """With internal stages the unknowns gain ζ_t of every term (after its multipliers) and
+    the equations their stage rows (§22): at a random iterate (random stages, multipliers and
+    inputs, arrows off the solution) every column of the assembled Jacobian is the central
+    difference of F along that unknown (the junction variations through the groupoid's
+    flow, the stages and multipliers as coordinates); the pattern's band widths are those of
+    the matrix, and the banded solve is the dense one."""
+    system, params, U, (start, end) = _stage_systems(which)
+    n, rng = 7, np.random.default_rng(11)
+    p = np.array([params[str(s)] for s in system.parameters], float)
+    if U is not None:
+        U = rng.normal(size=U.shape)
+    problem = _Problem.of(system, n, p, inputs=U)
+    kernel, lay = problem.kernel, problem.lay
+    assert kernel.n_stages == system.stages and len(lay.staged) == n
+    G = system.groupoid
+    arrows = interpolate_arrows(G, G.arrow_between(start, end), n)
+    start_state = _state._SolverState.at(problem, arrows,
+                                         np.zeros((n, kernel.m + kernel.n_stages)))
+    arrows = start_state.update(0.02 * rng.normal(size=lay.size))[0]  # off the straight path
+    lam = np.hstack([rng.normal(size=(n, kernel.m)),
+                     0.01 * rng.normal(size=(n, kernel.n_stages))])
+    state = _state._SolverState.at(problem, arrows, lam)
+    A = np.zeros((lay.size, lay.size))
+    np.add.at(A, (state.assembled.rows, state.assembled.cols), state.assembled.vals)
+    eps = 1e-6
+    for k in range(lay.size):
+        dz = np.zeros(lay.size)
+        dz[k] = eps
+        plus = _assemble(problem, *state.update(dz)).F
+        minus = _assemble(problem, *state.update(-dz)).F
+        column = (plus - minus) / (2 * eps)
+        assert np.abs(column - A[:, k]).max() <= 1e-6 * max(1.0, np.abs(A[:, k]).max()), k
+    rows, cols = np.nonzero(A)
+    band, widths = state.assembled.band, (int((rows - cols).max()), int((cols - rows).max()))
+    assert band.kl >= widths[0] and band.ku >= widths[1] and max(band.kl, band.ku) < 12
+    if not kernel.m:  # every entry of the pattern is generically non-zero
+        assert (band.kl, band.ku) == widths
+    F = state.assembled.F
+    x = _solve_banded(state.assembled.rows, state.assembled.cols, state.assembled.vals,
+                      lay.size, F, band)
+    np.testing.assert_allclose(x, np.linalg.solve(A, F), rtol=1e-9,
+                               atol=1e-9 * np.abs(x).max())

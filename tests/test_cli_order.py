@@ -13,7 +13,6 @@ import sympy as sp
 from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
-from symgroupoid import UnsupportedFeatureError
 from symgroupoid.cli import load_system, main
 
 PENDULUM = (REPO / "examples" / "cli" / "pendulum_order4.py").read_text()
@@ -60,7 +59,8 @@ def error_line(err: str) -> str:
 @needs_cc
 def test_verify_reports_the_observed_order(cached, capsys):
     """The example file: GaussLegendre(2) observed at 4.00 (N = 20, 40, 80 over T = 1,
-    against N = 640); the variational-principle check is skipped for internal stages."""
+    against N = 640); the variational principle is checked with the stages solved at every
+    arrow (docs/conventions.md §22)."""
     code, out, _ = run(capsys, "verify", REPO / "examples" / "cli" / "pendulum_order4.py")
     assert code == 0, out
     row = rows(out)["order of GaussLegendre(2)"]
@@ -68,8 +68,8 @@ def test_verify_reports_the_observed_order(cached, capsys):
     observed = float(row.split("observed ")[1].split(",")[0])
     assert abs(observed - 4) <= 0.1, row
     assert "N = 20, 40, 80, T = 1," in row and "against N = 640" in row, row
-    assert " skip " in rows(out)["variational principle (20 steps)"]
-    assert out.splitlines()[-1] == "pendulum_gauss2: 4 of 4 checks passed, 1 skipped"
+    assert " pass " in rows(out)["variational principle (20 steps)"]
+    assert out.splitlines()[-1] == "pendulum_gauss2: 5 of 5 checks passed"
 
 
 @needs_cc
@@ -154,9 +154,10 @@ def test_simulate_starts_from_a_velocity(tmp_path, cached, capsys):
     assert code == 1 and "from_velocity needs a system discretised" in error_line(err)
 
 
-def test_verify_stationary_refuses_internal_stages():
+def test_verify_stationary_checks_internal_stages():
     """(verify_stationary on a Galerkin system raised UnsupportedExpressionError about the
-    symbol ζ, which ``symgroupoid verify`` reported for every such file.)"""
+    symbol ζ, which ``symgroupoid verify`` reported for every such file; then it was refused
+    with UnsupportedFeatureError; now the stages are solved at every arrow, §22.)"""
     h, g = sp.symbols("h g", positive=True)
     system = sg.ContinuousSystem(sg.EuclideanSpace("theta"),
                                  lambda q, v: v[0] ** 2 / 2 + g * sp.cos(q[0]),
@@ -164,8 +165,11 @@ def test_verify_stationary_refuses_internal_stages():
     sim = system.euler_lagrange().compile(backend="numpy")
     params = {"h": 0.1, "g": 9.81}
     traj = sim.simulate(sim.from_velocity({"theta": 0.3}, [0.5], params), 5, params)
-    with pytest.raises(UnsupportedFeatureError, match="internal stages"):
-        sg.verify_stationary(traj, system)
+    assert sg.verify_stationary(traj, system)
+    moved = traj.states[:, :2].copy()
+    moved[2, 1] += 1e-3
+    moved[3, 0] += 1e-3
+    assert not sg.verify_stationary(moved, system, params)
 
 
 CENTRAL = '''

@@ -293,9 +293,10 @@ def test_what_is_not_supported_is_refused():
     for call in (system.legendre, system.lie_poisson):
         with pytest.raises(UnsupportedFeatureError, match="internal stages"):
             call()
-    step = system.euler_lagrange()
+    # boundary-value problems are solved (tests/test_stage_bvp.py), but not for a minimum
     with pytest.raises(UnsupportedFeatureError, match="internal stages"):
-        sg.solve_boundary_value(step, [0.3], [0.5], 10, params={"h": 0.1, "g": 9.81})
+        sg.solve_boundary_value(system.euler_lagrange(), [0.3], [0.5], 10,
+                                params={"h": 0.1, "g": 9.81}, minimum=True)
 
 
 def test_stages_on_discrete_systems_are_checked():

@@ -55,7 +55,8 @@ def write_solution(path: Path, solution) -> None:
     """A :class:`BoundaryValueSolution` to ``path``.
 
     .npz: ``arrows`` (N, arrow_dim), ``multipliers``, ``controls``, ``history`` (|F|∞ per
-    iteration), ``iterations``, ``residual_norm``, and each named part of the arrows
+    iteration), ``iterations``, ``residual_norm``, with internal stages ``stages`` (N,
+    n_stages: each arrow's ζ, docs/conventions.md §22), and each named part of the arrows
     (``x``: the target point of every arrow, ``g``: every arrow's matrix, …).
     .csv: one row per arrow k = 1 … N: its named parts, then its multipliers when the
     arrow starts an action term.
@@ -66,6 +67,8 @@ def write_solution(path: Path, solution) -> None:
                   "controls": solution.controls, "history": np.array(solution.history),
                   "iterations": np.array(solution.iterations),
                   "residual_norm": np.array(solution.residual_norm)}
+        if getattr(solution, "stages", None) is not None:
+            arrays["stages"] = solution.stages
         for name, values in parts.items():
             arrays[f"part_{name}" if name in arrays else name] = values
         _atomic(path, lambda f: np.savez(f, **arrays), binary=True)

@@ -162,9 +162,6 @@ def stationarity_check(system, traj) -> Check:
     if not isinstance(system, DiscreteSystem) and getattr(system, "method", "") != "holder":
         return Check(name, None, "the energy–momentum equations are not the critical points "
                                  "of an action")
-    if system.stages:
-        return Check(name, None, "not yet for a discrete Lagrangian with internal stages "
-                                 "(docs/conventions.md §22)")
     report = verify_stationary(traj, system)
     if system.functions.forces is not None:
         return Check(name, bool(report), f"Lagrange–d'Alembert: dS/dt + W along a random "

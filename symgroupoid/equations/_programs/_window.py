@@ -16,6 +16,9 @@ junction variation as a step's — on the expression graph:
   X⃖_c[r_b] and X⃗_c[r_b] on A_o, then ∂r/∂λ_s, then the running-error bound of each r_b
   (:func:`symgroupoid.ir.rounding_error`, the coordinates and multipliers counted as rounded
   values);
+- with internal stages ζ (docs/conventions.md §22), the *stage* program: the stage rows
+  ∂L/∂ζ(A, ζ) (+ f_ζ) of one term, their blocks along the fields on its arrow and ∂/∂ζ (the
+  junction program then also reads the stages of its terms, and gives ∂r/∂ζ_s);
 - the *term* program (with constraints): φ on one term, its blocks along the fields on each
   of its arrows, and its rounding bounds;
 - the *cost* program: L on one term (the discrete cost Σ_k L);
@@ -51,7 +54,12 @@ class WindowPrograms:
     values u_s of the term starting at offset s, docs/conventions.md §20), the parameters;
     output ``junction`` = [r (rank), per offset o:
     (rank × 2 × rank) blocks X⃖_c[r_b], X⃗_c[r_b] (row b, side, section c), per start s:
-    ∂r_b/∂λ_s (rank × m), rounding bounds (rank)].  ``term`` (None without constraints):
+    ∂r_b/∂λ_s (rank × m), per start s: ∂r_b/∂ζ_s (rank × n_stages), rounding bounds (rank)];
+    with internal stages (docs/conventions.md §22) ``a`` holds the stages ζ_s of every term
+    after the multipliers, and ``stage`` is the program of one term's stage rows: input
+    ``a`` = its arrow, ζ, its inputs, the parameters; output ``stage`` = [the rows
+    (n_stages), per row: the blocks along X⃖_c, X⃗_c on the arrow (2 × rank), ∂/∂ζ
+    (n_stages × n_stages), rounding bounds (n_stages)].  ``term`` (None without constraints):
     input ``a`` = the arrows of one term, the parameters; output ``term`` = [φ (m), per slot o:
     (m × 2 × rank) blocks, rounding bounds (m)].  ``forced``: the junction residual carries
     the forces (``n_inputs`` may be 0: forces without inputs, such as damping).
@@ -69,6 +77,8 @@ class WindowPrograms:
     term: Program | None
     forced: bool = False
     n_inputs: int = 0
+    n_stages: int = 0
+    stage: Program | None = None
 
 
 def window_programs(system) -> WindowPrograms:
@@ -87,11 +97,15 @@ def window_programs(system) -> WindowPrograms:
     n_inputs = len(fs.forces.inputs) if forced else 0
     U = {s: [sp.Symbol(f"u{s + 2}_{j}", real=True) for j in range(n_inputs)] for s in starts}
     nodes.update({x: g.input(x) for s in starts for x in U[s]})
+    n_stages = len(fs.stages)
+    Z = {s: [sp.Symbol(f"z{s + 2}_{a}", real=True) for a in range(n_stages)] for s in starts}
+    nodes.update({x: g.input(x) for s in starts for x in Z[s]})
     pnodes = {p: g.input(p) for p in parameters}
     arrows = {o: [nodes[x] for x in A[o]] for o in offsets}
     inputs = {s: [nodes[x] for x in U[s]] for s in starts} if forced else None
+    stages = {s: [nodes[x] for x in Z[s]] for s in starts} if n_stages else None
     jn = action.junction_nodes(g, pnodes, arrows, {s: [nodes[x] for x in lam[s]] for s in starts},
-                               inputs)
+                               inputs, stages)
     fields = {o: (action.fields(g, "left", arrows[o], pnodes),
                   action.fields(g, "right", arrows[o], pnodes)) for o in offsets}
     res = jn.residuals
@@ -104,14 +118,21 @@ def window_programs(system) -> WindowPrograms:
     for s in starts:
         d = [forward(g, res, {nodes[x]: g.one}, order) for x in lam[s]]
         blocks += [d[a][b] for b in range(r) for a in range(m)]
+    for s in starts:  # ∂r/∂ζ_s (docs/conventions.md §22; none without internal stages)
+        d = [forward(g, res, {nodes[x]: g.one}, order) for x in Z[s]]
+        blocks += [d[a][b] for b in range(r) for a in range(n_stages)]
     coords = [x for o in offsets for x in A[o]]
     lams = [x for s in starts for x in lam[s]]
-    # the rounding bound of each junction residual, the coordinates and multipliers counted
-    # as rounded values
-    blocks += rounding_error(g, res, [nodes[x] for x in coords + lams])
+    zs = [x for s in starts for x in Z[s]]
+    # the rounding bound of each junction residual, the coordinates, multipliers and stages
+    # counted as rounded values
+    blocks += rounding_error(g, res, [nodes[x] for x in coords + lams + zs])
     # the inputs are data of the problem, exact as given: not counted as rounded values
     us = [x for s in starts for x in U[s]]
-    junction = Program(g, {"a": coords + lams + us + parameters}, {"junction": blocks})
+    junction = Program(g, {"a": coords + lams + zs + us + parameters}, {"junction": blocks})
+    stage = (_stage_program(g, jn.stage_rows[0], arrows[0], fields[0], A[0],
+                            [nodes[x] for x in Z[0]], Z[0] + U[0] + parameters)
+             if n_stages else None)
     term = None
     if m:
         values = jn.constraints[0]
@@ -126,16 +147,37 @@ def window_programs(system) -> WindowPrograms:
         cblocks += rounding_error(g, values, [nodes[x] for x in ccoords])
         term = Program(g, {"a": ccoords + parameters}, {"term": cblocks})
     return WindowPrograms(system.name, r, m, fs.n_holonomic, arity, offsets, starts,
-                          parameters, junction, term, forced, n_inputs)
+                          parameters, junction, term, forced, n_inputs, n_stages, stage)
+
+
+def _stage_program(g: Graph, values: list, arrow: list, fields: tuple, coords: list,
+                   zeta: list, rest: list) -> Program:
+    """The *stage* program of one term (docs/conventions.md §22): its stage rows
+    ∂L/∂ζ(g, ζ) (+ f_ζ(g, ζ, u) when forced), their blocks along the fields X⃖_c, X⃗_c on
+    the term's arrow, ∂/∂ζ, and their rounding bounds (the coordinates and the stages
+    counted as rounded values).  Input ``a`` = the arrow's coordinates, ζ, the inputs, the
+    parameters (``rest``: ζ's symbols, the inputs', the parameters')."""
+    order = g.reachable(values)
+    n = len(values)
+    d = [slot_derivatives(g, values, arrow, fields[side], order) for side in (0, 1)]
+    dz = [forward(g, values, {z: g.one}, order) for z in zeta]
+    out = list(values)
+    for e in range(n):
+        out += [d[side][c][e] for side in (0, 1) for c in range(len(fields[side]))]
+    out += [dz[a][e] for e in range(n) for a in range(len(zeta))]
+    out += rounding_error(g, values, arrow + zeta)
+    return Program(g, {"a": list(coords) + list(rest)}, {"stage": out})
 
 
 def cost_program(system) -> Program:
     """L on one term of ``arity`` consecutive arrows: input ``a`` (the term's arrow
     coordinates, then the parameters), output ``cost`` (one value): the discrete cost
-    S = Σ_k L(g_k, …, g_{k+arity−1}) of an arrow sequence is its sum over the terms."""
+    S = Σ_k L(g_k, …, g_{k+arity−1}) of an arrow sequence is its sum over the terms.  With
+    internal stages ζ (docs/conventions.md §22) the term's stages follow its arrows in ``a``:
+    L(g_k, ζ_k), which is L_d(g_k) where ζ_k solves the stage rows."""
     fs = _functions(system)
     g = Graph()
-    coords = [c for slot in fs.slots for c in slot]
+    coords = [c for slot in fs.slots for c in slot] + list(fs.stages)
     symbols = {c: g.input(c) for c in coords}
     symbols.update({q: g.input(q) for q in system.parameters})
     lagrangian = from_sympy(g, fs.lagrangian, symbols, f"{system.name}: the Lagrangian")
@@ -145,16 +187,20 @@ def cost_program(system) -> Program:
 def action_program(system) -> Program:
     """L and φ (as in the action: holonomic ones as ψ at the term's source node,
     docs/conventions.md §15) on one term: input ``a`` (the term's arrow coordinates),
-    ``p`` (the parameters); outputs ``L`` (one value) and ``phi`` (m values)."""
+    ``p`` (the parameters), with internal stages ``z`` (the term's ζ, docs/conventions.md
+    §22); outputs ``L`` (one value) and ``phi`` (m values)."""
     fs = _functions(system)
     g = Graph()
     coords = [c for slot in fs.slots for c in slot]
-    symbols = {c: g.input(c) for c in (*coords, *system.parameters)}
+    symbols = {c: g.input(c) for c in (*coords, *fs.stages, *system.parameters)}
     memo: dict = {}
     L = from_sympy(g, fs.lagrangian, symbols, f"{system.name}: the Lagrangian", memo)
     phi = [from_sympy(g, c, symbols, f"{system.name}: constraint {a + 1}", memo)
            for a, c in enumerate(fs.constraints)]
-    return Program(g, {"a": coords, "p": list(system.parameters)}, {"L": [L], "phi": phi})
+    inputs = {"a": coords, "p": list(system.parameters)}
+    if fs.stages:
+        inputs["z"] = list(fs.stages)
+    return Program(g, inputs, {"L": [L], "phi": phi})
 
 
 @functools.lru_cache(maxsize=16)

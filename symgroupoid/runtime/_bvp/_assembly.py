@@ -74,15 +74,16 @@ class _Pattern(NamedTuple):
 def _pattern(kernel, lay) -> _Pattern:
     """The :class:`_Pattern` of ``lay``: the scatter of :func:`_add` run once on the
     positions of the outputs (position + 1, negated where the block enters with a minus)."""
-    a, r, m = kernel.arity, kernel.rank, kernel.m
+    a, r, m, nz = kernel.arity, kernel.rank, kernel.m, kernel.n_stages
     rows, cols, vals = [], [], []
     f_rows, f_src, c_src = [], [], []
     base = 0
     J = lay.junctions
     if len(J):
-        width = r + 2 * r * r * len(kernel.offsets) + r * m * len(kernel.starts) + r
+        width = (r + 2 * r * r * len(kernel.offsets) + r * (m + nz) * len(kernel.starts)
+                 + r)
         positions = 1.0 + np.arange(len(J) * width, dtype=float).reshape(len(J), width)
-        res, left, right, dlam, sizes = kernel.split_junction(positions)
+        res, left, right, dlam, dzeta, sizes = kernel.split_junction(positions)
         eq = lay.delta_at[J]
         f_rows.append((eq[:, None] + np.arange(r)).ravel())
         f_src.append(res.ravel())
@@ -92,6 +93,8 @@ def _pattern(kernel, lay) -> _Pattern:
             _add(rows, cols, vals, lay.delta_at, eq, J + o - 1, -right[o], r)
         for s in kernel.starts:
             _add(rows, cols, vals, lay.lam_at, eq, J + s, dlam[s], m)
+        for s in kernel.starts if nz else ():  # ∂r/∂ζ of the terms j + s (§22)
+            _add(rows, cols, vals, lay.zeta_at, eq, J + s, dzeta[s], nz)
         base = positions.size
     if m:
         T = lay.terms
@@ -105,6 +108,19 @@ def _pattern(kernel, lay) -> _Pattern:
         for o in range(a):
             _add(rows, cols, vals, lay.delta_at, eq, T + o, left[o], r, m)
             _add(rows, cols, vals, lay.delta_at, eq, T + o - 1, -right[o], r, m)
+        base += positions.size
+    if nz:  # the stage rows of every term t: its arrow g_t moves with δ_t and δ_{t−1} (§22)
+        T = lay.terms
+        width = nz + 2 * nz * r + nz * nz + nz
+        positions = base + 1.0 + np.arange(len(T) * width, dtype=float).reshape(len(T), width)
+        res, left, right, dz, sizes = kernel.split_stage(positions)
+        eq = lay.zeta_at[T]
+        f_rows.append((eq[:, None] + np.arange(nz)).ravel())
+        f_src.append(res.ravel())
+        c_src.append(sizes.ravel())
+        _add(rows, cols, vals, lay.delta_at, eq, T, left, r, nz)
+        _add(rows, cols, vals, lay.delta_at, eq, T - 1, -right, r, nz)
+        _add(rows, cols, vals, lay.zeta_at, eq, T, dz, nz, nz)
         base += positions.size
     pin_rows, pin_terms = _pinned(kernel, lay)
     if len(pin_rows):  # the row λ = 0: a unit diagonal, read from the trailing 1
@@ -155,27 +171,35 @@ def _pattern_of(kernel, lay) -> _Pattern:
 
 def _assemble(problem: _Problem, arrows, lam) -> _Assembled:
     """F, its Jacobian and the cancelling magnitudes at (arrows, λ) of ``problem``: the window
-    programs on every junction and term window, gathered into place by the layout's
-    :class:`_Pattern`."""
+    programs on every junction and term window (and, with internal stages, the stage program
+    on every term), gathered into place by the layout's :class:`_Pattern`.  ``lam`` holds the
+    unknowns of every term: its multipliers, then its stages ζ (docs/conventions.md §22)."""
     kernel, lay, p = problem.kernel, problem.lay, problem.p
-    a, m = kernel.arity, kernel.m
+    a, m, nz = kernel.arity, kernel.m, kernel.n_stages
     pattern = _pattern_of(kernel, lay)
     parts, worst_val, worst = [], -1.0, 0
     J = lay.junctions
     if len(J):
         windows = np.stack([arrows[J + o] for o in kernel.offsets], axis=1)
-        lams = (np.stack([lam[J + s] for s in kernel.starts], axis=1) if m
+        lams = (np.stack([lam[J + s, :m] for s in kernel.starts], axis=1) if m
                 else np.zeros((len(J), len(kernel.starts), 0)))
+        zetas = (np.stack([lam[J + s, m:] for s in kernel.starts], axis=1) if nz else None)
         inputs = np.stack([problem.inputs[J + s] for s in kernel.starts], axis=1)
-        out = kernel.junction_values(windows, lams, p, inputs)
+        out = kernel.junction_values(windows, lams, p, inputs, zetas)
         parts.append(out.ravel())
         bad = np.max(np.abs(out[:, :kernel.rank]), axis=1)
         worst_val, worst = bad.max(), int(J[np.argmax(bad)]) + 1
+    T = lay.terms
     if m:
-        T = lay.terms
         out = kernel.term_values(np.stack([arrows[T + o] for o in range(a)], axis=1), p)
         parts.append(out.ravel())
         bad = np.max(np.abs(out[:, :m]), axis=1)
+        if bad.max() > worst_val:
+            worst_val, worst = bad.max(), int(T[np.argmax(bad)]) + 1
+    if nz:
+        out = kernel.stage_values(arrows[T], lam[T, m:], problem.inputs[T], p)
+        parts.append(out.ravel())
+        bad = np.max(np.abs(out[:, :nz]), axis=1)
         if bad.max() > worst_val:
             worst = int(T[np.argmax(bad)]) + 1
     parts.append(np.ones(1))
@@ -185,7 +209,7 @@ def _assemble(problem: _Problem, arrows, lam) -> _Assembled:
     F[pattern.f_rows] = flat[pattern.f_src]
     cancel[pattern.f_rows] = flat[pattern.c_src]
     if len(pattern.pin_rows):  # the rows λ = 0 (docs/conventions.md §15, _pinned)
-        F[pattern.pin_rows] = lam[pattern.pin_terms, m - kernel.held:].reshape(-1)
+        F[pattern.pin_rows] = lam[pattern.pin_terms, m - kernel.held:m].reshape(-1)
         cancel[pattern.pin_rows] = 0.0
     vals = pattern.sign * flat[pattern.src]
     return _Assembled(F, pattern.rows, pattern.cols, vals, worst, cancel, pattern.band)

@@ -57,11 +57,15 @@ class WindowKernel:
         self.arity, self.offsets, self.starts = programs.arity, programs.offsets, programs.starts
         self.parameters = programs.parameters
         self.forced, self.n_inputs = programs.forced, programs.n_inputs
+        self.n_stages = programs.n_stages
         self._junction = _vectorised(f"{system.name}_junction", programs.junction, "a",
                                      "junction")
         self._term = None
         if programs.term is not None:
             self._term = _vectorised(f"{system.name}_term", programs.term, "a", "term")
+        self._stage = None
+        if programs.stage is not None:
+            self._stage = _vectorised(f"{system.name}_stage", programs.stage, "a", "stage")
 
     def junction(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray,
                  inputs: np.ndarray | None = None):
@@ -72,27 +76,39 @@ class WindowKernel:
     def junction_terms(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray,
                        inputs: np.ndarray | None = None):
         """:meth:`junction`'s blocks and the rounding bound E of each residual (W, rank): its
-        rounding error is at most about ε·E (:func:`symgroupoid.ir.rounding_error`)."""
-        return self.split_junction(self.junction_values(windows, lams, params, inputs))
+        rounding error is at most about ε·E (:func:`symgroupoid.ir.rounding_error`); a system
+        without internal stages (the stages' blocks are in :meth:`split_junction`)."""
+        res, left, right, dlam, _, sizes = self.split_junction(
+            self.junction_values(windows, lams, params, inputs))
+        return res, left, right, dlam, sizes
 
     def junction_values(self, windows: np.ndarray, lams: np.ndarray, params: np.ndarray,
-                        inputs: np.ndarray | None = None) -> np.ndarray:
+                        inputs: np.ndarray | None = None, zetas: np.ndarray | None = None
+                        ) -> np.ndarray:
         """The junction program's outputs for W windows, one row each (see
         :meth:`split_junction`); ``inputs`` (W, starts, n_inputs): the inputs of each term of
-        each window (None: none, for a system without inputs)."""
+        each window (None: none, for a system without inputs); ``zetas`` (W, starts,
+        n_stages): the internal stages of each term (docs/conventions.md §22; None without)."""
         W = len(windows)
         if inputs is None:
             inputs = np.zeros((W, len(self.starts), 0))
+        if zetas is None:
+            zetas = np.zeros((W, len(self.starts), 0))
         if inputs.shape != (W, len(self.starts), self.n_inputs):
             raise ShapeError(f"{self.groupoid.name}: the window program takes the inputs of "
                              f"{len(self.starts)} terms of {self.n_inputs} values per window; "
                              f"got shape {inputs.shape} for {W} windows")
-        vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1), inputs.reshape(W, -1),
-                          np.broadcast_to(params, (W, len(params)))])
+        if zetas.shape != (W, len(self.starts), self.n_stages):
+            raise ShapeError(f"{self.groupoid.name}: the window program takes the stages of "
+                             f"{len(self.starts)} terms of {self.n_stages} values per window; "
+                             f"got shape {zetas.shape} for {W} windows")
+        vals = np.hstack([windows.reshape(W, -1), lams.reshape(W, -1), zetas.reshape(W, -1),
+                          inputs.reshape(W, -1), np.broadcast_to(params, (W, len(params)))])
         return self._junction(vals)  # (W, total)
 
     def split_junction(self, out: np.ndarray):
-        """(residuals, left, right, dlam, rounding bounds) as views of the outputs ``out``."""
+        """(residuals, left, right, dlam, dzeta, rounding bounds) as views of the outputs
+        ``out`` (``dzeta[s]`` = ∂r/∂ζ_s, (W, rank, n_stages))."""
         W, r, k = len(out), self.rank, 0
         res = out[:, k:k + r]
         k += r
@@ -105,7 +121,31 @@ class WindowKernel:
         for s in self.starts:
             dlam[s] = out[:, k:k + r * self.m].reshape(W, r, self.m)
             k += r * self.m
-        return res, left, right, dlam, out[:, k:k + r]
+        dzeta, nz = {}, self.n_stages
+        for s in self.starts:
+            dzeta[s] = out[:, k:k + r * nz].reshape(W, r, nz)
+            k += r * nz
+        return res, left, right, dlam, dzeta, out[:, k:k + r]
+
+    def stage_values(self, arrows: np.ndarray, zetas: np.ndarray, inputs: np.ndarray,
+                     params: np.ndarray) -> np.ndarray:
+        """The stage program's outputs for T terms (docs/conventions.md §22): arrows
+        (T, arrow_dim), their stages (T, n_stages), their inputs (T, n_inputs); one row each
+        (see :meth:`split_stage`)."""
+        T = len(arrows)
+        return self._stage(np.hstack([arrows.reshape(T, -1), zetas.reshape(T, -1),
+                                      inputs.reshape(T, -1),
+                                      np.broadcast_to(params, (T, len(params)))]))
+
+    def split_stage(self, out: np.ndarray):
+        """(stage rows, left, right, ∂/∂ζ, rounding bounds) as views of the outputs ``out``:
+        rows (T, n), left and right (T, n, rank) along X⃖_c and X⃗_c on the term's arrow,
+        ∂/∂ζ (T, n, n)."""
+        T, n, r = len(out), self.n_stages, self.rank
+        blk = out[:, n:n + 2 * n * r].reshape(T, n, 2, r)
+        k = n + 2 * n * r
+        return (out[:, :n], blk[:, :, 0, :], blk[:, :, 1, :],
+                out[:, k:k + n * n].reshape(T, n, n), out[:, k + n * n:k + n * n + n])
 
     def term(self, windows: np.ndarray, params: np.ndarray):
         """Constraint values and slot derivatives for T terms: windows (T, arity, arrow_dim)."""
@@ -147,19 +187,26 @@ class CostKernel:
 
     def __init__(self, system):
         self.arity = len(_functions(system).slots)
+        self.n_stages = len(_functions(system).stages)
         self._f = cost_program(system).numpy_function(["cost"], ["a"])
 
-    def terms(self, arrows: np.ndarray, params: np.ndarray) -> np.ndarray:
-        """L on every window of ``arity`` consecutive arrows."""
+    def terms(self, arrows: np.ndarray, params: np.ndarray,
+              zetas: np.ndarray | None = None) -> np.ndarray:
+        """L on every window of ``arity`` consecutive arrows; with internal stages
+        (docs/conventions.md §22) L(g_k, ζ_k), ``zetas`` (T, n_stages) the stages of every
+        term (at the solution of the stage rows, L_d(g_k))."""
         T = len(arrows) - self.arity + 1
         windows = np.hstack([arrows[o:o + T] for o in range(self.arity)])
+        if self.n_stages:
+            windows = np.hstack([windows, np.asarray(zetas, float).reshape(T, -1)])
         values = np.hstack([windows, np.broadcast_to(params, (T, len(params)))])
         with np.errstate(all="ignore"):
             out = self._f(values.T)[0]
         return np.broadcast_to(np.asarray(out, float).reshape(-1), (T,))
 
-    def __call__(self, arrows: np.ndarray, params: np.ndarray) -> float:
-        return float(np.sum(self.terms(arrows, params)))
+    def __call__(self, arrows: np.ndarray, params: np.ndarray,
+                 zetas: np.ndarray | None = None) -> float:
+        return float(np.sum(self.terms(arrows, params, zetas)))
 
 
 @functools.lru_cache(maxsize=8)

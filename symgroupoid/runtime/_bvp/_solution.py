@@ -37,6 +37,11 @@ class BoundaryValueSolution:
     point of the Lagrange–d'Alembert principle, not of the action, and ``cost`` is Σ_k L_d
     along it, which it does not extremise.
 
+    Internal stages (docs/conventions.md §22): ``stages`` — (N, n_stages), the stages ζ_k
+    of every arrow at the solution (they solve its stage rows; None without stages); the
+    state of the trajectory is the arrows alone.  There is no second-order condition
+    (``inertia`` and ``is_local_minimum`` are None); ``cost`` is Σ_k L(g_k, ζ_k) = Σ_k L_d(g_k).
+
     The configurations and the second-order condition are computed when first asked for
     (the inertia from the KKT matrix re-assembled at the solution, the same matrix the
     solve ended with), so a solve whose caller needs neither does not pay for them.
@@ -57,6 +62,7 @@ class BoundaryValueSolution:
     method: str = "Newton"
     inputs: np.ndarray | None = None
     forced: bool = False
+    stages: np.ndarray | None = None
 
     @property
     def steps(self) -> int:
@@ -71,7 +77,7 @@ class BoundaryValueSolution:
     def inertia(self) -> Inertia | None:
         """(positive, negative, zero) eigenvalue counts of the reduced Hessian (see the class
         docstring), or None when it is singular to rounding."""
-        if self.forced:
+        if self.forced or self.stages is not None:
             return None
         if not self.second_order:
             p = np.array([self.parameters[str(q)] for q in self.system.parameters], float)
@@ -116,6 +122,8 @@ class BoundaryValueSolution:
         if self.forced:
             return ("no second-order condition (forced: a critical point of the "
                     "Lagrange–d'Alembert principle, not of the action)")
+        if self.stages is not None:
+            return "no second-order condition (internal stages)"
         if self.inertia is None:
             return "undetermined (the reduced Hessian is singular to rounding)"
         k = self.inertia.negative

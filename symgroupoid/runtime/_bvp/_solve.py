@@ -62,6 +62,14 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     fast path alone (its failure raises), ``minimum=True`` is refused, and the solution has
     no second-order condition.
 
+    Internal stages (a discrete Lagrangian L(g, ζ), e.g. a Galerkin discretisation,
+    docs/conventions.md §22).  The unknowns gain the stages ζ_k of every arrow (from 0, the
+    chord) and the equations their stage rows ∂L/∂ζ(g_k, ζ_k) (+ f_ζ when forced); the
+    junction residuals read the stages of both their terms.  The Jacobian stays banded.
+    Newton's method alone, as for a forced system: ``minimum=True`` is refused, a fast path
+    that gives up raises, and there is no second-order condition.  The solution's arrows
+    are the trajectory; its ``stages`` (N, n_stages) are the stages of each arrow there.
+
     The iteration.  Structured Newton on the necessary conditions (junction residuals and
     constraints; block-banded Jacobian, solved in time linear in N), each update backtracked
     until |F|₂ decreases (:func:`_line_search`), is the fast path.  When it finds no decrease
@@ -117,6 +125,9 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
             f"{owner}: minimum=True asks for a local minimum of the action, but a forced "
             f"system's solutions are critical points of the Lagrange–d'Alembert principle, "
             f"not of the action (docs/conventions.md §20); leave minimum out")
+    n_stages = len(_functions(system).stages)
+    if n_stages and minimum:
+        raise UnsupportedFeatureError(_NO_DESCENT.format(owner=owner, what="minimum=True"))
     m = len(_functions(system).constraints)
     data = _boundary(system, a, start, end)
     check_holonomic_nodes(system, [data.total] if a == 1 else [data.first, data.last],
@@ -126,6 +137,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     _check_cut_locus(system, arrows, "the initial path has" if guess is None
                      else "the guess has")
     problem = _Problem.of(system, steps, p, tol, tol_step, max_iterations, table)
+    # the stages ζ_t of every term follow its multipliers, from ζ = 0: the chord (§22)
+    lam = np.hstack([lam, np.zeros((len(lam), n_stages))])
     t0 = time.perf_counter()
     state = _SolverState.at(problem, arrows, lam)
     if not state.assembled.finite():
@@ -137,12 +150,23 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
             residual_norm=float(np.nanmax(np.abs(state.assembled.F), initial=0.0)),
             iterate=arrows)
     inertia = _solve(state, minimum)
+    multipliers, stages = state.lam[:, :m], state.lam[:, m:]
     return BoundaryValueSolution(
-        system, state.arrows, state.lam, data.configurations[0], named, state.iterations,
+        system, state.arrows, multipliers, data.configurations[0], named, state.iterations,
         state.history[-1], state.history, time.perf_counter() - t0,
-        cost=problem.cost(state.arrows, p), second_order=inertia,
+        cost=problem.cost(state.arrows, p, stages), second_order=inertia,
         method=" → ".join(state.methods), inputs=table if table.shape[1] else None,
-        forced=forced)
+        forced=forced, stages=stages if n_stages else None)
+
+
+#: why a problem with internal stages has no descent method on the action (§22)
+_NO_DESCENT = (
+    "{owner}: {what} needs a descent method on the action, and with internal stages the "
+    "action Σ L(g_k, ζ_k) is not the discrete action Σ L_d(g_k) away from the stages' "
+    "solutions: a descent over arrows and stages together is one for L_d only where every "
+    "ζ*(g) minimises L(g, ·), which nothing guarantees (docs/conventions.md §22); the solve "
+    "with internal stages is Newton's method alone, without a second-order condition: "
+    "leave minimum out")
 
 
 def _solve(state: _SolverState, minimum: bool) -> tuple:
@@ -154,11 +178,11 @@ def _solve(state: _SolverState, minimum: bool) -> tuple:
     try:
         _fast_newton(state)
     except _Handover as why:
-        if state.problem.forced:
+        if state.problem.forced or state.problem.staged:
             _no_globalisation(state, why)
         _globalised_after(state, _restart_points(state, initial, why.iterates), str(why))
         return (_reduced_inertia(state),)
-    if state.problem.forced:
+    if state.problem.forced or state.problem.staged:
         return ()
     if not minimum:
         return ()
@@ -175,14 +199,19 @@ def _solve(state: _SolverState, minimum: bool) -> tuple:
 
 
 def _no_globalisation(state: _SolverState, why: _Handover) -> None:
-    """The end of a forced system's solve whose fast path gave up: the globalised iteration
-    descends the action, and a forced system's solutions are not critical points of it
-    (docs/conventions.md §20).  Raises the singular Jacobian that ended the fast path, or a
+    """The end of a forced system's solve, or one with internal stages, whose fast path gave
+    up: the globalised iteration descends the action, and a forced system's solutions are
+    not critical points of it (docs/conventions.md §20), nor is a descent over arrows and
+    stages one of L_d (§22).  Raises the singular Jacobian that ended the fast path, or a
     divergence error."""
     if isinstance(why.__cause__, SingularJacobianError):
         raise why.__cause__
+    reason = ("a forced system has no action to descend (its solutions are critical points "
+              "of the Lagrange–d'Alembert principle, docs/conventions.md §20)"
+              if state.problem.forced else
+              "with internal stages there is no action to descend (Σ L(g_k, ζ_k) is L_d "
+              "only at the stages' solutions, docs/conventions.md §22)")
     raise state.divergence(
-        f"(Newton) {why}; a forced system has no action to descend (its solutions are "
-        f"critical points of the Lagrange–d'Alembert principle, docs/conventions.md §20), so "
-        f"there is no globalised iteration: give a guess closer to the solution (e.g. a "
-        f"simulated trajectory) or solve with more steps", state.excess())
+        f"(Newton) {why}; {reason}, so there is no globalised iteration: give a guess closer "
+        f"to the solution (e.g. a simulated trajectory) or solve with more steps",
+        state.excess())

@@ -6,8 +6,10 @@ inertia work on.  It holds
 - the problem (:class:`_Problem`, fixed during the solve): the window and cost kernels, the
   layout of the unknowns and equations, the numeric structure maps, the parameter values
   and the options (``tol``, ``tol_step``, ``max_iterations``);
-- the iterate: the arrows g_1 … g_N, the multipliers λ of every term, and the residual F
-  and its Jacobian assembled there (:class:`~._assembly._Assembled`);
+- the iterate: the arrows g_1 … g_N, the multipliers λ of every term (with internal
+  stages, docs/conventions.md §22: each term's row of ``lam`` holds its multipliers, then
+  its stages ζ_t), and the residual F and its Jacobian assembled there
+  (:class:`~._assembly._Assembled`);
 - the run: |F|∞ before each update, the iterations counted against ``max_iterations``
   (across all phases), whether the iteration has stalled, and the phases used.
 
@@ -15,8 +17,10 @@ An update moves the iterate along the junction variations of the derivation,
 
     g_j ↦ g_j · h(δ_j),   g_{j+1} ↦ h(δ_j)⁻¹ · g_{j+1},    h(δ) ⊂ α⁻¹(β(g_j)),
 
-and the multipliers by their increments, so every iterate stays composable with the end
-points fixed.
+and the multipliers (and stages) by their increments, so every iterate stays composable with
+the end points fixed.  The stages are coordinates of their own (deviations from the chord,
+§22), held fixed by the junction variations: the Jacobian's δ columns are the derivatives
+along the section fields at fixed ζ, its ζ columns the partial derivatives.
 """
 
 from __future__ import annotations
@@ -69,7 +73,8 @@ class _Problem:
         ``inputs``: the checked input table (:func:`~._inputs.input_table`), None for a
         system without inputs."""
         kernel = window_kernel(system)
-        lay = _layout(steps, kernel.arity, kernel.rank, kernel.m)
+        shape = (steps, kernel.arity, kernel.rank, kernel.m)
+        lay = _layout(*shape, kernel.n_stages) if kernel.n_stages else _layout(*shape)
         if inputs is None:
             inputs = np.zeros((len(lay.terms), kernel.n_inputs))
             if kernel.n_inputs:
@@ -83,6 +88,12 @@ class _Problem:
         """Whether the system is forced: its solutions are critical points of the
         Lagrange–d'Alembert principle, not of the action (docs/conventions.md §20)."""
         return self.kernel.forced
+
+    @property
+    def staged(self) -> bool:
+        """Whether the system's terms have internal stages ζ, unknowns of the problem with
+        their stage rows (docs/conventions.md §22)."""
+        return bool(self.kernel.n_stages)
 
     @property
     def r(self) -> int:
@@ -168,7 +179,10 @@ class _SolverState:
         lam = self.lam.copy()
         terms = lay.multiplied
         if m and len(terms):
-            lam[terms] += dz[lay.lam_at[terms][:, None] + np.arange(m)]
+            lam[terms, :m] += dz[lay.lam_at[terms][:, None] + np.arange(m)]
+        staged, nz = lay.staged, self.problem.kernel.n_stages
+        if nz and len(staged):  # the stages ζ_t, after the multipliers (§22)
+            lam[staged, m:] += dz[lay.zeta_at[staged][:, None] + np.arange(nz)]
         return arrows, lam
 
     def trial(self, dz: np.ndarray) -> _Iterate:
