@@ -122,19 +122,24 @@ class ForceFunctions:
         return self.window_terms({0: left, 1: right}, [0, 1])
 
 
-def impulse_form(groupoid: Groupoid, forces: ForceFunctions, section, parameters: Sequence
+def impulse_form(groupoid: Groupoid, forces: ForceFunctions, section, parameters: Sequence,
+                 stages: tuple[Sequence, Sequence] | None = None
                  ) -> tuple[sp.Expr, tuple, tuple]:
     """The impulse of the forces along a section X over one junction (docs/conventions.md
     §20): I = Σ_b X^b(β(a))·(f⁺_b(a) + f⁻_b(b)) for consecutive arrows a = g_k (inputs
     u_k) and b = g_{k+1} (inputs u_{k+1}), so that a Noether quantity of a symmetry X of L
     changes by it, J(g_{k+1}) − J(g_k) = I.  Returns (I, a, b): the expression and the two
-    independent arrows (slot coordinates) it is written in."""
+    independent arrows (slot coordinates) it is written in.  ``stages`` (ζ_a, ζ_b): the
+    symbols of the two arrows' internal stages, which the forces of a discrete Lagrangian
+    with internal stages read (docs/conventions.md §22; the balance then gains the stage
+    forces' term, :class:`~symgroupoid.NoetherQuantity`)."""
     from ._momenta import section_coefficients
 
     a, b = slot(groupoid, "a_"), slot(groupoid, "b_")
+    za, zb = stages if stages is not None else (None, None)
     X = section_coefficients(groupoid, section, groupoid.target(a), parameters)
-    _, plus = forces.at(a, 0)
-    minus, _ = forces.at(b, 1)
+    plus = forces.on([a], 0, za)[-1]
+    minus = forces.on([b], 1, zb)[0]
     return sum((x * (fp + fm) for x, fp, fm in zip(X, plus, minus)), sp.S.Zero), a, b
 
 

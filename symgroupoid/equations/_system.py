@@ -318,7 +318,7 @@ class DiscreteSystem(_EvaluatedSystem):
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
                               section, f, self.parameters)
         if self.stages:
-            return self._noether_with_stages(forms)
+            return self._noether_with_stages(forms, section)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow, forms.window)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
                                               self.functions):
@@ -337,15 +337,34 @@ class DiscreteSystem(_EvaluatedSystem):
                                      input_symbols(forces.inputs, 1))
         return quantity
 
-    def _noether_with_stages(self, forms) -> NoetherQuantity:
+    def _noether_with_stages(self, forms, section) -> NoetherQuantity:
         """The Noether quantity of a system with internal stages: F_X and the defect at the
         stages ζ* of the arrow (docs/conventions.md §22), the symmetry checked there at
-        random arrows."""
-        if self.functions.forces is not None or self.n_holonomic:
-            self._refuse_stages("the Noether quantity with forces or holonomic constraints")
+        random arrows.  With forces, F_X is evaluated at the forced stages of each arrow
+        (∂L/∂ζ + f_ζ = 0 with that arrow's inputs), and the impulse of a step is the forces'
+        along X at the junction plus the stage forces' term, minus the defect at the new
+        arrow's forced stages (docs/conventions.md §22, "The forced Noether balance")."""
+        if self.n_holonomic:
+            raise UnsupportedFeatureError(
+                f"{self.name}: the Noether quantity of a discrete Lagrangian with internal "
+                f"stages and holonomic constraints is not supported yet: its symmetry would "
+                f"be checked on N = G|_M at the stages and interior multipliers solved with "
+                f"the end multipliers, which are not written; docs/conventions.md §22 lists "
+                f"what is supported")
         quantity = NoetherQuantity(forms, False, self.parameters)
         quantity.stages = tuple(self.functions.stages)
         quantity.stage_rows = tuple(stage_rows(self.functions, forms.arrow))
+        forces = self.functions.forces
+        if forces is not None:
+            here, there = input_symbols(forces.inputs, 0), input_symbols(forces.inputs, 1)
+            quantity.stage_inputs = tuple(here)
+            quantity.stage_forces = tuple(forces.stage_terms(forms.arrow, 0, quantity.stages))
+            za = tuple(sp.Dummy(f"za{a}", real=True) for a in range(self.stages))
+            zb = tuple(sp.Dummy(f"zb{a}", real=True) for a in range(self.stages))
+            expr, a, b = impulse_form(self.groupoid, forces, section, self.parameters,
+                                      stages=(za, zb))
+            quantity.impulse_form = (expr, a, b, here, there)
+            quantity.impulse_stages = (za, zb)
         quantity.is_symmetry, quantity.verification = quantity.check_with_stages(
             self.groupoid)
         return quantity
