@@ -10,7 +10,7 @@ central field, damping and an input torque, GaussLegendre(2) and LobattoIIIAB(3)
 GaussLegendre(2) written by hand with its stages solved here (Y_j = Aζ_j for the rotation
 X(q) = Aq); with internal forces the impulse telescopes and the forced momentum
 ⟨F⁺L + f⁺, X(β)⟩ is conserved (a translation's J itself); on SO(3) with an input torque and
-on two rotors joined by a driven, damped joint (slow: their Noether forms take a minute)."""
+on two rotors joined by a driven, damped joint (slow)."""
 
 import functools
 
@@ -198,7 +198,7 @@ def test_along_needs_the_inputs_of_each_arrow():
         rotation.along(Stripped())
 
 
-# --- on groups (slow: the Noether forms of a forced Galerkin step on a group take ~1 min) ---
+# --- on groups (slow: the Noether forms of the forced step on SO(3) take ~2 min, F^±L in SymPy) -
 
 @pytest.mark.slow
 def test_the_balance_of_an_input_torque_on_so3():

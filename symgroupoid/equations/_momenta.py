@@ -132,9 +132,14 @@ class NoetherQuantity:
     #: inputs ``stage_inputs`` (the state's u_k), which the stage rows gain, so that F_X is
     #: evaluated at the forced stages, ∂L/∂ζ + f_ζ = 0 (docs/conventions.md §22); the
     #: symbols (ζ_k, ζ_{k+1}) of the stages the impulse form is written in
-    stage_forces: tuple = ()
+    forces = None  # the system's ForceFunctions (in its slot coordinates)
     stage_inputs: tuple = ()
     impulse_stages: tuple = ()
+
+    @property
+    def stage_forces(self) -> bool:
+        """Whether F_X is evaluated at forced stages (a forced system with stages)."""
+        return bool(self.stages) and self.forces is not None
 
     @functools.cached_property
     def _program(self) -> Program:
@@ -158,8 +163,10 @@ class NoetherQuantity:
                                                   "the symmetry defect", memo)]})
             if self.stage_forces:
                 inputs["u"] = list(self.stage_inputs)
-                forced = [g.add(r, from_sympy(g, f, symbols, "the stage forces", memo))
-                          for r, f in zip(rows, self.stage_forces)]
+                f_zeta = _force_nodes(g, self.forces, self.forces.stage_forces,
+                                      [symbols[c] for c in self.arrow], zeta,
+                                      [symbols[v] for v in self.stage_inputs], symbols)
+                forced = [g.add(r, f) for r, f in zip(rows, f_zeta)]
                 J = step_jacobian(g, forced, zeta)
                 outputs.update({"forced_rows": forced,
                                 "forced_J": [c for row in J for c in row]})
@@ -273,7 +280,10 @@ class NoetherQuantity:
         f⁰_b(g_{k+1}, g_{k+2})), each pair with its inputs, from state k (g_{k−1}, g_k,
         g_{k+1}) to state k + 1.  For a symmetry X of L, ``np.diff(nq.along(traj))`` equals
         it to rounding (the forced Noether theorem); internal forces that cancel along X
-        give zeros."""
+        give zeros.  With internal stages both arrows' forces are taken at their forced
+        stages and I_k gains −D(g_{k+1}, ζ_{k+1}), the symmetry defect at the new arrow's
+        stages, which is the stage forces' work along the stages' motion under X
+        (docs/conventions.md §22, "The forced Noether balance")."""
         if self.impulse_refused:
             raise UnsupportedFeatureError(f"NoetherQuantity.impulse: {self.impulse_refused}")
         if self.impulse_form is None:
@@ -341,12 +351,35 @@ class NoetherQuantity:
         if self.impulse_stages:
             names.update(za=list(self.impulse_stages[0]), zb=list(self.impulse_stages[1]))
         symbols = {s: g.input(s) for group in names.values() for s in group}
-        node = from_sympy(g, expr, symbols, "the forces' impulse")
-        return Program(g, names, {"I": [node]})
+        if not self.impulse_stages:
+            return Program(g, names, {"I": [from_sympy(g, expr, symbols,
+                                                       "the forces' impulse")]})
+        # with stages: Σ_b X^b(β(a))·(f⁺_b(a, ζ_a; u_a) + f⁻_b(b, ζ_b; u_b)) on the graph
+        za, zb = self.impulse_stages
+        plus = _force_nodes(g, self.forces, self.forces.plus, [symbols[c] for c in a],
+                            [symbols[z] for z in za], [symbols[v] for v in ua], symbols)
+        minus = _force_nodes(g, self.forces, self.forces.minus, [symbols[c] for c in b],
+                             [symbols[z] for z in zb], [symbols[v] for v in ub], symbols)
+        X = [from_sympy(g, x, symbols, "the section") for x in expr]
+        terms = [g.mul(x, g.add(fp, fm)) for x, fp, fm in zip(X, plus, minus)]
+        return Program(g, names, {"I": [g.add(*terms) if terms else g.const(0)]})
 
     def __repr__(self) -> str:
         verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"
         return f"<NoetherQuantity F_X = {_short(self.expr)} ({verdict})>"
+
+
+def _force_nodes(g: Graph, forces, exprs, arrow: list, zeta: list, u: list,
+                 symbols: dict) -> list[int]:
+    """The force expressions ``exprs`` (in the forces' slot coordinates, generic stages and
+    inputs) at the arrow, stages and inputs whose nodes are given: mapped on the graph,
+    never substituted in SymPy (the forces of a Galerkin step on a group are large)."""
+    mapping = dict(symbols)
+    mapping.update(zip(forces.slot, arrow))
+    mapping.update(zip(forces.stages, zeta))
+    mapping.update(zip(forces.inputs, u))
+    memo: dict = {}
+    return [from_sympy(g, e, mapping, "the forces", memo) for e in exprs]
 
 
 class LiePoissonEquations:

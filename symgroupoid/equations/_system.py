@@ -34,6 +34,7 @@ from ..derivation import (
     energy_momentum_step,
     evaluate_system,
     impulse_form,
+    impulse_section,
     input_arguments,
     input_symbols,
     junction_step,
@@ -355,16 +356,15 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity.stages = tuple(self.functions.stages)
         quantity.stage_rows = tuple(stage_rows(self.functions, forms.arrow))
         forces = self.functions.forces
-        if forces is not None:
+        if forces is not None:  # large expressions: built on the graph, never substituted
             here, there = input_symbols(forces.inputs, 0), input_symbols(forces.inputs, 1)
+            quantity.forces = forces
             quantity.stage_inputs = tuple(here)
-            quantity.stage_forces = tuple(forces.stage_terms(forms.arrow, 0, quantity.stages))
-            za = tuple(sp.Dummy(f"za{a}", real=True) for a in range(self.stages))
-            zb = tuple(sp.Dummy(f"zb{a}", real=True) for a in range(self.stages))
-            expr, a, b = impulse_form(self.groupoid, forces, section, self.parameters,
-                                      stages=(za, zb))
-            quantity.impulse_form = (expr, a, b, here, there)
-            quantity.impulse_stages = (za, zb)
+            X, a, b = impulse_section(self.groupoid, section, self.parameters)
+            quantity.impulse_form = (X, a, b, here, there)
+            quantity.impulse_stages = (
+                tuple(sp.Dummy(f"za{i}", real=True) for i in range(self.stages)),
+                tuple(sp.Dummy(f"zb{i}", real=True) for i in range(self.stages)))
         quantity.is_symmetry, quantity.verification = quantity.check_with_stages(
             self.groupoid)
         return quantity
