@@ -51,10 +51,11 @@ def test_the_rules_without_stages_print_as_before():
     assert "Q_{k" not in text and "V_{k" not in text
 
 
-def test_a_forced_step_outside_the_stage_notation_prints_as_derived():
-    """Lobatto with a holonomic constraint and a damping force: no stage form, and the
-    forced form (which names f± of the junction rows only, not f_ζ of the stage rows) is
-    not the step; it prints as derived (this raised LatexVerificationError)."""
+def test_a_forced_constrained_step_prints_in_the_stage_notation():
+    """Lobatto with a holonomic constraint and a damping force (this printed as derived, and
+    before that raised LatexVerificationError): the stage notation with the forces at the
+    nodes, the interior multipliers Λ and the end multiplier λ_{k+1} (tests/test_stage_latex.py
+    has the constrained forms in detail)."""
     cartesian = sg.ContinuousSystem(
         sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - grav * q[1],
         parameters=[h, grav, c], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1],
@@ -62,8 +63,7 @@ def test_a_forced_step_outside_the_stage_notation_prints_as_derived():
     step = cartesian.discretize(h, sg.LobattoIIIAB(3)).euler_lagrange()
     text = step.latex()
     assert text.count("0 &=") == len(step) == 9
-    assert "Q_{k" not in text
-    assert r"(\zeta_{k+1})_{3}" in text
+    assert r"\Lambda_{k+1,2} = (\zeta_{k+1})_{3}" in text and r"\frac{c h}{6}" in text
 
 
 @needs_tex

@@ -122,17 +122,27 @@ class ForceFunctions:
         return self.window_terms({0: left, 1: right}, [0, 1])
 
 
+def impulse_section(groupoid: Groupoid, section, parameters: Sequence
+                    ) -> tuple[list, tuple, tuple]:
+    """The section X at the junction node β(a) of two consecutive slot arrows a = g_k and
+    b = g_{k+1}: (X(β(a)) in a's coordinates, a, b)."""
+    from ._momenta import section_coefficients
+
+    a, b = slot(groupoid, "a_"), slot(groupoid, "b_")
+    return section_coefficients(groupoid, section, groupoid.target(a), parameters), a, b
+
+
 def impulse_form(groupoid: Groupoid, forces: ForceFunctions, section, parameters: Sequence
                  ) -> tuple[sp.Expr, tuple, tuple]:
     """The impulse of the forces along a section X over one junction (docs/conventions.md
     §20): I = Σ_b X^b(β(a))·(f⁺_b(a) + f⁻_b(b)) for consecutive arrows a = g_k (inputs
     u_k) and b = g_{k+1} (inputs u_{k+1}), so that a Noether quantity of a symmetry X of L
     changes by it, J(g_{k+1}) − J(g_k) = I.  Returns (I, a, b): the expression and the two
-    independent arrows (slot coordinates) it is written in."""
-    from ._momenta import section_coefficients
-
-    a, b = slot(groupoid, "a_"), slot(groupoid, "b_")
-    X = section_coefficients(groupoid, section, groupoid.target(a), parameters)
+    independent arrows (slot coordinates) it is written in.  (With internal stages the
+    forces are large and read both arrows' stages: :class:`~symgroupoid.NoetherQuantity`
+    builds the impulse on its expression graph from :func:`impulse_section` and the
+    forces in their slot coordinates, docs/conventions.md §22.)"""
+    X, a, b = impulse_section(groupoid, section, parameters)
     _, plus = forces.at(a, 0)
     minus, _ = forces.at(b, 1)
     return sum((x * (fp + fm) for x, fp, fm in zip(X, plus, minus)), sp.S.Zero), a, b
@@ -249,5 +259,5 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     return ForceFunctions(arrows, list(inputs), parts)
 
 
-__all__ = ["ForceFunctions", "force_functions", "impulse_form", "input_arguments",
-           "input_symbols", "pair_impulse_form"]
+__all__ = ["ForceFunctions", "force_functions", "impulse_form", "impulse_section",
+           "input_arguments", "input_symbols", "pair_impulse_form"]

@@ -128,13 +128,25 @@ class NoetherQuantity:
     #: they are evaluated at (the envelope theorem: F^±L_d(g) = F^±L(g, ζ*))
     stages: tuple = ()
     stage_rows: tuple = ()
+    #: a forced system with internal stages: f_ζ of the arrow in the generic stages and its
+    #: inputs ``stage_inputs`` (the state's u_k), which the stage rows gain, so that F_X is
+    #: evaluated at the forced stages, ∂L/∂ζ + f_ζ = 0 (docs/conventions.md §22); the
+    #: symbols (ζ_k, ζ_{k+1}) of the stages the impulse form is written in
+    forces = None  # the system's ForceFunctions (in its slot coordinates)
+    stage_inputs: tuple = ()
+    impulse_stages: tuple = ()
+
+    @property
+    def stage_forces(self) -> bool:
+        """Whether F_X is evaluated at forced stages (a forced system with stages)."""
+        return bool(self.stages) and self.forces is not None
 
     @functools.cached_property
     def _program(self) -> Program:
         g = Graph()
         names = [*self.arrow, *self.multipliers]
-        symbols = {s: g.input(s) for s in (*names, *self.stages, *self.parameters)
-                   if isinstance(s, sp.Symbol)}
+        symbols = {s: g.input(s) for s in (*names, *self.stages, *self.stage_inputs,
+                                           *self.parameters) if isinstance(s, sp.Symbol)}
         memo: dict = {}
         node = from_sympy(g, self.expr, symbols, "the Noether quantity", memo)
         inputs = {"known": names, "p": list(self.parameters)}
@@ -143,23 +155,49 @@ class NoetherQuantity:
             from ..derivation import step_jacobian
 
             inputs["zeta"] = list(self.stages)
+            zeta = [symbols[z] for z in self.stages]
             rows = [from_sympy(g, r, symbols, "the stage rows", memo) for r in self.stage_rows]
-            J = step_jacobian(g, rows, [symbols[z] for z in self.stages])
+            J = step_jacobian(g, rows, zeta)
             outputs.update({"rows": rows, "J": [c for row in J for c in row],
                             "defect": [from_sympy(g, self.defect, symbols,
                                                   "the symmetry defect", memo)]})
+            if self.stage_forces:
+                inputs["u"] = list(self.stage_inputs)
+                f_zeta = _force_nodes(g, self.forces, self.forces.stage_forces,
+                                      [symbols[c] for c in self.arrow], zeta,
+                                      [symbols[v] for v in self.stage_inputs], symbols)
+                forced = [g.add(r, f) for r, f in zip(rows, f_zeta)]
+                J = step_jacobian(g, forced, zeta)
+                outputs.update({"forced_rows": forced,
+                                "forced_J": [c for row in J for c in row]})
         return Program(g, inputs, outputs)
 
-    def _at_stages(self, outputs: list, known: np.ndarray, p: np.ndarray) -> list:
-        """``outputs`` of the program at arrows ``known`` (n, R), at their stages ζ* for a
-        system with internal stages."""
+    def _stages_at(self, known: np.ndarray, p: np.ndarray,
+                   u: np.ndarray | None = None) -> np.ndarray:
+        """The stages of the arrows ``known`` (n, R): ζ* (∂L/∂ζ = 0), or, with the inputs
+        ``u`` (m, R) of a forced system, the forced stages (∂L/∂ζ + f_ζ = 0: the stages the
+        step solved, docs/conventions.md §22)."""
+        if u is not None and self.stage_forces:
+            rows = self._program.numpy_function(["forced_rows", "forced_J"],
+                                                ["known", "zeta", "u", "p"])
+
+            def at(known, zeta, p):
+                return rows(known, zeta, u, p)
+
+            return solve_stages(at, known, p, len(self.stages), "the Noether quantity")
+        rows = self._program.numpy_function(["rows", "J"], ["known", "zeta", "p"])
+        return solve_stages(rows, known, p, len(self.stages), "the Noether quantity")
+
+    def _at_stages(self, outputs: list, known: np.ndarray, p: np.ndarray,
+                   u: np.ndarray | None = None) -> list:
+        """``outputs`` of the program at arrows ``known`` (n, R), at their stages for a
+        system with internal stages (the forced stages with the inputs ``u``, see
+        :meth:`_stages_at`)."""
         names = ["known", "zeta", "p"] if self.stages else ["known", "p"]
         f = self._program.numpy_function(outputs, names)
         if not self.stages:
             return f(known, p)
-        rows = self._program.numpy_function(["rows", "J"], names)
-        zeta = solve_stages(rows, known, p, len(self.stages), "the Noether quantity")
-        return f(known, zeta, p)
+        return f(known, self._stages_at(known, p, u), p)
 
     def check_with_stages(self, groupoid) -> tuple[bool, str]:
         """Whether the defect vanishes at ζ* at random arrows of ``groupoid`` (with random
@@ -204,8 +242,16 @@ class NoetherQuantity:
         states = np.asarray(trajectory.states, float)
         n = len(self.arrow) + len(self.multipliers)
         m = _inputs(trajectory)  # a forced state ends with its terms' inputs and the slot
-        states = states[:, :n] if states.ndim == 2 and m and states.shape[1] == n + (
-            self._known_inputs + 1) * m else states
+        u = None
+        if states.ndim == 2 and states.shape[1] == n + (self._known_inputs + 1) * m:
+            u = np.ascontiguousarray(states[:, n:n + m].T)  # the inputs of each arrow
+            states = states[:, :n]
+        if self.stage_forces and (u is None or len(u) != len(self.stage_inputs)):
+            raise ShapeError(f"NoetherQuantity.along: the quantity of a forced system with "
+                             f"internal stages is evaluated at the forced stages of each "
+                             f"arrow, with its {len(self.stage_inputs)} inputs; the "
+                             f"trajectory's states have shape {states.shape}; use a "
+                             f"trajectory of this system's step")
         if states.ndim != 2 or states.shape[1] != n:
             raise ShapeError(f"NoetherQuantity.along: the quantity is written in {n} state "
                              f"entries (arrow and multipliers), the trajectory's states have "
@@ -217,7 +263,7 @@ class NoetherQuantity:
                                  f"{', '.join(missing)}")
         p = np.array([float(values[str(s)]) for s in self.parameters])
         with np.errstate(all="ignore"):
-            (F,) = self._at_stages(["F"], np.ascontiguousarray(states.T), p)
+            (F,) = self._at_stages(["F"], np.ascontiguousarray(states.T), p, u)
             out = np.broadcast_to(np.asarray(F[0], float), (len(states),))
         if not np.isfinite(out).all():
             k = int(np.flatnonzero(~np.isfinite(out))[0])
@@ -234,7 +280,10 @@ class NoetherQuantity:
         f⁰_b(g_{k+1}, g_{k+2})), each pair with its inputs, from state k (g_{k−1}, g_k,
         g_{k+1}) to state k + 1.  For a symmetry X of L, ``np.diff(nq.along(traj))`` equals
         it to rounding (the forced Noether theorem); internal forces that cancel along X
-        give zeros."""
+        give zeros.  With internal stages both arrows' forces are taken at their forced
+        stages and I_k gains −D(g_{k+1}, ζ_{k+1}), the symmetry defect at the new arrow's
+        stages, which is the stage forces' work along the stages' motion under X
+        (docs/conventions.md §22, "The forced Noether balance")."""
         if self.impulse_refused:
             raise UnsupportedFeatureError(f"NoetherQuantity.impulse: {self.impulse_refused}")
         if self.impulse_form is None:
@@ -255,6 +304,8 @@ class NoetherQuantity:
             raise ParameterError(f"NoetherQuantity.impulse: the trajectory gives no value "
                                  f"for {', '.join(missing)}")
         p = np.array([float(values[str(s)]) for s in self.parameters])
+        if self.stages:
+            return self._impulse_with_stages(states, n, m, p)
         new = len(self.impulse_form[2])  # coordinates of the next state's newest arrow
         # state k gives its window and its terms' inputs; state k + 1 its newest arrow and
         # the input of its newest term (first order: its arrow g_{k+1} and u_{k+1})
@@ -267,6 +318,28 @@ class NoetherQuantity:
                                   (len(a),))
         return out.copy()
 
+    def _impulse_with_stages(self, states: np.ndarray, n: int, m: int,
+                             p: np.ndarray) -> np.ndarray:
+        """I_k = Σ_b X^b(β(g_k))·(f⁺_b(g_k, ζ_k) + f⁻_b(g_{k+1}, ζ_{k+1})) − D(g_{k+1},
+        ζ_{k+1}) at the forced stages ζ_k of every state (each with its arrow's inputs), D
+        the symmetry defect ⟨F⁻L, X(α)⟩ − ⟨F⁺L, X(β)⟩, which vanishes at ζ* but not at
+        forced stages: it is the stage forces' work f_ζ·Y along the stages' motion Y
+        under the symmetry (docs/conventions.md §22, "The forced Noether balance")."""
+        dim = len(self.arrow)
+        known = np.ascontiguousarray(states[:, :n].T)
+        u = np.ascontiguousarray(states[:, n:n + m].T)
+        zeta = self._stages_at(known, p, u)
+        f = self._program.numpy_function(["defect"], ["known", "zeta", "p"])
+        g = self._impulse_program.numpy_function(["I"], ["a", "b", "za", "zb", "p"])
+        with np.errstate(all="ignore"):
+            (defect,) = f(known[:, 1:], zeta[:, 1:], p)
+            a = np.r_[known[:dim, :-1], u[:, :-1]]
+            b = np.r_[known[:dim, 1:], u[:, 1:]]
+            (junction,) = g(a, b, zeta[:, :-1], zeta[:, 1:], p)
+            out = np.broadcast_to(np.asarray(junction[0], float) - np.asarray(defect[0], float),
+                                  (len(states) - 1,))
+        return out.copy()
+
     impulse_form = None  # (I, a, b, inputs at a, inputs at b), set for a forced system
     impulse_refused = ""  # why a forced system has no impulse form
 
@@ -275,13 +348,38 @@ class NoetherQuantity:
         expr, a, b, ua, ub = self.impulse_form
         g = Graph()
         names = {"a": [*a, *ua], "b": [*b, *ub], "p": list(self.parameters)}
+        if self.impulse_stages:
+            names.update(za=list(self.impulse_stages[0]), zb=list(self.impulse_stages[1]))
         symbols = {s: g.input(s) for group in names.values() for s in group}
-        node = from_sympy(g, expr, symbols, "the forces' impulse")
-        return Program(g, names, {"I": [node]})
+        if not self.impulse_stages:
+            return Program(g, names, {"I": [from_sympy(g, expr, symbols,
+                                                       "the forces' impulse")]})
+        # with stages: Σ_b X^b(β(a))·(f⁺_b(a, ζ_a; u_a) + f⁻_b(b, ζ_b; u_b)) on the graph
+        za, zb = self.impulse_stages
+        plus = _force_nodes(g, self.forces, self.forces.plus, [symbols[c] for c in a],
+                            [symbols[z] for z in za], [symbols[v] for v in ua], symbols)
+        minus = _force_nodes(g, self.forces, self.forces.minus, [symbols[c] for c in b],
+                             [symbols[z] for z in zb], [symbols[v] for v in ub], symbols)
+        X = [from_sympy(g, x, symbols, "the section") for x in expr]
+        terms = [g.mul(x, g.add(fp, fm)) for x, fp, fm in zip(X, plus, minus)]
+        return Program(g, names, {"I": [g.add(*terms) if terms else g.const(0)]})
 
     def __repr__(self) -> str:
         verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"
         return f"<NoetherQuantity F_X = {_short(self.expr)} ({verdict})>"
+
+
+def _force_nodes(g: Graph, forces, exprs, arrow: list, zeta: list, u: list,
+                 symbols: dict) -> list[int]:
+    """The force expressions ``exprs`` (in the forces' slot coordinates, generic stages and
+    inputs) at the arrow, stages and inputs whose nodes are given: mapped on the graph,
+    never substituted in SymPy (the forces of a Galerkin step on a group are large)."""
+    mapping = dict(symbols)
+    mapping.update(zip(forces.slot, arrow))
+    mapping.update(zip(forces.stages, zeta))
+    mapping.update(zip(forces.inputs, u))
+    memo: dict = {}
+    return [from_sympy(g, e, mapping, "the forces", memo) for e in exprs]
 
 
 class LiePoissonEquations:

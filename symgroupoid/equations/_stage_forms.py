@@ -22,15 +22,23 @@ step's unknowns, V_{k,i} = (Δ + Σ_j ℓ_j′(c_i) ζ_j)/h, and the configurati
 equations; every printed row is checked against the step's residual, as every printed form
 is (:mod:`._printing`).
 
+With holonomic constraints ψ (``LobattoIIIAB(s)``, Jay's SPARK methods in variational form,
+docs/conventions.md §22) the interior nodes carry the multipliers Λ_{k,i} (the arrow's last
+internal stages, named in the "where" list), whose action term Λ_{k,i}·ψ(Q_{k,i}) adds
+c_i Λ_{k,i}·∇ψ(Q_{k,i}) (target) or (1 − c_i) Λ_{k,i}·∇ψ(Q_{k,i}) (source) to the junction
+rows and ℓ_j(c_i) Λ_{k,i}·∇ψ(Q_{k,i}) to the stage rows; the multiplier λ_{k+1} of the
+arrow g_{k+1}, at its source q_k (§15), adds λ_{k+1}·∇ψ(q_k); the multipliers' rows are
+ψ(Q_{k,i}) = 0 at the interior nodes, and the step ends with ψ(q_{k+1}) = 0.
+
 This form is offered for Galerkin discretisations (with internal stages) on Euclidean
-factors without holonomic constraints; other steps print as before.
+factors; steps on groups print as before.
 """
 
 from __future__ import annotations
 
 import sympy as sp
 
-from .._symbols import latex_name, node_symbol, stage_symbols
+from .._symbols import latex_name, multiplier_symbols, node_symbol, stage_symbols
 from ..derivation import WindowAction, input_symbols
 from ._forms import Definition, Form
 from ._galerkin import _lagrange, _tau
@@ -48,7 +56,7 @@ def stage_form(step) -> Form | None:
             or origin.scheme.rule is not None:
         return None
     continuous = origin.system
-    if continuous.holonomic is not None or any(f.is_group for f in continuous.factors):
+    if any(f.is_group for f in continuous.factors):
         return None
     tableau, h = origin.scheme.tableau(), origin.step
     fs = system.functions
@@ -60,23 +68,48 @@ def stage_form(step) -> Form | None:
     names = [latex_name(n) for f in continuous.factors for n in f.space.names]
     junction = [sp.S.Zero] * len(names)
     stage_rows, layer, definitions = [], {}, []
+    constraint = _Constraint(continuous, step.groupoid)
     for s in action.starts:
         pairs = read(step.groupoid.view(arrows[s]))
-        rows = _arrow_rows(continuous, tableau, h, s, pairs, names, layer, definitions)
+        rows = _arrow_rows(continuous, tableau, h, s, pairs, names, layer, definitions,
+                           constraint)
         towards, stages = rows
         junction = [a + b for a, b in zip(junction, towards)]
         stage_rows += stages
-    return Form(junction + stage_rows, [layer], definitions)
+    last = read(step.groupoid.view(arrows[action.starts[-1]]))
+    ends = constraint.at([c for _, b in last for c in b])  # ψ(q_{k+1}) = 0
+    return Form(junction + stage_rows + ends, [layer], definitions)
+
+
+class _Constraint:
+    """The holonomic constraints ψ of a continuous system at given coordinates (none
+    without), and their gradients."""
+
+    def __init__(self, continuous, G):
+        self.continuous, self.G = continuous, G
+        self.count = len(continuous._holonomic_at(G, [sp.Dummy() for _ in range(G.base_dim)]))
+
+    def at(self, coords: list) -> list:
+        return self.continuous._holonomic_at(self.G, list(coords)) if self.count else []
+
+    def pulled(self, coords: list, multipliers: list) -> list:
+        """Σ_c μ_c ∂ψ_c/∂q_r at ``coords`` for every coordinate r."""
+        psi = self.at(coords)
+        return [sum((m * sp.diff(p, q) for m, p in zip(multipliers, psi)), sp.S.Zero)
+                for q in coords]
 
 
 def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer: dict,
-                definitions: list) -> tuple[list, list]:
+                definitions: list, constraint: _Constraint) -> tuple[list, list]:
     """The arrow g_{k+s}'s part of the junction rows (its target moves for s = 0, its
-    source for s = 1) and its stage rows, in the node symbols; fills ``layer`` (the
-    symbols' values in the step's coordinates) and ``definitions`` (the "where" rows)."""
+    source for s = 1) and its stage rows (then its interior multipliers' rows), in the node
+    symbols; fills ``layer`` (the symbols' values in the step's coordinates) and
+    ``definitions`` (the "where" rows)."""
     M = len(tableau.control) - 1
-    n = len(names)
-    zeta = iter(stage_symbols((M - 1) * n, s))
+    n, n_psi = len(names), constraint.count
+    symbols = stage_symbols((M - 1) * (n + n_psi), s)
+    zeta = iter(symbols[:(M - 1) * n])
+    interior_multipliers = iter(symbols[(M - 1) * n:])
     source = sp.Matrix([c for a, _ in pairs for c in a])
     delta = sp.Matrix([c for a, b in pairs for c in (sp.Matrix(b) - sp.Matrix(a))])
     interior = [sp.Matrix([next(zeta) for _ in range(n)]) for _ in range(1, M)]
@@ -87,6 +120,7 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
          for i in range(len(tableau.nodes))]
     towards = [sp.S.Zero] * n
     stages = [[sp.S.Zero] * n for _ in range(M - 1)]
+    held: list = []  # ψ(Q_{k,i}) = 0 at the interior nodes: the multipliers' rows
     u = dict(zip(continuous.inputs, input_symbols(continuous.inputs, s)))
     for i, (b_i, values, slopes) in enumerate(zip(tableau.weights, tableau.values,
                                                   tableau.slopes)):
@@ -106,6 +140,21 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
             towards[r] += h * b_i * (weight_q * (dq + F[r]) + weight_v * dv)
             for j in range(1, M):
                 stages[j - 1][r] += h * b_i * (values[j] * (dq + F[r]) + slopes[j] * dv / h)
+        if n_psi and 0 < i < len(tableau.nodes) - 1:  # Lobatto: an interior node
+            Lam = [node_symbol(r"\Lambda", s, i + 1, None if n_psi == 1 else str(c + 1))
+                   for c in range(n_psi)]
+            for lam, value in zip(Lam, (next(interior_multipliers) for _ in range(n_psi))):
+                layer[lam] = value
+                definitions.append(Definition(lam, value, frozenset({lam})))
+            pulled = constraint.pulled(Q[i], Lam)
+            for r in range(n):
+                towards[r] += weight_q * pulled[r]
+                for j in range(1, M):
+                    stages[j - 1][r] += values[j] * pulled[r]
+            held.extend(constraint.at(Q[i]))
+    if n_psi and s == 1:  # λ_{k+1}, at the source q_k of g_{k+1} (§15)
+        pulled = constraint.pulled(list(source), multiplier_symbols(n_psi, 1))
+        towards = [t + p for t, p in zip(towards, pulled)]
     for i, row in enumerate(a_matrix):  # the stage equations, after the velocities
         for r in range(n):
             terms = [a * V[j][r] for j, a in enumerate(row) if a != 0]
@@ -113,7 +162,7 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
                           evaluate=False) if terms else source[r])
             definitions.append(Definition(Q[i][r], rhs, frozenset({Q[i][r]}),
                                           as_written=True))
-    return towards, [e for row in stages for e in row]
+    return towards, [e for row in stages for e in row] + held
 
 
 def _at_node(continuous, Q: list, V: list, u: dict) -> tuple[sp.Expr, list]:

@@ -34,6 +34,7 @@ from ..derivation import (
     energy_momentum_step,
     evaluate_system,
     impulse_form,
+    impulse_section,
     input_arguments,
     input_symbols,
     junction_step,
@@ -318,7 +319,7 @@ class DiscreteSystem(_EvaluatedSystem):
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
                               section, f, self.parameters)
         if self.stages:
-            return self._noether_with_stages(forms)
+            return self._noether_with_stages(forms, section)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow, forms.window)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
                                               self.functions):
@@ -337,15 +338,33 @@ class DiscreteSystem(_EvaluatedSystem):
                                      input_symbols(forces.inputs, 1))
         return quantity
 
-    def _noether_with_stages(self, forms) -> NoetherQuantity:
+    def _noether_with_stages(self, forms, section) -> NoetherQuantity:
         """The Noether quantity of a system with internal stages: F_X and the defect at the
         stages ζ* of the arrow (docs/conventions.md §22), the symmetry checked there at
-        random arrows."""
-        if self.functions.forces is not None or self.n_holonomic:
-            self._refuse_stages("the Noether quantity with forces or holonomic constraints")
+        random arrows.  With forces, F_X is evaluated at the forced stages of each arrow
+        (∂L/∂ζ + f_ζ = 0 with that arrow's inputs), and the impulse of a step is the forces'
+        along X at the junction plus the stage forces' term, minus the defect at the new
+        arrow's forced stages (docs/conventions.md §22, "The forced Noether balance")."""
+        if self.n_holonomic:
+            raise UnsupportedFeatureError(
+                f"{self.name}: the Noether quantity of a discrete Lagrangian with internal "
+                f"stages and holonomic constraints is not supported yet: its symmetry would "
+                f"be checked on N = G|_M at the stages and interior multipliers solved with "
+                f"the end multipliers, which are not written; docs/conventions.md §22 lists "
+                f"what is supported")
         quantity = NoetherQuantity(forms, False, self.parameters)
         quantity.stages = tuple(self.functions.stages)
         quantity.stage_rows = tuple(stage_rows(self.functions, forms.arrow))
+        forces = self.functions.forces
+        if forces is not None:  # large expressions: built on the graph, never substituted
+            here, there = input_symbols(forces.inputs, 0), input_symbols(forces.inputs, 1)
+            quantity.forces = forces
+            quantity.stage_inputs = tuple(here)
+            X, a, b = impulse_section(self.groupoid, section, self.parameters)
+            quantity.impulse_form = (X, a, b, here, there)
+            quantity.impulse_stages = (
+                tuple(sp.Dummy(f"za{i}", real=True) for i in range(self.stages)),
+                tuple(sp.Dummy(f"zb{i}", real=True) for i in range(self.stages)))
         quantity.is_symmetry, quantity.verification = quantity.check_with_stages(
             self.groupoid)
         return quantity

@@ -23,7 +23,10 @@ _EPS = float(np.finfo(float).eps)
 
 @dataclass
 class Momenta:
-    """F⁻L and F⁺L along a trajectory: arrays (R, rank) in the section basis."""
+    """F⁻L and F⁺L along a trajectory: arrays (R, rank) in the section basis.  Of a forced
+    first-order system the forced discrete Legendre transforms F⁻L − f⁻ and F⁺L + f⁺ of each
+    state's arrow with its inputs (Marsden–West eq. (3.2.4)), at the stages the step solved
+    for a system with internal stages (docs/conventions.md §20, §22)."""
 
     minus: np.ndarray
     plus: np.ndarray
@@ -77,7 +80,8 @@ class _Evaluator:
 
     def stages(self, known: np.ndarray, p: np.ndarray) -> np.ndarray:
         """ζ* at every state (nz, R) (:func:`~symgroupoid.equations.solve_stages`,
-        docs/conventions.md §22)."""
+        docs/conventions.md §22); of a forced system the forced stages, ∂L/∂ζ + f_ζ = 0 with
+        the inputs u_k the state holds: the stages its step solved."""
         f, _ = self._function("stages", None, ("out", "J"))
         return solve_stages(f, known, p, self.sg.n_stages, self.sg.name)
 
@@ -301,6 +305,10 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
         else:
             matching = float(np.max(np.abs(mom.matching(ev.sg.arity))))
             scale = float(max(np.max(np.abs(mom.minus)), np.max(np.abs(mom.plus))))
+    if matching is not None and ev.sg.forces is not None:
+        notes.append("momenta: of a forced system the forced discrete Legendre transforms "
+                     "F⁻L − f⁻ and F⁺L + f⁺ (at the forced stages), whose matching is the "
+                     "forced DEL")
     return ConservationSummary(trajectory._layout.step_name, trajectory.steps, quantities,
                                residual, matching, scale, notes)
 

@@ -29,6 +29,11 @@ L(g, ζ*(g)) with ∂L/∂ζ(g, ζ*) = 0; by the envelope theorem its momenta an
 those of L(g, ζ) at ζ = ζ*.  The programs of such a system take the stages as a further input
 ``zeta``, and :meth:`StatePrograms.quantity` ``"stages"`` gives the rows ∂L/∂ζ and their
 Jacobian for the evaluator to solve ζ* at every state.
+
+Of a forced first-order system (docs/conventions.md §20, §22) the momenta are the forced
+discrete Legendre transforms F⁻L − f⁻ and F⁺L + f⁺ of the state's arrow with its inputs u_k
+(Marsden–West eq. (3.2.4)), and the stage rows are the forced ones, ∂L/∂ζ + f_ζ: the
+evaluator solves the stages the step solved, and the momenta and the energy are taken there.
 """
 
 from __future__ import annotations
@@ -41,7 +46,7 @@ import sympy as sp
 
 from ..._errors import DiagnosticsError, TimeStepError
 from ..._symbols import multiplier_symbols
-from ...derivation import WindowAction, identified_time_steps, step_jacobian
+from ...derivation import WindowAction, identified_time_steps, input_symbols, step_jacobian
 from ...ir import Graph, Program, from_sympy, gradient
 
 
@@ -122,11 +127,43 @@ class StatePrograms:
 
     # --- the quantities ------------------------------------------------------------------------
     @functools.cached_property
+    def forces(self) -> tuple[list[int], list[int], list[int]] | None:
+        """(f⁻, f⁺, f_ζ) of the state's arrow g_k with its inputs u_k (and the stages ζ of
+        a system with internal stages) for a forced first-order system, else None
+        (docs/conventions.md §20, §22)."""
+        forces = self.fs.forces
+        if forces is None or self.arity != 1:
+            return None
+        mapping = dict(self.pnodes)
+        mapping.update(zip(forces.slot, self.arrows[0]))
+        mapping.update(zip(forces.inputs, [self.symbols[s]
+                                           for s in input_symbols(forces.inputs, 0)]))
+        if forces.stages:
+            mapping.update(zip(forces.stages, self.zeta[0]))
+        memo: dict = {}
+
+        def nodes(exprs, what: str) -> list[int]:
+            return [from_sympy(self.graph, e, mapping, f"{self.name}: {what}", memo)
+                    for e in exprs]
+
+        return (nodes(forces.minus, "the forces (f⁻)"), nodes(forces.plus, "the forces (f⁺)"),
+                nodes(forces.stage_forces, "the stage forces"))
+
+    @functools.cached_property
     def momenta(self) -> tuple[list[int], list[int]]:
-        """(F⁻L, F⁺L) nodes of the state (see the module docstring)."""
+        """(F⁻L, F⁺L) nodes of the state (see the module docstring); of a forced first-order
+        system the forced discrete Legendre transforms F⁻L − f⁻ and F⁺L + f⁺ (Marsden–West
+        eq. (3.2.4)), whose matching F⁺L(g_k) + f⁺(g_k) = F⁻L(g_{k+1}) − f⁻(g_{k+1}) is the
+        forced DEL (docs/conventions.md §20)."""
         d = self.derivation
         if self.arity == 1:
-            return d("right", 0, [0]), d("left", 0, [0])
+            minus, plus = d("right", 0, [0]), d("left", 0, [0])
+            if self.forces is not None:
+                f_minus, f_plus, _ = self.forces
+                g = self.graph
+                minus = [g.sub(a, b) for a, b in zip(minus, f_minus)]
+                plus = [g.add(a, b) for a, b in zip(plus, f_plus)]
+            return minus, plus
         a0, a1, a2 = self.offsets[:3]
         t0, t1 = self.starts[:2]
         g = self.graph
@@ -218,8 +255,12 @@ class StatePrograms:
 
     def stages(self) -> tuple[list[int], list[int]]:
         """The stage rows ∂L/∂ζ(g_k, ζ) of the state's arrow and their Jacobian ∂/∂ζ
-        (row-major), whose root ζ* the evaluator solves."""
+        (row-major), whose root ζ* the evaluator solves; of a forced system the forced
+        stage rows ∂L/∂ζ + f_ζ(g_k, ζ; u_k), whose root is the stages the step solved for
+        the state's arrow with its inputs (docs/conventions.md §22)."""
         rows = self.instantiate(self.term.stage_gradient, 0)
+        if self.forces is not None:  # the forced stage rows ∂L/∂ζ + f_ζ (§22)
+            rows = [self.graph.add(r, f) for r, f in zip(rows, self.forces[2])]
         J = step_jacobian(self.graph, rows, self.zeta[0])
         return rows, [c for row in J for c in row]
 

@@ -1,0 +1,63 @@
+"""The stage notation of constrained Galerkin steps (docs/conventions.md §22, "Printed in
+the stage notation"): LobattoIIIAB(s) with holonomic constraints ψ (Jay's SPARK methods in
+variational form) prints its rows in the node values Q_{k,i}, V_{k,i}, with the interior
+multipliers Λ_{k,i} (the arrow's last internal stages) in the junction and stage rows through
+Λ·∇ψ(Q_{k,i}), the end multiplier λ_{k+1} at q_k, the multipliers' rows ψ(Q_{k,i}) = 0 and
+the step's last row ψ(q_{k+1}) = 0; every row is checked against the residuals (the printer
+raises otherwise), and the document typesets whole with pdflatex."""
+
+import pytest
+import sympy as sp
+from test_latex_pdf import assert_typesets_whole, needs_tex
+
+import symgroupoid as sg
+
+h, grav = sp.symbols("h g", positive=True)
+
+
+def _pendulum(scheme) -> sg.StepEquations:
+    """The pendulum in Cartesian coordinates on the unit circle."""
+    return sg.ContinuousSystem(
+        sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - grav * q[1],
+        parameters=[h, grav], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1],
+        name="pendulum").discretize(h, scheme).euler_lagrange()
+
+
+def test_constrained_lobatto_prints_the_stage_notation():
+    step = _pendulum(sg.LobattoIIIAB(3))
+    text = step.latex()
+    rows = text[:text.index(r"\intertext{where}")]
+    assert rows.count("0 &=") == len(step) == 9
+    # the junction rows: both arrows' interior multipliers and λ_{k+1}·∇ψ(q_k)
+    assert r"(Q_{k+1,2})_{x} \Lambda_{k+1,2} + (Q_{k,2})_{x} \Lambda_{k,2}" in rows
+    assert r"2 (\lambda_{k+1})_{1} x_{k}" in rows
+    # the stage rows, the multipliers' rows ψ(Q_{k,2}) = 0, and ψ(q_{k+1}) = 0 last
+    assert r"0 &= 2 (Q_{k,2})_{x} \Lambda_{k,2} + \frac{2}{3}" in rows
+    assert r"0 &= (Q_{k,2})_{x}^{2} + (Q_{k,2})_{y}^{2} - 1 \\" in rows
+    assert rows.rstrip().endswith(r"0 &= x_{k+1}^{2} + y_{k+1}^{2} - 1 \\")
+    where = text[text.index(r"\intertext{where}"):]
+    assert r"\Lambda_{k,2} = (\zeta_{k})_{3}" in where
+    assert r"(Q_{k,2})_{x} &= x_{k-1} + h \left(\frac{5 (V_{k,1})_{x}}{24}" in where
+    assert "(\\zeta_{k})_{3}" not in rows  # the multipliers by their names
+
+
+@pytest.mark.slow
+def test_two_interior_nodes_and_two_constraints():
+    """LobattoIIIAB(4) with two constraints (a point on a circle in a plane of R³): two
+    interior nodes, each with two multipliers (Λ_{k,i})_c."""
+    step = sg.ContinuousSystem(
+        sg.EuclideanSpace("x y z"),
+        lambda q, v: (v[0] ** 2 + v[1] ** 2 + v[2] ** 2) / 2 - grav * q[1],
+        parameters=[h, grav], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1, q[2]],
+        name="ring").discretize(h, sg.LobattoIIIAB(4)).euler_lagrange()
+    text = step.latex()
+    rows = text[:text.index(r"\intertext{where}")]
+    assert rows.count("0 &=") == len(step)
+    for name in (r"(\Lambda_{k,2})_{1}", r"(\Lambda_{k,3})_{2}", r"(\Lambda_{k+1,3})_{1}"):
+        assert name in rows
+
+
+@needs_tex
+def test_the_constrained_stage_notation_typesets_whole(tmp_path):
+    document = assert_typesets_whole(_pendulum(sg.LobattoIIIAB(3)), tmp_path)
+    assert r"\Lambda_{k+1,2}" in document
