@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 import pathlib
 import signal
 import threading
@@ -117,6 +118,16 @@ LONG_FIRST = (
     "test_forces_kinds.py", "test_hostile_files.py", "test_hostile_runtime.py",
     "test_latex_pdf.py", "test_group_templates.py", "test_seed_lie_groups.py",
 )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """In a pytest-xdist worker: the kernel cache of ``kernel_support.SESSION_CACHE`` is one
+    directory of the run's temporary root (beside the workers' own), so that a kernel both
+    workers build (the seed systems', the documentation's) is compiled once."""
+    basetemp = config.option.basetemp
+    if os.environ.get("PYTEST_XDIST_WORKER") and basetemp:
+        os.environ["SYMGROUPOID_TEST_SESSION_KERNELS"] = str(
+            pathlib.Path(basetemp).resolve().parent / "session-kernels")
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
