@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import os
 import pathlib
 import signal
 import threading
@@ -101,6 +102,39 @@ def heavy_top():
 @pytest.fixture(scope="session")
 def heavy_top_step(heavy_top):
     return heavy_top[0].euler_lagrange()
+
+
+#: the test files that take longest (CPU seconds of a fresh run, their subprocesses included),
+#: longest first.  ``make test`` hands whole files to the workers in collection order
+#: (``--dist loadfile --no-loadscope-reorder``): these go first, so that no long file starts
+#: last while the other core idles; the documentation script and the examples, which run in
+#: child processes, also overlap the most work that way.  An order, not a selection: a file
+#: missing here still runs, after them.
+LONG_FIRST = (
+    "test_docs.py", "test_build.py", "test_cache_faults.py", "test_examples.py",
+    "test_bvp.py", "test_sweep.py", "test_groupoid_properties.py", "test_latex_layout.py",
+    "test_forces.py", "test_cache_safety.py", "test_galerkin.py", "test_trivialised.py",
+    "test_cache.py", "test_newton_floors.py", "test_morphisms.py", "test_codegen.py",
+    "test_forces_kinds.py", "test_hostile_files.py", "test_hostile_runtime.py",
+    "test_latex_pdf.py", "test_group_templates.py", "test_seed_lie_groups.py",
+)
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """In a pytest-xdist worker: the kernel cache of ``kernel_support.SESSION_CACHE`` is one
+    directory of the run's temporary root (beside the workers' own), so that a kernel both
+    workers build (the seed systems', the documentation's) is compiled once."""
+    basetemp = config.option.basetemp
+    if os.environ.get("PYTEST_XDIST_WORKER") and basetemp:
+        os.environ["SYMGROUPOID_TEST_SESSION_KERNELS"] = str(
+            pathlib.Path(basetemp).resolve().parent / "session-kernels")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The files of :data:`LONG_FIRST` first, in its order; the others after them in the
+    order they were collected (a stable sort: within a file nothing moves)."""
+    rank = {name: i for i, name in enumerate(LONG_FIRST)}
+    items.sort(key=lambda item: rank.get(item.path.name, len(LONG_FIRST)))
 
 
 def pytest_terminal_summary(terminalreporter) -> None:

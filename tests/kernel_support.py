@@ -1,7 +1,8 @@
 """Helpers shared by the code-generation and runtime tests (seed systems, compiled kernels).
 
-Kernels of the seed systems are compiled once per test process into a private temporary
-cache (``SESSION_CACHE``, removed at exit); every test also gets its own empty
+Kernels of the seed systems are compiled once per test run into a temporary cache
+(``SESSION_CACHE``: shared by the pytest-xdist workers of a run, else private to the process
+and removed at exit); every test also gets its own empty
 ``SYMGROUPOID_CACHE`` (the autouse fixture ``isolated_cache``), so no test touches the
 user's cache.
 """
@@ -24,8 +25,27 @@ import sympy as sp
 from symgroupoid.systems import SEED_SYSTEMS
 
 REPO = Path(__file__).resolve().parents[1]
-SESSION_CACHE = Path(tempfile.mkdtemp(prefix="symgroupoid-test-kernels-"))
-atexit.register(shutil.rmtree, SESSION_CACHE, True)
+#: names the kernel cache the test processes of one run share (set by tests/conftest.py in
+#: each pytest-xdist worker: a directory of the run's temporary root, which pytest removes)
+SHARED_KERNELS = "SYMGROUPOID_TEST_SESSION_KERNELS"
+
+
+def _session_cache() -> Path:
+    """The kernels of the seed systems and the tests' other shared kernels: the run's shared
+    directory under pytest-xdist (a kernel both workers need is built once: the cache's lock
+    lets one build while the other waits, then loads it), else a private temporary
+    directory removed at exit."""
+    shared = os.environ.get(SHARED_KERNELS)
+    if shared:
+        path = Path(shared)
+        path.mkdir(mode=0o700, exist_ok=True)
+        return path
+    path = Path(tempfile.mkdtemp(prefix="symgroupoid-test-kernels-"))
+    atexit.register(shutil.rmtree, path, True)
+    return path
+
+
+SESSION_CACHE = _session_cache()
 HAVE_CC = shutil.which("cc") is not None
 needs_cc = pytest.mark.skipif(not HAVE_CC, reason="no C compiler (cc) on PATH")
 #: both step backends as a parametrisation (the C one needs a compiler)

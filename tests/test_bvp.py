@@ -289,9 +289,12 @@ def heavy_top_rotors():
     return load_example("heavy_top_rotors")
 
 
+@pytest.mark.usefixtures("numpy_windows")
 def test_heavy_top_at_rest_the_linearised_problem_is_singular(heavy_top_rotors):
     """Why a rest-to-rest maneuver is ill-posed for Newton: at rest the boundary-value Jacobian
-    has exactly the null vectors λ₃,k = a + bk (multipliers of Φ³ only)."""
+    has exactly the null vectors λ₃,k = a + bk (multipliers of Φ³ only).  The windows through
+    NumPy (the C windows compute the same bits: test_window_kernels_compiled_and_numpy_agree);
+    their C build was two thirds of this test's CPU time."""
     ht = heavy_top_rotors
     system = ht.heavy_top_system()
     n = 12

@@ -28,11 +28,15 @@ VERIFYING = {
 }
 # long-running demonstrations (boundary-value solves, long runs), run with the slow tests
 # only; their systems are checked in the fast tests (heavy top: tests/test_seed_heavy_top.py,
-# the 3D chain: tests/test_chains.py; the orders of the Galerkin schemes: tests/test_galerkin.py)
+# the 3D chain: tests/test_chains.py; the orders of the Galerkin schemes: tests/test_galerkin.py,
+# order 4 on SO(3) with Gauss-Legendre 2 as in heavy_top_order4.py; the forced spherical
+# chain of forced_chain.py and its Noether balance: tests/test_forced_chains.py, a controller
+# stepping with sim.step(..., inputs=u): tests/test_forced_runs.py and tests/test_embed.py).
+# forced_chain.py and heavy_top_order4.py were a third of the fast suite's examples' CPU time.
 SLOW = {"optimal_control_lie_groups.py", "elroys_beanie.py", "euler_poincare_so3.py",
         "holonomic_constraints.py", "optimal_control_so3_se2.py", "heavy_top_rotors.py",
         "plate_ball_steering.py", "heavy_top.py", "pendulum_chain_3d.py", "chain_order4.py",
-        "double_pendulum_order6.py"}
+        "double_pendulum_order6.py", "forced_chain.py", "heavy_top_order4.py"}
 # scripts that measure observed orders against an accurate reference: the theoretical order
 # of each report they print ("observed order p (theoretical q)", docs/conventions.md §22)
 ORDERS = {"heavy_top_order4.py": [4], "double_pendulum_order6.py": [6, 6],

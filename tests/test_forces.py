@@ -459,9 +459,14 @@ def test_a_failing_step_keeps_the_run_up_to_it(plane):
     assert np.isfinite(kept).all()
 
 
+@pytest.mark.slow
 def test_the_latex_names_the_forces():
     """The printed equations read X⃖[L](g_k) − X⃗[L](g_{k+1}) + f⁺(g_k) + f⁻(g_{k+1}), the
-    forces defined in the "where" list (each printed form is verified to be the residual)."""
+    forces defined in the "where" list (each printed form is verified to be the residual).
+    Slow (the longest test of this file); the fast tests print the named forces of a first-
+    and a second-order system (tests/test_forces_kinds.py,
+    test_the_latex_names_the_forces_of_every_kind) and a forced step's inputs
+    (tests/test_forced_latex_matrix.py)."""
     tex = _plane_system(_torque_and_damping, [u]).euler_lagrange().latex()
     for b in (1, 2):
         assert f"f^{{+}}_{{{b}}}(g_{{k}})" in tex and f"f^{{-}}_{{{b}}}(g_{{k+1}})" in tex
