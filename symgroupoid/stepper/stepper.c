@@ -113,11 +113,12 @@ static const int SG_NAME(band_order)[SG_N_UNKNOWNS] = SG_BAND_ORDER;
 #define SG_JACOBIAN_WIDTH (SG_BAND_KL + SG_BAND_KU + 1)
 #define SG_JACOBIAN_ENTRIES (SG_N_UNKNOWNS * SG_JACOBIAN_WIDTH)
 #define SG_JACOBIAN_AT(J, i, j) (J)[(i) * SG_JACOBIAN_WIDTH + (j) - (i) + SG_BAND_KL]
-#define SG_JACOBIAN SG_NAME(residual_jacobian_band)
+#define SG_JACOBIAN SG_NAME(residual_jacobian_band_hoisted)
 #if SG_TIME_ROW >= 0
 #error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
 #endif
 void SG_NAME(residual_jacobian_band)(const double *u, const double *known, const double *p, double *F, double *J);
+void SG_NAME(residual_jacobian_band_hoisted)(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 
 /* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
  * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
@@ -150,8 +151,11 @@ static void SG_NAME(column_sums)(const double *J, const double *a, double *S)
 #else
 #define SG_LU_ENTRIES (SG_N_UNKNOWNS * SG_N_UNKNOWNS)
 #define SG_JACOBIAN_ENTRIES (SG_N_EQUATIONS * SG_N_UNKNOWNS)
-#define SG_JACOBIAN SG_NAME(residual_jacobian)
+#define SG_JACOBIAN SG_NAME(residual_jacobian_hoisted)
+void SG_NAME(residual_jacobian_hoisted)(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 #endif
+/* the values of the known arrow F and J read (SG_NAME(hoist)), computed once per step */
+#define SG_HOISTED_ENTRIES (SG_N_HOISTED > 0 ? SG_N_HOISTED : 1)
 
 /* The pivot of a column: the offset of the first largest |entry| among count entries
  * a[0], a[stride], ... (the partial pivoting of the dense and the band LU), *amax its size */
@@ -684,7 +688,7 @@ static int SG_NAME(explained_by_rounding)(const double *F, const double *J, cons
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
-static int SG_NAME(at_floor)(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
+static int SG_NAME(at_floor)(const double *u, const double *known, const double *p, const double *h, const double *F, const double *C, double factor)
 {
     double v[SG_N_UNKNOWNS], G[SG_N_EQUATIONS], N[SG_N_EQUATIONS];
     int i, j, sign;
@@ -696,7 +700,7 @@ static int SG_NAME(at_floor)(const double *u, const double *known, const double 
             const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
             v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
         }
-        SG_NAME(residual)(v, known, p, G);
+        SG_NAME(residual_hoisted)(v, known, p, h, G);
         for (i = 0; i < SG_N_EQUATIONS; ++i) {
             const double d = fabs(G[i] - F[i]);
             if (d > N[i] - C[i]) {
@@ -801,19 +805,20 @@ static inline int SG_NAME(above_rounding)(const double *d, const double *u, doub
  * iterate (before its polishing update). */
 static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
+    double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS], h[SG_HOISTED_ENTRIES];
     double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
+    SG_NAME(hoist)(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            SG_JACOBIAN(u, known, p, F, J);
+            SG_JACOBIAN(u, known, p, h, F, J);
         } else {
-            SG_NAME(residual)(u, known, p, F);
+            SG_NAME(residual_hoisted)(u, known, p, h, F);
         }
         rnorm = SG_NAME(norm_inf)(F, SG_N_EQUATIONS);
         *iterations = it;
@@ -824,7 +829,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
         if (done) { /* after the final update: accepted only at the rounding floor */
             if (SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
                 || (SG_NAME(coordinate_floor)(J, uJ, C),
-                    SG_NAME(at_floor)(u, known, p, F, C, options->floor_factor))) {
+                    SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor))) {
                 if (done == 1 || it >= options->max_iterations) {
                     return SG_OK;
                 }
@@ -848,7 +853,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
             slow = it > 0 && !(rnorm <= 0.1 * previous);
             if (slow) {
                 SG_NAME(coordinate_floor)(J, uJ, C);
-                if (SG_NAME(at_floor)(u, known, p, F, C, options->floor_factor)) {
+                if (SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor)) {
                     return SG_OK;
                 }
                 noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv);
@@ -864,7 +869,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
                 return SG_NOT_CONVERGED;
             }
             if (slow) {
-                SG_JACOBIAN(u, known, p, F, J);
+                SG_JACOBIAN(u, known, p, h, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = SG_NAME(lu_factor)(J, &lu);
                 if (status != SG_OK) {
@@ -1035,12 +1040,14 @@ static void SG_NAME(hold_time)(const double *known, const double *p, double *u)
 {
 #if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
     double F[SG_N_EQUATIONS], J[SG_N_EQUATIONS * SG_N_UNKNOWNS], x[SG_N_UNKNOWNS];
+    double h[SG_HOISTED_ENTRIES];
     SG_NAME(lu) lu;
     int it, i;
     memcpy(x, u, sizeof x);
+    SG_NAME(hoist)(known, p, h);
     for (it = 0; it < SG_HOLD_ITERATIONS; ++it) {
         double step;
-        SG_NAME(residual_jacobian)(x, known, p, F, J);
+        SG_JACOBIAN(x, known, p, h, F, J);
         F[SG_TIME_ROW] = 0.0;
         for (i = 0; i < SG_N_UNKNOWNS; ++i) {
             J[SG_TIME_ROW * SG_N_UNKNOWNS + i] = 0.0;
