@@ -851,6 +851,51 @@ static int satellite_wheel_band_eliminate(double *A, double *inv, int *perm)
 }
 #endif
 
+#if !SATELLITE_WHEEL_BANDED && SATELLITE_WHEEL_N_UNKNOWNS >= SATELLITE_WHEEL_LU_PANEL_FROM
+/* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
+ * diagonal, U below), so that both substitutions of satellite_wheel_lu_apply read their columns
+ * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
+static void satellite_wheel_transpose(double *A)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            const double t = A[i * n + j];
+            A[i * n + j] = A[j * n + i];
+            A[j * n + i] = t;
+        }
+    }
+}
+
+/* The substitutions of the transposed factors T = A^T (satellite_wheel_transpose), b already scaled
+ * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
+ * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
+ * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
+ * as from the row-major factors, so the same bits, in the widest vector instructions */
+SATELLITE_WHEEL_VECTOR_CLONES
+static void satellite_wheel_substitute(const double *T, const double *inv, double *b)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    int i, k;
+    for (k = 0; k < n; ++k) {
+        const double x = b[k];
+        const double *column = T + k * n;
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= column[i] * x;
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * inv[i];
+        const double *column = T + i * n;
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= column[k] * x;
+        }
+    }
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -932,7 +977,17 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+#if SATELLITE_WHEEL_N_UNKNOWNS < SATELLITE_WHEEL_LU_PANEL_FROM
     return satellite_wheel_eliminate(A, f->inv, f->perm);
+#else
+    {
+        const int status = satellite_wheel_eliminate(A, f->inv, f->perm);
+        if (status == SATELLITE_WHEEL_OK) {
+            satellite_wheel_transpose(A);
+        }
+        return status;
+    }
+#endif
 #endif
 }
 
@@ -994,6 +1049,7 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
         b[k] = b[f->perm[k]];
         b[f->perm[k]] = t;
     }
+#if SATELLITE_WHEEL_N_UNKNOWNS < SATELLITE_WHEEL_LU_PANEL_FROM
     SATELLITE_WHEEL_UNROLL
     for (k = 0; k < n; ++k) {
         SATELLITE_WHEEL_UNROLL
@@ -1001,7 +1057,6 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
-#if SATELLITE_WHEEL_N_UNKNOWNS < SATELLITE_WHEEL_LU_PANEL_FROM
     SATELLITE_WHEEL_UNROLL
     for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
@@ -1012,16 +1067,8 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
         b[i] = t * f->inv[i];
     }
 #else
-    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
-     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
     (void)j;
-    for (i = n - 1; i >= 0; --i) {
-        const double x = b[i] * f->inv[i];
-        b[i] = x;
-        for (k = 0; k < i; ++k) {
-            b[k] -= A[k * n + i] * x;
-        }
-    }
+    satellite_wheel_substitute(A, f->inv, b);
 #endif
 #endif /* SATELLITE_WHEEL_BANDED */
     return satellite_wheel_norm_inf(b, n) < INFINITY ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_NON_FINITE;

@@ -401,6 +401,52 @@ static int SG_NAME(band_eliminate)(double *A, double *inv, int *perm)
 }
 #endif
 
+
+#if !SG_BANDED && SG_N_UNKNOWNS >= SG_LU_PANEL_FROM
+/* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
+ * diagonal, U below), so that both substitutions of SG_NAME(lu_apply) read their columns
+ * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
+static void SG_NAME(transpose)(double *A)
+{
+    const int n = SG_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            const double t = A[i * n + j];
+            A[i * n + j] = A[j * n + i];
+            A[j * n + i] = t;
+        }
+    }
+}
+
+/* The substitutions of the transposed factors T = A^T (SG_NAME(transpose)), b already scaled
+ * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
+ * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
+ * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
+ * as from the row-major factors, so the same bits, in the widest vector instructions */
+SG_VECTOR_CLONES
+static void SG_NAME(substitute)(const double *T, const double *inv, double *b)
+{
+    const int n = SG_N_UNKNOWNS;
+    int i, k;
+    for (k = 0; k < n; ++k) {
+        const double x = b[k];
+        const double *column = T + k * n;
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= column[i] * x;
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * inv[i];
+        const double *column = T + i * n;
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= column[k] * x;
+        }
+    }
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -482,7 +528,17 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+#if SG_N_UNKNOWNS < SG_LU_PANEL_FROM
     return SG_NAME(eliminate)(A, f->inv, f->perm);
+#else
+    {
+        const int status = SG_NAME(eliminate)(A, f->inv, f->perm);
+        if (status == SG_OK) {
+            SG_NAME(transpose)(A);
+        }
+        return status;
+    }
+#endif
 #endif
 }
 
@@ -544,6 +600,7 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
         b[k] = b[f->perm[k]];
         b[f->perm[k]] = t;
     }
+#if SG_N_UNKNOWNS < SG_LU_PANEL_FROM
     SG_UNROLL
     for (k = 0; k < n; ++k) {
         SG_UNROLL
@@ -551,7 +608,6 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
-#if SG_N_UNKNOWNS < SG_LU_PANEL_FROM
     SG_UNROLL
     for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
@@ -562,16 +618,8 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
         b[i] = t * f->inv[i];
     }
 #else
-    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
-     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
     (void)j;
-    for (i = n - 1; i >= 0; --i) {
-        const double x = b[i] * f->inv[i];
-        b[i] = x;
-        for (k = 0; k < i; ++k) {
-            b[k] -= A[k * n + i] * x;
-        }
-    }
+    SG_NAME(substitute)(A, f->inv, b);
 #endif
 #endif /* SG_BANDED */
     return SG_NAME(norm_inf)(b, n) < INFINITY ? SG_OK : SG_NON_FINITE;
