@@ -246,6 +246,7 @@ void heavy_top_residual_jacobian_hoisted(const double *u, const double *known, c
     J[8] = t54;
 }
 /* F and J(u; known, p) (heavy_top_hoist, then the above) */
+void heavy_top_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
 {
     double h[HEAVY_TOP_N_HOISTED > 0 ? HEAVY_TOP_N_HOISTED : 1];

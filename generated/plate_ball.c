@@ -442,6 +442,7 @@ void plate_ball_residual_jacobian_hoisted(const double *u, const double *known, 
     J[63] = 0.0;
 }
 /* F and J(u; known, p) (plate_ball_hoist, then the above) */
+void plate_ball_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 void plate_ball_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
 {
     double h[PLATE_BALL_N_HOISTED > 0 ? PLATE_BALL_N_HOISTED : 1];

@@ -240,6 +240,7 @@ void rigid_body_residual_jacobian_hoisted(const double *u, const double *known, 
     J[8] = t53;
 }
 /* F and J(u; known, p) (rigid_body_hoist, then the above) */
+void rigid_body_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
 {
     double h[RIGID_BODY_N_HOISTED > 0 ? RIGID_BODY_N_HOISTED : 1];

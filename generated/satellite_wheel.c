@@ -317,6 +317,7 @@ void satellite_wheel_residual_jacobian_hoisted(const double *u, const double *kn
     J[15] = t98;
 }
 /* F and J(u; known, p) (satellite_wheel_hoist, then the above) */
+void satellite_wheel_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 void satellite_wheel_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
 {
     double h[SATELLITE_WHEEL_N_HOISTED > 0 ? SATELLITE_WHEEL_N_HOISTED : 1];
