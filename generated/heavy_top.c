@@ -93,13 +93,54 @@ void heavy_top_reconstruct(const double *u, const double *known, const double *p
     fibre[8] = t21;
 }
 
-/* F(u; known, p): the residuals listed at the top of this file */
+/* h(known, p): the values of the known arrow that F and its Jacobian read, computed once
+ * per Newton step (HEAVY_TOP_N_HOISTED of them; symgroupoid.codegen.hoisted_values) */
 
-void heavy_top_residual(const double *u, const double *known, const double *p, double *F)
+void heavy_top_hoist(const double *known, const double *p, double *h)
+{
+    (void)known;
+    (void)p;
+    (void)h;
+    const double t0 = 0.5*p[4];
+    const double t1 = 0.5*p[3];
+    const double t2 = 0.5*p[2];
+    const double t3 = t2 - t0;
+    const double t4 = t3 - t1;
+    const double t5 = t2 - t1 + t0;
+    const double t6 = t3 + t1;
+    const double t7 = 1.0/p[0];
+    const double t8 = t7*t6;
+    const double t9 = t7*t4;
+    const double t10 = t7*t5;
+    const double t11 = p[0]*p[1];
+    const double t12 = t11*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]);
+    const double t13 = t10*known[8] - t8*known[10];
+    const double t14 = t9*known[5] + t8*known[9];
+    const double t15 = t9*known[4] + t10*known[6];
+    const double t16 = t11*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]);
+    h[0] = t4;
+    h[1] = t5;
+    h[2] = t6;
+    h[3] = t7;
+    h[4] = t8;
+    h[5] = t9;
+    h[6] = t10;
+    h[7] = t12;
+    h[8] = t13;
+    h[9] = t14;
+    h[10] = t15;
+    h[11] = t16;
+}
+
+/* F(u; known, p): the residuals listed at the top of this file,
+ * reading the values h = heavy_top_hoist(known, p) */
+
+void heavy_top_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = u[1]*u[0];
     const double t1 = 2.0*u[2];
     const double t2 = 2.0/(4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0]);
@@ -107,39 +148,35 @@ void heavy_top_residual(const double *u, const double *known, const double *p, d
     const double t4 = 2.0*u[1];
     const double t5 = u[2]*u[1];
     const double t6 = 2.0*u[0];
-    const double t7 = 0.5*p[4];
-    const double t8 = 0.5*p[3];
-    const double t9 = 0.5*p[2];
-    const double t10 = t9 - t7;
-    const double t11 = t10 - t8;
-    const double t12 = t9 - t8 + t7;
-    const double t13 = t10 + t8;
-    const double t14 = 1.0/p[0];
-    const double t15 = t14*t13;
-    const double t16 = t14*t11;
-    const double t17 = t14*t12;
-    const double t18 = p[0]*p[1];
-    const double t19 = t2*t14;
-    const double t20 = t19*t11;
-    const double t21 = t19*t13;
-    const double t22 = t18*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) - t19*t12*(t6 + t5) - t21*(t6 - t5);
-    const double t23 = t18*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) - t20*(t4 - t3) + t21*(t4 + t3);
-    const double t24 = -t20*(t1 + t0) + t19*(t1 - t0)*t12;
-    const double t25 = -(t17*known[8] - t15*known[10] - t22);
-    const double t26 = -(t16*known[5] + t15*known[9] + t23);
-    const double t27 = t16*known[4] + t17*known[6] - t24;
-    F[0] = t25;
-    F[1] = t26;
-    F[2] = t27;
+    const double t7 = t2*h[3];
+    const double t8 = t7*h[0];
+    const double t9 = t7*h[2];
+    const double t10 = h[11] - t7*h[1]*(t6 + t5) - t9*(t6 - t5);
+    const double t11 = h[7] - t8*(t4 - t3) + t9*(t4 + t3);
+    const double t12 = -t8*(t1 + t0) + t7*(t1 - t0)*h[1];
+    const double t13 = -(h[8] - t10);
+    const double t14 = -(h[9] + t11);
+    const double t15 = h[10] - t12;
+    F[0] = t13;
+    F[1] = t14;
+    F[2] = t15;
 }
 
+/* F(u; known, p) */
+void heavy_top_residual(const double *u, const double *known, const double *p, double *F)
+{
+    double h[HEAVY_TOP_N_HOISTED > 0 ? HEAVY_TOP_N_HOISTED : 1];
+    heavy_top_hoist(known, p, h);
+    heavy_top_residual_hoisted(u, known, p, h, F);
+}
 /* F and the exact Jacobian J[i * HEAVY_TOP_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
 
-void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+void heavy_top_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = 4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0];
     const double t1 = 1.0/t0;
     const double t2 = u[1]*u[0];
@@ -155,71 +192,66 @@ void heavy_top_residual_jacobian(const double *u, const double *known, const dou
     const double t12 = t11 - t10;
     const double t13 = t7 - t6;
     const double t14 = t11 + t10;
-    const double t15 = 0.5*p[4];
-    const double t16 = 0.5*p[3];
-    const double t17 = 0.5*p[2];
-    const double t18 = t17 - t15;
-    const double t19 = t18 - t16;
-    const double t20 = t17 - t16 + t15;
-    const double t21 = t18 + t16;
-    const double t22 = 1.0/p[0];
-    const double t23 = t22*t21;
-    const double t24 = t22*t19;
-    const double t25 = t22*t20;
-    const double t26 = p[0]*p[1];
-    const double t27 = t5*t22;
-    const double t28 = t27*t19;
-    const double t29 = t27*t21;
-    const double t30 = t26*(known[2]*known[10] + known[1]*known[7] + known[0]*known[4]) - t27*t20*t14 - t29*t12;
-    const double t31 = t26*(known[2]*known[9] + known[1]*known[6] + known[0]*known[3]) - t28*t13 + t29*t8;
-    const double t32 = -(t25*known[8] - t23*known[10] - t30);
-    const double t33 = -(t24*known[5] + t23*known[9] + t31);
-    const double t34 = t24*known[4] + t25*known[6] - (-t28*t9 + t27*t4*t20);
-    const double t35 = 1.0/(t0*t0);
-    const double t36 = t25*t14;
-    const double t37 = 4.0*t35;
-    const double t38 = t37*u[0];
-    const double t39 = t1*4.0;
-    const double t40 = -t39*t25;
-    const double t41 = t23*t12;
-    const double t42 = -t39*t23;
-    const double t43 = t24*t13;
-    const double t44 = t23*t8;
-    const double t45 = t5*u[2];
-    const double t46 = t45*t23;
-    const double t47 = t22*4.0*t35;
-    const double t48 = t5*u[1];
-    const double t49 = t48*t25;
-    const double t50 = t40 + t38*t36 + (t42 + t38*t41);
-    const double t51 = t38*t43 + t27*u[2]*t19 - (t38*t44 - t46);
-    const double t52 = t47*u[0]*t19*t9 - t27*u[1]*t19 - (t49 + t38*t25*t4);
+    const double t15 = t5*h[3];
+    const double t16 = t15*h[0];
+    const double t17 = t15*h[2];
+    const double t18 = h[8] - (h[11] - t15*h[1]*t14 - t17*t12);
+    const double t19 = -t18;
+    const double t20 = -(h[9] + (h[7] - t16*t13 + t17*t8));
+    const double t21 = h[10] - (-t16*t9 + t15*t4*h[1]);
+    const double t22 = 1.0/(t0*t0);
+    const double t23 = h[6]*t14;
+    const double t24 = 4.0*t22;
+    const double t25 = t24*u[0];
+    const double t26 = t1*4.0;
+    const double t27 = -t26*h[6];
+    const double t28 = h[4]*t12;
+    const double t29 = -t26*h[4];
+    const double t30 = h[5]*t13;
+    const double t31 = h[4]*t8;
+    const double t32 = t5*u[2];
+    const double t33 = t32*h[4];
+    const double t34 = h[3]*4.0*t22;
+    const double t35 = t5*u[1];
+    const double t36 = t35*h[6];
+    const double t37 = t27 + t25*t23 + (t29 + t25*t28);
+    const double t38 = t25*t30 + t15*u[2]*h[0] - (t25*t31 - t33);
+    const double t39 = t34*u[0]*h[0]*t9 - t15*u[1]*h[0] - (t36 + t25*h[6]*t4);
+    const double t40 = -t38;
+    const double t41 = -t39;
+    const double t42 = t24*u[1];
+    const double t43 = -t1*h[3]*4.0*h[0];
+    const double t44 = t15*u[0]*h[0];
+    const double t45 = t5*u[0];
+    const double t46 = t42*t23 - t32*h[6] + (t33 + t42*t28);
+    const double t47 = t44 - t34*u[1]*h[0]*t9 + (t42*h[6]*t4 + t45*h[6]);
+    const double t48 = -(t43 + t42*t30 - (t29 + t42*t31));
+    const double t49 = t24*u[2];
+    const double t50 = t36 - t49*t23 - (t49*t28 + t35*h[4]);
+    const double t51 = t44 + t49*t30 + (-t49*t31 + t45*h[4]);
+    const double t52 = -t50;
     const double t53 = -t51;
-    const double t54 = -t52;
-    const double t55 = t37*u[1];
-    const double t56 = -t1*t22*4.0*t19;
-    const double t57 = t27*u[0]*t19;
-    const double t58 = t5*u[0];
-    const double t59 = t55*t36 - t45*t25 + (t46 + t55*t41);
-    const double t60 = t57 - t47*u[1]*t19*t9 + (t55*t25*t4 + t58*t25);
-    const double t61 = -(t56 + t55*t43 - (t42 + t55*t44));
-    const double t62 = t37*u[2];
-    const double t63 = t49 - t62*t36 - (t62*t41 + t48*t23);
-    const double t64 = t57 + t62*t43 + (-t62*t44 + t58*t23);
-    const double t65 = -t63;
-    const double t66 = -t64;
-    const double t67 = -(t56 + t47*u[2]*t19*t9 - (t40 + t62*t25*t4));
-    F[0] = t32;
-    F[1] = t33;
-    F[2] = t34;
-    J[0] = t50;
-    J[1] = t59;
-    J[2] = t65;
-    J[3] = t53;
-    J[4] = t61;
-    J[5] = t66;
-    J[6] = t54;
-    J[7] = t60;
-    J[8] = t67;
+    const double t54 = -(t43 + t34*u[2]*h[0]*t9 - (t27 + t49*h[6]*t4));
+    F[0] = t19;
+    F[1] = t20;
+    F[2] = t21;
+    J[0] = t37;
+    J[1] = t46;
+    J[2] = t52;
+    J[3] = t40;
+    J[4] = t48;
+    J[5] = t53;
+    J[6] = t41;
+    J[7] = t47;
+    J[8] = t54;
+}
+/* F and J(u; known, p) (heavy_top_hoist, then the above) */
+void heavy_top_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
+void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+{
+    double h[HEAVY_TOP_N_HOISTED > 0 ? HEAVY_TOP_N_HOISTED : 1];
+    heavy_top_hoist(known, p, h);
+    heavy_top_residual_jacobian_hoisted(u, known, p, h, F, J);
 }
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
@@ -430,11 +462,12 @@ static const int heavy_top_band_order[HEAVY_TOP_N_UNKNOWNS] = HEAVY_TOP_BAND_ORD
 #define HEAVY_TOP_JACOBIAN_WIDTH (HEAVY_TOP_BAND_KL + HEAVY_TOP_BAND_KU + 1)
 #define HEAVY_TOP_JACOBIAN_ENTRIES (HEAVY_TOP_N_UNKNOWNS * HEAVY_TOP_JACOBIAN_WIDTH)
 #define HEAVY_TOP_JACOBIAN_AT(J, i, j) (J)[(i) * HEAVY_TOP_JACOBIAN_WIDTH + (j) - (i) + HEAVY_TOP_BAND_KL]
-#define HEAVY_TOP_JACOBIAN heavy_top_residual_jacobian_band
+#define HEAVY_TOP_JACOBIAN heavy_top_residual_jacobian_band_hoisted
 #if HEAVY_TOP_TIME_ROW >= 0
 #error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
 #endif
 void heavy_top_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+void heavy_top_residual_jacobian_band_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 
 /* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
  * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
@@ -467,8 +500,11 @@ static void heavy_top_column_sums(const double *J, const double *a, double *S)
 #else
 #define HEAVY_TOP_LU_ENTRIES (HEAVY_TOP_N_UNKNOWNS * HEAVY_TOP_N_UNKNOWNS)
 #define HEAVY_TOP_JACOBIAN_ENTRIES (HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS)
-#define HEAVY_TOP_JACOBIAN heavy_top_residual_jacobian
+#define HEAVY_TOP_JACOBIAN heavy_top_residual_jacobian_hoisted
+void heavy_top_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 #endif
+/* the values of the known arrow F and J read (heavy_top_hoist), computed once per step */
+#define HEAVY_TOP_HOISTED_ENTRIES (HEAVY_TOP_N_HOISTED > 0 ? HEAVY_TOP_N_HOISTED : 1)
 
 /* The pivot of a column: the offset of the first largest |entry| among count entries
  * a[0], a[stride], ... (the partial pivoting of the dense and the band LU), *amax its size */
@@ -714,6 +750,51 @@ static int heavy_top_band_eliminate(double *A, double *inv, int *perm)
 }
 #endif
 
+#if !HEAVY_TOP_BANDED && HEAVY_TOP_N_UNKNOWNS >= HEAVY_TOP_LU_PANEL_FROM
+/* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
+ * diagonal, U below), so that both substitutions of heavy_top_lu_apply read their columns
+ * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
+static void heavy_top_transpose(double *A)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            const double t = A[i * n + j];
+            A[i * n + j] = A[j * n + i];
+            A[j * n + i] = t;
+        }
+    }
+}
+
+/* The substitutions of the transposed factors T = A^T (heavy_top_transpose), b already scaled
+ * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
+ * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
+ * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
+ * as from the row-major factors, so the same bits, in the widest vector instructions */
+HEAVY_TOP_VECTOR_CLONES
+static void heavy_top_substitute(const double *T, const double *inv, double *b)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    int i, k;
+    for (k = 0; k < n; ++k) {
+        const double x = b[k];
+        const double *column = T + k * n;
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= column[i] * x;
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * inv[i];
+        const double *column = T + i * n;
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= column[k] * x;
+        }
+    }
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -795,7 +876,17 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+#if HEAVY_TOP_N_UNKNOWNS < HEAVY_TOP_LU_PANEL_FROM
     return heavy_top_eliminate(A, f->inv, f->perm);
+#else
+    {
+        const int status = heavy_top_eliminate(A, f->inv, f->perm);
+        if (status == HEAVY_TOP_OK) {
+            heavy_top_transpose(A);
+        }
+        return status;
+    }
+#endif
 #endif
 }
 
@@ -857,6 +948,7 @@ static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
         b[k] = b[f->perm[k]];
         b[f->perm[k]] = t;
     }
+#if HEAVY_TOP_N_UNKNOWNS < HEAVY_TOP_LU_PANEL_FROM
     HEAVY_TOP_UNROLL
     for (k = 0; k < n; ++k) {
         HEAVY_TOP_UNROLL
@@ -864,7 +956,6 @@ static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
-#if HEAVY_TOP_N_UNKNOWNS < HEAVY_TOP_LU_PANEL_FROM
     HEAVY_TOP_UNROLL
     for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
@@ -875,16 +966,8 @@ static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
         b[i] = t * f->inv[i];
     }
 #else
-    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
-     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
     (void)j;
-    for (i = n - 1; i >= 0; --i) {
-        const double x = b[i] * f->inv[i];
-        b[i] = x;
-        for (k = 0; k < i; ++k) {
-            b[k] -= A[k * n + i] * x;
-        }
-    }
+    heavy_top_substitute(A, f->inv, b);
 #endif
 #endif /* HEAVY_TOP_BANDED */
     return heavy_top_norm_inf(b, n) < INFINITY ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
@@ -1001,7 +1084,7 @@ static int heavy_top_explained_by_rounding(const double *F, const double *J, con
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
-static int heavy_top_at_floor(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
+static int heavy_top_at_floor(const double *u, const double *known, const double *p, const double *h, const double *F, const double *C, double factor)
 {
     double v[HEAVY_TOP_N_UNKNOWNS], G[HEAVY_TOP_N_EQUATIONS], N[HEAVY_TOP_N_EQUATIONS];
     int i, j, sign;
@@ -1013,7 +1096,7 @@ static int heavy_top_at_floor(const double *u, const double *known, const double
             const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
             v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
         }
-        heavy_top_residual(v, known, p, G);
+        heavy_top_residual_hoisted(v, known, p, h, G);
         for (i = 0; i < HEAVY_TOP_N_EQUATIONS; ++i) {
             const double d = fabs(G[i] - F[i]);
             if (d > N[i] - C[i]) {
@@ -1125,19 +1208,20 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
  * iterate (before its polishing update). */
 static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
+    double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS], h[HEAVY_TOP_HOISTED_ENTRIES];
     double J[HEAVY_TOP_JACOBIAN_ENTRIES], uJ[HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
+    heavy_top_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            HEAVY_TOP_JACOBIAN(u, known, p, F, J);
+            HEAVY_TOP_JACOBIAN(u, known, p, h, F, J);
         } else {
-            heavy_top_residual(u, known, p, F);
+            heavy_top_residual_hoisted(u, known, p, h, F);
         }
         rnorm = heavy_top_norm_inf(F, HEAVY_TOP_N_EQUATIONS);
         *iterations = it;
@@ -1148,7 +1232,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
         if (done) { /* after the final update: accepted only at the rounding floor */
             if (heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
                 || (heavy_top_coordinate_floor(J, uJ, C),
-                    heavy_top_at_floor(u, known, p, F, C, options->floor_factor))) {
+                    heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor))) {
                 if (done == 1 || it >= options->max_iterations) {
                     return HEAVY_TOP_OK;
                 }
@@ -1172,7 +1256,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
             slow = it > 0 && !(rnorm <= 0.1 * previous);
             if (slow) {
                 heavy_top_coordinate_floor(J, uJ, C);
-                if (heavy_top_at_floor(u, known, p, F, C, options->floor_factor)) {
+                if (heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor)) {
                     return HEAVY_TOP_OK;
                 }
                 noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv);
@@ -1188,7 +1272,7 @@ static int heavy_top_newton(const double *known, const double *p, const heavy_to
                 return HEAVY_TOP_NOT_CONVERGED;
             }
             if (slow) {
-                HEAVY_TOP_JACOBIAN(u, known, p, F, J);
+                HEAVY_TOP_JACOBIAN(u, known, p, h, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = heavy_top_lu_factor(J, &lu);
                 if (status != HEAVY_TOP_OK) {
@@ -1359,12 +1443,14 @@ static void heavy_top_hold_time(const double *known, const double *p, double *u)
 {
 #if HEAVY_TOP_TIME_ROW >= 0 && HEAVY_TOP_TIME_UNKNOWN >= 0
     double F[HEAVY_TOP_N_EQUATIONS], J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], x[HEAVY_TOP_N_UNKNOWNS];
+    double h[HEAVY_TOP_HOISTED_ENTRIES];
     heavy_top_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
+    heavy_top_hoist(known, p, h);
     for (it = 0; it < HEAVY_TOP_HOLD_ITERATIONS; ++it) {
         double step;
-        heavy_top_residual_jacobian(x, known, p, F, J);
+        HEAVY_TOP_JACOBIAN(x, known, p, h, F, J);
         F[HEAVY_TOP_TIME_ROW] = 0.0;
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
             J[HEAVY_TOP_TIME_ROW * HEAVY_TOP_N_UNKNOWNS + i] = 0.0;

@@ -93,6 +93,7 @@ extern "C" {
 #define HEAVY_TOP_N_FIBRE 9
 #define HEAVY_TOP_N_CONSTRAINTS 0
 #define HEAVY_TOP_N_INPUTS 0
+#define HEAVY_TOP_N_HOISTED 12
 #define HEAVY_TOP_TIME_ROW -1
 #define HEAVY_TOP_TIME_UNKNOWN -1
 #define HEAVY_TOP_TIME_KNOWN -1
@@ -141,6 +142,8 @@ void heavy_top_default_options(heavy_top_options *options);
 void heavy_top_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void heavy_top_residual(const double *u, const double *known, const double *p, double *F);
 void heavy_top_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
+void heavy_top_hoist(const double *known, const double *p, double *h);
+void heavy_top_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F);
 void heavy_top_residual_scale(const double *u, const double *known, const double *p, double *S);
 void heavy_top_predict(const double *known, const double *p, double *u);
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next);

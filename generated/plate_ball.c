@@ -98,13 +98,70 @@ void plate_ball_reconstruct(const double *u, const double *known, const double *
     fibre[8] = t21;
 }
 
-/* F(u; known, p): the residuals listed at the top of this file */
+/* h(known, p): the values of the known arrow that F and its Jacobian read, computed once
+ * per Newton step (PLATE_BALL_N_HOISTED of them; symgroupoid.codegen.hoisted_values) */
 
-void plate_ball_residual(const double *u, const double *known, const double *p, double *F)
+void plate_ball_hoist(const double *known, const double *p, double *h)
+{
+    (void)known;
+    (void)p;
+    (void)h;
+    const double t0 = 1.0/p[0];
+    const double t1 = -known[3];
+    const double t2 = -known[2];
+    const double t3 = p[0]*known[14];
+    const double t4 = 0.5*p[2];
+    const double t5 = p[0]*known[13];
+    const double t6 = p[0]*1.0/(p[0]*p[0]);
+    const double t7 = t4*t3 - (-t0*t5 + t6*(known[1] + t1));
+    const double t8 = -t0*t3 + t6*(known[0] + t2) + t4*t5;
+    const double t9 = t0*0.5;
+    const double t10 = t9*p[0]*known[15];
+    const double t11 = t9*p[1];
+    const double t12 = t11*t3;
+    const double t13 = t11*t5;
+    const double t14 = t10*known[6] + t12*known[5] + t13*known[8] + t13*known[12];
+    const double t15 = t12*known[4] - t10*known[9] + t13*known[7] + t12*known[12];
+    const double t16 = t10*known[4] + t10*known[8] - t12*known[11] + t13*known[10];
+    const double t17 = -t6;
+    const double t18 = 0.5*p[0]*p[2];
+    const double t19 = -t18;
+    const double t20 = t0*p[0];
+    const double t21 = p[1]*2.0;
+    const double t22 = t11*p[0];
+    const double t23 = t9*p[0];
+    const double t24 = -t20;
+    h[0] = t0;
+    h[1] = t1;
+    h[2] = t2;
+    h[3] = t4;
+    h[4] = t6;
+    h[5] = t7;
+    h[6] = t8;
+    h[7] = t9;
+    h[8] = t11;
+    h[9] = t14;
+    h[10] = t15;
+    h[11] = t16;
+    h[12] = t17;
+    h[13] = t18;
+    h[14] = t19;
+    h[15] = t20;
+    h[16] = t21;
+    h[17] = t22;
+    h[18] = t23;
+    h[19] = t24;
+}
+
+/* F(u; known, p): the residuals listed at the top of this file,
+ * reading the values h = plate_ball_hoist(known, p) */
+
+void plate_ball_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = u[4]*u[4];
     const double t1 = u[3]*u[3];
     const double t2 = u[2]*u[2];
@@ -127,61 +184,55 @@ void plate_ball_residual(const double *u, const double *known, const double *p, 
     const double t19 = t12 - t11;
     const double t20 = t17 + t16;
     const double t21 = t4 - t1 - t2;
-    const double t22 = 1.0/p[0];
-    const double t23 = p[0]*known[14];
-    const double t24 = 0.5*p[2];
-    const double t25 = p[0]*known[13];
-    const double t26 = p[0]*1.0/(p[0]*p[0]);
-    const double t27 = -(-t22*t25 + t26*(known[1] - known[3]));
-    const double t28 = -t22*t23 + t26*(known[0] - known[2]) + t24*t25;
-    const double t29 = t22*0.5;
-    const double t30 = t29*p[0]*known[15];
-    const double t31 = t29*p[1];
-    const double t32 = t31*t23;
-    const double t33 = t31*t25;
-    const double t34 = u[1] - known[3];
-    const double t35 = u[0] - known[2];
-    const double t36 = p[0]*u[7];
-    const double t37 = p[0]*u[6];
-    const double t38 = p[0]*u[5];
-    const double t39 = t22*t5;
-    const double t40 = t31*t5;
-    const double t41 = t40*t38;
-    const double t42 = t22*p[1]*t5;
-    const double t43 = t42*t37;
-    const double t44 = t42*t38;
-    const double t45 = -t39*t36*t20 + t40*t37*t21 + t31*t37*t6 - t44*t9;
-    const double t46 = t29*t5*t15*t36 + t43*t18 + t29*t36*t6 + t44*t13;
-    const double t47 = t31*(t10*t20 + t10*t18) - t24*(u[0] + known[2]) + t22*t34;
-    const double t48 = p[0]*t47;
-    const double t49 = t31*(t10*t13 + t10*t19) - t24*(u[1] + known[3]) - t22*t35;
-    const double t50 = -p[0]*t49;
-    const double t51 = p[0]*(p[3] - t29*(t10*t14 + t10*t9));
-    const double t52 = -(t28 + (t22*t37 + t26*t35 + 0.5*t38*p[2]));
-    const double t53 = t24*t23 + t27 + (0.5*t37*p[2] - (t22*t38 + t26*t34));
-    const double t54 = -(-t39*t19*t36 + t41*t21 + t43*t14 + t41*t15);
-    const double t55 = t30*known[6] + t32*known[5] + t33*known[8] + t33*known[12] + t54;
-    const double t56 = t32*known[4] - t30*known[9] + t33*known[7] + t32*known[12] - t45;
-    const double t57 = -t56;
-    const double t58 = t30*known[4] + t30*known[8] - t32*known[11] + t33*known[10] - t46;
-    const double t59 = -t58;
-    F[0] = t52;
-    F[1] = t53;
-    F[2] = t55;
-    F[3] = t57;
-    F[4] = t59;
-    F[5] = t48;
-    F[6] = t50;
-    F[7] = t51;
+    const double t22 = u[1] + h[1];
+    const double t23 = u[0] + h[2];
+    const double t24 = p[0]*u[7];
+    const double t25 = p[0]*u[6];
+    const double t26 = p[0]*u[5];
+    const double t27 = h[0]*t5;
+    const double t28 = h[8]*t5;
+    const double t29 = t28*t26;
+    const double t30 = h[0]*p[1]*t5;
+    const double t31 = t30*t25;
+    const double t32 = t30*t26;
+    const double t33 = -t27*t24*t20 + t28*t25*t21 + h[8]*t25*t6 - t32*t9;
+    const double t34 = h[7]*t5*t15*t24 + t31*t18 + h[7]*t24*t6 + t32*t13;
+    const double t35 = h[8]*(t10*t20 + t10*t18) - h[3]*(u[0] + known[2]) + h[0]*t22;
+    const double t36 = p[0]*t35;
+    const double t37 = h[8]*(t10*t13 + t10*t19) - h[3]*(u[1] + known[3]) - h[0]*t23;
+    const double t38 = -p[0]*t37;
+    const double t39 = p[0]*(p[3] - h[7]*(t10*t14 + t10*t9));
+    const double t40 = -(h[6] + (h[0]*t25 + h[4]*t23 + 0.5*t26*p[2]));
+    const double t41 = h[5] + (0.5*t25*p[2] - (h[0]*t26 + h[4]*t22));
+    const double t42 = -(-t27*t19*t24 + t29*t21 + t31*t14 + t29*t15);
+    const double t43 = h[9] + t42;
+    const double t44 = -(h[10] - t33);
+    const double t45 = -(h[11] - t34);
+    F[0] = t40;
+    F[1] = t41;
+    F[2] = t43;
+    F[3] = t44;
+    F[4] = t45;
+    F[5] = t36;
+    F[6] = t38;
+    F[7] = t39;
 }
 
+/* F(u; known, p) */
+void plate_ball_residual(const double *u, const double *known, const double *p, double *F)
+{
+    double h[PLATE_BALL_N_HOISTED > 0 ? PLATE_BALL_N_HOISTED : 1];
+    plate_ball_hoist(known, p, h);
+    plate_ball_residual_hoisted(u, known, p, h, F);
+}
 /* F and the exact Jacobian J[i * PLATE_BALL_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
 
-void plate_ball_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+void plate_ball_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = u[4]*u[4];
     const double t1 = u[3]*u[3];
     const double t2 = u[2]*u[2];
@@ -206,210 +257,197 @@ void plate_ball_residual_jacobian(const double *u, const double *known, const do
     const double t21 = t14 - t13;
     const double t22 = t19 + t18;
     const double t23 = t5 - t1 - t2;
-    const double t24 = 1.0/p[0];
-    const double t25 = -t7*4.0;
-    const double t26 = p[0]*known[14];
-    const double t27 = 0.5*p[2];
-    const double t28 = p[0]*known[13];
-    const double t29 = p[0]*1.0/(p[0]*p[0]);
-    const double t30 = -(-t24*t28 + t29*(known[1] - known[3]));
-    const double t31 = -t24*t26 + t29*(known[0] - known[2]) + t27*t28;
-    const double t32 = t24*0.5;
-    const double t33 = t32*p[0]*known[15];
-    const double t34 = t32*p[1];
-    const double t35 = t34*t26;
-    const double t36 = t34*t28;
-    const double t37 = u[1] - known[3];
-    const double t38 = u[0] - known[2];
-    const double t39 = p[0]*u[7];
-    const double t40 = p[0]*u[6];
-    const double t41 = t24*t40;
-    const double t42 = p[0]*u[5];
-    const double t43 = t24*t42;
-    const double t44 = t24*t7;
-    const double t45 = t34*t7;
-    const double t46 = t45*t42;
-    const double t47 = t24*p[1]*t7;
-    const double t48 = t47*t40;
-    const double t49 = t47*t42;
-    const double t50 = t34*t40;
-    const double t51 = -t44*t39*t22 + t45*t40*t23 + t50*t8 - t49*t11;
-    const double t52 = t32*t7;
-    const double t53 = t32*t39;
-    const double t54 = t34*(t12*t22 + t12*t20) - t27*(u[0] + known[2]) + t24*t37;
-    const double t55 = p[0]*t54;
-    const double t56 = t34*(t12*t15 + t12*t21) - t27*(u[1] + known[3]) - t24*t38;
-    const double t57 = -p[0]*t56;
-    const double t58 = p[0]*(p[3] - t32*(t12*t16 + t12*t11));
-    const double t59 = -(t31 + (t41 + t29*t38 + 0.5*t42*p[2]));
-    const double t60 = t27*t26 + t30 + (0.5*t40*p[2] - (t43 + t29*t37));
-    const double t61 = -(-t44*t21*t39 + t46*t23 + t48*t16 + t46*t17);
-    const double t62 = t33*known[6] + t35*known[5] + t36*known[8] + t36*known[12] + t61;
-    const double t63 = t35*known[4] - t33*known[9] + t36*known[7] + t35*known[12] - t51;
-    const double t64 = -t63;
-    const double t65 = t33*known[4] + t33*known[8] - t35*known[11] + t36*known[10] - (t52*t17*t39 + t48*t20 + t53*t8 + t49*t15);
-    const double t66 = -t65;
-    const double t67 = -t29;
-    const double t68 = 0.5*p[0]*p[2];
-    const double t69 = -t68;
-    const double t70 = t24*p[0];
-    const double t71 = 1.0/(t6*t6);
-    const double t72 = t12*u[2];
-    const double t73 = 2.0*t71;
+    const double t24 = -t7*4.0;
+    const double t25 = u[1] + h[1];
+    const double t26 = u[0] + h[2];
+    const double t27 = p[0]*u[7];
+    const double t28 = p[0]*u[6];
+    const double t29 = h[0]*t28;
+    const double t30 = p[0]*u[5];
+    const double t31 = h[0]*t30;
+    const double t32 = h[0]*t7;
+    const double t33 = h[8]*t7;
+    const double t34 = t33*t30;
+    const double t35 = h[0]*p[1]*t7;
+    const double t36 = t35*t28;
+    const double t37 = t35*t30;
+    const double t38 = h[8]*t28;
+    const double t39 = -t32*t27*t22 + t33*t28*t23 + t38*t8 - t37*t11;
+    const double t40 = h[7]*t7;
+    const double t41 = h[7]*t27;
+    const double t42 = h[8]*(t12*t22 + t12*t20) - h[3]*(u[0] + known[2]) + h[0]*t25;
+    const double t43 = p[0]*t42;
+    const double t44 = h[8]*(t12*t15 + t12*t21) - h[3]*(u[1] + known[3]) - h[0]*t26;
+    const double t45 = -p[0]*t44;
+    const double t46 = p[0]*(p[3] - h[7]*(t12*t16 + t12*t11));
+    const double t47 = -(h[6] + (t29 + h[4]*t26 + 0.5*t30*p[2]));
+    const double t48 = h[5] + (0.5*t28*p[2] - (t31 + h[4]*t25));
+    const double t49 = -(-t32*t21*t27 + t34*t23 + t36*t16 + t34*t17);
+    const double t50 = h[9] + t49;
+    const double t51 = -(h[10] - t39);
+    const double t52 = h[11] - (t40*t17*t27 + t36*t20 + t41*t8 + t37*t15);
+    const double t53 = -t52;
+    const double t54 = 1.0/(t6*t6);
+    const double t55 = t12*u[2];
+    const double t56 = 2.0*t54;
+    const double t57 = t56*u[2];
+    const double t58 = -t55 + t57*t4;
+    const double t59 = t54*u[2]*4.0;
+    const double t60 = t12*u[3];
+    const double t61 = t12*u[4];
+    const double t62 = t55 + t57*t17;
+    const double t63 = t55 + t57*t23;
+    const double t64 = h[0]*t27;
+    const double t65 = t7*t64;
+    const double t66 = u[4]*t65;
+    const double t67 = p[1]*t7;
+    const double t68 = p[1]*t29*t16;
+    const double t69 = t29*t67;
+    const double t70 = t64*t22;
+    const double t71 = -2.0*t65;
+    const double t72 = 0.5*p[1]*t29;
+    const double t73 = h[16]*t54;
     const double t74 = t73*u[2];
-    const double t75 = -t72 + t74*t4;
-    const double t76 = t71*u[2]*4.0;
-    const double t77 = t12*u[3];
-    const double t78 = t12*u[4];
-    const double t79 = t72 + t74*t17;
-    const double t80 = t72 + t74*t23;
-    const double t81 = t24*t39;
-    const double t82 = t7*t81;
-    const double t83 = u[4]*t82;
-    const double t84 = p[1]*t7;
-    const double t85 = p[1]*t41*t16;
-    const double t86 = t41*t84;
-    const double t87 = t81*t22;
-    const double t88 = -2.0*t82;
-    const double t89 = 0.5*p[1]*t41;
-    const double t90 = p[1]*2.0;
-    const double t91 = t90*t71;
-    const double t92 = t91*u[2];
-    const double t93 = t84*u[3];
-    const double t94 = t41*t20;
-    const double t95 = t90*t7;
-    const double t96 = 0.5*t81;
-    const double t97 = t43*t15;
-    const double t98 = t84*u[4];
-    const double t99 = t34*t42;
-    const double t100 = t74*t85 - u[3]*t86 - (t74*t21*t81 + t83) + t99*t80 + t99*t79;
-    const double t101 = -(t88 + t74*t87) + t50*t80 + t89*t75 - (t92*t11*t43 + t93*t43);
-    const double t102 = t53*t79 + (t92*t94 - t95*t41) + t96*t75 + (t92*t97 - t98*t43);
-    const double t103 = t34*p[0];
-    const double t104 = -t103*(t25 + t76*t20 + (t25 + t76*t22));
-    const double t105 = t103*(t78 + t76*t21 + (-t78 + t76*t15));
-    const double t106 = t32*p[0];
-    const double t107 = t106*(t77 + t76*t11 + (t76*t16 - t77));
-    const double t108 = -t101;
-    const double t109 = -t102;
-    const double t110 = t73*u[3];
-    const double t111 = t77 + t110*t4;
-    const double t112 = t71*u[3]*4.0;
-    const double t113 = t77 - t110*t17;
-    const double t114 = t77 + t110*t23;
-    const double t115 = t91*u[3];
-    const double t116 = t84*u[2]*t43;
-    const double t117 = -t95*t43;
-    const double t118 = t88 + t110*t21*t81 - t99*t114 - (t110*t85 - u[2]*t86) + t99*t113;
-    const double t119 = -(-t83 + t110*t87) + t50*t114 + t89*t111 - (t116 + t115*t11*t43);
-    const double t120 = t53*t113 - (t115*t94 + t98*t41) - t96*t111 - (t117 + t115*t97);
-    const double t121 = t103*(t78 + t112*t20 + (-t78 + t112*t22));
-    const double t122 = -t121;
-    const double t123 = t103*(t25 + t112*t21 + (t25 + t112*t15));
-    const double t124 = t72 + t112*t11 - (t72 - t112*t16);
-    const double t125 = t106*t124;
-    const double t126 = -t118;
-    const double t127 = -t119;
-    const double t128 = t73*u[4];
-    const double t129 = t78 + t128*t4;
-    const double t130 = t71*u[4]*4.0;
-    const double t131 = t78 + t128*t17;
-    const double t132 = t78 - t128*t23;
-    const double t133 = t91*u[4];
-    const double t134 = t128*t85 - 2.0*t86 - (t128*t21*t81 + u[2]*t82) - t99*t132 + t99*t131;
-    const double t135 = t128*t87 - u[3]*t82 + (t117 + t133*t11*t43) + t50*t132 - t89*t129;
-    const double t136 = t53*t131 + (t133*t94 + t93*t41) + t96*t129 - (t116 - t133*t97);
-    const double t137 = t77 + t130*t20 - (t77 - t130*t22);
-    const double t138 = -t103*t137;
-    const double t139 = t72 + t130*t21 - (t72 - t130*t15);
-    const double t140 = t103*t139;
-    const double t141 = t106*(t25 + t130*t11 + (t25 + t130*t16));
-    const double t142 = -t136;
-    const double t143 = -t70;
-    const double t144 = t45*p[0];
-    const double t145 = t144*t23;
-    const double t146 = -(t145 + t144*t17);
-    const double t147 = t47*p[0];
-    const double t148 = -t147*t11;
-    const double t149 = t147*t15;
-    const double t150 = t145 + t103*t8;
-    const double t151 = -p[0]*t24*t16*t84;
-    const double t152 = t147*t20;
-    const double t153 = t52*p[0]*t17 + t106*t8;
-    const double t154 = t44*p[0]*t21;
-    const double t155 = -p[0]*t24*t7*t22;
-    F[0] = t59;
-    F[1] = t60;
-    F[2] = t62;
-    F[3] = t64;
-    F[4] = t66;
-    F[5] = t55;
-    F[6] = t57;
-    F[7] = t58;
-    J[0] = t67;
+    const double t75 = t67*u[3];
+    const double t76 = t29*t20;
+    const double t77 = h[16]*t7;
+    const double t78 = 0.5*t64;
+    const double t79 = t31*t15;
+    const double t80 = t67*u[4];
+    const double t81 = h[8]*t30;
+    const double t82 = t57*t68 - u[3]*t69 - (t57*t21*t64 + t66) + t81*t63 + t81*t62;
+    const double t83 = -(t71 + t57*t70) + t38*t63 + t72*t58 - (t74*t11*t31 + t75*t31);
+    const double t84 = t41*t62 + (t74*t76 - t77*t29) + t78*t58 + (t74*t79 - t80*t31);
+    const double t85 = -h[17]*(t24 + t59*t20 + (t24 + t59*t22));
+    const double t86 = h[17]*(t61 + t59*t21 + (-t61 + t59*t15));
+    const double t87 = h[18]*(t60 + t59*t11 + (t59*t16 - t60));
+    const double t88 = -t83;
+    const double t89 = -t84;
+    const double t90 = t56*u[3];
+    const double t91 = t60 + t90*t4;
+    const double t92 = t54*u[3]*4.0;
+    const double t93 = t60 - t90*t17;
+    const double t94 = t60 + t90*t23;
+    const double t95 = t73*u[3];
+    const double t96 = t67*u[2]*t31;
+    const double t97 = -t77*t31;
+    const double t98 = t71 + t90*t21*t64 - t81*t94 - (t90*t68 - u[2]*t69) + t81*t93;
+    const double t99 = -(-t66 + t90*t70) + t38*t94 + t72*t91 - (t96 + t95*t11*t31);
+    const double t100 = t41*t93 - (t95*t76 + t80*t29) - t78*t91 - (t97 + t95*t79);
+    const double t101 = h[17]*(t61 + t92*t20 + (-t61 + t92*t22));
+    const double t102 = -t101;
+    const double t103 = h[17]*(t24 + t92*t21 + (t24 + t92*t15));
+    const double t104 = t55 + t92*t11 - (t55 - t92*t16);
+    const double t105 = h[18]*t104;
+    const double t106 = -t98;
+    const double t107 = -t99;
+    const double t108 = t56*u[4];
+    const double t109 = t61 + t108*t4;
+    const double t110 = t54*u[4]*4.0;
+    const double t111 = t61 + t108*t17;
+    const double t112 = t61 - t108*t23;
+    const double t113 = t73*u[4];
+    const double t114 = t108*t68 - 2.0*t69 - (t108*t21*t64 + u[2]*t65) - t81*t112 + t81*t111;
+    const double t115 = t108*t70 - u[3]*t65 + (t97 + t113*t11*t31) + t38*t112 - t72*t109;
+    const double t116 = t41*t111 + (t113*t76 + t75*t29) + t78*t109 - (t96 - t113*t79);
+    const double t117 = t60 + t110*t20 - (t60 - t110*t22);
+    const double t118 = -h[17]*t117;
+    const double t119 = t55 + t110*t21 - (t55 - t110*t15);
+    const double t120 = h[17]*t119;
+    const double t121 = h[18]*(t24 + t110*t11 + (t24 + t110*t16));
+    const double t122 = -t116;
+    const double t123 = t33*p[0];
+    const double t124 = t123*t23;
+    const double t125 = -(t124 + t123*t17);
+    const double t126 = t35*p[0];
+    const double t127 = -t126*t11;
+    const double t128 = t126*t15;
+    const double t129 = t124 + h[17]*t8;
+    const double t130 = -p[0]*h[0]*t16*t67;
+    const double t131 = t126*t20;
+    const double t132 = t40*p[0]*t17 + h[18]*t8;
+    const double t133 = t32*p[0]*t21;
+    const double t134 = -p[0]*h[0]*t7*t22;
+    F[0] = t47;
+    F[1] = t48;
+    F[2] = t50;
+    F[3] = t51;
+    F[4] = t53;
+    F[5] = t43;
+    F[6] = t45;
+    F[7] = t46;
+    J[0] = h[12];
     J[1] = 0.0;
     J[2] = 0.0;
     J[3] = 0.0;
     J[4] = 0.0;
-    J[5] = t69;
-    J[6] = t143;
+    J[5] = h[14];
+    J[6] = h[19];
     J[7] = 0.0;
     J[8] = 0.0;
-    J[9] = t67;
+    J[9] = h[12];
     J[10] = 0.0;
     J[11] = 0.0;
     J[12] = 0.0;
-    J[13] = t143;
-    J[14] = t68;
+    J[13] = h[19];
+    J[14] = h[13];
     J[15] = 0.0;
     J[16] = 0.0;
     J[17] = 0.0;
-    J[18] = t100;
-    J[19] = t126;
-    J[20] = t134;
-    J[21] = t146;
-    J[22] = t151;
-    J[23] = t154;
+    J[18] = t82;
+    J[19] = t106;
+    J[20] = t114;
+    J[21] = t125;
+    J[22] = t130;
+    J[23] = t133;
     J[24] = 0.0;
     J[25] = 0.0;
-    J[26] = t108;
-    J[27] = t127;
-    J[28] = t135;
-    J[29] = t148;
-    J[30] = t150;
-    J[31] = t155;
+    J[26] = t88;
+    J[27] = t107;
+    J[28] = t115;
+    J[29] = t127;
+    J[30] = t129;
+    J[31] = t134;
     J[32] = 0.0;
     J[33] = 0.0;
-    J[34] = t109;
-    J[35] = t120;
-    J[36] = t142;
-    J[37] = t149;
-    J[38] = t152;
-    J[39] = t153;
-    J[40] = t69;
-    J[41] = t70;
-    J[42] = t104;
-    J[43] = t122;
-    J[44] = t138;
+    J[34] = t89;
+    J[35] = t100;
+    J[36] = t122;
+    J[37] = t128;
+    J[38] = t131;
+    J[39] = t132;
+    J[40] = h[14];
+    J[41] = h[15];
+    J[42] = t85;
+    J[43] = t102;
+    J[44] = t118;
     J[45] = 0.0;
     J[46] = 0.0;
     J[47] = 0.0;
-    J[48] = t70;
-    J[49] = t68;
-    J[50] = t105;
-    J[51] = t123;
-    J[52] = t140;
+    J[48] = h[15];
+    J[49] = h[13];
+    J[50] = t86;
+    J[51] = t103;
+    J[52] = t120;
     J[53] = 0.0;
     J[54] = 0.0;
     J[55] = 0.0;
     J[56] = 0.0;
     J[57] = 0.0;
-    J[58] = t107;
-    J[59] = t125;
-    J[60] = t141;
+    J[58] = t87;
+    J[59] = t105;
+    J[60] = t121;
     J[61] = 0.0;
     J[62] = 0.0;
     J[63] = 0.0;
+}
+/* F and J(u; known, p) (plate_ball_hoist, then the above) */
+void plate_ball_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
+void plate_ball_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+{
+    double h[PLATE_BALL_N_HOISTED > 0 ? PLATE_BALL_N_HOISTED : 1];
+    plate_ball_hoist(known, p, h);
+    plate_ball_residual_jacobian_hoisted(u, known, p, h, F, J);
 }
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
@@ -657,11 +695,12 @@ static const int plate_ball_band_order[PLATE_BALL_N_UNKNOWNS] = PLATE_BALL_BAND_
 #define PLATE_BALL_JACOBIAN_WIDTH (PLATE_BALL_BAND_KL + PLATE_BALL_BAND_KU + 1)
 #define PLATE_BALL_JACOBIAN_ENTRIES (PLATE_BALL_N_UNKNOWNS * PLATE_BALL_JACOBIAN_WIDTH)
 #define PLATE_BALL_JACOBIAN_AT(J, i, j) (J)[(i) * PLATE_BALL_JACOBIAN_WIDTH + (j) - (i) + PLATE_BALL_BAND_KL]
-#define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian_band
+#define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian_band_hoisted
 #if PLATE_BALL_TIME_ROW >= 0
 #error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
 #endif
 void plate_ball_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+void plate_ball_residual_jacobian_band_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 
 /* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
  * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
@@ -694,8 +733,11 @@ static void plate_ball_column_sums(const double *J, const double *a, double *S)
 #else
 #define PLATE_BALL_LU_ENTRIES (PLATE_BALL_N_UNKNOWNS * PLATE_BALL_N_UNKNOWNS)
 #define PLATE_BALL_JACOBIAN_ENTRIES (PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS)
-#define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian
+#define PLATE_BALL_JACOBIAN plate_ball_residual_jacobian_hoisted
+void plate_ball_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 #endif
+/* the values of the known arrow F and J read (plate_ball_hoist), computed once per step */
+#define PLATE_BALL_HOISTED_ENTRIES (PLATE_BALL_N_HOISTED > 0 ? PLATE_BALL_N_HOISTED : 1)
 
 /* The pivot of a column: the offset of the first largest |entry| among count entries
  * a[0], a[stride], ... (the partial pivoting of the dense and the band LU), *amax its size */
@@ -941,6 +983,51 @@ static int plate_ball_band_eliminate(double *A, double *inv, int *perm)
 }
 #endif
 
+#if !PLATE_BALL_BANDED && PLATE_BALL_N_UNKNOWNS >= PLATE_BALL_LU_PANEL_FROM
+/* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
+ * diagonal, U below), so that both substitutions of plate_ball_lu_apply read their columns
+ * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
+static void plate_ball_transpose(double *A)
+{
+    const int n = PLATE_BALL_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            const double t = A[i * n + j];
+            A[i * n + j] = A[j * n + i];
+            A[j * n + i] = t;
+        }
+    }
+}
+
+/* The substitutions of the transposed factors T = A^T (plate_ball_transpose), b already scaled
+ * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
+ * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
+ * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
+ * as from the row-major factors, so the same bits, in the widest vector instructions */
+PLATE_BALL_VECTOR_CLONES
+static void plate_ball_substitute(const double *T, const double *inv, double *b)
+{
+    const int n = PLATE_BALL_N_UNKNOWNS;
+    int i, k;
+    for (k = 0; k < n; ++k) {
+        const double x = b[k];
+        const double *column = T + k * n;
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= column[i] * x;
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * inv[i];
+        const double *column = T + i * n;
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= column[k] * x;
+        }
+    }
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -1022,7 +1109,17 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+#if PLATE_BALL_N_UNKNOWNS < PLATE_BALL_LU_PANEL_FROM
     return plate_ball_eliminate(A, f->inv, f->perm);
+#else
+    {
+        const int status = plate_ball_eliminate(A, f->inv, f->perm);
+        if (status == PLATE_BALL_OK) {
+            plate_ball_transpose(A);
+        }
+        return status;
+    }
+#endif
 #endif
 }
 
@@ -1084,6 +1181,7 @@ static int plate_ball_lu_apply(const plate_ball_lu *f, double *b)
         b[k] = b[f->perm[k]];
         b[f->perm[k]] = t;
     }
+#if PLATE_BALL_N_UNKNOWNS < PLATE_BALL_LU_PANEL_FROM
     PLATE_BALL_UNROLL
     for (k = 0; k < n; ++k) {
         PLATE_BALL_UNROLL
@@ -1091,7 +1189,6 @@ static int plate_ball_lu_apply(const plate_ball_lu *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
-#if PLATE_BALL_N_UNKNOWNS < PLATE_BALL_LU_PANEL_FROM
     PLATE_BALL_UNROLL
     for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
@@ -1102,16 +1199,8 @@ static int plate_ball_lu_apply(const plate_ball_lu *f, double *b)
         b[i] = t * f->inv[i];
     }
 #else
-    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
-     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
     (void)j;
-    for (i = n - 1; i >= 0; --i) {
-        const double x = b[i] * f->inv[i];
-        b[i] = x;
-        for (k = 0; k < i; ++k) {
-            b[k] -= A[k * n + i] * x;
-        }
-    }
+    plate_ball_substitute(A, f->inv, b);
 #endif
 #endif /* PLATE_BALL_BANDED */
     return plate_ball_norm_inf(b, n) < INFINITY ? PLATE_BALL_OK : PLATE_BALL_NON_FINITE;
@@ -1228,7 +1317,7 @@ static int plate_ball_explained_by_rounding(const double *F, const double *J, co
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
-static int plate_ball_at_floor(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
+static int plate_ball_at_floor(const double *u, const double *known, const double *p, const double *h, const double *F, const double *C, double factor)
 {
     double v[PLATE_BALL_N_UNKNOWNS], G[PLATE_BALL_N_EQUATIONS], N[PLATE_BALL_N_EQUATIONS];
     int i, j, sign;
@@ -1240,7 +1329,7 @@ static int plate_ball_at_floor(const double *u, const double *known, const doubl
             const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
             v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
         }
-        plate_ball_residual(v, known, p, G);
+        plate_ball_residual_hoisted(v, known, p, h, G);
         for (i = 0; i < PLATE_BALL_N_EQUATIONS; ++i) {
             const double d = fabs(G[i] - F[i]);
             if (d > N[i] - C[i]) {
@@ -1352,19 +1441,20 @@ static inline int plate_ball_above_rounding(const double *d, const double *u, do
  * iterate (before its polishing update). */
 static int plate_ball_newton(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
+    double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS], h[PLATE_BALL_HOISTED_ENTRIES];
     double J[PLATE_BALL_JACOBIAN_ENTRIES], uJ[PLATE_BALL_N_UNKNOWNS];
     plate_ball_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
+    plate_ball_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            PLATE_BALL_JACOBIAN(u, known, p, F, J);
+            PLATE_BALL_JACOBIAN(u, known, p, h, F, J);
         } else {
-            plate_ball_residual(u, known, p, F);
+            plate_ball_residual_hoisted(u, known, p, h, F);
         }
         rnorm = plate_ball_norm_inf(F, PLATE_BALL_N_EQUATIONS);
         *iterations = it;
@@ -1375,7 +1465,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
         if (done) { /* after the final update: accepted only at the rounding floor */
             if (plate_ball_explained_by_rounding(F, J, u, uJ, &lu)
                 || (plate_ball_coordinate_floor(J, uJ, C),
-                    plate_ball_at_floor(u, known, p, F, C, options->floor_factor))) {
+                    plate_ball_at_floor(u, known, p, h, F, C, options->floor_factor))) {
                 if (done == 1 || it >= options->max_iterations) {
                     return PLATE_BALL_OK;
                 }
@@ -1399,7 +1489,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
             slow = it > 0 && !(rnorm <= 0.1 * previous);
             if (slow) {
                 plate_ball_coordinate_floor(J, uJ, C);
-                if (plate_ball_at_floor(u, known, p, F, C, options->floor_factor)) {
+                if (plate_ball_at_floor(u, known, p, h, F, C, options->floor_factor)) {
                     return PLATE_BALL_OK;
                 }
                 noise = last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(lu.inv);
@@ -1415,7 +1505,7 @@ static int plate_ball_newton(const double *known, const double *p, const plate_b
                 return PLATE_BALL_NOT_CONVERGED;
             }
             if (slow) {
-                PLATE_BALL_JACOBIAN(u, known, p, F, J);
+                PLATE_BALL_JACOBIAN(u, known, p, h, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = plate_ball_lu_factor(J, &lu);
                 if (status != PLATE_BALL_OK) {
@@ -1586,12 +1676,14 @@ static void plate_ball_hold_time(const double *known, const double *p, double *u
 {
 #if PLATE_BALL_TIME_ROW >= 0 && PLATE_BALL_TIME_UNKNOWN >= 0
     double F[PLATE_BALL_N_EQUATIONS], J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], x[PLATE_BALL_N_UNKNOWNS];
+    double h[PLATE_BALL_HOISTED_ENTRIES];
     plate_ball_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
+    plate_ball_hoist(known, p, h);
     for (it = 0; it < PLATE_BALL_HOLD_ITERATIONS; ++it) {
         double step;
-        plate_ball_residual_jacobian(x, known, p, F, J);
+        PLATE_BALL_JACOBIAN(x, known, p, h, F, J);
         F[PLATE_BALL_TIME_ROW] = 0.0;
         for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
             J[PLATE_BALL_TIME_ROW * PLATE_BALL_N_UNKNOWNS + i] = 0.0;

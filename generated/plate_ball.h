@@ -101,6 +101,7 @@ extern "C" {
 #define PLATE_BALL_N_FIBRE 9
 #define PLATE_BALL_N_CONSTRAINTS 3
 #define PLATE_BALL_N_INPUTS 0
+#define PLATE_BALL_N_HOISTED 20
 #define PLATE_BALL_TIME_ROW -1
 #define PLATE_BALL_TIME_UNKNOWN -1
 #define PLATE_BALL_TIME_KNOWN -1
@@ -149,6 +150,8 @@ void plate_ball_default_options(plate_ball_options *options);
 void plate_ball_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void plate_ball_residual(const double *u, const double *known, const double *p, double *F);
 void plate_ball_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
+void plate_ball_hoist(const double *known, const double *p, double *h);
+void plate_ball_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F);
 void plate_ball_residual_scale(const double *u, const double *known, const double *p, double *S);
 void plate_ball_predict(const double *known, const double *p, double *u);
 void plate_ball_next_knowns(const double *u, const double *known, const double *p, double *known_next);

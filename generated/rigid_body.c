@@ -93,13 +93,49 @@ void rigid_body_reconstruct(const double *u, const double *known, const double *
     fibre[8] = t21;
 }
 
-/* F(u; known, p): the residuals listed at the top of this file */
+/* h(known, p): the values of the known arrow that F and its Jacobian read, computed once
+ * per Newton step (RIGID_BODY_N_HOISTED of them; symgroupoid.codegen.hoisted_values) */
 
-void rigid_body_residual(const double *u, const double *known, const double *p, double *F)
+void rigid_body_hoist(const double *known, const double *p, double *h)
+{
+    (void)known;
+    (void)p;
+    (void)h;
+    const double t0 = 0.5*p[3];
+    const double t1 = 0.5*p[2];
+    const double t2 = 0.5*p[1];
+    const double t3 = t2 - t0;
+    const double t4 = t3 - t1;
+    const double t5 = t2 - t1 + t0;
+    const double t6 = t3 + t1;
+    const double t7 = 1.0/p[0];
+    const double t8 = t7*t6;
+    const double t9 = t7*t4;
+    const double t10 = t7*t5;
+    const double t11 = t10*known[5] - t8*known[7];
+    const double t12 = t9*known[2] + t8*known[6];
+    const double t13 = t9*known[1] + t10*known[3];
+    h[0] = t4;
+    h[1] = t5;
+    h[2] = t6;
+    h[3] = t7;
+    h[4] = t8;
+    h[5] = t9;
+    h[6] = t10;
+    h[7] = t11;
+    h[8] = t12;
+    h[9] = t13;
+}
+
+/* F(u; known, p): the residuals listed at the top of this file,
+ * reading the values h = rigid_body_hoist(known, p) */
+
+void rigid_body_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = u[1]*u[0];
     const double t1 = 2.0*u[2];
     const double t2 = 2.0/(4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0]);
@@ -107,38 +143,35 @@ void rigid_body_residual(const double *u, const double *known, const double *p, 
     const double t4 = 2.0*u[1];
     const double t5 = u[2]*u[1];
     const double t6 = 2.0*u[0];
-    const double t7 = 0.5*p[3];
-    const double t8 = 0.5*p[2];
-    const double t9 = 0.5*p[1];
-    const double t10 = t9 - t7;
-    const double t11 = t10 - t8;
-    const double t12 = t9 - t8 + t7;
-    const double t13 = t10 + t8;
-    const double t14 = 1.0/p[0];
-    const double t15 = t14*t13;
-    const double t16 = t14*t11;
-    const double t17 = t14*t12;
-    const double t18 = t2*t14;
-    const double t19 = t18*t13;
-    const double t20 = t18*t11;
-    const double t21 = -t20*(t4 - t3) + t19*(t4 + t3);
-    const double t22 = -t20*(t1 + t0) + t18*(t1 - t0)*t12;
-    const double t23 = t17*known[5] - t15*known[7] + (t18*t12*(t6 + t5) + t19*(t6 - t5));
-    const double t24 = -t23;
-    const double t25 = -(t16*known[2] + t15*known[6] + t21);
-    const double t26 = t16*known[1] + t17*known[3] - t22;
-    F[0] = t24;
-    F[1] = t25;
-    F[2] = t26;
+    const double t7 = t2*h[3];
+    const double t8 = t7*h[2];
+    const double t9 = t7*h[0];
+    const double t10 = -t9*(t4 - t3) + t8*(t4 + t3);
+    const double t11 = -t9*(t1 + t0) + t7*(t1 - t0)*h[1];
+    const double t12 = h[7] + (t7*h[1]*(t6 + t5) + t8*(t6 - t5));
+    const double t13 = -t12;
+    const double t14 = -(h[8] + t10);
+    const double t15 = h[9] - t11;
+    F[0] = t13;
+    F[1] = t14;
+    F[2] = t15;
 }
 
+/* F(u; known, p) */
+void rigid_body_residual(const double *u, const double *known, const double *p, double *F)
+{
+    double h[RIGID_BODY_N_HOISTED > 0 ? RIGID_BODY_N_HOISTED : 1];
+    rigid_body_hoist(known, p, h);
+    rigid_body_residual_hoisted(u, known, p, h, F);
+}
 /* F and the exact Jacobian J[i * RIGID_BODY_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
 
-void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+void rigid_body_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = 4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0];
     const double t1 = 1.0/t0;
     const double t2 = u[1]*u[0];
@@ -154,70 +187,65 @@ void rigid_body_residual_jacobian(const double *u, const double *known, const do
     const double t12 = t11 - t10;
     const double t13 = t7 - t6;
     const double t14 = t11 + t10;
-    const double t15 = 0.5*p[3];
-    const double t16 = 0.5*p[2];
-    const double t17 = 0.5*p[1];
-    const double t18 = t17 - t15;
-    const double t19 = t18 - t16;
-    const double t20 = t17 - t16 + t15;
-    const double t21 = t18 + t16;
-    const double t22 = 1.0/p[0];
-    const double t23 = t22*t21;
-    const double t24 = t22*t19;
-    const double t25 = t22*t20;
-    const double t26 = t5*t22;
-    const double t27 = t26*t21;
-    const double t28 = t26*t19;
-    const double t29 = t25*known[5] - t23*known[7] + (t26*t20*t14 + t27*t12);
-    const double t30 = -t29;
-    const double t31 = t24*known[2] + t23*known[6] + (-t28*t13 + t27*t8);
-    const double t32 = -t31;
-    const double t33 = t24*known[1] + t25*known[3] - (-t28*t9 + t26*t4*t20);
-    const double t34 = 1.0/(t0*t0);
-    const double t35 = t25*t14;
-    const double t36 = 4.0*t34;
-    const double t37 = t36*u[0];
-    const double t38 = t1*4.0;
-    const double t39 = -t38*t25;
-    const double t40 = t23*t12;
-    const double t41 = -t38*t23;
-    const double t42 = t24*t13;
-    const double t43 = t23*t8;
-    const double t44 = t5*u[2];
-    const double t45 = t44*t23;
-    const double t46 = t22*4.0*t34;
-    const double t47 = t5*u[1];
-    const double t48 = t47*t25;
-    const double t49 = t39 + t37*t35 + (t41 + t37*t40);
-    const double t50 = t37*t42 + t26*u[2]*t19 - (t37*t43 - t45);
-    const double t51 = t46*u[0]*t19*t9 - t26*u[1]*t19 - (t48 + t37*t25*t4);
+    const double t15 = t5*h[3];
+    const double t16 = t15*h[2];
+    const double t17 = t15*h[0];
+    const double t18 = -(h[7] + (t15*h[1]*t14 + t16*t12));
+    const double t19 = -(h[8] + (-t17*t13 + t16*t8));
+    const double t20 = h[9] - (-t17*t9 + t15*t4*h[1]);
+    const double t21 = 1.0/(t0*t0);
+    const double t22 = h[6]*t14;
+    const double t23 = 4.0*t21;
+    const double t24 = t23*u[0];
+    const double t25 = t1*4.0;
+    const double t26 = -t25*h[6];
+    const double t27 = h[4]*t12;
+    const double t28 = -t25*h[4];
+    const double t29 = h[5]*t13;
+    const double t30 = h[4]*t8;
+    const double t31 = t5*u[2];
+    const double t32 = t31*h[4];
+    const double t33 = h[3]*4.0*t21;
+    const double t34 = t5*u[1];
+    const double t35 = t34*h[6];
+    const double t36 = t26 + t24*t22 + (t28 + t24*t27);
+    const double t37 = t24*t29 + t15*u[2]*h[0] - (t24*t30 - t32);
+    const double t38 = t33*u[0]*h[0]*t9 - t15*u[1]*h[0] - (t35 + t24*h[6]*t4);
+    const double t39 = -t37;
+    const double t40 = -t38;
+    const double t41 = t23*u[1];
+    const double t42 = -t1*h[3]*4.0*h[0];
+    const double t43 = t15*u[0]*h[0];
+    const double t44 = t5*u[0];
+    const double t45 = t41*t22 - t31*h[6] + (t32 + t41*t27);
+    const double t46 = t43 - t33*u[1]*h[0]*t9 + (t41*h[6]*t4 + t44*h[6]);
+    const double t47 = -(t42 + t41*t29 - (t28 + t41*t30));
+    const double t48 = t23*u[2];
+    const double t49 = t35 - t48*t22 - (t48*t27 + t34*h[4]);
+    const double t50 = t43 + t48*t29 + (-t48*t30 + t44*h[4]);
+    const double t51 = -t49;
     const double t52 = -t50;
-    const double t53 = -t51;
-    const double t54 = t36*u[1];
-    const double t55 = -t1*t22*4.0*t19;
-    const double t56 = t26*u[0]*t19;
-    const double t57 = t5*u[0];
-    const double t58 = t54*t35 - t44*t25 + (t45 + t54*t40);
-    const double t59 = t56 - t46*u[1]*t19*t9 + (t54*t25*t4 + t57*t25);
-    const double t60 = -(t55 + t54*t42 - (t41 + t54*t43));
-    const double t61 = t36*u[2];
-    const double t62 = t48 - t61*t35 - (t61*t40 + t47*t23);
-    const double t63 = t56 + t61*t42 + (-t61*t43 + t57*t23);
-    const double t64 = -t62;
-    const double t65 = -t63;
-    const double t66 = -(t55 + t46*u[2]*t19*t9 - (t39 + t61*t25*t4));
-    F[0] = t30;
-    F[1] = t32;
-    F[2] = t33;
-    J[0] = t49;
-    J[1] = t58;
-    J[2] = t64;
-    J[3] = t52;
-    J[4] = t60;
-    J[5] = t65;
-    J[6] = t53;
-    J[7] = t59;
-    J[8] = t66;
+    const double t53 = -(t42 + t33*u[2]*h[0]*t9 - (t26 + t48*h[6]*t4));
+    F[0] = t18;
+    F[1] = t19;
+    F[2] = t20;
+    J[0] = t36;
+    J[1] = t45;
+    J[2] = t51;
+    J[3] = t39;
+    J[4] = t47;
+    J[5] = t52;
+    J[6] = t40;
+    J[7] = t46;
+    J[8] = t53;
+}
+/* F and J(u; known, p) (rigid_body_hoist, then the above) */
+void rigid_body_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
+void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+{
+    double h[RIGID_BODY_N_HOISTED > 0 ? RIGID_BODY_N_HOISTED : 1];
+    rigid_body_hoist(known, p, h);
+    rigid_body_residual_jacobian_hoisted(u, known, p, h, F, J);
 }
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
@@ -419,11 +447,12 @@ static const int rigid_body_band_order[RIGID_BODY_N_UNKNOWNS] = RIGID_BODY_BAND_
 #define RIGID_BODY_JACOBIAN_WIDTH (RIGID_BODY_BAND_KL + RIGID_BODY_BAND_KU + 1)
 #define RIGID_BODY_JACOBIAN_ENTRIES (RIGID_BODY_N_UNKNOWNS * RIGID_BODY_JACOBIAN_WIDTH)
 #define RIGID_BODY_JACOBIAN_AT(J, i, j) (J)[(i) * RIGID_BODY_JACOBIAN_WIDTH + (j) - (i) + RIGID_BODY_BAND_KL]
-#define RIGID_BODY_JACOBIAN rigid_body_residual_jacobian_band
+#define RIGID_BODY_JACOBIAN rigid_body_residual_jacobian_band_hoisted
 #if RIGID_BODY_TIME_ROW >= 0
 #error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
 #endif
 void rigid_body_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+void rigid_body_residual_jacobian_band_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 
 /* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
  * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
@@ -456,8 +485,11 @@ static void rigid_body_column_sums(const double *J, const double *a, double *S)
 #else
 #define RIGID_BODY_LU_ENTRIES (RIGID_BODY_N_UNKNOWNS * RIGID_BODY_N_UNKNOWNS)
 #define RIGID_BODY_JACOBIAN_ENTRIES (RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS)
-#define RIGID_BODY_JACOBIAN rigid_body_residual_jacobian
+#define RIGID_BODY_JACOBIAN rigid_body_residual_jacobian_hoisted
+void rigid_body_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 #endif
+/* the values of the known arrow F and J read (rigid_body_hoist), computed once per step */
+#define RIGID_BODY_HOISTED_ENTRIES (RIGID_BODY_N_HOISTED > 0 ? RIGID_BODY_N_HOISTED : 1)
 
 /* The pivot of a column: the offset of the first largest |entry| among count entries
  * a[0], a[stride], ... (the partial pivoting of the dense and the band LU), *amax its size */
@@ -703,6 +735,51 @@ static int rigid_body_band_eliminate(double *A, double *inv, int *perm)
 }
 #endif
 
+#if !RIGID_BODY_BANDED && RIGID_BODY_N_UNKNOWNS >= RIGID_BODY_LU_PANEL_FROM
+/* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
+ * diagonal, U below), so that both substitutions of rigid_body_lu_apply read their columns
+ * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
+static void rigid_body_transpose(double *A)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            const double t = A[i * n + j];
+            A[i * n + j] = A[j * n + i];
+            A[j * n + i] = t;
+        }
+    }
+}
+
+/* The substitutions of the transposed factors T = A^T (rigid_body_transpose), b already scaled
+ * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
+ * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
+ * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
+ * as from the row-major factors, so the same bits, in the widest vector instructions */
+RIGID_BODY_VECTOR_CLONES
+static void rigid_body_substitute(const double *T, const double *inv, double *b)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    int i, k;
+    for (k = 0; k < n; ++k) {
+        const double x = b[k];
+        const double *column = T + k * n;
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= column[i] * x;
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * inv[i];
+        const double *column = T + i * n;
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= column[k] * x;
+        }
+    }
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -784,7 +861,17 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+#if RIGID_BODY_N_UNKNOWNS < RIGID_BODY_LU_PANEL_FROM
     return rigid_body_eliminate(A, f->inv, f->perm);
+#else
+    {
+        const int status = rigid_body_eliminate(A, f->inv, f->perm);
+        if (status == RIGID_BODY_OK) {
+            rigid_body_transpose(A);
+        }
+        return status;
+    }
+#endif
 #endif
 }
 
@@ -846,6 +933,7 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
         b[k] = b[f->perm[k]];
         b[f->perm[k]] = t;
     }
+#if RIGID_BODY_N_UNKNOWNS < RIGID_BODY_LU_PANEL_FROM
     RIGID_BODY_UNROLL
     for (k = 0; k < n; ++k) {
         RIGID_BODY_UNROLL
@@ -853,7 +941,6 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
-#if RIGID_BODY_N_UNKNOWNS < RIGID_BODY_LU_PANEL_FROM
     RIGID_BODY_UNROLL
     for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
@@ -864,16 +951,8 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
         b[i] = t * f->inv[i];
     }
 #else
-    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
-     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
     (void)j;
-    for (i = n - 1; i >= 0; --i) {
-        const double x = b[i] * f->inv[i];
-        b[i] = x;
-        for (k = 0; k < i; ++k) {
-            b[k] -= A[k * n + i] * x;
-        }
-    }
+    rigid_body_substitute(A, f->inv, b);
 #endif
 #endif /* RIGID_BODY_BANDED */
     return rigid_body_norm_inf(b, n) < INFINITY ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
@@ -990,7 +1069,7 @@ static int rigid_body_explained_by_rounding(const double *F, const double *J, co
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
-static int rigid_body_at_floor(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
+static int rigid_body_at_floor(const double *u, const double *known, const double *p, const double *h, const double *F, const double *C, double factor)
 {
     double v[RIGID_BODY_N_UNKNOWNS], G[RIGID_BODY_N_EQUATIONS], N[RIGID_BODY_N_EQUATIONS];
     int i, j, sign;
@@ -1002,7 +1081,7 @@ static int rigid_body_at_floor(const double *u, const double *known, const doubl
             const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
             v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
         }
-        rigid_body_residual(v, known, p, G);
+        rigid_body_residual_hoisted(v, known, p, h, G);
         for (i = 0; i < RIGID_BODY_N_EQUATIONS; ++i) {
             const double d = fabs(G[i] - F[i]);
             if (d > N[i] - C[i]) {
@@ -1114,19 +1193,20 @@ static inline int rigid_body_above_rounding(const double *d, const double *u, do
  * iterate (before its polishing update). */
 static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
+    double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS], h[RIGID_BODY_HOISTED_ENTRIES];
     double J[RIGID_BODY_JACOBIAN_ENTRIES], uJ[RIGID_BODY_N_UNKNOWNS];
     rigid_body_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
+    rigid_body_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            RIGID_BODY_JACOBIAN(u, known, p, F, J);
+            RIGID_BODY_JACOBIAN(u, known, p, h, F, J);
         } else {
-            rigid_body_residual(u, known, p, F);
+            rigid_body_residual_hoisted(u, known, p, h, F);
         }
         rnorm = rigid_body_norm_inf(F, RIGID_BODY_N_EQUATIONS);
         *iterations = it;
@@ -1137,7 +1217,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
         if (done) { /* after the final update: accepted only at the rounding floor */
             if (rigid_body_explained_by_rounding(F, J, u, uJ, &lu)
                 || (rigid_body_coordinate_floor(J, uJ, C),
-                    rigid_body_at_floor(u, known, p, F, C, options->floor_factor))) {
+                    rigid_body_at_floor(u, known, p, h, F, C, options->floor_factor))) {
                 if (done == 1 || it >= options->max_iterations) {
                     return RIGID_BODY_OK;
                 }
@@ -1161,7 +1241,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
             slow = it > 0 && !(rnorm <= 0.1 * previous);
             if (slow) {
                 rigid_body_coordinate_floor(J, uJ, C);
-                if (rigid_body_at_floor(u, known, p, F, C, options->floor_factor)) {
+                if (rigid_body_at_floor(u, known, p, h, F, C, options->floor_factor)) {
                     return RIGID_BODY_OK;
                 }
                 noise = last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv);
@@ -1177,7 +1257,7 @@ static int rigid_body_newton(const double *known, const double *p, const rigid_b
                 return RIGID_BODY_NOT_CONVERGED;
             }
             if (slow) {
-                RIGID_BODY_JACOBIAN(u, known, p, F, J);
+                RIGID_BODY_JACOBIAN(u, known, p, h, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = rigid_body_lu_factor(J, &lu);
                 if (status != RIGID_BODY_OK) {
@@ -1348,12 +1428,14 @@ static void rigid_body_hold_time(const double *known, const double *p, double *u
 {
 #if RIGID_BODY_TIME_ROW >= 0 && RIGID_BODY_TIME_UNKNOWN >= 0
     double F[RIGID_BODY_N_EQUATIONS], J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], x[RIGID_BODY_N_UNKNOWNS];
+    double h[RIGID_BODY_HOISTED_ENTRIES];
     rigid_body_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
+    rigid_body_hoist(known, p, h);
     for (it = 0; it < RIGID_BODY_HOLD_ITERATIONS; ++it) {
         double step;
-        rigid_body_residual_jacobian(x, known, p, F, J);
+        RIGID_BODY_JACOBIAN(x, known, p, h, F, J);
         F[RIGID_BODY_TIME_ROW] = 0.0;
         for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
             J[RIGID_BODY_TIME_ROW * RIGID_BODY_N_UNKNOWNS + i] = 0.0;

@@ -89,6 +89,7 @@ extern "C" {
 #define RIGID_BODY_N_FIBRE 9
 #define RIGID_BODY_N_CONSTRAINTS 0
 #define RIGID_BODY_N_INPUTS 0
+#define RIGID_BODY_N_HOISTED 10
 #define RIGID_BODY_TIME_ROW -1
 #define RIGID_BODY_TIME_UNKNOWN -1
 #define RIGID_BODY_TIME_KNOWN -1
@@ -137,6 +138,8 @@ void rigid_body_default_options(rigid_body_options *options);
 void rigid_body_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void rigid_body_residual(const double *u, const double *known, const double *p, double *F);
 void rigid_body_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
+void rigid_body_hoist(const double *known, const double *p, double *h);
+void rigid_body_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F);
 void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S);
 void rigid_body_predict(const double *known, const double *p, double *u);
 void rigid_body_next_knowns(const double *u, const double *known, const double *p, double *known_next);

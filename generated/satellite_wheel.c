@@ -106,13 +106,48 @@ void satellite_wheel_reconstruct(const double *u, const double *known, const dou
     fibre[12] = t23;
 }
 
-/* F(u; known, p): the residuals listed at the top of this file */
+/* h(known, p): the values of the known arrow that F and its Jacobian read, computed once
+ * per Newton step (SATELLITE_WHEEL_N_HOISTED of them; symgroupoid.codegen.hoisted_values) */
 
-void satellite_wheel_residual(const double *u, const double *known, const double *p, double *F)
+void satellite_wheel_hoist(const double *known, const double *p, double *h)
+{
+    (void)known;
+    (void)p;
+    (void)h;
+    const double t0 = 1.0/p[0];
+    const double t1 = p[1] - 0.5*p[2];
+    const double t2 = -known[11] + 0.5*known[1] - 0.5*known[3];
+    const double t3 = t0*t1;
+    const double t4 = t0*0.5;
+    const double t5 = t4*p[2];
+    const double t6 = t4*p[3]*t2;
+    const double t7 = t0*p[3];
+    const double t8 = -t6*known[2] + t5*known[5] - t3*known[7];
+    const double t9 = t5*known[2] + t6*known[5] - t3*known[6];
+    const double t10 = t5*known[1] + t6*known[0] + t6*known[4] - t5*known[3];
+    const double t11 = t7*t2*known[12];
+    const double t12 = 0.5*p[0];
+    const double t13 = -(t12*known[13] + t12*known[14]);
+    h[0] = t0;
+    h[1] = t1;
+    h[2] = t3;
+    h[3] = t7;
+    h[4] = t8;
+    h[5] = t9;
+    h[6] = t10;
+    h[7] = t11;
+    h[8] = t13;
+}
+
+/* F(u; known, p): the residuals listed at the top of this file,
+ * reading the values h = satellite_wheel_hoist(known, p) */
+
+void satellite_wheel_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = u[2]*u[2];
     const double t1 = u[1]*u[1];
     const double t2 = u[0]*u[0];
@@ -129,41 +164,38 @@ void satellite_wheel_residual(const double *u, const double *known, const double
     const double t13 = t9 - t8;
     const double t14 = t12 + t11;
     const double t15 = 1.0/(4.0 + u[3]*u[3]);
-    const double t16 = 1.0/p[0];
-    const double t17 = p[1] - 0.5*p[2];
-    const double t18 = -known[11] + 0.5*known[1] - 0.5*known[3];
-    const double t19 = t16*t17;
-    const double t20 = t16*0.5;
-    const double t21 = t20*p[2];
-    const double t22 = t20*p[3]*t18;
-    const double t23 = t16*p[3];
-    const double t24 = t23*(t15*4.0*u[3] + t4*t7 + t4*t10);
-    const double t25 = t4*t24;
-    const double t26 = t4*t16*p[2];
-    const double t27 = 2.0*t4*t16*t17;
-    const double t28 = t26*t10 + t4*0.5*t24*(t3 + t1 - t2) + 0.5*t24*t4*(t3 - t1 + t2) + t26*t7;
-    const double t29 = -t22*known[2] + t21*known[5] - t19*known[7] + (t25*t13 + t26*t14 + t27*(t12 - t11));
-    const double t30 = -t29;
-    const double t31 = -(t26*t13 - t25*t14 + t27*(t9 + t8));
-    const double t32 = t21*known[2] + t22*known[5] - t19*known[6] + t31;
-    const double t33 = t21*known[1] + t22*known[0] + t22*known[4] - t21*known[3] + t28;
-    const double t34 = -t33;
-    const double t35 = 0.5*p[0];
-    const double t36 = t23*t18*known[12] + t24*t15*(2.0 + u[3])*(2.0 - u[3]) - (t35*known[13] + t35*known[14]);
-    const double t37 = -t36;
-    F[0] = t30;
-    F[1] = t32;
-    F[2] = t34;
-    F[3] = t37;
+    const double t16 = h[3]*(t15*4.0*u[3] + t4*t7 + t4*t10);
+    const double t17 = t4*t16;
+    const double t18 = t4*h[0]*p[2];
+    const double t19 = 2.0*t4*h[0]*h[1];
+    const double t20 = t18*t10 + t4*0.5*t16*(t3 + t1 - t2) + 0.5*t16*t4*(t3 - t1 + t2) + t18*t7;
+    const double t21 = h[4] + (t17*t13 + t18*t14 + t19*(t12 - t11));
+    const double t22 = -t21;
+    const double t23 = -(t18*t13 - t17*t14 + t19*(t9 + t8));
+    const double t24 = h[5] + t23;
+    const double t25 = -(h[6] + t20);
+    const double t26 = -(h[7] + t16*t15*(2.0 + u[3])*(2.0 - u[3]) + h[8]);
+    F[0] = t22;
+    F[1] = t24;
+    F[2] = t25;
+    F[3] = t26;
 }
 
+/* F(u; known, p) */
+void satellite_wheel_residual(const double *u, const double *known, const double *p, double *F)
+{
+    double h[SATELLITE_WHEEL_N_HOISTED > 0 ? SATELLITE_WHEEL_N_HOISTED : 1];
+    satellite_wheel_hoist(known, p, h);
+    satellite_wheel_residual_hoisted(u, known, p, h, F);
+}
 /* F and the exact Jacobian J[i * SATELLITE_WHEEL_N_UNKNOWNS + j] = dF_i/du_j (through the chart) */
 
-void satellite_wheel_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+void satellite_wheel_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J)
 {
     (void)u;
     (void)known;
     (void)p;
+    (void)h;
     const double t0 = u[2]*u[2];
     const double t1 = u[1]*u[1];
     const double t2 = u[0]*u[0];
@@ -191,110 +223,106 @@ void satellite_wheel_residual_jacobian(const double *u, const double *known, con
     const double t24 = 4.0 + u[3]*u[3];
     const double t25 = 1.0/t24;
     const double t26 = t25*4.0;
-    const double t27 = 1.0/p[0];
-    const double t28 = p[1] - 0.5*p[2];
-    const double t29 = -known[11] + 0.5*known[1] - 0.5*known[3];
-    const double t30 = t27*t28;
-    const double t31 = t27*0.5;
-    const double t32 = t31*p[2];
-    const double t33 = t31*p[3]*t29;
-    const double t34 = t27*p[3];
-    const double t35 = t34*(t26*u[3] + t6*t10 + t6*t15);
-    const double t36 = t6*t35;
-    const double t37 = t6*t27;
-    const double t38 = t37*p[2];
-    const double t39 = t11*t27;
-    const double t40 = t39*t28;
-    const double t41 = t6*0.5;
-    const double t42 = 0.5*t35;
-    const double t43 = -t33*known[2] + t32*known[5] - t30*known[7] + (t36*t20 + t38*t21 + t40*t19);
-    const double t44 = -t43;
-    const double t45 = t32*known[2] + t33*known[5] - t30*known[6] - (t38*t20 - t36*t21 + t40*t14);
-    const double t46 = t32*known[1] + t33*known[0] + t33*known[4] - t32*known[3] + (t38*t15 + t41*t35*t16 + t42*t7 + t38*t10);
-    const double t47 = -t46;
-    const double t48 = 0.5*p[0];
-    const double t49 = t34*t29*known[12] + t35*t25*t22*t23 - (t48*known[13] + t48*known[14]);
-    const double t50 = -t49;
-    const double t51 = 1.0/(t5*t5);
-    const double t52 = t11*u[0];
-    const double t53 = 2.0*t51;
-    const double t54 = t53*u[0];
-    const double t55 = t6*u[1];
-    const double t56 = t54*t10 + t55 + (-t55 + t54*t15);
-    const double t57 = t6*u[2]*t35;
-    const double t58 = t6*t34;
-    const double t59 = t58*t20;
-    const double t60 = p[2]*t27*t21;
-    const double t61 = t27*t6*p[2];
-    const double t62 = -2.0*t61;
-    const double t63 = t30*t19;
-    const double t64 = t51*u[0]*4.0;
-    const double t65 = -t6*4.0*t30;
-    const double t66 = t53*t27;
-    const double t67 = t66*p[2];
-    const double t68 = t67*u[0];
-    const double t69 = t35*t21;
-    const double t70 = -t11*t35;
-    const double t71 = t58*t21;
-    const double t72 = t30*t14;
-    const double t73 = t11*u[2];
-    const double t74 = t73*t30;
-    const double t75 = p[2]*t27*t15;
-    const double t76 = -u[1]*t61;
-    const double t77 = t41*t34*t16;
-    const double t78 = 0.5*t34*t7;
-    const double t79 = t54*t35*t20 + t57 + t59*t56 + (t62 + t54*t60) + (t65 + t64*t63);
-    const double t80 = t68*t20 + t37*u[2]*p[2] + (t64*t72 - t74) - (t70 + t54*t69 + t71*t56);
-    const double t81 = t76 + t54*t75 + (t42*(t52 + t54*t16) + t77*t56) + (t42*(-t52 + t54*t4) + t78*t56) + (t68*t10 + t38*u[1]);
-    const double t82 = t34*t25*t22*t23;
-    const double t83 = t82*t56;
-    const double t84 = t11*u[1];
-    const double t85 = t53*u[1];
-    const double t86 = t6*u[0];
-    const double t87 = t85*t10 + t86 + (-t86 + t85*t15);
-    const double t88 = t51*u[1]*4.0;
-    const double t89 = t67*u[1];
-    const double t90 = -t39*p[2];
-    const double t91 = -t42*(t84 - t85*t16) + t77*t87;
-    const double t92 = t38*u[0];
-    const double t93 = t70 + t85*t35*t20 + t59*t87 + (t85*t60 - u[2]*t61) + (t74 + t88*t63);
-    const double t94 = t90 + t89*t20 + (t65 + t88*t72) - (-t57 + t85*t69 + t71*t87);
-    const double t95 = t85*t75 - u[0]*t61 + t91 + (t42*(t84 + t85*t4) + t78*t87) + (t92 + t89*t10);
-    const double t96 = t82*t87;
-    const double t97 = t53*u[2];
-    const double t98 = -t11 + t97*t10 + (-t11 + t97*t15);
-    const double t99 = t51*u[2]*4.0;
-    const double t100 = t66*u[2]*p[2];
-    const double t101 = t97*t35*t20 + t86*t35 + t59*t98 + (t76 + t97*t60) + (t99*t63 + t84*t30);
-    const double t102 = t92 + t100*t20 + (-t97*t69 + t55*t35 - t71*t98) - (-t99*t72 + t52*t30);
-    const double t103 = t62 + t97*t75 + (t42*(t73 + t97*t16) + t77*t98) + (t42*(t73 + t97*t4) + t78*t98) + (t90 + t100*t10);
-    const double t104 = t82*t98;
-    const double t105 = 1.0/(t24*t24);
-    const double t106 = -t26 + u[3]*u[3]*t105*8.0;
-    const double t107 = t77*t106 + t78*t106;
-    const double t108 = t59*t106;
-    const double t109 = -t71*t106;
-    const double t110 = t35*(-t25*t23 + t25*t22 + 2.0*t22*t23*u[3]*t105) + t82*t106;
-    F[0] = t44;
-    F[1] = t45;
-    F[2] = t47;
-    F[3] = t50;
-    J[0] = t79;
-    J[1] = t93;
-    J[2] = t101;
-    J[3] = t108;
-    J[4] = t80;
-    J[5] = t94;
-    J[6] = t102;
-    J[7] = t109;
-    J[8] = t81;
-    J[9] = t95;
-    J[10] = t103;
-    J[11] = t107;
-    J[12] = t83;
-    J[13] = t96;
-    J[14] = t104;
-    J[15] = t110;
+    const double t27 = h[3]*(t26*u[3] + t6*t10 + t6*t15);
+    const double t28 = t6*t27;
+    const double t29 = t6*h[0];
+    const double t30 = t29*p[2];
+    const double t31 = t11*h[0];
+    const double t32 = t31*h[1];
+    const double t33 = t6*0.5;
+    const double t34 = 0.5*t27;
+    const double t35 = -(h[4] + (t28*t20 + t30*t21 + t32*t19));
+    const double t36 = h[5] - (t30*t20 - t28*t21 + t32*t14);
+    const double t37 = -(h[6] + (t30*t15 + t33*t27*t16 + t34*t7 + t30*t10));
+    const double t38 = -(h[7] + t27*t25*t22*t23 + h[8]);
+    const double t39 = 1.0/(t5*t5);
+    const double t40 = t11*u[0];
+    const double t41 = 2.0*t39;
+    const double t42 = t41*u[0];
+    const double t43 = t6*u[1];
+    const double t44 = t42*t10 + t43 + (-t43 + t42*t15);
+    const double t45 = t6*u[2]*t27;
+    const double t46 = t6*h[3];
+    const double t47 = t46*t20;
+    const double t48 = p[2]*h[0]*t21;
+    const double t49 = h[0]*t6*p[2];
+    const double t50 = -2.0*t49;
+    const double t51 = h[2]*t19;
+    const double t52 = t39*u[0]*4.0;
+    const double t53 = -t6*4.0*h[2];
+    const double t54 = t41*h[0];
+    const double t55 = t54*p[2];
+    const double t56 = t55*u[0];
+    const double t57 = t27*t21;
+    const double t58 = -t11*t27;
+    const double t59 = t46*t21;
+    const double t60 = h[2]*t14;
+    const double t61 = t11*u[2];
+    const double t62 = t61*h[2];
+    const double t63 = p[2]*h[0]*t15;
+    const double t64 = -u[1]*t49;
+    const double t65 = t33*h[3]*t16;
+    const double t66 = 0.5*h[3]*t7;
+    const double t67 = t42*t27*t20 + t45 + t47*t44 + (t50 + t42*t48) + (t53 + t52*t51);
+    const double t68 = t56*t20 + t29*u[2]*p[2] + (t52*t60 - t62) - (t58 + t42*t57 + t59*t44);
+    const double t69 = t64 + t42*t63 + (t34*(t40 + t42*t16) + t65*t44) + (t34*(-t40 + t42*t4) + t66*t44) + (t56*t10 + t30*u[1]);
+    const double t70 = h[3]*t25*t22*t23;
+    const double t71 = t70*t44;
+    const double t72 = t11*u[1];
+    const double t73 = t41*u[1];
+    const double t74 = t6*u[0];
+    const double t75 = t73*t10 + t74 + (-t74 + t73*t15);
+    const double t76 = t39*u[1]*4.0;
+    const double t77 = t55*u[1];
+    const double t78 = -t31*p[2];
+    const double t79 = -t34*(t72 - t73*t16) + t65*t75;
+    const double t80 = t30*u[0];
+    const double t81 = t58 + t73*t27*t20 + t47*t75 + (t73*t48 - u[2]*t49) + (t62 + t76*t51);
+    const double t82 = t78 + t77*t20 + (t53 + t76*t60) - (-t45 + t73*t57 + t59*t75);
+    const double t83 = t73*t63 - u[0]*t49 + t79 + (t34*(t72 + t73*t4) + t66*t75) + (t80 + t77*t10);
+    const double t84 = t70*t75;
+    const double t85 = t41*u[2];
+    const double t86 = -t11 + t85*t10 + (-t11 + t85*t15);
+    const double t87 = t39*u[2]*4.0;
+    const double t88 = t54*u[2]*p[2];
+    const double t89 = t85*t27*t20 + t74*t27 + t47*t86 + (t64 + t85*t48) + (t87*t51 + t72*h[2]);
+    const double t90 = t80 + t88*t20 + (-t85*t57 + t43*t27 - t59*t86) - (-t87*t60 + t40*h[2]);
+    const double t91 = t50 + t85*t63 + (t34*(t61 + t85*t16) + t65*t86) + (t34*(t61 + t85*t4) + t66*t86) + (t78 + t88*t10);
+    const double t92 = t70*t86;
+    const double t93 = 1.0/(t24*t24);
+    const double t94 = -t26 + u[3]*u[3]*t93*8.0;
+    const double t95 = t65*t94 + t66*t94;
+    const double t96 = t47*t94;
+    const double t97 = -t59*t94;
+    const double t98 = t27*(-t25*t23 + t25*t22 + 2.0*t22*t23*u[3]*t93) + t70*t94;
+    F[0] = t35;
+    F[1] = t36;
+    F[2] = t37;
+    F[3] = t38;
+    J[0] = t67;
+    J[1] = t81;
+    J[2] = t89;
+    J[3] = t96;
+    J[4] = t68;
+    J[5] = t82;
+    J[6] = t90;
+    J[7] = t97;
+    J[8] = t69;
+    J[9] = t83;
+    J[10] = t91;
+    J[11] = t95;
+    J[12] = t71;
+    J[13] = t84;
+    J[14] = t92;
+    J[15] = t98;
+}
+/* F and J(u; known, p) (satellite_wheel_hoist, then the above) */
+void satellite_wheel_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
+void satellite_wheel_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J)
+{
+    double h[SATELLITE_WHEEL_N_HOISTED > 0 ? SATELLITE_WHEEL_N_HOISTED : 1];
+    satellite_wheel_hoist(known, p, h);
+    satellite_wheel_residual_jacobian_hoisted(u, known, p, h, F, J);
 }
 /* S_i, the size of the terms F_i is computed from (each |term|, the unknowns' terms
  * propagated through the sums, products and functions): DBL_EPSILON S_i is the scale of the
@@ -536,11 +564,12 @@ static const int satellite_wheel_band_order[SATELLITE_WHEEL_N_UNKNOWNS] = SATELL
 #define SATELLITE_WHEEL_JACOBIAN_WIDTH (SATELLITE_WHEEL_BAND_KL + SATELLITE_WHEEL_BAND_KU + 1)
 #define SATELLITE_WHEEL_JACOBIAN_ENTRIES (SATELLITE_WHEEL_N_UNKNOWNS * SATELLITE_WHEEL_JACOBIAN_WIDTH)
 #define SATELLITE_WHEEL_JACOBIAN_AT(J, i, j) (J)[(i) * SATELLITE_WHEEL_JACOBIAN_WIDTH + (j) - (i) + SATELLITE_WHEEL_BAND_KL]
-#define SATELLITE_WHEEL_JACOBIAN satellite_wheel_residual_jacobian_band
+#define SATELLITE_WHEEL_JACOBIAN satellite_wheel_residual_jacobian_band_hoisted
 #if SATELLITE_WHEEL_TIME_ROW >= 0
 #error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
 #endif
 void satellite_wheel_residual_jacobian_band(const double *u, const double *known, const double *p, double *F, double *J);
+void satellite_wheel_residual_jacobian_band_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 
 /* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
  * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
@@ -573,8 +602,11 @@ static void satellite_wheel_column_sums(const double *J, const double *a, double
 #else
 #define SATELLITE_WHEEL_LU_ENTRIES (SATELLITE_WHEEL_N_UNKNOWNS * SATELLITE_WHEEL_N_UNKNOWNS)
 #define SATELLITE_WHEEL_JACOBIAN_ENTRIES (SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS)
-#define SATELLITE_WHEEL_JACOBIAN satellite_wheel_residual_jacobian
+#define SATELLITE_WHEEL_JACOBIAN satellite_wheel_residual_jacobian_hoisted
+void satellite_wheel_residual_jacobian_hoisted(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 #endif
+/* the values of the known arrow F and J read (satellite_wheel_hoist), computed once per step */
+#define SATELLITE_WHEEL_HOISTED_ENTRIES (SATELLITE_WHEEL_N_HOISTED > 0 ? SATELLITE_WHEEL_N_HOISTED : 1)
 
 /* The pivot of a column: the offset of the first largest |entry| among count entries
  * a[0], a[stride], ... (the partial pivoting of the dense and the band LU), *amax its size */
@@ -820,6 +852,51 @@ static int satellite_wheel_band_eliminate(double *A, double *inv, int *perm)
 }
 #endif
 
+#if !SATELLITE_WHEEL_BANDED && SATELLITE_WHEEL_N_UNKNOWNS >= SATELLITE_WHEEL_LU_PANEL_FROM
+/* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
+ * diagonal, U below), so that both substitutions of satellite_wheel_lu_apply read their columns
+ * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
+static void satellite_wheel_transpose(double *A)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            const double t = A[i * n + j];
+            A[i * n + j] = A[j * n + i];
+            A[j * n + i] = t;
+        }
+    }
+}
+
+/* The substitutions of the transposed factors T = A^T (satellite_wheel_transpose), b already scaled
+ * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
+ * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
+ * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
+ * as from the row-major factors, so the same bits, in the widest vector instructions */
+SATELLITE_WHEEL_VECTOR_CLONES
+static void satellite_wheel_substitute(const double *T, const double *inv, double *b)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    int i, k;
+    for (k = 0; k < n; ++k) {
+        const double x = b[k];
+        const double *column = T + k * n;
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= column[i] * x;
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * inv[i];
+        const double *column = T + i * n;
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= column[k] * x;
+        }
+    }
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -901,7 +978,17 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+#if SATELLITE_WHEEL_N_UNKNOWNS < SATELLITE_WHEEL_LU_PANEL_FROM
     return satellite_wheel_eliminate(A, f->inv, f->perm);
+#else
+    {
+        const int status = satellite_wheel_eliminate(A, f->inv, f->perm);
+        if (status == SATELLITE_WHEEL_OK) {
+            satellite_wheel_transpose(A);
+        }
+        return status;
+    }
+#endif
 #endif
 }
 
@@ -963,6 +1050,7 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
         b[k] = b[f->perm[k]];
         b[f->perm[k]] = t;
     }
+#if SATELLITE_WHEEL_N_UNKNOWNS < SATELLITE_WHEEL_LU_PANEL_FROM
     SATELLITE_WHEEL_UNROLL
     for (k = 0; k < n; ++k) {
         SATELLITE_WHEEL_UNROLL
@@ -970,7 +1058,6 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
-#if SATELLITE_WHEEL_N_UNKNOWNS < SATELLITE_WHEEL_LU_PANEL_FROM
     SATELLITE_WHEEL_UNROLL
     for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
@@ -981,16 +1068,8 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
         b[i] = t * f->inv[i];
     }
 #else
-    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
-     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
     (void)j;
-    for (i = n - 1; i >= 0; --i) {
-        const double x = b[i] * f->inv[i];
-        b[i] = x;
-        for (k = 0; k < i; ++k) {
-            b[k] -= A[k * n + i] * x;
-        }
-    }
+    satellite_wheel_substitute(A, f->inv, b);
 #endif
 #endif /* SATELLITE_WHEEL_BANDED */
     return satellite_wheel_norm_inf(b, n) < INFINITY ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_NON_FINITE;
@@ -1107,7 +1186,7 @@ static int satellite_wheel_explained_by_rounding(const double *F, const double *
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
-static int satellite_wheel_at_floor(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
+static int satellite_wheel_at_floor(const double *u, const double *known, const double *p, const double *h, const double *F, const double *C, double factor)
 {
     double v[SATELLITE_WHEEL_N_UNKNOWNS], G[SATELLITE_WHEEL_N_EQUATIONS], N[SATELLITE_WHEEL_N_EQUATIONS];
     int i, j, sign;
@@ -1119,7 +1198,7 @@ static int satellite_wheel_at_floor(const double *u, const double *known, const 
             const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
             v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
         }
-        satellite_wheel_residual(v, known, p, G);
+        satellite_wheel_residual_hoisted(v, known, p, h, G);
         for (i = 0; i < SATELLITE_WHEEL_N_EQUATIONS; ++i) {
             const double d = fabs(G[i] - F[i]);
             if (d > N[i] - C[i]) {
@@ -1231,19 +1310,20 @@ static inline int satellite_wheel_above_rounding(const double *d, const double *
  * iterate (before its polishing update). */
 static int satellite_wheel_newton(const double *known, const double *p, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[SATELLITE_WHEEL_N_EQUATIONS], C[SATELLITE_WHEEL_N_EQUATIONS];
+    double F[SATELLITE_WHEEL_N_EQUATIONS], C[SATELLITE_WHEEL_N_EQUATIONS], h[SATELLITE_WHEEL_HOISTED_ENTRIES];
     double J[SATELLITE_WHEEL_JACOBIAN_ENTRIES], uJ[SATELLITE_WHEEL_N_UNKNOWNS];
     satellite_wheel_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
+    satellite_wheel_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            SATELLITE_WHEEL_JACOBIAN(u, known, p, F, J);
+            SATELLITE_WHEEL_JACOBIAN(u, known, p, h, F, J);
         } else {
-            satellite_wheel_residual(u, known, p, F);
+            satellite_wheel_residual_hoisted(u, known, p, h, F);
         }
         rnorm = satellite_wheel_norm_inf(F, SATELLITE_WHEEL_N_EQUATIONS);
         *iterations = it;
@@ -1254,7 +1334,7 @@ static int satellite_wheel_newton(const double *known, const double *p, const sa
         if (done) { /* after the final update: accepted only at the rounding floor */
             if (satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu)
                 || (satellite_wheel_coordinate_floor(J, uJ, C),
-                    satellite_wheel_at_floor(u, known, p, F, C, options->floor_factor))) {
+                    satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor))) {
                 if (done == 1 || it >= options->max_iterations) {
                     return SATELLITE_WHEEL_OK;
                 }
@@ -1278,7 +1358,7 @@ static int satellite_wheel_newton(const double *known, const double *p, const sa
             slow = it > 0 && !(rnorm <= 0.1 * previous);
             if (slow) {
                 satellite_wheel_coordinate_floor(J, uJ, C);
-                if (satellite_wheel_at_floor(u, known, p, F, C, options->floor_factor)) {
+                if (satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor)) {
                     return SATELLITE_WHEEL_OK;
                 }
                 noise = last_step <= 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(lu.inv);
@@ -1294,7 +1374,7 @@ static int satellite_wheel_newton(const double *known, const double *p, const sa
                 return SATELLITE_WHEEL_NOT_CONVERGED;
             }
             if (slow) {
-                SATELLITE_WHEEL_JACOBIAN(u, known, p, F, J);
+                SATELLITE_WHEEL_JACOBIAN(u, known, p, h, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = satellite_wheel_lu_factor(J, &lu);
                 if (status != SATELLITE_WHEEL_OK) {
@@ -1465,12 +1545,14 @@ static void satellite_wheel_hold_time(const double *known, const double *p, doub
 {
 #if SATELLITE_WHEEL_TIME_ROW >= 0 && SATELLITE_WHEEL_TIME_UNKNOWN >= 0
     double F[SATELLITE_WHEEL_N_EQUATIONS], J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS], x[SATELLITE_WHEEL_N_UNKNOWNS];
+    double h[SATELLITE_WHEEL_HOISTED_ENTRIES];
     satellite_wheel_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
+    satellite_wheel_hoist(known, p, h);
     for (it = 0; it < SATELLITE_WHEEL_HOLD_ITERATIONS; ++it) {
         double step;
-        satellite_wheel_residual_jacobian(x, known, p, F, J);
+        SATELLITE_WHEEL_JACOBIAN(x, known, p, h, F, J);
         F[SATELLITE_WHEEL_TIME_ROW] = 0.0;
         for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
             J[SATELLITE_WHEEL_TIME_ROW * SATELLITE_WHEEL_N_UNKNOWNS + i] = 0.0;

@@ -107,6 +107,7 @@ extern "C" {
 #define SATELLITE_WHEEL_N_FIBRE 13
 #define SATELLITE_WHEEL_N_CONSTRAINTS 0
 #define SATELLITE_WHEEL_N_INPUTS 1
+#define SATELLITE_WHEEL_N_HOISTED 9
 #define SATELLITE_WHEEL_TIME_ROW -1
 #define SATELLITE_WHEEL_TIME_UNKNOWN -1
 #define SATELLITE_WHEEL_TIME_KNOWN -1
@@ -155,6 +156,8 @@ void satellite_wheel_default_options(satellite_wheel_options *options);
 void satellite_wheel_reconstruct(const double *u, const double *known, const double *p, double *fibre);
 void satellite_wheel_residual(const double *u, const double *known, const double *p, double *F);
 void satellite_wheel_residual_jacobian(const double *u, const double *known, const double *p, double *F, double *J);
+void satellite_wheel_hoist(const double *known, const double *p, double *h);
+void satellite_wheel_residual_hoisted(const double *u, const double *known, const double *p, const double *h, double *F);
 void satellite_wheel_residual_scale(const double *u, const double *known, const double *p, double *S);
 void satellite_wheel_predict(const double *known, const double *p, double *u);
 void satellite_wheel_next_knowns(const double *u, const double *known, const double *p, double *known_next);

@@ -164,7 +164,7 @@ def test_a_kernel_in_units_has_smaller_parts_unless_it_may_stay_in_one():
     step = planar_chain(6).euler_lagrange()
     one, two = generate_c(step, latex=False), generate_c(step, latex=False, units=2)
     assert "_part0(" not in one.source  # one function per block
-    assert "_residual_part0(" in two.source  # the residual's parts, called twice
+    assert "_residual_hoisted_part0(" in two.source  # the residual's parts, called twice
 
 
 def test_weighted_units_finish_together():
@@ -212,7 +212,9 @@ def test_a_kernel_in_units_computes_what_the_one_file_kernel_computes(monkeypatc
     assert three.header == one.header and three.cdef == one.cdef
     assert f"{prefix}_simulate_batch(" not in three.source
     assert f"int {prefix}_simulate(" not in three.units[0][1]
-    assert f"{prefix}_residual_jacobian(" not in three.source.split(f"{prefix}_newton(")[0]
+    jacobian = (f"void {prefix}_residual_jacobian_hoisted(const double *u, const double *known, "
+                "const double *p, const double *h, double *F, double *J)\n{")
+    assert jacobian not in three.source and jacobian in three.units[0][1]
     commands: list = []
     run = _cffi_build._run
     monkeypatch.setattr(_cffi_build, "_run", lambda kernel, cmds, *a, **k: (
@@ -307,8 +309,8 @@ def test_block_units_at_their_level_compute_what_every_other_build_computes(monk
 
 
 def test_a_large_kernel_splits_its_functions_over_units_too(monkeypatch):
-    monkeypatch.setattr(_kernel, "PART_SIZE", 100)  # parts to spread over both units
-    monkeypatch.setattr(_kernel, "UNIT_PART_SIZE", 100)
+    monkeypatch.setattr(_kernel, "PART_SIZE", 40)  # parts to spread over both units
+    monkeypatch.setattr(_kernel, "UNIT_PART_SIZE", 40)
     monkeypatch.setattr(_kernel, "stepper_statements", lambda n: 0)
     step = planar_chain(4).euler_lagrange()
     two = generate_c(step, latex=False, units=2)
@@ -592,11 +594,11 @@ def test_a_kernel_whose_residual_parts_are_shared_computes_what_numpy_computes(m
     kernel = generate_c(step, latex=False, units=2)
     p = kernel.prefix
     text = kernel.source + "".join(unit for _, unit in kernel.units)
-    assert f"{p}_residual_part0(u, known, p, F, w);" in text
+    assert f"{p}_residual_hoisted_part0(u, known, p, h, F, w);" in text
     definitions = re.findall(rf"void ({p}_residual\w*_part\d+)\([^)]*\)\n{{", text)
     assert len(definitions) == len(set(definitions)), "every part is defined once"
-    assert f"{p}_residual_part0" in definitions
-    assert f"{p}_residual_jacobian_part0" not in definitions, "F's parts are the residual's"
+    assert f"{p}_residual_hoisted_part0" in definitions
+    assert f"{p}_residual_jacobian_hoisted_part0" not in definitions, "F's parts are the residual's"
     c_kernel, _ = _compile.load_kernel_source(kernel, toolchain.default_flags(), step.name,
                                               len(step.unknowns), len(step.knowns))
     numpy = step.compile(backend="numpy").kernel

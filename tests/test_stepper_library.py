@@ -42,6 +42,7 @@ TOY_C = r"""
 #define TOY_N_KNOWNS 2
 #define TOY_N_PARAMETERS 1
 #define TOY_N_INPUTS 0
+#define TOY_N_HOISTED 1
 #define TOY_TIME_ROW -1
 #define TOY_TIME_UNKNOWN -1
 #define TOY_TIME_KNOWN -1
@@ -57,21 +58,43 @@ void toy_reconstruct(const double *u, const double *known, const double *p, doub
     fibre[1] = u[1];
 }
 
-void toy_residual(const double *u, const double *known, const double *p, double *F)
+void toy_hoist(const double *known, const double *p, double *h)
 {
     (void)p;
-    F[0] = u[0] * u[0] - known[0];
+    h[0] = -known[0];
+}
+
+void toy_residual_hoisted(const double *u, const double *known, const double *p,
+                          const double *h, double *F)
+{
+    (void)p;
+    F[0] = u[0] * u[0] + h[0];
     F[1] = u[1] - known[1];
+}
+
+void toy_residual(const double *u, const double *known, const double *p, double *F)
+{
+    double h[1];
+    toy_hoist(known, p, h);
+    toy_residual_hoisted(u, known, p, h, F);
+}
+
+void toy_residual_jacobian_hoisted(const double *u, const double *known, const double *p,
+                                   const double *h, double *F, double *J)
+{
+    toy_residual_hoisted(u, known, p, h, F);
+    J[0] = 2.0 * u[0];
+    J[1] = 0.0;
+    J[2] = 0.0;
+    J[3] = 1.0;
 }
 
 void toy_residual_jacobian(const double *u, const double *known, const double *p, double *F,
                            double *J)
 {
-    toy_residual(u, known, p, F);
-    J[0] = 2.0 * u[0];
-    J[1] = 0.0;
-    J[2] = 0.0;
-    J[3] = 1.0;
+    double h[1];
+    toy_hoist(known, p, h);
+    toy_residual_jacobian_hoisted(u, known, p, h, F, J);
 }
 
 void toy_residual_scale(const double *u, const double *known, const double *p, double *S)
@@ -145,7 +168,8 @@ def toy(tmp_path_factory):
     sizes = where / "toy_sizes.h"
     sizes.write_text("#define TOY_N_EQUATIONS 2\n#define TOY_N_UNKNOWNS 2\n"
                      "#define TOY_N_KNOWNS 2\n#define TOY_N_PARAMETERS 1\n"
-                     "#define TOY_N_INPUTS 0\n#define TOY_TIME_ROW -1\n"
+                     "#define TOY_N_INPUTS 0\n#define TOY_N_HOISTED 1\n"
+                     "#define TOY_TIME_ROW -1\n"
                      "#define TOY_TIME_UNKNOWN -1\n#define TOY_TIME_KNOWN -1\n"
                      "#define TOY_TIME_BEFORE -1\n")
     objects = []

@@ -88,6 +88,37 @@ void lin_residual_jacobian(const double *u, const double *known, const double *p
 }
 #endif
 
+/* nothing is hoisted (LIN_N_HOISTED 0): the stepper's entry points of the hoisted form */
+void lin_hoist(const double *known, const double *p, double *h)
+{
+    (void)known;
+    (void)p;
+    (void)h;
+}
+
+void lin_residual_hoisted(const double *u, const double *known, const double *p,
+                          const double *h, double *F)
+{
+    (void)h;
+    lin_residual(u, known, p, F);
+}
+
+#if LIN_BANDED
+void lin_residual_jacobian_band_hoisted(const double *u, const double *known, const double *p,
+                                        const double *h, double *F, double *J)
+{
+    (void)h;
+    lin_residual_jacobian_band(u, known, p, F, J);
+}
+#else
+void lin_residual_jacobian_hoisted(const double *u, const double *known, const double *p,
+                                   const double *h, double *F, double *J)
+{
+    (void)h;
+    lin_residual_jacobian(u, known, p, F, J);
+}
+#endif
+
 void lin_residual_scale(const double *u, const double *known, const double *p, double *S)
 {
     int i, j;
@@ -140,7 +171,7 @@ def _band(n: int, kl: int, ku: int) -> BandOrder:
 
 def _sizes_header(n: int, band: BandOrder | None = None) -> str:
     defines = {"N_EQUATIONS": n, "N_UNKNOWNS": n, "N_KNOWNS": n, "N_PARAMETERS": n * n,
-               "N_INPUTS": 0, "TIME_ROW": -1, "TIME_UNKNOWN": -1, "TIME_KNOWN": -1,
+               "N_INPUTS": 0, "N_HOISTED": 0, "TIME_ROW": -1, "TIME_UNKNOWN": -1, "TIME_KNOWN": -1,
                "TIME_BEFORE": -1}
     if band is not None:
         defines.update(BANDED=1, BAND_KL=band.kl, BAND_KU=band.ku,

@@ -267,9 +267,9 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
     from .._version import __version__
 
     blocks = kernel_blocks(step, unit_part_size(len(step.unknowns), units))
-    n_units = assign_units([blocks.reconstruct, blocks.residual, blocks.residual_jacobian,
-                            blocks.predict, blocks.next_knowns], units, len(step.unknowns),
-                           block_weight)
+    n_units = assign_units([blocks.reconstruct, blocks.hoist, blocks.residual,
+                            blocks.residual_jacobian, blocks.predict, blocks.next_knowns],
+                           units, len(step.unknowns), block_weight)
     cold_helpers = program_helpers(step.program, ["F_scale"])
     if units > 1:  # evaluated only when a rounding floor is tested: beside the cold code
         blocks.residual_scale.move_to(COLD_UNIT)
@@ -286,6 +286,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
         "n_equations": len(step), "n_unknowns": len(step.unknowns),
         "n_knowns": len(step.knowns), "n_parameters": len(step.parameters),
         "n_fibre": blocks.n_fibre, "n_constraints": step.n_constraints,
+        "n_hoisted": blocks.n_hoisted, "hoist": blocks.hoist,
         "n_inputs": len(getattr(step, "inputs", ())),
         "input_columns": (getattr(step, "order", 1) + 1) * len(getattr(step, "inputs", ())),
         "time_defines": time_layout(step).defines(),

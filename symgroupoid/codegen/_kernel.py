@@ -171,15 +171,41 @@ def build_block(program, outputs: Sequence[tuple[str, str]], part_size: int | No
 
 
 def _targets_block(program, targets: list[tuple[str, int]], part_size: int | None = None,
-                   input_names: dict | None = None) -> Block:
-    """:func:`build_block` of the stores ``targets`` ((C lvalue, node) pairs)."""
+                   input_names: dict | None = None, given: dict | None = None) -> Block:
+    """:func:`build_block` of the stores ``targets`` ((C lvalue, node) pairs); ``given``:
+    operation nodes computed elsewhere, read by their C names (:func:`hoisted_values`)."""
     g = program.graph
-    p = plan(g, [n for _, n in targets])
+    given = given or {}
+    p = plan(g, [n for _, n in targets], given=given)
     chunks = _chunks(p.named, PART_SIZE if part_size is None else part_size)
     last = len(chunks) - 1
     parts, work = _parts(g, p, chunks, [(t, n, 0, last) for t, n in targets],
-                         _input_names(program, input_names))
+                         {**_input_names(program, input_names), **given})
     return Block(parts=parts, work=work if len(chunks) > 1 else 0)
+
+
+def hoisted_values(program, names: Sequence[str] = ("F", "J"), over: str = "u") -> list[int]:
+    """The values a Newton step computes once: the operation nodes of the outputs ``names``
+    that depend on no entry of the input array ``over`` (the unknowns) and that a node
+    depending on it reads, or that are outputs themselves (ascending node ids).
+
+    Newton evaluates F (and once J) at several iterates of the same step, whose known arrow
+    and parameters do not change: the terms of the known arrow alone -- X⃖L(g_k) and
+    f⁺(g_k) in the DEL residual (docs/conventions.md §4, §20), the known factors of
+    products with the new arrow -- are computed once per step by ``<prefix>_hoist`` and
+    read by the residual.  The same operations on the same values: the same bits."""
+    g = program.graph
+    nodes = program.nodes(list(names))
+    unknowns = [g.inputs[s] for s in program.inputs[over] if s in g.inputs]
+    moving = g.dependents(unknowns, nodes)
+    outputs = {n for name in names for n in program.outputs[name]}
+    frontier: set = set()
+    for n in nodes:
+        if n in moving:
+            frontier.update(a for a in g.args[n] if a not in moving and g.args[a])
+        elif n in outputs and g.args[n]:
+            frontier.add(n)
+    return sorted(frontier)
 
 
 def band_targets(program, band) -> list[tuple[str, int]]:
@@ -195,7 +221,7 @@ def band_targets(program, band) -> list[tuple[str, int]]:
 
 
 def residual_blocks(program, part_size: int | None = None,
-                    band=None) -> tuple[Block, Block]:
+                    band=None, given: dict | None = None) -> tuple[Block, Block]:
     """The residual block and the residual-and-Jacobian block of a step's program (the
     Jacobian in the band form of ``band``, when given: :func:`band_targets`).
 
@@ -205,22 +231,25 @@ def residual_blocks(program, part_size: int | None = None,
     residual-and-Jacobian function calls them before its own (``Block.borrowed``): the
     residual's code is compiled once, not twice (the same values: the same operations).
     Smaller kernels get a block each, in one function without a work array.
+    ``given``: nodes computed elsewhere, read by their C names (:func:`hoisted_values`).
     """
     part_size = PART_SIZE if part_size is None else part_size
     g = program.graph
+    given = given or {}
     f_targets = _targets(program, [("F", "F")])
     j_targets = (_targets(program, [("J", "J")]) if band is None
                  else band_targets(program, band))
-    p = plan(g, [n for _, n in f_targets + j_targets])
+    p = plan(g, [n for _, n in f_targets + j_targets], given=given)
     if len(p.named) + len(f_targets) + len(j_targets) <= part_size:
-        return (build_block(program, [("F", "F")], part_size),
-                _targets_block(program, f_targets + j_targets))
-    in_f = dict.fromkeys(g.reachable([n for _, n in f_targets]))
+        return (_targets_block(program, f_targets, part_size, given=given),
+                _targets_block(program, f_targets + j_targets, given=given))
+    in_f = dict.fromkeys(g.reachable([n for _, n in f_targets], stop=given))
     f_chunks = _chunks([n for n in p.named if n in in_f], part_size)
     j_chunks = _chunks([n for n in p.named if n not in in_f], part_size)
     k, last = len(f_chunks), len(f_chunks) + len(j_chunks) - 1
     stores = [(t, n, 0, k - 1) for t, n in f_targets] + [(t, n, k, last) for t, n in j_targets]
-    parts, work = _parts(g, p, f_chunks + j_chunks, stores, _input_names(program, None))
+    parts, work = _parts(g, p, f_chunks + j_chunks, stores,
+                         {**_input_names(program, None), **given})
     work = max(work, 1)
     return Block(parts=parts[:k], work=work), Block(parts=parts, work=work, borrowed=k)
 
@@ -230,6 +259,8 @@ class KernelBlocks:
     """The bodies of the generated kernel functions, plus sizes and helper functions."""
 
     reconstruct: Block
+    hoist: Block  # the values of the known arrow that F and J read (hoisted_values)
+    n_hoisted: int
     residual: Block
     residual_jacobian: Block
     residual_scale: Block
@@ -360,7 +391,9 @@ def kernel_blocks(step, part_size: int | None = None) -> KernelBlocks:
     """All function bodies of the kernel of ``step`` (deterministic for equal input), in
     parts of at most ``part_size`` statements (default :data:`PART_SIZE`)."""
     program = step.program
-    residual, residual_jacobian = residual_blocks(program, part_size, band_order(step))
+    hoisted = hoisted_values(program)
+    given = {n: f"h[{i}]" for i, n in enumerate(hoisted)}
+    residual, residual_jacobian = residual_blocks(program, part_size, band_order(step), given)
     helpers = program_helpers(program, list(program.outputs))
     input_jacobian, input_helpers = None, []
     if getattr(step, "inputs", ()):
@@ -370,6 +403,8 @@ def kernel_blocks(step, part_size: int | None = None) -> KernelBlocks:
         helpers = list(dict.fromkeys(helpers + input_helpers))
     return KernelBlocks(
         reconstruct=build_block(program, [("fibre", "fibre")], part_size),
+        hoist=_targets_block(program, [(name, n) for n, name in given.items()], part_size),
+        n_hoisted=len(hoisted),
         residual=residual,
         residual_jacobian=residual_jacobian,
         residual_scale=build_block(program, [("S", "F_scale")], part_size),
@@ -390,5 +425,6 @@ def input_jacobian_program(step):
 
 
 __all__ = ["Block", "KernelBlocks", "PART_SIZE", "Part", "assign_units", "band_targets",
-           "build_block", "c_identifier", "kernel_blocks", "program_functions", "program_helpers",
-           "residual_blocks", "stepper_statements", "unit_part_size"]
+           "build_block", "c_identifier", "hoisted_values", "kernel_blocks",
+           "program_functions", "program_helpers", "residual_blocks", "stepper_statements",
+           "unit_part_size"]

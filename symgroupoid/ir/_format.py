@@ -15,7 +15,7 @@ split kernel) before any text is produced (:func:`write`).
 from __future__ import annotations
 
 import itertools
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import sympy as sp
@@ -70,9 +70,15 @@ class Plan:
     refs: dict = field(default_factory=dict)  # named node -> named nodes its text reads
 
 
-def plan(g: Graph, outputs: Sequence[int], inline: bool = True) -> Plan:
-    """Decide named and inlined nodes for computing ``outputs``."""
-    order = [n for n in g.reachable(outputs) if g.args[n]]
+def plan(g: Graph, outputs: Sequence[int], inline: bool = True,
+         given: Collection[int] = ()) -> Plan:
+    """Decide named and inlined nodes for computing ``outputs``.
+
+    ``given``: operation nodes whose values are computed elsewhere (and named by the
+    caller, as inputs are): they are read, never computed, and nothing below them is
+    planned unless another node needs it."""
+    given = frozenset(given)
+    order = [n for n in g.reachable(outputs, stop=given) if g.args[n] and n not in given]
     uses = g.uses(order)
     outs = set(outputs)
     summed = _only_in_sums(g, order)
@@ -86,7 +92,7 @@ def plan(g: Graph, outputs: Sequence[int], inline: bool = True) -> Plan:
             if a in p.inlined:
                 s += size[a]
                 r |= reads[a]
-            elif g.args[a]:
+            elif g.args[a] and a not in given:
                 r.add(a)
         single = uses.get(n, 0) == 1 and s <= MAX_INLINE_OPS
         if inline and n not in outs and (single or (n in summed and s == 1)):

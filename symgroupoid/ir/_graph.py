@@ -24,7 +24,7 @@ from.
 from __future__ import annotations
 
 import operator
-from collections.abc import Iterable, Sequence
+from collections.abc import Collection, Iterable, Sequence
 
 import sympy as sp
 
@@ -225,8 +225,10 @@ class Graph:
         return self._node(FUNC, args, spec, (FUNC, spec.key, args))
 
     # --- structure ---------------------------------------------------------------------------
-    def reachable(self, outputs: Iterable[int]) -> list[int]:
-        """Ids of every node the outputs depend on (outputs included), ascending."""
+    def reachable(self, outputs: Iterable[int], stop: Collection[int] = ()) -> list[int]:
+        """Ids of every node the outputs depend on (outputs included), ascending; the
+        arguments of the nodes in ``stop`` are not followed (they are reached, not what
+        they depend on)."""
         seen = set()
         stack = [o for o in outputs]
         args = self.args
@@ -235,7 +237,8 @@ class Graph:
             if i in seen:
                 continue
             seen.add(i)
-            stack.extend(a for a in args[i] if a not in seen)
+            if i not in stop:
+                stack.extend(a for a in args[i] if a not in seen)
         return sorted(seen)
 
     def dependents(self, sources: Iterable[int], nodes: Sequence[int]) -> set:

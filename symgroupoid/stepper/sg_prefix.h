@@ -31,6 +31,8 @@
 #define SG_N_KNOWNS SG_CAT(SG_PREFIX_UPPER, N_KNOWNS)
 #define SG_N_PARAMETERS SG_CAT(SG_PREFIX_UPPER, N_PARAMETERS)
 #define SG_N_INPUTS SG_CAT(SG_PREFIX_UPPER, N_INPUTS)
+/* the values of the known arrow the residual reads (SG_NAME(hoist)) */
+#define SG_N_HOISTED SG_CAT(SG_PREFIX_UPPER, N_HOISTED)
 /* the time of a step on a time groupoid (-1: none; symgroupoid.stepper._time) */
 #define SG_TIME_ROW SG_CAT(SG_PREFIX_UPPER, TIME_ROW)
 #define SG_TIME_UNKNOWN SG_CAT(SG_PREFIX_UPPER, TIME_UNKNOWN)

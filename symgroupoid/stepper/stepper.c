@@ -113,11 +113,12 @@ static const int SG_NAME(band_order)[SG_N_UNKNOWNS] = SG_BAND_ORDER;
 #define SG_JACOBIAN_WIDTH (SG_BAND_KL + SG_BAND_KU + 1)
 #define SG_JACOBIAN_ENTRIES (SG_N_UNKNOWNS * SG_JACOBIAN_WIDTH)
 #define SG_JACOBIAN_AT(J, i, j) (J)[(i) * SG_JACOBIAN_WIDTH + (j) - (i) + SG_BAND_KL]
-#define SG_JACOBIAN SG_NAME(residual_jacobian_band)
+#define SG_JACOBIAN SG_NAME(residual_jacobian_band_hoisted)
 #if SG_TIME_ROW >= 0
 #error "a step on a time groupoid replaces a row of its Jacobian: it has no band form"
 #endif
 void SG_NAME(residual_jacobian_band)(const double *u, const double *known, const double *p, double *F, double *J);
+void SG_NAME(residual_jacobian_band_hoisted)(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 
 /* S_i += |J_ij| a_j for j = 0, 1, ... (each S_i's terms in that order) from the band form:
  * the band's rows of each column; a zero entry outside the band adds |0| a_j, which is +0
@@ -150,8 +151,11 @@ static void SG_NAME(column_sums)(const double *J, const double *a, double *S)
 #else
 #define SG_LU_ENTRIES (SG_N_UNKNOWNS * SG_N_UNKNOWNS)
 #define SG_JACOBIAN_ENTRIES (SG_N_EQUATIONS * SG_N_UNKNOWNS)
-#define SG_JACOBIAN SG_NAME(residual_jacobian)
+#define SG_JACOBIAN SG_NAME(residual_jacobian_hoisted)
+void SG_NAME(residual_jacobian_hoisted)(const double *u, const double *known, const double *p, const double *h, double *F, double *J);
 #endif
+/* the values of the known arrow F and J read (SG_NAME(hoist)), computed once per step */
+#define SG_HOISTED_ENTRIES (SG_N_HOISTED > 0 ? SG_N_HOISTED : 1)
 
 /* The pivot of a column: the offset of the first largest |entry| among count entries
  * a[0], a[stride], ... (the partial pivoting of the dense and the band LU), *amax its size */
@@ -397,6 +401,52 @@ static int SG_NAME(band_eliminate)(double *A, double *inv, int *perm)
 }
 #endif
 
+
+#if !SG_BANDED && SG_N_UNKNOWNS >= SG_LU_PANEL_FROM
+/* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
+ * diagonal, U below), so that both substitutions of SG_NAME(lu_apply) read their columns
+ * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
+static void SG_NAME(transpose)(double *A)
+{
+    const int n = SG_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        for (j = i + 1; j < n; ++j) {
+            const double t = A[i * n + j];
+            A[i * n + j] = A[j * n + i];
+            A[j * n + i] = t;
+        }
+    }
+}
+
+/* The substitutions of the transposed factors T = A^T (SG_NAME(transpose)), b already scaled
+ * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
+ * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
+ * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
+ * as from the row-major factors, so the same bits, in the widest vector instructions */
+SG_VECTOR_CLONES
+static void SG_NAME(substitute)(const double *T, const double *inv, double *b)
+{
+    const int n = SG_N_UNKNOWNS;
+    int i, k;
+    for (k = 0; k < n; ++k) {
+        const double x = b[k];
+        const double *column = T + k * n;
+        for (i = k + 1; i < n; ++i) {
+            b[i] -= column[i] * x;
+        }
+    }
+    for (i = n - 1; i >= 0; --i) {
+        const double x = b[i] * inv[i];
+        const double *column = T + i * n;
+        b[i] = x;
+        for (k = 0; k < i; ++k) {
+            b[k] -= column[k] * x;
+        }
+    }
+}
+#endif
+
 /* LU factorisation of J (row-major, left unchanged) into f.  Every row of J is first scaled
  * by the power of two 2^-e[i] that brings the row's largest |entry| into [1/2, 1) (exact, no
  * rounding), so the singularity test is relative to the size of each equation, not to the
@@ -478,7 +528,17 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
     }
     /* every entry now lies in [-1, 1]; with partial pivoting the elimination grows them by
      * at most 2^(n-1), so no overflow (and no NaN) can arise from here on */
+#if SG_N_UNKNOWNS < SG_LU_PANEL_FROM
     return SG_NAME(eliminate)(A, f->inv, f->perm);
+#else
+    {
+        const int status = SG_NAME(eliminate)(A, f->inv, f->perm);
+        if (status == SG_OK) {
+            SG_NAME(transpose)(A);
+        }
+        return status;
+    }
+#endif
 #endif
 }
 
@@ -540,6 +600,7 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
         b[k] = b[f->perm[k]];
         b[f->perm[k]] = t;
     }
+#if SG_N_UNKNOWNS < SG_LU_PANEL_FROM
     SG_UNROLL
     for (k = 0; k < n; ++k) {
         SG_UNROLL
@@ -547,7 +608,6 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
             b[i] -= A[i * n + k] * b[k];
         }
     }
-#if SG_N_UNKNOWNS < SG_LU_PANEL_FROM
     SG_UNROLL
     for (i = n - 1; i >= 0; --i) { /* row by row: x_i = (b_i - sum_{j>i} U_ij x_j) / U_ii */
         double t = b[i];
@@ -558,16 +618,8 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
         b[i] = t * f->inv[i];
     }
 #else
-    /* column by column: x_j once known is taken off every b_i above it (the updates of b_i
-     * in the order j = n-1, n-2, ...), independent subtractions instead of one chain */
     (void)j;
-    for (i = n - 1; i >= 0; --i) {
-        const double x = b[i] * f->inv[i];
-        b[i] = x;
-        for (k = 0; k < i; ++k) {
-            b[k] -= A[k * n + i] * x;
-        }
-    }
+    SG_NAME(substitute)(A, f->inv, b);
 #endif
 #endif /* SG_BANDED */
     return SG_NAME(norm_inf)(b, n) < INFINITY ? SG_OK : SG_NON_FINITE;
@@ -684,7 +736,7 @@ static int SG_NAME(explained_by_rounding)(const double *F, const double *J, cons
  * change of F_i when every unknown is moved by 4 ulps up or down (alternating signs), which
  * also measures the rounding of F's own operations: the residual is as small as rounding
  * lets it be -- an empirical floor, measured at the iterate rather than bounded */
-static int SG_NAME(at_floor)(const double *u, const double *known, const double *p, const double *F, const double *C, double factor)
+static int SG_NAME(at_floor)(const double *u, const double *known, const double *p, const double *h, const double *F, const double *C, double factor)
 {
     double v[SG_N_UNKNOWNS], G[SG_N_EQUATIONS], N[SG_N_EQUATIONS];
     int i, j, sign;
@@ -696,7 +748,7 @@ static int SG_NAME(at_floor)(const double *u, const double *known, const double 
             const double move = 4.0 * DBL_EPSILON * (fabs(u[j]) > DBL_MIN ? fabs(u[j]) : 1.0);
             v[j] = u[j] + ((j % 2 == 0) ? sign : -sign) * move;
         }
-        SG_NAME(residual)(v, known, p, G);
+        SG_NAME(residual_hoisted)(v, known, p, h, G);
         for (i = 0; i < SG_N_EQUATIONS; ++i) {
             const double d = fabs(G[i] - F[i]);
             if (d > N[i] - C[i]) {
@@ -801,19 +853,20 @@ static inline int SG_NAME(above_rounding)(const double *d, const double *u, doub
  * iterate (before its polishing update). */
 static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
+    double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS], h[SG_HOISTED_ENTRIES];
     double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
+    SG_NAME(hoist)(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
         if (it == 0) {
-            SG_JACOBIAN(u, known, p, F, J);
+            SG_JACOBIAN(u, known, p, h, F, J);
         } else {
-            SG_NAME(residual)(u, known, p, F);
+            SG_NAME(residual_hoisted)(u, known, p, h, F);
         }
         rnorm = SG_NAME(norm_inf)(F, SG_N_EQUATIONS);
         *iterations = it;
@@ -824,7 +877,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
         if (done) { /* after the final update: accepted only at the rounding floor */
             if (SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
                 || (SG_NAME(coordinate_floor)(J, uJ, C),
-                    SG_NAME(at_floor)(u, known, p, F, C, options->floor_factor))) {
+                    SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor))) {
                 if (done == 1 || it >= options->max_iterations) {
                     return SG_OK;
                 }
@@ -848,7 +901,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
             slow = it > 0 && !(rnorm <= 0.1 * previous);
             if (slow) {
                 SG_NAME(coordinate_floor)(J, uJ, C);
-                if (SG_NAME(at_floor)(u, known, p, F, C, options->floor_factor)) {
+                if (SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor)) {
                     return SG_OK;
                 }
                 noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv);
@@ -864,7 +917,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(o
                 return SG_NOT_CONVERGED;
             }
             if (slow) {
-                SG_JACOBIAN(u, known, p, F, J);
+                SG_JACOBIAN(u, known, p, h, F, J);
                 memcpy(uJ, u, sizeof uJ);
                 status = SG_NAME(lu_factor)(J, &lu);
                 if (status != SG_OK) {
@@ -1035,12 +1088,14 @@ static void SG_NAME(hold_time)(const double *known, const double *p, double *u)
 {
 #if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
     double F[SG_N_EQUATIONS], J[SG_N_EQUATIONS * SG_N_UNKNOWNS], x[SG_N_UNKNOWNS];
+    double h[SG_HOISTED_ENTRIES];
     SG_NAME(lu) lu;
     int it, i;
     memcpy(x, u, sizeof x);
+    SG_NAME(hoist)(known, p, h);
     for (it = 0; it < SG_HOLD_ITERATIONS; ++it) {
         double step;
-        SG_NAME(residual_jacobian)(x, known, p, F, J);
+        SG_JACOBIAN(x, known, p, h, F, J);
         F[SG_TIME_ROW] = 0.0;
         for (i = 0; i < SG_N_UNKNOWNS; ++i) {
             J[SG_TIME_ROW * SG_N_UNKNOWNS + i] = 0.0;

@@ -2,10 +2,10 @@
  * The interface of the Newton stepper library (symgroupoid.stepper): its statuses, the
  * options, warm start and batch cursor types, its entry points, and the functions a kernel
  * provides for it (the straight-line functions the code generator writes: reconstruct,
- * residual, residual_jacobian, residual_scale, predict, next_knowns).  Every name goes
+ * hoist, residual, residual_jacobian, residual_scale, predict, next_knowns).  Every name goes
  * through the prefix macros of sg_prefix.h; a kernel's header holds this text with its
  * prefix spelt out, after its sizes <PREFIX>_N_EQUATIONS, _N_UNKNOWNS, _N_KNOWNS,
- * _N_PARAMETERS, _N_INPUTS.  The library's sources: stepper.c (the stepper: LU, rounding floors,
+ * _N_PARAMETERS, _N_INPUTS, _N_HOISTED.  The library's sources: stepper.c (the stepper: LU, rounding floors,
  * Newton, warm start, simulate), batch.c (the batched and one-step entry points and the
  * status messages), options.h and prologue.h (shared by both).
  */
@@ -57,6 +57,8 @@ void SG_NAME(default_options)(SG_NAME(options) *options);
 void SG_NAME(reconstruct)(const double *u, const double *known, const double *p, double *fibre);
 void SG_NAME(residual)(const double *u, const double *known, const double *p, double *F);
 void SG_NAME(residual_jacobian)(const double *u, const double *known, const double *p, double *F, double *J);
+void SG_NAME(hoist)(const double *known, const double *p, double *h);
+void SG_NAME(residual_hoisted)(const double *u, const double *known, const double *p, const double *h, double *F);
 void SG_NAME(residual_scale)(const double *u, const double *known, const double *p, double *S);
 void SG_NAME(predict)(const double *known, const double *p, double *u);
 void SG_NAME(next_knowns)(const double *u, const double *known, const double *p, double *known_next);
