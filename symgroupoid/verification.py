@@ -443,6 +443,11 @@ def _unpack(trajectory, system, multipliers, inputs, params, nonholonomic: bool 
             raise DomainError(f"{owner}: the variations move consecutive arrows, but this "
                               f"trajectory keeps every {trajectory.every}-th state; simulate "
                               f"with every=1")
+        shape = np.shape(trajectory.states)
+        if len(shape) != 2 or shape[1] != layout.n_known:  # not as its step wrote them
+            raise ShapeError(f"{owner}: the trajectory's states have shape {shape}, but its "
+                             f"step {layout.step_name} writes states of {layout.n_known} "
+                             f"entries; use a trajectory as Simulator.simulate returns it")
         arrows = layout.arrows(trajectory.states)
         lam = trajectory.multipliers if multipliers is None else multipliers
         if U is None and layout.n_inputs:  # the input of each term, as the states hold it

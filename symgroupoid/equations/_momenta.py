@@ -78,6 +78,18 @@ def _inputs(trajectory) -> int:
     return int(getattr(getattr(trajectory, "_layout", None), "n_inputs", 0))
 
 
+def _finite_states(states: np.ndarray, entry: str) -> None:
+    """A :class:`DomainError` naming the first state with a non-finite arrow coordinate,
+    multiplier or input (the entries a Noether quantity or its impulse reads), before any
+    evaluation or stage solve."""
+    bad = ~np.isfinite(states).all(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DomainError(f"NoetherQuantity.{entry}: state {k} of the trajectory has "
+                          f"non-finite entries ({states[k].tolist()}); use a trajectory of "
+                          f"finite states")
+
+
 class NoetherQuantity:
     """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
 
@@ -226,13 +238,35 @@ class NoetherQuantity:
             return False, "undecided: the stages could not be solved at random arrows"
         return True, "numeric at the stages ζ* of random arrows"
 
+    def _trajectory_parameters(self, trajectory, entry: str) -> np.ndarray:
+        """The values of this quantity's parameters in ``trajectory.parameters``, which must
+        name exactly the parameters of its system: a parameter missing, or one the system
+        does not have (the run of another system, whose states may have the same width),
+        is a :class:`ParameterError`."""
+        values = getattr(trajectory, "parameters", {})
+        names = [str(s) for s in self.parameters]
+        missing = [n for n in names if n not in values]
+        if missing:
+            raise ParameterError(f"NoetherQuantity.{entry}: the trajectory gives no value "
+                                 f"for {', '.join(missing)}")
+        foreign = [str(n) for n in values if str(n) not in names]
+        if foreign:
+            raise ParameterError(f"NoetherQuantity.{entry}: the trajectory has parameters "
+                                 f"{', '.join(foreign)} that the quantity's system (parameters"
+                                 f" {', '.join(names) or 'none'}) does not have: it is a run "
+                                 f"of another system; use a trajectory of this system's step")
+        return np.array([float(values[n]) for n in names])
+
     def along(self, trajectory) -> np.ndarray:
         """F_X at every kept state of ``trajectory``, shape (R,): one vectorised evaluation.
 
         The states (g_k, λ_k) of a first-order step are the arrow coordinates and
         multipliers this quantity is written in, in that order; parameters are read by name
         from ``trajectory.parameters``.  Along a solution of a system with this symmetry
-        F_X is constant up to the rounding of the steps (seed 000 Thm 4.9).
+        F_X is constant up to the rounding of the steps (seed 000 Thm 4.9).  A state with
+        non-finite entries (:class:`DomainError`) and the run of another system (parameters
+        that this quantity's system does not have: :class:`ParameterError`) are refused
+        before any evaluation, as in :meth:`impulse`.
         """
         if not hasattr(trajectory, "states") or not isinstance(
                 getattr(trajectory, "parameters", None), Mapping):
@@ -256,12 +290,8 @@ class NoetherQuantity:
             raise ShapeError(f"NoetherQuantity.along: the quantity is written in {n} state "
                              f"entries (arrow and multipliers), the trajectory's states have "
                              f"shape {states.shape}; use a trajectory of this system's step")
-        values = getattr(trajectory, "parameters", {})
-        missing = [str(s) for s in self.parameters if str(s) not in values]
-        if missing:
-            raise ParameterError(f"NoetherQuantity.along: the trajectory gives no value for "
-                                 f"{', '.join(missing)}")
-        p = np.array([float(values[str(s)]) for s in self.parameters])
+        _finite_states(states if u is None else np.c_[states, u.T], "along")
+        p = self._trajectory_parameters(trajectory, "along")
         with np.errstate(all="ignore"):
             (F,) = self._at_stages(["F"], np.ascontiguousarray(states.T), p, u)
             out = np.broadcast_to(np.asarray(F[0], float), (len(states),))
@@ -298,12 +328,8 @@ class NoetherQuantity:
         if states.ndim != 2 or states.shape[1] != n + (held + 1) * m:
             raise ShapeError(f"NoetherQuantity.impulse: the states have shape "
                              f"{states.shape}; use a trajectory of this system's step")
-        values = getattr(trajectory, "parameters", {})
-        missing = [str(s) for s in self.parameters if str(s) not in values]
-        if missing:
-            raise ParameterError(f"NoetherQuantity.impulse: the trajectory gives no value "
-                                 f"for {', '.join(missing)}")
-        p = np.array([float(values[str(s)]) for s in self.parameters])
+        _finite_states(states[:, :n + held * m], "impulse")
+        p = self._trajectory_parameters(trajectory, "impulse")
         if self.stages:
             return self._impulse_with_stages(states, n, m, p)
         new = len(self.impulse_form[2])  # coordinates of the next state's newest arrow

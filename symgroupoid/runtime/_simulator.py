@@ -446,7 +446,9 @@ class Simulator(InitialStates):
         docs/conventions.md §20).  At ``unknowns``, else at the step's solution
         (:meth:`solve`, which raises if the step fails).  With the step's Jacobian J
         (``kernel.residual_jacobian``) it gives the implicit derivative of the solution in
-        the inputs, −J⁻¹ ∂F/∂u, which a controller or an optimiser linearises with."""
+        the inputs, −J⁻¹ ∂F/∂u, which a controller or an optimiser linearises with.  Bad
+        arguments are refused before the kernel runs; finite ones at which ∂F/∂u overflows
+        are a :class:`DomainError`, never a matrix with NaN or inf."""
         m = len(getattr(self.equations, "inputs", ()))
         if not m:
             raise UnsupportedFeatureError(f"{self.name}: the system has no inputs")
@@ -459,7 +461,14 @@ class Simulator(InitialStates):
                         finite=True)
         known = known.copy()
         known[self.layout.upcoming_index] = u_next
-        return self.kernel.input_jacobian(x, known, p, (self.equations.order + 1) * m)
+        J = self.kernel.input_jacobian(x, known, p, (self.equations.order + 1) * m)
+        if not np.isfinite(J).all():  # finite arguments whose derivative overflows
+            rows, cols = np.nonzero(~np.isfinite(J))
+            raise DomainError(f"{self.name}: input_jacobian: ∂F/∂(inputs) is not finite at "
+                              f"these unknowns, state and inputs (entry ({int(rows[0])}, "
+                              f"{int(cols[0])}) is {J[rows[0], cols[0]]}): it overflows "
+                              f"there; use values of the size the system is meant for")
+        return J
 
     def _failure(self, status: int, step: int, iterations: int, residual_norm: float,
                  iterate: np.ndarray, options: NewtonOptions | None = None, *,
