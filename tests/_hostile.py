@@ -320,7 +320,8 @@ def near(draw, valid, *, allow_valid: bool = True):
             return tuple(flat.tolist()) if arr.ndim == 1 else arr.tolist()
         if style == "float32":
             return arr.astype(np.float32).astype(float) if arr.ndim else float(arr)
-        if style == "int" and np.array_equal(arr, np.round(arr)):
+        if (style == "int" and np.array_equal(arr, np.round(arr))
+                and np.all(np.abs(arr) < 2.0**62)):  # integers an int64 holds
             return arr.astype(np.int64)
         return np.asfortranarray(arr)
     return arr
