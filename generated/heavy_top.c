@@ -751,6 +751,40 @@ static int heavy_top_band_eliminate(double *A, double *inv, int *perm)
 #endif
 
 #if !HEAVY_TOP_BANDED && HEAVY_TOP_N_UNKNOWNS >= HEAVY_TOP_LU_PANEL_FROM
+/* rmax[i]: the bits of row i's largest |J_ij| (heavy_top_abs_bits) of a large dense Jacobian,
+ * compared as signed integers (the bits of an absolute value are below 2^63, so the order is
+ * the same), which the vector copies compare in one instruction */
+HEAVY_TOP_VECTOR_CLONES
+static void heavy_top_row_maxima(const double *J, uint64_t *rmax)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        int64_t m = 0;
+        for (j = 0; j < n; ++j) {
+            int64_t a;
+            memcpy(&a, J + i * n + j, sizeof a);
+            a &= INT64_MAX;
+            m = a > m ? a : m;
+        }
+        rmax[i] = (uint64_t)m;
+    }
+}
+
+/* A = the rows of J scaled by s (powers of two: exact), in the vector copies */
+HEAVY_TOP_VECTOR_CLONES
+static void heavy_top_scale_rows(const double *J, const double *s, double *A)
+{
+    const int n = HEAVY_TOP_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        const double si = s[i];
+        for (j = 0; j < n; ++j) {
+            A[i * n + j] = J[i * n + j] * si;
+        }
+    }
+}
+
 /* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
  * diagonal, U below), so that both substitutions of heavy_top_lu_apply read their columns
  * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
@@ -822,6 +856,9 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
         }
         rmax[r] = m;
     }
+#elif HEAVY_TOP_N_UNKNOWNS >= HEAVY_TOP_LU_PANEL_FROM
+    (void)j;
+    heavy_top_row_maxima(J, rmax);
 #else
     HEAVY_TOP_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (heavy_top_abs_bits), its sum */
@@ -860,6 +897,9 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
     return heavy_top_band_eliminate(A, f->inv, f->perm);
 #else
     if (f->normal) {
+#if HEAVY_TOP_N_UNKNOWNS >= HEAVY_TOP_LU_PANEL_FROM
+        heavy_top_scale_rows(J, f->s, A);
+#else
         HEAVY_TOP_UNROLL
         for (i = 0; i < n; ++i) {
             HEAVY_TOP_UNROLL
@@ -867,6 +907,7 @@ static int heavy_top_lu_factor(const double *J, heavy_top_lu *f)
                 A[i * n + j] = J[i * n + j] * f->s[i];
             }
         }
+#endif
     } else {
         for (i = 0; i < n; ++i) {
             for (j = 0; j < n; ++j) {

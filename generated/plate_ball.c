@@ -984,6 +984,40 @@ static int plate_ball_band_eliminate(double *A, double *inv, int *perm)
 #endif
 
 #if !PLATE_BALL_BANDED && PLATE_BALL_N_UNKNOWNS >= PLATE_BALL_LU_PANEL_FROM
+/* rmax[i]: the bits of row i's largest |J_ij| (plate_ball_abs_bits) of a large dense Jacobian,
+ * compared as signed integers (the bits of an absolute value are below 2^63, so the order is
+ * the same), which the vector copies compare in one instruction */
+PLATE_BALL_VECTOR_CLONES
+static void plate_ball_row_maxima(const double *J, uint64_t *rmax)
+{
+    const int n = PLATE_BALL_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        int64_t m = 0;
+        for (j = 0; j < n; ++j) {
+            int64_t a;
+            memcpy(&a, J + i * n + j, sizeof a);
+            a &= INT64_MAX;
+            m = a > m ? a : m;
+        }
+        rmax[i] = (uint64_t)m;
+    }
+}
+
+/* A = the rows of J scaled by s (powers of two: exact), in the vector copies */
+PLATE_BALL_VECTOR_CLONES
+static void plate_ball_scale_rows(const double *J, const double *s, double *A)
+{
+    const int n = PLATE_BALL_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        const double si = s[i];
+        for (j = 0; j < n; ++j) {
+            A[i * n + j] = J[i * n + j] * si;
+        }
+    }
+}
+
 /* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
  * diagonal, U below), so that both substitutions of plate_ball_lu_apply read their columns
  * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
@@ -1055,6 +1089,9 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
         }
         rmax[r] = m;
     }
+#elif PLATE_BALL_N_UNKNOWNS >= PLATE_BALL_LU_PANEL_FROM
+    (void)j;
+    plate_ball_row_maxima(J, rmax);
 #else
     PLATE_BALL_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (plate_ball_abs_bits), its sum */
@@ -1093,6 +1130,9 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
     return plate_ball_band_eliminate(A, f->inv, f->perm);
 #else
     if (f->normal) {
+#if PLATE_BALL_N_UNKNOWNS >= PLATE_BALL_LU_PANEL_FROM
+        plate_ball_scale_rows(J, f->s, A);
+#else
         PLATE_BALL_UNROLL
         for (i = 0; i < n; ++i) {
             PLATE_BALL_UNROLL
@@ -1100,6 +1140,7 @@ static int plate_ball_lu_factor(const double *J, plate_ball_lu *f)
                 A[i * n + j] = J[i * n + j] * f->s[i];
             }
         }
+#endif
     } else {
         for (i = 0; i < n; ++i) {
             for (j = 0; j < n; ++j) {

@@ -736,6 +736,40 @@ static int rigid_body_band_eliminate(double *A, double *inv, int *perm)
 #endif
 
 #if !RIGID_BODY_BANDED && RIGID_BODY_N_UNKNOWNS >= RIGID_BODY_LU_PANEL_FROM
+/* rmax[i]: the bits of row i's largest |J_ij| (rigid_body_abs_bits) of a large dense Jacobian,
+ * compared as signed integers (the bits of an absolute value are below 2^63, so the order is
+ * the same), which the vector copies compare in one instruction */
+RIGID_BODY_VECTOR_CLONES
+static void rigid_body_row_maxima(const double *J, uint64_t *rmax)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        int64_t m = 0;
+        for (j = 0; j < n; ++j) {
+            int64_t a;
+            memcpy(&a, J + i * n + j, sizeof a);
+            a &= INT64_MAX;
+            m = a > m ? a : m;
+        }
+        rmax[i] = (uint64_t)m;
+    }
+}
+
+/* A = the rows of J scaled by s (powers of two: exact), in the vector copies */
+RIGID_BODY_VECTOR_CLONES
+static void rigid_body_scale_rows(const double *J, const double *s, double *A)
+{
+    const int n = RIGID_BODY_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        const double si = s[i];
+        for (j = 0; j < n; ++j) {
+            A[i * n + j] = J[i * n + j] * si;
+        }
+    }
+}
+
 /* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
  * diagonal, U below), so that both substitutions of rigid_body_lu_apply read their columns
  * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
@@ -807,6 +841,9 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
         }
         rmax[r] = m;
     }
+#elif RIGID_BODY_N_UNKNOWNS >= RIGID_BODY_LU_PANEL_FROM
+    (void)j;
+    rigid_body_row_maxima(J, rmax);
 #else
     RIGID_BODY_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (rigid_body_abs_bits), its sum */
@@ -845,6 +882,9 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
     return rigid_body_band_eliminate(A, f->inv, f->perm);
 #else
     if (f->normal) {
+#if RIGID_BODY_N_UNKNOWNS >= RIGID_BODY_LU_PANEL_FROM
+        rigid_body_scale_rows(J, f->s, A);
+#else
         RIGID_BODY_UNROLL
         for (i = 0; i < n; ++i) {
             RIGID_BODY_UNROLL
@@ -852,6 +892,7 @@ static int rigid_body_lu_factor(const double *J, rigid_body_lu *f)
                 A[i * n + j] = J[i * n + j] * f->s[i];
             }
         }
+#endif
     } else {
         for (i = 0; i < n; ++i) {
             for (j = 0; j < n; ++j) {

@@ -853,6 +853,40 @@ static int satellite_wheel_band_eliminate(double *A, double *inv, int *perm)
 #endif
 
 #if !SATELLITE_WHEEL_BANDED && SATELLITE_WHEEL_N_UNKNOWNS >= SATELLITE_WHEEL_LU_PANEL_FROM
+/* rmax[i]: the bits of row i's largest |J_ij| (satellite_wheel_abs_bits) of a large dense Jacobian,
+ * compared as signed integers (the bits of an absolute value are below 2^63, so the order is
+ * the same), which the vector copies compare in one instruction */
+SATELLITE_WHEEL_VECTOR_CLONES
+static void satellite_wheel_row_maxima(const double *J, uint64_t *rmax)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        int64_t m = 0;
+        for (j = 0; j < n; ++j) {
+            int64_t a;
+            memcpy(&a, J + i * n + j, sizeof a);
+            a &= INT64_MAX;
+            m = a > m ? a : m;
+        }
+        rmax[i] = (uint64_t)m;
+    }
+}
+
+/* A = the rows of J scaled by s (powers of two: exact), in the vector copies */
+SATELLITE_WHEEL_VECTOR_CLONES
+static void satellite_wheel_scale_rows(const double *J, const double *s, double *A)
+{
+    const int n = SATELLITE_WHEEL_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        const double si = s[i];
+        for (j = 0; j < n; ++j) {
+            A[i * n + j] = J[i * n + j] * si;
+        }
+    }
+}
+
 /* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
  * diagonal, U below), so that both substitutions of satellite_wheel_lu_apply read their columns
  * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
@@ -924,6 +958,9 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
         }
         rmax[r] = m;
     }
+#elif SATELLITE_WHEEL_N_UNKNOWNS >= SATELLITE_WHEEL_LU_PANEL_FROM
+    (void)j;
+    satellite_wheel_row_maxima(J, rmax);
 #else
     SATELLITE_WHEEL_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (satellite_wheel_abs_bits), its sum */
@@ -962,6 +999,9 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
     return satellite_wheel_band_eliminate(A, f->inv, f->perm);
 #else
     if (f->normal) {
+#if SATELLITE_WHEEL_N_UNKNOWNS >= SATELLITE_WHEEL_LU_PANEL_FROM
+        satellite_wheel_scale_rows(J, f->s, A);
+#else
         SATELLITE_WHEEL_UNROLL
         for (i = 0; i < n; ++i) {
             SATELLITE_WHEEL_UNROLL
@@ -969,6 +1009,7 @@ static int satellite_wheel_lu_factor(const double *J, satellite_wheel_lu *f)
                 A[i * n + j] = J[i * n + j] * f->s[i];
             }
         }
+#endif
     } else {
         for (i = 0; i < n; ++i) {
             for (j = 0; j < n; ++j) {

@@ -403,6 +403,40 @@ static int SG_NAME(band_eliminate)(double *A, double *inv, int *perm)
 
 
 #if !SG_BANDED && SG_N_UNKNOWNS >= SG_LU_PANEL_FROM
+/* rmax[i]: the bits of row i's largest |J_ij| (SG_NAME(abs_bits)) of a large dense Jacobian,
+ * compared as signed integers (the bits of an absolute value are below 2^63, so the order is
+ * the same), which the vector copies compare in one instruction */
+SG_VECTOR_CLONES
+static void SG_NAME(row_maxima)(const double *J, uint64_t *rmax)
+{
+    const int n = SG_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        int64_t m = 0;
+        for (j = 0; j < n; ++j) {
+            int64_t a;
+            memcpy(&a, J + i * n + j, sizeof a);
+            a &= INT64_MAX;
+            m = a > m ? a : m;
+        }
+        rmax[i] = (uint64_t)m;
+    }
+}
+
+/* A = the rows of J scaled by s (powers of two: exact), in the vector copies */
+SG_VECTOR_CLONES
+static void SG_NAME(scale_rows)(const double *J, const double *s, double *A)
+{
+    const int n = SG_N_UNKNOWNS;
+    int i, j;
+    for (i = 0; i < n; ++i) {
+        const double si = s[i];
+        for (j = 0; j < n; ++j) {
+            A[i * n + j] = J[i * n + j] * si;
+        }
+    }
+}
+
 /* The factors of a large dense Jacobian are kept transposed (L's multipliers above the
  * diagonal, U below), so that both substitutions of SG_NAME(lu_apply) read their columns
  * contiguously; n(n-1)/2 exchanges once per factorisation, against n^3/3 operations */
@@ -474,6 +508,9 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
         }
         rmax[r] = m;
     }
+#elif SG_N_UNKNOWNS >= SG_LU_PANEL_FROM
+    (void)j;
+    SG_NAME(row_maxima)(J, rmax);
 #else
     SG_UNROLL
     for (i = 0; i < n; ++i) { /* the bits of every row's largest |entry| (SG_NAME(abs_bits)), its sum */
@@ -512,6 +549,9 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
     return SG_NAME(band_eliminate)(A, f->inv, f->perm);
 #else
     if (f->normal) {
+#if SG_N_UNKNOWNS >= SG_LU_PANEL_FROM
+        SG_NAME(scale_rows)(J, f->s, A);
+#else
         SG_UNROLL
         for (i = 0; i < n; ++i) {
             SG_UNROLL
@@ -519,6 +559,7 @@ static int SG_NAME(lu_factor)(const double *J, SG_NAME(lu) *f)
                 A[i * n + j] = J[i * n + j] * f->s[i];
             }
         }
+#endif
     } else {
         for (i = 0; i < n; ++i) {
             for (j = 0; j < n; ++j) {
