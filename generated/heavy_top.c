@@ -1206,7 +1206,8 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
     return above;
 }
 
-/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
+ * holds heavy_top_hoist(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
  * it at least once: a degenerate step is reported as HEAVY_TOP_SINGULAR_JACOBIAN, never returned
  * as solved.  An update reuses the last factorisation (a chord step) while the previous update
@@ -1247,15 +1248,14 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int heavy_top_newton(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
+static int heavy_top_newton(const double *known, const double *p, const double *h, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS], h[HEAVY_TOP_HOISTED_ENTRIES];
+    double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
     double J[HEAVY_TOP_JACOBIAN_ENTRIES], uJ[HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
-    heavy_top_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
@@ -1377,7 +1377,11 @@ int heavy_top_solve_step(const double *known, const double *p, const heavy_top_o
         || !isfinite(heavy_top_norm_inf(u, HEAVY_TOP_N_UNKNOWNS))) {
         return HEAVY_TOP_INVALID_ARGUMENT;
     }
-    return heavy_top_newton(known, p, options, u, iterations, residual_norm);
+    {
+        double h[HEAVY_TOP_HOISTED_ENTRIES];
+        heavy_top_hoist(known, p, h);
+        return heavy_top_newton(known, p, h, options, u, iterations, residual_norm);
+    }
 }
 
 /* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
@@ -1480,15 +1484,13 @@ static int heavy_top_trusted(const heavy_top_warm_start *warm, const double *gue
 /* the most a time step may grow or shrink in one step (heavy_top_time_step_kept) */
 #define HEAVY_TOP_STEP_RATIO 2.0
 
-static void heavy_top_hold_time(const double *known, const double *p, double *u)
+static void heavy_top_hold_time(const double *known, const double *p, const double *h, double *u)
 {
 #if HEAVY_TOP_TIME_ROW >= 0 && HEAVY_TOP_TIME_UNKNOWN >= 0
     double F[HEAVY_TOP_N_EQUATIONS], J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], x[HEAVY_TOP_N_UNKNOWNS];
-    double h[HEAVY_TOP_HOISTED_ENTRIES];
     heavy_top_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
-    heavy_top_hoist(known, p, h);
     for (it = 0; it < HEAVY_TOP_HOLD_ITERATIONS; ++it) {
         double step;
         HEAVY_TOP_JACOBIAN(x, known, p, h, F, J);
@@ -1512,6 +1514,7 @@ static void heavy_top_hold_time(const double *known, const double *p, double *u)
 #else
     (void)known;
     (void)p;
+    (void)h;
     (void)u;
 #endif
 }
@@ -1645,6 +1648,7 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
 #endif
         double next[HEAVY_TOP_N_KNOWNS];
         double x[HEAVY_TOP_N_UNKNOWNS], guess[HEAVY_TOP_N_UNKNOWNS];
+        double h[HEAVY_TOP_HOISTED_ENTRIES]; /* heavy_top_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
 #if HEAVY_TOP_N_INPUTS > 0
@@ -1657,8 +1661,9 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
         } else {
             heavy_top_predict(current, p, x);
         }
-        heavy_top_hold_time(current, p, x);
-        status = heavy_top_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
+        heavy_top_hoist(current, p, h);
+        heavy_top_hold_time(current, p, h, x);
+        status = heavy_top_newton(current, p, h, options, x, &iterations[k], &residual_norms[k]);
         {
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
@@ -1672,8 +1677,8 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 heavy_top_predict(current, p, x);
-                heavy_top_hold_time(current, p, x);
-                status = heavy_top_newton(current, p, options, x, &more, &residual_norms[k]);
+                heavy_top_hold_time(current, p, h, x);
+                status = heavy_top_newton(current, p, h, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != HEAVY_TOP_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);

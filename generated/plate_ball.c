@@ -1439,7 +1439,8 @@ static inline int plate_ball_above_rounding(const double *d, const double *u, do
     return above;
 }
 
-/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
+ * holds plate_ball_hoist(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
  * it at least once: a degenerate step is reported as PLATE_BALL_SINGULAR_JACOBIAN, never returned
  * as solved.  An update reuses the last factorisation (a chord step) while the previous update
@@ -1480,15 +1481,14 @@ static inline int plate_ball_above_rounding(const double *d, const double *u, do
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int plate_ball_newton(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
+static int plate_ball_newton(const double *known, const double *p, const double *h, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS], h[PLATE_BALL_HOISTED_ENTRIES];
+    double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
     double J[PLATE_BALL_JACOBIAN_ENTRIES], uJ[PLATE_BALL_N_UNKNOWNS];
     plate_ball_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
-    plate_ball_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
@@ -1610,7 +1610,11 @@ int plate_ball_solve_step(const double *known, const double *p, const plate_ball
         || !isfinite(plate_ball_norm_inf(u, PLATE_BALL_N_UNKNOWNS))) {
         return PLATE_BALL_INVALID_ARGUMENT;
     }
-    return plate_ball_newton(known, p, options, u, iterations, residual_norm);
+    {
+        double h[PLATE_BALL_HOISTED_ENTRIES];
+        plate_ball_hoist(known, p, h);
+        return plate_ball_newton(known, p, h, options, u, iterations, residual_norm);
+    }
 }
 
 /* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
@@ -1713,15 +1717,13 @@ static int plate_ball_trusted(const plate_ball_warm_start *warm, const double *g
 /* the most a time step may grow or shrink in one step (plate_ball_time_step_kept) */
 #define PLATE_BALL_STEP_RATIO 2.0
 
-static void plate_ball_hold_time(const double *known, const double *p, double *u)
+static void plate_ball_hold_time(const double *known, const double *p, const double *h, double *u)
 {
 #if PLATE_BALL_TIME_ROW >= 0 && PLATE_BALL_TIME_UNKNOWN >= 0
     double F[PLATE_BALL_N_EQUATIONS], J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], x[PLATE_BALL_N_UNKNOWNS];
-    double h[PLATE_BALL_HOISTED_ENTRIES];
     plate_ball_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
-    plate_ball_hoist(known, p, h);
     for (it = 0; it < PLATE_BALL_HOLD_ITERATIONS; ++it) {
         double step;
         PLATE_BALL_JACOBIAN(x, known, p, h, F, J);
@@ -1745,6 +1747,7 @@ static void plate_ball_hold_time(const double *known, const double *p, double *u
 #else
     (void)known;
     (void)p;
+    (void)h;
     (void)u;
 #endif
 }
@@ -1878,6 +1881,7 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
 #endif
         double next[PLATE_BALL_N_KNOWNS];
         double x[PLATE_BALL_N_UNKNOWNS], guess[PLATE_BALL_N_UNKNOWNS];
+        double h[PLATE_BALL_HOISTED_ENTRIES]; /* plate_ball_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
 #if PLATE_BALL_N_INPUTS > 0
@@ -1890,8 +1894,9 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
         } else {
             plate_ball_predict(current, p, x);
         }
-        plate_ball_hold_time(current, p, x);
-        status = plate_ball_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
+        plate_ball_hoist(current, p, h);
+        plate_ball_hold_time(current, p, h, x);
+        status = plate_ball_newton(current, p, h, options, x, &iterations[k], &residual_norms[k]);
         {
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
@@ -1905,8 +1910,8 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 plate_ball_predict(current, p, x);
-                plate_ball_hold_time(current, p, x);
-                status = plate_ball_newton(current, p, options, x, &more, &residual_norms[k]);
+                plate_ball_hold_time(current, p, h, x);
+                status = plate_ball_newton(current, p, h, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != PLATE_BALL_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);

@@ -1191,7 +1191,8 @@ static inline int rigid_body_above_rounding(const double *d, const double *u, do
     return above;
 }
 
-/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
+ * holds rigid_body_hoist(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
  * it at least once: a degenerate step is reported as RIGID_BODY_SINGULAR_JACOBIAN, never returned
  * as solved.  An update reuses the last factorisation (a chord step) while the previous update
@@ -1232,15 +1233,14 @@ static inline int rigid_body_above_rounding(const double *d, const double *u, do
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int rigid_body_newton(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
+static int rigid_body_newton(const double *known, const double *p, const double *h, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS], h[RIGID_BODY_HOISTED_ENTRIES];
+    double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
     double J[RIGID_BODY_JACOBIAN_ENTRIES], uJ[RIGID_BODY_N_UNKNOWNS];
     rigid_body_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
-    rigid_body_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
@@ -1362,7 +1362,11 @@ int rigid_body_solve_step(const double *known, const double *p, const rigid_body
         || !isfinite(rigid_body_norm_inf(u, RIGID_BODY_N_UNKNOWNS))) {
         return RIGID_BODY_INVALID_ARGUMENT;
     }
-    return rigid_body_newton(known, p, options, u, iterations, residual_norm);
+    {
+        double h[RIGID_BODY_HOISTED_ENTRIES];
+        rigid_body_hoist(known, p, h);
+        return rigid_body_newton(known, p, h, options, u, iterations, residual_norm);
+    }
 }
 
 /* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
@@ -1465,15 +1469,13 @@ static int rigid_body_trusted(const rigid_body_warm_start *warm, const double *g
 /* the most a time step may grow or shrink in one step (rigid_body_time_step_kept) */
 #define RIGID_BODY_STEP_RATIO 2.0
 
-static void rigid_body_hold_time(const double *known, const double *p, double *u)
+static void rigid_body_hold_time(const double *known, const double *p, const double *h, double *u)
 {
 #if RIGID_BODY_TIME_ROW >= 0 && RIGID_BODY_TIME_UNKNOWN >= 0
     double F[RIGID_BODY_N_EQUATIONS], J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], x[RIGID_BODY_N_UNKNOWNS];
-    double h[RIGID_BODY_HOISTED_ENTRIES];
     rigid_body_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
-    rigid_body_hoist(known, p, h);
     for (it = 0; it < RIGID_BODY_HOLD_ITERATIONS; ++it) {
         double step;
         RIGID_BODY_JACOBIAN(x, known, p, h, F, J);
@@ -1497,6 +1499,7 @@ static void rigid_body_hold_time(const double *known, const double *p, double *u
 #else
     (void)known;
     (void)p;
+    (void)h;
     (void)u;
 #endif
 }
@@ -1630,6 +1633,7 @@ int rigid_body_simulate(const double *known0, const double *p, const double *u, 
 #endif
         double next[RIGID_BODY_N_KNOWNS];
         double x[RIGID_BODY_N_UNKNOWNS], guess[RIGID_BODY_N_UNKNOWNS];
+        double h[RIGID_BODY_HOISTED_ENTRIES]; /* rigid_body_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
 #if RIGID_BODY_N_INPUTS > 0
@@ -1642,8 +1646,9 @@ int rigid_body_simulate(const double *known0, const double *p, const double *u, 
         } else {
             rigid_body_predict(current, p, x);
         }
-        rigid_body_hold_time(current, p, x);
-        status = rigid_body_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
+        rigid_body_hoist(current, p, h);
+        rigid_body_hold_time(current, p, h, x);
+        status = rigid_body_newton(current, p, h, options, x, &iterations[k], &residual_norms[k]);
         {
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
@@ -1657,8 +1662,8 @@ int rigid_body_simulate(const double *known0, const double *p, const double *u, 
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 rigid_body_predict(current, p, x);
-                rigid_body_hold_time(current, p, x);
-                status = rigid_body_newton(current, p, options, x, &more, &residual_norms[k]);
+                rigid_body_hold_time(current, p, h, x);
+                status = rigid_body_newton(current, p, h, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != RIGID_BODY_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);

@@ -1308,7 +1308,8 @@ static inline int satellite_wheel_above_rounding(const double *d, const double *
     return above;
 }
 
-/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
+ * holds satellite_wheel_hoist(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
  * it at least once: a degenerate step is reported as SATELLITE_WHEEL_SINGULAR_JACOBIAN, never returned
  * as solved.  An update reuses the last factorisation (a chord step) while the previous update
@@ -1349,15 +1350,14 @@ static inline int satellite_wheel_above_rounding(const double *d, const double *
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int satellite_wheel_newton(const double *known, const double *p, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
+static int satellite_wheel_newton(const double *known, const double *p, const double *h, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[SATELLITE_WHEEL_N_EQUATIONS], C[SATELLITE_WHEEL_N_EQUATIONS], h[SATELLITE_WHEEL_HOISTED_ENTRIES];
+    double F[SATELLITE_WHEEL_N_EQUATIONS], C[SATELLITE_WHEEL_N_EQUATIONS];
     double J[SATELLITE_WHEEL_JACOBIAN_ENTRIES], uJ[SATELLITE_WHEEL_N_UNKNOWNS];
     satellite_wheel_lu lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
-    satellite_wheel_hoist(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
@@ -1479,7 +1479,11 @@ int satellite_wheel_solve_step(const double *known, const double *p, const satel
         || !isfinite(satellite_wheel_norm_inf(u, SATELLITE_WHEEL_N_UNKNOWNS))) {
         return SATELLITE_WHEEL_INVALID_ARGUMENT;
     }
-    return satellite_wheel_newton(known, p, options, u, iterations, residual_norm);
+    {
+        double h[SATELLITE_WHEEL_HOISTED_ENTRIES];
+        satellite_wheel_hoist(known, p, h);
+        return satellite_wheel_newton(known, p, h, options, u, iterations, residual_norm);
+    }
 }
 
 /* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
@@ -1582,15 +1586,13 @@ static int satellite_wheel_trusted(const satellite_wheel_warm_start *warm, const
 /* the most a time step may grow or shrink in one step (satellite_wheel_time_step_kept) */
 #define SATELLITE_WHEEL_STEP_RATIO 2.0
 
-static void satellite_wheel_hold_time(const double *known, const double *p, double *u)
+static void satellite_wheel_hold_time(const double *known, const double *p, const double *h, double *u)
 {
 #if SATELLITE_WHEEL_TIME_ROW >= 0 && SATELLITE_WHEEL_TIME_UNKNOWN >= 0
     double F[SATELLITE_WHEEL_N_EQUATIONS], J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS], x[SATELLITE_WHEEL_N_UNKNOWNS];
-    double h[SATELLITE_WHEEL_HOISTED_ENTRIES];
     satellite_wheel_lu lu;
     int it, i;
     memcpy(x, u, sizeof x);
-    satellite_wheel_hoist(known, p, h);
     for (it = 0; it < SATELLITE_WHEEL_HOLD_ITERATIONS; ++it) {
         double step;
         SATELLITE_WHEEL_JACOBIAN(x, known, p, h, F, J);
@@ -1614,6 +1616,7 @@ static void satellite_wheel_hold_time(const double *known, const double *p, doub
 #else
     (void)known;
     (void)p;
+    (void)h;
     (void)u;
 #endif
 }
@@ -1747,6 +1750,7 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
 #endif
         double next[SATELLITE_WHEEL_N_KNOWNS];
         double x[SATELLITE_WHEEL_N_UNKNOWNS], guess[SATELLITE_WHEEL_N_UNKNOWNS];
+        double h[SATELLITE_WHEEL_HOISTED_ENTRIES]; /* satellite_wheel_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
 #if SATELLITE_WHEEL_N_INPUTS > 0
@@ -1759,8 +1763,9 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
         } else {
             satellite_wheel_predict(current, p, x);
         }
-        satellite_wheel_hold_time(current, p, x);
-        status = satellite_wheel_newton(current, p, options, x, &iterations[k], &residual_norms[k]);
+        satellite_wheel_hoist(current, p, h);
+        satellite_wheel_hold_time(current, p, h, x);
+        status = satellite_wheel_newton(current, p, h, options, x, &iterations[k], &residual_norms[k]);
         {
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
@@ -1774,8 +1779,8 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 satellite_wheel_predict(current, p, x);
-                satellite_wheel_hold_time(current, p, x);
-                status = satellite_wheel_newton(current, p, options, x, &more, &residual_norms[k]);
+                satellite_wheel_hold_time(current, p, h, x);
+                status = satellite_wheel_newton(current, p, h, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != SATELLITE_WHEEL_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);

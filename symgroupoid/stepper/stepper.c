@@ -401,7 +401,6 @@ static int SG_NAME(band_eliminate)(double *A, double *inv, int *perm)
 }
 #endif
 
-
 #if !SG_BANDED && SG_N_UNKNOWNS >= SG_LU_PANEL_FROM
 /* rmax[i]: the bits of row i's largest |J_ij| (SG_NAME(abs_bits)) of a large dense Jacobian,
  * compared as signed integers (the bits of an absolute value are below 2^63, so the order is
@@ -851,7 +850,8 @@ static inline int SG_NAME(above_rounding)(const double *d, const double *u, doub
     return above;
 }
 
-/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result).
+/* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
+ * holds SG_NAME(hoist)(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
  * it at least once: a degenerate step is reported as SG_SINGULAR_JACOBIAN, never returned
  * as solved.  An update reuses the last factorisation (a chord step) while the previous update
@@ -892,15 +892,14 @@ static inline int SG_NAME(above_rounding)(const double *d, const double *u, doub
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int SG_NAME(newton)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
+static int SG_NAME(newton)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
-    double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS], h[SG_HOISTED_ENTRIES];
+    double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
     double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
     double previous = 0.0, last_step = 0.0;
     int it, i, status, slow, noise, done = 0, polish = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
-    SG_NAME(hoist)(known, p, h);
     for (it = 0;; ++it) {
         double rnorm, step;
         int here = 0; /* J factored at this iterate */
@@ -1022,7 +1021,11 @@ int SG_NAME(solve_step)(const double *known, const double *p, const SG_NAME(opti
         || !isfinite(SG_NAME(norm_inf)(u, SG_N_UNKNOWNS))) {
         return SG_INVALID_ARGUMENT;
     }
-    return SG_NAME(newton)(known, p, options, u, iterations, residual_norm);
+    {
+        double h[SG_HOISTED_ENTRIES];
+        SG_NAME(hoist)(known, p, h);
+        return SG_NAME(newton)(known, p, h, options, u, iterations, residual_norm);
+    }
 }
 
 /* 1 when a warm start is usable: count in 0..3, quadratic 0 or 1 and its count solutions
@@ -1125,15 +1128,13 @@ static int SG_NAME(trusted)(const SG_NAME(warm_start) *warm, const double *guess
 /* the most a time step may grow or shrink in one step (SG_NAME(time_step_kept)) */
 #define SG_STEP_RATIO 2.0
 
-static void SG_NAME(hold_time)(const double *known, const double *p, double *u)
+static void SG_NAME(hold_time)(const double *known, const double *p, const double *h, double *u)
 {
 #if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
     double F[SG_N_EQUATIONS], J[SG_N_EQUATIONS * SG_N_UNKNOWNS], x[SG_N_UNKNOWNS];
-    double h[SG_HOISTED_ENTRIES];
     SG_NAME(lu) lu;
     int it, i;
     memcpy(x, u, sizeof x);
-    SG_NAME(hoist)(known, p, h);
     for (it = 0; it < SG_HOLD_ITERATIONS; ++it) {
         double step;
         SG_JACOBIAN(x, known, p, h, F, J);
@@ -1157,6 +1158,7 @@ static void SG_NAME(hold_time)(const double *known, const double *p, double *u)
 #else
     (void)known;
     (void)p;
+    (void)h;
     (void)u;
 #endif
 }
@@ -1290,6 +1292,7 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
 #endif
         double next[SG_N_KNOWNS];
         double x[SG_N_UNKNOWNS], guess[SG_N_UNKNOWNS];
+        double h[SG_HOISTED_ENTRIES]; /* SG_NAME(hoist) of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
         int status;
 #if SG_N_INPUTS > 0
@@ -1302,8 +1305,9 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
         } else {
             SG_NAME(predict)(current, p, x);
         }
-        SG_NAME(hold_time)(current, p, x);
-        status = SG_NAME(newton)(current, p, options, x, &iterations[k], &residual_norms[k]);
+        SG_NAME(hoist)(current, p, h);
+        SG_NAME(hold_time)(current, p, h, x);
+        status = SG_NAME(newton)(current, p, h, options, x, &iterations[k], &residual_norms[k]);
         {
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
@@ -1317,8 +1321,8 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
                 int more = 0;
                 memcpy(far, x, sizeof far);
                 SG_NAME(predict)(current, p, x);
-                SG_NAME(hold_time)(current, p, x);
-                status = SG_NAME(newton)(current, p, options, x, &more, &residual_norms[k]);
+                SG_NAME(hold_time)(current, p, h, x);
+                status = SG_NAME(newton)(current, p, h, options, x, &more, &residual_norms[k]);
                 iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
                 if (status != SG_OK && jumped) { /* report the far solution */
                     memcpy(x, far, sizeof far);
