@@ -19,6 +19,7 @@ from collections import deque
 import numpy as np
 
 from ..stepper import LU_PANEL_FROM, BandOrder
+from ._checks import step_argument
 from ._time import time_layout
 
 #: a band order is used when the band storage's row, 2·kl + ku + 1, is at most this
@@ -29,7 +30,7 @@ BAND_WIDTH_FRACTION = 1 / 4
 def jacobian_pattern(step) -> np.ndarray:
     """The structural nonzeros of the step's Jacobian (n × n booleans): entry (i, j) is
     False where the program's ``J`` output is the graph's constant zero."""
-    program = step.program
+    program = step_argument(step, "jacobian_pattern").program
     n = len(step.unknowns)
     zero = program.graph.zero
     return np.array([node != zero for node in program.outputs["J"]], dtype=bool).reshape(n, n)
@@ -103,7 +104,7 @@ def band_order(step) -> BandOrder | None:
     in, or None (dense factors): from ``LU_PANEL_FROM`` unknowns, for a step not on a time
     groupoid (whose fixed-step phase replaces a row of J), when the reverse Cuthill–McKee
     order's band storage is at most :data:`BAND_WIDTH_FRACTION` of the unknowns wide."""
-    n = len(step.unknowns)
+    n = len(step_argument(step, "band_order").unknowns)
     if n < LU_PANEL_FROM or time_layout(step).unknown >= 0:
         return None
     pattern = jacobian_pattern(step)

@@ -33,6 +33,7 @@ from .._arguments import (
 from .._errors import InputTypeError, OutputError, ShapeError
 from ..stepper import Inliner, library_digest
 from ._band import band_defines
+from ._checks import program_argument, step_argument
 from ._kernel import (
     COLD_UNIT,
     assign_units,
@@ -339,6 +340,7 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     (:class:`CompiledTemplates`: Python, so only a directory as trusted as the package; the
     kernel cache keeps none); the C is the same with or without it.
     """
+    step_argument(step, "generate_c")
     prefix = c_identifier(step.name if prefix is None else prefix)
     units = integer_argument(units, "units", minimum=1, maximum=MAX_UNITS, owner=prefix)
     if block_weight is not None:
@@ -403,6 +405,9 @@ def generate_program_c(label: str, program, inputs: str, outputs: str) -> Kernel
     from .._version import __version__
     from ._kernel import build_block, program_helpers
 
+    label = name_argument(label, "label", owner="generate_program_c")
+    program_argument(program, f"generate_program_c ({label})", outputs=[outputs],
+                     inputs=[inputs])
     prefix = "sgw_" + c_identifier(label)
     block = build_block(program, [("o", outputs)], input_names={inputs: "a"})
     ctx = {"p": prefix, "P": prefix.upper(), "label": _ascii(label), "version": __version__,

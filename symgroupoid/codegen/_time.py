@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ..stepper import NO_TIME, TimeLayout
+from ._checks import step_argument
 
 
 def time_layout(step) -> TimeLayout:
@@ -19,6 +20,7 @@ def time_layout(step) -> TimeLayout:
     rows follow the junction's (``row`` −1: the time step check only)."""
     from ..equations import DiscreteSystem
 
+    step_argument(step, "time_layout")
     if not getattr(step.groupoid, "timed", False):
         return NO_TIME
     arrows = step.arrows
