@@ -536,7 +536,11 @@ def test_a_step_refuses_bad_inputs(plane, bad, error):
 
 
 def test_the_helpers_refuse_a_bad_rule_or_force():
-    with pytest.raises(InputTypeError):
+    """At once, before any derivation: a rule that is none of the two, a force that is not
+    a function; a function that fails on the arrow is a CallableError at derivation."""
+    with pytest.raises(sg.DomainError, match="rule must be one of 'midpoint', 'trapezoid'"):
         sg.rayleigh_damping(lambda q, v: 0, h, rule="euler")
+    with pytest.raises(InputTypeError, match="midpoint_forces: F must be a function"):
+        sg.midpoint_forces("not a function", h)
     with pytest.raises(CallableError):
-        _plane_system(sg.midpoint_forces("not a function", h))
+        _plane_system(sg.midpoint_forces(lambda q, v: 1 / 0, h))

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from .._arguments import instance_argument, shown_value
-from .._errors import DomainError, InputTypeError
+from .._errors import DomainError
 from ..ir import Program
 
 
@@ -20,17 +20,6 @@ def step_argument(step, owner: str):
 
     return instance_argument(step, StepEquations, "step", "the StepEquations of a system "
                              "(from system.euler_lagrange())", owner=owner)
-
-
-def names_argument(names, name: str, owner: str) -> tuple[str, ...]:
-    """``names`` (one string, or a list or tuple of strings) as a tuple of strings, else an
-    :class:`~symgroupoid.InputTypeError` naming ``name``."""
-    if isinstance(names, str):
-        return (names,)
-    if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
-        raise InputTypeError(f"{owner}: {name} must be a string or a list of strings, got "
-                             f"{type(names).__name__} {shown_value(names)}")
-    return tuple(names)
 
 
 def program_argument(program, owner: str, *, outputs: Sequence = (),
@@ -48,4 +37,4 @@ def program_argument(program, owner: str, *, outputs: Sequence = (),
     return program
 
 
-__all__ = ["names_argument", "program_argument", "step_argument"]
+__all__ = ["program_argument", "step_argument"]

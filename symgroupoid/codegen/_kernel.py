@@ -17,9 +17,10 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+from .._arguments import names_argument
 from ..ir import C, functions_used, plan, write
 from ._band import band_order
-from ._checks import names_argument, program_argument
+from ._checks import program_argument
 
 _C_KEYWORDS = frozenset(
     "auto break case char const continue default do double else enum extern float for goto "
@@ -195,7 +196,7 @@ def hoisted_values(program, names: Sequence[str] = ("F", "J"), over: str = "u") 
     f⁺(g_k) in the DEL residual (docs/conventions.md §4, §20), the known factors of
     products with the new arrow -- are computed once per step by ``<prefix>_hoist`` and
     read by the residual.  The same operations on the same values: the same bits."""
-    names = names_argument(names, "names", "hoisted_values")
+    names = names_argument(names, "names", owner="hoisted_values")
     program_argument(program, "hoisted_values", outputs=names, inputs=[over])
     g = program.graph
     nodes = program.nodes(list(names))

@@ -26,6 +26,13 @@ from collections.abc import Callable, Sequence
 
 import sympy as sp
 
+from .._arguments import (
+    callable_argument,
+    choice_argument,
+    integer_argument,
+    sequence_argument,
+    shown_value,
+)
 from .._errors import CallableError, InputTypeError, ShapeError
 
 _RULES = ("midpoint", "trapezoid")
@@ -56,10 +63,27 @@ def _force(F: Callable, q: list, v: list, what: str) -> list:
     return [sp.sympify(f) for f in value]
 
 
+def _step_argument(h, owner: str) -> sp.Expr:
+    """The time step ``h`` of a force helper: a SymPy scalar (the system's time-step
+    parameter, as a rule) or a real number; anything else is an
+    :class:`~symgroupoid.InputTypeError` naming h."""
+    try:
+        value = sp.sympify(h, strict=True)
+    except (sp.SympifyError, TypeError, ValueError):
+        value = None
+    if not isinstance(value, sp.Expr) or isinstance(value, sp.MatrixBase) \
+            or value.is_real is False:
+        raise InputTypeError(f"{owner}: h must be the time step (a SymPy symbol, as a rule), "
+                             f"got {type(h).__name__} {shown_value(h)}")
+    return value
+
+
 def midpoint_forces(F: Callable, h: sp.Symbol) -> Callable:
     """f⁻ = f⁺ = (h/2)·F(q̄, Δq/h): the discrete forces of the midpoint rule for the
     generalised force ``F(q, v)`` (lists of coordinates and velocities in, one force per
     coordinate out; it may use inputs and parameters)."""
+    callable_argument(F, "F", owner="midpoint_forces")
+    h = _step_argument(h, "midpoint_forces")
 
     def forces(g):
         q0, q1 = _points(g, "midpoint_forces")
@@ -74,6 +98,8 @@ def midpoint_forces(F: Callable, h: sp.Symbol) -> Callable:
 def trapezoid_forces(F: Callable, h: sp.Symbol) -> Callable:
     """f⁻ = (h/2)·F(q_k, Δq/h), f⁺ = (h/2)·F(q_{k+1}, Δq/h): the discrete forces of the
     trapezoidal rule for the generalised force ``F(q, v)``."""
+    callable_argument(F, "F", owner="trapezoid_forces")
+    h = _step_argument(h, "trapezoid_forces")
 
     def forces(g):
         q0, q1 = _points(g, "trapezoid_forces")
@@ -87,8 +113,9 @@ def trapezoid_forces(F: Callable, h: sp.Symbol) -> Callable:
 def rayleigh_damping(D: Callable, h: sp.Symbol, rule: str = "midpoint") -> Callable:
     """The damping force F = −∂D/∂v of a dissipation function ``D(q, v)`` (Rayleigh; e.g.
     D = c·|v|²/2 gives F = −c·v), discretised by ``rule`` ("midpoint" or "trapezoid")."""
-    if rule not in _RULES:
-        raise InputTypeError(f"rayleigh_damping: rule must be one of {_RULES}, got {rule!r}")
+    callable_argument(D, "D", owner="rayleigh_damping")
+    choice_argument(rule, _RULES, "rule", owner="rayleigh_damping")
+    _step_argument(h, "rayleigh_damping")
 
     def F(q, v):
         dummies = [sp.Dummy(f"v{i}", real=True) for i in range(len(v))]
@@ -102,6 +129,9 @@ def body_torque(tau: Callable | Sequence, h: sp.Symbol) -> Callable:
     """f⁻ = f⁺ = (h/2)·τ on a matrix Lie group: the body-frame torque ``tau`` (a list of
     one component per basis section, or a function of the arrow returning one) held over
     the step, split equally between its ends."""
+    if not callable(tau):
+        tau = sequence_argument(tau, "tau", owner="body_torque")
+    h = _step_argument(h, "body_torque")
 
     def forces(g):
         value = list(tau(g) if callable(tau) else tau)
@@ -118,7 +148,14 @@ def joint_torque(rank: int, first: Sequence[int], second: Sequence[int],
     the two bodies' directions the joint acts along), held over the step as
     :func:`body_torque`.  Such forces are internal: they cancel along a symmetry that moves
     both bodies alike, whose Noether quantity they leave conserved."""
-    first, second = list(first), list(second)
+    rank = integer_argument(rank, "rank", minimum=1, owner="joint_torque")
+    first = [integer_argument(i, "first", owner="joint_torque")
+             for i in sequence_argument(first, "first", owner="joint_torque")]
+    second = [integer_argument(i, "second", owner="joint_torque")
+              for i in sequence_argument(second, "second", owner="joint_torque")]
+    if not callable(tau):
+        tau = sequence_argument(tau, "tau", owner="joint_torque")
+    h = _step_argument(h, "joint_torque")
     if len(first) != len(second):
         raise ShapeError(f"joint_torque: {len(first)} directions on the first body but "
                          f"{len(second)} on the second")

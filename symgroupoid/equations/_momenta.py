@@ -8,6 +8,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
+from .._arguments import instance_argument
 from .._errors import (
     DomainError,
     InputTypeError,
@@ -31,6 +32,13 @@ def _short(expr) -> str:
     return text if len(text) <= REPR_WIDTH else text[:REPR_WIDTH - 1] + "…"
 
 
+
+def _forms_argument(forms, kind: type, method: str, owner: str) -> None:
+    """An :class:`~symgroupoid.InputTypeError` unless ``forms`` are the derived forms these
+    objects are built from (a system's ``method`` builds them)."""
+    instance_argument(forms, kind, "forms", f"the {kind.__name__} of a system (use the "
+                      f"system's {method})", owner=owner)
+
 class LegendreTransforms:
     """F⁻L(g_k, λ_k) and F⁺L(g_k, λ_k) in the basis of sections (seed 000 §3.3).
 
@@ -39,6 +47,7 @@ class LegendreTransforms:
     """
 
     def __init__(self, forms: LegendreForms, parameters: Sequence):
+        _forms_argument(forms, LegendreForms, "legendre()", "LegendreTransforms")
         self.minus: list[sp.Expr] = forms.minus
         self.plus: list[sp.Expr] = forms.plus
         self.arrow: tuple = forms.arrow
@@ -102,6 +111,7 @@ class NoetherQuantity:
     """
 
     def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):
+        _forms_argument(forms, NoetherForms, "noether()", "NoetherQuantity")
         self.expr: sp.Expr = forms.quantity
         self.defect: sp.Expr = forms.defect
         self.arrow: tuple = forms.arrow
@@ -419,6 +429,7 @@ class LiePoissonEquations:
     """
 
     def __init__(self, forms: LiePoissonForms):
+        _forms_argument(forms, LiePoissonForms, "lie_poisson()", "LiePoissonEquations")
         self.momentum: list = forms.momentum
         self.update: list = forms.update
         self.residuals: list = forms.residuals

@@ -51,6 +51,11 @@ class ReducedSystem(DiscreteSystem):
                  lagrangian: Callable, constraints: Callable | None,
                  parameters: Sequence[sp.Symbol], name: str, checks: list,
                  forces: Callable | None = None):
+        instance_argument(unreduced, DiscreteSystem, "unreduced", "a DiscreteSystem (a "
+                          "reduced system comes from system.reduce(morphism))",
+                          owner="ReducedSystem")
+        instance_argument(morphism, GroupoidMorphism, "morphism", "a GroupoidMorphism",
+                          owner="ReducedSystem")
         step = getattr(unreduced, "time_step", None)
         kept = step is not None and str(step) in {str(p) for p in parameters}
         super().__init__(morphism.target, lagrangian, constraints, parameters, name,
@@ -219,6 +224,11 @@ def check_system_morphism(morphism: GroupoidMorphism, system: DiscreteSystem,
     ``system`` = (G, N, L) and ``other`` = (G′, N′, L′) (seed 000 Def. 4.2): Φ is a groupoid
     morphism, L = L′∘Φ and φ = φ′∘Φ.  Returns how each identity was verified; raises
     :class:`~symgroupoid.MorphismError` otherwise."""
+    instance_argument(morphism, GroupoidMorphism, "morphism", "a GroupoidMorphism",
+                      owner="check_system_morphism")
+    for name, value in (("system", system), ("other", other)):
+        instance_argument(value, DiscreteSystem, name, "a DiscreteSystem",
+                          owner="check_system_morphism")
     if morphism.source is not system.groupoid or morphism.target is not other.groupoid:
         raise DomainError(f"{morphism.name} does not map {system.groupoid.name} to "
                           f"{other.groupoid.name}")

@@ -8,6 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
+from .._arguments import instance_argument
 from .._errors import UnsupportedFeatureError
 from .._symbols import multiplier_symbols, parse_step
 from ..derivation import DerivedStep
@@ -34,6 +35,8 @@ class StepEquations:
     """
 
     def __init__(self, derived: DerivedStep):
+        instance_argument(derived, DerivedStep, "derived", "a DerivedStep (the equations of "
+                          "a step come from system.euler_lagrange())", owner="StepEquations")
         derived.build_graph()
         self._d = derived
         self.name: str = derived.name

@@ -34,7 +34,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import sympy as sp
 
-from .._errors import CallableError, ShapeError, SymgroupoidError
+from .._arguments import callable_argument, choice_argument, name_argument, shown_value
+from .._errors import CallableError, DomainError, InputTypeError, ShapeError, SymgroupoidError
 from ._base import Arrow, Groupoid
 from ._matrix_groups import MatrixLieGroup
 from ._pair import EuclideanSpace
@@ -61,8 +62,8 @@ def _factor_dim(f) -> int:
         return f.arrow_dim
     if isinstance(f, EuclideanSpace):
         return f.dim
-    raise TypeError(f"AtiyahGroupoid: a factor of Q must be a matrix Lie group or an "
-                    f"EuclideanSpace, got {f!r}")
+    raise InputTypeError(f"AtiyahGroupoid: a factor of Q must be a matrix Lie group or an "
+                         f"EuclideanSpace, got {type(f).__name__} {shown_value(f)}")
 
 
 class AtiyahArrow(Arrow):
@@ -114,9 +115,10 @@ class AtiyahGroupoid(Groupoid):
 
     def __init__(self, Q, H, action: str = "left", connection: Callable | None = None,
                  name: str | None = None):
-        if action not in ACTIONS:
-            raise ValueError(f"AtiyahGroupoid: action must be one of {ACTIONS}, got "
-                             f"{action!r}")
+        choice_argument(action, ACTIONS, "action", owner="AtiyahGroupoid")
+        callable_argument(connection, "connection", owner="AtiyahGroupoid", none=True)
+        if name is not None:
+            name_argument(name, "name", owner="AtiyahGroupoid")
         self.configuration_space = Q
         self.action = action
         factors = manifold_factors(Q)
@@ -153,8 +155,8 @@ class AtiyahGroupoid(Groupoid):
         s_factors = [f for j, f in enumerate(factors) if j != i]
         for f in s_factors:
             if not isinstance(f, EuclideanSpace):
-                raise TypeError(f"AtiyahGroupoid: the shape space must be a product of "
-                                f"EuclideanSpaces; {_label(f)} is not one")
+                raise InputTypeError(f"AtiyahGroupoid: the shape space must be a product of "
+                                     f"EuclideanSpaces; {_label(f)} is not one")
         s_index = [offsets[j] + k for j, f in enumerate(factors) if j != i
                    for k in range(f.dim)]
         return group, slice(offsets[i], offsets[i] + group.arrow_dim), s_factors, s_index
@@ -166,8 +168,8 @@ class AtiyahGroupoid(Groupoid):
         A = self._connection_value(connection, s0, s1)
         at_diagonal = A.xreplace(dict(zip(s1, s0)))
         if any(sp.simplify(e) != 0 for e in at_diagonal - sp.eye(self.group.n)):
-            raise ValueError(f"{self.name}: the connection must satisfy 𝒜(s, s) = I; got "
-                             f"{at_diagonal.tolist()}")
+            raise DomainError(f"{self.name}: the connection must satisfy 𝒜(s, s) = I; got "
+                              f"{at_diagonal.tolist()}")
         return s0, s1, A
 
     def _connection_value(self, connection: Callable, s0, s1) -> sp.Matrix:
@@ -370,8 +372,8 @@ class AtiyahGroupoid(Groupoid):
         try:
             pair = PairGroupoid(self.configuration_space)
         except (TypeError, ValueError) as exc:
-            raise TypeError(f"{self.name}: cannot build the pair groupoid of Q ({exc}); build "
-                            f"it and use quotient_map_from(pair_groupoid)") from exc
+            raise InputTypeError(f"{self.name}: cannot build the pair groupoid of Q ({exc}); "
+                                 f"build it and use quotient_map_from(pair_groupoid)") from exc
         return self.quotient_map_from(pair)
 
     def quotient_map_from(self, pair: Groupoid, name: str | None = None):

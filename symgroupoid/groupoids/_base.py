@@ -46,6 +46,12 @@ class Arrow:
     """
 
     def __init__(self, groupoid: Groupoid, coords: Sequence):
+        if not isinstance(groupoid, Groupoid):
+            raise InputTypeError(f"Arrow: groupoid must be a Groupoid, got "
+                                 f"{type(groupoid).__name__}")
+        if isinstance(coords, (str, bytes, dict, set)) or not hasattr(coords, "__iter__"):
+            raise InputTypeError(f"Arrow: coords must be the arrow's coordinates (a list or "
+                                 f"tuple), got {type(coords).__name__}")
         self.groupoid = groupoid
         self.coords = tuple(coords)
 
@@ -557,6 +563,53 @@ def derivation(fields: list[tuple], a: Sequence, f: sp.Expr) -> list[sp.Expr]:
     return out
 
 
+def _call_on(owner: str, f: Callable, arrow):
+    """f(arrow), an exception raised by the user's function wrapped in a
+    :class:`~symgroupoid.CallableError` naming ``owner``."""
+    try:
+        return f(arrow)
+    except SymgroupoidError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - re-raised with context
+        raise CallableError(f"{owner}: evaluating f on the arrow raised "
+                            f"{type(exc).__name__}: {exc}") from exc
+
+
+def _derivative_arguments(groupoid, f, a, owner: str) -> tuple[tuple, sp.Expr]:
+    """(arrow coordinates, scalar expression) of a left or right derivative's arguments: a
+    :class:`Groupoid`, an arrow (None: the named arrow g_k; else as many coordinates as
+    the groupoid's arrows have) and a function on arrows or an expression giving a scalar;
+    anything else is a named :class:`~symgroupoid.SymgroupoidError`."""
+    from .._arguments import instance_argument, sequence_argument, shown_value
+
+    instance_argument(groupoid, Groupoid, "groupoid", "a Groupoid", owner=owner)
+    named = groupoid.named_arrow(0)
+    if a is None:
+        a = named
+    else:
+        a = tuple(sequence_argument(list(a) if isinstance(a, sp.MatrixBase) else a, "a",
+                                    owner=owner))
+        if len(a) != len(named):
+            raise ShapeError(f"{owner}: a must be an arrow of {groupoid.name} "
+                             f"({len(named)} coordinates), got {len(a)}")
+    expr = f
+    try:
+        a = tuple(sp.sympify(c, strict=True) for c in a)
+        if callable(f):
+            expr = _call_on(owner, f, groupoid.view(a))
+        expr = sp.sympify(expr, strict=True)
+    except (sp.SympifyError, TypeError, ValueError) as exc:
+        if isinstance(exc, SymgroupoidError):
+            raise
+        raise InputTypeError(f"{owner}: f must be a scalar expression or a function giving "
+                             f"one, and a an arrow of scalars; got f = {shown_value(f)}, "
+                             f"a = {shown_value(a)}") from exc
+    if not isinstance(expr, sp.Expr) or isinstance(expr, sp.MatrixBase):
+        raise InputTypeError(f"{owner}: f must be a scalar expression or a function giving "
+                             f"one, got {type(expr).__name__} {shown_value(expr)}")
+    return a, expr
+
+
 def left_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
                     a: Sequence | None = None) -> list[sp.Expr]:
     """X⃖_i[f](a) for every basis section (docs/conventions.md §1, seed 000 eq. (1)).
@@ -564,16 +617,14 @@ def left_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
     ``f`` is a callable on arrows or an expression in the coordinates of ``a``.
     With ``a=None`` a named arrow g_k is used.
     """
-    a = groupoid.named_arrow(0) if a is None else tuple(a)
-    expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
+    a, expr = _derivative_arguments(groupoid, f, a, "left_derivative")
     return groupoid.apply_left(expr, a)
 
 
 def right_derivative(groupoid: Groupoid, f: Callable[[Arrow], sp.Expr] | sp.Expr,
                      a: Sequence | None = None) -> list[sp.Expr]:
     """X⃗_i[f](a) for every basis section (docs/conventions.md §1, seed 000 eq. (2))."""
-    a = groupoid.named_arrow(0) if a is None else tuple(a)
-    expr = f(groupoid.view(a)) if callable(f) else sp.sympify(f)
+    a, expr = _derivative_arguments(groupoid, f, a, "right_derivative")
     return groupoid.apply_right(expr, a)
 
 

@@ -20,6 +20,9 @@ import sympy as sp
 from sympy.core.symbol import Str
 from sympy.matrices.expressions.matexpr import MatrixElement
 
+from .._arguments import name_argument
+from .._errors import InputTypeError
+
 
 class NamedMatrix(sp.ImmutableDenseMatrix):
     """A constant matrix with a LaTeX name, e.g. ``NamedMatrix(J, name="J_d")``.
@@ -31,7 +34,14 @@ class NamedMatrix(sp.ImmutableDenseMatrix):
     latex_name: str | None = None
 
     def __new__(cls, *args, name: str | None = None):
-        obj = super().__new__(cls, *args)
+        if name is not None:
+            name = name_argument(name, "name", owner="NamedMatrix")
+        try:
+            obj = super().__new__(cls, *args)
+        except (TypeError, ValueError, IndexError, AttributeError, sp.SympifyError) as exc:
+            raise InputTypeError(f"NamedMatrix{'' if name is None else f' {name}'}: the "
+                                 f"matrix must be what sympy.Matrix takes (rows of "
+                                 f"scalars, or rows, columns and entries); {exc}") from exc
         if name is not None:
             obj.latex_name = name
         return obj

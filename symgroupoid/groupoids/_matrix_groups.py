@@ -24,7 +24,8 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import choice_argument, name_argument
+from .._arguments import choice_argument, name_argument, shown_value
+from .._errors import InputTypeError, ShapeError
 from .._symbols import StepSymbol, indexed_symbol, latex_name, subscripted
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
@@ -47,8 +48,24 @@ RETRACTIONS = ("cayley", "exp")
 
 
 def hat3(w: Sequence) -> sp.Matrix:
-    """ω ↦ ω̂ with ω̂ v = ω × v (the so(3) hat map, E₁, E₂, E₃ basis)."""
-    return sp.Matrix([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+    """ω ↦ ω̂ with ω̂ v = ω × v (the so(3) hat map, E₁, E₂, E₃ basis).  ``w``: three
+    numbers or SymPy scalars (a list, tuple, array or 3-vector); anything else is an
+    :class:`~symgroupoid.InputTypeError` or :class:`~symgroupoid.ShapeError` naming ``w``."""
+    if isinstance(w, sp.MatrixBase):
+        w = list(w)
+    if isinstance(w, (str, bytes, dict, set)) or not hasattr(w, "__len__") \
+            or not hasattr(w, "__getitem__"):
+        raise InputTypeError(f"hat3: w must be three scalars, got {type(w).__name__} "
+                             f"{shown_value(w)}")
+    if len(w) != 3:
+        raise ShapeError(f"hat3: w must have 3 components, got {len(w)}")
+    try:
+        x = [sp.sympify(w[i], strict=True) for i in range(3)]
+    except (sp.SympifyError, TypeError, ValueError) as exc:
+        raise InputTypeError(f"hat3: w must be three scalars, got {shown_value(w)}") from exc
+    if not all(isinstance(v, sp.Expr) and not isinstance(v, sp.MatrixBase) for v in x):
+        raise InputTypeError(f"hat3: w must be three scalars, got {shown_value(w)}")
+    return sp.Matrix([[0, -x[2], x[1]], [x[2], 0, -x[0]], [-x[1], x[0], 0]])
 
 
 class MatrixArrow(Arrow):

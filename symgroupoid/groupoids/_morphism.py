@@ -26,9 +26,11 @@ from collections.abc import Callable, Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import integer_argument
+from .._arguments import instance_argument, integer_argument, real_argument, shown_value
 from .._errors import (
     CallableError,
+    DomainError,
+    InputTypeError,
     MorphismError,
     ReconstructionError,
     ShapeError,
@@ -141,7 +143,7 @@ class ParameterValues:
             e = e.xreplace({s: sp.Float(self.value(s)) for s in e.free_symbols})
         v = complex(sp.N(e))
         if abs(v.imag) > 1e-12 * max(1.0, abs(v.real)) or not np.isfinite(v.real):
-            raise ValueError(f"not a finite real number: {e}")
+            raise DomainError(f"not a finite real number: {e}")
         return v.real
 
     def numbers(self, v: Sequence) -> np.ndarray:
@@ -203,8 +205,8 @@ class GroupoidMorphism:
                  lift: Callable | None = None, name: str | None = None):
         for what, G in (("source", source), ("target", target)):
             if not isinstance(G, Groupoid):
-                raise TypeError(f"GroupoidMorphism: the {what} must be a Groupoid, got "
-                                f"{type(G).__name__}")
+                raise InputTypeError(f"GroupoidMorphism: the {what} must be a Groupoid, got "
+                                     f"{type(G).__name__}")
         if not callable(map):
             raise CallableError(f"GroupoidMorphism: map must be a function of an arrow of "
                                 f"{source.name}, got {type(map).__name__}")
@@ -506,7 +508,13 @@ def check_morphism(phi: GroupoidMorphism, samples: int = 5, seed: int = 0,
     parameter values.  ``samples`` (at least 1) and ``seed`` are counts
     (:func:`~symgroupoid._arguments.integer_argument`).
     """
+    instance_argument(phi, GroupoidMorphism, "phi", "a GroupoidMorphism",
+                      owner="check_morphism")
     samples = integer_argument(samples, "samples", minimum=1, owner=phi.name)
+    tol = real_argument(tol, "tol", minimum=0.0, owner=phi.name)
+    if params is not None and not isinstance(params, Mapping):
+        raise InputTypeError(f"{phi.name}: params must be a mapping from symbol or name to "
+                             f"value, got {type(params).__name__} {shown_value(params)}")
     seed = integer_argument(seed, "seed", owner=phi.name)
     G, H = phi.source, phi.target
     rng = np.random.default_rng(seed)

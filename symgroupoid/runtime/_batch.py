@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._arguments import instance_argument
 from .._errors import InputTypeError, ShapeError
 from ..stepper import MAX_THREADS
 from ._batch_progress import run_batch
@@ -60,6 +61,12 @@ class TrajectoryBatch:
                  options: NewtonOptions | None = None, *, fill: bool = True):
         """(``fill=False`` leaves the rows past each run's end as they are: for a caller
         that hands out each run's own rows only, ``batch[b]``, as sweeps do.)"""
+        from ._simulator import Simulator
+
+        instance_argument(sim, Simulator, "sim", "a Simulator (a batch comes from "
+                          "Simulator.simulate_batch)", owner="TrajectoryBatch")
+        instance_argument(raw, BatchRun, "raw", "the raw run of simulate_batch",
+                          owner=sim.name)
         self._sim = sim
         self._options = sim.options if options is None else options
         self._raw = raw

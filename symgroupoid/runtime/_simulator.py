@@ -9,10 +9,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arguments import callable_argument
+from .._arguments import callable_argument, instance_argument
 from .._errors import (
     BranchJumpError,
     DomainError,
+    InputTypeError,
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
@@ -56,6 +57,16 @@ class Simulator(InitialStates):
 
     def __init__(self, step, kernel, options: NewtonOptions | None = None,
                  cache_entry: Path | None = None):
+        from ..equations import StepEquations
+
+        instance_argument(step, StepEquations, "step", "the StepEquations of a system (a "
+                          "simulator comes from system.compile())", owner="Simulator")
+        if not all(callable(getattr(kernel, f, None)) for f in ("simulate", "warm_start")):
+            raise InputTypeError(f"{step.name}: kernel must be a compiled kernel (a simulator "
+                                 f"comes from system.compile()), got {type(kernel).__name__}")
+        if options is not None:
+            instance_argument(options, NewtonOptions, "options", "NewtonOptions",
+                              owner=step.name)
         self.equations = step
         self.kernel = kernel
         self.options = options or NewtonOptions()

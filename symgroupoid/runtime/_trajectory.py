@@ -13,10 +13,32 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._errors import DomainError, InputNameError, InputTypeError, UnsupportedFeatureError
+from .._arguments import instance_argument, shown_value
+from .._errors import (
+    DomainError,
+    InputNameError,
+    InputTypeError,
+    ShapeError,
+    UnsupportedFeatureError,
+)
 from ._layout import MULTIPLIER_KEYS, StateLayout
 from ._runs import OK, RawRun
 
+
+def _check_parts(layout, states, iterations, residual_norms, parameters, backend) -> None:
+    """An :class:`~symgroupoid.InputTypeError` unless the parts of a trajectory are those a
+    simulator gives (a trajectory comes from ``Simulator.simulate`` or ``Trajectory.load``):
+    a state layout, NumPy arrays of states (2-D), Newton iterations and residual norms
+    (1-D), the parameters as a dict and the backend's name."""
+    instance_argument(layout, StateLayout, "layout", "a StateLayout (a trajectory comes "
+                      "from Simulator.simulate or Trajectory.load)", owner="Trajectory")
+    for name, value, dims in (("states", states, 2), ("iterations", iterations, 1),
+                              ("residual_norms", residual_norms, 1)):
+        if not isinstance(value, np.ndarray) or value.ndim != dims:
+            raise InputTypeError(f"{layout.step_name}: {name} must be a {dims}-D NumPy "
+                                 f"array, got {type(value).__name__} {shown_value(value)}")
+    instance_argument(parameters, dict, "parameters", "a dict", owner=layout.step_name)
+    instance_argument(backend, str, "backend", "the backend's name", owner=layout.step_name)
 
 class Trajectory:
     """States k = k_0, k_0 + e, k_0 + 2e, …, and the last one, of a run of N steps.
@@ -54,11 +76,12 @@ class Trajectory:
     def __init__(self, layout: StateLayout, states: np.ndarray, iterations: np.ndarray,
                  residual_norms: np.ndarray, parameters: dict, backend: str, *,
                  step_indices: np.ndarray | None = None, every: int = 1):
+        _check_parts(layout, states, iterations, residual_norms, parameters, backend)
         rows = len(states)
         if step_indices is None:
             step_indices = np.arange(rows, dtype=np.int64)
         if not (len(iterations) == len(residual_norms) == rows - 1 == len(step_indices) - 1):
-            raise ValueError(f"inconsistent trajectory: {rows} states, {len(step_indices)} "
+            raise ShapeError(f"inconsistent trajectory: {rows} states, {len(step_indices)} "
                              f"step indices, {len(iterations)} iteration counts and "
                              f"{len(residual_norms)} residual norms")
         self._layout = layout

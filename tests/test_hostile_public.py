@@ -1,0 +1,81 @@
+"""Every public callable of the package, given anything where its required arguments
+belong: a named :class:`~symgroupoid.SymgroupoidError` (naming the callable or an argument),
+or a result — never another exception.
+
+The other hostile suites draw malformed variants of valid calls entry point by entry point;
+this one sweeps the whole public face (``symgroupoid.__all__``) with junk, so that a new
+entry point is covered the day it is exported.  Found by it: ``hat3``, ``left_derivative``,
+``right_derivative``, ``rayleigh_damping`` (an array as the rule), ``check_morphism``,
+``check_system_morphism``, ``NamedMatrix``, ``Arrow``, ``AtiyahGroupoid`` and the result
+types (``Simulator``, ``StepEquations``, ``LegendreTransforms``, ``NoetherQuantity``,
+``LiePoissonEquations``) read attributes of whatever they were given and raised
+AttributeError, TypeError, IndexError or ValueError.
+"""
+
+from __future__ import annotations
+
+import enum
+import inspect
+
+import pytest
+from _hostile import (
+    PROFILES,
+    judge,
+    junk,
+    profile,
+    scratch_cwd,  # noqa: F401  (autouse fixture)
+)
+from hypothesis import given
+from hypothesis import strategies as st
+
+import symgroupoid as sg
+
+
+def _entries() -> dict:
+    """name -> (callable, its required positional parameters, its required keyword-only
+    ones): every callable exported by the package but the exception and warning classes,
+    the status enumeration (whose lookup by value is Python's own) and the abstract base
+    class (which Python refuses to instantiate)."""
+    out = {}
+    for name in sorted(sg.__all__):
+        obj = getattr(sg, name)
+        if not callable(obj) or (isinstance(obj, type) and (issubclass(
+                obj, (BaseException, enum.Enum)) or inspect.isabstract(obj))):
+            continue
+        try:
+            signature = inspect.signature(obj)
+        except (TypeError, ValueError):
+            continue
+        required = [p.name for p in signature.parameters.values()
+                    if p.default is p.empty
+                    and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+        keywords = [p.name for p in signature.parameters.values()
+                    if p.default is p.empty and p.kind is p.KEYWORD_ONLY]
+        out[name] = (obj, required, keywords)
+    return out
+
+
+ENTRIES = _entries()
+
+
+def test_the_sweep_covers_the_public_face():
+    """The sweep is not empty and reaches the constructors, the helpers and the
+    functions a user calls first (so that the test can fail when one is left out)."""
+    assert {"DiscreteSystem", "ContinuousSystem", "hat3", "compile_step", "sweep",
+            "solve_boundary_value", "Simulator", "NamedMatrix"} <= set(ENTRIES)
+    assert len(ENTRIES) >= 40
+
+
+@pytest.mark.parametrize("name", sorted(ENTRIES))
+@pytest.mark.parametrize("run", PROFILES)
+def test_every_public_callable_refuses_junk_by_name(name, run):
+    function, required, keywords = ENTRIES[name]
+
+    @profile(run, 6, 120)
+    @given(st.tuples(*[junk(4) for _ in required]),
+           st.fixed_dictionaries({k: junk(4) for k in keywords}))
+    def check(args, kwargs):
+        judge(f"public.{name}", lambda: function(*args, **kwargs),
+              [name, *required, *keywords])
+
+    check()
