@@ -316,6 +316,9 @@ class DiscreteSystem(_EvaluatedSystem):
         to be a Noether symmetry.  With holonomic constraints ψ the defect carries the
         multiplier term −λ·dψ(α(g))(ρ(X)), and X is a symmetry when the defect vanishes on
         N = G|_M: X tangent to M = {ψ = 0} and L invariant there (docs/conventions.md §15).
+        With internal stages F_X and the defect are taken at the stages ζ* of the arrow
+        (interior multipliers included) and the symmetry is checked numerically at random
+        arrows, of N with holonomic constraints (docs/conventions.md §22).
         """
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
                               section, f, self.parameters)
