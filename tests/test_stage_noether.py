@@ -176,13 +176,19 @@ def test_internal_forces_telescope():
     assert np.abs(forced - forced[0]).max() < 1e-13 * scale  # ... the forced momentum is
 
 
-def test_holonomic_constraints_with_stages_are_refused():
+@pytest.mark.parametrize("gravity", [1, 0])
+def test_holonomic_constraints_with_stages_are_decided_on_the_constraint_set(gravity):
+    """With holonomic constraints the symmetry is decided at the stages (interior
+    multipliers included) of random arrows of N = G|_M (docs/conventions.md §22; the
+    quantities along runs: tests/test_stage_noether_holonomic.py): the rotation of the
+    planar pendulum is a symmetry without gravity and not with it."""
     pendulum = sg.ContinuousSystem(
-        sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - q[1],
+        sg.EuclideanSpace("x y"), lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - gravity * q[1],
         parameters=[h], holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1],
         name="pendulum").discretize(h, sg.LobattoIIIAB(3))
-    with pytest.raises(sg.UnsupportedFeatureError, match="holonomic constraints"):
-        pendulum.noether(lambda q: [-q[1], q[0]])
+    rotation = pendulum.noether(lambda q: [-q[1], q[0]])
+    assert rotation.is_symmetry == (gravity == 0)
+    assert rotation.verification.endswith("random arrows of N = G|_M")
 
 
 def test_along_needs_the_inputs_of_each_arrow():

@@ -23,13 +23,18 @@ from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines
 from ._layout import PAGE_WIDTH
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._programs import (
+    PROJECTED,
+    ROUNDING_UPDATE,
     MomentumProgram,
+    RestrictedArrows,
     StatePrograms,
     WindowPrograms,
     action_program,
     constraint_program,
     cost_program,
+    gauss_newton,
     holonomic_program,
+    holonomic_projection_program,
     input_jacobian_program,
     magnitude,
     momentum_program,
@@ -53,7 +58,8 @@ __all__ = [
     "cost_program", "holonomic_program", "input_jacobian_program", "latex", "magnitude",
     "momentum_program",
     "second_order_momentum_program", "source_projection_program", "state_programs", "solve_stages",
-    "step_program", "structure_program", "window_programs",
+    "step_program", "structure_program", "window_programs", "PROJECTED", "ROUNDING_UPDATE",
+    "RestrictedArrows", "gauss_newton", "holonomic_projection_program",
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
     "equation_lines", "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
     "trapezoid_forces", "ContinuousSystem", "GaussLegendre", "LobattoIIIAB",

@@ -157,6 +157,13 @@ class NoetherQuantity:
     forces = None  # the system's ForceFunctions (in its slot coordinates)
     stage_inputs: tuple = ()
     impulse_stages: tuple = ()
+    #: a system with internal stages and holonomic constraints ψ (docs/conventions.md §22,
+    #: "The Noether quantity on N = G|_M"): the arrows of N = G|_M near a random arrow at
+    #: which the symmetry is checked (a :class:`~symgroupoid.equations.RestrictedArrows`),
+    #: and the coefficients of the end multipliers of ψ in the defect, −dψ_a(α(g))(ρ(X)):
+    #: zero on M iff X is tangent to M
+    restriction = None
+    tangency: tuple = ()
 
     @property
     def stage_forces(self) -> bool:
@@ -182,7 +189,9 @@ class NoetherQuantity:
             J = step_jacobian(g, rows, zeta)
             outputs.update({"rows": rows, "J": [c for row in J for c in row],
                             "defect": [from_sympy(g, self.defect, symbols,
-                                                  "the symmetry defect", memo)]})
+                                                  "the symmetry defect", memo)],
+                            "tangency": [from_sympy(g, t, symbols, "the tangency of X", memo)
+                                         for t in self.tangency]})
             if self.stage_forces:
                 inputs["u"] = list(self.stage_inputs)
                 f_zeta = _force_nodes(g, self.forces, self.forces.stage_forces,
@@ -224,29 +233,45 @@ class NoetherQuantity:
     def check_with_stages(self, groupoid) -> tuple[bool, str]:
         """Whether the defect vanishes at ζ* at random arrows of ``groupoid`` (with random
         multipliers and parameters in [0.5, 1.5]), for a system with internal stages; and
-        how that was decided."""
+        how that was decided.  With holonomic constraints the arrows are moved onto
+        N = G|_M first (:attr:`restriction`), the stages ζ* include the interior
+        multipliers, and X must be tangent to M there (:attr:`tangency`; docs/conventions.md
+        §22, "The Noether quantity on N = G|_M")."""
         from .._errors import DiagnosticsError
 
         rng = np.random.default_rng(20260)
         usable = 0
+        where = "random arrows" if self.restriction is None else "random arrows of N = G|_M"
+        how = f"numeric at the stages ζ* of {where}"
         for _ in range(8):
-            known = np.r_[np.asarray(groupoid.random_arrow(rng), float),
-                          rng.uniform(0.5, 1.5, len(self.multipliers))][:, None]
+            arrow = np.asarray(groupoid.random_arrow(rng), float)
+            lam = rng.uniform(0.5, 1.5, len(self.multipliers))
             p = rng.uniform(0.5, 1.5, len(self.parameters))
+            if self.restriction is not None:
+                arrow = self.restriction(arrow, p)
+                if arrow is None:  # no point of M near this arrow's ends
+                    continue
+            known = np.r_[np.asarray(arrow, float), lam][:, None]
             try:
                 with np.errstate(all="ignore"):
-                    F, defect = self._at_stages(["F", "defect"], known, p)
+                    F, defect, *tangency = self._at_stages(["F", "defect", "tangency"],
+                                                           known, p)
             except DiagnosticsError:
                 continue
             F, defect = float(np.ravel(F)[0]), float(np.ravel(defect)[0])
-            if not (np.isfinite(F) and np.isfinite(defect)):
+            tangency = np.ravel(np.asarray(tangency, float))
+            if not (np.isfinite(F) and np.isfinite(defect) and np.isfinite(tangency).all()):
                 continue
             usable += 1
-            if abs(defect) > 1e-9 * max(abs(F), 1.0):
-                return False, "numeric at the stages ζ* of random arrows"
+            scale = 1e-9 * max(abs(F), 1.0)
+            if (np.abs(tangency) > scale).any():
+                return False, (f"not tangent to M = {{ψ = 0}}: dψ(X) ≠ 0 at the source of "
+                               f"{where}")
+            if abs(defect) > scale:
+                return False, how
         if usable < 3:
-            return False, "undecided: the stages could not be solved at random arrows"
-        return True, "numeric at the stages ζ* of random arrows"
+            return False, f"undecided: the stages could not be solved at {where}"
+        return True, how
 
     def _trajectory_parameters(self, trajectory, entry: str) -> np.ndarray:
         """The values of this quantity's parameters in ``trajectory.parameters``, which must

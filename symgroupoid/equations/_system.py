@@ -52,6 +52,7 @@ from ..derivation import (
 )
 from ..groupoids import Groupoid
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
+from ._programs import RestrictedArrows, holonomic_projection_program
 from ._regularity import check_step
 from ._step import StepEquations
 
@@ -315,6 +316,9 @@ class DiscreteSystem(_EvaluatedSystem):
         to be a Noether symmetry.  With holonomic constraints ψ the defect carries the
         multiplier term −λ·dψ(α(g))(ρ(X)), and X is a symmetry when the defect vanishes on
         N = G|_M: X tangent to M = {ψ = 0} and L invariant there (docs/conventions.md §15).
+        With internal stages F_X and the defect are taken at the stages ζ* of the arrow
+        (interior multipliers included) and the symmetry is checked numerically at random
+        arrows, of N with holonomic constraints (docs/conventions.md §22).
         """
         forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
                               section, f, self.parameters)
@@ -344,15 +348,14 @@ class DiscreteSystem(_EvaluatedSystem):
         random arrows.  With forces, F_X is evaluated at the forced stages of each arrow
         (∂L/∂ζ + f_ζ = 0 with that arrow's inputs), and the impulse of a step is the forces'
         along X at the junction plus the stage forces' term, minus the defect at the new
-        arrow's forced stages (docs/conventions.md §22, "The forced Noether balance")."""
-        if self.n_holonomic:
-            raise UnsupportedFeatureError(
-                f"{self.name}: the Noether quantity of a discrete Lagrangian with internal "
-                f"stages and holonomic constraints is not supported yet: its symmetry would "
-                f"be checked on N = G|_M at the stages and interior multipliers solved with "
-                f"the end multipliers, which are not written; docs/conventions.md §22 lists "
-                f"what is supported")
+        arrow's forced stages (docs/conventions.md §22, "The forced Noether balance").  With
+        holonomic constraints ψ the stages include the interior multipliers Λ, solved with
+        the arrow's other stages (the end multipliers enter no stage row), and the symmetry
+        is checked at arrows of N = G|_M (docs/conventions.md §22, "The Noether quantity on
+        N = G|_M")."""
         quantity = NoetherQuantity(forms, False, self.parameters)
+        if self.n_holonomic:
+            self._restrict_noether(quantity)
         quantity.stages = tuple(self.functions.stages)
         quantity.stage_rows = tuple(stage_rows(self.functions, forms.arrow))
         forces = self.functions.forces
@@ -368,6 +371,28 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity.is_symmetry, quantity.verification = quantity.check_with_stages(
             self.groupoid)
         return quantity
+
+    def _restrict_noether(self, quantity: NoetherQuantity) -> None:
+        """Prepare the check of a Noether quantity of a system with stages and holonomic
+        constraints on N = G|_M (docs/conventions.md §22): the arrows of N near random arrows
+        (the source, then the target, projected onto M by Gauss–Newton in their α-fibres,
+        as ``project_initial`` does, §15), and the coefficients −dψ_a(α(g))(ρ(X)) of the end
+        multipliers λ_a of ψ in the defect, which is affine in them (they enter no stage
+        row).  Constraints φ on the arrows as well are refused: the random arrows would have
+        to lie on {φ = 0} ∩ G|_M."""
+        held = self.n_holonomic
+        if self.n_constraints > held:
+            raise UnsupportedFeatureError(
+                f"{self.name}: the Noether quantity of a discrete Lagrangian with internal "
+                f"stages, holonomic constraints and constraints on the arrows is not "
+                f"supported: its symmetry would be checked on {{φ = 0}} ∩ G|_M, whose "
+                f"arrows are not constructed; docs/conventions.md §22 lists what is")
+        residual = holonomic_projection_program(self.name, self.groupoid, self.functions,
+                                                self.parameters)
+        quantity.restriction = RestrictedArrows(
+            self.groupoid, residual.numpy_function(["psi", "J"], ["x", "q", "p"]))
+        quantity.tangency = tuple(sp.diff(quantity.defect, lam)
+                                  for lam in quantity.multipliers[-held:])
 
     def lie_poisson(self) -> LiePoissonEquations:
         """The discrete constrained Lie–Poisson equations (seed 000 §6.1), Lie groups only."""

@@ -2,10 +2,9 @@
 
 - :func:`newton` — a square system F(z) = 0 with its exact Jacobian (from a momentum, first
   and second order): z ← z − J⁻¹F, stopped by :func:`converged`;
-- :func:`gauss_newton` — an underdetermined system φ(x) = 0 (m ≤ n unknowns) with minimum-norm
-  steps x ← x − J⁺φ (the projections of an initial state onto the constraints): to first
-  order the orthogonal projection of the start onto {φ = 0} in the chart, stopped at the
-  rounding floor (no further halving of |φ|∞ once it is below 1e-8).
+- the projections of an initial state onto the constraints use the minimum-norm Gauss–Newton
+  :func:`symgroupoid.equations.gauss_newton` of the equations layer, which also builds
+  random arrows on a holonomic constraint set (the Noether check of docs/conventions.md §22).
 
 The step kernel's Newton (C and its NumPy twin) and the boundary-value solver's are other
 algorithms (a rounding-floor test per equation, trust regions, line searches on a merit
@@ -19,13 +18,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .._errors import NewtonDivergenceError, SingularJacobianError
-
-#: a Newton update at most this size (relative to the iterate) that is not 10 times smaller
-#: than the one before it is rounding: quadratic convergence has ended at a solution
-ROUNDING_UPDATE = 1e-9
-
-#: the residual size (max norm) below which a Gauss–Newton projection has found a zero
-PROJECTED = 1e-8
+from ..equations import ROUNDING_UPDATE
 
 
 def converged(dz: np.ndarray, before: float, z: np.ndarray, tol: float) -> bool:
@@ -68,27 +61,3 @@ def newton(residual: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], z: n
 
 def _norm(F: np.ndarray) -> float:
     return float(np.abs(F).max()) if F.size else 0.0
-
-
-def gauss_newton(residual: Callable[[np.ndarray], tuple], x: np.ndarray,
-                 max_iterations: int) -> tuple[tuple | None, list[float], np.ndarray]:
-    """Minimum-norm Gauss–Newton on φ(x) = 0 from ``x`` (``residual(x) -> (φ, J, *extra)``,
-    J of shape (m, n)).  Returns ``(best, history, x)``: ``best`` = (|φ|∞, x, *extra) of
-    the iterate with the smallest residual, or None when the first values are not finite,
-    the residual sizes seen, and the last iterate.  The caller accepts ``best`` when its
-    residual is below :data:`PROJECTED` (otherwise no zero is near the start)."""
-    best, history = None, []
-    for _ in range(max_iterations):
-        phi, J, *extra = residual(x)
-        norm = float(np.max(np.abs(phi))) if len(phi) else 0.0
-        if not np.isfinite(norm) or not np.isfinite(J).all():
-            break
-        history.append(norm)
-        if best is None or norm < best[0]:
-            best = (norm, x, *extra)
-        # stop at the rounding floor: no further halving of the residual
-        if norm == 0.0 or (len(history) > 2 and norm > 0.5 * min(history[:-1])
-                           and norm < PROJECTED):
-            break
-        x = x - np.linalg.lstsq(J.reshape(len(phi), len(x)), phi, rcond=None)[0]
-    return best, history, x

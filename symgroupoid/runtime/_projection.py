@@ -6,7 +6,7 @@ arrow_from(α(g_k), τ(x)) and x₀ = τ⁻¹(g_k), Gauss–Newton with minimum-
 
     x ← x − J⁺ φ(g(x)),   J = ∂φ(g(x))/∂x  (m × rank, forward mode on the graph),
 
-(the Gauss–Newton of runtime/_newton.py) converges to a point of N = {φ = 0} near x₀ (to
+(:func:`~symgroupoid.equations.gauss_newton`) converges to a point of N = {φ = 0} near x₀ (to
 first order the orthogonal projection of x₀ in the chart).  On a pair groupoid (q₀, q₁) this
 keeps q₀ and corrects q₁; on a Lie group it corrects the element; on a time groupoid with
 φ = t₁ − t₀ − h it sets t₁.  Holonomic constraints are projected at the target,
@@ -23,8 +23,7 @@ import weakref
 import numpy as np
 
 from .._errors import DomainError
-from ..equations import source_projection_program, state_programs
-from ._newton import PROJECTED, gauss_newton
+from ..equations import PROJECTED, gauss_newton, source_projection_program, state_programs
 
 _EPS = float(np.finfo(float).eps)
 

@@ -12,7 +12,9 @@ the C kernels (:mod:`symgroupoid.codegen`) and the NumPy forms
 - :func:`state_programs` — the diagnostics of a step's known state (energy, momenta,
   constraint residuals) and the projection of an initial state onto the constraints;
 - :func:`momentum_program`, :func:`second_order_momentum_program`,
-  :func:`source_projection_program` — the initial-state solves;
+  :func:`source_projection_program`, :func:`holonomic_projection_program` — the
+  initial-state solves; :func:`gauss_newton` and :class:`RestrictedArrows` — points of a
+  holonomic constraint set (initial states, the Noether check of docs/conventions.md §22);
 - :func:`constraint_program`, :func:`holonomic_program` — the constraint checks of initial
   states and boundary data (values and the size of their terms, :func:`magnitude`).
 """
@@ -20,11 +22,13 @@ the C kernels (:mod:`symgroupoid.codegen`) and the NumPy forms
 from ._checks import constraint_program, holonomic_program, magnitude
 from ._initial import (
     MomentumProgram,
+    holonomic_projection_program,
     momentum_program,
     second_order_momentum_program,
     source_projection_program,
 )
-from ._stages import solve_stages
+from ._projections import PROJECTED, RestrictedArrows, gauss_newton
+from ._stages import ROUNDING_UPDATE, solve_stages
 from ._state import StatePrograms, state_programs
 from ._step import input_jacobian_program, step_program
 from ._window import (
@@ -39,4 +43,6 @@ __all__ = ["MomentumProgram", "StatePrograms", "WindowPrograms", "action_program
            "constraint_program", "cost_program", "holonomic_program", "magnitude",
            "momentum_program", "second_order_momentum_program",
            "source_projection_program", "state_programs", "solve_stages", "input_jacobian_program",
+           "PROJECTED", "ROUNDING_UPDATE", "RestrictedArrows", "gauss_newton",
+           "holonomic_projection_program",
            "step_program", "structure_program", "window_programs"]

@@ -179,14 +179,21 @@ def second_order_momentum_program(step) -> MomentumProgram:
 
 
 def source_projection_program(step) -> Program:
-    """ψ(β(e(x))) and the arrow e(x)⁻¹·a (see the module docstring): inputs ``x`` (fibre
-    chart coordinates, rank), ``q`` (the source point), ``p`` (the parameters), ``a`` (an
-    arrow); outputs ``psi``, ``J`` (∂ψ/∂x, row-major; from ``x``, ``q``, ``p``) and ``moved``
-    (the arrow e(x)⁻¹·a from its own source α(a), from ``x``, ``a``)."""
-    fs, G = _functions(step.system), step.groupoid
+    """ψ(β(e(x))) and the arrow e(x)⁻¹·a (see the module docstring) of a step's system: see
+    :func:`holonomic_projection_program`."""
+    return holonomic_projection_program(step.name, step.groupoid, _functions(step.system),
+                                        step.parameters)
+
+
+def holonomic_projection_program(name: str, G, fs, parameters) -> Program:
+    """ψ(β(e(x))) and the arrow e(x)⁻¹·a (see the module docstring) of the system ``name``
+    on ``G`` with the evaluated functions ``fs``: inputs ``x`` (fibre chart coordinates,
+    rank), ``q`` (the source point), ``p`` (the parameters), ``a`` (an arrow); outputs
+    ``psi``, ``J`` (∂ψ/∂x, row-major; from ``x``, ``q``, ``p``) and ``moved`` (the arrow
+    e(x)⁻¹·a from its own source α(a), from ``x``, ``a``)."""
     q = list(fs.base)
     x = [sp.Dummy(f"x{i}", real=True) for i in range(G.rank)]
-    params = list(step.parameters)
+    params = list(parameters)
     e = G.arrow_from(tuple(q), G.fibre_chart(tuple(x), tuple(q)))
     psi = [c.xreplace(dict(zip(q, G.target(e)))) for c in fs.holonomic]
     a = [sp.Dummy(f"a{i}", real=True) for i in range(G.arrow_dim)]
@@ -196,9 +203,9 @@ def source_projection_program(step) -> Program:
     g = Graph()
     symbols = {s: g.input(s) for s in (*x, *q, *params, *a)}
     memo: dict = {}
-    psi_nodes = _nodes(g, psi, symbols, f"{step.name}: the holonomic constraints", memo)
+    psi_nodes = _nodes(g, psi, symbols, f"{name}: the holonomic constraints", memo)
     J = step_jacobian(g, psi_nodes, [symbols[s] for s in x])
     outputs = {"psi": psi_nodes, "J": [c for row in J for c in row],
-               "moved": _nodes(g, moved, symbols, f"{step.name}: the moved arrow", memo)}
+               "moved": _nodes(g, moved, symbols, f"{name}: the moved arrow", memo)}
     return Program(g, {"x": x, "q": q, "p": params, "a": a}, outputs)
 

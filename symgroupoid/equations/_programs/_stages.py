@@ -13,17 +13,26 @@ from ..._errors import DiagnosticsError
 
 _EPS = float(np.finfo(float).eps)
 
+#: a Newton update at most this size (relative to the iterate) that is not 10 times smaller
+#: than the one before it is rounding: quadratic convergence has ended at a solution (the
+#: rule of the initial-state solves, runtime/_newton.py, and of the stage solves here)
+ROUNDING_UPDATE = 1e-9
+
 
 def solve_stages(rows: Callable, known: np.ndarray, p: np.ndarray, n_stages: int,
                  name: str, max_iterations: int = 50) -> np.ndarray:
     """ζ* at every arrow, shape (n_stages, R): Newton from ζ = 0 on ``rows(known, zeta, p)
     -> (F, J)`` (F the stage rows (n_stages, R), J their Jacobian ∂F/∂ζ row-major
-    (n_stages², R)), all arrows at once (``known`` (n, R)).  It stops when every update is at
-    the rounding level of ζ; a :class:`DiagnosticsError` where it does not converge (a
-    singular Jacobian, a non-finite iterate, or no convergence in ``max_iterations``): never
-    values at a non-solution."""
+    (n_stages², R)), all arrows at once (``known`` (n, R)).  It stops when every arrow's
+    update is at the rounding level of ζ, or is rounding by the rule of the initial-state
+    solves: below :data:`ROUNDING_UPDATE` relative and no longer shrinking (the interior
+    multipliers of a constrained Galerkin arrow, docs/conventions.md §22, are found from
+    rows of size 1/h and stall some tens of ulps from their root); a
+    :class:`DiagnosticsError` where it does not converge (a singular Jacobian, a non-finite
+    iterate, or no convergence in ``max_iterations``): never values at a non-solution."""
     R = known.shape[1]
     zeta = np.zeros((n_stages, R))
+    before = np.full(R, np.inf)
     for _ in range(max_iterations):
         with np.errstate(all="ignore"):
             F, J = rows(known, zeta, p)
@@ -37,11 +46,13 @@ def solve_stages(rows: Callable, known: np.ndarray, p: np.ndarray, n_stages: int
         zeta = zeta - delta
         if not np.isfinite(zeta).all():
             break
-        if (np.abs(delta) <= 8 * _EPS * np.maximum(1.0, np.abs(zeta))).all():
+        size = (np.abs(delta) / np.maximum(1.0, np.abs(zeta))).max(axis=0, initial=0.0)
+        if ((size <= 8 * _EPS) | ((size <= ROUNDING_UPDATE) & (size > 0.1 * before))).all():
             return zeta
+        before = size
     raise DiagnosticsError(f"{name}: the internal stages of some arrow could not be solved "
                            f"(∂L/∂ζ = 0 has no root near ζ = 0 there, docs/conventions.md "
                            f"§22)")
 
 
-__all__ = ["solve_stages"]
+__all__ = ["ROUNDING_UPDATE", "solve_stages"]
