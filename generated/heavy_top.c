@@ -143,7 +143,7 @@ void heavy_top_residual_hoisted(const double *u, const double *known, const doub
     (void)h;
     const double t0 = u[1]*u[0];
     const double t1 = 2.0*u[2];
-    const double t2 = 2.0/(4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0]);
+    const double t2 = 2.0*(1.0/(4.0 + u[2]*u[2] + u[1]*u[1] + u[0]*u[0]));
     const double t3 = u[2]*u[0];
     const double t4 = 2.0*u[1];
     const double t5 = u[2]*u[1];

@@ -168,7 +168,7 @@ void satellite_wheel_residual_hoisted(const double *u, const double *known, cons
     const double t17 = t4*t16;
     const double t18 = t4*h[0]*p[2];
     const double t19 = 2.0*t4*h[0]*h[1];
-    const double t20 = t18*t10 + t4*0.5*t16*(t3 + t1 - t2) + 0.5*t16*t4*(t3 - t1 + t2) + t18*t7;
+    const double t20 = t18*t10 + t4*0.5*t16*(t3 + t1 - t2) + 0.5*t16*(t4*(t3 - t1 + t2)) + t18*t7;
     const double t21 = h[4] + (t17*t13 + t18*t14 + t19*(t12 - t11));
     const double t22 = -t21;
     const double t23 = -(t18*t13 - t17*t14 + t19*(t9 + t8));
@@ -244,8 +244,8 @@ void satellite_wheel_residual_jacobian_hoisted(const double *u, const double *kn
     const double t45 = t6*u[2]*t27;
     const double t46 = t6*h[3];
     const double t47 = t46*t20;
-    const double t48 = p[2]*h[0]*t21;
-    const double t49 = h[0]*t6*p[2];
+    const double t48 = p[2]*(h[0]*t21);
+    const double t49 = h[0]*(t6*p[2]);
     const double t50 = -2.0*t49;
     const double t51 = h[2]*t19;
     const double t52 = t39*u[0]*4.0;
@@ -259,7 +259,7 @@ void satellite_wheel_residual_jacobian_hoisted(const double *u, const double *kn
     const double t60 = h[2]*t14;
     const double t61 = t11*u[2];
     const double t62 = t61*h[2];
-    const double t63 = p[2]*h[0]*t15;
+    const double t63 = p[2]*(h[0]*t15);
     const double t64 = -u[1]*t49;
     const double t65 = t33*h[3]*t16;
     const double t66 = 0.5*h[3]*t7;
@@ -357,14 +357,14 @@ void satellite_wheel_residual_scale(const double *u, const double *known, const 
     const double t21 = (4.0 + t14*t14)*fabs(-1.0/(t1*t1)) + fabs(1.0/t1);
     const double t22 = fabs(t2);
     const double t23 = fabs(t3);
-    const double t24 = (4.0*t14*t21 + 2.0*t16*t17)*fabs(t9);
+    const double t24 = (4.0*t14*t21 + 2.0*(t16*t17))*fabs(t9);
     const double t25 = t16*t24;
-    const double t26 = fabs(p[2])*t16*t22;
+    const double t26 = fabs(p[2])*(t16*t22);
     const double t27 = fabs(-t8*known[2] + t7*known[5] - t5*known[7]);
     const double t28 = fabs(t7*known[1] + t8*known[0] + t8*known[4] - t7*known[3]);
     const double t29 = t27 + (t18*t25 + t19*t26 + 2.0*t16*t19*t22*t23);
     const double t30 = fabs(t7*known[2] + t8*known[5] - t5*known[6]) + (t18*t26 + t19*t25 + 2.0*t16*t18*t22*t23);
-    const double t31 = t28 + (0.5*t15*t16*t24 + 0.5*t15*t16*t24 + 2.0*t17*t26);
+    const double t31 = t28 + (0.5*t15*t16*t24 + 0.5*(t15*t16)*t24 + 2.0*(t17*t26));
     const double t32 = fabs(t9*t4*known[12]) + t20*t20*t21*t24 + fabs(-(t10*known[13] + t10*known[14]));
     S[0] = t29;
     S[1] = t30;
@@ -382,7 +382,7 @@ void satellite_wheel_predict(const double *known, const double *p, double *u)
     const double t1 = -t0*(2.0*known[5] - 2.0*known[7]);
     const double t2 = t0*(-2.0*known[6] + 2.0*known[2]);
     const double t3 = -t0*(2.0*known[1] - 2.0*known[3]);
-    const double t4 = (-2.0*known[11] + 2.0*known[10])/(2.0 + known[9] + known[12]);
+    const double t4 = (-2.0*known[11] + 2.0*known[10])*(1.0/(2.0 + known[9] + known[12]));
     const double t5 = -t4;
     u[0] = t1;
     u[1] = t2;

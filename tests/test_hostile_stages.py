@@ -215,7 +215,8 @@ def test_input_jacobian_hostile(run):
         known = sim.state(STATE if argument != "state" else value, p).copy()
         known[sim.layout.upcoming_index] = np.asarray(
             U_NEXT if argument != "inputs" else value, float).ravel()
-        x = (np.asarray(value, float).ravel() if argument == "unknowns"
+        given = argument == "unknowns" and value is not None  # None: at the solution
+        x = (np.asarray(value, float).ravel() if given
              else sim.solve(known, p, inputs=known[sim.layout.upcoming_index])[0])
         assert np.array_equal(J, step.input_jacobian(x, known, p))
 

@@ -2,8 +2,8 @@
 
 One formatter serves both languages so that the compiled kernels and the NumPy backend
 perform the same floating-point operations in the same order: sums and products left to
-right in node order, integer powers as repeated products, reciprocals as divisions
-(``a*b/c`` for a product with a factor c⁻¹).  A small node used once, and not an output, is
+right in node order (a later factor or term that is itself a product or a sum in
+parentheses), integer powers as repeated products, a reciprocal as ``1.0/c``.  A small node used once, and not an output, is
 written inline into its single user (evaluation order and rounding are unchanged: kernels are
 compiled with ``-ffp-contract=off``); every other node is *named* (a temporary).
 
@@ -169,21 +169,21 @@ class _Writer:
         return self.d.function(g.data[n], args), ATOM
 
     def _product(self, a) -> tuple[str, int]:
+        """The factors left to right in node order, each later one that is itself a
+        product, a quotient or a sum in parentheses: ((a·b)·c) is computed whatever was
+        inlined, so a value rounds the same whether its factors are named or written in
+        place (an inlined reciprocal is the factor (1.0/c), never a division by c)."""
         g = self.g
-        num, den, negative = [], [], False
+        factors, negative = [], False
         for x in a:
             if g.op[x] == CONST and g.data[x].is_negative and g.data[x].is_Rational:
                 negative = True
                 if g.data[x] != -1:
-                    num.append((self.d.constant(-g.data[x]), ATOM))
-            elif g.op[x] == POW and g.data[x] == -1 and x in self.inlined:
-                den.append(self.atom(g.args[x][0]))
+                    factors.append((self.d.constant(-g.data[x]), ATOM))
             else:
-                num.append(self.atom(x))
-        text = "*".join(_wrap(t, lvl, PRODUCT + (1 if t.startswith("-") else 0))
-                        for t, lvl in num) or "1.0"
-        if den:
-            text += "/" + "/".join(_wrap(t, lvl, ATOM) for t, lvl in den)
+                factors.append(self.atom(x))
+        text = "*".join(_wrap(t, lvl, ATOM if k else PRODUCT + (1 if t.startswith("-") else 0))
+                        for k, (t, lvl) in enumerate(factors)) or "1.0"
         return ("-" + text if negative else text), PRODUCT
 
     def _power(self, base: int, e: sp.Expr) -> tuple[str, int]:
