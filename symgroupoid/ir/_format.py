@@ -3,9 +3,10 @@
 One formatter serves both languages so that the compiled kernels and the NumPy backend
 perform the same floating-point operations in the same order: sums and products left to
 right in node order (a later factor or term that is itself a product or a sum in
-parentheses), integer powers as repeated products, a reciprocal as ``1.0/c``.  A small node used once, and not an output, is
-written inline into its single user (evaluation order and rounding are unchanged: kernels are
-compiled with ``-ffp-contract=off``); every other node is *named* (a temporary).
+parentheses), integer powers as repeated products, a reciprocal as ``1.0/c``.  A small node
+used once, and not an output, is written inline into its single user (evaluation order and
+rounding are unchanged: kernels are compiled with ``-ffp-contract=off``); every other node is
+*named* (a temporary).
 
 The plan — which nodes are named, in which order — is structural (:func:`plan`), so that a
 caller can assign names (locals, or slots of a work array shared between the parts of a
