@@ -121,7 +121,8 @@ def interpret(program: Program, outputs: Sequence[str], inputs: Sequence[str], *
     graph node by node with NumPy — the operations of :meth:`Program.numpy_function`, bit for
     bit (``tests/test_format_inlining.py``), without printing and compiling code first.  For
     a few evaluations of a large program (a derivation's regularity samples) this is the
-    cheaper way; for many, the compiled function is.  Returns a tuple of arrays of shape (m,) or (m, B)."""
+    cheaper way; for many, the compiled function is.  Returns a tuple of arrays of shape
+    (m,) or (m, B)."""
     from ._format import NUMPY
     from ._libm import namespace as libm_namespace
 
