@@ -178,3 +178,33 @@ def test_symbols_print_in_paper_notation(plate_ball_step):
     g = plate_ball_step.symbol("g", "k")
     assert sg.latex(g[0, 1]) == "(g_{k})_{12}"
     assert re.search(r"x_\{k-1\}", plate_ball_step.latex())
+
+
+# --- what is too large to write out ---------------------------------------------------------
+
+def test_expanded_size_counts_a_shared_node_at_every_use():
+    """x·x + (x·x)·y: the graph has 3 operations (x·x once), the written-out formula 4."""
+    from symgroupoid.ir import Graph, Program
+
+    x, y = sp.symbols("x y")
+    g = Graph()
+    square = g.mul(g.input(x), g.input(x))
+    total = g.add(square, g.mul(square, g.input(y)))
+    program = Program(g, {"z": [x, y]}, {"out": [total]})
+    assert program.size(["out"]) == 3 and program.expanded_size(["out"]) == 4
+
+
+def test_a_step_too_large_to_write_out_is_refused_at_once():
+    """A free rigid body discretised at order 4 on SO(3): about 2 000 operations in its
+    graph, 10⁹ written out (every stage shares the retraction's subexpressions); printing
+    never finished.  Refused at once, naming the sizes and the limit."""
+    from symgroupoid.equations._printing import PRINT_LIMIT
+
+    J = sp.diag(1, 2, 3)
+    h = sp.Symbol("h", positive=True)
+    body = sg.ContinuousSystem(sg.SO3("R"), lambda R, xi: (xi.T * J * xi)[0, 0] / 2,
+                               parameters=[h])
+    step = body.discretize(h, sg.GaussLegendre(2)).euler_lagrange()
+    assert step.program.expanded_size(["F"]) > 100 * PRINT_LIMIT
+    with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
+        step.latex()

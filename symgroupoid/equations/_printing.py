@@ -26,6 +26,7 @@ from collections.abc import Mapping, Sequence
 
 import sympy as sp
 
+from .._errors import UnsupportedExpressionError, UnsupportedFeatureError
 from ..derivation import PieceRule
 from ._abbreviations import (
     Abbreviation,
@@ -54,12 +55,42 @@ from ._stage_forms import stage_form
 _PRINTED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+#: operations of a step's residuals written out as expression trees
+#: (:meth:`~symgroupoid.ir.Program.expanded_size`) above which they are not printed: every
+#: printed form is derived from and checked against the written-out residuals, whose cost
+#: grows with that size (measured: the 3D chain of 8 bodies, 1.2e5 operations, 10 s; the
+#: planar chain of 16 links, 2.2e5, 48 s), while a continuous system discretised on a Lie
+#: group shares its stages' subexpressions so much that 2 000 graph operations write out
+#: to 10⁹ (the heavy top at order 4, whose printing never finished)
+PRINT_LIMIT = 1_000_000
+
+
+def check_printable(step) -> None:
+    """An :class:`~symgroupoid.UnsupportedFeatureError`, at once, for a step whose residuals
+    written out exceed :data:`PRINT_LIMIT` operations (printing them would not finish).  A
+    step of an undefined function (an arbitrary L) has no program and is printed from
+    SymPy alone."""
+    try:
+        program = step.program
+    except UnsupportedExpressionError:
+        return
+    size = program.expanded_size(["F"])
+    if size > PRINT_LIMIT:
+        raise UnsupportedFeatureError(
+            f"{step.name}: its equations written out as formulas have {size:.2e} operations "
+            f"({program.size(['F'])} in the shared graph its kernels evaluate), more "
+            f"than the {PRINT_LIMIT:.0e} that can be printed and checked: LaTeX is not "
+            f"produced for it.  Its kernels, diagnostics and verification do not write "
+            f"them out and are unaffected")
+
+
 def printed_step(step, abbreviations: Mapping | None = None,
                  width: float | None = None) -> PrintedRows:
     """The rows of the step's equations in their chosen verified printed form
     (:func:`chosen_form`); abbreviations that do not occur in it are reported with an
     :class:`UnusedAbbreviationWarning`."""
     width = check_width(width)
+    check_printable(step)
     checked = abbreviations_of(abbreviations, step)
     printed = chosen_printed(step, abbreviations)
     unused = unused_abbreviations(printed, checked)

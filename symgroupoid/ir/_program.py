@@ -46,6 +46,18 @@ class Program:
         """Number of operations (non-leaf nodes) the named outputs need."""
         return sum(1 for n in self.nodes(names) if self.graph.args[n])
 
+    def expanded_size(self, names: Sequence[str] | None = None) -> int:
+        """Number of operations of the named outputs written out as expression trees, a
+        node counted at every use (what printing them as formulas costs; :meth:`size`
+        counts each once).  Exact, in integers, however large."""
+        g = self.graph
+        outputs = [n for k in (list(self.outputs) if names is None else names)
+                   for n in self.outputs[k]]
+        size: dict = {}
+        for n in g.reachable(outputs):
+            size[n] = 1 + sum(size[a] for a in g.args[n]) if g.args[n] else 0
+        return sum(size[n] for n in outputs)
+
     def compacted(self) -> Program:
         """The same outputs over a new graph with fewer operations
         (:func:`~symgroupoid.ir.compact`: one node for S and −S, shared prefixes of products
