@@ -2,8 +2,8 @@
 group factor"): the rows written in the stage attitudes R_{k,i} = R_{k−1}τ(X_{k,i}), the
 chart values X_{k,i} = h Σ_j a_ij V_{k,j}, the chart velocities V_{k,i} and the body
 velocities Ξ_{k,i} = dτ_{X_{k,i}}(V_{k,i}), with the trivialised derivatives of L at the
-nodes, equal the step's residual at points of the group, for SO(3) (a heavy top) and a
-product SO(3) × R, with GaussLegendre(2) and LobattoIIIAB(3); and a step on a group is not
+nodes, equal the step's residual at points of the group, for SO(3) (a heavy top), SO(3) × R
+and SO(3) × SO(3), with GaussLegendre(2) and LobattoIIIAB(3); and a step on a group is not
 offered the printed stage form (its rows hold on the group only, where the exact check of
 docs/conventions.md §22 cannot be made: see there)."""
 
@@ -30,12 +30,22 @@ def _top_on_a_spring(q, v):
         - k * y[0] ** 2 / 2
 
 
+def _two_bodies(q, v):
+    """Two rigid bodies under gravity joined by an attitude spring (SO(3) × SO(3))."""
+    (R, S), (xi, eta) = q, v
+    return (xi.T * J * xi)[0, 0] / 2 + (eta.T * J * eta)[0, 0] / 2 \
+        - mgl * (R[2, 2] + S[2, 0]) + k * (R.T * S).trace()
+
+
 SYSTEMS = {
     "top": lambda: sg.ContinuousSystem(sg.SO3("R"), _top, parameters=[h, mgl, *J.diagonal()],
                                        name="top"),
     "top_on_a_spring": lambda: sg.ContinuousSystem(
         [sg.SO3("R"), sg.EuclideanSpace("y")], _top_on_a_spring,
         parameters=[h, mgl, k, *J.diagonal()], name="spring_top"),
+    "two_bodies": lambda: sg.ContinuousSystem(
+        [sg.SO3("R"), sg.SO3("S")], _two_bodies, parameters=[h, mgl, k, *J.diagonal()],
+        name="two_bodies"),
 }
 
 
@@ -177,10 +187,12 @@ def _stage_notation(continuous, scheme, point: dict) -> np.ndarray:
 
 def _random_point(continuous, scheme, rng) -> tuple[dict, np.ndarray, np.ndarray]:
     """Arrows (a, b), (b, c) on Q (group elements in the group), stages, and the kernel's
-    knowns and unknowns for them (knowns factor after factor: source, target)."""
+    knowns and unknowns for them (knowns factor after factor, source then target; on a
+    product of groups, its pair groupoid's: the sources, then the targets)."""
     factors = [_Factor(f) for f in continuous.factors]
     n_inner = scheme.tableau().interior * sum(f.dim for f in factors)
     a, b, d0, d1, known, unknown = [], [], [], [], [], []
+    targets: list = []
     for f in factors:
         start = (f.along(np.eye(f.f.space.n), rng.uniform(-0.6, 0.6, f.dim))
                  if f.f.is_group else rng.uniform(-1, 1, f.dim))
@@ -189,8 +201,13 @@ def _random_point(continuous, scheme, rng) -> tuple[dict, np.ndarray, np.ndarray
         b.append(f.along(start, first))
         d0.append(first)
         d1.append(second)
-        known += [*np.ravel(a[-1]), *np.ravel(b[-1])]
+        if continuous.product and all(e.is_group for e in continuous.factors):
+            known += list(np.ravel(a[-1]))
+            targets += list(np.ravel(b[-1]))
+        else:
+            known += [*np.ravel(a[-1]), *np.ravel(b[-1])]
         unknown += list(second if f.f.is_group else b[-1] + second)
+    known += targets
     z0, z1 = rng.uniform(-0.05, 0.05, n_inner), rng.uniform(-0.05, 0.05, n_inner)
     point = {"a": a, "b": b, "d0": d0, "d1": d1, "z0": z0, "z1": z1}
     return point, np.array(known), np.array([*unknown, *z0, *z1])
