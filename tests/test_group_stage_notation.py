@@ -14,6 +14,9 @@ import sympy as sp
 import symgroupoid as sg
 from symgroupoid.equations._stage_forms import stage_form
 
+#: 14 s of numerical checks of the notation in docs/conventions.md §22: with the slow tests
+pytestmark = pytest.mark.slow
+
 h, mgl, k = sp.symbols("h mgl k", positive=True)
 J = sp.diag(*sp.symbols("I1:4", positive=True))
 VALUES = {"h": 0.1, "mgl": 1.3, "k": 0.7, "I1": 1.0, "I2": 1.7, "I3": 2.3}
