@@ -153,7 +153,7 @@ class KnownResult:
             return False
 
 
-KNOWN_RESULTS: list[KnownResult] = []  # none open: the one listed was fixed, its test kept
+KNOWN_RESULTS: list[KnownResult] = []  # none open: those listed were fixed, their tests kept
 
 
 def named(message: str, names: Sequence[str]) -> bool:

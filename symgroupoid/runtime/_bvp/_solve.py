@@ -14,12 +14,15 @@ import time
 import numpy as np
 
 from ..._errors import (
+    BranchJumpError,
+    DiagnosticsError,
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
     UnsupportedFeatureError,
 )
 from ..._progress import reported
+from ...equations import solve_stages, stage_rows_program
 from .._validate import check_holonomic_nodes, integer_argument, parameter_vector, real_argument
 from ._fast import _fast_newton, _Handover, _restart_points
 from ._globalised import _globalised_after
@@ -151,12 +154,49 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
             iterate=arrows)
     inertia = _solve(state, minimum)
     multipliers, stages = state.lam[:, :m], state.lam[:, m:]
+    if n_stages:
+        _check_stage_branch(system, state.arrows, stages, table, p, owner)
     return BoundaryValueSolution(
         system, state.arrows, multipliers, data.configurations[0], named, state.iterations,
         state.history[-1], state.history, time.perf_counter() - t0,
         cost=problem.cost(state.arrows, p, stages), second_order=inertia,
         method=" → ".join(state.methods), inputs=table if table.shape[1] else None,
         forced=forced, stages=stages if n_stages else None)
+
+
+#: how far (relative to 1 + |ζ|) the solution's stages may lie from those the chord's
+#: Newton reaches: both are roots of the same rows to rounding when they are one root
+STAGE_BRANCH_TOLERANCE = 1e-6
+
+
+def _check_stage_branch(system, arrows, stages, table, p, owner: str) -> None:
+    """A :class:`BranchJumpError` unless the solution's stages are, at every arrow, the root
+    of its stage rows that the discrete Lagrangian is defined by: the one Newton reaches
+    from ζ = 0, the chord (docs/conventions.md §22; the initial-value step starts its
+    stages there too).  The boundary-value iteration moves arrows and stages together, and a
+    large motion can carry an arrow's stages to another root of its rows: a stationary path
+    of Σ L(g_k, ζ_k) on another branch, not a solution of L_d."""
+    rows = stage_rows_program(system).numpy_function(["F", "J"], ["a", "z", "u", "p"])
+    A = np.ascontiguousarray(np.asarray(arrows, float).T)
+    U = np.ascontiguousarray(np.asarray(table, float).T)
+    P = np.asarray(p, float)[:, None]
+    try:
+        near = solve_stages(lambda known, z, p_: rows(known, z, U, p_), A, P,
+                            stages.shape[1], owner).T
+    except DiagnosticsError:
+        near = np.full_like(stages, np.nan)
+    far = ~(np.abs(near - stages) <= STAGE_BRANCH_TOLERANCE * (1.0 + np.abs(stages)))
+    if far.any():
+        k = int(np.flatnonzero(far.any(axis=1))[0])
+        reached = (f"which Newton reaches from the chord ζ = 0 ({near[k].tolist()})"
+                   if np.isfinite(near[k]).all() else
+                   "and Newton reaches none from the chord ζ = 0")
+        raise BranchJumpError(
+            f"{owner}: the solution's internal stages at arrow {k} ({stages[k].tolist()}) "
+            f"solve its stage rows at another root than the one the discrete Lagrangian is "
+            f"defined by, {reached} (docs/conventions.md §22): a stationary path on another "
+            f"branch, not a solution.  Take more steps (a smaller h) so that each arrow's "
+            f"motion stays small, or give a guess", step=k, iterate=np.asarray(arrows))
 
 
 #: why a problem with internal stages has no descent method on the action (§22)
