@@ -12,6 +12,9 @@ import pytest
 import sympy as sp
 
 import symgroupoid as sg
+
+# white-box: that the printer does not offer the group rows is stage_form's answer, which
+# no public name gives
 from symgroupoid.equations._stage_forms import stage_form
 
 #: 14 s of numerical checks of the notation in docs/conventions.md §22: with the slow tests

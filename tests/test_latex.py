@@ -198,7 +198,7 @@ def test_a_step_too_large_to_write_out_is_refused_at_once():
     """A free rigid body discretised at order 4 on SO(3): about 2 000 operations in its
     graph, 10⁹ written out (every stage shares the retraction's subexpressions); printing
     never finished.  Refused at once, naming the sizes and the limit."""
-    from symgroupoid.equations._printing import PRINT_LIMIT
+    from symgroupoid.equations import PRINT_LIMIT
 
     J = sp.diag(1, 2, 3)
     h = sp.Symbol("h", positive=True)

@@ -22,6 +22,7 @@ from ._kinetic import DEGENERATE_KINETIC
 from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines, latex
 from ._layout import PAGE_WIDTH
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
+from ._printing import PRINT_LIMIT
 from ._programs import (
     PROJECTED,
     ROUNDING_UPDATE,
@@ -68,6 +69,8 @@ __all__ = [
     "GalerkinTableau", "MAX_NODES", "gauss_legendre_tableau", "lobatto_tableau",
     # pt: the text width of a LaTeX document, and the default width of the printed lines
     "PAGE_WIDTH",
+    # operations of the written-out residuals above which a step is not printed
+    "PRINT_LIMIT",
     # the causes a DegenerateSystemError names (its ``causes``, each finding's ``cause``)
     "DEGENERATE_KINETIC", "DEPENDENT_CONSTRAINTS", "IDENTICALLY_ZERO", "NOT_REGULAR",
     "NO_UNKNOWN", "UNDETERMINED_MULTIPLIER", "UNUSED_UNKNOWN",
