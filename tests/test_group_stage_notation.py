@@ -253,15 +253,22 @@ def test_the_group_stage_notation_is_the_residual(name, scheme, tmp_path):
         assert np.max(np.abs(written - residual)) < 1e-13 * max(1.0, np.max(np.abs(residual)))
 
 
-def test_a_term_left_out_is_seen(monkeypatch, tmp_path):
-    """The check can fail: without the curvature ∂_X(dτ_X V)ᵀM of the chart the rows
-    differ from the residual."""
+def _top_at_a_point(tmp_path):
+    """The top at order 4 (GaussLegendre(2)): its continuous system, the scheme, the NumPy
+    kernel, the parameters and a random point (point, known, unknown) of seed 5."""
     continuous = SYSTEMS["top"]()
     scheme = sg.GaussLegendre(2)
     step = continuous.discretize(h, scheme).euler_lagrange()
     kernel = step.compile(backend="numpy", cache_dir=tmp_path).kernel
     p = np.array([VALUES[str(s)] for s in step.parameters])
-    point, known, unknown = _random_point(continuous, scheme, np.random.default_rng(5))
+    return continuous, scheme, kernel, p, _random_point(continuous, scheme,
+                                                         np.random.default_rng(5))
+
+
+def test_a_term_left_out_is_seen(monkeypatch, tmp_path):
+    """The check can fail: without the curvature ∂_X(dτ_X V)ᵀM of the chart the rows
+    differ from the residual."""
+    continuous, scheme, kernel, p, (point, known, unknown) = _top_at_a_point(tmp_path)
     monkeypatch.setattr(_Factor, "curvature", lambda self, x, v: np.zeros((self.dim,) * 2))
     written = _stage_notation(continuous, scheme, point)
     assert np.max(np.abs(written - kernel.residual(unknown, known, p))) > 1e-3
@@ -273,12 +280,7 @@ def test_the_junction_rows_hold_on_the_group_only(tmp_path):
     equal the residual, the junction rows (which need dτ⁻¹_{Δ_k}, the derivative of that
     closed form on the group only) do not — why the exact check in the free entries of the
     attitudes cannot hold (docs/conventions.md §22)."""
-    continuous = SYSTEMS["top"]()
-    scheme = sg.GaussLegendre(2)
-    step = continuous.discretize(h, scheme).euler_lagrange()
-    kernel = step.compile(backend="numpy", cache_dir=tmp_path).kernel
-    p = np.array([VALUES[str(s)] for s in step.parameters])
-    point, known, unknown = _random_point(continuous, scheme, np.random.default_rng(5))
+    continuous, scheme, kernel, p, (point, known, unknown) = _top_at_a_point(tmp_path)
     G = continuous.factors[0].space
     a = 1.01 * point["a"][0]
     entries = sp.symbols("w0:9")
