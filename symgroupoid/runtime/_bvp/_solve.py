@@ -45,9 +45,11 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     First order: ``start`` and ``end`` are the end configurations (pair groupoid: points;
     Lie group: matrices; products: tuples).  Second order: ``start = (c₀, c₁)`` and
     ``end = (c_{N−1}, c_N)``, fixing the first and last arrows too.  ``guess``: N arrows
-    (N, arrow_dim), optionally with multipliers as ``(arrows, multipliers)``; default: the
-    geodesic interpolation of :func:`interpolate_arrows` (it avoids the Cayley chart's cut
-    locus, so a half-turn between the ends is solved) and zero multipliers.
+    (N, arrow_dim), optionally with multipliers as ``(arrows, multipliers)``, composable and
+    joining ``start`` to ``end`` to rounding (the solution keeps the guess's ends: a
+    ``NotComposableError`` otherwise); default: the geodesic interpolation of
+    :func:`interpolate_arrows` (it avoids the Cayley chart's cut locus, so a half-turn
+    between the ends is solved) and zero multipliers.
 
     Every input is checked before any solve, as :meth:`Simulator.simulate` checks its own
     (runtime/_validate.py): the counts, the parameters (by name, with their declared
