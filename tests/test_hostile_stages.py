@@ -329,8 +329,29 @@ def _check_stage_solution(system, start, end, U_meant):
             report = sg.verify_stationary(sol, system)
         except DiagnosticsError as err:
             raise AssertionError(f"not verified: {err}") from err
-        assert report, report
+        if not report:  # its central differences need a motion they resolve: at 145 rad per
+            # step (a start of −1450 rad) they do not, so the step equations decide, each
+            # junction's residual at the rounding of its terms
+            worst = _stage_step_residuals(sol)
+            assert worst <= 1e3, (report, worst)
     return verify
+
+
+def _stage_step_residuals(sol) -> float:
+    """max over the junctions of |F|∞ / (ε |S|∞): the simulator's step residual at the
+    solution's arrows, stages and inputs (F of the step program, S the size of its terms)."""
+    _, sim, _, _ = forced_stage_problem()
+    arrows, stages = np.asarray(sol.arrows, float), np.asarray(sol.stages, float)
+    inputs = np.asarray(sol.inputs, float).reshape(len(arrows), -1)
+    p = sim.parameters(PEND)
+    f = sim.equations.program.numpy_function(["F", "F_scale"], ["u", "known", "p"])
+    worst = 0.0
+    for k in range(len(arrows) - 1):
+        known = np.r_[arrows[k], inputs[k], inputs[k + 1]]
+        unknown = np.r_[arrows[k + 1, 2:], stages[k], stages[k + 1]]
+        F, S = f(unknown, known, p)
+        worst = max(worst, float(np.abs(F).max() / (np.finfo(float).eps * np.abs(S).max())))
+    return worst
 
 
 def _floats(value, shape) -> np.ndarray | None:
