@@ -79,3 +79,12 @@ def test_every_public_callable_refuses_junk_by_name(name, run):
               [name, *required, *keywords])
 
     check()
+
+
+def test_a_rational_is_not_a_product_of_factors():
+    """Found by the sweep: SymPy's Rational has a method ``factors``, which was taken for a
+    product's tuple of factors (TypeError: 'method' object is not iterable)."""
+    import sympy as sp
+
+    with pytest.raises(sg.SymgroupoidError, match="AtiyahGroupoid"):
+        sg.AtiyahGroupoid(sp.Rational(1, 3), [])

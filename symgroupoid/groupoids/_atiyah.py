@@ -51,8 +51,8 @@ def manifold_factors(Q) -> list:
         for f in Q:
             out.extend(manifold_factors(f))
         return out
-    factors = getattr(Q, "factors", None)
-    if factors is not None and not isinstance(Q, (MatrixLieGroup, EuclideanSpace)):
+    factors = getattr(Q, "factors", None)  # a product's tuple (not, e.g., Rational.factors)
+    if isinstance(factors, (list, tuple)) and not isinstance(Q, (MatrixLieGroup, EuclideanSpace)):
         return manifold_factors(tuple(factors))
     return [Q]
 
