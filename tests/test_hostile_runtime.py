@@ -389,3 +389,17 @@ def test_compile_step_arguments(run):
 
     prop()
 
+
+
+def test_from_momentum_where_its_terms_overflow_is_refused():
+    """Found by the thorough profile: at a configuration of 1e308 (h = 0.1) the terms of
+    F⁻L exceed the largest double and the momentum 0.5 lies below their rounding; Newton
+    stopped on its relative update and returned a state whose F⁻L was 6.9e291.  Refused
+    now, naming the configuration; a large but representable one is still solved."""
+    case = case_of("oscillator")
+    config0, momentum0 = case.momentum
+    with pytest.raises(sg.DomainError, match="at this configuration the terms of F⁻L overflow"):
+        case.sim.from_momentum({k: 1e308 for k in config0}, momentum0, case.params)
+    state = case.sim.from_momentum({k: 1e6 for k in config0}, momentum0, case.params)
+    minus = case.sim.simulate(state, 0, case.params).momenta().minus[0]
+    assert abs(minus[0] - momentum0[0]) <= 1e-6

@@ -15,7 +15,7 @@ replaced by p₀, so the system is regular exactly where the step is.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -142,10 +142,26 @@ class MomentumInitializer:
         z = newton(residual, z, tol, max_iterations, self.name, _SOLVING,
                    "F⁻L is not invertible at this configuration (singular Jacobian)",
                    _NOT_FOUND)
+        _check_representable(residual, z, p, self.name)
         state = np.empty(self.layout.n_known)
         state[self.arrow_pos] = np.asarray(self._arrow(z, q)[0], float).ravel()
         state[self.lam_pos] = z[self.rank + self.n_stages:]
         return state
+
+
+def _check_representable(residual: Callable, z: np.ndarray, p: np.ndarray, name: str) -> None:
+    """A :class:`DomainError` where the solution's F⁻L terms overflow: Newton stops on a
+    relative update, and at a configuration of 10³⁰⁸ (h = 0.1) the terms Σ_j |∂F/∂z_j||z_j|
+    exceed the largest double, so the momentum (0.5 there) is below their rounding and the
+    state returned had F⁻L = 6.9·10²⁹¹: no state represents the momentum there."""
+    F, J = residual(z)
+    with np.errstate(over="ignore", invalid="ignore"):
+        terms = np.abs(J) @ np.abs(z)
+    if not (np.isfinite(terms).all() and np.isfinite(F).all()):
+        raise DomainError(f"{name}: at this configuration the terms of F⁻L overflow (their "
+                          f"size exceeds the largest double), so no initial state represents "
+                          f"the momentum {p.tolist()} there: give a configuration of the size "
+                          f"the system is meant for")
 
 
 class SecondOrderMomentumInitializer:
