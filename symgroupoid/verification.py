@@ -31,9 +31,9 @@ import sympy as sp
 
 from ._arguments import input_rows, integer_argument, real_argument, real_array
 from ._errors import DomainError, ShapeError, UnsupportedFeatureError
-from .equations import action_program, solve_stages, stage_rows_program, structure_program
+from .equations import action_program, solve_stages, structure_program
 from .groupoids import Groupoid
-from .ir import Graph, Program, from_sympy
+from .ir import Graph, Program, forward, from_sympy, gradient
 from .runtime import parameter_vector, system_argument
 
 
@@ -147,9 +147,39 @@ def action(system, arrows: np.ndarray, multipliers: np.ndarray | None, params: S
     return float(action_terms(system, arrows, multipliers, params, stages).sum())
 
 
+def _stage_program(system) -> Program:
+    """The stage rows of one term from the system's own L(g, ζ) and forces
+    (docs/conventions.md §22), independent of the derived equations: ∂L/∂ζ + f_ζ (reverse
+    mode) and their Jacobian ∂/∂ζ (forward mode, row-major); inputs ``a`` (the arrow's
+    coordinates), ``z`` (ζ), ``u`` (the term's inputs), ``p`` (the parameters)."""
+    fs = _functions(system)
+    forces = fs.forces
+    g = Graph()
+    coords = list(fs.slots[0])
+    nodes = {x: g.input(x) for x in (*coords, *fs.stages, *system.parameters)}
+    inputs = list(forces.inputs) if forces is not None else []
+    nodes.update({x: g.input(x) for x in inputs})
+    memo: dict = {}
+    L = from_sympy(g, fs.lagrangian, nodes, f"{system.name}: the Lagrangian", memo)
+    zeta = [nodes[z] for z in fs.stages]
+    rows = gradient(g, L, zeta)
+    if forces is not None and forces.stage_forces:
+        symbols = dict(nodes)
+        symbols.update(zip(forces.slots[0], [nodes[c] for c in coords]))
+        symbols.update(zip(forces.stages, zeta))
+        rows = [g.add(r, from_sympy(g, sp.sympify(f), symbols,
+                                    f"{system.name}: the stage forces", memo))
+                for r, f in zip(rows, forces.stage_forces)]
+    order = g.reachable(rows)
+    columns = [forward(g, rows, {z: g.one}, order) for z in zeta]
+    jac = [columns[b][a] for a in range(len(rows)) for b in range(len(zeta))]
+    return Program(g, {"a": coords, "z": list(fs.stages), "u": inputs,
+                       "p": list(system.parameters)}, {"F": rows, "J": jac})
+
+
 @functools.lru_cache(maxsize=16)
 def _cached_stage_rows(system):
-    return stage_rows_program(system).numpy_function(["F", "J"], ["a", "z", "u", "p"])
+    return _stage_program(system).numpy_function(["F", "J"], ["a", "z", "u", "p"])
 
 
 def stage_values(system, arrows: np.ndarray, inputs: np.ndarray, params: Sequence

@@ -192,6 +192,10 @@ def test_expanded_size_counts_a_shared_node_at_every_use():
     total = g.add(square, g.mul(square, g.input(y)))
     program = Program(g, {"z": [x, y]}, {"out": [total]})
     assert program.size(["out"]) == 3 and program.expanded_size(["out"]) == 4
+    assert program.expanded_size() == 4  # every output
+    for bad in (["nope"], "out", [3]):
+        with pytest.raises(sg.DomainError, match="names must be a list of the program's"):
+            program.expanded_size(bad)
 
 
 def test_a_step_too_large_to_write_out_is_refused_at_once():

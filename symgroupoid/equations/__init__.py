@@ -19,10 +19,15 @@ from ._forcing import (
 )
 from ._galerkin import MAX_NODES, GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._kinetic import DEGENERATE_KINETIC
-from ._latex import GroupoidLatexPrinter, LatexVerificationError, equation_lines, latex
+from ._latex import (
+    PRINT_LIMIT,
+    GroupoidLatexPrinter,
+    LatexVerificationError,
+    equation_lines,
+    latex,
+)
 from ._layout import PAGE_WIDTH
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
-from ._printing import PRINT_LIMIT
 from ._programs import (
     PROJECTED,
     ROUNDING_UPDATE,
@@ -42,7 +47,6 @@ from ._programs import (
     second_order_momentum_program,
     solve_stages,
     source_projection_program,
-    stage_rows_program,
     state_programs,
     step_program,
     structure_program,
@@ -60,7 +64,7 @@ __all__ = [
     "cost_program", "holonomic_program", "input_jacobian_program", "latex", "magnitude",
     "momentum_program",
     "second_order_momentum_program", "source_projection_program", "state_programs",
-    "solve_stages", "stage_rows_program",
+    "solve_stages",
     "step_program", "structure_program", "window_programs", "PROJECTED", "ROUNDING_UPDATE",
     "RestrictedArrows", "gauss_newton", "holonomic_projection_program",
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",

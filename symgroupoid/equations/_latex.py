@@ -26,6 +26,15 @@ from .._symbols import StepSymbol
 #: few seconds)
 DISPLAY_LIMIT = 400
 
+#: operations of a step's residuals written out as expression trees
+#: (:meth:`~symgroupoid.ir.Program.expanded_size`) above which they are not printed: every
+#: printed form is derived from and checked against the written-out residuals, whose cost
+#: grows with that size (measured: the 3D chain of 8 bodies, 6.5e4 operations, 10 s; the
+#: planar chain of 16 links, 1.2e5, 48 s), while a continuous system discretised on a Lie
+#: group shares its stages' subexpressions so much that 2 000 graph operations write out
+#: to 10⁹ (a free rigid body at order 4, whose printing never finished)
+PRINT_LIMIT = 1_000_000
+
 
 class LatexVerificationError(SymgroupoidError, AssertionError):
     """A printed form of an equation is not the equation (a defect of the printing: the

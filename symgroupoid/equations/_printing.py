@@ -43,7 +43,12 @@ from ._forms import (
     piece_form,
     with_recognised,
 )
-from ._latex import GroupoidLatexPrinter, LatexVerificationError, MemoLatexPrinter
+from ._latex import (
+    PRINT_LIMIT,
+    GroupoidLatexPrinter,
+    LatexVerificationError,
+    MemoLatexPrinter,
+)
 from ._layout import PrintedRows
 from ._matrix_parts import NOT_IN_PIECES, junction_system
 from ._pieces import best_rule, pair_coordinates
@@ -53,16 +58,6 @@ from ._stage_forms import stage_form
 #: the chosen verified form of each printed step, by its abbreviations (a step printed
 #: again — as LaTeX, as a document, in Jupyter — is not derived and checked again)
 _PRINTED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-
-
-#: operations of a step's residuals written out as expression trees
-#: (:meth:`~symgroupoid.ir.Program.expanded_size`) above which they are not printed: every
-#: printed form is derived from and checked against the written-out residuals, whose cost
-#: grows with that size (measured: the 3D chain of 8 bodies, 1.2e5 operations, 10 s; the
-#: planar chain of 16 links, 2.2e5, 48 s), while a continuous system discretised on a Lie
-#: group shares its stages' subexpressions so much that 2 000 graph operations write out
-#: to 10⁹ (the heavy top at order 4, whose printing never finished)
-PRINT_LIMIT = 1_000_000
 
 
 def check_printable(step) -> None:

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import choice_argument, name_argument, shown_value
+from .._arguments import choice_argument, name_argument, sequence_argument, shown_value
 from .._errors import InputTypeError, ShapeError
 from .._symbols import StepSymbol, indexed_symbol, latex_name, subscripted
 from ._base import Arrow, Groupoid
@@ -51,12 +51,7 @@ def hat3(w: Sequence) -> sp.Matrix:
     """ω ↦ ω̂ with ω̂ v = ω × v (the so(3) hat map, E₁, E₂, E₃ basis).  ``w``: three
     numbers or SymPy scalars (a list, tuple, array or 3-vector); anything else is an
     :class:`~symgroupoid.InputTypeError` or :class:`~symgroupoid.ShapeError` naming ``w``."""
-    if isinstance(w, sp.MatrixBase):
-        w = list(w)
-    if isinstance(w, (str, bytes, dict, set)) or not hasattr(w, "__len__") \
-            or not hasattr(w, "__getitem__"):
-        raise InputTypeError(f"hat3: w must be three scalars, got {type(w).__name__} "
-                             f"{shown_value(w)}")
+    w = sequence_argument(list(w) if isinstance(w, sp.MatrixBase) else w, "w", owner="hat3")
     if len(w) != 3:
         raise ShapeError(f"hat3: w must have 3 components, got {len(w)}")
     try:

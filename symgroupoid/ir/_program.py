@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
+from .._errors import DomainError
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW, Graph
 
 
@@ -49,10 +50,15 @@ class Program:
     def expanded_size(self, names: Sequence[str] | None = None) -> int:
         """Number of operations of the named outputs written out as expression trees, a
         node counted at every use (what printing them as formulas costs; :meth:`size`
-        counts each once).  Exact, in integers, however large."""
+        counts each once).  Exact, in integers, however large.  A name the program does not
+        output is a :class:`~symgroupoid.DomainError`."""
         g = self.graph
-        outputs = [n for k in (list(self.outputs) if names is None else names)
-                   for n in self.outputs[k]]
+        names = list(self.outputs) if names is None else names
+        unknown = [k for k in names if not isinstance(k, str) or k not in self.outputs]
+        if isinstance(names, str) or unknown:
+            raise DomainError(f"expanded_size: names must be a list of the program's outputs "
+                              f"({', '.join(map(repr, self.outputs))}), got {names!r}")
+        outputs = [n for k in names for n in self.outputs[k]]
         size: dict = {}
         for n in g.reachable(outputs):
             size[n] = 1 + sum(size[a] for a in g.args[n]) if g.args[n] else 0

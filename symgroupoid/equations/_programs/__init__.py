@@ -28,7 +28,7 @@ from ._initial import (
     source_projection_program,
 )
 from ._projections import PROJECTED, RestrictedArrows, gauss_newton
-from ._stages import ROUNDING_UPDATE, solve_stages, stage_rows_program
+from ._stages import ROUNDING_UPDATE, solve_stages
 from ._state import StatePrograms, state_programs
 from ._step import input_jacobian_program, step_program
 from ._window import (
@@ -43,6 +43,6 @@ __all__ = ["MomentumProgram", "StatePrograms", "WindowPrograms", "action_program
            "constraint_program", "cost_program", "holonomic_program", "magnitude",
            "momentum_program", "second_order_momentum_program",
            "source_projection_program", "state_programs", "solve_stages", "input_jacobian_program",
-           "PROJECTED", "ROUNDING_UPDATE", "stage_rows_program", "RestrictedArrows", "gauss_newton",
+           "PROJECTED", "ROUNDING_UPDATE", "RestrictedArrows", "gauss_newton",
            "holonomic_projection_program",
            "step_program", "structure_program", "window_programs"]

@@ -8,10 +8,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-import sympy as sp
 
 from ..._errors import DiagnosticsError
-from ...ir import Graph, Program, forward, from_sympy, gradient
 
 _EPS = float(np.finfo(float).eps)
 
@@ -57,34 +55,4 @@ def solve_stages(rows: Callable, known: np.ndarray, p: np.ndarray, n_stages: int
                            f"§22)")
 
 
-def stage_rows_program(system) -> Program:
-    """The stage rows of one term from the system's own L(g, ζ) and forces
-    (docs/conventions.md §22), independent of the derived equations: ∂L/∂ζ + f_ζ (reverse
-    mode) and their Jacobian ∂/∂ζ (forward mode, row-major); inputs ``a`` (the arrow's
-    coordinates), ``z`` (ζ), ``u`` (the term's inputs), ``p`` (the parameters)."""
-    fs = system._fs
-    forces = fs.forces
-    g = Graph()
-    coords = list(fs.slots[0])
-    nodes = {x: g.input(x) for x in (*coords, *fs.stages, *system.parameters)}
-    inputs = list(forces.inputs) if forces is not None else []
-    nodes.update({x: g.input(x) for x in inputs})
-    memo: dict = {}
-    L = from_sympy(g, fs.lagrangian, nodes, f"{system.name}: the Lagrangian", memo)
-    zeta = [nodes[z] for z in fs.stages]
-    rows = gradient(g, L, zeta)
-    if forces is not None and forces.stage_forces:
-        symbols = dict(nodes)
-        symbols.update(zip(forces.slots[0], [nodes[c] for c in coords]))
-        symbols.update(zip(forces.stages, zeta))
-        rows = [g.add(r, from_sympy(g, sp.sympify(f), symbols,
-                                    f"{system.name}: the stage forces", memo))
-                for r, f in zip(rows, forces.stage_forces)]
-    order = g.reachable(rows)
-    columns = [forward(g, rows, {z: g.one}, order) for z in zeta]
-    jac = [columns[b][a] for a in range(len(rows)) for b in range(len(zeta))]
-    return Program(g, {"a": coords, "z": list(fs.stages), "u": inputs,
-                       "p": list(system.parameters)}, {"F": rows, "J": jac})
-
-
-__all__ = ["ROUNDING_UPDATE", "solve_stages", "stage_rows_program"]
+__all__ = ["ROUNDING_UPDATE", "solve_stages"]

@@ -22,7 +22,7 @@ from ..._errors import (
     UnsupportedFeatureError,
 )
 from ..._progress import reported
-from ...equations import solve_stages, stage_rows_program
+from ...equations import solve_stages
 from .._validate import check_holonomic_nodes, integer_argument, parameter_vector, real_argument
 from ._fast import _fast_newton, _Handover, _restart_points
 from ._globalised import _globalised_after
@@ -157,7 +157,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     inertia = _solve(state, minimum)
     multipliers, stages = state.lam[:, :m], state.lam[:, m:]
     if n_stages:
-        _check_stage_branch(system, state.arrows, stages, table, p, owner)
+        _check_stage_branch(state, stages, owner)
     return BoundaryValueSolution(
         system, state.arrows, multipliers, data.configurations[0], named, state.iterations,
         state.history[-1], state.history, time.perf_counter() - t0,
@@ -171,20 +171,26 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
 STAGE_BRANCH_TOLERANCE = 1e-6
 
 
-def _check_stage_branch(system, arrows, stages, table, p, owner: str) -> None:
+def _check_stage_branch(state: _SolverState, stages: np.ndarray, owner: str) -> None:
     """A :class:`BranchJumpError` unless the solution's stages are, at every arrow, the root
     of its stage rows that the discrete Lagrangian is defined by: the one Newton reaches
     from ζ = 0, the chord (docs/conventions.md §22; the initial-value step starts its
     stages there too).  The boundary-value iteration moves arrows and stages together, and a
     large motion can carry an arrow's stages to another root of its rows: a stationary path
-    of Σ L(g_k, ζ_k) on another branch, not a solution of L_d."""
-    rows = stage_rows_program(system).numpy_function(["F", "J"], ["a", "z", "u", "p"])
-    A = np.ascontiguousarray(np.asarray(arrows, float).T)
-    U = np.ascontiguousarray(np.asarray(table, float).T)
-    P = np.asarray(p, float)[:, None]
+    of Σ L(g_k, ζ_k) on another branch, not a solution of L_d.  The rows are the solve's
+    own stage kernel (:meth:`WindowKernel.stage_values`), compiled once with it."""
+    problem = state.problem
+    kernel, arrows = problem.kernel, np.asarray(state.arrows, float)
+    T, n = len(arrows), kernel.n_stages
+    inputs = np.zeros((T, 0)) if problem.inputs is None else problem.inputs
+
+    def rows(known, zeta, p):
+        F, _, _, J, _ = kernel.split_stage(kernel.stage_values(arrows, zeta.T, inputs,
+                                                               problem.p))
+        return F.T, J.reshape(T, n * n).T
+
     try:
-        near = solve_stages(lambda known, z, p_: rows(known, z, U, p_), A, P,
-                            stages.shape[1], owner).T
+        near = solve_stages(rows, arrows.T, problem.p[:, None], n, owner).T
     except DiagnosticsError:
         near = np.full_like(stages, np.nan)
     far = ~(np.abs(near - stages) <= STAGE_BRANCH_TOLERANCE * (1.0 + np.abs(stages)))
