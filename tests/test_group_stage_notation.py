@@ -4,8 +4,9 @@ chart values X_{k,i} = h Σ_j a_ij V_{k,j}, the chart velocities V_{k,i} and the
 velocities Ξ_{k,i} = dτ_{X_{k,i}}(V_{k,i}), with the trivialised derivatives of L at the
 nodes, equal the step's residual at points of the group, for SO(3) (a heavy top), SE(3),
 SO(3) × R and SO(3) × SO(3), with GaussLegendre(2) and LobattoIIIAB(3); and a step on a group is not
-offered the printed stage form (its rows hold on the group only, where the exact check of
-docs/conventions.md §22 cannot be made: see there)."""
+offered the Euclidean printed stage form, whose check is by expansion (its rows hold on the
+group only: the group form, checked at points of the group, is
+tests/test_group_stage_latex.py's)."""
 
 import numpy as np
 import pytest

@@ -77,9 +77,12 @@ class Row:
 class Definitions:
     """"Where" definitions printed whole, ``(lhs, rhs, as_written)`` pairs of expressions
     packed ``a = x, \\quad b = y`` as many to a line as the width allows (by
-    :func:`lay_out`); ``as_written``: the right-hand side's terms in the order given."""
+    :func:`lay_out`); ``as_written``: the right-hand side's terms in the order given;
+    ``packed`` False: one definition to a row (long ones, whose measured widths run short of
+    TeX's)."""
 
     pairs: list[tuple]
+    packed: bool = True
 
 
 @dataclass
@@ -436,7 +439,10 @@ def lay_out(rows: PrintedRows, numbered: bool = True) -> list:
             lines = break_terms(item.lhs, item.terms, width, rows.printer, model, column)
             out.append(Row(item.lhs, item.terms, item.numbered, lines))
         elif isinstance(item, Definitions):
-            out += _packed_rows(*next(definitions), width, column)
+            texts = next(definitions)
+            out += _packed_rows(*texts, width, column) if item.packed else [
+                row for pair in zip(*texts)
+                for row in _packed_rows([pair[0]], [pair[1]], width, column)]
         else:
             out.append(item)
     return out

@@ -43,6 +43,7 @@ from ._forms import (
     piece_form,
     with_recognised,
 )
+from ._group_stage_forms import group_stage_rows
 from ._latex import (
     PRINT_LIMIT,
     GroupoidLatexPrinter,
@@ -79,12 +80,36 @@ def check_printable(step) -> None:
             f"them out and are unaffected")
 
 
+#: the group stage notation of each printed step (None: not offered), checked once
+_GROUPED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+
+
+def group_stage_printed(step, width: float) -> PrintedRows | None:
+    """A Galerkin step on Lie-group factors in the group stage notation
+    (:func:`~._group_stage_forms.group_stage_rows`, checked at points of the group), or
+    None; remembered for the step and the width."""
+    try:
+        known = _GROUPED.setdefault(step, {})
+    except TypeError:  # not weakly referenceable: printed afresh
+        known = {}
+    if None in known:
+        return None
+    if width not in known:
+        rows = group_stage_rows(step, width, MemoLatexPrinter())
+        known[None if rows is None else width] = rows
+    return known.get(width)
+
+
 def printed_step(step, abbreviations: Mapping | None = None,
                  width: float | None = None) -> PrintedRows:
     """The rows of the step's equations in their chosen verified printed form
     (:func:`chosen_form`); abbreviations that do not occur in it are reported with an
     :class:`UnusedAbbreviationWarning`."""
     width = check_width(width)
+    if not abbreviations:  # a Galerkin step on a group: its stage notation, checked there
+        grouped = group_stage_printed(step, width)
+        if grouped is not None:
+            return grouped
     check_printable(step)
     checked = abbreviations_of(abbreviations, step)
     printed = chosen_printed(step, abbreviations)

@@ -41,10 +41,10 @@ R_{k,i} = R_{k−1} τ(X_{k,i}) and body velocities Ξ_{k,i} = dτ_{X_{k,i}}(V_{
 
 P_k = h Σ_i b_i [c_i ∂L̃/∂x + ∂L̃/∂v /h], S_k = h Σ_i b_i Ad_{τ(X_{k,i})⁻¹}ᵀ N_{k,i},
 ∂L̃/∂x = dτ_Xᵀ N + ∂_X(dτ_X V)ᵀ M, ∂L̃/∂v = dτ_Xᵀ M (N the left-trivialised derivative of L
-in R, M = ∂L/∂Ξ at the node).  Those rows are not offered: they hold on the group only, not
-in the free entries of the attitudes the residual is written in, and the residuals are too
-large to expand, so the exact check every printed row needs cannot be made; such steps
-print as before.
+in R, M = ∂L/∂Ξ at the node).  Those rows hold on the group only, not in the free entries
+of the attitudes the residual is written in, so they are printed by
+:mod:`._group_stage_forms`, checked there by evaluation at points of the group; this form
+(checked by expansion) returns None for a step with a group factor.
 """
 
 from __future__ import annotations
@@ -58,17 +58,25 @@ from ._galerkin import _lagrange, _tau
 from ._latex import Collected
 
 
-def stage_form(step) -> Form | None:
-    """The step in the stage notation (see the module docstring), or None when it does not
-    apply."""
+def galerkin_origin(step):
+    """The discretisation a step with internal stages comes from (its continuous system,
+    scheme and time step), or None for any other step."""
     from ._continuous import GaussLegendre, LobattoIIIAB
 
-    system = getattr(step, "system", None)
-    origin = getattr(system, "continuous", None)
+    origin = getattr(getattr(step, "system", None), "continuous", None)
     if origin is None or not isinstance(origin.scheme, (GaussLegendre, LobattoIIIAB)) \
             or origin.scheme.rule is not None:
         return None
-    continuous = origin.system
+    return origin
+
+
+def stage_form(step) -> Form | None:
+    """The step in the stage notation (see the module docstring), or None when it does not
+    apply."""
+    origin = galerkin_origin(step)
+    if origin is None:
+        return None
+    system, continuous = step.system, origin.system
     if any(f.is_group for f in continuous.factors):  # not checkable exactly: see above
         return None
     tableau, h = origin.scheme.tableau(), origin.step
@@ -126,7 +134,7 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
     source = sp.Matrix([c for a, _ in pairs for c in a])
     delta = sp.Matrix([c for a, b in pairs for c in (sp.Matrix(b) - sp.Matrix(a))])
     interior = [sp.Matrix([next(zeta) for _ in range(n)]) for _ in range(1, M)]
-    a_matrix = _stage_coefficients(tableau.nodes)
+    a_matrix = stage_coefficients(tableau.nodes)
     Q = [[node_symbol("Q", s, i + 1, None if n == 1 else x) for x in names]
          for i in range(len(tableau.nodes))]
     V = [[node_symbol("V", s, i + 1, None if n == 1 else x) for x in names]
@@ -137,10 +145,10 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
     u = dict(zip(continuous.inputs, input_symbols(continuous.inputs, s)))
     for i, (b_i, values, slopes) in enumerate(zip(tableau.weights, tableau.values,
                                                   tableau.slopes)):
-        c_i = _exact(sum((v * d for v, d in zip(values, tableau.control)), sp.S.Zero))
+        c_i = exact_number(sum((v * d for v, d in zip(values, tableau.control)), sp.S.Zero))
         q_value = source + c_i * delta + sum((v * z for v, z in zip(values[1:M], interior)),
                                              sp.zeros(n, 1))
-        v_value = (_exact(sum((d * t for d, t in zip(slopes, tableau.control)), sp.S.Zero))
+        v_value = (exact_number(sum((d * t for d, t in zip(slopes, tableau.control)), sp.S.Zero))
                    * delta + sum((t * z for t, z in zip(slopes[1:M], interior)),
                                  sp.zeros(n, 1))) / h
         for r in range(n):
@@ -193,14 +201,15 @@ def _at_node(continuous, Q: list, V: list, u: dict) -> tuple[sp.Expr, list]:
     return L, [e.xreplace(u) for e in F]
 
 
-def _stage_coefficients(nodes: tuple) -> list:
+def stage_coefficients(nodes: tuple) -> list:
     """a_ij = ∫₀^{c_i} ℓ̃_j(τ) dτ, ℓ̃_j the Lagrange basis on the nodes (the collocation
     coefficients: Gauss, Lobatto IIIA)."""
     basis = _lagrange(list(nodes))
-    return [[_exact(sp.integrate(e, (_tau, 0, ci))) for e in basis] for ci in nodes]
+    return [[exact_number(sp.integrate(e, (_tau, 0, ci))) for e in basis] for ci in nodes]
 
 
-def _exact(value: sp.Expr) -> sp.Expr:
+def exact_number(value: sp.Expr) -> sp.Expr:
+    """A tableau's number in its exact simplest form (radicals rationalised); a Float as it is."""
     return value if value.has(sp.Float) else sp.radsimp(sp.expand(value))
 
 

@@ -15,6 +15,7 @@ from ._format import C, functions_used, plan, write
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
 from ._libm import LIBM, SCALAR
+from ._precise import interpret_precise
 from ._program import Program, interpret
 from ._rounding import rounding_error, term_magnitude
 from ._smooth import _S as SMOOTH_ARGUMENT  # s, of the closed forms smooth_function takes
@@ -35,7 +36,8 @@ from ._sympy import from_sympy, to_sympy
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "UnmappedSymbolError",
-    "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret", "jacobian",
+    "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret", "interpret_precise",
+    "jacobian",
     "partial", "print_c", "rounding_error", "smooth_spec", "term_magnitude", "to_sympy",
     # straight-line code of a graph: the C dialect, the plan of its nodes, the writer
     "C", "functions_used", "plan", "write",

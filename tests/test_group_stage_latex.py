@@ -1,0 +1,134 @@
+"""A Galerkin step on Lie-group factors printed in the group stage notation
+(docs/conventions.md §22, "The stage notation on a group factor"): the junction row
+dτ_{Δ_k}^{−T}P_k + S_{k+1} − Ad_{τ(Δ_{k+1})⁻¹}^T dτ_{Δ_{k+1}}^{−T}P_{k+1} = 0 and the stage
+rows per factor, with the curve, the chart Lagrangian's derivatives and the sums in the
+"where" list — offered only when every printed row, computed from its "where" list as
+printed at 50 digits, equals the step's residual at random points of the group.  The
+documents typeset whole with pdflatex (tests/test_latex_pdf.py's helpers)."""
+
+import mpmath
+import pytest
+import sympy as sp
+from test_group_stage_notation import SYSTEMS, h
+from test_latex_pdf import equation_numbers, lost_content, needs_tex, typeset
+
+import symgroupoid as sg
+
+# white-box: whether the form is offered, and the retraction's maps the check reads, have no
+# public name
+from symgroupoid.equations import _group_stage_forms as group_forms
+from symgroupoid.ir import Graph, Program, interpret, interpret_precise
+
+J = sp.diag(*sp.symbols("I1:4", positive=True))
+mgl = sp.Symbol("mgl", positive=True)
+
+
+def _top(scheme=None, **options):
+    system = sg.ContinuousSystem(sg.SO3("R"), lambda R, xi: (xi.T * J * xi)[0, 0] / 2
+                                 - mgl * R[2, 2], parameters=[h, mgl, *J.diagonal()],
+                                 name="top", **options)
+    return system.discretize(h, scheme or sg.GaussLegendre(2)).euler_lagrange()
+
+
+def test_the_heavy_top_prints_in_the_group_stage_notation():
+    """The top at order 4: one junction row and a stage row for each arrow (three vector
+    equations for nine residuals), the chart increments, the stage attitudes R_{j,i} =
+    R_{j−1}τ(X_{j,i}) and body velocities, and N, M written out from L."""
+    text = _top().latex()
+    assert text.count("0 &=") == 3
+    assert (r"0 &= S_{k+1} - \mathrm{Ad}_{\tau(\Delta_{k+1})^{-1}}^{T} "
+            r"\mathrm{d}\tau_{\Delta_{k+1}}^{-T} P_{k+1} + \mathrm{d}\tau_{\Delta_{k}}^{-T} P_{k}"
+            in text)
+    for row in (r"\Delta_{j} &= \tau^{-1}(R_{j-1}^{-1} R_{j})", r"R_{j,1} = R_{j-1} \tau(X_{j,1})",
+                r"\Xi_{j,1} = \mathrm{d}\tau_{X_{j,1}} V_{j,1}",
+                r"B_{j,1} = \mathrm{d}\tau_{X_{j,1}}^{T} M_{j,1}",
+                r"N &= \left[\begin{matrix}R_{32} mgl\\- R_{31} mgl\\0\end{matrix}\right]"):
+        assert row in text, row
+
+
+def test_a_row_that_does_not_hold_is_not_offered(monkeypatch):
+    """The check can fail: with the derivative of dτ_X V in X taken as 0 (the term a hand
+    derivation forgets) the printed rows differ from the residual, the form is not offered
+    and the step is refused as before (its residuals written out are too large)."""
+    real = group_forms._group_maps
+
+    def forgetful(F):
+        real(F)
+        if F.is_group:
+            F.maps["curvature_t"] = lambda x, v: mpmath.matrix(len(x), len(x))
+
+    monkeypatch.setattr(group_forms, "_group_maps", forgetful)
+    step = _top()
+    assert group_forms.group_stage_rows(step, 450.0, None) is None
+    with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
+        step.latex()
+
+
+def test_a_forced_step_on_a_group_is_still_refused():
+    """Forces at the nodes are not part of the printed group form: a forced top at order 4
+    is refused at once, naming the sizes (its residuals written out are far beyond the
+    printer's limit)."""
+    torque = list(sp.symbols("u1:4", real=True))
+    step = _top(forces=lambda R, xi: torque, inputs=torque)
+    with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
+        step.latex()
+
+
+@needs_tex
+def test_the_document_of_a_chain_of_three_bodies_typesets_whole(tmp_path):
+    """The 3D chain of three bodies at order 4 (examples/chain_order4.py's L, on SO(3)³):
+    nine vector equations numbered in order, no box beyond 1 pt past its page; its N and M,
+    pages long written out, are described instead of printed."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "chain_order4.py"
+    spec = importlib.util.spec_from_file_location("chain_order4", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    continuous = module.chain(3)
+    step = continuous.discretize(continuous.parameters[0], sg.GaussLegendre(2)).euler_lagrange()
+    document = step.latex(document=True)
+    log, text = typeset(document, tmp_path)
+    assert equation_numbers(text) == list(range(1, 10))
+    assert lost_content(log, tolerance=1.0) == []
+    assert "too long to print usefully" in document
+
+
+@needs_tex
+def test_the_document_of_the_top_typesets_whole(tmp_path):
+    document = _top(sg.LobattoIIIAB(3)).latex(document=True)
+    log, text = typeset(document, tmp_path)
+    assert equation_numbers(text) == [1, 2, 3]
+    assert lost_content(log, tolerance=1.0) == []
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", sorted(SYSTEMS))
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(3), sg.GaussLegendre(3)],
+                         ids=["gauss2", "lobatto3", "gauss3"])
+def test_every_group_system_is_offered_the_form(name, scheme):
+    """SO(3), SE(3), SO(3) × R and SO(3) × SO(3) at orders 4 and 6: the printed rows hold
+    (one junction row per factor, a stage row per factor, interior stage and arrow)."""
+    continuous = SYSTEMS[name]()
+    step = continuous.discretize(h, scheme).euler_lagrange()
+    rows = group_forms.group_stage_rows(step, 450.0, None)
+    assert rows is not None
+    factors = len(continuous.factors)
+    equations = [item for item in rows.items if type(item).__name__ == "Row"]
+    assert len(equations) == factors * (1 + 2 * scheme.tableau().interior)
+
+
+def test_interpret_precise_is_the_graph_at_fifty_digits():
+    """The precise walk gives the binary64 walk's values to rounding, and at 50 digits the
+    graph's exact constants: √3/6 · x at x = 6 is √3 to 49 digits."""
+    g = Graph()
+    x = sp.Symbol("x")
+    node = g.mul(g.const(sp.sqrt(3) / 6), g.input(x))
+    square = g.pow(g.add(node, g.const(1)), 2)
+    program = Program(graph=g, inputs={"u": [x]}, outputs={"F": [node, square]})
+    precise = interpret_precise(program, ["F"], {x: 6}, 50)["F"]
+    with mpmath.workdps(50):
+        assert abs(precise[0] - mpmath.sqrt(3)) < mpmath.mpf(10) ** -49
+    (floats,) = interpret(program, ["F"], ["u"], [6.0])
+    assert [float(v) for v in precise] == pytest.approx(list(floats), rel=1e-15)
