@@ -64,14 +64,21 @@ def test_a_row_that_does_not_hold_is_not_offered(monkeypatch):
         step.latex()
 
 
-def test_a_forced_step_on_a_group_is_still_refused():
-    """Forces at the nodes are not part of the printed group form: a forced top at order 4
-    is refused at once, naming the sizes (its residuals written out are far beyond the
-    printer's limit)."""
-    torque = list(sp.symbols("u1:4", real=True))
-    step = _top(forces=lambda R, xi: torque, inputs=torque)
-    with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
-        step.latex()
+def test_a_damped_driven_top_prints_its_force_at_the_nodes():
+    """A top driven by a body torque u and damped (F = u − cΞ): the force at each node joins
+    N (A = dτ^T(F + N) + …, S = h Σ b_i Ad^T(F + N)), written with the inputs u_j of the
+    arrow, and the form still holds at points of the group."""
+    c = sp.Symbol("c", positive=True)
+    u = list(sp.symbols("u1:4", real=True))
+    system = sg.ContinuousSystem(
+        sg.SO3("R"), lambda R, xi: (xi.T * J * xi)[0, 0] / 2 - mgl * R[2, 2],
+        parameters=[h, mgl, c, *J.diagonal()], name="driven_top", inputs=u,
+        forces=lambda R, xi: [u[a] - c * xi[a] for a in range(3)])
+    text = system.discretize(h, sg.GaussLegendre(2)).euler_lagrange().latex()
+    assert r"\mathrm{d}\tau_{X_{j,1}}^{T} \left(F_{j,1} + N_{j,1}\right)" in text
+    assert (r"F &= \left[\begin{matrix}u_{1} - \Xi_{1} c\\u_{2} - \Xi_{2} c\\u_{3} - "
+            r"\Xi_{3} c\end{matrix}\right]") in text
+    assert r"$F_{j,i}$ are $N$, $M$ and $F$ at ($R_{j,i}, \Xi_{j,i}, u_{j}$)" in text
 
 
 @needs_tex

@@ -40,7 +40,7 @@ import numpy as np
 import sympy as sp
 
 from .._symbols import latex_name, stage_symbols
-from ..derivation import WindowAction
+from ..derivation import WindowAction, input_symbols
 from ..ir import interpret_precise
 from ._latex import MemoLatexPrinter
 from ._layout import Definitions, PrintedRows, Row, Text, signed_terms
@@ -120,6 +120,7 @@ class _Notation:
     formulas: list = field(default_factory=list)  # (lhs, Matrix, kind, factor index)
     node_values: dict = field(default_factory=dict)  # N_{j,i}/M_{j,i} -> (kind, f, j, i)
     dims: dict = field(default_factory=dict)  # a vector written 0 (X at c = 0) -> its size
+    forces: list = field(default_factory=list)  # per factor: the force's formula (forced)
     kinds: dict = field(default_factory=dict)  # A, B -> "chart"; P -> "P"; S -> "S"
 
 
@@ -221,6 +222,10 @@ class _Builder:
             Ni, Mi = F.sym("N", j, i), F.sym("M", j, i)
             self.out.node_values[Ni] = ("N", fi, j, i)
             self.out.node_values[Mi] = ("M", fi, j, i)
+            if self.c.forces is not None:  # the force at the node joins ∂L/∂q (§22)
+                Fi = F.sym("F", j, i)
+                self.out.node_values[Fi] = ("F", fi, j, i)
+                Ni = Ni + Fi
             N.append(Ni)
             if F.is_group:
                 A.append(F.sym("A", j, i))
@@ -292,6 +297,13 @@ class _Builder:
             Mv = [sp.diff(L, e) for e in vel]
             self.out.formulas.append((fi, sp.ImmutableMatrix([_tidy(e) for e in N]),
                                       sp.ImmutableMatrix([_tidy(e) for e in Mv])))
+        if self.c.forces is not None:
+            force = self.c._force(self.c._values(q), self.c._values(v))
+            at = 0
+            for F in self.factors:
+                self.out.forces.append(sp.ImmutableMatrix(
+                    [_tidy(e) for e in force[at:at + F.f.dim]]))
+                at += F.f.dim
 
 
 def _stage_name(j: str, a: int) -> sp.Symbol:
@@ -323,10 +335,15 @@ class _Evaluator:
         self._formulas = {}
         args = [s for entries, vel in builder.generic_configuration for s in (*entries, *vel)]
         params = list(builder.c.parameters)
+        inputs = list(builder.c.inputs)
         for fi, N, Mv in notation.formulas:
-            self._formulas[("N", fi)] = sp.lambdify([args, params], N, "mpmath")
-            self._formulas[("M", fi)] = sp.lambdify([args, params], Mv, "mpmath")
+            self._formulas[("N", fi)] = sp.lambdify([args, params, inputs], N, "mpmath")
+            self._formulas[("M", fi)] = sp.lambdify([args, params, inputs], Mv, "mpmath")
+        for fi, force in enumerate(notation.forces):
+            self._formulas[("F", fi)] = sp.lambdify([args, params, inputs], force, "mpmath")
         self.params = [self.table[p] for p in params]
+        self.inputs = {label: [self.table.get(u, 0) for u in input_symbols(inputs, s)]
+                       for s, (label, _) in _LABELS.items()}
 
     def value(self, e):
         if isinstance(e, sp.MatrixBase):
@@ -372,7 +389,7 @@ class _Evaluator:
             else:
                 flat += _flat(q)
                 flat += _flat(self.value(F.sym("V", j, i)))
-        return mpmath.matrix(self._formulas[(kind, fi)](flat, self.params))
+        return mpmath.matrix(self._formulas[(kind, fi)](flat, self.params, self.inputs[j]))
 
     def define(self, rows: list) -> None:
         for lhs, rhs in rows:
@@ -432,6 +449,9 @@ def _point(builder: _Builder, step, arrows: dict, rng) -> tuple[dict, dict]:
         values[u] = mpmath.mpf(rng.uniform(-0.3, 0.3))
     for z in stage_symbols(len(step.unknowns), 0):
         values.setdefault(z, mpmath.mpf(rng.uniform(-0.05, 0.05)))
+    for s in (0, 1):  # the inputs of g_k and g_{k+1} (a forced system)
+        for u in input_symbols(builder.c.inputs, s):
+            values[u] = mpmath.mpf(rng.uniform(-1, 1))
     pairs0, pairs1 = arrows[0], arrows[1]
     for F, (a0, b0), (_, b1) in zip(builder.factors, pairs0, pairs1):
         G = F.f.space
@@ -499,8 +519,7 @@ def group_stage_rows(step, width: float, printer=None) -> PrintedRows | None:
     if origin is None:
         return None
     system, continuous = step.system, origin.system
-    if not any(f.is_group for f in continuous.factors) or continuous.forces is not None \
-            or continuous.holonomic is not None:
+    if not any(f.is_group for f in continuous.factors) or continuous.holonomic is not None:
         return None
     tableau = origin.scheme.tableau()
     builder = _Builder(continuous, tableau, origin.step)
@@ -529,6 +548,8 @@ def _printed(builder: _Builder, notation: _Notation, width: float, printer) -> P
         F = builder.factors[fi]
         pairs.append((_nc(f"N{F.tag}"), _shown(N), True))
         pairs.append((_nc(f"M{F.tag}"), _shown(Mv), True))
+        if notation.forces:
+            pairs.append((_nc(f"F{F.tag}"), _shown(notation.forces[fi]), True))
     written = sum(len(printer.doprint(rhs)) for _, rhs, _ in pairs) <= FORMULA_LIMIT
     items.append(Text(
         r"where, for $j = k, k+1$ and the nodes $i$, with $\tau$ the Cayley map, "
@@ -564,9 +585,18 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
              f"${printer.doprint(one.sym('M', 'j', 'i'))}$" if len(builder.factors) == 1
              else "$N^{(\\cdot)}_{j,i}$ and $M^{(\\cdot)}_{j,i}$ of each factor")
     which = "$N$ and $M$" if len(builder.factors) == 1 else r"$N^{(\cdot)}$ and $M^{(\cdot)}$"
+    if builder.c.forces is not None:  # the force at the node, with the inputs of g_j
+        names = names.replace(" and ", ", ", 1) + (
+            f" and ${printer.doprint(one.sym('F', 'j', 'i'))}$" if len(builder.factors) == 1
+            else r" and $F^{(\cdot)}_{j,i}$")
+        which = which.replace(" and ", ", ", 1) + (
+            " and $F$" if len(builder.factors) == 1 else r" and $F^{(\cdot)}$")
+        at = at + ", u_{j}"
     words = (r"and, at the nodes, the derivatives of $L$ in the configuration "
              r"(left-trivialised on a group: $N_b = \langle \partial L/\partial R, R E_b "
-             r"\rangle$) and in the velocity: " + names + f" are {which} at (${at}$)")
+             r"\rangle$) and in the velocity" + (
+                 r", and the force with the inputs $u_j$ of $g_j$" if builder.c.forces is not None
+                 else "") + ": " + names + f" are {which} at (${at}$)")
     if written:
         return words + " (below),"
     return words + (r" (their formulas for this $L$ are too long to print usefully and are "
