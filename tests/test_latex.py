@@ -7,11 +7,13 @@ import re
 import shutil
 import subprocess
 
+import numpy as np
 import pytest
 import sympy as sp
 
 import symgroupoid as sg
 from symgroupoid.derivation import matrix_form_values
+from symgroupoid.equations import LatexOptionError
 from symgroupoid.groupoids import to_explicit
 
 mathtext = pytest.importorskip("matplotlib.mathtext")
@@ -215,3 +217,21 @@ def test_a_step_too_large_to_write_out_is_refused_at_once(monkeypatch):
     monkeypatch.setattr(_printing, "group_stage_rows", lambda *args: None)
     with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
         step.latex()
+
+
+@pytest.mark.parametrize("junk", [object(), "x", None, np.array([1.0, 2.0]),
+                                  [sp.Symbol("x"), object()]],
+                         ids=["object", "string", "None", "array", "list-with-object"])
+def test_latex_of_what_is_not_mathematics_is_refused(junk):
+    """SymPy prints an arbitrary object as its repr in typewriter type (an array as
+    ``\\mathtt{\\text{[1. 2.]}}``): refused by name instead, as is an unknown setting."""
+    with pytest.raises(LatexOptionError, match="latex: expected a SymPy expression"):
+        sg.latex(junk)
+
+
+def test_latex_prints_expressions_numbers_and_containers_and_refuses_unknown_settings():
+    x = sp.Symbol("x")
+    assert sg.latex([x ** 2, 1.5, {x: 2}]) == \
+        r"\left[ x^{2}, \  1.5, \  \left\{ x : 2\right\}\right]"
+    with pytest.raises(LatexOptionError, match="Unknown setting 'colour'"):
+        sg.latex(x, colour="red")

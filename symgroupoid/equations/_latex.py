@@ -282,8 +282,36 @@ def _has_fraction(expr: sp.Expr) -> bool:
 
 
 def latex(expr, **settings) -> str:
-    """LaTeX of an expression in the papers' notation."""
-    return GroupoidLatexPrinter(settings).doprint(expr)
+    """LaTeX of an expression in the papers' notation: a SymPy expression or matrix, a
+    number, or a list, tuple, set or dict of them.  Anything else (which SymPy would print
+    as its ``repr`` in typewriter type) and an unknown setting raise
+    :class:`~symgroupoid.equations.LatexOptionError`."""
+    from ._abbreviations import LatexOptionError
+
+    if not _latex_value(expr):
+        raise LatexOptionError(f"latex: expected a SymPy expression or matrix, a number, or "
+                               f"a list, tuple, set or dict of them, got "
+                               f"{type(expr).__name__} {expr!r:.80}")
+    try:
+        printer = GroupoidLatexPrinter(settings)
+    except (TypeError, ValueError) as error:
+        raise LatexOptionError(f"latex: {error} (the settings of sympy.latex)") from None
+    return printer.doprint(expr)
+
+
+def _latex_value(expr, depth: int = 0) -> bool:
+    """Whether ``expr`` is something :func:`latex` prints as mathematics."""
+    if isinstance(expr, (sp.Basic, sp.MatrixBase, int, float, complex)) \
+            or hasattr(expr, "_latex"):
+        return True
+    if depth > 20:
+        return False
+    if isinstance(expr, dict):
+        return all(_latex_value(k, depth + 1) and _latex_value(v, depth + 1)
+                   for k, v in expr.items())
+    if isinstance(expr, (list, tuple, set, frozenset)):
+        return all(_latex_value(e, depth + 1) for e in expr)
+    return False
 
 
 def equation_lines(step) -> list[str]:
