@@ -139,3 +139,25 @@ def test_interpret_precise_is_the_graph_at_fifty_digits():
         assert abs(precise[0] - mpmath.sqrt(3)) < mpmath.mpf(10) ** -49
     (floats,) = interpret(program, ["F"], ["u"], [6.0])
     assert [float(v) for v in precise] == pytest.approx(list(floats), rel=1e-15)
+
+
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(4)],
+                         ids=["gauss2", "lobatto4"])
+def test_planar_groups_and_a_plane_beside_a_rotation_are_offered_the_form(scheme):
+    """SO(2), SE(2), and SO(3) × R² (a factor of two coordinates, named by them: P^{(x, y)})
+    print in the group form, checked at points of the group."""
+    k = sp.Symbol("k", positive=True)
+    systems = [
+        sg.ContinuousSystem(sg.SO2("Q"), lambda R, w: w[0] ** 2 / 2 - k * R[0, 0],
+                            parameters=[h, k], name="rotor"),
+        sg.ContinuousSystem(sg.SE2("g"), lambda g, xi: (xi.T * xi)[0, 0] / 2
+                            - k * g[0, 2] ** 2, parameters=[h, k], name="cart"),
+        sg.ContinuousSystem([sg.SO3("R"), sg.EuclideanSpace("x y")],
+                            lambda q, v: (v[0].T * v[0])[0, 0] / 2 + (v[1].T * v[1])[0, 0] / 2
+                            - k * q[0][2, 2] * q[1][0] - k * q[1][1] ** 2,
+                            parameters=[h, k], name="mix")]
+    for continuous in systems:
+        step = continuous.discretize(h, scheme).euler_lagrange()
+        assert group_forms.group_stage_rows(step, 450.0) is not None, continuous.name
+    text = step.latex()
+    assert r"0 &= - P^{(x, y)}_{k+1} + P^{(x, y)}_{k} + S^{(x, y)}_{k+1}" in text

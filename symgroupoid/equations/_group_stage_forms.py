@@ -95,13 +95,14 @@ def _factors(continuous) -> list[_Factor]:
     out = []
     for f in continuous.factors:
         if f.is_group:
-            name = latex_name(f.space.symbol_name)
-        else:
+            name = label = latex_name(f.space.symbol_name)
+        else:  # a point of R^n, named by its coordinates: x, or q^{(x, y)} in a product
             names = [latex_name(n) for n in f.space.names]
+            label = ", ".join(names)
             name = names[0] if len(names) == 1 else r"\mathbf{q}"
             if several and len(names) > 1:
-                name = rf"\mathbf{{q}}^{{({', '.join(names)})}}"
-        tag = f"^{{({name})}}" if several else ""
+                name = rf"\mathbf{{q}}^{{({label})}}"
+        tag = f"^{{({label})}}" if several else ""
         out.append(_Factor(f, tag, name))
     return out
 
