@@ -206,6 +206,7 @@ def test_a_step_too_large_to_write_out_is_refused_at_once(monkeypatch):
     them never finished.  It prints in the group stage notation, checked without writing
     them out (tests/test_group_stage_latex.py); where that form is not offered, the step is
     refused at once, naming the sizes and the limit."""
+    # white-box: the group form is taken away to reach the refusal, which no public name does
     from symgroupoid.equations import PRINT_LIMIT, _printing
 
     J = sp.diag(1, 2, 3)

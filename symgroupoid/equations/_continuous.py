@@ -237,11 +237,6 @@ class ContinuousSystem:
 
     def _check_galerkin(self, scheme, G) -> None:
         label = f"{type(scheme).__name__}({scheme.stages})"
-        if any(f.is_group and f.space.retraction != "cayley" for f in self.factors):
-            raise UnsupportedFeatureError(
-                f"{self.name}: {label} on a group needs the Cayley retraction (the closed "
-                f"form of dexp is singular at 0 in floating point); build the group with "
-                f"retraction='cayley' (the default)")
         if self.holonomic is not None:
             if isinstance(scheme, GaussLegendre):
                 raise UnsupportedFeatureError(
@@ -466,7 +461,7 @@ def velocity_momentum_program(system: DiscreteSystem) -> Program:
 
 def _adjoint_inverse(G, x: sp.Matrix) -> sp.Matrix:
     """Ad_{τ(x)⁻¹} on Lie-algebra coordinates: columns vee(τ(−x) E_c τ(x)) (τ(x)⁻¹ = τ(−x)
-    for the Cayley retraction)."""
+    for the Cayley retraction and for the exponential)."""
     forward, backward = G.tau(list(x)), G.tau([-c for c in x])
     return sp.Matrix.hstack(*[G.vee(backward * E * forward) for E in G.basis_matrices()])
 

@@ -1,8 +1,9 @@
 """A Galerkin step on Lie-group factors printed in the stage notation (docs/conventions.md
 §22, "The stage notation on a group factor"), checked at points of the group.
 
-For the arrow g_j = (R_{j−1}, R_j) of a factor on a matrix Lie group with the Cayley
-retraction τ (Bogfjellmo–Marthinsen's partitioned Lie group scheme in the retraction's chart),
+For the arrow g_j = (R_{j−1}, R_j) of a factor on a matrix Lie group with its retraction τ,
+Cayley or exponential (Bogfjellmo–Marthinsen's partitioned Lie group scheme in the
+retraction's chart),
 the printed step is
 
     dτ_{Δ_k}^{−⊤} P_k + S_{k+1} − Ad_{τ(Δ_{k+1})⁻¹}^⊤ dτ_{Δ_{k+1}}^{−⊤} P_{k+1} = 0,
@@ -41,7 +42,7 @@ import sympy as sp
 
 from .._symbols import latex_name, stage_symbols
 from ..derivation import WindowAction, input_symbols
-from ..ir import interpret_precise
+from ..ir import interpret_precise, precise_namespace
 from ._latex import MemoLatexPrinter
 from ._layout import Definitions, PrintedRows, Row, Text, signed_terms
 from ._stage_forms import exact_number, galerkin_origin, stage_coefficients
@@ -413,7 +414,8 @@ def _flat(m) -> list:
 
 
 def _group_maps(F: _Factor) -> None:
-    """The Cayley retraction's maps of a group factor at mpmath numbers."""
+    """The retraction's maps of a group factor at mpmath numbers (a smooth function of the
+    exponential map's at its closed form, :func:`~symgroupoid.ir.precise_namespace`)."""
     if not F.is_group or F.maps:
         return
     G = F.f.space
@@ -425,7 +427,7 @@ def _group_maps(F: _Factor) -> None:
     dtau = G.dtau(list(x), "left")
 
     def made(expr, args):
-        f = sp.lambdify(args, expr, "mpmath")
+        f = sp.lambdify(args, expr, [precise_namespace(expr), "mpmath"])
         return lambda *a: mpmath.matrix(f(*a))
 
     flat_M = list(M)
@@ -481,7 +483,7 @@ def _reconstructed(step, target: sp.Matrix, values: dict):
     exprs = sp.Matrix(target.rows, target.cols,
                       [sp.sympify(step.reconstruction.get(e, e)) for e in target])
     inputs = sorted(exprs.free_symbols, key=str)
-    f = sp.lambdify([inputs], exprs, "mpmath")
+    f = sp.lambdify([inputs], exprs, [precise_namespace(exprs), "mpmath"])
     return mpmath.matrix(f([values[s] for s in inputs]))
 
 
@@ -553,7 +555,8 @@ def _printed(builder: _Builder, notation: _Notation, width: float, printer) -> P
             pairs.append((_nc(f"F{F.tag}"), _shown(notation.forces[fi]), True))
     written = sum(len(printer.doprint(rhs)) for _, rhs, _ in pairs) <= FORMULA_LIMIT
     items.append(Text(
-        r"where, for $j = k, k+1$ and the nodes $i$, with $\tau$ the Cayley map, "
+        r"where, for $j = k, k+1$ and the nodes $i$, with $\tau$ " + _retraction_words(builder)
+        + ", "
         r"$\mathrm{d}\tau_X$ its left-trivialised derivative and $\mathrm{Ad}$ the adjoint "
         r"action, " + _node_words(builder, printer, written)))
     groups: dict = {}
@@ -569,6 +572,19 @@ def _printed(builder: _Builder, notation: _Notation, width: float, printer) -> P
         items.append(Text("and"))
         items.append(Definitions(pairs))
     return PrintedRows(items, width, printer)
+
+
+_RETRACTIONS = {"cayley": "the Cayley map", "exp": "the exponential map"}
+
+
+def _retraction_words(builder: _Builder) -> str:
+    """The retraction τ of the group factors, in words."""
+    used = {F.f.space.retraction for F in builder.factors if F.is_group}
+    if len(used) == 1:
+        return _RETRACTIONS.get(next(iter(used)), f"the retraction {next(iter(used))}")
+    return "each group's retraction (" + ", ".join(
+        f"{_RETRACTIONS.get(F.f.space.retraction, F.f.space.retraction)} on "
+        f"${F.name}$" for F in builder.factors if F.is_group) + ")"
 
 
 def _shown(rhs):

@@ -28,6 +28,7 @@ from ._smooth import (
     ThetaMinusSinOverTheta3,
     ThetaOverTwoSin,
     derivative_of,
+    precise_namespace,
     smooth_function,
     taylor_coefficients,
 )
@@ -44,7 +45,7 @@ __all__ = [
     # smooth functions of θ² (or cos θ) with their Taylor series near the removable point
     "HalfThetaCotHalfTheta", "OneMinusCosOverTheta2", "SE3LogCoefficient", "SinOverTheta",
     "SmoothFunction", "ThetaMinusSinOverTheta3", "ThetaOverTwoSin", "smooth_function",
-    "SMOOTH_ARGUMENT", "derivative_of", "taylor_coefficients",
+    "SMOOTH_ARGUMENT", "derivative_of", "precise_namespace", "taylor_coefficients",
     # the C library's functions on NumPy arrays (LIBM) and on floats (SCALAR): the same bits
     "LIBM", "SCALAR",
 ]

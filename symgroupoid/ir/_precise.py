@@ -16,6 +16,7 @@ from collections.abc import Mapping, Sequence
 import mpmath
 import sympy as sp
 
+from ._functions import Smooth
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW
 from ._program import Program
 
@@ -57,8 +58,11 @@ def _node_value(g, n: int, value: dict, values: Mapping, dps: int):
         base = value[a[0]]
         return base ** int(e) if e.is_Integer else base ** _mpf(e, dps + 10)
     if o == FUNC:
+        spec = g.data[n]
+        if isinstance(spec, Smooth):  # its closed form, exactly (not binary64's polynomial)
+            return spec.cls.precise(value[a[0]])
         args = [sp.Float(value[x], dps) for x in a]
-        return _mpf(g.data[n].sympy(args), dps + 10)
+        return _mpf(spec.sympy(args), dps + 10)
     raise ValueError(f"node {n}: unknown operation {o}")
 
 

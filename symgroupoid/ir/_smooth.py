@@ -61,6 +61,17 @@ class SmoothFunction(sp.Function):
             return sp.Add(*[c * d ** k for k, c in enumerate(self.taylor())]).evalf(prec)
         return self.closed_form.subs(_S, x).evalf(prec)
 
+    @classmethod
+    def precise(cls, s):
+        """f(s) at mpmath's working precision, exactly: the closed form away from s₀ (which at
+        50 digits loses only the digits |s − s₀| cancels), the exact value at s₀ — not the
+        Taylor polynomial, whose error (< 1e-17) is binary64's, not the working precision's."""
+        import mpmath
+
+        if s == cls.point:
+            return mpmath.mpf(sp.Float(cls.taylor()[0], mpmath.mp.dps + 10)._mpf_)
+        return _precise_closed_form(cls)(s)
+
     # --- printing -----------------------------------------------------------------------------
     def _numpycode(self, printer):
         """where(|s − s₀| < T, Taylor(s), closed(s′)) with s′ = s away from s₀ only, so the
@@ -91,6 +102,17 @@ class SmoothFunction(sp.Function):
         horner = sp.horner(sp.Add(*[sp.Float(c, 17) * x ** k
                                     for k, c in enumerate(self.taylor())]), x)
         return printer._print(horner.subs(x, d))
+
+
+@functools.cache
+def _precise_closed_form(cls: type):
+    return sp.lambdify(_S, cls.closed_form, "mpmath")
+
+
+def precise_namespace(expr) -> dict:
+    """The :meth:`SmoothFunction.precise` of every smooth function in ``expr`` by its name:
+    a namespace for ``sympy.lambdify(..., [namespace, "mpmath"])``."""
+    return {type(f).__name__: type(f).precise for f in expr.atoms(SmoothFunction)}
 
 
 @functools.cache
