@@ -345,9 +345,11 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
         _check_finite(system, "the discrete forces", forces.reshape(len(T0), -1), params)
         pairings = virtual_work(forces, coeffs)
         report.work = float(pairings.sum())
+    magnitude = float(np.abs(T0).sum())  # what the sums of terms are rounded against
     for e in (eps, eps / 2, eps / 4):
         Tp = action_terms(system, *varied(e), params, zeta)
         Tm = action_terms(system, *varied(-e), params, zeta)
+        magnitude = max(magnitude, float(np.abs(Tp).sum()), float(np.abs(Tm).sum()))
         report.derivatives[e] = float(Tp.sum() - Tm.sum()) / (2 * e) + report.work
         if e == eps:  # how large the first-order changes of the single terms are
             report.scale = (float(np.abs(Tp - Tm).sum()) / (2 * e)
@@ -356,8 +358,9 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     # d(ε) = S′(0) + W + c₂ε² + c₄ε⁴ + …: eliminating the ε² and ε⁴ terms (Richardson)
     # leaves S′(0) + W
     report.extrapolated = (64 * d[2] - 20 * d[1] + d[0]) / 45
-    noise = 1e-13 * float(np.abs(T0).sum()) / (eps / 4) + 1e-15 * float(
-        np.abs(pairings).sum())
+    # the rounding of Σ T(±ε): relative to the largest terms summed (a large ε moves the
+    # action's terms far from those of the trajectory itself)
+    noise = 1e-13 * magnitude / (eps / 4) + 1e-15 * float(np.abs(pairings).sum())
     shrinking = abs(d[2]) <= 0.35 * abs(d[1]) + noise and abs(d[1]) <= 0.35 * abs(d[0]) + noise
     report.stationary = bool(shrinking and abs(report.extrapolated) <= 1e-4 * report.scale
                              + noise)

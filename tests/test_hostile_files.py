@@ -90,7 +90,7 @@ def check_emitted(prefix):
             assert stat.S_IMODE(Path(p).stat().st_mode) == 0o666 & ~umask
         if HAVE_CC:
             result = subprocess.run(["cc", "-std=c99", "-fsyntax-only", "-Wall", "-Werror",
-                                     "-I", str(c_path.parent), str(c_path)],
+                                     "-I", str(c_path.parent), str(c_path.absolute())],
                                     capture_output=True, text=True, timeout=120)
             assert result.returncode == 0, result.stderr
     return verify

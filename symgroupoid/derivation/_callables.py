@@ -190,7 +190,8 @@ def as_scalar(system_name: str, what: str, value) -> sp.Expr:
                          "it must be a scalar")
     try:
         expr = sp.sympify(value)
-    except (sp.SympifyError, TypeError) as exc:
+    except (sp.SympifyError, TypeError, ValueError, AttributeError) as exc:
+        # (SymPy raises ValueError for an array holding NaN, AttributeError for some junk)
         raise ShapeError(f"{system_name}: the {what} returned {shown_value(value)}, not a "
                          f"scalar") from exc
     if not isinstance(expr, sp.Expr):
@@ -403,6 +404,6 @@ def _is_scalar_expression(value) -> bool:
         return False
     try:
         expr = sp.sympify(value, strict=True)
-    except (sp.SympifyError, TypeError, ValueError):
+    except (sp.SympifyError, TypeError, ValueError, AttributeError):
         return False
     return isinstance(expr, sp.Expr)

@@ -94,7 +94,7 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
 def _abbreviation_value(tex: str, value) -> sp.Expr:
     try:
         expr = sp.sympify(value, strict=True)
-    except sp.SympifyError:
+    except (sp.SympifyError, TypeError, ValueError, AttributeError):
         expr = None
     if not isinstance(expr, sp.Expr) or not expr.free_symbols:
         raise LatexOptionError(f"latex: the abbreviation {tex!r} must stand for a SymPy "

@@ -69,7 +69,7 @@ def _step_argument(h, owner: str) -> sp.Expr:
     :class:`~symgroupoid.InputTypeError` naming h."""
     try:
         value = sp.sympify(h, strict=True)
-    except (sp.SympifyError, TypeError, ValueError):
+    except (sp.SympifyError, TypeError, ValueError, AttributeError):
         value = None
     if not isinstance(value, sp.Expr) or isinstance(value, sp.MatrixBase) \
             or value.is_real is False:

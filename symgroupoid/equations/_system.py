@@ -125,7 +125,7 @@ def _coefficients(name: str, what: str, value, rank: int) -> None:
     for j, entry in enumerate(entries):
         try:
             expr = sp.sympify(entry, strict=True)
-        except (sp.SympifyError, TypeError, ValueError):
+        except (sp.SympifyError, TypeError, ValueError, AttributeError):
             expr = None
         if not isinstance(expr, sp.Expr):
             raise InputTypeError(f"{name}: {what}, coefficient {j} is not a real expression: "

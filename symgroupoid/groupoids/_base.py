@@ -598,7 +598,7 @@ def _derivative_arguments(groupoid, f, a, owner: str) -> tuple[tuple, sp.Expr]:
         if callable(f):
             expr = _call_on(owner, f, groupoid.view(a))
         expr = sp.sympify(expr, strict=True)
-    except (sp.SympifyError, TypeError, ValueError) as exc:
+    except (sp.SympifyError, TypeError, ValueError, AttributeError) as exc:
         if isinstance(exc, SymgroupoidError):
             raise
         raise InputTypeError(f"{owner}: f must be a scalar expression or a function giving "

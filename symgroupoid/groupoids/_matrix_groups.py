@@ -56,7 +56,7 @@ def hat3(w: Sequence) -> sp.Matrix:
         raise ShapeError(f"hat3: w must have 3 components, got {len(w)}")
     try:
         x = [sp.sympify(w[i], strict=True) for i in range(3)]
-    except (sp.SympifyError, TypeError, ValueError) as exc:
+    except (sp.SympifyError, TypeError, ValueError, AttributeError) as exc:
         raise InputTypeError(f"hat3: w must be three scalars, got {shown_value(w)}") from exc
     if not all(isinstance(v, sp.Expr) and not isinstance(v, sp.MatrixBase) for v in x):
         raise InputTypeError(f"hat3: w must be three scalars, got {shown_value(w)}")
@@ -288,7 +288,7 @@ class MatrixLieGroup(Groupoid):
         for i, v in enumerate(values):
             try:
                 e = sp.sympify(v, strict=True)
-            except (sp.SympifyError, TypeError, ValueError) as exc:
+            except (sp.SympifyError, TypeError, ValueError, AttributeError) as exc:
                 raise InputTypeError(f"{self.name}: {what}[{i}] is {v!r}, not a number or "
                                      f"expression") from exc
             if not isinstance(e, sp.Expr):
