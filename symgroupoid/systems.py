@@ -346,7 +346,9 @@ def spherical_chain(n: int, forced: bool = False) -> DiscreteSystem:
 
     def forces(g):
         bodies = read(g)
-        spin = [vee(Rb * Ra.T - Ra * Rb.T) / (2 * h) for Ra, Rb in bodies]
+        # body i's angular velocity over the step in its own frame, at either end:
+        # R_aᵀω_i = R_bᵀω_i = vee(F_i − F_iᵀ)/(2h), F_i = R_aᵀR_b (the increment L reads)
+        spin = [vee(Ra.T * Rb - Rb.T * Ra) / (2 * h) for Ra, Rb in bodies]
         return tuple(chain_torques(R, u, spin, c, h) for R in zip(*bodies))
 
     return DiscreteSystem(G, L, parameters=[h, grav, c], forces=forces,
@@ -363,13 +365,16 @@ def chain_torques(R: Sequence[sp.Matrix], u: Sequence[sp.Matrix], spin: Sequence
                   c: sp.Symbol, h: sp.Symbol) -> list:
     """(h/2) R_iᵀ(T_i − T_{i+1}) for every body i, one component per E_a, at attitudes R:
     the joint torques T_j = R_j u_j − c (ω_j − ω_{j−1}) of :func:`spherical_chain` (forced),
-    with R_iᵀR_i u_i written u_i."""
-    damping = [-c * (wj - wp) for wj, wp in zip(spin, [sp.zeros(3, 1), *spin[:-1]])]
+    from the bodies' angular velocities in their own frames, ``spin`` Ω_j = R_jᵀω_j: with
+    A_ij = R_iᵀR_j, R_iᵀT_i = u_i − c (Ω_i − A_{i,i−1}Ω_{i−1}) and R_iᵀT_{i+1} =
+    A_{i,i+1}(u_{i+1} − c Ω_{i+1}) + c Ω_i (R_iᵀR_i = I on the group)."""
     out: list = []
     for i, Ri in enumerate(R):
-        net = u[i] + Ri.T * damping[i]
+        net = u[i] - c * spin[i]
+        if i > 0:
+            net += c * (Ri.T * R[i - 1]) * spin[i - 1]
         if i + 1 < len(R):
-            net -= Ri.T * (R[i + 1] * u[i + 1] + damping[i + 1])
+            net -= (Ri.T * R[i + 1]) * (u[i + 1] - c * spin[i + 1]) + c * spin[i]
         out += list(h / 2 * net)
     return out
 

@@ -18,6 +18,7 @@ from sympy.matrices.expressions.matexpr import MatrixElement
 from sympy.matrices.expressions.trace import Trace
 from sympy.printing.latex import LatexPrinter
 
+from .._arguments import shown_value
 from .._errors import SymgroupoidError
 from .._symbols import StepSymbol
 
@@ -296,7 +297,10 @@ def latex(expr, **settings) -> str:
         printer = GroupoidLatexPrinter(settings)
     except (TypeError, ValueError) as error:
         raise LatexOptionError(f"latex: {error} (the settings of sympy.latex)") from None
-    return printer.doprint(expr)
+    try:
+        return printer.doprint(expr)
+    except (TypeError, ValueError) as error:  # e.g. a dict whose keys SymPy cannot order
+        raise LatexOptionError(f"latex: {shown_value(expr)} cannot be printed: {error}") from None
 
 
 def _latex_value(expr, depth: int = 0) -> bool:
