@@ -215,7 +215,7 @@ def test_a_step_too_large_to_write_out_is_refused_at_once(monkeypatch):
                                parameters=[h])
     step = body.discretize(h, sg.GaussLegendre(2)).euler_lagrange()
     assert step.program.expanded_size(["F"]) > 100 * PRINT_LIMIT
-    monkeypatch.setattr(_printing, "group_stage_rows", lambda *args: None)
+    monkeypatch.setattr(_printing, "group_stage_form", lambda *args: None)
     with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
         step.latex()
 

@@ -514,10 +514,23 @@ def _holds(builder: _Builder, notation: _Notation, step, arrows: dict) -> bool:
 
 # --- the face -------------------------------------------------------------------------------
 
-def group_stage_rows(step, width: float, printer=None) -> PrintedRows | None:
-    """The step in the group stage notation (see the module docstring), checked, or None
-    when it does not apply or does not hold; ``printer`` (default: a
-    :class:`~._latex.MemoLatexPrinter`) prints its terms."""
+@dataclass
+class GroupStageForm:
+    """A step's group stage notation, checked (:func:`group_stage_form`): printed at any
+    width by :meth:`rows` without checking it again."""
+
+    builder: _Builder
+    notation: _Notation
+
+    def rows(self, width: float, printer=None) -> PrintedRows:
+        """The rows and "where" list laid out for a page ``width`` pt wide; ``printer``
+        (default: a :class:`~._latex.MemoLatexPrinter`) prints the terms."""
+        return _printed(self.builder, self.notation, width, printer or MemoLatexPrinter())
+
+
+def group_stage_form(step) -> GroupStageForm | None:
+    """The step in the group stage notation (see the module docstring), checked at points of
+    the group, or None when it does not apply or does not hold."""
     from ..groupoids import pair_groupoid_of
 
     origin = galerkin_origin(step)
@@ -538,7 +551,13 @@ def group_stage_rows(step, width: float, printer=None) -> PrintedRows | None:
               for s, start in enumerate(action.starts)}
     if not _holds(builder, notation, step, arrows):
         return None
-    return _printed(builder, notation, width, printer or MemoLatexPrinter())
+    return GroupStageForm(builder, notation)
+
+
+def group_stage_rows(step, width: float, printer=None) -> PrintedRows | None:
+    """:func:`group_stage_form` laid out for a page ``width`` pt wide, or None."""
+    form = group_stage_form(step)
+    return None if form is None else form.rows(width, printer)
 
 
 #: characters of LaTeX above which the formulas of N and M are described, not written out
@@ -622,4 +641,5 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
                     r"left out),")
 
 
-__all__ = ["CHECK_DIGITS", "CHECK_POINTS", "FORMULA_LIMIT", "group_stage_rows"]
+__all__ = ["CHECK_DIGITS", "CHECK_POINTS", "FORMULA_LIMIT", "GroupStageForm", "group_stage_form",
+           "group_stage_rows"]

@@ -43,7 +43,7 @@ from ._forms import (
     piece_form,
     with_recognised,
 )
-from ._group_stage_forms import group_stage_rows
+from ._group_stage_forms import group_stage_form
 from ._latex import (
     PRINT_LIMIT,
     GroupoidLatexPrinter,
@@ -86,18 +86,15 @@ _GROUPED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def group_stage_printed(step, width: float) -> PrintedRows | None:
     """A Galerkin step on Lie-group factors in the group stage notation
-    (:func:`~._group_stage_forms.group_stage_rows`, checked at points of the group), or
-    None; remembered for the step and the width."""
+    (:func:`~._group_stage_forms.group_stage_form`, checked at points of the group), laid
+    out for ``width``, or None; the checked form is remembered for the step."""
     try:
-        known = _GROUPED.setdefault(step, {})
-    except TypeError:  # not weakly referenceable: printed afresh
-        known = {}
-    if None in known:
-        return None
-    if width not in known:
-        rows = group_stage_rows(step, width, MemoLatexPrinter())
-        known[None if rows is None else width] = rows
-    return known.get(width)
+        if step not in _GROUPED:
+            _GROUPED[step] = group_stage_form(step)
+        form = _GROUPED[step]
+    except TypeError:  # not weakly referenceable: checked afresh
+        form = group_stage_form(step)
+    return None if form is None else form.rows(width, MemoLatexPrinter())
 
 
 def printed_step(step, abbreviations: Mapping | None = None,
