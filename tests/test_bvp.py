@@ -950,3 +950,31 @@ def test_the_jacobian_with_internal_stages_is_the_derivative_of_the_residual(num
                       lay.size, F, band)
     np.testing.assert_allclose(x, np.linalg.solve(A, F), rtol=1e-9,
                                atol=1e-9 * np.abs(x).max())
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("scale", [1e40, 1e60])
+def test_a_guess_whose_residual_squares_overflow_is_refused_by_name(scale):
+    """A quartic potential at a guess of size 1e40 or 1e60: |F|₂² and the rounding floor's
+    square overflow (|F| beyond 1e154).  The line search halves such trials instead of
+    taking an overflowed square for a decrease, and the floor test compares scaled squares:
+    a BoundaryValueDivergenceError, no RuntimeWarning, no step accepted on noise."""
+    h, k = sp.symbols("h k", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x"))
+
+    def L(g):
+        a, b = g.source[0], g.target[0]
+        return (b - a) ** 2 / (2 * h) - h * k * (a ** 4 + b ** 4) / 4
+
+    step = sg.DiscreteSystem(G, L, parameters=[h, k], name="quartic").euler_lagrange()
+    q = np.linspace(0.1, 0.2, 11) * scale
+    q[0], q[-1] = 0.1, 0.2
+    guess = np.stack([q[:-1], q[1:]], axis=1)
+    with pytest.raises(BoundaryValueDivergenceError, match="quartic"):
+        sg.solve_boundary_value(step, [0.1], [0.2], 10, guess=guess,
+                                params={"h": 0.1, "k": 1.0})
+    q = np.linspace(0.1, 0.2, 11)
+    solved = sg.solve_boundary_value(step, [0.1], [0.2], 10,
+                                     guess=np.stack([q[:-1], q[1:]], axis=1),
+                                     params={"h": 0.1, "k": 1.0})
+    assert solved.arrows[0][0] == 0.1 and solved.arrows[-1][1] == 0.2

@@ -121,8 +121,8 @@ class _Notation:
     generic: list = field(default_factory=list)  # (lhs, rhs) at j, printed
     concrete: list = field(default_factory=list)  # (lhs, rhs) at k and k + 1, checked
     operators: dict = field(default_factory=dict)  # symbol -> (rule name, factor, args)
-    formulas: list = field(default_factory=list)  # (lhs, Matrix, kind, factor index)
-    node_values: dict = field(default_factory=dict)  # N_{j,i}/M_{j,i} -> (kind, f, j, i)
+    formulas: list = field(default_factory=list)  # (factor index, N, M): formulas in L
+    node_values: dict = field(default_factory=dict)  # N, M, F at a node -> (kind, f, j, i)
     dims: dict = field(default_factory=dict)  # a vector written 0 (X at c = 0) -> its size
     forces: list = field(default_factory=list)  # per factor: the force's formula (forced)
     kinds: dict = field(default_factory=dict)  # A, B -> "chart"; P -> "P"; S -> "S"

@@ -275,5 +275,15 @@ def _within_floor(assembled: _Assembled, f: float) -> bool:
     """|F|₂² = ``f`` ≤ Σ (ROUNDING_FACTOR·floor_i)²: the residual is at its rounding floor,
     where comparing two residuals is comparing noise."""
     floor = ROUNDING_FACTOR * _rounding_floor(assembled)
-    return f <= float(floor @ floor)
+    with np.errstate(over="ignore"):
+        bound = float(floor @ floor)
+    if bound < np.inf:
+        return f <= bound
+    # terms beyond 1e154: the squares overflow; compared scaled by a power of two instead
+    F = assembled.F
+    top = max(float(np.max(np.abs(F), initial=0.0)), float(np.max(np.abs(floor))))
+    if not top < np.inf:
+        return False
+    scale = np.ldexp(1.0, -np.frexp(top)[1])
+    return float(np.sum((F * scale) ** 2)) <= float(np.sum((floor * scale) ** 2))
 

@@ -84,7 +84,8 @@ def _line_search(state: _SolverState, dz: np.ndarray) -> _Step | None:
     an arrow near the chart's cut locus).
     """
     F = state.assembled.F
-    f0 = float(F @ F)
+    with np.errstate(over="ignore"):  # above |F| ≈ 1e154: inf (backtrack halves then)
+        f0 = float(F @ F)
     return state.backtrack(dz, lambda length, arrows, trial, f: f <= (1 - 1e-4 * length) * f0)
 
 

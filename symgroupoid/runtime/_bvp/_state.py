@@ -192,15 +192,20 @@ class _SolverState:
 
     def backtrack(self, dz: np.ndarray, accept) -> _Step | None:
         """The step along dz from length t = 1, halved at most MAX_HALVINGS times, until
-        ``accept(t, arrows, assembled, f)`` holds at a finite trial (f = |F|₂² there) or the
-        trial is within the rounding floor (taken at once, ``at_floor``: comparing two
-        residuals there is comparing noise); None when neither happens."""
+        ``accept(t, arrows, assembled, f)`` holds at a finite trial (f = |F|₂² there, itself
+        finite: above |F| ≈ 1e154 the square overflows and no decrease can be told, so the
+        step is halved) or the trial is within the rounding floor (taken at once,
+        ``at_floor``: comparing two residuals there is comparing noise); None when neither
+        happens."""
         length = 1.0
         for _ in range(MAX_HALVINGS):
             arrows, lam, trial = self.trial(length * dz)
             if trial.finite():
-                f = float(trial.F @ trial.F)
-                if accept(length, arrows, trial, f):
+                with np.errstate(over="ignore"):
+                    f = float(trial.F @ trial.F)
+                # |F| above 1e154: |F|₂² overflows and compares equal to an overflowed
+                # |F₀|₂²; such a trial is not a decrease anyone can tell, so it is halved
+                if f < np.inf and accept(length, arrows, trial, f):
                     return _Step(arrows, lam, trial, length, dz)
                 if _within_floor(trial, f):
                     return _Step(arrows, lam, trial, length, dz, at_floor=True)
