@@ -280,7 +280,11 @@ class MatrixLieGroup(Groupoid):
         if isinstance(values, (str, bytes, dict)) or not hasattr(values, "__len__"):
             raise InputTypeError(f"{self.name}: {what} must be a sequence of {size} "
                                  f"coordinates, got {type(values).__name__}")
-        values = tuple(values)
+        try:
+            values = tuple(values)
+        except TypeError as exc:  # e.g. a 0-d array: sized by its class, not iterable
+            raise InputTypeError(f"{self.name}: {what} must be a sequence of {size} "
+                                 f"coordinates, got {shown_value(values)}") from exc
         if len(values) != size:
             raise ShapeError(f"{self.name}: {what} has {len(values)} coordinates, expected "
                              f"{size}")
