@@ -397,3 +397,24 @@ def test_constraints_made_dependent_by_the_ends(monkeypatch, steps):
     assert solution.residual_norm <= 1e-12
     assert np.isfinite(solution.multipliers).all()
     assert sg.verify_stationary(solution, system, params)
+
+
+@pytest.mark.filterwarnings("error")
+def test_a_time_step_at_the_smallest_double_is_a_named_boundary_value_failure(monkeypatch):
+    """(The free rigid body's boundary-value problem at h = 2.2e-308: its Jacobian's entries
+    near the largest doubles made LAPACK's eigenvalue routine fail with a raw LinAlgError in
+    the inertia test, after RuntimeWarnings of overflow.)  Now the inertia is undetermined,
+    the convexification gives up with a named error, and no NumPy warning escapes."""
+    monkeypatch.setenv("SYMGROUPOID_BACKEND", "numpy")
+    inertia = sp.diag(1, 2, 3)
+    Jd = inertia.trace() / 2 * sp.eye(3) - inertia
+    body = sg.DiscreteSystem(sg.SO3("W"), lambda a: -(Jd * a.matrix).trace() / H,
+                             parameters=[H], name="free_body")
+    end = np.array([[0.71837052, -0.53183683, 0.44843438],
+                    [0.61849205, 0.78336194, -0.06173864],
+                    [-0.31845154, 0.32170432, 0.89168097]])
+    end = np.linalg.qr(end)[0] * np.sign(np.diag(np.linalg.qr(end)[1]))  # on SO(3)
+    with pytest.raises(sg.SymgroupoidError, match="free_body"):
+        sg.solve_boundary_value(body.euler_lagrange(), np.eye(3), end, 6,
+                                params={"h": 2.2250738585072014e-308}, tol=1e-10,
+                                tol_step=1e-9, max_iterations=30)

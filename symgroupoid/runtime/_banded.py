@@ -85,9 +85,19 @@ def _equilibrate(D: np.ndarray, B: np.ndarray) -> None:
 def banded_inertia(rows, cols, vals, n: int) -> Inertia | None:
     """The inertia of the symmetric part (A + Aᵀ)/2 of the banded matrix A given by COO
     triplets (``n`` × ``n``), by block LDLᵀ with delayed pivots; None when a near-singular
-    pivot cannot be resolved within MAX_MERGED blocks."""
+    pivot cannot be resolved within MAX_MERGED blocks, or when the eigenvalues of a block
+    cannot be computed (entries near the largest doubles: LAPACK does not converge)."""
     if n == 0:
         return Inertia(0, 0, 0)
+    try:
+        with np.errstate(all="ignore"):
+            return _inertia(rows, cols, vals, n)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _inertia(rows, cols, vals, n: int) -> Inertia | None:
+    """:func:`banded_inertia` of a nonempty matrix (LinAlgError from LAPACK passes)."""
     D, B, pad = _symmetric_blocks(np.asarray(rows), np.asarray(cols), np.asarray(vals, float),
                                   n)
     nb, b = D.shape[0], D.shape[1]

@@ -154,7 +154,11 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
             f"Lagrangian or the constraints are not defined there", step=worst,
             residual_norm=float(np.nanmax(np.abs(state.assembled.F), initial=0.0)),
             iterate=arrows)
-    inertia = _solve(state, minimum)
+    # every value the iteration uses is tested for finiteness (trials, merits, directions,
+    # inertias) and ends in a named error; NumPy's warnings of intermediate overflow (at a
+    # time step near the smallest doubles, a guess near the largest) would only repeat it
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        inertia = _solve(state, minimum)
     multipliers, stages = state.lam[:, :m], state.lam[:, m:]
     if n_stages:
         _check_stage_branch(state, stages, owner)
