@@ -44,7 +44,7 @@ import sympy as sp
 
 from .._symbols import latex_name, stage_symbols
 from ..derivation import WindowAction, input_symbols
-from ..ir import interpret_precise, precise_namespace
+from ..ir import interpret_precise, precise_namespace, precise_number
 from ._latex import MemoLatexPrinter
 from ._layout import Definitions, PrintedRows, Row, Text, signed_terms
 from ._stage_forms import exact_number, galerkin_origin, stage_coefficients
@@ -174,8 +174,7 @@ class _Builder:
                                                   for _ in range(self.M - 1)]}
         n_all, at, curves = sum(f.f.dim for f in self.factors), 0, []
         for fi, F in enumerate(self.factors):
-            entries = None if zeta is None else zeta
-            curves.append(self.curve(fi, j, jp, defs, entries, at, n_all))
+            curves.append(self.curve(fi, j, jp, defs, zeta, at, n_all))
             at += F.f.dim
         for fi, (X, V) in enumerate(curves):
             self.derivatives(fi, j, X, V, defs, out)
@@ -346,7 +345,7 @@ class _Evaluator:
         for fi, force in enumerate(notation.forces):
             self._formulas[("F", fi)] = sp.lambdify([args, params, inputs], force, "mpmath")
         self.params = [self.table[p] for p in params]
-        self.inputs = {label: [self.table.get(u, 0) for u in input_symbols(inputs, s)]
+        self.inputs = {label: [self.table[u] for u in input_symbols(inputs, s)]
                        for s, (label, _) in _LABELS.items()}
 
     def value(self, e):
@@ -355,7 +354,7 @@ class _Evaluator:
         if e in self.table:
             return self.table[e]
         if e.is_number:
-            return _mpf(e, CHECK_DIGITS + 10)
+            return precise_number(e, CHECK_DIGITS + 10)
         if e in self.n.operators:
             out = self.table[e] = self.operator(*self.n.operators[e])
             return out
@@ -401,11 +400,6 @@ class _Evaluator:
             if lhs in self.n.dims and not isinstance(value, mpmath.matrix):
                 value = mpmath.matrix(self.n.dims[lhs], 1)  # X_{j,1} = 0 at c₁ = 0
             self.table[lhs] = value
-
-
-def _mpf(number, digits: int):
-    """An exact SymPy number (√3/6) as an mpmath number at ``digits`` digits."""
-    return mpmath.mpf(sp.Float(sp.N(number, digits), digits)._mpf_)
 
 
 def _flat(m) -> list:

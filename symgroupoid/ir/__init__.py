@@ -29,6 +29,7 @@ from ._smooth import (
     ThetaOverTwoSin,
     derivative_of,
     precise_namespace,
+    precise_number,
     smooth_function,
     taylor_coefficients,
 )
@@ -37,15 +38,16 @@ from ._sympy import from_sympy, to_sympy
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "UnmappedSymbolError",
-    "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret", "interpret_precise",
-    "jacobian",
-    "partial", "print_c", "rounding_error", "smooth_spec", "term_magnitude", "to_sympy",
+    "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret",
+    "interpret_precise", "jacobian", "partial", "print_c", "rounding_error", "smooth_spec",
+    "term_magnitude", "to_sympy",
     # straight-line code of a graph: the C dialect, the plan of its nodes, the writer
     "C", "functions_used", "plan", "write",
     # smooth functions of θ² (or cos θ) with their Taylor series near the removable point
     "HalfThetaCotHalfTheta", "OneMinusCosOverTheta2", "SE3LogCoefficient", "SinOverTheta",
     "SmoothFunction", "ThetaMinusSinOverTheta3", "ThetaOverTwoSin", "smooth_function",
-    "SMOOTH_ARGUMENT", "derivative_of", "precise_namespace", "taylor_coefficients",
+    "SMOOTH_ARGUMENT", "derivative_of", "precise_namespace", "precise_number",
+    "taylor_coefficients",
     # the C library's functions on NumPy arrays (LIBM) and on floats (SCALAR): the same bits
     "LIBM", "SCALAR",
 ]

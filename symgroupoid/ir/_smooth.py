@@ -69,7 +69,7 @@ class SmoothFunction(sp.Function):
         import mpmath
 
         if s == cls.point:
-            return mpmath.mpf(sp.Float(cls.taylor()[0], mpmath.mp.dps + 10)._mpf_)
+            return precise_number(cls.taylor()[0], mpmath.mp.dps + 10)
         return _precise_closed_form(cls)(s)
 
     # --- printing -----------------------------------------------------------------------------
@@ -102,6 +102,14 @@ class SmoothFunction(sp.Function):
         horner = sp.horner(sp.Add(*[sp.Float(c, 17) * x ** k
                                     for k, c in enumerate(self.taylor())]), x)
         return printer._print(horner.subs(x, d))
+
+
+def precise_number(number, digits: int):
+    """An exact SymPy number (√3/6, a function at Floats) as an mpmath number rounded at
+    ``digits`` decimal digits."""
+    import mpmath
+
+    return mpmath.mpf(sp.Float(sp.N(number, digits), digits)._mpf_)
 
 
 @functools.cache

@@ -275,8 +275,7 @@ def _within_floor(assembled: _Assembled, f: float) -> bool:
     """|F|₂² = ``f`` ≤ Σ (ROUNDING_FACTOR·floor_i)²: the residual is at its rounding floor,
     where comparing two residuals is comparing noise."""
     floor = ROUNDING_FACTOR * _rounding_floor(assembled)
-    with np.errstate(over="ignore"):
-        bound = float(floor @ floor)
+    bound = float(floor @ floor)
     if bound < np.inf:
         return f <= bound
     # terms beyond 1e154: the squares overflow; compared scaled by a power of two instead

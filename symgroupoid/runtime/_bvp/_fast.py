@@ -84,8 +84,7 @@ def _line_search(state: _SolverState, dz: np.ndarray) -> _Step | None:
     an arrow near the chart's cut locus).
     """
     F = state.assembled.F
-    with np.errstate(over="ignore"):  # above |F| ≈ 1e154: inf (backtrack halves then)
-        f0 = float(F @ F)
+    f0 = float(F @ F)  # above |F| ≈ 1e154: inf (backtrack halves such trials)
     return state.backtrack(dz, lambda length, arrows, trial, f: f <= (1 - 1e-4 * length) * f0)
 
 

@@ -157,8 +157,7 @@ def _merit_search(state: _SolverState, dz, nu: float, slope: float, newton: bool
     problem = state.problem
     phi0 = _merit(problem, state.arrows, state.assembled, nu)
     F = state.assembled.F
-    with np.errstate(over="ignore"):  # above |F| ≈ 1e154: inf (backtrack halves then)
-        f0 = float(F @ F)
+    f0 = float(F @ F)  # above |F| ≈ 1e154: inf (backtrack halves such trials)
 
     def accept(length: float, arrows, trial: _Assembled, f: float) -> bool:
         accepted = slope < 0 and \

@@ -201,8 +201,7 @@ class _SolverState:
         for _ in range(MAX_HALVINGS):
             arrows, lam, trial = self.trial(length * dz)
             if trial.finite():
-                with np.errstate(over="ignore"):
-                    f = float(trial.F @ trial.F)
+                f = float(trial.F @ trial.F)
                 # |F| above 1e154: |F|₂² overflows and compares equal to an overflowed
                 # |F₀|₂²; such a trial is not a decrease anyone can tell, so it is halved
                 if f < np.inf and accept(length, arrows, trial, f):
