@@ -58,6 +58,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from symgroupoid.runtime.toolchain import vector_flags
+
 #: the so(3) basis E₁, E₂, E₃ (x̂ = Σ x_a E_a, x̂v = x × v)
 SO3_BASIS = [ca.DM([[0, 0, 0], [0, 0, -1], [0, 1, 0]]),
              ca.DM([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
@@ -319,11 +321,18 @@ class CompiledStepper:
         return np.vstack([np.asarray(known0, float), states])
 
 
+#: CasADi's generated C at -O3 for the same vector extension as the library's kernels
+#: (``runtime.toolchain.vector_flags``): both sides compiled for the same processor
+CASADI_FLAGS: tuple[str, ...] = ("-O3", *vector_flags(["cc"], []))
+
+
 def compile_stepper(model: StepModel, steps: int, workdir: Path, *,
                     tol_residual: float = 1e-12, tol_step: float = 1e-10,
-                    max_iterations: int = 50, flags: tuple[str, ...] = ("-O3",)
+                    max_iterations: int = 50, flags: tuple[str, ...] | None = None
                     ) -> CompiledStepper:
-    """Newton (fast_newton) + mapaccum over ``steps`` steps, C at ``flags``, loaded back."""
+    """Newton (fast_newton) + mapaccum over ``steps`` steps, C at ``flags`` (default
+    :data:`CASADI_FLAGS`), loaded back."""
+    flags = CASADI_FLAGS if flags is None else flags
     t0 = time.perf_counter()
     nu, nk, npar, m = model.n_unknown, model.n_known, model.n_param, model.n_input
     u, known, p = ca.SX.sym("u", nu), ca.SX.sym("k", nk), ca.SX.sym("p", npar)

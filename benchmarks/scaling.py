@@ -48,8 +48,8 @@ For each n, through the public API only, in a subprocess with a time budget (``-
 In the same run the same discrete equations are built with CasADi
 (``benchmarks/_casadi_models.py``: SX graph, AD Jacobian, ``rootfinder('fast_newton')`` with
 the library's tolerances and its extrapolated first guess (linear or quadratic by hindsight),
-``mapaccum`` over many steps, C generated and compiled at -O3, loaded with
-``casadi.external``).  Every comparison is printed
+``mapaccum`` over many steps, C generated and compiled at -O3 for the same vector extension
+as the library's kernels, loaded with ``casadi.external``).  Every comparison is printed
 with its check: the CasADi residual and Jacobian against the library's at random points
 (relative difference ≤ 1e-10, else "MISMATCH"), so that both sides are known to solve the same
 equations; and the first 100 steps from the same initial state (max difference of the states:

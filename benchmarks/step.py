@@ -17,7 +17,7 @@ from a position and a discrete momentum, so the rolling constraints hold):
   ``scipy.optimize.root`` (MINPACK ``hybr``) once per step;
 - (b) CasADi, if importable: the same residuals as a ``rootfinder('fast_newton')`` step from
   the same prediction, accumulated over N steps with ``mapaccum``, code-generated and compiled
-  with ``-O3``.
+  with ``-O3`` for the same vector extension as the library's kernels.
 
 Every competitor's trajectory is compared with the compiled one over the first 1000 steps
 (max deviation printed).
@@ -41,6 +41,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 import symgroupoid as sg  # noqa: E402
+from symgroupoid.runtime.toolchain import vector_flags  # noqa: E402
 from symgroupoid.systems import plate_ball  # noqa: E402
 
 PARAMS = {"h": 0.01, "r": 1.0, "Omega": 0.1, "c": 0.02}
@@ -235,8 +236,9 @@ def casadi_per_step(step, state, steps: int, workdir: Path) -> tuple[float, np.n
     finally:
         os.chdir(cwd)
     library = workdir / "casadi_plate_ball.so"
-    subprocess.run(["cc", "-O3", "-shared", "-fPIC", str(workdir / source), "-o", str(library),
-                    "-lm"], check=True, capture_output=True)
+    subprocess.run(["cc", "-O3", *vector_flags(["cc"], []), "-shared", "-fPIC",
+                    str(workdir / source), "-o", str(library), "-lm"],
+                   check=True, capture_output=True)
     run_c = ca.external(trajectory.name(), str(library))  # mapaccum nests acc10 blocks
     k0 = ca.DM(np.asarray(state, float))
     pp = ca.repmat(ca.DM([PARAMS[str(s)] for s in step.parameters]), 1, steps)

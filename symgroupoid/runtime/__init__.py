@@ -35,7 +35,7 @@ from ._sweep_result import SweepResult
 from ._sweep_tasks import ReduceError
 from ._trajectory import Trajectory
 from ._validate import constraint_check, parameter_vector, system_argument
-from .toolchain import CompilationError, CompilerNotFoundError, cache_root
+from .toolchain import CompilationError, CompilerNotFoundError, VectorISAError, cache_root
 
 #: names of :mod:`._files`, imported when first asked for (:func:`__getattr__`)
 _FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "read_trajectory",
@@ -43,6 +43,7 @@ _FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "r
 
 __all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "CompilationError",
            "CompilerNotFoundError", "ConservationSummary", "DetachedStepError", "Drift", "Momenta",
+           "VectorISAError",
            "NewtonOptions", "NotPortableError", "ProgramEvaluator", "ProjectionError",
            "ReduceError", "Simulator", "SweepResult", "Trajectory", "TrajectoryBatch",
            "atomic_write", "cache_root", "compile_program", "compile_step", "conservation_summary",

@@ -27,10 +27,12 @@ from .toolchain import (
     STATS,
     CompilerNotFoundError,
     KernelCache,
+    VectorISAError,
     absolute_root,
     build_cached,
     load_cached,
     load_step,
+    missing_instructions,
     start_openmp_probe,
     step_flags,
     step_kernel,
@@ -68,14 +70,22 @@ def compiler_flags(flags, owner: str = "") -> tuple[str, ...] | None:
     """``flags`` as a tuple of compiler arguments, or None (the step's
     :func:`default_flags`, chosen when it is built): a list of strings without NUL
     characters.  A single string is refused: it would be taken letter by letter (``"-O2"``
-    as ``"-"``, ``"O"``, ``"2"``); pass ``["-O2"]``."""
+    as ``"-"``, ``"O"``, ``"2"``); pass ``["-O2"]``.  So are flags that ask for an
+    instruction set this processor lacks (``-mavx512f`` on a processor without AVX-512:
+    :class:`~.toolchain.VectorISAError`)."""
     if flags is None:
         return None
     if isinstance(flags, str):
         raise InputTypeError(f"{owner}: flags must be a list of compiler arguments, got the "
                              f"string {flags!r}; pass [{flags!r}]")
     items = sequence_argument(flags, "flags", owner=owner)
-    return tuple(name_argument(f, f"flags[{i}]", owner=owner) for i, f in enumerate(items))
+    flags = tuple(name_argument(f, f"flags[{i}]", owner=owner) for i, f in enumerate(items))
+    missing = missing_instructions(flags)
+    if missing:
+        raise VectorISAError(f"{owner}: flags ask for {', '.join(missing)}, whose instructions "
+                             f"this processor does not have; the kernel would stop at the "
+                             f"first of them")
+    return flags
 
 
 def load_kernel_source(kernel: KernelSource, flags: Sequence[str], label: str,

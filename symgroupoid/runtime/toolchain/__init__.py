@@ -115,6 +115,14 @@ from ._flags import (
     translation_units,
     unit_flags,
 )
+from ._isa import (
+    VECTOR_ISA_ENV,
+    VECTOR_ISAS,
+    VectorISAError,
+    missing_instructions,
+    processor_features,
+    vector_flags,
+)
 from ._kernel_cache import KernelCache
 from ._kernels import (
     STATS,
@@ -148,14 +156,18 @@ __all__ = [
     "BLOCK_LEVEL", "COLD_LEVEL", "DEFAULT_FLAGS", "GRACE", "INTERNAL", "LARGE_PROGRAM",
     "MANIFEST", "NUMPY_HINT", "OPENMP_FLAG", "SMALL_STEP", "STATS", "TYPE_TABLE_KEYWORDS",
     "CacheInfo", "CachedKernel", "ClearedCache", "CompilationError", "CompilerNotFoundError",
-    "KernelCache", "abi_tag", "absolute_root", "block_weight", "build_cached",
+    "KernelCache", "VECTOR_ISAS", "VECTOR_ISA_ENV", "VectorISAError", "abi_tag",
+    "absolute_root", "block_weight", "build_cached",
     "build_command", "build_environment", "build_extension", "build_step", "cache_info",
     "cache_root", "clear_cache", "codegen_digest", "codegen_sources", "compiler_command",
     "default_flags", "entry_defect", "exclusive", "ffi_of", "file_sha256", "find_compiler",
     "fingerprint", "input_key", "kernel_source_of", "key_busy", "library_defect",
-    "load_cached", "load_extension", "load_step", "module_name", "openmp_available",
-    "optimisation_flags", "prepared", "read_json", "remove_tree", "sha256_of", "shared_root",
+    "load_cached", "load_extension", "load_step", "missing_instructions", "module_name",
+    "openmp_available",
+    "optimisation_flags", "prepared", "processor_features", "read_json", "remove_tree",
+    "sha256_of", "shared_root",
     "source_key_of", "start_openmp_probe", "step_flags", "step_kernel", "step_operations",
-    "sweep", "table_sha256", "translation_units", "trusted", "unit_flags", "writable_root",
+    "sweep", "table_sha256", "translation_units", "trusted", "unit_flags", "vector_flags",
+    "writable_root",
     "write_json_atomic",
 ]

@@ -15,6 +15,7 @@ from pathlib import Path
 
 from ..._errors import SymgroupoidError
 from ...codegen import KernelSource
+from ._isa import vector_flags
 
 #: how to do without a compiler (appended to every compiler error)
 NUMPY_HINT = ('To use the NumPy backend instead (same results, slower), pass backend="numpy" '
@@ -64,7 +65,18 @@ def compile_args(flags: Sequence[str]) -> list[str]:
     no generated code.
     """
     flags = list(flags)
-    return flags if any(f.startswith("-g") for f in flags) else ["-g0", *flags]
+    args = flags if any(f.startswith("-g") for f in flags) else ["-g0", *flags]
+    return [*args, *vector_flags(_command_words(), [*flags, *_environment_flags()])]
+
+
+def _command_words() -> list[str]:
+    """The words of ``$CC`` (else Python's configured ``CC``), never raising."""
+    return _words(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+
+
+def _environment_flags() -> list[str]:
+    """The words of ``$CPPFLAGS`` and ``$CFLAGS``."""
+    return [*_words(os.environ.get("CPPFLAGS")), *_words(os.environ.get("CFLAGS"))]
 
 
 def link_args(flags: Sequence[str]) -> list[str]:
@@ -120,7 +132,8 @@ def compiler_flags_of(flags: Sequence[str]) -> list[str]:
     """The compiler and its flags for every run of a build, in the order a Python extension
     build uses: Python's configured ``CFLAGS`` and ``CCSHARED`` (position-independent
     code), then ``$CPPFLAGS`` and ``$CFLAGS`` from the environment, then
-    :func:`compile_args` (so ``flags`` decide the optimisation level)."""
+    :func:`compile_args` (so ``flags`` decide the optimisation level; they end with the
+    instruction-set flag of :func:`~._isa.vector_flags`)."""
     config = sysconfig.get_config_var
     return [*compiler_command(), *_words(config("CFLAGS")), *_words(config("CCSHARED")),
             *_words(os.environ.get("CPPFLAGS")), *_words(os.environ.get("CFLAGS")),
@@ -138,13 +151,18 @@ def build_environment() -> tuple[str, ...]:
     ``CC``), Python's ``CFLAGS`` and ``CCSHARED``, and ``$CPPFLAGS``, ``$CFLAGS`` and
     ``$LDFLAGS``.  Any of them can change a kernel's bits (``-m32``, ``-mfpmath=387``,
     ``-fexcess-precision=fast``, ...), so a kernel built under one environment is never
-    served to another.  Never raises: an unparsable variable counts by its words."""
+    served to another.  Last, the instruction-set flag this processor gets
+    (:func:`~._isa.vector_flags`): a kernel built for one processor is never served to a
+    processor without its instructions.  An unparsable variable counts by its words; raises
+    only :class:`~._isa.VectorISAError` (``SYMGROUPOID_VECTOR_ISA`` invalid)."""
     config = sysconfig.get_config_var
     command = os.environ.get("CC") or config("CC") or "cc"
     parts = {"CC": command, "PY_CFLAGS": config("CFLAGS"), "PY_CCSHARED": config("CCSHARED"),
              "CPPFLAGS": os.environ.get("CPPFLAGS"), "CFLAGS": os.environ.get("CFLAGS"),
              "LDFLAGS": os.environ.get("LDFLAGS")}
-    return tuple(f"{name}={json.dumps(_words(value))}" for name, value in parts.items())
+    isa = vector_flags(_command_words(), _environment_flags())
+    return (*(f"{name}={json.dumps(_words(value))}" for name, value in parts.items()),
+            f"VECTOR_ISA={json.dumps(list(isa))}")
 
 
 def build_command(source: str, library: str, flags: Sequence[str]) -> list[str]:
