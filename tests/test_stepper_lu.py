@@ -157,7 +157,7 @@ FLAGS = ["-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra", "-pedantic"
          "-fPIC", "-DSG_PREFIX=lin", "-DSG_PREFIX_UPPER=LIN"]
 
 #: sizes on both sides of the panel threshold, with and without a last partial panel
-SIZES = (5, 23, 24, 61, 100)
+SIZES = (5, 23, 24, 26, 27, 61, 100)
 
 
 #: band kernels: (n, kl, ku), their order a fixed random permutation

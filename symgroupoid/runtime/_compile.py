@@ -131,7 +131,10 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         functions of a kernel that calls no library function at -Og,
         ``runtime.toolchain.BLOCK_LEVEL``); part of the cache key.  Explicit ``flags`` apply to
         every unit but the cold one.  Builds carry no debug information unless ``flags``
-        ask for it (``-g``).
+        ask for it (``-g``).  On x86-64 with GCC or Clang every unit is also compiled for
+        the processor's widest vector extension (``runtime.toolchain.vector_flags``: the
+        same bits, faster; ``SYMGROUPOID_VECTOR_ISA`` overrides it), unless ``flags`` choose
+        a target themselves (``-march=…``, ``-mavx…``).
     cache_dir : cache root, a path (default ``$SYMGROUPOID_CACHE``,
         ``$XDG_CACHE_HOME/symgroupoid`` or ``~/.cache/symgroupoid``); a relative path is
         taken relative to the working directory of this call.  If it cannot be written,
