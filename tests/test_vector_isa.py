@@ -4,11 +4,14 @@ same bits whichever is chosen."""
 
 from __future__ import annotations
 
+import os
 import pickle
+import subprocess
+import sys
 
 import numpy as np
 import pytest
-from kernel_support import needs_cc
+from kernel_support import REPO, needs_cc
 
 import symgroupoid as sg
 from symgroupoid.runtime import toolchain
@@ -126,3 +129,16 @@ def test_a_simulator_sent_elsewhere_is_built_for_that_processor(monkeypatch, tmp
     restored = pickle.loads(sent)
     assert restored.kernel.source_key != sim.kernel.source_key
     np.testing.assert_array_equal(trajectory(restored), trajectory(sim))
+
+
+def test_an_invalid_choice_ends_a_command_with_its_name(tmp_path):
+    """The command line reports the variable, not a traceback, and exits with an error."""
+    env = {**os.environ, toolchain.VECTOR_ISA_ENV: "sse9",
+           "SYMGROUPOID_CACHE": str(tmp_path / "cache")}
+    done = subprocess.run([sys.executable, "-m", "symgroupoid", "simulate",
+                           str(REPO / "examples" / "cli" / "spring.py"), "--steps", "2",
+                           "--backend", "c"],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode != 0
+    assert "SYMGROUPOID_VECTOR_ISA='sse9' is not one of" in done.stderr
+    assert "Traceback" not in done.stderr
