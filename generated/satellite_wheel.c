@@ -906,21 +906,52 @@ static void satellite_wheel_transpose(double *A)
 /* The substitutions of the transposed factors T = A^T (satellite_wheel_transpose), b already scaled
  * and swapped: forward, column k of L taken off the b_i below it (T's row k, contiguous), then
  * back, column by column: x_j once known taken off every b_i above it (the updates of each b_i
- * in the order j = n-1, n-2, ...).  Every b_i receives the same operations in the same order
- * as from the row-major factors, so the same bits, in the widest vector instructions */
+ * in the order j = n-1, n-2, ...).  Four columns at a time: their triangle first, then one
+ * pass over the entries beyond it, which takes the four columns off each b_i in the same
+ * order, one rounding each, reading and writing b_i once instead of four times.  Every b_i
+ * receives the same operations in the same order as from the row-major factors, so the same
+ * bits, in the widest vector instructions */
 SATELLITE_WHEEL_VECTOR_CLONES
 static void satellite_wheel_substitute(const double *T, const double *inv, double *b)
 {
     const int n = SATELLITE_WHEEL_N_UNKNOWNS;
     int i, k;
-    for (k = 0; k < n; ++k) {
+    for (k = 0; k + 4 <= n; k += 4) {
+        const double *c0 = T + k * n, *c1 = c0 + n, *c2 = c1 + n, *c3 = c2 + n;
+        const double x0 = b[k];
+        const double x1 = b[k + 1] - c0[k + 1] * x0;
+        const double x2 = (b[k + 2] - c0[k + 2] * x0) - c1[k + 2] * x1;
+        const double x3 = ((b[k + 3] - c0[k + 3] * x0) - c1[k + 3] * x1) - c2[k + 3] * x2;
+        b[k + 1] = x1;
+        b[k + 2] = x2;
+        b[k + 3] = x3;
+        for (i = k + 4; i < n; ++i) {
+            b[i] = (((b[i] - c0[i] * x0) - c1[i] * x1) - c2[i] * x2) - c3[i] * x3;
+        }
+    }
+    for (; k < n; ++k) {
         const double x = b[k];
         const double *column = T + k * n;
         for (i = k + 1; i < n; ++i) {
             b[i] -= column[i] * x;
         }
     }
-    for (i = n - 1; i >= 0; --i) {
+    for (i = n - 1; i >= 3; i -= 4) {
+        const double *c0 = T + i * n, *c1 = c0 - n, *c2 = c1 - n, *c3 = c2 - n;
+        const double x0 = b[i] * inv[i];
+        const double x1 = (b[i - 1] - c0[i - 1] * x0) * inv[i - 1];
+        const double x2 = ((b[i - 2] - c0[i - 2] * x0) - c1[i - 2] * x1) * inv[i - 2];
+        const double x3 = (((b[i - 3] - c0[i - 3] * x0) - c1[i - 3] * x1) - c2[i - 3] * x2)
+                          * inv[i - 3];
+        b[i] = x0;
+        b[i - 1] = x1;
+        b[i - 2] = x2;
+        b[i - 3] = x3;
+        for (k = 0; k < i - 3; ++k) {
+            b[k] = (((b[k] - c0[k] * x0) - c1[k] * x1) - c2[k] * x2) - c3[k] * x3;
+        }
+    }
+    for (; i >= 0; --i) {
         const double x = b[i] * inv[i];
         const double *column = T + i * n;
         b[i] = x;

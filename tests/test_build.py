@@ -612,15 +612,18 @@ def test_a_kernel_whose_residual_parts_are_shared_computes_what_numpy_computes(m
         assert np.array_equal(c_kernel.residual(u, known, par), F0)
 
 
-def test_a_stepper_unit_is_raised_only_from_the_large_kernels_level():
+def test_a_stepper_unit_is_raised_only_from_the_small_and_large_kernels_levels():
     large = toolchain.optimisation_flags(toolchain.LARGE_PROGRAM + 1, step=True)
     assert toolchain.unit_flags(large, "stepper") == ("-O2", *toolchain.DEFAULT_FLAGS[1:],
                                                       _flags.STEPPER_LEVEL)
     assert toolchain.unit_flags((*large, "-fopenmp"), "stepper")[-2:] == ("-fopenmp", "-O3")
-    for kept in (toolchain.DEFAULT_FLAGS, ("-O0",), ("-Os",), ("-O1",), ()):
+    small = toolchain.optimisation_flags(toolchain.SMALL_STEP, step=True)
+    assert toolchain.unit_flags(small, "stepper") == (*small, _flags.STEPPER_LEVEL)
+    for kept in (toolchain.DEFAULT_FLAGS, ("-O0",), ("-Os",), ()):
         assert toolchain.unit_flags(kept, "stepper") == kept
-    assert _flags.stepper_unit(large, _flags.STEPPER_UNIT_FROM)
-    assert not _flags.stepper_unit(large, _flags.STEPPER_UNIT_FROM - 1)
+    for flags in (large, small):
+        assert _flags.stepper_unit(flags, _flags.STEPPER_UNIT_FROM)
+        assert not _flags.stepper_unit(flags, _flags.STEPPER_UNIT_FROM - 1)
     mid = toolchain.optimisation_flags(toolchain.SMALL_STEP + 1, step=True)
     assert not _flags.stepper_unit(mid, 100)  # already -O3
     from symgroupoid.stepper import LU_PANEL_FROM

@@ -119,13 +119,17 @@ def block_weight(flags: Sequence[str]) -> float:
 #: 124 -> 105, with the same bits.
 STEPPER_LEVEL = "-O3"
 
-#: a step kernel compiled at -O2 (more than ``LARGE_PROGRAM`` operations) with at least this
-#: many unknowns has its stepper in a unit of its own at :data:`STEPPER_LEVEL` (the LU's
-#: panels begin at the same size, ``SG_LU_PANEL_FROM`` in ``stepper.c``)
+#: a step kernel compiled at -O2 (more than ``LARGE_PROGRAM`` operations) or at the small
+#: step's -O1 (at most ``SMALL_STEP``) with at least this many unknowns has its stepper in a
+#: unit of its own at :data:`STEPPER_LEVEL` (the LU's panels begin at the same size,
+#: ``SG_LU_PANEL_FROM`` in ``stepper.c``)
 STEPPER_UNIT_FROM = 24
 
-#: the levels a stepper unit is raised from
-RAISED_LEVELS = frozenset({"-O2"})
+#: the levels a stepper unit is raised from.  -O1 too: a small kernel with many unknowns
+#: spends half its step in the LU and the substitutions, which -O1 leaves scalar.  Measured
+#: (µs per step inside ``simulate``, alternating builds, same bits): the 3D chain of 8
+#: bodies (24 unknowns, 7,139 operations) 4.71, 4.72 -> 3.46, 3.47
+RAISED_LEVELS = frozenset({"-O1", "-O2"})
 
 
 def stepper_unit(flags: Sequence[str], n_unknowns: int) -> bool:
