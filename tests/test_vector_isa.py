@@ -142,3 +142,16 @@ def test_an_invalid_choice_ends_a_command_with_its_name(tmp_path):
     assert done.returncode != 0
     assert "SYMGROUPOID_VECTOR_ISA='sse9' is not one of" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+@needs_cc
+@needs_vector_isa
+def test_a_failed_build_names_the_way_back_to_the_default_target(monkeypatch, tmp_path):
+    """A compiler that rejects a build (here: an unknown option) is reported with the
+    extension the build added and how to build without it (an old compiler may not know it)."""
+    monkeypatch.setenv(toolchain.VECTOR_ISA_ENV, "auto")
+    step = spherical_chain(1).euler_lagrange()
+    with pytest.raises(sg.CompilationError, match=f"compiled with {WIDEST}.*"
+                       f"SYMGROUPOID_VECTOR_ISA=none"):
+        step.compile(backend="c", cache_dir=str(tmp_path),
+                     flags=["-O1", "-fno-such-option-for-symgroupoid"])

@@ -115,6 +115,10 @@ def _failure(kernel: KernelSource, failure: str, output: str) -> CompilationErro
                 f"C compiler.")
     else:
         head = f"{kernel.prefix}: the C compiler failed ({failure})."
+    isa = vector_flags(_command_words(), _environment_flags())
+    if isa:  # an old compiler may not know the instruction set this processor has
+        head += (f" The kernel was compiled with {' '.join(isa)} for this processor; "
+                 f"SYMGROUPOID_VECTOR_ISA=none builds for the compiler's default target.")
     return CompilationError(f"{head}\nCompiler output:\n{output}\n{NUMPY_HINT}", output=output)
 
 
