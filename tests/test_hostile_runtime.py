@@ -366,7 +366,7 @@ def test_compile_step_arguments(run):
                                            "trust_factor"]))
         value = data.draw(st.one_of(scalars, junk(), st.sampled_from(
             ["numpy", "c", "auto", "C", " numpy", "-O2", ["-O2"], [3], ["-O2", None],
-             ["a\0b"], "a\0b"])))
+             ["a\0b"], "a\0b", ["-mavx512f"], ["-O2", "-mavx2", "-mavx"]])))
         kwargs = {"backend": "numpy", which: value}
         if which in ("flags", "cache_dir"):
             kwargs["backend"] = "numpy"  # the value is checked even where it is not used

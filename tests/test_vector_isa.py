@@ -155,3 +155,7 @@ def test_a_failed_build_names_the_way_back_to_the_default_target(monkeypatch, tm
                        f"SYMGROUPOID_VECTOR_ISA=none"):
         step.compile(backend="c", cache_dir=str(tmp_path),
                      flags=["-O1", "-fno-such-option-for-symgroupoid"])
+    with pytest.raises(sg.CompilationError) as info:  # a target of its own: none added
+        step.compile(backend="c", cache_dir=str(tmp_path),
+                     flags=["-O1", "-march=x86-64", "-fno-such-option-for-symgroupoid"])
+    assert "SYMGROUPOID_VECTOR_ISA" not in str(info.value)

@@ -61,20 +61,20 @@ def build_extension(kernel: KernelSource, build_dir: Path, name: str,
         table.append(type_table(kernel, name, build_dir))
 
     if len(sources) == 1:
-        _run(kernel, [build_command(sources[0][0], library.name, flags)], build_dir,
+        _run(kernel, [build_command(sources[0][0], library.name, flags)], build_dir, flags,
              make_table)
     else:  # the units at the same time, then one link
         objects = [f"{Path(file_name).stem}.o" for file_name, _ in sources]
         _run(kernel, [[*compiler_flags_of(unit_flags(flags, _role(kernel, file_name))),
                        "-c", file_name, "-o", obj]
-                      for (file_name, _), obj in zip(sources, objects)], build_dir,
+                      for (file_name, _), obj in zip(sources, objects)], build_dir, flags,
              make_table)
         _run(kernel, [[*compiler_flags_of(flags), "-shared", *objects, "-o", library.name,
-                       *link_tail(flags)]], build_dir)
+                       *link_tail(flags)]], build_dir, flags)
         for obj in objects:
             (build_dir / obj).unlink(missing_ok=True)
     if not library.is_file() or library.is_symlink():
-        raise _failure(kernel, "the compiler wrote no library", "")
+        raise _failure(kernel, "the compiler wrote no library", "", flags)
     defect = library_defect(library.read_bytes())
     if defect is not None:
         raise CompilationError(
@@ -93,10 +93,11 @@ def _role(kernel: KernelSource, file_name: str) -> str:
     return "blocks" if file_name in kernel.blocks else "step"
 
 
-def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path,
+def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequence[str],
          meanwhile: Callable[[], None] | None = None) -> None:
-    """Run compiler ``commands`` at the same time in ``cwd`` (and ``meanwhile()`` while they
-    run); :class:`CompilationError` with the output of every failed one."""
+    """Run compiler ``commands`` of a build at ``flags`` at the same time in ``cwd`` (and
+    ``meanwhile()`` while they run); :class:`CompilationError` with the output of every
+    failed one."""
     processes: list = []
 
     def stop() -> None:
@@ -111,7 +112,8 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path,
                 stderr=subprocess.STDOUT, text=True, errors="replace")))
     except OSError as exc:
         stop()
-        raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc)) from exc
+        raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc),
+                       flags) from exc
     try:
         if meanwhile is not None:
             meanwhile()
@@ -126,4 +128,4 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path,
     if failures:
         command, status, _ = failures[0]
         raise _failure(kernel, f"command {command[0]!r} failed with exit status {status}",
-                       "\n".join(output for _, _, output in failures))
+                       "\n".join(output for _, _, output in failures), flags)

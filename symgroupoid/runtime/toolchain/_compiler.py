@@ -34,9 +34,14 @@ class CompilerNotFoundError(SymgroupoidError, RuntimeError):
     """No C compiler could be found (``$CC`` or Python's configured compiler)."""
 
 
+def _compiler_text() -> str:
+    """``$CC``, else Python's configured ``CC``, else ``cc``: the compiler command's text."""
+    return os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+
+
 def compiler_command() -> list[str]:
     """The C compiler command cffi will use: ``$CC``, else Python's configured ``CC``."""
-    command = os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc"
+    command = _compiler_text()
     try:
         words = shlex.split(command)
     except ValueError:
@@ -66,12 +71,13 @@ def compile_args(flags: Sequence[str]) -> list[str]:
     """
     flags = list(flags)
     args = flags if any(f.startswith("-g") for f in flags) else ["-g0", *flags]
-    return [*args, *vector_flags(_command_words(), [*flags, *_environment_flags()])]
+    return [*args, *added_vector_flags(flags)]
 
 
-def _command_words() -> list[str]:
-    """The words of ``$CC`` (else Python's configured ``CC``), never raising."""
-    return _words(os.environ.get("CC") or sysconfig.get_config_var("CC") or "cc")
+def added_vector_flags(flags: Sequence[str]) -> tuple[str, ...]:
+    """The instruction-set flag :func:`compile_args` adds to a build at ``flags``
+    (:func:`~._isa.vector_flags` of the compiler, ``flags``, ``$CPPFLAGS`` and ``$CFLAGS``)."""
+    return vector_flags(_words(_compiler_text()), [*flags, *_environment_flags()])
 
 
 def _environment_flags() -> list[str]:
@@ -102,8 +108,11 @@ def probe_compiler(command: Sequence[str]) -> str | None:
         return output or f"exit status {result.returncode}, no output"
 
 
-def _failure(kernel: KernelSource, failure: str, output: str) -> CompilationError:
-    """The error for a failed build, telling a broken compiler from a rejected kernel."""
+def _failure(kernel: KernelSource, failure: str, output: str,
+             flags: Sequence[str] = ()) -> CompilationError:
+    """The error for a failed build at ``flags``, telling a broken compiler from a rejected
+    kernel, and naming the instruction-set flag the build added (an old compiler may not
+    know it)."""
     try:
         command = compiler_command()
         broken = probe_compiler(command)
@@ -115,8 +124,8 @@ def _failure(kernel: KernelSource, failure: str, output: str) -> CompilationErro
                 f"C compiler.")
     else:
         head = f"{kernel.prefix}: the C compiler failed ({failure})."
-    isa = vector_flags(_command_words(), _environment_flags())
-    if isa:  # an old compiler may not know the instruction set this processor has
+    isa = added_vector_flags(flags)
+    if isa:
         head += (f" The kernel was compiled with {' '.join(isa)} for this processor; "
                  f"SYMGROUPOID_VECTOR_ISA=none builds for the compiler's default target.")
     return CompilationError(f"{head}\nCompiler output:\n{output}\n{NUMPY_HINT}", output=output)
@@ -140,8 +149,7 @@ def compiler_flags_of(flags: Sequence[str]) -> list[str]:
     instruction-set flag of :func:`~._isa.vector_flags`)."""
     config = sysconfig.get_config_var
     return [*compiler_command(), *_words(config("CFLAGS")), *_words(config("CCSHARED")),
-            *_words(os.environ.get("CPPFLAGS")), *_words(os.environ.get("CFLAGS")),
-            *compile_args(flags), "-fPIC"]
+            *_environment_flags(), *compile_args(flags), "-fPIC"]
 
 
 def link_tail(flags: Sequence[str]) -> list[str]:
@@ -160,11 +168,10 @@ def build_environment() -> tuple[str, ...]:
     processor without its instructions.  An unparsable variable counts by its words; raises
     only :class:`~._isa.VectorISAError` (``SYMGROUPOID_VECTOR_ISA`` invalid)."""
     config = sysconfig.get_config_var
-    command = os.environ.get("CC") or config("CC") or "cc"
-    parts = {"CC": command, "PY_CFLAGS": config("CFLAGS"), "PY_CCSHARED": config("CCSHARED"),
-             "CPPFLAGS": os.environ.get("CPPFLAGS"), "CFLAGS": os.environ.get("CFLAGS"),
-             "LDFLAGS": os.environ.get("LDFLAGS")}
-    isa = vector_flags(_command_words(), _environment_flags())
+    parts = {"CC": _compiler_text(), "PY_CFLAGS": config("CFLAGS"),
+             "PY_CCSHARED": config("CCSHARED"), "CPPFLAGS": os.environ.get("CPPFLAGS"),
+             "CFLAGS": os.environ.get("CFLAGS"), "LDFLAGS": os.environ.get("LDFLAGS")}
+    isa = added_vector_flags(())
     return (*(f"{name}={json.dumps(_words(value))}" for name, value in parts.items()),
             f"VECTOR_ISA={json.dumps(list(isa))}")
 
