@@ -48,11 +48,13 @@
  *   continue, call again from the last state of the previous call with the same struct: a
  *   run split into calls of any lengths gives bitwise the states of one call, with a buffer
  *   of fixed size.
- * heavy_top_simulate_batch(n_batch, known0, p, p_stride, n_steps, every, options, states,
- *                        rows, iterations, residual_norms, kept, status, failed_step,
- *                        failed_iterations, failed_residual_norm, last_iterate, n_threads)
+ * heavy_top_simulate_batch(n_batch, known0, p, p_stride, u, u_stride, n_steps, every,
+ *                        options, states, rows, iterations, residual_norms, kept, status,
+ *                        failed_step, failed_iterations, failed_residual_norm, last_iterate,
+ *                        n_threads)
  *   advances n_batch independent trajectories (row b of known0, parameters p + b * p_stride
- *   with p_stride 0 or HEAVY_TOP_N_PARAMETERS), each bitwise as heavy_top_simulate would, keeping
+ *   with p_stride 0 or HEAVY_TOP_N_PARAMETERS; u is NULL and u_stride 0: the kernel has no
+ *   inputs), each bitwise as heavy_top_simulate would, keeping
  *   state 0, every `every`-th state and the last one: trajectory b's states at
  *   states + b * rows * HEAVY_TOP_N_KNOWNS (rows >= 1 + ceil(n_steps / every)), kept[b] of them,
  *   with the Newton iterations (summed) and largest residual norm of the steps between
@@ -64,8 +66,10 @@
  *   after the other.
  * heavy_top_step(known, p, u, options, next) advances one state from a fresh start: next
  *   receives what heavy_top_simulate(known, p, u, 1, options, NULL, ...) writes in its second
- *   row. * heavy_top_simulate_batch_until(n_batch, cursors, known0, p, p_stride, n_steps, every, until,
- *                              options, states, rows, iterations, ..., n_threads)
+ *   row.
+ * heavy_top_simulate_batch_until(n_batch, cursors, known0, p, p_stride, u, u_stride, n_steps,
+ *                              every, until, options, states, rows, iterations, ...,
+ *                              n_threads)
  *   the same in installments: advances the trajectories to step `until` (at most n_steps)
  *   and returns, to be called again with a larger `until` (a caller that must stay
  *   responsive, or stop early, calls it in short pieces).  cursors[b] (heavy_top_batch_cursor:

@@ -241,6 +241,92 @@ def test_a_control_loop_refilling_one_input_array(oscillator):
     assert np.array_equal(whole, oscillator.step(state, p, inputs=[2.0], options=options))
 
 
+def test_a_control_loop_with_inputs_as_lists_takes_the_fast_path(monkeypatch):
+    """``inputs=[u]`` (a list or tuple of numbers, as a controller writes it) is converted on
+    the fast path: bitwise the loop over arrays, and not one call through the checked path
+    (which cost some 60 µs a call); a list of other things still goes through the checks."""
+    sim = driven_oscillator().euler_lagrange().compile()
+    p = sim.parameters(PARAMS)
+    options = sg.NewtonOptions(extrapolate=False)
+    start = sim.state(_starts(2)[1], p)
+    U = _table(1)[0]
+    arrays = [start]
+    for j in range(STEPS):
+        arrays.append(sim.step(arrays[-1], p, inputs=U[j].copy(), options=options))
+    checked = []
+    original = sim._checked_call
+
+    def counting(*args, **kwargs):
+        checked.append(args)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(sim, "_checked_call", counting)
+    for wrap in (lambda v: [float(v)], lambda v: (v,), lambda v: [np.float64(v)]):
+        state = start
+        for j in range(STEPS):
+            state = sim.step(state, p, inputs=wrap(U[j, 0]), options=options)
+            assert np.array_equal(state, arrays[j + 1])
+    assert checked == []
+    with pytest.raises(DomainError, match="finite"):
+        sim.step(start, p, inputs=[float("nan")], options=options)
+    with pytest.raises(sg.SymgroupoidError):
+        sim.step(start, p, inputs=[True], options=options)
+    with pytest.raises(sg.SymgroupoidError):
+        sim.step(start, p, inputs=[10 ** 400], options=options)
+
+
+@pytest.mark.parametrize("run", ["simulate", "batch", "sweep"])
+def test_more_input_rows_than_steps_are_refused(oscillator, run):
+    """Row j is the input of the arrow step j computes: a table with more rows than steps
+    (an off-by-one, or node samples u(t_k) for k = 0 … N) is another run, refused by name
+    rather than cut short."""
+    U = _table(3)
+    longer = np.concatenate([U, U[:, :1]], axis=1)  # STEPS + 1 rows per run
+    with pytest.raises(ShapeError, match=f"{STEPS + 1} rows for {STEPS} steps"
+                       if run == "simulate" else f"shape \\(3, {STEPS}, 1\\)"):
+        if run == "simulate":
+            oscillator.simulate(_starts(1)[0], STEPS, PARAMS, inputs=longer[0])
+        elif run == "batch":
+            oscillator.simulate_batch(_starts(3), STEPS, PARAMS, inputs=longer)
+        else:
+            sg.sweep(oscillator, _starts(3), PARAMS, STEPS, inputs=longer)
+
+
+def test_batch_inputs_for_a_system_without_inputs_name_the_reason():
+    sim = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x")),
+                            lambda g: ((g.target[0] - g.source[0]) ** 2 / (2 * h)
+                                       - h * k * g.source[0] ** 2 / 2),
+                            parameters=[h, k]).euler_lagrange().compile(backend="numpy")
+    with pytest.raises(ShapeError, match="the system has no inputs; leave inputs= out"):
+        sim.simulate_batch([{"x": (0.1, 0.11)}], 5, {"h": 0.05, "k": 2.0},
+                           inputs=np.zeros((1, 5, 1)))
+
+
+@needs_cc
+@pytest.mark.usefixtures("isolated_cache")
+def test_the_cli_holds_a_single_row_and_cuts_a_longer_table(tmp_path, capsys):
+    """docs/cli.md: a single row holds the inputs constant; a table of more than N rows
+    gives its first N; a forced system without ``--inputs`` is told to pass the option."""
+    sim = load_system(str(DRIVEN)).system.euler_lagrange().compile()
+    params, start = {"h": 0.05, "k": 1.0, "c": 0.2}, {"q": [1.0, 0.999], "u": [0.0]}
+    U = np.cos(np.arange(30) / 4)[:, None]
+    cases = {"one.csv": (np.array([[0.7]]), [0.7]), "long.npy": (U, U[:20])}
+    for name, (table, expected_inputs) in cases.items():
+        if name.endswith(".csv"):
+            np.savetxt(tmp_path / name, table, delimiter=",", fmt="%.17g")
+        else:
+            np.save(tmp_path / name, table)
+        expected = sim.simulate(start, 20, params, inputs=expected_inputs)
+        out = tmp_path / f"{name}.npz"
+        code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "20", "--inputs",
+                            tmp_path / name, "-o", out)
+        assert code == 0, err
+        with np.load(out) as data:
+            assert np.array_equal(data["states"], expected.states), name
+    code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "5")
+    assert code != 0 and "--inputs U.npy|U.csv" in err and "Traceback" not in err
+
+
 def test_plot_conservation_shows_the_forced_noether_balance(tmp_path):
     """A point in the plane turned by a torque input about the origin: its angular momentum
     changes by the torque's impulse, so the figure plots the balance J_k − Σ I_j (at

@@ -81,6 +81,9 @@ def test_the_c_input_jacobian_is_the_python_one_and_the_residual_s_derivative(pu
     assert ("pushed_cold.c" in dict(kernel.units)) == (units > 1)
     assert "void pushed_input_jacobian(const double *u, const double *known, const double *p, " \
            "double *J_inputs);" in kernel.header and "pushed_input_jacobian" in kernel.cdef
+    # the batched entry points take the inputs too, and the header's prose says so
+    assert "pushed_simulate_batch(n_batch, known0, p, p_stride, u, u_stride," in kernel.header
+    assert "inputs u + b * u_stride" in kernel.header and "no inputs yet" not in kernel.header
     lib = _library(tmp_path, kernel, f"pushed{units}")
     n, n_k, n_p = len(pushed.unknowns), len(pushed.knowns), len(pushed.parameters)
     assert n_k == 8 and [str(s) for s in pushed.knowns[4:]] == ["u_{k}", "w_{k}", "u_{k+1}",

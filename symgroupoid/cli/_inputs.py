@@ -211,6 +211,28 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
     return np.array([[float(cell) for cell in row] for row in rows], dtype=float)
 
 
+def run_inputs(path: str | None, sim, steps: int, option: str = "--steps") -> np.ndarray | None:
+    """The inputs of a run of ``steps`` steps from ``--inputs`` (docs/cli.md), required
+    for a system with inputs: a table of at least ``steps`` rows gives its first ``steps``
+    (a file may hold a longer sequence), a single row is held constant for every step;
+    anything else goes to the library's checks (:meth:`Simulator.simulate`'s
+    ``inputs=``)."""
+    names = list(sim.layout.input_names)
+    inputs = read_inputs(path, names)
+    if inputs is None:
+        if names:
+            raise InputError(f"{sim.name} has inputs ({', '.join(names)}): give their "
+                             f"sequence with --inputs U.npy|U.csv, one row per step (at "
+                             f"least {option} {steps} rows; row j: the inputs of the arrow "
+                             f"step j computes), or one row held constant")
+        return None
+    if inputs.ndim == 2 and inputs.shape[0] == 1:
+        return inputs[0]
+    if inputs.ndim == 2 and inputs.shape[0] > steps:
+        return inputs[:steps]
+    return inputs
+
+
 def _numeric(text: str) -> bool:
     try:
         float(text)

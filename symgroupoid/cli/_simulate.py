@@ -10,7 +10,7 @@ import numpy as np
 from .._errors import NewtonDivergenceError, SingularJacobianError
 from ..runtime import constraint_check
 from ._common import derive, say, stepper, warn
-from ._inputs import initial_data, initial_state, parameters, parse_count, read_inputs
+from ._inputs import initial_data, initial_state, parameters, parse_count, run_inputs
 from ._newton import newton_options
 from ._output import check_format, write_trajectory
 
@@ -87,7 +87,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     params = parameters(derived.source, args.params)
     data = initial_data(derived.source, args.initial, sim)
     state = initial_state(sim, data, params)
-    inputs = read_inputs(args.inputs, list(sim.layout.input_names))
+    inputs = run_inputs(args.inputs, sim, steps)
     t0 = time.perf_counter()
     try:
         traj = sim.simulate(state, steps, params, every=every, options=options, inputs=inputs)

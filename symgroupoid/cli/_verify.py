@@ -40,7 +40,7 @@ from ._inputs import (
     parameters,
     parse_count,
     parse_number,
-    read_inputs,
+    run_inputs,
     velocity_data,
 )
 
@@ -326,18 +326,6 @@ def table(checks: list[Check]) -> list[str]:
     return lines
 
 
-def run_inputs(sim, path: str | None, steps: int):
-    """The short run's inputs from ``--inputs`` (docs/cli.md), required for a system with
-    inputs: the run is not driven by inputs it was not given."""
-    inputs = read_inputs(path, list(sim.layout.input_names))
-    if inputs is None and sim.layout.n_inputs:
-        raise InputError(f"{sim.name} has inputs ({', '.join(sim.layout.input_names)}): give "
-                         f"their sequence with --inputs U.npy|U.csv, one row per step of the "
-                         f"short run (at least --steps {steps} rows; row j: the inputs of the "
-                         f"arrow step j computes)")
-    return inputs
-
-
 def run_verify(args: argparse.Namespace) -> int:
     steps = parse_count(args.steps, "steps", minimum=2)
     count = parse_count(args.points, "points", minimum=1)
@@ -350,7 +338,7 @@ def run_verify(args: argparse.Namespace) -> int:
     T = order_horizon(derived.source, params, steps, args.horizon)
     data = initial_data(derived.source, args.initial, sim)
     state = initial_state(sim, data, params)
-    inputs = run_inputs(sim, args.inputs, steps)
+    inputs = run_inputs(args.inputs, sim, steps)
     declared = declared_noether(derived.source) if isinstance(system, DiscreteSystem) else []
     checks: list[Check] = []
     traj = None

@@ -51,6 +51,11 @@ _REFUSED = object()
 #: every call of a loop with such parameters would take the checked path, some 600 µs)
 _FLOAT64 = np.dtype(np.float64)
 _CONTIGUOUS = (8,)  # the strides of a C-contiguous float64 vector
+#: a list or tuple of inputs whose entries are all of these types is converted to a vector
+#: on the fast path (a controller's ``inputs=[-k * x]``); any other entry (a bool, a string,
+#: an array, a SymPy number) takes the checked path, which accepts or refuses it
+_SEQUENCES = (list, tuple)
+_REALS = (float, int, np.float64)
 
 
 class FastStep:
@@ -211,7 +216,14 @@ def _fast_call(sim, fast: FastStep):
         fails the step, and the checked path reports it); else :data:`_REFUSED`."""
         if u is None:
             return _REFUSED if m else no_inputs
-        if (not m or type(u) is not ndarray
+        if type(u) in _SEQUENCES:  # [u1, …, um] of Python or NumPy reals: as a vector
+            if not m or len(u) != m or not all(type(x) in _REALS for x in u):
+                return _REFUSED
+            try:
+                u = np.array(u, float64)
+            except OverflowError:  # an int beyond float64: the checked path reports it
+                return _REFUSED
+        elif (not m or type(u) is not ndarray
                 or (u.dtype is not float64 and u.dtype != float64)
                 or u.shape != inputs_shape or u.strides != contiguous):
             return _REFUSED

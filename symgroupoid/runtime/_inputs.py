@@ -40,11 +40,13 @@ def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
                          f"row of {m} values per step (row j: the input of the arrow step j "
                          f"computes), or {m} values held for every step")
     arr = input_rows(inputs, m, steps, owner=owner)
-    if arr.ndim != 2 or arr.shape[1] != m or arr.shape[0] < steps:
+    if arr.ndim != 2 or arr.shape != (steps, m):
+        more = (f" ({arr.shape[0]} rows for {steps} steps: row j is the input of the arrow "
+                f"step j computes, so a longer table is a different run)"
+                if arr.ndim == 2 and arr.shape[0] > steps and arr.shape[1] == m else "")
         raise ShapeError(f"{owner}: inputs need shape ({steps}, {m}) (one row of the inputs "
                          f"{names} per step) or ({m},) for inputs held constant; got shape "
-                         f"{np.shape(inputs)}")
-    arr = arr[:steps]
+                         f"{np.shape(inputs)}{more}")
     bad = np.argwhere(~np.isfinite(arr))
     if len(bad):
         j, i = (int(v) for v in bad[0])
@@ -62,14 +64,13 @@ def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
     if inputs is None and layout.n_inputs == 0:
         return None
     arr = None if inputs is None else real_array(inputs, "inputs", owner=owner)
-    if arr is None or arr.ndim != 3:
+    if arr is None or arr.ndim != 3 or layout.n_inputs == 0:
         return input_sequence(layout, arr, steps, owner=owner)
     m = layout.n_inputs
-    if arr.shape[0] != n_batch or arr.shape[2] != m or arr.shape[1] < steps:
+    if arr.shape != (n_batch, steps, m):
         raise ShapeError(f"{owner}: per-run inputs need shape ({n_batch}, {steps}, {m}) (a "
                          f"row of the inputs {', '.join(layout.input_names)} per step of each "
                          f"of the {n_batch} runs); got shape {arr.shape}")
-    arr = arr[:, :steps]
     bad = np.argwhere(~np.isfinite(arr))
     if len(bad):
         b, j, i = (int(v) for v in bad[0])
