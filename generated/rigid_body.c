@@ -1246,9 +1246,10 @@ static inline int rigid_body_above_rounding(const double *d, const double *u, do
  *    than the last update and within max_iterations): the remaining error, though within
  *    tol_step, is systematic, and a conserved quantity would drift by it at every step;
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
- *    fast) and every |F_i| is at most floor_factor times its change under a rounding-level
- *    move of the unknowns (rigid_body_at_floor, with C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|):
- *    Newton has stalled on rounding noise;
+ *    fast), was a Newton update or rounding noise (below; a chord update may contract
+ *    slowly without any stall), and every |F_i| is at most floor_factor times its change
+ *    under a rounding-level move of the unknowns (rigid_body_at_floor, with
+ *    C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|): Newton has stalled on rounding noise;
  *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
  *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
  *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
@@ -1312,13 +1313,15 @@ static int rigid_body_newton(const double *known, const double *p, const double 
             }
             slow = it > 0 && !(rnorm <= 0.1 * previous);
             if (slow) {
-                rigid_body_coordinate_floor(J, uJ, C);
-                if (rigid_body_at_floor(u, known, p, h, F, C, options->floor_factor)) {
-                    return RIGID_BODY_OK;
-                }
+                /* a chord update may contract slowly without any stall: only a Newton
+                 * update or rounding noise that did not reduce |F| tenfold is a stall */
                 noise = last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv);
-                if ((fresh || noise) && rigid_body_within_scale(u, known, p, F, options->floor_factor)) {
-                    return RIGID_BODY_OK; /* at the rounding of the residual's own terms */
+                if (fresh || noise) {
+                    rigid_body_coordinate_floor(J, uJ, C);
+                    if (rigid_body_at_floor(u, known, p, h, F, C, options->floor_factor)
+                        || rigid_body_within_scale(u, known, p, F, options->floor_factor)) {
+                        return RIGID_BODY_OK; /* at the rounding of the unknowns or of F's terms */
+                    }
                 }
                 if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */

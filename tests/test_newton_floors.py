@@ -243,3 +243,43 @@ def test_batches_report_the_new_statuses(backend):
 def test_trust_factor_is_checked(value):
     with pytest.raises(sg.SymgroupoidError, match="trust_factor"):
         sg.NewtonOptions(trust_factor=value)
+
+
+def driven_adaptive_oscillator() -> sg.DiscreteSystem:
+    """A damped, driven oscillator on the time groupoid (the step's duration an unknown, fixed
+    by the discrete energy balance): L_d = Δt(((q₁ − q₀)/Δt)²/2 − κ q̄²/2), f± = (Δt/2)(u −
+    c v) in the q direction and −(Δt/2)(u − c v) v in the time direction (docs/conventions.md
+    §20)."""
+    kappa, c = sp.symbols("kappa c", positive=True)
+    u = sp.Symbol("u", real=True)
+
+    def L(a):
+        dt, q0, q1 = a.step, a.source[0], a.target[0]
+        return dt * (((q1 - q0) / dt) ** 2 / 2 - kappa * ((q0 + q1) / 2) ** 2 / 2)
+
+    def forces(a):
+        dt, q0, q1 = a.step, a.source[0], a.target[0]
+        v = (q1 - q0) / dt
+        half = dt / 2 * (u - c * v)
+        return [-half * v, half], [-half * v, half]
+
+    G = sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q")))
+    return sg.DiscreteSystem(G, L, parameters=[kappa, c], forces=forces, inputs=[u],
+                             name="driven_adaptive_oscillator")
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_slow_chord_update_is_not_taken_for_a_stall(backend):
+    """With the time t_{k+1} ~ 10 among the unknowns, F moves by ~10⁻¹³ under a few ulps of
+    t, so a residual of that size passes the floor of the unknowns' rounding; a chord update
+    that brought it there (contracting fivefold: slow, but no stall) was accepted with
+    |F| = 5.7·10⁻¹³, where one more Newton update gives 5·10⁻¹⁵.  Only a Newton update or
+    rounding noise counts as a stall now: every step ends at the floor of F's evaluation."""
+    sim = driven_adaptive_oscillator().euler_lagrange().compile(backend=backend,
+                                                                cache_dir=SESSION_CACHE)
+    params = {"kappa": 1.0, "c": 0.1}
+    inputs = 0.05 * np.sin(0.3 * np.arange(300))[:, None]
+    state = sim.state({"t": (0.0, 0.05), "q": (1.0, 1.02), "u": [0.0]}, params)
+    run = sim.simulate(state, 300, params, inputs=inputs)
+    assert run.states[-1, 1] > 14.0  # (the time reached: t ~ 15, ulp(t) ~ 1.8e-15)
+    assert run.residual_norms.max() < 3e-14

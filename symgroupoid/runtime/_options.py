@@ -38,14 +38,15 @@ class NewtonOptions:
       and ``max_iterations`` allows one more:
       the remaining error, though within ``tol_step``, is systematic and above the rounding
       of u, and a conserved quantity would drift by it at every step;
-    - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast) and
+    - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast),
+      was a Newton update (its Jacobian factored at the iterate it started from) or
+      rounding noise (below) — a chord update may contract slowly without any stall — and
       every |F_i| is at most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_J,j| (J the
       last factored Jacobian, evaluated at u_J) and N_i its change under a move of every
       unknown by 4 ulps: stalled at the rounding floor of the unknowns and of F's own
       operations;
-    - when an update that reduced |F|_∞ less than tenfold was a Newton update (its Jacobian
-      factored at the iterate it started from) or rounding noise (below), and every
-      |F_i| ≤ ``floor_factor``·ε·S_i, S_i the size of the terms F_i is computed from
+    - when such an update (a Newton update or rounding noise that reduced |F|_∞ less than
+      tenfold) leaves every |F_i| ≤ ``floor_factor``·ε·S_i, S_i the size of the terms F_i is computed from
       (:func:`symgroupoid.ir.term_magnitude`, the program's ``F_scale``): the residual is
       within the rounding of its own evaluation — a residual written in increments of
       positions far from the origin, (x_{k+1} − x_k)/h at |x| ~ 10⁴, cannot go below

@@ -493,13 +493,13 @@ class NumpyStepper:
                 return OK, u, it, rnorm
             slow = it > 0 and not rnorm <= 0.1 * previous
             ratio = pivot_ratio(factors)
-            if slow and self.at_floor(u, known, p, F, coordinate_floor(J, uJ),
-                                       options.floor_factor):
-                return OK, u, it, rnorm
             noise = slow and last_step <= 64.0 * EPSILON * ratio  # rounding noise of a solve
-            if slow and (fresh or noise) and self.within_scale(u, known, p, F,
-                                                                options.floor_factor):
-                return OK, u, it, rnorm  # at the rounding of the residual's own terms
+            # a chord update may contract slowly without any stall: only a Newton update or
+            # rounding noise that did not reduce |F| tenfold is a stall
+            if slow and (fresh or noise) and (
+                    self.at_floor(u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
+                    or self.within_scale(u, known, p, F, options.floor_factor)):
+                return OK, u, it, rnorm  # at the rounding of the unknowns or of F's terms
             if noise:
                 return (OK if explained_by_rounding(F, J, u, uJ, ratio) else STALLED,
                         u, it, rnorm)
