@@ -46,8 +46,9 @@ class NewtonOptions:
       unknown by 4 ulps: stalled at the rounding floor of the unknowns and of F's own
       operations;
     - when such an update (a Newton update or rounding noise that reduced |F|_∞ less than
-      tenfold) leaves every |F_i| ≤ ``floor_factor``·ε·S_i, S_i the size of the terms F_i is computed from
-      (:func:`symgroupoid.ir.term_magnitude`, the program's ``F_scale``): the residual is
+      tenfold) leaves every |F_i| ≤ ``floor_factor``·ε·S_i, S_i the size of the terms F_i
+      is computed from (:func:`symgroupoid.ir.term_magnitude`, the program's
+      ``F_scale``): the residual is
       within the rounding of its own evaluation — a residual written in increments of
       positions far from the origin, (x_{k+1} − x_k)/h at |x| ~ 10⁴, cannot go below
       ε·|x|/h whatever the (small) unknowns;
