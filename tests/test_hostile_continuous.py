@@ -107,6 +107,17 @@ def test_bad_parameters_are_refused(parameters):
             .discretize(h, "midpoint").euler_lagrange())
 
 
+@pytest.mark.parametrize("parameters", [["h", grav], [h, "g"], [h, h], [grav, 1.0]])
+def test_parameters_that_are_not_distinct_symbols_are_refused_at_construction(parameters):
+    """(A string among the parameters reached ``discretize("h", ...)``, which looked the
+    step up by name and raised AttributeError: 'str' object has no attribute
+    'is_integer'.)  Refused where they are given, with what to pass instead."""
+    error = refused(lambda: sg.ContinuousSystem(THETA, lagrangian, parameters),
+                    sg.ParameterDeclarationError, match="parameter")
+    if any(isinstance(p, str) for p in parameters):
+        assert "not strings" in str(error)
+
+
 def test_a_single_parameter_symbol_is_a_list_of_it():
     system = sg.ContinuousSystem(THETA, lambda q, v: v[0] ** 2 / 2, h, name="free")
     assert system.parameters == [h]

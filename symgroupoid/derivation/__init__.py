@@ -7,7 +7,7 @@ from ._assembly import (
     field_derivatives,
     slot_derivatives,
 )
-from ._callables import as_scalar, call_user, check_values, checked_callable
+from ._callables import as_scalar, call_user, check_parameters, check_values, checked_callable
 from ._energy_momentum import (
     NONHOLONOMIC_METHODS,
     ConservedQuantities,
@@ -75,7 +75,7 @@ from ._window import step_jacobian
 __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep",
            "ForceFunctions", "JunctionNodes", "LegendreForms", "LiePoissonForms", "NoetherForms",
            "Partial", "PieceRule", "SystemFunctions", "TermNodes", "WindowAction", "WindowPieces",
-           "as_scalar", "call_user", "checked_callable", "chart_of",
+           "as_scalar", "call_user", "check_parameters", "checked_callable", "chart_of",
            "check_nonholonomic_dimensions", "check_values",
            "conserved_quantities", "distribution_coefficients", "energy_momentum_step",
            "evaluate_system", "extrapolate",

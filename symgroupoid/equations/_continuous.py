@@ -37,7 +37,7 @@ import sympy as sp
 
 from .._arguments import integer_argument, name_argument, sequence_argument
 from .._errors import CallableError, InputTypeError, ShapeError, UnsupportedFeatureError
-from ..derivation import call_user, checked_callable
+from ..derivation import call_user, check_parameters, checked_callable
 from ..groupoids import configuration_factors, pair_groupoid_of
 from ..ir import Graph, Program, from_sympy
 from ._galerkin import MAX_NODES, GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
@@ -152,6 +152,7 @@ class ContinuousSystem:
         self.parameters = sequence_argument(
             [parameters] if isinstance(parameters, sp.Symbol) else parameters, "parameters",
             owner=name)
+        check_parameters(name, "Lagrangian", self.parameters)  # symbols, each name once
         self.holonomic = holonomic
         self.forces = forces
         self.inputs = sequence_argument([inputs] if isinstance(inputs, sp.Symbol) else inputs,
