@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._arguments import integer_argument, real_argument, real_array, sequence_argument
-from ._errors import InputTypeError, ShapeError, UnsupportedFeatureError
+from ._errors import DomainError, InputTypeError, ShapeError, UnsupportedFeatureError
 
 #: the reference run's step count, in multiples of the largest one measured
 REFERENCE_FACTOR = 8
@@ -53,16 +53,17 @@ class ConvergenceReport:
         return "\n".join(lines)
 
 
-def _final_configuration(sim, initial, params: dict, steps: int) -> np.ndarray:
+def _final_configuration(sim, initial, params: dict, steps: int, inputs=None) -> np.ndarray:
     """The configuration at step ``steps`` (time T) of the run from (q₀, v₀), flat; the
     run is simulated in chunks of :data:`CHUNK` steps, each from the last state of the
-    previous one."""
+    previous one.  ``inputs``: a forced system's inputs, held for every arrow (the first
+    one's included), or None."""
     configuration, velocity = initial
-    state = sim.from_velocity(configuration, velocity, params)
+    state = sim.from_velocity(configuration, velocity, params, inputs=inputs)
     left = steps
     while True:
         n = min(CHUNK, left)
-        traj = sim.simulate(state, n, params)
+        traj = sim.simulate(state, n, params, inputs=inputs)
         left -= n
         if not left:
             break
@@ -70,6 +71,29 @@ def _final_configuration(sim, initial, params: dict, steps: int) -> np.ndarray:
     found = traj.configurations()
     parts = found if isinstance(found, tuple) else (found,)
     return np.concatenate([np.ravel(np.asarray(part, float)[n]) for part in parts])
+
+
+def _held_inputs(sim, inputs) -> np.ndarray | None:
+    """A system's inputs as the m values held over every arrow; None without inputs."""
+    m = sim.layout.n_inputs
+    if inputs is None and not m:
+        return None
+    if inputs is None:
+        raise ShapeError(f"convergence_order: {sim.name} has inputs "
+                         f"({', '.join(sim.layout.input_names)}): pass inputs= with "
+                         f"{m} value{'s' if m > 1 else ''}, held over every arrow of every "
+                         f"run")
+    if not m:
+        raise ShapeError(f"convergence_order: {sim.name} has no inputs; leave inputs= out")
+    held = real_array(inputs, "inputs", owner="convergence_order")
+    if held.shape != (m,) and not (m == 1 and held.ndim == 0):
+        raise ShapeError(f"convergence_order: inputs= holds {m} value{'s' if m > 1 else ''}"
+                         f" ({', '.join(sim.layout.input_names)}), held over every arrow (a "
+                         f"sequence per step would differ at every N); got shape "
+                         f"{held.shape}")
+    if not np.all(np.isfinite(held)):
+        raise DomainError("convergence_order: the inputs must be finite")
+    return held.reshape(m)
 
 
 def configuration_size(system) -> int:
@@ -118,7 +142,7 @@ def _reference(reference, size: int | None) -> np.ndarray:
 
 
 def convergence_order(system, scheme, initial, params: Mapping, T: float,
-                      steps: Sequence[int], *, step=None, reference=None,
+                      steps: Sequence[int], *, step=None, reference=None, inputs=None,
                       backend: str = "c") -> ConvergenceReport:
     """The observed order of ``system.discretize(step, scheme)`` (see the module docstring).
 
@@ -127,7 +151,9 @@ def convergence_order(system, scheme, initial, params: Mapping, T: float,
     least two step counts; ``step``: the step parameter (default: the system's one
     parameter named ``h``); ``reference``: the configuration at T (flat: a Euclidean
     factor's coordinates, a group factor's matrix entries row by row, factor after factor),
-    or None for the finer run of the same scheme.
+    or None for the finer run of the same scheme; ``inputs``: a system with inputs runs
+    with these m values held over every arrow (a sequence would be sampled differently at
+    every N: its own discretisation error would be measured with the scheme's).
     """
     from .equations import ContinuousSystem
 
@@ -143,17 +169,19 @@ def convergence_order(system, scheme, initial, params: Mapping, T: float,
     sim = discrete.euler_lagrange().compile(backend=backend)
     expected = getattr(scheme, "order", 2 if isinstance(scheme, str) else None)
     return measure_order(sim, initial, params, T, counts, reference=reference,
-                         expected=expected)
+                         expected=expected, inputs=inputs)
 
 
 def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int], *,
-                  reference=None, expected: int | None = None) -> ConvergenceReport:
+                  reference=None, expected: int | None = None, inputs=None
+                  ) -> ConvergenceReport:
     """The observed order of the compiled simulator ``sim`` of a discretised system (as
     :func:`convergence_order`, which derives and compiles it): runs of ``steps`` (at least
     two different counts) to T with the step parameter ``sim``'s time step set to T/N,
-    the other parameters from ``params``."""
+    the other parameters from ``params``, a system's ``inputs`` held over every arrow."""
     counts, T = _counts_and_time(steps, T)
     initial, params = _common_arguments(initial, params)
+    inputs = _held_inputs(sim, inputs)
     origin = getattr(getattr(sim.equations, "system", None), "continuous", None)
     if origin is None:
         raise UnsupportedFeatureError(f"{sim.name}: the observed order is measured for a "
@@ -164,7 +192,7 @@ def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int],
         reference = _reference(reference, configuration_size(origin.system))
 
     def final(n: int) -> np.ndarray:
-        return _final_configuration(sim, initial, {**params, name: T / n}, n)
+        return _final_configuration(sim, initial, {**params, name: T / n}, n, inputs)
 
     if reference is None:
         target, against = final(REFERENCE_FACTOR * counts[-1]), (

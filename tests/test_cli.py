@@ -248,7 +248,7 @@ def test_simulate_initial_state_forms(files, tmp_path, cached, capsys):
     mixed = tmp_path / "mixed.json"
     mixed.write_text(json.dumps({"momentum": [0, 1], "x": [0, 1]}))
     code, _, err = run(capsys, "simulate", ring, "--steps", 5, "--initial", mixed)
-    assert code == 1 and "only the keys 'configuration' and 'momentum'; got also x" in err
+    assert code == 1 and "only the keys 'configuration', 'momentum', 'inputs'; got also x" in err
     off = tmp_path / "off.json"
     off.write_text(json.dumps({**RING_INITIAL, "x": [1.0, 1.1]}))
     code, _, err = run(capsys, "simulate", ring, "--steps", 5, "--initial", off)

@@ -41,6 +41,7 @@ from symgroupoid import (
 from symgroupoid.equations import MAX_NODES, gauss_legendre_tableau, lobatto_tableau
 
 h, grav = sp.symbols("h g", positive=True)
+u_torque = sp.Symbol("u", real=True)
 THETA = sg.EuclideanSpace("theta")
 PARAMS = {"g": 9.81}
 
@@ -316,6 +317,21 @@ def test_bad_step_counts_are_refused_before_any_derivation(steps, monkeypatch):
     reference run of 8·10¹² steps would have allocated a trajectory of that length.)"""
     monkeypatch.setattr(sg.ContinuousSystem, "discretize", _no_derivation)
     refused(lambda: order(steps=steps), match="step")
+
+
+@pytest.mark.parametrize("forced, inputs, error, match", [
+    (True, None, ShapeError, "pass inputs="),  # (a forced system could not be measured)
+    (True, [0.1, 0.2], ShapeError, "held over every arrow"),
+    (True, np.zeros((20, 1)), ShapeError, "held over every arrow"),
+    (True, [float("nan")], sg.DomainError, "finite"),
+    (True, ["a"], ShapeError, "inputs"),
+    (False, [0.1], ShapeError, "has no inputs"),
+])
+def test_bad_held_inputs_are_refused(forced, inputs, error, match):
+    """``inputs=``: the m values a system's inputs hold over every arrow of every run."""
+    system = pendulum(forces=lambda q, v: [u_torque], inputs=[u_torque]) if forced else None
+    refused(lambda: order(**({"system": system} if forced else {}), inputs=inputs), error,
+            match=match)
 
 
 @pytest.mark.parametrize("T", [None, "1.0", "abc", 0.0, -1.0, float("nan"), float("inf"),

@@ -18,11 +18,12 @@ from .._arguments import integer_argument
 from ._errors import InputError
 from ._system_file import SystemFile
 
-#: keys of an initial state given by a configuration and a discrete momentum
-MOMENTUM_KEYS = ("configuration", "momentum")
+#: keys of an initial state given by a configuration and a discrete momentum (``inputs``:
+#: those of the first arrow, for a system with inputs)
+MOMENTUM_KEYS = ("configuration", "momentum", "inputs")
 #: keys of an initial state given by a configuration and a velocity (a discretised
 #: ContinuousSystem: Simulator.from_velocity)
-VELOCITY_KEYS = ("configuration", "velocity")
+VELOCITY_KEYS = ("configuration", "velocity", "inputs")
 #: keys of a boundary-value problem file
 BOUNDARY_KEYS = ("start", "end", "steps", "params", "guess")
 
@@ -149,13 +150,15 @@ def initial_state(sim, data, params, *, origin: str = "--initial") -> np.ndarray
                          f"define INITIAL in the system file")
     if isinstance(data, Mapping) and "velocity" in data:
         configuration, velocity = velocity_data(data, origin)
-        return sim.from_velocity(configuration, velocity, params)
+        return sim.from_velocity(configuration, velocity, params,
+                                 inputs=first_inputs(sim, data, origin))
     if isinstance(data, Mapping) and "momentum" in data:
         extra = sorted(set(map(str, data)) - set(MOMENTUM_KEYS))
         if extra:
             raise InputError(f"{origin}: a state from a momentum has only the keys "
-                             f"'configuration' and 'momentum'; got also {', '.join(extra)}")
-        return sim.from_momentum(data.get("configuration"), data["momentum"], params)
+                             f"{_listed(MOMENTUM_KEYS)}; got also {', '.join(extra)}")
+        return sim.from_momentum(data.get("configuration"), data["momentum"], params,
+                                 inputs=first_inputs(sim, data, origin))
     if isinstance(data, (str, bytes, int, float, bool)):
         raise InputError(f"{origin}: an initial state is an object of named parts, "
                          f"{{\"configuration\": …, \"momentum\": […]}}, or a list; got "
@@ -169,8 +172,25 @@ def velocity_data(data: Mapping, origin: str = "--initial") -> tuple:
     extra = sorted(set(map(str, data)) - set(VELOCITY_KEYS))
     if extra:
         raise InputError(f"{origin}: a state from a velocity has only the keys "
-                         f"'configuration' and 'velocity'; got also {', '.join(extra)}")
+                         f"{_listed(VELOCITY_KEYS)}; got also {', '.join(extra)}")
     return data.get("configuration"), data["velocity"]
+
+
+def first_inputs(sim, data: Mapping, origin: str = "--initial"):
+    """The ``inputs`` of an initial state from a momentum or a velocity: those of its first
+    arrow, required for a system with inputs (None for one without)."""
+    names = list(sim.layout.input_names)
+    if "inputs" not in data:
+        if names:
+            raise InputError(f"{origin}: {sim.name} has inputs ({', '.join(names)}): an "
+                             f"initial state from a momentum or a velocity needs those of "
+                             f"its first arrow, \"inputs\": [{', '.join(names)}]")
+        return None
+    return data["inputs"]
+
+
+def _listed(keys) -> str:
+    return ", ".join(f"'{k}'" for k in keys)
 
 
 def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
