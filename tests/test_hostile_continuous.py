@@ -274,6 +274,44 @@ def test_from_velocity_needs_a_continuous_origin():
     refused(lambda: sim.from_velocity({"q": 0.0}, [1.0], {"h": 0.1}), UnsupportedFeatureError)
 
 
+@functools.cache
+def _free_body(label: str):
+    scheme = sg.GaussLegendre(2) if label == "gauss2" else "midpoint"
+    system = sg.ContinuousSystem(sg.SO3("R"), lambda R, xi: (xi.T * xi)[0, 0] / 2,
+                                 parameters=[h], name="free_body")
+    return system.discretize(h, scheme).euler_lagrange().compile(backend="numpy")
+
+
+@pytest.mark.parametrize("label", ["gauss2", "midpoint"])
+def test_from_velocity_names_a_configuration_outside_the_group(label):
+    """(A matrix of ones as R₀ was reported as "non-finite values solving for the initial
+    state" by GaussLegendre(2) and as a singular Jacobian by the midpoint rule: named now,
+    before any solve, as a state's group part is; one given to a few digits is rounded to
+    the group with a warning.)"""
+    sim = _free_body(label)
+    for bad in (np.ones((3, 3)), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
+        error = refused(lambda: sim.from_velocity({"R": bad}, [0.1, 0.2, 0.3], {"h": 0.01}))
+        assert "configuration part 'R'" in str(error)
+    close = np.round(np.array([[0.6, -0.8, 0.0], [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]]) * (1 + 1e-8),
+                     12)
+    with pytest.warns(sg.GroupRoundingWarning):
+        state = sim.from_velocity({"R": close}, [0.1, 0.2, 0.3], {"h": 0.01})
+    assert np.all(np.isfinite(state))
+
+
+@pytest.mark.parametrize("psi", [lambda q: "x", lambda q: [q[0] - sp.Symbol("ell")],
+                                 lambda q: [1.0]], ids=["string", "undeclared", "constant"])
+def test_a_bad_holonomic_constraint_is_named_as_such(psi):
+    """(A constraint function returning the string "x" was reported as "the Lagrangian uses
+    symbol(s) x" by the Lobatto scheme, whose discrete Lagrangian holds the constraints at
+    its interior nodes.)"""
+    system = sg.ContinuousSystem(sg.EuclideanSpace("a b"),
+                                 lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2, parameters=[h],
+                                 holonomic=psi)
+    error = refused(lambda: system.discretize(h, sg.LobattoIIIAB(3)))
+    assert "holonomic" in str(error) and "Lagrangian" not in str(error), error
+
+
 def _check_state(state) -> None:
     sim = simulator()
     state = np.asarray(state, float)

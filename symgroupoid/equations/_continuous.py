@@ -37,7 +37,7 @@ import sympy as sp
 
 from .._arguments import integer_argument, name_argument, sequence_argument
 from .._errors import CallableError, InputTypeError, ShapeError, UnsupportedFeatureError
-from ..derivation import call_user, check_parameters, checked_callable
+from ..derivation import call_user, check_parameters, checked_callable, holonomic_functions
 from ..groupoids import configuration_factors, pair_groupoid_of
 from ..ir import Graph, Program, from_sympy
 from ._galerkin import MAX_NODES, GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
@@ -216,7 +216,9 @@ class ContinuousSystem:
         """The Galerkin discrete system of ``scheme`` (see :mod:`._galerkin`)."""
         self._check_galerkin(scheme, G)
         tableau = scheme.tableau()
-        n_psi = len(self._holonomic_at(G, [sp.Dummy() for _ in range(G.base_dim)]))
+        n_psi = 0 if self.holonomic is None else len(holonomic_functions(  # checked
+            self.name, G, self.holonomic,
+            tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim)), self.parameters))
         inner = tableau.interior
         n_stage = inner * (sum(f.dim for f in self.factors) + n_psi)
 

@@ -30,7 +30,7 @@ from ..equations import momentum_program, second_order_momentum_program
 from ._layout import StateLayout
 from ._newton import ROUNDING_UPDATE, converged, newton  # noqa: F401 (re-exported)
 from ._validate import arrow as checked_arrow
-from ._validate import real_array
+from ._validate import group_element, real_array
 
 #: what a from-momentum solve reports when it fails
 _SOLVING = "solving for the initial state from the momentum"
@@ -105,6 +105,9 @@ class MomentumInitializer:
             if arr.shape != part.shape:
                 raise ShapeError(f"{self.name}: configuration part {key!r} has shape "
                                  f"{arr.shape}, expected {part.shape}")
+            if part.group is not None:  # in the group (or rounded to it), before any solve
+                arr = group_element(part.group, arr, f"configuration part {key!r}",
+                                    owner=self.name)
             idx = part.index[o]
             state[idx[idx >= 0]] = arr[idx >= 0] - part.fixed[idx >= 0]
         values = state[self.source_pos]
