@@ -290,7 +290,8 @@ def test_from_velocity_names_a_configuration_outside_the_group(label):
     the group with a warning.)"""
     sim = _free_body(label)
     for bad in (np.ones((3, 3)), np.diag([1.0, 1.0, -1.0]), np.full((3, 3), np.nan)):
-        error = refused(lambda: sim.from_velocity({"R": bad}, [0.1, 0.2, 0.3], {"h": 0.01}))
+        error = refused(functools.partial(sim.from_velocity, {"R": bad}, [0.1, 0.2, 0.3],
+                                          {"h": 0.01}))
         assert "configuration part 'R'" in str(error)
     close = np.round(np.array([[0.6, -0.8, 0.0], [0.8, 0.6, 0.0], [0.0, 0.0, 1.0]]) * (1 + 1e-8),
                      12)
