@@ -126,7 +126,8 @@ def python_overhead(sim, state, steps: int = 200, repeat: int = 300) -> dict[str
 
 def input_overhead(step, sim, state, steps: int = 200, repeat: int = 300
                    ) -> dict[str, float]:
-    """µs per ``sim.step(state, p, inputs=u)`` call of a loop beyond the kernel's step, on
+    """µs per ``sim.step(state, p, inputs=u)`` call of a loop beyond the kernel's step (u an
+    array, and a new list each call), on
     the plate-ball driven by two inputs (a force on the ball's first two sections,
     ``sg.body_torque``, docs/conventions.md §20), against the driven kernel's own run of as
     many steps with the same inputs (one C call); and the driven kernel's µs per step
@@ -154,6 +155,12 @@ def input_overhead(step, sim, state, steps: int = 200, repeat: int = 300
             s = forced.step(s, vector, inputs=zero)
         return s
 
+    def list_loop() -> np.ndarray:  # a controller's inputs=[u1, u2], a new list each call
+        s = start
+        for _ in range(steps):
+            s = forced.step(s, vector, inputs=[0.0, 0.0])
+        return s
+
     def driven_run():
         states = np.empty((steps + 1, layout.n_known))
         states[0] = start
@@ -165,15 +172,17 @@ def input_overhead(step, sim, state, steps: int = 200, repeat: int = 300
     reference = sim.kernel.simulate(state, vector, steps, options)
     n = len(state)
     if not (np.array_equal(loop()[:n], reference.states[-1])
+            and np.array_equal(list_loop()[:n], reference.states[-1])
             and np.array_equal(driven_run()[-1, :n], reference.states[-1])):
         raise RuntimeError("the driven plate-ball's step loop differs from the plate-ball's run")
     runs = {"kernel": lambda: sim.kernel.simulate(state, vector, steps, options),
-            "driven kernel": driven_run, "inputs": loop}
+            "driven kernel": driven_run, "inputs": loop, "list inputs": list_loop}
     best = dict.fromkeys(runs, float("inf"))
     for _ in range(repeat):
         for what, run in runs.items():
             best[what] = min(best[what], best_of(run, 1))
     return {"overhead": (best["inputs"] - best["driven kernel"]) / steps * 1e6,
+            "list overhead": (best["list inputs"] - best["driven kernel"]) / steps * 1e6,
             "driven kernel": best["driven kernel"] / steps * 1e6,
             "kernel": best["kernel"] / steps * 1e6}
 
@@ -289,7 +298,8 @@ def main() -> None:
               f"parameter vector, {overhead['dict']:.3f} with a dict (target <= 2 us)")
         driven = input_overhead(step, sim, state)
         print(f"  ... with inputs, sim.step(s, p, inputs=u): {driven['overhead']:.3f} us/call "
-              f"(plate-ball driven by 2 inputs; target <= 2 us)")
+              f"(plate-ball driven by 2 inputs; target <= 2 us); inputs=[u1, u2] as a "
+              f"list: {driven['list overhead']:.3f} us/call")
         print(f"  driven kernel (prediction guess): {driven['driven kernel']:.3f} us/step "
               f"against {driven['kernel']:.3f} without inputs "
               f"(ratio {driven['driven kernel'] / driven['kernel']:.2f})")
