@@ -168,6 +168,16 @@ def _cli(capsys, *args) -> tuple[int, str, str]:
     return code, out, err
 
 
+def _cli_run_is(capsys, table, steps: int, expected) -> None:
+    """``simulate DRIVEN --steps N --inputs table`` writes bitwise the states ``expected``."""
+    out = table.with_name(f"{table.name}.npz")
+    code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", str(steps), "--inputs", table,
+                        "-o", out)
+    assert code == 0, err
+    with np.load(out) as data:
+        assert np.array_equal(data["states"], expected.states), table.name
+
+
 @needs_cc
 @pytest.mark.usefixtures("isolated_cache")
 def test_the_cli_runs_a_forced_system_from_an_input_file(tmp_path, capsys):
@@ -181,12 +191,7 @@ def test_the_cli_runs_a_forced_system_from_an_input_file(tmp_path, capsys):
     expected = sim.simulate({"q": [1.0, 0.999], "u": [0.0]}, 40,
                             {"h": 0.05, "k": 1.0, "c": 0.2}, inputs=U)
     for name in ("u.npy", "u.csv", "named.csv"):
-        out = tmp_path / f"{name}.npz"
-        code, text, err = _cli(capsys, "simulate", DRIVEN, "--steps", "40", "--inputs",
-                               tmp_path / name, "-o", out)
-        assert code == 0, err
-        with np.load(out) as data:
-            assert np.array_equal(data["states"], expected.states), name
+        _cli_run_is(capsys, tmp_path / name, 40, expected)
 
 
 @pytest.mark.parametrize("content, message", [
@@ -316,13 +321,8 @@ def test_the_cli_holds_a_single_row_and_cuts_a_longer_table(tmp_path, capsys):
             np.savetxt(tmp_path / name, table, delimiter=",", fmt="%.17g")
         else:
             np.save(tmp_path / name, table)
-        expected = sim.simulate(start, 20, params, inputs=expected_inputs)
-        out = tmp_path / f"{name}.npz"
-        code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "20", "--inputs",
-                            tmp_path / name, "-o", out)
-        assert code == 0, err
-        with np.load(out) as data:
-            assert np.array_equal(data["states"], expected.states), name
+        _cli_run_is(capsys, tmp_path / name, 20,
+                    sim.simulate(start, 20, params, inputs=expected_inputs))
     code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "5")
     assert code != 0 and "--inputs U.npy|U.csv" in err and "Traceback" not in err
 
