@@ -30,16 +30,30 @@ Galerkin scheme of docs/conventions.md §22).  An input is held over each arrow.
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
+import numpy as np
 import sympy as sp
 
 from .._arguments import integer_argument, name_argument, sequence_argument
-from .._errors import CallableError, InputTypeError, ShapeError, UnsupportedFeatureError
-from ..derivation import call_user, check_parameters, checked_callable, holonomic_functions
+from .._errors import (
+    CallableError,
+    DegenerateSystemError,
+    InputTypeError,
+    ShapeError,
+    UnsupportedFeatureError,
+)
+from ..derivation import (
+    call_user,
+    check_parameters,
+    checked_callable,
+    holonomic_functions,
+    limit_points,
+)
 from ..groupoids import configuration_factors, pair_groupoid_of
-from ..ir import Graph, Program, from_sympy
+from ..ir import Graph, Program, from_sympy, jacobian
 from ._galerkin import MAX_NODES, GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._system import DiscreteSystem
 
@@ -434,6 +448,64 @@ class Discretization:
         """The theoretical order of the scheme (docs/conventions.md §21, §22)."""
         return self.scheme.order if isinstance(self.scheme, (GaussLegendre, LobattoIIIAB)) \
             else 2
+
+    def check_kinetic(self, discrete: DiscreteSystem) -> None:
+        """The check of a degenerate kinetic energy (docs/conventions.md §19) for a scheme
+        with internal stages, whose steps the check of the rules does not probe: when the
+        velocity Hessian ∂²L/∂v² is singular at every sampled point
+        (:func:`velocity_hessian_singular`), the midpoint rule of the same L and holonomic
+        constraints (its forces left out: they do not change ∂²L/∂v²) is derived and
+        checked, and its verdict — a :class:`DegenerateSystemError`, or the warning of a
+        velocity-linear L — is the scheme's: the same continuous limit."""
+        if not velocity_hessian_singular(discrete):
+            return
+        c = self.system
+        probe = ContinuousSystem(c.Q, c.lagrangian, c.parameters, holonomic=c.holonomic,
+                                 name=discrete.name)
+        probe_name = f"{discrete.name}_midpoint:"
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            try:
+                probe.discretize(self.step, "midpoint").euler_lagrange()
+            except DegenerateSystemError as err:
+                text = str(err).replace(probe_name, f"{discrete.name}:", 1)
+                raise DegenerateSystemError(text, findings=err.findings) from None
+        for found in caught:  # the probe's warnings, as the scheme's
+            text = str(found.message).replace(probe_name, f"{discrete.name}:", 1)
+            warnings.warn(found.category(text), stacklevel=5)  # euler_lagrange()'s caller
+
+
+#: the velocity Hessian is singular where its singular values fall below this fraction of
+#: the largest (or it is zero) at every sampled point
+HESSIAN_RANK = 1e-10
+
+
+def velocity_hessian_singular(system: DiscreteSystem) -> bool:
+    """Whether ∂²L/∂v² of a discretised system's continuous L, exact on the expression
+    graph of ∂L/∂v (:func:`velocity_momentum_program`), is singular at every point of
+    :func:`~symgroupoid.derivation.limit_points` (a point where it cannot be evaluated is no
+    evidence)."""
+    program = velocity_momentum_program(system)
+    g = program.graph
+    v = [g.inputs[s] for s in program.inputs["v"] if s in g.inputs]
+    if not v:
+        return True  # L does not read the velocity at all
+    rows = jacobian(g, program.outputs["momentum"], v)
+    hessian = Program(graph=g, inputs=program.inputs,
+                      outputs={"M": [c for row in rows for c in row]})
+    evaluate = hessian.numpy_function(["M"], ["q", "v", "p"])
+    n = len(program.inputs["v"])
+    found = False
+    for point in limit_points(system.groupoid, system.parameters):
+        with np.errstate(all="ignore"):
+            M = np.asarray(evaluate(point.q, point.v[:n], point.p)[0], float).reshape(n, n)
+        if not np.all(np.isfinite(M)):
+            continue
+        sv = np.linalg.svd(M, compute_uv=False)
+        if sv[0] > 0 and sv[-1] > HESSIAN_RANK * sv[0]:
+            return False
+        found = True
+    return found
 
 
 def velocity_momentum_program(system: DiscreteSystem) -> Program:

@@ -165,7 +165,12 @@ def _leading_terms(step, layout: Layout, point, time_step, timed: bool) -> Leadi
     Z = _null(_unit_columns([J[np.ix_(crows, chart)].T for _, J in values]).T, len(chart))
     R0, R1 = Y.T @ A0 @ Z, Y.T @ A1 @ Z
     scale = max(np.linalg.norm(A0, 2), np.linalg.norm(A1, 2), np.linalg.norm(A2, 2))
-    rank, left, right = _leading_null_spaces(R0)
+    if R0.size and np.linalg.norm(R0, 2) <= _KINETIC_RANK * scale:
+        # no leading term at all (no kinetic energy: L = g cos θ): what the extrapolation
+        # leaves is rounding, whose own singular values must not count as a rank
+        rank, left, right = 0, np.eye(R0.shape[0]), np.eye(R0.shape[1])
+    else:
+        rank, left, right = _leading_null_spaces(R0)
     return LeadingTerms(R0, R1, float(scale), rank, left, right, chart, Z)
 
 

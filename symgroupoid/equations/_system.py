@@ -287,6 +287,9 @@ class DiscreteSystem(_EvaluatedSystem):
         step.system = self
         if self.stages:  # the stage rows are not junction rows; the limit needs ζ
             check_step(step, stages=len(step.stages))
+            origin = getattr(self, "continuous", None)
+            if origin is not None:  # its continuous L: a degenerate kinetic energy (§19)
+                origin.check_kinetic(self)
             return step
         check_step(step, time_steps=time_step_candidates(self))
         step.set_structured_source(self._matrix_form)
