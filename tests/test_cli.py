@@ -231,12 +231,18 @@ def test_simulate_initial_state_forms(files, tmp_path, cached, capsys):
     momentum.write_text(json.dumps({"configuration": {"x": 1.0, "y": 0.0},
                                     "momentum": [0.0, 1.0]}))
     outs = {}
-    for name, path in (("named", named), ("flat", flat), ("momentum", momentum)):
+    inline = json.dumps(RING_INITIAL)  # docs/cli.md: the JSON text itself
+    for name, path in (("named", named), ("flat", flat), ("momentum", momentum),
+                       ("inline", inline)):
         outs[name] = tmp_path / f"{name}.npz"
         assert run(capsys, "simulate", ring, "--steps", 5, "--initial", path, "-o",
                    outs[name])[0] == 0
     with np.load(outs["named"]) as a, np.load(outs["flat"]) as b:
         assert np.array_equal(a["states"], b["states"])
+    with np.load(outs["named"]) as a, np.load(outs["inline"]) as b:
+        assert np.array_equal(a["states"], b["states"])
+    code, _, err = run(capsys, "simulate", ring, "--steps", 5, "--initial", '{"x": [1, 2],}')
+    assert code == 1 and "--initial: not valid JSON" in one_line_error(err)
     with np.load(outs["momentum"]) as m:
         assert np.allclose(np.hypot(m["x"], m["y"]), 1.0, atol=1e-12)
     # a saved run continues from its last state

@@ -97,13 +97,18 @@ def read_json(path: str | Path, what: str):
         raise InputError(f"{what} {path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{what} {path}: cannot be read ({exc})") from None
+    return parse_json(text, f"{what} {path}")
+
+
+def parse_json(text: str, what: str):
+    """The JSON value of ``text`` (``what`` names it in messages); finite numbers only."""
     try:
         return json.loads(text, parse_constant=_refuse_constant)
     except json.JSONDecodeError as exc:
-        raise InputError(f"{what} {path}: not valid JSON: {exc.msg} (line {exc.lineno}, "
+        raise InputError(f"{what}: not valid JSON: {exc.msg} (line {exc.lineno}, "
                          f"column {exc.colno})") from None
     except ValueError as exc:
-        raise InputError(f"{what} {path}: {exc}") from None
+        raise InputError(f"{what}: {exc}") from None
 
 
 def _refuse_constant(name: str):
@@ -125,11 +130,13 @@ def _saved_state(path: Path, sim):
 
 
 def initial_data(source: SystemFile, path: str | None, sim):
-    """The initial-state value: ``--initial`` (JSON, or a saved trajectory's last state,
-    which must be one of ``sim``'s) else the file's ``INITIAL``; None when neither is
-    given."""
+    """The initial-state value: ``--initial`` (a JSON file, the JSON text itself when it
+    starts with ``{`` or ``[``, or a saved trajectory's last state, which must be one of
+    ``sim``'s) else the file's ``INITIAL``; None when neither is given."""
     if path is None:
         return source.convention("INITIAL")
+    if path.lstrip().startswith(("{", "[")):
+        return parse_json(path, "--initial")
     if Path(path).suffix == ".npz":
         return _saved_state(Path(path), sim)
     return read_json(path, "--initial")

@@ -34,7 +34,7 @@ A system file may also define PARAMS (parameter values by name), INITIAL (an ini
 NOETHER (the Noether quantities verify checks) and HORIZON (the final time of verify's order
 measurement of a discretised ContinuousSystem); options given here take precedence.
 
-Initial states (--initial FILE.json, or INITIAL):
+Initial states (--initial FILE.json or the JSON text itself, or INITIAL):
   {"x": [0.0, 0.01], "g": [[1,0,0],[0,1,0],[0,0,1]], "lambda": [0, 0, 0]}
       named state parts, as Simulator.state reads them: a pair-groupoid coordinate as two
       consecutive values, a group part as its matrix, the multipliers as "lambda"
@@ -78,8 +78,9 @@ def _runtime_options(parser: argparse.ArgumentParser, stepper: bool = True) -> N
     parser.add_argument("--params", metavar="NAME=VALUE,...",
                         help="parameter values, e.g. h=0.01,k=1 (over the file's PARAMS)")
     if stepper:
-        parser.add_argument("--initial", metavar="FILE", type=path_text,
-                            help="initial state: FILE.json (see below) or a trajectory .npz")
+        parser.add_argument("--initial", metavar="STATE", type=path_text,
+                            help="initial state: FILE.json (see below), a trajectory .npz, or the "
+                                 "JSON itself ('{\"x\": [0, 0.01]}')")
         parser.add_argument("--backend", choices=BACKENDS, default="auto",
                             help="C kernel (c), NumPy (numpy), or C when a compiler exists "
                                  "(auto)")
