@@ -280,6 +280,13 @@ def test_a_control_loop_with_inputs_as_lists_takes_the_fast_path(monkeypatch):
         sim.step(start, p, inputs=[10 ** 400], options=options)
 
 
+def test_the_slot_of_the_next_input_has_a_name(oscillator):
+    """(The column of u_{k+1} in a forced system's state was named ``known[3]`` in
+    trajectory files and tables.)"""
+    names = [oscillator.layout.describe(i) for i in range(oscillator.layout.n_known)]
+    assert names == ["x (step k-1)", "x", "u", "u (step k+1)"]
+
+
 @pytest.mark.parametrize("run", ["simulate", "batch", "sweep"])
 def test_more_input_rows_than_steps_are_refused(oscillator, run):
     """Row j is the input of the arrow step j computes: a table with more rows than steps

@@ -322,4 +322,7 @@ class StateLayout:
                 where = f"[{', '.join(map(str, pos))}]" if pos else ""
                 label = f" (step k{part.offsets[o]:+d})" if part.offsets[o] else ""
                 return f"{part.name}{where}{label}"
+        upcoming = np.flatnonzero(getattr(self, "upcoming_index", np.zeros(0)) == index)
+        if upcoming.size:  # the slot of the input the next step reads, u_{k+1}
+            return f"{self.input_names[int(upcoming[0])]} (step k+1)"
         return f"known[{index}]"
