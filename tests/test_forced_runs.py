@@ -287,6 +287,28 @@ def test_the_slot_of_the_next_input_has_a_name(oscillator):
     assert names == ["x (step k-1)", "x", "u", "u (step k+1)"]
 
 
+@needs_cc
+@pytest.mark.parametrize("executor", ["thread", "process"])
+def test_a_branch_jump_in_a_restored_simulator_is_reported_as_such(oscillator, executor):
+    """(Building the message of a branch jump read the step's time layout from the symbolic
+    step, which an unpickled simulator does not have: it raised InputTypeError, and a
+    process sweep with one such run lost every run.)  A huge input makes run 1 jump at
+    step 10; the restored simulator, a process sweep and a thread sweep all report it."""
+    import pickle
+
+    U = np.ones((3, STEPS, 1))
+    U[1, 10, 0] = 1e308
+    restored = pickle.loads(pickle.dumps(oscillator))
+    with pytest.raises(sg.BranchJumpError):
+        restored.simulate(_starts(3)[1], STEPS, PARAMS, inputs=U[1])
+    result = sg.sweep(oscillator, _starts(3), PARAMS, STEPS, inputs=U, combine="zip",
+                      executor=executor, workers=1)
+    assert result.status.tolist() == [0, 6, 0]
+    for b in (0, 2):
+        run = oscillator.simulate(_starts(3)[b], STEPS, PARAMS, inputs=U[b])
+        assert np.array_equal(result.trajectories[b].states, run.states)
+
+
 @pytest.mark.parametrize("run", ["simulate", "batch", "sweep"])
 def test_more_input_rows_than_steps_are_refused(oscillator, run):
     """Row j is the input of the arrow step j computes: a table with more rows than steps

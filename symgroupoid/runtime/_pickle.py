@@ -31,6 +31,7 @@ import sympy as sp
 
 from .._errors import CacheError, SymgroupoidError
 from ..codegen import KernelSource
+from ..stepper import NO_TIME, TimeLayout
 from ._layout import Part, StateLayout
 from ._options import NewtonOptions
 
@@ -182,6 +183,7 @@ class SimulatorRecipe:
     options: NewtonOptions
     layout: StateLayout
     extra: dict = field(default_factory=dict)
+    time: TimeLayout = NO_TIME  # the step's time indices (its branch check's messages)
 
 
 def recipe_of(sim) -> SimulatorRecipe:
@@ -207,7 +209,8 @@ def recipe_of(sim) -> SimulatorRecipe:
         unknowns=[str(s) for s in step.unknowns], knowns=[str(s) for s in step.knowns],
         parameters=[(str(s), _declared_assumptions(s)) for s in step.parameters],
         kernel=source, flags=tuple(sim.kernel.flags), source_key=sim.kernel.source_key,
-        digest=c_digest(source), options=sim.options, layout=plain_layout(sim.layout))
+        digest=c_digest(source), options=sim.options, layout=plain_layout(sim.layout),
+        time=sim.time)
     sim._recipe = recipe
     return recipe
 
@@ -230,6 +233,7 @@ def restore_simulator(recipe: SimulatorRecipe):
     sim.options = recipe.options
     sim.cache_entry = entry
     sim.layout = recipe.layout
+    sim.time = recipe.time
     sim.parameter_names = [name for name, _ in recipe.parameters]
     sim._momentum = _NoMomentum(step)
     sim._recipe = recipe

@@ -72,6 +72,7 @@ class Simulator(InitialStates):
         self.options = options or NewtonOptions()
         self.cache_entry = cache_entry
         self.layout = StateLayout(step)
+        self.time = time_layout(step)  # (kept when pickled: a restored step has no arrows)
         self.parameter_names = [str(s) for s in step.parameters]
         self._momentum = None
         self._forced_momentum = None
@@ -432,7 +433,7 @@ class Simulator(InitialStates):
         if u_next is not None:  # the slot of the new arrow's inputs (docs/conventions.md §20)
             known = known.copy()
             known[self.layout.upcoming_index] = u_next
-        time = time_layout(self.equations)
+        time = self.time
         if guess is None:
             u0 = self.kernel.predict(known, p)
             if not np.isfinite(u0).all():
@@ -522,7 +523,7 @@ class Simulator(InitialStates):
     def _time_step_jump(self, iterate: np.ndarray, known: np.ndarray | None) -> str:
         """The sentence naming the time step check of a step on a time groupoid when the
         solution ``iterate`` from ``known`` fails it (docs/conventions.md §7), else ""."""
-        t = time_layout(self.equations)
+        t = self.time
         if t.unknown < 0 or known is None or len(iterate) <= t.unknown:
             return ""
         last = float(known[t.known] - known[t.before])
