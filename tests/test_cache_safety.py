@@ -259,6 +259,34 @@ def test_clear_and_sweep_remove_only_the_names_the_cache_makes(cache_dir):
             assert (cache_dir / folder / n).read_text() == "not the cache's"
 
 
+@pytest.mark.parametrize("where", ["index", "marker", "probe"])
+def test_a_fifo_where_the_cache_reads_a_file_never_blocks(cache_dir, where, monkeypatch):
+    """(A FIFO as an index file, the cache marker or an OpenMP probe made ``compile()``
+    wait forever in ``open``: a file the cache reads is opened without waiting, and
+    anything but a regular file is ignored.)  The run is bitwise the first one's."""
+    first, _, _ = built(cache_dir)
+    # the compiler's OpenMP answer, kept in probes/ (and read again: not known here)
+    monkeypatch.setattr("symgroupoid.runtime.toolchain._openmp._OPENMP", {})
+    toolchain.openmp_available(cache_dir)
+    monkeypatch.setattr("symgroupoid.runtime.toolchain._openmp._OPENMP", {})
+    targets = {"index": next((cache_dir / "index").iterdir(), None),
+               "marker": cache_dir / "CACHEDIR.TAG",
+               "probe": next((cache_dir / "probes").glob("openmp-*.json"), None)}
+    path = targets[where]
+    if path is None:
+        pytest.skip(f"this build wrote no {where} file")
+    path.unlink()
+    os.mkfifo(path)
+    done: list = []
+    worker = threading.Thread(target=lambda: done.append(compile_anew()[0]), daemon=True)
+    worker.start()
+    worker.join(timeout=120)
+    assert done, f"compile() blocked on a FIFO as the {where} file"
+    start = {"q": (0.1, 0.11)}
+    assert np.array_equal(done[0].simulate(start, 20, {"h": 0.1, "k": 2.0}).states,
+                          first.simulate(start, 20, {"h": 0.1, "k": 2.0}).states)
+
+
 def test_removing_a_link_never_touches_its_target(tmp_path):
     target = tmp_path / "target"
     (target / "sub").mkdir(parents=True)

@@ -12,7 +12,7 @@ import tempfile
 from pathlib import Path
 
 from ._processes import owner_tag
-from ._roots import _CLOEXEC, _NOFOLLOW
+from ._roots import _CLOEXEC, _NOFOLLOW, _NONBLOCK
 from ._trust import _owners, dir_mode, distrust, file_mode
 
 
@@ -44,7 +44,7 @@ def read_private(path: Path, owners: frozenset[int] | None = None) -> bytes | No
     link; of ``owners``, not writable by others, :func:`distrust`), else None."""
     owners = _owners() if owners is None else owners
     try:
-        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC)
+        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | _NONBLOCK)  # (a FIFO)
     except OSError:
         return None
     with os.fdopen(fd, "rb") as fh:

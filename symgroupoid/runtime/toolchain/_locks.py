@@ -16,7 +16,7 @@ from pathlib import Path
 from ..._errors import CacheError
 from ._atomic import read_private
 from ._processes import HOST_TAG, _pid_alive
-from ._roots import _CLOEXEC, _NOFOLLOW
+from ._roots import _CLOEXEC, _NOFOLLOW, _NONBLOCK
 from ._trust import dir_mode, file_mode
 
 try:
@@ -51,7 +51,7 @@ def _open_lock(path: Path) -> int:
     try:
         fd = os.open(path, os.O_RDWR | os.O_CREAT | _NOFOLLOW | _CLOEXEC, file_mode())
     except PermissionError:  # another user's lock file in a shared cache: locking only
-        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC)
+        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | _NONBLOCK)
     if not stat.S_ISREG(os.fstat(fd).st_mode):
         os.close(fd)
         raise OSError(errno.EINVAL, "not a regular file", str(path))

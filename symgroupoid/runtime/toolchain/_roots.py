@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import re
+import stat
 from pathlib import Path
 
 from ..._errors import CacheError
@@ -41,6 +42,10 @@ _NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
 
 
 _CLOEXEC = getattr(os, "O_CLOEXEC", 0)
+
+#: opening a FIFO for reading blocks until a writer comes; a file the cache reads is
+#: regular, so it is opened without waiting and anything else is then refused by ``fstat``
+_NONBLOCK = getattr(os, "O_NONBLOCK", 0)
 
 
 def cache_root() -> Path:
@@ -84,10 +89,12 @@ def _expanded(text: str) -> Path:
 def is_cache_root(root: Path) -> bool:
     """Whether ``root`` carries the cache marker (see :data:`MARKER`)."""
     try:
-        fd = os.open(root / MARKER, os.O_RDONLY | _NOFOLLOW | _CLOEXEC)
+        fd = os.open(root / MARKER, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | _NONBLOCK)
     except OSError:
         return False
     with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+            return False
         try:
             return fh.read(len(_SIGNATURE)) == _SIGNATURE.encode()
         except OSError:
