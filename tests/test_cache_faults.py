@@ -155,6 +155,27 @@ def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, ca
     assert list((cache_dir / "tmp").iterdir()) == []
 
 
+def test_the_compiler_keeps_its_temporary_files_in_the_build(tmp_path, cache_dir,
+                                                            monkeypatch):
+    """(The compiler wrote its temporary files, ``cc*.s``, to the system's temporary
+    directory, where a build killed mid-way left them.)  Every compiler run of a build sees
+    ``TMPDIR`` in the build's own directory, inside the cache; the compiler's probes, in
+    the probe's own temporary directory."""
+    log = tmp_path / "tmpdirs"
+    wrapper = tmp_path / "logging-cc"
+    wrapper.write_text(f'#!/bin/sh\necho "$TMPDIR" >> {log}\nexec cc "$@"\n')
+    wrapper.chmod(0o755)
+    monkeypatch.setenv("CC", str(wrapper))
+    sg.compile_step(oscillator(), backend="c")
+    seen = log.read_text().split()
+    builds = [d for d in seen if not Path(d).name.startswith("symgroupoid-")]
+    assert builds and all(Path(d).resolve().is_relative_to(cache_dir.resolve())
+                          for d in builds)
+    assert all(Path(d).resolve().is_relative_to(cache_dir.resolve())
+               or Path(d).name.startswith(("symgroupoid-probe-", "symgroupoid-openmp-"))
+               for d in seen)
+
+
 def test_threads_building_kernels_at_once(cache_dir):
     """Threads of one process: one compiler run per kernel, and builds of different
     kernels do not mix (each build changes the working directory and captures fds 1, 2)."""

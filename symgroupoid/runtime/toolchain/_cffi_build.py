@@ -15,6 +15,7 @@ from ._compiler import (
     _failure,
     build_command,
     compiler_command,
+    compiler_environment,
     compiler_flags_of,
     link_tail,
 )
@@ -105,11 +106,12 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequ
             process.kill()
             process.communicate()
 
+    environment = compiler_environment(cwd)
     try:
         for command in commands:
             processes.append((command, subprocess.Popen(
                 command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT, text=True, errors="replace")))
+                stderr=subprocess.STDOUT, text=True, errors="replace", env=environment)))
     except OSError as exc:
         stop()
         raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc),

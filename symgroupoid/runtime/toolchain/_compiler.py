@@ -91,6 +91,15 @@ def link_args(flags: Sequence[str]) -> list[str]:
     return ["-fopenmp"] if "-fopenmp" in flags else []
 
 
+def compiler_environment(directory: Path) -> dict[str, str]:
+    """This process's environment with ``TMPDIR`` (and ``TMP``, ``TEMP``) set to
+    ``directory``, the build's own: the compiler's temporary files (``cc*.s``) are made
+    there, so a build killed mid-way leaves them where the cache sweeps, never in the
+    system's temporary directory."""
+    return {**os.environ, "TMPDIR": str(directory), "TMP": str(directory),
+            "TEMP": str(directory)}
+
+
 def probe_compiler(command: Sequence[str]) -> str | None:
     """None if ``command`` compiles a trivial C file; otherwise what went wrong."""
     with tempfile.TemporaryDirectory(prefix="symgroupoid-probe-") as tmp:
@@ -99,7 +108,8 @@ def probe_compiler(command: Sequence[str]) -> str | None:
         try:
             result = subprocess.run([*command, "-c", str(source), "-o", str(obj)],
                                     stdin=subprocess.DEVNULL, capture_output=True,
-                                    text=True, errors="replace", timeout=120)
+                                    text=True, errors="replace", timeout=120,
+                                    env=compiler_environment(Path(tmp)))
         except (OSError, subprocess.SubprocessError) as exc:
             return str(exc)
         if result.returncode == 0 and obj.is_file():

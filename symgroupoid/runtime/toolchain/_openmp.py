@@ -13,7 +13,12 @@ import threading
 from pathlib import Path
 
 from ._atomic import read_json, write_json_atomic
-from ._compiler import CompilerNotFoundError, compiler_command, find_compiler
+from ._compiler import (
+    CompilerNotFoundError,
+    compiler_command,
+    compiler_environment,
+    find_compiler,
+)
 from ._digests import abi_tag, sha256_of
 from ._flags import optimisation_flags
 from ._kernel_cache import KernelCache
@@ -44,7 +49,8 @@ def _openmp_probe(command: tuple[str, ...]) -> bool:
         try:
             result = subprocess.run(
                 [*command, OPENMP_FLAG, "-shared", "-fPIC", str(source), "-o", str(library)],
-                stdin=subprocess.DEVNULL, capture_output=True, timeout=120)
+                stdin=subprocess.DEVNULL, capture_output=True, timeout=120,
+                env=compiler_environment(Path(tmp)))
             if result.returncode != 0 or not library.is_file():
                 return False
             return ctypes.CDLL(str(library)).symgroupoid_openmp_probe() > 0
