@@ -368,6 +368,8 @@ attempt("reduced", lambda: sg.sweep(sim, S[:40], params, 20000,
 # one run alone over the limit: refused up front, naming the run's states
 attempt("one_run", lambda: sg.sweep(sim, S[:2], params, 4_000_000,
                                     reduce=lambda t: 0.0, workers=1))
+# one simulate over the limit: refused up front too (it compared with physical memory only)
+attempt("simulate", lambda: sim.simulate(S[0], 4_000_000, params))
 # within the limit by the count, but not in the address space left: no raw MemoryError
 mock.patch("symgroupoid.runtime._memory.available_memory", lambda: 1 << 40).start()
 attempt("allocation", lambda: sim.simulate_batch(S[:1000], 20000, params))
@@ -389,6 +391,8 @@ def test_a_memory_limit_gives_trajectory_too_large_not_memory_error(tmp_path):
     assert lines["one_run"].startswith("TrajectoryTooLargeError True")
     assert "held at once" in lines["one_run"]
     assert lines["allocation"].startswith("TrajectoryTooLargeError True"), lines["allocation"]
+    assert lines["simulate"].startswith("TrajectoryTooLargeError True"), lines["simulate"]
+    assert "more than this process may allocate" in lines["simulate"], lines["simulate"]
 
 
 def _sigint_after(seconds: float, event: threading.Event | None = None

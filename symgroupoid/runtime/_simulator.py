@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import os
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from pathlib import Path
 
@@ -27,6 +26,7 @@ from ._backends import real_vector
 from ._initial_states import InitialStates
 from ._inputs import input_chunks, input_sequence, step_inputs
 from ._layout import StateLayout
+from ._memory import available_memory
 from ._options import NewtonOptions
 from ._run_buffers import SampledRun, WholeRun
 from ._runs import OK, run_chunks
@@ -342,17 +342,16 @@ class Simulator(InitialStates):
                           step_indices=indices, every=every)
 
     def _check_memory(self, steps: int, every: int, rows: int) -> None:
-        """Refuse up front to keep more states than the machine's physical memory holds."""
-        try:
-            physical = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-        except (AttributeError, ValueError, OSError):
-            return
+        """Refuse up front to keep more states than this process may allocate: the
+        machine's physical memory, lowered by ``ulimit -v`` / ``-d``
+        (:func:`~symgroupoid.runtime._memory.available_memory`, as batches check it)."""
+        room = available_memory()
         needed = rows * (8 * self.layout.n_known + 28)
-        if physical > 0 and needed > physical:
+        if room is not None and needed > room:
             raise TrajectoryTooLargeError(
                 f"{self.name}: keeping {rows} states (steps={steps}, every={every}) needs "
-                f"{needed / 2**30:.1f} GiB, more than this machine's memory "
-                f"({physical / 2**30:.1f} GiB); keep fewer with every=k, or process the run "
+                f"{needed / 2**30:.1f} GiB, more than this process may allocate "
+                f"({room / 2**30:.1f} GiB); keep fewer with every=k, or process the run "
                 f"on the fly with Simulator.stream(...) or a callback")
 
     def step(self, state, params, *, options: NewtonOptions | None = None, inputs=None
