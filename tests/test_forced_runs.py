@@ -280,6 +280,14 @@ def test_a_control_loop_with_inputs_as_lists_takes_the_fast_path(monkeypatch):
         sim.step(start, p, inputs=[10 ** 400], options=options)
 
 
+def test_a_stream_of_no_steps_is_the_run_of_no_steps(oscillator):
+    """(``stream(state, 0, ...)`` yielded nothing, where ``simulate`` returns state 0.)"""
+    pieces = list(oscillator.stream(_starts(1)[0], 0, PARAMS, inputs=np.zeros((0, 1))))
+    run = oscillator.simulate(_starts(1)[0], 0, PARAMS, inputs=np.zeros((0, 1)))
+    assert len(pieces) == 1 and np.array_equal(pieces[0].states, run.states)
+    assert list(pieces[0].step_indices) == list(run.step_indices) == [0]
+
+
 def test_the_slot_of_the_next_input_has_a_name(oscillator):
     """(The column of u_{k+1} in a forced system's state was named ``known[3]`` in
     trajectory files and tables.)"""

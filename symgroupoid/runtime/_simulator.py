@@ -291,6 +291,10 @@ class Simulator(InitialStates):
         p = self.parameters(params)
         known0 = self.state(initial, p)
         U = input_sequence(self.layout, inputs, steps, owner=self.name)
+        if steps == 0:  # one piece, state 0 alone: what simulate(initial, 0, ...) returns
+            return iter([self._trajectory(known0[None], np.zeros(0, dtype=np.int64),
+                                          np.zeros(0), p, np.zeros(1, dtype=np.int64),
+                                          every)])
         return self._pieces(known0, p, steps, every, options,
                             inputs=U if self.layout.n_inputs else None)
 
