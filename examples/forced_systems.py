@@ -76,7 +76,13 @@ def run_pendulum(steps: int, latex: bool) -> bool:
                             steps, p, inputs=[0.0, 0.0])
     energy = undriven.energy()
     rest = -3 * 9.81  # both links hanging down, at rest
-    return check("damping alone brings it to rest", energy[-1] - rest < 0.1 * (energy[0] - rest),
+    # over 20 s (2000 steps) the damping takes out 90 % of the energy above rest; over a
+    # shorter run, some of it
+    near_rest = steps >= 2000
+    name = ("damping alone brings it to rest" if near_rest
+            else "damping alone takes energy out")
+    kept = 0.1 if near_rest else 1.0
+    return check(name, energy[-1] - rest < kept * (energy[0] - rest),
                  f"E − E_rest from {energy[0] - rest:.4f} to {energy[-1] - rest:.4f}")
 
 
