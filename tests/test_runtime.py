@@ -191,7 +191,8 @@ def test_state_and_parameter_checks_name_the_problem():
         sim.simulate({k: v for k, v in good.items() if k != "y"}, 1, params)
     with pytest.raises(KeyError, match="unknown state part 'z'"):
         sim.simulate({**good, "z": 1.0}, 1, params)
-    with pytest.raises(sg.ShapeError, match="'x' needs 2 consecutive values"):
+    with pytest.raises(sg.ShapeError, match=r"'x' needs 2 consecutive values, oldest first "
+                       r"\(x_\{k-1\}, x_k\), each a number; got a single value"):
         sim.simulate({**good, "x": 0.5}, 1, params)
     with pytest.raises(ValueError, match="'g' is not in SO3"):
         sim.simulate({**good, "g": 1.01 * np.eye(3)}, 1, params)

@@ -248,10 +248,16 @@ class StateLayout:
         arr = real_array(value, f"state part {part.name!r}", owner=self.step_name)
         expected = part.index.shape if part.is_sequence else part.shape
         if arr.shape != expected:
-            what = (f"{len(part.offsets)} consecutive values (oldest first) of shape "
-                    f"{part.shape}" if part.is_sequence else f"shape {part.shape}")
+            count = len(part.offsets)
+            steps = ", ".join(f"{part.name}_{{k{o:+d}}}" if o else f"{part.name}_k"
+                              for o in part.offsets)
+            what = (f"{count} consecutive values, oldest first ({steps}), each "
+                    + ("a number" if part.shape == () else f"of shape {part.shape}")
+                    if part.is_sequence else f"shape {part.shape}")
+            got = ("a single value" if part.is_sequence and arr.shape == part.shape
+                   else f"shape {arr.shape}")
             raise ShapeError(f"{self.step_name}: state part {part.name!r} needs {what}; got "
-                             f"shape {arr.shape}")
+                             f"{got}")
         return arr if part.is_sequence else arr[None]
 
     def _check_group(self, part: Part, arr: np.ndarray) -> np.ndarray:
