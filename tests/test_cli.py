@@ -112,6 +112,16 @@ def test_system_file_selection(tmp_path, files):
         load_system(f"{bare}:make")
     with pytest.raises(SystemFileError, match=r"no such file"):
         load_system(str(tmp_path / "missing.py"))
+    # a system function imported from another module is named in the message, not taken
+    (tmp_path / "ringmodule.py").write_text((files / "ring.py").read_text())
+    importer = tmp_path / "importer.py"
+    importer.write_text(f"import sys\nsys.path.insert(0, {str(tmp_path)!r})\n"
+                        f"from ringmodule import ring\n")
+    with pytest.raises(SystemFileError, match=r"imported from other modules: ring \(name "
+                                              r"one: FILE.py:ring\)"):
+        load_system(str(importer))
+    assert load_system(f"{importer}:ring").system.name == load_system(
+        str(files / "ring.py")).system.name
 
 
 def test_system_file_errors_are_one_line_and_debug_shows_the_traceback(tmp_path, capsys):

@@ -160,6 +160,12 @@ def _offer(module: ModuleType) -> str:
         parts.append(f"systems: {', '.join(systems)}")
     if functions:
         parts.append(f"functions without arguments: {', '.join(functions)}")
+    imported = [k for k, v in _public(module) if inspect.isfunction(v)
+                and v.__module__ != module.__name__ and _takes_no_arguments(v)
+                and _returns_system(v)]
+    if imported:  # not offered by themselves (the library's own functions are imported too)
+        parts.append(f"imported from other modules: {', '.join(imported)} (name one: "
+                     f"FILE.py:{imported[0]})")
     return "; ".join(parts) if parts else "no systems and no functions without arguments"
 
 
