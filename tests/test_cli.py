@@ -269,6 +269,14 @@ def test_simulate_initial_state_forms(files, tmp_path, cached, capsys):
     off.write_text(json.dumps({**RING_INITIAL, "x": [1.0, 1.1]}))
     code, _, err = run(capsys, "simulate", ring, "--steps", 5, "--initial", off)
     assert code == 1 and "the initial state violates the constraints" in one_line_error(err)
+    assert "(on the command line: --project)" in one_line_error(err)
+    near = tmp_path / "near.json"  # typed to a few digits: --project moves it onto the ring
+    near.write_text(json.dumps({**RING_INITIAL, "x": [1.0, 0.99995]}))
+    code, _, err = run(capsys, "simulate", ring, "--steps", 5, "--initial", near, "--project",
+                       "-o", tmp_path / "projected.npz")
+    assert code == 0, err
+    with np.load(tmp_path / "projected.npz") as m:
+        assert np.allclose(np.hypot(m["x"], m["y"]), 1.0, atol=1e-12)
     bad = tmp_path / "bad.json"
     bad.write_text("{\"x\": [1, 2],}")
     code, _, err = run(capsys, "simulate", ring, "--steps", 5, "--initial", bad)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arguments import integer_argument
+from .._errors import DomainError
 from ._errors import InputError
 from ._system_file import SystemFile
 
@@ -142,7 +143,8 @@ def initial_data(source: SystemFile, path: str | None, sim):
     return read_json(path, "--initial")
 
 
-def initial_state(sim, data, params, *, origin: str = "--initial") -> np.ndarray:
+def initial_state(sim, data, params, *, origin: str = "--initial", project: bool = False
+                  ) -> np.ndarray:
     """The flat initial state of ``sim`` from ``data`` (see docs/cli.md):
 
     - a mapping of named state parts (``{"x": [0, 0.01], "g": [[…]], "lambda": […]}``),
@@ -170,7 +172,14 @@ def initial_state(sim, data, params, *, origin: str = "--initial") -> np.ndarray
         raise InputError(f"{origin}: an initial state is an object of named parts, "
                          f"{{\"configuration\": …, \"momentum\": […]}}, or a list; got "
                          f"{type(data).__name__} {data!r}")
-    return sim.state(data, params)
+    if project:  # --project: onto the constraints first (Simulator.project_initial)
+        return sim.project_initial(data, params)
+    try:
+        return sim.state(data, params)
+    except DomainError as err:
+        if not getattr(err, "violated", None):  # (the constraints, not e.g. a parameter)
+            raise
+        raise DomainError(f"{err} (on the command line: --project)") from None
 
 
 def velocity_data(data: Mapping, origin: str = "--initial") -> tuple:

@@ -81,6 +81,9 @@ def _runtime_options(parser: argparse.ArgumentParser, stepper: bool = True) -> N
         parser.add_argument("--initial", metavar="STATE", type=path_text,
                             help="initial state: FILE.json (see below), a trajectory .npz, or the "
                                  "JSON itself ('{\"x\": [0, 0.01]}')")
+        parser.add_argument("--project", action="store_true",
+                            help="move the initial state onto the constraints first "
+                                 "(Simulator.project_initial: a state typed to a few digits)")
         parser.add_argument("--backend", choices=BACKENDS, default="auto",
                             help="C kernel (c), NumPy (numpy), or C when a compiler exists "
                                  "(auto)")

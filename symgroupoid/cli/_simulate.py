@@ -86,7 +86,7 @@ def run_simulate(args: argparse.Namespace) -> int:
     say(f"{sim.name}: derived in {derived.seconds:.2f} s; {built.describe()}")
     params = parameters(derived.source, args.params)
     data = initial_data(derived.source, args.initial, sim)
-    state = initial_state(sim, data, params)
+    state = initial_state(sim, data, params, project=args.project)
     inputs = run_inputs(args.inputs, sim, steps)
     t0 = time.perf_counter()
     try:

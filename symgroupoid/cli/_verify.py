@@ -346,7 +346,7 @@ def run_verify(args: argparse.Namespace) -> int:
     p = sim.parameters(params)
     T = order_horizon(derived.source, params, steps, args.horizon)
     data = initial_data(derived.source, args.initial, sim)
-    state = initial_state(sim, data, params)
+    state = initial_state(sim, data, params, project=args.project)
     inputs = run_inputs(args.inputs, sim, steps)
     declared = declared_noether(derived.source) if isinstance(system, DiscreteSystem) else []
     checks: list[Check] = []
