@@ -560,6 +560,21 @@ def test_a_truncated_library_in_the_cache_is_found_before_dlopen_and_rebuilt(
     assert not entry.exists() and other.is_dir()
 
 
+def test_a_clear_that_cannot_remove_says_so_and_fails(cache_dir, capsys, monkeypatch):
+    """(``cache clear`` on a cache it could not change printed "removed 0 kernels" and
+    exited 0, the kernels still there.)  Removal is made to fail here as an immutable or
+    read-only cache makes it fail (this test may run as root, whom permissions do not
+    stop): the command names what is left and exits 1."""
+    _, entry, _ = built(cache_dir)
+    monkeypatch.setattr("symgroupoid.runtime.toolchain._maintenance.remove_tree",
+                        lambda path: None)
+    monkeypatch.setattr("symgroupoid.runtime.toolchain._maintenance._remove", lambda path: None)
+    status, out, err = cli("cache", "clear", capsys=capsys)
+    assert status == 1 and "removed 0 kernels" in out
+    assert f"could not remove 2 entries ({entry.name}, index/" in err
+    assert entry.is_dir()
+
+
 def test_library_defects_are_found_from_the_elf_headers(cache_dir):
     _, entry, manifest = built(cache_dir)
     data = (entry / manifest["library"]).read_bytes()

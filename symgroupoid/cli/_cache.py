@@ -7,6 +7,7 @@ import argparse
 import time
 from collections import defaultdict
 
+from .._errors import CacheError
 from ..codegen import precompile_templates
 from ..runtime.toolchain import cache_info, clear_cache
 from ._common import say
@@ -60,6 +61,11 @@ def run_clear(args: argparse.Namespace) -> int:
     if result.busy:
         say(f"  left {len(result.busy)} being built by another process: "
             f"{', '.join(result.busy)}")
+    if result.failed:
+        shown = ", ".join(result.failed[:3]) + (", …" if len(result.failed) > 3 else "")
+        raise CacheError(f"{result.root}: could not remove {len(result.failed)} entries "
+                         f"({shown}): the cache, or these files, cannot be changed by this "
+                         f"user (permissions, a read-only file system, immutable files)")
     return 0
 
 

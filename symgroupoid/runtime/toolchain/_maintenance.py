@@ -77,6 +77,7 @@ class ClearedCache:
     freed: int = 0
     busy: list[str] = field(default_factory=list)
     index_entries: int = 0
+    failed: list[str] = field(default_factory=list)  # kernels and index files still there
 
 
 def _tree_size(path: Path) -> int:
@@ -156,6 +157,8 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
             if not os.path.lexists(entry):
                 result.removed += 1
                 result.freed += size
+            else:  # (an unwritable cache, an immutable file)
+                result.failed.append(entry.name)
     for entry in _entries(root / "index", _INDEX):
         if bad_only:
             data = read_json(entry) or {}
@@ -165,6 +168,8 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
         _remove(entry)
         if not os.path.lexists(entry):
             result.index_entries += 1
+        else:
+            result.failed.append(f"index/{entry.name}")
     if not bad_only:
         for entry in _entries(root / "templates", _TEMPLATE):  # Python, of older versions
             _remove(entry)
