@@ -470,3 +470,13 @@ def test_known_bvp_absolute_tolerance_accepts_small_equations():
                                        params={"h": 1041.0})
     assert sg.verify_stationary(solution, p["system"]), solution
 
+
+
+@pytest.mark.parametrize("tol", [0.011, 1.0, 1e6])
+def test_known_bvp_a_relative_tolerance_of_the_terms_themselves_is_refused(tol):
+    """(``tol=1`` or more returned the initial path as the solution, which no
+    verification passes: the tolerance is relative to each equation's terms.)"""
+    p = problem("spline")
+    with pytest.raises(sg.ShapeError, match="at most 0.01"):
+        sg.solve_boundary_value(p["system"].euler_lagrange(), p["start"], p["end"], 6,
+                                params={"h": 1.0}, tol=tol)

@@ -33,6 +33,10 @@ from ._kernels import _functions
 from ._solution import BoundaryValueSolution
 from ._state import _Problem, _SolverState
 
+#: the largest relative ``tol``: a residual of a percent of the terms is already no solution
+#: of use; from about 1 the initial path itself is accepted
+MAX_TOL = 1e-2
+
 
 @reported(lambda step_equations, *args, **kwargs:
           f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
@@ -98,7 +102,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     on the same scale: above ROUNDING_FACTOR·ε it accepts |F_i| ≤ (tol/ε)·floor_i, the
     residual that a relative change ``tol`` of the terms and coordinates would leave.  It is
     invariant under a rescaling of the Lagrangian or of h, so it never accepts the initial
-    path of equations that are merely small.  The iteration has stalled when an update changes no
+    path of equations that are merely small; it is at most :data:`MAX_TOL` (0.01), beyond
+    which the terms themselves would be accepted as their residual.  The iteration has stalled when an update changes no
     stored value, two steps in a row were taken at the floor without meeting the criterion,
     or (``tol_step`` > 0) an update falls below ``tol_step``·(1 + |λ|∞).
     Raises :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
@@ -119,6 +124,10 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
                          f"steps, got {steps}")
     max_iterations = integer_argument(max_iterations, "max_iterations", owner=owner)
     tol = real_argument(tol, "tol", minimum=0.0, owner=owner)
+    if tol > MAX_TOL:  # a relative change of the terms themselves accepts any path
+        raise ShapeError(f"{owner}: tol is relative to the size of each equation's terms "
+                         f"(tol = 1e-8 accepts a residual of 1e-8 of them); at most "
+                         f"{MAX_TOL:g}, got {tol:g}, which would accept the initial path")
     tol_step = real_argument(tol_step, "tol_step", minimum=0.0, owner=owner)
     if not isinstance(minimum, (bool, np.bool_)):
         raise ShapeError(f"{owner}: minimum must be True or False, got {minimum!r}")
