@@ -103,9 +103,10 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     residual that a relative change ``tol`` of the terms and coordinates would leave.  It is
     invariant under a rescaling of the Lagrangian or of h, so it never accepts the initial
     path of equations that are merely small; it is at most :data:`MAX_TOL` (0.01), beyond
-    which the terms themselves would be accepted as their residual.  The iteration has stalled when an update changes no
-    stored value, two steps in a row were taken at the floor without meeting the criterion,
-    or (``tol_step`` > 0) an update falls below ``tol_step``·(1 + |λ|∞).
+    which the terms themselves would be accepted as their residual.  The iteration has
+    stalled when an update changes no stored value, two steps in a row were taken at the
+    floor without meeting the criterion, or (``tol_step`` > 0) an update falls below
+    ``tol_step``·(1 + |λ|∞).
     Raises :class:`BoundaryValueDivergenceError` (a :class:`NewtonDivergenceError`, with the
     iterations and the residual history) when the iteration cap is reached, the iteration
     stalls or both phases' line searches find no decrease; :class:`SingularJacobianError`
