@@ -63,3 +63,14 @@ def test_the_forced_rigid_body_document_typesets_whole(tmp_path):
     document = assert_typesets_whole(DRIVEN, tmp_path)
     assert r"\operatorname{tr}(J_{d} E_{1} W_{k+1})" in document
     assert (tmp_path / "doc.pdf").stat().st_size > 0
+
+
+@needs_tex
+def test_the_forced_3d_chain_document_breaks_its_long_forces(tmp_path):
+    """(The "where" rows f^±_a of the forced 3D chain, each one fraction of up to 1,700
+    characters, were printed whole at half size and still ran 1,183 pt off the page.)  A
+    literal definition too long to be read whole is collected and broken like an equation:
+    no row is scaled, and the document typesets whole."""
+    step = systems.spherical_chain(1, forced=True).euler_lagrange()
+    document = assert_typesets_whole(step, tmp_path)
+    assert "scalebox" not in document and "f^{+}_{1}(g_{k})" in document

@@ -82,7 +82,7 @@ class KernelSpy:
 #: (argument, bad value, error class, a word its message names)
 IJ_REFUSALS = [
     ("state", np.r_[np.nan, STATE[1:]], sg.DomainError, "x"),
-    ("state", np.r_[STATE[:6], np.inf, 0.0], sg.DomainError, "known"),
+    ("state", np.r_[STATE[:6], np.inf, 0.0], sg.DomainError, "u"),  # (the slot of u_{k+1})
     ("state", STATE[:-1], sg.ShapeError, "state"),
     ("state", np.r_[STATE, 0.0], sg.ShapeError, "state"),
     ("state", STATE + 1j, sg.ShapeError, "state"),

@@ -22,6 +22,9 @@ from ._latex import GroupoidLatexPrinter, uncollected
 from ._layout import PAGE_WIDTH, Definitions, PrintedRows, Row, Term, Text
 from ._matrix_parts import keeps_matrices
 
+#: the smallest scale a whole literal definition is meant to be set at
+READABLE_SCALE = 0.75
+
 
 @dataclass
 class Printed:
@@ -128,14 +131,21 @@ def _definition_length(d: Definition, parameters: Sequence, printer) -> int:
     return len(printer.doprint(d.lhs)) + sum(len(printer.doprint(t.expr)) + 3 for t in terms)
 
 
+#: LaTeX characters of a literal definition's right-hand side beyond which it would be set
+#: below three quarters of its size to fit a line (about 2.5 pt a character, the page's
+#: width), or not fit at all: it is collected and broken like an equation instead
+LONG_LITERAL = int(PAGE_WIDTH / 2.5 / READABLE_SCALE)
+
+
 def definition_rows(definitions: Sequence[Definition], parameters: Sequence,
                     printer: GroupoidLatexPrinter) -> list:
     """The "where" rows: literal ones as :class:`~._layout.Definitions` (packed several to a
-    line), the others collected by variables and parameters, checked, and broken like
-    equations."""
+    line), the others — and the literal ones too long for any line (:data:`LONG_LITERAL`:
+    a force's f^±_a written as one fraction ran off the page at half size) — collected by
+    variables and parameters, checked, and broken like equations."""
     rows: list = []
     for d in definitions:
-        if not d.literal:
+        if not d.literal or len(printer.doprint(d.rhs)) > LONG_LITERAL:
             lhs = printer.doprint(d.lhs)
             terms = verified_terms(d.rhs, (), parameters, printer, lhs)
             rows.append(Row(lhs, terms, numbered=False))
