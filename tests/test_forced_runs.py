@@ -295,6 +295,18 @@ def test_the_slot_of_the_next_input_has_a_name(oscillator):
     assert names == ["x (step k-1)", "x", "u", "u (step k+1)"]
 
 
+def test_a_trajectory_file_with_the_former_column_name_still_loads(oscillator, tmp_path):
+    """A file written before the slot was named (column ``known[3]``) is read as before."""
+    run = oscillator.simulate(_starts(1)[0], STEPS, PARAMS, inputs=_table(1)[0])
+    run.save(tmp_path / "new.npz")
+    with np.load(tmp_path / "new.npz") as data:
+        arrays = dict(data)
+    arrays["columns"] = np.array(["x (step k-1)", "x", "u", "known[3]"])
+    np.savez(tmp_path / "old.npz", **arrays)
+    old = sg.Trajectory.load(tmp_path / "old.npz", oscillator)
+    assert np.array_equal(old.states, run.states)
+
+
 @needs_cc
 @pytest.mark.parametrize("executor", ["thread", "process"])
 def test_a_branch_jump_in_a_restored_simulator_is_reported_as_such(oscillator, executor):

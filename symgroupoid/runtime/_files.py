@@ -79,6 +79,14 @@ def state_columns(layout) -> list[str]:
     return [layout.describe(i) for i in range(layout.n_known)]
 
 
+def _legacy_columns(layout) -> list[str]:
+    """The state columns as earlier versions named them: the slot of the inputs to come,
+    u_{k+1}, as ``known[i]``."""
+    upcoming = set(getattr(layout, "upcoming_index", np.zeros(0, dtype=np.int64)).tolist())
+    return [f"known[{i}]" if i in upcoming else layout.describe(i)
+            for i in range(layout.n_known)]
+
+
 def trajectory_arrays(traj) -> dict[str, np.ndarray]:
     """The arrays of a trajectory's ``.npz`` file (see the module docstring)."""
     names = list(traj.parameters)
@@ -153,6 +161,8 @@ def read_trajectory(path, layout, parameter_names: list[str], *,
     reader = _read_npz if path.suffix == ".npz" else _read_csv
     data, columns = reader(path, label)
     expected = state_columns(layout)
+    if columns == _legacy_columns(layout):  # (files of earlier versions: same layout)
+        columns = expected
     if columns != expected:
         raise TrajectoryFileError(_column_mismatch(label, columns, expected))
     rows = len(data.states) if data.states.ndim == 2 else 0
