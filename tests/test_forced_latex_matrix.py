@@ -74,3 +74,13 @@ def test_the_forced_3d_chain_document_breaks_its_long_forces(tmp_path):
     step = systems.spherical_chain(1, forced=True).euler_lagrange()
     document = assert_typesets_whole(step, tmp_path)
     assert "scalebox" not in document and "f^{+}_{1}(g_{k})" in document
+
+
+def test_a_named_constant_matrix_is_defined_in_the_where_list():
+    """(The heavy top's and rigid body's documents printed tr(J_d E_a W_{k+1}) without saying
+    what J_d is.)  A constant printed by name gets its value in the "where" list."""
+    for system in (systems.heavy_top(), systems.rigid_body()):
+        document = system.euler_lagrange().latex(document=True)
+        assert r"\operatorname{tr}(J_{d} E_{1} W_{k+1})" in document, system.name
+        assert (r"J_{d} &= \operatorname{diag}\left(\frac{- I_{1} + I_{2} + I_{3}}{2}"
+                in document), system.name

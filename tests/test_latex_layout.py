@@ -229,6 +229,9 @@ def test_every_verified_form_equals_the_residual_at_random_points(pendulum_step,
                        for terms in form.equations]
                 assert np.allclose(got, want, rtol=1e-12, atol=1e-12), step.name
                 for d in form.definitions:  # each "where" row, at j = k
+                    if isinstance(d.lhs, sp.MatrixSymbol):  # a named constant: J_d = diag(…)
+                        assert sp.ImmutableMatrix(d.rhs) == d.lhs.value, d.lhs
+                        continue
                     lhs = _evaluate(d.lhs.xreplace(form.generic), form.layers, point)
                     rhs = _evaluate(d.rhs.xreplace(form.generic), form.layers, point)
                     assert abs(lhs - rhs) <= 1e-12 * (1 + abs(lhs)), (step.name, d.lhs)

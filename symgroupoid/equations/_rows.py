@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from .._symbols import multiplier_symbols
+from ..groupoids import is_constant_matrix
 from ._abbreviations import LatexOptionError
 from ._collect import collect_terms
 from ._forms import Definition, Form, equals_explicit, explicit_value
@@ -66,6 +67,8 @@ def collected_form(form: Form, step, printer: GroupoidLatexPrinter) -> Printed:
                 used |= sp.sympify(layer[name]).free_symbols
     definitions = used_definitions(form.definitions, used)
     length += sum(_definition_length(d, step.parameters, printer) for d in definitions)
+    # (the constants' values are stated once, whichever form: not counted against it)
+    definitions = constant_definitions(used) + definitions
     return Printed(equations, definitions, form.intros, length, list(step.parameters),
                    list(form.layers), dict(form.generic), keeps_matrices(form.equations), form)
 
@@ -87,7 +90,8 @@ def checked_form(printed: Printed, step, printer: GroupoidLatexPrinter,
                                    form.layers):
                 return None
             printed.equations[i] = terms
-    if not all(_definition_holds(d, form) for d in printed.definitions):
+    if not all(is_constant_matrix(d.lhs) or _definition_holds(d, form)
+               for d in printed.definitions):
         return None
     return printed
 
@@ -97,6 +101,15 @@ def printed_form(form: Form, step, printer: GroupoidLatexPrinter,
     """The collected terms of a form, or None when a printed equation is not the explicit
     residual (collected or not)."""
     return checked_form(collected_form(form, step, printer), step, printer, explicit)
+
+
+def constant_definitions(used: set) -> list[Definition]:
+    """A "where" row for each named constant matrix the equations print by name (``J_d`` of
+    ``systems.rigid_body``, whose value the document would otherwise leave undefined), in the
+    order of their names; each holds by construction (its value is what the name stands
+    for)."""
+    constants = sorted((s for s in used if is_constant_matrix(s)), key=str)
+    return [Definition(c, c.value, frozenset({c})) for c in constants]
 
 
 def used_definitions(definitions: Sequence[Definition], used: set) -> list[Definition]:
