@@ -44,6 +44,11 @@ def where(owner: str) -> str:
     return f"{owner}: " if owner else ""
 
 
+def counted(n: int, noun: str) -> str:
+    """``n`` and the noun, plural unless n is 1: "1 constraint", "3 constraints"."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
+
+
 def shown_value(value) -> str:
     """``repr(value)`` shortened, or its type where the repr itself fails (a user object
     that cannot print itself)."""

@@ -196,7 +196,7 @@ def test_a_stalled_newton_iteration_raises_instead_of_returning(so3_control):
 
 def test_the_iteration_cap_reports_iterations_and_residual(so3_control):
     end = rotation([0.3, -0.5, 0.8], 2.0)
-    with pytest.raises(BoundaryValueDivergenceError, match="did not converge in 1 iterations")\
+    with pytest.raises(BoundaryValueDivergenceError, match="did not converge in 1 iteration")\
             as info:
         sg.solve_boundary_value(so3_control, np.eye(3), end, 10, params=[0.1],
                                 max_iterations=1)

@@ -144,7 +144,7 @@ def test_system_file_errors_are_one_line_and_debug_shows_the_traceback(tmp_path,
 def test_derive_prints_latex_sizes_and_times(files, capsys):
     code, out, err = run(capsys, "derive", files / "ring.py")
     assert code == 0
-    assert "% ring: 3 equations in 3 unknowns (order 1, 1 constraints, 5 knowns)" in out
+    assert "% ring: 3 equations in 3 unknowns (order 1, 1 constraint, 5 knowns)" in out
     assert "% Jacobian 3×3: 6 structurally nonzero entries" in out
     assert "% derived in " in out and "% LaTeX written in " in out
     assert "\\begin{align}" in out and "\\frac{x_{k+1} + x_{k-1} - 2 x_{k}}{h}" in out

@@ -284,7 +284,7 @@ def test_mixed_constraints_and_holonomic_numpy() -> None:
         sg.PairGroupoid(sg.EuclideanSpace("x y z")), L,
         constraints=lambda g: [g.target[2] - g.source[2] - h], parameters=[h, ell], name="helix",
         holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - ell ** 2])
-    assert repr(system).endswith("1 constraints, 1 holonomic)")
+    assert repr(system).endswith("1 constraint, 1 holonomic)")
     step = system.euler_lagrange()
     assert (step.n_constraints, step.n_holonomic) == (2, 1)
     sim = step.compile(backend="numpy")

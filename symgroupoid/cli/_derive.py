@@ -11,6 +11,7 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+from .._arguments import counted
 from .._progress import Task
 from ..equations import LatexOptionError, UnusedAbbreviationWarning
 from ._common import Derived, derive, file_stem, say
@@ -38,7 +39,7 @@ def sizes(derived: Derived) -> list[str]:
     seconds = time.perf_counter() - t0
     return [
         f"{step.name}: {n} equations in {u} unknowns (order {step.order}, "
-        f"{step.n_constraints} constraints, {len(step.knowns)} knowns)",
+        f"{counted(step.n_constraints, 'constraint')}, {len(step.knowns)} knowns)",
         f"parameters: {params}",
         f"Jacobian {n}×{u}: {nonzero} structurally nonzero entries",
         f"program: {program.size(['F'])} operations for the residual, "

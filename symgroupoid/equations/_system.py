@@ -9,6 +9,7 @@ import sympy as sp
 from .._arguments import (
     MAX_DIMENSION,
     choice_argument,
+    counted,
     instance_argument,
     integer_argument,
     name_argument,
@@ -407,9 +408,9 @@ class DiscreteSystem(_EvaluatedSystem):
 
     def __repr__(self) -> str:
         held = self.n_holonomic
-        counted = (f"{self.n_constraints - held} constraints, {held} holonomic" if held
-                   else f"{self.n_constraints} constraints")
-        return f"{type(self).__name__}({self.name!r} on {self.groupoid.name}, {counted})"
+        shown = (f"{counted(self.n_constraints - held, 'constraint')}, {held} holonomic"
+                 if held else counted(self.n_constraints, "constraint"))
+        return f"{type(self).__name__}({self.name!r} on {self.groupoid.name}, {shown})"
 
     def reduce(self, morphism, lagrangian: Callable | None = None,
                constraints: Callable | None = None, name: str | None = None,

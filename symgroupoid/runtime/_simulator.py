@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._arguments import callable_argument, instance_argument
+from .._arguments import callable_argument, counted, instance_argument
 from .._errors import (
     BranchJumpError,
     DomainError,
@@ -506,7 +506,8 @@ class Simulator(InitialStates):
                  f" in two tries of at most {options.max_iterations} each, from the "
                  f"extrapolated guess and from the step's prediction")
         text = (f"{self.name}: step {step} failed: {Status(status).message} (after "
-                f"{int(iterations)} Newton iterations{tries}, |F|_inf = {residual_norm:.3e})")
+                f"{counted(int(iterations), 'Newton iteration')}{tries}, "
+                f"|F|_inf = {residual_norm:.3e})")
         if status == Status.INVALID_ARGUMENT:  # the checks above let nothing invalid through
             return DomainError(text)
         if status == Status.NOT_CONVERGED:

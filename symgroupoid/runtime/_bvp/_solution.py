@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
+from ..._arguments import counted
 from .._banded import Inertia
 from ._inertia import _inertia_at
 
@@ -133,6 +134,6 @@ class BoundaryValueSolution:
 
     def __repr__(self) -> str:
         return (f"<BoundaryValueSolution {self.system.name!r}: {self.steps} arrows, "
-                f"{self.iterations} iterations ({self.method}), |F| = "
+                f"{counted(self.iterations, 'iteration')} ({self.method}), |F| = "
                 f"{self.residual_norm:.2e}, cost {self.cost:.10g}, {self.kind}>")
 

@@ -30,6 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..._arguments import counted
 from ..._errors import BoundaryValueDivergenceError, ShapeError, SingularJacobianError
 from ..._progress import note as progress_note
 from ._assembly import (
@@ -269,7 +270,8 @@ class _SolverState:
             raise self.divergence(f"stalled: {self.stalled}", excess)
         if self.iterations >= self.problem.max_iterations:
             raise self.divergence(
-                f"did not converge in {self.problem.max_iterations} iterations", excess)
+                f"did not converge in {counted(self.problem.max_iterations, 'iteration')}",
+                excess)
 
     # --- the errors ----------------------------------------------------------------------
 
