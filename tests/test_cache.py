@@ -168,9 +168,10 @@ def test_compiler_error_shows_the_message_and_leaves_the_cache_clean():
 def test_missing_compiler_falls_back_to_numpy(monkeypatch, tmp_path):
     monkeypatch.setenv("CC", "/nonexistent/bin/cc-symgroupoid")
     step = oscillator()
-    with pytest.warns(RuntimeWarning, match="not found.*NumPy backend"):
+    with pytest.warns(RuntimeWarning, match="not found.*NumPy backend") as caught:
         sim = sg.compile_step(step)
     assert sim.backend == "numpy"
+    assert caught[0].filename == __file__  # the user's line, not the library's wrapper
     with pytest.raises(CompilerNotFoundError, match="cc-symgroupoid"):
         sg.compile_step(step, backend="c")
     assert cache_contents(cache_root())["kernels"] == []
