@@ -98,6 +98,14 @@ def test_a_bad_lagrangian_is_refused(kind, scheme):
             .discretize(h, scheme).euler_lagrange())
 
 
+def test_a_lagrangian_of_the_wrong_arity_is_refused_where_it_is_given():
+    """(L(q) was reported twice wrapped, from the derivation, as "raised TypeError: <lambda>()
+    takes 1 positional argument", without saying L takes (q, v).)"""
+    error = refused(lambda: sg.ContinuousSystem(THETA, lambda q: q[0], [h, grav]),
+                    CallableError)
+    assert "L(q, v)" in str(error) and "raised" not in str(error)
+
+
 @pytest.mark.parametrize("parameters", [h, "h", None, {h: 1.0}, [h, "g"], [h, h, grav],
                                         [1, 2], [h, grav, 2 * sp.Symbol("x")], 3.0])
 def test_bad_parameters_are_refused(parameters):

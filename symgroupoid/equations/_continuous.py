@@ -30,6 +30,7 @@ Galerkin scheme of docs/conventions.md §22).  An input is held over each arrow.
 
 from __future__ import annotations
 
+import inspect
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -156,6 +157,7 @@ class ContinuousSystem:
         if not callable(L):
             raise InputTypeError(f"{name}: L must be a function L(q, v), got "
                                  f"{type(L).__name__}")
+        _check_arity(name, L)
         self.lagrangian = L
         for what, f, form in (("holonomic", holonomic, "lambda q: [...]"),
                               ("forces", forces, "lambda q, v: [...]")):
@@ -431,6 +433,21 @@ class ContinuousSystem:
 
     def __repr__(self) -> str:
         return f"<ContinuousSystem {self.name!r} on {self.Q!r}>"
+
+
+def _check_arity(name: str, L: Callable) -> None:
+    """A :class:`CallableError` when ``L`` cannot be called as L(q, v) (its signature, when
+    it has one, does not take two positional arguments)."""
+    try:
+        signature = inspect.signature(L)
+    except (TypeError, ValueError):  # a callable without a signature: called as it is
+        return
+    try:
+        signature.bind(None, None)
+    except TypeError:
+        raise CallableError(f"{name}: L must be a function L(q, v) of a configuration and a "
+                            f"velocity; {getattr(L, '__name__', 'it')}{signature} cannot be "
+                            f"called with those two") from None
 
 
 @dataclass(frozen=True)
