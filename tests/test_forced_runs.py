@@ -221,7 +221,7 @@ def test_the_cli_refuses_a_pickled_or_misnamed_input_file(tmp_path, capsys):
     np.save(tmp_path / "short.npy", np.zeros((3, 1)))
     code, _, err = _cli(capsys, "simulate", DRIVEN, "--steps", "5", "--inputs",
                         tmp_path / "short.npy")
-    assert code != 0 and "inputs need shape (5, 1)" in err
+    assert code != 0 and "3 rows for --steps 5: give at least 5 rows" in err
 
 
 def test_a_control_loop_refilling_one_input_array(oscillator):

@@ -266,6 +266,11 @@ def run_inputs(path: str | None, sim, steps: int, option: str = "--steps") -> np
         return inputs[0]
     if inputs.ndim == 2 and inputs.shape[0] > steps:
         return inputs[:steps]
+    if inputs.ndim == 2 and inputs.shape[0] < steps and inputs.shape[1] == len(names):
+        raise InputError(f"--inputs {path}: {inputs.shape[0]} rows for {option} {steps}: "
+                         f"give at least {steps} rows (row j: the inputs of the arrow step j "
+                         f"computes; the first {steps} of a longer table are used), or a "
+                         f"single row held for every step")
     return inputs
 
 
