@@ -112,7 +112,13 @@ class Trajectory:
         return list(self._layout.names) + (["lambda"] if self._layout.n_multipliers else [])
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """A named part at every kept state (read-only; computed once, then cached)."""
+        """A named part at every kept state (read-only; computed once, then cached).
+
+        A part held at several steps of a state (a pair-groupoid coordinate: x_{k−1}, x_k)
+        gives the older values of the first state, then the newest value of every kept
+        state: with ``every=e`` that is x_0, then x_1, x_{e+1}, x_{2e+1}, … — one more entry
+        than ``step_indices`` (0, e, 2e, …), the first two one step apart, each later one
+        the newest value of the state at the matching step index."""
         if not isinstance(name, str) or (name not in self._layout.parts
                                          and name not in MULTIPLIER_KEYS):
             raise InputNameError(f"{self._layout.step_name}: no part named {name!r}; "
