@@ -308,7 +308,8 @@ def test_velocity_linear_lagrangian_is_a_warning() -> None:
 @pytest.mark.parametrize("L", [
     lambda q, v: (v[0] + v[1]) ** 2 / 2 - (q[0] ** 2 + q[1] ** 2) / 2,  # the §19 example
     lambda q, v: grav * (sp.cos(q[0]) + sp.cos(q[1])),  # no kinetic energy at all
-], ids=["along-vx-minus-vy", "no-kinetic-energy"])
+    lambda q, v: v[0] ** 2 / 2 - (q[0] ** 2 + q[1] ** 2) / 2,  # none along y: v_y unread
+], ids=["along-vx-minus-vy", "no-kinetic-energy", "no-velocity-y"])
 def test_a_degenerate_continuous_lagrangian_is_refused_by_every_scheme(L, scheme) -> None:
     """(The schemes with internal stages were not probed: the §19 example ran with x − y
     held where the continuous system has x = y; and L = g cos θ, with no kinetic energy,

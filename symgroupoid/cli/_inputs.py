@@ -247,7 +247,7 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
     return np.array([[float(cell) for cell in row] for row in rows], dtype=float)
 
 
-def run_inputs(path: str | None, sim, steps: int, option: str = "--steps") -> np.ndarray | None:
+def run_inputs(path: str | None, sim, steps: int) -> np.ndarray | None:
     """The inputs of a run of ``steps`` steps from ``--inputs`` (docs/cli.md), required
     for a system with inputs: a table of at least ``steps`` rows gives its first ``steps``
     (a file may hold a longer sequence), a single row is held constant for every step;
@@ -259,7 +259,7 @@ def run_inputs(path: str | None, sim, steps: int, option: str = "--steps") -> np
         if names:
             raise InputError(f"{sim.name} has inputs ({', '.join(names)}): give their "
                              f"sequence with --inputs U.npy|U.csv, one row per step (at "
-                             f"least {option} {steps} rows; row j: the inputs of the arrow "
+                             f"least --steps {steps} rows; row j: the inputs of the arrow "
                              f"step j computes), or one row held constant")
         return None
     if inputs.ndim == 2 and inputs.shape[0] == 1:
@@ -267,7 +267,7 @@ def run_inputs(path: str | None, sim, steps: int, option: str = "--steps") -> np
     if inputs.ndim == 2 and inputs.shape[0] > steps:
         return inputs[:steps]
     if inputs.ndim == 2 and inputs.shape[0] < steps and inputs.shape[1] == len(names):
-        raise InputError(f"--inputs {path}: {inputs.shape[0]} rows for {option} {steps}: "
+        raise InputError(f"--inputs {path}: {inputs.shape[0]} rows for --steps {steps}: "
                          f"give at least {steps} rows (row j: the inputs of the arrow step j "
                          f"computes; the first {steps} of a longer table are used), or a "
                          f"single row held for every step")

@@ -466,15 +466,18 @@ class Discretization:
         return self.scheme.order if isinstance(self.scheme, (GaussLegendre, LobattoIIIAB)) \
             else 2
 
-    def check_kinetic(self, discrete: DiscreteSystem) -> None:
+    def check_kinetic(self, step) -> None:
         """The check of a degenerate kinetic energy (docs/conventions.md §19) for a scheme
         with internal stages, whose steps the check of the rules does not probe: when the
         velocity Hessian ∂²L/∂v² is singular at every sampled point
         (:func:`velocity_hessian_singular`), the midpoint rule of the same L and holonomic
         constraints (its forces left out: they do not change ∂²L/∂v²) is derived and
         checked, and its verdict — a :class:`DegenerateSystemError`, or the warning of a
-        velocity-linear L — is the scheme's: the same continuous limit."""
-        if not velocity_hessian_singular(discrete):
+        velocity-linear L — is the scheme's: the same continuous limit.  ``step``: the
+        scheme's :class:`~symgroupoid.StepEquations` (its ∂L/∂v program is the one
+        ``from_velocity`` uses, made once)."""
+        discrete = step.system
+        if not velocity_hessian_singular(step):
             return
         c = self.system
         probe = ContinuousSystem(c.Q, c.lagrangian, c.parameters, holonomic=c.holonomic,
@@ -497,23 +500,23 @@ class Discretization:
 HESSIAN_RANK = 1e-10
 
 
-def velocity_hessian_singular(system: DiscreteSystem) -> bool:
-    """Whether ∂²L/∂v² of a discretised system's continuous L, exact on the expression
-    graph of ∂L/∂v (:func:`velocity_momentum_program`), is singular at every point of
-    :func:`~symgroupoid.derivation.limit_points` (a point where it cannot be evaluated is no
-    evidence)."""
-    program = velocity_momentum_program(system)
+def velocity_hessian_singular(step) -> bool:
+    """Whether ∂²L/∂v² of the continuous L of a discretised system's step, exact on the
+    expression graph of ∂L/∂v (its ``velocity_momentum`` program), is singular at every
+    point of :func:`~symgroupoid.derivation.limit_points` (a point where it cannot be
+    evaluated is no evidence)."""
+    program = step.velocity_momentum
     g = program.graph
     v = [g.inputs[s] for s in program.inputs["v"] if s in g.inputs]
-    if not v:
-        return True  # L does not read the velocity at all
+    if len(v) < len(program.inputs["v"]):
+        return True  # L does not read some velocity: a zero row and column everywhere
     rows = jacobian(g, program.outputs["momentum"], v)
     hessian = Program(graph=g, inputs=program.inputs,
                       outputs={"M": [c for row in rows for c in row]})
     evaluate = hessian.numpy_function(["M"], ["q", "v", "p"])
     n = len(program.inputs["v"])
     found = False
-    for point in limit_points(system.groupoid, system.parameters):
+    for point in limit_points(step.system.groupoid, step.system.parameters):
         with np.errstate(all="ignore"):
             M = np.asarray(evaluate(point.q, point.v[:n], point.p)[0], float).reshape(n, n)
         if not np.all(np.isfinite(M)):

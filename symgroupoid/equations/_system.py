@@ -290,7 +290,7 @@ class DiscreteSystem(_EvaluatedSystem):
             check_step(step, stages=len(step.stages))
             origin = getattr(self, "continuous", None)
             if origin is not None:  # its continuous L: a degenerate kinetic energy (§19)
-                origin.check_kinetic(self)
+                origin.check_kinetic(step)
             return step
         check_step(step, time_steps=time_step_candidates(self))
         step.set_structured_source(self._matrix_form)
