@@ -1237,6 +1237,24 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
     return above;
 }
 
+/* The largest update (relative to each unknown) that an iterate at a rounding floor may
+ * still call for: a residual that the last factorisation would answer with a larger update
+ * is not rounding, however large the terms it is computed from (a midpoint step on a group
+ * at a large h, whose terms reach 1e15 while |F| ~ 5 and the update ~ 0.07-0.3).  At a true
+ * floor the update is the rounding noise the floor allows: up to 5e-8 for the planar body
+ * falling to 5e6 m (tests/test_newton_floors.py), 2000 times below this bound */
+#define HEAVY_TOP_FLOOR_UPDATE 1e-4
+
+/* 1 when the update the factorisation f gives for the residual F is at most
+ * HEAVY_TOP_FLOOR_UPDATE relative to u (heavy_top_relative_norm): u is a fixed point of Newton to
+ * within the rounding the floor tests allow for */
+static int heavy_top_update_negligible(const heavy_top_lu *f, const double *F, const double *u)
+{
+    double d[HEAVY_TOP_N_UNKNOWNS];
+    memcpy(d, F, sizeof d);
+    return heavy_top_lu_apply(f, d) == HEAVY_TOP_OK && heavy_top_relative_norm(d, u) <= HEAVY_TOP_FLOOR_UPDATE;
+}
+
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
  * holds heavy_top_hoist(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
@@ -1264,12 +1282,15 @@ static inline int heavy_top_above_rounding(const double *d, const double *u, dou
  *    fast), was a Newton update or rounding noise (below; a chord update may contract
  *    slowly without any stall), and every |F_i| is at most floor_factor times its change
  *    under a rounding-level move of the unknowns (heavy_top_at_floor, with
- *    C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|): Newton has stalled on rounding noise;
+ *    C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|) and the update the last factorisation gives
+ *    for that residual is at most HEAVY_TOP_FLOOR_UPDATE (heavy_top_update_negligible): Newton has
+ *    stalled on rounding noise;
  *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
  *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
  *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
- *    (heavy_top_within_scale): the residual is within the rounding of its own evaluation, which
- *    the unknowns cannot undo (large knowns: positions far from the origin);
+ *    (heavy_top_within_scale), and the update is negligible as above: the residual is within
+ *    the rounding of its own evaluation, which the unknowns cannot undo (large knowns:
+ *    positions far from the origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
@@ -1333,8 +1354,9 @@ static int heavy_top_newton(const double *known, const double *p, const double *
                 noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv);
                 if (fresh || noise) {
                     heavy_top_coordinate_floor(J, uJ, C);
-                    if (heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor)
-                        || heavy_top_within_scale(u, known, p, F, options->floor_factor)) {
+                    if ((heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor)
+                         || heavy_top_within_scale(u, known, p, F, options->floor_factor))
+                        && heavy_top_update_negligible(&lu, F, u)) {
                         return HEAVY_TOP_OK; /* at the rounding of the unknowns or of F's terms */
                     }
                 }

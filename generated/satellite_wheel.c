@@ -1339,6 +1339,24 @@ static inline int satellite_wheel_above_rounding(const double *d, const double *
     return above;
 }
 
+/* The largest update (relative to each unknown) that an iterate at a rounding floor may
+ * still call for: a residual that the last factorisation would answer with a larger update
+ * is not rounding, however large the terms it is computed from (a midpoint step on a group
+ * at a large h, whose terms reach 1e15 while |F| ~ 5 and the update ~ 0.07-0.3).  At a true
+ * floor the update is the rounding noise the floor allows: up to 5e-8 for the planar body
+ * falling to 5e6 m (tests/test_newton_floors.py), 2000 times below this bound */
+#define SATELLITE_WHEEL_FLOOR_UPDATE 1e-4
+
+/* 1 when the update the factorisation f gives for the residual F is at most
+ * SATELLITE_WHEEL_FLOOR_UPDATE relative to u (satellite_wheel_relative_norm): u is a fixed point of Newton to
+ * within the rounding the floor tests allow for */
+static int satellite_wheel_update_negligible(const satellite_wheel_lu *f, const double *F, const double *u)
+{
+    double d[SATELLITE_WHEEL_N_UNKNOWNS];
+    memcpy(d, F, sizeof d);
+    return satellite_wheel_lu_apply(f, d) == SATELLITE_WHEEL_OK && satellite_wheel_relative_norm(d, u) <= SATELLITE_WHEEL_FLOOR_UPDATE;
+}
+
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
  * holds satellite_wheel_hoist(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
@@ -1366,12 +1384,15 @@ static inline int satellite_wheel_above_rounding(const double *d, const double *
  *    fast), was a Newton update or rounding noise (below; a chord update may contract
  *    slowly without any stall), and every |F_i| is at most floor_factor times its change
  *    under a rounding-level move of the unknowns (satellite_wheel_at_floor, with
- *    C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|): Newton has stalled on rounding noise;
+ *    C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|) and the update the last factorisation gives
+ *    for that residual is at most SATELLITE_WHEEL_FLOOR_UPDATE (satellite_wheel_update_negligible): Newton has
+ *    stalled on rounding noise;
  *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
  *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
  *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
- *    (satellite_wheel_within_scale): the residual is within the rounding of its own evaluation, which
- *    the unknowns cannot undo (large knowns: positions far from the origin);
+ *    (satellite_wheel_within_scale), and the update is negligible as above: the residual is within
+ *    the rounding of its own evaluation, which the unknowns cannot undo (large knowns:
+ *    positions far from the origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
@@ -1435,8 +1456,9 @@ static int satellite_wheel_newton(const double *known, const double *p, const do
                 noise = last_step <= 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(lu.inv);
                 if (fresh || noise) {
                     satellite_wheel_coordinate_floor(J, uJ, C);
-                    if (satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor)
-                        || satellite_wheel_within_scale(u, known, p, F, options->floor_factor)) {
+                    if ((satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor)
+                         || satellite_wheel_within_scale(u, known, p, F, options->floor_factor))
+                        && satellite_wheel_update_negligible(&lu, F, u)) {
                         return SATELLITE_WHEEL_OK; /* at the rounding of the unknowns or of F's terms */
                     }
                 }

@@ -7,6 +7,7 @@ A :class:`StepSymbol` carries its LaTeX as its name: ``x_{k+1}``, ``(g_{k})_{12}
 from __future__ import annotations
 
 import re
+import unicodedata
 
 import sympy as sp
 
@@ -41,9 +42,36 @@ def parse_step(step: str | int) -> int:
     return value if m.group(1) == "+" else -value
 
 
+#: Unicode's spelling of a Greek letter -> the LaTeX command's
+_GREEK_SPELLING = {"lamda": "lambda"}
+
+
+def greek_spelled(name: str) -> str:
+    """``name`` with every Greek letter spelt out as SymPy names it (``θ1`` → ``theta1``,
+    ``Ω`` → ``Omega``, ``ϑ`` → ``vartheta``), so that it prints as ``\\theta_{1}``: LaTeX
+    engines typeset the commands, not the characters (pdflatex stops at a Greek character in
+    mathematics, lualatex drops its glyph).  Other characters are kept."""
+    out = []
+    for ch in name:
+        words = unicodedata.name(ch, "").split() if ord(ch) > 127 else []
+        if words[:1] != ["GREEK"]:
+            out.append(ch)
+            continue
+        base = words[words.index("SYMBOL") - 1] if "SYMBOL" in words else words[-1]
+        letter = _GREEK_SPELLING.get(base.lower(), base.lower())
+        if "SYMBOL" in words or "FINAL" in words:  # ϑ, ϕ, ϖ, ϱ, ϵ, ς: the variants
+            letter = "var" + letter
+        elif "CAPITAL" in words:
+            letter = letter.capitalize()
+        follows = len(out) and out[-1][-1:].isalpha()
+        out.append(("_" if follows else "") + letter)
+    return "".join(out)
+
+
 def latex_name(name: str) -> str:
-    """LaTeX of a user-supplied coordinate name (``Gamma`` → ``\\Gamma``)."""
-    return sp.latex(sp.Symbol(name))
+    """LaTeX of a user-supplied coordinate name (``Gamma`` → ``\\Gamma``, ``θ`` →
+    ``\\theta``)."""
+    return sp.latex(sp.Symbol(greek_spelled(name)))
 
 
 def subscripted(base_latex: str, offset: int) -> str:

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from .._errors import InputNameError, InputTypeError, ShapeError, UnsupportedFeatureError
-from .._symbols import scalar_symbol
+from .._symbols import latex_name, scalar_symbol
 from ..groupoids import Groupoid
 from ._callables import as_scalar_list, call_user, check_symbols
 from ._junction import slot, slot_substitution
@@ -176,7 +176,7 @@ def pair_impulse_form(groupoid: Groupoid, forces: ForceFunctions, section,
 
 def input_symbols(inputs: Sequence[sp.Symbol], offset: int) -> list:
     """The inputs of the arrow g_{k+offset}: u ↦ u_{k+offset} (named in LaTeX)."""
-    return [scalar_symbol(sp.latex(u), offset) for u in inputs]
+    return [scalar_symbol(latex_name(u.name), offset) for u in inputs]
 
 
 def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from .._errors import SymgroupoidError
-from .._symbols import StepSymbol
+from .._symbols import StepSymbol, greek_spelled
 from ..derivation import PieceRule, as_scalar, call_user, window
 from ._collect import replace_occurrences
 from ._forms import Definition, Form
@@ -75,7 +75,7 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         if isinstance(name, sp.Symbol):
             tex, symbol = latex(name), name
         elif isinstance(name, str) and name.strip():
-            tex, symbol = name, None
+            tex, symbol = _typeset_name(name), None
         else:
             raise LatexOptionError(f"latex: an abbreviation's name must be a non-empty string "
                                    f"(its LaTeX) or a SymPy Symbol, got {name!r}")
@@ -89,6 +89,35 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
                 symbol = NamedConstant(tex)
         out.append(Abbreviation(tex, symbol, value))
     return out
+
+
+#: characters an abbreviation's LaTeX may not hold: they end or break the formula
+_UNSAFE = set("#$%&")
+
+
+def _typeset_name(name: str) -> str:
+    """An abbreviation's LaTeX as a document typesets it: a Greek character as its command
+    (``Ω`` → ``\\Omega``: pdflatex stops at the character in mathematics, lualatex drops
+    it); refused (:class:`LatexOptionError`) when it holds another character outside ASCII,
+    one of ``# $ % &`` or unbalanced braces, which no document compiles."""
+    tex = ""
+    for i, ch in enumerate(name):
+        spelled = greek_spelled(ch)
+        command = spelled != ch
+        after = name[i + 1:i + 2]
+        tex += ("\\" + spelled + (" " if after.isalpha() else "")) if command else ch
+    bad = sorted({ch for ch in tex if ord(ch) > 127 or ch in _UNSAFE})
+    depth = 0
+    for ch in tex:
+        depth += {"{": 1, "}": -1}.get(ch, 0)
+        if depth < 0:
+            break
+    if bad or depth:
+        why = (f"holds {', '.join(repr(c) for c in bad)}" if bad else "has unbalanced braces")
+        raise LatexOptionError(f"latex: the abbreviation's name {name!r} {why}, which no "
+                               f"LaTeX document compiles; give its LaTeX in ASCII (e.g. "
+                               f"r'\\Omega', 'M_{{1}}')")
+    return tex
 
 
 def _abbreviation_value(tex: str, value) -> sp.Expr:

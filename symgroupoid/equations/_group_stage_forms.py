@@ -47,13 +47,18 @@ from ..derivation import WindowAction, input_symbols
 from ..ir import interpret_precise, precise_namespace, precise_number
 from ._latex import MemoLatexPrinter
 from ._layout import Definitions, PrintedRows, Row, Text, signed_terms
-from ._stage_forms import exact_number, galerkin_origin, stage_coefficients
+from ._stage_forms import exact_number, galerkin_origin, notation_clash, stage_coefficients
 
 #: random points of the group at which the printed rows are compared with the residual
 CHECK_POINTS = 3
 #: decimal digits of that comparison; rows must agree to 10^−(CHECK_DIGITS − 15) of their size
 CHECK_DIGITS = 50
 _SEED = 20221127  # the check's points: the same printing on every run
+
+#: the letters of the group stage notation's symbols (the module docstring; τ the
+#: retraction), which no name of the system may read as
+GROUP_LETTERS = ("X", "V", "A", "B", "N", "M", "P", "S", "F", r"\Delta", r"\Xi", r"\tau",
+                 r"\zeta")
 
 _LABELS = {0: ("k", "k-1"), 1: ("k+1", "k")}
 _GENERIC = ("j", "j-1")
@@ -533,6 +538,8 @@ def group_stage_form(step) -> GroupStageForm | None:
     system, continuous = step.system, origin.system
     if not any(f.is_group for f in continuous.factors) or continuous.holonomic is not None:
         return None
+    if notation_clash(continuous, GROUP_LETTERS):
+        return None
     tableau = origin.scheme.tableau()
     builder = _Builder(continuous, tableau, origin.step)
     n_stage = tableau.interior * sum(f.dim for f in continuous.factors)
@@ -635,5 +642,5 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
                     r"left out),")
 
 
-__all__ = ["CHECK_DIGITS", "CHECK_POINTS", "FORMULA_LIMIT", "GroupStageForm", "group_stage_form",
-           "group_stage_rows"]
+__all__ = ["CHECK_DIGITS", "CHECK_POINTS", "FORMULA_LIMIT", "GROUP_LETTERS", "GroupStageForm",
+           "group_stage_form", "group_stage_rows"]

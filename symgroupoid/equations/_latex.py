@@ -20,7 +20,7 @@ from sympy.printing.latex import LatexPrinter
 
 from .._arguments import shown_value
 from .._errors import SymgroupoidError
-from .._symbols import StepSymbol
+from .._symbols import StepSymbol, greek_spelled
 
 #: operations of a step's residual program above which Jupyter shows the plain repr instead
 #: of the typeset equations (printing a 5-link planar chain, about 300 operations, takes a
@@ -98,6 +98,13 @@ class GroupoidLatexPrinter(LatexPrinter):
 
     def _print_StepSymbol(self, expr) -> str:
         return expr.name
+
+    def _print_Symbol(self, expr, style="plain") -> str:
+        """A symbol; Greek letters in its name printed as commands (:func:`greek_spelled`)."""
+        spelled = greek_spelled(expr.name)
+        if spelled != expr.name:
+            expr = sp.Symbol(spelled, **expr.assumptions0)
+        return super()._print_Symbol(expr, style)
 
     def _print_NamedOperator(self, expr) -> str:
         return expr.name

@@ -54,7 +54,7 @@ from ._layout import PrintedRows
 from ._matrix_parts import NOT_IN_PIECES, junction_system
 from ._pieces import best_rule, pair_coordinates
 from ._rows import Printed, check_width, checked_form, collected_form, printed_form, printed_rows
-from ._stage_forms import stage_form
+from ._stage_forms import stage_clash, stage_form
 
 #: the chosen verified form of each printed step, by its abbreviations (a step printed
 #: again — as LaTeX, as a document, in Jupyter — is not derived and checked again)
@@ -80,6 +80,21 @@ def check_printable(step) -> None:
             f"them out and are unaffected")
 
 
+def _check_printable_staged(step) -> None:
+    """:func:`check_printable`, whose refusal of a Galerkin step names the system's names
+    that kept its stage notation from printing it (:func:`~._stage_forms.stage_clash`)."""
+    try:
+        check_printable(step)
+    except UnsupportedFeatureError as refused:
+        clash = stage_clash(step)
+        if not clash:
+            raise
+        raise UnsupportedFeatureError(
+            f"{refused}.  The stage notation (docs/conventions.md §22) prints such a step, "
+            f"but the system's names {', '.join(clash)} read as its symbols: rename them "
+            f"(e.g. a group named R, coordinates x, y) to print it") from None
+
+
 #: the group stage notation of each printed step (None: not offered), checked once
 _GROUPED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
@@ -103,22 +118,29 @@ def printed_step(step, abbreviations: Mapping | None = None,
     (:func:`chosen_form`); abbreviations that do not occur in it are reported with an
     :class:`UnusedAbbreviationWarning`."""
     width = check_width(width)
-    if not abbreviations:  # a Galerkin step on a group: its stage notation, checked there
-        grouped = group_stage_printed(step, width)
-        if grouped is not None:
-            return grouped
-    check_printable(step)
     checked = abbreviations_of(abbreviations, step)
+    grouped = group_stage_printed(step, width)  # a Galerkin step on a group, checked there
+    if grouped is not None:
+        _warn_unused(step, [a.tex for a in checked], "the stage notation names its own "
+                     "parts: abbreviations apply to the other printed forms")
+        return grouped
+    _check_printable_staged(step)
     printed = chosen_printed(step, abbreviations)
-    unused = unused_abbreviations(printed, checked)
-    if unused:
-        which = (f"abbreviation {unused[0]} does" if len(unused) == 1 else
-                 f"abbreviations {', '.join(unused)} do")
-        warnings.warn(UnusedAbbreviationWarning(
-            f"{step.name}: the {which} not occur in the printed equations (not a part of "
-            f"them, or only of longer forms) and {'is' if len(unused) == 1 else 'are'} left "
-            f"out of the \"where\" list", unused), stacklevel=4)
+    _warn_unused(step, unused_abbreviations(printed, checked),
+                 "not a part of them, or only of longer forms")
     return printed_rows(printed, width, MemoLatexPrinter())
+
+
+def _warn_unused(step, unused: list[str], why: str) -> None:
+    """An :class:`UnusedAbbreviationWarning` for the abbreviations ``unused`` (none: none)."""
+    if not unused:
+        return
+    which = (f"abbreviation {unused[0]} does" if len(unused) == 1 else
+             f"abbreviations {', '.join(unused)} do")
+    warnings.warn(UnusedAbbreviationWarning(
+        f"{step.name}: the {which} not occur in the printed equations ({why}) and "
+        f"{'is' if len(unused) == 1 else 'are'} left out of the \"where\" list", unused),
+        stacklevel=5)
 
 
 def chosen_printed(step, abbreviations: Mapping | None = None) -> Printed:

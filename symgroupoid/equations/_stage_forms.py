@@ -49,6 +49,9 @@ of the attitudes the residual is written in, so they are printed by
 
 from __future__ import annotations
 
+import re
+from collections.abc import Sequence
+
 import sympy as sp
 
 from .._symbols import latex_name, multiplier_symbols, node_symbol, stage_symbols
@@ -70,14 +73,53 @@ def galerkin_origin(step):
     return origin
 
 
+#: the letters of the stage notation on vector spaces (nodes Q, V, interior multipliers Λ,
+#: the stages ζ)
+STAGE_LETTERS = ("Q", "V", r"\Lambda", r"\zeta")
+
+
+def _base(tex: str) -> str:
+    """The letter a printed name starts with: ``X`` of ``X_{1}``, ``\\Xi`` of ``\\Xi^{2}``."""
+    return re.split(r"[_^{ (]", tex, maxsplit=1)[0]
+
+
+def notation_clash(continuous, letters: Sequence[str]) -> list[str]:
+    """The names of a continuous system (its coordinates or group, parameters and inputs, as
+    printed) that read as one of the notation's ``letters``: the printed rows would use one
+    symbol for two things (the form is then not offered).  With several factors the
+    notation's symbols carry the factor's tag (``S^{(R)}_{j}``) and read as none of them."""
+    if len(continuous.factors) > 1:
+        return []
+    names = [latex_name(f.space.symbol_name) if f.is_group else latex_name(n)
+             for f in continuous.factors
+             for n in ([None] if f.is_group else f.space.names)]
+    names += [latex_name(s.name) for s in (*continuous.parameters, *continuous.inputs)]
+    return sorted({t for t in names if _base(t) in letters})
+
+
+def stage_clash(step) -> list[str]:
+    """:func:`notation_clash` of a Galerkin step's continuous system with the stage notation
+    it would be printed in (on a group factor, :data:`GROUP_LETTERS`), or []."""
+    from ._group_stage_forms import GROUP_LETTERS
+
+    origin = galerkin_origin(step)
+    if origin is None:
+        return []
+    continuous = origin.system
+    grouped = any(f.is_group for f in continuous.factors)
+    return notation_clash(continuous, GROUP_LETTERS if grouped else STAGE_LETTERS)
+
+
 def stage_form(step) -> Form | None:
     """The step in the stage notation (see the module docstring), or None when it does not
-    apply."""
+    apply (or the system's names clash with it: :func:`notation_clash`)."""
     origin = galerkin_origin(step)
     if origin is None:
         return None
     system, continuous = step.system, origin.system
     if any(f.is_group for f in continuous.factors):  # not checkable exactly: see above
+        return None
+    if notation_clash(continuous, STAGE_LETTERS):
         return None
     tableau, h = origin.scheme.tableau(), origin.step
     fs = system.functions
@@ -213,4 +255,4 @@ def exact_number(value: sp.Expr) -> sp.Expr:
     return value if value.has(sp.Float) else sp.radsimp(sp.expand(value))
 
 
-__all__ = ["stage_form"]
+__all__ = ["STAGE_LETTERS", "notation_clash", "stage_clash", "stage_form"]

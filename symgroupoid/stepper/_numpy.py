@@ -280,6 +280,20 @@ def polish(factors, F: np.ndarray, u: np.ndarray, last_step: float, it: int
     return u, it
 
 
+#: as ``SG_FLOOR_UPDATE``: the largest update (relative) an iterate at a rounding floor may
+#: still call for (a true floor's noise: up to 5e-8 for a body far from the origin; a
+#: non-solution accepted on its terms' size: 0.07-0.3)
+FLOOR_UPDATE = 1e-4
+
+
+def update_negligible(factors: LUFactors, F: np.ndarray, u: np.ndarray) -> bool:
+    """As ``<prefix>_update_negligible``: the update the factorisation gives for ``F`` is at
+    most :data:`FLOOR_UPDATE` relative to ``u`` (a residual that still calls for a larger one
+    is not rounding, however large the terms it is computed from)."""
+    status, d = lu_apply(factors, F)
+    return status == OK and relative_norm(d, u) <= FLOOR_UPDATE
+
+
 def above_rounding(d: np.ndarray, u: np.ndarray, factor: float) -> bool:
     """As ``<prefix>_above_rounding``: some factor·|d_j| > ε·|u_j|."""
     return bool(np.any(factor * np.abs(d) > EPSILON * np.abs(u)))
@@ -498,7 +512,8 @@ class NumpyStepper:
             # rounding noise that did not reduce |F| tenfold is a stall
             if slow and (fresh or noise) and (
                     self.at_floor(u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
-                    or self.within_scale(u, known, p, F, options.floor_factor)):
+                    or self.within_scale(u, known, p, F, options.floor_factor)) \
+                    and update_negligible(factors, F, u):
                 return OK, u, it, rnorm  # at the rounding of the unknowns or of F's terms
             if noise:
                 return (OK if explained_by_rounding(F, J, u, uJ, ratio) else STALLED,

@@ -1,0 +1,112 @@
+"""Names in the printed equations: Greek characters typeset as commands, abbreviation names
+that no document compiles refused, and the stage notation of a Galerkin step never printed
+with a system's name that reads as one of its symbols (docs/latex.md)."""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+import sympy as sp
+from test_latex_pdf import equation_numbers, lost_content, needs_tex, typeset
+
+import symgroupoid as sg
+from symgroupoid.equations import LatexOptionError, UnusedAbbreviationWarning, latex
+
+h = sp.Symbol("h", positive=True)
+
+
+@pytest.mark.parametrize("name, tex", [
+    ("θ", r"\theta"), ("θ1", r"\theta_{1}"), ("Ω", r"\Omega"), ("ϑ", r"\vartheta"),
+    ("λ", r"\lambda"), ("ς", r"\varsigma"), ("xθ", r"x_{\theta}"), ("theta", r"\theta"),
+    ("m_1", "m_{1}")])
+def test_greek_characters_print_as_their_commands(name, tex):
+    assert latex(sp.Symbol(name)) == tex
+
+
+def _oscillator():
+    w = sp.Symbol("ω", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("θ"))
+    return sg.DiscreteSystem(G, lambda a: ((a.target[0] - a.source[0]) ** 2 / (2 * h)
+                                           - h * w**2 * ((a.source[0] + a.target[0]) / 2) ** 2
+                                           / 2),
+                             parameters=[h, w], name="osc").euler_lagrange()
+
+
+def test_greek_coordinate_and_parameter_names_print_as_commands():
+    text = _oscillator().latex()
+    assert text.isascii(), text
+    assert r"\theta_{k+1}" in text and r"\omega^{2}" in text
+
+
+@needs_tex
+def test_a_document_with_greek_names_typesets_them(tmp_path):
+    log, text = typeset(_oscillator().latex(document=True), tmp_path)
+    assert equation_numbers(text) == [1]
+    assert "Missing character" not in log
+    assert lost_content(log, tolerance=1.0) == []
+
+
+def _pendulum():
+    """The double pendulum of docs/latex.md, whose rows hold m₁ + m₂."""
+    g, m1, m2, l1, l2 = sp.symbols("g m_1 m_2 l_1 l_2", positive=True)
+
+    def L(arrow):
+        q0, q1 = sp.Matrix(arrow.source), sp.Matrix(arrow.target)
+        (a, b), (va, vb) = (q0 + q1) / 2, (q1 - q0) / h
+        kinetic = ((m1 + m2) * l1**2 * va**2 / 2 + m2 * l2**2 * vb**2 / 2
+                   + m2 * l1 * l2 * va * vb * sp.cos(a - b))
+        return h * (kinetic + (m1 + m2) * g * l1 * sp.cos(a) + m2 * g * l2 * sp.cos(b))
+
+    G = sg.PairGroupoid(sg.EuclideanSpace("theta1 theta2"))
+    step = sg.DiscreteSystem(G, L, parameters=[h, g, m1, m2, l1, l2],
+                             name="double_pendulum").euler_lagrange()
+    return step, m1 + m2
+
+
+@pytest.mark.parametrize("name, tex", [("Ω", r"\Omega"), ("Ωx", r"\Omega x"),
+                                       (r"\Omega", r"\Omega"), ("M_{1}", "M_{1}")])
+def test_an_abbreviation_named_by_a_greek_character_prints_its_command(name, tex):
+    step, value = _pendulum()
+    text = step.latex(abbreviations={name: value})
+    assert f"{tex} &= m_{{1}} + m_{{2}}" in text, text
+    assert text.isascii()
+
+
+@pytest.mark.parametrize("name, why", [("M_{1", "unbalanced braces"), ("G#", "'#'"),
+                                       ("é", "'é'"), ("a$b", "'\\$'"), ("}{", "unbalanced")])
+def test_an_abbreviation_name_no_document_compiles_is_refused(name, why):
+    step, value = _pendulum()
+    with pytest.raises(LatexOptionError, match=why):
+        step.latex(abbreviations={name: value})
+
+
+J = sp.diag(*sp.symbols("I1:4", positive=True))
+mgl = sp.Symbol("mgl", positive=True)
+
+
+def _top(group):
+    system = sg.ContinuousSystem(group, lambda R, xi: (xi.T * J * xi)[0, 0] / 2 - mgl * R[2, 2],
+                                 parameters=[h, mgl, *J.diagonal()], name="top")
+    return system.discretize(h, sg.GaussLegendre(2)).euler_lagrange(progress=False)
+
+
+@pytest.mark.parametrize("name, printed", [("X", "X"), ("V", "V"), ("Xi", r"\\Xi")])
+def test_a_group_named_like_a_stage_symbol_is_refused_by_name(name, printed):
+    """The notation's X_{j,i}, V_{j,i}, Ξ_{j,i} would stand for two things (its check used to
+    fail with a bare ValueError); the step is too large to print otherwise."""
+    with pytest.raises(sg.UnsupportedFeatureError, match=f"names {printed} read as its symbols"):
+        _top(sg.SO3(name)).latex()
+
+
+def test_abbreviations_of_a_step_in_the_group_stage_notation_are_reported_unused():
+    """The notation names its own parts; the step used to be refused as too large."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        text = _top(sg.SO3("R")).latex(abbreviations={"K": 2 * mgl})
+    assert text.count("0 &=") == 3
+    unused = [w for w in caught if issubclass(w.category, UnusedAbbreviationWarning)]
+    assert len(unused) == 1 and "stage notation names its own parts" in str(unused[0].message)
+    assert unused[0].filename == __file__
+    with pytest.raises(LatexOptionError):  # still checked
+        _top(sg.SO3("R")).latex(abbreviations={"K#": 2 * mgl})
