@@ -180,6 +180,9 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
     if raw.dtype.kind == "O":
         for item in raw.flat:
             _check_real_item(item, name, at)
+    elif isinstance(value, (list, tuple)) and _holds_bool(value):  # NumPy took True as 1.0
+        raise ShapeError(f"{at}{name} must hold real numbers, got a bool among them "
+                         f"({shown_value(value)})")
     elif raw.dtype.kind not in _REAL_KINDS:
         raise ShapeError(f"{at}{name} must hold real numbers, got dtype {raw.dtype} "
                          f"({shown_value(value)})")
@@ -204,6 +207,12 @@ def input_rows(inputs, m: int, rows: int, *, owner: str = "", name: str = "input
     if m == 1 and arr.shape == (rows,):
         return arr.reshape(rows, 1)
     return arr
+
+
+def _holds_bool(value) -> bool:
+    """Whether a (nested) list or tuple holds a bool anywhere."""
+    return any(isinstance(v, (bool, np.bool_)) or isinstance(v, (list, tuple)) and _holds_bool(v)
+               for v in value)
 
 
 def _check_real_item(item, name: str, at: str) -> None:

@@ -475,3 +475,30 @@ def test_make_generated_writes_readable_files(tmp_path):
     assert result.returncode == 0, result.stderr
     files = sorted((tmp_path / "generated").iterdir())
     assert files and {stat.S_IMODE(p.stat().st_mode) for p in files} == {0o644}
+
+
+@needs_cc
+@pytest.mark.parametrize("damage", ["deep manifest", "deep index", "index directory"])
+def test_a_damaged_entry_is_rebuilt_not_raised(cache_dir, damage):
+    """A manifest or index file nested 5 000 levels deep raised RecursionError from
+    compile(), ``cache info`` and ``cache clear --bad``; an index entry that is a directory
+    raised IsADirectoryError.  Each is a bad entry: reported, cleared, rebuilt."""
+    from symgroupoid.cli import main
+
+    oscillator().compile()
+    deep = "[" * 5000 + "]" * 5000
+    if damage == "deep manifest":
+        for kernel in (cache_dir / "kernels").iterdir():
+            (kernel / "manifest.json").write_text(deep)
+    for index in (cache_dir / "index").iterdir():
+        if damage == "deep index":
+            index.write_text(deep)
+        elif damage == "index directory":
+            index.unlink()
+            index.mkdir()
+    assert main(["cache", "info"]) == 0
+    sim = oscillator().compile()
+    np.testing.assert_array_equal(
+        sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1],
+        reference_final())
+    assert main(["cache", "clear", "--bad"]) == 0

@@ -436,11 +436,34 @@ def test_joint_torques_are_internal():
 
 
 def test_the_helpers_refuse_what_they_cannot_discretise():
-    with pytest.raises(CallableError, match="no consecutive configurations"):
+    """By the helpers' own named errors, not wrapped in a CallableError (which would hide
+    them from ``except sg.ShapeError``)."""
+    with pytest.raises(sg.InputTypeError, match="no consecutive configurations"):
         sg.DiscreteSystem(sg.SO3("W"), lambda g: g.matrix[0, 0], parameters=[h],
                           forces=sg.midpoint_forces(lambda q, v: [0, 0, 0], h))
-    with pytest.raises((ShapeError, CallableError)):
+    with pytest.raises(ShapeError):
         _plane_system(sg.midpoint_forces(lambda q, v: [0], h))
+
+
+def test_a_continuous_force_of_the_wrong_length_is_a_shape_error():
+    """As a DiscreteSystem's forces of the wrong length; it was a CallableError wrapping the
+    ShapeError, and a user function that raised was wrapped twice."""
+    c = sp.Symbol("c", positive=True)
+    system = sg.ContinuousSystem(sg.SO3("R"), lambda R, xi: (xi.T * xi)[0, 0] / 2,
+                                 parameters=[h, c], forces=lambda R, xi: [-c * xi[0], -c * xi[1]],
+                                 name="short_torque")
+    with pytest.raises(ShapeError, match=r"returned 2 components; one generalised force per "
+                                         r"coordinate \(3\)"):
+        system.discretize(h, sg.GaussLegendre(2)).euler_lagrange()
+
+    def fails(R, xi):
+        raise IndexError("no such component")
+
+    system = sg.ContinuousSystem(sg.SO3("R"), lambda R, xi: (xi.T * xi)[0, 0] / 2,
+                                 parameters=[h, c], forces=fails, name="failing_torque")
+    with pytest.raises(CallableError) as info:
+        system.discretize(h, sg.GaussLegendre(2)).euler_lagrange()
+    assert str(info.value).count("raised") == 1, str(info.value)
 
 
 def test_a_failing_step_keeps_the_run_up_to_it(plane):

@@ -287,3 +287,23 @@ def test_an_unexpected_exception_is_one_line_not_a_traceback(system_files, monke
                                         "please report it with the output of --debug"]
     with pytest.raises(TypeError, match="an internal mistake"):
         main(["simulate", "spring.py", "--steps", "3", "--debug"])
+
+
+@pytest.mark.parametrize("initial, message", [
+    ("[" * 5000 + "]" * 5000, "nested deeper than any input"),
+    ('{"q": [1.0, 0.999], "q": [5.0, 5.1]}', "'q' is given twice"),
+    ('{"q": [true, 0.999]}', "a bool among them")])
+def test_initial_json_that_would_be_misread_is_refused(initial, message, capsys):
+    """Deep nesting was an internal error (RecursionError); a key given twice took the last
+    value; a JSON true in a list of numbers was read as 1.0."""
+    shutil.copy(SPRING, "spring.py")
+    assert main(["simulate", "spring.py", "--steps", "3", "--initial", initial]) == 1
+    err = capsys.readouterr().err
+    assert message in err and "internal error" not in err, err
+
+
+def test_a_boundary_file_with_a_key_given_twice_is_refused(capsys):
+    shutil.copy(SPRING, "spring.py")
+    Path("b.json").write_text('{"start": 0.0, "end": 1.0, "steps": 20, "start": 5.0}')
+    assert main(["bvp", "spring.py", "b.json"]) == 1
+    assert "'start' is given twice" in capsys.readouterr().err

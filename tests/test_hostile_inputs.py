@@ -121,3 +121,15 @@ def test_batch_and_sweep_inputs(run):
             _check_run(traj, meant[:len(traj.states) - 1])
 
     check()
+
+
+@pytest.mark.parametrize("value", [[True] + [0.2] * (STEPS - 1), (0.1, False, 0.0, 0.1, 0.2, 0.3),
+                                   [[0.3]] * (STEPS - 1) + [[np.True_]]])
+def test_a_bool_in_a_list_of_numbers_is_refused(value):
+    """NumPy reads [True, 0.2] as [1.0, 0.2]; a bool array and an object array holding True
+    were already refused, a list was not (nor a state given as a list)."""
+    sim = driven()
+    with pytest.raises(sg.ShapeError, match="a bool among them"):
+        sim.simulate(START, STEPS, PARAMS, inputs=value)
+    with pytest.raises(sg.ShapeError, match="a bool among them"):
+        sim.simulate({"x": [True, 0.21], "u": 0.1}, STEPS, PARAMS, inputs=_valid_sequence())

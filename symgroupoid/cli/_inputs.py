@@ -104,12 +104,27 @@ def read_json(path: str | Path, what: str):
 def parse_json(text: str, what: str):
     """The JSON value of ``text`` (``what`` names it in messages); finite numbers only."""
     try:
-        return json.loads(text, parse_constant=_refuse_constant)
+        return json.loads(text, parse_constant=_refuse_constant,
+                          object_pairs_hook=_once_each)
     except json.JSONDecodeError as exc:
         raise InputError(f"{what}: not valid JSON: {exc.msg} (line {exc.lineno}, "
                          f"column {exc.colno})") from None
     except ValueError as exc:
         raise InputError(f"{what}: {exc}") from None
+    except RecursionError:
+        raise InputError(f"{what}: nested deeper than any input of the command line (a "
+                         f"state is a few levels of lists)") from None
+
+
+def _once_each(pairs: list) -> dict:
+    """A JSON object whose keys are all different (a part given twice would silently take
+    the last value)."""
+    out: dict = {}
+    for key, value in pairs:
+        if key in out:
+            raise ValueError(f"{key!r} is given twice")
+        out[key] = value
+    return out
 
 
 def _refuse_constant(name: str):

@@ -16,6 +16,7 @@ from .._errors import (
     InvalidExpressionError,
     ParameterDeclarationError,
     ShapeError,
+    SymgroupoidError,
     UndeclaredSymbolError,
     UnsupportedExpressionError,
 )
@@ -36,7 +37,8 @@ def checked_callable(func: Callable) -> Callable:
 
 def call_user(system_name: str, what: str, func: Callable, *arrows, smooth: bool = False,
               display: dict | None = None):
-    """Call ``func(*arrows)``; wrap any exception with the system name and ``what``.
+    """Call ``func(*arrows)``; wrap any exception with the system name and ``what`` (a
+    :class:`~symgroupoid.SymgroupoidError` is already named and passes unchanged).
 
     A numeric function (``math.cos``, ``np.cos``) applied to a symbolic coordinate is
     reported as such, with what to use instead (SymPy's functions).  With ``smooth`` (a
@@ -51,6 +53,8 @@ def call_user(system_name: str, what: str, func: Callable, *arrows, smooth: bool
             f"lambda g: ...), got a {type(func).__name__}")
     try:
         value = func(*arrows)
+    except SymgroupoidError:  # the library's own, already named (a wrapped user function:
+        raise  # a continuous force's length, a call_user inside it), never wrapped again
     except Exception as exc:  # noqa: BLE001 - re-raised with context
         hint = _numeric_function_hint(exc)
         if hint is not None:

@@ -297,9 +297,10 @@ def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple, window: int = 1
     ``window`` composable arrows); False: it is not at one of them; None: no random arrow
     gave a finite real value."""
     others = sorted(expr.free_symbols - set(arrow), key=sp.default_sort_key)
-    terms = sp.Add.make_args(expr)
-    f = sp.lambdify([list(arrow), others], [expr, sp.Add(*[sp.Abs(t) for t in terms])],
-                    NUMPY_MODULES, cse=True)
+    # the terms' values, summed and their sizes summed here: SymPy's Abs of each term would
+    # try to decide its sign symbolically (minutes for the defect of a midpoint step on SE(2))
+    f = sp.lambdify([list(arrow), others], list(sp.Add.make_args(expr)), NUMPY_MODULES,
+                    cse=True)
     rng = np.random.default_rng(20260)
     usable = 0
     for _ in range(NOETHER_SAMPLES):
@@ -307,13 +308,14 @@ def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple, window: int = 1
         values = rng.uniform(0.5, 1.5, len(others))
         with np.errstate(all="ignore"):
             try:
-                defect, size = (complex(v) for v in f(list(g), list(values)))
+                terms = [complex(v) for v in f(list(g), list(values))]
             except (ZeroDivisionError, OverflowError, ValueError, TypeError):
                 continue
+        defect, size = sum(terms), sum(abs(t) for t in terms)
         if not (np.isfinite(defect) and np.isfinite(size)) or abs(defect.imag) > 0:
             continue
         usable += 1
-        if abs(defect.real) > NOETHER_RELATIVE_DEFECT * max(size.real, 1e-300):
+        if abs(defect.real) > NOETHER_RELATIVE_DEFECT * max(size, 1e-300):
             return False
     return True if usable else None
 

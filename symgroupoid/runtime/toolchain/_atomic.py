@@ -12,7 +12,7 @@ import tempfile
 from pathlib import Path
 
 from ._processes import owner_tag
-from ._roots import _CLOEXEC, _NOFOLLOW, _NONBLOCK
+from ._roots import open_regular
 from ._trust import _owners, dir_mode, distrust, file_mode
 
 
@@ -43,13 +43,11 @@ def read_private(path: Path, owners: frozenset[int] | None = None) -> bytes | No
     """The bytes of the regular file ``path`` if it is trusted (opened without following a
     link; of ``owners``, not writable by others, :func:`distrust`), else None."""
     owners = _owners() if owners is None else owners
-    try:
-        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | _NONBLOCK)  # (a FIFO)
-    except OSError:
+    fh = open_regular(path)
+    if fh is None:
         return None
-    with os.fdopen(fd, "rb") as fh:
-        info = os.fstat(fh.fileno())
-        if not stat.S_ISREG(info.st_mode) or distrust(info, owners) is not None:
+    with fh:
+        if distrust(os.fstat(fh.fileno()), owners) is not None:
             return None
         try:
             return fh.read()
@@ -65,7 +63,7 @@ def read_json(path: Path, owners: frozenset[int] | None = None) -> dict | None:
         return None
     try:
         value = json.loads(data.decode("utf-8"))
-    except ValueError:
+    except (ValueError, RecursionError):  # (not JSON; nested beyond the parser's depth)
         return None
     return value if isinstance(value, dict) else None
 

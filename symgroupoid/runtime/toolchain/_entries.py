@@ -53,6 +53,8 @@ def entry_defect(entry: Path, source_key: str, owners: frozenset[int] | None = N
         manifest = json.loads(data.decode("utf-8"))
     except ValueError:
         return None, "the manifest is not JSON"
+    except RecursionError:
+        return None, "the manifest is nested beyond any manifest's depth"
     if not isinstance(manifest, dict):
         return None, "the manifest is not a JSON object"
     problem = _manifest_problem(manifest, source_key)

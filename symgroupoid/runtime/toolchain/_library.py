@@ -103,7 +103,7 @@ def _manifest_types(path: Path) -> dict:
     try:
         with open(path.parent / "manifest.json", encoding="utf-8", opener=_nofollow) as fh:
             table = json.load(fh)["types"]
-    except (OSError, ValueError, KeyError, TypeError) as exc:
+    except (OSError, ValueError, KeyError, TypeError, RecursionError) as exc:
         raise ImportError(f"no cffi type table for {path} in its manifest: {exc}") from exc
     if not isinstance(table, dict):
         raise ImportError(f"no cffi type table for {path} in its manifest")

@@ -86,15 +86,30 @@ def _expanded(text: str) -> Path:
         return Path(text)
 
 
+def open_regular(path: Path):
+    """``path`` opened for reading (binary) if it is a regular file, never following a
+    link or waiting on a FIFO, else None: a directory there is not opened as a file
+    (``os.fdopen`` of a directory raises ``IsADirectoryError``)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | _NONBLOCK)
+    except OSError:
+        return None
+    try:
+        regular = stat.S_ISREG(os.fstat(fd).st_mode)
+    except OSError:
+        regular = False
+    if not regular:
+        os.close(fd)
+        return None
+    return os.fdopen(fd, "rb")
+
+
 def is_cache_root(root: Path) -> bool:
     """Whether ``root`` carries the cache marker (see :data:`MARKER`)."""
-    try:
-        fd = os.open(root / MARKER, os.O_RDONLY | _NOFOLLOW | _CLOEXEC | _NONBLOCK)
-    except OSError:
+    fh = open_regular(root / MARKER)
+    if fh is None:
         return False
-    with os.fdopen(fd, "rb") as fh:
-        if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
-            return False
+    with fh:
         try:
             return fh.read(len(_SIGNATURE)) == _SIGNATURE.encode()
         except OSError:
