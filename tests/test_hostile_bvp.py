@@ -480,3 +480,16 @@ def test_known_bvp_a_relative_tolerance_of_the_terms_themselves_is_refused(tol):
     with pytest.raises(sg.ShapeError, match="at most 0.01"):
         sg.solve_boundary_value(p["system"].euler_lagrange(), p["start"], p["end"], 6,
                                 params={"h": 1.0}, tol=tol)
+
+
+def test_a_problem_larger_than_the_memory_is_refused_up_front(monkeypatch):
+    """steps=10**9 ended in a raw MemoryError under ``ulimit -v`` (and without one, in the
+    kernel's out-of-memory killer); simulate refuses such runs by name, and so does this."""
+    p = problem("oscillator")
+    monkeypatch.setattr("symgroupoid.runtime._bvp._solve.available_memory", lambda: 10_000)
+    with pytest.raises(sg.TrajectoryTooLargeError, match="1000 steps needs at least"):
+        sg.solve_boundary_value(p["system"].euler_lagrange(), p["start"], p["end"], 1000,
+                                params=p["params"])
+    monkeypatch.setattr("symgroupoid.runtime._bvp._solve.available_memory", lambda: None)
+    assert sg.solve_boundary_value(p["system"].euler_lagrange(), p["start"], p["end"], 6,
+                                   params=p["params"]).iterations >= 1

@@ -413,6 +413,73 @@ def test_loading_never_runs_code_and_refuses_damaged_files(tmp_path):
         sg.Trajectory.load(good, "ring")
 
 
+def test_loading_refuses_values_no_run_writes(tmp_path):
+    """A step h against its symbol's assumptions (its diagnostics used it), NaN residual
+    norms, negative iteration counts, an ``every`` the step indices contradict (which made
+    ``configurations()`` wrong), ``every = inf`` (OverflowError), an archive entry in an
+    unknown compression (NotImplementedError) and a CSV step beyond int64 (OverflowError)."""
+    import struct
+
+    sim = _ring("ring").euler_lagrange().compile(backend="numpy")
+    good = tmp_path / "good.npz"
+    sim.simulate(RING0, 20, {"h": 0.01}, every=5).save(good)
+    with np.load(good) as archive:
+        arrays = dict(archive)
+    n = len(arrays["residual_norms"])
+    for name, change, message in [
+            ("h", {"parameter_values": -arrays["parameter_values"]}, "declared positive"),
+            ("nan", {"residual_norms": np.full(n, np.nan)}, "residual norms must be finite"),
+            ("negative", {"newton_iterations": np.full(n, -7)}, "iteration counts must be"),
+            ("every", {"every": np.array(1)}, "not those of a run keeping every 1"),
+            ("inf", {"every": np.array(np.inf)}, "every must be an integer")]:
+        bad = tmp_path / f"{name}.npz"
+        np.savez(bad, **{**arrays, **change})
+        with pytest.raises(sg.TrajectoryFileError, match=message):
+            sg.Trajectory.load(bad, sim)
+    raw = bytearray(good.read_bytes())
+    at = raw.find(b"PK\x01\x02")  # the first entry of the central directory
+    raw[at + 10:at + 12] = struct.pack("<H", 99)  # its compression method
+    (tmp_path / "method.npz").write_bytes(raw)
+    with pytest.raises(sg.TrajectoryFileError, match="cannot be read"):
+        sg.Trajectory.load(tmp_path / "method.npz", sim)
+    sim.simulate(RING0, 3, {"h": 0.01}).save(tmp_path / "a.csv")
+    lines = (tmp_path / "a.csv").read_text().splitlines()
+    lines[1] = "1" + "0" * 25 + "," + lines[1].split(",", 1)[1]
+    (tmp_path / "big.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(sg.TrajectoryFileError, match="beyond the range of a 64-bit"):
+        sg.Trajectory.load(tmp_path / "big.csv", sim, params={"h": 0.01})
+
+
+def test_saving_names_the_target_and_takes_any_legal_name(tmp_path, capsys):
+    """A 250-character name failed (its temporary name needed 260) with a raw OSError; a
+    target that is a directory raised IsADirectoryError, and the command line ran the whole
+    simulation before failing on it, naming its temporary file."""
+    from symgroupoid.cli import main
+
+    sim = _ring("ring").euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate(RING0, 3, {"h": 0.01})
+    long = tmp_path / ("a" * 246 + ".npz")  # 250 characters, the file system allows 255
+    traj.save(long)
+    assert np.array_equal(sg.Trajectory.load(long, sim).states, traj.states)
+    assert [p.name for p in tmp_path.iterdir()] == [long.name]  # no temporary file left
+    (tmp_path / "out.npz").mkdir()
+    for target, message in [(tmp_path / "out.npz", "it is a directory"),
+                            (tmp_path / ("b" * 300 + ".csv"), "File name too long")]:
+        with pytest.raises(sg.OutputError, match=message):
+            traj.save(target)
+    ring = tmp_path / "ring.py"
+    ring.write_text("import sympy as sp\nimport symgroupoid as sg\n"
+                    "h = sp.Symbol('h', positive=True)\n"
+                    "G = sg.PairGroupoid(sg.EuclideanSpace('x'))\n"
+                    "SYSTEM = sg.DiscreteSystem(G, lambda g: (g.target[0] - g.source[0]) ** 2"
+                    " / (2 * h), parameters=[h], name='free')\n"
+                    "PARAMS = {'h': 0.01}\nINITIAL = {'x': [0.0, 0.01]}\n")
+    capsys.readouterr()
+    assert main(["simulate", str(ring), "--steps", "10", "--backend", "numpy", "-o",
+                 str(tmp_path / "out.npz")]) == 1
+    assert "out.npz: is a directory" in capsys.readouterr().err
+
+
 def test_simulate_initial_refuses_another_systems_trajectory(tmp_path, capsys):
     from symgroupoid.cli import main
 

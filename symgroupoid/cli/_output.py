@@ -24,15 +24,20 @@ __all__ = ["check_format", "write_solution", "write_trajectory"]
 
 
 def check_format(path: str | None, option: str = "-o") -> Path | None:
-    """The output path, refused up front (before any work) unless it ends in .npz or .csv
-    and its directory exists."""
+    """The output path, refused up front (before any work) unless it ends in .npz or .csv,
+    its directory exists and it is not a directory itself."""
     if path is None:
         return None
     out = Path(path)
     if out.suffix not in TRAJECTORY_FORMATS:
         raise InputError(f"{option} {path}: the file name must end in .npz or .csv")
-    if not out.parent.is_dir():
-        raise InputError(f"{option} {path}: the directory {out.parent} does not exist")
+    try:
+        problem = (f"the directory {out.parent} does not exist" if not out.parent.is_dir()
+                   else "is a directory (give a file name in it)" if out.is_dir() else None)
+    except OSError as exc:  # (a name longer than the file system's, …)
+        problem = exc.strerror or str(exc)
+    if problem is not None:
+        raise InputError(f"{option} {path}: {problem}")
     return out
 
 

@@ -45,21 +45,35 @@ _CSV_TAIL = ("newton_iterations", "residual_norm")
 
 # --- writing ------------------------------------------------------------------------------------
 
+#: characters of the target's name that its temporary file's name begins with (mkstemp adds
+#: 8 to make it unique): a legal name of up to 255 characters must leave room for them
+TEMPORARY_PREFIX = 64
+
+
 def atomic_write(path: Path, write: Callable[[io.IOBase], None], binary: bool) -> None:
     """Write ``path`` through ``write(file)`` into a temporary file beside it, renamed into
-    place at the end (permissions as a new file's under the umask)."""
-    fd, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    place at the end (permissions as a new file's under the umask).  A failure of the file
+    system (full disk, no permission, the target a directory) is an
+    :class:`~symgroupoid.OutputError` naming ``path``; the temporary file is removed."""
+    try:
+        fd, temporary = tempfile.mkstemp(prefix=f".{path.name[:TEMPORARY_PREFIX]}.",
+                                         dir=path.parent)
+    except OSError as exc:
+        raise OutputError(f"{str(path)!r} cannot be written: {exc.strerror or exc}") from None
     try:
         with os.fdopen(fd, "wb" if binary else "w", **({} if binary else
                                                        {"newline": "", "encoding": "utf-8"})) as f:
             write(f)
         os.chmod(temporary, 0o666 & ~_umask())
         os.replace(temporary, path)
-    except BaseException:
+    except BaseException as exc:
         try:
             os.unlink(temporary)
         except FileNotFoundError:
             pass
+        if isinstance(exc, OSError):
+            raise OutputError(f"{str(path)!r} cannot be written: "
+                              f"{exc.strerror or exc}") from None
         raise
 
 
@@ -109,9 +123,14 @@ def output_path(path, owner: str) -> Path:
     out = path_argument(path, "path", owner=owner)
     if out.suffix not in TRAJECTORY_FORMATS:
         raise DomainError(f"{owner}: path {str(out)!r} must end in .npz or .csv")
-    if not out.parent.is_dir():
-        raise OutputError(f"{owner}: the trajectory cannot be written to {str(out)!r}: the "
-                          f"directory {str(out.parent)!r} does not exist")
+    try:
+        problem = (f"the directory {str(out.parent)!r} does not exist"
+                   if not out.parent.is_dir() else "it is a directory" if out.is_dir() else None)
+    except OSError as exc:  # (a name longer than the file system's, …)
+        problem = exc.strerror or str(exc)
+    if problem is not None:
+        raise OutputError(f"{owner}: the trajectory cannot be written to {str(out)!r}: "
+                          f"{problem}")
     return out
 
 
@@ -180,6 +199,16 @@ def read_trajectory(path, layout, parameter_names: list[str], *,
         raise TrajectoryFileError(f"{label}: its states have non-finite entries")
     if rows > 1 and not (np.diff(data.step_indices) > 0).all():
         raise TrajectoryFileError(f"{label}: its step indices do not increase")
+    gaps = np.diff(data.step_indices)
+    if rows > 1 and ((gaps[:-1] != data.every).any() or gaps[-1] > data.every):
+        raise TrajectoryFileError(
+            f"{label}: its step indices are not those of a run keeping every {data.every} "
+            f"steps (each {data.every} after the last, the final one at most)")
+    if (data.iterations < 0).any():
+        raise TrajectoryFileError(f"{label}: its Newton iteration counts must be ≥ 0")
+    if not (np.isfinite(data.norms) & (data.norms >= 0)).all():
+        raise TrajectoryFileError(f"{label}: its residual norms must be finite and ≥ 0 (a "
+                                  f"kept state solved its step)")
     if data.parameters is not None and list(data.parameters) != list(parameter_names):
         raise TrajectoryFileError(
             f"{label}: its parameters are {', '.join(data.parameters) or 'none'}, this "
@@ -202,7 +231,8 @@ def _column_mismatch(label: str, columns: list[str], expected: list[str]) -> str
 def _read_npz(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
     try:
         archive = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:
+        # (RuntimeError: zipfile's unsupported compression or encryption)
         raise TrajectoryFileError(f"{label}: cannot be read as .npz ({exc})") from None
     if not isinstance(archive, np.lib.npyio.NpzFile):
         raise TrajectoryFileError(f"{label}: not an .npz archive of arrays")
@@ -215,7 +245,7 @@ def _read_npz(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
                 f"symgroupoid: Trajectory.save or simulate -o)")
         try:
             arrays = {k: archive[k] for k in TRAJECTORY_KEYS}
-        except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        except (OSError, ValueError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:
             raise TrajectoryFileError(f"{label}: its arrays cannot be read ({exc})") from None
     columns = _strings(arrays["columns"], "columns", label)
     names = _strings(arrays["parameter_names"], "parameter_names", label)
@@ -224,7 +254,7 @@ def _read_npz(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
         raise TrajectoryFileError(f"{label}: parameter_values must hold one finite number per "
                                   f"parameter name ({len(names)})")
     every = _numbers(arrays["every"], "every", label)
-    if every.shape != () or not every >= 1 or every != int(every):
+    if every.shape != () or not np.isfinite(every) or not every >= 1 or every != int(every):
         raise TrajectoryFileError(f"{label}: every must be an integer ≥ 1, got {every}")
     backend = arrays["backend"]
     if backend.dtype.kind != "U" or backend.shape != ():
@@ -286,5 +316,8 @@ def _read_csv(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
         norms = np.array([float(r[-1]) for r in body[1:]], dtype=float)
     except ValueError as exc:
         raise TrajectoryFileError(f"{label}: a value is not a number ({exc})") from None
+    except OverflowError:
+        raise TrajectoryFileError(f"{label}: a step index or iteration count is beyond the "
+                                  f"range of a 64-bit integer") from None
     every = int(steps[1] - steps[0]) if len(steps) > 1 else 1
     return TrajectoryData(states, steps, iterations, norms, None, max(every, 1), ""), columns

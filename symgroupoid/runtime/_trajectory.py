@@ -214,19 +214,24 @@ class Trajectory:
         parameter names.  ``params``: the parameter values, by name or in order — required
         for a ``.csv`` file, which holds none; for an ``.npz`` they replace the file's.
         Never runs code from the file (``allow_pickle=False``)."""
+        from .._errors import SymgroupoidError, TrajectoryFileError
         from ._files import read_trajectory
+        from ._validate import parameter_vector
 
         layout, names, backend = _layout_of(simulator)
         data = read_trajectory(path, layout, names)
         parameters = data.parameters
         if params is not None:
-            from ._validate import parameter_vector
-
             parameters = parameter_vector(layout.equations.parameters, params,
                                           owner=layout.step_name)[1]
-        elif parameters is None:
-            from .._errors import TrajectoryFileError
-
+        elif parameters is not None:  # checked as a run's: the diagnostics read them
+            try:
+                parameters = parameter_vector(layout.equations.parameters, parameters,
+                                              owner=layout.step_name)[1]
+            except SymgroupoidError as exc:
+                raise TrajectoryFileError(f"{str(path)!r}: its parameter values are not "
+                                          f"this system's: {exc}") from None
+        else:
             raise TrajectoryFileError(f"{layout.step_name}: {str(path)!r} is a .csv "
                                       f"trajectory, which holds no parameter values: pass "
                                       f"params=...")

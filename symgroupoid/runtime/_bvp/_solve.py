@@ -19,10 +19,12 @@ from ..._errors import (
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
+    TrajectoryTooLargeError,
     UnsupportedFeatureError,
 )
 from ..._progress import reported
 from ...equations import solve_stages
+from .._memory import available_memory
 from .._validate import check_holonomic_nodes, integer_argument, parameter_vector, real_argument
 from ._fast import _fast_newton, _Handover, _restart_points
 from ._globalised import _globalised_after
@@ -123,6 +125,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     if steps < 2 * a:
         raise ShapeError(f"{owner}: a problem of order {a} needs at least {2 * a} "
                          f"steps, got {steps}")
+    _check_memory(system, steps, owner)
     max_iterations = integer_argument(max_iterations, "max_iterations", owner=owner)
     tol = real_argument(tol, "tol", minimum=0.0, owner=owner)
     if tol > MAX_TOL:  # a relative change of the terms themselves accepts any path
@@ -178,6 +181,22 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
         cost=problem.cost(state.arrows, p, stages), second_order=inertia,
         method=" → ".join(state.methods), inputs=table if table.shape[1] else None,
         forced=forced, stages=stages if n_stages else None)
+
+
+def _check_memory(system, steps: int, owner: str) -> None:
+    """Refuse up front a problem whose path and Jacobian alone cannot be allocated (the
+    machine's memory, lowered by ``ulimit -v`` / ``-d``: ``available_memory``, as
+    ``simulate`` checks it); a lower bound: per arrow its coordinates and a band of three
+    blocks of its unknowns (variations, multipliers, stages) squared, 8 bytes each."""
+    room = available_memory()
+    fs = _functions(system)
+    unknowns = system.groupoid.rank + len(fs.constraints) + len(fs.stages)
+    needed = steps * 8 * (system.groupoid.arrow_dim + 3 * unknowns * unknowns)
+    if room is not None and needed > room:
+        raise TrajectoryTooLargeError(
+            f"{owner}: a boundary-value problem of {steps} steps needs at least "
+            f"{needed / 2**30:.1f} GiB (its path and the band of its Jacobian), more than "
+            f"this process may allocate ({room / 2**30:.1f} GiB); take fewer steps")
 
 
 #: how far (relative to 1 + |ζ|) the solution's stages may lie from those the chord's
