@@ -430,3 +430,16 @@ def test_stream_takes_the_inputs_and_its_pieces_join_to_the_run(oscillator, monk
         assert np.array_equal(joined, run.states)
     with pytest.raises(ShapeError, match="inputs"):
         oscillator.stream(start, STEPS, PARAMS, inputs=U[:3])
+
+
+@needs_cc
+def test_a_restored_simulator_gives_the_input_jacobian(oscillator):
+    """(It said "the system has no inputs": it read them from the symbolic step, which an
+    unpickled simulator does not have.)  The same bits as the simulator it was pickled from."""
+    import pickle
+
+    restored = pickle.loads(pickle.dumps(oscillator))
+    start = _starts(2)[1]
+    J = oscillator.input_jacobian(start, PARAMS, inputs=[0.2])
+    assert J.shape == (1, 2) and np.any(J != 0)
+    np.testing.assert_array_equal(restored.input_jacobian(start, PARAMS, inputs=[0.2]), J)

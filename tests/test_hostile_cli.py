@@ -307,3 +307,18 @@ def test_a_boundary_file_with_a_key_given_twice_is_refused(capsys):
     Path("b.json").write_text('{"start": 0.0, "end": 1.0, "steps": 20, "start": 5.0}')
     assert main(["bvp", "spring.py", "b.json"]) == 1
     assert "'start' is given twice" in capsys.readouterr().err
+
+
+def test_a_csv_with_a_byte_order_mark_and_an_empty_initial(capsys):
+    """A spreadsheet's "CSV UTF-8" starts with a byte-order mark: its header read
+    "\\ufeffu", and the message said the columns \\ufeffu were not the inputs u; an empty
+    --initial was read as the directory '.'."""
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    Path("U.csv").write_bytes(b"\xef\xbb\xbfu\n0.1\n")
+    assert main(["simulate", "driven_spring.py", "--steps", "3", "--inputs", "U.csv",
+                 "--backend", "numpy"]) == 0
+    shutil.copy(SPRING, "spring.py")
+    capsys.readouterr()
+    assert main(["simulate", "spring.py", "--steps", "3", "--initial", ""]) == 1
+    err = capsys.readouterr().err
+    assert "--initial: empty" in err and "'.'" not in err, err

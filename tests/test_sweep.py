@@ -666,3 +666,59 @@ def test_what_cannot_travel_to_worker_processes_is_refused_before_any_start():
     # the NumPy backend holds the GIL: its sweeps run in the calling thread
     res = sg.sweep(numpy_sim, S, RIGID, 5, reduce=lambda t: t.states[-1, 0], workers=2)
     assert res.ok.all() and res.tasks >= 1
+
+
+@pytest.mark.parametrize("failure", ["unpicklable", "sys.exit"])
+def test_a_reduce_failing_on_a_worker_process_is_a_reduce_error_naming_the_run(
+        monkeypatch, failure):
+    """A reduce whose value does not pickle raised a raw TypeError in the client, one that
+    calls sys.exit raised SystemExit there (ending the user's program); both are a
+    ReduceError naming the run, as a reduce that raises on a thread."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(SESSION_CACHE))
+    sim = compiled("rigid_body")
+    S = states([0.1, 0.2, 0.3])
+    bad = S[1, 0]
+
+    def fails_on_1(traj):  # (a closure: sent by value)
+        if traj.states[0, 0] == bad:
+            if failure == "sys.exit":
+                sys.exit(5)
+            return threading.Lock()
+        return traj.states[-1, 0]
+
+    message = "run 1: SystemExit" if failure == "sys.exit" else "value on run 1 cannot be sent"
+    with pytest.raises(sg.runtime.ReduceError, match=message):
+        sg.sweep(sim, S, RIGID, 20, reduce=fails_on_1, workers=2, chunk_size=1,
+                 executor="process")
+    if failure == "sys.exit":  # the same on threads (it ended the sweep's thread before)
+        with pytest.raises(sg.runtime.ReduceError, match="run 1: SystemExit"):
+            sg.sweep(sim, S, RIGID, 20, reduce=fails_on_1, workers=1)
+
+
+@pytest.mark.slow
+def test_dask_records_only_the_run_that_kills_its_worker():
+    """Runs that shared a worker with the one whose reduce kills it (os._exit) were
+    sometimes recorded WORKER_DIED too (1 sweep in 2): a single run ended by KilledWorker is
+    run once more on its own.  A value that does not pickle is a ReduceError naming its run
+    (Dask's own error named none)."""
+    sim = compiled("rigid_body")
+    S = states(np.linspace(0.05, 0.6, 6))
+    fatal = S[0, 0]
+
+    def exits_on_0(traj):
+        if traj.states[0, 0] == fatal:
+            os._exit(3)
+        return traj.states[-1, 0]
+
+    def lock_on_0(traj):
+        return threading.Lock() if traj.states[0, 0] == fatal else traj.states[-1, 0]
+
+    serial = sg.sweep(sim, S, RIGID, 50, reduce=lambda t: t.states[-1, 0], workers=1)
+    cluster, client = _dask_cluster()
+    with cluster, client:
+        for _ in range(2):
+            res = sg.sweep(sim, S, RIGID, 50, reduce=exits_on_0, client=client, chunk_size=1)
+            assert res.status.tolist() == [sg.Status.WORKER_DIED] + [0] * 5
+            assert np.array_equal(res.values[1:], serial.values[1:])
+        with pytest.raises(sg.runtime.ReduceError, match="value on run 0 cannot be sent"):
+            sg.sweep(sim, S, RIGID, 50, reduce=lock_on_0, client=client, chunk_size=1)

@@ -91,9 +91,12 @@ def parameters(source: SystemFile, text: str | None, extra: Mapping | None = Non
 
 def read_json(path: str | Path, what: str):
     """The JSON value in ``path`` (``what`` names the option in messages)."""
+    if not str(path).strip():
+        raise InputError(f"{what}: empty (give a JSON file, the JSON text itself or, for "
+                         f"--initial, a saved trajectory)")
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # (a byte-order mark is not JSON)
     except FileNotFoundError:
         raise InputError(f"{what} {path}: no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
@@ -239,7 +242,7 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
     try:
         if file.suffix == ".npy":
             return np.load(file, allow_pickle=False)
-        lines = [line for line in file.read_text(encoding="utf-8").splitlines()
+        lines = [line for line in file.read_text(encoding="utf-8-sig").splitlines()
                  if line.strip() and not line.lstrip().startswith("#")]
     except FileNotFoundError:
         raise InputError(f"--inputs {file}: no such file") from None

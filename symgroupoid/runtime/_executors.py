@@ -218,7 +218,10 @@ def serve(conn) -> None:
         try:
             conn.send_bytes(dumps(reply))
         except Exception as exc:  # noqa: BLE001 - a result that does not pickle
-            conn.send_bytes(pickle.dumps(("error", *_portable(exc, traceback.format_exc()))))
+            explain = getattr(reply[-1], "unsendable", None) if reply[0] == "done" else None
+            named = explain(exc, dumps) if explain is not None else None
+            conn.send_bytes(pickle.dumps(("error", *_portable(named or exc,
+                                                             traceback.format_exc()))))
 
 
 def _portable(exc: BaseException, text: str) -> tuple:
@@ -421,6 +424,22 @@ def _killed_worker(exc: BaseException) -> bool:
     return type(exc).__name__ == "KilledWorker"
 
 
+def _run_job_sent(task, job):
+    """:func:`run_job` on a Dask worker, whose reduced values are checked to pickle there:
+    a value that does not is a ``ReduceError`` naming its run (Dask's own error names no
+    run)."""
+    result = run_job(task, job)
+    if getattr(result, "values", None) is not None:
+        try:
+            dumps(result.values)
+        except Exception as exc:  # noqa: BLE001 - any value that does not travel
+            named = result.unsendable(exc, dumps)
+            if named is not None:
+                raise named from None
+            raise
+    return result
+
+
 def _run_dask(task, jobs: list, receive, client) -> None:
     """The jobs on a Dask cluster, at most a few in flight per worker.  The shared task is
     itself a task (recomputed if the workers holding it are lost); Ctrl-C cancels what is
@@ -432,10 +451,11 @@ def _run_dask(task, jobs: list, receive, client) -> None:
     limit = IN_FLIGHT_PER_WORKER * max(1, len(client.nthreads()))
     todo = collections.deque(jobs)
     live: dict = {}
+    alone: set = set()  # single runs that KilledWorker ended once already
 
     def submit():
         job = todo.popleft()
-        future = client.submit(run_job, held, job,
+        future = client.submit(_run_job_sent, held, job,
                                key=f"symgroupoid-chunk-{token}-{uuid.uuid4().hex[:12]}",
                                pure=False)
         live[future.key] = (future, job)
@@ -452,7 +472,10 @@ def _run_dask(task, jobs: list, receive, client) -> None:
                     raise
                 parts = job.split()
                 todo.extendleft(reversed(parts))
-                if not parts:
+                if not parts and job.first not in alone:  # a bystander of another run's
+                    alone.add(job.first)  # death (a worker runs several jobs): once more
+                    todo.appendleft(job)
+                elif not parts:
                     receive(job.lost(WORKER_DIED, f"the Dask workers running it died "
                                                   f"({exc})"))
             else:

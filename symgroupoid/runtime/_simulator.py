@@ -464,7 +464,7 @@ class Simulator(InitialStates):
         the inputs, −J⁻¹ ∂F/∂u, which a controller or an optimiser linearises with.  Bad
         arguments are refused before the kernel runs; finite ones at which ∂F/∂u overflows
         are a :class:`DomainError`, never a matrix with NaN or inf."""
-        m = len(getattr(self.equations, "inputs", ()))
+        m = self.layout.n_inputs  # (an unpickled simulator's step holds no symbols)
         if not m:
             raise UnsupportedFeatureError(f"{self.name}: the system has no inputs")
         p = self.parameters(params)

@@ -35,7 +35,7 @@ def reduced(reduce: Callable, run, where: str):
     exception it raises becomes a :class:`ReduceError` that says ``where``."""
     try:
         return _detached(reduce(run))
-    except Exception as exc:
+    except (Exception, SystemExit) as exc:  # (sys.exit in a reduce ends no program)
         raise ReduceError(f"{where}: {type(exc).__name__}: {exc}") from exc
 
 
@@ -110,6 +110,20 @@ class ChunkResult:
     messages: list
     values: list | None
     raw: BatchRun | None = None
+
+    def unsendable(self, exc: BaseException, dumps: Callable) -> ReduceError | None:
+        """Why these results cannot go back from a worker process (``dumps`` failed with
+        ``exc``): a :class:`ReduceError` naming the first run whose reduced value does not
+        pickle, or None when the values are not the cause."""
+        for i, value in enumerate(self.values or ()):
+            try:
+                dumps(value)
+            except Exception as why:  # noqa: BLE001 - any value that does not travel
+                return ReduceError(
+                    f"reduce's value on run {self.first + i} cannot be sent back from its "
+                    f"worker process ({type(why).__name__}: {why}); return numbers, arrays "
+                    f"or other values that pickle, or use executor='thread'")
+        return None
 
 
 @dataclass
