@@ -189,3 +189,20 @@ def test_interpret_precise_evaluates_a_smooth_function_exactly_near_its_point():
         (value,) = interpret_precise(program, ["F"], {s: mpmath.mpf("1e-3")}, 50)["F"]
         assert abs(value - exact) < mpmath.mpf(10) ** -45
         assert interpret_precise(program, ["F"], {s: 0}, 50)["F"][0] == mpmath.mpf(1) / 2
+
+
+@needs_tex
+@pytest.mark.parametrize("scheme, width", [(sg.LobattoIIIAB(3), None), (sg.GaussLegendre(2), 345)])
+def test_the_document_of_a_driven_top_fits_its_page(tmp_path, scheme, width):
+    """Its sum S_j of h Ad^T(F + N) terms over six fractions was measured with text-style
+    fractions (SymPy printed the non-commutative products' \\frac itself), set with display
+    ones: 96 pt past the text at the default width, 23 pt at 345 pt."""
+    w = sp.symbols("w1:4", real=True)
+    system = sg.ContinuousSystem(
+        sg.SO3("R"), lambda R, xi: (xi.T * J * xi)[0, 0] / 2 - mgl * R[2, 2],
+        parameters=[h, mgl, *J.diagonal()], name="driven_top", inputs=list(w),
+        forces=lambda R, xi: list(w))
+    document = system.discretize(h, scheme).euler_lagrange().latex(document=True, width=width)
+    log, text = typeset(document, tmp_path)
+    assert equation_numbers(text) == [1, 2, 3]
+    assert lost_content(log, tolerance=1.0) == []

@@ -176,17 +176,20 @@ def test_double_pendulum_prints_in_midpoints_and_difference_quotients(dp_latex):
 
 def test_plate_ball_prints_as_in_seed_and_fits(plate_ball_latex):
     """Seed 000 §6.2: (x_{k+1} − 2x_k + x_{k−1})/h, Ω h/2 ((λ_{k+1})₁ + (λ_k)₁), the
-    rotational rows in r (λ)_a tr(g_k E_i E_j), tr(E_i g_{k+1} E_j), the constraints; nothing
-    to name, so no "where" list."""
+    rotational rows in r (λ)_a tr(g_k E_i E_j), tr(E_i g_{k+1} E_j), the constraints; the
+    "where" list only defines the basis E_a (its signs decide the equations')."""
     tex = plate_ball_latex
     assert "\\frac{x_{k+1} + x_{k-1} - 2 x_{k}}{h}" in tex
     assert "\\frac{\\Omega h}{2} \\left((\\lambda_{k+1})_{1} + (\\lambda_{k})_{1}\\right)" in tex
     assert "r (\\lambda_{k})_{2} \\operatorname{tr}(g_{k} E_{1} E_{2})" in tex
     assert "r (\\lambda_{k+1})_{1} \\operatorname{tr}(E_{2} g_{k+1} E_{1})" in tex
     assert "c h + \\frac{\\operatorname{tr}(g_{k+1} E_{3})}{2}" in tex
-    assert "\\intertext" not in tex and "(g_{k})_{" not in tex
+    assert "(g_{k})_{" not in tex
+    where = tex.split("\\intertext{where}")[1]
+    assert where.strip().startswith("E_{1} &= - e_{2} e_{3}^{T} + e_{3} e_{2}^{T}, \\quad "
+                                    "E_{2} = e_{1} e_{3}^{T} - e_{3} e_{1}^{T}"), where
     # the three rotational rows take two lines each on the page (seed 000 writes them so)
-    assert tex.count("\\notag") == 3 and len(_lines(tex)) == 11
+    assert tex.count("\\notag") == 4 and len(_lines(tex)) == 12
     assert max(_line_widths(tex)) <= PAGE
 
 

@@ -110,3 +110,20 @@ def test_abbreviations_of_a_step_in_the_group_stage_notation_are_reported_unused
     assert unused[0].filename == __file__
     with pytest.raises(LatexOptionError):  # still checked
         _top(sg.SO3("R")).latex(abbreviations={"K#": 2 * mgl})
+
+
+def test_the_basis_and_the_lie_poisson_momentum_are_defined():
+    """E_1, E_2, E_3 appeared in the rigid body's (heavy top's, plate-ball's) rows undefined,
+    though their signs decide the equations'; μ in the Lie–Poisson form too."""
+    from symgroupoid import systems
+
+    text = systems.rigid_body().euler_lagrange(progress=False).latex()
+    where = text.split(r"\intertext{where}")[1]
+    printed = {a: where.split(f"E_{{{a}}} " + ("&= " if a == 1 else "= "))[1].split(",")[0]
+               .split(r" \notag")[0].strip() for a in (1, 2, 3)}
+    for a, E in enumerate(sg.SO3("R").basis_matrices(), start=1):  # Σ ±e_i e_jᵀ, as printed
+        terms = [("- " if v < 0 else "+ ") + f"e_{{{i + 1}}} e_{{{j + 1}}}^{{T}}"
+                 for i in range(3) for j in range(3) for v in [E[i, j]] if v != 0]
+        assert printed[a] == " ".join(terms).removeprefix("+ "), (a, printed[a])
+    lie_poisson = systems.rigid_body().lie_poisson().latex()
+    assert r"where $\mu_{j}$ is the momentum the integrator carries" in lie_poisson

@@ -37,6 +37,29 @@ DISPLAY_LIMIT = 400
 PRINT_LIMIT = 1_000_000
 
 
+#: the most nonzero entries a square matrix of ±1 and 0 is written with by place
+UNIT_ENTRIES = 4
+
+
+def _unit_entries(expr) -> list[tuple[int, int, int]] | None:
+    """(i, j, ±1) of every nonzero entry of a square matrix (at least 2 × 2) whose entries
+    are 0, 1 or −1, at most :data:`UNIT_ENTRIES` of them — printed Σ ±e_i e_jᵀ (e_i the
+    standard basis vectors), which a LaTeX matrix environment is not needed for; else None."""
+    rows, cols = expr.shape
+    if rows != cols or rows < 2:
+        return None
+    out = []
+    for i in range(rows):
+        for j in range(cols):
+            v = expr[i, j]
+            if v == 0:
+                continue
+            if v not in (1, -1) or len(out) == UNIT_ENTRIES:
+                return None
+            out.append((i, j, int(v)))
+    return out or None
+
+
 class LatexVerificationError(SymgroupoidError, AssertionError):
     """A printed form of an equation is not the equation (a defect of the printing: the
     forms are built to be equal, and checked before they are printed)."""
@@ -134,6 +157,11 @@ class GroupoidLatexPrinter(LatexPrinter):
         if rows == cols and expr.is_diagonal():
             entries = ", ".join(self._print(expr[i, i]) for i in range(rows))
             return f"\\operatorname{{diag}}\\left({entries}\\right)"
+        units = _unit_entries(expr)
+        if units is not None:  # a Lie algebra's basis matrix E_a: its entries ±1 by place
+            return " ".join(("- " if v < 0 else "+ " if k else "")
+                            + f"e_{{{i + 1}}} e_{{{j + 1}}}^{{T}}"
+                            for k, (i, j, v) in enumerate(units))
         return super()._print_MatrixBase(expr)
 
     _print_NamedMatrix = _print_ImmutableDenseMatrix
@@ -169,6 +197,10 @@ class GroupoidLatexPrinter(LatexPrinter):
         if (isinstance(expr, sp.Pow) and expr.is_commutative and expr.exp.is_negative
                 and expr.exp.is_Rational and expr.base != 1):
             return self._frac("1", self._print(1 / expr))  # 1/h, \\frac{1}{h^{2}}
+        if (isinstance(expr, sp.Mul) and not expr.is_commutative
+                and not self._settings["fold_short_frac"]
+                and not self._settings["long_frac_ratio"]):
+            return self._print_ordered_product(expr)
         if (not isinstance(expr, sp.Mul) or not expr.is_commutative
                 or self._settings["fold_short_frac"] or self._settings["long_frac_ratio"]):
             return super()._print_Mul(expr)
@@ -183,6 +215,18 @@ class GroupoidLatexPrinter(LatexPrinter):
         if denominator == 1:
             return self._print_factors(expr)
         return self._frac(self._print_factors(numerator), self._print_factors(denominator))
+
+    def _print_ordered_product(self, expr: sp.Mul) -> str:
+        """A non-commutative product (operators applied in order, h Ad^T F/6): its rational
+        coefficient's denominator through this printer's fraction (``\\dfrac`` in a
+        display, which a page's width is measured with), the factors as SymPy prints them."""
+        coeff, rest = expr.as_coeff_Mul()
+        if not (isinstance(coeff, sp.Rational) and coeff.q != 1) or rest == 1:
+            return super()._print_Mul(expr)
+        if coeff < 0:
+            return "- " + self._print_ordered_product(-expr)
+        numerator = self._print(rest) if coeff.p == 1 else f"{coeff.p} {self._print(rest)}"
+        return self._frac(numerator, str(coeff.q))
 
     def _print_as_given(self, expr: sp.Mul) -> str:
         """A product in the order given (``order="none"``, unevaluated products): a

@@ -92,8 +92,11 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
         where = []
         items += [explicit_row("0", r) for r in lp.residuals[:rank]]
     items += [explicit_row("0", r) for r in lp.residuals[rank:]]
-    if where:
-        items.append(Text("where, for $j = k, k+1$,"))
+    momenta = (r"where $\mu_{j}$ is the momentum the integrator carries from step to step: "
+               r"the reconstruction solves $(\mathbb{F}^{-}L)_{k+1} = \mu_{k+1}$ for the new "
+               r"arrow")
+    if where:  # (an \intertext ends no align)
+        items.append(Text(momenta + ", and, for $j = k, k+1$,"))
         items += definition_rows(where, step.parameters, printer)
     return PrintedRows(items, width, printer)
 

@@ -192,12 +192,12 @@ class StructuredMatrix:
 
 
 def named_basis(group_cls) -> dict:
-    """ImmutableMatrix value of each basis element → a MatrixSymbol named E_a."""
+    """ImmutableMatrix value of each basis element → a :class:`ConstantMatrix` named E_a
+    (a document defines it in its "where" list: its signs decide the equations')."""
     basis = group_cls.basis_matrices()
-    n = group_cls.n
     if len(basis) == 1:
-        return {basis[0]: sp.MatrixSymbol("E", n, n)}
-    return {E: sp.MatrixSymbol(f"E_{{{a + 1}}}", n, n) for a, E in enumerate(basis)}
+        return {basis[0]: ConstantMatrix("E", basis[0])}
+    return {E: ConstantMatrix(f"E_{{{a + 1}}}", E) for a, E in enumerate(basis)}
 
 
 def block_of(coords: Sequence, free: Sequence[tuple[int, int]]):
