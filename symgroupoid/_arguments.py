@@ -326,8 +326,20 @@ def _is_sequence(value) -> bool:
     return isinstance(value, Sequence)
 
 
-__all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "choice_argument", "flag_argument",
-           "input_rows", "instance_argument", "integer_argument", "name_argument", "names_argument",
-           "path_argument", "real_argument", "real_array", "sequence_argument", "shown_value",
-           "where"]
+def caller_level() -> int:
+    """The ``stacklevel`` of a warning issued by the caller that points at the first frame
+    outside this package (the user's line)."""
+    import os
+    import sys
 
+    package = os.path.dirname(os.path.abspath(__file__)) + os.sep
+    frame, level = sys._getframe(2), 2
+    while frame is not None and frame.f_code.co_filename.startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
+__all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "caller_level", "choice_argument",
+           "flag_argument", "input_rows", "instance_argument", "integer_argument",
+           "name_argument", "names_argument", "path_argument", "real_argument", "real_array",
+           "sequence_argument", "shown_value", "where"]

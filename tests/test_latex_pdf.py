@@ -29,7 +29,7 @@ from kernel_support import REPO
 
 from symgroupoid import systems
 from symgroupoid.cli import OVERFULL_TOLERANCE, load_system, lost_content, main
-from symgroupoid.equations import PAGE_WIDTH, UnusedAbbreviationWarning
+from symgroupoid.equations import PAGE_WIDTH, UnusedAbbreviationWarning, WideLinesWarning
 
 needs_tex = pytest.mark.skipif(
     shutil.which("pdflatex") is None or shutil.which("pdftotext") is None,
@@ -246,7 +246,8 @@ def test_derive_pdf_fails_when_a_line_runs_past_the_page(tmp_path, capsys, monke
     """With the wide term left at full size, pdflatex's overfull box is an error."""
     monkeypatch.setattr("symgroupoid.equations._layout.SMALLEST_SCALE", 1.0)  # the fault
     path = _file(tmp_path, "wide", WIDE)
-    code = main(["derive", str(path), "--document", str(tmp_path / "wide.tex"), "--pdf"])
+    with pytest.warns(WideLinesWarning):  # (said before pdflatex runs)
+        code = main(["derive", str(path), "--document", str(tmp_path / "wide.tex"), "--pdf"])
     err = capsys.readouterr().err
     assert code == 1 and "pdflatex could not fit all of" in err and "pt too wide" in err
 
@@ -297,3 +298,19 @@ def test_derive_names_malformed_abbreviations(tmp_path, capsys):
     assert main(["derive", str(path)]) == 1
     err = capsys.readouterr().err
     assert "wide.py:system: ABBREVIATIONS: latex: abbreviations must be a mapping" in err
+
+
+def test_a_document_line_that_will_not_fit_even_at_half_size_is_reported(tmp_path):
+    """The optimal-control step on SO(3) had 168 of 306 lines wider than its page at half
+    size, cut off in the PDF without a word; such a line now raises a WideLinesWarning (the
+    command line's --pdf then fails with LostContentError, above)."""
+    step = load_system(str(_file(tmp_path, "wide", WIDE))).system.euler_lagrange()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        step.latex(document=True)  # its wide term fits at a smaller size
+    with pytest.warns(WideLinesWarning, match="will not fit the page even at half size") \
+            as caught:
+        step.latex(document=True, width=150)
+    warning = caught[0].message
+    assert warning.widths and min(warning.widths) > 2 * warning.room
+    assert caught[0].filename == __file__

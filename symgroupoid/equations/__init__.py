@@ -26,7 +26,7 @@ from ._latex import (
     equation_lines,
     latex,
 )
-from ._layout import PAGE_WIDTH
+from ._layout import PAGE_WIDTH, WideLinesWarning
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._programs import (
     PROJECTED,
@@ -68,6 +68,7 @@ __all__ = [
     "step_program", "structure_program", "window_programs", "PROJECTED", "ROUNDING_UPDATE",
     "RestrictedArrows", "gauss_newton", "holonomic_projection_program",
     "LatexOptionError", "LatexVerificationError", "UnusedAbbreviationWarning",
+    "WideLinesWarning",
     "equation_lines", "body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",
     "trapezoid_forces", "ContinuousSystem", "GaussLegendre", "LobattoIIIAB",
     "GalerkinTableau", "MAX_NODES", "gauss_legendre_tableau", "lobatto_tableau",

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
+from .._arguments import caller_level
 from ._latex import (
     Collected,
     DisplayLatexPrinter,
@@ -504,13 +505,45 @@ def _scaled(line: Line, document: bool) -> str:
     return f"\\scalebox{{{factor:.2f}}}{{$\\displaystyle {line.tex}$}}"
 
 
+class WideLinesWarning(UserWarning):
+    """Lines of a document that no break and no scaling makes fit (a single term wider than
+    twice the room of a line, the smallest scaling): typeset, they run off the page.
+    ``widths``: theirs in pt; ``room``: the widest one's room."""
+
+    def __init__(self, message: str, widths: list[float], room: float):
+        super().__init__(message)
+        self.widths, self.room = widths, room
+
+
+def _warn_wide(lines: list[Line]) -> None:
+    """A :class:`WideLinesWarning` for the lines of a document that will not fit even at
+    :data:`SMALLEST_SCALE` (none: nothing)."""
+    wide = [line for line in lines
+            if line.over is not None and SMALLEST_SCALE * line.over > line.room + 1.0]
+    if not wide:
+        return
+    import warnings
+
+    widest = max(wide, key=lambda line: line.over)
+    warnings.warn(WideLinesWarning(
+        f"{len(wide)} printed line{'s' if len(wide) > 1 else ''} will not fit the page even "
+        f"at half size (the widest {widest.over:.0f} pt where a line has {widest.room:.0f} "
+        f"pt) and would run off it: give a larger width= (a landscape page) or "
+        f"abbreviations= that name their long parts",
+        [line.over for line in wide], widest.room), stacklevel=caller_level())
+
+
 def render_align(rows: PrintedRows, document: bool = False) -> str:
     """An amsmath ``align`` environment: one numbered row per equation, continuation lines
     and "where" rows unnumbered (``\\notag``), words as ``\\intertext``; in a
-    ``document``, lines too wide for the page are set smaller (:func:`_scaled`)."""
+    ``document``, lines too wide for the page are set smaller (:func:`_scaled`), and those
+    that will not fit even so are reported with a :class:`WideLinesWarning`."""
     out: list[str] = []
     intro = ""
-    for item in lay_out(rows):
+    laid = lay_out(rows)
+    if document:
+        _warn_wide([line for item in laid if not isinstance(item, Text) for line in item.lines])
+    for item in laid:
         if isinstance(item, Text):
             intro = f"\\intertext{{{item.words}}}\n"
             continue

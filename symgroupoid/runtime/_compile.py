@@ -9,6 +9,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from .._arguments import (
+    caller_level,
     choice_argument,
     instance_argument,
     name_argument,
@@ -23,7 +24,6 @@ from ._backends import NumpyKernel
 from ._ckernel import CKernel
 from ._options import BACKENDS, NewtonOptions, environment_backend
 from ._simulator import Simulator
-from ._validate import _caller_level
 from .toolchain import (
     STATS,
     CompilerNotFoundError,
@@ -178,6 +178,6 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         if backend == "c":
             raise
         warnings.warn(f"{step.name}: {exc}; using the NumPy backend (same results, slower)",
-                      RuntimeWarning, stacklevel=_caller_level())  # (the user's line)
+                      RuntimeWarning, stacklevel=caller_level())  # (the user's line)
         return Simulator(step, NumpyKernel(step), options)
     return Simulator(step, kernel, options, cache_entry=entry)

@@ -24,12 +24,12 @@ from collections.abc import Callable
 
 import numpy as np
 
+from .._arguments import caller_level
 from .._errors import ShapeError
 from ..codegen import generate_program_c
 from ..stepper import C_INT_MAX
 from ._backends import c_buffer
 from ._options import environment_backend
-from ._validate import _caller_level
 from .toolchain import (
     CompilationError,
     CompilerNotFoundError,
@@ -66,7 +66,7 @@ def compile_program(label: str, program, inputs: str, outputs: str
         key, manifest = build_cached(kernel, flags, cache, label)
     except (CompilerNotFoundError, CompilationError) as exc:
         warnings.warn(f"{label}: window kernels stay in NumPy ({exc})", RuntimeWarning,
-                      stacklevel=_caller_level())
+                      stacklevel=caller_level())
         return None
     return _evaluator(label, program, inputs, outputs, kernel.prefix,
                       load_cached(key, manifest, cache))
@@ -197,7 +197,7 @@ class ProgramEvaluator:
         if failure is not None:
             warnings.warn(f"{self.label}: the window kernel could not be built or loaded; "
                           f"it stays in NumPy (same results, slower): {failure}",
-                          RuntimeWarning, stacklevel=_caller_level())
+                          RuntimeWarning, stacklevel=caller_level())
 
 
 def wait_for_kernels(timeout: float | None = None) -> bool:

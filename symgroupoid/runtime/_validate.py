@@ -27,6 +27,7 @@ import sympy as sp
 
 from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
     MAX_COUNT,
+    caller_level,
     instance_argument,
     integer_argument,
     real_argument,
@@ -245,19 +246,6 @@ def group_deviation(group: MatrixLieGroup, M: np.ndarray) -> tuple[float, float,
     return float(np.abs(R.T @ R - np.eye(n)).max()), float(np.linalg.det(R)), row
 
 
-def _caller_level() -> int:
-    """The ``stacklevel`` of a warning issued by the caller that points at the first frame
-    outside this package (the user's line)."""
-    import os
-    import sys
-
-    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__))) + os.sep
-    frame, level = sys._getframe(2), 2
-    while frame is not None and frame.f_code.co_filename.startswith(package):
-        frame, level = frame.f_back, level + 1
-    return level
-
-
 _FIX = ("; if it is an element given to a few digits, give more digits or pass "
         "{group}.nearest_element(M), the nearest element of the group (matrices off by at "
         "most {rounded:g} are replaced by it, with a GroupRoundingWarning)")
@@ -301,7 +289,7 @@ def rounded_group_matrix(group: MatrixLieGroup, M: np.ndarray, name: str, *,
         warnings.warn(GroupRoundingWarning(
             f"{_where(owner)}{name} is off {group.name} by {max(off, row):.1e} (given to a few "
             f"digits?); it was replaced by the nearest element of the group (entries changed "
-            f"by up to {float(np.abs(nearest - M).max()):.1e})"), stacklevel=_caller_level())
+            f"by up to {float(np.abs(nearest - M).max()):.1e})"), stacklevel=caller_level())
         return nearest
     if check:
         check_group_matrix(group, M, name, owner=owner)
