@@ -493,7 +493,22 @@ def test_the_latex_names_the_forces():
     tex = _plane_system(_torque_and_damping, [u]).euler_lagrange().latex()
     for b in (1, 2):
         assert f"f^{{+}}_{{{b}}}(g_{{k}})" in tex and f"f^{{-}}_{{{b}}}(g_{{k+1}})" in tex
-    assert r"\intertext{where}" in tex and "u_{k+1}" in tex.split("where")[1]
+    # L in its pieces (the midpoints and difference quotients it is written in), the forces
+    # after them in the "where" list (a forced step printed L expanded, 6× longer)
+    assert r"\Delta x_{k+1/2}" in tex
+    assert "u_{k+1}" in tex.split(r"\intertext{and the discrete forces}")[1]
+
+
+def test_a_forced_chain_prints_l_in_its_pieces():
+    """The forced planar chain printed L expanded (12,313 characters, longer than SymPy's
+    own printing of the residuals); now through the partial derivatives of L at the
+    midpoints, as the unforced chain, and its forces named (each form verified)."""
+    from symgroupoid import systems
+
+    forced = systems.planar_chain(2, forced=True).euler_lagrange().latex()
+    unforced = systems.planar_chain(2).euler_lagrange().latex()
+    assert r"(\partial_{\Delta \theta_{1}} L)_{k+1/2}" in forced
+    assert r"f^{-}_{2}(g_{k+1})" in forced and len(forced) < 2 * len(unforced)
 
 
 EMBED_MAIN = r"""

@@ -142,13 +142,7 @@ def forced_form(step, matrix_form: bool = False) -> Form | None:
         if kept is None:
             return None
         unforced, matrices = kept
-    arity, layer = len(fs.slots), {}
-    for s in action.starts:  # the term starting at s meets the junction at its point 1 − s
-        values = fs.forces.on([arrows[s + i] for i in range(arity)], s)[1 - s]
-        mark = ("+" if s == 0 else "-") if arity == 1 else str(1 - s)
-        where = ", ".join(f"g_{{{step_label(s + i)}}}" for i in range(arity))
-        layer.update({StepSymbol(f"f^{{{mark}}}_{{{b + 1}}}({where})"): values[b]
-                      for b in range(rank)})
+    layer = _force_layer(fs, action, arrows, rank)
     names = list(layer)
     equations = [unforced[b] + sum(names[b::rank], sp.S.Zero) for b in range(rank)]
     if holder is not None:
@@ -158,6 +152,36 @@ def forced_form(step, matrix_form: bool = False) -> Form | None:
     definitions = [Definition(name, value, frozenset({name})) for name, value in layer.items()]
     layers = [layer, matrices] if matrix_form else [layer]
     return Form(equations + list(unforced[rank:]), layers, definitions)
+
+
+def _force_layer(fs, action: WindowAction, arrows: Mapping, rank: int) -> dict:
+    """The named discrete forces at the junction — f⁺_b(g_k), f⁻_b(g_{k+1}) (second order:
+    f², f¹, f⁰) as :class:`StepSymbol` s — with their values at the window's named arrows."""
+    arity, layer = len(fs.slots), {}
+    for s in action.starts:  # the term starting at s meets the junction at its point 1 − s
+        values = fs.forces.on([arrows[s + i] for i in range(arity)], s)[1 - s]
+        mark = ("+" if s == 0 else "-") if arity == 1 else str(1 - s)
+        where = ", ".join(f"g_{{{step_label(s + i)}}}" for i in range(arity))
+        layer.update({StepSymbol(f"f^{{{mark}}}_{{{b + 1}}}({where})"): values[b]
+                      for b in range(rank)})
+    return layer
+
+
+def _with_forces(step, form: Form, fs) -> Form:
+    """A form of a forced step's residual of L alone (+ λ·φ) with its forces named, as
+    :func:`forced_form` names them: each junction row plus its f⁺ + f⁻, their values
+    (written in the arrows' coordinates) after the form's own "where" rows."""
+    rank = step.groupoid.rank
+    action = WindowAction(step.groupoid, replace(fs, forces=None))
+    layer = _force_layer(fs, action, action.named_arrows(), rank)
+    names = list(layer)
+    equations = [form.equations[b] + sum(names[b::rank], sp.S.Zero) for b in range(rank)]
+    intro = len(form.intros)
+    forces = [Definition(name, value, frozenset({name}), intro=intro)
+              for name, value in layer.items()]
+    return Form(equations + list(form.equations[rank:]), [layer, *form.layers],
+                form.definitions + forces, [*form.intros, "and the discrete forces"],
+                form.generic, form.unindexed)
 
 
 #: each forced step's :func:`unforced_matrix_form` (None too), built once
@@ -217,16 +241,17 @@ def piece_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | None:
     :func:`~symgroupoid.derivation.piece_residuals`); in matrix form (constant parts
     evaluated) or explicitly."""
     system = junction_system(step)
-    if system is not None and system.functions.forces is not None:
-        return None  # the pieces are those of L alone (a forced step adds f⁺ + f⁻)
     fs = system_functions(system, matrix_form)
-    equations, w = piece_residuals(step.groupoid, fs, rule, window_piece_symbols, matrix_form)
+    forces = fs.forces  # the pieces are those of L alone: a forced step adds f⁺ + f⁻
+    equations, w = piece_residuals(step.groupoid, replace(fs, forces=None), rule,
+                                   window_piece_symbols, matrix_form)
     if matrix_form:
         values, constants = matrix_values(step), constant_matrices(step.groupoid)
         equations = [evaluated_constants(e, values, constants) for e in equations]
-    return Form(equations, [w.values, matrix_values(step) if matrix_form else {}],
+    form = Form(equations, [w.values, matrix_values(step) if matrix_form else {}],
                 _piece_definitions(pair_coordinates(step.groupoid), rule),
                 [f"where, for {_index_range(w.offsets)},"], _generic_pieces(step.groupoid))
+    return form if forces is None else _with_forces(step, form, fs)
 
 
 def _generic_pieces(G) -> dict:
@@ -246,9 +271,10 @@ def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | 
     system = junction_system(step)
     G, coords = step.groupoid, pair_coordinates(step.groupoid)
     if (matrix_form or rule.kind != "midpoint" or system._arity != 1
-            or 2 * len(coords) != G.arrow_dim or system.functions.forces is not None):
+            or 2 * len(coords) != G.arrow_dim):
         return None
-    equations, partials, w = partial_residuals(G, system.functions, rule,
+    fs = system.functions
+    equations, partials, w = partial_residuals(G, replace(fs, forces=None), rule,
                                                window_piece_symbols, window_partial_symbol)
     layer: dict = {}
     definitions: list[Definition] = []
@@ -263,9 +289,10 @@ def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | 
         instances.update(zip(piece_symbols(c, None), piece_symbols(c, half_label("k", 0))))
     intros = [f"where, for {_index_range(w.offsets)}, $(\\cdot)_{{j-1/2}}$ is taken at the "
               f"pieces of index $j - 1/2$:", "with"]
-    return Form(equations, [layer, w.values],
+    form = Form(equations, [layer, w.values],
                 definitions + _piece_definitions(coords, rule, intro=1), intros, instances,
                 unindexed=True)
+    return form if fs.forces is None else _with_forces(step, form, fs)
 
 
 def _piece_definitions(coords: Sequence[PairCoordinate], rule: PieceRule,
