@@ -806,3 +806,20 @@ def test_a_compiler_stopped_by_a_full_disk_is_a_cache_error(tmp_path, monkeypatc
     with pytest.raises(CacheError, match="no space left") as info:
         sg.compile_step(oscillator(), backend="c")
     assert str(cache_dir) in str(info.value)
+
+
+@needs_cc
+def test_a_root_another_process_is_marking_is_adopted_not_taken_for_foreign(cache_dir):
+    """Ten processes creating one cache at once: one saw the marker another was writing
+    (its temporary file .CACHEDIR.TAG.xxxxxxxx, renamed a moment later) as a foreign file
+    and fell back to a private cache of its own, building the kernel a second time.  Such a
+    file is part of a root being marked: the root is adopted."""
+    import warnings
+
+    cache_dir.mkdir()
+    (cache_dir / ".CACHEDIR.TAG.a1b2c3d4").write_text("")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # (a fallback warns)
+        sim, entry, _ = built(cache_dir)
+    assert str(entry).startswith(str(cache_dir))
+    assert (cache_dir / "CACHEDIR.TAG").is_file()

@@ -128,6 +128,10 @@ _CACHE_CONTENT = {
 }
 
 
+#: the temporary file of a marker being written (``write_atomic_private``: ".NAME.xxxxxxxx")
+_MARKER_BEING_WRITTEN = re.compile(r"\." + re.escape(MARKER) + r"\.[A-Za-z0-9_]+")
+
+
 def _foreign_entries(root: Path) -> list[str]:
     """What in ``root`` a kernel cache does not hold (empty: the root is, or can become, a
     cache): names other than the cache's, and entries of its directories that no cache
@@ -138,8 +142,8 @@ def _foreign_entries(root: Path) -> list[str]:
         return []
     out = []
     for e in entries:
-        if e.name == MARKER:
-            continue
+        if e.name == MARKER or _MARKER_BEING_WRITTEN.fullmatch(e.name):
+            continue  # (another process marking the root: its temporary file, renamed next)
         if e.name not in _CACHE_NAMES:
             out.append(e.name)
         elif e.is_dir(follow_symlinks=False):
