@@ -78,7 +78,10 @@ def test_a_damped_driven_top_prints_its_force_at_the_nodes():
     assert r"\mathrm{d}\tau_{X_{j,1}}^{T} \left(F_{j,1} + N_{j,1}\right)" in text
     assert (r"F &= \left[\begin{matrix}u_{1} - \Xi_{1} c\\u_{2} - \Xi_{2} c\\u_{3} - "
             r"\Xi_{3} c\end{matrix}\right]") in text
-    assert r"$F_{j,i}$ are $N$, $M$ and $F$ at ($R_{j,i}, \Xi_{j,i}, u_{j}$)" in text
+    # the inputs by their names, at their values on g_j (an undefined u_j beside u_1 before)
+    assert (r"and the force, with the inputs ($u_{1}, u_{2}, u_{3}$ in its formula) at their "
+            r"values on $g_j$: $N_{j,i}$, $M_{j,i}$ and $F_{j,i}$ are $N$, $M$ and $F$ at "
+            r"($R_{j,i}, \Xi_{j,i}$)") in text
 
 
 @needs_tex

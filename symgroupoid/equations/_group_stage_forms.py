@@ -624,18 +624,20 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
              f"${printer.doprint(one.sym('M', 'j', 'i'))}$" if len(builder.factors) == 1
              else "$N^{(\\cdot)}_{j,i}$ and $M^{(\\cdot)}_{j,i}$ of each factor")
     which = "$N$ and $M$" if len(builder.factors) == 1 else r"$N^{(\cdot)}$ and $M^{(\cdot)}$"
+    inputs = ""
     if builder.c.forces is not None:  # the force at the node, with the inputs of g_j
         names = names.replace(" and ", ", ", 1) + (
             f" and ${printer.doprint(one.sym('F', 'j', 'i'))}$" if len(builder.factors) == 1
             else r" and $F^{(\cdot)}_{j,i}$")
         which = which.replace(" and ", ", ", 1) + (
             " and $F$" if len(builder.factors) == 1 else r" and $F^{(\cdot)}$")
-        at = at + ", u_{j}"
+        listed = ", ".join(printer.doprint(u) for u in builder.c.inputs)
+        inputs = (f", and the force, with the inputs (${listed}$ in its formula) at their "
+                  f"values on $g_j$" if listed else ", and the force")
     words = (r"and, at the nodes, the derivatives of $L$ in the configuration "
              r"(left-trivialised on a group: $N_b = \langle \partial L/\partial R, R E_b "
-             r"\rangle$) and in the velocity" + (
-                 r", and the force with the inputs $u_j$ of $g_j$" if builder.c.forces is not None
-                 else "") + ": " + names + f" are {which} at (${at}$)")
+             r"\rangle$) and in the velocity" + inputs + ": " + names
+             + f" are {which} at (${at}$)")
     if written:
         return words + " (below),"
     return words + (r" (their formulas for this $L$ are too long to print usefully and are "
