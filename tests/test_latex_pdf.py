@@ -27,6 +27,7 @@ import pytest
 import sympy as sp
 from kernel_support import REPO
 
+import symgroupoid as sg
 from symgroupoid import systems
 from symgroupoid.cli import OVERFULL_TOLERANCE, load_system, lost_content, main
 from symgroupoid.equations import PAGE_WIDTH, UnusedAbbreviationWarning, WideLinesWarning
@@ -314,3 +315,23 @@ def test_a_document_line_that_will_not_fit_even_at_half_size_is_reported(tmp_pat
     warning = caught[0].message
     assert warning.widths and min(warning.widths) > 2 * warning.room
     assert caught[0].filename == __file__
+
+
+@needs_tex
+def test_lie_poisson_and_legendre_print_as_documents(tmp_path):
+    """Their align blocks had no document form: rows too wide for the page (the SO(3)
+    optimal-control problem's momenta, up to 1,433 pt) could not be set smaller, nor were
+    they reported.  As documents they typeset, and what cannot fit is a WideLinesWarning."""
+    import _systems
+
+    rigid = systems.rigid_body()
+    for i, document in enumerate([rigid.lie_poisson().latex(document=True),
+                                  rigid.legendre().latex(document=True)]):
+        folder = tmp_path / str(i)
+        folder.mkdir()
+        log, _ = typeset(document, folder)
+        assert lost_content(log, tolerance=1.0) == []
+    with pytest.warns(WideLinesWarning, match="will not fit the page even at half size"):
+        _systems.so3_control_system().lie_poisson().latex(document=True)
+    with pytest.raises(sg.ShapeError, match="document must be True or False"):
+        rigid.lie_poisson().latex(document="yes")

@@ -386,15 +386,20 @@ def step_latex(step, document: bool = False, abbreviations=None,
     450), and a "where" list of what was named; a document (:func:`latex_document`) sets a
     line too wide to break smaller.
     """
-    from ._layout import render_align
     from ._printing import printed_step
 
     rows = printed_step(step, abbreviations=abbreviations, width=width)
+    return rows_latex(rows, document,
+                      f"{step.name}: {len(step)} equations in {len(step.unknowns)} unknowns")
+
+
+def rows_latex(rows, document: bool, comment: str) -> str:
+    """Printed rows (:class:`~._layout.PrintedRows`) as an ``align`` environment, or a
+    standalone document (:func:`latex_document`, wide lines set smaller) with ``comment``."""
+    from ._layout import render_align
+
     body = render_align(rows, document=document)
-    if not document:
-        return body
-    return latex_document(body, rows.width,
-                          f"{step.name}: {len(step)} equations in {len(step.unknowns)} unknowns")
+    return latex_document(body, rows.width, comment) if document else body
 
 
 def latex_document(body: str, width: float, comment: str) -> str:

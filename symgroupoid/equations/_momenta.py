@@ -8,7 +8,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import instance_argument
+from .._arguments import flag_argument, instance_argument
 from .._errors import (
     DomainError,
     InputTypeError,
@@ -67,14 +67,15 @@ class LegendreTransforms:
                 np.asarray(params, float))
         return np.asarray(fm(*args), float).ravel(), np.asarray(fp(*args), float).ravel()
 
-    def latex(self, width=None) -> str:
+    def latex(self, width=None, document: bool = False) -> str:
         """(𝔽⁻L)_a, then (𝔽⁺L)_a, as an ``align`` environment: terms collected by multipliers,
         variables and parameters (checked to be the transforms), rows broken to ``width``
-        pt (default 450)."""
-        from ._layout import render_align
+        pt (default 450); or, with ``document``, a standalone document (as a step's)."""
+        from ._latex import rows_latex
         from ._momentum_rows import legendre_rows
 
-        return render_align(legendre_rows(self, width))
+        return rows_latex(legendre_rows(self, width), flag_argument(document, "document"),
+                          "the discrete Legendre transforms")
 
     def __repr__(self) -> str:
         return (f"<LegendreTransforms F⁻L, F⁺L: {len(self.minus)} components each (section "
@@ -461,13 +462,16 @@ class LiePoissonEquations:
         self.momentum_symbols: list = forms.momentum_symbols
         self.reconstruction = StepEquations(forms.reconstruction)
 
-    def latex(self, width=None) -> str:
+    def latex(self, width=None, document: bool = False) -> str:
         """μ_{k+1} = Ad*_{g_k} μ_k, then 0 = 𝔽⁻L_{k+1} − Ad*_{g_k} 𝔽⁻L_k and the constraints
-        (seed 000 §6.1), Ad* printed by name; rows broken to ``width`` pt (default 450)."""
-        from ._layout import render_align
+        (seed 000 §6.1), Ad* printed by name; rows broken to ``width`` pt (default 450); or,
+        with ``document``, a standalone document (as a step's: wide lines set smaller, those
+        that would not fit reported with a ``WideLinesWarning``)."""
+        from ._latex import rows_latex
         from ._momentum_rows import lie_poisson_rows
 
-        return render_align(lie_poisson_rows(self, width))
+        return rows_latex(lie_poisson_rows(self, width), flag_argument(document, "document"),
+                          f"{self.reconstruction.name}: the Lie–Poisson equations")
 
     def __repr__(self) -> str:
         return (f"<LiePoissonEquations {self.reconstruction.name!r}: "
