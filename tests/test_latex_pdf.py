@@ -321,9 +321,8 @@ def test_a_document_line_that_will_not_fit_even_at_half_size_is_reported(tmp_pat
 def test_lie_poisson_and_legendre_print_as_documents(tmp_path):
     """Their align blocks had no document form: rows too wide for the page (the SO(3)
     optimal-control problem's momenta, up to 1,433 pt) could not be set smaller, nor were
-    they reported.  As documents they typeset, and what cannot fit is a WideLinesWarning."""
-    import _systems
-
+    they reported.  As documents they typeset (what cannot fit is a WideLinesWarning:
+    below)."""
     rigid = systems.rigid_body()
     for i, document in enumerate([rigid.lie_poisson().latex(document=True),
                                   rigid.legendre().latex(document=True)]):
@@ -331,7 +330,14 @@ def test_lie_poisson_and_legendre_print_as_documents(tmp_path):
         folder.mkdir()
         log, _ = typeset(document, folder)
         assert lost_content(log, tolerance=1.0) == []
-    with pytest.warns(WideLinesWarning, match="will not fit the page even at half size"):
-        _systems.so3_control_system().lie_poisson().latex(document=True)
     with pytest.raises(sg.ShapeError, match="document must be True or False"):
         rigid.lie_poisson().latex(document="yes")
+
+
+@pytest.mark.slow
+def test_the_so3_control_momenta_that_cannot_fit_are_reported():
+    """(15 s: the momenta of a Cayley-retraction control problem, printed expanded.)"""
+    import _systems
+
+    with pytest.warns(WideLinesWarning, match="will not fit the page even at half size"):
+        _systems.so3_control_system().lie_poisson().latex(document=True)
