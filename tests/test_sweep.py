@@ -578,6 +578,18 @@ def test_a_task_over_its_timeout_is_recorded_and_the_sweep_goes_on():
         sg.sweep(sim, S, RIGID, 10, timeout=0)
 
 
+def _exits_on(fatal: float):
+    """A reduce that ends its worker process (os._exit(3)) on the run starting at ``fatal``
+    and returns the final angle of every other run (a closure: sent by value)."""
+
+    def exits(traj):
+        if traj.states[0, 0] == fatal:
+            os._exit(3)
+        return traj.states[-1, 0]
+
+    return exits
+
+
 def test_a_run_that_ends_its_worker_process_is_recorded_the_others_returned(monkeypatch):
     """executor='process': a reduce that calls os._exit on run 4 ends its worker; the task
     (runs 3–5) is run again run by run on fresh workers, run 4 recorded WORKER_DIED, the
@@ -585,14 +597,7 @@ def test_a_run_that_ends_its_worker_process_is_recorded_the_others_returned(monk
     monkeypatch.setenv("SYMGROUPOID_CACHE", str(SESSION_CACHE))
     sim = compiled("rigid_body")
     S = states(np.linspace(0.05, 0.6, 6))
-    fatal = S[4, 0]
-
-    def exits_on_4(traj):
-        if traj.states[0, 0] == fatal:
-            os._exit(3)
-        return traj.states[-1, 0]
-
-    res = sg.sweep(sim, S, RIGID, 50, reduce=exits_on_4, workers=2, chunk_size=3,
+    res = sg.sweep(sim, S, RIGID, 50, reduce=_exits_on(S[4, 0]), workers=2, chunk_size=3,
                    executor="process")
     assert res.status.tolist() == [0, 0, 0, 0, sg.Status.WORKER_DIED, 0]
     assert res.messages[4] == ("run 4: its worker process died while running it "
@@ -704,11 +709,7 @@ def test_dask_records_only_the_run_that_kills_its_worker():
     sim = compiled("rigid_body")
     S = states(np.linspace(0.05, 0.6, 6))
     fatal = S[0, 0]
-
-    def exits_on_0(traj):
-        if traj.states[0, 0] == fatal:
-            os._exit(3)
-        return traj.states[-1, 0]
+    exits_on_0 = _exits_on(fatal)
 
     def lock_on_0(traj):
         return threading.Lock() if traj.states[0, 0] == fatal else traj.states[-1, 0]

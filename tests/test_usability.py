@@ -477,7 +477,7 @@ def test_saving_names_the_target_and_takes_any_legal_name(tmp_path, capsys):
     capsys.readouterr()
     assert main(["simulate", str(ring), "--steps", "10", "--backend", "numpy", "-o",
                  str(tmp_path / "out.npz")]) == 1
-    assert "out.npz: is a directory" in capsys.readouterr().err
+    assert "out.npz: it is a directory" in capsys.readouterr().err
 
 
 def test_simulate_initial_refuses_another_systems_trajectory(tmp_path, capsys):

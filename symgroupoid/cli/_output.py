@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..runtime import TRAJECTORY_FORMATS, save_trajectory
+from ..runtime import TRAJECTORY_FORMATS, output_problem, save_trajectory
 from ..runtime import atomic_write as _atomic
 from ..runtime import number_text as _number
 from ._errors import InputError
@@ -31,11 +31,7 @@ def check_format(path: str | None, option: str = "-o") -> Path | None:
     out = Path(path)
     if out.suffix not in TRAJECTORY_FORMATS:
         raise InputError(f"{option} {path}: the file name must end in .npz or .csv")
-    try:
-        problem = (f"the directory {out.parent} does not exist" if not out.parent.is_dir()
-                   else "is a directory (give a file name in it)" if out.is_dir() else None)
-    except OSError as exc:  # (a name longer than the file system's, …)
-        problem = exc.strerror or str(exc)
+    problem = output_problem(out)
     if problem is not None:
         raise InputError(f"{option} {path}: {problem}")
     return out

@@ -26,6 +26,7 @@ from collections.abc import Mapping, Sequence
 
 import sympy as sp
 
+from .._arguments import caller_level
 from .._errors import UnsupportedExpressionError, UnsupportedFeatureError
 from ..derivation import PieceRule
 from ._abbreviations import (
@@ -140,7 +141,7 @@ def _warn_unused(step, unused: list[str], why: str) -> None:
     warnings.warn(UnusedAbbreviationWarning(
         f"{step.name}: the {which} not occur in the printed equations ({why}) and "
         f"{'is' if len(unused) == 1 else 'are'} left out of the \"where\" list", unused),
-        stacklevel=5)
+        stacklevel=caller_level())
 
 
 def chosen_printed(step, abbreviations: Mapping | None = None) -> Printed:

@@ -38,8 +38,8 @@ from ._validate import constraint_check, parameter_vector, system_argument
 from .toolchain import CompilationError, CompilerNotFoundError, VectorISAError, cache_root
 
 #: names of :mod:`._files`, imported when first asked for (:func:`__getattr__`)
-_FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "read_trajectory",
-                         "save_trajectory"})
+_FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "output_problem",
+                         "read_trajectory", "save_trajectory"})
 
 __all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "CompilationError",
            "CompilerNotFoundError", "ConservationSummary", "DetachedStepError", "Drift", "Momenta",
@@ -48,7 +48,8 @@ __all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "Compila
            "ReduceError", "Simulator", "SweepResult", "Trajectory", "TrajectoryBatch",
            "atomic_write", "cache_root", "compile_program", "compile_step", "conservation_summary",
            "constraint_check", "constraint_residuals", "energy", "energy_label", "has_energy",
-           "momenta", "noether_quantities", "number_text", "parameter_vector", "read_trajectory",
+           "momenta", "noether_quantities", "number_text", "output_problem", "parameter_vector",
+           "read_trajectory",
            "rounding_floor", "save_trajectory", "solve_boundary_value", "sweep",
            "sweep_boundary_value", "system_argument", "trajectory_programs", "wait_for_kernels",
            # the checks of every buffer handed to C (for code that calls a kernel's C itself)

@@ -219,7 +219,7 @@ def serve(conn) -> None:
             conn.send_bytes(dumps(reply))
         except Exception as exc:  # noqa: BLE001 - a result that does not pickle
             explain = getattr(reply[-1], "unsendable", None) if reply[0] == "done" else None
-            named = explain(exc, dumps) if explain is not None else None
+            named = explain(dumps) if explain is not None else None
             conn.send_bytes(pickle.dumps(("error", *_portable(named or exc,
                                                              traceback.format_exc()))))
 
@@ -432,8 +432,8 @@ def _run_job_sent(task, job):
     if getattr(result, "values", None) is not None:
         try:
             dumps(result.values)
-        except Exception as exc:  # noqa: BLE001 - any value that does not travel
-            named = result.unsendable(exc, dumps)
+        except Exception:  # noqa: BLE001 - any value that does not travel
+            named = result.unsendable(dumps)
             if named is not None:
                 raise named from None
             raise

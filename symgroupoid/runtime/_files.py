@@ -117,17 +117,24 @@ def trajectory_arrays(traj) -> dict[str, np.ndarray]:
     return arrays
 
 
+def output_problem(out: Path) -> str | None:
+    """Why ``out`` cannot be written, known before any work (its directory does not exist,
+    it is a directory, its name is too long for the file system), or None."""
+    try:
+        if not out.parent.is_dir():
+            return f"the directory {str(out.parent)!r} does not exist"
+        return "it is a directory" if out.is_dir() else None
+    except OSError as exc:  # (a name longer than the file system's, …)
+        return exc.strerror or str(exc)
+
+
 def output_path(path, owner: str) -> Path:
     """``path`` checked before anything is written: a path ending in .npz or .csv whose
     directory exists."""
     out = path_argument(path, "path", owner=owner)
     if out.suffix not in TRAJECTORY_FORMATS:
         raise DomainError(f"{owner}: path {str(out)!r} must end in .npz or .csv")
-    try:
-        problem = (f"the directory {str(out.parent)!r} does not exist"
-                   if not out.parent.is_dir() else "it is a directory" if out.is_dir() else None)
-    except OSError as exc:  # (a name longer than the file system's, …)
-        problem = exc.strerror or str(exc)
+    problem = output_problem(out)
     if problem is not None:
         raise OutputError(f"{owner}: the trajectory cannot be written to {str(out)!r}: "
                           f"{problem}")
@@ -197,9 +204,9 @@ def read_trajectory(path, layout, parameter_names: list[str], *,
             f"one count and norm per interval)")
     if not np.isfinite(data.states).all():
         raise TrajectoryFileError(f"{label}: its states have non-finite entries")
-    if rows > 1 and not (np.diff(data.step_indices) > 0).all():
-        raise TrajectoryFileError(f"{label}: its step indices do not increase")
     gaps = np.diff(data.step_indices)
+    if not (gaps > 0).all():
+        raise TrajectoryFileError(f"{label}: its step indices do not increase")
     if rows > 1 and ((gaps[:-1] != data.every).any() or gaps[-1] > data.every):
         raise TrajectoryFileError(
             f"{label}: its step indices are not those of a run keeping every {data.every} "

@@ -111,9 +111,9 @@ class ChunkResult:
     values: list | None
     raw: BatchRun | None = None
 
-    def unsendable(self, exc: BaseException, dumps: Callable) -> ReduceError | None:
-        """Why these results cannot go back from a worker process (``dumps`` failed with
-        ``exc``): a :class:`ReduceError` naming the first run whose reduced value does not
+    def unsendable(self, dumps: Callable) -> ReduceError | None:
+        """Why these results cannot go back from a worker process (``dumps`` failed on
+        them): a :class:`ReduceError` naming the first run whose reduced value does not
         pickle, or None when the values are not the cause."""
         for i, value in enumerate(self.values or ()):
             try:
