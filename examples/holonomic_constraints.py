@@ -57,6 +57,23 @@ def check(label: str, value: float, bound: float) -> None:
         FAILURES.append(label)
 
 
+
+def equation_rows(text: str) -> list[str]:
+    """The numbered equations of an ``align`` block, each with its continuation lines (a
+    row ends at the first line not marked ``\\notag``; the "where" list is not one)."""
+    rows, row = [], []
+    for line in text.splitlines():
+        if line.startswith("\\intertext"):
+            break
+        if line.startswith("0 &=") or row:
+            row.append(line.removeprefix("&\\quad ").removesuffix(" \\\\")
+                       .removesuffix(" \\notag"))
+            if "\\notag" not in line:
+                rows.append(" ".join(row))
+                row = []
+    return rows
+
+
 def derive(system: sg.DiscreteSystem, latex: bool):
     """The step, its LaTeX, its C source and the compiled simulator."""
     t0 = time.perf_counter()
@@ -64,9 +81,9 @@ def derive(system: sg.DiscreteSystem, latex: bool):
     print(f"{system!r}: {len(step)} equations in {len(step.unknowns)} unknowns "
           f"({time.perf_counter() - t0:.2f} s)")
     text = step.latex()
-    lines = text.splitlines()
-    print(text if latex else f"  LaTeX, the DEL along X_1:  {lines[1]}\n"
-          f"  LaTeX, the holonomic row:  {lines[-2]}")
+    rows = equation_rows(text)
+    print(text if latex else f"  LaTeX, the DEL along X_1:  {rows[0]}\n"
+          f"  LaTeX, the holonomic row:  {rows[-1]}")
     with tempfile.TemporaryDirectory() as tmp:
         step.emit_c(Path(tmp) / system.name)
         size = (Path(tmp) / f"{system.name}.c").stat().st_size

@@ -199,6 +199,9 @@ def test_the_cli_runs_a_forced_system_from_an_input_file(tmp_path, capsys):
     ("0.1\nabc\n", "not a number"),
     ("v\n0.1\n", "the system's inputs are u"),
     ("0.1,0.2\n0.3\n", "different numbers of columns"),
+    # one row of two values for one input: it was held as two steps of u
+    ("u\n1,2\n", "2 columns for the 1 input of"),
+    ("1,2\n3,4\n", "2 columns for the 1 input of"),
 ])
 @pytest.mark.usefixtures("isolated_cache")
 def test_the_cli_refuses_bad_input_files(tmp_path, capsys, content, message):

@@ -322,3 +322,12 @@ def test_a_csv_with_a_byte_order_mark_and_an_empty_initial(capsys):
     assert main(["simulate", "spring.py", "--steps", "3", "--initial", ""]) == 1
     err = capsys.readouterr().err
     assert "--initial: empty" in err and "'.'" not in err, err
+
+
+def test_inputs_for_a_system_without_inputs_are_refused(capsys):
+    """The message said "the system's inputs are none (in that order)"."""
+    shutil.copy(SPRING, "spring.py")
+    Path("U.csv").write_text("0.1\n0.2\n")
+    assert main(["simulate", "spring.py", "--steps", "2", "--inputs", "U.csv"]) == 1
+    err = capsys.readouterr().err
+    assert "has no inputs" in err and "in that order" not in err, err

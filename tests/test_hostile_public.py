@@ -88,3 +88,34 @@ def test_a_rational_is_not_a_product_of_factors():
 
     with pytest.raises(sg.SymgroupoidError, match="AtiyahGroupoid"):
         sg.AtiyahGroupoid(sp.Rational(1, 3), [])
+
+
+GROUPS = {"SO2": sg.SO2("a"), "SO3": sg.SO3("R"), "SO3exp": sg.SO3("R", retraction="exp"),
+          "SE2": sg.SE2("s"), "SE3": sg.SE3("T")}
+
+
+@pytest.mark.parametrize("run", PROFILES)
+@pytest.mark.parametrize("method", ["cayley", "exp", "tau", "hat"])
+@pytest.mark.parametrize("group", sorted(GROUPS))
+def test_the_maps_from_a_groups_algebra_refuse_junk_by_name(group, method, run):
+    """The maps the how-tos build group elements with.  ``SO3.cayley`` with two coordinates
+    returned a matrix holding an internal symbol, with four dropped the fourth, with NaN
+    gave a NaN matrix; ``exp`` and ``hat`` raised IndexError or SymPy's ShapeError."""
+    import sympy as sp
+
+    G = GROUPS[group]
+
+    def verify(M):
+        assert isinstance(M, sp.MatrixBase) and M.shape == (G.n, G.n), M
+        assert not M.has(sp.nan, sp.zoo, sp.oo, -sp.oo), M
+        assert not any(isinstance(s, sp.Dummy) for s in M.free_symbols), M
+
+    numbers = st.floats(allow_nan=True, allow_infinity=True)
+
+    @profile(run, 6, 120)
+    @given(st.one_of(junk(4), st.lists(numbers, max_size=7)))
+    def check(x):
+        judge(f"{group}.{method}", lambda: getattr(G, method)(x), ["x", G.name, "hat"],
+              verify=verify)
+
+    check()

@@ -391,6 +391,19 @@ def test_compile_step_arguments(run):
 
 
 
+def test_a_nan_configuration_is_non_finite_not_missing():
+    """A NaN value in a configuration given by name was taken for a missing coordinate (NaN
+    marked what was not given): "the configuration needs x" for a configuration that
+    names x.  It is a DomainError like inf; a missing name is still named."""
+    case = case_of("oscillator")
+    config0, momentum0 = case.momentum
+    for value in (np.nan, np.inf):
+        with pytest.raises(sg.DomainError, match="non-finite configuration"):
+            case.sim.from_momentum({k: value for k in config0}, momentum0, case.params)
+    with pytest.raises(sg.InputNameError, match="the configuration needs"):
+        case.sim.from_momentum({}, momentum0, case.params)
+
+
 def test_from_momentum_where_its_terms_overflow_is_refused():
     """Found by the thorough profile: at a configuration of 1e308 (h = 0.1) the terms of
     F⁻L exceed the largest double and the momentum 0.5 lies below their rounding; Newton

@@ -272,8 +272,11 @@ def test_abbreviations_name_pieces_and_are_listed(pendulum_step):
     g = sp.Symbol("g", positive=True)
     with pytest.warns(UnusedAbbreviationWarning, match="abbreviation G does not"):
         tex = pendulum_step.latex(abbreviations={"\\vartheta": mean, "G": 2 * g})
-    assert "\\vartheta_{j-1/2} &= \\bar{q}_{j-1/2}" in tex or \
-        "\\vartheta_{j-1/2} = \\bar{q}_{j-1/2}" in tex
+    # defined at the generic arrow, in its pieces or its coordinates (whichever form is
+    # shorter), and checked there: the row at j is the abbreviation at k written out
+    assert any(row in tex for row in ("\\vartheta_{j-1/2} &= \\bar{q}_{j-1/2}",
+                                      "\\vartheta_{j-1/2} = \\bar{q}_{j-1/2}",
+                                      "\\vartheta_{j-1/2} &= \\frac{q_{j-1} + q_{j}}{2}"))
     assert "\\sin(\\vartheta_{j-1/2})" in tex or "\\sin(\\vartheta_{k" in tex
     assert tex.count("\\sin(\\bar{q}") == 0
 
@@ -391,3 +394,25 @@ def test_constant_entries_are_evaluated():
     assert evaluated(sp.Trace(sp.MatMul(explicit_transpose, W))) == entries[2, 1] - entries[1, 2]
     kept = sp.Trace(sp.MatMul(W, E1, E2))
     assert evaluated(kept) == kept and evaluated(sp.Trace(sp.MatMul(E1, E2))) == 0
+
+
+def test_a_callable_abbreviation_on_a_lie_group_is_checked_at_its_arrow():
+    """The "where" row of a callable abbreviation is written at the generic arrow g_j and
+    checked at g_k.  On a Lie group (no pieces to carry the renaming) the check compared
+    (W_j) with (W_k) entries, so every form failed and the printing raised
+    LatexVerificationError."""
+    h, i1, i2, i3 = sp.symbols("h I1:4", positive=True)
+
+    def spin(W):
+        return sg.SO3.vee(W - W.T) / (2 * h)
+
+    def L(g):
+        w = spin(g.matrix)
+        return h * (i1 * w[0] ** 2 + i2 * w[1] ** 2 + i3 * w[2] ** 2) / 2
+
+    step = sg.DiscreteSystem(sg.SO3("W"), L, parameters=[h, i1, i2, i3],
+                             name="free_body").euler_lagrange()
+    tex = step.latex(abbreviations={rf"\Omega_{{{a + 1}}}": (lambda g, a=a: spin(g.matrix)[a])
+                                    for a in range(3)})
+    assert r"(\Omega_{1})_{j} &= \frac{- (W_{j})_{23} + (W_{j})_{32}}{2 h}" in tex
+    assert r"(\Omega_{3})_{k+1}" in tex

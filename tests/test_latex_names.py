@@ -65,6 +65,7 @@ def _pendulum():
 
 
 @pytest.mark.parametrize("name, tex", [("Ω", r"\Omega"), ("Ωx", r"\Omega x"),
+                                       ("α1", r"\alpha_{1}"),  # as a coordinate's (docs)
                                        (r"\Omega", r"\Omega"), ("M_{1}", "M_{1}")])
 def test_an_abbreviation_named_by_a_greek_character_prints_its_command(name, tex):
     step, value = _pendulum()
@@ -127,3 +128,21 @@ def test_the_basis_and_the_lie_poisson_momentum_are_defined():
         assert printed[a] == " ".join(terms).removeprefix("+ "), (a, printed[a])
     lie_poisson = systems.rigid_body().lie_poisson().latex()
     assert r"where $\mu_{j}$ is the momentum the integrator carries" in lie_poisson
+
+
+@pytest.mark.parametrize("name", [r"\Delta \theta_{2}", r"\bar{\theta}_{1}",
+                                  r"(\bar{\theta}_{1})_{k-1/2}"])
+def test_an_abbreviation_may_not_print_as_a_piece(name):
+    """A name printed like a named piece was accepted: Δθ₂ then stood for m₁ + m₂ in one
+    term and for the difference quotient in the next."""
+    step, value = _pendulum()
+    with pytest.raises(sg.SymgroupoidError, match="prints like a symbol of double_pendulum"):
+        step.latex(abbreviations={name: value})
+
+
+def test_an_abbreviation_reads_only_the_steps_symbols():
+    """An expression in a symbol the step does not have occurs nowhere in its equations:
+    it was accepted with only an unused-abbreviation warning."""
+    step, value = _pendulum()
+    with pytest.raises(sg.SymgroupoidError, match="reads zz, not a symbol of double_pendulum"):
+        step.latex(abbreviations={"M": value + sp.Symbol("zz")})

@@ -313,6 +313,7 @@ def test_a_document_line_that_will_not_fit_even_at_half_size_is_reported(tmp_pat
             as caught:
         step.latex(document=True, width=150)
     warning = caught[0].message
+    assert str(warning).endswith("or abbreviations= that name their long parts")
     assert warning.widths and min(warning.widths) > 2 * warning.room
     assert caught[0].filename == __file__
 
@@ -332,12 +333,55 @@ def test_lie_poisson_and_legendre_print_as_documents(tmp_path):
         assert lost_content(log, tolerance=1.0) == []
     with pytest.raises(sg.ShapeError, match="document must be True or False"):
         rigid.lie_poisson().latex(document="yes")
+    # what cannot fit is reported with the advice these printings can take (they take no
+    # abbreviations: a step's warning names them)
+    with pytest.warns(WideLinesWarning, match=r"larger width= \(a landscape page\)$"):
+        rigid.lie_poisson().latex(document=True, width=40)
+
+
+DENOMINATOR_ROW = "D_{j} &= (g_{j})_{11} + (g_{j})_{22} + (g_{j})_{33} + 1"
+
+
+@pytest.fixture(scope="module")
+def so3_control():
+    import _systems
+
+    return _systems.so3_control_system()
+
+
+def test_the_cayley_denominator_is_named_and_the_control_step_fits(so3_control, tmp_path):
+    """The optimal-control step of seed 000 §6.1 on SO(3) (L and φ in the Cayley
+    coordinates τ⁻¹(g)/h) divides by powers of 1 + tr g: expanded, 222 of its lines ran off
+    the page even at half size (1,855 pt).  Named D_j, every line fits and the document
+    typesets whole."""
+    step = so3_control.euler_lagrange()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", WideLinesWarning)
+        document = assert_typesets_whole(step, tmp_path)
+    assert DENOMINATOR_ROW in document and "scalebox" not in document
+    assert "D_{k+1}^{2}" in document and "(g_{k+1})_{33}^{2}" not in document
+
+
+def test_the_named_denominator_takes_a_free_name(so3_control):
+    """A user's abbreviation named D keeps its name; the denominator takes the next one."""
+    step = so3_control.euler_lagrange()
+    tex = step.latex(abbreviations={"D": lambda g: g.matrix[0, 1] - g.matrix[1, 0]})
+    assert "D_{j} &= (g_{j})_{12} - (g_{j})_{21}" in tex
+    assert r"\mathcal{D}_{j} = (g_{j})_{11} + (g_{j})_{22} + (g_{j})_{33} + 1" in tex
 
 
 @pytest.mark.slow
-def test_the_so3_control_momenta_that_cannot_fit_are_reported():
-    """(15 s: the momenta of a Cayley-retraction control problem, printed expanded.)"""
-    import _systems
-
-    with pytest.warns(WideLinesWarning, match="will not fit the page even at half size"):
-        _systems.so3_control_system().lie_poisson().latex(document=True)
+def test_the_so3_control_momenta_fit_with_the_denominator_named(so3_control, tmp_path):
+    """(20 s.)  The Lie–Poisson equations and the Legendre transforms of the same problem:
+    94 lines of its momenta (up to 1,433 pt) would not fit even at half size."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", WideLinesWarning)
+        for i, printout in enumerate((so3_control.lie_poisson(), so3_control.legendre())):
+            document = printout.latex(document=True)
+            folder = tmp_path / str(i)
+            folder.mkdir()
+            log, _ = typeset(document, folder)
+            assert lost_content(log, tolerance=1.0) == []
+            assert "scalebox" not in document
+            assert (DENOMINATOR_ROW if i == 0 else DENOMINATOR_ROW.replace("j}", "k}")) \
+                in document

@@ -272,6 +272,9 @@ def run_inputs(path: str | None, sim, steps: int) -> np.ndarray | None:
     anything else goes to the library's checks (:meth:`Simulator.simulate`'s
     ``inputs=``)."""
     names = list(sim.layout.input_names)
+    if path is not None and not names:
+        raise InputError(f"--inputs {path}: {sim.name} has no inputs (its forces, if any, "
+                         f"read none)")
     inputs = read_inputs(path, names)
     if inputs is None:
         if names:
@@ -280,6 +283,12 @@ def run_inputs(path: str | None, sim, steps: int) -> np.ndarray | None:
                              f"least --steps {steps} rows; row j: the inputs of the arrow "
                              f"step j computes), or one row held constant")
         return None
+    if inputs.ndim == 2 and inputs.shape[1] != len(names):
+        raise InputError(f"--inputs {path}: {inputs.shape[1]} column"
+                         f"{'s' if inputs.shape[1] != 1 else ''} for the "
+                         f"{len(names)} input{'s' if len(names) != 1 else ''} of {sim.name} "
+                         f"({', '.join(names) or 'none'}): one column per input, one row "
+                         f"per step")
     if inputs.ndim == 2 and inputs.shape[0] == 1:
         return inputs[0]
     if inputs.ndim == 2 and inputs.shape[0] > steps:

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from .._errors import SymgroupoidError
-from .._symbols import StepSymbol, greek_spelled
+from .._symbols import StepSymbol, greek_spelled, latex_name
 from ..derivation import PieceRule, as_scalar, call_user, window
 from ._collect import replace_occurrences
 from ._forms import Definition, Form
@@ -68,8 +68,9 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
     if not isinstance(abbreviations, Mapping):
         raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
                                f"callable, got {type(abbreviations).__name__}")
-    taken = {latex(s) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
-                                *step.parameters]}
+    symbols = [*step.knowns, *step.unknowns, *step.fibre_unknowns, *step.parameters,
+               *_printed_pieces(step)]
+    taken = {latex(s) for s in symbols}
     out = []
     for name, value in abbreviations.items():
         if isinstance(name, sp.Symbol):
@@ -85,10 +86,32 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         taken.add(tex)
         if not callable(value):
             value = _abbreviation_value(tex, value)
+            _check_symbols(tex, value, symbols, step)
             if symbol is None and value.free_symbols <= set(step.parameters):
                 symbol = NamedConstant(tex)
         out.append(Abbreviation(tex, symbol, value))
     return out
+
+
+def _printed_pieces(step) -> list:
+    """The pieces q̄, Δq the printing may name, at every subscript it gives them (the
+    window's k ± 1/2, the generic j − 1/2, none): an abbreviation may not print as one."""
+    from ._pieces import pair_coordinates
+
+    labels = [None, half_label("j", 0)] + [half_label("k", o) for o in window(step.order)[0]]
+    return [p for c in pair_coordinates(step.groupoid) for label in labels
+            for p in piece_symbols(c, label)]
+
+
+def _check_symbols(tex: str, value: sp.Expr, symbols: Sequence, step) -> None:
+    """An abbreviation's value reads only the step's symbols and the printed pieces: what
+    else it reads occurs nowhere in the equations (:class:`LatexOptionError`)."""
+    foreign = sorted(value.free_symbols - set(symbols), key=str)
+    if foreign:
+        raise LatexOptionError(f"latex: the abbreviation {tex!r} reads "
+                               f"{', '.join(map(str, foreign))}, not a symbol of {step.name} "
+                               f"(its coordinates, multipliers, inputs and parameters, or the "
+                               f"printed pieces)")
 
 
 #: characters an abbreviation's LaTeX may not hold: they end or break the formula
@@ -101,6 +124,8 @@ def _typeset_name(name: str) -> str:
     it); refused (:class:`LatexOptionError`) when it holds another character outside ASCII,
     one of ``# $ % &`` or unbalanced braces, which no document compiles."""
     tex = ""
+    if len(name) > 1 and greek_spelled(name[0]) != name[0] and name[1:].isdigit():
+        name = latex_name(name)  # a letter and its number, as the coordinates' (θ1: \theta_{1})
     for i, ch in enumerate(name):
         spelled = greek_spelled(ch)
         command = spelled != ch
@@ -152,6 +177,8 @@ def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
             definitions.append(Definition(g_symbol, g_value, frozenset(p for p, _ in pairs),
                                           abbreviation=a.tex))
             generic[g_symbol] = pairs[0][0]
+            for at_j, at_k in _generic_arrow(step, rule, form.unindexed).items():
+                generic.setdefault(at_j, at_k)
         else:
             symbol = a.symbol if a.symbol is not None else StepSymbol(a.tex)
             g_symbol, g_value = symbol, a.value
@@ -182,6 +209,21 @@ def _arrow_in_pieces(step, offset: int, index: str, rule: PieceRule | None,
         coords[c.source], coords[c.target] = rule.coordinates(coords[c.source],
                                                               coords[c.target], mid, diff)
     return tuple(coords)
+
+
+def _generic_arrow(step, rule: PieceRule | None, unindexed: bool = False) -> dict:
+    """The coordinates (and pieces) of the generic arrow g_j, at which a callable's "where"
+    row is written, → the same at the window's first arrow, whose name the row's symbol
+    stands for at k (so that the row is checked at k: :func:`~._rows.checked_form`)."""
+    first = window(step.order)[0][0]
+    at_j = _arrow_in_pieces(step, 0, "j", rule, unindexed)
+    at_k = _arrow_in_pieces(step, first, "k", rule)
+    out = {a: b for a, b in zip(at_j, at_k) if isinstance(a, sp.Symbol) and a != b}
+    if rule is not None:
+        for c in pair_coordinates(step.groupoid):
+            label = None if unindexed else half_label("j", 0)
+            out.update(zip(piece_symbols(c, label), piece_symbols(c, half_label("k", first))))
+    return out
 
 
 def _per_arrow(step, tex: str, fn: Callable, rule: PieceRule | None, unindexed: bool = False):

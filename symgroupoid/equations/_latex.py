@@ -386,19 +386,22 @@ def step_latex(step, document: bool = False, abbreviations=None,
     450), and a "where" list of what was named; a document (:func:`latex_document`) sets a
     line too wide to break smaller.
     """
+    from ._layout import NAME_THE_PARTS
     from ._printing import printed_step
 
     rows = printed_step(step, abbreviations=abbreviations, width=width)
     return rows_latex(rows, document,
-                      f"{step.name}: {len(step)} equations in {len(step.unknowns)} unknowns")
+                      f"{step.name}: {len(step)} equations in {len(step.unknowns)} unknowns",
+                      NAME_THE_PARTS)
 
 
-def rows_latex(rows, document: bool, comment: str) -> str:
+def rows_latex(rows, document: bool, comment: str, remedy: str = "") -> str:
     """Printed rows (:class:`~._layout.PrintedRows`) as an ``align`` environment, or a
-    standalone document (:func:`latex_document`, wide lines set smaller) with ``comment``."""
+    standalone document (:func:`latex_document`, wide lines set smaller) with ``comment``
+    (``remedy``: what the warning of lines that cannot fit advises beside a larger width)."""
     from ._layout import render_align
 
-    body = render_align(rows, document=document)
+    body = render_align(rows, document=document, remedy=remedy)
     return latex_document(body, rows.width, comment) if document else body
 
 

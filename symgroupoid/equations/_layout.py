@@ -515,9 +515,14 @@ class WideLinesWarning(UserWarning):
         self.widths, self.room = widths, room
 
 
-def _warn_wide(lines: list[Line]) -> None:
+#: what a wide line's warning advises, for a printing that takes abbreviations (a step's)
+NAME_THE_PARTS = " or abbreviations= that name their long parts"
+
+
+def _warn_wide(lines: list[Line], remedy: str = "") -> None:
     """A :class:`WideLinesWarning` for the lines of a document that will not fit even at
-    :data:`SMALLEST_SCALE` (none: nothing)."""
+    :data:`SMALLEST_SCALE` (none: nothing); ``remedy`` follows the advice of a larger
+    width (:data:`NAME_THE_PARTS` where the printing takes abbreviations)."""
     wide = [line for line in lines
             if line.over is not None and SMALLEST_SCALE * line.over > line.room + 1.0]
     if not wide:
@@ -528,21 +533,22 @@ def _warn_wide(lines: list[Line]) -> None:
     warnings.warn(WideLinesWarning(
         f"{len(wide)} printed line{'s' if len(wide) > 1 else ''} will not fit the page even "
         f"at half size (the widest {widest.over:.0f} pt where a line has {widest.room:.0f} "
-        f"pt) and would run off it: give a larger width= (a landscape page) or "
-        f"abbreviations= that name their long parts",
+        f"pt) and would run off it: give a larger width= (a landscape page){remedy}",
         [line.over for line in wide], widest.room), stacklevel=caller_level())
 
 
-def render_align(rows: PrintedRows, document: bool = False) -> str:
+def render_align(rows: PrintedRows, document: bool = False, remedy: str = "") -> str:
     """An amsmath ``align`` environment: one numbered row per equation, continuation lines
     and "where" rows unnumbered (``\\notag``), words as ``\\intertext``; in a
     ``document``, lines too wide for the page are set smaller (:func:`_scaled`), and those
-    that will not fit even so are reported with a :class:`WideLinesWarning`."""
+    that will not fit even so are reported with a :class:`WideLinesWarning` (advising
+    ``remedy`` too)."""
     out: list[str] = []
     intro = ""
     laid = lay_out(rows)
     if document:
-        _warn_wide([line for item in laid if not isinstance(item, Text) for line in item.lines])
+        _warn_wide([line for item in laid if not isinstance(item, Text) for line in item.lines],
+                   remedy)
     for item in laid:
         if isinstance(item, Text):
             intro = f"\\intertext{{{item.words}}}\n"

@@ -12,10 +12,11 @@ from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._symbols import StepSymbol, multiplier_symbols
 from ..derivation import momentum_symbols
+from ._denominators import NamedDenominators
 from ._forms import Definition, equals_explicit
 from ._latex import MemoLatexPrinter, NamedOperator
 from ._layout import PrintedRows, Row, Term, Text
-from ._pieces import generic_renaming, indexed_name
+from ._pieces import generic_arrow, generic_renaming, half_label, indexed_name, pair_coordinates
 from ._rows import check_width, definition_rows, multipliers_of, verified_terms
 
 # --- Legendre transforms (seed 000 §3.3) ---------------------------------------------------------
@@ -37,11 +38,16 @@ def legendre_rows(lt, width: float | None = None) -> PrintedRows:
     width = check_width(width)
     printer = MemoLatexPrinter()
     items: list = []
+    named = NamedDenominators({0: lt.arrow}, [*lt.minus, *lt.plus], lt.parameters,
+                              [*lt.arrow, *lt.multipliers, *lt.parameters])
     for sign, forms in (("-", lt.minus), ("+", lt.plus)):
         for a, e in enumerate(forms):
             lhs = printer.doprint(StepSymbol(f"(\\mathbb{{F}}^{{{sign}}}L)_{{{a + 1}}}"))
-            items.append(Row(lhs, verified_terms(e, lt.multipliers, lt.parameters, printer,
-                                                 lhs)))
+            items.append(Row(lhs, verified_terms(named(e), lt.multipliers, lt.parameters,
+                                                 printer, lhs)))
+    if named.used_in(t.expr for row in items for t in row.terms):
+        items.append(Text("where"))
+        items += definition_rows([named.definition(lt.arrow, "k")], lt.parameters, printer)
     return PrintedRows(items, width, printer)
 
 
@@ -78,20 +84,30 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
                   for s, u in zip(momentum_symbols(rank, 1), lp.update)]
     F = {o: sp.MatrixSymbol(indexed_name("\\mathbb{F}^{-}L", label), rank, 1)
          for o, label in ((0, "k"), (1, "k+1"))}
+    named = NamedDenominators({0: g0, 1: g1}, [*lp.momentum, *lp.residuals[rank:]],
+                              step.parameters, [*step.knowns, *step.unknowns,
+                                                *step.fibre_unknowns, *step.parameters],
+                              half_label if pair_coordinates(G) else None)
     shift = dict(zip(g0, g1))
     shift.update(zip(multiplier_symbols(m, 0), multiplier_symbols(m, 1)))
-    momentum = [sp.expand(e) for e in lp.momentum]
+    shift.update(named.shift(0, 1))
+    momentum = [sp.expand(named(e)) for e in lp.momentum]
     layer = {ad: ad_value, F[0]: sp.ImmutableMatrix(momentum),
              F[1]: sp.ImmutableMatrix([e.xreplace(shift) for e in momentum])}
     residual = sp.MatAdd(F[1], sp.MatMul(-1, ad, F[0]))
-    if all(equals_explicit(MatrixElement(residual, a, 0), r, [layer])
+    if all(equals_explicit(MatrixElement(residual, a, 0), r, [layer, named.values])
            for a, r in enumerate(lp.residuals[:rank])):
         items.append(Row("0", [Term(1, F[1]), Term(-1, sp.MatMul(ad, F[0]))]))
-        where = _momentum_definitions(G, momentum, m, printer)
+        where = _momentum_definitions(G, momentum, m, named)
     else:
         where = []
         items += [explicit_row("0", r) for r in lp.residuals[:rank]]
-    items += [explicit_row("0", r) for r in lp.residuals[rank:]]
+    constraints = [named(r) for r in lp.residuals[rank:]]
+    items += [explicit_row("0", r) for r in constraints]
+    if not where and named.used_in(constraints):
+        items.append(Text("where"))
+        items += definition_rows([named.definition(generic_arrow(G))], step.parameters,
+                                 printer)
     momenta = (r"where $\mu_{j}$ is the momentum the integrator carries from step to step: "
                r"the reconstruction solves $(\mathbb{F}^{-}L)_{k+1} = \mu_{k+1}$ for the new "
                r"arrow")
@@ -101,13 +117,18 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
     return PrintedRows(items, width, printer)
 
 
-def _momentum_definitions(G, momentum: Sequence, m: int, printer) -> list[Definition]:
-    """(𝔽⁻L_j)_a = X⃗_a[L + λ_j·φ](g_j) at the generic index j."""
+def _momentum_definitions(G, momentum: Sequence, m: int,
+                          named: NamedDenominators) -> list[Definition]:
+    """(𝔽⁻L_j)_a = X⃗_a[L + λ_j·φ](g_j) at the generic index j, and the named denominator
+    D_j when they read it."""
     rename = generic_renaming(G)
     rename.update({lam: StepSymbol(f"({indexed_name(chr(92) + 'lambda', 'j')})_{{{b + 1}}}")
                    for b, lam in enumerate(multiplier_symbols(m, 0))})
+    rename.update(named.generic(0))
     out = []
     for a, e in enumerate(momentum):
         lhs = StepSymbol(f"({indexed_name(chr(92) + 'mathbb{F}^{-}L', 'j')})_{{{a + 1}}}")
         out.append(Definition(lhs, e.xreplace(rename), frozenset([lhs]), literal=False))
+    if named.used_in(momentum):
+        out.append(named.definition(generic_arrow(G)))
     return out

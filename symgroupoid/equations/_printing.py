@@ -28,13 +28,14 @@ import sympy as sp
 
 from .._arguments import caller_level
 from .._errors import UnsupportedExpressionError, UnsupportedFeatureError
-from ..derivation import PieceRule
+from ..derivation import PieceRule, window
 from ._abbreviations import (
     Abbreviation,
     UnusedAbbreviationWarning,
     abbreviate,
     abbreviations_of,
 )
+from ._denominators import free_name, shared_denominator
 from ._forms import (
     Form,
     action_pieces,
@@ -50,6 +51,7 @@ from ._latex import (
     GroupoidLatexPrinter,
     LatexVerificationError,
     MemoLatexPrinter,
+    latex,
 )
 from ._layout import PrintedRows
 from ._matrix_parts import NOT_IN_PIECES, junction_system
@@ -185,6 +187,7 @@ def chosen_form(step, abbreviations: Mapping | None = None,
         printed = printed_form(staged, step, printer, explicit)
         if printed is not None:
             return printed
+    abbreviations = with_named_denominator(step, abbreviations)
     kept = [collected_form(form, step, printer)
             for form, _ in candidate_forms(step, abbreviations, matrix_form=True)]
     if kept:
@@ -203,6 +206,24 @@ def chosen_form(step, abbreviations: Mapping | None = None,
             return printed
     raise LatexVerificationError(f"{step.name}: the printed equations differ from the "
                                  f"residuals")
+
+
+def with_named_denominator(step, abbreviations: Mapping | None) -> Mapping | None:
+    """``abbreviations`` and, when a polynomial of one arrow divides terms of the residuals
+    more than once (:func:`~._denominators.shared_denominator`), that polynomial named per
+    arrow, under the first name of :data:`~._denominators.NAMES` that neither the step's
+    symbols nor the user's abbreviations print as.  It is not the user's: never reported
+    unused."""
+    arrows = {o: tuple(step.groupoid.named_arrow(o)) for o in window(step.order)[0]}
+    found = shared_denominator(step.residuals, arrows, step.parameters)
+    if found is None:
+        return abbreviations
+    given = dict(abbreviations or {})
+    taken = {a.tex for a in abbreviations_of(given, step)}
+    taken |= {latex(s) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
+                                 *step.parameters]}
+    name = free_name(taken)
+    return given if name is None else {**given, name: found}
 
 
 def candidate_forms(step, abbreviations: Mapping | None = None,

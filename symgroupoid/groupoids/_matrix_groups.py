@@ -47,6 +47,23 @@ _named_basis = functools.cache(named_basis)
 RETRACTIONS = ("cayley", "exp")
 
 
+def _finite_expression(value, what: str, owner: str) -> sp.Expr:
+    """``value`` as a SymPy expression: an :class:`InputTypeError` for what is not a number
+    or expression, a :class:`DomainError` for a number that is not finite (NaN, ±∞)."""
+    from .._errors import DomainError
+
+    try:
+        e = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError, ValueError, AttributeError):
+        e = None
+    if not isinstance(e, sp.Expr):
+        raise InputTypeError(f"{owner}: {what} is {shown_value(value)}, not a number or "
+                             f"expression")
+    if e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
+        raise DomainError(f"{owner}: {what} is {e}, not a finite number")
+    return e
+
+
 def hat3(w: Sequence) -> sp.Matrix:
     """ω ↦ ω̂ with ω̂ v = ω × v (the so(3) hat map, E₁, E₂, E₃ basis).  ``w``: three
     numbers or SymPy scalars (a list, tuple, array or 3-vector); anything else is an
@@ -132,10 +149,23 @@ class MatrixLieGroup(Groupoid):
     @classmethod
     def hat(cls, x: Sequence) -> sp.Matrix:
         """Σ x_a E_a."""
+        x = cls._hat_coordinates(x, len(_basis_of(cls)))
         out = sp.zeros(cls.n, cls.n)
         for xa, E in zip(x, _basis_of(cls)):
             out += xa * E
         return sp.Matrix(out)
+
+    @classmethod
+    def _hat_coordinates(cls, x: Sequence, size: int) -> list:
+        """``x`` as a list of ``size`` coordinates (one per basis element E_a); an
+        :class:`InputTypeError` for what is not a sequence, a :class:`ShapeError` for
+        another length."""
+        owner = f"{cls.__name__}.hat"
+        x = sequence_argument(x, "x", owner=owner)
+        if len(x) != size:
+            raise ShapeError(f"{owner}: x has {len(x)} coordinates, expected {size} (one per "
+                             f"basis element E_a)")
+        return [_finite_expression(v, f"x[{i}]", owner) for i, v in enumerate(x)]
 
     @classmethod
     @functools.cache
@@ -245,11 +275,24 @@ class MatrixLieGroup(Groupoid):
 
     def cayley(self, x: Sequence) -> sp.Matrix:
         """cay(ξ) = (I − ξ/2)⁻¹(I + ξ/2), ξ = Σ x_a E_a (seed 000 §6.1)."""
+        x = self.algebra_coordinates(x)
         return _cayley_template(type(self)).xreplace(dict(zip(_dtau_dummies(type(self)), x)))
 
     def exp(self, x: Sequence) -> sp.Matrix:
         """exp(ξ), ξ = Σ x_a E_a, in closed form."""
+        return self._exp_closed_form(self.algebra_coordinates(x))
+
+    @classmethod
+    def _exp_closed_form(cls, x: Sequence) -> sp.Matrix:
         raise NotImplementedError
+
+    def algebra_coordinates(self, x: Sequence, what: str = "x") -> tuple:
+        """``x`` as the rank coordinates of ξ = Σ x_a E_a: a :class:`ShapeError` for another
+        length, :class:`InputTypeError` for entries that are not numbers or expressions,
+        :class:`DomainError` for a number that is not finite (NaN, ±∞)."""
+        values = self._checked(x, what, self.rank)
+        return tuple(_finite_expression(v, f"{what}[{i}]", self.name)
+                     for i, v in enumerate(values))
 
     def tau(self, x: Sequence) -> sp.Matrix:
         """The retraction in use (``self.retraction``)."""

@@ -27,6 +27,7 @@ class SE2(_SpecialEuclidean):
 
     @classmethod
     def hat(cls, x):
+        x = cls._hat_coordinates(x, 3)
         out = sp.zeros(3, 3)
         out[:2, :2] = SO2.hat([x[0]])
         out[0, 2], out[1, 2] = x[1], x[2]

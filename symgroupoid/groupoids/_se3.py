@@ -32,6 +32,7 @@ class SE3(_SpecialEuclidean):
 
     @classmethod
     def hat(cls, x):
+        x = cls._hat_coordinates(x, 6)
         out = sp.zeros(4, 4)
         out[:3, :3] = hat3(x[:3])
         out[0, 3], out[1, 3], out[2, 3] = x[3], x[4], x[5]

@@ -30,9 +30,6 @@ class SO2(MatrixLieGroup):
         th = x[0]
         return sp.Matrix([[sp.cos(th), -sp.sin(th)], [sp.sin(th), sp.cos(th)]])
 
-    def exp(self, x):
-        return self._exp_closed_form(x)
-
     def cayley_inverse(self, M):
         # on SO(2): cay⁻¹(R) = 2(R − Rᵀ)/(2 + tr R)
         return self.vee(2 * (M - M.T) / (2 + M.trace())).applyfunc(sp.cancel)

@@ -45,9 +45,6 @@ class SO3(MatrixLieGroup):
         W = hat3(x)
         return sp.eye(3) + SinOverTheta(th2) * W + OneMinusCosOverTheta2(th2) * W * W
 
-    def exp(self, x):
-        return self._exp_closed_form(x)
-
     def log_coordinates(self, M):
         """ω with exp(ω̂) = R, θ = |ω| ∈ [0, π] (:func:`so3_log`)."""
         return so3_log(M)

@@ -20,8 +20,8 @@ class _SpecialEuclidean(MatrixLieGroup):
 
     @classmethod
     def hat(cls, x):
-        w, v = cls._split(list(x))
         m = cls.n - 1
+        w, v = cls._split(cls._hat_coordinates(x, len(_basis_of(cls.rot)) + m))
         out = sp.zeros(cls.n, cls.n)
         out[:m, :m] = cls.rot.hat(w)
         out[:m, m] = sp.Matrix(v)
@@ -62,5 +62,4 @@ class _SpecialEuclidean(MatrixLieGroup):
         out[:m, m] = cls._V(w) * sp.Matrix(v)
         return out
 
-    def exp(self, x):
-        return self._exp_closed_form(x)
+

@@ -86,7 +86,8 @@ class MomentumInitializer:
         return out
 
     def _source_values(self, configuration) -> np.ndarray:
-        state = np.full(self.layout.n_known, np.nan)
+        state = np.zeros(self.layout.n_known)
+        given = np.zeros(self.layout.n_known, bool)  # (a NaN value is not a missing one)
         if configuration is None:
             configuration = {}
         if not isinstance(configuration, Mapping):
@@ -110,10 +111,10 @@ class MomentumInitializer:
                                     owner=self.name)
             idx = part.index[o]
             state[idx[idx >= 0]] = arr[idx >= 0] - part.fixed[idx >= 0]
-        values = state[self.source_pos]
-        if np.isnan(values).any():
+            given[idx[idx >= 0]] = True
+        if not given[self.source_pos].all():
             raise InputNameError(f"{self.name}: the configuration needs {names}")
-        return values
+        return state[self.source_pos]
 
     def solve(self, configuration, momentum: Sequence, params: np.ndarray,
               tol: float = 1e-14, max_iterations: int = 50,
