@@ -343,3 +343,32 @@ __all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "caller_level", "c
            "flag_argument", "input_rows", "instance_argument", "integer_argument",
            "name_argument", "names_argument", "path_argument", "real_argument", "real_array",
            "sequence_argument", "shown_value", "where"]
+
+
+def checked_keywords(cls):
+    """A class decorator: a call of ``cls`` with an argument it does not take (a misspelled
+    option, ``maxiter=`` for ``max_iterations=``) or without one it needs is an
+    :class:`~symgroupoid.InputNameError` naming the class and its parameters, not Python's
+    ``TypeError``."""
+    import functools
+    import inspect
+
+    from ._errors import InputNameError
+
+    init = cls.__init__
+    signature = inspect.signature(init)
+
+    @functools.wraps(init)
+    def checked(self, *args, **kwargs):
+        try:
+            signature.bind(self, *args, **kwargs)
+        except TypeError as exc:
+            names = [p for p in signature.parameters if p != "self"
+                     and signature.parameters[p].kind not in (inspect.Parameter.VAR_POSITIONAL,
+                                                              inspect.Parameter.VAR_KEYWORD)]
+            raise InputNameError(f"{cls.__name__}: {exc}".replace("__init__() ", "")
+                                 + f"; its arguments are {', '.join(names)}") from None
+        init(self, *args, **kwargs)
+
+    cls.__init__ = checked
+    return cls

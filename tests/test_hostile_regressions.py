@@ -418,3 +418,18 @@ def test_a_time_step_at_the_smallest_double_is_a_named_boundary_value_failure(mo
         sg.solve_boundary_value(body.euler_lagrange(), np.eye(3), end, 6,
                                 params={"h": 2.2250738585072014e-308}, tol=1e-10,
                                 tol_step=1e-9, max_iterations=30)
+
+
+def test_a_misspelled_option_or_a_missing_argument_is_named():
+    """``NewtonOptions(maxiter=3)`` and a DefinedGroupoid without its identity raised
+    Python's TypeError; a named arrow at offset "x" a TypeError from string concatenation;
+    ``nearest_element`` of a NaN matrix said "got shape (3, 3)"."""
+    with pytest.raises(sg.InputNameError, match="maxiter.*its arguments are tol_residual"):
+        sg.NewtonOptions(maxiter=3)
+    with pytest.raises(sg.InputNameError, match="DefinedGroupoid: missing"):
+        sg.DefinedGroupoid("line", base_names=["q"])
+    line = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    with pytest.raises(sg.ShapeError, match="named_arrow: offset must be an integer"):
+        line.named_arrow("x")
+    with pytest.raises(sg.DomainError, match="non-finite entries at"):
+        sg.SO3("W").nearest_element(np.full((3, 3), np.nan))

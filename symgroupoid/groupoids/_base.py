@@ -35,6 +35,9 @@ from .._errors import CallableError, InputTypeError, ShapeError, SymgroupoidErro
 from .._lambdify import NUMPY_MODULES
 from ._numerics import GroupoidNumerics
 
+#: the largest |offset| of a named arrow g_{k+offset} (a window spans a few arrows)
+MAX_OFFSET = 64
+
 Coords = tuple  # flat tuple of SymPy expressions (or numbers)
 
 
@@ -204,6 +207,10 @@ class Groupoid(GroupoidNumerics, ABC):
 
     def named_arrow(self, offset: int) -> tuple:
         """The arrow g_{k+offset} with every coordinate a named StepSymbol."""
+        from .._arguments import integer_argument
+
+        offset = integer_argument(offset, "offset", minimum=-MAX_OFFSET, maximum=MAX_OFFSET,
+                                  owner=f"{self.name}.named_arrow")
         return self.arrow_from(self.named_source(offset), self.named_fibre(offset))
 
     def symbols_by_name(self, offset: int) -> dict[str, Any]:

@@ -480,9 +480,12 @@ class MatrixLieGroup(Groupoid):
         from .._errors import DomainError, ShapeError
 
         M = real_array(M, "M", owner=self.name)
-        if M.shape != (self.n, self.n) or not np.isfinite(M).all():
-            raise ShapeError(f"{self.name}: nearest_element needs a finite {self.n}×{self.n} "
+        if M.shape != (self.n, self.n):
+            raise ShapeError(f"{self.name}: nearest_element needs a {self.n}×{self.n} "
                              f"matrix, got shape {M.shape}")
+        if not np.isfinite(M).all():
+            raise DomainError(f"{self.name}: nearest_element needs a finite matrix, got "
+                              f"non-finite entries at {np.argwhere(~np.isfinite(M)).tolist()}")
         n = self.n - 1 if self.affine else self.n
         U, _, Vt = np.linalg.svd(M[:n, :n])
         if np.linalg.det(U @ Vt) < 0:

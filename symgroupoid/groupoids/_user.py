@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import callable_argument, name_argument, names_argument
+from .._arguments import callable_argument, checked_keywords, name_argument, names_argument
 from .._errors import (
     AxiomError,
     CallableError,
@@ -23,6 +23,7 @@ from ._base import Groupoid
 RESERVED_NAMES = ("lambda", "λ", "multipliers")
 
 
+@checked_keywords
 class DefinedGroupoid(Groupoid):
     """A groupoid given by callables on coordinate tuples.
 

@@ -6,6 +6,7 @@ import os
 from dataclasses import dataclass
 
 from .._arguments import (
+    checked_keywords,
     choice_argument,
     flag_argument,
     instance_argument,
@@ -15,6 +16,7 @@ from .._arguments import (
 from ..stepper import C_INT_MAX, DEFAULT_OPTIONS
 
 
+@checked_keywords
 @dataclass(frozen=True)
 class NewtonOptions:
     """Newton options of a step (the kernels' ``<prefix>_newton``).
