@@ -362,6 +362,49 @@ def test_garbage_module_with_matching_manifest_is_rebuilt(cache_dir):
     assert list((cache_dir / "tmp").iterdir()) == []
 
 
+def test_a_library_without_the_kernels_entry_points_is_rebuilt(cache_dir, tmp_path):
+    """A valid shared library (with a manifest that hashes it) that is not the kernel: cffi's
+    lookup of the first entry point raised a raw ``ffi.error`` (an internal error on the
+    command line) on every use.  It does not load now (every declared symbol is resolved at
+    load, and the library closed again, so that the rebuilt one at the same path is the one
+    loaded): the entry is rebuilt in the same process."""
+    entry, manifest = _build_without_loading(oscillator(), cache_dir)
+    (tmp_path / "other.c").write_text("int other_symbol(void) { return 1; }\n")
+    subprocess.run(["cc", "-shared", "-fPIC", "-o", str(tmp_path / "other.so"),
+                    str(tmp_path / "other.c")], check=True, timeout=120)
+    _replace_library_consistently(entry, manifest, (tmp_path / "other.so").read_bytes())
+    again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
+    assert (again["builds"], again["loads"]) == (1, 1)
+    assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
+
+
+def test_an_index_entry_naming_a_kernel_of_other_sizes_is_rebuilt(cache_dir):
+    """The index maps a step's inputs to the kernel built for them; one that named another
+    step's kernel (of other sizes) raised ShapeError naming that step, on every use."""
+    cache = toolchain.KernelCache(cache_dir)
+    h = sp.Symbol("h", positive=True)
+
+    def plane(g):
+        (x0, y0), (x1, y1) = g.source, g.target
+        return ((x1 - x0) ** 2 + (y1 - y0) ** 2) / (2 * h) - h * (x0 ** 2 + y0 ** 2) / 2
+
+    other = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x y")), plane,
+                              parameters=[h], name="oscillator").euler_lagrange()
+    for step in (oscillator(), other):
+        flags = toolchain.step_flags(step, None)
+        toolchain.build_step(step, flags, cache, toolchain.input_key(step, flags))
+    step = oscillator()
+    own_key = toolchain.input_key(step, toolchain.step_flags(step, None))
+    index = cache_dir / "index" / f"{own_key}.json"
+    other_key = toolchain.input_key(other, toolchain.step_flags(other, None))
+    other_source = json.loads((cache_dir / "index" / f"{other_key}.json").read_text())
+    index.write_text(json.dumps(other_source))
+    again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
+    assert again["codegen"] == 1 and again["warnings"] == []
+    assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
+    assert json.loads(index.read_text())["source_key"] != other_source["source_key"]
+
+
 def test_kernel_directory_replaced_by_a_file_is_rebuilt(cache_dir):
     entry, _ = _build_without_loading(oscillator(), cache_dir)
     toolchain.remove_tree(entry)

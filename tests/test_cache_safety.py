@@ -575,6 +575,20 @@ def test_a_clear_that_cannot_remove_says_so_and_fails(cache_dir, capsys, monkeyp
     assert entry.is_dir()
 
 
+def test_a_read_only_cache_is_not_taken_for_one_being_built(cache_dir, capsys, monkeypatch):
+    """On a read-only mount the locks cannot be opened, and ``cache clear`` said it left the
+    kernels "being built by another process" before its error.  (The mount is stood for by
+    ``os.access``: this test may run as root.)"""
+    _, entry, _ = built(cache_dir)
+    real_access = os.access
+    monkeypatch.setattr("symgroupoid.runtime.toolchain._maintenance.os.access",
+                        lambda path, mode: False if mode == os.W_OK else real_access(path, mode))
+    monkeypatch.setattr("symgroupoid.runtime.toolchain._maintenance._remove", lambda path: None)
+    status, out, err = cli("cache", "clear", capsys=capsys)
+    assert status == 1 and "being built" not in out + err
+    assert f"could not remove 2 entries ({entry.name}, index/" in err
+
+
 def test_library_defects_are_found_from_the_elf_headers(cache_dir):
     _, entry, manifest = built(cache_dir)
     data = (entry / manifest["library"]).read_bytes()

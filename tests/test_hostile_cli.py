@@ -19,6 +19,7 @@ from __future__ import annotations
 import contextlib
 import io
 import json
+import os
 import shutil
 from pathlib import Path
 
@@ -331,3 +332,34 @@ def test_inputs_for_a_system_without_inputs_are_refused(capsys):
     assert main(["simulate", "spring.py", "--steps", "2", "--inputs", "U.csv"]) == 1
     err = capsys.readouterr().err
     assert "has no inputs" in err and "in that order" not in err, err
+
+
+@pytest.mark.parametrize("option", ["--initial", "--inputs", "boundary"])
+def test_a_device_or_a_fifo_is_not_read_as_an_input_file(option, capsys):
+    """``--initial /dev/zero`` read until the out-of-memory killer ended the process (a
+    FIFO would block for ever); so did a boundary file.  Only regular files are read, up to
+    a size."""
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    os.mkfifo("pipe.csv")
+    for source in ("/dev/zero", "pipe.csv"):
+        if option == "boundary":
+            args = ["bvp", "driven_spring.py", source]
+        elif option == "--inputs":
+            args = ["simulate", "driven_spring.py", "--steps", "2", "--inputs", source]
+        else:
+            args = ["simulate", "driven_spring.py", "--steps", "2", "--initial", source]
+        if option == "--inputs" and source == "/dev/zero":
+            continue  # (its name has no .csv/.npy suffix: refused for that, first)
+        assert main(args) == 1
+        err = capsys.readouterr().err
+        assert "not a regular file" in err and "Traceback" not in err, err
+
+
+def test_an_input_file_larger_than_the_limit_is_refused(capsys, monkeypatch):
+    from symgroupoid.cli import _inputs
+
+    monkeypatch.setattr(_inputs, "JSON_LIMIT", 100)
+    shutil.copy(SPRING, "spring.py")
+    Path("big.json").write_text("[" + ", ".join(["0.0"] * 100) + "]")
+    assert main(["simulate", "spring.py", "--steps", "2", "--initial", "big.json"]) == 1
+    assert "more than the 100 bytes" in capsys.readouterr().err

@@ -464,3 +464,16 @@ def test_a_new_or_empty_cache_root_is_marked_and_an_old_layout_is_adopted(tmp_pa
         check_kernel(STEP.compile(backend="c", cache_dir=old, flags=fresh_flags()))
     assert (old / "CACHEDIR.TAG").is_file()
     assert clear_cache(old).removed == 1
+
+
+def test_emit_c_writes_both_files_or_neither(tmp_path):
+    """A directory in the way of NAME.c: the command failed, and the NAME.h it had just
+    written stayed beside it (``generate`` left half of a seed's pair)."""
+    step, out = STEP, tmp_path / "out"
+    (out / "kernel.c").mkdir(parents=True)
+    with pytest.raises(sg.OutputError, match="kernel.c"):
+        sg.emit_c(step, out / "kernel")
+    assert sorted(p.name for p in out.iterdir()) == ["kernel.c"]
+    assert list((out / "kernel.c").iterdir()) == []
+    c, h = sg.emit_c(step, out / "other")
+    assert c.read_text().startswith("/*") and h.exists()

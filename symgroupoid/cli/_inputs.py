@@ -9,6 +9,8 @@ the same message on the command line as in Python.
 from __future__ import annotations
 
 import json
+import os
+import stat
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -95,13 +97,48 @@ def read_json(path: str | Path, what: str):
         raise InputError(f"{what}: empty (give a JSON file, the JSON text itself or, for "
                          f"--initial, a saved trajectory)")
     path = Path(path)
+    text = read_text_file(path, what, JSON_LIMIT, "a JSON file")
+    return parse_json(text, f"{what} {path}")
+
+
+#: the largest JSON file (an initial state, boundary data) and CSV table of inputs the
+#: command line reads: a state is a few numbers per coordinate; /dev/zero is not a file
+JSON_LIMIT, CSV_LIMIT = 16 * 2**20, 256 * 2**20
+
+
+def checked_input_file(path: Path, what: str, limit: int, kind: str) -> None:
+    """An :class:`InputError` unless ``path`` is a regular file of at most ``limit`` bytes
+    (a device or a FIFO would be read without end or block)."""
     try:
-        text = path.read_text(encoding="utf-8-sig")  # (a byte-order mark is not JSON)
+        info = os.stat(path)
     except FileNotFoundError:
         raise InputError(f"{what} {path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{what} {path}: cannot be read ({exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(f"{what} {path}: not a regular file (give {kind})")
+    if info.st_size > limit:
+        raise InputError(f"{what} {path}: {info.st_size} bytes, more than the "
+                         f"{_size(limit)} the command line reads as {kind}")
+
+
+def _size(limit: int) -> str:
+    return f"{limit // 2**20} MiB" if limit >= 2**20 else f"{limit} bytes"
+
+
+def read_text_file(path: Path, what: str, limit: int, kind: str) -> str:
+    """The text of the regular file ``path`` (:func:`checked_input_file`), a byte-order mark
+    dropped."""
+    checked_input_file(path, what, limit, kind)
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(limit + 1)
+        if len(data) > limit:  # grown since it was looked at
+            raise InputError(f"{what} {path}: more than the {_size(limit)} the command line "
+                             f"reads as {kind}")
+        return data.decode("utf-8-sig")
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(f"{what} {path}: cannot be read ({exc})") from None
-    return parse_json(text, f"{what} {path}")
 
 
 def parse_json(text: str, what: str):
@@ -157,6 +194,7 @@ def initial_data(source: SystemFile, path: str | None, sim):
     if path.lstrip().startswith(("{", "[")):
         return parse_json(path, "--initial")
     if Path(path).suffix == ".npz":
+        checked_input_file(Path(path), "--initial", 2**62, "a trajectory .npz")
         return _saved_state(Path(path), sim)
     return read_json(path, "--initial")
 
@@ -239,15 +277,15 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
     file = Path(path)
     if file.suffix not in (".npy", ".csv"):
         raise InputError(f"--inputs {file}: the file name must end in .npy or .csv")
-    try:
-        if file.suffix == ".npy":
+    if file.suffix == ".npy":
+        checked_input_file(file, "--inputs", 2**62, "a .npy array")
+        try:
             return np.load(file, allow_pickle=False)
-        lines = [line for line in file.read_text(encoding="utf-8-sig").splitlines()
-                 if line.strip() and not line.lstrip().startswith("#")]
-    except FileNotFoundError:
-        raise InputError(f"--inputs {file}: no such file") from None
-    except (OSError, UnicodeDecodeError, ValueError) as exc:
-        raise InputError(f"--inputs {file}: cannot be read ({exc})") from None
+        except (OSError, ValueError) as exc:
+            raise InputError(f"--inputs {file}: cannot be read ({exc})") from None
+    text = read_text_file(file, "--inputs", CSV_LIMIT, "a CSV table (larger: a .npy array)")
+    lines = [line for line in text.splitlines()
+             if line.strip() and not line.lstrip().startswith("#")]
     if lines and not _numeric(lines[0].split(",")[0]):
         header = [cell.strip() for cell in lines.pop(0).split(",")]
         if header != names:

@@ -189,7 +189,7 @@ def build_parser() -> argparse.ArgumentParser:
     del demo
     generate = _command(commands, "generate", run_generate,
                         "emit the C kernels of the seed systems (plate-ball, heavy top, rigid "
-                        "body)")
+                        "body) and of the satellite with a reaction wheel")
     generate.add_argument("outdir", type=path_text, help="output directory (created if missing)")
     return parser
 

@@ -9,6 +9,7 @@ canonical ``cse`` with positional temporary names.
 from __future__ import annotations
 
 import contextlib
+import errno
 import functools
 import hashlib
 import os
@@ -427,16 +428,37 @@ def write_atomic(path: Path, text: str) -> None:
     The file gets the mode an ordinary ``open`` would give it (``0o666`` less the umask),
     not the private ``0o600`` of the temporary file; readers never see a partial file.
     """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    data = text.encode("ascii")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    write_atomic_files([(path, text)])
+
+
+def write_atomic_files(files: Sequence[tuple[Path, str]]) -> None:
+    """Write each ASCII text to its path as :func:`write_atomic` does, all or none: every
+    text goes to a temporary file first (a path that is a directory is refused before
+    anything is written), then the renames; a rename that fails removes the files this
+    call created before it."""
+    for path, _ in files:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if path.is_dir() and not path.is_symlink():
+            raise IsADirectoryError(errno.EISDIR, "a directory is in the way", str(path))
+    temporary: list[str] = []
+    created: list[Path] = []
     try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.chmod(tmp, file_mode())
-        os.replace(tmp, path)
+        for path, text in files:
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+            temporary.append(tmp)
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(text.encode("ascii"))
+            os.chmod(tmp, file_mode())
+        for (path, _), tmp in zip(files, temporary):
+            new = not os.path.lexists(path)
+            os.replace(tmp, path)
+            if new:
+                created.append(path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        for tmp in temporary:
+            Path(tmp).unlink(missing_ok=True)
+        for path in created:
+            path.unlink(missing_ok=True)
         raise
 
 
@@ -481,10 +503,10 @@ def emit_c(step, path: str | os.PathLike, prefix: str | None = None, *,
         raise InputTypeError(f"{step.name}: emit_c: latex must be True or False, got "
                              f"{type(latex).__name__}")
     kernel = generate_c(step, prefix, header_name=h_path.name, latex=latex)
-    for target, text in ((h_path, kernel.header), (c_path, kernel.source)):
-        try:
-            write_atomic(target, text)
-        except OSError as exc:
-            raise OutputError(f"{step.name}: path {str(path)!r}: cannot write {target}: "
-                              f"{exc.strerror or exc}") from exc
+    try:
+        write_atomic_files([(h_path, kernel.header), (c_path, kernel.source)])
+    except OSError as exc:
+        target = exc.filename or path
+        raise OutputError(f"{step.name}: path {str(path)!r}: cannot write {target}: "
+                          f"{exc.strerror or exc}") from exc
     return c_path, h_path

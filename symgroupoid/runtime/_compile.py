@@ -17,7 +17,7 @@ from .._arguments import (
     sequence_argument,
 )
 from .._collector import collector_paused
-from .._errors import InputTypeError
+from .._errors import InputTypeError, ShapeError
 from .._progress import reported
 from ..codegen import KernelSource
 from ._backends import NumpyKernel
@@ -34,6 +34,7 @@ from .toolchain import (
     load_cached,
     load_step,
     missing_instructions,
+    rebuild_step,
     start_openmp_probe,
     step_flags,
     step_kernel,
@@ -61,8 +62,13 @@ def load_c_kernel(step, flags: Sequence[str] | None = None,
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     module, manifest, source_key = load_step(step, flags, cache, source=source,
                                              block_units=block_units)
+    try:
+        kernel = CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns))
+    except (ShapeError, AttributeError):  # the index named a kernel of another step
+        module, manifest, source_key = rebuild_step(step, flags, cache, source=source,
+                                                    block_units=block_units)
+        kernel = CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns))
     entry = cache.entry(source_key)
-    kernel = CKernel(module, manifest["prefix"], len(step.unknowns), len(step.knowns))
     kernel.source_key, kernel.flags, kernel.block_units = source_key, flags, block_units
     return kernel, entry
 

@@ -131,6 +131,7 @@ from ._kernels import (
     kernel_source_of,
     load_cached,
     load_step,
+    rebuild_step,
 )
 from ._library import library_defect, load_extension
 from ._locks import exclusive, key_busy
@@ -163,7 +164,7 @@ __all__ = [
     "default_flags", "entry_defect", "exclusive", "ffi_of", "file_sha256", "find_compiler",
     "fingerprint", "input_key", "kernel_source_of", "key_busy", "library_defect",
     "load_cached", "load_extension", "load_step", "missing_instructions", "module_name",
-    "openmp_available",
+    "openmp_available", "rebuild_step",
     "optimisation_flags", "prepared", "processor_features", "read_json", "remove_tree",
     "sha256_of", "shared_root",
     "source_key_of", "start_openmp_probe", "step_flags", "step_kernel", "step_operations",

@@ -210,6 +210,19 @@ def load_step(step, flags: tuple[str, ...], cache: KernelCache, *,
     return module, manifest, source_key
 
 
+def rebuild_step(step, flags: tuple[str, ...], cache: KernelCache, *,
+                 source: KernelSource | None = None, block_units: bool = True
+                 ) -> tuple[object, dict, str]:
+    """:func:`load_step` without the index: ``step``'s kernel built (or found by its source
+    key) and recorded under its input key again, for an index entry that named a kernel
+    whose sizes or entry points are not the step's (an index file edited by hand, or
+    written by a defective version)."""
+    key = input_key(step, flags, block_units)
+    source_key, manifest = build_step(step, flags, cache, key, kernel=source,
+                                      block_units=block_units)
+    return load_cached(source_key, manifest, cache), manifest, source_key
+
+
 def kernel_source_of(kernel, step) -> KernelSource:
     """The generated C of a loaded kernel (a ``CKernel``: its ``source_key``, ``flags`` and
     ``block_units``): from this process's builds, else generated again from ``step``

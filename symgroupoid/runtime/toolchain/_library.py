@@ -90,6 +90,14 @@ def load_extension(path: Path, name: str, table: dict | None = None
     if defect is not None:
         raise ImportError(f"the kernel library {path} is damaged: {defect}")
     lib = ffi.dlopen(str(path))
+    for symbol in dir(lib):  # every entry point and constant it declares: resolved now
+        try:
+            getattr(lib, symbol)
+        except (ffi.error, AttributeError) as exc:
+            ffi.dlclose(lib)  # or a rebuilt library at this path would get this one again
+            raise ImportError(f"the kernel library {path} lacks {symbol!r}, which its type "
+                              f"table declares: it is not the library built for it "
+                              f"({exc})") from exc
     return types.SimpleNamespace(__name__=name, __file__=str(path), ffi=ffi, lib=lib)
 
 

@@ -145,8 +145,13 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
                              f"): nothing was removed")
         return result  # empty, or only an unmarked cache layout: nothing of ours to remove
     trusted(root, modes=False)  # links, other users' directories: CacheError
+    # a read-only cache: its locks cannot be opened, which is not a build in progress
+    changeable = all(os.access(root / name, os.W_OK) for name in ("kernels", "locks"))
     for entry in _entries(root / "kernels", _KEY):
         if bad_only and entry_defect(entry, entry.name)[0] is not None:
+            continue
+        if not changeable:
+            result.failed.append(entry.name)
             continue
         with key_busy(root, entry.name) as busy:
             if busy:
