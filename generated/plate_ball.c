@@ -2294,7 +2294,7 @@ const char *plate_ball_status_message(int status)
     case PLATE_BALL_SINGULAR_JACOBIAN:
         return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
     case PLATE_BALL_NOT_CONVERGED:
-        return "Newton's method reached its iteration cap (max_iterations updates) without converging";
+        return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case PLATE_BALL_NON_FINITE:
         return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case PLATE_BALL_INVALID_ARGUMENT:
@@ -2302,7 +2302,7 @@ const char *plate_ball_status_message(int status)
     case PLATE_BALL_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case PLATE_BALL_BRANCH_JUMP:
-        return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared; reduce the step)";
+        return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared: reduce the step; or the motion itself runs away faster than its last steps, as a solution that blows up does)";
     default:
         return "unknown status";
     }

@@ -477,3 +477,12 @@ def test_emit_c_writes_both_files_or_neither(tmp_path):
     assert list((out / "kernel.c").iterdir()) == []
     c, h = sg.emit_c(step, out / "other")
     assert c.read_text().startswith("/*") and h.exists()
+
+
+@pytest.mark.parametrize("prefix", ["1bad-prefix", "My_Kernel", "int", "a b"])
+def test_a_prefix_that_is_not_a_c_identifier_is_refused_not_rewritten(prefix, tmp_path):
+    """``emit --prefix 1bad-prefix`` wrote identifiers sg_1bad_prefix_* without a word: a
+    program written against the prefix it asked for would not link."""
+    with pytest.raises(sg.ShapeError, match="is not a prefix of C identifiers"):
+        sg.emit_c(STEP, tmp_path / "out" / "k", prefix=prefix)
+    assert not (tmp_path / "out").exists()

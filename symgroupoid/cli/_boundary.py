@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from .._arguments import counted
 from ..runtime import solve_boundary_value
 from ..verification import verify_stationary
 from ._common import derive, say
@@ -24,9 +25,9 @@ def run_bvp(args: argparse.Namespace) -> int:
     solution = solve_boundary_value(derived.step, problem["start"], problem["end"],
                                     problem["steps"], guess=problem["guess"], params=params,
                                     inputs=inputs, max_iterations=max_iterations)
-    say(f"{derived.step.name}: {solution.steps} steps, converged in {solution.iterations} "
-        f"iterations ({solution.method}) to |F|∞ = {solution.residual_norm:.1e} "
-        f"({solution.seconds:.2f} s)")
+    say(f"{derived.step.name}: {solution.steps} steps, converged in "
+        f"{counted(solution.iterations, 'iteration')} ({solution.method}) to "
+        f"|F|∞ = {solution.residual_norm:.1e} ({solution.seconds:.2f} s)")
     say("|F|∞ by iteration: " + ", ".join(f"{v:.1e}" for v in solution.history))
     say(f"cost Σ L_d = {solution.cost:.12g}; second-order condition: {solution.kind}")
     status = 0

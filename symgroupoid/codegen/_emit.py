@@ -342,6 +342,13 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     kernel cache keeps none); the C is the same with or without it.
     """
     step_argument(step, "generate_c")
+    if prefix is not None:
+        prefix = name_argument(prefix, "prefix", owner=step.name)
+        if c_identifier(prefix) != prefix:
+            raise ShapeError(f"{step.name}: prefix {prefix!r} is not a prefix of C identifiers "
+                             f"as written (lower-case ASCII letters, digits and '_', not "
+                             f"starting with a digit, not a C keyword): it would be "
+                             f"{c_identifier(prefix)!r}; give that, or another")
     prefix = c_identifier(step.name if prefix is None else prefix)
     units = integer_argument(units, "units", minimum=1, maximum=MAX_UNITS, owner=prefix)
     if block_weight is not None:

@@ -14,7 +14,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from .._arguments import input_rows
+from .._arguments import counted, input_rows
 from .._errors import DomainError, ShapeError
 from ._options import NewtonOptions
 from ._runs import OK, RawRun
@@ -37,8 +37,8 @@ def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
     names = ", ".join(layout.input_names)
     if inputs is None:
         raise ShapeError(f"{owner}: the system has inputs ({names}); pass inputs= with one "
-                         f"row of {m} values per step (row j: the input of the arrow step j "
-                         f"computes), or {m} values held for every step")
+                         f"row of {counted(m, 'value')} per step (row j: the input of the arrow "
+                         f"step j computes), or {counted(m, 'value')} held for every step")
     arr = input_rows(inputs, m, steps, owner=owner)
     if arr.ndim != 2 or arr.shape != (steps, m):
         more = (f" ({arr.shape[0]} rows for {steps} steps: row j is the input of the arrow "

@@ -43,8 +43,8 @@ class Status(enum.IntEnum):
         "singular Jacobian: a pivot vanished relative to its equation, so the step equations "
         "do not determine the next state (the discrete Lagrangian is not regular here)")
     NOT_CONVERGED = 2, (
-        "Newton's method reached its iteration cap (max_iterations updates) without "
-        "converging")
+        "Newton's method reached its iteration cap (the max_iterations option: that many "
+        "updates) without converging")
     NON_FINITE = 3, (
         "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the "
         "Newton step or the next state")
@@ -57,7 +57,9 @@ class Status(enum.IntEnum):
     BRANCH_JUMP = 6, (
         "branch jump: the step's solution lies far outside the region the last steps predict, "
         "or on a time groupoid its time step reverses or changes by more than a factor 2 "
-        "(the nearby root of the step equations has disappeared; reduce the step)")
+        "(the nearby root of the step equations has disappeared: reduce the step; or the "
+        "motion itself runs away faster than its last steps, as a solution that blows up "
+        "does)")
     CUT_LOCUS = 7, (
         "the boundary-value path met the cut locus of its chart (a half-turn, where the chart "
         "and the equations are not defined)")

@@ -301,7 +301,7 @@ const char *SG_NAME(status_message)(int status)
     case SG_SINGULAR_JACOBIAN:
         return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
     case SG_NOT_CONVERGED:
-        return "Newton's method reached its iteration cap (max_iterations updates) without converging";
+        return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case SG_NON_FINITE:
         return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case SG_INVALID_ARGUMENT:
@@ -309,7 +309,7 @@ const char *SG_NAME(status_message)(int status)
     case SG_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case SG_BRANCH_JUMP:
-        return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared; reduce the step)";
+        return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared: reduce the step; or the motion itself runs away faster than its last steps, as a solution that blows up does)";
     default:
         return "unknown status";
     }

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..._arguments import input_rows, real_array
+from ..._arguments import counted, input_rows, real_array
 from ..._errors import DomainError, ShapeError
 
 
@@ -50,9 +50,9 @@ def input_table(system, inputs, n_terms: int, *, owner: str) -> np.ndarray:
     listed = ", ".join(names)
     if inputs is None:
         raise ShapeError(f"{owner}: the system has inputs ({listed}); pass inputs= with one "
-                         f"row of {m} values per term of the action ({n_terms} rows: row t "
-                         f"the inputs of the term starting at arrow t), or {m} values held "
-                         f"for every term")
+                         f"row of {counted(m, 'value')} per term of the action ({n_terms} rows: "
+                         f"row t the inputs of the term starting at arrow t), or "
+                         f"{counted(m, 'value')} held for every term")
     arr = input_rows(inputs, m, n_terms, owner=owner)
     if arr.shape != (n_terms, m):
         raise ShapeError(f"{owner}: inputs need shape ({n_terms}, {m}) (one row of the inputs "

@@ -135,7 +135,7 @@ def _failure(kernel: KernelSource, failure: str, output: str,
     else:
         head = f"{kernel.prefix}: the C compiler failed ({failure})."
     isa = added_vector_flags(flags)
-    if isa:
+    if isa and any(flag in output or flag.removeprefix("-m") in output for flag in isa):
         head += (f" The kernel was compiled with {' '.join(isa)} for this processor; "
                  f"SYMGROUPOID_VECTOR_ISA=none builds for the compiler's default target.")
     return CompilationError(f"{head}\nCompiler output:\n{output}\n{NUMPY_HINT}", output=output)
