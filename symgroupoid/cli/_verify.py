@@ -310,6 +310,11 @@ def order_check(source, sim, data, params: dict, steps: int, T: float | None
     where = (f"{step} = T/N, N = {', '.join(map(str, counts))}, T = {T:g}, errors "
              f"{', '.join(f'{e:.1e}' for e in report.errors)} against N = "
              f"{REFERENCE_FACTOR * counts[-1]}")
+    if not any(report.errors):
+        return Check(name, None, f"theoretical {origin.order}; the errors are exactly 0 "
+                                 f"({where}): the scheme is exact on this motion, or at this "
+                                 f"{step} (far beyond the motion's time scales) nothing "
+                                 f"moves; the order cannot be measured here")
     if len(used) < 2:
         return Check(name, None, f"theoretical {origin.order}; the errors are at the "
                                  f"rounding floor ({where}): set a longer HORIZON or a "

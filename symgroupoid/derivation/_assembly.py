@@ -232,7 +232,7 @@ class WindowAction:
 
     def junction_nodes(self, g: Graph, parameters: dict, arrows: dict,
                        multipliers: dict | None, inputs: dict | None = None,
-                       stages: dict | None = None) -> JunctionNodes:
+                       stages: dict | None = None, name: str = "") -> JunctionNodes:
         """The junction variation between the window's arrows at offsets 0 and 1, at arrows
         given as graph nodes (``arrows[o]``: the coordinate nodes of the arrow at offset o;
         any nodes — named knowns and a chart of the unknown for a step, independent inputs
@@ -245,9 +245,10 @@ class WindowAction:
         docs/conventions.md §15).  A forced system's residuals add f⁺(g_0) + f⁻(g_1)
         (:meth:`force_nodes`), with ``inputs[o]`` the nodes of the inputs of the arrow at
         offset o.  With internal stages, ``stages[s]`` are the nodes of ζ_s of the term
-        starting at s, and ``stage_rows[s]`` its rows ∂T_s/∂ζ_s (docs/conventions.md §22)."""
+        starting at s, and ``stage_rows[s]`` its rows ∂T_s/∂ζ_s (docs/conventions.md §22).
+        ``name`` (the step's) prefixes the messages of expressions code cannot evaluate."""
         G, arity, dim = self.groupoid, self.arity, self.groupoid.arrow_dim
-        term = self.term_nodes(g, list(parameters), multipliers is not None)
+        term = self.term_nodes(g, list(parameters), multipliers is not None, name)
         pmap = {g.inputs[p]: n for p, n in parameters.items() if p in g.inputs and
                 g.inputs[p] != n}
 

@@ -84,7 +84,7 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
     stages = ({s: [node_of(z) for z in stage_symbols(len(fs.stages), s)] for s in starts}
               if fs.stages else None)
     jn = action.junction_nodes(g, {p: symbols[p] for p in parameters}, arrow_nodes,
-                               lam_nodes, inputs, stages)
+                               lam_nodes, inputs, stages, name)
     dels = jn.residuals
     stage_rows = [r for s in starts for r in jn.stage_rows[s]]
     constraint_rows = jn.rows[starts[-1]]
