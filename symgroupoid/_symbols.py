@@ -46,6 +46,19 @@ def parse_step(step: str | int) -> int:
 _GREEK_SPELLING = {"lamda": "lambda"}
 
 
+def scalar_expression(value) -> sp.Expr | None:
+    """``value`` as a SymPy scalar expression (a number, a symbol, an expression), or None
+    for anything else (a string, a container, a matrix, an object SymPy does not know):
+    the one reading of "a number or expression" of every argument check."""
+    if isinstance(value, (str, bytes)):
+        return None
+    try:
+        expr = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError, ValueError, AttributeError):
+        return None
+    return expr if isinstance(expr, sp.Expr) else None
+
+
 def greek_spelled(name: str) -> str:
     """``name`` with every Greek letter spelt out as SymPy names it (``θ1`` → ``theta1``,
     ``Ω`` → ``Omega``, ``ϑ`` → ``vartheta``), so that it prints as ``\\theta_{1}``: LaTeX

@@ -444,7 +444,10 @@ def write_atomic_files(files: Sequence[tuple[Path, str]]) -> None:
     anything is written), then the renames; a rename that fails removes the files this
     call created before it."""
     for path, _ in files:
-        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # (e.g. a file where a directory would go): name the file
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
         if path.is_dir() and not path.is_symlink():
             raise IsADirectoryError(errno.EISDIR, "a directory is in the way", str(path))
     temporary: list[str] = []

@@ -20,6 +20,7 @@ from .._errors import (
     UndeclaredSymbolError,
     UnsupportedExpressionError,
 )
+from .._symbols import scalar_expression
 
 #: values that make an expression non-finite, with how messages describe them
 _NON_FINITE = {sp.nan: "nan (not a number)", sp.zoo: "zoo (complex infinity)",
@@ -404,10 +405,6 @@ def as_matrix(system_name: str, what: str, value) -> sp.Matrix:
 
 def _is_scalar_expression(value) -> bool:
     """A number or SymPy scalar expression (not a string, boolean, None or container)."""
-    if isinstance(value, (str, bytes, bool, list, tuple, dict, set)) or value is None:
+    if isinstance(value, (bool, list, tuple, dict, set)) or value is None:
         return False
-    try:
-        expr = sp.sympify(value, strict=True)
-    except (sp.SympifyError, TypeError, ValueError, AttributeError):
-        return False
-    return isinstance(expr, sp.Expr)
+    return scalar_expression(value) is not None

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from .._errors import SymgroupoidError
-from .._symbols import StepSymbol, greek_spelled, latex_name
+from .._symbols import StepSymbol, greek_spelled, latex_name, scalar_expression
 from ..derivation import PieceRule, as_scalar, call_user, window
 from ._collect import replace_occurrences
 from ._forms import Definition, Form
@@ -146,11 +146,8 @@ def _typeset_name(name: str) -> str:
 
 
 def _abbreviation_value(tex: str, value) -> sp.Expr:
-    try:
-        expr = sp.sympify(value, strict=True)
-    except (sp.SympifyError, TypeError, ValueError, AttributeError):
-        expr = None
-    if not isinstance(expr, sp.Expr) or not expr.free_symbols:
+    expr = scalar_expression(value)
+    if expr is None or not expr.free_symbols:
         raise LatexOptionError(f"latex: the abbreviation {tex!r} must stand for a SymPy "
                                f"expression in the step's symbols, or a callable of an arrow; "
                                f"got {value!r}")

@@ -25,6 +25,7 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from .._progress import reported
+from .._symbols import scalar_expression
 from ..derivation import (
     NONHOLONOMIC_METHODS,
     SystemFunctions,
@@ -124,11 +125,7 @@ def _coefficients(name: str, what: str, value, rank: int) -> None:
                              f"{type(value).__name__} {value!r}")
     entries = list(value)
     for j, entry in enumerate(entries):
-        try:
-            expr = sp.sympify(entry, strict=True)
-        except (sp.SympifyError, TypeError, ValueError, AttributeError):
-            expr = None
-        if not isinstance(expr, sp.Expr):
+        if scalar_expression(entry) is None:
             raise InputTypeError(f"{name}: {what}, coefficient {j} is not a real expression: "
                                  f"{type(entry).__name__} {entry!r}")
     check_values(name, what, entries)

@@ -26,7 +26,7 @@ import sympy as sp
 
 from .._arguments import choice_argument, name_argument, sequence_argument, shown_value
 from .._errors import InputTypeError, ShapeError
-from .._symbols import StepSymbol, indexed_symbol, latex_name, subscripted
+from .._symbols import StepSymbol, indexed_symbol, latex_name, scalar_expression, subscripted
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
 from ._matrix_templates import (
@@ -52,11 +52,8 @@ def _finite_expression(value, what: str, owner: str) -> sp.Expr:
     or expression, a :class:`DomainError` for a number that is not finite (NaN, ±∞)."""
     from .._errors import DomainError
 
-    try:
-        e = sp.sympify(value, strict=True)
-    except (sp.SympifyError, TypeError, ValueError, AttributeError):
-        e = None
-    if not isinstance(e, sp.Expr):
+    e = scalar_expression(value)
+    if e is None:
         raise InputTypeError(f"{owner}: {what} is {shown_value(value)}, not a number or "
                              f"expression")
     if e.has(sp.nan, sp.oo, -sp.oo, sp.zoo):
@@ -333,12 +330,8 @@ class MatrixLieGroup(Groupoid):
                              f"{size}")
         out = []
         for i, v in enumerate(values):
-            try:
-                e = sp.sympify(v, strict=True)
-            except (sp.SympifyError, TypeError, ValueError, AttributeError) as exc:
-                raise InputTypeError(f"{self.name}: {what}[{i}] is {v!r}, not a number or "
-                                     f"expression") from exc
-            if not isinstance(e, sp.Expr):
+            e = scalar_expression(v)
+            if e is None:
                 raise InputTypeError(f"{self.name}: {what}[{i}] is {v!r}, not a number or "
                                      f"expression")
             out.append(e)
