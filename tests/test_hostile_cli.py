@@ -356,9 +356,7 @@ def test_a_device_or_a_fifo_is_not_read_as_an_input_file(option, capsys):
 
 
 def test_an_input_file_larger_than_the_limit_is_refused(capsys, monkeypatch):
-    from symgroupoid.cli import _inputs
-
-    monkeypatch.setattr(_inputs, "JSON_LIMIT", 100)
+    monkeypatch.setattr("symgroupoid.cli._inputs.JSON_LIMIT", 100)
     shutil.copy(SPRING, "spring.py")
     Path("big.json").write_text("[" + ", ".join(["0.0"] * 100) + "]")
     assert main(["simulate", "spring.py", "--steps", "2", "--initial", "big.json"]) == 1

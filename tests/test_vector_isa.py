@@ -147,15 +147,26 @@ def test_an_invalid_choice_ends_a_command_with_its_name(tmp_path):
 @needs_cc
 @needs_vector_isa
 def test_a_failed_build_names_the_way_back_to_the_default_target(monkeypatch, tmp_path):
-    """A compiler that rejects a build (here: an unknown option) is reported with the
-    extension the build added and how to build without it (an old compiler may not know it)."""
+    """A compiler that rejects the extension the build added (an old compiler may not know
+    it) is reported with how to build without it; a build that fails for another reason
+    (an unknown option of the user's, the unsafe-math guards) is not: that advice misled."""
     monkeypatch.setenv(toolchain.VECTOR_ISA_ENV, "auto")
     step = spherical_chain(1).euler_lagrange()
-    with pytest.raises(sg.CompilationError, match=f"compiled with {WIDEST}.*"
-                       f"SYMGROUPOID_VECTOR_ISA=none"):
-        step.compile(backend="c", cache_dir=str(tmp_path),
+    old = tmp_path / "old-cc"
+    old.write_text(f'#!/bin/sh\nfor a in "$@"; do [ "$a" = "{WIDEST}" ] && {{ echo "cc: error: '
+                   f'unrecognized command-line option \'{WIDEST}\'" >&2; exit 1; }}; done\n'
+                   f'exec cc "$@"\n')
+    old.chmod(0o755)
+    with monkeypatch.context() as patch:
+        patch.setenv("CC", str(old))
+        with pytest.raises(sg.CompilationError, match=f"compiled with {WIDEST}.*"
+                           f"SYMGROUPOID_VECTOR_ISA=none"):
+            step.compile(backend="c", cache_dir=str(tmp_path / "cache"), flags=["-O1"])
+    with pytest.raises(sg.CompilationError) as info:
+        step.compile(backend="c", cache_dir=str(tmp_path / "cache"),
                      flags=["-O1", "-fno-such-option-for-symgroupoid"])
+    assert "SYMGROUPOID_VECTOR_ISA" not in str(info.value)
     with pytest.raises(sg.CompilationError) as info:  # a target of its own: none added
-        step.compile(backend="c", cache_dir=str(tmp_path),
+        step.compile(backend="c", cache_dir=str(tmp_path / "cache"),
                      flags=["-O1", "-march=x86-64", "-fno-such-option-for-symgroupoid"])
     assert "SYMGROUPOID_VECTOR_ISA" not in str(info.value)
