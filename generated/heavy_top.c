@@ -1900,7 +1900,11 @@ static int heavy_top_cursor_valid(const heavy_top_batch_cursor *cursor, long n_s
            && (cursor->last_kept % every == 0 || cursor->last_kept == n_steps)
            && kept == 1 + cursor->last_kept / every + (cursor->last_kept % every != 0)
            && cursor->carry_iterations >= 0
+           /* at most two tries of at most INT_MAX updates per step since the last kept row
+            * (a larger count would overflow when the next steps are added to it) */
+           && cursor->carry_iterations / (2LL * INT_MAX) <= cursor->done - cursor->last_kept
            && cursor->carry_norm >= 0.0
+           && heavy_top_all_finite(&cursor->carry_norm, 1)
            && heavy_top_all_finite(cursor->known, HEAVY_TOP_N_KNOWNS);
 }
 

@@ -2133,7 +2133,11 @@ static int plate_ball_cursor_valid(const plate_ball_batch_cursor *cursor, long n
            && (cursor->last_kept % every == 0 || cursor->last_kept == n_steps)
            && kept == 1 + cursor->last_kept / every + (cursor->last_kept % every != 0)
            && cursor->carry_iterations >= 0
+           /* at most two tries of at most INT_MAX updates per step since the last kept row
+            * (a larger count would overflow when the next steps are added to it) */
+           && cursor->carry_iterations / (2LL * INT_MAX) <= cursor->done - cursor->last_kept
            && cursor->carry_norm >= 0.0
+           && plate_ball_all_finite(&cursor->carry_norm, 1)
            && plate_ball_all_finite(cursor->known, PLATE_BALL_N_KNOWNS);
 }
 

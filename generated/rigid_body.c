@@ -1885,7 +1885,11 @@ static int rigid_body_cursor_valid(const rigid_body_batch_cursor *cursor, long n
            && (cursor->last_kept % every == 0 || cursor->last_kept == n_steps)
            && kept == 1 + cursor->last_kept / every + (cursor->last_kept % every != 0)
            && cursor->carry_iterations >= 0
+           /* at most two tries of at most INT_MAX updates per step since the last kept row
+            * (a larger count would overflow when the next steps are added to it) */
+           && cursor->carry_iterations / (2LL * INT_MAX) <= cursor->done - cursor->last_kept
            && cursor->carry_norm >= 0.0
+           && rigid_body_all_finite(&cursor->carry_norm, 1)
            && rigid_body_all_finite(cursor->known, RIGID_BODY_N_KNOWNS);
 }
 

@@ -2002,7 +2002,11 @@ static int satellite_wheel_cursor_valid(const satellite_wheel_batch_cursor *curs
            && (cursor->last_kept % every == 0 || cursor->last_kept == n_steps)
            && kept == 1 + cursor->last_kept / every + (cursor->last_kept % every != 0)
            && cursor->carry_iterations >= 0
+           /* at most two tries of at most INT_MAX updates per step since the last kept row
+            * (a larger count would overflow when the next steps are added to it) */
+           && cursor->carry_iterations / (2LL * INT_MAX) <= cursor->done - cursor->last_kept
            && cursor->carry_norm >= 0.0
+           && satellite_wheel_all_finite(&cursor->carry_norm, 1)
            && satellite_wheel_all_finite(cursor->known, SATELLITE_WHEEL_N_KNOWNS);
 }
 

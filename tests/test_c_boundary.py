@@ -107,6 +107,40 @@ def test_kernel_methods_check_their_arrays(backend):
     assert status == INVALID_ARGUMENT
 
 
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_kernel_methods_check_the_widths_of_inputs_and_parameter_tables(backend):
+    """Found with AddressSanitizer: the kernel's ``input_jacobian`` with fewer columns than
+    it writes, ``simulate_inputs`` with rows narrower than the inputs it reads and
+    ``batch_until`` with one parameter row for several runs wrote or read past the end of
+    their arrays (the Simulator passes the right sizes; ``sim.kernel`` is reachable)."""
+    import _systems
+
+    sim = _systems.driven_oscillator().euler_lagrange().compile(backend=backend)
+    kernel = sim.kernel
+    params = sim.parameters({"h": 0.1, "k": 1.0, "c": 0.1})
+    state = sim.state({"x": (1.0, 0.99), "u": [0.0]}, params)
+    u = kernel.predict(state, params)
+    assert kernel.input_jacobian(u, state, params, 2).shape == (1, 2)
+    with pytest.raises(sg.ShapeError, match="input Jacobian has 2 columns"):
+        kernel.input_jacobian(u, state, params, 1)
+    n, upcoming = 4, sim.layout.upcoming_index
+    states, its, norms = np.zeros((n + 1, len(state))), np.zeros(n, np.intc), np.zeros(n)
+    states[0] = state
+    for wide in (np.zeros((n, 2)), np.zeros(n)):
+        with pytest.raises(sg.ShapeError, match=r"not \(steps, 1\)"):
+            kernel.simulate_inputs(states, its, norms, params, wide, upcoming, sim.options,
+                                   kernel.warm_start())
+    with pytest.raises(sg.ShapeError, match=r"inputs must have shape"):
+        kernel.simulate_batch(np.tile(state, (3, 1)), params, n, 1, sim.options,
+                              inputs=np.zeros((3, n, 2)))
+    known0 = np.tile(state, (4, 1))
+    out = kernel.simulate_batch(known0, params, n, 1, sim.options, inputs=np.zeros((n, 1)))
+    for table in (params[None, :], params[:-1]):
+        with pytest.raises(sg.ShapeError, match="parameters of shape|p must have shape"):
+            kernel.batch_until(kernel.batch_cursors(4), known0, table, n, 1, n, sim.options,
+                               out, inputs=np.zeros((n, 1)))
+
+
 def test_c_buffer_accepts_only_the_exact_buffer():
     import cffi
 
@@ -191,6 +225,26 @@ def test_c_status_messages_are_the_python_ones():
     for code, text in STATUS_MESSAGES.items():
         assert ffi.string(lib.rigid_body_status_message(code)).decode() == text
     assert ffi.string(lib.rigid_body_status_message(99)).decode() == "unknown status"
+
+
+@needs_cc
+def test_c_batch_cursors_with_impossible_carries_are_refused():
+    """Found with UndefinedBehaviorSanitizer: a cursor whose count of Newton updates since
+    the last kept row was LLONG_MAX was accepted and overflowed when the next steps were
+    added (signed overflow); a carried residual norm of +inf was accepted too.  Such a
+    cursor describes no run's progress: the run is INVALID_ARGUMENT."""
+    sim = compiled("rigid_body")
+    kernel = sim.kernel
+    state = initial_state(sim, "rigid_body")
+    p = sim.parameters(SEED_DATA["rigid_body"][0])
+    known0 = np.tile(state, (1, 1))
+    for field, value in (("carry_iterations", 2**63 - 1), ("carry_norm", float("inf"))):
+        out, cursors = kernel._batch_buffers(1, 8, 4), kernel.batch_cursors(1)
+        kernel.batch_until(cursors, known0, p, 8, 4, 2, sim.options, out)
+        assert out.status[0] == OK and cursors[0].done == 2
+        setattr(cursors[0], field, value)
+        kernel.batch_until(cursors, known0, p, 8, 4, 8, sim.options, out)
+        assert out.status[0] == INVALID_ARGUMENT, field
 
 
 @needs_cc

@@ -114,6 +114,22 @@ def test_generated_kernel_compiles_strict_c99_without_python(tmp_path, name):
     assert "Python.h" not in source and "#include <Python" not in source
 
 
+@needs_cc
+def test_a_kernel_cut_into_parts_compiles_strict_c99(tmp_path):
+    """Functions cut into parts (kernels of more than 200 statements a function) left
+    parameters unused in some parts: -Wextra -Werror, the embedding example's flags,
+    refused them."""
+    from symgroupoid import systems
+
+    c_path, _ = sg.emit_c(systems.spherical_chain(3, forced=True).euler_lagrange(),
+                          tmp_path / "chain")
+    assert "_part1(" in c_path.read_text()
+    cmd = ["cc", "-std=c99", "-pedantic", "-O0", "-Wall", "-Wextra", "-Werror", "-c",
+           str(c_path), "-o", str(tmp_path / "chain.o")]
+    result = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr
+
+
 def test_non_square_systems_are_rejected():
     step = seed_step("rigid_body")
 

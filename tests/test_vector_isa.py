@@ -118,6 +118,19 @@ def test_the_same_bits_with_and_without_vector_instructions(monkeypatch, tmp_pat
 
 @needs_cc
 @needs_vector_isa
+def test_flags_of_ones_own_keep_the_bits_with_the_added_extension(monkeypatch, tmp_path):
+    """``compile(flags=["-O3"])``: with the AVX-512 the build adds, gcc 12 fused a*b + c
+    (AVX-512F brings its fused multiply-adds), and 381 entries of a plate-ball run differed
+    from the NumPy backend's.  The build adds ``-ffp-contract=off`` with the extension,
+    unless the flags choose a contraction themselves."""
+    monkeypatch.setenv(toolchain.VECTOR_ISA_ENV, "auto")
+    step = spherical_chain(2).euler_lagrange()
+    sim = step.compile(backend="c", cache_dir=str(tmp_path), flags=["-O3"])
+    np.testing.assert_array_equal(trajectory(sim), trajectory(step.compile(backend="numpy")))
+
+
+@needs_cc
+@needs_vector_isa
 def test_a_simulator_sent_elsewhere_is_built_for_that_processor(monkeypatch, tmp_path):
     """A pickled simulator restored where the processor lacks the sender's extension (here:
     the variable set to none) is built again for it, with the same results."""

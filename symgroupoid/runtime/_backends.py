@@ -224,6 +224,7 @@ class _Kernel:
         row k of ``inputs`` in its entries ``upcoming`` (the slot of the next arrow's inputs,
         docs/conventions.md §20), the stored state keeping its own; the warm start is
         carried.  Returns after the first failing step (``failed_step`` its index)."""
+        inputs = self._input_table(inputs, self.n_in)
         for k in range(len(inputs)):
             current = states[k].copy()
             current[upcoming] = inputs[k]
@@ -233,6 +234,23 @@ class _Kernel:
                 return ChunkRun(run.status, k, k, run.last_iterate)
             states[k + 1] = run.states[1]
         return ChunkRun(OK, len(inputs), -1, np.zeros(self.n_u))
+
+    def _parameter_table(self, p: np.ndarray, n_batch: int) -> None:
+        """A :class:`ShapeError` unless ``p`` is one set of parameters or one per run (a
+        single row for several runs would be read past its end)."""
+        if p.shape not in ((self.n_p,), (n_batch, self.n_p)):
+            raise ShapeError(f"{self.name} kernel: parameters of shape {p.shape}, not "
+                             f"({self.n_p},) or ({n_batch}, {self.n_p}): one set, or one "
+                             f"per run")
+
+    def _input_table(self, inputs, m: int) -> np.ndarray:
+        """``inputs`` as a C-contiguous float64 table of one row of ``m`` inputs per step; a
+        :class:`ShapeError` for another shape (a short row would be read past its end)."""
+        inputs = np.ascontiguousarray(inputs, dtype=float)
+        if inputs.ndim != 2 or inputs.shape[1] != m:
+            raise ShapeError(f"{self.name} kernel: inputs of shape {inputs.shape}, not "
+                             f"(steps, {m}): one row of the {m} inputs per step")
+        return inputs
 
     def step_once(self, known: np.ndarray, p: np.ndarray, options: NewtonOptions
                   ) -> tuple[int, np.ndarray]:
@@ -308,10 +326,11 @@ class _Kernel:
         if inputs is None:
             return None
         u = np.ascontiguousarray(inputs, dtype=np.float64)
-        if u.ndim not in (2, 3) or u.shape[-2] != n_steps or (u.ndim == 3
-                                                               and len(u) != n_batch):
-            raise ShapeError(f"inputs must have shape ({n_batch}, {n_steps}, m) or "
-                             f"({n_steps}, m), got {u.shape}")
+        m = self.n_in
+        if u.ndim not in (2, 3) or u.shape[-2:] != (n_steps, m) or (u.ndim == 3
+                                                                     and len(u) != n_batch):
+            raise ShapeError(f"inputs must have shape ({n_batch}, {n_steps}, {m}) or "
+                             f"({n_steps}, {m}), got {u.shape}")
         return u
 
     def _batch_inputs(self, known0, p) -> tuple[np.ndarray, np.ndarray]:
@@ -347,6 +366,7 @@ class _Kernel:
         they continue, bitwise as one call of ``n_steps``.  Each run's progress is
         committed by one assignment of its cursor (a KeyboardInterrupt between two runs
         leaves every run at a consistent step).  ``inputs``: see :meth:`simulate_batch`."""
+        self._parameter_table(p, len(known0))
         for b in range(len(known0)):
             c = cursors[b]
             if c is not None and c.status != OK:
@@ -459,6 +479,7 @@ class NumpyKernel(_Kernel):
         self.step = step
         self.n_u, self.n_k = len(step.unknowns), len(step.knowns)
         self.n_p = len(step.parameters)
+        self.n_in = len(getattr(step, "inputs", ()))
         program = step.program
         args = ["u", "known", "p"]
         self._F = program.numpy_function(["F"], args)
@@ -477,7 +498,11 @@ class NumpyKernel(_Kernel):
         return self._F(u, known, p)[0].reshape(self.n_u)
 
     def _input_jacobian(self, u, known, p, columns: int) -> np.ndarray:
-        return self.step.input_jacobian(u, known, p).reshape(self.n_u, columns)
+        J = self.step.input_jacobian(u, known, p)
+        if J.size != self.n_u * columns:
+            raise ShapeError(f"numpy kernel: the input Jacobian has {J.size // self.n_u} "
+                             f"columns (the inputs of the terms a step reads), not {columns}")
+        return J.reshape(self.n_u, columns)
 
     def _residual_jacobian(self, u, known, p):
         F, J = self._FJ(u, known, p)

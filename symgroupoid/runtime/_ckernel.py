@@ -39,6 +39,8 @@ class CKernel(_Kernel):
         self.n_p = int(getattr(self.lib, f"{prefix.upper()}_N_PARAMETERS")) \
             if n_parameters is None else n_parameters
         self.n_in = int(getattr(self.lib, f"{prefix.upper()}_N_INPUTS", 0))
+        #: the columns <prefix>_input_jacobian writes (the inputs of every term it reads)
+        self.n_input_columns = int(getattr(self.lib, f"{prefix.upper()}_N_INPUT_COLUMNS", 0))
         self._f = {n: getattr(self.lib, f"{prefix}_{n}") for n in (
             "residual", "residual_jacobian", "predict", "next_knowns", "solve_step",
             "simulate", "reconstruct")}
@@ -205,6 +207,7 @@ class CKernel(_Kernel):
             raise ShapeError(f"{self.prefix}: the cursors must come from batch_cursors({B})")
         threads = 0 if threads is None else integer_argument(threads, "threads", minimum=1,
                                                              maximum=MAX_THREADS)
+        self._parameter_table(p, B)
         rows = out.states.shape[1]
         status = fn(
             B, cursors, self._buf(known0, B * self.n_k, "known0"), self._buf(p, p.size, "p"),
@@ -302,7 +305,7 @@ class CKernel(_Kernel):
         the inputs of step k from row k of ``inputs`` (docs/conventions.md §20)."""
         rows = _run_buffers(states, iterations, residual_norms, self.n_k)
         p = real_vector(p, self.n_p, "p")
-        inputs = np.ascontiguousarray(inputs, dtype=float)
+        inputs = self._input_table(inputs, self.n_in)
         if len(inputs) > rows - 1 or not (np.isfinite(states[0]).all()
                                           and np.isfinite(p).all()):
             return ChunkRun(INVALID_ARGUMENT, 0, -1, np.zeros(self.n_u))
@@ -337,6 +340,10 @@ class CKernel(_Kernel):
         return F, J
 
     def _input_jacobian(self, u, known, p, columns: int) -> np.ndarray:
+        if columns != self.n_input_columns or not self.n_input_columns:
+            raise ShapeError(f"{self.prefix}: the kernel's input Jacobian has "
+                             f"{self.n_input_columns} columns (the inputs of the terms a step "
+                             f"reads), not {columns}")
         J = np.empty((self.n_u, columns))
         getattr(self.lib, f"{self.prefix}_input_jacobian")(
             self._buf(u, self.n_u, "u"), self._buf(known, self.n_k, "known"),

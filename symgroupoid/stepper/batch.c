@@ -140,7 +140,11 @@ static int SG_NAME(cursor_valid)(const SG_NAME(batch_cursor) *cursor, long n_ste
            && (cursor->last_kept % every == 0 || cursor->last_kept == n_steps)
            && kept == 1 + cursor->last_kept / every + (cursor->last_kept % every != 0)
            && cursor->carry_iterations >= 0
+           /* at most two tries of at most INT_MAX updates per step since the last kept row
+            * (a larger count would overflow when the next steps are added to it) */
+           && cursor->carry_iterations / (2LL * INT_MAX) <= cursor->done - cursor->last_kept
            && cursor->carry_norm >= 0.0
+           && SG_NAME(all_finite)(&cursor->carry_norm, 1)
            && SG_NAME(all_finite)(cursor->known, SG_N_KNOWNS);
 }
 

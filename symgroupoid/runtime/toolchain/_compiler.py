@@ -63,7 +63,9 @@ def find_compiler() -> str:
 
 def compile_args(flags: Sequence[str]) -> list[str]:
     """The extra compiler arguments of a build: ``flags``, after ``-g0`` unless they ask
-    for debug information themselves (``-g``, ``-ggdb``, ...).
+    for debug information themselves (``-g``, ``-ggdb``, ...), then the vector extension
+    the build adds (:func:`added_vector_flags`) with ``-ffp-contract=off`` unless the flags
+    choose a contraction.
 
     Python's own CFLAGS (passed first, see :func:`build_command`) usually contain ``-g``;
     debug information more than doubles the library's size and slows the build; it changes
@@ -71,7 +73,11 @@ def compile_args(flags: Sequence[str]) -> list[str]:
     """
     flags = list(flags)
     args = flags if any(f.startswith("-g") for f in flags) else ["-g0", *flags]
-    return [*args, *added_vector_flags(flags)]
+    isa = added_vector_flags(flags)
+    chosen = any(f.startswith("-ffp-contract") for f in [*flags, *_environment_flags()])
+    # an extension the build adds may bring fused multiply-adds (AVX-512F does to gcc 12):
+    # no contraction then, unless the flags choose one (the NumPy twin rounds every product)
+    return [*args, *isa, *(() if not isa or chosen else ("-ffp-contract=off",))]
 
 
 def added_vector_flags(flags: Sequence[str]) -> tuple[str, ...]:
