@@ -13,6 +13,7 @@ evaluated.
 from __future__ import annotations
 
 import io
+import warnings
 import re
 
 import numpy as np
@@ -416,3 +417,23 @@ def test_a_callable_abbreviation_on_a_lie_group_is_checked_at_its_arrow():
                                     for a in range(3)})
     assert r"(\Omega_{1})_{j} &= \frac{- (W_{j})_{23} + (W_{j})_{32}}{2 h}" in tex
     assert r"(\Omega_{3})_{k+1}" in tex
+
+
+def test_an_abbreviated_product_is_found_among_more_factors():
+    """``abbreviations={"P": m₂·l}`` was reported unused although −l·m₂·(…) was printed:
+    only sums were looked for inside terms.  The rows at j say which j they stand for."""
+    h, m1, m2, ell = sp.symbols("h m_1 m_2 l", positive=True)
+
+    def L(a):
+        q0, q1 = sp.Matrix(a.source), sp.Matrix(a.target)
+        (x, th), (vx, vth) = (q0 + q1) / 2, (q1 - q0) / h
+        return h * ((m1 + m2) * vx ** 2 / 2 + m2 * ell * vx * vth * sp.cos(th)
+                    + m2 * ell ** 2 * vth ** 2 / 2)
+
+    step = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x theta")), L,
+                             parameters=[h, m1, m2, ell], name="cart").euler_lagrange()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnusedAbbreviationWarning)
+        tex = step.latex(abbreviations={"P": m2 * ell})
+    assert "P &= l m_{2}" in tex and tex.count("l m_{2}") == 1
+    assert r"P \Delta \theta_{k+1/2}" in tex

@@ -20,7 +20,7 @@ from .._errors import SymgroupoidError
 from .._symbols import StepSymbol, greek_spelled, latex_name, scalar_expression
 from ..derivation import PieceRule, as_scalar, call_user, window
 from ._collect import replace_occurrences
-from ._forms import Definition, Form
+from ._forms import Definition, Form, index_range
 from ._latex import NamedConstant, latex
 from ._pieces import (
     arrow_label,
@@ -190,7 +190,10 @@ def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
     # the rows defining the equations' names, then the abbreviations they use, then the rest
     ordered = ([d for d in rows if not d.literal] + definitions
                + [d for d in rows if d.literal])
-    return Form(equations, [layer, *form.layers], ordered, form.intros, generic, form.unindexed)
+    intros = list(form.intros)
+    if intros[:1] == ["where"] and any(callable(a.value) for a in abbreviations):
+        intros[0] = f"where, for {index_range(window(step.order)[0])},"  # rows at j
+    return Form(equations, [layer, *form.layers], ordered, intros, generic, form.unindexed)
 
 
 def _arrow_in_pieces(step, offset: int, index: str, rule: PieceRule | None,

@@ -251,10 +251,30 @@ def _replaced(expr: sp.Expr, value: sp.Expr, symbol: sp.Expr) -> sp.Expr:
         matched = _match_sum(expr, value, symbol)
         if matched is not None:
             return _replaced(matched, value, symbol)
+    if isinstance(expr, sp.Mul) and isinstance(value, sp.Mul):
+        matched = _match_product(expr, value, symbol)
+        if matched is not None:
+            return _replaced(matched, value, symbol)
     args = [_replaced(a, value, symbol) for a in expr.args]
     if all(a is b for a, b in zip(args, expr.args)):
         return expr
     return expr.func(*args)
+
+
+def _match_product(expr: sp.Mul, value: sp.Mul, symbol: sp.Expr) -> sp.Expr | None:
+    """expr / value · symbol if every factor of the product ``value`` (its numeric
+    coefficient aside) is a factor of ``expr`` to at least its positive integer power, else
+    None: a value m₂·l found in the term −l·m₂·Δθ."""
+    _, factors = value.as_coeff_Mul()
+    wanted = factors.as_powers_dict()
+    if len(wanted) < 2:
+        return None
+    have = expr.as_powers_dict()
+    for base, power in wanted.items():
+        held = sp.sympify(have.get(base, 0))
+        if not (power.is_Integer and power > 0 and held.is_Integer and held >= power):
+            return None
+    return expr / value * symbol
 
 
 def _match_sum(expr: sp.Add, value: sp.Add, symbol: sp.Expr) -> sp.Expr | None:

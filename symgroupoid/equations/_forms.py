@@ -231,7 +231,7 @@ def _holder_system(step):
     return None
 
 
-def _index_range(offsets: Sequence[int]) -> str:
+def index_range(offsets: Sequence[int]) -> str:
     return "$j = " + ", ".join(step_label(o) for o in offsets) + "$"
 
 
@@ -250,7 +250,7 @@ def piece_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | None:
         equations = [evaluated_constants(e, values, constants) for e in equations]
     form = Form(equations, [w.values, matrix_values(step) if matrix_form else {}],
                 _piece_definitions(pair_coordinates(step.groupoid), rule),
-                [f"where, for {_index_range(w.offsets)},"], _generic_pieces(step.groupoid))
+                [f"where, for {index_range(w.offsets)},"], _generic_pieces(step.groupoid))
     return form if forces is None else _with_forces(step, form, fs)
 
 
@@ -287,7 +287,7 @@ def derivative_form(step, rule: PieceRule, matrix_form: bool = False) -> Form | 
         instances[generic] = p.at[0]
     for c in coords:
         instances.update(zip(piece_symbols(c, None), piece_symbols(c, half_label("k", 0))))
-    intros = [f"where, for {_index_range(w.offsets)}, $(\\cdot)_{{j-1/2}}$ is taken at the "
+    intros = [f"where, for {index_range(w.offsets)}, $(\\cdot)_{{j-1/2}}$ is taken at the "
               f"pieces of index $j - 1/2$:", "with"]
     form = Form(equations, [layer, w.values],
                 definitions + _piece_definitions(coords, rule, intro=1), intros, instances,

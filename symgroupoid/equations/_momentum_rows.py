@@ -105,7 +105,7 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
     constraints = [named(r) for r in lp.residuals[rank:]]
     items += [explicit_row("0", r) for r in constraints]
     if not where and named.used_in(constraints):
-        items.append(Text("where"))
+        items.append(Text("where, for $j = k+1$,"))
         items += definition_rows([named.definition(generic_arrow(G))], step.parameters,
                                  printer)
     momenta = (r"where $\mu_{j}$ is the momentum the integrator carries from step to step: "
