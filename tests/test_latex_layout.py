@@ -13,8 +13,8 @@ evaluated.
 from __future__ import annotations
 
 import io
-import warnings
 import re
+import warnings
 
 import numpy as np
 import pytest
