@@ -426,7 +426,7 @@ def test_an_abbreviated_product_is_found_among_more_factors():
 
     def L(a):
         q0, q1 = sp.Matrix(a.source), sp.Matrix(a.target)
-        (x, th), (vx, vth) = (q0 + q1) / 2, (q1 - q0) / h
+        (_, th), (vx, vth) = (q0 + q1) / 2, (q1 - q0) / h
         return h * ((m1 + m2) * vx ** 2 / 2 + m2 * ell * vx * vth * sp.cos(th)
                     + m2 * ell ** 2 * vth ** 2 / 2)
 
