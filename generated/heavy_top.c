@@ -647,10 +647,13 @@ static inline void heavy_top_row_updates(double *A, int i, int k0, int k, int k1
     }
 }
 
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__)
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) && defined(__GLIBC__) \
+    && !defined(__AVX2__)
 /* the panel updates also in AVX-512 and AVX2 instructions, the widest the processor has
  * chosen when the kernel is loaded: the same multiplications and subtractions, so the same
- * bits */
+ * bits.  A unit compiled for AVX2 or wider already (the library's builds add the widest
+ * extension the processor has) is its own widest copy: no clones, a third of the
+ * compiler's work on these loops. */
 #define HEAVY_TOP_VECTOR_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
 #else
 #define HEAVY_TOP_VECTOR_CLONES
