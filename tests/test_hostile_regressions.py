@@ -433,3 +433,19 @@ def test_a_misspelled_option_or_a_missing_argument_is_named():
         line.named_arrow("x")
     with pytest.raises(sg.DomainError, match="non-finite entries at"):
         sg.SO3("W").nearest_element(np.full((3, 3), np.nan))
+
+
+def test_an_expression_code_cannot_evaluate_is_named_in_the_users_coordinates():
+    """An undefined function in L, refused when a program is asked for, was shown on the
+    term's internal slot coordinates (``f(_s0_0)``) and without the system's name."""
+    h = sp.Symbol("h", positive=True)
+    f = sp.Function("f")
+    system = sg.DiscreteSystem(
+        sg.PairGroupoid(sg.EuclideanSpace("x")),
+        lambda a: h * (((a.target[0] - a.source[0]) / h) ** 2 / 2 - f(a.source[0])),
+        parameters=[h], name="undef")
+    step = system.euler_lagrange()  # fine for symbolic work
+    with pytest.raises(sg.UnsupportedExpressionError,
+                       match=r"^undef: the Lagrangian: the subexpression f\(x_\{k-1\}\) is an "
+                             r"undefined function"):
+        step.compile(backend="numpy")

@@ -40,7 +40,7 @@ import sympy as sp
 from .._errors import UnsupportedFeatureError
 from .._symbols import multiplier_symbols, stage_symbols
 from ..groupoids import Groupoid
-from ..ir import Graph, forward, from_sympy, gradient
+from ..ir import Context, Graph, forward, from_sympy, gradient
 from ._junction import junction_halves, slot, slot_substitution
 from ._step import SystemFunctions, named, next_arrow, shifted, tidy, window
 
@@ -187,12 +187,18 @@ class WindowAction:
         smap.update({z: g.input(z) for z in fs.stages})
         smap.update({p: g.input(p) for p in parameters})
         memo: dict = {}
-        L = from_sympy(g, fs.lagrangian, smap, f"{where}the Lagrangian", memo)
-        phis = [from_sympy(g, phi, smap, f"{where}constraint {a + 1}", memo)
-                for a, phi in enumerate(fs.constraints)]
+        # (messages show the term's slot coordinates as the arrows g_k, g_{k+1}, …)
+        shown = {c: n for i, s in enumerate(fs.slots)
+                 for c, n in zip(s, self.groupoid.named_arrow(i))}
+
+        def node(expr, what: str) -> int:
+            return from_sympy(g, expr, smap, Context(f"{where}{what}", shown), memo)
+
+        L = node(fs.lagrangian, "the Lagrangian")
+        phis = [node(phi, f"constraint {a + 1}") for a, phi in enumerate(fs.constraints)]
         held = m - fs.n_holonomic
-        rows = phis[:held] + [from_sympy(g, psi, smap, f"{where}holonomic constraint {a + 1}",
-                                         memo) for a, psi in enumerate(fs.rows[held:])]
+        rows = phis[:held] + [node(psi, f"holonomic constraint {a + 1}")
+                              for a, psi in enumerate(fs.rows[held:])]
         lam = [g.input(sp.Dummy(f"lam{a}", real=True)) for a in range(m)]
         T = L
         if with_multipliers and m:

@@ -33,12 +33,12 @@ from ._smooth import (
     smooth_function,
     taylor_coefficients,
 )
-from ._sympy import from_sympy, to_sympy
+from ._sympy import Context, from_sympy, to_sympy
 
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "UnmappedSymbolError",
-    "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret",
+    "Context", "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret",
     "interpret_precise", "jacobian", "partial", "print_c", "rounding_error", "smooth_spec",
     "term_magnitude", "to_sympy",
     # straight-line code of a graph: the C dialect, the plan of its nodes, the writer

@@ -22,9 +22,20 @@ from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW, Graph
 _REFUSED = (sp.Derivative, sp.Integral, sp.Subs, sp.Sum, sp.Product, sp.Limit, sp.Order)
 
 
+class Context(str):
+    """What an expression is, for messages (``"pendulum: the Lagrangian"``), with the names
+    its symbols are shown by: an expression built on internal symbols (a term's slot
+    coordinates) is refused in the names the user knows (the arrow's coordinates)."""
+
+    def __new__(cls, text: str, shown: Mapping | None = None):
+        out = super().__new__(cls, text)
+        out.shown = dict(shown or {})
+        return out
+
+
 def _refuse(expr: sp.Expr, why: str, context: str) -> UnsupportedExpressionError:
     where = f"{context}: " if context else ""
-    shown = str(expr)
+    shown = str(expr.xreplace(getattr(context, "shown", {})))
     if len(shown) > 120:
         shown = shown[:117] + "..."
     return UnsupportedExpressionError(f"{where}the subexpression {shown} {why}")
