@@ -437,3 +437,21 @@ def test_an_abbreviated_product_is_found_among_more_factors():
         tex = step.latex(abbreviations={"P": m2 * ell})
     assert "P &= l m_{2}" in tex and tex.count("l m_{2}") == 1
     assert r"P \Delta \theta_{k+1/2}" in tex
+
+
+def test_a_denominator_of_one_pair_arrow_is_named():
+    """On a pair groupoid a denominator in q_{k−1} and q_k is one arrow's (q_k alone would
+    be two arrows'): a rational potential's (1 + q̄²)² printed as an expanded quartic."""
+    h, kappa = sp.symbols("h kappa", positive=True)
+
+    def L(a):
+        q0, q1 = sp.Matrix(a.source), sp.Matrix(a.target)
+        (p, s), (vp, vs) = (q0 + q1) / 2, (q1 - q0) / h
+        return h * ((vp ** 2 + vs ** 2) / 2 - kappa / (1 + p ** 2 + s ** 2))
+
+    step = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("phi psi")), L,
+                             parameters=[h, kappa], name="rational").euler_lagrange()
+    tex = step.latex()
+    assert "D_{k+1/2}^{2}" in tex and "D_{k-1/2}^{2}" in tex
+    assert (r"D_{j-1/2} &= \left(\frac{\phi_{j-1} + \phi_{j}}{2}\right)^{2} + "
+            r"\left(\frac{\psi_{j-1} + \psi_{j}}{2}\right)^{2} + 1") in tex

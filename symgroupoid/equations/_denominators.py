@@ -88,17 +88,18 @@ def _owners(arrows: Mapping[object, Sequence]) -> dict:
 
 
 def _single_arrow(base: sp.Expr, owners: dict, parameters: set):
-    """The one arrow whose coordinates (with the parameters) are all of ``base``'s symbols,
-    or None."""
+    """The one arrow whose coordinates (with the parameters) hold all of ``base``'s symbols,
+    or None (none does, or several do: on a pair groupoid q_k is a coordinate of g_k and of
+    g_{k+1}, so a polynomial in q_k alone is not one arrow's, one in q_{k−1} and q_k is)."""
     found: set | None = None
     for s in base.free_symbols - parameters:
         keys = owners.get(s)
-        if keys is None or len(keys) != 1:
+        if keys is None:
             return None
         found = set(keys) if found is None else found & keys
         if not found:
             return None
-    return next(iter(found)) if found else None
+    return next(iter(found)) if found is not None and len(found) == 1 else None
 
 
 class NamedDenominators:
