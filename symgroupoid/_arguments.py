@@ -366,8 +366,8 @@ def checked_keywords(cls):
             names = [p for p in signature.parameters if p != "self"
                      and signature.parameters[p].kind not in (inspect.Parameter.VAR_POSITIONAL,
                                                               inspect.Parameter.VAR_KEYWORD)]
-            raise InputNameError(f"{cls.__name__}: {exc}".replace("__init__() ", "")
-                                 + f"; its arguments are {', '.join(names)}") from None
+            raise InputNameError(f"{cls.__name__}: {exc}; its arguments are "
+                                 f"{', '.join(names)}") from None
         init(self, *args, **kwargs)
 
     cls.__init__ = checked

@@ -95,7 +95,7 @@ GROUPS = {"SO2": sg.SO2("a"), "SO3": sg.SO3("R"), "SO3exp": sg.SO3("R", retracti
 
 
 @pytest.mark.parametrize("run", PROFILES)
-@pytest.mark.parametrize("method", ["cayley", "exp", "tau", "hat"])
+@pytest.mark.parametrize("method", ["cayley", "exp", "tau", "hat", "algebra_coordinates"])
 @pytest.mark.parametrize("group", sorted(GROUPS))
 def test_the_maps_from_a_groups_algebra_refuse_junk_by_name(group, method, run):
     """The maps the how-tos build group elements with.  ``SO3.cayley`` with two coordinates
@@ -106,7 +106,11 @@ def test_the_maps_from_a_groups_algebra_refuse_junk_by_name(group, method, run):
     G = GROUPS[group]
 
     def verify(M):
-        assert isinstance(M, sp.MatrixBase) and M.shape == (G.n, G.n), M
+        if method == "algebra_coordinates":  # the checked coordinates themselves
+            assert isinstance(M, tuple) and len(M) == G.rank, M
+            M = sp.Matrix(M)
+        else:
+            assert isinstance(M, sp.MatrixBase) and M.shape == (G.n, G.n), M
         assert not M.has(sp.nan, sp.zoo, sp.oo, -sp.oo), M
         assert not any(isinstance(s, sp.Dummy) for s in M.free_symbols), M
 

@@ -110,11 +110,14 @@ def checked_input_file(path: Path, what: str, limit: int, kind: str) -> None:
     """An :class:`InputError` unless ``path`` is a regular file of at most ``limit`` bytes
     (a device or a FIFO would be read without end or block)."""
     try:
-        info = os.stat(path)
+        _check_regular(os.stat(path), path, what, limit, kind)
     except FileNotFoundError:
         raise InputError(f"{what} {path}: no such file") from None
     except OSError as exc:
         raise InputError(f"{what} {path}: cannot be read ({exc})") from None
+
+
+def _check_regular(info: os.stat_result, path: Path, what: str, limit: int, kind: str) -> None:
     if not stat.S_ISREG(info.st_mode):
         raise InputError(f"{what} {path}: not a regular file (give {kind})")
     if info.st_size > limit:
@@ -127,17 +130,28 @@ def _size(limit: int) -> str:
 
 
 def read_text_file(path: Path, what: str, limit: int, kind: str) -> str:
-    """The text of the regular file ``path`` (:func:`checked_input_file`), a byte-order mark
-    dropped."""
-    checked_input_file(path, what, limit, kind)
+    """The text of the regular file ``path`` of at most ``limit`` bytes, a byte-order mark
+    dropped: opened without blocking (a FIFO), then checked on the descriptor it was
+    opened as (:func:`checked_input_file`'s rules, with nothing swapped in between)."""
     try:
-        with open(path, "rb") as fh:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0)
+                     | getattr(os, "O_CLOEXEC", 0))
+    except FileNotFoundError:
+        raise InputError(f"{what} {path}: no such file") from None
+    except OSError as exc:
+        raise InputError(f"{what} {path}: cannot be read ({exc})") from None
+    with open(fd, "rb") as fh:
+        _check_regular(os.fstat(fd), path, what, limit, kind)
+        try:
             data = fh.read(limit + 1)
-        if len(data) > limit:  # grown since it was looked at
-            raise InputError(f"{what} {path}: more than the {_size(limit)} the command line "
-                             f"reads as {kind}")
+        except OSError as exc:
+            raise InputError(f"{what} {path}: cannot be read ({exc})") from None
+    if len(data) > limit:  # grown since it was looked at
+        raise InputError(f"{what} {path}: more than the {_size(limit)} the command line reads "
+                         f"as {kind}")
+    try:
         return data.decode("utf-8-sig")
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
         raise InputError(f"{what} {path}: cannot be read ({exc})") from None
 
 

@@ -68,8 +68,7 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
     if not isinstance(abbreviations, Mapping):
         raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
                                f"callable, got {type(abbreviations).__name__}")
-    symbols = [*step.knowns, *step.unknowns, *step.fibre_unknowns, *step.parameters,
-               *_printed_pieces(step)]
+    symbols = printed_symbols(step)
     taken = {latex(s) for s in symbols}
     out = []
     for name, value in abbreviations.items():
@@ -93,14 +92,14 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
     return out
 
 
-def _printed_pieces(step) -> list:
-    """The pieces q̄, Δq the printing may name, at every subscript it gives them (the
-    window's k ± 1/2, the generic j − 1/2, none): an abbreviation may not print as one."""
-    from ._pieces import pair_coordinates
-
+def printed_symbols(step) -> list:
+    """The symbols the printing of ``step`` shows: its coordinates, multipliers, inputs and
+    parameters, and the pieces q̄, Δq at every subscript it gives them (the window's k ± 1/2,
+    the generic j − 1/2, none).  No name of the printing's own may print as one of them."""
     labels = [None, half_label("j", 0)] + [half_label("k", o) for o in window(step.order)[0]]
-    return [p for c in pair_coordinates(step.groupoid) for label in labels
-            for p in piece_symbols(c, label)]
+    pieces = [p for c in pair_coordinates(step.groupoid) for label in labels
+              for p in piece_symbols(c, label)]
+    return [*step.knowns, *step.unknowns, *step.fibre_unknowns, *step.parameters, *pieces]
 
 
 def _check_symbols(tex: str, value: sp.Expr, symbols: Sequence, step) -> None:
@@ -167,6 +166,7 @@ def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
     definitions: list[Definition] = []
     equations = list(form.equations)
     generic = dict(form.generic)
+    arrow: dict = {}  # the generic arrow's coordinates → the first window arrow's (once)
     rows = list(form.definitions)
     for a in abbreviations:
         if callable(a.value):
@@ -174,7 +174,8 @@ def abbreviate(form: Form, step, abbreviations: Sequence[Abbreviation],
             definitions.append(Definition(g_symbol, g_value, frozenset(p for p, _ in pairs),
                                           abbreviation=a.tex))
             generic[g_symbol] = pairs[0][0]
-            for at_j, at_k in _generic_arrow(step, rule, form.unindexed).items():
+            arrow = arrow or _generic_arrow(step, rule, form.unindexed)
+            for at_j, at_k in arrow.items():
                 generic.setdefault(at_j, at_k)
         else:
             symbol = a.symbol if a.symbol is not None else StepSymbol(a.tex)

@@ -12,6 +12,7 @@ from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._symbols import StepSymbol, multiplier_symbols
 from ..derivation import momentum_symbols
+from ._abbreviations import printed_symbols
 from ._denominators import NamedDenominators
 from ._forms import Definition, equals_explicit
 from ._latex import MemoLatexPrinter, NamedOperator
@@ -85,8 +86,7 @@ def lie_poisson_rows(lp, width: float | None = None) -> PrintedRows:
     F = {o: sp.MatrixSymbol(indexed_name("\\mathbb{F}^{-}L", label), rank, 1)
          for o, label in ((0, "k"), (1, "k+1"))}
     named = NamedDenominators({0: g0, 1: g1}, [*lp.momentum, *lp.residuals[rank:]],
-                              step.parameters, [*step.knowns, *step.unknowns,
-                                                *step.fibre_unknowns, *step.parameters],
+                              step.parameters, printed_symbols(step),
                               half_label if pair_coordinates(G) else None)
     shift = dict(zip(g0, g1))
     shift.update(zip(multiplier_symbols(m, 0), multiplier_symbols(m, 1)))

@@ -34,6 +34,7 @@ from ._abbreviations import (
     UnusedAbbreviationWarning,
     abbreviate,
     abbreviations_of,
+    printed_symbols,
 )
 from ._denominators import free_name, shared_denominator
 from ._forms import (
@@ -220,9 +221,7 @@ def with_named_denominator(step, abbreviations: Mapping | None) -> Mapping | Non
         return abbreviations
     given = dict(abbreviations or {})
     taken = {a.tex for a in abbreviations_of(given, step)}
-    taken |= {latex(s) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
-                                 *step.parameters]}
-    name = free_name(taken)
+    name = free_name(taken | {latex(s) for s in printed_symbols(step)})
     return given if name is None else {**given, name: found}
 
 
