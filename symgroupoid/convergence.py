@@ -26,30 +26,45 @@ MAX_STEPS = 10**7
 #: runs are simulated in chunks of this many steps (the memory of a run stays bounded)
 CHUNK = 2**16
 
+#: final-time errors below this × max(1, |q(T)|) are at the rounding floor and not fitted
+ORDER_FLOOR = 1e-11
+
 
 @dataclass(frozen=True)
 class ConvergenceReport:
     """Step counts N, step sizes h = T/N, the final-time errors e(h), the orders between
     consecutive step sizes and their least-squares fit ``order``, the scheme's theoretical
-    ``expected`` order (None when not known) and what the errors are measured against."""
+    ``expected`` order (None when not known) and what the errors are measured against.
+
+    The fit leaves out errors at the rounding floor (below :data:`ORDER_FLOOR` ×
+    max(1, |q(T)|)): there they are the rounding the runs accumulate, not the scheme's
+    error, and an order fitted through them means nothing.  ``fitted`` holds the step
+    counts the fit used; with fewer than two, ``order`` is None and ``note`` says why."""
 
     steps: tuple
     step_sizes: tuple
     errors: tuple
     orders: tuple
-    order: float
+    order: float | None
     expected: int | None
     reference: str
     reference_norm: float = 1.0  # |q(T)| of the reference, for the size of the errors
+    fitted: tuple = ()  # the step counts whose errors the fit used
+    note: str = ""  # why errors were left out of the fit, or why there is no order
 
     def __str__(self) -> str:
-        lines = [f"observed order {self.order:.3f}"
-                 + (f" (theoretical {self.expected})" if self.expected else "")
-                 + f", errors against {self.reference}", "       N            h        error"
-                 "    order"]
+        measured = ("order not measured" if self.order is None
+                    else f"observed order {self.order:.3f}")
+        lines = [measured + (f" (theoretical {self.expected})" if self.expected else "")
+                 + f", errors against {self.reference}"]
+        if self.note:
+            lines.append(self.note)
+        lines.append("       N            h        error     order")
         for i, (n, h, e) in enumerate(zip(self.steps, self.step_sizes, self.errors)):
-            order = f"{self.orders[i - 1]:9.3f}" if i else ""
-            lines.append(f"{n:8d} {h:12.4e} {e:12.4e}{order}")
+            order = f" {self.orders[i - 1]:9.3f}" if i and self.orders[i - 1] is not None \
+                else ""
+            left = "" if n in self.fitted else "  (not fitted)"
+            lines.append(f"{n:8d} {h:12.4e} {e:12.4e}{order}{left}")
         return "\n".join(lines)
 
 
@@ -204,12 +219,23 @@ def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int],
         value = final(n)
         errors.append(float(np.linalg.norm(value - target)))
     h = np.array([T / n for n in counts])
-    e = np.array(errors)
-    logs = np.log(np.where(e > 0, e, np.finfo(float).tiny))
-    orders = tuple(float(v) for v in np.diff(logs) / np.diff(np.log(h)))
-    order = float(np.polyfit(np.log(h), logs, 1)[0])
+    norm = float(np.linalg.norm(target))
+    floor = ORDER_FLOOR * max(1.0, norm)
+    above = [i for i, e in enumerate(errors) if e > floor]
+    orders = tuple(None if errors[i] <= floor or errors[i + 1] <= floor else
+                   float(np.log(errors[i + 1] / errors[i]) / np.log(h[i + 1] / h[i]))
+                   for i in range(len(counts) - 1))
+    order, note = None, ""
+    if len(above) >= 2:
+        order = float(np.polyfit(np.log(h[above]), np.log([errors[i] for i in above]), 1)[0])
+    if len(above) < len(counts):
+        note = (f"errors at or below the rounding floor ({floor:.0e}) are not fitted: there "
+                f"they are the rounding the runs accumulate, not the scheme's error")
+        if order is None:
+            note += "; fewer than two remain, so there is no order: take fewer steps or a " \
+                    "longer T"
     return ConvergenceReport(tuple(counts), tuple(h.tolist()), tuple(errors), orders, order,
-                             expected, against, float(np.linalg.norm(target)))
+                             expected, against, norm, tuple(counts[i] for i in above), note)
 
 
-__all__ = ["ConvergenceReport", "convergence_order", "measure_order"]
+__all__ = ["ORDER_FLOOR", "ConvergenceReport", "convergence_order", "measure_order"]

@@ -91,7 +91,31 @@ class _NumericGroupoid:
 
 def _section_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.ndarray:
     """For each basis section, the size (at least 1) of the arrow coordinates its flow moves
-    (positions on a pair groupoid; matrix entries, of size 1, on a Lie group)."""
+    (positions on a pair groupoid; matrix entries, of size 1, on a Lie group).  On a time
+    groupoid the time section ∂/∂t (seed 000 §6.3) is sized by the shortest step instead:
+    L_d reads t only through t_{k+1} − t_k, often as 1/(t_{k+1} − t_k), so a variation of
+    ε·|t| would leave the quadratic regime on a run far from t = 0 (:func:`_time_size`)."""
+    sizes = _coordinate_sizes(ng, arrows, rank)
+    if getattr(ng.G, "timed", False):
+        sizes[0] = _time_size(arrows)
+    return sizes
+
+
+def _time_size(arrows: np.ndarray) -> float:
+    """The shortest step |t_{k+1} − t_k| of a time groupoid's arrows (t_k, t_{k+1}, g), at
+    most the times' size and at least 1e-9 of it (so that ε/4 of it is not lost in t's
+    rounding)."""
+    t = np.abs(arrows[:, :2])
+    top = max(1.0, float(t.max(initial=0.0)))
+    steps = np.abs(arrows[:, 1] - arrows[:, 0])
+    steps = steps[steps > 0]
+    shortest = float(steps.min()) if steps.size else top
+    return min(top, max(shortest, 1e-9 * top))
+
+
+def _coordinate_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.ndarray:
+    """For each basis section, the size (at least 1) of the arrow coordinates its flow
+    moves."""
     q = np.asarray(ng.target(arrows[0]), float)
     q = q / max(1.0, float(np.abs(q).max(initial=0.0)))  # probed where a move of 1e-3 shows
     still = np.asarray(ng.flow(q, np.zeros(rank), 0.0), float)
@@ -273,7 +297,9 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     first-order changes of the single terms — a non-solution gives an O(1) derivative.  At a
     trivial solution (all arrows identities: every term's first-order change vanishes) the
     differences are pure O(ε²), which the extrapolation removes.  The variations have size
-    ε relative to the largest coordinate and multiplier (at least 1).  An action that is not
+    ε relative to the largest coordinate and multiplier (at least 1); on a time groupoid
+    the time's, relative to the shortest step t_{k+1} − t_k (the check does not depend on
+    when the run started).  An action that is not
     finite on the trajectory is a :class:`~symgroupoid.DomainError`.
 
     A forced system (docs/conventions.md §20): each difference quotient gains the forces'

@@ -441,7 +441,7 @@ def test_the_openmp_probe_runs_while_the_c_is_generated(monkeypatch, tmp_path):
     monkeypatch.setattr(_openmp, "_OPENMP", {})
     monkeypatch.setattr(_openmp, "_PENDING", {})
     calls = []
-    real = _openmp._openmp_probe.__wrapped__
+    real = _openmp._openmp_probe
 
     def probe(command):
         calls.append(tuple(command))

@@ -545,3 +545,40 @@ def test_a_damaged_entry_is_rebuilt_not_raised(cache_dir, damage):
         sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1],
         reference_final())
     assert main(["cache", "clear", "--bad"]) == 0
+
+
+TRUNCATING_CC = """#!/bin/sh
+# a compiler that exits 0 and leaves its output cut off (a full disk it does not report)
+out=""; prev=""
+for a in "$@"; do [ "$prev" = "-o" ] && out=$a; prev=$a; done
+cc "$@" || exit $?
+if [ -n "$out" ] && [ -f "$out" ]; then head -c 3000 "$out" > "$out.cut" && mv "$out.cut" "$out"; fi
+exit 0
+"""
+
+
+def test_a_truncated_openmp_probe_is_not_mapped(tmp_path, cache_dir):
+    """(The OpenMP probe loaded its probe.so with ctypes without the ELF check that kernels
+    get: a compiler that exits 0 and leaves a truncated file killed the process with SIGBUS
+    on the first compile.)  The probe now checks it and answers "undetermined", which is not
+    recorded; the kernel's own truncated library is a CompilationError."""
+    wrapper = tmp_path / "truncating-cc"
+    wrapper.write_text(TRUNCATING_CC)
+    wrapper.chmod(0o755)
+    script = OSCILLATOR + """
+from symgroupoid.runtime import CompilationError
+try:
+    sg.compile_step(oscillator("oscillator_cut"), backend="c")
+    print("compiled")
+except CompilationError as exc:
+    print("CompilationError")
+"""
+    env = subprocess_env(60, CC=str(wrapper), SYMGROUPOID_CACHE=str(cache_dir),
+                         SYMGROUPOID_OPENMP=None)
+    done = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    assert done.stdout.split()[-1] == "CompilationError"
+    probes = list((cache_dir / "probes").glob("openmp-*.json"))
+    recorded = [json.loads(p.read_text()) for p in probes]
+    assert not any(r["compiler"] == [str(wrapper)] for r in recorded), recorded

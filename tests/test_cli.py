@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import shlex
 import shutil
+import stat
 import subprocess
 import sys
 from pathlib import Path
@@ -542,3 +544,24 @@ def test_verify_samples_at_most_every_state():
     points = sample_points(case.sim, states, case.sim.parameters(case.params), 10**12,
                            np.random.default_rng(0))
     assert len(points) == len(states)
+
+
+def test_derive_document_replaces_links_and_never_blocks_on_a_fifo(files, tmp_path, capsys):
+    """(``--document`` wrote with ``write_text``: through a symlink into the file it points
+    to, blocking forever on a FIFO.)  It writes as every other output does: a temporary
+    file renamed into place."""
+    target = tmp_path / "elsewhere.tex"
+    target.write_text("keep me")
+    link = tmp_path / "ring.tex"
+    link.symlink_to(target)
+    code, out, _ = run(capsys, "derive", files / "ring.py", "--document", link)
+    assert code == 0 and f"wrote {link}" in out
+    assert target.read_text() == "keep me" and not link.is_symlink()
+    assert link.read_text().startswith("\\documentclass")
+    fifo = tmp_path / "pipe.tex"
+    os.mkfifo(fifo)
+    code, out, _ = run(capsys, "derive", files / "ring.py", "--document", fifo)
+    assert code == 0 and fifo.is_file() and not stat.S_ISFIFO(fifo.stat().st_mode)
+    (tmp_path / "dir.tex").mkdir()
+    code, _, err = run(capsys, "derive", files / "ring.py", "--document", tmp_path / "dir.tex")
+    assert code == 1 and "it is a directory" in one_line_error(err)

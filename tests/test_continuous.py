@@ -212,3 +212,23 @@ def test_noether_of_a_midpoint_step_on_se2_is_decided_at_sampled_arrows():
     assert nq.is_symmetry and "numerical" in nq.verification
     moved = body.noether(lambda q: [1, 0, 0])  # rotation about the body's own origin
     assert not moved.is_symmetry
+
+
+def test_errors_at_the_rounding_floor_give_no_order():
+    """(An order was fitted through errors of 1e-15 and exactly 0: "observed order 0.041"
+    and −1004.7, without a word.)  Errors at the floor are left out of the fit, and with
+    fewer than two left there is no order, and the report says why."""
+    system = _pendulum()
+    sim = system.discretize(sp.Symbol("h", positive=True), "midpoint").euler_lagrange().compile(
+        backend="numpy")
+    p = {"g": 9.81, "h": 0.1}
+    exact = sim.simulate(sim.from_velocity({"theta": 0.3}, [0.5], p), 10, p)["theta"][10]
+    report = sg.convergence_order(system, "midpoint", ({"theta": 0.3}, [0.5]), {"g": 9.81},
+                                  1.0, [10, 20, 40], reference=[exact])
+    assert report.errors[0] == 0 and report.fitted == (20, 40)  # the zero is left out
+    assert report.orders[0] is None and np.isfinite(report.orders[1]) and report.order > -5
+    assert "not fitted" in str(report) and "rounding floor" in report.note
+    flat = sg.convergence_order(system, "midpoint", ({"theta": 0.3}, [0.5]), {"g": 9.81}, 1.0,
+                                [10, 20], reference=[exact])
+    assert flat.order is None and flat.fitted == (20,) and "no order" in flat.note
+    assert str(flat).startswith("order not measured (theoretical 2)")

@@ -445,4 +445,15 @@ def test_the_cli_bvp_takes_inputs(tmp_path, capsys):
                  "--inputs", str(tmp_path / "short.npy")]) != 0
     assert "(6, 1)" in capsys.readouterr().err
     assert main(["bvp", str(tmp_path / "forced.py"), str(tmp_path / "bvp.json")]) != 0
-    assert "has inputs" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "has inputs" in err and "--inputs" in err and "inputs=" not in err
+    # a longer table gives its first rows, as for simulate (docs/cli.md)
+    np.save(tmp_path / "long.npy", np.vstack([U, np.full((4, 1), 9.0)]))
+    longer = tmp_path / "longer.npz"
+    assert main(["bvp", str(tmp_path / "forced.py"), str(tmp_path / "bvp.json"), "--check",
+                 "--inputs", str(tmp_path / "long.npy"), "-o", str(longer)]) == 0
+    printed = capsys.readouterr().out
+    assert "critical point of the discrete Lagrange–d'Alembert principle (forced): yes" \
+        in printed and "of the discrete action" not in printed
+    with np.load(longer) as data:
+        assert np.array_equal(data["arrows"], direct.arrows)

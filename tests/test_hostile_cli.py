@@ -361,3 +361,40 @@ def test_an_input_file_larger_than_the_limit_is_refused(capsys, monkeypatch):
     Path("big.json").write_text("[" + ", ".join(["0.0"] * 100) + "]")
     assert main(["simulate", "spring.py", "--steps", "2", "--initial", "big.json"]) == 1
     assert "more than the 100 bytes" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("content", "message"), [
+    ("", "holds no rows of inputs"),
+    ("u\n", "holds no rows of inputs"),
+    ("1_0\n", "neither the inputs' names nor decimal numbers"),  # float() read it as 10
+    ("0.1\n1_0\n", "row 1 (step 1): '1_0' is not a number"),
+    ("0x1p-3\n", "neither the inputs' names nor decimal numbers"),
+    ("0.1;0.2\n", "neither the inputs' names nor decimal numbers"),
+])
+def test_csv_inputs_are_decimal_numbers(content, message, capsys):
+    """(An empty table was reported as "got shape (0,)", ``1_0`` was read as 10, and a
+    first row of hexadecimal or semicolon-separated numbers as a header naming columns.)"""
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    Path("U.csv").write_text(content)
+    assert main(["simulate", "driven_spring.py", "--steps", "2", "--inputs", "U.csv",
+                 "--backend", "numpy"]) == 1
+    err = capsys.readouterr().err
+    assert message in err and "Traceback" not in err, err
+
+
+def test_a_pickled_npy_is_refused_without_advice_to_unpickle(capsys):
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    np.save("U.npy", np.array([{"u": 1}], dtype=object), allow_pickle=True)
+    assert main(["simulate", "driven_spring.py", "--steps", "2", "--inputs", "U.npy"]) == 1
+    err = capsys.readouterr().err
+    assert "never loaded" in err and "allow_pickle" not in err, err
+
+
+def test_a_bad_initial_in_the_file_is_not_blamed_on_the_option(capsys):
+    """(The file's own INITIAL, with no --initial given, was reported as "--initial: …".)"""
+    text = (REPO / "examples" / "cli" / "pendulum_order4.py").read_text()
+    Path("pendulum.py").write_text(text.replace('"velocity": [0.5]}',
+                                                '"velocity": [0.5], "extra": 1}'))
+    assert main(["simulate", "pendulum.py", "--steps", "2", "--backend", "numpy"]) == 1
+    err = capsys.readouterr().err
+    assert "the file's INITIAL: a state from a velocity" in err and "--initial" not in err, err

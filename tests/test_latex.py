@@ -236,3 +236,31 @@ def test_latex_prints_expressions_numbers_and_containers_and_refuses_unknown_set
         r"\left[ x^{2}, \  1.5, \  \left\{ x : 2\right\}\right]"
     with pytest.raises(LatexOptionError, match="Unknown setting 'colour'"):
         sg.latex(x, colour="red")
+
+
+def test_the_printed_forms_zero_test_agrees_with_cancel():
+    """The exact identity test of the printed forms (``equals_explicit``) brings a
+    difference over the lcm of its factored denominators instead of SymPy's ``together``
+    (seconds per row on SE(3) in Cayley coordinates, where the denominators are powers of
+    1 + tr g in several expanded forms): the same verdict as ``cancel(together(·))`` on
+    random rational differences, None where it is not rational over Q."""
+    import random
+
+    from symgroupoid._rational import vanishes
+
+    x, y, z = sp.symbols("x y z")
+    D = 1 + x + y + z
+    assert vanishes(sp.expand(2 / (2 * D ** 2) - 1 / sp.expand(D ** 2))) is True
+    assert vanishes(sp.expand(x / (x ** 2 - 1) - 1 / (2 * (x + 1)) - 1 / (2 * (x - 1))))
+    assert vanishes(sp.expand(1 / (x + 1) - 1 / (x + 2))) is False
+    assert vanishes(sp.sqrt(2) / (x + 1)) is None and vanishes(sp.sin(x) / (x + 1)) is None
+    rng = random.Random(7)
+    atoms = [x, y, z, D, 1 + x * y, x - z]
+    for _ in range(10):
+        terms = [sp.Rational(rng.randint(-3, 3), rng.randint(1, 3)) * rng.choice(atoms)
+                 / rng.choice(atoms[3:]) ** rng.randint(1, 2) for _ in range(3)]
+        e = sp.Add(*terms)
+        together = sp.together(e)
+        for candidate in (e - together, e - together + x / D):
+            difference = sp.expand(candidate)
+            assert vanishes(difference) == (sp.cancel(sp.together(difference)) == 0)

@@ -92,3 +92,26 @@ def test_lie_group_and_time_dependent_trajectories_are_stationary():
     arrows[4, 1] += 1e-4  # shift one intermediate time: no longer critical
     arrows[5, 0] += 1e-4
     assert not sg.verify_stationary(arrows, timed, []).stationary
+
+
+def test_time_groupoid_check_does_not_depend_on_when_the_run_started():
+    """L_d reads t through t_{k+1} − t_k: the same run started at t = 100 (a run resumed
+    later) is as stationary as at t = 0, and a shifted intermediate time still fails.  (The
+    time section was varied by ε·|t|, 0.1 at t = 100 against steps of 0.05.)"""
+    inertia = sp.diag(1, 2, 3)
+
+    def L_t(g):
+        dt = g.t1 - g.t0
+        xi = g.coordinates / dt
+        return dt * (xi.T * inertia * xi)[0, 0] / 2
+
+    timed = sg.DiscreteSystem(sg.TimeGroupoid(sg.SO3("W")), L_t, name="adaptive_late")
+    W = np.array(sg.SO3("W").cayley([0.02, 0.05, -0.03]).tolist(), float)
+    arrows = _march(timed.euler_lagrange(), np.concatenate([[0.0, 0.05], W.ravel()]), [], 8)
+    for start in (100.0, 1e4):
+        late = arrows.copy()
+        late[:, :2] += start
+        assert sg.verify_stationary(late, timed, []).stationary, start
+        late[4, 1] += 1e-4
+        late[5, 0] += 1e-4
+        assert not sg.verify_stationary(late, timed, []).stationary, start

@@ -10,6 +10,7 @@ be saved only from the command line.
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -409,6 +410,11 @@ def test_loading_never_runs_code_and_refuses_damaged_files(tmp_path):
         sg.Trajectory.load(tmp_path / "junk.npz", sim)
     with pytest.raises(sg.TrajectoryFileError, match="no such file"):
         sg.Trajectory.load(tmp_path / "absent.npz", sim)
+    (tmp_path / "folder.npz").mkdir()
+    os.mkfifo(tmp_path / "pipe.csv")
+    for special in ("folder.npz", "pipe.csv"):  # (they were reported as "no such file")
+        with pytest.raises(sg.TrajectoryFileError, match="not a regular file"):
+            sg.Trajectory.load(tmp_path / special, sim)
     with pytest.raises(sg.InputTypeError, match="Simulator or the step equations"):
         sg.Trajectory.load(good, "ring")
 

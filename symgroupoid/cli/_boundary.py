@@ -9,6 +9,7 @@ from .._arguments import counted
 from ..runtime import solve_boundary_value
 from ..verification import verify_stationary
 from ._common import derive, say
+from ._errors import InputError
 from ._inputs import boundary_problem, parameters, parse_count, read_inputs
 from ._output import check_format, write_solution
 
@@ -19,8 +20,7 @@ def run_bvp(args: argparse.Namespace) -> int:
     max_iterations = parse_count(args.max_iterations, "max-iterations")
     derived = derive(args.system)
     params = parameters(derived.source, args.params, extra=problem["params"])
-    inputs = read_inputs(getattr(args, "inputs", None),
-                         [str(u) for u in getattr(derived.system, "inputs", ())])
+    inputs = _problem_inputs(args, derived, problem["steps"])
     say(f"{derived.step.name}: derived in {derived.seconds:.2f} s")
     solution = solve_boundary_value(derived.step, problem["start"], problem["end"],
                                     problem["steps"], guess=problem["guess"], params=params,
@@ -34,10 +34,32 @@ def run_bvp(args: argparse.Namespace) -> int:
     if args.check:
         report = verify_stationary(solution, derived.system)
         verdict = "yes" if report else "NO"
-        say(f"critical point of the discrete action: {verdict} (dS/dt extrapolated "
+        principle = ("the discrete Lagrange–d'Alembert principle (forced)"
+                     if getattr(derived.system, "forces", None) is not None
+                     else "the discrete action")
+        say(f"critical point of {principle}: {verdict} (dS/dt extrapolated "
             f"{report.extrapolated:.1e}, terms {report.scale:.1e})")
         status = 0 if report else 1
     if out is not None:
         write_solution(out, solution)
         say(f"wrote {out}")
     return status
+
+
+def _problem_inputs(args: argparse.Namespace, derived, steps: int):
+    """The inputs of the problem's N − a + 1 terms (a the order) from ``--inputs``, as
+    ``simulate`` reads them: a longer table gives its first rows, a single row is held
+    (docs/cli.md); a system with inputs needs the option."""
+    names = [str(u) for u in getattr(derived.system, "inputs", ())]
+    path = getattr(args, "inputs", None)
+    inputs = read_inputs(path, names)
+    terms = steps - derived.step.order + 1
+    if inputs is None and names:
+        raise InputError(f"{derived.step.name} has inputs ({', '.join(names)}): give their "
+                         f"sequence with --inputs U.npy|U.csv, one row per term of the action "
+                         f"(at least {terms} rows; row t: the inputs of the term starting at "
+                         f"arrow t), or one row held for every term")
+    if inputs is not None and inputs.ndim == 2 and inputs.shape[0] > terms \
+            and inputs.shape[1] == len(names):
+        return inputs[:terms]
+    return inputs

@@ -14,6 +14,7 @@ from pathlib import Path
 from .._arguments import counted
 from .._progress import Task
 from ..equations import LatexOptionError, UnusedAbbreviationWarning
+from ..runtime import atomic_write, output_problem
 from ._common import Derived, derive, file_stem, say
 from ._errors import ExternalToolError, InputError, LostContentError
 
@@ -161,8 +162,13 @@ def run_derive(args: argparse.Namespace) -> int:
         raise InputError(f"--document {tex}: the file name must end in .tex")
     if not tex.parent.is_dir():
         raise InputError(f"--document {tex}: the directory {tex.parent} does not exist")
+    problem = output_problem(tex)
+    if problem is not None:
+        raise InputError(f"--document {tex}: {problem}")
     printed = _latex(derived, document=True)
-    tex.write_text(printed.text, encoding="utf-8")
+    # through a temporary file and a rename: never through a link, never into a FIFO, and a
+    # full disk keeps the old document (an OutputError naming the file)
+    atomic_write(tex, lambda f: f.write(printed.text), binary=False)
     for line in [*lines, *printed.lines()]:
         say(line)
     say(f"wrote {tex}")

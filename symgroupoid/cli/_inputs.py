@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 from collections.abc import Mapping
 from pathlib import Path
@@ -213,6 +214,12 @@ def initial_data(source: SystemFile, path: str | None, sim):
     return read_json(path, "--initial")
 
 
+def initial_origin(path: str | None) -> str:
+    """How messages name where an initial state came from: ``--initial``, else the system
+    file's ``INITIAL``."""
+    return "--initial" if path is not None else "the file's INITIAL"
+
+
 def initial_state(sim, data, params, *, origin: str = "--initial", project: bool = False
                   ) -> np.ndarray:
     """The flat initial state of ``sim`` from ``data`` (see docs/cli.md):
@@ -296,12 +303,18 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
         try:
             return np.load(file, allow_pickle=False)
         except (OSError, ValueError) as exc:
-            raise InputError(f"--inputs {file}: cannot be read ({exc})") from None
+            why = ("it holds Python objects (pickled data), which are never loaded: save an "
+                   "array of numbers" if "pickle" in str(exc) else str(exc))
+            raise InputError(f"--inputs {file}: cannot be read ({why})") from None
     text = read_text_file(file, "--inputs", CSV_LIMIT, "a CSV table (larger: a .npy array)")
     lines = [line for line in text.splitlines()
              if line.strip() and not line.lstrip().startswith("#")]
-    if lines and not _numeric(lines[0].split(",")[0]):
+    if lines and not _numeric(lines[0].split(",")[0].strip()):
         header = [cell.strip() for cell in lines.pop(0).split(",")]
+        if not all(cell.isidentifier() for cell in header):
+            raise InputError(f"--inputs {file}: the first row ({', '.join(header)}) is "
+                             f"neither the inputs' names nor decimal numbers separated by "
+                             f"commas")
         if header != names:
             raise InputError(f"--inputs {file}: the header names the columns "
                              f"{', '.join(header)}; the system's inputs are "
@@ -314,6 +327,9 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
                                  f"number")
     if len({len(row) for row in rows}) > 1:
         raise InputError(f"--inputs {file}: the rows have different numbers of columns")
+    if not rows:
+        raise InputError(f"--inputs {file}: holds no rows of inputs (one row per step, one "
+                         f"column per input: {', '.join(names) or 'none'})")
     return np.array([[float(cell) for cell in row] for row in rows], dtype=float)
 
 
@@ -353,12 +369,13 @@ def run_inputs(path: str | None, sim, steps: int) -> np.ndarray | None:
     return inputs
 
 
+#: a decimal number as a CSV cell holds it (Python's float() also reads 1_0 as 10)
+_DECIMAL = re.compile(r"[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?|[+-]?(inf|infinity|nan)",
+                      re.IGNORECASE)
+
+
 def _numeric(text: str) -> bool:
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
+    return _DECIMAL.fullmatch(text) is not None
 
 
 def boundary_problem(path: str) -> dict:

@@ -10,7 +10,14 @@ import numpy as np
 from .._errors import NewtonDivergenceError, SingularJacobianError
 from ..runtime import constraint_check
 from ._common import derive, say, stepper, warn
-from ._inputs import initial_data, initial_state, parameters, parse_count, run_inputs
+from ._inputs import (
+    initial_data,
+    initial_origin,
+    initial_state,
+    parameters,
+    parse_count,
+    run_inputs,
+)
 from ._newton import newton_options
 from ._output import check_format, write_trajectory
 
@@ -86,7 +93,8 @@ def run_simulate(args: argparse.Namespace) -> int:
     say(f"{sim.name}: derived in {derived.seconds:.2f} s; {built.describe()}")
     params = parameters(derived.source, args.params)
     data = initial_data(derived.source, args.initial, sim)
-    state = initial_state(sim, data, params, project=args.project)
+    state = initial_state(sim, data, params, project=args.project,
+                          origin=initial_origin(args.initial))
     inputs = run_inputs(args.inputs, sim, steps)
     t0 = time.perf_counter()
     try:

@@ -29,7 +29,7 @@ import sympy as sp
 
 from .._errors import SymgroupoidError
 from .._lambdify import NUMPY_MODULES
-from ..convergence import REFERENCE_FACTOR, measure_order
+from ..convergence import ORDER_FLOOR, REFERENCE_FACTOR, measure_order
 from ..equations import DiscreteSystem
 from ..verification import verify_stationary
 from ._common import derive, say, stepper
@@ -37,6 +37,7 @@ from ._errors import InputError
 from ._inputs import (
     first_inputs,
     initial_data,
+    initial_origin,
     initial_state,
     parameters,
     parse_count,
@@ -60,8 +61,6 @@ SPREAD = 0.1
 ORDER_TOLERANCE = 0.1
 #: the step counts of the order measurement, in multiples of --steps
 ORDER_MULTIPLES = (1, 2, 4)
-#: final-time errors below this × max(1, |q(T)|) are at the rounding floor and not fitted
-ORDER_FLOOR = 1e-11
 #: errors of N … 4N steps within this factor of each other do not shrink with N (a scheme
 #: of order 1 would divide them by 4): the runs' accumulated rounding, however large
 FLAT_ERRORS = 2.0
@@ -351,7 +350,8 @@ def run_verify(args: argparse.Namespace) -> int:
     p = sim.parameters(params)
     T = order_horizon(derived.source, params, steps, args.horizon)
     data = initial_data(derived.source, args.initial, sim)
-    state = initial_state(sim, data, params, project=args.project)
+    state = initial_state(sim, data, params, project=args.project,
+                          origin=initial_origin(args.initial))
     inputs = run_inputs(args.inputs, sim, steps)
     declared = declared_noether(derived.source) if isinstance(system, DiscreteSystem) else []
     checks: list[Check] = []

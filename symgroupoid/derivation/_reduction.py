@@ -26,6 +26,7 @@ import sympy as sp
 
 from .._errors import DomainError, MorphismError, ShapeError
 from .._lambdify import NUMPY_MODULES
+from .._rational import vanishes
 from ..groupoids import GroupoidMorphism, ParameterValues
 from ._callables import as_scalar, as_scalar_list, call_user
 from ._forces import ForceFunctions
@@ -104,8 +105,12 @@ def _is_zero(e: sp.Expr) -> bool:
     """A cheap proof that e ≡ 0: expansion, then (for small rational expressions) cancelling
     over a common denominator.  Identities that need the manifold's equations (RᵀR = I) or
     trigonometric identities are left to the numeric check."""
-    if e == 0 or sp.expand(e) == 0:
+    expanded = sp.expand(e)
+    if e == 0 or expanded == 0:
         return True
+    zero = vanishes(expanded)
+    if zero is not None:
+        return zero
     if sp.count_ops(e) > SIMPLIFY_LIMIT or e.has(sp.Function):
         return False
     return sp.cancel(sp.together(e)) == 0

@@ -33,7 +33,7 @@ from .._arguments import (
     sequence_argument,
     shown_value,
 )
-from .._errors import CallableError, InputTypeError, ShapeError
+from .._errors import CallableError, DomainError, InputTypeError, ShapeError
 
 _RULES = ("midpoint", "trapezoid")
 
@@ -75,6 +75,9 @@ def _step_argument(h, owner: str) -> sp.Expr:
             or value.is_real is False:
         raise InputTypeError(f"{owner}: h must be the time step (a SymPy symbol, as a rule), "
                              f"got {type(h).__name__} {shown_value(h)}")
+    if value.is_number and not (value.is_finite and value.is_positive):
+        raise DomainError(f"{owner}: the time step h must be positive and finite, got "
+                          f"{shown_value(h)}")
     return value
 
 

@@ -23,6 +23,7 @@ import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._errors import CallableError
+from .._rational import vanishes
 from .._symbols import StepSymbol, latex_name, step_label
 from ..derivation import (
     PieceRule,
@@ -104,6 +105,9 @@ def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mappin
     difference = sp.expand(explicit_value(printed, layers) - sp.expand(explicit))
     if difference == 0:
         return True
+    zero = vanishes(difference)  # over the factored denominators' lcm, as polynomials
+    if zero is not None:
+        return zero
     return sp.cancel(sp.together(difference)) == 0
 
 

@@ -33,6 +33,7 @@ import numpy as np
 
 from .._arguments import path_argument
 from .._errors import DomainError, OutputError, TrajectoryFileError
+from ..codegen import current_umask
 
 #: the suffixes of trajectory files
 TRAJECTORY_FORMATS = (".npz", ".csv")
@@ -64,7 +65,7 @@ def atomic_write(path: Path, write: Callable[[io.IOBase], None], binary: bool) -
         with os.fdopen(fd, "wb" if binary else "w", **({} if binary else
                                                        {"newline": "", "encoding": "utf-8"})) as f:
             write(f)
-        os.chmod(temporary, 0o666 & ~_umask())
+        os.chmod(temporary, 0o666 & ~current_umask())
         os.replace(temporary, path)
     except BaseException as exc:
         try:
@@ -75,12 +76,6 @@ def atomic_write(path: Path, write: Callable[[io.IOBase], None], binary: bool) -
             raise OutputError(f"{str(path)!r} cannot be written: "
                               f"{exc.strerror or exc}") from None
         raise
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def number_text(x: float) -> str:
@@ -183,7 +178,10 @@ def read_trajectory(path, layout, parameter_names: list[str], *,
     if path.suffix not in TRAJECTORY_FORMATS:
         raise TrajectoryFileError(f"{label}: a trajectory file ends in .npz or .csv")
     if not path.is_file():
-        raise TrajectoryFileError(f"{label}: no such file")
+        what = ("no such file" if not os.path.lexists(path) else
+                "not a regular file (a directory, a FIFO or a device)" if path.exists() else
+                "a link to nothing")
+        raise TrajectoryFileError(f"{label}: {what}")
     reader = _read_npz if path.suffix == ".npz" else _read_csv
     data, columns = reader(path, label)
     expected = state_columns(layout)

@@ -9,6 +9,7 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
+from .._arguments import flag_argument
 from .._errors import DomainError, NewtonDivergenceError, UnsupportedFeatureError
 from ._backends import real_vector
 from ._inputs import step_inputs
@@ -20,8 +21,8 @@ class InitialStates:
     :class:`~symgroupoid.runtime.Simulator` (which supplies ``equations``, ``layout``,
     ``name``, ``parameters``, ``state`` and the ``_momentum`` slot)."""
 
-    def from_momentum(self, configuration, momentum: Sequence, params, *, inputs=None
-                      ) -> np.ndarray:
+    def from_momentum(self, configuration, momentum: Sequence, params, *, inputs=None,
+                      forced: bool = False) -> np.ndarray:
         """The initial state (g_1, λ_1) from a base point q_0 and a discrete momentum p_0.
 
         Solves F⁻[L + λ_1·φ](g_1) = p_0 and φ(g_1) = 0 for g_1 ∈ α⁻¹(q_0) and λ_1 (so the
@@ -37,9 +38,22 @@ class InitialStates:
         A forced system with inputs takes ``inputs``: the m inputs u_1 of the arrow g_1
         (second order: held for both known pairs), which the state carries
         (docs/conventions.md §20).  The momentum is F⁻L, which the forces do not enter,
-        so they do not change g_1 and λ_1.
+        so they do not change g_1 and λ_1.  ``forced=True`` (first order) solves the forced
+        discrete Legendre transform F⁻L(g_1) − f⁻(g_1) = p_0 instead (Marsden–West eq.
+        (3.2.4), as :meth:`from_velocity` does): the momentum of the forced discrete
+        trajectory at q_0 is then p_0, which keeps a forced run from a physical momentum
+        p(0) at its order (from F⁻L = p(0) the start is O(h) away and the order drops to 1).
         """
-        return self._from_momentum(configuration, momentum, params, inputs, forced=False)
+        forced = flag_argument(forced, "forced", owner=self.name)
+        if forced and self.equations.order == 2 and self._has_forces():
+            raise UnsupportedFeatureError(
+                f"{self.name}: from_momentum(forced=True) is for first-order systems; a "
+                f"second-order system's momentum is F⁻L of its window (forced=False)")
+        return self._from_momentum(configuration, momentum, params, inputs, forced=forced)
+
+    def _has_forces(self) -> bool:
+        fs = getattr(getattr(self.equations, "system", None), "functions", None)
+        return fs is not None and fs.forces is not None
 
     def _from_momentum(self, configuration, momentum: Sequence, params, inputs,
                        forced: bool) -> np.ndarray:
@@ -81,8 +95,7 @@ class InitialStates:
     def _forced_momentum_initializer(self):
         """The solver of the forced discrete Legendre transform (made on first use): that
         of :meth:`from_momentum` for systems without forces or of second order."""
-        forces = getattr(getattr(self.equations, "system", None), "functions", None)
-        if self.equations.order == 2 or forces is None or forces.forces is None:
+        if self.equations.order == 2 or not self._has_forces():
             return self._momentum_initializer()
         if getattr(self, "_forced_momentum", None) is None:
             from ._momentum import MomentumInitializer

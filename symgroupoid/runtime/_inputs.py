@@ -89,7 +89,25 @@ def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
         return inputs
     if inputs is None and layout.n_inputs == 0:
         return None
+    if inputs is not None and layout.n_inputs:
+        _check_step_shape(layout, inputs, owner)
     return input_sequence(layout, None if inputs is None else [inputs], 1, owner=owner)[0]
+
+
+def _check_step_shape(layout, inputs, owner: str) -> None:
+    """One step's inputs have shape (m,) (or are a number when m = 1): anything else is a
+    :class:`ShapeError` in the shape the caller gave (the sequence check below would name
+    the (1, …) it wraps them in)."""
+    try:
+        shape = np.shape(inputs)
+    except ValueError:  # ragged: the sequence check names it
+        return
+    m = layout.n_inputs
+    if shape == (m,) or (m == 1 and shape == ()):
+        return
+    raise ShapeError(f"{owner}: the inputs of one step need shape ({m},) (the inputs "
+                     f"{', '.join(layout.input_names)} of the arrow the step computes); got "
+                     f"shape {shape}")
 
 
 def input_chunks(kernel, layout, known0: np.ndarray, p: np.ndarray, inputs: np.ndarray,

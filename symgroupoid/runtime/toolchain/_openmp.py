@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import functools
 import os
 import subprocess
 import tempfile
@@ -22,6 +21,7 @@ from ._compiler import (
 from ._digests import abi_tag, sha256_of
 from ._flags import optimisation_flags
 from ._kernel_cache import KernelCache
+from ._library import library_defect
 from ._trust import dir_mode
 from ._writable import prepared
 
@@ -40,9 +40,13 @@ int symgroupoid_openmp_probe(void)
 """
 
 
-@functools.cache
-def _openmp_probe(command: tuple[str, ...]) -> bool:
-    """Whether ``command -fopenmp`` builds a shared object that loads (OpenMP runtime found)."""
+def _openmp_probe(command: tuple[str, ...]) -> bool | None:
+    """Whether ``command -fopenmp`` builds a shared object that loads (OpenMP runtime found);
+    None when the probe could not tell: the compiler was killed (Ctrl-C reaches it too) or
+    timed out, its output is not a complete shared object (checked before it is mapped, as
+    a kernel is: a truncated file would kill the process with SIGBUS), or the object does not
+    load for another reason than the OpenMP runtime (a temporary directory mounted noexec).
+    Only a definite answer is kept (:func:`openmp_available`)."""
     with tempfile.TemporaryDirectory(prefix="symgroupoid-openmp-") as tmp:
         source, library = Path(tmp) / "probe.c", Path(tmp) / "probe.so"
         source.write_text(_OPENMP_PROBE, encoding="ascii")
@@ -51,11 +55,18 @@ def _openmp_probe(command: tuple[str, ...]) -> bool:
                 [*command, OPENMP_FLAG, "-shared", "-fPIC", str(source), "-o", str(library)],
                 stdin=subprocess.DEVNULL, capture_output=True, timeout=120,
                 env=compiler_environment(Path(tmp)))
-            if result.returncode != 0 or not library.is_file():
-                return False
-            return ctypes.CDLL(str(library)).symgroupoid_openmp_probe() > 0
         except (OSError, subprocess.SubprocessError):
+            return None
+        if result.returncode < 0:  # killed by a signal: no answer
+            return None
+        if result.returncode != 0 or not library.is_file():
             return False
+        try:
+            if library_defect(library.read_bytes()) is not None:
+                return None
+            return ctypes.CDLL(str(library)).symgroupoid_openmp_probe() > 0
+        except OSError as exc:
+            return False if "omp" in str(exc).lower() else None
 
 
 _OPENMP: dict[str, bool] = {}
@@ -105,9 +116,11 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
     pending = _PENDING.pop(key, None)
     if pending is not None:  # started by start_openmp_probe: wait for its answer
         pending[0].join()
-        result = pending[1][0] if pending[1] else False
+        result = pending[1][0] if pending[1] else None
     else:
         result = _openmp_probe(command)
+    if result is None:  # no answer this time: built without OpenMP, probed again next time
+        return False
     _OPENMP[key] = result
     probes = cache.root / "probes"
     # kept only in a writable kernel cache (never in a foreign or read-only directory)

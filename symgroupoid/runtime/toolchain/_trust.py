@@ -55,6 +55,9 @@ def _refusal(root: Path, path: Path, reason: str, shared: bool = False) -> Cache
     elif "another user" in reason:
         fix = ("remove it, or set SYMGROUPOID_CACHE to a directory of your own (a cache "
                "another account provides is read with SYMGROUPOID_SHARED_CACHE)")
+    elif shared:
+        fix = (f"its owner can make it private (chmod go-w {path}); or point "
+               f"SYMGROUPOID_SHARED_CACHE to a cache that is, or unset it")
     else:
         fix = f"make it private (chmod go-w {path}), or set SYMGROUPOID_CACHE elsewhere"
     return CacheError(f"{what} {root} is not used: {path} cannot be trusted ({reason}; "
