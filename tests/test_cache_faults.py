@@ -52,7 +52,7 @@ print(json.dumps({"warnings": [str(w.message) for w in caught], "entry": str(sim
 '''
 
 CC_WRAPPER = """#!/bin/sh
-touch "$SG_COMPILER_STARTED"
+echo $$ > "$SG_COMPILER_STARTED"
 sleep 60
 exec cc "$@"
 """
@@ -147,9 +147,11 @@ def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, ca
         again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir),
                                       SYMGROUPOID_LOCK_TIMEOUT="30", SYMGROUPOID_OPENMP="0"))
         assert time.monotonic() - t0 < 30
-    finally:
+    finally:  # the orphaned compiler wrapper, in a process group of its own
+        with contextlib.suppress(ProcessLookupError, ValueError, OSError):
+            os.killpg(int(started.read_text()), signal.SIGKILL)
         with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)  # the orphaned compiler wrapper
+            os.killpg(proc.pid, signal.SIGKILL)
     assert (again["builds"], again["loads"]) == (1, 1)
     assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
     assert list((cache_dir / "tmp").iterdir()) == []
@@ -582,3 +584,39 @@ except CompilationError as exc:
     probes = list((cache_dir / "probes").glob("openmp-*.json"))
     recorded = [json.loads(p.read_text()) for p in probes]
     assert not any(r["compiler"] == [str(wrapper)] for r in recorded), recorded
+
+
+def test_an_interrupted_build_leaves_no_compiler_running(tmp_path, cache_dir):
+    """(Ctrl-C reaching Python alone — a notebook's interrupt — raised KeyboardInterrupt
+    while the compiler ran on, into a build directory already removed.)  Every compiler
+    run is killed with the processes it started."""
+    wrapper = tmp_path / "slow-cc"
+    wrapper.write_text(CC_WRAPPER)
+    wrapper.chmod(0o755)
+    started = tmp_path / "compiler-started"
+    env = script_env(SYMGROUPOID_CACHE=str(cache_dir), CC=str(wrapper),
+                     SG_COMPILER_STARTED=str(started), SYMGROUPOID_OPENMP="0")
+    script = ("import sys\n" + SCRIPT.replace(
+        'sim = sg.compile_step(oscillator(), backend="c")',
+        'try:\n        sim = sg.compile_step(oscillator(), backend="c")\n'
+        '    except KeyboardInterrupt:\n        print("interrupted", flush=True)\n'
+        '        sys.exit(3)'))
+    proc = subprocess.Popen([sys.executable, "-c", script], env=env, start_new_session=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not (started.exists() and started.read_text().strip()) \
+                and time.monotonic() < deadline:
+            time.sleep(0.01)
+        wrapper_pid = int(started.read_text())
+        os.kill(proc.pid, signal.SIGINT)  # Python alone, not its process group
+        out, err = proc.communicate(timeout=60)
+        assert proc.returncode == 3 and "interrupted" in out, (proc.returncode, err[-1500:])
+        time.sleep(0.2)
+        with pytest.raises(ProcessLookupError):
+            os.kill(wrapper_pid, 0)
+    finally:
+        with contextlib.suppress(ProcessLookupError, ValueError, OSError):
+            os.killpg(int(started.read_text()), signal.SIGKILL)
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)

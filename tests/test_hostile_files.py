@@ -423,7 +423,9 @@ def test_a_directory_that_is_not_a_cache_is_never_written_cleaned_or_swept(tmp_p
     with pytest.raises(sg.CacheError, match="is not a symgroupoid kernel cache .*nothing was "
                                             "removed"):
         clear_cache()
-    cache_info()  # reading is harmless
+    info = cache_info()  # reading is harmless, and says it is not used (it listed a bad kernel)
+    assert info.refused is not None and "not a kernel cache" in info.refused
+    assert info.kernels == []
     for f, data in files.items():
         assert f.read_bytes() == data, f"{f} was changed"
     assert not (home / "CACHEDIR.TAG").exists() and not (home / "probes").exists()

@@ -3,7 +3,9 @@ at the same time, linked, and checked."""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import signal
 import subprocess
 from collections.abc import Callable, Sequence
 from pathlib import Path
@@ -94,6 +96,10 @@ def _role(kernel: KernelSource, file_name: str) -> str:
     return "blocks" if file_name in kernel.blocks else "step"
 
 
+#: compiler runs get process groups of their own (POSIX), killed whole on an interruption
+_OWN_GROUPS = hasattr(os, "killpg")
+
+
 def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequence[str],
          meanwhile: Callable[[], None] | None = None) -> None:
     """Run compiler ``commands`` of a build at ``flags`` at the same time in ``cwd`` (and
@@ -102,8 +108,15 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequ
     processes: list = []
 
     def stop() -> None:
+        """Kill every compiler run with the processes it started (cc1, as): each runs in a
+        process group of its own, so a Ctrl-C that reaches Python alone (a notebook's
+        interrupt) leaves no compiler behind writing into the removed build directory."""
         for _, process in processes:
-            process.kill()
+            with contextlib.suppress(OSError):
+                if _OWN_GROUPS:
+                    os.killpg(process.pid, signal.SIGKILL)
+                else:  # pragma: no cover - no process groups
+                    process.kill()
             process.communicate()
 
     environment = compiler_environment(cwd)
@@ -111,22 +124,23 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequ
         for command in commands:
             processes.append((command, subprocess.Popen(
                 command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT, text=True, errors="replace", env=environment)))
+                stderr=subprocess.STDOUT, text=True, errors="replace", env=environment,
+                start_new_session=_OWN_GROUPS)))
     except OSError as exc:
         stop()
         raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc),
                        flags) from exc
+    failures = []
     try:
         if meanwhile is not None:
             meanwhile()
+        for command, process in processes:
+            output, _ = process.communicate()
+            if process.returncode != 0:
+                failures.append((command, process.returncode, output.strip()))
     except BaseException:
         stop()
         raise
-    failures = []
-    for command, process in processes:
-        output, _ = process.communicate()
-        if process.returncode != 0:
-            failures.append((command, process.returncode, output.strip()))
     if failures:
         command, status, _ = failures[0]
         raise _failure(kernel, f"command {command[0]!r} failed with exit status {status}",

@@ -121,6 +121,11 @@ def cache_info(root: Path | None = None) -> CacheInfo:
     if not info.exists:
         return info
     info.refused = _untrusted_reason(root)
+    if info.refused is None and not is_cache_root(root):
+        foreign = _foreign_entries(root)
+        if foreign:  # (compile() does not use it either: the same words)
+            info.refused = (f"it is not a kernel cache (no {MARKER}; it holds "
+                            f"{', '.join(foreign[:3])}{', …' if len(foreign) > 3 else ''})")
     if info.refused is not None:
         return info
     info.kernels = [_kernel(e) for e in _entries(root / "kernels", _KEY)]
