@@ -122,16 +122,22 @@ def umask(mask: int):
 
 # -- concurrency, stale build directories, locks ------------------------------------------------
 
-def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, cache_dir):
-    """kill -9 of a process while its compiler runs: its build directory stays behind; the
-    next use removes it (the lock died with the process, not with the orphaned compiler)
-    and builds exactly once."""
+def slow_compiler(tmp_path: Path, cache_dir: Path) -> tuple[Path, dict]:
+    """(the file where the compiler writes its pid when it starts, the environment of a
+    script whose compiler sleeps a minute first)."""
     wrapper = tmp_path / "slow-cc"
     wrapper.write_text(CC_WRAPPER)
     wrapper.chmod(0o755)
     started = tmp_path / "compiler-started"
-    env = script_env(SYMGROUPOID_CACHE=str(cache_dir), CC=str(wrapper),
-                     SG_COMPILER_STARTED=str(started), SYMGROUPOID_OPENMP="0")
+    return started, script_env(SYMGROUPOID_CACHE=str(cache_dir), CC=str(wrapper),
+                               SG_COMPILER_STARTED=str(started), SYMGROUPOID_OPENMP="0")
+
+
+def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, cache_dir):
+    """kill -9 of a process while its compiler runs: its build directory stays behind; the
+    next use removes it (the lock died with the process, not with the orphaned compiler)
+    and builds exactly once."""
+    started, env = slow_compiler(tmp_path, cache_dir)
     proc = subprocess.Popen([sys.executable, "-c", SCRIPT], env=env, start_new_session=True,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
@@ -590,12 +596,7 @@ def test_an_interrupted_build_leaves_no_compiler_running(tmp_path, cache_dir):
     """(Ctrl-C reaching Python alone — a notebook's interrupt — raised KeyboardInterrupt
     while the compiler ran on, into a build directory already removed.)  Every compiler
     run is killed with the processes it started."""
-    wrapper = tmp_path / "slow-cc"
-    wrapper.write_text(CC_WRAPPER)
-    wrapper.chmod(0o755)
-    started = tmp_path / "compiler-started"
-    env = script_env(SYMGROUPOID_CACHE=str(cache_dir), CC=str(wrapper),
-                     SG_COMPILER_STARTED=str(started), SYMGROUPOID_OPENMP="0")
+    started, env = slow_compiler(tmp_path, cache_dir)
     script = ("import sys\n" + SCRIPT.replace(
         'sim = sg.compile_step(oscillator(), backend="c")',
         'try:\n        sim = sg.compile_step(oscillator(), backend="c")\n'
