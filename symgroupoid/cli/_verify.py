@@ -25,12 +25,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 
 import numpy as np
-import sympy as sp
 
 from .._errors import SymgroupoidError
-from .._lambdify import NUMPY_MODULES
 from ..convergence import ORDER_FLOOR, REFERENCE_FACTOR, measure_order
 from ..equations import DiscreteSystem
+from ..ir import Graph, Program, from_sympy
 from ..verification import verify_stationary
 from ._common import derive, say, stepper
 from ._errors import InputError
@@ -138,18 +137,33 @@ def kernel_check(sim, points, p) -> Check:
                  f"(tolerance {KERNEL_TOLERANCE:g})")
 
 
+def _sympy_residuals(step):
+    """The residuals derived in SymPy (``step.residuals_in_unknowns()``) as a NumPy function
+    of columns (u, known, p): their trees read once into an expression graph (shared
+    subtrees once; :func:`~symgroupoid.ir.from_sympy`), not through ``lambdify``, whose
+    printing of the millions of operations of a Galerkin step on a group took minutes."""
+    g = Graph()
+    symbols = {s: g.input(s) for s in (*step.unknowns, *step.knowns, *step.parameters)}
+    memo: dict = {}
+    nodes = [from_sympy(g, e, symbols, f"{step.name}: the SymPy residual {i + 1}", memo)
+             for i, e in enumerate(step.residuals_in_unknowns())]
+    inputs = {"u": list(step.unknowns), "known": list(step.knowns), "p": list(step.parameters)}
+    return Program(g, inputs, {"F": nodes}).numpy_function(["F"], ["u", "known", "p"])
+
+
 def sympy_check(sim, points, p) -> Check:
     """The kernel's residual against the residuals derived in SymPy (an independent
     derivation: the junction variation of the action in SymPy, not the graph)."""
     step = sim.equations
     name = f"{'compiled C' if sim.backend == 'c' else 'NumPy backend'} vs SymPy residuals"
-    residuals = sp.lambdify([list(step.unknowns), list(step.knowns), list(step.parameters)],
-                            step.residuals_in_unknowns(), NUMPY_MODULES)
+    residuals = _sympy_residuals(step)
     worst = 0.0
     for u, known in points:
         Fk = sim.kernel.residual(u, known, p)
         with np.errstate(all="ignore"):
-            Fs = np.array([float(v) for v in residuals(u, known, p)])
+            (Fs,) = residuals(np.asarray(u, float)[:, None], np.asarray(known, float)[:, None],
+                              np.asarray(p, float)[:, None])
+            Fs = np.asarray(Fs, float).ravel()
         _, J = step.evaluate(u, known, p)
         worst = max(worst, float(np.max(np.abs(Fk - Fs) / _row_scale(Fs, J, u), initial=0.0)))
     ok = bool(np.isfinite(worst)) and worst <= SYMPY_TOLERANCE
