@@ -7,6 +7,7 @@ import contextlib
 import os
 import signal
 import subprocess
+import threading
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -100,6 +101,28 @@ def _role(kernel: KernelSource, file_name: str) -> str:
 _OWN_GROUPS = hasattr(os, "killpg")
 
 
+@contextlib.contextmanager
+def _interrupts_held():
+    """A Ctrl-C (SIGINT) held back while the compiler runs are started, in the main thread:
+    inside ``Popen`` — between the fork and the object that names the child — it would leave
+    a compiler nobody can stop; held, it is raised right after, with every run in
+    ``processes``.  (A handler, not a signal mask: the children would inherit a mask; a
+    handler is reset by exec.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list = []
+    previous = signal.signal(signal.SIGINT, lambda *received: caught.append(received))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught and previous is not signal.SIG_IGN:
+        if callable(previous):
+            previous(*caught[0])  # the default handler raises KeyboardInterrupt
+        raise KeyboardInterrupt
+
+
 def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequence[str],
          meanwhile: Callable[[], None] | None = None) -> None:
     """Run compiler ``commands`` of a build at ``flags`` at the same time in ``cwd`` (and
@@ -121,15 +144,19 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequ
 
     environment = compiler_environment(cwd)
     try:
-        for command in commands:
-            processes.append((command, subprocess.Popen(
-                command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                stderr=subprocess.STDOUT, text=True, errors="replace", env=environment,
-                start_new_session=_OWN_GROUPS)))
+        with _interrupts_held():
+            for command in commands:
+                processes.append((command, subprocess.Popen(
+                    command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                    stderr=subprocess.STDOUT, text=True, errors="replace", env=environment,
+                    start_new_session=_OWN_GROUPS)))
     except OSError as exc:
         stop()
         raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc),
                        flags) from exc
+    except BaseException:  # (Ctrl-C between two starts)
+        stop()
+        raise
     failures = []
     try:
         if meanwhile is not None:
