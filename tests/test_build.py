@@ -669,3 +669,32 @@ def test_a_stepper_unit_at_its_level_computes_what_numpy_computes(monkeypatch):
     assert np.array_equal(c.states, numpy.simulate(state, 20, PARAMS).states)
     assert np.array_equal(split.simulate_batch(np.stack([state, state]), 20, PARAMS).states[0],
                           c.states)
+
+
+def test_a_killed_probe_s_directory_is_removed_by_the_next_probe(monkeypatch, tmp_path):
+    """(A process killed while its OpenMP probe ran left ``symgroupoid-openmp-*`` in the
+    system's temporary directory for good.)  Probe directories name their process and host;
+    the next probe removes this user's whose process is gone — never a live process's, another
+    host's, or a link."""
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(_openmp, "_OPENMP", {})
+    monkeypatch.setattr(_openmp, "_PENDING", {})
+    dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"],
+                          capture_output=True, text=True, check=True).stdout.strip()
+    host = _openmp.scratch_prefix("openmp").split("-")[-2]
+    stale = tmp_path / f"symgroupoid-openmp-{dead}-{host}-abc"
+    live = tmp_path / f"symgroupoid-openmp-{os.getppid()}-{host}-abc"
+    other = tmp_path / f"symgroupoid-openmp-{dead}-0123456789ab-abc"
+    for d in (stale, live, other):
+        d.mkdir()
+        (d / "probe.c").write_text("int x;\n")
+    kept = tmp_path / "kept"
+    kept.mkdir()
+    (tmp_path / f"symgroupoid-openmp-{dead}-{host}-link").symlink_to(kept)
+    toolchain.openmp_available(tmp_path / "cache")
+    assert not stale.exists() and live.exists() and other.exists() and kept.exists()
+    assert (tmp_path / f"symgroupoid-openmp-{dead}-{host}-link").is_symlink()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(
+        _openmp.scratch_prefix("openmp"))], "the probe removes its own"

@@ -16,6 +16,7 @@ from pathlib import Path
 from ..._errors import SymgroupoidError
 from ...codegen import KernelSource
 from ._isa import vector_flags
+from ._processes import scratch_prefix, sweep_scratch
 
 #: how to do without a compiler (appended to every compiler error)
 NUMPY_HINT = ('To use the NumPy backend instead (same results, slower), pass backend="numpy" '
@@ -108,7 +109,8 @@ def compiler_environment(directory: Path) -> dict[str, str]:
 
 def probe_compiler(command: Sequence[str]) -> str | None:
     """None if ``command`` compiles a trivial C file; otherwise what went wrong."""
-    with tempfile.TemporaryDirectory(prefix="symgroupoid-probe-") as tmp:
+    sweep_scratch("probe")
+    with tempfile.TemporaryDirectory(prefix=scratch_prefix("probe")) as tmp:
         source, obj = Path(tmp) / "probe.c", Path(tmp) / "probe.o"
         source.write_text("int symgroupoid_probe(void) { return 0; }\n", encoding="ascii")
         try:

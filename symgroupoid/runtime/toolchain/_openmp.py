@@ -22,6 +22,7 @@ from ._digests import abi_tag, sha256_of
 from ._flags import optimisation_flags
 from ._kernel_cache import KernelCache
 from ._library import library_defect
+from ._processes import scratch_prefix, sweep_scratch
 from ._trust import dir_mode
 from ._writable import prepared
 
@@ -47,7 +48,8 @@ def _openmp_probe(command: tuple[str, ...]) -> bool | None:
     a kernel is: a truncated file would kill the process with SIGBUS), or the object does not
     load for another reason than the OpenMP runtime (a temporary directory mounted noexec).
     Only a definite answer is kept (:func:`openmp_available`)."""
-    with tempfile.TemporaryDirectory(prefix="symgroupoid-openmp-") as tmp:
+    sweep_scratch("openmp")
+    with tempfile.TemporaryDirectory(prefix=scratch_prefix("openmp")) as tmp:
         source, library = Path(tmp) / "probe.c", Path(tmp) / "probe.so"
         source.write_text(_OPENMP_PROBE, encoding="ascii")
         try:

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from ..._errors import CacheError
 from ._atomic import _exists, write_atomic_private
+from ._processes import scratch_prefix, sweep_scratch
 from ._roots import _MARKER_TEXT, MARKER, SUBDIRS, _foreign_entries, is_cache_root
 from ._trust import dir_mode, trusted
 
@@ -95,7 +96,8 @@ def _fallback(configured: Path, reason: OSError) -> Path:
         why = f"{why}: {reason.filename}"
     state = "is not used" if isinstance(reason, ForeignDirectoryError) else "is not writable"
     try:
-        private = Path(tempfile.mkdtemp(prefix="symgroupoid-cache-"))
+        sweep_scratch("cache")
+        private = Path(tempfile.mkdtemp(prefix=scratch_prefix("cache")))
         _prepare(private)
     except OSError as exc:
         raise CacheError(
