@@ -6,8 +6,10 @@ expanded forms).
 :func:`vanishes` factors each distinct denominator once (``factor_list`` over Q), writes
 every term over the least common multiple of the irreducible factors, and adds the
 numerators as sparse polynomials: the expression is the zero rational function exactly
-when that numerator is the zero polynomial.  Expressions that are not rational in their
-symbols over Q (square roots, functions) are left to the caller (``None``)."""
+when that numerator is the zero polynomial.  Square roots of integers (the nodes of the
+Gauss–Legendre schemes) stand for symbols s_p, one per prime p, with s_p² = p, by which the
+numerator is reduced at the end.  Expressions that are not rational in their symbols over
+Q(√p, …) (functions, other roots) are left to the caller (``None``)."""
 
 from __future__ import annotations
 
@@ -15,6 +17,52 @@ import sympy as sp
 from sympy.polys.domains import QQ
 from sympy.polys.polyerrors import CoercionFailed, GeneratorsNeeded, PolynomialError
 from sympy.polys.rings import PolyRing
+
+
+def vanishes(expr: sp.Expr) -> bool | None:
+    """Whether ``expr`` (a sum of products, as ``expand`` leaves it) is identically zero as
+    a rational function of its symbols; None when it is not a rational function over Q and
+    square roots of integers (the caller then decides otherwise)."""
+    expr = sp.sympify(expr)
+    if expr == 0:
+        return True
+    primes = _surds(expr)
+    if primes is None:
+        return None
+    expr = expr.xreplace({sp.sqrt(n): sp.Mul(*[primes[q] for q in sp.primefactors(n)])
+                          for n in _square_roots(expr)})
+    gens = sorted(expr.free_symbols, key=sp.default_sort_key)
+    if not gens:
+        return None
+    try:
+        total = _numerator(expr, gens)
+        for q, s in primes.items():  # s² = q: what remains is Σ c_e Π s^e, e ∈ {0, 1}
+            total = total.rem(_polynomial(total.ring, s ** 2 - q))
+        return total == 0
+    except (CoercionFailed, GeneratorsNeeded, PolynomialError):
+        return None
+
+
+def _square_roots(expr: sp.Expr) -> set[int]:
+    """The integers n whose square roots √n appear in ``expr``."""
+    return {int(p.base) for p in expr.atoms(sp.Pow)
+            if p.base.is_Integer and p.exp == sp.S.Half}
+
+
+def _surds(expr: sp.Expr) -> dict | None:
+    """{p: a symbol standing for √p} for the primes p of the square roots √n in ``expr``,
+    each √n to be written as Π √p over the primes of n: the products Π √p^{e_p},
+    e_p ∈ {0, 1}, of distinct primes are linearly independent over Q, which the reduction
+    modulo s_p² − p relies on.  None for the square root of an integer that is not
+    square-free or not above 1 (SymPy leaves none)."""
+    out: dict = {}
+    for n in sorted(_square_roots(expr)):
+        factors = sp.factorint(n)
+        if n <= 1 or any(e > 1 for e in factors.values()):
+            return None
+        for q in factors:
+            out.setdefault(q, sp.Dummy(f"sqrt{q}"))
+    return out
 
 
 def _split(term: sp.Expr) -> tuple[sp.Expr, dict]:
@@ -29,22 +77,6 @@ def _split(term: sp.Expr) -> tuple[sp.Expr, dict]:
     return sp.Mul(*numerator), denominator
 
 
-def vanishes(expr: sp.Expr) -> bool | None:
-    """Whether ``expr`` (a sum of products, as ``expand`` leaves it) is identically zero as
-    a rational function of its symbols; None when it is not a rational function over Q
-    (the caller then decides otherwise)."""
-    expr = sp.sympify(expr)
-    if expr == 0:
-        return True
-    gens = sorted(expr.free_symbols, key=sp.default_sort_key)
-    if not gens:
-        return None
-    try:
-        return _numerator(expr, gens) == 0
-    except (CoercionFailed, GeneratorsNeeded, PolynomialError):
-        return None
-
-
 def _polynomial(R: PolyRing, expr: sp.Expr):
     """``expr`` as an element of R; CoercionFailed when it is not a polynomial over Q."""
     try:
@@ -54,41 +86,60 @@ def _polynomial(R: PolyRing, expr: sp.Expr):
 
 
 def _numerator(expr: sp.Expr, gens: list):
-    """Σ_t (n_t / c_t)·Π_f f^(m_f − m_{t,f}): the numerator of ``expr`` over the least common
-    multiple Π_f f^(m_f) of its terms' denominators c_t·Π_f f^(m_{t,f}) (f irreducible over
-    Q), as a polynomial of the ring Q[gens]."""
+    """Σ_t n_t·Π_a a^(m_a − m_{t,a}): the numerator of ``expr`` over the common multiple
+    Π_a a^(m_a) of its terms' denominators Π_a a^(m_{t,a}), the atoms a being its distinct
+    denominator polynomials, each made primitive (its content moved to the numerator) and
+    written as a power of an atom already met where it is one (1 + tr g and its expanded
+    square and cube: :func:`_atoms`), as a polynomial of the ring Q[gens]."""
     R = PolyRing(gens, QQ)
-    factored: dict = {}
+    atoms: list = []  # (polynomial, its total degree)
+    known: dict = {}  # base expression -> (constant, atom index, power)
     groups: dict = {}
     for term in sp.Add.make_args(expr):
         numerator, denominator = _split(term)
-        constant, own = sp.S.One, {}
+        part, own = _polynomial(R, numerator), {}
         for base, n in denominator.items():
-            if base not in factored:
-                factored[base] = sp.factor_list(base, *gens)
-            c, factors = factored[base]
-            constant *= c ** n
-            for f, m in factors:
-                own[f] = own.get(f, 0) + m * n
-        if not constant.is_Rational:
-            raise CoercionFailed(f"a denominator's constant {constant} is not rational")
+            if base not in known:
+                known[base] = _atom(_polynomial(R, base), atoms)
+            constant, index, power = known[base]
+            part = part.quo_ground(constant ** n)
+            own[index] = own.get(index, 0) + power * n
         key = frozenset(own.items())
-        groups[key] = groups.get(key, R.zero) + _polynomial(R, numerator) * QQ.convert(1 / constant)
-    lcm: dict = {}
+        groups[key] = groups.get(key, R.zero) + part
+    most: dict = {}
     for key in groups:
-        for f, m in key:
-            lcm[f] = max(lcm.get(f, 0), m)
-    polys = {f: _polynomial(R, f) for f in lcm}
+        for index, m in key:
+            most[index] = max(most.get(index, 0), m)
     total = R.zero
     for key, part in groups.items():
         if not part:
             continue
         own = dict(key)
-        for f, m in lcm.items():
-            if m > own.get(f, 0):
-                part = part * polys[f] ** (m - own.get(f, 0))
+        for index, m in most.items():
+            if m > own.get(index, 0):
+                part = part * atoms[index][0] ** (m - own.get(index, 0))
         total += part
     return total
+
+
+def _atom(base, atoms: list) -> tuple:
+    """(c, i, k) with base = c·atoms[i]^k: the base made primitive with a positive leading
+    coefficient, matched as a power of an atom of lower degree, else a new atom."""
+    if not base:
+        raise CoercionFailed("a denominator is zero")
+    constant, primitive = base.primitive()
+    if primitive.LC < 0:
+        constant, primitive = -constant, -primitive
+    degree = _total_degree(primitive)
+    for i, (atom, d) in enumerate(atoms):
+        if d and degree % d == 0 and atom ** (degree // d) == primitive:
+            return constant, i, degree // d
+    atoms.append((primitive, degree))
+    return constant, len(atoms) - 1, 1
+
+
+def _total_degree(p) -> int:
+    return max((sum(monomial) for monomial in p.itermonoms()), default=0)
 
 
 __all__ = ["vanishes"]

@@ -253,7 +253,12 @@ def test_the_printed_forms_zero_test_agrees_with_cancel():
     assert vanishes(sp.expand(2 / (2 * D ** 2) - 1 / sp.expand(D ** 2))) is True
     assert vanishes(sp.expand(x / (x ** 2 - 1) - 1 / (2 * (x + 1)) - 1 / (2 * (x - 1))))
     assert vanishes(sp.expand(1 / (x + 1) - 1 / (x + 2))) is False
-    assert vanishes(sp.sqrt(2) / (x + 1)) is None and vanishes(sp.sin(x) / (x + 1)) is None
+    assert vanishes(sp.sin(x) / (x + 1)) is None and vanishes(sp.cbrt(2) / (x + 1)) is None
+    r2, r3, r6 = sp.sqrt(2), sp.sqrt(3), sp.sqrt(6)  # the Gauss nodes' square roots
+    assert vanishes(sp.sqrt(2) / (x + 1)) is False
+    assert vanishes(sp.expand(r2 / (x + r3) - (r2 * x - r6) / (x ** 2 - 3))) is True
+    assert vanishes(sp.expand(r6 / (x + r3) - r2 * (x - r3) / (x ** 2 - 3))) is False
+    assert vanishes(sp.expand(1 / D ** 3 - D / sp.expand(D ** 4))) is True  # D⁴ expanded
     rng = random.Random(7)
     atoms = [x, y, z, D, 1 + x * y, x - z]
     for _ in range(10):
