@@ -155,3 +155,20 @@ def test_input_errors(example):
                               metric=sp.eye(3), **kw)
     with pytest.raises(ValueError, match="method must be one of"):
         sg.NonholonomicSystem(G, L, None, D, parameters=[example.h], method="rattle")
+
+
+def test_undeclared_symbols_in_the_metric_or_the_distribution(example):
+    """(A symbol neither a parameter nor the base point's, in G_c or in D, passed the
+    constructor and escaped from euler_lagrange() as a bare ValueError of the program.)"""
+    G = example.groupoid()
+    L, D = example.lagrangian, example.DISTRIBUTION
+    stray = sp.Symbol("zz", positive=True)
+    with pytest.raises(sg.UndeclaredSymbolError, match="metric uses symbol.* zz"):
+        sg.NonholonomicSystem(G, L, None, D, parameters=[example.h], method="energy_momentum",
+                              metric=sp.diag(stray, 1, 1))
+    bad = [lambda q: [1, q[2] * stray, 0], [0, 0, 1]]
+    for method, metric, constraints in (("energy_momentum", sp.eye(3), None),
+                                        ("holder", None, example.discrete_constraint)):
+        with pytest.raises(sg.UndeclaredSymbolError, match="distribution element 0 .*zz"):
+            sg.NonholonomicSystem(G, L, constraints, bad, parameters=[example.h],
+                                  method=method, metric=metric)

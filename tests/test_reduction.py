@@ -91,6 +91,10 @@ def test_pair_groupoid_of_so3_reduces_to_the_discrete_euler_poincare_equations()
     assert d["moved"] > 0.05
     assert d["residual"] < 1e-11 and d["rerun"] < 1e-10
     assert d["reconstruction"] < 1e-12 and d["momenta"] < 1e-13
+    bad = np.vstack([state0, state0])
+    bad[1, 4] = np.nan  # (project returned NaN rows for it, without a word)
+    with pytest.raises(sg.DomainError, match="unreduced state 1 has a non-finite entry"):
+        reduced.project(bad, params)
 
 
 def test_pair_groupoid_of_se2_reduces_to_se2():

@@ -540,3 +540,14 @@ def test_a_batch_checks_and_rounds_group_parts_as_simulate_does():
     with pytest.warns(sg.GroupRoundingWarning):
         alone = sim.simulate(rounded, 2, params)
     assert np.array_equal(batch[1].states, alone.states)
+
+
+def test_a_group_times_a_euclidean_space_is_a_manifold_in_either_order():
+    """(docs/reference/groupoids.md shows ``SE2("g") * EuclideanSpace("psi")``, which raised
+    "a groupoid can only be multiplied by a groupoid"; the other order worked.)"""
+    left = sg.SE2("g") * sg.EuclideanSpace("psi")
+    right = sg.EuclideanSpace("psi") * sg.SE2("g")
+    assert sg.PairGroupoid(left).arrow_dim == sg.PairGroupoid(right).arrow_dim
+    assert repr(left).startswith("SE2") and repr(right).startswith("EuclideanSpace")
+    with pytest.raises(sg.InputTypeError, match="multiplied by a groupoid"):
+        sg.SE2("g") * 3

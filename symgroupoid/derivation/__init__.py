@@ -7,7 +7,14 @@ from ._assembly import (
     field_derivatives,
     slot_derivatives,
 )
-from ._callables import as_scalar, call_user, check_parameters, check_values, checked_callable
+from ._callables import (
+    as_scalar,
+    call_user,
+    check_parameters,
+    check_symbols,
+    check_values,
+    checked_callable,
+)
 from ._energy_momentum import (
     NONHOLONOMIC_METHODS,
     ConservedQuantities,
@@ -78,7 +85,7 @@ __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep
            "Partial", "PieceRule", "SystemFunctions", "TermNodes", "WindowAction", "WindowPieces",
            "as_scalar", "call_user", "check_parameters", "checked_callable", "chart_of",
            "holonomic_functions",
-           "check_nonholonomic_dimensions", "check_values",
+           "check_nonholonomic_dimensions", "check_symbols", "check_values",
            "conserved_quantities", "distribution_coefficients", "energy_momentum_step",
            "evaluate_system", "extrapolate",
            "field_derivatives", "force_functions", "identified_time_steps", "impulse_form",

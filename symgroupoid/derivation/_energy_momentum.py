@@ -32,7 +32,7 @@ from .._errors import DomainError, ShapeError
 from .._lambdify import NUMPY_MODULES
 from ..groupoids import Groupoid, ParameterValues
 from ._assembly import WindowAction
-from ._callables import as_matrix, call_user, check_values
+from ._callables import as_matrix, call_user, check_symbols, check_values
 from ._momenta import legendre_forms
 from ._step import (
     DerivedStep,
@@ -74,6 +74,7 @@ def adapted_rows(name: str, G: Groupoid, distribution: Sequence, metric,
     """
     C = sp.Matrix(_distribution_coefficients(name, G, distribution, q))
     Gm = metric_at(name, G, metric, q)
+    check_symbols(name, "metric", list(Gm), q, parameters)
     r = C.rows
     if r == 0 or r >= G.rank:
         raise ShapeError(f"{name}: D must have dimension between 1 and rank − 1 = "

@@ -93,6 +93,11 @@ class ReducedSystem(DiscreteSystem):
             raise ShapeError(f"{self.name}: {what} states have {n} entries (an arrow of "
                              f"{groupoid.name}, {self.n_constraints} multipliers{inputs}); "
                              f"got shape {arr.shape}")
+        bad = np.argwhere(~np.isfinite(arr))
+        if len(bad):
+            row, entry = (int(v) for v in bad[0])
+            raise DomainError(f"{self.name}: {what} state {row} has a non-finite entry "
+                              f"({entry}: {arr[row, entry]}); states must be finite")
         return arr[:, :groupoid.arrow_dim], arr[:, groupoid.arrow_dim:]
 
     def project(self, states, params: Mapping | Sequence) -> np.ndarray:

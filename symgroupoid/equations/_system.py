@@ -31,6 +31,7 @@ from ..derivation import (
     SystemFunctions,
     call_user,
     check_nonholonomic_dimensions,
+    check_symbols,
     check_values,
     conserved_quantities,
     energy_momentum_step,
@@ -99,20 +100,22 @@ def time_step_argument(name: str, groupoid: Groupoid, time_step, parameters: Seq
     return symbol
 
 
-def distribution_elements(name: str, groupoid: Groupoid, distribution) -> list:
+def distribution_elements(name: str, groupoid: Groupoid, distribution,
+                          parameters: Sequence = ()) -> list:
     """The basis of D_c: a list whose elements are lists of section coefficients or
     functions of the base point returning them.  Each function is called once here on a
     symbolic base point, so that one that raises, or coefficients that are not finite real
-    expressions, are reported now with the element's index."""
+    expressions or use symbols that are neither the base point's nor declared parameters,
+    are reported now with the element's index."""
     elements = sequence_argument(distribution, "distribution", owner=name)
     q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(groupoid.base_dim))
     for i, element in enumerate(elements):
         what = f"distribution element {i}"
         if callable(element):
-            _coefficients(name, f"{what} (the value of its function)",
-                          call_user(name, what, element, q), groupoid.rank)
-        else:
-            _coefficients(name, what, element, groupoid.rank)
+            what = f"{what} (the value of its function)"
+            element = call_user(name, what, element, q)
+        _coefficients(name, what, element, groupoid.rank)
+        check_symbols(name, what, [sp.sympify(c) for c in element], q, parameters)
     return elements
 
 
@@ -486,7 +489,7 @@ class NonholonomicSystem(_EvaluatedSystem):
                 f"Lagrange–d'Alembert–Hölder principle), not with {method!r}")
         self.groupoid, self.name = groupoid, name
         self.lagrangian, self.constraints = lagrangian, constraints
-        self.distribution = distribution_elements(name, groupoid, distribution)
+        self.distribution = distribution_elements(name, groupoid, distribution, parameters)
         self.parameters = parameters
         self.time_step = time_step_argument(name, groupoid, time_step, parameters)
         self.method, self.metric = method, metric

@@ -386,8 +386,11 @@ class Groupoid(GroupoidNumerics, ABC):
 
     # --- products -------------------------------------------------------------------------
     def __mul__(self, other: Groupoid) -> Groupoid:
+        from ._manifold import Manifold
         from ._product import ProductGroupoid
 
+        if isinstance(other, Manifold):  # SE2("g") * EuclideanSpace("psi"): a manifold
+            return NotImplemented          # (Manifold.__rmul__), as the other order gives
         if not isinstance(other, Groupoid):
             raise InputTypeError(f"{self.name}: a groupoid can only be multiplied by a "
                                  f"groupoid (the product G₁ × G₂), got "
