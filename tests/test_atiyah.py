@@ -214,3 +214,17 @@ def test_quotient_map_property_builds_on_the_pair_groupoid_of_q():
             A.quotient_map  # noqa: B018
     else:
         sg.check_morphism(A.quotient_map, samples=2)
+
+
+def test_q_with_a_shape_space_in_every_form():
+    """(Q = EuclideanSpace("s") * SO3("R") was refused, "found 0" factors of SO3: the group
+    was wrapped as a factor of a product manifold; and with Q given as a tuple of factors
+    ``quotient_map`` could not build PairGroupoid(Q).)  The product in either order and the
+    tuple give the same Atiyah groupoid, and π is a morphism."""
+    forms = [sg.EuclideanSpace("s") * sg.SO3("R"), (sg.EuclideanSpace("s"), sg.SO3("R"))]
+    for Q in forms:
+        A = sg.AtiyahGroupoid(Q, sg.SO3)
+        assert A.shape_space.names == ("s",) and A.configuration_dim == 10
+        sg.check_morphism(A.quotient_map, samples=2)
+    A = sg.AtiyahGroupoid(sg.SO3("R") * sg.EuclideanSpace("s"), sg.SO3)
+    sg.check_morphism(A.quotient_map, samples=2)

@@ -37,6 +37,7 @@ import sympy as sp
 from .._arguments import callable_argument, choice_argument, name_argument, shown_value
 from .._errors import CallableError, DomainError, InputTypeError, ShapeError, SymgroupoidError
 from ._base import Arrow, Groupoid
+from ._manifold import GroupManifold, ProductManifold
 from ._matrix_groups import MatrixLieGroup
 from ._pair import EuclideanSpace
 
@@ -54,6 +55,8 @@ def manifold_factors(Q) -> list:
     factors = getattr(Q, "factors", None)  # a product's tuple (not, e.g., Rational.factors)
     if isinstance(factors, (list, tuple)) and not isinstance(Q, (MatrixLieGroup, EuclideanSpace)):
         return manifold_factors(tuple(factors))
+    if isinstance(Q, GroupManifold):  # a group as a factor of a product manifold
+        return [Q.group]
     return [Q]
 
 
@@ -369,8 +372,12 @@ class AtiyahGroupoid(Groupoid):
         """π: Q × Q → (Q × Q)/H on the pair groupoid of Q (``PairGroupoid(Q)``)."""
         from ._pair import PairGroupoid
 
+        space = self.configuration_space
+        if isinstance(space, (list, tuple)):  # Q given as its factors: their product
+            factors = manifold_factors(space)
+            space = factors[0] if len(factors) == 1 else ProductManifold(*factors)
         try:
-            pair = PairGroupoid(self.configuration_space)
+            pair = PairGroupoid(space)
         except (TypeError, ValueError) as exc:
             raise InputTypeError(f"{self.name}: cannot build the pair groupoid of Q ({exc}); "
                                  f"build it and use quotient_map_from(pair_groupoid)") from exc
