@@ -35,6 +35,7 @@ from .runtime import (
     constraint_residuals,
     energy_label,
     has_energy,
+    impulse_balance,
     noether_quantities,
     trajectory_programs,
 )
@@ -204,21 +205,6 @@ def _drift_panel(ax, quantities: list[Drift], h: float | None,
     ax.legend(fontsize="small", loc="best")
 
 
-def _impulse_balance(trajectory, nq, label: str, values: np.ndarray) -> tuple[Drift, Drift]:
-    """A forced system's Noether quantity J: (the balance J_k − Σ_{j<k} I_j, conserved to
-    rounding by the forced Noether theorem, docs/conventions.md §20; J itself, which changes
-    by the impulses I_j, :meth:`NoetherQuantity.impulse`)."""
-    if getattr(trajectory, "every", 1) != 1:
-        raise DomainError(f"{_owner(trajectory)}: {label} belongs to a forced system: its "
-                          f"balance with the forces' impulse needs every state (simulate "
-                          f"with every=1)")
-    impulse = nq.impulse(trajectory)
-    idx = trajectory.step_indices
-    balance = values - np.concatenate([[0.0], np.cumsum(impulse)])
-    return (Drift(f"{label} − Σ impulse", balance, idx),
-            Drift(f"{label} (changed by the forces)", values, idx))
-
-
 def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence = (), *,
                       constraints: bool | None = None, step_parameter: str | None = None,
                       path: str | PathLike | None = None, time_step: str | bool | None = None):
@@ -261,7 +247,7 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
         if nq.impulse_form is None:
             quantities.append(Drift(label, values, idx))
             continue
-        balance, change = _impulse_balance(trajectory, nq, label, values)
+        balance, change = impulse_balance(trajectory, nq, label, values)
         quantities.append(balance)
         changes.append(change)
     show_phi = programs.has_constraints if constraints is None else constraints

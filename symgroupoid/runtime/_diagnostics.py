@@ -15,7 +15,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._arguments import flag_argument
-from .._errors import DiagnosticsError, SymgroupoidError, TimeStepError  # noqa: F401 (re-exported)
+from .._errors import (  # noqa: F401 (re-exported)
+    DiagnosticsError,
+    DomainError,
+    SymgroupoidError,
+    TimeStepError,
+)
 from ..equations import StatePrograms, solve_stages, state_programs
 
 _EPS = float(np.finfo(float).eps)
@@ -288,11 +293,23 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
         want_energy = has_energy(trajectory, step_parameter)
         if not want_energy and ev.sg.arity == 1:
             notes.append(f"energy: not included ({_energy_missing(trajectory, step_parameter)})")
+    forced = ev.sg.forces is not None
+    if energy is None and forced and want_energy:
+        want_energy = False
+        notes.append("energy: not included (the forces change it; energy=True includes it)")
     if want_energy:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 globals()["energy"](trajectory, step_parameter), idx))
     for label, nq in noether_quantities(ev.sg, noether):
-        quantities.append(Drift(label, nq.along(trajectory), idx))
+        values = nq.along(trajectory)
+        if nq.impulse_form is None:
+            quantities.append(Drift(label, values, idx))
+            continue
+        balance, change = impulse_balance(trajectory, nq, label, values)
+        quantities.append(balance)
+        notes.append(f"{label}: changed by the forces' impulse (max |Q_k − Q_0| = "
+                     f"{change.max_drift:.1e}); its balance with the impulse, Q_k − Σ_{{j<k}} "
+                     f"I_j, is the conserved quantity (docs/conventions.md §20)")
     residual = None
     if ev.sg.has_constraints:
         residual = float(np.max(np.abs(constraint_residuals(trajectory))))
@@ -311,6 +328,21 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
                      "forced DEL")
     return ConservationSummary(trajectory._layout.step_name, trajectory.steps, quantities,
                                residual, matching, scale, notes)
+
+
+def impulse_balance(trajectory, nq, label: str, values: np.ndarray) -> tuple[Drift, Drift]:
+    """A forced system's Noether quantity J: (the balance J_k − Σ_{j<k} I_j, conserved to
+    rounding by the forced Noether theorem, docs/conventions.md §20; J itself, which changes
+    by the impulses I_j, :meth:`NoetherQuantity.impulse`)."""
+    if getattr(trajectory, "every", 1) != 1:
+        raise DomainError(f"{trajectory._layout.step_name}: {label} belongs to a forced "
+                          f"system: its balance with the forces' impulse needs every state "
+                          f"(simulate with every=1)")
+    impulse = nq.impulse(trajectory)
+    idx = trajectory.step_indices
+    balance = values - np.concatenate([[0.0], np.cumsum(impulse)])
+    return (Drift(f"{label} − Σ impulse", balance, idx),
+            Drift(f"{label} (changed by the forces)", values, idx))
 
 
 def _variational(system) -> bool:
