@@ -5,6 +5,7 @@ mid-sweep; the results equal the serial ones exactly."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 import subprocess
@@ -574,8 +575,9 @@ def test_a_task_over_its_timeout_is_recorded_and_the_sweep_goes_on():
     assert (res.status == sg.Status.TIMED_OUT).all()
     assert (res.failed_step > 0).all() and all(v is None for v in res.values)
     assert "timeout" in res.messages[0]
-    with pytest.raises(sg.DomainError, match="timeout must be a positive"):
-        sg.sweep(sim, S, RIGID, 10, timeout=0)
+    for bad in (0, -1, math.inf, math.nan):  # (−1, inf and nan were a ShapeError, 0 not)
+        with pytest.raises(sg.DomainError, match="timeout must be a positive"):
+            sg.sweep(sim, S, RIGID, 10, timeout=bad)
 
 
 def _exits_on(fatal: float):

@@ -57,7 +57,7 @@ def timeout_argument(timeout, owner: str) -> float | None:
     """``timeout``: None or a positive number of seconds (per task)."""
     if timeout is None:
         return None
-    value = real_argument(timeout, "timeout", minimum=0.0, owner=owner)
+    value = real_argument(timeout, "timeout", finite=False, owner=owner)  # (range: below)
     if not 0 < value < math.inf:
         raise DomainError(f"{owner}: timeout must be a positive, finite number of seconds "
                           f"(or None), got {timeout!r}")
