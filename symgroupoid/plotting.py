@@ -35,8 +35,7 @@ from .runtime import (
     constraint_residuals,
     energy_label,
     has_energy,
-    impulse_balance,
-    noether_quantities,
+    noether_drifts,
     trajectory_programs,
 )
 from .runtime import energy as _energy
@@ -241,15 +240,8 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     if energy or (energy is None and not forced and has_energy(trajectory, step_parameter)):
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 _energy(trajectory, step_parameter), idx))
-    changes = []
-    for label, nq in noether_quantities(programs, momenta):
-        values = nq.along(trajectory)
-        if nq.impulse_form is None:
-            quantities.append(Drift(label, values, idx))
-            continue
-        balance, change = impulse_balance(trajectory, nq, label, values)
-        quantities.append(balance)
-        changes.append(change)
+    conserved, changes = noether_drifts(trajectory, programs, momenta)
+    quantities += conserved
     show_phi = programs.has_constraints if constraints is None else constraints
     if show_phi and not programs.has_constraints:
         raise DomainError(f"{programs.name}: constraints=True, but the system has no "

@@ -300,16 +300,12 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
     if want_energy:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 globals()["energy"](trajectory, step_parameter), idx))
-    for label, nq in noether_quantities(ev.sg, noether):
-        values = nq.along(trajectory)
-        if nq.impulse_form is None:
-            quantities.append(Drift(label, values, idx))
-            continue
-        balance, change = impulse_balance(trajectory, nq, label, values)
-        quantities.append(balance)
-        notes.append(f"{label}: changed by the forces' impulse (max |Q_k − Q_0| = "
-                     f"{change.max_drift:.1e}); its balance with the impulse, Q_k − Σ_{{j<k}} "
-                     f"I_j, is the conserved quantity (docs/conventions.md §20)")
+    conserved, changes = noether_drifts(trajectory, ev.sg, noether)
+    quantities += conserved
+    notes += [f"{change.name.removesuffix(' (changed by the forces)')}: changed by the "
+              f"forces' impulse (max |Q_k − Q_0| = {change.max_drift:.1e}); its balance with "
+              f"the impulse, Q_k − Σ_{{j<k}} I_j, is the conserved quantity "
+              f"(docs/conventions.md §20)" for change in changes]
     residual = None
     if ev.sg.has_constraints:
         residual = float(np.max(np.abs(constraint_residuals(trajectory))))
@@ -328,6 +324,23 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
                      "forced DEL")
     return ConservationSummary(trajectory._layout.step_name, trajectory.steps, quantities,
                                residual, matching, scale, notes)
+
+
+def noether_drifts(trajectory, programs, items) -> tuple[list[Drift], list[Drift]]:
+    """(the conserved quantities of the Noether quantities ``items`` along ``trajectory``
+    — each J itself, or of a forced system its balance with the impulse —, the forced J
+    themselves, which the forces change: :func:`impulse_balance`)."""
+    idx = trajectory.step_indices
+    conserved, changes = [], []
+    for label, nq in noether_quantities(programs, items):
+        values = nq.along(trajectory)
+        if nq.impulse_form is None:
+            conserved.append(Drift(label, values, idx))
+            continue
+        balance, change = impulse_balance(trajectory, nq, label, values)
+        conserved.append(balance)
+        changes.append(change)
+    return conserved, changes
 
 
 def impulse_balance(trajectory, nq, label: str, values: np.ndarray) -> tuple[Drift, Drift]:
