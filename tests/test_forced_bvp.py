@@ -443,7 +443,7 @@ def test_the_cli_bvp_takes_inputs(tmp_path, capsys):
     np.save(tmp_path / "short.npy", U[:5])
     assert main(["bvp", str(tmp_path / "forced.py"), str(tmp_path / "bvp.json"),
                  "--inputs", str(tmp_path / "short.npy")]) != 0
-    assert "(6, 1)" in capsys.readouterr().err
+    assert "5 rows for the 6 terms of 6 steps" in capsys.readouterr().err
     assert main(["bvp", str(tmp_path / "forced.py"), str(tmp_path / "bvp.json")]) != 0
     err = capsys.readouterr().err
     assert "has inputs" in err and "--inputs" in err and "inputs=" not in err

@@ -706,6 +706,8 @@ def test_a_forced_second_order_state_from_a_momentum():
     assert np.array_equal(state[:-6], other[:-6]) and np.isfinite(state).all()
     run = sim.simulate(state, 3, k.params, inputs=[0.3, 0.4])
     assert np.array_equal(run["u"], np.full(5, 0.3))
+    with pytest.raises(sg.UnsupportedFeatureError, match="forced=True.* first-order"):
+        sim.from_momentum(g0, momentum, k.params, inputs=[0.3, 0.4], forced=True)
 
 
 @needs_cc

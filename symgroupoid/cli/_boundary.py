@@ -9,8 +9,7 @@ from .._arguments import counted
 from ..runtime import solve_boundary_value
 from ..verification import verify_stationary
 from ._common import derive, say
-from ._errors import InputError
-from ._inputs import boundary_problem, parameters, parse_count, read_inputs
+from ._inputs import boundary_problem, input_table, parameters, parse_count
 from ._output import check_format, write_solution
 
 
@@ -48,18 +47,10 @@ def run_bvp(args: argparse.Namespace) -> int:
 
 def _problem_inputs(args: argparse.Namespace, derived, steps: int):
     """The inputs of the problem's N − a + 1 terms (a the order) from ``--inputs``, as
-    ``simulate`` reads them: a longer table gives its first rows, a single row is held
-    (docs/cli.md); a system with inputs needs the option."""
-    names = [str(u) for u in getattr(derived.system, "inputs", ())]
-    path = getattr(args, "inputs", None)
-    inputs = read_inputs(path, names)
+    ``simulate`` reads them (:func:`input_table`, docs/cli.md)."""
     terms = steps - derived.step.order + 1
-    if inputs is None and names:
-        raise InputError(f"{derived.step.name} has inputs ({', '.join(names)}): give their "
-                         f"sequence with --inputs U.npy|U.csv, one row per term of the action "
-                         f"(at least {terms} rows; row t: the inputs of the term starting at "
-                         f"arrow t), or one row held for every term")
-    if inputs is not None and inputs.ndim == 2 and inputs.shape[0] > terms \
-            and inputs.shape[1] == len(names):
-        return inputs[:terms]
-    return inputs
+    return input_table(getattr(args, "inputs", None),
+                       [str(u) for u in getattr(derived.system, "inputs", ())],
+                       derived.step.name, terms, "term of the action",
+                       "row t: the inputs of the term starting at arrow t",
+                       f"the {terms} terms of {steps} steps")

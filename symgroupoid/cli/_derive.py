@@ -160,9 +160,7 @@ def run_derive(args: argparse.Namespace) -> int:
     tex = Path(args.document) if args.document else Path(f"{file_stem(derived.step.name)}.tex")
     if tex.suffix != ".tex":
         raise InputError(f"--document {tex}: the file name must end in .tex")
-    if not tex.parent.is_dir():
-        raise InputError(f"--document {tex}: the directory {tex.parent} does not exist")
-    problem = output_problem(tex)
+    problem = output_problem(tex)  # (its directory missing, a directory in its place)
     if problem is not None:
         raise InputError(f"--document {tex}: {problem}")
     printed = _latex(derived, document=True)

@@ -334,38 +334,44 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
 
 
 def run_inputs(path: str | None, sim, steps: int) -> np.ndarray | None:
-    """The inputs of a run of ``steps`` steps from ``--inputs`` (docs/cli.md), required
-    for a system with inputs: a table of at least ``steps`` rows gives its first ``steps``
-    (a file may hold a longer sequence), a single row is held constant for every step;
-    anything else goes to the library's checks (:meth:`Simulator.simulate`'s
-    ``inputs=``)."""
-    names = list(sim.layout.input_names)
+    """The inputs of a run of ``steps`` steps from ``--inputs`` (docs/cli.md):
+    :func:`input_table` with one row per step."""
+    return input_table(path, list(sim.layout.input_names), sim.name, steps, "step",
+                       "row j: the inputs of the arrow step j computes", f"--steps {steps}")
+
+
+def input_table(path: str | None, names: list[str], owner: str, rows: int, per: str,
+                meaning: str, wanted: str) -> np.ndarray | None:
+    """The inputs of ``rows`` rows (one ``per`` step, or term of the action) from
+    ``--inputs``, required for a system with inputs (``names``): a table of at least
+    ``rows`` rows gives its first ``rows`` (a file may hold a longer sequence), a single row
+    is held constant for every one; anything else goes to the library's checks
+    (:meth:`Simulator.simulate`'s ``inputs=``).  ``meaning`` says what a row is and
+    ``wanted`` how many rows the command asks for, in messages."""
     if path is not None and not names:
-        raise InputError(f"--inputs {path}: {sim.name} has no inputs (its forces, if any, "
+        raise InputError(f"--inputs {path}: {owner} has no inputs (its forces, if any, "
                          f"read none)")
     inputs = read_inputs(path, names)
     if inputs is None:
         if names:
-            raise InputError(f"{sim.name} has inputs ({', '.join(names)}): give their "
-                             f"sequence with --inputs U.npy|U.csv, one row per step (at "
-                             f"least --steps {steps} rows; row j: the inputs of the arrow "
-                             f"step j computes), or one row held constant")
+            raise InputError(f"{owner} has inputs ({', '.join(names)}): give their "
+                             f"sequence with --inputs U.npy|U.csv, one row per {per} (at "
+                             f"least {wanted} rows; {meaning}), or one row held constant")
         return None
     if inputs.ndim == 2 and inputs.shape[1] != len(names):
         raise InputError(f"--inputs {path}: {inputs.shape[1]} column"
                          f"{'s' if inputs.shape[1] != 1 else ''} for the "
-                         f"{len(names)} input{'s' if len(names) != 1 else ''} of {sim.name} "
+                         f"{len(names)} input{'s' if len(names) != 1 else ''} of {owner} "
                          f"({', '.join(names) or 'none'}): one column per input, one row "
-                         f"per step")
+                         f"per {per}")
     if inputs.ndim == 2 and inputs.shape[0] == 1:
         return inputs[0]
-    if inputs.ndim == 2 and inputs.shape[0] > steps:
-        return inputs[:steps]
-    if inputs.ndim == 2 and inputs.shape[0] < steps and inputs.shape[1] == len(names):
-        raise InputError(f"--inputs {path}: {inputs.shape[0]} rows for --steps {steps}: "
-                         f"give at least {steps} rows (row j: the inputs of the arrow step j "
-                         f"computes; the first {steps} of a longer table are used), or a "
-                         f"single row held for every step")
+    if inputs.ndim == 2 and inputs.shape[0] > rows:
+        return inputs[:rows]
+    if inputs.ndim == 2 and inputs.shape[0] < rows:
+        raise InputError(f"--inputs {path}: {inputs.shape[0]} rows for {wanted}: "
+                         f"give at least {rows} rows ({meaning}; the first {rows} of a "
+                         f"longer table are used), or a single row held for every {per}")
     return inputs
 
 

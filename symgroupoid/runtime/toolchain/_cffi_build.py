@@ -108,7 +108,8 @@ def _interrupts_held():
     a compiler nobody can stop; held, it is raised right after, with every run in
     ``processes``.  (A handler, not a signal mask: the children would inherit a mask; a
     handler is reset by exec.)"""
-    if threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread() \
+            or signal.getsignal(signal.SIGINT) is None:  # (a handler set outside Python)
         yield
         return
     caught: list = []

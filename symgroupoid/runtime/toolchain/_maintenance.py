@@ -26,7 +26,14 @@ from ..._errors import CacheError
 from ._atomic import _remove, read_json, remove_tree
 from ._entries import entry_defect
 from ._locks import key_busy
-from ._roots import MANIFEST, MARKER, _foreign_entries, absolute_root, cache_root, is_cache_root
+from ._roots import (
+    MANIFEST,
+    MARKER,
+    absolute_root,
+    cache_root,
+    foreign_listing,
+    is_cache_root,
+)
 from ._sweep import sweep
 from ._trust import _untrusted_reason, trusted
 
@@ -121,11 +128,9 @@ def cache_info(root: Path | None = None) -> CacheInfo:
     if not info.exists:
         return info
     info.refused = _untrusted_reason(root)
-    if info.refused is None and not is_cache_root(root):
-        foreign = _foreign_entries(root)
-        if foreign:  # (compile() does not use it either: the same words)
-            info.refused = (f"it is not a kernel cache (no {MARKER}; it holds "
-                            f"{', '.join(foreign[:3])}{', …' if len(foreign) > 3 else ''})")
+    foreign = foreign_listing(root) if info.refused is None else None
+    if foreign is not None:  # (compile() does not use it either)
+        info.refused = f"it is not a kernel cache (no {MARKER}; it holds {foreign})"
     if info.refused is not None:
         return info
     info.kernels = [_kernel(e) for e in _entries(root / "kernels", _KEY)]
@@ -143,11 +148,10 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
     if not root.is_dir():
         return result
     if not is_cache_root(root):
-        foreign = _foreign_entries(root)
-        if foreign:
+        foreign = foreign_listing(root)
+        if foreign is not None:
             raise CacheError(f"{root} is not a symgroupoid kernel cache (no {MARKER}; it "
-                             f"holds {', '.join(foreign[:3])}{', …' if len(foreign) > 3 else ''}"
-                             f"): nothing was removed")
+                             f"holds {foreign}): nothing was removed")
         return result  # empty, or only an unmarked cache layout: nothing of ours to remove
     trusted(root, modes=False)  # links, other users' directories: CacheError
     # a read-only cache: its locks cannot be opened, which is not a build in progress

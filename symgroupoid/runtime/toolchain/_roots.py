@@ -153,3 +153,14 @@ def _foreign_entries(root: Path) -> list[str]:
                 names = []
             out += [f"{e.name}/{n}" for n in names if not _CACHE_CONTENT[e.name].fullmatch(n)]
     return sorted(out)
+
+
+def foreign_listing(root: Path) -> str | None:
+    """The first things in ``root`` that no kernel cache holds, for messages ("a, b, c, …"),
+    or None when ``root`` is a cache or can become one (:func:`_foreign_entries`)."""
+    if is_cache_root(root):
+        return None
+    foreign = _foreign_entries(root)
+    if not foreign:
+        return None
+    return ", ".join(foreign[:3]) + (", …" if len(foreign) > 3 else "")

@@ -18,7 +18,7 @@ from pathlib import Path
 from ..._errors import CacheError
 from ._atomic import _exists, write_atomic_private
 from ._processes import scratch_prefix, sweep_scratch
-from ._roots import _MARKER_TEXT, MARKER, SUBDIRS, _foreign_entries, is_cache_root
+from ._roots import _MARKER_TEXT, MARKER, SUBDIRS, foreign_listing, is_cache_root
 from ._trust import dir_mode, trusted
 
 _STATE_LOCK = threading.Lock()
@@ -38,9 +38,8 @@ def _claim(root: Path) -> bool:
     unmarked until now."""
     if is_cache_root(root):
         return False
-    foreign = _foreign_entries(root)
-    if foreign:
-        shown = ", ".join(foreign[:3]) + (", …" if len(foreign) > 3 else "")
+    shown = foreign_listing(root)
+    if shown is not None:
         raise ForeignDirectoryError(
             errno.EEXIST, f"it is not a kernel cache: it holds other files ({shown}), which "
             f"symgroupoid leaves alone; a cache goes to an empty or new directory",
