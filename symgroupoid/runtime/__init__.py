@@ -25,6 +25,7 @@ from ._diagnostics import (
     rounding_floor,
     trajectory_programs,
 )
+from ._executors import ClusterLostError
 from ._options import NewtonOptions
 from ._pickle import DetachedStepError, NotPortableError
 from ._programs import ProgramEvaluator, compile_program, wait_for_kernels
@@ -42,7 +43,8 @@ from .toolchain import CompilationError, CompilerNotFoundError, VectorISAError, 
 _FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "output_problem",
                          "read_trajectory", "save_trajectory"})
 
-__all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "CompilationError",
+__all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "ClusterLostError",
+           "CompilationError",
            "CompilerNotFoundError", "ConservationSummary", "DetachedStepError", "Drift", "Momenta",
            "VectorISAError",
            "NewtonOptions", "NotPortableError", "ProgramEvaluator", "ProjectionError",

@@ -19,8 +19,9 @@ thread, so that what is done is kept whatever happens next.
   status :data:`WORKER_DIED`.  A job over its ``timeout`` has its worker killed, its runs
   recorded :data:`TIMED_OUT`.  Ctrl-C kills the workers (and a worker whose parent is gone
   ends itself).
-- ``dask``: a ``distributed.Client``; a job whose workers keep dying (``KilledWorker``) is
-  split into its runs as above.
+- ``dask``: a ``distributed.Client`` (``_dask.py``): a job that a worker's death implicates
+  is split into its runs, which run again one at a time once the other jobs are done: a
+  run that kills its worker alone on the cluster is recorded :data:`WORKER_DIED`.
 
 Ctrl-C (``KeyboardInterrupt``) propagates after the workers are stopped; the runs received
 until then are in the sweep's partial result.
@@ -38,7 +39,6 @@ import sys
 import threading
 import time
 import traceback
-import uuid
 
 from .._errors import SymgroupoidError
 from ..stepper import Status
@@ -50,12 +50,15 @@ INTERRUPTED, TIMED_OUT, WORKER_DIED = Status.INTERRUPTED, Status.TIMED_OUT, Stat
 POLL = 0.1
 #: how long Ctrl-C waits for the worker threads to finish their kernel call (seconds)
 STOP_WAIT = 1.0
-#: tasks in flight per worker at most (Dask)
-IN_FLIGHT_PER_WORKER = 4
 
 
 class WorkerProcessError(SymgroupoidError, RuntimeError):
     """A worker process could not start or could not load the sweep's task."""
+
+
+class ClusterLostError(SymgroupoidError, RuntimeError):
+    """A sweep's Dask cluster lost its workers to deaths and did not get them back; the
+    exception's ``result`` is the partial :class:`SweepResult` of the runs done."""
 
 
 def run_job(task, job, stop=None):
@@ -69,7 +72,9 @@ def execute(mode: str, task, jobs: list, receive, *, workers: int, timeout: floa
             client=None) -> None:
     """Run ``jobs`` on the executor ``mode``; each result goes to ``receive``."""
     if mode == "dask":
-        _run_dask(task, jobs, receive, client)
+        from ._dask import run_dask
+
+        run_dask(task, jobs, receive, client)
     elif mode == "process":
         _ProcessPool(task, workers, timeout).run(jobs, receive)
     elif mode == "thread" and workers > 1 and len(jobs) > 1:
@@ -414,81 +419,5 @@ def _raise_remote(exc: BaseException | None, text: str):
                              f"back:\n{text}")
 
 
-# --- Dask -------------------------------------------------------------------------------------
-
-def _hold(payload: bytes):
-    return pickle.loads(payload)
-
-
-def _killed_worker(exc: BaseException) -> bool:
-    return type(exc).__name__ == "KilledWorker"
-
-
-def _run_job_sent(task, job):
-    """:func:`run_job` on a Dask worker, whose reduced values are checked to pickle there:
-    a value that does not is a ``ReduceError`` naming its run (Dask's own error names no
-    run)."""
-    result = run_job(task, job)
-    if getattr(result, "values", None) is not None:
-        try:
-            dumps(result.values)
-        except Exception:  # noqa: BLE001 - any value that does not travel
-            named = result.unsendable(dumps)
-            if named is not None:
-                raise named from None
-            raise
-    return result
-
-
-def _run_dask(task, jobs: list, receive, client) -> None:
-    """The jobs on a Dask cluster, at most a few in flight per worker.  The shared task is
-    itself a task (recomputed if the workers holding it are lost); Ctrl-C cancels what is
-    in flight."""
-    from distributed import as_completed
-
-    token = uuid.uuid4().hex[:12]
-    held = client.submit(_hold, dumps(task), key=f"symgroupoid-task-{token}", pure=False)
-    limit = IN_FLIGHT_PER_WORKER * max(1, len(client.nthreads()))
-    todo = collections.deque(jobs)
-    live: dict = {}
-    alone: set = set()  # single runs that KilledWorker ended once already
-
-    def submit():
-        job = todo.popleft()
-        future = client.submit(_run_job_sent, held, job,
-                               key=f"symgroupoid-chunk-{token}-{uuid.uuid4().hex[:12]}",
-                               pure=False)
-        live[future.key] = (future, job)
-        return future
-
-    flying = as_completed([submit() for _ in range(min(limit, len(todo)))])
-    try:
-        for future in flying:
-            _, job = live.pop(future.key)
-            try:
-                result = future.result()
-            except Exception as exc:
-                if not _killed_worker(exc):
-                    raise
-                parts = job.split()
-                todo.extendleft(reversed(parts))
-                if not parts and job.first not in alone:  # a bystander of another run's
-                    alone.add(job.first)  # death (a worker runs several jobs): once more
-                    todo.appendleft(job)
-                elif not parts:
-                    receive(job.lost(WORKER_DIED, f"the Dask workers running it died "
-                                                  f"({exc})"))
-            else:
-                receive(result)
-            future.release()
-            while todo and len(live) < limit:
-                flying.add(submit())
-    except BaseException:
-        client.cancel([f for f, _ in live.values()])
-        raise
-    finally:
-        held.release()
-
-
-__all__ = ["INTERRUPTED", "TIMED_OUT", "WORKER_DIED", "WorkerProcessError", "execute",
-           "run_job"]
+__all__ = ["ClusterLostError", "INTERRUPTED", "TIMED_OUT", "WORKER_DIED", "WorkerProcessError",
+           "execute", "run_job"]

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._errors import CallableError, DomainError
-from ._executors import TIMED_OUT, WORKER_DIED
+from ._executors import TIMED_OUT, WORKER_DIED, ClusterLostError
 from ._runs import INTERRUPTED, OK
 
 #: the statuses of runs stopped from outside (not kernel statuses; see SweepResult) and
@@ -202,6 +202,8 @@ class Collected:
         self.values: list = []
         self.t0 = time.perf_counter()
         self.t1: float | None = None
+        #: why the runs without a result in a partial result have none
+        self.unfinished = STOPPED[INTERRUPTED]
 
     def place(self, first: int, n: int, status, failed, messages, values) -> None:
         """Runs first … first + n − 1, marked received last (a Ctrl-C in between leaves
@@ -220,13 +222,15 @@ class Collected:
         return (self.t1 or time.perf_counter()) - self.t0
 
     def run(self, work, result) -> None:
-        """``work()``; a ``KeyboardInterrupt`` leaves with ``.result``, the partial
-        :class:`SweepResult`."""
+        """``work()``; a ``KeyboardInterrupt`` or a ``ClusterLostError`` leaves with
+        ``.result``, the partial :class:`SweepResult`."""
         try:
             work()
-        except KeyboardInterrupt as interrupt:
+        except (KeyboardInterrupt, ClusterLostError) as stop:
             self.t1 = time.perf_counter()
-            interrupt.result = result(True)
+            if isinstance(stop, ClusterLostError):
+                self.unfinished = "the sweep's Dask cluster lost its workers"
+            stop.result = result(True)
             raise
         finally:
             self.t1 = self.t1 or time.perf_counter()
@@ -241,7 +245,7 @@ class Collected:
         status, failed, messages = self.status.copy(), self.failed.copy(), self.messages.copy()
         status[missing] = INTERRUPTED
         for r in missing:
-            messages[r] = f"{self.name}: run {r}: not run: {STOPPED[INTERRUPTED]}"
+            messages[r] = f"{self.name}: run {r}: not run: {self.unfinished}"
         return (status.reshape(self.shape), failed.reshape(self.shape),
                 messages.reshape(self.shape))
 

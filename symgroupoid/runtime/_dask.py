@@ -1,0 +1,208 @@
+"""A sweep's jobs on a Dask cluster (``sweep(..., client=...)``).
+
+A worker process that dies takes with it every task it was running or holding, and Dask
+counts the death against each of them (a task's *suspicious* count; ``KilledWorker`` past
+``distributed.scheduler.allowed-failures``).  A run whose ``reduce`` ends its process
+(``os._exit``, a crash in the user's code) therefore implicates the runs that shared its
+worker.  So the jobs run in two waves:
+
+1. every job, a few in flight per worker; a job that a death implicates (its suspicious
+   count, read from the scheduler, or ``KilledWorker`` where the scheduler does not answer)
+   is cancelled at once, split into its runs and set aside;
+2. the runs set aside, one at a time, alone on the cluster, where a death can only be the
+   run's own: the first one records it :data:`WORKER_DIED`; the others complete.
+
+So no run is blamed for another's death, and each culprit costs about two worker restarts,
+not Dask's four per try (a worker that dies just after it started may not be restarted by
+its nanny: every death avoided keeps the cluster alive).  While it waits, the sweep watches
+the cluster: when deaths have left it without workers for :data:`NO_WORKERS_WAIT` seconds
+it raises :class:`ClusterLostError` (carrying the runs done), rather than wait for ever; a
+cluster that has no workers without deaths (one still starting, an adaptive one) only gets a
+warning.
+"""
+
+from __future__ import annotations
+
+import collections
+import pickle
+import time
+import uuid
+import warnings
+
+from ._executors import POLL, WORKER_DIED, ClusterLostError, dumps, run_job
+
+#: tasks in flight per worker at most
+IN_FLIGHT_PER_WORKER = 4
+#: how long a cluster may have no workers before the sweep says so (seconds)
+NO_WORKERS_WAIT = 60.0
+#: how long the first fetch of a task's result waits before the cluster is looked at again
+#: (seconds; doubled for each fetch of the same result)
+FETCH_WAIT = 5.0
+
+
+def _hold(payload: bytes):
+    return pickle.loads(payload)
+
+
+def _killed_worker(exc: BaseException) -> bool:
+    return type(exc).__name__ == "KilledWorker"
+
+
+def _run_job_sent(task, job):
+    """:func:`run_job` on a Dask worker, whose reduced values are checked to pickle there:
+    a value that does not is a ``ReduceError`` naming its run (Dask's own error names no
+    run)."""
+    result = run_job(task, job)
+    if getattr(result, "values", None) is not None:
+        try:
+            dumps(result.values)
+        except Exception:  # noqa: BLE001 - any value that does not travel
+            named = result.unsendable(dumps)
+            if named is not None:
+                raise named from None
+            raise
+    return result
+
+
+def _cluster_state(keys: list, dask_scheduler=None) -> tuple[list, int]:
+    """On the scheduler: the keys among ``keys`` that a worker's death implicated, and the
+    number of running workers."""
+    tasks = dask_scheduler.tasks
+    implicated = [k for k in keys if k in tasks and getattr(tasks[k], "suspicious", 0) > 0]
+    return implicated, len(dask_scheduler.running)
+
+
+class _Watch:
+    """The cluster as the sweep sees it: implicated tasks, and how long it has had no
+    workers."""
+
+    def __init__(self, client):
+        self.client = client
+        self.asks = True  # the scheduler answers run_on_scheduler
+        self.deaths = 0  # tasks a death implicated
+        self.since: float | None = None  # when the cluster was last seen without workers
+        self.warned = False
+
+    def implicated(self, keys: list) -> set:
+        """The keys of ``keys`` a worker's death implicated (none where the scheduler does
+        not say); checks the workers as it goes."""
+        found, workers = [], None
+        if self.asks and keys:
+            try:
+                found, workers = self.client.run_on_scheduler(_cluster_state, keys)
+            except Exception:  # noqa: BLE001 - a scheduler that refuses: KilledWorker only
+                self.asks = False
+        if workers is None:
+            workers = len(self.client.nthreads())
+        self._workers(workers)
+        return set(found)
+
+    def _workers(self, workers: int) -> None:
+        now = time.monotonic()
+        if workers:
+            self.since, self.warned = None, False
+            return
+        self.since = self.since or now
+        if now - self.since < NO_WORKERS_WAIT:
+            return
+        if self.deaths:
+            raise ClusterLostError(
+                f"the Dask cluster has had no workers for {NO_WORKERS_WAIT:g} s since "
+                f"workers died running this sweep (a reduce that ends its process, or a "
+                f"crash), and none came back.  The runs done are in this error's .result")
+        if not self.warned:
+            self.warned = True
+            warnings.warn(f"sweep: the Dask cluster has had no workers for "
+                          f"{NO_WORKERS_WAIT:g} s; waiting for some (Ctrl-C keeps the runs "
+                          f"done)", RuntimeWarning, stacklevel=2)
+
+
+def run_dask(task, jobs: list, receive, client) -> None:
+    """The jobs on a Dask cluster (see the module docstring); each result to ``receive``.
+    The shared task is itself a task (recomputed if the workers holding it are lost);
+    results are gathered as soon as they are computed; Ctrl-C cancels what is in flight."""
+    token = uuid.uuid4().hex[:12]
+    held = client.submit(_hold, dumps(task), key=f"symgroupoid-task-{token}", pure=False)
+    watch = _Watch(client)
+    aside: list = []
+
+    def set_aside(job, why):
+        aside.extend(job.split() or [job])
+
+    def died(job, why):
+        receive(job.lost(WORKER_DIED, f"its Dask worker died while running it alone on "
+                                      f"the cluster ({why})"))
+
+    try:
+        limit = IN_FLIGHT_PER_WORKER * max(1, len(client.nthreads()))
+        _wave(client, held, token, jobs, limit, receive, set_aside, watch)
+        _wave(client, held, token, aside, 1, receive, died, watch)
+    finally:
+        held.release()
+
+
+def _wave(client, held, token: str, jobs: list, limit: int, receive, implicated,
+          watch: _Watch) -> None:
+    """``jobs`` on the cluster, at most ``limit`` in flight: each result to ``receive``, each
+    job a worker's death implicated to ``implicated(job, why)`` (cancelled); any other
+    error raised.  The scheduler is asked about deaths at most every :data:`POLL`
+    seconds."""
+    from distributed import wait
+
+    todo = collections.deque(jobs)
+    live: dict = {}
+    patience: dict = {}
+    asked = time.monotonic()
+
+    def drop(key, why):
+        future, job = live.pop(key)
+        watch.deaths += 1
+        client.cancel([future])
+        future.release()
+        implicated(job, why)
+
+    try:
+        while todo or live:
+            while todo and len(live) < limit:
+                job = todo.popleft()
+                future = client.submit(
+                    _run_job_sent, held, job, pure=False,
+                    key=f"symgroupoid-chunk-{token}-{uuid.uuid4().hex[:12]}")
+                live[future.key] = (future, job)
+            try:
+                wait([f for f, _ in live.values()], timeout=POLL, return_when="FIRST_COMPLETED")
+            except TimeoutError:
+                pass
+            for key in [k for k, (f, _) in live.items() if f.done()]:
+                _collect(key, live, receive, drop, patience)
+            if time.monotonic() - asked >= POLL:
+                asked = time.monotonic()
+                for key in watch.implicated(list(live)):
+                    drop(key, "a worker died while it was running or queued there")
+    except BaseException:
+        client.cancel([f for f, _ in live.values()])
+        raise
+
+
+def _collect(key, live: dict, receive, drop, patience: dict) -> None:
+    """The done task ``key``: its result received, a ``KilledWorker`` dropped, any other
+    error raised.  A result whose worker died before it was fetched is computed again: the
+    fetch waits ``patience[key]`` seconds (doubled each time) and leaves it to the next
+    round, so that the cluster is still watched meanwhile."""
+    future, _ = live[key]
+    if future.status == "error" and _killed_worker(future.exception()):
+        drop(key, str(future.exception()))
+        return
+    wait = patience.get(key, FETCH_WAIT)
+    try:
+        result = future.result(timeout=wait)  # raises the task's error (or a cancellation)
+    except TimeoutError:
+        patience[key] = 2 * wait
+        return
+    del live[key]
+    patience.pop(key, None)
+    future.release()
+    receive(result)
+
+
+__all__ = ["IN_FLIGHT_PER_WORKER", "NO_WORKERS_WAIT", "run_dask"]
