@@ -140,15 +140,17 @@ def real_argument(value, name: str, *, minimum: float | None = None, owner: str 
     return real
 
 
-def flag_argument(value, name: str, *, owner: str = "") -> bool:
+def flag_argument(value, name: str, *, owner: str = "",
+                  accepted: str = "True or False") -> bool:
     """``value`` as a bool: ``True``/``False`` (Python or NumPy) or the integers 0 and 1;
-    anything else (a string such as ``"no"``, None) is a :class:`ShapeError`."""
+    anything else (a string such as ``"no"``, None) is a :class:`ShapeError` saying what is
+    ``accepted``."""
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, numbers.Integral) and not isinstance(value, _TIMES) \
             and int(value) in (0, 1):
         return bool(value)
-    raise ShapeError(f"{where(owner)}{name} must be True or False, got "
+    raise ShapeError(f"{where(owner)}{name} must be {accepted}, got "
                      f"{type(value).__name__} {shown_value(value)}")
 
 

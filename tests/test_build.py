@@ -467,6 +467,30 @@ def test_the_openmp_probe_runs_while_the_c_is_generated(monkeypatch, tmp_path):
     assert len(calls) <= 2
 
 
+def test_a_probe_that_cannot_tell_is_tried_twice_in_a_process(monkeypatch, tmp_path):
+    """(An environment where the OpenMP probe never answers — its library does not load
+    for a reason other than OpenMP, e.g. a noexec $TMPDIR — probed again at every build,
+    about 0.3 s each.)  Undetermined answers are not recorded; after two of them the
+    process builds without OpenMP and probes no more."""
+    monkeypatch.delenv("SYMGROUPOID_OPENMP", raising=False)
+    monkeypatch.setattr(_openmp, "_OPENMP", {})
+    monkeypatch.setattr(_openmp, "_PENDING", {})
+    monkeypatch.setattr(_openmp, "_UNDETERMINED", {})
+    if _openmp._probe_identity() is None:
+        pytest.skip("no C compiler")
+    calls = []
+
+    def probe(command):
+        calls.append(tuple(command))
+        return None
+
+    monkeypatch.setattr(_openmp, "_openmp_probe", probe)
+    answers = [toolchain.openmp_available(tmp_path) for _ in range(4)]
+    assert answers == [False] * 4 and len(calls) == 2
+    assert not toolchain.start_openmp_probe(tmp_path) and len(calls) == 2
+    assert not list(tmp_path.glob("probes/openmp-*.json"))
+
+
 @needs_cc
 def test_the_templates_compiled_code_never_changes_the_c(tmp_path, monkeypatch):
     """The templates' compiled code, kept in a directory given to ``generate_c`` (the

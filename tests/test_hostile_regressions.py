@@ -81,7 +81,8 @@ def test_a_batch_too_large_for_memory_names_steps_and_every():
     ({"reduce": 3}, sg.InputTypeError, "reduce must be a function"),
     ({"reduce_failures": "yes"}, sg.ShapeError, "reduce_failures must be True or False"),
     ({"client": "localhost"}, sg.InputTypeError, "client must be a dask.distributed.Client"),
-    ({"progress": "x"}, sg.ShapeError, "progress must be True or False"),
+    ({"progress": "x"}, sg.ShapeError,
+     r"progress must be True, False, None or a function progress\(done, total\), got str"),
 ])
 def test_sweep_checks_every_argument_before_any_run(change, error, message):
     """(A misspelt combine was a ValueError, steps=None a TypeError, a reduce that is not a

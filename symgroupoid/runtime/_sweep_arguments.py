@@ -78,7 +78,8 @@ def progress_argument(progress, owner: str):
     """``progress`` of a sweep: None, True, False or a function ``progress(done, total)``."""
     if progress is None or callable(progress):
         return progress
-    return flag_argument(progress, "progress", owner=owner)
+    return flag_argument(progress, "progress", owner=owner,
+                         accepted="True, False, None or a function progress(done, total)")
 
 
 def client_argument(client, owner: str):

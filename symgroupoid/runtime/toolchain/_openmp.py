@@ -77,6 +77,13 @@ _OPENMP: dict[str, bool] = {}
 #: probes running in a background thread (compiler key → the thread's result holder)
 _PENDING: dict[str, tuple[threading.Thread, list]] = {}
 
+#: probes that could not tell, per compiler key, in this process: after
+#: :data:`UNDETERMINED_TRIES` of them the process builds without OpenMP and probes no more
+#: (an environment where the probe never loads, e.g. a noexec ``$TMPDIR``, paid for a
+#: probe at every build); nothing is recorded in the cache
+_UNDETERMINED: dict[str, int] = {}
+UNDETERMINED_TRIES = 2
+
 
 def _compiler_identity() -> tuple[tuple[str, ...], str] | None:
     """(compiler command, a key naming that compiler binary as installed), or None."""
@@ -102,13 +109,18 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
     """Whether kernels are built with OpenMP: the C compiler accepts ``-fopenmp`` and its
     runtime loads.  Probed once per compiler: the answer is kept in this process and in the
     cache (``probes/openmp-<compiler key>.json``, when the cache is writable), so a
-    warm start compiles nothing.  ``SYMGROUPOID_OPENMP=0`` turns OpenMP off."""
+    warm start compiles nothing.  A probe that cannot tell (killed, or its library does not
+    load for another reason) is not kept: the build goes without OpenMP and the next one
+    probes again, up to :data:`UNDETERMINED_TRIES` times in a process.
+    ``SYMGROUPOID_OPENMP=0`` turns OpenMP off."""
     identity = _probe_identity()
     if identity is None:
         return False
     command, key = identity
     if key in _OPENMP:
         return _OPENMP[key]
+    if _UNDETERMINED.get(key, 0) >= UNDETERMINED_TRIES:
+        return False
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     name = f"openmp-{key}.json"
     known = _cached_probe(cache, name)
@@ -122,6 +134,7 @@ def openmp_available(cache_dir: str | os.PathLike | None = None) -> bool:
     else:
         result = _openmp_probe(command)
     if result is None:  # no answer this time: built without OpenMP, probed again next time
+        _UNDETERMINED[key] = _UNDETERMINED.get(key, 0) + 1
         return False
     _OPENMP[key] = result
     probes = cache.root / "probes"
@@ -151,7 +164,7 @@ def start_openmp_probe(cache_dir: str | os.PathLike | None = None) -> bool:
     if identity is None:
         return False
     command, key = identity
-    if key in _OPENMP or key in _PENDING:
+    if key in _OPENMP or key in _PENDING or _UNDETERMINED.get(key, 0) >= UNDETERMINED_TRIES:
         return False
     cache = KernelCache(Path(cache_dir) if cache_dir is not None else None)
     if _cached_probe(cache, f"openmp-{key}.json") is not None:
