@@ -86,6 +86,30 @@ def _finish(fig, path: str | PathLike | None, owner: str):
     return fig
 
 
+def _legend(ax, **options) -> None:
+    """The panel's legend beside it, on the right, where it covers no curve."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **options)
+
+
+def _semilogy(ax, x, y, **style) -> None:
+    """``y`` against ``x`` on the log axis (values that are exactly 0 are gaps); a single
+    point as a marker, which a line of one point would not show."""
+    y = np.where(y > 0, y, np.nan)
+    ax.semilogy(x, y, marker="o" if len(y) == 1 else None, ms=3, **style)
+
+
+def _drift_label(q: Drift) -> str:
+    """A drift's legend entry: its largest value, and where it is exactly 0 (gaps on the log
+    axis, or no curve at all)."""
+    drift = q.drift
+    if len(drift) < 2:
+        return f"{q.name} (one state: no drift to show)"
+    if not np.any(drift[1:] > 0):
+        return f"{q.name} (exactly Q_0 at every step: no curve)"
+    gaps = ", gaps: exactly Q_0" if np.any(drift[1:] == 0) else ""
+    return f"{q.name} (max {q.max_drift:.1e}{gaps})"
+
+
 def _owner(trajectory) -> str:
     layout = getattr(trajectory, "_layout", None)
     if layout is None:
@@ -158,7 +182,7 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
     if not names:
         raise DomainError(f"{owner}: plot_trajectory: no parts to plot (parts is empty)")
     path = _output(path, owner)
-    fig = Figure(figsize=(7, 2.2 * len(names) + 0.6))
+    fig = Figure(figsize=(8.5, 2.2 * len(names) + 0.6))
     axes = fig.subplots(len(names), 1, sharex=True, squeeze=False)[:, 0]
     for ax, name in zip(axes, names):
         values = np.asarray(trajectory[name])
@@ -171,7 +195,7 @@ def plot_trajectory(trajectory, parts: Sequence[str] | None = None, *,
             ax.plot(x, flat[:, j], lw=1, label=label)
         ax.set_ylabel(name)
         if 1 < flat.shape[1] <= 9:
-            ax.legend(fontsize="x-small", ncols=min(flat.shape[1], 3), loc="best")
+            _legend(ax, fontsize="x-small")
     axes[-1].set_xlabel(_axis_label(h, h_name))
     axes[0].set_title(f"{trajectory._layout.step_name}: {trajectory.steps} steps")
     return _finish(fig, path, owner)
@@ -184,24 +208,17 @@ def _drift_panel(ax, quantities: list[Drift], h: float | None,
     comparison with the balance that is."""
     for q in changes:
         k = np.asarray(q.step_indices, float) * (1.0 if h is None else h)
-        ax.semilogy(k, np.where(q.drift > 0, q.drift, np.nan), color="0.55", lw=0.8,
-                    label=f"{q.name} (max {q.max_drift:.1e})")
+        _semilogy(ax, k, q.drift, color="0.55", lw=0.8, label=_drift_label(q))
     for i, q in enumerate(quantities):
         color = f"C{i}"
-        drift = q.drift
         k = np.asarray(q.step_indices, float) * (1.0 if h is None else h)
-        ax.semilogy(k, np.where(drift > 0, drift, np.nan), color=color, lw=1,
-                    label=f"{q.name} (max {q.max_drift:.1e})")
-        floor = q.floor
-        ax.semilogy(k, np.where(floor > 0, floor, np.nan), color=color, lw=1, ls="--",
-                    alpha=0.7)
-        measured = q.measured_floor
-        ax.semilogy(k, np.where(measured > 0, measured, np.nan), color=color, lw=1, ls=":",
-                    alpha=0.7)
+        _semilogy(ax, k, q.drift, color=color, lw=1, label=_drift_label(q))
+        _semilogy(ax, k, q.floor, color=color, lw=1, ls="--", alpha=0.7)
+        _semilogy(ax, k, q.measured_floor, color=color, lw=1, ls=":", alpha=0.7)
     ax.plot([], [], color="0.4", ls="--", lw=1, label="rounding floor ε·|Q|·√k")
     ax.plot([], [], color="0.4", ls=":", lw=1, label="step-to-step variation σ·√k")
     ax.set_ylabel("|Q_k − Q_0|")
-    ax.legend(fontsize="small", loc="best")
+    _legend(ax, fontsize="small")
 
 
 def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence = (), *,
@@ -251,7 +268,7 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
                           f"system's time_step=, or pass step_parameter=...) and no Noether "
                           f"quantity was given (momenta=[...])")
     panels = int(bool(quantities)) + int(show_phi)
-    fig = Figure(figsize=(7, 3 * panels + 0.6))
+    fig = Figure(figsize=(9.5, 3 * panels + 0.6))
     axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])
     if quantities:
         _drift_panel(axes[0], quantities, h, changes)
@@ -259,10 +276,10 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
         ax = axes[-1]
         phi = np.max(np.abs(constraint_residuals(trajectory)), axis=1)
         x = np.asarray(idx, float) * (1.0 if h is None else h)
-        ax.semilogy(x, np.where(phi > 0, phi, np.nan), color="C7", lw=1,
-                    label=f"max |φ| (max {phi.max():.1e})")
+        _semilogy(ax, x, phi, color="C7", lw=1, label=f"max |φ| (max {phi.max():.1e})"
+                  if np.any(phi > 0) else "max |φ| (exactly 0 at every state: no curve)")
         ax.set_ylabel("constraints |φ|")
-        ax.legend(fontsize="small", loc="best")
+        _legend(ax, fontsize="small")
     axes[-1].set_xlabel(_axis_label(h, h_name))
     axes[0].set_title(f"{trajectory._layout.step_name}: conservation over "
                       f"{trajectory.steps} steps")

@@ -305,6 +305,34 @@ def test_figures_are_written(tmp_path):
         traj.plot(["w"])
 
 
+def test_figure_legends_sit_beside_the_panels_and_name_exact_zeros(tmp_path):
+    """(Legends at loc="best" covered the curves of the pendulum's figure; drifts that are
+    exactly 0 vanished from the log axis without a word; a run of 0 steps drew an empty
+    panel.)  Legends are outside the axes, on the right; a drift that is exactly 0 at some
+    states says so in its entry ("gaps"), one that is 0 at every state says there is no
+    curve, and a single state is drawn as a marker and named."""
+    pytest.importorskip("matplotlib")
+    system, _ = spherical_pendulum()
+    traj = pendulum_run()
+    Lz = system.noether(lambda q: [-q[1], q[0], 0])
+    fig = sg.plot_conservation(traj, energy=True, momenta={"L_z": Lz})
+    fig.canvas.draw()
+    for ax in fig.axes:
+        legend, box = ax.get_legend().get_window_extent(), ax.get_window_extent()
+        assert legend.x0 >= box.x1  # beside the panel, never over its curves
+    rest = compiled("rigid_body")
+    state = rest.state({"W": np.eye(3)})
+    params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
+    still = rest.simulate(state, 20, params)  # at rest: E_d is exactly E_0 at every step
+    labels = [t.get_text() for t in sg.plot_conservation(still, step_parameter="h")
+              .axes[0].get_legend().get_texts()]
+    assert "exactly Q_0 at every step: no curve" in labels[0]
+    single = sg.plot_conservation(rest.simulate(state, 0, params), step_parameter="h")
+    labels = [t.get_text() for t in single.axes[0].get_legend().get_texts()]
+    assert "one state: no drift to show" in labels[0]
+    assert single.axes[0].get_lines()[0].get_marker() == "o"
+
+
 def test_plotting_without_matplotlib_names_the_missing_package(monkeypatch):
     monkeypatch.setitem(sys.modules, "matplotlib.figure", None)
     with pytest.raises(sg.plotting.MissingDependencyError, match="matplotlib"):

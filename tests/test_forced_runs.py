@@ -470,3 +470,36 @@ def test_the_conservation_summary_of_a_forced_system_reports_the_impulse_balance
     text = "\n".join(summary.lines())
     assert "wheel: changed by the forces' impulse" in text
     assert "energy: not included (the forces change it" in text
+
+
+def test_a_forced_noether_quantity_without_net_impulse_is_reported_conserved(tmp_path):
+    """(The satellite's total angular momentum about the wheel axis, which the wheel's
+    internal torque leaves unchanged, was labelled "changed by the forces" in the figure,
+    its balance with a zero impulse plotted beside it.)  A forced Noether quantity whose
+    summed impulse stays within its rounding floor is J itself, "no net impulse"; the
+    wheel's own momentum, which the torque changes, keeps its balance."""
+    pytest.importorskip("matplotlib")
+    import sympy as sp
+
+    from symgroupoid import systems
+
+    system = systems.satellite_with_wheel()
+    sim = system.euler_lagrange().compile(backend="numpy")
+    W0 = sp.matrix2numpy(sp.rot_axis1(0.01) * sp.rot_axis3(0.02), dtype=float).T
+    V0 = np.array([[np.cos(0.05), -np.sin(0.05)], [np.sin(0.05), np.cos(0.05)]])
+    p = {"h": 0.02, "I": 2.0, "I3": 3.0, "Iw": 0.1}
+    U = 0.5 * np.sin(0.1 * np.arange(300))
+    traj = sim.simulate({"W": W0, "V": V0, "tau": 0.0}, 300, p, inputs=U)
+    total = system.noether(2)  # body and wheel about e3 together
+    wheel = system.noether(3)
+    summary = traj.conservation_summary(noether={"total": total, "wheel": wheel})
+    names = [q.name for q in summary.quantities]
+    assert names == ["total (no net impulse)", "wheel − Σ impulse"]
+    for q in summary.quantities:
+        assert q.max_drift <= 10 * q.floor.max() + 1e-14
+    text = "\n".join(summary.lines())
+    assert "total: changed" not in text and "wheel: changed by the forces' impulse" in text
+    fig = sg.plot_conservation(traj, momenta={"total": total, "wheel": wheel})
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert labels[0].startswith("wheel (changed by the forces)")
+    assert not any(label.startswith("total (changed") for label in labels)

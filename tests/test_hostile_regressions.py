@@ -450,3 +450,16 @@ def test_an_expression_code_cannot_evaluate_is_named_in_the_users_coordinates():
                        match=r"^undef: the Lagrangian: the subexpression f\(x_\{k-1\}\) is an "
                              r"undefined function"):
         step.compile(backend="numpy")
+
+
+@pytest.mark.parametrize("section", [np.timedelta64(1, "us"), np.timedelta64(3, "D"),
+                                     np.datetime64("2020-01-01")])
+def test_a_numpy_time_is_not_a_section_index(section):
+    """(NumPy times are integers to ``numbers``: noether(np.timedelta64(1, "us")) raised a
+    raw TypeError from int(), found by the hostile suite.)"""
+    from symgroupoid import systems
+
+    with pytest.raises(sg.ShapeError, match="a section is a basis index, a list of 3 "
+                                            "coefficients or a function of q; got timedelta64"
+                       if "timedelta" in type(section).__name__ else "got datetime64"):
+        systems.rigid_body().noether(section)

@@ -126,6 +126,10 @@ def section_coefficients(G: Groupoid, section, q: Sequence, parameters: Sequence
     nested list, nan, oo, I, an undeclared symbol — is a :class:`~symgroupoid.ShapeError` or
     :class:`~symgroupoid.InvalidExpressionError` naming the section.
     """
+    if isinstance(section, (np.datetime64, np.timedelta64)):  # integers to `numbers`
+        raise ShapeError(f"{G.name}: a section is a basis index, a list of {G.rank} "
+                         f"coefficients or a function of q; got {type(section).__name__} "
+                         f"{section!r}")
     if isinstance(section, numbers.Integral) and not isinstance(section, (bool, np.bool_)):
         if not 0 <= int(section) < G.rank:
             raise DomainError(f"{G.name}: section index {section} out of range "

@@ -338,9 +338,20 @@ def noether_drifts(trajectory, programs, items) -> tuple[list[Drift], list[Drift
             conserved.append(Drift(label, values, idx))
             continue
         balance, change = impulse_balance(trajectory, nq, label, values)
+        if _impulse_negligible(balance, change):  # internal forces along X: J is conserved
+            conserved.append(Drift(f"{label} (no net impulse)", values, idx))
+            continue
         conserved.append(balance)
         changes.append(change)
     return conserved, changes
+
+
+def _impulse_negligible(balance: Drift, change: Drift) -> bool:
+    """Whether the forces' summed impulse Σ_{j<k} I_j (= J_k − balance_k) stays within the
+    rounding floor of J at every k: forces that cancel along the section (internal forces,
+    docs/conventions.md §20) leave J conserved, and J is not then "changed by the forces"."""
+    summed = np.abs(change.values - balance.values)
+    return bool(np.all(summed <= np.maximum(change.floor, balance.floor)))
 
 
 def impulse_balance(trajectory, nq, label: str, values: np.ndarray) -> tuple[Drift, Drift]:
