@@ -31,7 +31,7 @@ import warnings
 
 from ._executors import POLL, WORKER_DIED, ClusterLostError, dumps, run_job
 
-#: tasks in flight per worker at most
+#: tasks in flight per worker thread at most
 IN_FLIGHT_PER_WORKER = 4
 #: how long a cluster may have no workers before the sweep says so (seconds)
 NO_WORKERS_WAIT = 60.0
@@ -66,10 +66,10 @@ def _run_job_sent(task, job):
 
 def _cluster_state(keys: list, dask_scheduler=None) -> tuple[list, int]:
     """On the scheduler: the keys among ``keys`` that a worker's death implicated, and the
-    number of running workers."""
+    threads of the running workers."""
     tasks = dask_scheduler.tasks
     implicated = [k for k in keys if k in tasks and getattr(tasks[k], "suspicious", 0) > 0]
-    return implicated, len(dask_scheduler.running)
+    return implicated, sum(w.nthreads for w in dask_scheduler.running)
 
 
 class _Watch:
@@ -78,6 +78,7 @@ class _Watch:
 
     def __init__(self, client):
         self.client = client
+        self.threads = sum(client.nthreads().values())  # of the running workers, last seen
         self.asks = True  # the scheduler answers run_on_scheduler
         self.deaths = 0  # tasks a death implicated
         self.since: float | None = None  # when the cluster was last seen without workers
@@ -86,20 +87,26 @@ class _Watch:
     def implicated(self, keys: list) -> set:
         """The keys of ``keys`` a worker's death implicated (none where the scheduler does
         not say); checks the workers as it goes."""
-        found, workers = [], None
-        if self.asks and keys:
+        found, threads = [], None
+        if self.asks:
             try:
-                found, workers = self.client.run_on_scheduler(_cluster_state, keys)
+                found, threads = self.client.run_on_scheduler(_cluster_state, keys)
             except Exception:  # noqa: BLE001 - a scheduler that refuses: KilledWorker only
                 self.asks = False
-        if workers is None:
-            workers = len(self.client.nthreads())
-        self._workers(workers)
+        if threads is None:
+            threads = sum(self.client.nthreads().values())
+        self.threads = threads
+        self._workers(threads)
         return set(found)
 
-    def _workers(self, workers: int) -> None:
+    def in_flight(self) -> int:
+        """How many tasks to keep in flight: a few per thread of the workers last seen (a
+        cluster that grows, an adaptive one, gets more)."""
+        return IN_FLIGHT_PER_WORKER * max(1, self.threads)
+
+    def _workers(self, threads: int) -> None:
         now = time.monotonic()
-        if workers:
+        if threads:
             self.since, self.warned = None, False
             return
         self.since = self.since or now
@@ -134,16 +141,15 @@ def run_dask(task, jobs: list, receive, client) -> None:
                                       f"the cluster ({why})"))
 
     try:
-        limit = IN_FLIGHT_PER_WORKER * max(1, len(client.nthreads()))
-        _wave(client, held, token, jobs, limit, receive, set_aside, watch)
-        _wave(client, held, token, aside, 1, receive, died, watch)
+        _wave(client, held, token, jobs, watch.in_flight, receive, set_aside, watch)
+        _wave(client, held, token, aside, lambda: 1, receive, died, watch)
     finally:
         held.release()
 
 
-def _wave(client, held, token: str, jobs: list, limit: int, receive, implicated,
+def _wave(client, held, token: str, jobs: list, limit, receive, implicated,
           watch: _Watch) -> None:
-    """``jobs`` on the cluster, at most ``limit`` in flight: each result to ``receive``, each
+    """``jobs`` on the cluster, at most ``limit()`` in flight: each result to ``receive``, each
     job a worker's death implicated to ``implicated(job, why)`` (cancelled); any other
     error raised.  The scheduler is asked about deaths at most every :data:`POLL`
     seconds."""
@@ -163,7 +169,7 @@ def _wave(client, held, token: str, jobs: list, limit: int, receive, implicated,
 
     try:
         while todo or live:
-            while todo and len(live) < limit:
+            while todo and len(live) < limit():
                 job = todo.popleft()
                 future = client.submit(
                     _run_job_sent, held, job, pure=False,
