@@ -448,10 +448,9 @@ def test_a_restored_simulator_gives_the_input_jacobian(oscillator):
     np.testing.assert_array_equal(restored.input_jacobian(start, PARAMS, inputs=[0.2]), J)
 
 
-def test_the_conservation_summary_of_a_forced_system_reports_the_impulse_balance():
-    """(The summary printed a forced Noether quantity's raw drift, 0.2 against a rounding
-    floor of 5e-15 — a failure by 13 orders to the eye — while plot_conservation showed its
-    impulse balance at rounding; it also included the energy the forces change.)"""
+def _driven_satellite():
+    """The satellite with a reaction wheel driven by τ = 0.5 sin(0.1 k) over 300 steps
+    (NumPy backend): (system, trajectory)."""
     import sympy as sp
 
     from symgroupoid import systems
@@ -462,7 +461,14 @@ def test_the_conservation_summary_of_a_forced_system_reports_the_impulse_balance
     V0 = np.array([[np.cos(0.05), -np.sin(0.05)], [np.sin(0.05), np.cos(0.05)]])
     p = {"h": 0.02, "I": 2.0, "I3": 3.0, "Iw": 0.1}
     U = 0.5 * np.sin(0.1 * np.arange(300))
-    traj = sim.simulate({"W": W0, "V": V0, "tau": 0.0}, 300, p, inputs=U)
+    return system, sim.simulate({"W": W0, "V": V0, "tau": 0.0}, 300, p, inputs=U)
+
+
+def test_the_conservation_summary_of_a_forced_system_reports_the_impulse_balance():
+    """(The summary printed a forced Noether quantity's raw drift, 0.2 against a rounding
+    floor of 5e-15 — a failure by 13 orders to the eye — while plot_conservation showed its
+    impulse balance at rounding; it also included the energy the forces change.)"""
+    system, traj = _driven_satellite()
     summary = traj.conservation_summary(noether={"wheel": system.noether(3)})
     (balance,) = summary.quantities
     assert balance.name == "wheel − Σ impulse"
@@ -479,17 +485,7 @@ def test_a_forced_noether_quantity_without_net_impulse_is_reported_conserved(tmp
     summed impulse stays within its rounding floor is J itself, "no net impulse"; the
     wheel's own momentum, which the torque changes, keeps its balance."""
     pytest.importorskip("matplotlib")
-    import sympy as sp
-
-    from symgroupoid import systems
-
-    system = systems.satellite_with_wheel()
-    sim = system.euler_lagrange().compile(backend="numpy")
-    W0 = sp.matrix2numpy(sp.rot_axis1(0.01) * sp.rot_axis3(0.02), dtype=float).T
-    V0 = np.array([[np.cos(0.05), -np.sin(0.05)], [np.sin(0.05), np.cos(0.05)]])
-    p = {"h": 0.02, "I": 2.0, "I3": 3.0, "Iw": 0.1}
-    U = 0.5 * np.sin(0.1 * np.arange(300))
-    traj = sim.simulate({"W": W0, "V": V0, "tau": 0.0}, 300, p, inputs=U)
+    system, traj = _driven_satellite()
     total = system.noether(2)  # body and wheel about e3 together
     wheel = system.noether(3)
     summary = traj.conservation_summary(noether={"total": total, "wheel": wheel})
