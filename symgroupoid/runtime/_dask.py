@@ -9,8 +9,9 @@ worker.  So the jobs run in two waves:
 1. every job, a few in flight per worker; a job that a death implicates (its suspicious
    count, read from the scheduler, or ``KilledWorker`` where the scheduler does not answer)
    is cancelled at once, split into its runs and set aside;
-2. the runs set aside, one at a time, alone on the cluster, where a death can only be the
-   run's own: the first one records it :data:`WORKER_DIED`; the others complete.
+2. once no task of the first wave runs on any worker (a cancelled task runs on until it
+   returns), the runs set aside, one at a time, alone on the cluster, where a death can only
+   be the run's own: the first one records it :data:`WORKER_DIED`; the others complete.
 
 So no run is blamed for another's death, and each culprit costs about two worker restarts,
 not Dask's four per try (a worker that dies just after it started may not be restarted by
@@ -35,9 +36,12 @@ from ._executors import POLL, WORKER_DIED, ClusterLostError, dumps, run_job
 IN_FLIGHT_PER_WORKER = 4
 #: how long a cluster may have no workers before the sweep says so (seconds)
 NO_WORKERS_WAIT = 60.0
+#: how long the second wave waits for workers that cannot say what they run (seconds)
+SETTLE_UNKNOWN = 10.0
 #: how long the first fetch of a task's result waits before the cluster is looked at again
-#: (seconds; doubled for each fetch of the same result)
-FETCH_WAIT = 5.0
+#: (seconds; doubled for each fetch of the same result): short, because while a fetch
+#: waits for a result lost with its worker, Dask may run a culprit again and again
+FETCH_WAIT = 0.2
 
 
 def _hold(payload: bytes):
@@ -64,12 +68,14 @@ def _run_job_sent(task, job):
     return result
 
 
-def _cluster_state(keys: list, dask_scheduler=None) -> tuple[list, int]:
-    """On the scheduler: the keys among ``keys`` that a worker's death implicated, and the
-    threads of the running workers."""
-    tasks = dask_scheduler.tasks
-    implicated = [k for k in keys if k in tasks and getattr(tasks[k], "suspicious", 0) > 0]
-    return implicated, sum(w.nthreads for w in dask_scheduler.running)
+def _cluster_state(keys: list, dask_scheduler=None) -> tuple[list, list, int]:
+    """On the scheduler: the keys among ``keys`` that a worker's death implicated, those
+    that no worker may run (pinned to a worker that left without a death), and the threads
+    of the running workers."""
+    tasks = [dask_scheduler.tasks[k] for k in keys if k in dask_scheduler.tasks]
+    implicated = [t.key for t in tasks if getattr(t, "suspicious", 0) > 0]
+    stranded = [t.key for t in tasks if t.state == "no-worker" and t.key not in implicated]
+    return implicated, stranded, sum(w.nthreads for w in dask_scheduler.running)
 
 
 class _Watch:
@@ -84,20 +90,26 @@ class _Watch:
         self.since: float | None = None  # when the cluster was last seen without workers
         self.warned = False
 
-    def implicated(self, keys: list) -> set:
-        """The keys of ``keys`` a worker's death implicated (none where the scheduler does
-        not say); checks the workers as it goes."""
-        found, threads = [], None
+    def implicated(self, keys: list) -> tuple[set, set]:
+        """(the keys of ``keys`` a worker's death implicated, those no worker may run; none
+        where the scheduler does not say); checks the workers as it goes."""
+        found, stranded, threads = [], [], None
         if self.asks:
             try:
-                found, threads = self.client.run_on_scheduler(_cluster_state, keys)
+                found, stranded, threads = self.client.run_on_scheduler(_cluster_state, keys)
             except Exception:  # noqa: BLE001 - a scheduler that refuses: KilledWorker only
                 self.asks = False
         if threads is None:
             threads = sum(self.client.nthreads().values())
         self.threads = threads
         self._workers(threads)
-        return set(found)
+        return set(found), set(stranded)
+
+    def worker(self) -> str | None:
+        """A running worker to pin a task to, where the scheduler answers (so that a task
+        left without one is seen), else None."""
+        workers = sorted(self.client.nthreads()) if self.asks else []
+        return workers[0] if workers else None
 
     def in_flight(self) -> int:
         """How many tasks to keep in flight: a few per thread of the workers last seen (a
@@ -142,17 +154,56 @@ def run_dask(task, jobs: list, receive, client) -> None:
 
     try:
         _wave(client, held, token, jobs, watch.in_flight, receive, set_aside, watch)
-        _wave(client, held, token, aside, lambda: 1, receive, died, watch)
+        if aside:
+            _settle(client, f"symgroupoid-chunk-{token}", watch)
+        _wave(client, held, token, aside, lambda: 1, receive, died, watch, pin=True)
     finally:
         held.release()
 
 
+#: the states of a task a worker has done with (any other: it runs, or may still start; a
+#: cancelled task runs on until it returns, and the worker hears of a cancellation late)
+_DONE_STATES = frozenset({"memory", "error", "released", "forgotten"})
+
+
+def _running_tasks(prefix: str, dask_worker=None) -> list:
+    """On a worker: the keys starting with ``prefix`` of the tasks it runs or may start."""
+    tasks = dask_worker.state.tasks
+    return [str(k) for k, ts in tasks.items()
+            if str(k).startswith(prefix) and ts.state not in _DONE_STATES]
+
+
+def _settle(client, prefix: str, watch: _Watch) -> None:
+    """Wait until no task of this sweep (keys starting with ``prefix``) runs on any worker.
+
+    A cancelled task is not stopped: a job set aside in the first wave may still be running
+    its ``reduce``, and if that ends its worker during the second wave, the run then alone on
+    the cluster would be blamed.  Workers that cannot say are waited for at most
+    :data:`SETTLE_UNKNOWN` seconds."""
+    unknown_since = None
+    while True:
+        try:
+            busy = client.run(_running_tasks, prefix, on_error="raise")
+        except Exception:  # noqa: BLE001 - a worker dying meanwhile, an older distributed
+            unknown_since = unknown_since or time.monotonic()
+            if time.monotonic() - unknown_since > SETTLE_UNKNOWN:
+                return
+        else:
+            unknown_since = None
+            if not any(busy.values()):
+                return
+        watch.implicated([])  # the cluster is still watched for lost workers
+        time.sleep(POLL)
+
+
 def _wave(client, held, token: str, jobs: list, limit, receive, implicated,
-          watch: _Watch) -> None:
+          watch: _Watch, pin: bool = False) -> None:
     """``jobs`` on the cluster, at most ``limit()`` in flight: each result to ``receive``, each
     job a worker's death implicated to ``implicated(job, why)`` (cancelled); any other
     error raised.  The scheduler is asked about deaths at most every :data:`POLL`
-    seconds."""
+    seconds.  ``pin``: each job runs on one worker only, so that its worker's death leaves it
+    waiting (and seen) rather than run at once on the next worker, which it would kill too;
+    a job whose worker left without dying is sent again."""
     from distributed import wait
 
     todo = collections.deque(jobs)
@@ -171,9 +222,11 @@ def _wave(client, held, token: str, jobs: list, limit, receive, implicated,
         while todo or live:
             while todo and len(live) < limit():
                 job = todo.popleft()
+                where = watch.worker() if pin else None
                 future = client.submit(
                     _run_job_sent, held, job, pure=False,
-                    key=f"symgroupoid-chunk-{token}-{uuid.uuid4().hex[:12]}")
+                    key=f"symgroupoid-chunk-{token}-{uuid.uuid4().hex[:12]}",
+                    workers=None if where is None else [where], allow_other_workers=False)
                 live[future.key] = (future, job)
             try:
                 wait([f for f, _ in live.values()], timeout=POLL, return_when="FIRST_COMPLETED")
@@ -183,8 +236,13 @@ def _wave(client, held, token: str, jobs: list, limit, receive, implicated,
                 _collect(key, live, receive, drop, patience)
             if time.monotonic() - asked >= POLL:
                 asked = time.monotonic()
-                for key in watch.implicated(list(live)):
+                found, stranded = watch.implicated(list(live))
+                for key in found:
                     drop(key, "a worker died while it was running or queued there")
+                for key in stranded & set(live):
+                    future, job = live.pop(key)
+                    client.cancel([future])
+                    todo.appendleft(job)
     except BaseException:
         client.cancel([f for f, _ in live.values()])
         raise
