@@ -296,13 +296,33 @@ def test_parameter_abbreviations_print_with_the_parameters(dp_step):
     ({"abbreviations": {"h": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
     ({"abbreviations": {"M": "g + 1"}}, "must stand for a SymPy expression"),
     ({"abbreviations": {"M": 2}}, "must stand for a SymPy expression"),
-    ({"width": -1}, "positive number of points"),
-    ({"width": float("nan")}, "positive number of points"),
-    ({"width": "wide"}, "positive number of points"),
+    ({"width": -1}, "number of points from 20 to 16000"),
+    ({"width": float("nan")}, "number of points from 20 to 16000"),
+    ({"width": "wide"}, "number of points from 20 to 16000"),
+    # (True was a width of 1 pt, 1e-9 a document pdflatex refused, "yes" a document)
+    ({"width": True}, "number of points from 20 to 16000, got True"),
+    ({"width": 1e-9}, "number of points from 20 to 16000"),
+    ({"width": 1e6}, "number of points from 20 to 16000"),
+    # (names that read as a coordinate, the Lagrangian, a number or an operator, or that
+    # break a row, were accepted: the PDF read "a = ā − b̄" beside a_k, "sin(2)")
+    ({"abbreviations": {"q": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {"L": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {r"\sin": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {"2": sp.Symbol("g", positive=True)}}, "holds no letter"),
+    ({"abbreviations": {"-": sp.Symbol("g", positive=True)}}, "holds no letter"),
+    ({"abbreviations": {r"\left(": sp.Symbol("g", positive=True)}}, "breaks a row"),
+    ({"abbreviations": {r"\end{align}": sp.Symbol("g", positive=True)}}, "breaks a row"),
+    ({"abbreviations": {"x^": sp.Symbol("g", positive=True)}}, "breaks a row"),
 ])
 def test_bad_options_are_named(pendulum_step, option, message):
     with pytest.raises(LatexOptionError, match=message):
         pendulum_step.latex(**option)
+
+
+def test_document_is_a_flag(pendulum_step):
+    """(document="yes" was taken as True; the momenta's latex refused it.)"""
+    with pytest.raises(sg.ShapeError, match="pendulum: document must be True or False"):
+        pendulum_step.latex(document="yes")
 
 
 def test_a_narrower_page_gives_narrower_lines(dp_step):

@@ -100,6 +100,13 @@ def test_a_group_named_like_a_stage_symbol_is_refused_by_name(name, printed):
         _top(sg.SO3(name)).latex()
 
 
+def test_the_node_derivative_is_written_with_the_groups_own_name():
+    """(The explanation of N_b read ⟨∂L/∂R, R E_b⟩ whatever the group was called: a body
+    named Y had an R that appeared nowhere else in its document.)"""
+    text = _top(sg.SO3("Y")).latex()
+    assert r"\partial L/\partial Y, Y E_b" in text and r"\partial R" not in text
+
+
 def test_abbreviations_of_a_step_in_the_group_stage_notation_are_reported_unused():
     """The notation names its own parts; the step used to be refused as too large."""
     with warnings.catch_warnings(record=True) as caught:

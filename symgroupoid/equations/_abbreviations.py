@@ -69,7 +69,7 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
                                f"callable, got {type(abbreviations).__name__}")
     symbols = printed_symbols(step)
-    taken = {latex(s) for s in symbols}
+    taken = {latex(s) for s in symbols} | _indexed_bases(step) | RESERVED_NAMES
     out = []
     for name, value in abbreviations.items():
         if isinstance(name, sp.Symbol):
@@ -82,6 +82,7 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         if tex in taken:
             raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like a symbol of "
                                    f"{step.name}; choose another name")
+        _check_name_shape(tex)
         taken.add(tex)
         if not callable(value):
             value = _abbreviation_value(tex, value)
@@ -90,6 +91,41 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
                 symbol = NamedConstant(tex)
         out.append(Abbreviation(tex, symbol, value))
     return out
+
+
+#: names the printed equations use for their own parts: the Lagrangian, the forces, the
+#: functions SymPy prints as operators
+RESERVED_NAMES = frozenset({"L", "L_{d}", "f", "f^{+}", "f^{-}", r"\sin", r"\cos", r"\tan",
+                            r"\exp", r"\log", r"\ln", r"\operatorname{tr}", r"\mathrm{d}"})
+#: LaTeX that ends, breaks or restructures an ``align`` row rather than naming something
+_STRUCTURE = ("\\\\", r"\left", r"\right", r"\begin", r"\end", r"\intertext", r"\tag",
+              r"\label", r"\notag", r"\nonumber")
+
+
+def _indexed_bases(step) -> set:
+    """The names the step's indexed symbols carry before their step index: x for x_{k},
+    u_{1} for (u_{1})_{k}.  A name printed bare beside x_{k−1}, x_k would read as a
+    coordinate."""
+    bases = set()
+    for s in (*step.knowns, *step.unknowns, *step.fibre_unknowns):
+        tex = latex(s)
+        if tex.startswith("(") and ")_{" in tex:
+            bases.add(tex[1:tex.rindex(")_{")])
+        elif "_{" in tex:
+            bases.add(tex[:tex.index("_{")])
+    return bases
+
+
+def _check_name_shape(tex: str) -> None:
+    """An abbreviation's name names something: it holds a letter, is not a number or an
+    operator, does not end in ^ or _, and holds no LaTeX that restructures a row
+    (:class:`LatexOptionError`)."""
+    letters = any(ch.isalpha() for ch in tex.replace("\\\\", ""))
+    broken = tex.rstrip().endswith(("^", "_")) or any(c in tex for c in _STRUCTURE)
+    if not letters or broken:
+        why = "holds no letter" if not letters else "holds LaTeX that breaks a row"
+        raise LatexOptionError(f"latex: the abbreviation's name {tex!r} {why}; give a name "
+                               f"such as 'M', 'K_{{1}}' or r'\\Omega'")
 
 
 def printed_symbols(step) -> list:

@@ -634,9 +634,10 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
         listed = ", ".join(printer.doprint(u) for u in builder.c.inputs)
         inputs = (f", and the force, with the inputs (${listed}$ in its formula) at their "
                   f"values on $g_j$" if listed else ", and the force")
+    group = next(F.name for F in builder.factors if F.is_group)
     words = (r"and, at the nodes, the derivatives of $L$ in the configuration "
-             r"(left-trivialised on a group: $N_b = \langle \partial L/\partial R, R E_b "
-             r"\rangle$) and in the velocity" + inputs + ": " + names
+             r"(left-trivialised on a group: $N_b = \langle \partial L/\partial " + group
+             + ", " + group + r" E_b \rangle$) and in the velocity" + inputs + ": " + names
              + f" are {which} at (${at}$)")
     if written:
         return words + " (below),"

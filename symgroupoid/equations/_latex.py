@@ -18,7 +18,7 @@ from sympy.matrices.expressions.matexpr import MatrixElement
 from sympy.matrices.expressions.trace import Trace
 from sympy.printing.latex import LatexPrinter
 
-from .._arguments import shown_value
+from .._arguments import flag_argument, shown_value
 from .._errors import SymgroupoidError
 from .._symbols import StepSymbol, greek_spelled
 
@@ -389,6 +389,7 @@ def step_latex(step, document: bool = False, abbreviations=None,
     from ._layout import NAME_THE_PARTS
     from ._printing import printed_step
 
+    document = flag_argument(document, "document", owner=step.name)
     rows = printed_step(step, abbreviations=abbreviations, width=width)
     return rows_latex(rows, document,
                       f"{step.name}: {len(step)} equations in {len(step.unknowns)} unknowns",

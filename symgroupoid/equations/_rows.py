@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
+import numpy as np
 import sympy as sp
 
 from .._symbols import multiplier_symbols
@@ -195,16 +196,26 @@ def _merged(items: list) -> list:
     return out
 
 
+#: the text widths a document may have (points): narrower than a few symbols prints nothing
+#: readable, and TeX's dimensions end below 16384 pt
+MIN_WIDTH, MAX_WIDTH = 20.0, 16000.0
+
+
 def check_width(width) -> float:
+    """The text width in points: None for the page's, else a real number from
+    :data:`MIN_WIDTH` to :data:`MAX_WIDTH` (not a boolean); a :class:`LatexOptionError`
+    otherwise."""
     if width is None:
         return PAGE_WIDTH
-    try:
-        value = float(width)
-    except (TypeError, ValueError):
-        value = float("nan")
-    if not 0 < value < float("inf"):
-        raise LatexOptionError(f"latex: width must be a positive number of points, got "
-                               f"{width!r}")
+    value = float("nan")
+    if not isinstance(width, (bool, np.bool_)):
+        try:
+            value = float(width)
+        except (TypeError, ValueError):
+            pass
+    if not MIN_WIDTH <= value <= MAX_WIDTH:
+        raise LatexOptionError(f"latex: width must be a number of points from "
+                               f"{MIN_WIDTH:g} to {MAX_WIDTH:g}, got {width!r}")
     return value
 
 
