@@ -96,7 +96,7 @@ def _check_printable_staged(step) -> None:
         raise UnsupportedFeatureError(
             f"{refused}.  The stage notation (docs/conventions.md §22) prints such a step, "
             f"but the system's names {', '.join(clash)} read as its symbols: rename them "
-            f"(e.g. a group named R, coordinates x, y) to print it") from None
+            f"(e.g. a group named R, coordinates x, y, inputs u1, u2) to print it") from None
 
 
 #: the group stage notation of each printed step (None: not offered), checked once
