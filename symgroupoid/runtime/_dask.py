@@ -16,10 +16,10 @@ worker.  So the jobs run in two waves:
 So no run is blamed for another's death, and each culprit costs about two worker restarts,
 not Dask's four per try (a worker that dies just after it started may not be restarted by
 its nanny: every death avoided keeps the cluster alive).  While it waits, the sweep watches
-the cluster: when deaths have left it without workers for :data:`NO_WORKERS_WAIT` seconds
-it raises :class:`ClusterLostError` (carrying the runs done), rather than wait for ever; a
-cluster that has no workers without deaths (one still starting, an adaptive one) only gets a
-warning.
+the cluster: when it has lost the workers it had during the sweep (or deaths have left it
+without any) for :data:`NO_WORKERS_WAIT` seconds it raises :class:`ClusterLostError`
+(carrying the runs done), rather than wait for ever; a cluster that has had no workers yet
+(one still starting, an adaptive or queued one) only gets a warning.
 """
 
 from __future__ import annotations
@@ -36,6 +36,9 @@ from ._executors import POLL, WORKER_DIED, ClusterLostError, dumps, run_job
 IN_FLIGHT_PER_WORKER = 4
 #: how long a cluster may have no workers before the sweep says so (seconds)
 NO_WORKERS_WAIT = 60.0
+#: the scheduler's failures in a row to answer after which deaths are known from
+#: ``KilledWorker`` alone
+REFUSALS = 20
 #: how long the second wave waits for workers that cannot say what they run (seconds)
 SETTLE_UNKNOWN = 10.0
 #: how long the first fetch of a task's result waits before the cluster is looked at again
@@ -86,6 +89,8 @@ class _Watch:
         self.client = client
         self.threads = sum(client.nthreads().values())  # of the running workers, last seen
         self.asks = True  # the scheduler answers run_on_scheduler
+        self.refusals = 0  # its failures in a row (a worker's death may fail one call)
+        self.seen = self.threads > 0  # the cluster had workers during the sweep
         self.deaths = 0  # tasks a death implicated
         self.since: float | None = None  # when the cluster was last seen without workers
         self.warned = False
@@ -97,11 +102,14 @@ class _Watch:
         if self.asks:
             try:
                 found, stranded, threads = self.client.run_on_scheduler(_cluster_state, keys)
+                self.refusals = 0
             except Exception:  # noqa: BLE001 - a scheduler that refuses: KilledWorker only
-                self.asks = False
+                self.refusals += 1
+                self.asks = self.refusals < REFUSALS
         if threads is None:
             threads = sum(self.client.nthreads().values())
         self.threads = threads
+        self.seen = self.seen or threads > 0
         self._workers(threads)
         return set(found), set(stranded)
 
@@ -124,11 +132,12 @@ class _Watch:
         self.since = self.since or now
         if now - self.since < NO_WORKERS_WAIT:
             return
-        if self.deaths:
+        if self.deaths or self.seen:
             raise ClusterLostError(
-                f"the Dask cluster has had no workers for {NO_WORKERS_WAIT:g} s since "
-                f"workers died running this sweep (a reduce that ends its process, or a "
-                f"crash), and none came back.  The runs done are in this error's .result")
+                f"the Dask cluster has had no workers for {NO_WORKERS_WAIT:g} s since it "
+                f"lost those that ran this sweep (a reduce that ends its process, a crash, "
+                f"or workers stopped), and none came back.  The runs done are in this "
+                f"error's .result")
         if not self.warned:
             self.warned = True
             warnings.warn(f"sweep: the Dask cluster has had no workers for "
