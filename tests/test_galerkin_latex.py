@@ -44,6 +44,22 @@ def test_gauss_with_forces_prints_the_stage_notation():
     assert r"\left(\frac{1}{4} - \frac{\sqrt{3}}{6}\right) V_{k,2}" in text
     assert "Q_{k,1} &= \\theta_{k-1} + h" in text and "Q_{k+1,2}" in text
     assert "u_{k+1}" in text and "c" in text
+    # the force named at each node, F_{k,i} = F(Q_{k,i}, V_{k,i}, u_k), given after "where"
+    assert r"F_{k,1} = - c V_{k,1} + u_{k}" in text
+    assert r"F_{k+1,1} = - c V_{k+1,1} + u_{k+1}" in text
+    assert r"\frac{h}{3} \left(F_{k,1} + F_{k,2} - g" in text  # the stage row
+
+
+def test_a_forced_system_named_F_prints_without_the_stage_notation():
+    """A parameter printed F would read as the node force F_{k,i}: the stage notation is
+    not offered (the step prints as derived), as for the other letters of the notation."""
+    F = sp.Symbol("F", positive=True)
+    step = sg.ContinuousSystem(
+        sg.EuclideanSpace("theta"), lambda q, v: v[0] ** 2 / 2 + grav * sp.cos(q[0]),
+        parameters=[h, grav, F], forces=lambda q, v: [F * sp.sin(q[0])],
+        name="pendulum").discretize(h, sg.GaussLegendre(2)).euler_lagrange()
+    text = step.latex()
+    assert "Q_{k" not in text and "F_{k" not in text and "F" in text
 
 
 def test_the_rules_without_stages_print_as_before():
@@ -63,7 +79,9 @@ def test_a_forced_constrained_step_prints_in_the_stage_notation():
     step = cartesian.discretize(h, sg.LobattoIIIAB(3)).euler_lagrange()
     text = step.latex()
     assert text.count("0 &=") == len(step) == 9
-    assert r"\Lambda_{k+1,2} = (\zeta_{k+1})_{3}" in text and r"\frac{c h}{6}" in text
+    assert r"\Lambda_{k+1,2} = (\zeta_{k+1})_{3}" in text
+    assert r"\frac{h}{6} \left((F_{k+1,1})_{x} + 2 (F_{k+1,2})_{x}" in text
+    assert r"(F_{k+1,2})_{y} = - c (V_{k+1,2})_{y}" in text
 
 
 @needs_tex

@@ -220,6 +220,44 @@ def test_a_step_too_large_to_write_out_is_refused_at_once(monkeypatch):
         step.latex()
 
 
+def test_a_step_whose_expansion_is_too_large_is_refused_at_once():
+    """The second-order attitude problem on SO(3) (seed 001 eqs. (27)–(28)): 4.9·10⁴
+    operations written out, under PRINT_LIMIT, but its Cayley quotients' products of sums
+    expand to about 1.5·10⁶ terms, and collecting and checking them never finished
+    (`symgroupoid derive` sat in "writing the equations as LaTeX" for over ten minutes).
+    Refused in about a second, naming the bound and the limit."""
+    import time
+
+    from conftest import load_example
+
+    from symgroupoid.equations import EXPANSION_LIMIT, PRINT_LIMIT
+
+    step = load_example("rigid_body_attitude").attitude_system().euler_lagrange()
+    assert step.program.expanded_size(["F"]) < PRINT_LIMIT
+    t0 = time.perf_counter()
+    with pytest.raises(sg.UnsupportedFeatureError,
+                       match=r"could have 1\.5\de\+06 terms, more than the 1e\+05") as refused:
+        step.latex()
+    assert time.perf_counter() - t0 < 30
+    assert "rigid_body_attitude" in str(refused.value) and EXPANSION_LIMIT == 100_000
+
+
+def test_the_expansion_bound_counts_products_of_sums_and_powers():
+    """expanded_terms bounds sympy.expand's terms: products of sums multiply, a power of a
+    sum counts its monomials, a quotient's denominator and a function are one factor, and
+    it is never below the true count on these."""
+    from symgroupoid.equations._printing import expanded_terms
+
+    a, b, c, d = sp.symbols("a b c d")
+    cases = [(a + b) * (c + d), (a + b + c) ** 3, (a + b) * (c + d) / (a + c + d),
+             sp.sin(a + b) * (c + d) + a, (a + b) ** -2 * (c - d) ** 2, a * b]
+    exact = [4, 10, 4, 3, 3, 1]
+    for e, n in zip(cases, exact):
+        assert expanded_terms([e]) == n, e
+        assert len(sp.Add.make_args(sp.expand(e))) <= n, e
+    assert expanded_terms([(a + b) ** 10**6]) == 10**30  # capped, computed at once
+
+
 @pytest.mark.parametrize("junk", [object(), "x", None, np.array([1.0, 2.0]),
                                   [sp.Symbol("x"), object()]],
                          ids=["object", "string", "None", "array", "list-with-object"])

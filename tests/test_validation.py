@@ -376,7 +376,9 @@ def test_short_work_reports_nothing(capsys, caplog):
 def test_bars_on_a_pipe_write_lines(immediate, capsys):
     with Task("outer", progress=True) as task:
         task.note("stage 1")
-        time.sleep(0.2)
+        deadline = time.monotonic() + 10  # the reporting thread draws within 0.02 s, unloaded
+        while not task.shown and time.monotonic() < deadline:
+            time.sleep(0.01)
     err = capsys.readouterr().err.splitlines()
     assert err[0].startswith("outer — 0 s, stage 1")  # drawn by the reporting thread
     assert err[-1].startswith("outer: done in ") and err[-1].endswith("; stage 1")

@@ -20,6 +20,7 @@ from ._forcing import (
 from ._galerkin import MAX_NODES, GalerkinTableau, gauss_legendre_tableau, lobatto_tableau
 from ._kinetic import DEGENERATE_KINETIC
 from ._latex import (
+    EXPANSION_LIMIT,
     PRINT_LIMIT,
     GroupoidLatexPrinter,
     LatexVerificationError,
@@ -75,6 +76,7 @@ __all__ = [
     # pt: the text width of a LaTeX document, and the default width of the printed lines
     "PAGE_WIDTH",
     # operations of the written-out residuals above which a step is not printed
+    "EXPANSION_LIMIT",
     "PRINT_LIMIT",
     # the causes a DegenerateSystemError names (its ``causes``, each finding's ``cause``)
     "DEGENERATE_KINETIC", "DEPENDENT_CONSTRAINTS", "IDENTICALLY_ZERO", "NOT_REGULAR",

@@ -17,16 +17,19 @@ from ._layout import Term
 
 
 def collect_terms(expr: sp.Expr, multipliers: Sequence, parameters: Sequence,
-                  printer: GroupoidLatexPrinter, variables: bool = False) -> list[Term]:
+                  printer: GroupoidLatexPrinter, variables: bool = False,
+                  expand: bool = True) -> list[Term]:
     """The terms of ``expr`` collected by multipliers and parameters (as SymPy's ``collect``
     does, one symbol after the other: λ·(…), h·(…), (Ω h/2)·(…)), then by common numeric
     coefficients (½·(a + b)); factors common to all the terms of a collected sum are taken
     out in front.  Both orders — multipliers first, parameters first — are tried (and, with
     ``variables``, the step variables before the parameters: for a "where" row, which is at
-    one index); the shortest printing is kept.  Single terms stay as they are."""
+    one index); the shortest printing is kept.  Single terms stay as they are.  With
+    ``expand`` false the terms are those of ``expr`` as it is (an equation as derived)."""
     from ._layout import signed_terms
 
-    ordered = [t.sign * t.expr for t in signed_terms(sp.expand(expr), printer)]
+    ordered = [t.sign * t.expr
+               for t in signed_terms(sp.expand(expr) if expand else expr, printer)]
     orders = [[*multipliers, *parameters], [*parameters, *multipliers]]
     if variables:
         steps = sorted((s for s in expr.free_symbols

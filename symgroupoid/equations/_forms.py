@@ -86,6 +86,7 @@ class Form:
     intros: list = field(default_factory=lambda: ["where"])  # words before each group of rows
     generic: dict = field(default_factory=dict)  # symbol at index j → the same at k (checks)
     unindexed: bool = False  # "where" rows in pieces without index (L's partial derivatives)
+    expanded: bool = True  # terms collected from the equations expanded (else as they are)
 
 
 def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:

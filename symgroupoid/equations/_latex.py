@@ -36,6 +36,14 @@ DISPLAY_LIMIT = 400
 #: to 10⁹ (a free rigid body at order 4, whose printing never finished)
 PRINT_LIMIT = 1_000_000
 
+#: terms of a step's residuals expanded (:func:`~._printing.expanded_terms`: products
+#: multiplied out over sums, a bound without cancellation) above which they are not printed:
+#: printing collects and checks the expanded residuals, and a rational L whose products of
+#: sums share few subexpressions expands far beyond its size written out (measured: the
+#: planar chain of 32 links, 2.4e4 terms, 115 s; the second-order attitude problem on SO(3),
+#: 4.9e4 operations written out but 1.5e6 terms, never finished)
+EXPANSION_LIMIT = 100_000
+
 
 #: the most nonzero entries a square matrix of ±1 and 0 is written with by place
 UNIT_ENTRIES = 4

@@ -20,6 +20,7 @@ Nothing here runs unless LaTeX is asked for.
 
 from __future__ import annotations
 
+import math
 import warnings
 import weakref
 from collections.abc import Mapping, Sequence
@@ -48,6 +49,7 @@ from ._forms import (
 )
 from ._group_stage_forms import group_stage_form
 from ._latex import (
+    EXPANSION_LIMIT,
     PRINT_LIMIT,
     GroupoidLatexPrinter,
     LatexVerificationError,
@@ -67,21 +69,67 @@ _PRINTED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 def check_printable(step) -> None:
     """An :class:`~symgroupoid.UnsupportedFeatureError`, at once, for a step whose residuals
-    written out exceed :data:`PRINT_LIMIT` operations (printing them would not finish).  A
-    step of an undefined function (an arbitrary L) has no program and is printed from
-    SymPy alone."""
+    written out exceed :data:`PRINT_LIMIT` operations, or expanded could exceed
+    :data:`EXPANSION_LIMIT` terms (:func:`expanded_terms`): printing them would not finish.
+    A step of an undefined function (an arbitrary L) has no program; its expansion is
+    bounded all the same."""
+    unaffected = ("LaTeX is not produced for it.  Its kernels, diagnostics and verification "
+                  "do not write them out and are unaffected")
     try:
         program = step.program
     except UnsupportedExpressionError:
-        return
-    size = program.expanded_size(["F"])
+        program = None
+    size = 0 if program is None else program.expanded_size(["F"])
     if size > PRINT_LIMIT:
         raise UnsupportedFeatureError(
             f"{step.name}: its equations written out as formulas have {size:.2e} operations "
             f"({program.size(['F'])} in the shared graph its kernels evaluate), more "
-            f"than the {PRINT_LIMIT:.0e} that can be printed and checked: LaTeX is not "
-            f"produced for it.  Its kernels, diagnostics and verification do not write "
-            f"them out and are unaffected")
+            f"than the {PRINT_LIMIT:.0e} that can be printed and checked: {unaffected}")
+    terms = expanded_terms(step.residuals)
+    if terms > EXPANSION_LIMIT:
+        raise UnsupportedFeatureError(
+            f"{step.name}: its equations expanded (products multiplied out over sums, as "
+            f"printing collects and checks them) could have {terms:.2e} terms, more than the "
+            f"{EXPANSION_LIMIT:.0e} that can be printed and checked in minutes: {unaffected}")
+
+
+#: a bound past which :func:`expanded_terms` stops counting exactly
+_TERMS_CAP = 10**30
+
+
+def expanded_terms(exprs: Sequence[sp.Expr]) -> int:
+    """A bound on the number of terms of ``sympy.expand`` of the expressions, without
+    cancellation: a sum has its terms' sum, a product their product, a positive integer
+    power pⁿ of a sum of t terms at most C(t + n − 1, n); a negative or fractional power, a
+    function or an atom is one term.  Each distinct subexpression is counted once (linear
+    in the expressions' size); values past 10³⁰ are 10³⁰."""
+    memo: dict = {}
+
+    def count(e: sp.Basic) -> int:
+        if e in memo:
+            return memo[e]
+        inner = [count(a) for a in e.args]
+        if e.is_Add:
+            value = sum(inner)
+        elif e.is_Mul:
+            value = 1
+            for t in inner:
+                value = min(value * t, _TERMS_CAP)
+        elif e.is_Pow and e.exp.is_Integer and e.exp > 0:
+            value = _power_terms(inner[0], int(e.exp))
+        else:
+            value = 1
+        memo[e] = min(value, _TERMS_CAP)
+        return memo[e]
+
+    return sum(count(sp.sympify(e)) for e in exprs)
+
+
+def _power_terms(t: int, n: int) -> int:
+    """Monomials of degree n in t terms, C(t + n − 1, n), or :data:`_TERMS_CAP` past it."""
+    if t > 1 and n * (t.bit_length() - 1) > _TERMS_CAP.bit_length():
+        return _TERMS_CAP
+    return min(math.comb(t + n - 1, n), _TERMS_CAP)
 
 
 def _check_printable_staged(step) -> None:
@@ -204,9 +252,24 @@ def chosen_form(step, abbreviations: Mapping | None = None,
     for candidate in sorted(rest, key=lambda c: c.length):
         printed = checked_form(candidate, step, printer, explicit)
         if printed is not None:
-            return printed
+            return _as_derived_if_shorter(printed, step, printer)
     raise LatexVerificationError(f"{step.name}: the printed equations differ from the "
                                  f"residuals")
+
+
+def _as_derived_if_shorter(printed: Printed, step, printer: GroupoidLatexPrinter) -> Printed:
+    """``printed``, or the residuals as derived, not expanded (their terms collected), when
+    ``printed`` names nothing (no "where" list: the forces, pieces and abbreviations it
+    names are kept) and the residuals as derived are shorter by more than a third:
+    expanding a quotient by a sum spreads it over the sum's terms,
+    (q_{k+1} − q_k)²/(2(t_{k+1} − t_k)²) into three quotients by 2t_{k+1}² − 4t_{k+1}t_k +
+    2t_k²."""
+    if printed.definitions:
+        return printed
+    derived = collected_form(Form(list(step.residuals), expanded=False), step, printer)
+    if 3 * derived.length >= 2 * printed.length:
+        return printed
+    return checked_form(derived, step, printer, step.residuals) or printed
 
 
 def with_named_denominator(step, abbreviations: Mapping | None) -> Mapping | None:

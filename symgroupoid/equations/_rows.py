@@ -58,7 +58,8 @@ def collected_form(form: Form, step, printer: GroupoidLatexPrinter) -> Printed:
     used: set = set()
     length = 0
     for equation in form.equations:
-        terms = collect_terms(equation, multipliers, step.parameters, printer)
+        terms = collect_terms(equation, multipliers, step.parameters, printer,
+                              expand=form.expanded)
         used |= set().union(*[uncollected(t.expr).free_symbols for t in terms])
         length += sum(len(printer.doprint(t.expr)) + 3 for t in terms)
         equations.append(terms)

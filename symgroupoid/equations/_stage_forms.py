@@ -74,7 +74,7 @@ def galerkin_origin(step):
 
 
 #: the letters of the stage notation on vector spaces (nodes Q, V, interior multipliers Λ,
-#: the stages ζ)
+#: the stages ζ; a forced system's F: :func:`stage_letters`)
 STAGE_LETTERS = ("Q", "V", r"\Lambda", r"\zeta")
 
 
@@ -107,7 +107,12 @@ def stage_clash(step) -> list[str]:
         return []
     continuous = origin.system
     grouped = any(f.is_group for f in continuous.factors)
-    return notation_clash(continuous, GROUP_LETTERS if grouped else STAGE_LETTERS)
+    return notation_clash(continuous, GROUP_LETTERS if grouped else stage_letters(continuous))
+
+
+def stage_letters(continuous) -> tuple[str, ...]:
+    """:data:`STAGE_LETTERS`, and F for a forced system (its forces at the nodes)."""
+    return STAGE_LETTERS + (("F",) if continuous.forces is not None else ())
 
 
 def stage_form(step) -> Form | None:
@@ -119,7 +124,7 @@ def stage_form(step) -> Form | None:
     system, continuous = step.system, origin.system
     if any(f.is_group for f in continuous.factors):  # not checkable exactly: see above
         return None
-    if notation_clash(continuous, STAGE_LETTERS):
+    if notation_clash(continuous, stage_letters(continuous)):
         return None
     tableau, h = origin.scheme.tableau(), origin.step
     fs = system.functions
@@ -184,6 +189,7 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
     towards = [sp.S.Zero] * n
     stages = [[sp.S.Zero] * n for _ in range(M - 1)]
     held: list = []  # ψ(Q_{k,i}) = 0 at the interior nodes: the multipliers' rows
+    forces: list = []  # the "where" rows F_{k,i} = F(Q_{k,i}, V_{k,i}, u_k), after Q's
     u = dict(zip(continuous.inputs, input_symbols(continuous.inputs, s)))
     for i, (b_i, values, slopes) in enumerate(zip(tableau.weights, tableau.values,
                                                   tableau.slopes)):
@@ -197,6 +203,7 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
             layer[Q[i][r]], layer[V[i][r]] = q_value[r], v_value[r]
             definitions.append(Definition(V[i][r], v_value[r], frozenset({V[i][r]})))
         L, F = _at_node(continuous, Q[i], V[i], u)
+        F = _named_forces(F, s, i, names, layer, forces)
         weight_q, weight_v = (c_i, 1 / h) if s == 0 else (1 - c_i, -1 / h)
         for r in range(n):
             dq, dv = sp.diff(L, Q[i][r]), sp.diff(L, V[i][r])
@@ -225,7 +232,25 @@ def _arrow_rows(continuous, tableau, h, s: int, pairs: list, names: list, layer:
                           evaluate=False) if terms else source[r])
             definitions.append(Definition(Q[i][r], rhs, frozenset({Q[i][r]}),
                                           as_written=True))
+    definitions += forces
     return towards, [e for row in stages for e in row] + held
+
+
+def _named_forces(F: list, s: int, i: int, names: list, layer: dict,
+                  definitions: list) -> list:
+    """The force at node i of g_{k+s} by name, F_{k+s,i} (``(F_{k,1})_{x}`` per coordinate),
+    its value given in the "where" list as the papers give f± through it (Marsden–West
+    §3.2; docs/conventions.md §22); a zero component stays 0."""
+    named = []
+    for r, value in enumerate(F):
+        if value == 0:
+            named.append(sp.S.Zero)
+            continue
+        symbol = node_symbol("F", s, i + 1, None if len(names) == 1 else names[r])
+        layer[symbol] = value.xreplace(layer)  # in the step's coordinates, as Q's and V's
+        definitions.append(Definition(symbol, value, frozenset({symbol})))
+        named.append(symbol)
+    return named
 
 
 def _at_node(continuous, Q: list, V: list, u: dict) -> tuple[sp.Expr, list]:
