@@ -1302,7 +1302,9 @@ static int heavy_top_update_negligible(const heavy_top_lu *f, const double *F, c
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (heavy_top_explained_by_rounding).
- * Not converged: HEAVY_TOP_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * Not converged: HEAVY_TOP_NOT_CONVERGED after max_iterations updates (the iteration cap) when
+ * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * is accepted, as a linear step is after its one update);
  * HEAVY_TOP_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
@@ -1372,6 +1374,13 @@ static int heavy_top_newton(const double *known, const double *p, const double *
                 }
             }
             if (it >= options->max_iterations) {
+                /* the cap: an iterate at the rounding floor is a solution all the same (a
+                 * linear step solved by its one update, a guess that already solves it) */
+                if (heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
+                    || (heavy_top_coordinate_floor(J, uJ, C),
+                        heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor))) {
+                    return HEAVY_TOP_OK;
+                }
                 return HEAVY_TOP_NOT_CONVERGED;
             }
             if (slow) {

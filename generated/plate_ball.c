@@ -1535,7 +1535,9 @@ static int plate_ball_update_negligible(const plate_ball_lu *f, const double *F,
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (plate_ball_explained_by_rounding).
- * Not converged: PLATE_BALL_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * Not converged: PLATE_BALL_NOT_CONVERGED after max_iterations updates (the iteration cap) when
+ * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * is accepted, as a linear step is after its one update);
  * PLATE_BALL_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
@@ -1605,6 +1607,13 @@ static int plate_ball_newton(const double *known, const double *p, const double 
                 }
             }
             if (it >= options->max_iterations) {
+                /* the cap: an iterate at the rounding floor is a solution all the same (a
+                 * linear step solved by its one update, a guess that already solves it) */
+                if (plate_ball_explained_by_rounding(F, J, u, uJ, &lu)
+                    || (plate_ball_coordinate_floor(J, uJ, C),
+                        plate_ball_at_floor(u, known, p, h, F, C, options->floor_factor))) {
+                    return PLATE_BALL_OK;
+                }
                 return PLATE_BALL_NOT_CONVERGED;
             }
             if (slow) {

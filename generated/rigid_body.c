@@ -1287,7 +1287,9 @@ static int rigid_body_update_negligible(const rigid_body_lu *f, const double *F,
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (rigid_body_explained_by_rounding).
- * Not converged: RIGID_BODY_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * Not converged: RIGID_BODY_NOT_CONVERGED after max_iterations updates (the iteration cap) when
+ * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * is accepted, as a linear step is after its one update);
  * RIGID_BODY_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
@@ -1357,6 +1359,13 @@ static int rigid_body_newton(const double *known, const double *p, const double 
                 }
             }
             if (it >= options->max_iterations) {
+                /* the cap: an iterate at the rounding floor is a solution all the same (a
+                 * linear step solved by its one update, a guess that already solves it) */
+                if (rigid_body_explained_by_rounding(F, J, u, uJ, &lu)
+                    || (rigid_body_coordinate_floor(J, uJ, C),
+                        rigid_body_at_floor(u, known, p, h, F, C, options->floor_factor))) {
+                    return RIGID_BODY_OK;
+                }
                 return RIGID_BODY_NOT_CONVERGED;
             }
             if (slow) {

@@ -1404,7 +1404,9 @@ static int satellite_wheel_update_negligible(const satellite_wheel_lu *f, const 
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (satellite_wheel_explained_by_rounding).
- * Not converged: SATELLITE_WHEEL_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * Not converged: SATELLITE_WHEEL_NOT_CONVERGED after max_iterations updates (the iteration cap) when
+ * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * is accepted, as a linear step is after its one update);
  * SATELLITE_WHEEL_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
@@ -1474,6 +1476,13 @@ static int satellite_wheel_newton(const double *known, const double *p, const do
                 }
             }
             if (it >= options->max_iterations) {
+                /* the cap: an iterate at the rounding floor is a solution all the same (a
+                 * linear step solved by its one update, a guess that already solves it) */
+                if (satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu)
+                    || (satellite_wheel_coordinate_floor(J, uJ, C),
+                        satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor))) {
+                    return SATELLITE_WHEEL_OK;
+                }
                 return SATELLITE_WHEEL_NOT_CONVERGED;
             }
             if (slow) {

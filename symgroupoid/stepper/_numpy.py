@@ -518,8 +518,10 @@ class NumpyStepper:
             if noise:
                 return (OK if explained_by_rounding(F, J, u, uJ, ratio) else STALLED,
                         u, it, rnorm)
-            if it >= options.max_iterations:
-                return NOT_CONVERGED, u, it, rnorm
+            if it >= options.max_iterations:  # the cap: at the rounding floor, a solution
+                at_floor = explained_by_rounding(F, J, u, uJ, ratio) or self.at_floor(
+                    u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
+                return (OK if at_floor else NOT_CONVERGED), u, it, rnorm
             if slow:
                 F, J = self.f.residual_jacobian(u, known, p)
                 uJ, here = u, True

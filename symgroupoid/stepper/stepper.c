@@ -946,7 +946,9 @@ static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, con
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
  *    that factorisation), and a rounding-level update explains the residual
  *    (SG_NAME(explained_by_rounding)).
- * Not converged: SG_NOT_CONVERGED after max_iterations updates (the iteration cap);
+ * Not converged: SG_NOT_CONVERGED after max_iterations updates (the iteration cap) when
+ * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * is accepted, as a linear step is after its one update);
  * SG_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
@@ -1016,6 +1018,13 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
                 }
             }
             if (it >= options->max_iterations) {
+                /* the cap: an iterate at the rounding floor is a solution all the same (a
+                 * linear step solved by its one update, a guess that already solves it) */
+                if (SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
+                    || (SG_NAME(coordinate_floor)(J, uJ, C),
+                        SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor))) {
+                    return SG_OK;
+                }
                 return SG_NOT_CONVERGED;
             }
             if (slow) {
