@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import re
 import unicodedata
+from collections.abc import Sequence
 
 import sympy as sp
 
@@ -85,6 +86,26 @@ def latex_name(name: str) -> str:
     """LaTeX of a user-supplied coordinate name (``Gamma`` → ``\\Gamma``, ``θ`` →
     ``\\theta``)."""
     return sp.latex(sp.Symbol(greek_spelled(name)))
+
+
+def aliased_names(names: Sequence[str]) -> tuple[str, str] | None:
+    """The first two of ``names`` that would name one symbol — equal, or spelt apart but
+    written alike (``θ``, ``theta`` and ``\\theta`` are all ``\\theta``: the step
+    symbols are named by their LaTeX) — or None."""
+    seen: dict[str, str] = {}
+    for name in names:
+        key = latex_name(name)
+        if key in seen:
+            return seen[key], name
+        seen[key] = name
+    return None
+
+
+def alias_words(pair: tuple[str, str]) -> str:
+    """How two names of :func:`aliased_names` clash: "repeated" or "both written ..."."""
+    a, b = pair
+    return f"{a!r} is repeated" if a == b else \
+        f"{a!r} and {b!r} are both written {latex_name(a)}, one symbol"
 
 
 def subscripted(base_latex: str, offset: int) -> str:

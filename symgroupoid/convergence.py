@@ -68,6 +68,17 @@ class ConvergenceReport:
         return "\n".join(lines)
 
 
+def _distance(a: np.ndarray, b: np.ndarray) -> float:
+    """|a − b|₂ computed in units of the larger entry, so that it does not overflow where
+    the entries' squares would (final configurations of 10¹⁶⁰: the order is the same at
+    any scale)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    scale = max(float(np.max(np.abs(a), initial=0.0)), float(np.max(np.abs(b), initial=0.0)))
+    if scale == 0.0:
+        return 0.0
+    return scale * float(np.linalg.norm(a / scale - b / scale))
+
+
 def _final_configuration(sim, initial, params: dict, steps: int, inputs=None) -> np.ndarray:
     """The configuration at step ``steps`` (time T) of the run from (q₀, v₀), flat; the
     run is simulated in chunks of :data:`CHUNK` steps, each from the last state of the
@@ -214,12 +225,9 @@ def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int],
             f"the same scheme with N = {REFERENCE_FACTOR * counts[-1]}")
     else:
         target, against = reference, "the reference given"
-    errors = []
-    for n in counts:
-        value = final(n)
-        errors.append(float(np.linalg.norm(value - target)))
+    errors = [_distance(final(n), target) for n in counts]
     h = np.array([T / n for n in counts])
-    norm = float(np.linalg.norm(target))
+    norm = _distance(target, np.zeros_like(target))
     floor = ORDER_FLOOR * max(1.0, norm)
     above = [i for i, e in enumerate(errors) if e > floor]
     orders = tuple(None if errors[i] <= floor or errors[i + 1] <= floor else

@@ -45,8 +45,8 @@ def test_gauss_with_forces_prints_the_stage_notation():
     assert "Q_{k,1} &= \\theta_{k-1} + h" in text and "Q_{k+1,2}" in text
     assert "u_{k+1}" in text and "c" in text
     # the force named at each node, F_{k,i} = F(Q_{k,i}, V_{k,i}, u_k), given after "where"
-    assert r"F_{k,1} = - c V_{k,1} + u_{k}" in text
-    assert r"F_{k+1,1} = - c V_{k+1,1} + u_{k+1}" in text
+    assert r"F_{k,1} = u_{k} - c V_{k,1}" in text
+    assert r"F_{k+1,1} = u_{k+1} - c V_{k+1,1}" in text
     assert r"\frac{h}{3} \left(F_{k,1} + F_{k,2} - g" in text  # the stage row
 
 

@@ -398,3 +398,43 @@ def test_a_bad_initial_in_the_file_is_not_blamed_on_the_option(capsys):
     assert main(["simulate", "pendulum.py", "--steps", "2", "--backend", "numpy"]) == 1
     err = capsys.readouterr().err
     assert "the file's INITIAL: a state from a velocity" in err and "--initial" not in err, err
+
+
+@pytest.mark.parametrize("option", ["--initial", "--inputs", "boundary"])
+def test_a_directory_is_not_read_as_an_input_file(option, capsys):
+    """A directory named where a file is read printed "symgroupoid: error: 3: Is a
+    directory" (Python refused a file object of its descriptor before the regular-file
+    check), naming neither the option nor the path."""
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    Path("U.csv").write_text("0.1\n")
+    Path("folder.json").mkdir()
+    Path("folder.csv").mkdir()
+    args = {"--initial": ["simulate", "driven_spring.py", "--steps", "2", "--inputs", "U.csv",
+                          "--initial", "folder.json"],
+            "--inputs": ["simulate", "driven_spring.py", "--steps", "2", "--inputs",
+                         "folder.csv"],
+            "boundary": ["bvp", "driven_spring.py", "folder.json", "--inputs", "U.csv"]}[option]
+    assert main(args) == 1
+    err = capsys.readouterr().err
+    assert "folder" in err and "not a regular file" in err and "Is a directory" not in err, err
+
+
+def test_npy_inputs_are_read_as_csv_inputs_are(capsys):
+    """A one-dimensional .npy of one input's values is a column, and a longer one gives its
+    first N rows as a longer CSV table does (it was refused, "got shape (10,)"); a file
+    named .npy that is not one is said to be so (it was reported as pickled data)."""
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    values = np.linspace(0.0, 1.0, 10)
+    np.save("long.npy", values)
+    np.savetxt("long.csv", values)
+    outputs = []
+    for name in ("long.npy", "long.csv"):
+        assert main(["simulate", "driven_spring.py", "--steps", "5", "--inputs", name,
+                     "--backend", "numpy", "-o", f"{name}.npz"]) == 0
+        outputs.append(np.load(f"{name}.npz")["states"])
+    np.testing.assert_array_equal(*outputs)
+    capsys.readouterr()
+    Path("text.npy").write_text("0.1\n0.2\n")
+    assert main(["simulate", "driven_spring.py", "--steps", "2", "--inputs", "text.npy"]) == 1
+    err = capsys.readouterr().err
+    assert "not a .npy array" in err and "pickled" not in err, err

@@ -463,3 +463,89 @@ def test_a_numpy_time_is_not_a_section_index(section):
                                             "coefficients or a function of q; got timedelta64"
                        if "timedelta" in type(section).__name__ else "got datetime64"):
         systems.rigid_body().noether(section)
+
+
+def _spring_L(g):
+    (q0,), (q1,) = g.source, g.target
+    return (q1 - q0) ** 2 / (2 * H) - H * (q0 ** 2 + q1 ** 2) / 4
+
+
+@pytest.mark.parametrize("build", [
+    lambda: sg.EuclideanSpace(["θ", "theta"]),
+    lambda: sg.PairGroupoid(sg.EuclideanSpace("theta")) * sg.PairGroupoid(
+        sg.EuclideanSpace("θ")),
+    lambda: sg.SO3("θ") * sg.SO3("theta"),
+], ids=["one-space", "product", "groups"])
+def test_names_written_alike_are_one_name(build):
+    """θ, theta and \\theta are all written \\theta, and the step symbols are named by their
+    LaTeX: two coordinates so named were one symbol (the Lagrangian silently degenerate)."""
+    with pytest.raises(sg.CoordinateNameError, match=r"both written \\theta"):
+        build()
+
+
+@pytest.mark.parametrize("inputs, space, message", [
+    ([sp.Symbol("θ"), sp.Symbol("theta")], "x", "declared twice"),
+    ([sp.Symbol(r"\theta")], "theta", "has the name of a coordinate"),
+    ([sp.Symbol("λ")], "x", r"\(or the multipliers\)"),
+], ids=["two-inputs", "input-coordinate", "multipliers"])
+def test_inputs_written_alike_are_refused(inputs, space, message):
+    """Inputs θ and theta became one input: a force h(θ − theta)/2 vanished from the
+    residual and runs ignored the inputs given; an input θ on a coordinate theta read the
+    coordinate's slots (every run then failed as a Newton divergence)."""
+    def forces(g):
+        value = H * sum(inputs) / 2
+        return [value], [value]
+
+    with pytest.raises(sg.InputNameError, match=message):
+        sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace(space)), _spring_L,
+                          parameters=[H], forces=forces, inputs=inputs).euler_lagrange()
+
+
+def test_input_values_must_satisfy_their_symbols_assumptions():
+    """An input declared positive is simplified under it (√(w²) is w), so a run with w < 0
+    solved a force the user did not write, silently; an integer input took 0.5.  Refused in
+    every entry point, as a parameter's value is."""
+    w, n = sp.Symbol("w", positive=True), sp.Symbol("n", integer=True)
+
+    def forces(g):
+        value = H / 2 * (sp.sqrt(w ** 2) + n)
+        return [value], [value]
+
+    system = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), _spring_L,
+                               parameters=[H], forces=forces, inputs=[w, n], name="driven")
+    sim = system.euler_lagrange().compile(backend="numpy")
+    p, start = {"h": 0.05}, {"q": (1.0, 1.0), "w": 1.0, "n": 1}
+    good = sim.simulate(start, 3, p, inputs=[1.0, 2.0])
+    assert good.states.shape == (4, 6)
+    refused = [
+        (lambda: sim.simulate(start, 3, p, inputs=[-1.0, 2.0]), "w is declared positive"),
+        (lambda: sim.simulate(start, 2, p, inputs=[[1.0, 2.0], [1.0, 0.5]]),
+         "n is declared integer, got 0.5 at step 1"),
+        (lambda: sim.simulate({**start, "w": -1.0}, 3, p, inputs=[1.0, 2.0]), "in the state"),
+        (lambda: sim.step(sim.state(start, p), p, inputs=np.array([0.0, 2.0])),
+         "w is declared positive"),
+        (lambda: sim.simulate_batch([start, start], 2, p,
+                                    inputs=np.array([[[1.0, 2.0]] * 2, [[1.0, 2.0], [1.0, 2.5]]])),
+         "in run 1, step 1"),
+    ]
+    for call, message in refused:
+        with pytest.raises(sg.DomainError, match=message):
+            call()
+    u = np.array([1.0, 2.0])  # an array refilled in place between steps is tested again
+    state = sim.step(sim.step(sim.state(start, p), p, inputs=u), p, inputs=u)
+    u[0] = -2.0
+    with pytest.raises(sg.DomainError, match="got -2.0"):
+        sim.step(state, p, inputs=u)
+
+
+def test_the_observed_order_does_not_overflow_at_large_amplitudes():
+    """A linear oscillator has the same order at any amplitude; at 10¹⁶⁰ the error norm
+    squared its entries and overflowed: errors inf, "rounding floor (inf)", no order."""
+    k = sp.Symbol("k", positive=True)
+    osc = sg.ContinuousSystem(sg.EuclideanSpace("q"),
+                              lambda q, v: v[0] ** 2 / 2 - k * q[0] ** 2 / 2,
+                              parameters=[H, k], name="osc")
+    report = sg.convergence_order(osc, "midpoint", ({"q": 1e160}, [0.0]), {"k": 1.0}, 1.0,
+                                  [20, 40, 80])
+    assert np.isfinite(report.errors).all() and np.isfinite(report.reference_norm)
+    assert abs(report.order - 2.0) < 0.05

@@ -435,7 +435,7 @@ def test_a_callable_abbreviation_on_a_lie_group_is_checked_at_its_arrow():
                              name="free_body").euler_lagrange()
     tex = step.latex(abbreviations={rf"\Omega_{{{a + 1}}}": (lambda g, a=a: spin(g.matrix)[a])
                                     for a in range(3)})
-    assert r"(\Omega_{1})_{j} &= \frac{- (W_{j})_{23} + (W_{j})_{32}}{2 h}" in tex
+    assert r"(\Omega_{1})_{j} &= \frac{(W_{j})_{32} - (W_{j})_{23}}{2 h}" in tex
     assert r"(\Omega_{3})_{k+1}" in tex
 
 

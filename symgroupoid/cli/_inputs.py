@@ -141,8 +141,12 @@ def read_text_file(path: Path, what: str, limit: int, kind: str) -> str:
         raise InputError(f"{what} {path}: no such file") from None
     except OSError as exc:
         raise InputError(f"{what} {path}: cannot be read ({exc})") from None
-    with open(fd, "rb") as fh:
+    try:  # before a file object: Python refuses to make one of a directory's descriptor
         _check_regular(os.fstat(fd), path, what, limit, kind)
+    except BaseException:
+        os.close(fd)
+        raise
+    with open(fd, "rb") as fh:
         try:
             data = fh.read(limit + 1)
         except OSError as exc:
@@ -286,6 +290,10 @@ def _listed(keys) -> str:
     return ", ".join(f"'{k}'" for k in keys)
 
 
+#: the first bytes of every .npy file (NumPy's format, any version)
+_NPY_MAGIC = b"\x93NUMPY"
+
+
 def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
     """The input sequence of a forced system's run from ``--inputs`` (docs/cli.md): a
     ``.npy`` array (read without pickles) or a ``.csv`` table of numbers, one row per step
@@ -300,6 +308,15 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
         raise InputError(f"--inputs {file}: the file name must end in .npy or .csv")
     if file.suffix == ".npy":
         checked_input_file(file, "--inputs", 2**62, "a .npy array")
+        try:
+            with open(file, "rb") as fh:
+                magic = fh.read(len(_NPY_MAGIC))
+        except OSError as exc:
+            raise InputError(f"--inputs {file}: cannot be read ({exc})") from None
+        if magic != _NPY_MAGIC:
+            raise InputError(f"--inputs {file}: not a .npy array (it does not start with "
+                             f"NumPy's header: write one with numpy.save, or give the "
+                             f"numbers as a .csv table)")
         try:
             return np.load(file, allow_pickle=False)
         except (OSError, ValueError) as exc:
@@ -358,6 +375,8 @@ def input_table(path: str | None, names: list[str], owner: str, rows: int, per: 
                              f"sequence with --inputs U.npy|U.csv, one row per {per} (at "
                              f"least {wanted} rows; {meaning}), or one row held constant")
         return None
+    if inputs.ndim == 1 and len(names) == 1 and inputs.shape[0] > 1:
+        inputs = inputs[:, None]  # one input: a sequence of its values is a column
     if inputs.ndim == 2 and inputs.shape[1] != len(names):
         raise InputError(f"--inputs {path}: {inputs.shape[1]} column"
                          f"{'s' if inputs.shape[1] != 1 else ''} for the "

@@ -191,20 +191,29 @@ def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:
         raise UnsupportedFeatureError(
             f"{name}: inputs {', '.join(map(str, inputs))} are declared but the system has "
             f"no forces to use them; pass forces=f with f(g) -> (f_minus, f_plus) in the inputs")
-    seen: set = set()
-    names = {str(p) for p in parameters}
+    seen: dict = {}
+    names = {latex_name(str(p)): p for p in parameters}
     for u in inputs:
         if not isinstance(u, sp.Symbol):
             raise InputTypeError(f"{name}: each input must be a SymPy symbol, got "
                                  f"{type(u).__name__} {u!r}")
-        if str(u) in names:
+        key = latex_name(str(u))
+        if key in names:
             raise InputNameError(f"{name}: {u} is declared both as an input and as a "
-                                 f"parameter; a parameter is fixed for a run, an input changes "
-                                 f"from step to step: declare it once")
-        if str(u) in seen:
-            raise InputNameError(f"{name}: input {u} is declared twice")
-        seen.add(str(u))
+                                 f"parameter{_alias(u, names[key])}; a parameter is fixed for a "
+                                 f"run, an input changes from step to step: declare it once")
+        if key in seen:
+            raise InputNameError(f"{name}: input {u} is declared twice"
+                                 f"{_alias(u, seen[key])}")
+        seen[key] = u
     return inputs
+
+
+def _alias(u: sp.Symbol, other) -> str:
+    """Words naming the other spelling of ``u``'s name (θ, theta, \\theta), or ""."""
+    if str(other) == str(u):
+        return ""
+    return f" (as {other}: both are written {latex_name(str(u))}, the symbol of its values)"
 
 
 def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Sequence,
@@ -219,13 +228,15 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     covectors in the arrow's coordinates and ζ, and f_ζ, one scalar per stage."""
     what = "forces"
     arrows = tuple(slot(groupoid, f"f{i}_") for i in range(arity))
-    taken = {*groupoid.symbols_by_name(0), *groupoid.symbols_by_name(1), "lambda", "λ",
-             "multipliers"}
+    taken = {latex_name(n): n for n in (*groupoid.symbols_by_name(0),
+                                         *groupoid.symbols_by_name(1), "lambda", "multipliers")}
     for u in inputs:
-        if str(u) in taken:
+        key = latex_name(str(u))
+        if key in taken:
             raise InputNameError(f"{name}: input {u} has the name of a coordinate (or the "
-                                 f"multipliers) of {groupoid.name}, which names a part of the "
-                                 f"state; give the input another name")
+                                 f"multipliers) of {groupoid.name}{_alias(u, taken[key])}, "
+                                 f"which names a part of the state; give the input another "
+                                 f"name")
     stages = tuple(stages)
     value = call_user(name, what, forces, *[groupoid.view(a) for a in arrows],
                       *([list(stages)] if stages else []), smooth=True)

@@ -192,9 +192,25 @@ class GroupoidLatexPrinter(LatexPrinter):
         ``\\frac{q_{k+1} + q_{k}}{2}`` rather than ``\\frac{q_{k+1}}{2} + \\frac{q_{k}}{2}``."""
         denominator = _common_denominator(expr)
         if denominator == 1 or self.order in ("old", "none"):
-            return super()._print_Add(expr, order)
+            return self._print_difference(expr, order)
         numerator = sp.Add(*[t * denominator for t in expr.args])
-        return self._frac(super()._print_Add(numerator, order), str(denominator))
+        return self._frac(self._print_difference(numerator, order), str(denominator))
+
+    def _print_difference(self, expr, order=None) -> str:
+        """A sum of two terms, one negated, as the papers write a difference, the positive
+        term first: t_{k} − t_{k−1} rather than − t_{k−1} + t_{k}; any other sum as SymPy
+        orders it."""
+        if not isinstance(expr, sp.Add) or self.order in ("old", "none"):
+            return super()._print_Add(expr, order)
+        terms = self._as_ordered_terms(expr, order=order)
+        if len(terms) != 2 or not terms[0].could_extract_minus_sign() \
+                or terms[1].could_extract_minus_sign():
+            return super()._print_Add(expr, order)
+        first, second = self._print(terms[1]), -terms[0]
+        text = self._print(second)
+        if self._needs_add_brackets(second):
+            text = f"\\left({text}\\right)"
+        return f"{first} - {text}"
 
     def _print_Mul(self, expr) -> str:
         """Products in the papers' order: numbers, parameters (plain symbols) and sums of

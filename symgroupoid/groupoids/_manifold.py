@@ -23,6 +23,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import CoordinateNameError, InputTypeError
+from .._symbols import alias_words, aliased_names
 
 
 class Manifold(ABC):
@@ -278,12 +279,12 @@ class ProductManifold(Manifold):
         self._coords = _slices([f.coords_dim for f in self.factors])
         self._charts = _slices([f.dim for f in self.factors])
         self.names = tuple(n for f in self.factors for n in f.names)
-        repeated = sorted({n for n in self.names if self.names.count(n) > 1})
-        if repeated:
+        aliased = aliased_names(self.names)
+        if aliased is not None:
             raise CoordinateNameError(
-                f"{' × '.join(map(repr, self.factors))}: two factors name a coordinate "
-                f"{repeated[0]!r}; the factors of a product need distinct names (e.g. "
-                f"SO3(\"R1\") * SO3(\"R2\"))")
+                f"{' × '.join(map(repr, self.factors))}: two factors name a coordinate alike "
+                f"({alias_words(aliased)}); the factors of a product need distinct names "
+                f"(e.g. SO3(\"R1\") * SO3(\"R2\"))")
 
     def configuration(self, value, name, check):
         """One point per factor, named ``name[i]``."""

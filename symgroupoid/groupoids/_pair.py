@@ -16,7 +16,7 @@ import sympy as sp
 
 from .._arguments import MAX_DIMENSION, integer_argument, name_argument, names_argument
 from .._errors import CoordinateNameError, InputTypeError, ShapeError
-from .._symbols import latex_name, scalar_symbol
+from .._symbols import alias_words, aliased_names, latex_name, scalar_symbol
 from ._base import Arrow, Groupoid
 from ._manifold import Manifold, as_manifold
 from ._numerics import PairCoordinate
@@ -36,9 +36,11 @@ class EuclideanSpace(Manifold):
                                                      owner="EuclideanSpace")
         if not self.names:
             raise ShapeError("EuclideanSpace needs at least one coordinate name")
-        if len(set(self.names)) != len(self.names):
-            raise CoordinateNameError(f"EuclideanSpace: repeated coordinate names in "
-                                      f"{self.names}")
+        aliased = aliased_names(self.names)
+        if aliased is not None:
+            raise CoordinateNameError(f"EuclideanSpace: coordinate names {self.names}: "
+                                      f"{alias_words(aliased)}; each coordinate needs its "
+                                      f"own name")
         self.latex = tuple(latex_name(n) for n in self.names)
         self.vector_name: str | None = None
 

@@ -9,6 +9,7 @@ import numpy as np
 
 from .._arguments import instance_argument
 from .._errors import CoordinateNameError, ShapeError
+from .._symbols import latex_name
 from ._base import Arrow, Groupoid
 from ._numerics import PairCoordinate
 
@@ -33,16 +34,19 @@ def _refuse_shared_names(name: str, parts: list[tuple[str, dict]]) -> None:
     (``SO3("R") * SO3("R")``, also within nested products, which are flattened first): the
     state, the initial data and the Lagrangian address parts by name, so a shared name
     would make two parts one symbol and the Lagrangian degenerate."""
-    owner: dict[str, int] = {}
+    owner: dict[str, tuple[int, str]] = {}
     for i, (factor, names) in enumerate(parts):
         for part in names:
-            if part in owner:
-                j = owner[part]
+            key = latex_name(part)  # θ and theta are one symbol, \theta
+            if key in owner:
+                j, other = owner[key]
+                named = f"a part named {part!r}" if other == part else \
+                    f"parts named {other!r} and {part!r}, both written {key}"
                 raise CoordinateNameError(
                     f"{name}: factor {j} ({parts[j][0]}) and factor {i} ({factor}) both have "
-                    f"a part named {part!r}; the parts of a product need distinct names "
+                    f"{named}; the parts of a product need distinct names "
                     f"(e.g. SO3(\"R1\") * SO3(\"R2\"))")
-        owner.update(dict.fromkeys(names, i))
+        owner.update({latex_name(part): (i, part) for part in names})
 
 
 def _slices(sizes):

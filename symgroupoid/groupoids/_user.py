@@ -16,7 +16,7 @@ from .._errors import (
     ShapeError,
     SymgroupoidError,
 )
-from .._symbols import latex_name, scalar_symbol
+from .._symbols import alias_words, aliased_names, latex_name, scalar_symbol
 from ._base import Groupoid
 
 #: names that ``StepEquations.symbol`` reserves for the multipliers λ
@@ -96,15 +96,19 @@ class DefinedGroupoid(Groupoid):
                         f"{self.name}: the {kind} coordinate name {n!r} is reserved for the "
                         f"multipliers ({', '.join(map(repr, RESERVED_NAMES))} all name λ in "
                         "step.symbol); rename the coordinate")
-            repeated = sorted({n for n in names if names.count(n) > 1})
-            if repeated:
+            aliased = aliased_names(names)
+            if aliased is not None:
+                noun = "name" if aliased[0] == aliased[1] else "names"
                 raise CoordinateNameError(
-                    f"{self.name}: the {kind} coordinate name {repeated[0]!r} is repeated; "
-                    "each coordinate needs its own name")
-        shared = sorted(set(self.base_names) & set(self.fibre_names))
+                    f"{self.name}: the {kind} coordinate {noun} {alias_words(aliased)}; each "
+                    "coordinate needs its own name")
+        fibre = {latex_name(n): n for n in self.fibre_names}
+        shared = [(n, fibre[latex_name(n)]) for n in self.base_names if latex_name(n) in fibre]
         if shared and self.source_offset == 0:
+            base, other = shared[0]
+            named = repr(base) if base == other else f"{base!r} (as {other!r})"
             raise CoordinateNameError(
-                f"{self.name}: {shared[0]!r} names both a base and a fibre coordinate with "
+                f"{self.name}: {named} names both a base and a fibre coordinate with "
                 "source_offset=0, so both would be the same symbol at every step; rename one")
 
     @property

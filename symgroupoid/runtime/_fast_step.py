@@ -208,6 +208,9 @@ def _fast_call(sim, fast: FastStep):
     held_inputs = [(None, _REFUSED if m else no_inputs)]
     inputs_shape = (m,)
     checked = sim._checked_call
+    #: the inputs' declared assumptions (positive=True, …) as one test of their values, or
+    #: None; with one, inputs are tested at every call (an array refilled in place too)
+    input_test = sim.layout.input_test
 
     def inputs_view(u):
         """What the entry takes for the inputs ``u``: ``no_inputs`` for a system without
@@ -227,6 +230,8 @@ def _fast_call(sim, fast: FastStep):
                 or (u.dtype is not float64 and u.dtype != float64)
                 or u.shape != inputs_shape or u.strides != contiguous):
             return _REFUSED
+        if input_test is not None and not input_test(u.tolist()):
+            return _REFUSED  # the checked path names the input and its assumption
         held = held_inputs[0]
         if held[0] is not u:
             held = held_inputs[0] = (u, view_of(u))
@@ -250,8 +255,8 @@ def _fast_call(sim, fast: FastStep):
                 if same:
                     held = held_inputs[0]  # the inputs of the last call, inline
                     if inputs is held[0] and (inputs is None or (
-                            inputs.dtype is float64 and inputs.ndim == 1
-                            and inputs.strides == contiguous)):
+                            input_test is None and inputs.dtype is float64
+                            and inputs.ndim == 1 and inputs.strides == contiguous)):
                         u_view = held[1]
                     else:
                         u_view = inputs_view(inputs)

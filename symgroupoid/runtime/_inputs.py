@@ -16,6 +16,7 @@ import numpy as np
 
 from .._arguments import counted, input_rows
 from .._errors import DomainError, ShapeError
+from ._layout import check_input_values
 from ._options import NewtonOptions
 from ._runs import OK, RawRun
 from ._validate import real_array
@@ -52,6 +53,7 @@ def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
         j, i = (int(v) for v in bad[0])
         raise DomainError(f"{owner}: input {layout.input_names[i]} of step {j} is "
                           f"{arr[j, i]}; inputs must be finite")
+    check_input_values(layout.input_symbols, arr, owner, lambda j, i: f"at step {j}")
     return np.ascontiguousarray(arr, dtype=float)
 
 
@@ -76,6 +78,8 @@ def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
         b, j, i = (int(v) for v in bad[0])
         raise DomainError(f"{owner}: input {layout.input_names[i]} of run {b}, step {j} is "
                           f"{arr[b, j, i]}; inputs must be finite")
+    check_input_values(layout.input_symbols, arr, owner,
+                       lambda row, i: f"in run {row // steps}, step {row % steps}")
     return np.ascontiguousarray(arr, dtype=float)
 
 
@@ -85,7 +89,8 @@ def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
     is; anything else goes through :func:`input_sequence`."""
     if (type(inputs) is np.ndarray and inputs.dtype is _FLOAT64 and inputs.strides == _STEP
             and all(map(math.isfinite, inputs.tolist()))
-            and inputs.shape == (layout.n_inputs,) and inputs.shape != (0,)):
+            and inputs.shape == (layout.n_inputs,) and inputs.shape != (0,)
+            and (layout.input_test is None or layout.input_test(inputs.tolist()))):
         return inputs
     if inputs is None and layout.n_inputs == 0:
         return None

@@ -17,7 +17,7 @@ the state is given as the sequence of its consecutive values, oldest first:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,7 +26,14 @@ import sympy as sp
 from .._errors import DomainError, InputNameError, ShapeError
 from .._symbols import multiplier_symbols, step_label
 from ..groupoids import MatrixLieGroup
-from ._validate import GROUP_TOLERANCE, arrow, real_array, rounded_group_matrix
+from ._validate import (
+    GROUP_TOLERANCE,
+    arrow,
+    assumptions_test,
+    real_array,
+    rounded_group_matrix,
+    violated_assumption,
+)
 
 __all__ = ["GROUP_TOLERANCE", "MULTIPLIER_KEYS", "Part", "StateLayout"]
 
@@ -144,7 +151,10 @@ class StateLayout:
         input holds u_k, the input of the state's arrow (``input_index``); after it the
         state holds the input of the arrow the next step computes (``upcoming_index``),
         which a run writes before each step."""
-        inputs = [str(u) for u in getattr(step, "inputs", [])]
+        self.input_symbols = tuple(getattr(step, "inputs", []))
+        #: a fast test of one step's inputs against their symbols' assumptions (None: none)
+        self.input_test = assumptions_test(self.input_symbols)
+        inputs = [str(u) for u in self.input_symbols]
         self.input_names = inputs
         # the knowns end with the inputs of the known terms (first order u_k; second order
         # u_{k-1}, u_k), then u_{k+1}
@@ -193,10 +203,16 @@ class StateLayout:
         return state
 
     def check_finite(self, state: np.ndarray) -> None:
-        """A :class:`DomainError` naming the non-finite entries of a flat state."""
+        """A :class:`DomainError` naming the non-finite entries of a flat state, or an input
+        value (of its arrow or the next) that violates an assumption its symbol is declared
+        with (:func:`check_input_values`)."""
         bad = [self.describe(i) for i in np.flatnonzero(~np.isfinite(state))]
         if bad:
             raise DomainError(f"{self.step_name}: non-finite initial data in {', '.join(bad)}")
+        if self.n_inputs:
+            index = np.stack([self.input_index, self.upcoming_index])
+            check_input_values(self.input_symbols, state[index], self.step_name,
+                               lambda row, i: f"in the state ({self.describe(index[row, i])})")
 
     def rounded(self, state: np.ndarray) -> np.ndarray:
         """A flat state whose group parts are given to a few digits, with each replaced by
@@ -332,3 +348,19 @@ class StateLayout:
         if upcoming.size:  # the slot of the input the next step reads, u_{k+1}
             return f"{self.input_names[int(upcoming[0])]} (step k+1)"
         return f"known[{index}]"
+
+
+def check_input_values(symbols: Sequence, values: np.ndarray, owner: str, where) -> None:
+    """A :class:`DomainError` when an input value violates an assumption its symbol is
+    declared with (``positive=True``, ``integer=True``, …): the forces were derived under it
+    (√(w²) is w for a positive w), so a run with another value would solve equations the
+    user did not write.  ``values`` (…, m), column i the values of input ``symbols[i]``;
+    ``where(row, i)`` words the place of the first violation (row: its flat row index)."""
+    table = np.asarray(values, dtype=float).reshape(-1, len(symbols))
+    for i, symbol in enumerate(symbols):
+        found = violated_assumption(symbol, table[:, i])
+        if found is not None:
+            row, what = found
+            raise DomainError(f"{owner}: input {symbol} is declared {what}, got "
+                              f"{float(table[row, i])!r} {where(row, i)}; the forces were derived "
+                              f"under that assumption")

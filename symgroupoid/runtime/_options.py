@@ -59,10 +59,10 @@ class NewtonOptions:
     Not converged: after ``max_iterations`` updates (status ``NOT_CONVERGED``, the iteration
     cap) at an iterate that is not at the rounding floor (the test after a final update
     above: at the floor the iterate is accepted, as a linear step is after its one update
-    with ``max_iterations=1``, or a guess that already solves the step with 0), or when an update that did not reduce |F|_∞ tenfold was at most 64ε times the ratio
-    of the largest to the smallest pivot (rounding noise of an update solved with that
-    factorisation) while |F| is above every floor — Newton cannot improve the iterate
-    (``STALLED``).
+    with ``max_iterations=1``, or a guess that already solves the step with 0), or when an
+    update that did not reduce |F|_∞ tenfold was at most 64ε times the ratio of the largest
+    to the smallest pivot (rounding noise of an update solved with that factorisation)
+    while |F| is above every floor — Newton cannot improve the iterate (``STALLED``).
 
     ``trust_factor`` (10 by default; 0 turns the check off): a step solved from an
     extrapolated guess is accepted only within the guess's trust region,

@@ -118,6 +118,33 @@ def _exact_assumption(key: str, v: float) -> bool:
     return bool(getattr(sp.Rational(v), f"is_{key}"))
 
 
+#: the table's tests on an array of finite floats (elementwise, the same answers)
+_ARRAY_TESTS = {
+    "positive": lambda c: c > 0, "negative": lambda c: c < 0,
+    "nonnegative": lambda c: c >= 0, "nonpositive": lambda c: c <= 0,
+    "zero": lambda c: c == 0, "nonzero": lambda c: c != 0,
+    "integer": lambda c: c == np.floor(c), "noninteger": lambda c: c != np.floor(c),
+    "even": lambda c: (c == np.floor(c)) & (np.fmod(c, 2) == 0),
+    "odd": lambda c: (c == np.floor(c)) & (np.abs(np.fmod(c, 2)) == 1),
+}
+
+
+def violated_assumption(symbol: sp.Symbol, values: np.ndarray) -> tuple[int, str] | None:
+    """The first entry of the finite float array ``values`` (flat index) that violates an
+    assumption ``symbol`` is declared with, and that assumption's words ("positive", "not
+    integer"), or None: :func:`check_assumptions` on every entry, vectorised."""
+    flat = np.asarray(values, dtype=float).ravel()
+    for key, expected in _declared(symbol):
+        if key in _ARRAY_TESTS:
+            holds = _ARRAY_TESTS[key](flat)
+        else:
+            holds = np.array([_exact_assumption(key, v) for v in flat.tolist()], dtype=bool)
+        bad = np.flatnonzero(holds != expected)
+        if len(bad):
+            return int(bad[0]), key if expected else f"not {key}"
+    return None
+
+
 @functools.lru_cache(maxsize=1024)
 def assumption_test(symbol: sp.Symbol):
     """A function of a finite float that is True exactly when the value satisfies every

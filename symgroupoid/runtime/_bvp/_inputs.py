@@ -15,6 +15,7 @@ import numpy as np
 
 from ..._arguments import counted, input_rows, real_array
 from ..._errors import DomainError, ShapeError
+from .._layout import check_input_values
 
 
 def _force_functions(system):
@@ -64,6 +65,8 @@ def input_table(system, inputs, n_terms: int, *, owner: str) -> np.ndarray:
         t, i = (int(v) for v in bad[0])
         raise DomainError(f"{owner}: input {names[i]} of term {t} is {arr[t, i]}; inputs "
                           f"must be finite")
+    check_input_values(_force_functions(system).inputs, arr, owner,
+                       lambda t, i: f"for the term starting at arrow {t}")
     out = np.array(arr, dtype=float)  # a copy: the caller's array may change after the call
     out.flags.writeable = False
     return out
