@@ -264,3 +264,20 @@ def test_noether_quantities_of_a_galerkin_system(tmp_path, cached, capsys):
         "Noether: angular momentum"]
     assert " FAIL " in found["Noether: x-momentum"] and code == 1, out
     assert " pass " in found["order of GaussLegendre(2)"], out
+
+
+@needs_cc
+def test_a_default_horizon_at_the_rounding_floor_is_lengthened(tmp_path, cached, capsys):
+    """Without HORIZON the horizon is N·h: for an order-4 scheme at h = 0.01 and N = 5 its
+    errors (1.8e-11, 1.2e-12, 1.1e-13) were at the floor and the row was skipped.  Such a
+    default horizon is lengthened (the same counts, a larger h) until two errors are above
+    it, and the row says so; a horizon the user set is measured as set."""
+    text = PENDULUM.replace("HORIZON = 1.0\n", "").replace('"h": 0.05', '"h": 0.01')
+    assert "HORIZON =" not in text and '"h": 0.01' in text
+    path = write(tmp_path, "short.py", text)
+    code, out, _ = run(capsys, "verify", path, "--steps", "5")
+    row = rows(out)["order of GaussLegendre(2)"]
+    assert code == 0 and " pass " in row and "lengthened" in row and "T = 0.05 " not in row, row
+    code, out, _ = run(capsys, "verify", path, "--steps", "5", "--horizon", "0.05")
+    row = rows(out)["order of GaussLegendre(2)"]
+    assert " skip " in row and "rounding floor" in row and "lengthened" not in row, row
