@@ -101,6 +101,64 @@ def aliased_names(names: Sequence[str]) -> tuple[str, str] | None:
     return None
 
 
+#: the multipliers' names in the state (λ in any spelling prints as they do)
+MULTIPLIER_NAMES = ("lambda", "multipliers")
+
+#: the LaTeX commands a name may hold besides Greek letters: accents and alphabets
+_NAME_COMMANDS = frozenset({"bar", "hat", "tilde", "dot", "ddot", "vec", "check", "breve",
+                            "mathrm", "mathbf", "mathcal", "mathit", "mathsf", "boldsymbol",
+                            "prime", "ell"})
+
+#: characters that LaTeX reads as commands or structure: a name holding one would break
+#: the printed document (% comments out the rest of a row, & is a column of align)
+_LATEX_SPECIAL = re.compile(r"[%&#$~]|\\(?![A-Za-z])")
+
+
+def is_multiplier_name(name: str) -> bool:
+    """Whether ``name`` is written as the multipliers' (λ, lambda, lamda, \\lambda,
+    multipliers)."""
+    return latex_name(name) in {latex_name(n) for n in MULTIPLIER_NAMES}
+
+
+def unprintable_name(name: str) -> str | None:
+    """Why ``name`` cannot name a coordinate, a part or an input in the printed equations,
+    or None: it must start with a letter (or be a LaTeX command such as ``\\theta``: a name
+    starting with a digit or a sign reads as arithmetic, -1_{k}), hold no character LaTeX
+    reads as structure (% & # $ ~, a lone backslash) and balanced braces."""
+    if not (name[:1].isalpha() or re.match(r"\\[A-Za-z]", name)):
+        return "it must start with a letter (a digit or a sign would read as arithmetic)"
+    if _LATEX_SPECIAL.search(name):
+        return "it holds a character LaTeX reads as structure (% & # $ ~ or a lone backslash)"
+    for command in re.findall(r"\\([A-Za-z]+)", name):
+        if command not in _NAME_COMMANDS and sp.latex(sp.Symbol(command)) != "\\" + command:
+            return (f"it holds the LaTeX command \\{command}, which is neither a Greek "
+                    f"letter nor an accent")
+    depth = 0
+    for ch in name:
+        depth += {"{": 1, "}": -1}.get(ch, 0)
+        if depth < 0:
+            break
+    if depth != 0:
+        return "its braces are not balanced"
+    return None
+
+
+def printable_name(name: str, what: str, owner: str, *, part: bool = True) -> str:
+    """``name`` when it can name ``what`` in the printed equations and the state
+    (:func:`unprintable_name`; with ``part``, not the multipliers' name either), else a
+    :class:`~symgroupoid.CoordinateNameError` saying why."""
+    from ._errors import CoordinateNameError
+
+    why = unprintable_name(name)
+    if why is None and part and is_multiplier_name(name):
+        why = (f"it is written {latex_name(name)}, as the multipliers are (their state part "
+               f"is {', '.join(map(repr, MULTIPLIER_NAMES))})")
+    if why is not None:
+        raise CoordinateNameError(f"{owner}: {what} {name!r} cannot be used: {why}; choose "
+                                  f"another name")
+    return name
+
+
 def alias_words(pair: tuple[str, str]) -> str:
     """How two names of :func:`aliased_names` clash: "repeated" or "both written ..."."""
     a, b = pair

@@ -66,27 +66,28 @@ class _NumericGroupoid:
     """Structure maps of a groupoid, evaluated from its structure program
     (:func:`~symgroupoid.equations.structure_program`)."""
 
-    def __init__(self, G: Groupoid):
+    def __init__(self, G: Groupoid, parameters: Sequence = (), values: Sequence = ()):
         self.G = G
-        program = structure_program(G)
-        self._multiply = program.numpy_function(["multiply"], ["a", "b"])
-        self._inverse = program.numpy_function(["inverse"], ["a"])
-        self._target = program.numpy_function(["target"], ["a"])
-        self._flow = program.numpy_function(["flow_from"], ["q", "d"])
+        program = structure_program(G, tuple(parameters))  # (maps may use them)
+        self._p = np.asarray(values, float)
+        self._multiply = program.numpy_function(["multiply"], ["a", "b", "p"])
+        self._inverse = program.numpy_function(["inverse"], ["a", "p"])
+        self._target = program.numpy_function(["target"], ["a", "p"])
+        self._flow = program.numpy_function(["flow_from"], ["q", "d", "p"])
 
     def multiply(self, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return self._multiply(a, b)[0]
+        return self._multiply(a, b, self._p)[0]
 
     def inverse(self, a: np.ndarray) -> np.ndarray:
-        return self._inverse(a)[0]
+        return self._inverse(a, self._p)[0]
 
     def target(self, a: np.ndarray) -> np.ndarray:
-        return self._target(a)[0]
+        return self._target(a, self._p)[0]
 
     def flow(self, q: np.ndarray, coeffs: np.ndarray, t: float) -> np.ndarray:
         """h(t) ⊂ α⁻¹(q): the product of section curves h_a(c_a t), each at the target of the
         previous one, so h'(0) = Σ c_a X_a(q)."""
-        return self._flow(np.asarray(q, float), np.asarray(coeffs, float) * t)[0]
+        return self._flow(np.asarray(q, float), np.asarray(coeffs, float) * t, self._p)[0]
 
 
 def _section_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.ndarray:
@@ -328,7 +329,7 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     arrows, lam, U, params = _unpack(trajectory, system, multipliers, inputs, params,
                                      holder is not None)
     _, arity, m = _cached_terms(system)
-    ng = _NumericGroupoid(G)
+    ng = _NumericGroupoid(G, system.parameters, params)
     rng = np.random.default_rng(seed)
     n = len(arrows)
     sizes = _section_sizes(ng, arrows, G.rank)

@@ -549,3 +549,61 @@ def test_the_observed_order_does_not_overflow_at_large_amplitudes():
                                   [20, 40, 80])
     assert np.isfinite(report.errors).all() and np.isfinite(report.reference_norm)
     assert abs(report.order - 2.0) < 0.05
+
+
+def test_verify_stationary_evaluates_structure_maps_with_parameters():
+    """A groupoid whose sections use a declared parameter derived, compiled and ran, but
+    verify_stationary said the parameter "is a symbol with no value in this program": the
+    structure maps were built without the parameters (so was Elroy's beanie's reduced
+    system, whose connection holds the inertias)."""
+    c = sp.Symbol("c", positive=True)
+    line = sg.DefinedGroupoid(
+        "line", base_names=["q"], fibre_names=["q"], source=lambda a: (a[0],),
+        target=lambda a: (a[1],), multiply=lambda a, b: (a[0], b[1]),
+        identity=lambda q: (q[0], q[0]), inverse=lambda a: (a[1], a[0]),
+        sections=lambda q, t: [(q[0], q[0] + c * t)])
+
+    def L(a):
+        q0, q1 = a.coords
+        return H * (((q1 - q0) / H) ** 2 / 2 - ((q0 + q1) / 2) ** 2 / 2)
+
+    system = sg.DiscreteSystem(line, L, parameters=[H, c], name="line_oscillator")
+    run = system.euler_lagrange().compile(backend="numpy").simulate(
+        {"q": (1.0, 0.99)}, 6, {"h": 0.1, "c": 2.0})
+    assert sg.verify_stationary(run, system).stationary
+
+
+def test_a_time_name_is_checked_as_a_coordinate_name_is():
+    """TimeGroupoid(…, time_name) checked its name against nothing: a time named as a
+    coordinate (or t over a coordinate t) was the same symbol, λ read the multipliers, and
+    the state part was "t" whatever the name."""
+    pair = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    for inner, name in [(pair, "q"), (sg.PairGroupoid(sg.EuclideanSpace("t")), "t"),
+                        (sg.PairGroupoid(sg.EuclideanSpace("theta")), "θ"), (pair, "λ"),
+                        (pair, "%")]:
+        with pytest.raises(sg.CoordinateNameError):
+            sg.TimeGroupoid(inner, name)
+    timed = sg.TimeGroupoid(pair, "tau")
+    assert list(timed.symbols_by_name(0))[0] == "tau"
+
+
+@pytest.mark.parametrize("name", ["%", "&", r"\end{align}", "a}b", "-1", "lamda", r"\lambda"])
+def test_names_that_break_the_printed_equations_are_refused(name):
+    """Coordinate names went into the LaTeX as they were: % commented out the rest of a
+    row, & made a column, \\end{align} closed the display (pdflatex failed on each); -1
+    printed -1_{k}; lamda and \\lambda printed as the multipliers."""
+    with pytest.raises(sg.CoordinateNameError, match="cannot be used"):
+        sg.EuclideanSpace([name])
+
+
+@pytest.mark.parametrize("names", [("theta", "θ"), ("k", "k "), ("x_{k+1}",)])
+def test_parameters_written_alike_or_as_step_values_are_refused(names):
+    """Parameters theta and θ printed as one; x_{k+1} as a parameter read as the unknown."""
+    params = [sp.Symbol(n) for n in names]
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return (q1 - q0) ** 2 / 2 + sum(params) * q0
+
+    with pytest.raises(sg.ParameterDeclarationError, match="written"):
+        sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=params)

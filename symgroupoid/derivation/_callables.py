@@ -20,7 +20,7 @@ from .._errors import (
     UndeclaredSymbolError,
     UnsupportedExpressionError,
 )
-from .._symbols import scalar_expression
+from .._symbols import latex_name, scalar_expression
 
 #: values that make an expression non-finite, with how messages describe them
 _NON_FINITE = {sp.nan: "nan (not a number)", sp.zoo: "zoo (complex infinity)",
@@ -342,6 +342,7 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
     with that symbol."""
     by_name = {str(s): s for s in used}
     seen: set[str] = set()
+    printed: dict[str, sp.Symbol] = {}
     for p in parameters:
         if isinstance(p, sp.Symbol):
             if str(p) in seen:
@@ -349,6 +350,7 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
                     f"{system_name}: parameter {p} is declared twice; parameters are given "
                     f"by name, so each name may appear once")
             seen.add(str(p))
+            _check_parameter_name(system_name, p, printed)
         if isinstance(p, sp.Symbol):
             continue
         if isinstance(p, str):
@@ -361,6 +363,26 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
         raise ParameterDeclarationError(
             f"{system_name}: parameters must be SymPy symbols; got {p!r} "
             f"({type(p).__name__})")
+
+
+#: a subscript that reads as a step index: x_{k}, x_{k+1}, (x)_{k-2}
+_STEP_SUBSCRIPT = re.compile(r"_\{?k([+-]\d+)?\}?$")
+
+
+def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None:
+    """A parameter is printed by its name: two parameters written alike (theta and θ, a
+    Dummy and a Symbol both k, "k" and "k "), or a name that reads as a value at a step
+    (x_{k+1}), would print one equation as another."""
+    key = latex_name(p.name.strip())
+    if key in printed:
+        raise ParameterDeclarationError(
+            f"{system_name}: parameters {printed[key]!r} and {p!r} are both written {key} in "
+            f"the printed equations; give them names that differ")
+    printed[key] = p
+    if _STEP_SUBSCRIPT.search(key):
+        raise ParameterDeclarationError(
+            f"{system_name}: parameter {p.name!r} is written {key}, as a value at a step "
+            f"(x_{{k+1}}) is; a parameter is fixed for a run: name it otherwise")
 
 
 def _check_assumptions(system_name: str, what: str, undeclared: Sequence[sp.Symbol],

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from .._errors import InputNameError, InputTypeError, ShapeError, UnsupportedFeatureError
-from .._symbols import latex_name, scalar_symbol
+from .._symbols import latex_name, scalar_symbol, unprintable_name
 from ..groupoids import Groupoid
 from ._callables import as_scalar_list, call_user, check_symbols
 from ._junction import slot, slot_substitution
@@ -197,6 +197,10 @@ def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:
         if not isinstance(u, sp.Symbol):
             raise InputTypeError(f"{name}: each input must be a SymPy symbol, got "
                                  f"{type(u).__name__} {u!r}")
+        why = unprintable_name(str(u))
+        if why is not None:
+            raise InputNameError(f"{name}: input {str(u)!r} cannot be used: {why}; name the "
+                                 f"input otherwise")
         key = latex_name(str(u))
         if key in names:
             raise InputNameError(f"{name}: {u} is declared both as an input and as a "

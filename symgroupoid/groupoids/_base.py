@@ -313,7 +313,8 @@ class Groupoid(GroupoidNumerics, ABC):
         expression graph ``g`` (symgroupoid.ir): the section curves h_c(δ_c) composed one
         after another, each at the target of the product so far.  The structure maps are
         expanded once, at generic arguments, and applied to nodes — composing them in SymPy
-        expands the products of curves (on a rotation group, of Cayley matrices)."""
+        expands the products of curves (on a rotation group, of Cayley matrices).  Other
+        symbols of the maps (a system's parameters) are the graph's inputs of those symbols."""
         from ..ir import from_sympy
 
         a, t = self._generic_arrow, sp.Dummy("t", real=True)
@@ -323,7 +324,8 @@ class Groupoid(GroupoidNumerics, ABC):
         product, target = list(self.multiply(a, b)), list(self.target(a))
 
         def apply(exprs: list, values: dict) -> list[int]:
-            return [from_sympy(g, sp.sympify(e), values, f"{self.name}: the section flow")
+            known = {**g.inputs, **values}
+            return [from_sympy(g, sp.sympify(e), known, f"{self.name}: the section flow")
                     for e in exprs]
 
         point = apply(target, dict(zip(a, arrow)))

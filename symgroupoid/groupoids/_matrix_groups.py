@@ -26,7 +26,14 @@ import sympy as sp
 
 from .._arguments import choice_argument, name_argument, sequence_argument, shown_value
 from .._errors import InputTypeError, ShapeError
-from .._symbols import StepSymbol, indexed_symbol, latex_name, scalar_expression, subscripted
+from .._symbols import (
+    StepSymbol,
+    indexed_symbol,
+    latex_name,
+    printable_name,
+    scalar_expression,
+    subscripted,
+)
 from ._base import Arrow, Groupoid
 from ._matrix_form import StructuredMatrix, block_of, named_basis
 from ._matrix_templates import (
@@ -118,7 +125,8 @@ class MatrixLieGroup(Groupoid):
     group_name: str = "G"
 
     def __init__(self, name: str = "g", retraction: str = "cayley"):
-        name = name_argument(name, "the group's name", owner=self.group_name)
+        name = printable_name(name_argument(name, "the group's name", owner=self.group_name),
+                              "the group's name", self.group_name)
         choice_argument(retraction, RETRACTIONS, "retraction", owner=self.group_name)
         self.symbol_name = name
         self.latex = latex_name(name)

@@ -16,7 +16,13 @@ import sympy as sp
 
 from .._arguments import MAX_DIMENSION, integer_argument, name_argument, names_argument
 from .._errors import CoordinateNameError, InputTypeError, ShapeError
-from .._symbols import alias_words, aliased_names, latex_name, scalar_symbol
+from .._symbols import (
+    alias_words,
+    aliased_names,
+    latex_name,
+    printable_name,
+    scalar_symbol,
+)
 from ._base import Arrow, Groupoid
 from ._manifold import Manifold, as_manifold
 from ._numerics import PairCoordinate
@@ -36,6 +42,8 @@ class EuclideanSpace(Manifold):
                                                      owner="EuclideanSpace")
         if not self.names:
             raise ShapeError("EuclideanSpace needs at least one coordinate name")
+        for n in self.names:
+            printable_name(n, "the coordinate name", "EuclideanSpace")
         aliased = aliased_names(self.names)
         if aliased is not None:
             raise CoordinateNameError(f"EuclideanSpace: coordinate names {self.names}: "

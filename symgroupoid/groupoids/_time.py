@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from .._arguments import instance_argument, name_argument
-from .._symbols import StepSymbol, subscripted
+from .._errors import CoordinateNameError
+from .._symbols import StepSymbol, latex_name, printable_name, subscripted
 from ._base import Arrow, Groupoid
 
 
@@ -52,8 +53,18 @@ class TimeGroupoid(Groupoid):
     def __init__(self, inner: Groupoid, time_name: str = "t"):
         self.inner = instance_argument(inner, Groupoid, "the inner groupoid", "a Groupoid",
                                        owner="TimeGroupoid")
-        time_name = name_argument(time_name, "time_name", owner="TimeGroupoid")
-        self.time_latex = time_name
+        time_name = printable_name(name_argument(time_name, "time_name", owner="TimeGroupoid"),
+                                   "the time's name", "TimeGroupoid")
+        taken = {latex_name(n): n for o in (0, 1) for n in self.inner.symbols_by_name(o)}
+        if latex_name(time_name) in taken:
+            other = taken[latex_name(time_name)]
+            alike = "" if other == time_name else f" (written {latex_name(other)} as it is)"
+            raise CoordinateNameError(f"TimeGroupoid: the time's name {time_name!r} is the name "
+                                      f"of a part of {inner.name}, {other!r}{alike}: they would "
+                                      f"be one symbol; name the time otherwise "
+                                      f"(time_name=...)")
+        self.time_name = time_name
+        self.time_latex = latex_name(time_name)
         self.name = f"R×R×({inner.name})"
 
     @property
@@ -191,7 +202,7 @@ class TimeGroupoid(Groupoid):
             self.inner.named_arrow(offset))
 
     def symbols_by_name(self, offset):
-        return {"t": self._time(offset)[0], **self.inner.symbols_by_name(offset)}
+        return {self.time_name: self._time(offset)[0], **self.inner.symbols_by_name(offset)}
 
     def random_base_point(self, rng):
         return (float(rng.uniform(0, 1)),) + tuple(self.inner.random_base_point(rng))

@@ -29,7 +29,7 @@ import sympy as sp
 
 from .._arguments import instance_argument, name_argument
 from .._errors import InputTypeError
-from .._symbols import StepSymbol, latex_name, subscripted
+from .._symbols import StepSymbol, latex_name, printable_name, subscripted
 from ._base import Arrow, Groupoid
 from ._matrix_groups import MatrixLieGroup
 
@@ -77,7 +77,9 @@ class TrivialisedPairGroupoid(Groupoid):
         if increment is None:
             name = group.symbol_name
             increment = "F" + (name[1:] if name.startswith("R") else name)
-        self.increment_name = name_argument(increment, "the increment's name", owner=owner)
+        self.increment_name = printable_name(
+            name_argument(increment, "the increment's name", owner=owner),
+            "the increment's name", owner)
         if self.increment_name == group.symbol_name:
             raise InputTypeError(f"{owner}: the increment needs a name other than the "
                                  f"group's ({group.symbol_name!r})")

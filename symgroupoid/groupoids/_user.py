@@ -16,7 +16,14 @@ from .._errors import (
     ShapeError,
     SymgroupoidError,
 )
-from .._symbols import alias_words, aliased_names, latex_name, scalar_symbol
+from .._symbols import (
+    alias_words,
+    aliased_names,
+    is_multiplier_name,
+    latex_name,
+    printable_name,
+    scalar_symbol,
+)
 from ._base import Groupoid
 
 #: names that ``StepEquations.symbol`` reserves for the multipliers λ
@@ -91,11 +98,12 @@ class DefinedGroupoid(Groupoid):
         distinct between them."""
         for kind, names in (("base", self.base_names), ("fibre", self.fibre_names)):
             for n in names:
-                if n in RESERVED_NAMES:
+                if is_multiplier_name(n):
                     raise CoordinateNameError(
                         f"{self.name}: the {kind} coordinate name {n!r} is reserved for the "
                         f"multipliers ({', '.join(map(repr, RESERVED_NAMES))} all name λ in "
                         "step.symbol); rename the coordinate")
+                printable_name(n, f"the {kind} coordinate name", self.name)
             aliased = aliased_names(names)
             if aliased is not None:
                 noun = "name" if aliased[0] == aliased[1] else "names"

@@ -25,7 +25,8 @@ _FLOAT64 = np.dtype(np.float64)
 _STEP = (8,)  # the strides of a C-contiguous float64 vector
 
 
-def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
+def input_sequence(layout, inputs, steps: int, *, owner: str, one_step: bool = False
+                   ) -> np.ndarray:
     """The inputs of a run as an array (steps, m): ``inputs`` of shape (steps, m), (m,)
     for inputs held constant, or (steps,) when m = 1; finite real numbers.  A system
     without inputs takes none."""
@@ -53,7 +54,8 @@ def input_sequence(layout, inputs, steps: int, *, owner: str) -> np.ndarray:
         j, i = (int(v) for v in bad[0])
         raise DomainError(f"{owner}: input {layout.input_names[i]} of step {j} is "
                           f"{arr[j, i]}; inputs must be finite")
-    check_input_values(layout.input_symbols, arr, owner, lambda j, i: f"at step {j}")
+    check_input_values(layout.input_symbols, arr, owner,
+                       lambda j, i: "for the step" if one_step else f"at step {j}")
     return np.ascontiguousarray(arr, dtype=float)
 
 
@@ -96,7 +98,8 @@ def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
         return None
     if inputs is not None and layout.n_inputs:
         _check_step_shape(layout, inputs, owner)
-    return input_sequence(layout, None if inputs is None else [inputs], 1, owner=owner)[0]
+    return input_sequence(layout, None if inputs is None else [inputs], 1, owner=owner,
+                          one_step=True)[0]
 
 
 def _check_step_shape(layout, inputs, owner: str) -> None:

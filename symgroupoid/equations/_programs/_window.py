@@ -31,6 +31,7 @@ The inputs are plain, position-named symbols, so the generated code depends on n
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import sympy as sp
@@ -204,9 +205,11 @@ def action_program(system) -> Program:
 
 
 @functools.lru_cache(maxsize=16)
-def structure_program(G) -> Program:
+def structure_program(G, parameters: Sequence = ()) -> Program:
     """The structure maps a solve applies to rows of arrows, on the expression graph:
-    inputs ``a``, ``b`` (arrows), ``d`` (section coordinates, rank), ``q`` (a base point);
+    inputs ``a``, ``b`` (arrows), ``d`` (section coordinates, rank), ``q`` (a base point),
+    ``p`` (the system's ``parameters``, which a groupoid's maps may use: an Atiyah
+    groupoid's connection with the inertias in it);
     outputs ``multiply`` = m(a, b), ``inverse`` = a⁻¹, ``target`` = β(a), ``flow`` = the
     section flow h(δ) ⊂ α⁻¹(β(a)) (:meth:`~symgroupoid.groupoids.Groupoid.section_flow_nodes`:
     the section curves h_c(δ_c) composed, each at the target of the product so far) and
@@ -216,7 +219,7 @@ def structure_program(G) -> Program:
     d = tuple(sp.Dummy(f"d{i}") for i in range(G.rank))
     q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
     g = Graph()
-    nodes = {x: g.input(x) for x in (*a, *b, *d)}
+    nodes = {x: g.input(x) for x in (*a, *b, *d, *parameters)}
     memo: dict = {}
 
     def build(exprs, what: str) -> list[int]:
@@ -229,4 +232,5 @@ def structure_program(G) -> Program:
     nodes.update({x: g.input(x) for x in q})
     identity = build(G.identity(q), "the identity")
     outputs["flow_from"] = G.section_flow_nodes(g, identity, [nodes[x] for x in d])
-    return Program(g, {"a": list(a), "b": list(b), "d": list(d), "q": list(q)}, outputs)
+    return Program(g, {"a": list(a), "b": list(b), "d": list(d), "q": list(q),
+                       "p": list(parameters)}, outputs)

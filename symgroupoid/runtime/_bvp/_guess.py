@@ -26,7 +26,7 @@ from ._kernels import _maps
 CUT_LOCUS_TOLERANCE = 1e-12
 
 
-def interpolate_arrows(G, total: Sequence, steps: int) -> np.ndarray:
+def interpolate_arrows(G, total: Sequence, steps: int, maps=None) -> np.ndarray:
     """N arrows g_k = P_{k−1}⁻¹ P_k whose product is ``total``: P_k = P(k/N) on the geodesic
     (``G.geodesic``) from the identity ε(α(total)) to ``total`` (on a Lie group
     g_k = exp(log(total)/N), so a half-turn is split into N turns by π/N and the guess stays
@@ -35,7 +35,7 @@ def interpolate_arrows(G, total: Sequence, steps: int) -> np.ndarray:
     P = G.geodesic(total, np.arange(steps + 1) / steps)
     P[0] = np.asarray(G.identity(tuple(G.source(total))), float)
     P[-1] = total
-    maps = _maps(G)
+    maps = maps or _maps(G)  # (a groupoid whose maps use parameters: the caller's, bound)
     return maps.multiply(maps.inverse(P[:-1]), P[1:])
 
 
@@ -97,15 +97,15 @@ def _split_guess(guess, steps: int):
     return guess, None
 
 
-def _initial(system, a: int, m: int, data: _Boundary, steps: int, guess):
+def _initial(system, a: int, m: int, data: _Boundary, steps: int, guess, maps=None):
     """The initial arrows and multipliers: ``guess`` (checked) or the geodesic
     interpolation with zero multipliers."""
     G, owner = system.groupoid, system.name
     n_terms = steps - a + 1
     if guess is None:
         if a == 1:
-            return interpolate_arrows(G, data.total, steps), np.zeros((n_terms, m))
-        inner = interpolate_arrows(G, data.inner, steps - 2)
+            return interpolate_arrows(G, data.total, steps, maps), np.zeros((n_terms, m))
+        inner = interpolate_arrows(G, data.inner, steps - 2, maps)
         return np.vstack([data.first, inner, data.last]), np.zeros((n_terms, m))
     arrows, lam = _split_guess(guess, steps)
     arrows = real_array(arrows, "guess", owner=owner)
@@ -123,7 +123,7 @@ def _initial(system, a: int, m: int, data: _Boundary, steps: int, guess):
                              f"({n_terms}, {m}), got {lam.shape}")
         if not np.isfinite(lam).all():
             raise DomainError(f"{owner}: the multiplier guess has non-finite entries")
-    _check_guess(system, arrows, data.total, data.first, data.last)
+    _check_guess(system, arrows, data.total, data.first, data.last, maps)
     return arrows, lam
 
 
@@ -139,9 +139,9 @@ def _close(x, y, tolerance: float) -> bool:
     return bool(np.all(np.abs(x - y) <= tolerance * (1.0 + np.maximum(np.abs(x), np.abs(y)))))
 
 
-def _check_guess(system, arrows, total, first, last):
+def _check_guess(system, arrows, total, first, last, maps=None):
     G = system.groupoid
-    maps = _maps(G)
+    maps = maps or _maps(G)
     for k in range(1, len(arrows)):
         if not _close(G.target(arrows[k - 1]), G.source(arrows[k]), GUESS_ROUNDING):
             raise NotComposableError(f"{system.name}: guess arrows {k - 1} and {k} are not "

@@ -215,29 +215,38 @@ def cost_kernel(system) -> CostKernel:
     return CostKernel(system)
 
 
+def _maps(G, parameters: tuple = (), values: tuple = ()) -> _Maps:
+    """The numeric structure maps of the groupoid ``G`` at the parameter ``values`` (which
+    a groupoid's maps may use: an Atiyah groupoid's connection); their functions are
+    cached per groupoid and parameters, the values bound for each problem."""
+    return _Maps(G, _map_functions(G, parameters), values)
+
+
 @functools.lru_cache(maxsize=16)
-def _maps(G) -> _Maps:
-    """The (cached) numeric structure maps of the groupoid ``G``."""
-    return _Maps(G)
+def _map_functions(G, parameters: tuple) -> tuple:
+    """The NumPy forms of the multiplication, the inverse and the junction flow of
+    :func:`~symgroupoid.equations.structure_program`, each also reading ``p``."""
+    program = structure_program(G, parameters)
+    return (program.numpy_function(["multiply"], ["a", "b", "p"]),
+            program.numpy_function(["inverse"], ["a", "p"]),
+            program.numpy_function(["flow"], ["a", "d", "p"]))
 
 
 class _Maps:
     """Multiplication, inversion and the junction flow of a groupoid, on rows of arrows: the
     NumPy forms of its :func:`~symgroupoid.equations.structure_program`."""
 
-    def __init__(self, G):
+    def __init__(self, G, functions: tuple, values: tuple = ()):
         self.G = G
-        program = structure_program(G)
-        self._mul = program.numpy_function(["multiply"], ["a", "b"])
-        self._inv = program.numpy_function(["inverse"], ["a"])
-        self._flow = program.numpy_function(["flow"], ["a", "d"])
+        self._p = np.asarray(values, float)
+        self._mul, self._inv, self._flow = functions
 
     def multiply(self, A, B):
-        return self._mul(A.T, B.T)[0].T
+        return self._mul(A.T, B.T, self._p)[0].T
 
     def inverse(self, A):
-        return self._inv(A.T)[0].T
+        return self._inv(A.T, self._p)[0].T
 
     def flow_at_target(self, A, D):
         """h(δ) ⊂ α⁻¹(β(A)) for each row."""
-        return self._flow(A.T, D.T)[0].T
+        return self._flow(A.T, D.T, self._p)[0].T

@@ -31,7 +31,7 @@ from ._globalised import _globalised_after
 from ._guess import _boundary, _boundary_system, _check_cut_locus, _initial
 from ._inertia import _describe, _is_minimum, _reduced_inertia
 from ._inputs import input_table
-from ._kernels import _functions
+from ._kernels import _functions, _maps
 from ._solution import BoundaryValueSolution
 from ._state import _Problem, _SolverState
 
@@ -151,7 +151,8 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     check_holonomic_nodes(system, [data.total] if a == 1 else [data.first, data.last],
                           [("start", "end")] if a == 1 else
                           [("start[0]", "start[1]"), ("end[0]", "end[1]")], p, owner=owner)
-    arrows, lam = _initial(system, a, m, data, steps, guess)
+    maps = _maps(system.groupoid, tuple(system.parameters), tuple(map(float, p)))
+    arrows, lam = _initial(system, a, m, data, steps, guess, maps)
     _check_cut_locus(system, arrows, "the initial path has" if guess is None
                      else "the guess has")
     problem = _Problem.of(system, steps, p, tol, tol_step, max_iterations, table)

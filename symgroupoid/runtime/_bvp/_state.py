@@ -81,8 +81,9 @@ class _Problem:
             if kernel.n_inputs:
                 raise ShapeError(f"{system.name}: a problem of a system with inputs needs "
                                  f"them (inputs=)")
-        return cls(system.name, kernel, cost_kernel(system), lay, _maps(system.groupoid),
-                   p, tol, tol_step, max_iterations, inputs)
+        maps = _maps(system.groupoid, tuple(system.parameters), tuple(map(float, p)))
+        return cls(system.name, kernel, cost_kernel(system), lay, maps, p, tol, tol_step,
+                   max_iterations, inputs)
 
     @property
     def forced(self) -> bool:
