@@ -83,6 +83,10 @@ def _finish(fig, path: str | PathLike | None, owner: str):
         except OSError as exc:
             raise OutputError(f"{owner}: the figure cannot be written to path {str(path)!r}: "
                               f"{exc.strerror or exc}") from exc
+        except RuntimeError as exc:  # a format whose backend needs a missing tool (.pgf)
+            raise OutputError(f"{owner}: matplotlib cannot write the figure to path "
+                              f"{str(path)!r} in that format ({exc}); choose another "
+                              f"format, e.g. .png or .pdf") from exc
     return fig
 
 

@@ -217,7 +217,7 @@ def test_sweep_spares_live_builders_and_removes_abandoned_leftovers(cache_dir):
     tmp = cache_dir / "tmp"
     live = tmp / f"build-{key}-live"
     dead = tmp / f"build-{'0' * 32}-dead"
-    old_unkeyed, new_unkeyed = tmp / "build-abc123", tmp / "build-def456"
+    old_unkeyed, new_unkeyed = tmp / "build-abc123xy", tmp / "build-def456uv"  # mkdtemp's
     for path in (live, dead, old_unkeyed, new_unkeyed):
         path.mkdir()
         (path / "x.o").write_bytes(b"partial")

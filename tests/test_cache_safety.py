@@ -259,6 +259,28 @@ def test_clear_and_sweep_remove_only_the_names_the_cache_makes(cache_dir):
             assert (cache_dir / folder / n).read_text() == "not the cache's"
 
 
+def test_a_directory_of_user_files_named_build_is_never_adopted_nor_swept(cache_dir):
+    """A directory holding only tmp/ with the user's build-2024-01-05.log and build-artifacts/
+    was taken over as an unmarked cache of an older layout ("build-" then anything), and the
+    first build's sweep deleted them once an hour old.  Only tempfile's exact shape
+    (build- and eight random characters) is an old build directory."""
+    import warnings
+
+    tmp = cache_dir / "tmp"
+    (tmp / "build-artifacts").mkdir(parents=True)
+    (tmp / "build-2024-01-05.log").write_text("keep me")
+    (tmp / "build-artifacts" / "result.bin").write_text("data")
+    aged(tmp / "build-2024-01-05.log", tmp / "build-artifacts")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sim = sg.compile_step(oscillator(), backend="c")
+    assert not str(sim.cache_entry).startswith(str(cache_dir))
+    assert any("not a kernel cache" in str(w.message) for w in caught)
+    assert (tmp / "build-2024-01-05.log").read_text() == "keep me"
+    assert (tmp / "build-artifacts" / "result.bin").read_text() == "data"
+    assert not (cache_dir / "CACHEDIR.TAG").exists()
+
+
 @pytest.mark.parametrize("where", ["index", "marker", "probe"])
 def test_a_fifo_where_the_cache_reads_a_file_never_blocks(cache_dir, where, monkeypatch):
     """(A FIFO as an index file, the cache marker or an OpenMP probe made ``compile()``

@@ -438,3 +438,42 @@ def test_npy_inputs_are_read_as_csv_inputs_are(capsys):
     assert main(["simulate", "driven_spring.py", "--steps", "2", "--inputs", "text.npy"]) == 1
     err = capsys.readouterr().err
     assert "not a .npy array" in err and "pickled" not in err, err
+
+
+@pytest.mark.parametrize("steps, message", [
+    ('"10"', "steps must be an integer, got str"), ("null", "steps must be an integer"),
+    ("[10]", "steps must be an integer"), ("2.5", "steps must be an integer")])
+def test_boundary_steps_are_checked_before_any_arithmetic(steps, message, capsys):
+    """"steps": "10" (or null, a list) was an internal error (TypeError in the inputs'
+    count); 1e1, a form counts allow, solves as 10."""
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    Path("U.csv").write_text("0.1\n")
+    Path("b.json").write_text(f'{{"start": [0.0], "end": [1.0], "steps": {steps}}}')
+    assert main(["bvp", "driven_spring.py", "b.json", "--inputs", "U.csv"]) == 1
+    err = capsys.readouterr().err
+    assert message in err and "internal error" not in err, err
+    Path("b.json").write_text('{"start": [0.0], "end": [1.0], "steps": 1e1}')
+    assert main(["bvp", "driven_spring.py", "b.json", "--inputs", "U.csv"]) == 0
+
+
+def test_cache_info_says_a_cache_path_that_is_a_file_is_not_used(monkeypatch, capsys):
+    """It reported "(empty: not created yet)", exit 0, where compile() refused the path."""
+    Path("cachefile").write_text("not a cache")
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(Path("cachefile").resolve()))
+    assert main(["cache", "info"]) == 1
+    assert "NOT USED: it is not a directory" in capsys.readouterr().out
+
+
+def test_an_npy_whose_header_claims_more_than_the_file_is_refused(capsys):
+    """A header claiming 10¹⁵ inputs made NumPy allocate 7 PiB: "internal error
+    (MemoryError …)"."""
+    import io
+
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    header = io.BytesIO()
+    np.lib.format.write_array_header_1_0(
+        header, {"descr": "<f8", "fortran_order": False, "shape": (10**15,)})
+    Path("U.npy").write_bytes(header.getvalue() + bytes(64))
+    assert main(["simulate", "driven_spring.py", "--steps", "2", "--inputs", "U.npy"]) == 1
+    err = capsys.readouterr().err
+    assert "claims 8,000,000,000,000,000 bytes" in err and "internal error" not in err, err

@@ -488,3 +488,47 @@ def test_a_prefix_that_is_not_a_c_identifier_is_refused_not_rewritten(prefix, tm
     with pytest.raises(sg.ShapeError, match="is not a prefix of C identifiers"):
         sg.emit_c(STEP, tmp_path / "out" / "k", prefix=prefix)
     assert not (tmp_path / "out").exists()
+
+
+def _rigid_body_run(tmp_path):
+    from symgroupoid import systems
+
+    sim = systems.rigid_body().euler_lagrange().compile(backend="numpy")
+    params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
+    W0 = np.array(sg.SO3("W").cayley([0.02, 0.05, -0.03]).tolist(), float)
+    path = tmp_path / "run.npz"
+    sim.simulate({"W": W0}, 4, params).save(path)
+    return sim, path
+
+
+def test_a_trajectory_with_a_state_off_its_group_inside_is_refused(tmp_path):
+    """Only the first and last states of a loaded file were checked: an edited middle state
+    (not a rotation) loaded, and the energy was computed on it silently."""
+    sim, path = _rigid_body_run(tmp_path)
+    arrays = dict(np.load(path))
+    arrays["states"] = arrays["states"].copy()
+    arrays["states"][2] = np.arange(9.0)
+    np.savez(tmp_path / "edited.npz", **arrays)
+    with pytest.raises(sg.TrajectoryFileError, match="its state 2 .* not in SO3"):
+        sg.Trajectory.load(tmp_path / "edited.npz", sim)
+    assert len(sg.Trajectory.load(path, sim).states) == 5  # the file as written loads
+
+
+def test_an_array_header_claiming_more_than_its_file_is_refused_before_allocating(tmp_path):
+    """A states.npy header claiming shape (10¹⁵, 9) made NumPy allocate 64 PiB first: a
+    raw MemoryError.  The claim is compared with what the member holds."""
+    import io
+    import zipfile
+
+    sim, path = _rigid_body_run(tmp_path)
+    with zipfile.ZipFile(path) as source, zipfile.ZipFile(tmp_path / "huge.npz", "w") as out:
+        for name in source.namelist():
+            data = source.read(name)
+            if name == "states.npy":
+                header = io.BytesIO()
+                np.lib.format.write_array_header_1_0(
+                    header, {"descr": "<f8", "fortran_order": False, "shape": (10**15, 9)})
+                data = header.getvalue() + bytes(64)
+            out.writestr(name, data)
+    with pytest.raises(sg.TrajectoryFileError, match="claims 72,000,000,000,000,000 bytes"):
+        sg.Trajectory.load(tmp_path / "huge.npz", sim)

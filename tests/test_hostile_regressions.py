@@ -187,6 +187,21 @@ def test_figures_check_parts_and_paths_before_drawing(tmp_path):
         sg.plot_conservation(traj, constraints="yes")
 
 
+def test_a_figure_format_whose_writer_needs_a_missing_tool_is_an_output_error(
+        tmp_path, monkeypatch):
+    """.pgf needs a TeX engine (xelatex): without it matplotlib raised a raw RuntimeError;
+    a file already at the path is left as it was."""
+    monkeypatch.setenv("PATH", str(tmp_path))  # no TeX engine to be found
+    traj = case_of("diagonal").sim.simulate(case_of("diagonal").flat, 3, {"h": 0.1, "k": 1.0})
+    target = tmp_path / "fig.pgf"
+    target.write_text("an older figure")
+    for plot in (lambda: sg.plot_trajectory(traj, ["x"], path=str(target)),
+                 lambda: sg.plot_conservation(traj, path=str(target))):
+        with pytest.raises(sg.OutputError, match="cannot write the figure"):
+            plot()
+    assert target.read_text() == "an older figure"
+
+
 # --- verification and C output ------------------------------------------------------------------
 
 def test_verify_stationary_checks_system_eps_and_arrows():

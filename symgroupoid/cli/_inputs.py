@@ -317,6 +317,12 @@ def read_inputs(path: str | None, names: list[str]) -> np.ndarray | None:
             raise InputError(f"--inputs {file}: not a .npy array (it does not start with "
                              f"NumPy's header: write one with numpy.save, or give the "
                              f"numbers as a .csv table)")
+        from ..runtime import check_claimed_size, claimed_bytes
+
+        with open(file, "rb") as fh:  # a header claiming more than the file: crafted
+            claimed = claimed_bytes(fh, f"--inputs {file}", "the array")
+            check_claimed_size(claimed, os.fstat(fh.fileno()).st_size,
+                               f"--inputs {file}", "the array")
         try:
             return np.load(file, allow_pickle=False)
         except (OSError, ValueError) as exc:
@@ -425,5 +431,6 @@ def boundary_problem(path: str) -> dict:
                              f"(optionally) 'multipliers'")
         guess = (guess["arrows"], guess["multipliers"]) if "multipliers" in guess \
             else guess["arrows"]
-    return {"start": data["start"], "end": data["end"], "steps": data["steps"],
+    steps = integer_argument(data["steps"], "steps", minimum=0, owner=f"bvp {path}")
+    return {"start": data["start"], "end": data["end"], "steps": steps,
             "params": data.get("params"), "guess": guess}

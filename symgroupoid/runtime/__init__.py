@@ -41,7 +41,8 @@ from .toolchain import CompilationError, CompilerNotFoundError, VectorISAError, 
 
 #: names of :mod:`._files`, imported when first asked for (:func:`__getattr__`)
 _FILE_NAMES = frozenset({"TRAJECTORY_FORMATS", "atomic_write", "number_text", "output_problem",
-                         "read_trajectory", "save_trajectory"})
+                         "read_trajectory", "save_trajectory", "claimed_bytes",
+                         "check_claimed_size"})
 
 __all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "ClusterLostError",
            "CompilationError",
@@ -49,7 +50,8 @@ __all__ = ["TRAJECTORY_FORMATS", "BoundaryValueSolution", "CacheError", "Cluster
            "VectorISAError",
            "NewtonOptions", "NotPortableError", "ProgramEvaluator", "ProjectionError",
            "ReduceError", "Simulator", "SweepResult", "Trajectory", "TrajectoryBatch",
-           "atomic_write", "cache_root", "compile_program", "compile_step", "conservation_summary",
+           "atomic_write", "cache_root", "check_claimed_size", "claimed_bytes",
+           "compile_program", "compile_step", "conservation_summary",
            "constraint_check", "constraint_residuals", "energy", "energy_label", "has_energy",
            "momenta", "noether_drifts", "noether_quantities", "number_text",
            "output_problem", "parameter_vector",

@@ -233,7 +233,57 @@ def _column_mismatch(label: str, columns: list[str], expected: list[str]) -> str
             f"continues only with the system that wrote it")
 
 
+def claimed_bytes(f, label: str, what: str) -> int:
+    """The bytes the .npy header at the start of the binary file ``f`` says its array holds
+    (its shape times its item size), read without reading the array; a
+    :class:`TrajectoryFileError` when it is no .npy header."""
+    try:
+        version = np.lib.format.read_magic(f)
+        read = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                else np.lib.format.read_array_header_2_0)
+        shape, _, dtype = read(f)
+    except (OSError, ValueError, EOFError) as exc:
+        raise TrajectoryFileError(f"{label}: {what} has no readable .npy header ({exc})") \
+            from None
+    count = 1
+    for n in shape:
+        count *= int(n)
+    return count * dtype.itemsize
+
+
+def check_claimed_size(claimed: int, held: int, label: str, what: str) -> None:
+    """A :class:`TrajectoryFileError` when an array's header claims more bytes than its
+    file holds (a crafted header: NumPy would allocate the claim first) or than this process
+    can allocate (a compressed archive that expands beyond memory)."""
+    from ._memory import available_memory
+
+    if claimed > held:
+        raise TrajectoryFileError(f"{label}: {what} claims {claimed:,} bytes in its header but "
+                                  f"holds {held:,}: the file is damaged or crafted")
+    room = available_memory()
+    if room is not None and claimed > room:
+        raise TrajectoryFileError(f"{label}: {what} holds {claimed:,} bytes, more than the "
+                                  f"{room:,} this process can allocate")
+
+
+def _check_members(path: Path, label: str) -> None:
+    """Every array of the trajectory .npz at ``path`` claims at most what it holds
+    (:func:`check_claimed_size`), checked before NumPy allocates any."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            for info in archive.infolist():
+                if not info.filename.endswith(".npy"):
+                    continue
+                with archive.open(info) as f:
+                    claimed = claimed_bytes(f, label, f"its array {info.filename!r}")
+                check_claimed_size(claimed, info.file_size, label,
+                                   f"its array {info.filename!r}")
+    except (OSError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:
+        raise TrajectoryFileError(f"{label}: cannot be read as .npz ({exc})") from None
+
+
 def _read_npz(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
+    _check_members(path, label)
     try:
         archive = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:

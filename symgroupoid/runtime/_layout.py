@@ -248,6 +248,28 @@ class StateLayout:
                     rounded_group_matrix(part.group, value, f"the state's {part.name!r} part",
                                          owner=self.step_name)
 
+    def off_group_rows(self, states: np.ndarray) -> np.ndarray:
+        """The rows of ``states`` (N, n_known) whose group parts are not in their groups to
+        :data:`GROUP_TOLERANCE` (|RᵀR − I|, det R − 1, SE(n)'s last row), computed for all
+        rows at once: the rows :meth:`check_arrows` has to look at (the rest pass it)."""
+        states = np.asarray(states, float)
+        bad = np.zeros(len(states), dtype=bool)
+        for part in self.parts.values():
+            group = part.group
+            if group is None:
+                continue
+            index = np.where(part.index >= 0, part.index, 0)
+            values = np.where(part.index >= 0, states[:, index] + part.fixed, part.fixed)
+            M = values.reshape(len(states), -1, group.n, group.n)
+            n = group.n - 1 if group.affine else group.n
+            R = M[..., :n, :n]
+            off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(n)).max(axis=(-1, -2))
+            worst = np.maximum(off, np.abs(np.linalg.det(R) - 1.0))
+            if group.affine:
+                worst = np.maximum(worst, np.abs(M[..., -1, :] - np.eye(group.n)[-1]).max(-1))
+            bad |= ~(worst <= GROUP_TOLERANCE).all(axis=-1)
+        return np.flatnonzero(bad)
+
     def _assign(self, state, given, part: Part, value) -> None:
         arr = self._as_array(part, value)
         arr = np.stack([self._check_group(part, a) for a in arr])

@@ -237,6 +237,13 @@ class Trajectory:
                                       f"params=...")
         layout.check_arrows(data.states[0])
         layout.check_arrows(data.states[-1])
+        for row in layout.off_group_rows(data.states):  # every row, at once; the suspects
+            try:                                      # in full, as a state is checked
+                layout.check_arrows(data.states[row])
+            except SymgroupoidError as exc:
+                raise TrajectoryFileError(f"{str(path)!r}: its state {row} (of "
+                                          f"{len(data.states)}) is not this system's: "
+                                          f"{exc}") from None
         return cls(layout, data.states, data.iterations, data.norms, parameters,
                    data.backend or backend, step_indices=data.step_indices, every=data.every)
 

@@ -126,6 +126,9 @@ def cache_info(root: Path | None = None) -> CacheInfo:
     root = absolute_root(root) if root is not None else cache_root()
     info = CacheInfo(root, root.is_dir())
     if not info.exists:
+        if os.path.lexists(root):  # a file, a FIFO or a link where the directory would be
+            info.exists = True
+            info.refused = "it is not a directory"
         return info
     info.refused = _untrusted_reason(root)
     foreign = foreign_listing(root) if info.refused is None else None

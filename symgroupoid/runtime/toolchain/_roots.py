@@ -122,7 +122,8 @@ _CACHE_CONTENT = {
     "index": re.compile(r"\.?[0-9a-f]{32}\.json.*"),
     "kernels": re.compile(r"[0-9a-f]{32}"),
     "locks": re.compile(r"[0-9a-f]{32}\.(lock|lease)"),
-    "tmp": re.compile(r"(build|trash|probe)-.*"),
+    "tmp": re.compile(r"(build|trash)-[0-9a-f]{32}(\.json)?-([0-9]+-[0-9a-f]{12}-)?[a-z0-9_]+"
+                      r"|(build|probe)-[a-z0-9_]{8}"),
     "probes": re.compile(r"\.?openmp-[0-9a-f]{32}\.json.*"),
     "templates": re.compile(r"__jinja2_[0-9a-f]{40}\.cache.*"),
 }

@@ -26,10 +26,11 @@ _RANDOM = r"[a-z0-9_]{8}"
 
 
 #: ``tmp/`` leftovers: build and trash directories (of a key, and since format 3 of a
-#: process and host), probes
+#: process and host; before keys, ``tempfile``'s "build-" and its eight random characters,
+#: exactly: a user's build-2024.log or build-artifacts is not one), probes
 _TMP_ENTRY = re.compile(r"(?P<kind>build|trash)-(?P<name>[0-9a-f]{32}(?:\.json)?)-"
                         r"(?:(?P<pid>[0-9]+)-(?P<host>[0-9a-f]{12})-)?[a-z0-9_]+"
-                        r"|(?P<legacy>build-[A-Za-z0-9_.-]+)|probe-" + _RANDOM)
+                        r"|(?P<legacy>build-" + _RANDOM + r")|probe-" + _RANDOM)
 
 
 #: a temporary file of an atomic write, or a writability probe (any cache directory)
