@@ -127,6 +127,8 @@ def unprintable_name(name: str) -> str | None:
     reads as structure (% & # $ ~, a lone backslash) and balanced braces."""
     if not (name[:1].isalpha() or re.match(r"\\[A-Za-z]", name)):
         return "it must start with a letter (a digit or a sign would read as arithmetic)"
+    if any(ch.isspace() for ch in name):
+        return "it holds a space (a CSV header or a name=value list could not name it)"
     if _LATEX_SPECIAL.search(name):
         return "it holds a character LaTeX reads as structure (% & # $ ~ or a lone backslash)"
     for command in re.findall(r"\\([A-Za-z]+)", name):

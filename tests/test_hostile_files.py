@@ -532,3 +532,13 @@ def test_an_array_header_claiming_more_than_its_file_is_refused_before_allocatin
             out.writestr(name, data)
     with pytest.raises(sg.TrajectoryFileError, match="claims 72,000,000,000,000,000 bytes"):
         sg.Trajectory.load(tmp_path / "huge.npz", sim)
+
+
+def test_step_indices_beyond_int64_are_refused_not_wrapped(tmp_path):
+    """uint64 step indices ≥ 2⁶³ were cast to int64 and read back negative."""
+    sim, path = _rigid_body_run(tmp_path)
+    arrays = dict(np.load(path))
+    arrays["step_indices"] = np.arange(5, dtype=np.uint64) + np.uint64(2**63)
+    np.savez(tmp_path / "wrapped.npz", **arrays)
+    with pytest.raises(sg.TrajectoryFileError, match="beyond the 64-bit integers"):
+        sg.Trajectory.load(tmp_path / "wrapped.npz", sim)

@@ -602,7 +602,8 @@ def test_a_time_name_is_checked_as_a_coordinate_name_is():
     assert list(timed.symbols_by_name(0))[0] == "tau"
 
 
-@pytest.mark.parametrize("name", ["%", "&", r"\end{align}", "a}b", "-1", "lamda", r"\lambda"])
+@pytest.mark.parametrize("name", ["%", "&", r"\end{align}", "a}b", "-1", "lamda", r"\lambda",
+                                  "a b"])
 def test_names_that_break_the_printed_equations_are_refused(name):
     """Coordinate names went into the LaTeX as they were: % commented out the rest of a
     row, & made a column, \\end{align} closed the display (pdflatex failed on each); -1

@@ -345,6 +345,10 @@ def _integers(array: np.ndarray, name: str, label: str) -> np.ndarray:
     if array.dtype.kind not in "iu" or array.ndim != 1:
         raise TrajectoryFileError(f"{label}: {name} must be a list of integers, got dtype "
                                   f"{array.dtype} and shape {array.shape}")
+    if array.dtype.kind == "u" and array.size and int(array.max()) > np.iinfo(np.int64).max:
+        raise TrajectoryFileError(f"{label}: {name} holds {int(array.max())}, beyond the "
+                                  f"64-bit integers a trajectory counts in (it would wrap "
+                                  f"to a negative number)")
     return np.array(array, dtype=np.int64)
 
 
