@@ -29,7 +29,13 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from .._errors import InputNameError, InputTypeError, ShapeError, UnsupportedFeatureError
-from .._symbols import latex_name, scalar_symbol, unprintable_name
+from .._symbols import (
+    MULTIPLIER_NAMES,
+    alias_words,
+    latex_name,
+    scalar_symbol,
+    unprintable_name,
+)
 from ..groupoids import Groupoid
 from ._callables import as_scalar_list, call_user, check_symbols
 from ._junction import slot, slot_substitution
@@ -215,9 +221,7 @@ def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:
 
 def _alias(u: sp.Symbol, other) -> str:
     """Words naming the other spelling of ``u``'s name (θ, theta, \\theta), or ""."""
-    if str(other) == str(u):
-        return ""
-    return f" (as {other}: both are written {latex_name(str(u))}, the symbol of its values)"
+    return "" if str(other) == str(u) else f" ({alias_words((str(other), str(u)))})"
 
 
 def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Sequence,
@@ -233,7 +237,7 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     what = "forces"
     arrows = tuple(slot(groupoid, f"f{i}_") for i in range(arity))
     taken = {latex_name(n): n for n in (*groupoid.symbols_by_name(0),
-                                         *groupoid.symbols_by_name(1), "lambda", "multipliers")}
+                                         *groupoid.symbols_by_name(1), *MULTIPLIER_NAMES)}
     for u in inputs:
         key = latex_name(str(u))
         if key in taken:

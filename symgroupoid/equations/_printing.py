@@ -104,25 +104,32 @@ def expanded_terms(exprs: Sequence[sp.Expr]) -> int:
     function or an atom is one term.  Each distinct subexpression is counted once (linear
     in the expressions' size); values past 10³⁰ are 10³⁰."""
     memo: dict = {}
+    for root in exprs:  # children before parents, with an explicit stack (no recursion)
+        stack = [(sp.sympify(root), False)]
+        while stack:
+            e, ready = stack.pop()
+            if e in memo:
+                continue
+            if not ready:
+                stack.append((e, True))
+                stack.extend((a, False) for a in e.args if a not in memo)
+                continue
+            memo[e] = min(_node_terms(e, [memo[a] for a in e.args]), _TERMS_CAP)
+    return sum(memo[sp.sympify(e)] for e in exprs)
 
-    def count(e: sp.Basic) -> int:
-        if e in memo:
-            return memo[e]
-        inner = [count(a) for a in e.args]
-        if e.is_Add:
-            value = sum(inner)
-        elif e.is_Mul:
-            value = 1
-            for t in inner:
-                value = min(value * t, _TERMS_CAP)
-        elif e.is_Pow and e.exp.is_Integer and e.exp > 0:
-            value = _power_terms(inner[0], int(e.exp))
-        else:
-            value = 1
-        memo[e] = min(value, _TERMS_CAP)
-        return memo[e]
 
-    return sum(count(sp.sympify(e)) for e in exprs)
+def _node_terms(e: sp.Basic, inner: list[int]) -> int:
+    """:func:`expanded_terms` of ``e`` from those of its arguments."""
+    if e.is_Add:
+        return sum(inner)
+    if e.is_Mul:
+        value = 1
+        for t in inner:
+            value = min(value * t, _TERMS_CAP)
+        return value
+    if e.is_Pow and e.exp.is_Integer and e.exp > 0:
+        return _power_terms(inner[0], int(e.exp))
+    return 1
 
 
 def _power_terms(t: int, n: int) -> int:

@@ -9,7 +9,7 @@ import numpy as np
 
 from .._arguments import instance_argument
 from .._errors import CoordinateNameError, ShapeError
-from .._symbols import latex_name
+from .._symbols import alias_words, latex_name
 from ._base import Arrow, Groupoid
 from ._numerics import PairCoordinate
 
@@ -40,12 +40,10 @@ def _refuse_shared_names(name: str, parts: list[tuple[str, dict]]) -> None:
             key = latex_name(part)  # θ and theta are one symbol, \theta
             if key in owner:
                 j, other = owner[key]
-                named = f"a part named {part!r}" if other == part else \
-                    f"parts named {other!r} and {part!r}, both written {key}"
                 raise CoordinateNameError(
-                    f"{name}: factor {j} ({parts[j][0]}) and factor {i} ({factor}) both have "
-                    f"{named}; the parts of a product need distinct names "
-                    f"(e.g. SO3(\"R1\") * SO3(\"R2\"))")
+                    f"{name}: factor {j} ({parts[j][0]}) and factor {i} ({factor}) name a part "
+                    f"alike ({alias_words((other, part))}); the parts of a product need "
+                    f"distinct names (e.g. SO3(\"R1\") * SO3(\"R2\"))")
         owner.update({latex_name(part): (i, part) for part in names})
 
 

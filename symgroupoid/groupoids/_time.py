@@ -12,7 +12,7 @@ import numpy as np
 
 from .._arguments import instance_argument, name_argument
 from .._errors import CoordinateNameError
-from .._symbols import StepSymbol, latex_name, printable_name, subscripted
+from .._symbols import StepSymbol, alias_words, latex_name, printable_name, subscripted
 from ._base import Arrow, Groupoid
 
 
@@ -54,15 +54,13 @@ class TimeGroupoid(Groupoid):
         self.inner = instance_argument(inner, Groupoid, "the inner groupoid", "a Groupoid",
                                        owner="TimeGroupoid")
         time_name = printable_name(name_argument(time_name, "time_name", owner="TimeGroupoid"),
-                                   "the time's name", "TimeGroupoid")
+                                   "time_name", "TimeGroupoid")
         taken = {latex_name(n): n for o in (0, 1) for n in self.inner.symbols_by_name(o)}
         if latex_name(time_name) in taken:
             other = taken[latex_name(time_name)]
-            alike = "" if other == time_name else f" (written {latex_name(other)} as it is)"
-            raise CoordinateNameError(f"TimeGroupoid: the time's name {time_name!r} is the name "
-                                      f"of a part of {inner.name}, {other!r}{alike}: they would "
-                                      f"be one symbol; name the time otherwise "
-                                      f"(time_name=...)")
+            raise CoordinateNameError(f"TimeGroupoid: the time and a part of {inner.name} are "
+                                      f"named alike ({alias_words((other, time_name))}); name "
+                                      f"the time otherwise (time_name=...)")
         self.time_name = time_name
         self.time_latex = latex_name(time_name)
         self.name = f"R×R×({inner.name})"

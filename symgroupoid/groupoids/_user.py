@@ -103,7 +103,7 @@ class DefinedGroupoid(Groupoid):
                         f"{self.name}: the {kind} coordinate name {n!r} is reserved for the "
                         f"multipliers ({', '.join(map(repr, RESERVED_NAMES))} all name λ in "
                         "step.symbol); rename the coordinate")
-                printable_name(n, f"the {kind} coordinate name", self.name)
+                printable_name(n, f"the {kind} coordinate name", self.name, part=False)
             aliased = aliased_names(names)
             if aliased is not None:
                 noun = "name" if aliased[0] == aliased[1] else "names"
