@@ -14,14 +14,10 @@ configuration and body velocity (R₀, ξ₀), over T = 2 s.  In one run, peers 
   1e-13 is printed (the reference's own error), and for one body with ρ = 0 the derived
   equations are Euler's J ξ̇ = Jξ × ξ;
 - the library's schemes (``SCHEMES``: ``"midpoint"``, ``"trapezoid"`` and the Galerkin
-  members of order 4 and 6, reported "not implemented" while ``discretize`` refuses them
-  with ``UnsupportedFeatureError``), each built once (derivation + compile into a fresh
-  cache; the build time is printed) and run over a range of h from the same (R₀, ξ₀):
-  the first arrow (R₀, R₁) solves the discrete Legendre transform F⁻L_d(R₀, R₁) = p₀ for
-  p₀ = ∂L/∂ξ(R₀, ξ₀) (the step's ``velocity_momentum`` program), as ``from_velocity`` does
-  (solved here with scipy's ``root`` on F⁻L_d evaluated by ``Trajectory.momenta``, since
-  ``from_velocity``'s first call derives its program from SymPy trees, which takes
-  minutes for this system);
+  members of order 4 and 6), each built once (derivation + compile into a fresh cache; the
+  build time is printed) and run over a range of h from the same (R₀, ξ₀): the first arrow
+  (R₀, R₁) is ``Simulator.from_velocity``'s, the discrete Legendre transform
+  F⁻L_d(R₀, R₁) = p₀ solved for p₀ = ∂L/∂ξ(R₀, ξ₀);
 - MuJoCo's RK4 (the chain as an MJCF model with ball joints and no contact, run by
   ``mujoco.rollout``) over a range of h; "not installed" without mujoco;
 - scipy's DOP853 at several tolerances on the reference's equations (Python right-hand
@@ -66,7 +62,6 @@ sys.path.insert(0, str(HERE))
 import _chain_models as models  # noqa: E402
 import sympy as sp  # noqa: E402
 from scipy.integrate import solve_ivp  # noqa: E402
-from scipy.optimize import root  # noqa: E402
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 import symgroupoid as sg  # noqa: E402
@@ -202,30 +197,10 @@ def build_scheme(scheme):
 
 
 def first_arrow(sim, h: float) -> np.ndarray:
-    """The state (R₀, R₁) with F⁻L_d(R₀, R₁) = ∂L/∂ξ(R₀, ξ₀) (see the module docstring)."""
+    """The state (R₀, R₁) with F⁻L_d(R₀, R₁) = ∂L/∂ξ(R₀, ξ₀) (``from_velocity``)."""
     attitudes, xi0 = initial_data()
-    params = {"h": h, "g": GRAVITY}
-    p = np.array([params[str(s)] for s in sim.equations.parameters])
-    q0 = np.concatenate([R.ravel() for R in attitudes])
-    momentum = sim.equations.velocity_momentum.numpy_function(
-        ["momentum"], ["q", "v", "p"])(q0, xi0, p)[0]
-    momentum = np.asarray(momentum, float).ravel()
-
-    def state(x):
-        R1 = [R @ Rotation.from_rotvec(h * x[3 * i:3 * i + 3]).as_matrix()
-              for i, R in enumerate(attitudes)]
-        return np.concatenate([q0, *(R.ravel() for R in R1)])
-
-    def residual(x):
-        return sim.simulate(state(x), 0, params).momenta().minus[0] - momentum
-
-    found = root(residual, xi0, method="hybr", options={"xtol": 1e-15})
-    # F⁻L_d holds increments divided by h: its rounding is ~ε|p|/h
-    limit = 1e-12 + 64 * np.finfo(float).eps * (1 + np.abs(momentum).max()) / h
-    if np.abs(residual(found.x)).max() > limit:
-        raise RuntimeError(f"the discrete Legendre transform was not solved at h = {h}: "
-                           f"|F⁻L_d − p₀| = {np.abs(residual(found.x)).max():.1e}")
-    return state(found.x)
+    configuration = {f"R{i}": R for i, R in enumerate(attitudes, start=1)}
+    return sim.from_velocity(configuration, np.ravel(xi0), {"h": h, "g": GRAVITY})
 
 
 def run_library(sim, state: np.ndarray, steps: int, h: float):

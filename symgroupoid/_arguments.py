@@ -175,6 +175,11 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
 
     if isinstance(value, (str, bytes, Mapping, set, frozenset)) or value is None:
         raise ShapeError(f"{at}{name} must be {kind()}")
+    if isinstance(value, np.ma.MaskedArray) and np.ma.getmaskarray(value).any():
+        where_masked = tuple(int(i) for i in np.argwhere(np.ma.getmaskarray(value))[0])
+        raise ShapeError(f"{at}{name} has masked (missing) entries, the first at index "
+                         f"{where_masked}; fill them (numpy.ma.filled) or drop them: their "
+                         f"values are not data")
     try:
         raw = np.asarray(value)
     except (TypeError, ValueError, OverflowError):
@@ -197,18 +202,42 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
                          f"{shown_value(value)}") from None
 
 
-def input_rows(inputs, m: int, rows: int, *, owner: str = "", name: str = "inputs"
-               ) -> np.ndarray:
+def input_rows(inputs, m: int, rows: int, *, owner: str = "", name: str = "inputs",
+               names: Sequence[str] = ()) -> np.ndarray:
     """A forced system's inputs (docs/conventions.md §20) as real numbers in rows of ``m``:
     (m,) — or a number when m = 1 — held for all ``rows`` rows, (rows,) read as one column
     when m = 1, anything else as given (its shape is the caller's to check); not a real
-    array: a :class:`ShapeError` naming ``name``."""
-    arr = real_array(inputs, name, owner=owner)
+    array: a :class:`ShapeError` naming ``name``.  A table with named columns (a pandas
+    ``DataFrame``) is read by the inputs' ``names``, in any column order
+    (:func:`named_columns`)."""
+    arr = real_array(named_columns(inputs, names, owner=owner, name=name), name, owner=owner)
     if arr.shape == (m,) or (m == 1 and arr.ndim == 0):
         return np.broadcast_to(arr.reshape(1, m), (rows, m))
     if m == 1 and arr.shape == (rows,):
         return arr.reshape(rows, 1)
     return arr
+
+
+def named_columns(table, names: Sequence[str], *, owner: str = "", name: str = "inputs"):
+    """``table`` with its columns in the order of ``names`` when it is a table whose columns
+    are labelled by strings (a pandas ``DataFrame``, read duck-typed: ``columns`` and
+    ``to_numpy``), so that a column is never read as another input because of its place;
+    its columns as they stand when they carry no names (integer labels); anything else
+    unchanged.  A labelled table whose labels are not exactly ``names`` (a missing, an
+    unknown or a repeated label) is an :class:`~symgroupoid.InputNameError` listing both."""
+    columns = getattr(table, "columns", None)
+    if columns is None or not callable(getattr(table, "to_numpy", None)) or not names:
+        return table
+    labels = list(columns)
+    if not any(isinstance(label, str) for label in labels):
+        return table.to_numpy()
+    from ._errors import InputNameError
+
+    if sorted(map(str, labels)) != sorted(names) or len(set(labels)) != len(labels):
+        raise InputNameError(f"{where(owner)}{name}: the table's columns "
+                             f"{', '.join(map(str, labels))} must be the inputs "
+                             f"{', '.join(names)}, each once (in any order)")
+    return table[list(names)].to_numpy()
 
 
 def _holds_bool(value) -> bool:
@@ -343,8 +372,8 @@ def caller_level() -> int:
 
 __all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "caller_level", "choice_argument",
            "flag_argument", "input_rows", "instance_argument", "integer_argument",
-           "name_argument", "names_argument", "path_argument", "real_argument", "real_array",
-           "sequence_argument", "shown_value", "where"]
+           "name_argument", "named_columns", "names_argument", "path_argument",
+           "real_argument", "real_array", "sequence_argument", "shown_value", "where"]
 
 
 def checked_keywords(cls):

@@ -542,7 +542,7 @@ def _inputs(system, inputs, terms: int) -> np.ndarray:
                          f"with inputs= ({terms}, {m}), one row per action term (row j: the "
                          f"inputs of the term starting at g_j), or pass a Trajectory, whose "
                          f"states hold them")
-    U = input_rows(inputs, m, terms, owner=owner, name="the inputs")
+    U = input_rows(inputs, m, terms, owner=owner, name="the inputs", names=names)
     if U.shape != (terms, m):
         raise ShapeError(f"{owner}: inputs must have shape ({terms}, {m}) (one row of "
                          f"{', '.join(names)} per action term), got {U.shape}")

@@ -258,6 +258,21 @@ def test_the_expansion_bound_counts_products_of_sums_and_powers():
     assert expanded_terms([(a + b) ** 10**6]) == 10**30  # capped, computed at once
 
 
+def test_the_expansion_bound_walks_deep_expressions_without_recursion():
+    """A Horner-like nest three times deeper than Python's recursion limit (a long chain's
+    recurrences) is counted, not a RecursionError: each level adds one term."""
+    import sys
+
+    from symgroupoid.equations._printing import expanded_terms
+
+    x, y = sp.symbols("x y")
+    depth = 3 * sys.getrecursionlimit()
+    e = x
+    for i in range(depth):
+        e = sp.Add(sp.Mul(e, y, evaluate=False), sp.Integer(i + 1), evaluate=False)
+    assert expanded_terms([e]) == depth + 1
+
+
 @pytest.mark.parametrize("junk", [object(), "x", None, np.array([1.0, 2.0]),
                                   [sp.Symbol("x"), object()]],
                          ids=["object", "string", "None", "array", "list-with-object"])

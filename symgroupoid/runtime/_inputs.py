@@ -14,7 +14,7 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from .._arguments import counted, input_rows
+from .._arguments import counted, input_rows, named_columns
 from .._errors import DomainError, ShapeError
 from ._layout import check_input_values
 from ._options import NewtonOptions
@@ -41,7 +41,7 @@ def input_sequence(layout, inputs, steps: int, *, owner: str, one_step: bool = F
         raise ShapeError(f"{owner}: the system has inputs ({names}); pass inputs= with one "
                          f"row of {counted(m, 'value')} per step (row j: the input of the arrow "
                          f"step j computes), or {counted(m, 'value')} held for every step")
-    arr = input_rows(inputs, m, steps, owner=owner)
+    arr = input_rows(inputs, m, steps, owner=owner, names=layout.input_names)
     if arr.ndim != 2 or arr.shape != (steps, m):
         more = (f" ({arr.shape[0]} rows for {steps} steps: row j is the input of the arrow "
                 f"step j computes, so a longer table is a different run)"
@@ -67,6 +67,7 @@ def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
     given)."""
     if inputs is None and layout.n_inputs == 0:
         return None
+    inputs = named_columns(inputs, layout.input_names, owner=owner)
     arr = None if inputs is None else real_array(inputs, "inputs", owner=owner)
     if arr is None or arr.ndim != 3 or layout.n_inputs == 0:
         return input_sequence(layout, arr, steps, owner=owner)

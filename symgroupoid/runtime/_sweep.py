@@ -40,7 +40,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .._arguments import choice_argument, instance_argument
+from .._arguments import choice_argument, instance_argument, named_columns
 from .._errors import InputTypeError, ShapeError
 from ._batch import TrajectoryBatch
 from ._executors import execute
@@ -74,7 +74,8 @@ def _input_table(sim, inputs, grid: Grid, steps: int) -> np.ndarray | None:
     (what :meth:`Simulator.simulate` takes); None for a system without inputs."""
     shape = grid.shape
     if inputs is not None:
-        inputs = real_array(inputs, "inputs", owner=sim.name)
+        inputs = real_array(named_columns(inputs, sim.layout.input_names, owner=sim.name),
+                            "inputs", owner=sim.name)
     if inputs is not None and inputs.ndim == len(shape) + 2 and shape:
         arr = inputs
         if arr.shape[:len(shape)] != shape:

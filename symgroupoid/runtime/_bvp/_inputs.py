@@ -54,7 +54,7 @@ def input_table(system, inputs, n_terms: int, *, owner: str) -> np.ndarray:
                          f"row of {counted(m, 'value')} per term of the action ({n_terms} rows: "
                          f"row t the inputs of the term starting at arrow t), or "
                          f"{counted(m, 'value')} held for every term")
-    arr = input_rows(inputs, m, n_terms, owner=owner)
+    arr = input_rows(inputs, m, n_terms, owner=owner, names=names)
     if arr.shape != (n_terms, m):
         raise ShapeError(f"{owner}: inputs need shape ({n_terms}, {m}) (one row of the inputs "
                          f"{listed} per term of the action, row t for the term starting at "
