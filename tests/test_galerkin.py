@@ -128,6 +128,26 @@ def test_the_observed_order_on_r(scheme, steps):
     assert abs(report.order - scheme.order) < 0.1, report
 
 
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(5)])
+def test_floating_point_coefficients_give_the_exact_coefficients_steps(scheme):
+    """A Lagrangian written with a mass 1.0 and a length 0.5 (floats) steps as the same
+    Lagrangian with 1 and 1/2: the scheme's nodes (√3, √21) times the user's floats are
+    constants SymPy leaves unevaluated, and ordering them raised a raw TypeError."""
+    def pendulum(mass, half):
+        return sg.ContinuousSystem(
+            sg.EuclideanSpace("theta"),
+            lambda q, v: mass * v[0] ** 2 / 2 + half * grav * sp.cos(q[0]),
+            parameters=[h, grav], name="pendulum")
+
+    params = {"h": 0.05, **PEND}
+    runs = []
+    for mass, half in ((1.0, 0.5), (1, sp.Rational(1, 2))):
+        sim = pendulum(mass, half).discretize(h, scheme).euler_lagrange().compile()
+        state = sim.from_velocity({"theta": 0.3}, [0.5], params)
+        runs.append(np.asarray(sim.simulate(state, 40, params).configurations()).ravel())
+    assert np.abs(runs[0] - runs[1]).max() < 1e-13
+
+
 def _rigid_reference(T: float) -> np.ndarray:
     Jn, xi0 = np.diag([1.0, 2.0, 3.0]), np.array([0.3, 1.0, 0.4])
 

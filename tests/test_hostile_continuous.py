@@ -486,3 +486,15 @@ def _ordered(**kwargs):
         return order(**kwargs)
     except _Derived:
         return "derived"
+
+
+def test_a_force_that_is_not_real_is_refused_at_once_on_a_group():
+    """A body torque i·ξ₁ on SO(3) with GaussLegendre(2) sat in ``sympy.expand`` of the
+    force at the Galerkin nodes (rational functions of the stages) for minutes; F is now
+    checked once on generic symbols, named by them."""
+    body = sg.ContinuousSystem(sg.SO3("R"), lambda R, w: (w.T * sp.diag(1, 2, 3) * w)[0, 0] / 2,
+                               parameters=[h], forces=lambda R, w: [sp.I * w[0], 0, 0],
+                               name="complex_torque")
+    with pytest.raises(sg.InvalidExpressionError,
+                       match=r"F\(q, v\) \(entry 0\) contains I .* in the term I\*v0_0"):
+        body.discretize(h, sg.GaussLegendre(2))

@@ -339,7 +339,7 @@ class ContinuousSystem:
         source = [sp.zeros(f.dim, 1) for f in self.factors]
         nodes = self._galerkin_nodes(tableau, h, pairs, controls)
         for b_i, values, (x, q, v) in zip(tableau.weights, tableau.values, nodes):
-            F, at = self._force(self._values(q), self._values(v)), 0
+            F, at = self._force_at(q, v), 0
             for k, (f, xi) in enumerate(zip(self.factors, x)):
                 Fi = sp.Matrix(F[at:at + f.dim])
                 at += f.dim
@@ -371,11 +371,11 @@ class ContinuousSystem:
         staged += [sp.S.Zero] * (len(zeta) - len(staged))  # the multipliers' stages
         return minus, plus, staged
 
-    def _generic_lagrangian(self) -> tuple[sp.Expr, list, list]:
-        """L on generic symbols, called (and checked) once: the expression, and per factor
-        the symbols of its configuration (the coordinates of a group element's matrix) and
-        velocity."""
-        if getattr(self, "_generic", None) is None:
+    def _generic_point(self) -> tuple[list, list, list, list]:
+        """Generic symbols, made once: per factor the configuration (a group element's
+        matrix in its coordinates, a point's column) and the velocity as L and F take them,
+        and the symbols of each."""
+        if getattr(self, "_point", None) is None:
             qs, vs, q, v = [], [], [], []
             for i, f in enumerate(self.factors):
                 if f.is_group:
@@ -389,29 +389,56 @@ class ContinuousSystem:
                 v.append(sp.Matrix(velocity))
                 qs.append(coords)
                 vs.append(velocity)
+            self._point = (q, v, qs, vs)
+            # messages show the generic symbols by their names (v0_1, not _v0_1)
+            self._display = {d: sp.Symbol(d.name) for c in (*qs, *vs) for d in c}
+        return self._point
+
+    def _generic_lagrangian(self) -> tuple[sp.Expr, list, list]:
+        """L on generic symbols, called (and checked) once: the expression, and per factor
+        the symbols of its configuration (the coordinates of a group element's matrix) and
+        velocity."""
+        if getattr(self, "_generic", None) is None:
+            q, v, qs, vs = self._generic_point()
             self._generic = (self._lagrangian(self._values(q), self._values(v)), qs, vs)
         return self._generic
 
-    def _lagrangian_at(self, q: list, v: list) -> sp.Expr:
-        """L at configurations ``q`` and velocities ``v`` (lists per factor), by substitution
-        into :meth:`_generic_lagrangian`."""
-        L, qs, vs = self._generic_lagrangian()
+    def _at(self, exprs: list, q: list, v: list) -> list:
+        """``exprs``, written in :meth:`_generic_point`'s symbols, at configurations ``q``
+        and velocities ``v`` (lists per factor), by substitution."""
+        _, _, qs, vs = self._generic_point()
         sub = {}
         for f, coords, velocity, qi, vi in zip(self.factors, qs, vs, q, v):
             values = f.space.entries(qi) if f.is_group else list(qi)
             sub.update(zip(coords, values))
             sub.update(zip(velocity, list(vi)))
-        return L.xreplace(sub)
+        return [e.xreplace(sub) for e in exprs]
+
+    def _lagrangian_at(self, q: list, v: list) -> sp.Expr:
+        """L at configurations ``q`` and velocities ``v`` (lists per factor), by substitution
+        into :meth:`_generic_lagrangian`."""
+        return self._at([self._generic_lagrangian()[0]], q, v)[0]
+
+    def _force_at(self, q: list, v: list) -> list:
+        """F at configurations ``q`` and velocities ``v`` (lists per factor): F called (and
+        checked: finite, real) once on generic symbols, then substituted, so that a force
+        that is not real is refused at once however large the points it is taken at (a
+        Galerkin node on a group is a rational function of the stages)."""
+        if getattr(self, "_generic_forces", None) is None:
+            q0, v0, _, _ = self._generic_point()
+            self._generic_forces = self._force(self._values(q0), self._values(v0))
+        return self._at(self._generic_forces, q, v)
 
     def _lagrangian(self, q, v) -> sp.Expr:
         value = call_user(self.name, "L(q, v)", self.lagrangian, q, v, smooth=True,
-                          display={})
+                          display=getattr(self, "_display", {}))
         if isinstance(value, sp.MatrixBase) and value.shape == (1, 1):
             value = value[0, 0]
         return sp.sympify(value)
 
     def _force(self, q, v) -> list:
-        value = call_user(self.name, "F(q, v)", self.forces, q, v, display={})
+        value = call_user(self.name, "F(q, v)", self.forces, q, v,
+                          display=getattr(self, "_display", {}))
         value = list(value)
         n = sum(f.dim for f in self.factors)
         if len(value) != n:

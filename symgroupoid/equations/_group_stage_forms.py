@@ -306,7 +306,7 @@ class _Builder:
             self.out.formulas.append((fi, sp.ImmutableMatrix([_tidy(e) for e in N]),
                                       sp.ImmutableMatrix([_tidy(e) for e in Mv])))
         if self.c.forces is not None:
-            force = self.c._force(self.c._values(q), self.c._values(v))
+            force = self.c._force_at(q, v)
             at = 0
             for F in self.factors:
                 self.out.forces.append(sp.ImmutableMatrix(

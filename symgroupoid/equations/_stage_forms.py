@@ -264,7 +264,7 @@ def _at_node(continuous, Q: list, V: list, u: dict) -> tuple[sp.Expr, list]:
     L = continuous._lagrangian_at(q, v)
     if continuous.forces is None:
         return L, [sp.S.Zero] * len(Q)
-    F = continuous._force(continuous._values(q), continuous._values(v))
+    F = continuous._force_at(q, v)
     return L, [e.xreplace(u) for e in F]
 
 

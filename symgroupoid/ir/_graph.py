@@ -26,6 +26,7 @@ from __future__ import annotations
 import operator
 from collections.abc import Collection, Iterable, Sequence
 
+import mpmath
 import sympy as sp
 
 CONST, INPUT, ADD, MUL, POW, FUNC = range(6)
@@ -45,9 +46,30 @@ def is_one(c: sp.Expr) -> bool:
 
 
 def is_negative(c: sp.Expr) -> bool:
-    """``c < 0`` for a SymPy number (its cached sign when SymPy knows it)."""
+    """``c < 0`` for a SymPy number (its cached sign when SymPy knows it; else its value to
+    :data:`SIGN_DIGITS` digits, for a constant SymPy cannot order exactly)."""
     sign = c.is_negative
-    return bool(c < 0) if sign is None else sign
+    if sign is not None:
+        return sign
+    try:
+        return bool(c < 0)
+    except TypeError:  # an unevaluated relational: decide on the value
+        return bool(sp.N(c, SIGN_DIGITS) < 0)
+
+
+#: digits to which the sign of a constant SymPy cannot order exactly is decided
+SIGN_DIGITS = 50
+
+
+def folded_float(value: sp.Expr) -> sp.Expr:
+    """A constant that holds floating-point numbers (a user's mass 1.0 times the Gauss
+    nodes' √3) as one Float, at the finest precision among them: its exactness is gone
+    already, and SymPy leaves such sums unevaluated, so that it could not even order them
+    (0.5 + √3/3 − …).  Other constants unchanged."""
+    if isinstance(value, sp.Number) or not value.has(sp.Float):
+        return value
+    bits = max(f._prec for f in value.atoms(sp.Float))
+    return sp.Float(sp.N(value, mpmath.libmp.prec_to_dps(bits)), precision=bits)
 
 
 def _number_key(value: sp.Expr) -> tuple:
@@ -92,6 +114,7 @@ class Graph:
             value = sp.sympify(value)
             if not value.is_number or value.free_symbols:
                 raise ValueError(f"not a constant: {value!r}")
+            value = folded_float(value)
         return self._node(CONST, (), value, (CONST, _number_key(value)))
 
     def input(self, symbol: sp.Symbol) -> int:
