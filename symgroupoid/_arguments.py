@@ -218,26 +218,45 @@ def input_rows(inputs, m: int, rows: int, *, owner: str = "", name: str = "input
     return arr
 
 
-def named_columns(table, names: Sequence[str], *, owner: str = "", name: str = "inputs"):
-    """``table`` with its columns in the order of ``names`` when it is a table whose columns
-    are labelled by strings (a pandas ``DataFrame``, read duck-typed: ``columns`` and
-    ``to_numpy``), so that a column is never read as another input because of its place;
-    its columns as they stand when they carry no names (integer labels); anything else
-    unchanged.  A labelled table whose labels are not exactly ``names`` (a missing, an
-    unknown or a repeated label) is an :class:`~symgroupoid.InputNameError` listing both."""
-    columns = getattr(table, "columns", None)
-    if columns is None or not callable(getattr(table, "to_numpy", None)) or not names:
-        return table
-    labels = list(columns)
-    if not any(isinstance(label, str) for label in labels):
-        return table.to_numpy()
-    from ._errors import InputNameError
+def _label(label) -> str | None:
+    """A table label as an input's name: a string, or a SymPy symbol's name; None for a
+    label that names nothing (an integer position)."""
+    if isinstance(label, str):
+        return label
+    if getattr(label, "is_Symbol", False):
+        return str(label.name)
+    return None
 
-    if sorted(map(str, labels)) != sorted(names) or len(set(labels)) != len(labels):
-        raise InputNameError(f"{where(owner)}{name}: the table's columns "
-                             f"{', '.join(map(str, labels))} must be the inputs "
+
+def named_columns(table, names: Sequence[str], *, owner: str = "", name: str = "inputs"):
+    """``table`` in the order of ``names`` when it is labelled by them: a table whose
+    columns are labelled (a pandas ``DataFrame``: ``columns`` and ``to_numpy``) or a
+    labelled row (a pandas ``Series``: ``index`` and ``to_numpy``, one dimension), labels
+    being strings or SymPy symbols — so that a value is never read as another input because
+    of its place.  Unlabelled (integer labels): its values as they stand, by position.
+    Anything else unchanged.  A labelled table whose labels are not exactly ``names`` (a
+    missing, an unknown or a repeated label) is an :class:`~symgroupoid.InputNameError`
+    listing both."""
+    if not names or not callable(getattr(table, "to_numpy", None)):
+        return table
+    columns = getattr(table, "columns", None)
+    if columns is None:
+        columns = getattr(table, "index", None) if np.ndim(table) == 1 else None
+        if columns is None:
+            return table
+    labels = [_label(label) for label in columns]
+    if all(label is None for label in labels):
+        return table.to_numpy()
+    if None in labels or sorted(labels) != sorted(names) or len(set(labels)) != len(labels):
+        from ._errors import InputNameError
+
+        what = "table's columns" if hasattr(table, "columns") else "row's labels"
+        raise InputNameError(f"{where(owner)}{name}: the {what} "
+                             f"{', '.join(map(str, columns))} must be the inputs "
                              f"{', '.join(names)}, each once (in any order)")
-    return table[list(names)].to_numpy()
+    values = np.asarray(table.to_numpy())
+    order = [labels.index(n) for n in names]
+    return values[..., order] if hasattr(table, "columns") else values[order]
 
 
 def _holds_bool(value) -> bool:

@@ -3,6 +3,8 @@
 balance on a pair groupoid and on a Lie group, inputs through every entry point, the
 continuous limit against an ODE solution, and hostile inputs."""
 
+import re
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -283,6 +285,40 @@ def test_a_system_without_inputs_takes_none():
 def test_bad_forces_are_refused_at_construction(forces, inputs, error):
     with pytest.raises(error):
         _plane_system(forces, inputs)
+
+
+@pytest.mark.parametrize("name", ["u_k", "u_{k+1}", "w_{k-1}"])
+def test_an_input_named_as_a_value_at_a_step_is_refused_as_an_input(name):
+    """An input u_k would print as the value of an input u at step k; the refusal named it
+    a "parameter" (the two were checked together)."""
+    with pytest.raises(InputNameError, match=rf"input '{re.escape(name)}' is written"):
+        _plane_system(lambda g: ([0, 0], [0, 0]), [sp.Symbol(name, real=True)])
+
+
+def test_an_integer_input_in_a_power_of_minus_one_steps():
+    """SymPy writes cos(nπ) for an integer n as (−1)ⁿ; the program read it as exp(n·log(−1)),
+    NaN at every n, so every step failed.  With n = 2 the force is h/2 (cos 2π = 1), with
+    n = 3 it is −h/2: the steps of the literal forces, in C and NumPy."""
+    n = sp.Symbol("n", integer=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("q"))
+
+    def L(g):
+        return (g.target[0] - g.source[0]) ** 2 / (2 * h) - h * g.target[0] ** 2 / 2
+
+    powered = sg.DiscreteSystem(G, L, parameters=[h], time_step=h, inputs=[n], name="power",
+                                forces=lambda g: ([h / 2 * sp.cos(n * sp.pi)], [0]))
+    residual = powered.euler_lagrange().residuals[0]
+    assert any(power.base == -1 for power in residual.atoms(sp.Pow)), residual
+    for value in (2.0, 3.0):
+        literal = sg.DiscreteSystem(G, L, parameters=[h], time_step=h, name="literal",
+                                    forces=lambda g, v=value: ([h / 2 * (-1) ** int(v)], [0]))
+        want = literal.euler_lagrange().compile(backend="numpy").simulate(
+            {"q": (0.0, 0.1)}, 4, {"h": 0.1})["q"]
+        for backend in ("c", "numpy"):
+            sim = powered.euler_lagrange().compile(backend=backend)
+            got = sim.simulate({"q": (0.0, 0.1), "n": value}, 4, {"h": 0.1},
+                               inputs=[value])["q"]
+            assert np.allclose(got, want, rtol=0, atol=1e-15), (backend, value)
 
 
 def test_forces_on_a_second_order_system_take_the_pair():

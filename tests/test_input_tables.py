@@ -92,3 +92,33 @@ def test_masked_entries_are_refused_everywhere():
     clear = np.ma.masked_array(U)
     assert np.array_equal(sim.simulate(STATE, STEPS, PARAMS, inputs=clear, options=EXACT).states,
                           sim.simulate(STATE, STEPS, PARAMS, inputs=U, options=EXACT).states)
+
+
+def test_columns_labelled_by_the_input_symbols_are_read_by_name():
+    """A table labelled by the SymPy symbols themselves (as a parameter table may be) was
+    read by position: the inputs were swapped without a word."""
+    sim, U = chain(), _inputs()
+    u1, u2 = sim.equations.system.inputs
+    plain = sim.simulate(STATE, STEPS, PARAMS, inputs=U, options=EXACT)
+    swapped = pd.DataFrame({u2: U[:, 1], u1: U[:, 0]})
+    assert np.array_equal(sim.simulate(STATE, STEPS, PARAMS, inputs=swapped,
+                                       options=EXACT).states, plain.states)
+
+
+def test_a_labelled_row_is_read_by_name_in_every_one_step_entry():
+    """``df.iloc[j]`` (a pandas Series labelled u2, u1) in a loop of ``step``, as inputs
+    held constant, and in ``solve``: read by its labels, so the loop replays the table."""
+    sim, U = chain(), _inputs()
+    frame = pd.DataFrame({"u2": U[:, 1], "u1": U[:, 0]})
+    whole = sim.simulate(STATE, STEPS, PARAMS, inputs=U, options=EXACT)
+    state = sim.state(STATE)
+    for j in range(STEPS):
+        state = sim.step(state, PARAMS, inputs=frame.iloc[j], options=EXACT)
+    assert np.array_equal(state, whole.states[-1])
+    held = sim.simulate(STATE, STEPS, PARAMS, inputs=frame.iloc[0], options=EXACT)
+    assert np.array_equal(held.states, sim.simulate(STATE, STEPS, PARAMS, inputs=U[0],
+                                                    options=EXACT).states)
+    assert np.array_equal(sim.solve(STATE, PARAMS, inputs=frame.iloc[0])[0],
+                          sim.solve(STATE, PARAMS, inputs=U[0])[0])
+    with pytest.raises(sg.InputNameError, match="the row's labels u2, x must be the inputs"):
+        sim.step(sim.state(STATE), PARAMS, inputs=pd.Series([0.0, 0.0], index=["u2", "x"]))

@@ -369,6 +369,11 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
 _STEP_SUBSCRIPT = re.compile(r"_\{?k([+-]\d+)?\}?$")
 
 
+def step_subscript(tex: str) -> bool:
+    """Whether a name printed ``tex`` reads as a value at a step (x_k, x_{k+1})."""
+    return _STEP_SUBSCRIPT.search(tex) is not None
+
+
 def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None:
     """A parameter is printed by its name: two parameters written alike (theta and θ, a
     Dummy and a Symbol both k, "k" and "k "), or a name that reads as a value at a step
@@ -379,7 +384,7 @@ def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None
             f"{system_name}: parameters {printed[key]!r} and {p!r} are both written {key} in "
             f"the printed equations; give them names that differ")
     printed[key] = p
-    if _STEP_SUBSCRIPT.search(key):
+    if step_subscript(key):
         raise ParameterDeclarationError(
             f"{system_name}: parameter {p.name!r} is written {key}, as a value at a step "
             f"(x_{{k+1}}) is; a parameter is fixed for a run: name it otherwise")

@@ -37,7 +37,7 @@ from .._symbols import (
     unprintable_name,
 )
 from ..groupoids import Groupoid
-from ._callables import as_scalar_list, call_user, check_symbols
+from ._callables import as_scalar_list, call_user, check_symbols, step_subscript
 from ._junction import slot, slot_substitution
 
 
@@ -208,6 +208,11 @@ def input_arguments(name: str, inputs, parameters: Sequence, forces) -> list:
             raise InputNameError(f"{name}: input {str(u)!r} cannot be used: {why}; name the "
                                  f"input otherwise")
         key = latex_name(str(u))
+        if step_subscript(key):
+            raise InputNameError(f"{name}: input {str(u)!r} is written {key}, as a value at a "
+                                 f"step is; an input's values at the arrows are written with the "
+                                 f"step as a subscript (u_k, u_{{k+1}} for an input u): name "
+                                 f"it otherwise")
         if key in names:
             raise InputNameError(f"{name}: {u} is declared both as an input and as a "
                                  f"parameter{_alias(u, names[key])}; a parameter is fixed for a "

@@ -118,12 +118,24 @@ def _build(g: Graph, e, symbols, memo, context) -> int:
             return g.pow(memo[b], x)
         if b is sp.E:
             return g.func(ELEMENTARY[sp.exp], memo[x])
+        if b.is_number and b.is_negative and x.is_integer:
+            return _negative_base_power(g, b, memo[x])
         log_b = g.func(ELEMENTARY[sp.log], memo[b])
         return g.func(ELEMENTARY[sp.exp], g.mul(memo[x], log_b))
     spec = _function_spec(e)
     if spec is not None:
         return g.func(spec, *[memo[a] for a in e.args])
     return _opaque(g, e, symbols, context)
+
+
+def _negative_base_power(g: Graph, b: sp.Expr, x: int) -> int:
+    """bⁿ for a negative constant b and an exponent n declared integer (SymPy writes cos(nπ)
+    as (−1)ⁿ): cos(πn)·|b|ⁿ, exact at every integer n (exp(n·log b) would be NaN there)."""
+    sign = g.func(ELEMENTARY[sp.cos], g.mul(g.const(sp.pi), x))
+    if b == -1:
+        return sign
+    size = g.func(ELEMENTARY[sp.exp], g.mul(x, g.const(sp.log(-b))))
+    return g.mul(sign, size)
 
 
 def _opaque(g: Graph, e, symbols, context) -> int:

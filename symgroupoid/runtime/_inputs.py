@@ -89,7 +89,8 @@ def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
 def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
     """The inputs of one step (:meth:`Simulator.step`): None for a system without inputs
     (and none given); a C-contiguous float64 vector of the m inputs, finite, passes as it
-    is; anything else goes through :func:`input_sequence`."""
+    is; anything else goes through :func:`input_sequence` (a labelled row, a pandas
+    ``Series``, read by the inputs' names: :func:`~symgroupoid._arguments.named_columns`)."""
     if (type(inputs) is np.ndarray and inputs.dtype is _FLOAT64 and inputs.strides == _STEP
             and all(map(math.isfinite, inputs.tolist()))
             and inputs.shape == (layout.n_inputs,) and inputs.shape != (0,)
@@ -97,6 +98,7 @@ def step_inputs(layout, inputs, *, owner: str) -> np.ndarray | None:
         return inputs
     if inputs is None and layout.n_inputs == 0:
         return None
+    inputs = named_columns(inputs, layout.input_names, owner=owner)
     if inputs is not None and layout.n_inputs:
         _check_step_shape(layout, inputs, owner)
     return input_sequence(layout, None if inputs is None else [inputs], 1, owner=owner,
