@@ -120,6 +120,10 @@ class NoetherQuantity:
         self.is_symmetry: bool = is_symmetry
         self.verification: str = "symbolic"
         self.parameters = list(parameters)
+        #: the name of the system it is the quantity of (a run of another system is
+        #: refused), and that system's inputs per arrow; set by ``DiscreteSystem.noether``
+        self.system_name: str | None = None
+        self.n_inputs: int = 0
         #: arrows of the window the quantity is written on: 1, or 3 for a second-order
         #: system (its state's (g_{k−1}, g_k, g_{k+1}), whose terms carry u_{k−1}, u_k)
         self.window: int = getattr(forms, "window", 1)
@@ -274,6 +278,29 @@ class NoetherQuantity:
             return False, f"undecided: the stages could not be solved at {where}"
         return True, how
 
+    def _check_run(self, trajectory, entry: str) -> None:
+        """``trajectory`` is a :class:`~symgroupoid.Trajectory` (states and parameters by
+        name: an :class:`InputTypeError` otherwise) of this quantity's system: the run of a
+        system of another name, or with inputs where the system has none or the reverse,
+        is a :class:`ShapeError` (its states may have the same width, and its numbers would
+        be those of other equations: another scheme, the unforced stages)."""
+        if not hasattr(trajectory, "states") or not isinstance(
+                getattr(trajectory, "parameters", None), Mapping):
+            raise InputTypeError(f"NoetherQuantity.{entry}: trajectory must be a Trajectory "
+                                 f"(sim.simulate(...)), got {type(trajectory).__name__}")
+        name = getattr(trajectory, "system_name", None)
+        if self.system_name is not None and name is not None and name != self.system_name:
+            raise ShapeError(f"NoetherQuantity.{entry}: the trajectory is a run of {name!r}, "
+                             f"the quantity is of {self.system_name!r}; use a trajectory of "
+                             f"this system's step")
+        m = _inputs(trajectory)
+        if self.system_name is not None and m != self.n_inputs:
+            have = f"{m} input(s) per arrow" if m else "no inputs"
+            want = f"{self.n_inputs}" if self.n_inputs else "none"
+            raise ShapeError(f"NoetherQuantity.{entry}: the trajectory's system has {have}, "
+                             f"this quantity's system {want}: it is a run of another "
+                             f"system; use a trajectory of this system's step")
+
     def _trajectory_parameters(self, trajectory, entry: str) -> np.ndarray:
         """The values of this quantity's parameters in ``trajectory.parameters``, which must
         name exactly the parameters of its system: a parameter missing, or one the system
@@ -300,15 +327,12 @@ class NoetherQuantity:
         multipliers this quantity is written in, in that order; parameters are read by name
         from ``trajectory.parameters``.  Along a solution of a system with this symmetry
         F_X is constant up to the rounding of the steps (seed 000 Thm 4.9).  A state with
-        non-finite entries (:class:`DomainError`) and the run of another system (parameters
-        that this quantity's system does not have: :class:`ParameterError`) are refused
-        before any evaluation, as in :meth:`impulse`.
+        non-finite entries (:class:`DomainError`) and the run of another system (another
+        name, inputs where the system has none or the reverse: :class:`ShapeError`;
+        parameters that this quantity's system does not have: :class:`ParameterError`) are
+        refused before any evaluation, as in :meth:`impulse`.
         """
-        if not hasattr(trajectory, "states") or not isinstance(
-                getattr(trajectory, "parameters", None), Mapping):
-            raise InputTypeError(f"NoetherQuantity.along: trajectory must be a Trajectory "
-                                 f"(from Simulator.simulate), got "
-                                 f"{type(trajectory).__name__}")
+        self._check_run(trajectory, "along")
         states = np.asarray(trajectory.states, float)
         n = len(self.arrow) + len(self.multipliers)
         m = _inputs(trajectory)  # a forced state ends with its terms' inputs and the slot
@@ -355,6 +379,7 @@ class NoetherQuantity:
         if self.impulse_form is None:
             raise InputTypeError("NoetherQuantity.impulse: the system has no forces; its "
                                  "Noether quantity is conserved (use along())")
+        self._check_run(trajectory, "impulse")
         if getattr(trajectory, "every", 1) != 1:
             raise ShapeError("NoetherQuantity.impulse: the impulse of each step needs every "
                              "state; simulate with every=1")

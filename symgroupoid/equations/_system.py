@@ -333,6 +333,7 @@ class DiscreteSystem(_EvaluatedSystem):
                                               self.functions):
             ok, how = True, "symbolic on N = G|_M (ideal membership)"
         quantity = NoetherQuantity(forms, ok, self.parameters)
+        self._own(quantity)
         quantity.verification = how
         forces = self.functions.forces
         if forces is not None and self._arity == 1:
@@ -346,6 +347,12 @@ class DiscreteSystem(_EvaluatedSystem):
                                      input_symbols(forces.inputs, 1))
         return quantity
 
+    def _own(self, quantity: NoetherQuantity) -> None:
+        """Marks ``quantity`` as this system's: its runs are those of this name and inputs
+        (:meth:`NoetherQuantity.along` refuses another system's)."""
+        quantity.system_name = self.name
+        quantity.n_inputs = len(self.inputs)
+
     def _noether_with_stages(self, forms, section) -> NoetherQuantity:
         """The Noether quantity of a system with internal stages: F_X and the defect at the
         stages ζ* of the arrow (docs/conventions.md §22), the symmetry checked there at
@@ -358,6 +365,7 @@ class DiscreteSystem(_EvaluatedSystem):
         is checked at arrows of N = G|_M (docs/conventions.md §22, "The Noether quantity on
         N = G|_M")."""
         quantity = NoetherQuantity(forms, False, self.parameters)
+        self._own(quantity)
         if self.n_holonomic:
             self._restrict_noether(quantity)
         quantity.stages = tuple(self.functions.stages)

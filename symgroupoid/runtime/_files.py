@@ -7,16 +7,18 @@ never sees a half-written file and an interrupted write leaves the old one.
 - ``.npz`` (``numpy.load``): ``states`` (rows × knowns), ``step_indices``,
   ``newton_iterations``, ``residual_norms``, ``columns`` (a name for each state entry:
   ``x (step k-1)``, ``g[0, 2]``, ``lambda[0]``), ``parameter_names``, ``parameter_values``,
-  ``every``, ``backend``, and each named part as ``Trajectory[name]`` gives it (a part
-  whose name clashes with these keys is stored as ``part_<name>``).  Only numbers and
+  ``every``, ``backend``, ``system`` (the name of the system that wrote it), and each
+  named part as ``Trajectory[name]`` gives it (a part whose name clashes with these keys is
+  stored as ``part_<name>``).  Only numbers and
   strings: a file is read with ``allow_pickle=False``, so loading one never runs code.
 - ``.csv``: a header ``step, <columns>, newton_iterations, residual_norm``, then one row per
   kept state (the first row's Newton columns empty), numbers with 17 significant digits, so
   they read back exactly (no parameter values: :meth:`Trajectory.load` asks for them).
 
 A file is read back for a system only when its ``columns`` are that system's (names and
-order of the state's entries), not merely as many: another system's trajectory of the same
-width is a :class:`TrajectoryFileError`.
+order of the state's entries), not merely as many, and (.npz) its ``system`` is that
+system's name: another system's trajectory of the same width and columns (the same
+continuous system under another scheme) is a :class:`TrajectoryFileError`.
 """
 
 from __future__ import annotations
@@ -41,6 +43,9 @@ TRAJECTORY_FORMATS = (".npz", ".csv")
 #: stored as ``part_<name>``)
 TRAJECTORY_KEYS = ("states", "step_indices", "newton_iterations", "residual_norms",
                    "columns", "parameter_names", "parameter_values", "every", "backend")
+#: the array naming the system that wrote a trajectory (.npz; files of earlier versions have
+#: none, and are matched by their columns and parameters alone)
+SYSTEM_KEY = "system"
 _CSV_TAIL = ("newton_iterations", "residual_norm")
 
 
@@ -105,10 +110,12 @@ def trajectory_arrays(traj) -> dict[str, np.ndarray]:
         "columns": np.array(state_columns(traj._layout), dtype=str),
         "parameter_names": np.array(names, dtype=str),
         "parameter_values": np.array([traj.parameters[n] for n in names], float),
-        "every": np.array(traj.every), "backend": np.array(traj.backend)}
+        "every": np.array(traj.every), "backend": np.array(traj.backend),
+        SYSTEM_KEY: np.array(traj._layout.step_name)}
     for key in traj.keys():
         label = "lambda" if key in ("λ", "multipliers") else key
-        arrays[f"part_{label}" if label in TRAJECTORY_KEYS else label] = traj[key]
+        reserved = label in TRAJECTORY_KEYS or label == SYSTEM_KEY
+        arrays[f"part_{label}" if reserved else label] = traj[key]
     return arrays
 
 
@@ -158,12 +165,16 @@ def save_trajectory(traj, path: Path) -> None:
 # --- reading ------------------------------------------------------------------------------------
 
 class TrajectoryData:
-    """What a trajectory file holds, checked against a system's state layout."""
+    """What a trajectory file holds, checked against a system's state layout; ``system``:
+    the name of the system that wrote it, None where the file does not say (.csv, files of
+    earlier versions)."""
 
-    def __init__(self, states, step_indices, iterations, norms, parameters, every, backend):
+    def __init__(self, states, step_indices, iterations, norms, parameters, every, backend,
+                 system: str | None = None):
         self.states, self.step_indices = states, step_indices
         self.iterations, self.norms = iterations, norms
         self.parameters, self.every, self.backend = parameters, every, backend
+        self.system = system
 
 
 def read_trajectory(path, layout, parameter_names: list[str], *,
@@ -189,6 +200,11 @@ def read_trajectory(path, layout, parameter_names: list[str], *,
         columns = expected
     if columns != expected:
         raise TrajectoryFileError(_column_mismatch(label, columns, expected))
+    if data.system is not None and data.system != layout.step_name:
+        raise TrajectoryFileError(f"{label}: it is a run of the system {data.system!r}, not of "
+                                  f"{layout.step_name!r} (same state columns, other "
+                                  f"equations: another scheme, forces or parameters); a "
+                                  f"trajectory continues only with the system that wrote it")
     rows = len(data.states) if data.states.ndim == 2 else 0
     if data.states.shape != (rows, layout.n_known) or rows < 1:
         raise TrajectoryFileError(f"{label}: its states have shape {data.states.shape}, "
@@ -300,6 +316,7 @@ def _read_npz(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
                 f"symgroupoid: Trajectory.save or simulate -o)")
         try:
             arrays = {k: archive[k] for k in TRAJECTORY_KEYS}
+            system = archive[SYSTEM_KEY] if SYSTEM_KEY in archive.files else None
         except (OSError, ValueError, EOFError, RuntimeError, zipfile.BadZipFile) as exc:
             raise TrajectoryFileError(f"{label}: its arrays cannot be read ({exc})") from None
     columns = _strings(arrays["columns"], "columns", label)
@@ -316,12 +333,18 @@ def _read_npz(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
         raise TrajectoryFileError(f"{label}: backend must be a string, got an array of dtype "
                                   f"{backend.dtype} and shape {backend.shape}")
     backend = str(backend)
+    if system is not None:
+        if system.dtype.kind != "U" or system.shape != ():
+            raise TrajectoryFileError(f"{label}: system must be a string (the name of the "
+                                      f"system that wrote it), got an array of dtype "
+                                      f"{system.dtype} and shape {system.shape}")
+        system = str(system)
     data = TrajectoryData(
         _numbers(arrays["states"], "states", label),
         _integers(arrays["step_indices"], "step_indices", label),
         _integers(arrays["newton_iterations"], "newton_iterations", label),
         _numbers(arrays["residual_norms"], "residual_norms", label),
-        dict(zip(names, values.tolist())), int(every), backend)
+        dict(zip(names, values.tolist())), int(every), backend, system)
     return data, columns
 
 

@@ -97,6 +97,12 @@ class Trajectory:
         self._views: dict = {}  # named views, computed on first access (states are read-only)
 
     @property
+    def system_name(self) -> str:
+        """The name of the system whose run this is (a Noether quantity of another system
+        refuses it)."""
+        return self._layout.step_name
+
+    @property
     def steps(self) -> int:
         """Number of steps N covered (from the first kept state to the last)."""
         return int(self.step_indices[-1] - self.step_indices[0])
