@@ -61,3 +61,40 @@ def test_two_interior_nodes_and_two_constraints():
 def test_the_constrained_stage_notation_typesets_whole(tmp_path):
     document = assert_typesets_whole(_pendulum(sg.LobattoIIIAB(3)), tmp_path)
     assert r"\Lambda_{k+1,2}" in document
+
+
+def _driven(scheme) -> sg.StepEquations:
+    """A damped, driven quartic oscillator on R (a forced Galerkin step on a vector space)."""
+    m, c = sp.symbols("m c", positive=True)
+    u = sp.Symbol("u", real=True)
+    return sg.ContinuousSystem(
+        sg.EuclideanSpace("q"), lambda q, v: m * v[0] ** 2 / 2 - q[0] ** 4 / 4,
+        parameters=[h, m, c], forces=lambda q, v: [-c * v[0] + u], inputs=[u],
+        name="driven").discretize(h, scheme)
+
+
+def test_abbreviations_keep_the_stage_notation_and_say_why():
+    """An abbreviation dropped the stage notation of a step on a vector space for the
+    expanded residuals, with a warning that did not say so; as on a group, the notation is
+    kept and the abbreviation reported unused because the notation names its own parts."""
+    step = _driven(sg.GaussLegendre(2)).euler_lagrange()
+    plain = step.latex()
+    m, c = sp.symbols("m c", positive=True)
+    with pytest.warns(sg.UnusedAbbreviationWarning, match="the stage notation names its own "
+                                                          "parts"):
+        abbreviated = step.latex(abbreviations={r"\mu": m * c})
+    assert "Q_{k,1}" in plain and abbreviated == plain
+
+
+def test_a_noether_quantity_names_the_stages_as_the_step_does():
+    """F_X of a Galerkin system printed its generic stages ζ₀, ζ₁; the step prints those of
+    the state's arrow (x_{k−1}, x_k) as (ζ_k)_1, (ζ_k)_2."""
+    system = sg.ContinuousSystem(
+        sg.EuclideanSpace("x y"),
+        lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2 - (q[0] ** 2 + q[1] ** 2) ** 2 / 4,
+        parameters=[h], name="plane").discretize(h, sg.GaussLegendre(2))
+    text = system.noether(lambda q: [-q[1], q[0]]).latex()
+    step_text = system.euler_lagrange().latex()
+    assert r"(\zeta_{k})_{1}" in text and r"(\zeta_{k})_{2}" in text
+    assert r"\zeta_{0}" not in text and r"(\zeta_{k})_{1}" in step_text
+    assert "x_{k-1}" in text and "x_{k+1}" not in text

@@ -17,6 +17,7 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from .._lambdify import NUMPY_MODULES
+from .._symbols import stage_symbols
 from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
 from ..ir import Graph, Program, from_sympy
 from ._programs import solve_stages
@@ -145,10 +146,15 @@ class NoetherQuantity:
 
     def latex(self) -> str:
         """F_X, its terms collected by multipliers, variables and parameters (checked to be
-        F_X), on one line."""
+        F_X), on one line.  With internal stages (docs/conventions.md §22) the arrow's
+        stages print as the step prints those of its known arrow, (ζ_k)_1, (ζ_k)_2, …: F_X is
+        taken at the stages solved for the arrow (the forced stages of a forced system)."""
         from ._momentum_rows import inline_latex
 
-        return inline_latex(self.expr, self.multipliers, self.parameters)
+        expr = self.expr
+        if self.stages:
+            expr = expr.xreplace(dict(zip(self.stages, stage_symbols(len(self.stages), 0))))
+        return inline_latex(expr, self.multipliers, self.parameters)
 
     #: a system with internal stages (docs/conventions.md §22): the generic stages ζ the
     #: quantity and the defect are written in, and the stage rows ∂L/∂ζ(g, ζ) whose root ζ*

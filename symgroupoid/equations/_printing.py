@@ -171,6 +171,11 @@ def group_stage_printed(step, width: float) -> PrintedRows | None:
     return None if form is None else form.rows(width, MemoLatexPrinter())
 
 
+#: why abbreviations do not occur in a step printed in the stage notation
+_STAGE_REASON = ("the stage notation names its own parts: abbreviations apply to the other "
+                 "printed forms")
+
+
 def printed_step(step, abbreviations: Mapping | None = None,
                  width: float | None = None) -> PrintedRows:
     """The rows of the step's equations in their chosen verified printed form
@@ -180,13 +185,13 @@ def printed_step(step, abbreviations: Mapping | None = None,
     checked = abbreviations_of(abbreviations, step)
     grouped = group_stage_printed(step, width)  # a Galerkin step on a group, checked there
     if grouped is not None:
-        _warn_unused(step, [a.tex for a in checked], "the stage notation names its own "
-                     "parts: abbreviations apply to the other printed forms")
+        _warn_unused(step, [a.tex for a in checked], _STAGE_REASON)
         return grouped
     _check_printable_staged(step)
     printed = chosen_printed(step, abbreviations)
     _warn_unused(step, unused_abbreviations(printed, checked),
-                 "not a part of them, or only of longer forms")
+                 _STAGE_REASON if printed.notation == "stage"
+                 else "not a part of them, or only of longer forms")
     return printed_rows(printed, width, MemoLatexPrinter())
 
 
@@ -239,9 +244,10 @@ def chosen_form(step, abbreviations: Mapping | None = None,
     printer = printer or MemoLatexPrinter()
     explicit = step.residuals
     staged = stage_form(step)  # a Galerkin step: the papers' stage notation, when it holds
-    if staged is not None and not abbreviations:
+    if staged is not None:  # (it names its own parts: abbreviations are for the others)
         printed = printed_form(staged, step, printer, explicit)
         if printed is not None:
+            printed.notation = "stage"
             return printed
     abbreviations = with_named_denominator(step, abbreviations)
     kept = [collected_form(form, step, printer)
