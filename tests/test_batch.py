@@ -285,6 +285,17 @@ def test_embedded_batch_program_reproduces_simulate_batch(tmp_path):
     assert np.array_equal(table[:, 1], batch.status) and np.array_equal(table[:, 3], batch.kept)
     assert np.abs(table[:, 4:] - batch.final_states).max() <= 1e-12 * max(
         1.0, np.abs(batch.final_states).max())
+    # counts that are not whole numbers in range are a usage error, and sizes past the
+    # address space an out-of-memory message: RUNS = 2^62 wrapped every buffer to
+    # malloc(0) and the start states overran them (heap corruption, abort)
+    for args in (["4611686018427387904", "1", "1"], ["10abc", "1", "1"], ["0", "1", "1"],
+                 ["2", "-1", "1"], ["2", "1", "0"], ["2", "99999999999999999999", "1"]):
+        run = subprocess.run([str(exe), *args], input=stdin, capture_output=True, text=True,
+                             timeout=60)
+        assert run.returncode == 2 and "usage" in run.stderr, (args, run.stderr)
+    run = subprocess.run([str(exe), "2000000000", "9000000000000000000", "1"], input=stdin,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 1 and "out of memory" in run.stderr, run.stderr
 
 
 # --- installments: long runs split across kernel calls; Ctrl-C ---------------------------------

@@ -114,3 +114,26 @@ def test_generate_program_c_refuses_bad_programs_and_names(run):
             assert f"void {source.prefix}_eval(" in source.source
 
     check()
+
+
+@pytest.mark.parametrize("header_name, error", [
+    ('a".h', sg.ShapeError), ('x.h"\n#error injected\n"', sg.ShapeError), ("..", sg.ShapeError),
+    ("dir/x.h", sg.ShapeError), (3, sg.InputTypeError), (["a.h"], sg.InputTypeError),
+])
+def test_generate_c_refuses_a_header_name_that_is_not_a_file_name(header_name, error):
+    """The source includes its header by this name: a quote or a newline in it wrote
+    ``#include "a".h"`` or a line of C of the caller's choosing, and a list was printed as
+    its repr."""
+    with pytest.raises(error, match="header_name"):
+        codegen.generate_c(STEP, header_name=header_name)
+    with pytest.raises(sg.ShapeError, match="latex"):
+        codegen.generate_c(STEP, latex="yes")
+    assert '#include "my_kernel.h"' in codegen.generate_c(STEP, header_name="my_kernel.h").source
+
+
+def test_emit_c_refuses_a_path_that_names_a_directory(tmp_path):
+    """``out/`` wrote out.c and out.h beside the directory out."""
+    (tmp_path / "out").mkdir()
+    with pytest.raises(sg.ShapeError, match="got the directory"):
+        STEP.emit_c(f"{tmp_path / 'out'}/")
+    assert not list(tmp_path.glob("out.*")) and not list((tmp_path / "out").iterdir())

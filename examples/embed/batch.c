@@ -14,10 +14,40 @@
  * Output: one line per run: "b status failed_step kept last_state..." (the last state each
  * run reached, %.17g).
  */
+#include <errno.h>
+#include <limits.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 
 #include "plate_ball.h"
+
+/* A whole decimal number in minimum..LONG_MAX; -1 when the text is not such a number
+ * (trailing characters, overflow, below the minimum). */
+static long parse_count(const char *text, long minimum)
+{
+    char *end;
+    long value;
+    errno = 0;
+    value = strtol(text, &end, 10);
+    if (errno != 0 || end == text || *end != '\0' || value < minimum) {
+        return -1;
+    }
+    return value;
+}
+
+/* a * b * c bytes of elements of size `size`, or 0 when that product overflows a size_t
+ * (the caller reports it as out of memory instead of allocating a wrapped, small size). */
+static size_t bytes_of(size_t size, size_t a, size_t b, size_t c)
+{
+    if (a != 0 && b > SIZE_MAX / a) {
+        return 0;
+    }
+    if (c != 0 && a * b > SIZE_MAX / c) {
+        return 0;
+    }
+    return a * b * c > SIZE_MAX / size ? 0 : size * a * b * c;
+}
 
 int main(int argc, char **argv)
 {
@@ -25,11 +55,14 @@ int main(int argc, char **argv)
     double *starts, *states, *norms;
     long long *iterations;
     long *kept, *failed, runs, steps, every, rows, b;
+    size_t per_run;
     int *status, i, code;
 
-    if (argc != 4 || (runs = atol(argv[1])) < 1 || (steps = atol(argv[2])) < 0
-        || (every = atol(argv[3])) < 1) {
-        fprintf(stderr, "usage: %s RUNS STEPS EVERY < input\n", argv[0]);
+    if (argc != 4 || (runs = parse_count(argv[1], 1)) < 1 || (steps = parse_count(argv[2], 0)) < 0
+        || (every = parse_count(argv[3], 1)) < 1 || runs > INT_MAX) {
+        fprintf(stderr, "usage: %s RUNS STEPS EVERY < input   (RUNS an integer in 1..%d, "
+                "STEPS in 0..%ld, EVERY in 1..%ld)\n", argv[0], INT_MAX, (long)LONG_MAX,
+                (long)LONG_MAX);
         return 2;
     }
     for (i = 0; i < PLATE_BALL_N_PARAMETERS; ++i) {
@@ -43,10 +76,27 @@ int main(int argc, char **argv)
         }
     }
     rows = 1 + steps / every + (steps % every != 0);
-    starts = malloc(sizeof(double) * (size_t)runs * PLATE_BALL_N_KNOWNS);
-    states = malloc(sizeof(double) * (size_t)runs * (size_t)rows * PLATE_BALL_N_KNOWNS);
-    iterations = malloc(sizeof(long long) * (size_t)runs * (size_t)(rows > 1 ? rows - 1 : 1));
-    norms = malloc(sizeof(double) * (size_t)runs * (size_t)(rows > 1 ? rows - 1 : 1));
+    per_run = (size_t)(rows > 1 ? rows - 1 : 1);
+    /* every size checked before it is allocated: a product that wraps around would allocate
+     * a small block that the calls below overrun */
+    {
+        const size_t sizes[] = {
+            bytes_of(sizeof(double), (size_t)runs, PLATE_BALL_N_KNOWNS, 1),
+            bytes_of(sizeof(double), (size_t)runs, (size_t)rows, PLATE_BALL_N_KNOWNS),
+            bytes_of(sizeof(long long), (size_t)runs, per_run, 1),
+            bytes_of(sizeof(double), (size_t)runs, per_run, 1)};
+        for (i = 0; i < 4; ++i) {
+            if (sizes[i] == 0) {
+                fprintf(stderr, "out of memory: %ld runs of %ld kept states do not fit in "
+                        "this machine's address space\n", runs, rows);
+                return 1;
+            }
+        }
+        starts = malloc(sizes[0]);
+        states = malloc(sizes[1]);
+        iterations = malloc(sizes[2]);
+        norms = malloc(sizes[3]);
+    }
     kept = malloc(sizeof(long) * (size_t)runs);
     failed = malloc(sizeof(long) * (size_t)runs);
     status = malloc(sizeof(int) * (size_t)runs);

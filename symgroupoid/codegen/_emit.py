@@ -25,6 +25,7 @@ from pathlib import Path
 import jinja2
 
 from .._arguments import (
+    flag_argument,
     instance_argument,
     integer_argument,
     name_argument,
@@ -359,7 +360,9 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
     if template_cache is not None:
         template_cache = str(path_argument(template_cache, "template_cache", owner=prefix))
     env = environment(template_cache)
-    header_name = header_name or f"{prefix}.h"
+    header_name = f"{prefix}.h" if header_name is None else _header_argument(header_name,
+                                                                             prefix)
+    latex = flag_argument(latex, "latex", owner=prefix)
     lowered = block_weight is not None and units > 1 and arithmetic_only(step.program)
     ctx = _context(step, prefix, header_name, latex, units, block_weight if lowered else 1.0,
                    bool(stepper_unit))
@@ -477,6 +480,20 @@ def write_atomic_files(files: Sequence[tuple[Path, str]]) -> None:
 _PORTABLE_NAME = re.compile(r"[A-Za-z0-9_.+-]+")
 
 
+def _header_argument(header_name, owner: str) -> str:
+    """The name the source includes its header by: a portable file name
+    (:data:`_PORTABLE_NAME`), so that ``#include "…"`` is that file and nothing else (a
+    quote or a newline in it would end the directive and start another line of C)."""
+    if not isinstance(header_name, str):
+        raise InputTypeError(f"{owner}: header_name must be a file name (a string such as "
+                             f"'{owner}.h'), got {type(header_name).__name__}")
+    if not _PORTABLE_NAME.fullmatch(header_name) or header_name in (".", ".."):
+        raise ShapeError(f"{owner}: header_name {header_name!r} must be a file name of ASCII "
+                         f"letters, digits, '.', '_', '+' and '-' (the source includes the "
+                         f"header by it)")
+    return header_name
+
+
 def emit_c(step, path: str | os.PathLike, prefix: str | None = None, *,
            latex: bool = False) -> tuple[Path, Path]:
     """Write ``path.c`` and ``path.h`` for ``step``; return their paths.
@@ -501,7 +518,7 @@ def emit_c(step, path: str | os.PathLike, prefix: str | None = None, *,
         prefix = name_argument(prefix, "prefix", owner=step.name, empty=True)
     if base.suffix in (".c", ".h"):
         base = base.with_suffix("")
-    if base.name in ("", ".", ".."):
+    if base.name in ("", ".", "..") or os.fspath(path).endswith(("/", os.sep)):
         raise ShapeError(f"{step.name}: path must name the files to write (path.c and "
                          f"path.h), got the directory {str(path)!r}")
     if not _PORTABLE_NAME.fullmatch(base.name):

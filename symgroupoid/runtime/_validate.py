@@ -243,7 +243,7 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
         real = real_argument(value, f"parameter {name}", owner=owner, error=ParameterError,
                              finite=False)
         if not np.isfinite(real):
-            raise ParameterError(f"{where}non-finite parameter {name} = {value!r}")
+            raise ParameterError(f"{where}non-finite parameter {name} = {real!r}")
         if isinstance(symbol, sp.Symbol):
             check_assumptions(symbol, real, owner=owner)
         values.append(real)
