@@ -442,7 +442,7 @@ def _hostile_trajectories(traj, other):
         ("states without inputs", _with_states(traj, S[:, :4]), "states"),
         ("states one entry short", _with_states(traj, S[:, :-1]), "states"),
         ("states one entry long", _with_states(traj, np.c_[S, S[:, :1]]), "states"),
-        ("a run of another system", other, "parameters?"),
+        ("a run of another system", other, "(parameters?|a run of)"),
     ]
 
 
