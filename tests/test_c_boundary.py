@@ -416,3 +416,12 @@ def test_the_closed_loop_runs_clean_under_address_and_undefined_sanitizers(
         assert run.returncode == code, run.stderr[-2000:]
         assert "Sanitizer" not in run.stderr and "runtime error" not in run.stderr
         assert len((tmp_path / "trajectory.txt").read_text().splitlines()) == steps + 1
+
+
+@pytest.mark.parametrize("flag", ["-D_OPENMP", "-D_OPENMP=201511", "-U_OPENMP"])
+def test_flags_that_set_openmps_macro_are_refused_at_once(flag):
+    """-D_OPENMP compiled the OpenMP branches without the runtime: the build's load then
+    failed as a CacheError, which blamed the cache."""
+    with pytest.raises(sg.ShapeError, match=r"flags: '-[DU]_OPENMP.*' sets OpenMP's own "
+                                            r"macro without its runtime"):
+        seed_step("rigid_body").compile(backend="c", flags=["-O2", flag])

@@ -283,3 +283,15 @@ def test_simulate_checks_a_state_once_and_keeps_every_check():
     bad[0] = np.nan
     with pytest.raises(sg.ParameterError, match="non-finite parameter h"):
         sim.simulate(whole.states[-1], 5, bad)
+
+
+def test_a_parameter_changed_to_a_bool_mid_loop_is_refused():
+    """A dict whose value became True between calls equalled its kept copy (True == 1), so
+    the loop's shortcut stepped with it where a fresh call refuses a bool."""
+    sim = _fresh("rigid_body")
+    state = sim.state({"W": [[1.0, 0, 0], [0, 0.8, -0.6], [0, 0.6, 0.8]]})
+    params = {"h": 0.01, "I1": 1, "I2": 2.0, "I3": 3.0}
+    state = sim.step(sim.step(state, params), params)
+    params["I1"] = True
+    with pytest.raises(sg.ParameterError, match="parameter I1 must be a real number, got bool"):
+        sim.step(state, params)

@@ -4,6 +4,7 @@ by :mod:`symgroupoid.runtime.toolchain`) or on the NumPy backend."""
 from __future__ import annotations
 
 import os
+import re
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -73,6 +74,10 @@ def load_c_kernel(step, flags: Sequence[str] | None = None,
     return kernel, entry
 
 
+#: a flag that defines or undefines _OPENMP, which the compiler sets with -fopenmp alone
+_OPENMP_MACRO = re.compile(r"-[DU]\s*_OPENMP(=.*)?", re.S)
+
+
 def compiler_flags(flags, owner: str = "") -> tuple[str, ...] | None:
     """``flags`` as a tuple of compiler arguments, or None (the step's
     :func:`default_flags`, chosen when it is built): a list of strings without NUL
@@ -87,6 +92,12 @@ def compiler_flags(flags, owner: str = "") -> tuple[str, ...] | None:
                              f"string {flags!r}; pass [{flags!r}]")
     items = sequence_argument(flags, "flags", owner=owner)
     flags = tuple(name_argument(f, f"flags[{i}]", owner=owner) for i, f in enumerate(items))
+    defined = next((f for f in flags if _OPENMP_MACRO.fullmatch(f)), None)
+    if defined is not None:
+        raise ShapeError(f"{owner}: flags: {defined!r} sets OpenMP's own macro without its "
+                         f"runtime, so the kernel could not be loaded; pass '-fopenmp' to "
+                         f"build with OpenMP (batches share their runs among threads), or "
+                         f"leave it out")
     missing = missing_instructions(flags)
     if missing:
         raise VectorISAError(f"{owner}: flags ask for {', '.join(missing)}, whose instructions "

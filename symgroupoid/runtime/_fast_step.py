@@ -304,20 +304,22 @@ def _fast_call(sim, fast: FastStep):
 def _fingerprint(params, p: np.ndarray):
     """What tells that ``params`` still holds the values it had when it gave ``p``: a
     vector's bytes (with its dtype and shape, checked beside them), a copy of a dict of Python
-    numbers with no zero (a zero's sign escapes an equality test), or None (never the
-    same)."""
+    numbers with no zero (a zero's sign escapes an equality test) with its values' types,
+    or None (never the same)."""
     if params is p:
         return p.tobytes()
     if type(params) is dict and 0 not in p:
-        return params.copy()
+        return params.copy(), tuple(map(type, params.values()))
     return None
 
 
-def _same_dict(params: dict, copy: dict) -> bool:
-    """Whether a dict still equals the copy :func:`_fingerprint` kept; a value whose
-    comparison does not give one truth value (an array put in by the caller) counts as a
-    change (the table's path then reports it)."""
+def _same_dict(params: dict, kept: tuple) -> bool:
+    """Whether a dict still equals the copy :func:`_fingerprint` kept, value for value and
+    type for type (``True == 1``, but a bool is no parameter value: the checked path refuses
+    it); a value whose comparison does not give one truth value (an array put in by the
+    caller) counts as a change (the table's path then reports it)."""
+    copy, types = kept
     try:
-        return params == copy
+        return params == copy and tuple(map(type, params.values())) == types
     except (TypeError, ValueError):
         return False
