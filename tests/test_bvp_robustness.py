@@ -282,3 +282,22 @@ def test_verify_stationary_input_errors(so3_control):
         sg.verify_stationary(arrows[:, :4], so3_control, [0.1])
     with pytest.raises(sg.ShapeError, match=r"multipliers must have shape \(6, 0\)"):
         sg.verify_stationary(arrows, so3_control, [0.1], multipliers=np.zeros((5, 1)))
+
+
+def test_ends_near_the_largest_double_are_refused_without_warnings():
+    """Ends ±1e308: the straight initial path overflowed with NumPy RuntimeWarnings printed
+    before the named refusal (on the command line, above its one error line)."""
+    import warnings
+
+    h = sp.Symbol("h", positive=True)
+
+    def L(a):
+        (q0,), (q1,) = a.source, a.target
+        return (q1 - q0) ** 2 / (2 * h) + h * (sp.cos(q0) + sp.cos(q1)) / 2
+
+    pendulum = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("theta")), L,
+                                 parameters=[h], time_step=h, name="pendulum")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        with pytest.raises(sg.SymgroupoidError, match="non-finite"):
+            sg.solve_boundary_value(pendulum, 1e308, -1e308, 5, params=[0.05])

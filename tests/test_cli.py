@@ -565,3 +565,22 @@ def test_derive_document_replaces_links_and_never_blocks_on_a_fifo(files, tmp_pa
     (tmp_path / "dir.tex").mkdir()
     code, _, err = run(capsys, "derive", files / "ring.py", "--document", tmp_path / "dir.tex")
     assert code == 1 and "it is a directory" in one_line_error(err)
+
+
+def test_an_output_path_that_names_a_directory_is_refused_before_the_run(capsys, cached,
+                                                                         files, tmp_path):
+    """``-o out.npz/`` wrote the file out.npz (the separator dropped), and ``-o U.npy/x.npz``
+    with U.npy a file said that the directory did not exist; ``Trajectory.save`` alike."""
+    ring = files / "ring.py"
+    code, _, err = run(capsys, "simulate", ring, "--steps", 3, "-o", f"{tmp_path / 'x.npz'}/")
+    assert code == 1 and "names a directory" in one_line_error(err)
+    assert not (tmp_path / "x.npz").exists()
+    (tmp_path / "U.npy").write_bytes(b"")
+    code, _, err = run(capsys, "simulate", ring, "--steps", 3, "-o", tmp_path / "U.npy" / "x.npz")
+    assert code == 1 and "U.npy' is not a directory" in one_line_error(err)
+    sim = load_system(str(ring)).system.euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate(RING_INITIAL, 2, RING_PARAMS)
+    with pytest.raises(sg.OutputError, match="it names a directory"):
+        traj.save(f"{tmp_path / 'y.npz'}/")
+    with pytest.raises(sg.OutputError, match="is not a directory"):
+        traj.save(tmp_path / "U.npy" / "y.npz")

@@ -11,6 +11,7 @@ numbers written with 17 significant digits (they read back exactly).
 from __future__ import annotations
 
 import csv
+import os
 from pathlib import Path
 
 import numpy as np
@@ -29,6 +30,9 @@ def check_format(path: str | None, option: str = "-o") -> Path | None:
     if path is None:
         return None
     out = Path(path)
+    if path.endswith(("/", os.sep)):
+        raise InputError(f"{option} {path}: names a directory (it ends in a separator); name "
+                         f"the file to write")
     if out.suffix not in TRAJECTORY_FORMATS:
         raise InputError(f"{option} {path}: the file name must end in .npz or .csv")
     problem = output_problem(out)

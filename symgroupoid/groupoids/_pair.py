@@ -294,7 +294,9 @@ class PairGroupoid(Groupoid):
         if not isinstance(self.space, EuclideanSpace):
             return self.chart_path(total, s)
         q0, q1 = total[:self.base_dim], total[self.base_dim:]
-        return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
+        with np.errstate(over="ignore", invalid="ignore"):  # ends near ±1e308: the caller
+            # refuses the non-finite path by name
+            return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
 
     def pair_coordinates(self):
         """ℝⁿ: coordinate i at positions i (source) and n + i (target)."""

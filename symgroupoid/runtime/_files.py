@@ -124,6 +124,8 @@ def output_problem(out: Path) -> str | None:
     it is a directory, its name is too long for the file system), or None."""
     try:
         if not out.parent.is_dir():
+            if out.parent.exists():
+                return f"{str(out.parent)!r} is not a directory"
             return f"the directory {str(out.parent)!r} does not exist"
         return "it is a directory" if out.is_dir() else None
     except OSError as exc:  # (a name longer than the file system's, …)
@@ -134,6 +136,9 @@ def output_path(path, owner: str) -> Path:
     """``path`` checked before anything is written: a path ending in .npz or .csv whose
     directory exists."""
     out = path_argument(path, "path", owner=owner)
+    if os.fspath(path).endswith(("/", os.sep)):
+        raise OutputError(f"{owner}: the trajectory cannot be written to {os.fspath(path)!r}: "
+                          f"it names a directory (it ends in a separator); name the file")
     if out.suffix not in TRAJECTORY_FORMATS:
         raise DomainError(f"{owner}: path {str(out)!r} must end in .npz or .csv")
     problem = output_problem(out)
