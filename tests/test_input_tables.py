@@ -122,3 +122,29 @@ def test_a_labelled_row_is_read_by_name_in_every_one_step_entry():
                           sim.solve(STATE, PARAMS, inputs=U[0])[0])
     with pytest.raises(sg.InputNameError, match="the row's labels u2, x must be the inputs"):
         sim.step(sim.state(STATE), PARAMS, inputs=pd.Series([0.0, 0.0], index=["u2", "x"]))
+
+
+def test_inputs_held_constant_hold_no_table_of_the_run():
+    """Inputs given as one row were copied out to a table of the run's length (and a
+    finiteness mask of it) before the first step: a long sampled run held gigabytes, and
+    10¹² steps ended in an internal MemoryError where the unforced run needs constant
+    memory.  The row is now checked once and read a chunk at a time; the run is bitwise
+    that of the full table."""
+    import tracemalloc
+
+    from kernel_support import HAVE_CC
+
+    if not HAVE_CC:
+        pytest.skip("no C compiler (cc) on PATH")
+    sim = systems.planar_chain(2, forced=True).euler_lagrange().compile(backend="c")
+    steps = 10**6
+    tracemalloc.start()
+    try:
+        held = sim.simulate(STATE, steps, PARAMS, inputs=[0.1, -0.05], every=steps)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    table = sim.simulate(STATE, steps, PARAMS, inputs=np.tile([0.1, -0.05], (steps, 1)),
+                         every=steps)
+    assert np.array_equal(held.states, table.states)
+    assert peak < 8e6, peak  # the table alone is 16 MB

@@ -25,11 +25,13 @@ _FLOAT64 = np.dtype(np.float64)
 _STEP = (8,)  # the strides of a C-contiguous float64 vector
 
 
-def input_sequence(layout, inputs, steps: int, *, owner: str, one_step: bool = False
-                   ) -> np.ndarray:
+def input_sequence(layout, inputs, steps: int, *, owner: str, one_step: bool = False,
+                   held: bool = False) -> np.ndarray:
     """The inputs of a run as an array (steps, m): ``inputs`` of shape (steps, m), (m,)
     for inputs held constant, or (steps,) when m = 1; finite real numbers.  A system
-    without inputs takes none."""
+    without inputs takes none.  ``held``: inputs held constant come back as a read-only
+    view of their one row (stride 0), checked once, for callers that read the table a
+    chunk at a time (a long sampled run then holds no table of its length)."""
     m = layout.n_inputs
     if m == 0:
         if inputs is not None:
@@ -49,13 +51,17 @@ def input_sequence(layout, inputs, steps: int, *, owner: str, one_step: bool = F
         raise ShapeError(f"{owner}: inputs need shape ({steps}, {m}) (one row of the inputs "
                          f"{names} per step) or ({m},) for inputs held constant; got shape "
                          f"{np.shape(inputs)}{more}")
-    bad = np.argwhere(~np.isfinite(arr))
+    one_row = steps > 0 and arr.strides[0] == 0  # held constant: every row is the first
+    checked = arr[:1] if one_row else arr
+    bad = np.argwhere(~np.isfinite(checked))
     if len(bad):
         j, i = (int(v) for v in bad[0])
         raise DomainError(f"{owner}: input {layout.input_names[i]} of step {j} is "
                           f"{arr[j, i]}; inputs must be finite")
-    check_input_values(layout.input_symbols, arr, owner,
+    check_input_values(layout.input_symbols, checked, owner,
                        lambda j, i: "for the step" if one_step else f"at step {j}")
+    if held and one_row:
+        return np.broadcast_to(np.array(arr[0], dtype=float), arr.shape)
     return np.ascontiguousarray(arr, dtype=float)
 
 

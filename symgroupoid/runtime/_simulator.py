@@ -205,7 +205,7 @@ class Simulator(InitialStates):
         callback = callable_argument(callback, "callback", owner=self.name, none=True)
         p = self._run_parameters(params)
         known0 = self._initial_state(initial, p)
-        U = input_sequence(self.layout, inputs, steps, owner=self.name)
+        U = input_sequence(self.layout, inputs, steps, owner=self.name, held=True)
         rows = kept_rows(steps, every)
         self._check_memory(steps, every, rows)
         U = U if self.layout.n_inputs else None  # (a system without inputs: none)
@@ -290,7 +290,7 @@ class Simulator(InitialStates):
         options = NewtonOptions.of(options, self.options, owner=self.name)
         p = self.parameters(params)
         known0 = self.state(initial, p)
-        U = input_sequence(self.layout, inputs, steps, owner=self.name)
+        U = input_sequence(self.layout, inputs, steps, owner=self.name, held=True)
         if steps == 0:  # one piece, state 0 alone: what simulate(initial, 0, ...) returns
             return iter([self._trajectory(known0[None], np.zeros(0, dtype=np.int64),
                                           np.zeros(0), p, np.zeros(1, dtype=np.int64),
