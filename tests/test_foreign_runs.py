@@ -109,3 +109,7 @@ def test_a_file_without_the_system_name_is_matched_by_its_columns(tmp_path):
     np.savez(old, **arrays)
     back = sg.Trajectory.load(old, lobatto.euler_lagrange().compile(backend="numpy"))
     assert np.array_equal(back.states, run.states)
+    # an earlier file of a system whose state part is named "system" held that part there
+    np.savez(old, **arrays, system=np.zeros(len(run.states)))
+    back = sg.Trajectory.load(old, lobatto.euler_lagrange().compile(backend="numpy"))
+    assert np.array_equal(back.states, run.states)

@@ -190,7 +190,7 @@ def printed_step(step, abbreviations: Mapping | None = None,
     _check_printable_staged(step)
     printed = chosen_printed(step, abbreviations)
     _warn_unused(step, unused_abbreviations(printed, checked),
-                 _STAGE_REASON if printed.notation == "stage"
+                 _STAGE_REASON if printed.stage_notation
                  else "not a part of them, or only of longer forms")
     return printed_rows(printed, width, MemoLatexPrinter())
 
@@ -247,7 +247,7 @@ def chosen_form(step, abbreviations: Mapping | None = None,
     if staged is not None:  # (it names its own parts: abbreviations are for the others)
         printed = printed_form(staged, step, printer, explicit)
         if printed is not None:
-            printed.notation = "stage"
+            printed.stage_notation = True
             return printed
     abbreviations = with_named_denominator(step, abbreviations)
     kept = [collected_form(form, step, printer)

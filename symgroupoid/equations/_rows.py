@@ -41,7 +41,7 @@ class Printed:
     generic: dict = field(default_factory=dict)  # "where" names at j → the same at k (Form)
     keeps: bool = False  # a matrix by name (tr(g_k E_1 E_2)): the papers' notation
     form: Form | None = None  # what the terms were collected from
-    notation: str = ""  # "stage": the papers' stage notation, which names its own parts
+    stage_notation: bool = False  # the papers' stage notation, which names its own parts
 
 
 def multipliers_of(step) -> list:

@@ -338,12 +338,10 @@ def _read_npz(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
         raise TrajectoryFileError(f"{label}: backend must be a string, got an array of dtype "
                                   f"{backend.dtype} and shape {backend.shape}")
     backend = str(backend)
-    if system is not None:
-        if system.dtype.kind != "U" or system.shape != ():
-            raise TrajectoryFileError(f"{label}: system must be a string (the name of the "
-                                      f"system that wrote it), got an array of dtype "
-                                      f"{system.dtype} and shape {system.shape}")
-        system = str(system)
+    # the writing system's name: a string; another array under that key is a state part
+    # named "system" of a file from before the name was recorded (matched by its columns)
+    system = str(system) if system is not None and system.dtype.kind == "U" \
+        and system.shape == () else None
     data = TrajectoryData(
         _numbers(arrays["states"], "states", label),
         _integers(arrays["step_indices"], "step_indices", label),
