@@ -177,6 +177,40 @@ def test_derive_document_and_pdf(files, tmp_path, capsys, monkeypatch):
     assert code == 1 and "must end in .tex" in one_line_error(err)
 
 
+def test_derive_pdf_alone_writes_only_the_pdf(files, tmp_path, capsys, monkeypatch):
+    """``derive --pdf`` without ``--document`` typesets in a private directory: a NAME.tex of
+    the user's in the working directory is left as it was (it was overwritten), and no
+    .aux or .log file appears beside the PDF; a failure writes nothing."""
+    tools = tmp_path / "tools"
+    tools.mkdir()
+    fake = tools / "pdflatex"  # writes NAME.pdf and an empty NAME.log in its directory
+    fake.write_text('#!/bin/sh\nfor last; do :; done\nprintf %%PDF > "${last%.tex}.pdf"\n'
+                    ': > "${last%.tex}.log"\n: > "${last%.tex}.aux"\n')
+    fake.chmod(0o755)
+    work = tmp_path / "work"
+    work.mkdir()
+    mine = work / "ring.tex"
+    mine.write_text("my own notes\n")
+    monkeypatch.chdir(work)
+    monkeypatch.setenv("PATH", str(tools))
+    code, out, _ = run(capsys, "derive", files / "ring.py", "--pdf")
+    assert code == 0 and "wrote ring.pdf" in out
+    assert sorted(p.name for p in work.iterdir()) == ["ring.pdf", "ring.tex"]
+    assert mine.read_text() == "my own notes\n" and (work / "ring.pdf").read_bytes() == b"%PDF"
+
+    (work / "ring.pdf").unlink()
+    fake.write_text("#!/bin/sh\necho '! Undefined control sequence.'\nexit 1\n")
+    code, _, err = run(capsys, "derive", files / "ring.py", "--pdf")
+    message = one_line_error(err)
+    assert code == 1 and "Undefined control sequence" in message and "--document" in message
+    assert sorted(p.name for p in work.iterdir()) == ["ring.tex"]
+
+    monkeypatch.setenv("PATH", str(tmp_path / "no-tools"))
+    code, _, err = run(capsys, "derive", files / "ring.py", "--pdf")
+    assert code == 1 and "--pdf needs pdflatex on PATH" in one_line_error(err)
+    assert sorted(p.name for p in work.iterdir()) == ["ring.tex"]
+
+
 def test_emit_writes_source_and_header(files, tmp_path, capsys):
     code, out, _ = run(capsys, "emit", files / "ring.py", "-o", tmp_path / "c")
     assert code == 0

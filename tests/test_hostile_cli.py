@@ -477,3 +477,23 @@ def test_an_npy_whose_header_claims_more_than_the_file_is_refused(capsys):
     assert main(["simulate", "driven_spring.py", "--steps", "2", "--inputs", "U.npy"]) == 1
     err = capsys.readouterr().err
     assert "claims 8,000,000,000,000,000 bytes" in err and "internal error" not in err, err
+
+
+def test_errors_about_the_initial_state_and_the_inputs_name_their_option(capsys):
+    """The library's refusals of a state or an input read from a file named only the
+    system ("driven_spring: unknown state part 'x'", "input u of step 0 is nan"): on the
+    command line they name the option first; a parameter's error is not blamed on it."""
+    shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
+    np.save("U.npy", np.array([[0.1], [np.nan], [0.2]]))
+    run = ["simulate", "driven_spring.py", "--steps", "3", "--backend", "numpy"]
+    assert main([*run, "--inputs", "U.npy"]) == 1
+    err = capsys.readouterr().err
+    assert "--inputs U.npy: input u of step 1 is nan" in err, err
+    np.save("U.npy", np.array([[0.1]]))
+    assert main([*run, "--inputs", "U.npy", "--initial", '{"x": [1]}']) == 1
+    err = capsys.readouterr().err
+    assert "--initial: driven_spring: unknown state part 'x'" in err, err
+    assert main([*run, "--inputs", "U.npy", "--initial", '{"q": [0, 0.1], "u": [0]}',
+                 "--params", "h=-1"]) == 1
+    err = capsys.readouterr().err
+    assert "parameter h is declared positive" in err and "--initial" not in err, err

@@ -6,6 +6,7 @@ import argparse
 import re
 import shutil
 import subprocess
+import tempfile
 import time
 import warnings
 from dataclasses import dataclass
@@ -86,12 +87,15 @@ def _latex(derived: Derived, document: bool) -> PrintedLatex:
     return PrintedLatex(text, time.perf_counter() - t0, unused)
 
 
-def _pdflatex(tex: Path) -> Path:
-    """Run pdflatex on ``tex`` (in its directory); the PDF's path."""
+def _pdflatex(tex: Path, kept: bool = True) -> Path:
+    """Run pdflatex on ``tex`` (in its directory); the PDF's path.  ``kept``: the document
+    and its log stay where they are (else the messages name neither, and tell how to keep
+    them)."""
     program = shutil.which("pdflatex")
     if program is None:
+        where = f"the document is in {tex}" if kept else "use --document OUT.tex to keep it"
         raise ExternalToolError(f"--pdf needs pdflatex on PATH (install a TeX distribution, "
-                                f"e.g. TeX Live); the document is in {tex}")
+                                f"e.g. TeX Live); {where}")
     cmd = [program, "-interaction=nonstopmode", "-halt-on-error", tex.name]
     try:
         with Task(f"pdflatex {tex.name}"):
@@ -105,9 +109,11 @@ def _pdflatex(tex: Path) -> Path:
     if result.returncode != 0 or not pdf.is_file():
         errors = [line for line in result.stdout.splitlines() if line.startswith("!")]
         reason = errors[0] if errors else f"exit status {result.returncode}"
-        raise ExternalToolError(f"pdflatex failed on {tex} ({reason}); see "
-                                f"{tex.with_suffix('.log')}")
-    check_log(tex)
+        see = (f"see {tex.with_suffix('.log')}" if kept else
+               "run with --document OUT.tex to keep the document and its log")
+        raise ExternalToolError(f"pdflatex failed on {tex if kept else tex.name} ({reason}); "
+                                f"{see}")
+    check_log(tex, kept)
     return pdf
 
 
@@ -131,8 +137,9 @@ def lost_content(log: str, tolerance: float = OVERFULL_TOLERANCE) -> list[str]:
     return out
 
 
-def check_log(tex: Path) -> None:
-    """Raise :class:`LostContentError` when the log of ``tex``'s run reports lost content."""
+def check_log(tex: Path, kept: bool = True) -> None:
+    """Raise :class:`LostContentError` when the log of ``tex``'s run reports lost content
+    (``kept``: as :func:`_pdflatex`)."""
     log_path = tex.with_suffix(".log")
     try:
         log = log_path.read_text(encoding="utf-8", errors="replace")
@@ -142,9 +149,10 @@ def check_log(tex: Path) -> None:
     if lost:
         more = f" and {len(lost) - 3} more" if len(lost) > 3 else ""
         raise LostContentError(
-            f"pdflatex could not fit all of {tex} on its pages: {'; '.join(lost[:3])}{more} "
-            f"(see {log_path}); the PDF is incomplete: name the long parts with "
-            f"ABBREVIATIONS in the system file (docs/cli.md)")
+            f"pdflatex could not fit all of {tex if kept else tex.name} on its pages: "
+            f"{'; '.join(lost[:3])}{more} "
+            f"({f'see {log_path}' if kept else 'no PDF written'}); the PDF is incomplete: "
+            f"name the long parts with ABBREVIATIONS in the system file (docs/cli.md)")
 
 
 def run_derive(args: argparse.Namespace) -> int:
@@ -157,7 +165,9 @@ def run_derive(args: argparse.Namespace) -> int:
             say(f"% {line}")
         say(printed.text)
         return 0
-    tex = Path(args.document) if args.document else Path(f"{file_stem(derived.step.name)}.tex")
+    if not args.document:
+        return _pdf_only(derived, lines, Path(f"{file_stem(derived.step.name)}.pdf"))
+    tex = Path(args.document)
     if tex.suffix != ".tex":
         raise InputError(f"--document {tex}: the file name must end in .tex")
     problem = output_problem(tex)  # (its directory missing, a directory in its place)
@@ -172,6 +182,27 @@ def run_derive(args: argparse.Namespace) -> int:
     say(f"wrote {tex}")
     if args.pdf:
         say(f"wrote {_pdflatex(tex)}")
+    return 0
+
+
+def _pdf_only(derived: Derived, lines: list[str], pdf: Path) -> int:
+    """``derive --pdf`` without ``--document``: the document is typeset in a private
+    directory and only ``pdf`` (NAME.pdf in the working directory) is written, through a
+    temporary file and a rename; no .tex, .aux or .log file beside it is touched.  A failure
+    names the problem and keeps nothing (``--document OUT.tex --pdf`` keeps the document and
+    pdflatex's log)."""
+    problem = output_problem(pdf)
+    if problem is not None:
+        raise InputError(f"--pdf {pdf}: {problem}")
+    printed = _latex(derived, document=True)
+    for line in [*lines, *printed.lines()]:
+        say(line)
+    with tempfile.TemporaryDirectory(prefix="symgroupoid-pdf-") as private:
+        tex = Path(private) / f"{pdf.stem}.tex"
+        tex.write_text(printed.text, encoding="utf-8")
+        made = _pdflatex(tex, kept=False).read_bytes()
+    atomic_write(pdf, lambda f: f.write(made), binary=True)
+    say(f"wrote {pdf}")
     return 0
 
 

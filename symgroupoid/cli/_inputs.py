@@ -8,6 +8,7 @@ the same message on the command line as in Python.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from .._arguments import integer_argument
-from .._errors import DomainError
+from .._errors import DomainError, SymgroupoidError
 from ._errors import InputError
 from ._system_file import SystemFile
 
@@ -238,6 +239,27 @@ def initial_state(sim, data, params, *, origin: str = "--initial", project: bool
     if data is None:
         raise InputError(f"{sim.name}: no initial state: give --initial FILE.json, or "
                          f"define INITIAL in the system file")
+    sim.parameters(params)  # (their errors are the parameters', not the state's)
+    with named_by(origin):
+        return _initial_state(sim, data, params, origin, project)
+
+
+@contextlib.contextmanager
+def named_by(origin: str):
+    """The library's errors about a value the command line read from ``origin``
+    (``--initial``, ``--inputs U.csv``) name it first: ``--initial: spring: unknown state
+    part 'x'; …`` where the library's message begins with the system's name.  The error is
+    the same object, of the same class, with that message."""
+    try:
+        yield
+    except SymgroupoidError as err:
+        if err.args and isinstance(err.args[0], str) and not err.args[0].startswith(origin):
+            err.args = (f"{origin}: {err.args[0]}", *err.args[1:])
+        raise
+
+
+def _initial_state(sim, data, params, origin: str, project: bool) -> np.ndarray:
+    """:func:`initial_state` once the parameters are checked."""
     if isinstance(data, Mapping) and "velocity" in data:
         configuration, velocity = velocity_data(data, origin)
         return sim.from_velocity(configuration, velocity, params,
@@ -383,6 +405,7 @@ def input_table(path: str | None, names: list[str], owner: str, rows: int, per: 
         return None
     if inputs.ndim == 1 and len(names) == 1 and inputs.shape[0] > 1:
         inputs = inputs[:, None]  # one input: a sequence of its values is a column
+    _finite_inputs(inputs, path, names, per)
     if inputs.ndim == 2 and inputs.shape[1] != len(names):
         raise InputError(f"--inputs {path}: {inputs.shape[1]} column"
                          f"{'s' if inputs.shape[1] != 1 else ''} for the "
@@ -398,6 +421,21 @@ def input_table(path: str | None, names: list[str], owner: str, rows: int, per: 
                          f"give at least {rows} rows ({meaning}; the first {rows} of a "
                          f"longer table are used), or a single row held for every {per}")
     return inputs
+
+
+def _finite_inputs(inputs: np.ndarray, path: str, names: list[str], per: str) -> None:
+    """A non-finite value of ``--inputs`` named by its file, input and row (the library
+    refuses it too, naming only the system)."""
+    if inputs.dtype.kind not in "fiu" or inputs.ndim not in (1, 2) or not names:
+        return  # (the library's checks name the rest)
+    table = inputs[None, :] if inputs.ndim == 1 else inputs
+    if table.shape[1] != len(names):
+        return
+    bad = np.argwhere(~np.isfinite(table))
+    if len(bad):
+        row, column = (int(v) for v in bad[0])
+        raise DomainError(f"--inputs {path}: input {names[column]} of {per} {row} is "
+                          f"{table[row, column]}; inputs must be finite")
 
 
 #: a decimal number as a CSV cell holds it (Python's float() also reads 1_0 as 10)

@@ -116,7 +116,8 @@ def build_parser() -> argparse.ArgumentParser:
     derive.add_argument("--document", metavar="OUT.tex", type=path_text,
                         help="write a standalone LaTeX document instead of printing")
     derive.add_argument("--pdf", action="store_true",
-                        help="also run pdflatex on the document (default OUT.tex: NAME.tex)")
+                        help="also run pdflatex on the document; without --document only NAME.pdf "
+                             "is written (the document is typeset in a private directory)")
 
     emit = _command(commands, "emit", run_emit, "write the C99 kernel (NAME.c, NAME.h)")
     _system_options(emit)
