@@ -6,6 +6,8 @@ rows per factor, with the curve, the chart Lagrangian's derivatives and the sums
 printed at 50 digits, equals the step's residual at random points of the group.  The
 documents typeset whole with pdflatex (tests/test_latex_pdf.py's helpers)."""
 
+import shutil
+
 import mpmath
 import pytest
 import sympy as sp
@@ -209,3 +211,78 @@ def test_the_document_of_a_driven_top_fits_its_page(tmp_path, scheme, width):
     log, text = typeset(document, tmp_path)
     assert equation_numbers(text) == [1, 2, 3]
     assert lost_content(log, tolerance=1.0) == []
+
+
+# --- the midpoint and trapezoid rules on a group, too large written out ---------------------
+
+I_body = sp.symbols("I1:4", positive=True)
+m_body = sp.Symbol("m", positive=True)
+
+
+def _free_body(rule: str):
+    """A free rigid body on SE(3) (body velocity (ω, v)) by ``rule``: its residuals written
+    out have about 10⁶ operations (the Cayley map of SE(3) in every entry)."""
+    def L(T, xi):
+        return (sum(inertia * w ** 2 for inertia, w in zip(I_body, xi[:3]))
+                + m_body * sum(v ** 2 for v in xi[3:])) / 2
+
+    system = sg.ContinuousSystem(sg.SE3("T"), L, parameters=[h, *I_body, m_body],
+                                 name=f"free_{rule}")
+    return system.discretize(h, rule).euler_lagrange()
+
+
+def test_the_midpoint_rule_on_se3_prints_in_the_group_notation(tmp_path):
+    """The free body on SE(3) by the midpoint rule was refused (1.05·10⁶ operations written
+    out, over PRINT_LIMIT).  It prints as the rule's group form: L read at X = Δ/2 and the
+    velocity V = Δ/h itself (no dτ on it), so A = dτ_X^T N and P = M + hA/2 — checked
+    against the residual at points of the group — and its document typesets whole."""
+    from symgroupoid.equations import PRINT_LIMIT
+
+    step = _free_body("midpoint")
+    assert step.program.expanded_size(["F"]) > PRINT_LIMIT
+    text = step.latex()
+    assert text.count("0 &=") == 1
+    for row in (r"\Delta_{j} &= \tau^{-1}(T_{j-1}^{-1} T_{j})", r"V_{j,1} = \frac{\Delta_{j}}{h}",
+                r"X_{j,1} = \frac{h V_{j,1}}{2}", r"T_{j,1} = T_{j-1} \tau(X_{j,1})",
+                r"A_{j,1} &= \mathrm{d}\tau_{X_{j,1}}^{T} N_{j,1}",
+                r"P_{j} &= M_{j,1} + \frac{h A_{j,1}}{2}",
+                r"$N$ and $M$ at ($T_{j,i}, V_{j,i}$)"):
+        assert row in text, row
+    assert r"\Xi_{j,1}" not in text and "B_{j,1}" not in text
+    if shutil.which("pdflatex") and shutil.which("pdftotext"):
+        log, pdf_text = typeset(step.latex(document=True), tmp_path)
+        assert equation_numbers(pdf_text) == [1] and lost_content(log, tolerance=1.0) == []
+
+
+def test_the_trapezoid_rule_on_se3_prints_in_the_group_notation():
+    """The trapezoid rule's form: L at both ends (X = 0 and X = Δ, weights 1/2)."""
+    text = _free_body("trapezoid").latex()
+    for row in (r"X_{j,1} = 0", r"X_{j,2} = h \left(\frac{V_{j,1}}{2} + \frac{V_{j,2}}{2}\right)",
+                r"P_{j} &= \frac{M_{j,1}}{2} + \frac{M_{j,2}}{2} + \frac{h A_{j,2}}{2}"):
+        assert row in text, row
+
+
+def test_a_rule_form_that_does_not_hold_is_not_offered(monkeypatch):
+    """With dτ_Δ^{−T} taken as the identity (a hand derivation's slip) the rows differ from
+    the residual: the form is not offered and the step is refused as before."""
+    real = group_forms._group_maps
+
+    def slipped(F):
+        real(F)
+        if F.is_group:
+            F.maps["dtau_inv_t"] = lambda x: mpmath.eye(len(x))
+
+    monkeypatch.setattr(group_forms, "_group_maps", slipped)
+    step = _free_body("midpoint")
+    assert group_forms.group_rule_form(step) is None
+    with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
+        step.latex()
+
+
+def test_the_heavy_top_by_the_midpoint_rule_prints_in_the_group_notation():
+    """The top by the midpoint rule was refused as well (1.58·10⁶ operations written out);
+    its rule form writes N from L, with the potential's gradient at the node attitude."""
+    step = _top("midpoint")
+    text = step.latex()
+    assert text.count("0 &=") == 1 and r"R_{j,1} = R_{j-1} \tau(X_{j,1})" in text
+    assert r"N &= \left[\begin{matrix}R_{32} mgl\\- R_{31} mgl\\0\end{matrix}\right]" in text

@@ -136,8 +136,8 @@ class _Notation:
 class _Builder:
     """Builds :class:`_Notation` for one continuous system and tableau."""
 
-    def __init__(self, continuous, tableau, h):
-        self.c, self.t, self.h = continuous, tableau, h
+    def __init__(self, continuous, tableau, h, rule: bool = False):
+        self.c, self.t, self.h, self.rule = continuous, tableau, h, rule
         self.factors = _factors(continuous)
         self.M = len(tableau.control) - 1
         self.a = stage_coefficients(tableau.nodes)
@@ -217,7 +217,8 @@ class _Builder:
         for i, (x, v) in enumerate(zip(X, V), start=1):
             if F.is_group:
                 defs.append((F.config(j, i), F.config(jp) * self.tau(fi, x)))
-                defs.append((F.sym(r"\Xi", j, i), self.dtau(fi, x) * v))
+                if not self.rule:  # (a rule reads L at the chart velocity itself: Ξ = V)
+                    defs.append((F.sym(r"\Xi", j, i), self.dtau(fi, x) * v))
             else:
                 defs.append((F.config(j, i), F.config(jp) + x))
         return X, V
@@ -235,7 +236,12 @@ class _Builder:
                 self.out.node_values[Fi] = ("F", fi, j, i)
                 Ni = Ni + Fi
             N.append(Ni)
-            if F.is_group:
+            if F.is_group and self.rule:  # L̃(x, v) = L(R τ(x), v): no dτ on the velocity
+                A.append(F.sym("A", j, i))
+                B.append(Mi)
+                self.out.kinds[A[-1]] = "chart"
+                defs.append((A[-1], self.dtau_t(fi, x) * Ni))
+            elif F.is_group:
                 A.append(F.sym("A", j, i))
                 B.append(F.sym("B", j, i))
                 self.out.kinds[A[-1]] = self.out.kinds[B[-1]] = "chart"
@@ -393,7 +399,7 @@ class _Evaluator:
             q = self.value(F.config(j, i))
             if F.is_group:
                 flat += [q[r, c] for r, c in F.f.space.free_entries]
-                flat += _flat(self.value(F.sym(r"\Xi", j, i)))
+                flat += _flat(self.value(F.sym("V" if self.b.rule else r"\Xi", j, i)))
             else:
                 flat += _flat(q)
                 flat += _flat(self.value(F.sym("V", j, i)))
@@ -530,18 +536,46 @@ class GroupStageForm:
 def group_stage_form(step) -> GroupStageForm | None:
     """The step in the group stage notation (see the module docstring), checked at points of
     the group, or None when it does not apply or does not hold."""
-    from ..groupoids import pair_groupoid_of
-
     origin = galerkin_origin(step)
     if origin is None:
         return None
+    return _checked_form(step, origin, origin.scheme.tableau(), rule=False)
+
+
+#: the Galerkin tableau whose nodes and weights a rule on a group factor reads L at
+_RULE_TABLEAUX = {"midpoint": ("GaussLegendre", 1), "trapezoid": ("LobattoIIIAB", 2)}
+
+
+def group_rule_form(step) -> GroupStageForm | None:
+    """The midpoint or trapezoid rule on Lie-group factors (docs/conventions.md §21) in the
+    group stage notation, checked at points of the group as :func:`group_stage_form`, or
+    None.  The rule reads L at the chart velocity itself, L̃(x, v) = L(R τ(x), v) (no
+    dτ_X on the velocity: Ξ = V = Δ/h), at the nodes of the one-stage Gauss–Legendre
+    (midpoint, X = Δ/2) or two-stage Lobatto (trapezoid, X = 0 and Δ) tableau, with no
+    interior stages: A_{j,i} = dτ_{X_{j,i}}^⊤N_{j,i} and B_{j,i} = M_{j,i} in P_j and S_j.
+    The form a rule step prints in when its formulas written out are too large to print."""
+    origin = getattr(getattr(step, "system", None), "continuous", None)
+    if origin is None or origin.rule not in _RULE_TABLEAUX:
+        return None
+    from . import _continuous
+
+    family, stages = _RULE_TABLEAUX[origin.rule]
+    tableau = getattr(_continuous, family)(stages).tableau()
+    return _checked_form(step, origin, tableau, rule=True)
+
+
+def _checked_form(step, origin, tableau, rule: bool) -> GroupStageForm | None:
+    """The notation of ``step`` from ``origin`` (its discretisation) with ``tableau``, if it
+    applies (a group factor, no holonomic constraint, no clash of names) and holds at the
+    check's points of the group."""
+    from ..groupoids import pair_groupoid_of
+
     system, continuous = step.system, origin.system
     if not any(f.is_group for f in continuous.factors) or continuous.holonomic is not None:
         return None
     if notation_clash(continuous, GROUP_LETTERS):
         return None
-    tableau = origin.scheme.tableau()
-    builder = _Builder(continuous, tableau, origin.step)
+    builder = _Builder(continuous, tableau, origin.step, rule)
     n_stage = tableau.interior * sum(f.dim for f in continuous.factors)
     zetas = {s: stage_symbols(n_stage, s) for s in (0, 1)}
     notation = builder.build(zetas)
@@ -618,7 +652,7 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
     """What N_{j,i} and M_{j,i} are: the derivatives of L at node i of g_j."""
     one = builder.factors[0]
     at = ", ".join(printer.doprint(F.config("j", "i")) + ", " + printer.doprint(
-        F.sym(r"\Xi", "j", "i") if F.is_group else F.sym("V", "j", "i"))
+        F.sym(r"\Xi", "j", "i") if F.is_group and not builder.rule else F.sym("V", "j", "i"))
         for F in builder.factors)
     names = (f"${printer.doprint(one.sym('N', 'j', 'i'))}$ and "
              f"${printer.doprint(one.sym('M', 'j', 'i'))}$" if len(builder.factors) == 1
@@ -646,4 +680,4 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
 
 
 __all__ = ["CHECK_DIGITS", "CHECK_POINTS", "FORMULA_LIMIT", "GROUP_LETTERS", "GroupStageForm",
-           "group_stage_form", "group_stage_rows"]
+           "group_rule_form", "group_stage_form", "group_stage_rows"]

@@ -47,7 +47,7 @@ from ._forms import (
     piece_form,
     with_recognised,
 )
-from ._group_stage_forms import group_stage_form
+from ._group_stage_forms import group_rule_form, group_stage_form
 from ._latex import (
     EXPANSION_LIMIT,
     PRINT_LIMIT,
@@ -156,18 +156,33 @@ def _check_printable_staged(step) -> None:
 
 #: the group stage notation of each printed step (None: not offered), checked once
 _GROUPED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
+#: the same for a rule's step on a group, offered when it is too large written out
+_RULED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def group_stage_printed(step, width: float) -> PrintedRows | None:
     """A Galerkin step on Lie-group factors in the group stage notation
     (:func:`~._group_stage_forms.group_stage_form`, checked at points of the group), laid
     out for ``width``, or None; the checked form is remembered for the step."""
+    return _remembered(step, width, _GROUPED, group_stage_form)
+
+
+def group_rule_printed(step, width: float) -> PrintedRows | None:
+    """A midpoint or trapezoid step on Lie-group factors in the group stage notation
+    (:func:`~._group_stage_forms.group_rule_form`), as :func:`group_stage_printed`: the
+    form of such a step too large to print written out (a free body on SE(3))."""
+    return _remembered(step, width, _RULED, group_rule_form)
+
+
+def _remembered(step, width: float, known: weakref.WeakKeyDictionary, make
+                ) -> PrintedRows | None:
+    """``make(step)`` laid out for ``width``, or None; the form is remembered in ``known``."""
     try:
-        if step not in _GROUPED:
-            _GROUPED[step] = group_stage_form(step)
-        form = _GROUPED[step]
+        if step not in known:
+            known[step] = make(step)
+        form = known[step]
     except TypeError:  # not weakly referenceable: checked afresh
-        form = group_stage_form(step)
+        form = make(step)
     return None if form is None else form.rows(width, MemoLatexPrinter())
 
 
@@ -187,7 +202,14 @@ def printed_step(step, abbreviations: Mapping | None = None,
     if grouped is not None:
         _warn_unused(step, [a.tex for a in checked], _STAGE_REASON)
         return grouped
-    _check_printable_staged(step)
+    try:
+        _check_printable_staged(step)
+    except UnsupportedFeatureError:
+        ruled = group_rule_printed(step, width)  # a rule on a group: too large written out
+        if ruled is None:
+            raise
+        _warn_unused(step, [a.tex for a in checked], _STAGE_REASON)
+        return ruled
     printed = chosen_printed(step, abbreviations)
     _warn_unused(step, unused_abbreviations(printed, checked),
                  _STAGE_REASON if printed.stage_notation
