@@ -236,7 +236,12 @@ def named_columns(table, names: Sequence[str], *, owner: str = "", name: str = "
     of its place.  Unlabelled (integer labels): its values as they stand, by position.
     Anything else unchanged.  A labelled table whose labels are not exactly ``names`` (a
     missing, an unknown or a repeated label) is an :class:`~symgroupoid.InputNameError`
-    listing both."""
+    listing both.  A list or tuple holding labelled tables (one per run of a batch or a
+    sweep) is read the same way, each by its own labels."""
+    if names and isinstance(table, (list, tuple)) and any(
+            callable(getattr(item, "to_numpy", None)) for item in table):
+        return [named_columns(item, names, owner=owner, name=f"{name}[{i}]")
+                for i, item in enumerate(table)]
     if not names or not callable(getattr(table, "to_numpy", None)):
         return table
     columns = getattr(table, "columns", None)

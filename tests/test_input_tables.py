@@ -60,6 +60,40 @@ def test_batches_and_sweeps_read_columns_by_name():
     assert np.array_equal(swept.trajectories.ravel()[0].states, plain.states)
 
 
+def test_a_list_of_labelled_tables_one_per_run_is_read_by_name():
+    """``simulate_batch(..., inputs=[df, df])``, a sweep's per-run tables and a
+    boundary-value sweep's read each table by position (driving joint 1 with u2); tables
+    labelled by anything but the inputs were accepted."""
+    sim, U = chain(), _inputs()
+    plain = sim.simulate(STATE, STEPS, PARAMS, inputs=U, options=EXACT)
+    swapped = pd.DataFrame({"u2": U[:, 1], "u1": U[:, 0]})
+    batch = sim.simulate_batch(np.stack([STATE, STATE]), STEPS, PARAMS,
+                               inputs=[swapped, swapped], options=EXACT)
+    for run in batch:
+        assert np.array_equal(run.states, plain.states)
+    swept = sg.sweep(sim, np.stack([STATE, STATE]), PARAMS, STEPS, combine="zip",
+                     inputs=(swapped, swapped), options=EXACT)
+    for run in swept.trajectories.ravel():
+        assert np.array_equal(run.states, plain.states)
+    wrong = pd.DataFrame({"a": U[:, 1], "b": U[:, 0]})
+    with pytest.raises(sg.InputNameError, match=r"inputs\[1\]: the table's columns a, b"):
+        sim.simulate_batch(np.stack([STATE, STATE]), STEPS, PARAMS, inputs=[swapped, wrong])
+
+
+def test_boundary_value_sweeps_read_labelled_tables_by_name():
+    step = systems.planar_chain(2, forced=True).euler_lagrange()
+    N = 6
+    U = np.random.default_rng(3).normal(scale=0.5, size=(N, 2))
+    swapped = pd.DataFrame({"u2": U[:, 1], "u1": U[:, 0]})
+    one = sg.solve_boundary_value(step, [0.1, 0.0], [0.2, 0.1], N, params=PARAMS, inputs=U)
+    for inputs in (swapped, [swapped, swapped]):
+        runs = sg.sweep_boundary_value(step, [[0.1, 0.0]] * 2, [[0.2, 0.1]], N, PARAMS,
+                                       inputs=inputs, workers=1)
+        for solution in runs.solutions:
+            assert np.array_equal(solution.inputs, one.inputs)
+            assert np.array_equal(solution.arrows, one.arrows)
+
+
 def test_unlabelled_columns_are_read_by_position():
     sim, U = chain(), _inputs()
     plain = sim.simulate(STATE, STEPS, PARAMS, inputs=U, options=EXACT)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..._arguments import counted, input_rows, real_array
+from ..._arguments import counted, input_rows, named_columns, real_array
 from ..._errors import DomainError, ShapeError
 from .._layout import check_input_values
 
@@ -82,7 +82,9 @@ def run_inputs(system, inputs, n_terms: int, runs: int, *, owner: str) -> list:
     run in the runs' order.  A list of ``runs`` tables ((n_terms, 0) without inputs)."""
     if inputs is None or not input_names(system):
         return [input_table(system, inputs, n_terms, owner=owner)] * runs
-    arr = real_array(inputs, "inputs", owner=owner)
+    # labelled tables (one for all, or one per run) by the inputs' names, never by place
+    arr = real_array(named_columns(inputs, input_names(system), owner=owner), "inputs",
+                     owner=owner)
     if arr.ndim != 3:
         return [input_table(system, arr, n_terms, owner=owner)] * runs
     if arr.shape[0] != runs:
