@@ -1668,7 +1668,9 @@ static int heavy_top_inputs_valid(const double *u, long n_steps)
  * heavy_top_remember; chart coordinates and multipliers of consecutive steps), falling back to
  * heavy_top_predict if Newton fails from there or its solution lies outside the guess's trust
  * region (heavy_top_trusted; iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with HEAVY_TOP_BRANCH_JUMP.  On a time groupoid every guess is
+ * outside that region ends the run with HEAVY_TOP_BRANCH_JUMP.  Without extrapolation the guess is
+ * the prediction, and a solution outside the trust region of the extrapolation (from a run's
+ * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (heavy_top_hold_time), and a solution whose time
  * step leaves [1/HEAVY_TOP_STEP_RATIO, HEAVY_TOP_STEP_RATIO] times the last (heavy_top_time_step_kept, from
  * the first step on) is outside in the same way.
@@ -1721,6 +1723,10 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
         double x[HEAVY_TOP_N_UNKNOWNS], guess[HEAVY_TOP_N_UNKNOWNS];
         double h[HEAVY_TOP_HOISTED_ENTRIES]; /* heavy_top_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
+        /* a step from the prediction (options->extrapolate off) is still checked against
+         * the trust region of the extrapolation of the run's last solutions (which it does
+         * not start from: the solution stays a function of the state) */
+        const int watched = !extrapolated && warm->count >= 3;
         int status;
 #if HEAVY_TOP_N_INPUTS > 0
         memcpy(current, states + (size_t)k * HEAVY_TOP_N_KNOWNS, sizeof current);
@@ -1730,6 +1736,9 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
             heavy_top_extrapolate(warm, guess);
             memcpy(x, guess, sizeof x);
         } else {
+            if (watched) {
+                heavy_top_extrapolate(warm, guess);
+            }
             heavy_top_predict(current, p, x);
         }
         heavy_top_hoist(current, p, h);
@@ -1739,7 +1748,7 @@ int heavy_top_simulate(const double *known0, const double *p, const double *u, l
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
             const int jumped = status == HEAVY_TOP_OK
-                               && ((extrapolated && !heavy_top_trusted(warm, guess, x, options->trust_factor))
+                               && (((extrapolated || watched) && !heavy_top_trusted(warm, guess, x, options->trust_factor))
                                    || !heavy_top_time_step_kept(current, x, options->trust_factor));
             if (extrapolated && (status != HEAVY_TOP_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */

@@ -1901,7 +1901,9 @@ static int plate_ball_inputs_valid(const double *u, long n_steps)
  * plate_ball_remember; chart coordinates and multipliers of consecutive steps), falling back to
  * plate_ball_predict if Newton fails from there or its solution lies outside the guess's trust
  * region (plate_ball_trusted; iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with PLATE_BALL_BRANCH_JUMP.  On a time groupoid every guess is
+ * outside that region ends the run with PLATE_BALL_BRANCH_JUMP.  Without extrapolation the guess is
+ * the prediction, and a solution outside the trust region of the extrapolation (from a run's
+ * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (plate_ball_hold_time), and a solution whose time
  * step leaves [1/PLATE_BALL_STEP_RATIO, PLATE_BALL_STEP_RATIO] times the last (plate_ball_time_step_kept, from
  * the first step on) is outside in the same way.
@@ -1954,6 +1956,10 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
         double x[PLATE_BALL_N_UNKNOWNS], guess[PLATE_BALL_N_UNKNOWNS];
         double h[PLATE_BALL_HOISTED_ENTRIES]; /* plate_ball_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
+        /* a step from the prediction (options->extrapolate off) is still checked against
+         * the trust region of the extrapolation of the run's last solutions (which it does
+         * not start from: the solution stays a function of the state) */
+        const int watched = !extrapolated && warm->count >= 3;
         int status;
 #if PLATE_BALL_N_INPUTS > 0
         memcpy(current, states + (size_t)k * PLATE_BALL_N_KNOWNS, sizeof current);
@@ -1963,6 +1969,9 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
             plate_ball_extrapolate(warm, guess);
             memcpy(x, guess, sizeof x);
         } else {
+            if (watched) {
+                plate_ball_extrapolate(warm, guess);
+            }
             plate_ball_predict(current, p, x);
         }
         plate_ball_hoist(current, p, h);
@@ -1972,7 +1981,7 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
             const int jumped = status == PLATE_BALL_OK
-                               && ((extrapolated && !plate_ball_trusted(warm, guess, x, options->trust_factor))
+                               && (((extrapolated || watched) && !plate_ball_trusted(warm, guess, x, options->trust_factor))
                                    || !plate_ball_time_step_kept(current, x, options->trust_factor));
             if (extrapolated && (status != PLATE_BALL_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */

@@ -1653,7 +1653,9 @@ static int rigid_body_inputs_valid(const double *u, long n_steps)
  * rigid_body_remember; chart coordinates and multipliers of consecutive steps), falling back to
  * rigid_body_predict if Newton fails from there or its solution lies outside the guess's trust
  * region (rigid_body_trusted; iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with RIGID_BODY_BRANCH_JUMP.  On a time groupoid every guess is
+ * outside that region ends the run with RIGID_BODY_BRANCH_JUMP.  Without extrapolation the guess is
+ * the prediction, and a solution outside the trust region of the extrapolation (from a run's
+ * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (rigid_body_hold_time), and a solution whose time
  * step leaves [1/RIGID_BODY_STEP_RATIO, RIGID_BODY_STEP_RATIO] times the last (rigid_body_time_step_kept, from
  * the first step on) is outside in the same way.
@@ -1706,6 +1708,10 @@ int rigid_body_simulate(const double *known0, const double *p, const double *u, 
         double x[RIGID_BODY_N_UNKNOWNS], guess[RIGID_BODY_N_UNKNOWNS];
         double h[RIGID_BODY_HOISTED_ENTRIES]; /* rigid_body_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
+        /* a step from the prediction (options->extrapolate off) is still checked against
+         * the trust region of the extrapolation of the run's last solutions (which it does
+         * not start from: the solution stays a function of the state) */
+        const int watched = !extrapolated && warm->count >= 3;
         int status;
 #if RIGID_BODY_N_INPUTS > 0
         memcpy(current, states + (size_t)k * RIGID_BODY_N_KNOWNS, sizeof current);
@@ -1715,6 +1721,9 @@ int rigid_body_simulate(const double *known0, const double *p, const double *u, 
             rigid_body_extrapolate(warm, guess);
             memcpy(x, guess, sizeof x);
         } else {
+            if (watched) {
+                rigid_body_extrapolate(warm, guess);
+            }
             rigid_body_predict(current, p, x);
         }
         rigid_body_hoist(current, p, h);
@@ -1724,7 +1733,7 @@ int rigid_body_simulate(const double *known0, const double *p, const double *u, 
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
             const int jumped = status == RIGID_BODY_OK
-                               && ((extrapolated && !rigid_body_trusted(warm, guess, x, options->trust_factor))
+                               && (((extrapolated || watched) && !rigid_body_trusted(warm, guess, x, options->trust_factor))
                                    || !rigid_body_time_step_kept(current, x, options->trust_factor));
             if (extrapolated && (status != RIGID_BODY_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */

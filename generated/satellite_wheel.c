@@ -1770,7 +1770,9 @@ static int satellite_wheel_inputs_valid(const double *u, long n_steps)
  * satellite_wheel_remember; chart coordinates and multipliers of consecutive steps), falling back to
  * satellite_wheel_predict if Newton fails from there or its solution lies outside the guess's trust
  * region (satellite_wheel_trusted; iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with SATELLITE_WHEEL_BRANCH_JUMP.  On a time groupoid every guess is
+ * outside that region ends the run with SATELLITE_WHEEL_BRANCH_JUMP.  Without extrapolation the guess is
+ * the prediction, and a solution outside the trust region of the extrapolation (from a run's
+ * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (satellite_wheel_hold_time), and a solution whose time
  * step leaves [1/SATELLITE_WHEEL_STEP_RATIO, SATELLITE_WHEEL_STEP_RATIO] times the last (satellite_wheel_time_step_kept, from
  * the first step on) is outside in the same way.
@@ -1823,6 +1825,10 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
         double x[SATELLITE_WHEEL_N_UNKNOWNS], guess[SATELLITE_WHEEL_N_UNKNOWNS];
         double h[SATELLITE_WHEEL_HOISTED_ENTRIES]; /* satellite_wheel_hoist of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
+        /* a step from the prediction (options->extrapolate off) is still checked against
+         * the trust region of the extrapolation of the run's last solutions (which it does
+         * not start from: the solution stays a function of the state) */
+        const int watched = !extrapolated && warm->count >= 3;
         int status;
 #if SATELLITE_WHEEL_N_INPUTS > 0
         memcpy(current, states + (size_t)k * SATELLITE_WHEEL_N_KNOWNS, sizeof current);
@@ -1832,6 +1838,9 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
             satellite_wheel_extrapolate(warm, guess);
             memcpy(x, guess, sizeof x);
         } else {
+            if (watched) {
+                satellite_wheel_extrapolate(warm, guess);
+            }
             satellite_wheel_predict(current, p, x);
         }
         satellite_wheel_hoist(current, p, h);
@@ -1841,7 +1850,7 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
             const int jumped = status == SATELLITE_WHEEL_OK
-                               && ((extrapolated && !satellite_wheel_trusted(warm, guess, x, options->trust_factor))
+                               && (((extrapolated || watched) && !satellite_wheel_trusted(warm, guess, x, options->trust_factor))
                                    || !satellite_wheel_time_step_kept(current, x, options->trust_factor));
             if (extrapolated && (status != SATELLITE_WHEEL_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */

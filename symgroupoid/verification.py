@@ -114,9 +114,17 @@ def _time_size(arrows: np.ndarray) -> float:
     return min(top, max(shortest, 1e-9 * top))
 
 
+#: the variations' size relative to the largest coordinate they move: large enough that
+#: ε/4 of it (2.5·10⁻¹² at ε = 10⁻³) is ten thousand roundings of that coordinate, small
+#: enough that an angle far from 0 (θ + 2πk) is varied as θ is (sized by the coordinate
+#: itself, θ = 1257 was varied by 1.3 rad: out of the quadratic regime, "not stationary")
+RESOLVED = 1e-8
+
+
 def _coordinate_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np.ndarray:
-    """For each basis section, the size (at least 1) of the arrow coordinates its flow
-    moves."""
+    """For each basis section, the size of its variations: 1, or :data:`RESOLVED` times the
+    largest arrow coordinate its flow moves where that is larger (coordinates beyond 10⁸,
+    where a variation of ε/4 would be lost in their rounding)."""
     q = np.asarray(ng.target(arrows[0]), float)
     q = q / max(1.0, float(np.abs(q).max(initial=0.0)))  # probed where a move of 1e-3 shows
     still = np.asarray(ng.flow(q, np.zeros(rank), 0.0), float)
@@ -126,7 +134,8 @@ def _coordinate_sizes(ng: _NumericGroupoid, arrows: np.ndarray, rank: int) -> np
             moved = np.asarray(ng.flow(q, np.eye(rank)[a], 1e-3), float)
             mask = ~(np.abs(moved - still) <= 0.0)
             if mask.any():
-                sizes[a] = max(1.0, float(np.nanmax(np.abs(arrows[:, mask]), initial=0.0)))
+                largest = float(np.nanmax(np.abs(arrows[:, mask]), initial=0.0))
+                sizes[a] = max(1.0, RESOLVED * largest)
     return sizes
 
 
@@ -298,7 +307,8 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     first-order changes of the single terms — a non-solution gives an O(1) derivative.  At a
     trivial solution (all arrows identities: every term's first-order change vanishes) the
     differences are pure O(ε²), which the extrapolation removes.  The variations have size
-    ε relative to the largest coordinate and multiplier (at least 1); on a time groupoid
+    ε (ε times 10⁻⁸ of the largest coordinate they move where that is beyond 10⁸:
+    :data:`RESOLVED`; ε times the largest multiplier, at least 1); on a time groupoid
     the time's, relative to the shortest step t_{k+1} − t_k (the check does not depend on
     when the run started).  An action that is not
     finite on the trajectory is a :class:`~symgroupoid.DomainError`.

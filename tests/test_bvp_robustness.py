@@ -86,6 +86,22 @@ def test_half_turn_about_a_principal_axis_is_the_uniform_rotation(so3_control):
     assert sg.verify_stationary(sol, so3_control).stationary
 
 
+@pytest.mark.parametrize("n", [1, 2])
+def test_half_turn_on_the_pair_groupoid_of_attitudes_is_solved(n):
+    """Formerly a raw LinAlgError: the pair groupoid's guess interpolated q₀⁻¹q₁ in the
+    Cayley chart, singular at the exact half-turn diag(1, −1, −1).  Each attitude now moves
+    along its group's geodesic q₀·exp(s log(q₀⁻¹q₁)), as on the group itself."""
+    from symgroupoid import systems
+
+    half = np.diag([1.0, -1.0, -1.0])
+    start, end = (np.eye(3), half) if n == 1 else ((np.eye(3),) * 2, (half, np.eye(3)))
+    step = systems.spherical_chain(n).euler_lagrange()
+    sol = sg.solve_boundary_value(step, start, end, 8, params={"h": 0.02, "g": 9.81})
+    assert sol.residual_norm < 1e-12
+    target = sol.arrows[-1][9 * n:9 * n + 9]  # the last arrow's target, first body
+    assert np.allclose(target, half.ravel(), atol=1e-12)
+
+
 def test_a_guess_through_a_half_turn_is_a_cut_locus_error(so3_control):
     half = np.diag([-1.0, -1.0, 1.0]).ravel()  # the turn by π about z
     guess = np.array([half, half, np.eye(3).ravel(), np.eye(3).ravel()])

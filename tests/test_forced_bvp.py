@@ -457,3 +457,19 @@ def test_the_cli_bvp_takes_inputs(tmp_path, capsys):
         in printed and "of the discrete action" not in printed
     with np.load(longer) as data:
         assert np.array_equal(data["arrows"], direct.arrows)
+
+
+@pytest.mark.parametrize("torque", [1e16, 1e30])
+def test_a_step_that_raises_the_residual_far_out_is_not_converged(torque):
+    """Inputs held at 1e16 (or 1e30) on the forced planar chain: a Newton step took the
+    arrows so far out that the rounding of their coordinates excused any residual, and the
+    solve reported convergence with |F| raised from 5e14 to 2.9e30 (1 iteration).  A step
+    at the floor is taken only when it does not raise |F| above the iterate's own floor:
+    the solve now fails loudly, and never returns such a path."""
+    step = systems.planar_chain(2, forced=True).euler_lagrange()
+    U = np.full((10, 2), torque)
+    with pytest.raises(sg.BoundaryValueDivergenceError) as failed:
+        sg.solve_boundary_value(step, [0.1, 0.0], [0.3, -0.2], 10,
+                                params={"h": 0.05, "g": 9.81, "c": 0.1}, inputs=U)
+    history = failed.value.history  # (no step raised |F| by orders of magnitude)
+    assert max(history) < 10 * history[0], history

@@ -233,7 +233,7 @@ def _free_body(rule: str):
 
 def test_the_midpoint_rule_on_se3_prints_in_the_group_notation(tmp_path):
     """The free body on SE(3) by the midpoint rule was refused (1.05·10⁶ operations written
-    out, over PRINT_LIMIT).  It prints as the rule's group form: L read at X = Δ/2 and the
+    out, over PRINT_LIMIT).  It prints in the rule's group form: L read at X = Δ/2 and the
     velocity V = Δ/h itself (no dτ on it), so A = dτ_X^T N and P = M + hA/2 — checked
     against the residual at points of the group — and its document typesets whole."""
     from symgroupoid.equations import PRINT_LIMIT
@@ -281,8 +281,24 @@ def test_a_rule_form_that_does_not_hold_is_not_offered(monkeypatch):
 
 def test_the_heavy_top_by_the_midpoint_rule_prints_in_the_group_notation():
     """The top by the midpoint rule was refused as well (1.58·10⁶ operations written out);
-    its rule form writes N from L, with the potential's gradient at the node attitude."""
+    its rule form writes N from L, with the potential's gradient at the node attitude.
+    (A rule's step on a group prints in this form whatever its size.)"""
     step = _top("midpoint")
     text = step.latex()
     assert text.count("0 &=") == 1 and r"R_{j,1} = R_{j-1} \tau(X_{j,1})" in text
     assert r"N &= \left[\begin{matrix}R_{32} mgl\\- R_{31} mgl\\0\end{matrix}\right]" in text
+
+
+def test_a_pendulum_on_so2_by_the_midpoint_rule_prints_at_once():
+    """Checking its written-out forms did not finish in 400 s (the Cayley quotients'
+    expansions); the rule's group form prints it in seconds."""
+    import time
+
+    grav = sp.Symbol("g", positive=True)
+    pendulum = sg.ContinuousSystem(sg.SO2("R"), lambda R, xi: xi[0] ** 2 / 2 - grav * R[0, 0],
+                                   parameters=[h, grav], name="pendulum")
+    step = pendulum.discretize(h, "midpoint").euler_lagrange()
+    t0 = time.perf_counter()
+    text = step.latex()
+    assert time.perf_counter() - t0 < 60
+    assert r"P_{j} &= M_{j,1} + \frac{h A_{j,1}}{2}" in text and r"N &= - R_{12} g" in text

@@ -488,7 +488,7 @@ def test_errors_about_the_initial_state_and_the_inputs_name_their_option(capsys)
     run = ["simulate", "driven_spring.py", "--steps", "3", "--backend", "numpy"]
     assert main([*run, "--inputs", "U.npy"]) == 1
     err = capsys.readouterr().err
-    assert "--inputs U.npy: input u of step 1 is nan" in err, err
+    assert "--inputs U.npy: input u in row 1 (the step 1) is nan" in err, err
     np.save("U.npy", np.array([[0.1]]))
     assert main([*run, "--inputs", "U.npy", "--initial", '{"x": [1]}']) == 1
     err = capsys.readouterr().err

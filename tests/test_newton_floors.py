@@ -246,7 +246,37 @@ def test_no_silent_branch_jump(backend):
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
+def test_no_silent_branch_jump_without_extrapolation(backend):
+    """With ``extrapolate=False`` (each step a function of its state) the same equations went on
+    along the far root (q = −120.6, 285.7, −516.1 after 20.7, from q₁ = 1.005) solved
+    to rounding: the trust region was checked only for extrapolated guesses.  The solution
+    from the prediction is now checked against the extrapolation of the run's last
+    solutions too: the run stops at step 33 as with extrapolation, and the steps before are
+    bitwise those of a run without the check and of a loop of step calls."""
+    sim = cubic_system().euler_lagrange().compile(backend=backend, cache_dir=SESSION_CACHE)
+    state, params = {"q": (1.0, 1.005)}, {"h": 0.05}
+    exact = sg.NewtonOptions(extrapolate=False)
+    with pytest.raises(sg.BranchJumpError) as info:
+        sim.simulate(state, 200, params, options=exact)
+    assert info.value.step == 33 and len(info.value.trajectory.states) == 34
+    unchecked = sim.simulate(state, 33, params,
+                             options=sg.NewtonOptions(extrapolate=False, trust_factor=0))
+    assert np.array_equal(info.value.trajectory.states, unchecked.states)
+    s = sim.state(state, params)
+    for _ in range(33):  # a loop of step calls: the same states
+        s = sim.step(s, params, options=exact)
+    assert np.array_equal(s, unchecked.states[-1])
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
 def test_the_trust_region_passes_fast_oscillations(backend):
+    """Fast oscillations pass the trust region, with and without extrapolation
+    (:func:`_fast_oscillations`)."""
+    _fast_oscillations(backend, sg.NewtonOptions())
+    _fast_oscillations(backend, sg.NewtonOptions(extrapolate=False))
+
+
+def _fast_oscillations(backend, options):
     """A harmonic oscillator at hω = 0.3, 1, 1.9, 4 and 20 (the last one two steps a period
     and a bit, where the
     guess misses by up to twice a step's motion) and one starting at rest run 2·10³ steps
@@ -257,8 +287,9 @@ def test_the_trust_region_passes_fast_oscillations(backend):
     sim = oscillator().euler_lagrange().compile(backend=backend, cache_dir=SESSION_CACHE)
     steps = 2000 if backend == "c" else 300
     for hw in (0.3, 1.0, 1.9, 4.0, 20.0):
-        sim.simulate({"q": (1.0, np.cos(hw))}, steps, {"h": 0.1, "k": (hw / 0.1) ** 2})
-    sim.simulate({"q": (1.0, 1.0)}, steps, {"h": 0.1, "k": 1e-6})
+        sim.simulate({"q": (1.0, np.cos(hw))}, steps, {"h": 0.1, "k": (hw / 0.1) ** 2},
+                     options=options)
+    sim.simulate({"q": (1.0, 1.0)}, steps, {"h": 0.1, "k": 1e-6}, options=options)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

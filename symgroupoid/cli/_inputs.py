@@ -434,8 +434,8 @@ def _finite_inputs(inputs: np.ndarray, path: str, names: list[str], per: str) ->
     bad = np.argwhere(~np.isfinite(table))
     if len(bad):
         row, column = (int(v) for v in bad[0])
-        raise DomainError(f"--inputs {path}: input {names[column]} of {per} {row} is "
-                          f"{table[row, column]}; inputs must be finite")
+        raise DomainError(f"--inputs {path}: input {names[column]} in row {row} (the "
+                          f"{per} {row}) is {table[row, column]}; inputs must be finite")
 
 
 #: a decimal number as a CSV cell holds it (Python's float() also reads 1_0 as 10)

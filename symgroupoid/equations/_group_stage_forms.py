@@ -553,7 +553,9 @@ def group_rule_form(step) -> GroupStageForm | None:
     dτ_X on the velocity: Ξ = V = Δ/h), at the nodes of the one-stage Gauss–Legendre
     (midpoint, X = Δ/2) or two-stage Lobatto (trapezoid, X = 0 and Δ) tableau, with no
     interior stages: A_{j,i} = dτ_{X_{j,i}}^⊤N_{j,i} and B_{j,i} = M_{j,i} in P_j and S_j.
-    The form a rule step prints in when its formulas written out are too large to print."""
+    The form a rule's step on a group prints in: written out, its Cayley quotients run to
+    10⁶ operations (a free body on SE(3)) or take more than minutes to check (a pendulum on
+    SO(2))."""
     origin = getattr(getattr(step, "system", None), "continuous", None)
     if origin is None or origin.rule not in _RULE_TABLEAUX:
         return None

@@ -169,8 +169,9 @@ def group_stage_printed(step, width: float) -> PrintedRows | None:
 
 def group_rule_printed(step, width: float) -> PrintedRows | None:
     """A midpoint or trapezoid step on Lie-group factors in the group stage notation
-    (:func:`~._group_stage_forms.group_rule_form`), as :func:`group_stage_printed`: the
-    form of such a step too large to print written out (a free body on SE(3))."""
+    (:func:`~._group_stage_forms.group_rule_form`), as :func:`group_stage_printed`: written
+    out, such a step is too large to print (a free body on SE(3)), or to check in minutes
+    (a pendulum on SO(2))."""
     return _remembered(step, width, _RULED, group_rule_form)
 
 
@@ -202,14 +203,11 @@ def printed_step(step, abbreviations: Mapping | None = None,
     if grouped is not None:
         _warn_unused(step, [a.tex for a in checked], _STAGE_REASON)
         return grouped
-    try:
-        _check_printable_staged(step)
-    except UnsupportedFeatureError:
-        ruled = group_rule_printed(step, width)  # a rule on a group: too large written out
-        if ruled is None:
-            raise
+    ruled = group_rule_printed(step, width)  # a rule on a group, in the same notation
+    if ruled is not None:
         _warn_unused(step, [a.tex for a in checked], _STAGE_REASON)
         return ruled
+    _check_printable_staged(step)
     printed = chosen_printed(step, abbreviations)
     _warn_unused(step, unused_abbreviations(printed, checked),
                  _STAGE_REASON if printed.stage_notation

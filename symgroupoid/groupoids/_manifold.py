@@ -96,6 +96,11 @@ class Manifold(ABC):
     def numeric_chart_inverse(self, q: Sequence, p: Sequence) -> np.ndarray:
         """Chart coordinates of p around q, numerically."""
 
+    def point_geodesic(self, q0: Sequence, q1: Sequence, s: np.ndarray) -> np.ndarray | None:
+        """Points from q₀ to q₁ along the manifold's geodesic (coordinates, one row per
+        entry of ``s`` ∈ [0, 1]), or None where it has none (the caller's chart path)."""
+        return None
+
     @abstractmethod
     def predict(self, q0: Sequence, q1: Sequence) -> tuple:
         """Chart coordinates (around q1) of the configuration after q0, q1 at constant
@@ -222,6 +227,10 @@ class GroupManifold(Manifold):
         M0, M1 = G.numeric_matrix(q), G.numeric_matrix(p)
         return G.numeric_retraction_inverse(np.linalg.solve(M0, M1))
 
+    def point_geodesic(self, q0, q1, s):
+        """q₀·exp(s log(q₀⁻¹q₁)): the group's geodesic (through half-turns)."""
+        return self.group.point_geodesic(q0, q1, s)
+
     def predict(self, q0, q1):
         """The increment repeats: q_{k+1} = q_k q_{k−1}⁻¹ q_k, i.e. x = τ⁻¹(q_{k−1}⁻¹q_k)."""
         return self.chart_inverse(q0, q1)
@@ -285,6 +294,12 @@ class ProductManifold(Manifold):
                 f"{' × '.join(map(repr, self.factors))}: two factors name a coordinate alike "
                 f"({alias_words(aliased)}); the factors of a product need distinct names "
                 f"(e.g. SO3(\"R1\") * SO3(\"R2\"))")
+
+    def point_geodesic(self, q0, q1, s):
+        """Each factor along its own geodesic; None when a factor has none."""
+        parts = [f.point_geodesic(q0[lo:hi], q1[lo:hi], s)
+                 for f, (lo, hi) in zip(self.factors, self._coords)]
+        return None if any(p is None for p in parts) else np.hstack(parts)
 
     def configuration(self, value, name, check):
         """One point per factor, named ``name[i]``."""

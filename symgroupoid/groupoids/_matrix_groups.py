@@ -501,6 +501,20 @@ class MatrixLieGroup(Groupoid):
     def increments(self, a):
         return [(self.symbol_name, self, self.numeric_matrix([float(v) for v in a]))]
 
+    def numeric_coordinates(self, M: np.ndarray) -> np.ndarray:
+        """The arrow coordinates (free entries) of a numeric matrix: the inverse of
+        :meth:`numeric_matrix` on the group."""
+        return np.array([M[i, j] for i, j in self._free], float)
+
+    def point_geodesic(self, q0: Sequence, q1: Sequence, s: np.ndarray) -> np.ndarray:
+        """Points q(sᵢ) = q₀·exp(sᵢ log(q₀⁻¹q₁)) from q₀ to q₁ (coordinates, one row per
+        entry of ``s``): the group's geodesic, defined through half-turns, where the Cayley
+        chart of q₀⁻¹q₁ is not."""
+        Q0 = self.numeric_matrix([float(v) for v in q0])
+        relative = np.linalg.solve(Q0, self.numeric_matrix([float(v) for v in q1]))
+        path = self.numeric_matrices(self.geodesic(self.numeric_coordinates(relative), s))
+        return np.array([self.numeric_coordinates(Q0 @ M) for M in path])
+
     def numeric_matrices(self, arrows: np.ndarray) -> np.ndarray:
         """:meth:`numeric_matrix` of every row of ``arrows``: (N, n, n)."""
         arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)

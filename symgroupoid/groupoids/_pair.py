@@ -104,6 +104,11 @@ class EuclideanSpace(Manifold):
     def numeric_chart_inverse(self, q, p):
         return np.asarray(p, float)
 
+    def point_geodesic(self, q0, q1, s):
+        """The segment q₀ + s(q₁ − q₀), one row per entry of ``s``."""
+        a, b = np.asarray(q0, float), np.asarray(q1, float)
+        return a + np.outer(s, b - a)
+
     def predict(self, q0, q1):
         """Linear extrapolation q_{k+1} ≈ 2 q_k − q_{k−1}."""
         return tuple(2 * b - a for a, b in zip(q0, q1))
@@ -290,10 +295,16 @@ class PairGroupoid(Groupoid):
         return self.space.configuration(value, name, check)
 
     def geodesic(self, total, s):
-        """ℝⁿ: the straight segment (q₀, q₀ + s(q₁ − q₀)); other manifolds: the chart path."""
-        if not isinstance(self.space, EuclideanSpace):
-            return self.chart_path(total, s)
+        """ℝⁿ: the straight segment (q₀, q₀ + s(q₁ − q₀)); a matrix Lie group, or a product
+        of them and of ℝⁿ: (q₀, q₀·exp(s log(q₀⁻¹q₁))) on each group factor (through
+        half-turns, where the Cayley chart of q₀⁻¹q₁ is singular), the segment on the others;
+        other manifolds: the chart path."""
         q0, q1 = total[:self.base_dim], total[self.base_dim:]
+        if not isinstance(self.space, EuclideanSpace):
+            points = self.space.point_geodesic(q0, q1, np.asarray(s, float))
+            if points is None:
+                return self.chart_path(total, s)
+            return np.hstack([np.tile(np.asarray(q0, float), (len(s), 1)), points])
         with np.errstate(over="ignore", invalid="ignore"):  # ends near ±1e308: the caller
             # refuses the non-finite path by name
             return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])

@@ -552,7 +552,9 @@ class NumpyStepper:
         two solutions (and ``options.extrapolate``), else predict; retry from the prediction
         when Newton fails from an extrapolated guess or its solution lies outside the
         guess's trust region (:meth:`NumpyWarmStart.trusts`), and stop with ``BRANCH_JUMP``
-        when the retry's does too.  ``warm`` (from :meth:`warm_start`) is continued and
+        when the retry's does too; without extrapolation, stop so when the solution from the
+        prediction lies outside the trust region of the extrapolation (from the fourth
+        step).  ``warm`` (from :meth:`warm_start`) is continued and
         updated.  Returns (states (n_steps + 1, n_known), iterations (n_steps,) int64,
         residual norms (n_steps,), status, failed step (−1 on success), last iterate); after
         a failure at step k only rows 0 … k of the states are valid."""
@@ -563,13 +565,15 @@ class NumpyStepper:
         for k in range(n_steps):
             current = states[k]
             extrapolated = bool(options.extrapolate) and warm.count >= 2
+            watched = not extrapolated and warm.count >= 3  # (checked, not started from)
             factor = options.trust_factor
             with np.errstate(all="ignore"):
-                guess = warm.extrapolate() if extrapolated else self.f.predict(current, p)
+                guess = warm.extrapolate() if extrapolated or watched else None
+                start = guess if extrapolated else self.f.predict(current, p)
             status, u, iterations[k], norms[k] = self.solve_step(
-                current, p, self.hold_time(current, p, guess), options)
+                current, p, self.hold_time(current, p, start), options)
             jumped = status == OK and (
-                (extrapolated and not warm.trusts(guess, u, factor))
+                ((extrapolated or watched) and not warm.trusts(guess, u, factor))
                 or not self.time_step_kept(current, u, factor))
             if extrapolated and (status != OK or jumped):  # retry from the prediction
                 far, far_norm = u, norms[k]

@@ -1312,7 +1312,9 @@ static int SG_NAME(inputs_valid)(const double *u, long n_steps)
  * SG_NAME(remember); chart coordinates and multipliers of consecutive steps), falling back to
  * SG_NAME(predict) if Newton fails from there or its solution lies outside the guess's trust
  * region (SG_NAME(trusted); iterations[k] counts both tries): a solution from either try
- * outside that region ends the run with SG_BRANCH_JUMP.  On a time groupoid every guess is
+ * outside that region ends the run with SG_BRANCH_JUMP.  Without extrapolation the guess is
+ * the prediction, and a solution outside the trust region of the extrapolation (from a run's
+ * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (SG_NAME(hold_time)), and a solution whose time
  * step leaves [1/SG_STEP_RATIO, SG_STEP_RATIO] times the last (SG_NAME(time_step_kept), from
  * the first step on) is outside in the same way.
@@ -1365,6 +1367,10 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
         double x[SG_N_UNKNOWNS], guess[SG_N_UNKNOWNS];
         double h[SG_HOISTED_ENTRIES]; /* SG_NAME(hoist) of this step's known state */
         const int extrapolated = options->extrapolate && warm->count >= 2;
+        /* a step from the prediction (options->extrapolate off) is still checked against
+         * the trust region of the extrapolation of the run's last solutions (which it does
+         * not start from: the solution stays a function of the state) */
+        const int watched = !extrapolated && warm->count >= 3;
         int status;
 #if SG_N_INPUTS > 0
         memcpy(current, states + (size_t)k * SG_N_KNOWNS, sizeof current);
@@ -1374,6 +1380,9 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
             SG_NAME(extrapolate)(warm, guess);
             memcpy(x, guess, sizeof x);
         } else {
+            if (watched) {
+                SG_NAME(extrapolate)(warm, guess);
+            }
             SG_NAME(predict)(current, p, x);
         }
         SG_NAME(hoist)(current, p, h);
@@ -1383,7 +1392,7 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
             /* a solution far outside the trust region of the guess, or with its time step
              * reversed or far from the last: another branch */
             const int jumped = status == SG_OK
-                               && ((extrapolated && !SG_NAME(trusted)(warm, guess, x, options->trust_factor))
+                               && (((extrapolated || watched) && !SG_NAME(trusted)(warm, guess, x, options->trust_factor))
                                    || !SG_NAME(time_step_kept)(current, x, options->trust_factor));
             if (extrapolated && (status != SG_OK || jumped)) {
                 /* the extrapolated guess failed or led far away: retry from the prediction */

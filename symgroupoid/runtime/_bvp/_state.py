@@ -197,8 +197,13 @@ class _SolverState:
         ``accept(t, arrows, assembled, f)`` holds at a finite trial (f = |F|₂² there, itself
         finite: above |F| ≈ 1e154 the square overflows and no decrease can be told, so the
         step is halved) or the trial is within the rounding floor (taken at once,
-        ``at_floor``: comparing two residuals there is comparing noise); None when neither
-        happens."""
+        ``at_floor``: comparing two residuals there is comparing noise) without a larger
+        |F| than the iterate's own, or than its floor (a trial far out, where the rounding
+        of huge coordinates excuses any residual, is not noise: it was taken, and |F| rose
+        from 5e14 to 3e30 in a "converged" step); None when neither happens."""
+        here = self.assembled
+        with np.errstate(over="ignore"):
+            f_here = float(here.F @ here.F)
         length = 1.0
         for _ in range(MAX_HALVINGS):
             arrows, lam, trial = self.trial(length * dz)
@@ -208,7 +213,7 @@ class _SolverState:
                 # |F₀|₂²; such a trial is not a decrease anyone can tell, so it is halved
                 if f < np.inf and accept(length, arrows, trial, f):
                     return _Step(arrows, lam, trial, length, dz)
-                if _within_floor(trial, f):
+                if _within_floor(trial, f) and (f <= f_here or _within_floor(here, f)):
                     return _Step(arrows, lam, trial, length, dz, at_floor=True)
             length /= 2
         return None
