@@ -254,6 +254,7 @@ def test_the_midpoint_rule_on_se3_prints_in_the_group_notation(tmp_path):
         assert equation_numbers(pdf_text) == [1] and lost_content(log, tolerance=1.0) == []
 
 
+@pytest.mark.slow
 def test_the_trapezoid_rule_on_se3_prints_in_the_group_notation():
     """The trapezoid rule's form: L at both ends (X = 0 and X = Δ, weights 1/2)."""
     text = _free_body("trapezoid").latex()
@@ -262,6 +263,7 @@ def test_the_trapezoid_rule_on_se3_prints_in_the_group_notation():
         assert row in text, row
 
 
+@pytest.mark.slow
 def test_a_rule_form_that_does_not_hold_is_not_offered(monkeypatch):
     """With dτ_Δ^{−T} taken as the identity (a hand derivation's slip) the rows differ from
     the residual: the form is not offered and the step is refused as before."""
