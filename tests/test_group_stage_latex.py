@@ -304,3 +304,27 @@ def test_a_pendulum_on_so2_by_the_midpoint_rule_prints_at_once():
     text = step.latex()
     assert time.perf_counter() - t0 < 60
     assert r"P_{j} &= M_{j,1} + \frac{h A_{j,1}}{2}" in text and r"N &= - R_{12} g" in text
+
+
+def test_a_rule_on_a_group_the_notation_cannot_print_is_refused_at_once():
+    """A mass named M (one of the notation's letters) or holonomic constraints: the rule's
+    group form is not offered, and checking the written-out forms did not finish (> 150 s).
+    Refused at once, naming why; names the rule form does not print (B, F) still print."""
+    import time
+
+    def pendulum(name, **options):
+        mass = sp.Symbol(name, positive=True)
+        return sg.ContinuousSystem(sg.SO2("R"), lambda R, xi: mass * (xi[0] ** 2 / 2 - R[0, 0]),
+                                   parameters=[h, mass], name="pendulum", **options)
+
+    t0 = time.perf_counter()
+    with pytest.raises(sg.UnsupportedFeatureError, match="names M read as its symbols"):
+        pendulum("M").discretize(h, "midpoint").euler_lagrange().latex()
+    assert r"M = V_{1} B" in pendulum("B").discretize(h, "midpoint").euler_lagrange().latex()
+    ring = sg.ContinuousSystem([sg.SO2("R"), sg.EuclideanSpace(["x", "y"])],
+                               lambda q, v: (v[0][0] ** 2 + v[1][0] ** 2 + v[1][1] ** 2) / 2,
+                               parameters=[h], name="ring",
+                               holonomic=lambda q: [q[1][0] ** 2 + q[1][1] ** 2 - 1])
+    with pytest.raises(sg.UnsupportedFeatureError, match="it has holonomic constraints"):
+        ring.discretize(h, "midpoint").euler_lagrange().latex()
+    assert time.perf_counter() - t0 < 90

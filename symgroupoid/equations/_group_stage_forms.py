@@ -60,6 +60,10 @@ _SEED = 20221127  # the check's points: the same printing on every run
 GROUP_LETTERS = ("X", "V", "A", "B", "N", "M", "P", "S", "F", r"\Delta", r"\Xi", r"\tau",
                  r"\zeta")
 
+#: the letters a rule's group form prints (no B, F, Ξ or ζ: L is read at V itself, forces
+#: on a group are refused for rules, and a rule has no interior stage)
+RULE_LETTERS = ("X", "V", "A", "N", "M", "P", "S", r"\Delta", r"\tau")
+
 _LABELS = {0: ("k", "k-1"), 1: ("k+1", "k")}
 _GENERIC = ("j", "j-1")
 
@@ -289,7 +293,9 @@ class _Builder:
                 entries = [sp.Symbol(_subscripted(F.name, f"{r + 1}{c + 1}"), real=True)
                            for r, c in G.free_entries]
                 q.append(G.matrix(entries))
-                vel = [sp.Symbol(rf"\Xi{F.tag}_{{{a + 1}}}", real=True) for a in range(F.f.dim)]
+                letter = "V" if self.rule else r"\Xi"  # (a rule reads L at V itself)
+                vel = [sp.Symbol(rf"{letter}{F.tag}_{{{a + 1}}}", real=True)
+                       for a in range(F.f.dim)]
             else:
                 names = [latex_name(n) for n in F.f.space.names]
                 entries = [sp.Symbol(n, real=True) for n in names]
@@ -566,6 +572,26 @@ def group_rule_form(step) -> GroupStageForm | None:
     return _checked_form(step, origin, tableau, rule=True)
 
 
+def group_rule_refusal(step) -> str | None:
+    """Why a rule's step on a group factor is not offered its group form before the check
+    (holonomic constraints, names that read as its letters, :data:`RULE_LETTERS`), or None.
+    Written out, such a step takes too long to print and check (a pendulum on SO(2) did not
+    finish in 400 s), so it is refused at once with this reason."""
+    origin = getattr(getattr(step, "system", None), "continuous", None)
+    if origin is None or origin.rule not in _RULE_TABLEAUX:
+        return None
+    continuous = origin.system
+    if not any(f.is_group for f in continuous.factors):
+        return None
+    if continuous.holonomic is not None:
+        return "it has holonomic constraints, which the notation does not print"
+    clash = notation_clash(continuous, RULE_LETTERS)
+    if clash:
+        return (f"the system's names {', '.join(clash)} read as its symbols: rename them "
+                f"(e.g. a mass m, a group named R)")
+    return None
+
+
 def _checked_form(step, origin, tableau, rule: bool) -> GroupStageForm | None:
     """The notation of ``step`` from ``origin`` (its discretisation) with ``tableau``, if it
     applies (a group factor, no holonomic constraint, no clash of names) and holds at the
@@ -575,7 +601,7 @@ def _checked_form(step, origin, tableau, rule: bool) -> GroupStageForm | None:
     system, continuous = step.system, origin.system
     if not any(f.is_group for f in continuous.factors) or continuous.holonomic is not None:
         return None
-    if notation_clash(continuous, GROUP_LETTERS):
+    if notation_clash(continuous, RULE_LETTERS if rule else GROUP_LETTERS):
         return None
     builder = _Builder(continuous, tableau, origin.step, rule)
     n_stage = tableau.interior * sum(f.dim for f in continuous.factors)
@@ -682,4 +708,5 @@ def _node_words(builder: _Builder, printer, written: bool) -> str:
 
 
 __all__ = ["CHECK_DIGITS", "CHECK_POINTS", "FORMULA_LIMIT", "GROUP_LETTERS", "GroupStageForm",
-           "group_rule_form", "group_stage_form", "group_stage_rows"]
+           "RULE_LETTERS", "group_rule_form", "group_rule_refusal", "group_stage_form",
+           "group_stage_rows"]
