@@ -760,6 +760,8 @@ def _within(seconds: int, work):
         signal.signal(signal.SIGALRM, previous)
 
 
+@pytest.mark.slow  # (18 worker deaths and restarts: 25–90 s on a 2-core machine, with the
+# other tests beside it once longer than the cluster's wait for a worker to come back)
 def test_dask_runs_that_share_workers_with_several_killers_are_all_returned():
     """Three runs of twelve end their worker (os._exit in reduce), in tasks of three and of
     five runs, on two workers of two threads.  Before, the deaths were charged to every task
