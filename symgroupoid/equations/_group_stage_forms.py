@@ -541,10 +541,11 @@ class GroupStageForm:
 
 def group_stage_form(step) -> GroupStageForm | None:
     """The step in the group stage notation (see the module docstring), checked at points of
-    the group, or None when it does not apply or does not hold."""
+    the group, or None when it does not apply or does not hold: a Galerkin step, or a rule's
+    (:func:`group_rule_form`)."""
     origin = galerkin_origin(step)
     if origin is None:
-        return None
+        return group_rule_form(step)
     return _checked_form(step, origin, origin.scheme.tableau(), rule=False)
 
 

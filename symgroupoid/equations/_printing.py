@@ -47,7 +47,7 @@ from ._forms import (
     piece_form,
     with_recognised,
 )
-from ._group_stage_forms import group_rule_form, group_rule_refusal, group_stage_form
+from ._group_stage_forms import group_rule_refusal, group_stage_form
 from ._latex import (
     EXPANSION_LIMIT,
     PRINT_LIMIT,
@@ -156,34 +156,20 @@ def _check_printable_staged(step) -> None:
 
 #: the group stage notation of each printed step (None: not offered), checked once
 _GROUPED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
-#: the same for a rule's step on a group, offered when it is too large written out
-_RULED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 def group_stage_printed(step, width: float) -> PrintedRows | None:
-    """A Galerkin step on Lie-group factors in the group stage notation
+    """A Galerkin or rule's step on Lie-group factors in the group stage notation
     (:func:`~._group_stage_forms.group_stage_form`, checked at points of the group), laid
-    out for ``width``, or None; the checked form is remembered for the step."""
-    return _remembered(step, width, _GROUPED, group_stage_form)
-
-
-def group_rule_printed(step, width: float) -> PrintedRows | None:
-    """A midpoint or trapezoid step on Lie-group factors in the group stage notation
-    (:func:`~._group_stage_forms.group_rule_form`), as :func:`group_stage_printed`: written
-    out, such a step is too large to print (a free body on SE(3)), or to check in minutes
-    (a pendulum on SO(2))."""
-    return _remembered(step, width, _RULED, group_rule_form)
-
-
-def _remembered(step, width: float, known: weakref.WeakKeyDictionary, make
-                ) -> PrintedRows | None:
-    """``make(step)`` laid out for ``width``, or None; the form is remembered in ``known``."""
+    out for ``width``, or None; the checked form is remembered for the step.  (Written out,
+    a rule's step on a group is too large to print, a free body on SE(3), or to check in
+    minutes, a pendulum on SO(2).)"""
     try:
-        if step not in known:
-            known[step] = make(step)
-        form = known[step]
+        if step not in _GROUPED:
+            _GROUPED[step] = group_stage_form(step)
+        form = _GROUPED[step]
     except TypeError:  # not weakly referenceable: checked afresh
-        form = make(step)
+        form = group_stage_form(step)
     return None if form is None else form.rows(width, MemoLatexPrinter())
 
 
@@ -199,14 +185,10 @@ def printed_step(step, abbreviations: Mapping | None = None,
     :class:`UnusedAbbreviationWarning`."""
     width = check_width(width)
     checked = abbreviations_of(abbreviations, step)
-    grouped = group_stage_printed(step, width)  # a Galerkin step on a group, checked there
+    grouped = group_stage_printed(step, width)  # a Galerkin or rule step on a group
     if grouped is not None:
         _warn_unused(step, [a.tex for a in checked], _STAGE_REASON)
         return grouped
-    ruled = group_rule_printed(step, width)  # a rule on a group, in the same notation
-    if ruled is not None:
-        _warn_unused(step, [a.tex for a in checked], _STAGE_REASON)
-        return ruled
     refusal = group_rule_refusal(step)
     if refusal is not None:  # written out it would not finish
         raise UnsupportedFeatureError(

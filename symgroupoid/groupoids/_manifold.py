@@ -220,7 +220,7 @@ class GroupManifold(Manifold):
     def numeric_chart(self, q, x):
         G = self.group
         M = G.numeric_matrix([float(v) for v in q]) @ G.numeric_tau(x)
-        return np.array([M[i, j] for i, j in G._free])
+        return G.numeric_coordinates(M)
 
     def numeric_chart_inverse(self, q, p):
         G = self.group

@@ -107,7 +107,9 @@ class EuclideanSpace(Manifold):
     def point_geodesic(self, q0, q1, s):
         """The segment q₀ + s(q₁ − q₀), one row per entry of ``s``."""
         a, b = np.asarray(q0, float), np.asarray(q1, float)
-        return a + np.outer(s, b - a)
+        with np.errstate(over="ignore", invalid="ignore"):  # ends near ±1e308: the caller
+            # refuses the non-finite path by name
+            return a + np.outer(s, b - a)
 
     def predict(self, q0, q1):
         """Linear extrapolation q_{k+1} ≈ 2 q_k − q_{k−1}."""
@@ -300,14 +302,10 @@ class PairGroupoid(Groupoid):
         half-turns, where the Cayley chart of q₀⁻¹q₁ is singular), the segment on the others;
         other manifolds: the chart path."""
         q0, q1 = total[:self.base_dim], total[self.base_dim:]
-        if not isinstance(self.space, EuclideanSpace):
-            points = self.space.point_geodesic(q0, q1, np.asarray(s, float))
-            if points is None:
-                return self.chart_path(total, s)
-            return np.hstack([np.tile(np.asarray(q0, float), (len(s), 1)), points])
-        with np.errstate(over="ignore", invalid="ignore"):  # ends near ±1e308: the caller
-            # refuses the non-finite path by name
-            return np.hstack([np.tile(q0, (len(s), 1)), q0 + np.outer(s, q1 - q0)])
+        points = self.space.point_geodesic(q0, q1, np.asarray(s, float))
+        if points is None:
+            return self.chart_path(total, s)
+        return np.hstack([np.tile(np.asarray(q0, float), (len(s), 1)), points])
 
     def pair_coordinates(self):
         """ℝⁿ: coordinate i at positions i (source) and n + i (target)."""
