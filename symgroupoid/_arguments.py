@@ -220,12 +220,16 @@ def input_rows(inputs, m: int, rows: int, *, owner: str = "", name: str = "input
 
 def _label(label) -> str | None:
     """A table label as an input's name: a string, or a SymPy symbol's name; None for a
-    label that names nothing (an integer position)."""
+    label that names nothing (an integer position).  Any other label (a tuple of a
+    MultiIndex, a float) names no input: its repr, which no input's name equals, so that
+    the table is refused rather than read by position."""
     if isinstance(label, str):
         return label
     if getattr(label, "is_Symbol", False):
         return str(label.name)
-    return None
+    if isinstance(label, numbers.Integral) and not isinstance(label, (bool, np.bool_)):
+        return None
+    return repr(label)
 
 
 def named_columns(table, names: Sequence[str], *, owner: str = "", name: str = "inputs"):

@@ -317,3 +317,17 @@ def test_ends_near_the_largest_double_are_refused_without_warnings():
         warnings.simplefilter("error", RuntimeWarning)
         with pytest.raises(sg.SymgroupoidError, match="non-finite"):
             sg.solve_boundary_value(pendulum, 1e308, -1e308, 5, params=[0.05])
+
+
+@pytest.mark.parametrize("steps", [-1, 0, 1])
+def test_too_few_steps_have_one_message_in_the_solve_and_the_sweep(steps):
+    """(steps = −1 said "at least 0" where 0 said "at least 2"; a sweep checked only the
+    sign, and each of its runs failed on its own.)  Every count below 2·order is refused
+    before anything is solved, with the same message by both."""
+    step = sg.systems.planar_chain(1).euler_lagrange()
+    message = f"a problem of order 1 needs at least 2 steps, got {steps}"
+    params = {"h": 0.1, "g": 9.81}
+    with pytest.raises(sg.ShapeError, match=message):
+        sg.solve_boundary_value(step, [0.0], [1.0], steps, params=params)
+    with pytest.raises(sg.ShapeError, match=f"^planar_chain_1: {message}$"):
+        sg.sweep_boundary_value(step, [[0.0]], [[1.0]], steps, params)

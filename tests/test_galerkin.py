@@ -171,6 +171,7 @@ def test_the_observed_order_on_so3_is_four(scheme):
     assert abs(report.order - 4) < 0.1, report
 
 
+@pytest.mark.slow  # 12-26 s; the order through the Cayley map is checked with the tests
 def test_the_observed_order_through_the_exponential_map_is_four():
     """The same rigid body through the exponential retraction: dexp and its derivative in
     the base point hold the smooth functions (1 − cos θ)/θ², (θ − sin θ)/θ³ and theirs

@@ -86,6 +86,7 @@ def test_a_damped_driven_top_prints_its_force_at_the_nodes():
             r"($R_{j,i}, \Xi_{j,i}$)") in text
 
 
+@pytest.mark.slow  # 22 s: the top's document typesets with the tests
 @needs_tex
 def test_the_document_of_a_chain_of_three_bodies_typesets_whole(tmp_path):
     """The 3D chain of three bodies at order 4 (examples/chain_order4.py's L, on SO(3)³):
@@ -146,7 +147,8 @@ def test_interpret_precise_is_the_graph_at_fifty_digits():
     assert [float(v) for v in precise] == pytest.approx(list(floats), rel=1e-15)
 
 
-@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2), sg.LobattoIIIAB(4)],
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(2),
+                                    pytest.param(sg.LobattoIIIAB(4), marks=pytest.mark.slow)],
                          ids=["gauss2", "lobatto4"])
 def test_planar_groups_and_a_plane_beside_a_rotation_are_offered_the_form(scheme):
     """SO(2), SE(2), and SO(3) × R² (a factor of two coordinates, named by them: P^{(x, y)})
@@ -168,6 +170,7 @@ def test_planar_groups_and_a_plane_beside_a_rotation_are_offered_the_form(scheme
     assert r"0 &= - P^{(x, y)}_{k+1} + P^{(x, y)}_{k} + S^{(x, y)}_{k+1}" in text
 
 
+@pytest.mark.slow  # 34 s; the Cayley steps print with the tests
 def test_a_step_through_the_exponential_map_prints_with_it():
     """SO(3) through the exponential retraction: dexp's smooth functions are evaluated at
     their closed form at 50 digits in the check (their binary64 Taylor polynomial would be

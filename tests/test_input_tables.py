@@ -182,3 +182,31 @@ def test_inputs_held_constant_hold_no_table_of_the_run():
                          every=steps)
     assert np.array_equal(held.states, table.states)
     assert peak < 8e6, peak  # the table alone is 16 MB
+
+
+def test_tables_labelled_by_anything_but_names_or_positions_are_refused():
+    """(A MultiIndex's columns, ("torque", "u2"), ("torque", "u1"), were taken for
+    unlabelled and read by position: joint 1 was driven by u2.)  Only integer labels are
+    positions; tuples and floats name no input and the table is refused, naming them."""
+    sim, U = chain(), _inputs()
+    multi = pd.DataFrame(U[:, ::-1], columns=pd.MultiIndex.from_tuples(
+        [("torque", "u2"), ("torque", "u1")]))
+    with pytest.raises(sg.InputNameError, match=r"\('torque', 'u2'\).*must be the inputs "
+                                                r"u1, u2"):
+        sim.simulate(STATE, STEPS, PARAMS, inputs=multi, options=EXACT)
+    floats = pd.DataFrame(U, columns=[0.0, 1.0])
+    with pytest.raises(sg.InputNameError, match="0.0, 1.0 must be the inputs u1, u2"):
+        sim.simulate(STATE, STEPS, PARAMS, inputs=floats, options=EXACT)
+    numbered = pd.DataFrame(U, columns=np.arange(2, dtype=np.int32))  # positions
+    plain = sim.simulate(STATE, STEPS, PARAMS, inputs=U, options=EXACT)
+    assert np.array_equal(sim.simulate(STATE, STEPS, PARAMS, inputs=numbered,
+                                       options=EXACT).states, plain.states)
+
+
+def test_no_initial_states_is_an_empty_batch_whatever_their_container():
+    """(A (0, n) array gave an empty batch where [] was refused as "empty".)  Both are a
+    batch, or a sweep, of no runs."""
+    sim = chain()
+    for empty in (np.zeros((0, STATE.size)), []):
+        assert len(sim.simulate_batch(empty, STEPS, PARAMS, inputs=_inputs())) == 0
+        assert sg.sweep(sim, empty, PARAMS, STEPS, inputs=_inputs()).shape == (0,)

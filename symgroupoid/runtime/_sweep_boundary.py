@@ -35,7 +35,7 @@ from ._sweep_arguments import check_sendable, sweep_controls
 from ._sweep_result import STOPPED, Collected, Progress, SweepResult, stack_values
 from ._sweep_tasks import COMBINE, reduced
 from ._tables import _at_row, parameter_table
-from ._validate import integer_argument, system_argument
+from ._validate import system_argument
 
 #: the options of :func:`solve_boundary_value` a boundary-value sweep passes on
 SOLVER_OPTIONS = ("tol", "tol_step", "max_iterations")
@@ -215,7 +215,9 @@ def sweep_boundary_value(step, starts, ends, steps: int, params=None, *,
         raise InputTypeError(f"{owner}: sweep_boundary_value got unknown option(s) "
                              f"{', '.join(unknown)}; the solver's options are "
                              f"{', '.join(SOLVER_OPTIONS)}")
-    steps = integer_argument(steps, "steps", owner=owner)
+    from ._bvp import boundary_steps
+
+    steps = boundary_steps(system, steps)
     combine = choice_argument(combine, COMBINE, "combine", owner=owner)
     continuation = flag_argument(continuation, "continuation", owner=owner)
     reduce, reduce_failures, client, progress, timeout, chunk_size = sweep_controls(

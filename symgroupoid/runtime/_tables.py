@@ -223,8 +223,8 @@ def state_table(sim, initial) -> tuple[np.ndarray, bool]:
     if not isinstance(initial, np.ndarray):
         if rows and all(_is_scalar(v) for v in rows):
             return sim.state(initial)[None, :], True
-        if not rows:
-            raise ShapeError(f"{sim.name}: the table of initial states is empty")
+        if not rows:  # no states: an empty batch, as a (0, n_known) array gives
+            return np.empty((0, n_k)), False
     if all(not isinstance(r, Mapping) for r in rows):
         try:
             arr = real_array(rows if rows else initial, "the table of initial states",

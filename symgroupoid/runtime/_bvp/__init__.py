@@ -70,9 +70,9 @@ from ._assembly import ROUNDING_FACTOR
 from ._guess import CUT_LOCUS_TOLERANCE, interpolate_arrows
 from ._kernels import CostKernel, WindowKernel, cost_kernel, window_kernel
 from ._solution import BoundaryValueSolution
-from ._solve import solve_boundary_value
+from ._solve import boundary_steps, solve_boundary_value
 from ._state import MAX_HALVINGS
 
 __all__ = ["CUT_LOCUS_TOLERANCE", "MAX_HALVINGS", "ROUNDING_FACTOR", "BoundaryValueSolution",
            "CostKernel", "WindowKernel", "cost_kernel", "interpolate_arrows",
-           "solve_boundary_value", "window_kernel"]
+           "boundary_steps", "solve_boundary_value", "window_kernel"]

@@ -25,7 +25,13 @@ from ..._errors import (
 from ..._progress import reported
 from ...equations import solve_stages
 from .._memory import available_memory
-from .._validate import check_holonomic_nodes, integer_argument, parameter_vector, real_argument
+from .._validate import (
+    MAX_COUNT,
+    check_holonomic_nodes,
+    integer_argument,
+    parameter_vector,
+    real_argument,
+)
 from ._fast import _fast_newton, _Handover, _restart_points
 from ._globalised import _globalised_after
 from ._guess import _boundary, _boundary_system, _check_cut_locus, _initial
@@ -42,6 +48,18 @@ MAX_TOL = 1e-2
 
 @reported(lambda step_equations, *args, **kwargs:
           f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
+def boundary_steps(system, steps) -> int:
+    """``steps`` as the number of arrows of a two-point problem of ``system``: an integer,
+    at least 2·order (the junctions between fixed ends), or a :class:`ShapeError` that says
+    so, for negative counts too."""
+    a = len(_functions(system).slots)
+    steps = integer_argument(steps, "steps", minimum=-MAX_COUNT, owner=system.name)
+    if steps < 2 * a:
+        raise ShapeError(f"{system.name}: a problem of order {a} needs at least {2 * a} "
+                         f"steps, got {steps}")
+    return steps
+
+
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
                          inputs=None, tol: float = 0.0, tol_step: float = 0.0,
                          max_iterations: int = 100,
@@ -121,10 +139,7 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     system = _boundary_system(step_equations)
     owner = system.name
     a = len(_functions(system).slots)
-    steps = integer_argument(steps, "steps", owner=owner)
-    if steps < 2 * a:
-        raise ShapeError(f"{owner}: a problem of order {a} needs at least {2 * a} "
-                         f"steps, got {steps}")
+    steps = boundary_steps(system, steps)
     _check_memory(system, steps, owner)
     max_iterations = integer_argument(max_iterations, "max_iterations", owner=owner)
     tol = real_argument(tol, "tol", minimum=0.0, owner=owner)
