@@ -28,6 +28,7 @@ from .runtime import (
     conservation_summary,
     constraint_residuals,
     energy,
+    energy_changes,
     energy_label,
     has_energy,
     momenta,
@@ -36,6 +37,6 @@ from .runtime import (
 
 __all__ = [
     "ConservationSummary", "DiagnosticsError", "Drift", "Momenta", "TimeStepError",
-    "conservation_summary", "constraint_residuals", "energy", "energy_label", "has_energy",
-    "momenta", "rounding_floor",
+    "conservation_summary", "constraint_residuals", "energy", "energy_changes", "energy_label",
+    "has_energy", "momenta", "rounding_floor",
 ]

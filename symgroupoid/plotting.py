@@ -33,6 +33,7 @@ from ._errors import (
 from .runtime import (
     Drift,
     constraint_residuals,
+    energy_changes,
     energy_label,
     has_energy,
     noether_drifts,
@@ -238,7 +239,9 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     Noether quantity J of a forced system is not conserved: it changes by the forces'
     impulse (docs/conventions.md §20), so its balance J_k − Σ_{j<k} I_j is plotted with its
     floors, and |J_k − J_0| thin and grey beside it (the trajectory kept every step); nor is
-    its energy, which is plotted only when asked for (``energy=True``);
+    its energy, nor on a time groupoid the energy of an L that depends on the time or of a
+    system with constraints (:func:`symgroupoid.diagnostics.energy_changes`): these are
+    plotted only when asked for (``energy=True``);
     ``constraints``: None plots them when the system
     has constraints.  The horizontal axis is the time t = k·h when the time step h is known
     (``time_step``: a parameter's name; None: ``step_parameter``, else the step the system
@@ -257,8 +260,10 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
                            owner)
     idx = trajectory.step_indices
     quantities = []
-    forced = getattr(programs.system, "forces", None) is not None
-    if energy or (energy is None and not forced and has_energy(trajectory, step_parameter)):
+    defined = energy or (energy is None and has_energy(trajectory, step_parameter))
+    changing = energy_changes(trajectory, step_parameter) if energy is None and defined \
+        else None
+    if defined and changing is None:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 _energy(trajectory, step_parameter), idx))
     conserved, changes = noether_drifts(trajectory, programs, momenta)
@@ -268,9 +273,11 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
         raise DomainError(f"{programs.name}: constraints=True, but the system has no "
                           f"constraints to plot")
     if not quantities and not show_phi:
-        raise DomainError(f"{programs.name}: nothing to plot: no energy is defined (declare the "
-                          f"system's time_step=, or pass step_parameter=...) and no Noether "
-                          f"quantity was given (momenta=[...])")
+        why = (f"the energy is not conserved ({changing}; energy=True plots it)" if changing
+               else "no energy is defined (declare the system's time_step=, or pass "
+                    "step_parameter=...)")
+        raise DomainError(f"{programs.name}: nothing to plot: {why} and no Noether quantity "
+                          f"was given (momenta=[...])")
     panels = int(bool(quantities)) + int(show_phi)
     fig = Figure(figsize=(9.5, 3 * panels + 0.6))
     axes = list(fig.subplots(panels, 1, sharex=True, squeeze=False)[:, 0])

@@ -644,3 +644,19 @@ def test_parameters_written_alike_or_as_step_values_are_refused(names):
 
     with pytest.raises(sg.ParameterDeclarationError, match="written"):
         sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=params)
+
+
+def test_a_step_symbol_of_an_unknown_name_or_step_is_a_named_error():
+    """(``step.symbol("xx", "k")`` raised a raw KeyError, and ``"k+5"`` on a first-order
+    step, whose symbols run from k−1 to k+1, returned a symbol of no equation.)"""
+    step = sg.systems.plate_ball().euler_lagrange()
+    assert str(step.symbol("x", "k+1")) == "x_{k+1}"
+    with pytest.raises(sg.InputNameError, match="no coordinate named 'xx'; known names: g, "
+                                                "x, y, lambda"):
+        step.symbol("xx", "k")
+    with pytest.raises(sg.ShapeError, match="symbols run from k-1 to k\\+1; got k\\+5"):
+        step.symbol("x", "k+5")
+    with pytest.raises(sg.InputTypeError, match="got float 1.5"):
+        step.symbol("x", 1.5)
+    with pytest.raises(sg.ShapeError, match="step must look like 'k'"):
+        step.symbol("x", "q")

@@ -33,6 +33,7 @@ from ._forces import (
 from ._junction import junction_variation
 from ._limit import (
     SCALES,
+    declared_step_behaves,
     extrapolate,
     identified_time_steps,
     limit_points,
@@ -88,7 +89,8 @@ __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep
            "check_nonholonomic_dimensions", "check_symbols", "check_values",
            "conserved_quantities", "distribution_coefficients", "energy_momentum_step",
            "evaluate_system", "extrapolate",
-           "field_derivatives", "force_functions", "identified_time_steps", "impulse_form",
+           "declared_step_behaves", "field_derivatives", "force_functions",
+           "identified_time_steps", "impulse_form",
            "impulse_section",
            "input_arguments", "input_symbols", "junction_step", "junction_variation",
            "legendre_forms", "lie_poisson_forms", "limit_points", "matrix_form_residuals",

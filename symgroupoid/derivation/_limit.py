@@ -50,6 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from .._errors import UnsupportedExpressionError
 from ..groupoids import Groupoid
 from ..ir import Graph, Program, forward, from_sympy, interpret
 
@@ -204,9 +205,14 @@ class ContinuousLimit:
     def is_time_step(self, points: Sequence[LimitPoint], step: sp.Symbol) -> bool:
         """Whether vᵀK(h)v (2) has a finite non-zero limit and D(h) (3) a finite one at every
         point, with ``step`` = h."""
+        return self.step_verdict(points, step) is True
+
+    def step_verdict(self, points: Sequence[LimitPoint], step: sp.Symbol) -> bool | None:
+        """:meth:`is_time_step`, or None when the probes cannot tell (fewer than two points,
+        or L_d not finite at them)."""
         probes = self.probes(points, step)
         if probes is None or len(points) < 2:
-            return False
+            return None
         h = np.asarray(SCALES)
         size = 0.0
         for kinetic in probes.L2 * h[None, :]:
@@ -254,6 +260,26 @@ def identified_time_steps(system) -> list[sp.Symbol]:
         found = [] if limit is None else limit.time_steps()
         system.__dict__["_identified_time_steps"] = found
     return list(found)
+
+
+def declared_step_behaves(system) -> bool | None:
+    """Whether the time step a first-order system declares (``time_step=``) behaves as its
+    step in the continuous limit, L_d(g_h(q, v)) = c/h + h L(q, v) + O(h²) (§19): None when
+    it declares none, on a time groupoid, with internal stages, or where the probes cannot
+    tell.  A declared step skips the identification; this is the check an energy
+    −∂L_d/∂h makes of it, e.g. against an L_d written as L(q̄, Δq/h) without the factor h."""
+    declared = getattr(system, "time_step", None)
+    fs = getattr(system, "functions", None)
+    if declared is None or system.groupoid.timed or fs is None or getattr(fs, "stages", ()):
+        return None
+    limit = ContinuousLimit.of_system(system)
+    if limit is None:
+        return None
+    step = next((p for p in system.parameters if str(p) == str(declared)), declared)
+    try:
+        return limit.step_verdict(list(limit.points()), step)
+    except UnsupportedExpressionError:
+        return None
 
 
 def time_step_candidates(system) -> list:

@@ -9,8 +9,8 @@ import numpy as np
 import sympy as sp
 
 from .._arguments import instance_argument
-from .._errors import UnsupportedFeatureError
-from .._symbols import multiplier_symbols, parse_step
+from .._errors import InputNameError, InputTypeError, ShapeError, UnsupportedFeatureError
+from .._symbols import multiplier_symbols, parse_step, step_label
 from ..derivation import DerivedStep
 
 
@@ -150,14 +150,31 @@ class StepEquations:
         ``step.symbol("x", "k+1")``, ``step.symbol("g", "k")`` (a Matrix for a group part
         named "g"), ``step.symbol("lambda", "k+1")`` (list of (λ_{k+1})_a).
         """
-        offset = parse_step(step)
+        offset = self._offset(step)
         if name in ("lambda", "λ", "multipliers"):
             return multiplier_symbols(self.n_constraints, offset)
         table = self.groupoid.symbols_by_name(offset)
-        if name not in table:
-            raise KeyError(f"{self.name}: no coordinate named {name!r}; known names: "
-                           f"{sorted(table) + ['lambda']}")
+        if not isinstance(name, str) or name not in table:
+            raise InputNameError(f"{self.name}: no coordinate named {name!r}; known names: "
+                                 f"{', '.join(sorted(table) + ['lambda'])}")
         return table[name]
+
+    def _offset(self, step) -> int:
+        """The offset from k of ``step`` ("k", "k+1", "k-1" or an int) among those of the
+        step's symbols: from the source of its first arrow to its newest arrow."""
+        first, newest = self._d.offsets
+        if isinstance(step, bool) or not isinstance(step, (str, int, np.integer)):
+            raise InputTypeError(f"{self.name}: step must be 'k', 'k+1', 'k-1', … or an "
+                                 f"integer offset, got {type(step).__name__} {step!r}")
+        try:
+            offset = parse_step(step if isinstance(step, str) else int(step))
+        except ValueError as err:
+            raise ShapeError(f"{self.name}: {err}") from None
+        if not first - 1 <= offset <= newest:
+            raise ShapeError(f"{self.name}: the step's symbols run from "
+                             f"{step_label(first - 1)} to {step_label(newest)}; got "
+                             f"{step_label(offset)}")
+        return offset
 
     # --- residuals in the unknowns ----------------------------------------------------------
     def residuals_in_unknowns(self) -> list[sp.Expr]:

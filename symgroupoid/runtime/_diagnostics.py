@@ -160,6 +160,34 @@ def _energy_missing(trajectory, step_parameter) -> str:
     return "it is defined"
 
 
+def energy_changes(trajectory, step_parameter: str | None = None) -> str | None:
+    """Why the energy of :func:`energy` is not a conserved quantity of the trajectory's
+    system, None when it is one (for a discrete energy E_d = −∂L_d/∂h of a fixed step, to
+    within its bounded oscillation): a forced system's forces change it (§20); on a time
+    groupoid E = −∂L/∂t₁ is conserved when the time section is a symmetry of the system
+    (§7; with a fixed step t₁ − t₀ = h as a constraint, to within the bounded oscillation of
+    a fixed step), not when L or the constraints depend on the time explicitly."""
+    sg = _setup(trajectory)[0].sg
+    if sg.forces is not None:
+        return "the forces change it"
+    if step_parameter is not None or not sg.groupoid.timed:
+        return None
+    if not _time_section_is_symmetry(sg.system):
+        return ("the system depends on the time explicitly: the time section ∂/∂t is not a "
+                "symmetry, so E = −∂L/∂t₁ changes along the motion (docs/conventions.md §7)")
+    return None
+
+
+def _time_section_is_symmetry(system) -> bool:
+    """Whether the time section (basis section 0 of R × R × G) is a symmetry of the
+    system's L, decided once per system by :meth:`~symgroupoid.DiscreteSystem.noether`."""
+    found = system.__dict__.get("_time_section_symmetry")
+    if found is None:
+        found = system.__dict__["_time_section_symmetry"] = bool(
+            system.noether(0).is_symmetry)
+    return found
+
+
 def has_energy(trajectory, step_parameter: str | None = None) -> bool:
     """Whether :func:`energy` is defined for this trajectory."""
     try:
@@ -293,10 +321,10 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
         want_energy = has_energy(trajectory, step_parameter)
         if not want_energy and ev.sg.arity == 1:
             notes.append(f"energy: not included ({_energy_missing(trajectory, step_parameter)})")
-    forced = ev.sg.forces is not None
-    if energy is None and forced and want_energy:
+    changes = energy_changes(trajectory, step_parameter) if want_energy else None
+    if energy is None and changes is not None:
         want_energy = False
-        notes.append("energy: not included (the forces change it; energy=True includes it)")
+        notes.append(f"energy: not included ({changes}; energy=True includes it)")
     if want_energy:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
                                 globals()["energy"](trajectory, step_parameter), idx))

@@ -20,7 +20,8 @@ Quantities (docs/conventions.md §3, §7):
   fixed-step variational integrator keeps to O(h²) without drift), or, on a
   :class:`~symgroupoid.groupoids.TimeGroupoid`, the energy conjugate to time
   E(g_k) = −X⃖_t[L](g_k) = −∂L/∂t₁(g_k) (seed 000 §6.3), which the adaptive
-  (unconstrained-time) step conserves exactly;
+  (unconstrained-time) step conserves exactly when L does not depend on the time
+  explicitly (the time section a symmetry; otherwise E changes along the motion);
 - constraint residuals: φ on the newest known arrows of each state (first order φ(g_k),
   second order Φ(g_k, g_{k+1}), nonholonomic ψ(g_k)).
 
@@ -46,7 +47,13 @@ import sympy as sp
 
 from ..._errors import DiagnosticsError, TimeStepError
 from ..._symbols import multiplier_symbols
-from ...derivation import WindowAction, identified_time_steps, input_symbols, step_jacobian
+from ...derivation import (
+    WindowAction,
+    declared_step_behaves,
+    identified_time_steps,
+    input_symbols,
+    step_jacobian,
+)
 from ...ir import Graph, Program, from_sympy, gradient
 
 
@@ -203,7 +210,7 @@ class StatePrograms:
                                    f"parameter (a string), got {type(name).__name__} "
                                    f"{name!r}")
         if name is None:
-            return self._time_step(by_name)
+            return self._checked_step(self._time_step(by_name))
         if str(name) not in by_name:
             raise DiagnosticsError(f"{self.name}: step_parameter={name!r} is not a parameter "
                                    f"of the system (parameters: {', '.join(by_name) or 'none'})")
@@ -217,6 +224,21 @@ class StatePrograms:
             return self._time_step({str(p): p for p in self.parameters})
         except TimeStepError:
             return None
+
+    def _checked_step(self, h: sp.Symbol) -> sp.Symbol:
+        """The declared step ``h`` once the continuous limit has not refuted it (§19: an
+        energy −∂L_d/∂h of a step that is not one is no energy), else a
+        :class:`TimeStepError`; an identified step has passed the limit already."""
+        if declared_step_behaves(self.system) is False:
+            raise TimeStepError(
+                f"{self.name}: the declared time step {h} does not behave as the step in the "
+                f"continuous limit (L_d(g_h(q, v))/h tends to no Lagrangian with a kinetic "
+                f"term as {h} → 0; docs/conventions.md §19), so E_d = −∂L_d/∂{h} would not "
+                f"be the energy.  A discrete Lagrangian approximates the action over a step, "
+                f"h·L: e.g. the midpoint rule h·L((q₀ + q₁)/2, (q₁ − q₀)/h), not "
+                f"L((q₀ + q₁)/2, (q₁ − q₀)/h); step_parameter=... differentiates by a "
+                f"parameter unchecked")
+        return h
 
     def _time_step(self, by_name: dict) -> sp.Symbol:
         declared = getattr(self.system, "time_step", None)
