@@ -324,7 +324,9 @@ def test_too_few_steps_have_one_message_in_the_solve_and_the_sweep(steps):
     """(steps = −1 said "at least 0" where 0 said "at least 2"; a sweep checked only the
     sign, and each of its runs failed on its own.)  Every count below 2·order is refused
     before anything is solved, with the same message by both."""
-    step = sg.systems.planar_chain(1).euler_lagrange()
+    from symgroupoid import systems
+
+    step = systems.planar_chain(1).euler_lagrange()
     message = f"a problem of order 1 needs at least 2 steps, got {steps}"
     params = {"h": 0.1, "g": 9.81}
     with pytest.raises(sg.ShapeError, match=message):

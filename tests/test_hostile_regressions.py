@@ -649,7 +649,9 @@ def test_parameters_written_alike_or_as_step_values_are_refused(names):
 def test_a_step_symbol_of_an_unknown_name_or_step_is_a_named_error():
     """(``step.symbol("xx", "k")`` raised a raw KeyError, and ``"k+5"`` on a first-order
     step, whose symbols run from k−1 to k+1, returned a symbol of no equation.)"""
-    step = sg.systems.plate_ball().euler_lagrange()
+    from symgroupoid import systems
+
+    step = systems.plate_ball().euler_lagrange()
     assert str(step.symbol("x", "k+1")) == "x_{k+1}"
     with pytest.raises(sg.InputNameError, match="no coordinate named 'xx'; known names: g, "
                                                 "x, y, lambda"):
@@ -660,3 +662,12 @@ def test_a_step_symbol_of_an_unknown_name_or_step_is_a_named_error():
         step.symbol("x", 1.5)
     with pytest.raises(sg.ShapeError, match="step must look like 'k'"):
         step.symbol("x", "q")
+
+
+def test_the_lie_poisson_form_of_a_product_of_lie_groups_says_it_is_not_supported():
+    """(It said "needs a Lie group, not SO3(W) × SO2(V)", a Lie group.)"""
+    from symgroupoid import systems
+
+    with pytest.raises(sg.UnsupportedFeatureError, match="is a product of Lie groups, which "
+                                                         "it does not take yet"):
+        systems.satellite_with_wheel().lie_poisson()

@@ -20,10 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import DomainError, InputTypeError, ShapeError
+from .._errors import DomainError, InputTypeError, ShapeError, UnsupportedFeatureError
 from .._lambdify import NUMPY_MODULES
 from .._symbols import indexed_symbol, multiplier_symbols
-from ..groupoids import Groupoid
+from ..groupoids import Groupoid, ProductGroupoid
 from ._callables import (
     as_scalar,
     as_scalar_list,
@@ -378,6 +378,11 @@ def lie_poisson_forms(name: str, G: Groupoid, fs: SystemFunctions,
                       parameters: Sequence) -> LiePoissonForms:
     """Seed 000 §6.1 for a matrix Lie group G."""
     if not G.is_lie_group:
+        if isinstance(G, ProductGroupoid) and all(f.is_lie_group for f in G.factors):
+            raise UnsupportedFeatureError(
+                f"{name}: the Lie–Poisson form is derived for one matrix Lie group (seed 000 "
+                f"§6.1: Ad* of its matrix); {G.name} is a product of Lie groups, which it "
+                f"does not take yet: derive the step with euler_lagrange()")
         raise InputTypeError(f"{name}: the Lie–Poisson form needs a Lie group, not {G.name}")
     m, r = len(fs.constraints), G.rank
     now, nxt = legendre_forms(G, fs, 0), legendre_forms(G, fs, 1)
