@@ -46,8 +46,6 @@ from ._state import _Problem, _SolverState
 MAX_TOL = 1e-2
 
 
-@reported(lambda step_equations, *args, **kwargs:
-          f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def boundary_steps(system, steps) -> int:
     """``steps`` as the number of arrows of a two-point problem of ``system``: an integer,
     at least 2·order (the junctions between fixed ends), or a :class:`ShapeError` that says
@@ -60,6 +58,8 @@ def boundary_steps(system, steps) -> int:
     return steps
 
 
+@reported(lambda step_equations, *args, **kwargs:
+          f"{getattr(step_equations, 'name', 'system')}: boundary-value solve")
 def solve_boundary_value(step_equations, start, end, steps: int, guess=None, params=None, *,
                          inputs=None, tol: float = 0.0, tol_step: float = 0.0,
                          max_iterations: int = 100,
