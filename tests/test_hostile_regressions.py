@@ -671,3 +671,35 @@ def test_the_lie_poisson_form_of_a_product_of_lie_groups_says_it_is_not_supporte
     with pytest.raises(sg.UnsupportedFeatureError, match="is a product of Lie groups, which "
                                                          "it does not take yet"):
         systems.satellite_with_wheel().lie_poisson()
+
+
+def test_reconstruction_refuses_a_reduced_run_that_keeps_every_tenth_state():
+    """(A rotor on the pair groupoid of SO(2), reduced to SO(2), run with every=10: the
+    kept arrows W₀, W₁₀, W₂₀ were composed as consecutive, and the reconstructed angles
+    advanced 0.05 a row where the motion advances 0.5, without a word.)"""
+    h, inertia = sp.symbols("h I", positive=True)
+    pair, group = sg.PairGroupoid(sg.SO2("R")), sg.SO2("W")
+
+    def L(a):
+        R0, R1 = sp.Matrix(2, 2, a.coords[:4]), sp.Matrix(2, 2, a.coords[4:])
+        return inertia * (1 - (R0.T * R1)[0, 0]) / h
+
+    phi = sg.GroupoidMorphism(pair, group, lambda a: sp.Matrix(2, 2, a.coords[:4]).T
+                              * sp.Matrix(2, 2, a.coords[4:]))
+    full = sg.DiscreteSystem(pair, L, parameters=[h, inertia], name="rotor")
+    red = full.reduce(phi, lagrangian=lambda w: inertia * (1 - w.matrix[0, 0]) / h,
+                      name="rotor_red")
+    params = {"h": 0.1, "I": 1.0}
+
+    def rot(t):
+        return np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+
+    sim = full.euler_lagrange().compile(backend="numpy")
+    run = sim.simulate(sim.state({"R": (rot(0.0), rot(0.05))}), 40, params)
+    reduced = red.euler_lagrange().compile(backend="numpy")
+    start = red.project(run, params)[0]
+    every = reduced.simulate(start, 40, params, every=10)
+    with pytest.raises(sg.DomainError, match="keeps only the states of steps 0, 10, 20, 30"):
+        red.reconstruct(every, run.states[0], params)
+    whole = red.reconstruct(reduced.simulate(start, 40, params), run.states[0], params)
+    assert np.allclose(whole, run.states, rtol=0, atol=1e-12)

@@ -186,13 +186,13 @@ def reduce_functions(name: str, phi: GroupoidMorphism, lagrangian: Callable,
                      reduced_constraints: Callable | None = None) -> Reduction:
     """L′ and φ′ (given, or L∘σ and φ∘σ) with L = L′∘Φ and φ = φ′∘Φ verified."""
     G, H = phi.source, phi.target
-    Lr = reduced_lagrangian or pulled_back(name, phi, lagrangian, "reduced Lagrangian")
+    Lr = reduced_lagrangian or pulled_back(name, phi, lagrangian, "Lagrangian")
     if constraints is None and reduced_constraints is not None:
         raise ShapeError(f"{name}: the system has no constraints; reduced constraints were "
                          f"given")
     Cr = None
     if constraints is not None:
-        Cr = reduced_constraints or pulled_back(name, phi, constraints, "reduced constraints")
+        Cr = reduced_constraints or pulled_back(name, phi, constraints, "constraints")
     a, b = slot(G, "u"), slot(H, "v")
     va, vb = G.view(a), H.view(b)
     checks = [check_identity(

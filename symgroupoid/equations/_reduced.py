@@ -113,6 +113,11 @@ class ReducedSystem(DiscreteSystem):
         (an arrow of G projecting onto the first reduced arrow, or an unreduced state
         (g_0, λ_0) with the reduced multipliers) and each g_{k+1} in the α-fibre of
         β(g_k)."""
+        kept = getattr(states, "step_indices", None)
+        if kept is not None and np.any(np.diff(np.asarray(kept)) != 1):
+            raise DomainError(f"{self.name}: the reconstruction composes every reduced arrow "
+                              f"of the run, but this trajectory keeps only the states of steps "
+                              f"{_shown_steps(kept)}; simulate with every=1")
         arrows, lam = self._split_states(states, self.groupoid, "reduced")
         g0 = np.asarray(initial, float).ravel()
         n = self.unreduced.groupoid.arrow_dim
@@ -262,3 +267,9 @@ def check_system_morphism(morphism: GroupoidMorphism, system: DiscreteSystem,
         checks = checks + [check_forces(system.name, morphism, system.functions.forces,
                                         other.functions.forces)]
     return checks
+
+
+def _shown_steps(kept) -> str:
+    """The first kept step indices, for a message."""
+    kept = [int(k) for k in np.asarray(kept)[:4]]
+    return ", ".join(map(str, kept)) + ", …"
