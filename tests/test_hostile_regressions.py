@@ -703,3 +703,28 @@ def test_reconstruction_refuses_a_reduced_run_that_keeps_every_tenth_state():
         red.reconstruct(every, run.states[0], params)
     whole = red.reconstruct(reduced.simulate(start, 40, params), run.states[0], params)
     assert np.allclose(whole, run.states, rtol=0, atol=1e-12)
+
+
+def test_a_hoelder_system_checks_the_metric_it_keeps():
+    """(metric=diag(1, −5, 1) was kept without a check by the Hölder method, for
+    conserved_quantities() to use later.)  It is checked as the energy–momentum method
+    checks it."""
+    h, m = sp.symbols("h m", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x y th"))
+
+    def L(a):
+        return h * m / 2 * sum(((b - c) / h) ** 2 for b, c in zip(a.target, a.source))
+
+    def Mc(a):
+        th = (a.source[2] + a.target[2]) / 2
+        return [sp.sin(th) * (a.target[0] - a.source[0])
+                - sp.cos(th) * (a.target[1] - a.source[1])]
+
+    Dc = [lambda q: [sp.cos(q[2]), sp.sin(q[2]), 0], [0, 0, 1]]
+    with pytest.raises(sg.DomainError, match=r"the metric G_c is not positive definite: "
+                                             r"eigenvalues \[-5.0, 1.0, 1.0\]"):
+        sg.NonholonomicSystem(G, L, Mc, Dc, parameters=[h, m], metric=sp.diag(1, -5, 1))
+    with pytest.raises(sg.ShapeError, match="the metric is 2×2"):
+        sg.NonholonomicSystem(G, L, Mc, Dc, parameters=[h, m], metric=sp.eye(2))
+    kept = sg.NonholonomicSystem(G, L, Mc, Dc, parameters=[h, m], metric=sp.eye(3) * m)
+    assert kept.method == "holder"

@@ -18,6 +18,7 @@ from ._callables import (
 from ._energy_momentum import (
     NONHOLONOMIC_METHODS,
     ConservedQuantities,
+    check_metric,
     conserved_quantities,
     energy_momentum_step,
 )
@@ -81,7 +82,7 @@ from ._step import (
 )
 from ._window import step_jacobian
 
-__all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep",
+__all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep", "check_metric",
            "ForceFunctions", "JunctionNodes", "LegendreForms", "LiePoissonForms", "NoetherForms",
            "Partial", "PieceRule", "SystemFunctions", "TermNodes", "WindowAction", "WindowPieces",
            "as_scalar", "call_user", "check_parameters", "checked_callable", "chart_of",

@@ -95,6 +95,16 @@ def _cleared(v: sp.Matrix) -> sp.Matrix:
     return sp.Matrix([sp.cancel(e * scale) for e in entries])
 
 
+def check_metric(name: str, G: Groupoid, metric, parameters: Sequence) -> None:
+    """G_c checked as the energy–momentum method checks it (a symmetric rank × rank matrix
+    in the base point and the parameters, positive definite at random values of them), for
+    a system that keeps it for :meth:`conserved_quantities` without stepping by it."""
+    q = G.target(window_arrows(G, window(1)[0])[0])
+    Gm = metric_at(name, G, metric, q)
+    check_symbols(name, "metric", list(Gm), q, parameters)
+    _check_numerically(name, sp.eye(G.rank), Gm, q)
+
+
 def _check_numerically(name: str, C: sp.Matrix, Gm: sp.Matrix, q: Sequence) -> None:
     rng = np.random.default_rng(0)
     free = sorted((C.free_symbols | Gm.free_symbols), key=lambda s: s.name)
@@ -109,8 +119,9 @@ def _check_numerically(name: str, C: sp.Matrix, Gm: sp.Matrix, q: Sequence) -> N
             raise ShapeError(f"{name}: the elements of D are linearly dependent at "
                              f"{_show(sub)}")
         if np.linalg.eigvalsh(Gn).min() <= 0:
-            raise DomainError(f"{name}: the metric G_c is not positive definite at "
-                              f"{_show(sub)}: eigenvalues {np.linalg.eigvalsh(Gn).tolist()}")
+            at = f" at {_show(sub)}" if sub else ""
+            raise DomainError(f"{name}: the metric G_c is not positive definite{at}: "
+                              f"eigenvalues {np.linalg.eigvalsh(Gn).tolist()}")
 
 
 def _show(sub: dict) -> str:

@@ -30,6 +30,7 @@ from ..derivation import (
     NONHOLONOMIC_METHODS,
     SystemFunctions,
     call_user,
+    check_metric,
     check_nonholonomic_dimensions,
     check_symbols,
     check_values,
@@ -509,6 +510,8 @@ class NonholonomicSystem(_EvaluatedSystem):
         else:
             check_nonholonomic_dimensions(name, groupoid, len(self.distribution),
                                           len(self.functions.constraints))
+            if metric is not None:  # kept for conserved_quantities(): checked now
+                check_metric(name, groupoid, metric, self.parameters)
 
     @reported(lambda self: f"{self.name}: deriving the equations")
     @collector_paused
