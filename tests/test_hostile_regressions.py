@@ -728,3 +728,12 @@ def test_a_hoelder_system_checks_the_metric_it_keeps():
         sg.NonholonomicSystem(G, L, Mc, Dc, parameters=[h, m], metric=sp.eye(2))
     kept = sg.NonholonomicSystem(G, L, Mc, Dc, parameters=[h, m], metric=sp.eye(3) * m)
     assert kept.method == "holder"
+
+
+def test_a_morphism_map_returning_strings_is_refused():
+    """(("a", "b") was sympified into two new free symbols, reported as the morphism's
+    parameters.)"""
+    line = sg.PairGroupoid(sg.EuclideanSpace("x"))
+    with pytest.raises(sg.ShapeError, match="must be numbers or SymPy expressions, got str "
+                                            "'a' at coordinate 0"):
+        sg.GroupoidMorphism(line, line, lambda a: ("a", "b"))

@@ -37,6 +37,7 @@ from .._errors import (
     SymgroupoidError,
 )
 from .._lambdify import NUMPY_MODULES
+from .._symbols import scalar_expression
 from ._base import Groupoid
 
 #: relative tolerance of the numeric identities (morphism axioms, lifts, AΦ)
@@ -74,10 +75,20 @@ def flatten_arrow(groupoid: Groupoid, value, what: str) -> tuple:
     if len(flat) != groupoid.arrow_dim:
         raise ShapeError(f"{what}: {len(flat)} coordinates, but an arrow of {groupoid.name} "
                          f"has {groupoid.arrow_dim}")
-    try:
-        return tuple(sp.sympify(c) for c in flat)
-    except (sp.SympifyError, TypeError) as exc:
-        raise ShapeError(f"{what}: coordinates must be scalars, got {flat!r}") from exc
+    return _scalars(flat, what)
+
+
+def _scalars(values: Sequence, what: str) -> tuple:
+    """``values`` as SymPy scalar expressions; a :class:`ShapeError` naming the first that is
+    none (a string is not read as a symbol: "a" would become a free parameter)."""
+    out = []
+    for i, c in enumerate(values):
+        e = scalar_expression(c)
+        if e is None:
+            raise ShapeError(f"{what}: coordinates must be numbers or SymPy expressions, got "
+                             f"{type(c).__name__} {c!r} at coordinate {i}")
+        out.append(e)
+    return tuple(out)
 
 
 def _nested(item) -> bool:
@@ -243,8 +254,8 @@ class GroupoidMorphism:
         except Exception as exc:  # noqa: BLE001
             raise CallableError(f"{self.name}: the base map raised {type(exc).__name__}: "
                                 f"{exc}") from exc
-        out = tuple(sp.sympify(c) for c in (out if isinstance(out, (list, tuple, sp.MatrixBase))
-                                            else [out]))
+        out = _scalars(out if isinstance(out, (list, tuple, sp.MatrixBase)) else [out],
+                       f"{self.name}: the base map")
         if len(out) != self.target.base_dim:
             raise ShapeError(f"{self.name}: the base map returned {len(out)} coordinates; a "
                              f"point of the base of {self.target.name} has "
