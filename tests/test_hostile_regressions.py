@@ -737,3 +737,19 @@ def test_a_morphism_map_returning_strings_is_refused():
     with pytest.raises(sg.ShapeError, match="must be numbers or SymPy expressions, got str "
                                             "'a' at coordinate 0"):
         sg.GroupoidMorphism(line, line, lambda a: ("a", "b"))
+
+
+def test_an_atiyah_connection_outside_the_group_is_refused_at_construction():
+    """(A shear [[1, Δr], [0, 1]] for SO(2) was accepted; only check_axioms noticed, as
+    "associativity (ab)c = a(bc) fails".)"""
+    factors = (sg.SO2("R"), sg.EuclideanSpace("r"))
+    with pytest.raises(sg.DomainError, match="the connection must take values in SO2; .*"
+                                             "rotation block is not a rotation"):
+        sg.AtiyahGroupoid(factors, sg.SO2, connection=lambda s0, s1: sp.Matrix(
+            [[1, s1[0] - s0[0]], [0, 1]]))
+
+    def turn(s0, s1):
+        a = s1[0] - s0[0]
+        return sp.Matrix([[sp.cos(a), -sp.sin(a)], [sp.sin(a), sp.cos(a)]])
+
+    sg.AtiyahGroupoid(factors, sg.SO2, connection=turn)  # in the group

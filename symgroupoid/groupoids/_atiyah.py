@@ -169,11 +169,42 @@ class AtiyahGroupoid(Groupoid):
         s0 = tuple(sp.Dummy(f"s0_{i}", real=True) for i in range(d))
         s1 = tuple(sp.Dummy(f"s1_{i}", real=True) for i in range(d))
         A = self._connection_value(connection, s0, s1)
+        self._check_in_group(A, set(s0) | set(s1))
         at_diagonal = A.xreplace(dict(zip(s1, s0)))
         if any(sp.simplify(e) != 0 for e in at_diagonal - sp.eye(self.group.n)):
             raise DomainError(f"{self.name}: the connection must satisfy 𝒜(s, s) = I; got "
                               f"{at_diagonal.tolist()}")
         return s0, s1, A
+
+    def _check_in_group(self, A: sp.Matrix, shape: set) -> None:
+        """A :class:`DomainError` unless the connection's values lie in H at three random
+        points (its free symbols drawn in (−1, 1), parameters in (1/2, 3/2)): the entries H
+        fixes as the identity's, and a rotation block Q with QᵀQ = I and det Q > 0."""
+        G, rng = self.group, np.random.default_rng(0)
+        free = sorted(A.free_symbols, key=str)
+        fixed = [(i, j) for i in range(G.n) for j in range(G.n) if (i, j) not in G._free]
+        m = G.rotation_block
+        for _ in range(3):
+            sub = {x: rng.uniform(-1.0, 1.0) if x in shape else rng.uniform(0.5, 1.5)
+                   for x in free}
+            try:
+                M = np.array(A.xreplace(sub).evalf().tolist(), dtype=float)
+            except (TypeError, ValueError):
+                return  # not numeric at these values: left to the axioms' check
+            if not np.all(np.isfinite(M)):
+                continue
+            Q = M[:m, :m]
+            scale = 1.0 + float(np.abs(M).max())
+            bad = [f"entry ({i + 1}, {j + 1}) is {M[i, j]:.6g}, not {int(i == j)}"
+                   for i, j in fixed if abs(M[i, j] - (i == j)) > 1e-9 * scale]
+            if m and (np.abs(Q.T @ Q - np.eye(m)).max() > 1e-9 * scale ** 2
+                      or np.linalg.det(Q) <= 0):
+                bad.append("its rotation block is not a rotation (QᵀQ ≠ I or det Q ≤ 0)")
+            if bad:
+                shown = np.round(M, 4).tolist()
+                raise DomainError(f"{self.name}: the connection must take values in "
+                                  f"{G.group_name}; at a random point it is {shown}: "
+                                  f"{'; '.join(bad)}")
 
     def _connection_value(self, connection: Callable, s0, s1) -> sp.Matrix:
         G = self.group
