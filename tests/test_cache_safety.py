@@ -176,6 +176,50 @@ def test_a_lock_file_that_is_a_link_is_refused_and_its_target_untouched(tmp_path
     assert (cache_dir / "locks" / f"{key}.lock").is_symlink()
 
 
+@pytest.mark.parametrize("layout", ["tmp", "index"])
+def test_names_alone_never_make_a_users_directory_a_cache(cache_dir, layout, capsys):
+    """(A directory holding only tmp/build-20240101/results.csv and tmp/probe-abcdefgh, or
+    only index/<32 hex>.json files, was adopted and marked: the sweep deleted the first
+    once an hour old, ``cache clear`` the second.)  An unmarked directory is adopted only
+    when empty or holding a kernel with its manifest; names a cache could have written are
+    not evidence."""
+    import warnings
+
+    if layout == "tmp":
+        (cache_dir / "tmp" / "build-20240101").mkdir(parents=True)
+        (cache_dir / "tmp" / "build-20240101" / "results.csv").write_text("1,2,3")
+        (cache_dir / "tmp" / "probe-abcdefgh").write_text("probe")
+        aged(cache_dir / "tmp" / "build-20240101", cache_dir / "tmp" / "probe-abcdefgh")
+    else:
+        (cache_dir / "index").mkdir(parents=True)
+        (cache_dir / "index" / ("2c" * 16 + ".json")).write_text('{"mine": 1}')
+    before = snapshot(cache_dir)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sim = sg.compile_step(oscillator(), backend="c")
+    assert not str(sim.cache_entry).startswith(str(cache_dir))
+    assert any("not a kernel cache" in str(w.message) for w in caught)
+    toolchain.sweep(cache_dir)
+    status, _, err = cli("cache", "clear", capsys=capsys)
+    assert status == 1 and "nothing was removed" in err
+    assert snapshot(cache_dir) == before
+    assert not (cache_dir / "CACHEDIR.TAG").exists()
+
+
+def test_cache_info_does_not_walk_a_linked_kernel_entry(tmp_path, cache_dir, capsys):
+    """(A kernel entry linked to /usr/share was walked by ``cache info``: 986.8 MiB in 4.6 s,
+    5.9 GiB in 17.8 s for /usr.)  Its size is the link's, and clear removes the link only."""
+    built(cache_dir)
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "big.bin").write_bytes(b"x" * 3_000_000)
+    (cache_dir / "kernels" / ("f" * 32)).symlink_to(other)
+    status, out, _ = cli("cache", "info", capsys=capsys)
+    assert status == 0 and "MiB" not in out
+    clear_cache()
+    assert (other / "big.bin").stat().st_size == 3_000_000
+
+
 def test_cache_clear_with_kernels_a_link_leaves_the_other_directory_alone(
         tmp_path, cache_dir, capsys):
     built(cache_dir)

@@ -93,7 +93,7 @@ def load_extension(path: Path, name: str, table: dict | None = None
     for symbol in dir(lib):  # every entry point and constant it declares: resolved now
         try:
             getattr(lib, symbol)
-        except (ffi.error, AttributeError) as exc:
+        except (ffi.error, AttributeError, NotImplementedError) as exc:  # (a bad opcode)
             ffi.dlclose(lib)  # or a rebuilt library at this path would get this one again
             raise ImportError(f"the kernel library {path} lacks {symbol!r}, which its type "
                               f"table declares: it is not the library built for it "

@@ -88,8 +88,12 @@ class ClearedCache:
 
 
 def _tree_size(path: Path) -> int:
+    """The bytes of the files under ``path``; a link (the entry itself, or below it) is
+    not followed (os.walk would walk a linked top directory, e.g. to /usr)."""
+    if path.is_symlink():
+        return 0
     total = 0
-    for folder, _, files in os.walk(path):  # never follows links
+    for folder, _, files in os.walk(path):  # never follows links below the top
         for name in files:
             with contextlib.suppress(OSError):
                 total += (Path(folder) / name).stat(follow_symlinks=False).st_size

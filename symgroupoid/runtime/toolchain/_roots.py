@@ -133,14 +133,55 @@ _CACHE_CONTENT = {
 _MARKER_BEING_WRITTEN = re.compile(r"\." + re.escape(MARKER) + r"\.[A-Za-z0-9_]+")
 
 
+#: the directories whose names no user's files plausibly have (a lock, a probe, a compiled
+#: template): one of them is evidence of a cache as a kernel is; index/ and tmp/ names
+#: (<32 hex>.json, build-20240101) are not
+_DISTINCT = ("locks", "probes", "templates")
+
+
+def _holds_cache_evidence(root: Path) -> bool:
+    """Whether ``root`` holds what only a cache writes: a kernel as a cache writes one (a
+    directory ``kernels/<key>``, not a link, with a regular file ``MANIFEST``) or an entry
+    of :data:`_DISTINCT` — the evidence an unmarked root needs before the names of its
+    index/ and tmp/ entries are read as the cache's (a user's ``tmp/build-20240101`` or
+    ``index/<32 hex>.json`` are names a cache could have written)."""
+    for folder in _DISTINCT:
+        path = root / folder
+        if path.is_dir() and not path.is_symlink() and any(
+                _CACHE_CONTENT[folder].fullmatch(n) for n in _names(path)):
+            return True
+    kernels = root / "kernels"
+    if kernels.is_symlink():
+        return False
+    for name in _names(kernels):
+        entry = kernels / name
+        if _CACHE_CONTENT["kernels"].fullmatch(name) and not entry.is_symlink():
+            try:
+                if stat.S_ISREG(os.lstat(entry / MANIFEST).st_mode):
+                    return True
+            except OSError:
+                continue
+    return False
+
+
+def _names(folder: Path) -> list[str]:
+    try:
+        return os.listdir(folder)
+    except OSError:
+        return []
+
+
 def _foreign_entries(root: Path) -> list[str]:
     """What in ``root`` a kernel cache does not hold (empty: the root is, or can become, a
     cache): names other than the cache's, and entries of its directories that no cache
-    writes."""
+    writes — every entry of them unless the root holds evidence of a cache
+    (:func:`_holds_cache_evidence`): an unmarked root is adopted when it is empty or an
+    unmarked cache layout, never for index/ and tmp/ names alone."""
     try:
         entries = list(os.scandir(root))
     except FileNotFoundError:
         return []
+    evidence = _holds_cache_evidence(root)
     out = []
     for e in entries:
         if e.name == MARKER or _MARKER_BEING_WRITTEN.fullmatch(e.name):
@@ -152,7 +193,8 @@ def _foreign_entries(root: Path) -> list[str]:
                 names = os.listdir(e.path)
             except OSError:
                 names = []
-            out += [f"{e.name}/{n}" for n in names if not _CACHE_CONTENT[e.name].fullmatch(n)]
+            out += [f"{e.name}/{n}" for n in names
+                    if not (evidence and _CACHE_CONTENT[e.name].fullmatch(n))]
     return sorted(out)
 
 
