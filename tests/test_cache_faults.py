@@ -359,6 +359,26 @@ def _replace_library_consistently(entry: Path, manifest: dict, data: bytes) -> N
     (entry / "manifest.json").write_text(json.dumps(manifest))
 
 
+def test_a_type_table_edited_with_an_unknown_opcode_is_rebuilt(cache_dir):
+    """(Four bytes of the manifest's type table set to 0xff, its hash recomputed: the load
+    escaped as a raw NotImplementedError, "op=255", on every use.)  The entry is rebuilt.
+    A table edited at random can still crash cffi itself: the cache is trusted for what it
+    runs (docs/how-to/kernel-cache.md), which is why only its owner may write it."""
+    import base64
+
+    from symgroupoid.runtime.toolchain._digests import table_sha256
+
+    entry, manifest = _build_without_loading(oscillator(), cache_dir)
+    raw = bytearray(base64.b64decode(manifest["types"]["_types"]["b64"]))
+    raw[8:12] = b"\xff\xff\xff\xff"
+    manifest["types"]["_types"] = {"b64": base64.b64encode(bytes(raw)).decode()}
+    manifest["types_sha256"] = table_sha256(manifest["types"])
+    (entry / "manifest.json").write_text(json.dumps(manifest))
+    again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
+    assert (again["builds"], again["loads"]) == (1, 1)
+    assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
+
+
 def test_garbage_module_with_matching_manifest_is_rebuilt(cache_dir):
     entry, manifest = _build_without_loading(oscillator(), cache_dir)
     _replace_library_consistently(entry, manifest, b"\x7fELF but not really" * 100)
