@@ -206,6 +206,30 @@ def test_names_alone_never_make_a_users_directory_a_cache(cache_dir, layout, cap
     assert not (cache_dir / "CACHEDIR.TAG").exists()
 
 
+def test_clear_empties_an_unmarked_cache_layout_that_info_lists(cache_dir, capsys):
+    """(Without its CACHEDIR.TAG — an older layout — ``cache info`` listed 2 kernels and
+    compile loaded them, but ``cache clear`` removed nothing and said so with status 0.)
+    Such a cache is marked as the cache it is, and cleared."""
+    built(cache_dir)
+    (cache_dir / "CACHEDIR.TAG").unlink()
+    status, out, _ = cli("cache", "info", capsys=capsys)
+    assert status == 0 and "1 kernels" in out
+    status, out, _ = cli("cache", "clear", capsys=capsys)
+    assert status == 0 and "removed 1 kernels" in out
+    assert not list((cache_dir / "kernels").iterdir())
+    assert (cache_dir / "CACHEDIR.TAG").exists()
+
+
+def test_clear_with_locks_a_file_says_so_instead_of_builds_in_progress(cache_dir, capsys):
+    """(It reported the kernels "being built by another process", status 0.)"""
+    built(cache_dir)
+    toolchain.remove_tree(cache_dir / "locks")
+    (cache_dir / "locks").write_text("")
+    status, _, err = cli("cache", "clear", capsys=capsys)
+    assert status == 1 and "locks is not a directory" in err
+    assert len(list((cache_dir / "kernels").iterdir())) == 1
+
+
 def test_cache_info_does_not_walk_a_linked_kernel_entry(tmp_path, cache_dir, capsys):
     """(A kernel entry linked to /usr/share was walked by ``cache info``: 986.8 MiB in 4.6 s,
     5.9 GiB in 17.8 s for /usr.)  Its size is the link's, and clear removes the link only."""

@@ -29,6 +29,7 @@ from ._locks import key_busy
 from ._roots import (
     MANIFEST,
     MARKER,
+    _holds_cache_evidence,
     absolute_root,
     cache_root,
     foreign_listing,
@@ -36,6 +37,7 @@ from ._roots import (
 )
 from ._sweep import sweep
 from ._trust import _untrusted_reason, trusted
+from ._writable import _claim
 
 _KEY = re.compile(r"[0-9a-f]{32}")
 _INDEX = re.compile(r"[0-9a-f]{32}\.json")
@@ -159,8 +161,16 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
         if foreign is not None:
             raise CacheError(f"{root} is not a symgroupoid kernel cache (no {MARKER}; it "
                              f"holds {foreign}): nothing was removed")
-        return result  # empty, or only an unmarked cache layout: nothing of ours to remove
+        if not _holds_cache_evidence(root):
+            return result  # empty: nothing to remove
     trusted(root, modes=False)  # links, other users' directories: CacheError
+    if not is_cache_root(root):  # an unmarked cache layout, which info lists and compile
+        _claim(root)  # loads from: marked as the cache it is, then cleared
+    locks = root / "locks"
+    if os.path.lexists(locks) and not locks.is_dir():  # (a link: refused by trusted above)
+        raise CacheError(f"{locks} is not a directory, so no lock tells a kernel being built "
+                         f"from one that is not: nothing was removed (remove that file; the "
+                         f"next build recreates the directory)")
     # a read-only cache: its locks cannot be opened, which is not a build in progress
     changeable = all(os.access(root / name, os.W_OK) for name in ("kernels", "locks"))
     for entry in _entries(root / "kernels", _KEY):
