@@ -932,3 +932,15 @@ def test_a_root_another_process_is_marking_is_adopted_not_taken_for_foreign(cach
         sim, entry, _ = built(cache_dir)
     assert str(entry).startswith(str(cache_dir))
     assert (cache_dir / "CACHEDIR.TAG").is_file()
+
+
+def test_clear_of_a_cache_path_that_is_a_file_is_an_error_as_info_says(cache_dir, capsys):
+    """(``cache info`` said NOT USED, status 1; ``cache clear`` "removed 0 kernels",
+    status 0.)"""
+    cache_dir.parent.mkdir(parents=True, exist_ok=True)
+    cache_dir.write_text("mine")
+    status, out, _ = cli("cache", "info", capsys=capsys)
+    assert status == 1 and "NOT USED" in out
+    status, _, err = cli("cache", "clear", capsys=capsys)
+    assert status == 1 and "is not a directory" in err and "nothing was removed" in err
+    assert cache_dir.read_text() == "mine"

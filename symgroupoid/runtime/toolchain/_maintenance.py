@@ -155,6 +155,9 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
     root = absolute_root(root) if root is not None else cache_root()
     result = ClearedCache(root)
     if not root.is_dir():
+        if os.path.lexists(root):  # as cache_info says: NOT USED
+            raise CacheError(f"{root} is not a directory (a file, a FIFO or a link where the "
+                             f"kernel cache would be): nothing was removed")
         return result
     if not is_cache_root(root):
         foreign = foreign_listing(root)
