@@ -366,13 +366,11 @@ def test_a_type_table_edited_with_an_unknown_opcode_is_rebuilt(cache_dir):
     runs (docs/how-to/kernel-cache.md), which is why only its owner may write it."""
     import base64
 
-    from symgroupoid.runtime.toolchain._digests import table_sha256
-
     entry, manifest = _build_without_loading(oscillator(), cache_dir)
     raw = bytearray(base64.b64decode(manifest["types"]["_types"]["b64"]))
     raw[8:12] = b"\xff\xff\xff\xff"
     manifest["types"]["_types"] = {"b64": base64.b64encode(bytes(raw)).decode()}
-    manifest["types_sha256"] = table_sha256(manifest["types"])
+    manifest["types_sha256"] = toolchain.table_sha256(manifest["types"])
     (entry / "manifest.json").write_text(json.dumps(manifest))
     again = run_script(script_env(SYMGROUPOID_CACHE=str(cache_dir)))
     assert (again["builds"], again["loads"]) == (1, 1)
