@@ -47,6 +47,18 @@ def parse_step(step: str | int) -> int:
 _GREEK_SPELLING = {"lamda": "lambda"}
 
 
+def scalar_expressions(values: Sequence) -> tuple[tuple, int | None]:
+    """(the :func:`scalar_expression` of each of ``values``, the index of the first that is
+    none or None): one reading for the callers that name the failing entry their own way."""
+    out = []
+    for i, v in enumerate(values):
+        e = scalar_expression(v)
+        if e is None:
+            return tuple(out), i
+        out.append(e)
+    return tuple(out), None
+
+
 def scalar_expression(value) -> sp.Expr | None:
     """``value`` as a SymPy scalar expression (a number, a symbol, an expression), or None
     for anything else (a string, a container, a matrix, an object SymPy does not know):

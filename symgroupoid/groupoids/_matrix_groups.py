@@ -32,6 +32,7 @@ from .._symbols import (
     latex_name,
     printable_name,
     scalar_expression,
+    scalar_expressions,
     subscripted,
 )
 from ._base import Arrow, Groupoid
@@ -336,14 +337,11 @@ class MatrixLieGroup(Groupoid):
         if len(values) != size:
             raise ShapeError(f"{self.name}: {what} has {len(values)} coordinates, expected "
                              f"{size}")
-        out = []
-        for i, v in enumerate(values):
-            e = scalar_expression(v)
-            if e is None:
-                raise InputTypeError(f"{self.name}: {what}[{i}] is {v!r}, not a number or "
-                                     f"expression")
-            out.append(e)
-        return tuple(out)
+        out, bad = scalar_expressions(values)
+        if bad is not None:
+            raise InputTypeError(f"{self.name}: {what}[{bad}] is {values[bad]!r}, not a number "
+                                 f"or expression")
+        return out
 
     def retraction_inverse(self, M: sp.Matrix) -> sp.Matrix:
         """τ⁻¹(M) symbolically, valid for M in the group."""

@@ -37,7 +37,7 @@ from .._errors import (
     SymgroupoidError,
 )
 from .._lambdify import NUMPY_MODULES
-from .._symbols import scalar_expression
+from .._symbols import scalar_expressions
 from ._base import Groupoid
 
 #: relative tolerance of the numeric identities (morphism axioms, lifts, AΦ)
@@ -81,14 +81,12 @@ def flatten_arrow(groupoid: Groupoid, value, what: str) -> tuple:
 def _scalars(values: Sequence, what: str) -> tuple:
     """``values`` as SymPy scalar expressions; a :class:`ShapeError` naming the first that is
     none (a string is not read as a symbol: "a" would become a free parameter)."""
-    out = []
-    for i, c in enumerate(values):
-        e = scalar_expression(c)
-        if e is None:
-            raise ShapeError(f"{what}: coordinates must be numbers or SymPy expressions, got "
-                             f"{type(c).__name__} {c!r} at coordinate {i}")
-        out.append(e)
-    return tuple(out)
+    out, bad = scalar_expressions(values)
+    if bad is not None:
+        c = values[bad]
+        raise ShapeError(f"{what}: coordinates must be numbers or SymPy expressions, got "
+                         f"{type(c).__name__} {c!r} at coordinate {bad}")
+    return out
 
 
 def _nested(item) -> bool:
