@@ -497,3 +497,15 @@ def test_errors_about_the_initial_state_and_the_inputs_name_their_option(capsys)
                  "--params", "h=-1"]) == 1
     err = capsys.readouterr().err
     assert "parameter h is declared positive" in err and "--initial" not in err, err
+
+
+@pytest.mark.parametrize("argv", [["simulate", str(SPRING), "--steps", "5", "--param", "h=0.1"],
+                                  ["derive", str(SPRING), "--doc", "x.tex"]])
+def test_abbreviated_options_are_refused(argv, capsys):
+    """(``--param h=0.1`` was taken for ``--params``, ``--doc`` for ``--document``: an
+    abbreviation that a later option would make ambiguous.)  A malformed command line is
+    status 2."""
+    with pytest.raises(SystemExit) as info:
+        main(argv)
+    assert info.value.code == 2
+    assert "unrecognized arguments" in capsys.readouterr().err

@@ -91,8 +91,8 @@ def _runtime_options(parser: argparse.ArgumentParser, stepper: bool = True) -> N
 
 def _command(commands, name: str, run, help: str, description: str | None = None,
              epilog: bool = False) -> argparse.ArgumentParser:
-    parser = commands.add_parser(
-        name, help=help, description=description or help,
+    parser = commands.add_parser(  # no abbreviated options: --step is not taken for --steps
+        name, help=help, description=description or help, allow_abbrev=False,
         epilog=EPILOG if epilog else None, formatter_class=argparse.RawDescriptionHelpFormatter)
     _debug_option(parser, argparse.SUPPRESS)
     parser.set_defaults(run=run)
@@ -102,6 +102,7 @@ def _command(commands, name: str, run, help: str, description: str | None = None
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="symgroupoid", formatter_class=argparse.RawDescriptionHelpFormatter,
+        allow_abbrev=False,
         description="Discrete Lagrangian mechanics on Lie groupoids: derive the equations of a\n"
                     "system file, emit C, simulate, solve boundary-value problems, verify.",
         epilog=EPILOG)
