@@ -944,3 +944,14 @@ def test_clear_of_a_cache_path_that_is_a_file_is_an_error_as_info_says(cache_dir
     status, _, err = cli("cache", "clear", capsys=capsys)
     assert status == 1 and "is not a directory" in err and "nothing was removed" in err
     assert cache_dir.read_text() == "mine"
+
+
+def test_cache_info_prints_no_control_characters_from_a_manifest(cache_dir, capsys):
+    """(A manifest's system name holding an escape sequence was printed raw by cache info.)"""
+    built(cache_dir)
+    (entry,) = (cache_dir / "kernels").iterdir()
+    manifest = json.loads((entry / "manifest.json").read_text())
+    manifest["system"] = "osc\x1b[2J\x1b]0;owned\x07"
+    (entry / "manifest.json").write_text(json.dumps(manifest))
+    status, out, _ = cli("cache", "info", capsys=capsys)
+    assert "\x1b" not in out and "\x07" not in out and "osc?[2J?]0;owned?" in out

@@ -509,3 +509,12 @@ def test_abbreviated_options_are_refused(argv, capsys):
         main(argv)
     assert info.value.code == 2
     assert "unrecognized arguments" in capsys.readouterr().err
+
+
+def test_generate_into_a_file_says_it_is_not_a_directory(tmp_path, capsys):
+    """(It said "cannot write afile/plate_ball.h: File exists".)"""
+    (tmp_path / "afile").write_text("mine")
+    assert main(["generate", str(tmp_path / "afile" / "out")]) == 1
+    err = capsys.readouterr().err
+    assert f"{tmp_path / 'afile'} is not a directory" in err
+    assert (tmp_path / "afile").read_text() == "mine"

@@ -529,6 +529,10 @@ def emit_c(step, path: str | os.PathLike, prefix: str | None = None, *,
     if not isinstance(latex, bool):
         raise InputTypeError(f"{step.name}: emit_c: latex must be True or False, got "
                              f"{type(latex).__name__}")
+    folder = next((p for p in base.parents if os.path.lexists(p)), None)
+    if folder is not None and not folder.is_dir():
+        raise OutputError(f"{step.name}: path {str(path)!r}: {folder} is not a directory, so "
+                          f"nothing can be written below it")
     kernel = generate_c(step, prefix, header_name=h_path.name, latex=latex)
     try:
         write_atomic_files([(h_path, kernel.header), (c_path, kernel.source)])

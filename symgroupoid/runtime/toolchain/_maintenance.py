@@ -122,8 +122,15 @@ def _kernel(entry: Path) -> CachedKernel:
         modified = entry.lstat().st_mtime
     except OSError:
         modified = 0.0
-    return CachedKernel(entry.name, str(manifest.get("system", "?")), _tree_size(entry),
+    return CachedKernel(entry.name, _printable(manifest.get("system", "?")), _tree_size(entry),
                         modified, problem is None, problem)
+
+
+def _printable(value) -> str:
+    """A manifest's text as it may be shown on a terminal: control characters (an escape
+    sequence planted in a manifest) replaced by '?', at most 80 characters."""
+    text = "".join("?" if not ch.isprintable() else ch for ch in str(value))
+    return text if len(text) <= 80 else text[:79] + "…"
 
 
 def cache_info(root: Path | None = None) -> CacheInfo:
