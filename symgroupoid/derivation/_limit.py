@@ -268,6 +268,12 @@ def declared_step_behaves(system) -> bool | None:
     it declares none, on a time groupoid, with internal stages, or where the probes cannot
     tell.  A declared step skips the identification; this is the check an energy
     −∂L_d/∂h makes of it, e.g. against an L_d written as L(q̄, Δq/h) without the factor h."""
+    if "_declared_step_behaves" not in system.__dict__:  # probed once per system
+        system.__dict__["_declared_step_behaves"] = _declared_step_verdict(system)
+    return system.__dict__["_declared_step_behaves"]
+
+
+def _declared_step_verdict(system) -> bool | None:
     declared = getattr(system, "time_step", None)
     fs = getattr(system, "functions", None)
     if declared is None or system.groupoid.timed or fs is None or getattr(fs, "stages", ()):

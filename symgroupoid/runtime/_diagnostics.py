@@ -183,8 +183,11 @@ def _time_section_is_symmetry(system) -> bool:
     system's L, decided once per system by :meth:`~symgroupoid.DiscreteSystem.noether`."""
     found = system.__dict__.get("_time_section_symmetry")
     if found is None:
-        found = system.__dict__["_time_section_symmetry"] = bool(
-            system.noether(0).is_symmetry)
+        try:
+            found = bool(system.noether(0).is_symmetry)
+        except SymgroupoidError:  # no Noether quantity here: nothing known against E
+            found = True
+        system.__dict__["_time_section_symmetry"] = found
     return found
 
 

@@ -175,7 +175,11 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
             return result  # empty: nothing to remove
     trusted(root, modes=False)  # links, other users' directories: CacheError
     if not is_cache_root(root):  # an unmarked cache layout, which info lists and compile
-        _claim(root)  # loads from: marked as the cache it is, then cleared
+        try:  # loads from: marked as the cache it is, then cleared
+            _claim(root)
+        except OSError as exc:
+            raise CacheError(f"{root} is an unmarked kernel cache that cannot be marked "
+                             f"({exc.strerror or exc}): nothing was removed") from exc
     locks = root / "locks"
     if os.path.lexists(locks) and not locks.is_dir():  # (a link: refused by trusted above)
         raise CacheError(f"{locks} is not a directory, so no lock tells a kernel being built "
