@@ -32,6 +32,7 @@ from ._errors import (
 )
 from .runtime import (
     Drift,
+    atomic_write,
     constraint_residuals,
     energy_changes,
     energy_label,
@@ -77,18 +78,41 @@ def _output(path, owner: str):
 
 
 def _finish(fig, path: str | PathLike | None, owner: str):
+    """Lay the figure out and, given a path, write it as every output of the library is
+    written: into a temporary file beside the target, renamed into place at the end, so
+    that a full disk or an interrupted write keeps the previous figure and leaves no
+    truncated one."""
     fig.tight_layout()
     if path is not None:
+        target = path_argument(path, "path", owner=owner)
+        kind = target.suffix.lstrip(".").lower()
         try:
-            fig.savefig(path, dpi=120)
-        except OSError as exc:
-            raise OutputError(f"{owner}: the figure cannot be written to path {str(path)!r}: "
-                              f"{exc.strerror or exc}") from exc
+            atomic_write(target, lambda f: fig.savefig(f, format=kind, dpi=120), binary=True)
+        except OutputError as exc:
+            raise OutputError(f"{owner}: the figure {exc}") from None
         except RuntimeError as exc:  # a format whose backend needs a missing tool (.pgf)
             raise OutputError(f"{owner}: matplotlib cannot write the figure to path "
-                              f"{str(path)!r} in that format ({exc}); choose another "
+                              f"{str(target)!r} in that format ({exc}); choose another "
                               f"format, e.g. .png or .pdf") from exc
+        except Exception as exc:
+            cause = _os_error_within(exc)
+            if cause is None:
+                raise
+            # matplotlib's PDF writer, failing to write, raises its own error while closing
+            raise OutputError(f"{owner}: the figure cannot be written to path "
+                              f"{str(target)!r}: {cause.strerror or cause}") from None
     return fig
+
+
+def _os_error_within(exc: BaseException) -> OSError | None:
+    """The file system's error among the causes and contexts of ``exc``, or None."""
+    seen = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, OSError):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
 
 
 def _legend(ax, **options) -> None:

@@ -491,6 +491,7 @@ def test_a_probe_that_cannot_tell_is_tried_twice_in_a_process(monkeypatch, tmp_p
     assert not list(tmp_path.glob("probes/openmp-*.json"))
 
 
+@pytest.mark.slow
 @needs_cc
 def test_the_templates_compiled_code_never_changes_the_c(tmp_path, monkeypatch):
     """The templates' compiled code, kept in a directory given to ``generate_c`` (the
@@ -549,6 +550,7 @@ def _templates_copy(tmp_path, monkeypatch):
     return copy
 
 
+@pytest.mark.slow
 def test_the_templates_compiled_beside_them_serve_every_process_and_cache(tmp_path):
     """``cache templates`` (make's setup) compiles every template into the templates'
     __pycache__/: a process with a new, empty kernel cache compiles none, even where Python

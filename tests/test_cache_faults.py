@@ -147,6 +147,7 @@ def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, ca
         assert started.exists(), "the build never reached the compiler"
         os.kill(proc.pid, signal.SIGKILL)
         proc.wait(timeout=30)
+        _assert_ends_soon(int(started.read_text()))  # (on Linux: the parent's death kills it)
         left = sorted(p.name for p in (cache_dir / "tmp").iterdir())
         assert len(left) == 1 and left[0].startswith("build-"), left
         t0 = time.monotonic()
@@ -161,6 +162,50 @@ def test_killed_builder_leaves_no_build_directory_and_blocks_nobody(tmp_path, ca
     assert (again["builds"], again["loads"]) == (1, 1)
     assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
     assert list((cache_dir / "tmp").iterdir()) == []
+
+
+def _assert_ends_soon(pid: int) -> None:
+    """On Linux, the process ``pid`` ends within 10 s (it was running the compiler of a
+    build whose process was killed)."""
+    if not sys.platform.startswith("linux"):
+        return
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        try:
+            status = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
+        except FileNotFoundError:
+            return
+        if status == "Z":  # ended, not yet reaped by its new parent
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"the compiler run {pid} outlived the process that started it")
+
+
+def test_a_compiler_that_does_not_finish_is_stopped(tmp_path, cache_dir):
+    """(A compiler that hangs hung the build, and with it every process waiting for its
+    lock, for ever.)  A compiler run that takes longer than SYMGROUPOID_BUILD_TIMEOUT is
+    killed with what it started, and the build is a CompilationError saying so."""
+    started, env = slow_compiler(tmp_path, cache_dir)
+    script = OSCILLATOR + """
+from symgroupoid.runtime import CompilationError
+try:
+    sg.compile_step(oscillator(), backend="c")
+except CompilationError as exc:
+    print(str(exc).splitlines()[0])
+"""
+    t0 = time.monotonic()
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          env={**env, "SYMGROUPOID_BUILD_TIMEOUT": "1.5"}, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "did not finish within 1.5 s and was stopped" in done.stdout, done.stdout
+    assert time.monotonic() - t0 < 50  # the compiler sleeps 60 s
+    _assert_ends_soon(int(started.read_text()))
+    assert list((cache_dir / "tmp").iterdir()) == []
+    for bad in ("0", "-3", "soon", "inf"):
+        bad_env = {**env, "SYMGROUPOID_BUILD_TIMEOUT": bad}
+        done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                              env=bad_env, timeout=120)
+        assert "SYMGROUPOID_BUILD_TIMEOUT must be a positive number of seconds" in done.stderr
 
 
 def test_the_compiler_keeps_its_temporary_files_in_the_build(tmp_path, cache_dir,
@@ -323,6 +368,20 @@ def test_cache_root_that_is_a_file_falls_back(cache_dir):
     assert cache_dir.read_text() == "not a cache"
 
 
+def test_cache_root_whose_path_is_not_utf8_falls_back(tmp_path, monkeypatch):
+    """A cache path of Latin-1 bytes (b"cache_\\xff\\xfe"): the kernel was built into it and
+    then could not be loaded, a raw UnicodeEncodeError in this process and in every later
+    one.  Such a root is not used: one warning, the run from a private cache."""
+    root = Path(os.fsdecode(os.fsencode(tmp_path) + b"/cache_\xff\xfe"))
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(root))
+    with pytest.warns(RuntimeWarning, match="is not used .*not valid UTF-8"):
+        sim = sg.compile_step(oscillator(), backend="c")
+    assert sim.backend == "c" and not sim.cache_entry.is_relative_to(root)
+    final = sim.simulate({"q": (1.0, 0.999)}, 100, {"h": 0.01, "k": 1.0}).states[-1]
+    assert np.abs(final - reference_final()).max() <= 1e-12
+    assert not os.path.lexists(root)  # never created
+
+
 # -- damage -------------------------------------------------------------------------------------
 
 #: the directories a cache root keeps (docs/cli.md, the cache)
@@ -377,6 +436,7 @@ def test_a_type_table_edited_with_an_unknown_opcode_is_rebuilt(cache_dir):
     assert np.abs(np.array(again["final"]) - reference_final()).max() <= 1e-12
 
 
+@pytest.mark.slow
 def test_garbage_module_with_matching_manifest_is_rebuilt(cache_dir):
     entry, manifest = _build_without_loading(oscillator(), cache_dir)
     _replace_library_consistently(entry, manifest, b"\x7fELF but not really" * 100)

@@ -252,6 +252,7 @@ NOETHER = [{"name": "angular momentum", "section": lambda q: [-q[1], q[0]]},
 '''
 
 
+@pytest.mark.slow
 @needs_cc
 def test_noether_quantities_of_a_galerkin_system(tmp_path, cached, capsys):
     """A central force on R² with GaussLegendre(2): rotations are a symmetry, verified at the

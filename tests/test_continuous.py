@@ -192,6 +192,7 @@ def test_bad_systems_are_refused():
                              1.0, [20])
 
 
+@pytest.mark.slow
 def test_noether_of_a_midpoint_step_on_se2_is_decided_at_sampled_arrows():
     """A planar body on a spring to the origin: the rotation about the origin is a symmetry.
     Its defect has thousands of terms; SymPy's Abs of each (to size the rounding) ran for

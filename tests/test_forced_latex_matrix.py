@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 
+import pytest
 import sympy as sp
 from test_forces import _plane_system, _torque_and_damping, u
 from test_latex_pdf import assert_typesets_whole, needs_tex
@@ -53,6 +54,7 @@ def test_the_forced_rigid_body_prints_the_trace_form_and_its_forces():
     assert "(W_{k})_{23}" not in text  # no entries: the component form is not the one chosen
 
 
+@pytest.mark.slow
 def test_a_forced_step_without_matrices_keeps_its_component_form():
     text = _plane_system(_torque_and_damping, [u]).euler_lagrange().latex()
     assert "f^{+}_{1}(g_{k})" in text and r"\operatorname{tr}" not in text
@@ -65,6 +67,7 @@ def test_the_forced_rigid_body_document_typesets_whole(tmp_path):
     assert (tmp_path / "doc.pdf").stat().st_size > 0
 
 
+@pytest.mark.slow
 @needs_tex
 def test_the_forced_3d_chain_document_breaks_its_long_forces(tmp_path):
     """(The "where" rows f^±_a of the forced 3D chain, each one fraction of up to 1,700

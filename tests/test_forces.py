@@ -535,6 +535,7 @@ def test_the_latex_names_the_forces():
     assert "u_{k+1}" in tex.split(r"\intertext{and the discrete forces}")[1]
 
 
+@pytest.mark.slow
 def test_a_forced_chain_prints_l_in_its_pieces():
     """The forced planar chain printed L expanded (12,313 characters, longer than SymPy's
     own printing of the residuals); now through the partial derivatives of L at the

@@ -67,6 +67,7 @@ def test_the_rules_without_stages_print_as_before():
     assert "Q_{k" not in text and "V_{k" not in text
 
 
+@pytest.mark.slow
 def test_a_forced_constrained_step_prints_in_the_stage_notation():
     """Lobatto with a holonomic constraint and a damping force (this printed as derived, and
     before that raised LatexVerificationError): the stage notation with the forces at the

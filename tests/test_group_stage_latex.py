@@ -66,6 +66,7 @@ def test_a_row_that_does_not_hold_is_not_offered(monkeypatch):
         step.latex()
 
 
+@pytest.mark.slow
 def test_a_damped_driven_top_prints_its_force_at_the_nodes():
     """A top driven by a body torque u and damped (F = u − cΞ): the force at each node joins
     N (A = dτ^T(F + N) + …, S = h Σ b_i Ad^T(F + N)), written with the inputs u_j of the
@@ -200,7 +201,9 @@ def test_interpret_precise_evaluates_a_smooth_function_exactly_near_its_point():
 
 
 @needs_tex
-@pytest.mark.parametrize("scheme, width", [(sg.LobattoIIIAB(3), None), (sg.GaussLegendre(2), 345)])
+@pytest.mark.parametrize("scheme, width", [(sg.LobattoIIIAB(3), None),
+                                           pytest.param(sg.GaussLegendre(2), 345,
+                                                        marks=pytest.mark.slow)])
 def test_the_document_of_a_driven_top_fits_its_page(tmp_path, scheme, width):
     """Its sum S_j of h Ad^T(F + N) terms over six fractions was measured with text-style
     fractions (SymPy printed the non-commutative products' \\frac itself), set with display
@@ -234,6 +237,7 @@ def _free_body(rule: str):
     return system.discretize(h, rule).euler_lagrange()
 
 
+@pytest.mark.slow
 def test_the_midpoint_rule_on_se3_prints_in_the_group_notation(tmp_path):
     """The free body on SE(3) by the midpoint rule was refused (1.05·10⁶ operations written
     out, over PRINT_LIMIT).  It prints in the rule's group form: L read at X = Δ/2 and the

@@ -202,6 +202,39 @@ def test_a_figure_format_whose_writer_needs_a_missing_tool_is_an_output_error(
     assert target.read_text() == "an older figure"
 
 
+@pytest.mark.parametrize("suffix", ["png", "pdf"])
+@pytest.mark.parametrize("failure", ["full disk", "error while closing"])
+def test_a_figure_that_cannot_be_written_keeps_the_older_one(tmp_path, monkeypatch, suffix,
+                                                             failure):
+    """On a full disk savefig wrote the target in place: the older figure was lost and a
+    truncated one left (.png), or matplotlib's PDF writer raised a raw AttributeError while
+    closing.  Now the figure goes through a temporary file: OutputError, the older file kept,
+    nothing else left in the directory."""
+    from matplotlib.figure import Figure
+
+    traj = case_of("diagonal").sim.simulate(case_of("diagonal").flat, 3, {"h": 0.1, "k": 1.0})
+    real = Figure.savefig
+
+    def full_disk(self, f, **options):
+        real(self, f, **options)  # written, then the disk fills
+        if failure == "full disk":
+            raise OSError(28, "No space left on device")
+        try:
+            raise OSError(28, "No space left on device")
+        except OSError:
+            raise AttributeError("'Stream' object has no attribute 'pos'") from None
+
+    monkeypatch.setattr(Figure, "savefig", full_disk)
+    target = tmp_path / f"fig.{suffix}"
+    target.write_text("an older figure")
+    for plot in (lambda: sg.plot_trajectory(traj, ["x"], path=target),
+                 lambda: sg.plot_conservation(traj, path=str(target))):
+        with pytest.raises(sg.OutputError, match="No space left on device"):
+            plot()
+    assert target.read_text() == "an older figure"
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []  # no temporary
+
+
 # --- verification and C output ------------------------------------------------------------------
 
 def test_verify_stationary_checks_system_eps_and_arrows():

@@ -107,6 +107,7 @@ def test_the_node_derivative_is_written_with_the_groups_own_name():
     assert r"\partial L/\partial Y, Y E_b" in text and r"\partial R" not in text
 
 
+@pytest.mark.slow
 def test_abbreviations_of_a_step_in_the_group_stage_notation_are_reported_unused():
     """The notation names its own parts; the step used to be refused as too large."""
     with warnings.catch_warnings(record=True) as caught:

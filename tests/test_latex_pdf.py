@@ -349,6 +349,7 @@ def so3_control():
     return _systems.so3_control_system()
 
 
+@pytest.mark.slow
 def test_the_cayley_denominator_is_named_and_the_control_step_fits(so3_control, tmp_path):
     """The optimal-control step of seed 000 §6.1 on SO(3) (L and φ in the Cayley
     coordinates τ⁻¹(g)/h) divides by powers of 1 + tr g: expanded, 222 of its lines ran off
@@ -362,6 +363,7 @@ def test_the_cayley_denominator_is_named_and_the_control_step_fits(so3_control, 
     assert "D_{k+1}^{2}" in document and "(g_{k+1})_{33}^{2}" not in document
 
 
+@pytest.mark.slow
 def test_the_named_denominator_takes_a_free_name(so3_control):
     """A user's abbreviation named D keeps its name; the denominator takes the next one."""
     step = so3_control.euler_lagrange()

@@ -55,6 +55,7 @@ def _simulate(step, known, params, n):
     return states
 
 
+@pytest.mark.slow
 def test_heavy_top_vertical_rotation_is_a_noether_symmetry(heavy_top, heavy_top_step):
     """Seed 000 Thm 4.9: the section X(Γ) = Γ (rotation about the vertical) is a symmetry,
     and its quantity is conserved along a computed trajectory; a body axis is not."""

@@ -172,6 +172,7 @@ def test_heavy_top_discretisation_is_second_order_consistent(ht):
         assert min(errors[f"{key}_orders"]) >= 1.8, (key, errors[f"{key}_orders"])
 
 
+@pytest.mark.slow
 def test_heavy_top_steering_bvp(ht):
     """N = 30 steering between the ends of a feasible reference run: converged, every Φ_d = 0,
     the boundary arrows kept, cheaper than the reference program, stationary."""

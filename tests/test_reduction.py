@@ -97,6 +97,7 @@ def test_pair_groupoid_of_so3_reduces_to_the_discrete_euler_poincare_equations()
         reduced.project(bad, params)
 
 
+@pytest.mark.slow
 def test_pair_groupoid_of_se2_reduces_to_se2():
     """L = m/(2h)|u|² + (I/h)(1 − cos θ) of g₀⁻¹g₁ = (R(θ), u), written with α and β;
     the reduced Lagrangian is given and L = L′∘Φ holds only on the group (numeric check)."""
@@ -244,6 +245,7 @@ def test_second_order_systems_are_not_reduced_silently():
         so.reduce(_to_group(P, sg.SO3("W")))
 
 
+@pytest.mark.slow
 def test_elroys_beanie_reduces_through_the_section_too():
     """L′ found by substitution through the Atiyah quotient's section equals the seed's
     reduced Lagrangian on random arrows."""

@@ -23,6 +23,7 @@ def _pendulum(scheme) -> sg.StepEquations:
         name="pendulum").discretize(h, scheme).euler_lagrange()
 
 
+@pytest.mark.slow
 def test_constrained_lobatto_prints_the_stage_notation():
     step = _pendulum(sg.LobattoIIIAB(3))
     text = step.latex()
@@ -86,6 +87,7 @@ def test_abbreviations_keep_the_stage_notation_and_say_why():
     assert "Q_{k,1}" in plain and abbreviated == plain
 
 
+@pytest.mark.slow
 def test_a_noether_quantity_names_the_stages_as_the_step_does():
     """F_X of a Galerkin system printed its generic stages ζ₀, ζ₁; the step prints those of
     the state's arrow (x_{k−1}, x_k) as (ζ_k)_1, (ζ_k)_2."""

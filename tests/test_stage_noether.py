@@ -89,6 +89,7 @@ def _hand_stages(states) -> np.ndarray:
     return z
 
 
+@pytest.mark.slow
 def test_the_balance_of_a_rotation_is_the_hand_written_one():
     """GaussLegendre(2): J = ⟨F⁺L, Aq_k⟩ at the forced stages and the impulse
     X(q_k)·(f⁺(g_k) + f⁻(g_{k+1})) + f_ζ(g_{k+1})·Aζ_{k+1} written by hand agree with the

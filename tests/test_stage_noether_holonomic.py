@@ -188,6 +188,7 @@ def test_what_is_not_a_symmetry_is_detected():
     assert np.abs(J - J[0]).max() > 1e-2
 
 
+@pytest.mark.slow
 def test_the_symmetry_is_decided_on_the_constraint_set():
     """ψ = (|q|² − ℓ²)(2 + x) has the sphere as its zero set but is not invariant under the
     rotation about e₃ off it (dψ(X) ≠ 0 there): the rotation is tangent to M and a symmetry
@@ -206,6 +207,7 @@ def test_the_symmetry_is_decided_on_the_constraint_set():
     assert np.abs(J - J[0]).max() <= 1e-12 * abs(J[0])
 
 
+@pytest.mark.slow
 def test_rigid_rod_rotations_and_translations():
     """Two particles (masses 1 and 2) joined by a rod of length ℓ in the plane, without
     gravity, LobattoIIIAB(4) (two interior nodes, each with its multiplier): the common

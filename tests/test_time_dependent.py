@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import sympy as sp
 from conftest import newton, predicted
 
@@ -96,6 +97,7 @@ def _run_adaptive(n: int):
     return np.array(steps), np.array(errors)
 
 
+@pytest.mark.slow
 def test_adaptive_step_conserves_energy_while_the_step_varies():
     """Example 6.1: the discrete energy is conserved to solver tolerance, every step is
     forward in time, and the step size varies (by several per cent within 150 steps)."""

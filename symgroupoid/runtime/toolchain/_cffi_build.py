@@ -4,10 +4,14 @@ at the same time, linked, and checked."""
 from __future__ import annotations
 
 import contextlib
+import ctypes
+import ctypes.util
 import os
 import signal
 import subprocess
+import sys
 import threading
+import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -24,6 +28,7 @@ from ._compiler import (
 )
 from ._flags import unit_flags
 from ._library import library_defect
+from ._locks import seconds_setting
 from ._trust import file_mode
 from ._type_table import type_table
 
@@ -124,6 +129,41 @@ def _interrupts_held():
         raise KeyboardInterrupt
 
 
+#: seconds a compiler run may take before it is stopped (``SYMGROUPOID_BUILD_TIMEOUT``): the
+#: largest kernels the benchmarks build (chains of 64 bodies) compile in minutes; a compiler
+#: that hangs would otherwise hold the build, and the lock every other process waits on
+BUILD_TIMEOUT = 1800.0
+
+
+def build_timeout() -> float:
+    """Seconds a compiler run of a kernel build may take (``SYMGROUPOID_BUILD_TIMEOUT``)."""
+    return seconds_setting("SYMGROUPOID_BUILD_TIMEOUT", BUILD_TIMEOUT)
+
+
+def _parent_death_signal() -> Callable[[], None] | None:
+    """On Linux, a function for the forked child that has the kernel kill it when the
+    process that started it ends (``prctl(PR_SET_PDEATHSIG, SIGKILL)``): a compiler then
+    never outlives a Python process stopped by SIGTERM or SIGKILL, which no handler sees.
+    Prepared here, so that the child only makes one system call."""
+    if not sys.platform.startswith("linux"):  # pragma: no cover - other systems
+        return None
+    try:
+        prctl = ctypes.CDLL(ctypes.util.find_library("c") or None, use_errno=True).prctl
+    except (OSError, AttributeError):  # pragma: no cover - no prctl in this C library
+        return None
+    prctl.argtypes = (ctypes.c_int, ctypes.c_ulong, ctypes.c_ulong, ctypes.c_ulong,
+                      ctypes.c_ulong)
+    prctl.restype = ctypes.c_int
+    pr_set_pdeathsig, kill = 1, int(signal.SIGKILL)
+
+    def set_signal() -> None:
+        prctl(pr_set_pdeathsig, kill, 0, 0, 0)
+    return set_signal
+
+
+_CHILD_SETUP = _parent_death_signal()
+
+
 def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequence[str],
          meanwhile: Callable[[], None] | None = None) -> None:
     """Run compiler ``commands`` of a build at ``flags`` at the same time in ``cwd`` (and
@@ -144,13 +184,14 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequ
             process.communicate()
 
     environment = compiler_environment(cwd)
+    limit = build_timeout()
     try:
         with _interrupts_held():
             for command in commands:
                 processes.append((command, subprocess.Popen(
                     command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                     stderr=subprocess.STDOUT, text=True, errors="replace", env=environment,
-                    start_new_session=_OWN_GROUPS)))
+                    start_new_session=_OWN_GROUPS, preexec_fn=_CHILD_SETUP)))
     except OSError as exc:
         stop()
         raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc),
@@ -159,13 +200,21 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequ
         stop()
         raise
     failures = []
+    deadline = time.monotonic() + limit
     try:
         if meanwhile is not None:
             meanwhile()
         for command, process in processes:
-            output, _ = process.communicate()
+            output, _ = process.communicate(timeout=max(deadline - time.monotonic(), 0.0))
             if process.returncode != 0:
                 failures.append((command, process.returncode, output.strip()))
+    except subprocess.TimeoutExpired as exc:
+        stop()
+        raise CompilationError(
+            f"{kernel.prefix}: the C compiler {exc.cmd[0]!r} did not finish within {limit:g} "
+            f"s and was stopped; a kernel this large may need more time "
+            f"(SYMGROUPOID_BUILD_TIMEOUT, in seconds), or the compiler hangs.\n{NUMPY_HINT}"
+        ) from None
     except BaseException:
         stop()
         raise

@@ -89,7 +89,11 @@ def load_extension(path: Path, name: str, table: dict | None = None
         raise ImportError(f"cannot read the kernel library {path}: {exc}") from exc
     if defect is not None:
         raise ImportError(f"the kernel library {path} is damaged: {defect}")
-    lib = ffi.dlopen(str(path))
+    try:
+        lib = ffi.dlopen(str(path))
+    except UnicodeEncodeError as exc:  # a cache root of bytes that are not UTF-8
+        raise ImportError(f"the kernel library {path!r} cannot be loaded: its path is not "
+                          f"valid UTF-8") from exc
     for symbol in dir(lib):  # every entry point and constant it declares: resolved now
         try:
             getattr(lib, symbol)

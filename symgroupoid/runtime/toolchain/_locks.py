@@ -31,16 +31,21 @@ LOCK_TIMEOUT = 600.0
 
 def lock_timeout() -> float:
     """Seconds to wait for another process's build (``SYMGROUPOID_LOCK_TIMEOUT``)."""
-    text = os.environ.get("SYMGROUPOID_LOCK_TIMEOUT")
+    return seconds_setting("SYMGROUPOID_LOCK_TIMEOUT", LOCK_TIMEOUT)
+
+
+def seconds_setting(variable: str, default: float) -> float:
+    """The positive number of seconds the environment variable ``variable`` sets, or
+    ``default`` when it is unset or empty (:class:`CacheError` for anything else)."""
+    text = os.environ.get(variable)
     if not text:
-        return LOCK_TIMEOUT
+        return default
     try:
         value = float(text)
     except ValueError:
         value = float("nan")
-    if not value > 0:
-        raise CacheError(f"SYMGROUPOID_LOCK_TIMEOUT must be a positive number of seconds, "
-                         f"got {text!r}")
+    if not value > 0 or value == float("inf"):
+        raise CacheError(f"{variable} must be a positive number of seconds, got {text!r}")
     return value
 
 

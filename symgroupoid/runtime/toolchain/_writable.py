@@ -32,6 +32,10 @@ class ForeignDirectoryError(OSError):
     """The configured cache root is a directory holding other things than a kernel cache."""
 
 
+class UnloadablePathError(OSError):
+    """The configured cache root's path is one no kernel library can be loaded from."""
+
+
 def _claim(root: Path) -> bool:
     """Mark ``root`` as a kernel cache, unless it holds anything else: then it is never
     written, cleaned or swept (raises :class:`ForeignDirectoryError`).  Whether it was
@@ -58,6 +62,9 @@ def _prepare(root: Path) -> None:
     may not be the cache's), moved aside as ``<name>.displaced-*``; one found as a link is
     refused (:func:`trusted`).
     """
+    if not loadable_path(root):
+        raise UnloadablePathError(errno.EINVAL, "its path is not valid UTF-8, and a kernel library "
+                      "cannot be loaded from such a path", str(root))
     if root.exists() and not root.is_dir():
         raise NotADirectoryError(errno.ENOTDIR, "it is not a directory", str(root))
     root.mkdir(mode=dir_mode(), parents=True, exist_ok=True)
@@ -79,6 +86,16 @@ def _prepare(root: Path) -> None:
     trusted(root)  # nothing changed under us
 
 
+def loadable_path(path: Path) -> bool:
+    """Whether a library under ``path`` can be loaded: the loader takes the path as UTF-8
+    text, which a path of other bytes (a name made of Latin-1 bytes) is not."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
+
+
 def _caller_stacklevel() -> int:
     """Stack level of the first frame outside this package and ``contextlib`` (warnings)."""
     internal = (str(Path(__file__).resolve().parents[2]), contextlib.__file__)
@@ -93,7 +110,8 @@ def _fallback(configured: Path, reason: OSError) -> Path:
     why = reason.strerror or str(reason)
     if reason.filename and Path(reason.filename) != configured:
         why = f"{why}: {reason.filename}"
-    state = "is not used" if isinstance(reason, ForeignDirectoryError) else "is not writable"
+    unused = isinstance(reason, (ForeignDirectoryError, UnloadablePathError))
+    state = "is not used" if unused else "is not writable"
     try:
         sweep_scratch("cache")
         private = Path(tempfile.mkdtemp(prefix=scratch_prefix("cache")))
