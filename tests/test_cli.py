@@ -172,6 +172,20 @@ def test_derive_document_and_pdf(files, tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("PATH", str(tools))
     code, out, _ = run(capsys, "derive", files / "ring.py", "--document", tex, "--pdf")
     assert code == 0 and f"wrote {tex.with_suffix('.pdf')}" in out
+    assert tex.with_suffix(".pdf").read_bytes() == b"%PDF" and tex.with_suffix(".log").exists()
+
+    # (pdflatex wrote OUT.pdf in place: a run that failed — a full disk, a TeX error —
+    # left no PDF where the earlier run's was) the earlier PDF is kept, the log beside it
+    fake.write_text('#!/bin/sh\nfor last; do :; done\necho "! TeX capacity exceeded"\n'
+                    'echo "the failed run" > "${last%.tex}.log"\n'
+                    'printf %%PDF-half > "${last%.tex}.pdf"\nexit 1\n')
+    code, _, err = run(capsys, "derive", files / "ring.py", "--document", tex, "--pdf")
+    message = one_line_error(err)
+    assert code == 1 and "TeX capacity exceeded" in message
+    assert f"see {tex.with_suffix('.log')}" in message
+    assert tex.with_suffix(".pdf").read_bytes() == b"%PDF"
+    assert tex.with_suffix(".log").read_text() == "the failed run\n"
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]
 
     code, _, err = run(capsys, "derive", files / "ring.py", "--document", tmp_path / "x.txt")
     assert code == 1 and "must end in .tex" in one_line_error(err)

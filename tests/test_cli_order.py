@@ -282,3 +282,20 @@ def test_a_default_horizon_at_the_rounding_floor_is_lengthened(tmp_path, cached,
     code, out, _ = run(capsys, "verify", path, "--steps", "5", "--horizon", "0.05")
     row = rows(out)["order of GaussLegendre(2)"]
     assert " skip " in row and "rounding floor" in row and "lengthened" not in row, row
+
+
+@needs_cc
+def test_a_noether_entry_that_cannot_be_built_is_a_failed_row(tmp_path, cached, capsys):
+    """(A section that raised stopped the whole command, after its runs, with no table:
+    the other checks were lost.)  Such an entry is a failed row with the reason; the other
+    rows are reported."""
+    text = (REPO / "examples" / "cli" / "spring.py").read_text() + (
+        'NOETHER = [{"name": "bad", "section": lambda q: [q[1, 2]]}, '
+        '{"name": "index", "section": 7}]\n')
+    code, out, _ = run(capsys, "verify", write(tmp_path, "spring_bad.py", text))
+    found = rows(out)
+    assert code == 1, out
+    assert " FAIL " in found["Noether: bad"] and "cannot be built" in found["Noether: bad"]
+    assert "section" in found["Noether: bad"], out
+    assert " FAIL " in found["Noether: index"] and "out of range" in found["Noether: index"]
+    assert any(" pass " in row for row in found.values()), out

@@ -329,3 +329,17 @@ def test_the_printed_forms_zero_test_agrees_with_cancel():
             reference = (sp.cancel(sp.together(difference)) == 0 if trial < 3
                          else difference.subs(point) == 0)
             assert vanishes(difference) == reference
+
+
+def test_a_lagrangian_with_float_coefficients_prints():
+    """(0.5·(q₁ − q₀)²/h − 0.3·h·q₀q₁ made every printed form raise a raw AttributeError:
+    the printer took each coefficient for a fraction.)  It prints, with its floats, and the
+    printed form is checked against the residuals as any other."""
+    h = sp.Symbol("h", positive=True)
+    system = sg.DiscreteSystem(
+        sg.PairGroupoid(sg.EuclideanSpace("q")),
+        lambda a: 0.5 * (a.target[0] - a.source[0]) ** 2 / h - h * 0.3 * a.source[0] * a.target[0],
+        parameters=[h], name="floats")
+    tex = system.euler_lagrange().latex()
+    assert "0.3" in tex and "q_{k+1}" in tex
+    assert "0.3" in system.legendre().latex()

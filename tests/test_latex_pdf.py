@@ -239,7 +239,10 @@ def test_derive_pdf_fails_on_lost_content(tmp_path, capsys, monkeypatch):
     err = errors[0]
     assert err.startswith("symgroupoid: error: pdflatex could not fit all of ")
     assert "a line 69.6 pt too wide (detected at line 132); a page 2523.4 pt too high" in err
-    assert "ABBREVIATIONS" in err
+    assert "ABBREVIATIONS" in err and f"see {tmp_path / 'wide.log'}" in err
+    # the incomplete PDF and its log are written beside the document, as the error says
+    assert (tmp_path / "wide.pdf").read_bytes() == b"%PDF"
+    assert (tmp_path / "wide.log").read_text() == LOG
 
 
 @needs_tex

@@ -126,3 +126,30 @@ def test_lie_poisson_reconstruction_reproduces_the_step():
         W_k = np.array(sg.SO3("W").cayley([sp.Float(v) for v in u]).tolist(), float)
         assert np.allclose(W_k.ravel(), states[k], atol=1e-11)
         m = W_next
+
+
+def test_a_section_on_a_matrix_group_receives_the_matrix():
+    """On the pair groupoid of SO(3) a holonomic constraint receives the base point as a
+    matrix (docs/conventions.md §15), a section received the tuple of its nine entries, so
+    ``lambda R: [R[2, 0], R[2, 1], R[2, 2]]`` failed with a wrapped TypeError.  A section
+    (and a quasi-invariance function) now receives the matrix too; flat indexing ``q[6]``
+    still reads the same entry, so both forms give the same quantity."""
+    e3 = sp.Matrix([0, 0, 1])
+
+    def L(a):
+        return (sp.diag(1, 2, 3) * a.source.T * a.target).trace() \
+            - 3 * (e3.T * a.source * e3)[0, 0]
+
+    top = sg.DiscreteSystem(sg.PairGroupoid(sg.SO3("R")), L, name="top")
+    received = []
+
+    def vertical(R):
+        received.append(type(R))
+        return [R[2, 0], R[2, 1], R[2, 2]]
+
+    as_matrix = top.noether(vertical, f=lambda R: 0 * R[0, 0])
+    as_tuple = top.noether(lambda q: [q[6], q[7], q[8]])
+    assert received and all(issubclass(t, sp.MatrixBase) for t in received)
+    assert as_matrix.is_symmetry and as_tuple.is_symmetry
+    assert as_matrix.expr == as_tuple.expr  # the same coefficients, the same quantity
+    assert not top.noether(lambda R: [R[0, 0], R[0, 1], R[0, 2]]).is_symmetry

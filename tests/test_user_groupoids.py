@@ -191,3 +191,47 @@ def test_reserved_name_on_a_built_in_groupoid(name) -> None:
     multipliers)."""
     with pytest.raises(sg.CoordinateNameError, match=r"as the multipliers are"):
         sg.EuclideanSpace([name])
+
+
+# --- what the maps return -----------------------------------------------------------------------
+
+def test_a_symbol_the_maps_bring_must_be_declared() -> None:
+    """(A section curve q + x·t with x declared nowhere passed the axiom check, x being given
+    a random value there, and the derived equations carried x until compile() refused it as
+    an unsupported expression.)  The system refuses it as it refuses an undeclared symbol of
+    L, naming the groupoid; declared as a parameter, it is accepted."""
+    h, x = sp.Symbol("h", positive=True), sp.Symbol("x", positive=True)
+    G = line(sections=lambda q, t: [(q[0], q[0] + x * t)])
+
+    def L(a):
+        q0, q1 = a.coords
+        return (q1 - q0) ** 2 / (2 * h) - h * k * (q0 ** 2 + q1 ** 2) / 4
+
+    with pytest.raises(sg.UndeclaredSymbolError,
+                       match=r"groupoid line \(its structure maps\) uses symbol\(s\) x "):
+        sg.DiscreteSystem(G, L, parameters=[h, k], name="osc")
+    step = sg.DiscreteSystem(G, L, parameters=[h, k, x], name="osc").euler_lagrange()
+    assert x in set().union(*(r.free_symbols for r in step.residuals))
+
+
+@pytest.mark.parametrize("overrides, what", [
+    (dict(source=lambda a: (True,)), "the source map returned bool True as coordinate 0"),
+    (dict(target=lambda a: ("abc",)), "the target map returned the string 'abc'"),
+    (dict(sections=lambda q, t: [(q[0], sp.Gt(q[0], t))]), "the section curve 0 returned "
+                                                             "StrictGreaterThan"),
+])
+def test_maps_returning_what_is_not_a_coordinate_are_refused(overrides, what) -> None:
+    """(A truth value gave a raw AttributeError from evalf; a string was read as a symbol
+    of its text, and the error was a failed identity axiom with 'abc' chosen at random.)"""
+    with pytest.raises(sg.ShapeError, match=what):
+        line(**overrides)
+
+
+def test_an_action_returning_a_truth_value_is_refused_and_its_symbols_are_named() -> None:
+    s = sp.Symbol("s", positive=True)
+    plane = sg.EuclideanSpace.vector("x", 2)
+    with pytest.raises(sg.ShapeError, match="the action returned bool True as coordinate 0"):
+        sg.ActionGroupoid(plane, sg.SO2("W"), lambda p, W: (True, p[1]))
+    with pytest.raises(sg.AxiomError, match=r"p·I ≠ p .* with s=[0-9.]+ \(its symbols other "
+                                            r"than the point's coordinates chosen at random"):
+        sg.ActionGroupoid(plane, sg.SO2("W"), lambda p, W: tuple(s * W.T * sp.Matrix(p)))

@@ -87,13 +87,14 @@ def _latex(derived: Derived, document: bool) -> PrintedLatex:
     return PrintedLatex(text, time.perf_counter() - t0, unused)
 
 
-def _pdflatex(tex: Path, kept: bool = True) -> Path:
+def _pdflatex(tex: Path, kept: bool = True, shown: Path | None = None) -> Path:
     """Run pdflatex on ``tex`` (in its directory); the PDF's path.  ``kept``: the document
-    and its log stay where they are (else the messages name neither, and tell how to keep
-    them)."""
+    and its log are kept, as ``shown`` (default ``tex``: where the messages say they are);
+    else the messages name neither, and tell how to keep them."""
+    shown = shown or tex
     program = shutil.which("pdflatex")
     if program is None:
-        where = f"the document is in {tex}" if kept else "use --document OUT.tex to keep it"
+        where = f"the document is in {shown}" if kept else "use --document OUT.tex to keep it"
         raise ExternalToolError(f"--pdf needs pdflatex on PATH (install a TeX distribution, "
                                 f"e.g. TeX Live); {where}")
     cmd = [program, "-interaction=nonstopmode", "-halt-on-error", tex.name]
@@ -103,18 +104,49 @@ def _pdflatex(tex: Path, kept: bool = True) -> Path:
                                     capture_output=True, text=True, errors="replace",
                                     timeout=PDFLATEX_TIMEOUT)
     except subprocess.TimeoutExpired:
-        raise ExternalToolError(f"pdflatex did not finish {tex} in {PDFLATEX_TIMEOUT} s") \
-            from None
+        raise ExternalToolError(f"pdflatex did not finish {shown if kept else tex.name} in "
+                                f"{PDFLATEX_TIMEOUT} s") from None
     pdf = tex.with_suffix(".pdf")
     if result.returncode != 0 or not pdf.is_file():
         errors = [line for line in result.stdout.splitlines() if line.startswith("!")]
         reason = errors[0] if errors else f"exit status {result.returncode}"
-        see = (f"see {tex.with_suffix('.log')}" if kept else
+        see = (f"see {shown.with_suffix('.log')}" if kept else
                "run with --document OUT.tex to keep the document and its log")
-        raise ExternalToolError(f"pdflatex failed on {tex if kept else tex.name} ({reason}); "
+        raise ExternalToolError(f"pdflatex failed on {shown if kept else tex.name} ({reason}); "
                                 f"{see}")
-    check_log(tex, kept)
+    check_log(tex, kept, shown)
     return pdf
+
+
+def _typeset_beside(tex: Path) -> Path:
+    """``derive --document OUT.tex --pdf``: pdflatex on a copy of the document in a private
+    directory, then its OUT.log and OUT.aux and OUT.pdf beside the document, each through a
+    temporary file and a rename; so a run that fails (a full disk, a TeX error) keeps the
+    OUT.pdf of an earlier run, with the failed run's log beside it.  A PDF with lost content
+    is still written, as the error says."""
+    with tempfile.TemporaryDirectory(prefix="symgroupoid-pdf-") as private:
+        copy = Path(private) / tex.name
+        shutil.copyfile(tex, copy)
+        try:
+            _pdflatex(copy, shown=tex)
+        except LostContentError:
+            _bring_back(copy, tex, (".log", ".aux", ".pdf"))
+            raise
+        except ExternalToolError:
+            _bring_back(copy, tex, (".log", ".aux"))
+            raise
+        _bring_back(copy, tex, (".log", ".aux", ".pdf"))
+    return tex.with_suffix(".pdf")
+
+
+def _bring_back(copy: Path, tex: Path, suffixes: tuple[str, ...]) -> None:
+    """The files of ``copy``'s run with these suffixes, written beside ``tex``."""
+    for suffix in suffixes:
+        made = copy.with_suffix(suffix)
+        if made.is_file():
+            data = made.read_bytes()
+            atomic_write(tex.with_suffix(suffix), lambda f, data=data: f.write(data),
+                         binary=True)
 
 
 def lost_content(log: str, tolerance: float = OVERFULL_TOLERANCE) -> list[str]:
@@ -137,10 +169,12 @@ def lost_content(log: str, tolerance: float = OVERFULL_TOLERANCE) -> list[str]:
     return out
 
 
-def check_log(tex: Path, kept: bool = True) -> None:
+def check_log(tex: Path, kept: bool = True, shown: Path | None = None) -> None:
     """Raise :class:`LostContentError` when the log of ``tex``'s run reports lost content
-    (``kept``: as :func:`_pdflatex`)."""
+    (``kept``, ``shown``: as :func:`_pdflatex`)."""
     log_path = tex.with_suffix(".log")
+    shown_log = (shown or tex).with_suffix(".log")
+    shown = shown or tex
     try:
         log = log_path.read_text(encoding="utf-8", errors="replace")
     except OSError as exc:
@@ -149,9 +183,9 @@ def check_log(tex: Path, kept: bool = True) -> None:
     if lost:
         more = f" and {len(lost) - 3} more" if len(lost) > 3 else ""
         raise LostContentError(
-            f"pdflatex could not fit all of {tex if kept else tex.name} on its pages: "
+            f"pdflatex could not fit all of {shown if kept else tex.name} on its pages: "
             f"{'; '.join(lost[:3])}{more} "
-            f"({f'see {log_path}' if kept else 'no PDF written'}); the PDF is incomplete: "
+            f"({f'see {shown_log}' if kept else 'no PDF written'}); the PDF is incomplete: "
             f"name the long parts with ABBREVIATIONS in the system file (docs/cli.md)")
 
 
@@ -181,7 +215,7 @@ def run_derive(args: argparse.Namespace) -> int:
         say(line)
     say(f"wrote {tex}")
     if args.pdf:
-        say(f"wrote {_pdflatex(tex)}")
+        say(f"wrote {_typeset_beside(tex)}")
     return 0
 
 

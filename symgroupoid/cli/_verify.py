@@ -239,8 +239,8 @@ def noether_check(system, step, declared: Declared, traj, p) -> Check:
         return Check(name, None, "Noether quantities are checked for first-order systems only")
     try:
         quantity = system.noether(declared.section, declared.f)
-    except SymgroupoidError:
-        raise
+    except SymgroupoidError as exc:  # a failed row: the other checks still run and report
+        return Check(name, False, f"cannot be built: {exc}")
     except Exception as exc:
         return Check(name, False, f"cannot be built: {type(exc).__name__}: {exc}")
     index = _state_positions(step, quantity)

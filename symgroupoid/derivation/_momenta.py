@@ -136,7 +136,7 @@ def section_coefficients(G: Groupoid, section, q: Sequence, parameters: Sequence
                               f"0..{G.rank - 1}")
         return [sp.S.One if a == int(section) else sp.S.Zero for a in range(G.rank)]
     if callable(section):
-        coeffs = call_user(G.name, "section", section, tuple(q))
+        coeffs = call_user(G.name, "section", section, section_point(G, q))
     else:
         coeffs = section
     if isinstance(coeffs, np.ndarray):
@@ -155,6 +155,16 @@ def section_coefficients(G: Groupoid, section, q: Sequence, parameters: Sequence
     return coeffs
 
 
+def section_point(G: Groupoid, q: Sequence):
+    """The base point a section (or a quasi-invariance function) receives: its coordinates
+    as a tuple, or, where the base is a matrix group (the pair groupoid of a Lie group), its
+    matrix, as a holonomic constraint receives it (``G.base_view``); a matrix also reads
+    ``q[i]`` as its i-th entry row by row, so a section written for the tuple still reads
+    the same numbers."""
+    view = G.base_view(tuple(q)) if G is not None else None
+    return view if isinstance(view, sp.MatrixBase) else tuple(q)
+
+
 def _coordinates(q: Sequence) -> set:
     """The arrow coordinates a base point q = α(g) or β(g) is written in."""
     return set().union(*(sp.sympify(c).free_symbols for c in q))
@@ -164,12 +174,14 @@ def _items(value) -> list:
     return list(value) if isinstance(value, (list, tuple)) else []
 
 
-def _base_function(f, q: Sequence, name: str = "", parameters: Sequence = ()) -> sp.Expr:
+def _base_function(f, q: Sequence, name: str = "", parameters: Sequence = (),
+                   G: Groupoid | None = None) -> sp.Expr:
     """f(q) of a quasi-invariance function (callable or expression), checked as a section's
     coefficients are."""
     if f is None or (not callable(f) and isinstance(f, (int, float)) and f == 0):
         return sp.S.Zero
-    value = call_user(name, "quasi-invariance function f", f, tuple(q)) if callable(f) else f
+    value = (call_user(name, "quasi-invariance function f", f, section_point(G, q))
+             if callable(f) else f)
     if isinstance(value, (str, bytes)):
         raise ShapeError(f"{name}: the quasi-invariance function f must give an expression, "
                          f"got the string {value!r}")
@@ -224,7 +236,7 @@ def noether_forms(G: Groupoid, forms: LegendreForms, section, f=None,
     g = forms.arrow
     before = forms.minus_nodes or [G.source(g)]
     after = forms.plus_nodes or [G.target(g)]
-    fa, fb = (_base_function(f, q, G.name, parameters) for q in (before[0], after[0]))
+    fa, fb = (_base_function(f, q, G.name, parameters, G) for q in (before[0], after[0]))
     lhs = _paired(G, section, before, forms.minus, parameters) + fa
     rhs = _paired(G, section, after, forms.plus, parameters) + fb
     return NoetherForms(rhs, lhs - rhs, g, forms.multipliers, forms.window)

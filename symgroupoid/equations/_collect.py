@@ -174,8 +174,12 @@ def _collected(key: sp.Expr, parts: list) -> sp.Expr:
             return _signed_collected(sign * key * inner.factor, inner.total)
         return key * parts[0]
     coeffs = [_leading_coefficient(p) for p in parts]
-    denominator = sp.ilcm(1, *[c.q for c in coeffs])
-    factor = sp.Rational(sp.igcd(*[int(abs(c) * denominator) for c in coeffs]), denominator)
+    if all(c.is_Rational for c in coeffs):
+        denominator = sp.ilcm(1, *[c.q for c in coeffs])
+        factor = sp.Rational(sp.igcd(*[int(abs(c) * denominator) for c in coeffs]),
+                             denominator)
+    else:  # a coefficient written as a float (0.5): no common rational factor to take out
+        factor = sp.S.One
     if coeffs[0].is_negative:
         factor = -factor
     common = common_monomial(parts)

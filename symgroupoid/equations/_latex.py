@@ -318,7 +318,10 @@ class DisplayLatexPrinter(MemoLatexPrinter):
 
 def _common_denominator(expr: sp.Add) -> int:
     """d when every term's rational coefficient has the denominator d (else 1)."""
-    denominators = {t.as_coeff_Mul()[0].q for t in expr.args}
+    coefficients = [t.as_coeff_Mul()[0] for t in expr.args]
+    if not all(c.is_Rational for c in coefficients):  # a float (0.5) among them
+        return 1
+    denominators = {c.q for c in coefficients}
     return denominators.pop() if len(denominators) == 1 else 1
 
 

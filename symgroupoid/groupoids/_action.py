@@ -14,7 +14,7 @@ import sympy as sp
 
 from .._arguments import callable_argument, instance_argument
 from .._errors import AxiomError, CallableError, ShapeError, SymgroupoidError
-from ._base import Arrow, Groupoid
+from ._base import Arrow, Groupoid, coordinate_values
 from ._matrix_groups import MatrixLieGroup
 from ._pair import EuclideanSpace
 
@@ -87,17 +87,25 @@ class ActionGroupoid(Groupoid):
                 out.append(float(e))
             return np.array(out)
 
+        def chosen() -> str:
+            """The random values the action's free symbols got, for the message."""
+            if not values:
+                return ""
+            named = ", ".join(f"{k}={float(v):.6g}" for k, v in values.items())
+            return (f" with {named} (its symbols other than the point's coordinates chosen "
+                    f"at random)")
+
         identity = act(p, self.group.identity(()))
         if not np.allclose(identity, np.asarray(p, float), atol=tol, rtol=tol):
             raise AxiomError(f"{self.name}: the action is not a right action: p·I ≠ p for "
-                             f"p = {[float(v) for v in p]} (got {identity.tolist()}); "
-                             f"check=False skips this check")
+                             f"p = {[float(v) for v in p]} (got {identity.tolist()}"
+                             f"{chosen()}); check=False skips this check")
         stepwise = act(tuple(sp.Float(v) for v in act(p, w1)), w2)
         at_once = act(p, self.group.multiply(w1, w2))
         if not np.allclose(stepwise, at_once, atol=tol, rtol=tol):
             raise AxiomError(f"{self.name}: the action is not a right action: (p·W₁)·W₂ ≠ "
                              f"p·(W₁W₂) for p = {[float(v) for v in p]} ({stepwise.tolist()} "
-                             f"≠ {at_once.tolist()}; a left action W·p gives W₂W₁p); "
+                             f"≠ {at_once.tolist()}{chosen()}; a left action W·p gives W₂W₁p); "
                              f"check=False skips this check")
 
     @property
@@ -134,7 +142,11 @@ class ActionGroupoid(Groupoid):
         if len(out) != self.base_dim:
             raise ShapeError(f"{self.name}: the action returned {len(out)} coordinates, "
                              f"the space has {self.base_dim}")
-        return out
+        return coordinate_values(self.name, "action", out, sympified=False)
+
+    def map_expressions(self, a):
+        """The action at the arrow ``a``: its target p·W."""
+        return list(self.target(a)), []
 
     def source(self, a):
         return self._split(a)[0]

@@ -33,6 +33,7 @@ import sympy as sp
 
 from .._errors import CallableError, InputTypeError, ShapeError, SymgroupoidError
 from .._lambdify import NUMPY_MODULES
+from .._symbols import scalar_expressions
 from ._numerics import GroupoidNumerics
 
 #: the largest |offset| of a named arrow g_{k+offset} (a window spans a few arrows)
@@ -70,6 +71,22 @@ class Arrow:
 
     def __repr__(self) -> str:
         return f"<{type(self).__name__} of {self.groupoid.name}: {self.coords}>"
+
+
+def coordinate_values(name: str, what: str, values: Sequence, sympified: bool = True
+                      ) -> tuple:
+    """The coordinates a user's map returned, as SymPy expressions (``sympified``, else as
+    returned: floats stay floats for the numerics); a string, a truth value (``True``,
+    ``q > 0``) or anything else that is not a number or an expression is a
+    :class:`ShapeError` naming the map and the entry (not a symbol made of the string's
+    text, not a raw error later)."""
+    out, bad = scalar_expressions(values)
+    if bad is not None:
+        value = values[bad]
+        kind = "the string" if isinstance(value, (str, bytes)) else type(value).__name__
+        raise ShapeError(f"{name}: the {what} returned {kind} {value!r} as coordinate {bad}; "
+                         f"a coordinate is a number or a SymPy expression")
+    return out if sympified else tuple(values)
 
 
 class Groupoid(GroupoidNumerics, ABC):
@@ -128,6 +145,13 @@ class Groupoid(GroupoidNumerics, ABC):
     @abstractmethod
     def section_curves(self, q: Sequence, t: sp.Symbol) -> list[tuple]:
         """Basis of sections of AG at q: curves h_X(t) ⊂ α⁻¹(q) with h_X(0) = ε(q)."""
+
+    def map_expressions(self, a: Sequence) -> tuple[list, list]:
+        """What the maps a user wrote give at the arrow ``a`` (symbolic coordinates), to
+        be checked for symbols that are neither coordinates nor declared parameters, and
+        the placeholder symbols those expressions may also hold (a curve parameter, a second
+        arrow's fibre).  A groupoid whose maps are the library's own: none."""
+        return [], []
 
     # --- fibres and charts ----------------------------------------------------------------
     @abstractmethod
@@ -438,7 +462,8 @@ class Groupoid(GroupoidNumerics, ABC):
             if len(h) != self.arrow_dim:
                 raise ShapeError(f"{self.name}: section curve {i} has {len(h)} coordinates, "
                                  f"arrows have {self.arrow_dim}")
-        return [tuple(sp.sympify(c) for c in h) for h in curves]
+        return [coordinate_values(self.name, f"section curve {i}", h)
+                for i, h in enumerate(curves)]
 
     # --- matrix form (matrix-valued parts kept as matrices) ---------------------------------
     def matrix_parts(self) -> list[tuple[int, Any]]:

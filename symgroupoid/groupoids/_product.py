@@ -98,6 +98,15 @@ class ProductGroupoid(Groupoid):
             out += tuple(getattr(f, name)(*(p[i] for p in parts)))
         return out
 
+    def map_expressions(self, a):
+        exprs: list = []
+        placeholders: list = []
+        for f, part in zip(self.factors, self._parts(a, self._arrow_slices)):
+            e, p = f.map_expressions(part)
+            exprs += e
+            placeholders += p
+        return exprs, placeholders
+
     def source(self, a):
         return self._map("source", (a, self._arrow_slices))
 

@@ -24,7 +24,7 @@ from .._symbols import (
     printable_name,
     scalar_symbol,
 )
-from ._base import Groupoid
+from ._base import Groupoid, coordinate_values
 
 #: names that ``StepEquations.symbol`` reserves for the multipliers λ
 RESERVED_NAMES = ("lambda", "λ", "multipliers")
@@ -152,7 +152,7 @@ class DefinedGroupoid(Groupoid):
             what = "base point" if size == self.base_dim else "arrow"
             raise ShapeError(f"{self.name}: the {map_name} map returned {len(out)} "
                              f"coordinates; a {what} has {size}")
-        return out
+        return coordinate_values(self.name, f"{map_name} map", out, sympified=False)
 
     def source(self, a):
         return self._call("source", self.base_dim, tuple(a))
@@ -172,6 +172,18 @@ class DefinedGroupoid(Groupoid):
     def section_curves(self, q, t):
         # exceptions are wrapped (with the groupoid's name) by Groupoid._curves
         return [tuple(h) for h in self._maps["sections"](tuple(q), t)]
+
+    def map_expressions(self, a):
+        """Every structure map at the arrow ``a``: source, target, inverse, the identity and
+        the section curves at its source (in a curve parameter t), and its product with a
+        composable arrow of placeholder fibre coordinates."""
+        t = sp.Dummy("t")
+        fibre = tuple(sp.Dummy(f"f{i}") for i in range(self.rank))
+        q, after = self.source(a), self.target(a)
+        exprs = [*q, *after, *self.inverse(a), *self.identity(q),
+                 *self.multiply(a, self.arrow_from(after, fibre)),
+                 *(c for curve in self.section_curves(q, t) for c in curve)]
+        return exprs, [t, *fibre]
 
     def arrow_from(self, q, f):
         return tuple(q) + tuple(f)
