@@ -32,7 +32,6 @@ from ._errors import (
 )
 from .runtime import (
     Drift,
-    atomic_write,
     constraint_residuals,
     energy_changes,
     energy_label,
@@ -84,6 +83,8 @@ def _finish(fig, path: str | PathLike | None, owner: str):
     truncated one."""
     fig.tight_layout()
     if path is not None:
+        from .runtime import atomic_write  # (the file module loads when first used)
+
         target = path_argument(path, "path", owner=owner)
         kind = target.suffix.lstrip(".").lower()
         try:

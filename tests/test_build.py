@@ -256,6 +256,7 @@ def _cayley(x) -> np.ndarray:
     return np.eye(3) + 4 / (4 + x @ x) * (X + X @ X / 2)
 
 
+@pytest.mark.slow
 def test_block_units_at_their_level_compute_what_every_other_build_computes(monkeypatch):
     """The 3D chain of 2 bodies at the default flags: its block unit is compiled at
     BLOCK_LEVEL, the source at the step level.  Explicit flags, even the default ones,

@@ -117,6 +117,7 @@ print(hashlib.sha256((k.source + "".join(u for _, u in k.units)).encode()).hexdi
 """
 
 
+@pytest.mark.slow
 def test_compacted_kernels_do_not_depend_on_the_hash_seed():
     digests = set()
     for seed in ("1", "2"):

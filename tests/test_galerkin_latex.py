@@ -34,6 +34,7 @@ def test_lobatto_prints_the_stage_notation():
     assert r"V_{k,1} &= \frac{4 (\zeta_{k})_{1} - \theta_{k-1} + \theta_{k}}{h}" in text
 
 
+@pytest.mark.slow
 def test_gauss_with_forces_prints_the_stage_notation():
     """GaussLegendre(2) of a damped, driven pendulum: the Gauss coefficients a_ij
     (1/4, 1/4 ∓ √3/6), and the force at the nodes, c·V_{k,i} and the inputs u_k, u_{k+1}."""
@@ -50,6 +51,7 @@ def test_gauss_with_forces_prints_the_stage_notation():
     assert r"\frac{h}{3} \left(F_{k,1} + F_{k,2} - g" in text  # the stage row
 
 
+@pytest.mark.slow
 def test_a_forced_system_named_F_prints_without_the_stage_notation():
     """A parameter printed F would read as the node force F_{k,i}: the stage notation is
     not offered (the step prints as derived), as for the other letters of the notation."""

@@ -109,6 +109,7 @@ def test_the_document_of_a_chain_of_three_bodies_typesets_whole(tmp_path):
     assert "too long to print usefully" in document
 
 
+@pytest.mark.slow
 @needs_tex
 def test_the_document_of_the_top_typesets_whole(tmp_path):
     document = _top(sg.LobattoIIIAB(3)).latex(document=True)

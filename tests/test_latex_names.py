@@ -100,6 +100,7 @@ def test_a_group_named_like_a_stage_symbol_is_refused_by_name(name, printed):
         _top(sg.SO3(name)).latex()
 
 
+@pytest.mark.slow
 def test_the_node_derivative_is_written_with_the_groups_own_name():
     """(The explanation of N_b read ⟨∂L/∂R, R E_b⟩ whatever the group was called: a body
     named Y had an R that appeared nowhere else in its document.)"""

@@ -134,7 +134,8 @@ def test_closed_form_coefficients_are_the_series(cls):
         _series(cls.closed_form, cls.point, DEGREE + 2)
 
 
-@pytest.mark.parametrize("cls", [SinOverTheta, ThetaOverTwoSin],
+@pytest.mark.parametrize("cls", [SinOverTheta,
+                                 pytest.param(ThetaOverTwoSin, marks=pytest.mark.slow)],
                          ids=lambda c: c.__name__)
 def test_derivative_series_is_the_series_of_the_derivative(cls):
     second = derivative_of(derivative_of(cls))

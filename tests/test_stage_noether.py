@@ -136,6 +136,7 @@ def test_the_balance_with_lobatto_and_without_inputs():
     assert J[-1] < 0.8 * J[0]  # the damping takes angular momentum away
 
 
+@pytest.mark.slow
 def test_internal_forces_telescope():
     """Two particles in the plane joined by a spring and a damper along the line between
     them, with equal and opposite drives: the forces' work along a translation or a rotation

@@ -827,6 +827,7 @@ def test_dask_cluster_that_loses_its_workers_is_an_error_with_the_runs_done(monk
     assert np.array_equal(partial.values[done], serial.values[done])
 
 
+@pytest.mark.slow
 def test_dask_cluster_without_workers_is_waited_for_with_a_warning(monkeypatch):
     """A cluster with no workers yet (an adaptive one, a queue) is waited for: after
     NO_WORKERS_WAIT a RuntimeWarning, and the sweep completes when a worker comes."""

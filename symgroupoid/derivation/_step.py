@@ -177,11 +177,10 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
                                                 *([list(zeta)] if zeta else []), smooth=True))
     coords = [c for s in slots for c in s] + list(zeta)
     if not matrix_form:
+        check_symbols(name, "Lagrangian", [L], coords, parameters)
         maps, placeholders = groupoid.map_expressions(slots[0])
         check_symbols(name, f"groupoid {groupoid.name} (its structure maps)",
-                      [sp.sympify(e) for e in maps],
-                      [*coords, *placeholders], parameters)
-        check_symbols(name, "Lagrangian", [L], coords, parameters)
+                      [sp.sympify(e) for e in maps], [*coords, *placeholders], parameters)
     phis: list = []
     if constraints is not None:
         raw = call_user(name, "constraints", constraints, *views, smooth=True)
