@@ -9,6 +9,8 @@ test_hostile_cli.py.
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 import sympy as sp
@@ -275,6 +277,21 @@ def test_emit_c_checks_step_path_and_prefix(tmp_path):
     with pytest.raises(sg.OutputError,
                        match=r"oscillator: path '.*file/k': .*file is not a directory"):
         sg.emit_c(step, tmp_path / "file" / "k")
+
+
+def test_emit_c_names_the_file_it_could_not_write(tmp_path, monkeypatch):
+    """(On a full disk the message named the stem 'k', neither file; in a read-only
+    directory the hidden temporary file.)  It names the file, and nothing is left."""
+    import symgroupoid.codegen._emit as emit_module
+
+    def full_disk(fd, *args, **kwargs):
+        os.close(fd)
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(emit_module.os, "fdopen", full_disk)
+    with pytest.raises(sg.OutputError, match=r"cannot write .*/k\.h: No space left on device"):
+        sg.emit_c(oscillator().euler_lagrange(), tmp_path / "k")
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith((".", "k"))] == []
 
 
 def test_generate_c_checks_its_template_cache():

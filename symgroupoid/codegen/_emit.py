@@ -441,6 +441,15 @@ def write_atomic(path: Path, text: str) -> None:
     write_atomic_files([(path, text)])
 
 
+@contextlib.contextmanager
+def _naming(path: Path):
+    """An OSError raised within, as one naming ``path``."""
+    try:
+        yield
+    except OSError as exc:
+        raise OSError(exc.errno, exc.strerror, str(path)) from exc
+
+
 def write_atomic_files(files: Sequence[tuple[Path, str]]) -> None:
     """Write each ASCII text to its path as :func:`write_atomic` does, all or none: every
     text goes to a temporary file first (a path that is a directory is refused before
@@ -457,14 +466,16 @@ def write_atomic_files(files: Sequence[tuple[Path, str]]) -> None:
     created: list[Path] = []
     try:
         for path, text in files:
-            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-            temporary.append(tmp)
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(text.encode("ascii"))
-            os.chmod(tmp, file_mode())
+            with _naming(path):  # (not the temporary file's name)
+                fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+                temporary.append(tmp)
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(text.encode("ascii"))
+                os.chmod(tmp, file_mode())
         for (path, _), tmp in zip(files, temporary):
             new = not os.path.lexists(path)
-            os.replace(tmp, path)
+            with _naming(path):
+                os.replace(tmp, path)
             if new:
                 created.append(path)
     except BaseException:
