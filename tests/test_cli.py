@@ -632,3 +632,11 @@ def test_an_output_path_that_names_a_directory_is_refused_before_the_run(capsys,
         traj.save(f"{tmp_path / 'y.npz'}/")
     with pytest.raises(sg.OutputError, match="is not a directory"):
         traj.save(tmp_path / "U.npy" / "y.npz")
+
+
+def test_cache_info_prints_a_path_with_a_newline_on_one_line(tmp_path, capsys, monkeypatch):
+    """(A cache path holding a newline was printed across two lines.)"""
+    root = tmp_path / "two\nlines"
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(root))
+    code, out, _ = run(capsys, "cache", "info")
+    assert code == 0 and out.splitlines()[0] == f"kernel cache: {str(root)!r}"

@@ -21,9 +21,16 @@ def size_text(n: int) -> str:
     return f"{n:.1f} GiB"  # pragma: no cover
 
 
+def shown_path(path) -> str:
+    """A path as printed on one line: as it is, or quoted with escapes when it holds a
+    character that is not printable (a newline would split the line)."""
+    text = str(path)
+    return text if text.isprintable() else repr(text)
+
+
 def run_info(args: argparse.Namespace) -> int:
     info = cache_info()
-    say(f"kernel cache: {info.root}")
+    say(f"kernel cache: {shown_path(info.root)}")
     if not info.exists:
         say("  (empty: not created yet)")
         return 0
@@ -55,7 +62,7 @@ def run_info(args: argparse.Namespace) -> int:
 def run_clear(args: argparse.Namespace) -> int:
     bad = bool(getattr(args, "bad", False))
     result = clear_cache(bad_only=bad)
-    say(f"kernel cache: {result.root}")
+    say(f"kernel cache: {shown_path(result.root)}")
     say(f"  removed {result.removed} {'bad ' if bad else ''}kernels "
         f"({size_text(result.freed)}) and {result.index_entries} index entries")
     if result.busy:
