@@ -282,15 +282,16 @@ def test_emit_c_checks_step_path_and_prefix(tmp_path):
 def test_emit_c_names_the_file_it_could_not_write(tmp_path, monkeypatch):
     """(On a full disk the message named the stem 'k', neither file; in a read-only
     directory the hidden temporary file.)  It names the file, and nothing is left."""
-    import symgroupoid.codegen._emit as emit_module
+    step = oscillator().euler_lagrange()
+    step.emit_c(tmp_path / "warm")  # (templates loaded before the disk fills)
 
     def full_disk(fd, *args, **kwargs):
         os.close(fd)
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(emit_module.os, "fdopen", full_disk)
+    monkeypatch.setattr(os, "fdopen", full_disk)
     with pytest.raises(sg.OutputError, match=r"cannot write .*/k\.h: No space left on device"):
-        sg.emit_c(oscillator().euler_lagrange(), tmp_path / "k")
+        sg.emit_c(step, tmp_path / "k")
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith((".", "k"))] == []
 
 
