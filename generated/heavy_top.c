@@ -1261,6 +1261,32 @@ static int heavy_top_update_negligible(const heavy_top_lu *f, const double *F, c
     return heavy_top_lu_apply(f, d) == HEAVY_TOP_OK && heavy_top_relative_norm(d, u) <= HEAVY_TOP_FLOOR_UPDATE;
 }
 
+/* a chord update that cuts the residual by this factor or more shows an iterate off its
+ * rounding floor (heavy_top_chord_cuts): at a true floor of F's terms (a body far from the
+ * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
+ * tests/test_newton_floors.py's falling body), on a slow stretch of Newton at most 3e-5 */
+#define HEAVY_TOP_TRIAL_CUT 1e-3
+
+/* 1 when the update the factorisation f gives for the residual F at u cuts the residual
+ * by HEAVY_TOP_TRIAL_CUT (the residual evaluated at u - d): u is not at a rounding floor but on a
+ * slow stretch of Newton (a nearly singular Jacobian), however small F is against the size
+ * of its terms -- a size that counts a difference such as t_{k+1} - t_k at its ends'
+ * magnitudes, and can overstate F's rounding a millionfold */
+static int heavy_top_chord_cuts(const heavy_top_lu *f, const double *F, const double *u, const double *known, const double *p, const double *h, double rnorm)
+{
+    double d[HEAVY_TOP_N_UNKNOWNS], v[HEAVY_TOP_N_UNKNOWNS], G[HEAVY_TOP_N_EQUATIONS];
+    int j;
+    memcpy(d, F, sizeof d);
+    if (heavy_top_lu_apply(f, d) != HEAVY_TOP_OK) {
+        return 0;
+    }
+    for (j = 0; j < HEAVY_TOP_N_UNKNOWNS; ++j) {
+        v[j] = u[j] - d[j];
+    }
+    heavy_top_residual_hoisted(v, known, p, h, G);
+    return heavy_top_norm_inf(G, HEAVY_TOP_N_EQUATIONS) <= HEAVY_TOP_TRIAL_CUT * rnorm;
+}
+
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
  * holds heavy_top_hoist(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
@@ -1294,9 +1320,11 @@ static int heavy_top_update_negligible(const heavy_top_lu *f, const double *F, c
  *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
  *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
  *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
- *    (heavy_top_within_scale), and the update is negligible as above: the residual is within
- *    the rounding of its own evaluation, which the unknowns cannot undo (large knowns:
- *    positions far from the origin);
+ *    (heavy_top_within_scale), the update is negligible as above, and a chord update
+ *    would not cut the residual by HEAVY_TOP_TRIAL_CUT (heavy_top_chord_cuts, one more evaluation
+ *    of F; if it would, Newton goes on): the residual is within the rounding of its own
+ *    evaluation, which the unknowns cannot undo (large knowns: positions far from the
+ *    origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
@@ -1361,11 +1389,16 @@ static int heavy_top_newton(const double *known, const double *p, const double *
                  * update or rounding noise that did not reduce |F| tenfold is a stall */
                 noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv);
                 if (fresh || noise) {
+                    int on_floor, in_scale;
                     heavy_top_coordinate_floor(J, uJ, C);
-                    if ((heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor)
-                         || heavy_top_within_scale(u, known, p, F, options->floor_factor))
-                        && heavy_top_update_negligible(&lu, F, u)) {
-                        return HEAVY_TOP_OK; /* at the rounding of the unknowns or of F's terms */
+                    on_floor = heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor);
+                    in_scale = !on_floor
+                               && heavy_top_within_scale(u, known, p, F, options->floor_factor);
+                    if ((on_floor || in_scale) && heavy_top_update_negligible(&lu, F, u)) {
+                        if (on_floor || !heavy_top_chord_cuts(&lu, F, u, known, p, h, rnorm)) {
+                            return HEAVY_TOP_OK; /* at the rounding of the unknowns or of F's terms */
+                        }
+                        noise = 0; /* off the floor: Newton goes on from u */
                     }
                 }
                 if (noise) {

@@ -284,6 +284,9 @@ def polish(factors, F: np.ndarray, u: np.ndarray, last_step: float, it: int
 #: still call for (a true floor's noise: up to 5e-8 for a body far from the origin; a
 #: non-solution accepted on its terms' size: 0.07-0.3)
 FLOOR_UPDATE = 1e-4
+#: as ``SG_TRIAL_CUT``: a chord update that cuts the residual by this factor shows an iterate
+#: off its rounding floor (a true floor of F's terms keeps at least 0.006 of it)
+TRIAL_CUT = 1e-3
 
 
 def update_negligible(factors: LUFactors, F: np.ndarray, u: np.ndarray) -> bool:
@@ -465,6 +468,15 @@ class NumpyStepper:
         S = self.f.residual_scale(u, known, p)
         return bool(np.all(np.abs(F) <= factor * EPSILON * S))
 
+    def chord_cuts(self, factors, F, u, known, p, rnorm: float) -> bool:
+        """As ``<prefix>_chord_cuts``: the update the factorisation gives for F cuts the
+        residual by :data:`TRIAL_CUT` (evaluated at u − d): a slow stretch of Newton, not a
+        rounding floor, however small F is against the size of its terms."""
+        status, d = lu_apply(factors, F)
+        if status != OK:
+            return False
+        return norm_inf(self.f.residual(u - d, known, p)) <= TRIAL_CUT * rnorm
+
     def hold_time(self, known, p, u) -> np.ndarray:
         """As ``<prefix>_hold_time`` (:func:`hold_time` with this kernel's functions)."""
         return hold_time(self.f.residual_jacobian, self.time, known, p, u)
@@ -510,11 +522,14 @@ class NumpyStepper:
             noise = slow and last_step <= 64.0 * EPSILON * ratio  # rounding noise of a solve
             # a chord update may contract slowly without any stall: only a Newton update or
             # rounding noise that did not reduce |F| tenfold is a stall
-            if slow and (fresh or noise) and (
-                    self.at_floor(u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
-                    or self.within_scale(u, known, p, F, options.floor_factor)) \
-                    and update_negligible(factors, F, u):
-                return OK, u, it, rnorm  # at the rounding of the unknowns or of F's terms
+            if slow and (fresh or noise):
+                floor = self.at_floor(u, known, p, F, coordinate_floor(J, uJ),
+                                      options.floor_factor)
+                scale = not floor and self.within_scale(u, known, p, F, options.floor_factor)
+                if (floor or scale) and update_negligible(factors, F, u):
+                    if floor or not self.chord_cuts(factors, F, u, known, p, rnorm):
+                        return OK, u, it, rnorm  # at the rounding of the unknowns or F's terms
+                    noise = False  # off the floor: Newton goes on from u
             if noise:
                 return (OK if explained_by_rounding(F, J, u, uJ, ratio) else STALLED,
                         u, it, rnorm)

@@ -905,6 +905,32 @@ static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, con
     return SG_NAME(lu_apply)(f, d) == SG_OK && SG_NAME(relative_norm)(d, u) <= SG_FLOOR_UPDATE;
 }
 
+/* a chord update that cuts the residual by this factor or more shows an iterate off its
+ * rounding floor (SG_NAME(chord_cuts)): at a true floor of F's terms (a body far from the
+ * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
+ * tests/test_newton_floors.py's falling body), on a slow stretch of Newton at most 3e-5 */
+#define SG_TRIAL_CUT 1e-3
+
+/* 1 when the update the factorisation f gives for the residual F at u cuts the residual
+ * by SG_TRIAL_CUT (the residual evaluated at u - d): u is not at a rounding floor but on a
+ * slow stretch of Newton (a nearly singular Jacobian), however small F is against the size
+ * of its terms -- a size that counts a difference such as t_{k+1} - t_k at its ends'
+ * magnitudes, and can overstate F's rounding a millionfold */
+static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const double *u, const double *known, const double *p, const double *h, double rnorm)
+{
+    double d[SG_N_UNKNOWNS], v[SG_N_UNKNOWNS], G[SG_N_EQUATIONS];
+    int j;
+    memcpy(d, F, sizeof d);
+    if (SG_NAME(lu_apply)(f, d) != SG_OK) {
+        return 0;
+    }
+    for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+        v[j] = u[j] - d[j];
+    }
+    SG_NAME(residual_hoisted)(v, known, p, h, G);
+    return SG_NAME(norm_inf)(G, SG_N_EQUATIONS) <= SG_TRIAL_CUT * rnorm;
+}
+
 /* Newton's method for F(u; known, p) = 0 from the guess in u (overwritten by the result); h
  * holds SG_NAME(hoist)(known, p), the values of the known state that F and J read.
  * The Jacobian at the guess is factored before any convergence test, so every call checks
@@ -938,9 +964,11 @@ static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, con
  *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
  *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
  *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
- *    (SG_NAME(within_scale)), and the update is negligible as above: the residual is within
- *    the rounding of its own evaluation, which the unknowns cannot undo (large knowns:
- *    positions far from the origin);
+ *    (SG_NAME(within_scale)), the update is negligible as above, and a chord update
+ *    would not cut the residual by SG_TRIAL_CUT (SG_NAME(chord_cuts), one more evaluation
+ *    of F; if it would, Newton goes on): the residual is within the rounding of its own
+ *    evaluation, which the unknowns cannot undo (large knowns: positions far from the
+ *    origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
@@ -1005,11 +1033,16 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
                  * update or rounding noise that did not reduce |F| tenfold is a stall */
                 noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv);
                 if (fresh || noise) {
+                    int on_floor, in_scale;
                     SG_NAME(coordinate_floor)(J, uJ, C);
-                    if ((SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor)
-                         || SG_NAME(within_scale)(u, known, p, F, options->floor_factor))
-                        && SG_NAME(update_negligible)(&lu, F, u)) {
-                        return SG_OK; /* at the rounding of the unknowns or of F's terms */
+                    on_floor = SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor);
+                    in_scale = !on_floor
+                               && SG_NAME(within_scale)(u, known, p, F, options->floor_factor);
+                    if ((on_floor || in_scale) && SG_NAME(update_negligible)(&lu, F, u)) {
+                        if (on_floor || !SG_NAME(chord_cuts)(&lu, F, u, known, p, h, rnorm)) {
+                            return SG_OK; /* at the rounding of the unknowns or of F's terms */
+                        }
+                        noise = 0; /* off the floor: Newton goes on from u */
                     }
                 }
                 if (noise) {
