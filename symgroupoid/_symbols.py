@@ -76,10 +76,17 @@ def greek_spelled(name: str) -> str:
     """``name`` with every Greek letter spelt out as SymPy names it (``θ1`` → ``theta1``,
     ``Ω`` → ``Omega``, ``ϑ`` → ``vartheta``), so that it prints as ``\\theta_{1}``: LaTeX
     engines typeset the commands, not the characters (pdflatex stops at a Greek character in
-    mathematics, lualatex drops its glyph).  Other characters are kept."""
+    mathematics, lualatex drops its glyph); a subscript digit as an index (``θ₁`` →
+    ``theta_1``, which prints as ``\\theta_{1}``).  Other characters are kept."""
     out = []
     for ch in name:
         words = unicodedata.name(ch, "").split() if ord(ch) > 127 else []
+        if words[:1] == ["SUBSCRIPT"] and unicodedata.digit(ch, None) is not None:
+            # θ₁ as theta_1, θ₁₂ as theta_12
+            digit = str(unicodedata.digit(ch))
+            out.append(digit if out and out[-1][-1:].isdigit() and "_" in out[-1]
+                       else "_" + digit)
+            continue
         if words[:1] != ["GREEK"]:
             out.append(ch)
             continue

@@ -19,7 +19,7 @@ h = sp.Symbol("h", positive=True)
 @pytest.mark.parametrize("name, tex", [
     ("θ", r"\theta"), ("θ1", r"\theta_{1}"), ("Ω", r"\Omega"), ("ϑ", r"\vartheta"),
     ("λ", r"\lambda"), ("ς", r"\varsigma"), ("xθ", r"x_{\theta}"), ("theta", r"\theta"),
-    ("m_1", "m_{1}")])
+    ("m_1", "m_{1}"), ("θ₁", r"\theta_{1}"), ("μ₀", r"\mu_{0}"), ("x₁₂", "x_{12}")])
 def test_greek_characters_print_as_their_commands(name, tex):
     assert latex(sp.Symbol(name)) == tex
 
@@ -80,6 +80,20 @@ def test_an_abbreviation_name_no_document_compiles_is_refused(name, why):
     step, value = _pendulum()
     with pytest.raises(LatexOptionError, match=why):
         step.latex(abbreviations={name: value})
+
+
+@pytest.mark.parametrize("name, why", [
+    (r"\frac", "takes an argument and is given none"), (r"\sqrt", "takes an argument"),
+    (r"\hat", "takes an argument"), (r"\over", "is an operator"), (r"\sum", "operator"),
+    (r"M \phantom{x}", "operator"), (r"\big", "operator")])
+def test_an_abbreviation_name_that_is_an_operator_or_lacks_its_argument_is_refused(name, why):
+    """(\\frac and \\sqrt alone printed '\\frac l_{1} ...', which pdflatex refuses;
+    \\over compiled and made the whole row a fraction.)  A command with its argument
+    stays a name."""
+    step, value = _pendulum()
+    with pytest.raises(LatexOptionError, match=why):
+        step.latex(abbreviations={name: value})
+    assert r"\hat{m}" in step.latex(abbreviations={r"\hat{m}": value})
 
 
 J = sp.diag(*sp.symbols("I1:4", positive=True))

@@ -11,6 +11,7 @@ out (:class:`~._forms.Form`).
 from __future__ import annotations
 
 import dataclasses
+import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
@@ -116,16 +117,40 @@ def _indexed_bases(step) -> set:
     return bases
 
 
+#: commands that do not name anything by themselves: operators and spacing, which act on
+#: what stands beside them in the row (``\over`` makes the whole row a fraction)
+_OPERATORS = frozenset({"over", "atop", "choose", "above", "sum", "prod", "int", "oint",
+                        "not", "big", "Big", "bigg", "Bigg", "bigl", "bigr", "Bigl", "Bigr",
+                        "phantom", "hphantom", "vphantom", "quad", "qquad", "displaystyle",
+                        "textstyle", "scriptstyle", "limits", "nolimits", "mathop"})
+#: commands that take an argument: a name may use them only with one (``\hat{m}``)
+_TAKES_ARGUMENT = frozenset({"frac", "dfrac", "tfrac", "sqrt", "hat", "bar", "tilde", "vec",
+                             "dot", "ddot", "check", "breve", "acute", "grave", "widehat",
+                             "widetilde", "overline", "underline", "mathbb", "mathcal",
+                             "mathrm", "mathbf", "mathit", "mathsf", "mathtt", "mathfrak",
+                             "boldsymbol", "operatorname", "text", "textrm", "textit"})
+_COMMAND = re.compile(r"\\([A-Za-z]+)\s*(\{)?")
+
+
 def _check_name_shape(tex: str) -> None:
     """An abbreviation's name names something: it holds a letter, is not a number or an
     operator, does not end in ^ or _, and holds no LaTeX that restructures a row
-    (:class:`LatexOptionError`)."""
+    (:class:`LatexOptionError`); nor an operator (``\\over``, ``\\sum``, ``\\phantom``) or a
+    command that takes an argument without one (``\\frac``, ``\\sqrt``, ``\\hat`` alone)."""
     letters = any(ch.isalpha() for ch in tex.replace("\\\\", ""))
     broken = tex.rstrip().endswith(("^", "_")) or any(c in tex for c in _STRUCTURE)
     if not letters or broken:
         why = "holds no letter" if not letters else "holds LaTeX that breaks a row"
         raise LatexOptionError(f"latex: the abbreviation's name {tex!r} {why}; give a name "
                                f"such as 'M', 'K_{{1}}' or r'\\Omega'")
+    for m in _COMMAND.finditer(tex):
+        word, argument = m.group(1), m.group(2)
+        if word in _OPERATORS or (word in _TAKES_ARGUMENT and not argument):
+            why = ("is an operator, which acts on what stands beside it in the row"
+                   if word in _OPERATORS else "takes an argument and is given none")
+            raise LatexOptionError(f"latex: the abbreviation's name {tex!r} uses \\{word}, "
+                                   f"which {why}; give a name such as 'M', r'\\hat{{m}}' or "
+                                   f"r'\\Omega'")
 
 
 def printed_symbols(step) -> list:
