@@ -389,3 +389,21 @@ def test_the_systems_of_the_long_examples_derive(name: str) -> None:
         warnings.simplefilter("error")
         for system in systems_:
             system.euler_lagrange()
+
+
+def test_a_zero_initial_time_step_is_a_domain_error():
+    """(t_k = t_{k−1}, or t_{k−1} = 1e17 and t_k = t_{k−1} + 0.1, equal as doubles, ran into
+    Newton's NaN: 'non-finite value'.)  The initial state is refused, naming the step."""
+    kappa = sp.Symbol("kappa", positive=True)
+
+    def L(a):
+        dt, q0, q1 = a.t1 - a.t0, a.source[0], a.target[0]
+        return dt * (((q1 - q0) / dt) ** 2 / 2 + kappa * sp.cos((q0 + q1) / 2))
+
+    G = sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q")))
+    sim = sg.DiscreteSystem(G, L, parameters=[kappa], name="adaptive").euler_lagrange() \
+        .compile(backend="numpy")
+    for t0, t1 in ((0.0, 0.0), (1e17, 1e17 + 0.1)):
+        with pytest.raises(sg.DomainError, match=r"time step t_k - t_\(k-1\) is 0"):
+            sim.simulate([t0, t1, 1.0, 1.05], 3, [1.0])
+    assert sim.simulate([0.0, 0.1, 1.0, 1.05], 3, [1.0]).states.shape == (4, 4)

@@ -138,8 +138,23 @@ class Simulator(InitialStates):
         return state
 
     def _check_constraints(self, state: np.ndarray, p: np.ndarray) -> None:
+        self._check_time_step(state)
         constraint_check(self.equations)(state, p, atol=INITIAL_CONSTRAINT_TOLERANCE,
                                          owner=self.name)
+
+    def _check_time_step(self, state: np.ndarray) -> None:
+        """On a time groupoid: the known arrow's time step t_k − t_{k−1} is not 0, also
+        not by rounding (t_{k−1} = 10¹⁷, t_k = t_{k−1} + 0.1); the step equations divide by
+        it (a :class:`DomainError`, where Newton would meet NaN)."""
+        t = self.time
+        if t.known < 0 or t.before < 0:
+            return
+        before, now = float(state[t.before]), float(state[t.known])
+        if now - before == 0.0:
+            raise DomainError(f"{self.name}: the initial state's time step t_k - t_(k-1) is 0 "
+                              f"(t_(k-1) = {before!r}, t_k = {now!r}: equal as floating-point "
+                              f"numbers); the step equations divide by it, so give a nonzero "
+                              f"time step that the times can represent")
 
     def _run_parameters(self, params) -> np.ndarray:
         """:meth:`parameters`, through :meth:`step`'s screen first: a float64 vector or a
