@@ -296,6 +296,8 @@ def test_parameter_abbreviations_print_with_the_parameters(dp_step):
     ({"abbreviations": {"h": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
     ({"abbreviations": {"M": "g + 1"}}, "must stand for a SymPy expression"),
     ({"abbreviations": {"M": 2}}, "must stand for a SymPy expression"),
+    ({"abbreviations": {"M": sp.sqrt(2)}}, r"got sqrt\(2\) \(a number, sqrt\(2\), is printed as "
+                                           r"itself"),
     ({"width": -1}, "number of points from 20 to 16000"),
     ({"width": float("nan")}, "number of points from 20 to 16000"),
     ({"width": "wide"}, "number of points from 20 to 16000"),

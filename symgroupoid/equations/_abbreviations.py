@@ -208,9 +208,11 @@ def _typeset_name(name: str) -> str:
 def _abbreviation_value(tex: str, value) -> sp.Expr:
     expr = scalar_expression(value)
     if expr is None or not expr.free_symbols:
+        number = (f" (a number, {value}, is printed as itself: an abbreviation names "
+                  f"something the equations compute)" if expr is not None else "")
         raise LatexOptionError(f"latex: the abbreviation {tex!r} must stand for a SymPy "
                                f"expression in the step's symbols, or a callable of an arrow; "
-                               f"got {value!r}")
+                               f"got {value!r}{number}")
     return expr
 
 
