@@ -1051,22 +1051,34 @@ static int heavy_top_lu_apply(const heavy_top_lu *f, double *b)
     return heavy_top_norm_inf(b, n) < INFINITY ? HEAVY_TOP_OK : HEAVY_TOP_NON_FINITE;
 }
 
-/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
- * estimate of the condition of the row-equilibrated Jacobian */
-static inline double heavy_top_pivot_ratio(const double *inv)
+/* The column of the Jacobian that pivot k eliminates (the band order's in a band kernel) */
+#if HEAVY_TOP_BANDED
+#define HEAVY_TOP_PIVOT_COLUMN(k) heavy_top_band_order[k]
+#else
+#define HEAVY_TOP_PIVOT_COLUMN(k) (k)
+#endif
+
+/* A cheap lower estimate of the condition of the row-equilibrated Jacobian, from the
+ * reciprocal pivots of its factorisation: the smaller of max |pivot| / min |pivot| and the
+ * same ratio with each pivot weighted by 1 + |u_J,j| for its column j (the condition of
+ * J diag(1 + |u_J|), in which the updates are measured, heavy_top_relative_norm).  Column
+ * weights leave the pivots' choice and the multipliers unchanged; an unknown far larger
+ * than the others (a multiplier of 3e13 beside times of 100) otherwise makes its column's
+ * pivot tiny against its row, and the unweighted ratio (1.7e14) declares any update noise */
+static double heavy_top_pivot_ratio(const double *inv, const double *uJ)
 {
-    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    double lo = fabs(inv[0]), hi = lo;
+    double wlo = lo / (1.0 + fabs(uJ[HEAVY_TOP_PIVOT_COLUMN(0)])), whi = wlo;
     int k;
     for (k = 1; k < HEAVY_TOP_N_UNKNOWNS; ++k) {
         const double a = fabs(inv[k]);
-        if (a < lo) {
-            lo = a;
-        }
-        if (a > hi) {
-            hi = a;
-        }
+        const double w = a / (1.0 + fabs(uJ[HEAVY_TOP_PIVOT_COLUMN(k)]));
+        lo = a < lo ? a : lo;
+        hi = a > hi ? a : hi;
+        wlo = w < wlo ? w : wlo;
+        whi = w > whi ? w : whi;
     }
-    return hi / lo;
+    return whi / wlo < hi / lo ? whi / wlo : hi / lo; /* (an infinite weight: the first) */
 }
 
 /* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded
@@ -1114,7 +1126,7 @@ static void heavy_top_coordinate_floor(const double *J, const double *u, double 
  * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
 static int heavy_top_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const heavy_top_lu *f)
 {
-    const double bound = 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(f->inv);
+    const double bound = 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(f->inv, uJ);
     double a[HEAVY_TOP_N_UNKNOWNS], S[HEAVY_TOP_N_EQUATIONS];
     uint64_t amax = 0;
     int i, j, below = 1;
@@ -1261,6 +1273,24 @@ static int heavy_top_update_negligible(const heavy_top_lu *f, const double *F, c
     return heavy_top_lu_apply(f, d) == HEAVY_TOP_OK && heavy_top_relative_norm(d, u) <= HEAVY_TOP_FLOOR_UPDATE;
 }
 
+/* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
+ * (heavy_top_explained_by_rounding) or it is within the rounding of the unknowns
+ * (heavy_top_at_floor, C filled here), and the update it calls for is negligible
+ * (heavy_top_update_negligible).  The last condition keeps a runaway iterate whose Jacobian
+ * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
+ * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
+ * that residual still calls for an update of 1.6 relative to u */
+static int heavy_top_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const heavy_top_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+{
+    if (!heavy_top_explained_by_rounding(F, J, u, uJ, f)) {
+        heavy_top_coordinate_floor(J, uJ, C);
+        if (!heavy_top_at_floor(u, known, p, h, F, C, floor_factor)) {
+            return 0;
+        }
+    }
+    return heavy_top_update_negligible(f, F, u);
+}
+
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
  * rounding floor (heavy_top_chord_cuts): at a true floor of F's terms (a body far from the
  * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
@@ -1301,8 +1331,10 @@ static int heavy_top_chord_cuts(const heavy_top_lu *f, const double *F, const do
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
  *    noise of u): the update is applied and the residual evaluated there (it is the residual
  *    reported), and the iterate is accepted only if a rounding-level update explains that
- *    residual (heavy_top_explained_by_rounding), or failing that heavy_top_at_floor; otherwise
- *    Newton goes on (a small relative update at a runaway iterate is not convergence);
+ *    residual (heavy_top_explained_by_rounding), or failing that heavy_top_at_floor, and the
+ *    update the last factorisation gives for it is at most HEAVY_TOP_FLOOR_UPDATE
+ *    (heavy_top_at_rounding_floor); otherwise Newton goes on (a small relative update at a
+ *    runaway iterate is not convergence);
  *    after a stop on the estimate, when the estimated error is above the rounding of u
  *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update) or rho is the
  *    ratio of the first two updates (which may overstate the contraction), the
@@ -1328,10 +1360,10 @@ static int heavy_top_chord_cuts(const heavy_top_lu *f, const double *F, const do
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
- *    that factorisation), and a rounding-level update explains the residual
- *    (heavy_top_explained_by_rounding).
+ *    that factorisation), a rounding-level update explains the residual
+ *    (heavy_top_explained_by_rounding) and the update it calls for is negligible as above.
  * Not converged: HEAVY_TOP_NOT_CONVERGED after max_iterations updates (the iteration cap) when
- * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * the iterate is not at the rounding floor (heavy_top_at_rounding_floor; at the floor it
  * is accepted, as a linear step is after its one update);
  * HEAVY_TOP_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
@@ -1360,9 +1392,7 @@ static int heavy_top_newton(const double *known, const double *p, const double *
             return HEAVY_TOP_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
-                || (heavy_top_coordinate_floor(J, uJ, C),
-                    heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor))) {
+            if (heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
                 if (done == 1 || it >= options->max_iterations) {
                     return HEAVY_TOP_OK;
                 }
@@ -1387,7 +1417,7 @@ static int heavy_top_newton(const double *known, const double *p, const double *
             if (slow) {
                 /* a chord update may contract slowly without any stall: only a Newton
                  * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv);
+                noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv, uJ);
                 if (fresh || noise) {
                     int on_floor, in_scale;
                     heavy_top_coordinate_floor(J, uJ, C);
@@ -1403,18 +1433,15 @@ static int heavy_top_newton(const double *known, const double *p, const double *
                 }
                 if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */
-                    return heavy_top_explained_by_rounding(F, J, u, uJ, &lu) ? HEAVY_TOP_OK : HEAVY_TOP_STALLED;
+                    return heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
+                           && heavy_top_update_negligible(&lu, F, u) ? HEAVY_TOP_OK : HEAVY_TOP_STALLED;
                 }
             }
             if (it >= options->max_iterations) {
                 /* the cap: an iterate at the rounding floor is a solution all the same (a
                  * linear step solved by its one update, a guess that already solves it) */
-                if (heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
-                    || (heavy_top_coordinate_floor(J, uJ, C),
-                        heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor))) {
-                    return HEAVY_TOP_OK;
-                }
-                return HEAVY_TOP_NOT_CONVERGED;
+                return heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
+                       ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
             }
             if (slow) {
                 HEAVY_TOP_JACOBIAN(u, known, p, h, F, J);

@@ -1036,22 +1036,34 @@ static int rigid_body_lu_apply(const rigid_body_lu *f, double *b)
     return rigid_body_norm_inf(b, n) < INFINITY ? RIGID_BODY_OK : RIGID_BODY_NON_FINITE;
 }
 
-/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
- * estimate of the condition of the row-equilibrated Jacobian */
-static inline double rigid_body_pivot_ratio(const double *inv)
+/* The column of the Jacobian that pivot k eliminates (the band order's in a band kernel) */
+#if RIGID_BODY_BANDED
+#define RIGID_BODY_PIVOT_COLUMN(k) rigid_body_band_order[k]
+#else
+#define RIGID_BODY_PIVOT_COLUMN(k) (k)
+#endif
+
+/* A cheap lower estimate of the condition of the row-equilibrated Jacobian, from the
+ * reciprocal pivots of its factorisation: the smaller of max |pivot| / min |pivot| and the
+ * same ratio with each pivot weighted by 1 + |u_J,j| for its column j (the condition of
+ * J diag(1 + |u_J|), in which the updates are measured, rigid_body_relative_norm).  Column
+ * weights leave the pivots' choice and the multipliers unchanged; an unknown far larger
+ * than the others (a multiplier of 3e13 beside times of 100) otherwise makes its column's
+ * pivot tiny against its row, and the unweighted ratio (1.7e14) declares any update noise */
+static double rigid_body_pivot_ratio(const double *inv, const double *uJ)
 {
-    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    double lo = fabs(inv[0]), hi = lo;
+    double wlo = lo / (1.0 + fabs(uJ[RIGID_BODY_PIVOT_COLUMN(0)])), whi = wlo;
     int k;
     for (k = 1; k < RIGID_BODY_N_UNKNOWNS; ++k) {
         const double a = fabs(inv[k]);
-        if (a < lo) {
-            lo = a;
-        }
-        if (a > hi) {
-            hi = a;
-        }
+        const double w = a / (1.0 + fabs(uJ[RIGID_BODY_PIVOT_COLUMN(k)]));
+        lo = a < lo ? a : lo;
+        hi = a > hi ? a : hi;
+        wlo = w < wlo ? w : wlo;
+        whi = w > whi ? w : whi;
     }
-    return hi / lo;
+    return whi / wlo < hi / lo ? whi / wlo : hi / lo; /* (an infinite weight: the first) */
 }
 
 /* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded
@@ -1099,7 +1111,7 @@ static void rigid_body_coordinate_floor(const double *J, const double *u, double
  * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
 static int rigid_body_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const rigid_body_lu *f)
 {
-    const double bound = 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(f->inv);
+    const double bound = 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(f->inv, uJ);
     double a[RIGID_BODY_N_UNKNOWNS], S[RIGID_BODY_N_EQUATIONS];
     uint64_t amax = 0;
     int i, j, below = 1;
@@ -1246,6 +1258,24 @@ static int rigid_body_update_negligible(const rigid_body_lu *f, const double *F,
     return rigid_body_lu_apply(f, d) == RIGID_BODY_OK && rigid_body_relative_norm(d, u) <= RIGID_BODY_FLOOR_UPDATE;
 }
 
+/* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
+ * (rigid_body_explained_by_rounding) or it is within the rounding of the unknowns
+ * (rigid_body_at_floor, C filled here), and the update it calls for is negligible
+ * (rigid_body_update_negligible).  The last condition keeps a runaway iterate whose Jacobian
+ * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
+ * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
+ * that residual still calls for an update of 1.6 relative to u */
+static int rigid_body_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const rigid_body_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+{
+    if (!rigid_body_explained_by_rounding(F, J, u, uJ, f)) {
+        rigid_body_coordinate_floor(J, uJ, C);
+        if (!rigid_body_at_floor(u, known, p, h, F, C, floor_factor)) {
+            return 0;
+        }
+    }
+    return rigid_body_update_negligible(f, F, u);
+}
+
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
  * rounding floor (rigid_body_chord_cuts): at a true floor of F's terms (a body far from the
  * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
@@ -1286,8 +1316,10 @@ static int rigid_body_chord_cuts(const rigid_body_lu *f, const double *F, const 
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
  *    noise of u): the update is applied and the residual evaluated there (it is the residual
  *    reported), and the iterate is accepted only if a rounding-level update explains that
- *    residual (rigid_body_explained_by_rounding), or failing that rigid_body_at_floor; otherwise
- *    Newton goes on (a small relative update at a runaway iterate is not convergence);
+ *    residual (rigid_body_explained_by_rounding), or failing that rigid_body_at_floor, and the
+ *    update the last factorisation gives for it is at most RIGID_BODY_FLOOR_UPDATE
+ *    (rigid_body_at_rounding_floor); otherwise Newton goes on (a small relative update at a
+ *    runaway iterate is not convergence);
  *    after a stop on the estimate, when the estimated error is above the rounding of u
  *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update) or rho is the
  *    ratio of the first two updates (which may overstate the contraction), the
@@ -1313,10 +1345,10 @@ static int rigid_body_chord_cuts(const rigid_body_lu *f, const double *F, const 
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
- *    that factorisation), and a rounding-level update explains the residual
- *    (rigid_body_explained_by_rounding).
+ *    that factorisation), a rounding-level update explains the residual
+ *    (rigid_body_explained_by_rounding) and the update it calls for is negligible as above.
  * Not converged: RIGID_BODY_NOT_CONVERGED after max_iterations updates (the iteration cap) when
- * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * the iterate is not at the rounding floor (rigid_body_at_rounding_floor; at the floor it
  * is accepted, as a linear step is after its one update);
  * RIGID_BODY_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
@@ -1345,9 +1377,7 @@ static int rigid_body_newton(const double *known, const double *p, const double 
             return RIGID_BODY_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (rigid_body_explained_by_rounding(F, J, u, uJ, &lu)
-                || (rigid_body_coordinate_floor(J, uJ, C),
-                    rigid_body_at_floor(u, known, p, h, F, C, options->floor_factor))) {
+            if (rigid_body_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
                 if (done == 1 || it >= options->max_iterations) {
                     return RIGID_BODY_OK;
                 }
@@ -1372,7 +1402,7 @@ static int rigid_body_newton(const double *known, const double *p, const double 
             if (slow) {
                 /* a chord update may contract slowly without any stall: only a Newton
                  * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv);
+                noise = last_step <= 64.0 * DBL_EPSILON * rigid_body_pivot_ratio(lu.inv, uJ);
                 if (fresh || noise) {
                     int on_floor, in_scale;
                     rigid_body_coordinate_floor(J, uJ, C);
@@ -1388,18 +1418,15 @@ static int rigid_body_newton(const double *known, const double *p, const double 
                 }
                 if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */
-                    return rigid_body_explained_by_rounding(F, J, u, uJ, &lu) ? RIGID_BODY_OK : RIGID_BODY_STALLED;
+                    return rigid_body_explained_by_rounding(F, J, u, uJ, &lu)
+                           && rigid_body_update_negligible(&lu, F, u) ? RIGID_BODY_OK : RIGID_BODY_STALLED;
                 }
             }
             if (it >= options->max_iterations) {
                 /* the cap: an iterate at the rounding floor is a solution all the same (a
                  * linear step solved by its one update, a guess that already solves it) */
-                if (rigid_body_explained_by_rounding(F, J, u, uJ, &lu)
-                    || (rigid_body_coordinate_floor(J, uJ, C),
-                        rigid_body_at_floor(u, known, p, h, F, C, options->floor_factor))) {
-                    return RIGID_BODY_OK;
-                }
-                return RIGID_BODY_NOT_CONVERGED;
+                return rigid_body_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
+                       ? RIGID_BODY_OK : RIGID_BODY_NOT_CONVERGED;
             }
             if (slow) {
                 RIGID_BODY_JACOBIAN(u, known, p, h, F, J);

@@ -1153,22 +1153,34 @@ static int satellite_wheel_lu_apply(const satellite_wheel_lu *f, double *b)
     return satellite_wheel_norm_inf(b, n) < INFINITY ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_NON_FINITE;
 }
 
-/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
- * estimate of the condition of the row-equilibrated Jacobian */
-static inline double satellite_wheel_pivot_ratio(const double *inv)
+/* The column of the Jacobian that pivot k eliminates (the band order's in a band kernel) */
+#if SATELLITE_WHEEL_BANDED
+#define SATELLITE_WHEEL_PIVOT_COLUMN(k) satellite_wheel_band_order[k]
+#else
+#define SATELLITE_WHEEL_PIVOT_COLUMN(k) (k)
+#endif
+
+/* A cheap lower estimate of the condition of the row-equilibrated Jacobian, from the
+ * reciprocal pivots of its factorisation: the smaller of max |pivot| / min |pivot| and the
+ * same ratio with each pivot weighted by 1 + |u_J,j| for its column j (the condition of
+ * J diag(1 + |u_J|), in which the updates are measured, satellite_wheel_relative_norm).  Column
+ * weights leave the pivots' choice and the multipliers unchanged; an unknown far larger
+ * than the others (a multiplier of 3e13 beside times of 100) otherwise makes its column's
+ * pivot tiny against its row, and the unweighted ratio (1.7e14) declares any update noise */
+static double satellite_wheel_pivot_ratio(const double *inv, const double *uJ)
 {
-    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    double lo = fabs(inv[0]), hi = lo;
+    double wlo = lo / (1.0 + fabs(uJ[SATELLITE_WHEEL_PIVOT_COLUMN(0)])), whi = wlo;
     int k;
     for (k = 1; k < SATELLITE_WHEEL_N_UNKNOWNS; ++k) {
         const double a = fabs(inv[k]);
-        if (a < lo) {
-            lo = a;
-        }
-        if (a > hi) {
-            hi = a;
-        }
+        const double w = a / (1.0 + fabs(uJ[SATELLITE_WHEEL_PIVOT_COLUMN(k)]));
+        lo = a < lo ? a : lo;
+        hi = a > hi ? a : hi;
+        wlo = w < wlo ? w : wlo;
+        whi = w > whi ? w : whi;
     }
-    return hi / lo;
+    return whi / wlo < hi / lo ? whi / wlo : hi / lo; /* (an infinite weight: the first) */
 }
 
 /* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded
@@ -1216,7 +1228,7 @@ static void satellite_wheel_coordinate_floor(const double *J, const double *u, d
  * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
 static int satellite_wheel_explained_by_rounding(const double *F, const double *J, const double *u, const double *uJ, const satellite_wheel_lu *f)
 {
-    const double bound = 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(f->inv);
+    const double bound = 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(f->inv, uJ);
     double a[SATELLITE_WHEEL_N_UNKNOWNS], S[SATELLITE_WHEEL_N_EQUATIONS];
     uint64_t amax = 0;
     int i, j, below = 1;
@@ -1363,6 +1375,24 @@ static int satellite_wheel_update_negligible(const satellite_wheel_lu *f, const 
     return satellite_wheel_lu_apply(f, d) == SATELLITE_WHEEL_OK && satellite_wheel_relative_norm(d, u) <= SATELLITE_WHEEL_FLOOR_UPDATE;
 }
 
+/* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
+ * (satellite_wheel_explained_by_rounding) or it is within the rounding of the unknowns
+ * (satellite_wheel_at_floor, C filled here), and the update it calls for is negligible
+ * (satellite_wheel_update_negligible).  The last condition keeps a runaway iterate whose Jacobian
+ * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
+ * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
+ * that residual still calls for an update of 1.6 relative to u */
+static int satellite_wheel_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const satellite_wheel_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+{
+    if (!satellite_wheel_explained_by_rounding(F, J, u, uJ, f)) {
+        satellite_wheel_coordinate_floor(J, uJ, C);
+        if (!satellite_wheel_at_floor(u, known, p, h, F, C, floor_factor)) {
+            return 0;
+        }
+    }
+    return satellite_wheel_update_negligible(f, F, u);
+}
+
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
  * rounding floor (satellite_wheel_chord_cuts): at a true floor of F's terms (a body far from the
  * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
@@ -1403,8 +1433,10 @@ static int satellite_wheel_chord_cuts(const satellite_wheel_lu *f, const double 
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
  *    noise of u): the update is applied and the residual evaluated there (it is the residual
  *    reported), and the iterate is accepted only if a rounding-level update explains that
- *    residual (satellite_wheel_explained_by_rounding), or failing that satellite_wheel_at_floor; otherwise
- *    Newton goes on (a small relative update at a runaway iterate is not convergence);
+ *    residual (satellite_wheel_explained_by_rounding), or failing that satellite_wheel_at_floor, and the
+ *    update the last factorisation gives for it is at most SATELLITE_WHEEL_FLOOR_UPDATE
+ *    (satellite_wheel_at_rounding_floor); otherwise Newton goes on (a small relative update at a
+ *    runaway iterate is not convergence);
  *    after a stop on the estimate, when the estimated error is above the rounding of u
  *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update) or rho is the
  *    ratio of the first two updates (which may overstate the contraction), the
@@ -1430,10 +1462,10 @@ static int satellite_wheel_chord_cuts(const satellite_wheel_lu *f, const double 
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
- *    that factorisation), and a rounding-level update explains the residual
- *    (satellite_wheel_explained_by_rounding).
+ *    that factorisation), a rounding-level update explains the residual
+ *    (satellite_wheel_explained_by_rounding) and the update it calls for is negligible as above.
  * Not converged: SATELLITE_WHEEL_NOT_CONVERGED after max_iterations updates (the iteration cap) when
- * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * the iterate is not at the rounding floor (satellite_wheel_at_rounding_floor; at the floor it
  * is accepted, as a linear step is after its one update);
  * SATELLITE_WHEEL_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
@@ -1462,9 +1494,7 @@ static int satellite_wheel_newton(const double *known, const double *p, const do
             return SATELLITE_WHEEL_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu)
-                || (satellite_wheel_coordinate_floor(J, uJ, C),
-                    satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor))) {
+            if (satellite_wheel_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
                 if (done == 1 || it >= options->max_iterations) {
                     return SATELLITE_WHEEL_OK;
                 }
@@ -1489,7 +1519,7 @@ static int satellite_wheel_newton(const double *known, const double *p, const do
             if (slow) {
                 /* a chord update may contract slowly without any stall: only a Newton
                  * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(lu.inv);
+                noise = last_step <= 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(lu.inv, uJ);
                 if (fresh || noise) {
                     int on_floor, in_scale;
                     satellite_wheel_coordinate_floor(J, uJ, C);
@@ -1505,18 +1535,15 @@ static int satellite_wheel_newton(const double *known, const double *p, const do
                 }
                 if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */
-                    return satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu) ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_STALLED;
+                    return satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu)
+                           && satellite_wheel_update_negligible(&lu, F, u) ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_STALLED;
                 }
             }
             if (it >= options->max_iterations) {
                 /* the cap: an iterate at the rounding floor is a solution all the same (a
                  * linear step solved by its one update, a guess that already solves it) */
-                if (satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu)
-                    || (satellite_wheel_coordinate_floor(J, uJ, C),
-                        satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor))) {
-                    return SATELLITE_WHEEL_OK;
-                }
-                return SATELLITE_WHEEL_NOT_CONVERGED;
+                return satellite_wheel_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
+                       ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_NOT_CONVERGED;
             }
             if (slow) {
                 SATELLITE_WHEEL_JACOBIAN(u, known, p, h, F, J);

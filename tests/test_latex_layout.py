@@ -310,6 +310,12 @@ def test_parameter_abbreviations_print_with_the_parameters(dp_step):
     ({"abbreviations": {"q": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
     ({"abbreviations": {"L": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
     ({"abbreviations": {r"\sin": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    # (the step index k printed as a factor beside terms indexed by k, j inside the rows
+    # "for j = k, k+1", g beside the arrows g_k)
+    ({"abbreviations": {"k": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {"j": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {"Δ": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {r"\lambda": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
     ({"abbreviations": {"2": sp.Symbol("g", positive=True)}}, "holds no letter"),
     ({"abbreviations": {"-": sp.Symbol("g", positive=True)}}, "holds no letter"),
     ({"abbreviations": {r"\left(": sp.Symbol("g", positive=True)}}, "breaks a row"),

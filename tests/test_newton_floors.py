@@ -413,3 +413,79 @@ def test_a_slow_newton_stretch_is_not_taken_for_the_floor_of_the_terms(backend):
     residuals = [np.abs(step.evaluate(states[k + 1][[1, 3]], states[k], p)[0]).max()
                  for k in range(480)]
     assert max(residuals) <= 1e-12, max(residuals)
+
+
+def _driven_pendulum_fixed_step():
+    """The driven pendulum above with the time step fixed by a constraint t₁ − t₀ = h."""
+    h, kappa, A, Omega = sp.symbols("h kappa A Omega", positive=True)
+
+    def L(a):
+        dt, q0, q1 = a.t1 - a.t0, a.source[0], a.target[0]
+        v, qm, tm = (q1 - q0) / dt, (q0 + q1) / 2, (a.t0 + a.t1) / 2
+        return dt * (v ** 2 / 2 + kappa * sp.cos(qm) + A * qm * sp.cos(Omega * tm))
+
+    G = sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q")))
+    return sg.DiscreteSystem(G, L, constraints=lambda a: [a.t1 - a.t0 - h],
+                             parameters=[h, kappa, A, Omega],
+                             name="driven_fixed").euler_lagrange()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_runaway_with_a_singular_jacobian_is_not_explained_by_rounding(backend):
+    """At h = 2 from q = 0.3 → 40.3, Newton runs away to q ≈ 1.9e7 with a pivot ratio of
+    1.2e14, where "a rounding-level update of that solve explains F" held at |F| = 4.8e13:
+    the step was returned as solved.  That residual still calls for an update of 1.6
+    relative to the unknowns; an iterate at a floor must call for at most 1e-4.  The step now
+    fails (Newton goes on from the runaway until its Jacobian is singular to rounding), and
+    every step a run returns solves its equations."""
+    step = _driven_pendulum_fixed_step()
+    params = {"h": 2.0, "kappa": 1.0, "A": 0.5, "Omega": 1.3}
+    sim = step.compile(backend=backend, cache_dir=SESSION_CACHE)
+    p = sim.parameters(params)
+    known = np.array([0.0, 2.0, 0.3, 40.3, 0.0])
+    failures = (sg.NewtonDivergenceError, sg.SingularJacobianError)
+    with pytest.raises(failures, match="step 0 failed"):
+        sim.simulate(known, 5, params)
+    with pytest.raises(failures):
+        sim.solve(known, p)
+    # from a gentle start the same step size runs, and every step solves its equations
+    states = sim.simulate(np.array([0.0, 2.0, 0.3, 1.3, 0.0]), 40, params).states
+    residuals = [np.abs(step.evaluate(states[k + 1][[1, 3, 4]], states[k], p)[0]).max()
+                 for k in range(40)]
+    assert max(residuals) <= 1e-12, max(residuals)
+
+
+def _mathieu_fixed_step():
+    """A Mathieu oscillator q̈ = −k₀(1 + e cos ωt) q by the midpoint rule on the time
+    groupoid with t₁ − t₀ = h (a multiplier λ for the constraint)."""
+    h, k0, e, w = sp.symbols("h k0 e omega", positive=True)
+
+    def L(a):
+        dt, q0, q1 = a.t1 - a.t0, a.source[0], a.target[0]
+        tm, qm = (a.t0 + a.t1) / 2, (q0 + q1) / 2
+        return dt * (((q1 - q0) / dt) ** 2 / 2 - k0 * (1 + e * sp.cos(w * tm)) * qm ** 2 / 2)
+
+    G = sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q")))
+    return sg.DiscreteSystem(G, L, constraints=lambda a: [a.t1 - a.t0 - h],
+                             parameters=[h, k0, e, w], name="mathieu").euler_lagrange()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_large_multiplier_does_not_make_every_update_noise(backend):
+    """In parametric resonance (h = 1, e = 0.9, ω = 2) the amplitude grows to 10⁷ and the
+    multiplier λ to 10¹³, beside times of 100: its column's pivot is 10⁻¹⁴ of its row, and the
+    unweighted pivot ratio (1.7·10¹⁴) made any update "rounding noise of the solve" that
+    explained any residual: steps 98–110 were returned with λ off by up to 98 %.  The ratio is
+    now also taken with each column weighted by 1 + |u_j|, the scale of the updates: every
+    returned step is a fixed point of Newton to 1e-12 relative."""
+    step = _mathieu_fixed_step()
+    params = {"h": 1.0, "k0": 1.0, "e": 0.9, "omega": 2.0}
+    sim = step.compile(backend=backend, cache_dir=SESSION_CACHE)
+    p = sim.parameters(params)
+    S = sim.simulate({"t": (0.0, 1.0), "q": (1.0, 0.0), "lambda": [0.0]}, 110, params).states
+    assert np.abs(S[-1, 3]) > 1e6  # (the resonance has grown)
+    for k in range(110):
+        u = S[k + 1][[1, 3, 4]]
+        F, J = step.evaluate(u, S[k], p)
+        left = np.linalg.solve(J, F) / (1.0 + np.abs(u))
+        assert np.abs(left).max() <= 1e-12, (k, left)

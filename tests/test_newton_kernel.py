@@ -179,7 +179,7 @@ def acceptance_cases(rng) -> list[tuple[np.ndarray, ...]]:
         status, factors = lu_factor(J)
         if status != OK:
             continue
-        bound = 64.0 * np.finfo(float).eps * pivot_ratio(factors)
+        bound = 64.0 * np.finfo(float).eps * pivot_ratio(factors, uJ)
         S = full_sums(J, u, uJ)
         M = np.abs(J).max(axis=1)
         kind = trial % 6
@@ -187,7 +187,7 @@ def acceptance_cases(rng) -> list[tuple[np.ndarray, ...]]:
             J = np.diag(np.diag(J)) + 1e-9 * (J - np.diag(np.diag(J)))
             u, uJ = u * 1e-12, uJ * 1e-12
             status, factors = lu_factor(J)
-            bound = 64.0 * np.finfo(float).eps * pivot_ratio(factors)
+            bound = 64.0 * np.finfo(float).eps * pivot_ratio(factors, uJ)
             S, M = full_sums(J, u, uJ), np.abs(J).max(axis=1)
         if kind == 0:  # below the row maxima: the shortcut decides
             F = bound * M * rng.uniform(0, 1, 8)
@@ -225,7 +225,7 @@ def test_factor_solve_and_acceptance_match_the_mirror_bit_for_bit(stepper_harnes
         assert int(words[1]) == solved
         assert [float.fromhex(w) for w in words[2:10]] == x.tolist()
         with np.errstate(invalid="ignore"):  # ∞·0 in the sums of infinite weights
-            expected = explained_by_rounding(F, J, u, uJ, pivot_ratio(factors))
+            expected = explained_by_rounding(F, J, u, uJ, pivot_ratio(factors, uJ))
         assert bool(int(words[10])) == expected, (J, F, u, uJ)
         answers[expected] += 1
     assert answers[True] > 100 and answers[False] > 100

@@ -95,8 +95,10 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
 
 
 #: names the printed equations use for their own parts: the Lagrangian, the forces, the
-#: functions SymPy prints as operators
-RESERVED_NAMES = frozenset({"L", "L_{d}", "f", "f^{+}", "f^{-}", r"\sin", r"\cos", r"\tan",
+#: arrows g_k, the step index k and the index j of the "for j = k, k+1" rows, the
+#: difference quotients Δq, the multipliers λ, the functions SymPy prints as operators
+RESERVED_NAMES = frozenset({"L", "L_{d}", "f", "f^{+}", "f^{-}", "g", "k", "j", r"\Delta",
+                            r"\lambda", r"\sin", r"\cos", r"\tan",
                             r"\exp", r"\log", r"\ln", r"\operatorname{tr}", r"\mathrm{d}"})
 #: LaTeX that ends, breaks or restructures an ``align`` row rather than naming something
 _STRUCTURE = ("\\\\", r"\left", r"\right", r"\begin", r"\end", r"\intertext", r"\tag",

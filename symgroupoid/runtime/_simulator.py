@@ -554,10 +554,11 @@ class Simulator(InitialStates):
         return (f"; the time step check failed: the solution's step t_{{k+1}} - t_k = "
                 f"{new:.6g} is {ratio:.3g} times the last step t_k - t_{{k-1}} = {last:.6g}"
                 f" (a step on a time groupoid keeps its sign and changes by at most a factor "
-                f"{STEP_RATIO:g}; docs/conventions.md §7): Newton found no root with a step "
-                f"of that sign and size (the energy equation of an energy-preserving step "
-                f"can lose it: the discrete energy cannot be kept by any step near the last "
-                f"one); NewtonOptions(trust_factor=0) turns the branch checks off")
+                f"{STEP_RATIO:g}; docs/conventions.md §7): Newton did not reach a root with a "
+                f"step of that sign and size from its guesses (there may be none: the energy "
+                f"equation of an energy-preserving step can lose it, where no step near the "
+                f"last one keeps the discrete energy); NewtonOptions(trust_factor=0) turns "
+                f"the branch checks off")
 
     def __repr__(self) -> str:
         return (f"<Simulator {self.name!r}: {len(self.equations.unknowns)} unknowns, "

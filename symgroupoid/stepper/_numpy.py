@@ -264,9 +264,17 @@ def explained_by_rounding(F: np.ndarray, J: np.ndarray, u: np.ndarray, uJ: np.nd
     return bool(np.all(np.abs(F) <= bound * S))
 
 
-def pivot_ratio(factors: LUFactors) -> float:
-    """max |pivot| / min |pivot| (from the reciprocal pivots), as ``<prefix>_pivot_ratio``."""
-    return float(np.max(np.abs(factors.inv)) / np.min(np.abs(factors.inv)))
+def pivot_ratio(factors: LUFactors, uJ: np.ndarray) -> float:
+    """As ``<prefix>_pivot_ratio``: the smaller of max |pivot| / min |pivot| (from the
+    reciprocal pivots) and the same ratio with each pivot weighted by 1 + |u_J,j| for the
+    column j it eliminates (the condition of J·diag(1 + |u_J|), the scale in which updates
+    are measured)."""
+    a = np.abs(factors.inv)
+    columns = np.arange(len(a)) if factors.band is None else np.array(factors.band.order)
+    with np.errstate(all="ignore"):  # an infinite weight: w/0, that ratio is not taken
+        w = a / (1.0 + np.abs(np.asarray(uJ, dtype=float)[columns]))
+        plain, weighted = np.max(a) / np.min(a), np.max(w) / np.min(w)
+    return float(weighted if weighted < plain else plain)
 
 
 def polish(factors, F: np.ndarray, u: np.ndarray, last_step: float, it: int
@@ -462,6 +470,16 @@ class NumpyStepper:
             N = np.maximum(N, np.abs(G - F))
         return bool(np.all(np.abs(F) <= factor * (C + N)))
 
+    def at_rounding_floor(self, u, known, p, F, J, uJ, factors, options) -> bool:
+        """As ``<prefix>_at_rounding_floor``: a rounding-level update explains F
+        (:func:`explained_by_rounding`) or F is within the rounding of the unknowns
+        (:meth:`at_floor`), and the update F calls for is negligible
+        (:func:`update_negligible`; a runaway iterate with a numerically singular Jacobian
+        passes the first bound at |F| ~ 5e13)."""
+        floor = explained_by_rounding(F, J, u, uJ, pivot_ratio(factors, uJ)) or self.at_floor(
+            u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
+        return floor and update_negligible(factors, F, u)
+
     def within_scale(self, u, known, p, F, factor: float) -> bool:
         """As ``<prefix>_within_scale``: every |F_i| ≤ factor·ε·S_i, S the program's
         ``F_scale`` (the size of the terms F_i is computed from)."""
@@ -504,8 +522,7 @@ class NumpyStepper:
             if not np.isfinite(rnorm):
                 return NON_FINITE, u, it, rnorm
             if done:  # after the final update: accepted only at the rounding floor
-                if explained_by_rounding(F, J, u, uJ, pivot_ratio(factors)) or self.at_floor(
-                        u, known, p, F, coordinate_floor(J, uJ), options.floor_factor):
+                if self.at_rounding_floor(u, known, p, F, J, uJ, factors, options):
                     if done == 2 and it < options.max_iterations:
                         u, it = polish(factors, F, u, last_step, it)
                     return OK, u, it, rnorm
@@ -518,7 +535,7 @@ class NumpyStepper:
             if rnorm <= options.tol_residual:
                 return OK, u, it, rnorm
             slow = it > 0 and not rnorm <= 0.1 * previous
-            ratio = pivot_ratio(factors)
+            ratio = pivot_ratio(factors, uJ)
             noise = slow and last_step <= 64.0 * EPSILON * ratio  # rounding noise of a solve
             # a chord update may contract slowly without any stall: only a Newton update or
             # rounding noise that did not reduce |F| tenfold is a stall
@@ -531,11 +548,11 @@ class NumpyStepper:
                         return OK, u, it, rnorm  # at the rounding of the unknowns or F's terms
                     noise = False  # off the floor: Newton goes on from u
             if noise:
-                return (OK if explained_by_rounding(F, J, u, uJ, ratio) else STALLED,
-                        u, it, rnorm)
+                settled = (explained_by_rounding(F, J, u, uJ, ratio)
+                           and update_negligible(factors, F, u))
+                return (OK if settled else STALLED), u, it, rnorm
             if it >= options.max_iterations:  # the cap: at the rounding floor, a solution
-                at_floor = explained_by_rounding(F, J, u, uJ, ratio) or self.at_floor(
-                    u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
+                at_floor = self.at_rounding_floor(u, known, p, F, J, uJ, factors, options)
                 return (OK if at_floor else NOT_CONVERGED), u, it, rnorm
             if slow:
                 F, J = self.f.residual_jacobian(u, known, p)

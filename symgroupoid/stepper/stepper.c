@@ -702,22 +702,34 @@ static int SG_NAME(lu_apply)(const SG_NAME(lu) *f, double *b)
     return SG_NAME(norm_inf)(b, n) < INFINITY ? SG_OK : SG_NON_FINITE;
 }
 
-/* max |pivot| / min |pivot| of a factorisation (from the reciprocal pivots): a cheap lower
- * estimate of the condition of the row-equilibrated Jacobian */
-static inline double SG_NAME(pivot_ratio)(const double *inv)
+/* The column of the Jacobian that pivot k eliminates (the band order's in a band kernel) */
+#if SG_BANDED
+#define SG_PIVOT_COLUMN(k) SG_NAME(band_order)[k]
+#else
+#define SG_PIVOT_COLUMN(k) (k)
+#endif
+
+/* A cheap lower estimate of the condition of the row-equilibrated Jacobian, from the
+ * reciprocal pivots of its factorisation: the smaller of max |pivot| / min |pivot| and the
+ * same ratio with each pivot weighted by 1 + |u_J,j| for its column j (the condition of
+ * J diag(1 + |u_J|), in which the updates are measured, SG_NAME(relative_norm)).  Column
+ * weights leave the pivots' choice and the multipliers unchanged; an unknown far larger
+ * than the others (a multiplier of 3e13 beside times of 100) otherwise makes its column's
+ * pivot tiny against its row, and the unweighted ratio (1.7e14) declares any update noise */
+static double SG_NAME(pivot_ratio)(const double *inv, const double *uJ)
 {
-    double lo = fabs(inv[0]), hi = fabs(inv[0]);
+    double lo = fabs(inv[0]), hi = lo;
+    double wlo = lo / (1.0 + fabs(uJ[SG_PIVOT_COLUMN(0)])), whi = wlo;
     int k;
     for (k = 1; k < SG_N_UNKNOWNS; ++k) {
         const double a = fabs(inv[k]);
-        if (a < lo) {
-            lo = a;
-        }
-        if (a > hi) {
-            hi = a;
-        }
+        const double w = a / (1.0 + fabs(uJ[SG_PIVOT_COLUMN(k)]));
+        lo = a < lo ? a : lo;
+        hi = a > hi ? a : hi;
+        wlo = w < wlo ? w : wlo;
+        whi = w > whi ? w : whi;
     }
-    return hi / lo;
+    return whi / wlo < hi / lo ? whi / wlo : hi / lo; /* (an infinite weight: the first) */
 }
 
 /* C_i = DBL_EPSILON * sum_j |J_ij| |u_j|: how far F_i moves when the unknowns are rounded
@@ -765,7 +777,7 @@ static void SG_NAME(coordinate_floor)(const double *J, const double *u, double *
  * implies the test on S; otherwise S is computed.  The answer is exactly that of S alone. */
 static int SG_NAME(explained_by_rounding)(const double *F, const double *J, const double *u, const double *uJ, const SG_NAME(lu) *f)
 {
-    const double bound = 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(f->inv);
+    const double bound = 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(f->inv, uJ);
     double a[SG_N_UNKNOWNS], S[SG_N_EQUATIONS];
     uint64_t amax = 0;
     int i, j, below = 1;
@@ -905,6 +917,24 @@ static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, con
     return SG_NAME(lu_apply)(f, d) == SG_OK && SG_NAME(relative_norm)(d, u) <= SG_FLOOR_UPDATE;
 }
 
+/* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
+ * (SG_NAME(explained_by_rounding)) or it is within the rounding of the unknowns
+ * (SG_NAME(at_floor), C filled here), and the update it calls for is negligible
+ * (SG_NAME(update_negligible)).  The last condition keeps a runaway iterate whose Jacobian
+ * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
+ * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
+ * that residual still calls for an update of 1.6 relative to u */
+static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const double *u, const double *uJ, const SG_NAME(lu) *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+{
+    if (!SG_NAME(explained_by_rounding)(F, J, u, uJ, f)) {
+        SG_NAME(coordinate_floor)(J, uJ, C);
+        if (!SG_NAME(at_floor)(u, known, p, h, F, C, floor_factor)) {
+            return 0;
+        }
+    }
+    return SG_NAME(update_negligible)(f, F, u);
+}
+
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
  * rounding floor (SG_NAME(chord_cuts)): at a true floor of F's terms (a body far from the
  * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
@@ -945,8 +975,10 @@ static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const doub
  *    each unknown (max_j |d_j| / (1 + |u_j|)), or an update of at most 4 DBL_EPSILON (rounding
  *    noise of u): the update is applied and the residual evaluated there (it is the residual
  *    reported), and the iterate is accepted only if a rounding-level update explains that
- *    residual (SG_NAME(explained_by_rounding)), or failing that SG_NAME(at_floor); otherwise
- *    Newton goes on (a small relative update at a runaway iterate is not convergence);
+ *    residual (SG_NAME(explained_by_rounding)), or failing that SG_NAME(at_floor), and the
+ *    update the last factorisation gives for it is at most SG_FLOOR_UPDATE
+ *    (SG_NAME(at_rounding_floor)); otherwise Newton goes on (a small relative update at a
+ *    runaway iterate is not convergence);
  *    after a stop on the estimate, when the estimated error is above the rounding of u
  *    (rho/(1 - rho) |d_j| > DBL_EPSILON |u_j| for some j, d the last update) or rho is the
  *    ratio of the first two updates (which may overstate the contraction), the
@@ -972,10 +1004,10 @@ static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const doub
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
  *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
  *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
- *    that factorisation), and a rounding-level update explains the residual
- *    (SG_NAME(explained_by_rounding)).
+ *    that factorisation), a rounding-level update explains the residual
+ *    (SG_NAME(explained_by_rounding)) and the update it calls for is negligible as above.
  * Not converged: SG_NOT_CONVERGED after max_iterations updates (the iteration cap) when
- * the iterate is not at the rounding floor (the test after a final update; at the floor it
+ * the iterate is not at the rounding floor (SG_NAME(at_rounding_floor); at the floor it
  * is accepted, as a linear step is after its one update);
  * SG_STALLED when the update is that rounding noise but the residual is above every
  * floor: Newton cannot improve the iterate.
@@ -1004,9 +1036,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
             return SG_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
-                || (SG_NAME(coordinate_floor)(J, uJ, C),
-                    SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor))) {
+            if (SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
                 if (done == 1 || it >= options->max_iterations) {
                     return SG_OK;
                 }
@@ -1031,7 +1061,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
             if (slow) {
                 /* a chord update may contract slowly without any stall: only a Newton
                  * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv);
+                noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv, uJ);
                 if (fresh || noise) {
                     int on_floor, in_scale;
                     SG_NAME(coordinate_floor)(J, uJ, C);
@@ -1047,18 +1077,15 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
                 }
                 if (noise) {
                     /* the update is rounding noise: accepted if it explains the residual */
-                    return SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu) ? SG_OK : SG_STALLED;
+                    return SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
+                           && SG_NAME(update_negligible)(&lu, F, u) ? SG_OK : SG_STALLED;
                 }
             }
             if (it >= options->max_iterations) {
                 /* the cap: an iterate at the rounding floor is a solution all the same (a
                  * linear step solved by its one update, a guess that already solves it) */
-                if (SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
-                    || (SG_NAME(coordinate_floor)(J, uJ, C),
-                        SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor))) {
-                    return SG_OK;
-                }
-                return SG_NOT_CONVERGED;
+                return SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
+                       ? SG_OK : SG_NOT_CONVERGED;
             }
             if (slow) {
                 SG_JACOBIAN(u, known, p, h, F, J);
