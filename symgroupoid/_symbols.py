@@ -143,7 +143,8 @@ def unprintable_name(name: str) -> str | None:
     """Why ``name`` cannot name a coordinate, a part or an input in the printed equations,
     or None: it must start with a letter (or be a LaTeX command such as ``\\theta``: a name
     starting with a digit or a sign reads as arithmetic, -1_{k}), hold no character LaTeX
-    reads as structure (% & # $ ~, a lone backslash) and balanced braces."""
+    reads as structure (% & # $ ~, a lone backslash) and balanced braces, and not be written
+    Δ (the differences' symbol)."""
     if not (name[:1].isalpha() or re.match(r"\\[A-Za-z]", name)):
         return "it must start with a letter (a digit or a sign would read as arithmetic)"
     if any(ch.isspace() for ch in name):
@@ -161,6 +162,10 @@ def unprintable_name(name: str) -> str | None:
             break
     if depth != 0:
         return "its braces are not balanced"
+    if latex_name(name) == r"\Delta":
+        return ("it is written \\Delta, as the printed equations write the differences of "
+                "the coordinates (\\Delta q for q_{k+1} - q_k: a coordinate Δ would print "
+                "as \\Delta \\Delta)")
     return None
 
 

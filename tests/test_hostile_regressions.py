@@ -675,11 +675,12 @@ def test_a_time_name_is_checked_as_a_coordinate_name_is():
 
 
 @pytest.mark.parametrize("name", ["%", "&", r"\end{align}", "a}b", "-1", "lamda", r"\lambda",
-                                  "a b"])
+                                  "a b", "Delta", "Δ"])
 def test_names_that_break_the_printed_equations_are_refused(name):
     """Coordinate names went into the LaTeX as they were: % commented out the rest of a
     row, & made a column, \\end{align} closed the display (pdflatex failed on each); -1
-    printed -1_{k}; lamda and \\lambda printed as the multipliers."""
+    printed -1_{k}; lamda and \\lambda printed as the multipliers; Delta printed its
+    differences as \\Delta \\Delta."""
     with pytest.raises(sg.CoordinateNameError, match="cannot be used"):
         sg.EuclideanSpace([name])
 

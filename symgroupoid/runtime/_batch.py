@@ -180,9 +180,11 @@ def simulate_batch(sim, states, steps: int, params, *, every: int = 1,
                          f"give one set for all, or one per state")
     from ._simulator import INITIAL_CONSTRAINT_TOLERANCE
 
+    # (before the rows' own checks: a batch too large for memory is refused at once, not
+    # after evaluating the constraints of a million rows)
+    check_memory(sim, len(S), batch_rows(steps, every), steps, every)
     U = batch_inputs(sim.layout, inputs, len(S), steps, owner=sim.name)
     check_constraints(sim, S, P, INITIAL_CONSTRAINT_TOLERANCE)
-    check_memory(sim, len(S), batch_rows(steps, every), steps, every)
     try:
         raw = run_batch(sim, S, P, steps, every, options, threads, U=U)
     except KeyboardInterrupt as interrupt:

@@ -219,13 +219,14 @@ def state_table(sim, initial) -> tuple[np.ndarray, bool]:
                          f"shape {initial.shape}")
     if not isinstance(initial, (Sequence, np.ndarray)):
         return sim.state(initial)[None, :], True  # refused there, with its message
-    rows = list(initial)
-    if not isinstance(initial, np.ndarray):
+    # (a 2-D array is read whole: split into a million row views, it took seconds)
+    rows = None if isinstance(initial, np.ndarray) else list(initial)
+    if rows is not None:
         if rows and all(_is_scalar(v) for v in rows):
             return sim.state(initial)[None, :], True
         if not rows:  # no states: an empty batch, as a (0, n_known) array gives
             return np.empty((0, n_k)), False
-    if all(not isinstance(r, Mapping) for r in rows):
+    if rows is None or all(not isinstance(r, Mapping) for r in rows):
         try:
             arr = real_array(rows if rows else initial, "the table of initial states",
                              owner=sim.name)
@@ -237,6 +238,7 @@ def state_table(sim, initial) -> tuple[np.ndarray, bool]:
             raise ShapeError(f"{sim.name}: a table of flat states has shape (B, {n_k}) (the "
                              f"knowns {', '.join(s.name for s in sim.equations.knowns)}); "
                              f"got shape {arr.shape}")
+    rows = list(initial) if rows is None else rows
     out = np.empty((len(rows), n_k))
     for i, one in enumerate(rows):
         out[i] = _checked_row(sim.state, one, "initial state", i)
