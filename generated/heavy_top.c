@@ -1276,11 +1276,12 @@ static int heavy_top_update_negligible(const heavy_top_lu *f, const double *F, c
 /* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
  * (heavy_top_explained_by_rounding) or it is within the rounding of the unknowns
  * (heavy_top_at_floor, C filled here), and the update it calls for is negligible
- * (heavy_top_update_negligible).  The last condition keeps a runaway iterate whose Jacobian
- * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
- * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
- * that residual still calls for an update of 1.6 relative to u */
-static int heavy_top_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const heavy_top_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+ * (as heavy_top_update_negligible; that update is left in d, for the polishing update).  The
+ * last condition keeps a runaway iterate whose Jacobian is numerically singular from
+ * passing: at a pivot ratio of 1e14 the first bound reaches |F| ~ 5e13 (a driven pendulum
+ * on the time groupoid at h = 2, q jumping to 1.9e7), while that residual still calls for
+ * an update of 1.6 relative to u */
+static int heavy_top_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const heavy_top_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor, double *d)
 {
     if (!heavy_top_explained_by_rounding(F, J, u, uJ, f)) {
         heavy_top_coordinate_floor(J, uJ, C);
@@ -1288,7 +1289,8 @@ static int heavy_top_at_rounding_floor(const double *F, const double *J, const d
             return 0;
         }
     }
-    return heavy_top_update_negligible(f, F, u);
+    memcpy(d, F, HEAVY_TOP_N_UNKNOWNS * sizeof *d);
+    return heavy_top_lu_apply(f, d) == HEAVY_TOP_OK && heavy_top_relative_norm(d, u) <= HEAVY_TOP_FLOOR_UPDATE;
 }
 
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
@@ -1372,10 +1374,10 @@ static int heavy_top_chord_cuts(const heavy_top_lu *f, const double *F, const do
 static int heavy_top_newton(const double *known, const double *p, const double *h, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
-    double J[HEAVY_TOP_JACOBIAN_ENTRIES], uJ[HEAVY_TOP_N_UNKNOWNS];
+    double J[HEAVY_TOP_JACOBIAN_ENTRIES], uJ[HEAVY_TOP_N_UNKNOWNS], d[HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, noise, done = 0, polish = 0;
+    int it, i, status, slow, noise, done = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
@@ -1392,84 +1394,78 @@ static int heavy_top_newton(const double *known, const double *p, const double *
             return HEAVY_TOP_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
-                if (done == 1 || it >= options->max_iterations) {
-                    return HEAVY_TOP_OK;
+            if (heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)) {
+                /* accepted; after a stop on the estimate, one more chord update from this
+                 * residual (d), applied and counted when smaller than the last update */
+                if (done == 2 && it < options->max_iterations
+                    && heavy_top_relative_norm(d, u) < last_step) {
+                    HEAVY_TOP_UNROLL
+                    for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
+                        u[i] -= d[i];
+                    }
+                    *iterations = it + 1;
                 }
-                polish = 1; /* accepted; one more chord update from this residual (below) */
-            } else {
-                done = 0; /* a small update, a residual above the floor: iterate on */
-            }
-        }
-        if (!polish) { /* (a polishing update skips the tests: u is accepted) */
-            if (it == 0) {
-                memcpy(uJ, u, sizeof uJ);
-                status = heavy_top_lu_factor(J, &lu);
-                if (status != HEAVY_TOP_OK) {
-                    return status;
-                }
-                here = 1;
-            }
-            if (rnorm <= options->tol_residual) {
                 return HEAVY_TOP_OK;
             }
-            slow = it > 0 && !(rnorm <= 0.1 * previous);
-            if (slow) {
-                /* a chord update may contract slowly without any stall: only a Newton
-                 * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv, uJ);
-                if (fresh || noise) {
-                    int on_floor, in_scale;
-                    heavy_top_coordinate_floor(J, uJ, C);
-                    on_floor = heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor);
-                    in_scale = !on_floor
-                               && heavy_top_within_scale(u, known, p, F, options->floor_factor);
-                    if ((on_floor || in_scale) && heavy_top_update_negligible(&lu, F, u)) {
-                        if (on_floor || !heavy_top_chord_cuts(&lu, F, u, known, p, h, rnorm)) {
-                            return HEAVY_TOP_OK; /* at the rounding of the unknowns or of F's terms */
-                        }
-                        noise = 0; /* off the floor: Newton goes on from u */
+            done = 0; /* a small update, a residual above the floor: iterate on */
+        }
+        if (it == 0) {
+            memcpy(uJ, u, sizeof uJ);
+            status = heavy_top_lu_factor(J, &lu);
+            if (status != HEAVY_TOP_OK) {
+                return status;
+            }
+            here = 1;
+        }
+        if (rnorm <= options->tol_residual) {
+            return HEAVY_TOP_OK;
+        }
+        slow = it > 0 && !(rnorm <= 0.1 * previous);
+        if (slow) {
+            /* a chord update may contract slowly without any stall: only a Newton
+             * update or rounding noise that did not reduce |F| tenfold is a stall */
+            noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv, uJ);
+            if (fresh || noise) {
+                int on_floor, in_scale;
+                heavy_top_coordinate_floor(J, uJ, C);
+                on_floor = heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor);
+                in_scale = !on_floor
+                           && heavy_top_within_scale(u, known, p, F, options->floor_factor);
+                if ((on_floor || in_scale) && heavy_top_update_negligible(&lu, F, u)) {
+                    if (on_floor || !heavy_top_chord_cuts(&lu, F, u, known, p, h, rnorm)) {
+                        return HEAVY_TOP_OK; /* at the rounding of the unknowns or of F's terms */
                     }
-                }
-                if (noise) {
-                    /* the update is rounding noise: accepted if it explains the residual */
-                    return heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
-                           && heavy_top_update_negligible(&lu, F, u) ? HEAVY_TOP_OK : HEAVY_TOP_STALLED;
+                    noise = 0; /* off the floor: Newton goes on from u */
                 }
             }
-            if (it >= options->max_iterations) {
-                /* the cap: an iterate at the rounding floor is a solution all the same (a
-                 * linear step solved by its one update, a guess that already solves it) */
-                return heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
-                       ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
+            if (noise) {
+                /* the update is rounding noise: accepted if it explains the residual */
+                return heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
+                       && heavy_top_update_negligible(&lu, F, u) ? HEAVY_TOP_OK : HEAVY_TOP_STALLED;
             }
-            if (slow) {
-                HEAVY_TOP_JACOBIAN(u, known, p, h, F, J);
-                memcpy(uJ, u, sizeof uJ);
-                status = heavy_top_lu_factor(J, &lu);
-                if (status != HEAVY_TOP_OK) {
-                    return status;
-                }
-                here = 1;
+        }
+        if (it >= options->max_iterations) {
+            /* the cap: an iterate at the rounding floor is a solution all the same (a
+             * linear step solved by its one update, a guess that already solves it) */
+            return heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
+                   ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
+        }
+        if (slow) {
+            HEAVY_TOP_JACOBIAN(u, known, p, h, F, J);
+            memcpy(uJ, u, sizeof uJ);
+            status = heavy_top_lu_factor(J, &lu);
+            if (status != HEAVY_TOP_OK) {
+                return status;
             }
+            here = 1;
         }
         previous = rnorm;
         fresh = here;
         status = heavy_top_lu_apply(&lu, F);
         if (status != HEAVY_TOP_OK) {
-            return polish ? HEAVY_TOP_OK : status;
+            return status;
         }
         step = heavy_top_relative_norm(F, u);
-        if (polish) { /* applied and counted when smaller than the last update */
-            if (step < last_step) {
-                HEAVY_TOP_UNROLL
-                for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
-                    u[i] -= F[i];
-                }
-                *iterations = it + 1;
-            }
-            return HEAVY_TOP_OK;
-        }
         HEAVY_TOP_UNROLL
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
             u[i] -= F[i];

@@ -1509,11 +1509,12 @@ static int plate_ball_update_negligible(const plate_ball_lu *f, const double *F,
 /* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
  * (plate_ball_explained_by_rounding) or it is within the rounding of the unknowns
  * (plate_ball_at_floor, C filled here), and the update it calls for is negligible
- * (plate_ball_update_negligible).  The last condition keeps a runaway iterate whose Jacobian
- * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
- * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
- * that residual still calls for an update of 1.6 relative to u */
-static int plate_ball_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const plate_ball_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+ * (as plate_ball_update_negligible; that update is left in d, for the polishing update).  The
+ * last condition keeps a runaway iterate whose Jacobian is numerically singular from
+ * passing: at a pivot ratio of 1e14 the first bound reaches |F| ~ 5e13 (a driven pendulum
+ * on the time groupoid at h = 2, q jumping to 1.9e7), while that residual still calls for
+ * an update of 1.6 relative to u */
+static int plate_ball_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const plate_ball_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor, double *d)
 {
     if (!plate_ball_explained_by_rounding(F, J, u, uJ, f)) {
         plate_ball_coordinate_floor(J, uJ, C);
@@ -1521,7 +1522,8 @@ static int plate_ball_at_rounding_floor(const double *F, const double *J, const 
             return 0;
         }
     }
-    return plate_ball_update_negligible(f, F, u);
+    memcpy(d, F, PLATE_BALL_N_UNKNOWNS * sizeof *d);
+    return plate_ball_lu_apply(f, d) == PLATE_BALL_OK && plate_ball_relative_norm(d, u) <= PLATE_BALL_FLOOR_UPDATE;
 }
 
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
@@ -1605,10 +1607,10 @@ static int plate_ball_chord_cuts(const plate_ball_lu *f, const double *F, const 
 static int plate_ball_newton(const double *known, const double *p, const double *h, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
-    double J[PLATE_BALL_JACOBIAN_ENTRIES], uJ[PLATE_BALL_N_UNKNOWNS];
+    double J[PLATE_BALL_JACOBIAN_ENTRIES], uJ[PLATE_BALL_N_UNKNOWNS], d[PLATE_BALL_N_UNKNOWNS];
     plate_ball_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, noise, done = 0, polish = 0;
+    int it, i, status, slow, noise, done = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
@@ -1625,84 +1627,78 @@ static int plate_ball_newton(const double *known, const double *p, const double 
             return PLATE_BALL_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (plate_ball_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
-                if (done == 1 || it >= options->max_iterations) {
-                    return PLATE_BALL_OK;
+            if (plate_ball_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)) {
+                /* accepted; after a stop on the estimate, one more chord update from this
+                 * residual (d), applied and counted when smaller than the last update */
+                if (done == 2 && it < options->max_iterations
+                    && plate_ball_relative_norm(d, u) < last_step) {
+                    PLATE_BALL_UNROLL
+                    for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
+                        u[i] -= d[i];
+                    }
+                    *iterations = it + 1;
                 }
-                polish = 1; /* accepted; one more chord update from this residual (below) */
-            } else {
-                done = 0; /* a small update, a residual above the floor: iterate on */
-            }
-        }
-        if (!polish) { /* (a polishing update skips the tests: u is accepted) */
-            if (it == 0) {
-                memcpy(uJ, u, sizeof uJ);
-                status = plate_ball_lu_factor(J, &lu);
-                if (status != PLATE_BALL_OK) {
-                    return status;
-                }
-                here = 1;
-            }
-            if (rnorm <= options->tol_residual) {
                 return PLATE_BALL_OK;
             }
-            slow = it > 0 && !(rnorm <= 0.1 * previous);
-            if (slow) {
-                /* a chord update may contract slowly without any stall: only a Newton
-                 * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(lu.inv, uJ);
-                if (fresh || noise) {
-                    int on_floor, in_scale;
-                    plate_ball_coordinate_floor(J, uJ, C);
-                    on_floor = plate_ball_at_floor(u, known, p, h, F, C, options->floor_factor);
-                    in_scale = !on_floor
-                               && plate_ball_within_scale(u, known, p, F, options->floor_factor);
-                    if ((on_floor || in_scale) && plate_ball_update_negligible(&lu, F, u)) {
-                        if (on_floor || !plate_ball_chord_cuts(&lu, F, u, known, p, h, rnorm)) {
-                            return PLATE_BALL_OK; /* at the rounding of the unknowns or of F's terms */
-                        }
-                        noise = 0; /* off the floor: Newton goes on from u */
+            done = 0; /* a small update, a residual above the floor: iterate on */
+        }
+        if (it == 0) {
+            memcpy(uJ, u, sizeof uJ);
+            status = plate_ball_lu_factor(J, &lu);
+            if (status != PLATE_BALL_OK) {
+                return status;
+            }
+            here = 1;
+        }
+        if (rnorm <= options->tol_residual) {
+            return PLATE_BALL_OK;
+        }
+        slow = it > 0 && !(rnorm <= 0.1 * previous);
+        if (slow) {
+            /* a chord update may contract slowly without any stall: only a Newton
+             * update or rounding noise that did not reduce |F| tenfold is a stall */
+            noise = last_step <= 64.0 * DBL_EPSILON * plate_ball_pivot_ratio(lu.inv, uJ);
+            if (fresh || noise) {
+                int on_floor, in_scale;
+                plate_ball_coordinate_floor(J, uJ, C);
+                on_floor = plate_ball_at_floor(u, known, p, h, F, C, options->floor_factor);
+                in_scale = !on_floor
+                           && plate_ball_within_scale(u, known, p, F, options->floor_factor);
+                if ((on_floor || in_scale) && plate_ball_update_negligible(&lu, F, u)) {
+                    if (on_floor || !plate_ball_chord_cuts(&lu, F, u, known, p, h, rnorm)) {
+                        return PLATE_BALL_OK; /* at the rounding of the unknowns or of F's terms */
                     }
-                }
-                if (noise) {
-                    /* the update is rounding noise: accepted if it explains the residual */
-                    return plate_ball_explained_by_rounding(F, J, u, uJ, &lu)
-                           && plate_ball_update_negligible(&lu, F, u) ? PLATE_BALL_OK : PLATE_BALL_STALLED;
+                    noise = 0; /* off the floor: Newton goes on from u */
                 }
             }
-            if (it >= options->max_iterations) {
-                /* the cap: an iterate at the rounding floor is a solution all the same (a
-                 * linear step solved by its one update, a guess that already solves it) */
-                return plate_ball_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
-                       ? PLATE_BALL_OK : PLATE_BALL_NOT_CONVERGED;
+            if (noise) {
+                /* the update is rounding noise: accepted if it explains the residual */
+                return plate_ball_explained_by_rounding(F, J, u, uJ, &lu)
+                       && plate_ball_update_negligible(&lu, F, u) ? PLATE_BALL_OK : PLATE_BALL_STALLED;
             }
-            if (slow) {
-                PLATE_BALL_JACOBIAN(u, known, p, h, F, J);
-                memcpy(uJ, u, sizeof uJ);
-                status = plate_ball_lu_factor(J, &lu);
-                if (status != PLATE_BALL_OK) {
-                    return status;
-                }
-                here = 1;
+        }
+        if (it >= options->max_iterations) {
+            /* the cap: an iterate at the rounding floor is a solution all the same (a
+             * linear step solved by its one update, a guess that already solves it) */
+            return plate_ball_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
+                   ? PLATE_BALL_OK : PLATE_BALL_NOT_CONVERGED;
+        }
+        if (slow) {
+            PLATE_BALL_JACOBIAN(u, known, p, h, F, J);
+            memcpy(uJ, u, sizeof uJ);
+            status = plate_ball_lu_factor(J, &lu);
+            if (status != PLATE_BALL_OK) {
+                return status;
             }
+            here = 1;
         }
         previous = rnorm;
         fresh = here;
         status = plate_ball_lu_apply(&lu, F);
         if (status != PLATE_BALL_OK) {
-            return polish ? PLATE_BALL_OK : status;
+            return status;
         }
         step = plate_ball_relative_norm(F, u);
-        if (polish) { /* applied and counted when smaller than the last update */
-            if (step < last_step) {
-                PLATE_BALL_UNROLL
-                for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
-                    u[i] -= F[i];
-                }
-                *iterations = it + 1;
-            }
-            return PLATE_BALL_OK;
-        }
         PLATE_BALL_UNROLL
         for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
             u[i] -= F[i];

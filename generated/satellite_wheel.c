@@ -1378,11 +1378,12 @@ static int satellite_wheel_update_negligible(const satellite_wheel_lu *f, const 
 /* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
  * (satellite_wheel_explained_by_rounding) or it is within the rounding of the unknowns
  * (satellite_wheel_at_floor, C filled here), and the update it calls for is negligible
- * (satellite_wheel_update_negligible).  The last condition keeps a runaway iterate whose Jacobian
- * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
- * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
- * that residual still calls for an update of 1.6 relative to u */
-static int satellite_wheel_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const satellite_wheel_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+ * (as satellite_wheel_update_negligible; that update is left in d, for the polishing update).  The
+ * last condition keeps a runaway iterate whose Jacobian is numerically singular from
+ * passing: at a pivot ratio of 1e14 the first bound reaches |F| ~ 5e13 (a driven pendulum
+ * on the time groupoid at h = 2, q jumping to 1.9e7), while that residual still calls for
+ * an update of 1.6 relative to u */
+static int satellite_wheel_at_rounding_floor(const double *F, const double *J, const double *u, const double *uJ, const satellite_wheel_lu *f, const double *known, const double *p, const double *h, double *C, double floor_factor, double *d)
 {
     if (!satellite_wheel_explained_by_rounding(F, J, u, uJ, f)) {
         satellite_wheel_coordinate_floor(J, uJ, C);
@@ -1390,7 +1391,8 @@ static int satellite_wheel_at_rounding_floor(const double *F, const double *J, c
             return 0;
         }
     }
-    return satellite_wheel_update_negligible(f, F, u);
+    memcpy(d, F, SATELLITE_WHEEL_N_UNKNOWNS * sizeof *d);
+    return satellite_wheel_lu_apply(f, d) == SATELLITE_WHEEL_OK && satellite_wheel_relative_norm(d, u) <= SATELLITE_WHEEL_FLOOR_UPDATE;
 }
 
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
@@ -1474,10 +1476,10 @@ static int satellite_wheel_chord_cuts(const satellite_wheel_lu *f, const double 
 static int satellite_wheel_newton(const double *known, const double *p, const double *h, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[SATELLITE_WHEEL_N_EQUATIONS], C[SATELLITE_WHEEL_N_EQUATIONS];
-    double J[SATELLITE_WHEEL_JACOBIAN_ENTRIES], uJ[SATELLITE_WHEEL_N_UNKNOWNS];
+    double J[SATELLITE_WHEEL_JACOBIAN_ENTRIES], uJ[SATELLITE_WHEEL_N_UNKNOWNS], d[SATELLITE_WHEEL_N_UNKNOWNS];
     satellite_wheel_lu lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, noise, done = 0, polish = 0;
+    int it, i, status, slow, noise, done = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
@@ -1494,84 +1496,78 @@ static int satellite_wheel_newton(const double *known, const double *p, const do
             return SATELLITE_WHEEL_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (satellite_wheel_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
-                if (done == 1 || it >= options->max_iterations) {
-                    return SATELLITE_WHEEL_OK;
+            if (satellite_wheel_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)) {
+                /* accepted; after a stop on the estimate, one more chord update from this
+                 * residual (d), applied and counted when smaller than the last update */
+                if (done == 2 && it < options->max_iterations
+                    && satellite_wheel_relative_norm(d, u) < last_step) {
+                    SATELLITE_WHEEL_UNROLL
+                    for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
+                        u[i] -= d[i];
+                    }
+                    *iterations = it + 1;
                 }
-                polish = 1; /* accepted; one more chord update from this residual (below) */
-            } else {
-                done = 0; /* a small update, a residual above the floor: iterate on */
-            }
-        }
-        if (!polish) { /* (a polishing update skips the tests: u is accepted) */
-            if (it == 0) {
-                memcpy(uJ, u, sizeof uJ);
-                status = satellite_wheel_lu_factor(J, &lu);
-                if (status != SATELLITE_WHEEL_OK) {
-                    return status;
-                }
-                here = 1;
-            }
-            if (rnorm <= options->tol_residual) {
                 return SATELLITE_WHEEL_OK;
             }
-            slow = it > 0 && !(rnorm <= 0.1 * previous);
-            if (slow) {
-                /* a chord update may contract slowly without any stall: only a Newton
-                 * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(lu.inv, uJ);
-                if (fresh || noise) {
-                    int on_floor, in_scale;
-                    satellite_wheel_coordinate_floor(J, uJ, C);
-                    on_floor = satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor);
-                    in_scale = !on_floor
-                               && satellite_wheel_within_scale(u, known, p, F, options->floor_factor);
-                    if ((on_floor || in_scale) && satellite_wheel_update_negligible(&lu, F, u)) {
-                        if (on_floor || !satellite_wheel_chord_cuts(&lu, F, u, known, p, h, rnorm)) {
-                            return SATELLITE_WHEEL_OK; /* at the rounding of the unknowns or of F's terms */
-                        }
-                        noise = 0; /* off the floor: Newton goes on from u */
+            done = 0; /* a small update, a residual above the floor: iterate on */
+        }
+        if (it == 0) {
+            memcpy(uJ, u, sizeof uJ);
+            status = satellite_wheel_lu_factor(J, &lu);
+            if (status != SATELLITE_WHEEL_OK) {
+                return status;
+            }
+            here = 1;
+        }
+        if (rnorm <= options->tol_residual) {
+            return SATELLITE_WHEEL_OK;
+        }
+        slow = it > 0 && !(rnorm <= 0.1 * previous);
+        if (slow) {
+            /* a chord update may contract slowly without any stall: only a Newton
+             * update or rounding noise that did not reduce |F| tenfold is a stall */
+            noise = last_step <= 64.0 * DBL_EPSILON * satellite_wheel_pivot_ratio(lu.inv, uJ);
+            if (fresh || noise) {
+                int on_floor, in_scale;
+                satellite_wheel_coordinate_floor(J, uJ, C);
+                on_floor = satellite_wheel_at_floor(u, known, p, h, F, C, options->floor_factor);
+                in_scale = !on_floor
+                           && satellite_wheel_within_scale(u, known, p, F, options->floor_factor);
+                if ((on_floor || in_scale) && satellite_wheel_update_negligible(&lu, F, u)) {
+                    if (on_floor || !satellite_wheel_chord_cuts(&lu, F, u, known, p, h, rnorm)) {
+                        return SATELLITE_WHEEL_OK; /* at the rounding of the unknowns or of F's terms */
                     }
-                }
-                if (noise) {
-                    /* the update is rounding noise: accepted if it explains the residual */
-                    return satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu)
-                           && satellite_wheel_update_negligible(&lu, F, u) ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_STALLED;
+                    noise = 0; /* off the floor: Newton goes on from u */
                 }
             }
-            if (it >= options->max_iterations) {
-                /* the cap: an iterate at the rounding floor is a solution all the same (a
-                 * linear step solved by its one update, a guess that already solves it) */
-                return satellite_wheel_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
-                       ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_NOT_CONVERGED;
+            if (noise) {
+                /* the update is rounding noise: accepted if it explains the residual */
+                return satellite_wheel_explained_by_rounding(F, J, u, uJ, &lu)
+                       && satellite_wheel_update_negligible(&lu, F, u) ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_STALLED;
             }
-            if (slow) {
-                SATELLITE_WHEEL_JACOBIAN(u, known, p, h, F, J);
-                memcpy(uJ, u, sizeof uJ);
-                status = satellite_wheel_lu_factor(J, &lu);
-                if (status != SATELLITE_WHEEL_OK) {
-                    return status;
-                }
-                here = 1;
+        }
+        if (it >= options->max_iterations) {
+            /* the cap: an iterate at the rounding floor is a solution all the same (a
+             * linear step solved by its one update, a guess that already solves it) */
+            return satellite_wheel_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
+                   ? SATELLITE_WHEEL_OK : SATELLITE_WHEEL_NOT_CONVERGED;
+        }
+        if (slow) {
+            SATELLITE_WHEEL_JACOBIAN(u, known, p, h, F, J);
+            memcpy(uJ, u, sizeof uJ);
+            status = satellite_wheel_lu_factor(J, &lu);
+            if (status != SATELLITE_WHEEL_OK) {
+                return status;
             }
+            here = 1;
         }
         previous = rnorm;
         fresh = here;
         status = satellite_wheel_lu_apply(&lu, F);
         if (status != SATELLITE_WHEEL_OK) {
-            return polish ? SATELLITE_WHEEL_OK : status;
+            return status;
         }
         step = satellite_wheel_relative_norm(F, u);
-        if (polish) { /* applied and counted when smaller than the last update */
-            if (step < last_step) {
-                SATELLITE_WHEEL_UNROLL
-                for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
-                    u[i] -= F[i];
-                }
-                *iterations = it + 1;
-            }
-            return SATELLITE_WHEEL_OK;
-        }
         SATELLITE_WHEEL_UNROLL
         for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
             u[i] -= F[i];

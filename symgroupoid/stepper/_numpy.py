@@ -277,14 +277,13 @@ def pivot_ratio(factors: LUFactors, uJ: np.ndarray) -> float:
     return float(weighted if weighted < plain else plain)
 
 
-def polish(factors, F: np.ndarray, u: np.ndarray, last_step: float, it: int
+def polish(d: np.ndarray, u: np.ndarray, last_step: float, it: int
            ) -> tuple[np.ndarray, int]:
-    """The polishing update of ``<prefix>_newton``: one more chord update of an accepted
-    iterate u from its residual F (no evaluation), when smaller than the last update;
+    """The polishing update of ``<prefix>_newton``: one more chord update d of an accepted
+    iterate u (from its residual, no evaluation), when smaller than the last update;
     (u, updates made)."""
-    status, du = lu_apply(factors, F)
-    if status == OK and relative_norm(du, u) < last_step:
-        return u - du, it + 1
+    if relative_norm(d, u) < last_step:
+        return u - d, it + 1
     return u, it
 
 
@@ -470,15 +469,19 @@ class NumpyStepper:
             N = np.maximum(N, np.abs(G - F))
         return bool(np.all(np.abs(F) <= factor * (C + N)))
 
-    def at_rounding_floor(self, u, known, p, F, J, uJ, factors, options) -> bool:
-        """As ``<prefix>_at_rounding_floor``: a rounding-level update explains F
+    def at_rounding_floor(self, u, known, p, F, J, uJ, factors, options
+                          ) -> tuple[bool, np.ndarray | None]:
+        """As ``<prefix>_at_rounding_floor``: (whether a rounding-level update explains F
         (:func:`explained_by_rounding`) or F is within the rounding of the unknowns
-        (:meth:`at_floor`), and the update F calls for is negligible
-        (:func:`update_negligible`; a runaway iterate with a numerically singular Jacobian
-        passes the first bound at |F| ~ 5e13)."""
+        (:meth:`at_floor`), and the update d that F calls for is negligible (as
+        :func:`update_negligible`; a runaway iterate with a numerically singular Jacobian
+        passes the first bound at |F| ~ 5e13), d or None)."""
         floor = explained_by_rounding(F, J, u, uJ, pivot_ratio(factors, uJ)) or self.at_floor(
             u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
-        return floor and update_negligible(factors, F, u)
+        if not floor:
+            return False, None
+        status, d = lu_apply(factors, F)
+        return status == OK and relative_norm(d, u) <= FLOOR_UPDATE, d
 
     def within_scale(self, u, known, p, F, factor: float) -> bool:
         """As ``<prefix>_within_scale``: every |F_i| ≤ factor·ε·S_i, S the program's
@@ -522,9 +525,10 @@ class NumpyStepper:
             if not np.isfinite(rnorm):
                 return NON_FINITE, u, it, rnorm
             if done:  # after the final update: accepted only at the rounding floor
-                if self.at_rounding_floor(u, known, p, F, J, uJ, factors, options):
+                settled, d = self.at_rounding_floor(u, known, p, F, J, uJ, factors, options)
+                if settled:  # after a stop on the estimate: one more chord update (d)
                     if done == 2 and it < options.max_iterations:
-                        u, it = polish(factors, F, u, last_step, it)
+                        u, it = polish(d, u, last_step, it)
                     return OK, u, it, rnorm
                 done = 0  # a small update, a residual above the floor: iterate on
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
@@ -552,7 +556,7 @@ class NumpyStepper:
                            and update_negligible(factors, F, u))
                 return (OK if settled else STALLED), u, it, rnorm
             if it >= options.max_iterations:  # the cap: at the rounding floor, a solution
-                at_floor = self.at_rounding_floor(u, known, p, F, J, uJ, factors, options)
+                at_floor = self.at_rounding_floor(u, known, p, F, J, uJ, factors, options)[0]
                 return (OK if at_floor else NOT_CONVERGED), u, it, rnorm
             if slow:
                 F, J = self.f.residual_jacobian(u, known, p)

@@ -920,11 +920,12 @@ static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, con
 /* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
  * (SG_NAME(explained_by_rounding)) or it is within the rounding of the unknowns
  * (SG_NAME(at_floor), C filled here), and the update it calls for is negligible
- * (SG_NAME(update_negligible)).  The last condition keeps a runaway iterate whose Jacobian
- * is numerically singular from passing: at a pivot ratio of 1e14 the first bound reaches
- * |F| ~ 5e13 (a driven pendulum on the time groupoid at h = 2, q jumping to 1.9e7), while
- * that residual still calls for an update of 1.6 relative to u */
-static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const double *u, const double *uJ, const SG_NAME(lu) *f, const double *known, const double *p, const double *h, double *C, double floor_factor)
+ * (as SG_NAME(update_negligible); that update is left in d, for the polishing update).  The
+ * last condition keeps a runaway iterate whose Jacobian is numerically singular from
+ * passing: at a pivot ratio of 1e14 the first bound reaches |F| ~ 5e13 (a driven pendulum
+ * on the time groupoid at h = 2, q jumping to 1.9e7), while that residual still calls for
+ * an update of 1.6 relative to u */
+static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const double *u, const double *uJ, const SG_NAME(lu) *f, const double *known, const double *p, const double *h, double *C, double floor_factor, double *d)
 {
     if (!SG_NAME(explained_by_rounding)(F, J, u, uJ, f)) {
         SG_NAME(coordinate_floor)(J, uJ, C);
@@ -932,7 +933,8 @@ static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const do
             return 0;
         }
     }
-    return SG_NAME(update_negligible)(f, F, u);
+    memcpy(d, F, SG_N_UNKNOWNS * sizeof *d);
+    return SG_NAME(lu_apply)(f, d) == SG_OK && SG_NAME(relative_norm)(d, u) <= SG_FLOOR_UPDATE;
 }
 
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
@@ -1016,10 +1018,10 @@ static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const doub
 static int SG_NAME(newton)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
     double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
-    double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS];
+    double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS], d[SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
     double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, noise, done = 0, polish = 0;
+    int it, i, status, slow, noise, done = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
@@ -1036,84 +1038,78 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
             return SG_NON_FINITE;
         }
         if (done) { /* after the final update: accepted only at the rounding floor */
-            if (SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)) {
-                if (done == 1 || it >= options->max_iterations) {
-                    return SG_OK;
+            if (SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)) {
+                /* accepted; after a stop on the estimate, one more chord update from this
+                 * residual (d), applied and counted when smaller than the last update */
+                if (done == 2 && it < options->max_iterations
+                    && SG_NAME(relative_norm)(d, u) < last_step) {
+                    SG_UNROLL
+                    for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+                        u[i] -= d[i];
+                    }
+                    *iterations = it + 1;
                 }
-                polish = 1; /* accepted; one more chord update from this residual (below) */
-            } else {
-                done = 0; /* a small update, a residual above the floor: iterate on */
-            }
-        }
-        if (!polish) { /* (a polishing update skips the tests: u is accepted) */
-            if (it == 0) {
-                memcpy(uJ, u, sizeof uJ);
-                status = SG_NAME(lu_factor)(J, &lu);
-                if (status != SG_OK) {
-                    return status;
-                }
-                here = 1;
-            }
-            if (rnorm <= options->tol_residual) {
                 return SG_OK;
             }
-            slow = it > 0 && !(rnorm <= 0.1 * previous);
-            if (slow) {
-                /* a chord update may contract slowly without any stall: only a Newton
-                 * update or rounding noise that did not reduce |F| tenfold is a stall */
-                noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv, uJ);
-                if (fresh || noise) {
-                    int on_floor, in_scale;
-                    SG_NAME(coordinate_floor)(J, uJ, C);
-                    on_floor = SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor);
-                    in_scale = !on_floor
-                               && SG_NAME(within_scale)(u, known, p, F, options->floor_factor);
-                    if ((on_floor || in_scale) && SG_NAME(update_negligible)(&lu, F, u)) {
-                        if (on_floor || !SG_NAME(chord_cuts)(&lu, F, u, known, p, h, rnorm)) {
-                            return SG_OK; /* at the rounding of the unknowns or of F's terms */
-                        }
-                        noise = 0; /* off the floor: Newton goes on from u */
+            done = 0; /* a small update, a residual above the floor: iterate on */
+        }
+        if (it == 0) {
+            memcpy(uJ, u, sizeof uJ);
+            status = SG_NAME(lu_factor)(J, &lu);
+            if (status != SG_OK) {
+                return status;
+            }
+            here = 1;
+        }
+        if (rnorm <= options->tol_residual) {
+            return SG_OK;
+        }
+        slow = it > 0 && !(rnorm <= 0.1 * previous);
+        if (slow) {
+            /* a chord update may contract slowly without any stall: only a Newton
+             * update or rounding noise that did not reduce |F| tenfold is a stall */
+            noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv, uJ);
+            if (fresh || noise) {
+                int on_floor, in_scale;
+                SG_NAME(coordinate_floor)(J, uJ, C);
+                on_floor = SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor);
+                in_scale = !on_floor
+                           && SG_NAME(within_scale)(u, known, p, F, options->floor_factor);
+                if ((on_floor || in_scale) && SG_NAME(update_negligible)(&lu, F, u)) {
+                    if (on_floor || !SG_NAME(chord_cuts)(&lu, F, u, known, p, h, rnorm)) {
+                        return SG_OK; /* at the rounding of the unknowns or of F's terms */
                     }
-                }
-                if (noise) {
-                    /* the update is rounding noise: accepted if it explains the residual */
-                    return SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
-                           && SG_NAME(update_negligible)(&lu, F, u) ? SG_OK : SG_STALLED;
+                    noise = 0; /* off the floor: Newton goes on from u */
                 }
             }
-            if (it >= options->max_iterations) {
-                /* the cap: an iterate at the rounding floor is a solution all the same (a
-                 * linear step solved by its one update, a guess that already solves it) */
-                return SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor)
-                       ? SG_OK : SG_NOT_CONVERGED;
+            if (noise) {
+                /* the update is rounding noise: accepted if it explains the residual */
+                return SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
+                       && SG_NAME(update_negligible)(&lu, F, u) ? SG_OK : SG_STALLED;
             }
-            if (slow) {
-                SG_JACOBIAN(u, known, p, h, F, J);
-                memcpy(uJ, u, sizeof uJ);
-                status = SG_NAME(lu_factor)(J, &lu);
-                if (status != SG_OK) {
-                    return status;
-                }
-                here = 1;
+        }
+        if (it >= options->max_iterations) {
+            /* the cap: an iterate at the rounding floor is a solution all the same (a
+             * linear step solved by its one update, a guess that already solves it) */
+            return SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
+                   ? SG_OK : SG_NOT_CONVERGED;
+        }
+        if (slow) {
+            SG_JACOBIAN(u, known, p, h, F, J);
+            memcpy(uJ, u, sizeof uJ);
+            status = SG_NAME(lu_factor)(J, &lu);
+            if (status != SG_OK) {
+                return status;
             }
+            here = 1;
         }
         previous = rnorm;
         fresh = here;
         status = SG_NAME(lu_apply)(&lu, F);
         if (status != SG_OK) {
-            return polish ? SG_OK : status;
+            return status;
         }
         step = SG_NAME(relative_norm)(F, u);
-        if (polish) { /* applied and counted when smaller than the last update */
-            if (step < last_step) {
-                SG_UNROLL
-                for (i = 0; i < SG_N_UNKNOWNS; ++i) {
-                    u[i] -= F[i];
-                }
-                *iterations = it + 1;
-            }
-            return SG_OK;
-        }
         SG_UNROLL
         for (i = 0; i < SG_N_UNKNOWNS; ++i) {
             u[i] -= F[i];
