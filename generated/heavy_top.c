@@ -1293,6 +1293,14 @@ static int heavy_top_at_rounding_floor(const double *F, const double *J, const d
     return heavy_top_lu_apply(f, d) == HEAVY_TOP_OK && heavy_top_relative_norm(d, u) <= HEAVY_TOP_FLOOR_UPDATE;
 }
 
+/* An iterate whose |F|_inf exceeds its guess's by this factor is never taken for a rounding
+ * floor: Newton has made the guess worse, and a floor is no larger than the residual's
+ * rounding where Newton started.  A Lobatto IIIA-IIIB step of a heavy top on SO(3) at
+ * h = 0.3 ran away to Cayley coordinates of 4e4 (a rotation within 1e-4 of a half-turn,
+ * the chart's cut locus), where F is the noise of its own evaluation (|F| = 9e4, moved
+ * by as much under 4 ulps of u) and passed the floor of the unknowns' rounding */
+#define HEAVY_TOP_GUESS_MARGIN 1e3
+
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
  * rounding floor (heavy_top_chord_cuts): at a true floor of F's terms (a body far from the
  * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
@@ -1376,8 +1384,8 @@ static int heavy_top_newton(const double *known, const double *p, const double *
     double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
     double J[HEAVY_TOP_JACOBIAN_ENTRIES], uJ[HEAVY_TOP_N_UNKNOWNS], d[HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
-    double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, noise, done = 0;
+    double previous = 0.0, last_step = 0.0, guess = 0.0;
+    int it, i, status, slow, noise, worse, done = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
@@ -1393,7 +1401,11 @@ static int heavy_top_newton(const double *known, const double *p, const double *
         if (!(rnorm < INFINITY)) {
             return HEAVY_TOP_NON_FINITE;
         }
-        if (done) { /* after the final update: accepted only at the rounding floor */
+        if (it == 0) {
+            guess = rnorm;
+        }
+        worse = rnorm > HEAVY_TOP_GUESS_MARGIN * guess; /* no floor: Newton made the guess worse */
+        if (done && !worse) { /* after the final update: accepted only at the rounding floor */
             if (heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)) {
                 /* accepted; after a stop on the estimate, one more chord update from this
                  * residual (d), applied and counted when smaller than the last update */
@@ -1407,8 +1419,8 @@ static int heavy_top_newton(const double *known, const double *p, const double *
                 }
                 return HEAVY_TOP_OK;
             }
-            done = 0; /* a small update, a residual above the floor: iterate on */
         }
+        done = 0; /* a small update, a residual above the floor: iterate on */
         if (it == 0) {
             memcpy(uJ, u, sizeof uJ);
             status = heavy_top_lu_factor(J, &lu);
@@ -1425,7 +1437,7 @@ static int heavy_top_newton(const double *known, const double *p, const double *
             /* a chord update may contract slowly without any stall: only a Newton
              * update or rounding noise that did not reduce |F| tenfold is a stall */
             noise = last_step <= 64.0 * DBL_EPSILON * heavy_top_pivot_ratio(lu.inv, uJ);
-            if (fresh || noise) {
+            if ((fresh || noise) && !worse) {
                 int on_floor, in_scale;
                 heavy_top_coordinate_floor(J, uJ, C);
                 on_floor = heavy_top_at_floor(u, known, p, h, F, C, options->floor_factor);
@@ -1440,14 +1452,14 @@ static int heavy_top_newton(const double *known, const double *p, const double *
             }
             if (noise) {
                 /* the update is rounding noise: accepted if it explains the residual */
-                return heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
+                return !worse && heavy_top_explained_by_rounding(F, J, u, uJ, &lu)
                        && heavy_top_update_negligible(&lu, F, u) ? HEAVY_TOP_OK : HEAVY_TOP_STALLED;
             }
         }
         if (it >= options->max_iterations) {
             /* the cap: an iterate at the rounding floor is a solution all the same (a
              * linear step solved by its one update, a guess that already solves it) */
-            return heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
+            return !worse && heavy_top_at_rounding_floor(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
                    ? HEAVY_TOP_OK : HEAVY_TOP_NOT_CONVERGED;
         }
         if (slow) {

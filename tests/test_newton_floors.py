@@ -489,3 +489,42 @@ def test_a_large_multiplier_does_not_make_every_update_noise(backend):
         F, J = step.evaluate(u, S[k], p)
         left = np.linalg.solve(J, F) / (1.0 + np.abs(u))
         assert np.abs(left).max() <= 1e-12, (k, left)
+
+
+#: an arrow (R_{k-1}, R_k) of an asymmetric heavy top and its parameters (h, m, g, J1..3,
+#: χ1..3), from which a Lobatto IIIA–IIIB step at h = 0.3 runs away
+_RUNAWAY_TOP_ARROW = [
+    0.7354617368487767, 0.6611547941749505, 0.1482240593522506, -0.486789484607971,
+    0.6677528193346478, -0.5631537711369207, -0.4713088491705695, 0.3420241371747148,
+    0.8129498497960408, -0.13760042430535985, 0.5899451244334069, 0.7956323732655911,
+    -0.2159726973930541, 0.7660748392376786, -0.6053801571473361, -0.966655014579531,
+    -0.255135436276926, 0.021999816908999048]
+_RUNAWAY_TOP_PARAMETERS = [0.3, 1.0, 9.81, 1.2089035430696038, 0.270400273382784,
+                           0.61360333962012, -0.005270774792846853, -0.04355406739609834,
+                           0.812705740035221]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_runaway_to_the_cut_locus_is_not_a_floor(backend):
+    """Newton ran away to Cayley coordinates of 4e4 (a rotation per step within 1e-4 of a
+    half-turn, where the chart is singular and F is the noise of its own evaluation:
+    |F| = 9e4, moved by as much under 4 ulps of the unknowns), and that passed the floor of
+    the unknowns' rounding: solve() and simulate() returned it as solved (a run's residual
+    norms reached 4.8e5).  An iterate whose residual exceeds its guess's a thousandfold is
+    never a floor: the step now fails, and what is returned solves its equations."""
+    h, m, grav = sp.symbols("h m g", positive=True)
+    J = sp.diag(*sp.symbols("J1:4", positive=True))
+    chi = sp.Matrix(sp.symbols("chi1:4", real=True))
+
+    def L(R, xi):
+        return (xi.T * J * xi)[0, 0] / 2 - m * grav * (R * chi)[2, 0]
+
+    step = sg.ContinuousSystem(sg.SO3("R"), L, parameters=[h, m, grav, *J.diagonal(), *chi],
+                               name="top_lobatto").discretize(
+                                   h, sg.LobattoIIIAB(3)).euler_lagrange()
+    sim = step.compile(backend=backend, cache_dir=SESSION_CACHE)
+    known, p = np.array(_RUNAWAY_TOP_ARROW), np.array(_RUNAWAY_TOP_PARAMETERS)
+    with pytest.raises(sg.NewtonDivergenceError, match="step 0 failed"):
+        sim.solve(known, p)
+    with pytest.raises(sg.NewtonDivergenceError, match="step 0 failed"):
+        sim.simulate(known, 20, p)

@@ -291,6 +291,10 @@ def polish(d: np.ndarray, u: np.ndarray, last_step: float, it: int
 #: still call for (a true floor's noise: up to 5e-8 for a body far from the origin; a
 #: non-solution accepted on its terms' size: 0.07-0.3)
 FLOOR_UPDATE = 1e-4
+#: as ``SG_GUESS_MARGIN``: an iterate whose |F|∞ is more than this many times its guess's is
+#: never taken for a rounding floor (a runaway to a chart's cut locus, where F is noise of
+#: size 1e5, passed the floor of the unknowns' rounding)
+GUESS_MARGIN = 1e3
 #: as ``SG_TRIAL_CUT``: a chord update that cuts the residual by this factor shows an iterate
 #: off its rounding floor (a true floor of F's terms keeps at least 0.006 of it)
 TRIAL_CUT = 1e-3
@@ -510,7 +514,7 @@ class NumpyStepper:
     def newton(self, known, p, u, options):
         """As ``<prefix>_newton`` (see ``runtime.NewtonOptions``): (status, last iterate,
         updates made, |F|_inf of the last iterate)."""
-        previous = last_step = 0.0
+        previous = last_step = guess = 0.0
         factors = uJ = None
         done = 0  # 1: stopped on a rounding-noise update, 2: on the estimated error
         fresh = False  # the last update was a Newton update (J factored where it started)
@@ -524,13 +528,15 @@ class NumpyStepper:
             rnorm = norm_inf(F)
             if not np.isfinite(rnorm):
                 return NON_FINITE, u, it, rnorm
-            if done:  # after the final update: accepted only at the rounding floor
+            guess = rnorm if it == 0 else guess
+            worse = rnorm > GUESS_MARGIN * guess  # no floor: Newton made the guess worse
+            if done and not worse:  # after the final update: accepted only at the floor
                 settled, d = self.at_rounding_floor(u, known, p, F, J, uJ, factors, options)
                 if settled:  # after a stop on the estimate: one more chord update (d)
                     if done == 2 and it < options.max_iterations:
                         u, it = polish(d, u, last_step, it)
                     return OK, u, it, rnorm
-                done = 0  # a small update, a residual above the floor: iterate on
+            done = 0  # a small update, a residual above the floor: iterate on
             if it == 0:  # factor J before any convergence test (a degenerate step fails)
                 uJ, here = u, True
                 status, factors = lu_factor(J, self.band)
@@ -543,7 +549,7 @@ class NumpyStepper:
             noise = slow and last_step <= 64.0 * EPSILON * ratio  # rounding noise of a solve
             # a chord update may contract slowly without any stall: only a Newton update or
             # rounding noise that did not reduce |F| tenfold is a stall
-            if slow and (fresh or noise):
+            if slow and (fresh or noise) and not worse:
                 floor = self.at_floor(u, known, p, F, coordinate_floor(J, uJ),
                                       options.floor_factor)
                 scale = not floor and self.within_scale(u, known, p, F, options.floor_factor)
@@ -552,11 +558,12 @@ class NumpyStepper:
                         return OK, u, it, rnorm  # at the rounding of the unknowns or F's terms
                     noise = False  # off the floor: Newton goes on from u
             if noise:
-                settled = (explained_by_rounding(F, J, u, uJ, ratio)
+                settled = (not worse and explained_by_rounding(F, J, u, uJ, ratio)
                            and update_negligible(factors, F, u))
                 return (OK if settled else STALLED), u, it, rnorm
             if it >= options.max_iterations:  # the cap: at the rounding floor, a solution
-                at_floor = self.at_rounding_floor(u, known, p, F, J, uJ, factors, options)[0]
+                at_floor = not worse and self.at_rounding_floor(u, known, p, F, J, uJ, factors,
+                                                                options)[0]
                 return (OK if at_floor else NOT_CONVERGED), u, it, rnorm
             if slow:
                 F, J = self.f.residual_jacobian(u, known, p)

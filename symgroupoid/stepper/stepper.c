@@ -937,6 +937,14 @@ static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const do
     return SG_NAME(lu_apply)(f, d) == SG_OK && SG_NAME(relative_norm)(d, u) <= SG_FLOOR_UPDATE;
 }
 
+/* An iterate whose |F|_inf exceeds its guess's by this factor is never taken for a rounding
+ * floor: Newton has made the guess worse, and a floor is no larger than the residual's
+ * rounding where Newton started.  A Lobatto IIIA-IIIB step of a heavy top on SO(3) at
+ * h = 0.3 ran away to Cayley coordinates of 4e4 (a rotation within 1e-4 of a half-turn,
+ * the chart's cut locus), where F is the noise of its own evaluation (|F| = 9e4, moved
+ * by as much under 4 ulps of u) and passed the floor of the unknowns' rounding */
+#define SG_GUESS_MARGIN 1e3
+
 /* a chord update that cuts the residual by this factor or more shows an iterate off its
  * rounding floor (SG_NAME(chord_cuts)): at a true floor of F's terms (a body far from the
  * origin) the same trial leaves at least 0.006 of the residual (19,000 stalls of
@@ -1020,8 +1028,8 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
     double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
     double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS], d[SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
-    double previous = 0.0, last_step = 0.0;
-    int it, i, status, slow, noise, done = 0;
+    double previous = 0.0, last_step = 0.0, guess = 0.0;
+    int it, i, status, slow, noise, worse, done = 0;
     int fresh = 0; /* the last update was a Newton update (J factored where it started) */
     for (it = 0;; ++it) {
         double rnorm, step;
@@ -1037,7 +1045,11 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
         if (!(rnorm < INFINITY)) {
             return SG_NON_FINITE;
         }
-        if (done) { /* after the final update: accepted only at the rounding floor */
+        if (it == 0) {
+            guess = rnorm;
+        }
+        worse = rnorm > SG_GUESS_MARGIN * guess; /* no floor: Newton made the guess worse */
+        if (done && !worse) { /* after the final update: accepted only at the rounding floor */
             if (SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)) {
                 /* accepted; after a stop on the estimate, one more chord update from this
                  * residual (d), applied and counted when smaller than the last update */
@@ -1051,8 +1063,8 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
                 }
                 return SG_OK;
             }
-            done = 0; /* a small update, a residual above the floor: iterate on */
         }
+        done = 0; /* a small update, a residual above the floor: iterate on */
         if (it == 0) {
             memcpy(uJ, u, sizeof uJ);
             status = SG_NAME(lu_factor)(J, &lu);
@@ -1069,7 +1081,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
             /* a chord update may contract slowly without any stall: only a Newton
              * update or rounding noise that did not reduce |F| tenfold is a stall */
             noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv, uJ);
-            if (fresh || noise) {
+            if ((fresh || noise) && !worse) {
                 int on_floor, in_scale;
                 SG_NAME(coordinate_floor)(J, uJ, C);
                 on_floor = SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor);
@@ -1084,14 +1096,14 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
             }
             if (noise) {
                 /* the update is rounding noise: accepted if it explains the residual */
-                return SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
+                return !worse && SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
                        && SG_NAME(update_negligible)(&lu, F, u) ? SG_OK : SG_STALLED;
             }
         }
         if (it >= options->max_iterations) {
             /* the cap: an iterate at the rounding floor is a solution all the same (a
              * linear step solved by its one update, a guess that already solves it) */
-            return SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
+            return !worse && SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
                    ? SG_OK : SG_NOT_CONVERGED;
         }
         if (slow) {
