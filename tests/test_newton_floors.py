@@ -528,3 +528,27 @@ def test_a_runaway_to_the_cut_locus_is_not_a_floor(backend):
         sim.solve(known, p)
     with pytest.raises(sg.NewtonDivergenceError, match="step 0 failed"):
         sim.simulate(known, 20, p)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_the_size_of_a_product_of_differences_is_not_the_product_of_their_sizes(backend):
+    """The driven pendulum with an adaptive step at t ≈ 95 (Δt ≈ 0.004, a nearly singular
+    Jacobian near a turning point): its residual's terms were sized Π S(a_k) for a product,
+    so v² = ((q₁ − q₀)/(t₁ − t₀))² counted (|t₁| + |t₀|)²/Δt⁴ and "within ε times the size
+    of its terms" held at |F| = 2·10⁻³: steps were returned with q off by 5·10⁻³ (a root
+    4.6·10⁻¹¹ from zero lies there).  A product is now sized by the first-order propagation
+    of its factors' rounding: every returned step is a fixed point of Newton."""
+    step = _driven_pendulum_adaptive()
+    p = [12.35464509798145, 0.9699889676778422, 0.5700725448307911]
+    sim = step.compile(backend=backend, cache_dir=SESSION_CACHE)
+    start = [94.42599084206836, 94.42599084206836 + 0.003076508169774939,
+             -1.853548989032439, -1.8796569561146568]
+    try:
+        states = sim.simulate(start, 200, p).states
+    except sg.BranchJumpError as err:  # (the energy balance loses its root at step 163)
+        states = err.trajectory.states
+    assert len(states) > 150
+    for k in range(len(states) - 1):
+        u = states[k + 1][[1, 3]]
+        F, J = step.evaluate(u, states[k], p)
+        assert np.max(np.abs(np.linalg.solve(J, F)) / (1 + np.abs(u))) <= 1e-8, k
