@@ -289,8 +289,9 @@ def polish(d: np.ndarray, u: np.ndarray, last_step: float, it: int
 
 #: as ``SG_FLOOR_UPDATE``: the largest update (relative) an iterate at a rounding floor may
 #: still call for (a true floor's noise: up to 5e-8 for a body far from the origin; a
-#: non-solution accepted on its terms' size: 0.07-0.3)
-FLOOR_UPDATE = 1e-4
+#: non-solution accepted on its terms' size: 0.07-0.3; runaways to a chart's cut locus:
+#: 8e-5 and 1.05e-4)
+FLOOR_UPDATE = 1e-6
 #: as ``SG_GUESS_MARGIN``: an iterate whose |F|∞ is more than this many times its guess's is
 #: never taken for a rounding floor (a runaway to a chart's cut locus, where F is noise of
 #: size 1e5, passed the floor of the unknowns' rounding)
@@ -300,12 +301,19 @@ GUESS_MARGIN = 1e3
 TRIAL_CUT = 1e-3
 
 
-def update_negligible(factors: LUFactors, F: np.ndarray, u: np.ndarray) -> bool:
-    """As ``<prefix>_update_negligible``: the update the factorisation gives for ``F`` is at
-    most :data:`FLOOR_UPDATE` relative to ``u`` (a residual that still calls for a larger one
-    is not rounding, however large the terms it is computed from)."""
+def floor_norm(d: np.ndarray, u: np.ndarray, g: np.ndarray) -> float:
+    """As ``<prefix>_floor_norm``: max_j |d_j| / (1 + min(|u_j|, |g_j|)), g the guess."""
+    return float(np.max(np.abs(d) / (1.0 + np.minimum(np.abs(u), np.abs(g))), initial=0.0))
+
+
+def update_negligible(factors: LUFactors, F: np.ndarray, u: np.ndarray, g: np.ndarray
+                      ) -> tuple[bool, np.ndarray]:
+    """As ``<prefix>_update_negligible``: (whether the update d the factorisation gives for
+    ``F`` is at most :data:`FLOOR_UPDATE` relative to ``u`` and the guess ``g``
+    (:func:`floor_norm`; a residual that still calls for a larger one is not rounding,
+    however large the terms it is computed from), d)."""
     status, d = lu_apply(factors, F)
-    return status == OK and relative_norm(d, u) <= FLOOR_UPDATE
+    return status == OK and floor_norm(d, u, g) <= FLOOR_UPDATE, d
 
 
 def above_rounding(d: np.ndarray, u: np.ndarray, factor: float) -> bool:
@@ -473,7 +481,7 @@ class NumpyStepper:
             N = np.maximum(N, np.abs(G - F))
         return bool(np.all(np.abs(F) <= factor * (C + N)))
 
-    def at_rounding_floor(self, u, known, p, F, J, uJ, factors, options
+    def at_rounding_floor(self, u, known, p, F, J, uJ, g, factors, options
                           ) -> tuple[bool, np.ndarray | None]:
         """As ``<prefix>_at_rounding_floor``: (whether a rounding-level update explains F
         (:func:`explained_by_rounding`) or F is within the rounding of the unknowns
@@ -484,8 +492,7 @@ class NumpyStepper:
             u, known, p, F, coordinate_floor(J, uJ), options.floor_factor)
         if not floor:
             return False, None
-        status, d = lu_apply(factors, F)
-        return status == OK and relative_norm(d, u) <= FLOOR_UPDATE, d
+        return update_negligible(factors, F, u, g)
 
     def within_scale(self, u, known, p, F, factor: float) -> bool:
         """As ``<prefix>_within_scale``: every |F_i| ≤ factor·ε·S_i, S the program's
@@ -528,10 +535,11 @@ class NumpyStepper:
             rnorm = norm_inf(F)
             if not np.isfinite(rnorm):
                 return NON_FINITE, u, it, rnorm
-            guess = rnorm if it == 0 else guess
+            if it == 0:
+                guess, g0 = rnorm, u
             worse = rnorm > GUESS_MARGIN * guess  # no floor: Newton made the guess worse
             if done and not worse:  # after the final update: accepted only at the floor
-                settled, d = self.at_rounding_floor(u, known, p, F, J, uJ, factors, options)
+                settled, d = self.at_rounding_floor(u, known, p, F, J, uJ, g0, factors, options)
                 if settled:  # after a stop on the estimate: one more chord update (d)
                     if done == 2 and it < options.max_iterations:
                         u, it = polish(d, u, last_step, it)
@@ -546,23 +554,24 @@ class NumpyStepper:
                 return OK, u, it, rnorm
             slow = it > 0 and not rnorm <= 0.1 * previous
             ratio = pivot_ratio(factors, uJ)
-            noise = slow and last_step <= 64.0 * EPSILON * ratio  # rounding noise of a solve
-            # a chord update may contract slowly without any stall: only a Newton update or
-            # rounding noise that did not reduce |F| tenfold is a stall
-            if slow and (fresh or noise) and not worse:
+            # rounding noise of a solve, and only a Newton update's (see the C kernel)
+            noise = slow and fresh and last_step <= 64.0 * EPSILON * ratio
+            # a chord update may contract slowly without any stall: only a Newton update
+            # that did not reduce |F| tenfold is a stall
+            if slow and fresh and not worse:
                 floor = self.at_floor(u, known, p, F, coordinate_floor(J, uJ),
                                       options.floor_factor)
                 scale = not floor and self.within_scale(u, known, p, F, options.floor_factor)
-                if (floor or scale) and update_negligible(factors, F, u):
+                if (floor or scale) and update_negligible(factors, F, u, g0)[0]:
                     if floor or not self.chord_cuts(factors, F, u, known, p, rnorm):
                         return OK, u, it, rnorm  # at the rounding of the unknowns or F's terms
                     noise = False  # off the floor: Newton goes on from u
             if noise:
                 settled = (not worse and explained_by_rounding(F, J, u, uJ, ratio)
-                           and update_negligible(factors, F, u))
+                           and update_negligible(factors, F, u, g0)[0])
                 return (OK if settled else STALLED), u, it, rnorm
             if it >= options.max_iterations:  # the cap: at the rounding floor, a solution
-                at_floor = not worse and self.at_rounding_floor(u, known, p, F, J, uJ, factors,
+                at_floor = not worse and self.at_rounding_floor(u, known, p, F, J, uJ, g0, factors,
                                                                 options)[0]
                 return (OK if at_floor else NOT_CONVERGED), u, it, rnorm
             if slow:

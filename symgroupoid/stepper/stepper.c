@@ -904,17 +904,35 @@ static inline int SG_NAME(above_rounding)(const double *d, const double *u, doub
  * is not rounding, however large the terms it is computed from (a midpoint step on a group
  * at a large h, whose terms reach 1e15 while |F| ~ 5 and the update ~ 0.07-0.3).  At a true
  * floor the update is the rounding noise the floor allows: up to 5e-8 for the planar body
- * falling to 5e6 m (tests/test_newton_floors.py), 2000 times below this bound */
-#define SG_FLOOR_UPDATE 1e-4
+ * falling to 5e6 m (tests/test_newton_floors.py), 20 times below this bound.  (It was 1e-4:
+ * runaways to the Cayley chart's cut locus, where F is the noise of its own evaluation,
+ * called for 8e-5 and 1.05e-4.) */
+#define SG_FLOOR_UPDATE 1e-6
 
-/* 1 when the update the factorisation f gives for the residual F is at most
- * SG_FLOOR_UPDATE relative to u (SG_NAME(relative_norm)): u is a fixed point of Newton to
- * within the rounding the floor tests allow for */
-static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, const double *u)
+/* max_j |d_j| / (1 + min(|u_j|, |g_j|)): an update relative to the smaller of the iterate u
+ * and the guess g Newton started from, so that an iterate that ran away from the guess
+ * (Cayley coordinates of 1e3-5e5 near the chart's cut locus, from guesses of order 1) is not
+ * judged at the scale of its own runaway */
+static double SG_NAME(floor_norm)(const double *d, const double *u, const double *g)
 {
-    double d[SG_N_UNKNOWNS];
-    memcpy(d, F, sizeof d);
-    return SG_NAME(lu_apply)(f, d) == SG_OK && SG_NAME(relative_norm)(d, u) <= SG_FLOOR_UPDATE;
+    double m = 0.0;
+    int j;
+    for (j = 0; j < SG_N_UNKNOWNS; ++j) {
+        const double a = fabs(d[j]) / (1.0 + (fabs(u[j]) < fabs(g[j]) ? fabs(u[j]) : fabs(g[j])));
+        if (a > m) {
+            m = a;
+        }
+    }
+    return m;
+}
+
+/* 1 when the update d the factorisation f gives for the residual F (written to d) is at
+ * most SG_FLOOR_UPDATE relative to the iterate u and the guess g (SG_NAME(floor_norm)): u
+ * is a fixed point of Newton to within the rounding the floor tests allow for */
+static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, const double *u, const double *g, double *d)
+{
+    memcpy(d, F, SG_N_UNKNOWNS * sizeof *d);
+    return SG_NAME(lu_apply)(f, d) == SG_OK && SG_NAME(floor_norm)(d, u, g) <= SG_FLOOR_UPDATE;
 }
 
 /* 1 when the residual F at u is at a rounding floor: a rounding-level update explains it
@@ -925,7 +943,7 @@ static int SG_NAME(update_negligible)(const SG_NAME(lu) *f, const double *F, con
  * passing: at a pivot ratio of 1e14 the first bound reaches |F| ~ 5e13 (a driven pendulum
  * on the time groupoid at h = 2, q jumping to 1.9e7), while that residual still calls for
  * an update of 1.6 relative to u */
-static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const double *u, const double *uJ, const SG_NAME(lu) *f, const double *known, const double *p, const double *h, double *C, double floor_factor, double *d)
+static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const double *u, const double *uJ, const double *g, const SG_NAME(lu) *f, const double *known, const double *p, const double *h, double *C, double floor_factor, double *d)
 {
     if (!SG_NAME(explained_by_rounding)(F, J, u, uJ, f)) {
         SG_NAME(coordinate_floor)(J, uJ, C);
@@ -933,8 +951,7 @@ static int SG_NAME(at_rounding_floor)(const double *F, const double *J, const do
             return 0;
         }
     }
-    memcpy(d, F, SG_N_UNKNOWNS * sizeof *d);
-    return SG_NAME(lu_apply)(f, d) == SG_OK && SG_NAME(relative_norm)(d, u) <= SG_FLOOR_UPDATE;
+    return SG_NAME(update_negligible)(f, F, u, g, d);
 }
 
 /* An iterate whose |F|_inf exceeds its guess's by this factor is never taken for a rounding
@@ -1026,7 +1043,7 @@ static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const doub
 static int SG_NAME(newton)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
     double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
-    double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS], d[SG_N_UNKNOWNS];
+    double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS], d[SG_N_UNKNOWNS], g0[SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
     double previous = 0.0, last_step = 0.0, guess = 0.0;
     int it, i, status, slow, noise, worse, done = 0;
@@ -1047,10 +1064,11 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
         }
         if (it == 0) {
             guess = rnorm;
+            memcpy(g0, u, sizeof g0);
         }
         worse = rnorm > SG_GUESS_MARGIN * guess; /* no floor: Newton made the guess worse */
         if (done && !worse) { /* after the final update: accepted only at the rounding floor */
-            if (SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)) {
+            if (SG_NAME(at_rounding_floor)(F, J, u, uJ, g0, &lu, known, p, h, C, options->floor_factor, d)) {
                 /* accepted; after a stop on the estimate, one more chord update from this
                  * residual (d), applied and counted when smaller than the last update */
                 if (done == 2 && it < options->max_iterations
@@ -1079,15 +1097,17 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
         slow = it > 0 && !(rnorm <= 0.1 * previous);
         if (slow) {
             /* a chord update may contract slowly without any stall: only a Newton
-             * update or rounding noise that did not reduce |F| tenfold is a stall */
-            noise = last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv, uJ);
-            if ((fresh || noise) && !worse) {
+             * update that did not reduce |F| tenfold is a stall, and rounding noise only
+             * when it is a Newton update's (a pivot ratio of 1e10 from a tiny mass made a
+             * chord update contracting 9.9-fold "noise": the constraint was left at 7e-5) */
+            noise = fresh && last_step <= 64.0 * DBL_EPSILON * SG_NAME(pivot_ratio)(lu.inv, uJ);
+            if (fresh && !worse) {
                 int on_floor, in_scale;
                 SG_NAME(coordinate_floor)(J, uJ, C);
                 on_floor = SG_NAME(at_floor)(u, known, p, h, F, C, options->floor_factor);
                 in_scale = !on_floor
                            && SG_NAME(within_scale)(u, known, p, F, options->floor_factor);
-                if ((on_floor || in_scale) && SG_NAME(update_negligible)(&lu, F, u)) {
+                if ((on_floor || in_scale) && SG_NAME(update_negligible)(&lu, F, u, g0, d)) {
                     if (on_floor || !SG_NAME(chord_cuts)(&lu, F, u, known, p, h, rnorm)) {
                         return SG_OK; /* at the rounding of the unknowns or of F's terms */
                     }
@@ -1097,13 +1117,13 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
             if (noise) {
                 /* the update is rounding noise: accepted if it explains the residual */
                 return !worse && SG_NAME(explained_by_rounding)(F, J, u, uJ, &lu)
-                       && SG_NAME(update_negligible)(&lu, F, u) ? SG_OK : SG_STALLED;
+                       && SG_NAME(update_negligible)(&lu, F, u, g0, d) ? SG_OK : SG_STALLED;
             }
         }
         if (it >= options->max_iterations) {
             /* the cap: an iterate at the rounding floor is a solution all the same (a
              * linear step solved by its one update, a guess that already solves it) */
-            return !worse && SG_NAME(at_rounding_floor)(F, J, u, uJ, &lu, known, p, h, C, options->floor_factor, d)
+            return !worse && SG_NAME(at_rounding_floor)(F, J, u, uJ, g0, &lu, known, p, h, C, options->floor_factor, d)
                    ? SG_OK : SG_NOT_CONVERGED;
         }
         if (slow) {
