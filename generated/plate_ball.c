@@ -2456,7 +2456,7 @@ const char *plate_ball_status_message(int status)
     case PLATE_BALL_OK:
         return "converged";
     case PLATE_BALL_SINGULAR_JACOBIAN:
-        return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
+        return "singular Jacobian: a pivot vanished relative to its equation at Newton's iterate, so the step equations do not determine the next state there (the discrete Lagrangian is not regular there, or the step is too large for a root near the guess: a rotation per step near a half-turn, a step beyond the equations' reach)";
     case PLATE_BALL_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case PLATE_BALL_NON_FINITE:

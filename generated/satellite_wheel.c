@@ -2316,7 +2316,7 @@ const char *satellite_wheel_status_message(int status)
     case SATELLITE_WHEEL_OK:
         return "converged";
     case SATELLITE_WHEEL_SINGULAR_JACOBIAN:
-        return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
+        return "singular Jacobian: a pivot vanished relative to its equation at Newton's iterate, so the step equations do not determine the next state there (the discrete Lagrangian is not regular there, or the step is too large for a root near the guess: a rotation per step near a half-turn, a step beyond the equations' reach)";
     case SATELLITE_WHEEL_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case SATELLITE_WHEEL_NON_FINITE:

@@ -40,8 +40,10 @@ class Status(enum.IntEnum):
 
     OK = 0, "converged"
     SINGULAR_JACOBIAN = 1, (
-        "singular Jacobian: a pivot vanished relative to its equation, so the step equations "
-        "do not determine the next state (the discrete Lagrangian is not regular here)")
+        "singular Jacobian: a pivot vanished relative to its equation at Newton's iterate, so "
+        "the step equations do not determine the next state there (the discrete Lagrangian "
+        "is not regular there, or the step is too large for a root near the guess: a "
+        "rotation per step near a half-turn, a step beyond the equations' reach)")
     NOT_CONVERGED = 2, (
         "Newton's method reached its iteration cap (the max_iterations option: that many "
         "updates) without converging")

@@ -303,7 +303,7 @@ const char *SG_NAME(status_message)(int status)
     case SG_OK:
         return "converged";
     case SG_SINGULAR_JACOBIAN:
-        return "singular Jacobian: a pivot vanished relative to its equation, so the step equations do not determine the next state (the discrete Lagrangian is not regular here)";
+        return "singular Jacobian: a pivot vanished relative to its equation at Newton's iterate, so the step equations do not determine the next state there (the discrete Lagrangian is not regular there, or the step is too large for a root near the guess: a rotation per step near a half-turn, a step beyond the equations' reach)";
     case SG_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case SG_NON_FINITE:
