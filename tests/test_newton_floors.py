@@ -349,9 +349,9 @@ def test_a_slow_chord_update_is_not_taken_for_a_stall(backend):
     assert run.residual_norms.max() < 3e-14
 
 
-def _top_midpoint():
-    """An asymmetric heavy top through the midpoint rule on SO(3) (a large step h = 1 turns
-    it by up to 124° per step)."""
+def _top(scheme="midpoint", name="top_midpoint"):
+    """An asymmetric heavy top on SO(3) (parameters h, m, g, J1..3, χ1..3) discretized by
+    ``scheme`` (the midpoint rule: a large step h = 1 turns it by up to 124° per step)."""
     h, m, grav = sp.symbols("h m g", positive=True)
     J = sp.diag(*sp.symbols("J1:4", positive=True))
     chi = sp.Matrix(sp.symbols("chi1:4", real=True))
@@ -360,7 +360,7 @@ def _top_midpoint():
         return (xi.T * J * xi)[0, 0] / 2 - m * grav * (R * chi)[2, 0]
 
     return sg.ContinuousSystem(sg.SO3("R"), L, parameters=[h, m, grav, *J.diagonal(), *chi],
-                               name="top_midpoint").discretize(h, "midpoint").euler_lagrange()
+                               name=name).discretize(h, scheme).euler_lagrange()
 
 
 @needs_cc
@@ -375,7 +375,7 @@ def test_a_large_midpoint_step_on_a_group_is_not_accepted_on_its_terms_size():
     a, b = 0.5, 0.3
     R0 = np.array([[np.cos(a), 0, np.sin(a)], [0, 1, 0], [-np.sin(a), 0, np.cos(a)]]) @ \
         np.array([[1, 0, 0], [0, np.cos(b), -np.sin(b)], [0, np.sin(b), np.cos(b)]])
-    step = _top_midpoint()
+    step = _top()
     runs = []
     for sim in (step.compile(cache_dir=SESSION_CACHE), step.compile(backend="numpy")):
         traj = sim.simulate(sim.from_velocity({"R": R0}, 3 * np.array([0.7, -0.4, 2.5]), P),
@@ -512,16 +512,7 @@ def test_a_runaway_to_the_cut_locus_is_not_a_floor(backend):
     the unknowns' rounding: solve() and simulate() returned it as solved (a run's residual
     norms reached 4.8e5).  An iterate whose residual exceeds its guess's a thousandfold is
     never a floor: the step now fails, and what is returned solves its equations."""
-    h, m, grav = sp.symbols("h m g", positive=True)
-    J = sp.diag(*sp.symbols("J1:4", positive=True))
-    chi = sp.Matrix(sp.symbols("chi1:4", real=True))
-
-    def L(R, xi):
-        return (xi.T * J * xi)[0, 0] / 2 - m * grav * (R * chi)[2, 0]
-
-    step = sg.ContinuousSystem(sg.SO3("R"), L, parameters=[h, m, grav, *J.diagonal(), *chi],
-                               name="top_lobatto").discretize(
-                                   h, sg.LobattoIIIAB(3)).euler_lagrange()
+    step = _top(sg.LobattoIIIAB(3), "top_lobatto")
     sim = step.compile(backend=backend, cache_dir=SESSION_CACHE)
     known, p = np.array(_RUNAWAY_TOP_ARROW), np.array(_RUNAWAY_TOP_PARAMETERS)
     with pytest.raises(sg.NewtonDivergenceError, match="step 0 failed"):
@@ -562,16 +553,7 @@ def test_a_creep_to_the_cut_locus_from_a_guess_is_not_a_floor(backend):
     3.4e-7 relative to those coordinates (4e-4 absolute).  The update an iterate at a floor
     calls for is now measured against the smaller of the iterate and the guess: the solve
     fails, and the step's root (from the prediction) is found as before."""
-    h, m, grav = sp.symbols("h m g", positive=True)
-    J = sp.diag(*sp.symbols("J1:4", positive=True))
-    chi = sp.Matrix(sp.symbols("chi1:4", real=True))
-
-    def L(R, xi):
-        return (xi.T * J * xi)[0, 0] / 2 - m * grav * (R * chi)[2, 0]
-
-    step = sg.ContinuousSystem(sg.SO3("R"), L, parameters=[h, m, grav, *J.diagonal(), *chi],
-                               name="top_lobatto").discretize(
-                                   h, sg.LobattoIIIAB(3)).euler_lagrange()
+    step = _top(sg.LobattoIIIAB(3), "top_lobatto")
     known = np.array([
         -0.6114015322401963, -0.7912749906717953, -0.008488551801707194, 0.1480744381032513,
         -0.1249384296895363, 0.9810526742061914, -0.7773429919634873, 0.5985601706796594,
