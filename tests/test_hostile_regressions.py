@@ -685,9 +685,11 @@ def test_names_that_break_the_printed_equations_are_refused(name):
         sg.EuclideanSpace([name])
 
 
-@pytest.mark.parametrize("names", [("theta", "θ"), ("k", "k "), ("x_{k+1}",)])
+@pytest.mark.parametrize("names", [("theta", "θ"), ("k", "k "), ("x_{k+1}",), ("Delta",),
+                                   ("Δ",)])
 def test_parameters_written_alike_or_as_step_values_are_refused(names):
-    """Parameters theta and θ printed as one; x_{k+1} as a parameter read as the unknown."""
+    """Parameters theta and θ printed as one; x_{k+1} as a parameter read as the unknown;
+    Delta as the differences Δq."""
     params = [sp.Symbol(n) for n in names]
 
     def L(g):

@@ -376,8 +376,9 @@ def step_subscript(tex: str) -> bool:
 
 def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None:
     """A parameter is printed by its name: two parameters written alike (theta and θ, a
-    Dummy and a Symbol both k, "k" and "k "), or a name that reads as a value at a step
-    (x_{k+1}), would print one equation as another."""
+    Dummy and a Symbol both k, "k" and "k "), a name that reads as a value at a step
+    (x_{k+1}), or one written Δ as the differences are, would print one equation as
+    another."""
     key = latex_name(p.name.strip())
     if key in printed:
         raise ParameterDeclarationError(
@@ -388,6 +389,11 @@ def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None
         raise ParameterDeclarationError(
             f"{system_name}: parameter {p.name!r} is written {key}, as a value at a step "
             f"(x_{{k+1}}) is; a parameter is fixed for a run: name it otherwise")
+    if key == r"\Delta":
+        raise ParameterDeclarationError(
+            f"{system_name}: parameter {p.name!r} is written \\Delta, as the printed "
+            f"equations write the differences of the coordinates (\\Delta q for "
+            f"q_{{k+1}} - q_k); name it otherwise")
 
 
 def _check_assumptions(system_name: str, what: str, undeclared: Sequence[sp.Symbol],
