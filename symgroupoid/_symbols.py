@@ -139,6 +139,12 @@ def is_multiplier_name(name: str) -> bool:
     return latex_name(name) in {latex_name(n) for n in MULTIPLIER_NAMES}
 
 
+def is_difference_name(name: str) -> bool:
+    """Whether ``name`` is written Δ, as the printed equations write the differences of the
+    coordinates (Δq for q_{k+1} − q_k): ``Delta``, ``Δ``, ``\\Delta``."""
+    return latex_name(name) == r"\Delta"
+
+
 def unprintable_name(name: str) -> str | None:
     """Why ``name`` cannot name a coordinate, a part or an input in the printed equations,
     or None: it must start with a letter (or be a LaTeX command such as ``\\theta``: a name
@@ -162,7 +168,7 @@ def unprintable_name(name: str) -> str | None:
             break
     if depth != 0:
         return "its braces are not balanced"
-    if latex_name(name) == r"\Delta":
+    if is_difference_name(name):
         return ("it is written \\Delta, as the printed equations write the differences of "
                 "the coordinates (\\Delta q for q_{k+1} - q_k: a coordinate Δ would print "
                 "as \\Delta \\Delta)")

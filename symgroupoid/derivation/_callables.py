@@ -20,7 +20,7 @@ from .._errors import (
     UndeclaredSymbolError,
     UnsupportedExpressionError,
 )
-from .._symbols import latex_name, scalar_expression
+from .._symbols import is_difference_name, latex_name, scalar_expression
 
 #: values that make an expression non-finite, with how messages describe them
 _NON_FINITE = {sp.nan: "nan (not a number)", sp.zoo: "zoo (complex infinity)",
@@ -389,7 +389,7 @@ def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None
         raise ParameterDeclarationError(
             f"{system_name}: parameter {p.name!r} is written {key}, as a value at a step "
             f"(x_{{k+1}}) is; a parameter is fixed for a run: name it otherwise")
-    if key == r"\Delta":
+    if is_difference_name(p.name.strip()):
         raise ParameterDeclarationError(
             f"{system_name}: parameter {p.name!r} is written \\Delta, as the printed "
             f"equations write the differences of the coordinates (\\Delta q for "

@@ -40,15 +40,15 @@ class NewtonOptions:
       and ``max_iterations`` allows one more:
       the remaining error, though within ``tol_step``, is systematic and above the rounding
       of u, and a conserved quantity would drift by it at every step;
-    - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast),
-      was a Newton update (its Jacobian factored at the iterate it started from) or
-      rounding noise (below) — a chord update may contract slowly without any stall — and
-      every |F_i| is at most ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_J,j| (J the
+    - when an update reduced |F|_∞ less than tenfold (Newton no longer converging fast)
+      and was a Newton update (its Jacobian factored at the iterate it started from) — a
+      chord update may contract slowly without any stall — and every |F_i| is at most
+      ``floor_factor``·(C_i + N_i), C_i = ε·Σ_j |J_ij||u_J,j| (J the
       last factored Jacobian, evaluated at u_J) and N_i its change under a move of every
       unknown by 4 ulps: stalled at the rounding floor of the unknowns and of F's own
       operations;
-    - when such an update (a Newton update or rounding noise that reduced |F|_∞ less than
-      tenfold) leaves every |F_i| ≤ ``floor_factor``·ε·S_i, S_i the size of the terms F_i
+    - when such an update (a Newton update that reduced |F|_∞ less than tenfold) leaves
+      every |F_i| ≤ ``floor_factor``·ε·S_i, S_i the size of the terms F_i
       is computed from (:func:`symgroupoid.ir.term_magnitude`, the program's
       ``F_scale``): the residual is
       within the rounding of its own evaluation — a residual written in increments of
@@ -56,12 +56,18 @@ class NewtonOptions:
       ε·|x|/h whatever the (small) unknowns;
     - when |F|_∞ ≤ ``tol_residual`` (absolute; 0, i.e. off, by default).
 
+    Every floor test above also asks that the update the last factorisation gives for the
+    residual be at most 10⁻⁶ relative to the smaller of the iterate and the guess
+    (|d_j|/(1 + min(|u_j|, |g_j|))), and none accepts an iterate whose |F|_∞ exceeds the
+    guess's a thousandfold (docs/conventions.md §11).
+
     Not converged: after ``max_iterations`` updates (status ``NOT_CONVERGED``, the iteration
     cap) at an iterate that is not at the rounding floor (the test after a final update
     above: at the floor the iterate is accepted, as a linear step is after its one update
     with ``max_iterations=1``, or a guess that already solves the step with 0), or when an
-    update that did not reduce |F|_∞ tenfold was at most 64ε times the ratio of the largest
-    to the smallest pivot (rounding noise of an update solved with that factorisation)
+    update that did not reduce |F|_∞ tenfold was a Newton update of at most 64ε times the
+    pivot ratio (the smaller of max/min |pivot| and the same with each pivot's column
+    weighted by 1 + |u_J,j|: rounding noise of an update solved with that factorisation)
     while |F| is above every floor — Newton cannot improve the iterate (``STALLED``).
 
     ``trust_factor`` (10 by default; 0 turns the check off): a step solved from an

@@ -1014,14 +1014,14 @@ static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const doub
  *    than the last update and within max_iterations): the remaining error, though within
  *    tol_step, is systematic, and a conserved quantity would drift by it at every step;
  *  - or when an update reduced |F|_inf less than tenfold (Newton is no longer converging
- *    fast), was a Newton update or rounding noise (below; a chord update may contract
- *    slowly without any stall), and every |F_i| is at most floor_factor times its change
+ *    fast) and was a Newton update (its Jacobian factored at the iterate it started from;
+ *    a chord update may contract slowly without any stall), and every |F_i| is at most
+ *    floor_factor times its change
  *    under a rounding-level move of the unknowns (SG_NAME(at_floor), with
  *    C_i = DBL_EPSILON sum_j |J_ij| |u_J,j|) and the update the last factorisation gives
- *    for that residual is at most SG_FLOOR_UPDATE (SG_NAME(update_negligible)): Newton has
- *    stalled on rounding noise;
- *  - or when such an update was a Newton update (its Jacobian factored at the iterate it
- *    started from) or rounding noise (below), and every |F_i| is at most floor_factor
+ *    for that residual is at most SG_FLOOR_UPDATE relative to the smaller of the iterate
+ *    and the guess (SG_NAME(update_negligible)): Newton has stalled on rounding noise;
+ *  - or when such an update was a Newton update, and every |F_i| is at most floor_factor
  *    DBL_EPSILON S_i, S_i the size of the terms F_i is computed from
  *    (SG_NAME(within_scale)), the update is negligible as above, and a chord update
  *    would not cut the residual by SG_TRIAL_CUT (SG_NAME(chord_cuts), one more evaluation
@@ -1029,15 +1029,16 @@ static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const doub
  *    evaluation, which the unknowns cannot undo (large knowns: positions far from the
  *    origin);
  *  - or when |F|_inf <= tol_residual (an absolute tolerance, off by default).
- *  - or when an update reduced |F|_inf less than tenfold, was at most 64 DBL_EPSILON times
- *    the ratio of the largest to the smallest pivot (rounding noise of an update solved with
- *    that factorisation), a rounding-level update explains the residual
+ *  - or when a Newton update reduced |F|_inf less than tenfold and was at most
+ *    64 DBL_EPSILON times the pivot ratio (SG_NAME(pivot_ratio): rounding noise of an update
+ *    solved with that factorisation), a rounding-level update explains the residual
  *    (SG_NAME(explained_by_rounding)) and the update it calls for is negligible as above.
  * Not converged: SG_NOT_CONVERGED after max_iterations updates (the iteration cap) when
  * the iterate is not at the rounding floor (SG_NAME(at_rounding_floor); at the floor it
  * is accepted, as a linear step is after its one update);
  * SG_STALLED when the update is that rounding noise but the residual is above every
- * floor: Newton cannot improve the iterate.
+ * floor: Newton cannot improve the iterate.  No floor test accepts an iterate whose
+ * |F|_inf exceeds its guess's by SG_GUESS_MARGIN.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
 static int SG_NAME(newton)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
