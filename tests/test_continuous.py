@@ -104,6 +104,28 @@ def test_from_velocity_starts_along_the_velocity():
         sim.from_velocity({"theta": 0.3}, [0.5, 1.0], {"h": 1e-3, "g": 9.81})
 
 
+def test_from_velocity_reaches_a_velocity_beyond_newtons_first_update():
+    """L = −√(1 − v²): the momentum of v₀ = 0.9 is 2.06, and Newton's first update from zero
+    velocity lands at v = 2.06, outside L's domain (it stopped on non-finite values).  The
+    root is followed from the guess instead; on the free particle the midpoint rule's first
+    arrow has exactly (x₁ − x₀)/h = v₀."""
+    free = sg.ContinuousSystem(sg.EuclideanSpace("x"), lambda q, v: -sp.sqrt(1 - v[0] ** 2),
+                               parameters=[h], name="relativistic")
+    sim = free.discretize(h).euler_lagrange().compile()
+    for v0 in (0.9, -0.99):
+        state = sim.from_velocity({"x": 0.5}, [v0], {"h": 0.01})
+        assert (state[1] - state[0]) / 0.01 == pytest.approx(v0, rel=1e-12, abs=0)
+    # L = √(1 + v²): every momentum lies in (−1, 1), so 2 has no initial state
+    bounded = sg.ContinuousSystem(sg.EuclideanSpace("x"), lambda q, v: sp.sqrt(1 + v[0] ** 2),
+                                  parameters=[h], name="bounded_momentum")
+    sim = bounded.discretize(h).euler_lagrange().compile()
+    with pytest.raises((sg.NewtonDivergenceError, sg.SingularJacobianError),
+                       match="no solution is connected to the guess"):
+        sim.from_momentum({"x": 0.0}, [2.0], {"h": 0.01})
+    assert (sim.from_momentum({"x": 0.0}, [0.6], {"h": 0.01})[1] / 0.01
+            == pytest.approx(0.75, rel=1e-12))
+
+
 def _pendulum_reference(T: float) -> float:
     sol = solve_ivp(lambda t, y: [y[1], -9.81 * np.sin(y[0])], (0, T), [0.3, 0.5],
                     method="DOP853", rtol=1e-13, atol=1e-13)

@@ -28,7 +28,7 @@ from .._errors import (
 )
 from ..equations import momentum_program, second_order_momentum_program
 from ._layout import StateLayout
-from ._newton import ROUNDING_UPDATE, converged, newton  # noqa: F401 (re-exported)
+from ._newton import ROUNDING_UPDATE, continued_newton, converged, newton  # noqa: F401 (re-exported)
 from ._validate import arrow as checked_arrow
 from ._validate import group_element, real_array
 
@@ -143,7 +143,7 @@ class MomentumInitializer:
             F, J = self._FJ(z, q, p, params, *extra)
             return np.asarray(F, float).ravel(), np.asarray(J, float).reshape(n, n)
 
-        z = newton(residual, z, tol, max_iterations, self.name, _SOLVING,
+        z = continued_newton(residual, z, tol, max_iterations, self.name, _SOLVING,
                    "F⁻L is not invertible at this configuration (singular Jacobian)",
                    _NOT_FOUND)
         _check_representable(residual, z, p, self.name)
@@ -209,6 +209,6 @@ class SecondOrderMomentumInitializer:
             raise DomainError(f"{self.name}: non-finite momentum {p.tolist()}")
         guess = np.asarray(self._guess(g0)[0], float).ravel()
         z = np.concatenate([guess, guess, np.zeros(2 * self.m)])
-        z = newton(lambda z: self._residual(z, g0, p, params)[:2], z, tol, max_iterations,
+        z = continued_newton(lambda z: self._residual(z, g0, p, params)[:2], z, tol, max_iterations,
                    self.name, _SOLVING, "F⁻L is not invertible here", _NOT_FOUND)
         return self._residual(z, g0, p, params)[2]
