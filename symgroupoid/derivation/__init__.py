@@ -9,6 +9,7 @@ from ._assembly import (
 )
 from ._callables import (
     as_scalar,
+    as_scalar_list,
     call_user,
     check_parameters,
     check_symbols,
@@ -85,7 +86,8 @@ from ._window import step_jacobian
 __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep", "check_metric",
            "ForceFunctions", "JunctionNodes", "LegendreForms", "LiePoissonForms", "NoetherForms",
            "Partial", "PieceRule", "SystemFunctions", "TermNodes", "WindowAction", "WindowPieces",
-           "as_scalar", "call_user", "check_parameters", "checked_callable", "chart_of",
+           "as_scalar", "as_scalar_list", "call_user", "check_parameters", "checked_callable",
+           "chart_of",
            "holonomic_functions",
            "check_nonholonomic_dimensions", "check_symbols", "check_values",
            "conserved_quantities", "distribution_coefficients", "energy_momentum_step",

@@ -193,6 +193,10 @@ def as_scalar(system_name: str, what: str, value) -> sp.Expr:
     if isinstance(value, (list, tuple, set, dict)):
         raise ShapeError(f"{system_name}: the {what} returned a {type(value).__name__}; "
                          "it must be a scalar")
+    if isinstance(value, (str, bytes)):
+        raise ShapeError(f"{system_name}: the {what} returned the string {value!r}; it must "
+                         f"be a SymPy expression (a string's symbols would not be the "
+                         f"coordinates)")
     try:
         expr = sp.sympify(value)
     except (sp.SympifyError, TypeError, ValueError, AttributeError) as exc:

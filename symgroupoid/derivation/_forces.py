@@ -37,7 +37,7 @@ from .._symbols import (
     unprintable_name,
 )
 from ..groupoids import Groupoid
-from ._callables import as_scalar_list, call_user, check_symbols, step_subscript
+from ._callables import as_scalar_list, call_user, check_symbols, check_values, step_subscript
 from ._junction import slot, slot_substitution
 
 
@@ -267,6 +267,7 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     parts = []
     for side, part in zip(sides, value):
         components = as_scalar_list(name, f"forces ({side})", part)
+        check_values(name, f"forces ({side})", components, arrows)
         if side == "f_stages":
             if len(components) != len(stages):
                 raise ShapeError(f"{name}: the forces' f_stages has {len(components)} "

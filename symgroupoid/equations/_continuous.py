@@ -47,6 +47,7 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from ..derivation import (
+    as_scalar_list,
     call_user,
     check_parameters,
     checked_callable,
@@ -439,12 +440,12 @@ class ContinuousSystem:
     def _force(self, q, v) -> list:
         value = call_user(self.name, "F(q, v)", self.forces, q, v,
                           display=getattr(self, "_display", {}))
-        value = list(value)
+        value = as_scalar_list(self.name, "F(q, v)", value)
         n = sum(f.dim for f in self.factors)
         if len(value) != n:
             raise ShapeError(f"{self.name}: F(q, v) returned {len(value)} components; one "
                              f"generalised force per coordinate ({n})")
-        return [sp.sympify(c) for c in value]
+        return value
 
     def momentum(self, q, v: Sequence[sp.Symbol]) -> list:
         """p = ∂L/∂v (the continuous Legendre transform) at the configuration ``q`` (as L

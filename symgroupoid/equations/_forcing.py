@@ -22,11 +22,13 @@ that moves both bodies alike.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 
 import sympy as sp
 
 from .._arguments import (
+    MAX_DIMENSION,
     callable_argument,
     choice_argument,
     integer_argument,
@@ -34,6 +36,7 @@ from .._arguments import (
     shown_value,
 )
 from .._errors import CallableError, DomainError, InputTypeError, ShapeError
+from ..derivation import as_scalar, as_scalar_list, check_values
 
 _RULES = ("midpoint", "trapezoid")
 
@@ -56,11 +59,11 @@ def _force(F: Callable, q: list, v: list, what: str) -> list:
     if not callable(F):
         raise CallableError(f"{what}: F must be a function F(q, v) -> [forces], got a "
                             f"{type(F).__name__}")
-    value = list(F(q, v))
+    value = as_scalar_list(what, "F(q, v)", F(q, v))
     if len(value) != len(q):
         raise ShapeError(f"{what}: F returned {len(value)} components for {len(q)} "
                          f"coordinates; one generalised force per coordinate")
-    return [sp.sympify(f) for f in value]
+    return value
 
 
 def _step_argument(h, owner: str) -> sp.Expr:
@@ -75,9 +78,14 @@ def _step_argument(h, owner: str) -> sp.Expr:
             or value.is_real is False:
         raise InputTypeError(f"{owner}: h must be the time step (a SymPy symbol, as a rule), "
                              f"got {type(h).__name__} {shown_value(h)}")
-    if value.is_number and not (value.is_finite and value.is_positive):
-        raise DomainError(f"{owner}: the time step h must be positive and finite, got "
-                          f"{shown_value(h)}")
+    if value.is_number and not (value.is_finite and value.is_positive
+                                and 0.0 < float(value) < math.inf):
+        raise DomainError(f"{owner}: the time step h must be positive and finite (as a "
+                          f"double), got {shown_value(h)}")
+    if value.is_positive is False:
+        sign = "zero" if value.is_zero else "negative"
+        raise DomainError(f"{owner}: the time step h must be positive, got {value}, which "
+                          f"its symbols' assumptions make {sign}")
     return value
 
 
@@ -122,7 +130,8 @@ def rayleigh_damping(D: Callable, h: sp.Symbol, rule: str = "midpoint") -> Calla
 
     def F(q, v):
         dummies = [sp.Dummy(f"v{i}", real=True) for i in range(len(v))]
-        value = sp.sympify(D(q, dummies))
+        value = as_scalar("rayleigh_damping", "dissipation function D(q, v)", D(q, dummies))
+        check_values("rayleigh_damping", "dissipation function D(q, v)", value)
         return [-sp.diff(value, d).xreplace(dict(zip(dummies, v))) for d in dummies]
 
     return (midpoint_forces if rule == "midpoint" else trapezoid_forces)(F, h)
@@ -137,8 +146,8 @@ def body_torque(tau: Callable | Sequence, h: sp.Symbol) -> Callable:
     h = _step_argument(h, "body_torque")
 
     def forces(g):
-        value = list(tau(g) if callable(tau) else tau)
-        half = [h / 2 * sp.sympify(t) for t in value]
+        value = as_scalar_list("body_torque", "torque", tau(g) if callable(tau) else tau)
+        half = [h / 2 * t for t in value]
         return half, list(half)
 
     return forces
@@ -151,7 +160,8 @@ def joint_torque(rank: int, first: Sequence[int], second: Sequence[int],
     the two bodies' directions the joint acts along), held over the step as
     :func:`body_torque`.  Such forces are internal: they cancel along a symmetry that moves
     both bodies alike, whose Noether quantity they leave conserved."""
-    rank = integer_argument(rank, "rank", minimum=1, owner="joint_torque")
+    rank = integer_argument(rank, "rank", minimum=1, maximum=MAX_DIMENSION,
+                            owner="joint_torque")
     first = [integer_argument(i, "first", owner="joint_torque")
              for i in sequence_argument(first, "first", owner="joint_torque")]
     second = [integer_argument(i, "second", owner="joint_torque")
@@ -166,7 +176,7 @@ def joint_torque(rank: int, first: Sequence[int], second: Sequence[int],
         raise ShapeError(f"joint_torque: section indices must lie in 0 … {rank - 1}")
 
     def forces(g):
-        value = [sp.sympify(t) for t in (tau(g) if callable(tau) else tau)]
+        value = as_scalar_list("joint_torque", "torque", tau(g) if callable(tau) else tau)
         if len(value) != len(first):
             raise ShapeError(f"joint_torque: {len(value)} torque components for "
                              f"{len(first)} directions")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Mapping, Sequence
 
 import numpy as np
@@ -25,6 +26,34 @@ from ._step import StepEquations
 
 #: characters of an expression shown in a repr before it is cut
 REPR_WIDTH = 60
+
+
+def _parameter_value(symbol: sp.Symbol, value, entry: str) -> float:
+    """A trajectory's value of ``symbol`` as a float: a number (:class:`ParameterError`
+    otherwise), finite and of the sign the symbol is declared with (:class:`DomainError`)."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(f"NoetherQuantity.{entry}: the trajectory's value of {symbol} "
+                             f"is not a number: {value!r}") from None
+    if not math.isfinite(number):
+        raise DomainError(f"NoetherQuantity.{entry}: the trajectory's value of {symbol} is "
+                          f"{number}; parameters must be finite")
+    if (symbol.is_positive and number <= 0) or (symbol.is_nonnegative and number < 0):
+        sign = "positive" if symbol.is_positive else "nonnegative"
+        raise DomainError(f"NoetherQuantity.{entry}: {symbol} is declared {sign}, the "
+                          f"trajectory's value is {number}")
+    return number
+
+
+def _finite_values(out: np.ndarray, entry: str, what: str, where: str) -> None:
+    """A :class:`DomainError` at the first non-finite entry of ``out``: ``what`` overflows
+    at that ``where`` (state or step) of finite states."""
+    if not np.isfinite(out).all():
+        k = int(np.flatnonzero(~np.isfinite(out))[0])
+        raise DomainError(f"NoetherQuantity.{entry}: {what} is not finite at {where} {k} "
+                          f"({out[k]}): it overflows there (check the section's "
+                          f"coefficients and the parameters)")
 
 
 def _short(expr) -> str:
@@ -324,7 +353,7 @@ class NoetherQuantity:
                                  f"{', '.join(foreign)} that the quantity's system (parameters"
                                  f" {', '.join(names) or 'none'}) does not have: it is a run "
                                  f"of another system; use a trajectory of this system's step")
-        return np.array([float(values[n]) for n in names])
+        return np.array([_parameter_value(s, values[str(s)], entry) for s in self.parameters])
 
     def along(self, trajectory) -> np.ndarray:
         """F_X at every kept state of ``trajectory``, shape (R,): one vectorised evaluation.
@@ -361,11 +390,7 @@ class NoetherQuantity:
         with np.errstate(all="ignore"):
             (F,) = self._at_stages(["F"], np.ascontiguousarray(states.T), p, u)
             out = np.broadcast_to(np.asarray(F[0], float), (len(states),))
-        if not np.isfinite(out).all():
-            k = int(np.flatnonzero(~np.isfinite(out))[0])
-            raise DomainError(f"NoetherQuantity.along: the quantity F_X = {_short(self.expr)} "
-                              f"is not finite at state {k} ({out[k]}): it overflows there "
-                              f"(check the section's coefficients and the parameters)")
+        _finite_values(out, "along", f"the quantity F_X = {_short(self.expr)}", "state")
         return out.copy()
 
     def impulse(self, trajectory) -> np.ndarray:
@@ -409,6 +434,7 @@ class NoetherQuantity:
             out = np.broadcast_to(np.asarray(f(np.ascontiguousarray(a.T),
                                                np.ascontiguousarray(b.T), p)[0][0], float),
                                   (len(a),))
+        _finite_values(out, "impulse", "the forces' impulse", "step")
         return out.copy()
 
     def _impulse_with_stages(self, states: np.ndarray, n: int, m: int,
@@ -431,6 +457,7 @@ class NoetherQuantity:
             (junction,) = g(a, b, zeta[:, :-1], zeta[:, 1:], p)
             out = np.broadcast_to(np.asarray(junction[0], float) - np.asarray(defect[0], float),
                                   (len(states) - 1,))
+        _finite_values(out, "impulse", "the forces' impulse", "step")
         return out.copy()
 
     impulse_form = None  # (I, a, b, inputs at a, inputs at b), set for a forced system
