@@ -123,3 +123,20 @@ def test_the_parameters_a_trajectory_carries_are_checked(value, error, message):
     for entry in (nq.impulse, nq.along):
         with pytest.raises(error, match=message):
             entry(run)
+
+
+def test_the_messages_about_inputs_say_where_an_input_belongs():
+    """(An input in L was told to be declared a parameter, which was then refused as both;
+    a continuous system with inputs and no forces was told the discrete forces' signature;
+    a force with an undeclared input was pointed to parameters only.)"""
+    plane = lambda q, v: (v[0] ** 2 + v[1] ** 2) / 2  # noqa: E731
+    in_L = sg.ContinuousSystem(PLANE, lambda q, v: plane(q, v) - u * q[0], parameters=[h],
+                               forces=lambda q, v: [u, 0], inputs=[u], name="in_L")
+    with pytest.raises(sg.UndeclaredSymbolError, match="declared as input.*use it in forces="):
+        in_L.discretize(h).euler_lagrange()
+    with pytest.raises(sg.UnsupportedFeatureError, match=r"forces=F with F\(q, v\)"):
+        sg.ContinuousSystem(PLANE, plane, parameters=[h], inputs=[u], name="no_forces")
+    undeclared = sg.ContinuousSystem(PLANE, plane, parameters=[h],
+                                     forces=lambda q, v: [u, 0], name="undeclared")
+    with pytest.raises(sg.UndeclaredSymbolError, match=r"in inputs=\[\.\.\.\]"):
+        undeclared.discretize(h).euler_lagrange()

@@ -318,10 +318,13 @@ def free_symbols_of(exprs: Iterable[sp.Expr]) -> set:
 
 
 def check_symbols(system_name: str, what: str, exprs: Iterable[sp.Expr],
-                  coordinates: Sequence, parameters: Sequence) -> None:
+                  coordinates: Sequence, parameters: Sequence, inputs: Sequence = (),
+                  forces: bool = False) -> None:
     """Raise :class:`UndeclaredSymbolError` naming symbols that are neither coordinates
     nor declared parameters, and :class:`ParameterDeclarationError` for parameters that are
-    not SymPy symbols or that match a used symbol by name but not by assumptions."""
+    not SymPy symbols or that match a used symbol by name but not by assumptions.
+    ``inputs``: the system's inputs, which ``exprs`` (not forces) may not use: the message
+    says where they belong; ``forces``: ``exprs`` are forces, which may also use inputs."""
     free = free_symbols_of(exprs)
     check_parameters(system_name, what, parameters, free)
     allowed = set(coordinates) | set(parameters)
@@ -329,9 +332,18 @@ def check_symbols(system_name: str, what: str, exprs: Iterable[sp.Expr],
     if bad:
         _check_assumptions(system_name, what, bad, parameters)
         names = ", ".join(str(s) for s in bad)
+        declared = [s for s in bad if s in set(inputs)]
+        if declared:
+            raise UndeclaredSymbolError(
+                f"{system_name}: the {what} uses {', '.join(map(str, declared))}, declared "
+                f"as input(s): an input enters only through the forces (its value belongs "
+                f"to each arrow); use it in forces=, or declare it among the parameters "
+                f"(fixed for a run) instead of the inputs")
+        also = (" (or, for a value that changes from step to step, in inputs=[...])"
+                if forces else "")
         raise UndeclaredSymbolError(
             f"{system_name}: the {what} uses symbol(s) {names} that are neither coordinates of "
-            f"the arrow nor declared parameters; pass them in parameters=[...]")
+            f"the arrow nor declared parameters; pass them in parameters=[...]{also}")
 
 
 def _shown(s: sp.Symbol) -> str:

@@ -278,7 +278,8 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
                              f"per basis section, in the order of the step's residuals)")
         parts.append(components)
     check_symbols(name, what, [f for part in parts for f in part],
-                  [c for a in arrows for c in a] + list(stages), [*parameters, *inputs])
+                  [c for a in arrows for c in a] + list(stages), [*parameters, *inputs],
+                  forces=True)
     if stages:
         return ForceFunctions(arrows, list(inputs), parts[:-1], stages, parts[-1])
     return ForceFunctions(arrows, list(inputs), parts)

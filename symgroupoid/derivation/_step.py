@@ -177,7 +177,7 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
                                                 *([list(zeta)] if zeta else []), smooth=True))
     coords = [c for s in slots for c in s] + list(zeta)
     if not matrix_form:
-        check_symbols(name, "Lagrangian", [L], coords, parameters)
+        check_symbols(name, "Lagrangian", [L], coords, parameters, inputs)
         maps, placeholders = groupoid.map_expressions(slots[0])
         check_symbols(name, f"groupoid {groupoid.name} (its structure maps)",
                       [sp.sympify(e) for e in maps], [*coords, *placeholders], parameters)
@@ -186,7 +186,7 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
         raw = call_user(name, "constraints", constraints, *views, smooth=True)
         phis = as_scalar_list(name, "constraints", raw)
         if not matrix_form:
-            check_symbols(name, "constraints", phis, coords, parameters)
+            check_symbols(name, "constraints", phis, coords, parameters, inputs)
     base = tuple(sp.Dummy(f"q{i}", real=True) for i in range(groupoid.base_dim))
     psis = [] if holonomic is None else holonomic_functions(name, groupoid, holonomic, base,
                                                            parameters)

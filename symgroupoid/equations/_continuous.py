@@ -174,6 +174,11 @@ class ContinuousSystem:
         self.forces = forces
         self.inputs = sequence_argument([inputs] if isinstance(inputs, sp.Symbol) else inputs,
                                         "inputs", owner=name)
+        if self.inputs and forces is None:
+            raise UnsupportedFeatureError(
+                f"{name}: inputs {', '.join(map(str, self.inputs))} are declared but the "
+                f"system has no forces to use them; pass forces=F with F(q, v) -> [one "
+                f"generalised force per coordinate] in the inputs")
 
     def _values(self, parts: list):
         return tuple(parts) if self.product else parts[0]
