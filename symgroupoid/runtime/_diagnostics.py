@@ -77,9 +77,11 @@ class _Evaluator:
         out = np.asarray(out, float).T  # (R, n)
         if not np.isfinite(out).all():
             row = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
-            raise DiagnosticsError(f"{self.sg.name}: {label} is not finite at kept state {row} "
+            shown = {"energy": "the energy", "stages": "the internal stages"}.get(key, key)
+            raise DiagnosticsError(f"{self.sg.name}: {shown} is not finite at kept state {row} "
                                    f"({out[row].tolist()}): it overflows there or is not "
-                                   f"defined (check the parameters)")
+                                   f"defined there (check the parameters, and that the run "
+                                   f"stays where the Lagrangian is defined)")
         return out
 
 
