@@ -807,3 +807,23 @@ def test_an_atiyah_connection_outside_the_group_is_refused_at_construction():
         return sp.Matrix([[sp.cos(a), -sp.sin(a)], [sp.sin(a), sp.cos(a)]])
 
     sg.AtiyahGroupoid(factors, sg.SO2, connection=turn)  # in the group
+
+
+@pytest.mark.parametrize("scale", ["1e200", "1e-200"])
+def test_a_regular_lagrangian_scaled_by_a_huge_or_tiny_constant_is_not_degenerate(scale):
+    """(Its Jacobian's norms overflowed or underflowed in the regularity checks: "singular at
+    every sampled point (rank 0 of 1)" at 1e200, "the Euler–Lagrange equations vanish
+    identically" at 1e-200, where 1e±150 ran.)  A constant factor leaves the motion as
+    it is."""
+    h = sp.Symbol("h", positive=True)
+    c = sp.Float(scale)
+
+    def L(g):
+        (x0,), (x1,) = g.source, g.target
+        return c * ((x1 - x0) ** 2 / (2 * h) - h * (x0 + x1) ** 2 / 8)
+
+    G = sg.PairGroupoid(sg.EuclideanSpace(["x"]))
+    final = [sg.DiscreteSystem(G, lagrangian, parameters=[h], name="scaled").euler_lagrange()
+             .compile(backend="numpy").simulate({"x": (0.0, 0.1)}, 3, {"h": 0.1}).states[-1]
+             for lagrangian in (L, lambda g: L(g) / c)]
+    np.testing.assert_allclose(final[0], final[1], rtol=1e-13)

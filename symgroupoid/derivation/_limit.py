@@ -95,7 +95,14 @@ def _converges(values: Sequence[np.ndarray], scale: float) -> bool:
     """Whether the last two values agree to :data:`_CONVERGED` of their size (plus
     ``scale``, the size the values are compared with)."""
     last, before = np.asarray(values[-1], float), np.asarray(values[-2], float)
-    return bool(np.linalg.norm(last - before) <= _CONVERGED * (np.linalg.norm(last) + scale))
+    return bool(_norm(last - before) <= _CONVERGED * (_norm(last) + scale))
+
+
+def _norm(x: np.ndarray) -> float:
+    """The Euclidean norm without overflow: scaled by the largest |entry| first (the values
+    of a Lagrangian scaled by 1e200 squared to infinity)."""
+    m = float(np.max(np.abs(x), initial=0.0))
+    return m * float(np.linalg.norm(x / m)) if 0.0 < m < np.inf else m
 
 
 @dataclass(frozen=True)

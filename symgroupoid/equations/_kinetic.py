@@ -154,6 +154,11 @@ def _leading_terms(step, layout: Layout, point, time_step, timed: bool) -> Leadi
         return None
     if not all(np.all(np.isfinite(J)) for _, J in values):
         return None
+    # one common factor leaves every rank and null space as it is, and keeps the norms and
+    # factorisations below in range (a Lagrangian scaled by 1e200 overflowed them)
+    size = max(float(np.max(np.abs(J), initial=0.0)) for _, J in values)
+    if size > 0:
+        values = [(F / size, J / size) for F, J in values]
     crows, mcols = layout.constraint_rows, layout.multiplier_columns
     free = [i for i in range(len(layout.labels)) if i not in crows][int(timed):]
     chart = [j for j in range(len(layout.unknowns)) if j not in mcols][int(timed):]
