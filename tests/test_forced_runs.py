@@ -44,6 +44,13 @@ def test_a_batch_with_per_run_inputs_is_bitwise_the_runs(oscillator, every):
         assert np.array_equal(batch[b].newton_iterations, run.newton_iterations)
 
 
+def test_a_table_per_run_without_its_last_axis_names_the_per_run_shape(oscillator):
+    """(Inputs of shape (B, steps) for one input were refused with a message naming the
+    shared shapes (steps, 1) and (1,) only.)"""
+    with pytest.raises(sg.ShapeError, match=r"or \(5, 25, 1\) for inputs of each run"):
+        oscillator.simulate_batch(_starts(5), STEPS, PARAMS, inputs=_table(5)[:, :, 0])
+
+
 def test_inputs_shared_by_every_run_and_held_constant(oscillator):
     starts = _starts(3)
     U = _table(1)[0]

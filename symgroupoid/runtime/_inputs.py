@@ -75,9 +75,15 @@ def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
         return None
     inputs = named_columns(inputs, layout.input_names, owner=owner)
     arr = None if inputs is None else real_array(inputs, "inputs", owner=owner)
-    if arr is None or arr.ndim != 3 or layout.n_inputs == 0:
-        return input_sequence(layout, arr, steps, owner=owner)
     m = layout.n_inputs
+    if arr is None or arr.ndim != 3 or m == 0:
+        try:
+            return input_sequence(layout, arr, steps, owner=owner)
+        except ShapeError as exc:
+            if m == 0 or arr is None:
+                raise
+            raise ShapeError(f"{exc}; or ({n_batch}, {steps}, {m}) for inputs of each run "
+                             f"(a table per run)") from None
     if arr.shape != (n_batch, steps, m):
         raise ShapeError(f"{owner}: per-run inputs need shape ({n_batch}, {steps}, {m}) (a "
                          f"row of the inputs {', '.join(layout.input_names)} per step of each "
