@@ -210,6 +210,27 @@ def test_a_stalled_newton_iteration_raises_instead_of_returning(so3_control):
     assert err.iterate.shape == (10, 9)
 
 
+@pytest.mark.parametrize("steps, tol", [(20, 1e-2), (1000, 1e-6)])
+def test_a_loose_tol_does_not_accept_a_smooth_path_that_is_no_solution(steps, tol):
+    """The straight path between the ends of a spring (L = Δq²/(2h) − hk(q₀² + q₁²)/4) has
+    a DEL residual hk·q_j, O(h²) of the terms' sensitivity to the coordinates: tol accepted
+    it after 0 iterations, 43 % of the way from the solution (verify_stationary False).
+    The Newton update from it must be below tol too."""
+    k = sp.Symbol("k", positive=True)
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return (q1 - q0) ** 2 / (2 * h) - h * k * (q0 ** 2 + q1 ** 2) / 4
+
+    spring = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h, k],
+                               name="spring")
+    params = {"h": 1.0 / steps, "k": 4.0}
+    exact = sg.solve_boundary_value(spring, 0.0, 1.0, steps, params=params)
+    loose = sg.solve_boundary_value(spring, 0.0, 1.0, steps, params=params, tol=tol)
+    assert loose.iterations >= 1 and sg.verify_stationary(loose, spring)
+    assert np.abs(loose.arrows - exact.arrows).max() <= 10 * tol
+
+
 def test_the_iteration_cap_reports_iterations_and_residual(so3_control):
     end = rotation([0.3, -0.5, 0.8], 2.0)
     with pytest.raises(BoundaryValueDivergenceError, match="did not converge in 1 iteration")\

@@ -50,9 +50,9 @@ def _fast_newton(state: _SolverState) -> None:
     while True:
         state.record()
         recent.append(state.iterate)
-        excess = state.excess()
-        if excess <= 1.0:
+        if state.converged():
             return
+        excess = state.excess()
         state.check_budget(excess)
         try:
             dz = state.newton_direction()

@@ -67,9 +67,9 @@ def _globalised(state: _SolverState, arrows, lam) -> None:
     lam_rows = _multiplier_rows(state.problem.lay, state.problem.m)
     while True:
         state.record()
-        excess = state.excess()
-        if excess <= 1.0:
+        if state.converged():
             return
+        excess = state.excess()
         state.check_budget(excess)
         dz, mu, curvature = _convexified_direction(state, mu_last)
         mu_last = mu
