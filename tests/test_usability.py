@@ -454,6 +454,12 @@ def test_loading_refuses_values_no_run_writes(tmp_path):
     (tmp_path / "big.csv").write_text("\n".join(lines) + "\n")
     with pytest.raises(sg.TrajectoryFileError, match="beyond the range of a 64-bit"):
         sg.Trajectory.load(tmp_path / "big.csv", sim, params={"h": 0.01})
+    # cut inside its last number (4.5797e-15 loaded as 4.57) or inside any row: refused
+    whole = (tmp_path / "a.csv").read_bytes()
+    for cut in (whole.rfind(b",") + 3, whole.find(b",", len(whole) // 2) + 1):
+        (tmp_path / "cut.csv").write_bytes(whole[:cut])
+        with pytest.raises(sg.TrajectoryFileError, match="cut short"):
+            sg.Trajectory.load(tmp_path / "cut.csv", sim, params={"h": 0.01})
 
 
 def test_saving_names_the_target_and_takes_any_legal_name(tmp_path, capsys):

@@ -381,8 +381,18 @@ def _integers(array: np.ndarray, name: str, label: str) -> np.ndarray:
 def _read_csv(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
     try:
         with open(path, newline="", encoding="utf-8") as f:
-            rows = list(csv.reader(f))
-    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            text = f.read()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise TrajectoryFileError(f"{label}: cannot be read as .csv ({exc})") from None
+    if text and not text.endswith(("\r\n", "\n")):
+        # every row the library writes ends its line: a last line without its end was cut
+        # (inside its last number, 4.5797e-15 read as 4.57)
+        raise TrajectoryFileError(f"{label}: the file ends inside its last row: it was cut "
+                                  f"short (a .csv cut exactly at a line's end cannot be told "
+                                  f"from a shorter run; .npz files are checked whole)")
+    try:
+        rows = list(csv.reader(io.StringIO(text, newline="")))
+    except csv.Error as exc:
         raise TrajectoryFileError(f"{label}: cannot be read as .csv ({exc})") from None
     if not rows or len(rows[0]) < 3 or rows[0][0] != "step" or \
             tuple(rows[0][-2:]) != _CSV_TAIL:
