@@ -437,7 +437,8 @@ def test_loading_refuses_values_no_run_writes(tmp_path):
             ("nan", {"residual_norms": np.full(n, np.nan)}, "residual norms must be finite"),
             ("negative", {"newton_iterations": np.full(n, -7)}, "iteration counts must be"),
             ("every", {"every": np.array(1)}, "not those of a run keeping every 1"),
-            ("inf", {"every": np.array(np.inf)}, "every must be an integer")]:
+            ("inf", {"every": np.array(np.inf)}, "every must be an integer"),
+            ("negative", {"step_indices": arrays["step_indices"] - 5}, "begin at step -5")]:
         bad = tmp_path / f"{name}.npz"
         np.savez(bad, **{**arrays, **change})
         with pytest.raises(sg.TrajectoryFileError, match=message):
@@ -460,6 +461,28 @@ def test_loading_refuses_values_no_run_writes(tmp_path):
         (tmp_path / "cut.csv").write_bytes(whole[:cut])
         with pytest.raises(sg.TrajectoryFileError, match="cut short"):
             sg.Trajectory.load(tmp_path / "cut.csv", sim, params={"h": 0.01})
+
+
+def test_saving_keeps_a_read_only_file_and_a_files_mode(tmp_path):
+    """(A file of mode 0444 was replaced, and with mode 0644; a file of mode 0600 became
+    0644.)  A symbolic link is replaced, not written through (tests/test_cli.py)."""
+    import stat
+
+    sim = _ring("ring").euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate(RING0, 3, {"h": 0.01})
+    locked = tmp_path / "locked.npz"
+    locked.write_bytes(b"old")
+    locked.chmod(0o444)
+    with pytest.raises(sg.OutputError, match="read-only"):
+        traj.save(locked)
+    assert locked.read_bytes() == b"old"
+    private = tmp_path / "private.csv"
+    private.write_text("old")
+    private.chmod(0o600)
+    traj.save(private)
+    assert stat.S_IMODE(private.stat().st_mode) == 0o600
+    assert np.array_equal(sg.Trajectory.load(private, sim, params={"h": 0.01}).states,
+                          traj.states)
 
 
 def test_saving_names_the_target_and_takes_any_legal_name(tmp_path, capsys):

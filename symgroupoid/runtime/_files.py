@@ -26,6 +26,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import stat
 import tempfile
 import zipfile
 from collections.abc import Callable
@@ -58,9 +59,21 @@ TEMPORARY_PREFIX = 64
 
 def atomic_write(path: Path, write: Callable[[io.IOBase], None], binary: bool) -> None:
     """Write ``path`` through ``write(file)`` into a temporary file beside it, renamed into
-    place at the end (permissions as a new file's under the umask).  A failure of the file
+    place at the end (permissions those of the file it replaces, else a new file's under
+    the umask).  A failure of the file
     system (full disk, no permission, the target a directory) is an
-    :class:`~symgroupoid.OutputError` naming ``path``; the temporary file is removed."""
+    :class:`~symgroupoid.OutputError` naming ``path``; the temporary file is removed.
+    A symbolic link is replaced, never written through (the file it names may lie outside
+    what the caller meant to write); an existing file without write permission is an
+    :class:`~symgroupoid.OutputError` (the rename would replace it where ``open`` would
+    refuse)."""
+    try:
+        mode = path.lstat().st_mode
+    except OSError:
+        mode = None
+    if mode is not None and stat.S_ISREG(mode) and not mode & 0o222:
+        raise OutputError(f"{str(path)!r} cannot be written: it is read-only (mode "
+                          f"{stat.S_IMODE(mode):o})")
     try:
         fd, temporary = tempfile.mkstemp(prefix=f".{path.name[:TEMPORARY_PREFIX]}.",
                                          dir=path.parent)
@@ -70,7 +83,8 @@ def atomic_write(path: Path, write: Callable[[io.IOBase], None], binary: bool) -
         with os.fdopen(fd, "wb" if binary else "w", **({} if binary else
                                                        {"newline": "", "encoding": "utf-8"})) as f:
             write(f)
-        os.chmod(temporary, 0o666 & ~current_umask())
+        kept = mode is not None and stat.S_ISREG(mode)  # an existing file keeps its mode
+        os.chmod(temporary, stat.S_IMODE(mode) if kept else 0o666 & ~current_umask())
         os.replace(temporary, path)
     except BaseException as exc:
         try:
@@ -226,6 +240,10 @@ def read_trajectory(path, layout, parameter_names: list[str], *,
     gaps = np.diff(data.step_indices)
     if not (gaps > 0).all():
         raise TrajectoryFileError(f"{label}: its step indices do not increase")
+    if data.step_indices[0] < 0:
+        raise TrajectoryFileError(f"{label}: its step indices begin at step "
+                                  f"{int(data.step_indices[0])}; a run's steps are counted "
+                                  f"from 0")
     if rows > 1 and ((gaps[:-1] != data.every).any() or gaps[-1] > data.every):
         raise TrajectoryFileError(
             f"{label}: its step indices are not those of a run keeping every {data.every} "
