@@ -580,3 +580,21 @@ def test_a_group_times_a_euclidean_space_is_a_manifold_in_either_order():
     assert repr(left).startswith("SE2") and repr(right).startswith("EuclideanSpace")
     with pytest.raises(sg.InputTypeError, match="multiplied by a groupoid"):
         sg.SE2("g") * 3
+
+
+
+@pytest.mark.parametrize("row", [1, -1])
+def test_a_file_whose_first_or_last_state_is_off_the_group_names_the_file(tmp_path, row):
+    """(A middle row off SO(3) was a TrajectoryFileError naming the file and the row; the
+    first or last row a bare DomainError naming neither.)"""
+    sim = sg.systems.rigid_body().euler_lagrange().compile(backend="numpy")
+    params = {"h": 0.01, "I1": 1.0, "I2": 2.0, "I3": 3.0}
+    R = np.array(sg.SO3("W").cayley([0.02, 0.05, -0.03]).tolist(), float)
+    sim.simulate(sim.state({"W": R}), 5, params).save(tmp_path / "run.csv")
+    lines = (tmp_path / "run.csv").read_text().splitlines()
+    cells = lines[row].split(",")
+    cells[1] = repr(float(cells[1]) + 1e-3)
+    lines[row] = ",".join(cells)
+    (tmp_path / "off.csv").write_text("\n".join(lines) + "\n")
+    with pytest.raises(sg.TrajectoryFileError, match=r"off\.csv'?: its state \d+ \(of 6\)"):
+        sg.Trajectory.load(tmp_path / "off.csv", sim, params=params)

@@ -241,14 +241,14 @@ class Trajectory:
             raise TrajectoryFileError(f"{layout.step_name}: {str(path)!r} is a .csv "
                                       f"trajectory, which holds no parameter values: pass "
                                       f"params=...")
-        layout.check_arrows(data.states[0])
-        layout.check_arrows(data.states[-1])
-        for row in layout.off_group_rows(data.states):  # every row, at once; the suspects
-            try:                                      # in full, as a state is checked
+        rows = len(data.states)
+        suspects = [0, rows - 1, *layout.off_group_rows(data.states)]  # every row at once;
+        for row in dict.fromkeys(suspects):  # the ends and the suspects in full, as a state
+            try:
                 layout.check_arrows(data.states[row])
             except SymgroupoidError as exc:
                 raise TrajectoryFileError(f"{str(path)!r}: its state {row} (of "
-                                          f"{len(data.states)}) is not this system's: "
+                                          f"{rows}) is not this system's: "
                                           f"{exc}") from None
         return cls(layout, data.states, data.iterations, data.norms, parameters,
                    data.backend or backend, step_indices=data.step_indices, every=data.every)
