@@ -41,6 +41,7 @@ from ._limit import (
     limit_points,
     may_be_step,
     parameter_value,
+    scaled_norm,
     time_step_candidates,
 )
 from ._momenta import (
@@ -100,6 +101,7 @@ __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep
            "matrix_form_values", "may_be_step", "momentum_symbols", "named", "next_arrow",
            "noether_forms", "stage_rows", "nonholonomic_step", "parameter_value",
            "pair_impulse_form", "partial_residuals",
-           "piece_residuals", "check_forces", "reduce_functions", "second_order_legendre_forms",
+           "piece_residuals", "check_forces", "reduce_functions", "scaled_norm",
+           "second_order_legendre_forms",
            "slot_derivatives", "step_jacobian", "time_step_candidates", "vanishes_on_restriction",
            "vanishing_check", "window", "window_in_pieces"]

@@ -95,14 +95,22 @@ def _converges(values: Sequence[np.ndarray], scale: float) -> bool:
     """Whether the last two values agree to :data:`_CONVERGED` of their size (plus
     ``scale``, the size the values are compared with)."""
     last, before = np.asarray(values[-1], float), np.asarray(values[-2], float)
-    return bool(_norm(last - before) <= _CONVERGED * (_norm(last) + scale))
+    return bool(scaled_norm(last - before) <= _CONVERGED * (scaled_norm(last) + scale))
 
 
-def _norm(x: np.ndarray) -> float:
-    """The Euclidean norm without overflow: scaled by the largest |entry| first (the values
-    of a Lagrangian scaled by 1e200 squared to infinity)."""
-    m = float(np.max(np.abs(x), initial=0.0))
-    return m * float(np.linalg.norm(x / m)) if 0.0 < m < np.inf else m
+def scaled_norm(a: np.ndarray, axis: int | None = None) -> np.ndarray | float:
+    """Euclidean norms (of the whole array, or along ``axis``) without overflow or
+    underflow: each line scaled by its largest |entry| first (entries of 1e200 square to
+    infinity, of 1e-200 to zero, which made a regular Lagrangian scaled by either constant
+    read as degenerate).  NaN and inf entries give NaN and inf, as ``np.linalg.norm``."""
+    a = np.asarray(a, float)
+    if axis is None:
+        a = a.ravel()
+    line = 0 if axis is None else axis
+    m = np.max(np.abs(a), axis=line, keepdims=True, initial=0.0)
+    safe = np.where((m > 0) & np.isfinite(m), m, 1.0)
+    out = np.squeeze(safe, axis=line) * np.linalg.norm(a / safe, axis=line)
+    return float(out) if axis is None else out
 
 
 @dataclass(frozen=True)

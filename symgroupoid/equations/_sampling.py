@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from ..derivation import parameter_value
+from ..derivation import parameter_value, scaled_norm
 from ._findings import (
     DEPENDENT_CONSTRAINTS,
     NOT_REGULAR,
@@ -183,23 +183,13 @@ def evaluate_points(step, points: list) -> list[tuple[np.ndarray, np.ndarray]]:
     return [(F[:, b], J[:, :, b]) for b in range(len(points))]
 
 
-def _norms(a: np.ndarray, axis: int) -> np.ndarray:
-    """Euclidean norms along ``axis`` without overflow or underflow: each line scaled by its
-    largest |entry| first (entries of 1e200 squared are infinite, of 1e-200 zero, which
-    made a regular Lagrangian scaled by either constant read as degenerate)."""
-    a = np.asarray(a, float)
-    m = np.max(np.abs(a), axis=axis, keepdims=True, initial=0.0)
-    safe = np.where(m > 0, m, 1.0)
-    return np.squeeze(m, axis=axis) * np.linalg.norm(a / safe, axis=axis)
-
-
 def _vanishing(value: np.ndarray, nudged: np.ndarray, scale: float) -> np.ndarray:
     """Rows (of a vector or matrix) that are zero up to rounding: exactly zero, or small
     (≤ _SMALL·max(1, scale)) and changing by more than 10 % under the relative nudge of the
     inputs — rounding noise, where a genuine function of that size would move by ~_NUDGE."""
     value, nudged = np.atleast_2d(value.T).T, np.atleast_2d(nudged.T).T
-    size = _norms(value, axis=1)
-    change = _norms(nudged - value, axis=1)
+    size = scaled_norm(value, axis=1)
+    change = scaled_norm(nudged - value, axis=1)
     small = size <= _SMALL * max(1.0, scale)
     return (size == 0) | (small & (change > 0.1 * size))
 
@@ -224,9 +214,9 @@ def zero_residuals(s: Sample) -> np.ndarray:
 
 
 def _equilibrated(J: np.ndarray) -> np.ndarray:
-    r = _norms(J, axis=1)
+    r = scaled_norm(J, axis=1)
     J = J / np.where(r > 0, r, 1.0)[:, None]
-    c = _norms(J, axis=0)
+    c = scaled_norm(J, axis=0)
     return J / np.where(c > 0, c, 1.0)[None, :]
 
 

@@ -144,8 +144,8 @@ class MomentumInitializer:
             return np.asarray(F, float).ravel(), np.asarray(J, float).reshape(n, n)
 
         z = continued_newton(residual, z, tol, max_iterations, self.name, _SOLVING,
-                   "F⁻L is not invertible at this configuration (singular Jacobian)",
-                   _NOT_FOUND)
+                             "F⁻L is not invertible at this configuration (singular Jacobian)",
+                             _NOT_FOUND)
         _check_representable(residual, z, p, self.name)
         state = np.empty(self.layout.n_known)
         state[self.arrow_pos] = np.asarray(self._arrow(z, q)[0], float).ravel()
@@ -209,6 +209,7 @@ class SecondOrderMomentumInitializer:
             raise DomainError(f"{self.name}: non-finite momentum {p.tolist()}")
         guess = np.asarray(self._guess(g0)[0], float).ravel()
         z = np.concatenate([guess, guess, np.zeros(2 * self.m)])
-        z = continued_newton(lambda z: self._residual(z, g0, p, params)[:2], z, tol, max_iterations,
-                   self.name, _SOLVING, "F⁻L is not invertible here", _NOT_FOUND)
+        z = continued_newton(lambda z: self._residual(z, g0, p, params)[:2], z, tol,
+                             max_iterations, self.name, _SOLVING, "F⁻L is not invertible here",
+                             _NOT_FOUND)
         return self._residual(z, g0, p, params)[2]

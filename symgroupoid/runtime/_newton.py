@@ -82,9 +82,9 @@ def continued_newton(residual: Callable[[np.ndarray], tuple[np.ndarray, np.ndarr
     of the momenta between the guess's own and p: the first Newton update from zero
     velocity jumps to a velocity of the size of p, which may lie outside the Lagrangian's
     domain (|v| < 1 in L = −√(1 − v²)), where the path moves there in steps.
-    The root is the one :func:`newton` would return (its last step is a Newton solve of
-    F = 0 at ``tol``); when both fail, the error of the plain solve is raised, its message
-    saying that the continuation failed too."""
+    The root returned is the end of that path (its last step is a Newton solve of F = 0 at
+    ``tol``, as :func:`newton`'s); when both fail, the error of the plain solve is raised,
+    its message saying that the continuation failed too."""
     try:
         return newton(residual, z, tol, max_iterations, owner, what, singular, exhausted)
     except (NewtonDivergenceError, SingularJacobianError) as error:
