@@ -267,7 +267,8 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     parts = []
     for side, part in zip(sides, value):
         components = as_scalar_list(name, f"forces ({side})", part)
-        check_values(name, f"forces ({side})", components, arrows)
+        if not getattr(forces, "symgroupoid_checked", False):  # (as call_user's values)
+            check_values(name, f"forces ({side})", components, arrows)
         if side == "f_stages":
             if len(components) != len(stages):
                 raise ShapeError(f"{name}: the forces' f_stages has {len(components)} "

@@ -219,6 +219,7 @@ class ContinuousSystem:
 
         forces = None
         if self.forces is not None:
+            @checked_callable  # the user's F, each value checked by _force (call_user)
             def forces(g):
                 v, (q0, q1), mid = pieces(g)
                 V = self._values(v)
@@ -250,6 +251,7 @@ class ContinuousSystem:
 
         forces = None
         if self.forces is not None:
+            @checked_callable  # made of the generic F, checked once (_generic_forces)
             def forces(g, zeta):
                 return self._galerkin_forces(tableau, h, G, g, read(g), list(zeta))
 
