@@ -370,6 +370,18 @@ void heavy_top_next_knowns(const double *u, const double *known, const double *p
     known_next[11] = t21;
 }
 
+/* the values of the window's terms defined on part of the real line only (HEAVY_TOP_N_DOMAIN
+ * of them: logarithms, square roots, acos, ... of L): a solution is accepted only where they
+ * are all finite, where L is defined */
+
+void heavy_top_domain(const double *u, const double *known, const double *p, double *D)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    (void)D;
+}
+
 /* The Newton stepper's loops run over the (compile-time) number of unknowns; for a few
  * unknowns they are unrolled completely (no loop overhead, constant offsets).  Up to 8: at
  * 16 the unrolled LU doubles the compiler's time (planar chain of 16 links: 1.1 s -> 2.4 s
@@ -1409,7 +1421,7 @@ static int heavy_top_chord_cuts(const heavy_top_lu *f, const double *F, const do
  * |F|_inf exceeds its guess's by HEAVY_TOP_GUESS_MARGIN.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int heavy_top_newton(const double *known, const double *p, const double *h, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
+static int heavy_top_newton_solve(const double *known, const double *p, const double *h, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[HEAVY_TOP_N_EQUATIONS], C[HEAVY_TOP_N_EQUATIONS];
     double J[HEAVY_TOP_JACOBIAN_ENTRIES], uJ[HEAVY_TOP_N_UNKNOWNS], d[HEAVY_TOP_N_UNKNOWNS], g0[HEAVY_TOP_N_UNKNOWNS];
@@ -1529,6 +1541,26 @@ static int heavy_top_newton(const double *known, const double *p, const double *
         }
         last_step = step;
     }
+}
+
+/* Newton's method (heavy_top_newton_solve), and a solution accepted only inside the domain
+ * of the window's terms: where every value of heavy_top_domain (the logarithms, square roots,
+ * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
+ * HEAVY_TOP_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * whose terms are defined everywhere has HEAVY_TOP_N_DOMAIN 0 and no check. */
+static int heavy_top_newton(const double *known, const double *p, const double *h, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
+{
+    int status = heavy_top_newton_solve(known, p, h, options, u, iterations, residual_norm);
+#if HEAVY_TOP_N_DOMAIN > 0
+    if (status == HEAVY_TOP_OK) {
+        double D[HEAVY_TOP_N_DOMAIN];
+        heavy_top_domain(u, known, p, D);
+        if (!isfinite(heavy_top_norm_inf(D, HEAVY_TOP_N_DOMAIN))) {
+            return HEAVY_TOP_NON_FINITE;
+        }
+    }
+#endif
+    return status;
 }
 
 /* One Newton solve from the guess in u (see heavy_top_newton).  Returns
@@ -2192,7 +2224,7 @@ const char *heavy_top_status_message(int status)
     case HEAVY_TOP_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case HEAVY_TOP_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
     case HEAVY_TOP_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case HEAVY_TOP_STALLED:

@@ -99,6 +99,7 @@ extern "C" {
 #define HEAVY_TOP_N_INPUTS 0
 #define HEAVY_TOP_N_INPUT_COLUMNS 0
 #define HEAVY_TOP_N_HOISTED 12
+#define HEAVY_TOP_N_DOMAIN 0
 #define HEAVY_TOP_TIME_ROW -1
 #define HEAVY_TOP_TIME_UNKNOWN -1
 #define HEAVY_TOP_TIME_KNOWN -1
@@ -152,6 +153,7 @@ void heavy_top_residual_hoisted(const double *u, const double *known, const doub
 void heavy_top_residual_scale(const double *u, const double *known, const double *p, double *S);
 void heavy_top_predict(const double *known, const double *p, double *u);
 void heavy_top_next_knowns(const double *u, const double *known, const double *p, double *known_next);
+void heavy_top_domain(const double *u, const double *known, const double *p, double *D);
 int heavy_top_solve_step(const double *known, const double *p, const heavy_top_options *options, double *u, int *iterations, double *residual_norm);
 int heavy_top_simulate(const double *known0, const double *p, const double *u, long n_steps, const heavy_top_options *options, heavy_top_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int heavy_top_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const heavy_top_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);

@@ -639,6 +639,18 @@ void plate_ball_next_knowns(const double *u, const double *known, const double *
     known_next[15] = u[7];
 }
 
+/* the values of the window's terms defined on part of the real line only (PLATE_BALL_N_DOMAIN
+ * of them: logarithms, square roots, acos, ... of L): a solution is accepted only where they
+ * are all finite, where L is defined */
+
+void plate_ball_domain(const double *u, const double *known, const double *p, double *D)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    (void)D;
+}
+
 /* The Newton stepper's loops run over the (compile-time) number of unknowns; for a few
  * unknowns they are unrolled completely (no loop overhead, constant offsets).  Up to 8: at
  * 16 the unrolled LU doubles the compiler's time (planar chain of 16 links: 1.1 s -> 2.4 s
@@ -1678,7 +1690,7 @@ static int plate_ball_chord_cuts(const plate_ball_lu *f, const double *F, const 
  * |F|_inf exceeds its guess's by PLATE_BALL_GUESS_MARGIN.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int plate_ball_newton(const double *known, const double *p, const double *h, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
+static int plate_ball_newton_solve(const double *known, const double *p, const double *h, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[PLATE_BALL_N_EQUATIONS], C[PLATE_BALL_N_EQUATIONS];
     double J[PLATE_BALL_JACOBIAN_ENTRIES], uJ[PLATE_BALL_N_UNKNOWNS], d[PLATE_BALL_N_UNKNOWNS], g0[PLATE_BALL_N_UNKNOWNS];
@@ -1798,6 +1810,26 @@ static int plate_ball_newton(const double *known, const double *p, const double 
         }
         last_step = step;
     }
+}
+
+/* Newton's method (plate_ball_newton_solve), and a solution accepted only inside the domain
+ * of the window's terms: where every value of plate_ball_domain (the logarithms, square roots,
+ * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
+ * PLATE_BALL_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * whose terms are defined everywhere has PLATE_BALL_N_DOMAIN 0 and no check. */
+static int plate_ball_newton(const double *known, const double *p, const double *h, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
+{
+    int status = plate_ball_newton_solve(known, p, h, options, u, iterations, residual_norm);
+#if PLATE_BALL_N_DOMAIN > 0
+    if (status == PLATE_BALL_OK) {
+        double D[PLATE_BALL_N_DOMAIN];
+        plate_ball_domain(u, known, p, D);
+        if (!isfinite(plate_ball_norm_inf(D, PLATE_BALL_N_DOMAIN))) {
+            return PLATE_BALL_NON_FINITE;
+        }
+    }
+#endif
+    return status;
 }
 
 /* One Newton solve from the guess in u (see plate_ball_newton).  Returns
@@ -2461,7 +2493,7 @@ const char *plate_ball_status_message(int status)
     case PLATE_BALL_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case PLATE_BALL_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
     case PLATE_BALL_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case PLATE_BALL_STALLED:

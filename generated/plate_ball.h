@@ -107,6 +107,7 @@ extern "C" {
 #define PLATE_BALL_N_INPUTS 0
 #define PLATE_BALL_N_INPUT_COLUMNS 0
 #define PLATE_BALL_N_HOISTED 20
+#define PLATE_BALL_N_DOMAIN 0
 #define PLATE_BALL_TIME_ROW -1
 #define PLATE_BALL_TIME_UNKNOWN -1
 #define PLATE_BALL_TIME_KNOWN -1
@@ -160,6 +161,7 @@ void plate_ball_residual_hoisted(const double *u, const double *known, const dou
 void plate_ball_residual_scale(const double *u, const double *known, const double *p, double *S);
 void plate_ball_predict(const double *known, const double *p, double *u);
 void plate_ball_next_knowns(const double *u, const double *known, const double *p, double *known_next);
+void plate_ball_domain(const double *u, const double *known, const double *p, double *D);
 int plate_ball_solve_step(const double *known, const double *p, const plate_ball_options *options, double *u, int *iterations, double *residual_norm);
 int plate_ball_simulate(const double *known0, const double *p, const double *u, long n_steps, const plate_ball_options *options, plate_ball_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int plate_ball_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const plate_ball_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);

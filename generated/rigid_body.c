@@ -357,6 +357,18 @@ void rigid_body_next_knowns(const double *u, const double *known, const double *
     known_next[8] = t21;
 }
 
+/* the values of the window's terms defined on part of the real line only (RIGID_BODY_N_DOMAIN
+ * of them: logarithms, square roots, acos, ... of L): a solution is accepted only where they
+ * are all finite, where L is defined */
+
+void rigid_body_domain(const double *u, const double *known, const double *p, double *D)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    (void)D;
+}
+
 /* The Newton stepper's loops run over the (compile-time) number of unknowns; for a few
  * unknowns they are unrolled completely (no loop overhead, constant offsets).  Up to 8: at
  * 16 the unrolled LU doubles the compiler's time (planar chain of 16 links: 1.1 s -> 2.4 s
@@ -1396,7 +1408,7 @@ static int rigid_body_chord_cuts(const rigid_body_lu *f, const double *F, const 
  * |F|_inf exceeds its guess's by RIGID_BODY_GUESS_MARGIN.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int rigid_body_newton(const double *known, const double *p, const double *h, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
+static int rigid_body_newton_solve(const double *known, const double *p, const double *h, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[RIGID_BODY_N_EQUATIONS], C[RIGID_BODY_N_EQUATIONS];
     double J[RIGID_BODY_JACOBIAN_ENTRIES], uJ[RIGID_BODY_N_UNKNOWNS], d[RIGID_BODY_N_UNKNOWNS], g0[RIGID_BODY_N_UNKNOWNS];
@@ -1516,6 +1528,26 @@ static int rigid_body_newton(const double *known, const double *p, const double 
         }
         last_step = step;
     }
+}
+
+/* Newton's method (rigid_body_newton_solve), and a solution accepted only inside the domain
+ * of the window's terms: where every value of rigid_body_domain (the logarithms, square roots,
+ * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
+ * RIGID_BODY_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * whose terms are defined everywhere has RIGID_BODY_N_DOMAIN 0 and no check. */
+static int rigid_body_newton(const double *known, const double *p, const double *h, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
+{
+    int status = rigid_body_newton_solve(known, p, h, options, u, iterations, residual_norm);
+#if RIGID_BODY_N_DOMAIN > 0
+    if (status == RIGID_BODY_OK) {
+        double D[RIGID_BODY_N_DOMAIN];
+        rigid_body_domain(u, known, p, D);
+        if (!isfinite(rigid_body_norm_inf(D, RIGID_BODY_N_DOMAIN))) {
+            return RIGID_BODY_NON_FINITE;
+        }
+    }
+#endif
+    return status;
 }
 
 /* One Newton solve from the guess in u (see rigid_body_newton).  Returns
@@ -2179,7 +2211,7 @@ const char *rigid_body_status_message(int status)
     case RIGID_BODY_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case RIGID_BODY_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
     case RIGID_BODY_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case RIGID_BODY_STALLED:

@@ -95,6 +95,7 @@ extern "C" {
 #define RIGID_BODY_N_INPUTS 0
 #define RIGID_BODY_N_INPUT_COLUMNS 0
 #define RIGID_BODY_N_HOISTED 10
+#define RIGID_BODY_N_DOMAIN 0
 #define RIGID_BODY_TIME_ROW -1
 #define RIGID_BODY_TIME_UNKNOWN -1
 #define RIGID_BODY_TIME_KNOWN -1
@@ -148,6 +149,7 @@ void rigid_body_residual_hoisted(const double *u, const double *known, const dou
 void rigid_body_residual_scale(const double *u, const double *known, const double *p, double *S);
 void rigid_body_predict(const double *known, const double *p, double *u);
 void rigid_body_next_knowns(const double *u, const double *known, const double *p, double *known_next);
+void rigid_body_domain(const double *u, const double *known, const double *p, double *D);
 int rigid_body_solve_step(const double *known, const double *p, const rigid_body_options *options, double *u, int *iterations, double *residual_norm);
 int rigid_body_simulate(const double *known0, const double *p, const double *u, long n_steps, const rigid_body_options *options, rigid_body_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int rigid_body_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const rigid_body_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);

@@ -479,6 +479,18 @@ void satellite_wheel_next_knowns(const double *u, const double *known, const dou
     known_next[14] = known[14];
 }
 
+/* the values of the window's terms defined on part of the real line only (SATELLITE_WHEEL_N_DOMAIN
+ * of them: logarithms, square roots, acos, ... of L): a solution is accepted only where they
+ * are all finite, where L is defined */
+
+void satellite_wheel_domain(const double *u, const double *known, const double *p, double *D)
+{
+    (void)u;
+    (void)known;
+    (void)p;
+    (void)D;
+}
+
 /* dF/d(u_k, u_{k+1}): J_inputs[i * 2 * SATELLITE_WHEEL_N_INPUTS + j] = dF_i/du_k[j] and
  * J_inputs[i * 2 * SATELLITE_WHEEL_N_INPUTS + SATELLITE_WHEEL_N_INPUTS + j] = dF_i/du_{k+1}[j], the inputs of
  * the known arrow and of the new one (the last 2 SATELLITE_WHEEL_N_INPUTS entries of known) */
@@ -1538,7 +1550,7 @@ static int satellite_wheel_chord_cuts(const satellite_wheel_lu *f, const double 
  * |F|_inf exceeds its guess's by SATELLITE_WHEEL_GUESS_MARGIN.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int satellite_wheel_newton(const double *known, const double *p, const double *h, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
+static int satellite_wheel_newton_solve(const double *known, const double *p, const double *h, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
 {
     double F[SATELLITE_WHEEL_N_EQUATIONS], C[SATELLITE_WHEEL_N_EQUATIONS];
     double J[SATELLITE_WHEEL_JACOBIAN_ENTRIES], uJ[SATELLITE_WHEEL_N_UNKNOWNS], d[SATELLITE_WHEEL_N_UNKNOWNS], g0[SATELLITE_WHEEL_N_UNKNOWNS];
@@ -1658,6 +1670,26 @@ static int satellite_wheel_newton(const double *known, const double *p, const do
         }
         last_step = step;
     }
+}
+
+/* Newton's method (satellite_wheel_newton_solve), and a solution accepted only inside the domain
+ * of the window's terms: where every value of satellite_wheel_domain (the logarithms, square roots,
+ * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
+ * SATELLITE_WHEEL_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * whose terms are defined everywhere has SATELLITE_WHEEL_N_DOMAIN 0 and no check. */
+static int satellite_wheel_newton(const double *known, const double *p, const double *h, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm)
+{
+    int status = satellite_wheel_newton_solve(known, p, h, options, u, iterations, residual_norm);
+#if SATELLITE_WHEEL_N_DOMAIN > 0
+    if (status == SATELLITE_WHEEL_OK) {
+        double D[SATELLITE_WHEEL_N_DOMAIN];
+        satellite_wheel_domain(u, known, p, D);
+        if (!isfinite(satellite_wheel_norm_inf(D, SATELLITE_WHEEL_N_DOMAIN))) {
+            return SATELLITE_WHEEL_NON_FINITE;
+        }
+    }
+#endif
+    return status;
 }
 
 /* One Newton solve from the guess in u (see satellite_wheel_newton).  Returns
@@ -2321,7 +2353,7 @@ const char *satellite_wheel_status_message(int status)
     case SATELLITE_WHEEL_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case SATELLITE_WHEEL_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
     case SATELLITE_WHEEL_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case SATELLITE_WHEEL_STALLED:

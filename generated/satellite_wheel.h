@@ -113,6 +113,7 @@ extern "C" {
 #define SATELLITE_WHEEL_N_INPUTS 1
 #define SATELLITE_WHEEL_N_INPUT_COLUMNS 2
 #define SATELLITE_WHEEL_N_HOISTED 9
+#define SATELLITE_WHEEL_N_DOMAIN 0
 #define SATELLITE_WHEEL_TIME_ROW -1
 #define SATELLITE_WHEEL_TIME_UNKNOWN -1
 #define SATELLITE_WHEEL_TIME_KNOWN -1
@@ -166,6 +167,7 @@ void satellite_wheel_residual_hoisted(const double *u, const double *known, cons
 void satellite_wheel_residual_scale(const double *u, const double *known, const double *p, double *S);
 void satellite_wheel_predict(const double *known, const double *p, double *u);
 void satellite_wheel_next_knowns(const double *u, const double *known, const double *p, double *known_next);
+void satellite_wheel_domain(const double *u, const double *known, const double *p, double *D);
 int satellite_wheel_solve_step(const double *known, const double *p, const satellite_wheel_options *options, double *u, int *iterations, double *residual_norm);
 int satellite_wheel_simulate(const double *known0, const double *p, const double *u, long n_steps, const satellite_wheel_options *options, satellite_wheel_warm_start *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int satellite_wheel_simulate_batch(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const satellite_wheel_options *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);

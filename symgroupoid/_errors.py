@@ -49,6 +49,17 @@ class NewtonDivergenceError(SymgroupoidError, ArithmeticError):
         self.iterate = iterate
 
 
+class LagrangianDomainError(NewtonDivergenceError):
+    """A step's solution lies where the discrete Lagrangian is not defined: Newton solved the
+    step equations, but a logarithm, square root, acos, … of L (or of a constraint) is not
+    finite there (L = v²/2 − log x beyond x = 0, whose step equations hold 1/x, never
+    log x).  The run stops there, with ``err.trajectory`` up to the step before;
+    ``err.kinds`` says which values left their domain and on which term
+    (docs/conventions.md §11, "Staying in the domain of L")."""
+
+    kinds: tuple[str, ...] = ()
+
+
 class BranchJumpError(NewtonDivergenceError):
     """A step's solution lies far outside the trust region of its guess, which the last
     steps' motion sets (``NewtonOptions.trust_factor``): the root of the step equations near

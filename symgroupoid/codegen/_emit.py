@@ -271,7 +271,8 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
 
     blocks = kernel_blocks(step, unit_part_size(len(step.unknowns), units))
     n_units = assign_units([blocks.reconstruct, blocks.hoist, blocks.residual,
-                            blocks.residual_jacobian, blocks.predict, blocks.next_knowns],
+                            blocks.residual_jacobian, blocks.predict, blocks.next_knowns,
+                            blocks.domain],
                            units, len(step.unknowns), block_weight)
     cold_helpers = program_helpers(step.program, ["F_scale"])
     if units > 1:  # evaluated only when a rounding floor is tested: beside the cold code
@@ -290,6 +291,7 @@ def _context(step, prefix: str, header_name: str, latex: bool, units: int,
         "n_knowns": len(step.knowns), "n_parameters": len(step.parameters),
         "n_fibre": blocks.n_fibre, "n_constraints": step.n_constraints,
         "n_hoisted": blocks.n_hoisted, "hoist": blocks.hoist,
+        "n_domain": blocks.n_domain, "domain": blocks.domain,
         "n_inputs": len(getattr(step, "inputs", ())),
         "input_columns": (getattr(step, "order", 1) + 1) * len(getattr(step, "inputs", ())),
         "time_defines": time_layout(step).defines(),

@@ -271,6 +271,10 @@ class KernelBlocks:
     predict: Block
     next_knowns: Block
     n_fibre: int
+    #: the values of the window's terms defined on part of the real line only (docs/
+    #: conventions.md §11): a step's solution is accepted where they are all finite
+    domain: Block
+    n_domain: int
     helpers: list[str] = field(default_factory=list)  # C helper functions (smooth maps)
     #: ∂F/∂(u_k, u_{k+1}) of a step with inputs (docs/conventions.md §20); None without
     input_jacobian: Block | None = None
@@ -415,6 +419,8 @@ def kernel_blocks(step, part_size: int | None = None) -> KernelBlocks:
         predict=build_block(program, [("u", "predict")], part_size),
         next_knowns=build_block(program, [("known_next", "next_knowns")], part_size),
         n_fibre=len(program.outputs["fibre"]),
+        domain=build_block(program, [("D", "domain")], part_size),
+        n_domain=len(program.outputs.get("domain", ())),
         helpers=helpers, input_jacobian=input_jacobian, input_jacobian_helpers=input_helpers,
     )
 

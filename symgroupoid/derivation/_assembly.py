@@ -33,14 +33,14 @@ Nothing is expanded on the graph; shared subexpressions stay shared.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import sympy as sp
 
 from .._errors import UnsupportedFeatureError
 from .._symbols import multiplier_symbols, stage_symbols
 from ..groupoids import Groupoid
-from ..ir import Context, Graph, forward, from_sympy, gradient
+from ..ir import Context, Graph, domain_nodes, forward, from_sympy, gradient
 from ._junction import junction_halves, slot, slot_substitution
 from ._step import SystemFunctions, named, next_arrow, shifted, tidy, window
 
@@ -57,6 +57,9 @@ class TermNodes:
     rows: list  # a step's rows on the term: φ, then ψ at the target of its last arrow
     stages: list  # the generic internal stage nodes ζ (docs/conventions.md §22)
     stage_gradient: list  # ∂T/∂ζ: the term's stage rows
+    #: nodes of L, φ and the rows defined on part of the real line only (log, √, acos, …;
+    #: :func:`symgroupoid.ir.domain_nodes`): finite exactly where the term is defined
+    domain: list = field(default_factory=list)
 
     @property
     def flat_slots(self) -> list:
@@ -73,6 +76,8 @@ class JunctionNodes:
     constraints: dict  # start offset s -> φ on the term starting at s (as in the action)
     rows: dict  # start offset s -> a step's rows on that term: φ, then ψ(β(its last arrow))
     stage_rows: dict  # start offset s -> ∂T_s/∂ζ_s (empty without internal stages)
+    #: start offset s -> the term's domain nodes (:attr:`TermNodes.domain`) at its arrows
+    domain: dict = field(default_factory=dict)
 
 
 class WindowAction:
@@ -208,7 +213,7 @@ class WindowAction:
         flat = [n for s in slot_nodes for n in s]
         grad = gradient(g, T, flat + zeta)
         return TermNodes(slot_nodes, lam, L, grad[:len(flat)], phis, rows, zeta,
-                         grad[len(flat):])
+                         grad[len(flat):], domain_nodes(g, [L, *phis, *rows]))
 
     def instantiate(self, g: Graph, term: TermNodes, nodes: Sequence[int], arrows: Sequence,
                     multipliers: Sequence | None = None, extra: dict | None = None,
@@ -291,7 +296,8 @@ class WindowAction:
             residuals = [g.add(r, f) for r, f in zip(residuals, forced)]
             stage_rows = {s: [g.add(r, f) for r, f in zip(stage_rows[s], staged[s])]
                           if staged[s] else stage_rows[s] for s in self.starts}
-        return JunctionNodes(lefts, rights, residuals, constraints, rows, stage_rows)
+        domain = {s: instantiate(term.domain, s) for s in self.starts} if term.domain else {}
+        return JunctionNodes(lefts, rights, residuals, constraints, rows, stage_rows, domain)
 
     def force_nodes(self, g: Graph, parameters: dict, arrows: dict, inputs: dict | None,
                     stages: dict | None = None) -> tuple[list[int], dict]:

@@ -22,13 +22,13 @@ multiple of L and the Jacobian a small multiple of the residual per unknown.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import sympy as sp
 
 from .._symbols import multiplier_symbols, stage_symbols
 from ..groupoids import Groupoid
-from ..ir import Graph, forward, from_sympy
+from ..ir import Graph, domain_kind, forward, from_sympy
 from ._assembly import WindowAction
 from ._forces import input_symbols
 from ._step import SystemFunctions, chart_of, window_arrows
@@ -47,6 +47,11 @@ class WindowGraph:
     symbols: dict  # named symbol -> node (knowns, unknowns, parameters)
     arrows: dict  # offset -> named arrow (SymPy coordinates, fibre variables of the unknown)
     memo: dict  # SymPy subexpression -> node (reuse when converting more expressions)
+    #: the nodes of every term of the window defined on part of the real line only (log, √,
+    #: acos, …): finite exactly where the window's terms are defined (docs/conventions.md §11)
+    domain: list = field(default_factory=list)
+    #: for each domain node, what it needs and on which term ("the new arrow", …)
+    domain_kinds: list = field(default_factory=list)
 
 
 def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequence,
@@ -88,8 +93,23 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
     dels = jn.residuals
     stage_rows = [r for s in starts for r in jn.stage_rows[s]]
     constraint_rows = jn.rows[starts[-1]]
+    domain, kinds = _domain(g, jn.domain, starts)
     return WindowGraph(g, dels + stage_rows + constraint_rows, dels, jn.left, jn.right,
-                       constraint_rows, symbols, arrows, memo)
+                       constraint_rows, symbols, arrows, memo, domain, kinds)
+
+
+def _domain(g: Graph, nodes: dict, starts: Sequence[int]) -> tuple[list, list]:
+    """The window's domain nodes (each once, newest term first) and their descriptions."""
+    domain: list = []
+    kinds: list = []
+    for s in reversed(starts):
+        term = "the new arrow's term" if s == starts[-1] else "a known arrow's term"
+        for n in nodes.get(s, []):
+            kind = domain_kind(g, n)
+            if n not in domain and kind is not None:  # (a constant folded away is no node)
+                domain.append(n)
+                kinds.append(f"{kind} ({term})")
+    return domain, kinds
 
 
 def step_jacobian(g: Graph, residuals: Sequence[int], unknowns: Sequence[int]

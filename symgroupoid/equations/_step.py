@@ -94,10 +94,19 @@ class StepEquations:
     def program(self):
         """The step as a program over the expression graph: inputs ``u`` (unknowns),
         ``known``, ``p``; outputs ``F`` (residuals), ``J`` (exact Jacobian, row-major),
-        ``fibre`` (the chart), ``predict`` and ``next_knowns``."""
+        ``fibre`` (the chart), ``predict``, ``next_knowns`` and ``domain`` (the values of
+        the window's terms defined on part of the real line only, :attr:`domain_kinds`)."""
         from ._programs import step_program
 
         return step_program(self)
+
+    @property
+    def domain_kinds(self) -> list[str]:
+        """What each value of the program's ``domain`` output needs, in words, and on which
+        term of the window ("log: its argument positive (the new arrow's term)"): a step's
+        solution is accepted only where they are all finite (docs/conventions.md §11)."""
+        window = self._d.window
+        return list(window.domain_kinds) if window is not None else []
 
     @functools.cached_property
     def velocity_momentum(self):

@@ -11,6 +11,7 @@ the graph only on demand (:func:`to_sympy`).
 from ._ad import forward, gradient, jacobian, partial
 from ._c import KernelCPrinter, UnmappedSymbolError, c_of_sympy, print_c
 from ._compact import compact
+from ._domain import domain_kind, domain_nodes
 from ._format import C, functions_used, plan, write
 from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
@@ -38,7 +39,8 @@ from ._sympy import Context, from_sympy, to_sympy
 __all__ = [
     "ADD", "CONST", "ELEMENTARY", "FUNC", "INPUT", "MUL", "OP_NAMES", "POW", "FunctionSpec",
     "Graph", "KernelCPrinter", "Opaque", "Program", "Smooth", "UnmappedSymbolError",
-    "Context", "c_of_sympy", "compact", "forward", "from_sympy", "gradient", "interpret",
+    "Context", "c_of_sympy", "compact", "domain_kind", "domain_nodes", "forward",
+    "from_sympy", "gradient", "interpret",
     "interpret_precise", "jacobian", "partial", "print_c", "rounding_error", "smooth_spec",
     "term_magnitude", "to_sympy",
     # straight-line code of a graph: the C dialect, the plan of its nodes, the writer

@@ -166,6 +166,14 @@ class _Kernel:
         known, p, u = self._inputs(known, p, u)
         return self._next_knowns(u, known, p)
 
+    def domain(self, u, known, p) -> np.ndarray:
+        """The values of the window's terms defined on part of the real line only (the
+        logarithms, square roots, acos, … of L; ``step.domain_kinds`` says which), at the
+        unknowns u: all finite exactly where the terms are defined (docs/conventions.md §11;
+        empty when L is defined everywhere)."""
+        known, p, u = self._inputs(known, p, u)
+        return self._domain(u, known, p)
+
     def solve_step(self, known, p, u0, options: NewtonOptions):
         """Newton's method from ``u0``: (status, last iterate, iterations, residual norm).
 
@@ -487,9 +495,12 @@ class NumpyKernel(_Kernel):
         self._FJ = program.numpy_function(["F", "J"], args)
         self._next = program.numpy_function(["next_knowns"], args)
         self._pred = program.numpy_function(["predict"], ["known", "p"])
+        self._D = (program.numpy_function(["domain"], args)
+                   if program.outputs.get("domain") else None)
         self._stepper = NumpyStepper(StepFunctions(
             self._residual, self._residual_jacobian, self._residual_scale, self._predict,
-            self._next_knowns), self.n_u, time_layout(step), band_order(step))
+            self._next_knowns, self._domain if self._D is not None else None), self.n_u,
+            time_layout(step), band_order(step))
 
     def warm_start(self) -> NumpyWarmStart:
         return self._stepper.warm_start()
@@ -516,6 +527,9 @@ class NumpyKernel(_Kernel):
 
     def _next_knowns(self, u, known, p) -> np.ndarray:
         return self._next(u, known, p)[0].reshape(self.n_k)
+
+    def _domain(self, u, known, p) -> np.ndarray:
+        return np.asarray(self._D(u, known, p)[0], float).ravel()
 
     def _solve_step(self, known, p, u0, options: NewtonOptions):
         """Newton's method exactly as ``<prefix>_newton`` in the C kernel."""

@@ -363,6 +363,15 @@ class CKernel(_Kernel):
                                self._buf(out, self.n_k, "known_next"))
         return out
 
+    def _domain(self, u, known, p) -> np.ndarray:
+        n = int(getattr(self.lib, f"{self.prefix.upper()}_N_DOMAIN", 0))
+        out = np.empty(n)
+        if n:
+            getattr(self.lib, f"{self.prefix}_domain")(
+                self._buf(u, self.n_u, "u"), self._buf(known, self.n_k, "known"),
+                self._buf(p, self.n_p, "p"), self._buf(out, n, "D"))
+        return out
+
     def _solve_step(self, known, p, u, options: NewtonOptions):
         it, rn = self.ffi.new("int *"), self.ffi.new("double *")
         status = self._f["solve_step"](

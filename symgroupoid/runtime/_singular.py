@@ -21,7 +21,13 @@ import functools
 import numpy as np
 import sympy as sp
 
-from .._errors import CutLocusStepError, NewtonDivergenceError, ParameterError
+from .._errors import (
+    CutLocusStepError,
+    LagrangianDomainError,
+    NewtonDivergenceError,
+    ParameterError,
+    SymgroupoidError,
+)
 
 #: an increment counts as a half-turn when det(I + R)/2ⁿ is at most this (SO(3): the angle
 #: within 2·10⁻⁴ of π); only asked after the step gave non-finite values
@@ -91,6 +97,10 @@ def non_finite_cause(sim, step_index: int, iterations: int, residual_norm: float
     naming the half-turn and the remedy, or a :class:`NewtonDivergenceError` naming the
     zero parameter.  ``head``: the message's start ("name: step k failed")."""
     step = sim.equations
+    outside = _outside_domain(sim, step_index, iterations, residual_norm, iterate, known, p,
+                              head)
+    if outside is not None:
+        return outside
     layout = sim.layout
     for offset, index in layout.arrow_index.items():
         found = half_turns(step.groupoid, np.asarray(known, float)[index])
@@ -108,6 +118,42 @@ def non_finite_cause(sim, step_index: int, iterations: int, residual_norm: float
                     residual_norm=float(residual_norm),
                     iterate=np.array(iterate, dtype=float))
     return None
+
+
+def _outside_domain(sim, step_index: int, iterations: int, residual_norm: float, iterate,
+                    known: np.ndarray, p: np.ndarray | None, head: str
+                    ) -> LagrangianDomainError | None:
+    """A :class:`LagrangianDomainError` when Newton solved the step (a finite iterate with a
+    finite residual) but the kernel's ``domain`` values are not all finite there: the
+    solution lies where L is not defined (docs/conventions.md §11)."""
+    x = np.asarray(iterate, dtype=float)
+    if p is None or not np.isfinite(residual_norm) or not np.isfinite(x).all():
+        return None
+    try:
+        with np.errstate(all="ignore"):
+            values = sim.kernel.domain(x, known, p)
+    except SymgroupoidError:  # (an iterate of another length: not a step's solution)
+        return None
+    bad = np.flatnonzero(~np.isfinite(values))
+    if not len(bad):
+        return None
+    described = sim.equations.domain_kinds
+    kinds = tuple(described[i] if i < len(described) else f"value {i}" for i in bad)
+    shown = "; ".join(f"{kind}: {values[i]}" for kind, i in zip(kinds, bad[:3]))
+    more = f" (and {len(bad) - 3} more)" if len(bad) > 3 else ""
+    first = step_index == 0
+    err = LagrangianDomainError(
+        f"{head}: Newton solved the step equations (|F|_inf = {residual_norm:.3e} after "
+        f"{iterations} updates), but at that solution the discrete Lagrangian is not defined: "
+        f"{shown}{more}.  The step equations hold only L's derivatives, which can have roots "
+        f"outside L's domain; the run stops before such a step (docs/conventions.md §11)"
+        + (" — here the initial state itself may lie outside it" if first and any(
+            "known arrow" in k for k in kinds) else
+           ": a smaller time step may keep the motion inside the domain, or the motion "
+           "itself leaves it"), step=int(step_index), residual_norm=float(residual_norm),
+        iterate=x.copy())
+    err.kinds = kinds
+    return err
 
 
 def _half_turn_text(found: list, offset: int, first: bool) -> str:

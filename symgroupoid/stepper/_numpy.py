@@ -437,13 +437,15 @@ StepFunction = Callable[..., np.ndarray]
 class StepFunctions:
     """The functions a kernel generates, as the stepper calls them (flat float arrays):
     F(u; known, p), (F, J) with J[i, j] = ∂F_i/∂u_j, the scale S of F's terms, the
-    prediction u(known, p) and the next known state from a solved step."""
+    prediction u(known, p), the next known state from a solved step, and the values of the
+    window's terms defined on part of the real line only (``<prefix>_domain``; None: none)."""
 
     residual: StepFunction
     residual_jacobian: Callable[..., tuple[np.ndarray, np.ndarray]]
     residual_scale: StepFunction
     predict: StepFunction
     next_knowns: StepFunction
+    domain: StepFunction | None = None
 
 
 class NumpyStepper:
@@ -468,7 +470,17 @@ class NumpyStepper:
         """Newton's method exactly as ``<prefix>_newton`` in the C kernel: (status, last
         iterate, updates, |F|_inf of the last iterate)."""
         with np.errstate(all="ignore"):
-            return self.newton(known, p, np.array(u0, dtype=float), options)
+            status, u, it, rnorm = self.newton(known, p, np.array(u0, dtype=float), options)
+            if status == OK and not self.in_domain(u, known, p):
+                status = NON_FINITE
+        return status, u, it, rnorm
+
+    def in_domain(self, u, known, p) -> bool:
+        """As the check of ``<prefix>_newton``: whether every value of the kernel's
+        ``domain`` is finite at the solution u (L defined there; docs/conventions.md §11)."""
+        if self.f.domain is None:
+            return True
+        return bool(np.isfinite(norm_inf(self.f.domain(u, known, p))))
 
     def at_floor(self, u, known, p, F, C, factor: float) -> bool:
         """As ``<prefix>_at_floor``: every |F_i| ≤ factor·(C_i + N_i), N_i the larger change

@@ -49,7 +49,8 @@ class Status(enum.IntEnum):
         "updates) without converging")
     NON_FINITE = 3, (
         "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the "
-        "Newton step or the next state")
+        "Newton step or the next state, or a solution where the discrete Lagrangian is not "
+        "defined (a logarithm, square root or acos of it not finite there)")
     INVALID_ARGUMENT = 4, (
         "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad "
         "option or warm start, or non-finite input)")

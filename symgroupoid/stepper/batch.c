@@ -307,7 +307,7 @@ const char *SG_NAME(status_message)(int status)
     case SG_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case SG_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
     case SG_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case SG_STALLED:

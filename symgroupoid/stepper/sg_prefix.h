@@ -33,6 +33,9 @@
 #define SG_N_INPUTS SG_CAT(SG_PREFIX_UPPER, N_INPUTS)
 /* the values of the known arrow the residual reads (SG_NAME(hoist)) */
 #define SG_N_HOISTED SG_CAT(SG_PREFIX_UPPER, N_HOISTED)
+/* the values of the window's terms defined on part of the real line only (SG_NAME(domain);
+ * undefined: none) */
+#define SG_N_DOMAIN SG_CAT(SG_PREFIX_UPPER, N_DOMAIN)
 /* the time of a step on a time groupoid (-1: none; symgroupoid.stepper._time) */
 #define SG_TIME_ROW SG_CAT(SG_PREFIX_UPPER, TIME_ROW)
 #define SG_TIME_UNKNOWN SG_CAT(SG_PREFIX_UPPER, TIME_UNKNOWN)

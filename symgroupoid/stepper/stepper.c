@@ -1041,7 +1041,7 @@ static int SG_NAME(chord_cuts)(const SG_NAME(lu) *f, const double *F, const doub
  * |F|_inf exceeds its guess's by SG_GUESS_MARGIN.
  * *iterations is the number of updates made and *residual_norm the |F|_inf of the returned
  * iterate (before its polishing update). */
-static int SG_NAME(newton)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
+static int SG_NAME(newton_solve)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
     double F[SG_N_EQUATIONS], C[SG_N_EQUATIONS];
     double J[SG_JACOBIAN_ENTRIES], uJ[SG_N_UNKNOWNS], d[SG_N_UNKNOWNS], g0[SG_N_UNKNOWNS];
@@ -1161,6 +1161,26 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
         }
         last_step = step;
     }
+}
+
+/* Newton's method (SG_NAME(newton_solve)), and a solution accepted only inside the domain
+ * of the window's terms: where every value of SG_NAME(domain) (the logarithms, square roots,
+ * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
+ * SG_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * whose terms are defined everywhere has SG_N_DOMAIN 0 and no check. */
+static int SG_NAME(newton)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
+{
+    int status = SG_NAME(newton_solve)(known, p, h, options, u, iterations, residual_norm);
+#if SG_N_DOMAIN > 0
+    if (status == SG_OK) {
+        double D[SG_N_DOMAIN];
+        SG_NAME(domain)(u, known, p, D);
+        if (!isfinite(SG_NAME(norm_inf)(D, SG_N_DOMAIN))) {
+            return SG_NON_FINITE;
+        }
+    }
+#endif
+    return status;
 }
 
 /* One Newton solve from the guess in u (see SG_NAME(newton)).  Returns

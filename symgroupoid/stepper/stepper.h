@@ -2,10 +2,10 @@
  * The interface of the Newton stepper library (symgroupoid.stepper): its statuses, the
  * options, warm start and batch cursor types, its entry points, and the functions a kernel
  * provides for it (the straight-line functions the code generator writes: reconstruct,
- * hoist, residual, residual_jacobian, residual_scale, predict, next_knowns).  Every name goes
+ * hoist, residual, residual_jacobian, residual_scale, predict, next_knowns, domain).  Every name goes
  * through the prefix macros of sg_prefix.h; a kernel's header holds this text with its
  * prefix spelt out, after its sizes <PREFIX>_N_EQUATIONS, _N_UNKNOWNS, _N_KNOWNS,
- * _N_PARAMETERS, _N_INPUTS, _N_HOISTED.  The library's sources: stepper.c (the stepper: LU, rounding floors,
+ * _N_PARAMETERS, _N_INPUTS, _N_HOISTED, _N_DOMAIN.  The library's sources: stepper.c (the stepper: LU, rounding floors,
  * Newton, warm start, simulate), batch.c (the batched and one-step entry points and the
  * status messages), options.h and prologue.h (shared by both).
  */
@@ -62,6 +62,7 @@ void SG_NAME(residual_hoisted)(const double *u, const double *known, const doubl
 void SG_NAME(residual_scale)(const double *u, const double *known, const double *p, double *S);
 void SG_NAME(predict)(const double *known, const double *p, double *u);
 void SG_NAME(next_knowns)(const double *u, const double *known, const double *p, double *known_next);
+void SG_NAME(domain)(const double *u, const double *known, const double *p, double *D);
 int SG_NAME(solve_step)(const double *known, const double *p, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm);
 int SG_NAME(simulate)(const double *known0, const double *p, const double *u, long n_steps, const SG_NAME(options) *options, SG_NAME(warm_start) *warm, double *states, long capacity, int *iterations, double *residual_norms, long *failed_step, double *last_iterate);
 int SG_NAME(simulate_batch)(long n_batch, const double *known0, const double *p, long p_stride, const double *u, long u_stride, long n_steps, long every, const SG_NAME(options) *options, double *states, long rows, long long *iterations, double *residual_norms, long *kept, int *status, long *failed_step, int *failed_iterations, double *failed_residual_norm, double *last_iterate, int n_threads);

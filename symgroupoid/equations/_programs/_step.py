@@ -7,6 +7,9 @@ Either way the Jacobian ∂F/∂(x, λ) is forward-mode differentiation through 
 f = τ(x) (docs/conventions.md §2), never a SymPy ``jacobian`` of expanded trees.  The
 finished program is compacted (:func:`symgroupoid.ir.compact`): the same values in fewer
 floating-point operations, the form the C kernels and the NumPy backend both evaluate.
+The output ``domain`` holds the values of the window's terms that are defined on part of
+the real line only (log, square roots, acos, …): a solution of the step is accepted only
+where they are finite (docs/conventions.md §11, "Staying in the domain of L").
 Beside the residual it carries ``F_scale``, the size of the terms each residual is computed
 from (:func:`symgroupoid.ir.term_magnitude`, on the compacted graph): Newton's rounding-floor
 tests read it (docs/conventions.md, "Newton's stopping rule").
@@ -53,7 +56,8 @@ def step_program(step, compacted: bool = True) -> Program:
     fibre = [symbols[f] for f in step.fibre_unknowns if f in step.reconstruction]
     outputs = {"F": F, "J": [c for row in J for c in row], "fibre": fibre,
                "predict": nodes(step.prediction, "prediction"),
-               "next_knowns": nodes(step.next_knowns, "state update")}
+               "next_knowns": nodes(step.next_knowns, "state update"),
+               "domain": list(d.window.domain) if d.window is not None else []}
     inputs = {"u": list(step.unknowns), "known": list(step.knowns),
               "p": list(step.parameters)}
     program = Program(graph=g, inputs=inputs, outputs=outputs)
