@@ -127,3 +127,13 @@ def test_the_galerkin_stages_are_checked_too(tmp_path):
     sim = step.compile(cache_dir=tmp_path)
     with pytest.raises(sg.LagrangianDomainError):
         sim.simulate(START, 400, PARAMS)
+
+
+def test_a_boundary_value_solution_outside_the_domain_is_refused(log_step):
+    # the path from x = 1 to x = −1 solves the equations (which hold 1/x) through x = 0,
+    # where L is not defined: it was returned with cost nan
+    with pytest.raises(sg.LagrangianDomainError) as info:
+        sg.solve_boundary_value(log_step, [1.0], [-1.0], 50, params=PARAMS)
+    assert "not defined" in str(info.value)
+    sol = sg.solve_boundary_value(log_step, [1.0], [0.5], 50, params=PARAMS)
+    assert np.isfinite(sol.cost) and sol.arrows.min() > 0

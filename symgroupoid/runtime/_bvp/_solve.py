@@ -16,6 +16,7 @@ import numpy as np
 from ..._errors import (
     BranchJumpError,
     DiagnosticsError,
+    LagrangianDomainError,
     NewtonDivergenceError,
     ShapeError,
     SingularJacobianError,
@@ -134,7 +135,9 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     iterations and the residual history) when the iteration cap is reached, the iteration
     stalls or both phases' line searches find no decrease; :class:`SingularJacobianError`
     for a singular Jacobian; :class:`CutLocusError` when an arrow of the initial path is a
-    half-turn.
+    half-turn; :class:`LagrangianDomainError` for a solution of the equations where the
+    discrete Lagrangian is not defined (a term's L_d not finite: a logarithm, square root,
+    acos … of it outside its domain, docs/conventions.md §11).
 
     ``progress`` (keyword): report a solve taking longer than 2 s, with |F|∞ per iteration
     (see :mod:`symgroupoid._progress`).
@@ -194,12 +197,35 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     multipliers, stages = state.lam[:, :m], state.lam[:, m:]
     if n_stages:
         _check_stage_branch(state, stages, owner)
+    _check_domain(problem, state, p, stages, owner)
     return BoundaryValueSolution(
         system, state.arrows, multipliers, data.configurations[0], named, state.iterations,
         state.history[-1], state.history, time.perf_counter() - t0,
         cost=problem.cost(state.arrows, p, stages), second_order=inertia,
         method=" → ".join(state.methods), inputs=table if table.shape[1] else None,
         forced=forced, stages=stages if n_stages else None)
+
+
+def _check_domain(problem: _Problem, state: _SolverState, p: np.ndarray, stages: np.ndarray,
+                  owner: str) -> None:
+    """A :class:`LagrangianDomainError` when a term of the solution has a non-finite L_d:
+    the equations hold L's derivatives only, which can have roots where L itself is not
+    defined (L = v²/2 − log x on a path through x ≤ 0; docs/conventions.md §11)."""
+    terms = problem.cost.terms(state.arrows, p, stages)
+    bad = np.flatnonzero(~np.isfinite(terms))
+    if not len(bad):
+        return
+    k = int(bad[0])
+    more = f", as are {len(bad) - 1} more terms" if len(bad) > 1 else ""
+    err = LagrangianDomainError(
+        f"{owner}: the equations are solved, but the discrete Lagrangian is not defined at "
+        f"the solution: its term {k} (from arrow {k}) is {terms[k]}{more} (a logarithm, "
+        f"square root, acos … of L outside its domain; docs/conventions.md §11).  The "
+        f"boundary-value equations hold only L's derivatives, which can have roots where L "
+        f"is not defined; check that the ends lie inside L's domain, or give a guess inside "
+        f"it", step=k, residual_norm=float(state.history[-1]), iterate=state.arrows.copy())
+    err.kinds = (f"L_d not finite on term {k}",)
+    raise err
 
 
 def _check_memory(system, steps: int, owner: str) -> None:
