@@ -1546,7 +1546,7 @@ static int heavy_top_newton_solve(const double *known, const double *p, const do
 /* Newton's method (heavy_top_newton_solve), and a solution accepted only inside the domain
  * of the window's terms: where every value of heavy_top_domain (the logarithms, square roots,
  * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
- * HEAVY_TOP_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * HEAVY_TOP_OUTSIDE_DOMAIN otherwise (a root of the step equations where L is not defined).  A kernel
  * whose terms are defined everywhere has HEAVY_TOP_N_DOMAIN 0 and no check. */
 static int heavy_top_newton(const double *known, const double *p, const double *h, const heavy_top_options *options, double *u, int *iterations, double *residual_norm)
 {
@@ -1556,7 +1556,7 @@ static int heavy_top_newton(const double *known, const double *p, const double *
         double D[HEAVY_TOP_N_DOMAIN];
         heavy_top_domain(u, known, p, D);
         if (!isfinite(heavy_top_norm_inf(D, HEAVY_TOP_N_DOMAIN))) {
-            return HEAVY_TOP_NON_FINITE;
+            return HEAVY_TOP_OUTSIDE_DOMAIN;
         }
     }
 #endif
@@ -2224,13 +2224,15 @@ const char *heavy_top_status_message(int status)
     case HEAVY_TOP_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case HEAVY_TOP_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case HEAVY_TOP_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case HEAVY_TOP_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case HEAVY_TOP_BRANCH_JUMP:
         return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared: reduce the step; or the motion itself runs away faster than its last steps, as a solution that blows up does)";
+    case HEAVY_TOP_OUTSIDE_DOMAIN:
+        return "outside the domain: Newton solved the step equations, but the discrete Lagrangian is not defined at the solution (a logarithm, square root, acos, ... of it is not finite there)";
     default:
         return "unknown status";
     }

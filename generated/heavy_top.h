@@ -116,6 +116,7 @@ extern "C" {
 #define HEAVY_TOP_INVALID_ARGUMENT 4
 #define HEAVY_TOP_STALLED 5
 #define HEAVY_TOP_BRANCH_JUMP 6
+#define HEAVY_TOP_OUTSIDE_DOMAIN 8
 
 typedef struct {
     double tol_residual;

@@ -1815,7 +1815,7 @@ static int plate_ball_newton_solve(const double *known, const double *p, const d
 /* Newton's method (plate_ball_newton_solve), and a solution accepted only inside the domain
  * of the window's terms: where every value of plate_ball_domain (the logarithms, square roots,
  * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
- * PLATE_BALL_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * PLATE_BALL_OUTSIDE_DOMAIN otherwise (a root of the step equations where L is not defined).  A kernel
  * whose terms are defined everywhere has PLATE_BALL_N_DOMAIN 0 and no check. */
 static int plate_ball_newton(const double *known, const double *p, const double *h, const plate_ball_options *options, double *u, int *iterations, double *residual_norm)
 {
@@ -1825,7 +1825,7 @@ static int plate_ball_newton(const double *known, const double *p, const double 
         double D[PLATE_BALL_N_DOMAIN];
         plate_ball_domain(u, known, p, D);
         if (!isfinite(plate_ball_norm_inf(D, PLATE_BALL_N_DOMAIN))) {
-            return PLATE_BALL_NON_FINITE;
+            return PLATE_BALL_OUTSIDE_DOMAIN;
         }
     }
 #endif
@@ -2493,13 +2493,15 @@ const char *plate_ball_status_message(int status)
     case PLATE_BALL_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case PLATE_BALL_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case PLATE_BALL_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case PLATE_BALL_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case PLATE_BALL_BRANCH_JUMP:
         return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared: reduce the step; or the motion itself runs away faster than its last steps, as a solution that blows up does)";
+    case PLATE_BALL_OUTSIDE_DOMAIN:
+        return "outside the domain: Newton solved the step equations, but the discrete Lagrangian is not defined at the solution (a logarithm, square root, acos, ... of it is not finite there)";
     default:
         return "unknown status";
     }

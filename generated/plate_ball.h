@@ -124,6 +124,7 @@ extern "C" {
 #define PLATE_BALL_INVALID_ARGUMENT 4
 #define PLATE_BALL_STALLED 5
 #define PLATE_BALL_BRANCH_JUMP 6
+#define PLATE_BALL_OUTSIDE_DOMAIN 8
 
 typedef struct {
     double tol_residual;

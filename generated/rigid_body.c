@@ -1533,7 +1533,7 @@ static int rigid_body_newton_solve(const double *known, const double *p, const d
 /* Newton's method (rigid_body_newton_solve), and a solution accepted only inside the domain
  * of the window's terms: where every value of rigid_body_domain (the logarithms, square roots,
  * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
- * RIGID_BODY_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * RIGID_BODY_OUTSIDE_DOMAIN otherwise (a root of the step equations where L is not defined).  A kernel
  * whose terms are defined everywhere has RIGID_BODY_N_DOMAIN 0 and no check. */
 static int rigid_body_newton(const double *known, const double *p, const double *h, const rigid_body_options *options, double *u, int *iterations, double *residual_norm)
 {
@@ -1543,7 +1543,7 @@ static int rigid_body_newton(const double *known, const double *p, const double 
         double D[RIGID_BODY_N_DOMAIN];
         rigid_body_domain(u, known, p, D);
         if (!isfinite(rigid_body_norm_inf(D, RIGID_BODY_N_DOMAIN))) {
-            return RIGID_BODY_NON_FINITE;
+            return RIGID_BODY_OUTSIDE_DOMAIN;
         }
     }
 #endif
@@ -2211,13 +2211,15 @@ const char *rigid_body_status_message(int status)
     case RIGID_BODY_NOT_CONVERGED:
         return "Newton's method reached its iteration cap (the max_iterations option: that many updates) without converging";
     case RIGID_BODY_NON_FINITE:
-        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state, or a solution where the discrete Lagrangian is not defined (a logarithm, square root or acos of it not finite there)";
+        return "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the Newton step or the next state";
     case RIGID_BODY_INVALID_ARGUMENT:
         return "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad option or warm start, or non-finite input)";
     case RIGID_BODY_STALLED:
         return "Newton's method stalled: its update is at the rounding noise of the solve while the residual stays above its rounding floor";
     case RIGID_BODY_BRANCH_JUMP:
         return "branch jump: the step's solution lies far outside the region the last steps predict, or on a time groupoid its time step reverses or changes by more than a factor 2 (the nearby root of the step equations has disappeared: reduce the step; or the motion itself runs away faster than its last steps, as a solution that blows up does)";
+    case RIGID_BODY_OUTSIDE_DOMAIN:
+        return "outside the domain: Newton solved the step equations, but the discrete Lagrangian is not defined at the solution (a logarithm, square root, acos, ... of it is not finite there)";
     default:
         return "unknown status";
     }

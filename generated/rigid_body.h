@@ -112,6 +112,7 @@ extern "C" {
 #define RIGID_BODY_INVALID_ARGUMENT 4
 #define RIGID_BODY_STALLED 5
 #define RIGID_BODY_BRANCH_JUMP 6
+#define RIGID_BODY_OUTSIDE_DOMAIN 8
 
 typedef struct {
     double tol_residual;

@@ -130,6 +130,7 @@ extern "C" {
 #define SATELLITE_WHEEL_INVALID_ARGUMENT 4
 #define SATELLITE_WHEEL_STALLED 5
 #define SATELLITE_WHEEL_BRANCH_JUMP 6
+#define SATELLITE_WHEEL_OUTSIDE_DOMAIN 8
 
 typedef struct {
     double tol_residual;

@@ -271,7 +271,7 @@ def test_the_c_statuses_are_generated_from_the_enum():
     assert c_defines() in library_source("stepper.h")
     assert c_status_message() in library_source("batch.c")
     assert STATUS_MESSAGES == {int(s): s.message for s in Status if s.kernel}
-    assert [int(s) for s in Status if s.kernel] == list(range(7))
+    assert [int(s) for s in Status if s.kernel] == [*range(7), 8]  # 7: CUT_LOCUS, runtime
     defined = re.findall(r"#define SG_(\w+) (\d+)\n", library_source("stepper.h"))
     kernel = {name: int(code) for name, code in defined if name in Status.__members__}
     assert kernel == {s.name: int(s) for s in Status if s.kernel}
@@ -283,12 +283,14 @@ def test_status_of_boundary_value_errors_and_stopped_runs():
     assert Status.of_boundary_value_error(sg.SingularJacobianError("x")) == \
         Status.SINGULAR_JACOBIAN
     assert Status.of_boundary_value_error(RuntimeError("x")) == Status.NOT_CONVERGED
+    assert Status.of_boundary_value_error(sg.LagrangianDomainError("x")) == \
+        Status.OUTSIDE_DOMAIN
     assert [s.name for s in Status if s.stopped] == ["INTERRUPTED", "TIMED_OUT",
                                                      "WORKER_DIED"]
     assert all(s.message and not s.message.endswith(".") for s in Status)
 
 
-@pytest.mark.parametrize("code", [99, -1, 8, "OK", None])
+@pytest.mark.parametrize("code", [99, -1, 9, "OK", None])
 def test_a_code_that_is_no_status_is_refused_by_name(code):
     import symgroupoid as sg
 

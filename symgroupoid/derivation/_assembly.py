@@ -213,7 +213,7 @@ class WindowAction:
         flat = [n for s in slot_nodes for n in s]
         grad = gradient(g, T, flat + zeta)
         return TermNodes(slot_nodes, lam, L, grad[:len(flat)], phis, rows, zeta,
-                         grad[len(flat):], domain_nodes(g, [L, *phis, *rows]))
+                         grad[len(flat):], domain_nodes(g, [L, *phis, *rows], flat + zeta))
 
     def instantiate(self, g: Graph, term: TermNodes, nodes: Sequence[int], arrows: Sequence,
                     multipliers: Sequence | None = None, extra: dict | None = None,

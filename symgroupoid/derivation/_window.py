@@ -28,7 +28,7 @@ import sympy as sp
 
 from .._symbols import multiplier_symbols, stage_symbols
 from ..groupoids import Groupoid
-from ..ir import Graph, domain_kind, forward, from_sympy
+from ..ir import Graph, domain_kind, forward, from_sympy, to_sympy
 from ._assembly import WindowAction
 from ._forces import input_symbols
 from ._step import SystemFunctions, chart_of, window_arrows
@@ -99,17 +99,29 @@ def window_graph(name: str, G: Groupoid, fs: SystemFunctions, parameters: Sequen
 
 
 def _domain(g: Graph, nodes: dict, starts: Sequence[int]) -> tuple[list, list]:
-    """The window's domain nodes (each once, newest term first) and their descriptions."""
-    domain: list = []
-    kinds: list = []
+    """The window's domain nodes (each once, newest term first) and their descriptions: what
+    each needs, the expression (when short) and the terms it belongs to."""
+    terms: dict = {}
     for s in reversed(starts):
         term = "the new arrow's term" if s == starts[-1] else "a known arrow's term"
         for n in nodes.get(s, []):
-            kind = domain_kind(g, n)
-            if n not in domain and kind is not None:  # (a constant folded away is no node)
-                domain.append(n)
-                kinds.append(f"{kind} ({term})")
-    return domain, kinds
+            if domain_kind(g, n) is not None:  # (a constant folded away is no node)
+                terms.setdefault(n, []).append(term)
+    domain = list(terms)
+    return domain, [f"{_shown(g, n)}{domain_kind(g, n)} ({' and '.join(terms[n])})"
+                    for n in domain]
+
+
+#: the largest expression a domain value's description prints
+SHOWN_NODES, SHOWN_CHARACTERS = 60, 90
+
+
+def _shown(g: Graph, node: int) -> str:
+    """``node`` as SymPy text and a colon, when it is short; else empty."""
+    if len(g.reachable([node])) > SHOWN_NODES:
+        return ""
+    text = str(to_sympy(g, [node])[0])
+    return f"{text}: " if len(text) <= SHOWN_CHARACTERS else ""
 
 
 def step_jacobian(g: Graph, residuals: Sequence[int], unknowns: Sequence[int]

@@ -13,37 +13,57 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
+import sympy as sp
+
 from ._functions import Opaque
 from ._graph import FUNC, POW, Graph
 
 #: elementary functions defined on part of the real line, by name → what their argument must be
-_PARTIAL = {"log": "positive", "asin": "in [-1, 1]", "acos": "in [-1, 1]"}
+_PARTIAL = {"log": "> 0", "asin": "in [-1, 1]", "acos": "in [-1, 1]"}
+
+
+def _integral(e: sp.Expr) -> bool:
+    """Whether a constant exponent is an integer (2 and 2.0 alike: C's pow of a negative base
+    to 2.0 is finite)."""
+    return bool(e.is_Integer or (e.is_Float and float(e).is_integer()))
+
+
+def _total(spec: Opaque) -> bool:
+    """Whether SymPy knows an opaque function to be real for every real argument (asinh,
+    atan of a sum, …): no domain to leave."""
+    real = {x: sp.Dummy(real=True) for x in spec.placeholders}
+    return spec.expr.xreplace(real).is_real is True
 
 
 def domain_kind(g: Graph, node: int) -> str | None:
-    """What ``node`` needs of its argument to be finite, in words (``"log: its argument
-    positive"``), or None for a node defined on the whole real line (given finite
+    """What ``node`` needs of its argument to be finite, in words (``"log needs a positive
+    argument"``), or None for a node defined on the whole real line (given finite
     arguments)."""
     op = g.op[node]
     if op == POW:
         e = g.data[node]
-        if not e.is_Integer:
-            need = "positive" if e.is_negative else "non-negative"
-            return f"the power {e} of a number: the number {need}"
-        return None
+        if _integral(e):
+            return None
+        return f"the power {e} needs a base {'> 0' if e.is_negative else '>= 0'}"
     if op != FUNC:
         return None
     spec = g.data[node]
     if isinstance(spec, Opaque):
-        return f"the function {str(spec.expr)[:60]} of {spec.nargs} argument(s): a finite value"
+        return None if _total(spec) else f"{type(spec.expr).__name__} needs a finite value"
     need = _PARTIAL.get(getattr(spec, "name", None))
-    return f"{spec.name}: its argument {need}" if need else None
+    return f"{spec.name} needs an argument {need}" if need else None
 
 
-def domain_nodes(g: Graph, outputs: Iterable[int]) -> list[int]:
+def domain_nodes(g: Graph, outputs: Iterable[int], varying: Iterable[int] | None = None
+                 ) -> list[int]:
     """The nodes the ``outputs`` depend on that are defined on part of the real line only
-    (:func:`domain_kind`), ascending."""
-    return [i for i in g.reachable(list(outputs)) if domain_kind(g, i) is not None]
+    (:func:`domain_kind`), ascending; with ``varying`` (input nodes), only those that depend
+    on one of them (a square root of a parameter is checked with the parameters, not at
+    every step)."""
+    order = g.reachable(list(outputs))
+    moving = None if varying is None else g.dependents(varying, order)
+    return [i for i in order if domain_kind(g, i) is not None
+            and (moving is None or i in moving)]
 
 
 __all__ = ["domain_kind", "domain_nodes"]

@@ -41,7 +41,7 @@ from ._runs import (
 )
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT, STALLED, BRANCH_JUMP = (
-    s for s in Status if s.kernel)
+    s for s in Status if s <= Status.BRANCH_JUMP)
 
 
 # --- checks at the C boundary ----------------------------------------------------------------
@@ -529,6 +529,8 @@ class NumpyKernel(_Kernel):
         return self._next(u, known, p)[0].reshape(self.n_k)
 
     def _domain(self, u, known, p) -> np.ndarray:
+        if self._D is None:  # L defined everywhere: no values (as the C kernel's N_DOMAIN 0)
+            return np.zeros(0)
         return np.asarray(self._D(u, known, p)[0], float).ravel()
 
     def _solve_step(self, known, p, u0, options: NewtonOptions):

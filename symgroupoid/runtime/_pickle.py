@@ -138,8 +138,10 @@ class DetachedStep:
     system = None  # no constraint check without the symbolic system
 
     def __init__(self, name: str, order: int, n_constraints: int, unknowns: list[str],
-                 knowns: list[str], parameters: list[tuple[str, dict]]):
+                 knowns: list[str], parameters: list[tuple[str, dict]],
+                 domain_kinds: tuple = ()):
         self.name, self.order, self.n_constraints = name, order, n_constraints
+        self.domain_kinds = list(domain_kinds)
         self.unknowns = [sp.Symbol(s) for s in unknowns]
         self.knowns = [sp.Symbol(s) for s in knowns]
         self.parameters = [sp.Symbol(s, **assumptions) for s, assumptions in parameters]
@@ -184,6 +186,8 @@ class SimulatorRecipe:
     layout: StateLayout
     extra: dict = field(default_factory=dict)
     time: TimeLayout = NO_TIME  # the step's time indices (its branch check's messages)
+    #: what each value of the kernel's ``domain`` needs (its domain check's messages)
+    domain_kinds: tuple = ()
 
 
 def recipe_of(sim) -> SimulatorRecipe:
@@ -210,7 +214,7 @@ def recipe_of(sim) -> SimulatorRecipe:
         parameters=[(str(s), _declared_assumptions(s)) for s in step.parameters],
         kernel=source, flags=tuple(sim.kernel.flags), source_key=sim.kernel.source_key,
         digest=c_digest(source), options=sim.options, layout=plain_layout(sim.layout),
-        time=sim.time)
+        time=sim.time, domain_kinds=tuple(step.domain_kinds))
     sim._recipe = recipe
     return recipe
 
@@ -226,7 +230,8 @@ def restore_simulator(recipe: SimulatorRecipe):
     kernel, entry = load_kernel_source(recipe.kernel, recipe.flags, recipe.name,
                                        len(recipe.unknowns), len(recipe.knowns))
     step = DetachedStep(recipe.name, recipe.order, recipe.n_constraints, recipe.unknowns,
-                        recipe.knowns, recipe.parameters)
+                        recipe.knowns, recipe.parameters,
+                        getattr(recipe, "domain_kinds", ()))
     sim = Simulator.__new__(Simulator)
     sim.equations = step
     sim.kernel = kernel

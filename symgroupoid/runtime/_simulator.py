@@ -508,6 +508,13 @@ class Simulator(InitialStates):
         twice, from the extrapolated guess and from the prediction).  A step that gave
         non-finite values at the known state ``known`` is explained where a cause is found
         (a half-turn, a zero parameter; :mod:`~symgroupoid.runtime._singular`)."""
+        if status == Status.OUTSIDE_DOMAIN:  # a solution where L is not defined: say which
+            from ._singular import outside_domain_error
+
+            err = outside_domain_error(self, step, iterations, residual_norm, iterate, known, p,
+                                       f"{self.name}: step {step} failed")
+            err.trajectory = None
+            return err
         if status == Status.NON_FINITE and known is not None:  # a half-turn, h = 0: say which
             from ._singular import non_finite_cause
 

@@ -26,8 +26,8 @@ from .._errors import (
     LagrangianDomainError,
     NewtonDivergenceError,
     ParameterError,
-    SymgroupoidError,
 )
+from ..stepper import Status
 
 #: an increment counts as a half-turn when det(I + R)/2ⁿ is at most this (SO(3): the angle
 #: within 2·10⁻⁴ of π); only asked after the step gave non-finite values
@@ -97,10 +97,6 @@ def non_finite_cause(sim, step_index: int, iterations: int, residual_norm: float
     naming the half-turn and the remedy, or a :class:`NewtonDivergenceError` naming the
     zero parameter.  ``head``: the message's start ("name: step k failed")."""
     step = sim.equations
-    outside = _outside_domain(sim, step_index, iterations, residual_norm, iterate, known, p,
-                              head)
-    if outside is not None:
-        return outside
     layout = sim.layout
     for offset, index in layout.arrow_index.items():
         found = half_turns(step.groupoid, np.asarray(known, float)[index])
@@ -120,35 +116,29 @@ def non_finite_cause(sim, step_index: int, iterations: int, residual_norm: float
     return None
 
 
-def _outside_domain(sim, step_index: int, iterations: int, residual_norm: float, iterate,
-                    known: np.ndarray, p: np.ndarray | None, head: str
-                    ) -> LagrangianDomainError | None:
-    """A :class:`LagrangianDomainError` when Newton solved the step (a finite iterate with a
-    finite residual) but the kernel's ``domain`` values are not all finite there: the
-    solution lies where L is not defined (docs/conventions.md §11)."""
+def outside_domain_error(sim, step_index: int, iterations: int, residual_norm: float,
+                         iterate, known, p, head: str) -> LagrangianDomainError:
+    """The error of a step whose solution Newton found where the discrete Lagrangian is not
+    defined (status ``OUTSIDE_DOMAIN``, docs/conventions.md §11): the kernel's ``domain``
+    values at the solution say which logarithm, square root, … left its domain, and on which
+    term of the window (``step.domain_kinds``)."""
     x = np.asarray(iterate, dtype=float)
-    if p is None or not np.isfinite(residual_norm) or not np.isfinite(x).all():
-        return None
-    try:
+    values = np.zeros(0)
+    if known is not None and p is not None and np.isfinite(x).all():
         with np.errstate(all="ignore"):
             values = sim.kernel.domain(x, known, p)
-    except SymgroupoidError:  # (an iterate of another length: not a step's solution)
-        return None
     bad = np.flatnonzero(~np.isfinite(values))
-    if not len(bad):
-        return None
-    described = sim.equations.domain_kinds
-    kinds = tuple(described[i] if i < len(described) else f"value {i}" for i in bad)
-    shown = "; ".join(f"{kind}: {values[i]}" for kind, i in zip(kinds, bad[:3]))
+    described = list(getattr(sim.equations, "domain_kinds", ()))
+    kinds = tuple(described[i] if i < len(described) else f"domain value {i}" for i in bad)
+    shown = "; ".join(f"{kind} is {values[i]}" for kind, i in zip(kinds, bad[:3]))
     more = f" (and {len(bad) - 3} more)" if len(bad) > 3 else ""
-    first = step_index == 0
+    initial = step_index == 0 and any("known arrow" in k for k in kinds)
     err = LagrangianDomainError(
-        f"{head}: Newton solved the step equations (|F|_inf = {residual_norm:.3e} after "
-        f"{iterations} updates), but at that solution the discrete Lagrangian is not defined: "
-        f"{shown}{more}.  The step equations hold only L's derivatives, which can have roots "
-        f"outside L's domain; the run stops before such a step (docs/conventions.md §11)"
-        + (" — here the initial state itself may lie outside it" if first and any(
-            "known arrow" in k for k in kinds) else
+        f"{head}: {Status.OUTSIDE_DOMAIN.message}: {shown or 'a domain value is not finite'}"
+        f"{more} (|F|_inf = {residual_norm:.3e} after {iterations} updates).  The step "
+        f"equations hold only L's derivatives, which can have roots outside L's domain; the "
+        f"run stops before such a step (docs/conventions.md §11)"
+        + ("; here the initial state itself lies outside it" if initial else
            ": a smaller time step may keep the motion inside the domain, or the motion "
            "itself leaves it"), step=int(step_index), residual_norm=float(residual_norm),
         iterate=x.copy())

@@ -20,7 +20,8 @@ from ._status import Status
 from ._time import HOLD_ITERATIONS, HOLD_TOLERANCE, NO_TIME, STEP_RATIO, TimeLayout
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT, STALLED, BRANCH_JUMP = (
-    int(s) for s in Status if s.kernel)
+    int(s) for s in Status if s <= Status.BRANCH_JUMP)
+OUTSIDE_DOMAIN = int(Status.OUTSIDE_DOMAIN)
 
 #: default Newton options, as ``SG_NAME(default_options)`` sets them (a test checks it)
 DEFAULT_OPTIONS = {"tol_residual": 0.0, "tol_step": 1e-16, "max_iterations": 50,
@@ -472,7 +473,7 @@ class NumpyStepper:
         with np.errstate(all="ignore"):
             status, u, it, rnorm = self.newton(known, p, np.array(u0, dtype=float), options)
             if status == OK and not self.in_domain(u, known, p):
-                status = NON_FINITE
+                status = OUTSIDE_DOMAIN
         return status, u, it, rnorm
 
     def in_domain(self, u, known, p) -> bool:
@@ -667,6 +668,7 @@ class NumpyStepper:
 
 __all__ = ["BRANCH_JUMP", "BandOrder", "C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON",
            "INVALID_ARGUMENT", "LUFactors", "MAX_THREADS", "NON_FINITE", "NOT_CONVERGED",
+           "OUTSIDE_DOMAIN",
            "NumpyStepper", "NumpyWarmStart", "OK", "SINGULAR_JACOBIAN", "STALLED",
            "StepFunctions", "TRUST_FLOOR", "above_rounding", "band_factor", "coordinate_floor",
            "explained_by_rounding", "hold_time", "lu_apply", "lu_factor", "lu_solve",

@@ -22,12 +22,13 @@ class Status(enum.IntEnum):
     tells the failures apart): ``OK``, ``SINGULAR_JACOBIAN``, ``NOT_CONVERGED`` (the iteration
     cap), ``NON_FINITE``, ``INVALID_ARGUMENT``, ``STALLED`` (an update at the rounding noise
     of the solve, the residual above every floor), ``BRANCH_JUMP`` (a solution outside the
-    trust region of its guess).  Given by the runtime: ``CUT_LOCUS`` (a boundary-value path
-    met the cut locus of its chart), and for runs stopped from outside, ``INTERRUPTED``
-    (Ctrl-C), ``TIMED_OUT`` (a sweep's ``timeout``) and ``WORKER_DIED`` (a sweep's worker
-    process died).  A boundary-value run reports ``SINGULAR_JACOBIAN``, ``CUT_LOCUS`` or
-    ``NOT_CONVERGED`` (any other way its iteration ended without a solution:
-    :meth:`of_boundary_value_error`).
+    trust region of its guess), ``OUTSIDE_DOMAIN`` (a solution where the discrete Lagrangian
+    is not defined, docs/conventions.md §11).  Given by the runtime: ``CUT_LOCUS`` (a
+    boundary-value path met the cut locus of its chart), and for runs stopped from outside,
+    ``INTERRUPTED`` (Ctrl-C), ``TIMED_OUT`` (a sweep's ``timeout``) and ``WORKER_DIED`` (a
+    sweep's worker process died).  A boundary-value run reports ``SINGULAR_JACOBIAN``,
+    ``CUT_LOCUS``, ``OUTSIDE_DOMAIN`` or ``NOT_CONVERGED`` (any other way its iteration
+    ended without a solution: :meth:`of_boundary_value_error`).
     """
 
     message: str
@@ -49,8 +50,7 @@ class Status(enum.IntEnum):
         "updates) without converging")
     NON_FINITE = 3, (
         "non-finite value (overflow to infinity, or NaN) in the residual, the Jacobian, the "
-        "Newton step or the next state, or a solution where the discrete Lagrangian is not "
-        "defined (a logarithm, square root or acos of it not finite there)")
+        "Newton step or the next state")
     INVALID_ARGUMENT = 4, (
         "invalid argument (null buffer, negative step count, capacity below n_steps + 1, bad "
         "option or warm start, or non-finite input)")
@@ -63,6 +63,10 @@ class Status(enum.IntEnum):
         "(the nearby root of the step equations has disappeared: reduce the step; or the "
         "motion itself runs away faster than its last steps, as a solution that blows up "
         "does)")
+    OUTSIDE_DOMAIN = 8, (
+        "outside the domain: Newton solved the step equations, but the discrete Lagrangian "
+        "is not defined at the solution (a logarithm, square root, acos, ... of it is not "
+        "finite there)")
     CUT_LOCUS = 7, (
         "the boundary-value path met the cut locus of its chart (a half-turn, where the chart "
         "and the equations are not defined)")
@@ -82,7 +86,7 @@ class Status(enum.IntEnum):
     @property
     def kernel(self) -> bool:
         """Whether the C library (and its NumPy twin) returns this status."""
-        return self <= Status.BRANCH_JUMP
+        return self <= Status.BRANCH_JUMP or self is Status.OUTSIDE_DOMAIN
 
     @property
     def stopped(self) -> bool:
@@ -92,11 +96,14 @@ class Status(enum.IntEnum):
 
     @classmethod
     def of_boundary_value_error(cls, error: BaseException) -> Status:
-        """The status of a boundary-value run that raised ``error``: ``SINGULAR_JACOBIAN``
-        or ``CUT_LOCUS`` for those errors, else ``NOT_CONVERGED`` (the iteration cap, a
-        stalled update, no decrease of the merit function, a non-finite residual)."""
-        from .._errors import CutLocusError, SingularJacobianError
+        """The status of a boundary-value run that raised ``error``: ``SINGULAR_JACOBIAN``,
+        ``CUT_LOCUS`` or ``OUTSIDE_DOMAIN`` for those errors, else ``NOT_CONVERGED`` (the
+        iteration cap, a stalled update, no decrease of the merit function, a non-finite
+        residual)."""
+        from .._errors import CutLocusError, LagrangianDomainError, SingularJacobianError
 
+        if isinstance(error, LagrangianDomainError):
+            return cls.OUTSIDE_DOMAIN
         if isinstance(error, SingularJacobianError):
             return cls.SINGULAR_JACOBIAN
         if isinstance(error, CutLocusError):

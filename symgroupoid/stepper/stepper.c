@@ -1166,7 +1166,7 @@ static int SG_NAME(newton_solve)(const double *known, const double *p, const dou
 /* Newton's method (SG_NAME(newton_solve)), and a solution accepted only inside the domain
  * of the window's terms: where every value of SG_NAME(domain) (the logarithms, square roots,
  * acos, ... of L, finite exactly where L is defined; docs/conventions.md section 11) is finite;
- * SG_NON_FINITE otherwise (a root of the step equations where L is not defined).  A kernel
+ * SG_OUTSIDE_DOMAIN otherwise (a root of the step equations where L is not defined).  A kernel
  * whose terms are defined everywhere has SG_N_DOMAIN 0 and no check. */
 static int SG_NAME(newton)(const double *known, const double *p, const double *h, const SG_NAME(options) *options, double *u, int *iterations, double *residual_norm)
 {
@@ -1176,7 +1176,7 @@ static int SG_NAME(newton)(const double *known, const double *p, const double *h
         double D[SG_N_DOMAIN];
         SG_NAME(domain)(u, known, p, D);
         if (!isfinite(SG_NAME(norm_inf)(D, SG_N_DOMAIN))) {
-            return SG_NON_FINITE;
+            return SG_OUTSIDE_DOMAIN;
         }
     }
 #endif

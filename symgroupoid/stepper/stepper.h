@@ -25,6 +25,7 @@
 #define SG_INVALID_ARGUMENT 4
 #define SG_STALLED 5
 #define SG_BRANCH_JUMP 6
+#define SG_OUTSIDE_DOMAIN 8
 
 typedef struct {
     double tol_residual;
