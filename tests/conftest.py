@@ -6,6 +6,7 @@ import importlib.util
 import os
 import pathlib
 import signal
+import sys
 import threading
 
 import numpy as np
@@ -128,6 +129,22 @@ def pytest_configure(config: pytest.Config) -> None:
     if os.environ.get("PYTEST_XDIST_WORKER") and basetemp:
         os.environ["SYMGROUPOID_TEST_SESSION_KERNELS"] = str(
             pathlib.Path(basetemp).resolve().parent / "session-kernels")
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_collection(session: pytest.Session):
+    """The test modules are collected with bytecode writing on, also where the environment
+    turns it off (PYTHONDONTWRITEBYTECODE): pytest then keeps each module with its assertions
+    rewritten in tests/__pycache__ (checked against the source, rewritten again when that
+    changes), and a later run, and each pytest-xdist worker of it, loads them instead of
+    rewriting 3,600 assertions again (about 10 s of each worker's collection).  Only the
+    collection: what the tests themselves import or run is as the environment says."""
+    before = sys.dont_write_bytecode
+    sys.dont_write_bytecode = False
+    try:
+        return (yield)
+    finally:
+        sys.dont_write_bytecode = before
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:

@@ -95,6 +95,16 @@ def module_cache(module_cache_root, monkeypatch):
     return module_cache_root
 
 
+@pytest.fixture
+def shared_kernels(isolated_cache, module_cache_root, monkeypatch):
+    """For a test that is not about the cache and compiles a system that other tests of its
+    module compile too (the command line's example files): the module's one fresh kernel
+    cache (:func:`module_cache_root`) in place of the test's own, so that the system is
+    built once per module (still never the user's cache)."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(module_cache_root))
+    return module_cache_root
+
+
 @functools.cache
 def compiled(name: str, backend: str = "c"):
     """The simulator of a seed system (built once per test process)."""

@@ -7,11 +7,20 @@ import numpy as np
 import pytest
 import sympy as sp
 from _systems import driven_oscillator
-from kernel_support import REPO, isolated_cache, needs_cc  # noqa: F401  (fixture)
+from kernel_support import (  # noqa: F401  (module_cache: autouse fixture)
+    REPO,
+    module_cache,
+    module_cache_root,
+    needs_cc,
+)
 
 import symgroupoid as sg
 from symgroupoid import DomainError, ShapeError
 from symgroupoid.cli import load_system, main
+
+# none of these tests is about the cache: they share one fresh kernel cache
+# (kernel_support.module_cache), so the command line's tests build
+# examples/cli/driven_spring.py once, not once each
 
 h, k = sp.symbols("h k", positive=True)
 PARAMS = {"h": 0.05, "k": 2.0, "c": 0.3}
@@ -19,8 +28,8 @@ STEPS = 25
 
 
 @pytest.fixture(scope="module")
-def oscillator():
-    return driven_oscillator().euler_lagrange().compile()
+def oscillator(module_cache_root):  # noqa: F811
+    return driven_oscillator().euler_lagrange().compile(cache_dir=module_cache_root)
 
 
 def _starts(n: int) -> list:

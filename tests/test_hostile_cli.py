@@ -34,7 +34,12 @@ from _hostile import (
 )
 from hypothesis import given
 from hypothesis import strategies as st
-from kernel_support import REPO, isolated_cache  # noqa: F401  (autouse fixture)
+from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
+    REPO,
+    isolated_cache,
+    module_cache_root,
+    shared_kernels,
+)
 
 from symgroupoid.cli import main
 
@@ -290,6 +295,7 @@ def test_an_unexpected_exception_is_one_line_not_a_traceback(system_files, monke
         main(["simulate", "spring.py", "--steps", "3", "--debug"])
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 @pytest.mark.parametrize("initial, message", [
     ("[" * 5000 + "]" * 5000, "nested deeper than any input"),
     ('{"q": [1.0, 0.999], "q": [5.0, 5.1]}', "'q' is given twice"),
@@ -310,6 +316,7 @@ def test_a_boundary_file_with_a_key_given_twice_is_refused(capsys):
     assert "'start' is given twice" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 def test_a_csv_with_a_byte_order_mark_and_an_empty_initial(capsys):
     """A spreadsheet's "CSV UTF-8" starts with a byte-order mark: its header read
     "\\ufeffu", and the message said the columns \\ufeffu were not the inputs u; an empty
@@ -325,6 +332,7 @@ def test_a_csv_with_a_byte_order_mark_and_an_empty_initial(capsys):
     assert "--initial: empty" in err and "'.'" not in err, err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 def test_inputs_for_a_system_without_inputs_are_refused(capsys):
     """The message said "the system's inputs are none (in that order)"."""
     shutil.copy(SPRING, "spring.py")
@@ -334,6 +342,7 @@ def test_inputs_for_a_system_without_inputs_are_refused(capsys):
     assert "has no inputs" in err and "in that order" not in err, err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 @pytest.mark.parametrize("option", ["--initial", "--inputs", "boundary"])
 def test_a_device_or_a_fifo_is_not_read_as_an_input_file(option, capsys):
     """``--initial /dev/zero`` read until the out-of-memory killer ended the process (a
@@ -355,6 +364,7 @@ def test_a_device_or_a_fifo_is_not_read_as_an_input_file(option, capsys):
         assert "not a regular file" in err and "Traceback" not in err, err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 def test_an_input_file_larger_than_the_limit_is_refused(capsys, monkeypatch):
     monkeypatch.setattr("symgroupoid.cli._inputs.JSON_LIMIT", 100)
     shutil.copy(SPRING, "spring.py")
@@ -363,6 +373,7 @@ def test_an_input_file_larger_than_the_limit_is_refused(capsys, monkeypatch):
     assert "more than the 100 bytes" in capsys.readouterr().err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 @pytest.mark.parametrize(("content", "message"), [
     ("", "holds no rows of inputs"),
     ("u\n", "holds no rows of inputs"),
@@ -382,6 +393,7 @@ def test_csv_inputs_are_decimal_numbers(content, message, capsys):
     assert message in err and "Traceback" not in err, err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 def test_a_pickled_npy_is_refused_without_advice_to_unpickle(capsys):
     shutil.copy(REPO / "examples" / "cli" / "driven_spring.py", "driven_spring.py")
     np.save("U.npy", np.array([{"u": 1}], dtype=object), allow_pickle=True)
@@ -400,6 +412,7 @@ def test_a_bad_initial_in_the_file_is_not_blamed_on_the_option(capsys):
     assert "the file's INITIAL: a state from a velocity" in err and "--initial" not in err, err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 @pytest.mark.parametrize("option", ["--initial", "--inputs", "boundary"])
 def test_a_directory_is_not_read_as_an_input_file(option, capsys):
     """A directory named where a file is read printed "symgroupoid: error: 3: Is a
@@ -419,6 +432,7 @@ def test_a_directory_is_not_read_as_an_input_file(option, capsys):
     assert "folder" in err and "not a regular file" in err and "Is a directory" not in err, err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 def test_npy_inputs_are_read_as_csv_inputs_are(capsys):
     """A one-dimensional .npy of one input's values is a column, and a longer one gives its
     first N rows as a longer CSV table does (it was refused, "got shape (10,)"); a file
@@ -464,6 +478,7 @@ def test_cache_info_says_a_cache_path_that_is_a_file_is_not_used(monkeypatch, ca
     assert "NOT USED: it is not a directory" in capsys.readouterr().out
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 def test_an_npy_whose_header_claims_more_than_the_file_is_refused(capsys):
     """A header claiming 10¹⁵ inputs made NumPy allocate 7 PiB: "internal error
     (MemoryError …)"."""
@@ -479,6 +494,7 @@ def test_an_npy_whose_header_claims_more_than_the_file_is_refused(capsys):
     assert "claims 8,000,000,000,000,000 bytes" in err and "internal error" not in err, err
 
 
+@pytest.mark.usefixtures("shared_kernels")  # the examples' systems, built once
 def test_errors_about_the_initial_state_and_the_inputs_name_their_option(capsys):
     """The library's refusals of a state or an input read from a file named only the
     system ("driven_spring: unknown state part 'x'", "input u of step 0 is nan"): on the

@@ -34,10 +34,16 @@ def log_step():
     return _system().discretize(h, "midpoint").euler_lagrange()
 
 
+@pytest.fixture(scope="module")
+def domain_cache(tmp_path_factory):
+    """One kernel cache for the module's runs (none of its tests is about the cache): the
+    logarithm's step is compiled once."""
+    return tmp_path_factory.mktemp("domain_cache")
+
+
 @pytest.fixture(scope="module", params=["c", "numpy"])
-def log_sim(request, log_step, tmp_path_factory):
-    return log_step.compile(backend=request.param,
-                            cache_dir=tmp_path_factory.mktemp("domain_cache"))
+def log_sim(request, log_step, domain_cache):
+    return log_step.compile(backend=request.param, cache_dir=domain_cache)
 
 
 def test_kinds_name_the_logarithm_of_every_term(log_step):
@@ -63,10 +69,10 @@ def test_a_run_stops_where_the_solution_leaves_the_domain(log_sim):
     assert err.iterate[0] + kept[-1][1] < 0
 
 
-def test_c_and_numpy_stop_at_the_same_step_with_the_same_states(log_step, tmp_path):
+def test_c_and_numpy_stop_at_the_same_step_with_the_same_states(log_step, domain_cache):
     runs = []
     for backend in ("c", "numpy"):
-        sim = log_step.compile(backend=backend, cache_dir=tmp_path)
+        sim = log_step.compile(backend=backend, cache_dir=domain_cache)
         with pytest.raises(sg.LagrangianDomainError) as info:
             sim.simulate(START, 400, PARAMS)
         runs.append(info.value)
