@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numbers
 import os
+import unicodedata
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -299,16 +300,18 @@ def _is_real_number(item) -> bool:
 # --- objects ------------------------------------------------------------------------------------
 
 def name_argument(value, name: str, *, owner: str = "", empty: bool = False) -> str:
-    """``value`` as a name: a string (non-empty unless ``empty``), without NUL characters;
-    an :class:`InputTypeError` or :class:`ShapeError` naming ``name`` otherwise."""
+    """``value`` as a name: a string (non-empty unless ``empty``), without control
+    characters (NUL, line breaks, tabs: a name is printed on one line of messages, TeX
+    comments and C); an :class:`InputTypeError` or :class:`ShapeError` naming ``name``
+    otherwise."""
     if not isinstance(value, str):
         raise InputTypeError(f"{where(owner)}{name} must be a string, got "
                              f"{type(value).__name__} {shown_value(value)}")
     if not value.strip() and not empty:
         raise ShapeError(f"{where(owner)}{name} must not be empty, got {value!r}")
-    if "\0" in value:
-        raise ShapeError(f"{where(owner)}{name} must not contain NUL characters, got "
-                         f"{value!r}")
+    if any(unicodedata.category(c) == "Cc" for c in value):
+        raise ShapeError(f"{where(owner)}{name} must not contain control characters (NUL, "
+                         f"line breaks, tabs), got {value!r}")
     return value
 
 

@@ -143,3 +143,57 @@ def _total_degree(p) -> int:
 
 
 __all__ = ["vanishes"]
+
+
+#: the expanded size (terms) from which :func:`vanishes_at_points` stands in for
+#: :func:`vanishes`: bringing a few thousand terms with powers of several Cayley
+#: denominators over their common multiple takes hours (a heavy top with rotors, seed 001
+#: §3.3.5), where evaluating them at a point takes a second
+LARGE_TERMS = 400
+
+#: the random points of :func:`vanishes_at_points` and the range of their coordinates'
+#: numerators and denominators (from a fixed seed: the same decision on every run)
+POINTS, SPREAD, SEED = 3, 2**31, 0x5EED
+
+
+def is_rational_expression(expr: sp.Expr) -> bool:
+    """Whether ``expr`` is built from symbols and rational numbers by sums, products and
+    integer powers only (a rational function over Q)."""
+    for node in sp.preorder_traversal(expr):
+        if node.is_Symbol or node.is_Rational or node.is_Add or node.is_Mul:
+            continue
+        if node.is_Pow and node.exp.is_Integer:
+            continue
+        return False
+    return True
+
+
+def vanishes_at_points(expr: sp.Expr) -> bool | None:
+    """Whether the rational function ``expr`` of its symbols is zero, by exact evaluation at
+    :data:`POINTS` random rational points (Schwartz–Zippel: a nonzero numerator of degree d
+    vanishes at a point drawn from a set of N values per coordinate with probability at
+    most d/N; here N is about 2⁶¹, so for every degree these equations reach the chance of
+    a false "zero" at three points is below 10⁻⁴⁵).  A nonzero value proves the expression
+    nonzero.  Points where a denominator vanishes are drawn again.  None when ``expr`` is
+    not a rational function over Q (:func:`is_rational_expression`)."""
+    import random
+
+    expr = sp.sympify(expr)
+    if expr == 0:
+        return True
+    if not is_rational_expression(expr):
+        return None
+    gens = sorted(expr.free_symbols, key=sp.default_sort_key)
+    draw = random.Random(SEED)
+    found = 0
+    for _ in range(20 * POINTS):
+        point = {s: sp.Rational(draw.randint(1, SPREAD), draw.randint(1, SPREAD)) for s in gens}
+        value = expr.xreplace(point)
+        if not value.is_Rational:  # a denominator vanished there (zoo, nan): another point
+            continue
+        if value != 0:
+            return False
+        found += 1
+        if found == POINTS:
+            return True
+    return None

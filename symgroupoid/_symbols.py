@@ -46,6 +46,15 @@ def parse_step(step: str | int) -> int:
 #: Unicode's spelling of a Greek letter -> the LaTeX command's
 _GREEK_SPELLING = {"lamda": "lambda"}
 
+#: letters outside the Greek block that mathematics writes as commands (the micro sign µ is
+#: the Greek μ to a reader)
+_LETTER_SPELLING = {"\u2113": "ell", "\u0127": "hbar", "\u210f": "hbar", "\u00b5": "mu"}
+
+#: combining accents over a letter, as SymPy's name modifiers spell them (ẋ: xdot → \dot{x})
+_ACCENT_SPELLING = {"\u0307": "dot", "\u0308": "ddot", "\u0302": "hat", "\u0304": "bar",
+                    "\u0303": "tilde", "\u0301": "acute", "\u0300": "grave",
+                    "\u0306": "breve", "\u030c": "check", "\u20d7": "vec"}
+
 
 def scalar_expressions(values: Sequence) -> tuple[tuple, int | None]:
     """(the :func:`scalar_expression` of each of ``values``, the index of the first that is
@@ -77,9 +86,19 @@ def greek_spelled(name: str) -> str:
     ``Ω`` → ``Omega``, ``ϑ`` → ``vartheta``), so that it prints as ``\\theta_{1}``: LaTeX
     engines typeset the commands, not the characters (pdflatex stops at a Greek character in
     mathematics, lualatex drops its glyph); a subscript digit as an index (``θ₁`` →
-    ``theta_1``, which prints as ``\\theta_{1}``).  Other characters are kept."""
+    ``theta_1``, which prints as ``\\theta_{1}``); ``ℓ``, ``ħ`` and the micro sign ``µ`` as
+    ``ell``, ``hbar`` and ``mu``; a letter with a combining accent as SymPy's modifier
+    (``ẋ`` → ``xdot``, printed ``\\dot{x}``).  Other characters are kept
+    (:func:`unspelled_character` finds those a LaTeX engine would not typeset)."""
     out = []
-    for ch in name:
+    for ch in _accents_spelled(name):
+        if ch in _LETTER_SPELLING:
+            ch = _LETTER_SPELLING[ch]
+            if ch == "mu":
+                ch = "\u03bc"
+            else:
+                out.append(("_" if out and out[-1][-1:].isalpha() else "") + ch)
+                continue
         words = unicodedata.name(ch, "").split() if ord(ch) > 127 else []
         if words[:1] == ["SUBSCRIPT"] and unicodedata.digit(ch, None) is not None:
             # θ₁ as theta_1, θ₁₂ as theta_12
@@ -99,6 +118,46 @@ def greek_spelled(name: str) -> str:
         follows = len(out) and out[-1][-1:].isalpha()
         out.append(("_" if follows else "") + letter)
     return "".join(out)
+
+
+def _accents_spelled(name: str) -> str:
+    """``name`` with each letter that carries one combining accent of
+    :data:`_ACCENT_SPELLING` written as the letter and the accent's modifier word, where the
+    letter ends the name or a digit follows (SymPy reads a modifier at the end of a name's
+    base: ``ẋ1`` → ``xdot1``, printed ``\\dot{x}_{1}``)."""
+    decomposed = unicodedata.normalize("NFD", name)
+    out, i = [], 0
+    while i < len(decomposed):
+        ch = decomposed[i]
+        accent = decomposed[i + 1] if i + 1 < len(decomposed) else ""
+        rest = decomposed[i + 2:]
+        if ch.isascii() and ch.isalpha() and accent in _ACCENT_SPELLING \
+                and (not rest or rest[0].isdigit() or rest[0] == "_"):
+            out.append(ch + _ACCENT_SPELLING[accent])
+            i += 2
+            continue
+        out.append(ch)
+        i += 1
+    return unicodedata.normalize("NFC", "".join(out))
+
+
+def unspelled_character(name: str) -> str | None:
+    """The first character of ``name`` that stays outside ASCII after
+    :func:`greek_spelled` (a LaTeX engine would stop at it or drop its glyph), or None."""
+    for ch in greek_spelled(name):
+        if not ch.isascii():
+            return ch
+    return None
+
+
+#: a superscript of digits (SymPy prints m__2 and m^2 as m^{2}): read as a power
+_POWER_SUPERSCRIPT = re.compile(r"\^\{?[0-9]+\}?")
+
+
+def reads_as_power(name: str) -> bool:
+    """Whether ``name`` prints with a superscript of digits, as a power reads (``m__2``,
+    ``m^2``: m^{2}, the square of m)."""
+    return _POWER_SUPERSCRIPT.search(latex_name(name)) is not None
 
 
 def latex_name(name: str) -> str:
@@ -155,6 +214,14 @@ def unprintable_name(name: str) -> str | None:
         return "it must start with a letter (a digit or a sign would read as arithmetic)"
     if any(ch.isspace() for ch in name):
         return "it holds a space (a CSV header or a name=value list could not name it)"
+    odd = unspelled_character(name)
+    if odd is not None:
+        return (f"it holds the character {odd!r} ({unicodedata.name(odd, 'unnamed')}), which "
+                f"LaTeX does not typeset in mathematics (Greek letters, ℓ, ħ, µ and accented "
+                f"letters such as ẋ are spelt as commands)")
+    if reads_as_power(name):
+        return (f"it prints as {latex_name(name)}, which reads as a power (a superscript of "
+                f"digits); write the index as a subscript (m_2)")
     if _LATEX_SPECIAL.search(name):
         return "it holds a character LaTeX reads as structure (% & # $ ~ or a lone backslash)"
     for command in re.findall(r"\\([A-Za-z]+)", name):

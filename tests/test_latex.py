@@ -331,6 +331,29 @@ def test_the_printed_forms_zero_test_agrees_with_cancel():
             assert vanishes(difference) == reference
 
 
+def test_a_large_difference_is_tested_at_random_points():
+    """The printed equations of a heavy top with rotors (examples/heavy_top_rotors.py) left
+    differences of 2,012 terms over powers of several Cayley denominators, which the common
+    denominator took hours to bring together: from LARGE_TERMS terms on, the difference is
+    evaluated exactly at random rational points (a nonzero value refutes it for certain),
+    with the same verdicts as the exact test."""
+    from symgroupoid._rational import LARGE_TERMS, vanishes, vanishes_at_points
+
+    x, y, z = sp.symbols("x y z")
+    D, E = 1 + x**2 + y**2 + z**2, 1 + x * y - z
+    big = sp.expand((x + y + z + 1) ** 12)  # 455 terms
+    assert len(big.args) > LARGE_TERMS
+    zero = sp.expand(big / D + big / E) - sp.expand(big * (D + E) / sp.expand(D * E))
+    assert vanishes_at_points(sp.expand(zero)) is True
+    off = sp.expand(zero + x / (D * E) ** 2)
+    assert vanishes_at_points(off) is False
+    assert vanishes_at_points(sp.sin(x) + big) is None  # not rational: the exact test decides
+    assert vanishes_at_points(sp.sqrt(2) * x) is None
+    assert vanishes_at_points(1 / (x - x * y) - 1 / (x - x * y)) is True
+    small = sp.expand(1 / (x + 1) - 1 / (x + 2))  # the same verdict as the exact test
+    assert vanishes_at_points(small) is vanishes(small) is False
+
+
 def test_a_lagrangian_with_float_coefficients_prints():
     """(0.5·(q₁ − q₀)²/h − 0.3·h·q₀q₁ made every printed form raise a raw AttributeError:
     the printer took each coefficient for a fraction.)  It prints, with its floats, and the

@@ -24,6 +24,59 @@ def test_greek_characters_print_as_their_commands(name, tex):
     assert latex(sp.Symbol(name)) == tex
 
 
+@pytest.mark.parametrize("name, tex", [
+    ("ℓ", r"\ell"), ("ℓ1", r"\ell_{1}"), ("µ", r"\mu"), ("ħ", r"\hbar"), ("ẋ", r"\dot{x}"),
+    ("ẋ1", r"\dot{x}_{1}"), ("q̈", r"\ddot{q}"), ("é", r"\acute{e}"), ("x̄", r"\bar{x}")])
+def test_letters_outside_ascii_print_as_their_commands(name, tex):
+    """ℓ, ħ, the micro sign µ (not the Greek μ) and letters with a combining accent: a LaTeX
+    engine typesets their commands, not the characters (pdflatex stopped at ℓ)."""
+    assert latex(sp.Symbol(name)) == tex
+
+
+def _lengths():
+    """An oscillator in ẋ with a length ℓ and a mass µ: names with letters outside ASCII."""
+    ell, mu = sp.symbols("ℓ µ", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace(["ẋ"]))
+    return sg.DiscreteSystem(G, lambda a: (mu * (a.target[0] - a.source[0]) ** 2 / (2 * h)
+                                           - h * ell * a.target[0] ** 2 / 2),
+                             parameters=[h, ell, mu], name="lengths").euler_lagrange()
+
+
+def test_names_outside_ascii_print_as_commands():
+    text = _lengths().latex()
+    assert text.isascii(), text
+    assert r"\dot{x}_{k+1}" in text and r"\ell" in text and r"\mu" in text
+
+
+@needs_tex
+def test_a_document_with_names_outside_ascii_typesets_them(tmp_path):
+    log, text = typeset(_lengths().latex(document=True), tmp_path)
+    assert equation_numbers(text) == [1]
+    assert "Missing character" not in log
+
+
+def test_a_parameter_no_engine_typesets_is_refused_by_name():
+    snow = sp.Symbol("m☃", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x"))
+    with pytest.raises(sg.ParameterDeclarationError, match="☃"):
+        sg.DiscreteSystem(G, lambda a: snow * (a.target[0] - a.source[0]) ** 2 / h,
+                          parameters=[h, snow], name="snow").euler_lagrange()
+
+
+@pytest.mark.parametrize("name", ["x\u0302y", "m☃"])
+def test_a_coordinate_no_engine_typesets_is_refused_by_name(name):
+    with pytest.raises(sg.CoordinateNameError, match="does not typeset"):
+        sg.EuclideanSpace([name])
+
+
+@pytest.mark.parametrize("name", ["two\nlines", "tab\there", "nul\0"])
+def test_a_system_name_with_control_characters_is_refused(name):
+    G = sg.PairGroupoid(sg.EuclideanSpace("x"))
+    with pytest.raises(sg.ShapeError, match="control characters"):
+        sg.DiscreteSystem(G, lambda a: (a.target[0] - a.source[0]) ** 2 / h, parameters=[h],
+                          name=name)
+
+
 def _oscillator():
     w = sp.Symbol("ω", positive=True)
     G = sg.PairGroupoid(sg.EuclideanSpace("θ"))
@@ -75,7 +128,7 @@ def test_an_abbreviation_named_by_a_greek_character_prints_its_command(name, tex
 
 
 @pytest.mark.parametrize("name, why", [("M_{1", "unbalanced braces"), ("G#", "'#'"),
-                                       ("é", "'é'"), ("a$b", "'\\$'"), ("}{", "unbalanced")])
+                                       ("x☃", "'☃'"), ("a$b", "'\\$'"), ("}{", "unbalanced")])
 def test_an_abbreviation_name_no_document_compiles_is_refused(name, why):
     step, value = _pendulum()
     with pytest.raises(LatexOptionError, match=why):
@@ -182,3 +235,41 @@ def test_an_abbreviation_reads_only_the_steps_symbols():
     step, value = _pendulum()
     with pytest.raises(sg.SymgroupoidError, match="reads zz, not a symbol of double_pendulum"):
         step.latex(abbreviations={"M": value + sp.Symbol("zz")})
+
+
+@pytest.mark.parametrize("name", ["m__2", "m^2", "theta__12"])
+def test_a_name_printed_with_a_superscript_of_digits_is_refused(name):
+    """SymPy prints m__2 as m^{2}: the equations of m__2 printed exactly as those of m²."""
+    with pytest.raises(sg.CoordinateNameError, match="reads as a power"):
+        sg.EuclideanSpace([name])
+    mass = sp.Symbol(name, positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x"))
+    with pytest.raises(sg.ParameterDeclarationError, match="reads as a power"):
+        sg.DiscreteSystem(G, lambda a: mass * (a.target[0] - a.source[0]) ** 2 / h,
+                          parameters=[h, mass], name="powers").euler_lagrange()
+
+
+def test_a_parameter_written_as_a_coordinate_is_refused():
+    """A parameter x beside the coordinate x printed x next to x_{k}; the same name as an
+    abbreviation was already refused."""
+    x = sp.Symbol("x", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x y"))
+    with pytest.raises(sg.ParameterDeclarationError, match="as the coordinate 'x'"):
+        sg.DiscreteSystem(G, lambda a: (a.target[0] - a.source[0]) ** 2 / h
+                          - h * x * a.target[0], parameters=[h, x], name="same")
+
+
+def test_a_parameter_written_as_the_multipliers_is_refused_with_constraints_only():
+    """A parameter lambda in a constrained step printed h λ beside (λ_{k})_{1}; without
+    constraints λ names no multiplier (Lamé's λ) and is kept."""
+    lam = sp.Symbol("lambda", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x y"))
+
+    def L(a):
+        return sum((t - s) ** 2 for s, t in zip(a.source, a.target)) / h - h * lam * a.target[0]
+
+    with pytest.raises(sg.ParameterDeclarationError, match="as the multipliers"):
+        sg.DiscreteSystem(G, L, parameters=[h, lam], name="tied",
+                          constraints=lambda a: [a.target[0] - a.source[1]])
+    free = sg.DiscreteSystem(G, L, parameters=[h, lam], name="free")
+    assert r"\lambda" in free.euler_lagrange().latex()

@@ -149,6 +149,19 @@ def test_a_small_document_typesets_whole(tmp_path):
 
 
 @needs_tex
+def test_a_text_wider_than_a4_gets_a_wider_paper(tmp_path):
+    """A text 700 pt wide on A4 (597.5 pt) ran off the paper, equation numbers first, with no
+    overfull box in the log: the paper now leaves an inch on either side of the text."""
+    step = systems.planar_chain(2).euler_lagrange()
+    document = step.latex(document=True, width=700)
+    assert "paperwidth=844.54pt,paperheight=297mm,textwidth=700pt" in document
+    assert "a4paper" in step.latex(document=True, width=452)
+    log, text = typeset(document, tmp_path)
+    assert equation_numbers(text) == list(range(1, len(step) + 1)), text[-3000:]
+    assert "Package geometry Warning" not in log
+
+
+@needs_tex
 def test_a_term_wider_than_the_page_is_set_smaller(tmp_path):
     step = _system(WIDE).euler_lagrange()
     plain = step.latex()

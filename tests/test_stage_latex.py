@@ -100,3 +100,15 @@ def test_a_noether_quantity_names_the_stages_as_the_step_does():
     assert r"(\zeta_{k})_{1}" in text and r"(\zeta_{k})_{2}" in text
     assert r"\zeta_{0}" not in text and r"(\zeta_{k})_{1}" in step_text
     assert "x_{k-1}" in text and "x_{k+1}" not in text
+
+
+def test_a_noether_quantity_too_long_for_a_line_is_refused_at_once():
+    """A free body on SO(3) by the midpoint rule: F_X has 2,736 terms expanded, which
+    printed on one line made about 5 MB of LaTeX that no page holds."""
+    J = sp.symbols("J1:4", positive=True)
+    body = sg.ContinuousSystem(
+        sg.SO3("R"), lambda R, xi: sum(j * x**2 for j, x in zip(J, xi)) / 2,
+        parameters=[h, *J], name="free_body").discretize(h, "midpoint")
+    quantity = body.noether(0)
+    with pytest.raises(sg.UnsupportedFeatureError, match="more than the 400 one line"):
+        quantity.latex()

@@ -20,7 +20,14 @@ from .._errors import (
     UndeclaredSymbolError,
     UnsupportedExpressionError,
 )
-from .._symbols import is_difference_name, latex_name, scalar_expression
+from .._symbols import (
+    is_difference_name,
+    is_multiplier_name,
+    latex_name,
+    reads_as_power,
+    scalar_expression,
+    unspelled_character,
+)
 
 #: values that make an expression non-finite, with how messages describe them
 _NON_FINITE = {sp.nan: "nan (not a number)", sp.zoo: "zoo (complex infinity)",
@@ -390,11 +397,49 @@ def step_subscript(tex: str) -> bool:
     return _STEP_SUBSCRIPT.search(tex) is not None
 
 
+def check_parameters_unlike_coordinates(system_name: str, groupoid, parameters: Sequence,
+                                        constrained: bool = False) -> None:
+    """A parameter written as a scalar coordinate of the arrows is (x beside x_{k}) would
+    read as that coordinate in the printed equations, and in a ``constrained`` system one
+    written λ as the multipliers (λ beside (λ_{k})_{1}): a
+    :class:`ParameterDeclarationError`.  (A group's name, whose arrows print as matrices
+    and their entries, (g_{k})_{12}, may also name a scalar parameter: gravity g beside
+    SE(3)'s g; and without constraints λ names no multiplier: Lamé's λ.)"""
+    taken = {latex_name(n): n for o in (0, 1) for n, value in groupoid.symbols_by_name(o).items()
+             if isinstance(value, sp.Symbol)}
+    for p in parameters:
+        if not isinstance(p, sp.Symbol):
+            continue
+        if constrained and is_multiplier_name(p.name.strip()):
+            raise ParameterDeclarationError(
+                f"{system_name}: parameter {p.name!r} is written {latex_name(p.name.strip())}, "
+                f"as the multipliers of the constraints are ((\\lambda_{{k}})_{{1}}): the "
+                f"printed equations would not tell them apart; name it otherwise")
+        key = latex_name(p.name.strip())
+        if key in taken:
+            raise ParameterDeclarationError(
+                f"{system_name}: parameter {p.name!r} is written {key}, as the coordinate "
+                f"{taken[key]!r} of {groupoid.name} is (whose values print {key}_{{k}}): the "
+                f"printed equations would not tell them apart; name it otherwise")
+
+
 def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None:
     """A parameter is printed by its name: two parameters written alike (theta and θ, a
     Dummy and a Symbol both k, "k" and "k "), a name that reads as a value at a step
     (x_{k+1}), or one written Δ as the differences are, would print one equation as
     another."""
+    odd = unspelled_character(p.name.strip())
+    if odd is not None:
+        raise ParameterDeclarationError(
+            f"{system_name}: parameter {p.name!r} holds the character {odd!r}, which LaTeX "
+            f"does not typeset in mathematics (the printed equations would not compile; Greek "
+            f"letters, ℓ, ħ, µ and accented letters such as ẋ are spelt as commands); name "
+            f"it otherwise")
+    if reads_as_power(p.name.strip()):
+        raise ParameterDeclarationError(
+            f"{system_name}: parameter {p.name!r} prints as {latex_name(p.name.strip())}, "
+            f"which reads as a power (a superscript of digits); write the index as a "
+            f"subscript (m_2)")
     key = latex_name(p.name.strip())
     if key in printed:
         raise ParameterDeclarationError(

@@ -30,7 +30,13 @@ import sympy as sp
 from .._errors import CallableError, ShapeError, UnsupportedFeatureError
 from .._symbols import multiplier_symbols, stage_symbols, subscripted
 from ..groupoids import Groupoid
-from ._callables import as_scalar, as_scalar_list, call_user, check_symbols
+from ._callables import (
+    as_scalar,
+    as_scalar_list,
+    call_user,
+    check_parameters_unlike_coordinates,
+    check_symbols,
+)
 from ._forces import force_functions, input_symbols
 from ._junction import slot, slot_substitution
 
@@ -190,6 +196,9 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
     base = tuple(sp.Dummy(f"q{i}", real=True) for i in range(groupoid.base_dim))
     psis = [] if holonomic is None else holonomic_functions(name, groupoid, holonomic, base,
                                                            parameters)
+    if not matrix_form:
+        check_parameters_unlike_coordinates(name, groupoid, parameters,
+                                            constrained=bool(phis or psis))
     if len(phis) + len(psis) > groupoid.rank:
         held = f" and {len(psis)} holonomic" if psis else ""
         raise ShapeError(

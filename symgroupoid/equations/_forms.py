@@ -23,7 +23,7 @@ import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._errors import CallableError
-from .._rational import vanishes
+from .._rational import LARGE_TERMS, vanishes, vanishes_at_points
 from .._symbols import StepSymbol, latex_name, step_label
 from ..derivation import (
     PieceRule,
@@ -102,10 +102,17 @@ def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
 
 
 def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mapping]) -> bool:
-    """Whether the printed equation, written out, is exactly the explicit residual."""
+    """Whether the printed equation, written out, is the explicit residual: their
+    difference is zero over the factored common denominator (:func:`vanishes`), or, with
+    more than :data:`LARGE_TERMS` terms, at random rational points, exactly evaluated
+    (:func:`vanishes_at_points`; a nonzero value there refutes the form for certain)."""
     difference = sp.expand(explicit_value(printed, layers) - sp.expand(explicit))
     if difference == 0:
         return True
+    if len(sp.Add.make_args(difference)) > LARGE_TERMS:  # (the common denominator: hours)
+        zero = vanishes_at_points(difference)
+        if zero is not None:
+            return zero
     zero = vanishes(difference)  # over the factored denominators' lcm, as polynomials
     if zero is not None:
         return zero

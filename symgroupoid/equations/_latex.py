@@ -433,13 +433,29 @@ def rows_latex(rows, document: bool, comment: str, remedy: str = "") -> str:
     return latex_document(body, rows.width, comment) if document else body
 
 
+#: A4's width in TeX points (210 mm) and the least side margin of a document (one inch)
+A4_WIDTH, SIDE_MARGIN = 597.51, 72.27
+
+
+def paper_option(width: float) -> str:
+    """geometry's paper for a text ``width`` pt wide: A4 while the text leaves a margin of
+    an inch on each side, else a page as tall as A4 and that much wider than the text (a
+    wider text on A4 would run off the paper, equation numbers first)."""
+    if width + 2 * SIDE_MARGIN <= A4_WIDTH:
+        return "a4paper"
+    return f"paperwidth={width + 2 * SIDE_MARGIN:.2f}pt,paperheight=297mm"
+
+
 def latex_document(body: str, width: float, comment: str) -> str:
     """A standalone article around ``body`` whose text is ``width`` pt wide (the width the
-    lines were broken to), displays breaking across pages (``\\allowdisplaybreaks``);
-    amsmath, amssymb, graphicx (lines set smaller) and geometry: all in TeX Live's
-    ``texlive-latex-base``."""
+    lines were broken to; the paper widened past A4 for a wide text, :func:`paper_option`),
+    displays breaking across pages (``\\allowdisplaybreaks``); amsmath, amssymb, graphicx
+    (lines set smaller) and geometry: all in TeX Live's ``texlive-latex-base``.  The
+    ``comment`` is written as one TeX comment (its line breaks as spaces)."""
+    comment = " ".join(str(comment).split())
     return ("\\documentclass[10pt]{article}\n"
-            f"\\usepackage[a4paper,textwidth={width:g}pt,vmargin=2.5cm]{{geometry}}\n"
+            f"\\usepackage[{paper_option(width)},textwidth={width:g}pt,vmargin=2.5cm]"
+            "{geometry}\n"
             "\\usepackage{amsmath,amssymb,graphicx}\n"
             "\\allowdisplaybreaks\n"
             "\\begin{document}\n"

@@ -24,6 +24,11 @@ from ..ir import Graph, Program, from_sympy
 from ._programs import solve_stages
 from ._step import StepEquations
 
+#: the most terms (expanded, :func:`~._printing.expanded_terms`) of a quantity printed on
+#: one line: a chain's momentum has tens, a free body's on SO(3) by the midpoint rule
+#: thousands (about 5 MB of LaTeX)
+INLINE_TERMS = 400
+
 #: characters of an expression shown in a repr before it is cut
 REPR_WIDTH = 60
 
@@ -175,11 +180,22 @@ class NoetherQuantity:
 
     def latex(self) -> str:
         """F_X, its terms collected by multipliers, variables and parameters (checked to be
-        F_X), on one line.  With internal stages (docs/conventions.md §22) the arrow's
-        stages print as the step prints those of its known arrow, (ζ_k)_1, (ζ_k)_2, …: F_X is
-        taken at the stages solved for the arrow (the forced stages of a forced system)."""
+        F_X), on one line; an :class:`~symgroupoid.UnsupportedFeatureError`, at once, when
+        expanded it could have more than :data:`INLINE_TERMS` terms (a free body on SO(3)
+        by the midpoint rule: 2,736, about 5 MB of LaTeX).  With internal stages
+        (docs/conventions.md §22) the arrow's stages print as the step prints those of its
+        known arrow, (ζ_k)_1, (ζ_k)_2, …: F_X is taken at the stages solved for the arrow
+        (the forced stages of a forced system)."""
         from ._momentum_rows import inline_latex
+        from ._printing import expanded_terms
 
+        terms = expanded_terms([self.expr])
+        if terms > INLINE_TERMS:
+            raise UnsupportedFeatureError(
+                f"the Noether quantity F_X could have {terms} terms expanded, more than the "
+                f"{INLINE_TERMS} one line can hold (printed, it would run to megabytes that "
+                f"no page holds): LaTeX is not produced for it.  Its values along a "
+                f"trajectory (along(), plot_conservation) are unaffected")
         expr = self.expr
         if self.stages:
             expr = expr.xreplace(dict(zip(self.stages, stage_symbols(len(self.stages), 0))))
