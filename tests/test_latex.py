@@ -366,3 +366,30 @@ def test_a_lagrangian_with_float_coefficients_prints():
     tex = system.euler_lagrange().latex()
     assert "0.3" in tex and "q_{k+1}" in tex
     assert "0.3" in system.legendre().latex()
+
+
+def test_a_sum_of_parameters_over_a_parameter_prints_without_a_unit_factor():
+    """(1/h)(I₁ − I₂ − I₃) inside a sum printed \\frac{1 (I_1 - I_2 - I_3)}{h}."""
+    from symgroupoid import systems
+
+    h, e = sp.symbols("h e", positive=True)
+    inertias = sp.symbols("I1 I2 I3", positive=True)
+    Jd = systems.discrete_inertia(*inertias)
+    body = sg.DiscreteSystem(sg.SO3("W"),
+                             lambda g: -(Jd * g.matrix).trace() / h + e * g.matrix[0, 0],
+                             parameters=[h, *inertias, e], name="tilted")
+    text = body.legendre().latex()
+    assert r"\frac{1 \left(" not in text
+    assert r"2 e + \frac{I_{1} - I_{2} - I_{3}}{h}" in text
+
+
+def test_numbered_parameters_print_in_the_order_of_their_numbers():
+    """SymPy orders names as strings: α₁ α₁₀ α₁₁ α₂ … in a product."""
+    h = sp.Symbol("h", positive=True)
+    alphas = sp.symbols("alpha_1:12", positive=True)
+    step = sg.DiscreteSystem(
+        sg.PairGroupoid(sg.EuclideanSpace("x")),
+        lambda a: (a.target[0] - a.source[0]) ** 2 / (2 * h) - h * sp.Mul(*alphas) * a.target[0],
+        parameters=[h, *alphas], name="numbered").euler_lagrange()
+    product = " ".join(rf"\alpha_{{{i}}}" for i in range(1, 12))
+    assert product in step.latex()

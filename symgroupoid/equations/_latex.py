@@ -12,6 +12,8 @@ broken to a page width).
 
 from __future__ import annotations
 
+import re
+
 import sympy as sp
 from sympy.functions.elementary.trigonometric import TrigonometricFunction
 from sympy.matrices.expressions.matexpr import MatrixElement
@@ -269,7 +271,7 @@ class GroupoidLatexPrinter(LatexPrinter):
             factors = expr
         else:
             factors = expr.as_ordered_factors() if isinstance(expr, sp.Mul) else [expr]
-        factors = sorted(factors, key=factor_rank)  # stable: SymPy's order within a rank
+        factors = _numbered_in_order(sorted(factors, key=factor_rank))  # stable within a rank
         texts = []
         for i, factor in enumerate(factors):
             tex = self._print(factor)
@@ -283,7 +285,9 @@ class GroupoidLatexPrinter(LatexPrinter):
         """``f \\left(a + b\\right)``; a factor 1/d prints as ``\\frac{a + b}{d}``."""
         numerator, denominator = sp.fraction(expr.factor)
         if factor_rank(expr.total) == 1:  # a sum of parameters: in the product's order
-            product = self._print_factors([*sp.Mul.make_args(numerator), expr.total])
+            factors = [f for f in sp.Mul.make_args(numerator) if f != 1]
+            product = (self._print_factors([*factors, expr.total]) if factors
+                       else self._print(expr.total))  # (1/h)(a + b): (a + b)/h, no "1 ("
             if denominator == 1:
                 return product
             return self._frac(product, self._print(denominator))
@@ -329,6 +333,33 @@ def _unevaluated(expr: sp.Mul) -> bool:
     """An unevaluated product (identities or several numbers kept): SymPy prints it as given."""
     args = expr.args
     return args[0] is sp.S.One or any(isinstance(a, sp.Number) for a in args[1:])
+
+
+def _symbol_of(factor: sp.Expr) -> sp.Symbol | None:
+    """The symbol of a factor s or sⁿ, else None."""
+    base = factor.base if isinstance(factor, sp.Pow) else factor
+    return base if isinstance(base, sp.Symbol) else None
+
+
+def _natural_key(name: str) -> tuple:
+    """A name's parts, its numbers compared as numbers (α_2 before α_10)."""
+    return tuple((0, int(part), "") if part.isdigit() else (1, 0, part)
+                 for part in re.split(r"(\d+)", name) if part)
+
+
+def _numbered_in_order(factors: list) -> list:
+    """``factors`` with the factors of symbols of each :func:`factor_rank` reordered among
+    the places they hold, by their names' numbers as numbers (SymPy orders names as
+    strings: α_1 α_10 α_11 α_2); the other factors keep their places."""
+    out = list(factors)
+    for rank in {factor_rank(f) for f in factors}:
+        places = [i for i, f in enumerate(factors)
+                  if factor_rank(f) == rank and _symbol_of(f) is not None]
+        ordered = sorted((factors[i] for i in places),
+                         key=lambda f: _natural_key(_symbol_of(f).name))
+        for i, f in zip(places, ordered):
+            out[i] = f
+    return out
 
 
 def factor_rank(factor: sp.Expr) -> int:
