@@ -112,3 +112,15 @@ def test_a_noether_quantity_too_long_for_a_line_is_refused_at_once():
     quantity = body.noether(0)
     with pytest.raises(sg.UnsupportedFeatureError, match="more than the 400 one line"):
         quantity.latex()
+
+
+def test_terms_apart_only_by_a_surd_are_one_term():
+    """The Gauss nodes' √3 left √3 sin Q and 3 sin Q as two terms of a stage row; they
+    print as (√3 + 3) sin Q."""
+    g = sp.Symbol("g", positive=True)
+    pendulum = sg.ContinuousSystem(
+        sg.EuclideanSpace("theta"), lambda q, v: v[0] ** 2 / 2 + g * sp.cos(q[0]),
+        parameters=[h, g], name="pendulum").discretize(h, sg.GaussLegendre(2))
+    text = pendulum.euler_lagrange().latex()
+    assert r"\left(\sqrt{3} + 3\right) \sin(Q_{k+1,1})" in text
+    assert r"\sin(Q_{k+1,1}) \sqrt{3}" not in text

@@ -28,8 +28,8 @@ def collect_terms(expr: sp.Expr, multipliers: Sequence, parameters: Sequence,
     ``expand`` false the terms are those of ``expr`` as it is (an equation as derived)."""
     from ._layout import signed_terms
 
-    ordered = [t.sign * t.expr
-               for t in signed_terms(sp.expand(expr) if expand else expr, printer)]
+    ordered = _by_number(
+        [t.sign * t.expr for t in signed_terms(sp.expand(expr) if expand else expr, printer)])
     orders = [[*multipliers, *parameters], [*parameters, *multipliers]]
     if variables:
         steps = sorted((s for s in expr.free_symbols
@@ -46,6 +46,26 @@ def collect_terms(expr: sp.Expr, multipliers: Sequence, parameters: Sequence,
         if best is None or _printed_length(terms, printer) < _printed_length(best, printer):
             best = terms
     return best
+
+
+def _by_number(terms: list) -> list:
+    """Terms that differ only in their numeric coefficients, which expanding leaves apart
+    when one is irrational (√3·sin Q and 3·sin Q: the Gauss nodes' surds), as one term
+    (3 + √3)·sin Q, its coefficient over a common denominator, in the place of the first;
+    terms whose coefficients cancel are left out."""
+    groups: dict = {}
+    for t in terms:
+        number, rest = t.as_independent(*t.free_symbols, as_Add=False)
+        groups.setdefault(rest, []).append(number)
+    out = []
+    for rest, numbers in groups.items():
+        if len(numbers) == 1:
+            out.append(numbers[0] * rest)
+            continue
+        total = sp.factor_terms(sp.Add(*numbers))  # −(3 + √3)/12, not −1/4 − √3/12
+        if total != 0:
+            out.append(total * rest)
+    return out
 
 
 def _printed_length(terms: list[Term], printer: GroupoidLatexPrinter) -> int:
