@@ -247,6 +247,8 @@ def named_columns(table, names: Sequence[str], *, owner: str = "", name: str = "
             callable(getattr(item, "to_numpy", None)) for item in table):
         return [named_columns(item, names, owner=owner, name=f"{name}[{i}]")
                 for i, item in enumerate(table)]
+    if names and isinstance(table, Mapping):
+        return _named_mapping(table, names, owner, name)
     if not names or not callable(getattr(table, "to_numpy", None)):
         return table
     columns = getattr(table, "columns", None)
@@ -267,6 +269,29 @@ def named_columns(table, names: Sequence[str], *, owner: str = "", name: str = "
     values = np.asarray(table.to_numpy())
     order = [labels.index(n) for n in names]
     return values[..., order] if hasattr(table, "columns") else values[order]
+
+
+def _named_mapping(table: Mapping, names: Sequence[str], owner: str, name: str):
+    """A mapping from the names (strings or SymPy symbols) to their values — one value each
+    (one step) or one sequence each (a value per step) — as the array of its values in the
+    order of ``names``, the names on the last axis; keys that are not exactly ``names`` are
+    an :class:`~symgroupoid.InputNameError` listing both."""
+    labels = [_label(key) for key in table]
+    if None in labels or sorted(labels) != sorted(names) or len(set(labels)) != len(labels):
+        from ._errors import InputNameError
+
+        raise InputNameError(f"{where(owner)}{name}: the keys "
+                             f"{', '.join(map(str, table))} must be the inputs "
+                             f"{', '.join(names)}, each once (in any order)")
+    by_label = dict(zip(labels, table.values()))
+    columns = [np.asarray(by_label[n]) for n in names]
+    if len({c.shape for c in columns}) != 1:
+        from ._errors import ShapeError
+
+        raise ShapeError(f"{where(owner)}{name}: the inputs' values have the shapes "
+                         f"{', '.join(str(c.shape) for c in columns)}; give each input one "
+                         f"value, or each the same number of values (one per step)")
+    return np.stack(columns, axis=-1)
 
 
 def _holds_bool(value) -> bool:

@@ -116,6 +116,33 @@ def test_the_nan_names_the_run_and_the_step(oscillator):
         oscillator.simulate_batch(_starts(3), STEPS, PARAMS, inputs=U)
 
 
+@pytest.mark.parametrize("run", ["batch", "sweep"])
+def test_a_bad_value_in_a_shared_sequence_is_a_domain_error(oscillator, run):
+    """A NaN in one sequence shared by every run was re-raised as a ShapeError that
+    suggested a table per run: the shape was right, the value was not."""
+    U = np.ones((STEPS, 1))
+    U[4, 0] = np.nan
+    with pytest.raises(DomainError, match="step 4 is nan") as caught:
+        if run == "batch":
+            oscillator.simulate_batch(_starts(3), STEPS, PARAMS, inputs=U)
+        else:
+            sg.sweep(oscillator, _starts(3), PARAMS, STEPS, inputs=U, progress=False)
+    assert "for inputs of each run" not in str(caught.value)
+
+
+def test_inputs_may_be_given_by_name(oscillator):
+    """A mapping from the inputs' names to their values (one step) or sequences (a run)
+    reads as the same table; it was refused with "need shape (1,) … got shape ()"."""
+    start, U = _starts(1)[0], _table(1)[0]
+    run = oscillator.simulate(start, STEPS, PARAMS, inputs=U)
+    named = oscillator.simulate(start, STEPS, PARAMS, inputs={"u": U[:, 0]})
+    assert np.array_equal(run.states, named.states)
+    one = oscillator.step(start, PARAMS, inputs=[0.3])
+    assert np.array_equal(oscillator.step(start, PARAMS, inputs={"u": 0.3}), one)
+    with pytest.raises(sg.InputNameError, match="keys v must be the inputs u"):
+        oscillator.step(start, PARAMS, inputs={"v": 0.3})
+
+
 def test_the_c_batch_entry_point_checks_its_inputs(oscillator):
     """``<prefix>_simulate_batch`` of a forced kernel refuses a NULL u and a u_stride other
     than 0 or n_steps·m, writing nothing (INVALID_ARGUMENT = 4)."""

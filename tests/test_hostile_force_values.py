@@ -89,6 +89,21 @@ def test_a_joint_torque_of_absurd_rank_is_refused_at_once():
     assert time.perf_counter() - start < 1.0
 
 
+def test_a_joint_torque_on_one_section_twice_is_refused():
+    """+τ and −τ on the same section cancel: the force was identically zero, accepted."""
+    with pytest.raises(sg.ShapeError, match=r"section\(s\) \[0\] are on both bodies"):
+        sg.joint_torque(3, [0, 1], [0, 2], [u, u], h)
+
+
+@pytest.mark.parametrize("step", [0.01, sp.Symbol("c", positive=True)])
+def test_a_force_helper_written_for_another_time_step_is_refused(step):
+    """midpoint_forces(F, 0.01) in a system whose time step is h: at h = 0.05 every force
+    was a fifth of what it should be, without a word."""
+    with pytest.raises(sg.DomainError, match="written for the time step"):
+        _forced(sg.midpoint_forces(lambda q, v: [u], step))
+    _forced(sg.midpoint_forces(lambda q, v: [u], h))  # its own time step: accepted
+
+
 def _free_run(start, inputs, section):
     def L(g):
         (x0,), (x1,) = g.source, g.target

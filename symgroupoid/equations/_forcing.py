@@ -89,6 +89,29 @@ def _step_argument(h, owner: str) -> sp.Expr:
     return value
 
 
+def _with_step(forces: Callable, h: sp.Expr) -> Callable:
+    """``forces`` marked with the time step h it was written for (``forces.time_step``),
+    which a system with a declared time step compares with its own
+    (:func:`check_force_step`)."""
+    forces.time_step = h
+    return forces
+
+
+def check_force_step(name: str, forces, time_step: sp.Symbol | None) -> None:
+    """A :class:`~symgroupoid.DomainError` when ``forces`` come from a helper written for
+    another time step than the system's declared ``time_step``: with
+    ``midpoint_forces(F, 0.01)`` in a system run at h = 0.05 every force was a fifth of
+    what it should be, with no word."""
+    step = getattr(forces, "time_step", None)
+    if step is None or time_step is None or sp.sympify(step) == time_step:
+        return
+    shown = f"{float(step):g}" if sp.sympify(step).is_number else step
+    raise DomainError(f"{name}: the forces were written for the time step {shown}, but the "
+                      f"system's time step is {time_step}: the discrete forces (h/2)·F would "
+                      f"be wrong at every other value; give the helper the time-step "
+                      f"parameter itself (e.g. midpoint_forces(F, {time_step}))")
+
+
 def midpoint_forces(F: Callable, h: sp.Symbol) -> Callable:
     """f⁻ = f⁺ = (h/2)·F(q̄, Δq/h): the discrete forces of the midpoint rule for the
     generalised force ``F(q, v)`` (lists of coordinates and velocities in, one force per
@@ -103,7 +126,7 @@ def midpoint_forces(F: Callable, h: sp.Symbol) -> Callable:
         half = [h / 2 * f for f in _force(F, q, v, "midpoint_forces")]
         return half, list(half)
 
-    return forces
+    return _with_step(forces, h)
 
 
 def trapezoid_forces(F: Callable, h: sp.Symbol) -> Callable:
@@ -118,7 +141,7 @@ def trapezoid_forces(F: Callable, h: sp.Symbol) -> Callable:
         return ([h / 2 * f for f in _force(F, q0, v, "trapezoid_forces")],
                 [h / 2 * f for f in _force(F, q1, v, "trapezoid_forces")])
 
-    return forces
+    return _with_step(forces, h)
 
 
 def rayleigh_damping(D: Callable, h: sp.Symbol, rule: str = "midpoint") -> Callable:
@@ -150,7 +173,7 @@ def body_torque(tau: Callable | Sequence, h: sp.Symbol) -> Callable:
         half = [h / 2 * t for t in value]
         return half, list(half)
 
-    return forces
+    return _with_step(forces, h)
 
 
 def joint_torque(rank: int, first: Sequence[int], second: Sequence[int],
@@ -174,6 +197,11 @@ def joint_torque(rank: int, first: Sequence[int], second: Sequence[int],
                          f"{len(second)} on the second")
     if any(not 0 <= i < rank for i in (*first, *second)):
         raise ShapeError(f"joint_torque: section indices must lie in 0 … {rank - 1}")
+    both = sorted(set(first) & set(second))
+    if both:
+        raise ShapeError(f"joint_torque: section(s) {both} are on both bodies: +τ and −τ on "
+                         f"one section cancel, a force that is identically zero; give each "
+                         f"body its own sections")
 
     def forces(g):
         value = as_scalar_list("joint_torque", "torque", tau(g) if callable(tau) else tau)
@@ -186,7 +214,7 @@ def joint_torque(rank: int, first: Sequence[int], second: Sequence[int],
             half[j] -= h / 2 * t
         return half, list(half)
 
-    return forces
+    return _with_step(forces, h)
 
 
 __all__ = ["body_torque", "joint_torque", "midpoint_forces", "rayleigh_damping",

@@ -55,6 +55,7 @@ from ..derivation import (
     vanishing_check,
 )
 from ..groupoids import Groupoid
+from ._forcing import check_force_step
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
 from ._programs import RestrictedArrows, holonomic_projection_program
 from ._regularity import check_step
@@ -250,6 +251,7 @@ class DiscreteSystem(_EvaluatedSystem):
         self.parameters = parameters
         self.time_step = time_step_argument(name, groupoid, time_step, parameters)
         self.forces = forces_argument(name, forces, self._arity)
+        check_force_step(name, forces, self.time_step)
         self.inputs = input_arguments(name, inputs, parameters, forces)
         self._functions = evaluate_system(name, groupoid, lagrangian, constraints,
                                           self.parameters, arity=self._arity,
@@ -501,6 +503,7 @@ class NonholonomicSystem(_EvaluatedSystem):
         self.distribution = distribution_elements(name, groupoid, distribution, parameters)
         self.parameters = parameters
         self.time_step = time_step_argument(name, groupoid, time_step, parameters)
+        check_force_step(name, forces, self.time_step)
         self.method, self.metric = method, metric
         self._functions = evaluate_system(name, groupoid, lagrangian, constraints,
                                           self.parameters, forces=forces, inputs=self.inputs)

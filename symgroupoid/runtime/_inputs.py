@@ -79,6 +79,8 @@ def batch_inputs(layout, inputs, n_batch: int, steps: int, *, owner: str
     if arr is None or arr.ndim != 3 or m == 0:
         try:
             return input_sequence(layout, arr, steps, owner=owner)
+        except DomainError:  # a value (NaN, against an assumption): the shape was right
+            raise
         except ShapeError as exc:
             if m == 0 or arr is None:
                 raise

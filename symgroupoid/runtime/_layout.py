@@ -206,7 +206,12 @@ class StateLayout:
         """A :class:`DomainError` naming the non-finite entries of a flat state, or an input
         value (of its arrow or the next) that violates an assumption its symbol is declared
         with (:func:`check_input_values`)."""
-        bad = [self.describe(i) for i in np.flatnonzero(~np.isfinite(state))]
+        indices = np.flatnonzero(~np.isfinite(state))
+        if self.n_inputs:  # the next arrow's copy of a bad input of the state: named once
+            copies = {int(n) for n, i in zip(self.upcoming_index, self.input_index)
+                      if not np.isfinite(state[i])}
+            indices = [i for i in indices if int(i) not in copies]
+        bad = [self.describe(i) for i in indices]
         if bad:
             raise DomainError(f"{self.step_name}: non-finite initial data in {', '.join(bad)}")
         if self.n_inputs:

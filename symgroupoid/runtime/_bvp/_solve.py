@@ -183,10 +183,13 @@ def solve_boundary_value(step_equations, start, end, steps: int, guess=None, par
     state = _SolverState.at(problem, arrows, lam)
     if not state.assembled.finite():
         worst = state.assembled.worst
+        culprits = ("Lagrangian, the constraints or the forces"
+                    if _functions(system).forces is not None
+                    else "Lagrangian or the constraints")
         raise NewtonDivergenceError(
             f"{owner}: non-finite residual or Jacobian at the initial "
             f"{'path' if guess is None else 'guess'}, at configuration {worst}: the "
-            f"Lagrangian or the constraints are not defined there", step=worst,
+            f"{culprits} are not defined there", step=worst,
             residual_norm=float(np.nanmax(np.abs(state.assembled.F), initial=0.0)),
             iterate=arrows)
     # every value the iteration uses is tested for finiteness (trials, merits, directions,
