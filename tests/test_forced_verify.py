@@ -236,7 +236,7 @@ def test_the_command_line_verifies_a_forced_file(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("junk", [
-    "u", b"u", object(), {"u": 1.0}, [["a"]], 1 + 2j, np.full((31, 1), 1j), np.zeros((31, 1, 1)),
+    "u", b"u", object(), {"v": 1.0}, [["a"]], 1 + 2j, np.full((31, 1), 1j), np.zeros((31, 1, 1)),
     np.full((31, 1), np.inf), np.zeros((0, 1)), [[True]] * 31, [1.0, 2.0]])
 def test_hostile_inputs_get_named_errors(plane_run, junk):
     """Whatever ``inputs=`` holds, a named error (never a raw exception, never a report)."""

@@ -105,7 +105,7 @@ IJ_REFUSALS = [
     ("inputs", np.array([0.5, "a"], dtype=object), sg.ShapeError, "inputs"),
     ("inputs", np.array([0.5, None], dtype=object), sg.ShapeError, "inputs"),
     ("inputs", "uw", sg.ShapeError, "inputs"),
-    ("inputs", {"u": 0.5, "w": 0.1}, sg.ShapeError, "inputs"),
+    ("inputs", {"u": 0.5, "v": 0.1}, sg.InputNameError, "inputs"),  # by name: not w
     ("unknowns", X[:1], sg.ShapeError, "unknowns"),
     ("unknowns", np.r_[X, 0.0], sg.ShapeError, "unknowns"),
     ("unknowns", [], sg.ShapeError, "unknowns"),
@@ -271,7 +271,7 @@ def _bvp_refusals(U, run):
         ("inputs", np.array([["a"]] * STEPS, dtype=object), sg.ShapeError, "inputs"),
         ("inputs", [None] * STEPS, sg.ShapeError, "inputs"),
         ("inputs", "u1", sg.ShapeError, "inputs"),
-        ("inputs", {"u1": 0.3}, sg.ShapeError, "inputs"),
+        ("inputs", {"u2": 0.3}, sg.InputNameError, "inputs"),  # by name: not u1
         ("guess", run[:-1], sg.ShapeError, "guess"),
         ("guess", run[:, :3], sg.ShapeError, "guess"),
         ("guess", np.r_[run[:-1], [[np.nan] * 4]], sg.DomainError, "guess"),
