@@ -255,3 +255,38 @@ def test_errors_at_the_rounding_floor_give_no_order():
                                 [10, 20], reference=[exact])
     assert flat.order is None and flat.fitted == (20,) and "no order" in flat.note
     assert str(flat).startswith("order not measured (theoretical 2)")
+
+
+def test_a_product_written_with_a_star_is_the_list_of_its_factors():
+    """sg.EuclideanSpace("a") * sg.EuclideanSpace("b") (a ProductManifold) was refused."""
+    k = sp.Symbol("k", positive=True)
+
+    def L(q, v):
+        (a, b), (va, vb) = q, v
+        return (va[0] ** 2 + vb[0] ** 2) / 2 - k * a[0] ** 2 * b[0] ** 2
+
+    starred = sg.ContinuousSystem(sg.EuclideanSpace("a") * sg.EuclideanSpace("b"), L,
+                                  parameters=[h, k], name="pair")
+    listed = sg.ContinuousSystem([sg.EuclideanSpace("a"), sg.EuclideanSpace("b")], L,
+                                 parameters=[h, k], name="pair")
+    for scheme in ("midpoint", sg.GaussLegendre(2)):
+        assert (starred.discretize(h, scheme).euler_lagrange().residuals
+                == listed.discretize(h, scheme).euler_lagrange().residuals)
+
+
+def test_a_lagrangian_differentiating_in_its_configuration_takes_every_rule():
+    """L using sp.diff(V, q[0]) was refused by the midpoint rule alone, which called L at
+    the midpoint (q₀ + q₁)/2 (Can't calculate derivative wrt _s0_0/2 + _s0_1/2)."""
+    def L(q, v):
+        V = q[0] ** 4 / 4
+        return v[0] ** 2 / 2 - V - sp.diff(V, q[0]) ** 2 / 100
+
+    def plain(q, v):
+        return v[0] ** 2 / 2 - q[0] ** 4 / 4 - q[0] ** 6 / 100
+
+    for scheme in ("midpoint", "trapezoid"):
+        step = sg.ContinuousSystem(sg.EuclideanSpace("x"), L, parameters=[h],
+                                   name="d").discretize(h, scheme).euler_lagrange()
+        same = sg.ContinuousSystem(sg.EuclideanSpace("x"), plain, parameters=[h],
+                                   name="d").discretize(h, scheme).euler_lagrange()
+        assert all(sp.expand(a - b) == 0 for a, b in zip(step.residuals, same.residuals))

@@ -209,25 +209,24 @@ class ContinuousSystem:
             mid = [f.midpoint(a, b, vi, h) for f, (a, b), vi in zip(self.factors, pairs, v)]
             return v, ends, mid
 
+        # L and F on generic symbols, then at the points: an L that differentiates in
+        # its configuration (sp.diff(V, q[0])) could not take the midpoint (q₀ + q₁)/2
         def L_d(g):
             v, (q0, q1), mid = pieces(g)
-            V = self._values(v)
             if rule == "midpoint":
-                return h * self._lagrangian(self._values(mid), V)
-            return h / 2 * (self._lagrangian(self._values(q0), V)
-                            + self._lagrangian(self._values(q1), V))
+                return h * self._lagrangian_at(mid, v)
+            return h / 2 * (self._lagrangian_at(q0, v) + self._lagrangian_at(q1, v))
 
         forces = None
         if self.forces is not None:
             @checked_callable  # the user's F, each value checked by _force (call_user)
             def forces(g):
                 v, (q0, q1), mid = pieces(g)
-                V = self._values(v)
                 if rule == "midpoint":
-                    half = [h / 2 * f for f in self._force(self._values(mid), V)]
+                    half = [h / 2 * f for f in self._force_at(mid, v)]
                     return half, list(half)
-                return ([h / 2 * f for f in self._force(self._values(q0), V)],
-                        [h / 2 * f for f in self._force(self._values(q1), V)])
+                return ([h / 2 * f for f in self._force_at(q0, v)],
+                        [h / 2 * f for f in self._force_at(q1, v)])
 
         system = DiscreteSystem(G, L_d, parameters=self.parameters,
                                 name=f"{self.name}_{rule}", holonomic=self.holonomic,

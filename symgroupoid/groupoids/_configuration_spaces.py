@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import sympy as sp
 
 from .._errors import InputTypeError
+from ._manifold import GroupManifold, ProductManifold
 from ._matrix_groups import MatrixLieGroup
 from ._pair import EuclideanSpace, PairGroupoid
 from ._product import ProductGroupoid
@@ -75,10 +76,12 @@ def configuration_factors(Q) -> tuple[list[ConfigurationFactor], bool]:
     if isinstance(Q, (EuclideanSpace, MatrixLieGroup)):
         return [ConfigurationFactor(Q)], False
     items = Q.factors if isinstance(Q, ProductGroupoid) else Q
+    if isinstance(Q, ProductManifold):  # Q1 * Q2 of spaces and groups: its groups unwrapped
+        items = [f.group if isinstance(f, GroupManifold) else f for f in Q.factors]
     if isinstance(items, (str, bytes)) or not isinstance(items, Sequence) or not items:
         raise InputTypeError(f"ContinuousSystem: Q must be a EuclideanSpace, a matrix Lie "
                              f"group (SO2, SO3, SE2, SE3) or a product of them (a "
-                             f"ProductGroupoid of groups, or a list of factors); got "
+                             f"product Q1 * Q2, or a list of factors); got "
                              f"{type(Q).__name__} {Q!r}")
     factors = []
     for i, item in enumerate(items):
