@@ -13,6 +13,8 @@ Q(√p, …) (functions, other roots) are left to the caller (``None``)."""
 
 from __future__ import annotations
 
+import random
+
 import sympy as sp
 from sympy.polys.domains import QQ
 from sympy.polys.polyerrors import CoercionFailed, GeneratorsNeeded, PolynomialError
@@ -176,8 +178,6 @@ def vanishes_at_points(expr: sp.Expr) -> bool | None:
     a false "zero" at three points is below 10⁻⁴⁵).  A nonzero value proves the expression
     nonzero.  Points where a denominator vanishes are drawn again.  None when ``expr`` is
     not a rational function over Q (:func:`is_rational_expression`)."""
-    import random
-
     expr = sp.sympify(expr)
     if expr == 0:
         return True

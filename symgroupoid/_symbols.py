@@ -46,9 +46,11 @@ def parse_step(step: str | int) -> int:
 #: Unicode's spelling of a Greek letter -> the LaTeX command's
 _GREEK_SPELLING = {"lamda": "lambda"}
 
-#: letters outside the Greek block that mathematics writes as commands (the micro sign µ is
-#: the Greek μ to a reader)
-_LETTER_SPELLING = {"\u2113": "ell", "\u0127": "hbar", "\u210f": "hbar", "\u00b5": "mu"}
+#: letters outside the Greek block that mathematics writes as commands
+_LETTER_SPELLING = {"\u2113": "ell", "\u0127": "hbar", "\u210f": "hbar"}
+
+#: characters read as a Greek letter (the micro sign µ is μ to a reader)
+_AS_GREEK = {"\u00b5": "\u03bc"}
 
 #: combining accents over a letter, as SymPy's name modifiers spell them (ẋ: xdot → \dot{x})
 _ACCENT_SPELLING = {"\u0307": "dot", "\u0308": "ddot", "\u0302": "hat", "\u0304": "bar",
@@ -92,13 +94,10 @@ def greek_spelled(name: str) -> str:
     (:func:`unspelled_character` finds those a LaTeX engine would not typeset)."""
     out = []
     for ch in _accents_spelled(name):
+        ch = _AS_GREEK.get(ch, ch)
         if ch in _LETTER_SPELLING:
-            ch = _LETTER_SPELLING[ch]
-            if ch == "mu":
-                ch = "\u03bc"
-            else:
-                out.append(("_" if out and out[-1][-1:].isalpha() else "") + ch)
-                continue
+            out.append(("_" if out and out[-1][-1:].isalpha() else "") + _LETTER_SPELLING[ch])
+            continue
         words = unicodedata.name(ch, "").split() if ord(ch) > 127 else []
         if words[:1] == ["SUBSCRIPT"] and unicodedata.digit(ch, None) is not None:
             # θ₁ as theta_1, θ₁₂ as theta_12

@@ -141,6 +141,11 @@ def test_inputs_may_be_given_by_name(oscillator):
     assert np.array_equal(oscillator.step(start, PARAMS, inputs={"u": 0.3}), one)
     with pytest.raises(sg.InputNameError, match="keys v must be the inputs u"):
         oscillator.step(start, PARAMS, inputs={"v": 0.3})
+    for bad in ({"u": "a"}, {"u": None}, {"u": [0.1, np.nan]}, {"u": 1j}, {"u": [[0.1]]}):
+        with pytest.raises(sg.ShapeError):  # DomainError, a ShapeError, for the NaN
+            oscillator.step(start, PARAMS, inputs=bad)
+    with pytest.raises(sg.ShapeError, match="steps|shape"):
+        oscillator.simulate(start, STEPS, PARAMS, inputs={"u": U[:-1, 0]})
 
 
 def test_the_c_batch_entry_point_checks_its_inputs(oscillator):

@@ -106,6 +106,7 @@ IJ_REFUSALS = [
     ("inputs", np.array([0.5, None], dtype=object), sg.ShapeError, "inputs"),
     ("inputs", "uw", sg.ShapeError, "inputs"),
     ("inputs", {"u": 0.5, "v": 0.1}, sg.InputNameError, "inputs"),  # by name: not w
+    ("inputs", {"u": [0.5, 0.6], "w": 0.1}, sg.ShapeError, "inputs"),  # shapes differ
     ("unknowns", X[:1], sg.ShapeError, "unknowns"),
     ("unknowns", np.r_[X, 0.0], sg.ShapeError, "unknowns"),
     ("unknowns", [], sg.ShapeError, "unknowns"),

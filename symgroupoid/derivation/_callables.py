@@ -410,17 +410,23 @@ def check_parameters_unlike_coordinates(system_name: str, groupoid, parameters: 
     for p in parameters:
         if not isinstance(p, sp.Symbol):
             continue
-        if constrained and is_multiplier_name(p.name.strip()):
-            raise ParameterDeclarationError(
-                f"{system_name}: parameter {p.name!r} is written {latex_name(p.name.strip())}, "
-                f"as the multipliers of the constraints are ((\\lambda_{{k}})_{{1}}): the "
-                f"printed equations would not tell them apart; name it otherwise")
         key = latex_name(p.name.strip())
+        if constrained and is_multiplier_name(p.name.strip()):
+            raise _name_refused(system_name, p, f"is written {key}, as the multipliers of the "
+                                f"constraints are ((\\lambda_{{k}})_{{1}}), which the printed "
+                                f"equations would not tell apart")
         if key in taken:
-            raise ParameterDeclarationError(
-                f"{system_name}: parameter {p.name!r} is written {key}, as the coordinate "
-                f"{taken[key]!r} of {groupoid.name} is (whose values print {key}_{{k}}): the "
-                f"printed equations would not tell them apart; name it otherwise")
+            raise _name_refused(system_name, p, f"is written {key}, as the coordinate "
+                                f"{taken[key]!r} of {groupoid.name} is (whose values print "
+                                f"{key}_{{k}}), which the printed equations would not tell "
+                                f"apart")
+
+
+def _name_refused(system_name: str, p: sp.Symbol, why: str) -> ParameterDeclarationError:
+    """The :class:`ParameterDeclarationError` of a parameter whose printed name ``why``
+    cannot stand."""
+    return ParameterDeclarationError(f"{system_name}: parameter {p.name!r} {why}; name it "
+                                     f"otherwise")
 
 
 def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None:
@@ -430,16 +436,14 @@ def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None
     another."""
     odd = unspelled_character(p.name.strip())
     if odd is not None:
-        raise ParameterDeclarationError(
-            f"{system_name}: parameter {p.name!r} holds the character {odd!r}, which LaTeX "
-            f"does not typeset in mathematics (the printed equations would not compile; Greek "
-            f"letters, ℓ, ħ, µ and accented letters such as ẋ are spelt as commands); name "
-            f"it otherwise")
+        raise _name_refused(system_name, p, f"holds the character {odd!r}, which LaTeX does "
+                            f"not typeset in mathematics (the printed equations would not "
+                            f"compile; Greek letters, ℓ, ħ, µ and accented letters such as ẋ "
+                            f"are spelt as commands)")
     if reads_as_power(p.name.strip()):
-        raise ParameterDeclarationError(
-            f"{system_name}: parameter {p.name!r} prints as {latex_name(p.name.strip())}, "
-            f"which reads as a power (a superscript of digits); write the index as a "
-            f"subscript (m_2)")
+        raise _name_refused(system_name, p, f"prints as {latex_name(p.name.strip())}, which "
+                            f"reads as a power (a superscript of digits): write the index as "
+                            f"a subscript (m_2)")
     key = latex_name(p.name.strip())
     if key in printed:
         raise ParameterDeclarationError(

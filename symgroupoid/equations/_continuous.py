@@ -219,7 +219,7 @@ class ContinuousSystem:
 
         forces = None
         if self.forces is not None:
-            @checked_callable  # the user's F, each value checked by _force (call_user)
+            @checked_callable  # made of the generic F, checked once (_force_at)
             def forces(g):
                 v, (q0, q1), mid = pieces(g)
                 if rule == "midpoint":
