@@ -11,8 +11,8 @@ For a trajectory of a system's step (``traj = step.compile().simulate(...)``):
   (seed 000 Thm 4.9) at every state;
 - :func:`constraint_residuals` — φ at every state;
 - :func:`conservation_summary` — the max drift of each conserved quantity against its
-  rounding floor ε·|Q|·√N (:func:`rounding_floor`), as a :class:`ConservationSummary` whose
-  ``lines()`` are human-readable.
+  rounding floor ε·S·√N, S the size of Q's terms (:func:`rounding_floor`), as a
+  :class:`ConservationSummary` whose ``lines()`` are human-readable.
 
 Each quantity is a small program over the expression graph, built from the system's own L
 and φ and evaluated for all states at once; the same functions are methods of

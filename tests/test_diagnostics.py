@@ -243,7 +243,8 @@ def test_conservation_summary():
     assert names == ["E_d = −∂L_d/∂h", "L_z"]
     energy, lz = summary.quantities
     assert lz.max_drift < 1e-13 and energy.max_drift > 1e-6
-    assert lz.final_floor == pytest.approx(np.finfo(float).eps * lz.scale * np.sqrt(400))
+    size = max(lz.scale, Lz.term_magnitude(traj).max())
+    assert lz.final_floor == pytest.approx(np.finfo(float).eps * size * np.sqrt(400))
     assert summary.constraint_residual < 1e-14
     assert summary.momentum_matching < 1e-12
     lines = summary.lines()
@@ -260,6 +261,33 @@ def test_rounding_floor_is_eps_scale_sqrt_k():
     floor = rounding_floor(values, np.array([10, 14, 19]))
     eps = np.finfo(float).eps
     np.testing.assert_allclose(floor, [0.0, eps * 3 * 2, eps * 3 * 3])
+
+
+def test_rounding_floor_takes_the_size_of_the_terms():
+    values = np.array([2.0, -3.0, 2.5])
+    floor = rounding_floor(values, np.array([10, 14, 19]), np.array([1e3, 2e3, 5.0]))
+    np.testing.assert_allclose(floor, [0.0, EPS * 2e3 * 2, EPS * 2e3 * 3])
+
+
+def test_a_momentum_far_from_the_origin_rounds_at_the_size_of_its_terms():
+    """p = (x₁ − x₀)/h at x ≈ 1000 is a difference of terms 10⁵ times |p|: it drifts by
+    rounding far above ε·|p|·√N, and within ε·S·√N, S the size of its terms."""
+    def L(a):
+        (x0,), (x1,) = a.source, a.target
+        return h * ((x1 - x0) / h) ** 2 / 2
+
+    system = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x")), L, parameters=[h],
+                               name="drifting")
+    sim = system.euler_lagrange().compile(backend="numpy")
+    params = {"h": 0.01}
+    traj = sim.simulate({"x": (1000.0, 1000.0 + 0.01 * 0.731)}, 300, params)
+    p = system.noether(0)
+    drift = traj.conservation_summary(noether=[p]).quantities[-1]
+    size = p.term_magnitude(traj)
+    assert size.min() > 1e5 * np.abs(p.along(traj)).max()
+    assert drift.max_drift > 10 * EPS * drift.scale * np.sqrt(300)  # far above ε·|p|·√N
+    assert drift.max_drift <= drift.final_floor
+    assert drift.final_floor == pytest.approx(EPS * size.max() * np.sqrt(300))
 
 
 def test_diagnostics_need_the_system():

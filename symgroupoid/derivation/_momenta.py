@@ -20,10 +20,17 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import DomainError, InputTypeError, ShapeError, UnsupportedFeatureError
-from .._lambdify import NUMPY_MODULES
+from .._errors import (
+    DomainError,
+    InputTypeError,
+    ShapeError,
+    UnsupportedExpressionError,
+    UnsupportedFeatureError,
+)
+from .._sizes import ops_at_most
 from .._symbols import indexed_symbol, multiplier_symbols
 from ..groupoids import Groupoid, ProductGroupoid
+from ..ir import Graph, Program, from_sympy
 from ._callables import (
     as_scalar,
     as_scalar_list,
@@ -278,7 +285,7 @@ def vanishing_check(expr: sp.Expr, G: Groupoid, arrow: tuple, window: int = 1
     sampled = _sampled_defect(expr, G, arrow, window)
     if sampled is False:
         return False, "nonzero at a random arrow"
-    if sp.count_ops(expr) <= SYMBOLIC_CHECK_OPS:
+    if ops_at_most(expr, SYMBOLIC_CHECK_OPS):
         q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
         x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))
         on_group = last = tuple(G.arrow_from(q, G.fibre_chart(x, q)))
@@ -313,27 +320,48 @@ def _sampled_defect(expr: sp.Expr, G: Groupoid, arrow: tuple, window: int = 1
     ``window`` composable arrows); False: it is not at one of them; None: no random arrow
     gave a finite real value."""
     others = sorted(expr.free_symbols - set(arrow), key=sp.default_sort_key)
+    rng = np.random.default_rng(20260)
+    points, values = [], []
+    for _ in range(NOETHER_SAMPLES):
+        points.append(_random_window(G, rng, window))
+        values.append(rng.uniform(0.5, 1.5, len(others)))
     # the terms' values, summed and their sizes summed here: SymPy's Abs of each term would
     # try to decide its sign symbolically (minutes for the defect of a midpoint step on SE(2))
-    f = sp.lambdify([list(arrow), others], list(sp.Add.make_args(expr)), NUMPY_MODULES,
-                    cse=True)
-    rng = np.random.default_rng(20260)
+    terms = _term_values(list(sp.Add.make_args(expr)), list(arrow), others, points, values)
     usable = 0
-    for _ in range(NOETHER_SAMPLES):
-        g = _random_window(G, rng, window)
-        values = rng.uniform(0.5, 1.5, len(others))
-        with np.errstate(all="ignore"):
-            try:
-                terms = [complex(v) for v in f(list(g), list(values))]
-            except (ZeroDivisionError, OverflowError, ValueError, TypeError):
-                continue
-        defect, size = sum(terms), sum(abs(t) for t in terms)
-        if not (np.isfinite(defect) and np.isfinite(size)) or abs(defect.imag) > 0:
+    for row in terms:
+        if row is None:
+            continue
+        defect, size = sum(row), sum(abs(t) for t in row)
+        if not (np.isfinite(defect) and np.isfinite(size)) or abs(complex(defect).imag) > 0:
             continue
         usable += 1
-        if abs(defect.real) > NOETHER_RELATIVE_DEFECT * max(size, 1e-300):
+        if abs(complex(defect).real) > NOETHER_RELATIVE_DEFECT * max(size, 1e-300):
             return False
     return True if usable else None
+
+
+def _term_values(terms: list, arrow: list, others: list, points: list, values: list) -> list:
+    """The values of ``terms`` at each sample (``points[i]`` for ``arrow``, ``values[i]``
+    for ``others``): one row per sample, None where a term cannot be evaluated there.
+
+    On the expression graph, all samples at once (:class:`symgroupoid.ir.Program`: shared
+    subexpressions once, no ``cse`` pass — a minute on the Noether defect of a midpoint step
+    on SO(3) with a potential); a value off the real line is NaN there.  A function the
+    graph does not take (a Bessel function: nor does NumPy) leaves every sample
+    unusable: the check is then undecided."""
+    g = Graph()
+    symbols = {s: g.input(s) for s in (*arrow, *others)}
+    memo: dict = {}
+    try:
+        nodes = [from_sympy(g, t, symbols, "the Noether defect", memo) for t in terms]
+    except UnsupportedExpressionError:
+        return [None] * len(points)
+    program = Program(graph=g, inputs={"arrow": arrow, "others": others},
+                      outputs={"terms": nodes})
+    f = program.numpy_function(["terms"], ["arrow", "others"])
+    (table,) = f(np.array(points, float).T, np.array(values, float).reshape(len(points), -1).T)
+    return [list(column) for column in table.T]
 
 
 #: Gröbner bases are computed for at most this many holonomic constraints (their cost grows
@@ -352,7 +380,7 @@ def vanishes_on_restriction(expr: sp.Expr, G: Groupoid, arrow: tuple,
     sufficient condition, tried for at most GROEBNER_CONSTRAINTS constraints and defects of
     at most GROEBNER_OPS operations; False otherwise and when the expressions are not
     polynomial there."""
-    if not 0 < fs.n_holonomic <= GROEBNER_CONSTRAINTS or sp.count_ops(expr) > GROEBNER_OPS:
+    if not 0 < fs.n_holonomic <= GROEBNER_CONSTRAINTS or not ops_at_most(expr, GROEBNER_OPS):
         return False
     q = tuple(sp.Dummy(f"q{i}", real=True) for i in range(G.base_dim))
     x = tuple(sp.Dummy(f"x{i}", real=True) for i in range(G.rank))

@@ -27,6 +27,7 @@ import sympy as sp
 from .._errors import DomainError, MorphismError, ShapeError
 from .._lambdify import NUMPY_MODULES
 from .._rational import vanishes
+from .._sizes import ops_at_most
 from ..groupoids import GroupoidMorphism, ParameterValues
 from ._callables import as_scalar, as_scalar_list, call_user
 from ._forces import ForceFunctions
@@ -111,7 +112,7 @@ def _is_zero(e: sp.Expr) -> bool:
     zero = vanishes(expanded)
     if zero is not None:
         return zero
-    if sp.count_ops(e) > SIMPLIFY_LIMIT or e.has(sp.Function):
+    if not ops_at_most(e, SIMPLIFY_LIMIT) or e.has(sp.Function):
         return False
     return sp.cancel(sp.together(e)) == 0
 

@@ -42,6 +42,7 @@ import mpmath
 import numpy as np
 import sympy as sp
 
+from .._sizes import ops_at_most
 from .._symbols import latex_name, stage_symbols
 from ..derivation import WindowAction, input_symbols
 from ..ir import interpret_precise, precise_namespace, precise_number
@@ -341,7 +342,7 @@ def _expanded(e: sp.Expr) -> sp.Expr:
 
 
 def _tidy(e: sp.Expr) -> sp.Expr:
-    return sp.factor_terms(sp.expand(e)) if sp.count_ops(e) < 400 else e
+    return sp.factor_terms(sp.expand(e)) if ops_at_most(e, 399) else e
 
 
 # --- the check ------------------------------------------------------------------------------

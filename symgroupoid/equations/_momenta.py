@@ -20,7 +20,7 @@ from .._errors import (
 from .._lambdify import NUMPY_MODULES
 from .._symbols import stage_symbols
 from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
-from ..ir import Graph, Program, from_sympy
+from ..ir import Graph, Program, from_sympy, term_magnitude
 from ._programs import solve_stages
 from ._step import StepEquations
 
@@ -235,7 +235,8 @@ class NoetherQuantity:
         memo: dict = {}
         node = from_sympy(g, self.expr, symbols, "the Noether quantity", memo)
         inputs = {"known": names, "p": list(self.parameters)}
-        outputs = {"F": [node]}
+        varying = [symbols[s] for s in (*names, *self.stages) if s in symbols]
+        outputs = {"F": [node], "F_scale": term_magnitude(g, [node], varying)}
         if self.stages:
             from ..derivation import step_jacobian
 
@@ -383,7 +384,24 @@ class NoetherQuantity:
         parameters that this quantity's system does not have: :class:`ParameterError`) are
         refused before any evaluation, as in :meth:`impulse`.
         """
-        self._check_run(trajectory, "along")
+        out = self._along(trajectory, "F", "along")
+        _finite_values(out, "along", f"the quantity F_X = {_short(self.expr)}", "state")
+        return out
+
+    def term_magnitude(self, trajectory) -> np.ndarray:
+        """S_k, the size of the terms F_X is computed from at every kept state of
+        ``trajectory``, shape (R,) (:func:`symgroupoid.ir.term_magnitude`, the state's
+        entries varying): ε·S_k is the rounding of F_X there.  A momentum (q_{k+1} − q_k)/h
+        at large q is a small difference of large terms, and rounds at their size, not at
+        |F_X|; the rounding floor of :func:`~symgroupoid.conservation_summary` is ε·S·√N.
+        The same checks as :meth:`along`."""
+        out = self._along(trajectory, "F_scale", "term_magnitude")
+        _finite_values(out, "term_magnitude", "the size of the terms of F_X", "state")
+        return out
+
+    def _along(self, trajectory, output: str, entry: str) -> np.ndarray:
+        """The program's ``output`` at every kept state of ``trajectory`` (see :meth:`along`)."""
+        self._check_run(trajectory, entry)
         states = np.asarray(trajectory.states, float)
         n = len(self.arrow) + len(self.multipliers)
         m = _inputs(trajectory)  # a forced state ends with its terms' inputs and the slot
@@ -392,21 +410,20 @@ class NoetherQuantity:
             u = np.ascontiguousarray(states[:, n:n + m].T)  # the inputs of each arrow
             states = states[:, :n]
         if self.stage_forces and (u is None or len(u) != len(self.stage_inputs)):
-            raise ShapeError(f"NoetherQuantity.along: the quantity of a forced system with "
+            raise ShapeError(f"NoetherQuantity.{entry}: the quantity of a forced system with "
                              f"internal stages is evaluated at the forced stages of each "
                              f"arrow, with its {len(self.stage_inputs)} inputs; the "
                              f"trajectory's states have shape {states.shape}; use a "
                              f"trajectory of this system's step")
         if states.ndim != 2 or states.shape[1] != n:
-            raise ShapeError(f"NoetherQuantity.along: the quantity is written in {n} state "
+            raise ShapeError(f"NoetherQuantity.{entry}: the quantity is written in {n} state "
                              f"entries (arrow and multipliers), the trajectory's states have "
                              f"shape {states.shape}; use a trajectory of this system's step")
-        _finite_states(states if u is None else np.c_[states, u.T], "along")
-        p = self._trajectory_parameters(trajectory, "along")
+        _finite_states(states if u is None else np.c_[states, u.T], entry)
+        p = self._trajectory_parameters(trajectory, entry)
         with np.errstate(all="ignore"):
-            (F,) = self._at_stages(["F"], np.ascontiguousarray(states.T), p, u)
+            (F,) = self._at_stages([output], np.ascontiguousarray(states.T), p, u)
             out = np.broadcast_to(np.asarray(F[0], float), (len(states),))
-        _finite_values(out, "along", f"the quantity F_X = {_short(self.expr)}", "state")
         return out.copy()
 
     def impulse(self, trajectory) -> np.ndarray:

@@ -204,27 +204,37 @@ def has_energy(trajectory, step_parameter: str | None = None) -> bool:
 
 # --- drift and the rounding floor ----------------------------------------------------------------
 
-def rounding_floor(values: np.ndarray, step_indices: np.ndarray) -> np.ndarray:
-    """ε·|Q|·√k: the drift of a conserved quantity Q after k steps when each step adds one
-    independent rounding error of relative size ε (a random walk), |Q| = max_k |Q_k| the
-    quantity's scale along the run, k counted from the first kept state.
+def rounding_floor(values: np.ndarray, step_indices: np.ndarray,
+                   magnitudes: np.ndarray | None = None) -> np.ndarray:
+    """ε·S·√k: the drift of a conserved quantity Q after k steps when each step adds one
+    independent rounding error of size ε·S (a random walk), k counted from the first kept
+    state.  S is the quantity's scale along the run: the largest of |Q_k| and, when given,
+    of ``magnitudes``, the size of the terms Q is computed from
+    (:meth:`NoetherQuantity.term_magnitude <symgroupoid.NoetherQuantity.term_magnitude>`):
+    a momentum (q_{k+1} − q_k)/h at large q is a small difference of large terms, and
+    rounds at their size.
 
     A drift within a small multiple of this floor is rounding; a drift far above it, or
     growing like k rather than √k, is a defect of the scheme or of the solve.
     """
     values = np.asarray(values, float)
     scale = float(np.max(np.abs(values))) if values.size else 0.0
+    if magnitudes is not None and np.size(magnitudes):
+        scale = max(scale, float(np.max(np.abs(magnitudes))))
     k = np.asarray(step_indices, float) - float(step_indices[0])
     return _EPS * scale * np.sqrt(k)
 
 
 @dataclass
 class Drift:
-    """A quantity Q along a trajectory and its drift |Q_k − Q_0| against the rounding floor."""
+    """A quantity Q along a trajectory and its drift |Q_k − Q_0| against the rounding floor
+    (``magnitudes``: the size of the terms Q is computed from at each state, or None: |Q|;
+    see :func:`rounding_floor`)."""
 
     name: str
     values: np.ndarray
     step_indices: np.ndarray
+    magnitudes: np.ndarray | None = None
 
     @property
     def drift(self) -> np.ndarray:
@@ -236,11 +246,13 @@ class Drift:
 
     @property
     def scale(self) -> float:
+        """max |Q_k|."""
         return float(np.max(np.abs(self.values))) if len(self.values) else 0.0
 
     @property
     def floor(self) -> np.ndarray:
-        return rounding_floor(self.values, self.step_indices)
+        """ε·S·√k (:func:`rounding_floor`)."""
+        return rounding_floor(self.values, self.step_indices, self.magnitudes)
 
     @property
     def final_floor(self) -> float:
@@ -250,7 +262,7 @@ class Drift:
     def step_variation(self) -> float:
         """σ = RMS over the intervals of (Q_{k+e} − Q_k)/√e: the measured size of one step's
         change of Q.  For a quantity conserved up to rounding this is the per-step rounding
-        actually incurred (often above ε·|Q|: the Newton residual of a step sits at its own
+        actually incurred (often above ε·S: the Newton residual of a step sits at its own
         rounding floor, e.g. times rounded relative to t on a time groupoid), and σ·√k is
         the drift a random walk of it reaches; a drift far above σ·√k is systematic."""
         if len(self.values) < 2:
@@ -267,7 +279,8 @@ class Drift:
 
 @dataclass
 class ConservationSummary:
-    """Max drift of each conserved quantity of a run, with the rounding floor ε·|Q|·√N.
+    """Max drift of each conserved quantity of a run, with the rounding floor ε·S·√N (S the
+    size of the terms Q is computed from, at least |Q|: :func:`rounding_floor`).
 
     ``quantities``: one :class:`Drift` per quantity (the energy when defined, then each
     Noether quantity asked for); ``constraint_residual``: max |φ| over the states (None
@@ -290,7 +303,7 @@ class ConservationSummary:
         for q in self.quantities:
             rel = q.max_drift / q.scale if q.scale else 0.0
             out.append(f"{q.name}: max |Q_k − Q_0| = {q.max_drift:.2e} (relative {rel:.1e}); "
-                       f"rounding floor ε·|Q|·√N = {q.final_floor:.1e}, step-to-step "
+                       f"rounding floor ε·S·√N = {q.final_floor:.1e}, step-to-step "
                        f"variation σ·√N = {q.step_variation * np.sqrt(self.steps):.1e}")
         if self.momentum_matching is not None:
             out.append(f"momenta: max |F⁺L(g_k) − F⁻L(g_{{k+1}})| = {self.momentum_matching:.2e} "
@@ -366,13 +379,13 @@ def noether_drifts(trajectory, programs, items) -> tuple[list[Drift], list[Drift
     idx = trajectory.step_indices
     conserved, changes = [], []
     for label, nq in noether_quantities(programs, items):
-        values = nq.along(trajectory)
+        values, sizes = nq.along(trajectory), nq.term_magnitude(trajectory)
         if nq.impulse_form is None:
-            conserved.append(Drift(label, values, idx))
+            conserved.append(Drift(label, values, idx, sizes))
             continue
-        balance, change = impulse_balance(trajectory, nq, label, values)
+        balance, change = impulse_balance(trajectory, nq, label, values, sizes)
         if _impulse_negligible(balance, change):  # internal forces along X: J is conserved
-            conserved.append(Drift(f"{label} (no net impulse)", values, idx))
+            conserved.append(Drift(f"{label} (no net impulse)", values, idx, sizes))
             continue
         conserved.append(balance)
         changes.append(change)
@@ -387,10 +400,12 @@ def _impulse_negligible(balance: Drift, change: Drift) -> bool:
     return bool(np.all(summed <= np.maximum(change.floor, balance.floor)))
 
 
-def impulse_balance(trajectory, nq, label: str, values: np.ndarray) -> tuple[Drift, Drift]:
+def impulse_balance(trajectory, nq, label: str, values: np.ndarray,
+                    sizes: np.ndarray | None = None) -> tuple[Drift, Drift]:
     """A forced system's Noether quantity J: (the balance J_k − Σ_{j<k} I_j, conserved to
     rounding by the forced Noether theorem, docs/conventions.md §20; J itself, which changes
-    by the impulses I_j, :meth:`NoetherQuantity.impulse`)."""
+    by the impulses I_j, :meth:`NoetherQuantity.impulse`).  ``sizes``: the size of J's
+    terms at each state (the balance's are those and Σ_{j<k} |I_j|)."""
     if getattr(trajectory, "every", 1) != 1:
         raise DomainError(f"{trajectory._layout.step_name}: {label} belongs to a forced "
                           f"system: its balance with the forces' impulse needs every state "
@@ -398,8 +413,10 @@ def impulse_balance(trajectory, nq, label: str, values: np.ndarray) -> tuple[Dri
     impulse = nq.impulse(trajectory)
     idx = trajectory.step_indices
     balance = values - np.concatenate([[0.0], np.cumsum(impulse)])
-    return (Drift(f"{label} − Σ impulse", balance, idx),
-            Drift(f"{label} (changed by the forces)", values, idx))
+    summed = None if sizes is None else sizes + np.concatenate([[0.0],
+                                                                np.cumsum(np.abs(impulse))])
+    return (Drift(f"{label} − Σ impulse", balance, idx, summed),
+            Drift(f"{label} (changed by the forces)", values, idx, sizes))
 
 
 def _variational(system) -> bool:

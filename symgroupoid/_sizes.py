@@ -1,0 +1,29 @@
+"""Cheap bounds on the size of SymPy expressions.
+
+``sympy.count_ops`` walks a tree with its repetitions: on the Legendre transforms of a
+midpoint step on SO(3) with a potential it takes a minute, to answer a question (at most a
+few hundred operations?) that the first thousand nodes already decide.
+"""
+
+from __future__ import annotations
+
+import sympy as sp
+
+#: every node of a SymPy tree with k arguments carries at least one of ``count_ops``'
+#: operations, or is merged into its parent's (−1 into a subtraction, ``Pow(y, −1)`` into a
+#: division): at most this many nodes per operation (measured worst case 4, on random
+#: trees of sums, products, powers and functions)
+NODES_PER_OPERATION = 8
+
+
+def ops_at_most(expr: sp.Basic, limit: int) -> bool:
+    """``sympy.count_ops(expr) <= limit``, counting the operations only of a tree of at most
+    :data:`NODES_PER_OPERATION` · (limit + 1) nodes (a larger one has more than ``limit``)."""
+    bound = NODES_PER_OPERATION * (limit + 1)
+    for n, _ in enumerate(sp.preorder_traversal(expr)):
+        if n >= bound:
+            return False
+    return sp.count_ops(expr) <= limit
+
+
+__all__ = ["NODES_PER_OPERATION", "ops_at_most"]
