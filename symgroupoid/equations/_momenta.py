@@ -20,7 +20,7 @@ from .._errors import (
 from .._lambdify import NUMPY_MODULES
 from .._symbols import stage_symbols
 from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
-from ..ir import Graph, Program, from_sympy, term_magnitude
+from ..ir import Graph, Program, from_sympy, gradient, term_magnitude
 from ._programs import solve_stages
 from ._step import StepEquations
 
@@ -202,10 +202,11 @@ class NoetherQuantity:
         return inline_latex(expr, self.multipliers, self.parameters)
 
     #: a system with internal stages (docs/conventions.md §22): the generic stages ζ the
-    #: quantity and the defect are written in, and the stage rows ∂L/∂ζ(g, ζ) whose root ζ*
-    #: they are evaluated at (the envelope theorem: F^±L_d(g) = F^±L(g, ζ*))
+    #: quantity and the defect are written in, and L(g, ζ) at the arrow, whose stage rows
+    #: ∂L/∂ζ have the root ζ* they are evaluated at (the envelope theorem:
+    #: F^±L_d(g) = F^±L(g, ζ*))
     stages: tuple = ()
-    stage_rows: tuple = ()
+    stage_lagrangian: sp.Expr = sp.S.Zero
     #: a forced system with internal stages: f_ζ of the arrow in the generic stages and its
     #: inputs ``stage_inputs`` (the state's u_k), which the stage rows gain, so that F_X is
     #: evaluated at the forced stages, ∂L/∂ζ + f_ζ = 0 (docs/conventions.md §22); the
@@ -242,7 +243,8 @@ class NoetherQuantity:
 
             inputs["zeta"] = list(self.stages)
             zeta = [symbols[z] for z in self.stages]
-            rows = [from_sympy(g, r, symbols, "the stage rows", memo) for r in self.stage_rows]
+            L = from_sympy(g, self.stage_lagrangian, symbols, "the discrete Lagrangian", memo)
+            rows = gradient(g, L, zeta)
             J = step_jacobian(g, rows, zeta)
             outputs.update({"rows": rows, "J": [c for row in J for c in row],
                             "defect": [from_sympy(g, self.defect, symbols,

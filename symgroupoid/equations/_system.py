@@ -49,7 +49,7 @@ from ..derivation import (
     noether_forms,
     nonholonomic_step,
     pair_impulse_form,
-    stage_rows,
+    stage_lagrangian,
     time_step_candidates,
     vanishes_on_restriction,
     vanishing_check,
@@ -372,7 +372,7 @@ class DiscreteSystem(_EvaluatedSystem):
         if self.n_holonomic:
             self._restrict_noether(quantity)
         quantity.stages = tuple(self.functions.stages)
-        quantity.stage_rows = tuple(stage_rows(self.functions, forms.arrow))
+        quantity.stage_lagrangian = stage_lagrangian(self.functions, forms.arrow)
         forces = self.functions.forces
         if forces is not None:  # large expressions: built on the graph, never substituted
             here, there = input_symbols(forces.inputs, 0), input_symbols(forces.inputs, 1)
