@@ -16,14 +16,20 @@ import sympy as sp
 NODES_PER_OPERATION = 8
 
 
+def nodes_at_most(expr: sp.Basic, limit: int) -> bool:
+    """Whether ``expr``'s tree, with its repetitions, has at most ``limit`` nodes (walking
+    at most ``limit`` + 1 of them)."""
+    for n, _ in enumerate(sp.preorder_traversal(expr)):
+        if n >= limit:
+            return False
+    return True
+
+
 def ops_at_most(expr: sp.Basic, limit: int) -> bool:
     """``sympy.count_ops(expr) <= limit``, counting the operations only of a tree of at most
     :data:`NODES_PER_OPERATION` · (limit + 1) nodes (a larger one has more than ``limit``)."""
-    bound = NODES_PER_OPERATION * (limit + 1)
-    for n, _ in enumerate(sp.preorder_traversal(expr)):
-        if n >= bound:
-            return False
-    return sp.count_ops(expr) <= limit
+    return (nodes_at_most(expr, NODES_PER_OPERATION * (limit + 1))
+            and sp.count_ops(expr) <= limit)
 
 
-__all__ = ["NODES_PER_OPERATION", "ops_at_most"]
+__all__ = ["NODES_PER_OPERATION", "nodes_at_most", "ops_at_most"]

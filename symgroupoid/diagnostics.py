@@ -11,7 +11,7 @@ For a trajectory of a system's step (``traj = step.compile().simulate(...)``):
   (seed 000 Thm 4.9) at every state;
 - :func:`constraint_residuals` — φ at every state;
 - :func:`conservation_summary` — the max drift of each conserved quantity against its
-  rounding floor ε·S·√N, S the size of Q's terms (:func:`rounding_floor`), as a
+  rounding floor ε·(|Q|·√N + S), S the size of Q's terms (:func:`rounding_floor`), as a
   :class:`ConservationSummary` whose ``lines()`` are human-readable.
 
 Each quantity is a small program over the expression graph, built from the system's own L
@@ -30,6 +30,7 @@ from .runtime import (
     energy,
     energy_changes,
     energy_label,
+    energy_magnitude,
     has_energy,
     momenta,
     rounding_floor,
@@ -38,5 +39,6 @@ from .runtime import (
 __all__ = [
     "ConservationSummary", "DiagnosticsError", "Drift", "Momenta", "TimeStepError",
     "conservation_summary", "constraint_residuals", "energy", "energy_changes", "energy_label",
+           "energy_magnitude",
     "has_energy", "momenta", "rounding_floor",
 ]

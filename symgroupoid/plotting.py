@@ -5,13 +5,14 @@ figure is asked for.  Figures are :class:`matplotlib.figure.Figure` objects made
 pyplot (no global state; they display in Jupyter and save with ``fig.savefig``); pass
 ``path=`` to save one directly.
 
-The rounding floor drawn (dashed) next to each drift is ε·S·√k
+The rounding floor drawn (dashed) next to each drift is ε·(|Q|·√k + S)
 (:func:`~symgroupoid.diagnostics.rounding_floor`): a conserved quantity Q computed in double
-precision moves by about one rounding ε·S per step (S the size of the terms it is computed
-from, at least |Q|), in random directions, so after k steps its drift is of order ε·S·√k.
+precision moves by about one rounding ε·|Q| per step, in random directions, so after k
+steps its drift is of order ε·|Q|·√k; and each value of Q rounds at ε·S, S the size of the
+terms it is computed from (far above |Q| for a momentum (x₁ − x₀)/h at large x).
 Dotted: σ·√k with σ the measured step-to-step change of Q
 (:attr:`~symgroupoid.diagnostics.Drift.step_variation`), the random walk of the rounding
-the steps actually incur (a Newton residual at its own floor can exceed ε·S).  A drift
+the steps actually incur (a Newton residual at its own floor can exceed ε·|Q|).  A drift
 that follows these lines is rounding; one that grows like k, far above them, is not.
 """
 
@@ -36,6 +37,7 @@ from .runtime import (
     constraint_residuals,
     energy_changes,
     energy_label,
+    energy_magnitude,
     has_energy,
     noether_drifts,
     trajectory_programs,
@@ -246,7 +248,7 @@ def _drift_panel(ax, quantities: list[Drift], h: float | None,
         _semilogy(ax, k, q.drift, color=color, lw=1, label=_drift_label(q))
         _semilogy(ax, k, q.floor, color=color, lw=1, ls="--", alpha=0.7)
         _semilogy(ax, k, q.measured_floor, color=color, lw=1, ls=":", alpha=0.7)
-    ax.plot([], [], color="0.4", ls="--", lw=1, label="rounding floor ε·S·√k")
+    ax.plot([], [], color="0.4", ls="--", lw=1, label="rounding floor ε·(|Q|·√k + S)")
     ax.plot([], [], color="0.4", ls=":", lw=1, label="step-to-step variation σ·√k")
     ax.set_ylabel("|Q_k − Q_0|")
     _legend(ax, fontsize="small")
@@ -256,7 +258,7 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
                       constraints: bool | None = None, step_parameter: str | None = None,
                       path: str | PathLike | None = None, time_step: str | bool | None = None):
     """The drift |Q_k − Q_0| of each conserved quantity on a log scale, each with its
-    rounding floor ε·S·√k dashed in the same colour, and (``constraints``) the constraint
+    rounding floor ε·(|Q|·√k + S) dashed in the same colour, and (``constraints``) the constraint
     residual max_a |φ_a| of each state in a second panel.
 
     ``energy``: the discrete energy (see :func:`symgroupoid.diagnostics.energy`; None: when
@@ -291,7 +293,8 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
         else None
     if defined and changing is None:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
-                                _energy(trajectory, step_parameter), idx))
+                                _energy(trajectory, step_parameter), idx,
+                                energy_magnitude(trajectory, step_parameter)))
     conserved, changes = noether_drifts(trajectory, programs, momenta)
     quantities += conserved
     show_phi = programs.has_constraints if constraints is None else constraints

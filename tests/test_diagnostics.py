@@ -243,8 +243,9 @@ def test_conservation_summary():
     assert names == ["E_d = −∂L_d/∂h", "L_z"]
     energy, lz = summary.quantities
     assert lz.max_drift < 1e-13 and energy.max_drift > 1e-6
-    size = max(lz.scale, Lz.term_magnitude(traj).max())
-    assert lz.final_floor == pytest.approx(np.finfo(float).eps * size * np.sqrt(400))
+    size = Lz.term_magnitude(traj).max()
+    assert lz.final_floor == pytest.approx(np.finfo(float).eps * (lz.scale * np.sqrt(400)
+                                                                   + size))
     assert summary.constraint_residual < 1e-14
     assert summary.momentum_matching < 1e-12
     lines = summary.lines()
@@ -266,12 +267,13 @@ def test_rounding_floor_is_eps_scale_sqrt_k():
 def test_rounding_floor_takes_the_size_of_the_terms():
     values = np.array([2.0, -3.0, 2.5])
     floor = rounding_floor(values, np.array([10, 14, 19]), np.array([1e3, 2e3, 5.0]))
-    np.testing.assert_allclose(floor, [0.0, EPS * 2e3 * 2, EPS * 2e3 * 3])
+    np.testing.assert_allclose(floor, [0.0, EPS * (3 * 2 + 2e3), EPS * (3 * 3 + 2e3)])
 
 
 def test_a_momentum_far_from_the_origin_rounds_at_the_size_of_its_terms():
     """p = (x₁ − x₀)/h at x ≈ 1000 is a difference of terms 10⁵ times |p|: it drifts by
-    rounding far above ε·|p|·√N, and within ε·S·√N, S the size of its terms."""
+    rounding far above ε·|p|·√N, and within ε·(|p|·√N + S), S the size of its terms; so
+    does the energy."""
     def L(a):
         (x0,), (x1,) = a.source, a.target
         return h * ((x1 - x0) / h) ** 2 / 2
@@ -287,7 +289,13 @@ def test_a_momentum_far_from_the_origin_rounds_at_the_size_of_its_terms():
     assert size.min() > 1e5 * np.abs(p.along(traj)).max()
     assert drift.max_drift > 10 * EPS * drift.scale * np.sqrt(300)  # far above ε·|p|·√N
     assert drift.max_drift <= drift.final_floor
-    assert drift.final_floor == pytest.approx(EPS * size.max() * np.sqrt(300))
+    assert drift.final_floor == pytest.approx(EPS * (drift.scale * np.sqrt(300) + size.max()))
+    energy = traj.conservation_summary().quantities[0]
+    sizes = sg.diagnostics.energy_magnitude(traj)
+    assert sizes.min() > 1e5 * energy.scale
+    assert energy.final_floor == pytest.approx(EPS * (energy.scale * np.sqrt(300)
+                                                      + sizes.max()))
+    assert energy.max_drift <= energy.final_floor
 
 
 def test_diagnostics_need_the_system():
@@ -502,3 +510,15 @@ def test_the_energy_of_an_explicitly_time_dependent_l_is_not_listed_as_conserved
     with pytest.raises(sg.DomainError, match="the energy is not conserved .*depends on "
                                              "the time explicitly"):
         sg.plot_conservation(changing)
+
+
+@pytest.mark.parametrize("name", ["zz", 3, "H"])
+def test_a_step_parameter_that_names_no_parameter_is_refused(name):
+    """conservation_summary and plot_conservation left the energy out, with a note, when
+    step_parameter was misspelt."""
+    traj = pendulum_run()
+    with pytest.raises(DiagnosticsError, match="step_parameter"):
+        traj.conservation_summary(step_parameter=name)
+    with pytest.raises(DiagnosticsError, match="step_parameter"):
+        sg.diagnostics.has_energy(traj, name)
+    assert traj.conservation_summary(step_parameter="h").quantities[0].name.startswith("E")

@@ -264,3 +264,23 @@ def test_joint_torques_between_two_rotors():
     np.testing.assert_allclose(np.diff(J), impulse, rtol=0, atol=1e-14)
     forced = run.momenta().plus.sum(axis=1)
     assert np.abs(forced - forced[0]).max() < 1e-13
+
+
+def test_the_quantity_on_the_graph_is_its_symbolic_form_at_the_solved_stages():
+    """noether() of a system with stages builds F_X and the defect on the expression graph
+    (the symbolic Legendre transforms of a Galerkin step on SO(3) took minutes); the SymPy
+    form, built when asked for, has the same values at the stages ζ* of each arrow."""
+    system = sg.ContinuousSystem(sg.EuclideanSpace("x y"), _lagrangian, parameters=[h],
+                                 name="plane").discretize(h, sg.GaussLegendre(2))
+    nq = system.noether(lambda q: [-q[1], q[0]])
+    assert nq.is_symmetry and "expression graph" in repr(nq)
+    assert not system.noether([1, 0]).is_symmetry  # a translation: the potential breaks it
+    sim = system.euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate({"x": (1.0, 1.0), "y": (0.0, 0.06)}, 40, {"h": DT})
+    on_graph = nq.along(traj)
+    zeta = sg.verification.stage_values(system, traj.states, np.zeros((len(traj.states), 0)),
+                                        [DT])
+    f = sp.lambdify([list(nq.arrow), list(nq.stages), [h]], nq.expr)
+    symbolic = np.array([f(s, z, [DT]) for s, z in zip(traj.states, zeta)])
+    np.testing.assert_allclose(on_graph, symbolic, rtol=1e-12, atol=1e-13)
+    assert np.ptp(on_graph) < 1e-12 and "F_X = " in repr(nq) and "graph" not in repr(nq)

@@ -228,6 +228,19 @@ def _paired(G: Groupoid, section, nodes: Sequence, values: Sequence,
     return out
 
 
+def noether_ends(G: Groupoid, section, f, parameters: Sequence, arrow: Sequence
+                 ) -> tuple[list, sp.Expr, list, sp.Expr]:
+    """(X(α(g)), f(α(g)), X(β(g)), f(β(g))) of a first-order arrow with coordinates
+    ``arrow``: the section's coefficients and the quasi-invariance function at both ends,
+    checked as :func:`noether_forms` checks them (the pairing with F∓L is then taken
+    elsewhere, e.g. on the expression graph)."""
+    before, after = G.source(tuple(arrow)), G.target(tuple(arrow))
+    return (section_coefficients(G, section, before, parameters),
+            _base_function(f, before, G.name, parameters, G),
+            section_coefficients(G, section, after, parameters),
+            _base_function(f, after, G.name, parameters, G))
+
+
 def noether_forms(G: Groupoid, forms: LegendreForms, section, f=None,
                   parameters: Sequence = ()) -> NoetherForms:
     """The Noether quantity of ``section`` (seed 000 Thm 4.9) and its symmetry defect;

@@ -18,6 +18,7 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from .._lambdify import NUMPY_MODULES
+from .._sizes import nodes_at_most
 from .._symbols import stage_symbols
 from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
 from ..ir import Graph, Program, from_sympy, gradient, term_magnitude
@@ -51,19 +52,28 @@ def _parameter_value(symbol: sp.Symbol, value, entry: str) -> float:
     return number
 
 
-def _finite_values(out: np.ndarray, entry: str, what: str, where: str) -> None:
-    """A :class:`DomainError` at the first non-finite entry of ``out``: ``what`` overflows
-    at that ``where`` (state or step) of finite states."""
+def _finite_values(out: np.ndarray, entry: str, what, where: str) -> None:
+    """A :class:`DomainError` at the first non-finite entry of ``out``: ``what`` (a text,
+    or a callable giving it, called only then) overflows at that ``where`` (state or step)
+    of finite states."""
     if not np.isfinite(out).all():
         k = int(np.flatnonzero(~np.isfinite(out))[0])
+        what = what() if callable(what) else what
         raise DomainError(f"NoetherQuantity.{entry}: {what} is not finite at {where} {k} "
                           f"({out[k]}): it overflows there (check the section's "
                           f"coefficients and the parameters)")
 
 
 def _short(expr) -> str:
-    """An expression's text, cut to REPR_WIDTH characters."""
-    text = str(expr)
+    """An expression's text, cut to REPR_WIDTH characters: its leading terms, each printed
+    only when small (printing the whole of a Legendre transform of the heavy top, 3.5 MB,
+    took 22 s)."""
+    text = ""
+    for term in sp.Add.make_args(expr):
+        piece = str(term) if nodes_at_most(term, REPR_WIDTH) else "…"
+        text = piece if not text else f"{text} + {piece}"
+        if len(text) > REPR_WIDTH or piece == "…":
+            break
     return text if len(text) <= REPR_WIDTH else text[:REPR_WIDTH - 1] + "…"
 
 
@@ -148,8 +158,14 @@ class NoetherQuantity:
 
     def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):
         _forms_argument(forms, NoetherForms, "noether()", "NoetherQuantity")
-        self.expr: sp.Expr = forms.quantity
-        self.defect: sp.Expr = forms.defect
+        self._forms = forms
+        #: of a system with internal stages: F_X and the defect as nodes of the program's
+        #: graph, ``graph_forms(g, symbols, memo) -> (F, defect)``, and ``symbolic_forms()``,
+        #: the :class:`NoetherForms` with their SymPy expressions, built on first use of
+        #: :attr:`expr` or :attr:`defect` (the symbolic Legendre transforms of a Galerkin
+        #: step take minutes; evaluation never needs them)
+        self.graph_forms = None
+        self.symbolic_forms = None
         self.arrow: tuple = forms.arrow
         self.multipliers: list = forms.multipliers
         self.is_symmetry: bool = is_symmetry
@@ -162,6 +178,28 @@ class NoetherQuantity:
         #: arrows of the window the quantity is written on: 1, or 3 for a second-order
         #: system (its state's (g_{k−1}, g_k, g_{k+1}), whose terms carry u_{k−1}, u_k)
         self.window: int = getattr(forms, "window", 1)
+
+    @property
+    def expr(self) -> sp.Expr:
+        """F_X as a SymPy expression in the arrow's coordinates (and the stages ζ)."""
+        return self._symbolic().quantity
+
+    @property
+    def defect(self) -> sp.Expr:
+        """⟨F⁻L, X(α)⟩ + f(α) − F_X as a SymPy expression (zero for a symmetry)."""
+        return self._symbolic().defect
+
+    def _shown(self) -> str:
+        """F_X's leading terms, or, while its SymPy form is not built (a quantity evaluated
+        on the graph), what it is."""
+        if self._forms.quantity is None:
+            return "⟨F⁺L(g, ζ*), X(β(g))⟩ + f(β(g)) (on the expression graph)"
+        return _short(self.expr)
+
+    def _symbolic(self) -> NoetherForms:
+        if self._forms.quantity is None and self.symbolic_forms is not None:
+            self._forms = self.symbolic_forms()
+        return self._forms
 
     @property
     def _known_inputs(self) -> int:
@@ -217,8 +255,8 @@ class NoetherQuantity:
     #: a system with internal stages and holonomic constraints ψ (docs/conventions.md §22,
     #: "The Noether quantity on N = G|_M"): the arrows of N = G|_M near a random arrow at
     #: which the symmetry is checked (a :class:`~symgroupoid.equations.RestrictedArrows`),
-    #: and the coefficients of the end multipliers of ψ in the defect, −dψ_a(α(g))(ρ(X)):
-    #: zero on M iff X is tangent to M
+    #: and the end multipliers of ψ, whose coefficients in the defect, −dψ_a(α(g))(ρ(X)),
+    #: vanish on M iff X is tangent to M
     restriction = None
     tangency: tuple = ()
 
@@ -234,7 +272,10 @@ class NoetherQuantity:
         symbols = {s: g.input(s) for s in (*names, *self.stages, *self.stage_inputs,
                                            *self.parameters) if isinstance(s, sp.Symbol)}
         memo: dict = {}
-        node = from_sympy(g, self.expr, symbols, "the Noether quantity", memo)
+        if self.graph_forms is not None:
+            node, defect = self.graph_forms(g, symbols, memo)
+        else:
+            node = from_sympy(g, self.expr, symbols, "the Noether quantity", memo)
         inputs = {"known": names, "p": list(self.parameters)}
         varying = [symbols[s] for s in (*names, *self.stages) if s in symbols]
         outputs = {"F": [node], "F_scale": term_magnitude(g, [node], varying)}
@@ -246,11 +287,14 @@ class NoetherQuantity:
             L = from_sympy(g, self.stage_lagrangian, symbols, "the discrete Lagrangian", memo)
             rows = gradient(g, L, zeta)
             J = step_jacobian(g, rows, zeta)
+            if self.graph_forms is None:
+                defect = from_sympy(g, self.defect, symbols, "the symmetry defect", memo)
+            # the defect is affine in the end multipliers of holonomic constraints: their
+            # coefficients −dψ(α(g))(ρ(X)) vanish iff X is tangent to M (§22)
+            (tangency,) = (step_jacobian(g, [defect], [symbols[lam] for lam in self.tangency])
+                           if self.tangency else [[]])
             outputs.update({"rows": rows, "J": [c for row in J for c in row],
-                            "defect": [from_sympy(g, self.defect, symbols,
-                                                  "the symmetry defect", memo)],
-                            "tangency": [from_sympy(g, t, symbols, "the tangency of X", memo)
-                                         for t in self.tangency]})
+                            "defect": [defect], "tangency": list(tangency)})
             if self.stage_forces:
                 inputs["u"] = list(self.stage_inputs)
                 f_zeta = _force_nodes(g, self.forces, self.forces.stage_forces,
@@ -387,7 +431,7 @@ class NoetherQuantity:
         refused before any evaluation, as in :meth:`impulse`.
         """
         out = self._along(trajectory, "F", "along")
-        _finite_values(out, "along", f"the quantity F_X = {_short(self.expr)}", "state")
+        _finite_values(out, "along", lambda: f"the quantity F_X = {self._shown()}", "state")
         return out
 
     def term_magnitude(self, trajectory) -> np.ndarray:
@@ -395,7 +439,8 @@ class NoetherQuantity:
         ``trajectory``, shape (R,) (:func:`symgroupoid.ir.term_magnitude`, the state's
         entries varying): ε·S_k is the rounding of F_X there.  A momentum (q_{k+1} − q_k)/h
         at large q is a small difference of large terms, and rounds at their size, not at
-        |F_X|; the rounding floor of :func:`~symgroupoid.conservation_summary` is ε·S·√N.
+        |F_X|; the rounding floor of :func:`~symgroupoid.conservation_summary` is
+        ε·(|F_X|·√N + S).
         The same checks as :meth:`along`."""
         out = self._along(trajectory, "F_scale", "term_magnitude")
         _finite_values(out, "term_magnitude", "the size of the terms of F_X", "state")
@@ -521,7 +566,7 @@ class NoetherQuantity:
 
     def __repr__(self) -> str:
         verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"
-        return f"<NoetherQuantity F_X = {_short(self.expr)} ({verdict})>"
+        return f"<NoetherQuantity F_X = {self._shown()} ({verdict})>"
 
 
 def _force_nodes(g: Graph, forces, exprs, arrow: list, zeta: list, u: list,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Sequence
 
 import sympy as sp
@@ -25,9 +26,10 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from .._progress import reported
-from .._symbols import scalar_expression
+from .._symbols import multiplier_symbols, scalar_expression
 from ..derivation import (
     NONHOLONOMIC_METHODS,
+    NoetherForms,
     SystemFunctions,
     call_user,
     check_metric,
@@ -46,6 +48,8 @@ from ..derivation import (
     lie_poisson_forms,
     matrix_form_residuals,
     may_be_step,
+    named,
+    noether_ends,
     noether_forms,
     nonholonomic_step,
     pair_impulse_form,
@@ -57,7 +61,7 @@ from ..derivation import (
 from ..groupoids import Groupoid
 from ._forcing import check_force_step
 from ._momenta import LegendreTransforms, LiePoissonEquations, NoetherQuantity
-from ._programs import RestrictedArrows, holonomic_projection_program
+from ._programs import RestrictedArrows, holonomic_projection_program, noether_nodes
 from ._regularity import check_step
 from ._step import StepEquations
 
@@ -311,8 +315,17 @@ class DiscreteSystem(_EvaluatedSystem):
     def legendre(self) -> LegendreTransforms:
         """F⁻L and F⁺L at (g_k, λ_k) in the section basis, multiplier terms included."""
         self._refuse_stages("the Legendre transforms in closed form")
-        return LegendreTransforms(legendre_forms(self.groupoid, self.functions),
+        return LegendreTransforms(self._legendre_forms(),
                                   self.parameters)
+
+    def _legendre_forms(self):
+        """F⁻L and F⁺L in closed form, derived once per system (each section's Noether
+        quantity pairs them with its own coefficients)."""
+        forms = self.__dict__.get("_legendre_cache")
+        if forms is None:
+            forms = self.__dict__["_legendre_cache"] = legendre_forms(self.groupoid,
+                                                                      self.functions)
+        return forms
 
     def noether(self, section, f=None) -> NoetherQuantity:
         """The Noether quantity of a section (seed 000 Def. 4.8, Thm 4.9).
@@ -327,10 +340,10 @@ class DiscreteSystem(_EvaluatedSystem):
         (interior multipliers included) and the symmetry is checked numerically at random
         arrows, of N with holonomic constraints (docs/conventions.md §22).
         """
-        forms = noether_forms(self.groupoid, legendre_forms(self.groupoid, self.functions),
-                              section, f, self.parameters)
         if self.stages:
-            return self._noether_with_stages(forms, section)
+            return self._noether_with_stages(section, f)
+        forms = noether_forms(self.groupoid, self._legendre_forms(),
+                              section, f, self.parameters)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow, forms.window)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
                                               self.functions):
@@ -356,7 +369,7 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity.system_name = self.name
         quantity.n_inputs = len(self.inputs)
 
-    def _noether_with_stages(self, forms, section) -> NoetherQuantity:
+    def _noether_with_stages(self, section, f) -> NoetherQuantity:
         """The Noether quantity of a system with internal stages: F_X and the defect at the
         stages ζ* of the arrow (docs/conventions.md §22), the symmetry checked there at
         random arrows.  With forces, F_X is evaluated at the forced stages of each arrow
@@ -366,13 +379,25 @@ class DiscreteSystem(_EvaluatedSystem):
         holonomic constraints ψ the stages include the interior multipliers Λ, solved with
         the arrow's other stages (the end multipliers enter no stage row), and the symmetry
         is checked at arrows of N = G|_M (docs/conventions.md §22, "The Noether quantity on
-        N = G|_M")."""
-        quantity = NoetherQuantity(forms, False, self.parameters)
+        N = G|_M").  F_X and the defect are built on the expression graph
+        (:func:`~symgroupoid.equations.noether_nodes`); their SymPy forms only when asked
+        for (``quantity.expr``, ``latex()``)."""
+        G, fs = self.groupoid, self.functions
+        arrow = tuple(named(G, 0, False))
+        lam = multiplier_symbols(len(fs.constraints), 0)
+        ends = noether_ends(G, section, f, self.parameters, arrow)
+        quantity = NoetherQuantity(NoetherForms(None, None, arrow, lam), False, self.parameters)
+        quantity.graph_forms = functools.partial(noether_nodes, self, ends, arrow, lam)
+
+        def symbolic() -> NoetherForms:
+            return noether_forms(G, self._legendre_forms(), section, f, self.parameters)
+
+        quantity.symbolic_forms = symbolic
         self._own(quantity)
         if self.n_holonomic:
             self._restrict_noether(quantity)
         quantity.stages = tuple(self.functions.stages)
-        quantity.stage_lagrangian = stage_lagrangian(self.functions, forms.arrow)
+        quantity.stage_lagrangian = stage_lagrangian(self.functions, arrow)
         forces = self.functions.forces
         if forces is not None:  # large expressions: built on the graph, never substituted
             here, there = input_symbols(forces.inputs, 0), input_symbols(forces.inputs, 1)
@@ -406,8 +431,7 @@ class DiscreteSystem(_EvaluatedSystem):
                                                 self.parameters)
         quantity.restriction = RestrictedArrows(
             self.groupoid, residual.numpy_function(["psi", "J"], ["x", "q", "p"]))
-        quantity.tangency = tuple(sp.diff(quantity.defect, lam)
-                                  for lam in quantity.multipliers[-held:])
+        quantity.tangency = tuple(quantity.multipliers[-held:])
 
     def lie_poisson(self) -> LiePoissonEquations:
         """The discrete constrained Lie–Poisson equations (seed 000 §6.1), Lie groups only."""

@@ -13,6 +13,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
+import sympy as sp
 
 from .._arguments import flag_argument
 from .._errors import (  # noqa: F401 (re-exported)
@@ -58,7 +59,7 @@ class _Evaluator:
     functions: dict = field(default_factory=dict)
 
     def _function(self, key: str, step_parameter: str | None, outputs=("out",)):
-        label = key if key != "energy" else f"energy:{step_parameter}"
+        label = key if key not in ("energy", "energy_scale") else f"{key}:{step_parameter}"
         f = self.functions.get(label)
         if f is None:
             program = self.sg.quantity(key, step_parameter)
@@ -139,6 +140,15 @@ def energy(trajectory, step_parameter: str | None = None) -> np.ndarray:
     return ev("energy", trajectory.states, p, step_parameter)[:, 0]
 
 
+def energy_magnitude(trajectory, step_parameter: str | None = None) -> np.ndarray:
+    """The size of the terms the discrete energy is computed from at every kept state, (R,)
+    (:func:`symgroupoid.ir.term_magnitude`): ε times it is the rounding of :func:`energy`
+    there; E_d of a run far from the origin is a small difference of terms of the size of
+    (x/h)², which round at that size."""
+    ev, p = _setup(trajectory)
+    return ev("energy_scale", trajectory.states, p, step_parameter)[:, 0]
+
+
 def energy_label(trajectory, step_parameter: str | None = None) -> str:
     """What :func:`energy` computes for this trajectory, e.g. ``"E_d = −∂L_d/∂h"``."""
     ev, _ = _setup(trajectory)
@@ -194,7 +204,16 @@ def _time_section_is_symmetry(system) -> bool:
 
 
 def has_energy(trajectory, step_parameter: str | None = None) -> bool:
-    """Whether :func:`energy` is defined for this trajectory."""
+    """Whether :func:`energy` is defined for this trajectory; a ``step_parameter`` that is
+    not the name of one of the system's parameters is a :class:`DiagnosticsError` (a
+    misspelt name would otherwise leave the energy out without a word)."""
+    if step_parameter is not None:
+        ev, _ = _setup(trajectory)
+        names = [str(p) for p in ev.sg.parameters]
+        if not isinstance(step_parameter, (str, sp.Symbol)) or str(step_parameter) not in names:
+            raise DiagnosticsError(f"{ev.sg.name}: step_parameter={step_parameter!r} is not "
+                                   f"the name of a parameter of the system (parameters: "
+                                   f"{', '.join(names) or 'none'})")
     try:
         energy_label(trajectory, step_parameter)
     except DiagnosticsError:
@@ -206,23 +225,25 @@ def has_energy(trajectory, step_parameter: str | None = None) -> bool:
 
 def rounding_floor(values: np.ndarray, step_indices: np.ndarray,
                    magnitudes: np.ndarray | None = None) -> np.ndarray:
-    """ε·S·√k: the drift of a conserved quantity Q after k steps when each step adds one
-    independent rounding error of size ε·S (a random walk), k counted from the first kept
-    state.  S is the quantity's scale along the run: the largest of |Q_k| and, when given,
-    of ``magnitudes``, the size of the terms Q is computed from
-    (:meth:`NoetherQuantity.term_magnitude <symgroupoid.NoetherQuantity.term_magnitude>`):
-    a momentum (q_{k+1} − q_k)/h at large q is a small difference of large terms, and
-    rounds at their size.
+    """ε·(|Q|·√k + S): the drift of a conserved quantity Q after k steps (k counted from
+    the first kept state; 0 at k = 0) when each step adds one independent rounding error of
+    relative size ε (a random walk, |Q| = max_k |Q_k|), and each evaluation of Q rounds at
+    ε·S, S = max_k of ``magnitudes``, the size of the terms Q is computed from
+    (:meth:`NoetherQuantity.term_magnitude <symgroupoid.NoetherQuantity.term_magnitude>`,
+    :func:`energy_magnitude`; 0 when not given).  A momentum (q_{k+1} − q_k)/h at large q
+    is a small difference of large terms: it rounds at their size, S ≈ 2|q|/h, not at |Q|.
 
     A drift within a small multiple of this floor is rounding; a drift far above it, or
-    growing like k rather than √k, is a defect of the scheme or of the solve.
+    growing like k rather than √k, is a defect of the scheme or of the solve — or rounding
+    biased one way at every step (a step's change below the resolution of the coordinates,
+    e.g. a slow orbit far from the origin), which :attr:`Drift.step_variation` shows.
     """
     values = np.asarray(values, float)
     scale = float(np.max(np.abs(values))) if values.size else 0.0
-    if magnitudes is not None and np.size(magnitudes):
-        scale = max(scale, float(np.max(np.abs(magnitudes))))
+    size = (float(np.max(np.abs(magnitudes)))
+            if magnitudes is not None and np.size(magnitudes) else 0.0)
     k = np.asarray(step_indices, float) - float(step_indices[0])
-    return _EPS * scale * np.sqrt(k)
+    return np.where(k > 0, _EPS * (scale * np.sqrt(k) + size), 0.0)
 
 
 @dataclass
@@ -251,7 +272,7 @@ class Drift:
 
     @property
     def floor(self) -> np.ndarray:
-        """ε·S·√k (:func:`rounding_floor`)."""
+        """ε·(|Q|·√k + S) (:func:`rounding_floor`)."""
         return rounding_floor(self.values, self.step_indices, self.magnitudes)
 
     @property
@@ -262,7 +283,7 @@ class Drift:
     def step_variation(self) -> float:
         """σ = RMS over the intervals of (Q_{k+e} − Q_k)/√e: the measured size of one step's
         change of Q.  For a quantity conserved up to rounding this is the per-step rounding
-        actually incurred (often above ε·S: the Newton residual of a step sits at its own
+        actually incurred (often above ε·|Q|: the Newton residual of a step sits at its own
         rounding floor, e.g. times rounded relative to t on a time groupoid), and σ·√k is
         the drift a random walk of it reaches; a drift far above σ·√k is systematic."""
         if len(self.values) < 2:
@@ -279,8 +300,8 @@ class Drift:
 
 @dataclass
 class ConservationSummary:
-    """Max drift of each conserved quantity of a run, with the rounding floor ε·S·√N (S the
-    size of the terms Q is computed from, at least |Q|: :func:`rounding_floor`).
+    """Max drift of each conserved quantity of a run, with the rounding floor
+    ε·(|Q|·√N + S) (S the size of the terms Q is computed from: :func:`rounding_floor`).
 
     ``quantities``: one :class:`Drift` per quantity (the energy when defined, then each
     Noether quantity asked for); ``constraint_residual``: max |φ| over the states (None
@@ -303,7 +324,7 @@ class ConservationSummary:
         for q in self.quantities:
             rel = q.max_drift / q.scale if q.scale else 0.0
             out.append(f"{q.name}: max |Q_k − Q_0| = {q.max_drift:.2e} (relative {rel:.1e}); "
-                       f"rounding floor ε·S·√N = {q.final_floor:.1e}, step-to-step "
+                       f"rounding floor ε·(|Q|·√N + S) = {q.final_floor:.1e}, step-to-step "
                        f"variation σ·√N = {q.step_variation * np.sqrt(self.steps):.1e}")
         if self.momentum_matching is not None:
             out.append(f"momenta: max |F⁺L(g_k) − F⁻L(g_{{k+1}})| = {self.momentum_matching:.2e} "
@@ -345,7 +366,8 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
         notes.append(f"energy: not included ({changes}; energy=True includes it)")
     if want_energy:
         quantities.append(Drift(energy_label(trajectory, step_parameter),
-                                globals()["energy"](trajectory, step_parameter), idx))
+                                globals()["energy"](trajectory, step_parameter), idx,
+                                energy_magnitude(trajectory, step_parameter)))
     conserved, changes = noether_drifts(trajectory, ev.sg, noether)
     quantities += conserved
     notes += [f"{change.name.removesuffix(' (changed by the forces)')}: changed by the "

@@ -27,6 +27,7 @@ from ._initial import (
     second_order_momentum_program,
     source_projection_program,
 )
+from ._noether import noether_nodes
 from ._projections import PROJECTED, RestrictedArrows, gauss_newton
 from ._stages import ROUNDING_UPDATE, solve_stages
 from ._state import StatePrograms, state_programs
@@ -41,7 +42,7 @@ from ._window import (
 
 __all__ = ["MomentumProgram", "StatePrograms", "WindowPrograms", "action_program",
            "constraint_program", "cost_program", "holonomic_program", "magnitude",
-           "momentum_program", "second_order_momentum_program",
+           "momentum_program", "noether_nodes", "second_order_momentum_program",
            "source_projection_program", "state_programs", "solve_stages", "input_jacobian_program",
            "PROJECTED", "ROUNDING_UPDATE", "RestrictedArrows", "gauss_newton",
            "holonomic_projection_program",
