@@ -98,6 +98,17 @@ def test_a_bad_lagrangian_is_refused(kind, scheme):
             .discretize(h, scheme).euler_lagrange())
 
 
+@pytest.mark.parametrize("L, shown", [(lambda q, v: [v[0] ** 2], "returned a list"),
+                                      (lambda q, v: sp.Matrix([1, 2]), "returned a 2×1 matrix"),
+                                      (lambda q, v: "abc", "returned the string")])
+def test_a_lagrangian_that_is_no_scalar_says_what_it_returned(L, shown):
+    """(A list was a CallableError quoting SymPy: 'list' object has no attribute
+    'xreplace'.)"""
+    refused(lambda: sg.ContinuousSystem(THETA, L, [h, grav], name="bad")
+            .discretize(h, "midpoint").euler_lagrange(), ShapeError,
+            f"the Lagrangian L\\(q, v\\) {shown}")
+
+
 def test_a_lagrangian_of_the_wrong_arity_is_refused_where_it_is_given():
     """(L(q) was reported twice wrapped, from the derivation, as "raised TypeError: <lambda>()
     takes 1 positional argument", without saying L takes (q, v).)"""

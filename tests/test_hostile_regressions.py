@@ -136,7 +136,10 @@ def test_project_initial_checks_its_iteration_cap():
     ("!", sg.ShapeError, "strings are not coefficients"),
     ([True, 0], sg.ShapeError, r"section \(entry 0\)"),
     ([[1, 0]], sg.ShapeError, r"section \(entry 0\)"),
-    (None, sg.ShapeError, "section must return a list"),
+    (None, sg.ShapeError, "a section is a basis index.*got NoneType None"),
+    (True, sg.ShapeError, "a section is a basis index.*got bool True"),
+    (0.0, sg.ShapeError, "a section is a basis index.*got float 0.0"),
+    (1 + 2j, sg.ShapeError, "a section is a basis index.*got complex"),
     (lambda q: 1 / 0, sg.CallableError, "evaluating the section"),
 ])
 def test_noether_sections_are_checked_as_expressions(section, error, message):

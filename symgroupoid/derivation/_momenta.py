@@ -144,6 +144,10 @@ def section_coefficients(G: Groupoid, section, q: Sequence, parameters: Sequence
         return [sp.S.One if a == int(section) else sp.S.Zero for a in range(G.rank)]
     if callable(section):
         coeffs = call_user(G.name, "section", section, section_point(G, q))
+    elif isinstance(section, (bool, np.bool_, numbers.Number)) or section is None:
+        raise ShapeError(f"{G.name}: a section is a basis index (an integer 0…{G.rank - 1}), "
+                         f"a list of {G.rank} coefficients or a function of the base point "
+                         f"returning them; got {type(section).__name__} {section!r}")
     else:
         coeffs = section
     if isinstance(coeffs, np.ndarray):

@@ -47,6 +47,7 @@ from .._errors import (
     UnsupportedFeatureError,
 )
 from ..derivation import (
+    as_scalar,
     as_scalar_list,
     call_user,
     check_parameters,
@@ -439,9 +440,7 @@ class ContinuousSystem:
     def _lagrangian(self, q, v) -> sp.Expr:
         value = call_user(self.name, "L(q, v)", self.lagrangian, q, v, smooth=True,
                           display=getattr(self, "_display", {}))
-        if isinstance(value, sp.MatrixBase) and value.shape == (1, 1):
-            value = value[0, 0]
-        return sp.sympify(value)
+        return as_scalar(self.name, "Lagrangian L(q, v)", value)
 
     def _force(self, q, v) -> list:
         value = call_user(self.name, "F(q, v)", self.forces, q, v,
