@@ -36,13 +36,11 @@ from .runtime import (
     Drift,
     constraint_residuals,
     energy_changes,
-    energy_label,
-    energy_magnitude,
+    energy_drift,
     has_energy,
     noether_drifts,
     trajectory_programs,
 )
-from .runtime import energy as _energy
 
 __all__ = ["MissingDependencyError", "plot_conservation", "plot_trajectory"]
 
@@ -292,9 +290,7 @@ def plot_conservation(trajectory, energy: bool | None = None, momenta: Sequence 
     changing = energy_changes(trajectory, step_parameter) if energy is None and defined \
         else None
     if defined and changing is None:
-        quantities.append(Drift(energy_label(trajectory, step_parameter),
-                                _energy(trajectory, step_parameter), idx,
-                                energy_magnitude(trajectory, step_parameter)))
+        quantities.append(energy_drift(trajectory, step_parameter))
     conserved, changes = noether_drifts(trajectory, programs, momenta)
     quantities += conserved
     show_phi = programs.has_constraints if constraints is None else constraints

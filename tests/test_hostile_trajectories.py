@@ -178,13 +178,24 @@ def diagnostic_calls(draw, name: str):
                                 junk(max_leaves=2))
     sections = st.one_of(st.integers(-2, 7), near([1.0] * case.step.groupoid.rank),
                          junk(max_leaves=2))
-    kind = draw(st.sampled_from(["energy", "momenta", "constraints", "summary", "part",
-                                 "noether"]))
+    kind = draw(st.sampled_from(["energy", "energy size", "momenta", "constraints",
+                                 "summary", "part", "noether"]))
     if kind == "energy":
         h = draw(step_parameters)
         return ("Trajectory.energy", lambda: traj.energy(h),
                 ["step_parameter", "h", "energy", str(h)],
                 lambda v: check_energy(name, traj, h, v))
+    if kind == "energy size":
+        h = draw(step_parameters)
+        target = draw(st.one_of(st.just(traj), junk(max_leaves=2)))
+
+        def verify_size(sizes):  # the size of E's terms bounds |E|
+            assert np.shape(sizes) == (len(traj),) and np.isfinite(sizes).all()
+            assert (sizes >= np.abs(traj.energy(h)) * (1 - 1e-12)).all()
+        return ("diagnostics.energy_magnitude",
+                lambda: sg.diagnostics.energy_magnitude(target, h),
+                ["step_parameter", "h", "energy", "trajectory", "Trajectory", str(h)],
+                verify_size)
     if kind == "momenta":
         return ("Trajectory.momenta", traj.momenta, ["momenta"],
                 lambda m: check_momenta(name, traj, m))
@@ -218,15 +229,20 @@ def diagnostic_calls(draw, name: str):
         return ("Trajectory[name]", lambda: traj[key], ["part", str(key)], verify)
     section = draw(sections)
     target = draw(st.one_of(st.just(traj), junk(max_leaves=2)))
+    method = draw(st.sampled_from(["along", "term_magnitude", "along_with_magnitude"]))
 
     def call():
         quantity = system.noether(section)
-        return quantity.along(target)
+        return getattr(quantity, method)(target)
 
     def verify(values):
-        assert np.shape(values) == (len(traj),) and np.isfinite(values).all()
-    return ("NoetherQuantity.along", call, ["section", "coefficients", "trajectory",
-                                            "NoetherQuantity.along"], verify)
+        values = values if method == "along_with_magnitude" else (values,)
+        for v in values:
+            assert np.shape(v) == (len(traj),) and np.isfinite(v).all()
+        if method == "along_with_magnitude":  # the size of F_X's terms bounds |F_X|
+            assert (values[1] >= np.abs(values[0]) * (1 - 1e-12)).all()
+    return (f"NoetherQuantity.{method}", call,
+            ["section", "coefficients", "trajectory", f"NoetherQuantity.{method}"], verify)
 
 
 @pytest.mark.parametrize("run", PROFILES)

@@ -54,7 +54,6 @@ from ._momenta import (
     noether_ends,
     noether_forms,
     second_order_legendre_forms,
-    stage_lagrangian,
     vanishes_on_restriction,
     vanishing_check,
 )
@@ -100,7 +99,7 @@ __all__ = ["NONHOLONOMIC_METHODS", "SCALES", "ConservedQuantities", "DerivedStep
            "input_arguments", "input_symbols", "junction_step", "junction_variation",
            "legendre_forms", "lie_poisson_forms", "limit_points", "matrix_form_residuals",
            "matrix_form_values", "may_be_step", "momentum_symbols", "named", "next_arrow",
-           "noether_ends", "noether_forms", "stage_lagrangian", "nonholonomic_step",
+           "noether_ends", "noether_forms", "nonholonomic_step",
            "parameter_value",
            "pair_impulse_form", "partial_residuals",
            "piece_residuals", "check_forces", "reduce_functions", "scaled_norm",

@@ -202,13 +202,6 @@ def _base_function(f, q: Sequence, name: str = "", parameters: Sequence = (),
     return expr
 
 
-def stage_lagrangian(fs: SystemFunctions, arrow: Sequence) -> sp.Expr:
-    """L(g, ζ) at the arrow with coordinates ``arrow``, in the generic stages ``fs.stages``
-    (docs/conventions.md §22): its stage rows ∂L/∂ζ are taken on the expression graph
-    (``symgroupoid.ir.gradient``; SymPy's ``diff`` of a Galerkin L on SO(3) takes minutes)."""
-    return fs.lagrangian.xreplace(slot_substitution(fs.slots[0], tuple(arrow)))
-
-
 @dataclass
 class NoetherForms:
     """F_X = ⟨F⁺L, X(β(g))⟩ + f(β(g)) and the symmetry defect (zero for a symmetry);

@@ -21,7 +21,7 @@ from .._lambdify import NUMPY_MODULES
 from .._sizes import nodes_at_most
 from .._symbols import stage_symbols
 from ..derivation import LegendreForms, LiePoissonForms, NoetherForms
-from ..ir import Graph, Program, from_sympy, gradient, term_magnitude
+from ..ir import Graph, Program, from_sympy, term_magnitude
 from ._programs import solve_stages
 from ._step import StepEquations
 
@@ -159,8 +159,9 @@ class NoetherQuantity:
     def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):
         _forms_argument(forms, NoetherForms, "noether()", "NoetherQuantity")
         self._forms = forms
-        #: of a system with internal stages: F_X and the defect as nodes of the program's
-        #: graph, ``graph_forms(g, symbols, memo) -> (F, defect)``, and ``symbolic_forms()``,
+        #: of a system with internal stages: F_X, the defect and the stage rows as nodes of
+        #: the program's graph, ``graph_forms(g, symbols, memo) -> (F, defect, rows)``, and
+        #: ``symbolic_forms()``,
         #: the :class:`NoetherForms` with their SymPy expressions, built on first use of
         #: :attr:`expr` or :attr:`defect` (the symbolic Legendre transforms of a Galerkin
         #: step take minutes; evaluation never needs them)
@@ -240,11 +241,10 @@ class NoetherQuantity:
         return inline_latex(expr, self.multipliers, self.parameters)
 
     #: a system with internal stages (docs/conventions.md §22): the generic stages ζ the
-    #: quantity and the defect are written in, and L(g, ζ) at the arrow, whose stage rows
-    #: ∂L/∂ζ have the root ζ* they are evaluated at (the envelope theorem:
+    #: quantity and the defect are written in (with their stage rows ∂L/∂ζ, from
+    #: :attr:`graph_forms`, whose root ζ* they are evaluated at: the envelope theorem,
     #: F^±L_d(g) = F^±L(g, ζ*))
     stages: tuple = ()
-    stage_lagrangian: sp.Expr = sp.S.Zero
     #: a forced system with internal stages: f_ζ of the arrow in the generic stages and its
     #: inputs ``stage_inputs`` (the state's u_k), which the stage rows gain, so that F_X is
     #: evaluated at the forced stages, ∂L/∂ζ + f_ζ = 0 (docs/conventions.md §22); the
@@ -273,7 +273,7 @@ class NoetherQuantity:
                                            *self.parameters) if isinstance(s, sp.Symbol)}
         memo: dict = {}
         if self.graph_forms is not None:
-            node, defect = self.graph_forms(g, symbols, memo)
+            node, defect, rows = self.graph_forms(g, symbols, memo)
         else:
             node = from_sympy(g, self.expr, symbols, "the Noether quantity", memo)
         inputs = {"known": names, "p": list(self.parameters)}
@@ -284,11 +284,7 @@ class NoetherQuantity:
 
             inputs["zeta"] = list(self.stages)
             zeta = [symbols[z] for z in self.stages]
-            L = from_sympy(g, self.stage_lagrangian, symbols, "the discrete Lagrangian", memo)
-            rows = gradient(g, L, zeta)
             J = step_jacobian(g, rows, zeta)
-            if self.graph_forms is None:
-                defect = from_sympy(g, self.defect, symbols, "the symmetry defect", memo)
             # the defect is affine in the end multipliers of holonomic constraints: their
             # coefficients −dψ(α(g))(ρ(X)) vanish iff X is tangent to M (§22)
             (tangency,) = (step_jacobian(g, [defect], [symbols[lam] for lam in self.tangency])
@@ -430,7 +426,7 @@ class NoetherQuantity:
         parameters that this quantity's system does not have: :class:`ParameterError`) are
         refused before any evaluation, as in :meth:`impulse`.
         """
-        out = self._along(trajectory, "F", "along")
+        (out,) = self._along(trajectory, ["F"], "along")
         _finite_values(out, "along", lambda: f"the quantity F_X = {self._shown()}", "state")
         return out
 
@@ -442,12 +438,21 @@ class NoetherQuantity:
         |F_X|; the rounding floor of :func:`~symgroupoid.conservation_summary` is
         ε·(|F_X|·√N + S).
         The same checks as :meth:`along`."""
-        out = self._along(trajectory, "F_scale", "term_magnitude")
+        (out,) = self._along(trajectory, ["F_scale"], "term_magnitude")
         _finite_values(out, "term_magnitude", "the size of the terms of F_X", "state")
         return out
 
-    def _along(self, trajectory, output: str, entry: str) -> np.ndarray:
-        """The program's ``output`` at every kept state of ``trajectory`` (see :meth:`along`)."""
+    def along_with_magnitude(self, trajectory) -> tuple[np.ndarray, np.ndarray]:
+        """(:meth:`along`, :meth:`term_magnitude`) from one evaluation (of a system with
+        internal stages: the stages of every state solved once)."""
+        values, sizes = self._along(trajectory, ["F", "F_scale"], "along")
+        _finite_values(values, "along", lambda: f"the quantity F_X = {self._shown()}", "state")
+        _finite_values(sizes, "along", "the size of the terms of F_X", "state")
+        return values, sizes
+
+    def _along(self, trajectory, outputs: list[str], entry: str) -> list[np.ndarray]:
+        """The program's ``outputs`` at every kept state of ``trajectory`` (see
+        :meth:`along`), each of shape (R,)."""
         self._check_run(trajectory, entry)
         states = np.asarray(trajectory.states, float)
         n = len(self.arrow) + len(self.multipliers)
@@ -469,9 +474,8 @@ class NoetherQuantity:
         _finite_states(states if u is None else np.c_[states, u.T], entry)
         p = self._trajectory_parameters(trajectory, entry)
         with np.errstate(all="ignore"):
-            (F,) = self._at_stages([output], np.ascontiguousarray(states.T), p, u)
-            out = np.broadcast_to(np.asarray(F[0], float), (len(states),))
-        return out.copy()
+            values = self._at_stages(outputs, np.ascontiguousarray(states.T), p, u)
+        return [np.broadcast_to(np.asarray(v[0], float), (len(states),)).copy() for v in values]
 
     def impulse(self, trajectory) -> np.ndarray:
         """The forces' impulse along the section over each step of a forced system's

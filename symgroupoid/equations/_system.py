@@ -53,7 +53,6 @@ from ..derivation import (
     noether_forms,
     nonholonomic_step,
     pair_impulse_form,
-    stage_lagrangian,
     time_step_candidates,
     vanishes_on_restriction,
     vanishing_check,
@@ -315,17 +314,14 @@ class DiscreteSystem(_EvaluatedSystem):
     def legendre(self) -> LegendreTransforms:
         """F⁻L and F⁺L at (g_k, λ_k) in the section basis, multiplier terms included."""
         self._refuse_stages("the Legendre transforms in closed form")
-        return LegendreTransforms(self._legendre_forms(),
+        return LegendreTransforms(self._legendre_forms,
                                   self.parameters)
 
+    @functools.cached_property
     def _legendre_forms(self):
         """F⁻L and F⁺L in closed form, derived once per system (each section's Noether
         quantity pairs them with its own coefficients)."""
-        forms = self.__dict__.get("_legendre_cache")
-        if forms is None:
-            forms = self.__dict__["_legendre_cache"] = legendre_forms(self.groupoid,
-                                                                      self.functions)
-        return forms
+        return legendre_forms(self.groupoid, self.functions)
 
     def noether(self, section, f=None) -> NoetherQuantity:
         """The Noether quantity of a section (seed 000 Def. 4.8, Thm 4.9).
@@ -342,7 +338,7 @@ class DiscreteSystem(_EvaluatedSystem):
         """
         if self.stages:
             return self._noether_with_stages(section, f)
-        forms = noether_forms(self.groupoid, self._legendre_forms(),
+        forms = noether_forms(self.groupoid, self._legendre_forms,
                               section, f, self.parameters)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow, forms.window)
         if not ok and vanishes_on_restriction(forms.defect, self.groupoid, forms.arrow,
@@ -390,14 +386,13 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity.graph_forms = functools.partial(noether_nodes, self, ends, arrow, lam)
 
         def symbolic() -> NoetherForms:
-            return noether_forms(G, self._legendre_forms(), section, f, self.parameters)
+            return noether_forms(G, self._legendre_forms, section, f, self.parameters)
 
         quantity.symbolic_forms = symbolic
         self._own(quantity)
         if self.n_holonomic:
             self._restrict_noether(quantity)
         quantity.stages = tuple(self.functions.stages)
-        quantity.stage_lagrangian = stage_lagrangian(self.functions, arrow)
         forces = self.functions.forces
         if forces is not None:  # large expressions: built on the graph, never substituted
             here, there = input_symbols(forces.inputs, 0), input_symbols(forces.inputs, 1)

@@ -59,7 +59,8 @@ class _Evaluator:
     functions: dict = field(default_factory=dict)
 
     def _function(self, key: str, step_parameter: str | None, outputs=("out",)):
-        label = key if key not in ("energy", "energy_scale") else f"{key}:{step_parameter}"
+        label = f"{key}:{step_parameter}" if key == "energy" else key
+        label += "|" + "/".join(outputs)
         f = self.functions.get(label)
         if f is None:
             program = self.sg.quantity(key, step_parameter)
@@ -68,22 +69,26 @@ class _Evaluator:
         return f, label
 
     def __call__(self, key: str, states: np.ndarray, p: np.ndarray,
-                 step_parameter: str | None = None) -> np.ndarray:
-        """The quantity ``key`` (:meth:`StatePrograms.quantity`) at every state, (R, n)."""
-        f, label = self._function(key, step_parameter)
+                 step_parameter: str | None = None, outputs=("out",)):
+        """The quantity ``key`` (:meth:`StatePrograms.quantity`) at every state, (R, n); with
+        several ``outputs``, one such array per output, from one evaluation (the stages of
+        a system with stages solved once)."""
+        f, label = self._function(key, step_parameter, outputs)
         known = np.ascontiguousarray(np.asarray(states, float).T)
         args = (known, self.stages(known, p), p) if self.sg.n_stages else (known, p)
         with np.errstate(all="ignore"):
-            (out,) = f(*args)
-        out = np.asarray(out, float).T  # (R, n)
-        if not np.isfinite(out).all():
-            row = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
-            shown = {"energy": "the energy", "stages": "the internal stages"}.get(key, key)
-            raise DiagnosticsError(f"{self.sg.name}: {shown} is not finite at kept state {row} "
-                                   f"({out[row].tolist()}): it overflows there or is not "
-                                   f"defined there (check the parameters, and that the run "
-                                   f"stays where the Lagrangian is defined)")
-        return out
+            values = [np.asarray(out, float).T for out in f(*args)]  # each (R, n)
+        for name, out in zip(outputs, values):
+            if not np.isfinite(out).all():
+                row = int(np.flatnonzero(~np.isfinite(out).all(axis=1))[0])
+                shown = {"energy": "the energy", "stages": "the internal stages"}.get(key, key)
+                if name != "out":
+                    shown = f"the size of the terms of {shown}"
+                raise DiagnosticsError(f"{self.sg.name}: {shown} is not finite at kept state "
+                                       f"{row} ({out[row].tolist()}): it overflows there or is "
+                                       f"not defined there (check the parameters, and that the "
+                                       f"run stays where the Lagrangian is defined)")
+        return values[0] if len(outputs) == 1 else values
 
 
     def stages(self, known: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -145,8 +150,22 @@ def energy_magnitude(trajectory, step_parameter: str | None = None) -> np.ndarra
     (:func:`symgroupoid.ir.term_magnitude`): ε times it is the rounding of :func:`energy`
     there; E_d of a run far from the origin is a small difference of terms of the size of
     (x/h)², which round at that size."""
+    return _energy_values(trajectory, step_parameter)[1]
+
+
+def _energy_values(trajectory, step_parameter: str | None) -> tuple[np.ndarray, np.ndarray]:
+    """(E_d, the size of its terms) at every kept state, from one evaluation."""
     ev, p = _setup(trajectory)
-    return ev("energy_scale", trajectory.states, p, step_parameter)[:, 0]
+    values, sizes = ev("energy", trajectory.states, p, step_parameter, ("out", "scale"))
+    return values[:, 0], sizes[:, 0]
+
+
+def energy_drift(trajectory, step_parameter: str | None = None) -> Drift:
+    """The :class:`Drift` of the discrete energy along ``trajectory``, its rounding floor
+    from the size of its terms (:func:`energy_magnitude`)."""
+    values, sizes = _energy_values(trajectory, step_parameter)
+    return Drift(energy_label(trajectory, step_parameter), values, trajectory.step_indices,
+                 sizes)
 
 
 def energy_label(trajectory, step_parameter: str | None = None) -> str:
@@ -365,9 +384,7 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
         want_energy = False
         notes.append(f"energy: not included ({changes}; energy=True includes it)")
     if want_energy:
-        quantities.append(Drift(energy_label(trajectory, step_parameter),
-                                globals()["energy"](trajectory, step_parameter), idx,
-                                energy_magnitude(trajectory, step_parameter)))
+        quantities.append(energy_drift(trajectory, step_parameter))
     conserved, changes = noether_drifts(trajectory, ev.sg, noether)
     quantities += conserved
     notes += [f"{change.name.removesuffix(' (changed by the forces)')}: changed by the "
@@ -401,7 +418,7 @@ def noether_drifts(trajectory, programs, items) -> tuple[list[Drift], list[Drift
     idx = trajectory.step_indices
     conserved, changes = [], []
     for label, nq in noether_quantities(programs, items):
-        values, sizes = nq.along(trajectory), nq.term_magnitude(trajectory)
+        values, sizes = nq.along_with_magnitude(trajectory)
         if nq.impulse_form is None:
             conserved.append(Drift(label, values, idx, sizes))
             continue

@@ -20,9 +20,10 @@ from ...ir import Graph, from_sympy
 
 
 def noether_nodes(system, ends: tuple, arrow: Sequence, multipliers: Sequence, g: Graph,
-                  symbols: dict, memo: dict) -> tuple[int, int]:
-    """(F_X, defect) nodes of ``system`` at the arrow ``arrow`` with multipliers
-    ``multipliers`` and the system's generic stages; ``ends`` = (X(α), f(α), X(β), f(β))
+                  symbols: dict, memo: dict) -> tuple[int, int, list[int]]:
+    """(F_X, defect, stage rows ∂L/∂ζ) nodes of ``system`` at the arrow ``arrow`` with
+    multipliers ``multipliers`` and the system's generic stages (no stage rows without
+    stages); ``ends`` = (X(α), f(α), X(β), f(β))
     (:func:`~symgroupoid.derivation.noether_ends`); ``symbols`` maps the arrow, the
     multipliers, the stages and the parameters to input nodes of ``g``."""
     G, fs = system.groupoid, system._fs
@@ -48,7 +49,9 @@ def noether_nodes(system, ends: tuple, arrow: Sequence, multipliers: Sequence, g
 
     Xa, fa, Xb, fb = ends
     F = paired(Xb, momenta("left"), fb, "β(g)")
-    return F, g.sub(paired(Xa, momenta("right"), fa, "α(g)"), F)
+    rows = (action.instantiate(g, term, term.stage_gradient, [nodes[0]], lam[0],
+                               stages=stages[0]) if stages else [])
+    return F, g.sub(paired(Xa, momenta("right"), fa, "α(g)"), F), rows
 
 
 __all__ = ["noether_nodes"]

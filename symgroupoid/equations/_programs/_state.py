@@ -290,20 +290,20 @@ class StatePrograms:
     def quantity(self, key: str, step_parameter: str | None = None) -> Program:
         """The (cached) program of one quantity, its output ``out``: ``"minus"`` (F⁻L),
         ``"plus"`` (F⁺L), ``"constraints"`` (φ on the newest term), ``"energy"`` (by
-        ``step_parameter``, see :meth:`energy`), ``"energy_scale"`` (the size of the terms
-        the energy is computed from, the state's entries varying:
+        ``step_parameter``, see :meth:`energy`; a further output ``scale``, the size of the
+        terms it is computed from, the state's entries varying:
         :func:`~symgroupoid.ir.term_magnitude`) or ``"stages"`` (outputs ``out``, the stage
         rows, and ``J``, their Jacobian, see :meth:`stages`)."""
-        cache_key = (f"{key}:{step_parameter}" if key in ("energy", "energy_scale")
-                     else key)
+        cache_key = f"energy:{step_parameter}" if key == "energy" else key
         hit = self._programs.get(cache_key)
         if hit is None:
             if key == "energy":
                 nodes = self.energy(step_parameter)[0]
-            elif key == "energy_scale":
                 varying = [self.symbols[s] for s in self.knowns]
                 varying += self.zeta[0] if self.zeta is not None else []
-                nodes = term_magnitude(self.graph, self.energy(step_parameter)[0], varying)
+                scale = term_magnitude(self.graph, nodes, varying)
+                hit = self._programs[cache_key] = self.program({"out": nodes, "scale": scale})
+                return hit
             elif key in ("minus", "plus"):
                 nodes = self.momenta[key == "plus"]
             elif key == "constraints":
