@@ -49,6 +49,7 @@ class ConvergenceReport:
     expected: int | None
     reference: str
     reference_norm: float = 1.0  # |q(T)| of the reference, for the size of the errors
+    motion: float | None = None  # max_k |q_k − q₀| of the finest run: how far it moves
     fitted: tuple = ()  # the step counts whose errors the fit used
     note: str = ""  # why errors were left out of the fit, or why there is no order
 
@@ -79,24 +80,42 @@ def _distance(a: np.ndarray, b: np.ndarray) -> float:
     return scale * float(np.linalg.norm(a / scale - b / scale))
 
 
-def _final_configuration(sim, initial, params: dict, steps: int, inputs=None) -> np.ndarray:
-    """The configuration at step ``steps`` (time T) of the run from (q₀, v₀), flat; the
-    run is simulated in chunks of :data:`CHUNK` steps, each from the last state of the
-    previous one.  ``inputs``: a forced system's inputs, held for every arrow (the first
-    one's included), or None."""
+def _configurations(traj, n: int) -> np.ndarray:
+    """The configurations q_0 … q_n of the run ``traj`` of n steps, flat: one row each."""
+    found = traj.configurations()
+    parts = found if isinstance(found, tuple) else (found,)
+    return np.concatenate([np.asarray(part, float)[:n + 1].reshape(n + 1, -1)
+                           for part in parts], axis=1)
+
+
+def _farthest(rows: np.ndarray, start: np.ndarray) -> float:
+    """max_i |rows_i − start|₂, in units of the largest entry (as :func:`_distance`)."""
+    scale = max(float(np.max(np.abs(rows), initial=0.0)),
+                float(np.max(np.abs(start), initial=0.0)))
+    if scale == 0.0:
+        return 0.0
+    return scale * float(np.max(np.linalg.norm(rows / scale - start / scale, axis=1)))
+
+
+def _run(sim, initial, params: dict, steps: int, inputs=None) -> tuple:
+    """The configuration q_N (time T) of the run of ``steps`` steps from (q₀, v₀), flat,
+    and how far the run goes: max_k |q_k − q₀|.  The run is simulated in chunks of
+    :data:`CHUNK` steps, each from the last state of the previous one.  ``inputs``: a
+    forced system's inputs, held for every arrow (the first one's included), or None."""
     configuration, velocity = initial
     state = sim.from_velocity(configuration, velocity, params, inputs=inputs)
-    left = steps
+    left, start, motion = steps, None, 0.0
     while True:
         n = min(CHUNK, left)
         traj = sim.simulate(state, n, params, inputs=inputs)
+        rows = _configurations(traj, n)
+        start = rows[0] if start is None else start
+        motion = max(motion, _farthest(rows, start))
         left -= n
         if not left:
             break
         state = traj.states[-1]
-    found = traj.configurations()
-    parts = found if isinstance(found, tuple) else (found,)
-    return np.concatenate([np.ravel(np.asarray(part, float)[n]) for part in parts])
+    return rows[-1], motion
 
 
 def _held_inputs(sim, inputs) -> np.ndarray | None:
@@ -217,15 +236,17 @@ def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int],
     if reference is not None:
         reference = _reference(reference, configuration_size(origin.system))
 
-    def final(n: int) -> np.ndarray:
-        return _final_configuration(sim, initial, {**params, name: T / n}, n, inputs)
+    def run(n: int) -> tuple:
+        return _run(sim, initial, {**params, name: T / n}, n, inputs)
 
+    finest = REFERENCE_FACTOR * counts[-1]
+    runs = [run(n) for n in counts]
     if reference is None:
-        target, against = final(REFERENCE_FACTOR * counts[-1]), (
-            f"the same scheme with N = {REFERENCE_FACTOR * counts[-1]}")
+        target, motion = run(finest)
+        against = f"the same scheme with N = {finest}"
     else:
-        target, against = reference, "the reference given"
-    errors = [_distance(final(n), target) for n in counts]
+        (_, motion), target, against = runs[-1], reference, "the reference given"
+    errors = [_distance(final, target) for final, _ in runs]
     h = np.array([T / n for n in counts])
     norm = _distance(target, np.zeros_like(target))
     floor = ORDER_FLOOR * max(1.0, norm)
@@ -239,11 +260,16 @@ def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int],
     if len(above) < len(counts):
         note = (f"errors at or below the rounding floor ({floor:.0e}) are not fitted: there "
                 f"they are the rounding the runs accumulate, not the scheme's error")
-        if order is None:
+        if order is None and motion <= floor:
+            note += (f"; no configuration of the runs is farther than {motion:.1e} from the "
+                     f"first, the rounding: nothing moves at these steps, so there is no "
+                     f"order")
+        elif order is None:
             note += "; fewer than two remain, so there is no order: take fewer steps or a " \
                     "longer T"
     return ConvergenceReport(tuple(counts), tuple(h.tolist()), tuple(errors), orders, order,
-                             expected, against, norm, tuple(counts[i] for i in above), note)
+                             expected, against, norm, motion, tuple(counts[i] for i in above),
+                             note)
 
 
 __all__ = ["ORDER_FLOOR", "ConvergenceReport", "convergence_order", "measure_order"]

@@ -121,12 +121,13 @@ def test_what_the_measurement_needs_is_named(tmp_path, cached, capsys):
                        "--horizon", "1e-4")
     row = rows(out)["order of GaussLegendre(2)"]
     assert code == 0 and " skip " in row and "rounding floor" in row, row
-    # a step far beyond the motion's time scales: nothing moves, every error is 0 (this
-    # advised "a longer HORIZON")
+    # a step far beyond the motion's time scales: nothing moves, every error is 0 or, where
+    # the solve leaves an ulp at each step, at the rounding (both advised "a longer HORIZON")
     code, out, _ = run(capsys, "verify", REPO / "examples" / "cli" / "pendulum_order4.py",
                        "--horizon", "1e308")
     row = rows(out)["order of GaussLegendre(2)"]
-    assert code == 0 and " skip " in row and "exactly 0" in row, row
+    assert code == 0 and " skip " in row, row
+    assert "exactly 0" in row or ("nothing moves" in row and "shorter HORIZON" in row), row
     assert "longer HORIZON" not in row
 
 

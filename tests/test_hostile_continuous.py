@@ -444,12 +444,13 @@ def test_measure_order_needs_a_discretised_continuous_system():
 def test_long_runs_are_simulated_in_chunks(monkeypatch):
     """Runs longer than a chunk continue from the last state: the final configuration of
     a run in chunks of 7 steps is the one-run configuration (to rounding, Newton restarts
-    from the chunk's prediction), and no trajectory longer than a chunk is kept."""
+    from the chunk's prediction), and no trajectory longer than a chunk is kept; how far
+    the run goes from its first configuration is measured over every chunk."""
     from symgroupoid import convergence
 
     sim = simulator()
     params = {"h": 0.01, **PARAMS}
-    whole = convergence._final_configuration(sim, INITIAL, params, 50)
+    whole, motion = convergence._run(sim, INITIAL, params, 50)
     lengths = []
     original = type(sim).simulate
 
@@ -459,9 +460,10 @@ def test_long_runs_are_simulated_in_chunks(monkeypatch):
 
     monkeypatch.setattr(convergence, "CHUNK", 7)
     monkeypatch.setattr(type(sim), "simulate", spy)
-    chunked = convergence._final_configuration(sim, INITIAL, params, 50)
+    chunked, chunked_motion = convergence._run(sim, INITIAL, params, 50)
     assert lengths == [7] * 7 + [1]
     assert np.abs(chunked - whole).max() < 1e-13
+    assert motion > 0.1 and abs(chunked_motion - motion) < 1e-13
 
 
 @pytest.mark.parametrize("run", PROFILES)

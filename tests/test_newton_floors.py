@@ -159,18 +159,21 @@ def test_c_and_numpy_accept_at_the_same_floor(kind):
 def test_iteration_cap_and_stall_are_told_apart(backend):
     """Without the floors (floor_factor = 0) the falling body cannot be accepted once its
     residual is at the rounding of its terms: its update reaches the rounding noise of the
-    solve (STALLED, at step 360 after a few iterations); a cap of 2 updates is reached at
-    once (NOT_CONVERGED).  Two statuses, two messages, each with the true iteration count
-    (two tries of a step past the second: from the extrapolated guess and the prediction)."""
+    solve (STALLED, after a few iterations, once the body has fallen far enough for the
+    rounding of its terms to outgrow the tolerance: step 360 on one machine, 420 on another,
+    where the processor's rounding differs); a cap of 2 updates is reached at once
+    (NOT_CONVERGED).  Two statuses, two messages, each with the true iteration count (two
+    tries of a step past the second: from the extrapolated guess and the prediction)."""
     sim = body_se2("pair", falling=True).euler_lagrange().compile(backend=backend,
                                                                  cache_dir=SESSION_CACHE)
     with pytest.raises(sg.NewtonDivergenceError) as stalled:
         sim.simulate(se2_state("pair"), 1000, PARAMS,
                      options=sg.NewtonOptions(floor_factor=0.0))
     text = str(stalled.value)
-    assert stalled.value.step == 360 and STATUS_MESSAGES[STALLED] in text
+    k = stalled.value.step
+    assert 200 <= k <= 600 and STATUS_MESSAGES[STALLED] in text
     run = stalled.value.trajectory
-    assert len(run) == 361
+    assert len(run) == k + 1
     assert "two tries of at most 50 each" in text
     with pytest.raises(sg.NewtonDivergenceError) as capped:
         sim.simulate(se2_state("pair"), 1000, PARAMS, options=sg.NewtonOptions(max_iterations=2))

@@ -313,6 +313,12 @@ def _measured(sim, data, params: dict, T: float, counts: list, origin) -> tuple:
     return report, [(h, e) for h, e in zip(report.step_sizes, report.errors) if e > floor]
 
 
+def _still(report) -> bool:
+    """No configuration of the measured runs is farther from the first than the rounding
+    floor: nothing moves at these steps."""
+    return report.motion <= ORDER_FLOOR * max(1.0, report.reference_norm)
+
+
 def order_check(source, sim, data, params: dict, steps: int, T: float | None,
                 lengthen: bool = False) -> Check | None:
     """The observed order of a discretised ContinuousSystem's scheme against its
@@ -336,7 +342,7 @@ def order_check(source, sim, data, params: dict, steps: int, T: float | None,
     except SymgroupoidError as err:
         return Check(name, False, f"the runs failed: {err}")
     default, tries = T, LENGTHEN_TRIES if lengthen else 0
-    while len(used) < 2 and any(report.errors) and tries:
+    while len(used) < 2 and any(report.errors) and tries and not _still(report):
         tries -= 1
         try:
             report, used = _measured(sim, data, params, T * LENGTHEN_FACTOR, counts, origin)
@@ -353,6 +359,12 @@ def order_check(source, sim, data, params: dict, steps: int, T: float | None,
                                  f"({where}): the scheme is exact on this motion, or at this "
                                  f"{step} (far beyond the motion's time scales) nothing "
                                  f"moves; the order cannot be measured here")
+    if len(used) < 2 and _still(report):
+        return Check(name, None, f"theoretical {origin.order}; nothing moves: no "
+                                 f"configuration of the runs is farther than "
+                                 f"{report.motion:.1e} from the first, the rounding ({where}):"
+                                 f" at this {step} (far beyond the motion's time scales) the "
+                                 f"order cannot be measured; set a shorter HORIZON")
     if len(used) < 2:
         return Check(name, None, f"theoretical {origin.order}; the errors are at the "
                                  f"rounding floor ({where}): set a longer HORIZON or a "
