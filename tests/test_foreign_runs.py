@@ -74,6 +74,35 @@ def test_the_unforced_quantity_refuses_a_forced_run_of_the_same_name():
         free.noether(_rotation).along(run)
 
 
+def _unnamed(stiffness: float):
+    """A spring in the plane, no name: every such system is called 'continuous_midpoint'."""
+    def L(q, v):
+        return (v[0] ** 2 + v[1] ** 2) / 2 - stiffness * (q[0] ** 2 + q[1] ** 2) / 2
+
+    return sg.ContinuousSystem(sg.EuclideanSpace("x y"), L, parameters=[h]).discretize(
+        h, "midpoint")
+
+
+def test_a_run_of_another_system_of_the_same_name_is_refused():
+    """Two unnamed continuous systems discretised alike share their name, state layout and
+    parameters: the quantity of one read the other's run (another Lagrangian) and reported
+    its values.  Their fingerprints differ; the same system built twice has one."""
+    soft, stiff = _unnamed(1.0), _unnamed(4.0)
+    assert soft.name == stiff.name and soft.fingerprint != stiff.fingerprint
+    assert _unnamed(1.0).fingerprint == soft.fingerprint
+    sim = stiff.euler_lagrange().compile(backend="numpy")
+    params = {"h": 0.05}
+    run = sim.simulate(sim.from_velocity({"x": 1.0, "y": 0.2}, [0.1, 0.9], params), STEPS,
+                       params)
+    assert run.system_fingerprint == stiff.fingerprint
+    for entry in ("along", "term_magnitude"):
+        with pytest.raises(sg.ShapeError, match=f"{entry}: the trajectory is a run of another "
+                                                "system named 'continuous_midpoint'"):
+            getattr(soft.noether(_rotation), entry)(run)
+    again = _unnamed(4.0).noether(_rotation).along(run)
+    assert np.ptp(again) < 1e-13 * np.abs(again).max()
+
+
 def test_the_impulse_refuses_what_is_not_a_run_of_its_system():
     lobatto, run, _, _ = _runs()
     nq = lobatto.noether(_rotation)

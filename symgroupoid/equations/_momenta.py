@@ -176,6 +176,9 @@ class NoetherQuantity:
         #: refused), and that system's inputs per arrow; set by ``DiscreteSystem.noether``
         self.system_name: str | None = None
         self.n_inputs: int = 0
+        #: that system (its ``fingerprint`` tells its runs from those of another system of
+        #: the same name)
+        self.system = None
         #: arrows of the window the quantity is written on: 1, or 3 for a second-order
         #: system (its state's (g_{k−1}, g_k, g_{k+1}), whose terms carry u_{k−1}, u_k)
         self.window: int = getattr(forms, "window", 1)
@@ -375,9 +378,11 @@ class NoetherQuantity:
     def _check_run(self, trajectory, entry: str) -> None:
         """``trajectory`` is a :class:`~symgroupoid.Trajectory` (states and parameters by
         name: an :class:`InputTypeError` otherwise) of this quantity's system: the run of a
-        system of another name, or with inputs where the system has none or the reverse,
-        is a :class:`ShapeError` (its states may have the same width, and its numbers would
-        be those of other equations: another scheme, the unforced stages)."""
+        system of another name, of another system of the same name (another fingerprint:
+        two unnamed continuous systems discretised alike share a name), or with inputs where
+        the system has none or the reverse, is a :class:`ShapeError` (its states may have
+        the same width, and its numbers would be those of other equations: another scheme,
+        the unforced stages)."""
         if not hasattr(trajectory, "states") or not isinstance(
                 getattr(trajectory, "parameters", None), Mapping):
             raise InputTypeError(f"NoetherQuantity.{entry}: trajectory must be a Trajectory "
@@ -394,6 +399,11 @@ class NoetherQuantity:
             raise ShapeError(f"NoetherQuantity.{entry}: the trajectory's system has {have}, "
                              f"this quantity's system {want}: it is a run of another "
                              f"system; use a trajectory of this system's step")
+        theirs = getattr(trajectory, "system_fingerprint", None)
+        if self.system is not None and theirs is not None and theirs != self.system.fingerprint:
+            raise ShapeError(f"NoetherQuantity.{entry}: the trajectory is a run of another "
+                             f"system named {name!r} (another Lagrangian, scheme, constraints"
+                             f" or forces); use a trajectory of this system's step")
 
     def _trajectory_parameters(self, trajectory, entry: str) -> np.ndarray:
         """The values of this quantity's parameters in ``trajectory.parameters``, which must

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import hashlib
 from collections.abc import Callable, Sequence
 
 import sympy as sp
@@ -157,6 +158,41 @@ def forces_argument(name: str, forces, arity: int = 1):
     return forces
 
 
+def _replaced(value, mapping: dict):
+    """``value`` (nested lists and tuples of SymPy objects) with ``mapping`` applied."""
+    if isinstance(value, (list, tuple)):
+        return type(value)(_replaced(v, mapping) for v in value)
+    return value.xreplace(mapping) if isinstance(value, sp.Basic) else value
+
+
+def _canonical_dummies(parts: list, ordered: list) -> dict:
+    """The Dummy symbols of ``parts`` (slot, stage and base coordinates, fresh in every
+    system) mapped to plain symbols numbered by position: first those of ``ordered``
+    (nested sequences, in order), then the others by name."""
+    seen: dict = {}
+
+    def walk(value):
+        if isinstance(value, (list, tuple)):
+            for v in value:
+                walk(v)
+        elif isinstance(value, sp.Dummy):
+            seen.setdefault(value, None)
+
+    walk(ordered)
+    others: set = set()
+    for part in parts:
+        stack = [part]
+        while stack:
+            value = stack.pop()
+            if isinstance(value, (list, tuple)):
+                stack.extend(value)
+            elif isinstance(value, sp.Basic):
+                others |= value.atoms(sp.Dummy)
+    for dummy in sorted(others - seen.keys(), key=lambda d: (d.name, d.dummy_index)):
+        seen.setdefault(dummy, None)
+    return {d: sp.Symbol(f"_{k}", **d.assumptions0) for k, d in enumerate(seen)}
+
+
 class _EvaluatedSystem:
     """A system whose Lagrangian and constraints were evaluated on slot arrows."""
 
@@ -173,6 +209,33 @@ class _EvaluatedSystem:
     def _fs(self) -> SystemFunctions:
         """Deprecated alias of :attr:`functions`, kept while readers move to it."""
         return self._functions
+
+    @functools.cached_property
+    def fingerprint(self) -> str:
+        """A digest of what the system's equations are built from: its kind and name,
+        parameters, L_d, constraints, holonomic constraints, internal stages and forces on
+        the slot arrows (SHA-256 of their SymPy ``srepr``, the same in every process).  Two
+        systems with the same fingerprint derive the same equations; a Noether quantity
+        refuses the run of a system with another (two systems may share a name)."""
+        functions = self.functions
+        parts = [type(self).__name__, self.name, list(self.parameters), functions.slots,
+                 functions.lagrangian, functions.constraints, functions.holonomic,
+                 functions.rows, functions.stages]
+        forces = functions.forces
+        if forces is not None:
+            parts.append((forces.inputs, forces.nodes, forces.stage_forces))
+        parts.extend(getattr(self, extra, None) for extra in ("distribution", "method"))
+        canonical = _canonical_dummies(parts, [functions.slots, functions.stages,
+                                               functions.base])
+        digest = hashlib.sha256()
+        for part in parts:
+            data = (part if isinstance(part, str)
+                    else sp.srepr(sp.sympify(part).xreplace(canonical)
+                                  if isinstance(part, sp.Basic) else _replaced(part, canonical))
+                    ).encode()
+            digest.update(len(data).to_bytes(8, "little"))
+            digest.update(data)
+        return digest.hexdigest()
 
 
 class DiscreteSystem(_EvaluatedSystem):
@@ -364,6 +427,7 @@ class DiscreteSystem(_EvaluatedSystem):
         (:meth:`NoetherQuantity.along` refuses another system's)."""
         quantity.system_name = self.name
         quantity.n_inputs = len(self.inputs)
+        quantity.system = self
 
     def _noether_with_stages(self, section, f) -> NoetherQuantity:
         """The Noether quantity of a system with internal stages: F_X and the defect at the

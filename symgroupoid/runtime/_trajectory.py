@@ -103,6 +103,14 @@ class Trajectory:
         return self._layout.step_name
 
     @property
+    def system_fingerprint(self) -> str | None:
+        """The fingerprint of the system whose run this is (``system.fingerprint``), or
+        None where the simulator has no symbolic system (restored from a pickle, or a file's
+        trajectory): a Noether quantity of another system of the same name refuses it."""
+        system = getattr(self._layout.equations, "system", None)
+        return getattr(system, "fingerprint", None)
+
+    @property
     def steps(self) -> int:
         """Number of steps N covered (from the first kept state to the last)."""
         return int(self.step_indices[-1] - self.step_indices[0])
