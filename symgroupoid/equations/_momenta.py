@@ -282,18 +282,19 @@ class NoetherQuantity:
         inputs = {"known": names, "p": list(self.parameters)}
         varying = [symbols[s] for s in (*names, *self.stages) if s in symbols]
         outputs = {"F": [node], "F_scale": term_magnitude(g, [node], varying)}
-        if self.stages:
+        if self.graph_forms is not None:
             from ..derivation import step_jacobian
 
-            inputs["zeta"] = list(self.stages)
-            zeta = [symbols[z] for z in self.stages]
-            J = step_jacobian(g, rows, zeta)
             # the defect is affine in the end multipliers of holonomic constraints: their
             # coefficients −dψ(α(g))(ρ(X)) vanish iff X is tangent to M (§22)
             (tangency,) = (step_jacobian(g, [defect], [symbols[lam] for lam in self.tangency])
                            if self.tangency else [[]])
-            outputs.update({"rows": rows, "J": [c for row in J for c in row],
-                            "defect": [defect], "tangency": list(tangency)})
+            outputs.update({"defect": [defect], "tangency": list(tangency)})
+        if self.stages:
+            inputs["zeta"] = list(self.stages)
+            zeta = [symbols[z] for z in self.stages]
+            J = step_jacobian(g, rows, zeta)
+            outputs.update({"rows": rows, "J": [c for row in J for c in row]})
             if self.stage_forces:
                 inputs["u"] = list(self.stage_inputs)
                 f_zeta = _force_nodes(g, self.forces, self.forces.stage_forces,
@@ -333,12 +334,12 @@ class NoetherQuantity:
         return f(known, self._stages_at(known, p, u), p)
 
     def check_with_stages(self, groupoid) -> tuple[bool, str]:
-        """Whether the defect vanishes at ζ* at random arrows of ``groupoid`` (with random
-        multipliers and parameters in [0.5, 1.5]), for a system with internal stages; and
-        how that was decided.  With holonomic constraints the arrows are moved onto
-        N = G|_M first (:attr:`restriction`), the stages ζ* include the interior
-        multipliers, and X must be tangent to M there (:attr:`tangency`; docs/conventions.md
-        §22, "The Noether quantity on N = G|_M")."""
+        """Whether the defect vanishes (at ζ*, for a system with internal stages) at random
+        arrows of ``groupoid`` (with random multipliers and parameters in [0.5, 1.5]), for
+        a quantity built on the expression graph; and how that was decided.  With holonomic
+        constraints the arrows are moved onto N = G|_M first (:attr:`restriction`), the
+        stages ζ* include the interior multipliers, and X must be tangent to M there
+        (:attr:`tangency`; docs/conventions.md §22, "The Noether quantity on N = G|_M")."""
         from .._errors import DiagnosticsError
 
         rng = np.random.default_rng(20260)
@@ -370,10 +371,12 @@ class NoetherQuantity:
                 return False, (f"not tangent to M = {{ψ = 0}}: dψ(X) ≠ 0 at the source of "
                                f"{where}")
             if abs(defect) > scale:
-                return False, how
+                return False, how if self.stages else "nonzero at a random arrow"
         if usable < 3:
-            return False, f"undecided: the stages could not be solved at {where}"
-        return True, how
+            return False, (f"undecided: the stages could not be solved at {where}"
+                           if self.stages else "undecided: no random arrow gave a finite value")
+        return True, how if self.stages else (f"numerical: zero to 1e-09 relative at {usable} "
+                                              f"{where} of {groupoid.name}")
 
     def _check_run(self, trajectory, entry: str) -> None:
         """``trajectory`` is a :class:`~symgroupoid.Trajectory` (states and parameters by

@@ -399,7 +399,7 @@ class DiscreteSystem(_EvaluatedSystem):
         (interior multipliers included) and the symmetry is checked numerically at random
         arrows, of N with holonomic constraints (docs/conventions.md §22).
         """
-        if self.stages:
+        if self.stages or self._noether_on_graph():
             return self._noether_with_stages(section, f)
         forms = noether_forms(self.groupoid, self._legendre_forms,
                               section, f, self.parameters)
@@ -412,15 +412,33 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity.verification = how
         forces = self.functions.forces
         if forces is not None and self._arity == 1:
-            expr, a, b = impulse_form(self.groupoid, forces, section, self.parameters)
-            quantity.impulse_form = (expr, a, b, input_symbols(forces.inputs, 0),
-                                     input_symbols(forces.inputs, 1))
+            self._impulse(quantity, section)
         elif forces is not None:  # second order: the window's inputs u_{k−1}, u_k; u_{k+1}
             expr, a, b = pair_impulse_form(self.groupoid, forces, section, self.parameters)
             quantity.impulse_form = (expr, a, b, input_symbols(forces.inputs, -1)
                                      + input_symbols(forces.inputs, 0),
                                      input_symbols(forces.inputs, 1))
         return quantity
+
+    def _impulse(self, quantity: NoetherQuantity, section) -> None:
+        """The forces' impulse along ``section`` of a first-order system without stages
+        (``quantity.impulse``): (f⁻(g_{k+1}) + f⁺(g_k))(X) with each arrow's inputs."""
+        forces = self.functions.forces
+        expr, a, b = impulse_form(self.groupoid, forces, section, self.parameters)
+        quantity.impulse_form = (expr, a, b, input_symbols(forces.inputs, 0),
+                                 input_symbols(forces.inputs, 1))
+
+    def _noether_on_graph(self) -> bool:
+        """Whether a Noether quantity of this system without stages is built on the
+        expression graph and checked at random arrows, as with stages: a first-order system
+        without holonomic constraints on a groupoid with matrix parts.  There the SymPy
+        forms of F±L differentiate L through the group's multiplication and retraction (the
+        heavy top by the midpoint rule on the pair groupoid of SO(3): 45 s), and a defect on
+        a matrix-group base is decided by random arrows in any case (its points are not
+        arbitrary arrays); the forms are still built on request (``quantity.expr``,
+        ``latex()``)."""
+        return (self._arity == 1 and not self.n_holonomic
+                and bool(self.groupoid.named_groups()))
 
     def _own(self, quantity: NoetherQuantity) -> None:
         """Marks ``quantity`` as this system's: its runs are those of this name and inputs
@@ -430,12 +448,14 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity.system = self
 
     def _noether_with_stages(self, section, f) -> NoetherQuantity:
-        """The Noether quantity of a system with internal stages: F_X and the defect at the
-        stages ζ* of the arrow (docs/conventions.md §22), the symmetry checked there at
-        random arrows.  With forces, F_X is evaluated at the forced stages of each arrow
+        """The Noether quantity of a system with internal stages, or without them where
+        :meth:`_noether_on_graph` says so: F_X and the defect (at the stages ζ* of the
+        arrow, docs/conventions.md §22), the symmetry checked there at random arrows.
+        With forces and stages, F_X is evaluated at the forced stages of each arrow
         (∂L/∂ζ + f_ζ = 0 with that arrow's inputs), and the impulse of a step is the forces'
         along X at the junction plus the stage forces' term, minus the defect at the new
-        arrow's forced stages (docs/conventions.md §22, "The forced Noether balance").  With
+        arrow's forced stages (docs/conventions.md §22, "The forced Noether balance"); without
+        stages, the impulse is that of :meth:`_impulse`.  With
         holonomic constraints ψ the stages include the interior multipliers Λ, solved with
         the arrow's other stages (the end multipliers enter no stage row), and the symmetry
         is checked at arrows of N = G|_M (docs/conventions.md §22, "The Noether quantity on
@@ -458,7 +478,9 @@ class DiscreteSystem(_EvaluatedSystem):
             self._restrict_noether(quantity)
         quantity.stages = tuple(self.functions.stages)
         forces = self.functions.forces
-        if forces is not None:  # large expressions: built on the graph, never substituted
+        if forces is not None and not self.stages:
+            self._impulse(quantity, section)
+        elif forces is not None:  # large expressions: built on the graph, never substituted
             here, there = input_symbols(forces.inputs, 0), input_symbols(forces.inputs, 1)
             quantity.forces = forces
             quantity.stage_inputs = tuple(here)
