@@ -354,6 +354,34 @@ def test_a_large_difference_is_tested_at_random_points():
     assert vanishes_at_points(small) is vanishes(small) is False
 
 
+def test_a_large_printed_equation_is_tested_at_points_before_it_is_expanded(monkeypatch):
+    """The printed junction rows of the heavy top with rotors differ from the explicit
+    residuals, written out, by 31,000-node expressions that took 13–16 s each to expand
+    (the print: 81 s); from LARGE_NODES nodes unexpanded they are decided at random rational
+    points first (0.3 s each; the print: 33 s, the same document).  A printed form that
+    differs is refuted as before, and a small one is still decided exactly."""
+    from symgroupoid._rational import vanishes_at_points
+    from symgroupoid.equations import _forms
+
+    x, y, z = sp.symbols("x y z")
+    D = 1 + x**2 + y**2 + z**2
+    printed = sp.Add(*[((x + k * y) ** 3 - z) / D ** (k % 3 + 1) for k in range(300)])
+    explicit = sp.expand(sp.together(printed))
+    calls = []
+
+    def spy(expr):
+        calls.append(expr)
+        return vanishes_at_points(expr)
+
+    monkeypatch.setattr(_forms, "vanishes_at_points", spy)
+    assert _forms.equals_explicit(printed, explicit, [])
+    assert calls == [printed - explicit]  # as written: not expanded
+    assert not _forms.equals_explicit(printed + x / D ** 7, explicit, [])
+    calls.clear()
+    assert _forms.equals_explicit(x / D + y, (x + y * D) / D, []) and not calls
+    assert not _forms.equals_explicit(x / D + y, x / D, [])
+
+
 def test_a_lagrangian_with_float_coefficients_prints():
     """(0.5·(q₁ − q₀)²/h − 0.3·h·q₀q₁ made every printed form raise a raw AttributeError:
     the printer took each coefficient for a fraction.)  It prints, with its floats, and the

@@ -24,6 +24,7 @@ from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._errors import CallableError
 from .._rational import LARGE_TERMS, vanishes, vanishes_at_points
+from .._sizes import nodes_at_most
 from .._symbols import StepSymbol, latex_name, step_label
 from ..derivation import (
     PieceRule,
@@ -89,24 +90,45 @@ class Form:
     expanded: bool = True  # terms collected from the equations expanded (else as they are)
 
 
-def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
+def written_out(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
     """``expr`` with every layer substituted in order, named constants (J_d) by their
-    values, matrices evaluated, expanded."""
+    values, matrices evaluated."""
     from ..groupoids import named_constants
 
     out = uncollected(sp.sympify(expr))
     for layer in layers:
         if layer:
             out = out.xreplace(dict(layer))
-    return sp.expand(out.xreplace(named_constants(out)).doit())
+    return out.xreplace(named_constants(out)).doit()
+
+
+def explicit_value(expr: sp.Expr, layers: Sequence[Mapping]) -> sp.Expr:
+    """:func:`written_out`, expanded."""
+    return sp.expand(written_out(expr, layers))
+
+
+#: the size (nodes of the tree, with repetitions) of a printed equation's difference from
+#: the explicit residual, written out but not expanded, from which random rational points
+#: decide it (:func:`vanishes_at_points`) before any expansion: the three junction rows of
+#: the heavy top with rotors (seed 001 §3.3.5), 31,000 nodes each, took 13–16 s each to
+#: expand, 0.3–0.4 s at the points
+LARGE_NODES = 4000
 
 
 def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mapping]) -> bool:
     """Whether the printed equation, written out, is the explicit residual: their
     difference is zero over the factored common denominator (:func:`vanishes`), or, with
-    more than :data:`LARGE_TERMS` terms, at random rational points, exactly evaluated
-    (:func:`vanishes_at_points`; a nonzero value there refutes the form for certain)."""
-    difference = sp.expand(explicit_value(printed, layers) - sp.expand(explicit))
+    more than :data:`LARGE_NODES` nodes unexpanded or :data:`LARGE_TERMS` terms expanded,
+    at random rational points, exactly evaluated (:func:`vanishes_at_points`: a nonzero
+    value there refutes the form for certain; zero at three points is wrong with a chance
+    below 10⁻⁴⁵)."""
+    written, explicit = written_out(printed, layers), sp.sympify(explicit)
+    unexpanded = written - explicit
+    if not nodes_at_most(unexpanded, LARGE_NODES):
+        zero = vanishes_at_points(unexpanded)
+        if zero is not None:
+            return zero
+    difference = sp.expand(sp.expand(written) - sp.expand(explicit))
     if difference == 0:
         return True
     if len(sp.Add.make_args(difference)) > LARGE_TERMS:  # (the common denominator: hours)
