@@ -114,6 +114,28 @@ def test_a_noether_quantity_too_long_for_a_line_is_refused_at_once():
         quantity.latex()
 
 
+def test_a_hopeless_quantity_on_the_graph_is_refused_before_its_sympy_form():
+    """The heavy top by GaussLegendre(2): F_X could have 3.5e12 terms expanded; its SymPy
+    form took 5 minutes to be built and refused.  Counted on the graph it is evaluated on
+    (3.5e11) it is refused at once; its values along a run are unaffected."""
+    m, grav = sp.symbols("m g", positive=True)
+    J = sp.symbols("J1:4", positive=True)
+    chi = sp.Matrix(sp.symbols("chi1:4", real=True))
+
+    def L(R, xi):
+        return (sum(j * x**2 for j, x in zip(J, xi)) / 2
+                - m * grav * (sp.Matrix([[0, 0, 1]]) * R * chi)[0, 0])
+
+    top = sg.ContinuousSystem(sg.SO3("R"), L, parameters=[h, m, grav, *J, *chi],
+                              name="top").discretize(h, sg.GaussLegendre(2))
+    quantity = top.noether(lambda q: [q[6], q[7], q[8]])
+    with pytest.raises(sg.UnsupportedFeatureError, match=r"could have about \d{12} terms "
+                                                         r"expanded \(counted on the "
+                                                         r"expression graph"):
+        quantity.latex()
+    assert quantity.symbolic_forms is not None and "on the expression graph" in repr(quantity)
+
+
 def test_terms_apart_only_by_a_surd_are_one_term():
     """The Gauss nodes' √3 left √3 sin Q and 3 sin Q as two terms of a stage row; they
     print as (√3 + 3) sin Q."""

@@ -29,6 +29,13 @@ from ._step import StepEquations
 #: one line: a chain's momentum has tens, a free body's on SO(3) by the midpoint rule
 #: thousands (about 5 MB of LaTeX)
 INLINE_TERMS = 400
+#: the bound on F_X's expanded terms, counted on the expression graph of a quantity built
+#: there (``Program.expanded_terms``), above which ``latex()`` refuses before building its
+#: SymPy form: the graph's count and the SymPy form's differ (1,240 against 60 for a plane
+#: by GaussLegendre(2); 1.4e7 against 1.4e7 for the heavy top by the midpoint rule; 3.5e11
+#: against 3.5e12 for the heavy top by GaussLegendre(2), whose SymPy form took 5 minutes
+#: to be refused), so only a count far past INLINE_TERMS refuses at once
+GRAPH_INLINE_TERMS = 10**5
 
 #: characters of an expression shown in a repr before it is cut
 REPR_WIDTH = 60
@@ -231,6 +238,15 @@ class NoetherQuantity:
         from ._momentum_rows import inline_latex
         from ._printing import expanded_terms
 
+        if self._forms.quantity is None and self.graph_forms is not None:
+            terms = self._program.expanded_terms(["F"])
+            if terms > GRAPH_INLINE_TERMS:  # hopeless: not worth its SymPy form (minutes)
+                raise UnsupportedFeatureError(
+                    f"the Noether quantity F_X could have about {terms} terms expanded "
+                    f"(counted on the expression graph it is evaluated on), far more than "
+                    f"the {INLINE_TERMS} one line can hold (printed, it would run to "
+                    f"megabytes that no page holds): LaTeX is not produced for it.  Its "
+                    f"values along a trajectory (along(), plot_conservation) are unaffected")
         terms = expanded_terms([self.expr])
         if terms > INLINE_TERMS:
             raise UnsupportedFeatureError(

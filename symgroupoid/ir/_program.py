@@ -9,6 +9,7 @@ graph, vectorised over a trailing batch axis) and printed to C (:mod:`symgroupoi
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
@@ -17,6 +18,9 @@ import sympy as sp
 
 from .._errors import DomainError
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW, Graph
+
+#: the largest value :meth:`Program.expanded_terms` reports
+TERMS_CAP = 10**30
 
 
 @dataclass
@@ -47,6 +51,14 @@ class Program:
         """Number of operations (non-leaf nodes) the named outputs need."""
         return sum(1 for n in self.nodes(names) if self.graph.args[n])
 
+    def _known_names(self, names, entry: str) -> list:
+        """``names`` if it is a list of this program's outputs, else a DomainError."""
+        unknown = [k for k in names if not isinstance(k, str) or k not in self.outputs]
+        if isinstance(names, str) or unknown:
+            raise DomainError(f"{entry}: names must be a list of the program's outputs "
+                              f"({', '.join(map(repr, self.outputs))}), got {names!r}")
+        return list(names)
+
     def expanded_size(self, names: Sequence[str] | None = None) -> int:
         """Number of operations of the named outputs written out as expression trees, a
         node counted at every use (what printing them as formulas costs; :meth:`size`
@@ -54,15 +66,37 @@ class Program:
         output is a :class:`~symgroupoid.DomainError`."""
         g = self.graph
         names = list(self.outputs) if names is None else names
-        unknown = [k for k in names if not isinstance(k, str) or k not in self.outputs]
-        if isinstance(names, str) or unknown:
-            raise DomainError(f"expanded_size: names must be a list of the program's outputs "
-                              f"({', '.join(map(repr, self.outputs))}), got {names!r}")
-        outputs = [n for k in names for n in self.outputs[k]]
+        outputs = [n for k in self._known_names(names, "expanded_size") for n in self.outputs[k]]
         size: dict = {}
         for n in g.reachable(outputs):
             size[n] = 1 + sum(size[a] for a in g.args[n]) if g.args[n] else 0
         return sum(size[n] for n in outputs)
+
+    def expanded_terms(self, names: Sequence[str]) -> int:
+        """A bound on the number of terms of the named outputs written out as formulas and
+        expanded, without cancellation, as :func:`symgroupoid.equations.expanded_terms`
+        bounds a SymPy expression's: a sum has its terms' sum, a product their product, a
+        positive integer power pⁿ of t terms at most C(t + n − 1, n); a negative or
+        fractional power, a function, an input or a constant is one term.  Values past
+        10³⁰ are 10³⁰.  A name the program does not output is a
+        :class:`~symgroupoid.DomainError`."""
+        g = self.graph
+        outputs = [n for k in self._known_names(names, "expanded_terms") for n in self.outputs[k]]
+        terms: dict = {}
+        for n in g.reachable(outputs):
+            inner = [terms[a] for a in g.args[n]]
+            if g.op[n] == ADD:
+                value = sum(inner)
+            elif g.op[n] == MUL:
+                value = math.prod(inner)
+            elif g.op[n] == POW and g.data[n].is_Integer and g.data[n] > 0:
+                k = int(g.data[n])
+                value = (TERMS_CAP if inner[0] > 1 and k > 100
+                         else math.comb(inner[0] + k - 1, k))
+            else:
+                value = 1
+            terms[n] = min(value, TERMS_CAP)
+        return min(sum(terms[n] for n in outputs), TERMS_CAP)
 
     def compacted(self) -> Program:
         """The same outputs over a new graph with fewer operations
