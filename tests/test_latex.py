@@ -207,6 +207,8 @@ def test_expanded_terms_on_the_graph_bound_the_sympy_forms():
     (sin 2 + sin 4 is one constant there)."""
     import random
 
+    # white-box: the printers' bound on SymPy expressions is compared with the graph's, and
+    # the identity test of the printed forms is watched; no public name reaches either
     from symgroupoid.equations._printing import expanded_terms
     from symgroupoid.ir import Graph, Program, from_sympy
 
