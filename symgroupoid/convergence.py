@@ -17,7 +17,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._arguments import integer_argument, real_argument, real_array, sequence_argument
-from ._errors import DomainError, InputTypeError, ShapeError, UnsupportedFeatureError
+from ._errors import (
+    DomainError,
+    InputTypeError,
+    ParameterError,
+    ShapeError,
+    UnsupportedFeatureError,
+)
 
 #: the reference run's step count, in multiples of the largest one measured
 REFERENCE_FACTOR = 8
@@ -174,6 +180,16 @@ def _common_arguments(initial, params) -> tuple[tuple, dict]:
     return tuple(initial), dict(params)
 
 
+def _no_step(params: dict, name: str, T: float, counts: list) -> None:
+    """A :class:`ParameterError` when ``params`` gives the step ``name``, which each run
+    sets to T/N (it was silently replaced)."""
+    if name in params:
+        raise ParameterError(f"convergence_order: params gives the step {name} = "
+                             f"{params[name]!r}, which each run sets to T/N ({name} = "
+                             f"{T / counts[0]:g} … {T / counts[-1]:g} here): leave it out of "
+                             f"params")
+
+
 def _reference(reference, size: int | None) -> np.ndarray:
     """The reference configuration at T, flat and finite, with ``size`` entries (when
     known)."""
@@ -192,7 +208,8 @@ def convergence_order(system, scheme, initial, params: Mapping, T: float,
     """The observed order of ``system.discretize(step, scheme)`` (see the module docstring).
 
     ``initial``: (configuration, velocity) as :meth:`Simulator.from_velocity` takes them;
-    ``params``: the parameters other than the step; ``T``: the final time; ``steps``: at
+    ``params``: the parameters other than the step (each run sets the step to T/N: giving
+    it is a :class:`ParameterError`); ``T``: the final time; ``steps``: at
     least two step counts; ``step``: the step parameter (default: the system's one
     parameter named ``h``); ``reference``: the configuration at T (flat: a Euclidean
     factor's coordinates, a group factor's matrix entries row by row, factor after factor),
@@ -210,6 +227,7 @@ def convergence_order(system, scheme, initial, params: Mapping, T: float,
     if reference is not None:
         reference = _reference(reference, configuration_size(system))
     step = "h" if step is None else step
+    _no_step(params, str(step), T, counts)
     discrete = system.discretize(step, scheme)
     sim = discrete.euler_lagrange().compile(backend=backend)
     expected = getattr(scheme, "order", 2 if isinstance(scheme, str) else None)
@@ -233,6 +251,7 @@ def measure_order(sim, initial, params: Mapping, T: float, steps: Sequence[int],
                                       f"system discretised from a ContinuousSystem "
                                       f"(system.discretize(h, scheme))")
     name = str(origin.step)
+    _no_step(params, name, T, counts)
     if reference is not None:
         reference = _reference(reference, configuration_size(origin.system))
 

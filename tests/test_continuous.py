@@ -212,6 +212,11 @@ def test_bad_systems_are_refused():
     with pytest.raises(ShapeError, match="two different"):
         sg.convergence_order(_pendulum(), "midpoint", ({"theta": 0.3}, [0.5]), {"g": 9.81},
                              1.0, [20])
+    # (a step given in params was silently replaced by T/N)
+    with pytest.raises(sg.ParameterError, match=r"params gives the step h = 0.01, which each "
+                                                r"run sets to T/N \(h = 0.05 … 0.025 here\)"):
+        sg.convergence_order(_pendulum(), "midpoint", ({"theta": 0.3}, [0.5]),
+                             {"g": 9.81, "h": 0.01}, 1.0, [20, 40])
 
 
 @pytest.mark.slow
