@@ -275,7 +275,7 @@ def test_noether_quantities_of_a_galerkin_system(tmp_path, cached, capsys):
     code, out, _ = run(capsys, "verify", write(tmp_path, "central.py", CENTRAL))
     found = rows(out)
     assert " pass " in found["Noether: angular momentum"], out
-    assert "symmetry verified at the stages of random arrows" in found[
+    assert "symmetry verified (numeric at the stages ζ* of random arrows)" in found[
         "Noether: angular momentum"]
     assert " FAIL " in found["Noether: x-momentum"] and code == 1, out
     assert " pass " in found["order of GaussLegendre(2)"], out

@@ -284,3 +284,20 @@ def test_the_quantity_on_the_graph_is_its_symbolic_form_at_the_solved_stages():
     symbolic = np.array([f(s, z, [DT]) for s, z in zip(traj.states, zeta)])
     np.testing.assert_allclose(on_graph, symbolic, rtol=1e-12, atol=1e-13)
     assert np.ptp(on_graph) < 1e-12 and "F_X = " in repr(nq) and "graph" not in repr(nq)
+
+
+def test_evaluate_takes_the_arrow_at_its_stages():
+    """``NoetherQuantity.evaluate`` of a quantity with stages raised NameError (the generic
+    stages ζ were free in the SymPy form it evaluated); it is F_X at the arrow's stages ζ*,
+    as ``along`` takes them (without forces: the unforced stages), and arrays of other
+    lengths are ShapeErrors."""
+    free = sg.ContinuousSystem(sg.EuclideanSpace("x y"), _lagrangian, parameters=[h],
+                               name="free_particle").discretize(h, sg.GaussLegendre(2))
+    nq = free.noether(lambda q: [-q[1], q[0]])
+    sim = free.euler_lagrange().compile(backend="numpy")
+    run = sim.simulate({"x": (1.0, 1.0), "y": (0.0, 0.06)}, 5, {"h": DT})
+    values = [nq.evaluate(state, [], [DT]) for state in run.states]
+    np.testing.assert_allclose(values, nq.along(run), rtol=1e-13)
+    for arrow, params in (([1.0, 0.0], [DT]), ([1.0, 1.0, 0.0, 0.06], [])):
+        with pytest.raises(sg.ShapeError, match="NoetherQuantity.evaluate"):
+            nq.evaluate(arrow, [], params)

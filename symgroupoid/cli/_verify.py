@@ -257,7 +257,9 @@ def noether_check(system, step, declared: Declared, traj, p) -> Check:
         values = np.array([quantity.evaluate(x[:a], x[a:a + m], p)
                            for x in np.asarray(traj.states)[:, index]])
     tolerance = NOETHER_TOLERANCE * max(1.0, float(np.max(np.abs(values))))
-    how = "at the stages of random arrows" if system.stages else "symbolically"
+    how = quantity.verification
+    how = (how.replace("symbolic", "symbolically", 1) if how.startswith("symbolic")
+           else f"({how})")
     symmetry = f"symmetry verified {how}" if quantity.is_symmetry else \
         "NOT verified to be a symmetry"
     if quantity.impulse_form is not None:  # forced: J changes by the forces' impulse (§20)

@@ -218,14 +218,30 @@ class NoetherQuantity:
         the slot of the input to come."""
         return 2 if self.window == 3 else 1
 
-    @functools.cached_property
-    def _numeric(self):
-        args = [list(self.arrow), list(self.multipliers), list(self.parameters)]
-        return sp.lambdify(args, self.expr, NUMPY_MODULES)
-
-    def evaluate(self, arrow: Sequence, multipliers: Sequence = (), params: Sequence = ()):
-        return float(self._numeric(np.asarray(arrow, float), np.asarray(multipliers, float),
-                                   np.asarray(params, float)))
+    def evaluate(self, arrow: Sequence, multipliers: Sequence = (), params: Sequence = ()
+                 ) -> float:
+        """F_X at one arrow and its multipliers, with the parameters' values in the order
+        of :attr:`parameters`; with internal stages, at the arrow's stages ζ* (∂L/∂ζ = 0,
+        without forces: a forced run's values are :meth:`along`'s).  Evaluated by the
+        quantity's program, as :meth:`along` is (the SymPy form is not built).  Arrays of
+        other lengths are a :class:`ShapeError`."""
+        values = []
+        for name, given, want in (("arrow", arrow, len(self.arrow)),
+                                  ("multipliers", multipliers, len(self.multipliers)),
+                                  ("params", params, len(self.parameters))):
+            try:
+                value = np.asarray(given, dtype=float).ravel()
+            except (TypeError, ValueError) as exc:
+                raise ShapeError(f"NoetherQuantity.evaluate: {name} must be {want} real "
+                                 f"numbers ({exc})") from None
+            if value.size != want:
+                raise ShapeError(f"NoetherQuantity.evaluate: {name} has {value.size} "
+                                 f"entries, the quantity needs {want}")
+            values.append(value)
+        known = np.r_[values[0], values[1]][:, None]
+        with np.errstate(all="ignore"):
+            (F,) = self._at_stages(["F"], known, values[2])
+        return float(np.ravel(F)[0])
 
     def latex(self) -> str:
         """F_X, its terms collected by multipliers, variables and parameters (checked to be
