@@ -431,14 +431,17 @@ class DiscreteSystem(_EvaluatedSystem):
     def _noether_on_graph(self) -> bool:
         """Whether a Noether quantity of this system without stages is built on the
         expression graph and checked at random arrows, as with stages: a first-order system
-        without holonomic constraints on a groupoid with matrix parts.  There the SymPy
-        forms of F±L differentiate L through the group's multiplication and retraction (the
-        heavy top by the midpoint rule on the pair groupoid of SO(3): 45 s), and a defect on
-        a matrix-group base is decided by random arrows in any case (its points are not
-        arbitrary arrays); the forms are still built on request (``quantity.expr``,
-        ``latex()``)."""
+        without holonomic constraints on a groupoid whose base holds a matrix group (a pair
+        groupoid of SO(3), ``Groupoid.base_groups``).  There the SymPy forms of F±L
+        differentiate L through the group's multiplication and retraction (the heavy top by
+        the midpoint rule on the pair groupoid of SO(3): 45 s), and the defect is decided by
+        random arrows in any case (a symbolic check treats the base points as arbitrary
+        arrays); the forms are still built on request (``quantity.expr``, ``latex()``).  On
+        a Lie group, an action groupoid or a product with them the symmetry is still
+        decided symbolically where it can be (the heavy top on S² × SO(3), a satellite with
+        a wheel)."""
         return (self._arity == 1 and not self.n_holonomic
-                and bool(self.groupoid.named_groups()))
+                and bool(self.groupoid.base_groups()))
 
     def _own(self, quantity: NoetherQuantity) -> None:
         """Marks ``quantity`` as this system's: its runs are those of this name and inputs

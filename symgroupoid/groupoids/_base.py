@@ -216,6 +216,13 @@ class Groupoid(GroupoidNumerics, ABC):
         values are checked to lie in the group)."""
         return {}
 
+    def base_groups(self) -> dict:
+        """Matrix-group parts of a base point's named coordinates: name → MatrixLieGroup
+        (the base of a pair groupoid of a group; a Lie group's base is a point, an action
+        groupoid's the manifold acted on).  Where there are any, a symbolic check on the
+        base treats its points as arbitrary arrays."""
+        return {}
+
     # --- naming in the papers' notation ---------------------------------------------------
     @abstractmethod
     def named_fibre(self, offset: int) -> tuple:

@@ -317,6 +317,9 @@ class PairGroupoid(Groupoid):
     def named_groups(self):
         return {name: group for name, (_, group) in self.space.groups().items()}
 
+    def base_groups(self):
+        return self.named_groups()
+
     def random_base_point(self, rng):
         return self.space.random_point(rng)
 

@@ -189,6 +189,12 @@ class ProductGroupoid(Groupoid):
             out.update(f.named_groups())
         return out
 
+    def base_groups(self):
+        out: dict = {}
+        for f in self.factors:
+            out.update(f.base_groups())
+        return out
+
     def arrow_between(self, c0, c1):
         """Configurations are tuples with one configuration per factor."""
         return sum((tuple(f.arrow_between(a, b)) for f, a, b in zip(self.factors, c0, c1)), ())

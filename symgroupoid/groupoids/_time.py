@@ -171,6 +171,9 @@ class TimeGroupoid(Groupoid):
     def named_groups(self):
         return self.inner.named_groups()
 
+    def base_groups(self):
+        return self.inner.base_groups()
+
     def predict_chart(self, a):
         return (2 * a[1] - a[0],) + tuple(self.inner.predict_chart(a[2:]))
 

@@ -286,6 +286,9 @@ class TrivialisedPairGroupoid(Groupoid):
     def named_groups(self):
         return {self.group.symbol_name: self.group, self.increment_name: self.group}
 
+    def base_groups(self):
+        return {self.group.symbol_name: self.group}
+
     def matrix_parts(self):
         return [(0, self.group)]
 
