@@ -311,8 +311,9 @@ def test_noether_on_the_pair_groupoid_of_so3_knows_its_rotations() -> None:
 
 def test_a_quantity_on_a_matrix_group_without_stages_is_built_on_the_graph() -> None:
     """On a groupoid whose base holds a matrix group F_X and the defect are built on the
-    expression graph and checked at random arrows (the SymPy forms of F±L differentiate L through the group's
-    multiplication and retraction: 45 s for the heavy top by the midpoint rule); the SymPy
+    expression graph and checked at random arrows (the SymPy forms of F±L differentiate L
+    through the group's multiplication and retraction: 45 s for the heavy top by the
+    midpoint rule); the SymPy
     form, built on request, has the graph's values along a run, and the defect of a
     rotation that is no symmetry is found at a random arrow."""
     import sympy as sp
