@@ -94,7 +94,7 @@ def test_a_run_of_another_system_of_the_same_name_is_refused():
     params = {"h": 0.05}
     run = sim.simulate(sim.from_velocity({"x": 1.0, "y": 0.2}, [0.1, 0.9], params), STEPS,
                        params)
-    assert run.system_fingerprint == stiff.fingerprint
+    assert run.is_run_of(stiff) and run.is_run_of(_unnamed(4.0)) and not run.is_run_of(soft)
     for entry in ("along", "term_magnitude"):
         with pytest.raises(sg.ShapeError, match=f"{entry}: the trajectory is a run of another "
                                                 "system named 'continuous_midpoint'"):

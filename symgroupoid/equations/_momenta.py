@@ -434,8 +434,8 @@ class NoetherQuantity:
             raise ShapeError(f"NoetherQuantity.{entry}: the trajectory's system has {have}, "
                              f"this quantity's system {want}: it is a run of another "
                              f"system; use a trajectory of this system's step")
-        theirs = getattr(trajectory, "system_fingerprint", None)
-        if self.system is not None and theirs is not None and theirs != self.system.fingerprint:
+        run_of = getattr(trajectory, "is_run_of", None)
+        if self.system is not None and run_of is not None and run_of(self.system) is False:
             raise ShapeError(f"NoetherQuantity.{entry}: the trajectory is a run of another "
                              f"system named {name!r} (another Lagrangian, scheme, constraints"
                              f" or forces); use a trajectory of this system's step")

@@ -102,13 +102,16 @@ class Trajectory:
         refuses it)."""
         return self._layout.step_name
 
-    @property
-    def system_fingerprint(self) -> str | None:
-        """The fingerprint of the system whose run this is (``system.fingerprint``), or
-        None where the simulator has no symbolic system (restored from a pickle, or a file's
-        trajectory): a Noether quantity of another system of the same name refuses it."""
-        system = getattr(self._layout.equations, "system", None)
-        return getattr(system, "fingerprint", None)
+    def is_run_of(self, system) -> bool | None:
+        """Whether this is a run of ``system``: True for the system its simulator was
+        derived from or one with the same ``fingerprint`` (the same system built again),
+        False for another (which may have the same name); None where the simulator has no
+        symbolic system (restored from a pickle, or a file's trajectory).  A Noether
+        quantity refuses a run of another system."""
+        own = getattr(self._layout.equations, "system", None)
+        if own is None or not hasattr(own, "fingerprint"):
+            return None
+        return own is system or own.fingerprint == getattr(system, "fingerprint", None)
 
     @property
     def steps(self) -> int:
