@@ -259,6 +259,19 @@ def test_pair_coordinates_sit_at_source_and_target(G: sg.Groupoid) -> None:
         assert a[c.source] in sources and a[c.target] in targets
 
 
+@every_groupoid()
+def test_the_base_groups_are_groups_of_the_arrows_that_the_base_holds(G: sg.Groupoid) -> None:
+    """``base_groups`` (which decides where a Noether quantity without stages is checked
+    at random arrows alone) names groups of the arrow's named coordinates that fit in a
+    base point: none for a Lie group (its base is a point), the group itself for the pair
+    groupoid of a group."""
+    base, named = G.base_groups(), G.named_groups()
+    assert all(name in named and named[name] == group for name, group in base.items())
+    assert sum(group.arrow_dim for group in base.values()) <= G.base_dim
+    if isinstance(G, sg.PairGroupoid):
+        assert base == named
+
+
 def test_pair_coordinates_are_found_through_products() -> None:
     names = {n: [c.name for c in groupoid(n).pair_coordinates()]
              for n in ("pair R3", "product SE2 x SO2 x pair R",
