@@ -179,7 +179,7 @@ def diagnostic_calls(draw, name: str):
     sections = st.one_of(st.integers(-2, 7), near([1.0] * case.step.groupoid.rank),
                          junk(max_leaves=2))
     kind = draw(st.sampled_from(["energy", "energy size", "momenta", "constraints",
-                                 "summary", "part", "noether"]))
+                                 "summary", "part", "noether", "noether value"]))
     if kind == "energy":
         h = draw(step_parameters)
         return ("Trajectory.energy", lambda: traj.energy(h),
@@ -227,6 +227,8 @@ def diagnostic_calls(draw, name: str):
             assert len(values) >= len(traj)
             assert_finite(values, f"traj[{key!r}]")
         return ("Trajectory[name]", lambda: traj[key], ["part", str(key)], verify)
+    if kind == "noether value":
+        return noether_value_call(draw, traj, system, draw(sections))
     section = draw(sections)
     target = draw(st.one_of(st.just(traj), junk(max_leaves=2)))
     method = draw(st.sampled_from(["along", "term_magnitude", "along_with_magnitude"]))
@@ -243,6 +245,31 @@ def diagnostic_calls(draw, name: str):
             assert (values[1] >= np.abs(values[0]) * (1 - 1e-12)).all()
     return (f"NoetherQuantity.{method}", call,
             ["section", "coefficients", "trajectory", f"NoetherQuantity.{method}"], verify)
+
+
+def noether_value_call(draw, traj, system, section):
+    """``NoetherQuantity.evaluate`` at a state of the run (its arrow and multipliers, the
+    run's parameters), each argument possibly replaced by junk or non-finite numbers."""
+    row = draw(st.integers(0, len(traj) - 1))
+    hostile = st.one_of(st.none(), junk(max_leaves=2),
+                        st.lists(st.sampled_from([np.nan, np.inf, 1e308, -0.0]), max_size=4))
+    arrow, multipliers, params = (None, None, None) if draw(st.booleans()) else (
+        draw(hostile) for _ in range(3))
+
+    def call():
+        quantity = system.noether(section)
+        a, m = len(quantity.arrow), len(quantity.multipliers)
+        state = np.asarray(traj.states[row], float)
+        given = [traj.parameters[str(s)] for s in quantity.parameters]
+        return quantity.evaluate(state[:a] if arrow is None else arrow,
+                                 state[a:a + m] if multipliers is None else multipliers,
+                                 given if params is None else params)
+
+    def verify(value):
+        assert isinstance(value, float) and np.isfinite(value), value
+    return ("NoetherQuantity.evaluate", call,
+            ["section", "coefficients", "arrow", "multipliers", "params",
+             "NoetherQuantity.evaluate"], verify)
 
 
 @pytest.mark.parametrize("run", PROFILES)

@@ -233,8 +233,16 @@ def test_expanded_terms_on_the_graph_bound_the_sympy_forms():
         else:
             assert terms == expanded_terms([e]), e
     g = Graph()
-    power = g.pow(g.add(g.input(x), g.input(y)), sp.Integer(10**6))
-    assert Program(g, {"v": [x, y]}, {"F": [power]}).expanded_terms(["F"]) == 10**30
+    xs = sp.symbols("x0:100")
+    wide = g.add(*[g.input(v) for v in xs])
+    s = g.add(g.input(x), g.input(y))
+    program = Program(g, {"v": [x, y, *xs]}, {"huge": [g.pow(wide, sp.Integer(100))],
+                                               "high": [g.pow(s, sp.Integer(10**6))]})
+    assert program.expanded_terms(["huge"]) == 10**30  # C(199, 100), capped
+    assert program.expanded_terms(["high"]) == 10**6 + 1 == expanded_terms([(x + y) ** 10**6])
+    for bad in (["nope"], "huge", [3]):
+        with pytest.raises(sg.DomainError, match="expanded_terms: names must be a list"):
+            program.expanded_terms(bad)
 
 
 def test_a_step_too_large_to_write_out_is_refused_at_once(monkeypatch):
@@ -293,7 +301,10 @@ def test_the_expansion_bound_counts_products_of_sums_and_powers():
     for e, n in zip(cases, exact):
         assert expanded_terms([e]) == n, e
         assert len(sp.Add.make_args(sp.expand(e))) <= n, e
-    assert expanded_terms([(a + b) ** 10**6]) == 10**30  # capped, computed at once
+    # computed at once: exactly where few products do it (it was capped at 10³⁰, a bound
+    # far above the 10⁶ + 1 monomials), capped where the count is past the cap
+    assert expanded_terms([(a + b) ** 10**6]) == 10**6 + 1
+    assert expanded_terms([sp.Add(*sp.symbols("y0:100")) ** 10**6]) == 10**30
 
 
 def test_the_expansion_bound_walks_deep_expressions_without_recursion():

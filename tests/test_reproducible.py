@@ -90,3 +90,24 @@ def test_a_second_process_runs_the_compiler_zero_times(tmp_path):
     assert warm["builds"] == 0 and warm["codegen"] == 0
     for key in ("arrows", "states", "iterations"):
         assert warm[key] == cold[key]
+
+
+FINGERPRINTS = """
+import json
+import sympy as sp
+import symgroupoid as sg
+from symgroupoid import systems
+h = sp.Symbol("h", positive=True)
+staged = sg.ContinuousSystem(sg.SO3("R"), lambda R, xi: (xi.T * xi)[0, 0] / 2,
+                             parameters=[h]).discretize(h, sg.GaussLegendre(2))
+print(json.dumps([s.fingerprint for s in (systems.plate_ball(), systems.satellite_with_wheel(),
+                                          staged)]))
+"""
+
+
+def test_system_fingerprints_do_not_depend_on_the_hash_seed():
+    """A system's fingerprint (which tells a run of it from a run of another system of the
+    same name) is the same in every process: a constrained system (the plate-ball), a forced
+    one and one with internal stages, under two hash seeds."""
+    first, second = [_result(p) for p in [_run(FINGERPRINTS, "1"), _run(FINGERPRINTS, "777")]]
+    assert first == second and len(set(first)) == 3

@@ -320,7 +320,8 @@ def _measured(sim, data, params: dict, T: float, counts: list, origin) -> tuple:
 def _still(report) -> bool:
     """No configuration of the measured runs is farther from the first than the rounding
     floor: nothing moves at these steps."""
-    return report.motion <= ORDER_FLOOR * max(1.0, report.reference_norm)
+    return (report.motion is not None
+            and report.motion <= ORDER_FLOOR * max(1.0, report.reference_norm))
 
 
 def order_check(source, sim, data, params: dict, steps: int, T: float | None,

@@ -224,7 +224,8 @@ class NoetherQuantity:
         of :attr:`parameters`; with internal stages, at the arrow's stages ζ* (∂L/∂ζ = 0,
         without forces: a forced run's values are :meth:`along`'s).  Evaluated by the
         quantity's program, as :meth:`along` is (the SymPy form is not built).  Arrays of
-        other lengths are a :class:`ShapeError`."""
+        other lengths are a :class:`ShapeError`; non-finite entries, and a value that is
+        not finite there, a :class:`DomainError`."""
         values = []
         for name, given, want in (("arrow", arrow, len(self.arrow)),
                                   ("multipliers", multipliers, len(self.multipliers)),
@@ -237,11 +238,16 @@ class NoetherQuantity:
             if value.size != want:
                 raise ShapeError(f"NoetherQuantity.evaluate: {name} has {value.size} "
                                  f"entries, the quantity needs {want}")
+            if not np.isfinite(value).all():
+                raise DomainError(f"NoetherQuantity.evaluate: {name} has non-finite "
+                                  f"entries ({value.tolist()})")
             values.append(value)
         known = np.r_[values[0], values[1]][:, None]
         with np.errstate(all="ignore"):
             (F,) = self._at_stages(["F"], known, values[2])
-        return float(np.ravel(F)[0])
+        out = np.ravel(np.asarray(F, dtype=float))[:1]
+        _finite_values(out, "evaluate", lambda: f"the quantity F_X = {self._shown()}", "arrow")
+        return float(out[0])
 
     def latex(self) -> str:
         """F_X, its terms collected by multipliers, variables and parameters (checked to be
@@ -365,7 +371,7 @@ class NoetherQuantity:
             return f(known, p)
         return f(known, self._stages_at(known, p, u), p)
 
-    def check_with_stages(self, groupoid) -> tuple[bool, str]:
+    def check_on_graph(self, groupoid) -> tuple[bool, str]:
         """Whether the defect vanishes (at ζ*, for a system with internal stages) at random
         arrows of ``groupoid`` (with random multipliers and parameters in [0.5, 1.5]), for
         a quantity built on the expression graph; and how that was decided.  With holonomic

@@ -20,7 +20,6 @@ Nothing here runs unless LaTeX is asked for.
 
 from __future__ import annotations
 
-import math
 import warnings
 import weakref
 from collections.abc import Mapping, Sequence
@@ -30,6 +29,7 @@ import sympy as sp
 from .._arguments import caller_level
 from .._errors import UnsupportedExpressionError, UnsupportedFeatureError
 from ..derivation import PieceRule, window
+from ..ir import TERMS_CAP, power_terms, product_terms
 from ._abbreviations import (
     Abbreviation,
     UnusedAbbreviationWarning,
@@ -93,10 +93,6 @@ def check_printable(step) -> None:
             f"{EXPANSION_LIMIT:.0e} that can be printed and checked in minutes: {unaffected}")
 
 
-#: a bound past which :func:`expanded_terms` stops counting exactly
-_TERMS_CAP = 10**30
-
-
 def expanded_terms(exprs: Sequence[sp.Expr]) -> int:
     """A bound on the number of terms of ``sympy.expand`` of the expressions, without
     cancellation: a sum has its terms' sum, a product their product, a positive integer
@@ -114,7 +110,7 @@ def expanded_terms(exprs: Sequence[sp.Expr]) -> int:
                 stack.append((e, True))
                 stack.extend((a, False) for a in e.args if a not in memo)
                 continue
-            memo[e] = min(_node_terms(e, [memo[a] for a in e.args]), _TERMS_CAP)
+            memo[e] = min(_node_terms(e, [memo[a] for a in e.args]), TERMS_CAP)
     return sum(memo[sp.sympify(e)] for e in exprs)
 
 
@@ -123,20 +119,10 @@ def _node_terms(e: sp.Basic, inner: list[int]) -> int:
     if e.is_Add:
         return sum(inner)
     if e.is_Mul:
-        value = 1
-        for t in inner:
-            value = min(value * t, _TERMS_CAP)
-        return value
+        return product_terms(inner)
     if e.is_Pow and e.exp.is_Integer and e.exp > 0:
-        return _power_terms(inner[0], int(e.exp))
+        return power_terms(inner[0], int(e.exp))
     return 1
-
-
-def _power_terms(t: int, n: int) -> int:
-    """Monomials of degree n in t terms, C(t + n − 1, n), or :data:`_TERMS_CAP` past it."""
-    if t > 1 and n * (t.bit_length() - 1) > _TERMS_CAP.bit_length():
-        return _TERMS_CAP
-    return min(math.comb(t + n - 1, n), _TERMS_CAP)
 
 
 def _check_printable_staged(step) -> None:

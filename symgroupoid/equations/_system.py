@@ -165,32 +165,24 @@ def _replaced(value, mapping: dict):
     return value.xreplace(mapping) if isinstance(value, sp.Basic) else value
 
 
+def _flat(value):
+    """The leaves of nested lists and tuples."""
+    if isinstance(value, (list, tuple)):
+        for v in value:
+            yield from _flat(v)
+    else:
+        yield value
+
+
 def _canonical_dummies(parts: list, ordered: list) -> dict:
     """The Dummy symbols of ``parts`` (slot, stage and base coordinates, fresh in every
     system) mapped to plain symbols numbered by position: first those of ``ordered``
     (nested sequences, in order), then the others by name."""
-    seen: dict = {}
-
-    def walk(value):
-        if isinstance(value, (list, tuple)):
-            for v in value:
-                walk(v)
-        elif isinstance(value, sp.Dummy):
-            seen.setdefault(value, None)
-
-    walk(ordered)
-    others: set = set()
-    for part in parts:
-        stack = [part]
-        while stack:
-            value = stack.pop()
-            if isinstance(value, (list, tuple)):
-                stack.extend(value)
-            elif isinstance(value, sp.Basic):
-                others |= value.atoms(sp.Dummy)
-    for dummy in sorted(others - seen.keys(), key=lambda d: (d.name, d.dummy_index)):
-        seen.setdefault(dummy, None)
-    return {d: sp.Symbol(f"_{k}", **d.assumptions0) for k, d in enumerate(seen)}
+    first = [v for v in _flat(ordered) if isinstance(v, sp.Dummy)]
+    found = set().union(*(v.atoms(sp.Dummy) for v in _flat(parts) if isinstance(v, sp.Basic)))
+    rest = sorted(found - set(first), key=lambda d: (d.name, d.dummy_index))
+    return {d: sp.Symbol(f"_{k}", **d.assumptions0)
+            for k, d in enumerate(dict.fromkeys(first + rest))}
 
 
 class _EvaluatedSystem:
@@ -400,7 +392,7 @@ class DiscreteSystem(_EvaluatedSystem):
         arrows, of N with holonomic constraints (docs/conventions.md §22).
         """
         if self.stages or self._noether_on_graph():
-            return self._noether_with_stages(section, f)
+            return self._graph_noether(section, f)
         forms = noether_forms(self.groupoid, self._legendre_forms,
                               section, f, self.parameters)
         ok, how = vanishing_check(forms.defect, self.groupoid, forms.arrow, forms.window)
@@ -450,7 +442,7 @@ class DiscreteSystem(_EvaluatedSystem):
         quantity.n_inputs = len(self.inputs)
         quantity.system = self
 
-    def _noether_with_stages(self, section, f) -> NoetherQuantity:
+    def _graph_noether(self, section, f) -> NoetherQuantity:
         """The Noether quantity of a system with internal stages, or without them where
         :meth:`_noether_on_graph` says so: F_X and the defect (at the stages ζ* of the
         arrow, docs/conventions.md §22), the symmetry checked there at random arrows.
@@ -492,7 +484,7 @@ class DiscreteSystem(_EvaluatedSystem):
             quantity.impulse_stages = (
                 tuple(sp.Dummy(f"za{i}", real=True) for i in range(self.stages)),
                 tuple(sp.Dummy(f"zb{i}", real=True) for i in range(self.stages)))
-        quantity.is_symmetry, quantity.verification = quantity.check_with_stages(
+        quantity.is_symmetry, quantity.verification = quantity.check_on_graph(
             self.groupoid)
         return quantity
 

@@ -17,7 +17,7 @@ from ._functions import ELEMENTARY, FunctionSpec, Opaque, Smooth, smooth_spec
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, OP_NAMES, POW, Graph
 from ._libm import LIBM, SCALAR
 from ._precise import interpret_precise
-from ._program import Program, interpret
+from ._program import TERMS_CAP, Program, interpret, power_terms, product_terms
 from ._rounding import rounding_error, term_magnitude
 from ._smooth import _S as SMOOTH_ARGUMENT  # s, of the closed forms smooth_function takes
 from ._smooth import (
@@ -43,6 +43,8 @@ __all__ = [
     "from_sympy", "gradient", "interpret",
     "interpret_precise", "jacobian", "partial", "print_c", "rounding_error", "smooth_spec",
     "term_magnitude", "to_sympy",
+    # bounds on the terms of expanded formulas (the printers' and Program.expanded_terms)
+    "TERMS_CAP", "power_terms", "product_terms",
     # straight-line code of a graph: the C dialect, the plan of its nodes, the writer
     "C", "functions_used", "plan", "write",
     # smooth functions of θ² (or cos θ) with their Taylor series near the removable point

@@ -19,8 +19,28 @@ import sympy as sp
 from .._errors import DomainError
 from ._graph import ADD, CONST, FUNC, INPUT, MUL, POW, Graph
 
-#: the largest value :meth:`Program.expanded_terms` reports
+#: the largest count of expanded terms reported (:func:`product_terms`, :func:`power_terms`)
 TERMS_CAP = 10**30
+
+
+def product_terms(inner: Sequence[int]) -> int:
+    """Terms of a product of factors of ``inner`` terms each, expanded without
+    cancellation: their product, or :data:`TERMS_CAP` past it."""
+    value = 1
+    for t in inner:
+        value = min(value * t, TERMS_CAP)
+    return value
+
+
+def power_terms(t: int, n: int) -> int:
+    """Monomials of degree n in t terms, C(t + n − 1, n), or :data:`TERMS_CAP` past it
+    (exact below it: with n and t − 1 both at least 64 the count is at least
+    C(128, 64) > 10³⁰, and otherwise C(t + n − 1, min(n, t − 1)) takes fewer than 64
+    products)."""
+    k = min(n, t - 1)
+    if k >= 64:
+        return TERMS_CAP
+    return min(math.comb(t + n - 1, max(k, 0)), TERMS_CAP)
 
 
 @dataclass
@@ -74,28 +94,26 @@ class Program:
 
     def expanded_terms(self, names: Sequence[str]) -> int:
         """A bound on the number of terms of the named outputs written out as formulas and
-        expanded, without cancellation, as :func:`symgroupoid.equations.expanded_terms`
-        bounds a SymPy expression's: a sum has its terms' sum, a product their product, a
-        positive integer power pⁿ of t terms at most C(t + n − 1, n); a negative or
-        fractional power, a function, an input or a constant is one term.  Values past
-        10³⁰ are 10³⁰.  A name the program does not output is a
-        :class:`~symgroupoid.DomainError`."""
+        expanded, without cancellation, by the rules the printers bound a SymPy
+        expression's with: a sum has its terms' sum, a product their product
+        (:func:`product_terms`), a positive integer power pⁿ of t terms at most
+        C(t + n − 1, n) (:func:`power_terms`); a negative or fractional power, a function,
+        an input or a constant is one term.  Values past 10³⁰ are 10³⁰.  A name the
+        program does not output is a :class:`~symgroupoid.DomainError`."""
         g = self.graph
         outputs = [n for k in self._known_names(names, "expanded_terms") for n in self.outputs[k]]
         terms: dict = {}
         for n in g.reachable(outputs):
             inner = [terms[a] for a in g.args[n]]
             if g.op[n] == ADD:
-                value = sum(inner)
+                value = min(sum(inner), TERMS_CAP)
             elif g.op[n] == MUL:
-                value = math.prod(inner)
+                value = product_terms(inner)
             elif g.op[n] == POW and g.data[n].is_Integer and g.data[n] > 0:
-                k = int(g.data[n])
-                value = (TERMS_CAP if inner[0] > 1 and k > 100
-                         else math.comb(inner[0] + k - 1, k))
+                value = power_terms(inner[0], int(g.data[n]))
             else:
                 value = 1
-            terms[n] = min(value, TERMS_CAP)
+            terms[n] = value
         return min(sum(terms[n] for n in outputs), TERMS_CAP)
 
     def compacted(self) -> Program:
