@@ -273,3 +273,36 @@ def test_a_parameter_written_as_the_multipliers_is_refused_with_constraints_only
                           constraints=lambda a: [a.target[0] - a.source[1]])
     free = sg.DiscreteSystem(G, L, parameters=[h, lam], name="free")
     assert r"\lambda" in free.euler_lagrange().latex()
+
+
+def _plate_ball(last: str):
+    """The plate-ball system of the README with its last parameter named ``last``."""
+    r, Omega, c = sp.symbols(f"r Omega {last}", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x y")) * sg.SO3("g")
+    E1, E2, E3 = sg.SO3.basis_matrices()
+
+    def L(g):
+        (x0, y0), (x1, y1) = g[0].source, g[0].target
+        return h / 2 * (((x1 - x0) / h) ** 2 + ((y1 - y0) / h) ** 2)
+
+    def phi(g):
+        (x0, y0), (x1, y1) = g[0].source, g[0].target
+        W = g[1].matrix
+        return [h * ((y1 - y0) / h - r / (2 * h) * (W * E1).trace() - Omega * (x1 + x0) / 2),
+                h * ((x1 - x0) / h + r / (2 * h) * (W * E2).trace() + Omega * (y1 + y0) / 2),
+                h * (c + (W * E3).trace() / (2 * h))]
+
+    return sg.DiscreteSystem(G, L, constraints=phi, parameters=[h, r, Omega, c],
+                             name="plate_ball")
+
+
+def test_a_parameter_written_as_a_basis_element_keeps_the_basis_out_of_the_equations():
+    """A parameter E1 printed E_{1}, as the basis element of so(3) that the "where" list
+    defined as a matrix: "0 = E_{1} h + tr(g_{k+1} E_{3})/2".  The step now prints with the
+    entries of g, where E_{1} is the parameter alone; the same system with the parameter
+    named c keeps the papers' tr(g E_a) and defines E_a."""
+    kept = _plate_ball("c").euler_lagrange(progress=False).latex()
+    assert r"\operatorname{tr}(g_{k+1} E_{3})" in kept and r"E_{1} &= " in kept
+    text = _plate_ball("E1").euler_lagrange(progress=False).latex()
+    assert r"\operatorname{tr}" not in text and r"\intertext{where}" not in text
+    assert r"E_{1} h" in text and text.count("E_{1}") == 1
