@@ -4,6 +4,7 @@ with a system's name that reads as one of its symbols (docs/latex.md)."""
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import pytest
@@ -296,13 +297,25 @@ def _plate_ball(last: str):
                              name="plate_ball")
 
 
-def test_a_parameter_written_as_a_basis_element_keeps_the_basis_out_of_the_equations():
+@pytest.mark.parametrize("name, tex", [("E1", "E_{1}"), ("e_2", "e_{2}")])
+def test_a_parameter_written_as_a_basis_element_keeps_the_basis_out_of_the_equations(name, tex):
     """A parameter E1 printed E_{1}, as the basis element of so(3) that the "where" list
-    defined as a matrix: "0 = E_{1} h + tr(g_{k+1} E_{3})/2".  The step now prints with the
-    entries of g, where E_{1} is the parameter alone; the same system with the parameter
-    named c keeps the papers' tr(g E_a) and defines E_a."""
-    kept = _plate_ball("c").euler_lagrange(progress=False).latex()
-    assert r"\operatorname{tr}(g_{k+1} E_{3})" in kept and r"E_{1} &= " in kept
-    text = _plate_ball("E1").euler_lagrange(progress=False).latex()
+    defined as a matrix: "0 = E_{1} h + tr(g_{k+1} E_{3})/2" (and e_2 as the unit vector
+    the basis is written in).  The step now prints with the entries of g, where the name is
+    the parameter alone; the same system with the parameter named c keeps the papers'
+    tr(g E_a) and defines E_a."""
+    text = _plate_ball(name).euler_lagrange(progress=False).latex()
     assert r"\operatorname{tr}" not in text and r"\intertext{where}" not in text
-    assert r"E_{1} h" in text and text.count("E_{1}") == 1
+    assert f"{tex} h" in text and text.count(tex) == 1
+
+
+def test_an_abbreviation_written_as_a_basis_element_is_refused():
+    """An abbreviation E_{1} printed beside tr(E_{1} g_{k+1} E_{1}), and e_{2} beside the
+    "where" list's E_1 = −e_2 e_3ᵀ + e_3 e_2ᵀ."""
+    step = _plate_ball("c").euler_lagrange(progress=False)
+    kept = step.latex()
+    assert r"\operatorname{tr}(g_{k+1} E_{3})" in kept and r"E_{1} &= " in kept
+    Omega = sp.Symbol("Omega", positive=True)
+    for name, what in [("E_{1}", "the constant matrix E_{1}"), ("e_{2}", "the unit vector")]:
+        with pytest.raises(LatexOptionError, match=f"prints like {re.escape(what)}"):
+            step.latex(abbreviations={name: Omega * h / 2})

@@ -20,6 +20,7 @@ import sympy as sp
 from .._errors import SymgroupoidError
 from .._symbols import StepSymbol, greek_spelled, latex_name, scalar_expression
 from ..derivation import PieceRule, as_scalar, call_user, window
+from ..groupoids import is_constant_matrix
 from ._collect import replace_occurrences
 from ._forms import Definition, Form, index_range
 from ._latex import NamedConstant, latex
@@ -70,6 +71,7 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
                                f"callable, got {type(abbreviations).__name__}")
     symbols = printed_symbols(step)
+    constants = constant_names(step)
     taken = {latex(s) for s in symbols} | _indexed_bases(step) | RESERVED_NAMES
     out = []
     for name, value in abbreviations.items():
@@ -80,6 +82,10 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         else:
             raise LatexOptionError(f"latex: an abbreviation's name must be a non-empty string "
                                    f"(its LaTeX) or a SymPy Symbol, got {name!r}")
+        if tex in constants:
+            raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like "
+                                   f"{constants[tex]} of {step.name}'s printed equations; "
+                                   f"choose another name")
         if tex in taken:
             raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like a symbol of "
                                    f"{step.name}; choose another name")
@@ -92,6 +98,20 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
                 symbol = NamedConstant(tex)
         out.append(Abbreviation(tex, symbol, value))
     return out
+
+
+def constant_names(step) -> dict[str, str]:
+    """The LaTeX of the constant matrices the step's matrix form keeps by name (the basis
+    E_a of a Lie algebra, a user's J_d) and of the unit vectors e_i the "where" list writes
+    a basis in, each with words saying what it is."""
+    names: dict[str, str] = {}
+    for e in step.structured or ():
+        for c in sp.sympify(e).atoms(sp.MatrixSymbol):
+            if is_constant_matrix(c):
+                names[latex(c)] = f"the constant matrix {latex(c)}"
+                names.update({f"e_{{{i + 1}}}": f"the unit vector e_{{{i + 1}}}"
+                              for i in range(c.shape[0])})
+    return names
 
 
 #: names the printed equations use for their own parts: the Lagrangian, the forces, the

@@ -29,13 +29,13 @@ import sympy as sp
 from .._arguments import caller_level
 from .._errors import UnsupportedExpressionError, UnsupportedFeatureError
 from ..derivation import PieceRule, window
-from ..groupoids import is_constant_matrix
 from ..ir import TERMS_CAP, power_terms, product_terms
 from ._abbreviations import (
     Abbreviation,
     UnusedAbbreviationWarning,
     abbreviate,
     abbreviations_of,
+    constant_names,
     printed_symbols,
 )
 from ._denominators import free_name, shared_denominator
@@ -305,7 +305,7 @@ def candidate_forms(step, abbreviations: Mapping | None = None,
     each with recognised matrix pieces (W_kᵀΓ_k) and the ``abbreviations``."""
     abbreviations = abbreviations_of(abbreviations, step)
     base = base_form(step, matrix_form)
-    if base is None or matrix_form and _constants_clash(base, step):
+    if base is None or matrix_form and _constants_clash(step):
         return []
     # a forced step: its forces named, always (with internal stages the forces also enter
     # the stage rows, which that form does not name: such a step prints as derived, or in
@@ -363,16 +363,15 @@ def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]
     return out
 
 
-def _constants_clash(form: Form, step) -> bool:
-    """Whether a constant matrix that ``form`` keeps by name (a Lie algebra's basis E_a, a
-    user's J_d) prints as one of the step's symbols (a parameter E1, written E_{1}): the
-    printed equations would use one name for two things, and the "where" list would
-    define the parameter as a matrix, so the matrix form is not offered (the step prints
-    with the matrices' entries)."""
+def _constants_clash(step) -> bool:
+    """Whether a constant matrix that the step's matrix form keeps by name (a Lie algebra's
+    basis E_a, a user's J_d), or a unit vector e_i the "where" list writes a basis in,
+    prints as one of the step's symbols (a parameter E1, written E_{1}): the printed
+    equations would use one name for two things, and the "where" list would define the
+    parameter as a matrix, so the matrix form is not offered (the step prints with the
+    matrices' entries)."""
     names = {latex(s) for s in printed_symbols(step)}
-    exprs = [*form.equations, *(v for layer in form.layers for v in layer.values())]
-    return any(latex(c) in names for e in exprs if isinstance(e, sp.Basic)
-               for c in e.atoms(sp.MatrixSymbol) if is_constant_matrix(c))
+    return not names.isdisjoint(constant_names(step))
 
 
 def _no_clash(form: Form, step) -> bool:
