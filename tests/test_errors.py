@@ -275,5 +275,5 @@ def test_unknown_symbol_name_lists_known_names() -> None:
 def test_missing_parameter_in_evaluate() -> None:
     """Numeric evaluation names the parameters missing from a parameter dict."""
     step = system().euler_lagrange()
-    with pytest.raises(KeyError, match=r"oscillator: missing parameter\(s\) m"):
+    with pytest.raises(sg.ParameterError, match=r"oscillator.evaluate: missing parameter m"):
         step.evaluate([0.1], [0.0, 0.05], {"h": 0.1})

@@ -16,8 +16,8 @@ PACKAGE = Path(symgroupoid.__file__).parent
 LAYERS = {"ir": 0, "groupoids": 1, "derivation": 2, "equations": 3, "codegen": 4, "runtime": 5,
           "cli": 6}
 #: shared leaves every layer may use (errors, argument checks, symbols, ...)
-LEAVES = {"_arguments", "_collector", "_errors", "_lambdify", "_progress", "_rational", "_sizes",
-          "_symbols", "_version", "stepper"}
+LEAVES = {"_arguments", "_collector", "_errors", "_lambdify", "_parameters", "_progress",
+          "_rational", "_sizes", "_symbols", "_version", "stepper"}
 #: the conveniences that look up (docs/architecture.md): importer → the package it calls
 CONVENIENCES = {("equations._step", "codegen"), ("equations._step", "runtime"),
                 ("runtime._trajectory", "plotting")}

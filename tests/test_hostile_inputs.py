@@ -123,6 +123,44 @@ def test_batch_and_sweep_inputs(run):
     check()
 
 
+#: a valid point of the step equations' NumPy evaluations: the new arrow's x_{k+1}, the known
+#: state (x_{k−1}, x_k, u_k, u_{k+1}) and the parameters (h, k, c) in order
+POINT = {"unknowns": [0.22], "knowns": [0.2, 0.21, 0.1, -0.1], "params": [0.05, 2.0, 0.3]}
+EVALUATIONS = {"evaluate": lambda eq, u, k, p: eq.evaluate(u, k, p),
+               "advance": lambda eq, u, k, p: eq.advance(u, k, p),
+               "input_jacobian": lambda eq, u, k, p: eq.input_jacobian(u, k, p)}
+
+
+@pytest.mark.parametrize("run", PROFILES)
+def test_step_equation_evaluations(run):
+    """``step.evaluate``, ``step.advance`` and ``step.input_jacobian`` (the Python route to
+    ∂F/∂u a controller takes) with one argument made hostile: a bare IndexError for short
+    knowns, a silent result for long ones, NaN matrices from NaN entries, a KeyError for a
+    missing parameter; now a named error, or the values at the arguments as floats."""
+    equations = driven().equations
+    names = {"unknowns": ("unknowns",), "knowns": ("knowns",),
+             "params": ("parameter", "parameters")}
+
+    @profile(run, 30)
+    @given(st.sampled_from(sorted(EVALUATIONS)), st.sampled_from(sorted(POINT)),
+           st.data())
+    def check(entry, argument, data):
+        value = data.draw(st.one_of(near(POINT[argument]), junk()))
+        given_point = {**POINT, argument: value}
+        call = EVALUATIONS[entry]
+        result = judge(f"step.{entry}", lambda: call(equations, *given_point.values()),
+                       names[argument])
+        if result is None:
+            return
+        as_floats = {**POINT, argument: np.asarray(value, dtype=float)}
+        expected = call(equations, *as_floats.values())
+        for got, want in zip(np.atleast_1d(result) if entry != "evaluate" else result,
+                             np.atleast_1d(expected) if entry != "evaluate" else expected):
+            assert np.all(np.isfinite(got)) and np.array_equal(got, want)
+
+    check()
+
+
 @pytest.mark.parametrize("value", [[True] + [0.2] * (STEPS - 1), (0.1, False, 0.0, 0.1, 0.2, 0.3),
                                    [[0.3]] * (STEPS - 1) + [[np.True_]]])
 def test_a_bool_in_a_list_of_numbers_is_refused(value):

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from .._errors import DomainError
 from ..derivation import parameter_value, scaled_norm
 from ._findings import (
     DEPENDENT_CONSTRAINTS,
@@ -117,9 +118,15 @@ class Sample:
 
 
 def _evaluate(step, u, k, p) -> tuple[np.ndarray, np.ndarray]:
+    """F and J at one point; NaN where they are not finite there (``step.evaluate`` refuses
+    such a point with a :class:`DomainError`: here it is only left out)."""
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        F, J = step.evaluate(u, k, p)
+        try:
+            F, J = step.evaluate(u, k, p)
+        except DomainError:
+            n = len(step.residuals)
+            return np.full(n, np.nan), np.full((n, len(step.unknowns)), np.nan)
     return np.asarray(F, float), np.asarray(J, float)
 
 

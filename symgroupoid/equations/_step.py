@@ -8,8 +8,15 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import instance_argument
-from .._errors import InputNameError, InputTypeError, ShapeError, UnsupportedFeatureError
+from .._arguments import instance_argument, real_array
+from .._errors import (
+    DomainError,
+    InputNameError,
+    InputTypeError,
+    ShapeError,
+    UnsupportedFeatureError,
+)
+from .._parameters import parameter_vector
 from .._symbols import multiplier_symbols, parse_step, step_label
 from ..derivation import DerivedStep
 
@@ -129,9 +136,10 @@ class StepEquations:
         m = len(self.inputs)
         if not m:
             raise UnsupportedFeatureError(f"{self.name}: the system has no inputs")
-        (J,) = self._input_jacobian_function(np.asarray(unknowns, float),
-                                             np.asarray(knowns, float),
-                                             self._param_vector(params))
+        u, k, p = self._point("input_jacobian", unknowns, knowns, params, batch=False)
+        with np.errstate(all="ignore"):
+            (J,) = self._input_jacobian_function(u, k, p)
+        self._finite_result("input_jacobian", "∂F/∂u", J)
         return np.asarray(J, float).reshape(len(self), (self.order + 1) * m)
 
     @functools.cached_property
@@ -215,28 +223,61 @@ class StepEquations:
         """Numeric residual and Jacobian at a point (NumPy evaluation of :attr:`program`).
 
         Arrays may carry a trailing batch axis: unknowns (n_u, B), knowns (n_k, B), …
-        give F (n, B) and J (n, n_u, B).
+        give F (n, B) and J (n, n_u, B).  The arguments are checked first (:meth:`_point`:
+        :class:`ShapeError`, :class:`DomainError`, :class:`ParameterError`), and a value
+        that is not finite at finite arguments is a :class:`DomainError`, never returned;
+        so for :meth:`advance` and :meth:`input_jacobian`.
         """
-        p = self._param_vector(params)
+        u, k, p = self._point("evaluate", unknowns, knowns, params)
         f = self.program.numpy_function(["F", "J"], ["u", "known", "p"])
-        F, J = f(unknowns, knowns, p)
+        with np.errstate(all="ignore"):
+            F, J = f(u, k, p)
+        self._finite_result("evaluate", "the residual F or its Jacobian J", F, J)
         return F, J.reshape((len(self), len(self.unknowns)) + J.shape[1:])
 
     def advance(self, unknowns: Sequence, knowns: Sequence, params: Sequence | dict = ()):
         """The next known state from a solved step (g_{k+1}, λ_{k+1} become the knowns)."""
-        p = self._param_vector(params)
+        u, k, p = self._point("advance", unknowns, knowns, params)
         f = self.program.numpy_function(["next_knowns"], ["u", "known", "p"])
-        return f(unknowns, knowns, p)[0]
+        with np.errstate(all="ignore"):
+            (after,) = f(u, k, p)
+        self._finite_result("advance", "the next known state", after)
+        return after
 
-    def _param_vector(self, params) -> np.ndarray:
-        if isinstance(params, dict):
-            missing = [s for s in self.parameters if s not in params and str(s) not in params]
-            if missing:
-                raise KeyError(f"{self.name}: missing parameter(s) "
-                               f"{', '.join(map(str, missing))}")
-            return np.array([float(params[s] if s in params else params[str(s)])
-                             for s in self.parameters])
-        return np.asarray(params, float)
+    def _finite_result(self, entry: str, what: str, *values) -> None:
+        """A :class:`DomainError` when ``values`` (what an evaluation at finite arguments
+        gave) are not all finite: the arguments overflow the equations' arithmetic or leave
+        the domain of their functions."""
+        if not all(np.all(np.isfinite(np.asarray(v, dtype=float))) for v in values):
+            raise DomainError(f"{self.name}.{entry}: {what} is not finite at the unknowns, "
+                              f"knowns and parameters given: its values overflow, or leave "
+                              f"the domain of the equations' functions (a square root of a "
+                              f"negative number, a division by zero)")
+
+    def _point(self, entry: str, unknowns, knowns, params, *, batch: bool = True
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The arguments of a NumPy evaluation, checked before anything is evaluated: the
+        unknowns and knowns as real arrays of this step's lengths (``batch``: with a
+        trailing batch axis allowed, the same for both) and finite, else a
+        :class:`ShapeError` or :class:`DomainError`; the parameters by name or in order,
+        finite and with their symbols' assumptions, else a :class:`ParameterError`."""
+        owner = f"{self.name}.{entry}"
+        arrays = []
+        for name, value, want in (("unknowns", unknowns, len(self.unknowns)),
+                                  ("knowns", knowns, len(self.knowns))):
+            arr = real_array(value, name, owner=owner)
+            if arr.ndim not in ((1, 2) if batch else (1,)) or arr.shape[0] != want:
+                shape = f"({want},) or ({want}, B)" if batch else f"({want},)"
+                raise ShapeError(f"{owner}: {name} must have shape {shape}, got shape "
+                                 f"{arr.shape}")
+            if not np.isfinite(arr).all():
+                raise DomainError(f"{owner}: {name} has non-finite entries")
+            arrays.append(arr)
+        if arrays[0].shape[1:] != arrays[1].shape[1:]:
+            raise ShapeError(f"{owner}: unknowns of shape {arrays[0].shape} and knowns of "
+                             f"shape {arrays[1].shape} differ in their batch axis")
+        p, _ = parameter_vector(self.parameters, params, owner=owner)
+        return arrays[0], arrays[1], p
 
     # --- code generation and runtime (layers 4 and 5) ----------------------------------------
     def emit_c(self, path, **options):
