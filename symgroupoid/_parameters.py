@@ -23,13 +23,13 @@ def _where(owner: str) -> str:
 
 #: assumptions checked on parameter values, in the order they are reported (a float is a
 #: rational number, so ``rational``/``irrational``/``algebraic`` say nothing about it)
-_CHECKED_ASSUMPTIONS = ("positive", "negative", "nonnegative", "nonpositive", "zero",
+CHECKED_ASSUMPTIONS = ("positive", "negative", "nonnegative", "nonpositive", "zero",
                         "nonzero", "integer", "noninteger", "even", "odd", "prime",
                         "composite")
 
 
 @functools.lru_cache(maxsize=1024)
-def _declared(symbol: sp.Symbol) -> list[tuple[str, bool]]:
+def declared_assumptions(symbol: sp.Symbol) -> list[tuple[str, bool]]:
     """The checkable assumptions a symbol was declared with (``extended_`` forms included)."""
     given = getattr(symbol, "_assumptions_orig", None)
     if given is None:  # older SymPy: every known fact about the symbol
@@ -37,9 +37,9 @@ def _declared(symbol: sp.Symbol) -> list[tuple[str, bool]]:
     out = []
     for key, value in given.items():
         key = key.removeprefix("extended_")
-        if key in _CHECKED_ASSUMPTIONS and value is not None:
+        if key in CHECKED_ASSUMPTIONS and value is not None:
             out.append((key, bool(value)))
-    return sorted(set(out), key=lambda kv: (_CHECKED_ASSUMPTIONS.index(kv[0]), kv[1]))
+    return sorted(set(out), key=lambda kv: (CHECKED_ASSUMPTIONS.index(kv[0]), kv[1]))
 
 
 #: the checkable assumptions as tests of a finite float ``{v}`` (Python source), exact for
@@ -75,7 +75,7 @@ def violated_assumption(symbol: sp.Symbol, values: np.ndarray) -> tuple[int, str
     assumption ``symbol`` is declared with, and that assumption's words ("positive", "not
     integer"), or None: :func:`check_assumptions` on every entry, vectorised."""
     flat = np.asarray(values, dtype=float).ravel()
-    for key, expected in _declared(symbol):
+    for key, expected in declared_assumptions(symbol):
         if key in _ARRAY_TESTS:
             holds = _ARRAY_TESTS[key](flat)
         else:
@@ -102,7 +102,8 @@ def assumptions_test(symbols: Sequence, entry=lambda i: f"v[{i}]"):
     per-call checks of :meth:`Simulator.step`)."""
     terms = []
     for i, symbol in enumerate(symbols):
-        for key, expected in (_declared(symbol) if isinstance(symbol, sp.Symbol) else ()):
+        declared = declared_assumptions(symbol) if isinstance(symbol, sp.Symbol) else ()
+        for key, expected in declared:
             v = entry(i)
             test = (_FLOAT_SOURCE[key].format(v=v) if key in _FLOAT_SOURCE
                     else f"_exact({key!r}, {v})")
@@ -128,7 +129,7 @@ def check_assumptions(symbol: sp.Symbol, value: float, *, owner: str = "") -> No
     if test is None or test(float(value)):
         return
     exact = sp.Rational(value)
-    for key, expected in _declared(symbol):
+    for key, expected in declared_assumptions(symbol):
         holds = getattr(exact, f"is_{key}")
         if holds is not None and bool(holds) != expected:
             what = key if expected else f"not {key}"

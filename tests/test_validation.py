@@ -312,7 +312,7 @@ def test_parameter_screen_is_exact_for_every_assumption():
                 except sg.ParameterError:
                     accepted = False
                 exact = all(getattr(sp.Rational(v), f"is_{k}") in (None, e)
-                            for k, e in _validate._declared(symbol))
+                            for k, e in _validate.declared_assumptions(symbol))
                 assert test(v) == accepted == exact, (key, expected, v)
 
 

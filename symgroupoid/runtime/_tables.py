@@ -16,11 +16,11 @@ import numpy as np
 from .._arguments import ndim
 from .._errors import DomainError, ParameterError, ShapeError, SymgroupoidError
 from ._validate import (
-    _CHECKED_ASSUMPTIONS,
+    CHECKED_ASSUMPTIONS,
     CONSTRAINT_ROUNDING,
     GROUP_TOLERANCE,
-    _declared,
     constraint_check,
+    declared_assumptions,
     offset_element,
     real_array,
 )
@@ -158,8 +158,10 @@ def _checked_rows(sim, values: np.ndarray, row) -> np.ndarray:
     flagged = ~np.isfinite(values).all(axis=1)
     with np.errstate(invalid="ignore"):
         for j, symbol in enumerate(sim.equations.parameters):
-            for key, expected in _declared(symbol) if hasattr(symbol, "assumptions0") else ():
-                if key not in _CHECKED_ASSUMPTIONS:
+            declared = (declared_assumptions(symbol) if hasattr(symbol, "assumptions0")
+                        else ())
+            for key, expected in declared:
+                if key not in CHECKED_ASSUMPTIONS:
                     continue
                 holds = _assumption_holds(key, values[:, j])
                 flagged |= np.ones(len(values), bool) if holds is None else holds != expected

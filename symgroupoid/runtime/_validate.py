@@ -35,11 +35,11 @@ from .._arguments import (  # noqa: F401  (MAX_COUNT: one rule for counts)
 )
 from .._errors import DomainError, GroupRoundingWarning, ShapeError
 from .._parameters import (  # noqa: F401  (the runtime's checks gathered here)
-    _CHECKED_ASSUMPTIONS,
-    _declared,
+    CHECKED_ASSUMPTIONS,
     assumption_test,
     assumptions_test,
     check_assumptions,
+    declared_assumptions,
     parameter_names,
     parameter_vector,
     violated_assumption,
