@@ -20,7 +20,7 @@ from kernel_support import (  # noqa: F401  (isolated_cache: autouse fixture)
 )
 
 import symgroupoid as sg
-from symgroupoid.codegen import KernelCPrinter, c_identifier, emit_c, generate_c
+from symgroupoid.codegen import MAX_PREFIX, KernelCPrinter, c_identifier, emit_c, generate_c
 from symgroupoid.ir import UnmappedSymbolError
 
 SEEDS = ("plate_ball", "heavy_top", "rigid_body")
@@ -39,6 +39,17 @@ IDENT = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 def test_c_identifier_is_sanitised(name, expected):
     assert c_identifier(name) == expected
     assert IDENT.match(c_identifier(name))
+
+
+def test_a_long_name_gives_a_prefix_that_names_files():
+    """A system named by 300 characters compiled into files whose names were too long for
+    the file system, and the build said the cache could not be written (moving the cache
+    would not help): the prefix is at most MAX_PREFIX characters, its end a digest of the
+    whole name."""
+    long, other = "x" * 300, "x" * 299 + "y"
+    assert len(c_identifier(long)) == MAX_PREFIX and IDENT.match(c_identifier(long))
+    assert c_identifier(long) != c_identifier(other)
+    assert c_identifier(long)[:55] == "x" * 55 and c_identifier("x" * MAX_PREFIX) == "x" * 64
 
 
 def test_printer_maps_symbols_by_table_and_dispatches_on_type():

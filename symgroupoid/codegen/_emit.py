@@ -38,6 +38,7 @@ from ._band import band_defines
 from ._checks import program_argument, step_argument
 from ._kernel import (
     COLD_UNIT,
+    MAX_PREFIX,
     assign_units,
     c_identifier,
     kernel_blocks,
@@ -351,7 +352,9 @@ def generate_c(step, prefix: str | None = None, header_name: str | None = None, 
             raise ShapeError(f"{step.name}: prefix {prefix!r} is not a prefix of C identifiers "
                              f"as written (lower-case ASCII letters, digits and '_', not "
                              f"starting with a digit, not a C keyword): it would be "
-                             f"{c_identifier(prefix)!r}; give that, or another")
+                             f"{c_identifier(prefix)!r}; give that, or another"
+                             + (f" (at most {MAX_PREFIX} characters: the kernel's files are "
+                                f"named after it)" if len(prefix) > MAX_PREFIX else ""))
     prefix = c_identifier(step.name if prefix is None else prefix)
     units = integer_argument(units, "units", minimum=1, maximum=MAX_UNITS, owner=prefix)
     if block_weight is not None:

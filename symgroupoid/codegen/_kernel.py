@@ -13,6 +13,7 @@ size of the kernel; values one part computes and a later part reads live in a wo
 
 from __future__ import annotations
 
+import hashlib
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -37,15 +38,26 @@ COLD_UNIT = -1
 PART_SIZE = 500
 
 
+#: the longest prefix of C identifiers a kernel gets: its files are named after it
+#: (``<prefix>_stepper.c``, ``<prefix>_blocks_1.c``), and a file name has at most 255 bytes
+MAX_PREFIX = 64
+
+
 def c_identifier(name: str) -> str:
     """A safe C identifier prefix from a system name.
 
     Lower-cased; every run of characters outside ``[A-Za-z0-9_]`` becomes ``_``; a leading
-    digit, an empty result or a C keyword gets the prefix ``sg_``.
+    digit, an empty result or a C keyword gets the prefix ``sg_``.  A result longer than
+    :data:`MAX_PREFIX` keeps its first 55 characters and ends with 8 hexadecimal digits of
+    the SHA-256 of the whole name (two long names that differ only after the 55th character
+    get different prefixes).
     """
     ident = re.sub(r"[^A-Za-z0-9_]+", "_", name.strip()).strip("_").lower()
     if not ident or ident[0].isdigit() or ident in _C_KEYWORDS:
         ident = f"sg_{ident}".rstrip("_") if ident else "sg_system"
+    if len(ident) > MAX_PREFIX:
+        digest = hashlib.sha256(name.encode("utf-8", "surrogatepass")).hexdigest()[:8]
+        ident = f"{ident[:MAX_PREFIX - 9].rstrip('_')}_{digest}"
     return ident
 
 
