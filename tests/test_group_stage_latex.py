@@ -66,6 +66,34 @@ def test_a_row_that_does_not_hold_is_not_offered(monkeypatch):
         step.latex()
 
 
+def _pendulum_top(half):
+    """A body on SO(3) in a potential −k R_31 written with ``half`` = 1/2 or the double 0.5."""
+    k = sp.Symbol("k", positive=True)
+    return sg.ContinuousSystem(
+        sg.SO3("R"), lambda R, xi: (xi.T * xi)[0, 0] / 2 - half * k * R[2, 0],
+        parameters=[h, k], name="body").discretize(h, sg.GaussLegendre(2)).euler_lagrange(
+        progress=False)
+
+
+@pytest.mark.parametrize("half", [sp.Rational(1, 2), 0.5], ids=["rational", "double"])
+def test_a_double_in_the_lagrangian_prints_in_the_group_stage_notation(half, monkeypatch):
+    """With 0.5·k the step was refused ("written out as formulas have …"): the printed rows
+    and the program fold the double with the rationals around it in different places and
+    agreed to 1e-20, against a check at 1e-35.  Doubles are now compared at
+    FLOAT_TOLERANCE; a row that does not hold is still not offered."""
+    text = _pendulum_top(half).latex()
+    assert r"\mathrm{d}\tau" in text and ("0.5 R_{33} k" in text) == (half == 0.5)
+    real = group_forms._group_maps
+
+    def forgetful(F):
+        real(F)
+        if F.is_group:
+            F.maps["curvature_t"] = lambda x, v: mpmath.matrix(len(x), len(x))
+
+    monkeypatch.setattr(group_forms, "_group_maps", forgetful)
+    assert group_forms.group_stage_rows(_pendulum_top(half), 450.0, None) is None
+
+
 @pytest.mark.slow
 def test_a_damped_driven_top_prints_its_force_at_the_nodes():
     """A top driven by a body torque u and damped (F = u − cΞ): the force at each node joins
