@@ -155,6 +155,22 @@ def test_a_section_on_a_matrix_group_receives_the_matrix():
     assert not top.noether(lambda R: [R[0, 0], R[0, 1], R[0, 2]]).is_symmetry
 
 
+def test_a_section_on_a_product_base_receives_the_flat_coordinates():
+    """On SO(3) × SO(3) a holonomic constraint receives one matrix per factor and a section
+    the 18 coordinates in one tuple (the documented form); a section written per factor
+    failed with "'StepSymbol' object is not subscriptable" alone, and now says how the
+    point is given."""
+    def L(a):
+        (R1, R2), (S1, S2) = a.source, a.target
+        return (R1.T * S1).trace() + (R2.T * S2).trace() + (S1.T * S2).trace()
+
+    two = sg.DiscreteSystem(sg.PairGroupoid(sg.SO3("R1") * sg.SO3("R2")), L, name="two")
+    assert two.noether(lambda q: [q[6], q[7], q[8], q[15], q[16], q[17]]).is_symmetry
+    with pytest.raises(sg.CallableError, match=r"18 coordinates in one flat tuple \(the "
+                                               r"factors' 9, 9, in order"):
+        two.noether(lambda q: [*q[0][2, :], *q[1][2, :]])
+
+
 # --- the symmetry check of large defects -------------------------------------------------------
 
 def _large_sum(G, extra=0):

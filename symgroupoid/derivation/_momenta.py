@@ -21,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from .._errors import (
+    CallableError,
     DomainError,
     InputTypeError,
     ShapeError,
@@ -143,7 +144,7 @@ def section_coefficients(G: Groupoid, section, q: Sequence, parameters: Sequence
                               f"0..{G.rank - 1}")
         return [sp.S.One if a == int(section) else sp.S.Zero for a in range(G.rank)]
     if callable(section):
-        coeffs = call_user(G.name, "section", section, section_point(G, q))
+        coeffs = _called(G, "section", section, q)
     elif isinstance(section, (bool, np.bool_, numbers.Number)) or section is None:
         raise ShapeError(f"{G.name}: a section is a basis index (an integer 0…{G.rank - 1}), "
                          f"a list of {G.rank} coefficients or a function of the base point "
@@ -176,6 +177,27 @@ def section_point(G: Groupoid, q: Sequence):
     return view if isinstance(view, sp.MatrixBase) else tuple(q)
 
 
+def _called(G: Groupoid | None, what: str, function, q: Sequence, name: str = ""):
+    """``function`` called on the base point it receives (:func:`section_point`); where it
+    fails on a base that is a product, the :class:`CallableError` says how that point is
+    given there: its coordinates in one flat tuple, not one base point per factor as a
+    holonomic constraint receives them (on SO(3) × SO(3), ``q[0][2, 0]`` fails and ``q[6]``
+    reads the first factor's entry (3, 1))."""
+    try:
+        return call_user(name or G.name, what, function, section_point(G, q))
+    except CallableError as err:
+        view = G.base_view(tuple(q)) if G is not None else None
+        if not isinstance(view, tuple) or all(isinstance(p, sp.Basic) and not
+                                              isinstance(p, sp.MatrixBase) for p in view):
+            raise
+        sizes = ", ".join(str(len(p)) for p in view)
+        raise CallableError(
+            f"{err}; on a product base the {what} receives the base point's "
+            f"{len(q)} coordinates in one flat tuple (the factors' {sizes}, in order, a "
+            f"matrix's entries row by row), not one base point per factor as a holonomic "
+            f"constraint receives them") from err
+
+
 def _coordinates(q: Sequence) -> set:
     """The arrow coordinates a base point q = α(g) or β(g) is written in."""
     return set().union(*(sp.sympify(c).free_symbols for c in q))
@@ -191,8 +213,7 @@ def _base_function(f, q: Sequence, name: str = "", parameters: Sequence = (),
     coefficients are."""
     if f is None or (not callable(f) and isinstance(f, (int, float)) and f == 0):
         return sp.S.Zero
-    value = (call_user(name, "quasi-invariance function f", f, section_point(G, q))
-             if callable(f) else f)
+    value = _called(G, "quasi-invariance function f", f, q, name) if callable(f) else f
     if isinstance(value, (str, bytes)):
         raise ShapeError(f"{name}: the quasi-invariance function f must give an expression, "
                          f"got the string {value!r}")
