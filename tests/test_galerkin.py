@@ -294,6 +294,26 @@ def test_noether_quantities_at_the_stages():
     assert abs(J[0] - 1.2) < 1e-12 and np.abs(J - J[0]).max() < 1e-12
 
 
+@pytest.mark.parametrize("scheme", [sg.GaussLegendre(3), sg.LobattoIIIAB(3)])
+def test_a_symmetry_is_decided_where_the_stages_need_a_shorter_step(scheme):
+    """A spring of rest length l₀ to the origin and −1/r: with steps h ~ 1 drawn for the
+    check, the stages of no random arrow could be solved, and a rotation, conserved along
+    runs to 1e-12, was reported is_symmetry False ("undecided").  The arrows are tried
+    again with h at a tenth and a hundredth; a translation is still refuted."""
+    m, k, l0 = sp.symbols("m k l0", positive=True)
+
+    def L(q, v):
+        r = sp.sqrt(q[0] ** 2 + q[1] ** 2)
+        return m * (v[0] ** 2 + v[1] ** 2) / 2 - k * (r - l0) ** 2 / 2 - 1 / r
+
+    central = sg.ContinuousSystem(sg.EuclideanSpace("x y"), L, parameters=[h, m, k, l0],
+                                  name="central").discretize(h, scheme)
+    rotation = central.noether(lambda q: [-q[1], q[0]])
+    assert rotation.is_symmetry and "ζ*" in rotation.verification
+    translation = central.noether([1, 0])
+    assert not translation.is_symmetry and not translation.verification.startswith("undecided")
+
+
 @pytest.mark.slow
 def test_noether_quantities_at_the_stages_on_so3():
     """On SO(3) the spatial angular momentum about e₃ (section X(R) = Rᵀe₃ in the body

@@ -261,7 +261,7 @@ def noether_check(system, step, declared: Declared, traj, p) -> Check:
     how = (how.replace("symbolic", "symbolically", 1) if how.startswith("symbolic")
            else f"({how})")
     symmetry = f"symmetry verified {how}" if quantity.is_symmetry else \
-        "NOT verified to be a symmetry"
+        f"NOT verified to be a symmetry {how}"
     if quantity.impulse_form is not None:  # forced: J changes by the forces' impulse (§20)
         gap = float(np.max(np.abs(np.diff(values) - quantity.impulse(traj)), initial=0.0))
         ok = quantity.is_symmetry and gap <= tolerance

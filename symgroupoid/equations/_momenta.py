@@ -152,6 +152,11 @@ def _finite_states(states: np.ndarray, entry: str) -> None:
                           f"finite states")
 
 
+#: the fractions of its value the time step is tried at where the stages of a random arrow
+#: cannot be solved at the value drawn (:meth:`NoetherQuantity.check_on_graph`)
+STAGE_RETRIES = (0.1, 0.01)
+
+
 class NoetherQuantity:
     """The conserved quantity F_X of a section X (seed 000 Thm 4.9).
 
@@ -160,7 +165,10 @@ class NoetherQuantity:
     ``verification`` says how it was decided (symbolically, or numerically at random arrows
     of G for defects too large to simplify; see
     :func:`symgroupoid.derivation._momenta.vanishing_check`) — with holonomic constraints,
-    on N = G|_M (docs/conventions.md §15).
+    on N = G|_M (docs/conventions.md §15).  ``is_symmetry`` is False both where the check
+    refuted the symmetry and where it could not decide (no random arrow gave finite values,
+    or none had solvable stages): ``verification`` then starts with "undecided", and the
+    quantity's repr says so.
     """
 
     def __init__(self, forms: NoetherForms, is_symmetry: bool, parameters: Sequence):
@@ -371,14 +379,17 @@ class NoetherQuantity:
             return f(known, p)
         return f(known, self._stages_at(known, p, u), p)
 
-    def check_on_graph(self, groupoid) -> tuple[bool, str]:
+    def check_on_graph(self, groupoid, step=None) -> tuple[bool, str]:
         """Whether the defect vanishes (at ζ*, for a system with internal stages) at random
         arrows of ``groupoid`` (with random multipliers and parameters in [0.5, 1.5]), for
-        a quantity built on the expression graph; and how that was decided.  With holonomic
+        a quantity built on the expression graph; and how that was decided.  Where the
+        stages of an arrow cannot be solved (a step of h ~ 1 across a singular potential:
+        ∂L/∂ζ = 0 has no root near ζ = 0), the arrow is tried again with the time step
+        ``step`` (a parameter symbol) at a tenth and a hundredth of its value, where the
+        stage equations are close to their linear part.  With holonomic
         constraints the arrows are moved onto N = G|_M first (:attr:`restriction`), the
         stages ζ* include the interior multipliers, and X must be tangent to M there
         (:attr:`tangency`; docs/conventions.md §22, "The Noether quantity on N = G|_M")."""
-        from .._errors import DiagnosticsError
 
         rng = np.random.default_rng(20260)
         usable = 0
@@ -393,12 +404,10 @@ class NoetherQuantity:
                 if arrow is None:  # no point of M near this arrow's ends
                     continue
             known = np.r_[np.asarray(arrow, float), lam][:, None]
-            try:
-                with np.errstate(all="ignore"):
-                    F, defect, *tangency = self._at_stages(["F", "defect", "tangency"],
-                                                           known, p)
-            except DiagnosticsError:
+            values = self._at_smaller_steps(known, p, step)
+            if values is None:
                 continue
+            F, defect, tangency = values
             F, defect = float(np.ravel(F)[0]), float(np.ravel(defect)[0])
             tangency = np.ravel(np.asarray(tangency, float))
             if not (np.isfinite(F) and np.isfinite(defect) and np.isfinite(tangency).all()):
@@ -415,6 +424,29 @@ class NoetherQuantity:
                            if self.stages else "undecided: no random arrow gave a finite value")
         return True, how if self.stages else (f"numerical: zero to 1e-09 relative at {usable} "
                                               f"{where} of {groupoid.name}")
+
+    def _at_smaller_steps(self, known: np.ndarray, p: np.ndarray, step) -> tuple | None:
+        """F, the defect and the tangency at the arrow ``known`` (at its stages ζ*), with
+        the parameters ``p``, else with the time step ``step`` at 0.1 and 0.01 of its value
+        (:data:`STAGE_RETRIES`) where the stages could not be solved; None when none of
+        them could."""
+        from .._errors import DiagnosticsError
+
+        names = [str(s) for s in self.parameters]
+        at = names.index(str(step)) if self.stages and step is not None \
+            and str(step) in names else None
+        for factor in (1.0, *(STAGE_RETRIES if at is not None else ())):
+            q = p.copy()
+            if at is not None:
+                q[at] *= factor
+            try:
+                with np.errstate(all="ignore"):
+                    F, defect, *tangency = self._at_stages(["F", "defect", "tangency"],
+                                                           known, q)
+            except DiagnosticsError:
+                continue
+            return F, defect, tangency
+        return None
 
     def _check_run(self, trajectory, entry: str) -> None:
         """``trajectory`` is a :class:`~symgroupoid.Trajectory` (states and parameters by
@@ -620,7 +652,10 @@ class NoetherQuantity:
         return Program(g, names, {"I": [g.add(*terms) if terms else g.const(0)]})
 
     def __repr__(self) -> str:
-        verdict = "symmetry verified" if self.is_symmetry else "NOT verified to be a symmetry"
+        verdict = ("symmetry verified" if self.is_symmetry else
+                   f"NOT verified to be a symmetry: {self.verification}"
+                   if self.verification.startswith("undecided") else
+                   "NOT verified to be a symmetry")
         return f"<NoetherQuantity F_X = {self._shown()} ({verdict})>"
 
 

@@ -485,7 +485,7 @@ class DiscreteSystem(_EvaluatedSystem):
                 tuple(sp.Dummy(f"za{i}", real=True) for i in range(self.stages)),
                 tuple(sp.Dummy(f"zb{i}", real=True) for i in range(self.stages)))
         quantity.is_symmetry, quantity.verification = quantity.check_on_graph(
-            self.groupoid)
+            self.groupoid, getattr(self, "time_step", None))
         return quantity
 
     def _restrict_noether(self, quantity: NoetherQuantity) -> None:
