@@ -24,6 +24,7 @@ from ._errors import (
     ShapeError,
     UnsupportedFeatureError,
 )
+from ._parameters import parameter_vector
 
 #: the reference run's step count, in multiples of the largest one measured
 REFERENCE_FACTOR = 8
@@ -229,6 +230,9 @@ def convergence_order(system, scheme, initial, params: Mapping, T: float,
     step = "h" if step is None else step
     _no_step(params, str(step), T, counts)
     discrete = system.discretize(step, scheme)
+    # the parameters named before anything is compiled (a missing one was reported after)
+    parameter_vector([p for p in discrete.parameters if str(p) != str(step)], params,
+                     owner="convergence_order")
     sim = discrete.euler_lagrange().compile(backend=backend)
     expected = getattr(scheme, "order", 2 if isinstance(scheme, str) else None)
     return measure_order(sim, initial, params, T, counts, reference=reference,

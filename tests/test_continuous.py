@@ -217,6 +217,12 @@ def test_bad_systems_are_refused():
                                                 r"run sets to T/N \(h = 0.05 … 0.025 here\)"):
         sg.convergence_order(_pendulum(), "midpoint", ({"theta": 0.3}, [0.5]),
                              {"g": 9.81, "h": 0.01}, 1.0, [20, 40])
+    # (a missing parameter was reported after the kernel's build)
+    builds = sg.runtime.toolchain.STATS["builds"]
+    with pytest.raises(sg.ParameterError, match="convergence_order: missing parameter g"):
+        sg.convergence_order(_pendulum(), sg.GaussLegendre(3), ({"theta": 0.3}, [0.5]), {},
+                             1.0, [20, 40])
+    assert sg.runtime.toolchain.STATS["builds"] == builds
 
 
 @pytest.mark.slow
