@@ -36,6 +36,10 @@ from .groupoids import Groupoid
 from .ir import Graph, Program, forward, from_sympy, gradient
 from .runtime import parameter_vector, system_argument
 
+#: the smallest fraction of the given ε that :func:`verify_stationary` shrinks its
+#: variations to where they leave the discrete Lagrangian's domain
+SHRINK_LIMIT = 1e-6
+
 
 @dataclass
 class StationarityReport:
@@ -311,7 +315,11 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
     :data:`RESOLVED`; ε times the largest multiplier, at least 1); on a time groupoid
     the time's, relative to the shortest step t_{k+1} − t_k (the check does not depend on
     when the run started).  An action that is not
-    finite on the trajectory is a :class:`~symgroupoid.DomainError`.
+    finite on the trajectory is a :class:`~symgroupoid.DomainError`; where a variation of
+    size ε leaves the discrete Lagrangian's domain (a trajectory near its edge), ε is made
+    ten times smaller until the varied action is finite, at most down to ε·10⁻⁶
+    (:data:`SHRINK_LIMIT`; a :class:`~symgroupoid.DomainError` beyond), and the report's
+    differences are at the ε used.
 
     A forced system (docs/conventions.md §20): each difference quotient gains the forces'
     virtual work W along the same variation (``report.work``), so the check is
@@ -383,9 +391,22 @@ def verify_stationary(trajectory, system, params: Sequence | dict | None = None,
         pairings = virtual_work(forces, coeffs)
         report.work = float(pairings.sum())
     magnitude = float(np.abs(T0).sum())  # what the sums of terms are rounded against
-    for e in (eps, eps / 2, eps / 4):
-        Tp = action_terms(system, *varied(e), params, zeta)
-        Tm = action_terms(system, *varied(-e), params, zeta)
+    # a variation of size ε can leave L_d's domain where the trajectory runs near its edge
+    # (|q̇| → 1 under √(1 − q̇²)): ε is then made smaller, down to ε·SHRINK_LIMIT
+    start = eps
+    while True:
+        varied_terms = [(action_terms(system, *varied(e), params, zeta),
+                         action_terms(system, *varied(-e), params, zeta))
+                        for e in (eps, eps / 2, eps / 4)]
+        if all(np.isfinite(T).all() for pair in varied_terms for T in pair):
+            break
+        if eps / 10 < max(start * SHRINK_LIMIT, 1e-300):
+            raise DomainError(
+                f"{system.name}: the varied action is not finite at any variation of size "
+                f"ε = {start:g} down to {eps:g} (the trajectory lies on the edge of the "
+                f"discrete Lagrangian's domain, where no variation stays inside it)")
+        eps /= 10
+    for e, (Tp, Tm) in zip((eps, eps / 2, eps / 4), varied_terms):
         magnitude = max(magnitude, float(np.abs(Tp).sum()), float(np.abs(Tm).sum()))
         report.derivatives[e] = float(Tp.sum() - Tm.sum()) / (2 * e) + report.work
         if e == eps:  # how large the first-order changes of the single terms are

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 import sympy as sp
 from conftest import newton, predicted
 
@@ -115,3 +116,35 @@ def test_time_groupoid_check_does_not_depend_on_when_the_run_started():
         late[4, 1] += 1e-4
         late[5, 0] += 1e-4
         assert not sg.verify_stationary(late, timed, []).stationary, start
+
+
+def _relativistic():
+    """A relativistic particle in a harmonic well, L_d = −h√(1 − ((q₁ − q₀)/h)²) − h q̄²/2:
+    defined for speeds below 1 only."""
+    h = sp.Symbol("h", positive=True)
+
+    def L(g):
+        (q0,), (q1,) = g.source, g.target
+        return -h * sp.sqrt(1 - ((q1 - q0) / h) ** 2) - h * ((q0 + q1) / 2) ** 2 / 2
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h],
+                             name="relativistic")
+
+
+def test_a_trajectory_at_the_edge_of_the_domain_is_checked_with_smaller_variations():
+    """A solution whose speeds are 0.99, within 1e-3 of the edge of L_d's domain: variations
+    of the default size ε = 1e-3 left it, and the report said "not stationary" with a NaN
+    scale.  The variations are now made smaller until the varied action is finite; a
+    perturbed path there is still refuted, and a path on the edge itself is refused."""
+    system = _relativistic()
+    sol = sg.solve_boundary_value(system.euler_lagrange(), 0.0, 0.99, 10, params={"h": 0.1})
+    assert np.diff(sol.arrows, axis=1).max() / 0.1 > 0.989
+    report = sg.verify_stationary(sol, system)
+    assert report and np.isfinite(report.scale) and max(report.derivatives) < 1e-3
+    bent = sol.arrows.copy()
+    bent[4, 1] += 1e-4
+    bent[5, 0] += 1e-4
+    assert not sg.verify_stationary(bent, system, [0.1], multipliers=np.zeros((10, 0)))
+    edge = np.array([[k / 8, (k + 1) / 8] for k in range(10)])  # speed 1 exactly: the edge
+    with pytest.raises(sg.DomainError, match="varied action is not finite at any variation"):
+        sg.verify_stationary(edge, system, [1 / 8], multipliers=np.zeros((10, 0)))
