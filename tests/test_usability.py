@@ -463,6 +463,39 @@ def test_loading_refuses_values_no_run_writes(tmp_path):
             sg.Trajectory.load(tmp_path / "cut.csv", sim, params={"h": 0.01})
 
 
+@pytest.mark.parametrize("suffix", [".npz", ".csv"])
+def test_a_file_whose_states_do_not_join_is_refused(tmp_path, suffix):
+    """A value edited in one state (x_k of state 4 moved by 1) loaded, though states 4 and 5
+    then no longer composed (x_k of state 4 ≠ x_{k-1} of state 5) and the run's diagnostics
+    read another path; a run kept every 2 steps is not compared across the steps it
+    skips."""
+    sim = _ring("ring").euler_lagrange().compile(backend="numpy")
+    traj = sim.simulate(RING0, 8, {"h": 0.01})
+    path = tmp_path / f"run{suffix}"
+    traj.save(path)
+    assert np.array_equal(sg.Trajectory.load(path, sim, params={"h": 0.01}).states,
+                          traj.states)
+    column = int(sim.layout.parts["x"].index[1])  # x at step k
+    if suffix == ".npz":
+        with np.load(path) as archive:
+            arrays = dict(archive)
+        arrays["states"][4, column] += 1.0
+        np.savez(path, **arrays)
+    else:
+        lines = path.read_text().splitlines()
+        header = lines[0].split(",")
+        at = next(i for i, name in enumerate(header) if name == sim.layout.describe(column))
+        cells = lines[5].split(",")  # the header, then states 0, 1, …
+        cells[at] = repr(float(cells[at]) + 1.0)
+        lines[5] = ",".join(cells)
+        path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(sg.TrajectoryFileError, match="states 4 and 5 .* do not join"):
+        sg.Trajectory.load(path, sim, params={"h": 0.01})
+    sparse = tmp_path / f"sparse{suffix}"
+    sim.simulate(RING0, 8, {"h": 0.01}, every=2).save(sparse)
+    assert len(sg.Trajectory.load(sparse, sim, params={"h": 0.01}).states) == 5
+
+
 def test_saving_keeps_a_read_only_file_and_a_files_mode(tmp_path):
     """(A file of mode 0444 was replaced, and with mode 0644; a file of mode 0600 became
     0644.)  A symbolic link is replaced, not written through (tests/test_cli.py)."""

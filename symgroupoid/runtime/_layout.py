@@ -17,6 +17,7 @@ the state is given as the sequence of its consecutive values, oldest first:
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -25,6 +26,7 @@ import sympy as sp
 
 from .._errors import DomainError, InputNameError, ShapeError
 from .._symbols import multiplier_symbols, step_label
+from ..equations import structure_program
 from ..groupoids import MatrixLieGroup
 from ._validate import (
     GROUP_TOLERANCE,
@@ -35,7 +37,11 @@ from ._validate import (
     violated_assumption,
 )
 
-__all__ = ["GROUP_TOLERANCE", "MULTIPLIER_KEYS", "Part", "StateLayout"]
+__all__ = ["GROUP_TOLERANCE", "JOIN_ROUNDING", "MULTIPLIER_KEYS", "Part", "StateLayout"]
+
+#: how closely (relative to 1 + |value|) consecutive states of a run must join
+#: (:meth:`StateLayout.unjoined_row`): to the rounding of the structure maps
+JOIN_ROUNDING = 64 * float(np.finfo(float).eps)
 
 MULTIPLIER_KEYS = ("lambda", "λ", "multipliers")
 _OFFSETS = range(-3, 4)
@@ -275,6 +281,35 @@ class StateLayout:
             bad |= ~(worst <= GROUP_TOLERANCE).all(axis=-1)
         return np.flatnonzero(bad)
 
+    def unjoined_row(self, states: np.ndarray, steps: np.ndarray,
+                     params: np.ndarray) -> int | None:
+        """The first row k of ``states`` (N, n_known), kept at the steps ``steps``, whose
+        arrows do not join those of row k + 1 kept at the next step: the arrows a
+        second-order state shares with the next differ, or the target of its newest arrow
+        is not the source of the next state's newest, beyond :data:`JOIN_ROUNDING` of
+        1 + |value| (the rounding of the structure maps: a step copies or computes the new
+        arrow's source exactly as its program does); None when every such pair joins.
+        ``params``: the parameter values, which a groupoid's maps may read."""
+        states = np.asarray(states, float)
+        rows = np.flatnonzero(np.diff(np.asarray(steps)) == 1)
+        offsets = list(self.arrow_index)
+        if not len(rows) or not offsets:
+            return None
+        here, there = states[rows], states[rows + 1]
+        bad = np.zeros(len(rows), dtype=bool)
+        for older, newer in zip(offsets, offsets[1:]):  # a second-order state's shared arrow
+            bad |= ~_close(here[:, self.arrow_index[newer]], there[:, self.arrow_index[older]])
+        a = here[:, self.arrow_index[offsets[-1]]].T
+        b = there[:, self.arrow_index[offsets[-1]]].T
+        target, inverse = _structure_maps(self.groupoid, tuple(self.equations.parameters))
+        p = np.asarray(params, float)
+        with np.errstate(all="ignore"):
+            ends = np.asarray(target(a, p)[0], float).reshape(-1, len(rows))
+            starts = np.asarray(target(np.asarray(inverse(b, p)[0], float), p)[0],
+                                float).reshape(-1, len(rows))
+        bad |= ~_close(ends.T, starts.T)
+        return int(rows[np.argmax(bad)]) if bad.any() else None
+
     def _assign(self, state, given, part: Part, value) -> None:
         arr = self._as_array(part, value)
         arr = np.stack([self._check_group(part, a) for a in arr])
@@ -391,3 +426,18 @@ def check_input_values(symbols: Sequence, values: np.ndarray, owner: str, where)
             raise DomainError(f"{owner}: input {symbol} is declared {what}, got "
                               f"{float(table[row, i])!r} {where(row, i)}; the forces were derived "
                               f"under that assumption")
+
+
+def _close(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per row, whether ``x`` and ``y`` agree to :data:`JOIN_ROUNDING` of 1 + |value|."""
+    scale = 1.0 + np.maximum(np.abs(x), np.abs(y))
+    return (np.abs(x - y) <= JOIN_ROUNDING * scale).all(axis=-1)
+
+
+@functools.lru_cache(maxsize=16)
+def _structure_maps(groupoid, parameters: tuple) -> tuple:
+    """The NumPy forms of the target and the inverse of ``groupoid``'s structure program
+    (:func:`~symgroupoid.equations.structure_program`), each also reading ``p``."""
+    program = structure_program(groupoid, parameters)
+    return (program.numpy_function(["target"], ["a", "p"]),
+            program.numpy_function(["inverse"], ["a", "p"]))

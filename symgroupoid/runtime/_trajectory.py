@@ -261,6 +261,13 @@ class Trajectory:
                 raise TrajectoryFileError(f"{str(path)!r}: its state {row} (of "
                                           f"{rows}) is not this system's: "
                                           f"{exc}") from None
+        values = [parameters[str(s)] for s in layout.equations.parameters]
+        row = layout.unjoined_row(data.states, data.step_indices, values)
+        if row is not None:
+            raise TrajectoryFileError(f"{str(path)!r}: its states {row} and {row + 1} (of "
+                                      f"{rows}, at consecutive steps) do not join: the "
+                                      f"arrows of a run compose, each starting where the one "
+                                      f"before it ends (an edited value?)")
         return cls(layout, data.states, data.iterations, data.norms, parameters,
                    data.backend or backend, step_indices=data.step_indices, every=data.every)
 
