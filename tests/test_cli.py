@@ -239,6 +239,22 @@ def test_emit_writes_source_and_header(files, tmp_path, capsys):
     assert latex.count(" *   F[") == source.read_text().count(" *   F[") > 0
 
 
+def test_emit_refuses_a_name_or_prefix_and_leaves_no_directory(files, tmp_path, capsys):
+    """``emit -o newdir --prefix 1abc`` failed but had created newdir; ``--name ../escape``
+    wrote escape.c and ``--name ""`` the system's name, without a word."""
+    out = tmp_path / "new" / "dir"
+    code, _, err = run(capsys, "emit", files / "ring.py", "-o", out, "--prefix", "1abc")
+    assert code == 1 and "is not a prefix of C identifiers" in one_line_error(err)
+    assert not (tmp_path / "new").exists()
+    for name, hint in [("../escape", "'escape' would do"), ("", "not empty"),
+                       ("a b", "'a_b' would do")]:
+        code, _, err = run(capsys, "emit", files / "ring.py", "-o", out, "--name", name)
+        assert code == 1 and hint in one_line_error(err)
+    assert not (tmp_path / "new").exists() and not (tmp_path / "escape.c").exists()
+    code, _, _ = run(capsys, "emit", files / "ring.py", "-o", out, "--name", "ring_v2")
+    assert code == 0 and sorted(p.name for p in out.iterdir()) == ["ring_v2.c", "ring_v2.h"]
+
+
 # --- simulate -----------------------------------------------------------------------------------
 
 @needs_cc

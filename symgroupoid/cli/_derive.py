@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import shutil
 import subprocess
@@ -241,15 +242,25 @@ def _pdf_only(derived: Derived, lines: list[str], pdf: Path) -> int:
 
 
 def run_emit(args: argparse.Namespace) -> int:
+    if args.name is not None and (not args.name or file_stem(args.name) != args.name):
+        raise InputError(f"--name {args.name!r}: the stem of the file names, letters, digits "
+                         f"and '_', '.', '-' (not a path, not empty)"
+                         + (f"; {file_stem(args.name)!r} would do" if args.name else ""))
     derived = derive(args.system)
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         raise InputError(f"-o {out}: exists and is not a directory")
-    out.mkdir(parents=True, exist_ok=True)
-    base = out / file_stem(args.name or derived.step.name)
+    made = _new_directories(out)
+    base = out / (args.name or file_stem(derived.step.name))
     t0 = time.perf_counter()
-    with Task(f"{derived.step.name}: generating C"):
-        paths = derived.step.emit_c(base, prefix=args.prefix, latex=args.latex)
+    try:
+        with Task(f"{derived.step.name}: generating C"):
+            paths = derived.step.emit_c(base, prefix=args.prefix, latex=args.latex)
+    except BaseException:
+        for directory in reversed(made):  # a failure leaves no directory it created
+            with contextlib.suppress(OSError):
+                directory.rmdir()  # (only while empty)
+        raise
     seconds = time.perf_counter() - t0
     say(f"{derived.step.name}: {len(derived.step)} equations, derived in "
         f"{derived.seconds:.2f} s, C generated in {seconds:.2f} s")
@@ -257,3 +268,10 @@ def run_emit(args: argparse.Namespace) -> int:
         lines = path.read_text(encoding="utf-8").count("\n")
         say(f"wrote {path} ({lines} lines)")
     return 0
+
+
+def _new_directories(out: Path) -> list[Path]:
+    """Create ``out`` and its missing parents; return those it created, outermost first."""
+    missing = [p for p in (out, *out.parents) if not p.exists()][::-1]
+    out.mkdir(parents=True, exist_ok=True)
+    return missing
