@@ -321,6 +321,16 @@ def test_parameter_abbreviations_print_with_the_parameters(dp_step):
     ({"abbreviations": {r"\left(": sp.Symbol("g", positive=True)}}, "breaks a row"),
     ({"abbreviations": {r"\end{align}": sp.Symbol("g", positive=True)}}, "breaks a row"),
     ({"abbreviations": {"x^": sp.Symbol("g", positive=True)}}, "breaks a row"),
+    # (names that typeset as a taken one were compared as written: L_{} and {L} printed L
+    # beside the Lagrangian's partial derivatives, \operatorname{sin} as sin, \partial as
+    # the derivatives' symbol; a width "450" was read as a number)
+    ({"abbreviations": {"L_{}": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {"{L}": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {r"\operatorname{sin}": sp.Symbol("g", positive=True)}},
+     "prints like a symbol"),
+    ({"abbreviations": {r"\partial": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"abbreviations": {"h_{}": sp.Symbol("g", positive=True)}}, "prints like a symbol"),
+    ({"width": "450"}, "number of points from 20 to 16000, got '450'"),
 ])
 def test_bad_options_are_named(pendulum_step, option, message):
     with pytest.raises(LatexOptionError, match=message):

@@ -71,8 +71,9 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         raise LatexOptionError(f"latex: abbreviations must be a mapping name → expression or "
                                f"callable, got {type(abbreviations).__name__}")
     symbols = printed_symbols(step)
-    constants = constant_names(step)
-    taken = {latex(s) for s in symbols} | _indexed_bases(step) | RESERVED_NAMES
+    constants = {rendered(t): what for t, what in constant_names(step).items()}
+    taken = {rendered(t) for t in
+             ({latex(s) for s in symbols} | _indexed_bases(step) | RESERVED_NAMES)}
     out = []
     for name, value in abbreviations.items():
         if isinstance(name, sp.Symbol):
@@ -82,15 +83,16 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
         else:
             raise LatexOptionError(f"latex: an abbreviation's name must be a non-empty string "
                                    f"(its LaTeX) or a SymPy Symbol, got {name!r}")
-        if tex in constants:
+        shown = rendered(tex)
+        if shown in constants:
             raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like "
-                                   f"{constants[tex]} of {step.name}'s printed equations; "
+                                   f"{constants[shown]} of {step.name}'s printed equations; "
                                    f"choose another name")
-        if tex in taken:
+        if shown in taken:
             raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like a symbol of "
                                    f"{step.name}; choose another name")
         _check_name_shape(tex)
-        taken.add(tex)
+        taken.add(shown)
         if not callable(value):
             value = _abbreviation_value(tex, value)
             _check_symbols(tex, value, symbols, step)
@@ -114,12 +116,42 @@ def constant_names(step) -> dict[str, str]:
     return names
 
 
+#: operator names written with \operatorname that LaTeX also has as commands
+_OPERATOR_COMMANDS = ("sin", "cos", "tan", "exp", "log", "ln", "det")
+
+
+def rendered(tex: str) -> str:
+    r"""``tex`` as it typesets, for comparing names: spaces, empty groups (``L_{}``,
+    ``x^{}``, ``{}``) and braces around the whole name (``{L}``) dropped, an operator name
+    written ``\operatorname{sin}`` as ``\sin``."""
+    out = re.sub(r"\s+", "", tex)
+    for word in _OPERATOR_COMMANDS:
+        out = out.replace(f"\\operatorname{{{word}}}", f"\\{word}")
+    previous = None
+    while previous != out:
+        previous = out
+        out = re.sub(r"[_^]?\{\}", "", out)
+        if out.startswith("{") and out.endswith("}") and _balanced(out[1:-1]):
+            out = out[1:-1]
+    return out
+
+
+def _balanced(tex: str) -> bool:
+    depth = 0
+    for ch in tex:
+        depth += {"{": 1, "}": -1}.get(ch, 0)
+        if depth < 0:
+            return False
+    return depth == 0
+
+
 #: names the printed equations use for their own parts: the Lagrangian, the forces, the
 #: arrows g_k, the step index k and the index j of the "for j = k, k+1" rows, the
 #: difference quotients Δq, the multipliers λ, the functions SymPy prints as operators
 RESERVED_NAMES = frozenset({"L", "L_{d}", "f", "f^{+}", "f^{-}", "g", "k", "j", r"\Delta",
                             r"\lambda", r"\sin", r"\cos", r"\tan",
-                            r"\exp", r"\log", r"\ln", r"\operatorname{tr}", r"\mathrm{d}"})
+                            r"\exp", r"\log", r"\ln", r"\operatorname{tr}", r"\mathrm{d}",
+                            r"\partial"})
 #: LaTeX that ends, breaks or restructures an ``align`` row rather than naming something
 _STRUCTURE = ("\\\\", r"\left", r"\right", r"\begin", r"\end", r"\intertext", r"\tag",
               r"\label", r"\notag", r"\nonumber")

@@ -205,12 +205,12 @@ MIN_WIDTH, MAX_WIDTH = 20.0, 16000.0
 
 def check_width(width) -> float:
     """The text width in points: None for the page's, else a real number from
-    :data:`MIN_WIDTH` to :data:`MAX_WIDTH` (not a boolean); a :class:`LatexOptionError`
-    otherwise."""
+    :data:`MIN_WIDTH` to :data:`MAX_WIDTH` (not a boolean, not a string); a
+    :class:`LatexOptionError` otherwise."""
     if width is None:
         return PAGE_WIDTH
     value = float("nan")
-    if not isinstance(width, (bool, np.bool_)):
+    if not isinstance(width, (bool, np.bool_, str, bytes)):  # ("450": float would read it)
         try:
             value = float(width)
         except (TypeError, ValueError):
