@@ -159,6 +159,25 @@ def reads_as_power(name: str) -> bool:
     return _POWER_SUPERSCRIPT.search(latex_name(name)) is not None
 
 
+#: names SymPy prints as a word that the printed equations use as an operator
+OPERATOR_WORDS = frozenset({"sin", "cos", "tan", "exp", "log", "ln", "tr", "det", "sqrt",
+                            "diag", "Ad"})
+
+
+def misread_name(name: str) -> str | None:
+    """Why ``name``, printed, would read as something else, or None: as an operator word
+    (``tr`` beside the trace tr(W E_1), ``sin``), or with an empty subscript or superscript
+    (``x_`` prints x_{}, which reads as x)."""
+    if name in OPERATOR_WORDS:
+        return (f"it prints as the word {name}, which the printed equations use as an "
+                f"operator ({name}(…))")
+    printed = latex_name(name)
+    if re.search(r"[_^]\{\}", printed):
+        return (f"it prints as {printed}, an empty subscript or superscript, which reads as "
+                f"the name without it")
+    return None
+
+
 def latex_name(name: str) -> str:
     """LaTeX of a user-supplied coordinate name (``Gamma`` → ``\\Gamma``, ``θ`` →
     ``\\theta``)."""
@@ -234,6 +253,9 @@ def unprintable_name(name: str) -> str | None:
             break
     if depth != 0:
         return "its braces are not balanced"
+    misread = misread_name(name)
+    if misread is not None:
+        return misread
     if is_difference_name(name):
         return ("it is written \\Delta, as the printed equations write the differences of "
                 "the coordinates (\\Delta q for q_{k+1} - q_k: a coordinate Δ would print "

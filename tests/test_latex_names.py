@@ -319,3 +319,61 @@ def test_an_abbreviation_written_as_a_basis_element_is_refused():
     for name, what in [("E_{1}", "the constant matrix E_{1}"), ("e_{2}", "the unit vector")]:
         with pytest.raises(LatexOptionError, match=f"prints like {re.escape(what)}"):
             step.latex(abbreviations={name: Omega * h / 2})
+
+
+def _double_pendulum(third: str):
+    """A double pendulum in the angles x, y by the midpoint rule, L written in the pieces
+    x̄, Δx, with parameters h, a and one named ``third``."""
+    a, c = sp.symbols(f"a {third}", positive=True)
+
+    def L(arrow):
+        q0, q1 = sp.Matrix(arrow.source), sp.Matrix(arrow.target)
+        (p, q), (vp, vq) = (q0 + q1) / 2, (q1 - q0) / h
+        return h * (a * vp ** 2 / 2 + vq ** 2 / 2 + vp * vq * sp.cos(p - q)
+                    + c * sp.cos(p) + sp.cos(q))
+
+    return sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x y")), L,
+                             parameters=[h, a, c], name="pendulum")
+
+
+def test_a_parameter_written_as_a_piece_or_as_l_keeps_those_forms_out():
+    """A parameter xbar printed \\bar{x} beside the midpoints x̄ of the pieces, and one named
+    L as a factor of ∂_{Δx} L: the forms in pieces (and with L's partial derivatives) are
+    not offered where a parameter prints as one of their names."""
+    plain = _double_pendulum("c").euler_lagrange(progress=False).latex()
+    assert r"\partial_{\Delta x} L" in plain and r"\bar{x}_{j-1/2}" in plain
+    bar = _double_pendulum("xbar").euler_lagrange(progress=False).latex()
+    assert r"\bar{x}" in bar and "k+1/2" not in bar
+    length = _double_pendulum("L").euler_lagrange(progress=False).latex()
+    assert r"\partial" not in length and r"\frac{L h}{2}" in length
+    assert r"\Delta x_{k+1/2}" in length  # (still in pieces)
+
+
+@pytest.mark.parametrize("name, why", [("tr", "the word tr"), ("sin", "the word sin"),
+                                       ("x_", "an empty subscript")])
+def test_a_name_that_prints_as_an_operator_or_with_an_empty_subscript_is_refused(name, why):
+    """A parameter tr printed "- tr (W_k)_{13}" beside tr(J_d E_1 W_{k+1}); a coordinate x_
+    printed x_{}, and a parameter x beside it as the same glyph."""
+    p = sp.Symbol(name, positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    with pytest.raises(sg.ParameterDeclarationError, match=why):
+        sg.DiscreteSystem(G, lambda a: (a.target[0] - a.source[0]) ** 2 / h
+                          - h * p * a.source[0] ** 2, parameters=[h, p], name="named")
+    with pytest.raises(sg.CoordinateNameError, match=why):
+        sg.EuclideanSpace(name)
+
+
+def test_a_parameter_written_as_a_multiplier_with_its_index_is_refused_with_constraints():
+    """lambda_1 printed \\lambda_{1} beside the multipliers (\\lambda_{k})_{1}; λ alone was
+    already refused."""
+    lam = sp.Symbol("lambda_1", positive=True)
+    G = sg.PairGroupoid(sg.EuclideanSpace("x y"))
+
+    def L(a):
+        return sum((t - s) ** 2 for s, t in zip(a.source, a.target)) / h - h * lam * a.target[0]
+
+    with pytest.raises(sg.ParameterDeclarationError, match=r"as the multipliers"):
+        sg.DiscreteSystem(G, L, parameters=[h, lam], name="tied",
+                          constraints=lambda a: [a.target[0] - a.source[1]])
+    assert r"\lambda_{1}" in sg.DiscreteSystem(G, L, parameters=[h, lam],
+                                               name="free").euler_lagrange().latex()

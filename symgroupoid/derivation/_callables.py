@@ -24,6 +24,7 @@ from .._symbols import (
     is_difference_name,
     is_multiplier_name,
     latex_name,
+    misread_name,
     reads_as_power,
     scalar_expression,
     unspelled_character,
@@ -411,7 +412,8 @@ def check_parameters_unlike_coordinates(system_name: str, groupoid, parameters: 
         if not isinstance(p, sp.Symbol):
             continue
         key = latex_name(p.name.strip())
-        if constrained and is_multiplier_name(p.name.strip()):
+        if constrained and (is_multiplier_name(p.name.strip())
+                            or re.match(r"\\lambda[_^]", key)):  # λ, and λ_1 beside (λ_k)_1
             raise _name_refused(system_name, p, f"is written {key}, as the multipliers of the "
                                 f"constraints are ((\\lambda_{{k}})_{{1}}), which the printed "
                                 f"equations would not tell apart")
@@ -440,6 +442,9 @@ def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None
                             f"not typeset in mathematics (the printed equations would not "
                             f"compile; Greek letters, ℓ, ħ, µ and accented letters such as ẋ "
                             f"are spelt as commands)")
+    misread = misread_name(p.name.strip())
+    if misread is not None:
+        raise _name_refused(system_name, p, misread[3:])  # ("it prints …" → "prints …")
     if reads_as_power(p.name.strip()):
         raise _name_refused(system_name, p, f"prints as {latex_name(p.name.strip())}, which "
                             f"reads as a power (a superscript of digits): write the index as "

@@ -211,10 +211,16 @@ def printed_symbols(step) -> list:
     """The symbols the printing of ``step`` shows: its coordinates, multipliers, inputs and
     parameters, and the pieces q̄, Δq at every subscript it gives them (the window's k ± 1/2,
     the generic j − 1/2, none).  No name of the printing's own may print as one of them."""
+    return [*step.knowns, *step.unknowns, *step.fibre_unknowns, *step.parameters,
+            *printed_pieces(step)]
+
+
+def printed_pieces(step) -> list:
+    """The pieces q̄, Δq of the step's pair coordinates at every subscript the printing
+    gives them (the window's k ± 1/2, the generic j − 1/2, none)."""
     labels = [None, half_label("j", 0)] + [half_label("k", o) for o in window(step.order)[0]]
-    pieces = [p for c in pair_coordinates(step.groupoid) for label in labels
-              for p in piece_symbols(c, label)]
-    return [*step.knowns, *step.unknowns, *step.fibre_unknowns, *step.parameters, *pieces]
+    return [p for c in pair_coordinates(step.groupoid) for label in labels
+            for p in piece_symbols(c, label)]
 
 
 def _check_symbols(tex: str, value: sp.Expr, symbols: Sequence, step) -> None:

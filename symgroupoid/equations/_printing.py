@@ -36,7 +36,9 @@ from ._abbreviations import (
     abbreviate,
     abbreviations_of,
     constant_names,
+    printed_pieces,
     printed_symbols,
+    rendered,
 )
 from ._denominators import free_name, shared_denominator
 from ._forms import (
@@ -344,7 +346,8 @@ def verified_forms(step, abbreviations: Mapping | None = None,
 def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]]:
     """The forms of the step in the named pieces of the rule L is shortest in (none when L
     is not written in pieces or the step is not a junction variation of L), in matrix form
-    or explicit."""
+    or explicit; none where a parameter prints as a piece (xbar as x̄), and not the one with
+    L's partial derivatives where a parameter prints as L."""
     system = junction_system(step)
     if system is None:
         return []
@@ -353,7 +356,12 @@ def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]
     except NOT_IN_PIECES:
         return []
     out = []
+    names = {rendered(latex(s)) for s in step.parameters}
+    if not names.isdisjoint(rendered(latex(p)) for p in printed_pieces(step)):
+        return out  # a parameter xbar prints as the midpoint x̄: no form in pieces
     for build in (piece_form, derivative_form):
+        if build is derivative_form and "L" in names:  # a length L beside ∂_{Δx} L
+            continue
         try:
             form = build(step, rule, matrix_form) if rule is not None else None
         except NOT_IN_PIECES:
