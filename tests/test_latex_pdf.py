@@ -355,6 +355,33 @@ def test_lie_poisson_and_legendre_print_as_documents(tmp_path):
         rigid.lie_poisson().latex(document=True, width=40)
 
 
+@needs_tex
+def test_a_noether_quantity_prints_as_a_document(tmp_path):
+    """latex() of a Noether quantity is one line (1,520 characters for a forced
+    oscillator's on a time groupoid: 2,140 pt past a page), and took no width or document;
+    with either it is the row F_X = … broken to the width, and its document typesets
+    without a box past the page."""
+    kappa, omega = sp.symbols("kappa omega", positive=True)
+
+    def Ld(a):
+        dt, q0, q1 = a.step, a.source[0], a.target[0]
+        t = (a.t0 + a.t1) / 2
+        return dt * (((q1 - q0) / dt) ** 2 / 2
+                     - kappa * (1 + sp.cos(omega * t)) * ((q0 + q1) / 2) ** 2 / 2)
+
+    system = sg.DiscreteSystem(sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q"))), Ld,
+                               parameters=[kappa, omega], name="pumped")
+    energy = system.noether(0)
+    line = energy.latex()
+    assert r"\\" not in line and len(line) > 1000
+    rows = energy.latex(width=300)
+    assert rows.startswith("\\begin{align}\nF_{X} &= ") and rows.count(r"\notag") > 5
+    log, text = typeset(energy.latex(document=True), tmp_path)
+    assert lost_content(log, tolerance=1.0) == [] and "FX=" in text.replace(" ", "")
+    with pytest.raises(sg.equations.LatexOptionError, match="width must be a number"):
+        energy.latex(width=-3)
+
+
 DENOMINATOR_ROW = "D_{j} &= (g_{j})_{11} + (g_{j})_{22} + (g_{j})_{33} + 1"
 
 

@@ -257,16 +257,21 @@ class NoetherQuantity:
         _finite_values(out, "evaluate", lambda: f"the quantity F_X = {self._shown()}", "arrow")
         return float(out[0])
 
-    def latex(self) -> str:
+    def latex(self, width=None, document: bool = False) -> str:
         """F_X, its terms collected by multipliers, variables and parameters (checked to be
-        F_X), on one line; an :class:`~symgroupoid.UnsupportedFeatureError`, at once, when
+        F_X), on one line; with ``width`` (pt) or ``document``, as the row F_X = … of an
+        ``align`` broken to that width (default 450), or a standalone document, as a step's
+        (a quantity of 1,500 characters ran 2,000 pt past the page on one line); an
+        :class:`~symgroupoid.UnsupportedFeatureError`, at once, when
         expanded it could have more than :data:`INLINE_TERMS` terms (a free body on SO(3)
         by the midpoint rule: 2,736, about 5 MB of LaTeX).  With internal stages
         (docs/conventions.md §22) the arrow's stages print as the step prints those of its
         known arrow, (ζ_k)_1, (ζ_k)_2, …: F_X is taken at the stages solved for the arrow
         (the forced stages of a forced system)."""
-        from ._momentum_rows import inline_latex
+        from ._latex import rows_latex
+        from ._momentum_rows import inline_latex, quantity_rows
         from ._printing import expanded_terms
+        from ._rows import check_width
 
         if self._forms.quantity is None and self.graph_forms is not None:
             terms = self._program.expanded_terms(["F"])
@@ -284,10 +289,16 @@ class NoetherQuantity:
                 f"{INLINE_TERMS} one line can hold (printed, it would run to megabytes that "
                 f"no page holds): LaTeX is not produced for it.  Its values along a "
                 f"trajectory (along(), plot_conservation) are unaffected")
+        document = flag_argument(document, "document")
+        if width is not None or document:
+            check_width(width)  # (refused before any printing)
         expr = self.expr
         if self.stages:
             expr = expr.xreplace(dict(zip(self.stages, stage_symbols(len(self.stages), 0))))
-        return inline_latex(expr, self.multipliers, self.parameters)
+        if width is None and not document:
+            return inline_latex(expr, self.multipliers, self.parameters)
+        return rows_latex(quantity_rows(expr, self.multipliers, self.parameters, width),
+                          document, "a Noether quantity F_X")
 
     #: a system with internal stages (docs/conventions.md §22): the generic stages ζ the
     #: quantity and the defect are written in (with their stage rows ∂L/∂ζ, from

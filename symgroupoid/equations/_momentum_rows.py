@@ -33,6 +33,17 @@ def inline_latex(expr: sp.Expr, multipliers: Sequence, parameters: Sequence) -> 
     return " ".join(term_text(t, i == 0, printer) for i, t in enumerate(terms))
 
 
+def quantity_rows(expr: sp.Expr, multipliers: Sequence, parameters: Sequence,
+                  width: float | None = None) -> PrintedRows:
+    """F_X = ``expr``, collected and verified (:func:`verified_terms`), broken to ``width``
+    pt as one row of an ``align``."""
+    width = check_width(width)
+    printer = MemoLatexPrinter()
+    lhs = printer.doprint(StepSymbol("F_{X}"))
+    return PrintedRows([Row(lhs, verified_terms(expr, multipliers, parameters, printer, lhs))],
+                       width, printer)
+
+
 def legendre_rows(lt, width: float | None = None) -> PrintedRows:
     """(𝔽⁻L)_a = X⃗_a[L + λ·φ](g_k), then (𝔽⁺L)_a = X⃖_a[L + λ·φ](g_k): each collected by
     multipliers, variables and parameters, verified, and broken to ``width`` pt."""
