@@ -164,11 +164,12 @@ OPERATOR_WORDS = frozenset({"sin", "cos", "tan", "exp", "log", "ln", "tr", "det"
                             "diag", "Ad"})
 
 
-def misread_name(name: str) -> str | None:
+def misread_name(name: str, words: bool = True) -> str | None:
     """Why ``name``, printed, would read as something else, or None: as an operator word
-    (``tr`` beside the trace tr(W E_1), ``sin``), or with an empty subscript or superscript
+    (``tr`` beside the trace tr(W E_1), ``sin``; with ``words``: a scalar's name, not a
+    group's, whose values print as matrices g_k), or with an empty subscript or superscript
     (``x_`` prints x_{}, which reads as x)."""
-    if name in OPERATOR_WORDS:
+    if words and name in OPERATOR_WORDS:
         return (f"it prints as the word {name}, which the printed equations use as an "
                 f"operator ({name}(…))")
     printed = latex_name(name)
@@ -222,7 +223,7 @@ def is_difference_name(name: str) -> bool:
     return latex_name(name) == r"\Delta"
 
 
-def unprintable_name(name: str) -> str | None:
+def unprintable_name(name: str, words: bool = True) -> str | None:
     """Why ``name`` cannot name a coordinate, a part or an input in the printed equations,
     or None: it must start with a letter (or be a LaTeX command such as ``\\theta``: a name
     starting with a digit or a sign reads as arithmetic, -1_{k}), hold no character LaTeX
@@ -253,7 +254,7 @@ def unprintable_name(name: str) -> str | None:
             break
     if depth != 0:
         return "its braces are not balanced"
-    misread = misread_name(name)
+    misread = misread_name(name, words)
     if misread is not None:
         return misread
     if is_difference_name(name):
@@ -263,13 +264,14 @@ def unprintable_name(name: str) -> str | None:
     return None
 
 
-def printable_name(name: str, what: str, owner: str, *, part: bool = True) -> str:
+def printable_name(name: str, what: str, owner: str, *, part: bool = True,
+                   words: bool = True) -> str:
     """``name`` when it can name ``what`` in the printed equations and the state
-    (:func:`unprintable_name`; with ``part``, not the multipliers' name either), else a
-    :class:`~symgroupoid.CoordinateNameError` saying why."""
+    (:func:`unprintable_name`, ``words`` as there; with ``part``, not the multipliers' name
+    either), else a :class:`~symgroupoid.CoordinateNameError` saying why."""
     from ._errors import CoordinateNameError
 
-    why = unprintable_name(name)
+    why = unprintable_name(name, words)
     if why is None and part and is_multiplier_name(name):
         why = (f"it is written {latex_name(name)}, as the multipliers are (their state part "
                f"is {', '.join(map(repr, MULTIPLIER_NAMES))})")

@@ -127,7 +127,7 @@ class MatrixLieGroup(Groupoid):
 
     def __init__(self, name: str = "g", retraction: str = "cayley"):
         name = printable_name(name_argument(name, "the group's name", owner=self.group_name),
-                              "the group's name", self.group_name)
+                              "the group's name", self.group_name, words=False)
         choice_argument(retraction, RETRACTIONS, "retraction", owner=self.group_name)
         self.symbol_name = name
         self.latex = latex_name(name)
