@@ -48,10 +48,9 @@ def test_the_heavy_top_prints_in_the_group_stage_notation():
         assert row in text, row
 
 
-def test_a_row_that_does_not_hold_is_not_offered(monkeypatch):
-    """The check can fail: with the derivative of dτ_X V in X taken as 0 (the term a hand
-    derivation forgets) the printed rows differ from the residual, the form is not offered
-    and the step is refused as before (its residuals written out are too large)."""
+def _forget_the_curvature(monkeypatch) -> None:
+    """The check's group maps with the derivative of dτ_X V in X taken as 0 (the term a hand
+    derivation forgets): the printed rows then differ from the residual."""
     real = group_forms._group_maps
 
     def forgetful(F):
@@ -60,6 +59,13 @@ def test_a_row_that_does_not_hold_is_not_offered(monkeypatch):
             F.maps["curvature_t"] = lambda x, v: mpmath.matrix(len(x), len(x))
 
     monkeypatch.setattr(group_forms, "_group_maps", forgetful)
+
+
+def test_a_row_that_does_not_hold_is_not_offered(monkeypatch):
+    """The check can fail: with the derivative of dτ_X V in X taken as 0 (the term a hand
+    derivation forgets) the printed rows differ from the residual, the form is not offered
+    and the step is refused as before (its residuals written out are too large)."""
+    _forget_the_curvature(monkeypatch)
     step = _top()
     assert group_forms.group_stage_rows(step, 450.0, None) is None
     with pytest.raises(sg.UnsupportedFeatureError, match="written out as formulas have"):
@@ -83,14 +89,7 @@ def test_a_double_in_the_lagrangian_prints_in_the_group_stage_notation(half, mon
     FLOAT_TOLERANCE; a row that does not hold is still not offered."""
     text = _pendulum_top(half).latex()
     assert r"\mathrm{d}\tau" in text and ("0.5 R_{33} k" in text) == (half == 0.5)
-    real = group_forms._group_maps
-
-    def forgetful(F):
-        real(F)
-        if F.is_group:
-            F.maps["curvature_t"] = lambda x, v: mpmath.matrix(len(x), len(x))
-
-    monkeypatch.setattr(group_forms, "_group_maps", forgetful)
+    _forget_the_curvature(monkeypatch)
     assert group_forms.group_stage_rows(_pendulum_top(half), 450.0, None) is None
 
 
