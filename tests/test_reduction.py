@@ -60,6 +60,53 @@ def _corollary_4_6(full, reduced, state0, params: dict, steps: int) -> dict:
             "momenta": relation, "moved": float(np.ptp(proj[:, :n], axis=0).max())}
 
 
+def _translations():
+    """A free particle on the pair groupoid of R reduced by Φ(x₀, x₁) = s(x₁ − x₀) to the
+    translations u (a groupoid over a point), L′(u) = (u/s)²/(2h)."""
+    h, s = sp.symbols("h s", positive=True)
+    T = sg.DefinedGroupoid("translations", base_names=[], fibre_names=["u"],
+                           source=lambda a: (), target=lambda a: (),
+                           multiply=lambda a, b: (a[0] + b[0],), identity=lambda q: (0,),
+                           inverse=lambda a: (-a[0],), sections=lambda q, t: [(t,)])
+    P = sg.PairGroupoid(sg.EuclideanSpace("x"))
+    full = sg.DiscreteSystem(P, lambda g: (g.target[0] - g.source[0]) ** 2 / (2 * h),
+                             parameters=[h], name="free")
+    phi = sg.GroupoidMorphism(P, T, lambda g: (s * (g.target[0] - g.source[0]),))
+    return full.reduce(phi, lagrangian=lambda w: (w.coords[0] / s) ** 2 / (2 * h))
+
+
+def test_the_reduced_systems_numerics_check_their_arguments():
+    """project, reconstruct and related_momenta raised a bare KeyError for a missing
+    parameter, returned NaN for a NaN one or a NaN arrow, and failed inside lambdified code
+    (ValueError) on an arrow of the wrong length or a string; a morphism whose map gives
+    NaN was reported without naming it."""
+    red = _translations()
+    states, params = np.array([[0.0, 0.1], [0.1, 0.2]]), {"h": 0.1, "s": 2.0}
+    assert np.allclose(red.project(states, params), [[0.2], [0.2]])
+    for bad, message in [({"h": 0.1}, "missing parameter s"),
+                         ({"h": 0.1, "s": np.nan}, "non-finite parameter s"),
+                         ({"h": 0.1, "s": -1.0}, "declared positive")]:
+        with pytest.raises(sg.ParameterError, match=message):
+            red.project(states, bad)
+        with pytest.raises(sg.ParameterError, match=message):
+            red.related_momenta([0.0, 0.1], (), bad)
+        with pytest.raises(sg.ParameterError, match=message):
+            red.reconstruct(red.project(states, params), states[0], bad)
+    with pytest.raises(sg.DomainError, match="non-finite entries in the arrow"):
+        red.related_momenta([np.nan, 0.1], (), params)
+    with pytest.raises(sg.ShapeError, match="2 entries expected for the arrow, got 1"):
+        red.related_momenta([0.1], (), params)
+    with pytest.raises(sg.ShapeError, match="0 entries expected for the multipliers"):
+        red.related_momenta([0.0, 0.1], [1.0], params)
+    with pytest.raises(sg.ShapeError, match="must be an array of real numbers"):
+        red.project("abc", params)
+    P, T = red.unreduced.groupoid, red.groupoid
+    nan_map = sg.GroupoidMorphism(P, T, lambda g: (sp.nan * g.target[0],))
+    with pytest.raises(sg.DomainError, match=r"Φ: .*: the map's value at a random arrow is "
+                                             r"not a finite real number"):
+        sg.check_morphism(nan_map)
+
+
 def _rotation(x):
     return np.array(sg.SO3("t").cayley([sp.Float(v) for v in x]).evalf().tolist(), float)
 

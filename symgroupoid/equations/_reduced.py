@@ -9,8 +9,9 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._arguments import instance_argument
+from .._arguments import instance_argument, real_array
 from .._errors import DomainError, ShapeError, UnsupportedFeatureError
+from .._parameters import parameter_vector
 from ..derivation import check_forces, force_functions, reduce_functions
 from ..groupoids import GroupoidMorphism, check_morphism
 from ._system import DiscreteSystem, forces_argument
@@ -67,25 +68,21 @@ class ReducedSystem(DiscreteSystem):
     # --- parameters and states --------------------------------------------------------------
     def parameter_values(self, params: Mapping | Sequence) -> dict:
         """{name: value} from a mapping (by name or symbol) or a sequence in
-        ``self.parameters`` order; every parameter must be given."""
-        names = [str(s) for s in self.parameters]
+        ``self.parameters`` order; every parameter must be given, finite and with its
+        symbol's assumptions (a :class:`ParameterError` otherwise).  A mapping may also name
+        parameters of the unreduced system that this one does not read (a run's own)."""
+        names = {str(s) for s in self.parameters}
         if isinstance(params, Mapping):
-            given = {str(k): float(v) for k, v in params.items()}
-            missing = [n for n in names if n not in given]
-            if missing:
-                raise KeyError(f"{self.name}: missing parameter(s) {', '.join(missing)}")
-            return {n: given[n] for n in names}
-        values = [float(v) for v in params]
-        if len(values) != len(names):
-            raise ShapeError(f"{self.name}: {len(values)} parameter values given, expected "
-                             f"{len(names)} ({', '.join(names)})")
-        return dict(zip(names, values))
+            theirs = {str(s) for s in self.unreduced.parameters} - names
+            params = {k: v for k, v in params.items() if str(k) not in theirs}
+        return parameter_vector(self.parameters, params, owner=self.name)[1]
 
     def _split_states(self, states, groupoid, what: str) -> tuple[np.ndarray, np.ndarray]:
         """(arrows, the rest): the rest is the multipliers, then for a system with inputs
         the inputs u_k of the arrow and the slot of u_{k+1} (docs/conventions.md §20), which
         reduction keeps as they are."""
-        arr = np.atleast_2d(np.asarray(getattr(states, "states", states), float))
+        arr = np.atleast_2d(real_array(getattr(states, "states", states), f"the {what} states",
+                                       owner=self.name))
         m = len(self.inputs)
         n = groupoid.arrow_dim + self.n_constraints + 2 * m
         if arr.shape[1] != n:
@@ -134,8 +131,8 @@ class ReducedSystem(DiscreteSystem):
                         params: Mapping | Sequence = ()) -> MomentumRelation:
         """F±L of the unreduced system at (g, λ) and A*Φ of F±L′ at (Φ(g), λ)."""
         values = self.parameter_values(params)
-        g = np.asarray(arrow, float)
-        lam = np.asarray(multipliers, float)
+        g = self._finite(arrow, "arrow", self.unreduced.groupoid.arrow_dim)
+        lam = self._finite(multipliers, "multipliers", self.n_constraints)
         if self._transforms is None:
             self._transforms = (self.unreduced.legendre(), self.legendre())
         unreduced, reduced = self._transforms
@@ -149,6 +146,18 @@ class ReducedSystem(DiscreteSystem):
         return MomentumRelation(minus, plus,
                                 self.morphism.pull_back_momentum(alpha, rminus, values),
                                 self.morphism.pull_back_momentum(beta, rplus, values))
+
+    def _finite(self, value, what: str, size: int) -> np.ndarray:
+        """``value`` as ``size`` finite numbers (a :class:`ShapeError` or
+        :class:`DomainError` naming ``what`` otherwise)."""
+        arr = real_array(value, what, owner=self.name).ravel()
+        if arr.size != size:
+            raise ShapeError(f"{self.name}: {size} entries expected for the {what}, got "
+                             f"{arr.size}")
+        if not np.isfinite(arr).all():
+            raise DomainError(f"{self.name}: non-finite entries in the {what} "
+                              f"({arr.tolist()})")
+        return arr
 
     def __repr__(self) -> str:
         return (f"ReducedSystem({self.name!r} on {self.groupoid.name}, reduced from "

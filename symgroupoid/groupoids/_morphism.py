@@ -525,7 +525,6 @@ def check_morphism(phi: GroupoidMorphism, samples: int = 5, seed: int = 0,
         raise InputTypeError(f"{phi.name}: params must be a mapping from symbol or name to "
                              f"value, got {type(params).__name__} {shown_value(params)}")
     seed = integer_argument(seed, "seed", owner=phi.name)
-    G, H = phi.source, phi.target
     rng = np.random.default_rng(seed)
     values = ParameterValues(params, rng)
 
@@ -533,6 +532,16 @@ def check_morphism(phi: GroupoidMorphism, samples: int = 5, seed: int = 0,
         x, y = values.numbers(x), values.numbers(y)
         return x.shape == y.shape and bool(np.allclose(x, y, rtol=tol, atol=tol))
 
+    try:
+        _check_samples(phi, samples, rng, values, close)
+    except DomainError as err:  # (ParameterValues.number: a value that is not finite)
+        raise DomainError(f"{phi.name}: the map's value at a random arrow is {err}"
+                          f"{values.describe()}; Φ must map arrows to arrows") from None
+
+
+def _check_samples(phi: GroupoidMorphism, samples: int, rng, values, close) -> None:
+    """The identities of :func:`check_morphism` at ``samples`` random arrows."""
+    G, H = phi.source, phi.target
     for _ in range(samples):
         a = G.random_arrow(rng)
         b = G.random_arrow(rng, G.target(a))
