@@ -105,6 +105,18 @@ def test_kernel_methods_check_their_arrays(backend):
         kernel.simulate(state, params, -1, sim.options)
     status, *_ = kernel.solve_step(state, params, np.full(3, np.nan), sim.options)
     assert status == INVALID_ARGUMENT
+    # (u=None unpacked into a ValueError, options None or a dict an AttributeError or a
+    # TypeError, and 2**40 steps a MemoryError from NumPy)
+    for call in (kernel.residual, kernel.residual_jacobian, kernel.next_knowns):
+        with pytest.raises(sg.ShapeError, match="u must be"):
+            call(None, state, params)
+    for options in (None, {"max_iterations": 3}):
+        with pytest.raises(sg.InputTypeError, match="options must be NewtonOptions"):
+            kernel.solve_step(state, params, u, options)
+        with pytest.raises(sg.InputTypeError, match="options must be NewtonOptions"):
+            kernel.simulate(state, params, 3, options)
+    with pytest.raises(sg.TrajectoryTooLargeError, match="run it in pieces"):
+        kernel.simulate(state, params, 2**40, sim.options)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

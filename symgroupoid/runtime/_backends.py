@@ -23,7 +23,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .._arguments import integer_argument, real_array
-from .._errors import ShapeError
+from .._errors import InputTypeError, ShapeError, TrajectoryTooLargeError
 from ..codegen import band_order, time_layout
 from ..stepper import (
     NumpyStepper,
@@ -125,6 +125,31 @@ def _describe(array) -> str:
     return f"a {array.ndim}-D {layout} array of dtype {array.dtype}{access}"
 
 
+def _options(options, entry: str) -> None:
+    """An :class:`InputTypeError` unless ``options`` is :class:`NewtonOptions`."""
+    if not isinstance(options, NewtonOptions):
+        raise InputTypeError(f"{entry}: options must be NewtonOptions (e.g. NewtonOptions() "
+                             f"or NewtonOptions(max_iterations=20)), got "
+                             f"{type(options).__name__}")
+
+
+def _fits(kernel, n_steps: int) -> None:
+    """A :class:`TrajectoryTooLargeError` up front when the ``n_steps + 1`` states of a
+    kernel's run would not fit in what this process may allocate (a MemoryError from NumPy
+    otherwise, or the machine's memory exhausted)."""
+    from ._memory import available_memory
+
+    needed = (n_steps + 1) * 8 * kernel.n_k + n_steps * 16
+    if needed <= 1 << 26:  # (64 MiB: not worth asking, on the per-step calls of forced runs)
+        return
+    room = available_memory()
+    if room is not None and needed > room:
+        raise TrajectoryTooLargeError(
+            f"{kernel.name}: a run of {n_steps} steps keeps {n_steps + 1} states, "
+            f"{needed / 2**30:.1f} GiB, more than this process may allocate "
+            f"({room / 2**30:.1f} GiB); run it in pieces (Simulator.stream, simulate_into)")
+
+
 class _Kernel:
     """Input checks shared by both kernels; subclasses implement the ``_raw`` methods."""
 
@@ -133,27 +158,28 @@ class _Kernel:
     #: largest step count of one ``simulate`` call
     max_steps = 2**53
 
-    def _inputs(self, known, p, u=None) -> tuple[np.ndarray, ...]:
+    def _inputs(self, known, p, u=None, *, with_u: bool = False) -> tuple[np.ndarray, ...]:
+        """``known``, ``p`` and (``with_u``, or given) ``u`` as vectors of their lengths."""
         arrays = [real_vector(known, self.n_k, "known"), real_vector(p, self.n_p, "p")]
-        if u is not None:
+        if u is not None or with_u:
             arrays.append(real_vector(u, self.n_u, "u"))
         return tuple(arrays)
 
     def residual(self, u, known, p) -> np.ndarray:
         """F(u; known, p), shape (n_unknowns,)."""
-        known, p, u = self._inputs(known, p, u)
+        known, p, u = self._inputs(known, p, u, with_u=True)
         return self._residual(u, known, p)
 
     def residual_jacobian(self, u, known, p) -> tuple[np.ndarray, np.ndarray]:
         """F and its exact Jacobian J[i, j] = ∂F_i/∂u_j."""
-        known, p, u = self._inputs(known, p, u)
+        known, p, u = self._inputs(known, p, u, with_u=True)
         return self._residual_jacobian(u, known, p)
 
     def input_jacobian(self, u, known, p, columns: int) -> np.ndarray:
         """∂F/∂(the inputs in the last ``columns`` entries of ``known``), exact, shape
         (n_unknowns, columns): what the kernel's ``<prefix>_input_jacobian`` writes
         (docs/conventions.md §20)."""
-        known, p, u = self._inputs(known, p, u)
+        known, p, u = self._inputs(known, p, u, with_u=True)
         return self._input_jacobian(u, known, p, columns)
 
     def predict(self, known, p) -> np.ndarray:
@@ -163,7 +189,7 @@ class _Kernel:
 
     def next_knowns(self, u, known, p) -> np.ndarray:
         """The next known state from a solved step."""
-        known, p, u = self._inputs(known, p, u)
+        known, p, u = self._inputs(known, p, u, with_u=True)
         return self._next_knowns(u, known, p)
 
     def domain(self, u, known, p) -> np.ndarray:
@@ -171,15 +197,17 @@ class _Kernel:
         logarithms, square roots, acos, … of L; ``step.domain_kinds`` says which), at the
         unknowns u: all finite exactly where the terms are defined (docs/conventions.md §11;
         empty when L is defined everywhere)."""
-        known, p, u = self._inputs(known, p, u)
+        known, p, u = self._inputs(known, p, u, with_u=True)
         return self._domain(u, known, p)
 
     def solve_step(self, known, p, u0, options: NewtonOptions):
         """Newton's method from ``u0``: (status, last iterate, iterations, residual norm).
 
-        Non-finite ``known``, ``p`` or ``u0`` give ``INVALID_ARGUMENT`` (as in C).
+        Non-finite ``known``, ``p`` or ``u0`` give ``INVALID_ARGUMENT`` (as in C);
+        ``options`` must be :class:`NewtonOptions` (an :class:`InputTypeError` otherwise).
         """
-        known, p, u = self._inputs(known, p, u0)
+        known, p, u = self._inputs(known, p, u0, with_u=True)
+        _options(options, "solve_step")
         if not all(np.isfinite(a).all() for a in (known, p, u)):
             return INVALID_ARGUMENT, u, 0, float("nan")
         return self._solve_step(known, p, u, options)
@@ -190,6 +218,8 @@ class _Kernel:
         (from :meth:`warm_start`; None: a fresh start), which is updated in place."""
         known0, p = real_vector(known0, self.n_k, "known0"), real_vector(p, self.n_p, "p")
         n_steps = integer_argument(n_steps, "n_steps", maximum=self.max_steps)
+        _options(options, "simulate")
+        _fits(self, n_steps)
         if not (np.isfinite(known0).all() and np.isfinite(p).all()):
             return RawRun(np.zeros((n_steps + 1, self.n_k)), np.zeros(n_steps, np.int64),
                           np.zeros(n_steps), INVALID_ARGUMENT, -1, np.zeros(self.n_u))
