@@ -56,6 +56,10 @@ def run_info(args: argparse.Namespace) -> int:
             f"--bad' removes them):")
         for kernel in info.bad:
             say(f"    {kernel.key} ({kernel.system}): {kernel.problem}")
+    if info.bad_locks:
+        say(f"  {len(info.bad_locks)} lock files that are links or not files (a build of "
+            f"their kernel stops with a CacheError; 'symgroupoid cache clear' removes them): "
+            f"{', '.join(info.bad_locks)}")
     return 0
 
 
@@ -65,6 +69,8 @@ def run_clear(args: argparse.Namespace) -> int:
     say(f"kernel cache: {shown_path(result.root)}")
     say(f"  removed {result.removed} {'bad ' if bad else ''}kernels "
         f"({size_text(result.freed)}) and {result.index_entries} index entries")
+    if result.bad_locks:
+        say(f"  removed {result.bad_locks} lock files that were links or not files")
     if result.busy:
         say(f"  left {len(result.busy)} being built by another process: "
             f"{', '.join(result.busy)}")

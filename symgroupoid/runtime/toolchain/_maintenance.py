@@ -67,6 +67,9 @@ class CacheInfo:
     leftovers: int = 0
     #: why the cache is not used (a link, another user's directory, writable by others)
     refused: str | None = None
+    #: lock files that are links or not regular files (no build opens them: a build that
+    #: needs one stops with a CacheError until ``clear_cache`` removes it)
+    bad_locks: list[str] = field(default_factory=list)
 
     @property
     def size(self) -> int:
@@ -87,6 +90,7 @@ class ClearedCache:
     busy: list[str] = field(default_factory=list)
     index_entries: int = 0
     failed: list[str] = field(default_factory=list)  # kernels and index files still there
+    bad_locks: int = 0  # lock files that were links or not regular files, removed
 
 
 def _tree_size(path: Path) -> int:
@@ -152,7 +156,17 @@ def cache_info(root: Path | None = None) -> CacheInfo:
     info.kernels = [_kernel(e) for e in _entries(root / "kernels", _KEY)]
     info.index_entries = len(_entries(root / "index", _INDEX))
     info.leftovers = len(_entries(root / "tmp"))
+    info.bad_locks = [e.name for e in _bad_locks(root)]
     return info
+
+
+def _bad_locks(root: Path) -> list[Path]:
+    """The lock files of ``root`` that are links or not regular files (never followed)."""
+    locks = root / "locks"
+    if not locks.is_dir() or locks.is_symlink():
+        return []
+    return [entry for entry in sorted(locks.iterdir())
+            if entry.is_symlink() or not entry.is_file()]
 
 
 def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedCache:
@@ -185,6 +199,12 @@ def clear_cache(root: Path | None = None, *, bad_only: bool = False) -> ClearedC
         raise CacheError(f"{locks} is not a directory, so no lock tells a kernel being built "
                          f"from one that is not: nothing was removed (remove that file; the "
                          f"next build recreates the directory)")
+    for entry in _bad_locks(root):  # (a link is removed itself, never what it points to)
+        _remove(entry)
+        if not os.path.lexists(entry):
+            result.bad_locks += 1
+        else:
+            result.failed.append(f"locks/{entry.name}")
     # a read-only cache: its locks cannot be opened, which is not a build in progress
     changeable = all(os.access(root / name, os.W_OK) for name in ("kernels", "locks"))
     for entry in _entries(root / "kernels", _KEY):
