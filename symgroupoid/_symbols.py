@@ -149,13 +149,14 @@ def unspelled_character(name: str) -> str | None:
     return None
 
 
-#: a superscript of digits (SymPy prints m__2 and m^2 as m^{2}): read as a power
-_POWER_SUPERSCRIPT = re.compile(r"\^\{?[0-9]+\}?")
+#: a superscript of digits or Latin letters (SymPy prints m__2 and m^2 as m^{2}, a__b as
+#: a^{b}): read as a power
+_POWER_SUPERSCRIPT = re.compile(r"\^(\{[0-9A-Za-z]+\}|[0-9A-Za-z])")
 
 
 def reads_as_power(name: str) -> bool:
-    """Whether ``name`` prints with a superscript of digits, as a power reads (``m__2``,
-    ``m^2``: m^{2}, the square of m)."""
+    """Whether ``name`` prints with a superscript of digits or Latin letters, as a power
+    reads (``m__2``, ``m^2``: m^{2}, the square of m; ``a__b``: a^{b})."""
     return _POWER_SUPERSCRIPT.search(latex_name(name)) is not None
 
 
@@ -240,7 +241,7 @@ def unprintable_name(name: str, words: bool = True) -> str | None:
                 f"letters such as ẋ are spelt as commands)")
     if reads_as_power(name):
         return (f"it prints as {latex_name(name)}, which reads as a power (a superscript of "
-                f"digits); write the index as a subscript (m_2)")
+                f"digits or letters); write the index as a subscript (m_2)")
     if _LATEX_SPECIAL.search(name):
         return "it holds a character LaTeX reads as structure (% & # $ ~ or a lone backslash)"
     for command in re.findall(r"\\([A-Za-z]+)", name):

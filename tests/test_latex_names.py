@@ -238,9 +238,10 @@ def test_an_abbreviation_reads_only_the_steps_symbols():
         step.latex(abbreviations={"M": value + sp.Symbol("zz")})
 
 
-@pytest.mark.parametrize("name", ["m__2", "m^2", "theta__12"])
+@pytest.mark.parametrize("name", ["m__2", "m^2", "theta__12", "a__b"])
 def test_a_name_printed_with_a_superscript_of_digits_is_refused(name):
-    """SymPy prints m__2 as m^{2}: the equations of m__2 printed exactly as those of m²."""
+    """SymPy prints m__2 as m^{2}: the equations of m__2 printed exactly as those of m²
+    (and a__b as a^{b}, a to the b)."""
     with pytest.raises(sg.CoordinateNameError, match="reads as a power"):
         sg.EuclideanSpace([name])
     mass = sp.Symbol(name, positive=True)

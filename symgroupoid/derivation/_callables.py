@@ -447,8 +447,8 @@ def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None
         raise _name_refused(system_name, p, misread[3:])  # ("it prints …" → "prints …")
     if reads_as_power(p.name.strip()):
         raise _name_refused(system_name, p, f"prints as {latex_name(p.name.strip())}, which "
-                            f"reads as a power (a superscript of digits): write the index as "
-                            f"a subscript (m_2)")
+                            f"reads as a power (a superscript of digits or letters): "
+                            f"write the index as a subscript (m_2)")
     key = latex_name(p.name.strip())
     if key in printed:
         raise ParameterDeclarationError(
