@@ -203,6 +203,19 @@ def real_array(value, name: str, *, owner: str = "") -> np.ndarray:
                          f"{shown_value(value)}") from None
 
 
+def finite_vector(value, size: int, name: str, *, owner: str = "") -> np.ndarray:
+    """``value`` as ``size`` finite real numbers, flattened (:func:`real_array`); a
+    :class:`ShapeError` for another count, a :class:`DomainError` for a non-finite entry,
+    each naming ``name``."""
+    arr = real_array(value, name, owner=owner).ravel()
+    if arr.size != size:
+        raise ShapeError(f"{where(owner)}{size} entries expected for the {name}, got "
+                         f"{arr.size}")
+    if not np.isfinite(arr).all():
+        raise DomainError(f"{where(owner)}non-finite entries in the {name} ({arr.tolist()})")
+    return arr
+
+
 def input_rows(inputs, m: int, rows: int, *, owner: str = "", name: str = "inputs",
                names: Sequence[str] = ()) -> np.ndarray:
     """A forced system's inputs (docs/conventions.md §20) as real numbers in rows of ``m``:

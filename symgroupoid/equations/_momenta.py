@@ -9,7 +9,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import flag_argument, instance_argument
+from .._arguments import finite_vector, flag_argument, instance_argument
 from .._errors import (
     DomainError,
     InputTypeError,
@@ -234,22 +234,11 @@ class NoetherQuantity:
         quantity's program, as :meth:`along` is (the SymPy form is not built).  Arrays of
         other lengths are a :class:`ShapeError`; non-finite entries, and a value that is
         not finite there, a :class:`DomainError`."""
-        values = []
-        for name, given, want in (("arrow", arrow, len(self.arrow)),
-                                  ("multipliers", multipliers, len(self.multipliers)),
-                                  ("params", params, len(self.parameters))):
-            try:
-                value = np.asarray(given, dtype=float).ravel()
-            except (TypeError, ValueError) as exc:
-                raise ShapeError(f"NoetherQuantity.evaluate: {name} must be {want} real "
-                                 f"numbers ({exc})") from None
-            if value.size != want:
-                raise ShapeError(f"NoetherQuantity.evaluate: {name} has {value.size} "
-                                 f"entries, the quantity needs {want}")
-            if not np.isfinite(value).all():
-                raise DomainError(f"NoetherQuantity.evaluate: {name} has non-finite "
-                                  f"entries ({value.tolist()})")
-            values.append(value)
+        values = [finite_vector(given, want, name, owner="NoetherQuantity.evaluate")
+                  for name, given, want in (("arrow", arrow, len(self.arrow)),
+                                            ("multipliers", multipliers,
+                                             len(self.multipliers)),
+                                            ("params", params, len(self.parameters)))]
         known = np.r_[values[0], values[1]][:, None]
         with np.errstate(all="ignore"):
             (F,) = self._at_stages(["F"], known, values[2])

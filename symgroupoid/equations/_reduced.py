@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._arguments import instance_argument, real_array
+from .._arguments import finite_vector, instance_argument, real_array
 from .._errors import DomainError, ShapeError, UnsupportedFeatureError
 from .._parameters import parameter_vector
 from ..derivation import check_forces, force_functions, reduce_functions
@@ -131,8 +131,8 @@ class ReducedSystem(DiscreteSystem):
                         params: Mapping | Sequence = ()) -> MomentumRelation:
         """F±L of the unreduced system at (g, λ) and A*Φ of F±L′ at (Φ(g), λ)."""
         values = self.parameter_values(params)
-        g = self._finite(arrow, "arrow", self.unreduced.groupoid.arrow_dim)
-        lam = self._finite(multipliers, "multipliers", self.n_constraints)
+        g = finite_vector(arrow, self.unreduced.groupoid.arrow_dim, "arrow", owner=self.name)
+        lam = finite_vector(multipliers, self.n_constraints, "multipliers", owner=self.name)
         if self._transforms is None:
             self._transforms = (self.unreduced.legendre(), self.legendre())
         unreduced, reduced = self._transforms
@@ -146,18 +146,6 @@ class ReducedSystem(DiscreteSystem):
         return MomentumRelation(minus, plus,
                                 self.morphism.pull_back_momentum(alpha, rminus, values),
                                 self.morphism.pull_back_momentum(beta, rplus, values))
-
-    def _finite(self, value, what: str, size: int) -> np.ndarray:
-        """``value`` as ``size`` finite numbers (a :class:`ShapeError` or
-        :class:`DomainError` naming ``what`` otherwise)."""
-        arr = real_array(value, what, owner=self.name).ravel()
-        if arr.size != size:
-            raise ShapeError(f"{self.name}: {size} entries expected for the {what}, got "
-                             f"{arr.size}")
-        if not np.isfinite(arr).all():
-            raise DomainError(f"{self.name}: non-finite entries in the {what} "
-                              f"({arr.tolist()})")
-        return arr
 
     def __repr__(self) -> str:
         return (f"ReducedSystem({self.name!r} on {self.groupoid.name}, reduced from "
