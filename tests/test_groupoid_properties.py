@@ -272,6 +272,23 @@ def test_the_base_groups_are_groups_of_the_arrows_that_the_base_holds(G: sg.Grou
         assert base == named
 
 
+@every_groupoid()
+def test_random_arrows_lie_on_their_groups_and_scaled_ones_do_not(G: sg.Groupoid) -> None:
+    """``off_group_rows`` (what the reduced system's ``project`` checks its states with)
+    passes random arrows of every groupoid, and flags them with every coordinate doubled
+    where the arrow holds a part of a matrix group (doubled, a rotation is not one)."""
+    rng = np.random.default_rng(7)
+    arrows = np.array([G.random_arrow(rng) for _ in range(4)], float)
+    assert list(G.off_group_rows(arrows, sg.groupoids.GROUP_TOLERANCE)) == []
+    position = set(G.named_arrow(0))
+    held = any(e in position for name in G.named_groups()
+               for o in (-1, 0, 1)
+               for value in [G.symbols_by_name(o).get(name)] if hasattr(value, "shape")
+               for e in value)
+    flagged = G.off_group_rows(2 * arrows, sg.groupoids.GROUP_TOLERANCE)
+    assert list(flagged) == ([0, 1, 2, 3] if held else []), (G.name, flagged)
+
+
 def test_pair_coordinates_are_found_through_products() -> None:
     names = {n: [c.name for c in groupoid(n).pair_coordinates()]
              for n in ("pair R3", "product SE2 x SO2 x pair R",

@@ -107,6 +107,28 @@ def test_the_reduced_systems_numerics_check_their_arguments():
         sg.check_morphism(nan_map)
 
 
+def test_project_refuses_states_off_their_group():
+    """project returned Φ(1.5·I, 1.5·I) = 2.25·I as a reduced arrow of SO(3), where a run
+    from that state is refused; a property check over every groupoid is
+    tests/test_groupoid_properties.py's."""
+    rb = systems.rigid_body()
+    h, I1, I2, I3 = rb.parameters
+    Jd = sp.Matrix(systems.discrete_inertia(I1, I2, I3))
+    P = sg.PairGroupoid(sg.SO3("R"))
+    full = sg.DiscreteSystem(P, lambda g: -(Jd * g.source.T * g.target).trace() / h,
+                             parameters=rb.parameters, name="rb_pair")
+    phi = sg.GroupoidMorphism(P, rb.groupoid, lambda g: g.source.T * g.target,
+                              section=lambda w: P.arrow_from(tuple(sp.eye(3)),
+                                                             tuple(w.matrix)))
+    red = full.reduce(phi)
+    params = {"h": 0.1, "I1": 1.0, "I2": 2.0, "I3": 3.0}
+    R = _rotation([0.1, -0.2, 0.3])
+    good = np.concatenate([np.eye(3).ravel(), R.ravel()])
+    assert np.allclose(red.project(good[None, :], params).reshape(3, 3), R)
+    with pytest.raises(sg.DomainError, match="unreduced state 1 is not an arrow"):
+        red.project(np.vstack([good, 1.5 * good]), params)
+
+
 def _rotation(x):
     return np.array(sg.SO3("t").cayley([sp.Float(v) for v in x]).evalf().tolist(), float)
 

@@ -13,7 +13,7 @@ from .._arguments import finite_vector, instance_argument, real_array
 from .._errors import DomainError, ShapeError, UnsupportedFeatureError
 from .._parameters import parameter_vector
 from ..derivation import check_forces, force_functions, reduce_functions
-from ..groupoids import GroupoidMorphism, check_morphism
+from ..groupoids import GROUP_TOLERANCE, GroupoidMorphism, check_morphism
 from ._system import DiscreteSystem, forces_argument
 
 
@@ -102,6 +102,11 @@ class ReducedSystem(DiscreteSystem):
         state array or a :class:`~symgroupoid.Trajectory`; a forced system's inputs are
         kept."""
         arrows, lam = self._split_states(states, self.unreduced.groupoid, "unreduced")
+        off = self.unreduced.groupoid.off_group_rows(arrows, GROUP_TOLERANCE)
+        if len(off):  # (Φ of 1.5·I was returned as an arrow: 2.25·I)
+            raise DomainError(f"{self.name}: unreduced state {int(off[0])} is not an arrow of "
+                              f"{self.unreduced.groupoid.name}: a group part is off its group "
+                              f"by more than {GROUP_TOLERANCE:g} (|RᵀR − I|, |det R − 1|)")
         reduced = self.morphism.project(arrows, self.parameter_values(params))
         return np.hstack([reduced, lam])
 

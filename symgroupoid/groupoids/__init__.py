@@ -13,7 +13,7 @@ from ._matrix_form import (
     named_constants,
     to_explicit,
 )
-from ._matrix_groups import MatrixArrow, MatrixLieGroup, hat3
+from ._matrix_groups import GROUP_TOLERANCE, MatrixArrow, MatrixLieGroup, hat3
 from ._morphism import GroupoidMorphism, ParameterValues, check_morphism
 from ._numerics import ConfigurationChecks, PairCoordinate
 from ._pair import EuclideanSpace, PairArrow, PairGroupoid
@@ -32,7 +32,8 @@ __all__ = [
     "is_constant_matrix", "named_constants", "to_explicit",
     "ActionArrow", "ActionGroupoid", "Arrow", "AtiyahArrow", "AtiyahGroupoid",
     "DefinedGroupoid", "EuclideanSpace", "Groupoid", "GroupoidMorphism", "MatrixArrow",
-    "ConfigurationChecks", "MatrixLieGroup", "NamedMatrix", "PairCoordinate", "StructuredMatrix",
+    "ConfigurationChecks", "GROUP_TOLERANCE", "MatrixLieGroup", "NamedMatrix",
+    "PairCoordinate", "StructuredMatrix",
     "PairArrow", "PairGroupoid", "ParameterValues",
     "ProductArrow", "ProductGroupoid", "SE2", "SE3", "SO2", "SO3", "TimeArrow", "TimeGroupoid",
     "TrivialisedArrow", "TrivialisedPairGroupoid",

@@ -216,6 +216,25 @@ class Groupoid(GroupoidNumerics, ABC):
         values are checked to lie in the group)."""
         return {}
 
+    def off_group_rows(self, arrows: np.ndarray, tolerance: float) -> np.ndarray:
+        """The rows of ``arrows`` (N, arrow_dim) whose named group parts
+        (:meth:`named_groups`, at the arrow's base points) are farther than ``tolerance``
+        from their groups (:meth:`MatrixLieGroup.deviations`), computed for all rows at
+        once; a part whose entries are not among the arrow's coordinates is not checked."""
+        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        position = {c: i for i, c in enumerate(self.named_arrow(0))}
+        bad = np.zeros(len(arrows), dtype=bool)
+        for name, group in dict(self.named_groups()).items():
+            for offset in (-1, 0, 1):
+                value = self.symbols_by_name(offset).get(name)
+                if value is None or not hasattr(value, "shape") or value.shape != (
+                        group.n, group.n):
+                    continue
+                M = _matrices(arrows, value, position)
+                if M is not None:
+                    bad |= ~(group.deviations(M) <= tolerance)
+        return np.flatnonzero(bad)
+
     def base_groups(self) -> dict:
         """Matrix-group parts of a base point's named coordinates: name → MatrixLieGroup
         (the base of a pair groupoid of a group; a Lie group's base is a point, an action
@@ -693,3 +712,19 @@ def _graph_function(symbols: list, exprs: list) -> Callable:
 
     return f
 
+
+def _matrices(arrows: np.ndarray, value, position: dict) -> np.ndarray | None:
+    """The matrices (N, n, n) whose entries are the arrow coordinates or numbers of the
+    symbolic matrix ``value``, at every row of ``arrows``; None when an entry is neither."""
+    n, m = value.shape
+    out = np.empty((len(arrows), n, m))
+    for i in range(n):
+        for j in range(m):
+            entry = value[i, j]
+            if entry in position:
+                out[:, i, j] = arrows[:, position[entry]]
+            elif getattr(entry, "is_number", False):
+                out[:, i, j] = float(entry)
+            else:
+                return None
+    return out

@@ -114,6 +114,12 @@ class MatrixArrow(Arrow):
         return self.matrix[:n, n]
 
 
+#: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
+#: last row of SE(n); :meth:`MatrixLieGroup.deviations`): far above the rounding of a
+#: product of many rotations, far below any matrix that is not a rotation
+GROUP_TOLERANCE = 1e-9
+
+
 class MatrixLieGroup(Groupoid):
     """A matrix Lie group given by its Lie algebra basis and inversion.
 
@@ -512,6 +518,19 @@ class MatrixLieGroup(Groupoid):
         relative = np.linalg.solve(Q0, self.numeric_matrix([float(v) for v in q1]))
         path = self.numeric_matrices(self.geodesic(self.numeric_coordinates(relative), s))
         return np.array([self.numeric_coordinates(Q0 @ M) for M in path])
+
+    def deviations(self, M: np.ndarray) -> np.ndarray:
+        """How far each matrix of ``M`` (..., n, n) is from the group: the largest of
+        |RᵀR − I|, |det R − 1| for its rotation block R and, for an affine group, the
+        distance of its last row from (0, …, 0, 1); shape (...)."""
+        M = np.asarray(M, float)
+        n = self.n - 1 if self.affine else self.n
+        R = M[..., :n, :n]
+        off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(n)).max(axis=(-1, -2))
+        worst = np.maximum(off, np.abs(np.linalg.det(R) - 1.0))
+        if self.affine:
+            worst = np.maximum(worst, np.abs(M[..., -1, :] - np.eye(self.n)[-1]).max(-1))
+        return worst
 
     def numeric_matrices(self, arrows: np.ndarray) -> np.ndarray:
         """:meth:`numeric_matrix` of every row of ``arrows``: (N, n, n)."""

@@ -272,13 +272,7 @@ class StateLayout:
             index = np.where(part.index >= 0, part.index, 0)
             values = np.where(part.index >= 0, states[:, index] + part.fixed, part.fixed)
             M = values.reshape(len(states), -1, group.n, group.n)
-            n = group.n - 1 if group.affine else group.n
-            R = M[..., :n, :n]
-            off = np.abs(np.swapaxes(R, -1, -2) @ R - np.eye(n)).max(axis=(-1, -2))
-            worst = np.maximum(off, np.abs(np.linalg.det(R) - 1.0))
-            if group.affine:
-                worst = np.maximum(worst, np.abs(M[..., -1, :] - np.eye(group.n)[-1]).max(-1))
-            bad |= ~(worst <= GROUP_TOLERANCE).all(axis=-1)
+            bad |= ~(group.deviations(M) <= GROUP_TOLERANCE).all(axis=-1)
         return np.flatnonzero(bad)
 
     def unjoined_row(self, states: np.ndarray, steps: np.ndarray,

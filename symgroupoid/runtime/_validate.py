@@ -45,12 +45,7 @@ from .._parameters import (  # noqa: F401  (the runtime's checks gathered here)
     violated_assumption,
 )
 from ..equations import constraint_program, holonomic_program
-from ..groupoids import Groupoid, MatrixLieGroup
-
-#: tolerance of the group-membership check of matrices (|RᵀR − I|, |det R − 1|, the fixed
-#: last row of SE(n)): far above the rounding of a product of many rotations, far below any
-#: matrix that is not a rotation
-GROUP_TOLERANCE = 1e-9
+from ..groupoids import GROUP_TOLERANCE, Groupoid, MatrixLieGroup
 
 #: a group element off its group by more than GROUP_TOLERANCE but at most this (a rotation
 #: given to six digits or more, ``np.round(R, 8)``) is replaced by the nearest element of
