@@ -11,13 +11,8 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 import sympy as sp
 
-from ._arguments import real_argument
+from ._arguments import real_argument, where
 from ._errors import ParameterError
-
-
-def _where(owner: str) -> str:
-    return f"{owner}: " if owner else ""
-
 
 # --- parameters ---------------------------------------------------------------------------------
 
@@ -133,7 +128,7 @@ def check_assumptions(symbol: sp.Symbol, value: float, *, owner: str = "") -> No
         holds = getattr(exact, f"is_{key}")
         if holds is not None and bool(holds) != expected:
             what = key if expected else f"not {key}"
-            raise ParameterError(f"{_where(owner)}parameter {symbol} is declared {what}, "
+            raise ParameterError(f"{where(owner)}parameter {symbol} is declared {what}, "
                                  f"got {symbol} = {value!r}")
 
 
@@ -148,7 +143,7 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
     (a ``KeyError`` and a ``ValueError``) naming the parameter otherwise: unknown names,
     missing or repeated ones, a wrong count, a non-number, NaN/inf, a violated assumption.
     """
-    where = _where(owner)
+    at = where(owner)
     names = list(parameter_names(tuple(parameters)))
     listing = ", ".join(names) if names else "none"
     if params is None:
@@ -158,34 +153,34 @@ def parameter_vector(parameters: Sequence, params, *, owner: str = ""
         for key, value in params.items():
             label = str(key)
             if label in given:
-                raise ParameterError(f"{where}parameter {label} given twice")
+                raise ParameterError(f"{at}parameter {label} given twice")
             given[label] = value
         unknown = [k for k in given if k not in names]
         if unknown:
             noun = "parameter" if len(unknown) == 1 else "parameters"
-            raise ParameterError(f"{where}unknown {noun} {', '.join(unknown)}; the parameters "
+            raise ParameterError(f"{at}unknown {noun} {', '.join(unknown)}; the parameters "
                                  f"are {listing}")
         missing = [n for n in names if n not in given]
         if missing:
             noun = "parameter" if len(missing) == 1 else "parameters"
-            raise ParameterError(f"{where}missing {noun} {', '.join(missing)}")
+            raise ParameterError(f"{at}missing {noun} {', '.join(missing)}")
         raw = [given[n] for n in names]
     else:
         if (params.ndim != 1 if isinstance(params, np.ndarray)
                 else not isinstance(params, Sequence) or isinstance(params, (str, bytes))):
-            raise ParameterError(f"{where}parameters must be a mapping name → value or a "
+            raise ParameterError(f"{at}parameters must be a mapping name → value or a "
                                  f"sequence of {len(names)} values ({listing}), got "
                                  f"{type(params).__name__} {params!r}")
         raw = list(params)
         if len(raw) != len(names):
-            raise ParameterError(f"{where}{len(raw)} parameter values given, expected "
+            raise ParameterError(f"{at}{len(raw)} parameter values given, expected "
                                  f"{len(names)} ({listing})")
     values = []
     for symbol, name, value in zip(parameters, names, raw):
         real = real_argument(value, f"parameter {name}", owner=owner, error=ParameterError,
                              finite=False)
         if not np.isfinite(real):
-            raise ParameterError(f"{where}non-finite parameter {name} = {real!r}")
+            raise ParameterError(f"{at}non-finite parameter {name} = {real!r}")
         if isinstance(symbol, sp.Symbol):
             check_assumptions(symbol, real, owner=owner)
         values.append(real)

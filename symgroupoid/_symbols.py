@@ -166,16 +166,16 @@ OPERATOR_WORDS = frozenset({"sin", "cos", "tan", "exp", "log", "ln", "tr", "det"
 
 
 def misread_name(name: str, words: bool = True) -> str | None:
-    """Why ``name``, printed, would read as something else, or None: as an operator word
-    (``tr`` beside the trace tr(W E_1), ``sin``; with ``words``: a scalar's name, not a
-    group's, whose values print as matrices g_k), or with an empty subscript or superscript
-    (``x_`` prints x_{}, which reads as x)."""
+    """How ``name``, printed, would read as something else ("prints as …"), or None: as an
+    operator word (``tr`` beside the trace tr(W E_1), ``sin``; with ``words``: a scalar's
+    name, not a group's, whose values print as matrices g_k), or with an empty subscript or
+    superscript (``x_`` prints x_{}, which reads as x)."""
     if words and name in OPERATOR_WORDS:
-        return (f"it prints as the word {name}, which the printed equations use as an "
+        return (f"prints as the word {name}, which the printed equations use as an "
                 f"operator ({name}(…))")
     printed = latex_name(name)
     if re.search(r"[_^]\{\}", printed):
-        return (f"it prints as {printed}, an empty subscript or superscript, which reads as "
+        return (f"prints as {printed}, an empty subscript or superscript, which reads as "
                 f"the name without it")
     return None
 
@@ -257,7 +257,7 @@ def unprintable_name(name: str, words: bool = True) -> str | None:
         return "its braces are not balanced"
     misread = misread_name(name, words)
     if misread is not None:
-        return misread
+        return f"it {misread}"
     if is_difference_name(name):
         return ("it is written \\Delta, as the printed equations write the differences of "
                 "the coordinates (\\Delta q for q_{k+1} - q_k: a coordinate Δ would print "

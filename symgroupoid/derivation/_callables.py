@@ -444,7 +444,7 @@ def _check_parameter_name(system_name: str, p: sp.Symbol, printed: dict) -> None
                             f"are spelt as commands)")
     misread = misread_name(p.name.strip())
     if misread is not None:
-        raise _name_refused(system_name, p, misread[3:])  # ("it prints …" → "prints …")
+        raise _name_refused(system_name, p, misread)
     if reads_as_power(p.name.strip()):
         raise _name_refused(system_name, p, f"prints as {latex_name(p.name.strip())}, which "
                             f"reads as a power (a superscript of digits or letters): "

@@ -184,7 +184,8 @@ def _called(G: Groupoid | None, what: str, function, q: Sequence, name: str = ""
     holonomic constraint receives them (on SO(3) × SO(3), ``q[0][2, 0]`` fails and ``q[6]``
     reads the first factor's entry (3, 1))."""
     try:
-        return call_user(name or G.name, what, function, section_point(G, q))
+        owner = name or (G.name if G is not None else "")
+        return call_user(owner, what, function, section_point(G, q))
     except CallableError as err:
         view = G.base_view(tuple(q)) if G is not None else None
         if not isinstance(view, tuple) or all(isinstance(p, sp.Basic) and not

@@ -346,8 +346,7 @@ def verified_forms(step, abbreviations: Mapping | None = None,
 def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]]:
     """The forms of the step in the named pieces of the rule L is shortest in (none when L
     is not written in pieces or the step is not a junction variation of L), in matrix form
-    or explicit; none where a parameter prints as a piece (xbar as x̄), and not the one with
-    L's partial derivatives where a parameter prints as L."""
+    or explicit."""
     system = junction_system(step)
     if system is None:
         return []
@@ -356,12 +355,7 @@ def _piece_forms(step, matrix_form: bool = False) -> list[tuple[Form, PieceRule]
     except NOT_IN_PIECES:
         return []
     out = []
-    names = {rendered(latex(s)) for s in step.parameters}
-    if not names.isdisjoint(rendered(latex(p)) for p in printed_pieces(step)):
-        return out  # a parameter xbar prints as the midpoint x̄: no form in pieces
     for build in (piece_form, derivative_form):
-        if build is derivative_form and "L" in names:  # a length L beside ∂_{Δx} L
-            continue
         try:
             form = build(step, rule, matrix_form) if rule is not None else None
         except NOT_IN_PIECES:
@@ -383,9 +377,15 @@ def _constants_clash(step) -> bool:
 
 
 def _no_clash(form: Form, step) -> bool:
-    """The piece names are not names the step already uses."""
-    names = {str(s) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
-                              *step.parameters]}
-    return not any(str(p) in names for layer in form.layers[:2] for p in layer)
+    """The piece names print unlike every name the step already uses: no symbol of the
+    step prints as a piece at any subscript (a parameter xbar as the midpoint x̄, which
+    sits beside x̄_{k+1/2}), and, in the form with L's partial derivatives, none as L (a
+    length L beside ∂_{Δx} L).  Compared as they typeset (:func:`rendered`)."""
+    names = {rendered(latex(s)) for s in [*step.knowns, *step.unknowns, *step.fibre_unknowns,
+                                          *step.parameters]}
+    pieces = [*printed_pieces(step), *(p for layer in form.layers[:2] for p in layer)]
+    if form.unindexed and "L" in names:
+        return False
+    return names.isdisjoint(rendered(latex(p)) for p in pieces)
 
 

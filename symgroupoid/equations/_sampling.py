@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._errors import DomainError
+from .._errors import DomainError, ParameterError
 from ..derivation import parameter_value, scaled_norm
 from ._findings import (
     DEPENDENT_CONSTRAINTS,
@@ -118,13 +118,14 @@ class Sample:
 
 
 def _evaluate(step, u, k, p) -> tuple[np.ndarray, np.ndarray]:
-    """F and J at one point; NaN where they are not finite there (``step.evaluate`` refuses
-    such a point with a :class:`DomainError`: here it is only left out)."""
+    """F and J at one point; NaN where they are not finite there, or the point's parameters
+    break their symbols' assumptions (``step.evaluate`` refuses such a point with a
+    :class:`DomainError` or :class:`ParameterError`: here it is only left out)."""
     with np.errstate(all="ignore"), warnings.catch_warnings():
         warnings.simplefilter("ignore")
         try:
             F, J = step.evaluate(u, k, p)
-        except DomainError:
+        except (DomainError, ParameterError):  # (a nudged integer parameter, too)
             n = len(step.residuals)
             return np.full(n, np.nan), np.full((n, len(step.unknowns)), np.nan)
     return np.asarray(F, float), np.asarray(J, float)
