@@ -287,6 +287,9 @@ def test_random_arrows_lie_on_their_groups_and_scaled_ones_do_not(G: sg.Groupoid
                for e in value)
     flagged = G.off_group_rows(2 * arrows, sg.groupoids.GROUP_TOLERANCE)
     assert list(flagged) == ([0, 1, 2, 3] if held else []), (G.name, flagged)
+    for bad, tolerance in [(arrows[:, 1:], 1e-9), ("rows", 1e-9), (arrows, -1.0)]:
+        with pytest.raises(sg.ShapeError):
+            G.off_group_rows(bad, tolerance)
 
 
 def test_pair_coordinates_are_found_through_products() -> None:

@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
+from .._arguments import real_argument, real_array
 from .._errors import CallableError, InputTypeError, ShapeError, SymgroupoidError
 from .._lambdify import NUMPY_MODULES
 from .._symbols import scalar_expressions
@@ -220,8 +221,14 @@ class Groupoid(GroupoidNumerics, ABC):
         """The rows of ``arrows`` (N, arrow_dim) whose named group parts
         (:meth:`named_groups`, at the arrow's base points) are farther than ``tolerance``
         from their groups (:meth:`MatrixLieGroup.deviations`), computed for all rows at
-        once; a part whose entries are not among the arrow's coordinates is not checked."""
-        arrows = np.asarray(arrows, float).reshape(-1, self.arrow_dim)
+        once; a part whose entries are not among the arrow's coordinates is not checked.
+        Rows of another width, and a tolerance that is not a non-negative number, are a
+        :class:`ShapeError`."""
+        arrows = np.atleast_2d(real_array(arrows, "arrows", owner=self.name))
+        if arrows.ndim != 2 or arrows.shape[1] != self.arrow_dim:
+            raise ShapeError(f"{self.name}: arrows are rows of {self.arrow_dim} coordinates, "
+                             f"got shape {arrows.shape}")
+        tolerance = real_argument(tolerance, "tolerance", minimum=0.0, owner=self.name)
         position = {c: i for i, c in enumerate(self.named_arrow(0))}
         bad = np.zeros(len(arrows), dtype=bool)
         for name, group in dict(self.named_groups()).items():
