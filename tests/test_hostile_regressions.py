@@ -577,7 +577,11 @@ def test_names_written_alike_are_one_name(build):
     ([sp.Symbol("θ"), sp.Symbol("theta")], "x", "declared twice"),
     ([sp.Symbol(r"\theta")], "theta", "has the name of a coordinate"),
     ([sp.Symbol("λ")], "x", r"\(or the multipliers\)"),
-], ids=["two-inputs", "input-coordinate", "multipliers"])
+    ([sp.Symbol("f")], "x", r"as the discrete forces f\^\{\+\}"),
+    ([sp.Symbol("x_1")], "x", r"the name of the coordinate 'x' with a subscript"),
+    ([sp.Symbol("theta_a")], "θ", r"the name of the coordinate 'θ' with a subscript"),
+], ids=["two-inputs", "input-coordinate", "multipliers", "force-letter", "subscripted",
+        "subscripted-alias"])
 def test_inputs_written_alike_are_refused(inputs, space, message):
     """Inputs θ and theta became one input: a force h(θ − theta)/2 vanished from the
     residual and runs ignored the inputs given; an input θ on a coordinate theta read the
@@ -589,6 +593,26 @@ def test_inputs_written_alike_are_refused(inputs, space, message):
     with pytest.raises(sg.InputNameError, match=message):
         sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace(space)), _spring_L,
                           parameters=[H], forces=forces, inputs=inputs).euler_lagrange()
+
+
+def test_a_parameter_written_as_the_forces_is_refused():
+    """A parameter f of a forced system printed "f^{+}_{1}(g_{k}) = f" beside the forces'
+    own f⁺, f⁻; inputs g_1 on SO(3)'s g printed (g_{1})_{k} beside (g_{k})_{12}.  Without
+    forces a parameter f prints nothing it could be confused with."""
+    f = sp.Symbol("f", positive=True)
+
+    def forces(g):
+        return [H * f / 2], [H * f / 2]
+
+    space = sg.PairGroupoid(sg.EuclideanSpace("q"))
+    with pytest.raises(sg.ParameterDeclarationError, match="as the discrete forces"):
+        sg.DiscreteSystem(space, _spring_L, parameters=[H, f], forces=forces).euler_lagrange()
+    free = sg.DiscreteSystem(space, lambda g: _spring_L(g) + f * g.source[0], parameters=[H, f])
+    assert len(free.euler_lagrange().residuals) == 1
+    u = sp.Symbol("g_1")
+    with pytest.raises(sg.InputNameError, match="'g' with a subscript"):
+        sg.DiscreteSystem(sg.SO3("g"), lambda g: sp.trace(g.matrix) / H, parameters=[H],
+                          forces=lambda g: ([u, 0, 0], [u, 0, 0]), inputs=[u]).euler_lagrange()
 
 
 def test_input_values_must_satisfy_their_symbols_assumptions():

@@ -28,7 +28,13 @@ from dataclasses import dataclass, field
 
 import sympy as sp
 
-from .._errors import InputNameError, InputTypeError, ShapeError, UnsupportedFeatureError
+from .._errors import (
+    InputNameError,
+    InputTypeError,
+    ParameterDeclarationError,
+    ShapeError,
+    UnsupportedFeatureError,
+)
 from .._symbols import (
     MULTIPLIER_NAMES,
     alias_words,
@@ -229,6 +235,36 @@ def _alias(u: sp.Symbol, other) -> str:
     return "" if str(other) == str(u) else f" ({alias_words((str(other), str(u)))})"
 
 
+#: how the printed equations write the discrete forces: f^{+}(g_k), f^{-}(g_{k+1})
+FORCE_LETTER = "f"
+
+
+def _misread_input(key: str, taken: dict) -> str | None:
+    """Why an input printed ``key`` would be misread in the printed equations, where its
+    values are (key)_{k}, (key)_{k+1}: written f, as the forces f⁺, f⁻ are (f_{k} reads as
+    the force on g_k), or a coordinate's name with a subscript ((g_{1})_{k} beside the
+    arrows' (g_{k})_{12}, (x_{1})_{k} beside x_{k}); None if it reads as itself."""
+    if key == FORCE_LETTER:
+        return (f"is written {key}, as the discrete forces f^{{+}}, f^{{-}} are ({key}_{{k}} "
+                f"would read as the force on g_k)")
+    base = key.split("_", 1)[0]
+    if "_" in key and base in taken:
+        return (f"is written {key}, the name of the coordinate {taken[base]!r} with a "
+                f"subscript: its values ({key})_{{k}} would read as that coordinate's at a "
+                f"step")
+    return None
+
+
+def check_force_letter(name: str, parameters: Sequence) -> None:
+    """In a system with forces, a parameter written f would read as the discrete forces
+    f⁺, f⁻ of the printed equations: a :class:`ParameterDeclarationError`."""
+    for p in parameters:
+        if isinstance(p, sp.Symbol) and latex_name(p.name.strip()) == FORCE_LETTER:
+            raise ParameterDeclarationError(f"{name}: parameter {p.name!r} is written {FORCE_LETTER}, as "
+                                 f"the discrete forces f^{{+}}, f^{{-}} of the printed "
+                                 f"equations are; name it otherwise")
+
+
 def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Sequence,
                     parameters: Sequence, arity: int = 1,
                     stages: Sequence = ()) -> ForceFunctions:
@@ -250,6 +286,9 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
                                  f"multipliers) of {groupoid.name}{_alias(u, taken[key])}, "
                                  f"which names a part of the state; give the input another "
                                  f"name")
+        why = _misread_input(key, taken)
+        if why is not None:
+            raise InputNameError(f"{name}: input {u} {why}; give the input another name")
     stages = tuple(stages)
     value = call_user(name, what, forces, *[groupoid.view(a) for a in arrows],
                       *([list(stages)] if stages else []), smooth=True)
@@ -286,5 +325,5 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     return ForceFunctions(arrows, list(inputs), parts)
 
 
-__all__ = ["ForceFunctions", "force_functions", "impulse_form", "impulse_section",
+__all__ = ["FORCE_LETTER", "ForceFunctions", "check_force_letter", "force_functions", "impulse_form", "impulse_section",
            "input_arguments", "input_symbols", "pair_impulse_form"]

@@ -37,7 +37,7 @@ from ._callables import (
     check_parameters_unlike_coordinates,
     check_symbols,
 )
-from ._forces import force_functions, input_symbols
+from ._forces import check_force_letter, force_functions, input_symbols
 from ._junction import slot, slot_substitution
 
 
@@ -206,6 +206,7 @@ def evaluate_system(name: str, groupoid: Groupoid, lagrangian: Callable,
             f"coordinates per step on {groupoid.name}; more constraints than unknowns")
     fs = SystemFunctions(slots, L, phis, matrix_form, base, psis, stages=list(zeta))
     if forces is not None and not matrix_form:
+        check_force_letter(name, parameters)
         fs.forces = force_functions(name, groupoid, forces, inputs, parameters, arity,
                                     stages=zeta)
     fs.constraints = phis + fs.at_base(groupoid.source(slots[0]))
