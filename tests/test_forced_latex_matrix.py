@@ -50,7 +50,7 @@ def test_the_forced_rigid_body_prints_the_trace_form_and_its_forces():
         name = re.escape(rf"f^{{-}}_{{{a}}}(g_{{k+1}})")
         value = re.escape(rf"\frac{{h (\tau_{{{a}}})_{{k+1}}}}{{2}}")
         assert re.search(rf"{name} &?= {value}", text), text
-    assert r"\intertext{where}" in text
+    assert r"\intertext{where, with $e_{i}$ the $i$-th standard unit vector" in text
     assert "(W_{k})_{23}" not in text  # no entries: the component form is not the one chosen
 
 

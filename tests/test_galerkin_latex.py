@@ -32,6 +32,9 @@ def test_lobatto_prints_the_stage_notation():
     assert r"Q_{k,2} &= \theta_{k-1} + h \left(\frac{5 V_{k,1}}{24} + \frac{V_{k,2}}{3} - " \
            r"\frac{V_{k,3}}{24}\right)" in text
     assert r"V_{k,1} &= \frac{4 (\zeta_{k})_{1} - \theta_{k-1} + \theta_{k}}{h}" in text
+    # ζ, which the "where" rows read, is said before them (it was left undefined)
+    assert (r"\intertext{where, with $\zeta_{k}$ and $\zeta_{k+1}$ the internal stages of the "
+            r"known and the new arrow (unknowns of the step),}") in text
 
 
 @pytest.mark.slow
@@ -66,7 +69,20 @@ def test_a_forced_system_named_F_prints_without_the_stage_notation():
 
 def test_the_rules_without_stages_print_as_before():
     text = _pendulum().discretize(h, "midpoint").euler_lagrange().latex()
-    assert "Q_{k" not in text and "V_{k" not in text
+    assert "Q_{k" not in text and "V_{k" not in text and "zeta" not in text
+
+
+def test_a_galerkin_step_on_a_group_says_what_its_stages_are():
+    """The group stage notation defined ζ_j as the vector of its components but not what it
+    is; a rule (no stages) does not mention them."""
+    top = sg.ContinuousSystem(sg.SO3("R"), lambda R, w: (w[0] ** 2 + 2 * w[1] ** 2
+                                                          + 3 * w[2] ** 2) / 2 - grav * R[2, 2],
+                              parameters=[h, grav], name="top")
+    staged = top.discretize(h, sg.GaussLegendre(2)).euler_lagrange().latex()
+    assert (r"nodes $i$, with $\zeta_{j}$ the internal stages of the arrow ending at $j$ "
+            r"(unknowns of the step), $\tau$ the Cayley map") in staged
+    rule = top.discretize(h, "trapezoid").euler_lagrange().latex()
+    assert r"nodes $i$, with $\tau$ the Cayley map" in rule and "zeta" not in rule
 
 
 @pytest.mark.slow

@@ -186,7 +186,8 @@ def test_plate_ball_prints_as_in_seed_and_fits(plate_ball_latex):
     assert "r (\\lambda_{k+1})_{1} \\operatorname{tr}(E_{2} g_{k+1} E_{1})" in tex
     assert "c h + \\frac{\\operatorname{tr}(g_{k+1} E_{3})}{2}" in tex
     assert "(g_{k})_{" not in tex
-    where = tex.split("\\intertext{where}")[1]
+    where = tex.split("\\intertext{where, with $e_{i}$ the $i$-th standard unit vector of "
+                      "$\\mathbb{R}^{3}$,}")[1]
     assert where.strip().startswith("E_{1} &= - e_{2} e_{3}^{T} + e_{3} e_{2}^{T}, \\quad "
                                     "E_{2} = e_{1} e_{3}^{T} - e_{3} e_{1}^{T}"), where
     # the three rotational rows take two lines each on the page (seed 000 writes them so)

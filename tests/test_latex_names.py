@@ -209,7 +209,8 @@ def test_the_basis_and_the_lie_poisson_momentum_are_defined():
     from symgroupoid import systems
 
     text = systems.rigid_body().euler_lagrange(progress=False).latex()
-    where = text.split(r"\intertext{where}")[1]
+    where = text.split(r"\intertext{where, with $e_{i}$ the $i$-th standard unit vector of "
+                       r"$\mathbb{R}^{3}$,}")[1]
     printed = {a: where.split(f"E_{{{a}}} " + ("&= " if a == 1 else "= "))[1].split(",")[0]
                .split(r" \notag")[0].strip() for a in (1, 2, 3)}
     for a, E in enumerate(sg.SO3("R").basis_matrices(), start=1):  # Σ ±e_i e_jᵀ, as printed

@@ -658,7 +658,10 @@ def _printed(builder: _Builder, notation: _Notation, width: float, printer) -> P
             pairs.append((_nc(f"F{F.tag}"), _shown(notation.forces[fi]), True))
     written = sum(len(printer.doprint(rhs)) for _, rhs, _ in pairs) <= FORMULA_LIMIT
     items.append(Text(
-        r"where, for $j = k, k+1$ and the nodes $i$, with $\tau$ " + _retraction_words(builder)
+        r"where, for $j = k, k+1$ and the nodes $i$, with "
+        + (r"$\zeta_{j}$ the internal stages of the arrow ending at $j$ (unknowns of the step), "
+           if builder.t.interior else "")
+        + r"$\tau$ " + _retraction_words(builder)
         + ", "
         r"$\mathrm{d}\tau_X$ its left-trivialised derivative and $\mathrm{Ad}$ the adjoint "
         r"action, " + _node_words(builder, printer, written)))

@@ -70,6 +70,14 @@ def _unit_entries(expr) -> list[tuple[int, int, int]] | None:
     return out or None
 
 
+def unit_vector_dimension(expr) -> int | None:
+    """n when ``expr`` is an n × n matrix printed in the unit vectors e_i of Rⁿ (Σ ±e_i e_jᵀ,
+    :func:`_unit_entries`), which the "where" list then says; else None."""
+    if not isinstance(expr, sp.MatrixBase) or expr.is_diagonal():
+        return None
+    return expr.shape[0] if _unit_entries(expr) is not None else None
+
+
 class LatexVerificationError(SymgroupoidError, AssertionError):
     """A printed form of an equation is not the equation (a defect of the printing: the
     forms are built to be equal, and checked before they are printed)."""

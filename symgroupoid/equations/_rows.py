@@ -20,7 +20,7 @@ from ..groupoids import is_constant_matrix
 from ._abbreviations import LatexOptionError
 from ._collect import collect_terms
 from ._forms import Definition, Form, equals_explicit, explicit_value
-from ._latex import GroupoidLatexPrinter, uncollected
+from ._latex import GroupoidLatexPrinter, uncollected, unit_vector_dimension
 from ._layout import PAGE_WIDTH, Definitions, PrintedRows, Row, Term, Text
 from ._matrix_parts import keeps_matrices
 
@@ -42,6 +42,7 @@ class Printed:
     keeps: bool = False  # a matrix by name (tr(g_k E_1 E_2)): the papers' notation
     form: Form | None = None  # what the terms were collected from
     stage_notation: bool = False  # the papers' stage notation, which names its own parts
+    staged: bool = False  # the step has internal stages ζ (docs/conventions.md §22)
 
 
 def multipliers_of(step) -> list:
@@ -73,7 +74,8 @@ def collected_form(form: Form, step, printer: GroupoidLatexPrinter) -> Printed:
     # (the constants' values are stated once, whichever form: not counted against it)
     definitions = constant_definitions(used) + definitions
     return Printed(equations, definitions, form.intros, length, list(step.parameters),
-                   list(form.layers), dict(form.generic), keeps_matrices(form.equations), form)
+                   list(form.layers), dict(form.generic), keeps_matrices(form.equations), form,
+                   staged=bool(getattr(step, "stages", None)))
 
 
 def checked_form(printed: Printed, step, printer: GroupoidLatexPrinter,
@@ -182,9 +184,30 @@ def printed_rows(printed: Printed, width: float, printer: GroupoidLatexPrinter) 
     for d in printed.definitions:
         if d.intro != intro:
             intro = d.intro
-            items.append(Text(printed.intros[intro]))
+            items.append(Text(first_words(printed) if intro == 0 else printed.intros[intro]))
         items += definition_rows([d], printed.parameters, printer)
     return PrintedRows(_merged(items), width, printer)
+
+
+#: what the words before the "where" rows say of a step's internal stages
+STAGES_SAID = (r"$\zeta_{k}$ and $\zeta_{k+1}$ the internal stages of the known and the new "
+               r"arrow (unknowns of the step)")
+
+
+def first_words(printed: Printed) -> str:
+    """The words before the first group of "where" rows, saying what the rows use but do
+    not define: the internal stages ζ of a Galerkin step, and the unit vectors e_i when a
+    named constant's row writes a matrix in them (E_1 = − e_2 e_3ᵀ + e_3 e_2ᵀ of so(3))."""
+    said = [STAGES_SAID] if printed.staged else []
+    sizes = sorted({n for d in printed.definitions if is_constant_matrix(d.lhs)
+                    for n in [unit_vector_dimension(d.rhs)] if n is not None})
+    if sizes:
+        spaces = " and ".join(f"$\\mathbb{{R}}^{{{n}}}$" for n in sizes)
+        said.append(f"$e_{{i}}$ the $i$-th standard unit vector of {spaces}")
+    words = printed.intros[0]
+    if not said:
+        return words
+    return f"{words}{'' if words.endswith(',') else ','} with {', and '.join(said)},"
 
 
 def _merged(items: list) -> list:
