@@ -170,6 +170,24 @@ def is_rational_expression(expr: sp.Expr) -> bool:
     return True
 
 
+def expanded_vanishes(difference: sp.Expr) -> bool:
+    """Whether an expanded difference of two forms of an equation is identically zero: as
+    expanded; beyond :data:`LARGE_TERMS` terms at random points (:func:`vanishes_at_points`);
+    over the lcm of its factored denominators (:func:`vanishes`: 2X/(2t₁² − 4t₁t₀ + 2t₀²)
+    − X/(t₁ − t₀)², which ``expand`` leaves apart); else over a common denominator, with
+    functions (sin, cos) as generators (``cancel``)."""
+    if difference == 0:
+        return True
+    if len(sp.Add.make_args(difference)) > LARGE_TERMS:  # (the common denominator: hours)
+        zero = vanishes_at_points(difference)
+        if zero is not None:
+            return zero
+    zero = vanishes(difference)
+    if zero is not None:
+        return zero
+    return sp.cancel(sp.together(difference)) == 0
+
+
 def vanishes_at_points(expr: sp.Expr) -> bool | None:
     """Whether the rational function ``expr`` of its symbols is zero, by exact evaluation at
     :data:`POINTS` random rational points (Schwartz–Zippel: a nonzero numerator of degree d

@@ -264,6 +264,26 @@ def test_a_broken_line_that_loses_a_term_is_refused(dp_step, monkeypatch):
         dp_step.latex(width=200)
 
 
+def test_broken_lines_equal_up_to_a_denominator_written_otherwise_are_kept():
+    """A pendulum of varying length on the time groupoid: its rows broken to the page held
+    2X/(2t₁² − 4t₁t₀ + 2t₀²) where the unbroken row held X/(t₁ − t₀)²; expanded, the two
+    differ, and the correct printing was refused with LatexVerificationError."""
+    eps, ell = sp.symbols("epsilon ell0", positive=True)
+
+    def L(a):
+        dt, (q0,), (q1,) = a.t1 - a.t0, a.source, a.target
+        stretch = (1 + eps * sp.sin((a.t0 + a.t1) / 2)) ** 2
+        return dt * ell ** 2 * stretch * ((q1 - q0) / dt) ** 2 / 2
+
+    step = sg.DiscreteSystem(sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q"))), L,
+                             parameters=[eps, ell], name="varlen").euler_lagrange()
+    tex = step.latex()
+    assert tex.count("0 &=") == 2 and r"\left(t_{k+1} - t_{k}\right)^{2}" in tex
+    with pytest.raises(LatexVerificationError, match="differ from the equation"):
+        _layout.same_sum([_layout.Term(1, sp.Symbol("a"))], [_layout.Term(1, sp.Symbol("b"))],
+                         "rows")
+
+
 # --- options --------------------------------------------------------------------------------------
 
 def test_abbreviations_name_pieces_and_are_listed(pendulum_step):

@@ -260,9 +260,9 @@ def check_force_letter(name: str, parameters: Sequence) -> None:
     f⁺, f⁻ of the printed equations: a :class:`ParameterDeclarationError`."""
     for p in parameters:
         if isinstance(p, sp.Symbol) and latex_name(p.name.strip()) == FORCE_LETTER:
-            raise ParameterDeclarationError(f"{name}: parameter {p.name!r} is written {FORCE_LETTER}, as "
-                                 f"the discrete forces f^{{+}}, f^{{-}} of the printed "
-                                 f"equations are; name it otherwise")
+            raise ParameterDeclarationError(
+                f"{name}: parameter {p.name!r} is written {FORCE_LETTER}, as the discrete "
+                f"forces f^{{+}}, f^{{-}} of the printed equations are; name it otherwise")
 
 
 def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Sequence,
@@ -325,5 +325,6 @@ def force_functions(name: str, groupoid: Groupoid, forces: Callable, inputs: Seq
     return ForceFunctions(arrows, list(inputs), parts)
 
 
-__all__ = ["FORCE_LETTER", "ForceFunctions", "check_force_letter", "force_functions", "impulse_form", "impulse_section",
+__all__ = ["FORCE_LETTER", "ForceFunctions", "check_force_letter", "force_functions",
+           "impulse_form", "impulse_section",
            "input_arguments", "input_symbols", "pair_impulse_form"]

@@ -23,7 +23,7 @@ import sympy as sp
 from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._errors import CallableError
-from .._rational import LARGE_TERMS, vanishes, vanishes_at_points
+from .._rational import expanded_vanishes, vanishes_at_points
 from .._sizes import nodes_at_most
 from .._symbols import StepSymbol, latex_name, step_label
 from ..derivation import (
@@ -128,17 +128,7 @@ def equals_explicit(printed: sp.Expr, explicit: sp.Expr, layers: Sequence[Mappin
         zero = vanishes_at_points(unexpanded)
         if zero is not None:
             return zero
-    difference = sp.expand(sp.expand(written) - sp.expand(explicit))
-    if difference == 0:
-        return True
-    if len(sp.Add.make_args(difference)) > LARGE_TERMS:  # (the common denominator: hours)
-        zero = vanishes_at_points(difference)
-        if zero is not None:
-            return zero
-    zero = vanishes(difference)  # over the factored denominators' lcm, as polynomials
-    if zero is not None:
-        return zero
-    return sp.cancel(sp.together(difference)) == 0
+    return expanded_vanishes(sp.expand(sp.expand(written) - sp.expand(explicit)))
 
 
 def base_form(step, matrix_form: bool = False) -> Form | None:

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import sympy as sp
 
 from .._arguments import caller_level
+from .._rational import expanded_vanishes
 from ._latex import (
     Collected,
     DisplayLatexPrinter,
@@ -402,12 +403,12 @@ def break_terms(lhs: str, terms: list[Term], width: float = PAGE_WIDTH,
 
 def same_sum(laid: list[Term], terms: list[Term], what: str) -> None:
     """Raise :class:`~._latex.LatexVerificationError` unless Σ laid = Σ terms exactly (the
-    same terms, or the same sum expanded)."""
+    same terms, or the same sum: :func:`~symgroupoid._rational.expanded_vanishes`)."""
     if laid == list(terms):
         return
     difference = sp.expand(sp.Add(*[t.value() for t in laid])
                            - sp.Add(*[t.value() for t in terms]))
-    if difference != 0:
+    if not expanded_vanishes(difference):
         raise LatexVerificationError(f"{what}: the printed terms differ from the equation by "
                                      f"{difference}")
 
