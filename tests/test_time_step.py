@@ -407,3 +407,10 @@ def test_a_zero_initial_time_step_is_a_domain_error():
         with pytest.raises(sg.DomainError, match=r"time step t_k - t_\(k-1\) is 0"):
             sim.simulate([t0, t1, 1.0, 1.05], 3, [1.0])
     assert sim.simulate([0.0, 0.1, 1.0, 1.05], 3, [1.0]).states.shape == (4, 4)
+    # a time step at the rounding of its times: at t = 1e300 a step of 1e285 (7 spacings)
+    # returned states off the step equations by 70 % of their terms (their rounding floor);
+    # at 1e15 a step of one spacing, and at 1e12 one of 164, hold fewer than three digits
+    for t0, step, spacings in ((1e300, 1e285, "7"), (1e15, 0.125, "1"), (1e12, 0.02, "164")):
+        with pytest.raises(sg.DomainError, match=f"is {spacings} times the spacing"):
+            sim.simulate([t0, t0 + step, 1.0, 1.05], 3, [1.0])
+    assert sim.simulate([1e6, 1e6 + 0.02, 1.0, 1.05], 3, [1.0]).states.shape == (4, 4)

@@ -36,6 +36,10 @@ from ._validate import constraint_check, integer_argument, parameter_vector, rea
 #: an initial state may violate a constraint by this much (absolute) besides rounding
 INITIAL_CONSTRAINT_TOLERANCE = 1e-10
 
+#: the least time step of a state on a time groupoid, in spacings of the floating-point
+#: numbers at its times (2¹⁰: about three significant digits of t_k − t_{k−1})
+TIME_STEP_SPACINGS = 1024
+
 #: steps per kernel call of a simulation: bounds the memory of a chunk and the delay of
 #: Ctrl-C (a KeyboardInterrupt is raised between calls)
 CHUNK_STEPS = 1 << 14
@@ -155,6 +159,15 @@ class Simulator(InitialStates):
                               f"(t_(k-1) = {before!r}, t_k = {now!r}: equal as floating-point "
                               f"numbers); the step equations divide by it, so give a nonzero "
                               f"time step that the times can represent")
+        spacing = float(np.spacing(max(abs(before), abs(now))))
+        if abs(now - before) < TIME_STEP_SPACINGS * spacing:
+            raise DomainError(
+                f"{self.name}: the initial state's time step t_k - t_(k-1) = {now - before:.3g} "
+                f"is {abs(now - before) / spacing:.3g} times the spacing of floating-point "
+                f"numbers at its times (t_k = {now!r}): the step equations, which read the "
+                f"times and their differences, would hold fewer than three significant "
+                f"digits of it, and their solution none (at least {TIME_STEP_SPACINGS} "
+                f"spacings; shift the times toward 0)")
 
     def _run_parameters(self, params) -> np.ndarray:
         """:meth:`parameters`, through :meth:`step`'s screen first: a float64 vector or a
