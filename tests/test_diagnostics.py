@@ -257,6 +257,26 @@ def test_conservation_summary():
     assert marked.quantities[-1].name.endswith("(not a verified symmetry)")
 
 
+def test_a_second_order_summary_says_why_it_has_no_energy():
+    """The energy of a second-order system is not defined here: traj.energy() says so, and
+    the summary left it out without a word, though its time step was declared."""
+    h = sp.Symbol("h", positive=True)
+
+    def L(g1, g2):
+        (q0,), (q1,), (q2,) = g1.source, g1.target, g2.target
+        return h * (((q2 - 2 * q1 + q0) / h ** 2) ** 2 / 2 + q1 ** 2 / 2)
+
+    system = sg.SecondOrderSystem(sg.PairGroupoid(sg.EuclideanSpace("q")), L, parameters=[h],
+                                  time_step=h, name="spline")
+    traj = system.euler_lagrange().compile(backend="numpy").simulate(
+        {"q": (0.0, 0.1, 0.2, 0.3)}, 5, {"h": 0.1})
+    with pytest.raises(DiagnosticsError, match="first-order systems"):
+        traj.energy()
+    lines = traj.conservation_summary().lines()
+    assert lines[-1] == ("energy: not included (the discrete energy is defined for "
+                         "first-order systems, L: G → R, only)")
+
+
 def test_rounding_floor_is_eps_scale_sqrt_k():
     values = np.array([2.0, -3.0, 2.5])
     floor = rounding_floor(values, np.array([10, 14, 19]))

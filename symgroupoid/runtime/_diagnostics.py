@@ -379,6 +379,9 @@ def conservation_summary(trajectory, *, energy: bool | None = None,
         want_energy = has_energy(trajectory, step_parameter)
         if not want_energy and ev.sg.arity == 1:
             notes.append(f"energy: not included ({_energy_missing(trajectory, step_parameter)})")
+        elif not want_energy:
+            notes.append("energy: not included (the discrete energy is defined for "
+                         "first-order systems, L: G → R, only)")
     changes = energy_changes(trajectory, step_parameter) if want_energy else None
     if energy is None and changes is not None:
         want_energy = False
