@@ -1992,6 +1992,53 @@ static void plate_ball_hold_time(const double *known, const double *p, const dou
 #endif
 }
 
+/* The fallback of a step on a time groupoid whose tries have failed (plate_ball_simulate):
+ * Newton on the time step alone, along the fixed-step solutions.  From the held guess u,
+ * each round takes the full Newton update at u (whose time component is the update of the
+ * energy equation e(t_{k+1}) = F_time(t_{k+1}, G(t_{k+1})) reduced to the held solutions
+ * G: the Schur complement of the rest), keeps the new time step within
+ * [1/PLATE_BALL_STEP_RATIO, PLATE_BALL_STEP_RATIO] times the last, and holds the result again
+ * (plate_ball_hold_time); at most PLATE_BALL_SETTLE_ITERATIONS rounds, until the time update is at
+ * most PLATE_BALL_HOLD_TOLERANCE (relative).  The full update alone, from a held guess, leaves the
+ * rows of a second-order step (of size 1/h^3) far off their fixed-step solution when it
+ * moves t_{k+1}, and Newton then left the window for a far root (a spline with damping on
+ * R, h = 0.02: from h_k = 0.046 to the root at 0.075 by way of 0.28 and 5.9).  u is left as
+ * the last held iterate; its rounds are not counted in the step's iterations. */
+#define PLATE_BALL_SETTLE_ITERATIONS 12
+
+#if PLATE_BALL_TIME_ROW >= 0 && PLATE_BALL_TIME_UNKNOWN >= 0
+static void plate_ball_settle_time(const double *known, const double *p, const double *h, double *u)
+{
+    const double last = known[PLATE_BALL_TIME_KNOWN] - known[PLATE_BALL_TIME_BEFORE];
+    const double low = last > 0.0 ? last / PLATE_BALL_STEP_RATIO : last * PLATE_BALL_STEP_RATIO;
+    const double high = last > 0.0 ? last * PLATE_BALL_STEP_RATIO : last / PLATE_BALL_STEP_RATIO;
+    double F[PLATE_BALL_N_EQUATIONS], J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS];
+    plate_ball_lu lu;
+    int it, i;
+    for (it = 0; it < PLATE_BALL_SETTLE_ITERATIONS; ++it) {
+        double dt, t;
+        PLATE_BALL_JACOBIAN(u, known, p, h, F, J);
+        if (plate_ball_lu_factor(J, &lu) != PLATE_BALL_OK || plate_ball_lu_apply(&lu, F) != PLATE_BALL_OK) {
+            return; /* singular or not finite: u as it is */
+        }
+        dt = F[PLATE_BALL_TIME_UNKNOWN];
+        for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
+            u[i] -= F[i];
+        }
+        t = u[PLATE_BALL_TIME_UNKNOWN] - known[PLATE_BALL_TIME_KNOWN];
+        if (t < low) {
+            u[PLATE_BALL_TIME_UNKNOWN] = known[PLATE_BALL_TIME_KNOWN] + low;
+        } else if (t > high) {
+            u[PLATE_BALL_TIME_UNKNOWN] = known[PLATE_BALL_TIME_KNOWN] + high;
+        }
+        plate_ball_hold_time(known, p, h, u);
+        if (fabs(dt) <= PLATE_BALL_HOLD_TOLERANCE * (1.0 + fabs(u[PLATE_BALL_TIME_UNKNOWN]))) {
+            return;
+        }
+    }
+}
+#endif
+
 /* 1 when the solution u keeps the time step of a step on a time groupoid on its branch: its
  * step h_{k+1} = t_{k+1} - t_k has the sign of the last step h_k = t_k - t_{k-1} and
  * 1/PLATE_BALL_STEP_RATIO <= h_{k+1}/h_k <= PLATE_BALL_STEP_RATIO (or the check is off, factor = 0, or
@@ -2075,7 +2122,8 @@ static int plate_ball_inputs_valid(const double *u, long n_steps)
  * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (plate_ball_hold_time), and a solution whose time
  * step leaves [1/PLATE_BALL_STEP_RATIO, PLATE_BALL_STEP_RATIO] times the last (plate_ball_time_step_kept, from
- * the first step on) is outside in the same way.
+ * the first step on) is outside in the same way; a step whose tries fail there gets one
+ * more, from the prediction settled on its energy equation (plate_ball_settle_time).
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -2175,6 +2223,25 @@ int plate_ball_simulate(const double *known0, const double *p, const double *u, 
                 status = PLATE_BALL_BRANCH_JUMP;
             }
         }
+#if PLATE_BALL_TIME_ROW >= 0 && PLATE_BALL_TIME_UNKNOWN >= 0
+        if (status != PLATE_BALL_OK) {
+            /* the last try on a time groupoid: from the prediction settled on the energy
+             * equation along the fixed-step solutions (plate_ball_settle_time) */
+            double y[PLATE_BALL_N_UNKNOWNS], settled_norm;
+            int more = 0, again;
+            plate_ball_predict(current, p, y);
+            plate_ball_hold_time(current, p, h, y);
+            plate_ball_settle_time(current, p, h, y);
+            again = plate_ball_newton(current, p, h, options, y, &more, &settled_norm);
+            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+            if (again == PLATE_BALL_OK && plate_ball_time_step_kept(current, y, options->trust_factor)
+                && (!(extrapolated || watched) || plate_ball_trusted(warm, guess, y, options->trust_factor))) {
+                memcpy(x, y, sizeof x);
+                residual_norms[k] = settled_norm;
+                status = PLATE_BALL_OK;
+            }
+        }
+#endif
         if (status == PLATE_BALL_OK) {
             plate_ball_next_knowns(x, current, p, next);
             if (!isfinite(plate_ball_norm_inf(next, PLATE_BALL_N_KNOWNS))) {

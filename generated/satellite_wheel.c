@@ -1852,6 +1852,53 @@ static void satellite_wheel_hold_time(const double *known, const double *p, cons
 #endif
 }
 
+/* The fallback of a step on a time groupoid whose tries have failed (satellite_wheel_simulate):
+ * Newton on the time step alone, along the fixed-step solutions.  From the held guess u,
+ * each round takes the full Newton update at u (whose time component is the update of the
+ * energy equation e(t_{k+1}) = F_time(t_{k+1}, G(t_{k+1})) reduced to the held solutions
+ * G: the Schur complement of the rest), keeps the new time step within
+ * [1/SATELLITE_WHEEL_STEP_RATIO, SATELLITE_WHEEL_STEP_RATIO] times the last, and holds the result again
+ * (satellite_wheel_hold_time); at most SATELLITE_WHEEL_SETTLE_ITERATIONS rounds, until the time update is at
+ * most SATELLITE_WHEEL_HOLD_TOLERANCE (relative).  The full update alone, from a held guess, leaves the
+ * rows of a second-order step (of size 1/h^3) far off their fixed-step solution when it
+ * moves t_{k+1}, and Newton then left the window for a far root (a spline with damping on
+ * R, h = 0.02: from h_k = 0.046 to the root at 0.075 by way of 0.28 and 5.9).  u is left as
+ * the last held iterate; its rounds are not counted in the step's iterations. */
+#define SATELLITE_WHEEL_SETTLE_ITERATIONS 12
+
+#if SATELLITE_WHEEL_TIME_ROW >= 0 && SATELLITE_WHEEL_TIME_UNKNOWN >= 0
+static void satellite_wheel_settle_time(const double *known, const double *p, const double *h, double *u)
+{
+    const double last = known[SATELLITE_WHEEL_TIME_KNOWN] - known[SATELLITE_WHEEL_TIME_BEFORE];
+    const double low = last > 0.0 ? last / SATELLITE_WHEEL_STEP_RATIO : last * SATELLITE_WHEEL_STEP_RATIO;
+    const double high = last > 0.0 ? last * SATELLITE_WHEEL_STEP_RATIO : last / SATELLITE_WHEEL_STEP_RATIO;
+    double F[SATELLITE_WHEEL_N_EQUATIONS], J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS];
+    satellite_wheel_lu lu;
+    int it, i;
+    for (it = 0; it < SATELLITE_WHEEL_SETTLE_ITERATIONS; ++it) {
+        double dt, t;
+        SATELLITE_WHEEL_JACOBIAN(u, known, p, h, F, J);
+        if (satellite_wheel_lu_factor(J, &lu) != SATELLITE_WHEEL_OK || satellite_wheel_lu_apply(&lu, F) != SATELLITE_WHEEL_OK) {
+            return; /* singular or not finite: u as it is */
+        }
+        dt = F[SATELLITE_WHEEL_TIME_UNKNOWN];
+        for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
+            u[i] -= F[i];
+        }
+        t = u[SATELLITE_WHEEL_TIME_UNKNOWN] - known[SATELLITE_WHEEL_TIME_KNOWN];
+        if (t < low) {
+            u[SATELLITE_WHEEL_TIME_UNKNOWN] = known[SATELLITE_WHEEL_TIME_KNOWN] + low;
+        } else if (t > high) {
+            u[SATELLITE_WHEEL_TIME_UNKNOWN] = known[SATELLITE_WHEEL_TIME_KNOWN] + high;
+        }
+        satellite_wheel_hold_time(known, p, h, u);
+        if (fabs(dt) <= SATELLITE_WHEEL_HOLD_TOLERANCE * (1.0 + fabs(u[SATELLITE_WHEEL_TIME_UNKNOWN]))) {
+            return;
+        }
+    }
+}
+#endif
+
 /* 1 when the solution u keeps the time step of a step on a time groupoid on its branch: its
  * step h_{k+1} = t_{k+1} - t_k has the sign of the last step h_k = t_k - t_{k-1} and
  * 1/SATELLITE_WHEEL_STEP_RATIO <= h_{k+1}/h_k <= SATELLITE_WHEEL_STEP_RATIO (or the check is off, factor = 0, or
@@ -1935,7 +1982,8 @@ static int satellite_wheel_inputs_valid(const double *u, long n_steps)
  * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (satellite_wheel_hold_time), and a solution whose time
  * step leaves [1/SATELLITE_WHEEL_STEP_RATIO, SATELLITE_WHEEL_STEP_RATIO] times the last (satellite_wheel_time_step_kept, from
- * the first step on) is outside in the same way.
+ * the first step on) is outside in the same way; a step whose tries fail there gets one
+ * more, from the prediction settled on its energy equation (satellite_wheel_settle_time).
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -2035,6 +2083,25 @@ int satellite_wheel_simulate(const double *known0, const double *p, const double
                 status = SATELLITE_WHEEL_BRANCH_JUMP;
             }
         }
+#if SATELLITE_WHEEL_TIME_ROW >= 0 && SATELLITE_WHEEL_TIME_UNKNOWN >= 0
+        if (status != SATELLITE_WHEEL_OK) {
+            /* the last try on a time groupoid: from the prediction settled on the energy
+             * equation along the fixed-step solutions (satellite_wheel_settle_time) */
+            double y[SATELLITE_WHEEL_N_UNKNOWNS], settled_norm;
+            int more = 0, again;
+            satellite_wheel_predict(current, p, y);
+            satellite_wheel_hold_time(current, p, h, y);
+            satellite_wheel_settle_time(current, p, h, y);
+            again = satellite_wheel_newton(current, p, h, options, y, &more, &settled_norm);
+            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+            if (again == SATELLITE_WHEEL_OK && satellite_wheel_time_step_kept(current, y, options->trust_factor)
+                && (!(extrapolated || watched) || satellite_wheel_trusted(warm, guess, y, options->trust_factor))) {
+                memcpy(x, y, sizeof x);
+                residual_norms[k] = settled_norm;
+                status = SATELLITE_WHEEL_OK;
+            }
+        }
+#endif
         if (status == SATELLITE_WHEEL_OK) {
             satellite_wheel_next_knowns(x, current, p, next);
             if (!isfinite(satellite_wheel_norm_inf(next, SATELLITE_WHEEL_N_KNOWNS))) {

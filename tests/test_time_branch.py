@@ -163,6 +163,48 @@ def test_a_lost_forward_root_is_a_named_branch_jump(pendulum, backend, tmp_path,
     assert info.value.step == 0 and len(info.value.trajectory.states) == 1
 
 
+def _damped_spline():
+    """A second-order adaptive step on R×R×(R × R): a spline with a negative velocity
+    term and a spring, L = h̄(a²/2 − α(v₀² + v₁²)/4 + ω²q₁²/2) over (t₀, t₁, t₂),
+    h̄ = (t₂ − t₀)/2, a the divided second difference."""
+    alpha, omega = sp.symbols("alpha omega", positive=True)
+
+    def L(g1, g2):
+        (t0, t1, t2), (q0, q1, q2) = (g1.t0, g1.t1, g2.t1), (g1.source[0], g1.target[0],
+                                                              g2.target[0])
+        v0, v1 = (q1 - q0) / (t1 - t0), (q2 - q1) / (t2 - t1)
+        mean = (t2 - t0) / 2
+        return mean * (((v1 - v0) / mean) ** 2 / 2 - alpha * (v0 ** 2 + v1 ** 2) / 4
+                       + omega ** 2 * q1 ** 2 / 2)
+
+    return sg.SecondOrderSystem(sg.TimeGroupoid(sg.PairGroupoid(sg.EuclideanSpace("q"))), L,
+                                parameters=[alpha, omega], name="damped_spline")
+
+
+def test_a_second_order_step_settles_on_its_energy_equation(tmp_path, monkeypatch):
+    """The third step's forward root (a time step 1.62 times the last) was missed: Newton's
+    first update from the held guess moved t_{k+1} and left the 1/h³ rows far off, and the
+    run ended with a BranchJumpError saying the root had disappeared.  The last try, Newton
+    on the energy equation along the fixed-step solutions, finds it, in C and NumPy alike;
+    at the fourth step no forward root exists (the energy equation along the fixed-step
+    solutions is positive for every step in the window), which is still a branch jump."""
+    monkeypatch.setenv("SYMGROUPOID_CACHE", str(tmp_path))
+    step = _damped_spline().euler_lagrange()
+    t = 0.05 * np.arange(4)
+    start, params = {"t": t, "q": np.cos(0.7 * t)}, {"alpha": 2.5, "omega": 1.0}
+    runs = [step.compile(backend=b).simulate(start, 3, params) for b in ("c", "numpy")]
+    assert np.array_equal(runs[0].states, runs[1].states)
+    times, q = runs[0]["t"], runs[0]["q"]
+    steps = np.diff(times)
+    assert steps[-1] / steps[-2] == pytest.approx(1.6185, abs=1e-3)
+    for k in range(3):  # each step solves the step equations at its state: node k + 4 new
+        F, _ = step.evaluate([times[k + 4], q[k + 4]], runs[0].states[k], [2.5, 1.0])
+        assert np.abs(F).max() < 1e-12
+    with pytest.raises(sg.BranchJumpError, match="time step check failed") as info:
+        step.compile().simulate(start, 4, params)
+    assert info.value.step == 3
+
+
 def test_the_time_step_check_refuses_the_reversed_root(pendulum):
     """Without the fixed-step phase (time row −1) Newton from the prediction reaches the
     time-reversed root g_k⁻¹, as every run did before; the time step check stops the run

@@ -17,7 +17,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._status import Status
-from ._time import HOLD_ITERATIONS, HOLD_TOLERANCE, NO_TIME, STEP_RATIO, TimeLayout
+from ._time import (
+    HOLD_ITERATIONS,
+    HOLD_TOLERANCE,
+    NO_TIME,
+    SETTLE_ITERATIONS,
+    STEP_RATIO,
+    TimeLayout,
+)
 
 OK, SINGULAR_JACOBIAN, NOT_CONVERGED, NON_FINITE, INVALID_ARGUMENT, STALLED, BRANCH_JUMP = (
     int(s) for s in Status if s <= Status.BRANCH_JUMP)
@@ -418,6 +425,42 @@ def hold_time(residual_jacobian: Callable, time: TimeLayout, known, p, u) -> np.
     return u
 
 
+def settle_time(residual_jacobian: Callable, time: TimeLayout, known, p, u) -> np.ndarray:
+    """As ``<prefix>_settle_time``: the last try of a step on a time groupoid, Newton on
+    the time step along the fixed-step solutions: from the held guess ``u``, each round
+    takes the full Newton update (its time component the reduced energy equation's), keeps
+    the time step within [1/STEP_RATIO, STEP_RATIO] times the last and holds the result
+    again (:func:`hold_time`), at most ``SETTLE_ITERATIONS`` rounds until the time update
+    is at most ``HOLD_TOLERANCE`` (relative); the last held iterate."""
+    if time.row < 0 or time.unknown < 0:
+        return u
+    x = np.array(u, dtype=float)
+    last = np.float64(known[time.known]) - np.float64(known[time.before])
+    low, high = ((last / STEP_RATIO, last * STEP_RATIO) if last > 0.0
+                 else (last * STEP_RATIO, last / STEP_RATIO))
+    with np.errstate(all="ignore"):
+        for _ in range(SETTLE_ITERATIONS):
+            F, J = residual_jacobian(x, known, p)
+            F, J = np.array(F, dtype=float), np.array(J, dtype=float).reshape(len(x), len(x))
+            status, factors = lu_factor(J)
+            if status != OK:
+                return x
+            status, d = lu_apply(factors, F)
+            if status != OK:
+                return x
+            dt = d[time.unknown]
+            x = x - d
+            t = x[time.unknown] - np.float64(known[time.known])
+            if t < low:
+                x[time.unknown] = np.float64(known[time.known]) + low
+            elif t > high:
+                x[time.unknown] = np.float64(known[time.known]) + high
+            x = hold_time(residual_jacobian, time, known, p, x)
+            if abs(dt) <= HOLD_TOLERANCE * (1.0 + abs(x[time.unknown])):
+                return x
+    return x
+
+
 def time_step_kept(time: TimeLayout, known, u, factor: float) -> bool:
     """As ``<prefix>_time_step_kept``: the time step h_{k+1} = t_{k+1} − t_k of the solution
     ``u`` has the sign of h_k = t_k − t_{k−1} and 1/STEP_RATIO ≤ h_{k+1}/h_k ≤ STEP_RATIO,
@@ -525,6 +568,10 @@ class NumpyStepper:
     def hold_time(self, known, p, u) -> np.ndarray:
         """As ``<prefix>_hold_time`` (:func:`hold_time` with this kernel's functions)."""
         return hold_time(self.f.residual_jacobian, self.time, known, p, u)
+
+    def settle_time(self, known, p, u) -> np.ndarray:
+        """As ``<prefix>_settle_time`` (:func:`settle_time` with this kernel's functions)."""
+        return settle_time(self.f.residual_jacobian, self.time, known, p, u)
 
     def time_step_kept(self, known, u, factor: float) -> bool:
         """As ``<prefix>_time_step_kept`` (:func:`time_step_kept` with this kernel's
@@ -654,6 +701,17 @@ class NumpyStepper:
                     status = BRANCH_JUMP
             elif jumped:  # from the prediction: no other guess to try
                 status = BRANCH_JUMP
+            if status != OK and self.time.row >= 0 and self.time.unknown >= 0:
+                # the last try on a time groupoid: the prediction settled on the energy
+                # equation along the fixed-step solutions (settle_time)
+                with np.errstate(all="ignore"):
+                    y = self.settle_time(current, p, self.hold_time(
+                        current, p, self.f.predict(current, p)))
+                again, y, more, settled_norm = self.solve_step(current, p, y, options)
+                iterations[k] = min(iterations[k] + more, C_INT_MAX)
+                if again == OK and self.time_step_kept(current, y, factor) and (
+                        not (extrapolated or watched) or warm.trusts(guess, y, factor)):
+                    status, u, norms[k] = OK, y, settled_norm
             if status == OK:
                 with np.errstate(all="ignore"):
                     following = self.f.next_knowns(u, current, p)
@@ -671,5 +729,5 @@ __all__ = ["BRANCH_JUMP", "BandOrder", "C_INT_MAX", "DEFAULT_OPTIONS", "EPSILON"
            "OUTSIDE_DOMAIN",
            "NumpyStepper", "NumpyWarmStart", "OK", "SINGULAR_JACOBIAN", "STALLED",
            "StepFunctions", "TRUST_FLOOR", "above_rounding", "band_factor", "coordinate_floor",
-           "explained_by_rounding", "hold_time", "lu_apply", "lu_factor", "lu_solve",
+           "explained_by_rounding", "hold_time", "settle_time", "lu_apply", "lu_factor", "lu_solve",
            "norm_inf", "pivot_ratio", "polish", "relative_norm", "time_step_kept"]

@@ -22,6 +22,10 @@ STEP_RATIO = 2.0
 HOLD_ITERATIONS = 8
 HOLD_TOLERANCE = 1e-8
 
+#: the rounds of the last try of a step on a time groupoid (``SG_SETTLE_ITERATIONS``):
+#: Newton on the time step along the fixed-step solutions (``<prefix>_settle_time``)
+SETTLE_ITERATIONS = 12
+
 
 @dataclass(frozen=True)
 class TimeLayout:
@@ -46,4 +50,5 @@ class TimeLayout:
 NO_TIME = TimeLayout(-1, -1, -1, -1)
 
 
-__all__ = ["HOLD_ITERATIONS", "HOLD_TOLERANCE", "NO_TIME", "STEP_RATIO", "TimeLayout"]
+__all__ = ["HOLD_ITERATIONS", "HOLD_TOLERANCE", "NO_TIME", "SETTLE_ITERATIONS", "STEP_RATIO",
+           "TimeLayout"]

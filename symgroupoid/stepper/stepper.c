@@ -1343,6 +1343,53 @@ static void SG_NAME(hold_time)(const double *known, const double *p, const doubl
 #endif
 }
 
+/* The fallback of a step on a time groupoid whose tries have failed (SG_NAME(simulate)):
+ * Newton on the time step alone, along the fixed-step solutions.  From the held guess u,
+ * each round takes the full Newton update at u (whose time component is the update of the
+ * energy equation e(t_{k+1}) = F_time(t_{k+1}, G(t_{k+1})) reduced to the held solutions
+ * G: the Schur complement of the rest), keeps the new time step within
+ * [1/SG_STEP_RATIO, SG_STEP_RATIO] times the last, and holds the result again
+ * (SG_NAME(hold_time)); at most SG_SETTLE_ITERATIONS rounds, until the time update is at
+ * most SG_HOLD_TOLERANCE (relative).  The full update alone, from a held guess, leaves the
+ * rows of a second-order step (of size 1/h^3) far off their fixed-step solution when it
+ * moves t_{k+1}, and Newton then left the window for a far root (a spline with damping on
+ * R, h = 0.02: from h_k = 0.046 to the root at 0.075 by way of 0.28 and 5.9).  u is left as
+ * the last held iterate; its rounds are not counted in the step's iterations. */
+#define SG_SETTLE_ITERATIONS 12
+
+#if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
+static void SG_NAME(settle_time)(const double *known, const double *p, const double *h, double *u)
+{
+    const double last = known[SG_TIME_KNOWN] - known[SG_TIME_BEFORE];
+    const double low = last > 0.0 ? last / SG_STEP_RATIO : last * SG_STEP_RATIO;
+    const double high = last > 0.0 ? last * SG_STEP_RATIO : last / SG_STEP_RATIO;
+    double F[SG_N_EQUATIONS], J[SG_N_EQUATIONS * SG_N_UNKNOWNS];
+    SG_NAME(lu) lu;
+    int it, i;
+    for (it = 0; it < SG_SETTLE_ITERATIONS; ++it) {
+        double dt, t;
+        SG_JACOBIAN(u, known, p, h, F, J);
+        if (SG_NAME(lu_factor)(J, &lu) != SG_OK || SG_NAME(lu_apply)(&lu, F) != SG_OK) {
+            return; /* singular or not finite: u as it is */
+        }
+        dt = F[SG_TIME_UNKNOWN];
+        for (i = 0; i < SG_N_UNKNOWNS; ++i) {
+            u[i] -= F[i];
+        }
+        t = u[SG_TIME_UNKNOWN] - known[SG_TIME_KNOWN];
+        if (t < low) {
+            u[SG_TIME_UNKNOWN] = known[SG_TIME_KNOWN] + low;
+        } else if (t > high) {
+            u[SG_TIME_UNKNOWN] = known[SG_TIME_KNOWN] + high;
+        }
+        SG_NAME(hold_time)(known, p, h, u);
+        if (fabs(dt) <= SG_HOLD_TOLERANCE * (1.0 + fabs(u[SG_TIME_UNKNOWN]))) {
+            return;
+        }
+    }
+}
+#endif
+
 /* 1 when the solution u keeps the time step of a step on a time groupoid on its branch: its
  * step h_{k+1} = t_{k+1} - t_k has the sign of the last step h_k = t_k - t_{k-1} and
  * 1/SG_STEP_RATIO <= h_{k+1}/h_k <= SG_STEP_RATIO (or the check is off, factor = 0, or
@@ -1426,7 +1473,8 @@ static int SG_NAME(inputs_valid)(const double *u, long n_steps)
  * fourth step on) ends the run the same way.  On a time groupoid every guess is
  * first solved onto the fixed-step equations (SG_NAME(hold_time)), and a solution whose time
  * step leaves [1/SG_STEP_RATIO, SG_STEP_RATIO] times the last (SG_NAME(time_step_kept), from
- * the first step on) is outside in the same way.
+ * the first step on) is outside in the same way; a step whose tries fail there gets one
+ * more, from the prediction settled on its energy equation (SG_NAME(settle_time)).
  * warm (may be NULL: a fresh start) is updated with every solved step; starting the next
  * call from the last state of this one with the same warm start continues the run exactly:
  * a run split into calls gives bitwise the states of one call.  Set warm->count = 0 to start
@@ -1526,6 +1574,25 @@ int SG_NAME(simulate)(const double *known0, const double *p, const double *u, lo
                 status = SG_BRANCH_JUMP;
             }
         }
+#if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
+        if (status != SG_OK) {
+            /* the last try on a time groupoid: from the prediction settled on the energy
+             * equation along the fixed-step solutions (SG_NAME(settle_time)) */
+            double y[SG_N_UNKNOWNS], settled_norm;
+            int more = 0, again;
+            SG_NAME(predict)(current, p, y);
+            SG_NAME(hold_time)(current, p, h, y);
+            SG_NAME(settle_time)(current, p, h, y);
+            again = SG_NAME(newton)(current, p, h, options, y, &more, &settled_norm);
+            iterations[k] = more > INT_MAX - iterations[k] ? INT_MAX : iterations[k] + more;
+            if (again == SG_OK && SG_NAME(time_step_kept)(current, y, options->trust_factor)
+                && (!(extrapolated || watched) || SG_NAME(trusted)(warm, guess, y, options->trust_factor))) {
+                memcpy(x, y, sizeof x);
+                residual_norms[k] = settled_norm;
+                status = SG_OK;
+            }
+        }
+#endif
         if (status == SG_OK) {
             SG_NAME(next_knowns)(x, current, p, next);
             if (!isfinite(SG_NAME(norm_inf)(next, SG_N_KNOWNS))) {
