@@ -43,9 +43,18 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 
+import numpy as np
 import sympy as sp
 
-from ._arguments import MAX_DIMENSION, flag_argument, integer_argument
+from ._arguments import (
+    MAX_DIMENSION,
+    callable_argument,
+    flag_argument,
+    integer_argument,
+    sequence_argument,
+    shown_value,
+)
+from ._errors import DomainError, InputTypeError, ShapeError
 from .equations import DiscreteSystem, body_torque, joint_torque, rayleigh_damping
 from .groupoids import (
     SO2,
@@ -96,9 +105,31 @@ def inertia_symbols() -> tuple:
 
 
 def discrete_inertia(I1, I2, I3) -> sp.Matrix:
-    """J_d = ½ tr(I) I₃ − I for I = diag(I1, I2, I3), printed as J_d."""
-    inertia = sp.diag(I1, I2, I3)
+    """J_d = ½ tr(I) I₃ − I for I = diag(I1, I2, I3), printed as J_d; each moment a SymPy
+    expression (``inertia_symbols()``) or a positive finite number."""
+    inertia = sp.diag(*[_moment(m, name) for m, name in ((I1, "I1"), (I2, "I2"), (I3, "I3"))])
     return NamedMatrix(inertia.trace() / 2 * sp.eye(3) - inertia, name="J_d")
+
+
+def _moment(value, name: str) -> sp.Expr:
+    """A principal moment of inertia: a real SymPy expression, or a positive finite number
+    (an :class:`InputTypeError` for a string or a container, a :class:`DomainError` for NaN,
+    an infinity, a complex or a non-positive number)."""
+    if isinstance(value, (str, bytes, bool, np.bool_)) or np.ndim(value) != 0:
+        raise InputTypeError(f"discrete_inertia: {name} must be a SymPy expression or a "
+                             f"number, got {type(value).__name__} {value!r}")
+    try:
+        moment = sp.sympify(value, strict=True)
+    except (sp.SympifyError, TypeError):
+        raise InputTypeError(f"discrete_inertia: {name} must be a SymPy expression or a "
+                             f"number, got {type(value).__name__} {value!r}") from None
+    if not isinstance(moment, sp.Expr) or moment.has(sp.nan, sp.zoo, sp.oo, -sp.oo) \
+            or moment.is_extended_real is False:
+        raise DomainError(f"discrete_inertia: {name} must be real and finite, got {moment}")
+    if moment.is_number and not moment.is_positive:
+        raise DomainError(f"discrete_inertia: {name} must be positive (a moment of "
+                          f"inertia), got {moment}")
+    return moment
 
 
 def heavy_top() -> DiscreteSystem:
@@ -227,6 +258,9 @@ def summed_forces(parts: Sequence[Callable]) -> Callable:
     """The forces ``g -> (f_minus, f_plus)`` that add those of ``parts`` component by
     component (the Lagrange–d'Alembert terms are linear in the forces)."""
 
+    parts = [callable_argument(part, f"parts[{i}]", owner="summed_forces")
+             for i, part in enumerate(sequence_argument(parts, "parts", owner="summed_forces"))]
+
     def forces(g):
         pairs = [part(g) for part in parts]
         return ([sum(c, sp.S.Zero) for c in zip(*(m for m, _ in pairs))],
@@ -243,6 +277,7 @@ CHAIN_CENTRE = (0, 0, sp.Rational(-1, 2))
 
 def chain_inertia(i: int) -> sp.Matrix:
     """Principal inertia of body i (1-based): diag(1 + i/10, 6/5 + i/10, 1/2 + i/20)."""
+    i = integer_argument(i, "i", minimum=1, maximum=MAX_DIMENSION, owner="chain_inertia")
     return sp.diag(1 + sp.Rational(i, 10), sp.Rational(6, 5) + sp.Rational(i, 10),
                    sp.Rational(1, 2) + sp.Rational(i, 20))
 
@@ -254,6 +289,7 @@ def attitude_groupoid(n: int) -> tuple[Groupoid, Callable[[Arrow], list]]:
     solves for the Cayley coordinates of each body's increment R_{i,k}ᵀR_{i,k+1}
     (docs/conventions.md §1).  The reader maps an arrow to the list of (R_{i,k}, R_{i,k+1}).
     """
+    n = integer_argument(n, "n", minimum=1, maximum=MAX_DIMENSION, owner="attitude_groupoid")
     space = SO3("R1") if n == 1 else ProductGroupoid(*[SO3(f"R{i}") for i in range(1, n + 1)])
     G = PairGroupoid(space)
 
@@ -270,6 +306,8 @@ def centres_of_mass(R: Sequence[sp.Matrix]) -> list[sp.Matrix]:
     """c_i = Σ_{j<i} R_j ℓ + R_i ρ: centres of mass of a chain pinned at the origin."""
     link, centre = sp.Matrix(CHAIN_LINK), sp.Matrix(CHAIN_CENTRE)
     out, joint = [], sp.zeros(3, 1)
+    R = [_matrix3(Ri, f"R[{i}]", "centres_of_mass")
+         for i, Ri in enumerate(sequence_argument(R, "R", owner="centres_of_mass"))]
     for Ri in R:
         out.append(joint + Ri * centre)
         joint = joint + Ri * link
@@ -356,8 +394,23 @@ def spherical_chain(n: int, forced: bool = False) -> DiscreteSystem:
                           name=f"forced_spherical_chain_{n}")
 
 
+def _matrix3(value, name: str, owner: str) -> sp.Matrix:
+    """``value`` as a 3 × 3 SymPy matrix (a SymPy or NumPy matrix, or nested lists), or a
+    :class:`ShapeError`."""
+    if isinstance(value, (sp.MatrixBase, np.ndarray, list, tuple)):
+        try:
+            matrix = sp.Matrix(value)
+        except (ValueError, TypeError, sp.SympifyError, sp.matrices.ShapeError):
+            matrix = None
+        if matrix is not None and matrix.shape == (3, 3):
+            return matrix
+    raise ShapeError(f"{owner}: {name} must be a 3 × 3 matrix, got {type(value).__name__} "
+                     f"{shown_value(value)}")
+
+
 def vee(M: sp.Matrix) -> sp.Matrix:
     """(M₃₂, M₁₃, M₂₁): the vector of a skew-symmetric 3×3 matrix, vee(x̂) = x."""
+    M = _matrix3(M, "M", "vee")
     return sp.Matrix([M[2, 1], M[0, 2], M[1, 0]])
 
 
@@ -455,7 +508,7 @@ def link_chain(n: int) -> DiscreteSystem:
     are tangent to the constraint set; with g = 0 their Noether quantity (the angular
     momentum) is conserved.
     """
-    n = integer_argument(n, "n", minimum=1, owner="link_chain")
+    n = integer_argument(n, "n", minimum=1, maximum=MAX_DIMENSION, owner="link_chain")
     h = sp.Symbol("h", positive=True)
     grav = sp.Symbol("g", nonnegative=True)
     lengths = sp.symbols(f"l1:{n + 1}", positive=True)

@@ -19,6 +19,7 @@ from _hostile_cases import case_of
 from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
+from symgroupoid import systems
 from symgroupoid.runtime import system_argument
 
 # --- one rule for arguments -----------------------------------------------------------------------
@@ -854,3 +855,62 @@ def test_a_regular_lagrangian_scaled_by_a_huge_or_tiny_constant_is_not_degenerat
              .compile(backend="numpy").simulate({"x": (0.0, 0.1)}, 3, {"h": 0.1}).states[-1]
              for lagrangian in (L, lambda g: L(g) / c)]
     np.testing.assert_allclose(final[0], final[1], rtol=1e-13)
+
+
+@pytest.mark.parametrize("call, error, message", [
+    (lambda: systems.link_chain(10 ** 6), sg.ShapeError, "at most 100000"),
+    (lambda: systems.attitude_groupoid(2 ** 70), sg.ShapeError, "at most 100000"),
+    (lambda: systems.attitude_groupoid(None), sg.ShapeError, "must be an integer"),
+    (lambda: systems.chain_inertia(float("nan")), sg.ShapeError, "finite integer"),
+    (lambda: systems.chain_inertia("1.5"), sg.ShapeError, "must be an integer"),
+    (lambda: systems.chain_inertia(-3), sg.ShapeError, "at least 1"),
+    (lambda: systems.discrete_inertia(float("inf"), 1, 1), sg.DomainError, "real and finite"),
+    (lambda: systems.discrete_inertia("abc", 1, 1), sg.InputTypeError, "SymPy expression"),
+    (lambda: systems.discrete_inertia(1, -1, 1), sg.DomainError, "I2 must be positive"),
+    (lambda: systems.vee(sp.eye(2)), sg.ShapeError, "3 × 3 matrix"),
+    (lambda: systems.vee({"a": 1}), sg.ShapeError, "3 × 3 matrix"),
+    (lambda: systems.centres_of_mass(None), sg.InputTypeError, "list or tuple"),
+    (lambda: systems.summed_forces([3]), sg.InputTypeError, "must be a function"),
+], ids=["link-chain", "attitudes-huge", "attitudes-none", "inertia-nan", "inertia-str",
+        "inertia-negative", "moment-inf", "moment-str", "moment-negative", "vee-2x2",
+        "vee-dict", "centres-none", "summed-int"])
+def test_the_systems_helpers_check_their_arguments(call, error, message):
+    """link_chain(10⁶) and attitude_groupoid(2⁷⁰) ran for minutes; chain_inertia(nan)
+    returned body 0's inertia, discrete_inertia(inf, 1, 1) a matrix of nan and oo, vee and
+    centres_of_mass bare TypeError/IndexError/KeyError (found by a fuzzer of the API)."""
+    with pytest.raises(error, match=message):
+        call()
+
+
+def test_rounding_floor_checks_its_arguments():
+    from symgroupoid.diagnostics import rounding_floor
+
+    with pytest.raises(sg.DomainError, match="must be finite"):
+        rounding_floor(np.array([1.0, np.nan, 1.0]), np.arange(3))  # NaN floors before
+    with pytest.raises(sg.ShapeError, match="step_indices must be an array of real"):
+        rounding_floor(np.ones(3), None)
+    with pytest.raises(sg.ShapeError, match="values must be an array of real"):
+        rounding_floor("abc", np.arange(3))
+    assert rounding_floor([2.0, -3.0, 2.5], [10, 14, 19])[1] == pytest.approx(
+        np.finfo(float).eps * 3 * 2)
+
+
+def test_digits_grouped_by_underscores_are_not_numbers(tmp_path):
+    """Python's float() reads 1_0 as 10 and 0_5 as 5: --params h=1_0 ran with h = 10 and a
+    trajectory .csv with a value 0_5 loaded it as 5, where 0x10 was refused."""
+    from symgroupoid.cli._inputs import parse_number  # white-box: the CLI's number reader
+
+    for text in ("1_0", "0_01", "0x10", "1j"):
+        with pytest.raises(sg.SymgroupoidError, match="is not a number"):
+            parse_number(text, "--params h")
+    assert parse_number(" 0.01", "--params h") == 0.01
+    sim = oscillator().euler_lagrange().compile(backend="numpy")
+    path = tmp_path / "run.csv"
+    sim.simulate({"q": (1.0, 0.99)}, 3, {"h": 0.1, "k": 1.0}).save(path)
+    lines = path.read_text().splitlines()
+    cells = lines[2].split(",")
+    cells[1] = "0_5"
+    lines[2] = ",".join(cells)
+    path.write_text("\n".join(lines) + "\n")
+    with pytest.raises(sg.TrajectoryFileError, match="'0_5': digits grouped by '_'"):
+        sg.Trajectory.load(path, sim)

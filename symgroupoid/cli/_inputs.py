@@ -34,7 +34,11 @@ BOUNDARY_KEYS = ("start", "end", "steps", "params", "guess")
 
 
 def parse_number(text: str, what: str) -> float:
-    """A real number from text (``0.01``, ``1e-3``, ``-2``), or :class:`InputError`."""
+    """A real number from text (``0.01``, ``1e-3``, ``-2``), or :class:`InputError`; only
+    decimal numbers (:func:`_numeric`): Python's ``float`` also reads ``1_0`` as 10, a typo
+    of ``1.0``."""
+    if not _numeric(text.strip()):
+        raise InputError(f"{what}: {text!r} is not a number")
     try:
         return float(text)
     except ValueError:
@@ -45,7 +49,7 @@ def parse_count(text: str, name: str, minimum: int = 0) -> int:
     """A count from text by the library's rule for counts (``1e7`` accepted, ``2.5`` and
     ``-5`` refused; :func:`~symgroupoid._arguments.integer_argument`)."""
     try:
-        value: float | int = int(text)
+        value: float | int = int(text) if "_" not in text else parse_number(text, f"--{name}")
     except ValueError:
         value = parse_number(text, f"--{name}")
     return integer_argument(value, f"--{name}", minimum=minimum)

@@ -15,7 +15,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import sympy as sp
 
-from .._arguments import flag_argument
+from .._arguments import flag_argument, real_array
+from .._errors import ShapeError
 from .._errors import (  # noqa: F401 (re-exported)
     DiagnosticsError,
     DomainError,
@@ -257,11 +258,21 @@ def rounding_floor(values: np.ndarray, step_indices: np.ndarray,
     biased one way at every step (a step's change below the resolution of the coordinates,
     e.g. a slow orbit far from the origin), which :attr:`Drift.step_variation` shows.
     """
-    values = np.asarray(values, float)
+    values = real_array(values, "values", owner="rounding_floor").ravel()
+    steps = real_array(step_indices, "step_indices", owner="rounding_floor")
+    if steps.ndim != 1:
+        raise ShapeError(f"rounding_floor: step_indices must be a vector of step counts, got "
+                         f"shape {steps.shape}")
+    if not (np.isfinite(values).all() and np.isfinite(steps).all()):
+        raise DomainError("rounding_floor: the values and step indices must be finite")
+    if magnitudes is not None:
+        magnitudes = real_array(magnitudes, "magnitudes", owner="rounding_floor")
+        if not np.isfinite(magnitudes).all():
+            raise DomainError("rounding_floor: the magnitudes must be finite")
     scale = float(np.max(np.abs(values))) if values.size else 0.0
     size = (float(np.max(np.abs(magnitudes)))
             if magnitudes is not None and np.size(magnitudes) else 0.0)
-    k = np.asarray(step_indices, float) - float(step_indices[0])
+    k = steps - (steps[0] if steps.size else 0.0)
     return np.where(k > 0, _EPS * (scale * np.sqrt(k) + size), 0.0)
 
 

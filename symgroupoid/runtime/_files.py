@@ -422,6 +422,10 @@ def _read_csv(path: Path, label: str) -> tuple[TrajectoryData, list[str]]:
     if not body or any(len(r) != len(rows[0]) for r in body):
         raise TrajectoryFileError(f"{label}: every row must have the {len(rows[0])} columns "
                                   f"of the header, and there must be at least one")
+    grouped = next((v for r in body for v in r if "_" in v), None)
+    if grouped is not None:  # float() reads 0_5 as 5: a typo of 0.5 would load as 5
+        raise TrajectoryFileError(f"{label}: a value is not a number ({grouped!r}: digits "
+                                  f"grouped by '_' are not read)")
     try:
         steps = np.array([int(r[0]) for r in body], dtype=np.int64)
         states = np.array([[float(v) for v in r[1:-2]] for r in body], dtype=float)
