@@ -20,6 +20,7 @@ from kernel_support import isolated_cache  # noqa: F401  (autouse fixture)
 
 import symgroupoid as sg
 from symgroupoid import systems
+from symgroupoid.equations import LatexOptionError
 from symgroupoid.runtime import system_argument
 
 # --- one rule for arguments -----------------------------------------------------------------------
@@ -914,3 +915,32 @@ def test_digits_grouped_by_underscores_are_not_numbers(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(sg.TrajectoryFileError, match="'0_5': digits grouped by '_'"):
         sg.Trajectory.load(path, sim)
+
+
+def test_options_and_constants_found_by_the_api_fuzzer_are_checked():
+    """ActionGroupoid(check=None) skipped the action check as check=False does; a
+    misspelled parameter of check_axioms was ignored; latex(width=10**400) overflowed;
+    step.symbol and step.jacobian with arrays, check_on_graph(None) and NamedMatrix of a
+    3-d array or NaN entries gave bare or SymPy errors, or a matrix of nan."""
+    W = sg.SO3("W")
+    squared = lambda p, R: list(R * R * sp.Matrix(p))  # noqa: E731 - not an action
+    with pytest.raises(sg.ShapeError, match="check must be True or False"):
+        sg.ActionGroupoid(sg.EuclideanSpace.vector("G", 3), W, squared, check=None)
+    with pytest.raises(sg.AxiomError):
+        sg.ActionGroupoid(sg.EuclideanSpace.vector("G", 3), W, squared, check=True)
+    with pytest.raises(sg.ParameterError, match="zz are not symbols of its structure maps"):
+        sg.check_axioms(W, parameters={"zz": 1})
+    step = systems.rigid_body().euler_lagrange()
+    with pytest.raises(LatexOptionError, match="width must be a number of points"):
+        step.latex(width=10 ** 400)
+    with pytest.raises(sg.InputTypeError, match="a symbol's name must be a string"):
+        step.symbol(np.array(["x", "y"]), "k")
+    with pytest.raises(sg.ShapeError, match="substitute must be True or False"):
+        step.jacobian(np.array([1, 2]))
+    with pytest.raises(sg.InputTypeError, match="groupoid must be a Groupoid"):
+        systems.rigid_body().noether(0).check_on_graph(None)
+    with pytest.raises(sg.InputTypeError, match="what sympy.Matrix takes"):
+        sg.NamedMatrix(np.zeros((2, 3, 4)), name="J")
+    with pytest.raises(sg.DomainError, match="real and finite"):
+        sg.NamedMatrix([[sp.nan]], name="J")
+    assert sg.NamedMatrix([[1, sp.Symbol("a")]], name="J").latex_name == "J"

@@ -390,7 +390,10 @@ class NoetherQuantity:
         constraints the arrows are moved onto N = G|_M first (:attr:`restriction`), the
         stages ζ* include the interior multipliers, and X must be tangent to M there
         (:attr:`tangency`; docs/conventions.md §22, "The Noether quantity on N = G|_M")."""
+        from ..groupoids import Groupoid
 
+        instance_argument(groupoid, Groupoid, "groupoid", "a Groupoid",
+                          owner="check_on_graph")
         rng = np.random.default_rng(20260)
         usable = 0
         where = "random arrows" if self.restriction is None else "random arrows of N = G|_M"

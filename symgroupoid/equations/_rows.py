@@ -236,7 +236,7 @@ def check_width(width) -> float:
     if not isinstance(width, (bool, np.bool_, str, bytes)):  # ("450": float would read it)
         try:
             value = float(width)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):  # (10**400: beyond a double)
             pass
     if not MIN_WIDTH <= value <= MAX_WIDTH:
         raise LatexOptionError(f"latex: width must be a number of points from "

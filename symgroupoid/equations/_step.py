@@ -8,7 +8,7 @@ from collections.abc import Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import instance_argument, real_array
+from .._arguments import flag_argument, instance_argument, real_array
 from .._errors import (
     DomainError,
     InputNameError,
@@ -168,6 +168,9 @@ class StepEquations:
         named "g"), ``step.symbol("lambda", "k+1")`` (list of (λ_{k+1})_a).
         """
         offset = self._offset(step)
+        if not isinstance(name, str):
+            raise InputTypeError(f"{self.name}: a symbol's name must be a string, got "
+                                 f"{type(name).__name__} {name!r}")
         if name in ("lambda", "λ", "multipliers"):
             return multiplier_symbols(self.n_constraints, offset)
         table = self.groupoid.symbols_by_name(offset)
@@ -215,6 +218,7 @@ class StepEquations:
         The entries use the fibre variables of the unknown arrow (as the residuals do);
         ``substitute=True`` replaces them by the chart (functions of the unknowns only).
         """
+        substitute = flag_argument(substitute, "substitute", owner=self.name)
         J = self._jacobian
         return J.xreplace(self.reconstruction) if substitute else J
 

@@ -12,7 +12,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import sympy as sp
 
-from .._arguments import callable_argument, instance_argument
+from .._arguments import callable_argument, flag_argument, instance_argument
 from .._errors import AxiomError, CallableError, ShapeError, SymgroupoidError
 from ._base import Arrow, Groupoid, coordinate_values
 from ._matrix_groups import MatrixLieGroup
@@ -61,7 +61,7 @@ class ActionGroupoid(Groupoid):
         self.space, self.group = space, group
         self.name = f"({', '.join(space.names)}) ⋊ {group.name}"
         self.action = callable_argument(action, "the action", owner=self.name)
-        if check:
+        if flag_argument(check, "check", owner=owner):
             self._check_action()
 
     def _check_action(self, seed: int = 0, tol: float = 1e-9) -> None:

@@ -8,7 +8,7 @@ import numpy as np
 import sympy as sp
 
 from .._arguments import instance_argument, integer_argument, real_argument
-from .._errors import AxiomError, InputTypeError, ShapeError
+from .._errors import AxiomError, InputTypeError, ParameterError, ShapeError
 from ._base import Groupoid
 
 
@@ -46,9 +46,12 @@ def check_axioms(G: Groupoid, samples: int = 5, seed: int = 0, tol: float = 1e-9
     values = _parameter_values(G, parameters or {})
     rng = np.random.default_rng(seed + 1)
     chosen: set = set()
+    given = set(values)
     while True:
         try:
-            _run(_Evaluated(G, values), samples, seed, tol)
+            evaluated = _Evaluated(G, values)
+            _run(evaluated, samples, seed, tol)
+            _all_used(G, given, evaluated.used)
             return
         except _FreeSymbols as free:
             for s in sorted(free.symbols, key=str):
@@ -104,6 +107,16 @@ def _parameter_values(G: Groupoid, parameters: Mapping) -> dict:
     return out
 
 
+def _all_used(G: Groupoid, given: set, used: set) -> None:
+    """A :class:`ParameterError` naming the given parameters no structure map of ``G`` read
+    (a misspelled name was ignored: the maps were checked at values chosen at random)."""
+    unused = sorted(str(k) for k in given if k not in used)
+    if unused:
+        raise ParameterError(f"{G.name}: parameters {', '.join(unused)} are not symbols of "
+                             f"its structure maps (they read "
+                             f"{', '.join(sorted({str(u) for u in used})) or 'none'})")
+
+
 def _random_value(s: sp.Symbol, rng: np.random.Generator) -> float:
     """Random value respecting the assumptions: negative → (−2, −0.5), else (0.5, 2)."""
     sign = -1.0 if (s.is_negative or s.is_nonpositive) else 1.0
@@ -120,6 +133,7 @@ class _Evaluated:
     def __init__(self, G: Groupoid, values: dict):
         self.inner, self.name, self.values = G, G.name, values
         self.curve_parameter = None
+        self.used: set = set()  # the parameters (symbols and names) the maps read
 
     def _sub(self, coords: Sequence, what: str) -> tuple:
         out = []
@@ -144,9 +158,11 @@ class _Evaluated:
 
     def _value(self, s: sp.Symbol) -> float | None:
         if s in self.values:
+            self.used.update((s, str(s)))
             return self.values[s]
         if str(s) in self.values:  # given by name: bind it to this symbol
             self.values[s] = self.values.pop(str(s))
+            self.used.update((s, str(s)))
             return self.values[s]
         return None
 

@@ -21,7 +21,7 @@ from sympy.core.symbol import Str
 from sympy.matrices.expressions.matexpr import MatrixElement
 
 from .._arguments import name_argument
-from .._errors import InputTypeError
+from .._errors import DomainError, InputTypeError
 
 
 class NamedMatrix(sp.ImmutableDenseMatrix):
@@ -36,12 +36,20 @@ class NamedMatrix(sp.ImmutableDenseMatrix):
     def __new__(cls, *args, name: str | None = None):
         if name is not None:
             name = name_argument(name, "name", owner="NamedMatrix")
+        label = f"NamedMatrix{'' if name is None else f' {name}'}"
+        if any(isinstance(a, (str, bytes)) for a in args):
+            raise InputTypeError(f"{label}: the matrix must be what sympy.Matrix takes (rows "
+                                 f"of scalars, or rows, columns and entries); got {args!r}")
         try:
             obj = super().__new__(cls, *args)
-        except (TypeError, ValueError, IndexError, AttributeError, sp.SympifyError) as exc:
-            raise InputTypeError(f"NamedMatrix{'' if name is None else f' {name}'}: the "
-                                 f"matrix must be what sympy.Matrix takes (rows of "
-                                 f"scalars, or rows, columns and entries); {exc}") from exc
+        except (TypeError, ValueError, IndexError, AttributeError, NotImplementedError,
+                sp.SympifyError) as exc:
+            raise InputTypeError(f"{label}: the matrix must be what sympy.Matrix takes (rows "
+                                 f"of scalars, or rows, columns and entries); {exc}") from exc
+        if any(e.has(sp.nan, sp.zoo, sp.oo, -sp.oo) or e.is_extended_real is False
+               for e in obj if isinstance(e, sp.Basic)):
+            raise DomainError(f"{label}: the entries must be real and finite (a constant of "
+                              f"the equations), got {obj.tolist()}")
         if name is not None:
             obj.latex_name = name
         return obj

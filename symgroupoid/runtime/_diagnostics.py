@@ -16,10 +16,10 @@ import numpy as np
 import sympy as sp
 
 from .._arguments import flag_argument, real_array
-from .._errors import ShapeError
 from .._errors import (  # noqa: F401 (re-exported)
     DiagnosticsError,
     DomainError,
+    ShapeError,
     SymgroupoidError,
     TimeStepError,
 )
