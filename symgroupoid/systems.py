@@ -106,15 +106,16 @@ def inertia_symbols() -> tuple:
 
 def discrete_inertia(I1, I2, I3) -> sp.Matrix:
     """J_d = ½ tr(I) I₃ − I for I = diag(I1, I2, I3), printed as J_d; each moment a SymPy
-    expression (``inertia_symbols()``) or a positive finite number."""
+    expression (``inertia_symbols()``) or a finite number at least 0."""
     inertia = sp.diag(*[_moment(m, name) for m, name in ((I1, "I1"), (I2, "I2"), (I3, "I3"))])
     return NamedMatrix(inertia.trace() / 2 * sp.eye(3) - inertia, name="J_d")
 
 
 def _moment(value, name: str) -> sp.Expr:
-    """A principal moment of inertia: a real SymPy expression, or a positive finite number
+    """A principal moment of inertia: a real SymPy expression, or a finite number at least 0
     (an :class:`InputTypeError` for a string or a container, a :class:`DomainError` for NaN,
-    an infinity, a complex or a non-positive number)."""
+    an infinity, a complex or a negative number; 0 is a degenerate body, which the
+    derivation diagnoses)."""
     if isinstance(value, (str, bytes, bool, np.bool_)) or np.ndim(value) != 0:
         raise InputTypeError(f"discrete_inertia: {name} must be a SymPy expression or a "
                              f"number, got {type(value).__name__} {value!r}")
@@ -126,8 +127,8 @@ def _moment(value, name: str) -> sp.Expr:
     if not isinstance(moment, sp.Expr) or moment.has(sp.nan, sp.zoo, sp.oo, -sp.oo) \
             or moment.is_extended_real is False:
         raise DomainError(f"discrete_inertia: {name} must be real and finite, got {moment}")
-    if moment.is_number and not moment.is_positive:
-        raise DomainError(f"discrete_inertia: {name} must be positive (a moment of "
+    if moment.is_number and moment.is_negative:
+        raise DomainError(f"discrete_inertia: {name} must not be negative (a moment of "
                           f"inertia), got {moment}")
     return moment
 
