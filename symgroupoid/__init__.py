@@ -135,3 +135,31 @@ __all__ = [
     "ContinuousSystem", "GaussLegendre", "LobattoIIIAB", "ConvergenceReport",
     "convergence_order",
 ]
+
+
+def _check_the_calls() -> None:
+    """Every call of the public face that cannot bind its arguments (a misspelled keyword
+    ``extrapolat=``, a missing argument) is an :class:`InputNameError` naming the function
+    or method and its parameters, not Python's ``TypeError``: the public functions are
+    wrapped (:func:`~symgroupoid._arguments.checked_call`), and so are the constructors and
+    public methods of the public classes and of the library's classes they inherit from
+    (:func:`~symgroupoid._arguments.checked_calls`; errors, warnings and enums excepted)."""
+    import enum
+    import inspect
+
+    from ._arguments import checked_call, checked_calls
+
+    for name in __all__:
+        value = globals()[name]
+        if inspect.isclass(value) and not issubclass(value, (BaseException, Warning,
+                                                             enum.Enum)):
+            for cls in value.__mro__:
+                if cls.__module__.startswith(__name__ + ".") and \
+                        not cls.__dict__.get("_symgroupoid_checked", False):
+                    checked_calls(cls)
+                    cls._symgroupoid_checked = True
+        elif inspect.isfunction(value):
+            globals()[name] = checked_call(value, name)
+
+
+_check_the_calls()

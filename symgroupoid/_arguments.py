@@ -445,30 +445,65 @@ __all__ = ["MAX_COUNT", "MAX_DIMENSION", "callable_argument", "caller_level", "c
            "real_argument", "real_array", "sequence_argument", "shown_value", "where"]
 
 
-def checked_keywords(cls):
-    """A class decorator: a call of ``cls`` with an argument it does not take (a misspelled
-    option, ``maxiter=`` for ``max_iterations=``) or without one it needs is an
-    :class:`~symgroupoid.InputNameError` naming the class and its parameters, not Python's
-    ``TypeError``."""
+def checked_call(func, owner: str | None = None):
+    """``func`` with a call it cannot bind — an argument it does not take (a misspelled
+    option, ``maxiter=`` for ``max_iterations=``), a missing one, too many — an
+    :class:`~symgroupoid.InputNameError` naming ``owner`` (default: the function's
+    qualified name) and its parameters, not Python's ``TypeError``.  A ``TypeError`` raised
+    inside ``func`` passes as it is (the arguments bind to its signature), and a call that
+    binds pays one more Python frame only."""
     import functools
     import inspect
 
     from ._errors import InputNameError
 
-    init = cls.__init__
-    signature = inspect.signature(init)
+    label = owner or func.__qualname__
 
-    @functools.wraps(init)
-    def checked(self, *args, **kwargs):
+    @functools.wraps(func)
+    def checked(*args, **kwargs):
         try:
-            signature.bind(self, *args, **kwargs)
+            return func(*args, **kwargs)
         except TypeError as exc:
-            names = [p for p in signature.parameters if p != "self"
-                     and signature.parameters[p].kind not in (inspect.Parameter.VAR_POSITIONAL,
-                                                              inspect.Parameter.VAR_KEYWORD)]
-            raise InputNameError(f"{cls.__name__}: {exc}; its arguments are "
-                                 f"{', '.join(names)}") from None
-        init(self, *args, **kwargs)
+            signature = inspect.signature(func)  # (through wrappers to the function)
+            try:
+                signature.bind(*args, **kwargs)
+            except TypeError:
+                pass
+            else:
+                raise  # the arguments bind: raised inside func
+            names = [p.name for p in signature.parameters.values() if p.name != "self"
+                     and p.kind not in (inspect.Parameter.VAR_POSITIONAL,
+                                        inspect.Parameter.VAR_KEYWORD)]
+            raise InputNameError(f"{label}: {exc}; its arguments are "
+                                 f"{', '.join(names) or 'none'}") from None
 
-    cls.__init__ = checked
+    return checked
+
+
+def hot_path(func):
+    """Marks a method whose every call counts (``Simulator.step`` in a control loop, with a
+    budget of 2 µs of Python a call): :func:`checked_calls` leaves it unwrapped, so a
+    misspelled keyword there is Python's ``TypeError``."""
+    func._symgroupoid_hot = True
+    return func
+
+
+def checked_calls(cls):
+    """A class decorator: ``__init__`` and every public method of ``cls`` (its own, plain,
+    class and static methods) through :func:`checked_call`, named ``Class.method`` (the
+    constructor by the class's name), except those marked :func:`hot_path`.  Subclasses
+    that define their own methods are decorated themselves."""
+    for name, value in list(vars(cls).items()):
+        if (name != "__init__" and name.startswith("_")) or \
+                getattr(value, "_symgroupoid_hot", False):
+            continue
+        label = cls.__name__ if name == "__init__" else f"{cls.__name__}.{name}"
+        if isinstance(value, (classmethod, staticmethod)):
+            setattr(cls, name, type(value)(checked_call(value.__func__, label)))
+        elif callable(value) and not isinstance(value, type):
+            setattr(cls, name, checked_call(value, label))
     return cls
+
+
+#: (the decorator of the option classes: their constructors' calls checked)
+checked_keywords = checked_calls

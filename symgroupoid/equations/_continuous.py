@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
-from .._arguments import integer_argument, name_argument, sequence_argument
+from .._arguments import caller_level, integer_argument, name_argument, sequence_argument
 from .._errors import (
     CallableError,
     DegenerateSystemError,
@@ -525,7 +525,7 @@ class Discretization:
                 raise DegenerateSystemError(text, findings=err.findings) from None
         for found in caught:  # the probe's warnings, as the scheme's
             text = str(found.message).replace(probe_name, f"{discrete.name}:", 1)
-            warnings.warn(found.category(text), stacklevel=5)  # euler_lagrange()'s caller
+            warnings.warn(found.category(text), stacklevel=caller_level())  # (the user's line)
 
 
 #: the velocity Hessian is singular where its singular values fall below this fraction of

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 import sympy as sp
 
+from .._arguments import caller_level
 from .._errors import DegenerateLagrangianWarning, DegenerateSystemError
 from ..derivation import SCALES, extrapolate, limit_points
 from ._findings import Finding, Layout
@@ -96,7 +97,7 @@ def check_kinetic(step, layout: Layout, time_steps: Sequence) -> None:
             f"{step.name}: {head}; velocity-linear terms of L make the step regular along it "
             f"(the continuous equations are of first order there), and the two-step discrete "
             f"flow carries parasitic modes beside the motion (docs/conventions.md §19)"),
-            stacklevel=6)  # the caller of euler_lagrange() (through its two decorators)
+            stacklevel=caller_level())  # the caller of euler_lagrange()
         return
     text = (f"The kinetic energy is degenerate: {head}. The step equations determine that "
             f"direction only through the potential, at order h, so along it the discrete flow "

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from .._arguments import (
     caller_level,
+    checked_call,
     choice_argument,
     instance_argument,
     name_argument,
@@ -124,11 +125,12 @@ def load_kernel_source(kernel: KernelSource, flags: Sequence[str], label: str,
 
 @reported(lambda step, **options: f"{step.name}: building the kernel")
 @collector_paused
+@checked_call
 def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = None,
                  cache_dir: str | os.PathLike | None = None, tol_residual: float | None = None,
                  tol_step: float | None = None, max_iterations: int | None = None,
-                 floor_factor: float | None = None,
-                 trust_factor: float | None = None) -> Simulator:
+                 floor_factor: float | None = None, trust_factor: float | None = None,
+                 extrapolate: bool | None = None) -> Simulator:
     """A :class:`Simulator` for ``step``: its C kernel (cffi, cached) or the NumPy backend.
 
     Every argument is checked before anything is built, whichever backend is used
@@ -158,8 +160,8 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         taken relative to the working directory of this call.  If it cannot be written,
         kernels are built in a private temporary directory for this process (with a
         ``RuntimeWarning``).
-    tol_residual, tol_step, max_iterations, floor_factor, trust_factor : Newton options (see
-        :class:`NewtonOptions`).
+    tol_residual, tol_step, max_iterations, floor_factor, trust_factor, extrapolate : Newton
+        options (see :class:`NewtonOptions`).
     progress : report code generation and compilation taking longer than 2 s (see
         :mod:`symgroupoid._progress`; a cached kernel loads in milliseconds).
     """
@@ -176,7 +178,7 @@ def compile_step(step, *, backend: str = "auto", flags: Sequence[str] | None = N
         cache_dir = absolute_root(path_argument(cache_dir, "cache_dir", owner=owner))
     given = {"tol_residual": tol_residual, "tol_step": tol_step,
              "max_iterations": max_iterations, "floor_factor": floor_factor,
-             "trust_factor": trust_factor}
+             "trust_factor": trust_factor, "extrapolate": extrapolate}
     options = NewtonOptions(**{k: v for k, v in given.items() if v is not None})
     if backend == "numpy":
         return Simulator(step, NumpyKernel(step), options)
