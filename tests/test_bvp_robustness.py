@@ -354,3 +354,31 @@ def test_too_few_steps_have_one_message_in_the_solve_and_the_sweep(steps):
         sg.solve_boundary_value(step, [0.0], [1.0], steps, params=params)
     with pytest.raises(sg.ShapeError, match=f"^planar_chain_1: {message}$"):
         sg.sweep_boundary_value(step, [[0.0]], [[1.0]], steps, params)
+
+
+def test_a_path_through_the_centre_of_a_constraint_circle_says_so():
+    """A pendulum in (x, y) with x² + y² = 1 from the bottom to the top: both ends on the
+    circle, but the default path runs straight through the centre, where the constraint's
+    gradient vanishes.  The error blamed the boundary data, and said it twice (the fast
+    path's message inside the globalised one's); it names the initial path now, and the
+    solve from a path along the circle succeeds."""
+    h, g = sp.symbols("h g", positive=True)
+
+    def L(a):
+        (x0, y0), (x1, y1) = a.source, a.target
+        return ((x1 - x0) ** 2 + (y1 - y0) ** 2) / (2 * h) - h * g * (y0 + y1) / 2
+
+    pendulum = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x y")), L,
+                                 holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1],
+                                 parameters=[h, g], name="planar").euler_lagrange()
+    params = {"h": 0.05, "g": 9.81}
+    with pytest.raises(sg.SingularJacobianError, match="at the initial path") as info:
+        sg.solve_boundary_value(pendulum, (0.0, -1.0), (0.0, 1.0), 30, params=params)
+    assert str(info.value).count("singular boundary-value Jacobian") == 1
+    assert "the Newton fast path ended the same way" in str(info.value)
+    angles = np.linspace(0, np.pi, 31)
+    nodes = [(np.sin(a), -np.cos(a)) for a in angles]
+    arc = np.array([pendulum.groupoid.arrow_between(a, b) for a, b in zip(nodes, nodes[1:])])
+    solution = sg.solve_boundary_value(pendulum, (0.0, -1.0), (0.0, 1.0), 30, params=params,
+                                       guess=arc)
+    assert np.abs(solution["x"] ** 2 + solution["y"] ** 2 - 1).max() < 1e-12

@@ -370,3 +370,32 @@ def test_a_parameter_written_as_a_multiplier_with_its_index_is_refused_with_cons
                           constraints=lambda a: [a.target[0] - a.source[1]])
     assert r"\lambda_{1}" in sg.DiscreteSystem(G, L, parameters=[h, lam],
                                                name="free").euler_lagrange().latex()
+
+
+@pytest.mark.parametrize("name, why", [
+    (r"\partial_{\bar{\theta}_{1}} L", r"uses \\partial"),
+    (r"(\theta_{1})_{k+2}", "the step index k or j in a subscript"),
+    (r"\theta_{1,k}", "the step index k or j in a subscript"),
+    (r"\overline{\theta}_{1}", "prints like a symbol"),
+    (r"\mathrm{h}", "prints like a symbol"),
+    (r"\foo", r"uses \\foo, which is not a Greek letter"),
+    (r"\input{nonexistent_file}", r"uses \\input"),
+    (r"\def\h{X}M", r"uses \\def"),
+    ("M\nN", "control character"),
+])
+def test_an_abbreviation_must_read_as_itself(name, why):
+    """Accepted before (a reviewer's PDFs): ∂_{θ̄₁}L defined twice in the "where" list, once
+    in terms of itself; (θ₁)_{k+2} and θ_{1,k} read as the coordinate at a step; \\overline
+    and \\mathrm{h} print like θ̄₁ and h; \\foo, \\input, \\def stopped pdflatex; a newline
+    printed nothing."""
+    step, value = _pendulum()
+    with pytest.raises(LatexOptionError, match=why):
+        step.latex(abbreviations={name: value})
+
+
+def test_names_made_of_greek_letters_accents_and_fonts_are_kept():
+    step, value = _pendulum()
+    for name in (r"\hat{\Omega}", r"\mathcal{M}", "K_{1}", r"m_{kin}", r"\text{mass}"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UnusedAbbreviationWarning)
+            assert "where" in step.latex(abbreviations={name: value})

@@ -92,6 +92,7 @@ def abbreviations_of(abbreviations, step) -> list[Abbreviation]:
             raise LatexOptionError(f"latex: the abbreviation {tex!r} prints like a symbol of "
                                    f"{step.name}; choose another name")
         _check_name_shape(tex)
+        _check_name_reading(tex)
         taken.add(shown)
         if not callable(value):
             value = _abbreviation_value(tex, value)
@@ -123,10 +124,13 @@ _OPERATOR_COMMANDS = ("sin", "cos", "tan", "exp", "log", "ln", "det")
 def rendered(tex: str) -> str:
     r"""``tex`` as it typesets, for comparing names: spaces, empty groups (``L_{}``,
     ``x^{}``, ``{}``) and braces around the whole name (``{L}``) dropped, an operator name
-    written ``\operatorname{sin}`` as ``\sin``."""
+    written ``\operatorname{sin}`` as ``\sin``, ``\overline`` as ``\bar`` and a letter
+    in a font of upright or italic letters (``\mathrm{h}``) as the letter."""
     out = re.sub(r"\s+", "", tex)
     for word in _OPERATOR_COMMANDS:
         out = out.replace(f"\\operatorname{{{word}}}", f"\\{word}")
+    out = re.sub(r"\\(?:overline|widebar)\{", r"\\bar{", out)  # (they print alike)
+    out = re.sub(r"\\(?:mathrm|mathit|text|textrm|textit)\{([A-Za-z])\}", r"\1", out)
     previous = None
     while previous != out:
         previous = out
@@ -184,6 +188,35 @@ _TAKES_ARGUMENT = frozenset({"frac", "dfrac", "tfrac", "sqrt", "hat", "bar", "ti
                              "mathrm", "mathbf", "mathit", "mathsf", "mathtt", "mathfrak",
                              "boldsymbol", "operatorname", "text", "textrm", "textit"})
 _COMMAND = re.compile(r"\\([A-Za-z]+)\s*(\{)?")
+
+
+#: the commands a name may use: Greek letters, accents, fonts and a few letter-like symbols
+_GREEK = ("alpha beta gamma delta epsilon varepsilon zeta eta theta vartheta iota kappa "
+          "varkappa lambda mu nu xi omicron pi varpi rho varrho sigma varsigma tau upsilon "
+          "phi varphi chi psi omega Gamma Delta Theta Lambda Xi Pi Sigma Upsilon Phi Psi "
+          "Omega").split()
+_NAMING = frozenset({*_GREEK, *_TAKES_ARGUMENT, "ell", "hbar", "imath", "jmath", "aleph",
+                     "prime", "star", "ast", "circ", "dagger"})
+#: a subscript holding the step index k or the row index j as a token: x_{k}, θ_{1,k}
+_STEP_INDEX = re.compile(r"_\{[^{}]*(?<![A-Za-z\\])[kj](?![A-Za-z])[^{}]*\}|_[kj](?![A-Za-z])")
+
+
+def _check_name_reading(tex: str) -> None:
+    """An abbreviation's name reads as itself: only the commands of :data:`_NAMING` (a
+    command LaTeX does not know, ``\foo``, stops pdflatex; ``\input``, ``\def`` act), no
+    control character (a newline prints nothing), no subscript with the step index
+    (``\theta_{1,k}``, ``(\theta_{1})_{k+2}`` read as a value at a step) and no ∂ (the
+    printed equations write L's partial derivatives with it): a :class:`LatexOptionError`."""
+    odd = next((ch for ch in tex if ord(ch) < 32), None)
+    unknown = next((m.group(1) for m in _COMMAND.finditer(tex) if m.group(1) not in _NAMING),
+                   None)
+    why = (f"holds the control character {odd!r}" if odd is not None else
+           f"uses \\{unknown}, which is not a Greek letter, an accent or a font" if unknown
+           else "has the step index k or j in a subscript, which reads as a value at a step"
+           if _STEP_INDEX.search(rendered(tex)) else None)
+    if why is not None:
+        raise LatexOptionError(f"latex: the abbreviation's name {tex!r} {why}; give a name "
+                               f"such as 'M', 'K_{{1}}' or r'\\hat{{\\Omega}}'")
 
 
 def _check_name_shape(tex: str) -> None:

@@ -42,7 +42,10 @@ def _globalised_after(state: _SolverState, starts: list, why: str) -> None:
                 why = (f"{why}; from its best iterate, the globalised iteration "
                        f"{_first_line(exc)}")
                 continue
-            exc.args = (f"{exc.args[0]} (after the Newton fast path {why})",) + exc.args[1:]
+            same = str(exc.args[0]) in why  # (the fast path's error, word for word)
+            after = ("the Newton fast path ended the same way" if same
+                     else f"after the Newton fast path {why}")
+            exc.args = (f"{exc.args[0]} ({after})",) + exc.args[1:]
             raise
 
 

@@ -306,8 +306,8 @@ class _SolverState:
         state = self.assembled
         norm = float(np.max(np.abs(state.F), initial=0.0))
         return BoundaryValueDivergenceError(
-            f"{self.problem.owner}: boundary-value iteration {why}; after {self.iterations} "
-            f"iterations |F|∞ = {norm:.3e}, worst at configuration {state.worst}, "
+            f"{self.problem.owner}: boundary-value iteration {why}; after "
+            f"{counted(self.iterations, 'iteration')} |F|∞ = {norm:.3e}, worst at configuration {state.worst}, "
             f"{excess:.1e} times the accepted residual max(tol/ε, {ROUNDING_FACTOR:g})·"
             f"rounding floor: not a solution",
             iterations=self.iterations, history=self.history, step=state.worst,
@@ -317,8 +317,12 @@ class _SolverState:
         """The error of a singular Jacobian at the iterate."""
         state = self.assembled
         norm = float(np.max(np.abs(state.F), initial=0.0))
+        where = ("at the initial path (the path between the ends, or the guess): the "
+                 "gradients of the constraints may vanish along it (a straight path through "
+                 "the centre of a circle of constraint) — pass guess= a path that follows "
+                 "them — or " if self.iterations == 0 else "")
         return SingularJacobianError(
             f"{self.problem.owner}: singular boundary-value Jacobian at iteration "
             f"{self.iterations} (|F|∞ = {norm:.3e}, worst at configuration {state.worst}); "
-            "the boundary data may violate the constraints or the Lagrangian is not regular "
-            "there", step=state.worst, residual_norm=norm, iterate=self.arrows)
+            f"{where}the boundary data may violate the constraints or the Lagrangian is not "
+            f"regular there", step=state.worst, residual_norm=norm, iterate=self.arrows)
