@@ -224,6 +224,10 @@ def is_difference_name(name: str) -> bool:
     return latex_name(name) == r"\Delta"
 
 
+#: a name whose subscript reads as a step index: x_{k}, x_{k+1}, x_{j}
+_STEP_INDEXED = re.compile(r"_\{?[kj]([+-]\d+)?\}?$")
+
+
 def unprintable_name(name: str, words: bool = True) -> str | None:
     """Why ``name`` cannot name a coordinate, a part or an input in the printed equations,
     or None: it must start with a letter (or be a LaTeX command such as ``\\theta``: a name
@@ -258,6 +262,9 @@ def unprintable_name(name: str, words: bool = True) -> str | None:
     misread = misread_name(name, words)
     if misread is not None:
         return f"it {misread}"
+    if _STEP_INDEXED.search(latex_name(name)):
+        return (f"it is written {latex_name(name)}, as a value at a step is: its values would "
+                f"print ({latex_name(name)})_{{k+1}}")
     if is_difference_name(name):
         return ("it is written \\Delta, as the printed equations write the differences of "
                 "the coordinates (\\Delta q for q_{k+1} - q_k: a coordinate Δ would print "

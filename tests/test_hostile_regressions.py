@@ -945,3 +945,23 @@ def test_options_and_constants_found_by_the_api_fuzzer_are_checked():
     with pytest.raises(sg.DomainError, match="real and finite"):
         sg.NamedMatrix([[sp.nan]], name="J")
     assert sg.NamedMatrix([[1, sp.Symbol("a")]], name="J").latex_name == "J"
+
+
+@pytest.mark.parametrize("name", ["x_k", "theta_k", "x_j", "q_{k+1}"])
+def test_a_coordinate_written_as_a_value_at_a_step_is_refused(name):
+    """A coordinate x_k printed (x_{k})_{k+1} (a parameter so named was already refused)."""
+    with pytest.raises(sg.CoordinateNameError, match="as a value at a step is"):
+        sg.EuclideanSpace(name)
+    assert sg.EuclideanSpace("x_kin").names == ("x_kin",)
+
+
+def test_a_nonholonomic_system_refuses_what_it_does_not_have():
+    """nh.legendre(), .noether(0), .lie_poisson() and .reduce(m) were AttributeErrors."""
+    knife = sg.NonholonomicSystem(
+        sg.PairGroupoid(sg.EuclideanSpace("x y")),
+        lambda g: sum((b - a) ** 2 for a, b in zip(g.source, g.target)) / (2 * H),
+        lambda g: [g.target[1] - g.source[1]], [[1, 0]], parameters=[H])
+    for call in (knife.legendre, knife.lie_poisson, lambda: knife.noether(0),
+                 lambda: knife.reduce(None)):
+        with pytest.raises(sg.UnsupportedFeatureError, match="conserved_quantities"):
+            call()

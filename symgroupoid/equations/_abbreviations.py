@@ -202,7 +202,7 @@ _STEP_INDEX = re.compile(r"_\{[^{}]*(?<![A-Za-z\\])[kj](?![A-Za-z])[^{}]*\}|_[kj
 
 
 def _check_name_reading(tex: str) -> None:
-    """An abbreviation's name reads as itself: only the commands of :data:`_NAMING` (a
+    r"""An abbreviation's name reads as itself: only the commands of :data:`_NAMING` (a
     command LaTeX does not know, ``\foo``, stops pdflatex; ``\input``, ``\def`` act), no
     control character (a newline prints nothing), no subscript with the step index
     (``\theta_{1,k}``, ``(\theta_{1})_{k+2}`` read as a value at a step) and no ∂ (the

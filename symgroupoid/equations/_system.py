@@ -643,5 +643,26 @@ class NonholonomicSystem(_EvaluatedSystem):
                                     self.metric if metric is None else metric,
                                     self.parameters)
 
+    def legendre(self):
+        raise self._not_here("legendre()", "the discrete Legendre transforms")
+
+    def lie_poisson(self):
+        raise self._not_here("lie_poisson()", "the Lie–Poisson form")
+
+    def noether(self, *args, **kwargs):
+        raise self._not_here("noether()", "Noether quantities")
+
+    def reduce(self, *args, **kwargs):
+        raise self._not_here("reduce()", "reduction by a morphism")
+
+    def _not_here(self, call: str, what: str) -> UnsupportedFeatureError:
+        """The refusal of a DiscreteSystem's method a nonholonomic system does not have (it
+        was an AttributeError): what the library offers for one instead."""
+        return UnsupportedFeatureError(
+            f"{self.name}: {call} — {what} of a discrete Lagrangian system — is not defined "
+            f"for a nonholonomic system here; its step is euler_lagrange() (the discrete "
+            f"Hölder principle, or method='energy_momentum'), and its energy and momenta "
+            f"are conserved_quantities() (docs/conventions.md §10, §14)")
+
     def __repr__(self) -> str:
         return f"NonholonomicSystem({self.name!r} on {self.groupoid.name})"

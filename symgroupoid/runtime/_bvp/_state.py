@@ -307,7 +307,8 @@ class _SolverState:
         norm = float(np.max(np.abs(state.F), initial=0.0))
         return BoundaryValueDivergenceError(
             f"{self.problem.owner}: boundary-value iteration {why}; after "
-            f"{counted(self.iterations, 'iteration')} |F|∞ = {norm:.3e}, worst at configuration {state.worst}, "
+            f"{counted(self.iterations, 'iteration')} |F|∞ = {norm:.3e}, worst at "
+            f"configuration {state.worst}, "
             f"{excess:.1e} times the accepted residual max(tol/ε, {ROUNDING_FACTOR:g})·"
             f"rounding floor: not a solution",
             iterations=self.iterations, history=self.history, step=state.worst,
