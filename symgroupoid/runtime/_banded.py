@@ -86,7 +86,8 @@ def banded_inertia(rows, cols, vals, n: int) -> Inertia | None:
     """The inertia of the symmetric part (A + Aᵀ)/2 of the banded matrix A given by COO
     triplets (``n`` × ``n``), by block LDLᵀ with delayed pivots; None when a near-singular
     pivot cannot be resolved within MAX_MERGED blocks, or when the eigenvalues of a block
-    cannot be computed (entries near the largest doubles: LAPACK does not converge)."""
+    cannot be computed (entries near the largest doubles: LAPACK does not converge; or not
+    finite after an elimination, on which LAPACK ran for minutes)."""
     if n == 0:
         return Inertia(0, 0, 0)
     try:
@@ -104,6 +105,8 @@ def _inertia(rows, cols, vals, n: int) -> Inertia | None:
     positive = negative = zero = 0
     P = D[0]
     for k in range(1, nb):
+        if not np.isfinite(P).all():  # (an elimination overflowed: LAPACK may not return)
+            return None
         mu, Q = np.linalg.eigh(P)
         tiny = np.abs(mu) <= PIVOT_TOLERANCE
         Qb = Q[-b:]
@@ -121,6 +124,8 @@ def _inertia(rows, cols, vals, n: int) -> Inertia | None:
             C = np.zeros((b, P.shape[0]))
             C[:, -b:] = B[k]
             P = np.block([[P, C.T], [C, D[k]]])
+    if not np.isfinite(P).all():
+        return None
     mu = np.linalg.eigvalsh(P)
     zero += int((np.abs(mu) <= PIVOT_TOLERANCE).sum())
     positive += int((mu > PIVOT_TOLERANCE).sum())
