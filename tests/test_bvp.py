@@ -980,3 +980,31 @@ def test_a_guess_whose_residual_squares_overflow_is_refused_by_name(scale):
                                      guess=np.stack([q[:-1], q[1:]], axis=1),
                                      params={"h": 0.1, "k": 1.0})
     assert solved.arrows[0][0] == 0.1 and solved.arrows[-1][1] == 0.2
+
+
+def test_a_singular_initial_path_is_named_once(monkeypatch):
+    """A pendulum in (x, y) on x² + y² = 1 from the bottom to the top: both ends on the
+    circle, but the default path runs straight through the centre, where the constraint's
+    gradient vanishes.  The error blamed the boundary data, and said it twice (the fast
+    path's message inside the globalised one's); it names the initial path, once.  (The
+    globalised iteration is made to fail at once here, as it does at an exactly singular
+    path: its inertia computation is LAPACK's, which is not what is tested.)"""
+    # white-box: the globalised iteration replaced by its failure at the first iterate
+    from symgroupoid.runtime._bvp import _globalised
+
+    monkeypatch.setattr(_globalised, "_globalised",
+                        lambda state, *start: (_ for _ in ()).throw(state.singular()))
+    h, g = sp.symbols("h g", positive=True)
+
+    def L(a):
+        (x0, y0), (x1, y1) = a.source, a.target
+        return ((x1 - x0) ** 2 + (y1 - y0) ** 2) / (2 * h) - h * g * (y0 + y1) / 2
+
+    pendulum = sg.DiscreteSystem(sg.PairGroupoid(sg.EuclideanSpace("x y")), L,
+                                 holonomic=lambda q: [q[0] ** 2 + q[1] ** 2 - 1],
+                                 parameters=[h, g], name="planar").euler_lagrange()
+    with pytest.raises(sg.SingularJacobianError, match="at the initial path") as info:
+        sg.solve_boundary_value(pendulum, (0.0, -1.0), (0.0, 1.0), 30,
+                                params={"h": 0.05, "g": 9.81})
+    assert str(info.value).count("singular boundary-value Jacobian") == 1
+    assert "the Newton fast path ended the same way" in str(info.value)
