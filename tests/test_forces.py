@@ -291,7 +291,8 @@ def test_bad_forces_are_refused_at_construction(forces, inputs, error):
 def test_an_input_named_as_a_value_at_a_step_is_refused_as_an_input(name):
     """An input u_k would print as the value of an input u at step k; the refusal named it
     a "parameter" (the two were checked together)."""
-    with pytest.raises(InputNameError, match=rf"input '{re.escape(name)}' is written"):
+    with pytest.raises(InputNameError, match=rf"input '{re.escape(name)}' cannot be used: it is "
+                                             rf"written .*, as a value at a step is"):
         _plane_system(lambda g: ([0, 0], [0, 0]), [sp.Symbol(name, real=True)])
 
 

@@ -395,6 +395,23 @@ class NumpyWarmStart:
         self.count = min(self.count + 1, 3)
 
 
+def _newton_update(residual_jacobian: Callable, x: np.ndarray, known, p,
+                   held: TimeLayout | None = None) -> np.ndarray | None:
+    """The Newton update J⁻¹F at ``x`` (None when J is singular or not finite); with
+    ``held``, of the fixed-step equations: the time row replaced by t_{k+1} = its value."""
+    F, J = residual_jacobian(x, known, p)
+    F, J = np.array(F, dtype=float), np.array(J, dtype=float).reshape(len(x), len(x))
+    if held is not None:
+        F[held.row] = 0.0
+        J[held.row, :] = 0.0
+        J[held.row, held.unknown] = 1.0
+    status, factors = lu_factor(J)
+    if status != OK:
+        return None
+    status, d = lu_apply(factors, F)
+    return d if status == OK else None
+
+
 def hold_time(residual_jacobian: Callable, time: TimeLayout, known, p, u) -> np.ndarray:
     """As ``<prefix>_hold_time``: the guess ``u`` of a step on a time groupoid moved onto
     its fixed-step equations (seed 000 Example 6.2): Newton with t_{k+1} held, its row
@@ -407,16 +424,8 @@ def hold_time(residual_jacobian: Callable, time: TimeLayout, known, p, u) -> np.
     x = np.array(u, dtype=float)
     with np.errstate(all="ignore"):
         for _ in range(HOLD_ITERATIONS):
-            F, J = residual_jacobian(x, known, p)
-            F, J = np.array(F, dtype=float), np.array(J, dtype=float).reshape(len(x), len(x))
-            F[time.row] = 0.0
-            J[time.row, :] = 0.0
-            J[time.row, time.unknown] = 1.0
-            status, factors = lu_factor(J)
-            if status != OK:
-                return u
-            status, d = lu_apply(factors, F)
-            if status != OK:
+            d = _newton_update(residual_jacobian, x, known, p, time)
+            if d is None:
                 return u
             step = relative_norm(d, x)
             x = x - d
@@ -440,13 +449,8 @@ def settle_time(residual_jacobian: Callable, time: TimeLayout, known, p, u) -> n
                  else (last * STEP_RATIO, last / STEP_RATIO))
     with np.errstate(all="ignore"):
         for _ in range(SETTLE_ITERATIONS):
-            F, J = residual_jacobian(x, known, p)
-            F, J = np.array(F, dtype=float), np.array(J, dtype=float).reshape(len(x), len(x))
-            status, factors = lu_factor(J)
-            if status != OK:
-                return x
-            status, d = lu_apply(factors, F)
-            if status != OK:
+            d = _newton_update(residual_jacobian, x, known, p)
+            if d is None:
                 return x
             dt = d[time.unknown]
             x = x - d
