@@ -725,3 +725,18 @@ def test_a_killed_probe_s_directory_is_removed_by_the_next_probe(monkeypatch, tm
     assert (tmp_path / f"symgroupoid-openmp-{dead}-{host}-link").is_symlink()
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(
         _openmp.scratch_prefix("openmp"))], "the probe removes its own"
+
+
+def test_a_build_in_a_background_thread_does_not_fork_with_a_hook():
+    """A pre-exec hook makes Python fork, and fork runs OpenBLAS's fork handler, which
+    stops its threads: a boundary-value solve whose kernels were built in a background
+    thread left the main thread waiting in OpenBLAS's exec_blas (LAPACK's eigh) for minutes,
+    in about half the runs.  The hook (the parent-death signal) is the main thread's only."""
+    import threading
+
+    seen = []
+    worker = threading.Thread(target=lambda: seen.append(_cffi_build._child_setup()))
+    worker.start()
+    worker.join()
+    assert seen == [None]
+    assert _cffi_build._child_setup() is _cffi_build._CHILD_SETUP

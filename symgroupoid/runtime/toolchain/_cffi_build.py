@@ -164,6 +164,17 @@ def _parent_death_signal() -> Callable[[], None] | None:
 _CHILD_SETUP = _parent_death_signal()
 
 
+def _child_setup() -> Callable[[], None] | None:
+    """The pre-exec hook of a compiler run: the parent-death signal in the main thread
+    only.  A hook makes Python fork (not vfork), and fork runs the process's fork
+    handlers: OpenBLAS's stops its threads, so a build in a background thread (a
+    boundary-value solve's kernels, built while NumPy solves) left the main thread waiting
+    in OpenBLAS for minutes when its LAPACK call ran at that moment.  From another thread
+    the compiler is started without one (and, like the OpenMP probe's, is not killed with
+    a process stopped by SIGKILL)."""
+    return _CHILD_SETUP if threading.current_thread() is threading.main_thread() else None
+
+
 def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequence[str],
          meanwhile: Callable[[], None] | None = None) -> None:
     """Run compiler ``commands`` of a build at ``flags`` at the same time in ``cwd`` (and
@@ -191,7 +202,7 @@ def _run(kernel: KernelSource, commands: list[list[str]], cwd: Path, flags: Sequ
                 processes.append((command, subprocess.Popen(
                     command, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                     stderr=subprocess.STDOUT, text=True, errors="replace", env=environment,
-                    start_new_session=_OWN_GROUPS, preexec_fn=_CHILD_SETUP)))
+                    start_new_session=_OWN_GROUPS, preexec_fn=_child_setup())))
     except OSError as exc:
         stop()
         raise _failure(kernel, f"cannot run {commands[0][0]!r}: {exc}", str(exc),
