@@ -1688,22 +1688,36 @@ static int heavy_top_trusted(const heavy_top_warm_start *warm, const double *gue
 /* the most a time step may grow or shrink in one step (heavy_top_time_step_kept) */
 #define HEAVY_TOP_STEP_RATIO 2.0
 
-static void heavy_top_hold_time(const double *known, const double *p, const double *h, double *u)
-{
 #if HEAVY_TOP_TIME_ROW >= 0 && HEAVY_TOP_TIME_UNKNOWN >= 0
-    double F[HEAVY_TOP_N_EQUATIONS], J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS], x[HEAVY_TOP_N_UNKNOWNS];
+/* The Newton update d = J^-1 F at u into d (HEAVY_TOP_N_EQUATIONS doubles, as F), of the step
+ * equations or, when held, of the fixed-step equations (the time row replaced by
+ * t_{k+1} = its value); 0 when J is singular or not finite. */
+static int heavy_top_time_update(const double *known, const double *p, const double *h, const double *u, int held, double *d)
+{
+    double J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
     heavy_top_lu lu;
-    int it, i;
-    memcpy(x, u, sizeof x);
-    for (it = 0; it < HEAVY_TOP_HOLD_ITERATIONS; ++it) {
-        double step;
-        HEAVY_TOP_JACOBIAN(x, known, p, h, F, J);
-        F[HEAVY_TOP_TIME_ROW] = 0.0;
+    int i;
+    HEAVY_TOP_JACOBIAN(u, known, p, h, d, J);
+    if (held) {
+        d[HEAVY_TOP_TIME_ROW] = 0.0;
         for (i = 0; i < HEAVY_TOP_N_UNKNOWNS; ++i) {
             J[HEAVY_TOP_TIME_ROW * HEAVY_TOP_N_UNKNOWNS + i] = 0.0;
         }
         J[HEAVY_TOP_TIME_ROW * HEAVY_TOP_N_UNKNOWNS + HEAVY_TOP_TIME_UNKNOWN] = 1.0;
-        if (heavy_top_lu_factor(J, &lu) != HEAVY_TOP_OK || heavy_top_lu_apply(&lu, F) != HEAVY_TOP_OK) {
+    }
+    return heavy_top_lu_factor(J, &lu) == HEAVY_TOP_OK && heavy_top_lu_apply(&lu, d) == HEAVY_TOP_OK;
+}
+#endif
+
+static void heavy_top_hold_time(const double *known, const double *p, const double *h, double *u)
+{
+#if HEAVY_TOP_TIME_ROW >= 0 && HEAVY_TOP_TIME_UNKNOWN >= 0
+    double F[HEAVY_TOP_N_EQUATIONS], x[HEAVY_TOP_N_UNKNOWNS];
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < HEAVY_TOP_HOLD_ITERATIONS; ++it) {
+        double step;
+        if (!heavy_top_time_update(known, p, h, x, 1, F)) {
             return; /* singular or not finite: the guess as it was */
         }
         step = heavy_top_relative_norm(F, x);
@@ -1743,13 +1757,11 @@ static void heavy_top_settle_time(const double *known, const double *p, const do
     const double last = known[HEAVY_TOP_TIME_KNOWN] - known[HEAVY_TOP_TIME_BEFORE];
     const double low = last > 0.0 ? last / HEAVY_TOP_STEP_RATIO : last * HEAVY_TOP_STEP_RATIO;
     const double high = last > 0.0 ? last * HEAVY_TOP_STEP_RATIO : last / HEAVY_TOP_STEP_RATIO;
-    double F[HEAVY_TOP_N_EQUATIONS], J[HEAVY_TOP_N_EQUATIONS * HEAVY_TOP_N_UNKNOWNS];
-    heavy_top_lu lu;
+    double F[HEAVY_TOP_N_EQUATIONS];
     int it, i;
     for (it = 0; it < HEAVY_TOP_SETTLE_ITERATIONS; ++it) {
         double dt, t;
-        HEAVY_TOP_JACOBIAN(u, known, p, h, F, J);
-        if (heavy_top_lu_factor(J, &lu) != HEAVY_TOP_OK || heavy_top_lu_apply(&lu, F) != HEAVY_TOP_OK) {
+        if (!heavy_top_time_update(known, p, h, u, 0, F)) {
             return; /* singular or not finite: u as it is */
         }
         dt = F[HEAVY_TOP_TIME_UNKNOWN];

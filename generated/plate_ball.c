@@ -1957,22 +1957,36 @@ static int plate_ball_trusted(const plate_ball_warm_start *warm, const double *g
 /* the most a time step may grow or shrink in one step (plate_ball_time_step_kept) */
 #define PLATE_BALL_STEP_RATIO 2.0
 
-static void plate_ball_hold_time(const double *known, const double *p, const double *h, double *u)
-{
 #if PLATE_BALL_TIME_ROW >= 0 && PLATE_BALL_TIME_UNKNOWN >= 0
-    double F[PLATE_BALL_N_EQUATIONS], J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS], x[PLATE_BALL_N_UNKNOWNS];
+/* The Newton update d = J^-1 F at u into d (PLATE_BALL_N_EQUATIONS doubles, as F), of the step
+ * equations or, when held, of the fixed-step equations (the time row replaced by
+ * t_{k+1} = its value); 0 when J is singular or not finite. */
+static int plate_ball_time_update(const double *known, const double *p, const double *h, const double *u, int held, double *d)
+{
+    double J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS];
     plate_ball_lu lu;
-    int it, i;
-    memcpy(x, u, sizeof x);
-    for (it = 0; it < PLATE_BALL_HOLD_ITERATIONS; ++it) {
-        double step;
-        PLATE_BALL_JACOBIAN(x, known, p, h, F, J);
-        F[PLATE_BALL_TIME_ROW] = 0.0;
+    int i;
+    PLATE_BALL_JACOBIAN(u, known, p, h, d, J);
+    if (held) {
+        d[PLATE_BALL_TIME_ROW] = 0.0;
         for (i = 0; i < PLATE_BALL_N_UNKNOWNS; ++i) {
             J[PLATE_BALL_TIME_ROW * PLATE_BALL_N_UNKNOWNS + i] = 0.0;
         }
         J[PLATE_BALL_TIME_ROW * PLATE_BALL_N_UNKNOWNS + PLATE_BALL_TIME_UNKNOWN] = 1.0;
-        if (plate_ball_lu_factor(J, &lu) != PLATE_BALL_OK || plate_ball_lu_apply(&lu, F) != PLATE_BALL_OK) {
+    }
+    return plate_ball_lu_factor(J, &lu) == PLATE_BALL_OK && plate_ball_lu_apply(&lu, d) == PLATE_BALL_OK;
+}
+#endif
+
+static void plate_ball_hold_time(const double *known, const double *p, const double *h, double *u)
+{
+#if PLATE_BALL_TIME_ROW >= 0 && PLATE_BALL_TIME_UNKNOWN >= 0
+    double F[PLATE_BALL_N_EQUATIONS], x[PLATE_BALL_N_UNKNOWNS];
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < PLATE_BALL_HOLD_ITERATIONS; ++it) {
+        double step;
+        if (!plate_ball_time_update(known, p, h, x, 1, F)) {
             return; /* singular or not finite: the guess as it was */
         }
         step = plate_ball_relative_norm(F, x);
@@ -2012,13 +2026,11 @@ static void plate_ball_settle_time(const double *known, const double *p, const d
     const double last = known[PLATE_BALL_TIME_KNOWN] - known[PLATE_BALL_TIME_BEFORE];
     const double low = last > 0.0 ? last / PLATE_BALL_STEP_RATIO : last * PLATE_BALL_STEP_RATIO;
     const double high = last > 0.0 ? last * PLATE_BALL_STEP_RATIO : last / PLATE_BALL_STEP_RATIO;
-    double F[PLATE_BALL_N_EQUATIONS], J[PLATE_BALL_N_EQUATIONS * PLATE_BALL_N_UNKNOWNS];
-    plate_ball_lu lu;
+    double F[PLATE_BALL_N_EQUATIONS];
     int it, i;
     for (it = 0; it < PLATE_BALL_SETTLE_ITERATIONS; ++it) {
         double dt, t;
-        PLATE_BALL_JACOBIAN(u, known, p, h, F, J);
-        if (plate_ball_lu_factor(J, &lu) != PLATE_BALL_OK || plate_ball_lu_apply(&lu, F) != PLATE_BALL_OK) {
+        if (!plate_ball_time_update(known, p, h, u, 0, F)) {
             return; /* singular or not finite: u as it is */
         }
         dt = F[PLATE_BALL_TIME_UNKNOWN];

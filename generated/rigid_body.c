@@ -1675,22 +1675,36 @@ static int rigid_body_trusted(const rigid_body_warm_start *warm, const double *g
 /* the most a time step may grow or shrink in one step (rigid_body_time_step_kept) */
 #define RIGID_BODY_STEP_RATIO 2.0
 
-static void rigid_body_hold_time(const double *known, const double *p, const double *h, double *u)
-{
 #if RIGID_BODY_TIME_ROW >= 0 && RIGID_BODY_TIME_UNKNOWN >= 0
-    double F[RIGID_BODY_N_EQUATIONS], J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS], x[RIGID_BODY_N_UNKNOWNS];
+/* The Newton update d = J^-1 F at u into d (RIGID_BODY_N_EQUATIONS doubles, as F), of the step
+ * equations or, when held, of the fixed-step equations (the time row replaced by
+ * t_{k+1} = its value); 0 when J is singular or not finite. */
+static int rigid_body_time_update(const double *known, const double *p, const double *h, const double *u, int held, double *d)
+{
+    double J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS];
     rigid_body_lu lu;
-    int it, i;
-    memcpy(x, u, sizeof x);
-    for (it = 0; it < RIGID_BODY_HOLD_ITERATIONS; ++it) {
-        double step;
-        RIGID_BODY_JACOBIAN(x, known, p, h, F, J);
-        F[RIGID_BODY_TIME_ROW] = 0.0;
+    int i;
+    RIGID_BODY_JACOBIAN(u, known, p, h, d, J);
+    if (held) {
+        d[RIGID_BODY_TIME_ROW] = 0.0;
         for (i = 0; i < RIGID_BODY_N_UNKNOWNS; ++i) {
             J[RIGID_BODY_TIME_ROW * RIGID_BODY_N_UNKNOWNS + i] = 0.0;
         }
         J[RIGID_BODY_TIME_ROW * RIGID_BODY_N_UNKNOWNS + RIGID_BODY_TIME_UNKNOWN] = 1.0;
-        if (rigid_body_lu_factor(J, &lu) != RIGID_BODY_OK || rigid_body_lu_apply(&lu, F) != RIGID_BODY_OK) {
+    }
+    return rigid_body_lu_factor(J, &lu) == RIGID_BODY_OK && rigid_body_lu_apply(&lu, d) == RIGID_BODY_OK;
+}
+#endif
+
+static void rigid_body_hold_time(const double *known, const double *p, const double *h, double *u)
+{
+#if RIGID_BODY_TIME_ROW >= 0 && RIGID_BODY_TIME_UNKNOWN >= 0
+    double F[RIGID_BODY_N_EQUATIONS], x[RIGID_BODY_N_UNKNOWNS];
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < RIGID_BODY_HOLD_ITERATIONS; ++it) {
+        double step;
+        if (!rigid_body_time_update(known, p, h, x, 1, F)) {
             return; /* singular or not finite: the guess as it was */
         }
         step = rigid_body_relative_norm(F, x);
@@ -1730,13 +1744,11 @@ static void rigid_body_settle_time(const double *known, const double *p, const d
     const double last = known[RIGID_BODY_TIME_KNOWN] - known[RIGID_BODY_TIME_BEFORE];
     const double low = last > 0.0 ? last / RIGID_BODY_STEP_RATIO : last * RIGID_BODY_STEP_RATIO;
     const double high = last > 0.0 ? last * RIGID_BODY_STEP_RATIO : last / RIGID_BODY_STEP_RATIO;
-    double F[RIGID_BODY_N_EQUATIONS], J[RIGID_BODY_N_EQUATIONS * RIGID_BODY_N_UNKNOWNS];
-    rigid_body_lu lu;
+    double F[RIGID_BODY_N_EQUATIONS];
     int it, i;
     for (it = 0; it < RIGID_BODY_SETTLE_ITERATIONS; ++it) {
         double dt, t;
-        RIGID_BODY_JACOBIAN(u, known, p, h, F, J);
-        if (rigid_body_lu_factor(J, &lu) != RIGID_BODY_OK || rigid_body_lu_apply(&lu, F) != RIGID_BODY_OK) {
+        if (!rigid_body_time_update(known, p, h, u, 0, F)) {
             return; /* singular or not finite: u as it is */
         }
         dt = F[RIGID_BODY_TIME_UNKNOWN];

@@ -1817,22 +1817,36 @@ static int satellite_wheel_trusted(const satellite_wheel_warm_start *warm, const
 /* the most a time step may grow or shrink in one step (satellite_wheel_time_step_kept) */
 #define SATELLITE_WHEEL_STEP_RATIO 2.0
 
-static void satellite_wheel_hold_time(const double *known, const double *p, const double *h, double *u)
-{
 #if SATELLITE_WHEEL_TIME_ROW >= 0 && SATELLITE_WHEEL_TIME_UNKNOWN >= 0
-    double F[SATELLITE_WHEEL_N_EQUATIONS], J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS], x[SATELLITE_WHEEL_N_UNKNOWNS];
+/* The Newton update d = J^-1 F at u into d (SATELLITE_WHEEL_N_EQUATIONS doubles, as F), of the step
+ * equations or, when held, of the fixed-step equations (the time row replaced by
+ * t_{k+1} = its value); 0 when J is singular or not finite. */
+static int satellite_wheel_time_update(const double *known, const double *p, const double *h, const double *u, int held, double *d)
+{
+    double J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS];
     satellite_wheel_lu lu;
-    int it, i;
-    memcpy(x, u, sizeof x);
-    for (it = 0; it < SATELLITE_WHEEL_HOLD_ITERATIONS; ++it) {
-        double step;
-        SATELLITE_WHEEL_JACOBIAN(x, known, p, h, F, J);
-        F[SATELLITE_WHEEL_TIME_ROW] = 0.0;
+    int i;
+    SATELLITE_WHEEL_JACOBIAN(u, known, p, h, d, J);
+    if (held) {
+        d[SATELLITE_WHEEL_TIME_ROW] = 0.0;
         for (i = 0; i < SATELLITE_WHEEL_N_UNKNOWNS; ++i) {
             J[SATELLITE_WHEEL_TIME_ROW * SATELLITE_WHEEL_N_UNKNOWNS + i] = 0.0;
         }
         J[SATELLITE_WHEEL_TIME_ROW * SATELLITE_WHEEL_N_UNKNOWNS + SATELLITE_WHEEL_TIME_UNKNOWN] = 1.0;
-        if (satellite_wheel_lu_factor(J, &lu) != SATELLITE_WHEEL_OK || satellite_wheel_lu_apply(&lu, F) != SATELLITE_WHEEL_OK) {
+    }
+    return satellite_wheel_lu_factor(J, &lu) == SATELLITE_WHEEL_OK && satellite_wheel_lu_apply(&lu, d) == SATELLITE_WHEEL_OK;
+}
+#endif
+
+static void satellite_wheel_hold_time(const double *known, const double *p, const double *h, double *u)
+{
+#if SATELLITE_WHEEL_TIME_ROW >= 0 && SATELLITE_WHEEL_TIME_UNKNOWN >= 0
+    double F[SATELLITE_WHEEL_N_EQUATIONS], x[SATELLITE_WHEEL_N_UNKNOWNS];
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < SATELLITE_WHEEL_HOLD_ITERATIONS; ++it) {
+        double step;
+        if (!satellite_wheel_time_update(known, p, h, x, 1, F)) {
             return; /* singular or not finite: the guess as it was */
         }
         step = satellite_wheel_relative_norm(F, x);
@@ -1872,13 +1886,11 @@ static void satellite_wheel_settle_time(const double *known, const double *p, co
     const double last = known[SATELLITE_WHEEL_TIME_KNOWN] - known[SATELLITE_WHEEL_TIME_BEFORE];
     const double low = last > 0.0 ? last / SATELLITE_WHEEL_STEP_RATIO : last * SATELLITE_WHEEL_STEP_RATIO;
     const double high = last > 0.0 ? last * SATELLITE_WHEEL_STEP_RATIO : last / SATELLITE_WHEEL_STEP_RATIO;
-    double F[SATELLITE_WHEEL_N_EQUATIONS], J[SATELLITE_WHEEL_N_EQUATIONS * SATELLITE_WHEEL_N_UNKNOWNS];
-    satellite_wheel_lu lu;
+    double F[SATELLITE_WHEEL_N_EQUATIONS];
     int it, i;
     for (it = 0; it < SATELLITE_WHEEL_SETTLE_ITERATIONS; ++it) {
         double dt, t;
-        SATELLITE_WHEEL_JACOBIAN(u, known, p, h, F, J);
-        if (satellite_wheel_lu_factor(J, &lu) != SATELLITE_WHEEL_OK || satellite_wheel_lu_apply(&lu, F) != SATELLITE_WHEEL_OK) {
+        if (!satellite_wheel_time_update(known, p, h, u, 0, F)) {
             return; /* singular or not finite: u as it is */
         }
         dt = F[SATELLITE_WHEEL_TIME_UNKNOWN];

@@ -471,7 +471,8 @@ def checked_call(func, owner: str | None = None):
                 pass
             else:
                 raise  # the arguments bind: raised inside func
-            names = [p.name for p in signature.parameters.values() if p.name != "self"
+            names = [p.name for p in signature.parameters.values()
+                     if p.name not in ("self", "cls")
                      and p.kind not in (inspect.Parameter.VAR_POSITIONAL,
                                         inspect.Parameter.VAR_KEYWORD)]
             raise InputNameError(f"{label}: {exc}; its arguments are "

@@ -228,6 +228,11 @@ def is_difference_name(name: str) -> bool:
 _STEP_INDEXED = re.compile(r"_\{?[kj]([+-]\d+)?\}?$")
 
 
+def reads_as_step_value(tex: str) -> bool:
+    """Whether a name printed ``tex`` reads as a value at a step (x_{k}, x_{k+1}, x_{j})."""
+    return _STEP_INDEXED.search(tex) is not None
+
+
 def unprintable_name(name: str, words: bool = True) -> str | None:
     """Why ``name`` cannot name a coordinate, a part or an input in the printed equations,
     or None: it must start with a letter (or be a LaTeX command such as ``\\theta``: a name
@@ -262,7 +267,7 @@ def unprintable_name(name: str, words: bool = True) -> str | None:
     misread = misread_name(name, words)
     if misread is not None:
         return f"it {misread}"
-    if _STEP_INDEXED.search(latex_name(name)):
+    if reads_as_step_value(latex_name(name)):
         return (f"it is written {latex_name(name)}, as a value at a step is: its values would "
                 f"print ({latex_name(name)})_{{k+1}}")
     if is_difference_name(name):

@@ -396,9 +396,11 @@ def spherical_chain(n: int, forced: bool = False) -> DiscreteSystem:
 
 
 def _matrix3(value, name: str, owner: str) -> sp.Matrix:
-    """``value`` as a 3 × 3 SymPy matrix (a SymPy or NumPy matrix, or nested lists), or a
-    :class:`ShapeError`."""
-    if isinstance(value, (sp.MatrixBase, np.ndarray, list, tuple)):
+    """``value`` as a 3 × 3 SymPy matrix (a SymPy matrix or matrix expression as it is; a
+    NumPy matrix or nested lists converted), or a :class:`ShapeError`."""
+    if isinstance(value, (sp.MatrixBase, sp.MatrixExpr)) and value.shape == (3, 3):
+        return value
+    if isinstance(value, (np.ndarray, list, tuple)):
         try:
             matrix = sp.Matrix(value)
         except (ValueError, TypeError, sp.SympifyError, sp.matrices.ShapeError):

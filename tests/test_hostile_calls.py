@@ -68,13 +68,3 @@ def test_the_methods_of_a_run_name_their_arguments():
         assert hint in str(info.value)
     assert step.compile(backend="numpy", extrapolate=False).options.extrapolate is False
 
-
-def test_a_type_error_inside_is_not_renamed():
-    """Only the binding's TypeError becomes an InputNameError: one raised inside the
-    function, with arguments that bind, passes as it is (here from a user's Lagrangian,
-    which the library reports as a CallableError naming the Lagrangian)."""
-    def L(g):
-        return len(5)  # a TypeError inside the user's code
-
-    with pytest.raises(sg.CallableError, match="Lagrangian"):
-        sg.DiscreteSystem(sg.SO3("W"), L).euler_lagrange()

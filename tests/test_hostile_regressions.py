@@ -965,3 +965,22 @@ def test_a_nonholonomic_system_refuses_what_it_does_not_have():
                  lambda: knife.reduce(None)):
         with pytest.raises(sg.UnsupportedFeatureError, match="conserved_quantities"):
             call()
+
+
+def test_a_type_error_raised_inside_a_checked_call_passes_as_it_is():
+    """checked_call renames only the binding's TypeError: one raised inside the function,
+    whose arguments bind, passes unchanged (else a defect inside would read as the caller's
+    misspelled keyword)."""
+    # white-box: the wrapper itself, on a function that fails inside
+    from symgroupoid._arguments import checked_call
+
+    def inside(a, *, b=1):
+        return len(a) + b
+
+    checked = checked_call(inside, "inside")
+    assert checked("xy", b=2) == 4
+    with pytest.raises(TypeError, match="has no len") as info:
+        checked(5)
+    assert not isinstance(info.value, sg.SymgroupoidError)
+    with pytest.raises(sg.InputNameError, match=r"^inside: .*'c'; its arguments are a, b$"):
+        checked("xy", c=3)

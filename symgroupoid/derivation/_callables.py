@@ -26,6 +26,7 @@ from .._symbols import (
     latex_name,
     misread_name,
     reads_as_power,
+    reads_as_step_value,
     scalar_expression,
     unspelled_character,
 )
@@ -390,12 +391,10 @@ def check_parameters(system_name: str, what: str, parameters: Sequence,
 
 
 #: a subscript that reads as a step index: x_{k}, x_{k+1}, (x)_{k-2}
-_STEP_SUBSCRIPT = re.compile(r"_\{?k([+-]\d+)?\}?$")
-
-
 def step_subscript(tex: str) -> bool:
-    """Whether a name printed ``tex`` reads as a value at a step (x_k, x_{k+1})."""
-    return _STEP_SUBSCRIPT.search(tex) is not None
+    """Whether a name printed ``tex`` reads as a value at a step (x_k, x_{k+1}, x_j:
+    :func:`~symgroupoid._symbols.reads_as_step_value`)."""
+    return reads_as_step_value(tex)
 
 
 def check_parameters_unlike_coordinates(system_name: str, groupoid, parameters: Sequence,

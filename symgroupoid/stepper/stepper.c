@@ -1308,22 +1308,36 @@ static int SG_NAME(trusted)(const SG_NAME(warm_start) *warm, const double *guess
 /* the most a time step may grow or shrink in one step (SG_NAME(time_step_kept)) */
 #define SG_STEP_RATIO 2.0
 
-static void SG_NAME(hold_time)(const double *known, const double *p, const double *h, double *u)
-{
 #if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
-    double F[SG_N_EQUATIONS], J[SG_N_EQUATIONS * SG_N_UNKNOWNS], x[SG_N_UNKNOWNS];
+/* The Newton update d = J^-1 F at u into d (SG_N_EQUATIONS doubles, as F), of the step
+ * equations or, when held, of the fixed-step equations (the time row replaced by
+ * t_{k+1} = its value); 0 when J is singular or not finite. */
+static int SG_NAME(time_update)(const double *known, const double *p, const double *h, const double *u, int held, double *d)
+{
+    double J[SG_N_EQUATIONS * SG_N_UNKNOWNS];
     SG_NAME(lu) lu;
-    int it, i;
-    memcpy(x, u, sizeof x);
-    for (it = 0; it < SG_HOLD_ITERATIONS; ++it) {
-        double step;
-        SG_JACOBIAN(x, known, p, h, F, J);
-        F[SG_TIME_ROW] = 0.0;
+    int i;
+    SG_JACOBIAN(u, known, p, h, d, J);
+    if (held) {
+        d[SG_TIME_ROW] = 0.0;
         for (i = 0; i < SG_N_UNKNOWNS; ++i) {
             J[SG_TIME_ROW * SG_N_UNKNOWNS + i] = 0.0;
         }
         J[SG_TIME_ROW * SG_N_UNKNOWNS + SG_TIME_UNKNOWN] = 1.0;
-        if (SG_NAME(lu_factor)(J, &lu) != SG_OK || SG_NAME(lu_apply)(&lu, F) != SG_OK) {
+    }
+    return SG_NAME(lu_factor)(J, &lu) == SG_OK && SG_NAME(lu_apply)(&lu, d) == SG_OK;
+}
+#endif
+
+static void SG_NAME(hold_time)(const double *known, const double *p, const double *h, double *u)
+{
+#if SG_TIME_ROW >= 0 && SG_TIME_UNKNOWN >= 0
+    double F[SG_N_EQUATIONS], x[SG_N_UNKNOWNS];
+    int it, i;
+    memcpy(x, u, sizeof x);
+    for (it = 0; it < SG_HOLD_ITERATIONS; ++it) {
+        double step;
+        if (!SG_NAME(time_update)(known, p, h, x, 1, F)) {
             return; /* singular or not finite: the guess as it was */
         }
         step = SG_NAME(relative_norm)(F, x);
@@ -1363,13 +1377,11 @@ static void SG_NAME(settle_time)(const double *known, const double *p, const dou
     const double last = known[SG_TIME_KNOWN] - known[SG_TIME_BEFORE];
     const double low = last > 0.0 ? last / SG_STEP_RATIO : last * SG_STEP_RATIO;
     const double high = last > 0.0 ? last * SG_STEP_RATIO : last / SG_STEP_RATIO;
-    double F[SG_N_EQUATIONS], J[SG_N_EQUATIONS * SG_N_UNKNOWNS];
-    SG_NAME(lu) lu;
+    double F[SG_N_EQUATIONS];
     int it, i;
     for (it = 0; it < SG_SETTLE_ITERATIONS; ++it) {
         double dt, t;
-        SG_JACOBIAN(u, known, p, h, F, J);
-        if (SG_NAME(lu_factor)(J, &lu) != SG_OK || SG_NAME(lu_apply)(&lu, F) != SG_OK) {
+        if (!SG_NAME(time_update)(known, p, h, u, 0, F)) {
             return; /* singular or not finite: u as it is */
         }
         dt = F[SG_TIME_UNKNOWN];
